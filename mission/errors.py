@@ -1,0 +1,25 @@
+"""One exception type for bad user input, so every CLI can turn it into a one-line error and exit code 2."""
+
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Bad input from a user (file, row, field or argument): reported as one line, exit code 2.
+
+    The message should name where the problem is (file, row, column or key) and what was expected.
+    """
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, source: str | None = None, row: int | None = None,
+                 field: str | None = None) -> None:
+        where = []
+        if source:
+            where.append(str(source))
+        if row is not None:
+            where.append(f"row {row}")
+        if field:
+            where.append(f"field '{field}'")
+        prefix = ", ".join(where)
+        super().__init__(f"{prefix}: {message}" if prefix else message)
+        self.source, self.row, self.field = source, row, field

@@ -1,0 +1,268 @@
+"""The flight-log format: one CSV per flight plus a JSON sidecar, written and read only here.
+
+CSV columns (SPEC / issue 2): ``t_s, lat_deg, lon_deg, alt_m, rel_alt_m, roll_deg, pitch_deg, yaw_deg,
+rss_dbm``.  Attitude may be empty (a receiver-only log).  Extra columns are kept, missing required ones
+are refused.  The sidecar ``<name>.json`` beside the CSV holds the mission origin, the RSS source
+(simulated: model and seed; or a real receiver, whose dB are not calibrated dBm), the software version and,
+for simulated flights, the true transmitter position.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mission import __version__
+from mission.errors import InputError
+from mission.geo import Origin
+
+COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
+REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
+OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
+
+
+def sidecar_path(csv_path: str | Path) -> Path:
+    """The JSON sidecar that belongs to a flight-log CSV."""
+    return Path(csv_path).with_suffix(".json")
+
+
+@dataclass
+class FlightLog:
+    """A flight log in memory: column arrays (float64, NaN where empty) and the sidecar metadata."""
+
+    columns: dict[str, np.ndarray]
+    meta: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    def __len__(self) -> int:
+        return len(self.columns["t_s"])
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    @property
+    def origin(self) -> Origin:
+        """The mission origin from the sidecar (the first sample's ground if none is recorded)."""
+        if "origin" in self.meta:
+            return Origin.from_dict(self.meta["origin"])
+        ground = float(self["alt_m"][0] - self["rel_alt_m"][0])
+        return Origin(float(self["lat_deg"][0]), float(self["lon_deg"][0]), ground)
+
+    def enu(self, origin: Origin | None = None) -> np.ndarray:
+        """UAV positions (N, 3) in the local ENU frame; z is the height above the origin's ground."""
+        o = origin or self.origin
+        return o.to_enu(self["lat_deg"], self["lon_deg"], self["alt_m"])
+
+    @property
+    def attitude_rad(self) -> np.ndarray | None:
+        """(N, 3) roll, pitch, yaw in radians, or None when the log has no attitude."""
+        att = np.stack([self[c] for c in OPTIONAL], axis=-1)
+        if np.all(np.isnan(att)):
+            return None
+        return np.deg2rad(att)
+
+    @property
+    def truth_enu(self) -> np.ndarray | None:
+        """True transmitter position (3,) in ENU metres when the sidecar knows it."""
+        tx = self.meta.get("truth")
+        if not tx:
+            return None
+        if "lat_deg" in tx:
+            o = self.origin
+            return o.to_enu(tx["lat_deg"], tx["lon_deg"], o.alt_m + float(tx.get("height_m", 0.0)))
+        return np.array([tx["x_m"], tx["y_m"], tx.get("z_m", 0.0)], dtype=float)
+
+    def select(self, mask: np.ndarray) -> FlightLog:
+        """A new log holding only the rows where ``mask`` is true."""
+        return FlightLog({k: v[mask] for k, v in self.columns.items()}, dict(self.meta), self.path)
+
+
+def make_meta(origin: Origin, rss_source: dict, truth: dict | None = None, **extra) -> dict:
+    """Sidecar metadata in the project's layout (``rss_source`` e.g. {"kind": "sim", "model": "e2r", "seed": 1})."""
+    meta = {"format": "rfsl-flight-log/1", "software_version": __version__, "origin": origin.to_dict(),
+            "rss_source": rss_source}
+    if truth is not None:
+        meta["truth"] = truth
+    meta.update(extra)
+    return meta
+
+
+def _fmt(a: np.ndarray, digits: int) -> np.ndarray:
+    s = np.char.mod(f"%.{digits}f", a)
+    return np.where(np.isnan(a), "", s)
+
+
+_DIGITS = {"t_s": 4, "lat_deg": 9, "lon_deg": 9, "alt_m": 3, "rel_alt_m": 3, "roll_deg": 3,
+           "pitch_deg": 3, "yaw_deg": 3, "rss_dbm": 4}
+
+
+def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
+    """CSV text (no header) for column arrays, vectorised; NaN becomes an empty field."""
+    n = len(columns["t_s"])
+    if n == 0:
+        return ""
+    cols = []
+    for c in header:
+        v = columns.get(c)
+        v = np.full(n, np.nan) if v is None else np.asarray(v, dtype=float)
+        cols.append(_fmt(v, _DIGITS.get(c, 6)))
+    lines = cols[0]
+    for c in cols[1:]:
+        lines = np.char.add(np.char.add(lines, ","), c)
+    return "\n".join(lines.tolist()) + "\n"
+
+
+class FlightLogWriter:
+    """Appends rows to a flight log and flushes them to disk, so a crash loses at most the unflushed rows.
+
+    The sidecar is written when the writer opens (so a log is never without its metadata) and rewritten
+    by ``close`` (with ``meta_updates`` such as the end status).
+    """
+
+    def __init__(self, path: str | Path, meta: dict, extra_columns: tuple[str, ...] = ()) -> None:
+        self.path = Path(path)
+        if self.path.exists():
+            raise InputError("refusing to overwrite an existing flight log", source=str(self.path))
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.header = COLUMNS + tuple(extra_columns)
+        self.meta = dict(meta)
+        self.rows = 0
+        self._f = open(self.path, "w", newline="")
+        self._f.write(",".join(self.header) + "\n")
+        self._write_sidecar()
+        self.flush()
+
+    def _write_sidecar(self) -> None:
+        tmp = sidecar_path(self.path).with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(self.meta, indent=2, default=float))
+        os.replace(tmp, sidecar_path(self.path))
+
+    def append(self, columns: dict[str, np.ndarray]) -> None:
+        """Append rows given as column arrays (missing optional columns are written empty)."""
+        text = format_rows(columns, self.header)
+        self._f.write(text)
+        self.rows += len(columns["t_s"])
+
+    def flush(self) -> None:
+        self._f.flush()
+        os.fsync(self._f.fileno())
+
+    def close(self, **meta_updates) -> None:
+        if self._f.closed:
+            return
+        self.flush()
+        self._f.close()
+        self.meta.update(meta_updates)
+        self.meta["rows"] = self.rows
+        self._write_sidecar()
+
+    def __enter__(self) -> FlightLogWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict) -> Path:
+    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator."""
+    with FlightLogWriter(path, meta) as w:
+        w.append(columns)
+    return Path(path)
+
+
+def _parse_column(values: list[str], name: str, source: str, allow_empty: bool) -> np.ndarray:
+    arr = np.array([v.strip() for v in values], dtype=object)
+    empty = arr == ""
+    if not allow_empty and empty.any():
+        row = int(np.argmax(empty)) + 2
+        raise InputError("empty value in a required column", source=source, row=row, field=name)
+    arr[empty] = "nan"
+    try:
+        out = arr.astype(float)
+    except ValueError:
+        for i, v in enumerate(arr):  # error path only: find the offending row
+            try:
+                float(v)
+            except ValueError:
+                raise InputError(f"not a number: {v!r}", source=source, row=i + 2, field=name) from None
+        raise
+    if not allow_empty and np.isnan(out).any():
+        row = int(np.argmax(np.isnan(out))) + 2
+        raise InputError("NaN in a required column", source=source, row=row, field=name)
+    if np.isinf(out).any():
+        row = int(np.argmax(np.isinf(out))) + 2
+        raise InputError("infinite value", source=source, row=row, field=name)
+    return out
+
+
+def read_flight_log(path: str | Path) -> FlightLog:
+    """Read and validate a flight log; any problem is an ``InputError`` naming the file, row and column.
+
+    Rows are numbered as lines of the file (the header is line 1).
+    """
+    path = Path(path)
+    src = str(path)
+    if not path.exists():
+        raise InputError("no such flight log", source=src)
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError:
+        raise InputError("not a text CSV file", source=src) from None
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise InputError("empty file (no header)", source=src) from None
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        raise InputError(f"missing required column(s) {', '.join(missing)}; header is {','.join(header)}",
+                         source=src)
+    rows = [r for r in reader if r]
+    if not rows:
+        raise InputError("no data rows", source=src)
+    width = len(header)
+    for i, r in enumerate(rows):
+        if len(r) != width:
+            raise InputError(f"expected {width} fields, found {len(r)}", source=src, row=i + 2)
+    cols_text = list(zip(*rows, strict=True))
+    columns: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        allow_empty = name not in REQUIRED
+        try:
+            columns[name] = _parse_column(list(cols_text[j]), name, src, allow_empty)
+        except InputError:
+            if name in COLUMNS:
+                raise
+            columns[name] = np.array(cols_text[j], dtype=object)  # extra non-numeric column: keep as text
+    for c in OPTIONAL:
+        columns.setdefault(c, np.full(len(rows), np.nan))
+    t = columns["t_s"]
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InputError(f"time is not increasing ({t[i - 1]} then {t[i]})", source=src, row=i + 2, field="t_s")
+    lat, lon = columns["lat_deg"], columns["lon_deg"]
+    for name, arr, lim in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
+        badv = np.flatnonzero(np.abs(arr) > lim)
+        if badv.size:
+            raise InputError(f"{arr[badv[0]]} is outside +-{lim} degrees (wrong units?)", source=src,
+                             row=int(badv[0]) + 2, field=name)
+    for name in ("roll_deg", "pitch_deg"):
+        badv = np.flatnonzero(np.abs(np.nan_to_num(columns[name])) > 180.0)
+        if badv.size:
+            raise InputError(f"{columns[name][badv[0]]} is outside +-180 degrees (radians given?)", source=src,
+                             row=int(badv[0]) + 2, field=name)
+    meta: dict = {}
+    sc = sidecar_path(path)
+    if sc.exists():
+        try:
+            meta = json.loads(sc.read_text())
+        except json.JSONDecodeError as e:
+            raise InputError(f"sidecar is not valid JSON ({e.msg} at line {e.lineno})", source=str(sc)) from None
+    return FlightLog(columns, meta, path)
