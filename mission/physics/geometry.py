@@ -1,0 +1,88 @@
+"""Frames and line-of-sight angles (SPEC section 1), shared by physics, simulation and the gap tool.
+
+Local frame ENU (x east, y north, z up). Attitude = roll, pitch, yaw of body FRD w.r.t. NED (MAVLink):
+``R_nb = Rz(yaw) Ry(pitch) Rx(roll)`` maps body vectors to NED. A vector ``u`` (NED) seen from the body is
+``u_b = R_nb^T u``; ``az_b = atan2(u_b.y, u_b.x)`` in [0, 2 pi) (0 = nose, positive to the right) and
+``dep_b = asin(u_b.z / |u|)`` (positive below the body plane). The paper's ``R = R_r R_p R_y`` applied to a
+pointing vector (eqs. 3-6) is the same idea; the project uses this physically consistent transform.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+TWO_PI = 2.0 * np.pi
+
+
+def enu_to_ned(v_enu: ArrayLike) -> NDArray[np.float64]:
+    """(e, n, u) -> (n, e, d) on the last axis."""
+    v = np.asarray(v_enu, dtype=float)
+    return np.stack([v[..., 1], v[..., 0], -v[..., 2]], axis=-1)
+
+
+def as_attitude(attitude_rad: ArrayLike | None, n: int) -> NDArray[np.float64]:
+    """Attitude as an (n, 3) array of roll, pitch, yaw (rad); None means level, nose north."""
+    if attitude_rad is None:
+        return np.zeros((n, 3))
+    att = np.asarray(attitude_rad, dtype=float)
+    if att.ndim == 1 and att.shape == (3,):
+        att = np.broadcast_to(att, (n, 3))
+    if att.shape != (n, 3):
+        raise ValueError(f"attitude must have shape ({n}, 3) (roll, pitch, yaw rad), got {att.shape}")
+    return att
+
+
+def rotation_nb(attitude_rad: ArrayLike) -> NDArray[np.float64]:
+    """R_nb = Rz(yaw) Ry(pitch) Rx(roll), shape (..., 3, 3): body FRD -> NED."""
+    att = np.asarray(attitude_rad, dtype=float)
+    cr, sr = np.cos(att[..., 0]), np.sin(att[..., 0])
+    cp, sp = np.cos(att[..., 1]), np.sin(att[..., 1])
+    cy, sy = np.cos(att[..., 2]), np.sin(att[..., 2])
+    R = np.empty(att.shape[:-1] + (3, 3))
+    R[..., 0, 0] = cy * cp
+    R[..., 0, 1] = cy * sp * sr - sy * cr
+    R[..., 0, 2] = cy * sp * cr + sy * sr
+    R[..., 1, 0] = sy * cp
+    R[..., 1, 1] = sy * sp * sr + cy * cr
+    R[..., 1, 2] = sy * sp * cr - cy * sr
+    R[..., 2, 0] = -sp
+    R[..., 2, 1] = cp * sr
+    R[..., 2, 2] = cp * cr
+    return R
+
+
+def body_from_enu_matrix(attitude_rad: ArrayLike) -> NDArray[np.float64]:
+    """C with ``u_b = C @ u_enu`` (= R_nb^T P, P the ENU->NED permutation), shape (..., 3, 3).
+
+    Depends only on the sample, so it is computed once per sample and reused for every transmitter.
+    """
+    Rt = np.swapaxes(rotation_nb(attitude_rad), -1, -2)
+    return np.stack([Rt[..., :, 1], Rt[..., :, 0], -Rt[..., :, 2]], axis=-1)
+
+
+def body_vectors(u_ned: ArrayLike, attitude_rad: ArrayLike | None) -> NDArray[np.float64]:
+    """u_b = R_nb^T u for u (..., 3) NED and attitude broadcastable to (..., 3)."""
+    u = np.asarray(u_ned, dtype=float)
+    if attitude_rad is None:
+        return u
+    R = rotation_nb(attitude_rad)
+    return np.einsum("...ki,...k->...i", R, u)
+
+
+def body_angles(u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Body azimuth az_b in [0, 2 pi) and depression dep_b (rad) of the NED vector(s) u (UAV -> target).
+
+    ``attitude_rad`` (..., 3) roll, pitch, yaw broadcasts against u's leading shape; None = level, yaw 0.
+    """
+    ub = body_vectors(u_ned, attitude_rad)
+    r = np.linalg.norm(ub, axis=-1)
+    az_b = np.mod(np.arctan2(ub[..., 1], ub[..., 0]), TWO_PI)
+    dep_b = np.arcsin(np.clip(ub[..., 2] / np.where(r > 0, r, 1.0), -1.0, 1.0))
+    return az_b, dep_b
+
+
+def bearing(dx_east: ArrayLike, dy_north: ArrayLike) -> NDArray[np.float64]:
+    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi)."""
+    return np.mod(np.arctan2(dx_east, dy_north), TWO_PI)

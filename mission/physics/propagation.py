@@ -1,0 +1,521 @@
+"""Propagation models as lists of named, separately switchable effects (SPEC section 3, paper eqs. 1-9).
+
+A :class:`PropagationModel` is a tuple of effects; each effect is a frozen dataclass whose fields are its
+parameters, so a model can be rebuilt with one effect removed (``without``), replaced or added
+(``with_effect``) or refitted (``with_params``). Built-in effects:
+
+``free_space``         direct ray: P_r = P_t + G_t + G_r + 20 log10(lambda / (4 pi d_los)) (Friis)
+``ground_reflection``  two-ray, eq. 1: coherent sum with the ground-reflected ray, Fresnel Gamma
+``tx_antenna``         transmitter pattern (rover frame: level, forward = north, plus heading/flip)
+``rx_antenna``         receiver pattern (UAV body frame, antenna along the body z axis, up = -z_b)
+``attitude``           receiver angles in the body frame (eqs. 3-6; SPEC section 1 transform)
+``leg_shadowing``      eqs. 8-9: minus Upsilon = 10 beta log10(d_los / d_0) when S = 1
+
+Without ``attitude`` the body frame is level with yaw 0 (plain two-ray); with zero attitude the enhanced
+two-ray model equals two-ray (+ shadowing) exactly. Any other effect that defines
+``rss_term_db(link: Link) -> array`` (dB added to the RSS) is applied as well, so new effects plug in.
+
+``rss_dbm`` is the fast path (float32 by default, chunked, algebra instead of trig where possible);
+``explain`` is a float64 reference written with explicit angles, used by the tests to check the fast path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, DTypeLike, NDArray
+
+from mission.physics.antenna import Dipole, Pattern, load_pattern, mount_angles
+from mission.physics.constants import (
+    DEFAULT_BETA,
+    DEFAULT_EPS_R,
+    DEFAULT_FC_HZ,
+    DEFAULT_PT_DBM,
+    DEFAULT_SIGMA_S_M,
+    EPSILON_0,
+    LEG_AZIMUTHS_DEG,
+    LEG_DEPRESSION_THRESHOLD_DEG,
+    LEG_HALF_WIDTH_DEG,
+    SHADOW_D0_M,
+    friis_constant_db,
+    wavelength,
+)
+from mission.physics.geometry import as_attitude, bearing, body_angles, body_from_enu_matrix, enu_to_ned
+
+TWO_PI = 2.0 * np.pi
+CHUNK = 32768  # elements per block: big enough to amortise per-call overhead, small enough for L2/L3
+
+
+class Effect(Protocol):
+    name: str
+
+
+# ------------------------------------------------------------------------------------------- effects
+
+
+@dataclass(frozen=True)
+class FreeSpace:
+    """Direct ray with Friis spreading: P_t + 20 log10(lambda / (4 pi d_los)) (+ antenna gains)."""
+
+    pt_dbm: float = DEFAULT_PT_DBM  # P_t
+    fc_hz: float = DEFAULT_FC_HZ  # f_c
+    name: ClassVar[str] = "free_space"
+
+
+@dataclass(frozen=True)
+class GroundReflection:
+    """Flat-ground reflected ray (paper eq. 1) with the Fresnel coefficient Gamma(grazing angle psi).
+
+    Ground: relative permittivity ``eps_r``, conductivity ``sigma_s_m`` (complex permittivity
+    eps = eps_r - j sigma / (omega eps_0)); ``polarization`` "V" (vertical, default) or "H".
+    """
+
+    eps_r: float = DEFAULT_EPS_R
+    sigma_s_m: float = DEFAULT_SIGMA_S_M
+    polarization: str = "V"
+    name: ClassVar[str] = "ground_reflection"
+
+    def __post_init__(self) -> None:
+        if self.polarization.upper() not in ("V", "H"):
+            raise ValueError(f"polarization must be 'V' or 'H', got {self.polarization!r}")
+
+    def eps_complex(self, fc_hz: float) -> complex:
+        """eps = eps_r - j sigma / (omega eps_0)."""
+        return complex(self.eps_r, -self.sigma_s_m / (TWO_PI * fc_hz * EPSILON_0))
+
+    def gamma(self, psi: ArrayLike, fc_hz: float) -> NDArray[np.complex128]:
+        """Fresnel reflection coefficient at grazing angle psi (rad), reference implementation."""
+        psi = np.asarray(psi, dtype=float)
+        eps = self.eps_complex(fc_hz)
+        root = np.sqrt(eps - np.cos(psi) ** 2 + 0j)
+        s = np.sin(psi)
+        if self.polarization.upper() == "V":
+            return (eps * s - root) / (eps * s + root)
+        return (s - root) / (s + root)
+
+    def _gamma_fast(self, sin_psi: NDArray, cos2_psi: NDArray, fc_hz: float
+                    ) -> tuple[NDArray, NDArray | None]:
+        """(Re Gamma, Im Gamma or None) from sin psi and cos^2 psi, no trig; real arithmetic if sigma = 0."""
+        dt = np.result_type(sin_psi)
+        eps = self.eps_complex(fc_hz)
+        vertical = self.polarization.upper() == "V"
+        if eps.imag == 0.0 and eps.real >= 1.0:
+            e = dt.type(eps.real)
+            root = np.sqrt(e - cos2_psi)
+            num = e * sin_psi if vertical else sin_psi.copy()
+            return (num - root) / (num + root), None
+        ce = np.complex64(eps) if dt == np.float32 else np.complex128(eps)
+        root = np.sqrt(ce - cos2_psi)
+        num = ce * sin_psi if vertical else sin_psi.astype(root.dtype)
+        g = (num - root) / (num + root)
+        return g.real.astype(dt), g.imag.astype(dt)
+
+
+@dataclass(frozen=True)
+class _AntennaEffect:
+    pattern: Pattern = field(default_factory=Dipole)
+    heading_rad: float = 0.0  # antenna x_a clockwise from the platform's forward
+    flipped: bool = False  # mounted upside down (180 deg about x_a)
+
+    def _amplitude(self, sin_el: NDArray, cos_el: NDArray, az_p: Any) -> NDArray:
+        """sqrt(G) for platform angles given as sin/cos of elevation and a lazy platform azimuth."""
+        p = self.pattern
+        if p.azimuth_symmetric:
+            s = -sin_el if (self.flipped and not p.elevation_symmetric) else sin_el
+            return p.amplitude(s, cos_el, None)
+        el_p = np.arctan2(sin_el, cos_el)
+        el_a, az_a = mount_angles(el_p, az_p(), self.heading_rad, self.flipped)
+        return p.amplitude_at(el_a, az_a)
+
+    def gain_dbi(self, el_p: ArrayLike, az_p: ArrayLike) -> NDArray[np.float64]:
+        """Reference gain at platform angles (rad)."""
+        el_a, az_a = mount_angles(el_p, az_p, self.heading_rad, self.flipped)
+        return self.pattern.gain_dbi(el_a, az_a)
+
+
+@dataclass(frozen=True)
+class TxAntenna(_AntennaEffect):
+    """Transmitter pattern; platform = rover, level, forward = north (``heading_rad`` = rover heading)."""
+
+    name: ClassVar[str] = "tx_antenna"
+
+
+@dataclass(frozen=True)
+class RxAntenna(_AntennaEffect):
+    """Receiver pattern on the UAV: antenna up = -z_b, x_a = nose turned by ``heading_rad``; el = -dep_b."""
+
+    name: ClassVar[str] = "rx_antenna"
+
+
+@dataclass(frozen=True)
+class Attitude:
+    """Take the receiver's gains (and shadowing) in the body frame given by the sample's roll/pitch/yaw."""
+
+    name: ClassVar[str] = "attitude"
+
+
+@dataclass(frozen=True)
+class LegShadowing:
+    """Leg shadowing (eqs. 8-9): S = 1 when az_b is within ``half_width_deg`` of a leg and dep_b < threshold;
+    then the RSS loses Upsilon = 10 beta log10(d_los / d0)."""
+
+    beta: float = DEFAULT_BETA
+    legs_deg: tuple[float, ...] = LEG_AZIMUTHS_DEG
+    half_width_deg: float = LEG_HALF_WIDTH_DEG
+    threshold_deg: float = LEG_DEPRESSION_THRESHOLD_DEG
+    d0_m: float = SHADOW_D0_M
+    name: ClassVar[str] = "leg_shadowing"
+
+    def shadowed(self, az_b: ArrayLike, dep_b: ArrayLike) -> NDArray[np.bool_]:
+        """S from body angles (rad), reference (eq. 9)."""
+        az = np.degrees(np.asarray(az_b, dtype=float))
+        S = np.zeros(np.shape(az), dtype=bool)
+        for psi_l in self.legs_deg:
+            off = np.abs((az - psi_l + 180.0) % 360.0 - 180.0)
+            S |= off <= self.half_width_deg
+        return S & (np.degrees(np.asarray(dep_b, dtype=float)) < self.threshold_deg)
+
+    def upsilon_db(self, d_los: ArrayLike) -> NDArray:
+        """Upsilon = 10 beta log10(d_los / d0) (eq. 8)."""
+        return 10.0 * self.beta * np.log10(np.asarray(d_los) / self.d0_m)
+
+    def rss_term_db(self, link: Link) -> NDArray:
+        """-S * Upsilon, from body-frame components without trig: cos(az_b - psi_l) >= cos Delta."""
+        dt = link.d_los.dtype.type
+        ubx, uby, ubz = link.u_b
+        h = np.sqrt(ubx * ubx + uby * uby)
+        h *= dt(math.cos(math.radians(self.half_width_deg)))
+        S = np.zeros(ubx.shape, dtype=bool)
+        for psi_l in self.legs_deg:
+            c, s = math.cos(math.radians(psi_l)), math.sin(math.radians(psi_l))
+            S |= ubx * dt(c) + uby * dt(s) >= h
+        S &= ubz < link.d_los * dt(math.sin(math.radians(self.threshold_deg)))  # dep_b < delta
+        term = np.zeros_like(link.d_los)
+        if S.any():
+            np.log(link.d_los, out=term, where=S)
+            term *= dt(-10.0 * self.beta / math.log(10.0))
+            term += dt(10.0 * self.beta * math.log10(self.d0_m)) * S
+        return term
+
+
+@dataclass
+class Link:
+    """Per-block fast-path geometry handed to ``rss_term_db`` effects (arrays of one block, model dtype).
+
+    ``delta`` = p_tx - p_rx (ENU), ``d_los``, ``d_ref``, ``u_b`` = (x, y, z) of the direct LOS in the
+    body frame (FRD; level frame with yaw 0 without the attitude effect).
+    """
+
+    delta: tuple[NDArray, NDArray, NDArray]
+    z_t: NDArray
+    z_r: NDArray
+    d_los: NDArray
+    d_ref: NDArray
+    u_b: tuple[NDArray, NDArray, NDArray]
+
+
+# --------------------------------------------------------------------------------------------- model
+
+
+@dataclass(frozen=True)
+class PropagationModel:
+    """A propagation model = a tuple of named effects; see the module docstring."""
+
+    effects: tuple[Any, ...]
+    name: str = "custom"
+    dtype: DTypeLike = np.float32
+    chunk: int = CHUNK
+
+    def __post_init__(self) -> None:
+        names = [e.name for e in self.effects]
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicate effect names in {names}")
+        if "free_space" not in names:
+            raise ValueError("a model needs the 'free_space' effect (transmit power, carrier)")
+
+    # -- composition
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(e.name for e in self.effects)
+
+    def effect(self, name: str) -> Any:
+        """The effect called ``name``; KeyError if absent."""
+        for e in self.effects:
+            if e.name == name:
+                return e
+        raise KeyError(f"no effect {name!r} in model {self.name!r} (has {', '.join(self.names)})")
+
+    def has(self, name: str) -> bool:
+        return name in self.names
+
+    def without(self, name: str) -> PropagationModel:
+        """The model with effect ``name`` removed (KeyError if absent)."""
+        self.effect(name)
+        return replace(self, effects=tuple(e for e in self.effects if e.name != name))
+
+    def with_effect(self, effect: Any) -> PropagationModel:
+        """The model with ``effect`` replacing the effect of the same name, or appended."""
+        if self.has(effect.name):
+            return replace(self, effects=tuple(effect if e.name == effect.name else e for e in self.effects))
+        return replace(self, effects=self.effects + (effect,))
+
+    def with_params(self, name: str, **params: Any) -> PropagationModel:
+        """The model with effect ``name``'s dataclass fields changed, e.g. ``with_params("leg_shadowing",
+        beta=3.1)``."""
+        return self.with_effect(replace(self.effect(name), **params))
+
+    def _get(self, name: str) -> Any:
+        return self.effect(name) if self.has(name) else None
+
+    # -- fast path
+    def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None
+                ) -> NDArray:
+        """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N, 3) rad.
+
+        tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3) pairs
+        with the samples one to one.
+        """
+        dt = np.dtype(self.dtype)
+        tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
+        N = rx.shape[0]
+        # shift x, y to the samples' centre so float32 keeps millimetres
+        c = np.zeros(3)
+        c[:2] = rx[:, :2].mean(axis=0) if N else 0.0
+        rxc = (rx - c).astype(dt)
+        txc = tx - c
+        C = None
+        if self.has("attitude") and attitude_rad is not None:
+            # u_b = C delta; stored (3, 3, N) so that C[i, j] is contiguous over the samples
+            C = np.ascontiguousarray(body_from_enu_matrix(as_attitude(attitude_rad, N)).transpose(1, 2, 0),
+                                     dtype=dt)
+        K = txc.shape[0]
+        out = np.empty((K, N), dtype=dt)
+        nb = min(N, self.chunk) if N else 1
+        mb = max(1, self.chunk // max(nb, 1))
+        for n0 in range(0, N, nb):
+            n1 = min(N, n0 + nb)
+            Cb = None if C is None else C[:, :, n0:n1]
+            for k0 in range(0, K, mb):
+                k1 = min(K, k0 + mb)
+                tb = txc[k0:k1, n0:n1] if paired else txc[k0:k1]
+                out[k0:k1, n0:n1] = self._block(tb.astype(dt), rxc[n0:n1], Cb)
+        return out.reshape(out_shape)
+
+    def _block(self, tx: NDArray, rx: NDArray, C: NDArray | None) -> NDArray:
+        """RSS of one block: tx (mb, 1 or nb, 3), rx (nb, 3), C (3, 3, nb) or None -> (mb, nb)."""
+        dt = tx.dtype.type
+        fs: FreeSpace = self.effect("free_space")
+        gr: GroundReflection | None = self._get("ground_reflection")
+        ta: TxAntenna | None = self._get("tx_antenna")
+        ra: RxAntenna | None = self._get("rx_antenna")
+        z_t = tx[..., 2]
+        z_r = rx[:, 2]
+        dx = tx[..., 0] - rx[:, 0]  # delta = p_tx - p_rx (ENU)
+        dy = tx[..., 1] - rx[:, 1]
+        dz = z_t - z_r
+        d2 = dx * dx
+        d2 += dy * dy  # d_2D^2
+        d_los = np.sqrt(d2 + dz * dz)  # d_los = sqrt(d^2 + (h_r - h_t)^2)
+        np.maximum(d_los, dt(1e-3), out=d_los)  # coincident points: 1 mm, not a division by zero
+        inv_los = dt(1.0) / d_los
+        d = np.sqrt(d2)
+        if C is None:  # level body frame, yaw 0: u_b = (n, e, d)
+            u_b = (dy, dx, -dz)
+        else:  # u_b = C delta, C per sample (computed once, not per transmitter)
+            u_b = tuple(C[i, 0] * dx + C[i, 1] * dy + C[i, 2] * dz for i in range(3))
+        amp_dir = inv_los  # sqrt(G_t G_r) / d_los
+        az_tx_cache: list[NDArray] = []
+
+        def az_tx() -> NDArray:  # compass bearing TX -> UAV, shared by both rays, computed at most once
+            if not az_tx_cache:
+                az_tx_cache.append(bearing(-dx, -dy))
+            return az_tx_cache[0]
+
+        if ta is not None:  # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
+            amp_dir = amp_dir * ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
+        if ra is not None:  # arrival: el = -dep_b = -u_b.z / |u|
+            s_r = -u_b[2] * inv_los
+            c_r = d * inv_los if C is None else np.sqrt(np.maximum(dt(1.0) - s_r * s_r, dt(0.0)))
+            amp_dir = amp_dir * ra._amplitude(s_r, c_r, lambda: np.mod(np.arctan2(u_b[1], u_b[0]), TWO_PI))
+        d_ref = d_los
+        if gr is None:
+            F2 = amp_dir * amp_dir
+        else:
+            h_s = z_t + z_r
+            d_ref = np.sqrt(d2 + h_s * h_s)  # d_ref = sqrt(d^2 + (h_r + h_t)^2)
+            inv_ref = dt(1.0) / d_ref
+            sin_psi = h_s * inv_ref  # grazing angle psi
+            amp_ref = inv_ref
+            if ta is not None:  # departs downwards towards the specular point
+                amp_ref = amp_ref * ta._amplitude(-sin_psi, d * inv_ref, az_tx)
+            if ra is not None:  # arrives from the image source at (x_t, y_t, -h_t)
+                if C is None:
+                    s_r2, c_r2 = -sin_psi, d * inv_ref
+                    def az2() -> NDArray:
+                        return np.mod(np.arctan2(dx, dy), TWO_PI)
+                else:
+                    two_zt = z_t + z_t
+                    ub2 = tuple(u_b[i] - C[i, 2] * two_zt for i in range(3))
+                    s_r2 = -ub2[2] * inv_ref
+                    c_r2 = np.sqrt(np.maximum(dt(1.0) - s_r2 * s_r2, dt(0.0)))
+                    def az2() -> NDArray:
+                        return np.mod(np.arctan2(ub2[1], ub2[0]), TWO_PI)
+                amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
+            g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
+            # phase difference k (d_ref - d_los) = k 4 h_t h_r / (d_ref + d_los): no cancellation
+            dphi = (z_t * z_r) * dt(4.0 * TWO_PI / wavelength(fs.fc_hz)) / (d_ref + d_los)
+            # |A + Gamma B e^{-j dphi}|^2 = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})   (eq. 1)
+            re = g_re * np.cos(dphi)
+            if g_im is not None:
+                re += g_im * np.sin(dphi)
+                g2 = g_re * g_re + g_im * g_im
+            else:
+                g2 = g_re * g_re
+            AB = amp_dir * amp_ref
+            F2 = amp_dir * amp_dir + g2 * amp_ref * amp_ref + dt(2.0) * AB * re
+            np.maximum(F2, dt(1e-30), out=F2)
+        rss = np.log(F2)  # float32 log is ~5x faster than log10
+        rss *= dt(10.0 / math.log(10.0))
+        rss += dt(fs.pt_dbm + friis_constant_db(fs.fc_hz))  # P_t + 20 log10(lambda / 4 pi)
+        extra = [e for e in self.effects if hasattr(e, "rss_term_db")]
+        if extra:
+            link = Link((dx, dy, dz), z_t, z_r, d_los, d_ref, u_b)
+            for e in extra:
+                rss += e.rss_term_db(link)
+        return rss
+
+    # -- reference / explanation
+    def explain(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None
+                ) -> dict[str, NDArray]:
+        """Every intermediate quantity (float64 reference, explicit angles) of the broadcast shape.
+
+        Keys: d_2d, d_los, d_ref, h_t, h_r, grazing_rad, gamma_abs, gamma_phase_rad, phase_diff_rad,
+        el_tx_dir_rad, el_tx_ref_rad, az_tx_rad, g_tx_dir_dbi, g_tx_ref_dbi, g_rx_dir_dbi, g_rx_ref_dbi,
+        az_b_rad, dep_b_rad, az_b_ref_rad, dep_b_ref_rad, direct_dbm, reflected_dbm, two_ray_dbm,
+        shadowed, upsilon_db, rss_dbm (and ``<name>_db`` for other additive effects).
+        """
+        tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
+        N = rx.shape[0]
+        T = tx if paired else np.broadcast_to(tx, (tx.shape[0], N, 3))
+        fs: FreeSpace = self.effect("free_space")
+        gr = self._get("ground_reflection")
+        ta, ra = self._get("tx_antenna"), self._get("rx_antenna")
+        ls = self._get("leg_shadowing")
+        att = as_attitude(attitude_rad if self.has("attitude") else None, N)
+        lam = wavelength(fs.fc_hz)
+        u = T - rx  # p_tx - p_uav, ENU
+        h_t, h_r = T[..., 2], np.broadcast_to(rx[:, 2], u.shape[:-1])
+        d_2d = np.hypot(u[..., 0], u[..., 1])
+        d_los = np.sqrt(d_2d**2 + (h_r - h_t) ** 2)
+        d_ref = np.sqrt(d_2d**2 + (h_r + h_t) ** 2)
+        psi = np.arctan2(h_r + h_t, d_2d)  # grazing angle
+        az_tx = bearing(-u[..., 0], -u[..., 1])
+        el_tx_dir = np.arctan2(h_r - h_t, d_2d)
+        el_tx_ref = -psi
+        az_b, dep_b = body_angles(enu_to_ned(u), att)
+        u_img = u.copy()
+        u_img[..., 2] = -(h_t + h_r)  # towards the image source (x_t, y_t, -h_t)
+        az_b2, dep_b2 = body_angles(enu_to_ned(u_img), att)
+        zero = np.zeros_like(d_los)
+        g_td = ta.gain_dbi(el_tx_dir, az_tx) if ta else zero
+        g_tr = ta.gain_dbi(el_tx_ref, az_tx) if ta else zero
+        g_rd = ra.gain_dbi(-dep_b, az_b) if ra else zero
+        g_rr = ra.gain_dbi(-dep_b2, az_b2) if ra else zero
+        k = TWO_PI / lam
+        E = 10 ** ((g_td + g_rd) / 20) / d_los * np.exp(-1j * k * d_los)  # eq. 1, direct term
+        res: dict[str, NDArray] = {}
+        dphi = k * (d_ref - d_los)
+        if gr is not None:
+            Gam = gr.gamma(psi, fs.fc_hz)
+            E_ref = Gam * 10 ** ((g_tr + g_rr) / 20) / d_ref * np.exp(-1j * k * d_ref)
+        else:
+            Gam = np.zeros_like(psi, dtype=complex)
+            E_ref = np.zeros_like(E)
+        const = fs.pt_dbm + 20 * np.log10(lam / (4 * np.pi))
+        with np.errstate(divide="ignore"):
+            res["direct_dbm"] = const + 20 * np.log10(np.abs(E))
+            res["reflected_dbm"] = const + 20 * np.log10(np.abs(E_ref))
+        two_ray = const + 20 * np.log10(np.maximum(np.abs(E + E_ref), 1e-15))
+        rss = two_ray.copy()
+        S = ls.shadowed(az_b, dep_b) if ls else np.zeros(d_los.shape, bool)
+        ups = np.where(S, ls.upsilon_db(d_los), 0.0) if ls else zero
+        rss -= ups
+        others = [e for e in self.effects if hasattr(e, "rss_term_db") and e.name != "leg_shadowing"]
+        if others:
+            C = body_from_enu_matrix(att) if self.has("attitude") else body_from_enu_matrix(np.zeros((N, 3)))
+            ub = tuple(np.einsum("nj,...nj->...n", C[:, i, :], u) for i in range(3))
+            link = Link((u[..., 0], u[..., 1], u[..., 2]), h_t, h_r, d_los, d_ref, ub)
+            for e in others:
+                res[f"{e.name}_db"] = np.asarray(e.rss_term_db(link), dtype=float)
+                rss = rss + res[f"{e.name}_db"]
+        res.update(
+            d_2d=d_2d, d_los=d_los, d_ref=d_ref, h_t=h_t, h_r=h_r, grazing_rad=psi,
+            gamma_abs=np.abs(Gam), gamma_phase_rad=np.angle(Gam), phase_diff_rad=dphi,
+            el_tx_dir_rad=el_tx_dir, el_tx_ref_rad=el_tx_ref, az_tx_rad=az_tx,
+            g_tx_dir_dbi=g_td, g_tx_ref_dbi=g_tr, g_rx_dir_dbi=g_rd, g_rx_ref_dbi=g_rr,
+            az_b_rad=az_b, dep_b_rad=dep_b, az_b_ref_rad=az_b2, dep_b_ref_rad=dep_b2,
+            two_ray_dbm=two_ray, shadowed=S, upsilon_db=ups, rss_dbm=rss,
+        )
+        return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+
+
+def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:
+    """tx -> (K, 1, 3) (outer) or (K, N, 3) (paired), rx -> (N, 3), the output shape and the mode."""
+    tx = np.asarray(tx_enu, dtype=float)
+    rx = np.asarray(rx_enu, dtype=float)
+    if rx.ndim != 2 or rx.shape[-1] != 3:
+        raise ValueError(f"rx_enu must have shape (N, 3), got {rx.shape}")
+    if tx.ndim < 1 or tx.shape[-1] != 3:
+        raise ValueError(f"tx_enu must have shape (..., 3), got {tx.shape}")
+    N = rx.shape[0]
+    lead = tx.shape[:-1]
+    out_shape = np.broadcast_shapes(lead, (N,))
+    if lead == () or lead[-1] == 1:
+        return tx.reshape(-1, 1, 3), rx, out_shape, False
+    txb = np.broadcast_to(tx, out_shape + (3,)).reshape(-1, N, 3)
+    return txb, rx, out_shape, True
+
+
+# ------------------------------------------------------------------------------------------ factory
+
+MODEL_NAMES = ("free-space", "two-ray", "e2r")
+
+
+def make_model(name: str = "e2r", *, pattern: str | Pattern = "dipole",
+               tx_pattern: str | Pattern | None = None, rx_pattern: str | Pattern | None = None,
+               pt_dbm: float = DEFAULT_PT_DBM,
+               fc_hz: float = DEFAULT_FC_HZ, eps_r: float = DEFAULT_EPS_R,
+               sigma_s_m: float = DEFAULT_SIGMA_S_M, polarization: str = "V", beta: float = DEFAULT_BETA,
+               rx_heading_rad: float = 0.0, rx_flipped: bool = False, tx_heading_rad: float = 0.0,
+               tx_flipped: bool = False, dtype: DTypeLike = np.float32) -> PropagationModel:
+    """Build "free-space", "two-ray" or "e2r" (enhanced two-ray = two-ray + attitude + leg shadowing).
+
+    ``pattern`` ("dipole", "isotropic", "measured" = shipped RM-WB1-DN, a file path or a Pattern) is
+    used for both ends unless ``tx_pattern``/``rx_pattern`` are given. Free space keeps the antenna
+    gains (SPEC: P_r = P_t + G_t + G_r + 20 log10(lambda / (4 pi d_los))).
+    """
+    key = name.strip().lower().replace("_", "-")
+    aliases = {"fs": "free-space", "freespace": "free-space", "2ray": "two-ray", "tworay": "two-ray",
+               "enhanced-two-ray": "e2r", "e-2ray": "e2r"}
+    key = aliases.get(key, key)
+    if key not in MODEL_NAMES:
+        raise ValueError(f"unknown model {name!r}; choose one of {', '.join(MODEL_NAMES)}")
+
+    def _pat(p: str | Pattern | None) -> Pattern:
+        p = pattern if p is None else p
+        return p if isinstance(p, Pattern) else load_pattern(p)
+
+    effects: list[Any] = [
+        FreeSpace(pt_dbm=pt_dbm, fc_hz=fc_hz),
+        TxAntenna(_pat(tx_pattern), heading_rad=tx_heading_rad, flipped=tx_flipped),
+        RxAntenna(_pat(rx_pattern), heading_rad=rx_heading_rad, flipped=rx_flipped),
+    ]
+    if key in ("two-ray", "e2r"):
+        effects.append(GroundReflection(eps_r=eps_r, sigma_s_m=sigma_s_m, polarization=polarization))
+    if key == "e2r":
+        effects += [Attitude(), LegShadowing(beta=beta)]
+    return PropagationModel(tuple(effects), name=key, dtype=dtype)
+

@@ -1,0 +1,179 @@
+"""Multicopter kinematics: how a waypoint path is flown in time, and the attitude that results.
+
+One model serves the fast simulator, the mission time-budget check and the simulated MAVLink vehicle, so
+that all three agree on how long a mission takes.  The path is the polyline through the waypoints; along
+it the speed follows a trapezoidal profile per leg (acceleration limit ``accel_mps2``) with a corner speed
+that falls with the turn angle (``v_corner = v_cruise * cos(turn/2) ** corner_exponent``, 0 for a reversal),
+as a PX4/ArduPilot waypoint controller slows for corners.  Attitude follows from the accelerations: a
+multicopter tilts its thrust vector to accelerate, pitches nose-down against drag in steady forward
+flight, and yaws to the direction of travel.  Everything is vectorised over time samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+G = 9.80665  # m/s^2
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """Limits and response of the simulated multicopter (defaults: a small AERPAW-class quadcopter)."""
+
+    cruise_speed_mps: float = 5.0
+    accel_mps2: float = 1.5          # horizontal acceleration/deceleration limit
+    climb_rate_mps: float = 2.5      # vertical speed (take-off, descent)
+    corner_exponent: float = 2.0     # v_corner = v * cos(turn/2)**k
+    yaw_rate_dps: float = 60.0       # yaw rate limit when turning to the new course
+    response_s: float = 0.8          # time constant of the attitude response (smoothing of accelerations)
+    drag_pitch_deg_per_mps: float = 0.6  # steady nose-down pitch per m/s of airspeed (real AFAR: ~-3 deg)
+    max_tilt_deg: float = 30.0       # lean-angle limit (ArduPilot default)
+
+
+@dataclass
+class FlightProfile:
+    """A planned flight of a polyline: cumulative arc length per vertex and the speed profile per leg."""
+
+    vertices: np.ndarray      # (K, 3) ENU
+    s_vertex: np.ndarray      # (K,) arc length at each vertex
+    t_vertex: np.ndarray      # (K,) time at each vertex
+    v_vertex: np.ndarray      # (K,) speed at each vertex
+    v_cruise: np.ndarray      # (K-1,) cruise speed per leg
+    accel: float
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_vertex[-1])
+
+    @property
+    def length_m(self) -> float:
+        return float(self.s_vertex[-1])
+
+    def arclength(self, t) -> np.ndarray:
+        """Arc length flown at times ``t`` (vectorised closed form of the per-leg trapezoid)."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration_s)
+        i = np.clip(np.searchsorted(self.t_vertex, t, side="right") - 1, 0, len(self.t_vertex) - 2)
+        tau = t - self.t_vertex[i]
+        v0, v1, vc, a = self.v_vertex[i], self.v_vertex[i + 1], self.v_cruise[i], self.accel
+        L = self.s_vertex[i + 1] - self.s_vertex[i]
+        vp = _peak_speed(L, v0, v1, vc, a)
+        t_acc = (vp - v0) / a
+        t_dec = (vp - v1) / a
+        s_acc = (v0 + vp) / 2 * t_acc
+        s_dec = (vp + v1) / 2 * t_dec
+        t_cru = np.where(vp > 0, (L - s_acc - s_dec) / np.maximum(vp, 1e-9), 0.0)
+        s = np.where(
+            tau < t_acc, v0 * tau + 0.5 * a * tau**2,
+            np.where(tau < t_acc + t_cru, s_acc + vp * (tau - t_acc),
+                     s_acc + vp * t_cru + vp * (tau - t_acc - t_cru) - 0.5 * a * (tau - t_acc - t_cru) ** 2))
+        return self.s_vertex[i] + np.clip(s, 0.0, L)
+
+    def position(self, t) -> np.ndarray:
+        """ENU positions (N, 3) at times ``t``."""
+        s = self.arclength(t)
+        j = np.clip(np.searchsorted(self.s_vertex, s, side="right") - 1, 0, len(self.s_vertex) - 2)
+        seg = self.s_vertex[j + 1] - self.s_vertex[j]
+        f = np.where(seg > 0, (s - self.s_vertex[j]) / np.where(seg > 0, seg, 1.0), 0.0)
+        return self.vertices[j] + f[:, None] * (self.vertices[j + 1] - self.vertices[j])
+
+    def sample(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times every ``dt`` seconds over the whole flight, and the positions there."""
+        t = np.arange(0.0, self.duration_s + 1e-9, dt)
+        return t, self.position(t)
+
+
+def _peak_speed(L, v0, v1, vc, a):
+    """Highest speed reachable on a leg of length L from v0 to v1 under cruise vc and accel a."""
+    vp_tri = np.sqrt(np.maximum((2 * a * L + v0**2 + v1**2) / 2, 0.0))
+    return np.maximum(np.minimum(vc, vp_tri), np.maximum(v0, v1))
+
+
+def _leg_time(L, v0, v1, vc, a):
+    vp = _peak_speed(L, v0, v1, vc, a)
+    t_acc, t_dec = (vp - v0) / a, (vp - v1) / a
+    s_rest = L - (v0 + vp) / 2 * t_acc - (vp + v1) / 2 * t_dec
+    return t_acc + t_dec + np.where(vp > 0, np.maximum(s_rest, 0) / np.maximum(vp, 1e-9), 0.0)
+
+
+def plan_profile(waypoints: np.ndarray, kin: Kinematics | None = None,
+                 speeds: np.ndarray | None = None) -> FlightProfile:
+    """Plan the timed flight of the polyline ``waypoints`` (K, 3) ENU, starting and ending at rest.
+
+    Vertical legs (take-off, landing) use the climb rate as their cruise speed.  ``speeds`` optionally
+    gives a cruise speed per leg (K-1,).
+    """
+    kin = kin or Kinematics()
+    P = np.asarray(waypoints, dtype=float)
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(P, axis=0), axis=1) > 1e-6])
+    P = P[keep]
+    if len(P) < 2:
+        z = np.zeros(1)
+        return FlightProfile(P[:1].repeat(2, 0), np.zeros(2), np.zeros(2), np.zeros(2), z, kin.accel_mps2)
+    d = np.diff(P, axis=0)
+    L = np.linalg.norm(d, axis=1)
+    horiz = np.linalg.norm(d[:, :2], axis=1)
+    vert_frac = np.abs(d[:, 2]) / np.maximum(L, 1e-9)
+    vc = np.where(vert_frac > 0.7, kin.climb_rate_mps, kin.cruise_speed_mps) if speeds is None \
+        else np.asarray(speeds, dtype=float)
+    u = d / L[:, None]
+    cos_turn = np.clip(np.sum(u[:-1] * u[1:], axis=1), -1.0, 1.0)
+    turn = np.arccos(cos_turn)
+    v_corner = np.minimum(vc[:-1], vc[1:]) * np.cos(turn / 2) ** kin.corner_exponent
+    v_corner[(horiz[:-1] < 1e-6) | (horiz[1:] < 1e-6)] = 0.0  # stop between vertical and horizontal legs
+    v = np.concatenate([[0.0], v_corner, [0.0]])
+    a = kin.accel_mps2
+    # Enforce reachability: forward then backward pass so every leg can brake/accelerate in time.
+    for i in range(len(L)):  # per waypoint (not per sample): K is small
+        v[i + 1] = min(v[i + 1], np.sqrt(v[i] ** 2 + 2 * a * L[i]))
+    for i in range(len(L) - 1, -1, -1):
+        v[i] = min(v[i], np.sqrt(v[i + 1] ** 2 + 2 * a * L[i]))
+    t_leg = _leg_time(L, v[:-1], v[1:], vc, a)
+    s = np.concatenate([[0.0], np.cumsum(L)])
+    t = np.concatenate([[0.0], np.cumsum(t_leg)])
+    return FlightProfile(P, s, t, v, vc, a)
+
+
+def _smooth(x: np.ndarray, dt: float, tau: float) -> np.ndarray:
+    """Gaussian smoothing along axis 0 with standard deviation ``tau`` seconds (edge-padded)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    sigma = max(tau / dt, 1e-6)
+    return gaussian_filter1d(x, sigma, axis=0, mode="nearest")
+
+
+def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None = None,
+                         wind_ne: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path.
+
+    Velocity is the smoothed derivative of position (the vehicle's response time); yaw follows the
+    course over ground (held when hovering, rate limited); the tilt vector is the commanded acceleration
+    plus the drag of the air-relative velocity, over g, rotated into the body frame.
+    """
+    kin = kin or Kinematics()
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    vel = _smooth(np.gradient(pos, t, axis=0), dt, kin.response_s) if len(t) > 1 else np.zeros_like(pos)
+    acc = _smooth(np.gradient(vel, t, axis=0), dt, kin.response_s) if len(t) > 1 else np.zeros_like(pos)
+    speed_h = np.linalg.norm(vel[:, :2], axis=1)
+    course = np.arctan2(vel[:, 0], vel[:, 1])  # clockwise from north
+    moving = speed_h > 0.3
+    # hold the last course while hovering (vectorised forward fill)
+    idx = np.where(moving, np.arange(len(t)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = np.argmax(moving) if moving.any() else 0
+    yaw = np.where(moving.any(), course[np.maximum(idx, first)], 0.0)
+    yaw = np.unwrap(yaw)
+    # rate limit by smoothing the unwrapped yaw (a turn of 90 deg takes about 90/yaw_rate s)
+    yaw = _smooth(yaw, dt, max(kin.response_s, 0.5 * np.pi / np.deg2rad(kin.yaw_rate_dps) / 2))
+    air = vel[:, :2] - (0.0 if wind_ne is None else np.asarray(wind_ne)[..., [1, 0]])
+    k_drag = np.tan(np.deg2rad(kin.drag_pitch_deg_per_mps)) * G  # m/s^2 per m/s
+    a_cmd = acc[:, :2] + k_drag * air  # thrust must supply this horizontal acceleration (east, north)
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    a_fwd = a_cmd[:, 1] * cy + a_cmd[:, 0] * sy      # along the nose (north=cos, east=sin)
+    a_right = -a_cmd[:, 1] * sy + a_cmd[:, 0] * cy   # to the right of the nose
+    lim = np.deg2rad(kin.max_tilt_deg)
+    pitch = np.clip(-np.arctan2(a_fwd, G), -lim, lim)  # nose down to accelerate forward
+    roll = np.clip(np.arctan2(a_right, G), -lim, lim)  # right wing down to accelerate right
+    yaw_wrapped = np.mod(yaw, 2 * np.pi)
+    return np.stack([roll, pitch, yaw_wrapped], axis=-1), vel

@@ -1,0 +1,108 @@
+"""Flight-log format: round trip, validation errors naming file/row/column, crash safety of the writer."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mission.errors import InputError
+from mission.flightlog import FlightLogWriter, make_meta, read_flight_log, sidecar_path, write_flight_log
+from mission.geo import Origin
+
+O = Origin(35.727, -78.698, 90.0)
+
+
+def _cols(n=50, attitude=True):
+    t = np.arange(n) * 0.03
+    enu = np.stack([np.linspace(0, 100, n), np.linspace(0, 50, n), np.full(n, 30.0)], axis=1)
+    lat, lon, alt = O.to_geodetic(enu)
+    c = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": enu[:, 2],
+         "rss_dbm": -60 + np.sin(t)}
+    if attitude:
+        c.update(roll_deg=np.full(n, 1.5), pitch_deg=np.full(n, -3.0), yaw_deg=np.full(n, 90.0))
+    return c, enu
+
+
+def test_round_trip(tmp_path):
+    c, enu = _cols()
+    meta = make_meta(O, {"kind": "sim", "model": "e2r", "seed": 4}, truth={"x_m": 10, "y_m": 20, "z_m": 1.5})
+    p = write_flight_log(tmp_path / "f.csv", c, meta)
+    log = read_flight_log(p)
+    assert len(log) == 50
+    assert np.allclose(log["rss_dbm"], c["rss_dbm"], atol=1e-4)
+    assert np.allclose(log.enu(), enu, atol=0.01)
+    assert np.allclose(np.rad2deg(log.attitude_rad[:, 2]), 90.0)
+    assert log.meta["rss_source"]["seed"] == 4
+    assert np.allclose(log.truth_enu, [10, 20, 1.5])
+    assert log.origin == O
+
+
+def test_receiver_only_log_has_no_attitude(tmp_path):
+    c, _ = _cols(attitude=False)
+    p = write_flight_log(tmp_path / "f.csv", c, make_meta(O, {"kind": "real"}))
+    log = read_flight_log(p)
+    assert log.attitude_rad is None
+    assert ",," in p.read_text().splitlines()[1]
+
+
+def test_extra_columns_are_kept(tmp_path):
+    p = tmp_path / "x.csv"
+    p.write_text("t_s,lat_deg,lon_deg,alt_m,rel_alt_m,rss_dbm,quality_db,note\n"
+                 "0,35.7,-78.7,120,30,-50,40,a\n0.03,35.7,-78.7,120,30,-51,41,b\n")
+    log = read_flight_log(p)
+    assert log["quality_db"].tolist() == [40, 41]
+    assert log["note"].tolist() == ["a", "b"]
+
+
+@pytest.mark.parametrize("mutate, expect", [
+    (lambda L: [L[0].replace(",rss_dbm", "")] + [r.rsplit(",", 1)[0] for r in L[1:]], r"missing required column\(s\) rss_dbm"),
+    (lambda L: L[:3] + [L[3].replace(L[3].split(",")[-1], "nan")] + L[4:], r"row 4, field 'rss_dbm': NaN"),
+    (lambda L: L[:2] + [L[2].replace(L[2].split(",")[-1], "abc")] + L[3:], r"row 3, field 'rss_dbm': not a number"),
+    (lambda L: L[:5] + [L[5].replace(L[5].split(",")[0], "0.0000", 1)] + L[6:], r"row 6, field 't_s': time is not increasing"),
+    (lambda L: L[:2] + [L[2] + ",9"] + L[3:], r"row 3: expected 9 fields, found 10"),
+    (lambda L: L[:1], "no data rows"),
+])
+def test_validation_errors_name_file_row_and_column(tmp_path, mutate, expect):
+    c, _ = _cols()
+    p = write_flight_log(tmp_path / "f.csv", c, make_meta(O, {"kind": "sim"}))
+    lines = p.read_text().splitlines()
+    p.write_text("\n".join(mutate(lines)) + "\n")
+    with pytest.raises(InputError, match=expect) as ei:
+        read_flight_log(p)
+    assert str(p) in str(ei.value)
+
+
+def test_wrong_units_radians_and_bad_latitude(tmp_path):
+    c, _ = _cols()
+    c["lat_deg"] = c["lat_deg"] * 1e7  # MAVLink integer degrees given as degrees
+    p = write_flight_log(tmp_path / "a.csv", c, make_meta(O, {"kind": "sim"}))
+    with pytest.raises(InputError, match="lat_deg.*wrong units"):
+        read_flight_log(p)
+
+
+def test_writer_is_readable_before_close_and_never_overwrites(tmp_path):
+    c, _ = _cols(100)
+    w = FlightLogWriter(tmp_path / "live.csv", make_meta(O, {"kind": "sim"}))
+    w.append({k: v[:60] for k, v in c.items()})
+    w.flush()
+    # a crash now (no close) still leaves a readable log with its sidecar
+    log = read_flight_log(tmp_path / "live.csv")
+    assert len(log) == 60 and log.meta["rss_source"]["kind"] == "sim"
+    w.append({k: v[60:] for k, v in c.items()})
+    w.close(status="completed")
+    assert json.loads(sidecar_path(tmp_path / "live.csv").read_text())["status"] == "completed"
+    assert len(read_flight_log(tmp_path / "live.csv")) == 100
+    with pytest.raises(InputError, match="overwrite"):
+        FlightLogWriter(tmp_path / "live.csv", {})
+
+
+def test_missing_file_and_bad_sidecar(tmp_path):
+    with pytest.raises(InputError, match="no such flight log"):
+        read_flight_log(tmp_path / "nope.csv")
+    c, _ = _cols()
+    p = write_flight_log(tmp_path / "f.csv", c, make_meta(O, {"kind": "sim"}))
+    sidecar_path(p).write_text("{not json")
+    with pytest.raises(InputError, match="sidecar is not valid JSON"):
+        read_flight_log(p)
