@@ -1,0 +1,77 @@
+"""Plot a mission (areas, waypoints, simulated path, time budget) and, with --accuracy, expected error.
+
+Also prints a summary table: length, duration, RSS samples, and how close the path comes to each part of
+the rover area.  The accuracy heatmap uses the model-based estimator of ``mission.preview``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("mission", help="mission YAML file (e.g. missions/spiral.yaml)")
+    parser.add_argument("--out", default="preview.png", help="PNG to write (default preview.png)")
+    parser.add_argument("--accuracy", action="store_true",
+                        help="add a heatmap of expected localization error over the rover area")
+    parser.add_argument("--grid", type=int, default=12,
+                        help="transmitter lattice is GRID x GRID over the rover area (default 12)")
+    parser.add_argument("--seed", type=int, default=None, help="random seed (default: the mission's seed)")
+    parser.add_argument("--size", default="1200x1000", help="image size in pixels WxH (default 1200x1000)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.table import Table
+
+    from mission.errors import InputError
+    from mission.preview import expected_error_map, render_preview, summarize
+    from mission.spec import load_mission
+
+    try:
+        w, h = (int(v) for v in str(args.size).lower().split("x"))
+        if w < 200 or h < 200:
+            raise ValueError
+    except ValueError:
+        raise InputError(f"expected WxH pixels (each >= 200), got '{args.size}'", field="--size") from None
+    if args.grid < 2:
+        raise InputError(f"must be >= 2, got {args.grid}", field="--grid")
+    spec = load_mission(args.mission)
+    seed = spec.source.seed if args.seed is None else args.seed
+    summary = summarize(spec)
+    console = Console(stderr=False)
+
+    emap = None
+    if args.accuracy:
+        with Progress(TextColumn("expected error"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      console=console, transient=True) as prog:
+            task = prog.add_task("grid", total=args.grid)
+            emap = expected_error_map(spec, args.grid, np.random.default_rng(seed),
+                                      progress=lambda done, total: prog.update(task, completed=done))
+
+    table = Table(title=f"mission {spec.name} ({spec.trajectory.generator}, {spec.altitude_m:g} m)")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    used = summary.duration_s / summary.time_budget_s
+    table.add_row("waypoints", str(summary.n_waypoints))
+    table.add_row("path length (take-off to landing)", f"{summary.length_m:,.0f} m")
+    table.add_row("estimated duration", f"{summary.duration_s:.0f} s ({summary.duration_s / 60:.1f} min)")
+    table.add_row("time budget used", f"{used:.0%} of {summary.time_budget_s:g} s")
+    table.add_row(f"RSS samples at {spec.source.sample_period_s:g} s", f"{summary.n_samples:,}")
+    table.add_row("fence clearance (min)", f"{summary.min_fence_clearance_m:.1f} m "
+                  f"(margin {spec.fence_margin_m:g} m)")
+    table.add_row("rover area: worst point to path", f"{summary.coverage.max_m:.1f} m")
+    table.add_row("rover area: mean distance to path", f"{summary.coverage.mean_m:.1f} m")
+    for k, v in summary.coverage.quadrant_max_m.items():
+        table.add_row(f"rover area {k} quadrant: worst point", f"{v:.1f} m")
+    if emap is not None:
+        table.add_row("expected error (mean / median)", f"{emap.mean_m:.1f} / {emap.median_m:.1f} m")
+    table.add_row("flyable", "yes" if not summary.violations else f"[red]no: {summary.violations[0]}[/red]")
+    console.print(table)
+
+    render_preview(spec, args.out, error_map=emap, summary=summary, rng=np.random.default_rng(seed),
+                   size_px=(w, h))
+    console.print(f"wrote {args.out}")
+    return 0

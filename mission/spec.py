@@ -1,0 +1,388 @@
+"""YAML mission files -> typed, validated ``MissionSpec`` (the schema is documented in missions/spiral.yaml).
+
+A mission names its field (AFAR by default), altitude, speed, time budget, fence margin, take-off and
+return behaviour, the trajectory (a generator with parameters, or explicit waypoints), the simulated RSS
+source and the vehicle connection.  Files are read with ``yaml.safe_load``; every bad or unknown key is an
+``InputError`` naming the file and the dotted key (``trajectory.params.spacing_m``), so a user fixes a
+mission from one line of output.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
+from mission.simulate import SimConfig
+from mission.trajectory.kinematics import Kinematics
+
+DEFAULT_MISSION = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"
+RETURN_BEHAVIOURS = ("rtl", "land")
+_KIN_FIELDS = tuple(k for k in Kinematics.__dataclass_fields__ if k != "cruise_speed_mps")
+
+
+@dataclass(frozen=True)
+class TrajectorySpec:
+    """A generator name and its parameters, or explicit waypoints (``generator == "waypoints"``)."""
+
+    generator: str
+    params: dict = field(default_factory=dict)
+    waypoints: np.ndarray | None = None   # (K, 3) ENU; z = the mission altitude unless given per waypoint
+
+
+@dataclass(frozen=True)
+class SourceSpec:
+    """The simulated RSS source: propagation model, transmitter (ENU or "random"), seed and noise."""
+
+    model: str = "e2r"
+    tx: tuple[float, float, float] | str = "random"
+    tx_height_m: float = 1.5
+    seed: int = 0
+    noise_db: float = 1.0
+    attitude_perturbation_deg: float = 5.0
+    sample_period_s: float = 0.03
+    model_params: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    """How to reach the vehicle: a MAVSDK connection URL, or None for the built-in simulated vehicle."""
+
+    connection: str | None = None
+    speedup: float = 1.0
+    kinematics: dict = field(default_factory=dict)   # overrides of Kinematics fields (accel_mps2, ...)
+
+
+@dataclass(frozen=True)
+class MissionSpec:
+    """A validated mission; positions are ENU metres about ``field.origin``."""
+
+    name: str
+    path: Path | None
+    field: Field
+    altitude_m: float = 30.0
+    cruise_speed_mps: float = 5.5
+    time_budget_s: float = 600.0
+    fence_margin_m: float = 3.0
+    altitude_limits_m: tuple[float, float] = (10.0, 120.0)
+    home_enu: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    return_behaviour: str = "rtl"
+    trajectory: TrajectorySpec = field(default_factory=lambda: TrajectorySpec("spiral"))
+    source: SourceSpec = field(default_factory=SourceSpec)
+    vehicle: VehicleSpec = field(default_factory=VehicleSpec)
+
+    @property
+    def source_name(self) -> str:
+        """The file for error messages ("<mission>" when built in code)."""
+        return str(self.path) if self.path else f"<mission {self.name}>"
+
+    def kinematics(self) -> Kinematics:
+        """The vehicle kinematics (cruise speed plus ``vehicle.kinematics`` overrides)."""
+        return Kinematics(cruise_speed_mps=self.cruise_speed_mps, **self.vehicle.kinematics)
+
+    def waypoints_enu(self) -> np.ndarray:
+        """The trajectory (K, 3) ENU at cruise altitude (generated, or the explicit waypoints)."""
+        t = self.trajectory
+        if t.waypoints is not None:
+            return np.array(t.waypoints, dtype=float)
+        from mission.trajectory.generators import generate
+
+        try:
+            return generate(t.generator, self.field, self.altitude_m, **t.params)
+        except InputError as e:
+            key = "trajectory.generator" if e.field == "generator" else \
+                f"trajectory.params.{e.field}" if e.field else "trajectory.params"
+            msg = str(e).split(": ", 1)[1] if e.field else str(e)
+            raise InputError(msg, source=self.source_name, field=key) from None
+
+    def flight_path_enu(self) -> np.ndarray:
+        """Home (ground) -> climb -> waypoints -> back over home -> land; with ``return_behaviour: land``
+        the vehicle lands below the last waypoint instead."""
+        w = self.waypoints_enu()
+        home = np.asarray(self.home_enu, dtype=float)
+        up = np.array([home[0], home[1], w[0, 2]])
+        if self.return_behaviour == "land":
+            tail = [np.array([w[-1, 0], w[-1, 1], home[2]])]
+        else:
+            tail = [np.array([home[0], home[1], w[-1, 2]]), home]
+        return np.vstack([home, up, w, *tail])
+
+    def resolve_tx(self, rng: np.random.Generator) -> np.ndarray:
+        """The transmitter (3,) ENU: the configured one, or uniform in the rover area at ``tx_height_m``."""
+        if isinstance(self.source.tx, str):
+            xy = self.field.rover_area.sample_uniform(1, rng)[0]
+            return np.array([xy[0], xy[1], self.source.tx_height_m])
+        return np.array(self.source.tx, dtype=float)
+
+    def sim_config(self) -> SimConfig:
+        """Simulator settings (sample period, perturbation, noise, kinematics) of this mission."""
+        s = self.source
+        return SimConfig(dt_s=s.sample_period_s, attitude_perturbation_deg=s.attitude_perturbation_deg,
+                         noise_db=s.noise_db, kinematics=self.kinematics())
+
+    def propagation_model(self):
+        """The ``mission.physics`` model named by ``source.model`` (with ``source.model_params``)."""
+        from mission.physics import make_model
+
+        try:
+            return make_model(self.source.model, **self.source.model_params)
+        except (ValueError, TypeError, KeyError) as e:
+            if isinstance(e, InputError):
+                raise
+            raise InputError(f"cannot build propagation model '{self.source.model}': {e}",
+                             source=self.source_name, field="source.model") from None
+
+
+# --------------------------------------------------------------------------------------------- loading
+
+class _Reader:
+    """Typed access to a YAML mapping with dotted key paths in every error."""
+
+    def __init__(self, data: Any, src: str, key: str = "") -> None:
+        if data is None:
+            data = {}
+        if not isinstance(data, dict):
+            raise InputError(f"expected a mapping, got {type(data).__name__}", source=src, field=key or None)
+        self.d, self.src, self.key, self.used = data, src, key, set()
+
+    def k(self, name: str) -> str:
+        return f"{self.key}.{name}" if self.key else name
+
+    def err(self, name: str, msg: str) -> InputError:
+        return InputError(msg, source=self.src, field=self.k(name))
+
+    def raw(self, name: str, default: Any = None) -> Any:
+        self.used.add(name)
+        return self.d.get(name, default)
+
+    def has(self, name: str) -> bool:
+        return name in self.d and self.d[name] is not None
+
+    def num(self, name: str, default: float, lo: float | None = None, hi: float | None = None,
+            strict_lo: bool = False) -> float:
+        v = self.raw(name, default)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise self.err(name, f"expected a number, got {v!r}")
+        if lo is not None and (v <= lo if strict_lo else v < lo):
+            raise self.err(name, f"must be {'>' if strict_lo else '>='} {lo}, got {v}")
+        if hi is not None and v > hi:
+            raise self.err(name, f"must be <= {hi}, got {v}")
+        return float(v)
+
+    def int_(self, name: str, default: int) -> int:
+        v = self.raw(name, default)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.err(name, f"expected an integer, got {v!r}")
+        return v
+
+    def str_(self, name: str, default: str | None, choices: tuple[str, ...] | None = None) -> str | None:
+        v = self.raw(name, default)
+        if v is None and default is None:
+            return None
+        if not isinstance(v, str):
+            raise self.err(name, f"expected a string, got {v!r}")
+        if choices and v not in choices:
+            raise self.err(name, f"expected one of {', '.join(choices)}, got '{v}'")
+        return v
+
+    def sub(self, name: str) -> _Reader:
+        return _Reader(self.raw(name), self.src, self.k(name))
+
+    def done(self) -> None:
+        extra = [k for k in self.d if k not in self.used]
+        if extra:
+            raise self.err(str(extra[0]), "unknown key (see the schema at the top of missions/spiral.yaml)")
+
+
+def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
+    """A position: [x, y] / [x, y, z] ENU metres, or {lat, lon[, height_m]} (height above the origin)."""
+    if isinstance(v, dict):
+        pr = _Reader(v, r.src, key)
+        lat, lon = pr.num("lat", 0.0, -90, 90), pr.num("lon", 0.0, -180, 180)
+        if not (pr.has("lat") and pr.has("lon")):
+            raise InputError("needs both 'lat' and 'lon'", source=r.src, field=key)
+        h = pr.num("height_m", 0.0) if pr.has("height_m") else math.nan
+        pr.done()
+        e = origin.to_enu(lat, lon)
+        return np.array([e[0], e[1], h])
+    if isinstance(v, list | tuple) and len(v) in (2, 3) and all(
+            isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v):
+        return np.array([float(v[0]), float(v[1]), float(v[2]) if len(v) == 3 else math.nan])
+    raise InputError(f"expected [x, y], [x, y, z] (ENU metres) or {{lat: .., lon: ..}}, got {v!r}",
+                     source=r.src, field=key)
+
+
+def _area(v: Any, r: _Reader, key: str, name: str, origin: Origin) -> Area:
+    """An area: a lat/lon box {lat_min, lat_max, lon_min, lon_max}, {polygon: [[lat, lon], ...]} or
+    {enu: [[x, y], ...]}."""
+    ar = _Reader(v, r.src, key)
+    try:
+        if ar.has("polygon"):
+            ll = np.array(ar.raw("polygon"), dtype=float)
+            if ll.ndim != 2 or ll.shape[1] != 2 or len(ll) < 3:
+                raise ar.err("polygon", "expected at least 3 [lat, lon] vertices")
+            a = Area.from_geodetic(name, ll, origin)
+        elif ar.has("enu"):
+            a = Area(name, np.array(ar.raw("enu"), dtype=float))
+        else:
+            box = {}
+            for k in ("lat_min", "lat_max", "lon_min", "lon_max"):
+                if not ar.has(k):
+                    raise ar.err(k, "missing (an area is a lat/lon box, {polygon: ...} or {enu: ...})")
+                box[k] = ar.num(k, 0.0, -180.0, 180.0)
+            if box["lat_min"] >= box["lat_max"] or box["lon_min"] >= box["lon_max"]:
+                raise ar.err("lat_min", "needs lat_min < lat_max and lon_min < lon_max")
+            a = Area.from_box(name, box, origin)
+    except (TypeError, ValueError) as e:
+        if isinstance(e, InputError) and e.source:
+            raise
+        raise InputError(f"bad area: {e}", source=r.src, field=key) from None
+    ar.done()
+    return a
+
+
+def _field(r: _Reader) -> tuple[Field, tuple[float, float] | None]:
+    fr = r.sub("field")
+    preset = fr.str_("preset", "afar", ("afar", "custom"))
+    if preset == "afar" and not any(fr.has(k) for k in ("origin", "flight_area", "rover_area")):
+        fr.str_("name", None)
+        fr.done()
+        f = afar_field()
+        return f, f.takeoff_home
+    if fr.has("origin"):
+        orr = fr.sub("origin")
+        for k in ("lat_deg", "lon_deg"):
+            if not orr.has(k):
+                raise orr.err(k, "missing (the origin needs lat_deg, lon_deg and optionally alt_m)")
+        origin = Origin(orr.num("lat_deg", 0.0, -90, 90), orr.num("lon_deg", 0.0, -180, 180),
+                        orr.num("alt_m", 0.0))
+        orr.done()
+    elif preset == "afar":
+        fa = AFAR_GEOMETRY["flight_area"]
+        origin = Origin(fa["lat_min"], fa["lon_min"], 0.0)
+    else:
+        raise fr.err("origin", "missing (a custom field needs an origin)")
+    base = afar_field(origin=origin) if preset == "afar" else None
+    areas = {}
+    for k, nice in (("flight_area", "flight area"), ("rover_area", "rover area")):
+        if fr.has(k):
+            areas[k] = _area(fr.raw(k), fr, fr.k(k), nice, origin)
+        elif base is not None:
+            areas[k] = getattr(base, k)
+        else:
+            raise fr.err(k, "missing (a custom field needs both areas)")
+    name = fr.str_("name", "AFAR" if preset == "afar" else "custom field")
+    fr.done()
+    home = base.takeoff_home if base is not None else None
+    return Field(origin, areas["flight_area"], areas["rover_area"], name=name, takeoff_home=home), home
+
+
+def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
+    """Validate a parsed YAML document (a mapping) into a ``MissionSpec``."""
+    src = str(path) if path else "<mission>"
+    r = _Reader(data, src)
+    name = r.str_("name", Path(path).stem if path else "mission")
+    fld, takeoff = _field(r)
+    altitude = r.num("altitude_m", 30.0, 0.0, strict_lo=True)
+    cruise = r.num("cruise_speed_mps", 5.5, 0.0, 30.0, strict_lo=True)
+    budget = r.num("time_budget_s", 600.0, 0.0, strict_lo=True)
+    margin = r.num("fence_margin_m", 3.0, 0.0)
+    lim = r.raw("altitude_limits_m", [10.0, 120.0])
+    if not (isinstance(lim, list) and len(lim) == 2 and all(
+            isinstance(x, int | float) and not isinstance(x, bool) for x in lim) and 0 <= lim[0] < lim[1]):
+        raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max, got {lim!r}")
+    if r.has("home"):
+        home = _point(r.raw("home"), r, "home", fld.origin)
+    elif takeoff is not None:
+        home = fld.origin.to_enu(*takeoff)
+        home[2] = math.nan  # ground level (the origin's ground; earth curvature is not a height)
+    else:
+        home = np.zeros(3)
+    home = np.array([home[0], home[1], 0.0 if math.isnan(home[2]) else home[2]])
+    ret = r.str_("return_behaviour", "rtl", RETURN_BEHAVIOURS)
+
+    tr = r.sub("trajectory")
+    if tr.has("waypoints"):
+        wps = tr.raw("waypoints")
+        if not isinstance(wps, list) or len(wps) < 1:
+            raise tr.err("waypoints", "expected a non-empty list of waypoints")
+        pts = np.array([_point(w, tr, f"trajectory.waypoints[{i}]", fld.origin) for i, w in enumerate(wps)])
+        pts[np.isnan(pts[:, 2]), 2] = altitude
+        gen = tr.str_("generator", "waypoints", ("waypoints",))
+        if tr.has("params"):
+            raise tr.err("params", "explicit waypoints take no generator parameters")
+        traj = TrajectorySpec("waypoints", {}, pts)
+    else:
+        from mission.trajectory.generators import GENERATORS
+
+        gen = tr.str_("generator", "spiral", tuple(GENERATORS))
+        params = tr.raw("params", {}) or {}
+        if not isinstance(params, dict):
+            raise tr.err("params", f"expected a mapping of generator parameters, got {params!r}")
+        traj = TrajectorySpec(gen, dict(params), None)
+    tr.done()
+
+    sr = r.sub("source")
+    tx_raw = sr.raw("tx", "random")
+    tx_h = sr.num("tx_height_m", 1.5, 0.0)
+    if isinstance(tx_raw, str):
+        if tx_raw != "random":
+            raise sr.err("tx", f"expected 'random' or a position, got '{tx_raw}'")
+        tx: tuple[float, float, float] | str = "random"
+    else:
+        p = _point(tx_raw, sr, "source.tx", fld.origin)
+        tx = (float(p[0]), float(p[1]), tx_h if math.isnan(p[2]) else float(p[2]))
+    model_params = sr.raw("model_params", {}) or {}
+    if not isinstance(model_params, dict):
+        raise sr.err("model_params", "expected a mapping")
+    source = SourceSpec(
+        model=sr.str_("model", "e2r"), tx=tx, tx_height_m=tx_h, seed=sr.int_("seed", 0),
+        noise_db=sr.num("noise_db", 1.0, 0.0),
+        attitude_perturbation_deg=sr.num("attitude_perturbation_deg", 5.0, 0.0, 45.0),
+        sample_period_s=sr.num("sample_period_s", 0.03, 0.0, 10.0, strict_lo=True),
+        model_params=dict(model_params))
+    sr.done()
+
+    vr = r.sub("vehicle")
+    conn = vr.str_("connection", None)
+    speedup = vr.num("speedup", 1.0, 0.0, strict_lo=True)
+    kr = vr.sub("kinematics")
+    kin = {k: kr.num(k, getattr(Kinematics, k), 0.0, strict_lo=True) for k in _KIN_FIELDS if kr.has(k)}
+    kr.used.update(kin)
+    kr.done()
+    vr.done()
+    r.done()
+    return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
+                       cruise_speed_mps=cruise, time_budget_s=budget, fence_margin_m=margin,
+                       altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
+                       return_behaviour=ret, trajectory=traj, source=source,
+                       vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin))
+
+
+def load_mission(path: str | Path | None = None) -> MissionSpec:
+    """Read and validate a mission YAML file (default: ``missions/spiral.yaml``)."""
+    import yaml
+
+    p = Path(path) if path is not None else DEFAULT_MISSION
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise InputError("mission file not found", source=str(p)) from None
+    except OSError as e:
+        raise InputError(f"cannot read mission file: {e.strerror or e}", source=str(p)) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise InputError(f"malformed YAML{where}: {problem}", source=str(p)) from None
+    spec = parse_mission(data, p)
+    if spec.trajectory.waypoints is None:
+        spec.waypoints_enu()  # validate generator parameters now, with the key in the message
+    return spec

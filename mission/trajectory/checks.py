@@ -1,0 +1,134 @@
+"""Pre-flight checks: geofence, altitude limits and time budget, before anything is uploaded or flown.
+
+The flight time is estimated with ``plan_profile`` on ``MissionSpec.flight_path_enu`` (take-off, transit,
+the trajectory, return and landing), the same kinematics the simulator and the simulated vehicle fly, so
+a mission that passes here also fits its budget in simulation.
+
+Fence rule: every trajectory waypoint and every leg between them must be inside the flight area with at
+least ``fence_margin_m`` to its edge.  The take-off point is wherever the crew launches (AERPAW's launch
+point is 0.4 m inside the AFAR fence), so the climb, the transit legs to/from home and the landing need
+only stay inside the flight area.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.trajectory.kinematics import FlightProfile, plan_profile
+
+_TOL = 1e-6  # metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
+
+
+@dataclass
+class Violation:
+    """One failed check: the mission key it concerns, a one-line message and the shortfall."""
+
+    key: str
+    message: str
+    amount: float
+
+
+@dataclass
+class MissionReport:
+    """Result of ``check_mission``: estimated length, time and clearances, and the violations found."""
+
+    length_m: float
+    duration_s: float
+    time_budget_s: float
+    n_waypoints: int
+    n_samples: int                  # RSS samples at the source's sample period over the whole flight
+    min_fence_clearance_m: float    # smallest distance of a trajectory point to the flight-area edge
+    altitude_range_m: tuple[float, float]
+    profile: FlightProfile
+    violations: list[Violation] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.violations
+
+    @property
+    def budget_used(self) -> float:
+        """Fraction of the time budget the flight uses."""
+        return self.duration_s / self.time_budget_s
+
+
+def _wp_key(spec, i: int) -> str:
+    return f"trajectory.waypoints[{i}]" if spec.trajectory.waypoints is not None else "trajectory.params"
+
+
+def _leg_clearance(area, a: np.ndarray, b: np.ndarray, step: float = 0.5) -> tuple[float, np.ndarray]:
+    """Smallest signed clearance (m, negative outside) along the leg a -> b, and where it occurs."""
+    n = max(int(np.ceil(np.linalg.norm(b[:2] - a[:2]) / step)), 1) + 1
+    pts = a[:2] + np.linspace(0.0, 1.0, n)[:, None] * (b[:2] - a[:2])
+    d = area.signed_distance(pts)
+    j = int(np.argmin(d))
+    return float(d[j]), pts[j]
+
+
+def _where(d: float, margin: float) -> str:
+    if d < 0:
+        return f"{-d:.1f} m outside the flight area"
+    return f"only {d:.1f} m inside the flight area, {margin:g} m margin required ({margin - d:.1f} m short)"
+
+
+def check_mission(spec) -> MissionReport:
+    """Check a ``MissionSpec``: fence (waypoints and legs), altitude limits and the time budget."""
+    area, margin = spec.field.flight_area, spec.fence_margin_m
+    wps = spec.waypoints_enu()
+    path = spec.flight_path_enu()
+    profile = plan_profile(path, spec.kinematics())
+    v: list[Violation] = []
+
+    clear = area.signed_distance(wps[:, :2])
+    for i in np.flatnonzero(clear < margin - _TOL):
+        v.append(Violation(_wp_key(spec, i), f"waypoint {i} at ({wps[i, 0]:.1f}, {wps[i, 1]:.1f}) m is "
+                           f"{_where(float(clear[i]), margin)}", float(margin - clear[i])))
+    min_clear = float(clear.min())
+    bad_wp = set(np.flatnonzero(clear < margin - _TOL).tolist())
+    for i in range(len(wps) - 1):
+        d, at = _leg_clearance(area, wps[i], wps[i + 1])
+        min_clear = min(min_clear, d)
+        if d < margin - _TOL and not ({i, i + 1} & bad_wp):
+            v.append(Violation(_wp_key(spec, i), f"leg from waypoint {i} to {i + 1} passes ({at[0]:.1f}, "
+                               f"{at[1]:.1f}) m, {_where(d, margin)}", margin - d))
+    home = np.asarray(spec.home_enu, dtype=float)
+    legs = [(home, wps[0], "transit from home to waypoint 0")]
+    if spec.return_behaviour == "rtl":
+        legs.append((wps[-1], home, f"return from waypoint {len(wps) - 1} to home"))
+    for a, b, what in legs:
+        d, at = _leg_clearance(area, a, b)
+        if d < -_TOL:
+            v.append(Violation("home", f"{what} passes ({at[0]:.1f}, {at[1]:.1f}) m, {-d:.1f} m outside "
+                               "the flight area", -d))
+
+    lo, hi = spec.altitude_limits_m
+    for i, z in enumerate(wps[:, 2]):
+        if z < lo - _TOL:
+            v.append(Violation(_wp_key(spec, i) if spec.trajectory.waypoints is not None else "altitude_m",
+                               f"waypoint {i} altitude {z:.1f} m is {lo - z:.1f} m below the lower limit "
+                               f"{lo:g} m", lo - z))
+        elif z > hi + _TOL:
+            v.append(Violation(_wp_key(spec, i) if spec.trajectory.waypoints is not None else "altitude_m",
+                               f"waypoint {i} altitude {z:.1f} m is {z - hi:.1f} m above the upper limit "
+                               f"{hi:g} m", z - hi))
+
+    if profile.duration_s > spec.time_budget_s:
+        over = profile.duration_s - spec.time_budget_s
+        v.append(Violation("time_budget_s", f"estimated flight time {profile.duration_s:.0f} s exceeds the "
+                           f"time budget {spec.time_budget_s:g} s by {over:.0f} s", over))
+    n_samples = int(np.floor(profile.duration_s / spec.source.sample_period_s + 1e-9)) + 1
+    return MissionReport(profile.length_m, profile.duration_s, spec.time_budget_s, len(wps), n_samples,
+                         min_clear, (float(wps[:, 2].min()), float(wps[:, 2].max())), profile, v)
+
+
+def assert_flyable(spec) -> MissionReport:
+    """``check_mission``; raise an ``InputError`` (file, key, waypoint, shortfall) on the first violation."""
+    rep = check_mission(spec)
+    if rep.violations:
+        first = rep.violations[0]
+        more = f" (and {len(rep.violations) - 1} more problems)" if len(rep.violations) > 1 else ""
+        raise InputError(first.message + more, source=spec.source_name, field=first.key)
+    return rep
