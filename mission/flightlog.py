@@ -73,10 +73,12 @@ class FlightLog:
         tx = self.meta.get("truth")
         if not tx:
             return None
-        if "lat_deg" in tx:
-            o = self.origin
-            return o.to_enu(tx["lat_deg"], tx["lon_deg"], o.alt_m + float(tx.get("height_m", 0.0)))
-        return np.array([tx["x_m"], tx["y_m"], tx.get("z_m", 0.0)], dtype=float)
+        if "x_m" in tx:  # exact local coordinates take precedence over lat/lon (no curvature round trip)
+            return np.array([tx["x_m"], tx["y_m"], tx.get("z_m", 0.0)], dtype=float)
+        o = self.origin
+        enu = o.to_enu(tx["lat_deg"], tx["lon_deg"], o.alt_m + float(tx.get("height_m", 0.0)))
+        enu[2] = float(tx.get("height_m", 0.0))  # height above ground, not above the origin's tangent plane
+        return enu
 
     def select(self, mask: np.ndarray) -> FlightLog:
         """A new log holding only the rows where ``mask`` is true."""

@@ -1,0 +1,87 @@
+"""Fast flight simulator: reproducible from a seed, consistent with the model, and its CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from mission.cli.main import main
+from mission.flightlog import read_flight_log
+from mission.physics import make_model
+from mission.simulate import SimConfig, simulate_flight
+from mission.spec import load_mission
+
+
+@pytest.fixture(scope="module")
+def spiral(repo_dir):
+    return load_mission(repo_dir / "missions" / "spiral.yaml")
+
+
+def test_same_seed_same_bytes_and_other_seed_differs(spiral):
+    model = make_model("e2r")
+    tx = np.array([100.0, 200.0, 1.5])
+    a = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(), np.random.default_rng(7))
+    b = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(), np.random.default_rng(7))
+    c = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(), np.random.default_rng(8))
+    assert a.rss_dbm.tobytes() == b.rss_dbm.tobytes()
+    assert a.attitude_rad.tobytes() == b.attitude_rad.tobytes()
+    assert not np.array_equal(a.rss_dbm, c.rss_dbm)
+
+
+def test_sampling_period_and_perturbation_range(spiral):
+    cfg = SimConfig(dt_s=0.03)
+    f = simulate_flight(spiral.waypoints_enu(), np.array([50.0, 150.0, 1.5]), make_model("two-ray"), cfg,
+                        np.random.default_rng(1))
+    assert np.allclose(np.diff(f.t_s), 0.03)
+    assert len(f.t_s) == pytest.approx(f.profile.duration_s / 0.03, abs=2)
+    # roll in steady cruise is the perturbation alone: uniform in +-5 deg, all of that range used
+    roll = np.rad2deg(f.attitude_rad[:, 0])
+    assert roll.max() > 4.0 and roll.min() < -4.0
+    assert np.percentile(np.abs(roll), 50) < 5.0
+
+
+def test_noise_free_rss_equals_model_at_logged_geometry(spiral):
+    cfg = SimConfig(noise_db=0.0)
+    tx = np.array([120.0, 180.0, 1.5])
+    model = make_model("e2r")
+    f = simulate_flight(spiral.waypoints_enu(), tx, model, cfg, np.random.default_rng(2))
+    again = model.rss_dbm(tx, f.enu, f.attitude_rad)
+    assert np.max(np.abs(again - f.rss_dbm)) < 1e-9
+    # noise is zero-mean with the configured standard deviation
+    g = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(noise_db=1.0), np.random.default_rng(2))
+    resid = g.rss_dbm - f.rss_dbm
+    assert abs(resid.mean()) < 0.05 and resid.std() == pytest.approx(1.0, abs=0.05)
+
+
+def test_strongest_sample_lies_near_the_transmitter(spiral):
+    tx = np.array([150.0, 150.0, 1.5])
+    f = simulate_flight(spiral.waypoints_enu(), tx, make_model("free-space", pattern="isotropic"),
+                        SimConfig(noise_db=0.0, attitude_perturbation_deg=0.0), np.random.default_rng(0))
+    best = f.enu[np.argmax(f.rss_dbm)]
+    # the spiral's rings are ~20 m apart: its closest pass is within half that of any point of the overlap
+    assert np.linalg.norm(best[:2] - tx[:2]) < 15.0
+
+
+def test_cli_writes_a_readable_log_with_truth(tmp_path, repo_dir):
+    rc = main(["simulate", str(repo_dir / "missions" / "spiral.yaml"), "--source", "60,200", "--seed", "5",
+               "--cruise-only", "--out", str(tmp_path)])
+    assert rc == 0
+    (csv,) = tmp_path.glob("*.csv")
+    log = read_flight_log(csv)
+    assert np.allclose(log.truth_enu, [60, 200, 1.5], atol=1e-3)
+    assert log.meta["rss_source"] == {**log.meta["rss_source"], "kind": "sim", "model": "e2r", "seed": 5}
+    assert np.allclose(log.enu()[:, 2], 30.0, atol=1e-3)  # cruise only: all at 30 m
+    # writing the same flight again would overwrite it: refused
+    assert main(["simulate", str(repo_dir / "missions" / "spiral.yaml"), "--source", "60,200", "--seed", "5",
+                 "--cruise-only", "--out", str(tmp_path)]) == 2
+
+
+def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir):
+    r = subprocess.run([sys.executable, "-m", "mission.cli.main", "simulate", str(repo_dir / "missions" / "spiral.yaml"),
+                        "--source", "1,x", "--out", str(tmp_path)], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "--source" in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
