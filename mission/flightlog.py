@@ -225,6 +225,49 @@ def read_flight_log(path: str | Path) -> FlightLog:
     if missing:
         raise InputError(f"missing required column(s) {', '.join(missing)}; header is {','.join(header)}",
                          source=src)
+    fast = _fast_numeric(text, header)
+    if fast is not None:
+        columns = dict(zip(header, fast.T, strict=True))
+        n = fast.shape[0]
+        for name in REQUIRED:  # NaN (or empty) in a required column: the slow path names the row
+            if np.isnan(columns[name]).any():
+                fast = None
+                break
+    if fast is None:
+        columns, n = _slow_parse(reader, header, src)
+    for c in OPTIONAL:
+        columns.setdefault(c, np.full(n, np.nan))
+    return _validated(columns, path, src)
+
+
+def _fast_numeric(text: str, header: list[str]) -> np.ndarray | None:
+    """All-numeric CSV body -> (rows, cols) float array in one vectorised conversion, or None.
+
+    Empty fields become NaN.  Anything unusual (text columns, ragged rows, bad numbers) returns None and
+    the caller falls back to the row-by-row parser, which names the offending row.
+    """
+    body = text.split("\n", 1)[1] if "\n" in text else ""
+    lines = [ln for ln in body.splitlines() if ln.strip()]
+    if not lines:
+        return None
+    width = len(header)
+    joined = ",".join(lines)
+    tokens = joined.split(",")
+    if len(tokens) != width * len(lines):
+        return None
+    arr = np.array(tokens, dtype=object)
+    arr[arr == ""] = "nan"
+    try:
+        out = arr.astype(float).reshape(len(lines), width)
+    except ValueError:
+        return None
+    if np.isinf(out).any():
+        return None
+    return out
+
+
+def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarray], int]:
+    """Row-by-row parse with exact error locations (fallback for unusual or broken files)."""
     rows = [r for r in reader if r]
     if not rows:
         raise InputError("no data rows", source=src)
@@ -242,8 +285,11 @@ def read_flight_log(path: str | Path) -> FlightLog:
             if name in COLUMNS:
                 raise
             columns[name] = np.array(cols_text[j], dtype=object)  # extra non-numeric column: keep as text
-    for c in OPTIONAL:
-        columns.setdefault(c, np.full(len(rows), np.nan))
+    return columns, len(rows)
+
+
+def _validated(columns: dict[str, np.ndarray], path: Path, src: str) -> FlightLog:
+    """Check time order, units and ranges; attach the sidecar."""
     t = columns["t_s"]
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
