@@ -1,0 +1,55 @@
+"""Convert real flights (AFAR challenge MAT files) into the project's flight logs (CSV + JSON sidecar).
+
+Example: ``rfsl import afar-mat exp_288_loc_1.mat --out logs/ --truth 35.72806709,-78.69730398``.
+The truth is taken only from ``--truth``, never guessed from the file name.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from mission.errors import InputError
+
+
+def parse_latlon(text: str, name: str = "--truth") -> tuple[float, float]:
+    """'LAT,LON' -> (lat, lon) in degrees, or InputError naming the option."""
+    try:
+        lat_s, lon_s = text.split(",")
+        lat, lon = float(lat_s), float(lon_s)
+    except ValueError:
+        raise InputError(f"{name} expects LAT,LON in degrees, got {text!r}") from None
+    if abs(lat) > 90 or abs(lon) > 180:
+        raise InputError(f"{name} {text!r} is not a latitude,longitude pair in degrees")
+    return lat, lon
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("kind", choices=["afar-mat"], help="input format (AFAR challenge MAT files)")
+    parser.add_argument("files", nargs="+", metavar="FILE", help="input file(s)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output directory for CSV + sidecar")
+    parser.add_argument("--truth", metavar="LAT,LON", help="transmitter truth (applied to every file given)")
+    parser.add_argument(
+        "--truth-height",
+        type=float,
+        default=1.5,
+        metavar="M",
+        help="transmitter antenna height above ground (default 1.5 m, AFAR rover)",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="replace existing output logs")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from mission.importers.afar import import_afar_mat
+
+    console = Console(stderr=False)
+    truth = parse_latlon(args.truth) if args.truth else None
+    for f in args.files:
+        res = import_afar_mat(
+            f, args.out, truth=truth, truth_height_m=args.truth_height, overwrite=args.overwrite
+        )
+        notes = "; ".join(res.notes) if res.notes else "timestamps clean"
+        tr = "truth from --truth" if truth else "no truth"
+        console.print(f"[green]wrote[/] {res.out_path} ({len(res.log)} samples, {tr}; {notes})")
+    return 0

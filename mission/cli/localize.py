@@ -1,0 +1,115 @@
+"""Estimate the transmitter position from a flight log (ONNX network or classical estimators).
+
+Keeps the cruise part of the log, computes the features and runs the method.  Default method: the shipped
+model ``models/rfsl_default.onnx`` when present, else a model-based grid search with the e2r physics.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", metavar="LOG.csv", help="flight log (CSV with its JSON sidecar)")
+    parser.add_argument("--model", metavar="MODEL.onnx", help="ONNX localizer (implies --method onnx)")
+    parser.add_argument(
+        "--method",
+        choices=["onnx", "strongest", "centroid", "grid"],
+        help="localizer (default: shipped model if present, else grid)",
+    )
+    parser.add_argument(
+        "--physics", default="e2r", metavar="NAME", help="propagation model of the grid search (default e2r)"
+    )
+    parser.add_argument(
+        "--tx-height",
+        type=float,
+        default=1.5,
+        metavar="M",
+        help="transmitter antenna height for the grid search (default 1.5 m)",
+    )
+    parser.add_argument(
+        "--truth", metavar="LAT,LON", help="true transmitter position (overrides the sidecar)"
+    )
+    parser.add_argument("--no-cruise", action="store_true", help="use all samples (no cruise selection)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--plot", metavar="OUT.png", help="draw flight, clusters and estimate")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from mission.cli.importer import parse_latlon
+    from mission.errors import InputError
+    from mission.flightlog import read_flight_log
+    from mission.localize.api import localize_log, search_area
+
+    truth = parse_latlon(args.truth) if args.truth else None
+    method = args.method
+    if args.model and method not in (None, "onnx"):
+        raise InputError(f"--model needs --method onnx (got --method {method})")
+    log = read_flight_log(args.log)
+    est = localize_log(
+        log,
+        method=method,
+        model_path=args.model,
+        truth=truth,
+        cruise=not args.no_cruise,
+        physics_model=args.physics,
+        tx_height_m=args.tx_height,
+    )
+    if args.plot:
+        from mission.localize.plot import plot_localization
+        from mission.localize.preprocess import select_cruise
+
+        part = log if args.no_cruise else select_cruise(log)[0]
+        from mission.localize.features import FeatureConfig
+
+        fc = est.extras.get("feature_config")
+        cfg = FeatureConfig.from_dict(fc) if fc else None
+        plot_localization(part, est, args.plot, cfg=cfg, area=search_area(log))
+        est.extras["plot"] = str(args.plot)
+    if args.json:
+        print(json.dumps(est.to_dict(), default=float))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    c = Console()
+    tab = Table(title=f"transmitter estimate: {args.log}", show_header=False)
+    tab.add_row("method", f"{est.method}" + (f" ({est.model})" if est.model else ""))
+    tab.add_row("why", str(est.extras.get("method_choice", "")))
+    tab.add_row("local x, y", f"{est.x_m:.1f} m east, {est.y_m:.1f} m north (log origin)")
+    tab.add_row("lat, lon", f"{est.lat_deg:.7f}, {est.lon_deg:.7f}")
+    if est.error_m is not None:
+        tab.add_row(
+            "error",
+            f"[bold]{est.error_m:.1f} m[/] (truth {est.extras['truth_x_m']:.1f}, "
+            f"{est.extras['truth_y_m']:.1f} m)",
+        )
+    tab.add_row(
+        "samples", f"{est.extras['samples_used']} of {est.extras['samples_total']}: {est.extras['cruise']}"
+    )
+    if "offset_db" in est.extras:
+        tab.add_row(
+            "fit", f"offset {est.extras['offset_db']:.1f} dB, robust rms {est.extras['cost_rms_db']:.2f} dB"
+        )
+    if args.plot:
+        tab.add_row("plot", str(args.plot))
+    c.print(tab)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Console script ``localize``."""
+    from mission.cli.main import run_guarded
+
+    parser = argparse.ArgumentParser(prog="localize", description=(__doc__ or "").strip().splitlines()[0])
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    return run_guarded(lambda: run(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

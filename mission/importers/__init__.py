@@ -1,0 +1,1 @@
+"""Importers that turn real flights recorded by others into the project's flight-log format."""

@@ -1,0 +1,170 @@
+"""AFAR challenge MAT files (AERPAW, December 2023) -> project flight logs (CSV + JSON sidecar).
+
+Variables read (``../shared/data/README.md``): ``timestamp_power`` (s, node wall clock), ``mX`` longitude,
+``mY`` latitude, ``mZ`` height above the *first GPS fix* (m), ``mRoll``/``mPitch``/``mYaw`` (deg, yaw
+clockwise from north) and ``mpower`` (channel-sounder dB, NOT calibrated dBm).
+
+Choices:
+
+- Origin: the AFAR field origin (``mission.geo.afar_field().origin``, the flight-area SW corner, 0 m), so
+  every imported log shares one local frame.
+- ``alt_m = rel_alt_m = mZ``: the files carry no AMSL altitude; ``mZ`` is height above the first fix (about
+  3-4 m below the autopilot's relative altitude), which is used as the height above the origin's ground.
+- ``t_s`` is seconds since the first kept sample; the absolute start time goes into the sidecar.
+- Out-of-order rows are sorted; duplicate timestamps, and samples less than 1 ms after the previous one
+  (the sounder's values are time-stamped when read from a pipe, and about 15 per flight come in bursts
+  some 20 us apart, below the log's 0.1 ms resolution), are dropped (first kept); the sidecar's
+  ``import_notes`` says how many.
+- Truth is only ever taken from the caller (``--truth``), never guessed from the file name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.flightlog import FlightLog, make_meta, write_flight_log
+from mission.geo import Origin, afar_field
+
+REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
+MIN_DT_S = 1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
+RSS_SOURCE = {"kind": "real", "receiver": "AERPAW channel sounder", "calibrated": False}
+
+
+@dataclass
+class ImportResult:
+    """One imported flight: its log (in memory), what was done to it, and where it was written."""
+
+    log: FlightLog
+    notes: list[str] = field(default_factory=list)
+    out_path: Path | None = None
+
+
+def _load_mat(path: Path) -> dict[str, np.ndarray]:
+    import scipy.io as sio
+
+    src = str(path)
+    if not path.exists():
+        raise InputError("no such MAT file", source=src)
+    try:
+        m = sio.loadmat(str(path))
+    except Exception as e:  # scipy raises several types for non-MAT input
+        raise InputError(
+            f"not a readable MATLAB file ({type(e).__name__}: {e})".splitlines()[0], source=src
+        ) from None
+    missing = [v for v in REQUIRED_VARS if v not in m]
+    if missing:
+        raise InputError(f"missing MAT variable(s) {', '.join(missing)}", source=src)
+    out: dict[str, np.ndarray] = {}
+    n = None
+    for v in REQUIRED_VARS:
+        try:
+            a = np.asarray(m[v], dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise InputError("not numeric", source=src, field=v) from None
+        if n is None:
+            n = a.size
+        elif a.size != n:
+            raise InputError(f"has {a.size} rows, expected {n} (as timestamp_power)", source=src, field=v)
+        out[v] = a
+    if not n:
+        raise InputError("no samples", source=src)
+    return out
+
+
+def convert_afar_mat(
+    path: str | Path,
+    truth: tuple[float, float] | None = None,
+    truth_height_m: float = 1.5,
+    origin: Origin | None = None,
+) -> ImportResult:
+    """Read one AFAR MAT file and return the flight log (not yet written) plus import notes."""
+    path = Path(path)
+    src = str(path)
+    m = _load_mat(path)
+    notes: list[str] = []
+    finite = np.ones(m["timestamp_power"].size, dtype=bool)
+    for v in ("timestamp_power", "mX", "mY", "mZ", "mpower"):
+        finite &= np.isfinite(m[v])
+    if not finite.all():
+        notes.append(f"dropped {int((~finite).sum())} rows with NaN/inf time, position or power")
+        m = {k: a[finite] for k, a in m.items()}
+    if m["timestamp_power"].size < 2:
+        raise InputError("fewer than 2 usable samples", source=src)
+    t = m["timestamp_power"]
+    if np.any(np.diff(t) < 0):
+        notes.append(f"sorted {int((np.diff(t) < 0).sum())} out-of-order timestamps")
+    order = np.argsort(t, kind="stable")
+    t = t[order]
+    keep = np.concatenate([[True], np.diff(t) > 0])
+    if not keep.all():
+        notes.append(f"dropped {int((~keep).sum())} rows with duplicate timestamps")
+    t = t[keep]
+    order = order[keep]
+    near = np.concatenate([[False], np.diff(t) < MIN_DT_S])
+    if near.any():
+        notes.append(
+            f"dropped {int(near.sum())} rows less than {MIN_DT_S * 1e3:g} ms after the previous one "
+            "(receiver read bursts; the log stores 0.1 ms)"
+        )
+    keep = ~near
+    idx = order[keep]
+    m = {k: a[idx] for k, a in m.items()}
+    t = m["timestamp_power"]
+    lat, lon = m["mY"], m["mX"]
+    if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
+        raise InputError("mY/mX are not latitude/longitude in degrees", source=src, field="mY")
+    origin = origin or afar_field().origin
+    z = m["mZ"]
+    cols = {
+        "t_s": t - t[0],
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": origin.alt_m + z,
+        "rel_alt_m": z,
+        "roll_deg": m["mRoll"],
+        "pitch_deg": m["mPitch"],
+        "yaw_deg": np.mod(m["mYaw"], 360.0),
+        "rss_dbm": m["mpower"],
+    }
+    truth_d = None
+    if truth is not None:
+        truth_d = {"lat_deg": float(truth[0]), "lon_deg": float(truth[1]), "height_m": float(truth_height_m)}
+    start = np.datetime64(int(round(t[0] * 1e6)), "us")
+    meta = make_meta(
+        origin,
+        dict(RSS_SOURCE),
+        truth_d,
+        source={
+            "file": path.name,
+            "format": "AFAR challenge MAT (MPACT-Lab results_useful_ori)",
+            "start_time_utc": str(start),
+        },
+        altitude_reference="mZ: height above the first GPS fix (used as alt_m and rel_alt_m)",
+        import_notes=notes,
+    )
+    return ImportResult(FlightLog(cols, meta), notes)
+
+
+def import_afar_mat(
+    path: str | Path,
+    out_dir: str | Path,
+    truth: tuple[float, float] | None = None,
+    truth_height_m: float = 1.5,
+    overwrite: bool = False,
+) -> ImportResult:
+    """Convert one MAT file and write ``out_dir/<stem>.csv`` + sidecar; the result carries ``out_path``."""
+    res = convert_afar_mat(path, truth, truth_height_m)
+    out = Path(out_dir) / (Path(path).stem + ".csv")
+    if out.exists():
+        if not overwrite:
+            raise InputError("output exists (use --overwrite)", source=str(out))
+        out.unlink()
+        out.with_suffix(".json").unlink(missing_ok=True)
+    write_flight_log(out, res.log.columns, res.log.meta)
+    res.out_path = out
+    res.log.path = out
+    return res

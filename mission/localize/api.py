@@ -1,0 +1,162 @@
+"""``localize_log``: the one function the ``localize`` CLI and ``fly-mission`` (after landing) call.
+
+Steps: read the log (``read_flight_log``: any problem is an ``InputError`` naming file/row/column), keep the
+cruise part (``preprocess.select_cruise``), run the chosen method, express the estimate in the log's own
+ENU frame and as lat/lon, and add the error when the truth is known (argument, else the sidecar).
+
+Method choice when none is given: an explicit ``model_path`` -> ``onnx``; else the shipped default model
+(``models/rfsl_default.onnx`` beside the package, see ``default_model_path``) when present; else ``grid``
+with the ``e2r`` physics model.  The estimate's ``extras["method_choice"]`` says which and why.
+
+Search area of ``grid``: the sidecar's ``rover_area`` (list of [lat, lon] vertices) when present; else the
+AFAR rover area when the log's origin is the AFAR field origin (the transmitter can be anywhere in it);
+else the flight's bounding box grown by 60 m.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.localize import Estimate
+
+METHOD_NAMES = ("onnx", "strongest", "centroid", "grid")
+DEFAULT_MODEL_NAME = "rfsl_default.onnx"
+
+
+def default_model_path() -> Path | None:
+    """The shipped default model if it exists: ``<repo>/models/`` or ``mission/models/`` (installed)."""
+    import mission
+
+    pkg = Path(mission.__file__).resolve().parent
+    for cand in (pkg.parent / "models" / DEFAULT_MODEL_NAME, pkg / "models" / DEFAULT_MODEL_NAME):
+        if cand.is_file():
+            return cand
+    return None
+
+
+def search_area(log):
+    """The grid search region for a log (``Area`` in the log's frame, or None for the flight's box)."""
+    from mission.geo import Area, afar_field
+
+    origin = log.origin
+    ra = log.meta.get("rover_area")
+    if isinstance(ra, list) and len(ra) >= 3:
+        try:
+            return Area.from_geodetic("rover area", np.asarray(ra, dtype=float), origin)
+        except (ValueError, InputError):
+            raise InputError(
+                "sidecar rover_area must be a list of [lat, lon] vertices",
+                source=str(log.path),
+                field="rover_area",
+            ) from None
+    af = afar_field()
+    off = af.origin.to_enu(origin.lat_deg, origin.lon_deg, origin.alt_m)
+    if float(np.hypot(off[0], off[1])) < 1.0:
+        return af.rover_area
+    return None
+
+
+def _truth_enu(log, truth) -> np.ndarray | None:
+    if truth is not None:
+        lat, lon = truth
+        return log.origin.to_enu(lat, lon)
+    try:
+        return log.truth_enu
+    except (KeyError, TypeError, ValueError):
+        raise InputError("sidecar truth is malformed", source=str(log.path), field="truth") from None
+
+
+def make_localizer(
+    method: str,
+    model_path: str | Path | None = None,
+    physics_model: str = "e2r",
+    physics_params: dict | None = None,
+    tx_height_m: float = 1.5,
+    area=None,
+    floor_db: float | None = None,
+):
+    """Build the localizer object for a method name."""
+    from mission.localize import classical
+
+    if method == "onnx":
+        from mission.localize.onnx_model import OnnxLocalizer
+
+        path = model_path or default_model_path()
+        if path is None:
+            raise InputError(f"method onnx needs --model (no models/{DEFAULT_MODEL_NAME} shipped)")
+        return OnnxLocalizer(path)
+    if method == "strongest":
+        return classical.StrongestSample()
+    if method == "centroid":
+        return classical.WeightedCentroid()
+    if method == "grid":
+        return classical.ModelGridSearch(
+            physics_model, physics_params, tx_height_m=tx_height_m, area=area, floor_db=floor_db
+        )
+    raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+
+
+def localize_log(
+    log_or_path,
+    method: str | None = None,
+    model_path: str | Path | None = None,
+    truth: tuple[float, float] | None = None,
+    cruise: bool = True,
+    physics_model: str = "e2r",
+    physics_params: dict | None = None,
+    tx_height_m: float = 1.5,
+    floor_db: float | None = None,
+) -> Estimate:
+    """Estimate the transmitter position from a flight log (path or ``FlightLog``)."""
+    from mission.flightlog import FlightLog, read_flight_log
+    from mission.localize.preprocess import select_cruise
+
+    log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
+    n_all = len(log)
+    if cruise:
+        part, sel = select_cruise(log)
+        reason = sel.reason
+    else:
+        part, reason = log, "cruise selection off: all samples used"
+    if method is None:
+        if model_path is not None:
+            method, choice = "onnx", f"model {Path(model_path).name} given"
+        elif (dm := default_model_path()) is not None:
+            method, model_path, choice = "onnx", dm, f"default model {dm.name}"
+        else:
+            method, choice = (
+                "grid",
+                f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_model}",
+            )
+    else:
+        choice = f"method {method} requested"
+    if method not in METHOD_NAMES:
+        raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+    area = search_area(log) if method == "grid" else None
+    loc = make_localizer(method, model_path, physics_model, physics_params, tx_height_m, area, floor_db)
+    origin = log.origin
+    est = loc.predict(part)
+    if method == "onnx":  # model frame -> lat/lon -> log frame
+        xy = origin.to_enu(est.lat_deg, est.lon_deg)
+        est.extras["model_frame_xy_m"] = [est.x_m, est.y_m]
+        est.extras["model_path"] = str(loc.path)
+        est.extras["feature_config"] = loc.cfg.to_dict()
+        est.x_m, est.y_m = float(xy[0]), float(xy[1])
+    else:
+        lat, lon, _ = origin.to_geodetic(np.array([est.x_m, est.y_m, 0.0]))
+        est.lat_deg, est.lon_deg = float(lat), float(lon)
+    t = _truth_enu(log, truth)
+    if t is not None:
+        est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))
+        est.extras["truth_x_m"], est.extras["truth_y_m"] = float(t[0]), float(t[1])
+    est.extras.update(
+        method_choice=choice,
+        cruise=reason,
+        samples_used=len(part),
+        samples_total=n_all,
+        log=str(log.path) if log.path else None,
+    )
+    return est

@@ -1,0 +1,295 @@
+"""Classical transmitter localizers, scikit-learn style: ``fit`` (no-op), ``predict(flight) -> Estimate``.
+
+``flight`` is a ``FlightLog`` (positions in its own origin's ENU frame) or a ``FlightData`` / tuple
+``(enu (N, 3), rss (N,), attitude (N, 3) radians or None)``.  All estimators are invariant to a constant
+RSS offset (a real receiver's dB are not calibrated dBm, SPEC section 5).
+
+- ``StrongestSample``: position of the maximum of the grouped, Gaussian-smoothed RSS (features.py settings).
+- ``WeightedCentroid``: centroid of the ``top_k`` strongest smoothed samples weighted by *relative* linear
+  power ``10^((p - p_max)/10)``.
+- ``ModelGridSearch``: maximum likelihood with a propagation model from ``mission.physics``: for each
+  candidate transmitter position (x, y, ``tx_height_m``) the model's predicted RSS along the logged
+  positions and attitudes is compared with the measured RSS after removing the best constant offset
+  (robust: median, then one Huber IRLS step); the cost is a robust loss (``soft_l1`` or ``huber``, scale
+  ``f_scale_db``) of the residuals.  Candidates form a grid over the search area, refined coarse to fine
+  around the best few; the flight is block-averaged in dB to at most ``max_points`` samples first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.localize import Estimate
+from mission.localize.features import FeatureConfig, preprocess
+
+
+@dataclass
+class FlightData:
+    """The arrays a localizer needs: ENU positions (N, 3) m, RSS (N,) dB, attitude (N, 3) rad or None."""
+
+    enu: np.ndarray
+    rss: np.ndarray
+    attitude: np.ndarray | None = None
+
+
+def as_flight(obj, origin=None) -> FlightData:
+    """FlightLog / FlightData / (enu, rss[, attitude]) -> FlightData (validated, float64)."""
+    if isinstance(obj, FlightData):
+        fd = obj
+    elif hasattr(obj, "columns") and hasattr(obj, "enu"):
+        fd = FlightData(obj.enu(origin), np.asarray(obj["rss_dbm"], dtype=float), obj.attitude_rad)
+    elif isinstance(obj, tuple | list) and len(obj) in (2, 3):
+        fd = FlightData(
+            np.asarray(obj[0], dtype=float),
+            np.asarray(obj[1], dtype=float),
+            None if len(obj) == 2 or obj[2] is None else np.asarray(obj[2], dtype=float),
+        )
+    else:
+        raise InputError(
+            f"cannot localize from a {type(obj).__name__}: expected a FlightLog or (enu, rss, attitude)"
+        )
+    enu = np.asarray(fd.enu, dtype=float)
+    rss = np.asarray(fd.rss, dtype=float).ravel()
+    if enu.ndim != 2 or enu.shape[1] != 3 or enu.shape[0] != rss.size:
+        raise InputError(f"positions must be (N, 3) with N = {rss.size} RSS samples, got {enu.shape}")
+    att = fd.attitude
+    if att is not None:
+        att = np.asarray(att, dtype=float)
+        if att.shape != enu.shape:
+            raise InputError(f"attitude must be (N, 3), got {att.shape}")
+        if np.isnan(att).any():
+            att = None if np.isnan(att).all() else np.nan_to_num(att)
+    return FlightData(enu, rss, att)
+
+
+class _Base:
+    name = "base"
+
+    def fit(self, flights=None, truths=None) -> _Base:
+        """No calibration needed (kept for the scikit-learn-style interface)."""
+        return self
+
+    def _estimate(self, x: float, y: float, model: str | None = None, **extras) -> Estimate:
+        return Estimate(float(x), float(y), self.name, model, extras=extras)
+
+
+class StrongestSample(_Base):
+    """Position of the strongest grouped and smoothed RSS sample."""
+
+    name = "strongest"
+
+    def __init__(self, cfg: FeatureConfig | None = None) -> None:
+        self.cfg = cfg or FeatureConfig()
+
+    def predict(self, flight, origin=None) -> Estimate:
+        f = as_flight(flight, origin)
+        gx, gy, gp = preprocess(f.enu[:, 0], f.enu[:, 1], f.rss, self.cfg)
+        i = int(np.argmax(gp))
+        return self._estimate(gx[i], gy[i], None, index=i)
+
+
+class WeightedCentroid(_Base):
+    """Centroid of the ``top_k`` strongest smoothed samples, weighted by relative linear power."""
+
+    name = "centroid"
+
+    def __init__(self, top_k: int = 200, cfg: FeatureConfig | None = None) -> None:
+        self.top_k = int(top_k)
+        self.cfg = cfg or FeatureConfig()
+
+    def predict(self, flight, origin=None) -> Estimate:
+        f = as_flight(flight, origin)
+        gx, gy, gp = preprocess(f.enu[:, 0], f.enu[:, 1], f.rss, self.cfg)
+        k = min(self.top_k, gp.size)
+        idx = np.argpartition(-gp, k - 1)[:k]
+        w = 10.0 ** ((gp[idx] - gp.max()) / 10.0)
+        return self._estimate(np.sum(w * gx[idx]) / w.sum(), np.sum(w * gy[idx]) / w.sum(), None, top_k=k)
+
+
+def block_average(f: FlightData, max_points: int) -> FlightData:
+    """Average RSS (dB) and positions over consecutive blocks so at most ``max_points`` remain.
+
+    The attitude of a block is that of its middle sample (angles are not averaged across the yaw wrap).
+    """
+    n = f.rss.size
+    b = max(1, int(np.ceil(n / max_points)))
+    m = n // b
+    if m == 0:
+        return f
+    rss = f.rss[: m * b].reshape(m, b).mean(axis=1)
+    enu = f.enu[: m * b].reshape(m, b, 3).mean(axis=1)
+    att = None if f.attitude is None else f.attitude[b // 2 : m * b : b][:m]
+    return FlightData(enu, rss, att)
+
+
+def _robust_cost(resid: np.ndarray, loss: str, f_scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Offset (K,) and robust cost (K,) of residuals (K, N): median start, one Huber IRLS step."""
+    off = np.median(resid, axis=1)
+    z = resid - off[:, None]
+    w = np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
+    off = off + np.sum(w * z, axis=1) / np.sum(w, axis=1)
+    z = (resid - off[:, None]) / f_scale
+    if loss == "soft_l1":
+        rho = 2.0 * (np.sqrt(1.0 + z * z) - 1.0)
+    elif loss == "huber":
+        a = np.abs(z)
+        rho = np.where(a <= 1.0, z * z, 2.0 * a - 1.0)
+    elif loss == "l2":
+        rho = z * z
+    else:
+        raise InputError(f"unknown loss {loss!r} (soft_l1, huber, l2)")
+    return off, f_scale**2 * rho.mean(axis=1)
+
+
+class ModelGridSearch(_Base):
+    """Model-based maximum-likelihood grid search with a free constant offset and a robust loss.
+
+    ``model``: a ``mission.physics`` model name (built with ``make_model(model, **model_params)``) or any
+    object with ``rss_dbm(tx (K, 1, 3), rx (N, 3), attitude (N, 3) | None) -> (K, N)`` (outer product).
+    ``area``: search region, an ``Area`` or ``(xmin, ymin, xmax, ymax)``; by default the flight's bounding
+    box grown by ``margin_m``.  Candidates outside an ``Area`` polygon are not considered.
+    """
+
+    name = "grid"
+
+    def __init__(
+        self,
+        model="e2r",
+        model_params: dict | None = None,
+        tx_height_m: float = 1.5,
+        area=None,
+        margin_m: float = 60.0,
+        step_m: float = 10.0,
+        levels: int = 3,
+        keep: int = 5,
+        max_points: int = 1500,
+        loss: str = "soft_l1",
+        f_scale_db: float = 4.0,
+        use_attitude: bool = True,
+        chunk: int = 512,
+        smooth_samples: float = 0.0,
+        floor_db: float | None = None,
+    ) -> None:
+        self.model = model
+        self.model_params = dict(model_params or {})
+        self.tx_height_m = float(tx_height_m)
+        self.area = area
+        self.margin_m = float(margin_m)
+        self.step_m = float(step_m)
+        self.levels = int(levels)
+        self.keep = int(keep)
+        self.max_points = int(max_points)
+        self.loss = loss
+        self.f_scale_db = float(f_scale_db)
+        self.use_attitude = use_attitude
+        self.chunk = int(chunk)
+        self.smooth_samples = float(smooth_samples)
+        self.floor_db = floor_db
+        self._model_obj = None
+
+    @property
+    def model_name(self) -> str:
+        if isinstance(self.model, str):
+            extra = ",".join(f"{k}={v}" for k, v in sorted(self.model_params.items()))
+            return f"{self.model}({extra})" if extra else self.model
+        return getattr(self.model, "name", type(self.model).__name__)
+
+    def _get_model(self):
+        if self._model_obj is None:
+            if isinstance(self.model, str):
+                from mission.physics import make_model
+
+                try:
+                    self._model_obj = make_model(self.model, **self.model_params)
+                except (ValueError, TypeError) as e:
+                    raise InputError(f"physics model {self.model!r}: {e}", field="model") from None
+            else:
+                self._model_obj = self.model
+        return self._model_obj
+
+    def _bounds(self, f: FlightData):
+        from mission.geo import Area
+
+        if isinstance(self.area, Area):
+            return self.area.bounds, self.area
+        if self.area is not None:
+            return tuple(float(v) for v in self.area), None
+        lo = f.enu[:, :2].min(axis=0) - self.margin_m
+        hi = f.enu[:, :2].max(axis=0) + self.margin_m
+        return (lo[0], lo[1], hi[0], hi[1]), None
+
+    def cost(self, f: FlightData, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced) flight."""
+        model = self._get_model()
+        att = f.attitude if self.use_attitude else None
+        costs, offs = np.empty(len(cand_xy)), np.empty(len(cand_xy))
+        for s in range(0, len(cand_xy), self.chunk):
+            c = cand_xy[s : s + self.chunk]
+            tx = np.column_stack([c, np.full(len(c), self.tx_height_m)])
+            pred = np.asarray(model.rss_dbm(tx[:, None, :], f.enu, att), dtype=float).reshape(len(c), -1)
+            if self.floor_db is not None:
+                lo = f.rss < f.rss.max() - self.floor_db
+                resid = f.rss[None, :] - pred
+                off0 = np.median(resid[:, ~lo], axis=1)
+                # censored samples: measured level is an upper bound of the signal (noise floor)
+                resid[:, lo] = np.maximum(resid[:, lo], off0[:, None])
+                offs[s : s + len(c)], costs[s : s + len(c)] = _robust_cost(resid, self.loss, self.f_scale_db)
+                continue
+            offs[s : s + len(c)], costs[s : s + len(c)] = _robust_cost(
+                f.rss[None, :] - pred, self.loss, self.f_scale_db
+            )
+        return costs, offs
+
+    def _reduce(self, flight, origin=None) -> FlightData:
+        f = as_flight(flight, origin)
+        if self.smooth_samples > 0:
+            from mission.localize.features import gaussian_smooth
+
+            f = FlightData(f.enu, gaussian_smooth(f.rss, self.smooth_samples), f.attitude)
+        return block_average(f, self.max_points)
+
+    def predict(self, flight, origin=None) -> Estimate:
+        f = self._reduce(flight, origin)
+        (xmin, ymin, xmax, ymax), poly = self._bounds(f)
+        xs = np.arange(xmin, xmax + 1e-9, self.step_m)
+        ys = np.arange(ymin, ymax + 1e-9, self.step_m)
+        cand = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        if poly is not None:
+            inside = poly.contains(cand)
+            cand = cand[inside] if inside.any() else cand
+        step = self.step_m
+        n_eval = 0
+        for level in range(self.levels):
+            cost, off = self.cost(f, cand)
+            n_eval += len(cand)
+            best = np.argsort(cost)[: self.keep]
+            if level == self.levels - 1:
+                break
+            step /= 4.0
+            d = np.arange(-4, 5) * step
+            local = np.stack(np.meshgrid(d, d), axis=-1).reshape(-1, 2)
+            new = (cand[best][:, None, :] + local[None, :, :]).reshape(-1, 2)
+            new[:, 0] = np.clip(new[:, 0], xmin, xmax)
+            new[:, 1] = np.clip(new[:, 1], ymin, ymax)
+            cand = np.unique(np.round(new, 6), axis=0)
+        i = int(best[0])
+        resid_rms = float(np.sqrt(cost[i]))
+        return self._estimate(
+            cand[i, 0],
+            cand[i, 1],
+            self.model_name,
+            offset_db=float(off[i]),
+            cost=float(cost[i]),
+            cost_rms_db=resid_rms,
+            n_points=int(f.rss.size),
+            candidates=n_eval,
+            tx_height_m=self.tx_height_m,
+            loss=self.loss,
+            search_box=[float(xmin), float(ymin), float(xmax), float(ymax)],
+        )
+
+
+METHODS = {"strongest": StrongestSample, "centroid": WeightedCentroid, "grid": ModelGridSearch}

@@ -1,0 +1,198 @@
+"""Run a trained localizer network (ONNX, onnxruntime) on a flight, with its features computed by features.py.
+
+The model file's ``metadata_props`` (JSON strings) are the contract with the trainer:
+
+- ``feature_kind``: ``"clustering"`` (3 C_k cluster features) or ``"normalised_rss"`` (paper baseline).
+- ``feature_config``: ``FeatureConfig.to_dict()`` used for training (required; compared key by key).
+- ``input_normalisation``: ``{"input_mean": [F], "input_std": [F], "output_mean": [2], "output_std": [2]}``;
+  the network sees ``(features - input_mean) / input_std`` and its output ``o`` is de-normalised as
+  ``o * output_std + output_mean`` (metres, ENU about ``field_origin``).  Scalars broadcast.
+- ``field_origin``: ``{"lat_deg", "lon_deg", "alt_m"}``: the frame of the features' coordinates and of the
+  output; the log's positions are converted into it first.
+- ``training_data``: free-form description (shown, not checked).
+
+The network's single input is float32 ``(batch, F)`` or ``(batch, 1, F)`` (rank read from the graph); its
+first output is ``(batch, 2)`` = x, y.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.geo import Origin
+from mission.localize import Estimate
+from mission.localize.classical import FlightData, as_flight
+from mission.localize.features import FEATURE_VERSION, FeatureConfig, cluster_features, normalised_rss
+
+REQUIRED_KEYS = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
+FEATURE_KINDS = ("clustering", "normalised_rss")
+
+
+class OnnxLocalizer:
+    """A localizer network loaded from an ONNX file; ``predict(flight) -> Estimate``.
+
+    ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with anything else
+    is refused (``InputError`` naming the differing key).
+    """
+
+    name = "onnx"
+
+    def __init__(
+        self,
+        path: str | Path,
+        expect_config: FeatureConfig | dict | None = None,
+        expect_kind: str | None = None,
+    ) -> None:
+        import onnxruntime as ort
+
+        self.path = Path(path)
+        src = str(self.path)
+        if not self.path.exists():
+            raise InputError("no such model file", source=src)
+        try:
+            opts = ort.SessionOptions()
+            opts.log_severity_level = 3
+            self.session = ort.InferenceSession(src, sess_options=opts, providers=["CPUExecutionProvider"])
+        except Exception as e:  # onnxruntime raises its own exception types
+            raise InputError(
+                f"not a loadable ONNX model ({str(e).splitlines()[0][:200]})", source=src
+            ) from None
+        props = self.session.get_modelmeta().custom_metadata_map
+        self.meta: dict = {}
+        for key in REQUIRED_KEYS:
+            if key not in props:
+                raise InputError("model metadata lacks this key", source=src, field=key)
+        for key, val in props.items():
+            if key in REQUIRED_KEYS or key == "training_data":
+                try:
+                    self.meta[key] = json.loads(val)
+                except json.JSONDecodeError:
+                    if key == "feature_kind":
+                        self.meta[key] = val
+                    else:
+                        raise InputError("model metadata is not valid JSON", source=src, field=key) from None
+            else:
+                self.meta[key] = val
+        self.kind = self.meta["feature_kind"]
+        if self.kind not in FEATURE_KINDS:
+            raise InputError(
+                f"unknown feature kind {self.kind!r} (expected {', '.join(FEATURE_KINDS)})",
+                source=src,
+                field="feature_kind",
+            )
+        if expect_kind is not None and expect_kind != self.kind:
+            raise InputError(
+                f"model was trained on {self.kind!r} features, caller asks for {expect_kind!r}",
+                source=src,
+                field="feature_kind",
+            )
+        fc = self.meta["feature_config"]
+        if not isinstance(fc, dict):
+            raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
+        if expect_config is not None:
+            want = (
+                expect_config.to_dict() if isinstance(expect_config, FeatureConfig) else dict(expect_config)
+            )
+            for k in sorted(set(want) | set(fc)):
+                if k not in fc:
+                    raise InputError(
+                        f"model's feature_config lacks {k!r} (caller expects {want[k]!r})",
+                        source=src,
+                        field=f"feature_config.{k}",
+                    )
+                if k not in want or want[k] != fc[k]:
+                    raise InputError(
+                        f"model's feature_config {k}={fc[k]!r} does not match the expected {want.get(k)!r}",
+                        source=src,
+                        field=f"feature_config.{k}",
+                    )
+        try:
+            self.cfg = FeatureConfig.from_dict(fc)
+        except (InputError, TypeError) as e:
+            raise InputError(f"bad feature_config ({e})", source=src, field="feature_config") from None
+        norm = self.meta["input_normalisation"]
+        try:
+            self.in_mean = np.asarray(norm["input_mean"], dtype=np.float64)
+            self.in_std = np.asarray(norm["input_std"], dtype=np.float64)
+            self.out_mean = np.asarray(norm["output_mean"], dtype=np.float64)
+            self.out_std = np.asarray(norm["output_std"], dtype=np.float64)
+        except (KeyError, TypeError) as e:
+            raise InputError(
+                f"input_normalisation needs input_mean/input_std/output_mean/output_std ({e})",
+                source=src,
+                field="input_normalisation",
+            ) from None
+        try:
+            self.origin = Origin.from_dict(self.meta["field_origin"])
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                "field_origin needs lat_deg, lon_deg", source=src, field="field_origin"
+            ) from None
+        if self.cfg.version != FEATURE_VERSION:
+            raise InputError(
+                f"model's features are version {self.cfg.version}, this software computes version "
+                f"{FEATURE_VERSION}",
+                source=src,
+                field="feature_config.version",
+            )
+        inp = self.session.get_inputs()[0]
+        self.input_name = inp.name
+        self.input_rank = len(inp.shape)
+        self.n_features = self.cfg.n_features if self.kind == "clustering" else self.cfg.rss_length
+        width = inp.shape[-1] if inp.shape else None
+        if isinstance(width, int) and width != self.n_features:
+            key = "feature_config.c_k" if self.kind == "clustering" else "feature_config.rss_length"
+            raise InputError(
+                f"network input has {width} values but the feature configuration gives {self.n_features}",
+                source=src,
+                field=key,
+            )
+        if self.in_mean.size not in (1, self.n_features) or self.in_std.size not in (1, self.n_features):
+            raise InputError(
+                f"input normalisation has {self.in_mean.size} values, the features {self.n_features}",
+                source=src,
+                field="input_normalisation",
+            )
+
+    @property
+    def model_name(self) -> str:
+        return self.path.name
+
+    def features(self, f: FlightData) -> np.ndarray:
+        """Feature vector (F,) of a flight whose positions are ENU about the model's field origin."""
+        if self.kind == "clustering":
+            return cluster_features(f.enu[:, 0], f.enu[:, 1], f.rss, self.cfg)
+        return normalised_rss(f.rss, self.cfg)
+
+    def predict_features(self, feats: np.ndarray) -> np.ndarray:
+        """(B, F) features -> (B, 2) positions in metres about the model's field origin."""
+        x = (np.atleast_2d(feats) - self.in_mean) / self.in_std
+        x = x.astype(np.float32)
+        if self.input_rank == 3:
+            x = x[:, None, :]
+        out = self.session.run(None, {self.input_name: x})[0]
+        out = np.asarray(out, dtype=np.float64).reshape(len(x), -1)[:, :2]
+        return out * self.out_std + self.out_mean
+
+    def predict(self, flight, origin: Origin | None = None) -> Estimate:
+        """Estimate for a FlightLog (converted to the model's origin) or for arrays already in that frame."""
+        if hasattr(flight, "columns"):
+            f = as_flight(flight, self.origin)
+        else:
+            f = as_flight(flight)
+        xy = self.predict_features(self.features(f)[None, :])[0]
+        lat, lon, _ = self.origin.to_geodetic(np.array([xy[0], xy[1], 0.0]))
+        est = Estimate(
+            float(xy[0]),
+            float(xy[1]),
+            self.name,
+            self.model_name,
+            float(lat),
+            float(lon),
+            extras={"feature_kind": self.kind, "model_origin": self.origin.to_dict()},
+        )
+        return est

@@ -1,0 +1,107 @@
+"""AFAR MAT importer: a small synthetic MAT fixture (scipy.io.savemat) and, when present, the real files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io as sio
+
+from mission.cli.main import main as rfsl
+from mission.errors import InputError
+from mission.flightlog import read_flight_log
+from mission.geo import afar_field
+from mission.importers.afar import convert_afar_mat, import_afar_mat
+
+SHARED = Path(__file__).parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
+
+
+def make_mat(
+    path: Path, n: int = 200, shuffle: bool = False, dup: bool = False, drop: str | None = None
+) -> Path:
+    t = 1.70247e9 + np.arange(n) * 0.0327
+    if dup:
+        t[50] = t[49]
+        t[80] = t[79] + 2e-5
+    d = {
+        "timestamp_power": t,
+        "mX": -78.6975 + np.linspace(0, 1e-3, n),
+        "mY": 35.728 + np.zeros(n),
+        "mZ": np.linspace(0, 30, n),
+        "mRoll": np.zeros(n),
+        "mPitch": np.ones(n),
+        "mYaw": np.full(n, 370.0),
+        "mpower": np.linspace(-30, 10, n),
+        "mquality": np.ones(n),
+    }
+    if shuffle:
+        p = np.random.default_rng(0).permutation(n)
+        d = {k: v[p] for k, v in d.items()}
+    if drop:
+        d.pop(drop)
+    sio.savemat(path, {k: v.reshape(-1, 1) for k, v in d.items()})
+    return path
+
+
+def test_fixture_roundtrip(tmp_path):
+    mat = make_mat(tmp_path / "results_useful_ori_exp_999_loc_1.mat")
+    res = import_afar_mat(mat, tmp_path / "out", truth=(35.728, -78.697))
+    log = read_flight_log(res.out_path)
+    assert len(log) == 200 and log["t_s"][0] == 0.0
+    assert log.meta["rss_source"] == {
+        "kind": "real",
+        "receiver": "AERPAW channel sounder",
+        "calibrated": False,
+    }
+    assert log.meta["truth"] == {"lat_deg": 35.728, "lon_deg": -78.697, "height_m": 1.5}
+    assert log.origin == afar_field().origin
+    np.testing.assert_allclose(log["alt_m"], log["rel_alt_m"])
+    np.testing.assert_allclose(log["rel_alt_m"][-1], 30.0)
+    assert np.all(log["yaw_deg"] < 360.0)
+
+
+def test_no_truth_guessed_from_name(tmp_path):
+    res = convert_afar_mat(make_mat(tmp_path / "results_useful_ori_exp_288_loc_3.mat"))
+    assert "truth" not in res.log.meta
+
+
+def test_unsorted_and_duplicates(tmp_path):
+    res = convert_afar_mat(make_mat(tmp_path / "a.mat", shuffle=True, dup=True))
+    assert np.all(np.diff(res.log["t_s"]) > 0)
+    assert len(res.log) == 198
+    text = " ".join(res.notes)
+    assert "sorted" in text and "duplicate" in text and "1 ms" in text
+
+
+def test_bad_files(tmp_path):
+    bad = tmp_path / "bad.mat"
+    bad.write_text("not a mat file")
+    with pytest.raises(InputError, match="bad.mat"):
+        convert_afar_mat(bad)
+    with pytest.raises(InputError, match="mpower"):
+        convert_afar_mat(make_mat(tmp_path / "m.mat", drop="mpower"))
+    with pytest.raises(InputError, match="nope.mat"):
+        convert_afar_mat(tmp_path / "nope.mat")
+
+
+def test_cli(tmp_path, capsys):
+    mat = make_mat(tmp_path / "f.mat")
+    assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path / "o"), "--truth", "35.7,-78.6"]) == 0
+    assert (tmp_path / "o" / "f.csv").exists() and (tmp_path / "o" / "f.json").exists()
+    assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path / "o")]) == 2  # exists
+    assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path / "p"), "--truth", "x"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith("error:") for line in err)
+
+
+@pytest.mark.real
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared real data absent")
+def test_real_files(tmp_path):
+    for f in sorted(SHARED.glob("*.mat")):
+        res = import_afar_mat(f, tmp_path)
+        log = read_flight_log(res.out_path)
+        assert len(log) > 20000
+        assert 20.0 < np.median(log["rel_alt_m"]) < 40.0
+        enu = log.enu()
+        assert np.all(np.abs(enu[:, :2]) < 1000.0)
