@@ -1,0 +1,31 @@
+"""Summarise a flight log (rich table) and draw its path coloured by RSS (PNG)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", type=Path, help="flight log CSV (with its JSON sidecar)")
+    parser.add_argument("--out", type=Path, default=None, help="PNG to write (default: beside the log, .png)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    from mission.flightlog import read_flight_log
+    from mission.replay import plot, summary
+
+    log = read_flight_log(args.log)
+    s = summary(log)
+    table = Table(title=f"flight {args.log}")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    for k, v in s.items():
+        table.add_row(k, f"{v:.3f}" if isinstance(v, float) else str(v))
+    Console().print(table)
+    png = plot(log, args.out or Path(args.log).with_suffix(".png"))
+    print(f"plot: {png}")
+    return 0

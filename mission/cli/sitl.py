@@ -1,0 +1,32 @@
+"""Run the simulated MAVLink vehicle alone, for QGroundControl, MAVProxy or ``fly-mission --connect``.
+
+The vehicle sends MAVLink 2 over UDP to the ground station's port (like PX4 SITL): ``rfsl sitl`` then
+``fly-mission missions/spiral.yaml --connect udpin://0.0.0.0:14540``; ``rfsl sitl --port 14550`` for
+QGroundControl; ``mavproxy.py --master udpin:0.0.0.0:14540``.  See sitl/README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from sitl.vehicle import add_arguments as vehicle_arguments
+
+    vehicle_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from mission.errors import InputError
+    from sitl.vehicle import run_from_args
+
+    if args.speedup <= 0:
+        raise InputError(f"must be positive, got {args.speedup:g}", field="--speedup")
+    if args.home:
+        try:
+            from sitl.vehicle import parse_home
+
+            parse_home(args.home)
+        except ValueError as e:
+            raise InputError(str(e), field="--home") from None
+    return run_from_args(args)

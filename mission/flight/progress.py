@@ -1,0 +1,106 @@
+"""The live progress display of a flight (rich): waypoint i of n, elapsed vs budget, RSS, warnings.
+
+Why: the operator must see at a glance that the flight is on plan, that RSS is arriving, where the
+strongest signal so far was, and any link or receiver trouble.  On a terminal it is a ``rich.live``
+panel; otherwise (CI, a pipe) one plain status line every few seconds, so logs stay readable.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from rich.console import Console
+from rich.table import Table
+
+
+@dataclass
+class FlightStatus:
+    """What the display shows; written by the runner's tasks, read by the display task."""
+
+    mission_name: str = ""
+    budget_s: float = 0.0
+    item: int = 0
+    items: int = 0
+    waypoint_offset: int = 2  # raw items before the first waypoint (take-off, speed [, home])
+    n_waypoints: int = 0
+    t_start: float | None = None  # vehicle time at arming
+    t_now: float = 0.0
+    rows: int = 0
+    last_rss: float = float("nan")
+    best_rss: float = float("-inf")
+    best_xy: tuple[float, float] | None = None
+    rel_alt: float = 0.0
+    phase: str = "connecting"
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def elapsed(self) -> float:
+        return 0.0 if self.t_start is None else max(self.t_now - self.t_start, 0.0)
+
+    @property
+    def waypoint(self) -> int:
+        return min(max(self.item - self.waypoint_offset + 1, 0), self.n_waypoints)
+
+
+def render(s: FlightStatus) -> Table:
+    """A two-column table of the status."""
+    t = Table(title=f"fly-mission: {s.mission_name}", show_header=False, expand=False)
+    t.add_column(style="bold")
+    t.add_column()
+    t.add_row("phase", s.phase)
+    t.add_row("waypoint", f"{s.waypoint} of {s.n_waypoints} (raw item {s.item}/{s.items})")
+    over = " [red](over budget)[/red]" if s.budget_s and s.elapsed > s.budget_s else ""
+    t.add_row("elapsed", f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget{over}")
+    t.add_row("altitude", f"{s.rel_alt:5.1f} m")
+    t.add_row("RSS rows", str(s.rows))
+    t.add_row("last RSS", f"{s.last_rss:7.2f} dB")
+    best = "-" if s.best_xy is None else f"{s.best_rss:7.2f} dB at ({s.best_xy[0]:.0f}, {s.best_xy[1]:.0f}) m"
+    t.add_row("strongest", f"[green]* {best}[/green]")
+    for w in s.warnings[-3:]:
+        t.add_row("[yellow]warning[/yellow]", f"[yellow]{w}[/yellow]")
+    return t
+
+
+def plain_line(s: FlightStatus) -> str:
+    best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
+    return (
+        f"[{s.phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s "
+        f"alt={s.rel_alt:.1f}m "
+        f"rows={s.rows} rss={s.last_rss:.1f} best={best}"
+    )
+
+
+class Display:
+    """Live panel on a terminal, periodic plain lines otherwise (both on stderr)."""
+
+    def __init__(self, status: FlightStatus, plain_every_s: float = 5.0) -> None:
+        self.status = status
+        self.console = Console(stderr=True)
+        self.live = None
+        self.plain_every = plain_every_s
+        self._next = 0.0
+
+    def __enter__(self) -> Display:
+        if self.console.is_terminal:
+            from rich.live import Live
+
+            self.live = Live(render(self.status), console=self.console, refresh_per_second=4, transient=False)
+            self.live.__enter__()
+        return self
+
+    def refresh(self) -> None:
+        if self.live is not None:
+            self.live.update(render(self.status))
+        elif time.monotonic() >= self._next:
+            self._next = time.monotonic() + self.plain_every
+            self.console.print(plain_line(self.status), highlight=False, markup=False)
+
+    def message(self, text: str, style: str = "") -> None:
+        """A line that stays (warnings, phase changes)."""
+        self.console.print(text, style=style or None, highlight=False, markup=False)
+
+    def __exit__(self, *exc) -> None:
+        if self.live is not None:
+            self.live.update(render(self.status))
+            self.live.__exit__(None, None, None)

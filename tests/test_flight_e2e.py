@@ -1,0 +1,172 @@
+"""End-to-end flights of ``fly-mission`` against the simulated vehicle (issue 4 acceptance).
+
+Each test runs the real console entry point in a subprocess (``python -m mission.cli.fly``), so signals,
+exit codes and the embedded vehicle are exercised exactly as a user would.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mission.flight.runner import free_udp_port
+from mission.flightlog import read_flight_log
+
+ROOT = Path(__file__).resolve().parents[1]
+SPIRAL = ROOT / "missions" / "spiral.yaml"
+pytestmark = pytest.mark.slow
+
+
+def _fly(args: list[str], **kw) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.Popen(
+        [sys.executable, "-m", "mission.cli.fly", *args],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **kw,
+    )
+
+
+def _vehicle(port: int, speedup: float) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup)],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+
+
+def _log_of(out: Path) -> Path:
+    logs = sorted(out.glob("*/flight.csv"))
+    assert len(logs) == 1, logs
+    return logs[0]
+
+
+def _wait_rows(out: Path, rows: int, timeout: float) -> Path:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        logs = list(out.glob("*/flight.csv"))
+        if logs and sum(1 for _ in open(logs[0])) > rows:
+            return logs[0]
+        time.sleep(0.5)
+    raise AssertionError(f"no log with {rows} rows under {out}")
+
+
+def test_spiral_end_to_end(tmp_path):
+    """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS reproducible."""
+    from mission.flight.sources import recompute_sim_rss
+    from mission.spec import load_mission
+
+    p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
+    out, err = p.communicate(timeout=150)
+    assert p.returncode == 0, err[-3000:]
+    log = read_flight_log(_log_of(tmp_path))
+    assert log.meta["status"] == "completed"
+    assert log.meta["rows"] == len(log)
+    t = log["t_s"]
+    spec = load_mission(SPIRAL)
+    expected = (t[-1] - t[0]) / spec.source.sample_period_s + 1
+    assert len(log) >= 0.95 * expected
+    assert t[-1] - t[0] > 0.8 * log.meta["planned_duration_s"]  # the whole spiral was flown
+    assert log["rel_alt_m"][-1] < 0.5 and log["rel_alt_m"].max() > 25  # took off and landed
+    cruise = log["rel_alt_m"] > 25
+    for c in ("roll_deg", "pitch_deg"):
+        assert np.std(log[c][cruise]) > 0.5
+    assert np.ptp(log["yaw_deg"][cruise]) > 180
+    rng = np.random.default_rng(spec.source.seed)
+    tx = spec.resolve_tx(rng)
+    assert np.allclose(tx, log.truth_enu)
+    rss = recompute_sim_rss(log, spec.propagation_model(), rng, tx, spec.source.noise_db)
+    assert np.max(np.abs(rss - log["rss_dbm"])) < 0.01
+
+
+def test_fence_refused_nothing_uploaded(tmp_path):
+    """A mission outside the fence is refused (exit 2) and the vehicle's mission count stays 0."""
+    import yaml
+
+    os.environ.setdefault("MAVLINK20", "1")
+    from pymavlink import mavutil
+
+    bad = yaml.safe_load(SPIRAL.read_text())
+    bad["trajectory"] = {"waypoints": [[10, 10], [2000, 10], [10, 20]]}
+    mfile = tmp_path / "outside.yaml"
+    mfile.write_text(yaml.safe_dump(bad))
+    port = free_udp_port()
+    veh = _vehicle(port, 5)
+    try:
+        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--out", str(tmp_path / "f")])
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 2, err[-2000:]
+        assert "error:" in err and "waypoint" in err.lower()
+        assert not list((tmp_path / "f").glob("*/flight.csv"))
+        gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255)
+        assert gcs.wait_heartbeat(timeout=10)
+        gcs.mav.mission_request_list_send(1, 1, 0)
+        msg = gcs.recv_match(type="MISSION_COUNT", blocking=True, timeout=5)
+        assert msg is not None and msg.count == 0
+        gcs.close()
+    finally:
+        veh.terminate()
+        veh.wait(5)
+
+
+def test_ctrl_c_returns_to_launch(tmp_path):
+    """SIGINT mid-mission: RTL commanded, the vehicle lands, the log is closed and readable, exit 130."""
+    p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
+    try:
+        _wait_rows(tmp_path, 3000, 60)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=90)
+    finally:
+        p.kill()
+    assert p.returncode == 130, err[-3000:]
+    assert "return to launch commanded" in err
+    log = read_flight_log(_log_of(tmp_path))
+    assert log.meta["status"].startswith("aborted")
+    assert any(e["kind"] == "rtl" for e in log.meta["events"])
+    assert any(e["kind"] == "landed" for e in log.meta["events"])
+    assert log["rel_alt_m"][-1] < 0.5
+    enu = log.enu()
+    assert np.hypot(*enu[-1, :2] - enu[0, :2]) < 2.0  # landed back at home
+
+
+def test_vehicle_killed_link_loss(tmp_path):
+    """The vehicle process dies mid-flight: link loss reported, log closed and readable."""
+    port = free_udp_port()
+    veh = _vehicle(port, 20)
+    try:
+        p = _fly(
+            [
+                str(SPIRAL),
+                "--connect",
+                f"udpin://127.0.0.1:{port}",
+                "--speedup",
+                "20",
+                "--out",
+                str(tmp_path),
+                "--no-localize",
+                "--link-timeout",
+                "5",
+            ]
+        )
+        _wait_rows(tmp_path, 2000, 60)
+        veh.kill()
+        _, err = p.communicate(timeout=60)
+    finally:
+        veh.kill()
+        p.kill()
+    assert p.returncode == 3, err[-3000:]
+    assert "link lost" in err.lower()
+    log = read_flight_log(_log_of(tmp_path))
+    assert log.meta["link_lost"] is True
+    assert len(log) > 2000
