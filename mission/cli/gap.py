@@ -1,0 +1,151 @@
+"""Diagnose the sim-to-real gap of a propagation model on flights with known transmitter positions.
+
+``rfsl gap LOG.csv [LOG2.csv ...] [--truth LAT,LON ...] [--base e2r] [--candidates all|a,b] [--report DIR]``
+fits the free constants (RSS offset, optionally a slope), shows the gap of free-space / two-ray / e2r, where
+the base model departs (block-bootstrap flags), ranks candidate effects on held-out blocks, climbs the greedy
+ladder and reports the localization cost of every rung.  ``rfsl gap --selftest`` simulates flights with one
+effect withheld and checks that the diagnosis finds it (confusion table).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("logs", nargs="*", help="flight logs (CSV with JSON sidecar)")
+    parser.add_argument("--truth", action="append", default=None, metavar="LAT,LON",
+                        help="transmitter position: once for all logs or once per log (default: the sidecar)")
+    parser.add_argument("--truth-height", type=float, default=1.5, help="transmitter antenna height m (1.5)")
+    parser.add_argument("--base", default="e2r", help="base model: free-space, two-ray or e2r (default e2r)")
+    parser.add_argument("--pattern", default="dipole",
+                        help="antenna pattern of the base and reference models: isotropic, dipole, measured")
+    parser.add_argument("--candidates", default="all", help="candidate effects, comma-separated, or all")
+    parser.add_argument("--split", choices=("blocks", "flights"), default="blocks",
+                        help="held-out data: alternate contiguous chunks of every flight, or whole flights")
+    parser.add_argument("--slope", action="store_true", help="also fit a per-flight path-gain slope")
+    parser.add_argument("--loss", choices=("l2", "soft_l1"), default="l2", help="fit/ranking loss (l2)")
+    parser.add_argument("--max-rungs", type=int, default=6, help="most effects the ladder adds (6)")
+    parser.add_argument("--no-localize", action="store_true", help="skip the localization cost per rung")
+    parser.add_argument("--report", metavar="DIR", help="write PNG plots and gap.json here")
+    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
+    parser.add_argument("--selftest", action="store_true",
+                        help="simulate flights with each effect withheld and check the diagnosis finds it")
+    parser.add_argument("--seeds", default="1,2", help="self-test seeds (1,2)")
+    parser.add_argument("--withheld", default="all", help="self-test cases: effect names, none, or all")
+
+
+def _parse_latlon(s: str):
+    from mission.errors import InputError
+
+    try:
+        lat, lon = (float(v) for v in s.split(","))
+    except ValueError:
+        raise InputError(f"--truth must be LAT,LON, got {s!r}", field="truth") from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise InputError(f"--truth out of range: {s!r}", field="truth")
+    return lat, lon
+
+
+def load_flights(paths: list[str], truths: list[str] | None, height: float):
+    """Flight logs -> ``Flight`` objects with their transmitter truth in each log's ENU frame."""
+    from mission.errors import InputError
+    from mission.flightlog import read_flight_log
+    from mission.gap.align import flight_from_log
+
+    if truths and len(truths) not in (1, len(paths)):
+        raise InputError(f"give --truth once or once per log ({len(paths)}), got {len(truths)}", field="truth")
+    flights = []
+    for k, p in enumerate(paths):
+        log = read_flight_log(p)
+        tx = None
+        if truths:
+            lat, lon = _parse_latlon(truths[0 if len(truths) == 1 else k])
+            o = log.origin
+            tx = o.to_enu(lat, lon, o.alt_m + height)
+        flights.append(flight_from_log(log, tx))
+    return flights
+
+
+def _selftest(args) -> int:
+    import time
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from mission.errors import InputError
+    from mission.gap.fit import FitConfig
+    from mission.gap.selftest import WITHHELD_ALL, confusion, run_selftest
+
+    c = Console()
+    seeds = [int(s) for s in args.seeds.split(",")]
+    if args.withheld == "all":
+        cases = [*WITHHELD_ALL, None]
+    else:
+        cases = [None if w.strip() == "none" else w.strip() for w in args.withheld.split(",")]
+        bad = [w for w in cases if w is not None and w not in WITHHELD_ALL]
+        if bad:
+            raise InputError(f"unknown withheld effect(s) {bad}", field="withheld")
+    t0 = time.time()
+
+    def progress(r) -> None:
+        mark = "[green]PASS" if r.passed else "[red]FAIL"
+        c.print(f"{mark}[/] withheld={r.withheld or 'none'} seed={r.seed} first={r.ranked_first or 'none'} "
+                f"significant={r.significant} rms {r.rms_base:.2f} -> {r.rms_after:.2f} dB; {r.param_text} "
+                f"({time.time() - t0:.0f} s)")
+
+    results = run_selftest(cases, seeds, None, progress)
+    rows, cols, M = confusion(results)
+    t = Table(title="Confusion: withheld (rows) vs ranked first and significant (columns)")
+    t.add_column("withheld")
+    for col in cols:
+        t.add_column(col.replace("_", "\n"), justify="right")
+    for i, r in enumerate(rows):
+        t.add_row(r, *[(f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
+                       for j, v in enumerate(M[i])])
+    c.print(t)
+    n_pass = sum(r.passed for r in results)
+    c.print(f"{n_pass}/{len(results)} cases passed")
+    if args.report:
+        import json
+        from pathlib import Path
+
+        out = Path(args.report)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "selftest.json").write_text(json.dumps(
+            {"cases": [r.as_dict() for r in results], "confusion": {"rows": rows, "cols": cols,
+                                                                     "counts": M.tolist()},
+             "config": FitConfig().__dict__}, indent=1, default=str))
+        c.print(f"wrote {out / 'selftest.json'}")
+    return 0 if n_pass == len(results) else 1
+
+
+def run(args) -> int:
+    from mission.errors import InputError
+
+    if args.selftest:
+        return _selftest(args)
+    if not args.logs:
+        raise InputError("give at least one flight log (or --selftest)", field="logs")
+    from rich.console import Console
+
+    from mission.gap.candidates import select
+    from mission.gap.diagnose import base_pipeline, diagnose
+    from mission.gap.fit import FitConfig
+    from mission.gap.report import print_report, write_report
+
+    try:
+        base = base_pipeline(args.base, args.pattern)
+    except (ValueError, KeyError) as e:
+        raise InputError(str(e), field="base") from None
+    flights = load_flights(args.logs, args.truth, args.truth_height)
+    cands = select(args.candidates)
+    cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed)
+    d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,
+                 max_rungs=args.max_rungs, localize=not args.no_localize)
+    c = Console()
+    print_report(d, c)
+    if args.report:
+        for p in write_report(d, args.report):
+            c.print(f"wrote {p}")
+    return 0

@@ -1,0 +1,127 @@
+"""Per-sample alignment: the geometry every candidate effect needs, computed once per flight.
+
+Why: every breakdown of the residual (by distance, depression, body azimuth, world azimuth, attitude,
+flight phase, position) and every candidate effect reads the same few geometric quantities; computing them
+once, vectorised, keeps the diagnosis fast and makes the breakdown and the effects agree on conventions
+(SPEC section 1, ``mission.physics.geometry``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mission.physics.geometry import bearing, body_angles, enu_to_ned
+
+PHASES = ("climb", "cruise", "turn", "descent")
+
+
+@dataclass
+class Flight:
+    """One flight ready for diagnosis: times, UAV positions/attitudes (ENU m, rad), measured RSS, truth."""
+
+    name: str
+    t_s: np.ndarray
+    rx_enu: np.ndarray
+    attitude_rad: np.ndarray
+    rss_db: np.ndarray
+    tx_enu: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def select(self, mask: np.ndarray) -> Flight:
+        """The samples where ``mask`` holds (times stay absolute, so time offsets still interpolate)."""
+        return Flight(self.name, self.t_s[mask], self.rx_enu[mask], self.attitude_rad[mask],
+                      self.rss_db[mask], self.tx_enu, dict(self.meta))
+
+
+@dataclass
+class Alignment:
+    """Per-sample geometry of one flight w.r.t. its transmitter (arrays of length N, angles in radians)."""
+
+    d_h: np.ndarray          # horizontal distance UAV-transmitter (m)
+    d_3d: np.ndarray         # direct-ray length (m)
+    az_b: np.ndarray         # body azimuth of the transmitter, [0, 2 pi), 0 = nose, clockwise
+    dep_b: np.ndarray        # body depression of the transmitter, positive below the body plane
+    az_world: np.ndarray     # compass bearing of the UAV seen from the transmitter, [0, 2 pi)
+    elev: np.ndarray         # elevation of the UAV seen from the transmitter (level frame)
+    grazing: np.ndarray      # grazing angle of the ground-reflected ray (image method)
+    tilt: np.ndarray         # attitude magnitude: angle between body z and the vertical
+    phase: np.ndarray        # index into PHASES
+    x: np.ndarray            # UAV east (m)
+    y: np.ndarray            # UAV north (m)
+    h: np.ndarray            # UAV height (m)
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """The binnable variables by name (angles in degrees, for people)."""
+        return {"distance_m": self.d_h, "depression_deg": np.rad2deg(self.dep_b),
+                "body_azimuth_deg": np.rad2deg(self.az_b), "world_azimuth_deg": np.rad2deg(self.az_world),
+                "attitude_deg": np.rad2deg(self.tilt), "grazing_deg": np.rad2deg(self.grazing),
+                "height_m": self.h}
+
+
+def flight_phase(t_s: np.ndarray, rx_enu: np.ndarray, yaw_rad: np.ndarray, vz_thresh: float = 0.7,
+                 turn_thresh_deg_s: float = 12.0, smooth_s: float = 1.0) -> np.ndarray:
+    """Phase per sample (index into PHASES): climb/descent by vertical speed, turn by yaw rate, else cruise.
+
+    Rates are taken from telemetry smoothed over ``smooth_s`` (GPS heights are noisy at 30 Hz).
+    """
+    n = len(t_s)
+    if n < 3:
+        return np.full(n, 1, dtype=int)
+    dt = float(np.median(np.diff(t_s))) or 0.03
+    k = max(1, int(round(smooth_s / dt)))
+    kern = np.ones(k) / k
+
+    def smooth(a: np.ndarray) -> np.ndarray:
+        pad = np.pad(a, (k // 2, k - 1 - k // 2), mode="edge")
+        return np.convolve(pad, kern, mode="valid")
+
+    vz = np.gradient(smooth(rx_enu[:, 2]), t_s)
+    yaw_u = np.unwrap(yaw_rad)
+    yaw_rate = np.rad2deg(np.abs(np.gradient(smooth(yaw_u), t_s)))
+    phase = np.full(n, PHASES.index("cruise"), dtype=int)
+    phase[yaw_rate > turn_thresh_deg_s] = PHASES.index("turn")
+    phase[vz > vz_thresh] = PHASES.index("climb")
+    phase[vz < -vz_thresh] = PHASES.index("descent")
+    return phase
+
+
+def align(flight: Flight) -> Alignment:
+    """Compute the per-sample geometry of ``flight`` (vectorised)."""
+    rx = flight.rx_enu
+    tx = np.asarray(flight.tx_enu, dtype=float)
+    att = flight.attitude_rad
+    d = tx[None, :] - rx
+    d_h = np.hypot(d[:, 0], d[:, 1])
+    d_3d = np.linalg.norm(d, axis=1)
+    az_b, dep_b = body_angles(enu_to_ned(d), att)
+    az_world = bearing(-d[:, 0], -d[:, 1])
+    elev = np.arctan2(rx[:, 2] - tx[2], np.maximum(d_h, 1e-9))
+    grazing = np.arctan2(rx[:, 2] + tx[2], np.maximum(d_h, 1e-9))
+    tilt = np.arccos(np.clip(np.cos(att[:, 0]) * np.cos(att[:, 1]), -1.0, 1.0))
+    phase = flight_phase(flight.t_s, rx, att[:, 2])
+    return Alignment(d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, phase, rx[:, 0], rx[:, 1], rx[:, 2])
+
+
+def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = None) -> Flight:
+    """A ``Flight`` from a ``mission.flightlog.FlightLog`` (truth from the sidecar unless given)."""
+    from mission.errors import InputError
+
+    src = str(log.path) if log.path is not None else (name or "log")
+    tx = tx_enu if tx_enu is not None else log.truth_enu
+    if tx is None:
+        raise InputError("no transmitter truth: give --truth LAT,LON or a sidecar with 'truth'", source=src)
+    att = log.attitude_rad
+    if att is None:
+        raise InputError("the log has no attitude (roll/pitch/yaw); the gap diagnosis needs it", source=src)
+    att = np.where(np.isnan(att), 0.0, att)
+    rss = np.asarray(log["rss_dbm"], dtype=float)
+    ok = np.isfinite(rss)
+    nm = name or (log.path.stem if log.path is not None else "flight")
+    f = Flight(nm, np.asarray(log["t_s"], dtype=float), log.enu(), att, rss, np.asarray(tx, dtype=float),
+               dict(log.meta))
+    return f.select(ok)

@@ -1,0 +1,461 @@
+"""The effect library: named, parameterised candidate effects that the diagnosis tries one at a time.
+
+Why: "which effect is missing?" is answered by adding each candidate to the current model, fitting its
+parameters on training blocks and measuring the held-out gap (``mission.gap.fit``).  Each candidate knows
+(a) whether it can be tried on a pipeline, (b) how to build the pipeline for given parameter values,
+(c) its parameter bounds and a coarse start grid (angles are multimodal), and (d) how to *withhold* it from
+a truth pipeline (for the self-test).  A candidate whose effect is already in the model *refits* it (e.g.
+the ground permittivity of an e2r base); one that is absent *adds* it.
+
+| name | what | parameters |
+| --- | --- | --- |
+| ``rx_pattern`` | UAV antenna pattern: isotropic, dipole, measured RM-WB1-DN, measured upside down | choice |
+| ``rx_mounting`` | heading offset (and flip) of the UAV antenna (needs an azimuth-dependent pattern) | heading_deg |
+| ``tx_pattern`` | rover antenna pattern (isotropic, dipole, measured, measured upside down) | choice |
+| ``tx_mounting`` | rover antenna heading (needs an azimuth-dependent pattern) | heading_deg |
+| ``tx_tilt`` | rover dipole tilted off vertical | tilt_deg, azimuth_deg |
+| ``ground_reflection`` | ground-reflected ray, Fresnel Gamma | eps_r, sigma_s_m, polarization |
+| ``attitude`` | receiver angles in the body frame (roll, pitch, yaw) | none |
+| ``leg_shadowing`` | paper eqs. 8-9 | beta, half_width_deg, legs_rotation_deg |
+| ``time_offset`` | RSS lags telemetry by tau | tau_s |
+| ``receiver`` | soft noise floor and saturation | floor_db, sat_db (model dB scale) |
+| ``spatial_shadowing`` | correlated shadowing over the field (kriged residuals) | sigma_db, corr_len_m |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from mission.gap.align import Flight
+from mission.gap.pipeline import Pipeline, Receiver, TxTilt
+from mission.physics import Attitude, GroundReflection, LegShadowing, RxAntenna, TxAntenna
+from mission.physics.antenna import Dipole, Isotropic, Pattern, rm_wb1_dn
+from mission.physics.constants import LEG_AZIMUTHS_DEG
+
+
+@dataclass(frozen=True)
+class Param:
+    """A continuous parameter: bounds, a coarse start grid and (for angles) a period."""
+
+    name: str
+    lo: float
+    hi: float
+    grid: tuple[float, ...]
+    period: float | None = None
+    unit: str = ""
+
+
+Builder = Callable[[Pipeline, dict[str, float], dict[str, Any]], Pipeline]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate effect (see the module table)."""
+
+    name: str
+    description: str
+    params: tuple[Param, ...]
+    build: Builder
+    applicable: Callable[[Pipeline], bool]
+    withhold: Callable[[Pipeline], Pipeline]
+    choices: Callable[[Pipeline], Sequence[dict[str, Any]]] = field(default=lambda p: ({},))
+    post_only: bool = False  # only changes the post-processing (the channel prediction can be cached)
+    direct_fit: Callable[..., tuple[Pipeline, dict[str, Any]]] | None = None
+
+
+def pattern_by_name(name: str) -> Pattern:
+    """isotropic | dipole | measured (shipped RM-WB1-DN)."""
+    return {"isotropic": Isotropic, "dipole": Dipole}.get(name, rm_wb1_dn)()
+
+
+def pattern_name(p: Pattern) -> str:
+    if isinstance(p, Isotropic):
+        return "isotropic"
+    if isinstance(p, Dipole):
+        return "dipole"
+    return "measured"
+
+
+# ------------------------------------------------------------------------------------------- antennas
+
+_PATTERN_CHOICES = ({"pattern": "isotropic", "flipped": False}, {"pattern": "dipole", "flipped": False},
+                    {"pattern": "measured", "flipped": False}, {"pattern": "measured", "flipped": True})
+
+
+def _antenna_pattern_candidate(end: str) -> Candidate:
+    cls = RxAntenna if end == "rx" else TxAntenna
+    eff = f"{end}_antenna"
+
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        cur = p.model.effect(eff) if p.model.has(eff) else cls()
+        e = replace(cur, pattern=pattern_by_name(ch["pattern"]), flipped=bool(ch["flipped"]))
+        return p.replace(model=p.model.with_effect(e))
+
+    def choices(p: Pipeline) -> Sequence[dict[str, Any]]:
+        cur = p.model.effect(eff) if p.model.has(eff) else None
+        now = None if cur is None else (pattern_name(cur.pattern), bool(cur.flipped))
+        return tuple(c for c in _PATTERN_CHOICES if (c["pattern"], c["flipped"]) != now)
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.with_effect(replace(p.model.effect(eff), pattern=Isotropic(), flipped=False)))
+
+    who = "UAV" if end == "rx" else "rover"
+    return Candidate(f"{end}_pattern", f"{who} antenna pattern (isotropic, dipole, measured, upside down)", (),
+                     build, lambda p: True, withhold, choices)
+
+
+def _antenna_mounting_candidate(end: str) -> Candidate:
+    eff = f"{end}_antenna"
+
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        e = replace(p.model.effect(eff), heading_rad=float(np.deg2rad(th["heading_deg"])))
+        return p.replace(model=p.model.with_effect(e))
+
+    def applicable(p: Pipeline) -> bool:
+        return p.model.has(eff) and not p.model.effect(eff).pattern.azimuth_symmetric
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.with_params(eff, heading_rad=0.0))
+
+    who = "UAV" if end == "rx" else "rover"
+    return Candidate(f"{end}_mounting", f"{who} antenna heading offset", (
+        Param("heading_deg", 0.0, 360.0, tuple(np.arange(0.0, 360.0, 20.0)), period=360.0, unit="deg"),),
+        build, applicable, withhold)
+
+
+def _tx_tilt_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        return p.replace(model=p.model.with_effect(TxTilt(th["tilt_deg"], th["azimuth_deg"] % 360.0)))
+
+    def applicable(p: Pipeline) -> bool:
+        return p.model.has("tx_antenna") and isinstance(p.model.effect("tx_antenna").pattern, Dipole)
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.without("tx_tilt")) if p.model.has("tx_tilt") else p
+
+    return Candidate("tx_tilt", "rover dipole tilted off vertical", (
+        Param("tilt_deg", 0.0, 60.0, (10.0, 25.0, 40.0), unit="deg"),
+        Param("azimuth_deg", 0.0, 360.0, tuple(np.arange(0.0, 360.0, 45.0)), period=360.0, unit="deg")),
+        build, applicable, withhold)
+
+
+# ------------------------------------------------------------------------------------------- channel
+
+def _ground_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        g = GroundReflection(eps_r=float(10 ** th["log10_eps_r"]), sigma_s_m=float(10 ** th["log10_sigma"]),
+                             polarization=ch["polarization"])
+        return p.replace(model=p.model.with_effect(g))
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.without("ground_reflection"))
+
+    return Candidate("ground_reflection", "ground-reflected ray (permittivity, conductivity, polarisation)", (
+        Param("log10_eps_r", 0.05, 1.9, (0.3, 0.7, 1.0, 1.3, 1.6)),
+        Param("log10_sigma", -4.0, -0.5, (-3.0, -2.0))),
+        build, lambda p: True, withhold, lambda p: ({"polarization": "V"}, {"polarization": "H"}))
+
+
+def _attitude_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        return p.replace(model=p.model.with_effect(Attitude()))
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.without("attitude"))
+
+    return Candidate("attitude", "receiver gains in the body frame (logged roll, pitch, yaw)", (), build,
+                     lambda p: not p.model.has("attitude"), withhold)
+
+
+def _legs_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        legs = tuple(float((a + th["legs_rotation_deg"]) % 360.0) for a in LEG_AZIMUTHS_DEG)
+        e = LegShadowing(beta=float(th["beta"]), legs_deg=legs, half_width_deg=float(th["half_width_deg"]))
+        return p.replace(model=p.model.with_effect(e))
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.without("leg_shadowing"))
+
+    return Candidate("leg_shadowing", "UAV leg shadowing, paper eqs. 8-9", (
+        Param("beta", 0.0, 8.0, (0.3, 1.0, 2.5)),
+        Param("half_width_deg", 1.0, 25.0, (5.0, 12.0), unit="deg"),
+        Param("legs_rotation_deg", -60.0, 60.0, (-30.0, -10.0, 0.0, 10.0, 30.0), unit="deg")),
+        build, lambda p: p.model.has("attitude"), withhold)
+
+
+# ------------------------------------------------------------------------------------ around the channel
+
+def _time_offset_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        return p.replace(time_offset_s=float(th["tau_s"]))
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(time_offset_s=0.0)
+
+    return Candidate("time_offset", "RSS lags the telemetry by tau", (
+        Param("tau_s", -4.0, 4.0, tuple(np.arange(-3.0, 3.01, 0.5)), unit="s"),), build, lambda p: True, withhold)
+
+
+def _receiver_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        return p.replace(receiver=Receiver(float(th["floor_db"]), float(th["sat_db"])))
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(receiver=None)
+
+    # bounds are relative to the model's dB scale; fit.py rescales them to the data (see ``relative``)
+    return Candidate("receiver", "receiver noise floor and saturation", (
+        Param("floor_db", -200.0, 0.0, ()), Param("sat_db", -200.0, 0.0, ())),
+        build, lambda p: p.receiver is None, withhold, post_only=True)
+
+
+# ------------------------------------------------------------------------------ spatially correlated
+
+@dataclass(frozen=True, eq=False)
+class RandomField:
+    """Truth for simulations: a Gaussian random field with exponential covariance sigma^2 exp(-h/L).
+
+    Random Fourier features: frequencies from a bivariate Cauchy (the exponential covariance's spectrum).
+    """
+
+    sigma_db: float
+    corr_len_m: float
+    w: np.ndarray
+    b: np.ndarray
+
+    @classmethod
+    def draw(cls, sigma_db: float, corr_len_m: float, rng: np.random.Generator, m: int = 400) -> RandomField:
+        z = rng.normal(size=(m, 2))
+        g = np.sqrt(rng.chisquare(1.0, size=(m, 1)))
+        return cls(sigma_db, corr_len_m, z / (corr_len_m * g), rng.uniform(0, 2 * np.pi, m))
+
+    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray:
+        return _memo(self, rx_xy, lambda: self.sigma_db * np.sqrt(2.0 / self.b.size)
+                     * np.cos(rx_xy @ self.w.T + self.b).sum(axis=1))
+
+
+def tx_key(tx: np.ndarray) -> tuple[float, float]:
+    """Flights share a shadowing field when their transmitters are within ~2 m."""
+    return (round(float(tx[0]) / 2.0), round(float(tx[1]) / 2.0))
+
+
+@dataclass(frozen=True, eq=False)
+class KrigedShadowing:
+    """Fitted spatial shadowing: simple kriging (exponential covariance + nugget) of training residuals.
+
+    Training residuals are averaged in square cells of ``cell_m`` first (the samples of one pass are not
+    independent anyway); one set of points per transmitter position (``tx_key``).
+    """
+
+    sigma_db: float
+    corr_len_m: float
+    nugget_db: float
+    points: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]  # key -> (xy, mean, count)
+
+    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray:
+        key = tx_key(flight.tx_enu)
+        pts = self.points.get(key)
+        if pts is None or self.sigma_db <= 0:
+            return np.zeros(len(rx_xy))
+        return _memo(self, rx_xy, lambda: self._predict(key, rx_xy), extra=key)
+
+    def _predict(self, key: tuple[float, float], rx_xy: np.ndarray) -> np.ndarray:
+        xy, r, cnt = self.points[key]
+        s2, n2 = self.sigma_db ** 2, self.nugget_db ** 2
+        K = s2 * np.exp(-_pdist(xy, xy) / self.corr_len_m) + np.diag(n2 / np.minimum(cnt, 20.0) + 1e-6 * s2)
+        alpha = np.linalg.solve(K, r)
+        out = np.empty(len(rx_xy))
+        for s in range(0, len(rx_xy), 4096):
+            k = s2 * np.exp(-_pdist(rx_xy[s: s + 4096], xy) / self.corr_len_m)
+            out[s: s + 4096] = k @ alpha
+        return out
+
+
+def _memo(obj: object, xy: np.ndarray, compute: Callable[[], np.ndarray], extra: object = None) -> np.ndarray:
+    """Per-object cache of field values by the query positions (fits evaluate the same samples many times)."""
+    cache: dict = obj.__dict__.setdefault("_cache", {})
+    key = (extra, xy.shape, hash(np.ascontiguousarray(xy).tobytes()))
+    if key not in cache:
+        if len(cache) > 64:
+            cache.clear()
+        cache[key] = compute()
+    return cache[key]
+
+
+def _pdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    d = a[:, None, :] - b[None, :, :]
+    return np.sqrt((d * d).sum(-1))
+
+
+def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Average residuals in square cells: (cell centroid xy, mean residual, count)."""
+    ij = np.floor(xy / cell_m).astype(np.int64)
+    _, inv, cnt = np.unique(ij, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    sx = np.bincount(inv, weights=xy[:, 0]) / cnt
+    sy = np.bincount(inv, weights=xy[:, 1]) / cnt
+    m = np.bincount(inv, weights=r) / cnt
+    return np.column_stack([sx, sy]), m, cnt.astype(float)
+
+
+def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, max_points: int = 1500,
+                  max_lag_m: float = 150.0) -> tuple[float, float, float]:
+    """(sigma_db, corr_len_m, nugget_db) of gamma(h) = n^2 + s^2 (1 - exp(-h/L)) fitted to the empirical
+    semivariogram (least squares over a grid of L, non-negative linear fit of n^2, s^2)."""
+    from scipy.optimize import nnls
+
+    if len(r) > max_points:
+        sel = rng.choice(len(r), max_points, replace=False)
+        xy, r = xy[sel], r[sel]
+    d = _pdist(xy, xy)
+    iu = np.triu_indices(len(r), 1)
+    h = d[iu]
+    g = 0.5 * (r[:, None] - r[None, :])[iu] ** 2
+    edges = np.linspace(0.0, max_lag_m, 31)
+    b = np.digitize(h, edges) - 1
+    ok = (b >= 0) & (b < 30)
+    cnt = np.bincount(b[ok], minlength=30)
+    gm = np.bincount(b[ok], weights=g[ok], minlength=30) / np.maximum(cnt, 1)
+    hc = 0.5 * (edges[:-1] + edges[1:])
+    use = cnt >= 20
+    if use.sum() < 3:
+        return 0.0, 30.0, float(np.std(r))
+    best = (np.inf, 0.0, 30.0, float(np.std(r)))
+    w = np.sqrt(cnt[use])
+    for L in np.geomspace(3.0, 300.0, 25):
+        A = np.column_stack([np.ones(use.sum()), 1.0 - np.exp(-hc[use] / L)])
+        coef, res = nnls(A * w[:, None], gm[use] * w)
+        if res < best[0]:
+            best = (res, float(np.sqrt(coef[1])), float(L), float(np.sqrt(coef[0])))
+    return best[1], best[2], best[3]
+
+
+KRIGING_CELL_M = 5.0
+KRIGING_LENGTHS_M = (10.0, 20.0, 35.0, 60.0, 100.0, 170.0)
+KRIGING_NUGGET_FRACTIONS = (0.1, 0.3, 0.6)
+
+
+def _group_cells(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+                 cell_m: float) -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    groups: dict[tuple[float, float], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for f, i, rr in zip(flights, idx, resid, strict=True):
+        if len(i):
+            groups.setdefault(tx_key(f.tx_enu), []).append((f.rx_enu[i, :2], rr))
+    return {k: cell_means(np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v]), cell_m)
+            for k, v in groups.items()}
+
+
+def choose_kriging(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+                   period_s: float = 30.0) -> tuple[float, float, float]:
+    """(sigma_db, corr_len_m, nugget_db) by inner two-fold cross-validation on the training samples.
+
+    The training samples are split again into alternating ``period_s`` stretches of flight; each grid point
+    (correlation length x nugget fraction, sigma^2 + nugget^2 = residual variance) krigs one half from the
+    other; the pair with the smallest prediction error wins.  Chosen this way because the variogram of a
+    30 Hz track is dominated by along-track pairs and underestimates the across-track correlation length.
+    """
+    r_all = np.concatenate(list(resid)) if resid else np.zeros(0)
+    var = float(np.var(r_all)) if r_all.size else 0.0
+    halves = []
+    for f, i in zip(flights, idx, strict=True):
+        h = (np.floor(f.t_s[i] / period_s).astype(int) % 2) if len(i) else np.zeros(0, int)
+        halves.append(h)
+    best = (np.inf, 0.0, 30.0, float(np.sqrt(var)))
+    for L in KRIGING_LENGTHS_M:
+        for frac in KRIGING_NUGGET_FRACTIONS:
+            s, n = float(np.sqrt(var * (1 - frac))), float(np.sqrt(var * frac))
+            err, cnt = 0.0, 0
+            for a in (0, 1):
+                tr = [i[h != a] for i, h in zip(idx, halves, strict=True)]
+                rt = [r[h != a] for r, h in zip(resid, halves, strict=True)]
+                kr = KrigedShadowing(s, L, n, _group_cells(flights, tr, rt, KRIGING_CELL_M))
+                for f, i, r, h in zip(flights, idx, resid, halves, strict=True):
+                    te = h == a
+                    if te.any():
+                        pred = kr.field_db(f, f.rx_enu[i[te], :2])
+                        d = r[te] - r[te].mean() - (pred - pred.mean())
+                        err += float(np.sum(d * d))
+                        cnt += int(te.sum())
+            mse = err / max(cnt, 1)
+            if mse < best[0]:
+                best = (mse, s, L, n)
+    return best[1], best[2], best[3]
+
+
+def _spatial_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
+        return p
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(spatial=None)
+
+    def direct_fit(p: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+                   rng: np.random.Generator) -> tuple[Pipeline, dict[str, Any]]:
+        sigma, L, nug = choose_kriging(flights, idx, resid)
+        pts = _group_cells(flights, idx, resid, KRIGING_CELL_M)
+        field_ = KrigedShadowing(sigma, L, nug, pts)
+        return p.replace(spatial=field_), {"sigma_db": sigma, "corr_len_m": L, "nugget_db": nug}
+
+    return Candidate("spatial_shadowing", "spatially correlated shadowing (kriging of training residuals)", (),
+                     build, lambda p: p.spatial is None, withhold, direct_fit=direct_fit)
+
+
+# ------------------------------------------------------------------------------------------- library
+
+def library() -> dict[str, Candidate]:
+    """Every candidate effect by name (the order is the report's order)."""
+    cands = [
+        _antenna_pattern_candidate("rx"), _antenna_mounting_candidate("rx"),
+        _antenna_pattern_candidate("tx"), _antenna_mounting_candidate("tx"), _tx_tilt_candidate(),
+        _ground_candidate(), _attitude_candidate(), _legs_candidate(),
+        _time_offset_candidate(), _receiver_candidate(), _spatial_candidate(),
+    ]
+    return {c.name: c for c in cands}
+
+
+CANDIDATE_NAMES = tuple(library())
+
+
+def select(names: str | Sequence[str] | None) -> list[Candidate]:
+    """Candidates by comma-separated names or ``all``; unknown names raise ``InputError``."""
+    from mission.errors import InputError
+
+    lib = library()
+    if names is None or names == "all":
+        return list(lib.values())
+    lst = [n.strip() for n in names.split(",")] if isinstance(names, str) else list(names)
+    bad = [n for n in lst if n not in lib]
+    if bad:
+        raise InputError(f"unknown candidate(s) {', '.join(bad)} (expected {', '.join(lib)} or all)",
+                         field="candidates")
+    return [lib[n] for n in lst]
+
+
+def describe_params(p: Pipeline) -> dict[str, Any]:
+    """The current values of every parameter the library can fit (for the report)."""
+    m = p.model
+    out: dict[str, Any] = {"effects": list(p.components())}
+    for end in ("rx", "tx"):
+        if m.has(f"{end}_antenna"):
+            e = m.effect(f"{end}_antenna")
+            out[f"{end}_pattern"] = pattern_name(e.pattern) + (" flipped" if e.flipped else "")
+            out[f"{end}_heading_deg"] = float(np.rad2deg(e.heading_rad)) % 360.0
+    if m.has("tx_tilt"):
+        t = m.effect("tx_tilt")
+        out["tx_tilt_deg"], out["tx_tilt_azimuth_deg"] = t.tilt_deg, t.azimuth_deg
+    if m.has("ground_reflection"):
+        g = m.effect("ground_reflection")
+        out.update(eps_r=g.eps_r, sigma_s_m=g.sigma_s_m, polarization=g.polarization)
+    if m.has("leg_shadowing"):
+        ls = m.effect("leg_shadowing")
+        out.update(beta=ls.beta, half_width_deg=ls.half_width_deg, legs_deg=list(ls.legs_deg))
+    out["time_offset_s"] = p.time_offset_s
+    if p.receiver is not None:
+        out.update(floor_db=p.receiver.floor_db, sat_db=p.receiver.sat_db)
+    if isinstance(p.spatial, KrigedShadowing | RandomField):
+        out.update(spatial_sigma_db=p.spatial.sigma_db, spatial_corr_len_m=p.spatial.corr_len_m)
+    return out

@@ -1,0 +1,162 @@
+"""The whole diagnosis of one set of flights: the gap, where it lies, which effect, how far it shrinks.
+
+Why one function: the CLI, the self-test, the real-flight benchmark and the tests all need the same sequence
+(alignment -> gap of the reference models -> residual breakdown with block-bootstrap flags -> candidate
+ranking and greedy ladder on held-out data -> localization cost per rung), and a single ``Diagnosis`` object
+is what the report renders.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mission.gap.align import PHASES, Alignment, Flight, align
+from mission.gap.candidates import Candidate, describe_params
+from mission.gap.fit import FitConfig, Rung, _pooled, ladder, offset_residual
+from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
+from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
+from mission.physics import make_model
+
+REFERENCE_MODELS = ("free-space", "two-ray", "e2r")
+
+BREAKDOWN_EDGES: dict[str, np.ndarray] = {
+    "distance_m": np.array([0, 25, 50, 75, 100, 150, 200, 250, 300, 400, 600], dtype=float),
+    "depression_deg": np.arange(-20.0, 91.0, 10.0),
+    "body_azimuth_deg": np.arange(0.0, 361.0, 30.0),
+    "world_azimuth_deg": np.arange(0.0, 361.0, 30.0),
+    "attitude_deg": np.array([0, 2, 4, 6, 8, 10, 15, 20, 45], dtype=float),
+}
+
+
+def base_pipeline(name: str = "e2r", pattern: str = "dipole", **params: Any) -> Pipeline:
+    """A pipeline from a reference model name (``make_model``) and an antenna pattern for both ends."""
+    return Pipeline(make_model(name, pattern=pattern, **params))
+
+
+@dataclass
+class ModelGap:
+    """In-sample gap of one model (per-flight offset, optional slope), per flight and pooled."""
+
+    name: str
+    per_flight: dict[str, dict[str, float]]
+    pooled: dict[str, float]
+    cdf_x: np.ndarray
+    cdf_q: np.ndarray
+    residuals: list[np.ndarray] = field(default_factory=list, repr=False)
+
+
+@dataclass
+class Diagnosis:
+    """Everything the report shows."""
+
+    flights: list[Flight]
+    alignments: list[Alignment]
+    base_label: str
+    gaps: list[ModelGap]
+    breakdown: list[BinnedResidual]
+    field_map: dict[str, Any]
+    rungs: list[Rung]
+    localization: list[dict[str, Any]]
+    block_lens: list[int]
+    config: dict[str, Any]
+
+
+def model_gap(pipe: Pipeline, flights: Sequence[Flight], cfg: FitConfig, name: str) -> ModelGap:
+    """Gap of ``pipe`` on all samples with the free constants fitted per flight."""
+    res = []
+    per = {}
+    for f in flights:
+        r = offset_residual(f.rss_db, pipe.predict(f), cfg.slope, "l2")
+        res.append(r)
+        per[f.name] = summarize(r).as_dict()
+    pooled = np.concatenate(res)
+    x, q = ecdf(pooled)
+    return ModelGap(name, per, summarize(pooled).as_dict(), x, q, res)
+
+
+def residual_breakdown(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Sequence[int],
+                       rng: np.random.Generator, n_boot: int = 300) -> list[BinnedResidual]:
+    """Residual by distance, depression, body/world azimuth, attitude and phase, with flagged bins."""
+    out = []
+    for var, edges in BREAKDOWN_EDGES.items():
+        xs = [a.as_dict()[var] for a in al]
+        out.append(binned_residual(var, xs, res, edges, block_lens, rng, n_boot))
+    phases = [a.phase.astype(float) for a in al]
+    b = binned_residual("phase", phases, res, np.arange(len(PHASES), dtype=float), block_lens, rng, n_boot,
+                        categorical=True)
+    out.append(b)
+    return out
+
+
+def field_map(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Sequence[int],
+              rng: np.random.Generator, cell_m: float = 20.0, n_boot: int = 200) -> dict[str, Any]:
+    """Mean residual on a grid of ``cell_m`` cells over the field, with block-bootstrap flags per cell."""
+    x = np.concatenate([a.x for a in al])
+    y = np.concatenate([a.y for a in al])
+    x0, y0 = np.floor(x.min() / cell_m) * cell_m, np.floor(y.min() / cell_m) * cell_m
+    nx = int(np.ceil((x.max() - x0) / cell_m)) + 1
+    ny = int(np.ceil((y.max() - y0) / cell_m)) + 1
+    cells = [((np.floor((a.y - y0) / cell_m)) * nx + np.floor((a.x - x0) / cell_m)).astype(float) for a in al]
+    b = binned_residual("cell", cells, res, np.arange(nx * ny, dtype=float), block_lens, rng, n_boot,
+                        min_count=20, categorical=True)
+    return {"x0": float(x0), "y0": float(y0), "cell_m": cell_m, "nx": nx, "ny": ny,
+            "mean_db": b.mean.reshape(ny, nx), "count": b.count.reshape(ny, nx),
+            "flagged": b.flagged.reshape(ny, nx)}
+
+
+def localization_cost(rungs: Sequence[Rung], flights: Sequence[Flight], area: Any = None,
+                      step_m: float = 10.0, max_points: int = 1500) -> list[dict[str, Any]]:
+    """Model-based grid-search error per rung and flight (``mission.localize.classical.ModelGridSearch``)."""
+    from mission.localize.classical import FlightData, ModelGridSearch
+
+    out = []
+    for rung in rungs:
+        pipe = rung.pipes[0]
+        row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
+        for f in flights:
+            rx, att = (f.rx_enu, f.attitude_rad) if pipe.time_offset_s == 0 else shifted_geometry(
+                f, f.t_s - pipe.time_offset_s)
+            est = ModelGridSearch(LocalizationModel(pipe, rung.label), tx_height_m=float(f.tx_enu[2]), area=area,
+                                  step_m=step_m, max_points=max_points, loss="l2" if area is None else "soft_l1")
+            e = est.predict(FlightData(rx, f.rss_db, att))
+            row["errors_m"][f.name] = float(np.hypot(e.x_m - f.tx_enu[0], e.y_m - f.tx_enu[1]))
+        errs = np.array(list(row["errors_m"].values()))
+        row["mean_error_m"] = float(errs.mean()) if errs.size else float("nan")
+        out.append(row)
+    return out
+
+
+def diagnose(flights: Sequence[Flight], base: Pipeline, candidates: Sequence[Candidate], cfg: FitConfig,
+             base_label: str = "base", reference: Sequence[str] = REFERENCE_MODELS, pattern: str = "dipole",
+             max_rungs: int = 6, localize: bool = True, area: Any = None) -> Diagnosis:
+    """Run the full diagnosis (see the module docstring)."""
+    flights = list(flights)
+    rng = np.random.default_rng(cfg.seed)
+    als = [align(f) for f in flights]
+    gaps = [model_gap(base_pipeline(m, pattern), flights, cfg, m) for m in reference]
+    bg = model_gap(base, flights, cfg, base_label)
+    if base_label not in reference:
+        gaps.append(bg)
+    Ls = [block_length(r) for r in bg.residuals]
+    breakdown = residual_breakdown(als, bg.residuals, Ls, rng)
+    fmap = field_map(als, bg.residuals, Ls, rng)
+    rungs = ladder(base, flights, candidates, cfg, max_rungs=max_rungs, label=base_label)
+    loc = localization_cost(rungs, flights, area) if localize else []
+    conf = {"split": cfg.split, "n_chunks": cfg.n_chunks, "slope": cfg.slope, "loss": cfg.loss,
+            "alpha": cfg.alpha, "min_rel": cfg.min_rel, "seed": cfg.seed, "base": describe_params(base),
+            "candidates": [c.name for c in candidates]}
+    return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf)
+
+
+def rung_table(d: Diagnosis) -> list[dict[str, Any]]:
+    """Per rung: held-out gap pooled and per flight, what was added, fitted parameters."""
+    rows = []
+    for r in d.rungs:
+        per = {f.name: summarize(x[np.isfinite(x)]).as_dict() for f, x in zip(d.flights, r.residuals, strict=True)}
+        rows.append({"rung": r.label, "added": r.added, "params": r.params, "pooled": summarize(_pooled(r.residuals))
+                     .as_dict(), "per_flight": per})
+    return rows

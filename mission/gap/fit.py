@@ -1,0 +1,337 @@
+"""Fitting: free constants, per-candidate parameter fits, held-out ranking and the greedy ladder.
+
+Why these choices:
+
+- The receiver's dB are uncalibrated (SPEC section 5), so every comparison removes a per-flight constant
+  offset (and, optionally, a per-flight path-gain slope: ``meas ~ c + s * pred``) fitted on the very samples
+  being scored.  This costs one (two) degrees of freedom per flight and fold, the same for every candidate.
+- Candidates are fitted on training blocks and scored on the complementary blocks ("cross-fitting"):
+  each flight is cut into ``n_chunks`` contiguous chunks (default 8, tens of seconds each, far longer than
+  the residual's correlation time) and the two folds are the even and the odd chunks, so both folds see the
+  whole geometry; or (``split="flights"``) each whole flight is held out in turn.  Never random samples:
+  neighbouring samples share their shadowing, so a random split would reward over-fitting.
+- Ranking: by the held-out mean reduction of the per-sample loss (squared error, or soft-L1 for real data
+  with deep fades); significance by a circular block bootstrap of that reduction (block length from its
+  autocorrelation, per flight), one-sided at ``alpha / m`` (Bonferroni over the m candidates tried), and
+  at least ``min_rel`` relative reduction (a practically negligible gain is not "significant").
+- The greedy ladder adds the best significant candidate, keeps its fitted parameters (fold by fold) and
+  ranks the remaining ones on top, until none is significant.  Spatially correlated shadowing is a
+  catch-all (kriged residuals absorb any smooth misfit, and would go stale when a channel effect is added
+  after it), so it joins the ladder only once no structured effect is significant; it is always ranked.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import minimize
+
+from mission.gap.align import Flight
+from mission.gap.candidates import Candidate, describe_params
+from mission.gap.pipeline import Pipeline
+from mission.gap.stats import block_length, bootstrap_mean, summarize
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """Settings of the fits and the significance test."""
+
+    split: str = "blocks"          # blocks | flights
+    n_chunks: int = 8              # contiguous chunks per flight (blocks split)
+    fit_max_samples: int = 3000    # training samples per flight used by the optimiser (evenly decimated)
+    slope: bool = False            # also fit a per-flight path-gain slope
+    loss: str = "l2"               # l2 | soft_l1
+    f_scale_db: float = 6.0        # soft_l1 scale
+    max_evals: int = 60            # Nelder-Mead evaluations per start
+    alpha: float = 0.05
+    min_rel: float = 0.01          # minimum relative held-out loss reduction to call a candidate significant
+    n_boot: int = 400
+    seed: int = 0
+
+
+@dataclass
+class Fold:
+    """Training and test sample indices, one array per flight (may be empty)."""
+
+    train: list[np.ndarray]
+    test: list[np.ndarray]
+
+
+def make_folds(flights: Sequence[Flight], cfg: FitConfig) -> list[Fold]:
+    """Contiguous-chunk folds (even/odd chunks) or leave-one-flight-out folds."""
+    if cfg.split == "flights" and len(flights) >= 2:
+        folds = []
+        for k in range(len(flights)):
+            tr = [np.arange(len(f)) if j != k else np.zeros(0, int) for j, f in enumerate(flights)]
+            te = [np.arange(len(f)) if j == k else np.zeros(0, int) for j, f in enumerate(flights)]
+            folds.append(Fold(tr, te))
+        return folds
+    chunk_of = [np.minimum((np.arange(len(f)) * cfg.n_chunks) // max(len(f), 1), cfg.n_chunks - 1) for f in flights]
+    folds = []
+    for parity in (0, 1):
+        te = [np.nonzero(c % 2 == parity)[0] for c in chunk_of]
+        tr = [np.nonzero(c % 2 != parity)[0] for c in chunk_of]
+        folds.append(Fold(tr, te))
+    return folds
+
+
+def decimate(idx: np.ndarray, n_max: int) -> np.ndarray:
+    """Every k-th index so that at most ``n_max`` remain."""
+    if len(idx) <= n_max:
+        return idx
+    return idx[:: int(np.ceil(len(idx) / n_max))]
+
+
+def offset_residual(meas: np.ndarray, pred: np.ndarray, slope: bool = False, loss: str = "l2",
+                    f_scale: float = 6.0) -> np.ndarray:
+    """meas - (c + s pred) with c (and s) fitted: least squares, or median-based for soft_l1."""
+    if meas.size == 0:
+        return meas.copy()
+    if slope and meas.size > 2 and np.std(pred) > 1e-9:
+        s, c = np.polyfit(pred, meas, 1)
+        r = meas - (c + s * pred)
+    else:
+        r = meas - pred
+        r = r - (np.median(r) if loss != "l2" else np.mean(r))
+    if loss != "l2":  # one IRLS step of the offset under soft-L1
+        w = 1.0 / np.sqrt(1.0 + (r / f_scale) ** 2)
+        r = r - np.sum(w * r) / np.sum(w)
+    return r
+
+
+def per_sample_loss(r: np.ndarray, cfg: FitConfig) -> np.ndarray:
+    """Squared error or 2 f^2 (sqrt(1 + (r/f)^2) - 1) (soft-L1, ~ r^2 for small r)."""
+    if cfg.loss == "l2":
+        return r * r
+    f = cfg.f_scale_db
+    return 2.0 * f * f * (np.sqrt(1.0 + (r / f) ** 2) - 1.0)
+
+
+def residuals(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], cfg: FitConfig,
+              cache: list[np.ndarray] | None = None) -> list[np.ndarray]:
+    """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse)."""
+    out = []
+    for k, (f, i) in enumerate(zip(flights, idx, strict=True)):
+        if len(i) == 0:
+            out.append(np.zeros(0))
+            continue
+        p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
+        out.append(offset_residual(f.rss_db[i], p, cfg.slope, cfg.loss, cfg.f_scale_db))
+    return out
+
+
+def objective(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], cfg: FitConfig,
+              cache: list[np.ndarray] | None = None) -> float:
+    """Mean per-sample loss over the given samples of all flights."""
+    rs = residuals(pipe, flights, idx, cfg, cache)
+    n = sum(len(r) for r in rs)
+    return float(sum(per_sample_loss(r, cfg).sum() for r in rs) / max(n, 1))
+
+
+def _start_grid(cand: Candidate, cache: list[np.ndarray] | None) -> list[tuple[float, ...]]:
+    if cand.name == "receiver" and cache is not None:
+        p = np.concatenate(cache)
+        lo, hi = float(p.min()), float(p.max())
+        floors = [lo - 30.0] + [float(np.quantile(p, q)) for q in (0.05, 0.15, 0.3)]
+        sats = [hi + 30.0] + [float(np.quantile(p, q)) for q in (0.99, 0.95, 0.85)]
+        return list(itertools.product(floors, sats))
+    return list(itertools.product(*[prm.grid for prm in cand.params]))
+
+
+def _bounds(cand: Candidate, cache: list[np.ndarray] | None) -> list[tuple[float, float]]:
+    if cand.name == "receiver" and cache is not None:
+        p = np.concatenate(cache)
+        lo, hi = float(p.min()), float(p.max())
+        return [(lo - 40.0, hi + 10.0), (lo - 10.0, hi + 40.0)]
+    return [(prm.lo, prm.hi) if prm.period is None else (-np.inf, np.inf) for prm in cand.params]
+
+
+@dataclass
+class CandidateFit:
+    """A candidate fitted on one training set."""
+
+    pipeline: Pipeline
+    params: dict[str, Any]
+    train_loss: float
+
+
+def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray],
+                  cfg: FitConfig, rng: np.random.Generator) -> CandidateFit:
+    """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded Nelder-Mead."""
+    idx = [decimate(i, cfg.fit_max_samples) for i in idx]
+    if cand.direct_fit is not None:
+        res = residuals(pipe, flights, idx, cfg)
+        new, params = cand.direct_fit(pipe, [f for f in flights], idx, res, rng)
+        return CandidateFit(new, params, objective(new, flights, idx, cfg))
+    cache = None
+    if cand.post_only:
+        cache = [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+    names = [p.name for p in cand.params]
+    best: CandidateFit | None = None
+    for choice in cand.choices(pipe):
+        if not names:
+            new = cand.build(pipe, {}, choice)
+            loss = objective(new, flights, idx, cfg, cache)
+            if best is None or loss < best.train_loss:
+                best = CandidateFit(new, dict(choice), loss)
+            continue
+        bounds = _bounds(cand, cache)
+
+        def f_obj(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
+            xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
+            return objective(cand.build(pipe, dict(zip(names, xx, strict=True)), choice), flights, idx, cfg, cache)
+
+        grid = _start_grid(cand, cache)
+        vals = np.array([f_obj(np.array(g)) for g in grid])
+        x0 = np.array(grid[int(np.argmin(vals))], dtype=float)
+        steps = [(b - a) / 8.0 if np.isfinite(b - a) else 10.0 for a, b in bounds]
+        for j, prm in enumerate(cand.params):
+            if len(prm.grid) > 1:
+                steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
+        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
+        res = minimize(f_obj, x0, method="Nelder-Mead",
+                       options={"maxfev": cfg.max_evals * len(x0), "initial_simplex": simplex,
+                                "xatol": 1e-3, "fatol": 1e-6})
+        x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(res.x, bounds, strict=True)]
+        for j, prm in enumerate(cand.params):
+            if prm.period:
+                x[j] = x[j] % prm.period
+        th = dict(zip(names, x, strict=True))
+        new = cand.build(pipe, th, choice)
+        loss = float(min(res.fun, vals.min()))
+        if best is None or loss < best.train_loss:
+            best = CandidateFit(new, {**th, **choice}, loss)
+    assert best is not None
+    return best
+
+
+def heldout_residuals(pipes: Sequence[Pipeline], flights: Sequence[Flight], folds: Sequence[Fold],
+                      cfg: FitConfig) -> list[np.ndarray]:
+    """Held-out residual per sample (NaN where a sample is in no test set), one array per flight."""
+    out = [np.full(len(f), np.nan) for f in flights]
+    for pipe, fold in zip(pipes, folds, strict=True):
+        rs = residuals(pipe, flights, fold.test, cfg)
+        for k, (i, r) in enumerate(zip(fold.test, rs, strict=True)):
+            out[k][i] = r
+    return out
+
+
+@dataclass
+class CandidateResult:
+    """One candidate tried on top of the current rung."""
+
+    name: str
+    fold_params: list[dict[str, Any]]
+    pipes: list[Pipeline]
+    residuals: list[np.ndarray]
+    loss_reduction: float          # held-out mean loss reduction (dB^2)
+    rel_reduction: float           # relative to the current rung's held-out loss
+    ci_lo: float                   # one-sided lower bound of the reduction (block bootstrap)
+    significant: bool
+    rms_before: float
+    rms_after: float
+    p90_before: float
+    p90_after: float
+    block_len: int = 0
+
+    def params_mean(self) -> dict[str, Any]:
+        """Fold-averaged parameters (circular mean for angles); categorical ones from the first fold."""
+        out: dict[str, Any] = {}
+        for k, v in self.fold_params[0].items():
+            vals = [fp.get(k) for fp in self.fold_params]
+            if isinstance(v, bool | str) or v is None:
+                out[k] = v if all(x == v for x in vals) else "/".join(str(x) for x in vals)
+            elif "heading" in k or "azimuth" in k:
+                a = np.deg2rad(np.array(vals, dtype=float))
+                out[k] = float(np.rad2deg(np.arctan2(np.sin(a).mean(), np.cos(a).mean())) % 360.0)
+            else:
+                out[k] = float(np.mean(vals))
+        return out
+
+
+def _pooled(rs: Sequence[np.ndarray]) -> np.ndarray:
+    return np.concatenate([r[np.isfinite(r)] for r in rs]) if rs else np.zeros(0)
+
+
+def compare(base_res: Sequence[np.ndarray], new_res: Sequence[np.ndarray], cfg: FitConfig, m: int,
+            rng: np.random.Generator) -> tuple[float, float, float, bool, int]:
+    """Held-out loss reduction: mean, relative, one-sided lower bound, significant, block length."""
+    ds, Ls = [], []
+    for a, b in zip(base_res, new_res, strict=True):
+        ok = np.isfinite(a) & np.isfinite(b)
+        d = per_sample_loss(a[ok], cfg) - per_sample_loss(b[ok], cfg)
+        ds.append(d)
+        Ls.append(block_length(d) if d.size > 3 else 1)
+    alld = np.concatenate(ds)
+    base_loss = float(np.mean(per_sample_loss(_pooled(base_res), cfg)))
+    mean = float(alld.mean()) if alld.size else 0.0
+    boot = bootstrap_mean([d for d in ds if d.size], [L for d, L in zip(ds, Ls, strict=True) if d.size],
+                          cfg.n_boot, rng)
+    lo = float(np.quantile(boot, cfg.alpha / max(m, 1)))
+    rel = mean / base_loss if base_loss > 0 else 0.0
+    return mean, rel, lo, bool(lo > 0 and rel >= cfg.min_rel), int(max(Ls) if Ls else 1)
+
+
+def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[Flight], folds: Sequence[Fold],
+                    candidates: Sequence[Candidate], cfg: FitConfig, rng: np.random.Generator,
+                    base_res: list[np.ndarray] | None = None) -> list[CandidateResult]:
+    """Fit every applicable candidate on each fold's training data, score on its test data, rank."""
+    base_res = base_res if base_res is not None else heldout_residuals(pipes, flights, folds, cfg)
+    bsum = summarize(_pooled(base_res))
+    tried = [c for c in candidates if c.applicable(pipes[0])]
+    out = []
+    for cand in tried:
+        fits = [fit_candidate(cand, p, flights, fold.train, cfg, rng) for p, fold in zip(pipes, folds, strict=True)]
+        new_pipes = [ft.pipeline for ft in fits]
+        res = heldout_residuals(new_pipes, flights, folds, cfg)
+        mean, rel, lo, sig, L = compare(base_res, res, cfg, len(tried), rng)
+        s = summarize(_pooled(res))
+        out.append(CandidateResult(cand.name, [ft.params for ft in fits], new_pipes, res, mean, rel, lo, sig,
+                                   bsum.rms, s.rms, bsum.p90_abs, s.p90_abs, L))
+    out.sort(key=lambda r: -r.loss_reduction)
+    return out
+
+
+@dataclass
+class Rung:
+    """One rung of the ladder: the pipelines (per fold), their held-out residuals and what was added."""
+
+    label: str
+    added: str | None
+    pipes: list[Pipeline]
+    residuals: list[np.ndarray]
+    params: dict[str, Any] = field(default_factory=dict)
+    ranking: list[CandidateResult] = field(default_factory=list)  # candidates tried on top of this rung
+
+    def describe(self) -> dict[str, Any]:
+        return describe_params(self.pipes[0])
+
+
+TERMINAL = ("spatial_shadowing",)  # catch-alls: added only when no structured effect is significant
+
+
+def ladder(base: Pipeline, flights: Sequence[Flight], candidates: Sequence[Candidate], cfg: FitConfig,
+           max_rungs: int = 6, label: str = "base") -> list[Rung]:
+    """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is significant."""
+    rng = np.random.default_rng(cfg.seed)
+    folds = make_folds(flights, cfg)
+    pipes = [base] * len(folds)
+    rung = Rung(label, None, pipes, heldout_residuals(pipes, flights, folds, cfg))
+    rungs = [rung]
+    pool = list(candidates)
+    while pool and len(rungs) <= max_rungs:
+        ranking = rank_candidates(rung.pipes, flights, folds, pool, cfg, rng, rung.residuals)
+        rung.ranking = ranking
+        sig = [r for r in ranking if r.significant]
+        physical = [r for r in sig if r.name not in TERMINAL]
+        if not sig:
+            break
+        best = physical[0] if physical else sig[0]
+        rung = Rung(f"{rung.label} + {best.name}", best.name, best.pipes, best.residuals, best.params_mean())
+        rungs.append(rung)
+        pool = [c for c in pool if c.name != best.name]
+    return rungs

@@ -1,0 +1,153 @@
+"""A prediction pipeline = a physics propagation model plus the effects the physics does not model.
+
+Why: the sim-to-real diagnosis tries effects one at a time, so every effect must be a separately switchable,
+parameterised component.  Effects that change how the radio channel behaves live in ``mission.physics``
+(``PropagationModel`` effects).  What happens *around* the channel lives here:
+
+- ``time_offset_s``: the RSS sample stamped ``t`` was received where the UAV was at ``t - tau`` (a lag of
+  the receiver's clock or pipe behind the telemetry); applied by interpolating the telemetry.
+- ``Receiver``: noise floor and saturation, both soft (in the model's dB scale, before the free offset):
+  ``p -> 10 log10(10^(p/10) + 10^(floor/10))`` then ``-10 log10(10^(-p/10) + 10^(-sat/10))``.
+- ``TxTilt``: a ``mission.physics`` effect (``rss_term_db``) for a tilted transmitter dipole: the
+  direct ray's gain change between a dipole tilted by ``tilt_deg`` towards compass ``azimuth_deg`` and an
+  upright one.  It is an additive approximation (the reflected ray keeps the upright gain).
+- Spatially correlated shadowing (``spatial``): an additive field over the UAV's horizontal position per
+  transmitter; the truth in simulations is a random field, in diagnosis a kriging predictor fitted on the
+  training part of the data (``mission.gap.candidates.KrigedShadowing``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+
+from mission.gap.align import Flight
+from mission.physics import PropagationModel
+from mission.physics.constants import DIPOLE_G0
+
+
+class SpatialField(Protocol):
+    """Additive dB field over the UAV's horizontal position, for the flight's transmitter."""
+
+    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Receiver:
+    """Soft noise floor and saturation of the receiver, in the model's dB scale (before the free offset)."""
+
+    floor_db: float = -300.0
+    sat_db: float = 300.0
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        out = np.logaddexp(p * (np.log(10) / 10), self.floor_db * (np.log(10) / 10)) * (10 / np.log(10))
+        return -np.logaddexp(-out * (np.log(10) / 10), -self.sat_db * (np.log(10) / 10)) * (10 / np.log(10))
+
+
+@dataclass(frozen=True)
+class TxTilt:
+    """Transmitter dipole tilted by ``tilt_deg`` towards compass ``azimuth_deg`` (additive gain change)."""
+
+    tilt_deg: float = 0.0
+    azimuth_deg: float = 0.0
+    name: ClassVar[str] = "tx_tilt"
+
+    def rss_term_db(self, link: Any) -> np.ndarray:
+        """G_dip(angle to the tilted axis) - G_dip(angle to the vertical) on the direct ray, dB."""
+        dx, dy, dz = (np.asarray(v, dtype=float) for v in link.delta)
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        # unit vector tx -> rx (ENU) = -delta / d
+        ux, uy, uz = -dx / d, -dy / d, -dz / d
+        t, a = math.radians(self.tilt_deg), math.radians(self.azimuth_deg)
+        ax, ay, az = math.sin(t) * math.sin(a), math.sin(t) * math.cos(a), math.cos(t)
+        sin_new = np.clip(ux * ax + uy * ay + uz * az, -1.0, 1.0)
+        term = _dipole_db(sin_new) - _dipole_db(np.clip(uz, -1.0, 1.0))
+        return term.astype(np.asarray(link.d_los).dtype, copy=False)
+
+
+def _dipole_db(sin_el: np.ndarray) -> np.ndarray:
+    cos_el = np.sqrt(np.maximum(1.0 - sin_el * sin_el, 1e-12))
+    g = DIPOLE_G0 * (np.cos(0.5 * np.pi * sin_el) / cos_el) ** 2
+    return 10.0 * np.log10(np.maximum(g, 1e-4))
+
+
+@dataclass(frozen=True)
+class Pipeline:
+    """Physics model + time offset + receiver + spatial shadowing: predicts a flight's RSS (model dB)."""
+
+    model: PropagationModel
+    time_offset_s: float = 0.0
+    receiver: Receiver | None = None
+    spatial: SpatialField | None = None
+
+    def replace(self, **kw: Any) -> Pipeline:
+        return replace(self, **kw)
+
+    def geometry(self, flight: Flight, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """UAV positions and attitudes for the samples ``idx`` at their RSS times shifted by the time offset."""
+        t = flight.t_s if idx is None else flight.t_s[idx]
+        if self.time_offset_s == 0.0:
+            sl = slice(None) if idx is None else idx
+            return flight.rx_enu[sl], flight.attitude_rad[sl]
+        return shifted_geometry(flight, t - self.time_offset_s)
+
+    def predict_channel(self, flight: Flight, idx: np.ndarray | None = None) -> np.ndarray:
+        """Model RSS (dB) before the spatial field and the receiver."""
+        rx, att = self.geometry(flight, idx)
+        return np.asarray(self.model.rss_dbm(flight.tx_enu, rx, att), dtype=float)
+
+    def finish(self, p: np.ndarray, flight: Flight, idx: np.ndarray | None = None) -> np.ndarray:
+        """Add the spatial field and pass through the receiver."""
+        if self.spatial is not None:
+            xy = (flight.rx_enu if idx is None else flight.rx_enu[idx])[:, :2]
+            p = p + self.spatial.field_db(flight, xy)
+        if self.receiver is not None:
+            p = self.receiver.apply(p)
+        return p
+
+    def predict(self, flight: Flight, idx: np.ndarray | None = None) -> np.ndarray:
+        """Predicted RSS (model dB scale) of the samples ``idx`` (all by default)."""
+        return self.finish(self.predict_channel(flight, idx), flight, idx)
+
+    def components(self) -> tuple[str, ...]:
+        """Names of every effect in the pipeline (physics effects first)."""
+        names = list(self.model.names)
+        if self.time_offset_s != 0.0:
+            names.append("time_offset")
+        if self.receiver is not None:
+            names.append("receiver")
+        if self.spatial is not None:
+            names.append("spatial_shadowing")
+        return tuple(names)
+
+
+def shifted_geometry(flight: Flight, t_query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Telemetry (positions, attitudes) linearly interpolated at ``t_query`` (yaw unwrapped; clamped ends)."""
+    t = flight.t_s
+    rx = np.stack([np.interp(t_query, t, flight.rx_enu[:, k]) for k in range(3)], axis=-1)
+    att = flight.attitude_rad
+    yaw = np.unwrap(att[:, 2])
+    a = np.stack([np.interp(t_query, t, att[:, 0]), np.interp(t_query, t, att[:, 1]),
+                  np.mod(np.interp(t_query, t, yaw), 2 * np.pi)], axis=-1)
+    return rx, a
+
+
+class LocalizationModel:
+    """Adapter: a pipeline as an ``rss_dbm(tx (K,1,3), rx, att)`` model for ``ModelGridSearch``.
+
+    The spatial field is dropped (it is tied to the true transmitter) and the time offset must already be
+    applied to the geometry handed in; the receiver nonlinearity is kept.
+    """
+
+    def __init__(self, pipeline: Pipeline, name: str = "rung") -> None:
+        self.pipeline = pipeline
+        self.name = name
+
+    def rss_dbm(self, tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray | None = None) -> np.ndarray:
+        p = np.asarray(self.pipeline.model.rss_dbm(tx_enu, rx_enu, attitude_rad), dtype=float)
+        if self.pipeline.receiver is not None:
+            p = self.pipeline.receiver.apply(p)
+        return p

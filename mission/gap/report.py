@@ -1,0 +1,246 @@
+"""Rendering a ``Diagnosis``: rich tables in the terminal, PNG plots and a JSON of every figure.
+
+Why JSON of every figure: plots are for people, the numbers behind them are for regression checks and for
+re-plotting; every PNG written here has a same-named entry in ``gap.json`` holding exactly what was drawn.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mission.gap.align import PHASES
+from mission.gap.diagnose import Diagnosis, rung_table
+from mission.gap.fit import _pooled
+from mission.gap.stats import ecdf
+
+PAPER_P90_DB = 22.0  # "over 90 % of the errors contained within 22 dB" (enhanced two-ray, paper Fig. Abserror)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.3g}" if abs(v) < 1000 else f"{v:.0f}"
+    if isinstance(v, list | tuple):
+        return "(" + ", ".join(_fmt(x) for x in v) + ")"
+    return str(v)
+
+
+def params_text(p: dict[str, Any]) -> str:
+    """Fitted parameters in a compact human form (log-parameters converted back)."""
+    q = dict(p)
+    if "log10_eps_r" in q:
+        q["eps_r"] = 10 ** q.pop("log10_eps_r")
+    if "log10_sigma" in q:
+        q["sigma_s_m"] = 10 ** q.pop("log10_sigma")
+    return ", ".join(f"{k}={_fmt(v)}" for k, v in q.items())
+
+
+def print_report(d: Diagnosis, console: Any = None) -> None:
+    """Rich tables: the gap of the reference models, flagged bins, the candidate ranking, the ladder, the
+    localization cost."""
+    from rich.console import Console
+    from rich.table import Table
+
+    c = console or Console()
+    t = Table(title="The gap: measured vs model (offset fitted per flight, all samples)")
+    for col in ("model", "flight", "n", "median |e| dB", "p90 |e| dB", "rms dB"):
+        t.add_column(col, justify="right" if col not in ("model", "flight") else "left")
+    for g in d.gaps:
+        for fname, s in g.per_flight.items():
+            t.add_row(g.name, fname, str(s["n"]), f"{s['median_abs_db']:.2f}", f"{s['p90_abs_db']:.2f}",
+                      f"{s['rms_db']:.2f}")
+        s = g.pooled
+        t.add_row(f"[bold]{g.name}", "[bold]pooled", str(s["n"]), f"{s['median_abs_db']:.2f}",
+                  f"[bold]{s['p90_abs_db']:.2f}", f"{s['rms_db']:.2f}")
+    c.print(t)
+    e2r = next((g for g in d.gaps if g.name == "e2r"), None)
+    if e2r is not None:
+        c.print(f"e2r 90th percentile of |error|: {e2r.pooled['p90_abs_db']:.1f} dB (paper: {PAPER_P90_DB:.0f} dB)")
+
+    t = Table(title=f"Where {d.base_label} departs (bins whose mean residual excludes 0, block bootstrap 95 %)")
+    for col in ("variable", "bin", "n", "mean dB", "95 % CI dB"):
+        t.add_column(col)
+    for b in d.breakdown:
+        for i in np.nonzero(b.flagged)[0]:
+            lab = PHASES[int(b.centers[i])] if b.variable == "phase" else \
+                f"{b.edges[i]:g}-{b.edges[i + 1]:g}"
+            t.add_row(b.variable, lab, str(int(b.count[i])), f"{b.mean[i]:+.2f}", f"[{b.lo[i]:+.2f}, {b.hi[i]:+.2f}]")
+    c.print(t)
+    c.print(f"block lengths (samples, from the residual autocorrelation): {d.block_lens}")
+
+    for r in d.rungs:
+        if not r.ranking:
+            continue
+        t = Table(title=f"Candidates on top of '{r.label}' (held-out, {d.config['split']} split)")
+        for col in ("candidate", "rms before", "rms after", "p90 after", "loss reduction", "rel", "lower bound",
+                    "significant", "fitted (fold mean)"):
+            t.add_column(col)
+        for x in r.ranking:
+            t.add_row(x.name, f"{x.rms_before:.2f}", f"{x.rms_after:.2f}", f"{x.p90_after:.2f}",
+                      f"{x.loss_reduction:+.2f}", f"{x.rel_reduction:+.1%}", f"{x.ci_lo:+.2f}",
+                      "[green]yes" if x.significant else "no", params_text(x.params_mean()))
+        c.print(t)
+
+    t = Table(title="The ladder (held-out gap per rung)")
+    for col in ("rung", "median |e| dB", "p90 |e| dB", "rms dB", "fitted", "loc. error m"):
+        t.add_column(col)
+    loc = {row["rung"]: row for row in d.localization}
+    for row in rung_table(d):
+        s = row["pooled"]
+        le = loc.get(row["rung"], {}).get("mean_error_m")
+        t.add_row(row["rung"], f"{s['median_abs_db']:.2f}", f"{s['p90_abs_db']:.2f}", f"{s['rms_db']:.2f}",
+                  params_text(row["params"]), "" if le is None else f"{le:.1f}")
+    c.print(t)
+
+
+# -------------------------------------------------------------------------------------------- figures
+
+def figures(d: Diagnosis) -> dict[str, Any]:
+    """The data of every figure (also the JSON)."""
+    figs: dict[str, Any] = {}
+    figs["cdf_models"] = {g.name: {"abs_error_db": g.cdf_x.tolist(), "cdf": g.cdf_q.tolist(), "pooled": g.pooled,
+                                   "per_flight": g.per_flight} for g in d.gaps}
+    figs["cdf_ladder"] = {}
+    for r in d.rungs:
+        x, q = ecdf(_pooled(r.residuals))
+        figs["cdf_ladder"][r.label] = {"abs_error_db": x.tolist(), "cdf": q.tolist()}
+    figs["breakdown"] = [b.as_dict() for b in d.breakdown]
+    fm = d.field_map
+    figs["field_map"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in fm.items()}
+    for k in ("mean_db",):
+        figs["field_map"][k] = [[None if not np.isfinite(v) else float(v) for v in row] for row in fm[k]]
+    figs["field_map"]["transmitters"] = [f.tx_enu.tolist() for f in d.flights]
+    polar = {}
+    for r in (d.rungs[0], d.rungs[-1]):
+        al = d.alignments
+        az = np.concatenate([np.rad2deg(a.az_b) for a in al])
+        res = np.concatenate(r.residuals)
+        ok = np.isfinite(res)
+        edges = np.arange(0.0, 361.0, 15.0)
+        g = np.digitize(az[ok], edges) - 1
+        cnt = np.bincount(g, minlength=24)[:24]
+        m = np.bincount(g, weights=res[ok], minlength=24)[:24] / np.maximum(cnt, 1)
+        polar[r.label] = {"body_azimuth_deg": (0.5 * (edges[:-1] + edges[1:])).tolist(), "mean_db": m.tolist(),
+                          "count": cnt.tolist()}
+    figs["polar_body_azimuth"] = polar
+    figs["ladder"] = rung_table(d)
+    figs["rankings"] = {r.label: [{"name": x.name, "rms_before_db": x.rms_before, "rms_after_db": x.rms_after,
+                                   "p90_after_db": x.p90_after, "loss_reduction_db2": x.loss_reduction,
+                                   "rel_reduction": x.rel_reduction, "ci_lo_db2": x.ci_lo,
+                                   "significant": x.significant, "block_len": x.block_len,
+                                   "params_fold_mean": x.params_mean(), "params_per_fold": x.fold_params}
+                                  for x in r.ranking] for r in d.rungs}
+    figs["localization"] = d.localization
+    return figs
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    return str(o)
+
+
+def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
+    """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figs = figures(d)
+    paths = []
+
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    for name, g in figs["cdf_models"].items():
+        ax[0].plot(g["abs_error_db"], g["cdf"], label=f"{name} (p90 {g['pooled']['p90_abs_db']:.1f} dB)")
+    ax[0].axvline(PAPER_P90_DB, color="k", ls=":", lw=1, label="paper: 90 % within 22 dB")
+    ax[0].axhline(0.9, color="grey", ls=":", lw=0.8)
+    ax[0].set(xlabel="|measured - model| (dB, offset fitted)", ylabel="CDF", title="Reference models (all samples)")
+    ax[0].legend(fontsize=8)
+    for name, g in figs["cdf_ladder"].items():
+        ax[1].plot(g["abs_error_db"], g["cdf"], label=name if len(name) < 60 else "..." + name[-57:])
+    ax[1].axhline(0.9, color="grey", ls=":", lw=0.8)
+    ax[1].set(xlabel="|error| (dB), held-out", ylabel="CDF", title="Ladder rungs (held-out)")
+    ax[1].legend(fontsize=7)
+    fig.tight_layout()
+    paths.append(out / "cdf.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+
+    n = len(d.breakdown)
+    fig, axs = plt.subplots(2, (n + 1) // 2, figsize=(4 * ((n + 1) // 2), 7))
+    for ax, b in zip(np.ravel(axs), d.breakdown, strict=False):
+        x = np.arange(len(b.mean)) if b.variable == "phase" else b.centers
+        yerr = np.vstack([b.mean - b.lo, b.hi - b.mean])
+        ax.errorbar(x, b.mean, yerr=np.nan_to_num(yerr), fmt="o", color="C0", ms=4, capsize=2)
+        if b.flagged.any():
+            ax.plot(np.asarray(x)[b.flagged], b.mean[b.flagged], "o", color="C3", ms=7, label="flagged")
+            ax.legend(fontsize=7)
+        ax.axhline(0, color="k", lw=0.8)
+        if b.variable == "phase":
+            ax.set_xticks(range(len(PHASES)), PHASES)
+        ax.set(title=b.variable, ylabel="mean residual dB")
+    fig.suptitle(f"Residual of '{d.base_label}' (measured - model), 95 % block-bootstrap CI")
+    fig.tight_layout()
+    paths.append(out / "breakdown.png")
+    fig.savefig(paths[-1], dpi=100)
+    plt.close(fig)
+
+    fm = d.field_map
+    fig, ax = plt.subplots(figsize=(7, 6))
+    ext = [fm["x0"], fm["x0"] + fm["nx"] * fm["cell_m"], fm["y0"], fm["y0"] + fm["ny"] * fm["cell_m"]]
+    lim = np.nanmax(np.abs(fm["mean_db"])) if np.isfinite(fm["mean_db"]).any() else 1.0
+    im = ax.imshow(fm["mean_db"], origin="lower", extent=ext, cmap="RdBu_r", vmin=-lim, vmax=lim)
+    yy, xx = np.nonzero(fm["flagged"])
+    ax.plot(fm["x0"] + (xx + 0.5) * fm["cell_m"], fm["y0"] + (yy + 0.5) * fm["cell_m"], "k.", ms=3,
+            label="significant cell")
+    for f in d.flights:
+        ax.plot(f.rx_enu[:, 0], f.rx_enu[:, 1], lw=0.3, color="grey", alpha=0.6)
+        ax.plot(*f.tx_enu[:2], "k*", ms=12)
+    fig.colorbar(im, label="mean residual dB (measured - model)")
+    ax.set(xlabel="east m", ylabel="north m", title=f"Residual of '{d.base_label}' over the field (* = transmitter)")
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    paths.append(out / "field_map.png")
+    fig.savefig(paths[-1], dpi=100)
+    plt.close(fig)
+
+    fig = plt.figure(figsize=(6, 6))
+    ax = fig.add_subplot(projection="polar")
+    ax.set_theta_zero_location("N")
+    ax.set_theta_direction(-1)
+    for name, p in figs["polar_body_azimuth"].items():
+        th = np.deg2rad(np.append(p["body_azimuth_deg"], p["body_azimuth_deg"][0]))
+        ax.plot(th, np.append(p["mean_db"], p["mean_db"][0]), label=name if len(name) < 50 else "..." + name[-47:])
+    ax.set_title("Mean residual (dB) over body azimuth (0 = nose, clockwise)")
+    ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.1, -0.15))
+    fig.tight_layout()
+    paths.append(out / "polar_body_azimuth.png")
+    fig.savefig(paths[-1], dpi=100)
+    plt.close(fig)
+
+    if d.localization:
+        fig, ax = plt.subplots(figsize=(8, 4))
+        labels = [r["rung"].split(" + ")[-1] for r in d.localization]
+        for f in d.flights:
+            ax.plot(range(len(labels)), [r["errors_m"][f.name] for r in d.localization], "o-", label=f.name, ms=4)
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right")
+        ax.set(ylabel="grid-search error m", title="Localization cost per rung (model-based grid search)")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        paths.append(out / "localization.png")
+        fig.savefig(paths[-1], dpi=100)
+        plt.close(fig)
+
+    doc = {"config": d.config, "block_lens": d.block_lens, "flights": [
+        {"name": f.name, "n": len(f), "tx_enu": f.tx_enu.tolist()} for f in d.flights], "figures": figs}
+    paths.append(out / "gap.json")
+    paths[-1].write_text(json.dumps(doc, indent=1, default=_json_default))
+    return paths
