@@ -89,12 +89,9 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Console script ``fly-mission``."""
-    from mission.cli.main import run_guarded
+    from mission.cli.main import standalone_main
 
-    parser = argparse.ArgumentParser(prog="fly-mission", description=(__doc__ or "").strip().splitlines()[0])
-    add_arguments(parser)
-    args = parser.parse_args(argv)
-    return run_guarded(lambda: run(args))
+    return standalone_main("fly-mission", sys.modules[__name__], argv)
 
 
 if __name__ == "__main__":

@@ -103,12 +103,9 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Console script ``localize``."""
-    from mission.cli.main import run_guarded
+    from mission.cli.main import standalone_main
 
-    parser = argparse.ArgumentParser(prog="localize", description=(__doc__ or "").strip().splitlines()[0])
-    add_arguments(parser)
-    args = parser.parse_args(argv)
-    return run_guarded(lambda: run(args))
+    return standalone_main("localize", sys.modules[__name__], argv)
 
 
 if __name__ == "__main__":

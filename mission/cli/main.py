@@ -62,6 +62,14 @@ def run_guarded(fn: Callable[[], int | None]) -> int:
         return 130
 
 
+def standalone_main(prog: str, module, argv: Sequence[str] | None = None) -> int:
+    """Entry point of a console script (``fly-mission``, ``localize``) that is also an ``rfsl`` subcommand."""
+    parser = argparse.ArgumentParser(prog=prog, description=(module.__doc__ or "").strip().splitlines()[0])
+    module.add_arguments(parser)
+    args = parser.parse_args(argv)
+    return run_guarded(lambda: module.run(args))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
