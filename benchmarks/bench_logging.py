@@ -28,14 +28,21 @@ def _cpu() -> float:
 
 def run_one(mission: Path, speedup: float) -> dict:
     """One flight; returns rows, wall seconds, coverage and CPU per flight-minute (runner incl. vehicle)."""
+    import dataclasses
+    import json
+
     from mission.flight.runner import free_udp_port
     from mission.flightlog import read_flight_log
+    from mission.spec import load_mission
+
+    kin = json.dumps(dataclasses.asdict(load_mission(mission).kinematics()))
 
     out = Path(tempfile.mkdtemp(prefix="bench_fly_"))
     port = free_udp_port()
     c0 = _cpu()
     veh = subprocess.Popen(
-        [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup)],
+        [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup)]
+        + ["--kinematics", kin],  # the mission's kinematics, as fly-mission's embedded vehicle gets them
         cwd=ROOT,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

@@ -10,9 +10,14 @@ Flight model: the project's kinematics (``mission.trajectory.kinematics.plan_pro
 implied by the uploaded mission from the current position (take-off climb, waypoints, return to launch,
 landing), re-planned on every mode change; attitude follows incrementally from the motion (yaw along the
 track with a rate limit, roll/pitch from the smoothed acceleration plus drag against a gusty wind), the same
-physics as ``attitude_from_motion``.  Simulated time runs ``--speedup`` times faster than the wall clock and
-is the ``time_boot_ms`` of every message, so rates requested with SET_MESSAGE_INTERVAL are honoured in
-simulated time (as PX4/ArduPilot SITL do).
+physics as ``attitude_from_motion``.  The physics step is 10 ms of simulated time up to speed-up 10 and
+coarser above (at most 50 ms, never coarser than the fastest requested position/attitude stream), and the
+status streams (GPS_RAW_INT, EXTENDED_SYS_STATE, ...) repeat at most 10 times per wall-clock second (the
+landed state also at once on a change), so the cost per wall-clock second stays bounded at high speed-up.
+The full ``Kinematics`` comes as JSON (``--kinematics``; ``fly-mission`` passes the mission's).
+Simulated time runs ``--speedup`` times faster than the wall clock and is the ``time_boot_ms`` of every
+message, so rates requested with SET_MESSAGE_INTERVAL are honoured in simulated time (as PX4/ArduPilot SITL
+do).
 
 Run: ``python -m sitl.vehicle --port 14540 --speedup 5`` or ``rfsl sitl``.
 """
@@ -20,9 +25,10 @@ Run: ``python -m sitl.vehicle --port 14540 --speedup 5`` or ``rfsl sitl``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import math
 import os
-import random
 import select
 import sys
 import time
@@ -50,7 +56,13 @@ PX4_AUTO_READY, PX4_AUTO_TAKEOFF, PX4_AUTO_LOITER, PX4_AUTO_MISSION, PX4_AUTO_RT
 )
 
 DEFAULT_HOME = (35.72744, -78.69607, 0.0)  # AFAR field (Lake Wheeler), ground altitude 0 (relative use)
-PHYSICS_DT = 0.01  # s of simulated time per physics step (100 Hz)
+PHYSICS_DT = 0.01  # s of simulated time per physics step (100 Hz) up to speed-up 10
+MAX_PHYSICS_DT = 0.05  # coarsest step at high speed-up (the attitude response is 0.8 s, turbulence 0.6 s)
+WIND_TAU_S, TURB_TAU_S, TURB_DEG = 6.0, 0.6, 0.8  # gust and turbulence correlation times; turbulence sd
+# streams sent exactly at their requested rate in vehicle time; the others (status: GPS_RAW_INT,
+# EXTENDED_SYS_STATE, ...) repeat the same content and are sent at most STATUS_WALL_HZ times per wall-clock
+# second at high speed-up (the landed state is also sent at once whenever it changes)
+STATUS_WALL_HZ = 10.0
 SENSORS = (
     mav.MAV_SYS_STATUS_SENSOR_3D_GYRO
     | mav.MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -60,12 +72,46 @@ SENSORS = (
     | mav.MAV_SYS_STATUS_PREARM_CHECK
 )
 # default stream intervals (s of simulated time), like PX4's "normal" link profile
+FAST_STREAMS = frozenset({mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, mav.MAVLINK_MSG_ID_ATTITUDE})
 DEFAULT_INTERVALS = {
     mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.2,
     mav.MAVLINK_MSG_ID_ATTITUDE: 0.05,
     mav.MAVLINK_MSG_ID_GPS_RAW_INT: 0.2,
     mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 0.2,
 }
+
+
+class LocalGeodetic:
+    """ENU about an origin -> WGS84 lat/lon (deg), vectorised and cheap (no per-call overhead of pymap3d).
+
+    ENU -> ECEF is a rotation and a shift; ECEF -> geodetic uses Bowring's closed form, which agrees with
+    the iterative solution to well under a millimetre near the ground, so positions agree with
+    ``Origin.to_geodetic`` (pymap3d) to ~1e-10 deg.
+    """
+
+    A, F = 6378137.0, 1.0 / 298.257223563  # WGS84
+
+    def __init__(self, origin: Origin) -> None:
+        a, f = self.A, self.F
+        self.b = a * (1.0 - f)
+        self.e2 = f * (2.0 - f)
+        self.ep2 = self.e2 / (1.0 - self.e2)
+        p0, l0 = math.radians(origin.lat_deg), math.radians(origin.lon_deg)
+        sp, cp, sl, cl = math.sin(p0), math.cos(p0), math.sin(l0), math.cos(l0)
+        n = a / math.sqrt(1.0 - self.e2 * sp * sp)
+        h = origin.alt_m
+        self.x0 = np.array([(n + h) * cp * cl, (n + h) * cp * sl, (n * (1.0 - self.e2) + h) * sp])
+        self.R = np.array([[-sl, -sp * cl, cp * cl], [cl, -sp * sl, cp * sl], [0.0, cp, sp]])
+
+    def latlon(self, enu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = np.asarray(enu, dtype=float).reshape(-1, 3) @ self.R.T + self.x0
+        a, b = self.A, self.b
+        p = np.hypot(x[:, 0], x[:, 1])
+        th = np.arctan2(x[:, 2] * a, p * b)
+        lat = np.arctan2(
+            x[:, 2] + self.ep2 * b * np.sin(th) ** 3, p - self.e2 * a * np.cos(th) ** 3
+        )
+        return np.degrees(lat), np.degrees(np.arctan2(x[:, 1], x[:, 0]))
 
 
 @dataclass
@@ -114,11 +160,12 @@ class SimVehicle:
         )
         self.mav = self.conn.mav
         self.origin = Origin(*home)
+        self.geo = LocalGeodetic(self.origin)
         self.speedup = float(speedup)
         self.kin = kin or Kinematics()
         self.cruise = self.kin.cruise_speed_mps
         self.verbose = verbose
-        self.rng = random.Random(seed)
+        self.noise = np.random.default_rng(seed)  # wind gusts and turbulence
         self.gust_sigma = gust_mps
         # state
         self.sim_t = 0.0
@@ -132,9 +179,9 @@ class SimVehicle:
         self.disarm_at: float | None = None
         self.takeoff_alt = 2.5
         # attitude filter state
-        self.v_s = np.zeros(3)
-        self.a_s = np.zeros(3)
-        self.prev_pos = self.pos.copy()
+        self.v_s = [0.0, 0.0, 0.0]  # smoothed velocity, ENU
+        self.a_s = [0.0, 0.0, 0.0]  # smoothed acceleration, ENU
+        self.prev_pos = [0.0, 0.0, 0.0]
         self.yaw = 0.0
         self.roll = self.pitch = 0.0
         self.wind = [0.0, 0.0]
@@ -145,6 +192,7 @@ class SimVehicle:
         self._rx: dict | None = None  # mission upload in progress
         self._wall_next = {"hb": 0.0, "sys": 0.0, "cur": 0.0}
         self.uploads = 0
+        self._ess_sent = -1  # landed state last sent in EXTENDED_SYS_STATE
 
     # ------------------------------------------------------------------ helpers
     def log(self, msg: str) -> None:
@@ -557,6 +605,7 @@ class SimVehicle:
             )
         elif msgid == mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
             self.mav.extended_sys_state_send(mav.MAV_VTOL_STATE_UNDEFINED, self.landed_state)
+            self._ess_sent = self.landed_state
         elif msgid == mav.MAVLINK_MSG_ID_MISSION_CURRENT:
             self.send_mission_current()
         elif msgid == mav.MAVLINK_MSG_ID_SYS_STATUS:
@@ -602,42 +651,6 @@ class SimVehicle:
             self.send_by_id(msgid)
 
     # ------------------------------------------------------------------ physics
-    def _attitude_step(self, p: np.ndarray, dt: float) -> None:
-        """Advance the incremental attitude model by one step at new position ``p`` (ENU)."""
-        k = self.kin
-        alpha = dt / (k.response_s + dt)
-        v_raw = (p - self.prev_pos) / dt
-        v_old = self.v_s.copy()
-        self.v_s += (v_raw - self.v_s) * alpha
-        self.a_s += ((self.v_s - v_old) / dt - self.a_s) * alpha
-        self.prev_pos = p.copy()
-        # wind gusts and turbulence: Ornstein-Uhlenbeck processes
-        tau_w, tau_t = 6.0, 0.6
-        g = self.rng.gauss
-        for i in range(2):
-            self.wind[i] += -self.wind[i] * dt / tau_w + self.gust_sigma * math.sqrt(2 * dt / tau_w) * g(0, 1)
-            self.turb[i] += -self.turb[i] * dt / tau_t + math.radians(0.8) * math.sqrt(2 * dt / tau_t) * g(
-                0, 1
-            )
-        if not self.flying:
-            self.roll = self.pitch = 0.0
-            return
-        ve, vn = self.v_s[0], self.v_s[1]
-        if math.hypot(ve, vn) > 0.3:
-            course = math.atan2(ve, vn)
-            d = (course - self.yaw + math.pi) % (2 * math.pi) - math.pi
-            lim = math.radians(k.yaw_rate_dps) * dt
-            self.yaw = (self.yaw + max(-lim, min(lim, d))) % (2 * math.pi)
-        k_drag = math.tan(math.radians(k.drag_pitch_deg_per_mps)) * G
-        ae = self.a_s[0] + k_drag * (ve - self.wind[0])
-        an = self.a_s[1] + k_drag * (vn - self.wind[1])
-        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
-        a_fwd = an * cy + ae * sy
-        a_right = -an * sy + ae * cy
-        lim = math.radians(k.max_tilt_deg)
-        self.pitch = max(-lim, min(lim, -math.atan2(a_fwd, G) + self.turb[0]))
-        self.roll = max(-lim, min(lim, math.atan2(a_right, G) + self.turb[1]))
-
     def _events(self) -> None:
         """Item reached, take-off/landing transitions and auto-disarm at the current simulated time."""
         pl = self.plan
@@ -675,32 +688,135 @@ class SimVehicle:
                 self.log("auto-disarmed")
                 self.send_heartbeat()
 
+    def physics_dt(self) -> float:
+        """Simulated seconds per physics step: 10 ms up to speed-up 10, coarser above (a multiple of 10 ms,
+        at most ``MAX_PHYSICS_DT`` and never coarser than the fastest requested position/attitude stream),
+        so that the cost per wall-clock second stays bounded while the requested rates hold in vehicle time."""
+        dt = min(PHYSICS_DT * max(self.speedup / 10.0, 1.0), MAX_PHYSICS_DT)
+        fastest = min((iv for m, iv in self.intervals.items() if m in FAST_STREAMS), default=dt)
+        return PHYSICS_DT * max(1, math.floor(min(dt, fastest) / PHYSICS_DT + 1e-6))
+
+    def _interval(self, msgid: int, iv: float) -> float:
+        """Effective interval (sim s) of a stream: status streams at most ``STATUS_WALL_HZ`` per wall second."""
+        return iv if msgid in FAST_STREAMS else max(iv, self.speedup / STATUS_WALL_HZ)
+
+    def _next_event_time(self) -> float:
+        """The simulated time at which ``_events`` must next run (item reached, plan end, landing, disarm)."""
+        t = self.disarm_at if self.disarm_at is not None else math.inf
+        pl = self.plan
+        if pl is None:
+            return t
+        if self.landed_state == mav.MAV_LANDED_STATE_TAKEOFF:
+            return self.sim_t  # watch the climb through 1 m at every step
+        t = min(t, pl.t0 + pl.profile.duration_s)
+        if pl.reach:
+            t = min(t, pl.t0 + pl.reach[0][0])
+        if pl.land_at_end and self.flying and self.landed_state != mav.MAV_LANDED_STATE_LANDING:
+            tv = pl.profile.t_vertex
+            t = min(t, pl.t0 + float(tv[min(max(pl.n_legs - 1, 0), len(tv) - 1)]))
+        return t
+
+    def _send_due(self, la: float, lo: float) -> float:
+        """Send the streams due at the current simulated time; returns the next due time."""
+        nxt = math.inf
+        for msgid, iv in self.intervals.items():
+            due = self.next_due.get(msgid, 0.0)
+            if self.sim_t + 1e-9 >= due:
+                self.send_stream(msgid, la, lo)
+                iv = self._interval(msgid, iv)
+                due = self.next_due[msgid] = max(due + iv, self.sim_t + iv * 0.5)
+            nxt = min(nxt, due)
+        return nxt
+
     def advance(self, target_t: float) -> None:
-        """Step the simulation up to simulated time ``target_t``, emitting the due telemetry."""
-        n = int((target_t - self.sim_t) / PHYSICS_DT)
+        """Step the simulation up to simulated time ``target_t``, emitting the due telemetry.
+
+        The positions of the whole chunk come vectorised from the plan; the incremental attitude model
+        (velocity/acceleration smoothing, Ornstein-Uhlenbeck wind gusts and turbulence, rate-limited yaw,
+        roll/pitch from acceleration plus drag, the same physics as ``attitude_from_motion``) runs on plain
+        floats, and the event logic runs only at the times where something can happen."""
+        dt = self.physics_dt()
+        n = int((target_t - self.sim_t) / dt + 1e-9)
         if n <= 0:
             return
-        times = self.sim_t + PHYSICS_DT * np.arange(1, n + 1)
-        if self.plan is not None:
-            pos = self.plan.profile.position(np.clip(times - self.plan.t0, 0.0, None))
+        times_a = self.sim_t + dt * np.arange(1, n + 1)
+        plan0 = self.plan
+        if plan0 is not None:
+            P = plan0.profile.position(np.clip(times_a - plan0.t0, 0.0, None))
         else:
-            pos = np.repeat(self.pos[None, :], n, axis=0)
-        lat, lon, _ = self.origin.to_geodetic(pos)
-        plan_before = self.plan
-        for k in range(n):
-            self.sim_t = float(times[k])
-            if self.plan is plan_before:
-                self.pos = pos[k].copy()
-                la, lo = float(lat[k]), float(lon[k])
-            else:  # the plan ended (or changed) inside this tick: hold the last position
-                la, lo = (float(v) for v in self.origin.to_geodetic(self.pos)[:2])
-            self._attitude_step(self.pos, PHYSICS_DT)
-            self._events()
-            for msgid, iv in self.intervals.items():
-                due = self.next_due.get(msgid, 0.0)
-                if self.sim_t + 1e-9 >= due:
-                    self.send_stream(msgid, la, lo)
-                    self.next_due[msgid] = max(due + iv, self.sim_t + iv * 0.5)
+            P = np.repeat(self.pos[None, :], n, axis=0)
+        lat_a, lon_a = self.geo.latlon(P)
+        lat, lon = lat_a.tolist(), lon_a.tolist()
+        times, Pl = times_a.tolist(), P.tolist()
+        noise = self.noise.standard_normal((n, 4)).tolist()
+        k = self.kin
+        alpha = dt / (k.response_s + dt)
+        aw, at = math.exp(-dt / WIND_TAU_S), math.exp(-dt / TURB_TAU_S)
+        sw = self.gust_sigma * math.sqrt(1.0 - aw * aw)
+        st = math.radians(TURB_DEG) * math.sqrt(1.0 - at * at)
+        yaw_lim = math.radians(k.yaw_rate_dps) * dt
+        k_drag = math.tan(math.radians(k.drag_pitch_deg_per_mps)) * G
+        tilt = math.radians(k.max_tilt_deg)
+        vx, vy, vz = self.v_s
+        ax, ay, az = self.a_s
+        ppx, ppy, ppz = self.prev_pos
+        we, wn = self.wind
+        tp, tr = self.turb
+        yaw, roll, pitch = self.yaw, self.roll, self.pitch
+        flying = self.flying
+        next_ev = self._next_event_time()
+        next_st = min((self.next_due.get(m, 0.0) for m in self.intervals), default=math.inf)
+        two_pi, pi = 2.0 * math.pi, math.pi
+        for i in range(n):
+            t = self.sim_t = times[i]
+            if self.plan is plan0:
+                self.pos = P[i]
+                px, py, pz = Pl[i]
+                la, lo = lat[i], lon[i]
+            else:  # the plan ended inside this chunk: hold the last position
+                px, py, pz = (float(c) for c in self.pos)
+                la = lo = None
+            # smoothed velocity and acceleration
+            nvx = vx + ((px - ppx) / dt - vx) * alpha
+            nvy = vy + ((py - ppy) / dt - vy) * alpha
+            nvz = vz + ((pz - ppz) / dt - vz) * alpha
+            ax += ((nvx - vx) / dt - ax) * alpha
+            ay += ((nvy - vy) / dt - ay) * alpha
+            az += ((nvz - vz) / dt - az) * alpha
+            vx, vy, vz = nvx, nvy, nvz
+            ppx, ppy, ppz = px, py, pz
+            # wind gusts and turbulence: Ornstein-Uhlenbeck processes (exact discretisation)
+            g = noise[i]
+            we = aw * we + sw * g[0]
+            wn = aw * wn + sw * g[1]
+            tp = at * tp + st * g[2]
+            tr = at * tr + st * g[3]
+            if flying:
+                if vx * vx + vy * vy > 0.09:
+                    d = (math.atan2(vx, vy) - yaw + pi) % two_pi - pi
+                    yaw = (yaw + max(-yaw_lim, min(yaw_lim, d))) % two_pi
+                ae = ax + k_drag * (vx - we)
+                an = ay + k_drag * (vy - wn)
+                cy, sy = math.cos(yaw), math.sin(yaw)
+                pitch = max(-tilt, min(tilt, -math.atan2(an * cy + ae * sy, G) + tp))
+                roll = max(-tilt, min(tilt, math.atan2(-an * sy + ae * cy, G) + tr))
+            else:
+                roll = pitch = 0.0
+            if t + 1e-9 >= next_ev:
+                self._events()
+                flying = self.flying
+                next_ev = self._next_event_time()
+                if self.landed_state != self._ess_sent:
+                    self.send_by_id(mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)  # landed state: at once
+            if t + 1e-9 >= next_st:
+                self.v_s = [vx, vy, vz]
+                self.yaw, self.roll, self.pitch = yaw, roll, pitch
+                if la is None:
+                    la, lo = (float(c[0]) for c in self.geo.latlon(self.pos))
+                next_st = self._send_due(la, lo)
+        self.v_s, self.a_s, self.prev_pos = [vx, vy, vz], [ax, ay, az], [ppx, ppy, ppz]
+        self.wind, self.turb = [we, wn], [tp, tr]
+        self.yaw, self.roll, self.pitch = yaw, roll, pitch
 
     def wall_tasks(self, now: float) -> None:
         """Messages sent on the wall clock (link liveness), and mission-upload retries."""
@@ -755,6 +871,20 @@ def parse_home(text: str) -> tuple[float, float, float]:
     return (parts[0], parts[1], parts[2] if len(parts) == 3 else 0.0)
 
 
+def parse_kinematics(text: str | None) -> Kinematics:
+    """``--kinematics`` JSON (an object of ``Kinematics`` fields) -> ``Kinematics``; None -> defaults."""
+    if not text:
+        return Kinematics()
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--kinematics is not valid JSON: {e}") from None
+    names = {f.name for f in dataclasses.fields(Kinematics)}
+    if not isinstance(d, dict) or set(d) - names:
+        raise ValueError(f"--kinematics wants a JSON object with keys among {sorted(names)}, got {text!r}")
+    return Kinematics(**{k: float(v) for k, v in d.items()})
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m sitl.vehicle", description=__doc__.splitlines()[0])
     add_arguments(p)
@@ -775,7 +905,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall-clock second")
     p.add_argument("--home", default=None, help="LAT,LON[,ALT] of the take-off point (default: AFAR field)")
-    p.add_argument("--cruise-speed", type=float, default=5.0, help="default cruise speed, m/s")
+    p.add_argument(
+        "--kinematics",
+        default=None,
+        help="JSON object of Kinematics fields (cruise_speed_mps, accel_mps2, climb_rate_mps, "
+        "corner_exponent, yaw_rate_dps, ...); fly-mission passes the mission's full kinematics here",
+    )
+    p.add_argument(
+        "--cruise-speed",
+        type=float,
+        default=None,
+        help="default cruise speed, m/s (overrides the one in --kinematics; default 5)",
+    )
     p.add_argument("--gust", type=float, default=1.5, help="wind gust standard deviation, m/s")
     p.add_argument("--seed", type=int, default=0, help="seed of the wind and turbulence")
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall-clock seconds")
@@ -788,7 +929,9 @@ def run_from_args(args: argparse.Namespace) -> int:
         raise ValueError("--speedup must be positive")
     home = parse_home(args.home) if args.home else DEFAULT_HOME
     url = args.url or f"udpout:{args.host}:{args.port}"
-    kin = Kinematics(cruise_speed_mps=args.cruise_speed)
+    kin = parse_kinematics(args.kinematics)
+    if args.cruise_speed is not None:
+        kin = dataclasses.replace(kin, cruise_speed_mps=float(args.cruise_speed))
     v = SimVehicle(url, home, args.speedup, args.seed, kin, gust_mps=args.gust, verbose=args.verbose)
     print(
         f"sitl: simulated PX4 quadrotor, MAVLink 2 on {url}, home {home[0]:.6f},{home[1]:.6f}, "

@@ -29,4 +29,11 @@ def run(args: argparse.Namespace) -> int:
             parse_home(args.home)
         except ValueError as e:
             raise InputError(str(e), field="--home") from None
+    if args.kinematics:
+        from sitl.vehicle import parse_kinematics
+
+        try:
+            parse_kinematics(args.kinematics)
+        except (TypeError, ValueError) as e:
+            raise InputError(str(e), field="--kinematics") from None
     return run_from_args(args)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import datetime as _dt
 import json
 import os
@@ -37,6 +38,16 @@ from mission.flight.progress import Display, FlightStatus
 from mission.flight.telemetry import Telemetry
 
 LINK_LOST_AFTER_S = 3.0
+RATE_HZ, MIN_RATE_HZ = 50.0, 30.0  # position/attitude rate requested (vehicle time); the issue's floor
+WALL_CALLBACKS_PER_STREAM = 600.0  # at most this many per wall-clock second per stream (sped-up vehicles)
+
+
+def auto_rate_hz(speedup: float) -> float:
+    """Position/attitude rate to request (Hz of vehicle time): 50 Hz, lowered for a sped-up vehicle so that
+    each stream stays under ``WALL_CALLBACKS_PER_STREAM`` callbacks per wall-clock second (MAVSDK delivers
+    every message through one bounded callback queue that a Python consumer must keep up with), never
+    below 30 Hz.  At speed-up 20: 30 Hz, i.e. 600 position + 600 attitude callbacks per second."""
+    return max(MIN_RATE_HZ, min(RATE_HZ, WALL_CALLBACKS_PER_STREAM / max(speedup, 1e-9)))
 EXIT_OK, EXIT_ABORTED, EXIT_LINK = 0, 130, 3
 
 
@@ -52,7 +63,7 @@ class FlyOptions:
     link_timeout_s: float = 30.0
     land_timeout_s: float = 600.0
     connect_timeout_s: float = 60.0
-    rate_hz: float = 50.0
+    rate_hz: float | None = None  # None: auto_rate_hz(speed-up)
     verbose: bool = False
 
 
@@ -78,6 +89,22 @@ def new_flight_dir(out: Path, name: str) -> Path:
     raise FlightError(f"cannot create a new flight folder under {out}")
 
 
+def wall_clock_notice(duration_s: float, speedup: float) -> str:
+    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint."""
+    wall = duration_s / speedup
+    text = (
+        f"estimated flight {duration_s / 60:.1f} min of vehicle time: about {_fmt_wall(wall)} "
+        f"of wall-clock time at speed-up {speedup:g}"
+    )
+    if speedup < 20 and wall > 60:
+        text += f" (add --speedup 20 for about {_fmt_wall(duration_s / 20)})"
+    return text
+
+
+def _fmt_wall(s: float) -> str:
+    return f"{s:.0f} s" if s < 120 else f"{s / 60:.1f} min"
+
+
 def free_udp_port() -> int:
     """A UDP port that is free on 127.0.0.1 now."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
@@ -89,11 +116,15 @@ def spawn_vehicle(
     port: int,
     speedup: float,
     home: tuple[float, float, float],
-    cruise: float,
+    kin,
     seed: int,
     verbose: bool = False,
 ) -> subprocess.Popen:
-    """Start the simulated vehicle (``python -m sitl.vehicle``) sending to 127.0.0.1:``port``."""
+    """Start the simulated vehicle (``python -m sitl.vehicle``) sending to 127.0.0.1:``port``.
+
+    ``kin`` is the mission's full ``Kinematics`` (cruise speed, acceleration, climb rate, corner exponent,
+    yaw rate, ...), passed as JSON so that the flown time matches the pre-flight budget check.
+    """
     cmd = [
         sys.executable,
         "-m",
@@ -104,8 +135,8 @@ def spawn_vehicle(
         f"{speedup:g}",
         "--home",
         f"{home[0]:.9f},{home[1]:.9f},{home[2]:.3f}",
-        "--cruise-speed",
-        f"{cruise:g}",
+        "--kinematics",
+        json.dumps(dataclasses.asdict(kin)),
         "--seed",
         str(seed),
     ] + (["-v"] if verbose else [])
@@ -116,6 +147,27 @@ def spawn_vehicle(
         stderr=None if verbose else subprocess.DEVNULL,
         start_new_session=True,
     )
+
+
+def configure_mavsdk_logging(verbose: bool) -> bool:
+    """Keep MAVSDK's Info/Debug chatter off the terminal (warnings and errors still print); ``verbose``
+    leaves MAVSDK's own logging untouched (everything).  Returns True when a filter was installed."""
+    if verbose:
+        return False
+    from mavsdk import LogLevel, log_subscribe
+
+    def _filter(level, message, file, line) -> bool:
+        return level < LogLevel.WARN  # True: swallowed; False: MAVSDK prints it as usual
+
+    log_subscribe(_filter)
+    return True
+
+
+# While flying, MAVSDK's callback thread needs the GIL for every telemetry message (thousands a second at
+# high speed-up); with CPython's default 5 ms switch interval a busy asyncio thread (log writer, display)
+# makes it wait up to 5 ms per message and MAVSDK's bounded callback queue overflows ("Dropping
+# subscription callbacks").  A 0.5 ms interval bounds that wait.
+GIL_SWITCH_INTERVAL_S = 0.0005
 
 
 def _q(a: np.ndarray, digits: int) -> np.ndarray:
@@ -382,7 +434,7 @@ class Runner:
                     port,
                     self.speedup,
                     (float(lat), float(lon), float(alt)),
-                    spec.cruise_speed_mps,
+                    spec.kinematics(),
                     spec.source.seed,
                     self.opts.verbose,
                 )
@@ -392,6 +444,7 @@ class Runner:
                     f"simulated vehicle started (pid {self.vehicle_proc.pid}), {url}, "
                     f"speed-up {self.speedup:g}",
                 )
+                self.event("duration", wall_clock_notice(report.duration_s, self.speedup))
             return await self._fly(url, report)
         finally:
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -405,6 +458,21 @@ class Runner:
 
     async def _fly(self, url: str, report) -> int:
         from mavsdk.asyncio import Autopilot, ComponentType, Configuration, Mavsdk
+
+        opts = self.opts
+        filtered = configure_mavsdk_logging(opts.verbose)
+        switch = sys.getswitchinterval()
+        sys.setswitchinterval(min(switch, GIL_SWITCH_INTERVAL_S))
+        try:
+            return await self._fly_sdk(url, report, Mavsdk, ComponentType, Configuration, Autopilot)
+        finally:
+            sys.setswitchinterval(switch)
+            if filtered:
+                from mavsdk import log_unsubscribe
+
+                log_unsubscribe()
+
+    async def _fly_sdk(self, url, report, Mavsdk, ComponentType, Configuration, Autopilot) -> int:
         from mavsdk.asyncio.plugins.action import ActionAsync
         from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
         from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
@@ -440,11 +508,12 @@ class Runner:
             )
             self.status.n_waypoints = len(spec.waypoints_enu())
             self.status.waypoint_offset = 3 if ardupilot else 2
+            rate = opts.rate_hz or auto_rate_hz(self.speedup)
             for name in ("set_rate_position", "set_rate_attitude_euler"):
                 try:
-                    await getattr(telemetry, name)(opts.rate_hz)
+                    await getattr(telemetry, name)(rate)
                 except Exception as e:  # an autopilot may refuse: we log at whatever rate comes
-                    self.event("rate", f"{name}({opts.rate_hz:g}) refused: {e}", warn=True)
+                    self.event("rate", f"{name}({rate:g}) refused: {e}", warn=True)
             with contextlib.suppress(Exception):
                 await telemetry.set_rate_landed_state(5.0)
             self.status.phase = "uploading"
