@@ -1,7 +1,8 @@
 """Estimate the transmitter position from a flight log (ONNX network or classical estimators).
 
 Keeps the cruise part of the log, computes the features and runs the method.  Default method: the shipped
-model ``models/rfsl_default.onnx`` when present, else a model-based grid search with the e2r physics.
+model ``models/rfsl_default.onnx`` when present, else a model-based grid search with the calibrated ``afar``
+physics preset (``--physics`` / ``--physics-preset`` choose another).
 """
 
 from __future__ import annotations
@@ -20,7 +21,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="localizer (default: shipped model if present, else grid)",
     )
     parser.add_argument(
-        "--physics", default="e2r", metavar="NAME", help="propagation model of the grid search (default e2r)"
+        "--physics",
+        default=None,
+        metavar="NAME",
+        help="propagation model of the grid search (free-space, two-ray, e2r; default: the afar preset)",
+    )
+    parser.add_argument(
+        "--physics-preset",
+        default=None,
+        metavar="NAME",
+        help="calibrated physics preset of the grid search (afar; the default when --physics is not given)",
     )
     parser.add_argument(
         "--tx-height",
@@ -58,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         cruise=not args.no_cruise,
         physics_model=args.physics,
         tx_height_m=args.tx_height,
+        physics_preset=args.physics_preset,
     )
     if args.plot:
         from mission.localize.plot import plot_localization

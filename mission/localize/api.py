@@ -6,7 +6,14 @@ ENU frame and as lat/lon, and add the error when the truth is known (argument, e
 
 Method choice when none is given: an explicit ``model_path`` -> ``onnx``; else the shipped default model
 (``models/rfsl_default.onnx`` beside the package, see ``default_model_path``) when present; else ``grid``
-with the ``e2r`` physics model.  The estimate's ``extras["method_choice"]`` says which and why.
+with the log's own simulation model (simulated logs) or the calibrated ``afar`` physics preset
+(``mission.physics.presets``: free space + the measured UAV antenna upside down with its fitted heading
++ yaw; on held-out real AFAR flights it beats the ``e2r`` dipole model, see
+``benchmarks/calibrate_real_afar.py``).  The estimate's ``extras["method_choice"]`` says which and why.
+
+Grid physics: ``physics_preset`` (a preset name) or ``physics_model`` (a ``make_model`` name or a model
+object, with ``physics_params``); neither -> the simulator's own model for a simulated log (from its
+sidecar), else the ``afar`` preset (real receivers).
 
 Search area of ``grid``: the sidecar's ``rover_area`` (list of [lat, lon] vertices) when present; else the
 AFAR rover area when the log's origin is the AFAR field origin (the transmitter can be anywhere in it);
@@ -24,6 +31,7 @@ from mission.localize import Estimate
 
 METHOD_NAMES = ("onnx", "strongest", "centroid", "grid")
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
+DEFAULT_PHYSICS_PRESET = "afar"
 
 
 def default_model_path() -> Path | None:
@@ -77,8 +85,9 @@ def make_localizer(
     tx_height_m: float = 1.5,
     area=None,
     floor_db: float | None = None,
+    physics_preset: str | None = None,
 ):
-    """Build the localizer object for a method name."""
+    """Build the localizer object for a method name (``physics_preset`` replaces ``physics_model``)."""
     from mission.localize import classical
 
     if method == "onnx":
@@ -93,10 +102,29 @@ def make_localizer(
     if method == "centroid":
         return classical.WeightedCentroid()
     if method == "grid":
+        if physics_preset is not None:
+            from mission.physics.presets import preset_model
+
+            try:
+                model = preset_model(physics_preset, **(physics_params or {}))
+            except InputError:
+                raise
+            except ValueError as e:
+                raise InputError(f"physics preset {physics_preset!r}: {e}", field="physics_params") from None
+            return classical.ModelGridSearch(model, tx_height_m=tx_height_m, area=area, floor_db=floor_db)
         return classical.ModelGridSearch(
             physics_model, physics_params, tx_height_m=tx_height_m, area=area, floor_db=floor_db
         )
     raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+
+
+def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
+    """Grid physics when none is asked for: the simulator's own model for a simulated log (its sidecar says
+    which, with its parameters), else the ``afar`` preset calibrated on real receivers."""
+    src = log.meta.get("rss_source") or {}
+    if src.get("kind") == "sim" and src.get("model") in ("free-space", "two-ray", "e2r"):
+        return src["model"], dict(src.get("model_params") or {}), None
+    return None, None, DEFAULT_PHYSICS_PRESET
 
 
 def localize_log(
@@ -105,16 +133,26 @@ def localize_log(
     model_path: str | Path | None = None,
     truth: tuple[float, float] | None = None,
     cruise: bool = True,
-    physics_model: str = "e2r",
+    physics_model: str | None = None,
     physics_params: dict | None = None,
     tx_height_m: float = 1.5,
     floor_db: float | None = None,
+    physics_preset: str | None = None,
 ) -> Estimate:
-    """Estimate the transmitter position from a flight log (path or ``FlightLog``)."""
+    """Estimate the transmitter position from a flight log (path or ``FlightLog``).
+
+    Grid physics: ``physics_preset`` or ``physics_model`` (not both); neither -> the sidecar's simulation
+    model for a simulated log, else the ``afar`` preset.
+    """
+    if physics_preset is not None and physics_model is not None:
+        raise InputError("give a physics model or a physics preset, not both")
     from mission.flightlog import FlightLog, read_flight_log
     from mission.localize.preprocess import select_cruise
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
+    if physics_preset is None and physics_model is None:
+        physics_model, physics_params, physics_preset = _default_physics(log)
+    physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
     n_all = len(log)
     if cruise:
         part, sel = select_cruise(log)
@@ -129,14 +167,15 @@ def localize_log(
         else:
             method, choice = (
                 "grid",
-                f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_model}",
+                f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_label}",
             )
     else:
         choice = f"method {method} requested"
     if method not in METHOD_NAMES:
         raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
     area = search_area(log) if method == "grid" else None
-    loc = make_localizer(method, model_path, physics_model, physics_params, tx_height_m, area, floor_db)
+    loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area, floor_db,
+                         physics_preset=physics_preset)
     origin = log.origin
     est = loc.predict(part)
     if method == "onnx":  # model frame -> lat/lon -> log frame

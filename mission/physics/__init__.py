@@ -26,6 +26,7 @@ from mission.physics.propagation import (
     GroundReflection,
     LegShadowing,
     Link,
+    PathGainSlope,
     PropagationModel,
     RxAntenna,
     TxAntenna,
@@ -34,7 +35,8 @@ from mission.physics.propagation import (
 
 __all__ = [
     "MODEL_NAMES", "Attitude", "Dipole", "FreeSpace", "GroundReflection", "Isotropic", "LegShadowing", "Link",
-    "Mounted", "Pattern", "PropagationModel", "RxAntenna", "TabulatedPattern", "TxAntenna", "body_angles",
+    "Mounted", "PathGainSlope", "Pattern", "PropagationModel", "RxAntenna", "TabulatedPattern", "TxAntenna",
+    "body_angles",
     "body_from_enu_matrix", "enu_to_ned", "load_aerpaw_pattern", "load_pattern", "load_pattern_csv",
     "make_model", "mount_angles", "rm_wb1_dn", "rotation_nb", "save_pattern_csv",
 ]
