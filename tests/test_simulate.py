@@ -80,8 +80,9 @@ def test_cli_writes_a_readable_log_with_truth(tmp_path, repo_dir):
 
 
 def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir):
-    r = subprocess.run([sys.executable, "-m", "mission.cli.main", "simulate", str(repo_dir / "missions" / "spiral.yaml"),
-                        "--source", "1,x", "--out", str(tmp_path)], capture_output=True, text=True)
+    mission = str(repo_dir / "missions" / "spiral.yaml")
+    r = subprocess.run([sys.executable, "-m", "mission.cli.main", "simulate", mission, "--source", "1,x",
+                        "--out", str(tmp_path)], capture_output=True, text=True)
     assert r.returncode == 2
     assert "--source" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1

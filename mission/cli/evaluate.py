@@ -1,0 +1,151 @@
+"""Compare localizers (ONNX networks, classical estimators) on simulated test sets and real flights.
+
+The paper's table on one command: {free-space, two-ray, e2r} training data x {clustering, normalised RSS,
+classical} x trajectories, on held-out simulated test sets (``--sim-test``, or generated here with
+``--trajectories``) and on real flights with truth (``--real LOG.csv``, or ``--afar DIR`` to import the
+AFAR MAT files with the README's truth table).  Mean, median and 90th-percentile error in metres.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--models", nargs="*", default=[], help="ONNX models to compare")
+    p.add_argument(
+        "--methods",
+        default="strongest,centroid,grid",
+        help="classical methods, comma list of strongest, centroid, grid ('' for none)",
+    )
+    p.add_argument(
+        "--sim-test", nargs="*", default=[], help="simulated test dataset folder(s) (rfsl dataset)"
+    )
+    p.add_argument(
+        "--trajectories",
+        nargs="*",
+        default=[],
+        help="generate a test set per generator here (with --mission, --sim-n, --sim-seed)",
+    )
+    p.add_argument("--mission", default="missions/spiral.yaml", help="mission for generated test sets")
+    p.add_argument("--sim-n", type=int, default=300, help="positions per generated test set (default 300)")
+    p.add_argument("--sim-seed", type=int, default=1000, help="seed of generated test sets (default 1000)")
+    p.add_argument(
+        "--sim-model", default="e2r", help="propagation model of generated test sets (default e2r)"
+    )
+    p.add_argument(
+        "--n-classical",
+        type=int,
+        default=50,
+        help="simulated flights per test set for the classical methods (default 50; grid is slow)",
+    )
+    p.add_argument("--real", nargs="*", default=[], help="real flight logs (CSV) with truth in the sidecar")
+    p.add_argument(
+        "--afar", help="folder of AFAR MAT files: import them (truth from the README table) and add"
+    )
+    p.add_argument(
+        "--workdir", default=None, help="where imported logs / generated test sets go (default: temp)"
+    )
+    p.add_argument("--workers", type=int, default=2, help="workers for generated test sets")
+    p.add_argument("--out", help="JSON report path")
+
+
+def _table(rows, title: str):
+    from rich.table import Table
+
+    t = Table(title=title)
+    for c in ("test", "method", "train data", "features", "n", "mean m", "median m", "p90 m"):
+        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left")
+    for r in rows:
+        s = r.summary()
+        t.add_row(
+            s["test"],
+            s["method"],
+            s["train_model"] or "-",
+            s["features"] or "-",
+            str(s["n"]),
+            *(f"{s[k]:.1f}" if k in s else "-" for k in ("mean_m", "median_m", "p90_m")),
+        )
+    return t
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from rich.console import Console
+
+    from mission.errors import InputError
+    from mission.localize.dataset import DatasetConfig, Randomisation, generate_dataset
+    from mission.localize.evaluate import (
+        CLASSICAL,
+        afar_truth,
+        evaluate_real,
+        evaluate_sim,
+        import_afar,
+        write_report,
+    )
+
+    console = Console()
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    bad = [m for m in methods if m not in CLASSICAL]
+    if bad:
+        raise InputError(f"unknown method {bad[0]!r} (expected {', '.join(CLASSICAL)})", field="--methods")
+    for mp in args.models:
+        if not Path(mp).is_file():
+            raise InputError("no such model file", source=mp)
+    work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
+    work.mkdir(parents=True, exist_ok=True)
+    tests = list(args.sim_test)
+    for traj in args.trajectories:
+        d = work / f"test_{args.sim_model}_{traj}_n{args.sim_n}_s{args.sim_seed}"
+        if not (d / "manifest.json").exists():
+            console.print(f"generating {args.sim_n} simulated {traj} flights -> {d}")
+            cfg = DatasetConfig(
+                args.mission,
+                args.sim_n,
+                model=args.sim_model,
+                seed=args.sim_seed,
+                randomisation=Randomisation(trajectories=(traj,)),
+            )
+            generate_dataset(cfg, d, workers=args.workers, overwrite=True)
+        tests.append(str(d))
+    logs = list(args.real)
+    notes = []
+    if args.afar:
+        logs += [str(p) for p in import_afar(args.afar, work / "afar_logs")]
+        for p in logs:
+            _, caveat = afar_truth(p)
+            if caveat:
+                notes.append(f"{Path(p).stem}: {caveat}")
+    if not tests and not logs:
+        raise InputError("nothing to evaluate: give --sim-test, --trajectories, --real or --afar")
+
+    def say(msg: str) -> None:
+        console.print(f"[dim]{msg}", highlight=False) if sys.stdout.isatty() else None
+
+    rows = []
+    for t in tests:
+        rows += evaluate_sim(args.models, t, methods, args.n_classical, progress=say)
+    real_rows = evaluate_real(args.models, logs, methods, progress=say) if logs else []
+    if rows:
+        console.print(_table(rows, "simulated test sets (2D error)"))
+    if real_rows:
+        console.print(_table(real_rows, f"real flights ({len(logs)}; 2D error)"))
+        for r in real_rows:
+            per = ", ".join(
+                f"{n.replace('results_useful_ori_', '')}: {e:.1f}"
+                for n, e in zip(r.names, r.errors, strict=True)
+            )
+            console.print(f"  {r.method}: {per}", highlight=False)
+    for n in notes:
+        console.print(f"[yellow]note: {n}")
+    if args.out:
+        write_report(
+            rows + real_rows,
+            args.out,
+            {"command": " ".join(sys.argv), "notes": notes, "real_logs": logs, "sim_tests": tests},
+        )
+        console.print(f"report: {args.out}")
+    return 0

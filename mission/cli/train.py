@@ -1,0 +1,85 @@
+"""Train a localizer network on simulated datasets and export it to ONNX (needs the [train] extra: torch).
+
+Fixed seed, seeded validation split with early stopping, AdamW with cosine decay, input/output
+standardisation and (clustering) augmentation; the ONNX file carries the feature configuration, the
+normalisation, the field origin and the training-data description in its metadata.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("datasets", nargs="+", help="dataset folder(s) written by `rfsl dataset`")
+    p.add_argument("--out", required=True, help="output ONNX file, e.g. models/NAME.onnx")
+    p.add_argument(
+        "--features",
+        default="clustering",
+        choices=["clustering", "normalised_rss"],
+        help="network input (default clustering = RealAdaptRNet)",
+    )
+    p.add_argument("--epochs", type=int, default=300, help="maximum epochs (default 300)")
+    p.add_argument("--patience", type=int, default=40, help="early-stopping patience in epochs (default 40)")
+    p.add_argument("--batch-size", type=int, default=128)
+    p.add_argument("--lr", type=float, default=2e-3, help="AdamW learning rate (default 2e-3)")
+    p.add_argument("--seed", type=int, default=0, help="seed of weights, split, batches, augmentation")
+    p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
+    p.add_argument("--no-augment", action="store_true", help="switch training-time augmentation off")
+    p.add_argument("--max-train", type=int, help="use at most this many flights (quick runs)")
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        from mission.errors import InputError
+
+        raise InputError("training needs PyTorch: pip install -e '.[train]'") from None
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from mission.localize.train import TrainConfig, train
+
+    cfg = TrainConfig(
+        features=args.features,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        patience=args.patience,
+        seed=args.seed,
+        threads=args.threads,
+        augment=not args.no_augment,
+        max_train=args.max_train,
+    )
+    console = Console()
+    with Progress(
+        TextColumn("[bold]train"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=console,
+    ) as prog:
+        task = prog.add_task("", total=cfg.epochs)
+
+        def cb(epoch: int, total: int, rec: dict) -> None:
+            prog.update(
+                task,
+                completed=epoch,
+                description=f"val mean {rec['val_mean_m']:.1f} m, "
+                f"median {rec['val_median_m']:.1f} m, loss {rec['train_loss']:.4f}",
+            )
+
+        res = train(args.datasets, args.out, cfg, progress=cb)
+    m = res.metrics
+    console.print(
+        f"{args.features}: {res.n_params / 1e6:.3f} M parameters, {res.flops / 1e6:.2f} M FLOPs; "
+        f"best epoch {m['best_epoch']} of {m['epochs_run']}; validation mean {m['val_mean_m']:.2f} m, "
+        f"median {m['val_median_m']:.2f} m, p90 {m['val_p90_m']:.2f} m ({m['n_val']} flights)"
+    )
+    console.print(
+        f"trained in {res.seconds:.0f} s on {args.threads} thread(s); onnxruntime vs torch max diff "
+        f"{res.max_onnx_diff:.1e}; model: {res.onnx_path}"
+    )
+    return 0

@@ -1,0 +1,230 @@
+"""The paper's comparison table on one call: localizers x test data, mean / median / 90th-percentile error.
+
+Localizers: ONNX networks (each labelled by the propagation model of its training data and its feature
+kind, read from the model's metadata) and the classical estimators of ``mission.localize.classical``
+(``strongest``, ``centroid``, ``grid`` = model-based maximum-likelihood grid search).
+
+Test data:
+
+- simulated test sets written by ``rfsl dataset`` (one per trajectory, or any): networks run on the
+  stored features in one batch; the classical methods need the per-sample flight, which is *regenerated*
+  from the manifest (flight ``i`` is a deterministic function of the dataset seed and ``i``), on the first
+  ``n_classical`` flights only (the grid search is the slow one);
+- real flights: flight logs with the truth in their sidecar, run through ``localize_log`` exactly as the
+  ``localize`` CLI does (cruise selection, frame conversion).  ``import_afar`` converts the AFAR MAT files
+  with the truth table of ``../shared/data/README.md``.
+
+Errors are horizontal (2D) distances in metres.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+
+CLASSICAL = ("strongest", "centroid", "grid")
+
+# Rover truth by AFAR location number (../shared/data/README.md; antenna about 1.5 m above ground).
+AFAR_TRUTH = {1: (35.72806709, -78.69730398), 2: (35.72911779, -78.69918128), 3: (35.72985129, -78.69711002)}
+AFAR_SUSPECT = {
+    ("288", 3): "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
+}
+
+
+@dataclass
+class Row:
+    """One cell group of the table: a localizer on one test set."""
+
+    test: str
+    method: str
+    train_model: str | None
+    features: str | None
+    errors: list[float]
+    names: list[str] = field(default_factory=list)
+
+    def summary(self) -> dict:
+        e = np.asarray(self.errors, dtype=float)
+        d = {
+            "test": self.test,
+            "method": self.method,
+            "train_model": self.train_model,
+            "features": self.features,
+            "n": int(e.size),
+        }
+        if e.size:
+            d.update(mean_m=float(e.mean()), median_m=float(np.median(e)), p90_m=float(np.percentile(e, 90)))
+        if self.names:
+            d["per_flight_m"] = {n: float(v) for n, v in zip(self.names, self.errors, strict=True)}
+        return d
+
+
+def model_label(path: str | Path) -> tuple[str, str, str]:
+    """(label, training propagation model, feature kind) of an ONNX model from its metadata."""
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    loc = OnnxLocalizer(path)
+    td = loc.meta.get("training_data") or {}
+    models = sorted({d.get("model") for d in td.get("datasets", []) if isinstance(d, dict)} - {None})
+    tm = "+".join(models) if models else "?"
+    return f"net:{Path(path).stem}", tm, loc.kind
+
+
+def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    return np.hypot(pred[:, 0] - truth[:, 0], pred[:, 1] - truth[:, 1])
+
+
+def test_label(manifest: dict) -> str:
+    """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
+    cfg = manifest["config"]
+    r = cfg.get("randomisation", {})
+    traj = "+".join(r.get("trajectories") or [manifest.get("mission_generator", "?")])
+    alt = r.get("altitude_m")
+    alt_s = f"{alt[0]:g}-{alt[1]:g}m" if alt else f"{manifest.get('mission_altitude_m', 30):g}m"
+    return f"sim:{cfg.get('model')}:{traj}@{alt_s}"
+
+
+def evaluate_sim(
+    models: Sequence[str | Path],
+    dataset: str | Path,
+    classical: Sequence[str] = CLASSICAL,
+    n_classical: int = 100,
+    grid_params: dict | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> list[Row]:
+    """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
+    from mission.localize.dataset import FlightSimulator, dataset_config, load_dataset, read_manifest
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    m = read_manifest(dataset)
+    label = test_label(m)
+    rows: list[Row] = []
+    cache: dict[str, np.ndarray] = {}
+    truth = None
+    for mp in models:
+        loc = OnnxLocalizer(mp)
+        if loc.cfg.to_dict() != m["feature_config"]:
+            key = loc.cfg.mismatch(m["feature_config"])
+            raise InputError(
+                f"model's feature configuration differs from the test set's ({key})", source=str(mp)
+            )
+        if loc.origin.to_dict() != m["field_origin"]:
+            raise InputError("model's field origin differs from the test set's", source=str(mp))
+        if loc.kind not in cache:
+            arrays, _ = load_dataset(dataset, (loc.kind, "tx_enu"))
+            cache[loc.kind] = arrays[loc.kind]
+            truth = arrays["tx_enu"]
+        pred = np.concatenate(
+            [
+                loc.predict_features(cache[loc.kind][i : i + 2048])
+                for i in range(0, len(cache[loc.kind]), 2048)
+            ]
+        )
+        name, tm, kind = model_label(mp)
+        rows.append(Row(label, name, tm, kind, _errors(pred, truth).tolist()))
+        if progress:
+            progress(f"{label}: {name} done")
+    if classical and n_classical > 0:
+        from mission.localize.api import make_localizer
+
+        cfg = dataset_config(m)
+        sim = FlightSimulator(cfg)
+        n = min(n_classical, cfg.n)
+        locs = {
+            c: make_localizer(
+                c,
+                physics_model=(grid_params or {}).get("model", "e2r"),
+                physics_params=(grid_params or {}).get("params"),
+                tx_height_m=(grid_params or {}).get("tx_height_m", sim.spec.source.tx_height_m),
+                area=sim.spec.field.rover_area,
+            )
+            for c in classical
+        }
+        errs: dict[str, list[float]] = {c: [] for c in classical}
+        for i in range(n):
+            fd = sim.draw(i)
+            for c, loc in locs.items():
+                est = loc.predict((fd.enu, fd.rss_dbm, fd.attitude_rad))
+                errs[c].append(float(np.hypot(est.x_m - fd.tx_enu[0], est.y_m - fd.tx_enu[1])))
+            if progress:
+                progress(f"{label}: classical {i + 1}/{n}")
+        for c in classical:
+            rows.append(Row(f"{label}[:{n}]", c, None, "classical", errs[c]))
+    return rows
+
+
+def afar_truth(path: str | Path) -> tuple[tuple[float, float] | None, str | None]:
+    """Truth (lat, lon) and a caveat for an AFAR MAT/log file named ``..._exp_<team>_loc_<n>...``."""
+    mm = re.search(r"exp_(\d+)_loc_(\d+)", Path(path).name)
+    if not mm:
+        return None, None
+    team, loc = mm.group(1), int(mm.group(2))
+    return AFAR_TRUTH.get(loc), AFAR_SUSPECT.get((team, loc))
+
+
+def import_afar(mat_dir: str | Path, out_dir: str | Path) -> list[Path]:
+    """Import every ``*.mat`` AFAR file in ``mat_dir`` into flight logs (truth from the table) in ``out_dir``."""
+    from mission.importers.afar import import_afar_mat
+
+    out = []
+    for f in sorted(Path(mat_dir).glob("*.mat")):
+        truth, _ = afar_truth(f)
+        res = import_afar_mat(f, out_dir, truth=truth, overwrite=True)
+        out.append(Path(res.out_path))
+    if not out:
+        raise InputError("no .mat files found", source=str(mat_dir))
+    return out
+
+
+def evaluate_real(
+    models: Sequence[str | Path],
+    logs: Sequence[str | Path],
+    classical: Sequence[str] = CLASSICAL,
+    grid_params: dict | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> list[Row]:
+    """Every localizer on every real log (truth from the sidecar), through ``localize_log``."""
+    from mission.flightlog import read_flight_log
+    from mission.localize.api import localize_log
+
+    gp = grid_params or {}
+    methods: list[tuple[str, str | None, str | None, str | None, str | Path | None]] = []
+    for mp in models:
+        name, tm, kind = model_label(mp)
+        methods.append((name, tm, kind, "onnx", mp))
+    for c in classical:
+        methods.append((c, None, "classical", c, None))
+    rows = {name: Row("real", name, tm, kind, [], []) for name, tm, kind, _, _ in methods}
+    for lp in logs:
+        log = read_flight_log(lp)
+        if log.truth_enu is None:
+            raise InputError("real log has no truth in its sidecar", source=str(lp))
+        for name, _tm, _kind, method, mp in methods:
+            est = localize_log(
+                log,
+                method=method,
+                model_path=mp,
+                physics_model=gp.get("model", "e2r"),
+                physics_params=gp.get("params"),
+                tx_height_m=gp.get("tx_height_m", 1.5),
+            )
+            rows[name].errors.append(float(est.error_m))
+            rows[name].names.append(Path(lp).stem)
+        if progress:
+            progress(f"real: {Path(lp).stem} done")
+    return list(rows.values())
+
+
+def write_report(rows: Sequence[Row], path: str | Path, extra: dict | None = None) -> dict:
+    """The JSON report: one summary per row, plus ``extra`` (commands, notes)."""
+    rep = {"rows": [r.summary() for r in rows]}
+    if extra:
+        rep.update(extra)
+    Path(path).write_text(json.dumps(rep, indent=1))
+    return rep

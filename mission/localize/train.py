@@ -1,0 +1,336 @@
+"""Train a localizer network on simulated datasets and export it to ONNX (needs the ``[train]`` extra: torch).
+
+Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy generator for the split):
+
+- Inputs: the dataset's ``clustering`` (3 C_k) or ``normalised_rss`` (L) arrays of one or more datasets
+  that share the feature configuration and the field origin; targets: the true transmitter (x, y).
+- Standardisation: clustering inputs per *feature type* (one mean/std pooled over all clusters' RSS, one
+  over all x, one over all y, so clusters stay on one scale); normalised-RSS inputs by one scalar pair;
+  outputs per coordinate.  The statistics travel in the ONNX metadata (``input_normalisation``), the
+  network itself sees standardised values.
+- Split: a seeded random ``val_fraction`` of the flights is held out for validation / early stopping.
+- Optimiser: AdamW, cosine learning-rate decay over ``epochs``, early stopping after ``patience`` epochs
+  without a better validation mean error; the best weights are kept.
+- Augmentation (clustering only, train split, fresh each batch) against the sim-to-real gap: the relative
+  cluster RSS is scaled by a random factor (real path-loss slopes and antenna gains differ from the
+  model's), jittered per cluster, positions jittered (GPS), and the clusters re-sorted by RSS so the order
+  rule still holds.  A constant offset needs no augmentation: the features are offset-invariant.
+- Export: ``torch.onnx.export`` (opset 17, dynamic batch), metadata_props in the keys that
+  ``mission.localize.onnx_model.OnnxLocalizer`` reads (``feature_kind``, ``feature_config``,
+  ``input_normalisation``, ``field_origin``, ``training_data``), then onnxruntime is run on validation
+  inputs and must match torch to 1e-4.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings (recorded in the model's ``training_data`` metadata)."""
+
+    features: str = "clustering"
+    epochs: int = 300
+    batch_size: int = 128
+    lr: float = 2e-3
+    weight_decay: float = 1e-4
+    val_fraction: float = 0.15
+    patience: int = 40
+    seed: int = 0
+    threads: int = 2
+    augment: bool = True
+    aug_rss_scale: tuple[float, float] = (0.6, 1.8)
+    aug_rss_noise_db: float = 1.0
+    aug_pos_noise_m: float = 2.0
+    net: dict = field(default_factory=dict)
+    max_train: int | None = None  # cap the number of flights used (quick runs)
+
+
+@dataclass
+class TrainResult:
+    """What training produced: the ONNX path, metrics, timing and complexity."""
+
+    onnx_path: Path
+    metrics: dict
+    history: list[dict]
+    seconds: float
+    n_params: int
+    flops: int
+    max_onnx_diff: float
+    meta: dict
+
+
+def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of them."""
+    from mission.localize.dataset import load_dataset
+
+    xs, ys, descr = [], [], []
+    fcfg = origin = None
+    for p in paths:
+        arrays, m = load_dataset(p, (kind, "tx_enu"))
+        if fcfg is None:
+            fcfg, origin = m["feature_config"], m["field_origin"]
+        elif m["feature_config"] != fcfg:
+            raise InputError("datasets differ in their feature configuration", source=str(p))
+        elif m["field_origin"] != origin:
+            raise InputError("datasets differ in their field origin", source=str(p))
+        xs.append(arrays[kind])
+        ys.append(arrays["tx_enu"][:, :2])
+        cfg = dict(m["config"])
+        descr.append(
+            {
+                "path": str(p),
+                "n": m["n"],
+                "model": cfg.get("model"),
+                "seed": cfg.get("seed"),
+                "mission": cfg.get("mission"),
+                "mission_name": m.get("mission_name"),
+                "randomisation": cfg.get("randomisation"),
+                "software_version": m.get("software_version"),
+            }
+        )
+    return (
+        np.concatenate(xs).astype(np.float32),
+        np.concatenate(ys).astype(np.float32),
+        {"datasets": descr, "feature_config": fcfg, "field_origin": origin},
+    )
+
+
+def normalisation(x: np.ndarray, y: np.ndarray, kind: str) -> dict:
+    """Input/output standardisation statistics (see the module docstring)."""
+    if kind == "clustering":
+        c = x.shape[1] // 3
+        v = x.reshape(len(x), c, 3)
+        mean = v.mean(axis=(0, 1))
+        std = np.maximum(v.std(axis=(0, 1)), 1e-3)
+        in_mean, in_std = np.tile(mean, c), np.tile(std, c)
+    else:
+        in_mean = np.array([x.mean()])
+        in_std = np.array([max(float(x.std()), 1e-3)])
+    return {
+        "input_mean": [float(v) for v in in_mean],
+        "input_std": [float(v) for v in in_std],
+        "output_mean": [float(v) for v in y.mean(axis=0)],
+        "output_std": [float(v) for v in np.maximum(y.std(axis=0), 1e-3)],
+    }
+
+
+def _augment(xb, cfg: TrainConfig, gen):
+    """Clustering-feature augmentation on a raw (B, 3C) batch (torch), then re-sort by RSS descending."""
+    import torch
+
+    b, f = xb.shape
+    v = xb.reshape(b, f // 3, 3).clone()
+    lo, hi = cfg.aug_rss_scale
+    scale = torch.exp(torch.empty(b, 1).uniform_(math.log(lo), math.log(hi), generator=gen))
+    p = v[:, :, 0] * scale + torch.randn(b, f // 3, generator=gen) * cfg.aug_rss_noise_db
+    v[:, :, 0] = p
+    v[:, :, 1:] += torch.randn(b, f // 3, 2, generator=gen) * cfg.aug_pos_noise_m
+    order = torch.argsort(-p, dim=1, stable=True)
+    v = torch.gather(v, 1, order.unsqueeze(-1).expand(-1, -1, 3))
+    return v.reshape(b, f)
+
+
+def train(
+    paths: Sequence[str | Path],
+    out: str | Path,
+    cfg: TrainConfig | None = None,
+    progress: Callable[[int, int, dict], None] | None = None,
+) -> TrainResult:
+    """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` + ``.train.json``)."""
+    import torch
+
+    from mission.localize.nets import build_net, count_flops, count_parameters
+
+    cfg = cfg or TrainConfig()
+    if cfg.features not in ("clustering", "normalised_rss"):
+        raise InputError(f"unknown feature kind {cfg.features!r}", field="--features")
+    t_start = time.perf_counter()
+    torch.manual_seed(cfg.seed)
+    torch.use_deterministic_algorithms(True)
+    torch.set_num_threads(max(1, cfg.threads))
+    x, y, data_descr = load_training_data(paths, cfg.features)
+    rng = np.random.default_rng(cfg.seed)
+    perm = rng.permutation(len(x))
+    if cfg.max_train is not None:
+        perm = perm[: cfg.max_train]
+    n_val = max(1, int(round(cfg.val_fraction * len(perm))))
+    if len(perm) - n_val < 2:
+        raise InputError(f"too few flights ({len(perm)}) to train and validate")
+    val_idx, tr_idx = np.sort(perm[:n_val]), np.sort(perm[n_val:])
+    norm = normalisation(x[tr_idx], y[tr_idx], cfg.features)
+    in_mean = torch.tensor(norm["input_mean"], dtype=torch.float32)
+    in_std = torch.tensor(norm["input_std"], dtype=torch.float32)
+    out_mean = torch.tensor(norm["output_mean"], dtype=torch.float32)
+    out_std = torch.tensor(norm["output_std"], dtype=torch.float32)
+    xt, yt = torch.from_numpy(x), torch.from_numpy(y)
+    x_tr, y_tr = xt[tr_idx], yt[tr_idx]
+    x_val = (xt[val_idx] - in_mean) / in_std
+    y_val = yt[val_idx]
+
+    n_in = x.shape[1]
+    net = build_net(cfg.features, n_in, **cfg.net)
+    n_params = count_parameters(net)
+    flops = count_flops(net, n_in)
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(1, cfg.epochs), eta_min=cfg.lr * 0.01)
+    gen = torch.Generator().manual_seed(cfg.seed)
+    loss_fn = torch.nn.SmoothL1Loss(beta=0.1)
+    best = (math.inf, -1)
+    best_state = None
+    history: list[dict] = []
+    bs = cfg.batch_size
+    augment = cfg.augment and cfg.features == "clustering"
+
+    def val_errors() -> np.ndarray:
+        net.eval()
+        with torch.no_grad():
+            pred = (
+                torch.cat([net(x_val[i : i + 1024]) for i in range(0, len(x_val), 1024)]) * out_std + out_mean
+            )
+        net.train()
+        return torch.linalg.norm(pred - y_val, dim=1).numpy()
+
+    for epoch in range(cfg.epochs):
+        net.train()
+        order = torch.randperm(len(x_tr), generator=gen)
+        tot = 0.0
+        nb = 0
+        for i in range(0, len(order) - (1 if len(order) % bs == 1 else 0), bs):
+            idx = order[i : i + bs]
+            xb = x_tr[idx]
+            if augment:
+                xb = _augment(xb, cfg, gen)
+            xb = (xb - in_mean) / in_std
+            yb = (y_tr[idx] - out_mean) / out_std
+            opt.zero_grad(set_to_none=True)
+            loss = loss_fn(net(xb), yb)
+            loss.backward()
+            opt.step()
+            tot += float(loss.detach())
+            nb += 1
+        sched.step()
+        err = val_errors()
+        rec = {
+            "epoch": epoch + 1,
+            "train_loss": tot / max(nb, 1),
+            "val_mean_m": float(err.mean()),
+            "val_median_m": float(np.median(err)),
+            "lr": float(opt.param_groups[0]["lr"]),
+        }
+        history.append(rec)
+        if rec["val_mean_m"] < best[0]:
+            best = (rec["val_mean_m"], epoch + 1)
+            best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
+        if progress:
+            progress(epoch + 1, cfg.epochs, rec)
+        if epoch + 1 - best[1] >= cfg.patience:
+            break
+    assert best_state is not None
+    net.load_state_dict(best_state)
+    err = val_errors()
+    metrics = {
+        "val_mean_m": float(err.mean()),
+        "val_median_m": float(np.median(err)),
+        "val_p90_m": float(np.percentile(err, 90)),
+        "best_epoch": best[1],
+        "epochs_run": len(history),
+        "n_train": int(len(tr_idx)),
+        "n_val": int(len(val_idx)),
+    }
+    seconds = time.perf_counter() - t_start
+    meta = {
+        "feature_kind": cfg.features,
+        "feature_config": data_descr["feature_config"],
+        "input_normalisation": norm,
+        "field_origin": data_descr["field_origin"],
+        "training_data": {
+            "datasets": data_descr["datasets"],
+            "train_config": _jsonable(asdict(cfg)),
+            "metrics": metrics,
+            "n_params": n_params,
+            "flops": flops,
+            "train_seconds": round(seconds, 1),
+            "torch": torch.__version__,
+        },
+    }
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    diff = export_onnx(net, n_in, out, meta, x_val[:256])
+    res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
+    Path(str(out) + ".train.json").write_text(
+        json.dumps(
+            {
+                "metrics": metrics,
+                "history": history,
+                "seconds": round(seconds, 1),
+                "n_params": n_params,
+                "flops": flops,
+                "max_onnx_diff": diff,
+                "training_data": meta["training_data"],
+            },
+            indent=1,
+        )
+    )
+    return res
+
+
+def _jsonable(d):
+    return json.loads(json.dumps(d, default=lambda o: list(o) if isinstance(o, tuple) else str(o)))
+
+
+def export_onnx(net, n_in: int, path: str | Path, meta: dict, check_inputs=None, tol: float = 1e-4) -> float:
+    """Export ``net`` (eval mode) to ONNX opset 17 with a dynamic batch axis, attach ``meta`` as
+    metadata_props (JSON strings; ``feature_kind`` as plain text), and check onnxruntime against torch.
+
+    Returns the largest absolute difference on ``check_inputs`` (standardised inputs); raises if > ``tol``.
+    """
+    import onnx
+    import onnxruntime as ort
+    import torch
+
+    path = Path(path)
+    net.eval()
+    dummy = torch.zeros(1, n_in)
+    with warnings.catch_warnings():  # the TorchScript exporter is deprecated but needs no onnxscript
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.onnx.export(
+            net,
+            (dummy,),
+            str(path),
+            opset_version=17,
+            input_names=["features"],
+            output_names=["xy"],
+            dynamic_axes={"features": {0: "batch"}, "xy": {0: "batch"}},
+            dynamo=False,
+        )
+    model = onnx.load(str(path))
+    del model.metadata_props[:]
+    for k, v in meta.items():
+        e = model.metadata_props.add()
+        e.key = k
+        e.value = v if isinstance(v, str) else json.dumps(v)
+    model.producer_name = "rfsl train"
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))
+    if check_inputs is None:
+        check_inputs = torch.randn(8, n_in)
+    with torch.no_grad():
+        ref = net(check_inputs).numpy()
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    got = sess.run(None, {"features": check_inputs.numpy().astype(np.float32)})[0]
+    diff = float(np.max(np.abs(got - ref)))
+    if diff > tol:
+        raise RuntimeError(f"onnxruntime output differs from torch by {diff:.2e} (> {tol:g})")
+    return diff

@@ -1,0 +1,119 @@
+"""Dataset generation: determinism (same seed, same bytes, any worker count or chunk size), chunking,
+manifest, reading back, and the CLI's error handling."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+
+from mission.localize.dataset import (
+    DatasetConfig,
+    Randomisation,
+    flight_rng,
+    generate_dataset,
+    load_dataset,
+    read_manifest,
+)
+
+# short flights (a random fifth of a random-waypoint cruise) keep the tests fast
+FAST = Randomisation(
+    trajectories=("random_waypoints", "spiral"),
+    random_params=True,
+    truncate=(0.15, 0.25),
+    altitude_m=(20.0, 47.0),
+    offset_db=(-20.0, 20.0),
+    tx_height_m=(1.5, 5.0),
+)
+
+
+def _cfg(repo_dir, n=6, chunk=4, seed=5, **kw) -> DatasetConfig:
+    return DatasetConfig(
+        str(repo_dir / "missions" / "spiral.yaml"),
+        n,
+        seed=seed,
+        chunk=chunk,
+        features=("clustering",),
+        randomisation=FAST,
+        **kw,
+    )
+
+
+def _digest(d) -> dict[str, str]:
+    arrays, _ = load_dataset(d, ("clustering", "tx_enu", "params", "n_samples", "index"))
+    return {k: hashlib.sha256(v.tobytes()).hexdigest() for k, v in arrays.items()}
+
+
+def test_same_seed_same_bytes_any_workers_and_chunks(tmp_path, repo_dir):
+    a = generate_dataset(_cfg(repo_dir), tmp_path / "a", workers=1)
+    b = generate_dataset(_cfg(repo_dir), tmp_path / "b", workers=2)
+    assert [c["sha256"] for c in a["chunks"]] == [c["sha256"] for c in b["chunks"]]
+    generate_dataset(_cfg(repo_dir, chunk=5), tmp_path / "c", workers=2)
+    assert _digest(tmp_path / "a") == _digest(tmp_path / "c")
+    generate_dataset(_cfg(repo_dir, seed=6), tmp_path / "d", workers=1)
+    assert _digest(tmp_path / "a")["tx_enu"] != _digest(tmp_path / "d")["tx_enu"]
+
+
+def test_chunks_manifest_and_contents(tmp_path, repo_dir):
+    m = generate_dataset(_cfg(repo_dir, n=5, chunk=2), tmp_path / "ds", workers=1)
+    assert [c["n"] for c in m["chunks"]] == [2, 2, 1]
+    assert sorted(p.name for p in (tmp_path / "ds").glob("chunk_*.npz")) == [c["file"] for c in m["chunks"]]
+    mf = read_manifest(tmp_path / "ds")
+    assert mf["config"]["seed"] == 5 and mf["config"]["randomisation"]["truncate"] == [0.15, 0.25]
+    assert mf["feature_config"]["c_k"] == 20 and "lat_deg" in mf["field_origin"]
+    json.dumps(mf)
+    arrays, _ = load_dataset(tmp_path / "ds", ("clustering", "tx_enu", "params", "index"), verify=True)
+    assert arrays["clustering"].shape == (5, 60) and arrays["clustering"].dtype == np.float32
+    assert np.array_equal(arrays["index"], np.arange(5))
+    spec_rover = (-30.0, 90.0, 260.0, 385.0)
+    assert np.all((arrays["tx_enu"][:, 0] > spec_rover[0]) & (arrays["tx_enu"][:, 1] > spec_rover[1]))
+    assert np.all((arrays["tx_enu"][:, 2] >= 1.5) & (arrays["tx_enu"][:, 2] <= 5.0))
+    alt = arrays["params"][:, mf["param_names"].index("altitude_m")]
+    assert np.all((alt >= 20) & (alt <= 47))
+    # offset invariance of the stored features: the RSS of the strongest cluster is relative (<= 0 dB)
+    assert np.all(arrays["clustering"][:, 0] <= 0.0)
+    with pytest.raises(ValueError, match="digest"):
+        (tmp_path / "ds" / "chunk_00001.npz").write_bytes(b"x" * 10)
+        load_dataset(tmp_path / "ds", ("clustering",), verify=True)
+
+
+def test_flight_seed_is_the_spawned_child():
+    child = np.random.SeedSequence(42).spawn(5)[3]
+    assert np.array_equal(
+        flight_rng(42, 3).integers(1 << 30, size=4), np.random.default_rng(child).integers(1 << 30, size=4)
+    )
+
+
+def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
+    from mission.cli.main import main
+
+    mission = str(repo_dir / "missions" / "spiral.yaml")
+    rc = main(
+        [
+            "dataset",
+            mission,
+            "--n",
+            "2",
+            "--seed",
+            "1",
+            "--out",
+            str(tmp_path / "ds"),
+            "--workers",
+            "1",
+            "--features",
+            "clustering",
+            "--trajectories",
+            "random_waypoints",
+            "--random-params",
+            "--truncate",
+            "0.1,0.2",
+        ]
+    )
+    assert rc == 0 and (tmp_path / "ds" / "manifest.json").exists()
+    assert main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "ds")]) == 2  # exists already
+    assert (
+        main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "x"), "--trajectories", "zigzag"]) == 2
+    )
+    assert "zigzag" in capsys.readouterr().err
