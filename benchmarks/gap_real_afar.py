@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     for label, fl, split in runs:
         cfg = FitConfig(split=split, fit_max_samples=args.fit_max, loss="soft_l1", slope=args.slope, seed=0)
         d = diagnose(fl, base, select("all"), cfg, base_label="free-space(iso)", pattern="dipole",
-                     localize=label == "pooled_blocks",
+                     localize=label.startswith("pooled"),
                      area=(-80.0, -80.0, 380.0, 420.0))
         c.rule(f"{label} ({time.time() - t0:.0f} s)")
         print_report(d, c)

@@ -153,3 +153,27 @@ def test_real_afar_e2r_gap(shared_dir) -> None:
     f = f.select(f.rx_enu[:, 2] > 10.0)
     g = model_gap(base_pipeline("e2r", "dipole"), [f], FitConfig(), "e2r")
     assert 5.0 < g.pooled["p90_abs_db"] < 40.0
+
+
+def test_attitude_candidates_and_mounting_applicability() -> None:
+    """rx_mounting needs the body frame (attitude or yaw-only); yaw_attitude/attitude fit the UAV antenna
+    heading jointly when the pattern depends on azimuth; attitude also upgrades yaw-only attitude."""
+    from mission.gap.candidates import library
+    from mission.gap.pipeline import Pipeline
+    from mission.physics import Attitude, make_model
+    from mission.physics.antenna import rm_wb1_dn
+
+    lib = library()
+    level = Pipeline(make_model("free-space", rx_pattern=rm_wb1_dn()))
+    assert not lib["rx_mounting"].applicable(level)
+    assert lib["yaw_attitude"].applicable(level) and lib["attitude"].applicable(level)
+    assert [p.name for p in lib["yaw_attitude"].params_for(level)] == ["heading_deg"]
+    yaw = lib["yaw_attitude"].build(level, {"heading_deg": 60.0}, {})
+    assert yaw.model.effect("attitude") == Attitude(roll_pitch=False)
+    assert np.rad2deg(yaw.model.effect("rx_antenna").heading_rad) == pytest.approx(60.0)
+    assert lib["rx_mounting"].applicable(yaw) and lib["attitude"].applicable(yaw)
+    assert not lib["yaw_attitude"].applicable(yaw)
+    iso = Pipeline(make_model("free-space", pattern="isotropic"))
+    assert lib["yaw_attitude"].params_for(iso) == ()
+    slope = lib["path_gain_slope"].build(iso, {"n_extra": 1.0}, {})
+    assert slope.model.has("path_gain_slope") and not lib["path_gain_slope"].applicable(slope)

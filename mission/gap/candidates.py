@@ -10,16 +10,21 @@ the ground permittivity of an e2r base); one that is absent *adds* it.
 | name | what | parameters |
 | --- | --- | --- |
 | ``rx_pattern`` | UAV antenna pattern: isotropic, dipole, measured RM-WB1-DN, measured upside down | choice |
-| ``rx_mounting`` | heading offset (and flip) of the UAV antenna (needs an azimuth-dependent pattern) | heading_deg |
+| ``rx_mounting`` | UAV antenna heading from the nose (needs an azimuthal pattern and attitude) | heading_deg |
 | ``tx_pattern`` | rover antenna pattern (isotropic, dipole, measured, measured upside down) | choice |
 | ``tx_mounting`` | rover antenna heading (needs an azimuth-dependent pattern) | heading_deg |
 | ``tx_tilt`` | rover dipole tilted off vertical | tilt_deg, azimuth_deg |
 | ``ground_reflection`` | ground-reflected ray, Fresnel Gamma | eps_r, sigma_s_m, polarization |
-| ``attitude`` | receiver angles in the body frame (roll, pitch, yaw) | none |
+| ``attitude`` | receiver angles in the body frame (roll, pitch, yaw); also on top of yaw-only | heading_deg (*) |
+| ``yaw_attitude`` | receiver angles in a frame turned by the yaw only (body level) | heading_deg (*) |
+| ``path_gain_slope`` | extra path-gain exponent, -10 n_extra log10(d / 100 m) | n_extra |
 | ``leg_shadowing`` | paper eqs. 8-9 | beta, half_width_deg, legs_rotation_deg |
 | ``time_offset`` | RSS lags telemetry by tau | tau_s |
 | ``receiver`` | soft noise floor and saturation | floor_db, sat_db (model dB scale) |
 | ``spatial_shadowing`` | correlated shadowing over the field (kriged residuals) | sigma_db, corr_len_m |
+
+(*) the UAV antenna heading is fitted jointly with the (yaw) attitude when the UAV pattern depends on azimuth:
+without yaw a heading is a fixed compass direction, with yaw and a wrong heading the pattern is turned wrongly.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ import numpy as np
 
 from mission.gap.align import Flight
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
-from mission.physics import Attitude, GroundReflection, LegShadowing, RxAntenna, TxAntenna
+from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
 from mission.physics.antenna import Dipole, Isotropic, Pattern, rm_wb1_dn
 from mission.physics.constants import LEG_AZIMUTHS_DEG
 
@@ -65,6 +70,11 @@ class Candidate:
     choices: Callable[[Pipeline], Sequence[dict[str, Any]]] = field(default=lambda p: ({},))
     post_only: bool = False  # only changes the post-processing (the channel prediction can be cached)
     direct_fit: Callable[..., tuple[Pipeline, dict[str, Any]]] | None = None
+    params_of: Callable[[Pipeline], tuple[Param, ...]] | None = None  # parameters that depend on the pipeline
+
+    def params_for(self, p: Pipeline) -> tuple[Param, ...]:
+        """The parameters fitted on top of ``p`` (``params`` unless they depend on the pipeline)."""
+        return self.params if self.params_of is None else self.params_of(p)
 
 
 def pattern_by_name(name: str) -> Pattern:
@@ -108,6 +118,9 @@ def _antenna_pattern_candidate(end: str) -> Candidate:
                      build, lambda p: True, withhold, choices)
 
 
+HEADING_PARAM = Param("heading_deg", 0.0, 360.0, tuple(np.arange(0.0, 360.0, 20.0)), period=360.0, unit="deg")
+
+
 def _antenna_mounting_candidate(end: str) -> Candidate:
     eff = f"{end}_antenna"
 
@@ -116,15 +129,17 @@ def _antenna_mounting_candidate(end: str) -> Candidate:
         return p.replace(model=p.model.with_effect(e))
 
     def applicable(p: Pipeline) -> bool:
-        return p.model.has(eff) and not p.model.effect(eff).pattern.azimuth_symmetric
+        # the UAV antenna's heading is relative to the nose: meaningless unless the model turns the body by the
+        # logged yaw (attitude or yaw_attitude); the rover's frame is fixed (forward = north)
+        return p.model.has(eff) and not p.model.effect(eff).pattern.azimuth_symmetric and (
+            end == "tx" or p.model.has("attitude"))
 
     def withhold(p: Pipeline) -> Pipeline:
         return p.replace(model=p.model.with_params(eff, heading_rad=0.0))
 
     who = "UAV" if end == "rx" else "rover"
-    return Candidate(f"{end}_mounting", f"{who} antenna heading offset", (
-        Param("heading_deg", 0.0, 360.0, tuple(np.arange(0.0, 360.0, 20.0)), period=360.0, unit="deg"),),
-        build, applicable, withhold)
+    return Candidate(f"{end}_mounting", f"{who} antenna heading offset", (HEADING_PARAM,), build, applicable,
+                     withhold)
 
 
 def _tx_tilt_candidate() -> Candidate:
@@ -160,15 +175,52 @@ def _ground_candidate() -> Candidate:
         build, lambda p: True, withhold, lambda p: ({"polarization": "V"}, {"polarization": "H"}))
 
 
-def _attitude_candidate() -> Candidate:
+def _rx_azimuthal(p: Pipeline) -> bool:
+    return p.model.has("rx_antenna") and not p.model.effect("rx_antenna").pattern.azimuth_symmetric
+
+
+def _attitude_like_candidate(roll_pitch: bool) -> Candidate:
+    """``attitude`` (roll, pitch, yaw) or ``yaw_attitude`` (yaw only, body level).
+
+    Adding the body frame makes the UAV antenna's heading relative to the nose meaningful, and a wrong heading
+    can make the yaw look useless (and vice versa: a heading without yaw is a fixed compass direction), so
+    when the UAV pattern depends on azimuth the candidate fits that heading jointly (``heading_deg``).
+    ``attitude`` also applies on top of yaw-only attitude (does roll/pitch add anything?).
+    """
     def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
-        return p.replace(model=p.model.with_effect(Attitude()))
+        m = p.model.with_effect(Attitude(roll_pitch=roll_pitch))
+        if "heading_deg" in th:
+            m = m.with_params("rx_antenna", heading_rad=float(np.deg2rad(th["heading_deg"])))
+        return p.replace(model=m)
+
+    def applicable(p: Pipeline) -> bool:
+        if not p.model.has("attitude"):
+            return True
+        return roll_pitch and not p.model.effect("attitude").roll_pitch
 
     def withhold(p: Pipeline) -> Pipeline:
-        return p.replace(model=p.model.without("attitude"))
+        return p.replace(model=p.model.without("attitude")) if p.model.has("attitude") else p
 
-    return Candidate("attitude", "receiver gains in the body frame (logged roll, pitch, yaw)", (), build,
-                     lambda p: not p.model.has("attitude"), withhold)
+    def params_of(p: Pipeline) -> tuple[Param, ...]:
+        return (HEADING_PARAM,) if _rx_azimuthal(p) else ()
+
+    if roll_pitch:
+        return Candidate("attitude", "receiver gains in the body frame (logged roll, pitch, yaw; + UAV antenna "
+                         "heading)", (HEADING_PARAM,), build, applicable, withhold, params_of=params_of)
+    return Candidate("yaw_attitude", "receiver gains in a frame turned by the logged yaw only (body level; + UAV "
+                     "antenna heading)", (HEADING_PARAM,), build, applicable, withhold, params_of=params_of)
+
+
+def _path_gain_slope_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
+        return p.replace(model=p.model.with_effect(PathGainSlope(n_extra=float(th["n_extra"]), d_ref_m=100.0)))
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.without("path_gain_slope")) if p.model.has("path_gain_slope") else p
+
+    return Candidate("path_gain_slope", "extra path-gain exponent: -10 n_extra log10(d / 100 m)", (
+        Param("n_extra", -1.5, 5.0, (-0.5, 0.5, 1.5, 3.0)),), build, lambda p: not p.model.has("path_gain_slope"),
+        withhold)
 
 
 def _legs_candidate() -> Candidate:
@@ -411,7 +463,8 @@ def library() -> dict[str, Candidate]:
     cands = [
         _antenna_pattern_candidate("rx"), _antenna_mounting_candidate("rx"),
         _antenna_pattern_candidate("tx"), _antenna_mounting_candidate("tx"), _tx_tilt_candidate(),
-        _ground_candidate(), _attitude_candidate(), _legs_candidate(),
+        _ground_candidate(), _attitude_like_candidate(True), _attitude_like_candidate(False), _legs_candidate(),
+        _path_gain_slope_candidate(),
         _time_offset_candidate(), _receiver_candidate(), _spatial_candidate(),
     ]
     return {c.name: c for c in cands}
@@ -450,6 +503,10 @@ def describe_params(p: Pipeline) -> dict[str, Any]:
     if m.has("ground_reflection"):
         g = m.effect("ground_reflection")
         out.update(eps_r=g.eps_r, sigma_s_m=g.sigma_s_m, polarization=g.polarization)
+    if m.has("attitude"):
+        out["attitude"] = "roll, pitch, yaw" if m.effect("attitude").roll_pitch else "yaw only"
+    if m.has("path_gain_slope"):
+        out["path_gain_n_extra"] = m.effect("path_gain_slope").n_extra
     if m.has("leg_shadowing"):
         ls = m.effect("leg_shadowing")
         out.update(beta=ls.beta, half_width_deg=ls.half_width_deg, legs_deg=list(ls.legs_deg))

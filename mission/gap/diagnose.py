@@ -109,15 +109,19 @@ def field_map(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Se
 
 
 def localization_cost(rungs: Sequence[Rung], flights: Sequence[Flight], area: Any = None,
-                      step_m: float = 10.0, max_points: int = 1500) -> list[dict[str, Any]]:
-    """Model-based grid-search error per rung and flight (``mission.localize.classical.ModelGridSearch``)."""
+                      step_m: float = 10.0, max_points: int = 1500, split: str = "blocks") -> list[dict[str, Any]]:
+    """Model-based grid-search error per rung and flight (``mission.localize.classical.ModelGridSearch``).
+
+    With ``split="flights"`` flight k is localized with the rung fitted without it (fold k): held-out
+    localization; otherwise with the first fold's fit.
+    """
     from mission.localize.classical import FlightData, ModelGridSearch
 
     out = []
     for rung in rungs:
-        pipe = rung.pipes[0]
         row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
-        for f in flights:
+        for k, f in enumerate(flights):
+            pipe = rung.pipes[k] if split == "flights" and len(rung.pipes) == len(flights) else rung.pipes[0]
             rx, att = (f.rx_enu, f.attitude_rad) if pipe.time_offset_s == 0 else shifted_geometry(
                 f, f.t_s - pipe.time_offset_s)
             est = ModelGridSearch(LocalizationModel(pipe, rung.label), tx_height_m=float(f.tx_enu[2]), area=area,
@@ -145,7 +149,7 @@ def diagnose(flights: Sequence[Flight], base: Pipeline, candidates: Sequence[Can
     breakdown = residual_breakdown(als, bg.residuals, Ls, rng)
     fmap = field_map(als, bg.residuals, Ls, rng)
     rungs = ladder(base, flights, candidates, cfg, max_rungs=max_rungs, label=base_label)
-    loc = localization_cost(rungs, flights, area) if localize else []
+    loc = localization_cost(rungs, flights, area, split=cfg.split) if localize else []
     conf = {"split": cfg.split, "n_chunks": cfg.n_chunks, "slope": cfg.slope, "loss": cfg.loss,
             "alpha": cfg.alpha, "min_rel": cfg.min_rel, "seed": cfg.seed, "base": describe_params(base),
             "candidates": [c.name for c in candidates]}
@@ -157,6 +161,6 @@ def rung_table(d: Diagnosis) -> list[dict[str, Any]]:
     rows = []
     for r in d.rungs:
         per = {f.name: summarize(x[np.isfinite(x)]).as_dict() for f, x in zip(d.flights, r.residuals, strict=True)}
-        rows.append({"rung": r.label, "added": r.added, "params": r.params, "pooled": summarize(_pooled(r.residuals))
-                     .as_dict(), "per_flight": per})
+        rows.append({"rung": r.label, "added": r.added, "params": r.params, "model": r.describe(),
+                     "pooled": summarize(_pooled(r.residuals)).as_dict(), "per_flight": per})
     return rows

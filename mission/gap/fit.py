@@ -132,22 +132,22 @@ def objective(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarra
     return float(sum(per_sample_loss(r, cfg).sum() for r in rs) / max(n, 1))
 
 
-def _start_grid(cand: Candidate, cache: list[np.ndarray] | None) -> list[tuple[float, ...]]:
+def _start_grid(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()) -> list[tuple[float, ...]]:
     if cand.name == "receiver" and cache is not None:
         p = np.concatenate(cache)
         lo, hi = float(p.min()), float(p.max())
         floors = [lo - 30.0] + [float(np.quantile(p, q)) for q in (0.05, 0.15, 0.3)]
         sats = [hi + 30.0] + [float(np.quantile(p, q)) for q in (0.99, 0.95, 0.85)]
         return list(itertools.product(floors, sats))
-    return list(itertools.product(*[prm.grid for prm in cand.params]))
+    return list(itertools.product(*[prm.grid for prm in params]))
 
 
-def _bounds(cand: Candidate, cache: list[np.ndarray] | None) -> list[tuple[float, float]]:
+def _bounds(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()) -> list[tuple[float, float]]:
     if cand.name == "receiver" and cache is not None:
         p = np.concatenate(cache)
         lo, hi = float(p.min()), float(p.max())
         return [(lo - 40.0, hi + 10.0), (lo - 10.0, hi + 40.0)]
-    return [(prm.lo, prm.hi) if prm.period is None else (-np.inf, np.inf) for prm in cand.params]
+    return [(prm.lo, prm.hi) if prm.period is None else (-np.inf, np.inf) for prm in params]
 
 
 @dataclass
@@ -170,7 +170,8 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], id
     cache = None
     if cand.post_only:
         cache = [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
-    names = [p.name for p in cand.params]
+    params = cand.params_for(pipe)
+    names = [p.name for p in params]
     best: CandidateFit | None = None
     for choice in cand.choices(pipe):
         if not names:
@@ -179,17 +180,17 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], id
             if best is None or loss < best.train_loss:
                 best = CandidateFit(new, dict(choice), loss)
             continue
-        bounds = _bounds(cand, cache)
+        bounds = _bounds(cand, cache, params)
 
         def f_obj(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
             xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
             return objective(cand.build(pipe, dict(zip(names, xx, strict=True)), choice), flights, idx, cfg, cache)
 
-        grid = _start_grid(cand, cache)
+        grid = _start_grid(cand, cache, params)
         vals = np.array([f_obj(np.array(g)) for g in grid])
         x0 = np.array(grid[int(np.argmin(vals))], dtype=float)
         steps = [(b - a) / 8.0 if np.isfinite(b - a) else 10.0 for a, b in bounds]
-        for j, prm in enumerate(cand.params):
+        for j, prm in enumerate(params):
             if len(prm.grid) > 1:
                 steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
         simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
@@ -197,7 +198,7 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], id
                        options={"maxfev": cfg.max_evals * len(x0), "initial_simplex": simplex,
                                 "xatol": 1e-3, "fatol": 1e-6})
         x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(res.x, bounds, strict=True)]
-        for j, prm in enumerate(cand.params):
+        for j, prm in enumerate(params):
             if prm.period:
                 x[j] = x[j] % prm.period
         th = dict(zip(names, x, strict=True))

@@ -10,6 +10,11 @@ base model as the truth minus one effect (the rest at their true values) and req
 3. the held-out gap after adding it is close to the noise level.
 
 The negative case withholds nothing: no candidate may come out significant.
+
+The truth has full (roll, pitch, yaw) attitude and no path-gain slope, except in two cases: when ``yaw_attitude``
+is withheld the truth turns the body by the yaw only (so the case tells yaw-only from full attitude), and when
+``path_gain_slope`` is withheld the truth has one (n_extra drawn in 0.4-2.0).  Both are drawn only in their
+own case so the other cases' random truths are unchanged.
 """
 
 from __future__ import annotations
@@ -25,12 +30,13 @@ from mission.gap.candidates import RandomField, library
 from mission.gap.fit import FitConfig, make_folds, rank_candidates
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
 from mission.gap.stats import summarize
-from mission.physics import make_model
+from mission.physics import Attitude, PathGainSlope, make_model
 from mission.physics.antenna import rm_wb1_dn
 
 NOISE_DB = 1.0
 WITHHELD_ALL = ("rx_pattern", "rx_mounting", "tx_pattern", "tx_mounting", "tx_tilt", "ground_reflection",
-                "attitude", "leg_shadowing", "time_offset", "receiver", "spatial_shadowing")
+                "attitude", "yaw_attitude", "leg_shadowing", "path_gain_slope", "time_offset", "receiver",
+                "spatial_shadowing")
 
 
 @dataclass
@@ -56,6 +62,8 @@ def draw_truth(rng: np.random.Generator, withheld: str | None) -> dict[str, Any]
         "tx_heading_deg": float(rng.uniform(40.0, 320.0)),
     }
     p["tx_pattern"] = "measured" if withheld == "tx_mounting" else "dipole"
+    p["yaw_only"] = withheld == "yaw_attitude"
+    p["n_extra"] = float(rng.uniform(0.4, 2.0)) if withheld == "path_gain_slope" else 0.0
     return p
 
 
@@ -68,6 +76,10 @@ def truth_pipeline(p: dict[str, Any], rng: np.random.Generator) -> Pipeline:
                        tx_heading_rad=np.deg2rad(p["tx_heading_deg"]))
     if p["tx_pattern"] == "dipole":
         model = model.with_effect(TxTilt(p["tilt_deg"], p["tilt_az_deg"]))
+    if p.get("yaw_only"):
+        model = model.with_effect(Attitude(roll_pitch=False))
+    if p.get("n_extra", 0.0):
+        model = model.with_effect(PathGainSlope(n_extra=p["n_extra"], d_ref_m=100.0))
     field_ = RandomField.draw(p["spatial_sigma_db"], p["spatial_corr_len_m"], rng)
     return Pipeline(model, time_offset_s=p["tau_s"], spatial=field_)
 
@@ -169,8 +181,14 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
         return ok, (f"sigma {f['sigma_db']:.2f} (field std on the flights {real:.2f}, nominal "
                     f"{truth['spatial_sigma_db']:.2f}) dB, L {f['corr_len_m']:.0f} (truth "
                     f"{truth['spatial_corr_len_m']:.0f}) m")
-    if withheld == "attitude":
-        return True, "no parameters"
+    if withheld in ("attitude", "yaw_attitude"):
+        if "heading_deg" not in f:
+            return True, "no parameters"
+        e = _angle_err(f["heading_deg"], truth["rx_heading_deg"])
+        return e <= 10.0, f"UAV antenna heading {f['heading_deg']:.1f} (truth {truth['rx_heading_deg']:.1f}) deg"
+    if withheld == "path_gain_slope":
+        ok = abs(f["n_extra"] - truth["n_extra"]) <= 0.15
+        return ok, f"n_extra {f['n_extra']:.2f} (truth {truth['n_extra']:.2f})"
     return True, ""
 
 
