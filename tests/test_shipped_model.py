@@ -1,12 +1,14 @@
-"""The shipped model reproduces its model card's simulated-test metrics (within 5 %).
+"""The shipped models reproduce their model card's simulated-test metrics (within 5 %).
 
-``models/rfsl_default.json`` records the exact dataset configuration (seed, mission, model) of a small
-simulated test set and the metrics the shipped model reached on it; the test regenerates that set
-(bytes depend only on the seed) and recomputes the metrics with onnxruntime only.
+``models/<name>.json`` records the exact dataset configuration (seed, mission, model) of a small simulated
+test set and the metrics the shipped model ``models/<name>.onnx`` reached on it; the test regenerates that
+set (bytes depend only on the seed; models sharing a configuration share one regeneration) and recomputes
+the metrics with onnxruntime only.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import replace
 
@@ -15,22 +17,41 @@ import pytest
 
 from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
 
+SHIPPED = ("rfsl_default", "rfsl_spiral_e2r")
+
+
+@pytest.fixture(scope="module")
+def regenerated(tmp_path_factory):
+    """Dataset folder for a ci_check dataset_config, generated once per distinct configuration."""
+    cache: dict[str, object] = {}
+
+    def get(cfg: DatasetConfig):
+        key = hashlib.sha256(json.dumps(cfg.to_dict(), sort_keys=True).encode()).hexdigest()[:16]
+        if key not in cache:
+            d = tmp_path_factory.mktemp(f"ci_{key}") / "ds"
+            generate_dataset(cfg, d, workers=2)
+            cache[key] = d
+        return cache[key]
+
+    return get
+
 
 @pytest.mark.slow
-def test_shipped_model_reproduces_card(tmp_path, repo_dir):
-    model = repo_dir / "models" / "rfsl_default.onnx"
-    card = repo_dir / "models" / "rfsl_default.json"
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
+    model = repo_dir / "models" / f"{name}.onnx"
+    card = repo_dir / "models" / f"{name}.json"
     if not model.exists() or not card.exists():
-        pytest.skip("no shipped model")
+        pytest.skip(f"no shipped model {name}")
     from mission.localize.onnx_model import OnnxLocalizer
 
     assert model.stat().st_size < 5 * 2**20
     rec = json.loads(card.read_text())["ci_check"]
     cfg = DatasetConfig.from_dict(rec["dataset_config"])
     cfg = replace(cfg, mission=str(repo_dir / cfg.mission))
-    generate_dataset(cfg, tmp_path / "ds", workers=2)
+    ds = regenerated(cfg)
     loc = OnnxLocalizer(model)
-    arrays, m = load_dataset(tmp_path / "ds", (loc.kind, "tx_enu"))
+    arrays, m = load_dataset(ds, (loc.kind, "tx_enu"))
     assert m["feature_config"] == loc.cfg.to_dict()
     pred = loc.predict_features(arrays[loc.kind])
     err = np.hypot(*(pred - arrays["tx_enu"][:, :2]).T)

@@ -27,6 +27,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
     p.add_argument("--no-augment", action="store_true", help="switch training-time augmentation off")
     p.add_argument("--max-train", type=int, help="use at most this many flights (quick runs)")
+    p.add_argument(
+        "--coords",
+        default="relative",
+        choices=["relative", "absolute"],
+        help="clustering coordinates: relative to the strongest cluster (default; translation-equivariant, "
+        "done inside the exported graph) or absolute",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
         threads=args.threads,
         augment=not args.no_augment,
         max_train=args.max_train,
+        coords=args.coords,
     )
     console = Console()
     with Progress(
@@ -74,7 +82,9 @@ def run(args: argparse.Namespace) -> int:
         res = train(args.datasets, args.out, cfg, progress=cb)
     m = res.metrics
     console.print(
-        f"{args.features}: {res.n_params / 1e6:.3f} M parameters, {res.flops / 1e6:.2f} M FLOPs; "
+        f"{args.features} ({res.meta['training_data']['coords']} coordinates): "
+        f"{res.n_params / 1e6:.3f} M parameters, "
+        f"{res.flops / 1e6:.2f} M FLOPs; "
         f"best epoch {m['best_epoch']} of {m['epochs_run']}; validation mean {m['val_mean_m']:.2f} m, "
         f"median {m['val_median_m']:.2f} m, p90 {m['val_p90_m']:.2f} m ({m['n_val']} flights)"
     )

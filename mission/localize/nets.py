@@ -183,3 +183,61 @@ def count_flops(net: nn.Module, n_in: int) -> int:
             h.remove()
         net.train(was_training)
     return total[0]
+
+
+class CoordinateWrapper(nn.Module):
+    """The exported localizer: raw clustering features in, metres out, the parametrisation inside the graph.
+
+    Input: raw features ``(B, F)`` (clustering: ``[p_1, x_1, y_1, ..., p_Ck, x_Ck, y_Ck]``, sorted by RSS
+    descending, so cluster 1 is the strongest).  With ``relative=True`` (clustering only) the reference
+    ``ref = (x_1, y_1)`` is subtracted from every cluster's (x, y); the result is standardised with the
+    buffers ``in_mean`` / ``in_std`` (statistics of the *relative* training features), ``net`` runs, its output
+    is de-standardised with ``out_mean`` / ``out_std`` (statistics of ``truth - ref``) and ``ref`` is added
+    back.  The graph is therefore exactly equivariant to a translation of the field: shifting every input
+    (x, y) by (dx, dy) shifts the output by (dx, dy) (up to float32 rounding).  With ``relative=False``
+    ``ref`` is zero (absolute coordinates, the original parametrisation).
+
+    Exported whole, so the ONNX metadata's ``input_normalisation`` is the identity (zeros / ones) and
+    ``OnnxLocalizer`` feeds the raw features.
+    """
+
+    def __init__(
+        self,
+        net: nn.Module,
+        in_mean: torch.Tensor,
+        in_std: torch.Tensor,
+        out_mean: torch.Tensor,
+        out_std: torch.Tensor,
+        relative: bool = True,
+        n_in: int | None = None,
+    ) -> None:
+        super().__init__()
+        self.net = net
+        self.relative = bool(relative)
+        self.n_in = int(n_in if n_in is not None else getattr(net, "n_in", in_mean.numel()))
+        if self.relative and self.n_in % 3:
+            raise ValueError("relative coordinates need clustering features (3 values per cluster)")
+        self.register_buffer("in_mean", torch.as_tensor(in_mean, dtype=torch.float32).reshape(-1))
+        self.register_buffer("in_std", torch.as_tensor(in_std, dtype=torch.float32).reshape(-1))
+        self.register_buffer("out_mean", torch.as_tensor(out_mean, dtype=torch.float32).reshape(2))
+        self.register_buffer("out_std", torch.as_tensor(out_std, dtype=torch.float32).reshape(2))
+
+    def split(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Raw (B, F) -> (features in the network's frame (B, F), reference (B, 2); zeros when absolute)."""
+        if x.dim() == 3:
+            x = x.reshape(-1, self.n_in)
+        if not self.relative:
+            return x, torch.zeros_like(x[:, :2])
+        v = x.reshape(-1, self.n_in // 3, 3)
+        ref = v[:, 0, 1:3]
+        shift = nn.functional.pad(ref, (1, 0)).unsqueeze(1)  # (B, 1, 3) = [0, x_1, y_1]
+        return (v - shift).reshape(-1, self.n_in), ref
+
+    def forward_standardised(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The network's standardised output (for the loss) and the reference it is relative to."""
+        rel, ref = self.split(x)
+        return self.net((rel - self.in_mean) / self.in_std), ref
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        z, ref = self.forward_standardised(x)
+        return z * self.out_std + self.out_mean + ref

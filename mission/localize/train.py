@@ -4,17 +4,25 @@ Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy gener
 
 - Inputs: the dataset's ``clustering`` (3 C_k) or ``normalised_rss`` (L) arrays of one or more datasets
   that share the feature configuration and the field origin; targets: the true transmitter (x, y).
+- Coordinates (``coords``, clustering only): ``"relative"`` (default) subtracts the strongest cluster's
+  (x_1, y_1) from every cluster's (x, y) and predicts ``truth - (x_1, y_1)`` -- a translation-equivariant
+  parametrisation (with dipoles the RSS peaks on a ring around the transmitter, so the strongest cluster
+  is near, not at, the transmitter, and the offset generalises across positions and trajectories);
+  ``"absolute"`` is the original one.  Both are done inside the exported graph
+  (``nets.CoordinateWrapper``), so the ONNX model takes the raw features and returns metres.
 - Standardisation: clustering inputs per *feature type* (one mean/std pooled over all clusters' RSS, one
-  over all x, one over all y, so clusters stay on one scale); normalised-RSS inputs by one scalar pair;
-  outputs per coordinate.  The statistics travel in the ONNX metadata (``input_normalisation``), the
-  network itself sees standardised values.
+  over all x, one over all y, so clusters stay on one scale), computed on the (relative or absolute)
+  training features; normalised-RSS inputs by one scalar pair; outputs per coordinate (of ``truth - ref``).
+  The statistics are buffers of the exported graph; the ONNX metadata's ``input_normalisation`` is the
+  identity (zeros / ones), so ``OnnxLocalizer`` passes the raw features (the contract is unchanged).
 - Split: a seeded random ``val_fraction`` of the flights is held out for validation / early stopping.
 - Optimiser: AdamW, cosine learning-rate decay over ``epochs``, early stopping after ``patience`` epochs
   without a better validation mean error; the best weights are kept.
 - Augmentation (clustering only, train split, fresh each batch) against the sim-to-real gap: the relative
   cluster RSS is scaled by a random factor (real path-loss slopes and antenna gains differ from the
   model's), jittered per cluster, positions jittered (GPS), and the clusters re-sorted by RSS so the order
-  rule still holds.  A constant offset needs no augmentation: the features are offset-invariant.
+  rule still holds (the reference cluster is the strongest one *after* the augmentation, as at inference).
+  A constant offset needs no augmentation: the features are offset-invariant.
 - Export: ``torch.onnx.export`` (opset 17, dynamic batch), metadata_props in the keys that
   ``mission.localize.onnx_model.OnnxLocalizer`` reads (``feature_kind``, ``feature_config``,
   ``input_normalisation``, ``field_origin``, ``training_data``), then onnxruntime is run on validation
@@ -55,6 +63,7 @@ class TrainConfig:
     aug_pos_noise_m: float = 2.0
     net: dict = field(default_factory=dict)
     max_train: int | None = None  # cap the number of flights used (quick runs)
+    coords: str = "relative"  # clustering: "relative" (to the strongest cluster) or "absolute"
 
 
 @dataclass
@@ -151,11 +160,14 @@ def train(
     """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` + ``.train.json``)."""
     import torch
 
-    from mission.localize.nets import build_net, count_flops, count_parameters
+    from mission.localize.nets import CoordinateWrapper, build_net, count_flops, count_parameters
 
     cfg = cfg or TrainConfig()
     if cfg.features not in ("clustering", "normalised_rss"):
         raise InputError(f"unknown feature kind {cfg.features!r}", field="--features")
+    if cfg.coords not in ("relative", "absolute"):
+        raise InputError(f"unknown coordinates {cfg.coords!r} (relative or absolute)", field="--coords")
+    relative = cfg.coords == "relative" and cfg.features == "clustering"
     t_start = time.perf_counter()
     torch.manual_seed(cfg.seed)
     torch.use_deterministic_algorithms(True)
@@ -169,20 +181,29 @@ def train(
     if len(perm) - n_val < 2:
         raise InputError(f"too few flights ({len(perm)}) to train and validate")
     val_idx, tr_idx = np.sort(perm[:n_val]), np.sort(perm[n_val:])
-    norm = normalisation(x[tr_idx], y[tr_idx], cfg.features)
-    in_mean = torch.tensor(norm["input_mean"], dtype=torch.float32)
-    in_std = torch.tensor(norm["input_std"], dtype=torch.float32)
-    out_mean = torch.tensor(norm["output_mean"], dtype=torch.float32)
-    out_std = torch.tensor(norm["output_std"], dtype=torch.float32)
+    n_in = x.shape[1]
     xt, yt = torch.from_numpy(x), torch.from_numpy(y)
     x_tr, y_tr = xt[tr_idx], yt[tr_idx]
-    x_val = (xt[val_idx] - in_mean) / in_std
-    y_val = yt[val_idx]
-
-    n_in = x.shape[1]
-    net = build_net(cfg.features, n_in, **cfg.net)
+    x_val, y_val = xt[val_idx], yt[val_idx]
+    inner = build_net(cfg.features, n_in, **cfg.net)
+    one = torch.ones(1)
+    probe = CoordinateWrapper(inner, 0 * one, one, torch.zeros(2), torch.ones(2), relative, n_in)
+    with torch.no_grad():
+        rel_tr, ref_tr = probe.split(x_tr)
+    norm = normalisation(rel_tr.numpy(), (y_tr - ref_tr).numpy(), cfg.features)
+    net = CoordinateWrapper(
+        inner,
+        torch.tensor(norm["input_mean"]),
+        torch.tensor(norm["input_std"]),
+        torch.tensor(norm["output_mean"]),
+        torch.tensor(norm["output_std"]),
+        relative,
+        n_in,
+    )
     n_params = count_parameters(net)
-    flops = count_flops(net, n_in)
+    flops = count_flops(inner, n_in) + (2 * n_in + 6) * 2  # + the wrapper's shift / scale (negligible)
+    out_std = net.out_std
+    out_mean = net.out_mean
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(1, cfg.epochs), eta_min=cfg.lr * 0.01)
     gen = torch.Generator().manual_seed(cfg.seed)
@@ -196,9 +217,7 @@ def train(
     def val_errors() -> np.ndarray:
         net.eval()
         with torch.no_grad():
-            pred = (
-                torch.cat([net(x_val[i : i + 1024]) for i in range(0, len(x_val), 1024)]) * out_std + out_mean
-            )
+            pred = torch.cat([net(x_val[i : i + 1024]) for i in range(0, len(x_val), 1024)])
         net.train()
         return torch.linalg.norm(pred - y_val, dim=1).numpy()
 
@@ -212,10 +231,10 @@ def train(
             xb = x_tr[idx]
             if augment:
                 xb = _augment(xb, cfg, gen)
-            xb = (xb - in_mean) / in_std
-            yb = (y_tr[idx] - out_mean) / out_std
+            z, ref = net.forward_standardised(xb)
+            yb = (y_tr[idx] - ref - out_mean) / out_std
             opt.zero_grad(set_to_none=True)
-            loss = loss_fn(net(xb), yb)
+            loss = loss_fn(z, yb)
             loss.backward()
             opt.step()
             tot += float(loss.detach())
@@ -253,11 +272,24 @@ def train(
     meta = {
         "feature_kind": cfg.features,
         "feature_config": data_descr["feature_config"],
-        "input_normalisation": norm,
+        "input_normalisation": {  # identity: the graph standardises internally (CoordinateWrapper)
+            "input_mean": [0.0] * n_in,
+            "input_std": [1.0] * n_in,
+            "output_mean": [0.0, 0.0],
+            "output_std": [1.0, 1.0],
+        },
         "field_origin": data_descr["field_origin"],
         "training_data": {
             "datasets": data_descr["datasets"],
             "train_config": _jsonable(asdict(cfg)),
+            "coords": "relative" if relative else "absolute",
+            "parametrisation": (
+                "inside the graph: (x, y) of every cluster minus the strongest cluster's (x_1, y_1), "
+                "standardised; output + (x_1, y_1)"
+                if relative
+                else "inside the graph: absolute (x, y), standardised"
+            ),
+            "graph_normalisation": norm,
             "metrics": metrics,
             "n_params": n_params,
             "flops": flops,
@@ -294,7 +326,9 @@ def export_onnx(net, n_in: int, path: str | Path, meta: dict, check_inputs=None,
     """Export ``net`` (eval mode) to ONNX opset 17 with a dynamic batch axis, attach ``meta`` as
     metadata_props (JSON strings; ``feature_kind`` as plain text), and check onnxruntime against torch.
 
-    Returns the largest absolute difference on ``check_inputs`` (standardised inputs); raises if > ``tol``.
+    Returns the largest absolute difference on ``check_inputs`` (the raw inputs the graph takes); raises if
+    > ``tol`` (relative to the output scale: metres for the wrapped localizer, so ``tol`` is scaled by
+    ``max(1, |output|)``).
     """
     import onnx
     import onnxruntime as ort
@@ -305,6 +339,7 @@ def export_onnx(net, n_in: int, path: str | Path, meta: dict, check_inputs=None,
     dummy = torch.zeros(1, n_in)
     with warnings.catch_warnings():  # the TorchScript exporter is deprecated but needs no onnxscript
         warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.filterwarnings("ignore", message="Constant folding", category=UserWarning)
         torch.onnx.export(
             net,
             (dummy,),
@@ -330,7 +365,7 @@ def export_onnx(net, n_in: int, path: str | Path, meta: dict, check_inputs=None,
         ref = net(check_inputs).numpy()
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     got = sess.run(None, {"features": check_inputs.numpy().astype(np.float32)})[0]
-    diff = float(np.max(np.abs(got - ref)))
+    diff = float(np.max(np.abs(got - ref) / np.maximum(1.0, np.abs(ref))))
     if diff > tol:
         raise RuntimeError(f"onnxruntime output differs from torch by {diff:.2e} (> {tol:g})")
     return diff
