@@ -159,3 +159,29 @@ def test_default_grid_physics_follows_the_log_source():
     real = FlightLog(cols, {"rss_source": {"kind": "real", "calibrated": False}})
     assert _default_physics(real) == (None, None, "afar")
     assert _default_physics(FlightLog(cols, {})) == (None, None, "afar")
+
+
+def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
+    """Without --method, a real receiver's log is searched with the afar preset, a simulated one with the network
+    (or its own model): the choice the held-out real-flight figures support, and it says why."""
+    import numpy as np
+
+    from mission.flightlog import make_meta, write_flight_log
+    from mission.geo import afar_field
+    from mission.localize.api import default_model_path, localize_log
+    from mission.physics import make_model
+    from mission.simulate import SimConfig, simulate_flight
+    from mission.spec import load_mission
+
+    spec = load_mission()
+    origin = afar_field().origin
+    tx = np.array([120.0, 200.0, 1.5])
+    f = simulate_flight(spec.waypoints_enu()[:6], tx, make_model("free-space"), SimConfig(), np.random.default_rng(0))
+    cols = f.log_columns(origin)
+    real = write_flight_log(tmp_path / "real.csv", cols, make_meta(origin, {"kind": "aerpaw-fifo"}))
+    est = localize_log(real)
+    assert est.method == "grid" and "real receiver log" in est.extras["method_choice"]
+    assert "afar" in est.model
+    sim = write_flight_log(tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"}))
+    est = localize_log(sim)
+    assert est.method == ("onnx" if default_model_path() is not None else "grid")
