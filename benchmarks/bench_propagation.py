@@ -58,7 +58,7 @@ def main() -> None:
                 tx = tx[: max(1, n_tx // 10)]  # 10x fewer: the tabulated path is slower
             model.rss_dbm(tx[:1], rx[:1000], att[:1000])  # warm up
             args_ = (tx, rx, att)
-            sec, cpu = _time(lambda m=model, a=args_: m.rss_dbm(*a), 5 if label == "flight" else 1)
+            sec, cpu = _time(lambda m=model, a=args_: m.rss_dbm(*a), 5 if label == "flight" else 3)
             tracemalloc.start()
             model.rss_dbm(tx, rx, att)
             _, peak = tracemalloc.get_traced_memory()

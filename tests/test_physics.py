@@ -269,3 +269,11 @@ def test_custom_additive_effect_plugs_in():
 
 def test_isotropic_pattern_is_zero_dbi():
     assert np.all(Isotropic().gain_dbi(np.linspace(-1.5, 1.5, 5), 0.3) == 0)
+
+
+def test_body_matrix_planes_equal_the_matrix():
+    """The fast path's (3, 3, N) layout holds exactly the body-from-ENU matrix of every sample."""
+    from mission.physics.geometry import body_from_enu_matrix, body_from_enu_planes
+
+    att = np.random.default_rng(5).uniform(-np.pi, np.pi, (257, 3))
+    assert np.allclose(body_from_enu_planes(att), body_from_enu_matrix(att).transpose(1, 2, 0), atol=1e-15)

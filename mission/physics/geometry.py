@@ -10,7 +10,7 @@ pointing vector (eqs. 3-6) is the same idea; the project uses this physically co
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 TWO_PI = 2.0 * np.pi
 
@@ -59,6 +59,30 @@ def body_from_enu_matrix(attitude_rad: ArrayLike) -> NDArray[np.float64]:
     """
     Rt = np.swapaxes(rotation_nb(attitude_rad), -1, -2)
     return np.stack([Rt[..., :, 1], Rt[..., :, 0], -Rt[..., :, 2]], axis=-1)
+
+
+def body_from_enu_planes(attitude_rad: ArrayLike, dtype: DTypeLike = np.float64) -> NDArray:
+    """``body_from_enu_matrix`` laid out as (3, 3, N), each C[i, j] contiguous over the samples.
+
+    The fast propagation path reads the nine entries as whole arrays; writing them straight into this
+    layout avoids the strided (N, 3, 3) matrix and its transposed copy (the per-sample cost of one flight).
+    """
+    att = np.asarray(attitude_rad, dtype=float)
+    cr, sr = np.cos(att[:, 0]), np.sin(att[:, 0])
+    cp, sp = np.cos(att[:, 1]), np.sin(att[:, 1])
+    cy, sy = np.cos(att[:, 2]), np.sin(att[:, 2])
+    C = np.empty((3, 3, att.shape[0]), dtype=dtype)
+    # C[i, 0] = R[1, i] (east), C[i, 1] = R[0, i] (north), C[i, 2] = -R[2, i] (up), R = R_nb
+    C[0, 0] = sy * cp
+    C[0, 1] = cy * cp
+    C[0, 2] = sp
+    C[1, 0] = sy * sp * sr + cy * cr
+    C[1, 1] = cy * sp * sr - sy * cr
+    C[1, 2] = -cp * sr
+    C[2, 0] = sy * sp * cr - cy * sr
+    C[2, 1] = cy * sp * cr + sy * sr
+    C[2, 2] = -cp * cr
+    return C
 
 
 def body_vectors(u_ned: ArrayLike, attitude_rad: ArrayLike | None) -> NDArray[np.float64]:

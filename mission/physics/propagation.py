@@ -46,10 +46,17 @@ from mission.physics.constants import (
     friis_constant_db,
     wavelength,
 )
-from mission.physics.geometry import as_attitude, bearing, body_angles, body_from_enu_matrix, enu_to_ned
+from mission.physics.geometry import (
+    as_attitude,
+    bearing,
+    body_angles,
+    body_from_enu_matrix,
+    body_from_enu_planes,
+    enu_to_ned,
+)
 
 TWO_PI = 2.0 * np.pi
-CHUNK = 32768  # elements per block: big enough to amortise per-call overhead, small enough for L2/L3
+CHUNK = 8192  # elements per block: float32 temporaries of 32 KiB stay in L2 and below glibc's mmap threshold
 
 
 class Effect(Protocol):
@@ -325,7 +332,7 @@ class PropagationModel:
         if self.has("attitude") and attitude_rad is not None:
             # u_b = C delta; stored (3, 3, N) so that C[i, j] is contiguous over the samples
             att = self.effect("attitude").apply(as_attitude(attitude_rad, N))
-            C = np.ascontiguousarray(body_from_enu_matrix(att).transpose(1, 2, 0), dtype=dt)
+            C = body_from_enu_planes(att, dt)
         K = txc.shape[0]
         out = np.empty((K, N), dtype=dt)
         nb = min(N, self.chunk) if N else 1
