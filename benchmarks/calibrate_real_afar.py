@@ -38,10 +38,12 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
+from mission.importers.afar import AFAR2023_TRUTH
+
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
-TRUTH = {1: (35.72806709, -78.69730398), 2: (35.72911779, -78.69918128), 3: (35.72985129, -78.69711002)}
+TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
 SUSPECT = "288-loc3"
 F_SCALE = 6.0
 

@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-TRUTH = {1: (35.72806709, -78.69730398), 2: (35.72911779, -78.69918128), 3: (35.72985129, -78.69711002)}
+from mission.importers.afar import AFAR2023_TRUTH
+
+TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
 SUSPECT = "288_loc_3"
 
 VARIANTS = {

@@ -31,6 +31,13 @@ from mission.geo import Origin, afar_field
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
 MIN_DT_S = 1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
+# Rover (transmitter) truth of the AFAR 2023 challenge flights by location number in the MAT file name
+# (``../shared/data/README.md``); antenna about 1.5 m above ground. Team 288 location 3's label is suspect.
+AFAR2023_TRUTH: dict[int, tuple[float, float]] = {
+    1: (35.72806709, -78.69730398),
+    2: (35.72911779, -78.69918128),
+    3: (35.72985129, -78.69711002),
+}
 RSS_SOURCE = {"kind": "real", "receiver": "AERPAW channel sounder", "calibrated": False}
 
 

@@ -28,11 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.importers.afar import AFAR2023_TRUTH
 
 CLASSICAL = ("strongest", "centroid", "grid")
 
 # Rover truth by AFAR location number (../shared/data/README.md; antenna about 1.5 m above ground).
-AFAR_TRUTH = {1: (35.72806709, -78.69730398), 2: (35.72911779, -78.69918128), 3: (35.72985129, -78.69711002)}
+AFAR_TRUTH = AFAR2023_TRUTH
 AFAR_SUSPECT = {
     ("288", 3): "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
 }
