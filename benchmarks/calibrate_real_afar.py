@@ -38,12 +38,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from mission.importers.afar import AFAR2023_TRUTH
-
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
-TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
 SUSPECT = "288-loc3"
 F_SCALE = 6.0
 
@@ -63,18 +60,10 @@ ATT_VARIANTS = {
 
 def load_flights(min_height_m: float = 10.0):
     """The six flights (``mission.gap.align.Flight``), cruise samples only."""
-    from mission.gap.align import flight_from_log
-    from mission.importers.afar import convert_afar_mat
+    from mission.gap.align import afar2023_flights
     from mission.localize.preprocess import cruise_mask
 
-    out = []
-    for team in (288, 328):
-        for loc in (1, 2, 3):
-            res = convert_afar_mat(MAT / f"results_useful_ori_exp_{team}_loc_{loc}.mat", TRUTH[loc])
-            f = flight_from_log(res.log, name=f"{team}-loc{loc}")
-            f = f.select(f.rx_enu[:, 2] > min_height_m)
-            out.append(f.select(cruise_mask(f.rx_enu[:, 2]).mask))
-    return out
+    return [f.select(cruise_mask(f.rx_enu[:, 2]).mask) for f in afar2023_flights(MAT, min_height_m)]
 
 
 def by_name(flights, names):

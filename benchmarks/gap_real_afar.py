@@ -24,27 +24,17 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH
-
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 SHARED = REPO / ".." / "shared"
 MAT = SHARED / "data" / "afar2023" / "mat"
-TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
 
 
 def load(min_height_m: float = 10.0):
     """The six flights as ``Flight`` objects (airborne samples only)."""
-    from mission.gap.align import flight_from_log
-    from mission.importers.afar import convert_afar_mat
+    from mission.gap.align import afar2023_flights
 
-    flights = []
-    for team in (288, 328):
-        for loc in (1, 2, 3):
-            res = convert_afar_mat(MAT / f"results_useful_ori_exp_{team}_loc_{loc}.mat", TRUTH[loc])
-            f = flight_from_log(res.log, name=f"{team}-loc{loc}")
-            flights.append(f.select(f.rx_enu[:, 2] > min_height_m))
-    return flights
+    return afar2023_flights(MAT, min_height_m)
 
 
 def suspect_288_loc3(flights) -> dict:

@@ -125,3 +125,19 @@ def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = No
     f = Flight(nm, np.asarray(log["t_s"], dtype=float), log.enu(), att, rss, np.asarray(tx, dtype=float),
                dict(log.meta))
     return f.select(ok)
+
+
+def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[Flight]:
+    """The six AFAR 2023 challenge flights (teams 288, 328; rover locations 1-3) with their rover truth,
+    airborne samples only; named ``<team>-loc<n>``.  Used by the real-flight benchmark scripts."""
+    from pathlib import Path
+
+    from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
+
+    out = []
+    for team in (288, 328):
+        for loc in (1, 2, 3):
+            res = convert_afar_mat(Path(mat_dir) / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc])
+            f = flight_from_log(res.log, name=f"{team}-loc{loc}")
+            out.append(f.select(f.rx_enu[:, 2] > min_height_m))
+    return out
