@@ -60,7 +60,24 @@ def _mlp(n_in: int, hidden: Sequence[int], n_out: int = 2, dropout: float = 0.0)
     return nn.Sequential(*layers)
 
 
-class RealAdaptRNet(nn.Module):
+class _ConvHeadNet(nn.Module):
+    """A 1D convolutional ``features`` stack followed by an MLP ``head`` to (x, y); shared by both networks."""
+
+    features: nn.Sequential
+
+    def _add_head(self, n_in: int, hidden: Sequence[int], dropout: float) -> None:
+        """Size the MLP head from the flattened output of ``features`` on an input of length ``n_in``."""
+        with torch.no_grad():
+            n_flat = self.features(torch.zeros(1, 1, n_in)).numel()
+        self.head = _mlp(n_flat, hidden, 2, dropout)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if x.dim() == 2:
+            x = x.unsqueeze(1)
+        return self.head(torch.flatten(self.features(x), 1))
+
+
+class RealAdaptRNet(_ConvHeadNet):
     """1D ResNet + 4-layer MLP on a 1-channel input of length ``n_in`` (default 60 = 3 C_k); outputs (B, 2).
 
     Stem conv(k3, s1, ``width``) - BN - ReLU; blocks (width, s1), (2 width, s2), (2 width, s1); average
@@ -91,17 +108,10 @@ class RealAdaptRNet(nn.Module):
             ResBlock(2 * width, 2 * width, 1),
             nn.AvgPool1d(pool, ceil_mode=True),
         )
-        with torch.no_grad():
-            n_flat = self.features(torch.zeros(1, 1, n_in)).numel()
-        self.head = _mlp(n_flat, hidden, 2, dropout)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        if x.dim() == 2:
-            x = x.unsqueeze(1)
-        return self.head(torch.flatten(self.features(x), 1))
+        self._add_head(n_in, hidden, dropout)
 
 
-class NormalisedRssNet(nn.Module):
+class NormalisedRssNet(_ConvHeadNet):
     """The normalised-RSS baseline: the same ResNet family on a long input (default 10 000 values).
 
     Stem conv(k3, ``width``); blocks (width, s1), (width, s1), pool 4, (2 width, s2), (2 width, s1), pool 4;
@@ -125,14 +135,7 @@ class NormalisedRssNet(nn.Module):
             ResBlock(2 * width, 2 * width, 1),
             nn.AvgPool1d(10, ceil_mode=True),
         )
-        with torch.no_grad():
-            n_flat = self.features(torch.zeros(1, 1, n_in)).numel()
-        self.head = _mlp(n_flat, hidden, 2, dropout)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        if x.dim() == 2:
-            x = x.unsqueeze(1)
-        return self.head(torch.flatten(self.features(x), 1))
+        self._add_head(n_in, hidden, dropout)
 
 
 def build_net(kind: str, n_in: int, **kw) -> nn.Module:
