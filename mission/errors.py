@@ -23,3 +23,12 @@ class InputError(ValueError):
         prefix = ", ".join(where)
         super().__init__(f"{prefix}: {message}" if prefix else message)
         self.source, self.row, self.field = source, row, field
+
+
+def refuse_unknown_keys(d: dict, allowed, what: str) -> None:
+    """Raise an ``InputError`` naming the first key of ``d`` that is not in ``allowed`` (a typo must not be
+    silently ignored when a configuration is read back from a file or a model's metadata)."""
+    allowed = set(allowed)
+    unknown = [k for k in d if k not in allowed]
+    if unknown:
+        raise InputError(f"unknown {what} key(s) {', '.join(unknown)}", field=unknown[0])

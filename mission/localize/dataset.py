@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.errors import InputError
+from mission.errors import InputError, refuse_unknown_keys
 
 FORMAT = "rfsl-dataset/1"
 PARAM_NAMES = (
@@ -80,10 +80,7 @@ class Randomisation:
 
     @classmethod
     def from_dict(cls, d: dict) -> Randomisation:
-        names = {f.name for f in fields(cls)}
-        bad = [k for k in d if k not in names]
-        if bad:
-            raise InputError(f"unknown randomisation key(s) {', '.join(bad)}", field=bad[0])
+        refuse_unknown_keys(d, (f.name for f in fields(cls)), "randomisation")
         conv = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()}
         return cls(**conv)
 

@@ -43,7 +43,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-from mission.errors import InputError
+from mission.errors import InputError, refuse_unknown_keys
 
 FEATURE_VERSION = 1
 
@@ -87,10 +87,7 @@ class FeatureConfig:
     @classmethod
     def from_dict(cls, d: dict) -> FeatureConfig:
         """Build from a dict; unknown keys are refused (InputError naming the key)."""
-        names = {f.name for f in fields(cls)}
-        unknown = [k for k in d if k not in names]
-        if unknown:
-            raise InputError(f"unknown feature configuration key(s) {', '.join(unknown)}", field=unknown[0])
+        refuse_unknown_keys(d, (f.name for f in fields(cls)), "feature configuration")
         return cls(**d)
 
     def mismatch(self, other: FeatureConfig | dict) -> str | None:
