@@ -4,6 +4,9 @@ No MAVLink is involved: dataset generation, previews and tests use this.  The ve
 ``trajectory.kinematics`` (speed/acceleration limits, yaw along the track, roll/pitch from the commanded
 accelerations) plus a random attitude perturbation (uniform in [-5, 5] deg per sample by default, as in the
 paper's training data), and RSS is sampled every ``dt`` = 0.03 s with Gaussian noise (1 dB by default).
+Optionally (``shadowing_db`` > 0) a spatially correlated log-normal shadowing field is added: real flights
+depart from any deterministic model by errors that persist over tens of metres (buildings, trees, the
+vehicle's own body), not by white noise.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ class SimConfig:
     perturbation_corr_s: float = 0.0         # 0: independent per sample (paper); >0: smoothed (gust-like)
     noise_db: float = 1.0                    # Gaussian RSS noise standard deviation
     rss_offset_db: float = 0.0               # constant receiver offset (uncalibrated real receivers)
+    shadowing_db: float = 0.0                # std of the spatially correlated shadowing field (0: none)
+    shadowing_corr_m: float = 30.0           # its correlation distance (correlation 1/e at this distance)
     kinematics: Kinematics = field(default_factory=Kinematics)
 
 
@@ -82,4 +87,34 @@ def simulate_flight(waypoints_enu: np.ndarray, tx_enu: np.ndarray, model, cfg: S
     t, pos, att, profile = fly_path(waypoints_enu, cfg, rng, profile)
     rss = np.asarray(model.rss_dbm(np.asarray(tx_enu, dtype=float), pos, att), dtype=float)
     rss = rss + cfg.rss_offset_db + rng.normal(0.0, cfg.noise_db, size=rss.shape)
+    if cfg.shadowing_db > 0:  # drawn last, so flights without shadowing keep their bytes
+        rss = rss + shadowing_field(pos[:, :2], cfg.shadowing_db, cfg.shadowing_corr_m, rng)
     return SimulatedFlight(t, pos, att, rss, profile)
+
+
+def shadowing_field(xy: np.ndarray, sigma_db: float, corr_m: float, rng: np.random.Generator,
+                    cells_per_corr: float = 4.0) -> np.ndarray:
+    """Zero-mean Gaussian shadowing (dB) at positions ``xy`` (N, 2): one random field per call.
+
+    White noise on a grid (``corr_m / cells_per_corr`` cells, at least 1 m) is smoothed by a Gaussian of
+    ``corr_m / 2``, which gives the correlation ``exp(-d**2 / corr_m**2)`` (1/e at ``corr_m``), scaled to
+    std ``sigma_db`` over the grid and read at ``xy`` by bilinear interpolation.  A UAV passing the same
+    place twice sees the same shadowing, which independent per-sample noise cannot reproduce.
+    """
+    from scipy.ndimage import gaussian_filter, map_coordinates
+
+    xy = np.asarray(xy, dtype=float)
+    if sigma_db <= 0 or len(xy) == 0:
+        return np.zeros(len(xy))
+    if corr_m <= 0:
+        raise ValueError(f"shadowing correlation distance must be > 0, got {corr_m}")
+    res = max(corr_m / cells_per_corr, 1.0)
+    s_cells = 0.5 * corr_m / res
+    pad = 3.0 * corr_m
+    lo = xy.min(axis=0) - pad
+    shape = np.ceil((xy.max(axis=0) + pad - lo) / res).astype(int) + 1
+    white = rng.standard_normal(tuple(shape))
+    g = gaussian_filter(white, s_cells, mode="wrap")
+    g *= sigma_db / max(float(g.std()), 1e-12)
+    coords = ((xy - lo) / res).T
+    return map_coordinates(g, coords, order=1, mode="nearest")

@@ -29,14 +29,14 @@ FAST = Randomisation(
 )
 
 
-def _cfg(repo_dir, n=6, chunk=4, seed=5, **kw) -> DatasetConfig:
+def _cfg(repo_dir, n=6, chunk=4, seed=5, randomisation=FAST, **kw) -> DatasetConfig:
     return DatasetConfig(
         str(repo_dir / "missions" / "spiral.yaml"),
         n,
         seed=seed,
         chunk=chunk,
         features=("clustering",),
-        randomisation=FAST,
+        randomisation=randomisation,
         **kw,
     )
 
@@ -117,3 +117,85 @@ def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
         main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "x"), "--trajectories", "zigzag"]) == 2
     )
     assert "zigzag" in capsys.readouterr().err
+
+
+def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
+    """Items added later draw only when switched on: a zero-probability fixed heading, no speed range and no
+    shadowing leave every flight's bytes as before."""
+    from dataclasses import replace
+
+    from mission.localize.dataset import FlightSimulator
+
+    base = FlightSimulator(_cfg(repo_dir)).draw(3)
+    same = FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0))).draw(3)
+    assert base.rss_dbm.tobytes() == same.rss_dbm.tobytes()
+    assert np.array_equal(base.tx_enu, same.tx_enu)
+
+
+def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
+    from dataclasses import replace
+
+    from mission.localize.dataset import FlightSimulator
+
+    r = replace(FAST, fixed_heading=1.0, speed_mps=(3.0, 3.0), shadowing_db=(6.0, 6.0), shadowing_corr_m=(20, 20))
+    fd = FlightSimulator(_cfg(repo_dir, randomisation=r)).draw(2)
+    yaw = np.rad2deg(fd.attitude_rad[:, 2])
+    assert np.ptp(np.rad2deg(np.angle(np.exp(1j * np.deg2rad(yaw - fd.params["fixed_heading_deg"]))))) <= 10.01
+    assert fd.params["speed_mps"] == 3.0 and fd.params["shadowing_db"] == 6.0
+    step = np.linalg.norm(np.diff(fd.enu[:, :2], axis=0), axis=1) / 0.03
+    assert step.max() <= 3.0 + 1e-6
+
+
+def test_physics_preset_fold_is_the_simulated_model(repo_dir):
+    """``physics="afar:fit328"`` flies the fold's fitted model: noise-free RSS equals that model at the logged
+    geometry, with the heading jitter added to the preset's UAV-antenna heading."""
+    from dataclasses import replace
+
+    from mission.localize.dataset import FlightSimulator
+    from mission.physics.presets import build_model, load_preset
+
+    r = replace(FAST, noise_db=(0.0, 0.0), offset_db=None, physics_heading_jitter_deg=5.0)
+    sim = FlightSimulator(_cfg(repo_dir, randomisation=r, physics="afar:fit328"))
+    fd = sim.draw(1)
+    spec = load_preset("afar:fit328")
+    assert fd.params["rx_heading_deg"] != spec["rx_heading_deg"]
+    assert abs(fd.params["rx_heading_deg"] - spec["rx_heading_deg"]) <= 5.0
+    model = build_model({**spec, "rx_heading_deg": fd.params["rx_heading_deg"]})
+    want = model.rss_dbm(fd.tx_enu, fd.enu, fd.attitude_rad)
+    assert np.allclose(fd.rss_dbm, want, atol=1e-3)
+    other = build_model(load_preset("afar:fit288")).rss_dbm(fd.tx_enu, fd.enu, fd.attitude_rad)
+    assert not np.allclose(fd.rss_dbm, other, atol=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("kw", "field"),
+    [
+        ({"physics": "afar:fit328", "randomisation": Randomisation(patterns=("dipole",))}, "patterns"),
+        ({"physics": "afar:nofold"}, "preset"),
+        ({"randomisation": Randomisation(physics_heading_jitter_deg=5.0)}, "physics_heading_jitter_deg"),
+        ({"randomisation": Randomisation(fixed_heading=1.5)}, "fixed_heading"),
+        ({"randomisation": Randomisation(speed_mps=(0.0, 3.0))}, "speed_mps"),
+    ],
+)
+def test_inconsistent_configs_are_refused(tmp_path, repo_dir, kw, field):
+    cfg = DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 2, **kw)
+    with pytest.raises(ValueError, match=field):
+        generate_dataset(cfg, tmp_path / "ds")
+    assert not (tmp_path / "ds").exists()
+
+
+def test_cli_physics_preset_and_its_errors(tmp_path, repo_dir, capsys):
+    from mission.cli.main import main
+
+    mission = str(repo_dir / "missions" / "spiral.yaml")
+    args = ["dataset", mission, "--n", "2", "--workers", "1", "--features", "clustering", "--trajectories",
+            "random_waypoints", "--random-params", "--truncate", "0.1,0.2"]
+    assert main([*args, "--physics", "afar:fit288", "--fixed-heading", "0.5", "--shadowing", "2,6",
+                 "--out", str(tmp_path / "ds")]) == 0
+    mf = read_manifest(tmp_path / "ds")
+    assert mf["config"]["physics"] == "afar:fit288"
+    assert mf["config"]["randomisation"]["shadowing_db"] == [2.0, 6.0]
+    capsys.readouterr()
+    assert main([*args, "--physics", "afar:fit288", "--patterns", "dipole", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "patterns" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -65,3 +65,26 @@ def test_attitude_follows_motion():
     end = np.searchsorted(t, p.t_vertex[2] - 3)
     assert deg[end, 2] == pytest.approx(0.0, abs=1.0) or deg[end, 2] == pytest.approx(360.0, abs=1.0)
     assert np.abs(deg[:, :2]).max() <= kin.max_tilt_deg
+
+
+def test_fixed_heading_holds_the_nose_and_tilts_along_the_motion():
+    """A fixed-heading vehicle (as AERPAW's AFAR flights) never turns its nose; flying east with the nose north
+    it rolls right (not pitches) against drag, and the tilt magnitude equals the course-following case."""
+    path = np.array([[0, 0, 30], [200, 0, 30], [200, 200, 30]])
+    free = Kinematics(cruise_speed_mps=5.0)
+    fixed = Kinematics(cruise_speed_mps=5.0, heading_deg=0.0)
+    p = plan_profile(path, fixed)
+    t, pos = p.sample(0.03)
+    att_f, _ = attitude_from_motion(t, pos, fixed)
+    att_c, _ = attitude_from_motion(t, pos, free)
+    assert np.all(att_f[:, 2] == 0.0)
+    mid = np.searchsorted(t, p.t_vertex[1] / 2)
+    deg = np.rad2deg(att_f[mid])
+    assert deg[0] == pytest.approx(3.0, abs=0.5)    # flying east, nose north: right wing down against drag
+    assert abs(deg[1]) < 0.5                         # no pitch: no motion along the nose
+    tilt_f = np.hypot(att_f[:, 0], att_f[:, 1])
+    tilt_c = np.hypot(att_c[:, 0], att_c[:, 1])
+    assert np.allclose(tilt_f[mid], tilt_c[mid], atol=np.deg2rad(0.05))
+    east = Kinematics(cruise_speed_mps=5.0, heading_deg=90.0)
+    att_e, _ = attitude_from_motion(t, pos, east)
+    assert np.rad2deg(att_e[mid, 1]) == pytest.approx(np.rad2deg(att_c[mid, 1]), abs=0.05)  # nose east = course

@@ -46,6 +46,21 @@ def test_preset_loads_and_builds_a_model():
         assert np.all(np.isfinite(build_model(fold["model"]).rss_dbm(tx, rx, att)))
 
 
+def test_preset_folds_by_name():
+    """``afar:FOLD`` is the fold's own spec (fitted without the other team's flights), named apart."""
+    from mission.physics.presets import preset_fold_info
+
+    rec = load_calibration("afar")
+    for name, fold in rec["folds"].items():
+        assert load_preset(f"afar:{name}") == fold["model"]
+        info = preset_fold_info(f"afar:{name}")
+        assert info["fitted_on"] == fold["fitted_on"] and not set(info["fitted_on"]) & set(info["tested_on"])
+        assert preset_model(f"afar:{name}").name == f"afar-{name}-calibrated"
+    assert load_preset("afar:fit328") != load_preset("afar:fit288")
+    with pytest.raises(InputError, match="no fold"):
+        load_preset("afar:fit999")
+
+
 def test_preset_errors():
     with pytest.raises(InputError):
         load_preset("nowhere")

@@ -86,3 +86,39 @@ def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir):
     assert r.returncode == 2
     assert "--source" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_shadowing_field_statistics_and_revisits():
+    """The shadowing field has the asked std, correlation exp(-d^2/corr^2) (1/e at corr), the same value when
+    a place is revisited, a fresh field per draw, and nothing at sigma 0."""
+    from mission.simulate import shadowing_field
+
+    rng = np.random.default_rng(3)
+    corr = 30.0
+    x = np.linspace(0.0, 300.0, 301)
+    xy = np.stack([x, np.full_like(x, 150.0)], axis=1)
+    fields = np.array([shadowing_field(xy, 6.0, corr, rng) for _ in range(300)])
+    assert fields.std() == pytest.approx(6.0, rel=0.1)
+    z = (fields - fields.mean()) / fields.std()
+    for lag, want in ((15, np.exp(-0.25)), (30, np.exp(-1.0)), (90, 0.0)):
+        got = float(np.mean(z[:, :-lag] * z[:, lag:]))
+        assert got == pytest.approx(want, abs=0.08), lag
+    twice = np.concatenate([xy[:50], xy[:50]])
+    f = shadowing_field(twice, 6.0, corr, np.random.default_rng(1))
+    assert np.array_equal(f[:50], f[50:])
+    assert not np.array_equal(f, shadowing_field(twice, 6.0, corr, np.random.default_rng(2)))
+    assert np.all(shadowing_field(xy, 0.0, corr, rng) == 0.0)
+    with pytest.raises(ValueError):
+        shadowing_field(xy, 6.0, 0.0, rng)
+
+
+def test_shadowing_off_keeps_the_bytes_of_the_plain_simulator(spiral):
+    model = make_model("e2r")
+    tx = np.array([100.0, 200.0, 1.5])
+    a = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(), np.random.default_rng(7))
+    b = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(shadowing_db=0.0, shadowing_corr_m=5.0),
+                        np.random.default_rng(7))
+    c = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(shadowing_db=6.0), np.random.default_rng(7))
+    assert a.rss_dbm.tobytes() == b.rss_dbm.tobytes()
+    d = c.rss_dbm - a.rss_dbm
+    assert 3.0 < d.std() < 9.0 and np.abs(np.diff(d)).max() < 1.0  # smooth along the path, not white noise

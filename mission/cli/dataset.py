@@ -38,6 +38,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="comma list of stored inputs: clustering, normalised_rss (default both)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing dataset in --out")
+    p.add_argument("--physics", metavar="PRESET",
+                   help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
+                        "(fitted on team 328 only; score the result on the other team's flights)")
     g = p.add_argument_group("domain randomisation (each off unless given)")
     g.add_argument(
         "--randomise",
@@ -61,6 +64,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--eps-r", type=_range, help="ground relative permittivity range LO,HI")
     g.add_argument("--tx-height", type=_range, help="transmitter height range LO,HI metres")
     g.add_argument("--noise", type=_range, help="RSS noise standard deviation range LO,HI dB")
+    g.add_argument("--fixed-heading", type=float, metavar="P",
+                   help="probability that a flight holds one random compass heading instead of yawing along the "
+                        "track (AFAR 2023 vehicles held a near-constant heading)")
+    g.add_argument("--speed", type=_range, help="cruise speed range LO,HI m/s")
+    g.add_argument("--shadowing", type=_range, help="std range LO,HI dB of a spatially correlated shadowing field")
+    g.add_argument("--shadowing-corr", type=_range, help="its correlation distance range LO,HI m (default 30)")
+    g.add_argument("--physics-heading-jitter", type=float, metavar="DEG",
+                   help="with --physics: jitter the preset's UAV-antenna heading by U(-DEG, DEG) per flight")
 
 
 def randomisation_from_args(args: argparse.Namespace):
@@ -90,6 +101,11 @@ def randomisation_from_args(args: argparse.Namespace):
         ("eps_r", "eps_r"),
         ("tx_height", "tx_height_m"),
         ("noise", "noise_db"),
+        ("speed", "speed_mps"),
+        ("shadowing", "shadowing_db"),
+        ("shadowing_corr", "shadowing_corr_m"),
+        ("fixed_heading", "fixed_heading"),
+        ("physics_heading_jitter", "physics_heading_jitter_deg"),
     ):
         v = getattr(args, flag)
         if v is not None:
@@ -110,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from mission.errors import InputError
-    from mission.localize.dataset import DatasetConfig, generate_dataset
+    from mission.localize.dataset import DatasetConfig, check_config, generate_dataset
 
     for t in (args.trajectories or "").split(","):
         if t.strip() and t.strip() not in GENERATOR_NAMES:
@@ -128,7 +144,9 @@ def run(args: argparse.Namespace) -> int:
         chunk=args.chunk,
         features=tuple(f.strip() for f in args.features.split(",") if f.strip()),
         randomisation=randomisation_from_args(args),
+        physics=args.physics,
     )
+    check_config(cfg)
     console = Console()
     with Progress(
         TextColumn("[bold]dataset"),
@@ -148,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
         )
     g = m["generation"]
     console.print(
-        f"{m['n']} flights ({args.model}, seed {args.seed}) in {g['seconds']:.1f} s "
+        f"{m['n']} flights ({cfg.physics_label}, seed {args.seed}) in {g['seconds']:.1f} s "
         f"= {g['flights_per_s']:.2f} flights/s on {args.workers} worker(s); "
         f"{len(m['chunks'])} chunk(s) in {args.out}"
     )

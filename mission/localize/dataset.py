@@ -22,6 +22,18 @@ Domain randomisation (each switchable; ``Randomisation``):
 - ``beta``: leg-shadowing exponent; ``eps_r``: ground relative permittivity.
 - ``tx_height_m``: transmitter height (AFAR rover antenna about 1.5 m; paper 5 m).
 - ``noise_db``: per-flight noise standard deviation.
+- ``fixed_heading``: probability that a flight holds one compass heading (uniform 0-360 deg) instead of
+  yawing along the track; the AFAR 2023 vehicles held a near-constant heading for the whole cruise, which
+  with a directional UAV antenna fixes the antenna's world orientation.
+- ``speed_mps``: cruise speed (AFAR team 288 crept at about 1 m/s median, team 328 flew about 4 m/s).
+- ``shadowing_db`` / ``shadowing_corr_m``: a spatially correlated shadowing field per flight
+  (``mission.simulate.shadowing_field``); real residuals persist over tens of metres.
+- ``physics_heading_jitter_deg``: with a physics preset, the preset's UAV-antenna heading is jittered by
+  U(-j, j) per flight (its fit is uncertain by several degrees and differs between teams).
+
+Physics: ``model`` names one of ``make_model``'s models, or ``physics`` names a calibrated preset of
+``mission.physics.presets`` (``afar``, or a fold such as ``afar:fit328`` fitted on team 328 only), which
+replaces it.  Pattern / beta / eps_r randomisation apply to ``make_model`` models only.
 
 Storage (``DIR``): ``manifest.json`` (every setting, the seed, the feature configuration, the field origin,
 the chunk list with sha256 digests) and ``chunk_00000.npz`` ... each holding, for its flights (float32
@@ -58,6 +70,10 @@ PARAM_NAMES = (
     "trajectory",
     "pattern",
     "keep_fraction",
+    "fixed_heading_deg",
+    "speed_mps",
+    "shadowing_db",
+    "shadowing_corr_m",
 )
 FEATURE_KINDS = ("clustering", "normalised_rss")
 
@@ -77,6 +93,11 @@ class Randomisation:
     eps_r: tuple[float, float] | None = None
     tx_height_m: tuple[float, float] | None = None
     noise_db: tuple[float, float] | None = None
+    fixed_heading: float | None = None  # probability of a fixed-heading flight
+    speed_mps: tuple[float, float] | None = None
+    shadowing_db: tuple[float, float] | None = None
+    shadowing_corr_m: tuple[float, float] | None = None
+    physics_heading_jitter_deg: float | None = None
 
     @classmethod
     def from_dict(cls, d: dict) -> Randomisation:
@@ -99,6 +120,12 @@ class DatasetConfig:
     randomisation: Randomisation = field(default_factory=Randomisation)
     model_params: dict = field(default_factory=dict)
     cruise_only: bool = True  # fly the trajectory only (features see the cruise, as on real logs)
+    physics: str | None = None  # a calibrated physics preset (e.g. "afar:fit328"), replaces ``model``
+
+    @property
+    def physics_label(self) -> str:
+        """The propagation model's name as reports show it (``preset:afar:fit328`` or ``e2r``)."""
+        return f"preset:{self.physics}" if self.physics else self.model
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -177,9 +204,12 @@ class FlightSimulator:
         self.sim = self.spec.sim_config()
         self._models: dict = {}
 
-    def _model(self, pattern: str, beta: float | None, eps_r: float | None, rx_h: float, tx_h: float):
+    def _model(self, pattern: str, beta: float | None, eps_r: float | None, rx_h: float, tx_h: float,
+               jitter: float = 0.0):
         from mission.physics import make_model
 
+        if self.cfg.physics:
+            return self._preset_model(jitter)
         kw = dict(self.spec.source.model_params)
         kw.update(self.cfg.model_params)
         if pattern:
@@ -199,6 +229,25 @@ class FlightSimulator:
             if len(self._models) < 64:
                 self._models[key] = m
         return m
+
+    def _preset_model(self, jitter: float):
+        from mission.physics.presets import build_model, load_preset
+
+        key = f"preset:{jitter:.6f}"
+        m = self._models.get(key)
+        if m is None:
+            spec = load_preset(str(self.cfg.physics))
+            spec["rx_heading_deg"] = float(spec.get("rx_heading_deg", 0.0)) + jitter
+            spec.update(self.cfg.model_params)
+            m = build_model(spec, name=f"preset:{self.cfg.physics}")
+            if len(self._models) < 64:
+                self._models[key] = m
+        return m
+
+    def _preset_heading(self) -> float:
+        from mission.physics.presets import load_preset
+
+        return float(load_preset(str(self.cfg.physics)).get("rx_heading_deg", 0.0))
 
     def draw(self, i: int) -> FlightDraw:
         """Draw and fly flight ``i`` (deterministic in ``(cfg, i)``)."""
@@ -223,6 +272,18 @@ class FlightSimulator:
         noise = _uniform(rng, r.noise_db, self.sim.noise_db)
         keep = _uniform(rng, r.truncate, 1.0)
         start = float(rng.uniform(0.0, 1.0 - keep)) if keep < 1.0 else 0.0
+        # draws added after the first release: taken only when switched on, so older configs keep their bytes
+        fixed_h = None
+        if r.fixed_heading is not None and r.fixed_heading > 0:
+            fixed = bool(rng.uniform() < r.fixed_heading)
+            h = float(rng.uniform(0.0, 360.0))
+            fixed_h = h if fixed else None
+        speed = None if r.speed_mps is None else _uniform(rng, r.speed_mps, 0.0)
+        shadow = 0.0 if r.shadowing_db is None else _uniform(rng, r.shadowing_db, 0.0)
+        corr = self.sim.shadowing_corr_m if r.shadowing_corr_m is None else _uniform(rng, r.shadowing_corr_m, 0.0)
+        jitter = 0.0
+        if r.physics_heading_jitter_deg:
+            jitter = float(rng.uniform(-r.physics_heading_jitter_deg, r.physics_heading_jitter_deg))
 
         if traj == "waypoints" or (spec.trajectory.waypoints is not None and same and not r.random_params):
             wps = np.array(spec.waypoints_enu(), dtype=float)
@@ -230,8 +291,13 @@ class FlightSimulator:
         else:
             wps = generate(traj, spec.field, alt, **tparams)
         tx = np.array([xy[0], xy[1], tx_height])
-        model = self._model(pattern, beta, eps_r, rx_h, tx_h)
-        sim = replace(self.sim, noise_db=noise, rss_offset_db=offset)
+        model = self._model(pattern, beta, eps_r, rx_h, tx_h, jitter)
+        kin = self.sim.kinematics
+        if fixed_h is not None or speed is not None:
+            kin = replace(kin, heading_deg=fixed_h if fixed_h is not None else kin.heading_deg,
+                          cruise_speed_mps=speed if speed is not None else kin.cruise_speed_mps)
+        sim = replace(self.sim, noise_db=noise, rss_offset_db=offset, kinematics=kin, shadowing_db=shadow,
+                      shadowing_corr_m=corr)
         fl = simulate_flight(wps, tx, model, sim, rng)
         enu, att, rss = fl.enu, fl.attitude_rad, fl.rss_dbm
         if keep < 1.0:
@@ -246,9 +312,13 @@ class FlightSimulator:
             "eps_r": np.nan if eps_r is None else eps_r,
             "tx_height_m": tx_height,
             "noise_db": noise,
-            "rx_heading_deg": rx_h,
+            "rx_heading_deg": self._preset_heading() + jitter if cfg.physics else rx_h,
             "tx_heading_deg": tx_h,
             "keep_fraction": keep,
+            "fixed_heading_deg": np.nan if fixed_h is None else fixed_h,
+            "speed_mps": kin.cruise_speed_mps,
+            "shadowing_db": shadow,
+            "shadowing_corr_m": corr if shadow > 0 else np.nan,
             "trajectory_params": tparams,
         }
         return FlightDraw(i, tx, params, traj, pattern or "default", enu, att, rss)
@@ -278,6 +348,10 @@ class FlightSimulator:
                 traj_names.index(fd.trajectory),
                 pat_names.index(fd.pattern),
                 p["keep_fraction"],
+                p["fixed_heading_deg"],
+                p["speed_mps"],
+                p["shadowing_db"],
+                p["shadowing_corr_m"],
             ]
         )
         row["tx_enu"] = fd.tx_enu
@@ -365,6 +439,30 @@ def iter_rows(
         yield from pool.imap(_work, idx, chunksize=4)
 
 
+def check_config(cfg: DatasetConfig) -> None:
+    """Refuse configurations that would silently do something else than asked (InputError naming the field)."""
+    r = cfg.randomisation
+    if cfg.physics:
+        from mission.physics.presets import load_preset
+
+        try:
+            load_preset(cfg.physics)
+        except KeyError as e:
+            raise InputError(f"physics preset {cfg.physics!r} is incomplete ({e})", field="physics") from None
+        for name in ("patterns", "beta", "eps_r"):
+            if getattr(r, name):
+                raise InputError(f"{name} randomisation applies to make_model models, not to the physics "
+                                 f"preset {cfg.physics!r}", field=name)
+    elif r.physics_heading_jitter_deg:
+        raise InputError("physics_heading_jitter_deg needs a physics preset", field="physics_heading_jitter_deg")
+    if r.fixed_heading is not None and not 0.0 <= r.fixed_heading <= 1.0:
+        raise InputError(f"fixed_heading is a probability in [0, 1], got {r.fixed_heading}", field="fixed_heading")
+    for name in ("speed_mps", "shadowing_corr_m"):
+        v = getattr(r, name)
+        if v is not None and min(v) <= 0:
+            raise InputError(f"{name} must be > 0, got {v}", field=name)
+
+
 def generate_dataset(
     cfg: DatasetConfig,
     out_dir: str | Path,
@@ -387,6 +485,7 @@ def generate_dataset(
         raise InputError(
             f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})", field="features"
         )
+    check_config(cfg)
     out = Path(out_dir)
     if (out / "manifest.json").exists() and not overwrite:
         raise InputError("a dataset exists already here (use --overwrite)", source=str(out))

@@ -101,7 +101,7 @@ def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarr
             {
                 "path": str(p),
                 "n": m["n"],
-                "model": cfg.get("model"),
+                "model": f"preset:{cfg['physics']}" if cfg.get("physics") else cfg.get("model"),
                 "seed": cfg.get("seed"),
                 "mission": cfg.get("mission"),
                 "mission_name": m.get("mission_name"),

@@ -95,7 +95,7 @@ def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationMo
 
 def load_calibration(name: str = "afar") -> dict[str, Any]:
     """The whole calibration record of preset ``name`` (the JSON file as a dict)."""
-    key = name.strip().lower()
+    key = name.strip().lower().partition(":")[0]
     if key not in PRESETS:
         raise InputError(f"unknown physics preset {name!r} (known: {', '.join(PRESETS)})", field="preset")
     ref = resources.files("mission").joinpath("data", f"{key}_calibration.json")
@@ -106,11 +106,34 @@ def load_calibration(name: str = "afar") -> dict[str, Any]:
 
 
 def load_preset(name: str = "afar") -> dict[str, Any]:
-    """The model spec of preset ``name`` (a dict for :func:`build_model`)."""
-    return dict(load_calibration(name)["model"])
+    """The model spec of preset ``name`` (a dict for :func:`build_model`).
+
+    ``"afar:FOLD"`` is the spec fitted on one fold of the calibration only (``folds`` in the record, e.g.
+    ``afar:fit328`` = fitted on team 328's flights): train or test with it on the *other* flights so that
+    nothing is scored on the flights its physics was fitted on.
+    """
+    base, _, fold = name.partition(":")
+    rec = load_calibration(base)
+    if not fold:
+        return dict(rec["model"])
+    folds = rec.get("folds", {})
+    if fold not in folds:
+        raise InputError(f"physics preset {base!r} has no fold {fold!r} (known: {', '.join(folds)})",
+                         field="preset")
+    return dict(folds[fold]["model"])
+
+
+def preset_fold_info(name: str) -> dict[str, Any]:
+    """Which flights the preset (or fold) ``name`` was fitted on and which it was held out from."""
+    base, _, fold = name.partition(":")
+    rec = load_calibration(base)
+    if not fold:
+        return {"fitted_on": list(rec.get("fitted_on", [])), "tested_on": []}
+    f = rec["folds"][fold]
+    return {"fitted_on": list(f.get("fitted_on", [])), "tested_on": list(f.get("tested_on", []))}
 
 
 def preset_model(name: str = "afar", **overrides: Any) -> PropagationModel:
     """The calibrated model of preset ``name``; ``overrides`` replace spec entries (e.g. ``attitude=False``)."""
     spec = {**load_preset(name), **overrides}
-    return build_model(spec, name=f"{name.strip().lower()}-calibrated")
+    return build_model(spec, name=f"{name.strip().lower().replace(':', '-')}-calibrated")

@@ -6,7 +6,9 @@ it the speed follows a trapezoidal profile per leg (acceleration limit ``accel_m
 that falls with the turn angle (``v_corner = v_cruise * cos(turn/2) ** corner_exponent``, 0 for a reversal),
 as a PX4/ArduPilot waypoint controller slows for corners.  Attitude follows from the accelerations: a
 multicopter tilts its thrust vector to accelerate, pitches nose-down against drag in steady forward
-flight, and yaws to the direction of travel.  Everything is vectorised over time samples.
+flight, and yaws to the direction of travel (or, with ``heading_deg``, holds one compass heading throughout,
+as the AERPAW AFAR 2023 vehicles did: their logged yaw stays within about 30 deg of 330-360 deg for the whole
+cruise).  Everything is vectorised over time samples.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ class Kinematics:
     response_s: float = 0.8          # time constant of the attitude response (smoothing of accelerations)
     drag_pitch_deg_per_mps: float = 0.6  # steady nose-down pitch per m/s of airspeed (real AFAR: ~-3 deg)
     max_tilt_deg: float = 30.0       # lean-angle limit (ArduPilot default)
+    heading_deg: float | None = None  # None: yaw follows the course; a number: hold this compass heading
 
 
 @dataclass
@@ -148,8 +151,8 @@ def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None 
     """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path.
 
     Velocity is the smoothed derivative of position (the vehicle's response time); yaw follows the
-    course over ground (held when hovering, rate limited); the tilt vector is the commanded acceleration
-    plus the drag of the air-relative velocity, over g, rotated into the body frame.
+    course over ground (held when hovering, rate limited) or is ``kin.heading_deg``; the tilt vector is the
+    commanded acceleration plus the drag of the air-relative velocity, over g, rotated into the body frame.
     """
     kin = kin or Kinematics()
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
@@ -166,6 +169,8 @@ def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None 
     yaw = np.unwrap(yaw)
     # rate limit by smoothing the unwrapped yaw (a turn of 90 deg takes about 90/yaw_rate s)
     yaw = _smooth(yaw, dt, max(kin.response_s, 0.5 * np.pi / np.deg2rad(kin.yaw_rate_dps) / 2))
+    if kin.heading_deg is not None:  # fixed-heading flight: the nose never turns
+        yaw = np.full(len(t), np.deg2rad(kin.heading_deg))
     air = vel[:, :2] - (0.0 if wind_ne is None else np.asarray(wind_ne)[..., [1, 0]])
     k_drag = np.tan(np.deg2rad(kin.drag_pitch_deg_per_mps)) * G  # m/s^2 per m/s
     a_cmd = acc[:, :2] + k_drag * air  # thrust must supply this horizontal acceleration (east, north)
