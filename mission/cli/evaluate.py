@@ -16,7 +16,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--methods",
         default="strongest,centroid,grid",
-        help="classical methods, comma list of strongest, centroid, grid ('' for none)",
+        help="classical methods, comma list of strongest, centroid, grid, grid:MODEL (free-space, two-ray, e2r) "
+        "or grid:preset:NAME ('' for none)",
     )
     p.add_argument(
         "--sim-test", nargs="*", default=[], help="simulated test dataset folder(s) (rfsl dataset)"
@@ -79,19 +80,18 @@ def run(args: argparse.Namespace) -> int:
     from mission.errors import InputError
     from mission.localize.dataset import DatasetConfig, Randomisation, generate_dataset
     from mission.localize.evaluate import (
-        CLASSICAL,
         afar_truth,
         evaluate_real,
         evaluate_sim,
         import_afar,
+        parse_method,
         write_report,
     )
 
     console = Console()
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = [m for m in methods if m not in CLASSICAL]
-    if bad:
-        raise InputError(f"unknown method {bad[0]!r} (expected {', '.join(CLASSICAL)})", field="--methods")
+    for m in methods:
+        parse_method(m)
     for mp in args.models:
         if not Path(mp).is_file():
             raise InputError("no such model file", source=mp)

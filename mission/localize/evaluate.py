@@ -31,6 +31,31 @@ from mission.errors import InputError
 from mission.importers.afar import AFAR2023_TRUTH
 
 CLASSICAL = ("strongest", "centroid", "grid")
+GRID_PHYSICS = ("free-space", "two-ray", "e2r")
+
+
+def parse_method(spec: str) -> tuple[str, dict]:
+    """A classical method spec -> (method, grid keyword arguments).
+
+    ``strongest``, ``centroid``, ``grid`` (the grid's default physics: e2r on simulated tests, as before),
+    ``grid:free-space`` / ``grid:two-ray`` / ``grid:e2r`` (that propagation model, default antennas) and
+    ``grid:preset:NAME`` (a calibrated physics preset, e.g. ``grid:preset:afar``).
+    """
+    name, _, physics = spec.partition(":")
+    if name not in CLASSICAL or (physics and name != "grid"):
+        raise InputError(f"unknown method {spec!r} (expected {', '.join(CLASSICAL)}, grid:MODEL or "
+                         "grid:preset:NAME)", field="--methods")
+    if not physics:
+        return name, {}
+    if physics.startswith("preset:"):
+        from mission.physics.presets import load_preset
+
+        load_preset(physics.removeprefix("preset:"))  # unknown preset: InputError now, not mid-evaluation
+        return name, {"preset": physics.removeprefix("preset:")}
+    if physics not in GRID_PHYSICS:
+        raise InputError(f"unknown grid physics {physics!r} (expected {', '.join(GRID_PHYSICS)} or preset:NAME)",
+                         field="--methods")
+    return name, {"model": physics}
 
 # Rover truth by AFAR location number (../shared/data/README.md; antenna about 1.5 m above ground).
 AFAR_TRUTH = AFAR2023_TRUTH
@@ -84,11 +109,12 @@ def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 def test_label(manifest: dict) -> str:
     """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
     cfg = manifest["config"]
+    physics = f"preset:{cfg['physics']}" if cfg.get("physics") else cfg.get("model")
     r = cfg.get("randomisation", {})
     traj = "+".join(r.get("trajectories") or [manifest.get("mission_generator", "?")])
     alt = r.get("altitude_m")
     alt_s = f"{alt[0]:g}-{alt[1]:g}m" if alt else f"{manifest.get('mission_altitude_m', 30):g}m"
-    return f"sim:{cfg.get('model')}:{traj}@{alt_s}"
+    return f"sim:{physics}:{traj}@{alt_s}"
 
 
 def evaluate_sim(
@@ -137,16 +163,18 @@ def evaluate_sim(
         cfg = dataset_config(m)
         sim = FlightSimulator(cfg)
         n = min(n_classical, cfg.n)
-        locs = {
-            c: make_localizer(
-                c,
-                physics_model=(grid_params or {}).get("model", "e2r"),
-                physics_params=(grid_params or {}).get("params"),
-                tx_height_m=(grid_params or {}).get("tx_height_m", sim.spec.source.tx_height_m),
+        gp = grid_params or {}
+        locs = {}
+        for c in classical:
+            method, kw = parse_method(c)
+            locs[c] = make_localizer(
+                method,
+                physics_model=kw.get("model", gp.get("model", "e2r")),
+                physics_params=None if "preset" in kw else gp.get("params"),
+                tx_height_m=gp.get("tx_height_m", sim.spec.source.tx_height_m),
                 area=sim.spec.field.rover_area,
+                physics_preset=kw.get("preset"),
             )
-            for c in classical
-        }
         errs: dict[str, list[float]] = {c: [] for c in classical}
         for i in range(n):
             fd = sim.draw(i)
@@ -206,14 +234,16 @@ def evaluate_real(
         log = read_flight_log(lp)
         if log.truth_enu is None:
             raise InputError("real log has no truth in its sidecar", source=str(lp))
-        for name, _tm, _kind, method, mp in methods:
+        for name, _tm, _kind, spec, mp in methods:
+            method, kw = parse_method(spec) if spec != "onnx" else ("onnx", {})
             est = localize_log(
                 log,
                 method=method,
                 model_path=mp,
-                physics_model=gp.get("model", "e2r"),
-                physics_params=gp.get("params"),
+                physics_model=None if "preset" in kw else kw.get("model", gp.get("model", "e2r")),
+                physics_params=None if "preset" in kw else gp.get("params"),
                 tx_height_m=gp.get("tx_height_m", 1.5),
+                physics_preset=kw.get("preset"),
             )
             rows[name].errors.append(float(est.error_m))
             rows[name].names.append(Path(lp).stem)
