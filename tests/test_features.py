@@ -122,3 +122,58 @@ def test_normalised_rss():
     b = normalised_rss(np.stack([rss, rss - 3]), cfg)
     np.testing.assert_allclose(b[0], a)
     np.testing.assert_allclose(b[1], a, atol=1e-12)
+
+
+def test_arc_resampling_collapses_hovers_and_ignores_speed():
+    """``resample_by_arc``: a hover becomes one averaged point, a path flown at 1 m/s or 5 m/s gives the same
+    points, GPS jitter while hovering adds no path, and features with ``arc_step_m`` see the same flight at
+    any speed."""
+    from mission.localize.features import resample_by_arc
+
+    rng = np.random.default_rng(0)
+    dt = 0.03
+
+    def leg(speed, hover_s=0.0, jitter=0.0):
+        t = np.arange(0, 100.0 / speed, dt)
+        x = speed * t
+        if hover_s:
+            x = np.concatenate([x[: len(x) // 2], np.full(int(hover_s / dt), x[len(x) // 2]), x[len(x) // 2 :]])
+        y = np.zeros_like(x) + rng.normal(0, jitter, x.size)
+        rss = -40.0 - 0.2 * x
+        return x, y, rss
+
+    fast = resample_by_arc(*leg(5.0), 0.15)
+    slow = resample_by_arc(*leg(1.0), 0.15)
+    hover = resample_by_arc(*leg(5.0, hover_s=60.0, jitter=0.05), 0.15)
+    n = len(slow[0])
+    assert n == pytest.approx(100 / 0.15, rel=0.01)
+    assert len(fast[0]) == pytest.approx(n, rel=0.03) and len(hover[0]) == pytest.approx(n, rel=0.05)
+    assert np.diff(slow[0]).mean() == pytest.approx(0.15, rel=0.01)
+    np.testing.assert_allclose(np.interp(fast[0], slow[0], slow[2]), fast[2], atol=0.05)
+    assert resample_by_arc(*leg(5.0), 0.0)[0].size == leg(5.0)[0].size  # off: untouched
+
+    cfg = FeatureConfig(arc_step_m=0.15, c_k=6, n_t=10)
+    xs = np.linspace(0, 200, 3000)
+    path_x = np.concatenate([xs, xs[::-1]])
+    path_y = np.concatenate([np.zeros(3000), np.full(3000, 30.0)])
+    rss = -40.0 - 0.1 * np.hypot(path_x - 120, path_y - 10)
+    # the same path, crept over at a fifth of the speed on its first leg (as AFAR team 288 did in places)
+    slow_idx = np.repeat(np.arange(6000), np.where(np.arange(6000) < 3000, 5, 1))
+    a = cluster_features(path_x, path_y, rss, cfg).reshape(-1, 3)
+    b = cluster_features(path_x[slow_idx], path_y[slow_idx], rss[slow_idx], cfg).reshape(-1, 3)
+    np.testing.assert_allclose(a[:, 0], b[:, 0], atol=0.3)
+    np.testing.assert_allclose(a[:, 1:], b[:, 1:], atol=3.0)
+    plain = FeatureConfig(c_k=6, n_t=10)
+    pa = cluster_features(path_x, path_y, rss, plain).reshape(-1, 3)
+    pb = cluster_features(path_x[slow_idx], path_y[slow_idx], rss[slow_idx], plain).reshape(-1, 3)
+    assert np.abs(pa[:, 1:] - pb[:, 1:]).max() > 10.0  # without resampling the crept leg takes more clusters
+
+
+def test_configs_written_before_a_later_key_still_match():
+    from mission.localize.features import LATER_KEYS
+
+    old = {k: v for k, v in FeatureConfig().to_dict().items() if k not in LATER_KEYS}
+    assert FeatureConfig.normalised(old) == FeatureConfig().to_dict()
+    assert FeatureConfig.normalised(FeatureConfig(arc_step_m=0.2).to_dict())["arc_step_m"] == 0.2
+    with pytest.raises(ValueError):
+        FeatureConfig(arc_step_m=-1.0)

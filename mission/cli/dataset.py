@@ -38,6 +38,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="comma list of stored inputs: clustering, normalised_rss (default both)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing dataset in --out")
+    p.add_argument("--arc-step", type=float, default=0.0, metavar="M",
+                   help="clustering features: resample each flight to one point per M metres of path first "
+                        "(speed/hover invariant; 0 = off, the paper's features)")
     p.add_argument("--physics", metavar="PRESET",
                    help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
                         "(fitted on team 328 only; score the result on the other team's flights)")
@@ -145,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
         features=tuple(f.strip() for f in args.features.split(",") if f.strip()),
         randomisation=randomisation_from_args(args),
         physics=args.physics,
+        feature_config={"arc_step_m": args.arc_step} if args.arc_step else {},
     )
     check_config(cfg)
     console = Console()

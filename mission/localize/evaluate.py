@@ -127,6 +127,7 @@ def evaluate_sim(
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
     from mission.localize.dataset import FlightSimulator, dataset_config, load_dataset, read_manifest
+    from mission.localize.features import FeatureConfig
     from mission.localize.onnx_model import OnnxLocalizer
 
     m = read_manifest(dataset)
@@ -136,7 +137,7 @@ def evaluate_sim(
     truth = None
     for mp in models:
         loc = OnnxLocalizer(mp)
-        if loc.cfg.to_dict() != m["feature_config"]:
+        if loc.cfg.to_dict() != FeatureConfig.normalised(m["feature_config"]):
             key = loc.cfg.mismatch(m["feature_config"])
             raise InputError(
                 f"model's feature configuration differs from the test set's ({key})", source=str(mp)

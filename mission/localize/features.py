@@ -33,6 +33,10 @@ Speed: k-means per flight is unavoidable.  Measured on a real AFAR flight (about
 k-means++ seeding (deterministic with the fixed seed).  ``cluster_features_batch`` vectorises grouping
 and smoothing over flights and runs one k-means per flight.
 
+``arc_step_m`` > 0 (off by default, the paper has no such step) first resamples a flight to one point per
+``arc_step_m`` metres of path (``resample_by_arc``), so creeping or hovering does not weight a spot by the
+time spent there.
+
 The paper's baseline input ``normalised_rss(rss, cfg)``: grouped RSS, minus its maximum (offset
 removed), divided by ``rss_scale_db``, linearly resampled to ``rss_length`` values.
 """
@@ -46,6 +50,8 @@ import numpy as np
 from mission.errors import InputError, refuse_unknown_keys
 
 FEATURE_VERSION = 1
+# keys added after version 1, with the value that reproduces the features of models/datasets written before
+LATER_KEYS = {"arc_step_m": 0.0}
 
 
 @dataclass(frozen=True)
@@ -63,10 +69,11 @@ class FeatureConfig:
     n_init: int = 1  # k-means restarts
     rss_length: int = 10000  # normalised-RSS baseline: resampled length (S / N_g for a 10 min flight)
     rss_scale_db: float = 20.0  # normalised-RSS baseline: dB per unit
+    arc_step_m: float = 0.0  # > 0: resample the flight to one point per arc_step_m of path first (0: off)
     version: int = FEATURE_VERSION
 
     def __post_init__(self) -> None:
-        if self.n_g < 1 or self.c_k < 1 or self.n_t < 1 or self.sigma < 0 or self.n_init < 1:
+        if self.n_g < 1 or self.c_k < 1 or self.n_t < 1 or self.sigma < 0 or self.n_init < 1 or self.arc_step_m < 0:
             raise InputError(f"invalid feature configuration {self.to_dict()}")
         if self.order != "rss_desc":
             raise InputError(
@@ -86,9 +93,15 @@ class FeatureConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> FeatureConfig:
-        """Build from a dict; unknown keys are refused (InputError naming the key)."""
+        """Build from a dict; unknown keys are refused (InputError naming the key); keys added after a model
+        or dataset was written take their defaults, which reproduce the features it was made with."""
         refuse_unknown_keys(d, (f.name for f in fields(cls)), "feature configuration")
         return cls(**d)
+
+    @staticmethod
+    def normalised(d: dict) -> dict:
+        """``d`` with the later keys (``LATER_KEYS``) filled in where absent: compare configurations through this."""
+        return {**LATER_KEYS, **d}
 
     def mismatch(self, other: FeatureConfig | dict) -> str | None:
         """The first key whose value differs from ``other`` (None when identical)."""
@@ -134,15 +147,42 @@ def gaussian_smooth(values: np.ndarray, sigma: float, kernel_sigmas: int = 6) ->
     return convolve1d(v, k, axis=-1, mode="nearest")
 
 
+def resample_by_arc(
+    x: np.ndarray, y: np.ndarray, rss: np.ndarray, step_m: float, smooth_samples: float = 15.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One point per ``step_m`` of flown path: the mean x, y and RSS of the samples in each arc-length bin.
+
+    Why: grouping and smoothing count samples, so a vehicle that creeps or hovers (AFAR team 288 moved at
+    about 1 m/s median and hovered at points) puts many more samples on a spot than the simulator's 5 m/s
+    cruise, and k-means weights spots by their sample count.  After resampling, one path metre carries the
+    same weight at any speed; a hover collapses to one averaged point.  Arc length is measured on positions
+    smoothed over ``smooth_samples`` samples, so GPS jitter while hovering does not add path.
+    """
+    if step_m <= 0 or x.size < 2:
+        return x, y, rss
+    from scipy.ndimage import gaussian_filter1d
+
+    sx = gaussian_filter1d(x, smooth_samples, mode="nearest")
+    sy = gaussian_filter1d(y, smooth_samples, mode="nearest")
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(sx), np.diff(sy)))])
+    b = np.floor(s / step_m).astype(np.int64)
+    cnt = np.bincount(b)
+    keep = cnt > 0
+    c = cnt[keep].astype(float)
+    return tuple(np.bincount(b, weights=v)[keep] / c for v in (x, y, rss))  # type: ignore[return-value]
+
+
 def preprocess(
     x: np.ndarray, y: np.ndarray, rss: np.ndarray, cfg: FeatureConfig
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Grouping then smoothing: grouped x, grouped y and smoothed grouped RSS (1D arrays of one flight)."""
+    """(Arc resampling,) grouping, then smoothing: grouped x, grouped y and smoothed grouped RSS (1D arrays
+    of one flight)."""
     x, y, rss = (np.asarray(a, dtype=float).ravel() for a in (x, y, rss))
     if not (x.size == y.size == rss.size):
         raise InputError(f"x, y and rss differ in length ({x.size}, {y.size}, {rss.size})")
     if not (np.isfinite(x).all() and np.isfinite(y).all() and np.isfinite(rss).all()):
         raise InputError("NaN or inf in positions or RSS given to the features")
+    x, y, rss = resample_by_arc(x, y, rss, cfg.arc_step_m)
     gx, gy, gp = grouping(x, cfg.n_g), grouping(y, cfg.n_g), grouping(rss, cfg.n_g)
     return gx, gy, gaussian_smooth(gp, cfg.sigma, cfg.kernel_sigmas)
 
@@ -234,6 +274,9 @@ def cluster_features_batch(xy: np.ndarray, rss: np.ndarray, cfg: FeatureConfig |
     m, n = rss.shape
     if xy.shape not in ((n, 2), (m, n, 2)):
         raise InputError(f"xy must be ({n}, 2) or ({m}, {n}, 2), got {xy.shape}")
+    if cfg.arc_step_m > 0:  # resampled lengths differ per flight: one flight at a time
+        xys = np.broadcast_to(xy, (m, n, 2))
+        return np.stack([cluster_features(xys[i, :, 0], xys[i, :, 1], rss[i], cfg) for i in range(m)])
     if not np.isfinite(rss).all() or not np.isfinite(xy).all():
         raise InputError("NaN or inf in the dataset positions or RSS")
     gp = gaussian_smooth(grouping(rss, cfg.n_g), cfg.sigma, cfg.kernel_sigmas)

@@ -93,6 +93,7 @@ class OnnxLocalizer:
         fc = self.meta["feature_config"]
         if not isinstance(fc, dict):
             raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
+        fc = FeatureConfig.normalised(fc)  # a model older than a later key was made with its neutral value
         if expect_config is not None:
             want = (
                 expect_config.to_dict() if isinstance(expect_config, FeatureConfig) else dict(expect_config)

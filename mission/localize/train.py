@@ -83,14 +83,15 @@ class TrainResult:
 def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of them."""
     from mission.localize.dataset import load_dataset
+    from mission.localize.features import FeatureConfig
 
     xs, ys, descr = [], [], []
     fcfg = origin = None
     for p in paths:
         arrays, m = load_dataset(p, (kind, "tx_enu"))
         if fcfg is None:
-            fcfg, origin = m["feature_config"], m["field_origin"]
-        elif m["feature_config"] != fcfg:
+            fcfg, origin = FeatureConfig.normalised(m["feature_config"]), m["field_origin"]
+        elif FeatureConfig.normalised(m["feature_config"]) != fcfg:
             raise InputError("datasets differ in their feature configuration", source=str(p))
         elif m["field_origin"] != origin:
             raise InputError("datasets differ in their field origin", source=str(p))
