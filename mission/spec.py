@@ -23,7 +23,9 @@ from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"
 RETURN_BEHAVIOURS = ("rtl", "land")
-_KIN_FIELDS = tuple(k for k in Kinematics.__dataclass_fields__ if k != "cruise_speed_mps")
+# heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not command yaw,
+# so a mission may not ask for it (its vehicle would fly differently from the simulated one)
+_KIN_FIELDS = tuple(k for k in Kinematics.__dataclass_fields__ if k not in ("cruise_speed_mps", "heading_deg"))
 
 
 @dataclass(frozen=True)

@@ -882,7 +882,7 @@ def parse_kinematics(text: str | None) -> Kinematics:
     names = {f.name for f in dataclasses.fields(Kinematics)}
     if not isinstance(d, dict) or set(d) - names:
         raise ValueError(f"--kinematics wants a JSON object with keys among {sorted(names)}, got {text!r}")
-    return Kinematics(**{k: float(v) for k, v in d.items()})
+    return Kinematics(**{k: None if v is None else float(v) for k, v in d.items()})
 
 
 def build_parser() -> argparse.ArgumentParser:
