@@ -171,7 +171,7 @@ def localize_log(
         elif not _is_simulated(log):
             method, choice = "grid", (
                 f"real receiver log: grid search with {physics_label}, the most accurate method on held-out "
-                "real AFAR flights (mean 25.7 m vs 44.0 m for the shipped network; models/README.md); "
+                "real AFAR flights (mean 25.7 m; networks 27.5-44.0 m, models/README.md); "
                 "--method onnx runs the network"
             )
         elif (dm := default_model_path()) is not None:
