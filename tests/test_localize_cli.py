@@ -179,3 +179,19 @@ def test_onnx_refusals(log_path, tmp_path, capsys):
     junk.write_bytes(b"junk")
     assert localize([str(log_path), "--model", str(junk)]) == 2
     one_error_line(capsys, "j.onnx")
+
+
+def test_estimate_far_outside_the_rover_area_is_flagged(log_path, tmp_path, capsys):
+    """A network is not bounded to the field: an estimate far outside the rover area is reported with a
+    warning (JSON field and table row), never silently; one inside gets none."""
+    cfg = FeatureConfig()
+    f = cfg.n_features
+    far = {"input_mean": 0.0, "input_std": 1.0, "output_mean": [900.0, -700.0], "output_std": [1, 1]}
+    path = make_onnx(tmp_path / "far.onnx", cfg, np.zeros((f, 2)), np.zeros(2), far)
+    assert localize([str(log_path), "--model", str(path), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["x_m"] > 800 and "outside the rover area" in d["warning"]
+    assert localize([str(log_path), "--model", str(path)]) == 0
+    assert "warning" in capsys.readouterr().out
+    assert localize([str(log_path), "--method", "strongest", "--json"]) == 0
+    assert "warning" not in json.loads(capsys.readouterr().out)

@@ -108,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.plot:
         tab.add_row("plot", str(args.plot))
+    if "warning" in est.extras:
+        tab.add_row("[bold yellow]warning", f"[yellow]{est.extras['warning']}")
     c.print(tab)
     return 0
 

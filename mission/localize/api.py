@@ -33,6 +33,7 @@ from mission.localize import Estimate
 METHOD_NAMES = ("onnx", "strongest", "centroid", "grid")
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
+OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
 
 
 def default_model_path() -> Path | None:
@@ -199,6 +200,12 @@ def localize_log(
     else:
         lat, lon, _ = origin.to_geodetic(np.array([est.x_m, est.y_m, 0.0]))
         est.lat_deg, est.lon_deg = float(lat), float(lon)
+    ra = area if area is not None else search_area(log)
+    if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
+        out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
+        if out_m > OUTSIDE_WARN_M:
+            est.extras["warning"] = (f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
+                                     "recognise this flight (other path or physics than it was trained on?)")
     t = _truth_enu(log, truth)
     if t is not None:
         est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))
