@@ -17,7 +17,7 @@ import pytest
 
 from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
 
-SHIPPED = ("rfsl_default", "rfsl_spiral_e2r")
+SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar")
 
 
 @pytest.fixture(scope="module")
