@@ -125,7 +125,7 @@ class DatasetConfig:
     @property
     def physics_label(self) -> str:
         """The propagation model's name as reports show it (``preset:afar:fit328`` or ``e2r``)."""
-        return f"preset:{self.physics}" if self.physics else self.model
+        return physics_label({"physics": self.physics, "model": self.model})
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -138,6 +138,11 @@ class DatasetConfig:
         d["randomisation"] = Randomisation.from_dict(d.get("randomisation", {}))
         d["features"] = tuple(d.get("features", FEATURE_KINDS))
         return cls(**d)
+
+
+def physics_label(config: dict) -> str:
+    """The physics of a dataset configuration dict (a manifest's ``config``): ``preset:NAME`` or the model."""
+    return f"preset:{config['physics']}" if config.get("physics") else str(config.get("model"))
 
 
 # ------------------------------------------------------------------------------------------ one flight
@@ -203,6 +208,11 @@ class FlightSimulator:
         self.fcfg = FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
         self.sim = self.spec.sim_config()
         self._models: dict = {}
+        self._preset_spec: dict | None = None
+        if cfg.physics:
+            from mission.physics.presets import load_preset
+
+            self._preset_spec = {**load_preset(cfg.physics), **cfg.model_params}
 
     def _model(self, pattern: str, beta: float | None, eps_r: float | None, rx_h: float, tx_h: float,
                jitter: float = 0.0):
@@ -231,23 +241,20 @@ class FlightSimulator:
         return m
 
     def _preset_model(self, jitter: float):
-        from mission.physics.presets import build_model, load_preset
+        from mission.physics.presets import build_model
 
         key = f"preset:{jitter:.6f}"
         m = self._models.get(key)
         if m is None:
-            spec = load_preset(str(self.cfg.physics))
-            spec["rx_heading_deg"] = float(spec.get("rx_heading_deg", 0.0)) + jitter
-            spec.update(self.cfg.model_params)
+            spec = {**self._preset_spec, "rx_heading_deg": self._preset_heading() + jitter}
             m = build_model(spec, name=f"preset:{self.cfg.physics}")
             if len(self._models) < 64:
                 self._models[key] = m
         return m
 
     def _preset_heading(self) -> float:
-        from mission.physics.presets import load_preset
-
-        return float(load_preset(str(self.cfg.physics)).get("rx_heading_deg", 0.0))
+        """The preset's UAV-antenna heading before jitter (degrees)."""
+        return float((self._preset_spec or {}).get("rx_heading_deg", 0.0))
 
     def draw(self, i: int) -> FlightDraw:
         """Draw and fly flight ``i`` (deterministic in ``(cfg, i)``)."""

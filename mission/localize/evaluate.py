@@ -57,6 +57,14 @@ def parse_method(spec: str) -> tuple[str, dict]:
                          field="--methods")
     return name, {"model": physics}
 
+
+def grid_physics(kw: dict, grid_params: dict) -> tuple[str | None, dict | None, str | None]:
+    """(physics model, its parameters, physics preset) for a parsed method's ``kw``: a preset replaces the
+    model and its parameters; otherwise the method's model, else ``grid_params``' (default e2r)."""
+    if "preset" in kw:
+        return None, None, kw["preset"]
+    return kw.get("model", grid_params.get("model", "e2r")), grid_params.get("params"), None
+
 # Rover truth by AFAR location number (../shared/data/README.md; antenna about 1.5 m above ground).
 AFAR_TRUTH = AFAR2023_TRUTH
 AFAR_SUSPECT = {
@@ -108,13 +116,14 @@ def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def test_label(manifest: dict) -> str:
     """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
+    from mission.localize.dataset import physics_label
+
     cfg = manifest["config"]
-    physics = f"preset:{cfg['physics']}" if cfg.get("physics") else cfg.get("model")
     r = cfg.get("randomisation", {})
     traj = "+".join(r.get("trajectories") or [manifest.get("mission_generator", "?")])
     alt = r.get("altitude_m")
     alt_s = f"{alt[0]:g}-{alt[1]:g}m" if alt else f"{manifest.get('mission_altitude_m', 30):g}m"
-    return f"sim:{physics}:{traj}@{alt_s}"
+    return f"sim:{physics_label(cfg)}:{traj}@{alt_s}"
 
 
 def evaluate_sim(
@@ -127,7 +136,6 @@ def evaluate_sim(
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
     from mission.localize.dataset import FlightSimulator, dataset_config, load_dataset, read_manifest
-    from mission.localize.features import FeatureConfig
     from mission.localize.onnx_model import OnnxLocalizer
 
     m = read_manifest(dataset)
@@ -137,8 +145,8 @@ def evaluate_sim(
     truth = None
     for mp in models:
         loc = OnnxLocalizer(mp)
-        if loc.cfg.to_dict() != FeatureConfig.normalised(m["feature_config"]):
-            key = loc.cfg.mismatch(m["feature_config"])
+        key = loc.cfg.mismatch(m["feature_config"])
+        if key is not None:
             raise InputError(
                 f"model's feature configuration differs from the test set's ({key})", source=str(mp)
             )
@@ -168,13 +176,14 @@ def evaluate_sim(
         locs = {}
         for c in classical:
             method, kw = parse_method(c)
+            model, params, preset = grid_physics(kw, gp)
             locs[c] = make_localizer(
                 method,
-                physics_model=kw.get("model", gp.get("model", "e2r")),
-                physics_params=None if "preset" in kw else gp.get("params"),
+                physics_model=model or "e2r",  # unused when a preset is given
+                physics_params=params,
                 tx_height_m=gp.get("tx_height_m", sim.spec.source.tx_height_m),
                 area=sim.spec.field.rover_area,
-                physics_preset=kw.get("preset"),
+                physics_preset=preset,
             )
         errs: dict[str, list[float]] = {c: [] for c in classical}
         for i in range(n):
@@ -237,14 +246,15 @@ def evaluate_real(
             raise InputError("real log has no truth in its sidecar", source=str(lp))
         for name, _tm, _kind, spec, mp in methods:
             method, kw = parse_method(spec) if spec != "onnx" else ("onnx", {})
+            model, params, preset = grid_physics(kw, gp)
             est = localize_log(
                 log,
                 method=method,
                 model_path=mp,
-                physics_model=None if "preset" in kw else kw.get("model", gp.get("model", "e2r")),
-                physics_params=None if "preset" in kw else gp.get("params"),
+                physics_model=model,
+                physics_params=params,
                 tx_height_m=gp.get("tx_height_m", 1.5),
-                physics_preset=kw.get("preset"),
+                physics_preset=preset,
             )
             rows[name].errors.append(float(est.error_m))
             rows[name].names.append(Path(lp).stem)

@@ -104,8 +104,9 @@ class FeatureConfig:
         return {**LATER_KEYS, **d}
 
     def mismatch(self, other: FeatureConfig | dict) -> str | None:
-        """The first key whose value differs from ``other`` (None when identical)."""
-        o = other.to_dict() if isinstance(other, FeatureConfig) else dict(other)
+        """The first key whose value differs from ``other`` (None when identical); a dict ``other`` written
+        before a later key existed counts as having that key's neutral value."""
+        o = other.to_dict() if isinstance(other, FeatureConfig) else FeatureConfig.normalised(other)
         mine = self.to_dict()
         for k in sorted(set(mine) | set(o)):
             if k not in o or k not in mine or mine[k] != o[k]:

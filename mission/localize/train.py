@@ -82,7 +82,7 @@ class TrainResult:
 
 def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of them."""
-    from mission.localize.dataset import load_dataset
+    from mission.localize.dataset import load_dataset, physics_label
     from mission.localize.features import FeatureConfig
 
     xs, ys, descr = [], [], []
@@ -102,7 +102,7 @@ def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarr
             {
                 "path": str(p),
                 "n": m["n"],
-                "model": f"preset:{cfg['physics']}" if cfg.get("physics") else cfg.get("model"),
+                "model": physics_label(cfg),
                 "seed": cfg.get("seed"),
                 "mission": cfg.get("mission"),
                 "mission_name": m.get("mission_name"),

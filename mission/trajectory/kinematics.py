@@ -146,6 +146,21 @@ def _smooth(x: np.ndarray, dt: float, tau: float) -> np.ndarray:
     return gaussian_filter1d(x, sigma, axis=0, mode="nearest")
 
 
+def _course_yaw(vel: np.ndarray, dt: float, kin: Kinematics) -> np.ndarray:
+    """Yaw (unwrapped, radians) following the course over ground, held while hovering, rate limited."""
+    speed_h = np.linalg.norm(vel[:, :2], axis=1)
+    course = np.arctan2(vel[:, 0], vel[:, 1])  # clockwise from north
+    moving = speed_h > 0.3
+    # hold the last course while hovering (vectorised forward fill)
+    idx = np.where(moving, np.arange(len(vel)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = np.argmax(moving) if moving.any() else 0
+    yaw = np.where(moving.any(), course[np.maximum(idx, first)], 0.0)
+    yaw = np.unwrap(yaw)
+    # rate limit by smoothing the unwrapped yaw (a turn of 90 deg takes about 90/yaw_rate s)
+    return _smooth(yaw, dt, max(kin.response_s, 0.5 * np.pi / np.deg2rad(kin.yaw_rate_dps) / 2))
+
+
 def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None = None,
                          wind_ne: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path.
@@ -158,19 +173,10 @@ def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None 
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     vel = _smooth(np.gradient(pos, t, axis=0), dt, kin.response_s) if len(t) > 1 else np.zeros_like(pos)
     acc = _smooth(np.gradient(vel, t, axis=0), dt, kin.response_s) if len(t) > 1 else np.zeros_like(pos)
-    speed_h = np.linalg.norm(vel[:, :2], axis=1)
-    course = np.arctan2(vel[:, 0], vel[:, 1])  # clockwise from north
-    moving = speed_h > 0.3
-    # hold the last course while hovering (vectorised forward fill)
-    idx = np.where(moving, np.arange(len(t)), 0)
-    np.maximum.accumulate(idx, out=idx)
-    first = np.argmax(moving) if moving.any() else 0
-    yaw = np.where(moving.any(), course[np.maximum(idx, first)], 0.0)
-    yaw = np.unwrap(yaw)
-    # rate limit by smoothing the unwrapped yaw (a turn of 90 deg takes about 90/yaw_rate s)
-    yaw = _smooth(yaw, dt, max(kin.response_s, 0.5 * np.pi / np.deg2rad(kin.yaw_rate_dps) / 2))
     if kin.heading_deg is not None:  # fixed-heading flight: the nose never turns
         yaw = np.full(len(t), np.deg2rad(kin.heading_deg))
+    else:
+        yaw = _course_yaw(vel, dt, kin)
     air = vel[:, :2] - (0.0 if wind_ne is None else np.asarray(wind_ne)[..., [1, 0]])
     k_drag = np.tan(np.deg2rad(kin.drag_pitch_deg_per_mps)) * G  # m/s^2 per m/s
     a_cmd = acc[:, :2] + k_drag * air  # thrust must supply this horizontal acceleration (east, north)
