@@ -34,6 +34,7 @@ from mission.gap.align import Flight
 from mission.gap.candidates import Candidate, describe_params
 from mission.gap.pipeline import Pipeline
 from mission.gap.stats import block_length, bootstrap_mean, summarize
+from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
 
 
 @dataclass(frozen=True)
@@ -86,31 +87,6 @@ def decimate(idx: np.ndarray, n_max: int) -> np.ndarray:
     return idx[:: int(np.ceil(len(idx) / n_max))]
 
 
-def offset_residual(meas: np.ndarray, pred: np.ndarray, slope: bool = False, loss: str = "l2",
-                    f_scale: float = 6.0) -> np.ndarray:
-    """meas - (c + s pred) with c (and s) fitted: least squares, or median-based for soft_l1."""
-    if meas.size == 0:
-        return meas.copy()
-    if slope and meas.size > 2 and np.std(pred) > 1e-9:
-        s, c = np.polyfit(pred, meas, 1)
-        r = meas - (c + s * pred)
-    else:
-        r = meas - pred
-        r = r - (np.median(r) if loss != "l2" else np.mean(r))
-    if loss != "l2":  # one IRLS step of the offset under soft-L1
-        w = 1.0 / np.sqrt(1.0 + (r / f_scale) ** 2)
-        r = r - np.sum(w * r) / np.sum(w)
-    return r
-
-
-def per_sample_loss(r: np.ndarray, cfg: FitConfig) -> np.ndarray:
-    """Squared error or 2 f^2 (sqrt(1 + (r/f)^2) - 1) (soft-L1, ~ r^2 for small r)."""
-    if cfg.loss == "l2":
-        return r * r
-    f = cfg.f_scale_db
-    return 2.0 * f * f * (np.sqrt(1.0 + (r / f) ** 2) - 1.0)
-
-
 def residuals(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], cfg: FitConfig,
               cache: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse)."""
@@ -129,7 +105,7 @@ def objective(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarra
     """Mean per-sample loss over the given samples of all flights."""
     rs = residuals(pipe, flights, idx, cfg, cache)
     n = sum(len(r) for r in rs)
-    return float(sum(per_sample_loss(r, cfg).sum() for r in rs) / max(n, 1))
+    return float(sum(per_sample_loss(r, cfg.loss, cfg.f_scale_db).sum() for r in rs) / max(n, 1))
 
 
 def _start_grid(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()) -> list[tuple[float, ...]]:
@@ -264,11 +240,11 @@ def compare(base_res: Sequence[np.ndarray], new_res: Sequence[np.ndarray], cfg: 
     ds, Ls = [], []
     for a, b in zip(base_res, new_res, strict=True):
         ok = np.isfinite(a) & np.isfinite(b)
-        d = per_sample_loss(a[ok], cfg) - per_sample_loss(b[ok], cfg)
+        d = per_sample_loss(a[ok], cfg.loss, cfg.f_scale_db) - per_sample_loss(b[ok], cfg.loss, cfg.f_scale_db)
         ds.append(d)
         Ls.append(block_length(d) if d.size > 3 else 1)
     alld = np.concatenate(ds)
-    base_loss = float(np.mean(per_sample_loss(_pooled(base_res), cfg)))
+    base_loss = float(np.mean(per_sample_loss(_pooled(base_res), cfg.loss, cfg.f_scale_db)))
     mean = float(alld.mean()) if alld.size else 0.0
     boot = bootstrap_mean([d for d in ds if d.size], [L for d, L in zip(ds, Ls, strict=True) if d.size],
                           cfg.n_boot, rng)

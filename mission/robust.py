@@ -1,0 +1,82 @@
+"""Offset-invariant robust residuals: one home for the free RSS offset and the soft-L1 / Huber / L2 losses.
+
+Why: a real receiver's dB carry an unknown constant offset (SPEC section 5), so every comparison of a model
+with measured RSS removes a constant fitted on the very samples being scored, and real flights have deep
+fades, so the fit uses a robust loss.  The localizer's grid search (``mission.localize.classical``), the gap
+diagnosis (``mission.gap.fit``) and the calibration all need the same two things, written once here:
+
+- ``robust_offset``: the offset of residuals under a robust loss: the median as a start, then one Huber
+  IRLS step with weights ``w = min(1, f / |r - median|)`` (closed form, vectorised over leading axes);
+- ``rho`` / ``per_sample_loss``: ``f^2 rho(r / f)`` with ``rho(z) = z^2`` (l2),
+  ``2 (sqrt(1 + z^2) - 1)`` (soft_l1, the ``scipy.optimize.least_squares`` definition) or
+  ``z^2 if |z| <= 1 else 2 |z| - 1`` (huber); all three are ~ r^2 for |r| << f.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mission.errors import InputError
+
+LOSSES = ("l2", "soft_l1", "huber")
+
+
+def rho(z: np.ndarray, loss: str) -> np.ndarray:
+    """Dimensionless loss of the scaled residual ``z = r / f`` (``LOSSES``); unknown names raise InputError."""
+    z = np.asarray(z, dtype=float)
+    if loss == "l2":
+        return z * z
+    if loss == "soft_l1":
+        return 2.0 * (np.sqrt(1.0 + z * z) - 1.0)
+    if loss == "huber":
+        a = np.abs(z)
+        return np.where(a <= 1.0, z * z, 2.0 * a - 1.0)
+    raise InputError(f"unknown loss {loss!r} (expected {', '.join(LOSSES)})", field="loss")
+
+
+def per_sample_loss(r: np.ndarray, loss: str = "l2", f_scale: float = 6.0) -> np.ndarray:
+    """``f^2 rho(r / f)`` in dB^2 (equals r^2 for l2 whatever ``f_scale``)."""
+    if loss == "l2":
+        r = np.asarray(r, dtype=float)
+        return r * r
+    return f_scale * f_scale * rho(np.asarray(r, dtype=float) / f_scale, loss)
+
+
+def robust_offset(resid: np.ndarray, f_scale: float = 6.0, axis: int = -1) -> np.ndarray:
+    """Offset of ``resid`` along ``axis``: median, then one Huber IRLS step (weights min(1, f / |r - med|))."""
+    resid = np.asarray(resid, dtype=float)
+    off = np.median(resid, axis=axis, keepdims=True)
+    z = resid - off
+    w = np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
+    off = off + np.sum(w * z, axis=axis, keepdims=True) / np.sum(w, axis=axis, keepdims=True)
+    return np.squeeze(off, axis=axis)
+
+
+def robust_cost(resid: np.ndarray, loss: str = "soft_l1", f_scale: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    """Offset and mean robust cost along the last axis of ``resid`` (e.g. (K candidates, N samples) -> (K,)).
+
+    The offset is ``robust_offset`` for every loss (the grid search's convention); the cost is the mean of
+    ``per_sample_loss`` of the offset-removed residuals.
+    """
+    resid = np.asarray(resid, dtype=float)
+    off = robust_offset(resid, f_scale, axis=-1)
+    z = (resid - off[..., None]) / f_scale
+    return off, f_scale**2 * rho(z, loss).mean(axis=-1)
+
+
+def offset_residual(meas: np.ndarray, pred: np.ndarray, slope: bool = False, loss: str = "l2",
+                    f_scale: float = 6.0) -> np.ndarray:
+    """``meas - (c + s pred)`` with the free constants fitted: the offset ``c`` is the mean (l2) or
+    ``robust_offset`` (soft_l1, huber); with ``slope`` also a path-gain slope ``s`` (least squares)."""
+    meas = np.asarray(meas, dtype=float)
+    pred = np.asarray(pred, dtype=float)
+    if meas.size == 0:
+        return meas.copy()
+    if slope and meas.size > 2 and np.std(pred) > 1e-9:
+        s, c = np.polyfit(pred, meas, 1)
+        return meas - (c + s * pred)
+    r = meas - pred
+    if loss == "l2":
+        return r - np.mean(r)
+    rho(np.zeros(1), loss)  # validates the name
+    return r - robust_offset(r, f_scale)
