@@ -25,6 +25,10 @@ from mission.geo import Origin
 COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
+# Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of PHASES,
+# ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the mission phase).
+PHASES = ("ground", "takeoff", "mission", "return", "land")
+PHASE_COLUMNS = ("phase", "mission_item")
 
 
 def sidecar_path(csv_path: str | Path) -> Path:
@@ -100,20 +104,36 @@ def _fmt(a: np.ndarray, digits: int) -> np.ndarray:
     return np.where(np.isnan(a), "", s)
 
 
-_DIGITS = {"t_s": 4, "lat_deg": 9, "lon_deg": 9, "alt_m": 3, "rel_alt_m": 3, "roll_deg": 3,
-           "pitch_deg": 3, "yaw_deg": 3, "rss_dbm": 4}
+DIGITS = {"t_s": 4, "lat_deg": 9, "lon_deg": 9, "alt_m": 3, "rel_alt_m": 3, "roll_deg": 3,
+          "pitch_deg": 3, "yaw_deg": 3, "rss_dbm": 4, "mission_item": 0}
+DEFAULT_DIGITS = 6
+
+
+def rounded(values, column: str) -> np.ndarray:
+    """``values`` rounded exactly as the log writes ``column`` (decimal text read back): logged == used."""
+    return np.char.mod(f"%.{DIGITS.get(column, DEFAULT_DIGITS)}f", np.asarray(values, dtype=float)).astype(float)
 
 
 def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
-    """CSV text (no header) for column arrays, vectorised; NaN becomes an empty field."""
+    """CSV text (no header) for column arrays, vectorised; NaN becomes an empty field.
+
+    Numeric columns get the digits of ``DIGITS``; text columns (str/object arrays such as ``phase``) are
+    written as they are and must not contain commas, quotes or newlines.
+    """
     n = len(columns["t_s"])
     if n == 0:
         return ""
     cols = []
     for c in header:
         v = columns.get(c)
+        if v is not None and np.asarray(v).dtype.kind in "OUS":
+            text = np.asarray(v).astype(str)
+            if any(ch in "".join(np.unique(text)) for ch in ',"\n\r'):
+                raise ValueError(f"text column {c!r} holds a comma, quote or newline")
+            cols.append(text)
+            continue
         v = np.full(n, np.nan) if v is None else np.asarray(v, dtype=float)
-        cols.append(_fmt(v, _DIGITS.get(c, 6)))
+        cols.append(_fmt(v, DIGITS.get(c, DEFAULT_DIGITS)))
     lines = cols[0]
     for c in cols[1:]:
         lines = np.char.add(np.char.add(lines, ","), c)
@@ -172,8 +192,9 @@ class FlightLogWriter:
 
 
 def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict) -> Path:
-    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator."""
-    with FlightLogWriter(path, meta) as w:
+    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond ``COLUMNS``
+    (such as ``PHASE_COLUMNS``) are written after them in the dict's order."""
+    with FlightLogWriter(path, meta, extra_columns=tuple(c for c in columns if c not in COLUMNS)) as w:
         w.append(columns)
     return Path(path)
 
