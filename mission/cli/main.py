@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from mission import __version__
 from mission.errors import InputError
@@ -38,8 +40,81 @@ def _available() -> dict[str, tuple[object, str]]:
     return mods
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with the project's error convention: one line naming the argument and exit code 2 (the usage
+    text is one ``--help`` away; a wall of usage hides which argument was wrong)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
+# A value that starts with a minus and a digit: a negative number or a list such as -100,200,1.5.
+_NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+
+
+def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -> list[str]:
+    """``--tx -100,200,1.5`` -> ``--tx=-100,200,1.5`` for options that take one value.
+
+    argparse reads a token starting with '-' as an option unless it is a plain negative number, so negative
+    coordinates (normal in the local ENU frame) failed as "expected one argument".
+    """
+    takes_value: set[str] = set()
+    stack = [parser]
+    while stack:
+        p = stack.pop()
+        for a in p._actions:
+            if a.option_strings and a.nargs is None:
+                takes_value.update(a.option_strings)
+            if isinstance(a, argparse._SubParsersAction):
+                stack.extend(a.choices.values())
+    out: list[str] = []
+    for tok in argv:
+        if out and out[-1] in takes_value and _NEGATIVE_VALUE.match(tok):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
+def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
+    """``parser.parse_args`` with negative option values accepted (``join_negative_values``)."""
+    return parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
+
+
+def console(stderr: bool = False):
+    """A rich Console that does not fold long lines mid-word when the output is a file or a pipe."""
+    from rich.console import Console
+
+    stream = sys.stderr if stderr else sys.stdout
+    return Console(stderr=stderr, soft_wrap=not stream.isatty())
+
+
+def print_notes(notes: Sequence[str]) -> None:
+    """Print what was accepted with a remark (a real-log quirk, a missing sidecar) as one stderr line each."""
+    for n in notes:
+        print(f"note: {n}", file=sys.stderr)
+
+
+def image_out(path: str | Path, flag: str = "--out") -> Path:
+    """Check an image output path before any heavy work: a format matplotlib writes, not a directory."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError("is a directory; give an image file name such as plot.png", source=str(p), field=flag)
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = p.suffix.lower().lstrip(".")
+    if suffix not in formats:
+        raise InputError(f"unknown image format '{p.suffix or '(no suffix)'}'; use one of "
+                          f"{', '.join('.' + f for f in sorted(formats))}", source=str(p), field=flag)
+    for parent in p.parents:
+        if parent.exists() and not parent.is_dir():
+            raise InputError(f"{parent} is a file, not a folder", source=str(p), field=flag)
+    return p
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="rfsl", description="UAV-based RF source localization toolkit (see README.md).")
     parser.add_argument("--version", action="version", version=f"rfsl {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -64,15 +139,15 @@ def run_guarded(fn: Callable[[], int | None]) -> int:
 
 def standalone_main(prog: str, module, argv: Sequence[str] | None = None) -> int:
     """Entry point of a console script (``fly-mission``, ``localize``) that is also an ``rfsl`` subcommand."""
-    parser = argparse.ArgumentParser(prog=prog, description=(module.__doc__ or "").strip().splitlines()[0])
+    parser = OneLineParser(prog=prog, description=(module.__doc__ or "").strip().splitlines()[0])
     module.add_arguments(parser)
-    args = parser.parse_args(argv)
+    args = parse_args(parser, argv)
     return run_guarded(lambda: module.run(args))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_args(parser, argv)
     return run_guarded(lambda: args._run(args))
 
 
