@@ -20,7 +20,7 @@ import numpy as np
 
 from mission import __version__
 from mission.errors import InputError
-from mission.geo import Origin
+from mission.geo import Origin, latlon_unit_problem
 
 COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
@@ -43,6 +43,7 @@ class FlightLog:
     columns: dict[str, np.ndarray]
     meta: dict = field(default_factory=dict)
     path: Path | None = None
+    notes: list[str] = field(default_factory=list)  # what reading accepted with a remark (CLIs print them)
 
     def __len__(self) -> int:
         return len(self.columns["t_s"])
@@ -86,7 +87,7 @@ class FlightLog:
 
     def select(self, mask: np.ndarray) -> FlightLog:
         """A new log holding only the rows where ``mask`` is true."""
-        return FlightLog({k: v[mask] for k, v in self.columns.items()}, dict(self.meta), self.path)
+        return FlightLog({k: v[mask] for k, v in self.columns.items()}, dict(self.meta), self.path, list(self.notes))
 
 
 def make_meta(origin: Origin, rss_source: dict, truth: dict | None = None, **extra) -> dict:
@@ -224,19 +225,28 @@ def _parse_column(values: list[str], name: str, source: str, allow_empty: bool) 
     return out
 
 
-def read_flight_log(path: str | Path) -> FlightLog:
+def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog:
     """Read and validate a flight log; any problem is an ``InputError`` naming the file, row and column.
 
-    Rows are numbered as lines of the file (the header is line 1).
+    Rows are numbered as lines of the file (the header is line 1).  Real-log quirks are accepted with a
+    note in ``FlightLog.notes``: repeated timestamps (first kept), a last line cut short by a crash
+    (dropped), a missing sidecar, a flight the sidecar says did not complete.  ``origin`` (e.g. from
+    ``--origin``) replaces the sidecar's.
     """
     path = Path(path)
     src = str(path)
+    if path.is_dir():
+        some = ", ".join(p.name for p in sorted(path.glob("*.csv"))[:3])
+        raise InputError(f"is a directory, not a flight-log CSV{f' (it holds {some})' if some else ''}", source=src)
     if not path.exists():
         raise InputError("no such flight log", source=src)
     try:
         text = path.read_text()
     except UnicodeDecodeError:
         raise InputError("not a text CSV file", source=src) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", source=src) from None
+    notes: list[str] = []
     reader = csv.reader(io.StringIO(text))
     try:
         header = [h.strip() for h in next(reader)]
@@ -246,6 +256,11 @@ def read_flight_log(path: str | Path) -> FlightLog:
     if missing:
         raise InputError(f"missing required column(s) {', '.join(missing)}; header is {','.join(header)}",
                          source=src)
+    text, cut = _drop_cut_last_line(text, header)
+    if cut:
+        notes.append(cut)
+        reader = csv.reader(io.StringIO(text))
+        next(reader)
     fast = _fast_numeric(text, header)
     if fast is not None:
         columns = dict(zip(header, fast.T, strict=True))
@@ -258,7 +273,37 @@ def read_flight_log(path: str | Path) -> FlightLog:
         columns, n = _slow_parse(reader, header, src)
     for c in OPTIONAL:
         columns.setdefault(c, np.full(n, np.nan))
-    return _validated(columns, path, src)
+    return _validated(columns, path, src, notes, origin)
+
+
+def _drop_cut_last_line(text: str, header: list[str]) -> tuple[str, str | None]:
+    """Drop a last line cut short (fields missing, a required value empty or unreadable) and say so.
+
+    Why: a logger killed mid-write leaves exactly this, and the rows before it are good; the same damage
+    in the middle of a file is refused by the parser with its row.
+    """
+    lines = text.rstrip().splitlines()
+    if len(lines) < 3:  # header + one data row: nothing would be left, let the parser report it
+        return text, None
+    fields = next(csv.reader([lines[-1]]), [])
+    reason = None
+    if len(fields) != len(header):
+        reason = f"{len(fields)} of {len(header)} fields"
+    else:
+        for name, v in zip(header, fields, strict=True):
+            if name not in COLUMNS or (not v.strip() and name not in REQUIRED):
+                continue
+            try:
+                ok = np.isfinite(float(v))
+            except ValueError:
+                ok = False
+            if not ok:
+                reason = f"field '{name}' is {v.strip()!r}"
+                break
+    if reason is None:
+        return text, None
+    return ("\n".join(lines[:-1]) + "\n",
+            f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger stops mid-write")
 
 
 def _fast_numeric(text: str, header: list[str]) -> np.ndarray | None:
@@ -309,13 +354,19 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
     return columns, len(rows)
 
 
-def _validated(columns: dict[str, np.ndarray], path: Path, src: str) -> FlightLog:
-    """Check time order, units and ranges; attach the sidecar."""
+# Magnitudes no real value reaches: a larger one is a unit or logging error, not data (1e300 dBm gave NaN).
+_ABS_LIMITS = {"rss_dbm": 400.0, "alt_m": 20000.0, "rel_alt_m": 20000.0}
+
+
+def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list[str] | None = None,
+               origin: Origin | None = None) -> FlightLog:
+    """Check time order, units and ranges; attach the sidecar; drop repeated timestamps with a note."""
+    notes = [] if notes is None else notes
     t = columns["t_s"]
-    bad = np.flatnonzero(np.diff(t) <= 0)
+    bad = np.flatnonzero(np.diff(t) < 0)
     if bad.size:
         i = int(bad[0]) + 1
-        raise InputError(f"time is not increasing ({t[i - 1]} then {t[i]})", source=src, row=i + 2, field="t_s")
+        raise InputError(f"time goes backwards ({t[i - 1]} then {t[i]})", source=src, row=i + 2, field="t_s")
     lat, lon = columns["lat_deg"], columns["lon_deg"]
     for name, arr, lim in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
         badv = np.flatnonzero(np.abs(arr) > lim)
@@ -327,11 +378,78 @@ def _validated(columns: dict[str, np.ndarray], path: Path, src: str) -> FlightLo
         if badv.size:
             raise InputError(f"{columns[name][badv[0]]} is outside +-180 degrees (radians given?)", source=src,
                              row=int(badv[0]) + 2, field=name)
-    meta: dict = {}
+    for name, lim in _ABS_LIMITS.items():
+        badv = np.flatnonzero(np.abs(columns[name]) > lim)
+        if badv.size:
+            raise InputError(f"{columns[name][badv[0]]:g} is not a plausible value (|value| > {lim:g})", source=src,
+                             row=int(badv[0]) + 2, field=name)
+    meta = _read_sidecar(path, notes)
+    if origin is not None:
+        meta["origin"] = origin.to_dict()
+    problem = latlon_unit_problem(lat, lon, Origin.from_dict(meta["origin"]) if "origin" in meta else None)
+    if problem:
+        raise InputError(problem[1], source=src, row=problem[0] + 2, field="lat_deg")
+    dup = np.diff(t) == 0
+    if dup.any():
+        keep = np.concatenate([[True], ~dup])
+        columns = {k: v[keep] for k, v in columns.items()}
+        notes.append(f"dropped {int(dup.sum())} row(s) whose time repeats the previous row's (first kept), "
+                     f"e.g. row {int(np.argmax(dup)) + 3}")
+    n = len(columns["t_s"])
+    if n < 2:
+        raise InputError(f"only {n} data row; a flight log needs at least 2", source=src)
+    return FlightLog(columns, meta, path, notes)
+
+
+def _read_sidecar(path: Path, notes: list[str]) -> dict:
+    """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and key)."""
     sc = sidecar_path(path)
-    if sc.exists():
-        try:
-            meta = json.loads(sc.read_text())
-        except json.JSONDecodeError as e:
-            raise InputError(f"sidecar is not valid JSON ({e.msg} at line {e.lineno})", source=str(sc)) from None
-    return FlightLog(columns, meta, path)
+    if not sc.exists():
+        notes.append(f"no sidecar {sc.name}: read as an uncalibrated receiver log with its origin at the first "
+                     "sample and no truth (give --origin LAT,LON[,ALT] for the mission's frame, --truth LAT,LON)")
+        return {}
+    try:
+        meta = json.loads(sc.read_text())
+    except json.JSONDecodeError as e:
+        raise InputError(f"sidecar is not valid JSON ({e.msg} at line {e.lineno})", source=str(sc)) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read the sidecar ({e})", source=str(sc)) from None
+    if not isinstance(meta, dict):
+        raise InputError(f"sidecar must be a JSON object, got {type(meta).__name__}", source=str(sc))
+
+    def num(d: dict, key: str, where: str, lim: float | None = None, required: bool = True) -> None:
+        v = d.get(key)
+        if v is None and not required:
+            return
+        ok = isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+        if not ok or (lim is not None and abs(v) > lim):
+            what = f"a number within +-{lim:g}" if lim is not None else "a finite number"
+            raise InputError(f"expected {what}, got {v!r}", source=str(sc), field=f"{where}.{key}")
+
+    o = meta.get("origin")
+    if o is not None:
+        if not isinstance(o, dict):
+            raise InputError("expected {lat_deg, lon_deg, alt_m}", source=str(sc), field="origin")
+        num(o, "lat_deg", "origin", 90.0)
+        num(o, "lon_deg", "origin", 180.0)
+        num(o, "alt_m", "origin", _ABS_LIMITS["alt_m"], required=False)
+    tr = meta.get("truth")
+    if tr:
+        if not isinstance(tr, dict):
+            raise InputError("expected {lat_deg, lon_deg, height_m} or {x_m, y_m, z_m}", source=str(sc),
+                             field="truth")
+        if "x_m" in tr:
+            for k in ("x_m", "y_m", "z_m"):
+                num(tr, k, "truth", 1e6, required=k != "z_m")
+        else:
+            num(tr, "lat_deg", "truth", 90.0)
+            num(tr, "lon_deg", "truth", 180.0)
+        for k in ("z_m", "height_m"):
+            num(tr, k, "truth", 1e4, required=False)
+            if tr.get(k) is not None and tr[k] < 0:
+                raise InputError(f"transmitter below ground ({tr[k]:g} m)", source=str(sc), field=f"truth.{k}")
+    status = meta.get("status")
+    if status is not None and status != "completed":
+        notes.append(f"the sidecar says the flight did not complete (status {status!r}): the log may end early "
+                     "or miss part of the pattern")
+    return meta

@@ -127,6 +127,35 @@ class Field:
     takeoff_home: tuple[float, float] | None = None  # lat, lon
 
 
+MAX_FLIGHT_KM = 200.0  # a sample farther than this from its mission origin is not a position in degrees
+
+
+def latlon_unit_problem(lat, lon, origin: Origin | None) -> tuple[int, str] | None:
+    """Index and reason of the first lat/lon sample that cannot be a flight position in degrees, or None.
+
+    Why: radians pass the +-90/+-180 range check and then give NaN fits or estimates thousands of km away.
+    With an origin, any sample more than ``MAX_FLIGHT_KM`` from it is wrong; without one, a whole track
+    within +-pi/2, +-pi is taken for radians (a flight near 0 N 0 E needs a sidecar with its origin).
+    """
+    lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
+    if lat.size == 0:
+        return None
+    radians = bool(np.all(np.abs(lat) <= np.pi / 2) and np.all(np.abs(lon) <= np.pi))
+    hint = (f" (radians? in degrees that is {np.degrees(lat[0]):.5f}, {np.degrees(lon[0]):.5f})"
+            if radians else " (wrong units?)")
+    if origin is None:
+        return (0, f"the whole track lies within +-pi/2, +-pi{hint}") if radians else None
+    dlat = np.radians(lat - origin.lat_deg)
+    dlon = np.radians((lon - origin.lon_deg + 180.0) % 360.0 - 180.0) * np.cos(np.radians(origin.lat_deg))
+    km = 6371.0 * np.hypot(dlat, dlon)
+    far = np.flatnonzero(km > MAX_FLIGHT_KM)
+    if not far.size:
+        return None
+    i = int(far[0])
+    return i, (f"{lat[i]:g}, {lon[i]:g} is {km[i]:,.0f} km from the origin "
+               f"{origin.lat_deg:.5f}, {origin.lon_deg:.5f}{hint}")
+
+
 AFAR_GEOMETRY = {
     "field": "AERPAW Lake Wheeler Road Field Labs, AFAR challenge (December 2023)",
     "source": "AFAR_Drone.kml / AFAR_Rover.kml of SunLab-UGA/AERPAW_AFAR (commit aeb1a793)",

@@ -62,7 +62,7 @@ def test_extra_columns_are_kept(tmp_path):
     (lambda L: L[:3] + [L[3].replace(L[3].split(",")[-1], "nan")] + L[4:], r"row 4, field 'rss_dbm': NaN"),
     (lambda L: L[:2] + [L[2].replace(L[2].split(",")[-1], "abc")] + L[3:], r"row 3, field 'rss_dbm': not a number"),
     (lambda L: L[:5] + [L[5].replace(L[5].split(",")[0], "0.0000", 1)] + L[6:],
-     r"row 6, field 't_s': time is not increasing"),
+     r"row 6, field 't_s': time goes backwards"),
     (lambda L: L[:2] + [L[2] + ",9"] + L[3:], r"row 3: expected 9 fields, found 10"),
     (lambda L: L[:1], "no data rows"),
 ])
