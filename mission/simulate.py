@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mission.geo import Origin
+from mission.physics.shadowing import shadowing_field  # noqa: F401  (its home; re-exported)
 from mission.trajectory.kinematics import FlightProfile, Kinematics, attitude_from_motion, plan_profile
 
 
@@ -118,30 +119,3 @@ def simulate_flight(waypoints_enu: np.ndarray, tx_enu: np.ndarray, model, cfg: S
         rss = rss + shadowing_field(pos[:, :2], cfg.shadowing_db, cfg.shadowing_corr_m, rng)
     return SimulatedFlight(t, pos, att, rss, profile)
 
-
-def shadowing_field(xy: np.ndarray, sigma_db: float, corr_m: float, rng: np.random.Generator,
-                    cells_per_corr: float = 4.0) -> np.ndarray:
-    """Zero-mean Gaussian shadowing (dB) at positions ``xy`` (N, 2): one random field per call.
-
-    White noise on a grid (``corr_m / cells_per_corr`` cells, at least 1 m) is smoothed by a Gaussian of
-    ``corr_m / 2``, which gives the correlation ``exp(-d**2 / corr_m**2)`` (1/e at ``corr_m``), scaled to
-    std ``sigma_db`` over the grid and read at ``xy`` by bilinear interpolation.  A UAV passing the same
-    place twice sees the same shadowing, which independent per-sample noise cannot reproduce.
-    """
-    from scipy.ndimage import gaussian_filter, map_coordinates
-
-    xy = np.asarray(xy, dtype=float)
-    if sigma_db <= 0 or len(xy) == 0:
-        return np.zeros(len(xy))
-    if corr_m <= 0:
-        raise ValueError(f"shadowing correlation distance must be > 0, got {corr_m}")
-    res = max(corr_m / cells_per_corr, 1.0)
-    s_cells = 0.5 * corr_m / res
-    pad = 3.0 * corr_m
-    lo = xy.min(axis=0) - pad
-    shape = np.ceil((xy.max(axis=0) + pad - lo) / res).astype(int) + 1
-    white = rng.standard_normal(tuple(shape))
-    g = gaussian_filter(white, s_cells, mode="wrap")
-    g *= sigma_db / max(float(g.std()), 1e-12)
-    coords = ((xy - lo) / res).T
-    return map_coordinates(g, coords, order=1, mode="nearest")

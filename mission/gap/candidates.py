@@ -29,57 +29,31 @@ without yaw a heading is a fixed compass direction, with yaw and a wrong heading
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from mission.gap.align import Flight
+from mission.gap.candidate import Candidate, Param
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
+from mission.gap.spatial import KrigedShadowing, spatial_candidate
 from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
 from mission.physics.antenna import Dipole, Isotropic, Pattern, rm_wb1_dn
 from mission.physics.constants import LEG_AZIMUTHS_DEG
+from mission.physics.shadowing import RandomField
 
-
-@dataclass(frozen=True)
-class Param:
-    """A continuous parameter: bounds, a coarse start grid and (for angles) a period."""
-
-    name: str
-    lo: float
-    hi: float
-    grid: tuple[float, ...]
-    period: float | None = None
-    unit: str = ""
-
-
-Builder = Callable[[Pipeline, dict[str, float], dict[str, Any]], Pipeline]
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """One candidate effect (see the module table)."""
-
-    name: str
-    description: str
-    params: tuple[Param, ...]
-    build: Builder
-    applicable: Callable[[Pipeline], bool]
-    withhold: Callable[[Pipeline], Pipeline]
-    choices: Callable[[Pipeline], Sequence[dict[str, Any]]] = field(default=lambda p: ({},))
-    post_only: bool = False  # only changes the post-processing (the channel prediction can be cached)
-    direct_fit: Callable[..., tuple[Pipeline, dict[str, Any]]] | None = None
-    params_of: Callable[[Pipeline], tuple[Param, ...]] | None = None  # parameters that depend on the pipeline
-
-    def params_for(self, p: Pipeline) -> tuple[Param, ...]:
-        """The parameters fitted on top of ``p`` (``params`` unless they depend on the pipeline)."""
-        return self.params if self.params_of is None else self.params_of(p)
+PATTERN_NAMES = ("isotropic", "dipole", "measured")
 
 
 def pattern_by_name(name: str) -> Pattern:
-    """isotropic | dipole | measured (shipped RM-WB1-DN)."""
-    return {"isotropic": Isotropic, "dipole": Dipole}.get(name, rm_wb1_dn)()
+    """isotropic | dipole | measured (shipped RM-WB1-DN); any other name raises ``InputError``."""
+    from mission.errors import InputError
+
+    makers = {"isotropic": Isotropic, "dipole": Dipole, "measured": rm_wb1_dn}
+    if name not in makers:
+        raise InputError(f"unknown antenna pattern {name!r} (expected {', '.join(PATTERN_NAMES)})", field="pattern")
+    return makers[name]()
 
 
 def pattern_name(p: Pattern) -> str:
@@ -265,197 +239,6 @@ def _receiver_candidate() -> Candidate:
         build, lambda p: p.receiver is None, withhold, post_only=True)
 
 
-# ------------------------------------------------------------------------------ spatially correlated
-
-@dataclass(frozen=True, eq=False)
-class RandomField:
-    """Truth for simulations: a Gaussian random field with exponential covariance sigma^2 exp(-h/L).
-
-    Random Fourier features: frequencies from a bivariate Cauchy (the exponential covariance's spectrum).
-    """
-
-    sigma_db: float
-    corr_len_m: float
-    w: np.ndarray
-    b: np.ndarray
-
-    @classmethod
-    def draw(cls, sigma_db: float, corr_len_m: float, rng: np.random.Generator, m: int = 400) -> RandomField:
-        z = rng.normal(size=(m, 2))
-        g = np.sqrt(rng.chisquare(1.0, size=(m, 1)))
-        return cls(sigma_db, corr_len_m, z / (corr_len_m * g), rng.uniform(0, 2 * np.pi, m))
-
-    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray:
-        return _memo(self, rx_xy, lambda: self.sigma_db * np.sqrt(2.0 / self.b.size)
-                     * np.cos(rx_xy @ self.w.T + self.b).sum(axis=1))
-
-
-def tx_key(tx: np.ndarray) -> tuple[float, float]:
-    """Flights share a shadowing field when their transmitters are within ~2 m."""
-    return (round(float(tx[0]) / 2.0), round(float(tx[1]) / 2.0))
-
-
-@dataclass(frozen=True, eq=False)
-class KrigedShadowing:
-    """Fitted spatial shadowing: simple kriging (exponential covariance + nugget) of training residuals.
-
-    Training residuals are averaged in square cells of ``cell_m`` first (the samples of one pass are not
-    independent anyway); one set of points per transmitter position (``tx_key``).
-    """
-
-    sigma_db: float
-    corr_len_m: float
-    nugget_db: float
-    points: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]  # key -> (xy, mean, count)
-
-    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray:
-        key = tx_key(flight.tx_enu)
-        pts = self.points.get(key)
-        if pts is None or self.sigma_db <= 0:
-            return np.zeros(len(rx_xy))
-        return _memo(self, rx_xy, lambda: self._predict(key, rx_xy), extra=key)
-
-    def _predict(self, key: tuple[float, float], rx_xy: np.ndarray) -> np.ndarray:
-        xy, r, cnt = self.points[key]
-        s2, n2 = self.sigma_db ** 2, self.nugget_db ** 2
-        K = s2 * np.exp(-_pdist(xy, xy) / self.corr_len_m) + np.diag(n2 / np.minimum(cnt, 20.0) + 1e-6 * s2)
-        alpha = np.linalg.solve(K, r)
-        out = np.empty(len(rx_xy))
-        for s in range(0, len(rx_xy), 4096):
-            k = s2 * np.exp(-_pdist(rx_xy[s: s + 4096], xy) / self.corr_len_m)
-            out[s: s + 4096] = k @ alpha
-        return out
-
-
-def _memo(obj: object, xy: np.ndarray, compute: Callable[[], np.ndarray], extra: object = None) -> np.ndarray:
-    """Per-object cache of field values by the query positions (fits evaluate the same samples many times)."""
-    cache: dict = obj.__dict__.setdefault("_cache", {})
-    key = (extra, xy.shape, hash(np.ascontiguousarray(xy).tobytes()))
-    if key not in cache:
-        if len(cache) > 64:
-            cache.clear()
-        cache[key] = compute()
-    return cache[key]
-
-
-def _pdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    d = a[:, None, :] - b[None, :, :]
-    return np.sqrt((d * d).sum(-1))
-
-
-def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Average residuals in square cells: (cell centroid xy, mean residual, count)."""
-    ij = np.floor(xy / cell_m).astype(np.int64)
-    _, inv, cnt = np.unique(ij, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    sx = np.bincount(inv, weights=xy[:, 0]) / cnt
-    sy = np.bincount(inv, weights=xy[:, 1]) / cnt
-    m = np.bincount(inv, weights=r) / cnt
-    return np.column_stack([sx, sy]), m, cnt.astype(float)
-
-
-def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, max_points: int = 1500,
-                  max_lag_m: float = 150.0) -> tuple[float, float, float]:
-    """(sigma_db, corr_len_m, nugget_db) of gamma(h) = n^2 + s^2 (1 - exp(-h/L)) fitted to the empirical
-    semivariogram (least squares over a grid of L, non-negative linear fit of n^2, s^2)."""
-    from scipy.optimize import nnls
-
-    if len(r) > max_points:
-        sel = rng.choice(len(r), max_points, replace=False)
-        xy, r = xy[sel], r[sel]
-    d = _pdist(xy, xy)
-    iu = np.triu_indices(len(r), 1)
-    h = d[iu]
-    g = 0.5 * (r[:, None] - r[None, :])[iu] ** 2
-    edges = np.linspace(0.0, max_lag_m, 31)
-    b = np.digitize(h, edges) - 1
-    ok = (b >= 0) & (b < 30)
-    cnt = np.bincount(b[ok], minlength=30)
-    gm = np.bincount(b[ok], weights=g[ok], minlength=30) / np.maximum(cnt, 1)
-    hc = 0.5 * (edges[:-1] + edges[1:])
-    use = cnt >= 20
-    if use.sum() < 3:
-        return 0.0, 30.0, float(np.std(r))
-    best = (np.inf, 0.0, 30.0, float(np.std(r)))
-    w = np.sqrt(cnt[use])
-    for L in np.geomspace(3.0, 300.0, 25):
-        A = np.column_stack([np.ones(use.sum()), 1.0 - np.exp(-hc[use] / L)])
-        coef, res = nnls(A * w[:, None], gm[use] * w)
-        if res < best[0]:
-            best = (res, float(np.sqrt(coef[1])), float(L), float(np.sqrt(coef[0])))
-    return best[1], best[2], best[3]
-
-
-KRIGING_CELL_M = 5.0
-KRIGING_LENGTHS_M = (10.0, 20.0, 35.0, 60.0, 100.0, 170.0)
-KRIGING_NUGGET_FRACTIONS = (0.1, 0.3, 0.6)
-
-
-def _group_cells(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
-                 cell_m: float) -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    groups: dict[tuple[float, float], list[tuple[np.ndarray, np.ndarray]]] = {}
-    for f, i, rr in zip(flights, idx, resid, strict=True):
-        if len(i):
-            groups.setdefault(tx_key(f.tx_enu), []).append((f.rx_enu[i, :2], rr))
-    return {k: cell_means(np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v]), cell_m)
-            for k, v in groups.items()}
-
-
-def choose_kriging(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
-                   period_s: float = 30.0) -> tuple[float, float, float]:
-    """(sigma_db, corr_len_m, nugget_db) by inner two-fold cross-validation on the training samples.
-
-    The training samples are split again into alternating ``period_s`` stretches of flight; each grid point
-    (correlation length x nugget fraction, sigma^2 + nugget^2 = residual variance) krigs one half from the
-    other; the pair with the smallest prediction error wins.  Chosen this way because the variogram of a
-    30 Hz track is dominated by along-track pairs and underestimates the across-track correlation length.
-    """
-    r_all = np.concatenate(list(resid)) if resid else np.zeros(0)
-    var = float(np.var(r_all)) if r_all.size else 0.0
-    halves = []
-    for f, i in zip(flights, idx, strict=True):
-        h = (np.floor(f.t_s[i] / period_s).astype(int) % 2) if len(i) else np.zeros(0, int)
-        halves.append(h)
-    best = (np.inf, 0.0, 30.0, float(np.sqrt(var)))
-    for L in KRIGING_LENGTHS_M:
-        for frac in KRIGING_NUGGET_FRACTIONS:
-            s, n = float(np.sqrt(var * (1 - frac))), float(np.sqrt(var * frac))
-            err, cnt = 0.0, 0
-            for a in (0, 1):
-                tr = [i[h != a] for i, h in zip(idx, halves, strict=True)]
-                rt = [r[h != a] for r, h in zip(resid, halves, strict=True)]
-                kr = KrigedShadowing(s, L, n, _group_cells(flights, tr, rt, KRIGING_CELL_M))
-                for f, i, r, h in zip(flights, idx, resid, halves, strict=True):
-                    te = h == a
-                    if te.any():
-                        pred = kr.field_db(f, f.rx_enu[i[te], :2])
-                        d = r[te] - r[te].mean() - (pred - pred.mean())
-                        err += float(np.sum(d * d))
-                        cnt += int(te.sum())
-            mse = err / max(cnt, 1)
-            if mse < best[0]:
-                best = (mse, s, L, n)
-    return best[1], best[2], best[3]
-
-
-def _spatial_candidate() -> Candidate:
-    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
-        return p
-
-    def withhold(p: Pipeline) -> Pipeline:
-        return p.replace(spatial=None)
-
-    def direct_fit(p: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
-                   rng: np.random.Generator) -> tuple[Pipeline, dict[str, Any]]:
-        sigma, L, nug = choose_kriging(flights, idx, resid)
-        pts = _group_cells(flights, idx, resid, KRIGING_CELL_M)
-        field_ = KrigedShadowing(sigma, L, nug, pts)
-        return p.replace(spatial=field_), {"sigma_db": sigma, "corr_len_m": L, "nugget_db": nug}
-
-    return Candidate("spatial_shadowing", "spatially correlated shadowing (kriging of training residuals)", (),
-                     build, lambda p: p.spatial is None, withhold, direct_fit=direct_fit)
-
-
 # ------------------------------------------------------------------------------------------- library
 
 def library() -> dict[str, Candidate]:
@@ -465,7 +248,7 @@ def library() -> dict[str, Candidate]:
         _antenna_pattern_candidate("tx"), _antenna_mounting_candidate("tx"), _tx_tilt_candidate(),
         _ground_candidate(), _attitude_like_candidate(True), _attitude_like_candidate(False), _legs_candidate(),
         _path_gain_slope_candidate(),
-        _time_offset_candidate(), _receiver_candidate(), _spatial_candidate(),
+        _time_offset_candidate(), _receiver_candidate(), spatial_candidate(),
     ]
     return {c.name: c for c in cands}
 

@@ -141,7 +141,7 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], id
     idx = [decimate(i, cfg.fit_max_samples) for i in idx]
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
-        new, params = cand.direct_fit(pipe, [f for f in flights], idx, res, rng)
+        new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)
         return CandidateFit(new, params, objective(new, flights, idx, cfg))
     cache = None
     if cand.post_only:

@@ -26,7 +26,7 @@ import numpy as np
 
 from mission.gap.align import Flight
 from mission.physics import PropagationModel
-from mission.physics.constants import DIPOLE_G0
+from mission.physics.antenna import Dipole
 
 
 class SpatialField(Protocol):
@@ -69,9 +69,8 @@ class TxTilt:
 
 
 def _dipole_db(sin_el: np.ndarray) -> np.ndarray:
-    cos_el = np.sqrt(np.maximum(1.0 - sin_el * sin_el, 1e-12))
-    g = DIPOLE_G0 * (np.cos(0.5 * np.pi * sin_el) / cos_el) ** 2
-    return 10.0 * np.log10(np.maximum(g, 1e-4))
+    """The library's vertical dipole (``mission.physics.antenna.Dipole``, floor GAIN_FLOOR_DBI) at asin(sin_el)."""
+    return Dipole().gain_dbi(np.arcsin(sin_el))
 
 
 @dataclass(frozen=True)

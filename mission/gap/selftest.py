@@ -26,12 +26,13 @@ from typing import Any
 import numpy as np
 
 from mission.gap.align import Flight
-from mission.gap.candidates import RandomField, library
+from mission.gap.candidates import library
 from mission.gap.fit import FitConfig, make_folds, rank_candidates
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
 from mission.gap.stats import summarize
 from mission.physics import Attitude, PathGainSlope, make_model
 from mission.physics.antenna import rm_wb1_dn
+from mission.physics.shadowing import RandomField
 
 NOISE_DB = 1.0
 WITHHELD_ALL = ("rx_pattern", "rx_mounting", "tx_pattern", "tx_mounting", "tx_tilt", "ground_reflection",
@@ -232,8 +233,8 @@ def gap_tolerance(withheld: str | None, oracle_rms: float | None = None) -> floa
 
 def oracle_spatial_rms(base: Pipeline, truth: Truth, flights: Sequence[Flight], cfg: FitConfig) -> float:
     """Held-out RMS of kriging with the true field's covariance (the best a spatial candidate can do)."""
-    from mission.gap.candidates import KrigedShadowing, _group_cells
     from mission.gap.fit import decimate, heldout_residuals, residuals
+    from mission.gap.spatial import KrigedShadowing, _group_cells
 
     folds = make_folds(flights, cfg)
     pipes = []
