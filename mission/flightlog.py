@@ -383,8 +383,10 @@ def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list
         if badv.size:
             raise InputError(f"{columns[name][badv[0]]:g} is not a plausible value (|value| > {lim:g})", source=src,
                              row=int(badv[0]) + 2, field=name)
-    meta = _read_sidecar(path, notes)
+    meta = _read_sidecar(path, notes, origin_given=origin is not None)
     if origin is not None:
+        if "origin" in meta:
+            notes.append("the origin given replaces the sidecar's")
         meta["origin"] = origin.to_dict()
     problem = latlon_unit_problem(lat, lon, Origin.from_dict(meta["origin"]) if "origin" in meta else None)
     if problem:
@@ -401,12 +403,13 @@ def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list
     return FlightLog(columns, meta, path, notes)
 
 
-def _read_sidecar(path: Path, notes: list[str]) -> dict:
+def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> dict:
     """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and key)."""
     sc = sidecar_path(path)
     if not sc.exists():
-        notes.append(f"no sidecar {sc.name}: read as an uncalibrated receiver log with its origin at the first "
-                     "sample and no truth (give --origin LAT,LON[,ALT] for the mission's frame, --truth LAT,LON)")
+        where = ("the origin given" if origin_given else
+                 "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)")
+        notes.append(f"no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth")
         return {}
     try:
         meta = json.loads(sc.read_text())

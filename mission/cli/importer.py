@@ -17,10 +17,27 @@ def parse_latlon(text: str, name: str = "--truth") -> tuple[float, float]:
         lat_s, lon_s = text.split(",")
         lat, lon = float(lat_s), float(lon_s)
     except ValueError:
-        raise InputError(f"{name} expects LAT,LON in degrees, got {text!r}") from None
-    if abs(lat) > 90 or abs(lon) > 180:
-        raise InputError(f"{name} {text!r} is not a latitude,longitude pair in degrees")
+        raise InputError(f"expects LAT,LON in degrees, got {text!r}", field=name) from None
+    if not (abs(lat) <= 90 and abs(lon) <= 180):
+        raise InputError(f"{text!r} is not a latitude,longitude pair in degrees", field=name)
     return lat, lon
+
+
+def parse_origin(text: str, name: str = "--origin"):
+    """'LAT,LON' or 'LAT,LON,ALT' (degrees, metres AMSL) -> ``Origin``, or InputError naming the option."""
+    from mission.geo import Origin
+
+    parts = str(text).split(",")
+    if len(parts) not in (2, 3):
+        raise InputError(f"expects LAT,LON[,ALT], got {text!r}", field=name)
+    lat, lon = parse_latlon(",".join(parts[:2]), name)
+    try:
+        alt = float(parts[2]) if len(parts) == 3 else 0.0
+    except ValueError:
+        raise InputError(f"altitude is not a number in {text!r}", field=name) from None
+    if not abs(alt) <= 20000:
+        raise InputError(f"altitude {alt:g} m is not plausible", field=name)
+    return Origin(lat, lon, alt)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -42,6 +42,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--truth", metavar="LAT,LON", help="true transmitter position (overrides the sidecar)"
     )
+    parser.add_argument(
+        "--origin",
+        metavar="LAT,LON[,ALT]",
+        help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the sidecar's)",
+    )
     parser.add_argument("--no-cruise", action="store_true", help="use all samples (no cruise selection)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", metavar="OUT.png", help="draw flight, clusters and estimate")
@@ -49,27 +54,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import json
+    import math
+    import warnings
 
-    from mission.cli.importer import parse_latlon
+    from mission.cli.importer import parse_latlon, parse_origin
+    from mission.cli.main import image_out, print_notes
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log, search_area
 
     truth = parse_latlon(args.truth) if args.truth else None
+    origin = parse_origin(args.origin) if args.origin else None
     method = args.method
     if args.model and method not in (None, "onnx"):
         raise InputError(f"--model needs --method onnx (got --method {method})")
-    log = read_flight_log(args.log)
-    est = localize_log(
-        log,
-        method=method,
-        model_path=args.model,
-        truth=truth,
-        cruise=not args.no_cruise,
-        physics_model=args.physics,
-        tx_height_m=args.tx_height,
-        physics_preset=args.physics_preset,
-    )
+    if not (math.isfinite(args.tx_height) and 0 <= args.tx_height <= 1000):
+        raise InputError(f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
+                         field="--tx-height")
+    if args.plot:
+        image_out(args.plot, "--plot")
+    log = read_flight_log(args.log, origin=origin)
+    print_notes(log.notes)
+    with warnings.catch_warnings(record=True) as caught:  # numpy's warnings on a too-short log: the error says it
+        warnings.simplefilter("always")
+        try:
+            est = localize_log(log, method=method, model_path=args.model, truth=truth, cruise=not args.no_cruise,
+                               physics_model=args.physics, tx_height_m=args.tx_height,
+                               physics_preset=args.physics_preset)
+        except InputError as e:
+            if e.source or e.field:
+                raise
+            raise InputError(str(e), source=str(args.log)) from None  # "only 5 grouped samples" names the log
+    for w in caught:
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     if args.plot:
         from mission.localize.plot import plot_localization
         from mission.localize.preprocess import select_cruise
@@ -82,7 +99,9 @@ def run(args: argparse.Namespace) -> int:
         plot_localization(part, est, args.plot, cfg=cfg, area=search_area(log))
         est.extras["plot"] = str(args.plot)
     if args.json:
-        print(json.dumps(est.to_dict(), default=float))
+        d = est.to_dict()
+        d["notes"] = list(log.notes)
+        print(json.dumps(d, default=float))
         return 0
     from rich.console import Console
     from rich.table import Table
