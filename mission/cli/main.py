@@ -107,10 +107,15 @@ def image_out(path: str | Path, flag: str = "--out") -> Path:
     if suffix not in formats:
         raise InputError(f"unknown image format '{p.suffix or '(no suffix)'}'; use one of "
                           f"{', '.join('.' + f for f in sorted(formats))}", source=str(p), field=flag)
-    for parent in p.parents:
+    return out_parent_ok(p, flag)
+
+
+def out_parent_ok(path: Path, flag: str = "--out") -> Path:
+    """``path`` unchanged, or an InputError when one of its parents is a file (mkdir would fail later)."""
+    for parent in path.parents:
         if parent.exists() and not parent.is_dir():
-            raise InputError(f"{parent} is a file, not a folder", source=str(p), field=flag)
-    return p
+            raise InputError(f"{parent} is a file, not a folder", source=str(path), field=flag)
+    return path
 
 
 def build_parser() -> argparse.ArgumentParser:

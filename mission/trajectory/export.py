@@ -15,6 +15,8 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from mission.errors import InputError
+
 MAV_CMD_NAV_WAYPOINT = 16
 MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
 MAV_CMD_NAV_LAND = 21
@@ -152,6 +154,9 @@ def export_mission(spec, fmt: str, out: str | Path) -> Path:
         text = to_kml(spec)
     else:
         raise ValueError(f"unknown export format {fmt!r}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+    except OSError as e:  # a parent that is a file, a read-only folder
+        raise InputError(f"cannot write: {e.strerror or e}", source=str(out)) from None
     return out
