@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import Candidate, Param
+from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
 from mission.gap.spatial import KrigedShadowing, spatial_candidate
 from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
@@ -248,7 +249,8 @@ def library() -> dict[str, Candidate]:
         _antenna_pattern_candidate("tx"), _antenna_mounting_candidate("tx"), _tx_tilt_candidate(),
         _ground_candidate(), _attitude_like_candidate(True), _attitude_like_candidate(False), _legs_candidate(),
         _path_gain_slope_candidate(),
-        _time_offset_candidate(), _receiver_candidate(), spatial_candidate(),
+        _time_offset_candidate(), _receiver_candidate(), *(freeform_candidate(k) for k in FREEFORM_NAMES),
+        spatial_candidate(),
     ]
     return {c.name: c for c in cands}
 

@@ -23,7 +23,7 @@ Why these choices:
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,7 +31,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from mission.gap.align import Flight
-from mission.gap.candidates import Candidate, describe_params
+from mission.gap.candidate import TIER_FREEFORM, TIER_NAMED, TIER_SMOOTHER, Candidate
+from mission.gap.candidates import describe_params
 from mission.gap.pipeline import Pipeline
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
@@ -52,6 +53,7 @@ class FitConfig:
     min_rel: float = 0.01          # minimum relative held-out loss reduction to call a candidate significant
     n_boot: int = 400
     seed: int = 0
+    workers: int = 2               # threads for the (candidate, fold) fits
 
 
 @dataclass
@@ -214,13 +216,16 @@ class CandidateResult:
     p90_before: float
     p90_after: float
     block_len: int = 0
+    tier: str = TIER_NAMED
 
     def params_mean(self) -> dict[str, Any]:
         """Fold-averaged parameters (circular mean for angles); categorical ones from the first fold."""
         out: dict[str, Any] = {}
         for k, v in self.fold_params[0].items():
             vals = [fp.get(k) for fp in self.fold_params]
-            if isinstance(v, bool | str) or v is None:
+            if isinstance(v, dict | list | tuple):  # shapes, where-it-acts: the first fold's
+                out[k] = v
+            elif isinstance(v, bool | str) or v is None:
                 out[k] = v if all(x == v for x in vals) else "/".join(str(x) for x in vals)
             elif "heading" in k or "azimuth" in k:
                 a = np.deg2rad(np.array(vals, dtype=float))
@@ -253,23 +258,73 @@ def compare(base_res: Sequence[np.ndarray], new_res: Sequence[np.ndarray], cfg: 
     return mean, rel, lo, bool(lo > 0 and rel >= cfg.min_rel), int(max(Ls) if Ls else 1)
 
 
+# The ranking rule (reported with every ranking): a candidate's score is its held-out loss reduction divided
+# by its tier's margin; significant candidates come first, then by score.  A free-form shape must therefore
+# reduce the loss 25 % more than a named physical effect to be ranked above it, and a generic smoother
+# (kriging) twice as much as either: explanations are preferred to descriptions, descriptions to smoothers.
+TIER_MARGIN = {TIER_NAMED: 1.0, TIER_FREEFORM: 1.25, TIER_SMOOTHER: 2.0}
+RANKING_RULE = ("significant first, then by held-out loss reduction / tier margin (named 1.0, free-form 1.25, "
+                "smoother 2.0): a free-form shape must beat a named effect by 25 %, a smoother must beat both "
+                "by 100 %; the ladder adds a smoother only when nothing else is significant")
+
+
+def rank_key(r: CandidateResult) -> tuple[bool, float]:
+    return (not r.significant, -r.loss_reduction / TIER_MARGIN.get(r.tier, 1.0))
+
+
+def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[Any]:
+    """``fn`` over ``items``, in ``workers`` threads (numpy releases the GIL in the heavy parts)."""
+    if workers <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=workers) as ex:
+        return list(ex.map(fn, items))
+
+
+Progress = Callable[[str, int, int], None]  # (description, done, total)
+
+
 def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[Flight], folds: Sequence[Fold],
                     candidates: Sequence[Candidate], cfg: FitConfig, rng: np.random.Generator,
-                    base_res: list[np.ndarray] | None = None) -> list[CandidateResult]:
-    """Fit every applicable candidate on each fold's training data, score on its test data, rank."""
+                    base_res: list[np.ndarray] | None = None, progress: Progress | None = None,
+                    label: str = "") -> list[CandidateResult]:
+    """Fit every applicable candidate on each fold's training data, score on its test data, rank (``rank_key``).
+
+    The (candidate, fold) fits run in ``cfg.workers`` threads; each gets its own generator spawned from
+    ``rng`` in a fixed order, so results do not depend on the scheduling.
+    """
     base_res = base_res if base_res is not None else heldout_residuals(pipes, flights, folds, cfg)
     bsum = summarize(_pooled(base_res))
     tried = [c for c in candidates if c.applicable(pipes[0])]
+    tasks = [(c, k) for c in tried for k in range(len(folds))]
+    seeds = rng.integers(0, 2**63 - 1, size=len(tasks))
+    done = [0]
+
+    def run(task_seed: tuple[tuple[Candidate, int], int]) -> tuple[CandidateFit, list[np.ndarray]]:
+        (cand, k), seed = task_seed
+        ft = fit_candidate(cand, pipes[k], flights, folds[k].train, cfg, np.random.default_rng(seed))
+        res = residuals(ft.pipeline, flights, folds[k].test, cfg)
+        done[0] += 1
+        if progress is not None:
+            progress(f"{label}: {cand.name}", done[0], len(tasks))
+        return ft, res
+
+    results = _map(run, list(zip(tasks, seeds, strict=True)), cfg.workers)
     out = []
-    for cand in tried:
-        fits = [fit_candidate(cand, p, flights, fold.train, cfg, rng) for p, fold in zip(pipes, folds, strict=True)]
-        new_pipes = [ft.pipeline for ft in fits]
-        res = heldout_residuals(new_pipes, flights, folds, cfg)
+    nf = len(folds)
+    for j, cand in enumerate(tried):
+        part = results[j * nf: (j + 1) * nf]
+        fits = [ft for ft, _ in part]
+        res = [np.full(len(f), np.nan) for f in flights]
+        for (_, rs), fold in zip(part, folds, strict=True):
+            for q, (i, r) in enumerate(zip(fold.test, rs, strict=True)):
+                res[q][i] = r
         mean, rel, lo, sig, L = compare(base_res, res, cfg, len(tried), rng)
         s = summarize(_pooled(res))
-        out.append(CandidateResult(cand.name, [ft.params for ft in fits], new_pipes, res, mean, rel, lo, sig,
-                                   bsum.rms, s.rms, bsum.p90_abs, s.p90_abs, L))
-    out.sort(key=lambda r: -r.loss_reduction)
+        out.append(CandidateResult(cand.name, [ft.params for ft in fits], [ft.pipeline for ft in fits], res, mean,
+                                   rel, lo, sig, bsum.rms, s.rms, bsum.p90_abs, s.p90_abs, L, cand.tier))
+    out.sort(key=rank_key)
     return out
 
 
@@ -288,11 +343,10 @@ class Rung:
         return describe_params(self.pipes[0])
 
 
-TERMINAL = ("spatial_shadowing",)  # catch-alls: added only when no structured effect is significant
 
 
 def ladder(base: Pipeline, flights: Sequence[Flight], candidates: Sequence[Candidate], cfg: FitConfig,
-           max_rungs: int = 6, label: str = "base") -> list[Rung]:
+           max_rungs: int = 6, label: str = "base", progress: Progress | None = None) -> list[Rung]:
     """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is significant."""
     rng = np.random.default_rng(cfg.seed)
     folds = make_folds(flights, cfg)
@@ -301,10 +355,11 @@ def ladder(base: Pipeline, flights: Sequence[Flight], candidates: Sequence[Candi
     rungs = [rung]
     pool = list(candidates)
     while pool and len(rungs) <= max_rungs:
-        ranking = rank_candidates(rung.pipes, flights, folds, pool, cfg, rng, rung.residuals)
+        ranking = rank_candidates(rung.pipes, flights, folds, pool, cfg, rng, rung.residuals, progress,
+                                  f"rung {len(rungs)}")
         rung.ranking = ranking
         sig = [r for r in ranking if r.significant]
-        physical = [r for r in sig if r.name not in TERMINAL]
+        physical = [r for r in sig if r.tier != TIER_SMOOTHER]
         if not sig:
             break
         best = physical[0] if physical else sig[0]

@@ -1,0 +1,268 @@
+"""Free-form candidates: let the data draw the missing effect as a smooth map, then say what it resembles.
+
+Why: a library of named effects can only name what it contains; an antenna ripple, a notch or a rover
+antenna's azimuth pattern outside the list would otherwise be blamed on shadowing.  Three smooth additive
+terms (dB), each linear in its coefficients, so a fit is one regularised least-squares solve:
+
+| name | variables (from the LOS geometry the physics model already computes) | basis |
+| --- | --- | --- |
+| ``rx_gain_map`` | UAV body azimuth az_b x sin(body depression) | Fourier(az_b, M=6) x Legendre(sin dep_b, P=3) |
+| ``tx_gain_map`` | compass azimuth of the UAV seen from the rover x sin(elevation) | Fourier(M=4) x Legendre(P=2) |
+| ``excess_loss`` | log10(d_los / 100 m) and UAV height | Legendre(P=3) + Legendre(P=2) |
+
+The constant is left out (the free per-flight offset absorbs it).  Coefficients are shrunk by a ridge penalty
+lambda (1 + m^2 + p^2) (higher orders cost more: smooth maps), lambda chosen by an inner two-fold split of the
+training samples (alternate 30 s stretches of flight, never random samples); with a robust loss the solve is
+weighted by soft-L1 IRLS weights.  Each fit reports its shape on a grid (``params["shape"]``, for the plot),
+its size (5-95 % range over the flown samples, dB), where it acts (the geometry of its strongest departure)
+and which named effect it resembles (largest |correlation| with that effect's own term on the same samples).
+The terms are ``mission.physics`` effects (``rss_term_db``), so a fitted map also serves localization.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.polynomial import legendre
+
+from mission.gap.align import Flight
+from mission.gap.candidate import TIER_FREEFORM, Candidate
+from mission.gap.pipeline import Pipeline
+from mission.physics.geometry import body_vectors, enu_to_ned
+
+# kind -> (first variable, second variable, orders); see the module table
+KINDS: dict[str, tuple[int, int]] = {"rx_gain_map": (6, 3), "tx_gain_map": (4, 2), "excess_loss": (3, 2)}
+LAMBDAS = tuple(np.geomspace(1e-3, 1e3, 13))
+
+
+def map_variables(kind: str, link: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The two variables of ``kind`` from a ``mission.physics.propagation.Link`` (or the same fields)."""
+    dx, dy, dz = link.delta
+    d = link.d_los
+    if kind == "rx_gain_map":
+        ubx, uby, ubz = link.u_b
+        return np.arctan2(uby, ubx), np.clip(ubz / d, -1.0, 1.0)  # az_b, sin dep_b
+    if kind == "tx_gain_map":
+        return np.arctan2(-dx, -dy), np.clip(-dz / d, -1.0, 1.0)  # compass az tx -> UAV, sin elevation
+    if kind == "excess_loss":
+        return np.clip(np.log10(d / 100.0), -1.0, 1.0), np.clip((link.z_r - 35.0) / 25.0, -1.0, 1.0)
+    raise ValueError(f"unknown free-form kind {kind!r}")
+
+
+def basis_orders(kind: str) -> list[tuple[str, int, int]]:
+    """(function, order m, order p) per coefficient: ``c``/``s`` = cos/sin(m a) P_p(b); ``a``/``b`` = P_m(a)
+    or P_p(b) alone (the additive excess-loss basis)."""
+    M, P = KINDS[kind]
+    if kind == "excess_loss":
+        return [("a", m, 0) for m in range(1, M + 1)] + [("b", 0, p) for p in range(1, P + 1)]
+    out = [("c", 0, p) for p in range(1, P + 1)]
+    for m in range(1, M + 1):
+        out += [(t, m, p) for t in ("c", "s") for p in range(P + 1)]
+    return out
+
+
+def _leg(x: np.ndarray, p: int) -> np.ndarray:
+    c = np.zeros(p + 1)
+    c[p] = 1.0
+    return legendre.legval(x, c)
+
+
+def basis_column(fn: str, m: int, p: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    if fn == "a":
+        return _leg(a, m)
+    if fn == "b":
+        return _leg(b, p)
+    return (np.cos(m * a) if fn == "c" else np.sin(m * a)) * _leg(b, p)
+
+
+def design(kind: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Design matrix (N, K) of ``kind`` at the variables ``a``, ``b`` (1-D)."""
+    return np.column_stack([basis_column(fn, m, p, a, b) for fn, m, p in basis_orders(kind)])
+
+
+@dataclass(frozen=True, eq=False)
+class FreeFormTerm:
+    """A fitted smooth map (dB) added to the RSS: sum_k coef_k basis_k(variables of ``kind``)."""
+
+    name: str
+    coef: tuple[float, ...]
+
+    def rss_term_db(self, link: Any) -> np.ndarray:
+        a, b = map_variables(self.name, link)
+        out = np.zeros(np.shape(a), dtype=np.asarray(link.d_los).dtype)
+        for c, (fn, m, p) in zip(self.coef, basis_orders(self.name), strict=True):
+            if c != 0.0:
+                out += (c * basis_column(fn, m, p, a, b)).astype(out.dtype, copy=False)
+        return out
+
+    def on_grid(self, n: int = 37) -> dict[str, Any]:
+        """The shape on a regular grid of the two variables (for plots and JSON)."""
+        if self.name == "excess_loss":
+            la = np.linspace(-1.0, 1.0, n)
+            d_m = 100.0 * 10 ** la
+            h = 35.0 + 25.0 * np.linspace(-1.0, 1.0, n)
+            ca = [c for c, (fn, _, _) in zip(self.coef, basis_orders(self.name), strict=True) if fn == "a"]
+            cb = [c for c, (fn, _, _) in zip(self.coef, basis_orders(self.name), strict=True) if fn == "b"]
+            return {"distance_m": d_m.tolist(), "loss_vs_distance_db": legendre.legval(la, [0.0, *ca]).tolist(),
+                    "height_m": h.tolist(), "loss_vs_height_db": legendre.legval(np.linspace(-1, 1, n),
+                                                                                  [0.0, *cb]).tolist()}
+        az = np.deg2rad(np.linspace(0.0, 360.0, 2 * n - 1))
+        s = np.sin(np.deg2rad(np.linspace(-30.0, 90.0, n)))
+        A, B = np.meshgrid(az, s)
+        Z = design(self.name, A.ravel(), B.ravel()) @ np.asarray(self.coef)
+        return {"azimuth_deg": np.rad2deg(az).tolist(), "elevation_deg": np.rad2deg(np.arcsin(s)).tolist(),
+                "gain_db": Z.reshape(A.shape).tolist()}
+
+
+def link_of(pipe: Pipeline, flight: Flight, idx: np.ndarray) -> Any:
+    """The model's per-sample LOS geometry (``Link`` fields) for the samples ``idx`` (time offset applied)."""
+    from types import SimpleNamespace
+
+    rx, att = pipe.geometry(flight, idx)
+    tx = np.asarray(flight.tx_enu, dtype=float)
+    delta = tx[None, :] - rx
+    dx, dy, dz = delta.T
+    d_los = np.maximum(np.linalg.norm(delta, axis=1), 1e-3)
+    if pipe.model.has("attitude"):
+        ub = body_vectors(enu_to_ned(delta), pipe.model.effect("attitude").apply(att))
+        u_b = (ub[:, 0], ub[:, 1], ub[:, 2])
+    else:
+        u_b = (dy, dx, -dz)
+    return SimpleNamespace(delta=(dx, dy, dz), z_t=np.full(len(rx), tx[2]), z_r=rx[:, 2], d_los=d_los, u_b=u_b)
+
+
+def _ridge(X: np.ndarray, y: np.ndarray, w: np.ndarray, pen: np.ndarray, lam: float) -> np.ndarray:
+    XtW = X.T * w
+    return np.linalg.solve(XtW @ X + lam * len(y) * np.diag(pen), XtW @ y)
+
+
+def _centered(blocks: Sequence[np.ndarray], ws: Sequence[np.ndarray]) -> np.ndarray:
+    """Weighted per-flight centring (the free offset is per flight)."""
+    out = []
+    for B, w in zip(blocks, ws, strict=True):
+        wm = np.sum(B * w.reshape(-1, *([1] * (B.ndim - 1))), axis=0) / max(float(np.sum(w)), 1e-12)
+        out.append(B - wm)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def resemblance(kind: str, term: Sequence[np.ndarray], pipe: Pipeline, flights: Sequence[Flight],
+                idx: Sequence[np.ndarray]) -> tuple[str, float, dict[str, float]]:
+    """Which named effect's own term (relative to ``pipe``) correlates best with the fitted ``term``."""
+    from mission.gap.candidates import library
+
+    lib = library()
+    refs: dict[str, dict[str, Any]] = {
+        "rx_gain_map": {"leg_shadowing": ({"beta": 1.0, "half_width_deg": 8.0, "legs_rotation_deg": 0.0}, {}),
+                        "rx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
+                        "rx_pattern measured flipped": ({}, {"pattern": "measured", "flipped": True})},
+        "tx_gain_map": {"tx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
+                        "tx_tilt": ({"tilt_deg": 20.0, "azimuth_deg": 0.0}, {})},
+        "excess_loss": {"path_gain_slope": ({"n_extra": 1.0}, {}),
+                        "ground_reflection": ({"log10_eps_r": 1.2, "log10_sigma": -2.3}, {"polarization": "V"})},
+    }[kind]
+    base = [pipe.predict_channel(f, i) for f, i in zip(flights, idx, strict=True)]
+    t = _centered(list(term), [np.ones(len(x)) for x in term])
+    out: dict[str, float] = {}
+    for label, (th, ch) in refs.items():
+        cname = label.split()[0]
+        cand = lib.get(cname)
+        if cand is None or not cand.applicable(pipe):
+            continue
+        try:
+            new = cand.build(pipe, th, ch)
+        except (KeyError, ValueError):
+            continue
+        d = [new.predict_channel(f, i) - b for f, i, b in zip(flights, idx, base, strict=True)]
+        r = _centered(d, [np.ones(len(x)) for x in d])
+        den = float(np.linalg.norm(r) * np.linalg.norm(t))
+        out[label] = float(abs(r @ t) / den) if den > 0 else 0.0
+    if not out:
+        return "none", 0.0, out
+    best = max(out, key=lambda k: out[k])
+    return best, out[best], out
+
+
+def where_it_acts(kind: str, a: np.ndarray, b: np.ndarray, term: np.ndarray) -> dict[str, float]:
+    """The geometry of the term's strongest departure from its median (degrees, metres)."""
+    k = int(np.argmax(np.abs(term - np.median(term))))
+    if kind == "excess_loss":
+        return {"distance_m": float(100.0 * 10 ** a[k]), "height_m": float(35.0 + 25.0 * b[k])}
+    lab = "body_azimuth_deg" if kind == "rx_gain_map" else "world_azimuth_deg"
+    lab2 = "body_depression_deg" if kind == "rx_gain_map" else "elevation_deg"
+    return {lab: float(np.rad2deg(a[k]) % 360.0), lab2: float(np.rad2deg(np.arcsin(b[k])))}
+
+
+def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray],
+                 resid: Sequence[np.ndarray], cfg: Any = None, period_s: float = 30.0) -> tuple[Pipeline, dict]:
+    """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold CV."""
+    loss = getattr(cfg, "loss", "l2")
+    f_scale = getattr(cfg, "f_scale_db", 6.0)
+    keep = [k for k, i in enumerate(idx) if len(i)]
+    fl = [flights[k] for k in keep]
+    ix = [idx[k] for k in keep]
+    rs = [np.asarray(resid[k], dtype=float) for k in keep]
+    ab = [map_variables(kind, link_of(pipe, f, i)) for f, i in zip(fl, ix, strict=True)]
+    Xs = [design(kind, a, b) for a, b in ab]
+    ws = [np.ones(len(r)) if loss == "l2" else 1.0 / np.sqrt(1.0 + (r / f_scale) ** 2) for r in rs]
+    pen = np.array([1.0 + m * m + p * p for _, m, p in basis_orders(kind)])
+    half = [(np.floor(f.t_s[i] / period_s).astype(int) % 2) for f, i in zip(fl, ix, strict=True)]
+
+    def solve(sel: Sequence[np.ndarray], lam: float) -> np.ndarray:
+        X = _centered([x[s] for x, s in zip(Xs, sel, strict=True)], [w[s] for w, s in zip(ws, sel, strict=True)])
+        y = _centered([r[s] for r, s in zip(rs, sel, strict=True)], [w[s] for w, s in zip(ws, sel, strict=True)])
+        w = np.concatenate([w[s] for w, s in zip(ws, sel, strict=True)])
+        return _ridge(X, y, w, pen, lam)
+
+    best = (np.inf, LAMBDAS[-1])
+    for lam in LAMBDAS:
+        err = 0.0
+        for a in (0, 1):
+            coef = solve([h != a for h in half], lam)
+            te = [h == a for h in half]
+            pred = [x[s] @ coef for x, s in zip(Xs, te, strict=True)]
+            d = _centered([r[s] - q for r, s, q in zip(rs, te, pred, strict=True)],
+                          [w[s] for w, s in zip(ws, te, strict=True)])
+            w_te = np.concatenate([w[s] for w, s in zip(ws, te, strict=True)])
+            err += float(np.sum(w_te * d * d))
+        if err < best[0]:
+            best = (err, lam)
+    lam = best[1]
+    coef = solve([np.ones(len(r), bool) for r in rs], lam)
+    term = FreeFormTerm(kind, tuple(float(c) for c in coef))
+    new = pipe.replace(model=pipe.model.with_effect(term))
+    vals = [x @ coef for x in Xs]
+    allv = np.concatenate(vals) if vals else np.zeros(1)
+    size = float(np.quantile(allv, 0.95) - np.quantile(allv, 0.05)) if allv.size else 0.0
+    sub = [np.arange(0, len(i), max(1, len(i) // 1500)) for i in ix]
+    like, corr, corrs = resemblance(kind, [v[s] for v, s in zip(vals, sub, strict=True)], pipe, fl,
+                                    [i[s] for i, s in zip(ix, sub, strict=True)])
+    a_all = np.concatenate([a for a, _ in ab])
+    b_all = np.concatenate([b for _, b in ab])
+    params = {"lambda": float(lam), "size_db": size, "resembles": like, "resemblance_corr": corr,
+              "where": where_it_acts(kind, a_all, b_all, allv), "resemblances": corrs, "shape": term.on_grid()}
+    return new, params
+
+
+def freeform_candidate(kind: str) -> Candidate:
+    desc = {"rx_gain_map": "smooth UAV body-frame gain map (body azimuth x depression)",
+            "tx_gain_map": "smooth transmitter gain map (world azimuth x elevation)",
+            "excess_loss": "smooth excess loss over distance and UAV height"}[kind]
+
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
+        return p
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(model=p.model.without(kind)) if p.model.has(kind) else p
+
+    def direct_fit(p: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+                   rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
+        return fit_freeform(kind, p, flights, idx, resid, cfg)
+
+    return Candidate(kind, desc, (), build, lambda p: not p.model.has(kind), withhold, direct_fit=direct_fit,
+                     tier=TIER_FREEFORM)
+
+
+FREEFORM_NAMES = tuple(KINDS)
