@@ -59,6 +59,14 @@ class FlightLog:
         ground = float(self["alt_m"][0] - self["rel_alt_m"][0])
         return Origin(float(self["lat_deg"][0]), float(self["lon_deg"][0]), ground)
 
+    @property
+    def label(self) -> str:
+        """The flight's name for titles: its folder for ``flights/<time>/flight.csv``, else the file's stem."""
+        if self.path is None:
+            return "flight"
+        p = Path(self.path)
+        return p.parent.name if p.stem == "flight" and p.parent.name else p.stem
+
     def enu(self, origin: Origin | None = None) -> np.ndarray:
         """UAV positions (N, 3) in the local ENU frame; z is the height above the origin's ground."""
         o = origin or self.origin

@@ -49,12 +49,15 @@ def plot(log: FlightLog, png: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from mission.localize.plot import draw_areas, field_areas, power_unit, robust_limits
+
     enu = log.enu()
     fig, ax = plt.subplots(figsize=(7, 6))
+    draw_areas(ax, field_areas(log))
     ax.plot(enu[:, 0], enu[:, 1], color="0.8", lw=0.6, zorder=1)
-    lo, hi = np.percentile(log["rss_dbm"], [2, 100])  # take-off/landing outliers must not wash out the scale
+    lo, hi = robust_limits(log["rss_dbm"])  # take-off outliers and deep nulls must not wash out the scale
     sc = ax.scatter(enu[:, 0], enu[:, 1], c=log["rss_dbm"], s=3, cmap="viridis", vmin=lo, vmax=hi, zorder=2)
-    fig.colorbar(sc, ax=ax, label="RSS (dB)")
+    fig.colorbar(sc, ax=ax, label=f"RSS ({power_unit(log)}), 2-99.5 % range")
     i = int(np.argmax(log["rss_dbm"]))
     ax.plot(enu[i, 0], enu[i, 1], "r*", ms=14, label="strongest RSS", zorder=3)
     tx = log.truth_enu
@@ -64,8 +67,9 @@ def plot(log: FlightLog, png: Path) -> Path:
     ax.set_ylabel("north (m)")
     ax.set_aspect("equal")
     ax.legend(loc="best")
-    ax.set_title(f"{Path(log.path).name if log.path else 'flight'}: path coloured by RSS")
+    ax.set_title(f"{log.label}: path coloured by RSS")
     fig.tight_layout()
+    png = Path(png)
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, dpi=120)
     plt.close(fig)

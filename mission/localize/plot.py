@@ -11,6 +11,46 @@ from mission.localize import Estimate
 from mission.localize.features import FeatureConfig, cluster_details
 
 
+def field_areas(log) -> list:
+    """The areas to draw for a log, in its frame: the AFAR flight and rover areas when the log shares the AFAR
+    origin, else the sidecar's rover area (if any).  Why: a path or estimate means little without the field."""
+    from mission.geo import afar_field
+    from mission.localize.api import search_area
+
+    af = afar_field()
+    o = log.origin
+    off = af.origin.to_enu(o.lat_deg, o.lon_deg, o.alt_m)
+    if float(np.hypot(off[0], off[1])) < 1.0:
+        return [af.flight_area, af.rover_area]
+    ra = search_area(log)
+    return [ra] if ra is not None else []
+
+
+def draw_areas(ax, areas) -> None:
+    """Outline areas (flight area solid blue, rover area dashed green, as in ``rfsl preview``)."""
+    for a in areas:
+        rover = "rover" in a.name
+        v = np.vstack([a.vertices, a.vertices[:1]])
+        ax.plot(v[:, 0], v[:, 1], "--" if rover else "-", color="#2ca02c" if rover else "#1f77b4", lw=1.2,
+                label=a.name, zorder=0)
+
+
+def robust_limits(values, lo_pct: float = 2.0, hi_pct: float = 99.5) -> tuple[float, float]:
+    """Colour-scale limits at robust percentiles: deep nulls and take-off outliers must not wash out a map."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return 0.0, 1.0
+    lo, hi = np.percentile(v, [lo_pct, hi_pct])
+    return (float(lo), float(hi)) if hi > lo else (float(lo) - 0.5, float(hi) + 0.5)
+
+
+def power_unit(log) -> str:
+    """'dBm' for simulated (calibrated) RSS, 'dB' for a real receiver's uncalibrated values."""
+    src = log.meta.get("rss_source") if isinstance(log.meta, dict) else None
+    return "dBm" if isinstance(src, dict) and src.get("kind") == "sim" else "dB"
+
+
 def plot_localization(
     log, est: Estimate, out: str | Path, cfg: FeatureConfig | None = None, area=None, title: str | None = None
 ) -> Path:
@@ -24,11 +64,14 @@ def plot_localization(
     enu = log.enu()
     cr = cluster_details(enu[:, 0], enu[:, 1], log["rss_dbm"], cfg)
     fig, ax = plt.subplots(figsize=(8.5, 7.5), dpi=120)
-    if area is not None:
-        v = np.vstack([area.vertices, area.vertices[:1]])
-        ax.plot(v[:, 0], v[:, 1], "--", color="0.5", lw=1, label=area.name)
-    sc = ax.scatter(cr.x, cr.y, c=cr.p - cr.p.max(), s=3, cmap="viridis", zorder=1)
-    fig.colorbar(sc, ax=ax, label="smoothed RSS relative to max (dB)", shrink=0.8)
+    areas = field_areas(log)
+    if area is not None and not any(a.name == area.name for a in areas):
+        areas.append(area)
+    draw_areas(ax, areas)
+    rel = cr.p - cr.p.max()
+    vmin, vmax = robust_limits(rel)
+    sc = ax.scatter(cr.x, cr.y, c=rel, s=3, cmap="viridis", vmin=vmin, vmax=vmax, zorder=1)
+    fig.colorbar(sc, ax=ax, label="smoothed RSS relative to max (dB), 2-99.5 % range", shrink=0.8)
     cmap = plt.get_cmap("tab20")
     t = cr.top
     ax.scatter(
@@ -53,7 +96,7 @@ def plot_localization(
         zorder=3,
         label=f"cluster means (C_k={cfg.c_k})",
     )
-    for i, (p, x, y) in enumerate(v3[:5]):
+    for i, (p, x, y) in enumerate(v3[:5]):  # cluster means are relative to the strongest: dB, not dBm
         ax.annotate(f"{i + 1}: {p:.1f} dB", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7)
     ax.plot(
         est.x_m,
@@ -80,7 +123,7 @@ def plot_localization(
     ax.set_aspect("equal")
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
-    name = Path(str(log.path)).name if log.path else "flight"
+    name = log.label
     ax.set_title(
         title
         or f"{name}: estimate {est.x_m:.1f}, {est.y_m:.1f} m"
