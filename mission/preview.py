@@ -13,12 +13,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from mission.geo import Area
 
 # estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y
+# What the default expected-error map assumes, said wherever its numbers are shown (table and plot title).
+ESTIMATOR_NOTE = "assuming an ML grid search with the mission's own {model} physics (an optimistic bound)"
 Estimator = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
@@ -200,7 +203,9 @@ def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Sum
         im = ax.imshow(em.error_m, origin="lower", extent=ext, cmap="magma_r", alpha=0.85,
                        interpolation="nearest", zorder=1)
         cb = fig.colorbar(im, ax=ax, fraction=0.04, pad=0.02)
-        cb.set_label("expected localization error (m)")
+        lo, hi = np.nanpercentile(em.error_m, [0, 98]) if np.isfinite(em.error_m).any() else (0.0, 1.0)
+        im.set_clim(lo, max(hi, lo + 1e-6))  # one failed cell must not wash out the scale
+        cb.set_label("expected localization error (m), clipped at the 98th percentile")
     if error_map is None:
         sc = ax.scatter(pos[::5, 0], pos[::5, 1], c=t[::5] / 60.0, s=2, cmap="viridis", zorder=3)
         fig.colorbar(sc, ax=ax, fraction=0.04, pad=0.02).set_label("flight time (min)")
@@ -221,8 +226,8 @@ def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Sum
              f"{summary.length_m / 1000:.2f} km, {summary.duration_s / 60:.1f} of "
              f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS samples")
     if error_map is not None:
-        title += f"\nexpected error (model-based ML estimator): mean {error_map.mean_m:.1f} m, " \
-                 f"median {error_map.median_m:.1f} m"
+        title += f"\nexpected error: mean {error_map.mean_m:.1f} m, median {error_map.median_m:.1f} m, " \
+                 + ESTIMATOR_NOTE.format(model=spec.source.model)
     ax.set_title(title, fontsize=11, color="black" if used <= 1 else "#d62728")
     text = [f"worst rover-area point {summary.coverage.max_m:.0f} m from the path",
             "per quadrant: " + ", ".join(f"{k} {v:.0f}" for k, v in summary.coverage.quadrant_max_m.items()),
@@ -242,6 +247,7 @@ def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Sum
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right", fontsize=9, framealpha=0.9)
     fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi)
     plt.close(fig)
     return out

@@ -22,12 +22,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
-    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
+    from mission.cli.main import console as make_console
+    from mission.cli.main import image_out
     from mission.errors import InputError
-    from mission.preview import expected_error_map, render_preview, summarize
+    from mission.preview import ESTIMATOR_NOTE, expected_error_map, render_preview, summarize
     from mission.spec import load_mission
 
     try:
@@ -36,12 +37,15 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError
     except ValueError:
         raise InputError(f"expected WxH pixels (each >= 200), got '{args.size}'", field="--size") from None
-    if args.grid < 2:
-        raise InputError(f"must be >= 2, got {args.grid}", field="--grid")
+    if not 2 <= args.grid <= 200:
+        raise InputError(f"must be 2..200, got {args.grid}", field="--grid")
+    if args.seed is not None and args.seed < 0:
+        raise InputError(f"must be >= 0, got {args.seed}", field="--seed")
+    image_out(args.out)
     spec = load_mission(args.mission)
     seed = spec.source.seed if args.seed is None else args.seed
     summary = summarize(spec)
-    console = Console(stderr=False)
+    console = make_console()
 
     emap = None
     if args.accuracy:
@@ -67,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     for k, v in summary.coverage.quadrant_max_m.items():
         table.add_row(f"rover area {k} quadrant: worst point", f"{v:.1f} m")
     if emap is not None:
-        table.add_row("expected error (mean / median)", f"{emap.mean_m:.1f} / {emap.median_m:.1f} m")
+        table.add_row(f"expected error (mean / median), {ESTIMATOR_NOTE.format(model=spec.source.model)}",
+                      f"{emap.mean_m:.1f} / {emap.median_m:.1f} m")
     table.add_row("flyable", "yes" if not summary.violations else f"[red]no: {summary.violations[0]}[/red]")
     console.print(table)
 

@@ -74,6 +74,23 @@ def _where(d: float, margin: float) -> str:
     return f"only {d:.1f} m inside the flight area, {margin:g} m margin required ({margin - d:.1f} m short)"
 
 
+def _source_violations(spec) -> list[Violation]:
+    """A fixed simulated transmitter must lie in the field (flight or rover area) and not below ground: one at
+    (5000, 5000) m makes a flight whose localization cannot succeed, so the mission is not 'flyable'."""
+    if isinstance(spec.source.tx, str):
+        return []
+    tx = np.asarray(spec.source.tx, dtype=float)
+    out = []
+    fa, ra = spec.field.flight_area, spec.field.rover_area
+    d = max(float(fa.signed_distance(tx[:2])), float(ra.signed_distance(tx[:2])))
+    if d < -_TOL:
+        out.append(Violation("source.tx", f"transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m is {-d:.1f} m outside the "
+                             "flight and rover areas", -d))
+    if tx[2] < 0:
+        out.append(Violation("source.tx", f"transmitter height {tx[2]:g} m is below ground", -float(tx[2])))
+    return out
+
+
 def check_mission(spec) -> MissionReport:
     """Check a ``MissionSpec``: fence (waypoints and legs), altitude limits and the time budget."""
     area, margin = spec.field.flight_area, spec.fence_margin_m
@@ -115,6 +132,7 @@ def check_mission(spec) -> MissionReport:
                                f"waypoint {i} altitude {z:.1f} m is {z - hi:.1f} m above the upper limit "
                                f"{hi:g} m", z - hi))
 
+    v += _source_violations(spec)
     if profile.duration_s > spec.time_budget_s:
         over = profile.duration_s - spec.time_budget_s
         v.append(Violation("time_budget_s", f"estimated flight time {profile.duration_s:.0f} s exceeds the "
