@@ -56,13 +56,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rich.console import Console
+    from pathlib import Path
 
+    from mission.cli.main import console as make_console
+    from mission.cli.main import out_parent_ok
     from mission.importers.afar import import_afar_mat
 
-    console = Console(stderr=False)
+    console = make_console()
     truth = parse_latlon(args.truth) if args.truth else None
-    for f in args.files:
+    if not args.truth_height >= 0:
+        raise InputError(f"transmitter height {args.truth_height:g} m is below ground", field="--truth-height")
+    out_parent_ok(Path(args.out) / "log.csv")  # neither --out nor a parent of it may be a file
+    files: list[Path] = []
+    for f in map(Path, args.files):  # a folder stands for every .mat file in it
+        if f.is_dir():
+            mats = sorted(f.glob("*.mat"))
+            if not mats:
+                raise InputError("folder holds no .mat files", source=str(f))
+            files += mats
+        else:
+            files.append(f)
+    for f in files:
         res = import_afar_mat(
             f, args.out, truth=truth, truth_height_m=args.truth_height, overwrite=args.overwrite
         )

@@ -27,7 +27,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta, write_flight_log
-from mission.geo import Origin, afar_field
+from mission.geo import Origin, afar_field, latlon_unit_problem
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
 MIN_DT_S = 1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
@@ -54,6 +54,9 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
     import scipy.io as sio
 
     src = str(path)
+    if path.is_dir():
+        raise InputError("is a directory, not a MAT file (give the folder to `rfsl import` to import every .mat "
+                         "in it)", source=src)
     if not path.exists():
         raise InputError("no such MAT file", source=src)
     try:
@@ -125,6 +128,11 @@ def convert_afar_mat(
     if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
         raise InputError("mY/mX are not latitude/longitude in degrees", source=src, field="mY")
     origin = origin or afar_field().origin
+    problem = latlon_unit_problem(lat, lon, origin)
+    if problem:
+        raise InputError(f"sample {problem[0]}: mY/mX {problem[1]}", source=src, field="mY")
+    if not truth_height_m >= 0:
+        raise InputError(f"transmitter height {truth_height_m:g} m is below ground", field="--truth-height")
     z = m["mZ"]
     cols = {
         "t_s": t - t[0],
@@ -165,6 +173,8 @@ def import_afar_mat(
 ) -> ImportResult:
     """Convert one MAT file and write ``out_dir/<stem>.csv`` + sidecar; the result carries ``out_path``."""
     res = convert_afar_mat(path, truth, truth_height_m)
+    if Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise InputError("is a file, not an output folder", source=str(out_dir), field="--out")
     out = Path(out_dir) / (Path(path).stem + ".csv")
     if out.exists():
         if not overwrite:
