@@ -840,14 +840,23 @@ class SimVehicle:
                 rx["asked"] = now
                 self.mav.mission_request_int_send(*rx["src"], len(rx["items"]), rx["type"])
 
-    def run(self, duration_s: float | None = None) -> None:
-        """Main loop: read MAVLink, advance simulated time with the wall clock times ``speedup``."""
+    def run(self, duration_s: float | None = None, parent_pid: int | None = None) -> None:
+        """Main loop: read MAVLink, advance simulated time with the wall clock times ``speedup``.
+
+        With ``parent_pid`` the loop ends once that process is gone (checked every wall-clock second), so
+        a vehicle started by ``fly-mission`` never outlives it, even after a ``kill -9``."""
         wall0 = time.monotonic()
         fd = self.conn.port.fileno()
+        next_parent_check = wall0
         while True:
             now = time.monotonic()
             if duration_s is not None and now - wall0 > duration_s:
                 return
+            if parent_pid is not None and now >= next_parent_check:
+                next_parent_check = now + 1.0
+                if os.getppid() != parent_pid:
+                    self.log("parent process gone: exiting")
+                    return
             self.wall_tasks(now)
             self.advance((now - wall0) * self.speedup)
             r, _, _ = select.select([fd], [], [], 0.004)
@@ -920,6 +929,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gust", type=float, default=1.5, help="wind gust standard deviation, m/s")
     p.add_argument("--seed", type=int, default=0, help="seed of the wind and turbulence")
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall-clock seconds")
+    p.add_argument("--parent-pid", type=int, default=None, help="exit when this parent process is gone")
     p.add_argument("-v", "--verbose", action="store_true", help="print state changes to stderr")
 
 
@@ -940,7 +950,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         flush=True,
     )
     try:
-        v.run(args.duration)
+        v.run(args.duration, args.parent_pid)
     except KeyboardInterrupt:
         pass
     return 0

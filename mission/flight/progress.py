@@ -2,7 +2,7 @@
 
 Why: the operator must see at a glance that the flight is on plan, that RSS is arriving, where the
 strongest signal so far was, and any link or receiver trouble.  On a terminal it is a ``rich.live``
-panel; otherwise (CI, a pipe) one plain status line every few seconds, so logs stay readable.
+panel; otherwise (CI, a pipe) one plain status line every few seconds, never wrapped, so logs stay readable.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ class FlightStatus:
     best_xy: tuple[float, float] | None = None
     rel_alt: float = 0.0
     phase: str = "connecting"
+    link_lost: bool = False
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -48,7 +49,7 @@ def render(s: FlightStatus) -> Table:
     t = Table(title=f"fly-mission: {s.mission_name}", show_header=False, expand=False)
     t.add_column(style="bold")
     t.add_column()
-    t.add_row("phase", s.phase)
+    t.add_row("phase", "[red]LINK LOST[/red] (last: " + s.phase + ")" if s.link_lost else s.phase)
     t.add_row("waypoint", f"{s.waypoint} of {s.n_waypoints} (raw item {s.item}/{s.items})")
     over = " [red](over budget)[/red]" if s.budget_s and s.elapsed > s.budget_s else ""
     t.add_row("elapsed", f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget{over}")
@@ -64,8 +65,9 @@ def render(s: FlightStatus) -> Table:
 
 def plain_line(s: FlightStatus) -> str:
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
+    phase = f"LINK LOST, last {s.phase}" if s.link_lost else s.phase
     return (
-        f"[{s.phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s "
+        f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s "
         f"alt={s.rel_alt:.1f}m "
         f"rows={s.rows} rss={s.last_rss:.1f} best={best}"
     )
@@ -94,11 +96,11 @@ class Display:
             self.live.update(render(self.status))
         elif time.monotonic() >= self._next:
             self._next = time.monotonic() + self.plain_every
-            self.console.print(plain_line(self.status), highlight=False, markup=False)
+            self.console.print(plain_line(self.status), highlight=False, markup=False, soft_wrap=True)
 
     def message(self, text: str, style: str = "") -> None:
         """A line that stays (warnings, phase changes)."""
-        self.console.print(text, style=style or None, highlight=False, markup=False)
+        self.console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True)
 
     def __exit__(self, *exc) -> None:
         if self.live is not None:

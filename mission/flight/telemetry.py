@@ -73,9 +73,12 @@ class VehicleClock:
         self.rate = float(rate_hint)
         self._hist: deque[tuple[float, float]] = deque(maxlen=400)
         self.last_wall = -np.inf
+        self.first: tuple[float, float] | None = None  # (wall, vehicle) of the first telemetry
 
     def update(self, t_vehicle: float) -> None:
         now = time.monotonic()
+        if self.first is None or t_vehicle < self.first[1]:  # a rebooted vehicle restarts the count
+            self.first = (now, t_vehicle)
         self._hist.append((now, t_vehicle))
         self.last_wall = now
         w0, v0 = self._hist[0]
@@ -95,6 +98,13 @@ class VehicleClock:
         """Wall-clock seconds since the last telemetry (inf before any)."""
         return time.monotonic() - self.last_wall
 
+    def measured_speedup(self) -> float | None:
+        """Vehicle seconds per wall-clock second over all telemetry so far (None before 1 s of it)."""
+        if self.first is None or not self._hist:
+            return None
+        (w0, v0), (w1, v1) = self.first, self._hist[-1]
+        return (v1 - v0) / (w1 - w0) if w1 - w0 >= 1.0 else None
+
 
 class Telemetry:
     """Position (lat, lon, alt AMSL, rel. alt) and attitude (roll, pitch, yaw rad) series, and the clock."""
@@ -104,16 +114,36 @@ class Telemetry:
         self.att = Series(3)
         self.clock = VehicleClock(rate_hint)
         self.n_pos = self.n_att = 0
+        self.t0_pos = self.t0_att = np.nan
 
     def add_position(self, t: float, lat: float, lon: float, alt: float, rel: float) -> None:
         if self.pos.add(t, (lat, lon, alt, rel)):
+            if not self.n_pos:
+                self.t0_pos = t
             self.n_pos += 1
             self.clock.update(t)
 
     def add_attitude(self, t: float, roll: float, pitch: float, yaw: float) -> None:
         if self.att.add(t, (roll, pitch, yaw)):
+            if not self.n_att:
+                self.t0_att = t
             self.n_att += 1
             self.clock.update(t)
+
+    def summary(self) -> dict:
+        """Measured speed-up (vehicle time per wall time) and telemetry rates (Hz of vehicle time)."""
+
+        def rate(n: int, t0: float, t1: float) -> float | None:
+            return round((n - 1) / (t1 - t0), 2) if n > 1 and t1 > t0 else None
+
+        su = self.clock.measured_speedup()
+        return {
+            "speedup_measured": None if su is None else round(su, 3),
+            "telemetry_rate_hz": {
+                "position": rate(self.n_pos, self.t0_pos, self.pos.last_t),
+                "attitude": rate(self.n_att, self.t0_att, self.att.last_t),
+            },
+        }
 
     @property
     def covered_until(self) -> float:

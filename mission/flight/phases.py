@@ -1,0 +1,84 @@
+"""The mission phase of a flown vehicle over time, for the ``phase`` / ``mission_item`` log columns.
+
+Why: later steps (localization) select the mission legs of a log; the vehicle's landed state and the
+mission progress say which phase it is in, but they arrive as events.  ``PhaseTracker`` turns them into a
+step function of vehicle time that the log writer reads for each row.  Phase names: ``flightlog.PHASES``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mission.flightlog import PHASES
+
+GROUND, TAKEOFF, MISSION, RETURN, LAND = PHASES
+
+
+class PhaseTracker:
+    """Phase and mission item as a step function of vehicle time, fed by landed-state and progress events.
+
+    ``first_wp`` is the raw item index of the first waypoint, ``last_item`` that of the final item (RTL or
+    LAND, ``final`` names which); mission item = raw index - ``first_wp`` while flying the waypoints.
+    """
+
+    def __init__(self) -> None:
+        self.t: list[float] = [-np.inf]
+        self.phase: list[str] = [GROUND]
+        self.item: list[int] = [-1]
+        self.first_wp, self.last_item, self.final = 0, 1 << 30, RETURN
+        self.landed_state = "ON_GROUND"
+        self.raw_item = -1
+        self.returning = False
+
+    def configure(self, first_wp: int, last_item: int, final: str) -> None:
+        self.first_wp, self.last_item, self.final = first_wp, last_item, final
+
+    @property
+    def current(self) -> str:
+        return self.phase[-1]
+
+    def _set(self, t: float, phase: str, item: int) -> None:
+        if (phase, item) == (self.phase[-1], self.item[-1]) or not np.isfinite(t):
+            return
+        t = max(t, self.t[-1])
+        self.t.append(t)
+        self.phase.append(phase)
+        self.item.append(item)
+
+    def _update(self, t: float) -> None:
+        ls = self.landed_state
+        if ls == "ON_GROUND":
+            self._set(t, GROUND, -1)
+        elif ls == "LANDING":
+            self._set(t, LAND, -1)
+        elif self.returning or self.raw_item >= self.last_item:
+            self._set(t, self.final if not self.returning else RETURN, -1)
+        elif ls == "TAKING_OFF" or self.raw_item < self.first_wp:
+            self._set(t, TAKEOFF, -1)
+        else:
+            self._set(t, MISSION, self.raw_item - self.first_wp)
+
+    def on_landed_state(self, t: float, name: str) -> None:
+        """MAVSDK ``LandedState`` name (ON_GROUND, TAKING_OFF, IN_AIR, LANDING) at vehicle time ``t``."""
+        if name == "ON_GROUND" and self.landed_state != "ON_GROUND":
+            self.returning = False
+        self.landed_state = name
+        self._update(t)
+
+    def on_progress(self, t: float, raw_item: int) -> None:
+        """The mission's current raw item at vehicle time ``t``."""
+        self.raw_item = raw_item
+        self._update(t)
+
+    def on_return(self, t: float) -> None:
+        """Return to launch commanded (abort or failure)."""
+        self.returning = True
+        self._update(t)
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Phase names and mission items at vehicle times ``t``."""
+        k = np.searchsorted(np.asarray(self.t), np.asarray(t, dtype=float), side="right") - 1
+        return np.asarray(self.phase, dtype=object)[k].astype(str), np.asarray(self.item)[k]
+
+
+__all__ = ["PhaseTracker", "GROUND", "TAKEOFF", "MISSION", "RETURN", "LAND"]

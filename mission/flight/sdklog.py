@@ -1,0 +1,59 @@
+"""MAVSDK's own log lines, kept off the terminal and turned into one plain warning per kind of trouble.
+
+Why: on a lost link MAVSDK prints e.g. "Connection refused" every second, with raw colour codes; the
+operator needs one line saying the link is lost (the runner's watchdog says that), not a scroll of errors.
+Without ``--verbose`` every MAVSDK line is swallowed; warnings and errors are queued (from MAVSDK's thread)
+and the runner shows the first of each distinct text once (digits ignored), while the link is up.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import deque
+
+_DIGITS = re.compile(r"\d+")
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+class SdkLog:
+    """Subscribes to MAVSDK's log (unless verbose) and hands out new distinct warning/error texts."""
+
+    def __init__(self, verbose: bool) -> None:
+        self.verbose = verbose
+        self.queue: deque[str] = deque(maxlen=200)
+        self.seen: set[str] = set()
+        self.installed = False
+
+    def __enter__(self) -> SdkLog:
+        if self.verbose:
+            return self
+        from mavsdk import LogLevel, log_subscribe
+
+        warn = LogLevel.WARN
+
+        def _filter(level, message, file, line) -> bool:
+            if level >= warn:
+                self.queue.append(_ANSI.sub("", str(message)).strip())
+            return True  # swallowed: the runner decides what the operator sees
+
+        log_subscribe(_filter)
+        self.installed = True
+        return self
+
+    def new_messages(self) -> list[str]:
+        """Warning/error texts not shown before (the queue is drained)."""
+        out = []
+        while self.queue:
+            text = self.queue.popleft()
+            key = _DIGITS.sub("#", text)
+            if text and key not in self.seen:
+                self.seen.add(key)
+                out.append(text)
+        return out
+
+    def __exit__(self, *exc) -> None:
+        if self.installed:
+            from mavsdk import log_unsubscribe
+
+            log_unsubscribe()
+            self.installed = False
