@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     truth = parse_latlon(args.truth) if args.truth else None
     if not args.truth_height >= 0:
         raise InputError(f"transmitter height {args.truth_height:g} m is below ground", field="--truth-height")
-    out_parent_ok(Path(args.out) / "log.csv")  # neither --out nor a parent of it may be a file
+    out_parent_ok(Path(args.out), folder=True)
     files: list[Path] = []
     for f in map(Path, args.files):  # a folder stands for every .mat file in it
         if f.is_dir():

@@ -110,9 +110,9 @@ def image_out(path: str | Path, flag: str = "--out") -> Path:
     return out_parent_ok(p, flag)
 
 
-def out_parent_ok(path: Path, flag: str = "--out") -> Path:
-    """``path`` unchanged, or an InputError when one of its parents is a file (mkdir would fail later)."""
-    for parent in path.parents:
+def out_parent_ok(path: Path, flag: str = "--out", folder: bool = False) -> Path:
+    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is a file."""
+    for parent in (path, *path.parents) if folder else path.parents:
         if parent.exists() and not parent.is_dir():
             raise InputError(f"{parent} is a file, not a folder", source=str(path), field=flag)
     return path
