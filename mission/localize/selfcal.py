@@ -1,0 +1,246 @@
+"""Self-calibrating model-based localizer: the per-flight nuisance is profiled out, not taken from a preset.
+
+Why: a physics preset fitted on two teams' flights (one antenna heading, one mounting) did not carry over to
+other teams' flights (issue 10).  Here every candidate transmitter position is scored under a set of antenna
+*hypotheses* (the measured RM-WB1-DN pattern hanging upside down or upright at every mounting heading in
+``heading_step_deg`` steps, a vertical dipole, an isotropic antenna), each with its own free RSS offset, and
+the best hypothesis is kept per candidate (profile likelihood).  The distance law is free space
+(``-20 log10 d``): on the real AFAR flights a free exponent absorbed the antenna's elevation pattern and
+moved estimates (``models/README.md``).
+
+Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal plane
+(:func:`cell_average`), so that a slow pass or a hover does not count its spot many times, and the
+likelihood is tempered to the number of *independent* cells, ``n_eff = covered area / (pi corr_m^2)``
+(exponential shadowing correlation length ``corr_m``), so thousands of correlated samples do not count as
+independent evidence.  The tempered profile likelihood over the search grid is the posterior from which
+:mod:`mission.localize.uncertainty` draws the 50 % and 90 % regions.
+
+Model (per cell m, candidate k, hypothesis h)::
+
+    P_m = c_kh + G_h(el_km, az_km) - 20 log10 d_km + e_m          # free space + UAV antenna, offset c free
+    SSR_kh = sum_m (P_m - G_h - (-20 log10 d_km) - c_kh)^2,       c_kh = the mean (least squares)
+    log p(k) = logsumexp_h(-0.5 tau SSR_kh / s^2),  s^2 = min SSR / (M - 1),  tau = n_eff / M
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.geo import Area
+from mission.localize import Estimate
+from mission.localize.classical import FlightData, _Base, as_flight
+from mission.physics.antenna import Dipole, Pattern, mount_angles, rm_wb1_dn
+
+HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
+
+
+@dataclass
+class Cells:
+    """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dB, mean yaw (M,) rad,
+    sample counts (M,)."""
+
+    enu: np.ndarray
+    rss_db: np.ndarray
+    yaw_rad: np.ndarray
+    count: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.rss_db.size)
+
+
+def cell_average(f: FlightData, cell_m: float) -> Cells:
+    """Average a flight's samples into ``cell_m`` square horizontal cells (vectorised; yaw averaged on the circle).
+
+    Without attitude the yaw is taken as 0 (nose north).
+    """
+    key = np.floor(f.enu[:, :2] / cell_m).astype(np.int64)
+    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    m = cnt.size
+    pos = np.stack([np.bincount(inv, f.enu[:, i], m) / cnt for i in range(3)], axis=1)
+    rss = np.bincount(inv, f.rss, m) / cnt
+    yaw_s = np.zeros(f.rss.size) if f.attitude is None else f.attitude[:, 2]
+    yaw = np.arctan2(np.bincount(inv, np.sin(yaw_s), m), np.bincount(inv, np.cos(yaw_s), m))
+    return Cells(pos, rss, yaw, cnt)
+
+
+def antenna_hypotheses(kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
+                       ) -> list[tuple[str, Pattern | None, float, bool]]:
+    """The UAV antenna hypotheses as (label, pattern or None for isotropic, mounting heading rad, flipped)."""
+    out: list[tuple[str, Pattern | None, float, bool]] = []
+    heads = np.arange(0.0, 360.0, float(heading_step_deg))
+    for kind in kinds:
+        if kind in ("measured-flipped", "measured"):
+            flipped = kind == "measured-flipped"
+            for h in heads:
+                out.append((f"RM-WB1-DN {'upside down' if flipped else 'upright'} heading {h:.0f} deg",
+                            rm_wb1_dn(), float(np.radians(h)), flipped))
+        elif kind == "dipole":
+            out.append(("vertical dipole", Dipole(), 0.0, False))
+        elif kind == "isotropic":
+            out.append(("isotropic", None, 0.0, False))
+        else:
+            raise InputError(f"unknown antenna hypothesis {kind!r} (known: {', '.join(HYPOTHESIS_KINDS)})",
+                             field="hypotheses")
+    return out
+
+
+def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np.ndarray, ...]:
+    """(K, M) float32 free-space path gain -20 log10 d, platform elevation and body azimuth of the transmitter.
+
+    Body azimuth uses the heading only (the receiver antenna hangs below the body; roll and pitch did not
+    help on real flights, ``rfsl gap``), clockwise from the nose; elevation is negative below the UAV.
+    """
+    dx = (cand_xy[:, None, 0] - cells.enu[None, :, 0]).astype(np.float32)
+    dy = (cand_xy[:, None, 1] - cells.enu[None, :, 1]).astype(np.float32)
+    dz = (tx_height_m - cells.enu[None, :, 2]).astype(np.float32)
+    dh2 = dx * dx + dy * dy
+    pg = np.float32(-10.0) * np.log10(dh2 + dz * dz)                     # -20 log10 d_los
+    el = np.arctan2(dz, np.sqrt(dh2))
+    az = np.mod(np.arctan2(dx, dy) - cells.yaw_rad[None, :].astype(np.float32), np.float32(2 * np.pi))
+    return pg, el, az
+
+
+def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate."""
+    pg, el, az = _geometry(cand_xy, cells, tx_height_m)
+    y = cells.rss_db.astype(np.float32)[None, :]
+    ssr = np.empty((len(hyps), len(cand_xy)))
+    off = np.empty((len(hyps), len(cand_xy)))
+    base = y - pg
+    for i, (_, pat, head, flipped) in enumerate(hyps):
+        if pat is None:
+            r = base
+        else:
+            el_a, az_a = mount_angles(el, az, head, flipped)
+            amp = pat.amplitude_at(el_a.astype(np.float32), az_a.astype(np.float32))
+            r = base - np.float32(20.0) * np.log10(np.maximum(amp, np.float32(1e-6)))
+        c = r.mean(axis=1)
+        off[i] = c
+        ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2
+    return np.maximum(ssr, 0.0), off
+
+
+def covered_area_m2(enu: np.ndarray, cell_m: float = 5.0) -> float:
+    """Horizontal area the flight covered: the number of occupied ``cell_m`` cells times their area."""
+    return float(len(np.unique(np.floor(enu[:, :2] / cell_m), axis=0))) * cell_m * cell_m
+
+
+class SelfCalibratingGrid(_Base):
+    """Grid search with per-candidate profiled antenna hypothesis and offset, on cell-averaged RSS.
+
+    ``area``: an ``Area`` (candidates inside its polygon) or ``(xmin, ymin, xmax, ymax)``; None = the flight's
+    box grown by ``margin_m``.  ``corr_m`` sets the likelihood's temperature (module docstring) and with it the
+    width of the uncertainty regions; its default was calibrated on the unseen-flight benchmark
+    (``models/README.md``).
+    """
+
+    name = "selfcal"
+
+    def __init__(self, area=None, margin_m: float = 60.0, cell_m: float = 5.0, step_m: float = 5.0,
+                 refine_m: float = 1.0, tx_height_m: float = 1.5, heading_step_deg: float = 30.0,
+                 hypotheses: tuple[str, ...] = HYPOTHESIS_KINDS, corr_m: float = 10.0, min_cells: int = 8,
+                 levels: tuple[float, ...] = (0.5, 0.9)) -> None:
+        self.area = area
+        self.margin_m = float(margin_m)
+        self.cell_m = float(cell_m)
+        self.step_m = float(step_m)
+        self.refine_m = float(refine_m)
+        self.tx_height_m = float(tx_height_m)
+        self.heading_step_deg = float(heading_step_deg)
+        self.hypotheses = tuple(hypotheses)
+        self.corr_m = float(corr_m)
+        self.min_cells = int(min_cells)
+        self.levels = tuple(levels)
+
+    def _candidates(self, f: FlightData) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
+        if isinstance(self.area, Area):
+            box, poly = self.area.bounds, self.area
+        elif self.area is not None:
+            box, poly = tuple(float(v) for v in self.area), None
+        else:
+            lo = f.enu[:, :2].min(axis=0) - self.margin_m
+            hi = f.enu[:, :2].max(axis=0) + self.margin_m
+            box, poly = (lo[0], lo[1], hi[0], hi[1]), None
+        xs = np.arange(box[0], box[2] + 1e-9, self.step_m)
+        ys = np.arange(box[1], box[3] + 1e-9, self.step_m)
+        gx, gy = np.meshgrid(xs, ys)
+        return np.stack([gx, gy], axis=-1), box, poly
+
+    def predict(self, flight, origin=None) -> Estimate:
+        from mission.localize.uncertainty import grid_posterior, hpd_regions
+
+        f = as_flight(flight, origin)
+        cells = cell_average(f, self.cell_m)
+        if len(cells) < self.min_cells:
+            raise InputError(f"only {len(cells)} distinct {self.cell_m:g} m cells flown: too few to localize "
+                             f"(need {self.min_cells})")
+        hyps = antenna_hypotheses(self.hypotheses, self.heading_step_deg)
+        grid, box, poly = self._candidates(f)
+        flat = grid.reshape(-1, 2)
+        valid = np.ones(len(flat), dtype=bool) if poly is None else poly.contains(flat)
+        if not valid.any():
+            valid[:] = True
+        ssr, off = hypothesis_ssr(flat[valid], cells, hyps, self.tx_height_m)
+        m = len(cells)
+        s2 = max(float(ssr.min()) / max(m - 1, 1), 1e-6)
+        n_eff = max(covered_area_m2(f.enu, self.cell_m) / (np.pi * self.corr_m**2), 2.0)
+        tau = min(n_eff / m, 1.0)
+        logp = np.full((len(hyps), len(flat)), -np.inf)
+        logp[:, valid] = -0.5 * tau * ssr / s2
+        post = grid_posterior(logp, grid.shape[:2])
+        # point estimate: the best candidate, refined on a fine grid under its three best hypotheses
+        k = int(np.argmin(ssr.min(axis=0)))
+        best_h = np.argsort(ssr[:, k])[:3]
+        c0 = flat[valid][k]
+        d = np.arange(-self.step_m, self.step_m + 1e-9, self.refine_m)
+        fine = (c0[None, :] + np.stack(np.meshgrid(d, d), axis=-1).reshape(-1, 2))
+        fssr, foff = hypothesis_ssr(fine, cells, [hyps[i] for i in best_h], self.tx_height_m)
+        j = np.unravel_index(int(np.argmin(fssr)), fssr.shape)
+        x, y = fine[j[1]]
+        h = int(best_h[j[0]])
+        regions = hpd_regions(post, grid, self.levels)
+        p_out = _p_outside_flown(post, grid, f.enu)
+        extras = dict(
+            antenna=hyps[h][0],
+            offset_db=float(foff[j]),
+            residual_rms_db=float(np.sqrt(fssr[j] / m)),
+            n_cells=m,
+            n_eff=float(n_eff),
+            cell_m=self.cell_m,
+            tx_height_m=self.tx_height_m,
+            search_box=[float(v) for v in box],
+            regions=regions,
+            p_outside_flown_area=p_out,
+        )
+        if p_out >= 0.5:
+            extras["note"] = (f"the transmitter probably lies outside the flown area (posterior mass "
+                              f"{100 * p_out:.0f} % outside it): the estimate is an extrapolation")
+        est = self._estimate(x, y, "free space + profiled UAV antenna", **extras)
+        est.posterior = post
+        return est
+
+
+def flown_area(enu: np.ndarray) -> Area | None:
+    """The flown area: the convex hull of the UAV track (None for a degenerate track)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    xy = enu[:, :2]
+    try:
+        return Area("flown area", xy[ConvexHull(xy).vertices])
+    except (QhullError, ValueError):
+        return None
+
+
+def _p_outside_flown(post, grid: np.ndarray, enu: np.ndarray, grow_m: float = 10.0) -> float:
+    """Posterior mass outside the flown area grown by ``grow_m`` (NaN for a degenerate track)."""
+    fa = flown_area(enu)
+    if fa is None:
+        return float("nan")
+    pts = grid.reshape(-1, 2)
+    near = fa.contains(pts) | (fa.edge_distance(pts) <= grow_m)
+    return float(post.prob.ravel()[~near].sum())
