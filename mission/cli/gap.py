@@ -35,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--withheld", default="all", help="self-test cases: effect names, none, or all")
 
 
+MIN_SAMPLES = 200  # fewer cannot support block splits and the per-effect fits (a 1-row log raised numpy errors)
+
+
 def _parse_latlon(s: str):
     from mission.errors import InputError
 
@@ -63,7 +66,11 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
             lat, lon = _parse_latlon(truths[0 if len(truths) == 1 else k])
             o = log.origin
             tx = o.to_enu(lat, lon, o.alt_m + height)
-        flights.append(flight_from_log(log, tx))
+        f = flight_from_log(log, tx)
+        if len(f.t_s) < MIN_SAMPLES:
+            raise InputError(f"only {len(f.t_s)} samples with RSS; the gap diagnosis needs at least {MIN_SAMPLES}",
+                             source=str(p))
+        flights.append(f)
     return flights
 
 
@@ -127,6 +134,7 @@ def run(args) -> int:
         return _selftest(args)
     if not args.logs:
         raise InputError("give at least one flight log (or --selftest)", field="logs")
+    import numpy as np
     from rich.console import Console
 
     from mission.gap.candidates import select
@@ -141,8 +149,12 @@ def run(args) -> int:
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
     cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed)
-    d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,
-                 max_rungs=args.max_rungs, localize=not args.no_localize)
+    try:
+        d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,
+                     max_rungs=args.max_rungs, localize=not args.no_localize)
+    except np.linalg.LinAlgError as e:
+        raise InputError(f"the fit is singular on these flights ({e}): too short, or too little ground covered",
+                         source=", ".join(args.logs)) from None
     c = Console()
     print_report(d, c)
     if args.report:
