@@ -20,6 +20,8 @@ def parse_xy(text: str, name: str) -> tuple[float, ...]:
         raise InputError(f"expected comma-separated numbers, got {text!r}", field=name) from None
     if len(vals) not in (2, 3):
         raise InputError(f"expected X,Y or X,Y,Z in metres, got {len(vals)} value(s)", field=name)
+    if not all(abs(v) < 1e6 for v in vals):  # also refuses nan and inf
+        raise InputError(f"expected finite local coordinates (|value| < 1e6 m), got {text!r}", field=name)
     return vals
 
 
@@ -37,18 +39,26 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from rich.console import Console
 
+    from mission.cli.main import out_parent_ok
     from mission.errors import InputError
     from mission.flightlog import make_meta, write_flight_log
     from mission.physics import make_model
     from mission.simulate import simulate_flight
     from mission.spec import load_mission
+    from mission.trajectory.checks import source_violations
 
+    if args.seed is not None and args.seed < 0:
+        raise InputError(f"must be >= 0, got {args.seed}", field="--seed")
+    out_parent_ok(Path(args.out), folder=True)
     spec = load_mission(args.mission)
     seed = spec.source.seed if args.seed is None else args.seed
     rng = np.random.default_rng(seed)
     if args.source:
         v = parse_xy(args.source, "--source")
         tx = np.array([v[0], v[1], v[2] if len(v) == 3 else spec.source.tx_height_m])
+        bad = source_violations(spec, tx)
+        if bad:
+            raise InputError(bad[0].message, field="--source")
         if not spec.field.rover_area.contains(tx[:2]):
             Console(stderr=True).print(f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area")
     else:

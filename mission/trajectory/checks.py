@@ -74,12 +74,13 @@ def _where(d: float, margin: float) -> str:
     return f"only {d:.1f} m inside the flight area, {margin:g} m margin required ({margin - d:.1f} m short)"
 
 
-def _source_violations(spec) -> list[Violation]:
-    """A fixed simulated transmitter must lie in the field (flight or rover area) and not below ground: one at
-    (5000, 5000) m makes a flight whose localization cannot succeed, so the mission is not 'flyable'."""
-    if isinstance(spec.source.tx, str):
+def source_violations(spec, tx=None) -> list[Violation]:
+    """A fixed simulated transmitter (``tx`` or the mission's) must lie in the field (flight or rover area) and
+    not below ground: one at (5000, 5000) m makes a flight whose localization cannot succeed."""
+    tx = spec.source.tx if tx is None else tx
+    if isinstance(tx, str):
         return []
-    tx = np.asarray(spec.source.tx, dtype=float)
+    tx = np.asarray(tx, dtype=float)
     out = []
     fa, ra = spec.field.flight_area, spec.field.rover_area
     d = max(float(fa.signed_distance(tx[:2])), float(ra.signed_distance(tx[:2])))
@@ -132,7 +133,7 @@ def check_mission(spec) -> MissionReport:
                                f"waypoint {i} altitude {z:.1f} m is {z - hi:.1f} m above the upper limit "
                                f"{hi:g} m", z - hi))
 
-    v += _source_violations(spec)
+    v += source_violations(spec)
     if profile.duration_s > spec.time_budget_s:
         over = profile.duration_s - spec.time_budget_s
         v.append(Violation("time_budget_s", f"estimated flight time {profile.duration_s:.0f} s exceeds the "
