@@ -139,6 +139,16 @@ def run(args: argparse.Namespace) -> int:
             )
     if args.workers < 1:
         raise InputError("must be >= 1", field="--workers")
+    for flag in ("altitude", "tx_height", "noise", "shadowing", "shadowing_corr", "speed", "beta", "eps_r",
+                 "truncate"):  # physical ranges that cannot be negative (numpy raised "scale < 0")
+        r = getattr(args, flag, None)
+        if r is not None and r[0] < 0:
+            raise InputError(f"must not be negative, got {r[0]:g},{r[1]:g}", field="--" + flag.replace("_", "-"))
+    from pathlib import Path
+
+    from mission.cli.main import out_parent_ok
+
+    out_parent_ok(Path(args.out), folder=True)
     cfg = DatasetConfig(
         mission=args.mission,
         n=args.n,

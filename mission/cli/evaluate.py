@@ -95,6 +95,13 @@ def run(args: argparse.Namespace) -> int:
     for mp in args.models:
         if not Path(mp).is_file():
             raise InputError("no such model file", source=mp)
+    if args.out:  # checked before the (long) evaluation, not after it
+        from mission.cli.main import out_parent_ok
+
+        if Path(args.out).is_dir():
+            raise InputError("is a directory; give a JSON file name such as report.json", source=args.out,
+                             field="--out")
+        out_parent_ok(Path(args.out))
     work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
     work.mkdir(parents=True, exist_ok=True)
     tests = list(args.sim_test)
