@@ -264,7 +264,7 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     if missing:
         raise InputError(f"missing required column(s) {', '.join(missing)}; header is {','.join(header)}",
                          source=src)
-    text, cut = _drop_cut_last_line(text, header)
+    text, cut = _drop_cut_last_line(text, header, _written_here(path))
     if cut:
         notes.append(cut)
         reader = csv.reader(io.StringIO(text))
@@ -284,18 +284,31 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     return _validated(columns, path, src, notes, origin)
 
 
-def _drop_cut_last_line(text: str, header: list[str]) -> tuple[str, str | None]:
-    """Drop a last line cut short (fields missing, a required value empty or unreadable) and say so.
+def _written_here(path: Path) -> bool:
+    """True when the log's sidecar says ``FlightLogWriter`` wrote it (so every complete row ends in a newline)."""
+    try:
+        meta = json.loads(sidecar_path(path).read_text())
+        return isinstance(meta, dict) and str(meta.get("format", "")).startswith("rfsl-flight-log")
+    except (OSError, ValueError):
+        return False
+
+
+def _drop_cut_last_line(text: str, header: list[str], newline_ends_rows: bool = False) -> tuple[str, str | None]:
+    """Drop a last line cut short (fields missing, a required value empty or unreadable, or, in a log this
+    project wrote, no line end) and say so.
 
     Why: a logger killed mid-write leaves exactly this, and the rows before it are good; the same damage
-    in the middle of a file is refused by the parser with its row.
+    in the middle of a file is refused by the parser with its row.  ``FlightLogWriter`` ends every row with a
+    newline, so in its logs a last line without one was cut even when what is left still parses (-71.5 -> -7).
     """
     lines = text.rstrip().splitlines()
     if len(lines) < 3:  # header + one data row: nothing would be left, let the parser report it
         return text, None
     fields = next(csv.reader([lines[-1]]), [])
     reason = None
-    if len(fields) != len(header):
+    if newline_ends_rows and not text.endswith("\n"):
+        reason = "no line end"
+    elif len(fields) != len(header):
         reason = f"{len(fields)} of {len(header)} fields"
     else:
         for name, v in zip(header, fields, strict=True):
