@@ -134,11 +134,6 @@ def link_of(pipe: Pipeline, flight: Flight, idx: np.ndarray) -> Any:
     return SimpleNamespace(delta=(dx, dy, dz), z_t=np.full(len(rx), tx[2]), z_r=rx[:, 2], d_los=d_los, u_b=u_b)
 
 
-def _ridge(X: np.ndarray, y: np.ndarray, w: np.ndarray, pen: np.ndarray, lam: float) -> np.ndarray:
-    XtW = X.T * w
-    return np.linalg.solve(XtW @ X + lam * len(y) * np.diag(pen), XtW @ y)
-
-
 def _centered(blocks: Sequence[np.ndarray], ws: Sequence[np.ndarray]) -> np.ndarray:
     """Weighted per-flight centring (the free offset is per flight)."""
     out = []
@@ -210,17 +205,23 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[Flight], idx: Sequ
     pen = np.array([1.0 + m * m + p * p for _, m, p in basis_orders(kind)])
     half = [(np.floor(f.t_s[i] / period_s).astype(int) % 2) for f, i in zip(fl, ix, strict=True)]
 
-    def solve(sel: Sequence[np.ndarray], lam: float) -> np.ndarray:
+    def gram(sel: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
+        """X^T W X and X^T W y of the selected samples, centred per flight (computed once per selection)."""
         X = _centered([x[s] for x, s in zip(Xs, sel, strict=True)], [w[s] for w, s in zip(ws, sel, strict=True)])
         y = _centered([r[s] for r, s in zip(rs, sel, strict=True)], [w[s] for w, s in zip(ws, sel, strict=True)])
-        w = np.concatenate([w[s] for w, s in zip(ws, sel, strict=True)])
-        return _ridge(X, y, w, pen, lam)
+        XtW = X.T * np.concatenate([w[s] for w, s in zip(ws, sel, strict=True)])
+        return XtW @ X, XtW @ y, len(y)
 
+    def solve(g: tuple[np.ndarray, np.ndarray, int], lam: float) -> np.ndarray:
+        A, c, n = g
+        return np.linalg.solve(A + lam * n * np.diag(pen), c)
+
+    grams = [gram([h != a for h in half]) for a in (0, 1)]
     best = (np.inf, LAMBDAS[-1])
     for lam in LAMBDAS:
         err = 0.0
         for a in (0, 1):
-            coef = solve([h != a for h in half], lam)
+            coef = solve(grams[a], lam)
             te = [h == a for h in half]
             pred = [x[s] @ coef for x, s in zip(Xs, te, strict=True)]
             d = _centered([r[s] - q for r, s, q in zip(rs, te, pred, strict=True)],
@@ -230,7 +231,7 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[Flight], idx: Sequ
         if err < best[0]:
             best = (err, lam)
     lam = best[1]
-    coef = solve([np.ones(len(r), bool) for r in rs], lam)
+    coef = solve(gram([np.ones(len(r), bool) for r in rs]), lam)
     term = FreeFormTerm(kind, tuple(float(c) for c in coef))
     new = pipe.replace(model=pipe.model.with_effect(term))
     vals = [x @ coef for x in Xs]

@@ -178,7 +178,7 @@ def _fit_model(lags: np.ndarray, gamma: np.ndarray, cnt: np.ndarray, kind: str,
 
 def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, kind: str = "exponential",
                   max_lag: float = 150.0, n_bins: int = 30, max_points: int = 1500, n_boot: int = 50,
-                  groups: np.ndarray | None = None, unit: str = "m") -> Variogram:
+                  groups: np.ndarray | None = None, unit: str = "m", boot_points: int = 600) -> Variogram:
     """Fit ``kind`` (or ``"best"``: the family with the smaller weighted misfit) to residuals ``r`` at ``xy``.
 
     ``xy``: positions (N, 2) in m, or times (N,) in s for the variogram along the path.  Points are
@@ -206,6 +206,9 @@ def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, kind:
     k, (_, s, L, n), (lags, gm, cnt) = fit(xy, r)
     boots = []
     nblk = 20
+    if len(r) > boot_points:  # the intervals come from a thinned copy (every k-th point keeps the blocks)
+        thin = np.arange(0, len(r), int(np.ceil(len(r) / boot_points)))
+        xy, r = xy[thin], r[thin]
     blocks = np.array_split(np.arange(len(r)), nblk)
     for _ in range(n_boot):
         pick = np.concatenate([blocks[j] for j in rng.integers(0, nblk, nblk)])

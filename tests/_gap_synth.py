@@ -1,0 +1,231 @@
+"""An independent flight generator for the gap self-test: written here from the formulas, not via mission.physics.
+
+Why: a self-test that generates its flights with the library it diagnoses with can only find what the library
+already contains, with the library's own conventions.  This generator shares nothing with ``mission.physics``
+(only numpy): trajectories, attitude, the two-ray channel with vertical dipoles (SPEC section 3, paper eq. 1),
+and one withheld effect per case, including effects no candidate names:
+
+| effect | truth | expected name |
+| --- | --- | --- |
+| ``none`` | nothing | nothing |
+| ``legs`` | paper eqs. 8-9: beta 0.5-0.7, legs at 39/150/270 deg body az., +-5 deg, dep_b < 10 deg | leg_shadowing |
+| ``ground`` | ground permittivity 10-25, 5 mS/m (the base assumes 2, lossless) | ground_reflection |
+| ``ripple`` | UAV antenna gain + A cos(3 (az_b - phi)), A 2-2.5 dB (4-5 dB peak to peak) | rx_gain_map |
+| ``notch`` | UAV antenna gain - 10 dB exp(-(az_b - phi)^2 / 2 (15 deg)^2) (a notch in body azimuth) | rx_gain_map |
+| ``tx_azimuth`` | rover antenna gain + 3 dB cos(az_w - phi) over compass azimuth | tx_gain_map |
+| ``shadowing`` | exponential-covariance ground field, sigma 4 dB, L 30-60 m, one per flight | spatial_shadowing |
+| ``timing`` | RSS stamped late by 0.5-1.0 s | time_offset |
+
+The base model the diagnosis starts from is two-ray + vertical dipoles + (roll, pitch, yaw) attitude,
+ground permittivity 2, P_t 41 dBm, 3.32 GHz; each flight gets an unknown receiver offset and 1 dB white noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+C_LIGHT = 299_792_458.0
+FC_HZ = 3.32e9
+PT_DBM = 41.0
+LAMBDA_M = C_LIGHT / FC_HZ
+EPS0 = 8.8541878128e-12
+LEGS_DEG = (39.0, 150.0, 270.0)
+EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing")
+EXPECTED = {"none": None, "legs": "leg_shadowing", "ground": "ground_reflection", "ripple": "rx_gain_map",
+            "notch": "rx_gain_map", "tx_azimuth": "tx_gain_map", "shadowing": "spatial_shadowing",
+            "timing": "time_offset"}
+
+
+# ------------------------------------------------------------------------------------------ trajectories
+
+def _polyline(points: np.ndarray, speed: float, dt: float, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 2) at constant speed along ``points`` and the course (compass, rad) of each sample."""
+    seg = np.diff(points, axis=0)
+    L = np.hypot(seg[:, 0], seg[:, 1])
+    s_cum = np.concatenate([[0.0], np.cumsum(L)])
+    t = np.arange(0.0, min(duration, s_cum[-1] / speed), dt)
+    s = t * speed
+    k = np.clip(np.searchsorted(s_cum, s, side="right") - 1, 0, len(seg) - 1)
+    frac = (s - s_cum[k]) / L[k]
+    xy = points[k] + frac[:, None] * seg[k]
+    course = np.arctan2(seg[k, 0], seg[k, 1]) % (2 * np.pi)  # clockwise from north
+    return xy, course
+
+
+def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float) -> dict[str, np.ndarray]:
+    """A lawnmower (rows east-west) or an outward spiral over a 300 m square; yaw = course; AR(1) roll/pitch."""
+    h = float(rng.uniform(25.0, 45.0))
+    if kind == "lawnmower":
+        sp = float(rng.uniform(28.0, 40.0))
+        ys = np.arange(0.0, 300.0 + 1e-9, sp)
+        pts = []
+        for j, y in enumerate(ys):
+            xs = (0.0, 300.0) if j % 2 == 0 else (300.0, 0.0)
+            pts += [(xs[0], y), (xs[1], y)]
+        points = np.array(pts)
+    else:
+        th = np.linspace(0.0, 6 * 2 * np.pi, 600)
+        r = 15.0 + 135.0 * th / th[-1]
+        points = np.column_stack([150.0 + r * np.sin(th), 150.0 + r * np.cos(th)])
+    xy, course = _polyline(points, 5.0, dt, duration)
+    n = len(xy)
+    phi = np.exp(-dt / 0.5)
+    rp = np.zeros((n, 2))
+    e = rng.normal(0.0, np.deg2rad(3.0) * np.sqrt(1 - phi * phi), size=(n, 2))
+    for i in range(1, n):
+        rp[i] = phi * rp[i - 1] + e[i]
+    att = np.column_stack([rp[:, 0], rp[:, 1] - np.deg2rad(4.0), course])  # cruising: nose 4 deg down
+    t = np.arange(n) * dt
+    pos = np.column_stack([xy, np.full(n, h) + rng.normal(0.0, 0.3, n)])
+    return {"t": t, "pos": pos, "att": att}
+
+
+# --------------------------------------------------------------------------------------------- channel
+
+def body_los(tx: np.ndarray, pos: np.ndarray, att: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body-frame unit LOS (FRD) from the UAV to ``tx`` (ENU point or (N, 3)): u_b = R_nb^T u_ned,
+    R_nb = Rz(yaw) Ry(pitch) Rx(roll) (SPEC section 1), written out."""
+    d = np.broadcast_to(tx, pos.shape) - pos
+    u = np.column_stack([d[:, 1], d[:, 0], -d[:, 2]])  # NED
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    r, p, y = att[:, 0], att[:, 1], att[:, 2]
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    # rows of R_nb^T = columns of R_nb
+    bx = (cy * cp) * u[:, 0] + (sy * cp) * u[:, 1] - sp * u[:, 2]
+    by = (cy * sp * sr - sy * cr) * u[:, 0] + (sy * sp * sr + cy * cr) * u[:, 1] + (cp * sr) * u[:, 2]
+    bz = (cy * sp * cr + sy * sr) * u[:, 0] + (sy * sp * cr - cy * sr) * u[:, 1] + (cp * cr) * u[:, 2]
+    return bx, by, bz
+
+
+def dipole_db(sin_el: np.ndarray) -> np.ndarray:
+    """Vertical half-wave dipole, G = 1.641 (cos(pi/2 sin el) / cos el)^2 (SPEC section 3), floored at -40 dBi."""
+    cos_el = np.sqrt(np.maximum(1.0 - sin_el**2, 1e-12))
+    g = 1.641 * (np.cos(0.5 * np.pi * sin_el) / cos_el) ** 2
+    return 10 * np.log10(np.maximum(g, 1e-4))
+
+
+def gamma_v(sin_psi: np.ndarray, eps_r: float, sigma: float) -> np.ndarray:
+    """Fresnel reflection coefficient, vertical polarisation, eps = eps_r - j sigma / (omega eps0)."""
+    eps = eps_r - 1j * sigma / (2 * np.pi * FC_HZ * EPS0)
+    root = np.sqrt(eps - (1 - sin_psi**2) + 0j)
+    return (eps * sin_psi - root) / (eps * sin_psi + root)
+
+
+def channel_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, eps_r: float = 2.0, sigma: float = 0.0,
+               rx_extra_db=None, tx_extra_db=None) -> np.ndarray:
+    """Two-ray (eq. 1) with per-ray dipole gains; the UAV's at body-frame angles, the rover's upright.
+
+    ``rx_extra_db(az_b, dep_b)`` / ``tx_extra_db(az_world)``: extra antenna gain (dB) on both rays.
+    """
+    d_vec = tx - pos
+    d_h = np.hypot(d_vec[:, 0], d_vec[:, 1])
+    h_r, h_t = pos[:, 2], tx[2]
+    d_los = np.sqrt(d_h**2 + (h_r - h_t) ** 2)
+    d_ref = np.sqrt(d_h**2 + (h_r + h_t) ** 2)
+    sin_psi = (h_r + h_t) / d_ref
+    image = np.array([tx[0], tx[1], -tx[2]])
+    bx, by, bz = body_los(tx, pos, att)
+    bx2, by2, bz2 = body_los(image, pos, att)
+    g_r1, g_r2 = dipole_db(bz), dipole_db(bz2)  # el = -dep_b; the dipole is symmetric
+    g_t1 = dipole_db((h_r - h_t) / d_los)
+    g_t2 = dipole_db(sin_psi)
+    if rx_extra_db is not None:
+        g_r1 = g_r1 + rx_extra_db(np.arctan2(by, bx) % (2 * np.pi), np.arcsin(np.clip(bz, -1, 1)))
+        g_r2 = g_r2 + rx_extra_db(np.arctan2(by2, bx2) % (2 * np.pi), np.arcsin(np.clip(bz2, -1, 1)))
+    if tx_extra_db is not None:
+        az_w = np.arctan2(-d_vec[:, 0], -d_vec[:, 1]) % (2 * np.pi)
+        g_t1, g_t2 = g_t1 + tx_extra_db(az_w), g_t2 + tx_extra_db(az_w)
+    a1 = 10 ** ((g_r1 + g_t1) / 20) / d_los
+    a2 = 10 ** ((g_r2 + g_t2) / 20) / d_ref
+    field = a1 + gamma_v(sin_psi, eps_r, sigma) * a2 * np.exp(-1j * 2 * np.pi * (d_ref - d_los) / LAMBDA_M)
+    return PT_DBM + 20 * np.log10(LAMBDA_M / (4 * np.pi)) + 20 * np.log10(np.abs(field))
+
+
+def leg_loss_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, beta: float, half_width_deg: float = 5.0,
+                threshold_deg: float = 10.0) -> np.ndarray:
+    """-Upsilon = -10 beta log10(d_los) where a leg blocks the LOS (paper eqs. 8-9)."""
+    bx, by, bz = body_los(tx, pos, att)
+    az = np.rad2deg(np.arctan2(by, bx)) % 360.0
+    dep = np.rad2deg(np.arcsin(np.clip(bz, -1, 1)))
+    near = np.zeros(len(az), bool)
+    for leg in LEGS_DEG:
+        near |= np.abs((az - leg + 180.0) % 360.0 - 180.0) <= half_width_deg
+    s = near & (dep < threshold_deg)
+    d_los = np.linalg.norm(tx - pos, axis=1)
+    return -10.0 * beta * np.log10(d_los) * s
+
+
+def exp_field(rng: np.random.Generator, sigma: float, L: float, m: int = 500):
+    """Exponential-covariance Gaussian field by random Fourier features (Cauchy spectrum)."""
+    w = rng.normal(size=(m, 2)) / (L * np.sqrt(rng.chisquare(1.0, size=(m, 1))))
+    b = rng.uniform(0, 2 * np.pi, m)
+    return lambda xy: sigma * np.sqrt(2.0 / m) * np.cos(xy @ w.T + b).sum(axis=1)
+
+
+# ------------------------------------------------------------------------------------------------ cases
+
+def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.2, duration: float = 330.0,
+              noise_db: float = 1.0) -> tuple[list[dict], dict]:
+    """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth."""
+    rng = np.random.default_rng(seed)
+    truth: dict = {"effect": effect}
+    if effect == "shadowing":
+        truth.update(sigma_db=4.0, corr_len_m=float(rng.uniform(30.0, 60.0)))
+    phi = float(rng.uniform(0.0, 2 * np.pi))
+    flights = []
+    for k in range(n_flights):
+        tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
+        tx = np.array([rng.uniform(60.0, 240.0), rng.uniform(60.0, 240.0), 1.5])
+        t, pos, att = tr["t"], tr["pos"], tr["att"]
+        kw: dict = {}
+        if effect == "ground":
+            truth.update(eps_r=truth.get("eps_r", float(rng.uniform(10.0, 25.0))), sigma_s_m=0.005)
+            kw = {"eps_r": truth["eps_r"], "sigma": 0.005}
+        elif effect == "ripple":
+            truth.setdefault("amp_db", float(rng.uniform(2.0, 2.5)))
+            truth["phase_deg"] = np.rad2deg(phi)
+            kw = {"rx_extra_db": lambda az, dep: truth["amp_db"] * np.cos(3 * (az - phi))}
+        elif effect == "notch":
+            truth.update(depth_db=10.0, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0)
+            kw = {"rx_extra_db": lambda az, dep: -10.0 * np.exp(
+                -0.5 * ((np.angle(np.exp(1j * (az - phi)))) / np.deg2rad(15.0)) ** 2)}
+        elif effect == "tx_azimuth":
+            truth.update(amp_db=3.0, azimuth_deg=float(np.rad2deg(phi)))
+            kw = {"tx_extra_db": lambda az: 3.0 * np.cos(az - phi)}
+        q_pos, q_att = pos, att
+        if effect == "timing":
+            truth.setdefault("tau_s", float(rng.uniform(0.5, 1.0)))
+            tq = t - truth["tau_s"]  # received where the UAV was tau earlier
+            q_pos = np.column_stack([np.interp(tq, t, pos[:, j]) for j in range(3)])
+            yaw = np.unwrap(att[:, 2])
+            q_att = np.column_stack([np.interp(tq, t, att[:, 0]), np.interp(tq, t, att[:, 1]),
+                                     np.interp(tq, t, yaw) % (2 * np.pi)])
+        p = channel_db(tx, q_pos, q_att, **kw)
+        if effect == "legs":
+            truth.setdefault("beta", float(rng.uniform(0.5, 0.7)))
+            p = p + leg_loss_db(tx, q_pos, q_att, truth["beta"])
+        if effect == "shadowing":  # fixed over the ground; a fresh field per flight (another rover position)
+            p = p + exp_field(rng, truth["sigma_db"], truth["corr_len_m"])(pos[:, :2])
+        rss = p + float(rng.uniform(-60.0, 20.0)) + rng.normal(0.0, noise_db, len(p))
+        flights.append({"t": t, "pos": pos, "att": att, "rss": rss, "tx": tx})
+    return flights, truth
+
+
+def diagnose_case(effect: str, seed: int, **kw) -> dict:
+    """Generate one case and run the diagnosis (``mission.gap.structure.identify``) on it."""
+    from mission.gap.align import Flight
+    from mission.gap.candidates import library
+    from mission.gap.fit import FitConfig
+    from mission.gap.pipeline import Pipeline
+    from mission.physics import Attitude, make_model
+
+    raw, truth = make_case(effect, seed, **kw)
+    flights = [Flight(f"synth{k}", f["t"], f["pos"], f["att"], f["rss"], f["tx"]) for k, f in enumerate(raw)]
+    base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
+    cfg = FitConfig(seed=seed, fit_max_samples=1200, workers=1)
+    from mission.gap.structure import identify
+
+    out = identify(flights, base, list(library().values()), cfg)
+    out.update(effect=effect, seed=seed, truth=truth, expected=EXPECTED[effect],
+               hit=out["named"] == EXPECTED[effect])
+    return out
