@@ -138,53 +138,34 @@ def plan_profile(waypoints: np.ndarray, kin: Kinematics | None = None,
     return FlightProfile(P, s, t, v, vc, a)
 
 
-def _smooth(x: np.ndarray, dt: float, tau: float) -> np.ndarray:
-    """Gaussian smoothing along axis 0 with standard deviation ``tau`` seconds (edge-padded)."""
-    from scipy.ndimage import gaussian_filter1d
-
-    sigma = max(tau / dt, 1e-6)
-    return gaussian_filter1d(x, sigma, axis=0, mode="nearest")
-
-
-def _course_yaw(vel: np.ndarray, dt: float, kin: Kinematics) -> np.ndarray:
-    """Yaw (unwrapped, radians) following the course over ground, held while hovering, rate limited."""
-    speed_h = np.linalg.norm(vel[:, :2], axis=1)
-    course = np.arctan2(vel[:, 0], vel[:, 1])  # clockwise from north
-    moving = speed_h > 0.3
-    # hold the last course while hovering (vectorised forward fill)
-    idx = np.where(moving, np.arange(len(vel)), 0)
-    np.maximum.accumulate(idx, out=idx)
-    first = np.argmax(moving) if moving.any() else 0
-    yaw = np.where(moving.any(), course[np.maximum(idx, first)], 0.0)
-    yaw = np.unwrap(yaw)
-    # rate limit by smoothing the unwrapped yaw (a turn of 90 deg takes about 90/yaw_rate s)
-    return _smooth(yaw, dt, max(kin.response_s, 0.5 * np.pi / np.deg2rad(kin.yaw_rate_dps) / 2))
+def initial_course(pos: np.ndarray, min_move_m: float = 0.5) -> float:
+    """Course (radians, clockwise from north) of the first horizontal move of a path; 0 if it never moves."""
+    d = np.asarray(pos, dtype=float)[:, :2] - np.asarray(pos, dtype=float)[0, :2]
+    far = np.hypot(d[:, 0], d[:, 1]) > min_move_m
+    if not far.any():
+        return 0.0
+    e, n = d[int(np.argmax(far))]
+    return float(np.arctan2(e, n))
 
 
 def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None = None,
                          wind_ne: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path.
+    """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path
+    sampled at (uniform) times ``t``, from rest with the nose along the first course.
 
-    Velocity is the smoothed derivative of position (the vehicle's response time); yaw follows the
-    course over ground (held when hovering, rate limited) or is ``kin.heading_deg``; the tilt vector is the
-    commanded acceleration plus the drag of the air-relative velocity, over g, rotated into the body frame.
+    The model is ``mission.trajectory.attitude.run_attitude``, the one the simulated vehicle flies with:
+    causal first-order lags of velocity and acceleration, yaw following the course (or ``kin.heading_deg``),
+    tilt from the commanded acceleration plus drag against the air-relative velocity.  ``wind_ne`` is the
+    wind (north, east) in m/s, (2,) or (N, 2).
     """
+    from mission.trajectory.attitude import AttitudeState, run_attitude
+
     kin = kin or Kinematics()
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    vel = _smooth(np.gradient(pos, t, axis=0), dt, kin.response_s) if len(t) > 1 else np.zeros_like(pos)
-    acc = _smooth(np.gradient(vel, t, axis=0), dt, kin.response_s) if len(t) > 1 else np.zeros_like(pos)
-    if kin.heading_deg is not None:  # fixed-heading flight: the nose never turns
-        yaw = np.full(len(t), np.deg2rad(kin.heading_deg))
-    else:
-        yaw = _course_yaw(vel, dt, kin)
-    air = vel[:, :2] - (0.0 if wind_ne is None else np.asarray(wind_ne)[..., [1, 0]])
-    k_drag = np.tan(np.deg2rad(kin.drag_pitch_deg_per_mps)) * G  # m/s^2 per m/s
-    a_cmd = acc[:, :2] + k_drag * air  # thrust must supply this horizontal acceleration (east, north)
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    a_fwd = a_cmd[:, 1] * cy + a_cmd[:, 0] * sy      # along the nose (north=cos, east=sin)
-    a_right = -a_cmd[:, 1] * sy + a_cmd[:, 0] * cy   # to the right of the nose
-    lim = np.deg2rad(kin.max_tilt_deg)
-    pitch = np.clip(-np.arctan2(a_fwd, G), -lim, lim)  # nose down to accelerate forward
-    roll = np.clip(np.arctan2(a_right, G), -lim, lim)  # right wing down to accelerate right
-    yaw_wrapped = np.mod(yaw, 2 * np.pi)
-    return np.stack([roll, pitch, yaw_wrapped], axis=-1), vel
+    pos = np.asarray(pos, dtype=float)
+    if len(t) < 2:
+        return np.zeros((len(t), 3)), np.zeros_like(pos)
+    dt = float(np.median(np.diff(t)))
+    wind_en = None if wind_ne is None else np.asarray(wind_ne, dtype=float)[..., [1, 0]]
+    state = AttitudeState.at_rest(pos[0], initial_course(pos))
+    att, vel, _ = run_attitude(pos, dt, kin, state, wind_en)
+    return att, vel

@@ -1,0 +1,125 @@
+"""End-to-end flight of ``fly-mission`` against the real ArduCopter SITL in ../shared (issue 12).
+
+Skips cleanly where ``../shared/sitl/ardupilot/arducopter`` is absent.  The spiral is flown at speed-up 20
+(about 35 s of wall clock); the log must carry the mission phase per row, the sidecar the measured speed-up
+and telemetry rates, the first row must come before take-off, and the return leg must be flown nose first
+at the mission's speed (ArduPilot's defaults fly it tail first at 10 m/s).
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mission.flightlog import PHASES, read_flight_log
+
+ROOT = Path(__file__).resolve().parents[1]
+SITL = ROOT.parent / "shared" / "sitl" / "ardupilot"
+SPIRAL = ROOT / "missions" / "spiral.yaml"
+SPEEDUP = 20
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(not (SITL / "arducopter").exists() or not (SITL / "start.sh").exists(),
+                       reason="ArduCopter SITL not in ../shared/sitl/ardupilot"),
+]
+
+
+def _free_instance() -> int:
+    """A SITL instance number whose TCP ports (5760 + 10 I .. + 3) are free now."""
+    for _ in range(50):
+        i = random.randint(20, 250)  # the SITL keeps the instance in 8 bits
+        try:
+            for port in (5760 + 10 * i, 5762 + 10 * i, 5763 + 10 * i):
+                with socket.socket() as s:
+                    s.bind(("127.0.0.1", port))
+            return i
+        except OSError:
+            continue
+    pytest.skip("no free ArduPilot SITL instance ports")
+
+
+@pytest.fixture
+def ardupilot(tmp_path):
+    """A fresh ArduCopter SITL at speed-up 20 (own instance and folder); yields its MAVSDK URL."""
+    inst = _free_instance()
+    run = tmp_path / "sitl"
+    out = subprocess.run([str(SITL / "start.sh"), str(SPEEDUP), str(inst)], env=dict(os.environ, RUN=str(run)),
+                         capture_output=True, text=True, timeout=30)
+    pid = int(out.stdout.split()[-1])
+    try:
+        end = time.monotonic() + 60
+        while "Waiting for connection" not in (run / "sitl.log").read_text(errors="replace"):
+            if time.monotonic() > end:
+                pytest.fail("ArduCopter SITL did not start: " + (run / "sitl.log").read_text()[-2000:])
+            time.sleep(0.2)
+        yield f"tcpout://127.0.0.1:{5760 + 10 * inst}"
+    finally:
+        os.kill(pid, signal.SIGTERM)
+        time.sleep(0.5)
+        with __import__("contextlib").suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+
+
+def _wrap_deg(a):
+    return (np.asarray(a) + 180.0) % 360.0 - 180.0
+
+
+def test_spiral_on_ardupilot(ardupilot, tmp_path):
+    from mission.spec import load_mission
+
+    spec = load_mission(SPIRAL)
+    t0 = time.monotonic()
+    p = subprocess.run(
+        [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", ardupilot, "--speedup", str(SPEEDUP),
+         "--out", str(tmp_path / "flights"), "--no-localize", "--link-timeout", "60"],
+        cwd=ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), capture_output=True, text=True, timeout=300,
+    )
+    wall = time.monotonic() - t0
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "autopilot ARDUPILOT" in p.stderr
+    assert "Dropping subscription callbacks" not in p.stderr
+    (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
+    log = read_flight_log(csv)
+    m = log.meta
+    assert m["status"] == "completed"
+    # measured, not requested: the SITL's clock against the wall clock, and the rates that arrived
+    assert 3.0 < m["speedup_measured"] <= SPEEDUP * 1.1, m["speedup_measured"]
+    assert m["speedup"] == m["speedup_measured"]
+    assert m["speedup_requested"] == SPEEDUP
+    for stream in ("position", "attitude"):
+        assert 5.0 < m["telemetry_rate_hz"][stream] < 60.0, m["telemetry_rate_hz"]
+    # the phase column: every row has a phase, in flight order, mission items over all waypoints
+    phase, item = log.columns["phase"], log.columns["mission_item"]
+    assert set(phase) <= set(PHASES)
+    order = np.array([PHASES.index(s) for s in phase])
+    flown = order > 0
+    assert np.all(np.diff(order[flown]) >= 0), "take-off -> mission -> return -> land"
+    assert {"takeoff", "mission", "return"} <= set(phase)
+    assert np.all((item >= 0) == (phase == "mission"))
+    assert item[phase == "mission"].max() == len(spec.waypoints_enu()) - 1
+    # subscribed before arming: the log starts on the ground, right before the take-off
+    t = log["t_s"]
+    assert phase[0] == "ground"
+    assert t[np.argmax(phase == "takeoff")] - t[0] < 15.0
+    # the return: nose first (yaw along the course) at about the mission's speed, not tail first at 10 m/s
+    enu = log.enu()
+    ret = (phase == "return") & (log["rel_alt_m"] > 20)
+    v = np.gradient(enu[:, :2], t, axis=0)
+    speed = np.hypot(v[:, 0], v[:, 1])
+    moving = ret & (speed > 2.0)
+    assert moving.sum() > 100
+    course = np.rad2deg(np.arctan2(v[:, 0], v[:, 1]))
+    assert np.median(np.abs(_wrap_deg(log["yaw_deg"][moving] - course[moving]))) < 20.0
+    assert np.percentile(speed[ret], 95) < 1.3 * spec.cruise_speed_mps
+    assert np.median(log["pitch_deg"][moving]) < 0.0  # nose down in forward flight
+    print(f"ArduPilot e2e: wall {wall:.0f} s, speed-up measured {m['speedup_measured']}, "
+          f"rates {m['telemetry_rate_hz']}, rows {len(log)}")
