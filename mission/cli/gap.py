@@ -85,7 +85,10 @@ def _selftest(args) -> int:
     from mission.gap.selftest import WITHHELD_ALL, confusion, run_selftest
 
     c = Console()
-    seeds = [int(s) for s in args.seeds.split(",")]
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        raise InputError(f"expected comma-separated integers, got {args.seeds!r}", field="--seeds") from None
     if args.withheld == "all":
         cases = [*WITHHELD_ALL, None]
     else:

@@ -71,6 +71,15 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.tx_height) and 0 <= args.tx_height <= 1000):
         raise InputError(f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
                          field="--tx-height")
+    if args.physics is not None and args.physics not in ("free-space", "two-ray", "e2r"):
+        raise InputError(f"unknown model {args.physics!r} (free-space, two-ray, e2r)", field="--physics")
+    if args.physics_preset is not None:
+        from mission.physics.presets import load_preset
+
+        try:
+            load_preset(args.physics_preset)
+        except InputError as e:
+            raise InputError(str(e).split(": ", 1)[-1], field="--physics-preset") from None
     if args.plot:
         image_out(args.plot, "--plot")
     log = read_flight_log(args.log, origin=origin)
