@@ -23,12 +23,14 @@ def _range(text: str) -> tuple[float, float]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("mission", help="mission YAML (field, altitude, trajectory, source defaults)")
+    p.add_argument("mission", nargs="?", help="mission YAML (field, altitude, trajectory, source defaults); "
+                   "not with --suite")
     p.add_argument("--n", type=int, required=True, help="number of transmitter positions (flights)")
     p.add_argument(
         "--model", default="e2r", choices=["free-space", "two-ray", "e2r"], help="propagation model"
     )
-    p.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="dataset seed (default 0; with --suite --logs 2026, the benchmark's own)")
     p.add_argument("--out", required=True, help="output folder (manifest.json + chunk_*.npz)")
     p.add_argument("--chunk", type=int, default=500, help="flights per chunk file (default 500)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
@@ -44,6 +46,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", metavar="PRESET",
                    help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
                         "(fitted on team 328 only; score the result on the other team's flights)")
+    s = p.add_argument_group("unseen-flight benchmark family (mission.localize.suite)")
+    s.add_argument("--suite", choices=("unseen",), help="flights drawn from the benchmark's family (every axis "
+                   "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)")
+    s.add_argument("--logs", action="store_true", help="with --suite: write the flights as CSV logs + suite.json "
+                   "(the benchmark cache for rfsl evaluate --suite-dir) instead of feature chunks")
+    s.add_argument("--family", default="afar", choices=("afar", "generic"),
+                   help="with --suite: physics family centred on the calibration (afar) or on none (generic)")
+    s.add_argument("--center", default="afar", metavar="PRESET",
+                   help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)")
     g = p.add_argument_group("domain randomisation (each off unless given)")
     g.add_argument(
         "--randomise",
@@ -131,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
     from mission.errors import InputError
     from mission.localize.dataset import DatasetConfig, check_config, generate_dataset
 
+    console = Console()
+
     for t in (args.trajectories or "").split(","):
         if t.strip() and t.strip() not in GENERATOR_NAMES:
             raise InputError(
@@ -149,6 +162,18 @@ def run(args: argparse.Namespace) -> int:
     from mission.cli.main import out_parent_ok
 
     out_parent_ok(Path(args.out), folder=True)
+    if args.suite and args.mission:
+        raise InputError("--suite flights fly the AFAR field with their own paths: give no mission", field="mission")
+    if not args.suite and not args.mission:
+        raise InputError("give a mission YAML (or --suite unseen)", field="mission")
+    if args.logs and not args.suite:
+        raise InputError("--logs writes benchmark flights: needs --suite unseen", field="--logs")
+    if args.logs:
+        from mission.localize.suite import BENCHMARK_SEED
+
+        args.seed = BENCHMARK_SEED if args.seed is None else args.seed
+        return _write_logs(args, console)
+    args.seed = 0 if args.seed is None else args.seed
     cfg = DatasetConfig(
         mission=args.mission,
         n=args.n,
@@ -159,9 +184,11 @@ def run(args: argparse.Namespace) -> int:
         randomisation=randomisation_from_args(args),
         physics=args.physics,
         feature_config={"arc_step_m": args.arc_step} if args.arc_step else {},
+        suite=args.suite,
+        suite_family=args.family,
+        suite_center=args.center,
     )
     check_config(cfg)
-    console = Console()
     with Progress(
         TextColumn("[bold]dataset"),
         BarColumn(),
@@ -184,4 +211,28 @@ def run(args: argparse.Namespace) -> int:
         f"= {g['flights_per_s']:.2f} flights/s on {args.workers} worker(s); "
         f"{len(m['chunks'])} chunk(s) in {args.out}"
     )
+    return 0
+
+
+def _write_logs(args: argparse.Namespace, console) -> int:
+    """``--suite unseen --logs``: the benchmark's flights as CSV logs (the cache ``rfsl evaluate`` reads)."""
+    import time
+    from pathlib import Path
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from mission.errors import InputError
+    from mission.localize.suite import write_suite
+
+    out = Path(args.out)
+    if (out / "suite.json").exists() and not args.overwrite:
+        raise InputError("a suite exists already here (use --overwrite)", source=str(out))
+    t0 = time.perf_counter()
+    with Progress(TextColumn("[bold]suite logs"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                  console=console) as prog:
+        task = prog.add_task("flights", total=args.n)
+        write_suite(out, args.n, args.seed, args.family, args.center, args.workers,
+                    progress=lambda d, _t: prog.update(task, completed=d))
+    console.print(f"{args.n} benchmark flights (seed {args.seed}, family {args.family}) in "
+                  f"{time.perf_counter() - t0:.1f} s -> {out}")
     return 0

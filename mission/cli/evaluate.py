@@ -49,6 +49,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--workers", type=int, default=2, help="workers for generated test sets")
     p.add_argument("--out", help="JSON report path")
+    g = p.add_argument_group("unseen-flight benchmark (mission.localize.suite; models/README.md)")
+    g.add_argument("--suite", choices=("unseen",), help="run the methods (and --models) on the benchmark")
+    g.add_argument("--n", type=int, default=200, help="benchmark flights (default 200)")
+    g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
+    g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
+    g.add_argument("--family", default="afar", choices=("afar", "generic"), help="physics family (default afar)")
 
 
 def _table(rows, title: str):
@@ -89,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
     )
 
     console = Console()
+    if args.suite or args.suite_dir:
+        return _run_suite(args, console)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
         parse_method(m)
@@ -154,5 +162,48 @@ def run(args: argparse.Namespace) -> int:
             args.out,
             {"command": " ".join(sys.argv), "notes": notes, "real_logs": logs, "sim_tests": tests},
         )
+        console.print(f"report: {args.out}")
+    return 0
+
+
+def _run_suite(args: argparse.Namespace, console) -> int:
+    """``rfsl evaluate --suite unseen``: every method on the benchmark flights, one table."""
+    import sys
+
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.table import Table
+
+    from mission.errors import InputError
+    from mission.localize.evaluate import evaluate_suite, write_report
+
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()] + [f"onnx:{m}" for m in args.models]
+    if args.n < 1:
+        raise InputError(f"--n must be >= 1, got {args.n}", field="--n")
+    cols = (TextColumn("[bold]unseen flights"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            TextColumn("eta"), TimeRemainingColumn())
+    with Progress(*cols, console=console, transient=True, disable=not console.is_terminal) as prog:
+        task = prog.add_task("suite", total=args.n)
+        rows, secs = evaluate_suite(methods, args.n, args.seed, args.suite_dir, family=args.family,
+                                    workers=args.workers, progress=lambda d, _t: prog.update(task, completed=d))
+    from rich.markup import escape
+
+    t = Table(title=escape(f"{rows[0].test} (2D error; regions: share of truths inside)"))
+    for c in ("method", "n", "mean m", "median m", "p90 m", "in 50 %", "in 90 %", "s/flight"):
+        t.add_column(c, justify="left" if c == "method" else "right", overflow="fold")
+    for r in rows:
+        s = r.summary()
+        cov = [f"{100 * s[k]:.0f} %" if k in s else "-" for k in ("coverage_50", "coverage_90")]
+        t.add_row(escape(s["method"]), str(s["n"]), *(f"{s[k]:.1f}" for k in ("mean_m", "median_m", "p90_m")), *cov,
+                  f"{secs[s['method']]:.2f}")
+    console.print(t)
+    if args.out:
+        write_report(rows, args.out, {"command": " ".join(sys.argv), "seconds_per_flight": secs})
         console.print(f"report: {args.out}")
     return 0

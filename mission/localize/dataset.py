@@ -121,11 +121,14 @@ class DatasetConfig:
     model_params: dict = field(default_factory=dict)
     cruise_only: bool = True  # fly the trajectory only (features see the cruise, as on real logs)
     physics: str | None = None  # a calibrated physics preset (e.g. "afar:fit328"), replaces ``model``
+    suite: str | None = None  # "unseen": flights of the benchmark family (mission.localize.suite), not the mission
+    suite_family: str = "afar"
+    suite_center: str = "afar"
 
     @property
     def physics_label(self) -> str:
         """The propagation model's name as reports show it (``preset:afar:fit328`` or ``e2r``)."""
-        return physics_label({"physics": self.physics, "model": self.model})
+        return physics_label(self.to_dict())
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -142,6 +145,8 @@ class DatasetConfig:
 
 def physics_label(config: dict) -> str:
     """The physics of a dataset configuration dict (a manifest's ``config``): ``preset:NAME`` or the model."""
+    if config.get("suite"):
+        return f"suite:{config['suite']}:{config.get('suite_family', 'afar')}"
     return f"preset:{config['physics']}" if config.get("physics") else str(config.get("model"))
 
 
@@ -262,6 +267,8 @@ class FlightSimulator:
         from mission.trajectory.generators import generate
 
         cfg, r, spec = self.cfg, self.cfg.randomisation, self.spec
+        if cfg.suite:
+            return self._draw_suite(i)
         rng = flight_rng(cfg.seed, i)
         xy = spec.field.rover_area.sample_uniform(1, rng)[0]
         alt = _uniform(rng, r.altitude_m, spec.altitude_m)
@@ -330,6 +337,30 @@ class FlightSimulator:
         }
         return FlightDraw(i, tx, params, traj, pattern or "default", enu, att, rss)
 
+    def _draw_suite(self, i: int) -> FlightDraw:
+        """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as ``localize`` cuts a log."""
+        from mission.localize.preprocess import cruise_mask
+        from mission.localize.suite import unseen_flight
+
+        f = unseen_flight(self.cfg.seed, i, self.cfg.suite_family, self.cfg.suite_center)
+        c, d = f.log.columns, f.draw
+        keep = cruise_mask(c["rel_alt_m"]).mask
+        enu = f.log.enu()[keep]
+        att = np.deg2rad(np.stack([c["roll_deg"], c["pitch_deg"], c["yaw_deg"]], axis=1)[keep])
+        spec = d["physics"]["spec"]
+        ground = spec.get("ground") or {}
+        params = {
+            "altitude_m": d["altitude_m"], "offset_db": d["rss_offset_db"], "beta": np.nan,
+            "eps_r": ground.get("eps_r", np.nan), "tx_height_m": d["tx_height_m"], "noise_db": d["noise_db"],
+            "rx_heading_deg": spec.get("rx_heading_deg", 0.0), "tx_heading_deg": spec.get("tx_heading_deg", 0.0),
+            "keep_fraction": d["keep_fraction"],
+            "fixed_heading_deg": d["fixed_heading_deg"] if d["heading_habit"] == "fixed" else np.nan,
+            "speed_mps": d["speed_mps"], "shadowing_db": d["shadowing_db"], "shadowing_corr_m": d["shadowing_corr_m"],
+            "trajectory_params": d["trajectory_params"],
+        }
+        tx = np.array([*d["tx_xy"], d["tx_height_m"]])
+        return FlightDraw(i, tx, params, d["trajectory"], "default", enu, att, np.asarray(c["rss_dbm"])[keep])
+
     def features(self, fd: FlightDraw) -> dict[str, np.ndarray]:
         """The stored row of one flight (features, truth, parameters)."""
         from mission.localize.features import cluster_features, normalised_rss
@@ -341,26 +372,8 @@ class FlightSimulator:
             row["clustering"] = cluster_features(fd.enu[:, 0], fd.enu[:, 1], fd.rss_dbm, self.fcfg)
         if "normalised_rss" in self.cfg.features:
             row["normalised_rss"] = normalised_rss(fd.rss_dbm, self.fcfg)
-        p = fd.params
-        row["params"] = np.array(
-            [
-                p["altitude_m"],
-                p["offset_db"],
-                p["beta"],
-                p["eps_r"],
-                p["tx_height_m"],
-                p["noise_db"],
-                p["rx_heading_deg"],
-                p["tx_heading_deg"],
-                traj_names.index(fd.trajectory),
-                pat_names.index(fd.pattern),
-                p["keep_fraction"],
-                p["fixed_heading_deg"],
-                p["speed_mps"],
-                p["shadowing_db"],
-                p["shadowing_corr_m"],
-            ]
-        )
+        p = {**fd.params, "trajectory": traj_names.index(fd.trajectory), "pattern": pat_names.index(fd.pattern)}
+        row["params"] = np.array([p[k] for k in PARAM_NAMES], dtype=float)  # column order = PARAM_NAMES
         row["tx_enu"] = fd.tx_enu
         row["n_samples"] = np.array(len(fd.rss_dbm))
         row["index"] = np.array(fd.index)
@@ -375,6 +388,10 @@ class FlightSimulator:
 
 def trajectory_names(cfg: DatasetConfig, mission_generator: str) -> list[str]:
     """Index -> trajectory name of the ``params[:, trajectory]`` column."""
+    if cfg.suite:
+        from mission.trajectory.generators import GENERATORS
+
+        return list(GENERATORS)
     return list(cfg.randomisation.trajectories) or [mission_generator]
 
 
@@ -449,6 +466,15 @@ def iter_rows(
 def check_config(cfg: DatasetConfig) -> None:
     """Refuse configurations that would silently do something else than asked (InputError naming the field)."""
     r = cfg.randomisation
+    if cfg.suite:
+        from mission.localize.suite import BENCHMARK_SEED, FAMILIES, SUITES
+
+        if cfg.suite not in SUITES or cfg.suite_family not in FAMILIES:
+            raise InputError(f"unknown suite {cfg.suite!r} / family {cfg.suite_family!r}", field="suite")
+        if cfg.seed == BENCHMARK_SEED:
+            raise InputError(f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds", field="seed")
+        if cfg.physics or r != Randomisation():
+            raise InputError("--suite draws every axis itself: no --physics or randomisation flags", field="suite")
     if cfg.physics:
         from mission.physics.presets import load_preset
 
