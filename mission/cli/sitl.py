@@ -11,26 +11,26 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from sitl.vehicle import add_arguments as vehicle_arguments
+    from sitl.cli import add_arguments as vehicle_arguments  # argparse only: no heavy import here
 
     vehicle_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     from mission.errors import InputError
-    from sitl.vehicle import run_from_args
+    from sitl.cli import run_from_args
 
     if args.speedup <= 0:
         raise InputError(f"must be positive, got {args.speedup:g}", field="--speedup")
     if args.home:
         try:
-            from sitl.vehicle import parse_home
+            from sitl.cli import parse_home
 
             parse_home(args.home)
         except ValueError as e:
             raise InputError(str(e), field="--home") from None
     if args.kinematics:
-        from sitl.vehicle import parse_kinematics
+        from sitl.cli import parse_kinematics
 
         try:
             parse_kinematics(args.kinematics)
