@@ -105,6 +105,36 @@ def test_vehicle_flight_time_matches_budget_check(tmp_path, kin):
     assert abs(flown - planned) <= 0.03 * planned + 0.5, (flown, planned)
 
 
+def _leg_time_from_rest_to_rest(length_m: float, speed: float, accel: float) -> float:
+    """Closed form: accelerate at ``accel`` to ``speed`` (or as far as half the leg allows), cruise, brake."""
+    if length_m >= speed**2 / accel:
+        return length_m / speed + speed / accel
+    return 2.0 * (length_m / accel) ** 0.5
+
+
+@pytest.mark.parametrize("kin", [NON_DEFAULT, None], ids=["non-default", "default"])
+def test_vehicle_flight_time_matches_closed_form(tmp_path, kin):
+    """Independent reference: an out-and-back mission from above home stops at every vertex (climb, 120 m
+    out, reversal, 120 m back, descent), so its flight time is a sum of rest-to-rest legs in closed form."""
+    import yaml as _yaml
+
+    from mission.spec import load_mission
+    from mission.trajectory.kinematics import Kinematics
+
+    d = {"name": "outback", "altitude_m": 20, "cruise_speed_mps": 9.0, "time_budget_s": 600,
+         "return_behaviour": "rtl", "home": [80, 80],
+         "trajectory": {"waypoints": [[80, 80], [200, 80], [80, 80]]},
+         "vehicle": {"speedup": 1.0, **({"kinematics": kin} if kin else {})}}
+    f = tmp_path / "outback.yaml"
+    f.write_text(_yaml.safe_dump(d))
+    spec = load_mission(f)
+    k = Kinematics(**(kin or {}))
+    reference = 2 * _leg_time_from_rest_to_rest(20.0, k.climb_rate_mps, k.accel_mps2) + 2 * _leg_time_from_rest_to_rest(
+        120.0, 9.0, k.accel_mps2)
+    flown = _fly_vehicle(spec, speedup=100)
+    assert abs(flown - reference) <= 0.03 * reference + 0.5, (flown, reference)
+
+
 def test_non_default_kinematics_change_the_flight_time(tmp_path):
     """Guard for the test above: the overrides matter (else it would pass with cruise speed alone)."""
     from mission.trajectory.checks import check_mission
