@@ -17,7 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.onnx", help="ONNX localizer (implies --method onnx)")
     parser.add_argument(
         "--method",
-        choices=["onnx", "strongest", "centroid", "grid"],
+        choices=["onnx", "strongest", "centroid", "grid", "selfcal"],
         help="localizer (default: shipped model if present, else grid)",
     )
     parser.add_argument(
@@ -131,9 +131,20 @@ def run(args: argparse.Namespace) -> int:
         "samples", f"{est.extras['samples_used']} of {est.extras['samples_total']}: {est.extras['cruise']}"
     )
     if "offset_db" in est.extras:
-        tab.add_row(
-            "fit", f"offset {est.extras['offset_db']:.1f} dB, robust rms {est.extras['cost_rms_db']:.2f} dB"
-        )
+        rms = est.extras.get("cost_rms_db", est.extras.get("residual_rms_db"))
+        fit = f"offset {est.extras['offset_db']:.1f} dB" + (f", residual rms {rms:.2f} dB" if rms is not None else "")
+        if "antenna" in est.extras:
+            fit += f"; UAV antenna: {est.extras['antenna']}"
+        tab.add_row("fit", fit)
+    for reg in est.extras.get("regions", []):
+        el = reg["ellipse"]
+        tab.add_row(f"{100 * reg['level']:.0f} % region",
+                    f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
+                    f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east")
+    if "p_outside_flown_area" in est.extras:
+        tab.add_row("outside flown area", f"probability {est.extras['p_outside_flown_area']:.2f}")
+    if "note" in est.extras:
+        tab.add_row("[bold]note", str(est.extras["note"]))
     if args.plot:
         tab.add_row("plot", str(args.plot))
     if "warning" in est.extras:

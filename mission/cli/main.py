@@ -25,6 +25,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "train": ("mission.cli.train", "train a localizer network and export it to ONNX (needs the [train] extra)"),
     "evaluate": ("mission.cli.evaluate", "compare localizers on simulated test sets and real flights"),
     "localize": ("mission.cli.localize", "estimate the transmitter position from a flight log"),
+    "calibrate": ("mission.cli.calibrate", "fit a physics preset on real flights with known transmitters (held out)"),
     "gap": ("mission.cli.gap", "diagnose the sim-to-real gap of a propagation model on flights with known truth"),
 }
 

@@ -21,6 +21,7 @@ class Estimate:
     lon_deg: float | None = None
     error_m: float | None = None
     extras: dict = field(default_factory=dict)
+    posterior: object | None = field(default=None, repr=False)  # uncertainty.Posterior, when the method has one
 
     def to_dict(self) -> dict:
         d = {

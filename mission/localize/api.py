@@ -1,8 +1,9 @@
 """``localize_log``: the one function the ``localize`` CLI and ``fly-mission`` (after landing) call.
 
 Steps: read the log (``read_flight_log``: any problem is an ``InputError`` naming file/row/column), keep the
-cruise part (``preprocess.select_cruise``), run the chosen method, express the estimate in the log's own
-ENU frame and as lat/lon, and add the error when the truth is known (argument, else the sidecar).
+samples to use (``preprocess.select_samples``: mission legs when the log has a phase column, else the cruise
+height band), run the chosen method, express the estimate in the log's own ENU frame and as lat/lon, and add
+the error when the truth is known (argument, else the sidecar).
 
 Method choice when none is given: an explicit ``model_path`` -> ``onnx``; a real receiver's log (the sidecar's
 ``rss_source.kind`` is not ``sim``) -> ``grid`` with the calibrated ``afar`` physics preset
@@ -30,7 +31,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.localize import Estimate
 
-METHOD_NAMES = ("onnx", "strongest", "centroid", "grid")
+METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal")
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
@@ -103,6 +104,10 @@ def make_localizer(
         return classical.StrongestSample()
     if method == "centroid":
         return classical.WeightedCentroid()
+    if method == "selfcal":
+        from mission.localize.selfcal import SelfCalibratingGrid
+
+        return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
     if method == "grid":
         if physics_preset is not None:
             from mission.physics.presets import preset_model
@@ -154,7 +159,7 @@ def localize_log(
     if physics_preset is not None and physics_model is not None:
         raise InputError("give a physics model or a physics preset, not both")
     from mission.flightlog import FlightLog, read_flight_log
-    from mission.localize.preprocess import select_cruise
+    from mission.localize.preprocess import select_samples
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     if physics_preset is None and physics_model is None:
@@ -162,8 +167,7 @@ def localize_log(
     physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
     n_all = len(log)
     if cruise:
-        part, sel = select_cruise(log)
-        reason = sel.reason
+        part, reason = select_samples(log)
     else:
         part, reason = log, "cruise selection off: all samples used"
     if method is None:
@@ -186,7 +190,7 @@ def localize_log(
         choice = f"method {method} requested"
     if method not in METHOD_NAMES:
         raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
-    area = search_area(log) if method == "grid" else None
+    area = search_area(log) if method in ("grid", "selfcal") else None
     loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area, floor_db,
                          physics_preset=physics_preset)
     origin = log.origin

@@ -24,6 +24,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.localize import Estimate
 from mission.localize.features import FeatureConfig, preprocess
+from mission.robust import robust_cost
 
 
 @dataclass
@@ -125,25 +126,6 @@ def block_average(f: FlightData, max_points: int) -> FlightData:
     return FlightData(enu, rss, att)
 
 
-def _robust_cost(resid: np.ndarray, loss: str, f_scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """Offset (K,) and robust cost (K,) of residuals (K, N): median start, one Huber IRLS step."""
-    off = np.median(resid, axis=1)
-    z = resid - off[:, None]
-    w = np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
-    off = off + np.sum(w * z, axis=1) / np.sum(w, axis=1)
-    z = (resid - off[:, None]) / f_scale
-    if loss == "soft_l1":
-        rho = 2.0 * (np.sqrt(1.0 + z * z) - 1.0)
-    elif loss == "huber":
-        a = np.abs(z)
-        rho = np.where(a <= 1.0, z * z, 2.0 * a - 1.0)
-    elif loss == "l2":
-        rho = z * z
-    else:
-        raise InputError(f"unknown loss {loss!r} (soft_l1, huber, l2)")
-    return off, f_scale**2 * rho.mean(axis=1)
-
-
 class ModelGridSearch(_Base):
     """Model-based maximum-likelihood grid search with a free constant offset and a robust loss.
 
@@ -236,9 +218,9 @@ class ModelGridSearch(_Base):
                 off0 = np.median(resid[:, ~lo], axis=1)
                 # censored samples: measured level is an upper bound of the signal (noise floor)
                 resid[:, lo] = np.maximum(resid[:, lo], off0[:, None])
-                offs[s : s + len(c)], costs[s : s + len(c)] = _robust_cost(resid, self.loss, self.f_scale_db)
+                offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(resid, self.loss, self.f_scale_db)
                 continue
-            offs[s : s + len(c)], costs[s : s + len(c)] = _robust_cost(
+            offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(
                 f.rss[None, :] - pred, self.loss, self.f_scale_db
             )
         return costs, offs

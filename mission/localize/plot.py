@@ -51,6 +51,17 @@ def power_unit(log) -> str:
     return "dBm" if isinstance(src, dict) and src.get("kind") == "sim" else "dB"
 
 
+def draw_regions(ax, regions: list[dict]) -> None:
+    """Outline the estimate's uncertainty regions (``mission.localize.uncertainty`` layout), one style per level."""
+    styles = {0.5: ("-", 1.6), 0.9: ("--", 1.2)}
+    for reg in regions:
+        ls, lw = styles.get(round(reg["level"], 2), (":", 1.0))
+        for k, poly in enumerate(reg["polygons"]):
+            a = np.asarray(poly)
+            ax.plot(a[:, 0], a[:, 1], color="crimson", ls=ls, lw=lw, zorder=4,
+                    label=f"{100 * reg['level']:.0f} % region" if k == 0 else None)
+
+
 def plot_localization(
     log, est: Estimate, out: str | Path, cfg: FeatureConfig | None = None, area=None, title: str | None = None
 ) -> Path:
@@ -109,6 +120,7 @@ def plot_localization(
         zorder=5,
         label=f"estimate ({est.method}{', ' + est.model if est.model else ''})",
     )
+    draw_regions(ax, est.extras.get("regions", []))
     tx, ty = est.extras.get("truth_x_m"), est.extras.get("truth_y_m")
     if tx is not None:
         ax.plot(tx, ty, marker="X", ms=13, color="white", mec="k", ls="none", zorder=5, label="truth")

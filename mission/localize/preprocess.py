@@ -62,3 +62,34 @@ def select_cruise(log, band_m: float | None = None, min_cruise_m: float = 5.0):
     """(cruise part of a ``FlightLog``, ``CruiseSelection``); heights are the log's ENU z about its origin."""
     sel = cruise_mask(log.enu()[:, 2], band_m, min_cruise_m)
     return log.select(sel.mask), sel
+
+
+def select_mission_legs(log):
+    """(samples flown on mission legs, reason) when the log records the mission phase per row, else None.
+
+    Why: the height band keeps any sample at cruise height, including a return leg flown at cruise height
+    (nose-backwards on ArduPilot, 22-24 deg pitch); the runner's ``phase`` column says which rows were flown
+    on the mission's own legs (``mission.flightlog.PHASES``).
+    """
+    phase = log.columns.get("phase")
+    if phase is None:
+        return None
+    from mission.flightlog import PHASES
+
+    ph = np.asarray(phase).astype(str)
+    if not np.isin(ph, PHASES).all():
+        return None
+    mask = ph == "mission"
+    if mask.sum() < 2:
+        return None
+    n = len(ph)
+    return log.select(mask), f"mission legs (phase column): kept {int(mask.sum())} of {n} samples"
+
+
+def select_samples(log):
+    """The samples a localizer uses, and why: mission legs when the phase is logged, else the cruise height band."""
+    legs = select_mission_legs(log)
+    if legs is not None:
+        return legs
+    part, sel = select_cruise(log)
+    return part, sel.reason

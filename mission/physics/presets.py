@@ -94,8 +94,20 @@ def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationMo
 
 
 def load_calibration(name: str = "afar") -> dict[str, Any]:
-    """The whole calibration record of preset ``name`` (the JSON file as a dict)."""
-    key = name.strip().lower().partition(":")[0]
+    """The whole calibration record of preset ``name`` (the JSON file as a dict); a path ending in ``.json`` reads
+    a preset file written by ``rfsl calibrate``."""
+    base = name.strip().partition(":")[0] if not name.strip().lower().endswith(".json") else name.strip()
+    if base.lower().endswith(".json"):  # a preset written by ``rfsl calibrate --out FILE.json``
+        from pathlib import Path
+
+        try:
+            rec = json.loads(Path(base).read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as e:
+            raise InputError(f"cannot read physics preset file: {e}", source=base) from None
+        if not isinstance(rec, dict) or not isinstance(rec.get("model"), dict):
+            raise InputError("not a physics preset (no 'model' block)", source=base)
+        return rec
+    key = base.lower()
     if key not in PRESETS:
         raise InputError(f"unknown physics preset {name!r} (known: {', '.join(PRESETS)})", field="preset")
     ref = resources.files("mission").joinpath("data", f"{key}_calibration.json")
@@ -112,7 +124,7 @@ def load_preset(name: str = "afar") -> dict[str, Any]:
     ``afar:fit328`` = fitted on team 328's flights): train or test with it on the *other* flights so that
     nothing is scored on the flights its physics was fitted on.
     """
-    base, _, fold = name.partition(":")
+    base, _, fold = name.rpartition(":") if ".json:" in name.lower() else name.partition(":")
     rec = load_calibration(base)
     if not fold:
         return dict(rec["model"])
