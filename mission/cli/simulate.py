@@ -63,6 +63,9 @@ def run(args: argparse.Namespace) -> int:
             Console(stderr=True).print(f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area")
     else:
         tx = spec.resolve_tx(np.random.default_rng([seed, 1]))
+        bad = source_violations(spec)
+        if bad:
+            raise InputError(bad[0].message, source=spec.source_name, field=bad[0].key)
     model_name = args.model or spec.source.model
     model = make_model(model_name, **spec.source.model_params)
     path = spec.waypoints_enu() if args.cruise_only else spec.flight_path_enu()
