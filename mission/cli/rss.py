@@ -102,8 +102,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_table(model: object, p: dict, rss: float) -> None:
-    from rich.console import Console
     from rich.table import Table
+
+    from mission.cli.main import console
 
     deg = math.degrees
     t = Table(title=f"{model.name}: {rss:.2f} dBm", show_lines=False)  # type: ignore[attr-defined]
@@ -131,4 +132,4 @@ def _print_table(model: object, p: dict, rss: float) -> None:
         t.add_row("leg_shadowing", "shadowed / Upsilon",
                   f"{bool(p['shadowed'])} / {p['upsilon_db']:.2f} dB")
     t.add_row("total", "RSS", f"{rss:.2f} dBm")
-    Console().print(t)
+    console().print(t)

@@ -37,9 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
-    from rich.console import Console
 
-    from mission.cli.main import out_parent_ok
+    from mission.cli.main import console, out_parent_ok
     from mission.errors import InputError
     from mission.flightlog import make_meta, write_flight_log
     from mission.physics import make_model
@@ -60,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         if bad:
             raise InputError(bad[0].message, field="--source")
         if not spec.field.rover_area.contains(tx[:2]):
-            Console(stderr=True).print(f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area")
+            console(stderr=True).print(f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area")
     else:
         tx = spec.resolve_tx(np.random.default_rng([seed, 1]))
         bad = source_violations(spec)
@@ -83,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
                             "lat_deg": float(lat), "lon_deg": float(lon), "height_m": float(tx[2])},
                      mission=str(spec.path) if spec.path else spec.name)
     write_flight_log(csv, flight.log_columns(spec.field.origin), meta)
-    c = Console()
+    c = console()
     c.print(f"simulated [bold]{spec.name}[/]: {flight.t_s[-1]:.0f} s, {len(flight.t_s)} RSS samples, "
             f"{flight.profile.length_m:.0f} m, transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m")
     c.print(f"RSS {flight.rss_dbm.min():.1f} .. {flight.rss_dbm.max():.1f} dBm ({model_name}, seed {seed})")
