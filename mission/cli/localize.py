@@ -112,10 +112,11 @@ def run(args: argparse.Namespace) -> int:
         d["notes"] = list(log.notes)
         print(json.dumps(d, default=float))
         return 0
-    from rich.console import Console
     from rich.table import Table
 
-    c = Console()
+    from mission.cli.main import console
+
+    c = console()
     tab = Table(title=f"transmitter estimate: {args.log}", show_header=False)
     tab.add_row("method", f"{est.method}" + (f" ({est.model})" if est.model else ""))
     tab.add_row("why", str(est.extras.get("method_choice", "")))
