@@ -63,11 +63,12 @@ def _wait_rows(out: Path, rows: int, timeout: float) -> Path:
 
 
 def test_spiral_end_to_end(tmp_path):
-    """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS reproducible."""
+    """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS reproducible, phases
+    logged, measured speed-up recorded, the final line gives the localization error."""
     from mission.flight.sources import recompute_sim_rss
     from mission.spec import load_mission
 
-    p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
+    p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path)])
     out, err = p.communicate(timeout=150)
     assert p.returncode == 0, err[-3000:]
     assert "Dropping subscription callbacks" not in err  # MAVSDK's callbacks kept up
@@ -82,6 +83,14 @@ def test_spiral_end_to_end(tmp_path):
     assert len(log) >= 0.95 * expected
     assert t[-1] - t[0] > 0.8 * log.meta["planned_duration_s"]  # the whole spiral was flown
     assert log["rel_alt_m"][-1] < 0.5 and log["rel_alt_m"].max() > 25  # took off and landed
+    # measured speed-up and telemetry rates; phases in flight order, the first row before take-off
+    assert 10 < log.meta["speedup_measured"] < 22 and log.meta["speedup_requested"] == 20
+    assert 20 < log.meta["telemetry_rate_hz"]["position"] < 40
+    phase = log.columns["phase"]
+    assert phase[0] == "ground" and {"takeoff", "mission", "return", "land"} <= set(phase)
+    assert log.columns["mission_item"][phase == "mission"].max() == len(spec.waypoints_enu()) - 1
+    last = out.strip().splitlines()[-1]  # the localizer's estimate, with its error against the known truth
+    assert last.startswith("estimate:") and "; error " in last, out
     cruise = log["rel_alt_m"] > 25
     for c in ("roll_deg", "pitch_deg"):
         assert np.std(log[c][cruise]) > 0.5
@@ -170,6 +179,77 @@ def test_vehicle_killed_link_loss(tmp_path):
         p.kill()
     assert p.returncode == 3, err[-3000:]
     assert "link lost" in err.lower()
+    assert "\x1b[" not in err  # no raw colour codes from MAVSDK
+    assert err.count("MAVLink link lost") == 1  # one warning, not one per second
+    assert err.strip().splitlines()[-1] == "error: link lost"
     log = read_flight_log(_log_of(tmp_path))
     assert log.meta["link_lost"] is True
     assert len(log) > 2000
+
+
+def _no_autopilot_url(scheme: str) -> str:
+    return f"{scheme}://127.0.0.1:{free_udp_port()}"
+
+
+@pytest.mark.parametrize("scheme", ["udpin", "tcpout"])
+def test_connecting_to_nothing_times_out_with_one_line(tmp_path, scheme):
+    t0 = time.monotonic()
+    p = _fly([str(SPIRAL), "--connect", _no_autopilot_url(scheme), "--link-timeout", "3", "--out", str(tmp_path)])
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 3, err
+    assert time.monotonic() - t0 < 30
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: no autopilot on") and "within 3 s" in lines[0], err
+    assert not list(tmp_path.glob("*/flight.csv"))
+
+
+def test_sigterm_before_takeoff_does_not_return_to_launch(tmp_path):
+    p = _fly([str(SPIRAL), "--connect", _no_autopilot_url("udpin"), "--out", str(tmp_path)])
+    time.sleep(3.0)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=30)
+    assert p.returncode == 130, err
+    assert "returning to launch" not in err and "return to launch" not in err
+    assert "before take-off" in err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("args, field", [
+    (["--rss-source", "foo"], "--rss-source"),
+    (["--rss-source", "aerpaw-fifo:/no/such/Power"], "--rss-source"),
+    (["--rss-source", "udp:99999"], "--rss-source"),
+    (["--connect", "foo://bar"], "--connect"),
+    (["--connect", "tcpout://127.0.0.1"], "--connect"),
+    (["--out", "FILE"], "--out"),
+])
+def test_bad_options_refused_before_anything_starts(tmp_path, args, field):
+    """Exit 2 and one line naming the option, before any vehicle is started (no vehicle, no log)."""
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    args = [str(f) if a == "FILE" else a for a in args]
+    p = _fly([str(SPIRAL), *args] + ([] if "--out" in args else ["--out", str(tmp_path / "flights")]))
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0] and "Traceback" not in err, err
+    assert not (tmp_path / "flights").exists()
+
+
+def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
+    import re
+
+    p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
+    try:
+        _wait_rows(tmp_path, 200, 60)
+    finally:
+        p.kill()
+    _, err = p.communicate(timeout=30)
+    vehicle = int(re.search(r"simulated vehicle started \(pid (\d+)\)", err).group(1))
+    end = time.monotonic() + 10
+    while time.monotonic() < end:
+        try:
+            os.kill(vehicle, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.2)
+    os.kill(vehicle, signal.SIGKILL)
+    raise AssertionError("the simulated vehicle outlived fly-mission's kill -9")

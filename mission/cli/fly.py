@@ -2,9 +2,10 @@
 
 ``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize]``.  Without
 ``--connect`` (and no ``vehicle.connection`` in the mission file) the simulated vehicle of ``sitl/`` is
-started on a free local UDP port.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves
-the fence: nothing is uploaded), 3 link lost / no autopilot, 130 aborted by Ctrl-C or SIGTERM (after the
-return to launch).
+started on a free local UDP port (it dies with ``fly-mission``).  Options are checked before anything
+starts.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves the fence, a bad
+``--connect``/``--rss-source``/``--out``: nothing is started or uploaded), 3 link lost / no autopilot within
+``--link-timeout``, 130 aborted by Ctrl-C or SIGTERM (after the return to launch once airborne).
 """
 
 from __future__ import annotations
@@ -46,7 +47,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--link-timeout",
         type=float,
         default=30.0,
-        help="wall-clock seconds without telemetry before the flight is given up (default 30)",
+        help="wall-clock seconds without telemetry before the flight is given up, and to wait for an "
+        "autopilot to answer at all (default 30)",
     )
     parser.add_argument(
         "--land-timeout",

@@ -33,12 +33,16 @@ class SdkLog:
 
         def _filter(level, message, file, line) -> bool:
             if level >= warn:
-                self.queue.append(_ANSI.sub("", str(message)).strip())
+                self.on_log(str(message))
             return True  # swallowed: the runner decides what the operator sees
 
         log_subscribe(_filter)
         self.installed = True
         return self
+
+    def on_log(self, message: str) -> None:
+        """Queue one MAVSDK warning/error (called on MAVSDK's thread), without terminal colour codes."""
+        self.queue.append(_ANSI.sub("", message).strip())
 
     def new_messages(self) -> list[str]:
         """Warning/error texts not shown before (the queue is drained)."""

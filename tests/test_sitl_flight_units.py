@@ -1,0 +1,99 @@
+"""Units of the flight runner without a vehicle: phase tracking, option checks, MAVSDK log dedupe, status lines."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from mission.errors import InputError
+from mission.flight.phases import PhaseTracker
+from mission.flight.preflight import check_connect, check_out, check_rss_source
+from mission.flight.progress import Display, FlightStatus, plain_line
+from mission.flight.sdklog import SdkLog
+
+
+def test_phase_tracker_follows_landed_state_and_mission_progress():
+    ph = PhaseTracker()
+    ph.configure(first_wp=3, last_item=21, final="return")  # ArduPilot: home, take-off, speed, waypoints, RTL
+    ph.on_landed_state(1.0, "TAKING_OFF")
+    ph.on_progress(2.0, 1)
+    ph.on_landed_state(3.0, "IN_AIR")
+    ph.on_progress(5.0, 3)
+    ph.on_progress(9.0, 4)
+    ph.on_progress(20.0, 21)
+    ph.on_landed_state(30.0, "LANDING")
+    ph.on_landed_state(40.0, "ON_GROUND")
+    names, items = ph.at(np.array([0.0, 1.5, 4.0, 6.0, 10.0, 25.0, 35.0, 45.0]))
+    assert names.tolist() == ["ground", "takeoff", "takeoff", "mission", "mission", "return", "land", "ground"]
+    assert items.tolist() == [-1, -1, -1, 0, 1, -1, -1, -1]
+
+
+def test_phase_tracker_commanded_return_and_land_item():
+    ph = PhaseTracker()
+    ph.configure(first_wp=2, last_item=10, final="land")
+    ph.on_landed_state(0.0, "IN_AIR")
+    ph.on_progress(1.0, 5)
+    ph.on_return(2.0)  # Ctrl-C: RTL commanded mid-mission
+    names, items = ph.at(np.array([1.5, 2.5]))
+    assert names.tolist() == ["mission", "return"] and items.tolist() == [3, -1]
+    ph2 = PhaseTracker()
+    ph2.configure(first_wp=2, last_item=10, final="land")
+    ph2.on_landed_state(0.0, "IN_AIR")
+    ph2.on_progress(1.0, 10)  # the LAND item of return_behaviour: land
+    assert ph2.at(np.array([1.5]))[0].tolist() == ["land"]
+
+
+@pytest.mark.parametrize("url", ["foo://bar", "udpin:0.0.0.0:14540", "tcpout://127.0.0.1", "udpin://:x"])
+def test_bad_connection_urls(url):
+    with pytest.raises(InputError, match="--connect"):
+        check_connect(url)
+
+
+@pytest.mark.parametrize("url", ["udpin://0.0.0.0:14540", "tcpout://127.0.0.1:5760", "serial:///dev/ttyACM0:57600"])
+def test_good_connection_urls(url):
+    check_connect(url)
+
+
+def test_rss_source_and_out_checks(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        check_rss_source(f"aerpaw-fifo:{tmp_path / 'Power'}")
+    with pytest.raises(InputError, match="folder"):
+        check_rss_source(f"aerpaw-fifo:{tmp_path}")
+    with pytest.raises(InputError, match="unknown RSS source"):
+        check_rss_source("tcp:1234")
+    check_rss_source("udp:127.0.0.1:0")
+    f = tmp_path / "file"
+    f.write_text("")
+    with pytest.raises(InputError, match="is a file"):
+        check_out(f)
+    with pytest.raises(InputError, match="is a file"):
+        check_out(f / "sub")
+    check_out(tmp_path / "new" / "folder")
+
+
+def test_mavsdk_messages_once_each_without_colour_codes():
+    log = SdkLog(verbose=True)  # not subscribed: feed it as MAVSDK's thread would
+    for k in range(5):
+        log.on_log(f"\x1b[31m[12:00:0{k}|Error] Connection refused (errno {k})\x1b[0m")
+    log.on_log("Sending message failed")
+    assert log.new_messages() == ["[12:00:00|Error] Connection refused (errno 0)", "Sending message failed"]
+    log.on_log("[12:00:09|Error] Connection refused (errno 9)")
+    assert log.new_messages() == []
+
+
+def test_plain_status_lines_do_not_wrap(monkeypatch):
+    s = FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18, phase="mission", rows=123456,
+                     last_rss=-45.25, best_rss=-31.5, best_xy=(1234.0, 5678.0), link_lost=True)
+    line = plain_line(s)
+    assert line.startswith("[LINK LOST, last mission]")
+    d = Display(s, plain_every_s=0.0)
+    buf = io.StringIO()
+    from rich.console import Console
+
+    d.console = Console(file=buf, width=40, force_terminal=False)
+    d.refresh()
+    d.message("a warning that is much longer than forty characters, as warnings are")
+    lines = buf.getvalue().splitlines()
+    assert lines == [line, "a warning that is much longer than forty characters, as warnings are"]
