@@ -116,13 +116,20 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
         if pat is None:
             r = base
         else:
-            el_a, az_a = mount_angles(el, az, head, flipped)
-            amp = pat.amplitude_at(el_a.astype(np.float32), az_a.astype(np.float32))
-            r = base - np.float32(20.0) * np.log10(np.maximum(amp, np.float32(1e-6)))
+            el_a, az_a = mount_angles(el, az, np.float32(head), flipped)
+            r = base - _gain_db(pat, el_a, az_a)
         c = r.mean(axis=1)
         off[i] = c
         ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2
     return np.maximum(ssr, 0.0), off
+
+
+def _gain_db(pat: Pattern, el: np.ndarray, az: np.ndarray) -> np.ndarray:
+    """Antenna gain (dBi, float32) at antenna-frame angles: the tabulated fast path when the pattern has one."""
+    fast = getattr(pat, "gain_db_at", None)
+    if fast is not None:
+        return fast(el.astype(np.float32, copy=False), az.astype(np.float32, copy=False))
+    return pat.gain_dbi(el, az).astype(np.float32)
 
 
 def covered_area_m2(enu: np.ndarray, cell_m: float = 5.0) -> float:

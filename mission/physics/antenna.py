@@ -205,6 +205,15 @@ class TabulatedPattern(Pattern):
         if self._uniform is None:
             g = self.gain_dbi(el, az)
             return np.exp(g * (np.log(10.0) / 20.0)).astype(np.result_type(el), copy=False)
+        g = self.gain_db_at(el, az)
+        g *= np.result_type(el).type(np.log(10.0) / 20.0)  # table is dB; floor applied at build time
+        return np.exp(g, out=g)
+
+    def gain_db_at(self, el: NDArray, az: NDArray) -> NDArray:
+        """Gain (dBi) at antenna-frame angles (rad) in el's dtype: the fast path of ``gain_dbi`` (bilinear on
+        uniform tables without a search; the float64 reference otherwise)."""
+        if self._uniform is None:
+            return self.gain_dbi(el, az).astype(np.result_type(el), copy=False)
         dt = np.result_type(el).type
         (e0, de, ne), (a0, da, na), table = self._uniform
         fe = np.clip((el * dt(180.0 / np.pi) - dt(e0)) * dt(1.0 / de), dt(0.0), dt(ne - 1))
@@ -218,8 +227,7 @@ class TabulatedPattern(Pattern):
         g10, g11 = table[k + (na + 1)], table[k + (na + 2)]
         g = g00 + t * (g01 - g00)
         g += u * (g10 + t * (g11 - g10) - g)
-        g *= dt(np.log(10.0) / 20.0)  # table is dB; floor applied at build time
-        return np.exp(g, out=g)
+        return g
 
     def total_power_ratio(self) -> float:
         """(1 / 4 pi) * integral of G over the sphere on the table's own grid (1 for a directivity table)."""
