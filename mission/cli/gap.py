@@ -52,6 +52,7 @@ def _parse_latlon(s: str):
 
 def load_flights(paths: list[str], truths: list[str] | None, height: float):
     """Flight logs -> ``Flight`` objects with their transmitter truth in each log's ENU frame."""
+    from mission.cli.main import print_notes
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
     from mission.gap.align import flight_from_log
@@ -61,6 +62,7 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
     flights = []
     for k, p in enumerate(paths):
         log = read_flight_log(p)
+        print_notes(log.notes)
         tx = None
         if truths:
             lat, lon = _parse_latlon(truths[0 if len(truths) == 1 else k])
