@@ -353,8 +353,11 @@ class Runner(FlightTasks):
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
         if restore and not self.link_dead.is_set():
-            with contextlib.suppress(Exception):
+            try:
                 await set_params(param, restore)
+                self.event("params", "restored " + ", ".join(f"{k}={v}" for k, v in restore.items()))
+            except Exception as e:
+                self.event("params", f"could not restore {restore} ({e})", warn=True)
         if self.rows is None:
             return
         await self.source.stop()
