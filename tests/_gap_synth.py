@@ -8,7 +8,7 @@ and one withheld effect per case, including effects no candidate names:
 | effect | truth | expected name |
 | --- | --- | --- |
 | ``none`` | nothing | nothing |
-| ``legs`` | paper eqs. 8-9: beta 0.5-0.7, legs at 39/150/270 deg body az., +-5 deg, dep_b < 10 deg | leg_shadowing |
+| ``legs`` | eqs. 8-9: beta 0.5-0.7, legs 39/150/270 deg, +-5 deg, dep_b < 10 deg; rover near a corner | leg_shadowing |
 | ``ground`` | ground permittivity 10-25, 5 mS/m (the base assumes 2, lossless) | ground_reflection |
 | ``ripple`` | UAV antenna gain + A cos(3 (az_b - phi)), A 2-2.5 dB (4-5 dB peak to peak) | rx_gain_map |
 | ``notch`` | UAV antenna gain - 10 dB exp(-(az_b - phi)^2 / 2 (15 deg)^2) (a notch in body azimuth) | rx_gain_map |
@@ -53,20 +53,21 @@ def _polyline(points: np.ndarray, speed: float, dt: float, duration: float) -> t
 
 
 def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float) -> dict[str, np.ndarray]:
-    """A lawnmower (rows east-west) or an outward spiral over a 300 m square; yaw = course; AR(1) roll/pitch."""
-    h = float(rng.uniform(25.0, 45.0))
+    """A lawnmower (rows east-west) or an outward spiral over a 360 m square at 20-35 m; yaw = course; AR(1)
+    roll/pitch.  Low and wide enough that the legs (dep_b < 10 deg) act beyond ~110-200 m."""
+    h = float(rng.uniform(20.0, 35.0))
     if kind == "lawnmower":
         sp = float(rng.uniform(28.0, 40.0))
-        ys = np.arange(0.0, 300.0 + 1e-9, sp)
+        ys = np.arange(0.0, 360.0 + 1e-9, sp)
         pts = []
         for j, y in enumerate(ys):
-            xs = (0.0, 300.0) if j % 2 == 0 else (300.0, 0.0)
+            xs = (0.0, 360.0) if j % 2 == 0 else (360.0, 0.0)
             pts += [(xs[0], y), (xs[1], y)]
         points = np.array(pts)
     else:
-        th = np.linspace(0.0, 6 * 2 * np.pi, 600)
-        r = 15.0 + 135.0 * th / th[-1]
-        points = np.column_stack([150.0 + r * np.sin(th), 150.0 + r * np.cos(th)])
+        th = np.linspace(0.0, 4 * 2 * np.pi, 600)
+        r = 15.0 + 165.0 * th / th[-1]
+        points = np.column_stack([180.0 + r * np.sin(th), 180.0 + r * np.cos(th)])
     xy, course = _polyline(points, 5.0, dt, duration)
     n = len(xy)
     phi = np.exp(-dt / 0.5)
@@ -164,7 +165,7 @@ def exp_field(rng: np.random.Generator, sigma: float, L: float, m: int = 500):
 
 # ------------------------------------------------------------------------------------------------ cases
 
-def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.2, duration: float = 330.0,
+def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, duration: float = 420.0,
               noise_db: float = 1.0) -> tuple[list[dict], dict]:
     """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth."""
     rng = np.random.default_rng(seed)
@@ -175,7 +176,8 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.2, durat
     flights = []
     for k in range(n_flights):
         tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
-        tx = np.array([rng.uniform(60.0, 240.0), rng.uniform(60.0, 240.0), 1.5])
+        lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)  # legs: rover near a corner (long range)
+        tx = np.array([rng.uniform(lo, hi), rng.uniform(lo, hi), 1.5])
         t, pos, att = tr["t"], tr["pos"], tr["att"]
         kw: dict = {}
         if effect == "ground":

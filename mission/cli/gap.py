@@ -28,6 +28,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-rungs", type=int, default=6, help="most effects the ladder adds (6)")
     parser.add_argument("--no-localize", action="store_true", help="skip the localization cost per rung")
     parser.add_argument("--report", metavar="DIR", help="write PNG plots and gap.json here")
+    parser.add_argument("--json", action="store_true",
+                        help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables")
+    parser.add_argument("--rate-hz", type=float, default=3.0,
+                        help="thin flights to at most this sample rate first (3; 0 = every sample)")
+    parser.add_argument("--workers", type=int, default=2, help="threads for the candidate fits (2)")
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
     parser.add_argument("--selftest", action="store_true",
                         help="simulate flights with each effect withheld and check the diagnosis finds it")

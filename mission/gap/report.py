@@ -94,6 +94,25 @@ def print_report(d: Diagnosis, console: Any = None) -> None:
         t.add_row(row["rung"], f"{s['median_abs_db']:.2f}", f"{s['p90_abs_db']:.2f}", f"{s['rms_db']:.2f}",
                   params_text(row["params"]), "" if le is None else f"{le:.1f}")
     c.print(t)
+    from mission.gap.fit import RANKING_RULE
+
+    c.print(f"ranking rule: {RANKING_RULE}")
+    for k, st in d.structure.items():
+        if "spatial" not in st:
+            continue
+        sp, al = st["spatial"], st["along_path"]
+        c.print(f"residual structure ({k} rung): [bold]{st['verdict']}[/]; over space sigma {sp['sigma_db']:.1f} dB "
+                f"[{sp['sigma_ci_db'][0]:.1f}, {sp['sigma_ci_db'][1]:.1f}], L {sp['corr_len']:.0f} m "
+                f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget {sp['nugget_db']:.1f} dB "
+                f"[{sp['nugget_ci_db'][0]:.1f}, {sp['nugget_ci_db'][1]:.1f}]; along the path sigma "
+                f"{al['sigma_db']:.1f} dB, L {al['corr_len']:.1f} s, nugget {al['nugget_db']:.1f} dB")
+    for lab, fp in d.footprints.items():
+        w = ", ".join(f"{k} {v:.0f}" for k, v in fp["where"].items() if k != "share_of_samples")
+        c.print(f"{lab.split(' + ')[-1]}: {fp['size_db']:.1f} dB where it acts ({fp['where']['share_of_samples']:.0%} "
+                f"of samples; {fp['acts_as']}); acts most at {w}")
+    for name, sh in freeform_shapes(d).items():
+        c.print(f"free-form {name}: {sh['size_db']:.1f} dB, resembles {sh['resembles']} "
+                f"(|corr| {sh['resemblance_corr']:.2f}), strongest at {sh['where']}")
 
 
 # -------------------------------------------------------------------------------------------- figures
@@ -134,7 +153,65 @@ def figures(d: Diagnosis) -> dict[str, Any]:
                                    "params_fold_mean": x.params_mean(), "params_per_fold": x.fold_params}
                                   for x in r.ranking] for r in d.rungs}
     figs["localization"] = d.localization
+    figs["freeform_shapes"] = freeform_shapes(d)
+    figs["structure"] = d.structure
     return figs
+
+
+SCHEMA_VERSION = 2
+_BIG = ("shape", "resemblances")  # free-form shapes go to figures["freeform_shapes"], not into the summary
+
+
+def _small(p: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in p.items() if k not in _BIG}
+
+
+def summary(d: Diagnosis) -> dict[str, Any]:
+    """The stable machine-readable result (top of ``gap.json``; ``rfsl gap --json`` prints it).
+
+    ``ladder``: one entry per rung: ``rung`` (label), ``added`` (effect or null), ``params`` (fitted, fold
+    mean), ``heldout`` (median/p90/rms |error| dB, n), ``footprint`` (size_db where it acts, where).
+    ``rankings``: rung label -> candidates tried on top of it, in rank order: ``name``, ``tier``,
+    ``loss_reduction_db2``, ``rel_reduction``, ``ci_lo_db2`` (one-sided lower bound), ``significant``,
+    ``rms_after_db``, ``p90_after_db``, ``params``.  ``named``: what the diagnosis names as missing first;
+    ``structure``: residual variograms and verdict of the base and final rungs; ``rule``: the ranking rule.
+    """
+    from mission.gap.fit import RANKING_RULE
+    from mission.gap.structure import name_missing
+
+    ladder = []
+    for row in rung_table(d):
+        s = row["pooled"]
+        ladder.append({"rung": row["rung"], "added": row["added"], "params": _small(row["params"]),
+                       "heldout": {"n": s["n"], "median_abs_db": s["median_abs_db"], "p90_abs_db": s["p90_abs_db"],
+                                   "rms_db": s["rms_db"]},
+                       "footprint": d.footprints.get(row["rung"])})
+    rankings = {r.label: [{"name": x.name, "tier": x.tier, "loss_reduction_db2": x.loss_reduction,
+                           "rel_reduction": x.rel_reduction, "ci_lo_db2": x.ci_lo, "significant": x.significant,
+                           "rms_after_db": x.rms_after, "p90_after_db": x.p90_after,
+                           "params": _small(x.params_mean())} for x in r.ranking] for r in d.rungs if r.ranking}
+    first = d.rungs[0].ranking
+    return {"schema": SCHEMA_VERSION, "named": name_missing(first, d.structure.get("base")),
+            "rule": RANKING_RULE, "ladder": ladder, "rankings": rankings,
+            "structure": {k: {kk: vv for kk, vv in v.items() if kk in ("verdict", "rule", "residual_std_db")}
+                          | {kk: {q: v[kk][q] for q in ("sigma_db", "sigma_ci_db", "corr_len", "corr_len_ci", "unit",
+                                                        "nugget_db", "nugget_ci_db", "correlated_fraction")}
+                             for kk in ("along_path", "spatial") if kk in v}
+                          for k, v in d.structure.items()},
+            "config": d.config, "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
+
+
+def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
+    """The fitted shape of every free-form candidate on the first rung (fold 0) and of any added one."""
+    out = {}
+    for r in d.rungs:
+        for x in r.ranking:
+            if x.tier == "free-form" and (r is d.rungs[0] or x.name in {q.added for q in d.rungs}):
+                p = x.fold_params[0]
+                out.setdefault(x.name, {"rung": r.label, "size_db": p.get("size_db"), "resembles": p.get("resembles"),
+                                        "resemblance_corr": p.get("resemblance_corr"), "where": p.get("where"),
+                                        "resemblances": p.get("resemblances"), "shape": p.get("shape")})
+    return out
 
 
 def _json_default(o: Any) -> Any:
@@ -239,7 +316,31 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         fig.savefig(paths[-1], dpi=100)
         plt.close(fig)
 
-    doc = {"config": d.config, "block_lens": d.block_lens, "flights": [
+    shapes = figs["freeform_shapes"]
+    if shapes:
+        fig, axs = plt.subplots(1, len(shapes), figsize=(5.5 * len(shapes), 4.2), squeeze=False)
+        for ax, (name, sh) in zip(axs[0], shapes.items(), strict=True):
+            g = sh["shape"]
+            if "gain_db" in g:
+                im = ax.pcolormesh(g["azimuth_deg"], g["elevation_deg"], np.array(g["gain_db"]), cmap="RdBu_r",
+                                   shading="auto")
+                fig.colorbar(im, ax=ax, label="dB")
+                ax.set(xlabel="body azimuth deg" if name == "rx_gain_map" else "compass azimuth deg",
+                       ylabel="body depression deg" if name == "rx_gain_map" else "elevation deg")
+            else:
+                ax.plot(g["distance_m"], g["loss_vs_distance_db"], label="vs distance (m)")
+                ax2 = ax.twiny()
+                ax2.plot(g["height_m"], g["loss_vs_height_db"], "C1", label="vs height (m)")
+                ax.set(xscale="log", xlabel="distance m", ylabel="dB")
+                ax2.set_xlabel("UAV height m (orange)")
+            ax.set_title(f"{name}: {sh['size_db']:.1f} dB, like {sh['resembles']} "
+                         f"({sh['resemblance_corr']:.2f})", fontsize=9)
+        fig.tight_layout()
+        paths.append(out / "freeform.png")
+        fig.savefig(paths[-1], dpi=100)
+        plt.close(fig)
+
+    doc = {**summary(d), "block_lens": d.block_lens, "flights": [
         {"name": f.name, "n": len(f), "tx_enu": f.tx_enu.tolist()} for f in d.flights], "figures": figs}
     paths.append(out / "gap.json")
     paths[-1].write_text(json.dumps(doc, indent=1, default=_json_default))

@@ -116,7 +116,7 @@ def identify(flights: Sequence[Flight], base: Pipeline, candidates: Sequence[Any
                            "ranking": [{"name": r.name, "tier": r.tier, "rel_reduction": r.rel_reduction,
                                         "loss_reduction_db2": r.loss_reduction, "ci_lo_db2": r.ci_lo,
                                         "significant": r.significant} for r in ranking]}
-    hit = next((r for r in ranking if r.name == named), None)
+    hit = next((r for r in ranking if r.name == named and r.significant), None)
     if hit is not None:
         out["footprint"] = footprint(base, hit.pipes[0], flights)
         out["params"] = {k: v for k, v in hit.params_mean().items() if k not in ("shape", "resemblances")}

@@ -1,0 +1,91 @@
+"""Gap diagnosis against an independent generator (``tests/_gap_synth.py``: formulas written for the test).
+
+The full confusion table over three seeds is ``python benchmarks/bench_gap.py selftest`` (results in
+``benchmarks/README.md``); here a few cases at one seed keep the suite fast.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _gap_synth import channel_db, diagnose_case, exp_field, make_case
+
+from mission.errors import InputError
+
+
+def test_library_two_ray_agrees_with_the_independent_formulas() -> None:
+    """mission.physics two-ray + dipoles + attitude (eps 2) equals the generator's own eq. 1 (away from nulls)."""
+    from mission.physics import Attitude, make_model
+
+    raw, _ = make_case("none", 4, n_flights=2, duration=120.0)
+    model = make_model("two-ray", pattern="dipole", dtype=np.float64).with_effect(Attitude())
+    for f in raw:
+        ours = channel_db(f["tx"], f["pos"], f["att"])
+        lib = np.asarray(model.rss_dbm(f["tx"], f["pos"], f["att"]), dtype=float)
+        d = np.abs(ours - lib)
+        assert np.median(d) < 1e-3 and np.quantile(d, 0.99) < 0.05, (np.median(d), d.max())
+
+
+@pytest.mark.parametrize("effect", ["none", "ripple", "timing", "shadowing"])
+def test_withheld_effect_named_first(effect: str) -> None:
+    """The diagnosis names the withheld effect (nothing for none), with its size in dB and where it acts."""
+    r = diagnose_case(effect, 1)
+    assert r["hit"], (r["named"], r["ranking"][:3], r["structure"]["verdict"])
+    if effect == "none":
+        assert r["significant"] == [] and r["structure"]["verdict"] == "white noise"
+        return
+    fp = r["footprint"]
+    assert fp["size_db"] > 1.0
+    if effect == "ripple":  # A cos(3 az): the map's size where it acts is about the amplitude A (2-2.5 dB)
+        assert 1.2 < fp["size_db"] < 4.0 and "body_azimuth_deg" in r["params"]["where"]
+    if effect == "timing":
+        assert r["params"]["tau_s"] == pytest.approx(r["truth"]["tau_s"], abs=0.1)
+    if effect == "shadowing":
+        assert 2.0 < r["params"]["sigma_db"] < 6.5 and r["params"]["corr_len_m"] > 5.0
+
+
+def test_variogram_separates_correlated_shadowing_from_white_noise() -> None:
+    """fit_variogram on an exponential field (sigma 4 dB, L 40 m) + 1 dB noise, and on noise alone."""
+    from mission.physics.shadowing import fit_variogram
+
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0, 400, (1500, 2))
+    field = exp_field(rng, 4.0, 40.0)(xy)
+    v = fit_variogram(xy, field + rng.normal(0, 1.0, len(xy)), rng, n_boot=20)
+    assert 2.8 < v.sigma_db < 5.5 and 15.0 < v.corr_len < 90.0 and v.nugget_db < 2.0
+    assert v.sigma_ci[0] <= v.sigma_db <= v.sigma_ci[1]
+    w = fit_variogram(xy, rng.normal(0, 1.0, len(xy)), rng, n_boot=20)
+    assert w.sigma_db < 0.5 and w.nugget_db == pytest.approx(1.0, abs=0.15)
+
+
+def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
+    """A pure 3-lobe ripple in body azimuth is drawn back by rx_gain_map (corr > 0.95, amplitude within 20 %)."""
+    from mission.gap.align import Flight
+    from mission.gap.freeform import fit_freeform, link_of, map_variables
+    from mission.gap.pipeline import Pipeline
+    from mission.physics import Attitude, make_model
+
+    raw, _ = make_case("none", 6, n_flights=1, duration=300.0)
+    f0 = raw[0]
+    fl = Flight("x", f0["t"], f0["pos"], f0["att"], np.zeros(len(f0["t"])), f0["tx"])
+    pipe = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
+    az, _ = map_variables("rx_gain_map", link_of(pipe, fl, np.arange(len(fl))))
+    truth = 2.0 * np.cos(3 * (az - 1.0))
+    r = truth - truth.mean() + np.random.default_rng(1).normal(0, 0.5, len(az))
+    new, params = fit_freeform("rx_gain_map", pipe, [fl], [np.arange(len(fl))], [r])
+    term = new.model.effect("rx_gain_map").rss_term_db(link_of(pipe, fl, np.arange(len(fl))))
+    assert np.corrcoef(term, truth)[0, 1] > 0.95
+    assert np.std(term) == pytest.approx(np.std(truth), rel=0.2)
+    assert len(params["shape"]["gain_db"]) == len(params["shape"]["elevation_deg"])
+
+
+def test_one_home_rules() -> None:
+    """Unknown pattern names are refused; the tilt term uses the library dipole (zero tilt: zero term)."""
+    from mission.gap.candidates import pattern_by_name
+    from mission.gap.pipeline import _dipole_db
+    from mission.physics.antenna import Dipole
+
+    with pytest.raises(InputError):
+        pattern_by_name("mesured")
+    s = np.linspace(-1.0, 1.0, 41)
+    assert np.allclose(_dipole_db(s), Dipole().gain_dbi(np.arcsin(s)))
