@@ -32,7 +32,7 @@ from mission.errors import InputError
 from mission.geo import Area
 from mission.localize import Estimate
 from mission.localize.classical import FlightData, _Base, as_flight
-from mission.physics.antenna import Dipole, Pattern, mount_angles, rm_wb1_dn
+from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
 
 HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
 
@@ -104,6 +104,33 @@ def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np
     return pg, el, az
 
 
+class _GainLookup:
+    """A pattern resampled once to a 1-degree (elevation x azimuth) table, looked up by nearest index.
+
+    Why: every candidate x cell x mounting heading needs a gain; with integer indices computed once per call
+    a hypothesis costs one modular shift and one gather instead of a bilinear interpolation (the 3-degree
+    measured table's bilinear values are kept to about 0.5 dB).
+    """
+
+    def __init__(self, pat: Pattern) -> None:
+        e, a = np.meshgrid(np.radians(np.arange(-90.0, 90.5, 1.0)), np.radians(np.arange(0.0, 360.0, 1.0)),
+                           indexing="ij")
+        t = pat.gain_dbi(e, a).astype(np.float32)            # (181, 360), antenna frame
+        self.upright = t.ravel()
+        self.flipped = t[::-1].ravel()                        # el -> -el (180 deg about the antenna's x axis)
+
+    def gain_db(self, i_el: np.ndarray, i_az: np.ndarray, heading_deg: int, flipped: bool) -> np.ndarray:
+        """Gain at platform indices (el + 90, az clockwise from the nose) for one mounting (``mount_angles``)."""
+        if flipped:
+            j = np.mod(i_az - heading_deg, 360)
+            return self.flipped[i_el * 360 + j]
+        j = np.mod(heading_deg - i_az, 360)
+        return self.upright[i_el * 360 + j]
+
+
+_LOOKUPS: dict[int, _GainLookup] = {}
+
+
 def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate."""
@@ -112,24 +139,22 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
     ssr = np.empty((len(hyps), len(cand_xy)))
     off = np.empty((len(hyps), len(cand_xy)))
     base = y - pg
+    idx = None
     for i, (_, pat, head, flipped) in enumerate(hyps):
         if pat is None:
             r = base
+        elif isinstance(pat, Dipole):  # azimuth-symmetric, one hypothesis: the reference formula
+            r = base - pat.gain_dbi(el, az).astype(np.float32)
         else:
-            el_a, az_a = mount_angles(el, az, np.float32(head), flipped)
-            r = base - _gain_db(pat, el_a, az_a)
+            if idx is None:
+                idx = (np.rint(np.degrees(el)).astype(np.int32) + 90,
+                       np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
+            look = _LOOKUPS.setdefault(id(pat), _GainLookup(pat))
+            r = base - look.gain_db(idx[0], idx[1], int(round(np.degrees(head))) % 360, flipped)
         c = r.mean(axis=1)
         off[i] = c
         ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2
     return np.maximum(ssr, 0.0), off
-
-
-def _gain_db(pat: Pattern, el: np.ndarray, az: np.ndarray) -> np.ndarray:
-    """Antenna gain (dBi, float32) at antenna-frame angles: the tabulated fast path when the pattern has one."""
-    fast = getattr(pat, "gain_db_at", None)
-    if fast is not None:
-        return fast(el.astype(np.float32, copy=False), az.astype(np.float32, copy=False))
-    return pat.gain_dbi(el, az).astype(np.float32)
 
 
 def covered_area_m2(enu: np.ndarray, cell_m: float = 5.0) -> float:
