@@ -22,6 +22,7 @@ from mission import __version__
 from mission.errors import InputError
 from mission.geo import Origin, latlon_unit_problem
 
+WARNING = "warning: "  # prefix of a FlightLog note that puts the result in doubt (not just a tidied row)
 COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
@@ -43,7 +44,9 @@ class FlightLog:
     columns: dict[str, np.ndarray]
     meta: dict = field(default_factory=dict)
     path: Path | None = None
-    notes: list[str] = field(default_factory=list)  # what reading accepted with a remark (CLIs print them)
+    # What reading accepted with a remark (CLIs print one line each); those that put the result in doubt
+    # start with WARNING (no sidecar, a flight that did not complete).
+    notes: list[str] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.columns["t_s"])
@@ -430,7 +433,7 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
     if not sc.exists():
         where = ("the origin given" if origin_given else
                  "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)")
-        notes.append(f"no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth")
+        notes.append(f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth")
         return {}
     try:
         meta = json.loads(sc.read_text())
@@ -474,6 +477,6 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
                 raise InputError(f"transmitter below ground ({tr[k]:g} m)", source=str(sc), field=f"truth.{k}")
     status = meta.get("status")
     if status is not None and status != "completed":
-        notes.append(f"the sidecar says the flight did not complete (status {status!r}): the log may end early "
-                     "or miss part of the pattern")
+        notes.append(f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the log may end "
+                     "early or miss part of the pattern")
     return meta

@@ -40,11 +40,11 @@ def assert_refused(rc: int, err: str, *names: str) -> None:
 
 
 def assert_accepted(rc: int, err: str, note: str | None = None) -> None:
-    """Exit 0, no traceback or warning, and (when given) the note among stderr's 'note:' lines."""
-    assert "Traceback" not in err and "Warning" not in err, err
+    """Exit 0, no traceback or Python warning, and (when given) the note among stderr's note/warning lines."""
+    assert "Traceback" not in err and "Warning:" not in err, err
     assert rc == 0, f"exit {rc}, stderr: {err}"
     if note is not None:
-        notes = [ln for ln in err.splitlines() if ln.startswith("note: ")]
+        notes = [ln for ln in err.splitlines() if ln.startswith(("note: ", "warning: "))]
         assert any(note in n for n in notes), f"note {note!r} not in {notes}"
 
 

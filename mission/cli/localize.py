@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from mission.cli.importer import parse_latlon, parse_origin
     from mission.cli.main import image_out, print_notes
     from mission.errors import InputError
-    from mission.flightlog import read_flight_log
+    from mission.flightlog import WARNING, read_flight_log
     from mission.localize.api import localize_log, search_area
 
     truth = parse_latlon(args.truth) if args.truth else None
@@ -150,6 +150,9 @@ def run(args: argparse.Namespace) -> int:
         tab.add_row("plot", str(args.plot))
     if "warning" in est.extras:
         tab.add_row("[bold yellow]warning", f"[yellow]{est.extras['warning']}")
+    for n in log.notes:  # also on stderr; repeated here because the table is what a user reads
+        kind, _, text = n.partition(": ") if n.startswith(WARNING) else ("note", "", n)
+        tab.add_row(f"[bold yellow]{kind}" if kind != "note" else kind, f"[yellow]{text}")
     c.print(tab)
     return 0
 

@@ -91,9 +91,10 @@ def console(stderr: bool = False):
 
 
 def print_notes(notes: Sequence[str]) -> None:
-    """Print what was accepted with a remark (a real-log quirk, a missing sidecar) as one stderr line each."""
+    """Print what was accepted with a remark (a real-log quirk, a missing sidecar) as one stderr line each:
+    'note: ...', or the note as it is when it already says 'warning: ...' (``mission.flightlog.WARNING``)."""
     for n in notes:
-        print(f"note: {n}", file=sys.stderr)
+        print(n if n.startswith("warning: ") else f"note: {n}", file=sys.stderr)
 
 
 def image_out(path: str | Path, flag: str = "--out") -> Path:
