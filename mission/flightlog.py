@@ -252,7 +252,7 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     if not path.exists():
         raise InputError("no such flight log", source=src)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark is not part of "t_s"
     except UnicodeDecodeError:
         raise InputError("not a text CSV file", source=src) from None
     except OSError as e:

@@ -97,6 +97,8 @@ CSV_REFUSED = {
                                                                                           for ln in L[1:])],
                             ["'lat_deg'", "km from the origin"]),
     "semicolon separated": (lambda L: [ln.replace(",", ";") for ln in L], ["missing required column"]),
+    "not text": (lambda L: b"\xff\xfe\x00\x81garbage", ["not a text CSV file"]),
+    "empty file": (lambda L: "", ["empty file"]),
 }
 
 SIDECAR_REFUSED = {
@@ -129,6 +131,13 @@ ACCEPTED = {
     "no sidecar": (lambda L: L, "delete", "no sidecar flight.json"),
     "flight did not complete": (lambda L: L, lambda m: {**m, "status": "flying"}, "did not complete"),
     "flight failed": (lambda L: L, lambda m: {**m, "status": "failed: link lost"}, "'failed: link lost'"),
+    "windows line ends": (lambda L: "\r\n".join(L) + "\r\n", None, None),
+    "byte-order mark": (lambda L: "\ufeff" + "\n".join(L) + "\n", None, None),
+    "trailing blank lines": (lambda L: L + ["", "", ""], None, None),
+    "extra text column": (lambda L: [L[0] + ",comment"] + [ln + ",ok" for ln in L[1:]], None, None),
+    "receiver-only, no attitude": (lambda L: [",".join(f[:5] + ["", "", ""] + f[8:]) if i else ln
+                                              for i, (ln, f) in enumerate((ln, ln.split(",")) for ln in L)],
+                                   None, None),
 }
 
 
@@ -138,7 +147,10 @@ def _make(tmp_path, base, csv_mut=None, side_mut=None):
     lines = text.splitlines()
     p = tmp_path / "flight.csv"
     new = csv_mut(lines) if csv_mut else lines
-    p.write_text(new if isinstance(new, str) else "\n".join(new) + "\n")
+    if isinstance(new, bytes):
+        p.write_bytes(new)
+    else:
+        p.write_bytes((new if isinstance(new, str) else "\n".join(new) + "\n").encode())
     sc = sidecar_path(p)
     if side_mut == "delete":
         return p
@@ -193,7 +205,7 @@ def test_real_log_quirks_are_accepted_with_a_note(tmp_path, base, capsys, case, 
     p = _make(tmp_path, base, csv_mut, side_mut)
     if entry == "read":
         log = read_flight_log(p)
-        assert any(note in n for n in log.notes), log.notes
+        assert any(note in n for n in log.notes) if note else not log.notes, log.notes
         assert np.all(np.diff(log["t_s"]) > 0) and np.isfinite(log["rss_dbm"]).all()
         n_base = len(base[0].splitlines()) - 1
         assert n_base - 5 <= len(log) <= n_base  # only the quirky rows went
