@@ -158,16 +158,27 @@ def run(args) -> int:
         raise InputError(str(e), field="base") from None
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
-    cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed)
+    if args.rate_hz < 0 or args.workers < 1:
+        raise InputError("--rate-hz must be >= 0 and --workers >= 1", field="rate-hz")
+    cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed, rate_hz=args.rate_hz,
+                    workers=args.workers)
+    err = Console(stderr=True)
     try:
         d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,
-                     max_rungs=args.max_rungs, localize=not args.no_localize)
+                     max_rungs=args.max_rungs, localize=not args.no_localize, progress=err.is_terminal)
     except np.linalg.LinAlgError as e:
         raise InputError(f"the fit is singular on these flights ({e}): too short, or too little ground covered",
                          source=", ".join(args.logs)) from None
-    c = Console()
-    print_report(d, c)
+    c = err if args.json else Console()
+    if not args.json:
+        print_report(d, c)
     if args.report:
         for p in write_report(d, args.report):
             c.print(f"wrote {p}")
+    if args.json:
+        import json
+
+        from mission.gap.report import _json_default, summary
+
+        print(json.dumps(summary(d), indent=1, default=_json_default))
     return 0
