@@ -46,7 +46,7 @@ def test_default_method_and_plot(log_path, tmp_path, capsys):
     png = tmp_path / "p.png"
     assert localize([str(log_path), "--json", "--plot", str(png)]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["method"] in ("grid", "onnx") and "method_choice" in d
+    assert d["method"] in ("fusion", "onnx") and "method_choice" in d
     assert png.stat().st_size > 10000
 
 

@@ -177,8 +177,8 @@ def test_default_grid_physics_follows_the_log_source():
 
 
 def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
-    """Without --method, a real receiver's log is searched with the afar preset, a simulated one with the network
-    (or its own model): the choice the held-out real-flight figures support, and it says why."""
+    """Without --method, a real receiver's log gets the fused self-calibrating + network estimate (the rule in
+    models/README.md), a simulated one the network (or its own model), and it says why."""
     import numpy as np
 
     from mission.flightlog import make_meta, write_flight_log
@@ -195,8 +195,12 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     cols = f.log_columns(origin)
     real = write_flight_log(tmp_path / "real.csv", cols, make_meta(origin, {"kind": "aerpaw-fifo"}))
     est = localize_log(real)
-    assert est.method == "grid" and "real receiver log" in est.extras["method_choice"]
-    assert "afar" in est.model
+    assert est.method == "fusion" and "real receiver log" in est.extras["method_choice"]
+    comp = est.extras["components"]  # the plain mean of its two components, each a real estimate
+    assert set(comp) == {"selfcal", "rfsl_spiral_e2r.onnx"}
+    mean = np.mean(list(comp.values()), axis=0)
+    assert (est.x_m, est.y_m) == pytest.approx(tuple(mean))
+    assert [r["level"] for r in est.extras["regions"]] == [0.5, 0.9]
     sim = write_flight_log(tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"}))
     est = localize_log(sim)
     assert est.method == ("onnx" if default_model_path() is not None else "grid")

@@ -17,7 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.onnx", help="ONNX localizer (implies --method onnx)")
     parser.add_argument(
         "--method",
-        choices=["onnx", "strongest", "centroid", "grid", "selfcal"],
+        choices=["onnx", "strongest", "centroid", "grid", "selfcal", "fusion"],
         help="localizer (default: shipped model if present, else grid)",
     )
     parser.add_argument(

@@ -6,12 +6,13 @@ height band), run the chosen method, express the estimate in the log's own ENU f
 the error when the truth is known (argument, else the sidecar).
 
 Method choice when none is given: an explicit ``model_path`` -> ``onnx``; a real receiver's log (the sidecar's
-``rss_source.kind`` is not ``sim``) -> ``grid`` with the calibrated ``afar`` physics preset
-(``mission.physics.presets``: free space + the measured UAV antenna upside down with its fitted heading + yaw),
-because on held-out real AFAR flights it beats every network trained on simulation (``models/README.md``,
-``benchmarks/calibrate_real_afar.py``); a simulated log -> the shipped default model
-(``models/rfsl_default.onnx``, see ``default_model_path``) when present, else ``grid`` with the log's own
-simulation model.  The estimate's ``extras["method_choice"]`` says which and why.
+``rss_source.kind`` is not ``sim``) -> ``fusion``: the plain mean of the self-calibrating estimate
+(``selfcal.SelfCalibratingGrid``: antenna hypotheses and offset profiled out per flight, no preset) and the
+network ``models/rfsl_spiral_e2r.onnx``, chosen by the rule written before scoring on the unseen-flight
+benchmark and the held-out real flights (``models/README.md``); its uncertainty regions are the
+self-calibrating posterior's.  A simulated log -> the shipped default model (``models/rfsl_default.onnx``,
+see ``default_model_path``) when present, else ``grid`` with the log's own simulation model.  The estimate's
+``extras["method_choice"]`` says which and why.
 
 Grid physics: ``physics_preset`` (a preset name) or ``physics_model`` (a ``make_model`` name or a model
 object, with ``physics_params``); neither -> the simulator's own model for a simulated log (from its
@@ -31,7 +32,8 @@ import numpy as np
 from mission.errors import InputError
 from mission.localize import Estimate
 
-METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal")
+METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal", "fusion")
+FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
@@ -139,6 +141,50 @@ def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
     return None, None, DEFAULT_PHYSICS_PRESET
 
 
+def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
+    """Express a localizer's estimate in the log's ENU frame and as lat/lon (networks answer in their own frame)."""
+    if method == "onnx":  # model frame -> lat/lon -> log frame
+        xy = origin.to_enu(est.lat_deg, est.lon_deg)
+        est.extras["model_frame_xy_m"] = [est.x_m, est.y_m]
+        est.extras["model_path"] = str(loc.path)
+        est.extras["feature_config"] = loc.cfg.to_dict()
+        est.x_m, est.y_m = float(xy[0]), float(xy[1])
+    else:
+        lat, lon, _ = origin.to_geodetic(np.array([est.x_m, est.y_m, 0.0]))
+        est.lat_deg, est.lon_deg = float(lat), float(lon)
+    return est
+
+
+def fusion_model_path() -> Path | None:
+    """The network of the fused default (``FUSION_MODEL_NAME`` under ``models/``), if shipped."""
+    import mission
+
+    p = Path(mission.__file__).resolve().parent.parent / "models" / FUSION_MODEL_NAME
+    return p if p.is_file() else None
+
+
+def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
+    """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
+    ``models/README.md``); the uncertainty regions are the self-calibrating posterior's."""
+    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
+    a = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    path = model_path or fusion_model_path()
+    if path is None:
+        a.extras["fusion"] = f"no network (models/{FUSION_MODEL_NAME}): self-calibrating estimate alone"
+        return a
+    net = make_localizer("onnx", path)
+    b = _in_log_frame(net, net.predict(part), origin, "onnx")
+    x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
+    lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))
+    extras = dict(a.extras)
+    extras["components"] = {"selfcal": [a.x_m, a.y_m], Path(path).name: [b.x_m, b.y_m]}
+    extras["component_distance_m"] = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
+    est = Estimate(float(x), float(y), "fusion", f"mean of selfcal and {Path(path).name}", float(lat),
+                   float(lon), extras=extras)
+    est.posterior = a.posterior
+    return est
+
+
 def localize_log(
     log_or_path,
     method: str | None = None,
@@ -174,10 +220,10 @@ def localize_log(
         if model_path is not None:
             method, choice = "onnx", f"model {Path(model_path).name} given"
         elif not _is_simulated(log):
-            method, choice = "grid", (
-                f"real receiver log: grid search with {physics_label}, the most accurate method on held-out "
-                "real AFAR flights (mean 25.7 m; networks 27.5-44.0 m, models/README.md); "
-                "--method onnx runs the network"
+            method, choice = "fusion", (
+                "real receiver log: mean of the self-calibrating estimate and the network "
+                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
+                "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
             )
         elif (dm := default_model_path()) is not None:
             method, model_path, choice = "onnx", dm, f"default model {dm.name}"
@@ -190,20 +236,14 @@ def localize_log(
         choice = f"method {method} requested"
     if method not in METHOD_NAMES:
         raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
-    area = search_area(log) if method in ("grid", "selfcal") else None
-    loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area, floor_db,
-                         physics_preset=physics_preset)
+    area = search_area(log) if method in ("grid", "selfcal", "fusion") else None
     origin = log.origin
-    est = loc.predict(part)
-    if method == "onnx":  # model frame -> lat/lon -> log frame
-        xy = origin.to_enu(est.lat_deg, est.lon_deg)
-        est.extras["model_frame_xy_m"] = [est.x_m, est.y_m]
-        est.extras["model_path"] = str(loc.path)
-        est.extras["feature_config"] = loc.cfg.to_dict()
-        est.x_m, est.y_m = float(xy[0]), float(xy[1])
+    if method == "fusion":
+        est = _fusion(part, origin, area, tx_height_m, model_path)
     else:
-        lat, lon, _ = origin.to_geodetic(np.array([est.x_m, est.y_m, 0.0]))
-        est.lat_deg, est.lon_deg = float(lat), float(lon)
+        loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
+                             floor_db, physics_preset=physics_preset)
+        est = _in_log_frame(loc, loc.predict(part), origin, method)
     ra = area if area is not None else search_area(log)
     if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
         out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
