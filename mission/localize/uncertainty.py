@@ -8,6 +8,7 @@ semi-axes, orientation), which is what a user compares first.
 JSON layout (``localize --json``, key ``regions``): a list, one entry per level::
 
     {"level": 0.9,               # nominal probability that the transmitter lies inside
+     "hpd_mass": 0.93,           # posterior mass of the set (the level recalibrated on the benchmark)
      "area_m2": 5400.0,          # area of the HPD set
      "density": 1.2e-4,          # posterior density threshold of the set (per m^2)
      "ellipse": {"x_m": .., "y_m": .., "a_m": .., "b_m": .., "angle_deg": ..},  # a: semi-major, angle from east
@@ -80,8 +81,13 @@ def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> dict:
     return {"x_m": float(mu[0]), "y_m": float(mu[1]), "a_m": float(a), "b_m": float(b), "angle_deg": ang}
 
 
-def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (0.5, 0.9)) -> list[dict]:
-    """The HPD regions of ``post`` at each level (module docstring layout); also attaches ``grid`` to it."""
+def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (0.5, 0.9),
+                masses: dict[float, float] | None = None) -> list[dict]:
+    """The regions of ``post`` at each nominal level (module docstring layout); also attaches ``grid`` to it.
+
+    ``masses`` maps a nominal level to the HPD mass that covers the truth at that rate on a benchmark (a
+    recalibration of the posterior's credible levels); without it the HPD mass is the nominal level.
+    """
     import contourpy
 
     post.grid = grid
@@ -90,7 +96,8 @@ def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (
     out = []
     gen = contourpy.contour_generator(grid[..., 0], grid[..., 1], post.prob) if min(post.prob.shape) > 1 else None
     for lev in levels:
-        thr = post.mass_threshold(lev)
+        mass = float((masses or {}).get(lev, lev))
+        thr = post.mass_threshold(mass)
         inside = p >= thr
         polys: list[list[list[float]]] = []
         if gen is not None and inside.sum() >= 1:
@@ -100,9 +107,19 @@ def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (
                     polys.append(np.round(arr, 1).tolist())
         out.append({
             "level": float(lev),
+            "hpd_mass": mass,
             "area_m2": float(inside.sum() * post.cell_area_m2),
             "density": float(thr / post.cell_area_m2),
-            "ellipse": _ellipse(pts[inside], p[inside], lev) if inside.sum() > 2 else _ellipse(pts, p, lev),
+            "ellipse": _ellipse(pts[inside], p[inside], mass) if inside.sum() > 2 else _ellipse(pts, p, mass),
             "polygons": polys,
         })
     return out
+
+
+def region_covers(est, x: float, y: float, level: float) -> bool | None:
+    """Whether ``est``'s region of nominal ``level`` holds (x, y); None when the estimate has no posterior."""
+    post = getattr(est, "posterior", None)
+    if post is None or post.grid is None:
+        return None
+    mass = next((r["hpd_mass"] for r in est.extras.get("regions", []) if r["level"] == level), level)
+    return post.covers(x, y, mass)
