@@ -30,19 +30,18 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import minimize
+
+import mission.calibrate as _cal
+from mission.calibrate import CONFIGS
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
 SUSPECT = "288-loc3"
-F_SCALE = 6.0
 
 ATT_VARIANTS = {
     "logged": lambda a: a,
@@ -71,122 +70,26 @@ def by_name(flights, names):
     return [d[n] for n in names]
 
 
-# ------------------------------------------------------------------------------------------- scoring
+# ------------------------------------------------------------------------------ scoring and fitting
+# One home: mission.calibrate (``rfsl calibrate``) holds the configurations, the fit and the held-out scores;
+# this script adds the AFAR-specific experiments (attitude conventions, handedness, censoring floor).
 
 
-def offset_resid(meas: np.ndarray, pred: np.ndarray) -> np.ndarray:
-    from mission.gap.fit import offset_residual
-
-    return offset_residual(meas, pred, slope=False, loss="soft_l1", f_scale=F_SCALE)
-
-
-def soft_l1(r: np.ndarray) -> np.ndarray:
-    return 2.0 * F_SCALE**2 * (np.sqrt(1.0 + (r / F_SCALE) ** 2) - 1.0)
-
-
-def predict(model, f, idx=None, att_variant: str = "logged") -> np.ndarray:
-    sl = slice(None) if idx is None else idx
+def _att(att_variant: str):
+    """The attitude transform of an ``ATT_VARIANTS`` name for ``mission.calibrate`` (None = as logged)."""
+    if att_variant == "logged":
+        return None
     fn = ATT_VARIANTS[att_variant]
-    att = None if fn is None else fn(f.attitude_rad[sl])
-    return np.asarray(model.rss_dbm(f.tx_enu, f.rx_enu[sl], att), dtype=float)
+    return (lambda a: None) if fn is None else fn
 
 
 def gap_stats(model, f, att_variant: str = "logged") -> dict:
-    r = offset_resid(f.rss_db, predict(model, f, None, att_variant))
-    a = np.abs(r)
-    return {"median_abs_db": float(np.median(a)), "p90_abs_db": float(np.quantile(a, 0.9)),
-            "rms_db": float(np.sqrt(np.mean(r * r))), "soft_l1": float(np.mean(soft_l1(r))), "n": int(r.size)}
-
-
-# --------------------------------------------------------------------------------------------- fitting
-
-# A configuration: fixed choices + free parameters.  Free parameters (all optional):
-#   rx_heading_deg (periodic), log10_eps (ground ray with sigma 0.005 S/m), beta (leg shadowing), n_extra
-CONFIGS: dict[str, dict] = {
-    "fs_iso": {"spec": {"base": "free-space"}, "free": []},
-    "e2r_dipole_default": {"spec": {"base": "e2r", "tx_pattern": "dipole", "rx_pattern": "dipole"}, "free": []},
-    "fs_rxflip": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True, "attitude": True},
-                  "free": ["rx_heading_deg"]},
-    "fs_rxflip_yaw": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                               "attitude": "yaw"}, "free": ["rx_heading_deg"]},
-    "fs_rxflip_yaw_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                     "attitude": "yaw"}, "free": ["rx_heading_deg", "n_extra"]},
-    "fs_rxflip_yaw_slope_legs": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                          "attitude": "yaw"}, "free": ["rx_heading_deg", "n_extra", "beta"]},
-    "tworay_rxflip_yaw_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                         "attitude": "yaw"}, "free": ["rx_heading_deg", "n_extra", "log10_eps"]},
-    "fs_rxflip_yaw_txmeas_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                            "tx_pattern": "measured", "attitude": "yaw"},
-                                   "free": ["rx_heading_deg", "n_extra"]},
-    "fs_slope": {"spec": {"base": "free-space"}, "free": ["n_extra"]},
-    "fs_rxflip_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                 "attitude": True}, "free": ["rx_heading_deg", "n_extra"]},
-    "fs_rxflip_noatt_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                       "attitude": False}, "free": ["rx_heading_deg", "n_extra"]},
-    "fs_rxdipole_slope": {"spec": {"base": "free-space", "rx_pattern": "dipole", "attitude": True},
-                          "free": ["n_extra"]},
-    "fs_rxflip_txmeas_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                        "tx_pattern": "measured", "attitude": True},
-                               "free": ["rx_heading_deg", "n_extra"]},
-    "fs_rxflip_txdipole_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                          "tx_pattern": "dipole", "attitude": True},
-                                 "free": ["rx_heading_deg", "n_extra"]},
-    "fs_rxflip_slope_legs": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                      "attitude": True}, "free": ["rx_heading_deg", "n_extra", "beta"]},
-    "tworay_rxflip_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
-                                     "attitude": True}, "free": ["rx_heading_deg", "n_extra", "log10_eps"]},
-}
-BOUNDS = {"rx_heading_deg": (-np.inf, np.inf), "n_extra": (-1.0, 4.0), "beta": (0.0, 4.0), "log10_eps": (0.0, 2.0)}
-GRID = {"rx_heading_deg": tuple(np.arange(0.0, 360.0, 45.0)), "n_extra": (0.0, 1.0, 2.0), "beta": (0.0, 1.0, 2.0),
-        "log10_eps": (0.2, 1.2)}
-
-
-def spec_with(cfg: dict, theta: dict) -> dict:
-    spec = dict(cfg["spec"])
-    if "rx_heading_deg" in theta:
-        spec["rx_heading_deg"] = float(theta["rx_heading_deg"]) % 360.0
-    if "n_extra" in theta:
-        spec["path_gain_slope"] = float(theta["n_extra"])
-    if "beta" in theta:
-        spec["leg_shadowing_beta"] = float(theta["beta"])
-    if "log10_eps" in theta:
-        spec["ground"] = {"eps_r": float(10 ** theta["log10_eps"]), "sigma_s_m": 0.005}
-    return spec
+    return _cal.gap_stats(model, f, _att(att_variant))
 
 
 def fit_config(cfg: dict, flights, att_variant: str = "logged", max_samples: int = 1200, max_evals: int = 80):
-    """Fit the free parameters of ``cfg`` on ``flights`` (per-flight offsets, soft-L1). -> (spec, train loss)."""
-    from mission.physics.presets import build_model
-
-    idx = [np.arange(0, len(f), max(1, math.ceil(len(f) / max_samples))) for f in flights]
-    names = list(cfg["free"])
-
-    def loss(x) -> float:
-        th = {n: float(np.clip(v, *BOUNDS[n])) for n, v in zip(names, x, strict=True)}
-        m = build_model(spec_with(cfg, th))
-        tot, n = 0.0, 0
-        for f, i in zip(flights, idx, strict=True):
-            r = offset_resid(f.rss_db[i], predict(m, f, i, att_variant))
-            tot += soft_l1(r).sum()
-            n += r.size
-        return tot / n
-
-    if not names:
-        return spec_with(cfg, {}), loss([])
-    grid = np.array(np.meshgrid(*[GRID[n] for n in names], indexing="ij")).reshape(len(names), -1).T
-    vals = np.array([loss(g) for g in grid])
-    best = None
-    for k in np.argsort(vals)[:2]:  # two best starts (the heading is multimodal)
-        x0 = grid[k]
-        steps = [20.0 if n == "rx_heading_deg" else 0.3 for n in names]
-        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
-        res = minimize(loss, x0, method="Nelder-Mead",
-                       options={"maxfev": max_evals * len(x0), "initial_simplex": simplex, "xatol": 1e-2,
-                                "fatol": 1e-4})
-        if best is None or res.fun < best.fun:
-            best = res
-    th = {n: float(np.clip(v, *BOUNDS[n])) for n, v in zip(names, best.x, strict=True)}
-    return spec_with(cfg, th), float(best.fun)
+    """Fit the free parameters of ``cfg`` on ``flights`` (``mission.calibrate.fit_config``)."""
+    return _cal.fit_config(cfg, flights, max_samples, max_evals, _att(att_variant))
 
 
 # ---------------------------------------------------------------------------------------------- splits

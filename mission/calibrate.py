@@ -47,6 +47,23 @@ CONFIGS: dict[str, dict] = {
                           "free": ["n_extra"]},
     "tworay_rxflip_yaw_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
                                          "attitude": "yaw"}, "free": ["rx_heading_deg", "n_extra", "log10_eps"]},
+    "fs_rxflip_yaw_txmeas_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                            "tx_pattern": "measured", "attitude": "yaw"},
+                                   "free": ["rx_heading_deg", "n_extra"]},
+    "fs_rxflip_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                 "attitude": True}, "free": ["rx_heading_deg", "n_extra"]},
+    "fs_rxflip_noatt_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                       "attitude": False}, "free": ["rx_heading_deg", "n_extra"]},
+    "fs_rxflip_txmeas_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                        "tx_pattern": "measured", "attitude": True},
+                               "free": ["rx_heading_deg", "n_extra"]},
+    "fs_rxflip_txdipole_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                          "tx_pattern": "dipole", "attitude": True},
+                                 "free": ["rx_heading_deg", "n_extra"]},
+    "fs_rxflip_slope_legs": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                      "attitude": True}, "free": ["rx_heading_deg", "n_extra", "beta"]},
+    "tworay_rxflip_slope": {"spec": {"base": "free-space", "rx_pattern": "measured", "rx_flipped": True,
+                                     "attitude": True}, "free": ["rx_heading_deg", "n_extra", "log10_eps"]},
 }
 DEFAULT_CONFIGS = ("fs_iso", "fs_slope", "fs_rxflip", "fs_rxflip_yaw", "fs_rxflip_yaw_slope", "fs_rxup_yaw")
 BOUNDS = {"rx_heading_deg": (-np.inf, np.inf), "n_extra": (-1.0, 4.0), "beta": (0.0, 4.0), "log10_eps": (0.0, 2.0)}
@@ -76,23 +93,28 @@ def spec_with(cfg: dict, theta: dict[str, float]) -> dict:
     return spec
 
 
-def predict(model, f: Flight, idx=None) -> np.ndarray:
-    """Model RSS along flight ``f`` (optionally at samples ``idx``) with its logged attitude."""
+AttitudeFn = Callable[[np.ndarray], np.ndarray | None]
+
+
+def predict(model, f: Flight, idx=None, attitude: AttitudeFn | None = None) -> np.ndarray:
+    """Model RSS along flight ``f`` (optionally at samples ``idx``) with its logged attitude, or with
+    ``attitude(logged)`` (an attitude-convention experiment; None from it = no attitude)."""
     sl = slice(None) if idx is None else idx
-    return np.asarray(model.rss_dbm(f.tx_enu, f.rx_enu[sl], f.attitude_rad[sl]), dtype=float)
+    att = f.attitude_rad[sl] if attitude is None else attitude(f.attitude_rad[sl])
+    return np.asarray(model.rss_dbm(f.tx_enu, f.rx_enu[sl], att), dtype=float)
 
 
-def gap_stats(model, f: Flight) -> dict:
+def gap_stats(model, f: Flight, attitude: AttitudeFn | None = None) -> dict:
     """Held-out fit of ``model`` on flight ``f``: |measured - model - offset| median / p90, rms, soft-L1."""
-    r = offset_residual(f.rss_db, predict(model, f), loss=LOSS, f_scale=F_SCALE_DB)
+    r = offset_residual(f.rss_db, predict(model, f, None, attitude), loss=LOSS, f_scale=F_SCALE_DB)
     a = np.abs(r)
     return {"median_abs_db": float(np.median(a)), "p90_abs_db": float(np.quantile(a, 0.9)),
             "rms_db": float(np.sqrt(np.mean(r * r))),
             "soft_l1": float(np.mean(per_sample_loss(r, LOSS, F_SCALE_DB))), "n": int(r.size)}
 
 
-def fit_config(cfg: dict, flights: Sequence[Flight], max_samples: int = 1200, max_evals: int = 80
-               ) -> tuple[dict, float]:
+def fit_config(cfg: dict, flights: Sequence[Flight], max_samples: int = 1200, max_evals: int = 80,
+               attitude: AttitudeFn | None = None) -> tuple[dict, float]:
     """Fit the free parameters of ``cfg`` on ``flights`` (per-flight offsets, soft-L1) -> (spec, train loss)."""
     idx = [np.arange(0, len(f), max(1, math.ceil(len(f) / max_samples))) for f in flights]
     names = list(cfg["free"])
@@ -102,7 +124,7 @@ def fit_config(cfg: dict, flights: Sequence[Flight], max_samples: int = 1200, ma
         m = build_model(spec_with(cfg, th))
         tot, n = 0.0, 0
         for f, i in zip(flights, idx, strict=True):
-            r = offset_residual(f.rss_db[i], predict(m, f, i), loss=LOSS, f_scale=F_SCALE_DB)
+            r = offset_residual(f.rss_db[i], predict(m, f, i, attitude), loss=LOSS, f_scale=F_SCALE_DB)
             tot += float(per_sample_loss(r, LOSS, F_SCALE_DB).sum())
             n += r.size
         return tot / max(n, 1)
