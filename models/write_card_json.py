@@ -27,7 +27,8 @@ def main(argv: list[str]) -> int:
     pred = loc.predict_features(arrays[loc.kind])
     err = np.hypot(*(pred - arrays["tx_enu"][:, :2]).T)
     cfg = dict(m["config"])
-    cfg["mission"] = "missions/" + Path(cfg["mission"]).name
+    if cfg.get("mission"):  # suite-family sets (rfsl dataset --suite) have no mission
+        cfg["mission"] = "missions/" + Path(cfg["mission"]).name
     card = {
         "model": Path(model).name,
         "ci_check": {

@@ -48,7 +48,8 @@ def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
     assert model.stat().st_size < 5 * 2**20
     rec = json.loads(card.read_text())["ci_check"]
     cfg = DatasetConfig.from_dict(rec["dataset_config"])
-    cfg = replace(cfg, mission=str(repo_dir / cfg.mission))
+    if cfg.mission:
+        cfg = replace(cfg, mission=str(repo_dir / cfg.mission))
     ds = regenerated(cfg)
     loc = OnnxLocalizer(model)
     arrays, m = load_dataset(ds, (loc.kind, "tx_enu"))
