@@ -133,7 +133,7 @@ def _rover_position(fld, outside: bool, rng: np.random.Generator) -> np.ndarray:
 def draw_flight(seed: int, i: int, family: str = "afar", center: str = "afar") -> tuple[dict, np.random.Generator]:
     """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the simulation."""
     from mission.geo import afar_field
-    from mission.localize.dataset import _trajectory_params
+    from mission.localize.flight_draws import trajectory_params
     from mission.trajectory.generators import GENERATORS
 
     if family not in FAMILIES:
@@ -149,7 +149,7 @@ def draw_flight(seed: int, i: int, family: str = "afar", center: str = "afar") -
     d["speed_mps"] = _u(rng, 2.0, 10.0)
     d["dt_s"] = _u(rng, 0.025, 0.045)
     traj = _pick(rng, tuple(GENERATORS))
-    tp = _trajectory_params(traj, rng, {}, True)
+    tp = trajectory_params(traj, rng, {}, True)
     tp["region"] = _pick(rng, ("overlap", "flight"), (0.75, 0.25))
     d["trajectory"], d["trajectory_params"] = traj, tp
     d["keep_fraction"] = _u(rng, 0.35, 1.0)

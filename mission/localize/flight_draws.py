@@ -1,0 +1,254 @@
+"""Flight ``i`` of a dataset configuration: its random draws and the simulated per-sample arrays.
+
+For flight ``i`` of a dataset with seed ``S`` every random draw comes from
+``np.random.default_rng(np.random.SeedSequence(S, spawn_key=(i,)))`` -- exactly the ``i``-th child of
+``SeedSequence(S).spawn(N)`` -- so a flight's bytes depend only on ``(S, i)`` and the configuration, never
+on the number of workers or on the chunk size.  Draw order per flight: transmitter position, randomised
+parameters (altitude, trajectory and its parameters, pattern, beta, ground permittivity, antenna headings,
+tx height, offset, noise level, truncation), then the simulator's own draws (attitude perturbation, noise).
+``FlightSimulator(cfg).draw(i)`` flies it, ``.features(draw)`` turns it into the stored row.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from mission.localize.dataset_config import PARAM_NAMES, DatasetConfig, pattern_names, trajectory_names
+
+
+def flight_rng(seed: int, i: int) -> np.random.Generator:
+    """The generator of flight ``i``: the ``i``-th child of ``SeedSequence(seed)`` (as ``spawn`` makes)."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
+
+
+def _uniform(rng: np.random.Generator, rng_range: tuple[float, float] | None, default: float) -> float:
+    if rng_range is None:
+        return float(default)
+    lo, hi = float(rng_range[0]), float(rng_range[1])
+    return float(rng.uniform(lo, hi)) if hi > lo else lo
+
+
+def _choice(rng: np.random.Generator, options: Sequence[str], default: str) -> str:
+    if not options:
+        return default
+    return str(options[int(rng.integers(len(options)))]) if len(options) > 1 else str(options[0])
+
+
+def trajectory_params(name: str, rng: np.random.Generator, base: dict, random_params: bool) -> dict:
+    """Generator parameters: the mission's own ones (same generator) or a random draw."""
+    if not random_params:
+        return dict(base)
+    p: dict = {"spacing_m": float(rng.uniform(16.0, 32.0)), "margin_m": float(rng.uniform(3.0, 10.0))}
+    if name == "spiral":
+        p["start"] = ("se", "sw", "ne", "nw")[int(rng.integers(4))]
+    elif name == "lawnmower":
+        p["direction"] = ("ew", "ns")[int(rng.integers(2))]
+    elif name == "random_waypoints":
+        p = {"n": int(rng.integers(8, 25)), "seed": int(rng.integers(2**31)), "margin_m": p["margin_m"]}
+    elif name == "expanding_square":
+        p["spacing_m"] = float(rng.uniform(20.0, 35.0))
+    return p
+
+
+@dataclass
+class FlightDraw:
+    """One simulated flight of a dataset: its draws and the per-sample arrays the features use."""
+
+    index: int
+    tx_enu: np.ndarray
+    params: dict
+    trajectory: str
+    pattern: str
+    enu: np.ndarray
+    attitude_rad: np.ndarray
+    rss_dbm: np.ndarray
+
+
+class FlightSimulator:
+    """Simulates flight ``i`` of a dataset configuration (built once per worker process)."""
+
+    def __init__(self, cfg: DatasetConfig) -> None:
+        from mission.localize.features import FeatureConfig
+        from mission.spec import load_mission
+
+        self.cfg = cfg
+        self.spec = load_mission(cfg.mission)
+        self.fcfg = FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
+        self.sim = self.spec.sim_config()
+        self._models: dict = {}
+        self._preset_spec: dict | None = None
+        if cfg.physics:
+            from mission.physics.presets import load_preset
+
+            self._preset_spec = {**load_preset(cfg.physics), **cfg.model_params}
+
+    def _model(self, pattern: str, beta: float | None, eps_r: float | None, rx_h: float, tx_h: float,
+               jitter: float = 0.0):
+        from mission.physics import make_model
+
+        if self.cfg.physics:
+            return self._preset_model(jitter)
+        kw = dict(self.spec.source.model_params)
+        kw.update(self.cfg.model_params)
+        if pattern:
+            kw["pattern"] = pattern
+        if beta is not None:
+            kw["beta"] = beta
+        if eps_r is not None:
+            kw["eps_r"] = eps_r
+        if rx_h:
+            kw["rx_heading_rad"] = math.radians(rx_h)
+        if tx_h:
+            kw["tx_heading_rad"] = math.radians(tx_h)
+        key = json.dumps(kw, sort_keys=True, default=str)
+        m = self._models.get(key)
+        if m is None:
+            m = make_model(self.cfg.model, **kw)
+            if len(self._models) < 64:
+                self._models[key] = m
+        return m
+
+    def _preset_model(self, jitter: float):
+        from mission.physics.presets import build_model
+
+        key = f"preset:{jitter:.6f}"
+        m = self._models.get(key)
+        if m is None:
+            spec = {**self._preset_spec, "rx_heading_deg": self._preset_heading() + jitter}
+            m = build_model(spec, name=f"preset:{self.cfg.physics}")
+            if len(self._models) < 64:
+                self._models[key] = m
+        return m
+
+    def _preset_heading(self) -> float:
+        """The preset's UAV-antenna heading before jitter (degrees)."""
+        return float((self._preset_spec or {}).get("rx_heading_deg", 0.0))
+
+    def draw(self, i: int) -> FlightDraw:
+        """Draw and fly flight ``i`` (deterministic in ``(cfg, i)``)."""
+        from mission.simulate import simulate_flight
+        from mission.trajectory.generators import generate
+
+        cfg, r, spec = self.cfg, self.cfg.randomisation, self.spec
+        if cfg.suite:
+            return self._draw_suite(i)
+        rng = flight_rng(cfg.seed, i)
+        xy = spec.field.rover_area.sample_uniform(1, rng)[0]
+        alt = _uniform(rng, r.altitude_m, spec.altitude_m)
+        traj = _choice(rng, r.trajectories, spec.trajectory.generator)
+        same = traj == spec.trajectory.generator
+        tparams = trajectory_params(traj, rng, spec.trajectory.params if same else {}, r.random_params)
+        pattern = _choice(rng, r.patterns, "")
+        beta = None if r.beta is None else _uniform(rng, r.beta, 0.0)
+        eps_r = None if r.eps_r is None else _uniform(rng, r.eps_r, 0.0)
+        heading = r.random_heading and pattern not in ("", "dipole", "isotropic")
+        rx_h = float(rng.uniform(0.0, 360.0)) if heading else 0.0
+        tx_h = float(rng.uniform(0.0, 360.0)) if heading else 0.0
+        tx_height = _uniform(rng, r.tx_height_m, spec.source.tx_height_m)
+        offset = _uniform(rng, r.offset_db, 0.0)
+        noise = _uniform(rng, r.noise_db, self.sim.noise_db)
+        keep = _uniform(rng, r.truncate, 1.0)
+        start = float(rng.uniform(0.0, 1.0 - keep)) if keep < 1.0 else 0.0
+        # draws added after the first release: taken only when switched on, so older configs keep their bytes
+        fixed_h = None
+        if r.fixed_heading is not None and r.fixed_heading > 0:
+            fixed = bool(rng.uniform() < r.fixed_heading)
+            h = float(rng.uniform(0.0, 360.0))
+            fixed_h = h if fixed else None
+        speed = None if r.speed_mps is None else _uniform(rng, r.speed_mps, 0.0)
+        shadow = 0.0 if r.shadowing_db is None else _uniform(rng, r.shadowing_db, 0.0)
+        corr = self.sim.shadowing_corr_m if r.shadowing_corr_m is None else _uniform(rng, r.shadowing_corr_m, 0.0)
+        jitter = 0.0
+        if r.physics_heading_jitter_deg:
+            jitter = float(rng.uniform(-r.physics_heading_jitter_deg, r.physics_heading_jitter_deg))
+
+        if traj == "waypoints" or (spec.trajectory.waypoints is not None and same and not r.random_params):
+            wps = np.array(spec.waypoints_enu(), dtype=float)
+            wps[:, 2] = alt
+        else:
+            wps = generate(traj, spec.field, alt, **tparams)
+        tx = np.array([xy[0], xy[1], tx_height])
+        model = self._model(pattern, beta, eps_r, rx_h, tx_h, jitter)
+        kin = self.sim.kinematics
+        if fixed_h is not None or speed is not None:
+            kin = replace(kin, heading_deg=fixed_h if fixed_h is not None else kin.heading_deg,
+                          cruise_speed_mps=speed if speed is not None else kin.cruise_speed_mps)
+        sim = replace(self.sim, noise_db=noise, rss_offset_db=offset, kinematics=kin, shadowing_db=shadow,
+                      shadowing_corr_m=corr)
+        fl = simulate_flight(wps, tx, model, sim, rng)
+        enu, att, rss = fl.enu, fl.attitude_rad, fl.rss_dbm
+        if keep < 1.0:
+            n = len(rss)
+            a = int(start * n)
+            b = max(a + int(keep * n), a + 1)
+            enu, att, rss = enu[a:b], att[a:b], rss[a:b]
+        params = {
+            "altitude_m": alt,
+            "offset_db": offset,
+            "beta": np.nan if beta is None else beta,
+            "eps_r": np.nan if eps_r is None else eps_r,
+            "tx_height_m": tx_height,
+            "noise_db": noise,
+            "rx_heading_deg": self._preset_heading() + jitter if cfg.physics else rx_h,
+            "tx_heading_deg": tx_h,
+            "keep_fraction": keep,
+            "fixed_heading_deg": np.nan if fixed_h is None else fixed_h,
+            "speed_mps": kin.cruise_speed_mps,
+            "shadowing_db": shadow,
+            "shadowing_corr_m": corr if shadow > 0 else np.nan,
+            "trajectory_params": tparams,
+        }
+        return FlightDraw(i, tx, params, traj, pattern or "default", enu, att, rss)
+
+    def _draw_suite(self, i: int) -> FlightDraw:
+        """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as ``localize`` cuts a log."""
+        from mission.localize.preprocess import cruise_mask
+        from mission.localize.suite import unseen_flight
+
+        f = unseen_flight(self.cfg.seed, i, self.cfg.suite_family, self.cfg.suite_center)
+        c, d = f.log.columns, f.draw
+        keep = cruise_mask(c["rel_alt_m"]).mask
+        enu = f.log.enu()[keep]
+        att = np.deg2rad(np.stack([c["roll_deg"], c["pitch_deg"], c["yaw_deg"]], axis=1)[keep])
+        spec = d["physics"]["spec"]
+        ground = spec.get("ground") or {}
+        params = {
+            "altitude_m": d["altitude_m"], "offset_db": d["rss_offset_db"], "beta": np.nan,
+            "eps_r": ground.get("eps_r", np.nan), "tx_height_m": d["tx_height_m"], "noise_db": d["noise_db"],
+            "rx_heading_deg": spec.get("rx_heading_deg", 0.0), "tx_heading_deg": spec.get("tx_heading_deg", 0.0),
+            "keep_fraction": d["keep_fraction"],
+            "fixed_heading_deg": d["fixed_heading_deg"] if d["heading_habit"] == "fixed" else np.nan,
+            "speed_mps": d["speed_mps"], "shadowing_db": d["shadowing_db"], "shadowing_corr_m": d["shadowing_corr_m"],
+            "trajectory_params": d["trajectory_params"],
+        }
+        tx = np.array([*d["tx_xy"], d["tx_height_m"]])
+        return FlightDraw(i, tx, params, d["trajectory"], "default", enu, att, np.asarray(c["rss_dbm"])[keep])
+
+    def features(self, fd: FlightDraw) -> dict[str, np.ndarray]:
+        """The stored row of one flight (features, truth, parameters)."""
+        from mission.localize.features import cluster_features, normalised_rss
+
+        traj_names = self._traj_names()
+        pat_names = self._pattern_names()
+        row: dict[str, np.ndarray] = {}
+        if "clustering" in self.cfg.features:
+            row["clustering"] = cluster_features(fd.enu[:, 0], fd.enu[:, 1], fd.rss_dbm, self.fcfg)
+        if "normalised_rss" in self.cfg.features:
+            row["normalised_rss"] = normalised_rss(fd.rss_dbm, self.fcfg)
+        p = {**fd.params, "trajectory": traj_names.index(fd.trajectory), "pattern": pat_names.index(fd.pattern)}
+        row["params"] = np.array([p[k] for k in PARAM_NAMES], dtype=float)  # column order = PARAM_NAMES
+        row["tx_enu"] = fd.tx_enu
+        row["n_samples"] = np.array(len(fd.rss_dbm))
+        row["index"] = np.array(fd.index)
+        return row
+
+    def _traj_names(self) -> list[str]:
+        return trajectory_names(self.cfg, self.spec.trajectory.generator)
+
+    def _pattern_names(self) -> list[str]:
+        return pattern_names(self.cfg)
