@@ -124,7 +124,7 @@ def localization_cost(rungs: Sequence[Rung], flights: Sequence[Flight], area: An
     for rung in rungs:
         row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
         for k, f in enumerate(flights):
-            pipe = rung.pipes[k] if split == "flights" and len(rung.pipes) == len(flights) else rung.pipes[0]
+            pipe = rung.pipes[k % len(rung.pipes)] if split == "flights" else rung.pipes[0]  # make_folds' deal
             rx, att = (f.rx_enu, f.attitude_rad) if pipe.time_offset_s == 0 else shifted_geometry(
                 f, f.t_s - pipe.time_offset_s)
             est = ModelGridSearch(LocalizationModel(pipe, rung.label), tx_height_m=float(f.tx_enu[2]), area=area,

@@ -45,6 +45,8 @@ class FitConfig:
     split: str = "blocks"          # blocks | flights
     n_chunks: int = 8              # contiguous chunks per flight (blocks split)
     fit_max_samples: int = 3000    # training samples per flight used by the optimiser (evenly decimated)
+    fit_max_total: int = 9000      # ... and in all flights together (many flights: fewer per flight)
+    max_folds: int = 6             # flights split: at most this many folds (groups of whole flights)
     slope: bool = False            # also fit a per-flight path-gain slope
     loss: str = "l2"               # l2 | soft_l1
     f_scale_db: float = 6.0        # soft_l1 scale
@@ -66,12 +68,15 @@ class Fold:
 
 
 def make_folds(flights: Sequence[Flight], cfg: FitConfig) -> list[Fold]:
-    """Contiguous-chunk folds (even/odd chunks) or leave-one-flight-out folds."""
+    """Contiguous-chunk folds (even/odd chunks), or whole flights held out: one flight per fold up to
+    ``cfg.max_folds`` flights, beyond that the flights are dealt round-robin into ``max_folds`` groups (the
+    cost of a diagnosis grows with folds x training samples, so it stays bounded for many flights)."""
     if cfg.split == "flights" and len(flights) >= 2:
+        k_folds = min(len(flights), cfg.max_folds)
         folds = []
-        for k in range(len(flights)):
-            tr = [np.arange(len(f)) if j != k else np.zeros(0, int) for j, f in enumerate(flights)]
-            te = [np.arange(len(f)) if j == k else np.zeros(0, int) for j, f in enumerate(flights)]
+        for k in range(k_folds):
+            tr = [np.arange(len(f)) if j % k_folds != k else np.zeros(0, int) for j, f in enumerate(flights)]
+            te = [np.arange(len(f)) if j % k_folds == k else np.zeros(0, int) for j, f in enumerate(flights)]
             folds.append(Fold(tr, te))
         return folds
     chunk_of = [np.minimum((np.arange(len(f)) * cfg.n_chunks) // max(len(f), 1), cfg.n_chunks - 1) for f in flights]
@@ -141,7 +146,8 @@ class CandidateFit:
 def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray],
                   cfg: FitConfig, rng: np.random.Generator) -> CandidateFit:
     """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded Nelder-Mead."""
-    idx = [decimate(i, cfg.fit_max_samples) for i in idx]
+    n_used = max(1, sum(len(i) > 0 for i in idx))
+    idx = [decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx]
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
         new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)

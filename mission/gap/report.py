@@ -30,7 +30,9 @@ def _fmt(v: Any) -> str:
 
 def params_text(p: dict[str, Any]) -> str:
     """Fitted parameters in a compact human form (log-parameters converted back)."""
-    q = dict(p)
+    q = {k: v for k, v in p.items() if k not in ("shape", "resemblances", "lambda")}
+    if isinstance(q.get("where"), dict):
+        q["where"] = " ".join(f"{k.split('_')[0]}{k.split('_')[1][:3]}={v:.0f}" for k, v in q["where"].items())
     if "log10_eps_r" in q:
         q["eps_r"] = 10 ** q.pop("log10_eps_r")
     if "log10_sigma" in q:

@@ -216,7 +216,12 @@ def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, kind:
         boots.append((sb, Lb, nb_))
     B = np.array(boots) if boots else np.full((1, 3), np.nan)
 
+    est = (s, L, n)
+
     def ci(j: int) -> tuple[float, float]:
-        return float(np.quantile(B[:, j], 0.05)), float(np.quantile(B[:, j], 0.95))
+        """5-95 % of the replicates, shifted so that their median sits on the estimate (the replicates are
+        fits to a thinned copy, whose estimator is noisier but not centred on the full-data estimate)."""
+        q05, q50, q95 = np.quantile(B[:, j], [0.05, 0.5, 0.95])
+        return max(0.0, float(est[j] + q05 - q50)), float(est[j] + q95 - q50)
 
     return Variogram(k, s, L, n, ci(0), ci(1), ci(2), lags, gm, cnt, unit)
