@@ -69,7 +69,7 @@ def real(args: argparse.Namespace) -> int:
         return 2
     from rich.console import Console
 
-    from mission.gap.align import afar2023_flights
+    from mission.gap.align import Flight, afar2023_flights
     from mission.gap.candidates import select
     from mission.gap.diagnose import base_pipeline, diagnose
     from mission.gap.fit import FitConfig
@@ -78,6 +78,12 @@ def real(args: argparse.Namespace) -> int:
     c = Console(width=180)
     t_load = time.time()
     flights = [f for f in afar2023_flights(MAT) if args.all or f.name != "288-loc3"]
+    if args.replicate > len(flights):  # timing at the size of the 13-flight set: copies of the real flights
+        base_fl = list(flights)
+        while len(flights) < args.replicate:
+            f = base_fl[len(flights) % len(base_fl)]
+            flights.append(Flight(f"{f.name}-copy{len(flights)}", f.t_s, f.rx_enu, f.attitude_rad, f.rss_db,
+                                  f.tx_enu + np.array([0.0, 0.0, 0.0]), dict(f.meta)))
     n = sum(len(f) for f in flights)
     t0, cpu0 = time.time(), time.process_time()
     c.print(f"{len(flights)} flights, {n} samples, loaded in {t0 - t_load:.1f} s")
@@ -110,6 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--rate-hz", type=float, default=3.0)
     b.add_argument("--workers", type=int, default=2)
     b.add_argument("--all", action="store_true", help="include the suspect flight 288-loc3")
+    b.add_argument("--replicate", type=int, default=0,
+                   help="pad to this many flights with copies of the real ones (timing at 13 flights)")
     b.add_argument("--out", default="gap_real_bench")
     args = ap.parse_args(argv)
     np.seterr(all="ignore")

@@ -11,7 +11,7 @@ and one withheld effect per case, including effects no candidate names:
 | ``legs`` | eqs. 8-9: beta 0.5-0.7, legs 39/150/270 deg, +-5 deg, dep_b < 10 deg; rover near a corner | leg_shadowing |
 | ``ground`` | ground permittivity 10-25, 5 mS/m (the base assumes 2, lossless) | ground_reflection |
 | ``ripple`` | UAV antenna gain + A cos(3 (az_b - phi)), A 2-2.5 dB (4-5 dB peak to peak) | rx_gain_map |
-| ``notch`` | UAV antenna gain - 10 dB exp(-(az_b - phi)^2 / 2 (15 deg)^2) (a notch in body azimuth) | rx_gain_map |
+| ``notch`` | UAV gain - 10 dB exp(-(az_b - phi)^2 / 2 (15 deg)^2), phi a body azimuth the flights see | rx_gain_map |
 | ``tx_azimuth`` | rover antenna gain + 3 dB cos(az_w - phi) over compass azimuth | tx_gain_map |
 | ``shadowing`` | exponential-covariance ground field, sigma 4 dB, L 30-60 m, one per flight | spatial_shadowing |
 | ``timing`` | RSS stamped late by 0.5-1.0 s | time_offset |
@@ -186,14 +186,18 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
         elif effect == "ripple":
             truth.setdefault("amp_db", float(rng.uniform(2.0, 2.5)))
             truth["phase_deg"] = np.rad2deg(phi)
-            kw = {"rx_extra_db": lambda az, dep: truth["amp_db"] * np.cos(3 * (az - phi))}
+            kw = {"rx_extra_db": lambda az, dep, phi=phi: truth["amp_db"] * np.cos(3 * (az - phi))}
         elif effect == "notch":
-            truth.update(depth_db=10.0, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0)
-            kw = {"rx_extra_db": lambda az, dep: -10.0 * np.exp(
+            if "azimuth_deg" not in truth:  # centred where the flights see the rover (else nothing could see it)
+                bx, by, _ = body_los(tx, pos, att)
+                az_seen = np.arctan2(by, bx) % (2 * np.pi)
+                phi = float(az_seen[rng.integers(0, len(az_seen))])
+                truth.update(depth_db=10.0, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0)
+            kw = {"rx_extra_db": lambda az, dep, phi=phi: -10.0 * np.exp(
                 -0.5 * ((np.angle(np.exp(1j * (az - phi)))) / np.deg2rad(15.0)) ** 2)}
         elif effect == "tx_azimuth":
             truth.update(amp_db=3.0, azimuth_deg=float(np.rad2deg(phi)))
-            kw = {"tx_extra_db": lambda az: 3.0 * np.cos(az - phi)}
+            kw = {"tx_extra_db": lambda az, phi=phi: 3.0 * np.cos(az - phi)}
         q_pos, q_att = pos, att
         if effect == "timing":
             truth.setdefault("tau_s", float(rng.uniform(0.5, 1.0)))

@@ -21,7 +21,10 @@ the ground permittivity of an e2r base); one that is absent *adds* it.
 | ``leg_shadowing`` | paper eqs. 8-9 | beta, half_width_deg, legs_rotation_deg |
 | ``time_offset`` | RSS lags telemetry by tau | tau_s |
 | ``receiver`` | soft noise floor and saturation | floor_db, sat_db (model dB scale) |
-| ``spatial_shadowing`` | correlated shadowing over the field (kriged residuals) | sigma_db, corr_len_m |
+| ``rx_gain_map`` | free-form: smooth UAV body-frame gain map (``mission.gap.freeform``) | ridge coefficients |
+| ``tx_gain_map`` | free-form: smooth rover gain map over compass azimuth x elevation | ridge coefficients |
+| ``excess_loss`` | free-form: smooth excess loss over distance and UAV height | ridge coefficients |
+| ``spatial_shadowing`` | smoother: kriged residuals over the field (``mission.gap.spatial``) | sigma_db, corr_len_m |
 
 (*) the UAV antenna heading is fitted jointly with the (yaw) attitude when the UAV pattern depends on azimuth:
 without yaw a heading is a fixed compass direction, with yaw and a wrong heading the pattern is turned wrongly.

@@ -45,8 +45,8 @@ class FitConfig:
     split: str = "blocks"          # blocks | flights
     n_chunks: int = 8              # contiguous chunks per flight (blocks split)
     fit_max_samples: int = 3000    # training samples per flight used by the optimiser (evenly decimated)
-    fit_max_total: int = 9000      # ... and in all flights together (many flights: fewer per flight)
-    max_folds: int = 6             # flights split: at most this many folds (groups of whole flights)
+    fit_max_total: int = 5000      # ... and in all flights together (many flights: fewer per flight)
+    max_folds: int = 4             # flights split: at most this many folds (groups of whole flights)
     slope: bool = False            # also fit a per-flight path-gain slope
     loss: str = "l2"               # l2 | soft_l1
     f_scale_db: float = 6.0        # soft_l1 scale

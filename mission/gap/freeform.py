@@ -17,6 +17,8 @@ weighted by soft-L1 IRLS weights.  Each fit reports its shape on a grid (``param
 its size (5-95 % range over the flown samples, dB), where it acts (the geometry of its strongest departure)
 and which named effect it resembles (largest |correlation| with that effect's own term on the same samples).
 The terms are ``mission.physics`` effects (``rss_term_db``), so a fitted map also serves localization.
+``rx_gain_map`` is a body-frame map: on a model without the attitude effect it adds the logged (roll, pitch,
+yaw) attitude together with the map (``params["adds_attitude"]``).
 """
 
 from __future__ import annotations
@@ -260,6 +262,15 @@ def freeform_candidate(kind: str) -> Candidate:
 
     def direct_fit(p: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
                    rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
+        if kind == "rx_gain_map" and not p.model.has("attitude"):
+            # a body-frame map needs the body frame: the logged attitude joins the model with the map
+            from mission.gap.fit import FitConfig, residuals
+            from mission.physics import Attitude
+
+            p = p.replace(model=p.model.with_effect(Attitude()))
+            resid = residuals(p, flights, idx, cfg if cfg is not None else FitConfig())
+            new, params = fit_freeform(kind, p, flights, idx, resid, cfg)
+            return new, {**params, "adds_attitude": True}
         return fit_freeform(kind, p, flights, idx, resid, cfg)
 
     return Candidate(kind, desc, (), build, lambda p: not p.model.has(kind), withhold, direct_fit=direct_fit,

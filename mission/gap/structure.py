@@ -32,7 +32,7 @@ STRUCTURE_RULE = ("correlated shadowing when the spatial variogram's correlated 
 
 
 def residual_structure(flights: Sequence[Flight], resid: Sequence[np.ndarray], rng: np.random.Generator,
-                       max_points: int = 1200, n_boot: int = 40) -> dict[str, Any]:
+                       max_points: int = 1200, n_boot: int = 25) -> dict[str, Any]:
     """Variograms along the path and over space of residuals (NaN = not scored), and the verdict."""
     t, xy, r, g_f, g_tx = [], [], [], [], []
     keys: dict[tuple[float, float], int] = {}

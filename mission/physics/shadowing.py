@@ -178,7 +178,7 @@ def _fit_model(lags: np.ndarray, gamma: np.ndarray, cnt: np.ndarray, kind: str,
 
 def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, kind: str = "exponential",
                   max_lag: float = 150.0, n_bins: int = 30, max_points: int = 1500, n_boot: int = 50,
-                  groups: np.ndarray | None = None, unit: str = "m", boot_points: int = 600) -> Variogram:
+                  groups: np.ndarray | None = None, unit: str = "m", boot_points: int = 400) -> Variogram:
     """Fit ``kind`` (or ``"best"``: the family with the smaller weighted misfit) to residuals ``r`` at ``xy``.
 
     ``xy``: positions (N, 2) in m, or times (N,) in s for the variogram along the path.  Points are
