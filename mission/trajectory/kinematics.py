@@ -4,11 +4,12 @@ One model serves the fast simulator, the mission time-budget check and the simul
 that all three agree on how long a mission takes.  The path is the polyline through the waypoints; along
 it the speed follows a trapezoidal profile per leg (acceleration limit ``accel_mps2``) with a corner speed
 that falls with the turn angle (``v_corner = v_cruise * cos(turn/2) ** corner_exponent``, 0 for a reversal),
-as a PX4/ArduPilot waypoint controller slows for corners.  Attitude follows from the accelerations: a
-multicopter tilts its thrust vector to accelerate, pitches nose-down against drag in steady forward
-flight, and yaws to the direction of travel (or, with ``heading_deg``, holds one compass heading throughout,
-as the AERPAW AFAR 2023 vehicles did: their logged yaw stays within about 30 deg of 330-360 deg for the whole
-cruise).  Everything is vectorised over time samples.
+as a PX4/ArduPilot waypoint controller slows for corners.  Attitude follows from the accelerations
+(``attitude_from_motion``, on the causal model of ``mission.trajectory.attitude`` that the simulated vehicle
+shares): a multicopter tilts its thrust vector to accelerate, pitches nose-down against drag in steady
+forward flight, and yaws to the direction of travel (or, with ``heading_deg``, holds one compass heading
+throughout, as the AERPAW AFAR 2023 vehicles did: their logged yaw stays within about 30 deg of 330-360 deg
+for the whole cruise).  Everything is vectorised over time samples.
 """
 
 from __future__ import annotations
