@@ -1,6 +1,11 @@
 """The flight runner: fly a mission on a MAVLink autopilot through MAVSDK, sample RSS, log it, localize.
 
-Modules: ``telemetry`` (time-stamped position/attitude buffers on the vehicle's clock, interpolation),
-``sources`` (RSS sources behind one interface: sim, aerpaw-fifo, udp), ``plan`` (the raw MAVLink mission),
-``progress`` (the live display), ``runner`` (the asyncio tasks, aborts and the embedded simulated vehicle).
+Modules: ``runner`` (the order of a flight: check, connect, upload, arm, fly, return, land, close),
+``tasks`` (one asyncio task per telemetry stream, signals, the watchdog, events), ``preflight`` (option
+checks before anything starts), ``vehicle_process`` (the built-in simulated vehicle as a child that dies
+with its parent), ``plan`` (the raw MAVLink mission), ``ardupilot`` (return nose first at mission speed),
+``telemetry`` (time-stamped position/attitude on the vehicle's clock, measured speed-up and rates),
+``phases`` (mission phase over time), ``logrows`` (RSS rows joined with telemetry and phase, appended),
+``sources`` (RSS sources behind one interface: sim, aerpaw-fifo, udp), ``sdklog`` (MAVSDK's own messages,
+once each), ``progress`` (the live display).
 """
