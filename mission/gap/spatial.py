@@ -51,9 +51,12 @@ class KrigedShadowing:
     def _predict(self, key: tuple[float, float], rx_xy: np.ndarray) -> np.ndarray:
         xy, r, cnt = self.points[key]
         s2, n2 = self.sigma_db ** 2, self.nugget_db ** 2
-        K = s2 * correlation(pdist(xy, xy), self.corr_len_m, COVARIANCE)
-        K += np.diag(n2 / np.minimum(cnt, 20.0) + 1e-6 * s2)
-        alpha = np.linalg.solve(K, r)
+        alphas: dict = self.__dict__.setdefault("_alpha", {})  # one solve per transmitter, not per query
+        if key not in alphas:
+            K = s2 * correlation(pdist(xy, xy), self.corr_len_m, COVARIANCE)
+            K += np.diag(n2 / np.minimum(cnt, 20.0) + 1e-6 * s2)
+            alphas[key] = np.linalg.solve(K, r)
+        alpha = alphas[key]
         out = np.empty(len(rx_xy))
         for s in range(0, len(rx_xy), 4096):
             k = s2 * correlation(pdist(rx_xy[s: s + 4096], xy), self.corr_len_m, COVARIANCE)
@@ -84,6 +87,7 @@ def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray
 
 
 KRIGING_CELL_M = 5.0
+MAX_CELLS = 500  # per transmitter position; cells grow beyond this (many or long flights)
 KRIGING_LENGTHS_M = (10.0, 20.0, 35.0, 60.0, 100.0, 170.0)
 KRIGING_NUGGET_FRACTIONS = (0.1, 0.3, 0.6)
 
@@ -94,8 +98,14 @@ def _group_cells(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Se
     for f, i, rr in zip(flights, idx, resid, strict=True):
         if len(i):
             groups.setdefault(tx_key(f.tx_enu), []).append((f.rx_enu[i, :2], rr))
-    return {k: cell_means(np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v]), cell_m)
-            for k, v in groups.items()}
+    out = {}
+    for k, v in groups.items():
+        xy, r = np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v])
+        pts = cell_means(xy, r, cell_m)
+        if len(pts[1]) > MAX_CELLS:  # coarser cells: the kriging solve is cubic in the number of cells
+            pts = cell_means(xy, r, cell_m * float(np.sqrt(len(pts[1]) / MAX_CELLS)) * 1.05)
+        out[k] = pts
+    return out
 
 
 def choose_kriging(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
