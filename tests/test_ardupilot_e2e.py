@@ -8,6 +8,7 @@ at the mission's speed (ArduPilot's defaults fly it tail first at 10 m/s).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import signal
@@ -65,7 +66,7 @@ def ardupilot(tmp_path):
     finally:
         os.kill(pid, signal.SIGTERM)
         time.sleep(0.5)
-        with __import__("contextlib").suppress(ProcessLookupError):
+        with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
 
 
