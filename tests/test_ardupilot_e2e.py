@@ -87,7 +87,6 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     wall = time.monotonic() - t0
     assert p.returncode == 0, p.stderr[-3000:]
     assert "autopilot ARDUPILOT" in p.stderr
-    assert "Dropping subscription callbacks" not in p.stderr
     (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
     log = read_flight_log(csv)
     m = log.meta
@@ -96,8 +95,10 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     assert 3.0 < m["speedup_measured"] <= SPEEDUP * 1.1, m["speedup_measured"]
     assert m["speedup"] == m["speedup_measured"]
     assert m["speedup_requested"] == SPEEDUP
-    for stream in ("position", "attitude"):
-        assert 5.0 < m["telemetry_rate_hz"][stream] < 60.0, m["telemetry_rate_hz"]
+    for stream in ("position", "attitude"):  # what arrived, against what was asked for
+        assert 0.7 * m["telemetry_rate_requested_hz"] < m["telemetry_rate_hz"][stream] < 60.0, m["telemetry_rate_hz"]
+    t = log["t_s"]
+    assert len(log) >= 0.95 * ((t[-1] - t[0]) / spec.source.sample_period_s + 1)  # no gaps in the RSS rows
     # the phase column: every row has a phase, in flight order, mission items over all waypoints
     phase, item = log.columns["phase"], log.columns["mission_item"]
     assert set(phase) <= set(PHASES)
@@ -108,8 +109,9 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     assert np.all((item >= 0) == (phase == "mission"))
     assert item[phase == "mission"].max() == len(spec.waypoints_enu()) - 1
     # subscribed before arming: the log starts on the ground, right before the take-off
-    t = log["t_s"]
     assert phase[0] == "ground"
+    armed = next(e for e in m["events"] if e["kind"] == "armed")
+    assert m["t0_vehicle_s"] < armed["t_vehicle_s"]  # the first row is logged before arming
     assert t[np.argmax(phase == "takeoff")] - t[0] < 15.0
     # the return: nose first (yaw along the course) at about the mission's speed, not tail first at 10 m/s
     enu = log.enu()
