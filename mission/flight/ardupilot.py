@@ -20,11 +20,13 @@ def return_params(cruise_speed_mps: float) -> dict[str, int]:
     return {"WP_YAW_BEHAVIOR": WP_YAW_FACE_NEXT_INCLUDING_RTL, "RTL_SPEED": int(round(cruise_speed_mps * 100))}
 
 
-async def set_params(param, values: dict[str, int]) -> dict[str, int]:
-    """Set integer parameters; returns the previous values of those that were set (errors propagate)."""
-    old = {}
+async def set_params(param, values: dict[str, int], old: dict[str, int] | None = None) -> dict[str, int]:
+    """Set integer parameters; the previous value of each one set goes into ``old`` as soon as it is set
+    (so a failure half way still knows what to restore), which is returned.  Errors propagate."""
+    old = {} if old is None else old
     for name, value in values.items():
-        old[name] = int(await asyncio.wait_for(param.get_param_int(name), SET_TIMEOUT_S))
-        if old[name] != value:
+        before = int(await asyncio.wait_for(param.get_param_int(name), SET_TIMEOUT_S))
+        if before != value:
             await asyncio.wait_for(param.set_param_int(name, int(value)), SET_TIMEOUT_S)
+            old[name] = before
     return old

@@ -105,6 +105,7 @@ class Runner(FlightTasks):
         self.log_path: Path | None = None
         self.rows = None  # RowLogger once the log is open
         self.truth: dict | None = None
+        self.restore_params: dict[str, int] = {}  # ArduPilot parameters to put back after the flight
 
     # ----------------------------------------------------------------- main
     async def run(self) -> int:
@@ -187,7 +188,7 @@ class Runner(FlightTasks):
         from mission.flight.sdklog import SdkLog
 
         opts = self.opts
-        code, status, tasks, restore = EXIT_OK, "completed", [], {}
+        code, status, tasks = EXIT_OK, "completed", []
         with SdkLog(opts.verbose) as self.sdklog, Display(self.status) as self.display:
             async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
                 system, ardupilot, ap_name = await self._connect(sdk, url)
@@ -195,7 +196,7 @@ class Runner(FlightTasks):
                 mission_raw, param = MissionRawAsync(system), ParamAsync(system)
                 tasks = self.start_telemetry_tasks(telemetry, mission_raw, MavlinkDirectAsync(system))
                 try:
-                    items, restore = await self._prepare(telemetry, mission_raw, param, ardupilot)
+                    items = await self._prepare(telemetry, mission_raw, param, ardupilot)
                     await self._open_log(url, ap_name, report, len(items))
                     tasks.append(asyncio.create_task(self._logger()))
                     code, status = await self._mission(action, mission_raw)
@@ -210,7 +211,7 @@ class Runner(FlightTasks):
                     self.event("error", status, warn=True)
                     await self._safe_return(action)
                 finally:
-                    await self._close(tasks, status, param, restore)
+                    await self._close(tasks, status, param)
         if self.log_path is not None:
             print(f"log: {self.log_path}", flush=True)
         if code == EXIT_OK and opts.localize:
@@ -244,11 +245,10 @@ class Runner(FlightTasks):
                 self.event("rate", f"{name}({self.rate_requested:g}) refused: {e}", warn=True)
         with contextlib.suppress(Exception):
             await telemetry.set_rate_landed_state(5.0)
-        restore = {}
         if ardupilot:
             values = return_params(spec.cruise_speed_mps)
             try:
-                restore = await set_params(param, values)
+                await set_params(param, values, self.restore_params)
                 self.event("params", "return leg nose first at the mission's speed: "
                            + ", ".join(f"{k}={v}" for k, v in values.items()))
             except Exception as e:
@@ -264,7 +264,7 @@ class Runner(FlightTasks):
                 self.event("upload", f"mission upload failed ({e.result.name}); retrying", warn=True)
         self.event("upload", f"mission uploaded: {len(items)} raw items ({n_wp} waypoints)")
         self._abort_before_takeoff()
-        return items, restore
+        return items
 
     async def _open_log(self, url: str, ap_name: str, report, n_items: int) -> None:
         from mission.flight.logrows import RowLogger, new_flight_dir
@@ -342,7 +342,7 @@ class Runner(FlightTasks):
             self.event("landed", f"landing not confirmed within {self.opts.land_timeout_s:g} s", warn=True)
         await asyncio.sleep(0.3)  # let the last telemetry after touchdown reach the log
 
-    async def _close(self, tasks, status: str, param, restore: dict) -> None:
+    async def _close(self, tasks, status: str, param) -> None:
         """Last rows, tasks cancelled, ArduPilot settings restored, the log closed with its summary."""
         from mission.flight.ardupilot import set_params
 
@@ -352,6 +352,7 @@ class Runner(FlightTasks):
         for t in tasks:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
+        restore = self.restore_params
         if restore and not self.link_dead.is_set():
             try:
                 await set_params(param, restore)
