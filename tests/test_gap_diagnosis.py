@@ -99,25 +99,30 @@ def test_nothing_withheld_nothing_significant() -> None:
     assert r.significant == [], r.ranking
 
 
-def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
-    """End to end: write a simulated log, run ``rfsl gap`` with a report, check the files."""
-    import json
-
-    from mission.cli.main import main
+def _simulated_log(tmp_path, withheld: str | None, seed: int, dt_s: float):
+    """One simulated flight (library self-test truth) written as a flight log with its transmitter truth."""
     from mission.flightlog import make_meta, write_flight_log
     from mission.gap.selftest import simulate_case
     from mission.geo import afar_field
 
-    truth, base, flights = simulate_case("time_offset", 5, n_flights=1, dt_s=0.2, max_duration_s=200.0)
+    _, _, flights = simulate_case(withheld, seed, n_flights=1, dt_s=dt_s, max_duration_s=200.0)
     f = flights[0]
     origin = afar_field().origin
     lat, lon, alt = origin.to_geodetic(f.rx_enu)
     att = np.rad2deg(f.attitude_rad)
     cols = {"t_s": f.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": f.rx_enu[:, 2],
             "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": f.rss_db}
-    tx = f.tx_enu
-    meta = make_meta(origin, {"kind": "sim"}, {"x_m": tx[0], "y_m": tx[1], "z_m": tx[2]})
-    p = write_flight_log(tmp_path / "f.csv", cols, meta)
+    meta = make_meta(origin, {"kind": "sim"}, {"x_m": f.tx_enu[0], "y_m": f.tx_enu[1], "z_m": f.tx_enu[2]})
+    return write_flight_log(tmp_path / "f.csv", cols, meta)
+
+
+def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
+    """End to end: write a simulated log, run ``rfsl gap`` with a report, check the files."""
+    import json
+
+    from mission.cli.main import main
+
+    p = _simulated_log(tmp_path, "time_offset", 5, 0.2)
     rc = main(["gap", str(p), "--base", "e2r", "--candidates", "time_offset,attitude", "--max-rungs", "2",
                "--report", str(tmp_path / "rep")])
     assert rc == 0
@@ -140,19 +145,8 @@ def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
     import json
 
     from mission.cli.main import main
-    from mission.flightlog import make_meta, write_flight_log
-    from mission.gap.selftest import simulate_case
-    from mission.geo import afar_field
 
-    _, _, flights = simulate_case(None, 6, n_flights=1, dt_s=0.5, max_duration_s=200.0)
-    f = flights[0]
-    origin = afar_field().origin
-    lat, lon, alt = origin.to_geodetic(f.rx_enu)
-    att = np.rad2deg(f.attitude_rad)
-    cols = {"t_s": f.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": f.rx_enu[:, 2],
-            "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": f.rss_db}
-    meta = make_meta(origin, {"kind": "sim"}, {"x_m": f.tx_enu[0], "y_m": f.tx_enu[1], "z_m": f.tx_enu[2]})
-    p = write_flight_log(tmp_path / "f.csv", cols, meta)
+    p = _simulated_log(tmp_path, None, 6, 0.5)
     capsys.readouterr()
     rc = main(["gap", str(p), "--candidates", "rx_gain_map,excess_loss", "--max-rungs", "1", "--no-localize",
                "--json", "--report", str(tmp_path / "rep")])
