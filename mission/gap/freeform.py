@@ -183,13 +183,19 @@ def resemblance(kind: str, term: Sequence[np.ndarray], pipe: Pipeline, flights: 
 
 
 def where_it_acts(kind: str, a: np.ndarray, b: np.ndarray, term: np.ndarray) -> dict[str, float]:
-    """The geometry of the term's strongest departure from its median (degrees, metres)."""
-    k = int(np.argmax(np.abs(term - np.median(term))))
-    if kind == "excess_loss":
-        return {"distance_m": float(100.0 * 10 ** a[k]), "height_m": float(35.0 + 25.0 * b[k])}
-    lab = "body_azimuth_deg" if kind == "rx_gain_map" else "world_azimuth_deg"
-    lab2 = "body_depression_deg" if kind == "rx_gain_map" else "elevation_deg"
-    return {lab: float(np.rad2deg(a[k]) % 360.0), lab2: float(np.rad2deg(np.arcsin(b[k])))}
+    """Where the fitted term peaks and where it dips on the flown samples (degrees, metres)."""
+    out: dict[str, float] = {}
+    for lab, k in (("peak", int(np.argmax(term))), ("trough", int(np.argmin(term)))):
+        if kind == "excess_loss":
+            out[f"{lab}_distance_m"] = float(100.0 * 10 ** a[k])
+            out[f"{lab}_height_m"] = float(35.0 + 25.0 * b[k])
+        elif kind == "rx_gain_map":
+            out[f"{lab}_body_azimuth_deg"] = float(np.rad2deg(a[k]) % 360.0)
+            out[f"{lab}_body_depression_deg"] = float(np.rad2deg(np.arcsin(b[k])))
+        else:
+            out[f"{lab}_world_azimuth_deg"] = float(np.rad2deg(a[k]) % 360.0)
+            out[f"{lab}_elevation_deg"] = float(np.rad2deg(np.arcsin(b[k])))
+    return out
 
 
 def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray],
