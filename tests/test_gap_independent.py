@@ -80,6 +80,14 @@ def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
     assert np.corrcoef(term, truth)[0, 1] > 0.95
     assert np.std(term) == pytest.approx(np.std(truth), rel=0.2)
     assert len(params["shape"]["gain_db"]) == len(params["shape"]["elevation_deg"])
+    # the fast basis (Bonnet recurrence) equals numpy's Legendre series, column by column
+    from mission.gap.freeform import KINDS, basis_column, basis_orders, design
+
+    rng = np.random.default_rng(2)
+    a, b = rng.uniform(-3.0, 3.0, 40), rng.uniform(-1.0, 1.0, 40)
+    for kind in KINDS:
+        ref = np.column_stack([basis_column(fn, m, p, a, b) for fn, m, p in basis_orders(kind)])
+        assert np.allclose(design(kind, a, b), ref)
 
 
 def test_one_home_rules() -> None:

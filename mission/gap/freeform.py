@@ -80,9 +80,30 @@ def basis_column(fn: str, m: int, p: int, a: np.ndarray, b: np.ndarray) -> np.nd
     return (np.cos(m * a) if fn == "c" else np.sin(m * a)) * _leg(b, p)
 
 
+def _legendre_all(x: np.ndarray, n: int) -> list[np.ndarray]:
+    """P_0..P_n at x by Bonnet's recurrence (k+1) P_{k+1} = (2k+1) x P_k - k P_{k-1}."""
+    out = [np.ones_like(x), x]
+    for k in range(1, n):
+        out.append(((2 * k + 1) * x * out[k] - k * out[k - 1]) / (k + 1))
+    return out[: n + 1]
+
+
+def _columns(kind: str, a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
+    """Every basis column of ``kind`` (the order of ``basis_orders``), sharing the Legendre and Fourier terms."""
+    M, P = KINDS[kind]
+    if kind == "excess_loss":
+        return _legendre_all(a, M)[1:] + _legendre_all(b, P)[1:]
+    lb = _legendre_all(b, P)
+    cols = lb[1:]
+    for m in range(1, M + 1):
+        c, s_ = np.cos(m * a), np.sin(m * a)
+        cols += [c * q for q in lb] + [s_ * q for q in lb]
+    return cols
+
+
 def design(kind: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Design matrix (N, K) of ``kind`` at the variables ``a``, ``b`` (1-D)."""
-    return np.column_stack([basis_column(fn, m, p, a, b) for fn, m, p in basis_orders(kind)])
+    return np.column_stack(_columns(kind, a, b))
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,11 +115,10 @@ class FreeFormTerm:
 
     def rss_term_db(self, link: Any) -> np.ndarray:
         a, b = map_variables(self.name, link)
-        out = np.zeros(np.shape(a), dtype=np.asarray(link.d_los).dtype)
-        for c, (fn, m, p) in zip(self.coef, basis_orders(self.name), strict=True):
-            if c != 0.0:
-                out += (c * basis_column(fn, m, p, a, b)).astype(out.dtype, copy=False)
-        return out
+        out = np.zeros(np.shape(a))
+        for c, col in zip(self.coef, _columns(self.name, a, b), strict=True):
+            out += c * col
+        return out.astype(np.asarray(link.d_los).dtype, copy=False)
 
     def on_grid(self, n: int = 37) -> dict[str, Any]:
         """The shape on a regular grid of the two variables (for plots and JSON)."""

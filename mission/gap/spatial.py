@@ -87,7 +87,7 @@ def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray
 
 
 KRIGING_CELL_M = 5.0
-MAX_CELLS = 500  # per transmitter position; cells grow beyond this (many or long flights)
+MAX_CELLS = 300  # per transmitter position; cells grow beyond this (many or long flights)
 KRIGING_LENGTHS_M = (10.0, 20.0, 35.0, 60.0, 100.0, 170.0)
 KRIGING_NUGGET_FRACTIONS = (0.1, 0.3, 0.6)
 
