@@ -60,3 +60,14 @@ def test_subprocess_exit_code():
                        cwd=root, capture_output=True, text=True, timeout=60)
     assert r.returncode == 2
     assert r.stderr.strip().startswith("error:") and "Traceback" not in r.stderr
+
+
+def test_model_aliases_that_make_model_accepts_are_accepted(capsys) -> None:
+    """One home for model names: the CLI takes every alias make_model takes (e.g. fs, two_ray) and folds it."""
+    from mission.cli.main import main
+    from mission.physics.propagation import MODEL_ALIASES, canonical_model_name
+
+    for alias, name in MODEL_ALIASES.items():
+        assert canonical_model_name(alias.upper()) == name
+    assert main(["rss", "--model", "FS", "--tx", "0,0,1.5", "--rx", "30,40,30"]) == 0
+    assert main(["rss", "--model", "two_ray", "--tx", "0,0,1.5", "--rx", "30,40,30"]) == 0

@@ -71,8 +71,13 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.tx_height) and 0 <= args.tx_height <= 1000):
         raise InputError(f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
                          field="--tx-height")
-    if args.physics is not None and args.physics not in ("free-space", "two-ray", "e2r"):
-        raise InputError(f"unknown model {args.physics!r} (free-space, two-ray, e2r)", field="--physics")
+    if args.physics is not None:
+        from mission.physics.propagation import canonical_model_name
+
+        try:
+            args.physics = canonical_model_name(args.physics)
+        except ValueError as e:
+            raise InputError(str(e), field="--physics") from None
     if args.physics_preset is not None:
         from mission.physics.presets import load_preset
 

@@ -82,6 +82,16 @@ def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> a
     return parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
 
 
+def model_name_arg(value: str) -> str:
+    """argparse ``type`` for a propagation-model name: the aliases ``make_model`` accepts, folded to its name."""
+    from mission.physics.propagation import canonical_model_name
+
+    try:
+        return canonical_model_name(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def console(stderr: bool = False):
     """A rich Console that does not fold long lines mid-word when the output is a file or a pipe."""
     from rich.console import Console

@@ -14,13 +14,15 @@ import math
 
 from mission.errors import InputError
 
-MODELS = ("free-space", "two-ray", "e2r")
 MAX_COORD_M = 1e6   # beyond this a local ENU coordinate is a unit error (the models then give NaN)
 MIN_DISTANCE_M = 0.1  # the far-field models are meaningless closer than this (tx == rx gave 242 dBm)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--model", choices=MODELS, default="e2r", help="propagation model (default e2r)")
+    from mission.cli.main import model_name_arg
+
+    parser.add_argument("--model", type=model_name_arg, default="e2r",
+                        help="propagation model: free-space, two-ray, e2r (default e2r)")
     parser.add_argument("--tx", required=True, metavar="X,Y,Z", help="transmitter position, ENU metres")
     parser.add_argument("--rx", required=True, metavar="X,Y,Z", help="receiver (UAV) position, ENU metres")
     parser.add_argument("--attitude", metavar="ROLL,PITCH,YAW", default=None,

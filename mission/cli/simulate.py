@@ -26,10 +26,13 @@ def parse_xy(text: str, name: str) -> tuple[float, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from mission.cli.main import model_name_arg
+
     p.add_argument("mission", help="mission YAML file (e.g. missions/spiral.yaml)")
     p.add_argument("--source", help="transmitter X,Y[,Z] in the mission's ENU frame, metres "
                    "(default: the mission's source, or random in the rover area)")
-    p.add_argument("--model", choices=["free-space", "two-ray", "e2r"], help="propagation model (default: mission's)")
+    p.add_argument("--model", type=model_name_arg,
+                   help="propagation model: free-space, two-ray, e2r (default: mission's)")
     p.add_argument("--seed", type=int, help="random seed (default: the mission's)")
     p.add_argument("--cruise-only", action="store_true", help="fly only the trajectory, no take-off or return")
     p.add_argument("--out", default="flights", help="output folder (default: flights/)")

@@ -136,7 +136,9 @@ def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
     """Grid physics when none is asked for: the simulator's own model for a simulated log (its sidecar says
     which, with its parameters), else the ``afar`` preset calibrated on real receivers."""
     src = log.meta.get("rss_source") or {}
-    if src.get("kind") == "sim" and src.get("model") in ("free-space", "two-ray", "e2r"):
+    from mission.physics.propagation import MODEL_NAMES
+
+    if src.get("kind") == "sim" and src.get("model") in MODEL_NAMES:
         return src["model"], dict(src.get("model_params") or {}), None
     return None, None, DEFAULT_PHYSICS_PRESET
 

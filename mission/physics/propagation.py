@@ -526,6 +526,18 @@ def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tu
 # ------------------------------------------------------------------------------------------ factory
 
 MODEL_NAMES = ("free-space", "two-ray", "e2r")
+MODEL_ALIASES = {"fs": "free-space", "freespace": "free-space", "2ray": "two-ray", "tworay": "two-ray",
+                 "enhanced-two-ray": "e2r", "e-2ray": "e2r"}
+
+
+def canonical_model_name(name: str) -> str:
+    """The model name ``make_model`` builds for ``name`` (case, underscores and aliases folded); ValueError
+    for an unknown one.  CLIs use it as their argparse ``type`` so that they accept what ``make_model`` does."""
+    key = str(name).strip().lower().replace("_", "-")
+    key = MODEL_ALIASES.get(key, key)
+    if key not in MODEL_NAMES:
+        raise ValueError(f"unknown model {name!r}; choose one of {', '.join(MODEL_NAMES)}")
+    return key
 
 
 def make_model(name: str = "e2r", *, pattern: str | Pattern = "dipole",
@@ -541,12 +553,7 @@ def make_model(name: str = "e2r", *, pattern: str | Pattern = "dipole",
     used for both ends unless ``tx_pattern``/``rx_pattern`` are given. Free space keeps the antenna
     gains (SPEC: P_r = P_t + G_t + G_r + 20 log10(lambda / (4 pi d_los))).
     """
-    key = name.strip().lower().replace("_", "-")
-    aliases = {"fs": "free-space", "freespace": "free-space", "2ray": "two-ray", "tworay": "two-ray",
-               "enhanced-two-ray": "e2r", "e-2ray": "e2r"}
-    key = aliases.get(key, key)
-    if key not in MODEL_NAMES:
-        raise ValueError(f"unknown model {name!r}; choose one of {', '.join(MODEL_NAMES)}")
+    key = canonical_model_name(name)
 
     def _pat(p: str | Pattern | None) -> Pattern:
         p = pattern if p is None else p
