@@ -47,6 +47,9 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     assert res2.metrics == res.metrics
     hist = json.loads((tmp_path / "m.onnx.train.json").read_text())["history"]
     assert len(hist) == 3
+    # a spent time budget stops after the epoch that passed it, and still exports the best epoch
+    res_t = train([tmp_path / "ds"], tmp_path / "t.onnx", TrainConfig(epochs=3, batch_size=8, seed=1, max_minutes=0))
+    assert res_t.metrics["epochs_run"] == 1 and (tmp_path / "t.onnx").exists()
     # the normalised-RSS baseline trains and exports too
     res3 = train(
         [tmp_path / "ds"], tmp_path / "n.onnx", TrainConfig(features="normalised_rss", epochs=1, batch_size=8)

@@ -27,6 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
     p.add_argument("--no-augment", action="store_true", help="switch training-time augmentation off")
     p.add_argument("--max-train", type=int, help="use at most this many flights (quick runs)")
+    p.add_argument("--max-minutes", type=float, help="wall-time budget: stop after the epoch that passes it, "
+                   "export the best epoch so far (metadata records the budget)")
     p.add_argument(
         "--coords",
         default="relative",
@@ -58,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         threads=args.threads,
         augment=not args.no_augment,
         max_train=args.max_train,
+        max_minutes=args.max_minutes,
         coords=args.coords,
     )
     console = Console()

@@ -64,6 +64,7 @@ class TrainConfig:
     net: dict = field(default_factory=dict)
     max_train: int | None = None  # cap the number of flights used (quick runs)
     coords: str = "relative"  # clustering: "relative" (to the strongest cluster) or "absolute"
+    max_minutes: float | None = None  # wall-time budget: stop after the epoch that passes it (best state kept)
 
 
 @dataclass
@@ -257,6 +258,8 @@ def train(
             progress(epoch + 1, cfg.epochs, rec)
         if epoch + 1 - best[1] >= cfg.patience:
             break
+        if cfg.max_minutes is not None and time.perf_counter() - t_start > 60.0 * cfg.max_minutes:
+            break  # time budget spent (a shared machine); the best epoch so far is exported
     assert best_state is not None
     net.load_state_dict(best_state)
     err = val_errors()
