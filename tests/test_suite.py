@@ -137,3 +137,17 @@ def test_training_dataset_from_the_family(tmp_path):
     assert arrays["clustering"].shape == (2, 60) and np.isfinite(arrays["clustering"]).all()
     assert np.allclose(arrays["tx_enu"][1, :2], unseen_flight(4, 1).truth_xy)
     assert m["config"]["suite"] == "unseen"
+
+
+def test_breakdown_by_axis():
+    from mission.localize.evaluate import Row, breakdown
+
+    draws = [{"habit": h, "alt": a, "physics": {"ant": p}} for h, a, p in
+             (("fixed", 20.0, "dipole"), ("fixed", 30.0, "flipped"), ("rot", 50.0, "dipole"), ("rot", 60.0, "x"))]
+    rows = [Row("t", "m1", None, None, [10.0, 20.0, 30.0, 50.0])]
+    assert breakdown(rows, draws, "habit") == {"fixed": {"n": 2, "m1": 15.0}, "rot": {"n": 2, "m1": 40.0}}
+    assert breakdown(rows, draws, "physics.ant")["dipole"]["m1"] == 20.0
+    by_alt = breakdown(rows, draws, "alt", bins=2)
+    assert [d["n"] for d in by_alt.values()] == [2, 2] and list(by_alt.values())[1]["m1"] == 40.0
+    with pytest.raises(InputError, match="no axis"):
+        breakdown(rows, draws, "speed")

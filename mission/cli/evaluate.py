@@ -55,6 +55,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
     g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
     g.add_argument("--family", default="afar", choices=("afar", "generic"), help="physics family (default afar)")
+    g.add_argument("--by", default="", help="comma list of draw axes to break the mean error down by, e.g. "
+                   "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna")
 
 
 def _table(rows, title: str):
@@ -203,7 +205,25 @@ def _run_suite(args: argparse.Namespace, console) -> int:
         t.add_row(escape(s["method"]), str(s["n"]), *(f"{s[k]:.1f}" for k in ("mean_m", "median_m", "p90_m")), *cov,
                   f"{secs[s['method']]:.2f}")
     console.print(t)
+    extra: dict = {"command": " ".join(sys.argv), "seconds_per_flight": secs}
+    axes = [a.strip() for a in args.by.split(",") if a.strip()]
+    if axes:
+        from mission.localize.evaluate import breakdown, suite_draws
+
+        draws = suite_draws(len(rows[0].errors), args.seed, args.suite_dir, family=args.family)
+        extra["breakdown"] = {}
+        for axis in axes:
+            bd = breakdown(rows, draws, axis)
+            extra["breakdown"][axis] = bd
+            bt = Table(title=escape(f"mean error (m) by {axis}"))
+            bt.add_column(axis)
+            bt.add_column("n", justify="right")
+            for r in rows:
+                bt.add_column(escape(r.method), justify="right", overflow="fold")
+            for g, d in bd.items():
+                bt.add_row(escape(g), str(d["n"]), *(f"{d[r.method]:.1f}" for r in rows))
+            console.print(bt)
     if args.out:
-        write_report(rows, args.out, {"command": " ".join(sys.argv), "seconds_per_flight": secs})
+        write_report(rows, args.out, extra)
         console.print(f"report: {args.out}")
     return 0

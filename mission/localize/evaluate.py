@@ -472,3 +472,47 @@ def evaluate_suite(
             pool.close()
             pool.join()
     return list(rows.values()), {m: s / max(n, 1) for m, s in secs.items()}
+
+
+def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: str = "afar",
+                center: str = "afar") -> list[dict]:
+    """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
+    from mission.localize.suite import BENCHMARK_SEED, draw_flight, read_suite
+
+    if suite_dir is not None:
+        return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]
+    s = BENCHMARK_SEED if seed is None else seed
+    return [draw_flight(s, i, family, center)[0] for i in range(n)]
+
+
+def _axis_value(draw: dict, axis: str):
+    v: object = draw
+    for part in axis.split("."):  # e.g. physics.rx_antenna, trajectory_params.region
+        if not isinstance(v, dict) or part not in v:
+            raise InputError(f"benchmark draws have no axis {axis!r} (e.g. heading_habit, tx_outside_flight_area, "
+                             "altitude_m, physics.rx_antenna, trajectory)", field="--by")
+        v = v[part]
+    return v
+
+
+def breakdown(rows: Sequence[Row], draws: Sequence[dict], axis: str, bins: int = 3) -> dict[str, dict[str, float]]:
+    """Mean error per method by the value of one draw axis: {group label: {method: mean m, "n": count}}.
+
+    Text / bool axes group by value; numeric axes by ``bins`` equal-count bins (label ``lo-hi``)."""
+    vals = [_axis_value(d, axis) for d in draws]
+    if all(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
+        x = np.asarray(vals, dtype=float)
+        edges = np.quantile(x, np.linspace(0, 1, bins + 1))
+        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
+        labels = [f"{edges[k]:.3g}-{edges[k + 1]:.3g}" for k in range(bins)]
+        keys = [labels[k] for k in idx]
+    else:
+        keys = [str(v) for v in vals]
+    out: dict[str, dict[str, float]] = {}
+    for g in dict.fromkeys(sorted(set(keys))):
+        m = np.array([k == g for k in keys])
+        out[g] = {"n": int(m.sum())}
+        for r in rows:
+            e = np.asarray(r.errors, dtype=float)[: len(m)]
+            out[g][r.method] = float(e[m[: e.size]].mean())
+    return out
