@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from mission.localize.classical import FlightData
-from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses, cell_average, covered_area_m2
+from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses, cell_average
 from mission.localize.uncertainty import Posterior, hpd_regions, region_covers
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
@@ -78,7 +78,7 @@ def test_cells_average_repeated_passes_and_circular_yaw() -> None:
     assert c.count[i] == 2 and c.rss_db[i] == pytest.approx(-51.0)
     assert np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(0.0, abs=1e-6) or \
         np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(360.0, abs=1e-6)
-    assert covered_area_m2(rx, 5.0) == 50.0
+    assert c.area_m2 == 50.0
 
 
 def test_hypotheses_are_named_and_unknown_refused() -> None:

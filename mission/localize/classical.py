@@ -110,6 +110,20 @@ class WeightedCentroid(_Base):
         return self._estimate(np.sum(w * gx[idx]) / w.sum(), np.sum(w * gy[idx]) / w.sum(), None, top_k=k)
 
 
+def search_bounds(area, enu: np.ndarray, margin_m: float):
+    """(xmin, ymin, xmax, ymax) and the polygon (or None) of a grid search: an ``Area`` (its box and polygon),
+    a ``(xmin, ymin, xmax, ymax)`` box, or None for the flight's box grown by ``margin_m``."""
+    from mission.geo import Area
+
+    if isinstance(area, Area):
+        return area.bounds, area
+    if area is not None:
+        return tuple(float(v) for v in area), None
+    lo = enu[:, :2].min(axis=0) - margin_m
+    hi = enu[:, :2].max(axis=0) + margin_m
+    return (lo[0], lo[1], hi[0], hi[1]), None
+
+
 def block_average(f: FlightData, max_points: int) -> FlightData:
     """Average RSS (dB) and positions over consecutive blocks so at most ``max_points`` remain.
 
@@ -192,17 +206,6 @@ class ModelGridSearch(_Base):
                 self._model_obj = self.model
         return self._model_obj
 
-    def _bounds(self, f: FlightData):
-        from mission.geo import Area
-
-        if isinstance(self.area, Area):
-            return self.area.bounds, self.area
-        if self.area is not None:
-            return tuple(float(v) for v in self.area), None
-        lo = f.enu[:, :2].min(axis=0) - self.margin_m
-        hi = f.enu[:, :2].max(axis=0) + self.margin_m
-        return (lo[0], lo[1], hi[0], hi[1]), None
-
     def cost(self, f: FlightData, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced) flight."""
         model = self._get_model()
@@ -235,7 +238,7 @@ class ModelGridSearch(_Base):
 
     def predict(self, flight, origin=None) -> Estimate:
         f = self._reduce(flight, origin)
-        (xmin, ymin, xmax, ymax), poly = self._bounds(f)
+        (xmin, ymin, xmax, ymax), poly = search_bounds(self.area, f.enu, self.margin_m)
         xs = np.arange(xmin, xmax + 1e-9, self.step_m)
         ys = np.arange(ymin, ymax + 1e-9, self.step_m)
         cand = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)

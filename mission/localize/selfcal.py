@@ -31,7 +31,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.geo import Area
 from mission.localize import Estimate
-from mission.localize.classical import FlightData, _Base, as_flight
+from mission.localize.classical import FlightData, _Base, as_flight, search_bounds
 from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
 
 HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
@@ -45,15 +45,21 @@ CALIBRATED_MASS = {0.5: 0.451, 0.9: 0.926}
 @dataclass
 class Cells:
     """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dB, mean yaw (M,) rad,
-    sample counts (M,)."""
+    sample counts (M,), the cell size (m)."""
 
     enu: np.ndarray
     rss_db: np.ndarray
     yaw_rad: np.ndarray
     count: np.ndarray
+    cell_m: float
 
     def __len__(self) -> int:
         return int(self.rss_db.size)
+
+    @property
+    def area_m2(self) -> float:
+        """Horizontal area the flight covered: the occupied cells times their area."""
+        return len(self) * self.cell_m * self.cell_m
 
 
 def corr_is_default(corr_m: float) -> bool:
@@ -74,7 +80,7 @@ def cell_average(f: FlightData, cell_m: float) -> Cells:
     rss = np.bincount(inv, f.rss, m) / cnt
     yaw_s = np.zeros(f.rss.size) if f.attitude is None else f.attitude[:, 2]
     yaw = np.arctan2(np.bincount(inv, np.sin(yaw_s), m), np.bincount(inv, np.cos(yaw_s), m))
-    return Cells(pos, rss, yaw, cnt)
+    return Cells(pos, rss, yaw, cnt, float(cell_m))
 
 
 def antenna_hypotheses(kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
@@ -167,11 +173,6 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
     return np.maximum(ssr, 0.0), off
 
 
-def covered_area_m2(enu: np.ndarray, cell_m: float = 5.0) -> float:
-    """Horizontal area the flight covered: the number of occupied ``cell_m`` cells times their area."""
-    return float(len(np.unique(np.floor(enu[:, :2] / cell_m), axis=0))) * cell_m * cell_m
-
-
 class SelfCalibratingGrid(_Base):
     """Grid search with per-candidate profiled antenna hypothesis and offset, on cell-averaged RSS.
 
@@ -202,14 +203,7 @@ class SelfCalibratingGrid(_Base):
                        else dict(CALIBRATED_MASS) if corr_is_default(corr_m) else {})
 
     def _candidates(self, f: FlightData) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
-        if isinstance(self.area, Area):
-            box, poly = self.area.bounds, self.area
-        elif self.area is not None:
-            box, poly = tuple(float(v) for v in self.area), None
-        else:
-            lo = f.enu[:, :2].min(axis=0) - self.margin_m
-            hi = f.enu[:, :2].max(axis=0) + self.margin_m
-            box, poly = (lo[0], lo[1], hi[0], hi[1]), None
+        box, poly = search_bounds(self.area, f.enu, self.margin_m)
         xs = np.arange(box[0], box[2] + 1e-9, self.step_m)
         ys = np.arange(box[1], box[3] + 1e-9, self.step_m)
         gx, gy = np.meshgrid(xs, ys)
@@ -232,7 +226,7 @@ class SelfCalibratingGrid(_Base):
         ssr, off = hypothesis_ssr(flat[valid], cells, hyps, self.tx_height_m)
         m = len(cells)
         s2 = max(float(ssr.min()) / max(m - 1, 1), 1e-6)
-        n_eff = max(covered_area_m2(f.enu, self.cell_m) / (np.pi * self.corr_m**2), 2.0)
+        n_eff = max(cells.area_m2 / (np.pi * self.corr_m**2), 2.0)
         tau = min(n_eff / m, 1.0)
         logp = np.full((len(hyps), len(flat)), -np.inf)
         logp[:, valid] = -0.5 * tau * ssr / s2
