@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.localize.evaluate import evaluate_suite, region_contains, suite_method
+from mission.localize.evaluate_suite import evaluate_suite, region_contains, suite_method
 from mission.localize.suite import (
     HABITS,
     draw_flight,
@@ -140,7 +140,8 @@ def test_training_dataset_from_the_family(tmp_path):
 
 
 def test_breakdown_by_axis():
-    from mission.localize.evaluate import Row, breakdown
+    from mission.localize.evaluate import Row
+    from mission.localize.evaluate_suite import breakdown
 
     draws = [{"habit": h, "alt": a, "physics": {"ant": p}} for h, a, p in
              (("fixed", 20.0, "dipole"), ("fixed", 30.0, "flipped"), ("rot", 50.0, "dipole"), ("rot", 60.0, "x"))]

@@ -183,7 +183,8 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     from rich.table import Table
 
     from mission.errors import InputError
-    from mission.localize.evaluate import evaluate_suite, write_report
+    from mission.localize.evaluate import write_report
+    from mission.localize.evaluate_suite import evaluate_suite
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()] + [f"onnx:{m}" for m in args.models]
     if args.n < 1:
@@ -208,7 +209,7 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     extra: dict = {"command": " ".join(sys.argv), "seconds_per_flight": secs}
     axes = [a.strip() for a in args.by.split(",") if a.strip()]
     if axes:
-        from mission.localize.evaluate import breakdown, suite_draws
+        from mission.localize.evaluate_suite import breakdown, suite_draws
 
         draws = suite_draws(len(rows[0].errors), args.seed, args.suite_dir, family=args.family)
         extra["breakdown"] = {}

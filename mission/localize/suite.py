@@ -14,13 +14,13 @@ How to call it (the lead's entry points)::
     rfsl evaluate --suite unseen --n 200 --seed 2026 --methods strongest,centroid,grid,onnx:models/X.onnx
     rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2      # from the cache
     rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default --by tx_outside_flight_area,heading_habit
-    # in Python: rows, secs = mission.localize.evaluate.evaluate_suite(["default", "grid"], 200, suite_dir=...)
+    # in Python: rows, secs = mission.localize.evaluate_suite.evaluate_suite(["default", "grid"], 200, suite_dir=...)
     #            breakdown(rows, suite_draws(200, suite_dir=...), "physics.rx_antenna")
 
 Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict keyed by
 level "50"/"90" or 0.5/0.9, or a list of dicts with "level"); each region a polygon (``polygon`` [[x, y], ...],
 log ENU m) or an ellipse (``center_m`` + ``semi_axes_m`` + ``angle_deg`` ccw from east, or ``center_m`` +
-``cov_m2`` + ``chi2``): ``mission.localize.evaluate.region_contains``.
+``cov_m2`` + ``chi2``): ``mission.localize.evaluate_suite.region_contains``.
 
 Every flight is a deterministic function of ``(seed, i, family)``: all draws come from
 ``np.random.default_rng(np.random.SeedSequence([seed, SUITE_TAG], spawn_key=(i,)))`` (never the worker

@@ -1,0 +1,255 @@
+"""The unseen-flight benchmark's evaluation (``rfsl evaluate --suite``): each method on each suite flight, exactly as
+``localize`` would run it on a real log, the error against the truth kept beside the log, the coverage of the
+estimate's uncertainty regions, and a breakdown of the errors by any drawn axis.
+
+Split from ``mission.localize.evaluate`` (simulated test sets and real flights), whose ``Row``, ``CLASSICAL`` and
+``parse_method`` it uses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.localize.evaluate import CLASSICAL, Row, parse_method
+
+SUITE_METHODS = ("default", "strongest", "centroid", "grid", "grid:MODEL", "grid:preset:NAME", "onnx:PATH")
+
+
+def suite_method(spec: str) -> dict:
+    """A benchmark method spec -> ``localize_log`` keyword arguments (everything a real log would get).
+
+    ``default`` (``localize``'s own choice for a real log), ``strongest``, ``centroid``, ``grid`` (the real-log
+    grid: ``afar`` preset), ``grid:MODEL`` / ``grid:preset:NAME``, ``onnx:PATH`` (a network), or any other
+    method name ``mission.localize.api`` knows (``METHOD_NAMES``), run with its defaults.
+    """
+    from mission.localize.api import METHOD_NAMES
+
+    spec = spec.strip()
+    if spec == "default":
+        return {}
+    if spec.startswith("onnx:"):
+        path = spec.removeprefix("onnx:")
+        if not Path(path).is_file():
+            raise InputError("no such model file", source=path, field="--methods")
+        return {"method": "onnx", "model_path": path}
+    name = spec.partition(":")[0]
+    if name in CLASSICAL:
+        method, kw = parse_method(spec)
+        if "preset" in kw:
+            return {"method": method, "physics_preset": kw["preset"]}
+        return {"method": method, "physics_model": kw["model"]} if "model" in kw else {"method": method}
+    if spec in METHOD_NAMES:
+        return {"method": spec}
+    raise InputError(f"unknown method {spec!r} (expected {', '.join(SUITE_METHODS)} or one of "
+                     f"{', '.join(METHOD_NAMES)})", field="--methods")
+
+
+def _level(key, region: dict) -> str | None:
+    lv = region.get("level", key)
+    try:
+        v = float(lv)
+    except (TypeError, ValueError):
+        return None
+    return f"{round(v * 100 if v <= 1 else v):d}"
+
+
+def region_contains(region: dict, xy) -> bool:
+    """Whether point ``xy`` (log ENU m) lies in an uncertainty region of ``est.extras["regions"]``.
+
+    Accepted shapes: ``{"polygon": [[x, y], ...]}`` (also ``polygon_xy_m``), or an ellipse
+    ``{"center_m": [x, y], "semi_axes_m": [a, b], "angle_deg": t}`` with the first semi-axis ``t`` degrees
+    counter-clockwise from east (``center``/``center_xy_m``, ``axes_m``/``semi_axes`` and ``angle`` also read),
+    or ``{"center_m": [x, y], "cov_m2": [[..], [..]], "chi2": k}`` = the set ``d^T cov^-1 d <= k``.
+    """
+    p = np.asarray(xy, dtype=float)[:2]
+    poly = region.get("polygon", region.get("polygon_xy_m"))
+    if poly is not None:
+        from matplotlib.path import Path as MPath
+
+        return bool(MPath(np.asarray(poly, dtype=float)).contains_point(p))
+    c = np.asarray(next(region[k] for k in ("center_m", "center_xy_m", "center") if k in region), dtype=float)
+    d = p - c[:2]
+    if "cov_m2" in region or "cov" in region:
+        cov = np.asarray(region.get("cov_m2", region.get("cov")), dtype=float)
+        return bool(d @ np.linalg.solve(cov, d) <= float(region.get("chi2", 1.0)))
+    a, b = (float(v) for v in next(region[k] for k in ("semi_axes_m", "axes_m", "semi_axes") if k in region))
+    t = math.radians(float(region.get("angle_deg", region.get("angle", 0.0))))
+    u = d[0] * math.cos(t) + d[1] * math.sin(t)
+    v = -d[0] * math.sin(t) + d[1] * math.cos(t)
+    return bool((u / max(a, 1e-9)) ** 2 + (v / max(b, 1e-9)) ** 2 <= 1.0)
+
+
+def _regions(est) -> dict[str, dict]:
+    """Level ("50", "90") -> region of an estimate (dict keyed by level or list of dicts with "level")."""
+    regs = (est.extras or {}).get("regions")
+    if not regs:
+        return {}
+    items = regs.items() if isinstance(regs, dict) else ((None, r) for r in regs)
+    out = {}
+    for k, r in items:
+        if isinstance(r, dict) and (lvl := _level(k, r)) is not None:
+            out[lvl] = r
+    return out
+
+
+def _coverage(est, truth) -> dict[str, bool]:
+    """Level -> whether the truth lies in the estimate's region: on the posterior grid when the estimate has
+    one (``mission.localize.uncertainty.region_covers``), else by the region's drawn shape."""
+    from mission.localize.uncertainty import region_covers
+
+    out = {}
+    for lvl, r in _regions(est).items():
+        c = region_covers(est, float(truth[0]), float(truth[1]), float(r["level"])) if "level" in r else None
+        out[lvl] = region_contains(r, truth) if c is None else c
+    return out
+
+
+_SUITE: dict = {}
+
+
+def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False) -> None:
+    if one_thread:  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
+        import sklearn.cluster  # noqa: F401  (load its OpenMP runtime so that the limit applies to it)
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(1)
+    _SUITE.clear()
+    _SUITE.update(methods=methods, source=source)
+    if "dir" in source:
+        from mission.localize.suite import read_suite
+
+        _SUITE["cached"] = read_suite(source["dir"])
+
+
+def _suite_flight(i: int) -> dict:
+    """Every method on flight ``i``: {label: [error m, {level: covered}, seconds]}."""
+    import time
+
+    from mission.localize.api import localize_log
+
+    src = _SUITE["source"]
+    if "cached" in _SUITE:
+        log, truth, _ = _SUITE["cached"].load(i)
+    else:
+        from mission.localize.suite import unseen_flight
+
+        log, truth, _ = unseen_flight(src["seed"], i, src["family"], src["center"])
+    out = {}
+    for label, kw in _SUITE["methods"].items():
+        t0 = time.perf_counter()
+        est = localize_log(log, **kw)
+        dt = time.perf_counter() - t0
+        cov = _coverage(est, truth)
+        out[label] = [float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])), cov, dt]
+    return out
+
+
+def evaluate_suite(
+    methods: Sequence[str],
+    n: int = 200,
+    seed: int | None = None,
+    suite_dir: str | Path | None = None,
+    family: str = "afar",
+    center: str = "afar",
+    workers: int = 2,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[list[Row], dict[str, float]]:
+    """Methods on the unseen-flight benchmark (``mission.localize.suite``): (rows, mean seconds per flight).
+
+    Flights come from ``suite_dir`` (a cache written by ``write_suite``; its first ``n``) or are simulated
+    here from ``seed`` (default ``BENCHMARK_SEED``).  Each method sees only the log (``localize_log``); the
+    error is 2D against the truth kept beside it; when an estimate carries ``extras["regions"]`` the rows
+    count how often the truth lies in the 50 % / 90 % region.  Results do not depend on ``workers``.
+    """
+    from mission.localize.suite import BENCHMARK_SEED, read_suite
+
+    labels = {m: suite_method(m) for m in methods}
+    if not labels:
+        raise InputError("no methods to evaluate", field="--methods")
+    if suite_dir is not None:
+        cs = read_suite(suite_dir)
+        n = min(n, len(cs)) if n else len(cs)
+        mf = cs.manifest
+        source: dict = {"dir": str(suite_dir)}
+        test = f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]"
+    else:
+        seed = BENCHMARK_SEED if seed is None else seed
+        source = {"seed": int(seed), "family": family, "center": center}
+        test = f"suite:unseen[seed={seed},family={family},n={n}]"
+    rows = {m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
+            for m, kw in labels.items()}
+    secs = {m: 0.0 for m in labels}
+    if workers <= 1:
+        _suite_init(labels, source)
+        results = map(_suite_flight, range(n))
+        pool = None
+    else:
+        import multiprocessing as mp
+
+        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+        pool = ctx.Pool(workers, initializer=_suite_init, initargs=(labels, source, True))
+        results = pool.imap(_suite_flight, range(n), chunksize=1)
+    try:
+        for i, res in enumerate(results):
+            for m, (err, cov, dt) in res.items():
+                rows[m].errors.append(err)
+                rows[m].names.append(f"flight_{i:05d}")
+                for lvl, c in cov.items():
+                    rows[m].covered.setdefault(lvl, []).append(c)
+                secs[m] += dt
+            if progress:
+                progress(i + 1, n)
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    return list(rows.values()), {m: s / max(n, 1) for m, s in secs.items()}
+
+
+def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: str = "afar",
+                center: str = "afar") -> list[dict]:
+    """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
+    from mission.localize.suite import BENCHMARK_SEED, draw_flight, read_suite
+
+    if suite_dir is not None:
+        return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]
+    s = BENCHMARK_SEED if seed is None else seed
+    return [draw_flight(s, i, family, center)[0] for i in range(n)]
+
+
+def _axis_value(draw: dict, axis: str):
+    v: object = draw
+    for part in axis.split("."):  # e.g. physics.rx_antenna, trajectory_params.region
+        if not isinstance(v, dict) or part not in v:
+            raise InputError(f"benchmark draws have no axis {axis!r} (e.g. heading_habit, tx_outside_flight_area, "
+                             "altitude_m, physics.rx_antenna, trajectory)", field="--by")
+        v = v[part]
+    return v
+
+
+def breakdown(rows: Sequence[Row], draws: Sequence[dict], axis: str, bins: int = 3) -> dict[str, dict[str, float]]:
+    """Mean error per method by the value of one draw axis: {group label: {method: mean m, "n": count}}.
+
+    Text / bool axes group by value; numeric axes by ``bins`` equal-count bins (label ``lo-hi``)."""
+    vals = [_axis_value(d, axis) for d in draws]
+    if all(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
+        x = np.asarray(vals, dtype=float)
+        edges = np.quantile(x, np.linspace(0, 1, bins + 1))
+        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
+        labels = [f"{edges[k]:.3g}-{edges[k + 1]:.3g}" for k in range(bins)]
+        keys = [labels[k] for k in idx]
+    else:
+        keys = [str(v) for v in vals]
+    out: dict[str, dict[str, float]] = {}
+    for g in dict.fromkeys(sorted(set(keys))):
+        m = np.array([k == g for k in keys])
+        out[g] = {"n": int(m.sum())}
+        for r in rows:
+            e = np.asarray(r.errors, dtype=float)[: len(m)]
+            out[g][r.method] = float(e[m[: e.size]].mean())
+    return out
