@@ -21,8 +21,9 @@ from mission.gap.fit import FitConfig, Rung, _pooled, ladder, offset_residual
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
 from mission.physics import make_model
+from mission.physics.propagation import MODEL_NAMES
 
-REFERENCE_MODELS = ("free-space", "two-ray", "e2r")
+REFERENCE_MODELS = MODEL_NAMES  # every named model is a reference
 
 BREAKDOWN_EDGES: dict[str, np.ndarray] = {
     "distance_m": np.array([0, 25, 50, 75, 100, 150, 200, 250, 300, 400, 600], dtype=float),

@@ -29,9 +29,10 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.importers.afar import AFAR2023_TRUTH
+from mission.physics.propagation import MODEL_NAMES
 
 CLASSICAL = ("strongest", "centroid", "grid")
-GRID_PHYSICS = ("free-space", "two-ray", "e2r")
+GRID_PHYSICS = MODEL_NAMES  # the grid accepts every propagation model make_model builds
 
 
 def parse_method(spec: str) -> tuple[str, dict]:
