@@ -23,12 +23,13 @@ def _range(text: str) -> tuple[float, float]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from mission.cli.main import model_name_arg
+
     p.add_argument("mission", nargs="?", help="mission YAML (field, altitude, trajectory, source defaults); "
                    "not with --suite")
     p.add_argument("--n", type=int, required=True, help="number of transmitter positions (flights)")
-    p.add_argument(
-        "--model", default="e2r", choices=["free-space", "two-ray", "e2r"], help="propagation model"
-    )
+    p.add_argument("--model", default="e2r", type=model_name_arg,
+                   help="propagation model: free-space, two-ray, e2r (aliases as make_model)")
     p.add_argument("--seed", type=int, default=None,
                    help="dataset seed (default 0; with --suite --logs 2026, the benchmark's own)")
     p.add_argument("--out", required=True, help="output folder (manifest.json + chunk_*.npz)")
