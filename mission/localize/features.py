@@ -206,11 +206,51 @@ def _standardise(a: np.ndarray) -> np.ndarray:
     return (a - a.mean(axis=0)) / np.where(s > 0, s, 1.0)
 
 
+THREADS_ENV = "RFSL_THREADS"
+_CONTROLLER: list = []  # the threadpoolctl controller, made once (making one scans the loaded libraries: ms)
+
+
+def compute_threads() -> int:
+    """Threads for k-means (OpenMP) and onnxruntime: ``$RFSL_THREADS`` (default 1; 0 = the libraries' own choice).
+
+    Why 1: per flight both run for milliseconds, and on a busy 2-core machine their thread pools spin-wait
+    (k-means 0.38 s with the default threads vs 0.02 s with one; ``benchmarks/bench_localize.py``).
+    """
+    import os
+
+    raw = os.environ.get(THREADS_ENV, "").strip()
+    if not raw:
+        return 1
+    try:
+        n = int(raw)
+    except ValueError:
+        raise InputError(f"{THREADS_ENV} must be a whole number of threads, got {raw!r}") from None
+    if n < 0:
+        raise InputError(f"{THREADS_ENV} must be >= 0, got {n}")
+    return n
+
+
+def _thread_limit(n: int):
+    """Context limiting OpenMP (k-means) to ``n`` threads; a no-op for ``n`` = 0 or without threadpoolctl."""
+    import contextlib
+
+    if n <= 0:
+        return contextlib.nullcontext()
+    if not _CONTROLLER:
+        try:
+            from threadpoolctl import ThreadpoolController
+        except ImportError:  # pragma: no cover - a scikit-learn dependency
+            return contextlib.nullcontext()
+        _CONTROLLER.append(ThreadpoolController())
+    return _CONTROLLER[0].limit(limits=n, user_api="openmp")
+
+
 def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
-    from sklearn.cluster import KMeans
+    from sklearn.cluster import KMeans  # loads its OpenMP runtime before the controller looks for it
 
     km = KMeans(n_clusters=cfg.c_k, n_init=cfg.n_init, random_state=cfg.seed, algorithm="lloyd")
-    return km.fit_predict(pts)
+    with _thread_limit(compute_threads()):
+        return km.fit_predict(pts)
 
 
 def summarise_clusters(

@@ -26,17 +26,41 @@ from mission.errors import InputError
 from mission.geo import Origin
 from mission.localize import Estimate
 from mission.localize.classical import FlightData, as_flight
-from mission.localize.features import FEATURE_VERSION, FeatureConfig, cluster_features, normalised_rss
+from mission.localize.features import (
+    FEATURE_VERSION,
+    FeatureConfig,
+    cluster_features,
+    compute_threads,
+    normalised_rss,
+)
 
 REQUIRED_KEYS = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
 FEATURE_KINDS = ("clustering", "normalised_rss")
+
+
+def session_options(threads: int):
+    """onnxruntime session options: quiet log, ``threads`` intra- and inter-op threads (0 = onnxruntime's
+    default pool).  One thread by default: a small network runs in well under a millisecond, and an idle
+    pool's spinning threads cost CPU on a busy machine."""
+    import onnxruntime as ort
+
+    opts = ort.SessionOptions()
+    opts.log_severity_level = 3
+    if threads > 0:
+        opts.intra_op_num_threads = threads
+        opts.inter_op_num_threads = threads
+        opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        opts.add_session_config_entry("session.inter_op.allow_spinning", "0")
+    return opts
 
 
 class OnnxLocalizer:
     """A localizer network loaded from an ONNX file; ``predict(flight) -> Estimate``.
 
     ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with anything else
-    is refused (``InputError`` naming the differing key).
+    is refused (``InputError`` naming the differing key).  ``threads``: onnxruntime's intra/inter-op threads
+    (None: ``features.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
     """
 
     name = "onnx"
@@ -46,16 +70,17 @@ class OnnxLocalizer:
         path: str | Path,
         expect_config: FeatureConfig | dict | None = None,
         expect_kind: str | None = None,
+        threads: int | None = None,
     ) -> None:
         import onnxruntime as ort
 
+        self.threads = compute_threads() if threads is None else int(threads)
         self.path = Path(path)
         src = str(self.path)
         if not self.path.exists():
             raise InputError("no such model file", source=src)
         try:
-            opts = ort.SessionOptions()
-            opts.log_severity_level = 3
+            opts = session_options(self.threads)
             self.session = ort.InferenceSession(src, sess_options=opts, providers=["CPUExecutionProvider"])
         except Exception as e:  # onnxruntime raises its own exception types
             raise InputError(

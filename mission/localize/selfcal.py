@@ -132,16 +132,24 @@ class _GainLookup:
         e, a = np.meshgrid(np.radians(np.arange(-90.0, 90.5, 1.0)), np.radians(np.arange(0.0, 360.0, 1.0)),
                            indexing="ij")
         t = pat.gain_dbi(e, a).astype(np.float32)            # (181, 360), antenna frame
-        self.upright = t.ravel()
-        self.flipped = t[::-1].ravel()                        # el -> -el (180 deg about the antenna's x axis)
+        self.upright = t
+        self.flipped = t[::-1]                                # el -> -el (180 deg about the antenna's x axis)
+        self._mounted: dict[tuple[int, bool], np.ndarray] = {}
 
-    def gain_db(self, i_el: np.ndarray, i_az: np.ndarray, heading_deg: int, flipped: bool) -> np.ndarray:
-        """Gain at platform indices (el + 90, az clockwise from the nose) for one mounting (``mount_angles``)."""
-        if flipped:
-            j = np.mod(i_az - heading_deg, 360)
-            return self.flipped[i_el * 360 + j]
-        j = np.mod(heading_deg - i_az, 360)
-        return self.upright[i_el * 360 + j]
+    def mounted(self, heading_deg: int, flipped: bool) -> np.ndarray:
+        """The flat (181 * 360,) table indexed by platform ``(el + 90) * 360 + az`` (az clockwise from the nose)
+        for one mounting: the antenna-frame column of platform azimuth ``a`` is ``a - heading`` (flipped) or
+        ``heading - a`` (upright), mod 360 (``mount_angles``).  Made once per mounting."""
+        key = (heading_deg, flipped)
+        if key not in self._mounted:
+            a = np.arange(360)
+            cols = np.mod(a - heading_deg, 360) if flipped else np.mod(heading_deg - a, 360)
+            self._mounted[key] = np.ascontiguousarray((self.flipped if flipped else self.upright)[:, cols]).ravel()
+        return self._mounted[key]
+
+    def gain_db(self, i_flat: np.ndarray, heading_deg: int, flipped: bool) -> np.ndarray:
+        """Gain at flat platform indices ``(el + 90) * 360 + az`` for one mounting (one gather)."""
+        return self.mounted(heading_deg, flipped)[i_flat]
 
 
 _LOOKUPS: dict[int, _GainLookup] = {}
@@ -163,10 +171,12 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
             r = base - pat.gain_dbi(el, az).astype(np.float32)
         else:
             if idx is None:
-                idx = (np.rint(np.degrees(el)).astype(np.int32) + 90,
-                       np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
-            look = _LOOKUPS.setdefault(id(pat), _GainLookup(pat))
-            r = base - look.gain_db(idx[0], idx[1], int(round(np.degrees(head))) % 360, flipped)
+                idx = ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
+                       + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
+            look = _LOOKUPS.get(id(pat))
+            if look is None:  # made once per pattern (not per call)
+                look = _LOOKUPS[id(pat)] = _GainLookup(pat)
+            r = base - look.gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
         c = r.mean(axis=1)
         off[i] = c
         ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2
