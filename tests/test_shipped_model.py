@@ -3,7 +3,9 @@
 ``models/<name>.json`` records the exact dataset configuration (seed, mission, model) of a small simulated
 test set and the metrics the shipped model ``models/<name>.onnx`` reached on it; the test regenerates that
 set (bytes depend only on the seed; models sharing a configuration share one regeneration) and recomputes
-the metrics with onnxruntime only.
+the metrics with onnxruntime.  Independent reference: ``tests/_onnx_numpy.py`` evaluates the same graphs from
+their weights in float64 numpy (no onnxruntime, no ``OnnxLocalizer``), so a wrong normalisation, input rank or
+runtime result would show as a disagreement, not as a silently moved golden number.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from _onnx_numpy import predict as numpy_predict
 
 from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
 
@@ -63,3 +66,25 @@ def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
     }
     for k, want in rec["metrics"].items():
         assert got[k] == pytest.approx(want, rel=rec.get("tolerance", 0.05)), (k, got, rec["metrics"])
+    # the same predictions from the weights by the independent numpy evaluator (float32 runtime: < 1 mm)
+    ref = numpy_predict(model, arrays[loc.kind])
+    assert np.max(np.abs(pred - ref)) < 1e-2
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_onnxruntime_matches_numpy_forward_pass(name, repo_dir):
+    """Fast check on synthetic cluster features (per cluster: RSS dB, x m, y m) of every shipped network."""
+    model = repo_dir / "models" / f"{name}.onnx"
+    if not model.exists():
+        pytest.skip(f"no shipped model {name}")
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    loc = OnnxLocalizer(model)
+    rng = np.random.default_rng(0)
+    n_features = loc.in_mean.size
+    feats = np.stack([rng.normal(-10.0, 8.0, (32, n_features // 3)), rng.uniform(0.0, 300.0, (32, n_features // 3)),
+                      rng.uniform(0.0, 400.0, (32, n_features // 3))], axis=2).reshape(32, -1)
+    pred = loc.predict_features(feats)
+    ref = numpy_predict(model, feats)
+    assert np.ptp(ref, axis=0).min() > 1.0  # the inputs move the answer: not a constant-output comparison
+    assert np.max(np.abs(pred - ref)) < 1e-2
