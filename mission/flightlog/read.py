@@ -1,10 +1,7 @@
-"""The flight-log format: one CSV per flight plus a JSON sidecar, written and read only here.
+"""Reading flight logs: parse and validate a CSV and its sidecar into a ``FlightLog``.
 
-CSV columns (SPEC / issue 2): ``t_s, lat_deg, lon_deg, alt_m, rel_alt_m, roll_deg, pitch_deg, yaw_deg,
-rss_dbm``.  Attitude may be empty (a receiver-only log).  Extra columns are kept, missing required ones
-are refused.  The sidecar ``<name>.json`` beside the CSV holds the mission origin, the RSS source
-(simulated: model and seed; or a real receiver, whose dB are not calibrated dBm), the software version and,
-for simulated flights, the true transmitter position.
+Any problem is an ``InputError`` naming the file, row and column; real-log quirks (repeated timestamps, a
+last line cut by a crash, no sidecar, an incomplete flight) are accepted with a note.
 """
 
 from __future__ import annotations
@@ -12,203 +9,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from mission import __version__
 from mission.errors import InputError
+from mission.flightlog.schema import COLUMNS, OPTIONAL, REQUIRED, WARNING, FlightLog, sidecar_path
 from mission.geo import Origin, latlon_unit_problem
-
-WARNING = "warning: "  # prefix of a FlightLog note that puts the result in doubt (not just a tidied row)
-COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
-REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
-OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
-# Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of PHASES,
-# ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the mission phase).
-PHASES = ("ground", "takeoff", "mission", "return", "land")
-PHASE_COLUMNS = ("phase", "mission_item")
-
-
-def sidecar_path(csv_path: str | Path) -> Path:
-    """The JSON sidecar that belongs to a flight-log CSV."""
-    return Path(csv_path).with_suffix(".json")
-
-
-@dataclass
-class FlightLog:
-    """A flight log in memory: column arrays (float64, NaN where empty) and the sidecar metadata."""
-
-    columns: dict[str, np.ndarray]
-    meta: dict = field(default_factory=dict)
-    path: Path | None = None
-    # What reading accepted with a remark (CLIs print one line each); those that put the result in doubt
-    # start with WARNING (no sidecar, a flight that did not complete).
-    notes: list[str] = field(default_factory=list)
-
-    def __len__(self) -> int:
-        return len(self.columns["t_s"])
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.columns[name]
-
-    @property
-    def origin(self) -> Origin:
-        """The mission origin from the sidecar (the first sample's ground if none is recorded)."""
-        if "origin" in self.meta:
-            return Origin.from_dict(self.meta["origin"])
-        ground = float(self["alt_m"][0] - self["rel_alt_m"][0])
-        return Origin(float(self["lat_deg"][0]), float(self["lon_deg"][0]), ground)
-
-    @property
-    def label(self) -> str:
-        """The flight's name for titles: its folder for ``flights/<time>/flight.csv``, else the file's stem."""
-        if self.path is None:
-            return "flight"
-        p = Path(self.path)
-        return p.parent.name if p.stem == "flight" and p.parent.name else p.stem
-
-    def enu(self, origin: Origin | None = None) -> np.ndarray:
-        """UAV positions (N, 3) in the local ENU frame; z is the height above the origin's ground."""
-        o = origin or self.origin
-        return o.to_enu(self["lat_deg"], self["lon_deg"], self["alt_m"])
-
-    @property
-    def attitude_rad(self) -> np.ndarray | None:
-        """(N, 3) roll, pitch, yaw in radians, or None when the log has no attitude."""
-        att = np.stack([self[c] for c in OPTIONAL], axis=-1)
-        if np.all(np.isnan(att)):
-            return None
-        return np.deg2rad(att)
-
-    @property
-    def truth_enu(self) -> np.ndarray | None:
-        """True transmitter position (3,) in ENU metres when the sidecar knows it."""
-        tx = self.meta.get("truth")
-        if not tx:
-            return None
-        if "x_m" in tx:  # exact local coordinates take precedence over lat/lon (no curvature round trip)
-            return np.array([tx["x_m"], tx["y_m"], tx.get("z_m", 0.0)], dtype=float)
-        o = self.origin
-        enu = o.to_enu(tx["lat_deg"], tx["lon_deg"], o.alt_m + float(tx.get("height_m", 0.0)))
-        enu[2] = float(tx.get("height_m", 0.0))  # height above ground, not above the origin's tangent plane
-        return enu
-
-    def select(self, mask: np.ndarray) -> FlightLog:
-        """A new log holding only the rows where ``mask`` is true."""
-        return FlightLog({k: v[mask] for k, v in self.columns.items()}, dict(self.meta), self.path, list(self.notes))
-
-
-def make_meta(origin: Origin, rss_source: dict, truth: dict | None = None, **extra) -> dict:
-    """Sidecar metadata in the project's layout (``rss_source`` e.g. {"kind": "sim", "model": "e2r", "seed": 1})."""
-    meta = {"format": "rfsl-flight-log/1", "software_version": __version__, "origin": origin.to_dict(),
-            "rss_source": rss_source}
-    if truth is not None:
-        meta["truth"] = truth
-    meta.update(extra)
-    return meta
-
-
-def _fmt(a: np.ndarray, digits: int) -> np.ndarray:
-    s = np.char.mod(f"%.{digits}f", a)
-    return np.where(np.isnan(a), "", s)
-
-
-DIGITS = {"t_s": 4, "lat_deg": 9, "lon_deg": 9, "alt_m": 3, "rel_alt_m": 3, "roll_deg": 3,
-          "pitch_deg": 3, "yaw_deg": 3, "rss_dbm": 4, "mission_item": 0}
-DEFAULT_DIGITS = 6
-
-
-def rounded(values, column: str) -> np.ndarray:
-    """``values`` rounded exactly as the log writes ``column`` (decimal text read back): logged == used."""
-    return np.char.mod(f"%.{DIGITS.get(column, DEFAULT_DIGITS)}f", np.asarray(values, dtype=float)).astype(float)
-
-
-def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
-    """CSV text (no header) for column arrays, vectorised; NaN becomes an empty field.
-
-    Numeric columns get the digits of ``DIGITS``; text columns (str/object arrays such as ``phase``) are
-    written as they are and must not contain commas, quotes or newlines.
-    """
-    n = len(columns["t_s"])
-    if n == 0:
-        return ""
-    cols = []
-    for c in header:
-        v = columns.get(c)
-        if v is not None and np.asarray(v).dtype.kind in "OUS":
-            text = np.asarray(v).astype(str)
-            if any(ch in "".join(np.unique(text)) for ch in ',"\n\r'):
-                raise ValueError(f"text column {c!r} holds a comma, quote or newline")
-            cols.append(text)
-            continue
-        v = np.full(n, np.nan) if v is None else np.asarray(v, dtype=float)
-        cols.append(_fmt(v, DIGITS.get(c, DEFAULT_DIGITS)))
-    lines = cols[0]
-    for c in cols[1:]:
-        lines = np.char.add(np.char.add(lines, ","), c)
-    return "\n".join(lines.tolist()) + "\n"
-
-
-class FlightLogWriter:
-    """Appends rows to a flight log and flushes them to disk, so a crash loses at most the unflushed rows.
-
-    The sidecar is written when the writer opens (so a log is never without its metadata) and rewritten
-    by ``close`` (with ``meta_updates`` such as the end status).
-    """
-
-    def __init__(self, path: str | Path, meta: dict, extra_columns: tuple[str, ...] = ()) -> None:
-        self.path = Path(path)
-        if self.path.exists():
-            raise InputError("refusing to overwrite an existing flight log", source=str(self.path))
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.header = COLUMNS + tuple(extra_columns)
-        self.meta = dict(meta)
-        self.rows = 0
-        self._f = open(self.path, "w", newline="")
-        self._f.write(",".join(self.header) + "\n")
-        self._write_sidecar()
-        self.flush()
-
-    def _write_sidecar(self) -> None:
-        tmp = sidecar_path(self.path).with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(self.meta, indent=2, default=float))
-        os.replace(tmp, sidecar_path(self.path))
-
-    def append(self, columns: dict[str, np.ndarray]) -> None:
-        """Append rows given as column arrays (missing optional columns are written empty)."""
-        text = format_rows(columns, self.header)
-        self._f.write(text)
-        self.rows += len(columns["t_s"])
-
-    def flush(self) -> None:
-        self._f.flush()
-        os.fsync(self._f.fileno())
-
-    def close(self, **meta_updates) -> None:
-        if self._f.closed:
-            return
-        self.flush()
-        self._f.close()
-        self.meta.update(meta_updates)
-        self.meta["rows"] = self.rows
-        self._write_sidecar()
-
-    def __enter__(self) -> FlightLogWriter:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
-def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict) -> Path:
-    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond ``COLUMNS``
-    (such as ``PHASE_COLUMNS``) are written after them in the dict's order."""
-    with FlightLogWriter(path, meta, extra_columns=tuple(c for c in columns if c not in COLUMNS)) as w:
-        w.append(columns)
-    return Path(path)
 
 
 def _parse_column(values: list[str], name: str, source: str, allow_empty: bool) -> np.ndarray:
@@ -272,16 +79,12 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
         notes.append(cut)
         reader = csv.reader(io.StringIO(text))
         next(reader)
-    fast = _fast_numeric(text, header)
-    if fast is not None:
-        columns = dict(zip(header, fast.T, strict=True))
-        n = fast.shape[0]
-        for name in REQUIRED:  # NaN (or empty) in a required column: the slow path names the row
-            if np.isnan(columns[name]).any():
-                fast = None
-                break
-    if fast is None:
-        columns, n = _slow_parse(reader, header, src)
+    columns = _fast_parse(text, header)
+    if columns is not None and any(np.isnan(columns[c]).any() for c in REQUIRED):
+        columns = None  # NaN (or empty) in a required column: the slow path names the row
+    if columns is None:
+        columns, _ = _slow_parse(reader, header, src)
+    n = len(columns["t_s"])
     for c in OPTIONAL:
         columns.setdefault(c, np.full(n, np.nan))
     return _validated(columns, path, src, notes, origin)
@@ -330,30 +133,50 @@ def _drop_cut_last_line(text: str, header: list[str], newline_ends_rows: bool = 
             f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger stops mid-write")
 
 
-def _fast_numeric(text: str, header: list[str]) -> np.ndarray | None:
-    """All-numeric CSV body -> (rows, cols) float array in one vectorised conversion, or None.
+def _fast_parse(text: str, header: list[str]) -> dict[str, np.ndarray] | None:
+    """The CSV body as column arrays in one vectorised pass, or None when anything is unusual.
 
-    Empty fields become NaN.  Anything unusual (text columns, ragged rows, bad numbers) returns None and
-    the caller falls back to the row-by-row parser, which names the offending row.
+    Numeric columns become float64 (an empty field NaN); an extra column that is not all numbers (``phase``)
+    is kept as text, as the row-by-row parser keeps it.  Quotes, ragged rows, a bad number in a format
+    column or an infinite value return None: the caller falls back to the row-by-row parser, which names the
+    offending row.
     """
     body = text.split("\n", 1)[1] if "\n" in text else ""
     lines = [ln for ln in body.splitlines() if ln.strip()]
-    if not lines:
+    if not lines or '"' in body:
         return None
     width = len(header)
-    joined = ",".join(lines)
-    tokens = joined.split(",")
-    if len(tokens) != width * len(lines):
+    if any(ln.count(",") != width - 1 for ln in lines):
         return None
-    arr = np.array(tokens, dtype=object)
-    arr[arr == ""] = "nan"
+    raw = np.array(",".join(lines).split(","), dtype=object).reshape(len(lines), width)
+    num = raw.copy()
+    num[num == ""] = "nan"
     try:
-        out = arr.astype(float).reshape(len(lines), width)
+        table = num.astype(float)  # all numeric: one conversion
+    except ValueError:
+        table = None
+    columns: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        values = table[:, j] if table is not None else _as_float(num[:, j])
+        if values is None and name not in COLUMNS:  # blank fields padded with spaces still read as NaN
+            values = _as_float(np.where(np.char.strip(raw[:, j].astype(str)) == "", "nan", raw[:, j]))
+        if values is None:
+            if name in COLUMNS:
+                return None
+            columns[name] = raw[:, j]  # extra non-numeric column (``phase``): kept as text
+        elif np.isinf(values).any():
+            return None
+        else:
+            columns[name] = values
+    return columns
+
+
+def _as_float(values: np.ndarray) -> np.ndarray | None:
+    """Text values as float64, or None when one is not a number."""
+    try:
+        return values.astype(float)
     except ValueError:
         return None
-    if np.isinf(out).any():
-        return None
-    return out
 
 
 def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarray], int]:

@@ -1,0 +1,117 @@
+"""Writing flight logs: vectorised CSV rows with fixed digits per column, a crash-safe appending writer.
+
+Why here: the digits a column is written with are part of the format (``rounded`` gives a value exactly as
+it will be read back, so what a simulated source used is what the log holds).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.flightlog.schema import COLUMNS, sidecar_path
+
+
+def _fmt(a: np.ndarray, digits: int) -> np.ndarray:
+    s = np.char.mod(f"%.{digits}f", a)
+    return np.where(np.isnan(a), "", s)
+
+
+DIGITS = {"t_s": 4, "lat_deg": 9, "lon_deg": 9, "alt_m": 3, "rel_alt_m": 3, "roll_deg": 3,
+          "pitch_deg": 3, "yaw_deg": 3, "rss_dbm": 4, "mission_item": 0}
+DEFAULT_DIGITS = 6
+
+
+def rounded(values, column: str) -> np.ndarray:
+    """``values`` rounded exactly as the log writes ``column`` (decimal text read back): logged == used."""
+    return np.char.mod(f"%.{DIGITS.get(column, DEFAULT_DIGITS)}f", np.asarray(values, dtype=float)).astype(float)
+
+
+def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
+    """CSV text (no header) for column arrays, vectorised; NaN becomes an empty field.
+
+    Numeric columns get the digits of ``DIGITS``; text columns (str/object arrays such as ``phase``) are
+    written as they are and must not contain commas, quotes or newlines.
+    """
+    n = len(columns["t_s"])
+    if n == 0:
+        return ""
+    cols = []
+    for c in header:
+        v = columns.get(c)
+        if v is not None and np.asarray(v).dtype.kind in "OUS":
+            text = np.asarray(v).astype(str)
+            if any(ch in "".join(np.unique(text)) for ch in ',"\n\r'):
+                raise ValueError(f"text column {c!r} holds a comma, quote or newline")
+            cols.append(text)
+            continue
+        v = np.full(n, np.nan) if v is None else np.asarray(v, dtype=float)
+        cols.append(_fmt(v, DIGITS.get(c, DEFAULT_DIGITS)))
+    lines = cols[0]
+    for c in cols[1:]:
+        lines = np.char.add(np.char.add(lines, ","), c)
+    return "\n".join(lines.tolist()) + "\n"
+
+
+class FlightLogWriter:
+    """Appends rows to a flight log and flushes them to disk, so a crash loses at most the unflushed rows.
+
+    The sidecar is written when the writer opens (so a log is never without its metadata) and rewritten
+    by ``close`` (with ``meta_updates`` such as the end status).
+    """
+
+    def __init__(self, path: str | Path, meta: dict, extra_columns: tuple[str, ...] = ()) -> None:
+        self.path = Path(path)
+        if self.path.exists():
+            raise InputError("refusing to overwrite an existing flight log", source=str(self.path))
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.header = COLUMNS + tuple(extra_columns)
+        self.meta = dict(meta)
+        self.rows = 0
+        self._f = open(self.path, "w", newline="")
+        self._f.write(",".join(self.header) + "\n")
+        self._write_sidecar()
+        self.flush()
+
+    def _write_sidecar(self) -> None:
+        tmp = sidecar_path(self.path).with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(self.meta, indent=2, default=float))
+        os.replace(tmp, sidecar_path(self.path))
+
+    def append(self, columns: dict[str, np.ndarray]) -> None:
+        """Append rows given as column arrays (missing optional columns are written empty)."""
+        text = format_rows(columns, self.header)
+        self._f.write(text)
+        self.rows += len(columns["t_s"])
+
+    def flush(self) -> None:
+        self._f.flush()
+        os.fsync(self._f.fileno())
+
+    def close(self, **meta_updates) -> None:
+        if self._f.closed:
+            return
+        self.flush()
+        self._f.close()
+        self.meta.update(meta_updates)
+        self.meta["rows"] = self.rows
+        self._write_sidecar()
+
+    def __enter__(self) -> FlightLogWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict) -> Path:
+    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond ``COLUMNS``
+    (such as ``PHASE_COLUMNS``) are written after them in the dict's order."""
+    with FlightLogWriter(path, meta, extra_columns=tuple(c for c in columns if c not in COLUMNS)) as w:
+        w.append(columns)
+    return Path(path)
+
