@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from _figures import assert_png_drawn, capture_figures, legend_labels
 from _localize_helpers import write_synthetic_log
 
 from mission.cli.localize import main as localize
@@ -44,10 +45,20 @@ def test_json_schema(log_path, capsys, method):
 def test_default_method_and_plot(log_path, tmp_path, capsys):
     pytest.importorskip("mission.physics")
     png = tmp_path / "p.png"
-    assert localize([str(log_path), "--json", "--plot", str(png)]) == 0
+    with capture_figures() as figs:
+        assert localize([str(log_path), "--json", "--plot", str(png)]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["method"] in ("fusion", "onnx") and "method_choice" in d
-    assert png.stat().st_size > 10000
+    assert_png_drawn(png, size=(1020, 900))  # 8.5 x 7.5 in at 120 dpi
+    (fig,) = figs
+    ax = fig.axes[0]  # the map (then its colour bar)
+    labels = legend_labels(ax)
+    assert labels[-1] == "truth" and any(lb.startswith(f"estimate ({d['method']}") for lb in labels)
+    star = [ln for ln in ax.lines if ln.get_label().startswith("estimate")][0]
+    truth = [ln for ln in ax.lines if ln.get_label() == "truth"][0]
+    assert (star.get_xdata()[0], star.get_ydata()[0]) == pytest.approx((d["x_m"], d["y_m"]), abs=0.01)
+    assert (truth.get_xdata()[0], truth.get_ydata()[0]) == pytest.approx(TX[:2], abs=0.01)
+    assert f"error {d['error_m']:.1f} m" in ax.get_title()
 
 
 def _rewrite(src, dst, edit):

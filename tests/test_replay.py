@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from _figures import assert_png_drawn, capture_figures, legend_labels
 
 from mission.flightlog import make_meta, read_flight_log, write_flight_log
 from mission.geo import Origin
@@ -35,8 +36,17 @@ def test_summary_and_plot(tmp_path):
     s = summary(log)
     assert s["samples"] == 100 and abs(s["rate_hz"] - 10) < 1e-6
     assert abs(s["path_length_m"] - 49.5) < 0.1 and s["rss_max_db"] == -50.1
-    png = plot(log, tmp_path / "f.png")
-    assert png.stat().st_size > 10_000
+    with capture_figures() as figs:
+        png = plot(log, tmp_path / "f.png")
+    assert_png_drawn(png, size=(840, 720))  # 7 x 6 in at 120 dpi, coloured path on a white background
+    (fig,) = figs
+    ax, cbar = fig.axes  # the map and its RSS colour bar
+    assert "RSS" in cbar.get_ylabel()
+    (path,) = ax.collections[-1:]  # every sample drawn, coloured by its RSS
+    assert np.allclose(path.get_offsets(), log.enu()[:, :2]) and np.allclose(path.get_array(), log["rss_dbm"])
+    assert legend_labels(ax) == ["strongest RSS", "true transmitter"]
+    star = [ln for ln in ax.lines if ln.get_label() == "strongest RSS"][0]
+    assert (star.get_xdata()[0], star.get_ydata()[0]) == (log.enu()[-1, 0], log.enu()[-1, 1])  # RSS rises with t
 
 
 def test_cli(tmp_path, capsys):
