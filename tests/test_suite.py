@@ -152,3 +152,26 @@ def test_breakdown_by_axis():
     assert [d["n"] for d in by_alt.values()] == [2, 2] and list(by_alt.values())[1]["m1"] == 40.0
     with pytest.raises(InputError, match="no axis"):
         breakdown(rows, draws, "speed")
+
+
+def test_heavy_family_changes_only_the_shadowing():
+    """``afar-heavy`` draws the same flights as ``afar`` (same generator sequence) with the real-measured
+    shadowing: wider and longer-correlated, so its logs spread more in dB."""
+    from mission.localize.suite import SHADOWING
+
+    (s_lo, s_hi), (l_lo, l_hi) = SHADOWING["afar-heavy"]
+    spreads = {"afar": [], "afar-heavy": []}
+    for i in range(12):
+        a, h = draw_flight(5, i)[0], draw_flight(5, i, family="afar-heavy")[0]
+        assert s_lo <= h["shadowing_db"] <= s_hi and l_lo <= h["shadowing_corr_m"] <= l_hi
+        same = {k for k in a if k not in ("family", "shadowing_db", "shadowing_corr_m")}
+        assert {k: a[k] for k in same} == {k: h[k] for k in same}
+        for fam in spreads:
+            rss = unseen_flight(5, i, fam).log["rss_dbm"]
+            spreads[fam].append(np.ptp(np.percentile(rss[np.isfinite(rss)], [5, 95])))
+    assert np.median(spreads["afar-heavy"]) > np.median(spreads["afar"]) + 3.0
+
+
+def test_unknown_family_is_one_line_naming_the_families():
+    with pytest.raises(InputError, match="afar-heavy"):
+        draw_flight(5, 0, family="heavy")

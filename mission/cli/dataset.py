@@ -52,8 +52,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)")
     s.add_argument("--logs", action="store_true", help="with --suite: write the flights as CSV logs + suite.json "
                    "(the benchmark cache for rfsl evaluate --suite-dir) instead of feature chunks")
-    s.add_argument("--family", default="afar", choices=("afar", "generic"),
-                   help="with --suite: physics family centred on the calibration (afar) or on none (generic)")
+    s.add_argument("--family", default="afar", metavar="FAMILY",
+                   help="with --suite: physics family (mission.localize.suite.FAMILIES): centred on the "
+                        "calibration (afar), on none (generic), or afar with the shadowing measured on real "
+                        "flights (afar-heavy)")
     s.add_argument("--center", default="afar", metavar="PRESET",
                    help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)")
     g = p.add_argument_group("domain randomisation (each off unless given)")

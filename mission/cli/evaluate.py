@@ -54,7 +54,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--n", type=int, default=200, help="benchmark flights (default 200)")
     g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
     g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
-    g.add_argument("--family", default="afar", choices=("afar", "generic"), help="physics family (default afar)")
+    g.add_argument("--family", default="afar", metavar="FAMILY",
+                   help="physics family (mission.localize.suite.FAMILIES; default afar)")
     g.add_argument("--by", default="", help="comma list of draw axes to break the mean error down by, e.g. "
                    "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna")
 

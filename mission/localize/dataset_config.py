@@ -158,8 +158,11 @@ def check_config(cfg: DatasetConfig) -> None:
     if cfg.suite:
         from mission.localize.suite import BENCHMARK_SEED, FAMILIES, SUITES
 
-        if cfg.suite not in SUITES or cfg.suite_family not in FAMILIES:
-            raise InputError(f"unknown suite {cfg.suite!r} / family {cfg.suite_family!r}", field="suite")
+        if cfg.suite not in SUITES:
+            raise InputError(f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite")
+        if cfg.suite_family not in FAMILIES:
+            raise InputError(f"unknown suite family {cfg.suite_family!r} (expected {', '.join(FAMILIES)})",
+                             field="family")
         if cfg.seed == BENCHMARK_SEED:
             raise InputError(f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds", field="seed")
         if cfg.physics or r != Randomisation():
