@@ -38,10 +38,11 @@ import numpy as np
 
 import mission.calibrate as _cal
 from mission.calibrate import CONFIGS
+from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
 
 REPO = Path(__file__).resolve().parents[1]
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
-SUSPECT = "288-loc3"
+SUSPECT = "{}-loc{}".format(*AFAR2023_SUSPECT)  # as gap.align.afar2023_flights names it
 
 ATT_VARIANTS = {
     "logged": lambda a: a,
@@ -238,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
         summary["floor_loto"] = {}
         for fold, (train, test) in LOTO.items():
             cal = build_model(fold_specs[choose][fold])
-            tr = [f for f in by_name(flights, train) if f.name != SUSPECT]
+            tr = [f for f in by_name(flights, train) if not is_afar2023_suspect(f.name)]
             score = {fl: float(np.mean([localize(cal, f, floor_db=fl) for f in tr])) for fl in floors}
             best = min(score, key=score.get)
             summary["floor_loto"][fold] = {"train_mean_error_m": {str(k): v for k, v in score.items()},
@@ -264,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
             "model": spec,
             "config": choose,
             "fitted_on": GOOD,
-            "excluded": {SUSPECT: "suspect transmitter label (strong-RSS region ~148 m from it)"},
+            "excluded": {SUSPECT: AFAR2023_SUSPECT_NOTE},
             "folds": {fold: {"fitted_on": tr, "tested_on": te,
                              "model": loto_specs.get(fold)
                              or fit_config(CONFIGS[choose], by_name(flights, tr), **kw)[0]}

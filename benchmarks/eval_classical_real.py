@@ -15,10 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH
+from mission.importers.afar import AFAR2023_TRUTH, is_afar2023_suspect
 
 TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
-SUSPECT = "288_loc_3"
 
 VARIANTS = {
     "strongest": ("strongest", {}),
@@ -76,7 +75,7 @@ def main() -> None:
                 errs.append(localize_log(p, method=method, **kw).error_m)
             dt = (time.perf_counter() - t0) / len(logs)
             e = np.array(errs)
-            ok = np.array([n != SUSPECT for n, _ in logs])
+            ok = np.array([not is_afar2023_suspect(n) for n, _ in logs])
             print(
                 f"{name:24s}"
                 + "".join(f"{v:11.1f}" for v in e)

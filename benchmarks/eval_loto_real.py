@@ -30,15 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH
+from mission.importers.afar import AFAR2023_TRUTH, is_afar2023_suspect
 
-SUSPECT = "288_loc_3"
 FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the fold whose physics did not see this team
 
 
 def _row(name: str, errs: list[float], flights: list[str]) -> dict:
     e = np.array(errs)
-    ok = np.array([n != SUSPECT for n in flights])
+    ok = np.array([not is_afar2023_suspect(n) for n in flights])
     return {"method": name, "per_flight_m": dict(zip(flights, map(float, e), strict=True)),
             "mean6_m": float(e.mean()), "median6_m": float(np.median(e)),
             "mean5_m": float(e[ok].mean()), "median5_m": float(np.median(e[ok]))}
