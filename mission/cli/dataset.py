@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import argparse
 
-GENERATOR_NAMES = ("spiral", "lawnmower", "edge_sweep", "expanding_square", "random_waypoints")
-
 
 def _range(text: str) -> tuple[float, float]:
     """'LO,HI' or a single value -> (lo, hi)."""
@@ -69,7 +67,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--altitude", type=_range, help="cruise altitude range LO,HI metres")
     g.add_argument("--offset", type=_range, help="constant RSS offset range LO,HI dB")
     g.add_argument(
-        "--trajectories", help=f"comma list of generators drawn per flight ({', '.join(GENERATOR_NAMES)})"
+        "--trajectories", help="comma list of trajectory generators drawn per flight (e.g. spiral,lawnmower: the "
+        "names of a mission's trajectory.generator; an unknown one is refused with the list)"
     )
     g.add_argument("--random-params", action="store_true", help="random generator parameters per flight")
     g.add_argument("--truncate", type=_range, help="kept fraction of the cruise LO,HI (e.g. 0.5,1)")
@@ -94,13 +93,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def randomisation_from_args(args: argparse.Namespace):
     """The ``Randomisation`` the flags ask for (``--randomise`` first, single flags override it)."""
     from mission.localize.dataset import Randomisation
+    from mission.trajectory.generators import GENERATORS
 
     d: dict = {}
     if args.randomise:
         d = {
             "altitude_m": (20.0, 47.0),
             "offset_db": (-30.0, 30.0),
-            "trajectories": GENERATOR_NAMES,
+            "trajectories": tuple(GENERATORS),
             "random_params": True,
             "truncate": (0.5, 1.0),
             "patterns": ("dipole", "measured"),
@@ -144,13 +144,14 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.errors import InputError
     from mission.localize.dataset import DatasetConfig, check_config, generate_dataset
+    from mission.trajectory.generators import GENERATORS
 
     console = Console()
 
     for t in (args.trajectories or "").split(","):
-        if t.strip() and t.strip() not in GENERATOR_NAMES:
+        if t.strip() and t.strip() not in GENERATORS:
             raise InputError(
-                f"unknown generator {t.strip()!r} (expected {', '.join(GENERATOR_NAMES)})",
+                f"unknown generator {t.strip()!r} (expected {', '.join(GENERATORS)})",
                 field="--trajectories",
             )
     if args.workers < 1:
