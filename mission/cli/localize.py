@@ -1,8 +1,11 @@
 """Estimate the transmitter position from a flight log (ONNX network or classical estimators).
 
-Keeps the cruise part of the log, computes the features and runs the method.  Default method: the shipped
-model ``models/rfsl_default.onnx`` when present, else a model-based grid search with the calibrated ``afar``
-physics preset (``--physics`` / ``--physics-preset`` choose another).
+Keeps the cruise part of the log (mission legs, else the cruise height band) and runs the method.  Default
+method (``mission.localize.api.localize_log``): ``--model`` given -> that network; a real receiver's log ->
+``fusion`` (mean of the self-calibrating grid and ``models/rfsl_spiral_e2r.onnx``); a simulated log -> the
+shipped ``models/rfsl_default.onnx`` when present, else a grid search with the log's own simulation model.
+The grid's physics: ``--physics`` / ``--physics-preset``, by default the simulator's model for a simulated log
+and the calibrated ``afar`` preset for a real one.
 """
 
 from __future__ import annotations
@@ -18,19 +21,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--method",
         choices=["onnx", "strongest", "centroid", "grid", "selfcal", "fusion"],
-        help="localizer (default: shipped model if present, else grid)",
+        help="localizer (default: fusion for a real receiver's log; for a simulated log the shipped "
+        "models/rfsl_default.onnx if present, else grid)",
     )
     parser.add_argument(
         "--physics",
         default=None,
         metavar="NAME",
-        help="propagation model of the grid search (free-space, two-ray, e2r; default: the afar preset)",
+        help="propagation model of the grid search (free-space, two-ray, e2r; default: a simulated log's own "
+        "model, else the afar preset)",
     )
     parser.add_argument(
         "--physics-preset",
         default=None,
         metavar="NAME",
-        help="calibrated physics preset of the grid search (afar; the default when --physics is not given)",
+        help="calibrated physics preset of the grid search (afar; the default for a real log without --physics)",
     )
     parser.add_argument(
         "--tx-height",

@@ -40,7 +40,8 @@ OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warn
 
 
 def default_model_path() -> Path | None:
-    """The shipped default model if it exists: ``<repo>/models/`` or ``mission/models/`` (installed)."""
+    """``models/rfsl_default.onnx`` of a source checkout if it exists (``<repo>/models/``; also a copy placed by
+    hand in ``mission/models/``): pyproject ships no models, so an installed package alone has none."""
     import mission
 
     pkg = Path(mission.__file__).resolve().parent
