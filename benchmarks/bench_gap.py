@@ -69,11 +69,12 @@ def real(args: argparse.Namespace) -> int:
         return 2
     from rich.console import Console
 
-    from mission.gap.align import Flight, afar2023_flights
+    from mission.gap.align import afar2023_flights
     from mission.gap.candidates import select
     from mission.gap.diagnose import base_pipeline, diagnose
     from mission.gap.fit import FitConfig
     from mission.gap.report import print_report, summary, write_report
+    from mission.samples import FlightSamples
 
     c = Console(width=180)
     t_load = time.time()
@@ -82,8 +83,9 @@ def real(args: argparse.Namespace) -> int:
         base_fl = list(flights)
         while len(flights) < args.replicate:
             f = base_fl[len(flights) % len(base_fl)]
-            flights.append(Flight(f"{f.name}-copy{len(flights)}", f.t_s, f.rx_enu, f.attitude_rad, f.rss_db,
-                                  f.tx_enu + np.array([0.0, 0.0, 0.0]), dict(f.meta)))
+            flights.append(FlightSamples(name=f"{f.name}-copy{len(flights)}", t_s=f.t_s, enu_m=f.enu_m,
+                                         attitude_rad=f.attitude_rad, rss_dbm=f.rss_dbm,
+                                         tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]), meta=dict(f.meta)))
     n = sum(len(f) for f in flights)
     t0, cpu0 = time.time(), time.process_time()
     c.print(f"{len(flights)} flights, {n} samples, loaded in {t0 - t_load:.1f} s")

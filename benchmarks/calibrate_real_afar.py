@@ -59,11 +59,11 @@ ATT_VARIANTS = {
 
 
 def load_flights(min_height_m: float = 10.0):
-    """The six flights (``mission.gap.align.Flight``), cruise samples only."""
+    """The six flights (``mission.samples.FlightSamples``), cruise samples only."""
     from mission.gap.align import afar2023_flights
     from mission.localize.preprocess import cruise_mask
 
-    return [f.select(cruise_mask(f.rx_enu[:, 2]).mask) for f in afar2023_flights(MAT, min_height_m)]
+    return [f.select(cruise_mask(f.enu_m[:, 2]).mask) for f in afar2023_flights(MAT, min_height_m)]
 
 
 def by_name(flights, names):
@@ -127,14 +127,15 @@ def pooled(res: dict, names=GOOD) -> dict:
 
 def localize(model, f, att_variant: str = "logged", floor_db: float | None = None) -> float:
     from mission.geo import afar_field
-    from mission.localize.classical import FlightData, ModelGridSearch
+    from mission.localize.classical import ModelGridSearch
+    from mission.samples import FlightSamples
 
     fn = ATT_VARIANTS[att_variant]
     att = None if fn is None else fn(f.attitude_rad)
     est = ModelGridSearch(model, tx_height_m=1.5, area=afar_field().rover_area, floor_db=floor_db,
                           use_attitude=att is not None)
-    e = est.predict(FlightData(f.rx_enu, f.rss_db, att))
-    return float(np.hypot(e.x_m - f.tx_enu[0], e.y_m - f.tx_enu[1]))
+    e = est.predict(FlightSamples(enu_m=f.enu_m, rss_dbm=f.rss_dbm, attitude_rad=att))
+    return float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
 
 
 # ------------------------------------------------------------------------------------------------ main

@@ -31,7 +31,7 @@ MAT = SHARED / "data" / "afar2023" / "mat"
 
 
 def load(min_height_m: float = 10.0):
-    """The six flights as ``Flight`` objects (airborne samples only)."""
+    """The six flights as ``FlightSamples`` objects (airborne samples only)."""
     from mission.gap.align import afar2023_flights
 
     return afar2023_flights(MAT, min_height_m)
@@ -41,24 +41,25 @@ def suspect_288_loc3(flights) -> dict:
     """Where the strongest RSS of each loc-3 flight is, and where a free-space / e2r grid search puts the rover."""
     from mission.gap.diagnose import base_pipeline
     from mission.gap.pipeline import LocalizationModel
-    from mission.localize.classical import FlightData, ModelGridSearch
+    from mission.localize.classical import ModelGridSearch
+    from mission.samples import FlightSamples
 
     out = {}
     for f in flights:
         if not f.name.endswith("loc3"):
             continue
         k = 31
-        sm = np.convolve(f.rss_db, np.ones(k) / k, mode="same")
+        sm = np.convolve(f.rss_dbm, np.ones(k) / k, mode="same")
         i = int(np.argmax(sm))
-        row = {"strongest_rss_enu": f.rx_enu[i, :2].round(1).tolist(),
-               "strongest_to_label_m": float(np.hypot(*(f.rx_enu[i, :2] - f.tx_enu[:2]))),
-               "label_enu": f.tx_enu[:2].round(1).tolist()}
+        row = {"strongest_rss_enu": f.enu_m[i, :2].round(1).tolist(),
+               "strongest_to_label_m": float(np.hypot(*(f.enu_m[i, :2] - f.tx_enu_m[:2]))),
+               "label_enu": f.tx_enu_m[:2].round(1).tolist()}
         for name, pat in (("free-space", "isotropic"), ("e2r", "dipole")):
             est = ModelGridSearch(LocalizationModel(base_pipeline(name, pat)), tx_height_m=1.5,
                                   area=(-80.0, -80.0, 380.0, 420.0), step_m=10.0, loss="soft_l1")
-            e = est.predict(FlightData(f.rx_enu, f.rss_db, f.attitude_rad))
+            e = est.predict(FlightSamples(enu_m=f.enu_m, rss_dbm=f.rss_dbm, attitude_rad=f.attitude_rad))
             row[f"grid_{name}_enu"] = [round(e.x_m, 1), round(e.y_m, 1)]
-            row[f"grid_{name}_to_label_m"] = float(np.hypot(e.x_m - f.tx_enu[0], e.y_m - f.tx_enu[1]))
+            row[f"grid_{name}_to_label_m"] = float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
             row[f"grid_{name}_rms_db"] = float(e.extras.get("cost_rms_db", np.nan)) if hasattr(e, "extras") else None
         out[f.name] = row
     return out

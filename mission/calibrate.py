@@ -21,9 +21,9 @@ import numpy as np
 from scipy.optimize import minimize
 
 from mission.errors import InputError
-from mission.gap.align import Flight
 from mission.physics.presets import build_model
 from mission.robust import offset_residual, per_sample_loss
+from mission.samples import FlightSamples
 
 F_SCALE_DB = 6.0
 LOSS = "soft_l1"
@@ -96,24 +96,24 @@ def spec_with(cfg: dict, theta: dict[str, float]) -> dict:
 AttitudeFn = Callable[[np.ndarray], np.ndarray | None]
 
 
-def predict(model, f: Flight, idx=None, attitude: AttitudeFn | None = None) -> np.ndarray:
+def predict(model, f: FlightSamples, idx=None, attitude: AttitudeFn | None = None) -> np.ndarray:
     """Model RSS along flight ``f`` (optionally at samples ``idx``) with its logged attitude, or with
     ``attitude(logged)`` (an attitude-convention experiment; None from it = no attitude)."""
     sl = slice(None) if idx is None else idx
     att = f.attitude_rad[sl] if attitude is None else attitude(f.attitude_rad[sl])
-    return np.asarray(model.rss_dbm(f.tx_enu, f.rx_enu[sl], att), dtype=float)
+    return np.asarray(model.rss_dbm(f.tx_enu_m, f.enu_m[sl], att), dtype=float)
 
 
-def gap_stats(model, f: Flight, attitude: AttitudeFn | None = None) -> dict:
+def gap_stats(model, f: FlightSamples, attitude: AttitudeFn | None = None) -> dict:
     """Held-out fit of ``model`` on flight ``f``: |measured - model - offset| median / p90, rms, soft-L1."""
-    r = offset_residual(f.rss_db, predict(model, f, None, attitude), loss=LOSS, f_scale=F_SCALE_DB)
+    r = offset_residual(f.rss_dbm, predict(model, f, None, attitude), loss=LOSS, f_scale=F_SCALE_DB)
     a = np.abs(r)
     return {"median_abs_db": float(np.median(a)), "p90_abs_db": float(np.quantile(a, 0.9)),
             "rms_db": float(np.sqrt(np.mean(r * r))),
             "soft_l1": float(np.mean(per_sample_loss(r, LOSS, F_SCALE_DB))), "n": int(r.size)}
 
 
-def fit_config(cfg: dict, flights: Sequence[Flight], max_samples: int = 1200, max_evals: int = 80,
+def fit_config(cfg: dict, flights: Sequence[FlightSamples], max_samples: int = 1200, max_evals: int = 80,
                attitude: AttitudeFn | None = None) -> tuple[dict, float]:
     """Fit the free parameters of ``cfg`` on ``flights`` (per-flight offsets, soft-L1) -> (spec, train loss)."""
     idx = [np.arange(0, len(f), max(1, math.ceil(len(f) / max_samples))) for f in flights]
@@ -124,7 +124,7 @@ def fit_config(cfg: dict, flights: Sequence[Flight], max_samples: int = 1200, ma
         m = build_model(spec_with(cfg, th))
         tot, n = 0.0, 0
         for f, i in zip(flights, idx, strict=True):
-            r = offset_residual(f.rss_db[i], predict(m, f, i, attitude), loss=LOSS, f_scale=F_SCALE_DB)
+            r = offset_residual(f.rss_dbm[i], predict(m, f, i, attitude), loss=LOSS, f_scale=F_SCALE_DB)
             tot += float(per_sample_loss(r, LOSS, F_SCALE_DB).sum())
             n += r.size
         return tot / max(n, 1)
@@ -154,7 +154,7 @@ def pooled(per_flight: dict[str, dict]) -> dict[str, float]:
             for s in ("median_abs_db", "p90_abs_db", "rms_db", "soft_l1")}
 
 
-def leave_one_group_out(cfg: dict, flights: Sequence[Flight], groups: Sequence[str], **kw) -> dict:
+def leave_one_group_out(cfg: dict, flights: Sequence[FlightSamples], groups: Sequence[str], **kw) -> dict:
     """Fit on all groups but one, score the held-out group's flights; -> {"folds", "per_flight", "pooled"}."""
     folds, per_flight = {}, {}
     for g in sorted(set(groups)):
@@ -171,7 +171,7 @@ def leave_one_group_out(cfg: dict, flights: Sequence[Flight], groups: Sequence[s
     return {"folds": folds, "per_flight": per_flight, "pooled": pooled(per_flight)}
 
 
-def calibrate(flights: Sequence[Flight], groups: Sequence[str], configs: Sequence[str] = DEFAULT_CONFIGS,
+def calibrate(flights: Sequence[FlightSamples], groups: Sequence[str], configs: Sequence[str] = DEFAULT_CONFIGS,
               progress: Callable[[str], None] | None = None, **kw) -> dict:
     """Held-out comparison of ``configs`` and the chosen one refitted on all flights (``preset_record`` input)."""
     if len(flights) != len(groups):
@@ -186,7 +186,7 @@ def calibrate(flights: Sequence[Flight], groups: Sequence[str], configs: Sequenc
     return {"configs": rows, "chosen": choose, "model": spec, "train_soft_l1": train_loss}
 
 
-def preset_record(name: str, result: dict, flights: Sequence[Flight], groups: Sequence[str], command: str,
+def preset_record(name: str, result: dict, flights: Sequence[FlightSamples], groups: Sequence[str], command: str,
                   data: str = "") -> dict:
     """A preset file (``mission.physics.presets`` record): model, what it was fitted on, folds, held-out figures."""
     ch = result["configs"][result["chosen"]]

@@ -17,6 +17,7 @@ import numpy as np
 
 from mission.geo import Origin
 from mission.physics.shadowing import shadowing_field  # noqa: F401  (its home; re-exported)
+from mission.samples import FlightSamples
 from mission.trajectory.kinematics import FlightProfile, Kinematics, attitude_from_motion, plan_profile
 
 
@@ -35,21 +36,18 @@ class SimConfig:
 
 
 @dataclass
-class SimulatedFlight:
-    """Per-sample arrays of one simulated flight (ENU metres, radians, dBm)."""
+class SimulatedFlight(FlightSamples):
+    """A simulated flight: its ``FlightSamples`` (with the true transmitter and the phase) and the flight profile
+    it was sampled from (for the phase, the path length, the duration)."""
 
-    t_s: np.ndarray
-    enu: np.ndarray
-    attitude_rad: np.ndarray
-    rss_dbm: np.ndarray
-    profile: FlightProfile
+    profile: FlightProfile | None = None
 
     def log_columns(self, origin: Origin) -> dict[str, np.ndarray]:
         """Columns of the flight-log CSV (see ``mission.flightlog``)."""
-        lat, lon, alt = origin.to_geodetic(self.enu)
+        lat, lon, alt = origin.to_geodetic(self.enu_m)
         att = np.rad2deg(self.attitude_rad)
         phase, item = path_phases(self.profile, self.t_s)
-        return {"t_s": self.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": self.enu[:, 2],
+        return {"t_s": self.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": self.enu_m[:, 2],
                 "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": self.rss_dbm,
                 "phase": phase, "mission_item": item}
 
@@ -116,9 +114,11 @@ def simulate_flight(waypoints_enu: np.ndarray, tx_enu: np.ndarray, model, cfg: S
     cfg = cfg or SimConfig()
     rng = rng if rng is not None else np.random.default_rng(0)
     t, pos, att, profile = fly_path(waypoints_enu, cfg, rng, profile)
-    rss = np.asarray(model.rss_dbm(np.asarray(tx_enu, dtype=float), pos, att), dtype=float)
+    tx = np.asarray(tx_enu, dtype=float)
+    rss = np.asarray(model.rss_dbm(tx, pos, att), dtype=float)
     rss = rss + cfg.rss_offset_db + rng.normal(0.0, cfg.noise_db, size=rss.shape)
     if cfg.shadowing_db > 0:  # drawn last, so flights without shadowing keep their bytes
         rss = rss + shadowing_field(pos[:, :2], cfg.shadowing_db, cfg.shadowing_corr_m, rng)
-    return SimulatedFlight(t, pos, att, rss, profile)
+    return SimulatedFlight(enu_m=pos, rss_dbm=rss, attitude_rad=att, t_s=t, phase=path_phases(profile, t)[0],
+                           tx_enu_m=tx, profile=profile)
 

@@ -219,14 +219,15 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
 
 def diagnose_case(effect: str, seed: int, **kw) -> dict:
     """Generate one case and run the diagnosis (``mission.gap.structure.identify``) on it."""
-    from mission.gap.align import Flight
     from mission.gap.candidates import library
     from mission.gap.fit import FitConfig
     from mission.gap.pipeline import Pipeline
     from mission.physics import Attitude, make_model
+    from mission.samples import FlightSamples
 
     raw, truth = make_case(effect, seed, **kw)
-    flights = [Flight(f"synth{k}", f["t"], f["pos"], f["att"], f["rss"], f["tx"]) for k, f in enumerate(raw)]
+    flights = [FlightSamples(name=f"synth{k}", t_s=f["t"], enu_m=f["pos"], attitude_rad=f["att"],
+                             rss_dbm=f["rss"], tx_enu_m=f["tx"]) for k, f in enumerate(raw)]
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     cfg = FitConfig(seed=seed, fit_max_samples=1200, workers=1)
     from mission.gap.structure import identify

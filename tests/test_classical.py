@@ -55,7 +55,7 @@ def test_grid_search_with_physics_on_simulated_flight():
 def test_block_average_and_cruise():
     enu, rss, att = synthetic_flight(n=1000)
     f = block_average(as_flight((enu, rss, att)), 100)
-    assert f.rss.shape == (100,) and f.enu.shape == (100, 3) and f.attitude.shape == (100, 3)
+    assert f.rss_dbm.shape == (100,) and f.enu_m.shape == (100, 3) and f.attitude_rad.shape == (100, 3)
     h = np.concatenate([np.linspace(0, 30, 100), np.full(800, 30.0), np.linspace(30, 0, 100)])
     sel = cruise_mask(h)
     assert 800 <= sel.n_kept < 900 and sel.cruise_alt_m == pytest.approx(30.0)

@@ -126,10 +126,10 @@ def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
 
     from mission.localize.dataset import FlightSimulator
 
-    base = FlightSimulator(_cfg(repo_dir)).draw(3)
-    same = FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0))).draw(3)
+    base = FlightSimulator(_cfg(repo_dir)).draw(3).samples
+    same = FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0))).draw(3).samples
     assert base.rss_dbm.tobytes() == same.rss_dbm.tobytes()
-    assert np.array_equal(base.tx_enu, same.tx_enu)
+    assert np.array_equal(base.tx_enu_m, same.tx_enu_m)
 
 
 def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
@@ -139,10 +139,10 @@ def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
 
     r = replace(FAST, fixed_heading=1.0, speed_mps=(3.0, 3.0), shadowing_db=(6.0, 6.0), shadowing_corr_m=(20, 20))
     fd = FlightSimulator(_cfg(repo_dir, randomisation=r)).draw(2)
-    yaw = np.rad2deg(fd.attitude_rad[:, 2])
+    yaw = np.rad2deg(fd.samples.attitude_rad[:, 2])
     assert np.ptp(np.rad2deg(np.angle(np.exp(1j * np.deg2rad(yaw - fd.params["fixed_heading_deg"]))))) <= 10.01
     assert fd.params["speed_mps"] == 3.0 and fd.params["shadowing_db"] == 6.0
-    step = np.linalg.norm(np.diff(fd.enu[:, :2], axis=0), axis=1) / 0.03
+    step = np.linalg.norm(np.diff(fd.samples.enu_m[:, :2], axis=0), axis=1) / 0.03
     assert step.max() <= 3.0 + 1e-6
 
 
@@ -161,10 +161,11 @@ def test_physics_preset_fold_is_the_simulated_model(repo_dir):
     assert fd.params["rx_heading_deg"] != spec["rx_heading_deg"]
     assert abs(fd.params["rx_heading_deg"] - spec["rx_heading_deg"]) <= 5.0
     model = build_model({**spec, "rx_heading_deg": fd.params["rx_heading_deg"]})
-    want = model.rss_dbm(fd.tx_enu, fd.enu, fd.attitude_rad)
-    assert np.allclose(fd.rss_dbm, want, atol=1e-3)
-    other = build_model(load_preset("afar:fit288")).rss_dbm(fd.tx_enu, fd.enu, fd.attitude_rad)
-    assert not np.allclose(fd.rss_dbm, other, atol=1e-3)
+    s = fd.samples
+    want = model.rss_dbm(s.tx_enu_m, s.enu_m, s.attitude_rad)
+    assert np.allclose(s.rss_dbm, want, atol=1e-3)
+    other = build_model(load_preset("afar:fit288")).rss_dbm(s.tx_enu_m, s.enu_m, s.attitude_rad)
+    assert not np.allclose(s.rss_dbm, other, atol=1e-3)
 
 
 @pytest.mark.parametrize(

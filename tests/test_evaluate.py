@@ -43,8 +43,8 @@ def test_evaluate_sim_classical(tmp_path, repo_dir):
     # 216 m); the centroid lies in the path's convex hull, so it is no farther than the farthest sample.
     sim = FlightSimulator(dataset_config(read_manifest(tmp_path / "ds")))
     for i in range(3):
-        fd = sim.draw(i)
-        dist = np.hypot(fd.enu[:, 0] - fd.tx_enu[0], fd.enu[:, 1] - fd.tx_enu[1])
+        fs = sim.draw(i).samples
+        dist = np.hypot(fs.enu_m[:, 0] - fs.tx_enu_m[0], fs.enu_m[:, 1] - fs.tx_enu_m[1])
         assert dist.min() - 1.0 <= rows[0].errors[i] <= dist.max() + 1.0
         assert rows[1].errors[i] <= dist.max() + 1.0
 

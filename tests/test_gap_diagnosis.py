@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 from _figures import assert_png_drawn
 
-from mission.gap.align import Flight, align
+from mission.gap.align import align
 from mission.gap.fit import FitConfig, make_folds, offset_residual
 from mission.gap.selftest import WITHHELD_ALL, run_case
 from mission.gap.stats import autocorrelation, block_length, bootstrap_mean, summarize
+from mission.samples import FlightSamples
 
 
 def ar1(n: int, phi: float, rng: np.random.Generator) -> np.ndarray:
@@ -60,7 +61,8 @@ def test_alignment_geometry() -> None:
     t = np.arange(5) * 0.1
     rx = np.tile([0.0, 100.0, 30.0], (5, 1))
     att = np.zeros((5, 3))
-    f = Flight("x", t, rx, att, np.zeros(5), np.array([0.0, 0.0, 1.5]))
+    f = FlightSamples(name="x", t_s=t, enu_m=rx, attitude_rad=att, rss_dbm=np.zeros(5),
+                      tx_enu_m=np.array([0.0, 0.0, 1.5]))
     a = align(f)
     assert a.d_h[0] == pytest.approx(100.0)
     assert np.rad2deg(a.az_b[0]) == pytest.approx(180.0)
@@ -71,7 +73,8 @@ def test_alignment_geometry() -> None:
 
 def test_folds_are_contiguous_and_complementary() -> None:
     t = np.arange(1000) * 0.1
-    f = Flight("x", t, np.zeros((1000, 3)), np.zeros((1000, 3)), np.zeros(1000), np.zeros(3))
+    f = FlightSamples(name="x", t_s=t, enu_m=np.zeros((1000, 3)), attitude_rad=np.zeros((1000, 3)),
+                      rss_dbm=np.zeros(1000), tx_enu_m=np.zeros(3))
     folds = make_folds([f, f], FitConfig(n_chunks=8))
     assert len(folds) == 2
     a, b = folds[0].test[0], folds[1].test[0]
@@ -109,11 +112,11 @@ def _simulated_log(tmp_path, withheld: str | None, seed: int, dt_s: float):
     _, _, flights = simulate_case(withheld, seed, n_flights=1, dt_s=dt_s, max_duration_s=200.0)
     f = flights[0]
     origin = afar_field().origin
-    lat, lon, alt = origin.to_geodetic(f.rx_enu)
+    lat, lon, alt = origin.to_geodetic(f.enu_m)
     att = np.rad2deg(f.attitude_rad)
-    cols = {"t_s": f.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": f.rx_enu[:, 2],
-            "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": f.rss_db}
-    meta = make_meta(origin, {"kind": "sim"}, {"x_m": f.tx_enu[0], "y_m": f.tx_enu[1], "z_m": f.tx_enu[2]})
+    cols = {"t_s": f.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": f.enu_m[:, 2],
+            "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": f.rss_dbm}
+    meta = make_meta(origin, {"kind": "sim"}, {"x_m": f.tx_enu_m[0], "y_m": f.tx_enu_m[1], "z_m": f.tx_enu_m[2]})
     return write_flight_log(tmp_path / "f.csv", cols, meta)
 
 
@@ -181,14 +184,14 @@ def test_real_afar_e2r_gap(shared_dir) -> None:
         pytest.skip("AFAR MAT file absent")
     res = convert_afar_mat(mat, (35.72806709, -78.69730398))
     f = flight_from_log(res.log, name="328-1")
-    f = f.select(f.rx_enu[:, 2] > 10.0)
+    f = f.select(f.enu_m[:, 2] > 10.0)
     g = model_gap(base_pipeline("e2r", "dipole"), [f], FitConfig(), "e2r")
     fs = model_gap(base_pipeline("free-space", "isotropic"), [f], FitConfig(), "fs")
     assert g.pooled["n"] == len(f) > 15000
     assert g.pooled["p90_abs_db"] == pytest.approx(24.5, abs=0.5)
     assert fs.pooled["p90_abs_db"] == pytest.approx(21.6, abs=0.5)
     assert g.pooled["p90_abs_db"] > fs.pooled["p90_abs_db"] + 2.0
-    f.rss_db = f.rss_db + 37.0  # uncalibrated receiver: a constant offset changes nothing
+    f.rss_dbm = f.rss_dbm + 37.0  # uncalibrated receiver: a constant offset changes nothing
     g2 = model_gap(base_pipeline("e2r", "dipole"), [f], FitConfig(), "e2r")
     assert g2.pooled["p90_abs_db"] == pytest.approx(g.pooled["p90_abs_db"], abs=1e-6)
 

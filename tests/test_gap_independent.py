@@ -63,14 +63,15 @@ def test_variogram_separates_correlated_shadowing_from_white_noise() -> None:
 
 def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
     """A pure 3-lobe ripple in body azimuth is drawn back by rx_gain_map (corr > 0.95, amplitude within 20 %)."""
-    from mission.gap.align import Flight
     from mission.gap.freeform import fit_freeform, link_of, map_variables
     from mission.gap.pipeline import Pipeline
     from mission.physics import Attitude, make_model
+    from mission.samples import FlightSamples
 
     raw, _ = make_case("none", 6, n_flights=1, duration=300.0)
     f0 = raw[0]
-    fl = Flight("x", f0["t"], f0["pos"], f0["att"], np.zeros(len(f0["t"])), f0["tx"])
+    fl = FlightSamples(name="x", t_s=f0["t"], enu_m=f0["pos"], attitude_rad=f0["att"],
+                       rss_dbm=np.zeros(len(f0["t"])), tx_enu_m=f0["tx"])
     pipe = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     az, _ = map_variables("rx_gain_map", link_of(pipe, fl, np.arange(len(fl))))
     truth = 2.0 * np.cos(3 * (az - 1.0))

@@ -136,8 +136,8 @@ def _cruise_flight(team: int, loc: int):
 
     res = convert_afar_mat(MAT / f"results_useful_ori_exp_{team}_loc_{loc}.mat", TRUTH[loc])
     f = flight_from_log(res.log, name=f"{team}-loc{loc}")
-    f = f.select(f.rx_enu[:, 2] > 10.0)
-    return f.select(cruise_mask(f.rx_enu[:, 2]).mask)
+    f = f.select(f.enu_m[:, 2] > 10.0)
+    return f.select(cruise_mask(f.enu_m[:, 2]).mask)
 
 
 @pytest.mark.skipif(not MAT.is_dir(), reason="../shared (real AFAR data) not present")
@@ -154,8 +154,8 @@ def test_calibrated_model_beats_free_space_on_held_out_team_288():
     for loc in (1, 2):
         f = _cruise_flight(288, loc)
         for m, out in ((cal, r_cal), (fs, r_fs)):
-            p = np.asarray(m.rss_dbm(f.tx_enu, f.rx_enu, f.attitude_rad), dtype=float)
-            out.append(np.abs(offset_residual(f.rss_db, p, loss="soft_l1")))
+            p = np.asarray(m.rss_dbm(f.tx_enu_m, f.enu_m, f.attitude_rad), dtype=float)
+            out.append(np.abs(offset_residual(f.rss_dbm, p, loss="soft_l1")))
     a_cal, a_fs = np.concatenate(r_cal), np.concatenate(r_fs)
     assert np.quantile(a_cal, 0.9) < np.quantile(a_fs, 0.9) - 1.0
     assert np.median(a_cal) < np.median(a_fs)

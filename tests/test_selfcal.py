@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mission.localize.classical import FlightData
 from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses, cell_average
 from mission.localize.uncertainty import Posterior, hpd_regions, region_covers
+from mission.samples import FlightSamples
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
 
@@ -39,7 +39,7 @@ def test_noise_free_free_space_is_found_exactly_with_any_offset() -> None:
     rx = lawnmower()
     tx = np.array([123.0, 77.0, 1.5])
     for off in (-90.0, 13.0):
-        f = FlightData(rx, free_space_rss(tx, rx, off), np.zeros_like(rx))
+        f = FlightSamples(enu_m=rx, rss_dbm=free_space_rss(tx, rx, off), attitude_rad=np.zeros_like(rx))
         est = SelfCalibratingGrid(area=(-50, -50, 250, 250), hypotheses=("isotropic",)).predict(f)
         assert np.hypot(est.x_m - tx[0], est.y_m - tx[1]) < 1.01  # refine step 1 m
         assert est.extras["residual_rms_db"] < 0.05
@@ -61,21 +61,21 @@ def test_antenna_heading_is_profiled_out() -> None:
     g = rm_wb1_dn().gain_dbi(el_a, az_a)
     rss = free_space_rss(tx, rx) + g
     att = np.column_stack([np.zeros(len(rx)), np.zeros(len(rx)), yaw])
-    est = SelfCalibratingGrid(area=(-50, -50, 250, 250)).predict(FlightData(rx, rss, att))
+    est = SelfCalibratingGrid(area=(-50, -50, 250, 250)).predict(FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att))
     assert "upside down heading 120" in est.extras["antenna"]
     assert np.hypot(est.x_m - tx[0], est.y_m - tx[1]) < 3.0
     iso = SelfCalibratingGrid(area=(-50, -50, 250, 250), hypotheses=("isotropic",)).predict(
-        FlightData(rx, rss, att))
+        FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att))
     assert iso.extras["residual_rms_db"] > 3 * est.extras["residual_rms_db"]
 
 
 def test_cells_average_repeated_passes_and_circular_yaw() -> None:
     rx = np.array([[1.0, 1.0, 30.0], [2.0, 2.0, 30.0], [12.0, 1.0, 30.0]])
     att = np.radians([[0, 0, 359.0], [0, 0, 1.0], [0, 0, 90.0]])
-    c = cell_average(FlightData(rx, np.array([-50.0, -52.0, -60.0]), att), 5.0)
+    c = cell_average(FlightSamples(enu_m=rx, rss_dbm=np.array([-50.0, -52.0, -60.0]), attitude_rad=att), 5.0)
     assert len(c) == 2
     i = int(np.argmax(c.count))
-    assert c.count[i] == 2 and c.rss_db[i] == pytest.approx(-51.0)
+    assert c.count[i] == 2 and c.rss_dbm[i] == pytest.approx(-51.0)
     assert np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(0.0, abs=1e-6) or \
         np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(360.0, abs=1e-6)
     assert c.area_m2 == 50.0
@@ -116,7 +116,7 @@ def test_regions_cover_truth_on_noisy_flights_at_about_the_nominal_rate() -> Non
         tx = np.array([rng.uniform(0, 200), rng.uniform(0, 200), 1.5])
         rss = free_space_rss(tx, rx) + rng.normal(0, 6.0, len(rx))
         est = SelfCalibratingGrid(area=(-50, -50, 250, 250), hypotheses=("isotropic",)).predict(
-            FlightData(rx, rss, None))
+            FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=None))
         cov50 += region_covers(est, tx[0], tx[1], 0.5)
         cov90 += region_covers(est, tx[0], tx[1], 0.9)
     assert cov90 >= 9 and cov50 <= cov90
@@ -126,11 +126,11 @@ def test_outside_flown_area_is_said() -> None:
     rx = lawnmower(x1=100.0, y1=100.0, legs=6)
     tx = np.array([50.0, 190.0, 1.5])
     est = SelfCalibratingGrid(area=(-20, -20, 220, 220), hypotheses=("isotropic",)).predict(
-        FlightData(rx, free_space_rss(tx, rx), None))
+        FlightSamples(enu_m=rx, rss_dbm=free_space_rss(tx, rx), attitude_rad=None))
     assert est.extras["p_outside_flown_area"] > 0.5
     assert "outside the flown area" in est.extras["note"]
     inside = SelfCalibratingGrid(area=(-20, -20, 220, 220), hypotheses=("isotropic",)).predict(
-        FlightData(rx, free_space_rss(np.array([50.0, 50.0, 1.5]), rx), None))
+        FlightSamples(enu_m=rx, rss_dbm=free_space_rss(np.array([50.0, 50.0, 1.5]), rx), attitude_rad=None))
     assert inside.extras["p_outside_flown_area"] < 0.2 and "note" not in inside.extras
 
 

@@ -48,7 +48,7 @@ def test_noise_free_rss_equals_model_at_logged_geometry(spiral):
     tx = np.array([120.0, 180.0, 1.5])
     model = make_model("e2r")
     f = simulate_flight(spiral.waypoints_enu(), tx, model, cfg, np.random.default_rng(2))
-    again = model.rss_dbm(tx, f.enu, f.attitude_rad)
+    again = model.rss_dbm(tx, f.enu_m, f.attitude_rad)
     assert np.max(np.abs(again - f.rss_dbm)) < 1e-9
     # noise is zero-mean with the configured standard deviation
     g = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(noise_db=1.0), np.random.default_rng(2))
@@ -65,8 +65,8 @@ def test_noise_free_rss_equals_closed_form(spiral, name):
                         np.random.default_rng(3))
     lam = 299_792_458.0 / 3.32e9
     k = 2.0 * np.pi / lam
-    h_t, h_r = tx[2], f.enu[:, 2]
-    d = np.hypot(f.enu[:, 0] - tx[0], f.enu[:, 1] - tx[1])
+    h_t, h_r = tx[2], f.enu_m[:, 2]
+    d = np.hypot(f.enu_m[:, 0] - tx[0], f.enu_m[:, 1] - tx[1])
     d_los, d_ref = np.hypot(d, h_r - h_t), np.hypot(d, h_r + h_t)
 
     def dipole(sin_el: np.ndarray) -> np.ndarray:  # G_0 (cos(pi/2 sin el) / cos el)^2, floor -40 dBi
@@ -87,7 +87,7 @@ def test_strongest_sample_lies_near_the_transmitter(spiral):
     tx = np.array([150.0, 150.0, 1.5])
     f = simulate_flight(spiral.waypoints_enu(), tx, make_model("free-space", pattern="isotropic"),
                         SimConfig(noise_db=0.0, attitude_perturbation_deg=0.0), np.random.default_rng(0))
-    best = f.enu[np.argmax(f.rss_dbm)]
+    best = f.enu_m[np.argmax(f.rss_dbm)]
     # the spiral's rings are ~20 m apart: its closest pass is within half that of any point of the overlap
     assert np.linalg.norm(best[:2] - tx[:2]) < 15.0
 

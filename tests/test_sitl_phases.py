@@ -43,8 +43,8 @@ def test_simulated_log_has_phases_in_flight_order(tmp_path):
     assert item[mission].min() == 0 and item[mission].max() == len(spec.waypoints_enu()) - 1
     assert np.all(np.diff(item[mission]) >= 0)
     # cruise height throughout the mission and the return; on the ground at the ends
-    assert np.all(np.abs(f.enu[mission | (phase == "return"), 2] - 30.0) < 0.5)
-    assert f.enu[0, 2] < 0.1 and f.enu[-1, 2] < 0.1
+    assert np.all(np.abs(f.enu_m[mission | (phase == "return"), 2] - 30.0) < 0.5)
+    assert f.enu_m[0, 2] < 0.1 and f.enu_m[-1, 2] < 0.1
     p = write_flight_log(tmp_path / "sim.csv", cols, make_meta(spec.field.origin, {"kind": "sim"}))
     log = read_flight_log(p)
     assert log.columns["phase"].tolist() == phase.tolist()

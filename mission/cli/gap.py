@@ -56,7 +56,7 @@ def _parse_latlon(s: str):
 
 
 def load_flights(paths: list[str], truths: list[str] | None, height: float):
-    """Flight logs -> ``Flight`` objects with their transmitter truth in each log's ENU frame."""
+    """Flight logs -> ``FlightSamples`` objects with their transmitter truth in each log's ENU frame."""
     from mission.cli.main import print_notes
     from mission.errors import InputError
     from mission.flightlog import read_flight_log

@@ -8,34 +8,14 @@ once, vectorised, keeps the diagnosis fast and makes the breakdown and the effec
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from mission.physics.geometry import bearing, body_angles, enu_to_ned
+from mission.samples import FlightSamples
 
 PHASES = ("climb", "cruise", "turn", "descent")
-
-
-@dataclass
-class Flight:
-    """One flight ready for diagnosis: times, UAV positions/attitudes (ENU m, rad), measured RSS, truth."""
-
-    name: str
-    t_s: np.ndarray
-    rx_enu: np.ndarray
-    attitude_rad: np.ndarray
-    rss_db: np.ndarray
-    tx_enu: np.ndarray
-    meta: dict = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.t_s)
-
-    def select(self, mask: np.ndarray) -> Flight:
-        """The samples where ``mask`` holds (times stay absolute, so time offsets still interpolate)."""
-        return Flight(self.name, self.t_s[mask], self.rx_enu[mask], self.attitude_rad[mask],
-                      self.rss_db[mask], self.tx_enu, dict(self.meta))
 
 
 @dataclass
@@ -90,10 +70,10 @@ def flight_phase(t_s: np.ndarray, rx_enu: np.ndarray, yaw_rad: np.ndarray, vz_th
     return phase
 
 
-def align(flight: Flight) -> Alignment:
-    """Compute the per-sample geometry of ``flight`` (vectorised)."""
-    rx = flight.rx_enu
-    tx = np.asarray(flight.tx_enu, dtype=float)
+def align(flight: FlightSamples) -> Alignment:
+    """Compute the per-sample geometry of ``flight`` (vectorised; it needs the truth and the attitude)."""
+    rx = flight.enu_m
+    tx = np.asarray(flight.tx_enu_m, dtype=float)
     att = flight.attitude_rad
     d = tx[None, :] - rx
     d_h = np.hypot(d[:, 0], d[:, 1])
@@ -107,27 +87,25 @@ def align(flight: Flight) -> Alignment:
     return Alignment(d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, phase, rx[:, 0], rx[:, 1], rx[:, 2])
 
 
-def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = None) -> Flight:
-    """A ``Flight`` from a ``mission.flightlog.FlightLog`` (truth from the sidecar unless given)."""
+def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = None) -> FlightSamples:
+    """A ``mission.flightlog.FlightLog``'s samples ready for diagnosis: truth from the sidecar unless given,
+    attitude required (NaN read as 0), samples without RSS dropped, named after the file's stem."""
     from mission.errors import InputError
 
     src = str(log.path) if log.path is not None else (name or "log")
     tx = tx_enu if tx_enu is not None else log.truth_enu
     if tx is None:
         raise InputError("no transmitter truth: give --truth LAT,LON or a sidecar with 'truth'", source=src)
-    att = log.attitude_rad
-    if att is None:
+    s = log.samples()
+    if s.attitude_rad is None:
         raise InputError("the log has no attitude (roll/pitch/yaw); the gap diagnosis needs it", source=src)
-    att = np.where(np.isnan(att), 0.0, att)
-    rss = np.asarray(log["rss_dbm"], dtype=float)
-    ok = np.isfinite(rss)
     nm = name or (log.path.stem if log.path is not None else "flight")
-    f = Flight(nm, np.asarray(log["t_s"], dtype=float), log.enu(), att, rss, np.asarray(tx, dtype=float),
-               dict(log.meta))
-    return f.select(ok)
+    f = replace(s, attitude_rad=np.where(np.isnan(s.attitude_rad), 0.0, s.attitude_rad),
+                tx_enu_m=np.asarray(tx, dtype=float), name=nm)
+    return f.select(np.isfinite(f.rss_dbm))
 
 
-def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[Flight]:
+def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[FlightSamples]:
     """The six AFAR 2023 challenge flights (teams 288, 328; rover locations 1-3) with their rover truth,
     airborne samples only; named ``<team>-loc<n>``.  Used by the real-flight benchmark scripts."""
     from pathlib import Path
@@ -139,5 +117,5 @@ def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[Flight]:
         for loc in (1, 2, 3):
             res = convert_afar_mat(Path(mat_dir) / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc])
             f = flight_from_log(res.log, name=f"{team}-loc{loc}")
-            out.append(f.select(f.rx_enu[:, 2] > min_height_m))
+            out.append(f.select(f.enu_m[:, 2] > min_height_m))
     return out

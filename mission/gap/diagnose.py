@@ -15,13 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import PHASES, Alignment, Flight, align
+from mission.gap.align import PHASES, Alignment, align
 from mission.gap.candidates import Candidate, describe_params
 from mission.gap.fit import FitConfig, Rung, _pooled, ladder, offset_residual
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
 from mission.physics import make_model
 from mission.physics.propagation import MODEL_NAMES
+from mission.samples import FlightSamples
 
 REFERENCE_MODELS = MODEL_NAMES  # every named model is a reference
 
@@ -55,7 +56,7 @@ class ModelGap:
 class Diagnosis:
     """Everything the report shows."""
 
-    flights: list[Flight]
+    flights: list[FlightSamples]
     alignments: list[Alignment]
     base_label: str
     gaps: list[ModelGap]
@@ -69,12 +70,12 @@ class Diagnosis:
     footprints: dict[str, Any] = field(default_factory=dict)  # per added rung: size (dB) and where it acts
 
 
-def model_gap(pipe: Pipeline, flights: Sequence[Flight], cfg: FitConfig, name: str) -> ModelGap:
+def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, name: str) -> ModelGap:
     """Gap of ``pipe`` on all samples with the free constants fitted per flight."""
     res = []
     per = {}
     for f in flights:
-        r = offset_residual(f.rss_db, pipe.predict(f), cfg.slope, "l2")
+        r = offset_residual(f.rss_dbm, pipe.predict(f), cfg.slope, "l2")
         res.append(r)
         per[f.name] = summarize(r).as_dict()
     pooled = np.concatenate(res)
@@ -112,33 +113,33 @@ def field_map(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Se
             "flagged": b.flagged.reshape(ny, nx)}
 
 
-def localization_cost(rungs: Sequence[Rung], flights: Sequence[Flight], area: Any = None,
+def localization_cost(rungs: Sequence[Rung], flights: Sequence[FlightSamples], area: Any = None,
                       step_m: float = 10.0, max_points: int = 1500, split: str = "blocks") -> list[dict[str, Any]]:
     """Model-based grid-search error per rung and flight (``mission.localize.classical.ModelGridSearch``).
 
     With ``split="flights"`` flight k is localized with the rung fitted without it (fold k): held-out
     localization; otherwise with the first fold's fit.
     """
-    from mission.localize.classical import FlightData, ModelGridSearch
+    from mission.localize.classical import ModelGridSearch
 
     out = []
     for rung in rungs:
         row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
         for k, f in enumerate(flights):
             pipe = rung.pipes[k % len(rung.pipes)] if split == "flights" else rung.pipes[0]  # make_folds' deal
-            rx, att = (f.rx_enu, f.attitude_rad) if pipe.time_offset_s == 0 else shifted_geometry(
+            rx, att = (f.enu_m, f.attitude_rad) if pipe.time_offset_s == 0 else shifted_geometry(
                 f, f.t_s - pipe.time_offset_s)
-            est = ModelGridSearch(LocalizationModel(pipe, rung.label), tx_height_m=float(f.tx_enu[2]), area=area,
+            est = ModelGridSearch(LocalizationModel(pipe, rung.label), tx_height_m=float(f.tx_enu_m[2]), area=area,
                                   step_m=step_m, max_points=max_points, loss="l2" if area is None else "soft_l1")
-            e = est.predict(FlightData(rx, f.rss_db, att))
-            row["errors_m"][f.name] = float(np.hypot(e.x_m - f.tx_enu[0], e.y_m - f.tx_enu[1]))
+            e = est.predict(FlightSamples(enu_m=rx, rss_dbm=f.rss_dbm, attitude_rad=att))
+            row["errors_m"][f.name] = float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
         errs = np.array(list(row["errors_m"].values()))
         row["mean_error_m"] = float(errs.mean()) if errs.size else float("nan")
         out.append(row)
     return out
 
 
-def decimate_flight(f: Flight, rate_hz: float) -> Flight:
+def decimate_flight(f: FlightSamples, rate_hz: float) -> FlightSamples:
     """Every k-th sample so that the rate is at most ``rate_hz`` (0: unchanged); times stay absolute."""
     if rate_hz <= 0 or len(f) < 3:
         return f
@@ -165,7 +166,7 @@ def _rich_progress() -> tuple[Any, Any]:
     return bar, tick
 
 
-def diagnose(flights: Sequence[Flight], base: Pipeline, candidates: Sequence[Candidate], cfg: FitConfig,
+def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Sequence[Candidate], cfg: FitConfig,
              base_label: str = "base", reference: Sequence[str] = REFERENCE_MODELS, pattern: str = "dipole",
              max_rungs: int = 6, localize: bool = True, area: Any = None, progress: bool | Any = False) -> Diagnosis:
     """Run the full diagnosis (see the module docstring).

@@ -30,12 +30,12 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
-from mission.gap.align import Flight
 from mission.gap.candidate import TIER_FREEFORM, TIER_NAMED, TIER_SMOOTHER, Candidate
 from mission.gap.candidates import describe_params
 from mission.gap.pipeline import Pipeline
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
+from mission.samples import FlightSamples
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ class Fold:
     test: list[np.ndarray]
 
 
-def make_folds(flights: Sequence[Flight], cfg: FitConfig) -> list[Fold]:
+def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
     """Contiguous-chunk folds (even/odd chunks), or whole flights held out: one flight per fold up to
     ``cfg.max_folds`` flights, beyond that the flights are dealt round-robin into ``max_folds`` groups (the
     cost of a diagnosis grows with folds x training samples, so it stays bounded for many flights)."""
@@ -95,7 +95,7 @@ def decimate(idx: np.ndarray, n_max: int) -> np.ndarray:
     return idx[:: int(np.ceil(len(idx) / n_max))]
 
 
-def residuals(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], cfg: FitConfig,
+def residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
               cache: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse)."""
     out = []
@@ -104,11 +104,11 @@ def residuals(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarra
             out.append(np.zeros(0))
             continue
         p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
-        out.append(offset_residual(f.rss_db[i], p, cfg.slope, cfg.loss, cfg.f_scale_db))
+        out.append(offset_residual(f.rss_dbm[i], p, cfg.slope, cfg.loss, cfg.f_scale_db))
     return out
 
 
-def objective(pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], cfg: FitConfig,
+def objective(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
               cache: list[np.ndarray] | None = None) -> float:
     """Mean per-sample loss over the given samples of all flights."""
     rs = residuals(pipe, flights, idx, cfg, cache)
@@ -143,7 +143,7 @@ class CandidateFit:
     train_loss: float
 
 
-def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray],
+def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                   cfg: FitConfig, rng: np.random.Generator) -> CandidateFit:
     """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded Nelder-Mead."""
     n_used = max(1, sum(len(i) > 0 for i in idx))
@@ -195,7 +195,7 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[Flight], id
     return best
 
 
-def heldout_residuals(pipes: Sequence[Pipeline], flights: Sequence[Flight], folds: Sequence[Fold],
+def heldout_residuals(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples], folds: Sequence[Fold],
                       cfg: FitConfig) -> list[np.ndarray]:
     """Held-out residual per sample (NaN where a sample is in no test set), one array per flight."""
     out = [np.full(len(f), np.nan) for f in flights]
@@ -294,7 +294,7 @@ def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[A
 Progress = Callable[[str, int, int], None]  # (description, done, total)
 
 
-def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[Flight], folds: Sequence[Fold],
+def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples], folds: Sequence[Fold],
                     candidates: Sequence[Candidate], cfg: FitConfig, rng: np.random.Generator,
                     base_res: list[np.ndarray] | None = None, progress: Progress | None = None,
                     label: str = "") -> list[CandidateResult]:
@@ -354,7 +354,7 @@ class Rung:
 
 
 
-def ladder(base: Pipeline, flights: Sequence[Flight], candidates: Sequence[Candidate], cfg: FitConfig,
+def ladder(base: Pipeline, flights: Sequence[FlightSamples], candidates: Sequence[Candidate], cfg: FitConfig,
            max_rungs: int = 6, label: str = "base", progress: Progress | None = None) -> list[Rung]:
     """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is significant."""
     rng = np.random.default_rng(cfg.seed)

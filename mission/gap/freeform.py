@@ -30,10 +30,10 @@ from typing import Any
 import numpy as np
 from numpy.polynomial import legendre
 
-from mission.gap.align import Flight
 from mission.gap.candidate import TIER_FREEFORM, Candidate
 from mission.gap.pipeline import Pipeline
 from mission.physics.geometry import body_vectors, enu_to_ned
+from mission.samples import FlightSamples
 
 # kind -> (first variable, second variable, orders); see the module table
 KINDS: dict[str, tuple[int, int]] = {"rx_gain_map": (6, 3), "tx_gain_map": (4, 2), "excess_loss": (3, 2)}
@@ -139,12 +139,12 @@ class FreeFormTerm:
                 "gain_db": Z.reshape(A.shape).tolist()}
 
 
-def link_of(pipe: Pipeline, flight: Flight, idx: np.ndarray) -> Any:
+def link_of(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray) -> Any:
     """The model's per-sample LOS geometry (``Link`` fields) for the samples ``idx`` (time offset applied)."""
     from types import SimpleNamespace
 
     rx, att = pipe.geometry(flight, idx)
-    tx = np.asarray(flight.tx_enu, dtype=float)
+    tx = np.asarray(flight.tx_enu_m, dtype=float)
     delta = tx[None, :] - rx
     dx, dy, dz = delta.T
     d_los = np.maximum(np.linalg.norm(delta, axis=1), 1e-3)
@@ -165,7 +165,7 @@ def _centered(blocks: Sequence[np.ndarray], ws: Sequence[np.ndarray]) -> np.ndar
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def resemblance(kind: str, term: Sequence[np.ndarray], pipe: Pipeline, flights: Sequence[Flight],
+def resemblance(kind: str, term: Sequence[np.ndarray], pipe: Pipeline, flights: Sequence[FlightSamples],
                 idx: Sequence[np.ndarray]) -> tuple[str, float, dict[str, float]]:
     """Which named effect's own term (relative to ``pipe``) correlates best with the fitted ``term``."""
     from mission.gap.candidates import library
@@ -218,7 +218,7 @@ def where_it_acts(kind: str, a: np.ndarray, b: np.ndarray, term: np.ndarray) -> 
     return out
 
 
-def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray],
+def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                  resid: Sequence[np.ndarray], cfg: Any = None, period_s: float = 30.0) -> tuple[Pipeline, dict]:
     """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold CV."""
     loss = getattr(cfg, "loss", "l2")
@@ -286,7 +286,8 @@ def freeform_candidate(kind: str) -> Candidate:
     def withhold(p: Pipeline) -> Pipeline:
         return p.replace(model=p.model.without(kind)) if p.model.has(kind) else p
 
-    def direct_fit(p: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+    def direct_fit(p: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                   resid: Sequence[np.ndarray],
                    rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
         if kind == "rx_gain_map" and not p.model.has("attitude"):
             # a body-frame map needs the body frame: the logged attitude joins the model with the map

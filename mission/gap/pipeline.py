@@ -24,15 +24,15 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from mission.gap.align import Flight
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
+from mission.samples import FlightSamples
 
 
 class SpatialField(Protocol):
     """Additive dB field over the UAV's horizontal position, for the flight's transmitter."""
 
-    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray: ...
+    def field_db(self, flight: FlightSamples, rx_xy: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -85,29 +85,29 @@ class Pipeline:
     def replace(self, **kw: Any) -> Pipeline:
         return replace(self, **kw)
 
-    def geometry(self, flight: Flight, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def geometry(self, flight: FlightSamples, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """UAV positions and attitudes for the samples ``idx`` at their RSS times shifted by the time offset."""
         t = flight.t_s if idx is None else flight.t_s[idx]
         if self.time_offset_s == 0.0:
             sl = slice(None) if idx is None else idx
-            return flight.rx_enu[sl], flight.attitude_rad[sl]
+            return flight.enu_m[sl], flight.attitude_rad[sl]
         return shifted_geometry(flight, t - self.time_offset_s)
 
-    def predict_channel(self, flight: Flight, idx: np.ndarray | None = None) -> np.ndarray:
+    def predict_channel(self, flight: FlightSamples, idx: np.ndarray | None = None) -> np.ndarray:
         """Model RSS (dB) before the spatial field and the receiver."""
         rx, att = self.geometry(flight, idx)
-        return np.asarray(self.model.rss_dbm(flight.tx_enu, rx, att), dtype=float)
+        return np.asarray(self.model.rss_dbm(flight.tx_enu_m, rx, att), dtype=float)
 
-    def finish(self, p: np.ndarray, flight: Flight, idx: np.ndarray | None = None) -> np.ndarray:
+    def finish(self, p: np.ndarray, flight: FlightSamples, idx: np.ndarray | None = None) -> np.ndarray:
         """Add the spatial field and pass through the receiver."""
         if self.spatial is not None:
-            xy = (flight.rx_enu if idx is None else flight.rx_enu[idx])[:, :2]
+            xy = (flight.enu_m if idx is None else flight.enu_m[idx])[:, :2]
             p = p + self.spatial.field_db(flight, xy)
         if self.receiver is not None:
             p = self.receiver.apply(p)
         return p
 
-    def predict(self, flight: Flight, idx: np.ndarray | None = None) -> np.ndarray:
+    def predict(self, flight: FlightSamples, idx: np.ndarray | None = None) -> np.ndarray:
         """Predicted RSS (model dB scale) of the samples ``idx`` (all by default)."""
         return self.finish(self.predict_channel(flight, idx), flight, idx)
 
@@ -123,10 +123,10 @@ class Pipeline:
         return tuple(names)
 
 
-def shifted_geometry(flight: Flight, t_query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def shifted_geometry(flight: FlightSamples, t_query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Telemetry (positions, attitudes) linearly interpolated at ``t_query`` (yaw unwrapped; clamped ends)."""
     t = flight.t_s
-    rx = np.stack([np.interp(t_query, t, flight.rx_enu[:, k]) for k in range(3)], axis=-1)
+    rx = np.stack([np.interp(t_query, t, flight.enu_m[:, k]) for k in range(3)], axis=-1)
     att = flight.attitude_rad
     yaw = np.unwrap(att[:, 2])
     a = np.stack([np.interp(t_query, t, att[:, 0]), np.interp(t_query, t, att[:, 1]),

@@ -133,7 +133,7 @@ def figures(d: Diagnosis) -> dict[str, Any]:
     figs["field_map"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in fm.items()}
     for k in ("mean_db",):
         figs["field_map"][k] = [[None if not np.isfinite(v) else float(v) for v in row] for row in fm[k]]
-    figs["field_map"]["transmitters"] = [f.tx_enu.tolist() for f in d.flights]
+    figs["field_map"]["transmitters"] = [f.tx_enu_m.tolist() for f in d.flights]
     polar = {}
     for r in (d.rungs[0], d.rungs[-1]):
         al = d.alignments
@@ -281,8 +281,8 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax.plot(fm["x0"] + (xx + 0.5) * fm["cell_m"], fm["y0"] + (yy + 0.5) * fm["cell_m"], "k.", ms=3,
             label="significant cell")
     for f in d.flights:
-        ax.plot(f.rx_enu[:, 0], f.rx_enu[:, 1], lw=0.3, color="grey", alpha=0.6)
-        ax.plot(*f.tx_enu[:2], "k*", ms=12)
+        ax.plot(f.enu_m[:, 0], f.enu_m[:, 1], lw=0.3, color="grey", alpha=0.6)
+        ax.plot(*f.tx_enu_m[:2], "k*", ms=12)
     fig.colorbar(im, label="mean residual dB (measured - model)")
     ax.set(xlabel="east m", ylabel="north m", title=f"Residual of '{d.base_label}' over the field (* = transmitter)")
     ax.legend(fontsize=7, loc="upper right")
@@ -343,7 +343,7 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         plt.close(fig)
 
     doc = {**summary(d), "block_lens": d.block_lens, "flights": [
-        {"name": f.name, "n": len(f), "tx_enu": f.tx_enu.tolist()} for f in d.flights], "figures": figs}
+        {"name": f.name, "n": len(f), "tx_enu": f.tx_enu_m.tolist()} for f in d.flights], "figures": figs}
     paths.append(out / "gap.json")
     paths[-1].write_text(json.dumps(doc, indent=1, default=_json_default))
     return paths

@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import Flight
 from mission.gap.candidate import TIER_FREEFORM
 from mission.gap.candidates import library
 from mission.gap.fit import FitConfig, make_folds, rank_candidates
@@ -34,6 +33,7 @@ from mission.gap.stats import summarize
 from mission.physics import Attitude, PathGainSlope, make_model
 from mission.physics.antenna import rm_wb1_dn
 from mission.physics.shadowing import RandomField
+from mission.samples import FlightSamples
 
 NOISE_DB = 1.0
 WITHHELD_ALL = ("rx_pattern", "rx_mounting", "tx_pattern", "tx_mounting", "tx_tilt", "ground_reflection",
@@ -90,7 +90,7 @@ TRAJECTORIES = ("spiral", "lawnmower", "random_waypoints")
 
 
 def simulate_flights(pipe: Pipeline, rng: np.random.Generator, n_flights: int = 2, dt_s: float = 0.1,
-                     max_duration_s: float = 420.0) -> tuple[list[Flight], list[np.ndarray]]:
+                     max_duration_s: float = 420.0) -> tuple[list[FlightSamples], list[np.ndarray]]:
     """Fly ``n_flights`` trajectories (different patterns, altitudes and transmitters) and return flights
     whose RSS is the truth pipeline's *channel* prediction (receiver and noise added by the caller)."""
     from mission.geo import afar_field
@@ -113,14 +113,15 @@ def simulate_flights(pipe: Pipeline, rng: np.random.Generator, n_flights: int = 
         keep = t <= max_duration_s
         t, pos, att = t[keep], pos[keep], att[keep]
         tx = np.array([rng.uniform(x0 + 20, x1 - 20), rng.uniform(y0 + 20, y1 - 60), 1.5])
-        f = Flight(f"sim{k}-{name}", t, pos, att, np.zeros(len(t)), tx)
+        f = FlightSamples(name=f"sim{k}-{name}", t_s=t, enu_m=pos, attitude_rad=att,
+                          rss_dbm=np.zeros(len(t)), tx_enu_m=tx)
         flights.append(f)
         chans.append(pipe.predict_channel(f) + pipe.spatial.field_db(f, pos[:, :2]))  # type: ignore[union-attr]
     return flights, chans
 
 
 def simulate_case(withheld: str | None, seed: int, n_flights: int = 2, dt_s: float = 0.1,
-                  max_duration_s: float = 420.0) -> tuple[Truth, Pipeline, list[Flight]]:
+                  max_duration_s: float = 420.0) -> tuple[Truth, Pipeline, list[FlightSamples]]:
     """Truth, base pipeline (truth minus ``withheld``) and simulated flights for one self-test case."""
     rng = np.random.default_rng(seed)
     p = draw_truth(rng, withheld)
@@ -132,9 +133,9 @@ def simulate_case(withheld: str | None, seed: int, n_flights: int = 2, dt_s: flo
     pipe = pipe.replace(receiver=rec)
     offset = float(rng.uniform(-60.0, 20.0))  # uncalibrated receiver
     for f, c in zip(flights, chans, strict=True):
-        f.rss_db = rec.apply(c) + offset + rng.normal(0.0, NOISE_DB, size=c.shape)
+        f.rss_dbm = rec.apply(c) + offset + rng.normal(0.0, NOISE_DB, size=c.shape)
     base = pipe if withheld is None else library()[withheld].withhold(pipe)
-    fields = [pipe.spatial.field_db(f, f.rx_enu[:, :2]) for f in flights]  # type: ignore[union-attr]
+    fields = [pipe.spatial.field_db(f, f.enu_m[:, :2]) for f in flights]  # type: ignore[union-attr]
     p["spatial_realized_std_db"] = float(np.sqrt(np.mean([np.var(v) for v in fields])))
     return Truth(pipe, p), base, flights
 
@@ -232,7 +233,7 @@ def gap_tolerance(withheld: str | None, oracle_rms: float | None = None) -> floa
     return NOISE_DB * 1.2
 
 
-def oracle_spatial_rms(base: Pipeline, truth: Truth, flights: Sequence[Flight], cfg: FitConfig) -> float:
+def oracle_spatial_rms(base: Pipeline, truth: Truth, flights: Sequence[FlightSamples], cfg: FitConfig) -> float:
     """Held-out RMS of kriging with the true field's covariance (the best a spatial candidate can do)."""
     from mission.gap.fit import decimate, heldout_residuals, residuals
     from mission.gap.spatial import KrigedShadowing, _group_cells

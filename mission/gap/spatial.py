@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import Flight
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
 from mission.gap.pipeline import Pipeline
 from mission.physics.shadowing import correlation, pdist
+from mission.samples import FlightSamples
 
 COVARIANCE = "exponential"
 
@@ -41,8 +41,8 @@ class KrigedShadowing:
     nugget_db: float
     points: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]  # key -> (xy, mean, count)
 
-    def field_db(self, flight: Flight, rx_xy: np.ndarray) -> np.ndarray:
-        key = tx_key(flight.tx_enu)
+    def field_db(self, flight: FlightSamples, rx_xy: np.ndarray) -> np.ndarray:
+        key = tx_key(flight.tx_enu_m)
         pts = self.points.get(key)
         if pts is None or self.sigma_db <= 0:
             return np.zeros(len(rx_xy))
@@ -92,12 +92,12 @@ KRIGING_LENGTHS_M = (10.0, 20.0, 35.0, 60.0, 100.0, 170.0)
 KRIGING_NUGGET_FRACTIONS = (0.1, 0.3, 0.6)
 
 
-def _group_cells(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+def _group_cells(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
                  cell_m: float) -> dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
     groups: dict[tuple[float, float], list[tuple[np.ndarray, np.ndarray]]] = {}
     for f, i, rr in zip(flights, idx, resid, strict=True):
         if len(i):
-            groups.setdefault(tx_key(f.tx_enu), []).append((f.rx_enu[i, :2], rr))
+            groups.setdefault(tx_key(f.tx_enu_m), []).append((f.enu_m[i, :2], rr))
     out = {}
     for k, v in groups.items():
         xy, r = np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v])
@@ -108,7 +108,7 @@ def _group_cells(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Se
     return out
 
 
-def choose_kriging(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+def choose_kriging(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
                    period_s: float = 30.0) -> tuple[float, float, float]:
     """(sigma_db, corr_len_m, nugget_db) by inner two-fold cross-validation on the training samples.
 
@@ -135,7 +135,7 @@ def choose_kriging(flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: 
                 for f, i, r, h in zip(flights, idx, resid, halves, strict=True):
                     te = h == a
                     if te.any():
-                        pred = kr.field_db(f, f.rx_enu[i[te], :2])
+                        pred = kr.field_db(f, f.enu_m[i[te], :2])
                         d = r[te] - r[te].mean() - (pred - pred.mean())
                         err += float(np.sum(d * d))
                         cnt += int(te.sum())
@@ -152,7 +152,8 @@ def spatial_candidate() -> Candidate:
     def withhold(p: Pipeline) -> Pipeline:
         return p.replace(spatial=None)
 
-    def direct_fit(p: Pipeline, flights: Sequence[Flight], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+    def direct_fit(p: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                   resid: Sequence[np.ndarray],
                    rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
         sigma, L, nug = choose_kriging(flights, idx, resid)
         pts = _group_cells(flights, idx, resid, KRIGING_CELL_M)

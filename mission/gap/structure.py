@@ -21,17 +21,18 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import Flight, align
+from mission.gap.align import align
 from mission.gap.pipeline import Pipeline
 from mission.gap.spatial import tx_key
 from mission.physics.shadowing import fit_variogram
+from mission.samples import FlightSamples
 
 STRUCTURE_RULE = ("correlated shadowing when the spatial variogram's correlated std has a 90 % lower bound "
                   ">= 1 dB and >= 0.5 x the nugget, and its correlation length a lower bound above the first "
                   "lag bin (5 m); otherwise white noise")
 
 
-def residual_structure(flights: Sequence[Flight], resid: Sequence[np.ndarray], rng: np.random.Generator,
+def residual_structure(flights: Sequence[FlightSamples], resid: Sequence[np.ndarray], rng: np.random.Generator,
                        max_points: int = 1200, n_boot: int = 25) -> dict[str, Any]:
     """Variograms along the path and over space of residuals (NaN = not scored), and the verdict."""
     t, xy, r, g_f, g_tx = [], [], [], [], []
@@ -41,10 +42,10 @@ def residual_structure(flights: Sequence[Flight], resid: Sequence[np.ndarray], r
         if not ok.any():
             continue
         t.append(f.t_s[ok])
-        xy.append(f.rx_enu[ok, :2])
+        xy.append(f.enu_m[ok, :2])
         r.append(x[ok] - np.mean(x[ok]))
         g_f.append(np.full(int(ok.sum()), k))
-        g_tx.append(np.full(int(ok.sum()), keys.setdefault(tx_key(f.tx_enu), len(keys))))
+        g_tx.append(np.full(int(ok.sum()), keys.setdefault(tx_key(f.tx_enu_m), len(keys))))
     if not r:
         return {"verdict": "no data", "rule": STRUCTURE_RULE}
     T, XY, R = np.concatenate(t), np.concatenate(xy), np.concatenate(r)
@@ -59,7 +60,8 @@ def residual_structure(flights: Sequence[Flight], resid: Sequence[np.ndarray], r
             "residual_std_db": float(np.std(R)), "along_path": along.as_dict(), "spatial": space.as_dict()}
 
 
-def footprint(base: Pipeline, new: Pipeline, flights: Sequence[Flight], max_samples: int = 3000) -> dict[str, Any]:
+def footprint(base: Pipeline, new: Pipeline, flights: Sequence[FlightSamples], max_samples: int = 3000) -> dict[str,
+              Any]:
     """Size (5-95 % range of new - base, dB, offset-free) and where the change acts most (top 5 % |change|)."""
     d, geo = [], []
     for f in flights:
@@ -95,7 +97,7 @@ def name_missing(ranking: Sequence[Any], structure: dict[str, Any] | None) -> st
     return None
 
 
-def identify(flights: Sequence[Flight], base: Pipeline, candidates: Sequence[Any], cfg: Any,
+def identify(flights: Sequence[FlightSamples], base: Pipeline, candidates: Sequence[Any], cfg: Any,
              progress: Any = None) -> dict[str, Any]:
     """One ranking on top of ``base`` plus the residual structure: what is missing, how large, where.
 

@@ -1,7 +1,7 @@
 """Classical transmitter localizers, scikit-learn style: ``fit`` (no-op), ``predict(flight) -> Estimate``.
 
-``flight`` is a ``FlightLog`` (positions in its own origin's ENU frame) or a ``FlightData`` / tuple
-``(enu (N, 3), rss (N,), attitude (N, 3) radians or None)``.  All estimators are invariant to a constant
+``flight`` is a ``FlightLog`` (positions in its own origin's ENU frame), a ``mission.samples.FlightSamples``
+or a tuple ``(enu (N, 3), rss (N,), attitude (N, 3) radians or None)``.  All estimators are invariant to a constant
 RSS offset (a real receiver's dB are not calibrated dBm, SPEC section 5).
 
 - ``StrongestSample``: position of the maximum of the grouped, Gaussian-smoothed RSS (features.py settings).
@@ -17,53 +17,47 @@ RSS offset (a real receiver's dB are not calibrated dBm, SPEC section 5).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 
 from mission.errors import InputError
+from mission.flightlog import FlightLog
 from mission.localize import Estimate
 from mission.localize.features import FeatureConfig, preprocess
 from mission.robust import robust_cost
+from mission.samples import FlightSamples
 
 
-@dataclass
-class FlightData:
-    """The arrays a localizer needs: ENU positions (N, 3) m, RSS (N,) dB, attitude (N, 3) rad or None."""
-
-    enu: np.ndarray
-    rss: np.ndarray
-    attitude: np.ndarray | None = None
-
-
-def as_flight(obj, origin=None) -> FlightData:
-    """FlightLog / FlightData / (enu, rss[, attitude]) -> FlightData (validated, float64)."""
-    if isinstance(obj, FlightData):
-        fd = obj
-    elif hasattr(obj, "columns") and hasattr(obj, "enu"):
-        fd = FlightData(obj.enu(origin), np.asarray(obj["rss_dbm"], dtype=float), obj.attitude_rad)
+def as_flight(obj, origin=None) -> FlightSamples:
+    """FlightLog / FlightSamples / (enu, rss[, attitude]) -> FlightSamples, validated and float64: the input
+    boundary of every localizer (a partly NaN attitude reads as 0, an all-NaN one as none)."""
+    if isinstance(obj, FlightSamples):
+        fs = obj
+    elif isinstance(obj, FlightLog):
+        fs = obj.samples(origin)
     elif isinstance(obj, tuple | list) and len(obj) in (2, 3):
-        fd = FlightData(
-            np.asarray(obj[0], dtype=float),
-            np.asarray(obj[1], dtype=float),
-            None if len(obj) == 2 or obj[2] is None else np.asarray(obj[2], dtype=float),
+        fs = FlightSamples(
+            enu_m=np.asarray(obj[0], dtype=float),
+            rss_dbm=np.asarray(obj[1], dtype=float),
+            attitude_rad=None if len(obj) == 2 or obj[2] is None else np.asarray(obj[2], dtype=float),
         )
     else:
         raise InputError(
             f"cannot localize from a {type(obj).__name__}: expected a FlightLog or (enu, rss, attitude)"
         )
-    enu = np.asarray(fd.enu, dtype=float)
-    rss = np.asarray(fd.rss, dtype=float).ravel()
+    enu = np.asarray(fs.enu_m, dtype=float)
+    rss = np.asarray(fs.rss_dbm, dtype=float).ravel()
     if enu.ndim != 2 or enu.shape[1] != 3 or enu.shape[0] != rss.size:
         raise InputError(f"positions must be (N, 3) with N = {rss.size} RSS samples, got {enu.shape}")
-    att = fd.attitude
+    att = fs.attitude_rad
     if att is not None:
         att = np.asarray(att, dtype=float)
         if att.shape != enu.shape:
             raise InputError(f"attitude must be (N, 3), got {att.shape}")
         if np.isnan(att).any():
             att = None if np.isnan(att).all() else np.nan_to_num(att)
-    return FlightData(enu, rss, att)
+    return replace(fs, enu_m=enu, rss_dbm=rss, attitude_rad=att)
 
 
 class _Base:
@@ -87,7 +81,7 @@ class StrongestSample(_Base):
 
     def predict(self, flight, origin=None) -> Estimate:
         f = as_flight(flight, origin)
-        gx, gy, gp = preprocess(f.enu[:, 0], f.enu[:, 1], f.rss, self.cfg)
+        gx, gy, gp = preprocess(f.enu_m[:, 0], f.enu_m[:, 1], f.rss_dbm, self.cfg)
         i = int(np.argmax(gp))
         return self._estimate(gx[i], gy[i], None, index=i)
 
@@ -103,7 +97,7 @@ class WeightedCentroid(_Base):
 
     def predict(self, flight, origin=None) -> Estimate:
         f = as_flight(flight, origin)
-        gx, gy, gp = preprocess(f.enu[:, 0], f.enu[:, 1], f.rss, self.cfg)
+        gx, gy, gp = preprocess(f.enu_m[:, 0], f.enu_m[:, 1], f.rss_dbm, self.cfg)
         k = min(self.top_k, gp.size)
         idx = np.argpartition(-gp, k - 1)[:k]
         w = 10.0 ** ((gp[idx] - gp.max()) / 10.0)
@@ -124,20 +118,20 @@ def search_bounds(area, enu: np.ndarray, margin_m: float):
     return (lo[0], lo[1], hi[0], hi[1]), None
 
 
-def block_average(f: FlightData, max_points: int) -> FlightData:
+def block_average(f: FlightSamples, max_points: int) -> FlightSamples:
     """Average RSS (dB) and positions over consecutive blocks so at most ``max_points`` remain.
 
     The attitude of a block is that of its middle sample (angles are not averaged across the yaw wrap).
     """
-    n = f.rss.size
+    n = f.rss_dbm.size
     b = max(1, int(np.ceil(n / max_points)))
     m = n // b
     if m == 0:
         return f
-    rss = f.rss[: m * b].reshape(m, b).mean(axis=1)
-    enu = f.enu[: m * b].reshape(m, b, 3).mean(axis=1)
-    att = None if f.attitude is None else f.attitude[b // 2 : m * b : b][:m]
-    return FlightData(enu, rss, att)
+    rss = f.rss_dbm[: m * b].reshape(m, b).mean(axis=1)
+    enu = f.enu_m[: m * b].reshape(m, b, 3).mean(axis=1)
+    att = None if f.attitude_rad is None else f.attitude_rad[b // 2 : m * b : b][:m]
+    return FlightSamples(enu_m=enu, rss_dbm=rss, attitude_rad=att, tx_enu_m=f.tx_enu_m, name=f.name)
 
 
 class ModelGridSearch(_Base):
@@ -206,39 +200,39 @@ class ModelGridSearch(_Base):
                 self._model_obj = self.model
         return self._model_obj
 
-    def cost(self, f: FlightData, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def cost(self, f: FlightSamples, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced) flight."""
         model = self._get_model()
-        att = f.attitude if self.use_attitude else None
+        att = f.attitude_rad if self.use_attitude else None
         costs, offs = np.empty(len(cand_xy)), np.empty(len(cand_xy))
         for s in range(0, len(cand_xy), self.chunk):
             c = cand_xy[s : s + self.chunk]
             tx = np.column_stack([c, np.full(len(c), self.tx_height_m)])
-            pred = np.asarray(model.rss_dbm(tx[:, None, :], f.enu, att), dtype=float).reshape(len(c), -1)
+            pred = np.asarray(model.rss_dbm(tx[:, None, :], f.enu_m, att), dtype=float).reshape(len(c), -1)
             if self.floor_db is not None:
-                lo = f.rss < f.rss.max() - self.floor_db
-                resid = f.rss[None, :] - pred
+                lo = f.rss_dbm < f.rss_dbm.max() - self.floor_db
+                resid = f.rss_dbm[None, :] - pred
                 off0 = np.median(resid[:, ~lo], axis=1)
                 # censored samples: measured level is an upper bound of the signal (noise floor)
                 resid[:, lo] = np.maximum(resid[:, lo], off0[:, None])
                 offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(resid, self.loss, self.f_scale_db)
                 continue
             offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(
-                f.rss[None, :] - pred, self.loss, self.f_scale_db
+                f.rss_dbm[None, :] - pred, self.loss, self.f_scale_db
             )
         return costs, offs
 
-    def _reduce(self, flight, origin=None) -> FlightData:
+    def _reduce(self, flight, origin=None) -> FlightSamples:
         f = as_flight(flight, origin)
         if self.smooth_samples > 0:
             from mission.localize.features import gaussian_smooth
 
-            f = FlightData(f.enu, gaussian_smooth(f.rss, self.smooth_samples), f.attitude)
+            f = replace(f, rss_dbm=gaussian_smooth(f.rss_dbm, self.smooth_samples))
         return block_average(f, self.max_points)
 
     def predict(self, flight, origin=None) -> Estimate:
         f = self._reduce(flight, origin)
-        (xmin, ymin, xmax, ymax), poly = search_bounds(self.area, f.enu, self.margin_m)
+        (xmin, ymin, xmax, ymax), poly = search_bounds(self.area, f.enu_m, self.margin_m)
         xs = np.arange(xmin, xmax + 1e-9, self.step_m)
         ys = np.arange(ymin, ymax + 1e-9, self.step_m)
         cand = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
@@ -269,7 +263,7 @@ class ModelGridSearch(_Base):
             offset_db=float(off[i]),
             cost=float(cost[i]),
             cost_rms_db=resid_rms,
-            n_points=int(f.rss.size),
+            n_points=int(f.rss_dbm.size),
             candidates=n_eval,
             tx_height_m=self.tx_height_m,
             loss=self.loss,

@@ -193,10 +193,10 @@ def evaluate_sim(
             )
         errs: dict[str, list[float]] = {c: [] for c in classical}
         for i in range(n):
-            fd = sim.draw(i)
+            fs = sim.draw(i).samples
             for c, loc in locs.items():
-                est = loc.predict((fd.enu, fd.rss_dbm, fd.attitude_rad))
-                errs[c].append(float(np.hypot(est.x_m - fd.tx_enu[0], est.y_m - fd.tx_enu[1])))
+                est = loc.predict(fs)
+                errs[c].append(float(np.hypot(est.x_m - fs.tx_enu_m[0], est.y_m - fs.tx_enu_m[1])))
             if progress:
                 progress(f"{label}: classical {i + 1}/{n}")
         for c in classical:

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mission.localize.dataset_config import PARAM_NAMES, DatasetConfig, pattern_names, trajectory_names
+from mission.samples import FlightSamples
 
 
 def flight_rng(seed: int, i: int) -> np.random.Generator:
@@ -57,16 +58,14 @@ def trajectory_params(name: str, rng: np.random.Generator, base: dict, random_pa
 
 @dataclass
 class FlightDraw:
-    """One simulated flight of a dataset: its draws and the per-sample arrays the features use."""
+    """One simulated flight of a dataset: its random draws and the samples the features use (with the
+    transmitter as ``samples.tx_enu_m``)."""
 
     index: int
-    tx_enu: np.ndarray
     params: dict
     trajectory: str
     pattern: str
-    enu: np.ndarray
-    attitude_rad: np.ndarray
-    rss_dbm: np.ndarray
+    samples: FlightSamples
 
 
 class FlightSimulator:
@@ -180,13 +179,12 @@ class FlightSimulator:
                           cruise_speed_mps=speed if speed is not None else kin.cruise_speed_mps)
         sim = replace(self.sim, noise_db=noise, rss_offset_db=offset, kinematics=kin, shadowing_db=shadow,
                       shadowing_corr_m=corr)
-        fl = simulate_flight(wps, tx, model, sim, rng)
-        enu, att, rss = fl.enu, fl.attitude_rad, fl.rss_dbm
+        fl: FlightSamples = simulate_flight(wps, tx, model, sim, rng)
         if keep < 1.0:
-            n = len(rss)
+            n = len(fl)
             a = int(start * n)
             b = max(a + int(keep * n), a + 1)
-            enu, att, rss = enu[a:b], att[a:b], rss[a:b]
+            fl = fl.select(slice(a, b))
         params = {
             "altitude_m": alt,
             "offset_db": offset,
@@ -203,7 +201,7 @@ class FlightSimulator:
             "shadowing_corr_m": corr if shadow > 0 else np.nan,
             "trajectory_params": tparams,
         }
-        return FlightDraw(i, tx, params, traj, pattern or "default", enu, att, rss)
+        return FlightDraw(i, params, traj, pattern or "default", fl)
 
     def _draw_suite(self, i: int) -> FlightDraw:
         """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as ``localize`` cuts a log."""
@@ -211,10 +209,8 @@ class FlightSimulator:
         from mission.localize.suite import unseen_flight
 
         f = unseen_flight(self.cfg.seed, i, self.cfg.suite_family, self.cfg.suite_center)
-        c, d = f.log.columns, f.draw
-        keep = cruise_mask(c["rel_alt_m"]).mask
-        enu = f.log.enu()[keep]
-        att = np.deg2rad(np.stack([c["roll_deg"], c["pitch_deg"], c["yaw_deg"]], axis=1)[keep])
+        d = f.draw
+        keep = cruise_mask(f.log["rel_alt_m"]).mask
         spec = d["physics"]["spec"]
         ground = spec.get("ground") or {}
         params = {
@@ -227,7 +223,8 @@ class FlightSimulator:
             "trajectory_params": d["trajectory_params"],
         }
         tx = np.array([*d["tx_xy"], d["tx_height_m"]])
-        return FlightDraw(i, tx, params, d["trajectory"], "default", enu, att, np.asarray(c["rss_dbm"])[keep])
+        samples = replace(f.log.samples(), tx_enu_m=tx).select(keep)
+        return FlightDraw(i, params, d["trajectory"], "default", samples)
 
     def features(self, fd: FlightDraw) -> dict[str, np.ndarray]:
         """The stored row of one flight (features, truth, parameters)."""
@@ -236,14 +233,15 @@ class FlightSimulator:
         traj_names = self._traj_names()
         pat_names = self._pattern_names()
         row: dict[str, np.ndarray] = {}
+        s = fd.samples
         if "clustering" in self.cfg.features:
-            row["clustering"] = cluster_features(fd.enu[:, 0], fd.enu[:, 1], fd.rss_dbm, self.fcfg)
+            row["clustering"] = cluster_features(s.enu_m[:, 0], s.enu_m[:, 1], s.rss_dbm, self.fcfg)
         if "normalised_rss" in self.cfg.features:
-            row["normalised_rss"] = normalised_rss(fd.rss_dbm, self.fcfg)
+            row["normalised_rss"] = normalised_rss(s.rss_dbm, self.fcfg)
         p = {**fd.params, "trajectory": traj_names.index(fd.trajectory), "pattern": pat_names.index(fd.pattern)}
         row["params"] = np.array([p[k] for k in PARAM_NAMES], dtype=float)  # column order = PARAM_NAMES
-        row["tx_enu"] = fd.tx_enu
-        row["n_samples"] = np.array(len(fd.rss_dbm))
+        row["tx_enu"] = s.tx_enu_m
+        row["n_samples"] = np.array(len(s))
         row["index"] = np.array(fd.index)
         return row
 

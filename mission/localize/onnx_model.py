@@ -25,7 +25,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.geo import Origin
 from mission.localize import Estimate
-from mission.localize.classical import FlightData, as_flight
+from mission.localize.classical import as_flight
 from mission.localize.features import (
     FEATURE_VERSION,
     FeatureConfig,
@@ -33,6 +33,7 @@ from mission.localize.features import (
     compute_threads,
     normalised_rss,
 )
+from mission.samples import FlightSamples
 
 REQUIRED_KEYS = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
 FEATURE_KINDS = ("clustering", "normalised_rss")
@@ -188,11 +189,11 @@ class OnnxLocalizer:
     def model_name(self) -> str:
         return self.path.name
 
-    def features(self, f: FlightData) -> np.ndarray:
+    def features(self, f: FlightSamples) -> np.ndarray:
         """Feature vector (F,) of a flight whose positions are ENU about the model's field origin."""
         if self.kind == "clustering":
-            return cluster_features(f.enu[:, 0], f.enu[:, 1], f.rss, self.cfg)
-        return normalised_rss(f.rss, self.cfg)
+            return cluster_features(f.enu_m[:, 0], f.enu_m[:, 1], f.rss_dbm, self.cfg)
+        return normalised_rss(f.rss_dbm, self.cfg)
 
     def predict_features(self, feats: np.ndarray) -> np.ndarray:
         """(B, F) features -> (B, 2) positions in metres about the model's field origin."""

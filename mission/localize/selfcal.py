@@ -31,8 +31,9 @@ import numpy as np
 from mission.errors import InputError
 from mission.geo import Area
 from mission.localize import Estimate
-from mission.localize.classical import FlightData, _Base, as_flight, search_bounds
+from mission.localize.classical import _Base, as_flight, search_bounds
 from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
+from mission.samples import FlightSamples
 
 HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
 # Shadowing correlation length (temperature) and the HPD masses that cover the truth at the nominal rates, both
@@ -44,17 +45,17 @@ CALIBRATED_MASS = {0.5: 0.451, 0.9: 0.926}
 
 @dataclass
 class Cells:
-    """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dB, mean yaw (M,) rad,
+    """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dBm, mean yaw (M,) rad,
     sample counts (M,), the cell size (m)."""
 
-    enu: np.ndarray
-    rss_db: np.ndarray
+    enu_m: np.ndarray
+    rss_dbm: np.ndarray
     yaw_rad: np.ndarray
     count: np.ndarray
     cell_m: float
 
     def __len__(self) -> int:
-        return int(self.rss_db.size)
+        return int(self.rss_dbm.size)
 
     @property
     def area_m2(self) -> float:
@@ -67,18 +68,18 @@ def corr_is_default(corr_m: float) -> bool:
     return abs(corr_m - CORR_M) < 1e-9
 
 
-def cell_average(f: FlightData, cell_m: float) -> Cells:
+def cell_average(f: FlightSamples, cell_m: float) -> Cells:
     """Average a flight's samples into ``cell_m`` square horizontal cells (vectorised; yaw averaged on the circle).
 
     Without attitude the yaw is taken as 0 (nose north).
     """
-    key = np.floor(f.enu[:, :2] / cell_m).astype(np.int64)
+    key = np.floor(f.enu_m[:, :2] / cell_m).astype(np.int64)
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
     m = cnt.size
-    pos = np.stack([np.bincount(inv, f.enu[:, i], m) / cnt for i in range(3)], axis=1)
-    rss = np.bincount(inv, f.rss, m) / cnt
-    yaw_s = np.zeros(f.rss.size) if f.attitude is None else f.attitude[:, 2]
+    pos = np.stack([np.bincount(inv, f.enu_m[:, i], m) / cnt for i in range(3)], axis=1)
+    rss = np.bincount(inv, f.rss_dbm, m) / cnt
+    yaw_s = np.zeros(f.rss_dbm.size) if f.attitude_rad is None else f.attitude_rad[:, 2]
     yaw = np.arctan2(np.bincount(inv, np.sin(yaw_s), m), np.bincount(inv, np.cos(yaw_s), m))
     return Cells(pos, rss, yaw, cnt, float(cell_m))
 
@@ -110,9 +111,9 @@ def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np
     Body azimuth uses the heading only (the receiver antenna hangs below the body; roll and pitch did not
     help on real flights, ``rfsl gap``), clockwise from the nose; elevation is negative below the UAV.
     """
-    dx = (cand_xy[:, None, 0] - cells.enu[None, :, 0]).astype(np.float32)
-    dy = (cand_xy[:, None, 1] - cells.enu[None, :, 1]).astype(np.float32)
-    dz = (tx_height_m - cells.enu[None, :, 2]).astype(np.float32)
+    dx = (cand_xy[:, None, 0] - cells.enu_m[None, :, 0]).astype(np.float32)
+    dy = (cand_xy[:, None, 1] - cells.enu_m[None, :, 1]).astype(np.float32)
+    dz = (tx_height_m - cells.enu_m[None, :, 2]).astype(np.float32)
     dh2 = dx * dx + dy * dy
     pg = np.float32(-10.0) * np.log10(dh2 + dz * dz)                     # -20 log10 d_los
     el = np.arctan2(dz, np.sqrt(dh2))
@@ -159,7 +160,7 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate."""
     pg, el, az = _geometry(cand_xy, cells, tx_height_m)
-    y = cells.rss_db.astype(np.float32)[None, :]
+    y = cells.rss_dbm.astype(np.float32)[None, :]
     ssr = np.empty((len(hyps), len(cand_xy)))
     off = np.empty((len(hyps), len(cand_xy)))
     base = y - pg
@@ -212,8 +213,8 @@ class SelfCalibratingGrid(_Base):
         self.masses = (dict(masses) if masses is not None
                        else dict(CALIBRATED_MASS) if corr_is_default(corr_m) else {})
 
-    def _candidates(self, f: FlightData) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
-        box, poly = search_bounds(self.area, f.enu, self.margin_m)
+    def _candidates(self, f: FlightSamples) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
+        box, poly = search_bounds(self.area, f.enu_m, self.margin_m)
         xs = np.arange(box[0], box[2] + 1e-9, self.step_m)
         ys = np.arange(box[1], box[3] + 1e-9, self.step_m)
         gx, gy = np.meshgrid(xs, ys)
@@ -252,7 +253,7 @@ class SelfCalibratingGrid(_Base):
         x, y = fine[j[1]]
         h = int(best_h[j[0]])
         regions = hpd_regions(post, grid, self.levels, self.masses)
-        p_out = _p_outside_flown(post, grid, f.enu)
+        p_out = _p_outside_flown(post, grid, f.enu_m)
         extras = dict(
             antenna=hyps[h][0],
             offset_db=float(foff[j]),
