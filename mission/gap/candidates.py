@@ -25,6 +25,7 @@ the ground permittivity of an e2r base); one that is absent *adds* it.
 | ``tx_gain_map`` | free-form: smooth rover gain map over compass azimuth x elevation | ridge coefficients |
 | ``excess_loss`` | free-form: smooth excess loss over distance and UAV height | ridge coefficients |
 | ``spatial_shadowing`` | smoother: kriged residuals over the field (``mission.gap.spatial``) | sigma_db, corr_len_m |
+| ``site_map`` | smoother: per transmitter position, compass azimuth x log distance map (``spatial``) | ridge coefs |
 
 (*) the UAV antenna heading is fitted jointly with the (yaw) attitude when the UAV pattern depends on azimuth:
 without yaw a heading is a fixed compass direction, with yaw and a wrong heading the pattern is turned wrongly.
@@ -41,7 +42,7 @@ import numpy as np
 from mission.gap.candidate import Candidate, Param
 from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
-from mission.gap.spatial import KrigedShadowing, spatial_candidate
+from mission.gap.spatial import KrigedShadowing, site_map_candidate, spatial_candidate
 from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
 from mission.physics.antenna import Dipole, Isotropic, Pattern, rm_wb1_dn
 from mission.physics.constants import LEG_AZIMUTHS_DEG
@@ -253,7 +254,7 @@ def library() -> dict[str, Candidate]:
         _ground_candidate(), _attitude_like_candidate(True), _attitude_like_candidate(False), _legs_candidate(),
         _path_gain_slope_candidate(),
         _time_offset_candidate(), _receiver_candidate(), *(freeform_candidate(k) for k in FREEFORM_NAMES),
-        spatial_candidate(),
+        spatial_candidate(), site_map_candidate(),
     ]
     return {c.name: c for c in cands}
 

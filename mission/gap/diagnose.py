@@ -175,6 +175,7 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     seconds, so 3 Hz loses little and makes every fit and bootstrap ~10x cheaper on 30 Hz logs).
     ``progress``: True for a rich progress bar, or a ``(description, done, total)`` callback.
     """
+    from mission.gap.spatial import usable_candidates
     from mission.gap.structure import footprint, residual_structure
 
     flights = [decimate_flight(f, cfg.rate_hz) for f in flights]
@@ -192,8 +193,8 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
         bar, progress = _rich_progress()
         bar.start()
     try:
-        rungs = ladder(base, flights, candidates, cfg, max_rungs=max_rungs, label=base_label,
-                       progress=progress or None)
+        rungs = ladder(base, flights, usable_candidates(candidates, flights), cfg, max_rungs=max_rungs,
+                       label=base_label, progress=progress or None)
     finally:
         if bar is not None:
             bar.stop()

@@ -119,7 +119,7 @@ class Pipeline:
         if self.receiver is not None:
             names.append("receiver")
         if self.spatial is not None:
-            names.append("spatial_shadowing")
+            names.append(getattr(self.spatial, "name", "spatial_shadowing"))
         return tuple(names)
 
 

@@ -108,6 +108,11 @@ def print_report(d: Diagnosis, console: Any = None) -> None:
                 f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget {sp['nugget_db']:.1f} dB "
                 f"[{sp['nugget_ci_db'][0]:.1f}, {sp['nugget_ci_db'][1]:.1f}]; along the path sigma "
                 f"{al['sigma_db']:.1f} dB, L {al['corr_len']:.1f} s, nugget {al['nugget_db']:.1f} dB")
+        if "test" in st:
+            te = st["test"]
+            c.print(f"  correlation test: near (<{te['short_lag_m']:.0f} m) / all-pair semivariance "
+                    f"{te['ratio']:.2f} [{te['ratio_ci'][0]:.2f}, {te['ratio_ci'][1]:.2f}], correlated std "
+                    f"{te['correlated_std_db']:.1f} dB ({te['n_near_pairs']} near pairs)")
     for lab, fp in d.footprints.items():
         w = ", ".join(f"{k} {v:.0f}" for k, v in fp["where"].items() if k != "share_of_samples")
         c.print(f"{lab.split(' + ')[-1]}: {fp['size_db']:.1f} dB where it acts ({fp['where']['share_of_samples']:.0%} "
@@ -195,7 +200,7 @@ def summary(d: Diagnosis) -> dict[str, Any]:
     first = d.rungs[0].ranking
     return {"schema": SCHEMA_VERSION, "named": name_missing(first, d.structure.get("base")),
             "rule": RANKING_RULE, "ladder": ladder, "rankings": rankings,
-            "structure": {k: {kk: vv for kk, vv in v.items() if kk in ("verdict", "rule", "residual_std_db")}
+            "structure": {k: {kk: vv for kk, vv in v.items() if kk in ("verdict", "rule", "residual_std_db", "test")}
                           | {kk: {q: v[kk][q] for q in ("sigma_db", "sigma_ci_db", "corr_len", "corr_len_ci", "unit",
                                                         "nugget_db", "nugget_ci_db", "correlated_fraction")}
                              for kk in ("along_path", "spatial") if kk in v}

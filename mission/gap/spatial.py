@@ -1,10 +1,16 @@
-"""Spatially correlated shadowing as a gap candidate: kriging of training residuals (a generic smoother).
+"""Spatially correlated shadowing as gap candidates: kriging of training residuals and a site map (smoothers).
 
 Why here and not in ``mission.physics.shadowing``: kriging is a *predictor* fitted on a flight's residuals
 around its own transmitter (it cannot be used to localize an unknown one); the covariance model it uses and
 the random fields of the self-test are the physics module's (``COVARIANCE`` = exponential, Gudmundson's
 model of measured shadowing).  In the ranking it is a *smoother* (``mission.gap.fit.TIERS``): it absorbs any
 smooth misfit, so it must beat the explanations by a stated margin to come first.
+
+``site_map`` is the site-specific version for flights that share a transmitter position (the same rover
+location flown by several teams): a smooth map over the compass azimuth of the UAV seen from the transmitter
+x log horizontal distance, one per transmitter position (``tx_key``), fitted on the training flights there.
+Held out by flight, it carries what the *environment around the transmitter* does (a building blocking a
+sector, trees at some range) from one flight to another; a transmitter with no training flight gets no map.
 """
 
 from __future__ import annotations
@@ -143,6 +149,135 @@ def choose_kriging(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], 
             if mse < best[0]:
                 best = (mse, s, L, n)
     return best[1], best[2], best[3]
+
+
+SITE_M, SITE_P = 8, 2  # Fourier order in azimuth, Legendre order in log distance
+SITE_LAMBDAS = tuple(np.geomspace(1e-4, 1e1, 11))
+
+
+def site_variables(tx: np.ndarray, rx_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(compass azimuth of the UAV from the transmitter (rad), log distance scaled to [-1, 1] over 10-500 m)."""
+    d = rx_xy - np.asarray(tx, dtype=float)[None, :2]
+    az = np.arctan2(d[:, 0], d[:, 1])
+    ld = np.log10(np.maximum(np.hypot(d[:, 0], d[:, 1]), 5.0) / 70.7) / 0.85
+    return az, np.clip(ld, -1.0, 1.0)
+
+
+def site_design(az: np.ndarray, ld: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Design matrix (N, K) Fourier(az, SITE_M) x Legendre(ld, SITE_P), no constant; and the ridge penalty."""
+    leg = [np.ones_like(ld), ld]
+    for k in range(1, SITE_P):
+        leg.append(((2 * k + 1) * ld * leg[k] - k * leg[k - 1]) / (k + 1))
+    cols, pen = list(leg[1: SITE_P + 1]), [1.0 + p * p for p in range(1, SITE_P + 1)]
+    for m in range(1, SITE_M + 1):
+        c, s_ = np.cos(m * az), np.sin(m * az)
+        cols += [c * q for q in leg[: SITE_P + 1]] + [s_ * q for q in leg[: SITE_P + 1]]
+        pen += [1.0 + m * m + p * p for p in range(SITE_P + 1)] * 2
+    return np.column_stack(cols), np.array(pen)
+
+
+@dataclass(frozen=True, eq=False)
+class SiteMap:
+    """Fitted site-specific shadowing: per transmitter position, ridge coefficients of ``site_design``."""
+
+    coef: dict[tuple[float, float], np.ndarray]
+    lam: float
+    name: str = "site_map"
+
+    def field_db(self, flight: FlightSamples, rx_xy: np.ndarray) -> np.ndarray:
+        c = self.coef.get(tx_key(flight.tx_enu_m))
+        if c is None:
+            return np.zeros(len(rx_xy))
+        return site_design(*site_variables(flight.tx_enu_m, rx_xy))[0] @ c
+
+
+def fit_site_map(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+                 loss: str = "l2", f_scale_db: float = 6.0, period_s: float = 30.0) -> tuple[SiteMap, dict[str, Any]]:
+    """Per transmitter position, a weighted ridge fit of the offset-free training residuals (centred per
+    flight, soft-L1 IRLS weights for a robust loss); lambda by inner two-fold CV over alternate ``period_s``
+    stretches of flight, pooled over the positions."""
+    groups: dict[tuple[float, float], list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
+    pen = site_design(np.zeros(1), np.zeros(1))[1]
+    for f, i, r in zip(flights, idx, resid, strict=True):
+        if len(i) < 10:
+            continue
+        X = site_design(*site_variables(f.tx_enu_m, f.enu_m[i, :2]))[0]
+        r = np.asarray(r, dtype=float)
+        w = np.ones(len(r)) if loss == "l2" else 1.0 / np.sqrt(1.0 + (r / f_scale_db) ** 2)
+        half = np.floor(f.t_s[i] / period_s).astype(int) % 2
+        groups.setdefault(tx_key(f.tx_enu_m), []).append((X, r, w, half))
+
+    def gram(parts: list, keep: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
+        A, c, n = np.zeros((len(pen), len(pen))), np.zeros(len(pen)), 0
+        for X, r, w, h in parts:
+            k = keep(h)
+            if k.sum() < 5:
+                continue
+            wk = w[k]
+            Xc = X[k] - (wk @ X[k]) / wk.sum()
+            rc = r[k] - (wk @ r[k]) / wk.sum()
+            A += (Xc.T * wk) @ Xc
+            c += (Xc.T * wk) @ rc
+            n += int(k.sum())
+        return A, c, n
+
+    def solve(g: tuple[np.ndarray, np.ndarray, int], lam: float) -> np.ndarray:
+        A, c, n = g
+        return np.linalg.solve(A + lam * max(n, 1) * np.diag(pen), c)
+
+    inner = {key: [gram(parts, lambda h, a=a: h != a) for a in (0, 1)] for key, parts in groups.items()}
+    errs = []
+    for lam in SITE_LAMBDAS:
+        err = 0.0
+        for key, parts in groups.items():
+            for a in (0, 1):
+                coef = solve(inner[key][a], lam)
+                for X, r, w, h in parts:
+                    te = h == a
+                    if te.sum() < 5:
+                        continue
+                    d = r[te] - X[te] @ coef
+                    d = d - (w[te] @ d) / w[te].sum()
+                    err += float(w[te] @ (d * d))
+        errs.append(err)
+    lam = float(SITE_LAMBDAS[int(np.argmin(errs))])
+    coef = {key: solve(gram(parts, lambda h: np.ones(len(h), bool)), lam) for key, parts in groups.items()}
+    sm = SiteMap(coef, lam)
+    sizes = []
+    for key, parts in groups.items():
+        v = np.concatenate([X @ coef[key] for X, _, _, _ in parts])
+        sizes.append(float(np.quantile(v, 0.95) - np.quantile(v, 0.05)))
+    return sm, {"lambda": lam, "sites": len(coef), "size_db": float(np.mean(sizes)) if sizes else 0.0}
+
+
+def site_map_candidate() -> Candidate:
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
+        return p
+
+    def withhold(p: Pipeline) -> Pipeline:
+        return p.replace(spatial=None)
+
+    def direct_fit(p: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                   resid: Sequence[np.ndarray],
+                   rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
+        sm, params = fit_site_map(flights, idx, resid, getattr(cfg, "loss", "l2"), getattr(cfg, "f_scale_db", 6.0))
+        return p.replace(spatial=sm), params
+
+    return Candidate("site_map", "site-specific shadowing map around each transmitter position (compass azimuth x "
+                     "log distance), learned from the training flights there", (), build,
+                     lambda p: p.spatial is None, withhold, direct_fit=direct_fit, tier=TIER_SMOOTHER)
+
+
+def shares_site(flights: Sequence[Any]) -> bool:
+    """Whether at least two flights share a transmitter position (``tx_key``): only then can ``site_map``
+    carry anything from one flight to another (alone, it is one more smoother beside kriging)."""
+    keys = [tx_key(f.tx_enu_m) for f in flights]
+    return len(set(keys)) < len(keys)
+
+
+def usable_candidates(candidates: Sequence[Candidate], flights: Sequence[Any]) -> list[Candidate]:
+    """``candidates`` without ``site_map`` when no two flights share a transmitter position."""
+    return [c for c in candidates if c.name != "site_map" or shares_site(flights)]
 
 
 def spatial_candidate() -> Candidate:

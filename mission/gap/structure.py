@@ -5,8 +5,10 @@ is the common case: kriging cannot predict a chunk of flight over ground never f
 semivariogram shows a correlated part (sigma, correlation length) above a white-noise floor (nugget).  Two
 variograms are fitted (``mission.physics.shadowing.fit_variogram``, exponential covariance, bootstrap 90 %
 intervals): along the path (lag in seconds, pairs within a flight) and over space (lag in metres, pairs
-around the same transmitter).  The verdict rule (``STRUCTURE_RULE``) names "correlated shadowing" when the
-spatial variogram's correlated part is clearly there, else "white noise".
+around the same transmitter).  The verdict (``STRUCTURE_RULE``, ``correlation_test``) does not rest on the
+fitted correlation length, whose lower bound can reach 0 on real data: it compares the semivariance of near
+pairs (< 15 m) with that of all pairs, with a block-bootstrap bound, and names "correlated shadowing" when
+the correlated part is clearly there, else "white noise".
 
 ``footprint`` turns a fitted candidate into "how large and where": the change it makes to the prediction on
 the flown samples (``size_db``: median |change| where it is at least half its maximum, i.e. its size where it
@@ -27,9 +29,67 @@ from mission.gap.spatial import tx_key
 from mission.physics.shadowing import fit_variogram
 from mission.samples import FlightSamples
 
-STRUCTURE_RULE = ("correlated shadowing when the spatial variogram's correlated std has a 90 % lower bound "
-                  ">= 1 dB and >= 0.5 x the nugget, and its correlation length a lower bound above the first "
-                  "lag bin (5 m); otherwise white noise")
+SHORT_LAG_M = 15.0          # "near" pairs of the correlation test: the first three 5 m lag bins
+RATIO_THRESHOLD = 0.8       # near / all semivariance below this: correlated std >= 1/2 the uncorrelated std
+STRUCTURE_RULE = ("correlated shadowing when the semivariance of residual pairs closer than 15 m (same "
+                  "transmitter), divided by that of all pairs, has a one-sided 95 % block-bootstrap upper bound "
+                  "below 0.8 (the correlated std is at least half the uncorrelated one) and the correlated std "
+                  "sqrt((1 - ratio) var) is at least 1 dB; otherwise white noise.  The fitted variogram (sigma, "
+                  "L, nugget) is reported but not used: L's lower bound can reach 0 on real data")
+
+
+def correlation_test(xy: np.ndarray, r: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
+                     short_m: float = SHORT_LAG_M, max_points: int = 1200, n_blocks: int = 20,
+                     n_boot: int = 400) -> dict[str, Any]:
+    """Near-pair to all-pair semivariance ratio of residuals ``r`` at ``xy`` (pairs within a group only),
+    with a one-sided 95 % upper bound from a bootstrap of contiguous blocks of points.
+
+    White noise: every pair differs alike, ratio ~ 1.  Correlated shadowing: near pairs are alike, ratio ~
+    nugget^2 / sill.  Model-free (no correlation length to fit), so it cannot be fooled by an unidentified L.
+    The block bootstrap is exact on precomputed block-pair sums: a replicate with block multiplicities m
+    has pair sums m^T S m.
+    """
+    r = np.asarray(r, dtype=float)
+    if len(r) > max_points:
+        sel = np.sort(rng.choice(len(r), max_points, replace=False))
+        xy, r, groups = xy[sel], r[sel], groups[sel]
+    n = len(r)
+    out: dict[str, Any] = {"short_lag_m": short_m, "ratio": float("nan"), "ratio_ci": [float("nan")] * 2,
+                           "correlated_std_db": 0.0, "n_near_pairs": 0, "correlated": False}
+    if n < 2 * n_blocks:
+        return out
+    d = xy[:, None, :] - xy[None, :, :]
+    h = np.sqrt((d * d).sum(-1))
+    same = (groups[:, None] == groups[None, :]) & (h > 0)
+    g = 0.5 * (r[:, None] - r[None, :]) ** 2
+    near = same & (h <= short_m)
+    blk = np.minimum(np.arange(n) * n_blocks // n, n_blocks - 1)
+    onehot = np.eye(n_blocks)[blk]                               # (n, B)
+
+    def block_sums(w: np.ndarray) -> np.ndarray:
+        return onehot.T @ w @ onehot                               # (B, B): sums over ordered pairs by block
+
+    S_n, C_n, S_a, C_a = (block_sums(w) for w in (g * near, near.astype(float), g * same, same.astype(float)))
+    n_near = int(C_n.sum() / 2)
+    out["n_near_pairs"] = n_near
+    if n_near < 30 or C_a.sum() == 0:
+        return out
+    ratio = float((S_n.sum() / C_n.sum()) / (S_a.sum() / C_a.sum()))
+    m = np.stack([np.bincount(rng.integers(0, n_blocks, n_blocks), minlength=n_blocks) for _ in range(n_boot)])
+    m = m.astype(float)
+
+    def quad(S: np.ndarray) -> np.ndarray:
+        return np.einsum("bi,ij,bj->b", m, S, m)
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rb = (quad(S_n) / quad(C_n)) / (quad(S_a) / quad(C_a))
+    rb = rb[np.isfinite(rb)]
+    lo, hi = (np.quantile(rb, [0.05, 0.95]) if rb.size else (np.nan, np.nan))
+    var = float(S_a.sum() / C_a.sum())
+    c_std = float(np.sqrt(max(0.0, 1.0 - ratio) * var))
+    out.update(ratio=ratio, ratio_ci=[float(lo), float(hi)], correlated_std_db=c_std,
+               correlated=bool(hi < RATIO_THRESHOLD and c_std >= 1.0))
+    return out
 
 
 def residual_structure(flights: Sequence[FlightSamples], resid: Sequence[np.ndarray], rng: np.random.Generator,
@@ -53,10 +113,9 @@ def residual_structure(flights: Sequence[FlightSamples], resid: Sequence[np.ndar
                           groups=np.concatenate(g_f), unit="s")
     space = fit_variogram(XY, R, rng, max_lag=150.0, n_bins=30, max_points=max_points, n_boot=n_boot,
                           groups=np.concatenate(g_tx), unit="m")
-    bin_w = 150.0 / 30
-    corr = (space.sigma_ci[0] >= 1.0 and space.sigma_ci[0] >= 0.5 * space.nugget_db
-            and space.corr_len_ci[0] > bin_w)
-    return {"verdict": "correlated shadowing" if corr else "white noise", "rule": STRUCTURE_RULE,
+    test = correlation_test(XY, R, np.concatenate(g_tx), rng)
+    return {"verdict": "correlated shadowing" if test["correlated"] else "white noise", "rule": STRUCTURE_RULE,
+            "test": test,
             "residual_std_db": float(np.std(R)), "along_path": along.as_dict(), "spatial": space.as_dict()}
 
 
@@ -107,6 +166,9 @@ def identify(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
 
     rng = np.random.default_rng(cfg.seed)
+    from mission.gap.spatial import usable_candidates
+
+    candidates = usable_candidates(candidates, flights)
     folds = make_folds(flights, cfg)
     pipes = [base] * len(folds)
     base_res = heldout_residuals(pipes, flights, folds, cfg)
