@@ -108,3 +108,74 @@ def test_missing_file_and_bad_sidecar(tmp_path):
     sidecar_path(p).write_text("{not json")
     with pytest.raises(InputError, match="sidecar is not valid JSON"):
         read_flight_log(p)
+
+
+def _phase_log_text(n: int = 6) -> list[str]:
+    """A small log with the text ``phase`` column, as CSV lines (header first)."""
+    c, _ = _cols(n)
+    c["phase"] = np.array(["takeoff", "mission", "mission", "mission", "return", "land"][:n])
+    c["mission_item"] = np.array([-1, 0, 1, 2, -1, -1][:n], dtype=float)
+    from mission.flightlog import COLUMNS, format_rows
+
+    header = COLUMNS + ("phase", "mission_item")
+    return [",".join(header)] + format_rows(c, header).splitlines()
+
+
+def test_phase_log_parsed_in_one_pass_as_the_row_parser_would(tmp_path):
+    """The vectorised reader keeps ``phase`` as text and agrees with the row-by-row parser on odd fields (an empty
+    phase, a blank padded with spaces in an extra numeric column)."""
+    import csv
+    import io
+
+    from mission.flightlog.read import _fast_parse, _slow_parse
+
+    lines = _phase_log_text()
+    rows = [ln.split(",") for ln in lines]
+    rows[2][-2] = ""      # phase left empty on data row 2
+    rows[3][-1] = "  "    # mission_item blank with spaces on data row 3
+    text = "\n".join(",".join(r) for r in rows) + "\n"
+    header = rows[0]
+    fast = _fast_parse(text, header)
+    reader = csv.reader(io.StringIO(text))
+    next(reader)
+    slow, _ = _slow_parse(reader, header, "x")
+    assert fast is not None and list(fast) == list(slow)
+    for k in slow:
+        assert fast[k].dtype == slow[k].dtype, k
+        if slow[k].dtype == object:
+            assert fast[k].tolist() == slow[k].tolist()
+        else:
+            assert np.array_equal(fast[k], slow[k], equal_nan=True), k
+    assert fast["phase"].tolist()[:3] == ["takeoff", "", "mission"] and np.isnan(fast["mission_item"][2])
+    p = tmp_path / "p.csv"
+    p.write_text(text)
+    assert read_flight_log(p)["phase"].tolist()[2] == "mission"
+
+
+def test_phase_log_with_a_bad_number_names_its_row(tmp_path):
+    """A bad value in a format column of a phase log still reaches the row-by-row parser's message."""
+    lines = _phase_log_text()
+    rows = [ln.split(",") for ln in lines]
+    rows[3][rows[0].index("rss_dbm")] = "-6x.5"
+    p = tmp_path / "bad.csv"
+    p.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    with pytest.raises(InputError) as e:
+        read_flight_log(p)
+    assert e.value.row == 4 and e.value.field == "rss_dbm" and "not a number" in str(e.value)
+
+
+def test_samples_view_of_a_log(tmp_path):
+    """``FlightLog.samples()``: positions, radians, the phase and the truth in the log's frame; ``select`` cuts
+    every per-sample array and keeps the rest."""
+    lines = _phase_log_text()
+    p = tmp_path / "s.csv"
+    p.write_text("\n".join(lines) + "\n")
+    sidecar_path(p).write_text(json.dumps(make_meta(O, {"kind": "sim"}, truth={"x_m": 10, "y_m": 20, "z_m": 1.5})))
+    log = read_flight_log(p)
+    s = log.samples()
+    assert len(s) == 6 and s.name == "s" and np.allclose(s.tx_enu_m, [10, 20, 1.5])
+    assert np.allclose(s.enu_m, log.enu()) and np.allclose(np.rad2deg(s.attitude_rad[:, 0]), 1.5)
+    assert s.phase.tolist() == log["phase"].tolist()
+    m = s.select(s.phase == "mission")
+    assert len(m) == 3 and m.t_s.shape == (3,) and m.enu_m.shape == (3, 3) and m.tx_enu_m is s.tx_enu_m
+    assert log.samples(Origin(35.7, -78.7, 90.0)).tx_enu_m is None  # the sidecar's truth is in its own frame
