@@ -183,3 +183,24 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path) -> N
     m = preset_model(str(out))
     assert m.has("rx_antenna")
     assert main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--out", str(out)]) == 2  # refuses to overwrite
+
+
+def test_gain_tables_follow_the_pattern_object_not_a_reused_id() -> None:
+    """Patterns made and dropped one after another (CPython reuses their ids) each get their own gain table:
+    with a constant-gain pattern of g dBi the fitted offset is the isotropic one minus g, exactly."""
+    import gc
+
+    from mission.localize.selfcal import Cells, hypothesis_ssr
+    from mission.physics.patterns import TabulatedPattern
+
+    rx = lawnmower(legs=3, step=20.0)
+    cells = Cells(rx, free_space_rss(np.array([100.0, 100.0, 1.5]), rx), np.zeros(len(rx)),
+                  np.ones(len(rx), dtype=int), 5.0)
+    cand = np.array([[100.0, 100.0], [40.0, 160.0]])
+    _, off_iso = hypothesis_ssr(cand, cells, [("iso", None, 0.0, False)], 1.5)
+    for g in (3.0, -7.0, 11.0, 0.5):
+        pat = TabulatedPattern(np.array([-90.0, 90.0]), np.array([0.0, 180.0]), np.full((2, 2), g))
+        _, off = hypothesis_ssr(cand, cells, [("const", pat, 0.0, True)], 1.5)
+        np.testing.assert_allclose(off[0], off_iso[0] - g, atol=1e-3)
+        del pat
+        gc.collect()

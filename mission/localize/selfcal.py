@@ -153,7 +153,8 @@ class _GainLookup:
         return self.mounted(heading_deg, flipped)[i_flat]
 
 
-_LOOKUPS: dict[int, _GainLookup] = {}
+# id(pattern) -> (pattern, table): holding the pattern keeps its id from being reused by another object
+_LOOKUPS: dict[int, tuple[Pattern, _GainLookup]] = {}
 
 
 def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
@@ -174,9 +175,10 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
             if idx is None:
                 idx = ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
                        + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
-            look = _LOOKUPS.get(id(pat))
-            if look is None:  # made once per pattern (not per call)
-                look = _LOOKUPS[id(pat)] = _GainLookup(pat)
+            entry = _LOOKUPS.get(id(pat))
+            if entry is None or entry[0] is not pat:  # made once per pattern (not per call)
+                entry = _LOOKUPS[id(pat)] = (pat, _GainLookup(pat))
+            look = entry[1]
             r = base - look.gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
         c = r.mean(axis=1)
         off[i] = c
