@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.importers.afar import AFAR2023_TRUTH
+from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, AFAR2023_TRUTH
 from mission.physics.propagation import MODEL_NAMES
 
 CLASSICAL = ("strongest", "centroid", "grid")
@@ -68,9 +68,6 @@ def grid_physics(kw: dict, grid_params: dict) -> tuple[str | None, dict | None, 
 
 # Rover truth by AFAR location number (../shared/data/README.md; antenna about 1.5 m above ground).
 AFAR_TRUTH = AFAR2023_TRUTH
-AFAR_SUSPECT = {
-    ("288", 3): "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
-}
 
 
 @dataclass
@@ -210,7 +207,7 @@ def afar_truth(path: str | Path) -> tuple[tuple[float, float] | None, str | None
     if not mm:
         return None, None
     team, loc = mm.group(1), int(mm.group(2))
-    return AFAR_TRUTH.get(loc), AFAR_SUSPECT.get((team, loc))
+    return AFAR_TRUTH.get(loc), AFAR2023_SUSPECT_NOTE if (int(team), loc) == AFAR2023_SUSPECT else None
 
 
 def import_afar(mat_dir: str | Path, out_dir: str | Path) -> list[Path]:
