@@ -1,12 +1,13 @@
 """Mission preview: summary numbers, an expected-localization-error map, and a map-like PNG.
 
-Until the project's localizer exists, the expected error comes from a documented model-based estimator,
-``ml_grid_estimator``: a maximum-likelihood grid search over candidate transmitter positions using the
-same propagation model that simulated the RSS.  With Gaussian dB noise and an unknown constant receiver
-offset (SPEC section 5), the likelihood is maximised by the candidate whose predicted RSS, after removing
-its mean, is closest in least squares to the measured RSS after removing its mean; so the estimate is
-offset-invariant.  It is an optimistic bound (the model is exact apart from noise and attitude
-perturbation); plug a real localizer in through ``expected_error_map(..., estimator=...)``.
+The expected error comes by default from ``ml_grid_estimator``: the localizer's model grid search
+(``mission.localize.classical.ModelGridSearch``) in its many-records form (``FixedGeometrySearch``) with the
+same propagation model that simulated the RSS, on a ``step_m`` grid of cell centres over the rover area.
+With Gaussian dB noise and an unknown constant receiver offset (SPEC section 5) the likelihood is maximised by
+the candidate whose predicted RSS, after removing its mean, is closest in least squares to the measured RSS
+after removing its mean; so the estimate is offset-invariant.  It is an optimistic bound (the model is exact
+apart from noise and attitude perturbation; the product's default for real logs is ``fusion``); plug another
+localizer in through ``expected_error_map(..., estimator=...)``.
 """
 
 from __future__ import annotations
@@ -92,28 +93,19 @@ def summarize(spec) -> Summary:
                    rep.min_fence_clearance_m, [v.message for v in rep.violations])
 
 
-class MLGridEstimator:
-    """Offset-invariant maximum-likelihood grid search with a known propagation model (see module doc).
+def ml_grid_estimator(model, area: Area, tx_height_m: float, positions: np.ndarray, attitude: np.ndarray,
+                      step_m: float = 4.0) -> Estimator:
+    """The default ``Estimator`` (module docstring): ``ModelGridSearch(model).fixed_geometry`` along the flown
+    ``positions`` / ``attitude`` with the cell centres of a ``step_m`` grid over ``area`` as candidates."""
+    from mission.localize.classical import ModelGridSearch
 
-    Candidates are a ``step_m`` grid over the rover area at the transmitter height; their predicted RSS
-    along the flight are computed once (the model broadcasts tx (M, 1, 3) against rx (N, 3)).
-    """
+    search = ModelGridSearch(model, tx_height_m=tx_height_m, area=area, step_m=step_m)
+    fixed = search.fixed_geometry(positions, attitude, area_grid(area, step_m))
 
-    def __init__(self, model, area: Area, tx_height_m: float, positions: np.ndarray, attitude: np.ndarray,
-                 step_m: float = 4.0, chunk: int = 256) -> None:
-        self.cand = area_grid(area, step_m)
-        tx = np.column_stack([self.cand, np.full(len(self.cand), tx_height_m)])
-        rows = [np.asarray(model.rss_dbm(tx[s:s + chunk, None, :], positions, attitude), dtype=float)
-                for s in range(0, len(tx), chunk)]
-        pred = np.concatenate(rows, axis=0)
-        self.pred_c = pred - pred.mean(axis=1, keepdims=True)
-        self.pred_sq = np.sum(self.pred_c**2, axis=1)
+    def estimate(positions: np.ndarray, attitude: np.ndarray, rss: np.ndarray) -> np.ndarray:
+        return fixed.predict_xy(rss)  # the geometry is the one the predictions were computed for
 
-    def __call__(self, positions: np.ndarray, attitude: np.ndarray, rss: np.ndarray) -> np.ndarray:
-        r = np.atleast_2d(rss)
-        rc = r - r.mean(axis=1, keepdims=True)
-        sse = self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T  # + |rc|^2, the same for every candidate
-        return self.cand[np.argmin(sse, axis=0)]
+    return estimate
 
 
 @dataclass
@@ -138,7 +130,7 @@ def expected_error_map(spec, grid: int, rng: np.random.Generator, estimator: Est
                        model=None, subsample: int = 10, progress: Callable[[int, int], None] | None = None,
                        ) -> ErrorMap:
     """Simulate the mission for a ``grid`` x ``grid`` lattice of transmitters over the rover area and
-    localize each with ``estimator`` (default: ``MLGridEstimator`` with the mission's own model).
+    localize each with ``estimator`` (default: ``ml_grid_estimator`` with the mission's own model).
 
     One kinematic flight is flown (attitude perturbation from ``rng``) and every ``subsample``-th RSS
     sample is kept, as a localizer would average them anyway; each transmitter gets its own noise draw.
@@ -152,7 +144,7 @@ def expected_error_map(spec, grid: int, rng: np.random.Generator, estimator: Est
     pos, att = pos[::subsample], att[::subsample]
     area = spec.field.rover_area
     if estimator is None:
-        estimator = MLGridEstimator(model, area, spec.source.tx_height_m, pos, att)
+        estimator = ml_grid_estimator(model, area, spec.source.tx_height_m, pos, att)
     x0, y0, x1, y1 = area.bounds
     xs = x0 + (np.arange(grid) + 0.5) * (x1 - x0) / grid
     ys = y0 + (np.arange(grid) + 0.5) * (y1 - y0) / grid

@@ -6,9 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _figures import assert_png_drawn, capture_figures, legend_labels
 
 from mission.cli.main import main
-from mission.preview import MLGridEstimator, coverage, expected_error_map
+from mission.preview import area_grid, coverage, expected_error_map, ml_grid_estimator
 from mission.spec import load_mission
 
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
@@ -52,13 +53,22 @@ def test_estimator_is_offset_invariant_and_finds_the_source():
 
     _, pos, att, _ = fly_path(spec.flight_path_enu(), spec.sim_config(), np.random.default_rng(0))
     pos, att = pos[::10], att[::10]
-    est = MLGridEstimator(model, spec.field.rover_area, 1.5, pos, att, step_m=4.0)
+    est = ml_grid_estimator(model, spec.field.rover_area, 1.5, pos, att, step_m=4.0)
     tx = np.array([[60.0, 180.0, 1.5], [200.0, 240.0, 1.5]])
     rss = np.asarray(model.rss_dbm(tx[:, None, :], pos, att), dtype=float)
     a = est(pos, att, rss)
     b = est(pos, att, rss + 17.0)  # an uncalibrated receiver
     assert np.array_equal(a, b)
     assert np.all(np.linalg.norm(a - tx[:, :2], axis=1) < 4.0)
+    # reference written out: per record, the cell centre minimising sum((r - mean r - (p - mean p))^2)
+    noisy = rss + np.random.default_rng(5).normal(0.0, 3.0, rss.shape)
+    cand = area_grid(spec.field.rover_area, 4.0)
+    pred = np.asarray(model.rss_dbm(np.column_stack([cand, np.full(len(cand), 1.5)])[:, None, :], pos, att),
+                      dtype=float)
+    pred_c = pred - pred.mean(axis=1, keepdims=True)
+    for r, got in zip(noisy, est(pos, att, noisy), strict=True):
+        sse = np.sum((pred_c - (r - r.mean())) ** 2, axis=1)
+        assert np.array_equal(got, cand[np.argmin(sse)])
 
 
 def test_expected_error_map_and_custom_estimator():
@@ -79,8 +89,15 @@ def test_expected_error_map_and_custom_estimator():
 
 def test_preview_png_has_expected_size(tmp_path, capsys):
     out = tmp_path / "p.png"
-    assert main(["preview", str(MISSIONS / "spiral.yaml"), "--out", str(out), "--size", "800x600"]) == 0
+    with capture_figures() as figs:
+        assert main(["preview", str(MISSIONS / "spiral.yaml"), "--out", str(out), "--size", "800x600"]) == 0
     assert _png_size(out) == (800, 600)
+    assert_png_drawn(out, size=(800, 600))
+    (fig,) = figs
+    ax, cbar = fig.axes  # the map and the flight-time colour bar
+    assert cbar.get_ylabel() == "flight time (min)"
+    assert legend_labels(ax)[:2] == ["flight area (UAV)", "rover area (transmitter)"]
+    assert "waypoints" in legend_labels(ax) and "home (take-off)" in legend_labels(ax)
     text = capsys.readouterr().out
     assert "RSS samples" in text and "worst point" in text
 
@@ -88,9 +105,16 @@ def test_preview_png_has_expected_size(tmp_path, capsys):
 def test_preview_accuracy_png(tmp_path):
     pytest.importorskip("mission.physics")
     out = tmp_path / "a.png"
-    assert main(["preview", str(MISSIONS / "waypoints.yaml"), "--out", str(out), "--accuracy",
-                 "--grid", "4", "--seed", "3"]) == 0
+    with capture_figures() as figs:
+        assert main(["preview", str(MISSIONS / "waypoints.yaml"), "--out", str(out), "--accuracy",
+                     "--grid", "4", "--seed", "3"]) == 0
     assert _png_size(out) == (1200, 1000)
+    assert_png_drawn(out, size=(1200, 1000))
+    (fig,) = figs
+    ax, cbar = fig.axes  # the map with the error heatmap, and its colour bar
+    (heat,) = ax.images
+    assert heat.get_array().shape == (4, 4) and "expected localization error" in cbar.get_ylabel()
+    assert "expected error: mean" in ax.get_title() and "simulated path" in legend_labels(ax)
 
 
 def test_preview_bad_arguments(tmp_path, capsys):

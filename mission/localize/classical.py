@@ -13,6 +13,9 @@ RSS offset (a real receiver's dB are not calibrated dBm, SPEC section 5).
   (robust: median, then one Huber IRLS step); the cost is a robust loss (``soft_l1`` or ``huber``, scale
   ``f_scale_db``) of the residuals.  Candidates form a grid over the search area, refined coarse to fine
   around the best few; the flight is block-averaged in dB to at most ``max_points`` samples first.
+- ``FixedGeometrySearch`` (``ModelGridSearch.fixed_geometry``): the same model and candidates for many RSS
+  records along one flown geometry, predictions computed once, least squares with each record's mean offset
+  (maximum likelihood under Gaussian noise); the mission preview's expected-error map uses it.
 """
 
 from __future__ import annotations
@@ -200,15 +203,41 @@ class ModelGridSearch(_Base):
                 self._model_obj = self.model
         return self._model_obj
 
+    def candidate_rss(self, cand_xy: np.ndarray, enu: np.ndarray, attitude: np.ndarray | None) -> np.ndarray:
+        """Model RSS (K, N) dBm of transmitters at candidates (K, 2), ``tx_height_m`` high, along the positions
+        (N, 3) and attitude (N, 3) rad (ignored unless ``use_attitude``): what every cost compares with."""
+        tx = np.column_stack([cand_xy, np.full(len(cand_xy), self.tx_height_m)])
+        att = attitude if self.use_attitude else None
+        pred = self._get_model().rss_dbm(tx[:, None, :], enu, att)
+        return np.asarray(pred, dtype=float).reshape(len(cand_xy), -1)
+
+    def coarse_candidates(self, enu: np.ndarray) -> tuple[tuple[float, float, float, float], np.ndarray]:
+        """The search box and the first level's candidates: a ``step_m`` grid from the box's corner, kept inside
+        the area's polygon when there is one (all of them if none falls inside)."""
+        bounds, poly = search_bounds(self.area, enu, self.margin_m)
+        xmin, ymin, xmax, ymax = bounds
+        xs = np.arange(xmin, xmax + 1e-9, self.step_m)
+        ys = np.arange(ymin, ymax + 1e-9, self.step_m)
+        cand = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        if poly is not None:
+            inside = poly.contains(cand)
+            cand = cand[inside] if inside.any() else cand
+        return bounds, cand
+
+    def fixed_geometry(self, enu: np.ndarray, attitude: np.ndarray | None, cand_xy: np.ndarray | None = None
+                       ) -> FixedGeometrySearch:
+        """This search for many RSS records flown along one geometry (``FixedGeometrySearch``); candidates
+        ``cand_xy`` (K, 2), by default the first level's grid (no refinement)."""
+        if cand_xy is None:
+            cand_xy = self.coarse_candidates(np.asarray(enu, dtype=float))[1]
+        return FixedGeometrySearch(self, np.asarray(enu, dtype=float), attitude, np.asarray(cand_xy, dtype=float))
+
     def cost(self, f: FlightSamples, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced) flight."""
-        model = self._get_model()
-        att = f.attitude_rad if self.use_attitude else None
         costs, offs = np.empty(len(cand_xy)), np.empty(len(cand_xy))
         for s in range(0, len(cand_xy), self.chunk):
             c = cand_xy[s : s + self.chunk]
-            tx = np.column_stack([c, np.full(len(c), self.tx_height_m)])
-            pred = np.asarray(model.rss_dbm(tx[:, None, :], f.enu_m, att), dtype=float).reshape(len(c), -1)
+            pred = self.candidate_rss(c, f.enu_m, f.attitude_rad)
             if self.floor_db is not None:
                 lo = f.rss_dbm < f.rss_dbm.max() - self.floor_db
                 resid = f.rss_dbm[None, :] - pred
@@ -232,13 +261,7 @@ class ModelGridSearch(_Base):
 
     def predict(self, flight, origin=None) -> Estimate:
         f = self._reduce(flight, origin)
-        (xmin, ymin, xmax, ymax), poly = search_bounds(self.area, f.enu_m, self.margin_m)
-        xs = np.arange(xmin, xmax + 1e-9, self.step_m)
-        ys = np.arange(ymin, ymax + 1e-9, self.step_m)
-        cand = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-        if poly is not None:
-            inside = poly.contains(cand)
-            cand = cand[inside] if inside.any() else cand
+        (xmin, ymin, xmax, ymax), cand = self.coarse_candidates(f.enu_m)
         step = self.step_m
         n_eval = 0
         for level in range(self.levels):
@@ -269,6 +292,32 @@ class ModelGridSearch(_Base):
             loss=self.loss,
             search_box=[float(xmin), float(ymin), float(xmax), float(ymax)],
         )
+
+
+class FixedGeometrySearch:
+    """``ModelGridSearch`` for many RSS records flown along one geometry (simulation studies: the preview's
+    expected-error map scores hundreds of transmitters on one simulated flight).
+
+    The model's predictions at the fixed candidates are computed once; each record is scored by least squares
+    after removing its own mean offset from both sides, the maximum-likelihood estimate under Gaussian dB noise
+    with an unknown constant offset.  (A single flight's ``predict`` is robust instead: median/Huber offset and
+    soft-L1 for real fades; that offset would cost a median per candidate and record.)
+    """
+
+    def __init__(self, search: ModelGridSearch, enu: np.ndarray, attitude: np.ndarray | None,
+                 cand_xy: np.ndarray) -> None:
+        self.cand = cand_xy
+        pred = np.concatenate([search.candidate_rss(cand_xy[s : s + search.chunk], enu, attitude)
+                               for s in range(0, len(cand_xy), search.chunk)], axis=0)
+        self.pred_c = pred - pred.mean(axis=1, keepdims=True)
+        self.pred_sq = np.sum(self.pred_c**2, axis=1)
+
+    def predict_xy(self, rss: np.ndarray) -> np.ndarray:
+        """RSS records (T, N) (or one (N,)) -> best candidates (T, 2)."""
+        r = np.atleast_2d(np.asarray(rss, dtype=float))
+        rc = r - r.mean(axis=1, keepdims=True)
+        sse = self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T  # + |rc|^2, the same for every candidate
+        return self.cand[np.argmin(sse, axis=0)]
 
 
 METHODS = {"strongest": StrongestSample, "centroid": WeightedCentroid, "grid": ModelGridSearch}
