@@ -18,9 +18,9 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from scipy.optimize import minimize
 
 from mission.errors import InputError
+from mission.gap.fit import minimize_from_grid
 from mission.physics.presets import build_model
 from mission.robust import offset_residual, per_sample_loss
 from mission.samples import FlightSamples
@@ -132,19 +132,11 @@ def fit_config(cfg: dict, flights: Sequence[FlightSamples], max_samples: int = 1
     if not names:
         return spec_with(cfg, {}), loss([])
     grid = np.array(np.meshgrid(*[START_GRID[n] for n in names], indexing="ij")).reshape(len(names), -1).T
-    vals = np.array([loss(g) for g in grid])
-    best = None
-    for k in np.argsort(vals)[:2]:  # two best starts (the heading is multimodal)
-        x0 = grid[k]
-        steps = [20.0 if n == "rx_heading_deg" else 0.3 for n in names]
-        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
-        res = minimize(loss, x0, method="Nelder-Mead",
-                       options={"maxfev": max_evals * len(x0), "initial_simplex": simplex, "xatol": 1e-2,
-                                "fatol": 1e-4})
-        if best is None or res.fun < best.fun:
-            best = res
-    th = {n: float(np.clip(v, *BOUNDS[n])) for n, v in zip(names, best.x, strict=True)}
-    return spec_with(cfg, th), float(best.fun)
+    steps = [20.0 if n == "rx_heading_deg" else 0.3 for n in names]
+    # two best starts (the heading is multimodal); the fit procedure is the gap candidates' (one home)
+    x, fun = minimize_from_grid(loss, grid, steps, max_evals, n_starts=2, xatol=1e-2, fatol=1e-4)
+    th = {n: float(np.clip(v, *BOUNDS[n])) for n, v in zip(names, x, strict=True)}
+    return spec_with(cfg, th), fun
 
 
 def pooled(per_flight: dict[str, dict]) -> dict[str, float]:

@@ -134,6 +134,31 @@ def _bounds(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[An
     return [(prm.lo, prm.hi) if prm.period is None else (-np.inf, np.inf) for prm in params]
 
 
+def minimize_from_grid(fun: Callable[[np.ndarray], float], grid: np.ndarray, steps: Sequence[float],
+                       max_evals: int, n_starts: int = 1, xatol: float = 1e-3, fatol: float = 1e-6
+                       ) -> tuple[np.ndarray, float]:
+    """Evaluate ``fun`` on the start ``grid`` (G, P), then run Nelder-Mead (``max_evals`` x P evaluations, first
+    simplex edge ``steps[j]`` along parameter j) from the ``n_starts`` best starts; returns the best (x, value).
+
+    Why: the physics fits (a gap candidate's parameters, a calibration preset's free parameters) have multimodal,
+    non-smooth robust losses (headings, floors); a coarse grid finds the basin and the simplex polishes it.  The
+    caller clips or wraps x into its bounds (``fun`` should do the same).
+    """
+    grid = np.asarray(grid, dtype=float).reshape(len(grid), -1)
+    vals = np.array([fun(g) for g in grid])
+    best = None
+    for k in np.argsort(vals, kind="stable")[:n_starts]:
+        x0 = grid[k]
+        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
+        res = minimize(fun, x0, method="Nelder-Mead",
+                       options={"maxfev": max_evals * len(x0), "initial_simplex": simplex, "xatol": xatol,
+                                "fatol": fatol})
+        if best is None or res.fun < best.fun:
+            best = res
+    assert best is not None
+    return np.asarray(best.x, dtype=float), float(min(best.fun, vals.min()))
+
+
 @dataclass
 class CandidateFit:
     """A candidate fitted on one training set."""
@@ -171,24 +196,18 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSampl
             xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
             return objective(cand.build(pipe, dict(zip(names, xx, strict=True)), choice), flights, idx, cfg, cache)
 
-        grid = _start_grid(cand, cache, params)
-        vals = np.array([f_obj(np.array(g)) for g in grid])
-        x0 = np.array(grid[int(np.argmin(vals))], dtype=float)
         steps = [(b - a) / 8.0 if np.isfinite(b - a) else 10.0 for a, b in bounds]
         for j, prm in enumerate(params):
             if len(prm.grid) > 1:
                 steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
-        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
-        res = minimize(f_obj, x0, method="Nelder-Mead",
-                       options={"maxfev": cfg.max_evals * len(x0), "initial_simplex": simplex,
-                                "xatol": 1e-3, "fatol": 1e-6})
-        x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(res.x, bounds, strict=True)]
+        xb, loss = minimize_from_grid(f_obj, np.array(_start_grid(cand, cache, params), dtype=float), steps,
+                                      cfg.max_evals)
+        x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(xb, bounds, strict=True)]
         for j, prm in enumerate(params):
             if prm.period:
                 x[j] = x[j] % prm.period
         th = dict(zip(names, x, strict=True))
         new = cand.build(pipe, th, choice)
-        loss = float(min(res.fun, vals.min()))
         if best is None or loss < best.train_loss:
             best = CandidateFit(new, {**th, **choice}, loss)
     assert best is not None
