@@ -39,16 +39,18 @@ DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
 
 
-def default_model_path() -> Path | None:
-    """``models/rfsl_default.onnx`` of a source checkout if it exists (``<repo>/models/``; also a copy placed by
-    hand in ``mission/models/``): pyproject ships no models, so an installed package alone has none."""
+def shipped_model(name: str) -> Path | None:
+    """``models/<name>`` of the source checkout if it exists: the models live beside the package in the
+    repository (pyproject ships none, so an installed package alone has none)."""
     import mission
 
-    pkg = Path(mission.__file__).resolve().parent
-    for cand in (pkg.parent / "models" / DEFAULT_MODEL_NAME, pkg / "models" / DEFAULT_MODEL_NAME):
-        if cand.is_file():
-            return cand
-    return None
+    p = Path(mission.__file__).resolve().parent.parent / "models" / name
+    return p if p.is_file() else None
+
+
+def default_model_path() -> Path | None:
+    """The simulated-log default network, ``models/rfsl_default.onnx``, if present."""
+    return shipped_model(DEFAULT_MODEL_NAME)
 
 
 def search_area(log):
@@ -159,11 +161,8 @@ def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
 
 
 def fusion_model_path() -> Path | None:
-    """The network of the fused default (``FUSION_MODEL_NAME`` under ``models/``), if shipped."""
-    import mission
-
-    p = Path(mission.__file__).resolve().parent.parent / "models" / FUSION_MODEL_NAME
-    return p if p.is_file() else None
+    """The network of the fused default (``models/rfsl_spiral_e2r.onnx``), if present."""
+    return shipped_model(FUSION_MODEL_NAME)
 
 
 def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
