@@ -250,7 +250,11 @@ def fit_site_map(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], re
     return sm, {"lambda": lam, "sites": len(coef), "size_db": float(np.mean(sizes)) if sizes else 0.0}
 
 
-def site_map_candidate() -> Candidate:
+def _smoother(name: str, description: str,
+              fit: Callable[[Sequence[FlightSamples], Sequence[np.ndarray], Sequence[np.ndarray], Any],
+                            tuple[Any, dict[str, Any]]]) -> Candidate:
+    """A smoother candidate: ``fit(flights, idx, resid, cfg) -> (field, params)`` fills the pipeline's spatial
+    slot (fitted directly on the training residuals, no parameter search); withholding it empties the slot."""
     def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
         return p
 
@@ -260,12 +264,18 @@ def site_map_candidate() -> Candidate:
     def direct_fit(p: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                    resid: Sequence[np.ndarray],
                    rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
-        sm, params = fit_site_map(flights, idx, resid, getattr(cfg, "loss", "l2"), getattr(cfg, "f_scale_db", 6.0))
-        return p.replace(spatial=sm), params
+        field_, params = fit(flights, idx, resid, cfg)
+        return p.replace(spatial=field_), params
 
-    return Candidate("site_map", "site-specific shadowing map around each transmitter position (compass azimuth x "
-                     "log distance), learned from the training flights there", (), build,
-                     lambda p: p.spatial is None, withhold, direct_fit=direct_fit, tier=TIER_SMOOTHER)
+    return Candidate(name, description, (), build, lambda p: p.spatial is None, withhold, direct_fit=direct_fit,
+                     tier=TIER_SMOOTHER)
+
+
+def site_map_candidate() -> Candidate:
+    return _smoother("site_map", "site-specific shadowing map around each transmitter position (compass azimuth x "
+                     "log distance), learned from the training flights there",
+                     lambda fl, idx, r, cfg: fit_site_map(fl, idx, r, getattr(cfg, "loss", "l2"),
+                                                          getattr(cfg, "f_scale_db", 6.0)))
 
 
 def shares_site(flights: Sequence[Any]) -> bool:
@@ -280,22 +290,15 @@ def usable_candidates(candidates: Sequence[Candidate], flights: Sequence[Any]) -
     return [c for c in candidates if c.name != "site_map" or shares_site(flights)]
 
 
+def _kriging_fit(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],
+                 cfg: Any = None) -> tuple[KrigedShadowing, dict[str, Any]]:
+    sigma, L, nug = choose_kriging(flights, idx, resid)
+    field_ = KrigedShadowing(sigma, L, nug, _group_cells(flights, idx, resid, KRIGING_CELL_M))
+    return field_, {"sigma_db": sigma, "corr_len_m": L, "nugget_db": nug}
+
+
 def spatial_candidate() -> Candidate:
-    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
-        return p
-
-    def withhold(p: Pipeline) -> Pipeline:
-        return p.replace(spatial=None)
-
-    def direct_fit(p: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                   resid: Sequence[np.ndarray],
-                   rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
-        sigma, L, nug = choose_kriging(flights, idx, resid)
-        pts = _group_cells(flights, idx, resid, KRIGING_CELL_M)
-        field_ = KrigedShadowing(sigma, L, nug, pts)
-        return p.replace(spatial=field_), {"sigma_db": sigma, "corr_len_m": L, "nugget_db": nug}
-
-    return Candidate("spatial_shadowing", "spatially correlated shadowing (kriging of training residuals)", (),
-                     build, lambda p: p.spatial is None, withhold, direct_fit=direct_fit, tier=TIER_SMOOTHER)
+    return _smoother("spatial_shadowing", "spatially correlated shadowing (kriging of training residuals)",
+                     _kriging_fit)
 
 
