@@ -60,10 +60,20 @@ def basis_orders(kind: str) -> list[tuple[str, int, int]]:
     M, P = KINDS[kind]
     if kind == "excess_loss":
         return [("a", m, 0) for m in range(1, M + 1)] + [("b", 0, p) for p in range(1, P + 1)]
+    return fourier_legendre_orders(M, P)
+
+
+def fourier_legendre_orders(M: int, P: int) -> list[tuple[str, int, int]]:
+    """(``c``/``s``, m, p) of every column of ``fourier_legendre_columns``, in its order."""
     out = [("c", 0, p) for p in range(1, P + 1)]
     for m in range(1, M + 1):
         out += [(t, m, p) for t in ("c", "s") for p in range(P + 1)]
     return out
+
+
+def ridge_penalty(orders: Sequence[tuple[str, int, int]]) -> np.ndarray:
+    """Ridge weights 1 + m^2 + p^2 per basis column (rougher terms shrink more)."""
+    return np.array([1.0 + m * m + p * p for _, m, p in orders])
 
 
 def _leg(x: np.ndarray, p: int) -> np.ndarray:
@@ -88,17 +98,23 @@ def _legendre_all(x: np.ndarray, n: int) -> list[np.ndarray]:
     return out[: n + 1]
 
 
-def _columns(kind: str, a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
-    """Every basis column of ``kind`` (the order of ``basis_orders``), sharing the Legendre and Fourier terms."""
-    M, P = KINDS[kind]
-    if kind == "excess_loss":
-        return _legendre_all(a, M)[1:] + _legendre_all(b, P)[1:]
+def fourier_legendre_columns(a: np.ndarray, b: np.ndarray, M: int, P: int) -> list[np.ndarray]:
+    """cos/sin(m a) P_p(b) for m <= M, p <= P without the constant, in the order of ``basis_orders``: the smooth
+    map over an angle ``a`` (rad) and a variable ``b`` in [-1, 1] that the gain maps and the site map share."""
     lb = _legendre_all(b, P)
     cols = lb[1:]
     for m in range(1, M + 1):
         c, s_ = np.cos(m * a), np.sin(m * a)
         cols += [c * q for q in lb] + [s_ * q for q in lb]
     return cols
+
+
+def _columns(kind: str, a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
+    """Every basis column of ``kind`` (the order of ``basis_orders``), sharing the Legendre and Fourier terms."""
+    M, P = KINDS[kind]
+    if kind == "excess_loss":
+        return _legendre_all(a, M)[1:] + _legendre_all(b, P)[1:]
+    return fourier_legendre_columns(a, b, M, P)
 
 
 def design(kind: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -230,7 +246,7 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], id
     ab = [map_variables(kind, link_of(pipe, f, i)) for f, i in zip(fl, ix, strict=True)]
     Xs = [design(kind, a, b) for a, b in ab]
     ws = [np.ones(len(r)) if loss == "l2" else 1.0 / np.sqrt(1.0 + (r / f_scale) ** 2) for r in rs]
-    pen = np.array([1.0 + m * m + p * p for _, m, p in basis_orders(kind)])
+    pen = ridge_penalty(basis_orders(kind))
     half = [(np.floor(f.t_s[i] / period_s).astype(int) % 2) for f, i in zip(fl, ix, strict=True)]
 
     def gram(sel: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
+from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_penalty
 from mission.gap.pipeline import Pipeline
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
@@ -164,16 +165,10 @@ def site_variables(tx: np.ndarray, rx_xy: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def site_design(az: np.ndarray, ld: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Design matrix (N, K) Fourier(az, SITE_M) x Legendre(ld, SITE_P), no constant; and the ridge penalty."""
-    leg = [np.ones_like(ld), ld]
-    for k in range(1, SITE_P):
-        leg.append(((2 * k + 1) * ld * leg[k] - k * leg[k - 1]) / (k + 1))
-    cols, pen = list(leg[1: SITE_P + 1]), [1.0 + p * p for p in range(1, SITE_P + 1)]
-    for m in range(1, SITE_M + 1):
-        c, s_ = np.cos(m * az), np.sin(m * az)
-        cols += [c * q for q in leg[: SITE_P + 1]] + [s_ * q for q in leg[: SITE_P + 1]]
-        pen += [1.0 + m * m + p * p for p in range(SITE_P + 1)] * 2
-    return np.column_stack(cols), np.array(pen)
+    """Design matrix (N, K) Fourier(az, SITE_M) x Legendre(ld, SITE_P), no constant, and its ridge penalty:
+    the free-form maps' basis (``freeform.fourier_legendre_columns``) over the site variables."""
+    return (np.column_stack(fourier_legendre_columns(az, ld, SITE_M, SITE_P)),
+            ridge_penalty(fourier_legendre_orders(SITE_M, SITE_P)))
 
 
 @dataclass(frozen=True, eq=False)
