@@ -234,6 +234,43 @@ def where_it_acts(kind: str, a: np.ndarray, b: np.ndarray, term: np.ndarray) -> 
     return out
 
 
+def ridge_cv(Xs: Sequence[np.ndarray], rs: Sequence[np.ndarray], ws: Sequence[np.ndarray],
+             halves: Sequence[np.ndarray], pen: np.ndarray, lambdas: Sequence[float], min_n: int = 0
+             ) -> tuple[np.ndarray, Any]:
+    """Weighted ridge regression of residuals ``rs`` on designs ``Xs`` (one per flight), both centred per flight
+    (the free offset), penalty ``lambda * n * diag(pen)``: the two-fold cross-validation error for each lambda
+    (train on one of ``halves`` 0/1, score the other) and ``fit_all(lambda)`` -> coefficients on every sample.
+
+    Why one routine: the free-form maps and the site map are the same smooth fit over other variables.
+    Flights with fewer than ``min_n`` samples in a selection sit that selection out.
+    """
+    def gram(sel: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
+        """X^T W X and X^T W y of the selected samples, centred per flight (computed once per selection)."""
+        use = [k for k, s in enumerate(sel) if s.sum() >= min_n]
+        X = _centered([Xs[k][sel[k]] for k in use], [ws[k][sel[k]] for k in use])
+        y = _centered([rs[k][sel[k]] for k in use], [ws[k][sel[k]] for k in use])
+        if not use:
+            return np.zeros((len(pen), len(pen))), np.zeros(len(pen)), 0
+        XtW = X.T * np.concatenate([ws[k][sel[k]] for k in use])
+        return XtW @ X, XtW @ y, len(y)
+
+    def solve(g: tuple[np.ndarray, np.ndarray, int], lam: float) -> np.ndarray:
+        A, c, n = g
+        return np.linalg.solve(A + lam * max(n, 1) * np.diag(pen), c)
+
+    grams = [gram([h != a for h in halves]) for a in (0, 1)]
+    errs = np.zeros(len(lambdas))
+    for j, lam in enumerate(lambdas):
+        for a in (0, 1):
+            coef = solve(grams[a], lam)
+            te = [h == a for h in halves]
+            use = [k for k, s in enumerate(te) if s.sum() >= max(min_n, 1)]
+            d = _centered([rs[k][te[k]] - Xs[k][te[k]] @ coef for k in use], [ws[k][te[k]] for k in use])
+            w_te = np.concatenate([ws[k][te[k]] for k in use]) if use else np.zeros(0)
+            errs[j] += float(np.sum(w_te * d * d))
+    return errs, lambda lam: solve(gram([np.ones(len(r), bool) for r in rs]), lam)
+
+
 def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                  resid: Sequence[np.ndarray], cfg: Any = None, period_s: float = 30.0) -> tuple[Pipeline, dict]:
     """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold CV."""
@@ -246,36 +283,10 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], id
     ab = [map_variables(kind, link_of(pipe, f, i)) for f, i in zip(fl, ix, strict=True)]
     Xs = [design(kind, a, b) for a, b in ab]
     ws = [np.ones(len(r)) if loss == "l2" else 1.0 / np.sqrt(1.0 + (r / f_scale) ** 2) for r in rs]
-    pen = ridge_penalty(basis_orders(kind))
     half = [(np.floor(f.t_s[i] / period_s).astype(int) % 2) for f, i in zip(fl, ix, strict=True)]
-
-    def gram(sel: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
-        """X^T W X and X^T W y of the selected samples, centred per flight (computed once per selection)."""
-        X = _centered([x[s] for x, s in zip(Xs, sel, strict=True)], [w[s] for w, s in zip(ws, sel, strict=True)])
-        y = _centered([r[s] for r, s in zip(rs, sel, strict=True)], [w[s] for w, s in zip(ws, sel, strict=True)])
-        XtW = X.T * np.concatenate([w[s] for w, s in zip(ws, sel, strict=True)])
-        return XtW @ X, XtW @ y, len(y)
-
-    def solve(g: tuple[np.ndarray, np.ndarray, int], lam: float) -> np.ndarray:
-        A, c, n = g
-        return np.linalg.solve(A + lam * n * np.diag(pen), c)
-
-    grams = [gram([h != a for h in half]) for a in (0, 1)]
-    best = (np.inf, LAMBDAS[-1])
-    for lam in LAMBDAS:
-        err = 0.0
-        for a in (0, 1):
-            coef = solve(grams[a], lam)
-            te = [h == a for h in half]
-            pred = [x[s] @ coef for x, s in zip(Xs, te, strict=True)]
-            d = _centered([r[s] - q for r, s, q in zip(rs, te, pred, strict=True)],
-                          [w[s] for w, s in zip(ws, te, strict=True)])
-            w_te = np.concatenate([w[s] for w, s in zip(ws, te, strict=True)])
-            err += float(np.sum(w_te * d * d))
-        if err < best[0]:
-            best = (err, lam)
-    lam = best[1]
-    coef = solve(gram([np.ones(len(r), bool) for r in rs]), lam)
+    errs, fit_all = ridge_cv(Xs, rs, ws, half, ridge_penalty(basis_orders(kind)), LAMBDAS)
+    lam = float(LAMBDAS[int(np.argmin(errs))])
+    coef = fit_all(lam)
     term = FreeFormTerm(kind, tuple(float(c) for c in coef))
     new = pipe.replace(model=pipe.model.with_effect(term))
     vals = [x @ coef for x in Xs]

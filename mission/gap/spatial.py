@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
-from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_penalty
+from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_cv, ridge_penalty
 from mission.gap.pipeline import Pipeline
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
@@ -201,42 +201,12 @@ def fit_site_map(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], re
         w = np.ones(len(r)) if loss == "l2" else 1.0 / np.sqrt(1.0 + (r / f_scale_db) ** 2)
         half = np.floor(f.t_s[i] / period_s).astype(int) % 2
         groups.setdefault(tx_key(f.tx_enu_m), []).append((X, r, w, half))
-
-    def gram(parts: list, keep: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
-        A, c, n = np.zeros((len(pen), len(pen))), np.zeros(len(pen)), 0
-        for X, r, w, h in parts:
-            k = keep(h)
-            if k.sum() < 5:
-                continue
-            wk = w[k]
-            Xc = X[k] - (wk @ X[k]) / wk.sum()
-            rc = r[k] - (wk @ r[k]) / wk.sum()
-            A += (Xc.T * wk) @ Xc
-            c += (Xc.T * wk) @ rc
-            n += int(k.sum())
-        return A, c, n
-
-    def solve(g: tuple[np.ndarray, np.ndarray, int], lam: float) -> np.ndarray:
-        A, c, n = g
-        return np.linalg.solve(A + lam * max(n, 1) * np.diag(pen), c)
-
-    inner = {key: [gram(parts, lambda h, a=a: h != a) for a in (0, 1)] for key, parts in groups.items()}
-    errs = []
-    for lam in SITE_LAMBDAS:
-        err = 0.0
-        for key, parts in groups.items():
-            for a in (0, 1):
-                coef = solve(inner[key][a], lam)
-                for X, r, w, h in parts:
-                    te = h == a
-                    if te.sum() < 5:
-                        continue
-                    d = r[te] - X[te] @ coef
-                    d = d - (w[te] @ d) / w[te].sum()
-                    err += float(w[te] @ (d * d))
-        errs.append(err)
+    # one ridge fit per transmitter position, one lambda for all (CV errors pooled over the positions)
+    fits = {key: ridge_cv(*(list(col) for col in zip(*parts, strict=True)), pen, SITE_LAMBDAS, min_n=5)
+            for key, parts in groups.items()}
+    errs = np.sum([e for e, _ in fits.values()], axis=0) if fits else np.zeros(len(SITE_LAMBDAS))
     lam = float(SITE_LAMBDAS[int(np.argmin(errs))])
-    coef = {key: solve(gram(parts, lambda h: np.ones(len(h), bool)), lam) for key, parts in groups.items()}
+    coef = {key: fit_all(lam) for key, (_, fit_all) in fits.items()}
     sm = SiteMap(coef, lam)
     sizes = []
     for key, parts in groups.items():
