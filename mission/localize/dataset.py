@@ -42,15 +42,9 @@ _WORKER: FlightSimulator | None = None
 
 def _init_worker(cfg_dict: dict) -> None:
     global _WORKER
-    import os
+    from mission.localize.features import one_thread_process
 
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:  # pragma: no cover
-        pass
+    one_thread_process()
     _WORKER = FlightSimulator(DatasetConfig.from_dict(cfg_dict))
 
 

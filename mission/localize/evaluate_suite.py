@@ -114,10 +114,9 @@ _SUITE: dict = {}
 
 def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False) -> None:
     if one_thread:  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
-        import sklearn.cluster  # noqa: F401  (load its OpenMP runtime so that the limit applies to it)
-        from threadpoolctl import threadpool_limits
+        from mission.localize.features import one_thread_process
 
-        threadpool_limits(1)
+        one_thread_process()
     _SUITE.clear()
     _SUITE.update(methods=methods, source=source)
     if "dir" in source:

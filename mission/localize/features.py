@@ -247,6 +247,20 @@ def _thread_limit(n: int):
     return _CONTROLLER[0].limit(limits=n, user_api="openmp")
 
 
+def one_thread_process() -> None:
+    """Limit this (worker) process to one OpenMP/BLAS thread: workers of a pool already fill the cores, and
+    extra threads per worker only spin against each other (dataset generation, the benchmark's workers)."""
+    import os
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # runtimes loaded later
+    try:
+        import sklearn.cluster  # noqa: F401  (load its OpenMP runtime so that the limit applies to it)
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - scikit-learn and threadpoolctl are dependencies
+        return
+    threadpool_limits(1)
+
+
 def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
     from sklearn.cluster import KMeans  # loads its OpenMP runtime before the controller looks for it
 
