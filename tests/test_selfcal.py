@@ -106,6 +106,24 @@ def test_hpd_regions_of_a_gaussian_match_the_closed_form() -> None:
     assert post.covers(0.0, 0.0, 0.5) and not post.covers(60.0, 0.0, 0.9)
 
 
+def test_hpd_level_of_an_isotropic_gaussian_is_its_closed_form() -> None:
+    """The HPD level of a point at radius r under an isotropic Gaussian (sigma s) is 1 - exp(-r^2 / 2 s^2);
+    the centre's level is 0, a point off the grid 1, and ``covers`` agrees with the level."""
+    s = 20.0
+    xs = np.arange(-150.0, 150.01, 1.0)
+    gx, gy = np.meshgrid(xs, xs)
+    p = np.exp(-0.5 * (gx**2 + gy**2) / s**2)
+    post = Posterior(p / p.sum(), np.stack([gx, gy], axis=-1))
+    for r in (10.0, 20.0, 35.0, 50.0):
+        for ang in (0.0, 1.0, 2.5):
+            x, y = r * np.cos(ang), r * np.sin(ang)
+            assert post.hpd_level(x, y) == pytest.approx(1.0 - np.exp(-0.5 * r * r / s**2), abs=0.02)
+    assert post.hpd_level(0.0, 0.0) == pytest.approx(0.0, abs=1e-3)
+    assert post.hpd_level(400.0, 0.0) == 1.0 and not post.covers(400.0, 0.0, 0.99)
+    r50 = s * np.sqrt(-2.0 * np.log(0.5))
+    assert post.covers(0.9 * r50, 0.0, 0.5) and not post.covers(1.1 * r50, 0.0, 0.5)
+
+
 def test_regions_cover_truth_on_noisy_flights_at_about_the_nominal_rate() -> None:
     """White noise 6 dB on cells of a partial path: the 90 % region covers the truth in most of 12 flights and
     the 50 % region in fewer (a regression guard of the temperature, not the benchmark's calibration)."""
