@@ -201,6 +201,44 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     mean = np.mean(list(comp.values()), axis=0)
     assert (est.x_m, est.y_m) == pytest.approx(tuple(mean))
     assert [r["level"] for r in est.extras["regions"]] == [0.5, 0.9]
+    q = est.extras["fused_point_hpd_level"]  # the fused point's place in its own regions, and the note on it
+    assert q == pytest.approx(est.posterior.hpd_level(est.x_m, est.y_m)) and 0.0 <= q <= 1.0
+    assert ("outside the 90 % region" in est.extras.get("note", "")) == (q >= est.extras["regions"][1]["hpd_mass"])
     sim = write_flight_log(tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"}))
     est = localize_log(sim)
     assert est.method == ("onnx" if default_model_path() is not None else "grid")
+
+
+def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) -> None:
+    """When the network lands far from a sharp self-calibrating posterior, the fused point falls outside the
+    90 % region (which is the search's alone) and the estimate says so instead of drawing a region beside it."""
+    import numpy as np
+
+    from mission.flightlog import make_meta, write_flight_log
+    from mission.geo import afar_field
+    from mission.localize import api
+    from mission.physics import make_model
+    from mission.simulate import SimConfig, simulate_flight
+    from mission.spec import load_mission
+
+    spec = load_mission()
+    origin = afar_field().origin
+    tx = np.array([120.0, 200.0, 1.5])
+    f = simulate_flight(spec.waypoints_enu(), tx, make_model("free-space"), SimConfig(), np.random.default_rng(1))
+    real = write_flight_log(tmp_path / "real.csv", f.log_columns(origin), make_meta(origin, {"kind": "aerpaw-fifo"}))
+    make = api.make_localizer
+
+    class FarNetwork:  # a network answer 300 m east of the truth (what a net off its training domain can do)
+        path = tmp_path / "far.onnx"
+        cfg = type("Cfg", (), {"to_dict": lambda self: {}})()
+
+        def predict(self, part):
+            lat, lon, _ = origin.to_geodetic(np.array([tx[0] + 300.0, tx[1], 0.0]))
+            return api.Estimate(0.0, 0.0, "onnx", "far", float(lat), float(lon))
+
+    monkeypatch.setattr(api, "make_localizer", lambda m, *a, **k: FarNetwork() if m == "onnx" else make(m, *a, **k))
+    monkeypatch.setattr(api, "fusion_model_path", lambda: FarNetwork.path)
+    est = api.localize_log(real)
+    assert est.extras["component_distance_m"] > 250.0
+    assert est.extras["fused_point_hpd_level"] >= est.extras["regions"][1]["hpd_mass"]
+    assert "outside the 90 % region" in est.extras["note"]

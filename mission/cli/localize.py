@@ -152,6 +152,9 @@ def run(args: argparse.Namespace) -> int:
         tab.add_row(f"{100 * reg['level']:.0f} % region",
                     f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
                     f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east")
+    if "components" in est.extras:
+        parts = [f"{n} {cx:.1f}, {cy:.1f} m" for n, (cx, cy) in est.extras["components"].items()]
+        tab.add_row("components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)")
     if "p_outside_flown_area" in est.extras:
         tab.add_row("outside flown area", f"probability {est.extras['p_outside_flown_area']:.2f}")
     if "note" in est.extras:
