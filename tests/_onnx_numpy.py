@@ -88,6 +88,8 @@ def run_graph(path: str | Path, features: np.ndarray) -> np.ndarray:
             out = np.expand_dims(ins[0], tuple(int(v) for v in ins[1]))
         elif op in ("Add", "Sub", "Mul", "Div"):
             out = {"Add": np.add, "Sub": np.subtract, "Mul": np.multiply, "Div": np.divide}[op](ins[0], ins[1])
+        elif op == "Mean":  # an ensemble's plain mean of its members' outputs
+            out = np.mean(np.stack(ins), axis=0)
         elif op == "Relu":
             out = np.maximum(ins[0], 0.0)
         elif op == "Conv":

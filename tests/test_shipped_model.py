@@ -20,7 +20,7 @@ from _onnx_numpy import predict as numpy_predict
 
 from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
 
-SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar")
+SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5")
 
 
 @pytest.fixture(scope="module")
