@@ -206,3 +206,18 @@ def test_estimate_far_outside_the_rover_area_is_flagged(log_path, tmp_path, caps
     assert "warning" in capsys.readouterr().out
     assert localize([str(log_path), "--method", "strongest", "--json"]) == 0
     assert "warning" not in json.loads(capsys.readouterr().out)
+
+
+def test_fusion_takes_another_network(log_path, repo_dir, capsys):
+    """--method fusion --model X fuses the self-calibrating estimate with network X (the mean of the two);
+    --model with a method that has no network is refused with one line."""
+    net = repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx"
+    if not net.exists():
+        pytest.skip("no shipped ensemble")
+    assert localize([str(log_path), "--method", "fusion", "--model", str(net), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["method"] == "fusion" and set(d["components"]) == {"selfcal", net.name}
+    mean = np.mean(list(d["components"].values()), axis=0)
+    assert (d["x_m"], d["y_m"]) == pytest.approx(tuple(mean))
+    assert localize([str(log_path), "--method", "selfcal", "--model", str(net)]) == 2
+    one_error_line(capsys, "--model needs --method onnx or fusion")

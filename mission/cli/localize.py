@@ -17,7 +17,8 @@ from collections.abc import Sequence
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="flight log (CSV with its JSON sidecar)")
-    parser.add_argument("--model", metavar="MODEL.onnx", help="ONNX localizer (implies --method onnx)")
+    parser.add_argument("--model", metavar="MODEL.onnx",
+                        help="ONNX localizer (implies --method onnx; with --method fusion: the fused network)")
     parser.add_argument(
         "--method",
         choices=["onnx", "strongest", "centroid", "grid", "selfcal", "fusion"],
@@ -71,8 +72,8 @@ def run(args: argparse.Namespace) -> int:
     truth = parse_latlon(args.truth) if args.truth else None
     origin = parse_origin(args.origin) if args.origin else None
     method = args.method
-    if args.model and method not in (None, "onnx"):
-        raise InputError(f"--model needs --method onnx (got --method {method})")
+    if args.model and method not in (None, "onnx", "fusion"):
+        raise InputError(f"--model needs --method onnx or fusion (got --method {method})")
     if not (math.isfinite(args.tx_height) and 0 <= args.tx_height <= 1000):
         raise InputError(f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
                          field="--tx-height")
