@@ -6,7 +6,7 @@ more probable than the truth's) is recorded; the set of mass M covers the truth 
 50th / 90th percentiles of ``q`` over the flights are the masses that cover at the nominal rates.  Printed with
 the coverage per seed, leave-one-seed-out and 5-fold (seeded) cross-validated coverage.
 
-Usage (the shipped masses: three seeds of the ``afar`` family, 500 flights, ~4 min on 2 cores)::
+Usage (the shipped masses: three seeds of the ``afar`` family, 500 flights, 33 s on 2 cores)::
 
     python benchmarks/calibrate_regions.py --seeds 2026:200 2027:100 2028:200 --json /tmp/regions.json
 """

@@ -74,8 +74,9 @@ def check(out: str, paths: list[str], dataset: str) -> None:
     """Fail unless ``out`` equals the members' mean on a dataset's clustering features."""
     import onnxruntime as ort
 
-    x = np.concatenate([np.load(c)["clustering"] for c in sorted(Path(dataset).glob("chunk_*.npz"))])
-    x = x.astype(np.float32)
+    from mission.localize.dataset import load_dataset
+
+    x = load_dataset(dataset, ("clustering",))[0]["clustering"].astype(np.float32)
 
     def run(p: str) -> np.ndarray:
         s = ort.InferenceSession(p, providers=["CPUExecutionProvider"])

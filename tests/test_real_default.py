@@ -12,8 +12,9 @@ import json
 import numpy as np
 import pytest
 
-from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.importers.afar import afar2023_id
 from mission.localize.api import localize_log
+from mission.localize.evaluate import import_afar
 from mission.localize.uncertainty import region_covers
 
 
@@ -21,12 +22,10 @@ from mission.localize.uncertainty import region_covers
 def test_real_default_reproduces_its_card(tmp_path, shared_dir, repo_dir) -> None:
     card = json.loads((repo_dir / "models" / "real_default.json").read_text())
     tol = card["tolerance_m"]
-    assert len(card["flights"]) == 6
+    logs = {afar2023_id(p): p for p in import_afar(shared_dir / "data" / "afar2023" / "mat", tmp_path)}
+    assert set(logs) == {afar2023_id(n) for n in card["flights"]} and len(logs) == 6
     for name, want in card["flights"].items():
-        team, loc = name.split("_loc_")
-        mat = shared_dir / "data" / "afar2023" / "mat" / f"results_useful_ori_exp_{team}_loc_{loc}.mat"
-        log = import_afar_mat(mat, tmp_path, truth=AFAR2023_TRUTH[int(loc)]).out_path
-        est = localize_log(log)
+        est = localize_log(logs[afar2023_id(name)])
         assert est.method == card["method"], name
         assert est.error_m == pytest.approx(want["error_m"], abs=tol), name
         t = (est.extras["truth_x_m"], est.extras["truth_y_m"])
