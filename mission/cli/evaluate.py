@@ -192,10 +192,17 @@ def _run_suite(args: argparse.Namespace, console) -> int:
         raise InputError(f"--n must be >= 1, got {args.n}", field="--n")
     cols = (TextColumn("[bold]unseen flights"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
             TextColumn("eta"), TimeRemainingColumn())
+    stale: list[str] = []
+
+    def warn(text: str) -> None:  # a cache written by other simulator code: one stderr line, before the table
+        stale.append(text)
+        print(f"warning: {text}", file=sys.stderr)
+
     with Progress(*cols, console=console, transient=True, disable=not console.is_terminal) as prog:
         task = prog.add_task("suite", total=args.n)
         rows, secs = evaluate_suite(methods, args.n, args.seed, args.suite_dir, family=args.family,
-                                    workers=args.workers, progress=lambda d, _t: prog.update(task, completed=d))
+                                    workers=args.workers, progress=lambda d, _t: prog.update(task, completed=d),
+                                    warn=warn)
     from rich.markup import escape
 
     t = Table(title=escape(f"{rows[0].test} (2D error; regions: share of truths inside)"))
@@ -208,6 +215,8 @@ def _run_suite(args: argparse.Namespace, console) -> int:
                   f"{secs[s['method']]:.2f}")
     console.print(t)
     extra: dict = {"command": " ".join(sys.argv), "seconds_per_flight": secs}
+    if stale:
+        extra["warnings"] = stale
     axes = [a.strip() for a in args.by.split(",") if a.strip()]
     if axes:
         from mission.localize.evaluate_suite import breakdown, suite_draws

@@ -14,6 +14,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from mission.localize import METHOD_NAMES
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="flight log (CSV with its JSON sidecar)")
@@ -21,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="ONNX localizer (implies --method onnx; with --method fusion: the fused network)")
     parser.add_argument(
         "--method",
-        choices=["onnx", "strongest", "centroid", "grid", "selfcal", "fusion"],
+        choices=METHOD_NAMES,
         help="localizer (default: fusion for a real receiver's log; for a simulated log the shipped "
         "models/rfsl_default.onnx if present, else grid)",
     )

@@ -30,9 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize import Estimate
+from mission.localize import METHOD_NAMES, Estimate  # METHOD_NAMES lives there (imported by the light CLI)
 
-METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal", "fusion")
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"

@@ -157,6 +157,7 @@ def evaluate_suite(
     center: str = "afar",
     workers: int = 2,
     progress: Callable[[int, int], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> tuple[list[Row], dict[str, float]]:
     """Methods on the unseen-flight benchmark (``mission.localize.suite``): (rows, mean seconds per flight).
 
@@ -164,6 +165,9 @@ def evaluate_suite(
     here from ``seed`` (default ``BENCHMARK_SEED``).  Each method sees only the log (``localize_log``); the
     error is 2D against the truth kept beside it; when an estimate carries ``extras["regions"]`` the rows
     count how often the truth lies in the 50 % / 90 % region.  Results do not depend on ``workers``.
+
+    A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
+    its one-line warning goes to ``warn`` first (default: ``warnings.warn``).
     """
     from mission.localize.suite import BENCHMARK_SEED, read_suite
 
@@ -172,6 +176,13 @@ def evaluate_suite(
         raise InputError("no methods to evaluate", field="--methods")
     if suite_dir is not None:
         cs = read_suite(suite_dir)
+        if (stale := cs.check_current()) is not None:
+            if warn is None:
+                import warnings
+
+                warnings.warn(stale, UserWarning, stacklevel=2)
+            else:
+                warn(stale)
         n = min(n, len(cs)) if n else len(cs)
         mf = cs.manifest
         source: dict = {"dir": str(suite_dir)}
