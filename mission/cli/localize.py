@@ -1,6 +1,6 @@
 """Estimate the transmitter position from a flight log (ONNX network or classical estimators).
 
-Keeps the cruise part of the log (mission legs, else the cruise height band) and runs the method.  Default
+Keeps the cruise part of the log (mission legs, else the cruise altitude levels) and runs the method.  Default
 method (``mission.localize.api.localize_log``): ``--model`` given -> that network; a real receiver's log ->
 ``fusion`` (mean of the self-calibrating grid and ``models/rfsl_spiral_e2r.onnx``); a simulated log -> the
 shipped ``models/rfsl_default.onnx`` when present, else a grid search with the log's own simulation model.
@@ -111,9 +111,9 @@ def run(args: argparse.Namespace) -> int:
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     if args.plot:
         from mission.localize.plot import plot_localization
-        from mission.localize.preprocess import select_cruise
+        from mission.localize.preprocess import select_samples
 
-        part = log if args.no_cruise else select_cruise(log)[0]
+        part = log if args.no_cruise else select_samples(log)[0]  # the samples the estimate used
         from mission.localize.features import FeatureConfig
 
         fc = est.extras.get("feature_config")
