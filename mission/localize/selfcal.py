@@ -8,9 +8,9 @@ the best hypothesis is kept per candidate (profile likelihood).  The distance la
 (``-20 log10 d``): on the real AFAR flights a free exponent absorbed the antenna's elevation pattern and
 moved estimates (``models/README.md``).
 
-Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal plane
-(:func:`cell_average`), so that a slow pass or a hover does not count its spot many times, and the
-likelihood is tempered to the number of *independent* cells, ``n_eff = covered area / (pi corr_m^2)``
+Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal plane, one
+set per altitude level (:func:`cell_average`), so that a slow pass or a hover does not count its spot many
+times, and the likelihood is tempered to the number of *independent* cells, ``n_eff = covered area / (pi corr_m^2)``
 (exponential shadowing correlation length ``corr_m``), so thousands of correlated samples do not count as
 independent evidence.  The tempered profile likelihood over the search grid is the posterior from which
 :mod:`mission.localize.uncertainty` draws the 50 % and 90 % regions.
@@ -42,6 +42,8 @@ HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
 # 0.511 / 0.954 covered the truth in 49.8 % / 89.8 % of held-out flights (5-fold).
 CORR_M = 15.0
 CALIBRATED_MASS = {0.5: 0.511, 0.9: 0.954}
+# Heights further apart than this are separate altitude levels when cells are averaged (height_levels)
+LEVEL_GAP_M = 5.0
 
 
 @dataclass
@@ -54,14 +56,16 @@ class Cells:
     yaw_rad: np.ndarray
     count: np.ndarray
     cell_m: float
+    n_columns: int = -1  # distinct horizontal cells (a cell flown at two altitude levels counts once); -1: len
 
     def __len__(self) -> int:
         return int(self.rss_dbm.size)
 
     @property
     def area_m2(self) -> float:
-        """Horizontal area the flight covered: the occupied cells times their area."""
-        return len(self) * self.cell_m * self.cell_m
+        """Horizontal area the flight covered: the occupied horizontal cells times their area."""
+        n = len(self) if self.n_columns < 0 else self.n_columns
+        return n * self.cell_m * self.cell_m
 
 
 def corr_is_default(corr_m: float) -> bool:
@@ -69,12 +73,25 @@ def corr_is_default(corr_m: float) -> bool:
     return abs(corr_m - CORR_M) < 1e-9
 
 
-def cell_average(f: FlightSamples, cell_m: float) -> Cells:
-    """Average a flight's samples into ``cell_m`` square horizontal cells (vectorised; yaw averaged on the circle).
+def height_levels(z: np.ndarray, gap_m: float = LEVEL_GAP_M) -> np.ndarray:
+    """Altitude level index per sample (N,): heights split wherever sorted heights leave a gap over ``gap_m``.
 
-    Without attitude the yaw is taken as 0 (nose north).
+    Why: a flight surveyed at two altitudes (``preprocess.cruise_mask`` keeps both levels) must not average a
+    cell's samples at 25 m and 45 m into one point at 35 m; one level (any noise within it) gives all zeros.
     """
-    key = np.floor(f.enu_m[:, :2] / cell_m).astype(np.int64)
+    zs = np.sort(z)
+    cuts = zs[1:][np.diff(zs) > gap_m]
+    return np.searchsorted(cuts, z, side="right")
+
+
+def cell_average(f: FlightSamples, cell_m: float, level_gap_m: float = LEVEL_GAP_M) -> Cells:
+    """Average a flight's samples into ``cell_m`` square horizontal cells, one per altitude level (vectorised;
+    yaw averaged on the circle).
+
+    Without attitude the yaw is taken as 0 (nose north); ``level_gap_m`` = inf merges the altitude levels.
+    """
+    xy = np.floor(f.enu_m[:, :2] / cell_m).astype(np.int64)
+    key = np.column_stack([xy, height_levels(f.enu_m[:, 2], level_gap_m)])
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
     m = cnt.size
@@ -82,7 +99,7 @@ def cell_average(f: FlightSamples, cell_m: float) -> Cells:
     rss = np.bincount(inv, f.rss_dbm, m) / cnt
     yaw_s = np.zeros(f.rss_dbm.size) if f.attitude_rad is None else f.attitude_rad[:, 2]
     yaw = np.arctan2(np.bincount(inv, np.sin(yaw_s), m), np.bincount(inv, np.cos(yaw_s), m))
-    return Cells(pos, rss, yaw, cnt, float(cell_m))
+    return Cells(pos, rss, yaw, cnt, float(cell_m), len(np.unique(xy, axis=0)))
 
 
 def antenna_hypotheses(kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
@@ -194,6 +211,7 @@ class SelfCalibratingGrid(_Base):
     box grown by ``margin_m``.  ``corr_m`` sets the likelihood's temperature (module docstring) and with it the
     width of the uncertainty regions; its default was calibrated on the unseen-flight benchmark
     (``models/README.md``).
+    ``level_gap_m``: heights further apart than this are altitude levels with cells of their own (inf: one).
     """
 
     name = "selfcal"
@@ -201,7 +219,8 @@ class SelfCalibratingGrid(_Base):
     def __init__(self, area=None, margin_m: float = 60.0, cell_m: float = 5.0, step_m: float = 5.0,
                  refine_m: float = 1.0, tx_height_m: float = 1.5, heading_step_deg: float = 30.0,
                  hypotheses: tuple[str, ...] = HYPOTHESIS_KINDS, corr_m: float = CORR_M, min_cells: int = 8,
-                 levels: tuple[float, ...] = (0.5, 0.9), masses: dict[float, float] | None = None) -> None:
+                 levels: tuple[float, ...] = (0.5, 0.9), masses: dict[float, float] | None = None,
+                 level_gap_m: float = LEVEL_GAP_M) -> None:
         self.area = area
         self.margin_m = float(margin_m)
         self.cell_m = float(cell_m)
@@ -213,6 +232,7 @@ class SelfCalibratingGrid(_Base):
         self.corr_m = float(corr_m)
         self.min_cells = int(min_cells)
         self.levels = tuple(levels)
+        self.level_gap_m = float(level_gap_m)
         self.masses = (dict(masses) if masses is not None
                        else dict(CALIBRATED_MASS) if corr_is_default(corr_m) else {})
 
@@ -227,7 +247,7 @@ class SelfCalibratingGrid(_Base):
         from mission.localize.uncertainty import grid_posterior, hpd_regions
 
         f = as_flight(flight, origin)
-        cells = cell_average(f, self.cell_m)
+        cells = cell_average(f, self.cell_m, self.level_gap_m)
         if len(cells) < self.min_cells:
             raise InputError(f"only {len(cells)} distinct {self.cell_m:g} m cells flown: too few to localize "
                              f"(need {self.min_cells})")
