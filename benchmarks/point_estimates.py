@@ -1,0 +1,83 @@
+"""Which point should the self-calibrating search report? MAP against posterior means, inside the default fusion.
+
+Why: on the benchmark the MAP jumps between modes of a flat likelihood and a posterior mean hedges; on real
+flights the posteriors are wide.  The stop-17 rule (models/README.md) scores each candidate as the selfcal
+component of the fusion = mean(selfcal point, network), on the benchmark (U) and the six real flights (R):
+score U/min(U) + R/min(R), the incumbent MAP kept unless another is lower by more than 0.05.
+
+    rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
+    python benchmarks/point_estimates.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat   # 2 min
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+CANDIDATES = ("MAP", "PM", "C50", "C90")
+
+
+def candidates(est) -> dict[str, np.ndarray]:
+    """The four points of one fusion estimate: its selfcal MAP and three posterior means (log ENU m)."""
+    from mission.localize.selfcal import CALIBRATED_MASS
+
+    post = est.posterior
+    p, g = post.prob.ravel(), post.grid.reshape(-1, 2)
+    out = {"MAP": np.asarray(est.extras["components"]["selfcal"]), "PM": p @ g / p.sum()}
+    for level, key in ((0.5, "C50"), (0.9, "C90")):
+        m = p >= post.mass_threshold(CALIBRATED_MASS[level])
+        out[key] = p[m] @ g[m] / p[m].sum()
+    return out
+
+
+def one(job: tuple[str, str, int]) -> dict:
+    """Fusion on one flight -> the candidates, the network's point and the truth."""
+    from mission.flightlog import read_flight_log
+    from mission.localize.api import localize_log
+    from mission.localize.suite import read_suite
+
+    kind, src, i = job
+    if kind == "suite":
+        fl = read_suite(src).load(i)
+        log, truth = fl.log, np.asarray(fl.truth_xy)
+    else:
+        log, truth = read_flight_log(src), None
+    est = localize_log(log, method="fusion")
+    if truth is None:
+        truth = np.array([est.extras["truth_x_m"], est.extras["truth_y_m"]])
+    net = next(np.asarray(v) for k, v in est.extras["components"].items() if k != "selfcal")
+    return {"truth": truth, "net": net, **candidates(est)}
+
+
+def errors(rows: list[dict], key: str, fused: bool = True) -> np.ndarray:
+    """2D errors (m) of candidate ``key``, fused with the network (or alone)."""
+    return np.array([np.hypot(*((0.5 * (r[key] + r["net"]) if fused else r[key]) - r["truth"])) for r in rows])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--suite-dir", required=True)
+    ap.add_argument("--n", type=int, default=200)
+    ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    from mission.localize.evaluate import import_afar
+
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers) as ex:
+        real = list(ex.map(one, [("real", str(p), 0) for p in import_afar(args.mat, tmp)]))
+        bench = list(ex.map(one, [("suite", args.suite_dir, i) for i in range(args.n)]))
+    u = {k: errors(bench, k).mean() for k in CANDIDATES}
+    r = {k: errors(real, k).mean() for k in CANDIDATES}
+    for k in CANDIDATES:
+        eu, er = errors(bench, k), errors(real, k)
+        print(f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
+              f"  score {u[k] / min(u.values()) + r[k] / min(r.values()):.3f}  | selfcal alone U "
+              f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R per flight "
+              f"{' '.join(f'{e:.1f}' for e in er)}")
+
+
+if __name__ == "__main__":
+    main()
