@@ -37,7 +37,7 @@ def one(job: tuple[str, str, int]) -> dict:
     """Fusion on one flight -> the candidates, the network's point and the truth."""
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log
-    from mission.localize.suite import read_suite
+    from mission.localize.suite_cache import read_suite
 
     kind, src, i = job
     if kind == "suite":

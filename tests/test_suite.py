@@ -12,12 +12,11 @@ from mission.localize.evaluate_suite import evaluate_suite, region_contains, sui
 from mission.localize.suite import (
     HABITS,
     draw_flight,
-    read_suite,
     simulate_draw,
     unseen_flight,
     unseen_flights,
-    write_suite,
 )
+from mission.localize.suite_cache import read_suite, write_suite
 
 
 def test_flights_are_deterministic_per_index():

@@ -226,7 +226,7 @@ def _write_logs(args: argparse.Namespace, console) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from mission.errors import InputError
-    from mission.localize.suite import write_suite
+    from mission.localize.suite_cache import write_suite
 
     out = Path(args.out)
     if (out / "suite.json").exists() and not args.overwrite:

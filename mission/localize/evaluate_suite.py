@@ -120,7 +120,7 @@ def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False
     _SUITE.clear()
     _SUITE.update(methods=methods, source=source)
     if "dir" in source:
-        from mission.localize.suite import read_suite
+        from mission.localize.suite_cache import read_suite
 
         _SUITE["cached"] = read_suite(source["dir"])
 
@@ -169,7 +169,8 @@ def evaluate_suite(
     A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
     its one-line warning goes to ``warn`` first (default: ``warnings.warn``).
     """
-    from mission.localize.suite import BENCHMARK_SEED, read_suite
+    from mission.localize.suite import BENCHMARK_SEED
+    from mission.localize.suite_cache import read_suite
 
     labels = {m: suite_method(m) for m in methods}
     if not labels:
@@ -224,7 +225,8 @@ def evaluate_suite(
 def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: str = "afar",
                 center: str = "afar") -> list[dict]:
     """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
-    from mission.localize.suite import BENCHMARK_SEED, draw_flight, read_suite
+    from mission.localize.suite import BENCHMARK_SEED, draw_flight
+    from mission.localize.suite_cache import read_suite
 
     if suite_dir is not None:
         return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]
