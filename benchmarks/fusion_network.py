@@ -1,0 +1,79 @@
+"""Which network should the default fusion use?  Each candidate network as the fusion's network component.
+
+Why: the real-log default is mean(selfcal point, network point); a new network replaces ``rfsl_spiral_e2r`` only
+under a rule written before scoring (models/README.md), which scores the *fusion* on the unseen-flight benchmark
+(U) and the six real flights (R): score U/min(U) + R/min(R) over the candidates.  The self-calibrating point is
+computed once per flight and shared by all candidates.
+
+    rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
+    python benchmarks/fusion_network.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat \\
+        --nets models/rfsl_spiral_e2r.onnx M/candidate.onnx                                   # ~1 min, 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+SUSPECT = 2  # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+
+
+def one(job: tuple[str, str, int, tuple[str, ...]]) -> dict:
+    """Selfcal point, each network's point and the truth on one flight (log ENU m)."""
+    from mission.flightlog import read_flight_log
+    from mission.localize.api import localize_log
+    from mission.localize.suite_cache import read_suite
+
+    kind, src, i, nets = job
+    if kind == "suite":
+        fl = read_suite(src).load(i)
+        log, truth = fl.log, np.asarray(fl.truth_xy)
+    else:
+        log = read_flight_log(src)
+        truth = np.asarray(log.truth_enu[:2])
+    sc = localize_log(log, method="selfcal")
+    out = {"truth": truth, "selfcal": np.array([sc.x_m, sc.y_m])}
+    for n in nets:
+        e = localize_log(log, model_path=n)
+        out[n] = np.array([e.x_m, e.y_m])
+    return out
+
+
+def errors(rows: list[dict], net: str, fused: bool = True) -> np.ndarray:
+    """2D errors (m) of the fusion with ``net`` (or of ``net`` alone)."""
+    return np.array([np.hypot(*((0.5 * (r["selfcal"] + r[net]) if fused else r[net]) - r["truth"])) for r in rows])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--suite-dir", required=True)
+    ap.add_argument("--n", type=int, default=200)
+    ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
+    ap.add_argument("--nets", nargs="+", required=True, help="ONNX networks (the incumbent first)")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    from mission.localize.evaluate import import_afar
+    from mission.localize.features import one_thread_process
+
+    nets = tuple(args.nets)
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+        real = list(ex.map(one, [("real", str(p), 0, nets) for p in import_afar(args.mat, tmp)]))
+        bench = list(ex.map(one, [("suite", args.suite_dir, i, nets) for i in range(args.n)], chunksize=4))
+    u = {n: errors(bench, n).mean() for n in nets}
+    r = {n: errors(real, n).mean() for n in nets}
+    for n in nets:
+        eu, er, au, ar = errors(bench, n), errors(real, n), errors(bench, n, False), errors(real, n, False)
+        score = u[n] / min(u.values()) + r[n] / min(r.values())
+        five, five_alone = np.delete(er, SUSPECT).mean(), np.delete(ar, SUSPECT).mean()
+        print(f"{Path(n).name}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R "
+              f"{er.mean():.1f} [{five:.1f}]  score {score:.3f}  | alone U {au.mean():.1f} / {np.median(au):.1f}  "
+              f"R {ar.mean():.1f} [{five_alone:.1f}]  | R per flight fused {' '.join(f'{e:.1f}' for e in er)}; "
+              f"alone {' '.join(f'{e:.1f}' for e in ar)}")
+
+
+if __name__ == "__main__":
+    main()
