@@ -40,21 +40,23 @@ def lawnmower_path(
 
 
 def synthetic_flight(
-    tx=(150.0, 120.0, 1.5), n: int = 12000, seed: int = 0, offset: float = 0.0, noise: float = 1.0
+    tx=(150.0, 120.0, 1.5), n: int = 12000, seed: int = 0, offset: float = 0.0, noise: float = 1.0,
+    alt: float = 30.0,
 ):
-    """(enu, rss, attitude) of a lawnmower flight over a log-distance field with noise."""
+    """(enu, rss, attitude) of a lawnmower flight at ``alt`` m over a log-distance field with noise."""
     rng = np.random.default_rng(seed)
-    enu = lawnmower_path(n)
+    enu = lawnmower_path(n, alt=alt)
     rss = LogDistance().rss_dbm(np.asarray(tx, dtype=float), enu) + offset + rng.normal(0, noise, n)
     att = np.zeros((n, 3))
     return enu, rss, att
 
 
-def write_synthetic_log(path, tx=(150.0, 120.0, 1.5), n: int = 6000, seed: int = 0, truth: bool = True):
-    """A flight log (CSV + sidecar) in the AFAR field frame, with take-off and landing ramps."""
+def write_synthetic_log(path, tx=(150.0, 120.0, 1.5), n: int = 6000, seed: int = 0, truth: bool = True,
+                        alt: float = 30.0):
+    """A flight log (CSV + sidecar) in the AFAR field frame at ``alt`` m, with take-off and landing ramps."""
     origin = afar_field().origin
-    enu, rss, att = synthetic_flight(tx, n, seed)
-    ramp = np.linspace(0, 30, 300)
+    enu, rss, att = synthetic_flight(tx, n, seed, alt=alt)
+    ramp = np.linspace(0, alt, 300)
     up = np.column_stack([np.full(300, enu[0, 0]), np.full(300, enu[0, 1]), ramp])
     down = np.column_stack([np.full(300, enu[-1, 0]), np.full(300, enu[-1, 1]), ramp[::-1]])
     enu = np.vstack([up, enu, down])

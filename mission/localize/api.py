@@ -159,6 +159,24 @@ def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
     return est
 
 
+def _check_altitude(extras: dict, net, part) -> None:
+    """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
+    ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``)."""
+    from mission.localize.classical import as_flight
+    from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
+
+    trained, flown = training_altitudes(net.meta), flight_altitudes(as_flight(part).enu_m[:, 2])
+    extras["network_training_altitude_m"] = None if trained is None else list(trained)
+    extras["flight_altitude_m"] = list(flown)
+    _add_note(extras, altitude_note(net.model_name, trained, flown))
+
+
+def _add_note(extras: dict, note: str | None) -> None:
+    """Append a sentence to ``extras["note"]`` (what ``localize`` prints and ``--json`` carries)."""
+    if note:
+        extras["note"] = " ".join(filter(None, [extras.get("note"), note]))
+
+
 def fusion_model_path() -> Path | None:
     """The network of the fused default (``models/rfsl_spiral_e2r.onnx``), if present."""
     return shipped_model(FUSION_MODEL_NAME)
@@ -185,9 +203,10 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
         extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))  # log frame, as the grid
         outer = max(extras.get("regions", []), key=lambda r: r["level"], default=None)
         if outer is not None and q >= outer["hpd_mass"]:
-            extras["note"] = " ".join(filter(None, [extras.get("note"), (
-                f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the fused point lies "
-                f"outside the {100 * outer['level']:.0f} % region, which is the search's alone")]))
+            _add_note(extras, f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the "
+                              f"fused point lies outside the {100 * outer['level']:.0f} % region, which is the "
+                              "search's alone")
+    _check_altitude(extras, net, part)
     est = Estimate(float(x), float(y), "fusion", f"mean of selfcal and {Path(path).name}", float(lat),
                    float(lon), extras=extras)
     est.posterior = a.posterior
@@ -253,6 +272,8 @@ def localize_log(
         loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
                              floor_db, physics_preset=physics_preset)
         est = _in_log_frame(loc, loc.predict(part), origin, method)
+        if method == "onnx":
+            _check_altitude(est.extras, loc, part)
     ra = area if area is not None else search_area(log)
     if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
         out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])

@@ -78,6 +78,7 @@ SHADOWING = {"afar": ((4.0, 10.0), (10.0, 60.0)), "generic": ((4.0, 10.0), (10.0
              "afar-heavy": ((8.0, 16.0), (30.0, 120.0))}
 SUITE_TAG = 10  # issue 10: keeps suite seeds apart from rfsl-dataset seeds
 BENCHMARK_SEED = 2026
+ALTITUDE_RANGE_M = (15.0, 60.0)  # cruise altitude drawn per flight (networks trained on it report this range)
 P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a third of the flights
 HABITS = ("along_track", "fixed", "slow_rotation", "hover_turn")
 RSS_SOURCE = {"kind": "suite", "receiver": "simulated receiver (unseen-flight benchmark)", "calibrated": False}
@@ -157,7 +158,7 @@ def draw_flight(seed: int, i: int, family: str = "afar", center: str = "afar") -
     d: dict = {"seed": int(seed), "index": int(i), "family": family,
                "tx_xy": [float(xy[0]), float(xy[1])], "tx_height_m": _u(rng, 1.0, 2.0)}
     d["tx_outside_flight_area"] = outside
-    d["altitude_m"] = _u(rng, 15.0, 60.0)
+    d["altitude_m"] = _u(rng, *ALTITUDE_RANGE_M)
     d["speed_mps"] = _u(rng, 2.0, 10.0)
     d["dt_s"] = _u(rng, 0.025, 0.045)
     traj = _pick(rng, tuple(GENERATORS))

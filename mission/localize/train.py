@@ -107,6 +107,7 @@ def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarr
                 "seed": cfg.get("seed"),
                 "mission": cfg.get("mission"),
                 "mission_name": m.get("mission_name"),
+                "mission_altitude_m": m.get("mission_altitude_m"),
                 "randomisation": cfg.get("randomisation"),
                 "software_version": m.get("software_version"),
             }

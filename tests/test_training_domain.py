@@ -1,0 +1,101 @@
+"""A network's training altitudes, read from its metadata, and the note when a flight leaves them.
+
+The note rests on a measured premise (the spiral network loses accuracy off its 30 m training altitude), so
+one test re-measures it on freshly simulated spirals instead of trusting the card's figures.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _localize_helpers import write_synthetic_log
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mission.localize.training_domain import (
+    ALTITUDE_TOLERANCE_M,
+    altitude_note,
+    flight_altitudes,
+    training_altitudes,
+)
+
+
+def _meta(*datasets: dict) -> dict:
+    return {"training_data": {"datasets": list(datasets)}}
+
+
+def test_shipped_networks_training_altitudes(repo_dir):
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    spiral, default = repo_dir / "models" / "rfsl_spiral_e2r.onnx", repo_dir / "models" / "rfsl_default.onnx"
+    if not spiral.exists() or not default.exists():
+        pytest.skip("shipped models absent")
+    assert training_altitudes(OnnxLocalizer(spiral).meta) == (30.0, 30.0)       # missions/spiral.yaml's altitude
+    assert training_altitudes(OnnxLocalizer(default).meta) == (20.0, 47.0)      # randomised 20-47 m + spiral 30 m
+
+
+def test_altitudes_from_each_kind_of_dataset_record():
+    from mission.localize.suite import ALTITUDE_RANGE_M
+
+    assert training_altitudes(_meta({"mission_altitude_m": 45.0})) == (45.0, 45.0)
+    assert training_altitudes(_meta({"randomisation": {"altitude_m": [22.0, 33.0]}, "mission_altitude_m": 30.0},
+                                    {"mission_altitude_m": 40.0})) == (22.0, 40.0)
+    assert training_altitudes(_meta({"model": "suite:unseen:generic"})) == ALTITUDE_RANGE_M
+    # unknown altitude anywhere: no claim at all
+    assert training_altitudes(_meta({"mission": "no/such/mission.yaml"}, {"mission_altitude_m": 30.0})) is None
+    assert training_altitudes({}) is None
+
+
+@settings(max_examples=200, deadline=None)
+@given(lo=st.floats(10, 60), width=st.floats(0, 30), f_lo=st.floats(5, 90), f_w=st.floats(0, 20))
+def test_note_exactly_when_outside_by_more_than_the_tolerance(lo, width, f_lo, f_w):
+    trained, flown = (lo, lo + width), (f_lo, f_lo + f_w)
+    off = max(trained[0] - flown[0], flown[1] - trained[1])
+    note = altitude_note("net.onnx", trained, flown)
+    assert (note is not None) == (off > ALTITUDE_TOLERANCE_M)
+    if note:
+        assert note.startswith("net.onnx was trained on flights at ") and f"{off:.0f} m outside" in note
+    assert altitude_note("net.onnx", None, flown) is None
+
+
+def test_flight_altitudes_are_robust_percentiles():
+    z = np.concatenate([np.full(900, 30.0), np.linspace(0, 30, 50), np.full(50, 80.0)])  # ramps and a spike
+    lo, hi = flight_altitudes(z)
+    assert lo == pytest.approx(30.0) and hi == pytest.approx(30.0)
+
+
+@pytest.mark.parametrize("alt, expect_note", [(30.0, False), (47.0, True)])
+def test_localize_notes_a_flight_off_the_networks_altitude(tmp_path, repo_dir, alt, expect_note):
+    from mission.localize.api import localize_log
+
+    model = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
+    if not model.exists():
+        pytest.skip("shipped model absent")
+    path = write_synthetic_log(tmp_path / "f.csv", alt=alt)
+    est = localize_log(path, model_path=model)
+    assert est.extras["network_training_altitude_m"] == [30.0, 30.0]
+    assert est.extras["flight_altitude_m"] == pytest.approx([alt, alt], abs=0.5)
+    assert ("was trained on flights at 30 m" in est.extras.get("note", "")) is expect_note
+
+
+@pytest.mark.slow
+def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_dir):
+    """The note's premise, re-measured: 15 m above its training altitude the spiral network errs >2x more."""
+    from dataclasses import replace
+
+    from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    model = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
+    if not model.exists():
+        pytest.skip("shipped model absent")
+    loc = OnnxLocalizer(model)
+    err = {}
+    for alt in (30.0, 45.0):
+        cfg = DatasetConfig.from_dict({"mission": str(repo_dir / "missions" / "spiral.yaml"), "n": 40, "model": "e2r",
+                                       "seed": 777, "features": ["clustering"]})
+        cfg = replace(cfg, randomisation=replace(cfg.randomisation, altitude_m=(alt, alt)))
+        generate_dataset(cfg, tmp_path / f"a{alt:.0f}", workers=1)
+        arrays, _ = load_dataset(tmp_path / f"a{alt:.0f}", ("clustering", "tx_enu"))
+        err[alt] = np.hypot(*(loc.predict_features(arrays["clustering"]) - arrays["tx_enu"][:, :2]).T).mean()
+    assert err[45.0] > 2.0 * err[30.0], err
