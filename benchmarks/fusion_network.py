@@ -12,29 +12,22 @@ computed once per flight and shared by all candidates.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from _scoring import flight_with_truth, scoring_parser
 
 SUSPECT = 2  # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
 
 
 def one(job: tuple[str, str, int, tuple[str, ...]]) -> dict:
     """Selfcal point, each network's point and the truth on one flight (log ENU m)."""
-    from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log
-    from mission.localize.suite_cache import read_suite
 
     kind, src, i, nets = job
-    if kind == "suite":
-        fl = read_suite(src).load(i)
-        log, truth = fl.log, np.asarray(fl.truth_xy)
-    else:
-        log = read_flight_log(src)
-        truth = np.asarray(log.truth_enu[:2])
+    log, truth = flight_with_truth(kind, src, i)
     sc = localize_log(log, method="selfcal")
     out = {"truth": truth, "selfcal": np.array([sc.x_m, sc.y_m])}
     for n in nets:
@@ -49,12 +42,8 @@ def errors(rows: list[dict], net: str, fused: bool = True) -> np.ndarray:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--suite-dir", required=True)
-    ap.add_argument("--n", type=int, default=200)
-    ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
+    ap = scoring_parser(__doc__)
     ap.add_argument("--nets", nargs="+", required=True, help="ONNX networks (the incumbent first)")
-    ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     from mission.localize.evaluate import import_afar
     from mission.localize.features import one_thread_process

@@ -11,11 +11,11 @@ score U/min(U) + R/min(R), the incumbent MAP kept unless another is lower by mor
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from _scoring import flight_with_truth, scoring_parser
 
 CANDIDATES = ("MAP", "PM", "C50", "C90")
 
@@ -35,19 +35,11 @@ def candidates(est) -> dict[str, np.ndarray]:
 
 def one(job: tuple[str, str, int]) -> dict:
     """Fusion on one flight -> the candidates, the network's point and the truth."""
-    from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log
-    from mission.localize.suite_cache import read_suite
 
     kind, src, i = job
-    if kind == "suite":
-        fl = read_suite(src).load(i)
-        log, truth = fl.log, np.asarray(fl.truth_xy)
-    else:
-        log, truth = read_flight_log(src), None
+    log, truth = flight_with_truth(kind, src, i)
     est = localize_log(log, method="fusion")
-    if truth is None:
-        truth = np.array([est.extras["truth_x_m"], est.extras["truth_y_m"]])
     net = next(np.asarray(v) for k, v in est.extras["components"].items() if k != "selfcal")
     return {"truth": truth, "net": net, **candidates(est)}
 
@@ -58,12 +50,7 @@ def errors(rows: list[dict], key: str, fused: bool = True) -> np.ndarray:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--suite-dir", required=True)
-    ap.add_argument("--n", type=int, default=200)
-    ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
-    ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args()
+    args = scoring_parser(__doc__).parse_args()
     from mission.localize.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers) as ex:

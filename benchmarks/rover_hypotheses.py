@@ -16,12 +16,12 @@ one batched matmul per candidate chunk: SSR = S2_h - 2 X_ht + T2_t - (S1_h - T1_
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from _scoring import flight_with_truth, scoring_parser
 
 from mission.localize import selfcal as sc
 from mission.physics.antenna import Dipole, rm_wb1_dn
@@ -89,18 +89,11 @@ def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int
 
 def one(job: tuple[str, str, int, str]) -> dict:
     """Selfcal (A or B) and the fusion's network on one flight: points, truth, the truth's HPD level."""
-    from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log, search_area
     from mission.localize.preprocess import select_samples
-    from mission.localize.suite_cache import read_suite
 
     kind, src, i, cand = job
-    if kind == "suite":
-        fl = read_suite(src).load(i)
-        log, truth = fl.log, np.asarray(fl.truth_xy)
-    else:
-        log = read_flight_log(src)
-        truth = np.asarray(log.truth_enu[:2])
+    log, truth = flight_with_truth(kind, src, i)
     net = localize_log(log, model_path="models/rfsl_spiral_e2r.onnx")
     sc.antenna_hypotheses, sc.hypothesis_ssr = ((product_hypotheses, product_ssr) if cand == "B"
                                                 else (_UAV_HYPOTHESES, _ORIG_SSR))
@@ -115,12 +108,7 @@ _ORIG_SSR = sc.hypothesis_ssr
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--suite-dir", required=True)
-    ap.add_argument("--n", type=int, default=200)
-    ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
-    ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args()
+    args = scoring_parser(__doc__).parse_args()
     from mission.localize.evaluate import import_afar
     from mission.localize.features import one_thread_process
 
