@@ -230,6 +230,8 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
 
     class FarNetwork:  # a network answer 300 m east of the truth (what a net off its training domain can do)
         path = tmp_path / "far.onnx"
+        model_name = "far.onnx"
+        meta: dict = {}  # no training metadata: no altitude claim
         cfg = type("Cfg", (), {"to_dict": lambda self: {}})()
 
         def predict(self, part):
