@@ -9,6 +9,7 @@ error has doubled) outside the range a network was trained on, instead of silent
 
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +19,11 @@ from mission.errors import InputError
 ALTITUDE_TOLERANCE_M = 5.0  # 5 m off its training altitude the spiral network's simulated error doubles
 
 
+@lru_cache(maxsize=32)
 def _mission_altitude(mission: str) -> float | None:
     """Cruise altitude (m) of a training mission named by path (as the dataset recorded it; tried as given and
-    relative to the repository), or None when the file is not here or not a mission."""
+    relative to the repository), or None when the file is not here or not a mission.  Cached: a network's
+    datasets usually name one mission, and parsing its YAML on every ``localize`` call cost ~8 ms."""
     from mission.spec import DEFAULT_MISSION, load_mission
 
     for p in (Path(mission), DEFAULT_MISSION.parents[1] / mission):  # as given, or in this checkout
