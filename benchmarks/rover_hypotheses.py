@@ -24,7 +24,7 @@ import numpy as np
 from _scoring import flight_with_truth, scoring_parser
 
 from mission.localize import selfcal as sc
-from mission.physics.antenna import Dipole, rm_wb1_dn
+from mission.physics.antenna import rm_wb1_dn
 
 ROVER_HEADINGS = (None, *range(0, 360, 30))  # None = isotropic rover antenna
 _UAV_HYPOTHESES = sc.antenna_hypotheses
@@ -36,13 +36,6 @@ def product_hypotheses(kinds=sc.HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
             for t in ROVER_HEADINGS for (lab, pat, head, fl) in _UAV_HYPOTHESES(kinds, heading_step_deg)]
 
 
-def _lookup(pat) -> sc._GainLookup:
-    entry = sc._LOOKUPS.get(id(pat))
-    if entry is None or entry[0] is not pat:
-        entry = sc._LOOKUPS[id(pat)] = (pat, sc._GainLookup(pat))
-    return entry[1]
-
-
 def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int = 256):
     """Drop-in for ``selfcal.hypothesis_ssr`` over ``product_hypotheses``: SSR and offset (H*T, K)."""
     uav = list(dict.fromkeys(h[:4] for h in hyps))
@@ -52,25 +45,16 @@ def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int
     k_all, m = len(cand_xy), len(cells)
     ssr = np.empty((len(uav), len(rover), k_all))
     off = np.empty_like(ssr)
-    look_rover = _lookup(rm_wb1_dn())
+    look_rover = sc.gain_lookup(rm_wb1_dn())
     y = cells.rss_dbm.astype(np.float32)[None, :]
     for s in range(0, k_all, chunk):
         cx = cand_xy[s:s + chunk]
         pg, el, az = sc._geometry(cx, cells, tx_height_m)
         base = y - pg
-        idx = ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
-               + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
-        r = np.empty((len(uav), len(cx), m), np.float32)
-        for i, (_, pat, head, fl) in enumerate(uav):
-            if pat is None:
-                r[i] = base
-            elif isinstance(pat, Dipole):
-                r[i] = base - pat.gain_dbi(el, az).astype(np.float32)
-            else:
-                r[i] = base - _lookup(pat).gain_db(idx, int(round(np.degrees(head))) % 360, fl)
+        r = np.stack(list(sc.hypothesis_residuals(base, el, az, uav)))
         # the rover sees the UAV at elevation -el (up-positive) and world azimuth candidate -> cell
-        azw = np.degrees(np.arctan2(cells.enu_m[None, :, 0] - cx[:, None, 0], cells.enu_m[None, :, 1] - cx[:, None, 1]))
-        tidx = (np.rint(np.degrees(-el)).astype(np.int32) + 90) * 360 + np.mod(np.rint(azw).astype(np.int32), 360)
+        azw = np.arctan2(cells.enu_m[None, :, 0] - cx[:, None, 0], cells.enu_m[None, :, 1] - cx[:, None, 1])
+        tidx = sc.flat_index(-el, azw)
         g = np.zeros((len(rover), len(cx), m), np.float32)
         for t in rover:
             if t is not None:

@@ -175,6 +175,34 @@ class _GainLookup:
 _LOOKUPS: dict[int, tuple[Pattern, _GainLookup]] = {}
 
 
+def gain_lookup(pat: Pattern) -> _GainLookup:
+    """The 1-degree gain table of ``pat``, made once per pattern (not per call)."""
+    entry = _LOOKUPS.get(id(pat))
+    if entry is None or entry[0] is not pat:
+        entry = _LOOKUPS[id(pat)] = (pat, _GainLookup(pat))
+    return entry[1]
+
+
+def flat_index(el: np.ndarray, az: np.ndarray) -> np.ndarray:
+    """Index ``(el + 90) * 360 + az`` (whole degrees) into a ``_GainLookup`` table, from angles in rad."""
+    return ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
+            + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
+
+
+def hypothesis_residuals(base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps):
+    """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from ``_geometry``."""
+    idx = None
+    for _, pat, head, flipped in hyps:
+        if pat is None:
+            yield base
+        elif isinstance(pat, Dipole):  # azimuth-symmetric, one hypothesis: the reference formula
+            yield base - pat.gain_dbi(el, az).astype(np.float32)
+        else:
+            if idx is None:
+                idx = flat_index(el, az)
+            yield base - gain_lookup(pat).gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
+
+
 def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate."""
@@ -182,22 +210,7 @@ def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
     y = cells.rss_dbm.astype(np.float32)[None, :]
     ssr = np.empty((len(hyps), len(cand_xy)))
     off = np.empty((len(hyps), len(cand_xy)))
-    base = y - pg
-    idx = None
-    for i, (_, pat, head, flipped) in enumerate(hyps):
-        if pat is None:
-            r = base
-        elif isinstance(pat, Dipole):  # azimuth-symmetric, one hypothesis: the reference formula
-            r = base - pat.gain_dbi(el, az).astype(np.float32)
-        else:
-            if idx is None:
-                idx = ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
-                       + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
-            entry = _LOOKUPS.get(id(pat))
-            if entry is None or entry[0] is not pat:  # made once per pattern (not per call)
-                entry = _LOOKUPS[id(pat)] = (pat, _GainLookup(pat))
-            look = entry[1]
-            r = base - look.gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
+    for i, r in enumerate(hypothesis_residuals(y - pg, el, az, hyps)):
         c = r.mean(axis=1)
         off[i] = c
         ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2
