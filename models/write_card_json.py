@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.altitude_scale import dataset_heights
 from mission.localize.dataset import load_dataset
 from mission.localize.onnx_model import OnnxLocalizer
 
@@ -23,8 +24,8 @@ from mission.localize.onnx_model import OnnxLocalizer
 def main(argv: list[str]) -> int:
     model, ci_ds, out = argv[:3]
     loc = OnnxLocalizer(model)
-    arrays, m = load_dataset(ci_ds, (loc.kind, "tx_enu"))
-    pred = loc.predict_features(arrays[loc.kind])
+    arrays, m = load_dataset(ci_ds, (loc.kind, "tx_enu", "params"))
+    pred = loc.predict_features(arrays[loc.kind], dataset_heights(arrays["params"]))
     err = np.hypot(*(pred - arrays["tx_enu"][:, :2]).T)
     cfg = dict(m["config"])
     if cfg.get("mission"):  # suite-family sets (rfsl dataset --suite) have no mission

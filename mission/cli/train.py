@@ -36,6 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="clustering coordinates: relative to the strongest cluster (default; translation-equivariant, "
         "done inside the exported graph) or absolute",
     )
+    p.add_argument("--altitude-normalised", action="store_true",
+                   help="clustering: coordinates in units of each flight's height above the transmitter, so one "
+                   "network serves every altitude (train on a range of altitudes, e.g. rfsl dataset --altitude 15,60)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
         max_train=args.max_train,
         max_minutes=args.max_minutes,
         coords=args.coords,
+        altitude_normalised=args.altitude_normalised,
     )
     console = Console()
     with Progress(
@@ -85,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
         res = train(args.datasets, args.out, cfg, progress=cb)
     m = res.metrics
     console.print(
-        f"{args.features} ({res.meta['training_data']['coords']} coordinates): "
+        f"{args.features} ({res.meta['training_data']['coords']} coordinates"
+        f"{', altitude-normalised' if cfg.altitude_normalised else ''}): "
         f"{res.n_params / 1e6:.3f} M parameters, "
         f"{res.flops / 1e6:.2f} M FLOPs; "
         f"best epoch {m['best_epoch']} of {m['epochs_run']}; validation mean {m['val_mean_m']:.2f} m, "

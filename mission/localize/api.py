@@ -103,7 +103,7 @@ def make_localizer(
         path = model_path or default_model_path()
         if path is None:
             raise InputError(f"method onnx needs --model (no models/{DEFAULT_MODEL_NAME} shipped)")
-        return OnnxLocalizer(path)
+        return OnnxLocalizer(path, tx_height_m=tx_height_m)
     if method == "strongest":
         return classical.StrongestSample()
     if method == "centroid":
@@ -192,7 +192,7 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
     if path is None:
         a.extras["fusion"] = f"no network (models/{FUSION_MODEL_NAME}): self-calibrating estimate alone"
         return a
-    net = make_localizer("onnx", path)
+    net = make_localizer("onnx", path, tx_height_m=tx_height_m)
     b = _in_log_frame(net, net.predict(part), origin, "onnx")
     x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
     lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))

@@ -138,6 +138,7 @@ def evaluate_sim(
     progress: Callable[[str], None] | None = None,
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
+    from mission.localize.altitude_scale import dataset_heights
     from mission.localize.dataset import FlightSimulator, dataset_config, load_dataset, read_manifest
     from mission.localize.onnx_model import OnnxLocalizer
 
@@ -145,7 +146,7 @@ def evaluate_sim(
     label = test_label(m)
     rows: list[Row] = []
     cache: dict[str, np.ndarray] = {}
-    truth = None
+    truth = heights = None
     for mp in models:
         loc = OnnxLocalizer(mp)
         key = loc.cfg.mismatch(m["feature_config"])
@@ -156,12 +157,13 @@ def evaluate_sim(
         if loc.origin.to_dict() != m["field_origin"]:
             raise InputError("model's field origin differs from the test set's", source=str(mp))
         if loc.kind not in cache:
-            arrays, _ = load_dataset(dataset, (loc.kind, "tx_enu"))
+            arrays, _ = load_dataset(dataset, (loc.kind, "tx_enu", "params"))
             cache[loc.kind] = arrays[loc.kind]
             truth = arrays["tx_enu"]
+            heights = dataset_heights(arrays["params"])
         pred = np.concatenate(
             [
-                loc.predict_features(cache[loc.kind][i : i + 2048])
+                loc.predict_features(cache[loc.kind][i : i + 2048], heights[i : i + 2048])
                 for i in range(0, len(cache[loc.kind]), 2048)
             ]
         )

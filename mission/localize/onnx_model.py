@@ -25,6 +25,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.geo import Origin
 from mission.localize import Estimate
+from mission.localize.altitude_scale import flight_height, scale_cluster_xy, scale_factor
 from mission.localize.classical import as_flight
 from mission.localize.features import (
     FEATURE_VERSION,
@@ -62,6 +63,9 @@ class OnnxLocalizer:
     ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with anything else
     is refused (``InputError`` naming the differing key).  ``threads``: onnxruntime's intra/inter-op threads
     (None: ``features.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
+    An altitude-normalised network (``training_data.altitude_normalisation`` in its metadata,
+    ``mission.localize.altitude_scale``) sees each flight's coordinates rescaled by its height above the
+    transmitter (``tx_height_m`` assumed); ``predict_features`` then needs those heights.
     """
 
     name = "onnx"
@@ -72,8 +76,11 @@ class OnnxLocalizer:
         expect_config: FeatureConfig | dict | None = None,
         expect_kind: str | None = None,
         threads: int | None = None,
+        tx_height_m: float = 1.5,
     ) -> None:
         import onnxruntime as ort
+
+        self.tx_height_m = float(tx_height_m)
 
         self.threads = compute_threads() if threads is None else int(threads)
         self.path = Path(path)
@@ -166,6 +173,11 @@ class OnnxLocalizer:
                 source=src,
                 field="feature_config.version",
             )
+        an = (self.meta.get("training_data") or {}).get("altitude_normalisation")
+        self.reference_height_m = None if an is None else float(an["reference_height_m"])
+        if self.reference_height_m is not None and self.kind != "clustering":
+            raise InputError("altitude normalisation needs clustering features", source=src,
+                             field="training_data.altitude_normalisation")
         inp = self.session.get_inputs()[0]
         self.input_name = inp.name
         self.input_rank = len(inp.shape)
@@ -195,15 +207,29 @@ class OnnxLocalizer:
             return cluster_features(f.enu_m[:, 0], f.enu_m[:, 1], f.rss_dbm, self.cfg)
         return normalised_rss(f.rss_dbm, self.cfg)
 
-    def predict_features(self, feats: np.ndarray) -> np.ndarray:
-        """(B, F) features -> (B, 2) positions in metres about the model's field origin."""
+    @property
+    def needs_heights(self) -> bool:
+        """Whether ``predict_features`` needs each flight's height above the transmitter."""
+        return self.reference_height_m is not None
+
+    def predict_features(self, feats: np.ndarray, heights_m: np.ndarray | None = None) -> np.ndarray:
+        """(B, F) features -> (B, 2) positions in metres about the model's field origin; ``heights_m`` (B,):
+        each flight's height above the transmitter, needed (and only used) by an altitude-normalised network."""
+        s = None
+        if self.needs_heights:
+            if heights_m is None:
+                raise InputError("an altitude-normalised network needs each flight's height above the transmitter",
+                                 source=str(self.path), field="heights_m")
+            s = scale_factor(heights_m, self.reference_height_m)
+            feats = scale_cluster_xy(feats, s)
         x = (np.atleast_2d(feats) - self.in_mean) / self.in_std
         x = x.astype(np.float32)
         if self.input_rank == 3:
             x = x[:, None, :]
         out = self.session.run(None, {self.input_name: x})[0]
         out = np.asarray(out, dtype=np.float64).reshape(len(x), -1)[:, :2]
-        return out * self.out_std + self.out_mean
+        out = out * self.out_std + self.out_mean
+        return out if s is None else out / s[:, None]
 
     def predict(self, flight, origin: Origin | None = None) -> Estimate:
         """Estimate for a FlightLog (converted to the model's origin) or for arrays already in that frame."""
@@ -211,7 +237,10 @@ class OnnxLocalizer:
             f = as_flight(flight, self.origin)
         else:
             f = as_flight(flight)
-        xy = self.predict_features(self.features(f)[None, :])[0]
+        h = None
+        if self.needs_heights:  # the log's own frame: heights above its ground origin, as the note reports them
+            h = [flight_height((as_flight(flight) if hasattr(flight, "columns") else f).enu_m[:, 2], self.tx_height_m)]
+        xy = self.predict_features(self.features(f)[None, :], h)[0]
         lat, lon, _ = self.origin.to_geodetic(np.array([xy[0], xy[1], 0.0]))
         est = Estimate(
             float(xy[0]),
@@ -222,4 +251,6 @@ class OnnxLocalizer:
             float(lon),
             extras={"feature_kind": self.kind, "model_origin": self.origin.to_dict()},
         )
+        if h is not None:
+            est.extras["height_above_tx_m"] = h[0]  # what the altitude-normalised network scaled by
         return est

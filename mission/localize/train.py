@@ -15,6 +15,11 @@ Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy gener
   training features; normalised-RSS inputs by one scalar pair; outputs per coordinate (of ``truth - ref``).
   The statistics are buffers of the exported graph; the ONNX metadata's ``input_normalisation`` is the
   identity (zeros / ones), so ``OnnxLocalizer`` passes the raw features (the contract is unchanged).
+- Altitude normalisation (``altitude_normalised``, clustering only, off by default): every flight's cluster
+  (x, y) and truth are scaled by ``REFERENCE_HEIGHT_M / height above the transmitter`` about the field origin
+  (``mission.localize.altitude_scale``: free space with direction-only antenna gains is scale-invariant), so
+  one network serves every altitude; the metadata's ``training_data.altitude_normalisation`` tells
+  ``OnnxLocalizer`` to scale at inference.  Validation errors stay in metres.
 - Split: a seeded random ``val_fraction`` of the flights is held out for validation / early stopping.
 - Optimiser: AdamW, cosine learning-rate decay over ``epochs``, early stopping after ``patience`` epochs
   without a better validation mean error; the best weights are kept.
@@ -65,6 +70,7 @@ class TrainConfig:
     max_train: int | None = None  # cap the number of flights used (quick runs)
     coords: str = "relative"  # clustering: "relative" (to the strongest cluster) or "absolute"
     max_minutes: float | None = None  # wall-time budget: stop after the epoch that passes it (best state kept)
+    altitude_normalised: bool = False  # clustering: coordinates in units of the flight's height (altitude_scale)
 
 
 @dataclass
@@ -171,11 +177,21 @@ def train(
     if cfg.coords not in ("relative", "absolute"):
         raise InputError(f"unknown coordinates {cfg.coords!r} (relative or absolute)", field="--coords")
     relative = cfg.coords == "relative" and cfg.features == "clustering"
+    if cfg.altitude_normalised and cfg.features != "clustering":
+        raise InputError("altitude normalisation needs clustering features", field="--altitude-normalised")
     t_start = time.perf_counter()
     torch.manual_seed(cfg.seed)
     torch.use_deterministic_algorithms(True)
     torch.set_num_threads(max(1, cfg.threads))
     x, y, data_descr = load_training_data(paths, cfg.features)
+    scale = np.ones(len(x))
+    if cfg.altitude_normalised:
+        from mission.localize.altitude_scale import dataset_heights, scale_cluster_xy, scale_factor
+        from mission.localize.dataset import load_dataset
+
+        scale = scale_factor(np.concatenate([dataset_heights(load_dataset(p, ("params",))[0]["params"])
+                                             for p in paths]))
+        x, y = scale_cluster_xy(x, scale).astype(np.float32), (y * scale[:, None]).astype(np.float32)
     rng = np.random.default_rng(cfg.seed)
     perm = rng.permutation(len(x))
     if cfg.max_train is not None:
@@ -188,6 +204,7 @@ def train(
     xt, yt = torch.from_numpy(x), torch.from_numpy(y)
     x_tr, y_tr = xt[tr_idx], yt[tr_idx]
     x_val, y_val = xt[val_idx], yt[val_idx]
+    s_val = torch.from_numpy(scale[val_idx].astype(np.float32))  # validation errors back in metres
     inner = build_net(cfg.features, n_in, **cfg.net)
     one = torch.ones(1)
     probe = CoordinateWrapper(inner, 0 * one, one, torch.zeros(2), torch.ones(2), relative, n_in)
@@ -222,7 +239,7 @@ def train(
         with torch.no_grad():
             pred = torch.cat([net(x_val[i : i + 1024]) for i in range(0, len(x_val), 1024)])
         net.train()
-        return torch.linalg.norm(pred - y_val, dim=1).numpy()
+        return (torch.linalg.norm(pred - y_val, dim=1) / s_val).numpy()
 
     for epoch in range(cfg.epochs):
         net.train()
@@ -295,6 +312,7 @@ def train(
                 else "inside the graph: absolute (x, y), standardised"
             ),
             "graph_normalisation": norm,
+            **({"altitude_normalisation": altitude_normalisation_meta()} if cfg.altitude_normalised else {}),
             "metrics": metrics,
             "n_params": n_params,
             "flops": flops,
@@ -321,6 +339,15 @@ def train(
         )
     )
     return res
+
+
+def altitude_normalisation_meta() -> dict:
+    """The metadata entry that makes ``OnnxLocalizer`` scale a flight's coordinates by its height."""
+    from mission.localize.altitude_scale import REFERENCE_HEIGHT_M
+
+    return {"reference_height_m": REFERENCE_HEIGHT_M,
+            "scaled": "cluster x, y and the output about the field origin by reference_height_m / (median height "
+                      "of the samples used - transmitter height)"}
 
 
 def _jsonable(d):
