@@ -80,9 +80,11 @@ def test_localize_notes_a_flight_off_the_networks_altitude(tmp_path, repo_dir, a
 
 @pytest.mark.slow
 def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_dir):
-    """The note's premise, re-measured: 15 m above its training altitude the spiral network errs >2x more."""
+    """The note's premise, re-measured: 15 m above its training altitude the spiral network errs >2x more; the
+    altitude-normalised network trained on 15-60 m does not."""
     from dataclasses import replace
 
+    from mission.localize.altitude_scale import dataset_heights
     from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
     from mission.localize.onnx_model import OnnxLocalizer
 
@@ -90,12 +92,20 @@ def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_d
     if not model.exists():
         pytest.skip("shipped model absent")
     loc = OnnxLocalizer(model)
-    err = {}
+    alt_path = repo_dir / "models" / "rfsl_spiral_alt.onnx"
+    alt_net = OnnxLocalizer(alt_path) if alt_path.exists() else None
+    err, err_alt = {}, {}
     for alt in (30.0, 45.0):
         cfg = DatasetConfig.from_dict({"mission": str(repo_dir / "missions" / "spiral.yaml"), "n": 40, "model": "e2r",
                                        "seed": 777, "features": ["clustering"]})
         cfg = replace(cfg, randomisation=replace(cfg.randomisation, altitude_m=(alt, alt)))
         generate_dataset(cfg, tmp_path / f"a{alt:.0f}", workers=1)
-        arrays, _ = load_dataset(tmp_path / f"a{alt:.0f}", ("clustering", "tx_enu"))
+        arrays, _ = load_dataset(tmp_path / f"a{alt:.0f}", ("clustering", "tx_enu", "params"))
         err[alt] = np.hypot(*(loc.predict_features(arrays["clustering"]) - arrays["tx_enu"][:, :2]).T).mean()
+        if alt_net is not None:
+            pred = alt_net.predict_features(arrays["clustering"], dataset_heights(arrays["params"]))
+            err_alt[alt] = np.hypot(*(pred - arrays["tx_enu"][:, :2]).T).mean()
     assert err[45.0] > 2.0 * err[30.0], err
+    # ... and the altitude-normalised network (altitude_scale) does not: within 1.5x of its 30 m error at 45 m
+    if alt_net is not None:
+        assert err_alt[45.0] < 1.5 * err_alt[30.0] and err_alt[45.0] < 0.5 * err[45.0], (err, err_alt)
