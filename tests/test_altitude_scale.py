@@ -180,3 +180,23 @@ def test_a_flight_too_low_over_the_transmitter_is_a_clear_error(tmp_path, shippe
     assert main([str(path), "--model", str(shipped_alt), "--tx-height", "27"]) == 2
     err = capsys.readouterr().err
     assert "the flight is 3.0 m above the transmitter" in err and "Traceback" not in err
+
+
+def test_an_ensemble_keeps_the_normalisation_and_refuses_mixed_members(tmp_path, shipped_alt, repo_dir):
+    pytest.importorskip("onnx")
+    import sys
+
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    sys.path.insert(0, str(repo_dir / "models"))
+    from make_ensemble import build
+
+    build(str(tmp_path / "e.onnx"), [str(shipped_alt), str(shipped_alt)])
+    ens, one = OnnxLocalizer(tmp_path / "e.onnx"), OnnxLocalizer(shipped_alt)
+    feats, h = np.random.default_rng(2).uniform(0, 200, (3, one.n_features)), np.array([20.0, 35.0, 50.0])
+    assert ens.needs_heights
+    np.testing.assert_allclose(ens.predict_features(feats, h), one.predict_features(feats, h), atol=1e-3)
+    spiral = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
+    if spiral.exists():
+        with pytest.raises(SystemExit, match="altitude_normalisation"):
+            build(str(tmp_path / "bad.onnx"), [str(shipped_alt), str(spiral)])
