@@ -56,7 +56,7 @@ class Cells:
     yaw_rad: np.ndarray
     count: np.ndarray
     cell_m: float
-    n_columns: int = -1  # distinct horizontal cells (a cell flown at two altitude levels counts once); -1: len
+    n_columns: int | None = None  # distinct horizontal cells (one flown at two altitude levels counts once); None: len
 
     def __len__(self) -> int:
         return int(self.rss_dbm.size)
@@ -64,7 +64,7 @@ class Cells:
     @property
     def area_m2(self) -> float:
         """Horizontal area the flight covered: the occupied horizontal cells times their area."""
-        n = len(self) if self.n_columns < 0 else self.n_columns
+        n = len(self) if self.n_columns is None else self.n_columns
         return n * self.cell_m * self.cell_m
 
 
