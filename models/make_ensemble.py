@@ -21,12 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.altitude_scale import METADATA_KEY, reference_height
+
 CONTRACT = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
 
 
-def _altitude_normalisation(meta: dict) -> dict | None:
-    """A member's altitude normalisation (``mission.localize.altitude_scale``), None when its inputs are metres."""
-    return json.loads(meta.get("training_data", "{}")).get("altitude_normalisation")
+def _reference_height(meta: dict) -> float | None:
+    """A member's altitude-normalisation reference (``mission.localize.altitude_scale``); None: metres."""
+    return reference_height(json.loads(meta.get("training_data", "{}")))
 
 
 def build(out: str, paths: list[str]) -> None:
@@ -41,8 +43,8 @@ def build(out: str, paths: list[str]) -> None:
     for p, m in zip(paths, models, strict=True):
         meta = {q.key: q.value for q in m.metadata_props}
         bad = [k for k in CONTRACT if meta.get(k) != meta0.get(k)]
-        if _altitude_normalisation(meta) != _altitude_normalisation(meta0):  # inputs scaled differently
-            bad.append("training_data.altitude_normalisation")
+        if _reference_height(meta) != _reference_height(meta0):  # inputs scaled differently
+            bad.append(f"training_data.{METADATA_KEY}")
         if bad or m.graph.input[0].name != inp or m.graph.output[0].name != outn:
             raise SystemExit(f"{p}: its contract differs from {paths[0]} ({', '.join(bad) or 'input/output names'})")
     norm = json.loads(meta0["input_normalisation"])

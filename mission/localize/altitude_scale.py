@@ -23,6 +23,21 @@ from mission.errors import InputError
 
 REFERENCE_HEIGHT_M = 28.5  # the 30 m mission altitude over the 1.5 m default transmitter height
 MIN_HEIGHT_M = 5.0  # below this height above the transmitter a flight is not a cruise: no scale is claimed
+METADATA_KEY = "altitude_normalisation"  # in a network's ``training_data`` metadata
+
+
+def metadata_entry() -> dict:
+    """What ``rfsl train --altitude-normalised`` records under ``training_data[METADATA_KEY]``."""
+    return {"reference_height_m": REFERENCE_HEIGHT_M,
+            "scaled": "cluster x, y and the output about the field origin by reference_height_m / (median height "
+                      "of the samples used - transmitter height)"}
+
+
+def reference_height(training_data: dict | None) -> float | None:
+    """The reference height (m) of an altitude-normalised network from its ``training_data`` metadata; None for
+    a network whose coordinates are metres."""
+    entry = (training_data or {}).get(METADATA_KEY)
+    return None if entry is None else float(entry["reference_height_m"])
 
 
 def scale_factor(height_m, reference_m: float = REFERENCE_HEIGHT_M) -> np.ndarray:

@@ -25,7 +25,13 @@ import numpy as np
 from mission.errors import InputError
 from mission.geo import Origin
 from mission.localize import Estimate
-from mission.localize.altitude_scale import flight_height, scale_cluster_xy, scale_factor
+from mission.localize.altitude_scale import (
+    METADATA_KEY,
+    flight_height,
+    reference_height,
+    scale_cluster_xy,
+    scale_factor,
+)
 from mission.localize.classical import as_flight
 from mission.localize.features import (
     FEATURE_VERSION,
@@ -81,7 +87,6 @@ class OnnxLocalizer:
         import onnxruntime as ort
 
         self.tx_height_m = float(tx_height_m)
-
         self.threads = compute_threads() if threads is None else int(threads)
         self.path = Path(path)
         src = str(self.path)
@@ -173,11 +178,10 @@ class OnnxLocalizer:
                 source=src,
                 field="feature_config.version",
             )
-        an = (self.meta.get("training_data") or {}).get("altitude_normalisation")
-        self.reference_height_m = None if an is None else float(an["reference_height_m"])
+        self.reference_height_m = reference_height(self.meta.get("training_data"))
         if self.reference_height_m is not None and self.kind != "clustering":
             raise InputError("altitude normalisation needs clustering features", source=src,
-                             field="training_data.altitude_normalisation")
+                             field=f"training_data.{METADATA_KEY}")
         inp = self.session.get_inputs()[0]
         self.input_name = inp.name
         self.input_rank = len(inp.shape)
@@ -239,7 +243,7 @@ class OnnxLocalizer:
             f = as_flight(flight)
         h = None
         if self.needs_heights:  # the log's own frame: heights above its ground origin, as the note reports them
-            h = [flight_height((as_flight(flight) if hasattr(flight, "columns") else f).enu_m[:, 2], self.tx_height_m)]
+            h = [flight_height((flight.enu() if hasattr(flight, "columns") else f.enu_m)[:, 2], self.tx_height_m)]
         xy = self.predict_features(self.features(f)[None, :], h)[0]
         lat, lon, _ = self.origin.to_geodetic(np.array([xy[0], xy[1], 0.0]))
         est = Estimate(

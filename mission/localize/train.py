@@ -47,6 +47,13 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.localize.altitude_scale import (
+    METADATA_KEY,
+    dataset_heights,
+    metadata_entry,
+    scale_cluster_xy,
+    scale_factor,
+)
 
 
 @dataclass(frozen=True)
@@ -186,7 +193,6 @@ def train(
     x, y, data_descr = load_training_data(paths, cfg.features)
     scale = np.ones(len(x))
     if cfg.altitude_normalised:
-        from mission.localize.altitude_scale import dataset_heights, scale_cluster_xy, scale_factor
         from mission.localize.dataset import load_dataset
 
         scale = scale_factor(np.concatenate([dataset_heights(load_dataset(p, ("params",))[0]["params"])
@@ -312,7 +318,7 @@ def train(
                 else "inside the graph: absolute (x, y), standardised"
             ),
             "graph_normalisation": norm,
-            **({"altitude_normalisation": altitude_normalisation_meta()} if cfg.altitude_normalised else {}),
+            **({METADATA_KEY: metadata_entry()} if cfg.altitude_normalised else {}),
             "metrics": metrics,
             "n_params": n_params,
             "flops": flops,
@@ -339,15 +345,6 @@ def train(
         )
     )
     return res
-
-
-def altitude_normalisation_meta() -> dict:
-    """The metadata entry that makes ``OnnxLocalizer`` scale a flight's coordinates by its height."""
-    from mission.localize.altitude_scale import REFERENCE_HEIGHT_M
-
-    return {"reference_height_m": REFERENCE_HEIGHT_M,
-            "scaled": "cluster x, y and the output about the field origin by reference_height_m / (median height "
-                      "of the samples used - transmitter height)"}
 
 
 def _jsonable(d):
