@@ -87,6 +87,12 @@ class MissionSpec:
         """The vehicle kinematics (cruise speed plus ``vehicle.kinematics`` overrides)."""
         return Kinematics(cruise_speed_mps=self.cruise_speed_mps, **self.vehicle.kinematics)
 
+    def trajectory_meta(self) -> dict:
+        """What a flight log's sidecar records of the path (``trajectory``): generator, its parameters and the
+        cruise altitude, so a localizer can tell which networks were trained on this kind of flight."""
+        t = self.trajectory
+        return {"generator": t.generator, "params": dict(t.params), "altitude_m": float(self.altitude_m)}
+
     def waypoints_enu(self) -> np.ndarray:
         """The trajectory (K, 3) ENU at cruise altitude (generated, or the explicit waypoints)."""
         t = self.trajectory

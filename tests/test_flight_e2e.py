@@ -80,6 +80,7 @@ def test_spiral_end_to_end(tmp_path):
     assert log.meta["rows"] == len(log)
     t = log["t_s"]
     spec = load_mission(SPIRAL)
+    assert log.meta["trajectory"] == spec.trajectory_meta()  # what picks the spiral network (sim_default)
     expected = (t[-1] - t[0]) / spec.source.sample_period_s + 1
     assert len(log) >= 0.95 * expected
     assert t[-1] - t[0] > 0.8 * log.meta["planned_duration_s"]  # the whole spiral was flown
@@ -95,6 +96,7 @@ def test_spiral_end_to_end(tmp_path):
     assert log.columns["mission_item"][phase == "mission"].max() == len(spec.waypoints_enu()) - 1
     last = out.strip().splitlines()[-1]  # the localizer's estimate, with its error against the known truth
     assert last.startswith("estimate:") and "; error " in last, out
+    assert "[onnx rfsl_spiral_e2r.onnx]" in last, last  # the spiral network answered its own kind of flight
     cruise = log["rel_alt_m"] > 25
     for c in ("roll_deg", "pitch_deg"):
         assert np.std(log[c][cruise]) > 0.5

@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
                       "model_params": spec.source.model_params, "noise_db": spec.sim_config().noise_db},
                      truth={"x_m": float(tx[0]), "y_m": float(tx[1]), "z_m": float(tx[2]),
                             "lat_deg": float(lat), "lon_deg": float(lon), "height_m": float(tx[2])},
-                     mission=str(spec.path) if spec.path else spec.name)
+                     mission=str(spec.path) if spec.path else spec.name, trajectory=spec.trajectory_meta())
     write_flight_log(csv, flight.log_columns(spec.field.origin), meta)
     c = console()
     c.print(f"simulated [bold]{spec.name}[/]: {flight.t_s[-1]:.0f} s, {len(flight.t_s)} RSS samples, "

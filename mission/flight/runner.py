@@ -274,7 +274,8 @@ class Runner(FlightTasks):
         self.log_path = new_flight_dir(self.opts.out, spec.name) / "flight.csv"
         meta = make_meta(
             spec.field.origin, self.source.meta(), self.truth, mission=spec.name,
-            mission_file=str(spec.path) if spec.path else None, connection=url, autopilot=ap_name,
+            mission_file=str(spec.path) if spec.path else None, trajectory=spec.trajectory_meta(),
+            connection=url, autopilot=ap_name,
             speedup_requested=self.speedup, telemetry_rate_requested_hz=self.rate_requested,
             status="flying", planned_duration_s=float(report.duration_s),
         )
@@ -380,7 +381,7 @@ class Runner(FlightTasks):
             print(f"localizer refused the log: {e}", file=sys.stderr)
             return
         line = (f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f}) "
-                f"[{est.method}]")
+                f"[{est.method}{' ' + Path(est.extras['model_path']).name if 'model_path' in est.extras else ''}]")
         if self.truth is not None:
             err = float(np.hypot(est.x_m - self.truth["x_m"], est.y_m - self.truth["y_m"]))
             line += f"; error {err:.1f} m (true transmitter at {self.truth['x_m']:.1f}, {self.truth['y_m']:.1f} m)"

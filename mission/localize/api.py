@@ -254,7 +254,11 @@ def localize_log(
                 "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
             )
         elif (dm := default_model_path()) is not None:
-            method, model_path, choice = "onnx", dm, f"default model {dm.name}"
+            from mission.localize.classical import as_flight
+            from mission.localize.sim_default import sim_default_model
+
+            model_path, choice = sim_default_model(log.meta, as_flight(part).enu_m[:, 2], dm)
+            method = "onnx"
         else:
             method, choice = (
                 "grid",

@@ -1,0 +1,69 @@
+"""Which network should answer a simulated log by default?  ``rfsl_default`` everywhere, or the domain router
+(``mission/localize/sim_default.py``: a spiral network on simulated e2r dipole spirals inside its altitudes).
+
+Scored on the product path: ``rfsl simulate`` logs (take-off, return, landing, phase column) of fresh seeds,
+then ``localize``'s default against ``--model rfsl_default.onnx`` on the same log; the stop-20 rule in
+models/README.md.
+
+    python benchmarks/sim_default.py --seeds 7000:7040 --workers 2        # ~3 min on 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+SETS = (("spiral 30 m", "missions/spiral.yaml", None), ("spiral 45 m", "missions/spiral.yaml", 45.0),
+        ("lawnmower 30 m", "missions/lawnmower.yaml", None))
+
+
+def one(job: tuple[str, str, int]) -> tuple[float, float, str]:
+    """(default's error, rfsl_default's error, default's model) on one simulated log (m)."""
+    from mission.cli.main import main as rfsl
+    from mission.localize.api import default_model_path, localize_log
+
+    mission, out, seed = job
+    d = Path(out) / f"s{seed}"
+    with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):  # rfsl simulate's three lines per log
+        code = rfsl(["simulate", mission, "--seed", str(seed), "--out", str(d)])
+    if code != 0:
+        raise RuntimeError(f"rfsl simulate failed for {mission} seed {seed}")
+    log = next(d.glob("*.csv"))
+    a = localize_log(log)
+    b = localize_log(log, model_path=default_model_path())
+    return a.error_m, b.error_m, Path(a.extras.get("model_path", "?")).name
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", default="7000:7040", help="first:last (exclusive)")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    from mission.localize.features import one_thread_process
+
+    lo, hi = (int(v) for v in args.seeds.split(":"))
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+        for label, mission, alt in SETS:
+            if alt is not None:  # the same mission flown at another altitude
+                spec = yaml.safe_load(Path(mission).read_text())
+                spec["altitude_m"], spec["name"] = alt, f"{Path(mission).stem}_{alt:.0f}m"
+                mission = str(Path(tmp) / f"{spec['name']}.yaml")
+                Path(mission).write_text(yaml.safe_dump(spec))
+            out = tempfile.mkdtemp(dir=tmp)
+            rows = list(ex.map(one, [(mission, out, s) for s in range(lo, hi)]))
+            a, b = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+            used = {m: sum(r[2] == m for r in rows) for m in dict.fromkeys(r[2] for r in rows)}
+            print(f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / {np.percentile(a, 90):.1f}  "
+                  f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / {np.percentile(b, 90):.1f}  models {used}",
+                  flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""Which shipped network answers a *simulated* log by default: the one trained on that kind of flight.
+
+Why: ``rfsl_default`` was trained across trajectories and altitudes (20-47 m) and is the safe answer for any
+simulated mission, but on the product's own job, the paper's spiral flown with the default e2r dipole source,
+the spiral specialists are 2x better (2 000 held-out spirals at 30 m: 6.6 m mean against 15.3 m) and
+``rfsl_spiral_alt`` stays at 7-9 m on spirals flown at 20-55 m, where ``rfsl_default`` errs 15-50 m
+(models/README.md).  A network is chosen only when the log's sidecar says it is inside that network's training
+domain (trajectory generator, source physics, and cruise altitude within ``training_domain``'s tolerance); any
+other simulated log keeps ``rfsl_default``.  Real receiver logs never come here (they get the fusion).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+SPIRAL_NETWORKS = ("rfsl_spiral_e2r.onnx", "rfsl_spiral_alt.onnx")  # the most specialised first
+SPIRAL_SOURCE_MODEL = "e2r"
+DIPOLE_KEYS = ("pattern", "tx_pattern", "rx_pattern")  # model_params keys that would change the dipole default
+
+
+def spiral_source(meta: dict) -> str | None:
+    """Why a simulated log is *not* the spiral networks' kind of flight (None when it is): its sidecar must
+    record the spiral generator (``trajectory.generator``) and an e2r source with dipole patterns."""
+    traj = meta.get("trajectory") or {}
+    if traj.get("generator") != "spiral":
+        gen = traj.get("generator")
+        return f"trajectory {gen}" if gen else "no trajectory in the sidecar"
+    src = meta.get("rss_source") or {}
+    if src.get("model") != SPIRAL_SOURCE_MODEL:
+        return f"source model {src.get('model')}"
+    params = src.get("model_params") or {}
+    pats = {str(params[k]) for k in DIPOLE_KEYS if k in params}
+    if pats - {"dipole"}:
+        return f"antenna pattern {', '.join(sorted(pats - {'dipole'}))}"
+    return None
+
+
+def sim_default_model(meta: dict, heights_m: np.ndarray, default: Path | None) -> tuple[Path | None, str]:
+    """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at ``heights_m``:
+    the first spiral network whose training altitudes hold the flight, else ``default`` (``rfsl_default``)."""
+    from mission.localize.api import shipped_model
+    from mission.localize.onnx_model import OnnxLocalizer
+    from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
+
+    dname = default.name if default is not None else "none"
+    why_not = spiral_source(meta)
+    if why_not is not None:
+        return default, f"default model {dname} ({why_not}: not a spiral network's flight)"
+    flown = flight_altitudes(heights_m)
+    for name in SPIRAL_NETWORKS:
+        path = shipped_model(name)
+        if path is None:
+            continue
+        trained = training_altitudes(OnnxLocalizer(path, threads=1).meta)
+        if trained is not None and altitude_note(name, trained, flown) is None:
+            return path, (f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, inside its "
+                          f"training domain (spiral, dipoles, {trained[0]:.0f}-{trained[1]:.0f} m)")
+    return default, (f"default model {dname} (spiral at {np.median(heights_m):.0f} m: outside the spiral "
+                     "networks' altitudes)")
