@@ -380,8 +380,10 @@ class Runner(FlightTasks):
         except InputError as e:
             print(f"localizer refused the log: {e}", file=sys.stderr)
             return
+        model = est.extras.get("model_path")  # which network answered, when one did
+        label = est.method + (f" {Path(model).name}" if model else "")
         line = (f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f}) "
-                f"[{est.method}{' ' + Path(est.extras['model_path']).name if 'model_path' in est.extras else ''}]")
+                f"[{label}]")
         if self.truth is not None:
             err = float(np.hypot(est.x_m - self.truth["x_m"], est.y_m - self.truth["y_m"]))
             line += f"; error {err:.1f} m (true transmitter at {self.truth['x_m']:.1f}, {self.truth['y_m']:.1f} m)"

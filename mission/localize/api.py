@@ -162,10 +162,9 @@ def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
 def _check_altitude(extras: dict, net, part) -> None:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
     ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``)."""
-    from mission.localize.classical import as_flight
     from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
 
-    trained, flown = training_altitudes(net.meta), flight_altitudes(as_flight(part).enu_m[:, 2])
+    trained, flown = training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2])
     extras["network_training_altitude_m"] = None if trained is None else list(trained)
     extras["flight_altitude_m"] = list(flown)
     _add_note(extras, altitude_note(net.model_name, trained, flown))
@@ -254,10 +253,9 @@ def localize_log(
                 "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
             )
         elif (dm := default_model_path()) is not None:
-            from mission.localize.classical import as_flight
             from mission.localize.sim_default import sim_default_model
 
-            model_path, choice = sim_default_model(log.meta, as_flight(part).enu_m[:, 2], dm)
+            model_path, choice = sim_default_model(log.meta, part.enu()[:, 2], dm)
             method = "onnx"
         else:
             method, choice = (
