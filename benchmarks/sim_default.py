@@ -5,7 +5,8 @@ Scored on the product path: ``rfsl simulate`` logs (take-off, return, landing, p
 then ``localize``'s default against ``--model rfsl_default.onnx`` on the same log; the stop-20 rule in
 models/README.md.
 
-    python benchmarks/sim_default.py --seeds 7000:7040 --workers 2        # ~3 min on 2 cores
+    python benchmarks/sim_default.py --seeds 7000:7040 --workers 2        # 14 s on 2 cores
+    python benchmarks/sim_default.py --seeds 7100:7130 --variants         # spirals with other parameters, 25 s
 """
 
 from __future__ import annotations
@@ -22,6 +23,10 @@ import yaml
 
 SETS = (("spiral 30 m", "missions/spiral.yaml", None), ("spiral 45 m", "missions/spiral.yaml", 45.0),
         ("lawnmower 30 m", "missions/lawnmower.yaml", None))
+# --variants: the spiral at 30 m with other generator parameters (the router matches generator and altitude only)
+VARIANTS = (("spacing 12 m", {"spacing_m": 12}), ("spacing 35 m", {"spacing_m": 35}),
+            ("spacing 50 m", {"spacing_m": 50}), ("margin 30 m", {"margin_m": 30}),
+            ("region flight", {"region": "flight"}), ("start nw", {"start": "nw"}))
 
 
 def one(job: tuple[str, str, int]) -> tuple[float, float, str]:
@@ -45,15 +50,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default="7000:7040", help="first:last (exclusive)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--variants", action="store_true", help="spirals with other generator parameters instead")
     args = ap.parse_args()
     from mission.localize.features import one_thread_process
 
     lo, hi = (int(v) for v in args.seeds.split(":"))
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
-        for label, mission, alt in SETS:
-            if alt is not None:  # the same mission flown at another altitude
+        sets = ([(label, "missions/spiral.yaml", None, p) for label, p in VARIANTS] if args.variants
+                else [(*s, None) for s in SETS])
+        for label, mission, alt, params in sets:
+            if alt is not None or params is not None:  # the same mission at another altitude / with other params
                 spec = yaml.safe_load(Path(mission).read_text())
-                spec["altitude_m"], spec["name"] = alt, f"{Path(mission).stem}_{alt:.0f}m"
+                spec["name"] = f"{Path(mission).stem}_{label.replace(' ', '_')}"
+                spec["altitude_m"] = spec["altitude_m"] if alt is None else alt
+                spec["trajectory"]["params"].update(params or {})
+                spec["time_budget_s"] = 1500  # a denser spiral takes longer than the paper's 10 minutes
                 mission = str(Path(tmp) / f"{spec['name']}.yaml")
                 Path(mission).write_text(yaml.safe_dump(spec))
             out = tempfile.mkdtemp(dir=tmp)

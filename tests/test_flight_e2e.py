@@ -62,7 +62,7 @@ def _wait_rows(out: Path, rows: int, timeout: float) -> Path:
     raise AssertionError(f"no log with {rows} rows under {out}")
 
 
-def test_spiral_end_to_end(tmp_path):
+def test_spiral_end_to_end(tmp_path, repo_dir):
     """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS reproducible, phases
     logged, measured speed-up recorded, the final line gives the localization error."""
     from mission.flight.sources import recompute_sim_rss
@@ -97,6 +97,10 @@ def test_spiral_end_to_end(tmp_path):
     last = out.strip().splitlines()[-1]  # the localizer's estimate, with its error against the known truth
     assert last.startswith("estimate:") and "; error " in last, out
     assert "[onnx rfsl_spiral_e2r.onnx]" in last, last  # the spiral network answered its own kind of flight
+    from mission.localize.net_regions import card_calibration
+
+    r90 = card_calibration(repo_dir / "models" / "rfsl_spiral_e2r.onnx", "sim")[0]["radii_m"][0.9]
+    assert f"; 90 % region within {r90:.0f} m of the estimate; error " in last, last  # its calibrated circle
     cruise = log["rel_alt_m"] > 25
     for c in ("roll_deg", "pitch_deg"):
         assert np.std(log[c][cruise]) > 0.5

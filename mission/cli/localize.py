@@ -128,6 +128,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     from mission.cli.main import console
+    from mission.localize.uncertainty import describe_region
 
     c = console()
     tab = Table(title=f"transmitter estimate: {args.log}", show_header=False)
@@ -151,10 +152,7 @@ def run(args: argparse.Namespace) -> int:
             fit += f"; UAV antenna: {est.extras['antenna']}"
         tab.add_row("fit", fit)
     for reg in est.extras.get("regions", []):
-        el = reg["ellipse"]
-        tab.add_row(f"{100 * reg['level']:.0f} % region",
-                    f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
-                    f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east")
+        tab.add_row(f"{100 * reg['level']:.0f} % region", describe_region(reg))
     if "components" in est.extras:
         parts = [f"{n} {cx:.1f}, {cy:.1f} m" for n, (cx, cy) in est.extras["components"].items()]
         tab.add_row("components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)")

@@ -372,6 +372,7 @@ class Runner(FlightTasks):
     def _localize(self) -> None:
         try:
             from mission.localize.api import localize_log
+            from mission.localize.uncertainty import describe_region, outer_region
         except ImportError as e:
             print(f"localizer not available ({e}); run `localize {self.log_path}` later", file=sys.stderr)
             return
@@ -384,6 +385,8 @@ class Runner(FlightTasks):
         label = est.method + (f" {Path(model).name}" if model else "")
         line = (f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f}) "
                 f"[{label}]")
+        if (outer := outer_region(est.extras)) is not None:
+            line += f"; {100 * outer['level']:.0f} % region {describe_region(outer, short=True)}"
         if self.truth is not None:
             err = float(np.hypot(est.x_m - self.truth["x_m"], est.y_m - self.truth["y_m"]))
             line += f"; error {err:.1f} m (true transmitter at {self.truth['x_m']:.1f}, {self.truth['y_m']:.1f} m)"

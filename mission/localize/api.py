@@ -159,15 +159,28 @@ def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
     return est
 
 
-def _check_altitude(extras: dict, net, part) -> None:
+def _check_altitude(extras: dict, net, part) -> bool:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
-    ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``)."""
+    ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``); True then."""
     from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
 
     trained, flown = training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2])
     extras["network_training_altitude_m"] = None if trained is None else list(trained)
     extras["flight_altitude_m"] = list(flown)
-    _add_note(extras, altitude_note(net.model_name, trained, flown))
+    note = altitude_note(net.model_name, trained, flown)
+    _add_note(extras, note)
+    return note is not None
+
+
+def _network_regions(est: Estimate, net, part, simulated: bool) -> None:
+    """A network's estimate gets its card's calibrated error circles (``net_regions``) and the altitude check;
+    on a simulated log outside the training altitudes the circles (calibrated inside them) are too small."""
+    from mission.localize.net_regions import network_regions
+
+    _add_note(est.extras, network_regions(est.extras, est.x_m, est.y_m, net.path, simulated))
+    if _check_altitude(est.extras, net, part) and simulated and "regions" in est.extras:
+        _add_note(est.extras, "Its error circles were calibrated on flights inside those altitudes: expect them "
+                              "to be too small here.")
 
 
 def _add_note(extras: dict, note: str | None) -> None:
@@ -198,9 +211,11 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
     extras = dict(a.extras)
     extras["components"] = {"selfcal": [a.x_m, a.y_m], Path(path).name: [b.x_m, b.y_m]}
     extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
+    from mission.localize.uncertainty import outer_region
+
     if a.posterior is not None and a.posterior.grid is not None:  # is the fused point inside its own regions?
         extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))  # log frame, as the grid
-        outer = max(extras.get("regions", []), key=lambda r: r["level"], default=None)
+        outer = outer_region(extras)
         if outer is not None and q >= outer["hpd_mass"]:
             _add_note(extras, f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the "
                               f"fused point lies outside the {100 * outer['level']:.0f} % region, which is the "
@@ -275,7 +290,7 @@ def localize_log(
                              floor_db, physics_preset=physics_preset)
         est = _in_log_frame(loc, loc.predict(part), origin, method)
         if method == "onnx":
-            _check_altitude(est.extras, loc, part)
+            _network_regions(est, loc, part, _is_simulated(log))
     ra = area if area is not None else search_area(log)
     if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
         out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])

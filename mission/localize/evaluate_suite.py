@@ -64,9 +64,14 @@ def region_contains(region: dict, xy) -> bool:
     Accepted shapes: ``{"polygon": [[x, y], ...]}`` (also ``polygon_xy_m``), or an ellipse
     ``{"center_m": [x, y], "semi_axes_m": [a, b], "angle_deg": t}`` with the first semi-axis ``t`` degrees
     counter-clockwise from east (``center``/``center_xy_m``, ``axes_m``/``semi_axes`` and ``angle`` also read),
-    or ``{"center_m": [x, y], "cov_m2": [[..], [..]], "chi2": k}`` = the set ``d^T cov^-1 d <= k``.
+    or ``{"center_m": [x, y], "cov_m2": [[..], [..]], "chi2": k}`` = the set ``d^T cov^-1 d <= k``, or the
+    ``ellipse`` of ``mission.localize.uncertainty``'s layout (``x_m, y_m, a_m, b_m, angle_deg``).
     """
     p = np.asarray(xy, dtype=float)[:2]
+    if "ellipse" in region and not any(k in region for k in ("polygon", "polygon_xy_m", "center_m")):
+        el = region["ellipse"]  # the mission.localize.uncertainty layout (error circles of net_regions too)
+        region = {"center_m": [el["x_m"], el["y_m"]], "semi_axes_m": [el["a_m"], el["b_m"]],
+                  "angle_deg": el["angle_deg"]}
     poly = region.get("polygon", region.get("polygon_xy_m"))
     if poly is not None:
         from matplotlib.path import Path as MPath

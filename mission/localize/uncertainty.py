@@ -127,6 +127,24 @@ def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (
     return out
 
 
+def describe_region(reg: dict, short: bool = False) -> str:
+    """One line for a region of either kind: an error circle (``net_regions``) or an HPD set (here); ``short``
+    leaves out where the circle was calibrated and where the ellipse lies."""
+    el = reg["ellipse"]
+    if reg.get("kind") == "error circle":
+        return f"within {reg['radius_m']:.0f} m of the estimate" + (
+            "" if short else f" (error circle; calibrated on {reg.get('calibrated_on') or 'the card'})")
+    if short:
+        return f"{reg['area_m2']:.0f} m^2 (ellipse {el['a_m']:.0f} x {el['b_m']:.0f} m)"
+    return (f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
+            f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east")
+
+
+def outer_region(extras: dict) -> dict | None:
+    """The estimate's widest region (highest level), None when it has none."""
+    return max(extras.get("regions", []), key=lambda r: r["level"], default=None)
+
+
 def region_covers(est, x: float, y: float, level: float) -> bool | None:
     """Whether ``est``'s region of nominal ``level`` holds (x, y); None when the estimate has no posterior."""
     post = getattr(est, "posterior", None)

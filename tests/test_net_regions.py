@@ -1,0 +1,135 @@
+"""A network's estimate carries calibrated error circles (``mission/localize/net_regions.py``).
+
+Checked against the closed form of split conformal prediction (coverage ``ceil((n + 1) level) / (n + 1)`` on
+exchangeable draws), on the circles' geometry, on the card contract (missing, malformed, stale), on the shipped
+cards (every shipped network calibrated on the exact file that ships) and on the product path (``localize``
+on simulated and benchmark logs prints and returns the circles of the right calibration).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mission.errors import InputError
+from mission.localize.evaluate_suite import region_contains
+from mission.localize.net_regions import (
+    REGIONS_KEY,
+    calibration_record,
+    card_calibration,
+    circle_regions,
+    conformal_radius,
+    model_digest,
+    network_regions,
+)
+
+SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
+
+
+@pytest.mark.parametrize("n,level", [(19, 0.5), (99, 0.9), (200, 0.9), (40, 0.5)])
+def test_conformal_coverage_matches_the_closed_form(n, level):
+    """Over many calibration/test draws from one distribution, the circle covers a fresh error with probability
+    ceil((n + 1) level) / (n + 1) exactly (rank argument); Rayleigh errors, 4000 repetitions."""
+    rng = np.random.default_rng(0)
+    cal = rng.rayleigh(10.0, (4000, n))
+    test = rng.rayleigh(10.0, 4000)
+    r = np.array([conformal_radius(c, level) for c in cal])
+    want = math.ceil((n + 1) * level) / (n + 1)
+    assert np.mean(test <= r) == pytest.approx(want, abs=0.02)
+
+
+@given(st.lists(st.floats(0.0, 1e4), min_size=1, max_size=60), st.floats(0.05, 0.95))
+@settings(max_examples=60, deadline=None)
+def test_conformal_radius_is_an_order_statistic(errors, level):
+    r = conformal_radius(errors, level)
+    k = math.ceil((len(errors) + 1) * level)
+    if k > len(errors):
+        assert r == math.inf  # too few flights to promise the level
+    else:
+        assert r in errors and sum(e <= r for e in errors) >= k
+
+
+def test_circles_have_their_radius_and_contain_what_they_should():
+    regs = circle_regions(100.0, -20.0, {0.9: 30.0, 0.5: 12.0}, "test")
+    assert [r["level"] for r in regs] == [0.5, 0.9]
+    for reg in regs:
+        ring = np.asarray(reg["polygons"][0])
+        assert np.allclose(np.hypot(ring[:, 0] - 100.0, ring[:, 1] + 20.0), reg["radius_m"], atol=0.1)
+        assert reg["area_m2"] == pytest.approx(np.pi * reg["radius_m"] ** 2)
+        assert region_contains(reg, (100.0 + 0.99 * reg["radius_m"], -20.0))
+        assert not region_contains(reg, (100.0, -20.0 + 1.01 * reg["radius_m"]))
+
+
+@pytest.fixture()
+def net(tmp_path, repo_dir):
+    """A copy of a shipped network with a card of our own making."""
+    p = tmp_path / "net.onnx"
+    shutil.copy(repo_dir / "models" / "rfsl_spiral_e2r.onnx", p)
+    return p
+
+
+def test_card_contract(net):
+    assert card_calibration(net, "sim") == (None, "net.onnx has no model card (net.json, "
+                                            "benchmarks/calibrate_net_regions.py)")
+    card = net.with_suffix(".json")
+    with pytest.raises(ValueError, match="need at least 9"):  # 4 flights cannot promise 90 %
+        calibration_record([1.0, 2.0, 3.0, 4.0], "t", net)
+    card.write_text(json.dumps({REGIONS_KEY: {"sim": calibration_record(np.arange(1.0, 21.0), "t", net)}}))
+    rec, why = card_calibration(net, "sim")
+    assert rec["radii_m"] == {0.5: 11.0, 0.9: 19.0} and rec["model_sha256"] == model_digest(net)
+    assert card_calibration(net, "real")[0] is None and "no 'real' calibration" in card_calibration(net, "real")[1]
+    extras: dict = {}
+    assert "no uncertainty region" in network_regions(extras, 0.0, 0.0, net, simulated=False)
+    assert network_regions(extras, 5.0, 6.0, net, simulated=True) is None
+    assert [r["radius_m"] for r in extras["regions"]] == [11.0, 19.0]
+    net.write_bytes(net.read_bytes() + b"\0")  # another model file: the calibration no longer applies
+    rec, why = card_calibration(net, "sim")
+    assert rec is None and "another version of the model file" in why
+
+
+@pytest.mark.parametrize("entry", [{"radii_m": {"0.9": -1.0}}, {"radii_m": {"1.5": 3.0}}, {"radii_m": "x"}, {},
+                                   {"radii_m": {"0.9": "Infinity"}}, {"radii_m": {}}])
+def test_a_malformed_card_entry_names_the_card_and_key(net, entry):
+    net.with_suffix(".json").write_text(json.dumps({REGIONS_KEY: {"sim": entry}}))
+    with pytest.raises(InputError) as e:
+        card_calibration(net, "sim")
+    assert "net.json" in str(e.value) and "regions.sim" in str(e.value)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_every_shipped_network_is_calibrated_on_the_file_that_ships(name, repo_dir):
+    """Both calibrations present and measured on this very file; circles grow with the level, and the real
+    (benchmark) circles are wider than the simulated ones wherever the network is a simulation specialist."""
+    model = repo_dir / "models" / f"{name}.onnx"
+    sim, real = (card_calibration(model, d) for d in ("sim", "real"))
+    assert sim[1] is None and real[1] is None, (sim[1], real[1])
+    for rec in (sim[0], real[0]):
+        assert rec["radii_m"][0.5] < rec["radii_m"][0.9] < math.inf and rec["n"] >= 400
+    if name != "rfsl_afar":
+        assert real[0]["radii_m"][0.9] > 2 * sim[0]["radii_m"][0.9]
+
+
+def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tmp_path, repo_dir):
+    """On a simulated spiral the default network answers with its 'sim' circles; on a benchmark log (a real
+    receiver's kind) ``--model`` answers with its 'real' ones; both centred on the estimate, in the log frame."""
+    from mission.cli.main import main as rfsl
+    from mission.localize.api import localize_log
+    from mission.localize.suite import unseen_flight
+    from mission.spec import DEFAULT_MISSION
+
+    assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7101", "--out", str(tmp_path)]) == 0
+    est = localize_log(next(tmp_path.glob("*.csv")))
+    model = est.extras["model_path"]
+    want = card_calibration(model, "sim")[0]["radii_m"]
+    assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items())
+    assert all(r["ellipse"]["x_m"] == est.x_m and r["ellipse"]["y_m"] == est.y_m for r in est.extras["regions"])
+    log, truth, _ = unseen_flight(2027, 3)
+    est = localize_log(log, model_path=model)
+    assert [r["radius_m"] for r in est.extras["regions"]] == sorted(card_calibration(model, "real")[0]["radii_m"]
+                                                                    .values())
