@@ -18,7 +18,7 @@ import numpy as np
 
 from mission.localize.altitude_scale import dataset_heights
 from mission.localize.dataset import load_dataset
-from mission.localize.net_regions import REGIONS_KEY
+from mission.localize.error_circles import REGIONS_KEY
 from mission.localize.onnx_model import OnnxLocalizer
 
 
@@ -46,7 +46,7 @@ def main(argv: list[str]) -> int:
         "training": loc.meta.get("training_data"),
         "evaluations": [json.loads(Path(r).read_text()) for r in argv[3:]],
     }
-    if Path(out).is_file():  # the error circles' calibration (net_regions) stays; it names the model's digest
+    if Path(out).is_file():  # the error circles' calibration (error_circles) stays; it names the model's digest
         old = json.loads(Path(out).read_text())
         if REGIONS_KEY in old:
             card[REGIONS_KEY] = old[REGIONS_KEY]

@@ -97,7 +97,7 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     last = out.strip().splitlines()[-1]  # the localizer's estimate, with its error against the known truth
     assert last.startswith("estimate:") and "; error " in last, out
     assert "[onnx rfsl_spiral_e2r.onnx]" in last, last  # the spiral network answered its own kind of flight
-    from mission.localize.net_regions import card_calibration
+    from mission.localize.error_circles import card_calibration
 
     r90 = card_calibration(repo_dir / "models" / "rfsl_spiral_e2r.onnx", "sim")[0]["radii_m"][0.9]
     assert f"; 90 % region within {r90:.0f} m of the estimate; error " in last, last  # its calibrated circle

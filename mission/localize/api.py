@@ -173,14 +173,30 @@ def _check_altitude(extras: dict, net, part) -> bool:
 
 
 def _network_regions(est: Estimate, net, part, simulated: bool) -> None:
-    """A network's estimate gets its card's calibrated error circles (``net_regions``) and the altitude check;
+    """A network's estimate gets its card's calibrated error circles (``error_circles``) and the altitude check;
     on a simulated log outside the training altitudes the circles (calibrated inside them) are too small."""
-    from mission.localize.net_regions import network_regions
+    from mission.localize.error_circles import attach_circles, card_calibration
 
-    _add_note(est.extras, network_regions(est.extras, est.x_m, est.y_m, net.path, simulated))
+    cal = card_calibration(net.path, "sim" if simulated else "real")
+    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal))
     if _check_altitude(est.extras, net, part) and simulated and "regions" in est.extras:
         _add_note(est.extras, "Its error circles were calibrated on flights inside those altitudes: expect them "
                               "to be too small here.")
+
+
+def _method_regions(est: Estimate, method: str, simulated: bool, default_config: bool) -> None:
+    """Strongest sample, centroid and grid get error circles calibrated for their default configuration (the
+    grid's default physics, the default sample selection); any other configuration gets a note instead."""
+    from mission.localize.error_circles import CIRCLE_METHODS, attach_circles, method_calibration
+
+    if method not in CIRCLE_METHODS:
+        return
+    if not default_config:
+        _add_note(est.extras, "no uncertainty region: the error circles of this method were calibrated for its "
+                              "default physics and sample selection only")
+        return
+    cal = method_calibration(method, "sim" if simulated else "real")
+    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal))
 
 
 def _add_note(extras: dict, note: str | None) -> None:
@@ -250,6 +266,7 @@ def localize_log(
     from mission.localize.preprocess import select_samples
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
+    physics_given = physics_preset is not None or physics_model is not None or floor_db is not None
     if physics_preset is None and physics_model is None:
         physics_model, physics_params, physics_preset = _default_physics(log)
     physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
@@ -291,6 +308,8 @@ def localize_log(
         est = _in_log_frame(loc, loc.predict(part), origin, method)
         if method == "onnx":
             _network_regions(est, loc, part, _is_simulated(log))
+        else:
+            _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given))
     ra = area if area is not None else search_area(log)
     if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
         out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])

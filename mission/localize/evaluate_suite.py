@@ -69,7 +69,7 @@ def region_contains(region: dict, xy) -> bool:
     """
     p = np.asarray(xy, dtype=float)[:2]
     if "ellipse" in region and not any(k in region for k in ("polygon", "polygon_xy_m", "center_m")):
-        el = region["ellipse"]  # the mission.localize.uncertainty layout (error circles of net_regions too)
+        el = region["ellipse"]  # the mission.localize.uncertainty layout (error circles of error_circles too)
         region = {"center_m": [el["x_m"], el["y_m"]], "semi_axes_m": [el["a_m"], el["b_m"]],
                   "angle_deg": el["angle_deg"]}
     poly = region.get("polygon", region.get("polygon_xy_m"))

@@ -128,7 +128,7 @@ def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (
 
 
 def describe_region(reg: dict, short: bool = False) -> str:
-    """One line for a region of either kind: an error circle (``net_regions``) or an HPD set (here); ``short``
+    """One line for a region of either kind: an error circle (``error_circles``) or an HPD set (here); ``short``
     leaves out where the circle was calibrated and where the ellipse lies."""
     el = reg["ellipse"]
     if reg.get("kind") == "error circle":

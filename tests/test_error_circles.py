@@ -1,9 +1,10 @@
-"""A network's estimate carries calibrated error circles (``mission/localize/net_regions.py``).
+"""Estimates without a posterior carry calibrated error circles (``mission/localize/error_circles.py``).
 
 Checked against the closed form of split conformal prediction (coverage ``ceil((n + 1) level) / (n + 1)`` on
 exchangeable draws), on the circles' geometry, on the card contract (missing, malformed, stale), on the shipped
-cards (every shipped network calibrated on the exact file that ships) and on the product path (``localize``
-on simulated and benchmark logs prints and returns the circles of the right calibration).
+calibrations (every shipped network calibrated on the exact file that ships; the classical methods for both kinds
+of log) and on the product path (``localize`` on simulated and benchmark logs returns the circles of the right
+calibration, and a note instead where none applies).
 """
 
 from __future__ import annotations
@@ -14,20 +15,22 @@ import shutil
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mission.errors import InputError
-from mission.localize.evaluate_suite import region_contains
-from mission.localize.net_regions import (
+from mission.localize.error_circles import (
+    CIRCLE_METHODS,
     REGIONS_KEY,
+    attach_circles,
     calibration_record,
     card_calibration,
     circle_regions,
     conformal_radius,
+    method_calibration,
     model_digest,
-    network_regions,
 )
+from mission.localize.evaluate_suite import region_contains
 
 SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
 
@@ -76,7 +79,7 @@ def net(tmp_path, repo_dir):
 
 def test_card_contract(net):
     assert card_calibration(net, "sim") == (None, "net.onnx has no model card (net.json, "
-                                            "benchmarks/calibrate_net_regions.py)")
+                                            "benchmarks/calibrate_error_circles.py)")
     card = net.with_suffix(".json")
     with pytest.raises(ValueError, match="need at least 9"):  # 4 flights cannot promise 90 %
         calibration_record([1.0, 2.0, 3.0, 4.0], "t", net)
@@ -85,8 +88,9 @@ def test_card_contract(net):
     assert rec["radii_m"] == {0.5: 11.0, 0.9: 19.0} and rec["model_sha256"] == model_digest(net)
     assert card_calibration(net, "real")[0] is None and "no 'real' calibration" in card_calibration(net, "real")[1]
     extras: dict = {}
-    assert "no uncertainty region" in network_regions(extras, 0.0, 0.0, net, simulated=False)
-    assert network_regions(extras, 5.0, 6.0, net, simulated=True) is None
+    assert "no uncertainty region" in attach_circles(extras, 0.0, 0.0, card_calibration(net, "real"))
+    assert "regions" not in extras
+    assert attach_circles(extras, 5.0, 6.0, card_calibration(net, "sim")) is None
     assert [r["radius_m"] for r in extras["regions"]] == [11.0, 19.0]
     net.write_bytes(net.read_bytes() + b"\0")  # another model file: the calibration no longer applies
     rec, why = card_calibration(net, "sim")
@@ -133,3 +137,71 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     est = localize_log(log, model_path=model)
     assert [r["radius_m"] for r in est.extras["regions"]] == sorted(card_calibration(model, "real")[0]["radii_m"]
                                                                     .values())
+
+
+_BAD_ENTRY = st.one_of(
+    st.none().map(lambda _: {}),
+    st.dictionaries(st.text(max_size=4), st.floats(allow_nan=True), max_size=3).map(lambda d: {"radii_m": d}),
+    st.floats(-1e3, 0.0).map(lambda r: {"radii_m": {"0.5": r, "0.9": 10.0}}),
+    st.floats(1.0, 5.0).map(lambda lv: {"radii_m": {f"{lv}": 10.0}}),
+    st.text(max_size=5).map(lambda t: {"radii_m": t}),
+)
+
+
+@given(entry=_BAD_ENTRY)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_localize_refuses_a_malformed_card_with_one_line_and_exit_2(entry, net, tmp_path, capsys):
+    """``localize --model`` with a card whose calibration is malformed: one line naming the card and the key,
+    exit 2, never a traceback or a circle of made-up size."""
+    from _localize_helpers import write_synthetic_log
+
+    from mission.cli.localize import main as localize
+
+    log = tmp_path / "f.csv"
+    if not log.exists():
+        write_synthetic_log(log, (150.0, 150.0, 1.5))
+    net.with_suffix(".json").write_text(json.dumps({REGIONS_KEY: {"sim": entry, "real": entry}}))
+    capsys.readouterr()
+    assert localize([str(log), "--model", str(net)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "net.json" in err[0] and "regions." in err[0], err
+
+
+@pytest.mark.parametrize("method", CIRCLE_METHODS)
+def test_every_classical_method_is_calibrated_for_both_kinds_of_log(method):
+    """The grid with the simulated log's own physics is near-exact (sub-metre circles); on the benchmark every
+    method's circles are tens of metres, wider than on simulated logs."""
+    (sim, why_s), (real, why_r) = method_calibration(method, "sim"), method_calibration(method, "real")
+    assert why_s is None and why_r is None
+    for rec in (sim, real):
+        assert rec["radii_m"][0.5] < rec["radii_m"][0.9] < math.inf and rec["n"] >= 300
+    assert real["radii_m"][0.9] > sim["radii_m"][0.9]
+    assert (sim["radii_m"][0.9] < 5.0) == (method == "grid")
+
+
+def test_a_malformed_method_calibration_names_file_and_key(tmp_path):
+    p = tmp_path / "circles.json"
+    assert method_calibration("grid", "sim", p)[0] is None  # no file: no circles, a reason
+    p.write_text(json.dumps({"grid": {"sim": {"radii_m": {"0.9": 0}}}}))
+    with pytest.raises(InputError, match=r"circles.json.*grid\.sim\.radii_m"):
+        method_calibration("grid", "sim", p)
+    p.write_text(json.dumps({"grid": [1, 2]}))
+    with pytest.raises(InputError, match=r"circles.json"):
+        method_calibration("grid", "sim", p)
+
+
+def test_classical_methods_get_circles_only_in_their_calibrated_configuration(tmp_path):
+    from mission.cli.main import main as rfsl
+    from mission.localize.api import localize_log
+    from mission.spec import DEFAULT_MISSION
+
+    assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7102", "--out", str(tmp_path)]) == 0
+    log = next(tmp_path.glob("*.csv"))
+    for method in CIRCLE_METHODS:
+        est = localize_log(log, method=method)
+        want = method_calibration(method, "sim")[0]["radii_m"]
+        assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items()), method
+    est = localize_log(log, method="grid", physics_model="free-space")  # not the calibrated configuration
+    assert "regions" not in est.extras and "calibrated for its default physics" in est.extras["note"]
+    est = localize_log(log, method="strongest", cruise=False)
+    assert "regions" not in est.extras and "sample selection" in est.extras["note"]

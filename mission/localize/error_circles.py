@@ -1,0 +1,141 @@
+"""Uncertainty regions for estimates without a posterior: error circles calibrated by split conformal prediction.
+
+Why: a network, the strongest sample, the weighted centroid and the plain grid answer with a point and no
+posterior, yet every estimate must carry 50 % and 90 % regions (issue 10).  Flights like those the method will
+face, never tuned on, give the distribution of its 2D error; the circle around the estimate whose radius is that
+error's conformal quantile (the ``ceil((n + 1) level)``-th smallest of ``n`` calibration errors) holds the truth at
+the nominal rate or more on any flight exchangeable with them.  Nothing about the flight at hand narrows the
+circle: it is honest on average over its calibration domain and says nothing finer.
+
+One calibration per kind of log:
+
+- ``sim``: held-out simulated flights (for a network, the domain where ``localize`` uses it on simulated logs);
+- ``real``: the unseen-flight benchmark (``afar`` family, seeds 2027 and 2028), for receiver and benchmark logs.
+
+Networks keep theirs in their card (``models/<name>.json``, key ``regions``, with the model file's sha256);
+the classical methods in their default configuration in ``mission/data/method_circles.json``
+(``benchmarks/calibrate_error_circles.py`` writes both).  Regions use the layout of
+:mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``, ``ellipse``, ``polygons``) plus
+``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+
+REGIONS_KEY = "regions"
+METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
+CIRCLE_METHODS = ("strongest", "centroid", "grid")  # classical methods calibrated in their default configuration
+DOMAINS = ("sim", "real")
+LEVELS = (0.5, 0.9)
+N_VERTICES = 72
+
+
+def conformal_radius(errors, level: float) -> float:
+    """The split-conformal radius: the ``ceil((n + 1) level)``-th smallest error (inf when n is too small)."""
+    e = np.sort(np.asarray(errors, dtype=float))
+    k = math.ceil((e.size + 1) * float(level))
+    return float(e[k - 1]) if 1 <= k <= e.size else float("inf")
+
+
+def model_digest(model_path: str | Path) -> str:
+    """sha256 of a model file: a card's calibration names the exact network it was measured on."""
+    return hashlib.sha256(Path(model_path).read_bytes()).hexdigest()
+
+
+def calibration_record(errors, source: str, model_path: str | Path | None = None,
+                       levels: tuple[float, ...] = LEVELS) -> dict:
+    """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
+    network, the digest of the model file they were measured on."""
+    e = np.asarray(errors, dtype=float)
+    radii = {f"{lv:g}": round(conformal_radius(e, lv), 2) for lv in levels}
+    if not all(math.isfinite(r) for r in radii.values()):
+        raise ValueError(f"{e.size} flights cannot calibrate levels {levels}: need at least "
+                         f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}")
+    rec = {"radii_m": radii, "n": int(e.size), "mean_error_m": round(float(e.mean()), 2), "calibrated_on": source}
+    if model_path is not None:
+        rec["model_sha256"] = model_digest(model_path)
+    return rec
+
+
+def card_path(model_path: str | Path) -> Path:
+    """The model card beside a network: ``models/<name>.json`` for ``models/<name>.onnx``."""
+    return Path(model_path).with_suffix(".json")
+
+
+def _read_entries(p: Path, what: str) -> dict:
+    """The ``{domain: record}`` mapping under ``what`` in JSON file ``p`` ({} when absent)."""
+    try:
+        entries = json.loads(p.read_text()).get(what) or {}
+        if not isinstance(entries, dict):
+            raise AttributeError
+    except (json.JSONDecodeError, AttributeError):
+        raise InputError(f"not a JSON object with a {what} mapping", source=str(p), field=what) from None
+    return entries
+
+
+def _checked(rec, p: Path, key: str) -> dict:
+    """A stored record with its radii as {level: metres}; ``InputError`` naming file and key when malformed."""
+    try:
+        radii = {float(k): float(v) for k, v in rec["radii_m"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        raise InputError("needs radii_m: {level: metres}", source=str(p), field=key) from None
+    if not radii or not all(0.0 < k < 1.0 and 0.0 < v < math.inf for k, v in radii.items()):
+        raise InputError("radii_m needs levels in (0, 1) and positive finite radii", source=str(p),
+                         field=f"{key}.radii_m")
+    return dict(rec, radii_m=radii)
+
+
+def card_calibration(model_path: str | Path, domain: str) -> tuple[dict | None, str | None]:
+    """(the card's calibration for ``domain`` ("sim" or "real"), None) or (None, why there is none: no card, no
+    entry, or an entry measured on another model file); a malformed entry is an ``InputError`` naming the card
+    and key."""
+    p = card_path(model_path)
+    where = f"{p.name}, benchmarks/calibrate_error_circles.py"
+    if not p.is_file():
+        return None, f"{Path(model_path).name} has no model card ({where})"
+    rec = _read_entries(p, REGIONS_KEY).get(domain)
+    if rec is None:
+        return None, f"{Path(model_path).name} has no '{domain}' calibration in its card ({where})"
+    rec = _checked(rec, p, f"{REGIONS_KEY}.{domain}")
+    if rec.get("model_sha256") != model_digest(model_path):
+        return None, f"the '{domain}' calibration in {p.name} was measured on another version of the model file"
+    return rec, None
+
+
+def method_calibration(method: str, domain: str, path: Path = METHOD_CIRCLES) -> tuple[dict | None, str | None]:
+    """(the calibration of a classical method's default configuration for ``domain``, None) or (None, why not)."""
+    rec = _read_entries(path, method).get(domain) if path.is_file() else None
+    if rec is None:
+        return None, f"no '{domain}' calibration of {method} in {path.name}"
+    return _checked(rec, path, f"{method}.{domain}"), None
+
+
+def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on: str) -> list[dict]:
+    """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout."""
+    t = np.linspace(0.0, 2.0 * np.pi, N_VERTICES + 1)
+    out = []
+    for lv, r in sorted(radii.items()):
+        ring = np.round(np.stack([x + r * np.cos(t), y + r * np.sin(t)], axis=1), 1).tolist()
+        out.append({"level": float(lv), "hpd_mass": float(lv), "kind": "error circle", "radius_m": float(r),
+                    "area_m2": float(np.pi * r * r),
+                    "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
+                    "polygons": [ring], "calibrated_on": calibrated_on})
+    return out
+
+
+def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | None, str | None]) -> str | None:
+    """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration`` answer) around
+    (x, y) into ``extras["regions"]``; returns the note to show when there is no calibration."""
+    rec, why = calibration
+    if rec is None:
+        return f"no uncertainty region: {why}"
+    extras["regions"] = circle_regions(x, y, rec["radii_m"], str(rec.get("calibrated_on", "")))
+    return None
