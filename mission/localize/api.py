@@ -214,6 +214,8 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
     """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
     ``models/README.md``); the uncertainty regions are the self-calibrating posterior's, and a note says when
     the fused point falls outside them (the two components disagree: ~5 % of benchmark flights)."""
+    from mission.localize.uncertainty import outer_region
+
     sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
     a = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
     path = model_path or fusion_model_path()
@@ -227,8 +229,6 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
     extras = dict(a.extras)
     extras["components"] = {"selfcal": [a.x_m, a.y_m], Path(path).name: [b.x_m, b.y_m]}
     extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
-    from mission.localize.uncertainty import outer_region
-
     if a.posterior is not None and a.posterior.grid is not None:  # is the fused point inside its own regions?
         extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))  # log frame, as the grid
         outer = outer_region(extras)

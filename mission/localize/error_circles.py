@@ -33,7 +33,6 @@ from mission.errors import InputError
 REGIONS_KEY = "regions"
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
 CIRCLE_METHODS = ("strongest", "centroid", "grid")  # classical methods calibrated in their default configuration
-DOMAINS = ("sim", "real")
 LEVELS = (0.5, 0.9)
 N_VERTICES = 72
 
