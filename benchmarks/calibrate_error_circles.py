@@ -22,9 +22,7 @@ flights, and on simulated logs of the product path (``--product-seeds``: ``bench
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import os
 import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
@@ -93,14 +91,12 @@ def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str]:
 
 def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str]:
     """(error, coverage, answered by) on one ``rfsl simulate`` log of a mission (``kw`` {} = the default)."""
-    from mission.cli.main import main as rfsl
+    from sim_default import simulate_log
+
     from mission.localize.api import localize_log
 
     kw, mission, out, seed = job
-    d = Path(out) / f"s{seed}_{Path(mission).stem}"
-    with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):
-        rfsl(["simulate", mission, "--seed", str(seed), "--out", str(d)])
-    est = localize_log(next(d.glob("*.csv")), **kw)
+    est = localize_log(simulate_log(mission, out, seed), **kw)
     return _run(est, (est.extras["truth_x_m"], est.extras["truth_y_m"]))
 
 
@@ -144,19 +140,14 @@ def coverage_line(runs: list[tuple[float, dict, str]]) -> str:
 
 def product_check(seeds: str, methods: list[str]) -> None:
     """Coverage on simulated logs of the product path (``sim_default.SETS``): the default and each method."""
-    import yaml
-    from sim_default import SETS
+    from sim_default import SETS, mission_variant
 
     lo, hi = (int(v) for v in seeds.split(":"))
     with tempfile.TemporaryDirectory() as tmp:
         for label, mission, alt in SETS:
-            if alt is not None:
-                spec = yaml.safe_load((REPO / mission).read_text())
-                spec["altitude_m"], spec["name"] = alt, f"{Path(mission).stem}_{alt:.0f}m"
-                mission = str(Path(tmp) / f"{spec['name']}.yaml")
-                Path(mission).write_text(yaml.safe_dump(spec))
+            mission = mission_variant(str(REPO / mission), tmp, label, alt)
             for kw in [{}] + [{"method": m} for m in methods]:
-                runs = simulated_runs(kw, [str(REPO / mission)], range(lo, hi))
+                runs = simulated_runs(kw, [mission], range(lo, hi))
                 print(f"product path, {label}, {kw.get('method', 'default')}: {coverage_line(runs)}", flush=True)
 
 

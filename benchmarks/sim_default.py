@@ -29,18 +29,38 @@ VARIANTS = (("spacing 12 m", {"spacing_m": 12}), ("spacing 35 m", {"spacing_m": 
             ("region flight", {"region": "flight"}), ("start nw", {"start": "nw"}))
 
 
-def one(job: tuple[str, str, int]) -> tuple[float, float, str]:
-    """(default's error, rfsl_default's error, default's model) on one simulated log (m)."""
+def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
+    """``rfsl simulate`` one flight of ``mission`` (seed ``seed``) into a folder of ``out``, quietly; its log."""
     from mission.cli.main import main as rfsl
-    from mission.localize.api import default_model_path, localize_log
 
-    mission, out, seed = job
-    d = Path(out) / f"s{seed}"
+    d = Path(out) / f"s{seed}_{Path(mission).stem}"
     with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):  # rfsl simulate's three lines per log
-        code = rfsl(["simulate", mission, "--seed", str(seed), "--out", str(d)])
+        code = rfsl(["simulate", str(mission), "--seed", str(seed), "--out", str(d)])
     if code != 0:
         raise RuntimeError(f"rfsl simulate failed for {mission} seed {seed}")
-    log = next(d.glob("*.csv"))
+    return next(d.glob("*.csv"))
+
+
+def mission_variant(mission: str, folder: str | Path, label: str, alt: float | None = None,
+                    params: dict | None = None) -> str:
+    """``mission`` itself, or a copy in ``folder`` flown at ``alt`` and/or with other generator ``params``."""
+    if alt is None and params is None:
+        return str(mission)
+    spec = yaml.safe_load(Path(mission).read_text())
+    spec["name"] = f"{Path(mission).stem}_{label.replace(' ', '_')}"
+    spec["altitude_m"] = spec["altitude_m"] if alt is None else alt
+    spec["trajectory"]["params"].update(params or {})
+    spec["time_budget_s"] = 1500  # a denser spiral takes longer than the paper's 10 minutes (a check only)
+    out = Path(folder) / f"{spec['name']}.yaml"
+    out.write_text(yaml.safe_dump(spec))
+    return str(out)
+
+
+def one(job: tuple[str, str, int]) -> tuple[float, float, str]:
+    """(default's error, rfsl_default's error, default's model) on one simulated log (m)."""
+    from mission.localize.api import default_model_path, localize_log
+
+    log = simulate_log(*job)
     a = localize_log(log)
     b = localize_log(log, model_path=default_model_path())
     return a.error_m, b.error_m, Path(a.extras.get("model_path", "?")).name
@@ -59,14 +79,7 @@ def main() -> None:
         sets = ([(label, "missions/spiral.yaml", None, p) for label, p in VARIANTS] if args.variants
                 else [(*s, None) for s in SETS])
         for label, mission, alt, params in sets:
-            if alt is not None or params is not None:  # the same mission at another altitude / with other params
-                spec = yaml.safe_load(Path(mission).read_text())
-                spec["name"] = f"{Path(mission).stem}_{label.replace(' ', '_')}"
-                spec["altitude_m"] = spec["altitude_m"] if alt is None else alt
-                spec["trajectory"]["params"].update(params or {})
-                spec["time_budget_s"] = 1500  # a denser spiral takes longer than the paper's 10 minutes
-                mission = str(Path(tmp) / f"{spec['name']}.yaml")
-                Path(mission).write_text(yaml.safe_dump(spec))
+            mission = mission_variant(mission, tmp, label, alt, params)
             out = tempfile.mkdtemp(dir=tmp)
             rows = list(ex.map(one, [(mission, out, s) for s in range(lo, hi)]))
             a, b = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
