@@ -72,14 +72,18 @@ def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
     return np.hypot(*(pred - arrays["tx_enu"][:, :2]).T), f"{what}; {n} flights, seed {seed}"
 
 
-def _run(est, truth) -> tuple[float, dict, str]:
+def _run(est, truth) -> tuple[float, dict, str, float]:
+    """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where clipped)."""
     from mission.localize.evaluate_suite import _coverage
+    from mission.localize.uncertainty import outer_region
 
+    reg = outer_region(est.extras) or {}
+    share = reg["area_m2"] / (np.pi * reg["radius_m"] ** 2) if "radius_m" in reg else float("nan")
     return (float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])), _coverage(est, truth),
-            Path(est.extras.get("model_path", est.method)).name)
+            Path(est.extras.get("model_path", est.method)).name, float(share))
 
 
-def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str]:
+def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by) on flight i of a benchmark cache."""
     from mission.localize.api import localize_log
     from mission.localize.suite_cache import read_suite
@@ -89,7 +93,7 @@ def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str]:
     return _run(localize_log(log, **kw), truth)
 
 
-def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str]:
+def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str, float]:
     """(error, coverage, answered by) on one ``rfsl simulate`` log of a mission (``kw`` {} = the default)."""
     from sim_default import simulate_log
 
@@ -107,20 +111,20 @@ def _pool(fn, jobs: list) -> list:
         return list(ex.map(fn, jobs, chunksize=4))
 
 
-def suite_runs(name: str, dirs: list[str]) -> list[tuple[float, dict, str]]:
+def suite_runs(name: str, dirs: list[str]) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` over the flights of benchmark caches ``dirs``."""
     from mission.localize.suite_cache import read_suite
 
     return _pool(_suite_flight, [(kwargs_of(name), d, i) for d in dirs for i in range(len(read_suite(d)))])
 
 
-def simulated_runs(kw: dict, missions: list[str], seeds: range) -> list[tuple[float, dict, str]]:
+def simulated_runs(kw: dict, missions: list[str], seeds: range) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs on ``rfsl simulate`` logs of each mission file for each seed."""
     with tempfile.TemporaryDirectory() as tmp:
         return _pool(_simulated_flight, [(kw, m, tmp, s) for m in missions for s in seeds])
 
 
-def real_runs(name: str, mat: str) -> list[tuple[float, dict, str]]:
+def real_runs(name: str, mat: str) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` on the six real AFAR flights."""
     from mission.localize.api import localize_log
     from mission.localize.evaluate import import_afar
@@ -130,12 +134,14 @@ def real_runs(name: str, mat: str) -> list[tuple[float, dict, str]]:
     return [_run(e, (e.extras["truth_x_m"], e.extras["truth_y_m"])) for e in ests]
 
 
-def coverage_line(runs: list[tuple[float, dict, str]]) -> str:
-    """'mean m, truth in 50 % / 90 %' over per-flight runs."""
+def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
+    """'mean m, truth in 50 % / 90 %, the 90 % region's mean share of its circle' over per-flight runs."""
     e = np.array([r[0] for r in runs])
     cov = {lv: np.mean([r[1].get(lv, False) for r in runs]) for lv in ("50", "90")}
     by = ", ".join(sorted({r[2] for r in runs}))
-    return f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} % (n={len(e)}; {by})"
+    share = np.nanmean([r[3] for r in runs]) if any(np.isfinite(r[3]) for r in runs) else float("nan")
+    return (f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} %, 90 % region "
+            f"{100 * share:.0f} % of its circle after clipping to the rover area (n={len(e)}; {by})")
 
 
 def product_check(seeds: str, methods: list[str]) -> None:

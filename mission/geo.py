@@ -116,6 +116,47 @@ class Area:
         return out[:n]
 
 
+def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
+    """Sutherland-Hodgman: the part of polygon ``subject`` inside the *convex* polygon ``clip`` ((K, 2))."""
+    clip = _ccw(np.asarray(clip, dtype=float))
+    out = [tuple(p) for p in np.asarray(subject, dtype=float)]
+    for a, b in zip(clip, np.roll(clip, -1, axis=0), strict=True):
+        if not out:
+            break
+        inp, out = out, []
+        e = b - a
+
+        def inside(p, a=a, e=e) -> bool:
+            return e[0] * (p[1] - a[1]) - e[1] * (p[0] - a[0]) >= -1e-9
+
+        def cross(p, q, a=a, e=e):
+            n = np.array([-e[1], e[0]])
+            dp, dq = np.dot(np.subtract(p, a), n), np.dot(np.subtract(q, a), n)
+            t = dp / (dp - dq)
+            return tuple(np.add(p, t * np.subtract(q, p)))
+
+        prev = inp[-1]
+        for cur in inp:
+            if inside(cur):
+                if not inside(prev):
+                    out.append(cross(prev, cur))
+                out.append(cur)
+            elif inside(prev):
+                out.append(cross(prev, cur))
+            prev = cur
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
+def signed_area_m2(v: np.ndarray) -> float:
+    """Shoelace area of the polygon (K, 2), positive when its vertices run counter-clockwise."""
+    v = np.asarray(v, dtype=float)
+    return 0.5 * float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+
+
+def _ccw(v: np.ndarray) -> np.ndarray:
+    return v if signed_area_m2(v) >= 0 else v[::-1]
+
+
 @dataclass(frozen=True)
 class Field:
     """A mission field: origin, flight area (the UAV must stay inside) and rover area (the transmitter)."""

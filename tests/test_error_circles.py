@@ -69,6 +69,53 @@ def test_circles_have_their_radius_and_contain_what_they_should():
         assert not region_contains(reg, (100.0, -20.0 + 1.01 * reg["radius_m"]))
 
 
+def _segment_area(r: float, d: float) -> float:
+    """Area of a circle of radius r cut by a straight line at distance d from its centre (the larger part)."""
+    return math.pi * r * r - (r * r * math.acos(d / r) - d * math.sqrt(r * r - d * d))
+
+
+@given(r=st.floats(5.0, 300.0), frac=st.floats(0.02, 0.98))
+@settings(max_examples=60, deadline=None)
+def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
+    """A circle whose centre lies inside a large square, ``frac * r`` from its east edge, is clipped to the
+    circle minus the segment beyond that edge (closed form; the 72-gon underestimates the circle by < 0.2 %);
+    every clipped vertex lies in the square, and coverage stays the circle's (the ellipse is unchanged)."""
+    from mission.geo import Area
+
+    sq = Area("rover area", np.array([[-2000.0, -2000.0], [frac * r, -2000.0], [frac * r, 2000.0],
+                                      [-2000.0, 2000.0]]))
+    reg = circle_regions(0.0, 0.0, {0.9: r}, "test", sq)[0]
+    assert reg["clipped_to"] == "rover area" and reg["radius_m"] == r
+    assert reg["area_m2"] == pytest.approx(_segment_area(r, frac * r), rel=3e-3)
+    ring = np.asarray(reg["polygons"][0])
+    assert np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05).all()
+    assert region_contains(reg, (0.99 * r * math.cos(2.0), 0.99 * r * math.sin(2.0)))
+
+
+def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
+    """Inside the area the circle is untouched; a circle holding a (non-convex, L-shaped) area whole clips to
+    that area's own polygon and area; one that misses the area is kept whole."""
+    from mission.geo import Area
+
+    ell = Area("L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float))
+    inside = circle_regions(20.0, 20.0, {0.5: 10.0}, "test", ell)[0]
+    assert "clipped_to" not in inside and inside["area_m2"] == pytest.approx(np.pi * 100.0)
+    whole = circle_regions(30.0, 30.0, {0.9: 500.0}, "test", ell)[0]
+    assert whole["clipped_to"] == "L" and whole["area_m2"] == pytest.approx(100 * 40 + 40 * 60)
+    missed = circle_regions(500.0, 500.0, {0.9: 20.0}, "test", ell)[0]
+    assert "clipped_to" not in missed and missed["area_m2"] == pytest.approx(np.pi * 400.0)
+
+
+def test_a_circle_across_the_inner_corner_of_a_non_convex_area_has_the_right_area():
+    """The L's inner corner at (40, 40): a circle of radius 30 there loses exactly the quarter inside the
+    notch (three quarters remain, to the 72-gon's resolution)."""
+    from mission.geo import Area
+
+    ell = Area("L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float))
+    reg = circle_regions(40.0, 40.0, {0.9: 30.0}, "test", ell)[0]
+    assert reg["area_m2"] == pytest.approx(0.75 * np.pi * 900.0, rel=3e-3)
+
+
 @pytest.fixture()
 def net(tmp_path, repo_dir):
     """A copy of a shipped network with a card of our own making."""
@@ -137,6 +184,15 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     est = localize_log(log, model_path=model)
     assert [r["radius_m"] for r in est.extras["regions"]] == sorted(card_calibration(model, "real")[0]["radii_m"]
                                                                     .values())
+    # the 'real' 90 % circle (~160 m) overhangs the AFAR rover area: the region is its part inside that area
+    from mission.localize.api import search_area
+
+    ra = search_area(log)
+    outer = est.extras["regions"][-1]
+    ring = np.asarray(outer["polygons"][0])
+    assert outer["clipped_to"] == ra.name and outer["area_m2"] < np.pi * outer["radius_m"] ** 2
+    assert (ra.contains(ring) | (ra.edge_distance(ring) < 0.1)).all()
+    assert region_contains(outer, (est.x_m, est.y_m))
 
 
 _BAD_ENTRY = st.one_of(

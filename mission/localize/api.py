@@ -172,21 +172,23 @@ def _check_altitude(extras: dict, net, part) -> bool:
     return note is not None
 
 
-def _network_regions(est: Estimate, net, part, simulated: bool) -> None:
-    """A network's estimate gets its card's calibrated error circles (``error_circles``) and the altitude check;
-    on a simulated log outside the training altitudes the circles (calibrated inside them) are too small."""
+def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
+    """A network's estimate gets its card's calibrated error circles (``error_circles``, clipped to the rover
+    ``area`` when known) and the altitude check; on a simulated log outside the training altitudes the circles
+    (calibrated inside them) are too small."""
     from mission.localize.error_circles import attach_circles, card_calibration
 
     cal = card_calibration(net.path, "sim" if simulated else "real")
-    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal))
+    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal, area))
     if _check_altitude(est.extras, net, part) and simulated and "regions" in est.extras:
         _add_note(est.extras, "Its error circles were calibrated on flights inside those altitudes: expect them "
                               "to be too small here.")
 
 
-def _method_regions(est: Estimate, method: str, simulated: bool, default_config: bool) -> None:
+def _method_regions(est: Estimate, method: str, simulated: bool, default_config: bool, area) -> None:
     """Strongest sample, centroid and grid get error circles calibrated for their default configuration (the
-    grid's default physics, the default sample selection); any other configuration gets a note instead."""
+    grid's default physics, the default sample selection), clipped to the rover ``area`` when known; any other
+    configuration gets a note instead."""
     from mission.localize.error_circles import CIRCLE_METHODS, attach_circles, method_calibration
 
     if method not in CIRCLE_METHODS:
@@ -196,7 +198,7 @@ def _method_regions(est: Estimate, method: str, simulated: bool, default_config:
                               "default physics and sample selection only")
         return
     cal = method_calibration(method, "sim" if simulated else "real")
-    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal))
+    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal, area))
 
 
 def _add_note(extras: dict, note: str | None) -> None:
@@ -298,7 +300,8 @@ def localize_log(
         choice = f"method {method} requested"
     if method not in METHOD_NAMES:
         raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
-    area = search_area(log) if method in ("grid", "selfcal", "fusion") else None
+    ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
+    area = ra if method in ("grid", "selfcal", "fusion") else None
     origin = log.origin
     if method == "fusion":
         est = _fusion(part, origin, area, tx_height_m, model_path)
@@ -307,10 +310,10 @@ def localize_log(
                              floor_db, physics_preset=physics_preset)
         est = _in_log_frame(loc, loc.predict(part), origin, method)
         if method == "onnx":
-            _network_regions(est, loc, part, _is_simulated(log))
+            _network_regions(est, loc, part, _is_simulated(log), ra)
         else:
-            _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given))
-    ra = area if area is not None else search_area(log)
+            _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),
+                            ra)
     if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
         out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
         if out_m > OUTSIDE_WARN_M:

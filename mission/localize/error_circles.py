@@ -17,6 +17,11 @@ the classical methods in their default configuration in ``mission/data/method_ci
 (``benchmarks/calibrate_error_circles.py`` writes both).  Regions use the layout of
 :mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``, ``ellipse``, ``polygons``) plus
 ``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
+
+Where the transmitter's area is known (the rover area), each circle is clipped to it: the transmitter cannot lie
+outside, so the clipped region holds the truth exactly as often as the circle and is smaller.  Clipped regions
+carry ``clipped_to`` (the area's name); ``polygons`` and ``area_m2`` are then the clipped region's, ``radius_m``
+and ``ellipse`` the circle's.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.geo import Area, clip_polygon, signed_area_m2
 
 REGIONS_KEY = "regions"
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
@@ -117,24 +123,35 @@ def method_calibration(method: str, domain: str, path: Path = METHOD_CIRCLES) ->
     return _checked(rec, path, f"{method}.{domain}"), None
 
 
-def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on: str) -> list[dict]:
-    """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout."""
+def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on: str,
+                   area: Area | None = None) -> list[dict]:
+    """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout; clipped to
+    ``area`` where it is given and overlaps the circle (a circle that misses it is kept whole)."""
     t = np.linspace(0.0, 2.0 * np.pi, N_VERTICES + 1)
     out = []
     for lv, r in sorted(radii.items()):
-        ring = np.round(np.stack([x + r * np.cos(t), y + r * np.sin(t)], axis=1), 1).tolist()
-        out.append({"level": float(lv), "hpd_mass": float(lv), "kind": "error circle", "radius_m": float(r),
-                    "area_m2": float(np.pi * r * r),
-                    "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
-                    "polygons": [ring], "calibrated_on": calibrated_on})
+        ring = np.stack([x + r * np.cos(t), y + r * np.sin(t)], axis=1)
+        reg = {"level": float(lv), "hpd_mass": float(lv), "kind": "error circle", "radius_m": float(r),
+               "area_m2": float(np.pi * r * r),
+               "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
+               "polygons": [np.round(ring, 1).tolist()], "calibrated_on": calibrated_on}
+        if area is not None:
+            # the area is the subject and the (convex) circle the clip, so any area polygon works
+            part = clip_polygon(area.vertices, ring[:-1])
+            if len(part) >= 3 and not area.contains(ring[:-1]).all():
+                reg.update(area_m2=abs(signed_area_m2(part)), clipped_to=area.name,
+                           polygons=[np.round(np.vstack([part, part[:1]]), 1).tolist()])
+        out.append(reg)
     return out
 
 
-def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | None, str | None]) -> str | None:
+def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | None, str | None],
+                   area: Area | None = None) -> str | None:
     """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration`` answer) around
-    (x, y) into ``extras["regions"]``; returns the note to show when there is no calibration."""
+    (x, y), clipped to ``area``, into ``extras["regions"]``; returns the note to show when there is no
+    calibration."""
     rec, why = calibration
     if rec is None:
         return f"no uncertainty region: {why}"
-    extras["regions"] = circle_regions(x, y, rec["radii_m"], str(rec.get("calibrated_on", "")))
+    extras["regions"] = circle_regions(x, y, rec["radii_m"], str(rec.get("calibrated_on", "")), area)
     return None

@@ -132,8 +132,9 @@ def describe_region(reg: dict, short: bool = False) -> str:
     leaves out where the circle was calibrated and where the ellipse lies."""
     el = reg["ellipse"]
     if reg.get("kind") == "error circle":
+        clipped = f"; clipped to the {reg['clipped_to']}: {reg['area_m2']:.0f} m^2" if "clipped_to" in reg else ""
         return f"within {reg['radius_m']:.0f} m of the estimate" + (
-            "" if short else f" (error circle; calibrated on {reg.get('calibrated_on') or 'the card'})")
+            "" if short else f" (error circle; calibrated on {reg.get('calibrated_on') or 'the card'}{clipped})")
     if short:
         return f"{reg['area_m2']:.0f} m^2 (ellipse {el['a_m']:.0f} x {el['b_m']:.0f} m)"
     return (f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "

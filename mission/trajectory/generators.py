@@ -20,48 +20,12 @@ from collections.abc import Callable
 import numpy as np
 
 from mission.errors import InputError
-from mission.geo import Area, Field
+from mission.geo import Area, Field, clip_polygon
 
 Generator = Callable[..., np.ndarray]
 
 
 # ---------------------------------------------------------------------------------------------- regions
-
-def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
-    """Sutherland-Hodgman: the part of polygon ``subject`` inside the *convex* polygon ``clip`` ((K, 2))."""
-    clip = _ccw(np.asarray(clip, dtype=float))
-    out = [tuple(p) for p in np.asarray(subject, dtype=float)]
-    for a, b in zip(clip, np.roll(clip, -1, axis=0), strict=True):
-        if not out:
-            break
-        inp, out = out, []
-        e = b - a
-
-        def inside(p, a=a, e=e) -> bool:
-            return e[0] * (p[1] - a[1]) - e[1] * (p[0] - a[0]) >= -1e-9
-
-        def cross(p, q, a=a, e=e):
-            n = np.array([-e[1], e[0]])
-            dp, dq = np.dot(np.subtract(p, a), n), np.dot(np.subtract(q, a), n)
-            t = dp / (dp - dq)
-            return tuple(np.add(p, t * np.subtract(q, p)))
-
-        prev = inp[-1]
-        for cur in inp:
-            if inside(cur):
-                if not inside(prev):
-                    out.append(cross(prev, cur))
-                out.append(cur)
-            elif inside(prev):
-                out.append(cross(prev, cur))
-            prev = cur
-    return np.array(out, dtype=float).reshape(-1, 2)
-
-
-def _ccw(v: np.ndarray) -> np.ndarray:
-    area2 = np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
-    return v if area2 >= 0 else v[::-1]
-
 
 def overlap_area(field: Field) -> Area:
     """The overlap of the rover area with the flight area (the flight area must be convex)."""
