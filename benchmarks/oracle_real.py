@@ -50,23 +50,29 @@ def one_flight(path) -> dict:
     """Errors (m) of the two oracles and of the profiled search on one imported real log, same 2 m grid."""
     from mission.flightlog import read_flight_log
     from mission.localize.api import search_area
-    from mission.localize.classical import as_flight, search_bounds
+    from mission.localize.classical import as_flight
     from mission.localize.preprocess import select_samples
-    from mission.localize.selfcal import _geometry, antenna_hypotheses, cell_average, hypothesis_ssr
+    from mission.localize.selfcal import (
+        SelfCalibratingGrid,
+        _geometry,
+        antenna_hypotheses,
+        cell_average,
+        hypothesis_ssr,
+    )
 
     log = read_flight_log(path)
     part, _ = select_samples(log)
     f = as_flight(part)
-    cells = cell_average(f, 5.0)
-    hyps = antenna_hypotheses()
+    sc = SelfCalibratingGrid(area=search_area(log), step_m=STEP_M)  # the search's own cells, area and tx height
+    cells = cell_average(f, sc.cell_m, sc.level_gap_m)
+    hyps = antenna_hypotheses(sc.hypotheses, sc.heading_step_deg)
     truth = np.asarray(log.truth_enu[:2])
-    box, poly = search_bounds(search_area(log), f.enu_m, 60.0)
-    xs, ys = np.arange(box[0], box[2] + 1e-9, STEP_M), np.arange(box[1], box[3] + 1e-9, STEP_M)
-    grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+    grid, _, poly = sc._candidates(f)
+    grid = grid.reshape(-1, 2)
     if poly is not None:
         grid = grid[poly.contains(grid)]
     y = cells.rss_dbm.astype(float)
-    geom_t, geom = _geometry(truth[None, :], cells, 1.5), _geometry(grid, cells, 1.5)
+    geom_t, geom = _geometry(truth[None, :], cells, sc.tx_height_m), _geometry(grid, cells, sc.tx_height_m)
     out = {"flight": path.stem}
     for rung, free_n in (("h+c", False), ("h+c+n", True)):
         h, (c, k) = fit_at_truth(y, geom_t, hyps, free_n)
@@ -74,7 +80,7 @@ def one_flight(path) -> dict:
         j = int(np.argmin(((y[None, :] - pred) ** 2).sum(axis=1)))
         out[rung] = float(np.hypot(*(grid[j] - truth)))
         out[rung + " fit"] = f"{hyps[h][0]}, n {k / 10:.1f}"
-    ssr, _ = hypothesis_ssr(grid, cells, hyps, 1.5)
+    ssr, _ = hypothesis_ssr(grid, cells, hyps, sc.tx_height_m)
     out["selfcal"] = float(np.hypot(*(grid[int(np.argmin(ssr.min(axis=0)))] - truth)))
     return out
 

@@ -135,10 +135,10 @@ def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on:
                "area_m2": float(np.pi * r * r),
                "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
                "polygons": [np.round(ring, 1).tolist()], "calibrated_on": calibrated_on}
-        if area is not None:
+        if area is not None and not area.contains(ring[:-1]).all():
             # the area is the subject and the (convex) circle the clip, so any area polygon works
             part = clip_polygon(area.vertices, ring[:-1])
-            if len(part) >= 3 and not area.contains(ring[:-1]).all():
+            if len(part) >= 3:
                 reg.update(area_m2=abs(signed_area_m2(part)), clipped_to=area.name,
                            polygons=[np.round(np.vstack([part, part[:1]]), 1).tolist()])
         out.append(reg)
