@@ -1,0 +1,254 @@
+"""Physics families: a distribution over propagation models and residual structure, drawn once per flight.
+
+A family is a JSON record (``rfsl gap --family F.json`` writes one from the diagnosis of real flights; the
+shipped ``mission/data/afar_family.json`` is the AFAR one).  Simulated benchmarks, training sets and the
+track-matched inference draw each simulated flight's physics from it, so that what they see spreads the way
+real flights spread, not around one calibrated point.
+
+Schema (``schema`` 1)::
+
+    {"schema": 1, "name": "...", "description": "...", "source": {...how it was made...},
+     "spec": {...},            # a model spec (mission.physics.presets.build_model); any value may be a
+                               # distribution (below), nested dicts (e.g. "ground") are drawn key by key
+     "variants": [             # optional: alternatives merged into the spec, one drawn per flight
+        {"p": 0.6, "spec": {"rx_pattern": "measured", "rx_flipped": true}}, ...],
+     "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},   # correlated field + white nugget
+     "offset_db": D,           # the receiver's uncalibrated offset
+     "per_flight": [...]}      # optional: the fitted values per real flight (information only)
+
+A distribution ``D`` is a number (fixed) or ``{"dist": "uniform", "lo", "hi"}``, ``{"dist": "loguniform",
+"lo", "hi"}``, ``{"dist": "normal", "mean", "sd", ["lo", "hi"]}`` (clipped), ``{"dist": "choice", "options":
+[...], ["p": [...]]}`` or ``{"dist": "empirical", "values": [...]}`` (one of the values, uniformly: a
+parameter's per-flight fits when too few flights support a parametric shape).
+
+Draw order per flight (reproducible from the caller's generator): spec values in key order (nested dicts
+in their key order), the variant, residual (shadowing_db, shadowing_corr_m, noise_db), offset.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mission.errors import InputError
+
+SCHEMA = 1
+DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
+RESIDUAL_KEYS = ("shadowing_db", "shadowing_corr_m", "noise_db")
+SHIPPED = {"afar": "afar_family.json"}
+
+
+def _is_dist(v: Any) -> bool:
+    return isinstance(v, dict) and "dist" in v
+
+
+def check_dist(v: Any, where: str, source: str | None = None) -> None:
+    """Refuse a malformed distribution (one line naming the field)."""
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return
+    if isinstance(v, int | float):
+        if not math.isfinite(float(v)):
+            raise InputError(f"{where} is not finite", source=source, field=where)
+        return
+    if not _is_dist(v):
+        raise InputError(f"{where} is neither a number nor a distribution", source=source, field=where)
+    kind = v["dist"]
+    need = {"uniform": ("lo", "hi"), "loguniform": ("lo", "hi"), "normal": ("mean", "sd"),
+            "choice": ("options",), "empirical": ("values",)}.get(kind)
+    if need is None:
+        raise InputError(f"{where}: unknown distribution {kind!r} (expected {', '.join(DISTS)})",
+                         source=source, field=where)
+    missing = [k for k in need if k not in v]
+    if missing:
+        raise InputError(f"{where}: {kind} distribution needs {', '.join(missing)}", source=source, field=where)
+    if kind in ("uniform", "loguniform"):
+        lo, hi = float(v["lo"]), float(v["hi"])
+        if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or (kind == "loguniform" and lo <= 0):
+            raise InputError(f"{where}: bad range [{lo}, {hi}]", source=source, field=where)
+    if kind == "normal" and not float(v["sd"]) >= 0:
+        raise InputError(f"{where}: sd must be >= 0", source=source, field=where)
+    if kind in ("choice", "empirical"):
+        vals = v["options"] if kind == "choice" else v["values"]
+        if not isinstance(vals, list) or not vals:
+            raise InputError(f"{where}: needs a non-empty list", source=source, field=where)
+        if kind == "choice" and "p" in v and (len(v["p"]) != len(vals) or abs(sum(v["p"]) - 1.0) > 1e-6):
+            raise InputError(f"{where}: p must have one weight per option and sum to 1", source=source, field=where)
+
+
+def draw_value(v: Any, rng: np.random.Generator) -> Any:
+    """One draw of a distribution (a plain value is returned as it is)."""
+    if not _is_dist(v):
+        return v
+    kind = v["dist"]
+    if kind == "uniform":
+        lo, hi = float(v["lo"]), float(v["hi"])
+        return float(rng.uniform(lo, hi)) if hi > lo else lo
+    if kind == "loguniform":
+        lo, hi = math.log(float(v["lo"])), math.log(float(v["hi"]))
+        return float(math.exp(rng.uniform(lo, hi))) if hi > lo else math.exp(lo)
+    if kind == "normal":
+        x = float(rng.normal(float(v["mean"]), float(v["sd"])))
+        return float(np.clip(x, float(v.get("lo", -np.inf)), float(v.get("hi", np.inf))))
+    if kind == "choice":
+        opts = v["options"]
+        return opts[int(rng.choice(len(opts), p=v.get("p")))]
+    vals = v["values"]
+    return vals[int(rng.integers(len(vals)))]
+
+
+def _draw_tree(tree: dict, rng: np.random.Generator) -> dict:
+    out: dict = {}
+    for k in sorted(tree):
+        v = tree[k]
+        if isinstance(v, dict) and not _is_dist(v):
+            out[k] = _draw_tree(v, rng)
+        else:
+            out[k] = draw_value(v, rng)
+    return out
+
+
+def _check_tree(tree: dict, where: str, source: str | None) -> None:
+    for k, v in tree.items():
+        if isinstance(v, dict) and not _is_dist(v):
+            _check_tree(v, f"{where}.{k}", source)
+        else:
+            check_dist(v, f"{where}.{k}", source)
+
+
+@dataclass(frozen=True)
+class FamilyDraw:
+    """One flight's physics: the model spec (for ``build_model``), the residual field and the offset."""
+
+    spec: dict
+    shadowing_db: float
+    shadowing_corr_m: float
+    noise_db: float
+    offset_db: float
+
+    def model(self, name: str = "family"):
+        """The propagation model of this draw."""
+        from mission.physics.presets import build_model
+
+        return build_model(self.spec, name=name)
+
+    def to_dict(self) -> dict:
+        return {"spec": self.spec, "shadowing_db": self.shadowing_db, "shadowing_corr_m": self.shadowing_corr_m,
+                "noise_db": self.noise_db, "offset_db": self.offset_db}
+
+
+@dataclass(frozen=True)
+class PhysicsFamily:
+    """A distribution over per-flight physics (module docstring); ``draw(rng)`` gives one flight's."""
+
+    name: str
+    spec: dict
+    residual: dict
+    offset_db: Any = 0.0
+    variants: tuple = ()
+    record: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str | None = None) -> PhysicsFamily:
+        """Validate and build (bad records raise ``InputError`` naming the field)."""
+        if not isinstance(d, dict):
+            raise InputError("a physics family must be a JSON object", source=source)
+        if int(d.get("schema", 0)) != SCHEMA:
+            raise InputError(f"physics family schema {d.get('schema')!r} (expected {SCHEMA})", source=source,
+                             field="schema")
+        spec = d.get("spec")
+        if not isinstance(spec, dict) or "base" not in spec:
+            raise InputError("physics family needs a 'spec' object with a 'base'", source=source, field="spec")
+        _check_tree(spec, "spec", source)
+        res = d.get("residual", {})
+        if not isinstance(res, dict) or set(res) - set(RESIDUAL_KEYS):
+            raise InputError(f"residual keys must be among {', '.join(RESIDUAL_KEYS)}", source=source,
+                             field="residual")
+        _check_tree(res, "residual", source)
+        check_dist(d.get("offset_db", 0.0), "offset_db", source)
+        variants = d.get("variants", [])
+        if not isinstance(variants, list):
+            raise InputError("variants must be a list", source=source, field="variants")
+        for i, v in enumerate(variants):
+            if not isinstance(v, dict) or not isinstance(v.get("spec"), dict) or not float(v.get("p", -1)) >= 0:
+                raise InputError(f"variants[{i}] needs 'p' >= 0 and a 'spec' object", source=source,
+                                 field=f"variants[{i}]")
+            _check_tree(v["spec"], f"variants[{i}].spec", source)
+        if variants and abs(sum(float(v["p"]) for v in variants) - 1.0) > 1e-6:
+            raise InputError("variants' p must sum to 1", source=source, field="variants")
+        fam = cls(str(d.get("name", "family")), spec, res, d.get("offset_db", 0.0), tuple(variants), dict(d))
+        fam._check_builds(source)
+        return fam
+
+    def _check_builds(self, source: str | None) -> None:
+        """Every variant's spec must build (a typo in a key fails here, not in a worker later)."""
+        rng = np.random.default_rng(0)
+        for v in self.variants or ({"spec": {}},):
+            spec = {**_draw_tree(self.spec, rng), **_draw_tree(v["spec"], rng)}
+            try:
+                FamilyDraw(spec, 0.0, 1.0, 0.0, 0.0).model()
+            except (ValueError, KeyError, TypeError) as e:
+                raise InputError(f"physics family spec does not build: {e}", source=source, field="spec") from None
+
+    def draw(self, rng: np.random.Generator) -> FamilyDraw:
+        """One flight's physics (draw order in the module docstring)."""
+        spec = _draw_tree(self.spec, rng)
+        if self.variants:
+            p = np.array([float(v["p"]) for v in self.variants])
+            v = self.variants[int(rng.choice(len(p), p=p / p.sum()))]
+            spec.update(_draw_tree(v["spec"], rng))
+        res = _draw_tree(self.residual, rng)
+        return FamilyDraw(spec, float(res.get("shadowing_db", 0.0)), float(res.get("shadowing_corr_m", 30.0)),
+                          float(res.get("noise_db", 0.0)), float(draw_value(self.offset_db, rng)))
+
+    def to_dict(self) -> dict:
+        d = dict(self.record)
+        d.update(schema=SCHEMA, name=self.name, spec=self.spec, residual=self.residual, offset_db=self.offset_db)
+        if self.variants:
+            d["variants"] = list(self.variants)
+        return d
+
+
+def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
+    """A shipped family by name (``afar``) or a family JSON file (``rfsl gap --family`` output)."""
+    s = str(name_or_path)
+    if s in SHIPPED:
+        ref = resources.files("mission").joinpath("data", SHIPPED[s])
+        src = str(ref)
+        try:
+            d = json.loads(ref.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as e:
+            raise InputError(f"cannot read shipped physics family {s!r}: {e}", source=src) from None
+        return PhysicsFamily.from_dict(d, source=src)
+    p = Path(s)
+    if not p.suffix.lower() == ".json":
+        raise InputError(f"unknown physics family {s!r} (a shipped name: {', '.join(SHIPPED)}, or a .json file)",
+                         field="family")
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise InputError(f"cannot read physics family: {e.strerror or e}", source=s) from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"not JSON (line {e.lineno}): {e.msg}", source=s) from None
+    return PhysicsFamily.from_dict(d, source=s)
+
+
+def simulate_rss(draw: FamilyDraw, tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray,
+                 rng: np.random.Generator, model=None) -> np.ndarray:
+    """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing + white noise.
+
+    ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive part)."""
+    from mission.physics.shadowing import shadowing_field
+
+    m = draw.model() if model is None else model
+    rx = np.asarray(rx_enu, dtype=float)
+    rss = np.asarray(m.rss_dbm(np.asarray(tx_enu, dtype=float), rx, attitude_rad), dtype=float)
+    rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
+    if draw.shadowing_db > 0:
+        rss = rss + shadowing_field(rx[:, :2], draw.shadowing_db, draw.shadowing_corr_m, rng)
+    return rss
