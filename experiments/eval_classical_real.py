@@ -1,6 +1,6 @@
 """Classical localizers on the six real AFAR flights (../shared/data/afar2023/mat): error per flight.
 
-Usage: ``python benchmarks/eval_classical_real.py [--data ../shared/data/afar2023/mat] [--variants all]``.
+Usage: ``python experiments/eval_classical_real.py [--data ../shared/data/afar2023/mat] [--variants all]``.
 Imports the MAT files into a temporary directory (truth from the data README's table), keeps the cruise
 part, runs each estimator and prints per-flight errors plus mean/median over all six flights and over the
 five without the suspect team-288 location 3.  No parameter is tuned on these flights here.

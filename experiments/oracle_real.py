@@ -8,7 +8,7 @@ leak by design).  Only the position is then searched (2 m grid over the rover ar
 for every estimator of that model class on that flight: what is left is shadowing and multipath the model
 cannot express.  The profiled search (selfcal, the default's component) on the same grid is printed beside.
 
-    python benchmarks/oracle_real.py --mat ../shared/data/afar2023/mat          # ~10 s
+    python experiments/oracle_real.py --mat ../shared/data/afar2023/mat          # ~10 s
 """
 
 from __future__ import annotations

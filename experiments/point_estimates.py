@@ -6,15 +6,20 @@ component of the fusion = mean(selfcal point, network), on the benchmark (U) and
 score U/min(U) + R/min(R), the incumbent MAP kept unless another is lower by more than 0.05.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python benchmarks/point_estimates.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat   # 2 min
+    python experiments/point_estimates.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat   # 2 min
 """
 
 from __future__ import annotations
 
+import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
+
+# the command line and flight loading it shares with the benchmarks (benchmarks/_scoring.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
 CANDIDATES = ("MAP", "PM", "C50", "C90")

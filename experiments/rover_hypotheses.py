@@ -8,7 +8,7 @@ of the default fusion, mean(selfcal point, ``rfsl_spiral_e2r``), on the benchmar
 (R); rule and outcome in models/README.md.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python benchmarks/rover_hypotheses.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat  # ~1 min
+    python experiments/rover_hypotheses.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat  # ~1 min
 
 The product SSR per (UAV hypothesis h, rover hypothesis t, candidate k) comes from sufficient statistics with
 one batched matmul per candidate chunk: SSR = S2_h - 2 X_ht + T2_t - (S1_h - T1_t)^2 / M, X_ht = sum_m r_hm g_tm.
@@ -16,11 +16,16 @@ one batched matmul per candidate chunk: SSR = S2_h - 2 X_ht + T2_t - (S1_h - T1_
 
 from __future__ import annotations
 
+import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
+
+# the command line and flight loading it shares with the benchmarks (benchmarks/_scoring.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
 from mission.localize import selfcal as sc

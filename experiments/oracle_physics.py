@@ -7,7 +7,7 @@ shadowing and noise realisations and the offset are unknown to it, so its error 
 shadowing and geometry leave to any model-based method, and the rungs say which knowledge is worth most.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python benchmarks/oracle_physics.py --suite-dir /tmp/suite_2026          # ~2 min on 2 cores
+    python experiments/oracle_physics.py --suite-dir /tmp/suite_2026          # ~2 min on 2 cores
 """
 
 from __future__ import annotations

@@ -6,17 +6,21 @@ under a rule written before scoring (models/README.md), which scores the *fusion
 computed once per flight and shared by all candidates.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python benchmarks/fusion_network.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat \\
+    python experiments/fusion_network.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat \\
         --nets models/rfsl_spiral_e2r.onnx M/candidate.onnx                                   # ~1 min, 2 cores
 """
 
 from __future__ import annotations
 
+import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+# the command line and flight loading it shares with the benchmarks (benchmarks/_scoring.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
 SUSPECT = 2  # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too

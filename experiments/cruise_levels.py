@@ -9,7 +9,7 @@ shadowing 6 dB over 30 m, 2 dB noise, transmitter uniform in the overlap.  Rules
 (``cruise_mask``, now) with cells per level (now) or merged, one level only (``max_levels=1``), and the single
 band about the upper part's median (the rule before levels; written out here: it no longer exists in the package).
 
-    python benchmarks/cruise_levels.py --n 40 --seed 7      # 48 s, 1 core
+    python experiments/cruise_levels.py --n 40 --seed 7      # 48 s, 1 core
 """
 
 from __future__ import annotations
