@@ -18,10 +18,11 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
+from mission.shipped import missions_dir
 from mission.simulate import SimConfig
 from mission.trajectory.kinematics import Kinematics
 
-DEFAULT_MISSION = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"
+DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")
 # heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not command yaw,
 # so a mission may not ask for it (its vehicle would fly differently from the simulated one)

@@ -39,11 +39,10 @@ OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warn
 
 
 def shipped_model(name: str) -> Path | None:
-    """``models/<name>`` of the source checkout if it exists: the models live beside the package in the
-    repository (pyproject ships none, so an installed package alone has none)."""
-    import mission
+    """``models/<name>`` if it exists: the source checkout's, or the installed package's copy (``mission.shipped``)."""
+    from mission.shipped import models_dir
 
-    p = Path(mission.__file__).resolve().parent.parent / "models" / name
+    p = models_dir() / name
     return p if p.is_file() else None
 
 
