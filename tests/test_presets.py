@@ -206,7 +206,8 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     assert ("outside the 90 % region" in est.extras.get("note", "")) == (q >= est.extras["regions"][1]["hpd_mass"])
     sim = write_flight_log(tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"}))
     est = localize_log(sim)
-    assert est.method == ("onnx" if default_model_path() is not None else "grid")
+    assert default_model_path() is not None, "the repository ships models/rfsl_default.onnx"
+    assert est.method == "onnx" and est.model == default_model_path().name
 
 
 def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) -> None:

@@ -140,9 +140,12 @@ def test_hpd_level_of_an_isotropic_gaussian_is_its_closed_form() -> None:
     assert post.covers(0.9 * r50, 0.0, 0.5) and not post.covers(1.1 * r50, 0.0, 0.5)
 
 
-def test_regions_cover_truth_on_noisy_flights_at_about_the_nominal_rate() -> None:
-    """White noise 6 dB on cells of a partial path: the 90 % region covers the truth in most of 12 flights and
-    the 50 % region in fewer (a regression guard of the temperature, not the benchmark's calibration)."""
+def test_regions_cover_truth_on_noisy_flights_and_stay_informative() -> None:
+    """White noise 6 dB on cells of a partial path, 12 flights: both regions hold the truth in most flights (the
+    temperature is set for correlated shadowing, so white noise is over-covered: 12 / 12 at both levels when
+    written) while staying informative: every 90 % region under a quarter of the 300 m x 300 m search box and
+    every 50 % region under half its 90 % region (a regression guard of the temperature from both sides: too
+    hot and the regions swell past the box limit, too cold and they stop covering)."""
     rng = np.random.default_rng(5)
     cov50 = cov90 = 0
     for _ in range(12):
@@ -153,7 +156,9 @@ def test_regions_cover_truth_on_noisy_flights_at_about_the_nominal_rate() -> Non
             FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=None))
         cov50 += region_covers(est, tx[0], tx[1], 0.5)
         cov90 += region_covers(est, tx[0], tx[1], 0.9)
-    assert cov90 >= 9 and cov50 <= cov90
+        a50, a90 = (r["area_m2"] for r in est.extras["regions"])
+        assert a90 < 0.25 * 300.0**2 and a50 < 0.5 * a90, (a50, a90)
+    assert cov90 >= 10 and cov50 >= 7, (cov50, cov90)
 
 
 def test_outside_flown_area_is_said() -> None:
