@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from mission.trajectory.kinematics import G, Kinematics
+from mission.trajectory.multicopter import G, Kinematics
 
 HOVER_SPEED_MPS = 0.3  # below this the course is held (the nose does not follow GPS jitter)
 

@@ -18,23 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-G = 9.80665  # m/s^2
+from mission.trajectory.attitude import AttitudeState, run_attitude
+from mission.trajectory.multicopter import G, Kinematics
 
-
-@dataclass(frozen=True)
-class Kinematics:
-    """Limits and response of the simulated multicopter (defaults: a small AERPAW-class quadcopter)."""
-
-    cruise_speed_mps: float = 5.0
-    accel_mps2: float = 1.5          # horizontal acceleration/deceleration limit
-    climb_rate_mps: float = 2.5      # vertical speed (take-off, descent)
-    corner_exponent: float = 2.0     # v_corner = v * cos(turn/2)**k
-    yaw_rate_dps: float = 60.0       # yaw rate limit when turning to the new course
-    response_s: float = 0.8          # time constant of the attitude response (smoothing of accelerations)
-    drag_pitch_deg_per_mps: float = 0.6  # steady nose-down pitch per m/s of airspeed (real AFAR: ~-3 deg)
-    max_tilt_deg: float = 30.0       # lean-angle limit (ArduPilot default)
-    heading_deg: float | None = None  # None: yaw follows the course; a number: hold this compass heading
-
+__all__ = ["G", "Kinematics", "FlightProfile", "plan_profile", "initial_course", "attitude_from_motion"]
 
 @dataclass
 class FlightProfile:
@@ -159,8 +146,6 @@ def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None 
     tilt from the commanded acceleration plus drag against the air-relative velocity.  ``wind_ne`` is the
     wind (north, east) in m/s, (2,) or (N, 2).
     """
-    from mission.trajectory.attitude import AttitudeState, run_attitude
-
     kin = kin or Kinematics()
     pos = np.asarray(pos, dtype=float)
     if len(t) < 2:
