@@ -194,7 +194,7 @@ def test_mission_phase_selects_legs_and_height_band_otherwise() -> None:
 
 
 @pytest.mark.real
-def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path) -> None:
+def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path, monkeypatch, capsys) -> None:
     mat = SHARED / "data" / "afar2023" / "mat"
     if not mat.is_dir():
         pytest.skip("../shared/data absent")
@@ -206,9 +206,15 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path) -> N
         r = import_afar_mat(mat / f"results_useful_ori_exp_{team}_loc_{loc}.mat", tmp_path, truth=AFAR2023_TRUTH[loc])
         logs.append(str(r.out_path))
     out = tmp_path / "p.json"
+    monkeypatch.setenv("COLUMNS", "80")
+    capsys.readouterr()
     rc = main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--configs", "fs_iso,fs_rxflip_yaw",
                "--max-samples", "300", "--out", str(out)])
     assert rc == 0
+    printed = capsys.readouterr()
+    assert "(chosen)" in printed.out and "rx_flipped True" in printed.out
+    wide = [ln for ln in (printed.out + printed.err).splitlines() if len(ln) > 80 and str(tmp_path) not in ln]
+    assert not wide, wide  # reads at 80 columns (but for the output path, which is the test's long folder)
     rec = json.loads(out.read_text())
     assert set(rec["groups"].values()) == {"288", "328"}
     assert set(rec["folds"]) == {"without-288", "without-328"}

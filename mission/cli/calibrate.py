@@ -10,6 +10,7 @@ what it was fitted on and its held-out figures.  Use it with ``localize --physic
 from __future__ import annotations
 
 import argparse
+import textwrap
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,8 +22,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "'exp_(\\d+)_' for AFAR teams); default: its folder when the logs lie in several "
                              "folders, else every flight is its own group (leave one flight out)")
     parser.add_argument("--configs", default=None,
-                        help="configurations to compare, comma-separated (default: "
-                             "fs_iso,fs_slope,fs_rxflip,fs_rxflip_yaw,fs_rxflip_yaw_slope,fs_rxup_yaw)")
+                        help="configurations to compare, comma-separated (default: fs_iso, fs_slope, "
+                             "fs_rxflip, fs_rxflip_yaw, fs_rxflip_yaw_slope, fs_rxup_yaw)")
     parser.add_argument("--max-samples", type=int, default=1200, help="samples per flight used for fitting (1200)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing --out file")
 
@@ -86,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
         part, _ = select_samples(log)
         flights.append(flight_from_log(part, name=p.stem))
     con = console(stderr=True)
-    con.print(f"{len(flights)} flights, {len(set(groups))} groups ({how}); configurations: {', '.join(configs)}")
+    con.print(f"{len(flights)} flights, {len(set(groups))} groups ({how})")
+    con.print(f"configurations: {', '.join(configs)}")
     from rich.progress import Progress
 
     with Progress(console=con, transient=True) as prog:
@@ -107,5 +109,7 @@ def run(args: argparse.Namespace) -> int:
         tab.add_row(name + mark, f"{p['median_abs_db']:.2f}", f"{p['p90_abs_db']:.2f}", f"{p['rms_db']:.2f}",
                     f"{p['soft_l1']:.2f}")
     console().print(tab)
-    console().print(f"wrote {out}: {res['chosen']} -> {json.dumps(res['model'])}")
+    params = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in res["model"].items())
+    console().print(f"wrote {out}: {res['chosen']}")
+    console().print(textwrap.fill(params, 80, initial_indent="  ", subsequent_indent="  "))
     return 0

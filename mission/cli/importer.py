@@ -7,6 +7,7 @@ The truth is taken only from ``--truth``, never guessed from the file name.
 from __future__ import annotations
 
 import argparse
+import textwrap
 
 from mission.errors import InputError
 
@@ -80,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
         res = import_afar_mat(
             f, args.out, truth=truth, truth_height_m=args.truth_height, overwrite=args.overwrite
         )
-        notes = "; ".join(res.notes) if res.notes else "timestamps clean"
         tr = "truth from --truth" if truth else "no truth"
-        console.print(f"[green]wrote[/] {res.out_path} ({len(res.log)} samples, {tr}; {notes})")
+        console.print(f"[green]wrote[/] {res.out_path}")
+        console.print(f"  {len(res.log)} samples, {tr}{'' if res.notes else ', timestamps clean'}")
+        for n in res.notes:  # one line each, folded at words to 80 columns
+            console.print(textwrap.fill(n, 80, initial_indent="  note: ", subsequent_indent="    "))
     return 0

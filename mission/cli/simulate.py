@@ -87,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     write_flight_log(csv, flight.log_columns(spec.field.origin), meta)
     c = console()
     c.print(f"simulated [bold]{spec.name}[/]: {flight.t_s[-1]:.0f} s, {len(flight.t_s)} RSS samples, "
-            f"{flight.profile.length_m:.0f} m, transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m")
-    c.print(f"RSS {flight.rss_dbm.min():.1f} .. {flight.rss_dbm.max():.1f} dBm ({model_name}, seed {seed})")
+            f"{flight.profile.length_m:.0f} m")
+    c.print(f"transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m, RSS {flight.rss_dbm.min():.1f} .. "
+            f"{flight.rss_dbm.max():.1f} dBm ({model_name}, seed {seed})")
     c.print(f"log: {csv}")
     return 0
