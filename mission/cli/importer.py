@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import textwrap
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 
 
@@ -49,9 +50,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--truth-height",
         type=float,
-        default=1.5,
+        default=DEFAULT_TX_HEIGHT_M,
         metavar="M",
-        help="transmitter antenna height above ground (default 1.5 m, AFAR rover)",
+        help=f"transmitter antenna height above ground (default {DEFAULT_TX_HEIGHT_M:g} m, AFAR rover)",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing output logs")
 

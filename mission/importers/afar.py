@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta, write_flight_log
 from mission.geo import Origin, afar_field, latlon_unit_problem
@@ -106,7 +107,7 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
 def convert_afar_mat(
     path: str | Path,
     truth: tuple[float, float] | None = None,
-    truth_height_m: float = 1.5,
+    truth_height_m: float = DEFAULT_TX_HEIGHT_M,
     origin: Origin | None = None,
 ) -> ImportResult:
     """Read one AFAR MAT file and return the flight log (not yet written) plus import notes."""
@@ -186,7 +187,7 @@ def import_afar_mat(
     path: str | Path,
     out_dir: str | Path,
     truth: tuple[float, float] | None = None,
-    truth_height_m: float = 1.5,
+    truth_height_m: float = DEFAULT_TX_HEIGHT_M,
     overwrite: bool = False,
 ) -> ImportResult:
     """Convert one MAT file and write ``out_dir/<stem>.csv`` + sidecar; the result carries ``out_path``."""
