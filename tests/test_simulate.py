@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
@@ -106,13 +103,15 @@ def test_cli_writes_a_readable_log_with_truth(tmp_path, repo_dir):
                  "--cruise-only", "--out", str(tmp_path)]) == 2
 
 
-def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir):
+def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir, capsys):
+    """In process (the exit code of ``rfsl`` is what ``main`` returns: test_cli_main runs the subprocess)."""
+    from mission.cli.main import main
+
     mission = str(repo_dir / "missions" / "spiral.yaml")
-    r = subprocess.run([sys.executable, "-m", "mission.cli.main", "simulate", mission, "--source", "1,x",
-                        "--out", str(tmp_path)], capture_output=True, text=True)
-    assert r.returncode == 2
-    assert "--source" in r.stderr and "Traceback" not in r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
+    assert main(["simulate", mission, "--source", "1,x", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--source" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
 
 
 def test_shadowing_field_statistics_and_revisits():
