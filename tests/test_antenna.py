@@ -127,6 +127,7 @@ def test_shipped_pattern_is_normalised_directivity():
     assert np.ptp(p.gain[-1]) < 0.02 and np.ptp(p.gain[0]) < 0.02
 
 
+@pytest.mark.real
 def test_measured_file_matches_shipped_and_flip_relation():
     ant = _need_shared()
     rsu = load_aerpaw_pattern(ant / "RM-WB1-DN-BLK_right_side_up_F3300.txt")

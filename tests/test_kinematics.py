@@ -178,6 +178,7 @@ def test_simulated_cruise_attitude_is_near_real_afar():
     assert np.abs(course[:, :2]).max() < 25.0  # hard corners stay below ArduPilot's 30 deg lean limit
 
 
+@pytest.mark.real
 def test_real_afar_cruise_attitude_constants():
     """The real-flight figures above, recomputed from the AFAR MAT files (skips where ../shared is absent)."""
     from pathlib import Path

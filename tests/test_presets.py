@@ -140,6 +140,7 @@ def _cruise_flight(team: int, loc: int):
     return f.select(cruise_mask(f.enu_m[:, 2]).mask)
 
 
+@pytest.mark.real
 @pytest.mark.skipif(not MAT.is_dir(), reason="../shared (real AFAR data) not present")
 def test_calibrated_model_beats_free_space_on_held_out_team_288():
     """The fold fitted on team 328 only, scored on team 288 locations 1-2 (never seen by that fit)."""
