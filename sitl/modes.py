@@ -75,10 +75,11 @@ class ModeMachine:
         else:
             legs = np.diff(P, axis=0)
             L = np.linalg.norm(legs, axis=1)
-            if speeds is None:
-                speeds = [self.cruise] * len(L)
+            if speeds is None:  # a return or a commanded leg: PX4 flies those at MPC_XY_CRUISE
+                speeds = [self.param("MPC_XY_CRUISE")] * len(L)
             vert = np.abs(legs[:, 2]) / np.maximum(L, 1e-9) > 0.7
-            sp = np.where(vert, self.kin.climb_rate_mps, np.asarray(speeds, dtype=float))
+            horiz = np.asarray(speeds, dtype=float) * self.profile.speed_factor  # a profile that flies slower
+            sp = np.where(vert, self.kin.climb_rate_mps, horiz)
             prof = plan_profile(P, self.kin, speeds=sp)
             reach = [(float(prof.t_vertex[min(v, len(prof.t_vertex) - 1)]), s) for v, s in seq_at_vertex]
         self.plan = Plan(
@@ -106,7 +107,7 @@ class ModeMachine:
         pts = [self.pos.copy()]
         marks: list[tuple[int, int]] = []
         speeds: list[float] = []
-        speed = self.cruise
+        speed = self.cruise if self.cruise is not None else self.param("MPC_XY_CRUISE")
         land = False
         for it in self.items[self.current_seq :]:
             n0 = len(pts)
@@ -130,6 +131,7 @@ class ModeMachine:
             elif it.command == mav.MAV_CMD_DO_CHANGE_SPEED and it.params[1] > 0:
                 speed = float(it.params[1])
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+                speed = self.param("MPC_XY_CRUISE")  # the return is flown at the autopilot's own speed
                 z = max(pts[-1][2], 5.0)
                 self._append(pts, np.array([pts[-1][0], pts[-1][1], z]))
                 self._append(pts, np.array([0.0, 0.0, z]))
@@ -145,6 +147,7 @@ class ModeMachine:
             if land:
                 break
         self._start_plan(pts, marks, land, speeds)
+        self.say("Executing Mission")
         return True
 
     def hold(self) -> None:
@@ -163,6 +166,7 @@ class ModeMachine:
             return True
         pts = [self.pos.copy()]
         z = max(self.pos[2], 5.0)
+        self.say(f"RTL: start return at {z:.0f} m")
         self._append(pts, np.array([self.pos[0], self.pos[1], z]))
         self._append(pts, np.array([0.0, 0.0, z]))
         self._append(pts, np.zeros(3))
