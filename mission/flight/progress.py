@@ -36,6 +36,7 @@ class FlightStatus:
     rel_alt: float = 0.0
     phase: str = "connecting"
     link_lost: bool = False
+    estimate: str = ""  # the live estimate (mission.adaptive.live.describe), empty until there is one
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -74,6 +75,8 @@ def render(s: FlightStatus) -> Table:
     t.add_row("last RSS", Text(f"{_fmt_rss(s.last_rss):>7} dB"))
     best = "-" if s.best_xy is None else f"{s.best_rss:7.2f} dB at ({s.best_xy[0]:.0f}, {s.best_xy[1]:.0f}) m"
     t.add_row("strongest", Text(f"* {best}", "green"))
+    if s.estimate:
+        t.add_row("estimate", Text(s.estimate))
     for w in s.warnings[-3:]:
         t.add_row(Text("warning", "yellow"), Text(w, "yellow"))
     return t
@@ -86,7 +89,7 @@ def plain_line(s: FlightStatus) -> str:
     return (
         f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
         f"alt={s.rel_alt:.1f}m "
-        f"rows={s.rows} rss={_fmt_rss(s.last_rss)} best={best}"
+        f"rows={s.rows} rss={_fmt_rss(s.last_rss)} best={best}" + (f" est={s.estimate}" if s.estimate else "")
     )
 
 
