@@ -1,0 +1,140 @@
+"""The adaptive rounds of a flown mission (the ``LiveRunner``'s ``_adapt`` task) and the budget it used.
+
+Each round: wait until the current segment (the survey, then the last round) has ``lead_s`` vehicle seconds
+left, take the live estimate of the rows logged so far, stop if its 90 % region is below target, else plan the
+next square (``planner.plan_round``: fence, altitude limits, budget with return and reserve; clipped, shrunk or
+refused, each logged as an event) and re-upload the mission extended by it, the final RTL moved behind it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+
+import numpy as np
+
+from mission.trajectory.kinematics import plan_profile
+
+
+def _position_enu(r) -> np.ndarray:
+    """The vehicle's latest position: x, y about the mission origin, z the height above home."""
+    pos, _ = r.tel.at(np.array([r.tel.covered_until]))
+    lat, lon, _, rel = pos[0]
+    e = r.spec.field.origin.to_enu(lat, lon)
+    return np.array([e[0], e[1], rel])
+
+
+def remaining_s(r, wps: np.ndarray, offset: int) -> float | None:
+    """Vehicle seconds until the last of ``wps`` is reached (None before the first waypoint is flown to)."""
+    idx = r.st.progress[0] - offset
+    if idx < 0 or not r.tel.n_pos:
+        return None
+    if idx >= len(wps):
+        return 0.0
+    return plan_profile(np.vstack([_position_enu(r)[None, :], wps[idx:]]), r.spec.kinematics()).duration_s
+
+
+async def _upload(r, mission_raw, items) -> None:
+    from mavsdk.plugins.mission_raw import MissionRawError
+
+    from mission.flight.plan import to_mavsdk
+
+    for attempt in range(3):
+        try:
+            await mission_raw.upload_mission(to_mavsdk(items))
+            return
+        except MissionRawError as e:
+            if attempt == 2:
+                raise
+            r.event("adaptive", f"upload failed ({e.result.name}); retrying", warn=True)
+
+
+async def adapt(r, action, mission_raw) -> None:
+    """Plan, check and upload rounds until the region is small, no round fits, or the mission ends."""
+    from mission.adaptive.planner import plan_round
+    from mission.flight.plan import build_items
+    from mission.spec import TrajectorySpec
+
+    a, spec = r.adaptive, r.full_spec
+    wps = np.asarray(r.spec.waypoints_enu(), dtype=float)
+    off, n_survey = r.status.waypoint_offset, len(wps)
+    final = "land" if spec.return_behaviour == "land" else "return"
+    k = 0
+    while True:
+        while True:
+            if r.mission_done.is_set() or r.abort.is_set() or r.link_dead.is_set():
+                return
+            rem = remaining_s(r, wps, off) if r.st.was_in_air else None
+            if rem is not None and rem <= a.lead_s:
+                break
+            await asyncio.sleep(0.05)
+        d = await r.estimate()
+        if d is None:
+            r.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
+            return
+        if d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2:
+            r.event("adaptive", f"90 % region {d['area_m2']:.0f} m^2 <= target {a.target_area_m2:g} m^2: finishing")
+            return
+        rem = remaining_s(r, wps, off) or 0.0
+        t_end = r.tel.clock.now() - r.status.t_start + rem
+        plan = plan_round(spec, a, (d["x_m"], d["y_m"]), wps[-1], t_end)
+        for n in plan.notes:
+            r.event("adaptive", f"round {k + 1}: {n}")
+        if not plan.ok:
+            r.event("adaptive", f"round {k + 1} refused ({plan.reason}): finishing")
+            return
+        new = np.vstack([wps, plan.waypoints])
+        items = build_items(dataclasses.replace(r.spec, trajectory=TrajectorySpec("waypoints", {}, new)),
+                            r.home.latitude_deg, r.home.longitude_deg, r.home.absolute_altitude_m, off == 3)
+        if r.mission_done.is_set() or r.abort.is_set():
+            r.event("adaptive", f"round {k + 1} planned too late: the vehicle is already returning")
+            return
+        cur = r.st.progress[0]
+        r.phases.configure(off, len(items) - 1, final, first_adaptive=off + n_survey)
+        await _upload(r, mission_raw, items)
+        if r.mission_done.is_set() or r.abort.is_set():  # the old RTL became active during the upload
+            await action.return_to_launch()
+            r.event("adaptive", f"round {k + 1} uploaded too late: return to launch commanded")
+            return
+        await mission_raw.set_current_mission_item(max(cur, r.phases.raw_item))
+        r.status.n_waypoints = len(new)
+        left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
+        r.rounds.append({"round": k + 1, "t_plan_s": round(r.tel.clock.now() - r.status.t_start, 1),
+                         "estimate": d, "centre": plan.centre, "radius_m": plan.radius_m,
+                         "first_item": len(wps) - n_survey, "n_waypoints": len(plan.waypoints),
+                         "planned_s": round(plan_profile(np.vstack([wps[-1:], plan.waypoints]),
+                                                         spec.kinematics()).duration_s, 1),
+                         "budget_left_after_return_s": round(left, 1), "notes": plan.notes})
+        r.event("adaptive", f"round {k + 1}: {2 * plan.radius_m:.0f} m square around ({plan.centre[0]:.0f}, "
+                            f"{plan.centre[1]:.0f}) m, {r.rounds[-1]['planned_s']:.0f} s; {left:.0f} s of "
+                            "budget left after the return")
+        wps, k = new, k + 1
+
+
+def budget_report(r) -> dict:
+    """Budget used (arming to now), each round's flown against planned time; warns on overruns."""
+    ph = np.asarray(r.phases.phase)
+    t = np.asarray(r.phases.t)
+    item = np.asarray(r.phases.item)
+    starts = []
+    for rd in r.rounds:
+        hit = np.flatnonzero((ph == "adaptive") & (item >= rd["first_item"]))
+        starts.append(float(t[hit[0]]) if len(hit) else None)
+    after = np.flatnonzero(np.isin(ph, ("return", "land")) & (t > (starts[0] if starts and starts[0] else np.inf)))
+    t_ret = float(t[after[0]]) if len(after) else None
+    for j, rd in enumerate(r.rounds):
+        s = starts[j]
+        e = starts[j + 1] if j + 1 < len(starts) else t_ret
+        if s is None or e is None:
+            continue
+        rd["flown_s"] = round(e - s, 1)
+        if rd["flown_s"] > 1.2 * rd["planned_s"] + 5.0:
+            r.event("budget", f"adaptive round {rd['round']} overran: {rd['flown_s']:.0f} s flown against "
+                              f"{rd['planned_s']:.0f} s planned", warn=True)
+    used = r.status.elapsed
+    budget = r.full_spec.time_budget_s
+    flown = sum(rd.get("flown_s", 0.0) for rd in r.rounds)
+    planned = sum(rd["planned_s"] for rd in r.rounds)
+    r.event("adaptive", f"adaptive part: {len(r.rounds)} round(s), {flown:.0f} s flown against {planned:.0f} s "
+                        f"planned; {used:.0f} s of the {budget:g} s budget used so far", warn=used > budget)
+    return {"budget_s": budget, "used_s": round(used, 1), "rounds": r.rounds}
