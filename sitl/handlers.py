@@ -74,6 +74,7 @@ class MavlinkHandlers:
                     self.armed, self.disarm_at = True, None
                     self.log("armed")
                     self.say("Armed by external command")
+                    self.send_heartbeat()  # the armed flag at once, not up to a wall second later
                     self.send_home()
             else:
                 if self.flying and int(p[1]) != 21196:

@@ -1,0 +1,155 @@
+"""The time budget during a flight: the plan's time per waypoint, the pace measured against it, one warning as
+soon as the remaining plan no longer fits, and the overrun recorded in the sidecar.
+
+Why: the pre-flight check (``mission.trajectory.checks``) plans take-off, transit, the trajectory, the return
+and the landing with the mission's kinematics; a real autopilot flies its own way (PX4 v1.16 SITL cruised at
+a median 5.1 m/s where 5.5 was asked and returned at its own 4.8 m/s: 640-651 s against a 539 s plan and a
+600 s budget, with no warning, issue 28).  During the flight the arm-to-landing time is predicted from the
+waypoint times measured so far: ``e_k + (D - T_k) * pace``, where ``T_k`` is the plan's time at the last
+waypoint reached, ``e_k`` the measured one, ``D`` the plan's total and ``pace`` the measured over planned
+time of the mission legs flown so far (1 until ``MIN_PACE_S`` of them); it is never less than the time
+already used.  When it passes the budget the runner warns once (a line and a ``budget`` event); after
+landing the sidecar's ``budget`` records planned and used seconds and the overrun.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mission.trajectory.kinematics import plan_profile
+
+MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
+
+
+@dataclass
+class BudgetPlan:
+    """Planned arm-to-landing time ``duration_s``, the planned time at each waypoint, and the budget."""
+
+    budget_s: float
+    t_wp: np.ndarray
+    duration_s: float
+
+
+def plan_times(spec, return_speed_mps: float | None = None) -> BudgetPlan:
+    """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check), the return
+    leg flown at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed."""
+    path = spec.flight_path_enu()
+    kin = spec.kinematics()
+    d = np.diff(path, axis=0)
+    L = np.linalg.norm(d, axis=1)
+    vert = np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7  # plan_profile's rule for take-off and landing legs
+    speeds = np.where(vert, kin.climb_rate_mps, kin.cruise_speed_mps)
+    n = len(spec.waypoints_enu())
+    if return_speed_mps and spec.return_behaviour == "rtl":  # legs after the last waypoint (n + 1 on)
+        speeds[n + 1:] = np.where(vert[n + 1:], kin.climb_rate_mps, return_speed_mps)
+    keep = L > 1e-6
+    prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
+    s_path = np.concatenate([[0.0], np.cumsum(L)])
+    t = np.interp(s_path, prof.s_vertex, prof.t_vertex)
+    return BudgetPlan(float(spec.time_budget_s), t[2:2 + n], prof.duration_s)
+
+
+@dataclass
+class BudgetWatch:
+    """Measured waypoint times against the plan; ``update`` returns the warning text once, when due."""
+
+    plan: BudgetPlan
+    reached_at: list[float] = field(default_factory=list)  # elapsed s when waypoint k was reached
+    predicted_s: float | None = None
+    warned_at_s: float | None = None
+    predicted_at_warning_s: float | None = None
+
+    def pace(self) -> float:
+        k = len(self.reached_at) - 1
+        if k < 1:
+            return 1.0
+        planned = self.plan.t_wp[k] - self.plan.t_wp[0]
+        return (self.reached_at[k] - self.reached_at[0]) / planned if planned >= MIN_PACE_S else 1.0
+
+    def predict(self, elapsed: float) -> float:
+        """Predicted arm-to-landing seconds given what was measured up to ``elapsed``."""
+        p, k = self.plan, len(self.reached_at) - 1
+        pace = self.pace()
+        if k < 0:
+            pred = elapsed + (p.duration_s - p.t_wp[0]) * pace + max(p.t_wp[0] - elapsed, 0.0)
+        else:
+            pred = self.reached_at[k] + (p.duration_s - p.t_wp[k]) * pace
+            if k + 1 < len(p.t_wp):  # the next waypoint is not reached yet: at least the rest after it
+                pred = max(pred, elapsed + (p.duration_s - p.t_wp[k + 1]) * pace)
+        return float(max(pred, elapsed))
+
+    def update(self, elapsed: float, reached: int) -> str | None:
+        """``reached`` waypoints were reached by ``elapsed`` (s since arming); the warning text once, when
+        the predicted landing time first passes the budget."""
+        while len(self.reached_at) < min(reached, len(self.plan.t_wp)):
+            self.reached_at.append(elapsed)
+        self.predicted_s = self.predict(elapsed)
+        b = self.plan.budget_s
+        if self.warned_at_s is not None or self.predicted_s <= b:
+            return None
+        self.warned_at_s, self.predicted_at_warning_s = elapsed, self.predicted_s
+        if elapsed > b:
+            return f"over the time budget: {elapsed:.0f} s flown of {b:.0f} s, still flying"
+        return (f"time budget will not hold: landing predicted at {self.predicted_s:.0f} s of {b:.0f} s "
+                f"({self.predicted_s - b:.0f} s over; measured pace {self.pace():.2f} x the plan, "
+                f"{len(self.reached_at)} of {len(self.plan.t_wp)} waypoints)")
+
+    def record(self, used_s: float | None) -> dict:
+        """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was warned."""
+        b = self.plan.budget_s
+        r2 = lambda v: None if v is None or not np.isfinite(v) else round(float(v), 2)  # noqa: E731
+        over = used_s is not None and used_s > b
+        return {"budget_s": b, "planned_s": r2(self.plan.duration_s), "used_s": r2(used_s), "overrun": bool(over),
+                "overrun_s": r2(used_s - b) if over else 0.0, "warned_at_s": r2(self.warned_at_s),
+                "predicted_at_warning_s": r2(self.predicted_at_warning_s)}
+
+
+def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> float | None:
+    """Arm-to-disarm seconds on the vehicle's clock from the flight's events (to now if not disarmed)."""
+    arm = next((e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None), t_start)
+    if arm is None:
+        return None
+    off = [e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None]
+    end = off[-1] if off and off[-1] > arm else t_now
+    return float(end - arm) if np.isfinite(end) else None
+
+
+async def watch_budget(runner, watch: BudgetWatch) -> None:
+    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget`` event)."""
+    s = runner.status
+    while not runner.landed_disarmed.is_set():
+        await asyncio.sleep(0.25)
+        if s.t_start is None or not np.isfinite(s.t_start) or runner.abort.is_set():
+            continue
+        reached = int(np.clip(s.item - s.waypoint_offset, 0, s.n_waypoints)) if s.items else 0
+        text = watch.update(s.elapsed, reached)
+        s.predicted_s = watch.predicted_s
+        if text:
+            runner.event("budget", text, warn=True)
+
+
+def start_budget(runner, return_speed_mps: float | None) -> BudgetWatch:
+    """The watch of ``runner``'s flight, planned with the return speed the autopilot will fly; a warning
+    before take-off when that plan no longer fits the budget."""
+    spec = runner.spec
+    own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
+    watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None))
+    if watch.plan.duration_s > spec.time_budget_s:
+        runner.event("budget", f"at the autopilot's return speed ({return_speed_mps:g} m/s) the flight takes "
+                     f"{watch.plan.duration_s:.0f} s, over the {spec.time_budget_s:g} s budget", warn=True)
+    return watch
+
+
+def close_budget(runner, watch: BudgetWatch) -> dict:
+    """The sidecar record, and one line: used vs budget (a warning when over)."""
+    used = used_seconds(runner.st.events, runner.status.t_start, runner.tel.clock.now())
+    rec = watch.record(used)
+    if used is not None:
+        text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget (plan {rec['planned_s']:.0f} s)"
+        if rec["overrun"]:
+            text += f": {rec['overrun_s']:.0f} s over"
+        runner.event("budget", text, warn=rec["overrun"])
+    return rec
