@@ -67,7 +67,8 @@ class BudgetWatch:
         if k < 1:
             return 1.0
         planned = self.plan.t_wp[k] - self.plan.t_wp[0]
-        return (self.reached_at[k] - self.reached_at[0]) / planned if planned >= MIN_PACE_S else 1.0
+        flown = self.reached_at[k] - self.reached_at[0]
+        return flown / planned if planned >= MIN_PACE_S and flown > 0 else 1.0  # several at once: no pace
 
     def predict(self, elapsed: float) -> float:
         """Predicted arm-to-landing seconds given what was measured up to ``elapsed``."""
