@@ -123,7 +123,9 @@ async def watch_budget(runner, watch: BudgetWatch) -> None:
     s = runner.status
     while not runner.landed_disarmed.is_set():
         await asyncio.sleep(0.25)
-        if s.t_start is None or not np.isfinite(s.t_start) or runner.abort.is_set():
+        if runner.abort.is_set() or getattr(runner.phases, "returning", False):
+            return  # a commanded return (Ctrl-C, a failure) ends the plan: nothing left to predict
+        if s.t_start is None or not np.isfinite(s.t_start):
             continue
         reached = int(np.clip(s.item - s.waypoint_offset, 0, s.n_waypoints)) if s.items else 0
         text = watch.update(s.elapsed, reached)
