@@ -28,6 +28,7 @@ class AdaptiveSpec:
     lead_s: float = 30.0             # plan the next round this many vehicle seconds before the current one ends
     update_s: float = 5.0            # live estimate period (vehicle seconds)
     reserve_s: float = 15.0          # kept free in the budget beyond the return and landing
+    explore: bool = True             # fly over the posterior's competing peaks in turn (planner.choose_target)
 
     def altitude(self, spec) -> float:
         return float(spec.altitude_m if self.altitude_m is None else self.altitude_m)
@@ -38,6 +39,9 @@ def parse_adaptive(r) -> AdaptiveSpec:
     en = r.raw("enabled", False)
     if not isinstance(en, bool):
         raise r.err("enabled", f"expected true or false, got {en!r}")
+    ex = r.raw("explore", True)
+    if not isinstance(ex, bool):
+        raise r.err("explore", f"expected true or false, got {ex!r}")
     d = AdaptiveSpec()
     alt = r.num("altitude_m", 30.0, 0.0, strict_lo=True) if r.has("altitude_m") else None
     r.used.add("altitude_m")
@@ -47,7 +51,7 @@ def parse_adaptive(r) -> AdaptiveSpec:
         min_radius_m=r.num("min_radius_m", min(d.min_radius_m, radius), 0.0, radius, strict_lo=True),
         target_area_m2=r.num("target_area_m2", d.target_area_m2, 0.0),
         lead_s=r.num("lead_s", d.lead_s, 0.0), update_s=r.num("update_s", d.update_s, 0.5),
-        reserve_s=r.num("reserve_s", d.reserve_s, 0.0))
+        reserve_s=r.num("reserve_s", d.reserve_s, 0.0), explore=ex)
     r.done()
     return out
 

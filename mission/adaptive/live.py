@@ -49,6 +49,11 @@ def summary(est, t_s: float) -> dict:
          "area_m2": None if reg is None else round(float(reg["area_m2"]), 1)}
     if est.error_m is not None:
         d["error_m"] = round(float(est.error_m), 2)
+    if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
+        from mission.adaptive.planner import posterior_candidates
+
+        d["candidates"] = [[round(v, 1 if i < 2 else 3) for i, v in enumerate(c)]
+                           for c in posterior_candidates(est.posterior)]
     return d
 
 

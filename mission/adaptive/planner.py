@@ -74,6 +74,35 @@ def fit_centre(spec, want_xy, r: float, step_m: float = 2.0) -> np.ndarray | Non
     return g[int(np.argmin(np.hypot(*(g - want).T)))]
 
 
+def posterior_candidates(post, k: int = 4, sep_m: float = 40.0) -> list[list[float]]:
+    """Up to ``k`` distinct hypotheses [x, y, mass] of a grid posterior, most probable first: greedy peaks at
+    least ``sep_m`` apart, each with the mass within ``sep_m / 2`` of it."""
+    pts = post.grid.reshape(-1, 2)
+    p = post.prob.ravel()
+    order = np.argsort(p)[::-1]
+    out: list[list[float]] = []
+    taken = np.zeros(len(p), dtype=bool)
+    for j in order[: max(1, int(0.2 * len(p)))]:
+        if taken[j]:
+            continue
+        d = np.hypot(*(pts - pts[j]).T)
+        out.append([float(pts[j, 0]), float(pts[j, 1]), float(p[d <= sep_m / 2].sum())])
+        taken |= d < sep_m
+        if len(out) == k:
+            break
+    return out
+
+
+def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, float]:
+    """Where the next round goes: the most probable hypothesis not yet flown over (no earlier round centre
+    within ``visit_m``), else the estimate.  Why: a square around a wrong estimate teaches little; flying over
+    each competing peak in turn either finds the transmitter's near field or removes that peak."""
+    for x, y, _ in candidates or []:
+        if all(np.hypot(x - vx, y - vy) > visit_m for vx, vy in visited):
+            return float(x), float(y)
+    return float(est_xy[0]), float(est_xy[1])
+
+
 def leg_violations(spec, start, wps) -> list:
     """Fence and altitude violations of flying ``start`` -> ``wps`` (``check_mission``'s rules; its time check,
     which assumes a flight from home, is replaced by the caller's budget check)."""

@@ -51,7 +51,7 @@ async def _upload(r, mission_raw, items) -> None:
 
 async def adapt(r, action, mission_raw) -> None:
     """Plan, check and upload rounds until the region is small, no round fits, or the mission ends."""
-    from mission.adaptive.planner import plan_round
+    from mission.adaptive.planner import choose_target, plan_round
     from mission.flight.plan import build_items
     from mission.spec import TrajectorySpec
 
@@ -77,7 +77,9 @@ async def adapt(r, action, mission_raw) -> None:
             return
         rem = remaining_s(r, wps, off) or 0.0
         t_end = r.tel.clock.now() - r.status.t_start + rem
-        plan = plan_round(spec, a, (d["x_m"], d["y_m"]), wps[-1], t_end)
+        visited = [rd["centre"] for rd in r.rounds]
+        target = choose_target((d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m)
+        plan = plan_round(spec, a, target, wps[-1], t_end)
         for n in plan.notes:
             r.event("adaptive", f"round {k + 1}: {n}")
         if not plan.ok:
@@ -100,7 +102,7 @@ async def adapt(r, action, mission_raw) -> None:
         r.status.n_waypoints = len(new)
         left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
         r.rounds.append({"round": k + 1, "t_plan_s": round(r.tel.clock.now() - r.status.t_start, 1),
-                         "estimate": d, "centre": plan.centre, "radius_m": plan.radius_m,
+                         "estimate": d, "target": target, "centre": plan.centre, "radius_m": plan.radius_m,
                          "first_item": len(wps) - n_survey, "n_waypoints": len(plan.waypoints),
                          "planned_s": round(plan_profile(np.vstack([wps[-1:], plan.waypoints]),
                                                          spec.kinematics()).duration_s, 1),

@@ -108,8 +108,11 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
         e = loc.predict(f)
     except InputError:
         return None
+    from mission.adaptive.planner import posterior_candidates
+
     reg = next((r for r in e.extras.get("regions", []) if r["level"] == 0.9), None)
-    return (e.x_m, e.y_m, None if reg is None else reg["area_m2"], region_covers(e, tx[0], tx[1], 0.9))
+    return (e.x_m, e.y_m, None if reg is None else reg["area_m2"], region_covers(e, tx[0], tx[1], 0.9),
+            posterior_candidates(e.posterior))
 
 
 def _climb(spec, first) -> list:
@@ -130,24 +133,26 @@ def fixed_flight(spec, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: flo
 
 def adaptive_flight(spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
     """The survey, rounds planned from the live estimate (``plan_round``), then home."""
-    from mission.adaptive.planner import plan_round, survey_profile
+    from mission.adaptive.planner import choose_target, plan_round, survey_profile
 
     sv = survey_profile(spec, a.survey_s).vertices
     home = np.asarray(spec.home_enu, dtype=float)
     log = SimLog()
     log.fly(np.vstack([*_climb(spec, sv[0]), sv]), ["takeoff"] + ["mission"] * len(sv), world, cfg, rng)
-    end, rounds, notes = sv[-1], 0, []
+    end, rounds, notes, visited = sv[-1], 0, [], []
     while True:
         est = _estimate(loc, log, log.t_end - a.lead_s, world.tx)
         if est is None or (est[2] is not None and est[2] <= a.target_area_m2):
             notes.append("region small enough" if est is not None else "no estimate")
             break
-        plan = plan_round(spec, a, est[:2], end, log.t_end)
+        target = choose_target(est[:2], est[4] if a.explore else None, visited, a.radius_m)
+        plan = plan_round(spec, a, target, end, log.t_end)
         notes += plan.notes
         if not plan.ok:
             break
         log.fly(np.vstack([end, plan.waypoints]), ["adaptive"] * len(plan.waypoints), world, cfg, rng)
         end, rounds = plan.waypoints[-1], rounds + 1
+        visited.append(plan.centre)
     log.fly(np.vstack([end, [home[0], home[1], end[2]], home]), ["return", "land"], world, cfg, rng)
     fast = _estimate(loc, log, fast_s, world.tx)
     return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes)
