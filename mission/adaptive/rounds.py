@@ -15,6 +15,8 @@ import numpy as np
 
 from mission.trajectory.kinematics import plan_profile
 
+MIN_LEAD_WALL_S = 2.5  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
+
 
 def _position_enu(r) -> np.ndarray:
     """The vehicle's latest position: x, y about the mission origin, z the height above home."""
@@ -59,16 +61,24 @@ async def adapt(r, action, mission_raw) -> None:
     wps = np.asarray(r.spec.waypoints_enu(), dtype=float)
     off, n_survey = r.status.waypoint_offset, len(wps)
     final = "land" if spec.return_behaviour == "land" else "return"
+    lead = max(a.lead_s, MIN_LEAD_WALL_S * r.speedup)
+    if lead > a.lead_s:
+        r.event("adaptive", f"rounds planned {lead:.0f} s (vehicle time) before the current one ends: "
+                            f"{MIN_LEAD_WALL_S:g} s of wall-clock time at speed-up {r.speedup:g}")
     k = 0
     while True:
         while True:
             if r.mission_done.is_set() or r.abort.is_set() or r.link_dead.is_set():
                 return
             rem = remaining_s(r, wps, off) if r.st.was_in_air else None
-            if rem is not None and rem <= a.lead_s:
+            r.planning = rem is not None and rem <= 1.5 * lead
+            if rem is not None and rem <= lead:
                 break
             await asyncio.sleep(0.05)
-        d = await r.estimate()
+        try:
+            d = await r.estimate()
+        finally:
+            r.planning = False
         if d is None:
             r.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
             return
@@ -80,7 +90,7 @@ async def adapt(r, action, mission_raw) -> None:
         visited = [rd["centre"] for rd in r.rounds]
         target = choose_target((d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m)
         plan = plan_round(spec, a, target, wps[-1], t_end)
-        for n in plan.notes:
+        for n in plan.notes if plan.ok else ():
             r.event("adaptive", f"round {k + 1}: {n}")
         if not plan.ok:
             r.event("adaptive", f"round {k + 1} refused ({plan.reason}): finishing")

@@ -17,8 +17,10 @@ already returning, which is safe.  MAVSDK v4 API: ``MissionRawAsync.upload_missi
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
 import dataclasses
+import multiprocessing
 
 import numpy as np
 
@@ -52,7 +54,11 @@ class LiveRunner(Runner):
         self.final: dict | None = None
         self.rounds: list[dict] = []
         self.home = None
-        self._pool = None
+        self.planning = False  # the adaptive task needs the worker soon: no periodic estimate meanwhile
+        # spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before connecting
+        self._pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                                            initializer=live.lower_priority)
+        self._pool.submit(live.warm_up)
         self._lock: asyncio.Lock | None = None
         self._live_task: asyncio.Task | None = None
 
@@ -62,9 +68,6 @@ class LiveRunner(Runner):
 
     # ----------------------------------------------------------------- live estimates
     async def _open_log(self, url, ap_name, report, n_items) -> None:
-        import concurrent.futures
-        import multiprocessing
-
         await super()._open_log(url, ap_name, report, n_items)
         meta = self.rows.writer.meta
         meta["trajectory"] = self.full_spec.trajectory_meta()
@@ -72,10 +75,6 @@ class LiveRunner(Runner):
             meta["trajectory"]["adaptive"] = dataclasses.asdict(self.adaptive)
         meta["live_estimate"] = {"method": live.LIVE_METHOD, "level": live.LEVEL, "update_s": self.update_s,
                                  "reproduce": "localize LOG --at T (T: the entry's t_s, log time)"}
-        # spawn: a fresh interpreter (no MAVSDK threads forked); warmed up while still on the ground
-        self._pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                                            initializer=live.lower_priority)
-        self._pool.submit(live.warm_up)
         self._lock = asyncio.Lock()
         self._live_task = asyncio.create_task(self._live())
 
@@ -122,7 +121,7 @@ class LiveRunner(Runner):
                     self.rows.writer.meta["fast_estimate"] = self.fast
                     self._record(self.fast, "fast (3 min)")
             due = self.tel.clock.now() - self.rows.t_ref - last >= self.update_s
-            if self.final is None and self.phases.current in FLOWN_PHASES and due:
+            if self.final is None and self.phases.current in FLOWN_PHASES and due and not self.planning:
                 d = await self.estimate()
                 if d is not None:
                     last = d["t_s"]
@@ -171,7 +170,7 @@ class LiveRunner(Runner):
         if self._live_task is not None:
             self._live_task.cancel()
             await asyncio.gather(self._live_task, return_exceptions=True)
-        if self.rows is not None and self._pool is not None:
+        if self.rows is not None and self._lock is not None:
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self._final(), 30.0)
             self.rows.writer.meta.update(estimates=self.estimates)
