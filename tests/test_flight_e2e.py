@@ -279,7 +279,7 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     from mission.trajectory.checks import check_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
-    d["trajectory"]["params"]["spacing_m"] = 44  # about half the spiral: 28 s of wall clock at 10x
+    d["trajectory"]["params"]["spacing_m"] = 88  # a short spiral: 260 s of flight, 26 s of wall clock at 10x
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
     plan = check_mission(load_mission(mfile)).duration_s
