@@ -29,8 +29,6 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import numpy as np  # noqa: E402
-
 
 def _value(text: str):
     try:
@@ -42,52 +40,30 @@ def _value(text: str):
 def one_flight(args: tuple) -> dict:
     """Fixed and adaptive versions of flight ``i`` (run in a worker)."""
     mission, family, seed, i, dt, sets = args
-    from mission.adaptive.simflight import FlightWorld, adaptive_flight, estimator, fixed_flight
-    from mission.localize.flight_draws import flight_rng
-    from mission.physics.family import load_family
+    from mission.adaptive.compare import pair
     from mission.spec import load_mission
 
     spec = load_mission(mission)
-    a = dataclasses.replace(spec.adaptive, **sets)
-    cfg = dataclasses.replace(spec.sim_config(), dt_s=dt)
-    loc = estimator(spec)
-    w = FlightWorld(spec, load_family(family), flight_rng(seed, i))
-    out = {"i": i, "tx": [float(w.tx[0]), float(w.tx[1])]}
-    for name, o in (("fixed", fixed_flight(spec, w, cfg, np.random.default_rng([seed, i, 1]), loc)),
-                    ("adaptive", adaptive_flight(spec, a, w, cfg, np.random.default_rng([seed, i, 1]), loc))):
-        err = lambda e: None if e is None else float(np.hypot(e[0] - w.tx[0], e[1] - w.tx[1]))  # noqa: E731
-        out[name] = {"error_m": err(o.final), "area_m2": o.final[2] if o.final else None,
-                     "covered": o.final[3] if o.final else None, "fast_error_m": err(o.fast),
-                     "duration_s": o.duration_s, "rounds": o.rounds}
-    return out
+    return pair(spec, dataclasses.replace(spec.adaptive, **sets), family, seed, i, dt)
 
 
 def table(rows: list[dict]) -> str:
-    from mission.evidence import compare_methods
+    from mission.adaptive.compare import summarize_pairs
 
-    ok = [r for r in rows if r["fixed"]["error_m"] is not None and r["adaptive"]["error_m"] is not None]
-    e = {k: np.array([r[k]["error_m"] for r in ok]) for k in ("fixed", "adaptive")}
-    fast = np.array([r["fixed"]["fast_error_m"] for r in ok if r["fixed"]["fast_error_m"] is not None])
-    cmp = compare_methods(e, "fixed")
-    lines = [f"{len(ok)} flights (of {len(rows)}); 90 % bootstrap intervals over flights",
-             "| mission | mean error m | adaptive - fixed m | p90 m | 90 % coverage | region m^2 | flight s | rounds |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    s = summarize_pairs(rows)
+    lines = [f"{s['n']} flights (of {s['n_total']}); 90 % bootstrap intervals over flights",
+             "| mission | mean error m | adaptive - fixed m | p90 m | 90 % coverage | region m^2 (median) | flight s "
+             "| rounds |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for k in ("fixed", "adaptive"):
-        cov = np.mean([bool(r[k]["covered"]) for r in ok])
-        area = np.median([r[k]["area_m2"] for r in ok if r[k]["area_m2"] is not None])
-        dur = np.mean([r[k]["duration_s"] for r in ok])
-        rounds = np.mean([r[k]["rounds"] for r in ok])
-        diff = "-" if k == "fixed" else cmp[k]["diff"].fmt()
-        lines.append(f"| {k} | {cmp[k]['mean'].fmt()} | {diff} | {np.percentile(e[k], 90):.1f} | "
-                     f"{100 * cov:.0f} % | {area:.0f} (median) | {dur:.0f} | {rounds:.1f} |")
-    if len(fast):
-        from mission.evidence import mean_interval
-
-        lines.append(f"fast estimate (3 min, same survey): mean {mean_interval(fast).fmt()} m, "
-                     f"p90 {np.percentile(fast, 90):.1f} m")
-    ratio = e["adaptive"].mean() / e["fixed"].mean()
-    halves = ratio <= 0.5 and cmp["adaptive"]["diff"].hi < 0
-    lines.append(f"adaptive / fixed mean error = {ratio:.2f}: {'halves' if halves else 'does not halve'} the "
+        r = s[k]
+        diff = "-" if k == "fixed" else r["diff"].fmt()
+        lines.append(f"| {k} | {r['mean'].fmt()} | {diff} | {r['p90_m']:.1f} | {100 * r['coverage']:.0f} % | "
+                     f"{r['area_m2']:.0f} | {r['duration_s']:.0f} | {r['rounds']:.1f} |")
+    if s["fast"]:
+        lines.append(f"fast estimate (3 min, same survey for both): mean {s['fast'][0].fmt()} m, "
+                     f"p90 {s['fast'][1]:.1f} m")
+    halves = s["ratio"] <= 0.5 and s["adaptive"]["diff"].hi < 0
+    lines.append(f"adaptive / fixed mean error = {s['ratio']:.2f}: {'halves' if halves else 'does not halve'} the "
                  "fixed spiral's error (rule: ratio <= 0.5 and the paired interval below zero)")
     return "\n".join(lines)
 

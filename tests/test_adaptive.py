@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -159,3 +160,25 @@ def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
     assert s.field.flight_area.signed_distance(pts[:, :2]).min() >= s.fence_margin_m - 1e-9
     assert np.all(pts[:, 2] == 15.0)
     assert logs[-1][1] == ["return", "land"]
+
+
+def test_preview_adaptive_bad_flights_refused(repo_dir, tmp_path, capsys):
+    from mission.cli.main import main
+
+    code = main(["preview", str(repo_dir / ADAPTIVE), "--flights", "0", "--out", str(tmp_path / "p.png")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--flights" in err[0]
+
+
+@pytest.mark.slow
+def test_preview_shows_adaptive_against_fixed(spec):
+    from rich.console import Console
+
+    from mission.adaptive.preview import adaptive_rows
+
+    s = dataclasses.replace(spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0))
+    with open(os.devnull, "w") as sink:
+        rows = dict(adaptive_rows(s, 1, 0, "afar", Console(file=sink)))
+    assert rows and any(k.startswith("expected error, fixed") for k in rows)
+    assert any(k.startswith("expected error, adaptive") for k in rows)
+    assert "adaptive - fixed (paired)" in rows

@@ -15,6 +15,9 @@ import numpy as np
 
 from mission.trajectory.kinematics import plan_profile
 
+# ArduCopter's return takes longer than the plan's: RTL_LOIT_TIME (5 s) over home, then LAND_SPEED 0.5 m/s
+# over the last 10 m (the plan descends at the climb rate); measured on the SITL: 85 s against about 55 s
+ARDUPILOT_RETURN_EXTRA_S = 30.0
 MIN_LEAD_WALL_S = 2.5  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
 
 
@@ -58,6 +61,8 @@ async def adapt(r, action, mission_raw) -> None:
     from mission.spec import TrajectorySpec
 
     a, spec = r.adaptive, r.full_spec
+    if r.status.waypoint_offset == 3:  # ArduPilot (home item 0)
+        a = dataclasses.replace(a, reserve_s=a.reserve_s + ARDUPILOT_RETURN_EXTRA_S)
     wps = np.asarray(r.spec.waypoints_enu(), dtype=float)
     off, n_survey = r.status.waypoint_offset, len(wps)
     final = "land" if spec.return_behaviour == "land" else "return"
