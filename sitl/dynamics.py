@@ -51,7 +51,8 @@ class Dynamics:
                     self.say("Takeoff detected" + self.tab)
                 if pl.land_at_end:
                     i = int(np.searchsorted(pl.profile.t_vertex, tau, side="right")) - 1
-                    if i >= pl.n_legs - 1 and self.pos[2] < pl.profile.vertices[-2][2] - 0.1:
+                    top = pl.profile.vertices[-1 - pl.land_legs][2]  # where the final descent starts
+                    if i >= pl.n_legs - pl.land_legs and self.pos[2] < top - 0.1:
                         self.landed_state = mav.MAV_LANDED_STATE_LANDING
             if done:
                 if pl.land_at_end:
@@ -100,7 +101,7 @@ class Dynamics:
             t = min(t, pl.t0 + pl.reach[0][0])
         if pl.land_at_end and self.flying and self.landed_state != mav.MAV_LANDED_STATE_LANDING:
             tv = pl.profile.t_vertex
-            t = min(t, pl.t0 + float(tv[min(max(pl.n_legs - 1, 0), len(tv) - 1)]))
+            t = min(t, pl.t0 + float(tv[min(max(pl.n_legs - pl.land_legs, 0), len(tv) - 1)]))
         return t
 
     def advance(self, target_t: float) -> None:

@@ -34,6 +34,7 @@ class Plan:
     land_at_end: bool = False
     from_ground: bool = False
     n_legs: int = 0
+    land_legs: int = 1  # legs of the final descent (2 when it slows down near the ground)
 
 
 class ModeMachine:
@@ -69,6 +70,12 @@ class ModeMachine:
     ) -> None:
         """Plan and start flying the polyline ``pts`` from the current position (already ``pts[0]``)."""
         P = np.asarray(pts, dtype=float)
+        land_legs = 1
+        low = self.param("MPC_LAND_ALT2")
+        if land and len(P) >= 2 and 0 < low < P[-2, 2] - P[-1, 2] and np.allclose(P[-2, :2], P[-1, :2]):
+            P = np.vstack([P[:-1], P[-1] + [0.0, 0.0, low], P[-1:]])  # the final descent slows below ``low``
+            seq_at_vertex = [(v + (v == len(P) - 2), s) for v, s in seq_at_vertex]
+            land_legs = 2
         if len(P) < 2:  # nothing to fly: hover here, every item reached at once
             prof = plan_profile(P[:1], self.kin)
             reach = [(0.0, s) for _, s in seq_at_vertex]
@@ -77,13 +84,18 @@ class ModeMachine:
             L = np.linalg.norm(legs, axis=1)
             if speeds is None:  # a return or a commanded leg: PX4 flies those at MPC_XY_CRUISE
                 speeds = [self.param("MPC_XY_CRUISE")] * len(L)
+            speeds = list(speeds) + [speeds[-1]] * (len(L) - len(speeds))  # the vertex added above
             vert = np.abs(legs[:, 2]) / np.maximum(L, 1e-9) > 0.7
             horiz = np.asarray(speeds, dtype=float) * self.profile.speed_factor  # a profile that flies slower
-            sp = np.where(vert, self.kin.climb_rate_mps, horiz)
+            vs = np.where(legs[:, 2] > 0, self.param("MPC_TKO_SPEED"), self.param("MPC_Z_V_AUTO_DN"))
+            if land and vert[-1] and legs[-1, 2] < 0 and (land_legs == 2 or low >= -legs[-1, 2]):
+                vs[-1] = self.param("MPC_LAND_SPEED")
+            sp = np.where(vert, vs, horiz)
             prof = plan_profile(P, self.kin, speeds=sp)
             reach = [(float(prof.t_vertex[min(v, len(prof.t_vertex) - 1)]), s) for v, s in seq_at_vertex]
         self.plan = Plan(
-            prof, self.sim_t, sorted(reach), land, from_ground=not self.flying, n_legs=len(P) - 1
+            prof, self.sim_t, sorted(reach), land, from_ground=not self.flying, n_legs=len(P) - 1,
+            land_legs=land_legs
         )
         if not self.flying and prof.duration_s > 0:
             self.landed_state = mav.MAV_LANDED_STATE_TAKEOFF

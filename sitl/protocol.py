@@ -57,9 +57,14 @@ class Profile:
     mpc_xy_cruise: float | None = None  # None: the kinematics' cruise speed
     gate_texts: bool = False
     tab_texts: bool = False
+    # take-off speed, descent speed, final landing speed (m/s) and the height below which it lands at the
+    # last one (PX4: MPC_TKO_SPEED, MPC_Z_V_AUTO_DN, MPC_LAND_SPEED, MPC_LAND_ALT2); None: the kinematics'
+    # climb rate throughout
+    vertical: tuple[float, float, float, float] | None = None
 
 
-PROFILES = {"default": Profile("default"), "px4": Profile("px4", 0.93, 4.8, True, True)}
+PROFILES = {"default": Profile("default"), "px4": Profile("px4", 0.93, 4.8, True, True, (1.5, 1.5, 0.7, 5.0))}
+VERTICAL_PARAMS = ("MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")
 
 
 @dataclass

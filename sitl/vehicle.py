@@ -39,6 +39,7 @@ from sitl.protocol import (
     PROFILES,
     PX4_AUTO_LOITER,
     PX4_MAIN_AUTO,
+    VERTICAL_PARAMS,
     Item,
     Profile,
     mav,
@@ -76,7 +77,9 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
         self.kin = kin or Kinematics()
         self.profile = PROFILES[profile] if isinstance(profile, str) else profile
         cruise = self.profile.mpc_xy_cruise or self.kin.cruise_speed_mps
-        self.params = {"MPC_XY_CRUISE": float(cruise)}  # sitl.params
+        c = self.kin.climb_rate_mps
+        vertical = self.profile.vertical or (c, c, c, 0.0)
+        self.params = {"MPC_XY_CRUISE": float(cruise), **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True))}
         self.cruise: float | None = None  # set by MAV_CMD_DO_CHANGE_SPEED; None: MPC_XY_CRUISE
         self.verbose = verbose
         self.noise = np.random.default_rng(seed)  # wind gusts and turbulence

@@ -275,14 +275,15 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
 
     import yaml
 
+    from mission.flight.budget import VerticalSpeeds, plan_times
     from mission.spec import load_mission
-    from mission.trajectory.checks import check_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
-    d["trajectory"]["params"]["spacing_m"] = 88  # a short spiral: 260 s of flight, 26 s of wall clock at 10x
+    d["trajectory"]["params"]["spacing_m"] = 88  # a short spiral: 280 s of flight, 28 s of wall clock at 10x
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
-    plan = check_mission(load_mission(mfile)).duration_s
+    # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from it
+    plan = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
     d["time_budget_s"] = round(plan * 1.03)
     mfile.write_text(yaml.safe_dump(d))
     spec = load_mission(mfile)

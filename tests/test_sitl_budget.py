@@ -129,3 +129,18 @@ def test_speed_params_set_and_restored_on_both_autopilots():
         assert p.values == own
     p = _Params({"MPC_XY_CRUISE": 5.5})
     assert asyncio.run(set_params(p, {"MPC_XY_CRUISE": 5.5})) == {} and p.sets == []  # already so: untouched
+
+
+def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
+    """ArduCopter lands at 1.5 m/s, then 0.5 m/s below 10 m: 20/1.5 + 10/0.5 = 33 s where the mission's
+    kinematics plan 30/2.5 = 12 s; PX4 climbs at 1.5 m/s (20 s, not 12).  Waypoint times move only by the
+    take-off difference."""
+    from mission.flight.budget import VerticalSpeeds
+
+    base = plan_times(spec)
+    ap = plan_times(spec, vertical=VerticalSpeeds(2.5, 1.5, 0.5, 10.0))
+    np.testing.assert_allclose(ap.t_wp, base.t_wp, atol=1e-6)
+    assert ap.duration_s - base.duration_s == pytest.approx(20 / 1.5 + 10 / 0.5 - 30 / 2.5, abs=2.0)
+    px4 = plan_times(spec, vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0))
+    np.testing.assert_allclose(px4.t_wp - base.t_wp, 30 / 1.5 - 30 / 2.5, atol=1.0)
+    assert not VerticalSpeeds(0.0, 1.0, 1.0, 0.0).valid()

@@ -39,10 +39,20 @@ def _items(vehicle, speed: float | None):
     return items
 
 
-@pytest.mark.parametrize("profile, factor, ret", [("default", 1.0, 5.0), ("px4", 0.93, 4.8)])
-def test_profile_speeds_mission_and_return(profile, factor, ret):
+def _speeds(plan):
+    """(horizontal leg speeds, vertical leg speeds, vertical leg heights) of a vehicle plan."""
+    P = plan.profile.vertices
+    d = np.diff(P, axis=0)
+    vert = np.abs(d[:, 2]) > np.linalg.norm(d[:, :2], axis=1)
+    return plan.profile.v_cruise[~vert], plan.profile.v_cruise[vert], d[vert, 2]
+
+
+@pytest.mark.parametrize("profile, factor, ret, up, down, land, low", [
+    ("default", 1.0, 5.0, 2.5, 2.5, 2.5, 0.0), ("px4", 0.93, 4.8, 1.5, 1.5, 0.7, 5.0)])
+def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land, low):
     """Legs after a speed item fly at factor * that speed; the return at factor * MPC_XY_CRUISE (PX4: 4.8 m/s
-    unless set; the default profile: the kinematics' cruise speed, so its flown time matches the plan)."""
+    unless set; the default profile: the kinematics' cruise speed, so its flown time matches the plan); take-off
+    at MPC_TKO_SPEED, the final descent at MPC_Z_V_AUTO_DN, then MPC_LAND_SPEED below MPC_LAND_ALT2."""
     from sitl.vehicle import SimVehicle
 
     v = SimVehicle(f"udpout:127.0.0.1:{free_udp_port()}", profile=profile)
@@ -51,17 +61,17 @@ def test_profile_speeds_mission_and_return(profile, factor, ret):
         v.items = _items(v, 5.5)
         v.armed = True
         assert v.start_mission()
-        vc = v.plan.profile.v_cruise
-        horiz = vc[vc != v.kin.climb_rate_mps]
-        assert horiz[:2] == pytest.approx([5.5 * factor] * 2)  # legs home->wp1, wp1->wp2
-        assert horiz[-1] == pytest.approx(ret * factor)  # the return leg
+        horiz, vert, dz = _speeds(v.plan)
+        assert horiz == pytest.approx([5.5 * factor] * 2 + [ret * factor])  # home->wp1, wp1->wp2, the return
+        expect = [(30.0, up)] + ([(-25.0, down), (-5.0, land)] if low else [(-30.0, down)])
+        np.testing.assert_allclose(np.column_stack([dz, vert]), expect, atol=1e-6)
+        assert v.plan.land_legs == (2 if low else 1)
         v.params["MPC_XY_CRUISE"] = 5.5  # what the runner sets
         v.start_mission(0)
-        assert v.plan.profile.v_cruise[v.plan.profile.v_cruise != v.kin.climb_rate_mps][-1] == pytest.approx(
-            5.5 * factor)
+        assert _speeds(v.plan)[0][-1] == pytest.approx(5.5 * factor)
         v.items = _items(v, None)  # no speed item: PX4 flies the legs at MPC_XY_CRUISE too
         v.start_mission(0)
-        assert v.plan.profile.v_cruise[1] == pytest.approx(5.5 * factor)
+        assert _speeds(v.plan)[0][0] == pytest.approx(5.5 * factor)
         assert v.texts["generated"] == 3 and v.text_queue[0][1] == "Executing Mission"
     finally:
         v.conn.close()

@@ -33,18 +33,41 @@ class BudgetPlan:
     duration_s: float
 
 
-def plan_times(spec, return_speed_mps: float | None = None) -> BudgetPlan:
-    """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check), the return
-    leg flown at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed."""
+@dataclass(frozen=True)
+class VerticalSpeeds:
+    """The autopilot's own climb and descent speeds (m/s): take-off at ``up_mps``; the final descent at
+    ``down_mps`` down to ``low_alt_m`` above ground, then at ``land_mps`` (ArduCopter: 0.5 m/s below 10 m,
+    which made its landing 36 s where the mission's kinematics plan 12 s)."""
+
+    up_mps: float
+    down_mps: float
+    land_mps: float
+    low_alt_m: float
+
+    def valid(self) -> bool:
+        return min(self.up_mps, self.down_mps, self.land_mps) > 0 and self.low_alt_m >= 0
+
+
+def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSpeeds | None = None) -> BudgetPlan:
+    """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check), with the
+    return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed, and the
+    take-off and landing at the autopilot's ``vertical`` speeds when known."""
     path = spec.flight_path_enu()
     kin = spec.kinematics()
+    n = len(spec.waypoints_enu())
+    drop = path[-2, 2] - path[-1, 2]  # the final descent (both return behaviours end with one)
+    if vertical is not None and 0 < vertical.low_alt_m < drop:  # it slows down below low_alt_m: a vertex there
+        path = np.vstack([path[:-1], path[-1] + [0.0, 0.0, vertical.low_alt_m], path[-1:]])
     d = np.diff(path, axis=0)
     L = np.linalg.norm(d, axis=1)
     vert = np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7  # plan_profile's rule for take-off and landing legs
-    speeds = np.where(vert, kin.climb_rate_mps, kin.cruise_speed_mps)
-    n = len(spec.waypoints_enu())
+    vs = np.full(len(L), kin.climb_rate_mps)
+    if vertical is not None:
+        vs = np.where(d[:, 2] > 0, vertical.up_mps, vertical.down_mps)
+        vs[-1] = vertical.land_mps  # the last leg ends on the ground below low_alt_m
+    speeds = np.where(vert, vs, kin.cruise_speed_mps)
     if return_speed_mps and spec.return_behaviour == "rtl":  # legs after the last waypoint (n + 1 on)
-        speeds[n + 1:] = np.where(vert[n + 1:], kin.climb_rate_mps, return_speed_mps)
+        speeds[n + 1:] = np.where(vert[n + 1:], speeds[n + 1:], return_speed_mps)
     keep = L > 1e-6
     prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
     s_path = np.concatenate([[0.0], np.cumsum(L)])
@@ -134,15 +157,19 @@ async def watch_budget(runner, watch: BudgetWatch) -> None:
             runner.event("budget", text, warn=True)
 
 
-def start_budget(runner, return_speed_mps: float | None) -> BudgetWatch:
-    """The watch of ``runner``'s flight, planned with the return speed the autopilot will fly; a warning
-    before take-off when that plan no longer fits the budget."""
+def start_budget(runner, return_speed_mps: float | None, vertical: VerticalSpeeds | None) -> BudgetWatch:
+    """The watch of ``runner``'s flight, planned with the return, climb and descent speeds the autopilot will
+    fly; one line with that plan, a warning before take-off when it no longer fits the budget."""
     spec = runner.spec
     own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
-    watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None))
-    if watch.plan.duration_s > spec.time_budget_s:
-        runner.event("budget", f"at the autopilot's return speed ({return_speed_mps:g} m/s) the flight takes "
-                     f"{watch.plan.duration_s:.0f} s, over the {spec.time_budget_s:g} s budget", warn=True)
+    watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None, vertical))
+    d, b = watch.plan.duration_s, spec.time_budget_s
+    how = [f"return at {return_speed_mps:g} m/s"] if own else []
+    if vertical is not None:
+        how.append(f"climb {vertical.up_mps:g} m/s, descent {vertical.down_mps:g} then {vertical.land_mps:g} m/s "
+                   f"below {vertical.low_alt_m:g} m")
+    text = f"plan with the autopilot's speeds{' (' + '; '.join(how) + ')' if how else ''}: {d:.0f} s of {b:g} s"
+    runner.event("budget", text + (f", {d - b:.0f} s over the budget" if d > b else ""), warn=d > b)
     return watch
 
 

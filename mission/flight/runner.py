@@ -34,7 +34,7 @@ from mission.flight.budget import close_budget, start_budget, watch_budget
 from mission.flight.heartbeat import gcs_heartbeats, settle_texts
 from mission.flight.phases import PhaseTracker
 from mission.flight.progress import Display, FlightStatus
-from mission.flight.speeds import apply_speeds, restore_speeds
+from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.tasks import EXIT_ABORTED, EXIT_FAILED, EXIT_LINK, EXIT_OK, FlightError, FlightTasks
 from mission.flight.telemetry import Telemetry
 from mission.flight.vehicle_process import free_udp_port, spawn_vehicle, stop_vehicle
@@ -251,7 +251,8 @@ class Runner(FlightTasks):
                 self.event("rate", f"{name}({self.rate_requested:g}) refused: {e}", warn=True)
         with contextlib.suppress(Exception):
             await telemetry.set_rate_landed_state(5.0)
-        self.budget = start_budget(self, await apply_speeds(self, param, ardupilot))  # speeds restored after
+        v_ret = await apply_speeds(self, param, ardupilot)  # restored after the flight
+        self.budget = start_budget(self, v_ret, await vertical_speeds(self, param, ardupilot))
         self.status.phase = "uploading"
         for attempt in range(3):  # a busy link (high speed-up) can time out one transfer
             try:

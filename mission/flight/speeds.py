@@ -11,7 +11,10 @@ set, the plan is redone with the speed the autopilot will fly and a warning says
 
 from __future__ import annotations
 
+import asyncio
+
 from mission.flight.ardupilot import return_params, set_params
+from mission.flight.budget import VerticalSpeeds
 
 PX4_CRUISE = "MPC_XY_CRUISE"
 
@@ -25,8 +28,6 @@ def speed_params(ardupilot: bool, cruise_speed_mps: float) -> dict[str, int | fl
 
 async def _return_speed_now(param, ardupilot: bool) -> float | None:
     """The return speed the autopilot will fly with its own settings (m/s), None if it cannot be read."""
-    import asyncio
-
     try:
         if ardupilot:
             v = int(await asyncio.wait_for(param.get_param_int("RTL_SPEED"), 5.0))
@@ -52,6 +53,34 @@ async def apply_speeds(runner, param, ardupilot: bool) -> float | None:
     what = "return nose first at the mission's speed" if ardupilot else "cruise and return at the mission's speed"
     runner.event("params", f"{what}: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
     return cruise
+
+
+async def _get(param, name: str) -> float:
+    """A parameter's value whatever its type (ArduPilot mixes integer and float speeds)."""
+    try:
+        return float(await asyncio.wait_for(param.get_param_float(name), 5.0))
+    except Exception:
+        return float(await asyncio.wait_for(param.get_param_int(name), 5.0))
+
+
+async def vertical_speeds(runner, param, ardupilot: bool) -> VerticalSpeeds | None:
+    """The autopilot's take-off and landing speeds, read (not changed: landing speeds are the operator's safety
+    settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0: ``WPNAV_SPEED_DN``), ``LAND_SPEED`` below
+    ``LAND_ALT_LOW`` (cm/s, cm); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``, ``MPC_LAND_SPEED`` below
+    ``MPC_LAND_ALT2`` (m/s, m).  None (and one line) when they cannot be read: the plan keeps the mission's."""
+    try:
+        if ardupilot:
+            up, high, dn, land, low = [await _get(param, n) / 100.0 for n in (
+                "WPNAV_SPEED_UP", "LAND_SPEED_HIGH", "WPNAV_SPEED_DN", "LAND_SPEED", "LAND_ALT_LOW")]
+            v = VerticalSpeeds(up, high if high > 0 else dn, land, low)
+        else:
+            v = VerticalSpeeds(*[await _get(param, n) for n in (
+                "MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")])
+    except Exception as e:
+        runner.event("budget", f"cannot read the autopilot's climb and landing speeds ({e or type(e).__name__}): "
+                     "planned with the mission's")
+        return None
+    return v if v.valid() else None
 
 
 async def restore_speeds(runner, param) -> None:
