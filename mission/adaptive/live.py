@@ -79,7 +79,7 @@ def lower_priority() -> None:
     import os
 
     with contextlib.suppress(OSError):
-        os.nice(10)
+        os.nice(5)
 
 
 def warm_up() -> None:

@@ -18,7 +18,7 @@ from mission.trajectory.kinematics import plan_profile
 # ArduCopter's return takes longer than the plan's: RTL_LOIT_TIME (5 s) over home, then LAND_SPEED 0.5 m/s
 # over the last 10 m (the plan descends at the climb rate); measured on the SITL: 85 s against about 55 s
 ARDUPILOT_RETURN_EXTRA_S = 30.0
-MIN_LEAD_WALL_S = 2.5  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
+MIN_LEAD_WALL_S = 4.0  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
 
 
 def _position_enu(r) -> np.ndarray:
