@@ -65,6 +65,7 @@ class Profile:
 
 PROFILES = {"default": Profile("default"), "px4": Profile("px4", 0.93, 4.8, True, True, (1.5, 1.5, 0.7, 5.0))}
 VERTICAL_PARAMS = ("MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")
+OTHER_PARAMS = {"RTL_LAND_DELAY": 0.0}  # PX4 v1.16: no hover over home before landing (it is not flown here)
 
 
 @dataclass

@@ -36,6 +36,7 @@ from sitl.params import ParamStore
 from sitl.protocol import (
     DEFAULT_HOME,
     DEFAULT_INTERVALS,
+    OTHER_PARAMS,
     PROFILES,
     PX4_AUTO_LOITER,
     PX4_MAIN_AUTO,
@@ -79,7 +80,8 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
         cruise = self.profile.mpc_xy_cruise or self.kin.cruise_speed_mps
         c = self.kin.climb_rate_mps
         vertical = self.profile.vertical or (c, c, c, 0.0)
-        self.params = {"MPC_XY_CRUISE": float(cruise), **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True))}
+        self.params = {"MPC_XY_CRUISE": float(cruise), **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True)),
+                       **OTHER_PARAMS}
         self.cruise: float | None = None  # set by MAV_CMD_DO_CHANGE_SPEED; None: MPC_XY_CRUISE
         self.verbose = verbose
         self.noise = np.random.default_rng(seed)  # wind gusts and turbulence

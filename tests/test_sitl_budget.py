@@ -144,3 +144,21 @@ def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
     px4 = plan_times(spec, vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0))
     np.testing.assert_allclose(px4.t_wp - base.t_wp, 30 / 1.5 - 30 / 2.5, atol=1.0)
     assert not VerticalSpeeds(0.0, 1.0, 1.0, 0.0).valid()
+
+
+def test_hover_before_landing_is_reserved_outside_the_pace(spec):
+    """ArduCopter hovers RTL_LOIT_TIME (5 s) over home before landing: planned, and like the landing not
+    stretched by a slow cruise."""
+    from mission.flight.budget import VerticalSpeeds
+
+    v = VerticalSpeeds(2.5, 1.5, 0.5, 10.0)
+    a, b = plan_times(spec, vertical=v), plan_times(spec, vertical=VerticalSpeeds(2.5, 1.5, 0.5, 10.0, 5.0))
+    assert b.duration_s - a.duration_s == pytest.approx(5.0) and b.land_s - a.land_s == pytest.approx(5.0)
+    assert a.land_s == pytest.approx(20 / 1.5 + 10 / 0.5, abs=2.0)
+    w = BudgetWatch(b)
+    w.update(0.0, 0)
+    w.update(b.t_wp[0], 1)
+    k = int(np.searchsorted(b.t_wp, 100.0))
+    w.update(b.t_wp[k] * 1.1, k + 1)  # 10 % slow so far
+    assert w.predicted_s == pytest.approx(b.t_wp[k] * 1.1 + (b.duration_s - b.land_s - b.t_wp[k]) * w.pace()
+                                          + b.land_s)

@@ -2,14 +2,16 @@
 soon as the remaining plan no longer fits, and the overrun recorded in the sidecar.
 
 Why: the pre-flight check (``mission.trajectory.checks``) plans take-off, transit, the trajectory, the return
-and the landing with the mission's kinematics; a real autopilot flies its own way (PX4 v1.16 SITL cruised at
-a median 5.1 m/s where 5.5 was asked and returned at its own 4.8 m/s: 640-651 s against a 539 s plan and a
-600 s budget, with no warning, issue 28).  During the flight the arm-to-landing time is predicted from the
-waypoint times measured so far: ``e_k + (D - T_k) * pace``, where ``T_k`` is the plan's time at the last
-waypoint reached, ``e_k`` the measured one, ``D`` the plan's total and ``pace`` the measured over planned
-time of the mission legs flown so far (1 until ``MIN_PACE_S`` of them); it is never less than the time
-already used.  When it passes the budget the runner warns once (a line and a ``budget`` event); after
-landing the sidecar's ``budget`` records planned and used seconds and the overrun.
+and the landing with the mission's kinematics; a real autopilot flies its own way (PX4 v1.16 SITL cruised at a
+median 5.1 m/s where 5.5 was asked and returned at its own 4.8 m/s: 640-651 s against a 539 s plan and a 600 s
+budget, with no warning, issue 28). During the flight the arm-to-landing time is predicted from the waypoint
+times measured so far (vehicle clock, when the mission progress arrived): ``e_k + (D - T_k - D_land) * pace +
+D_land``, where ``T_k`` is the plan's time at the last waypoint reached, ``e_k`` the measured one, ``D`` the
+plan's total, ``D_land`` its final descent (flown at the autopilot's landing speeds, which a slow cruise does
+not change) and ``pace`` the measured over planned time of the mission legs flown so far (1 until
+``MIN_PACE_S`` of them); it is never less than the time already used. When it passes the budget the runner
+warns once (a line and a ``budget`` event); after landing the sidecar's ``budget`` records planned and used
+seconds and the overrun.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ class BudgetPlan:
     budget_s: float
     t_wp: np.ndarray
     duration_s: float
+    land_s: float = 0.0  # the final descent's share of duration_s (vertical: not slowed by a slow cruise)
 
 
 @dataclass(frozen=True)
@@ -43,9 +46,10 @@ class VerticalSpeeds:
     down_mps: float
     land_mps: float
     low_alt_m: float
+    hover_s: float = 0.0  # hover over home before the descent of a return (ArduPilot RTL_LOIT_TIME: 5 s)
 
     def valid(self) -> bool:
-        return min(self.up_mps, self.down_mps, self.land_mps) > 0 and self.low_alt_m >= 0
+        return min(self.up_mps, self.down_mps, self.land_mps) > 0 and self.low_alt_m >= 0 <= self.hover_s
 
 
 def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSpeeds | None = None) -> BudgetPlan:
@@ -72,7 +76,11 @@ def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSp
     prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
     s_path = np.concatenate([[0.0], np.cumsum(L)])
     t = np.interp(s_path, prof.s_vertex, prof.t_vertex)
-    return BudgetPlan(float(spec.time_budget_s), t[2:2 + n], prof.duration_s)
+    j = len(L) - 1  # the final descent: the last leg, or the last two when it slows down near the ground
+    while j > 0 and vert[j - 1] and d[j - 1, 2] < 0:
+        j -= 1
+    hover = vertical.hover_s if vertical is not None and spec.return_behaviour == "rtl" else 0.0
+    return BudgetPlan(float(spec.time_budget_s), t[2:2 + n], prof.duration_s + hover, float(t[-1] - t[j]) + hover)
 
 
 @dataclass
@@ -96,13 +104,17 @@ class BudgetWatch:
     def predict(self, elapsed: float) -> float:
         """Predicted arm-to-landing seconds given what was measured up to ``elapsed``."""
         p, k = self.plan, len(self.reached_at) - 1
-        pace = self.pace()
+        pace, end = self.pace(), p.duration_s - p.land_s  # the landing is added at the plan's own time
+
+        def rest(t_from: float) -> float:
+            return (end - t_from) * pace + p.land_s
+
         if k < 0:
-            pred = elapsed + (p.duration_s - p.t_wp[0]) * pace + max(p.t_wp[0] - elapsed, 0.0)
+            pred = elapsed + rest(p.t_wp[0]) + max(p.t_wp[0] - elapsed, 0.0)
         else:
-            pred = self.reached_at[k] + (p.duration_s - p.t_wp[k]) * pace
+            pred = self.reached_at[k] + rest(p.t_wp[k])
             if k + 1 < len(p.t_wp):  # the next waypoint is not reached yet: at least the rest after it
-                pred = max(pred, elapsed + (p.duration_s - p.t_wp[k + 1]) * pace)
+                pred = max(pred, elapsed + rest(p.t_wp[k + 1]))
         return float(max(pred, elapsed))
 
     def update(self, elapsed: float, reached: int) -> str | None:
@@ -141,19 +153,33 @@ def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> flo
     return float(end - arm) if np.isfinite(end) else None
 
 
+def _reached(phase: str, item: int, n: int) -> int | None:
+    """Waypoints reached when the phase tracker says ``phase``/``item`` (None: no mission progress yet)."""
+    if phase == "mission":
+        return max(item, 0)
+    return n if phase in ("adaptive", "return", "land") else None
+
+
 async def watch_budget(runner, watch: BudgetWatch) -> None:
-    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget`` event)."""
-    s = runner.status
+    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget`` event).
+    Waypoint times are the vehicle times at which the progress arrived (``runner.phases``), not the poll's."""
+    s, ph, seen, reached = runner.status, runner.phases, 1, 0
     while not runner.landed_disarmed.is_set():
         await asyncio.sleep(0.25)
-        if runner.abort.is_set() or getattr(runner.phases, "returning", False):
+        if runner.abort.is_set() or getattr(ph, "returning", False):
             return  # a commanded return (Ctrl-C, a failure) ends the plan: nothing left to predict
         if s.t_start is None or not np.isfinite(s.t_start):
             continue
-        reached = int(np.clip(s.item - s.waypoint_offset, 0, s.n_waypoints)) if s.items else 0
-        text = watch.update(s.elapsed, reached)
+        steps = [(ph.t[i], ph.phase[i], ph.item[i]) for i in range(seen, len(ph.t))]
+        seen += len(steps)
+        texts = []
+        for t, phase, item in steps:
+            if (r := _reached(phase, item, s.n_waypoints)) is not None and r > reached:
+                reached = r
+                texts.append(watch.update(max(t - s.t_start, 0.0), reached))
+        texts.append(watch.update(s.elapsed, reached))
         s.predicted_s = watch.predicted_s
-        if text:
+        for text in filter(None, texts):
             runner.event("budget", text, warn=True)
 
 

@@ -66,16 +66,19 @@ async def _get(param, name: str) -> float:
 async def vertical_speeds(runner, param, ardupilot: bool) -> VerticalSpeeds | None:
     """The autopilot's take-off and landing speeds, read (not changed: landing speeds are the operator's safety
     settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0: ``WPNAV_SPEED_DN``), ``LAND_SPEED`` below
-    ``LAND_ALT_LOW`` (cm/s, cm); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``, ``MPC_LAND_SPEED`` below
-    ``MPC_LAND_ALT2`` (m/s, m).  None (and one line) when they cannot be read: the plan keeps the mission's."""
+    ``LAND_ALT_LOW`` (cm/s, cm), the hover ``RTL_LOIT_TIME`` (ms); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``,
+    ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2`` (m/s, m), the hover ``RTL_LAND_DELAY`` (s).
+    None (and one line) when they cannot be read: the plan keeps the mission's."""
     try:
         if ardupilot:
             up, high, dn, land, low = [await _get(param, n) / 100.0 for n in (
                 "WPNAV_SPEED_UP", "LAND_SPEED_HIGH", "WPNAV_SPEED_DN", "LAND_SPEED", "LAND_ALT_LOW")]
-            v = VerticalSpeeds(up, high if high > 0 else dn, land, low)
+            hover = await _get(param, "RTL_LOIT_TIME") / 1000.0
+            v = VerticalSpeeds(up, high if high > 0 else dn, land, low, hover)
         else:
-            v = VerticalSpeeds(*[await _get(param, n) for n in (
-                "MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")])
+            up, dn, land, low, delay = [await _get(param, n) for n in (
+                "MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2", "RTL_LAND_DELAY")]
+            v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0))  # -1: hovers until told: not planned
     except Exception as e:
         runner.event("budget", f"cannot read the autopilot's climb and landing speeds ({e or type(e).__name__}): "
                      "planned with the mission's")
