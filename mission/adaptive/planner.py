@@ -160,11 +160,12 @@ def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
             elif fly + back <= left:
                 moved = float(np.hypot(*(c - np.asarray(est_xy, dtype=float)[:2])))
                 if moved > 0.5:
-                    notes.append(f"centre moved {moved:.0f} m from the estimate to keep the fence margin")
+                    notes.append(f"centre moved {moved:.0f} m to keep the fence margin")
                 if r < a.radius_m:
                     notes.append(f"square shrunk to half side {r:.0f} m to fit")
                 return RoundPlan(wps, (float(c[0]), float(c[1])), r, fly, back, notes)
             else:
-                notes.append(f"a {r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s left")
+                notes.append(f"a {r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
+                             "left")
         r = r * 0.7 if r * 0.7 >= a.min_radius_m or r <= a.min_radius_m else a.min_radius_m
     return RoundPlan(None, notes=notes, reason=notes[-1] if notes else "no round fits")

@@ -68,8 +68,8 @@ async def adapt(r, action, mission_raw) -> None:
     final = "land" if spec.return_behaviour == "land" else "return"
     lead = max(a.lead_s, MIN_LEAD_WALL_S * r.speedup)
     if lead > a.lead_s:
-        r.event("adaptive", f"rounds planned {lead:.0f} s (vehicle time) before the current one ends: "
-                            f"{MIN_LEAD_WALL_S:g} s of wall-clock time at speed-up {r.speedup:g}")
+        r.event("adaptive", f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
+                            f"{r.speedup:g})")
     k = 0
     while True:
         while True:
@@ -88,7 +88,7 @@ async def adapt(r, action, mission_raw) -> None:
             r.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
             return
         if d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2:
-            r.event("adaptive", f"90 % region {d['area_m2']:.0f} m^2 <= target {a.target_area_m2:g} m^2: finishing")
+            r.event("adaptive", f"90 % region {d['area_m2']:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing")
             return
         rem = remaining_s(r, wps, off) or 0.0
         t_end = r.tel.clock.now() - r.status.t_start + rem
@@ -98,13 +98,13 @@ async def adapt(r, action, mission_raw) -> None:
         for n in plan.notes if plan.ok else ():
             r.event("adaptive", f"round {k + 1}: {n}")
         if not plan.ok:
-            r.event("adaptive", f"round {k + 1} refused ({plan.reason}): finishing")
+            r.event("adaptive", f"round {k + 1} refused: {plan.reason}")
             return
         new = np.vstack([wps, plan.waypoints])
         items = build_items(dataclasses.replace(r.spec, trajectory=TrajectorySpec("waypoints", {}, new)),
                             r.home.latitude_deg, r.home.longitude_deg, r.home.absolute_altitude_m, off == 3)
         if r.mission_done.is_set() or r.abort.is_set():
-            r.event("adaptive", f"round {k + 1} planned too late: the vehicle is already returning")
+            r.event("adaptive", f"round {k + 1} planned too late: already returning")
             return
         cur = r.st.progress[0]
         r.phases.configure(off, len(items) - 1, final, first_adaptive=off + n_survey)
@@ -122,9 +122,9 @@ async def adapt(r, action, mission_raw) -> None:
                          "planned_s": round(plan_profile(np.vstack([wps[-1:], plan.waypoints]),
                                                          spec.kinematics()).duration_s, 1),
                          "budget_left_after_return_s": round(left, 1), "notes": plan.notes})
-        r.event("adaptive", f"round {k + 1}: {2 * plan.radius_m:.0f} m square around ({plan.centre[0]:.0f}, "
-                            f"{plan.centre[1]:.0f}) m, {r.rounds[-1]['planned_s']:.0f} s; {left:.0f} s of "
-                            "budget left after the return")
+        r.event("adaptive", f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
+                            f"{plan.centre[1]:.0f}) m, {r.rounds[-1]['planned_s']:.0f} s; {left:.0f} s spare "
+                            "after the return")
         wps, k = new, k + 1
 
 
@@ -152,6 +152,6 @@ def budget_report(r) -> dict:
     budget = r.full_spec.time_budget_s
     flown = sum(rd.get("flown_s", 0.0) for rd in r.rounds)
     planned = sum(rd["planned_s"] for rd in r.rounds)
-    r.event("adaptive", f"adaptive part: {len(r.rounds)} round(s), {flown:.0f} s flown against {planned:.0f} s "
-                        f"planned; {used:.0f} s of the {budget:g} s budget used so far", warn=used > budget)
+    r.event("adaptive", f"adaptive: {len(r.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned; "
+                        f"{used:.0f} of {budget:g} s used", warn=used > budget)
     return {"budget_s": budget, "used_s": round(used, 1), "rounds": r.rounds}

@@ -104,7 +104,7 @@ class LiveRunner(Runner):
         with contextlib.suppress(OSError):
             w._write_sidecar()  # the series survives an abort or a crash of the ground station
         if what:
-            self.event("estimate", f"{what} estimate at t={d['t_s']:.0f} s: {live.describe(d, self.truth)}")
+            self.event("estimate", f"{what} estimate, t={d['t_s']:.0f} s: {live.describe(d, self.truth)}")
 
     async def _live(self) -> None:
         last = -np.inf
@@ -188,9 +188,8 @@ class LiveRunner(Runner):
         if not self.final:
             print("no final estimate (too few samples)", flush=True)
             return
-        print(f"estimate: {live.describe(self.final, self.truth)} [{live.LIVE_METHOD}, in-flight final at "
-              f"t={self.final['t_s']:.1f} s; `localize {self.log_path} --at {self.final['t_s']:g}` reproduces it]",
-              flush=True)
+        print(f"estimate: {live.describe(self.final, self.truth)} [{live.LIVE_METHOD}, in flight]", flush=True)
+        print(f"(t={self.final['t_s']:g} s: `localize LOG --at {self.final['t_s']:g}` gives it back)", flush=True)
 
 
 def fly_live(spec, opts, adaptive=None) -> int:
