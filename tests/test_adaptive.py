@@ -69,17 +69,30 @@ def test_unflyable_settings_refused_before_takeoff(spec, case, x):
     assert adaptive_violations(spec, spec.adaptive) == []
 
 
-def test_cli_refuses_bad_adaptive_settings_with_one_line(tmp_path, repo_dir, capsys):
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=st.sampled_from(["budget", "fence", "negative altitude", "altitude limit"]), x=st.floats(0.0, 1.0))
+def test_cli_refuses_bad_adaptive_settings_with_one_line(tmp_path_factory, repo_dir, capsys, case, x):
+    """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight folder)."""
     from mission.cli.fly import main
 
+    tmp = tmp_path_factory.mktemp("bad")
     d = _doc(repo_dir)
-    d["time_budget_s"] = 330
-    p = tmp_path / "m.yaml"
+    if case == "budget":
+        d["time_budget_s"], key = 300 + 30 * x, "time_budget_s"
+    elif case == "fence":
+        d["adaptive"].update(radius_m=800, min_radius_m=250 + 500 * x)
+        key = "adaptive.radius_m"
+    elif case == "negative altitude":
+        d["adaptive"]["altitude_m"], key = -100 * x, "adaptive.altitude_m"
+    else:
+        d["adaptive"]["altitude_m"], key = 121 + 100 * x, "adaptive.altitude_m"
+    p = tmp / "m.yaml"
     p.write_text(yaml.safe_dump(d))
-    assert main([str(p), "--out", str(tmp_path / "f")]) == 2
+    capsys.readouterr()
+    assert main([str(p), "--out", str(tmp / "f")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "time_budget_s" in err[0] and "return" in err[0]
-    assert not (tmp_path / "f").exists()  # nothing started, no log
+    assert len(err) == 1 and key in err[0] and str(p) in err[0], err
+    assert not (tmp / "f").exists()  # nothing started, no log
 
 
 def test_survey_cut_and_square(spec):
@@ -182,3 +195,20 @@ def test_preview_shows_adaptive_against_fixed(spec):
     assert rows and any(k.startswith("expected error, fixed") for k in rows)
     assert any(k.startswith("expected error, adaptive") for k in rows)
     assert "adaptive - fixed (paired)" in rows
+
+
+def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
+    from mission.adaptive.runner import MonotonicPhases
+
+    p = MonotonicPhases()
+    p.configure(2, 9, "return")
+    p.on_landed_state(0.0, "IN_AIR")
+    p.on_progress(1.0, 4)
+    p.configure(2, 15, "return", first_adaptive=9)  # the mission extended by a round from raw item 9
+    p.on_progress(2.0, 0)  # the upload resets the reported item: not a take-off again
+    p.on_progress(3.0, 9)
+    p.on_progress(4.0, 11)
+    p.on_progress(5.0, 15)
+    phase, item = p.at(np.array([1.5, 2.5, 3.5, 4.5, 5.5]))
+    assert phase.tolist() == ["mission", "mission", "adaptive", "adaptive", "return"]
+    assert item.tolist() == [2, 2, 0, 2, -1]
