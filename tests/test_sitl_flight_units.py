@@ -104,6 +104,9 @@ def test_first_status_line_has_no_nan():
     line = plain_line(FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18))
     assert "nan" not in line and "rss=- " in line
     assert "OVER" in plain_line(FlightStatus(budget_s=600, t_start=0.0, t_now=601.0))
+    s = FlightStatus(budget_s=600, t_start=0.0, t_now=100.0)
+    s.predicted_s = 612.4
+    assert "t=100/600s (land~612s) " in plain_line(s)
 
 
 def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():

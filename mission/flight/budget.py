@@ -192,8 +192,10 @@ def start_budget(runner, return_speed_mps: float | None, vertical: VerticalSpeed
     d, b = watch.plan.duration_s, spec.time_budget_s
     how = [f"return at {return_speed_mps:g} m/s"] if own else []
     if vertical is not None:
-        how.append(f"climb {vertical.up_mps:g} m/s, descent {vertical.down_mps:g} then {vertical.land_mps:g} m/s "
-                   f"below {vertical.low_alt_m:g} m" + (f", hover {vertical.hover_s:g} s" if vertical.hover_s else ""))
+        v = vertical
+        down = f"descent {v.down_mps:g} m/s" + (f" then {v.land_mps:g} m/s below {v.low_alt_m:g} m"
+                                                 if v.low_alt_m > 0 and v.land_mps != v.down_mps else "")
+        how.append(f"climb {v.up_mps:g} m/s, {down}" + (f", hover {v.hover_s:g} s" if v.hover_s else ""))
     text = f"plan with the autopilot's speeds{' (' + '; '.join(how) + ')' if how else ''}: {d:.0f} s of {b:g} s"
     runner.event("budget", text + (f", {d - b:.0f} s over the budget" if d > b else ""), warn=d > b)
     return watch

@@ -86,6 +86,8 @@ def plain_line(s: FlightStatus) -> str:
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
     phase = f"LINK LOST, last {s.phase}" if s.link_lost else s.phase
     over = " OVER" if s.budget_s and s.elapsed > s.budget_s else ""
+    if s.predicted_s is not None and np.isfinite(s.predicted_s) and not over:
+        over = f" (land~{s.predicted_s:.0f}s)"
     return (
         f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
         f"alt={s.rel_alt:.1f}m "
