@@ -73,8 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         choices=("default", "px4"),
         default="default",
         help="default: flies the project's kinematics exactly; px4: like PX4 v1.16 SITL (legs at 93 %% of the "
-        "speed asked, return at its MPC_XY_CRUISE parameter, 4.8 m/s unless set; STATUSTEXT only while a "
-        "ground-station heartbeat arrived within 2.5 simulated s)",
+        "speed asked, return at its MPC_XY_CRUISE parameter, 4.8 m/s unless set; climb 1.5 m/s, landing "
+        "1.5 m/s then 0.7 m/s below 5 m; STATUSTEXT only while a ground-station heartbeat arrived within 2.5 "
+        "simulated s)",
     )
     p.add_argument("--speed-factor", type=float, default=None, help="fly legs at this fraction of the speed asked "
                    "(default: the profile's, 1 or 0.93)")
