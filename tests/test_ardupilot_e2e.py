@@ -130,7 +130,7 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     from mission.trajectory.checks import check_mission
 
     b = m["budget"]
-    assert "then 0.5 m/s below 10 m, hover 5 s)" in p.stderr
+    assert "(autopilot m/s: up 2.5, down 1.5/0.5 below 10 m, hover 5 s)" in p.stderr
     assert b["planned_s"] > check_mission(spec).duration_s + 20 and not b["overrun"] and b["warned_at_s"] is None
     assert abs(b["used_s"] - b["planned_s"]) < 0.05 * b["planned_s"], b
     print(f"ArduPilot e2e: wall {wall:.0f} s, speed-up measured {m['speedup_measured']}, "

@@ -129,9 +129,8 @@ class BudgetWatch:
         self.warned_at_s, self.predicted_at_warning_s = elapsed, self.predicted_s
         if elapsed > b:
             return f"over the time budget: {elapsed:.0f} s flown of {b:.0f} s, still flying"
-        return (f"time budget will not hold: landing predicted at {self.predicted_s:.0f} s of {b:.0f} s "
-                f"({self.predicted_s - b:.0f} s over; measured pace {self.pace():.2f} x the plan, "
-                f"{len(self.reached_at)} of {len(self.plan.t_wp)} waypoints)")
+        return (f"budget will not hold: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
+                f"(pace {self.pace():.2f}, {len(self.reached_at)}/{len(self.plan.t_wp)} wp)")
 
     def record(self, used_s: float | None) -> dict:
         """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was warned."""
@@ -190,14 +189,13 @@ def start_budget(runner, return_speed_mps: float | None, vertical: VerticalSpeed
     own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
     watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None, vertical))
     d, b = watch.plan.duration_s, spec.time_budget_s
-    how = [f"return at {return_speed_mps:g} m/s"] if own else []
-    if vertical is not None:
+    how = [f"return {return_speed_mps:g}"] if own else []
+    if vertical is not None:  # one line at 80 columns: "plan 565 s of 600 s (autopilot m/s: up 2.5, ...)"
         v = vertical
-        down = f"descent {v.down_mps:g} m/s" + (f" then {v.land_mps:g} m/s below {v.low_alt_m:g} m"
-                                                 if v.low_alt_m > 0 and v.land_mps != v.down_mps else "")
-        how.append(f"climb {v.up_mps:g} m/s, {down}" + (f", hover {v.hover_s:g} s" if v.hover_s else ""))
-    text = f"plan with the autopilot's speeds{' (' + '; '.join(how) + ')' if how else ''}: {d:.0f} s of {b:g} s"
-    runner.event("budget", text + (f", {d - b:.0f} s over the budget" if d > b else ""), warn=d > b)
+        slow = f"/{v.land_mps:g} below {v.low_alt_m:g} m" if v.low_alt_m > 0 and v.land_mps != v.down_mps else ""
+        how.append(f"up {v.up_mps:g}, down {v.down_mps:g}{slow}" + (f", hover {v.hover_s:g} s" if v.hover_s else ""))
+    text = f"plan {d:.0f} s of {b:g} s" + (f" (autopilot m/s: {'; '.join(how)})" if how else "")
+    runner.event("budget", text + (f": {d - b:.0f} s over budget" if d > b else ""), warn=d > b)
     return watch
 
 

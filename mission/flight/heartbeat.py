@@ -38,8 +38,8 @@ async def gcs_heartbeats(runner, direct, speedup: float) -> None:
         except Exception as e:
             if not failed:
                 failed = True
-                runner.event("heartbeat", f"cannot send the ground-station heartbeat ({e}); autopilot texts "
-                             "may be lost at high speed-up", warn=True)
+                runner.event("heartbeat", f"GCS heartbeat not sent ({e}): autopilot texts may be lost",
+                             warn=True)
         await asyncio.sleep(period)
 
 

@@ -47,8 +47,8 @@ async def apply_speeds(runner, param, ardupilot: bool) -> float | None:
     try:
         await set_params(param, values, runner.restore_params)
     except Exception as e:
-        runner.event("params", f"could not set {sorted(values)} ({e or type(e).__name__}): the return is flown at "
-                     "the autopilot's own speed" + (" and may be tail first" if ardupilot else ""), warn=True)
+        runner.event("params", f"could not set {', '.join(values)} ({e or type(e).__name__}): return at the "
+                     "autopilot's own speed" + (", maybe tail first" if ardupilot else ""), warn=True)
         return await _return_speed_now(param, ardupilot)
     what = "return nose first at the mission's speed" if ardupilot else "cruise and return at the mission's speed"
     runner.event("params", f"{what}: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
@@ -80,8 +80,7 @@ async def vertical_speeds(runner, param, ardupilot: bool) -> VerticalSpeeds | No
                 "MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2", "RTL_LAND_DELAY")]
             v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0))  # -1: hovers until told: not planned
     except Exception as e:
-        runner.event("budget", f"cannot read the autopilot's climb and landing speeds ({e or type(e).__name__}): "
-                     "planned with the mission's")
+        runner.event("budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used")
         return None
     return v if v.valid() else None
 
