@@ -209,7 +209,9 @@ def test_connecting_to_nothing_times_out_with_one_line(tmp_path, scheme):
     assert p.returncode == 3, err
     assert time.monotonic() - t0 < 30
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: no autopilot on") and "within 3 s" in lines[0], err
+    # the pre-flight duration line (printed with --connect too), then exactly one error line, no traceback
+    assert lines[0].startswith("estimated flight ") and "add --speedup" not in lines[0], err
+    assert len(lines) == 2 and lines[1].startswith("error: no autopilot on") and "within 3 s" in lines[1], err
     assert not list(tmp_path.glob("*/flight.csv"))
 
 

@@ -74,12 +74,27 @@ def estimate_file_at(path: str, t_s: float) -> dict | None:
             return None
 
 
-def lower_priority() -> None:
-    """Worker initializer: the estimate yields the CPU to the flight (telemetry, log writer, a local SITL)."""
+def lower_priority(parent_pid: int | None = None) -> None:
+    """Worker initializer: the estimate yields the CPU to the flight (telemetry, log writer, a local SITL).
+
+    The worker also dies with ``fly-mission``: a ``kill -9`` of the runner must not leave it holding the
+    runner's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not available)."""
     import os
+    import threading
+    import time
+
+    from mission.flight.vehicle_process import die_with_parent
 
     with contextlib.suppress(OSError):
         os.nice(5)
+    die_with_parent()
+    if parent_pid is not None:
+        def watch() -> None:
+            while os.getppid() == parent_pid:
+                time.sleep(1.0)
+            os._exit(0)
+
+        threading.Thread(target=watch, daemon=True).start()
 
 
 def warm_up() -> None:

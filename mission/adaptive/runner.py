@@ -21,6 +21,7 @@ import concurrent.futures
 import contextlib
 import dataclasses
 import multiprocessing
+import os
 
 import numpy as np
 
@@ -57,7 +58,8 @@ class LiveRunner(Runner):
         self.planning = False  # the adaptive task needs the worker soon: no periodic estimate meanwhile
         # spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before connecting
         self._pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                                            initializer=live.lower_priority)
+                                                            initializer=live.lower_priority,
+                                                            initargs=(os.getpid(),))
         self._pool.submit(live.warm_up)
         self._lock: asyncio.Lock | None = None
         self._live_task: asyncio.Task | None = None
