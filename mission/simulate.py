@@ -60,7 +60,7 @@ def path_phases(profile: FlightProfile, t: np.ndarray) -> tuple[np.ndarray, np.n
     """
     from mission.flightlog import PHASES
 
-    _, takeoff, mission, ret, land = PHASES
+    _, takeoff, mission, _, ret, land = PHASES
     d = np.diff(profile.vertices, axis=0)
     vertical = np.linalg.norm(d[:, :2], axis=1) < 1e-6
     n = len(d)

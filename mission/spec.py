@@ -78,6 +78,7 @@ class MissionSpec:
     trajectory: TrajectorySpec = field(default_factory=lambda: TrajectorySpec("spiral"))
     source: SourceSpec = field(default_factory=SourceSpec)
     vehicle: VehicleSpec = field(default_factory=VehicleSpec)
+    adaptive: Any = None  # mission.adaptive.config.AdaptiveSpec when the file has an ``adaptive:`` block
 
     @property
     def source_name(self) -> str:
@@ -365,12 +366,15 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     kr.used.update(kin)
     kr.done()
     vr.done()
+    from mission.adaptive.config import parse_adaptive
+
+    adaptive = parse_adaptive(r.sub("adaptive")) if "adaptive" in r.d else None
     r.done()
     return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
                        cruise_speed_mps=cruise, time_budget_s=budget, fence_margin_m=margin,
                        altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
                        return_behaviour=ret, trajectory=traj, source=source,
-                       vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin))
+                       vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive)
 
 
 def load_mission(path: str | Path | None = None) -> MissionSpec:

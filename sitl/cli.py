@@ -68,6 +68,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="default cruise speed, m/s (overrides the one in --kinematics; default 5)",
     )
+    p.add_argument(
+        "--profile",
+        choices=("default", "px4"),
+        default="default",
+        help="default: flies the project's kinematics exactly; px4: like PX4 v1.16 SITL (legs at 93 %% of the "
+        "speed asked, return at its MPC_XY_CRUISE parameter, 4.8 m/s unless set; climb 1.5 m/s, landing "
+        "1.5 m/s then 0.7 m/s below 5 m; STATUSTEXT only while a ground-station heartbeat arrived within 2.5 "
+        "simulated s)",
+    )
+    p.add_argument("--speed-factor", type=float, default=None, help="fly legs at this fraction of the speed asked "
+                   "(default: the profile's, 1 or 0.93)")
+    p.add_argument("--statustext-log", default=None, help="append every STATUSTEXT generated (sent or dropped) "
+                   "to this file as JSON lines")
     p.add_argument("--gust", type=float, default=1.5, help="wind gust standard deviation, m/s")
     p.add_argument("--seed", type=int, default=0, help="seed of the wind and turbulence")
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall-clock seconds")
@@ -87,10 +100,18 @@ def run_from_args(args: argparse.Namespace) -> int:
     kin = parse_kinematics(args.kinematics)
     if args.cruise_speed is not None:
         kin = dataclasses.replace(kin, cruise_speed_mps=float(args.cruise_speed))
-    v = SimVehicle(url, home, args.speedup, args.seed, kin, gust_mps=args.gust, verbose=args.verbose)
+    from sitl.protocol import PROFILES
+
+    profile = PROFILES[args.profile]
+    if args.speed_factor is not None:
+        if not 0 < args.speed_factor <= 2:
+            raise ValueError("--speed-factor must be in (0, 2]")
+        profile = dataclasses.replace(profile, speed_factor=float(args.speed_factor))
+    v = SimVehicle(url, home, args.speedup, args.seed, kin, gust_mps=args.gust, verbose=args.verbose,
+                   profile=profile, statustext_log=args.statustext_log)
     print(
-        f"sitl: simulated PX4 quadrotor, MAVLink 2 on {url}, home {home[0]:.6f},{home[1]:.6f}, "
-        f"speed-up {args.speedup:g}",
+        f"sitl: simulated PX4 quadrotor ({profile.name} profile), MAVLink 2 on {url}, "
+        f"home {home[0]:.6f},{home[1]:.6f}, speed-up {args.speedup:g}",
         file=sys.stderr,
         flush=True,
     )

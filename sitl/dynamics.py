@@ -40,15 +40,19 @@ class Dynamics:
             while pl.reach and pl.reach[0][0] <= tau:
                 _, seq = pl.reach.pop(0)
                 self.mav.mission_item_reached_send(seq)
+                if seq + 1 < len(self.items) and self.items[seq + 1].command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+                    self.say(f"RTL: start return at {max(self.pos[2], 5.0):.0f} m")
                 self.current_seq = seq + 1 if seq + 1 < len(self.items) else seq
                 self.send_mission_current()
             done = tau >= pl.profile.duration_s
             if self.flying:
                 if self.landed_state == mav.MAV_LANDED_STATE_TAKEOFF and (self.pos[2] > 1.0 or done):
                     self.landed_state = mav.MAV_LANDED_STATE_IN_AIR
+                    self.say("Takeoff detected" + self.tab)
                 if pl.land_at_end:
                     i = int(np.searchsorted(pl.profile.t_vertex, tau, side="right")) - 1
-                    if i >= pl.n_legs - 1 and self.pos[2] < pl.profile.vertices[-2][2] - 0.1:
+                    top = pl.profile.vertices[-1 - pl.land_legs][2]  # where the final descent starts
+                    if i >= pl.n_legs - pl.land_legs and self.pos[2] < top - 0.1:
                         self.landed_state = mav.MAV_LANDED_STATE_LANDING
             if done:
                 if pl.land_at_end:
@@ -56,6 +60,7 @@ class Dynamics:
                     self.landed_state = mav.MAV_LANDED_STATE_ON_GROUND
                     self.disarm_at = self.sim_t + 1.0
                     self.log("landed")
+                    self.say("Landing detected" + self.tab)
                 self.plan = None
                 if self.flying:
                     self.pos = pl.profile.vertices[-1].copy()
@@ -67,7 +72,13 @@ class Dynamics:
                     self.current_seq = len(self.items)  # mission finished
                 self.main_mode, self.sub_mode = PX4_MAIN_AUTO, PX4_AUTO_LOITER
                 self.log("auto-disarmed")
+                self.say("Disarmed by landing")
                 self.send_heartbeat()
+
+    @property
+    def tab(self) -> str:
+        """PX4 ends some texts with a tab (seen in issue 28); the PX4-like profile does too."""
+        return "\t" if self.profile.tab_texts else ""
 
     def physics_dt(self) -> float:
         """Simulated seconds per physics step: 10 ms up to speed-up 10, coarser above (a multiple of 10 ms,
@@ -90,7 +101,7 @@ class Dynamics:
             t = min(t, pl.t0 + pl.reach[0][0])
         if pl.land_at_end and self.flying and self.landed_state != mav.MAV_LANDED_STATE_LANDING:
             tv = pl.profile.t_vertex
-            t = min(t, pl.t0 + float(tv[min(max(pl.n_legs - 1, 0), len(tv) - 1)]))
+            t = min(t, pl.t0 + float(tv[min(max(pl.n_legs - pl.land_legs, 0), len(tv) - 1)]))
         return t
 
     def advance(self, target_t: float) -> None:

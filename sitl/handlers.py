@@ -54,6 +54,10 @@ class MavlinkHandlers:
                 if self.sub_mode == PX4_AUTO_MISSION and self.armed:
                     self.start_mission()
             self.send_mission_current()
+        elif t == "HEARTBEAT":
+            self.on_heartbeat_in(msg)
+        elif t in ("PARAM_REQUEST_READ", "PARAM_REQUEST_LIST", "PARAM_SET"):
+            self.on_param_message(msg)
         elif t == "SET_MODE":
             self.set_mode((msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF)
 
@@ -69,6 +73,8 @@ class MavlinkHandlers:
                 if not self.armed:
                     self.armed, self.disarm_at = True, None
                     self.log("armed")
+                    self.say("Armed by external command")
+                    self.send_heartbeat()  # the armed flag at once, not up to a wall second later
                     self.send_home()
             else:
                 if self.flying and int(p[1]) != 21196:
@@ -79,6 +85,7 @@ class MavlinkHandlers:
                     self.pos[2] = 0.0
                     res = ok
                     self.log("disarmed")
+                    self.say("Disarmed by external command")
         elif cmd == mav.MAV_CMD_DO_SET_MODE:
             res = ok if self.set_mode(int(p[1]), int(p[2])) else fail
         elif cmd == mav.MAV_CMD_MISSION_START:

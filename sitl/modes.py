@@ -34,6 +34,7 @@ class Plan:
     land_at_end: bool = False
     from_ground: bool = False
     n_legs: int = 0
+    land_legs: int = 1  # legs of the final descent (2 when it slows down near the ground)
 
 
 class ModeMachine:
@@ -69,20 +70,32 @@ class ModeMachine:
     ) -> None:
         """Plan and start flying the polyline ``pts`` from the current position (already ``pts[0]``)."""
         P = np.asarray(pts, dtype=float)
+        land_legs = 1
+        low = self.param("MPC_LAND_ALT2")
+        if land and len(P) >= 2 and 0 < low < P[-2, 2] - P[-1, 2] and np.allclose(P[-2, :2], P[-1, :2]):
+            P = np.vstack([P[:-1], P[-1] + [0.0, 0.0, low], P[-1:]])  # the final descent slows below ``low``
+            seq_at_vertex = [(v + (v == len(P) - 2), s) for v, s in seq_at_vertex]
+            land_legs = 2
         if len(P) < 2:  # nothing to fly: hover here, every item reached at once
             prof = plan_profile(P[:1], self.kin)
             reach = [(0.0, s) for _, s in seq_at_vertex]
         else:
             legs = np.diff(P, axis=0)
             L = np.linalg.norm(legs, axis=1)
-            if speeds is None:
-                speeds = [self.cruise] * len(L)
+            if speeds is None:  # a return or a commanded leg: PX4 flies those at MPC_XY_CRUISE
+                speeds = [self.param("MPC_XY_CRUISE")] * len(L)
+            speeds = list(speeds) + [speeds[-1]] * (len(L) - len(speeds))  # the vertex added above
             vert = np.abs(legs[:, 2]) / np.maximum(L, 1e-9) > 0.7
-            sp = np.where(vert, self.kin.climb_rate_mps, np.asarray(speeds, dtype=float))
+            horiz = np.asarray(speeds, dtype=float) * self.profile.speed_factor  # a profile that flies slower
+            vs = np.where(legs[:, 2] > 0, self.param("MPC_TKO_SPEED"), self.param("MPC_Z_V_AUTO_DN"))
+            if land and vert[-1] and legs[-1, 2] < 0 and (land_legs == 2 or low >= -legs[-1, 2]):
+                vs[-1] = self.param("MPC_LAND_SPEED")
+            sp = np.where(vert, vs, horiz)
             prof = plan_profile(P, self.kin, speeds=sp)
             reach = [(float(prof.t_vertex[min(v, len(prof.t_vertex) - 1)]), s) for v, s in seq_at_vertex]
         self.plan = Plan(
-            prof, self.sim_t, sorted(reach), land, from_ground=not self.flying, n_legs=len(P) - 1
+            prof, self.sim_t, sorted(reach), land, from_ground=not self.flying, n_legs=len(P) - 1,
+            land_legs=land_legs
         )
         if not self.flying and prof.duration_s > 0:
             self.landed_state = mav.MAV_LANDED_STATE_TAKEOFF
@@ -106,7 +119,7 @@ class ModeMachine:
         pts = [self.pos.copy()]
         marks: list[tuple[int, int]] = []
         speeds: list[float] = []
-        speed = self.cruise
+        speed = self.cruise if self.cruise is not None else self.param("MPC_XY_CRUISE")
         land = False
         for it in self.items[self.current_seq :]:
             n0 = len(pts)
@@ -130,6 +143,7 @@ class ModeMachine:
             elif it.command == mav.MAV_CMD_DO_CHANGE_SPEED and it.params[1] > 0:
                 speed = float(it.params[1])
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+                speed = self.param("MPC_XY_CRUISE")  # the return is flown at the autopilot's own speed
                 z = max(pts[-1][2], 5.0)
                 self._append(pts, np.array([pts[-1][0], pts[-1][1], z]))
                 self._append(pts, np.array([0.0, 0.0, z]))
@@ -145,6 +159,7 @@ class ModeMachine:
             if land:
                 break
         self._start_plan(pts, marks, land, speeds)
+        self.say("Executing Mission")
         return True
 
     def hold(self) -> None:
@@ -163,6 +178,7 @@ class ModeMachine:
             return True
         pts = [self.pos.copy()]
         z = max(self.pos[2], 5.0)
+        self.say(f"RTL: start return at {z:.0f} m")
         self._append(pts, np.array([self.pos[0], self.pos[1], z]))
         self._append(pts, np.array([0.0, 0.0, z]))
         self._append(pts, np.zeros(3))

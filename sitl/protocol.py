@@ -44,6 +44,30 @@ DEFAULT_INTERVALS = {
 }
 
 
+@dataclass(frozen=True)
+class Profile:
+    """How the vehicle behaves beyond the protocol: ``default`` flies exactly the project's kinematics (the
+    flown time matches the plan); ``px4`` behaves like PX4 v1.16 SITL as flown in issue 28: legs at 93 % of
+    the speed asked (corner smoothing and acceptance radii the plan does not model), the return and legs
+    without a speed item at its ``MPC_XY_CRUISE`` parameter (4.8 m/s unless set), STATUSTEXT gated on
+    ground-station heartbeats (``sitl.statustext``), some texts with PX4's trailing tab."""
+
+    name: str
+    speed_factor: float = 1.0
+    mpc_xy_cruise: float | None = None  # None: the kinematics' cruise speed
+    gate_texts: bool = False
+    tab_texts: bool = False
+    # take-off speed, descent speed, final landing speed (m/s) and the height below which it lands at the
+    # last one (PX4: MPC_TKO_SPEED, MPC_Z_V_AUTO_DN, MPC_LAND_SPEED, MPC_LAND_ALT2); None: the kinematics'
+    # climb rate throughout
+    vertical: tuple[float, float, float, float] | None = None
+
+
+PROFILES = {"default": Profile("default"), "px4": Profile("px4", 0.93, 4.8, True, True, (1.5, 1.5, 0.7, 5.0))}
+VERTICAL_PARAMS = ("MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")
+OTHER_PARAMS = {"RTL_LAND_DELAY": 0.0}  # PX4 v1.16: no hover over home before landing (it is not flown here)
+
+
 @dataclass
 class Item:
     """One stored mission item (MISSION_ITEM_INT fields)."""

@@ -32,14 +32,28 @@ from sitl.dynamics import Dynamics
 from sitl.handlers import MavlinkHandlers
 from sitl.mission_store import MissionStore
 from sitl.modes import ModeMachine
-from sitl.protocol import DEFAULT_HOME, DEFAULT_INTERVALS, PX4_AUTO_LOITER, PX4_MAIN_AUTO, Item, mav, mavutil
+from sitl.params import ParamStore
+from sitl.protocol import (
+    DEFAULT_HOME,
+    DEFAULT_INTERVALS,
+    OTHER_PARAMS,
+    PROFILES,
+    PX4_AUTO_LOITER,
+    PX4_MAIN_AUTO,
+    VERTICAL_PARAMS,
+    Item,
+    Profile,
+    mav,
+    mavutil,
+)
+from sitl.statustext import StatusTexts
 from sitl.streams import StreamScheduler
 
 __all__ = ["SimVehicle", "Item", "add_arguments", "build_parser", "main", "parse_home", "parse_kinematics",
            "run_from_args"]
 
 
-class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamScheduler):
+class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamScheduler, ParamStore, StatusTexts):
     """State of one simulated multicopter (one MAVLink system, component 1) and its main loop."""
 
     def __init__(
@@ -52,6 +66,8 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
         gust_mps: float = 1.5,
         sysid: int = 1,
         verbose: bool = False,
+        profile: Profile | str = "default",
+        statustext_log: str | None = None,
     ) -> None:
         self.conn = mavutil.mavlink_connection(
             url, source_system=sysid, source_component=1, dialect="common", autoreconnect=True
@@ -60,7 +76,13 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
         self.origin = Origin(*home)
         self.speedup = float(speedup)
         self.kin = kin or Kinematics()
-        self.cruise = self.kin.cruise_speed_mps
+        self.profile = PROFILES[profile] if isinstance(profile, str) else profile
+        cruise = self.profile.mpc_xy_cruise or self.kin.cruise_speed_mps
+        c = self.kin.climb_rate_mps
+        vertical = self.profile.vertical or (c, c, c, 0.0)
+        self.params = {"MPC_XY_CRUISE": float(cruise), **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True)),
+                       **OTHER_PARAMS}
+        self.cruise: float | None = None  # set by MAV_CMD_DO_CHANGE_SPEED; None: MPC_XY_CRUISE
         self.verbose = verbose
         self.noise = np.random.default_rng(seed)  # wind gusts and turbulence
         self.gust_sigma = gust_mps
@@ -89,6 +111,7 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
         self._wall_next = {"hb": 0.0, "sys": 0.0, "cur": 0.0}
         self.uploads = 0
         self._ess_sent = -1  # landed state last sent in EXTENDED_SYS_STATE
+        self.init_texts(self.profile.gate_texts, statustext_log)
 
     def log(self, msg: str) -> None:
         if self.verbose:
@@ -121,6 +144,7 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
                     return
             self.wall_tasks(now)
             self.advance((now - wall0) * self.speedup)
+            self.flush_texts()
             r, _, _ = select.select([fd], [], [], 0.004)
             if r:
                 while True:

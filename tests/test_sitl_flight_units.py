@@ -97,3 +97,32 @@ def test_plain_status_lines_do_not_wrap(monkeypatch):
     d.message("a warning that is much longer than forty characters, as warnings are")
     lines = buf.getvalue().splitlines()
     assert lines == [line, "a warning that is much longer than forty characters, as warnings are"]
+
+
+def test_first_status_line_has_no_nan():
+    """Before the first RSS sample the status line says ``rss=-``, not ``rss=nan`` (issue 28)."""
+    line = plain_line(FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18))
+    assert "nan" not in line and "rss=- " in line
+    assert "OVER" in plain_line(FlightStatus(budget_s=600, t_start=0.0, t_now=601.0))
+    s = FlightStatus(budget_s=600, t_start=0.0, t_now=100.0)
+    s.predicted_s = 612.4
+    assert "t=100/600s (land~612s) " in plain_line(s)
+
+
+def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
+    """A plain message printed under the live panel (``markup=False``) re-renders the panel with that
+    option: the panel's cells must not show their markup tags ([red], [green]) then (issue 28)."""
+    from rich.console import Console
+
+    from mission.flight.progress import render
+
+    s = FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18, t_start=0.0, t_now=650.0,
+                     best_rss=-31.5, best_xy=(10.0, 20.0), link_lost=True, warnings=["[odd] text"])
+    s.predicted_s = 660.0
+    for markup in (True, False):
+        buf = io.StringIO()
+        Console(file=buf, width=100, force_terminal=False).print(render(s), markup=markup)
+        text = buf.getvalue()
+        assert "[red]" not in text and "[green]" not in text and "[/" not in text, text
+        assert "(over budget)" in text and "-31.50 dB at (10, 20) m" in text and "[odd] text" in text
+        assert "landing at ~660 s" in text

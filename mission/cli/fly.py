@@ -1,6 +1,8 @@
 """Fly a mission on a MAVLink autopilot (or the built-in simulated vehicle), log RSS with attitude, localize.
 
-``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize]``.  Without
+``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize] [--adaptive]``.  Every
+flight shows and records a live estimate (``mission.adaptive``); ``--adaptive`` (or the mission's
+``adaptive: {enabled: true}``) flies the survey part, then rounds planned from it.  Without
 ``--connect`` (and no ``vehicle.connection`` in the mission file) the simulated vehicle of ``sitl/`` is
 started on a free local UDP port (it dies with ``fly-mission``).  Options are checked before anything
 starts.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves the fence, a bad
@@ -63,12 +65,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="position/attitude rate requested, Hz of vehicle time (>= 30; default 50, lowered towards 30 "
         "at high --speedup so that MAVSDK's callbacks keep up)",
     )
+    parser.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="after the survey part, fly rounds planned from the live estimate (the mission's adaptive: block, "
+        "defaults otherwise; docs/adaptive.md)",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
 
 
 def run(args: argparse.Namespace) -> int:
+    import os
+
+    from mission.adaptive.config import AdaptiveSpec, assert_adaptive
+    from mission.adaptive.runner import fly_live
     from mission.errors import InputError
-    from mission.flight.runner import FlightError, FlyOptions, fly
+    from mission.flight.runner import FlightError, FlyOptions
     from mission.spec import load_mission
 
     if args.speedup is not None and args.speedup <= 0:
@@ -76,6 +88,10 @@ def run(args: argparse.Namespace) -> int:
     if args.rate is not None and args.rate < 30:
         raise InputError(f"position/attitude rate must be >= 30 Hz, got {args.rate:g}", field="--rate")
     spec = load_mission(args.mission)
+    adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
+    adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
+    if adaptive is not None:
+        assert_adaptive(spec, adaptive)  # before anything starts: one line, exit 2
     opts = FlyOptions(
         connect=args.connect,
         speedup=args.speedup,
@@ -87,8 +103,10 @@ def run(args: argparse.Namespace) -> int:
         rate_hz=args.rate,
         verbose=args.verbose,
     )
+    if os.name == "nt":  # pragma: no cover - signal handlers need a Unix loop
+        raise FlightError("fly-mission needs a Unix-like OS (signal handling)")
     try:
-        return fly(spec, opts)
+        return fly_live(spec, opts, adaptive)
     except FlightError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.code

@@ -56,6 +56,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the sidecar's)",
     )
     parser.add_argument("--no-cruise", action="store_true", help="use all samples (no cruise selection)")
+    parser.add_argument("--at", type=float, default=None, metavar="T",
+                        help="the estimate the flight had at log time T s: rows up to T only, by default with the "
+                        "live method (selfcal), as fly-mission's sidecar records it in 'estimates'")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", metavar="OUT.png", help="draw flight, clusters and estimate")
 
@@ -97,6 +100,10 @@ def run(args: argparse.Namespace) -> int:
         image_out(args.plot, "--plot")
     log = read_flight_log(args.log, origin=origin)
     print_notes(log.notes)
+    if args.at is not None:  # what the flight knew at T (mission.adaptive.live)
+        from mission.adaptive.live import LIVE_METHOD, log_at
+
+        log, method = log_at(log, args.at, str(args.log)), method or LIVE_METHOD
     with warnings.catch_warnings(record=True) as caught:  # numpy's warnings on a too-short log: the error says it
         warnings.simplefilter("always")
         try:

@@ -1,7 +1,9 @@
 """Plot a mission (areas, waypoints, simulated path, time budget) and, with --accuracy, expected error.
 
 Also prints a summary table: length, duration, RSS samples, and how close the path comes to each part of
-the rover area.  The accuracy heatmap uses the model-based estimator of ``mission.preview``.
+the rover area.  The accuracy heatmap uses the model-based estimator of ``mission.preview``.  An adaptive
+mission (``--adaptive`` or ``adaptive: {enabled: true}``) adds its expected error against the fixed trajectory's
+on paired simulated flights (``mission.adaptive.preview``).
 """
 
 from __future__ import annotations
@@ -18,6 +20,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="transmitter lattice is GRID x GRID over the rover area (default 12)")
     parser.add_argument("--seed", type=int, default=None, help="random seed (default: the mission's seed)")
     parser.add_argument("--size", default="1200x1000", help="image size in pixels WxH (default 1200x1000)")
+    parser.add_argument("--adaptive", action="store_true",
+                        help="compare the adaptive finish (the mission's adaptive: block) with the fixed "
+                        "trajectory on simulated flights (also when the block says enabled: true)")
+    parser.add_argument("--flights", type=int, default=6,
+                        help="simulated flights for the adaptive comparison (default 6, about 5 s each)")
+    parser.add_argument("--family", default="afar", help="physics family of those flights (default afar)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,6 +81,11 @@ def run(args: argparse.Namespace) -> int:
     if emap is not None:
         table.add_row(f"expected error (mean / median), {ESTIMATOR_NOTE.format(model=spec.source.model)}",
                       f"{emap.mean_m:.1f} / {emap.median_m:.1f} m")
+    if args.adaptive or (spec.adaptive is not None and spec.adaptive.enabled):
+        from mission.adaptive.preview import adaptive_rows
+
+        for k, v in adaptive_rows(spec, args.flights, seed, args.family, console):
+            table.add_row(k, v)
     table.add_row("flyable", "yes" if not summary.violations else f"[red]no: {summary.violations[0]}[/red]")
     console.print(table)
 

@@ -22,6 +22,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.speedup <= 0:
         raise InputError(f"must be positive, got {args.speedup:g}", field="--speedup")
+    if args.speed_factor is not None and not 0 < args.speed_factor <= 2:
+        raise InputError(f"must be in (0, 2], got {args.speed_factor:g}", field="--speed-factor")
     if args.home:
         try:
             from sitl.cli import parse_home

@@ -20,13 +20,19 @@ def return_params(cruise_speed_mps: float) -> dict[str, int]:
     return {"WP_YAW_BEHAVIOR": WP_YAW_FACE_NEXT_INCLUDING_RTL, "RTL_SPEED": int(round(cruise_speed_mps * 100))}
 
 
-async def set_params(param, values: dict[str, int], old: dict[str, int] | None = None) -> dict[str, int]:
-    """Set integer parameters; the previous value of each one set goes into ``old`` as soon as it is set
-    (so a failure half way still knows what to restore), which is returned.  Errors propagate."""
+async def set_params(param, values: dict[str, int | float], old: dict[str, int | float] | None = None
+                     ) -> dict[str, int | float]:
+    """Set parameters (an ``int`` value as an integer parameter, a ``float`` as a float one); the previous
+    value of each one set goes into ``old`` as soon as it is set (so a failure half way still knows what to
+    restore), which is returned.  Errors propagate."""
     old = {} if old is None else old
     for name, value in values.items():
-        before = int(await asyncio.wait_for(param.get_param_int(name), SET_TIMEOUT_S))
-        if before != value:
-            await asyncio.wait_for(param.set_param_int(name, int(value)), SET_TIMEOUT_S)
+        real = isinstance(value, float)
+        get = param.get_param_float if real else param.get_param_int
+        put = param.set_param_float if real else param.set_param_int
+        raw = await asyncio.wait_for(get(name), SET_TIMEOUT_S)
+        before = float(raw) if real else int(raw)
+        if (abs(before - value) > 1e-4) if real else before != value:
+            await asyncio.wait_for(put(name, value), SET_TIMEOUT_S)
             old[name] = before
     return old

@@ -11,7 +11,7 @@ import numpy as np
 
 from mission.flightlog import PHASES
 
-GROUND, TAKEOFF, MISSION, RETURN, LAND = PHASES
+GROUND, TAKEOFF, MISSION, ADAPTIVE, RETURN, LAND = PHASES
 
 
 class PhaseTracker:
@@ -29,9 +29,14 @@ class PhaseTracker:
         self.landed_state = "ON_GROUND"
         self.raw_item = -1
         self.returning = False
+        self.first_adaptive = 1 << 30  # raw index of the first adaptive waypoint (missions extended in flight)
 
-    def configure(self, first_wp: int, last_item: int, final: str) -> None:
+    def configure(self, first_wp: int, last_item: int, final: str, first_adaptive: int | None = None) -> None:
+        """Raw indices of the first waypoint and the final item; ``first_adaptive``: raw items from there on
+        are legs planned in flight (``adaptive``, item counted from 0 there)."""
         self.first_wp, self.last_item, self.final = first_wp, last_item, final
+        if first_adaptive is not None:
+            self.first_adaptive = first_adaptive
 
     @property
     def current(self) -> str:
@@ -55,6 +60,8 @@ class PhaseTracker:
             self._set(t, self.final if not self.returning else RETURN, -1)
         elif ls == "TAKING_OFF" or self.raw_item < self.first_wp:
             self._set(t, TAKEOFF, -1)
+        elif self.raw_item >= self.first_adaptive:
+            self._set(t, ADAPTIVE, self.raw_item - self.first_adaptive)
         else:
             self._set(t, MISSION, self.raw_item - self.first_wp)
 
@@ -81,4 +88,4 @@ class PhaseTracker:
         return np.asarray(self.phase, dtype=object)[k].astype(str), np.asarray(self.item)[k]
 
 
-__all__ = ["PhaseTracker", "GROUND", "TAKEOFF", "MISSION", "RETURN", "LAND"]
+__all__ = ["PhaseTracker", "GROUND", "TAKEOFF", "MISSION", "ADAPTIVE", "RETURN", "LAND"]

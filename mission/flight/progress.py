@@ -10,8 +10,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 
 @dataclass
@@ -20,6 +22,7 @@ class FlightStatus:
 
     mission_name: str = ""
     budget_s: float = 0.0
+    predicted_s: float | None = None  # arm-to-landing time predicted from the measured pace (budget watch)
     item: int = 0
     items: int = 0
     waypoint_offset: int = 2  # raw items before the first waypoint (take-off, speed [, home])
@@ -33,6 +36,7 @@ class FlightStatus:
     rel_alt: float = 0.0
     phase: str = "connecting"
     link_lost: bool = False
+    estimate: str = ""  # the live estimate (mission.adaptive.live.describe), empty until there is one
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -44,32 +48,50 @@ class FlightStatus:
         return min(max(self.item - self.waypoint_offset + 1, 0), self.n_waypoints)
 
 
+def _fmt_rss(v: float) -> str:
+    """``-45.2`` or ``-`` before the first sample (never ``nan``)."""
+    return f"{v:.1f}" if np.isfinite(v) else "-"
+
+
 def render(s: FlightStatus) -> Table:
-    """A two-column table of the status."""
-    t = Table(title=f"fly-mission: {s.mission_name}", show_header=False, expand=False)
+    """A two-column table of the status.  Cells are ``Text`` built from markup here, so that the panel
+    looks the same whatever options the console renders it with (a plain ``markup=False`` message line
+    printed under a live panel re-renders the panel with those options: string cells showed raw tags)."""
+    t = Table(title=Text(f"fly-mission: {s.mission_name}"), show_header=False, expand=False)
     t.add_column(style="bold")
     t.add_column()
-    t.add_row("phase", "[red]LINK LOST[/red] (last: " + s.phase + ")" if s.link_lost else s.phase)
-    t.add_row("waypoint", f"{s.waypoint} of {s.n_waypoints} (raw item {s.item}/{s.items})")
-    over = " [red](over budget)[/red]" if s.budget_s and s.elapsed > s.budget_s else ""
-    t.add_row("elapsed", f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget{over}")
-    t.add_row("altitude", f"{s.rel_alt:5.1f} m")
-    t.add_row("RSS rows", str(s.rows))
-    t.add_row("last RSS", f"{s.last_rss:7.2f} dB")
+    phase = Text.assemble(("LINK LOST", "red"), f" (last: {s.phase})") if s.link_lost else Text(s.phase)
+    t.add_row("phase", phase)
+    t.add_row("waypoint", Text(f"{s.waypoint} of {s.n_waypoints} (raw item {s.item}/{s.items})"))
+    over = s.budget_s and s.elapsed > s.budget_s
+    el = Text(f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget")
+    if s.predicted_s is not None and np.isfinite(s.predicted_s):
+        el.append(f", landing at ~{s.predicted_s:.0f} s", "red" if s.predicted_s > s.budget_s else "")
+    if over:
+        el.append(" (over budget)", "red")
+    t.add_row("elapsed", el)
+    t.add_row("altitude", Text(f"{s.rel_alt:5.1f} m"))
+    t.add_row("RSS rows", Text(str(s.rows)))
+    t.add_row("last RSS", Text(f"{_fmt_rss(s.last_rss):>7} dB"))
     best = "-" if s.best_xy is None else f"{s.best_rss:7.2f} dB at ({s.best_xy[0]:.0f}, {s.best_xy[1]:.0f}) m"
-    t.add_row("strongest", f"[green]* {best}[/green]")
+    t.add_row("strongest", Text(f"* {best}", "green"))
+    if s.estimate:
+        t.add_row("estimate", Text(s.estimate))
     for w in s.warnings[-3:]:
-        t.add_row("[yellow]warning[/yellow]", f"[yellow]{w}[/yellow]")
+        t.add_row(Text("warning", "yellow"), Text(w, "yellow"))
     return t
 
 
 def plain_line(s: FlightStatus) -> str:
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
     phase = f"LINK LOST, last {s.phase}" if s.link_lost else s.phase
+    over = " OVER" if s.budget_s and s.elapsed > s.budget_s else ""
+    if s.predicted_s is not None and np.isfinite(s.predicted_s) and not over:
+        over = f" (land~{s.predicted_s:.0f}s)"
     return (
-        f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s "
+        f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
         f"alt={s.rel_alt:.1f}m "
-        f"rows={s.rows} rss={s.last_rss:.1f} best={best}"
+        f"rows={s.rows} rss={_fmt_rss(s.last_rss)} best={best}" + (f" est={s.estimate}" if s.estimate else "")
     )
 
 

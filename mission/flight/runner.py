@@ -30,8 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.flight.budget import close_budget, start_budget, watch_budget
+from mission.flight.heartbeat import gcs_heartbeats, settle_texts
 from mission.flight.phases import PhaseTracker
 from mission.flight.progress import Display, FlightStatus
+from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.tasks import EXIT_ABORTED, EXIT_FAILED, EXIT_LINK, EXIT_OK, FlightError, FlightTasks
 from mission.flight.telemetry import Telemetry
 from mission.flight.vehicle_process import free_udp_port, spawn_vehicle, stop_vehicle
@@ -70,14 +73,14 @@ class FlyOptions:
     verbose: bool = False
 
 
-def wall_clock_notice(duration_s: float, speedup: float) -> str:
+def wall_clock_notice(duration_s: float, speedup: float, hint: bool = True) -> str:
     """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint."""
     wall = duration_s / speedup
     text = (
         f"estimated flight {duration_s / 60:.1f} min of vehicle time: about {_fmt_wall(wall)} "
         f"of wall-clock time at speed-up {speedup:g}"
     )
-    if speedup < 20 and wall > 60:
+    if hint and speedup < 20 and wall > 60:
         text += f" (add --speedup 20 for about {_fmt_wall(duration_s / 20)})"
     return text
 
@@ -105,7 +108,8 @@ class Runner(FlightTasks):
         self.log_path: Path | None = None
         self.rows = None  # RowLogger once the log is open
         self.truth: dict | None = None
-        self.restore_params: dict[str, int] = {}  # ArduPilot parameters to put back after the flight
+        self.restore_params: dict[str, int | float] = {}  # autopilot parameters to put back after the flight
+        self.budget = None  # BudgetWatch once the plan is known
 
     # ----------------------------------------------------------------- main
     async def run(self) -> int:
@@ -131,7 +135,7 @@ class Runner(FlightTasks):
                 url = f"udpin://127.0.0.1:{port}"
                 self.event("vehicle", f"simulated vehicle started (pid {self.vehicle_proc.pid}), {url}, "
                            f"speed-up {self.speedup:g}")
-                self.event("duration", wall_clock_notice(report.duration_s, self.speedup))
+            self.event("duration", wall_clock_notice(report.duration_s, self.speedup, hint=not self.url))
             switch = sys.getswitchinterval()
             sys.setswitchinterval(min(switch, GIL_SWITCH_INTERVAL_S))
             try:
@@ -194,11 +198,14 @@ class Runner(FlightTasks):
                 system, ardupilot, ap_name = await self._connect(sdk, url)
                 telemetry, action = TelemetryAsync(system), ActionAsync(system)
                 mission_raw, param = MissionRawAsync(system), ParamAsync(system)
-                tasks = self.start_telemetry_tasks(telemetry, mission_raw, MavlinkDirectAsync(system))
+                direct = MavlinkDirectAsync(system)
+                tasks = self.start_telemetry_tasks(telemetry, mission_raw, direct)
+                tasks.append(asyncio.create_task(gcs_heartbeats(self, direct, self.speedup)))
                 try:
                     items = await self._prepare(telemetry, mission_raw, param, ardupilot)
                     await self._open_log(url, ap_name, report, len(items))
                     tasks.append(asyncio.create_task(self._logger()))
+                    tasks.append(asyncio.create_task(watch_budget(self, self.budget)))
                     code, status = await self._mission(action, mission_raw)
                 except FlightError as e:
                     code, status = e.code, f"failed: {e}"
@@ -221,10 +228,9 @@ class Runner(FlightTasks):
         return code
 
     async def _prepare(self, telemetry, mission_raw, param, ardupilot: bool):
-        """Health and home, the raw items, stream rates, ArduPilot's return settings, the upload."""
+        """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the upload."""
         from mavsdk.plugins.mission_raw import MissionRawError
 
-        from mission.flight.ardupilot import return_params, set_params
         from mission.flight.plan import build_items, to_mavsdk
 
         spec, opts = self.spec, self.opts
@@ -245,14 +251,8 @@ class Runner(FlightTasks):
                 self.event("rate", f"{name}({self.rate_requested:g}) refused: {e}", warn=True)
         with contextlib.suppress(Exception):
             await telemetry.set_rate_landed_state(5.0)
-        if ardupilot:
-            values = return_params(spec.cruise_speed_mps)
-            try:
-                await set_params(param, values, self.restore_params)
-                self.event("params", "return leg nose first at the mission's speed: "
-                           + ", ".join(f"{k}={v}" for k, v in values.items()))
-            except Exception as e:
-                self.event("params", f"could not set {sorted(values)} ({e}): the return may fly tail first", warn=True)
+        v_ret = await apply_speeds(self, param, ardupilot)  # restored after the flight
+        self.budget = start_budget(self, v_ret, await vertical_speeds(self, param, ardupilot))
         self.status.phase = "uploading"
         for attempt in range(3):  # a busy link (high speed-up) can time out one transfer
             try:
@@ -303,6 +303,7 @@ class Runner(FlightTasks):
                 if attempt == 9:
                     raise FlightError(f"arming refused: {e}") from None
                 await asyncio.sleep(2.0)
+        await self._wait(self.armed_seen, timeout=3.0)  # "armed" (the telemetry) before "mission started"
         self.status.t_start = self.tel.clock.now()
         await mission_raw.start_mission()
         self.event("start", "mission started")
@@ -338,32 +339,27 @@ class Runner(FlightTasks):
                     await asyncio.sleep(1.0)
         ev = await self._wait(self.landed_disarmed, self.link_dead, timeout=self.opts.land_timeout_s)
         if ev is self.landed_disarmed:
+            await settle_texts(self, self.speedup)  # the autopilot's last texts before this line
             self.event("landed", "landed and disarmed")
         elif ev is None:
             self.event("landed", f"landing not confirmed within {self.opts.land_timeout_s:g} s", warn=True)
         await asyncio.sleep(0.3)  # let the last telemetry after touchdown reach the log
 
     async def _close(self, tasks, status: str, param) -> None:
-        """Last rows, tasks cancelled, ArduPilot settings restored, the log closed with its summary."""
-        from mission.flight.ardupilot import set_params
-
+        """Last rows, tasks cancelled, autopilot speeds restored, the log closed with its summary and budget."""
         if self.rows is not None:
             with contextlib.suppress(Exception):
                 self.rows.write(final=True)
         for t in tasks:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
-        restore = self.restore_params
-        if restore and not self.link_dead.is_set():
-            try:
-                await set_params(param, restore)
-                self.event("params", "restored " + ", ".join(f"{k}={v}" for k, v in restore.items()))
-            except Exception as e:
-                self.event("params", f"could not restore {restore} ({e})", warn=True)
+        await restore_speeds(self, param)
         if self.rows is None:
             return
         await self.source.stop()
         summary = self.tel.summary()
+        if self.budget is not None:
+            summary["budget"] = close_budget(self, self.budget)
         w = self.rows.writer
         w.close(status=status, events=self.st.events, link_lost=any(e["kind"] == "link" for e in self.st.events),
                 speedup=summary["speedup_measured"] or self.speedup, **summary)

@@ -50,6 +50,8 @@ class FlightTasks:
         self.link_dead = asyncio.Event()
         self.landed_disarmed = asyncio.Event()
         self.mission_done = asyncio.Event()
+        self.armed_seen = asyncio.Event()  # the armed telemetry arrived (issue 28: "armed" before "started")
+        self.last_text_wall = -float("inf")  # monotonic time of the last autopilot text
         self.link_lost = False
         self.display = None
         self.sdklog = None
@@ -114,6 +116,8 @@ class FlightTasks:
                 self.event("armed" if armed else "disarmed", "armed" if armed else "disarmed")
             self.st.armed = armed
             self.st.was_armed |= armed
+            if armed:
+                self.armed_seen.set()
             self._check_landed()
 
     async def _landed(self, telemetry) -> None:
@@ -150,7 +154,8 @@ class FlightTasks:
 
     async def _status_texts(self, telemetry) -> None:
         async for s in telemetry.subscribe_status_text():
-            self.event("statustext", f"autopilot: {s.text}")
+            self.last_text_wall = time.monotonic()
+            self.event("statustext", f"autopilot: {s.text.rstrip()}")  # PX4 ends some with a tab
 
     async def _logger(self) -> None:
         while True:

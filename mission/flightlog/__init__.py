@@ -14,6 +14,7 @@ for simulated flights, the true transmitter position.
 from mission.flightlog.read import read_flight_log
 from mission.flightlog.schema import (
     COLUMNS,
+    FLOWN_PHASES,
     OPTIONAL,
     PHASE_COLUMNS,
     PHASES,
@@ -25,6 +26,6 @@ from mission.flightlog.schema import (
 )
 from mission.flightlog.write import DEFAULT_DIGITS, DIGITS, FlightLogWriter, format_rows, rounded, write_flight_log
 
-__all__ = ["COLUMNS", "DEFAULT_DIGITS", "DIGITS", "OPTIONAL", "PHASES", "PHASE_COLUMNS", "REQUIRED", "WARNING",
-           "FlightLog", "FlightLogWriter", "format_rows", "make_meta", "read_flight_log", "rounded",
+__all__ = ["COLUMNS", "DEFAULT_DIGITS", "DIGITS", "FLOWN_PHASES", "OPTIONAL", "PHASES", "PHASE_COLUMNS", "REQUIRED",
+           "WARNING", "FlightLog", "FlightLogWriter", "format_rows", "make_meta", "read_flight_log", "rounded",
            "sidecar_path", "write_flight_log"]

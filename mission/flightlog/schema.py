@@ -20,8 +20,10 @@ COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
 # Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of PHASES,
-# ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the mission phase).
-PHASES = ("ground", "takeoff", "mission", "return", "land")
+# ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the mission phase);
+# ``adaptive``: legs planned in flight from the live posterior (``mission.flight.adaptive``), item = their index.
+PHASES = ("ground", "takeoff", "mission", "adaptive", "return", "land")
+FLOWN_PHASES = ("mission", "adaptive")  # the legs a localizer uses
 PHASE_COLUMNS = ("phase", "mission_item")
 
 

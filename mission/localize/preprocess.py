@@ -113,17 +113,17 @@ def select_mission_legs(log):
 
     Why: the height band keeps any sample at cruise height, including a return leg flown at cruise height
     (nose-backwards on ArduPilot, 22-24 deg pitch); the runner's ``phase`` column says which rows were flown
-    on the mission's own legs (``mission.flightlog.PHASES``).
+    on the mission's own legs or on adaptive legs (``mission.flightlog.PHASES``).
     """
     phase = log.columns.get("phase")
     if phase is None:
         return None
-    from mission.flightlog import PHASES
+    from mission.flightlog import FLOWN_PHASES, PHASES
 
     ph = np.asarray(phase).astype(str)
     if not np.isin(ph, PHASES).all():
         return None
-    mask = ph == "mission"
+    mask = np.isin(ph, FLOWN_PHASES)  # the mission's own legs and those planned in flight (adaptive)
     if mask.sum() < 2:
         return None
     n = len(ph)

@@ -1,0 +1,96 @@
+"""The mission's ``adaptive:`` block: how long to survey, the pattern flown around the live estimate, when to stop.
+
+Why a block of its own: the same mission file flies fixed (the whole trajectory) or adaptive (the trajectory's
+first ``survey_s`` seconds, then rounds planned in flight); ``fly-mission --adaptive`` or ``enabled: true``
+choose.  Bad settings are refused before take-off (``assert_adaptive``): an altitude outside the limits, a
+pattern that fits nowhere inside the fence, a budget that cannot hold the survey, one round and the return.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mission.errors import InputError
+
+
+@dataclass(frozen=True)
+class AdaptiveSpec:
+    """Settings of the adaptive finish (schema in missions/spiral_adaptive.yaml)."""
+
+    enabled: bool = False
+    survey_s: float = 300.0          # seconds of the trajectory (from its first waypoint) flown before adapting
+    altitude_m: float | None = None  # altitude of the adaptive legs (None: the mission's)
+    radius_m: float = 20.0           # half side of the square flown around the live estimate
+    min_radius_m: float = 6.0        # a round is shrunk down to this to fit fence or budget, else refused
+    target_area_m2: float = 150.0    # stop adapting once the 90 % region is this small
+    lead_s: float = 30.0             # plan the next round this many vehicle seconds before the current one ends
+    update_s: float = 5.0            # live estimate period (vehicle seconds)
+    reserve_s: float = 15.0          # kept free in the budget beyond the return and landing
+    explore: bool = True             # fly over the posterior's competing peaks in turn (planner.choose_target)
+
+    def altitude(self, spec) -> float:
+        return float(spec.altitude_m if self.altitude_m is None else self.altitude_m)
+
+
+def parse_adaptive(r) -> AdaptiveSpec:
+    """The ``adaptive:`` mapping (a ``spec._Reader``) -> ``AdaptiveSpec``; errors name ``adaptive.<key>``."""
+    en = r.raw("enabled", False)
+    if not isinstance(en, bool):
+        raise r.err("enabled", f"expected true or false, got {en!r}")
+    ex = r.raw("explore", True)
+    if not isinstance(ex, bool):
+        raise r.err("explore", f"expected true or false, got {ex!r}")
+    d = AdaptiveSpec()
+    alt = r.num("altitude_m", 30.0, 0.0, strict_lo=True) if r.has("altitude_m") else None
+    r.used.add("altitude_m")
+    radius = r.num("radius_m", d.radius_m, 0.0, strict_lo=True)
+    out = AdaptiveSpec(
+        enabled=en, survey_s=r.num("survey_s", d.survey_s, 0.0, strict_lo=True), altitude_m=alt, radius_m=radius,
+        min_radius_m=r.num("min_radius_m", min(d.min_radius_m, radius), 0.0, radius, strict_lo=True),
+        target_area_m2=r.num("target_area_m2", d.target_area_m2, 0.0),
+        lead_s=r.num("lead_s", d.lead_s, 0.0), update_s=r.num("update_s", d.update_s, 0.5),
+        reserve_s=r.num("reserve_s", d.reserve_s, 0.0), explore=ex)
+    r.done()
+    return out
+
+
+def adaptive_violations(spec, a: AdaptiveSpec) -> list[tuple[str, str]]:
+    """(key, one-line message) for settings that cannot be flown: altitude, fence fit, budget."""
+    from mission.adaptive.planner import box_pattern, fit_centre, survey_profile
+
+    out: list[tuple[str, str]] = []
+    lo, hi = spec.altitude_limits_m
+    alt = a.altitude(spec)
+    if not lo <= alt <= hi:
+        out.append(("adaptive.altitude_m", f"adaptive altitude {alt:g} m is outside the altitude limits "
+                                           f"[{lo:g}, {hi:g}] m"))
+    ra = spec.field.rover_area
+    c = fit_centre(spec, np.asarray(ra.vertices, dtype=float).mean(axis=0), a.min_radius_m)
+    if c is None:
+        out.append(("adaptive.radius_m", f"the adaptive pattern (a square of half side {a.min_radius_m:g} m at "
+                                         f"least) fits nowhere in the flight area with the {spec.fence_margin_m:g}"
+                                         " m fence margin"))
+        return out
+    from mission.trajectory.kinematics import plan_profile
+
+    survey = survey_profile(spec, a.survey_s)
+    home = np.asarray(spec.home_enu, dtype=float)
+    first = box_pattern(c, a.min_radius_m, alt)
+    path = np.vstack([home, [home[0], home[1], survey.vertices[0, 2]], survey.vertices, first,
+                      [home[0], home[1], alt], home])
+    need = plan_profile(path, spec.kinematics()).duration_s + a.reserve_s
+    if need > spec.time_budget_s:
+        out.append(("time_budget_s", f"time budget {spec.time_budget_s:g} s is too small for the survey "
+                                     f"({a.survey_s:g} s), one adaptive round and the return with "
+                                     f"{a.reserve_s:g} s reserve ({need:.0f} s needed)"))
+    return out
+
+
+def assert_adaptive(spec, a: AdaptiveSpec) -> None:
+    """Refuse unflyable adaptive settings with one ``InputError`` naming the mission file and key."""
+    v = adaptive_violations(spec, a)
+    if v:
+        more = f" (and {len(v) - 1} more problems)" if len(v) > 1 else ""
+        raise InputError(v[0][1] + more, source=spec.source_name, field=v[0][0])

@@ -1,0 +1,113 @@
+"""The estimate a flight has at time T: what ``fly-mission`` shows in flight and ``localize --at T`` reproduces.
+
+Why one function for both: the in-flight estimate is computed from the log file itself (the rows written up to
+T, rounded as written), with the same sample selection and method as ``localize`` (``localize_log``), so a
+finished log, real or simulated, gives back exactly the time series the flight recorded.  The method is the
+self-calibrating cell grid (``selfcal``): fast (under a second), calibrated 90 % regions, no preset physics.
+In flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's thread, so neither
+the loop nor MAVSDK's callback thread waits on it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+
+import numpy as np
+
+from mission.errors import InputError
+
+LIVE_METHOD = "selfcal"
+FAST_ESTIMATE_S = 180.0  # the AFAR rules' fast estimate: 3 minutes after take-off
+LEVEL = 0.9
+
+
+def log_at(log, t_s: float, source: str | None = None):
+    """The rows of ``log`` with ``t_s`` <= T (a ``FlightLog``); T before the first row is an ``InputError``."""
+    if not math.isfinite(t_s):
+        raise InputError(f"time must be finite, got {t_s}", source=source, field="--at")
+    t = np.asarray(log["t_s"], dtype=float)
+    keep = t <= t_s + 1e-9
+    if not keep.any():
+        raise InputError(f"no rows at or before t = {t_s:g} s (the log starts at {t[0]:g} s)", source=source,
+                         field="--at")
+    return log.select(keep)
+
+
+def estimate_at(log, t_s: float | None = None, method: str = LIVE_METHOD):
+    """The ``localize_log`` estimate from the rows up to ``t_s`` (None: all rows)."""
+    from mission.localize.api import localize_log
+
+    part = log if t_s is None else log_at(log, t_s, str(log.path) if log.path else None)
+    return localize_log(part, method=method)
+
+
+def summary(est, t_s: float) -> dict:
+    """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when known)."""
+    reg = next((r for r in est.extras.get("regions", []) if r["level"] == LEVEL), None)
+    d = {"t_s": round(float(t_s), 3), "x_m": round(est.x_m, 2), "y_m": round(est.y_m, 2),
+         "area_m2": None if reg is None else round(float(reg["area_m2"]), 1)}
+    if est.error_m is not None:
+        d["error_m"] = round(float(est.error_m), 2)
+    if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
+        from mission.adaptive.planner import posterior_candidates
+
+        d["candidates"] = [[round(v, 1 if i < 2 else 3) for i, v in enumerate(c)]
+                           for c in posterior_candidates(est.posterior)]
+    return d
+
+
+def estimate_file_at(path: str, t_s: float) -> dict | None:
+    """``summary`` of the estimate from the log file's rows up to ``t_s`` (None: too few samples yet).
+
+    Runs in a worker process: reads the file as far as it is written (a cut last line is dropped)."""
+    import warnings
+
+    from mission.flightlog import read_flight_log
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            log = read_flight_log(path)
+            return summary(estimate_at(log, t_s), t_s)
+        except (InputError, ValueError, FloatingPointError):
+            return None
+
+
+def lower_priority(parent_pid: int | None = None) -> None:
+    """Worker initializer: the estimate yields the CPU to the flight (telemetry, log writer, a local SITL).
+
+    The worker also dies with ``fly-mission``: a ``kill -9`` of the runner must not leave it holding the
+    runner's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not available)."""
+    import os
+    import threading
+    import time
+
+    from mission.flight.vehicle_process import die_with_parent
+
+    with contextlib.suppress(OSError):
+        os.nice(5)
+    die_with_parent()
+    if parent_pid is not None:
+        def watch() -> None:
+            while os.getppid() == parent_pid:
+                time.sleep(1.0)
+            os._exit(0)
+
+        threading.Thread(target=watch, daemon=True).start()
+
+
+def warm_up() -> None:
+    """Import the localizer in a fresh worker process (seconds) before the first estimate is needed."""
+    import mission.flightlog  # noqa: F401
+    import mission.localize.api  # noqa: F401
+
+
+def describe(d: dict, truth: dict | None = None) -> str:
+    """Short text of a series entry: position, 90 % region and error when known."""
+    text = f"({d['x_m']:.0f}, {d['y_m']:.0f}) m"
+    if d.get("area_m2") is not None:
+        text += f", 90 % in {d['area_m2']:.0f} m^2"
+    if truth is not None:
+        text += f", error {math.hypot(d['x_m'] - truth['x_m'], d['y_m'] - truth['y_m']):.1f} m"
+    return text

@@ -1,0 +1,171 @@
+"""Legs planned from the live posterior: the survey cut, the square around the estimate, fence/altitude/budget.
+
+One round = a square of half side ``radius_m`` centred on the live estimate, flown corner to corner and closed,
+then through its centre (RSS gradients are steepest near the transmitter, so four sides and a pass over the
+estimate constrain it from every side).  Every round is checked before it is sent: the fence and altitude
+limits with ``trajectory.checks.check_mission`` (the same rule as the mission's own waypoints), the time with
+``plan_profile`` from where the current leg ends through the round and back home to landing, plus a reserve,
+against what is left of the budget.  A round that does not fit is moved inside the fence (its centre towards
+the flight area's interior) or shrunk (down to ``min_radius_m``) and says so; otherwise it is refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mission.trajectory.kinematics import FlightProfile, plan_profile
+
+
+def survey_profile(spec, survey_s: float) -> FlightProfile:
+    """The trajectory's waypoints flown from the first one for ``survey_s`` seconds (cut inside a leg)."""
+    wps = spec.waypoints_enu()
+    kin = spec.kinematics()
+    prof = plan_profile(wps, kin)
+    if survey_s >= prof.duration_s or len(wps) < 2:
+        return prof
+    k = int(np.searchsorted(prof.t_vertex, survey_s, side="right"))
+    cut = prof.position(np.array([survey_s]))[0]
+    return plan_profile(np.vstack([wps[:k], cut]), kin)
+
+
+def survey_spec(spec, survey_s: float):
+    """``spec`` whose trajectory is the survey part only (explicit waypoints): what is uploaded first."""
+    from mission.spec import TrajectorySpec
+
+    wps = survey_profile(spec, survey_s).vertices
+    return dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, wps))
+
+
+def box_pattern(centre, r: float, alt: float, start=None) -> np.ndarray:
+    """(6, 3) waypoints: the four corners of a square of half side ``r`` about ``centre``, closed, then the
+    centre; starting at the corner nearest ``start`` (saves a crossing)."""
+    c = np.asarray(centre, dtype=float)[:2]
+    corners = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    if start is not None:
+        k = int(np.argmin(np.hypot(*(corners - np.asarray(start, dtype=float)[:2]).T)))
+        corners = np.roll(corners, -k, axis=0)
+    xy = np.vstack([corners, corners[:1], c[None, :]])
+    return np.column_stack([xy, np.full(len(xy), float(alt))])
+
+
+def fit_centre(spec, want_xy, r: float, step_m: float = 2.0) -> np.ndarray | None:
+    """The centre nearest ``want_xy`` whose square (half side ``r``) keeps the fence margin (None: nowhere).
+
+    The flight area is convex (``geo.Area``), so corners inside with the margin keep every leg inside too."""
+    area, margin = spec.field.flight_area, spec.fence_margin_m
+    want = np.asarray(want_xy, dtype=float)[:2]
+    offs = r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    if min(area.signed_distance(want + offs)) >= margin:
+        return want
+    v = np.asarray(area.vertices, dtype=float)
+    xs = np.arange(v[:, 0].min(), v[:, 0].max() + step_m, step_m)
+    ys = np.arange(v[:, 1].min(), v[:, 1].max() + step_m, step_m)
+    g = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+    g = g[area.signed_distance(g) >= margin + r]  # a necessary condition first (cheap)
+    if not len(g):
+        return None
+    ok = np.min([area.signed_distance(g + o) for o in offs], axis=0) >= margin
+    if not ok.any():
+        return None
+    g = g[ok]
+    return g[int(np.argmin(np.hypot(*(g - want).T)))]
+
+
+def posterior_candidates(post, k: int = 4, sep_m: float = 40.0) -> list[list[float]]:
+    """Up to ``k`` distinct hypotheses [x, y, mass] of a grid posterior, most probable first: greedy peaks at
+    least ``sep_m`` apart, each with the mass within ``sep_m / 2`` of it."""
+    pts = post.grid.reshape(-1, 2)
+    p = post.prob.ravel()
+    order = np.argsort(p)[::-1]
+    out: list[list[float]] = []
+    taken = np.zeros(len(p), dtype=bool)
+    for j in order[: max(1, int(0.2 * len(p)))]:
+        if taken[j]:
+            continue
+        d = np.hypot(*(pts - pts[j]).T)
+        out.append([float(pts[j, 0]), float(pts[j, 1]), float(p[d <= sep_m / 2].sum())])
+        taken |= d < sep_m
+        if len(out) == k:
+            break
+    return out
+
+
+def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, float]:
+    """Where the next round goes: the most probable hypothesis not yet flown over (no earlier round centre
+    within ``visit_m``), else the estimate.  Why: a square around a wrong estimate teaches little; flying over
+    each competing peak in turn either finds the transmitter's near field or removes that peak."""
+    for x, y, _ in candidates or []:
+        if all(np.hypot(x - vx, y - vy) > visit_m for vx, vy in visited):
+            return float(x), float(y)
+    return float(est_xy[0]), float(est_xy[1])
+
+
+def leg_violations(spec, start, wps) -> list:
+    """Fence and altitude violations of flying ``start`` -> ``wps`` (``check_mission``'s rules; its time check,
+    which assumes a flight from home, is replaced by the caller's budget check)."""
+    from mission.spec import TrajectorySpec
+    from mission.trajectory.checks import check_mission
+
+    path = np.vstack([np.asarray(start, dtype=float)[None, :], wps])
+    rep = check_mission(dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, path)))
+    return [v for v in rep.violations if v.key not in ("time_budget_s", "source.tx")]
+
+
+def return_s(spec, frm) -> float:
+    """Seconds from ``frm`` (3,) back over home at that altitude and down to landing."""
+    home = np.asarray(spec.home_enu, dtype=float)
+    frm = np.asarray(frm, dtype=float)
+    return plan_profile(np.vstack([frm, [home[0], home[1], frm[2]], home]), spec.kinematics()).duration_s
+
+
+@dataclass
+class RoundPlan:
+    """A planned round (``waypoints`` None: refused, ``reason`` says why) with its timing and what was changed."""
+
+    waypoints: np.ndarray | None
+    centre: tuple[float, float] | None = None
+    radius_m: float = 0.0
+    fly_s: float = 0.0       # from the start point through the round
+    return_s: float = 0.0    # from its last waypoint home and down
+    notes: list[str] = field(default_factory=list)
+    reason: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.waypoints is not None
+
+
+def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
+    """The next round around ``est_xy`` flown from ``start`` (3,), which the vehicle reaches ``t_start_s`` after
+    take-off; it must end with the return and ``a.reserve_s`` inside the time budget."""
+    alt = a.altitude(spec)
+    kin = spec.kinematics()
+    notes: list[str] = []
+    left = spec.time_budget_s - t_start_s - a.reserve_s
+    r = float(a.radius_m)
+    while r >= a.min_radius_m - 1e-9:
+        c = fit_centre(spec, est_xy, r)
+        if c is None:
+            notes.append(f"a {r:.0f} m square fits nowhere inside the fence")
+        else:
+            wps = box_pattern(c, r, alt, start)
+            fly = plan_profile(np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin).duration_s
+            back = return_s(spec, wps[-1])
+            bad = leg_violations(spec, start, wps)
+            if bad:
+                notes.append(f"refused a {r:.0f} m square: {bad[0].message}")
+            elif fly + back <= left:
+                moved = float(np.hypot(*(c - np.asarray(est_xy, dtype=float)[:2])))
+                if moved > 0.5:
+                    notes.append(f"centre moved {moved:.0f} m to keep the fence margin")
+                if r < a.radius_m:
+                    notes.append(f"square shrunk to half side {r:.0f} m to fit")
+                return RoundPlan(wps, (float(c[0]), float(c[1])), r, fly, back, notes)
+            else:
+                notes.append(f"a {r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
+                             "left")
+        r = r * 0.7 if r * 0.7 >= a.min_radius_m or r <= a.min_radius_m else a.min_radius_m
+    return RoundPlan(None, notes=notes, reason=notes[-1] if notes else "no round fits")

@@ -1,0 +1,158 @@
+"""Fixed and adaptive flights on the fast simulator under a physics family (benchmark and preview).
+
+Why here and not MAVLink: hundreds of flights in minutes.  The adaptive flight follows the runner's order of
+events: the survey, then rounds planned ``lead_s`` before the current one ends from the estimate of the
+samples logged so far (``live.LIVE_METHOD``'s estimator), each checked by ``planner.plan_round``; stop when
+the 90 % region is below target or no round fits; return home.  One flight's physics (model draw, offset,
+transmitter and one fixed shadowing map) is shared by its fixed and adaptive versions, so they are paired.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mission.samples import FlightSamples
+from mission.simulate import SimConfig, fly_path
+
+
+class FlightWorld:
+    """One flight's physics: a family draw, its transmitter and a shadowing map fixed over the flight area."""
+
+    def __init__(self, spec, family, rng: np.random.Generator, step_m: float = 3.0) -> None:
+        from scipy.interpolate import RegularGridInterpolator
+
+        from mission.physics.shadowing import shadowing_field
+
+        self.draw = family.draw(rng)
+        self.model = self.draw.model()
+        self.tx = spec.resolve_tx(rng)
+        v = spec.field.flight_area.vertices
+        xs = np.arange(v[:, 0].min() - 30, v[:, 0].max() + 30 + step_m, step_m)
+        ys = np.arange(v[:, 1].min() - 30, v[:, 1].max() + 30 + step_m, step_m)
+        g = np.stack(np.meshgrid(xs, ys, indexing="ij"), -1).reshape(-1, 2)
+        sh = shadowing_field(g, self.draw.shadowing_db, self.draw.shadowing_corr_m, rng).reshape(len(xs), len(ys))
+        self._shadow = RegularGridInterpolator((xs, ys), sh, bounds_error=False, fill_value=0.0)
+
+    def rss(self, pos: np.ndarray, att: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """RSS (dBm): model + offset + white noise + the flight's shadowing at ``pos``."""
+        r = np.asarray(self.model.rss_dbm(self.tx, pos, att), dtype=float) + self.draw.offset_db
+        return r + rng.normal(0.0, self.draw.noise_db, r.shape) + self._shadow(pos[:, :2])
+
+
+@dataclass
+class SimLog:
+    """Samples of a simulated flight with their phase, appended segment by segment."""
+
+    t: list = field(default_factory=list)
+    pos: list = field(default_factory=list)
+    att: list = field(default_factory=list)
+    rss: list = field(default_factory=list)
+    phase: list = field(default_factory=list)
+    t_end: float = 0.0
+
+    def fly(self, path, phases, world: FlightWorld, cfg: SimConfig, rng) -> None:
+        """Fly ``path`` (K, 3) from the current end; ``phases`` (K-1,) names each leg."""
+        t, pos, att, prof = fly_path(np.asarray(path, dtype=float), cfg, rng)
+        leg = np.clip(np.searchsorted(prof.t_vertex, t, side="right") - 1, 0, len(path) - 2)
+        if self.t:
+            t, pos, att = t[1:], pos[1:], att[1:]
+            leg = leg[1:]
+        self.t.append(t + self.t_end)
+        self.pos.append(pos)
+        self.att.append(att)
+        self.rss.append(world.rss(pos, att, rng))
+        self.phase.append(np.asarray(phases, dtype=object)[leg])
+        self.t_end += prof.duration_s
+
+    def samples(self, t_max: float = np.inf) -> FlightSamples | None:
+        """Mission and adaptive samples up to ``t_max`` (what the live estimate uses)."""
+        from mission.flightlog import FLOWN_PHASES
+
+        t, ph = np.concatenate(self.t), np.concatenate(self.phase).astype(str)
+        m = np.isin(ph, FLOWN_PHASES) & (t <= t_max)
+        if m.sum() < 2:
+            return None
+        return FlightSamples(enu_m=np.concatenate(self.pos)[m], rss_dbm=np.concatenate(self.rss)[m],
+                             attitude_rad=np.concatenate(self.att)[m], t_s=t[m])
+
+
+def estimator(spec):
+    """The live estimator with ``localize_log``'s settings for this field (``live.LIVE_METHOD``)."""
+    from mission.adaptive.live import LIVE_METHOD
+    from mission.localize.api import make_localizer
+
+    return make_localizer(LIVE_METHOD, area=spec.field.rover_area, tx_height_m=1.5)
+
+
+@dataclass
+class Outcome:
+    """A flight's estimates: (x, y, area90, covered) finals and the fast (3 min) one; duration; rounds."""
+
+    final: tuple | None
+    fast: tuple | None
+    duration_s: float
+    rounds: int = 0
+    notes: list = field(default_factory=list)
+
+
+def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
+    from mission.errors import InputError
+    from mission.localize.uncertainty import region_covers
+
+    f = log.samples(t_max)
+    if f is None:
+        return None
+    try:
+        e = loc.predict(f)
+    except InputError:
+        return None
+    from mission.adaptive.planner import posterior_candidates
+
+    reg = next((r for r in e.extras.get("regions", []) if r["level"] == 0.9), None)
+    return (e.x_m, e.y_m, None if reg is None else reg["area_m2"], region_covers(e, tx[0], tx[1], 0.9),
+            posterior_candidates(e.posterior))
+
+
+def _climb(spec, first) -> list:
+    home = np.asarray(spec.home_enu, dtype=float)
+    return [home, np.array([home[0], home[1], first[2]])]
+
+
+def fixed_flight(spec, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
+    """The whole trajectory, then home."""
+    wps = spec.waypoints_enu()
+    home = np.asarray(spec.home_enu, dtype=float)
+    path = np.vstack([*_climb(spec, wps[0]), wps, [home[0], home[1], wps[-1, 2]], home])
+    names = ["takeoff"] + ["mission"] * len(wps) + ["return", "land"]
+    log = SimLog()
+    log.fly(path, names, world, cfg, rng)
+    return Outcome(_estimate(loc, log, np.inf, world.tx), _estimate(loc, log, fast_s, world.tx), log.t_end)
+
+
+def adaptive_flight(spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
+    """The survey, rounds planned from the live estimate (``plan_round``), then home."""
+    from mission.adaptive.planner import choose_target, plan_round, survey_profile
+
+    sv = survey_profile(spec, a.survey_s).vertices
+    home = np.asarray(spec.home_enu, dtype=float)
+    log = SimLog()
+    log.fly(np.vstack([*_climb(spec, sv[0]), sv]), ["takeoff"] + ["mission"] * len(sv), world, cfg, rng)
+    end, rounds, notes, visited = sv[-1], 0, [], []
+    while True:
+        est = _estimate(loc, log, log.t_end - a.lead_s, world.tx)
+        if est is None or (est[2] is not None and est[2] <= a.target_area_m2):
+            notes.append("region small enough" if est is not None else "no estimate")
+            break
+        target = choose_target(est[:2], est[4] if a.explore else None, visited, a.radius_m)
+        plan = plan_round(spec, a, target, end, log.t_end)
+        notes += plan.notes
+        if not plan.ok:
+            break
+        log.fly(np.vstack([end, plan.waypoints]), ["adaptive"] * len(plan.waypoints), world, cfg, rng)
+        end, rounds = plan.waypoints[-1], rounds + 1
+        visited.append(plan.centre)
+    log.fly(np.vstack([end, [home[0], home[1], end[2]], home]), ["return", "land"], world, cfg, rng)
+    fast = _estimate(loc, log, fast_s, world.tx)
+    return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes)

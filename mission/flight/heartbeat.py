@@ -1,0 +1,56 @@
+"""The ground station's heartbeat at the vehicle's pace, and the autopilot's last texts awaited before landing
+is announced.
+
+Why: PX4 sends STATUSTEXT on a link only while a ground-station HEARTBEAT arrived within the last 2.5 s of
+its own time, and drops queued texts older than 5 s; MAVSDK heartbeats once per wall-clock second, i.e. every
+10 vehicle seconds at speed-up 10, and 2 to 7 of 9 texts were lost (issue 28).  This task sends the
+ground station's HEARTBEAT (MAVSDK v4's ``MavlinkDirectAsync.send_message``, same system and component id as
+MAVSDK's own: 245/190) once per *vehicle* second, i.e. ``speed-up`` times per wall second.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+
+GCS_SYSID, GCS_COMPID = 245, 190  # MAVSDK's ground-station identity
+_HEARTBEAT = json.dumps({"type": 6, "autopilot": 8, "base_mode": 0, "custom_mode": 0, "system_status": 4,
+                         "mavlink_version": 3})  # MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, MAV_STATE_ACTIVE
+
+
+def heartbeat_hz(speedup: float) -> float:
+    """Wall-clock rate: one heartbeat per vehicle second (at least 1 Hz), well inside PX4's 2.5 s."""
+    return max(1.0, float(speedup))
+
+
+async def gcs_heartbeats(runner, direct, speedup: float) -> None:
+    """Task: HEARTBEAT to the vehicle at ``heartbeat_hz(speedup)``; a failure is reported once."""
+    from mavsdk.plugins.mavlink_direct import MavlinkMessage
+
+    msg = MavlinkMessage("HEARTBEAT", GCS_SYSID, GCS_COMPID, 0, 0, _HEARTBEAT)
+    period, failed = 1.0 / heartbeat_hz(speedup), False
+    runner.heartbeats_sent = 0
+    while True:
+        try:
+            await direct.send_message(msg)
+            runner.heartbeats_sent += 1
+        except Exception as e:
+            if not failed:
+                failed = True
+                runner.event("heartbeat", f"GCS heartbeat not sent ({e}): autopilot texts may be lost",
+                             warn=True)
+        await asyncio.sleep(period)
+
+
+async def settle_texts(runner, speedup: float, quiet_s: float = 0.3, most_s: float = 3.0) -> None:
+    """Wait (wall clock) until no autopilot text arrived for ``quiet_s`` and at least 2 vehicle seconds have
+    passed, at most ``most_s``: the texts sent around the disarm ("Disarmed by landing") are then logged
+    before "landed and disarmed", not after it."""
+    t0 = time.monotonic()
+    least = min(2.0 / max(speedup, 1e-9), most_s)
+    while time.monotonic() - t0 < most_s:
+        now = time.monotonic()
+        if now - t0 >= least and now - getattr(runner, "last_text_wall", -1e9) >= quiet_s:
+            return
+        await asyncio.sleep(0.05)

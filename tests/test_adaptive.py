@@ -1,0 +1,214 @@
+"""Adaptive finish: the adaptive: block, its pre-flight refusals, the round planner, the simulated flight."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mission.adaptive.config import adaptive_violations
+from mission.adaptive.planner import (
+    box_pattern,
+    choose_target,
+    fit_centre,
+    plan_round,
+    posterior_candidates,
+    survey_profile,
+)
+from mission.errors import InputError
+from mission.spec import load_mission, parse_mission
+
+ADAPTIVE = "missions/spiral_adaptive.yaml"
+
+
+@pytest.fixture(scope="module")
+def spec(repo_dir):
+    return load_mission(repo_dir / ADAPTIVE)
+
+
+def _doc(repo_dir, **adaptive) -> dict:
+    d = yaml.safe_load((repo_dir / ADAPTIVE).read_text())
+    d["adaptive"].update(adaptive)
+    return d
+
+
+def test_block_parsed_and_unknown_key_named(spec, repo_dir):
+    assert spec.adaptive.enabled and spec.adaptive.survey_s == 300 and spec.adaptive.radius_m == 20
+    with pytest.raises(InputError, match="adaptive.spacing"):
+        parse_mission(_doc(repo_dir, spacing=3), "m.yaml")
+    assert load_mission(repo_dir / "missions/spiral.yaml").adaptive is None
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(["altitude_m", "radius_m", "survey_s"]),
+       value=st.one_of(st.floats(max_value=0.0, allow_nan=False), st.just(float("nan")), st.text(max_size=3)))
+def test_bad_numbers_refused_naming_the_key(repo_dir, key, value):
+    with pytest.raises(InputError) as e:
+        parse_mission(_doc(repo_dir, **{key: value}), "m.yaml")
+    assert e.value.field == f"adaptive.{key}"
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=st.sampled_from(["budget", "fence", "altitude"]), x=st.floats(0.0, 1.0))
+def test_unflyable_settings_refused_before_takeoff(spec, case, x):
+    """A budget too small to return, a square the fence cannot hold, an altitude outside the limits."""
+    a = spec.adaptive
+    if case == "budget":
+        s, key = dataclasses.replace(spec, time_budget_s=a.survey_s + 30 * x), "time_budget_s"
+    elif case == "fence":
+        s, a, key = spec, dataclasses.replace(a, min_radius_m=250 + 500 * x, radius_m=800), "adaptive.radius_m"
+    else:
+        s, a, key = spec, dataclasses.replace(a, altitude_m=121 + 100 * x), "adaptive.altitude_m"
+    v = adaptive_violations(s, a)
+    assert v and v[0][0] == key
+    assert adaptive_violations(spec, spec.adaptive) == []
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=st.sampled_from(["budget", "fence", "negative altitude", "altitude limit"]), x=st.floats(0.0, 1.0))
+def test_cli_refuses_bad_adaptive_settings_with_one_line(tmp_path_factory, repo_dir, capsys, case, x):
+    """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight folder)."""
+    from mission.cli.fly import main
+
+    tmp = tmp_path_factory.mktemp("bad")
+    d = _doc(repo_dir)
+    if case == "budget":
+        d["time_budget_s"], key = 300 + 30 * x, "time_budget_s"
+    elif case == "fence":
+        d["adaptive"].update(radius_m=800, min_radius_m=250 + 500 * x)
+        key = "adaptive.radius_m"
+    elif case == "negative altitude":
+        d["adaptive"]["altitude_m"], key = -100 * x, "adaptive.altitude_m"
+    else:
+        d["adaptive"]["altitude_m"], key = 121 + 100 * x, "adaptive.altitude_m"
+    p = tmp / "m.yaml"
+    p.write_text(yaml.safe_dump(d))
+    capsys.readouterr()
+    assert main([str(p), "--out", str(tmp / "f")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and key in err[0] and str(p) in err[0], err
+    assert not (tmp / "f").exists()  # nothing started, no log
+
+
+def test_survey_cut_and_square(spec):
+    prof = survey_profile(spec, 120.0)
+    assert 120.0 <= prof.duration_s < 130.0  # re-planned from the cut, which it reaches at rest
+    whole = survey_profile(spec, 1e6)
+    assert len(whole.vertices) == len(spec.waypoints_enu())
+    sq = box_pattern((100.0, 200.0), 10.0, 15.0, start=(200.0, 300.0))
+    assert np.allclose(sq[0, :2], (110.0, 210.0)) and np.allclose(sq[4], sq[0]) and np.allclose(sq[-1, :2], (100, 200))
+    assert np.all(sq[:, 2] == 15.0)
+    assert np.allclose(np.abs(sq[:4, :2] - (100.0, 200.0)), 10.0)
+
+
+def test_fit_centre_keeps_the_fence_margin(spec):
+    area, m = spec.field.flight_area, spec.fence_margin_m
+    inside = fit_centre(spec, (150.0, 200.0), 20.0)
+    assert np.allclose(inside, (150.0, 200.0))
+    c = fit_centre(spec, (-50.0, -50.0), 20.0)  # outside the flight area: moved in
+    corners = box_pattern(c, 20.0, 30.0)[:4, :2]
+    assert area.signed_distance(corners).min() >= m - 1e-9
+    assert fit_centre(spec, (0.0, 0.0), 5000.0) is None
+
+
+def test_plan_round_checks_and_refuses(spec):
+    a = spec.adaptive
+    start = survey_profile(spec, a.survey_s).vertices[-1]
+    ok = plan_round(spec, a, (150.0, 200.0), start, 320.0)
+    assert ok.ok and ok.radius_m == a.radius_m and ok.notes == []
+    assert 320.0 + ok.fly_s + ok.return_s + a.reserve_s <= spec.time_budget_s
+    shrunk = plan_round(spec, a, (150.0, 200.0), start, 490.0)
+    assert shrunk.ok and shrunk.radius_m < a.radius_m and any("shrunk" in n for n in shrunk.notes)
+    assert 490.0 + shrunk.fly_s + shrunk.return_s + a.reserve_s <= spec.time_budget_s
+    late = plan_round(spec, a, (150.0, 200.0), start, 560.0)
+    assert not late.ok and "left" in late.reason
+    low = plan_round(spec, dataclasses.replace(a, altitude_m=5.0), (150.0, 200.0), start, 320.0)
+    assert not low.ok and "below the lower limit" in low.reason  # check_mission's altitude rule
+
+
+def test_candidates_and_target():
+    from mission.localize.uncertainty import Posterior
+
+    xs, ys = np.meshgrid(np.arange(0, 200, 5.0), np.arange(0, 200, 5.0))
+    grid = np.stack([xs, ys], -1)
+    p = np.exp(-((xs - 50) ** 2 + (ys - 50) ** 2) / 200) + 0.5 * np.exp(-((xs - 150) ** 2 + (ys - 120) ** 2) / 200)
+    post = Posterior(p / p.sum(), grid)
+    c = posterior_candidates(post, k=3)
+    assert np.allclose(c[0][:2], (50, 50)) and np.allclose(c[1][:2], (150, 120)) and c[0][2] > c[1][2]
+    assert choose_target((50, 50), c, [], 20.0) == (50.0, 50.0)
+    assert choose_target((50, 50), c, [(52.0, 49.0)], 20.0) == (150.0, 120.0)
+    assert choose_target((50, 50), None, [(52.0, 49.0)], 20.0) == (50.0, 50.0)
+
+
+def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
+    """A short adaptive flight on the fast simulator: survey, rounds inside the fence, return within budget."""
+    from mission.adaptive.simflight import FlightWorld, SimLog, adaptive_flight, estimator
+    from mission.physics.family import load_family
+
+    s = dataclasses.replace(spec, time_budget_s=260.0)
+    a = dataclasses.replace(spec.adaptive, survey_s=100.0, altitude_m=15.0)
+    cfg = dataclasses.replace(s.sim_config(), dt_s=0.25)
+    w = FlightWorld(s, load_family("afar"), np.random.default_rng(3))
+    logs = []
+    orig = SimLog.fly
+
+    def spy(self, path, phases, *args):
+        logs.append((np.asarray(path), list(phases)))
+        return orig(self, path, phases, *args)
+
+    SimLog.fly = spy
+    try:
+        out = adaptive_flight(s, a, w, cfg, np.random.default_rng(4), estimator(s))
+    finally:
+        SimLog.fly = orig
+    assert out.rounds >= 1 and out.final is not None
+    assert out.duration_s <= s.time_budget_s - a.reserve_s + 1e-6
+    rounds = [p for p, ph in logs if ph[0] == "adaptive"]
+    pts = np.vstack([p[1:] for p in rounds])
+    assert s.field.flight_area.signed_distance(pts[:, :2]).min() >= s.fence_margin_m - 1e-9
+    assert np.all(pts[:, 2] == 15.0)
+    assert logs[-1][1] == ["return", "land"]
+
+
+def test_preview_adaptive_bad_flights_refused(repo_dir, tmp_path, capsys):
+    from mission.cli.main import main
+
+    code = main(["preview", str(repo_dir / ADAPTIVE), "--flights", "0", "--out", str(tmp_path / "p.png")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--flights" in err[0]
+
+
+@pytest.mark.slow
+def test_preview_shows_adaptive_against_fixed(spec):
+    from rich.console import Console
+
+    from mission.adaptive.preview import adaptive_rows
+
+    s = dataclasses.replace(spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0))
+    with open(os.devnull, "w") as sink:
+        rows = dict(adaptive_rows(s, 1, 0, "afar", Console(file=sink)))
+    assert rows and any(k.startswith("expected error, fixed") for k in rows)
+    assert any(k.startswith("expected error, adaptive") for k in rows)
+    assert "adaptive - fixed (paired)" in rows
+
+
+def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
+    from mission.adaptive.runner import MonotonicPhases
+
+    p = MonotonicPhases()
+    p.configure(2, 9, "return")
+    p.on_landed_state(0.0, "IN_AIR")
+    p.on_progress(1.0, 4)
+    p.configure(2, 15, "return", first_adaptive=9)  # the mission extended by a round from raw item 9
+    p.on_progress(2.0, 0)  # the upload resets the reported item: not a take-off again
+    p.on_progress(3.0, 9)
+    p.on_progress(4.0, 11)
+    p.on_progress(5.0, 15)
+    phase, item = p.at(np.array([1.5, 2.5, 3.5, 4.5, 5.5]))
+    assert phase.tolist() == ["mission", "mission", "adaptive", "adaptive", "return"]
+    assert item.tolist() == [2, 2, 0, 2, -1]

@@ -1,0 +1,176 @@
+"""Live estimates: ``localize --at T`` reproduces what a flight knew at T (simulated and real logs), and the
+adaptive mission flown end to end on the built-in vehicle, including Ctrl-C and link loss in its adaptive part."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from mission.adaptive.live import estimate_at, estimate_file_at
+from mission.flightlog import PHASES, make_meta, read_flight_log, write_flight_log
+from mission.physics import make_model
+from mission.simulate import simulate_flight
+from mission.spec import load_mission
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def sim_log(tmp_path_factory) -> Path:
+    spec = load_mission(ROOT / "missions/spiral.yaml")
+    tx = np.array([150.0, 220.0, 1.5])
+    cfg = dataclasses.replace(spec.sim_config(), dt_s=0.12)  # a lighter log: 4 500 rows
+    f = simulate_flight(spec.flight_path_enu(), tx, make_model("free-space"), cfg, np.random.default_rng(2))
+    cols = f.log_columns(spec.field.origin)
+    meta = make_meta(spec.field.origin, {"kind": "sim", "model": "free-space"},
+                     {"x_m": 150.0, "y_m": 220.0, "z_m": 1.5})
+    return write_flight_log(tmp_path_factory.mktemp("live") / "flight.csv", cols, meta)
+
+
+def _cli_json(args: list[str], capsys) -> dict:
+    from mission.cli.localize import main
+
+    assert main([*args, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_localize_at_reproduces_the_live_estimate(sim_log, capsys):
+    live = estimate_file_at(str(sim_log), 200.0)  # what the flight's worker computes at t = 200 s
+    d = _cli_json([str(sim_log), "--at", "200"], capsys)
+    assert d["method"] == "selfcal"
+    assert (round(d["x_m"], 2), round(d["y_m"], 2)) == (live["x_m"], live["y_m"])
+    assert d["samples_total"] < len(read_flight_log(sim_log))  # only the rows up to T
+    later = estimate_at(read_flight_log(sim_log), None)
+    assert np.hypot(later.x_m - 150.0, later.y_m - 220.0) < np.hypot(live["x_m"] - 150, live["y_m"] - 220) + 5
+    assert live["candidates"][0][2] > 0 and len(live["candidates"]) >= 1
+
+
+def test_localize_at_before_the_log_is_refused(sim_log, capsys):
+    from mission.cli.localize import main
+
+    assert main([str(sim_log), "--at", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--at" in err[0] and "no rows" in err[0]
+
+
+def test_localize_at_on_a_real_log(shared_dir, tmp_path, capsys):
+    from mission.cli.main import main as rfsl
+
+    mat = sorted((shared_dir / "data/afar2023/mat").glob("*.mat"))[0]
+    assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    log = sorted(tmp_path.glob("*.csv"))[0]
+    d = _cli_json([str(log), "--at", "180"], capsys)
+    full = _cli_json([str(log), "--method", "selfcal"], capsys)
+    assert d["method"] == "selfcal" and d["samples_total"] < full["samples_total"]
+    assert (d["x_m"], d["y_m"]) != (full["x_m"], full["y_m"])
+
+
+# --------------------------------------------------------------------------- flown end to end (built-in vehicle)
+
+def _mission(tmp_path: Path) -> Path:
+    d = yaml.safe_load((ROOT / "missions/spiral_adaptive.yaml").read_text())
+    d.update(name="short_adaptive", time_budget_s=250)
+    d["adaptive"].update(survey_s=100, altitude_m=20)
+    p = tmp_path / "short_adaptive.yaml"
+    p.write_text(yaml.safe_dump(d))
+    return p
+
+
+def _fly(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "mission.cli.fly", *args], cwd=ROOT, text=True,
+                            env=dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(ROOT)),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _wait_line(p: subprocess.Popen, needle: str, timeout: float) -> list[str]:
+    seen, end = [], time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = p.stderr.readline()
+        if not line:
+            break
+        seen.append(line)
+        if needle in line:
+            return seen
+    raise AssertionError(f"no {needle!r} in {''.join(seen)[-2000:]}")
+
+
+@pytest.mark.slow
+def test_adaptive_flight_end_to_end(tmp_path, capsys):
+    """Survey, adaptive rounds, return: phases in order, estimates series, fast and final estimates, budget
+    held, and ``localize`` on the log gives back the in-flight final estimate."""
+    p = _fly([str(_mission(tmp_path)), "--speedup", "15", "--out", str(tmp_path / "f"), "--adaptive"])
+    out, err = p.communicate(timeout=150)
+    assert p.returncode == 0, err[-3000:]
+    path = next((tmp_path / "f").glob("*/flight.csv"))
+    log = read_flight_log(path)
+    ph = log.columns["phase"]
+    air = ph[ph != "ground"]  # on the ground before take-off and after landing
+    assert "adaptive" in set(ph) and np.all(np.diff([PHASES.index(s) for s in air]) >= 0)
+    m = log.meta
+    assert m["status"] == "completed" and m["adaptive"]["rounds"] and m["trajectory"]["adaptive"]["survey_s"] == 100
+    assert len(m["estimates"]) >= 3 and m["fast_estimate"]["t_s"] > 180 and "fast (3 min) estimate" in err
+    assert m["budget"]["used_s"] <= 250 and not m["budget"]["overrun"]
+    final = m["final_estimate"]
+    assert f"--at {final['t_s']:g}" in out
+    at = _cli_json([str(path), "--at", str(final["t_s"])], capsys)
+    whole = _cli_json([str(path)], capsys)  # the default method for an adaptive log: the live one
+    assert (round(at["x_m"], 2), round(at["y_m"], 2)) == (final["x_m"], final["y_m"])
+    assert (round(whole["x_m"], 2), round(whole["y_m"], 2)) == (final["x_m"], final["y_m"])
+    enu = log.enu()
+    ad = ph == "adaptive"
+    area = load_mission(ROOT / "missions/spiral_adaptive.yaml").field.flight_area
+    assert area.signed_distance(enu[ad, :2]).min() > 0  # inside the fence
+    assert abs(np.median(log["rel_alt_m"][ad][-50:]) - 20.0) < 2.0
+    v = np.gradient(enu[:, :2], log["t_s"], axis=0)  # nose first: heading along the course on adaptive legs
+    moving = ad & (np.hypot(*v.T) > 3.0)
+    off = (log["yaw_deg"] - np.degrees(np.arctan2(v[:, 0], v[:, 1])) + 180.0) % 360.0 - 180.0
+    assert moving.sum() > 100 and np.median(np.abs(off[moving])) < 10.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", ["ctrl-c", "link-loss"])
+def test_abort_in_the_adaptive_part_keeps_the_log(tmp_path, how):
+    """Ctrl-C or the vehicle dying during the adaptive rounds: everything logged so far stays, estimates too."""
+    from mission.flight.runner import free_udp_port
+
+    args = [str(_mission(tmp_path)), "--speedup", "15", "--out", str(tmp_path / "f"), "--adaptive", "--no-localize"]
+    veh = None
+    if how == "link-loss":
+        port = free_udp_port()
+        veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "15"],
+                               cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        args += ["--connect", f"udpin://127.0.0.1:{port}", "--link-timeout", "4"]
+    p = _fly(args)
+    try:
+        _wait_line(p, "round 1:", 120)
+        end = time.monotonic() + 60
+        while time.monotonic() < end:  # into the round: adaptive rows on disk
+            logs = list((tmp_path / "f").glob("*/flight.csv"))
+            if logs and logs[0].read_text().count(",adaptive,") > 100:
+                break
+            time.sleep(0.2)
+        if veh is not None:
+            veh.kill()
+        else:
+            p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+    finally:
+        p.kill()
+        if veh is not None:
+            veh.kill()
+    assert p.returncode == (130 if how == "ctrl-c" else 3), err[-3000:]
+    log = read_flight_log(next((tmp_path / "f").glob("*/flight.csv")))
+    assert (log.columns["phase"] == "adaptive").sum() > 50
+    assert log.meta["estimates"] and log.meta["status"] != "flying"
+    assert log.meta["adaptive"]["rounds"]
