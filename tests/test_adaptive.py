@@ -11,7 +11,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mission.adaptive.config import adaptive_violations
+from mission.adaptive.feasibility import adaptive_violations
 from mission.adaptive.planner import (
     box_pattern,
     choose_target,

@@ -2,17 +2,13 @@
 
 Why a block of its own: the same mission file flies fixed (the whole trajectory) or adaptive (the trajectory's
 first ``survey_s`` seconds, then rounds planned in flight); ``fly-mission --adaptive`` or ``enabled: true``
-choose.  Bad settings are refused before take-off (``assert_adaptive``): an altitude outside the limits, a
+choose.  Bad settings are refused before take-off (``mission.adaptive.feasibility``): an altitude outside the limits, a
 pattern that fits nowhere inside the fence, a budget that cannot hold the survey, one round and the return.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-import numpy as np
-
-from mission.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -54,43 +50,3 @@ def parse_adaptive(r) -> AdaptiveSpec:
         reserve_s=r.num("reserve_s", d.reserve_s, 0.0), explore=ex)
     r.done()
     return out
-
-
-def adaptive_violations(spec, a: AdaptiveSpec) -> list[tuple[str, str]]:
-    """(key, one-line message) for settings that cannot be flown: altitude, fence fit, budget."""
-    from mission.adaptive.planner import box_pattern, fit_centre, survey_profile
-
-    out: list[tuple[str, str]] = []
-    lo, hi = spec.altitude_limits_m
-    alt = a.altitude(spec)
-    if not lo <= alt <= hi:
-        out.append(("adaptive.altitude_m", f"adaptive altitude {alt:g} m is outside the altitude limits "
-                                           f"[{lo:g}, {hi:g}] m"))
-    ra = spec.field.rover_area
-    c = fit_centre(spec, np.asarray(ra.vertices, dtype=float).mean(axis=0), a.min_radius_m)
-    if c is None:
-        out.append(("adaptive.radius_m", f"the adaptive pattern (a square of half side {a.min_radius_m:g} m at "
-                                         f"least) fits nowhere in the flight area with the {spec.fence_margin_m:g}"
-                                         " m fence margin"))
-        return out
-    from mission.trajectory.kinematics import plan_profile
-
-    survey = survey_profile(spec, a.survey_s)
-    home = np.asarray(spec.home_enu, dtype=float)
-    first = box_pattern(c, a.min_radius_m, alt)
-    path = np.vstack([home, [home[0], home[1], survey.vertices[0, 2]], survey.vertices, first,
-                      [home[0], home[1], alt], home])
-    need = plan_profile(path, spec.kinematics()).duration_s + a.reserve_s
-    if need > spec.time_budget_s:
-        out.append(("time_budget_s", f"time budget {spec.time_budget_s:g} s is too small for the survey "
-                                     f"({a.survey_s:g} s), one adaptive round and the return with "
-                                     f"{a.reserve_s:g} s reserve ({need:.0f} s needed)"))
-    return out
-
-
-def assert_adaptive(spec, a: AdaptiveSpec) -> None:
-    """Refuse unflyable adaptive settings with one ``InputError`` naming the mission file and key."""
-    v = adaptive_violations(spec, a)
-    if v:
-        more = f" (and {len(v) - 1} more problems)" if len(v) > 1 else ""
-        raise InputError(v[0][1] + more, source=spec.source_name, field=v[0][0])

@@ -13,7 +13,8 @@ def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[t
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from mission.adaptive.compare import pair, summarize_pairs
-    from mission.adaptive.config import AdaptiveSpec, assert_adaptive
+    from mission.adaptive.config import AdaptiveSpec
+    from mission.adaptive.feasibility import assert_adaptive
     from mission.errors import InputError
 
     if not 1 <= flights <= 1000:

@@ -77,7 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import os
 
-    from mission.adaptive.config import AdaptiveSpec, assert_adaptive
+    from mission.adaptive.config import AdaptiveSpec
+    from mission.adaptive.feasibility import assert_adaptive
     from mission.adaptive.runner import fly_live
     from mission.errors import InputError
     from mission.flight.runner import FlightError, FlyOptions
