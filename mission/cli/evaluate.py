@@ -55,7 +55,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
     g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
     g.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="physics family (mission.localize.suite.FAMILIES; default afar)")
+                   help="physics family: a built-in one (mission.localize.suite.FAMILIES; default afar) or a "
+                        "family file F.json (implies --suite unseen; with --suite-dir: must be the cache's)")
     g.add_argument("--by", default="", help="comma list of draw axes to break the mean error down by, e.g. "
                    "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna")
 
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     console = Console()
-    if args.suite or args.suite_dir:
+    if args.family.lower().endswith(".json") or args.suite or args.suite_dir:
         return _run_suite(args, console)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:

@@ -16,6 +16,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.localize.evaluate import CLASSICAL, Row, parse_method
+from mission.localize.suite import FamilyArg, resolve_family
 
 SUITE_METHODS = ("default", "strongest", "centroid", "grid", "grid:MODEL", "grid:preset:NAME", "onnx:PATH")
 
@@ -158,7 +159,7 @@ def evaluate_suite(
     n: int = 200,
     seed: int | None = None,
     suite_dir: str | Path | None = None,
-    family: str = "afar",
+    family: FamilyArg = "afar",
     center: str = "afar",
     workers: int = 2,
     progress: Callable[[int, int], None] | None = None,
@@ -174,9 +175,10 @@ def evaluate_suite(
     A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
     its one-line warning goes to ``warn`` first (default: ``warnings.warn``).
     """
-    from mission.localize.suite import BENCHMARK_SEED
+    from mission.localize.suite import BENCHMARK_SEED, family_label
     from mission.localize.suite_cache import read_suite
 
+    fam = resolve_family(family)
     labels = {m: suite_method(m) for m in methods}
     if not labels:
         raise InputError("no methods to evaluate", field="--methods")
@@ -191,12 +193,13 @@ def evaluate_suite(
                 warn(stale)
         n = min(n, len(cs)) if n else len(cs)
         mf = cs.manifest
+        check_cache_family(cs, fam)
         source: dict = {"dir": str(suite_dir)}
         test = f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]"
     else:
         seed = BENCHMARK_SEED if seed is None else seed
-        source = {"seed": int(seed), "family": family, "center": center}
-        test = f"suite:unseen[seed={seed},family={family},n={n}]"
+        source = {"seed": int(seed), "family": fam, "center": center}
+        test = f"suite:unseen[seed={seed},family={family_label(fam)},n={n}]"
     rows = {m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
             for m, kw in labels.items()}
     secs = {m: 0.0 for m in labels}
@@ -227,7 +230,21 @@ def evaluate_suite(
     return list(rows.values()), {m: s / max(n, 1) for m, s in secs.items()}
 
 
-def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: str = "afar",
+def check_cache_family(cs, fam) -> None:
+    """Refuse a cache drawn from another family than the family file given beside it (a built-in name is not
+    checked: the CLIs pass ``afar`` by default)."""
+    if isinstance(fam, str):
+        return
+    from mission.localize.suite import family_sha256
+
+    have = cs.manifest.get("family_sha256")
+    if have != family_sha256(fam):
+        raise InputError(f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the family file "
+                         f"given ({fam.name!r}); drop --family or rewrite the cache", source=str(cs.path),
+                         field="--family")
+
+
+def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: FamilyArg = "afar",
                 center: str = "afar") -> list[dict]:
     """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
     from mission.localize.suite import BENCHMARK_SEED, draw_flight
@@ -236,7 +253,7 @@ def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = 
     if suite_dir is not None:
         return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]
     s = BENCHMARK_SEED if seed is None else seed
-    return [draw_flight(s, i, family, center)[0] for i in range(n)]
+    return [draw_flight(s, i, resolve_family(family), center)[0] for i in range(n)]
 
 
 def _axis_value(draw: dict, axis: str):
