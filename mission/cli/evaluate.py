@@ -199,11 +199,13 @@ def _run_suite(args: argparse.Namespace, console) -> int:
         stale.append(text)
         print(f"warning: {text}", file=sys.stderr)
 
+    real_logs = _real_logs(args)
+    stats: list | None = [] if real_logs else None
     with Progress(*cols, console=console, transient=True, disable=not console.is_terminal) as prog:
         task = prog.add_task("suite", total=args.n)
         rows, secs = evaluate_suite(methods, args.n, args.seed, args.suite_dir, family=args.family,
                                     workers=args.workers, progress=lambda d, _t: prog.update(task, completed=d),
-                                    warn=warn)
+                                    warn=warn, stats_out=stats)
     from rich.markup import escape
 
     t = Table(title=escape(f"{rows[0].test} (2D error; regions: share of truths inside)"))
@@ -235,7 +237,37 @@ def _run_suite(args: argparse.Namespace, console) -> int:
             for g, d in bd.items():
                 bt.add_row(escape(g), str(d["n"]), *(f"{d[r.method]:.1f}" for r in rows))
             console.print(bt)
+    if real_logs:
+        extra["predictive_checks"] = _predictive(real_logs, methods, rows, stats, console)
     if args.out:
         write_report(rows, args.out, extra)
         console.print(f"report: {args.out}")
     return 0
+
+
+def _real_logs(args: argparse.Namespace) -> list[str]:
+    """Real logs with truth for the benchmark's posterior-predictive checks (``--real``, ``--afar``)."""
+    import tempfile
+    from pathlib import Path
+
+    logs = list(args.real)
+    if args.afar:
+        from mission.localize.evaluate import import_afar
+
+        work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
+        logs += [str(p) for p in import_afar(args.afar, work / "afar_logs")]
+    return logs
+
+
+def _predictive(real_logs: list[str], methods: list[str], rows, stats: list, console) -> dict:
+    """Real flights vs the benchmark drawn from the family (``mission.localize.predictive``): table + verdict."""
+    from mission.localize.predictive import checks_table, family_checks, score_real, verdict
+
+    rstats, rerr = score_real(real_logs, methods)
+    checks = family_checks(rstats, stats, rerr, {r.method: r.errors for r in rows})
+    console.print(checks_table(checks, f"posterior-predictive checks: {len(real_logs)} real flights vs "
+                                       f"{len(stats)} benchmark flights"))
+    line = verdict(checks)
+    console.print(line, highlight=False)
+    return {"checks": checks, "verdict": line, "real_logs": real_logs, "real_statistics": rstats,
+            "real_errors_m": rerr, "benchmark_statistics": stats}

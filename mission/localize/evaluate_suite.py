@@ -139,12 +139,16 @@ def _suite_flight(i: int) -> dict:
 
     src = _SUITE["source"]
     if "cached" in _SUITE:
-        log, truth, _ = _SUITE["cached"].load(i)
+        log, truth, draw = _SUITE["cached"].load(i)
     else:
         from mission.localize.suite import unseen_flight
 
-        log, truth, _ = unseen_flight(src["seed"], i, src["family"], src["center"])
-    out = {}
+        log, truth, draw = unseen_flight(src["seed"], i, src["family"], src["center"])
+    out: dict = {}
+    if src.get("stats"):  # the posterior-predictive check statistics (mission.localize.predictive)
+        from mission.localize.predictive import flight_statistics
+
+        out["__stats__"] = flight_statistics(log, truth, draw["tx_height_m"], seed=i)
     for label, kw in _SUITE["methods"].items():
         t0 = time.perf_counter()
         est = localize_log(log, **kw)
@@ -164,6 +168,7 @@ def evaluate_suite(
     workers: int = 2,
     progress: Callable[[int, int], None] | None = None,
     warn: Callable[[str], None] | None = None,
+    stats_out: list | None = None,
 ) -> tuple[list[Row], dict[str, float]]:
     """Methods on the unseen-flight benchmark (``mission.localize.suite``): (rows, mean seconds per flight).
 
@@ -173,7 +178,8 @@ def evaluate_suite(
     count how often the truth lies in the 50 % / 90 % region.  Results do not depend on ``workers``.
 
     A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
-    its one-line warning goes to ``warn`` first (default: ``warnings.warn``).
+    its one-line warning goes to ``warn`` first (default: ``warnings.warn``).  ``stats_out`` (a list) receives
+    each flight's posterior-predictive statistics (``mission.localize.predictive.flight_statistics``), in order.
     """
     from mission.localize.suite import BENCHMARK_SEED, family_label
     from mission.localize.suite_cache import read_suite
@@ -194,11 +200,11 @@ def evaluate_suite(
         n = min(n, len(cs)) if n else len(cs)
         mf = cs.manifest
         check_cache_family(cs, fam)
-        source: dict = {"dir": str(suite_dir)}
+        source: dict = {"dir": str(suite_dir), "stats": stats_out is not None}
         test = f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]"
     else:
         seed = BENCHMARK_SEED if seed is None else seed
-        source = {"seed": int(seed), "family": fam, "center": center}
+        source = {"seed": int(seed), "family": fam, "center": center, "stats": stats_out is not None}
         test = f"suite:unseen[seed={seed},family={family_label(fam)},n={n}]"
     rows = {m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
             for m, kw in labels.items()}
@@ -215,6 +221,8 @@ def evaluate_suite(
         results = pool.imap(_suite_flight, range(n), chunksize=1)
     try:
         for i, res in enumerate(results):
+            if (st := res.pop("__stats__", None)) is not None and stats_out is not None:
+                stats_out.append(st)
             for m, (err, cov, dt) in res.items():
                 rows[m].errors.append(err)
                 rows[m].names.append(f"flight_{i:05d}")
