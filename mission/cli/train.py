@@ -45,6 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    family = check_family(args.family, args.datasets) if args.family else None  # before the (slow) torch import
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -56,7 +57,6 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.localize.train import TrainConfig, train
 
-    family = check_family(args.family, args.datasets) if args.family else None
     cfg = TrainConfig(
         features=args.features,
         epochs=args.epochs,

@@ -68,18 +68,20 @@ of the family's canonical JSON (``family_sha256``), so a cache or a model names 
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from dataclasses import replace
-from functools import lru_cache
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from mission.errors import InputError
-from mission.physics.family import PhysicsFamily, load_family
+from mission.localize.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
+    FamilyArg,
+    antenna_label,
+    family_label,
+    family_sha256,
+    resolve_family,
+)
 
 SUITES = ("unseen",)
 FAMILIES = ("afar", "generic", "afar-heavy")
@@ -95,45 +97,6 @@ P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a th
 HABITS = ("along_track", "fixed", "slow_rotation", "hover_turn")
 RSS_SOURCE = {"kind": "suite", "receiver": "simulated receiver (unseen-flight benchmark)", "calibrated": False}
 
-
-
-FamilyArg = str | PhysicsFamily  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
-
-
-def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
-    """A built-in family name as it is, or the ``PhysicsFamily`` of a ``.json`` path (InputError otherwise)."""
-    if isinstance(family, PhysicsFamily) or family in FAMILIES:
-        return family
-    if str(family).lower().endswith(".json"):
-        p = Path(family)
-        st = p.stat() if p.is_file() else None
-        return _load_json_family(str(p.resolve()), st.st_mtime_ns if st else -1, st.st_size if st else -1)
-    raise InputError(f"unknown suite family {family!r} (expected {', '.join(FAMILIES)} or a physics family "
-                     ".json file)", field="family")
-
-
-@lru_cache(maxsize=8)
-def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
-    """Parsed once per file version (the key holds mtime and size so an edited file is read again)."""
-    return load_family(path)
-
-
-def family_sha256(fam: PhysicsFamily) -> str:
-    """sha256 of the family's canonical JSON: what a cache or a model records to name the family it drew from."""
-    return hashlib.sha256(json.dumps(fam.to_dict(), sort_keys=True, default=float).encode()).hexdigest()
-
-
-def family_label(fam: str | PhysicsFamily) -> str:
-    """``afar`` for a built-in family, ``json:NAME@SHA8`` for a family file."""
-    return fam if isinstance(fam, str) else f"json:{fam.name}@{family_sha256(fam)[:8]}"
-
-
-def _antenna_label(spec: dict) -> str:
-    """The UAV antenna of a drawn spec as the built-in families name it (``--by physics.rx_antenna``)."""
-    pat = str(spec.get("rx_pattern", "isotropic"))
-    if pat == "measured":
-        return "flipped" if spec.get("rx_flipped") else "upright"
-    return pat
 
 
 class SuiteFlight(NamedTuple):
@@ -226,7 +189,7 @@ def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
     if not isinstance(fam, str):  # a physics family file: physics, residual and offset are the family's draw
         fd = fam.draw(rng)
         d["family_sha256"] = family_sha256(fam)
-        d["physics"] = {"spec": fd.spec, "from_preset": None, "rx_antenna": _antenna_label(fd.spec)}
+        d["physics"] = {"spec": fd.spec, "from_preset": None, "rx_antenna": antenna_label(fd.spec)}
         d["shadowing_db"], d["shadowing_corr_m"], d["noise_db"] = fd.shadowing_db, fd.shadowing_corr_m, fd.noise_db
         d["time_offset_s"] = _u(rng, -0.5, 0.5)
         d["rss_offset_db"] = fd.offset_db
