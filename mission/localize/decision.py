@@ -67,6 +67,8 @@ def _pct(iv: Interval) -> str:
 
 def _verdict(ivs: dict[str, Interval], cov90: float | None) -> dict:
     """Whether one candidate wins (and is adoptable), with the reason in words."""
+    if ivs["pooled"].lo > 0:
+        return {"wins": False, "adoptable": False, "reason": f"worse: pooled {_pct(ivs['pooled'])}"}
     if not ivs["pooled"].hi < 0:
         return {"wins": False, "adoptable": False, "reason": f"pooled {_pct(ivs['pooled'])} reaches zero"}
     worse = [k for k in ("real", "bench") if ivs[k].lo >= 0]
