@@ -55,6 +55,7 @@ def test_family_draws_are_reproducible_and_seeded():
     assert built_in["tx_xy"] == a["tx_xy"] and built_in["trajectory_params"] == a["trajectory_params"]
 
 
+@pytest.mark.slow  # three simulated flights: ~3 s on an idle core
 def test_family_sigma_shows_in_the_simulated_residual(tmp_path):
     """Same seed, families differing only in shadowing sigma (2 vs 12 dB): the same field scaled, so the
     log-distance residual's spread scales by 6 and sits near the family's sigma."""
@@ -135,3 +136,36 @@ def test_generated_bad_families_raise_input_error_only(tmp_path, key, value):
     else:  # accepted: then a flight draws from it, with a physical residual
         d = draw_flight(1, 0, p)[0]
         assert d["shadowing_db"] >= 0 and d["noise_db"] >= 0 and d["shadowing_corr_m"] > 0
+
+
+def test_train_family_check_and_record(tmp_path):
+    """rfsl train --family: a dataset drawn from another family is refused naming it; the family is written
+    into the model's training_data metadata and its training report."""
+    import onnx
+    from onnx import TensorProto, helper
+
+    from mission.cli.train import check_family, record_family
+
+    fam = _write(tmp_path, _family(5.0))
+    sha = family_sha256(resolve_family(fam))
+    for name, got in (("ok", sha), ("other", "0" * 64)):
+        (tmp_path / name).mkdir()
+        man = {"format": "rfsl-dataset/1", "physics_family": {"sha256": got}}
+        (tmp_path / name / "manifest.json").write_text(json.dumps(man))
+    rec = check_family(fam, [str(tmp_path / "ok")])
+    assert rec["sha256"] == sha and rec["record"]["residual"]["shadowing_db"] == 5.0
+    with pytest.raises(InputError, match="another family") as e:
+        check_family(fam, [str(tmp_path / "ok"), str(tmp_path / "other")])
+    assert "other" in str(e.value)
+    graph = helper.make_graph([helper.make_node("Identity", ["x"], ["y"])], "g",
+                              [helper.make_tensor_value_info("x", TensorProto.FLOAT, [1])],
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, [1])])
+    model = helper.make_model(graph)
+    model.metadata_props.add(key="training_data", value=json.dumps({"datasets": []}))
+    path = tmp_path / "m.onnx"
+    onnx.save(model, str(path))
+    (tmp_path / "m.onnx.train.json").write_text(json.dumps({"training_data": {}}))
+    record_family(path, rec)
+    meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
+    assert json.loads(meta["training_data"])["physics_family"]["sha256"] == sha
+    assert json.loads((tmp_path / "m.onnx.train.json").read_text())["training_data"]["physics_family"]["label"]
