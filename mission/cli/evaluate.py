@@ -49,7 +49,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--workers", type=int, default=2, help="workers for generated test sets")
     p.add_argument("--out", help="JSON report path")
-    g = p.add_argument_group("unseen-flight benchmark (mission.localize.suite; models/README.md)")
+    g = p.add_argument_group("unseen-flight benchmark (mission.localize.suite; models/README.md)",
+                             "with --afar DIR or --real LOGS: also the posterior-predictive checks of the "
+                             "benchmark's family against those real flights (mission.localize.predictive)")
     g.add_argument("--suite", choices=("unseen",), help="run the methods (and --models) on the benchmark")
     g.add_argument("--n", type=int, default=200, help="benchmark flights (default 200)")
     g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
