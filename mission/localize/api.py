@@ -112,6 +112,10 @@ def make_localizer(
         from mission.localize.selfcal import SelfCalibratingGrid
 
         return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
+    if method == "matched":  # track-matched ABC under the physics family (trained here, on this flight's track)
+        from mission.localize.matched import MatchedLocalizer
+
+        return MatchedLocalizer(area=area, tx_height_m=tx_height_m)
     if method == "grid":
         if physics_preset is not None:
             from mission.physics.presets import preset_model
@@ -301,7 +305,7 @@ def localize_log(
     if method not in METHOD_NAMES:
         raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
     ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
-    area = ra if method in ("grid", "selfcal", "fusion") else None
+    area = ra if method in ("grid", "selfcal", "fusion", "matched") else None
     origin = log.origin
     if method == "fusion":
         est = _fusion(part, origin, area, tx_height_m, model_path)
