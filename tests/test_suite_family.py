@@ -187,3 +187,23 @@ def test_train_family_check_and_record(tmp_path):
     meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
     assert json.loads(meta["training_data"])["physics_family"]["sha256"] == sha
     assert json.loads((tmp_path / "m.onnx.train.json").read_text())["training_data"]["physics_family"]["label"]
+
+
+@pytest.mark.slow  # two benchmark flights and two real-like logs: ~4 s
+def test_evaluate_prints_predictive_checks(tmp_path, capsys):
+    """rfsl evaluate --suite-dir ... --real LOGS: the checks table and verdict on stdout, the checks in --out."""
+    from _bad_input import assert_accepted, write_log
+
+    fam = _write(tmp_path, _family(6.0, noise_db=1.0))
+    write_suite(tmp_path / "s", 2, seed=3, family=fam)
+    logs = [str(write_log(tmp_path / f"r{k}.csv", seed=k)) for k in range(2)]
+    out = tmp_path / "r.json"
+    rc, text, err = run_cli(rfsl_main, ["evaluate", "--suite-dir", tmp_path / "s", "--family", fam, "--methods",
+                                        "strongest", "--real", *logs, "--workers", "1", "--out", out], capsys)
+    assert_accepted(rc, err)
+    assert "posterior-predictive checks: 2 real flights vs 2 benchmark flights" in text
+    rep = json.loads(out.read_text())["predictive_checks"]
+    assert set(rep["checks"]) >= {"rss_spread_db", "resid_sill_db", "error m: strongest"}
+    assert len(rep["benchmark_statistics"]) == 2 and rep["verdict"].startswith("the family")
+    # white 1 dB noise around log distance: the real logs' residual sill is about 1 dB
+    assert all(0.5 < s["resid_sill_db"] < 1.6 for s in rep["real_statistics"])
