@@ -74,24 +74,24 @@ def use_family(family: str) -> None:
     matched.DEFAULT_FAMILY = family
 
 
-def _sim_one(args: tuple[int, int, str]) -> dict:
+def _sim_one(args: tuple[int, int, str, tuple[str, ...]]) -> dict:
     from mission.localize.suite import unseen_flight
 
-    seed, i, family = args
+    seed, i, family, methods = args
     use_family(family)
     fl = unseen_flight(seed, i, family=family)
-    return {"flight": f"{seed}:{i}", **score(fl.log, fl.truth_xy)}
+    return {"flight": f"{seed}:{i}", **score(fl.log, fl.truth_xy, methods)}
 
 
-def summarise(rows: list[dict], teams: list[str] | None) -> dict:
+def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dict:
     """Means with intervals (over flights, and teams when given), paired differences to fusion, coverage."""
     from mission.evidence import compare_methods
 
-    errs = {m: [r[m]["error_m"] for r in rows] for m in METHODS}
-    out: dict = {"n": len(rows), "flights": compare_methods(errs, "fusion", seed=0)}
+    errs = {m: [r[m]["error_m"] for r in rows] for m in methods}
+    out: dict = {"n": len(rows), "methods": list(methods), "flights": compare_methods(errs, "fusion", seed=0)}
     if teams:
         out["teams"] = compare_methods(errs, "fusion", groups=teams, seed=0)
-    for m in METHODS:
+    for m in methods:
         e = np.array(errs[m])
         out[m] = {"mean_m": float(e.mean()), "median_m": float(np.median(e))}
         for lv in ("cover50", "cover90"):
@@ -102,13 +102,13 @@ def summarise(rows: list[dict], teams: list[str] | None) -> dict:
 
 def print_summary(s: dict) -> None:
     print(f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} {'50%':>6s} {'90%':>6s}")
-    for m in METHODS:
+    for m in s["methods"]:
         f = s["flights"][m]
         print(f"{m:8s} {f['mean'].fmt():>24s} {f['diff'].fmt():>20s} {s[m]['median_m']:7.1f} "
               f"{s[m]['cover50']:>6s} {s[m]['cover90']:>6s}")
     if "teams" in s:
         print("over teams (cluster bootstrap):")
-        for m in METHODS:
+        for m in s["methods"]:
             t = s["teams"][m]
             print(f"  {m:8s} mean {t['mean'].fmt()}  vs fusion {t['diff'].fmt()}")
 
@@ -132,8 +132,12 @@ def main() -> None:
     ap.add_argument("--family", default=str(FAMILY),
                     help="physics family JSON the matched localizer draws from (and, sim mode, the suite's)")
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated; must include fusion (reference)")
     ap.add_argument("--json", help="write per-flight rows and the summary here")
     args = ap.parse_args()
+    methods = tuple(args.methods.split(","))
+    if "fusion" not in methods or set(methods) - set(METHODS):
+        raise SystemExit(f"--methods: among {', '.join(METHODS)}, with fusion (the reference)")
     use_family(args.family)
     with tempfile.TemporaryDirectory() as tmp:
         if args.mode == "time":
@@ -158,18 +162,18 @@ def main() -> None:
             rows, teams = [], []
             for name, path in real_logs(Path(tmp)):
                 log = read_flight_log(path)
-                rows.append({"flight": name, **score(log, log.truth_enu[:2])})
+                rows.append({"flight": name, **score(log, log.truth_enu[:2], methods)})
                 teams.append(name.split("_")[0])
-                print(name, " ".join(f"{m} {rows[-1][m]['error_m']:.1f}" for m in METHODS), flush=True)
+                print(name, " ".join(f"{m} {rows[-1][m]['error_m']:.1f}" for m in methods), flush=True)
         else:
-            jobs = [(args.seed, i, args.family) for i in range(args.n)]
+            jobs = [(args.seed, i, args.family, methods) for i in range(args.n)]
             teams = None
             with ProcessPoolExecutor(args.workers) as ex:
                 rows = []
                 for r in ex.map(_sim_one, jobs):
                     rows.append(r)
-                    print(r["flight"], " ".join(f"{m} {r[m]['error_m']:.1f}" for m in METHODS), flush=True)
-    s = summarise(rows, teams)
+                    print(r["flight"], " ".join(f"{m} {r[m]['error_m']:.1f}" for m in methods), flush=True)
+    s = summarise(rows, teams, methods)
     print_summary(s)
     if args.json:
         Path(args.json).write_text(json.dumps({"mode": args.mode, "rows": rows, "summary": _jsonable(s),

@@ -121,3 +121,18 @@ def test_cells_centring_and_conformal_mass(flight):
     assert np.allclose(centred(tr.rss_dbm + 5.0), centred(tr.rss_dbm))
     lev = np.linspace(0.0, 1.0, 101)[:-1]  # uniform HPD levels: a calibrated posterior
     assert conformal_mass(lev, 0.9) == pytest.approx(0.9, abs=0.02)
+
+
+def test_wired_into_localize():
+    import argparse
+
+    from mission.cli.localize import add_arguments
+    from mission.localize.api import make_localizer
+    from mission.localize.matched import MatchedLocalizer
+
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    assert p.parse_args(["x.csv", "--method", "matched"]).method == "matched"
+    loc = make_localizer("matched", area=BOX, tx_height_m=2.0)
+    assert isinstance(loc, MatchedLocalizer) and loc.area == BOX and loc.tx_height_m == 2.0
+    assert loc.n_draws >= 20000 and loc.family is None  # the shipped family, read through load_family
