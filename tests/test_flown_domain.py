@@ -77,17 +77,18 @@ def test_trained_legs_drop_the_transit_to_the_first_waypoint():
 
 
 REC = {"radii_m": {0.5: 5.0, 0.9: 12.0},
-       "track": {"exponent": 1.5, "min_coverage": 0.25, "radii_m": {0.5: 4.0, 0.9: 10.0}}}
+       "track": {"bounds": [0.25, 0.5, 0.9], "radii_m": {0.5: [20.0, 9.0, 4.0], 0.9: [90.0, 30.0, 10.0]}}}
 
 
 @given(st.floats(0.0, 1.0))
 @settings(max_examples=60, deadline=None)
-def test_flown_radii_grow_as_the_track_shrinks_then_stop(c):
+def test_flown_radii_are_their_stratums_then_stop(c):
     radii, how = flown_radii(REC, c)
     if c < 0.25:
         assert radii is None and "no calibration applies" in how
     else:
-        assert radii[0.9] == pytest.approx(10.0 / c ** 1.5) and radii[0.5] == pytest.approx(4.0 / c ** 1.5)
+        k = 0 if c < 0.5 else 1 if c < 0.9 else 2
+        assert radii == {0.5: [20.0, 9.0, 4.0][k], 0.9: [90.0, 30.0, 10.0][k]} and f"{100 * c:.0f} %" in how
     no_track = {"radii_m": REC["radii_m"]}
     radii, how = flown_radii(no_track, c)
     assert (radii is None) == (c < FULL_TRACK)
@@ -146,3 +147,31 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     assert "regions" not in est.extras
     assert "attitude is outside" in est.extras["note"] and "pitch -28 to -28 deg" in est.extras["note"]
     assert "regions" in localize_log(spiral).extras
+
+
+@pytest.mark.parametrize("track, ok", [
+    ({"bounds": [0.2, 0.5, 0.9], "radii_m": {"0.5": [20, 9, 4], "0.9": [90, 30, 10]}}, True),
+    ({"bounds": [0.2], "radii_m": {"0.5": [20], "0.9": [90]}}, True),
+    ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90]}}, False),
+    ({"bounds": [0.5, 0.2], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
+    ({"bounds": [0.0, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
+    ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, -9], "0.9": [90, 30]}}, False),
+    ({"bounds": "x", "radii_m": {"0.5": [20], "0.9": [90]}}, False),
+    ({"radii_m": {"0.5": [20], "0.9": [90]}}, False),
+    ({"bounds": [0.2], "radii_m": {"0.5": [20]}}, False),
+])
+def test_a_stored_track_record_is_read_per_stratum_or_refused_naming_the_key(tmp_path, track, ok):
+    import json
+
+    from mission.errors import InputError
+    from mission.localize.error_circles import method_calibration
+
+    p = tmp_path / "circles.json"
+    p.write_text(json.dumps({"grid": {"sim": {"radii_m": {"0.5": 5.0, "0.9": 12.0}, "track": track}}}))
+    if not ok:
+        with pytest.raises(InputError, match="grid.sim.track"):
+            method_calibration("grid", "sim", p)
+        return
+    rec, _ = method_calibration("grid", "sim", p)
+    radii, how = flown_radii(rec, 0.3)
+    assert radii == {0.5: 20.0, 0.9: 90.0} and "(this one 30 %)" in how

@@ -19,11 +19,11 @@ the classical methods in their default configuration in ``mission/data/method_ci
 ``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
 
 What was flown: a flight that flew only part of its planned track (an aborted mission) errs more than the full
-flights a record was calibrated on.  A record may carry ``track`` (normalised conformal: the score is the error
-times ``coverage ** exponent``, ``coverage`` the share of the planned track flown, ``training_domain.
-track_coverage``), whose radii grow as ``radius / coverage ** exponent`` down to its ``min_coverage``; below that,
-or for a partial flight under a record without ``track``, no calibration applies and the estimate says so
-instead of printing a circle.  A flight whose attitude leaves the network's training span gets that note too.
+flights a record was calibrated on.  A record may carry ``track``: Mondrian (stratified) conformal radii per
+stratum of ``coverage``, the share of the planned track flown (``training_domain.track_coverage``), with the
+strata's lower ``bounds`` (e.g. [0.18, 0.5, 0.9]); below the first bound, or for a partial flight under a record
+without ``track``, no calibration applies and the estimate says so instead of printing a circle.  A flight whose
+attitude leaves the network's training span gets that note too.
 
 Where the transmitter's area is known (the rover area), each circle is clipped to it: the transmitter cannot lie
 outside, so the clipped region holds the truth exactly as often as the circle and is smaller.  Clipped regions
@@ -106,14 +106,15 @@ def _checked(rec, p: Path, key: str) -> dict:
     tr = rec.get("track")
     if tr is not None:
         try:
-            tr = dict(tr, exponent=float(tr["exponent"]), min_coverage=float(tr["min_coverage"]),
-                      radii_m={float(k): float(v) for k, v in tr["radii_m"].items()})
+            tr = dict(tr, bounds=[float(b) for b in tr["bounds"]],
+                      radii_m={float(k): [float(r) for r in v] for k, v in tr["radii_m"].items()})
         except (KeyError, TypeError, ValueError, AttributeError):
-            raise InputError("track needs exponent, min_coverage and radii_m", source=str(p),
-                             field=f"{key}.track") from None
-        if set(tr["radii_m"]) != set(radii) or not 0.0 < tr["min_coverage"] <= 1.0:
-            raise InputError("track radii_m needs the record's levels and min_coverage in (0, 1]",
-                             source=str(p), field=f"{key}.track")
+            raise InputError("track needs bounds and radii_m", source=str(p), field=f"{key}.track") from None
+        b = tr["bounds"]
+        if set(tr["radii_m"]) != set(radii) or not b or not 0.0 < b[0] <= 1.0 or b != sorted(b) or \
+                not all(len(v) == len(b) and all(0.0 < r < math.inf for r in v) for v in tr["radii_m"].values()):
+            raise InputError("track needs ascending coverage bounds in (0, 1] and, for each of the record's levels, "
+                             "one positive radius per bound", source=str(p), field=f"{key}.track")
         rec = dict(rec, track=tr)
     return dict(rec, radii_m=radii)
 
@@ -124,12 +125,15 @@ def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] |
     tr = rec.get("track")
     if coverage is None:
         return rec["radii_m"], ""
-    if tr is not None and coverage >= tr["min_coverage"]:
-        radii = {lv: q / coverage ** tr["exponent"] for lv, q in tr["radii_m"].items()}
-        return radii, f"; scaled for {100 * coverage:.0f} % of the planned track flown"
+    if tr is not None and coverage >= tr["bounds"][0]:
+        k = int(np.searchsorted(tr["bounds"], coverage, side="right")) - 1
+        hi = tr["bounds"][k + 1] if k + 1 < len(tr["bounds"]) else 1.0
+        return ({lv: r[k] for lv, r in tr["radii_m"].items()},
+                f"; for flights that flew {100 * tr['bounds'][k]:.0f}-{100 * hi:.0f} % of their planned track "
+                f"(this one {100 * coverage:.0f} %)")
     if coverage >= FULL_TRACK:
         return rec["radii_m"], ""
-    lo = f"{100 * tr['min_coverage']:.0f}" if tr is not None else f"{100 * FULL_TRACK:.0f}"
+    lo = f"{100 * tr['bounds'][0]:.0f}" if tr is not None else f"{100 * FULL_TRACK:.0f}"
     return None, (f"no calibration applies: this flight flew {100 * coverage:.0f} % of its planned track, its "
                   f"circles were calibrated on flights that flew {lo}-100 %")
 
