@@ -222,7 +222,8 @@ def fusion_model_path() -> Path | None:
 
 def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
     """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
-    ``models/README.md``); the uncertainty regions are the self-calibrating posterior's, and a note says when
+    ``models/README.md``; weighting by each member's 50 % region scale was not adopted, benchmarks/fusion_weights.py);
+    the uncertainty regions are the self-calibrating posterior's, and a note says when
     the fused point falls outside them (the two components disagree: ~5 % of benchmark flights)."""
     from mission.localize.uncertainty import outer_region
 
