@@ -153,8 +153,8 @@ def main() -> None:
                     np.save(cache, sets[-1])
     rows = np.vstack(sets)
     alts = ", ".join(f"{a:g}" for a in args.alts)
-    rec = fit(rows, f"rfsl simulate spirals at {alts} m, seeds {args.seeds} (each full and cut at "
-                    f"U({MIN_FRACTION}, 1) of its mission legs) and {args.check_seeds} (cut at 1/3, 2/3, 1)")
+    rec = fit(rows, f"{len(rows)} rfsl simulate spirals at {alts} m, full and cut short (seeds {args.seeds}, "
+                    f"{args.check_seeds})")
     print(args.model, json.dumps(rec), flush=True)
     print("held out, 5-fold over seeds:")
     cross_validate(rows)

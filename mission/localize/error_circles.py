@@ -202,5 +202,6 @@ def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | N
     radii, how = flown_radii(rec, cov)
     if radii is None:
         return f"no uncertainty region: {how}"
-    extras["regions"] = circle_regions(x, y, radii, str(rec.get("calibrated_on", "")) + how, area)
+    src = rec["track"].get("calibrated_on", "") if how and "track" in rec else rec.get("calibrated_on", "")
+    extras["regions"] = circle_regions(x, y, radii, str(src) + how, area)
     return None
