@@ -7,14 +7,17 @@ methods in ``mission/data/method_circles.json``):
   ``localize`` uses it on simulated logs (``SIM_DOMAINS``): the spiral networks on their spirals, ``rfsl_default``
   on every other generator at 20-47 m (its training altitudes), ``rfsl_afar`` on its AFAR-physics check domain; a
   classical method on ``rfsl simulate`` logs of the five generator missions (``--method-seeds``);
-- ``real``: the unseen-flight benchmark caches given by ``--calib-dirs`` (``afar`` family, seeds 2027 and 2028).
+- ``real``: the unseen-flight benchmark caches given by ``--calib-dirs`` (seeds 2027 and 2028 of the reality-fitted
+  family ``mission/data/afar_family.json``, the output of ``rfsl gap --family`` on the six real flights).
 
 Check (held out, ``--check-dir`` and ``--mat``): coverage on the benchmark seed 2026 and on the six real AFAR
 flights, and on simulated logs of the product path (``--product-seeds``: ``benchmarks/sim_default.py``'s sets,
 ``localize``'s default and each classical method on ``rfsl simulate`` logs).
 
-    rfsl dataset --suite unseen --logs --n 200 --seed 2027 --out /tmp/suite_2027      # and 2028, 2026
-    python benchmarks/calibrate_error_circles.py --calib-dirs /tmp/suite_2027 /tmp/suite_2028 --write  # 2.5 min
+    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2027 \\
+        --out /tmp/suite_2027                                                          # and 2028, 2026
+    python benchmarks/calibrate_error_circles.py --calib-dirs /tmp/suite_2027 /tmp/suite_2028 --sim-n 0 \\
+        --method-seeds 0:0 --write                                                     # 'real' only
     python benchmarks/calibrate_error_circles.py --sim-n 0 --method-seeds 0:0 --check-dir /tmp/suite_2026 \\
         --mat ../shared/data/afar2023/mat --product-seeds 7000:7040                                   # 1 min
 """
@@ -157,6 +160,16 @@ def product_check(seeds: str, methods: list[str]) -> None:
                 print(f"product path, {label}, {kw.get('method', 'default')}: {coverage_line(runs)}", flush=True)
 
 
+def benchmark_label(dirs: list[str]) -> str:
+    """'unseen-flight benchmark, FAMILY family (seeds ...)' for the caches ``dirs`` (the family their manifests
+    name: a built-in name, or a family file's name and sha256 prefix)."""
+    from mission.localize.suite_cache import read_suite
+
+    fams = sorted({str(read_suite(d).manifest.get("family", "afar")) for d in dirs})
+    seeds = ", ".join(str(read_suite(d).manifest.get("seed")) for d in dirs)
+    return f"unseen-flight benchmark, {' + '.join(fams)} family (seeds {seeds})"
+
+
 def store(name: str, regions: dict) -> None:
     """Write a calibration: a network's into its card, a classical method's into method_circles.json."""
     from mission.localize.error_circles import METHOD_CIRCLES, REGIONS_KEY
@@ -195,9 +208,8 @@ def main() -> None:
                                                 f"{{{','.join(GENERATOR_MISSIONS)}}}.yaml, seeds {lo}-{hi - 1}")
         if args.calib_dirs:
             runs = suite_runs(name, args.calib_dirs)
-            seeds = ", ".join(Path(d).name for d in args.calib_dirs)
-            regions["real"] = calibration_record([r[0] for r in runs], f"unseen-flight benchmark, afar family "
-                                                 f"({seeds}); {len(runs)} flights", model)
+            regions["real"] = calibration_record([r[0] for r in runs], f"{benchmark_label(args.calib_dirs)}; "
+                                                 f"{len(runs)} flights", model)
         print(name, json.dumps(regions), flush=True)
         if args.write and regions:
             store(name, regions)

@@ -9,6 +9,7 @@ the coverage per seed, leave-one-seed-out and 5-fold (seeded) cross-validated co
 Usage (the shipped masses: three seeds of the ``afar`` family, 500 flights, 33 s on 2 cores)::
 
     python benchmarks/calibrate_regions.py --seeds 2026:200 2027:100 2028:200 --json /tmp/regions.json
+    python benchmarks/calibrate_regions.py --suite-dirs /tmp/suite_2027:200 /tmp/suite_2028:200   # family caches
 """
 
 from __future__ import annotations
@@ -22,13 +23,15 @@ import numpy as np
 LEVELS = (0.5, 0.9)
 
 
-def truth_level(job: tuple[int, int, str]) -> float:
-    """The truth's HPD level under the default selfcal posterior on benchmark flight ``i`` of ``seed``."""
+def truth_level(job: tuple[int | str, int, str]) -> float:
+    """The truth's HPD level under the default selfcal posterior on benchmark flight ``i`` of ``seed`` (or of
+    the benchmark cache folder ``seed`` names)."""
     from mission.localize.api import localize_log
     from mission.localize.suite import unseen_flight
+    from mission.localize.suite_cache import read_suite
 
     seed, i, family = job
-    log, truth, _ = unseen_flight(seed, i, family)
+    log, truth, _ = read_suite(seed).load(i) if isinstance(seed, str) else unseen_flight(seed, i, family)
     est = localize_log(log, method="selfcal")
     return est.posterior.hpd_level(float(truth[0]), float(truth[1]))
 
@@ -51,10 +54,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", nargs="+", default=["2026:200", "2027:100", "2028:200"], help="SEED:N ...")
     ap.add_argument("--family", default="afar")
+    ap.add_argument("--suite-dirs", nargs="+", help="benchmark caches instead of --seeds (DIR:N ...; e.g. "
+                    "rfsl dataset --suite unseen --logs --family mission/data/afar_family.json)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", help="write masses, coverages and every flight's level here")
     args = ap.parse_args()
-    seeds = [tuple(int(v) for v in s.split(":")) for s in args.seeds]
+    seeds = ([(d.rsplit(":", 1)[0], int(d.rsplit(":", 1)[1])) for d in args.suite_dirs] if args.suite_dirs
+             else [tuple(int(v) for v in s.split(":")) for s in args.seeds])
     jobs = [(seed, i, args.family) for seed, n in seeds for i in range(n)]
     with ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
         q_all = np.array(list(track(ex.map(truth_level, jobs, chunksize=4), total=len(jobs),

@@ -71,6 +71,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="7000:7040", help="first:last (exclusive)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--variants", action="store_true", help="spirals with other generator parameters instead")
+    ap.add_argument("--only", help="run only the sets whose label contains this text (e.g. 'spiral 30')")
     args = ap.parse_args()
     from mission.localize.features import one_thread_process
 
@@ -78,6 +79,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
         sets = ([(label, "missions/spiral.yaml", None, p) for label, p in VARIANTS] if args.variants
                 else [(*s, None) for s in SETS])
+        sets = [s for s in sets if args.only is None or args.only in s[0]]
         for label, mission, alt, params in sets:
             mission = mission_variant(mission, tmp, label, alt, params)
             out = tempfile.mkdtemp(dir=tmp)

@@ -27,6 +27,7 @@ from mission.localize.error_circles import (
     card_calibration,
     circle_regions,
     conformal_radius,
+    flown_radii,
     method_calibration,
     model_digest,
 )
@@ -177,7 +178,8 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7101", "--out", str(tmp_path)]) == 0
     est = localize_log(next(tmp_path.glob("*.csv")))
     model = est.extras["model_path"]
-    want = card_calibration(model, "sim")[0]["radii_m"]
+    want, _ = flown_radii(card_calibration(model, "sim")[0], est.extras["track_coverage"])  # sized for the flight
+    assert est.extras["track_coverage"] > 0.95
     assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items())
     assert all(r["ellipse"]["x_m"] == est.x_m and r["ellipse"]["y_m"] == est.y_m for r in est.extras["regions"])
     log, truth, _ = unseen_flight(2027, 3)

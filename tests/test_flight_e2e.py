@@ -96,11 +96,15 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     assert log.columns["mission_item"][phase == "mission"].max() == len(spec.waypoints_enu()) - 1
     last = out.strip().splitlines()[-1]  # the localizer's estimate, with its error against the known truth
     assert last.startswith("estimate:") and "; error " in last, out
-    assert "[onnx rfsl_spiral_e2r.onnx]" in last, last  # the spiral network answered its own kind of flight
-    from mission.localize.error_circles import card_calibration
+    assert "[onnx rfsl_spiral_e2r_ens5.onnx]" in last, last  # the spiral network answered its own kind of flight
+    from mission.localize.error_circles import card_calibration, flown_radii
+    from mission.localize.preprocess import select_samples
+    from mission.localize.training_domain import planned_track, track_coverage
 
-    r90 = card_calibration(repo_dir / "models" / "rfsl_spiral_e2r.onnx", "sim")[0]["radii_m"][0.9]
-    assert f"; 90 % region within {r90:.0f} m of the estimate; error " in last, last  # its calibrated circle
+    part, _ = select_samples(log)  # the whole spiral flown: the full-flight stratum of its calibrated circles
+    cov = track_coverage(planned_track(log.meta, log.origin), part.enu()[:, :2])
+    r90 = flown_radii(card_calibration(repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx", "sim")[0], cov)[0][0.9]
+    assert cov > 0.95 and f"; 90 % region within {r90:.0f} m of the estimate; error " in last, last
     cruise = log["rel_alt_m"] > 25
     for c in ("roll_deg", "pitch_deg"):
         assert np.std(log[c][cruise]) > 0.5

@@ -51,9 +51,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     s.add_argument("--logs", action="store_true", help="with --suite: write the flights as CSV logs + suite.json "
                    "(the benchmark cache for rfsl evaluate --suite-dir) instead of feature chunks")
     s.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="with --suite: physics family (mission.localize.suite.FAMILIES): centred on the "
-                        "calibration (afar), on none (generic), or afar with the shadowing measured on real "
-                        "flights (afar-heavy)")
+                   help="with --suite: physics family: a built-in one (mission.localize.suite.FAMILIES: afar, "
+                        "generic, afar-heavy) or a physics family file F.json (rfsl gap --family; "
+                        "mission/data/afar_family.json), which draws each flight's physics, shadowing, noise and "
+                        "offset; a .json implies --suite unseen")
     s.add_argument("--center", default="afar", metavar="PRESET",
                    help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)")
     g = p.add_argument_group("domain randomisation (each off unless given)")
@@ -166,6 +167,14 @@ def run(args: argparse.Namespace) -> int:
     from mission.cli.main import out_parent_ok
 
     out_parent_ok(Path(args.out), folder=True)
+    if args.family.lower().endswith(".json") and not args.suite:
+        args.suite = "unseen"  # a family file draws benchmark-style flights
+    if args.family != "afar" and not args.suite:
+        raise InputError("--family draws benchmark-style flights: add --suite unseen", field="--family")
+    if args.suite:
+        from mission.localize.suite import resolve_family
+
+        resolve_family(args.family)  # a bad family file is refused before anything is written
     if args.suite and args.mission:
         raise InputError("--suite flights fly the AFAR field with their own paths: give no mission", field="mission")
     if not args.suite and not args.mission:

@@ -49,13 +49,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--workers", type=int, default=2, help="workers for generated test sets")
     p.add_argument("--out", help="JSON report path")
-    g = p.add_argument_group("unseen-flight benchmark (mission.localize.suite; models/README.md)")
+    g = p.add_argument_group("unseen-flight benchmark (mission.localize.suite; models/README.md)",
+                             "with --afar DIR or --real LOGS: also the posterior-predictive checks of the "
+                             "benchmark's family against those real flights (mission.localize.predictive)")
     g.add_argument("--suite", choices=("unseen",), help="run the methods (and --models) on the benchmark")
     g.add_argument("--n", type=int, default=200, help="benchmark flights (default 200)")
     g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
     g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
     g.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="physics family (mission.localize.suite.FAMILIES; default afar)")
+                   help="physics family: a built-in one (mission.localize.suite.FAMILIES; default afar) or a "
+                        "family file F.json (implies --suite unseen; with --suite-dir: must be the cache's)")
     g.add_argument("--by", default="", help="comma list of draw axes to break the mean error down by, e.g. "
                    "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna")
 
@@ -98,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     console = Console()
-    if args.suite or args.suite_dir:
+    if args.family.lower().endswith(".json") or args.suite or args.suite_dir:
         return _run_suite(args, console)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
@@ -198,11 +201,13 @@ def _run_suite(args: argparse.Namespace, console) -> int:
         stale.append(text)
         print(f"warning: {text}", file=sys.stderr)
 
+    real_logs = _real_logs(args)
+    stats: list | None = [] if real_logs else None
     with Progress(*cols, console=console, transient=True, disable=not console.is_terminal) as prog:
         task = prog.add_task("suite", total=args.n)
         rows, secs = evaluate_suite(methods, args.n, args.seed, args.suite_dir, family=args.family,
                                     workers=args.workers, progress=lambda d, _t: prog.update(task, completed=d),
-                                    warn=warn)
+                                    warn=warn, stats_out=stats)
     from rich.markup import escape
 
     t = Table(title=escape(f"{rows[0].test} (2D error; regions: share of truths inside)"))
@@ -234,7 +239,37 @@ def _run_suite(args: argparse.Namespace, console) -> int:
             for g, d in bd.items():
                 bt.add_row(escape(g), str(d["n"]), *(f"{d[r.method]:.1f}" for r in rows))
             console.print(bt)
+    if real_logs:
+        extra["predictive_checks"] = _predictive(real_logs, methods, rows, stats, console)
     if args.out:
         write_report(rows, args.out, extra)
         console.print(f"report: {args.out}")
     return 0
+
+
+def _real_logs(args: argparse.Namespace) -> list[str]:
+    """Real logs with truth for the benchmark's posterior-predictive checks (``--real``, ``--afar``)."""
+    import tempfile
+    from pathlib import Path
+
+    logs = list(args.real)
+    if args.afar:
+        from mission.localize.evaluate import import_afar
+
+        work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
+        logs += [str(p) for p in import_afar(args.afar, work / "afar_logs")]
+    return logs
+
+
+def _predictive(real_logs: list[str], methods: list[str], rows, stats: list, console) -> dict:
+    """Real flights vs the benchmark drawn from the family (``mission.localize.predictive``): table + verdict."""
+    from mission.localize.predictive import checks_table, family_checks, score_real, verdict
+
+    rstats, rerr = score_real(real_logs, methods)
+    checks = family_checks(rstats, stats, rerr, {r.method: r.errors for r in rows})
+    console.print(checks_table(checks, f"posterior-predictive checks: {len(real_logs)} real flights vs "
+                                       f"{len(stats)} benchmark flights"))
+    line = verdict(checks)
+    console.print(line, highlight=False)
+    return {"checks": checks, "verdict": line, "real_logs": real_logs, "real_statistics": rstats,
+            "real_errors_m": rerr, "benchmark_statistics": stats}

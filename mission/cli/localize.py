@@ -165,6 +165,10 @@ def run(args: argparse.Namespace) -> int:
         tab.add_row("components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)")
     if "p_outside_flown_area" in est.extras:
         tab.add_row("outside flown area", f"probability {est.extras['p_outside_flown_area']:.2f}")
+    if est.extras.get("sim_check", {}).get("n"):  # matched: how it did on simulated transmitters of this track
+        sc = est.extras["sim_check"]
+        tab.add_row("simulated check", f"median error {sc['median_error_m']:.0f} m on {sc['n']} simulated "
+                    f"transmitters along this track (family {est.extras.get('family')})")
     if "note" in est.extras:
         tab.add_row("[bold]note", str(est.extras["note"]))
     if args.plot:

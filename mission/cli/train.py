@@ -36,12 +36,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="clustering coordinates: relative to the strongest cluster (default; translation-equivariant, "
         "done inside the exported graph) or absolute",
     )
+    p.add_argument("--family", metavar="F.json",
+                   help="the physics family file the datasets were drawn from (rfsl dataset --family F.json): "
+                        "checked against every dataset's manifest and recorded in the model's training_data")
     p.add_argument("--altitude-normalised", action="store_true",
                    help="clustering: coordinates in units of each flight's height above the transmitter, so one "
                    "network serves every altitude (train on a range of altitudes, e.g. rfsl dataset --altitude 15,60)")
 
 
 def run(args: argparse.Namespace) -> int:
+    family = check_family(args.family, args.datasets) if args.family else None  # before the (slow) torch import
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -87,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
             )
 
         res = train(args.datasets, args.out, cfg, progress=cb)
+    if family is not None:
+        record_family(res.onnx_path, family)
     m = res.metrics
     console.print(
         f"{args.features} ({res.meta['training_data']['coords']} coordinates"
@@ -101,3 +107,41 @@ def run(args: argparse.Namespace) -> int:
         f"{res.max_onnx_diff:.1e}; model: {res.onnx_path}"
     )
     return 0
+
+
+def check_family(path: str, datasets: list[str]) -> dict:
+    """The family file's record (label, sha256, record); every dataset must have been drawn from it."""
+    from mission.errors import InputError
+    from mission.localize.dataset import read_manifest
+    from mission.localize.suite import family_label, family_sha256, resolve_family
+
+    if not path.lower().endswith(".json"):
+        raise InputError("give the physics family file (.json) the datasets were drawn from", field="--family")
+    fam = resolve_family(path)
+    sha = family_sha256(fam)
+    for d in datasets:
+        got = (read_manifest(d).get("physics_family") or {}).get("sha256")
+        if got != sha:
+            raise InputError(f"dataset was not drawn from {path} ({'another family' if got else 'no family file'}; "
+                             f"rfsl dataset --family {path})", source=str(d), field="--family")
+    return {"label": family_label(fam), "path": path, "sha256": sha, "record": fam.to_dict()}
+
+
+def record_family(onnx_path, family: dict) -> None:
+    """Add ``physics_family`` to the model's ``training_data`` metadata (what the card and localize read)."""
+    import json
+    from pathlib import Path
+
+    import onnx
+
+    m = onnx.load(str(onnx_path))
+    props = {p.key: p for p in m.metadata_props}
+    td = json.loads(props["training_data"].value)
+    td["physics_family"] = family
+    props["training_data"].value = json.dumps(td)
+    onnx.save(m, str(onnx_path))
+    side = Path(str(onnx_path) + ".train.json")  # the training report beside the model says the same
+    if side.is_file():
+        rep = json.loads(side.read_text())
+        rep.setdefault("training_data", {})["physics_family"] = family
+        side.write_text(json.dumps(rep, indent=1))

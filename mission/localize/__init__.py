@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 # The methods ``localize_log`` runs (``api.METHOD_NAMES``); here so the CLI offers them without importing numpy.
-METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal", "fusion")
+METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal", "fusion", "matched")
 
 
 @dataclass

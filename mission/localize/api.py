@@ -111,6 +111,10 @@ def make_localizer(
         from mission.localize.selfcal import SelfCalibratingGrid
 
         return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
+    if method == "matched":  # track-matched ABC under the physics family (trained here, on this flight's track)
+        from mission.localize.matched import MatchedLocalizer
+
+        return MatchedLocalizer(area=area, tx_height_m=tx_height_m)
     if method == "grid":
         if physics_preset is not None:
             from mission.physics.presets import preset_model
@@ -176,9 +180,13 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     ``area`` when known) and the altitude check; on a simulated log outside the training altitudes the circles
     (calibrated inside them) are too small."""
     from mission.localize.error_circles import attach_circles, card_calibration
+    from mission.localize.training_domain import flown_domain
 
-    cal = card_calibration(net.path, "sim" if simulated else "real")
-    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal, area))
+    cal = card_calibration(net.path, "sim" if simulated else "real")  # sized for what was flown (issue 28)
+    flown = flown_domain(part, net.meta, net.model_name)
+    if not simulated:  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
+        _add_note(est.extras, flown.pop("attitude_note"))
+    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
     if _check_altitude(est.extras, net, part) and simulated and "regions" in est.extras:
         _add_note(est.extras, "Its error circles were calibrated on flights inside those altitudes: expect them "
                               "to be too small here.")
@@ -213,7 +221,8 @@ def fusion_model_path() -> Path | None:
 
 def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
     """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
-    ``models/README.md``); the uncertainty regions are the self-calibrating posterior's, and a note says when
+    ``models/README.md``; weighting by each member's 50 % region scale was not adopted, benchmarks/fusion_weights.py);
+    the uncertainty regions are the self-calibrating posterior's, and a note says when
     the fused point falls outside them (the two components disagree: ~5 % of benchmark flights)."""
     from mission.localize.uncertainty import outer_region
 
@@ -224,7 +233,9 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
         a.extras["fusion"] = f"no network (models/{FUSION_MODEL_NAME}): self-calibrating estimate alone"
         return a
     net = make_localizer("onnx", path, tx_height_m=tx_height_m)
-    b = _in_log_frame(net, net.predict(part), origin, "onnx")
+    from mission.localize.training_domain import trained_legs
+
+    b = _in_log_frame(net, net.predict(trained_legs(part)), origin, "onnx")
     x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
     lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))
     extras = dict(a.extras)
@@ -303,14 +314,16 @@ def localize_log(
     if method not in METHOD_NAMES:
         raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
     ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
-    area = ra if method in ("grid", "selfcal", "fusion") else None
+    area = ra if method in ("grid", "selfcal", "fusion", "matched") else None
     origin = log.origin
     if method == "fusion":
         est = _fusion(part, origin, area, tx_height_m, model_path)
     else:
         loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
                              floor_db, physics_preset=physics_preset)
-        est = _in_log_frame(loc, loc.predict(part), origin, method)
+        from mission.localize.training_domain import trained_legs
+
+        est = _in_log_frame(loc, loc.predict(trained_legs(part) if method == "onnx" else part), origin, method)
         if method == "onnx":
             _network_regions(est, loc, part, _is_simulated(log), ra)
         else:

@@ -168,6 +168,7 @@ def generate_dataset(
         "seeding": "flight i uses np.random.SeedSequence(seed, spawn_key=(i,)) (= SeedSequence(seed).spawn(n)[i])",
         "chunks": chunks,
         "n": cfg.n,
+        **_family_record(cfg),
         "generation": {
             "workers": workers,
             "seconds": round(elapsed, 2),
@@ -180,6 +181,18 @@ def generate_dataset(
 
 
 # --------------------------------------------------------------------------------------------- reading
+
+
+def _family_record(cfg: DatasetConfig) -> dict:
+    """A suite dataset drawn from a family file keeps the family itself (its sha256 names it; the file may move)."""
+    if not cfg.suite:
+        return {}
+    from mission.localize.suite import family_label, family_sha256, resolve_family
+
+    fam = resolve_family(cfg.suite_family)
+    if isinstance(fam, str):
+        return {}
+    return {"physics_family": {"label": family_label(fam), "sha256": family_sha256(fam), "record": fam.to_dict()}}
 
 
 def read_manifest(path: str | Path) -> dict:

@@ -33,8 +33,9 @@ Storage (``DIR``): ``manifest.json`` (every setting, the seed, the feature confi
 the chunk list with sha256 digests) and ``chunk_00000.npz`` ... each holding, for its flights (float32
 
 ``suite="unseen"`` replaces all of the above by the unseen-flight benchmark's family
-(``mission.localize.suite``; ``suite_family`` "afar" or "generic", ``suite_center`` the preset at the afar
-family's centre): every axis is drawn there, and the seed of the benchmark itself (2026) is refused.
+(``mission.localize.suite``; ``suite_family`` a built-in name or a physics family .json, ``suite_center`` the
+preset at the afar family's centre): every axis is drawn there, and the seed of the benchmark itself (2026) is
+refused.
 
 ``PARAM_NAMES`` is the column order of a dataset's ``params`` array; each flight's parameters are a dict keyed
 by these names (``mission.localize.flight_draws``), so the order lives here only.
@@ -156,13 +157,11 @@ def check_config(cfg: DatasetConfig) -> None:
     """Refuse configurations that would silently do something else than asked (InputError naming the field)."""
     r = cfg.randomisation
     if cfg.suite:
-        from mission.localize.suite import BENCHMARK_SEED, FAMILIES, SUITES
+        from mission.localize.suite import BENCHMARK_SEED, SUITES, resolve_family
 
         if cfg.suite not in SUITES:
             raise InputError(f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite")
-        if cfg.suite_family not in FAMILIES:
-            raise InputError(f"unknown suite family {cfg.suite_family!r} (expected {', '.join(FAMILIES)})",
-                             field="family")
+        resolve_family(cfg.suite_family)  # a built-in name or a readable, valid family file
         if cfg.seed == BENCHMARK_SEED:
             raise InputError(f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds", field="seed")
         if cfg.physics or r != Randomisation():

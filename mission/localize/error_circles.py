@@ -18,6 +18,13 @@ the classical methods in their default configuration in ``mission/data/method_ci
 :mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``, ``ellipse``, ``polygons``) plus
 ``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
 
+What was flown: a flight that flew only part of its planned track (an aborted mission) errs more than the full
+flights a record was calibrated on.  A record may carry ``track``: Mondrian (stratified) conformal radii per
+stratum of ``coverage``, the share of the planned track flown (``training_domain.track_coverage``), with the
+strata's lower ``bounds`` (e.g. [0.18, 0.5, 0.9]); below the first bound, or for a partial flight under a record
+without ``track``, no calibration applies and the estimate says so instead of printing a circle.  A flight whose
+attitude leaves the network's training span gets that note too.
+
 Where the transmitter's area is known (the rover area), each circle is clipped to it: the transmitter cannot lie
 outside, so the clipped region holds the truth exactly as often as the circle and is smaller.  Clipped regions
 carry ``clipped_to`` (the area's name); ``polygons`` and ``area_m2`` are then the clipped region's, ``radius_m``
@@ -40,6 +47,7 @@ REGIONS_KEY = "regions"
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
 CIRCLE_METHODS = ("strongest", "centroid", "grid")  # classical methods calibrated in their default configuration
 LEVELS = (0.5, 0.9)
+FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track counts as full
 N_VERTICES = 72
 
 
@@ -95,7 +103,39 @@ def _checked(rec, p: Path, key: str) -> dict:
     if not radii or not all(0.0 < k < 1.0 and 0.0 < v < math.inf for k, v in radii.items()):
         raise InputError("radii_m needs levels in (0, 1) and positive finite radii", source=str(p),
                          field=f"{key}.radii_m")
+    tr = rec.get("track")
+    if tr is not None:
+        try:
+            tr = dict(tr, bounds=[float(b) for b in tr["bounds"]],
+                      radii_m={float(k): [float(r) for r in v] for k, v in tr["radii_m"].items()})
+        except (KeyError, TypeError, ValueError, AttributeError):
+            raise InputError("track needs bounds and radii_m", source=str(p), field=f"{key}.track") from None
+        b = tr["bounds"]
+        if set(tr["radii_m"]) != set(radii) or not b or not 0.0 < b[0] <= 1.0 or b != sorted(b) or \
+                not all(len(v) == len(b) and all(0.0 < r < math.inf for r in v) for v in tr["radii_m"].values()):
+            raise InputError("track needs ascending coverage bounds in (0, 1] and, for each of the record's levels, "
+                             "one positive radius per bound", source=str(p), field=f"{key}.track")
+        rec = dict(rec, track=tr)
     return dict(rec, radii_m=radii)
+
+
+def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] | None, str]:
+    """(level -> radius, how) for a flight that flew ``coverage`` of its planned track (None: no plan known),
+    or (None, why no calibration applies)."""
+    tr = rec.get("track")
+    if coverage is None:
+        return rec["radii_m"], ""
+    if tr is not None and coverage >= tr["bounds"][0]:
+        k = int(np.searchsorted(tr["bounds"], coverage, side="right")) - 1
+        hi = tr["bounds"][k + 1] if k + 1 < len(tr["bounds"]) else 1.0
+        return ({lv: r[k] for lv, r in tr["radii_m"].items()},
+                f"; for flights that flew {100 * tr['bounds'][k]:.0f}-{100 * hi:.0f} % of their planned track "
+                f"(this one {100 * coverage:.0f} %)")
+    if coverage >= FULL_TRACK:
+        return rec["radii_m"], ""
+    lo = f"{100 * tr['bounds'][0]:.0f}" if tr is not None else f"{100 * FULL_TRACK:.0f}"
+    return None, (f"no calibration applies: this flight flew {100 * coverage:.0f} % of its planned track, its "
+                  f"circles were calibrated on flights that flew {lo}-100 %")
 
 
 def card_calibration(model_path: str | Path, domain: str) -> tuple[dict | None, str | None]:
@@ -146,12 +186,22 @@ def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on:
 
 
 def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | None, str | None],
-                   area: Area | None = None) -> str | None:
+                   area: Area | None = None, flown: dict | None = None) -> str | None:
     """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration`` answer) around
-    (x, y), clipped to ``area``, into ``extras["regions"]``; returns the note to show when there is no
-    calibration."""
+    (x, y), clipped to ``area``, into ``extras["regions"]``, sized for what was ``flown``
+    (``training_domain.flown_domain``); returns the note to show when there is no calibration."""
+    flown = flown or {}
+    cov = flown.get("track_coverage")
+    if cov is not None:
+        extras["track_coverage"] = round(float(cov), 3)
+    if flown.get("attitude_note"):
+        return f"{flown['attitude_note']}. No uncertainty region: no calibration applies to it."
     rec, why = calibration
     if rec is None:
         return f"no uncertainty region: {why}"
-    extras["regions"] = circle_regions(x, y, rec["radii_m"], str(rec.get("calibrated_on", "")), area)
+    radii, how = flown_radii(rec, cov)
+    if radii is None:
+        return f"no uncertainty region: {how}"
+    src = rec["track"].get("calibrated_on", "") if how and "track" in rec else rec.get("calibrated_on", "")
+    extras["regions"] = circle_regions(x, y, radii, str(src) + how, area)
     return None

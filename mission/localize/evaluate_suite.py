@@ -16,6 +16,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.localize.evaluate import CLASSICAL, Row, parse_method
+from mission.localize.suite import FamilyArg, resolve_family
 
 SUITE_METHODS = ("default", "strongest", "centroid", "grid", "grid:MODEL", "grid:preset:NAME", "onnx:PATH")
 
@@ -138,12 +139,16 @@ def _suite_flight(i: int) -> dict:
 
     src = _SUITE["source"]
     if "cached" in _SUITE:
-        log, truth, _ = _SUITE["cached"].load(i)
+        log, truth, draw = _SUITE["cached"].load(i)
     else:
         from mission.localize.suite import unseen_flight
 
-        log, truth, _ = unseen_flight(src["seed"], i, src["family"], src["center"])
-    out = {}
+        log, truth, draw = unseen_flight(src["seed"], i, src["family"], src["center"])
+    out: dict = {}
+    if src.get("stats"):  # the posterior-predictive check statistics (mission.localize.predictive)
+        from mission.localize.predictive import flight_statistics
+
+        out["__stats__"] = flight_statistics(log, truth, draw["tx_height_m"], seed=i)
     for label, kw in _SUITE["methods"].items():
         t0 = time.perf_counter()
         est = localize_log(log, **kw)
@@ -158,11 +163,12 @@ def evaluate_suite(
     n: int = 200,
     seed: int | None = None,
     suite_dir: str | Path | None = None,
-    family: str = "afar",
+    family: FamilyArg = "afar",
     center: str = "afar",
     workers: int = 2,
     progress: Callable[[int, int], None] | None = None,
     warn: Callable[[str], None] | None = None,
+    stats_out: list | None = None,
 ) -> tuple[list[Row], dict[str, float]]:
     """Methods on the unseen-flight benchmark (``mission.localize.suite``): (rows, mean seconds per flight).
 
@@ -172,11 +178,13 @@ def evaluate_suite(
     count how often the truth lies in the 50 % / 90 % region.  Results do not depend on ``workers``.
 
     A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
-    its one-line warning goes to ``warn`` first (default: ``warnings.warn``).
+    its one-line warning goes to ``warn`` first (default: ``warnings.warn``).  ``stats_out`` (a list) receives
+    each flight's posterior-predictive statistics (``mission.localize.predictive.flight_statistics``), in order.
     """
-    from mission.localize.suite import BENCHMARK_SEED
+    from mission.localize.suite import BENCHMARK_SEED, family_label
     from mission.localize.suite_cache import read_suite
 
+    fam = resolve_family(family)
     labels = {m: suite_method(m) for m in methods}
     if not labels:
         raise InputError("no methods to evaluate", field="--methods")
@@ -191,12 +199,13 @@ def evaluate_suite(
                 warn(stale)
         n = min(n, len(cs)) if n else len(cs)
         mf = cs.manifest
-        source: dict = {"dir": str(suite_dir)}
+        check_cache_family(cs, fam)
+        source: dict = {"dir": str(suite_dir), "stats": stats_out is not None}
         test = f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]"
     else:
         seed = BENCHMARK_SEED if seed is None else seed
-        source = {"seed": int(seed), "family": family, "center": center}
-        test = f"suite:unseen[seed={seed},family={family},n={n}]"
+        source = {"seed": int(seed), "family": fam, "center": center, "stats": stats_out is not None}
+        test = f"suite:unseen[seed={seed},family={family_label(fam)},n={n}]"
     rows = {m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
             for m, kw in labels.items()}
     secs = {m: 0.0 for m in labels}
@@ -212,6 +221,8 @@ def evaluate_suite(
         results = pool.imap(_suite_flight, range(n), chunksize=1)
     try:
         for i, res in enumerate(results):
+            if (st := res.pop("__stats__", None)) is not None and stats_out is not None:
+                stats_out.append(st)
             for m, (err, cov, dt) in res.items():
                 rows[m].errors.append(err)
                 rows[m].names.append(f"flight_{i:05d}")
@@ -227,7 +238,21 @@ def evaluate_suite(
     return list(rows.values()), {m: s / max(n, 1) for m, s in secs.items()}
 
 
-def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: str = "afar",
+def check_cache_family(cs, fam) -> None:
+    """Refuse a cache drawn from another family than the family file given beside it (a built-in name is not
+    checked: the CLIs pass ``afar`` by default)."""
+    if isinstance(fam, str):
+        return
+    from mission.localize.suite import family_sha256
+
+    have = cs.manifest.get("family_sha256")
+    if have != family_sha256(fam):
+        raise InputError(f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the family file "
+                         f"given ({fam.name!r}); drop --family or rewrite the cache", source=str(cs.path),
+                         field="--family")
+
+
+def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: FamilyArg = "afar",
                 center: str = "afar") -> list[dict]:
     """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
     from mission.localize.suite import BENCHMARK_SEED, draw_flight
@@ -236,7 +261,7 @@ def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = 
     if suite_dir is not None:
         return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]
     s = BENCHMARK_SEED if seed is None else seed
-    return [draw_flight(s, i, family, center)[0] for i in range(n)]
+    return [draw_flight(s, i, resolve_family(family), center)[0] for i in range(n)]
 
 
 def _axis_value(draw: dict, axis: str):

@@ -57,6 +57,13 @@ Axes and ranges (``draw_flight``; one value per flight, draw order fixed):
   ``"afar-heavy"``: U(8, 16) dB over U(30, 120) m, ``SHADOWING``); white
   receiver noise U(1, 4) dB; RSS-telemetry time offset U(-0.5, 0.5) s (telemetry read that much late/early);
   unknown RSS offset U(-40, 40) dB.
+
+A physics family file instead of a built-in name (``family="F.json"``: schema 1, ``mission.physics.family``; the
+shipped ``mission/data/afar_family.json``, or ``rfsl gap --family`` output): the physics (model spec), the residual
+(correlated shadowing sigma and correlation length, white nugget) and the RSS offset are one ``family.draw(rng)``
+in place of the three built-in draws; every other axis (position, altitude, speed, path, habit, coverage, time
+offset) is drawn as above.  ``draw["family"]`` is then ``json:NAME@SHA8`` and ``draw["family_sha256"]`` the sha256
+of the family's canonical JSON (``family_sha256``), so a cache or a model names the family it drew from.
 """
 
 from __future__ import annotations
@@ -68,6 +75,13 @@ from typing import NamedTuple
 import numpy as np
 
 from mission.errors import InputError
+from mission.localize.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
+    FamilyArg,
+    antenna_label,
+    family_label,
+    family_sha256,
+    resolve_family,
+)
 
 SUITES = ("unseen",)
 FAMILIES = ("afar", "generic", "afar-heavy")
@@ -143,19 +157,19 @@ def _rover_position(fld, outside: bool, rng: np.random.Generator) -> np.ndarray:
             return xy[int(np.argmax(ok))]
 
 
-def draw_flight(seed: int, i: int, family: str = "afar", center: str = "afar") -> tuple[dict, np.random.Generator]:
+def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
+                center: str = "afar") -> tuple[dict, np.random.Generator]:
     """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the simulation."""
     from mission.geo import afar_field
     from mission.localize.flight_draws import trajectory_params
     from mission.trajectory.generators import GENERATORS
 
-    if family not in FAMILIES:
-        raise InputError(f"unknown suite family {family!r} (expected {', '.join(FAMILIES)})", field="family")
+    fam = resolve_family(family)
     rng = suite_rng(seed, i)
     fld = afar_field()
     outside = bool(rng.uniform() < P_OUTSIDE)
     xy = _rover_position(fld, outside, rng)
-    d: dict = {"seed": int(seed), "index": int(i), "family": family,
+    d: dict = {"seed": int(seed), "index": int(i), "family": family_label(fam),
                "tx_xy": [float(xy[0]), float(xy[1])], "tx_height_m": _u(rng, 1.0, 2.0)}
     d["tx_outside_flight_area"] = outside
     d["altitude_m"] = _u(rng, *ALTITUDE_RANGE_M)
@@ -172,6 +186,14 @@ def draw_flight(seed: int, i: int, family: str = "afar", center: str = "afar") -
     d["fixed_heading_deg"] = _u(rng, 0.0, 360.0)
     d["rotation_dps"] = _u(rng, 2.0, 10.0) * (1 if rng.uniform() < 0.5 else -1)
     d["attitude_perturbation_deg"] = _u(rng, 0.5, 4.0)
+    if not isinstance(fam, str):  # a physics family file: physics, residual and offset are the family's draw
+        fd = fam.draw(rng)
+        d["family_sha256"] = family_sha256(fam)
+        d["physics"] = {"spec": fd.spec, "from_preset": None, "rx_antenna": antenna_label(fd.spec)}
+        d["shadowing_db"], d["shadowing_corr_m"], d["noise_db"] = fd.shadowing_db, fd.shadowing_corr_m, fd.noise_db
+        d["time_offset_s"] = _u(rng, -0.5, 0.5)
+        d["rss_offset_db"] = fd.offset_db
+        return d, rng
     d["physics"] = _physics(rng, family, center)
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING[family]
     d["shadowing_db"] = _u(rng, s_lo, s_hi)
@@ -299,7 +321,7 @@ def _meta(d: dict) -> dict:
                      source={"suite": "unseen", "seed": d["seed"], "index": d["index"]})
 
 
-def unseen_flight(seed: int, i: int, family: str = "afar", center: str = "afar") -> SuiteFlight:
+def unseen_flight(seed: int, i: int, family: FamilyArg = "afar", center: str = "afar") -> SuiteFlight:
     """Flight ``i`` of the benchmark with seed ``seed`` (module docstring)."""
     from mission.flightlog import FlightLog
 
@@ -309,7 +331,7 @@ def unseen_flight(seed: int, i: int, family: str = "afar", center: str = "afar")
     return SuiteFlight(FlightLog(cols, _meta(d)), np.array(d["tx_xy"]), d)
 
 
-def unseen_flights(n: int, seed: int = BENCHMARK_SEED, family: str = "afar", center: str = "afar",
+def unseen_flights(n: int, seed: int = BENCHMARK_SEED, family: FamilyArg = "afar", center: str = "afar",
                    start: int = 0) -> list[SuiteFlight]:
     """Flights ``start .. start + n - 1`` of the benchmark (in memory; ~20 000 rows each)."""
     if n < 1:

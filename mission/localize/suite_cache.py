@@ -25,7 +25,15 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.suite import BENCHMARK_SEED, SuiteFlight, unseen_flight
+from mission.localize.suite import (
+    BENCHMARK_SEED,
+    FamilyArg,
+    SuiteFlight,
+    family_label,
+    family_sha256,
+    resolve_family,
+    unseen_flight,
+)
 
 FORMAT = "rfsl-suite/1"
 FINGERPRINT_SCHEME = "quantised-columns/1"
@@ -52,7 +60,7 @@ def flight_fingerprint(f: SuiteFlight) -> str:
     return h.hexdigest()
 
 
-def _write_one(args: tuple[str, int, int, str, str]) -> tuple[dict, str | None]:
+def _write_one(args: tuple) -> tuple[dict, str | None]:
     from mission.flightlog import write_flight_log
 
     out, seed, i, family, center = args
@@ -65,15 +73,19 @@ def _write_one(args: tuple[str, int, int, str, str]) -> tuple[dict, str | None]:
     return {"file": p.name, "truth_xy": f.truth_xy.tolist(), "draw": f.draw}, fp
 
 
-def write_suite(out_dir: str | Path, n: int, seed: int = BENCHMARK_SEED, family: str = "afar",
+def write_suite(out_dir: str | Path, n: int, seed: int = BENCHMARK_SEED, family: FamilyArg = "afar",
                 center: str = "afar", workers: int = 1,
                 progress: Callable[[int, int], None] | None = None) -> dict:
-    """Write flights 0..n-1 as CSV logs + sidecars and ``suite.json`` (truths, draws) into ``out_dir``."""
+    """Write flights 0..n-1 as CSV logs + sidecars and ``suite.json`` (truths, draws) into ``out_dir``.
+
+    With a family file the manifest keeps the family itself (``family_record``, ``family_sha256``) beside its
+    path, so the cache stays checkable and rewritable when the file moves or changes."""
     if n < 1:
         raise InputError(f"need n >= 1, got {n}", field="n")
+    fam = resolve_family(family)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    jobs = [(str(out), int(seed), i, family, center) for i in range(n)]
+    jobs = [(str(out), int(seed), i, fam, center) for i in range(n)]
     rows: list[dict] = []
     fingerprint = ""
     for k, (r, fp) in enumerate(_map(_write_one, jobs, workers)):
@@ -81,11 +93,19 @@ def write_suite(out_dir: str | Path, n: int, seed: int = BENCHMARK_SEED, family:
         fingerprint = fp or fingerprint
         if progress:
             progress(k + 1, n)
-    man = {"format": FORMAT, "suite": "unseen", "seed": int(seed), "family": family, "center": center, "n": n,
+    man = {"format": FORMAT, "suite": "unseen", "seed": int(seed), "family": family_label(fam), "center": center,
+           "n": n, **_family_fields(fam, family),
            "seeding": "flight i: SeedSequence([seed, SUITE_TAG=10], spawn_key=(i,))",
            "fingerprint": {"flight": 0, "scheme": FINGERPRINT_SCHEME, "sha256": fingerprint}, "flights": rows}
     (out / "suite.json").write_text(json.dumps(man, indent=1, default=float))
     return man
+
+
+def _family_fields(fam, given: FamilyArg) -> dict:
+    if isinstance(fam, str):
+        return {}
+    return {"family_path": str(given) if isinstance(given, str) else None, "family_sha256": family_sha256(fam),
+            "family_record": fam.to_dict()}
 
 
 def _map(fn, jobs: list, workers: int):
@@ -122,12 +142,22 @@ class CachedSuite:
         r = self.manifest["flights"][i]
         return SuiteFlight(read_flight_log(self.path / r["file"]), np.array(r["truth_xy"]), r["draw"])
 
+    def family(self) -> FamilyArg:
+        """The family the cache was drawn from: a built-in name, or the ``PhysicsFamily`` its manifest keeps."""
+        rec = self.manifest.get("family_record")
+        if rec is None:
+            return self.manifest.get("family", "afar")
+        from mission.physics.family import PhysicsFamily
+
+        return PhysicsFamily.from_dict(rec, source=str(self.path / "suite.json"))
+
     def rewrite_command(self) -> str:
         """The ``rfsl dataset`` command that writes this cache again with the current code."""
         mf = self.manifest
         cmd = f"rfsl dataset --suite unseen --logs --n {len(self)} --seed {mf.get('seed')}"
-        if mf.get("family", "afar") != "afar":
-            cmd += f" --family {mf['family']}"
+        fam = mf.get("family_path") or mf.get("family", "afar")
+        if fam != "afar":
+            cmd += f" --family {fam}"
         if mf.get("center", "afar") != "afar":
             cmd += f" --center {mf['center']}"
         return f"{cmd} --out {self.path} --overwrite"
@@ -144,8 +174,7 @@ class CachedSuite:
         mf = self.manifest
         i = int(fp.get("flight", 0))
         try:
-            now = flight_fingerprint(unseen_flight(int(mf["seed"]), i, mf.get("family", "afar"),
-                                                   mf.get("center", "afar")))
+            now = flight_fingerprint(unseen_flight(int(mf["seed"]), i, self.family(), mf.get("center", "afar")))
         except (InputError, KeyError, ValueError) as e:
             return (f"{self.path}: this code cannot re-simulate its flight {i} ({str(e).splitlines()[0]}): its "
                     f"figures may not be the current code's; {redo}")

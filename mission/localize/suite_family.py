@@ -1,0 +1,82 @@
+"""Physics family files for the unseen-flight benchmark (``mission.localize.suite``): resolve, check, name.
+
+A benchmark flight's family is a built-in name (``mission.localize.suite.FAMILIES``) or a schema-1 family file
+(``mission.physics.family``; ``rfsl gap --family`` writes one).  Files are parsed once per version, refused
+with one ``InputError`` naming the file when malformed or unphysical (a negative sigma), and named by the
+sha256 of their canonical JSON so caches, datasets and models record exactly which family they drew from.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from mission.errors import InputError
+from mission.physics.family import PhysicsFamily, load_family
+
+FamilyArg = str | PhysicsFamily  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
+
+
+def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
+    """A built-in family name as it is, or the ``PhysicsFamily`` of a ``.json`` path (InputError otherwise)."""
+    from mission.localize.suite import FAMILIES
+
+    if isinstance(family, PhysicsFamily) or family in FAMILIES:
+        return family
+    if str(family).lower().endswith(".json"):
+        p = Path(family)
+        st = p.stat() if p.is_file() else None
+        return _load_json_family(str(p.resolve()), st.st_mtime_ns if st else -1, st.st_size if st else -1)
+    raise InputError(f"unknown suite family {family!r} (expected {', '.join(FAMILIES)} or a physics family "
+                     ".json file)", field="family")
+
+
+@lru_cache(maxsize=8)
+def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
+    """Parsed once per file version (the key holds mtime and size so an edited file is read again); a value of
+    the wrong type that ``load_family``'s checks let through (e.g. ``"schema": null``) is refused here too."""
+    try:
+        fam = load_family(path)
+        fam.draw(np.random.default_rng(0))  # a trial draw: a residual or offset that is not a number fails here
+        for k, v in fam.residual.items():  # a negative sigma, noise or correlation length is no physics
+            if _lowest(v) < 0 or (k == "shadowing_corr_m" and _lowest(v) <= 0):
+                raise InputError(f"residual.{k} can be drawn {'<=' if k == 'shadowing_corr_m' else '<'} 0",
+                                 source=path, field=f"residual.{k}")
+        return fam
+    except InputError:
+        raise
+    except (TypeError, ValueError, KeyError, AttributeError) as e:
+        raise InputError(f"malformed physics family ({type(e).__name__}: {e})", source=path) from None
+
+
+def _lowest(v) -> float:
+    """The lowest value a family distribution can draw (``mission.physics.family``'s forms)."""
+    if not isinstance(v, dict):
+        return float(v)
+    if v["dist"] in ("uniform", "loguniform"):
+        return float(v["lo"])
+    if v["dist"] == "normal":
+        return float(v.get("lo", -np.inf))
+    return min(float(x) for x in v["options" if v["dist"] == "choice" else "values"])
+
+
+def family_sha256(fam: PhysicsFamily) -> str:
+    """sha256 of the family's canonical JSON: what a cache or a model records to name the family it drew from."""
+    return hashlib.sha256(json.dumps(fam.to_dict(), sort_keys=True, default=float).encode()).hexdigest()
+
+
+def family_label(fam: str | PhysicsFamily) -> str:
+    """``afar`` for a built-in family, ``json:NAME@SHA8`` for a family file."""
+    return fam if isinstance(fam, str) else f"json:{fam.name}@{family_sha256(fam)[:8]}"
+
+
+def antenna_label(spec: dict) -> str:
+    """The UAV antenna of a drawn spec as the built-in families name it (``--by physics.rx_antenna``)."""
+    pat = str(spec.get("rx_pattern", "isotropic"))
+    if pat == "measured":
+        return "flipped" if spec.get("rx_flipped") else "upright"
+    return pat

@@ -1,0 +1,177 @@
+"""What was flown against a network's training (``training_domain``): the share of the planned track flown, the
+attitude against the training's, the legs a network was trained on; and the error circles sized for it
+(``error_circles.flown_radii``): wider for a partial flight, or a note that no calibration applies (issue 28)."""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mission.localize.error_circles import FULL_TRACK, attach_circles, flown_radii
+from mission.localize.training_domain import (
+    ATTITUDE_TOLERANCE_DEG,
+    TRACK_REACH_M,
+    attitude_note,
+    planned_track,
+    track_coverage,
+    trained_legs,
+)
+
+SQUARE = np.array([[0.0, 0.0], [200.0, 0.0], [200.0, 200.0], [0.0, 200.0]])
+
+
+def _along(w: np.ndarray, a: float, b: float, step: float = 1.0) -> np.ndarray:
+    """Points every ``step`` m along polyline ``w`` between arc-length fractions a and b."""
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(w, axis=0).T))])
+    at = np.arange(a * s[-1], b * s[-1], step)
+    return np.column_stack([np.interp(at, s, w[:, 0]), np.interp(at, s, w[:, 1])])
+
+
+@given(st.floats(0.05, 1.0), st.floats(-0.8, 0.8))
+@settings(max_examples=40, deadline=None)
+def test_coverage_is_the_share_of_the_track_flown(frac, offset):
+    """Flying the first ``frac`` of a 600 m track, ``offset`` x reach to one side: coverage ~ frac (within the
+    reach at the cut and 5 m of sampling), and 0 when the flown path runs farther off than the reach."""
+    flown = _along(SQUARE, 0.0, frac) + np.array([0.0, offset * TRACK_REACH_M])
+    c = track_coverage(SQUARE, flown)
+    assert abs(c - frac) <= (TRACK_REACH_M + 5.0) / 600.0 + 0.02
+    assert track_coverage(SQUARE, flown + np.array([0.0, 3 * TRACK_REACH_M])) < 0.35  # only the track's far legs
+
+
+def test_planned_track_from_the_sidecar_record():
+    from mission.geo import afar_field
+    from mission.spec import load_mission
+
+    spec = load_mission()
+    meta = {"trajectory": spec.trajectory_meta()}
+    w = planned_track(meta, afar_field().origin)
+    assert w is not None and np.allclose(w, spec.waypoints_enu()[:, :2], atol=0.01)
+    assert planned_track({}, afar_field().origin) is None  # a real receiver's log: no plan
+
+
+@given(st.floats(-40, 40), st.floats(0, 30), st.floats(-40, 40), st.floats(0, 30))
+@settings(max_examples=60, deadline=None)
+def test_attitude_note_exactly_when_outside_by_more_than_the_tolerance(p_lo, p_w, f_lo, f_w):
+    trained = ((-5.0, 15.0), (p_lo, p_lo + p_w))
+    flown = ((0.0, 10.0), (f_lo, f_lo + f_w))
+    out = p_lo - f_lo > ATTITUDE_TOLERANCE_DEG or f_lo + f_w - (p_lo + p_w) > ATTITUDE_TOLERANCE_DEG
+    note = attitude_note("net", trained, flown)
+    assert (note is not None) == out
+    assert note is None or "pitch" in note and "roll" not in note
+    assert attitude_note("net", None, flown) is None  # unknown training attitude: no claim
+
+
+def test_trained_legs_drop_the_transit_to_the_first_waypoint():
+    from mission.flightlog import FlightLog
+
+    item = np.array([-1, 0, 0, 1, 1, 2, -1])
+    log = FlightLog({"t_s": np.arange(7.0), "mission_item": item}, {})
+    assert list(trained_legs(log)["mission_item"]) == [-1, 1, 1, 2, -1]
+    plain = FlightLog({"t_s": np.arange(3.0)}, {})
+    assert trained_legs(plain) is plain
+
+
+REC = {"radii_m": {0.5: 5.0, 0.9: 12.0},
+       "track": {"bounds": [0.25, 0.5, 0.9], "radii_m": {0.5: [20.0, 9.0, 4.0], 0.9: [90.0, 30.0, 10.0]}}}
+
+
+@given(st.floats(0.0, 1.0))
+@settings(max_examples=60, deadline=None)
+def test_flown_radii_are_their_stratums_then_stop(c):
+    radii, how = flown_radii(REC, c)
+    if c < 0.25:
+        assert radii is None and "no calibration applies" in how
+    else:
+        k = 0 if c < 0.5 else 1 if c < 0.9 else 2
+        assert radii == {0.5: [20.0, 9.0, 4.0][k], 0.9: [90.0, 30.0, 10.0][k]} and f"{100 * c:.0f} %" in how
+    no_track = {"radii_m": REC["radii_m"]}
+    radii, how = flown_radii(no_track, c)
+    assert (radii is None) == (c < FULL_TRACK)
+    assert flown_radii(REC, None)[0] == REC["radii_m"]  # no plan known: the plain calibration
+
+
+def test_an_attitude_outside_the_training_gives_the_note_and_no_circle():
+    ex: dict = {}
+    note = attach_circles(ex, 0.0, 0.0, (REC, None), flown={"track_coverage": 1.0, "attitude_note": "pitch out"})
+    assert "regions" not in ex and "pitch out" in note and "no calibration applies" in note
+
+
+@pytest.fixture(scope="module")
+def spiral(tmp_path_factory, repo_dir):
+    """One ``rfsl simulate`` log of the default spiral (the product path)."""
+    from mission.cli.main import main as rfsl
+    from mission.flightlog import read_flight_log
+    from mission.spec import DEFAULT_MISSION
+
+    if not (repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx").is_file():
+        pytest.skip("shipped models absent")
+    d = tmp_path_factory.mktemp("spiral")
+    assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7102", "--out", str(d)]) == 0
+    return read_flight_log(next(d.glob("*.csv")))
+
+
+@pytest.mark.slow
+def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
+    """The same simulated spiral cut at 1/3 and 2/3 of its mission legs (an abort): the default's track
+    coverage follows the cut, and its 90 % circle widens as the cut shrinks (or says no calibration applies)."""
+    sys.path.insert(0, str(repo_dir / "benchmarks"))
+    from calibrate_track_circles import truncate
+
+    from mission.localize.api import localize_log
+
+    r90 = {}
+    for f in (1 / 3, 2 / 3, 1.0):
+        est = localize_log(truncate(spiral, f))
+        assert est.extras["track_coverage"] == pytest.approx(f, abs=0.08)
+        regs = {r["level"]: r["radius_m"] for r in est.extras.get("regions", [])}
+        r90[f] = regs.get(0.9, math.inf)
+        assert 0.9 in regs or "no calibration applies" in est.extras["note"]
+    assert r90[1 / 3] > r90[2 / 3] > r90[1.0]
+
+
+@pytest.mark.slow
+def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
+    """PX4's -28 deg cruise pitch (issue 28): the note says the attitude is outside the network's training and
+    no circle is printed."""
+    from mission.localize.api import localize_log
+
+    cols = dict(spiral.columns)
+    cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -28.0, 0.0)
+    steep = type(spiral)(cols, dict(spiral.meta), spiral.path)
+    est = localize_log(steep)
+    assert "regions" not in est.extras
+    assert "attitude is outside" in est.extras["note"] and "pitch -28 to -28 deg" in est.extras["note"]
+    assert "regions" in localize_log(spiral).extras
+
+
+@pytest.mark.parametrize("track, ok", [
+    ({"bounds": [0.2, 0.5, 0.9], "radii_m": {"0.5": [20, 9, 4], "0.9": [90, 30, 10]}}, True),
+    ({"bounds": [0.2], "radii_m": {"0.5": [20], "0.9": [90]}}, True),
+    ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90]}}, False),
+    ({"bounds": [0.5, 0.2], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
+    ({"bounds": [0.0, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
+    ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, -9], "0.9": [90, 30]}}, False),
+    ({"bounds": "x", "radii_m": {"0.5": [20], "0.9": [90]}}, False),
+    ({"radii_m": {"0.5": [20], "0.9": [90]}}, False),
+    ({"bounds": [0.2], "radii_m": {"0.5": [20]}}, False),
+])
+def test_a_stored_track_record_is_read_per_stratum_or_refused_naming_the_key(tmp_path, track, ok):
+    import json
+
+    from mission.errors import InputError
+    from mission.localize.error_circles import method_calibration
+
+    p = tmp_path / "circles.json"
+    p.write_text(json.dumps({"grid": {"sim": {"radii_m": {"0.5": 5.0, "0.9": 12.0}, "track": track}}}))
+    if not ok:
+        with pytest.raises(InputError, match="grid.sim.track"):
+            method_calibration("grid", "sim", p)
+        return
+    rec, _ = method_calibration("grid", "sim", p)
+    radii, how = flown_radii(rec, 0.3)
+    assert radii == {0.5: 20.0, 0.9: 90.0} and "(this one 30 %)" in how

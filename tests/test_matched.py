@@ -1,0 +1,138 @@
+"""Track-matched localizer (``mission.localize.matched``): recovery, regions, offset invariance, seeds, bad input.
+
+The flight's RSS comes from ``family.simulate_rss`` on the raw samples (shadowing on ``shadowing_field``'s grid),
+not from the cell-level simulator the localizer trains on, so the test also checks that the two agree enough.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mission.errors import InputError
+from mission.localize.matched import MatchedLocalizer, conformal_mass
+from mission.localize.matched_sim import FieldBasis, centred, track_cells
+from mission.physics.family import PhysicsFamily, simulate_rss
+from mission.physics.shadowing import correlation, pdist
+from mission.samples import FlightSamples
+from tests._localize_helpers import lawnmower_path
+
+FAMILY = PhysicsFamily.from_dict({
+    "schema": 1, "name": "test-mild",
+    "spec": {"base": "free-space", "tx_pattern": "isotropic", "path_gain_slope": {"dist": "uniform", "lo": 0.0,
+                                                                                   "hi": 0.3}},
+    "residual": {"shadowing_db": {"dist": "uniform", "lo": 1.0, "hi": 3.0}, "shadowing_corr_m": 30.0,
+                 "noise_db": 2.0},
+    "offset_db": {"dist": "uniform", "lo": -30.0, "hi": 30.0}})
+BOX = (0.0, 0.0, 240.0, 240.0)
+TX = np.array([150.0, 90.0, 1.5])
+
+
+def _flight(seed: int = 1) -> FlightSamples:
+    rng = np.random.default_rng(seed)
+    enu = lawnmower_path(n=3000, x0=20, x1=220, y0=20, y1=220, lanes=6)
+    att = np.column_stack([np.zeros((len(enu), 2)), rng.uniform(0, 2 * np.pi, len(enu))])
+    rss = simulate_rss(FAMILY.draw(rng), TX, enu, att, rng)
+    return FlightSamples(enu, rss, att)
+
+
+def _loc(**kw) -> MatchedLocalizer:
+    args = dict(area=BOX, family=FAMILY, n_draws=4000, cell_m=10.0, epochs=30, batch=64, whiten=False, n_pca=32,
+                hidden=(64, 64),
+                n_check=60, step_m=5.0, progress=False, seed=3)
+    args.update(kw)
+    return MatchedLocalizer(**args)
+
+
+@pytest.fixture(scope="module")
+def flight() -> FlightSamples:
+    return _flight()
+
+
+@pytest.fixture(scope="module")
+def estimate(flight):
+    return _loc().predict(flight)
+
+
+def test_recovers_the_transmitter(estimate):
+    assert np.hypot(estimate.x_m - TX[0], estimate.y_m - TX[1]) < 25.0
+    assert estimate.method == "matched"
+    assert estimate.extras["n_draws"] == 4000 and estimate.extras["sim_check"]["n"] == 60
+
+
+def test_regions_are_nested_and_hold_the_estimate(estimate):
+    post = estimate.posterior
+    r50, r90 = sorted(estimate.extras["regions"], key=lambda r: r["level"])
+    assert r50["hpd_mass"] < r90["hpd_mass"] and r50["area_m2"] < r90["area_m2"]
+    in50 = post.prob >= post.mass_threshold(r50["hpd_mass"])
+    in90 = post.prob >= post.mass_threshold(r90["hpd_mass"])
+    assert in50.any() and not (in50 & ~in90).any()
+    assert post.covers(estimate.x_m, estimate.y_m, r90["hpd_mass"])
+    assert abs(post.prob.sum() - 1.0) < 1e-9
+
+
+def test_offset_invariant(flight, estimate):
+    shifted = FlightSamples(flight.enu_m, flight.rss_dbm + 23.7, flight.attitude_rad)
+    e = _loc().predict(shifted)
+    assert e.x_m == pytest.approx(estimate.x_m, abs=1e-6) and e.y_m == pytest.approx(estimate.y_m, abs=1e-6)
+    np.testing.assert_allclose(e.posterior.prob, estimate.posterior.prob, atol=1e-9)
+
+
+def test_reproducible_from_its_seed(flight, estimate):
+    again = _loc().predict(flight)
+    assert (again.x_m, again.y_m) == (estimate.x_m, estimate.y_m)
+    other = _loc(seed=4).predict(flight)
+    assert (other.x_m, other.y_m) != (estimate.x_m, estimate.y_m)
+
+
+def test_too_few_cells_is_input_error(flight):
+    short = FlightSamples(flight.enu_m[:40], flight.rss_dbm[:40], flight.attitude_rad[:40])
+    with pytest.raises(InputError, match="cells"):
+        _loc().predict(short)
+
+
+@settings(max_examples=25, deadline=None)
+@given(i=st.integers(0, 2999), bad=st.sampled_from([np.nan, np.inf, -np.inf]), where=st.sampled_from(["rss", "z"]))
+def test_non_finite_input_is_input_error(flight, i, bad, where):
+    rss, enu = flight.rss_dbm.copy(), flight.enu_m.copy()
+    if where == "rss":
+        rss[i] = bad
+    else:
+        enu[i, 2] = bad
+    with pytest.raises(InputError, match=f"sample {i}"):
+        _loc().predict(FlightSamples(enu, rss, flight.attitude_rad))
+
+
+def test_field_basis_reproduces_the_gaussian_correlation():
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0, 200, size=(120, 2))
+    b = FieldBasis(xy)
+    f = b.factor(40.0)
+    corr_used = 1.06 ** round(np.log(40.0) / np.log(1.06))
+    np.testing.assert_allclose(f @ f.T, correlation(pdist(xy, xy), corr_used, "gaussian"), atol=1e-5)
+    assert b.factor(40.3) is f  # rounds to the same length: one factor
+
+
+def test_cells_centring_and_conformal_mass(flight):
+    tr = track_cells(flight, 10.0)
+    assert tr.attitude_rad.shape == (len(tr), 3) and tr.count.sum() == len(flight.rss_dbm)
+    assert np.allclose(centred(tr.rss_dbm + 5.0), centred(tr.rss_dbm))
+    lev = np.linspace(0.0, 1.0, 101)[:-1]  # uniform HPD levels: a calibrated posterior
+    assert conformal_mass(lev, 0.9) == pytest.approx(0.9, abs=0.02)
+
+
+def test_wired_into_localize():
+    import argparse
+
+    from mission.cli.localize import add_arguments
+    from mission.localize.api import make_localizer
+    from mission.localize.matched import MatchedLocalizer
+
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    assert p.parse_args(["x.csv", "--method", "matched"]).method == "matched"
+    loc = make_localizer("matched", area=BOX, tx_height_m=2.0)
+    assert isinstance(loc, MatchedLocalizer) and loc.area == BOX and loc.tx_height_m == 2.0
+    assert loc.n_draws >= 20000 and loc.family is None  # the shipped family, read through load_family
