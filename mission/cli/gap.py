@@ -164,6 +164,15 @@ def _write_family(d, cfg, args, console) -> None:
         out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(rec, indent=1) + "\n")
     console.print(f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; {len(rec['per_flight'])} flights)")
+    lc = rec["checks"].get("loop")
+    if lc:
+        p = lc["heldout_p90_db"]
+        bad = [k for k, v in lc["params"].items() if not v["inside"]]
+        console.print(f"loop check ({'passed' if lc['passed'] else 'FAILED'}): simulated flights re-fit inside the "
+                      f"intervals{' except ' + ', '.join(bad) if bad else ''}; held-out p90 {p['sim']:.1f} vs real "
+                      f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range {lc['range_m']['sim']:.0f} m "
+                      f"({'inside' if lc['sill_db']['inside'] and lc['range_m']['inside'] else 'NOT inside'} "
+                      "the real intervals)")
 
 
 def run(args) -> int:

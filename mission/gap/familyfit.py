@@ -48,6 +48,8 @@ BOUNDS = {"path_gain_slope": (-1.5, 5.0), "leg_shadowing_beta": (0.0, 8.0), "gro
           "ground.sigma_s_m": (0.0, 1.0), "shadowing_db": (0.0, 30.0), "shadowing_corr_m": (5.0, 400.0),
           "noise_db": (0.0, 20.0), "offset_db": (-200.0, 200.0)}
 PATTERN_KEYS = ("rx_pattern", "rx_flipped", "tx_pattern", "tx_flipped")
+FIT_SAMPLES = 1200   # samples per fit (the residual is correlated over ~10 s: more add time, not information)
+MIN_HEIGHT_M = 10.0  # airborne samples only: take-off and landing see the rover through the ground clutter
 
 
 def team_of(name: str) -> str:
@@ -88,8 +90,8 @@ def base_family_pipeline() -> Pipeline:
 
 
 # continuous spec parameters polished jointly: (key, start grid, simplex step, lo, hi); headings are periodic
-_JOINT = (("rx_heading_deg", tuple(np.arange(0.0, 360.0, 30.0)), 15.0, -np.inf, np.inf),
-          ("tx_heading_deg", tuple(np.arange(0.0, 360.0, 45.0)), 20.0, -np.inf, np.inf),
+_JOINT = (("rx_heading_deg", (0.0, 90.0, 180.0, 270.0), 15.0, -np.inf, np.inf),   # offsets from the sequential fit
+          ("tx_heading_deg", (0.0, 120.0, 240.0), 20.0, -np.inf, np.inf),
           ("path_gain_slope", (), 0.3, -1.5, 5.0), ("leg_shadowing_beta", (), 0.3, 0.0, 8.0))
 
 
@@ -153,8 +155,8 @@ def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfi
     def f(x: np.ndarray) -> float:
         return objective(make(x), [flight], ii, cfg)
 
-    grid = list(itertools.product(*[(g + (spec[k],)) if g else (spec[k],) for k, g, _, _, _ in keys]))
-    x, _ = minimize_from_grid(f, np.array(grid, dtype=float), [j[2] for j in keys], cfg.max_evals, n_starts=3)
+    grid = list(itertools.product(*[(spec[k] + np.array(g)) % 360.0 if g else (spec[k],) for k, g, _, _, _ in keys]))
+    x, _ = minimize_from_grid(f, np.array(grid, dtype=float), [j[2] for j in keys], cfg.max_evals, n_starts=2)
     new = make(x)
     return new if f(x) <= objective(pipe, [flight], ii, cfg) else pipe
 
@@ -170,16 +172,21 @@ class FlightFit:
     heldout: np.ndarray = field(repr=False)
     variogram: dict[str, float]
     heldout_p90_db: float
+    excluded: str = ""   # why the family's distributions leave this flight out (e.g. a suspect truth label)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"flight": self.name, "team": self.team, "spec": self.spec, "offset_db": self.offset_db,
-                "residual": self.variogram, "heldout_p90_db": self.heldout_p90_db}
+        d = {"flight": self.name, "team": self.team, "spec": self.spec, "offset_db": self.offset_db,
+             "residual": self.variogram, "heldout_p90_db": self.heldout_p90_db, "n": int(len(self.heldout))}
+        return d | ({"excluded": self.excluded} if self.excluded else {})
 
 
 def fit_flight(flight: FlightSamples, effects: Sequence[str], cfg: FitConfig, seed: int = 0,
                label: str | None = None) -> FlightFit:
     """Fit the family effects on one flight; residual structure from two folds of alternate chunks."""
     rng = np.random.default_rng(seed)
+    cfg = FitConfig(**{**cfg.__dict__, "fit_max_samples": min(cfg.fit_max_samples, FIT_SAMPLES)})
+    flight = flight.select(flight.enu_m[:, 2] > MIN_HEIGHT_M) if (flight.enu_m[:, 2] > MIN_HEIGHT_M).sum() > 200 \
+        else flight
     base = base_family_pipeline()
     every = np.arange(len(flight))
     pipe = fit_effects(base, flight, every, effects, cfg, rng)
@@ -190,8 +197,13 @@ def fit_flight(flight: FlightSamples, effects: Sequence[str], cfg: FitConfig, se
         p = fit_effects(base, flight, fold.train[0], effects, cfg, rng)
         held[fold.test[0]] = residuals(p, [flight], fold.test, cfg)[0]
     vg = residual_variogram(flight, held, rng)
-    return FlightFit(label or flight.name, team_of(label or flight.name), spec_of(pipe), off, held, vg,
-                     float(np.quantile(np.abs(held[np.isfinite(held)]), 0.9)))
+    p90 = float(np.quantile(np.abs(held[np.isfinite(held)]), 0.9))
+    # the variogram's sill (lags up to 200 m, gaussian) misses the heavy tail and the largest scales; the family's
+    # shadowing std is set so that the gaussian p90 1.645 sqrt(s^2 + n^2) equals the held-out p90
+    vg["variogram_sigma_db"] = vg["shadowing_db"]
+    vg["shadowing_db"] = float(math.sqrt(max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2, 0.0)))
+    vg["sill_db"] = float(math.hypot(vg["variogram_sigma_db"], vg["noise_db"]))
+    return FlightFit(label or flight.name, team_of(label or flight.name), spec_of(pipe), off, held, vg, p90)
 
 
 def residual_variogram(flight: FlightSamples, r: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
@@ -251,7 +263,10 @@ def _circular(vals: Sequence[float]) -> tuple[Any, dict[str, Any]]:
 
 def build_family(fits: Sequence[FlightFit], effects: Sequence[str], name: str = "family",
                  source: dict[str, Any] | None = None, not_in_family: Sequence[str] = ()) -> dict[str, Any]:
-    """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads and intervals."""
+    """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads and intervals.
+    Flights marked ``excluded`` are listed in ``per_flight`` but enter no distribution."""
+    every = list(fits)
+    fits = [f for f in fits if not f.excluded] or every
     teams = [f.team for f in fits]
     spec: dict[str, Any] = dict(FAMILY_BASE)
     spreads: dict[str, Any] = {}
@@ -292,13 +307,15 @@ def build_family(fits: Sequence[FlightFit], effects: Sequence[str], name: str = 
     spreads["sill_db"] = sill
     return {"schema": 1, "name": name,
             "description": "physics family fitted by rfsl gap --family: each ladder effect fitted per flight "
-                           "(normal over flights, sd at least the between-team sd), the held-out residual's "
-                           "gaussian variogram per flight (shadowing sigma, range, nugget), the offsets",
+                           "(airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
+                           "between-team sd; antenna patterns as variants by share of flights), the held-out "
+                           "residual's gaussian variogram per flight (shadowing sigma and range) and white noise "
+                           "(neighbour differences), the offsets; flights with 'excluded' enter no distribution",
             "source": source or {}, "spec": spec, "variants": variants, "residual": residual,
             "offset_db": _normal(off, "offset_db"),
             "effects": list(effects), "not_in_family": list(not_in_family), "spread": spreads,
             "checks": {"heldout_p90_db": p90, "sill_db": sill, "intervals": intervals(spreads)},
-            "per_flight": [f.as_dict() for f in fits]}
+            "per_flight": [f.as_dict() for f in every]}
 
 
 def intervals(spreads: dict[str, Any]) -> dict[str, list[float]]:
@@ -317,8 +334,15 @@ def intervals(spreads: dict[str, Any]) -> dict[str, list[float]]:
 def fit_family(flights: Sequence[FlightSamples], effects: Sequence[str], cfg: FitConfig,
                labels: Sequence[str] | None = None, seed: int = 0, **kw: Any) -> tuple[dict[str, Any], list[FlightFit]]:
     """Fit ``effects`` on every flight and build the family record (``build_family``)."""
+    from mission.gap.fit import _map
+    from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
+
     labels = list(labels) if labels is not None else [f.name for f in flights]
-    fits = [fit_flight(f, effects, cfg, seed + k, lab) for k, (f, lab) in enumerate(zip(flights, labels, strict=True))]
+    jobs = list(enumerate(zip(flights, labels, strict=True)))
+    fits = _map(lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]), jobs, cfg.workers)
+    for f in fits:
+        if is_afar2023_suspect(f.name):
+            f.excluded = AFAR2023_SUSPECT_NOTE
     return build_family(fits, effects, **kw), fits
 
 
@@ -326,10 +350,17 @@ __all__ = ["FAMILY_EFFECT", "Fold", "FlightFit", "build_family", "effects_of_lad
            "team_of"]
 
 
-def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family",
-                          source: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per flight."""
+def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family", source: dict[str, Any] | None = None,
+                          check: bool = True) -> dict[str, Any]:
+    """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per flight; with
+    ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on, in ``checks.loop``."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
-    rec, _ = fit_family(d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left)
+    rec, fits = fit_family(d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left)
     rec["ladder"] = [r.added for r in d.rungs if r.added]
+    if check:
+        from mission.gap.loopcheck import loop_check
+
+        used = [f for f, ft in zip(d.flights, fits, strict=True) if not ft.excluded]
+        lc = loop_check(rec, used, cfg, seed=cfg.seed + 1)
+        rec["checks"]["loop"] = {k: v for k, v in lc.items() if k not in ("draws", "refit")}
     return rec

@@ -125,7 +125,8 @@ def summary(d: Diagnosis) -> dict[str, Any]:
                                                         "nugget_db", "nugget_ci_db", "correlated_fraction")}
                              for kk in ("along_path", "spatial") if kk in v}
                           for k, v in d.structure.items()},
-            "config": d.config, "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
+            "near_nadir": d.near_nadir, "config": d.config,
+            "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
 
 
 def freeform_shapes(d: Diagnosis) -> dict[str, Any]:

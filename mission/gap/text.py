@@ -58,8 +58,8 @@ def summary_paragraph(d: Diagnosis) -> str:
               f"{sp.get('nugget_db', float('nan')):.1f} dB of white noise.")
     elif st:
         s += f"What is left looks like white noise of {st.get('residual_std_db', float('nan')):.1f} dB."
-    nn = d.config.get("near_nadir")
-    if nn:
+    nn = d.near_nadir
+    if nn and not nn.get("found"):
         s += " " + nn["statement"]
     return s
 
