@@ -173,6 +173,10 @@ def _write_family(d, cfg, args, console) -> None:
                       f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range {lc['range_m']['sim']:.0f} m "
                       f"({'inside' if lc['sill_db']['inside'] and lc['range_m']['inside'] else 'NOT inside'} "
                       "the real intervals)")
+        cal = rec.get("residual_calibration")
+        if cal:
+            console.print(f"  (after one recalibration: the total residual std scaled x{cal['p90_scale']:.2f}, "
+                          "checked on fresh draws)")
 
 
 def run(args) -> int:
