@@ -49,19 +49,22 @@ def selftest(args: argparse.Namespace) -> int:
 
     effects = EFFECTS if args.effects == "all" else tuple(args.effects.split(","))
     seeds = [int(s) for s in args.seeds.split(",")]
+    strengths = [float(x) for x in args.strengths.split(",")]
     rows = []
     t0 = time.time()
     for e in effects:
-        for s in seeds:
-            r = diagnose_case(e, s)
-            fp = r.get("footprint", {})
-            rows.append({"effect": e, "seed": s, "expected": EXPECTED[e], "named": r["named"], "hit": r["hit"],
-                         "size_db": fp.get("size_db"), "where": fp.get("where"), "params": r.get("params"),
-                         "truth": r["truth"], "verdict": r["structure"]["verdict"],
-                         "significant": r["significant"]})
-            print(f"{e:11s} seed {s}: named {r['named'] or 'nothing':18s} {'HIT ' if r['hit'] else 'MISS'} "
-                  f"size {fp.get('size_db', float('nan')):5.1f} dB  structure: {r['structure']['verdict']}  "
-                  f"({time.time() - t0:.0f} s)", flush=True)
+        for k in strengths if e != "none" else strengths[:1]:
+            for s in seeds:
+                r = diagnose_case(e, s, strength=k)
+                fp = r.get("footprint", {})
+                rows.append({"effect": e, "seed": s, "strength": k, "expected": EXPECTED[e], "named": r["named"],
+                             "hit": r["hit"], "size_db": fp.get("size_db"), "where": fp.get("where"),
+                             "params": r.get("params"), "truth": r["truth"],
+                             "verdict": r["structure"]["verdict"], "significant": r["significant"]})
+                print(f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} "
+                      f"{'HIT ' if r['hit'] else 'MISS'} size {fp.get('size_db', float('nan')):5.1f} dB "
+                      f"({time.time() - t0:.0f} s)", flush=True)
+                Path(args.out).write_text(json.dumps({"rows": rows}, indent=1, default=str))
     cols = sorted({str(r["named"] or "nothing") for r in rows} | {str(EXPECTED[e] or "nothing") for e in effects})
     print("\n| withheld \\ named | " + " | ".join(cols) + " | hit rate |")
     print("| --- | " + " | ".join("---" for _ in cols) + " | --- |")
@@ -275,6 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     a = sub.add_parser("selftest")
     a.add_argument("--seeds", default="1,2,3")
     a.add_argument("--effects", default="all")
+    a.add_argument("--strengths", default="1", help="effect sizes relative to the generator's (e.g. 1,0.5)")
     a.add_argument("--out", default="bench_gap_selftest.json")
     b = sub.add_parser("real")
     b.add_argument("--split", choices=("flights", "blocks"), default="flights")

@@ -32,6 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--family", metavar="F.json",
                         help="also fit a physics family (schema 1) from the ladder's effects, per flight, and write it")
     parser.add_argument("--family-name", default="family", help="the family's name in F.json (family)")
+    parser.add_argument("--family-repeats", type=int, default=2,
+                        help="simulated copies of every track in the family's loop check (2; 0 = no check)")
     parser.add_argument("--json", action="store_true",
                         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables")
     parser.add_argument("--rate-hz", type=float, default=3.0,
@@ -157,7 +159,8 @@ def _write_family(d, cfg, args, console) -> None:
     src = {"kind": "rfsl gap --family", "command": cmd, "created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
            "files": [str(p) for p in args.logs], "base": args.base, "pattern": args.pattern, "split": args.split,
            "loss": args.loss, "rate_hz": args.rate_hz}
-    rec = family_from_diagnosis(d, cfg, name=args.family_name, source=src)
+    rec = family_from_diagnosis(d, cfg, name=args.family_name, source=src, check=args.family_repeats > 0,
+                                repeats=max(args.family_repeats, 1))
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     out = Path(args.family)
     if out.parent != Path(""):

@@ -351,9 +351,10 @@ __all__ = ["FAMILY_EFFECT", "Fold", "FlightFit", "build_family", "effects_of_lad
 
 
 def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family", source: dict[str, Any] | None = None,
-                          check: bool = True) -> dict[str, Any]:
+                          check: bool = True, repeats: int = 2) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per flight; with
-    ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on, in ``checks.loop``."""
+    ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on, in ``checks.loop``
+    (``repeats`` simulated copies of every track: one copy of five flights scatters by +-1.5 dB in p90)."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
     rec, fits = fit_family(d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left)
     rec["ladder"] = [r.added for r in d.rungs if r.added]
@@ -361,11 +362,11 @@ def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family", source: 
         from mission.gap.loopcheck import P90_TOL_DB, calibrate_residual, loop_check
 
         used = [f for f, ft in zip(d.flights, fits, strict=True) if not ft.excluded]
-        lc = loop_check(rec, used, cfg, seed=cfg.seed + 1)
+        lc = loop_check(rec, used, cfg, seed=cfg.seed + 1, repeats=repeats)
         if not lc["heldout_p90_db"]["within_1db"]:  # recalibrate once, then check on fresh draws
             rec["checks"]["loop_before_calibration"] = {k: v for k, v in lc.items() if k not in ("draws", "refit")}
             calibrate_residual(rec, lc)
-            lc = loop_check(rec, used, cfg, seed=cfg.seed + 2)
+            lc = loop_check(rec, used, cfg, seed=cfg.seed + 2, repeats=repeats)
         rec["checks"]["loop"] = {k: v for k, v in lc.items() if k not in ("draws", "refit")}
         rec["checks"]["loop"]["p90_tolerance_db"] = P90_TOL_DB
     return rec
