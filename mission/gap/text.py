@@ -51,17 +51,30 @@ def summary_paragraph(d: Diagnosis) -> str:
     else:
         s = base + "No candidate effect closes a significant part of the gap. "
     st = d.structure.get("final", {})
-    te, sp = st.get("test", {}), st.get("spatial", {})
+    te, sp, al = st.get("test", {}), st.get("spatial", {}), st.get("along_path", {})
     if st.get("verdict") == "correlated shadowing":
         s += (f"After it, what is left is {te.get('correlated_std_db', float('nan')):.1f} dB of shadowing correlated "
               f"over about {sp.get('corr_len', float('nan')):.0f} m that no model here predicts, plus "
               f"{sp.get('nugget_db', float('nan')):.1f} dB of white noise.")
+    elif al and al.get("correlated_fraction", 0.0) > 0.5:
+        v = _speed(d)
+        s += (f"After it, what is left ({st.get('residual_std_db', float('nan')):.1f} dB) does not repeat between "
+              f"flights over the same ground, but within a flight {al['sigma_db']:.1f} dB of it is shadowing "
+              f"correlated over about {al['corr_len'] * v:.0f} m ({al['corr_len']:.0f} s at {v:.1f} m/s) that no "
+              f"model here predicts, plus {al['nugget_db']:.1f} dB of white noise.")
     elif st:
         s += f"What is left looks like white noise of {st.get('residual_std_db', float('nan')):.1f} dB."
     nn = d.near_nadir
     if nn and not nn.get("found"):
         s += " " + nn["statement"]
     return s
+
+
+def _speed(d: Diagnosis) -> float:
+    """Median ground speed of the flights (m/s), to turn a correlation time into a distance."""
+    v = [np.hypot(*np.diff(f.enu_m[:, :2], axis=0).T) / np.maximum(np.diff(f.t_s), 1e-6) for f in d.flights
+         if f.t_s is not None and len(f) > 2]
+    return float(np.median(np.concatenate(v))) if v else float("nan")
 
 
 def wrap(text: str, width: int = WIDTH) -> str:
