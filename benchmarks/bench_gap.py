@@ -52,17 +52,21 @@ def selftest(args: argparse.Namespace) -> int:
     strengths = [float(x) for x in args.strengths.split(",")]
     rows = []
     t0 = time.time()
-    for e in effects:
-        for k in strengths if e != "none" else strengths[:1]:
-            for s in seeds:
-                r = diagnose_case(e, s, strength=k)
+    for k in strengths:  # strengths, then seeds, then effects: a partial run covers every effect
+        for s in seeds:
+            for e in effects if k == strengths[0] else [x for x in effects if x != "none"]:
+                r = diagnose_case(e, s, strength=k, dt=args.dt)
                 fp = r.get("footprint", {})
                 rows.append({"effect": e, "seed": s, "strength": k, "expected": EXPECTED[e], "named": r["named"],
                              "hit": r["hit"], "size_db": fp.get("size_db"), "where": fp.get("where"),
                              "params": r.get("params"), "truth": r["truth"],
-                             "verdict": r["structure"]["verdict"], "significant": r["significant"]})
+                             "verdict": r["structure"]["verdict"], "significant": r["significant"],
+                             "near_nadir": r.get("near_nadir")})
+                nn = r.get("near_nadir") or {}
+                extra = f" nadir: {nn['samples']} samples, detectable {nn['detectable_db']:.1f} dB" if e == "nadir" \
+                    else ""
                 print(f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} "
-                      f"{'HIT ' if r['hit'] else 'MISS'} size {fp.get('size_db', float('nan')):5.1f} dB "
+                      f"{'HIT ' if r['hit'] else 'MISS'} size {fp.get('size_db', float('nan')):5.1f} dB{extra} "
                       f"({time.time() - t0:.0f} s)", flush=True)
                 Path(args.out).write_text(json.dumps({"rows": rows}, indent=1, default=str))
     cols = sorted({str(r["named"] or "nothing") for r in rows} | {str(EXPECTED[e] or "nothing") for e in effects})
@@ -279,6 +283,7 @@ def main(argv: list[str] | None = None) -> int:
     a.add_argument("--seeds", default="1,2,3")
     a.add_argument("--effects", default="all")
     a.add_argument("--strengths", default="1", help="effect sizes relative to the generator's (e.g. 1,0.5)")
+    a.add_argument("--dt", type=float, default=0.25, help="generator sample interval s (0.25)")
     a.add_argument("--out", default="bench_gap_selftest.json")
     b = sub.add_parser("real")
     b.add_argument("--split", choices=("flights", "blocks"), default="flights")

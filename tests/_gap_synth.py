@@ -244,4 +244,12 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     out = identify(flights, base, list(library().values()), cfg)
     out.update(effect=effect, seed=seed, truth=truth, expected=EXPECTED[effect],
                hit=out["named"] == EXPECTED[effect])
+    from mission.gap.align import align
+    from mission.gap.nadir import power_statement
+    from mission.gap.stats import block_length
+    from mission.robust import offset_residual
+
+    res = [offset_residual(f.rss_dbm, base.predict(f), False, "l2") for f in flights]
+    out["near_nadir"] = power_statement([np.rad2deg(align(f).dep_b) for f in flights], res,
+                                        [block_length(r) for r in res], loss_db=truth.get("depth_db", 3.0))
     return out
