@@ -32,8 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--family", metavar="F.json",
                         help="also fit a physics family (schema 1) from the ladder's effects, per flight, and write it")
     parser.add_argument("--family-name", default="family", help="the family's name in F.json (family)")
-    parser.add_argument("--family-repeats", type=int, default=2,
-                        help="simulated copies of every track in the family's loop check (2; 0 = no check)")
+    parser.add_argument("--family-repeats", type=int, default=4,
+                        help="simulated copies of every track in the family's loop check (4; 0 = no check)")
     parser.add_argument("--json", action="store_true",
                         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables")
     parser.add_argument("--rate-hz", type=float, default=3.0,

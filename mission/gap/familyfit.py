@@ -351,7 +351,7 @@ __all__ = ["FAMILY_EFFECT", "Fold", "FlightFit", "build_family", "effects_of_lad
 
 
 def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family", source: dict[str, Any] | None = None,
-                          check: bool = True, repeats: int = 2) -> dict[str, Any]:
+                          check: bool = True, repeats: int = 4) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per flight; with
     ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on, in ``checks.loop``
     (``repeats`` simulated copies of every track: one copy of five flights scatters by +-1.5 dB in p90)."""
