@@ -69,12 +69,14 @@ def _dep_sin(f: FlightSamples) -> np.ndarray:
 
 
 def test_power_statement_closed_form() -> None:
-    """n_eff = n / L samples in the band; detectable = (1.645 + 0.842) s / sqrt(n_eff)."""
+    """n_eff = n / L samples in the band; detectable = (1.645 + 0.842) s / sqrt(n_eff); one pass: nothing."""
     rng = np.random.default_rng(0)
-    dep = [np.r_[np.full(400, 70.0), np.full(1600, 20.0)]]
     r = [rng.normal(0.0, 5.0, 2000)]
+    one = power_statement([np.r_[np.full(400, 70.0), np.full(1600, 20.0)]], r, [4])
+    assert one["passes"] == 1 and one["detectable_db"] == np.inf and "cannot see" in one["statement"]
+    dep = [np.r_[np.full(200, 70.0), np.full(800, 20.0), np.full(200, 70.0), np.full(800, 20.0)]]
     ps = power_statement(dep, r, [4])
-    assert ps["samples"] == 400 and ps["effective_samples"] == pytest.approx(100.0)
+    assert ps["samples"] == 400 and ps["passes"] == 2 and ps["effective_samples"] == pytest.approx(100.0)
     assert ps["detectable_db"] == pytest.approx(2.487 * ps["residual_sd_db"] / 10.0, rel=1e-3)
     assert ps["samples_needed"] == pytest.approx((2.487 * ps["residual_sd_db"] / 3.0) ** 2 * 4, rel=0.02)
     assert "samples" in ps["statement"]

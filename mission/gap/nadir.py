@@ -66,24 +66,30 @@ def power_statement(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], 
     A loss D in the band shifts the band's mean residual by D against the rest; with residual sd s and
     n_eff effectively independent samples in the band (n / block length), the smallest detectable D is
     (z_alpha + z_power) s / sqrt(n_eff), and detecting ``loss_db`` needs n_eff = ((z_a + z_p) s / D)^2.
+    A held-out test also needs the band in at least two separate passes (one to fit, one to score: the
+    folds are contiguous chunks); with fewer, nothing is detectable whatever the count.
     """
-    n, n_eff, ss = 0, 0.0, []
+    n, n_eff, ss, passes = 0, 0.0, [], 0
     for dep, r, L in zip(dep_deg, resid, block_lens, strict=True):
         ok = np.isfinite(r)
         inb = ok & (dep >= band[0]) & (dep <= band[1])
         n += int(inb.sum())
         n_eff += float(inb.sum()) / max(int(L), 1)
+        idx = np.nonzero(inb)[0]
+        passes += int(idx.size > 0) + int(np.sum(np.diff(idx) > max(int(L), 10)))
         if ok.any():
             ss.append(r[ok] - np.median(r[ok]))
     s = float(np.std(np.concatenate(ss))) if ss else float("nan")
     z = Z_ALPHA + Z_POWER
-    detectable = z * s / math.sqrt(n_eff) if n_eff > 0 else float("inf")
+    detectable = z * s / math.sqrt(n_eff) if n_eff > 0 and passes >= 2 else float("inf")
     need_eff = (z * s / loss_db) ** 2
     L_mean = n / n_eff if n_eff > 0 else float(np.mean(block_lens)) if len(block_lens) else 1.0
     need = int(math.ceil(need_eff * L_mean))
+    seen = (f"a loss there smaller than {detectable:.1f} dB cannot be seen" if passes >= 2 else
+            f"in {passes} pass{'es' if passes != 1 else ''}, so a held-out test cannot see a loss there at all")
     text = (f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} samples "
-            f"({n_eff:.0f} independent): a loss there smaller than {detectable:.1f} dB cannot be seen; "
-            f"{loss_db:.0f} dB would need about {need} samples ({need_eff:.0f} independent).")
-    return {"band_deg": list(band), "samples": n, "effective_samples": n_eff, "residual_sd_db": s,
+            f"({n_eff:.0f} independent) {seen}; {loss_db:.0f} dB would need about {need} samples "
+            f"({need_eff:.0f} independent) in at least two passes.")
+    return {"band_deg": list(band), "samples": n, "passes": passes, "effective_samples": n_eff, "residual_sd_db": s,
             "detectable_db": detectable, "loss_db": loss_db, "samples_needed": need,
             "effective_needed": need_eff, "alpha": 0.05, "power": 0.8, "statement": text}
