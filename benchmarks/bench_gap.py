@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/bench_gap.py selftest [--seeds 1,2,3] [--effects all] [--out bench_gap_selftest.json]
+    python benchmarks/bench_gap.py family-check [--family F.json] [--repeats 4]
     python benchmarks/bench_gap.py real [--split flights|blocks] [--all] [--sequence a,b] [--floor] [--loc3]
                                         [--per-flight] [--localize] [--candidates all] [--out gap_real_bench]
 
@@ -49,19 +50,26 @@ def selftest(args: argparse.Namespace) -> int:
 
     effects = EFFECTS if args.effects == "all" else tuple(args.effects.split(","))
     seeds = [int(s) for s in args.seeds.split(",")]
+    strengths = [float(x) for x in args.strengths.split(",")]
     rows = []
     t0 = time.time()
-    for e in effects:
+    for k in strengths:  # strengths, then seeds, then effects: a partial run covers every effect
         for s in seeds:
-            r = diagnose_case(e, s)
-            fp = r.get("footprint", {})
-            rows.append({"effect": e, "seed": s, "expected": EXPECTED[e], "named": r["named"], "hit": r["hit"],
-                         "size_db": fp.get("size_db"), "where": fp.get("where"), "params": r.get("params"),
-                         "truth": r["truth"], "verdict": r["structure"]["verdict"],
-                         "significant": r["significant"]})
-            print(f"{e:11s} seed {s}: named {r['named'] or 'nothing':18s} {'HIT ' if r['hit'] else 'MISS'} "
-                  f"size {fp.get('size_db', float('nan')):5.1f} dB  structure: {r['structure']['verdict']}  "
-                  f"({time.time() - t0:.0f} s)", flush=True)
+            for e in effects if k == strengths[0] else [x for x in effects if x != "none"]:
+                r = diagnose_case(e, s, strength=k, dt=args.dt)
+                fp = r.get("footprint", {})
+                rows.append({"effect": e, "seed": s, "strength": k, "expected": EXPECTED[e], "named": r["named"],
+                             "hit": r["hit"], "size_db": fp.get("size_db"), "where": fp.get("where"),
+                             "params": r.get("params"), "truth": r["truth"],
+                             "verdict": r["structure"]["verdict"], "significant": r["significant"],
+                             "near_nadir": r.get("near_nadir")})
+                nn = r.get("near_nadir") or {}
+                extra = f" nadir: {nn['samples']} samples, detectable {nn['detectable_db']:.1f} dB" if e == "nadir" \
+                    else ""
+                print(f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} "
+                      f"{'HIT ' if r['hit'] else 'MISS'} size {fp.get('size_db', float('nan')):5.1f} dB{extra} "
+                      f"({time.time() - t0:.0f} s)", flush=True)
+                Path(args.out).write_text(json.dumps({"rows": rows}, indent=1, default=str))
     cols = sorted({str(r["named"] or "nothing") for r in rows} | {str(EXPECTED[e] or "nothing") for e in effects})
     print("\n| withheld \\ named | " + " | ".join(cols) + " | hit rate |")
     print("| --- | " + " | ".join("---" for _ in cols) + " | --- |")
@@ -264,6 +272,45 @@ def real(args: argparse.Namespace) -> int:
     return 0
 
 
+def family_check(args: argparse.Namespace) -> int:
+    """The loop-closing check of a family file on the real flights it was fitted on (``mission.gap.loopcheck``):
+    ``--repeats`` simulated copies of every track (airborne, 3 Hz; the suspect 288-loc3 left out as in the
+    family), re-fitted; per repeat and pooled, the held-out p90 against the real flights' and the intervals."""
+    from dataclasses import replace
+
+    from mission.gap.align import afar2023_flights
+    from mission.gap.diagnose import decimate_flight
+    from mission.gap.fit import FitConfig
+    from mission.gap.loopcheck import loop_check
+    from mission.importers.afar import is_afar2023_suspect
+
+    if not MAT.is_dir():
+        print(f"no AFAR data at {MAT}", file=sys.stderr)
+        return 2
+    rec = json.loads(Path(args.family).read_text())
+    fl = [replace(decimate_flight(f, 3.0), name=f.name.replace("-loc", "_loc_"))
+          for f in afar2023_flights(MAT) if not is_afar2023_suspect(f.name)]
+    cfg = FitConfig(loss="soft_l1", rate_hz=3.0, workers=args.workers)
+    t0 = time.time()
+    out = {"family": args.family, "repeats": []}
+    for k in range(args.repeats):
+        lc = loop_check(rec, fl, cfg, seed=100 + k)
+        out["repeats"].append({q: v for q, v in lc.items() if q not in ("draws", "refit")})
+        p = lc["heldout_p90_db"]
+        print(f"copy {k + 1}: p90 sim {p['sim']:.1f} vs real {p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} "
+              f"dB, range {lc['range_m']['sim']:.0f} m; params inside: "
+              f"{sum(v['inside'] for v in lc['params'].values())}/{len(lc['params'])} ({time.time() - t0:.0f} s)",
+              flush=True)
+        Path(args.out).write_text(json.dumps(out, indent=1, default=str))
+    sims = [r["heldout_p90_db"]["sim"] for r in out["repeats"]]
+    real_p90 = out["repeats"][0]["heldout_p90_db"]["real"]
+    out["p90_sim_mean"], out["p90_sim_sd"] = float(np.mean(sims)), float(np.std(sims, ddof=1)) if len(sims) > 1 else 0.0
+    print(f"held-out p90 over {len(sims)} copies of the {len(fl)} tracks: {out['p90_sim_mean']:.1f} "
+          f"(sd {out['p90_sim_sd']:.1f}) vs real {real_p90:.1f} dB")
+    Path(args.out).write_text(json.dumps(out, indent=1, default=str))
+    return 0
+
+
 def _p90(r: np.ndarray) -> float:
     r = r[np.isfinite(r)]
     return float(np.quantile(np.abs(r), 0.9)) if r.size else float("nan")
@@ -275,6 +322,8 @@ def main(argv: list[str] | None = None) -> int:
     a = sub.add_parser("selftest")
     a.add_argument("--seeds", default="1,2,3")
     a.add_argument("--effects", default="all")
+    a.add_argument("--strengths", default="1", help="effect sizes relative to the generator's (e.g. 1,0.5)")
+    a.add_argument("--dt", type=float, default=0.25, help="generator sample interval s (0.25)")
     a.add_argument("--out", default="bench_gap_selftest.json")
     b = sub.add_parser("real")
     b.add_argument("--split", choices=("flights", "blocks"), default="flights")
@@ -293,8 +342,15 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--slope", action="store_true", help="also fit a per-flight path-gain slope (held-out flight too)")
     b.add_argument("--fit-max", type=int, default=3000, help="training samples per flight used by the optimiser")
     b.add_argument("--out", default="gap_real_bench")
+    c = sub.add_parser("family-check")
+    c.add_argument("--family", default=str(REPO / "mission" / "data" / "afar_family.json"))
+    c.add_argument("--repeats", type=int, default=4)
+    c.add_argument("--workers", type=int, default=1)
+    c.add_argument("--out", default="bench_gap_family_check.json")
     args = ap.parse_args(argv)
     np.seterr(all="ignore")
+    if args.cmd == "family-check":
+        return family_check(args)
     return selftest(args) if args.cmd == "selftest" else real(args)
 
 

@@ -30,10 +30,10 @@ PT_DBM = 41.0
 LAMBDA_M = C_LIGHT / FC_HZ
 EPS0 = 8.8541878128e-12
 LEGS_DEG = (39.0, 150.0, 270.0)
-EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing")
+EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing", "nadir")
 EXPECTED = {"none": None, "legs": "leg_shadowing", "ground": "ground_reflection", "ripple": "rx_gain_map",
             "notch": "rx_gain_map", "tx_azimuth": "tx_gain_map", "shadowing": "spatial_shadowing",
-            "timing": "time_offset"}
+            "timing": "time_offset", "nadir": "near_nadir"}
 
 
 # ------------------------------------------------------------------------------------------ trajectories
@@ -166,25 +166,31 @@ def exp_field(rng: np.random.Generator, sigma: float, L: float, m: int = 500):
 # ------------------------------------------------------------------------------------------------ cases
 
 def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, duration: float = 420.0,
-              noise_db: float = 1.0) -> tuple[list[dict], dict]:
-    """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth."""
+              noise_db: float = 1.0, strength: float = 1.0) -> tuple[list[dict], dict]:
+    """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth.
+
+    ``strength`` scales the withheld effect's size (beta, amplitudes, depths, sigma, tau; the ground's
+    permittivity departs from the base's 2 by that factor)."""
     rng = np.random.default_rng(seed)
-    truth: dict = {"effect": effect}
+    truth: dict = {"effect": effect, "strength": strength}
+    k_s = strength
     if effect == "shadowing":
-        truth.update(sigma_db=4.0, corr_len_m=float(rng.uniform(30.0, 60.0)))
+        truth.update(sigma_db=4.0 * k_s, corr_len_m=float(rng.uniform(30.0, 60.0)))
     phi = float(rng.uniform(0.0, 2 * np.pi))
     flights = []
     for k in range(n_flights):
         tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
         lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)  # legs: rover near a corner (long range)
+        if effect == "nadir":  # under a lawnmower row, so that the flights pass over the rover
+            lo, hi = 120.0, 240.0
         tx = np.array([rng.uniform(lo, hi), rng.uniform(lo, hi), 1.5])
         t, pos, att = tr["t"], tr["pos"], tr["att"]
         kw: dict = {}
         if effect == "ground":
-            truth.update(eps_r=truth.get("eps_r", float(rng.uniform(10.0, 25.0))), sigma_s_m=0.005)
+            truth.update(eps_r=truth.get("eps_r", 2.0 + k_s * (float(rng.uniform(10.0, 25.0)) - 2.0)), sigma_s_m=0.005)
             kw = {"eps_r": truth["eps_r"], "sigma": 0.005}
         elif effect == "ripple":
-            truth.setdefault("amp_db", float(rng.uniform(2.0, 2.5)))
+            truth.setdefault("amp_db", k_s * float(rng.uniform(2.0, 2.5)))
             truth["phase_deg"] = np.rad2deg(phi)
             kw = {"rx_extra_db": lambda az, dep, phi=phi: truth["amp_db"] * np.cos(3 * (az - phi))}
         elif effect == "notch":
@@ -192,15 +198,18 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
                 bx, by, _ = body_los(tx, pos, att)
                 az_seen = np.arctan2(by, bx) % (2 * np.pi)
                 phi = float(az_seen[rng.integers(0, len(az_seen))])
-                truth.update(depth_db=10.0, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0)
-            kw = {"rx_extra_db": lambda az, dep, phi=phi: -10.0 * np.exp(
+                truth.update(depth_db=10.0 * k_s, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0)
+            kw = {"rx_extra_db": lambda az, dep, phi=phi: -10.0 * k_s * np.exp(
                 -0.5 * ((np.angle(np.exp(1j * (az - phi)))) / np.deg2rad(15.0)) ** 2)}
         elif effect == "tx_azimuth":
-            truth.update(amp_db=3.0, azimuth_deg=float(np.rad2deg(phi)))
-            kw = {"tx_extra_db": lambda az, phi=phi: 3.0 * np.cos(az - phi)}
+            truth.update(amp_db=3.0 * k_s, azimuth_deg=float(np.rad2deg(phi)))
+            kw = {"tx_extra_db": lambda az, phi=phi: 3.0 * k_s * np.cos(az - phi)}
+        elif effect == "nadir":  # airframe and payload below the antenna: a loss at steep depression, any azimuth
+            truth.update(depth_db=8.0 * k_s, centre_deg=75.0, width_deg=8.0)
+            kw = {"rx_extra_db": lambda az, dep: -8.0 * k_s * np.exp(-0.5 * ((np.rad2deg(dep) - 75.0) / 8.0) ** 2)}
         q_pos, q_att = pos, att
         if effect == "timing":
-            truth.setdefault("tau_s", float(rng.uniform(0.5, 1.0)))
+            truth.setdefault("tau_s", k_s * float(rng.uniform(0.5, 1.0)))
             tq = t - truth["tau_s"]  # received where the UAV was tau earlier
             q_pos = np.column_stack([np.interp(tq, t, pos[:, j]) for j in range(3)])
             yaw = np.unwrap(att[:, 2])
@@ -208,7 +217,7 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
                                      np.interp(tq, t, yaw) % (2 * np.pi)])
         p = channel_db(tx, q_pos, q_att, **kw)
         if effect == "legs":
-            truth.setdefault("beta", float(rng.uniform(0.5, 0.7)))
+            truth.setdefault("beta", k_s * float(rng.uniform(0.5, 0.7)))
             p = p + leg_loss_db(tx, q_pos, q_att, truth["beta"])
         if effect == "shadowing":  # fixed over the ground; a fresh field per flight (another rover position)
             p = p + exp_field(rng, truth["sigma_db"], truth["corr_len_m"])(pos[:, :2])
@@ -235,4 +244,12 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     out = identify(flights, base, list(library().values()), cfg)
     out.update(effect=effect, seed=seed, truth=truth, expected=EXPECTED[effect],
                hit=out["named"] == EXPECTED[effect])
+    from mission.gap.align import align
+    from mission.gap.nadir import power_statement
+    from mission.gap.stats import block_length
+    from mission.robust import offset_residual
+
+    res = [offset_residual(f.rss_dbm, base.predict(f), False, "l2") for f in flights]
+    out["near_nadir"] = power_statement([np.rad2deg(align(f).dep_b) for f in flights], res,
+                                        [block_length(r) for r in res], loss_db=truth.get("depth_db", 3.0))
     return out

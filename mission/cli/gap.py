@@ -10,6 +10,7 @@ effect withheld and checks that the diagnosis finds it (confusion table).
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,6 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-rungs", type=int, default=6, help="most effects the ladder adds (6)")
     parser.add_argument("--no-localize", action="store_true", help="skip the localization cost per rung")
     parser.add_argument("--report", metavar="DIR", help="write PNG plots and gap.json here")
+    parser.add_argument("--family", metavar="F.json",
+                        help="also fit a physics family (schema 1) from the ladder's effects, per flight, and write it")
+    parser.add_argument("--family-name", default="family", help="the family's name in F.json (family)")
+    parser.add_argument("--family-repeats", type=int, default=4,
+                        help="simulated copies of every track in the family's loop check (4; 0 = no check)")
     parser.add_argument("--json", action="store_true",
                         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables")
     parser.add_argument("--rate-hz", type=float, default=3.0,
@@ -78,7 +84,9 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
             raise InputError(f"only {len(f.t_s)} samples with RSS; the gap diagnosis needs at least {MIN_SAMPLES}",
                              source=str(p))
         flights.append(f)
-    return flights
+    from mission.gap.labels import short_labels
+
+    return [replace(f, name=lab) for f, lab in zip(flights, short_labels([f.name for f in flights]), strict=True)]
 
 
 def _selftest(args) -> int:
@@ -137,6 +145,43 @@ def _selftest(args) -> int:
     return 0 if n_pass == len(results) else 1
 
 
+def _write_family(d, cfg, args, console) -> None:
+    """Fit the ladder's effects per flight into a physics family and write it (validated by ``load_family``)."""
+    import json
+    import sys
+    from datetime import UTC, datetime
+    from pathlib import Path
+
+    from mission.gap.familyfit import family_from_diagnosis
+    from mission.physics.family import PhysicsFamily
+
+    cmd = "rfsl " + " ".join(sys.argv[1:]) if len(sys.argv) > 1 and sys.argv[1] == "gap" else None
+    src = {"kind": "rfsl gap --family", "command": cmd, "created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
+           "files": [str(p) for p in args.logs], "base": args.base, "pattern": args.pattern, "split": args.split,
+           "loss": args.loss, "rate_hz": args.rate_hz}
+    rec = family_from_diagnosis(d, cfg, name=args.family_name, source=src, check=args.family_repeats > 0,
+                                repeats=max(args.family_repeats, 1))
+    PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
+    out = Path(args.family)
+    if out.parent != Path(""):
+        out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(rec, indent=1) + "\n")
+    console.print(f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; {len(rec['per_flight'])} flights)")
+    lc = rec["checks"].get("loop")
+    if lc:
+        p = lc["heldout_p90_db"]
+        bad = [k for k, v in lc["params"].items() if not v["inside"]]
+        console.print(f"loop check ({'passed' if lc['passed'] else 'FAILED'}): simulated flights re-fit inside the "
+                      f"intervals{' except ' + ', '.join(bad) if bad else ''}; held-out p90 {p['sim']:.1f} vs real "
+                      f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range {lc['range_m']['sim']:.0f} m "
+                      f"({'inside' if lc['sill_db']['inside'] and lc['range_m']['inside'] else 'NOT inside'} "
+                      "the real intervals)")
+        cal = rec.get("residual_calibration")
+        if cal:
+            console.print(f"  (after one recalibration: the total residual std scaled x{cal['p90_scale']:.2f}, "
+                          "checked on fresh draws)")
+
+
 def run(args) -> int:
     from mission.errors import InputError
 
@@ -175,6 +220,8 @@ def run(args) -> int:
     if args.report:
         for p in write_report(d, args.report):
             c.print(f"wrote {p}")
+    if args.family:
+        _write_family(d, cfg, args, c)
     if args.json:
         import json
 

@@ -19,6 +19,7 @@ the ground permittivity of an e2r base); one that is absent *adds* it.
 | ``yaw_attitude`` | receiver angles in a frame turned by the yaw only (body level) | heading_deg (*) |
 | ``path_gain_slope`` | extra path-gain exponent, -10 n_extra log10(d / 100 m) | n_extra |
 | ``leg_shadowing`` | paper eqs. 8-9 | beta, half_width_deg, legs_rotation_deg |
+| ``near_nadir`` | body-fixed loss over a band of depression angles (``mission.gap.nadir``) | depth, centre, width |
 | ``time_offset`` | RSS lags telemetry by tau | tau_s |
 | ``receiver`` | soft noise floor and saturation | floor_db, sat_db (model dB scale) |
 | ``rx_gain_map`` | free-form: smooth UAV body-frame gain map (``mission.gap.freeform``) | ridge coefficients |
@@ -41,6 +42,7 @@ import numpy as np
 
 from mission.gap.candidate import Candidate, Param
 from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
+from mission.gap.nadir import near_nadir_candidate
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
 from mission.gap.spatial import KrigedShadowing, site_map_candidate, spatial_candidate
 from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
@@ -213,8 +215,8 @@ def _legs_candidate() -> Candidate:
 
     return Candidate("leg_shadowing", "UAV leg shadowing, paper eqs. 8-9", (
         Param("beta", 0.0, 8.0, (0.3, 1.0, 2.5)),
-        Param("half_width_deg", 1.0, 25.0, (5.0, 12.0), unit="deg"),
-        Param("legs_rotation_deg", -60.0, 60.0, (-30.0, -10.0, 0.0, 10.0, 30.0), unit="deg")),
+        Param("half_width_deg", 1.0, 25.0, (3.0, 6.0, 12.0, 20.0), unit="deg"),
+        Param("legs_rotation_deg", -60.0, 60.0, (-45.0, -30.0, -15.0, -5.0, 0.0, 5.0, 15.0, 30.0, 45.0), unit="deg")),
         build, lambda p: p.model.has("attitude"), withhold)
 
 
@@ -252,7 +254,7 @@ def library() -> dict[str, Candidate]:
         _antenna_pattern_candidate("rx"), _antenna_mounting_candidate("rx"),
         _antenna_pattern_candidate("tx"), _antenna_mounting_candidate("tx"), _tx_tilt_candidate(),
         _ground_candidate(), _attitude_like_candidate(True), _attitude_like_candidate(False), _legs_candidate(),
-        _path_gain_slope_candidate(),
+        near_nadir_candidate(), _path_gain_slope_candidate(),
         _time_offset_candidate(), _receiver_candidate(), *(freeform_candidate(k) for k in FREEFORM_NAMES),
         spatial_candidate(), site_map_candidate(),
     ]

@@ -68,6 +68,7 @@ class Diagnosis:
     config: dict[str, Any]
     structure: dict[str, Any] = field(default_factory=dict)   # residual structure: "base" and "final" rungs
     footprints: dict[str, Any] = field(default_factory=dict)  # per added rung: size (dB) and where it acts
+    near_nadir: dict[str, Any] = field(default_factory=dict)  # what the data can show below the UAV (nadir.py)
 
 
 def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, name: str) -> ModelGap:
@@ -205,7 +206,11 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     struct = {"base": residual_structure(flights, rungs[0].residuals, rng),
               "final": residual_structure(flights, rungs[-1].residuals, rng)}
     fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
-    return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps)
+    from mission.gap.nadir import power_statement
+
+    nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls)
+    nadir["found"] = any(r.added == "near_nadir" for r in rungs)
+    return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps, nadir)
 
 
 def rung_table(d: Diagnosis) -> list[dict[str, Any]]:

@@ -28,10 +28,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
 
 from mission.gap.candidate import TIER_FREEFORM, TIER_NAMED, TIER_SMOOTHER, Candidate
 from mission.gap.candidates import describe_params
+from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
 from mission.gap.pipeline import Pipeline
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
@@ -134,31 +134,6 @@ def _bounds(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[An
     return [(prm.lo, prm.hi) if prm.period is None else (-np.inf, np.inf) for prm in params]
 
 
-def minimize_from_grid(fun: Callable[[np.ndarray], float], grid: np.ndarray, steps: Sequence[float],
-                       max_evals: int, n_starts: int = 1, xatol: float = 1e-3, fatol: float = 1e-6
-                       ) -> tuple[np.ndarray, float]:
-    """Evaluate ``fun`` on the start ``grid`` (G, P), then run Nelder-Mead (``max_evals`` x P evaluations, first
-    simplex edge ``steps[j]`` along parameter j) from the ``n_starts`` best starts; returns the best (x, value).
-
-    Why: the physics fits (a gap candidate's parameters, a calibration preset's free parameters) have multimodal,
-    non-smooth robust losses (headings, floors); a coarse grid finds the basin and the simplex polishes it.  The
-    caller clips or wraps x into its bounds (``fun`` should do the same).
-    """
-    grid = np.asarray(grid, dtype=float).reshape(len(grid), -1)
-    vals = np.array([fun(g) for g in grid])
-    best = None
-    for k in np.argsort(vals, kind="stable")[:n_starts]:
-        x0 = grid[k]
-        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
-        res = minimize(fun, x0, method="Nelder-Mead",
-                       options={"maxfev": max_evals * len(x0), "initial_simplex": simplex, "xatol": xatol,
-                                "fatol": fatol})
-        if best is None or res.fun < best.fun:
-            best = res
-    assert best is not None
-    return np.asarray(best.x, dtype=float), float(min(best.fun, vals.min()))
-
-
 @dataclass
 class CandidateFit:
     """A candidate fitted on one training set."""
@@ -182,6 +157,9 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSampl
         cache = [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
     params = cand.params_for(pipe)
     names = [p.name for p in params]
+    # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over seconds)
+    idx_c = [i[::4] for i in idx]
+    cache_c = None if cache is None else [c[::4] for c in cache]
     best: CandidateFit | None = None
     for choice in cand.choices(pipe):
         if not names:
@@ -200,8 +178,15 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSampl
         for j, prm in enumerate(params):
             if len(prm.grid) > 1:
                 steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
-        xb, loss = minimize_from_grid(f_obj, np.array(_start_grid(cand, cache, params), dtype=float), steps,
-                                      cfg.max_evals)
+        def f_coarse(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
+            xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
+            return objective(cand.build(pipe, dict(zip(names, xx, strict=True)), choice), flights, idx_c, cfg,
+                             cache_c)
+
+        grid = np.array(_start_grid(cand, cache, params), dtype=float)
+        multi = len(params) >= 2 and len(grid) > 8   # several starts where the loss is multimodal in several dims
+        xb, loss = minimize_from_grid(f_obj, grid, steps, cfg.max_evals, n_starts=3 if multi else 1,
+                                      coarse=f_coarse if multi else None)
         x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(xb, bounds, strict=True)]
         for j, prm in enumerate(params):
             if prm.period:

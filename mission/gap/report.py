@@ -16,6 +16,7 @@ from mission.gap.align import PHASES
 from mission.gap.diagnose import Diagnosis, rung_table
 from mission.gap.fit import _pooled
 from mission.gap.stats import ecdf
+from mission.gap.text import details_text, print_report  # noqa: F401  (the terminal report's home; re-exported)
 
 PAPER_P90_DB = 22.0  # "over 90 % of the errors contained within 22 dB" (enhanced two-ray, paper Fig. Abserror)
 
@@ -38,88 +39,6 @@ def params_text(p: dict[str, Any]) -> str:
     if "log10_sigma" in q:
         q["sigma_s_m"] = 10 ** q.pop("log10_sigma")
     return ", ".join(f"{k}={_fmt(v)}" for k, v in q.items())
-
-
-def print_report(d: Diagnosis, console: Any = None) -> None:
-    """Rich tables: the gap of the reference models, flagged bins, the candidate ranking, the ladder, the
-    localization cost."""
-    from rich.console import Console
-    from rich.table import Table
-
-    c = console or Console()
-    t = Table(title="The gap: measured vs model (offset fitted per flight, all samples)")
-    for col in ("model", "flight", "n", "median |e| dB", "p90 |e| dB", "rms dB"):
-        t.add_column(col, justify="right" if col not in ("model", "flight") else "left")
-    for g in d.gaps:
-        for fname, s in g.per_flight.items():
-            t.add_row(g.name, fname, str(s["n"]), f"{s['median_abs_db']:.2f}", f"{s['p90_abs_db']:.2f}",
-                      f"{s['rms_db']:.2f}")
-        s = g.pooled
-        t.add_row(f"[bold]{g.name}", "[bold]pooled", str(s["n"]), f"{s['median_abs_db']:.2f}",
-                  f"[bold]{s['p90_abs_db']:.2f}", f"{s['rms_db']:.2f}")
-    c.print(t)
-    e2r = next((g for g in d.gaps if g.name == "e2r"), None)
-    if e2r is not None:
-        c.print(f"e2r 90th percentile of |error|: {e2r.pooled['p90_abs_db']:.1f} dB (paper: {PAPER_P90_DB:.0f} dB)")
-
-    t = Table(title=f"Where {d.base_label} departs (bins whose mean residual excludes 0, block bootstrap 95 %)")
-    for col in ("variable", "bin", "n", "mean dB", "95 % CI dB"):
-        t.add_column(col)
-    for b in d.breakdown:
-        for i in np.nonzero(b.flagged)[0]:
-            lab = PHASES[int(b.centers[i])] if b.variable == "phase" else \
-                f"{b.edges[i]:g}-{b.edges[i + 1]:g}"
-            t.add_row(b.variable, lab, str(int(b.count[i])), f"{b.mean[i]:+.2f}", f"[{b.lo[i]:+.2f}, {b.hi[i]:+.2f}]")
-    c.print(t)
-    c.print(f"block lengths (samples, from the residual autocorrelation): {d.block_lens}")
-
-    for r in d.rungs:
-        if not r.ranking:
-            continue
-        t = Table(title=f"Candidates on top of '{r.label}' (held-out, {d.config['split']} split)")
-        for col in ("candidate", "rms before", "rms after", "p90 after", "loss reduction", "rel", "lower bound",
-                    "significant", "fitted (fold mean)"):
-            t.add_column(col)
-        for x in r.ranking:
-            t.add_row(x.name, f"{x.rms_before:.2f}", f"{x.rms_after:.2f}", f"{x.p90_after:.2f}",
-                      f"{x.loss_reduction:+.2f}", f"{x.rel_reduction:+.1%}", f"{x.ci_lo:+.2f}",
-                      "[green]yes" if x.significant else "no", params_text(x.params_mean()))
-        c.print(t)
-
-    t = Table(title="The ladder (held-out gap per rung)")
-    for col in ("rung", "median |e| dB", "p90 |e| dB", "rms dB", "fitted", "loc. error m"):
-        t.add_column(col)
-    loc = {row["rung"]: row for row in d.localization}
-    for row in rung_table(d):
-        s = row["pooled"]
-        le = loc.get(row["rung"], {}).get("mean_error_m")
-        t.add_row(row["rung"], f"{s['median_abs_db']:.2f}", f"{s['p90_abs_db']:.2f}", f"{s['rms_db']:.2f}",
-                  params_text(row["params"]), "" if le is None else f"{le:.1f}")
-    c.print(t)
-    from mission.gap.fit import RANKING_RULE
-
-    c.print(f"ranking rule: {RANKING_RULE}")
-    for k, st in d.structure.items():
-        if "spatial" not in st:
-            continue
-        sp, al = st["spatial"], st["along_path"]
-        c.print(f"residual structure ({k} rung): [bold]{st['verdict']}[/]; over space sigma {sp['sigma_db']:.1f} dB "
-                f"[{sp['sigma_ci_db'][0]:.1f}, {sp['sigma_ci_db'][1]:.1f}], L {sp['corr_len']:.0f} m "
-                f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget {sp['nugget_db']:.1f} dB "
-                f"[{sp['nugget_ci_db'][0]:.1f}, {sp['nugget_ci_db'][1]:.1f}]; along the path sigma "
-                f"{al['sigma_db']:.1f} dB, L {al['corr_len']:.1f} s, nugget {al['nugget_db']:.1f} dB")
-        if "test" in st:
-            te = st["test"]
-            c.print(f"  correlation test: near (<{te['short_lag_m']:.0f} m) / all-pair semivariance "
-                    f"{te['ratio']:.2f} [{te['ratio_ci'][0]:.2f}, {te['ratio_ci'][1]:.2f}], correlated std "
-                    f"{te['correlated_std_db']:.1f} dB ({te['n_near_pairs']} near pairs)")
-    for lab, fp in d.footprints.items():
-        w = ", ".join(f"{k} {v:.0f}" for k, v in fp["where"].items() if k != "share_of_samples")
-        c.print(f"{lab.split(' + ')[-1]}: {fp['size_db']:.1f} dB where it acts ({fp['where']['share_of_samples']:.0%} "
-                f"of samples; {fp['acts_as']}); acts most at {w}")
-    for name, sh in freeform_shapes(d).items():
-        c.print(f"free-form {name}: {sh['size_db']:.1f} dB, resembles {sh['resembles']} "
-                f"(|corr| {sh['resemblance_corr']:.2f}), strongest at {sh['where']}")
 
 
 # -------------------------------------------------------------------------------------------- figures
@@ -185,6 +104,7 @@ def summary(d: Diagnosis) -> dict[str, Any]:
     """
     from mission.gap.fit import RANKING_RULE
     from mission.gap.structure import name_missing
+    from mission.gap.text import summary_paragraph
 
     ladder = []
     for row in rung_table(d):
@@ -199,13 +119,14 @@ def summary(d: Diagnosis) -> dict[str, Any]:
                            "params": _small(x.params_mean())} for x in r.ranking] for r in d.rungs if r.ranking}
     first = d.rungs[0].ranking
     return {"schema": SCHEMA_VERSION, "named": name_missing(first, d.structure.get("base")),
-            "rule": RANKING_RULE, "ladder": ladder, "rankings": rankings,
+            "text": summary_paragraph(d), "rule": RANKING_RULE, "ladder": ladder, "rankings": rankings,
             "structure": {k: {kk: vv for kk, vv in v.items() if kk in ("verdict", "rule", "residual_std_db", "test")}
                           | {kk: {q: v[kk][q] for q in ("sigma_db", "sigma_ci_db", "corr_len", "corr_len_ci", "unit",
                                                         "nugget_db", "nugget_ci_db", "correlated_fraction")}
                              for kk in ("along_path", "spatial") if kk in v}
                           for k, v in d.structure.items()},
-            "config": d.config, "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
+            "near_nadir": d.near_nadir, "config": d.config,
+            "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
 
 
 def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
@@ -347,6 +268,8 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         fig.savefig(paths[-1], dpi=100)
         plt.close(fig)
 
+    paths.append(out / "details.txt")
+    paths[-1].write_text(details_text(d))
     doc = {**summary(d), "block_lens": d.block_lens, "flights": [
         {"name": f.name, "n": len(f), "tx_enu": f.tx_enu_m.tolist()} for f in d.flights], "figures": figs}
     paths.append(out / "gap.json")
