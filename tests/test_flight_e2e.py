@@ -94,9 +94,11 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     armed = next(e for e in log.meta["events"] if e["kind"] == "armed")
     assert log.meta["t0_vehicle_s"] < armed["t_vehicle_s"]  # the first row is logged before arming
     assert log.columns["mission_item"][phase == "mission"].max() == len(spec.waypoints_enu()) - 1
-    last = out.strip().splitlines()[-1]  # the localizer's estimate, with its error against the known truth
-    assert last.startswith("estimate:") and "; error " in last, out
-    assert "[onnx rfsl_spiral_e2r_ens5.onnx]" in last, last  # the spiral network answered its own kind of flight
+    # the run ends with the localizer's estimate, its method, region and error against the known truth
+    last = "estimate:" + out.rsplit("\nestimate:", 1)[-1]
+    assert last.startswith("estimate: x=") and "\n  error: " in last, out
+    assert max(len(ln) for ln in last.splitlines()) <= 80, last
+    assert "\n  method: onnx rfsl_spiral_e2r_ens5.onnx\n" in last, last  # the spiral network answered its own flight
     from mission.localize.error_circles import card_calibration, flown_radii
     from mission.localize.preprocess import select_samples
     from mission.localize.training_domain import planned_track, track_coverage
@@ -104,7 +106,7 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     part, _ = select_samples(log)  # the whole spiral flown: the full-flight stratum of its calibrated circles
     cov = track_coverage(planned_track(log.meta, log.origin), part.enu()[:, :2])
     r90 = flown_radii(card_calibration(repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx", "sim")[0], cov)[0][0.9]
-    assert cov > 0.95 and f"; 90 % region within {r90:.0f} m of the estimate; error " in last, last
+    assert cov > 0.95 and f"\n  90 % region: within {r90:.0f} m of the estimate\n" in last, last
     cruise = log["rel_alt_m"] > 25
     for c in ("roll_deg", "pitch_deg"):
         assert np.std(log[c][cruise]) > 0.5

@@ -96,7 +96,8 @@ def test_plain_status_lines_do_not_wrap(monkeypatch):
     d.refresh()
     d.message("a warning that is much longer than forty characters, as warnings are")
     lines = buf.getvalue().splitlines()
-    assert lines == [line, "a warning that is much longer than forty characters, as warnings are"]
+    assert lines == [*line.splitlines(), "a warning that is much longer than forty characters, as warnings are"]
+    assert all(len(ln) <= 80 for ln in line.splitlines())
 
 
 def test_first_status_line_has_no_nan():

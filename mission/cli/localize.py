@@ -24,8 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--method",
         choices=METHOD_NAMES,
-        help="localizer (default: fusion for a real receiver's log; for a simulated log the shipped "
-        "models/rfsl_default.onnx if present, else grid)",
+        metavar="METHOD",
+        help=f"localizer: {', '.join(METHOD_NAMES)} (default: fusion for a real receiver's log; for a "
+        "simulated log the shipped network trained on that kind of flight, else grid)",
     )
     parser.add_argument(
         "--physics",

@@ -82,17 +82,21 @@ def render(s: FlightStatus) -> Table:
     return t
 
 
+PLAIN_WIDTH = 80
+
+
 def plain_line(s: FlightStatus) -> str:
+    """The status as plain text for a log or a pipe: one line, or two when it would pass 80 columns."""
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
     phase = f"LINK LOST, last {s.phase}" if s.link_lost else s.phase
     over = " OVER" if s.budget_s and s.elapsed > s.budget_s else ""
     if s.predicted_s is not None and np.isfinite(s.predicted_s) and not over:
         over = f" (land~{s.predicted_s:.0f}s)"
-    return (
-        f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
-        f"alt={s.rel_alt:.1f}m "
-        f"rows={s.rows} rss={_fmt_rss(s.last_rss)} best={best}" + (f" est={s.estimate}" if s.estimate else "")
-    )
+    head = (f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
+            f"alt={s.rel_alt:.1f}m rss={_fmt_rss(s.last_rss)} rows={s.rows}")
+    tail = f"best={best}" + (f" est={s.estimate}" if s.estimate else "")
+    # a log read at 80 columns: the strongest sample and the live estimate go on a second, indented line
+    return f"{head} {tail}" if len(head) + 1 + len(tail) <= PLAIN_WIDTH else f"{head}\n  {tail}"
 
 
 class Display:

@@ -379,14 +379,16 @@ class Runner(FlightTasks):
             return
         model = est.extras.get("model_path")  # which network answered, when one did
         label = est.method + (f" {Path(model).name}" if model else "")
-        line = (f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f}) "
-                f"[{label}]")
-        if (outer := outer_region(est.extras)) is not None:
-            line += f"; {100 * outer['level']:.0f} % region {describe_region(outer, short=True)}"
+        lines = [f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f})",
+                 f"  method: {label}"]
+        outer = outer_region(est.extras)
+        lines.append(f"  {100 * outer['level']:.0f} % region: {describe_region(outer, short=True)}" if outer is not None
+                     else "  region: none: no calibration applies to this flight (localize --json: notes)")
         if self.truth is not None:
             err = float(np.hypot(est.x_m - self.truth["x_m"], est.y_m - self.truth["y_m"]))
-            line += f"; error {err:.1f} m (true transmitter at {self.truth['x_m']:.1f}, {self.truth['y_m']:.1f} m)"
-        print(line, flush=True)
+            lines.append(f"  error: {err:.1f} m (true transmitter at {self.truth['x_m']:.1f}, "
+                         f"{self.truth['y_m']:.1f} m)")
+        print("\n".join(lines), flush=True)  # the last lines of the run, each within 80 columns
 
 
 def fly(spec, opts: FlyOptions) -> int:
