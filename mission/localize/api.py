@@ -31,19 +31,12 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.localize import METHOD_NAMES, Estimate  # METHOD_NAMES lives there (imported by the light CLI)
+from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
-
-
-def shipped_model(name: str) -> Path | None:
-    """``models/<name>`` if it exists: the source checkout's, or the installed package's copy (``mission.shipped``)."""
-    from mission.shipped import models_dir
-
-    p = models_dir() / name
-    return p if p.is_file() else None
 
 
 def default_model_path() -> Path | None:

@@ -76,6 +76,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.localize.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
+    FAMILIES,
     FamilyArg,
     antenna_label,
     family_label,
@@ -84,7 +85,6 @@ from mission.localize.suite_family import (  # noqa: F401  (re-exported: the sui
 )
 
 SUITES = ("unseen",)
-FAMILIES = ("afar", "generic", "afar-heavy")
 # Shadowing per family: (sigma range dB, correlation-length range m).  "afar-heavy" takes the residual field
 # measured on the six real AFAR flights (``rfsl gap``: sigma 11-15 dB, correlation ~70 m) as its centre,
 # because on real flights the RSS spread is about twice what the milder ranges produce (models/README.md).
@@ -161,8 +161,7 @@ def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
                 center: str = "afar") -> tuple[dict, np.random.Generator]:
     """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the simulation."""
     from mission.geo import afar_field
-    from mission.localize.flight_draws import trajectory_params
-    from mission.trajectory.generators import GENERATORS
+    from mission.trajectory.generators import GENERATORS, trajectory_params
 
     fam = resolve_family(family)
     rng = suite_rng(seed, i)
