@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, AFAR2023_TRUTH
 from mission.physics.propagation import MODEL_NAMES
@@ -290,7 +291,7 @@ def evaluate_real(
                 model_path=mp,
                 physics_model=model,
                 physics_params=params,
-                tx_height_m=gp.get("tx_height_m", 1.5),
+                tx_height_m=gp.get("tx_height_m", DEFAULT_TX_HEIGHT_M),
                 physics_preset=preset,
             )
             rows[name].errors.append(float(est.error_m))
