@@ -1,7 +1,7 @@
 """Posterior-predictive checks of a benchmark against real flights: does the family look like reality?
 
 Why: a benchmark that errs twice as much as reality, or whose RSS spreads half as much, cannot arbitrate between
-methods (issue 24).  Before a physics family is used to decide anything, the same statistics are computed on
+methods.  Before a physics family is used to decide anything, the same statistics are computed on
 the real flights and on the benchmark flights drawn from it, the same way on both:
 
 - ``rss_spread_db``: the 5-95 % range of the RSS over the samples a localizer uses (cruise);

@@ -1,4 +1,4 @@
-"""The "unseen flight" benchmark (issue 10 item 1): simulated flights that vary what real flights vary.
+"""The "unseen flight" benchmark: simulated flights that vary what real flights vary.
 
 How to call it (the lead's entry points)::
 
@@ -90,7 +90,7 @@ SUITES = ("unseen",)
 # because on real flights the RSS spread is about twice what the milder ranges produce (models/README.md).
 SHADOWING = {"afar": ((4.0, 10.0), (10.0, 60.0)), "generic": ((4.0, 10.0), (10.0, 60.0)),
              "afar-heavy": ((8.0, 16.0), (30.0, 120.0))}
-SUITE_TAG = 10  # issue 10: keeps suite seeds apart from rfsl-dataset seeds
+SUITE_TAG = 10  # mixed into every suite seed: keeps suite seeds apart from rfsl-dataset seeds
 BENCHMARK_SEED = 2026
 ALTITUDE_RANGE_M = (15.0, 60.0)  # cruise altitude drawn per flight (networks trained on it report this range)
 P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a third of the flights
