@@ -126,13 +126,14 @@ def pooled(res: dict, names=GOOD) -> dict:
 
 
 def localize(model, f, att_variant: str = "logged", floor_db: float | None = None) -> float:
+    from mission.defaults import DEFAULT_TX_HEIGHT_M
     from mission.geo import afar_field
     from mission.localize.classical import ModelGridSearch
     from mission.samples import FlightSamples
 
     fn = ATT_VARIANTS[att_variant]
     att = None if fn is None else fn(f.attitude_rad)
-    est = ModelGridSearch(model, tx_height_m=1.5, area=afar_field().rover_area, floor_db=floor_db,
+    est = ModelGridSearch(model, tx_height_m=DEFAULT_TX_HEIGHT_M, area=afar_field().rover_area, floor_db=floor_db,
                           use_attitude=att is not None)
     e = est.predict(FlightSamples(enu_m=f.enu_m, rss_dbm=f.rss_dbm, attitude_rad=att))
     return float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))

@@ -28,3 +28,9 @@ def models_dir() -> Path:
 def missions_dir() -> Path:
     """The shipped mission files (``missions/*.yaml``)."""
     return shipped_dir("missions")
+
+
+def shipped_model(name: str) -> Path | None:
+    """``models/<name>`` if it exists: the source checkout's, or the installed package's copy."""
+    p = models_dir() / name
+    return p if p.is_file() else None

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
@@ -44,7 +45,7 @@ class SourceSpec:
 
     model: str = "e2r"
     tx: tuple[float, float, float] | str = "random"
-    tx_height_m: float = 1.5
+    tx_height_m: float = DEFAULT_TX_HEIGHT_M
     seed: int = 0
     noise_db: float = 1.0
     attitude_perturbation_deg: float = 5.0
@@ -339,7 +340,7 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
 
     sr = r.sub("source")
     tx_raw = sr.raw("tx", "random")
-    tx_h = sr.num("tx_height_m", 1.5, 0.0)
+    tx_h = sr.num("tx_height_m", DEFAULT_TX_HEIGHT_M, 0.0)
     if isinstance(tx_raw, str):
         if tx_raw != "random":
             raise sr.err("tx", f"expected 'random' or a position, got '{tx_raw}'")

@@ -1,7 +1,8 @@
-"""Command line of the simulated vehicle (``python -m sitl.vehicle``, ``rfsl sitl``): options and start-up.
+"""Command line of the simulated vehicle (``python -m sitl.vehicle``, ``rfsl sitl``): its options and their parsing.
 
 Light at import (argparse only): ``rfsl``'s parser imports ``add_arguments`` without loading numpy or
-pymavlink; the vehicle itself is imported when it runs.
+pymavlink.  Building and running the vehicle from these options (``run_from_args``) lives in ``sitl.vehicle``,
+so that this module never imports the vehicle back.
 """
 
 from __future__ import annotations
@@ -9,7 +10,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 
 
 def parse_home(text: str) -> tuple[float, float, float]:
@@ -86,41 +86,3 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall-clock seconds")
     p.add_argument("--parent-pid", type=int, default=None, help="exit when this parent process is gone")
     p.add_argument("-v", "--verbose", action="store_true", help="print state changes to stderr")
-
-
-def run_from_args(args: argparse.Namespace) -> int:
-    """Build the vehicle from parsed options and run it until killed."""
-    if args.speedup <= 0:
-        raise ValueError("--speedup must be positive")
-    from sitl.protocol import DEFAULT_HOME
-    from sitl.vehicle import SimVehicle
-
-    home = parse_home(args.home) if args.home else DEFAULT_HOME
-    url = args.url or f"udpout:{args.host}:{args.port}"
-    kin = parse_kinematics(args.kinematics)
-    if args.cruise_speed is not None:
-        kin = dataclasses.replace(kin, cruise_speed_mps=float(args.cruise_speed))
-    from sitl.protocol import PROFILES
-
-    profile = PROFILES[args.profile]
-    if args.speed_factor is not None:
-        if not 0 < args.speed_factor <= 2:
-            raise ValueError("--speed-factor must be in (0, 2]")
-        profile = dataclasses.replace(profile, speed_factor=float(args.speed_factor))
-    v = SimVehicle(url, home, args.speedup, args.seed, kin, gust_mps=args.gust, verbose=args.verbose,
-                   profile=profile, statustext_log=args.statustext_log)
-    print(
-        f"sitl: simulated PX4 quadrotor ({profile.name} profile), MAVLink 2 on {url}, "
-        f"home {home[0]:.6f},{home[1]:.6f}, speed-up {args.speedup:g}",
-        file=sys.stderr,
-        flush=True,
-    )
-    try:
-        v.run(args.duration, args.parent_pid)
-    except KeyboardInterrupt:
-        pass
-    return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    return run_from_args(build_parser().parse_args(argv))

@@ -77,7 +77,7 @@ class Dynamics:
 
     @property
     def tab(self) -> str:
-        """PX4 ends some texts with a tab (seen in issue 28); the PX4-like profile does too."""
+        """PX4 ends some texts with a tab (seen on PX4 v1.16 SITL); the PX4-like profile does too."""
         return "\t" if self.profile.tab_texts else ""
 
     def physics_dt(self) -> float:

@@ -47,7 +47,7 @@ DEFAULT_INTERVALS = {
 @dataclass(frozen=True)
 class Profile:
     """How the vehicle behaves beyond the protocol: ``default`` flies exactly the project's kinematics (the
-    flown time matches the plan); ``px4`` behaves like PX4 v1.16 SITL as flown in issue 28: legs at 93 % of
+    flown time matches the plan); ``px4`` behaves like PX4 v1.16 SITL as flown against the runner: legs at 93 % of
     the speed asked (corner smoothing and acceptance radii the plan does not model), the return and legs
     without a speed item at its ``MPC_XY_CRUISE`` parameter (4.8 m/s unless set), STATUSTEXT gated on
     ground-station heartbeats (``sitl.statustext``), some texts with PX4's trailing tab."""

@@ -17,6 +17,8 @@ Run: ``python -m sitl.vehicle --port 14540 --speedup 5`` or ``rfsl sitl``.
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import os
 import select
 import sys
@@ -27,7 +29,7 @@ import numpy as np
 from mission.geo import Origin
 from mission.trajectory.attitude import AttitudeState
 from mission.trajectory.kinematics import Kinematics
-from sitl.cli import add_arguments, build_parser, main, parse_home, parse_kinematics, run_from_args
+from sitl.cli import add_arguments, build_parser, parse_home, parse_kinematics
 from sitl.dynamics import Dynamics
 from sitl.handlers import MavlinkHandlers
 from sitl.mission_store import MissionStore
@@ -156,6 +158,40 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
                         break
                     if msg.get_type() != "BAD_DATA":
                         self.handle(msg)
+
+
+def run_from_args(args: argparse.Namespace) -> int:
+    """Build the vehicle from parsed options and run it until killed."""
+    if args.speedup <= 0:
+        raise ValueError("--speedup must be positive")
+
+    home = parse_home(args.home) if args.home else DEFAULT_HOME
+    url = args.url or f"udpout:{args.host}:{args.port}"
+    kin = parse_kinematics(args.kinematics)
+    if args.cruise_speed is not None:
+        kin = dataclasses.replace(kin, cruise_speed_mps=float(args.cruise_speed))
+    profile = PROFILES[args.profile]
+    if args.speed_factor is not None:
+        if not 0 < args.speed_factor <= 2:
+            raise ValueError("--speed-factor must be in (0, 2]")
+        profile = dataclasses.replace(profile, speed_factor=float(args.speed_factor))
+    v = SimVehicle(url, home, args.speedup, args.seed, kin, gust_mps=args.gust, verbose=args.verbose,
+                   profile=profile, statustext_log=args.statustext_log)
+    print(
+        f"sitl: simulated PX4 quadrotor ({profile.name} profile), MAVLink 2 on {url}, "
+        f"home {home[0]:.6f},{home[1]:.6f}, speed-up {args.speedup:g}",
+        file=sys.stderr,
+        flush=True,
+    )
+    try:
+        v.run(args.duration, args.parent_pid)
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_from_args(build_parser().parse_args(argv))
 
 
 if __name__ == "__main__":

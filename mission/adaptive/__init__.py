@@ -1,4 +1,4 @@
-"""Live estimates during a flight and the adaptive finish (issue 25).
+"""Live estimates during a flight and the adaptive finish.
 
 ``config``: the mission's ``adaptive:`` block and its pre-flight checks; ``planner``: the survey cut and the
 legs planned from the live posterior, checked against fence, altitude limits and time budget; ``live``: the

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
 
@@ -83,7 +84,7 @@ def estimator(spec):
     from mission.adaptive.live import LIVE_METHOD
     from mission.localize.api import make_localizer
 
-    return make_localizer(LIVE_METHOD, area=spec.field.rover_area, tx_height_m=1.5)
+    return make_localizer(LIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M)
 
 
 @dataclass

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
+
 
 def _range(text: str) -> tuple[float, float]:
     """'LO,HI' or a single value -> (lo, hi)."""
@@ -63,7 +65,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="recommended set: altitude 20,47; offset -30,30; all generators with random parameters; "
         "truncate 0.5,1; patterns dipole,measured with random heading; beta 0,3; eps-r 2,20; "
-        "tx height 1.5,5; noise 1,3 dB",
+        f"tx height {DEFAULT_TX_HEIGHT_M:g},5; noise 1,3 dB",
     )
     g.add_argument("--altitude", type=_range, help="cruise altitude range LO,HI metres")
     g.add_argument("--offset", type=_range, help="constant RSS offset range LO,HI dB")
@@ -108,7 +110,7 @@ def randomisation_from_args(args: argparse.Namespace):
             "random_heading": True,
             "beta": (0.0, 3.0),
             "eps_r": (2.0, 20.0),
-            "tx_height_m": (1.5, 5.0),
+            "tx_height_m": (DEFAULT_TX_HEIGHT_M, 5.0),  # AFAR rover to the paper's 5 m
             "noise_db": (1.0, 3.0),
         }
     for flag, key in (

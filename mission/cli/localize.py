@@ -14,6 +14,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.localize import METHOD_NAMES
 
 
@@ -44,9 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--tx-height",
         type=float,
-        default=1.5,
+        default=DEFAULT_TX_HEIGHT_M,
         metavar="M",
-        help="transmitter antenna height for the grid search (default 1.5 m)",
+        help=f"transmitter antenna height for the grid search (default {DEFAULT_TX_HEIGHT_M:g} m)",
     )
     parser.add_argument(
         "--truth", metavar="LAT,LON", help="true transmitter position (overrides the sidecar)"

@@ -18,7 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from mission.errors import InputError
-    from sitl.cli import run_from_args
+    from sitl.vehicle import run_from_args
 
     if args.speedup <= 0:
         raise InputError(f"must be positive, got {args.speedup:g}", field="--speedup")

@@ -4,7 +4,7 @@ soon as the remaining plan no longer fits, and the overrun recorded in the sidec
 Why: the pre-flight check (``mission.trajectory.checks``) plans take-off, transit, the trajectory, the return
 and the landing with the mission's kinematics; a real autopilot flies its own way (PX4 v1.16 SITL cruised at a
 median 5.1 m/s where 5.5 was asked and returned at its own 4.8 m/s: 640-651 s against a 539 s plan and a 600 s
-budget, with no warning, issue 28). During the flight the arm-to-landing time is predicted from the waypoint
+budget, with no warning). During the flight the arm-to-landing time is predicted from the waypoint
 times measured so far (vehicle clock, when the mission progress arrived): ``e_k + (D - T_k - D_land) * pace +
 D_land``, where ``T_k`` is the plan's time at the last waypoint reached, ``e_k`` the measured one, ``D`` the
 plan's total, ``D_land`` its final descent (flown at the autopilot's landing speeds, which a slow cruise does

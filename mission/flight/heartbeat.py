@@ -3,7 +3,7 @@ is announced.
 
 Why: PX4 sends STATUSTEXT on a link only while a ground-station HEARTBEAT arrived within the last 2.5 s of
 its own time, and drops queued texts older than 5 s; MAVSDK heartbeats once per wall-clock second, i.e. every
-10 vehicle seconds at speed-up 10, and 2 to 7 of 9 texts were lost (issue 28).  This task sends the
+10 vehicle seconds at speed-up 10, and 2 to 7 of 9 texts were lost.  This task sends the
 ground station's HEARTBEAT (MAVSDK v4's ``MavlinkDirectAsync.send_message``, same system and component id as
 MAVSDK's own: 245/190) once per *vehicle* second, i.e. ``speed-up`` times per wall second.
 """

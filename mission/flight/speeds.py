@@ -4,7 +4,7 @@ Why: a mission's time budget holds only if the vehicle flies the speed the plan 
 item (``MAV_CMD_DO_CHANGE_SPEED``) covers the legs; the return to launch (commanded at the end, on Ctrl-C or
 on a failure) is flown at the autopilot's own speed: ArduPilot's ``RTL_SPEED`` (cm/s; with
 ``WP_YAW_BEHAVIOR`` = 1 for a nose-first return, see ``mission.flight.ardupilot``), PX4's ``MPC_XY_CRUISE``
-(m/s, 4.8 on a v1.16 SITL quad, where the spiral's return took a tenth longer than planned, issue 28).  The
+(m/s, 4.8 on a v1.16 SITL quad, where the spiral's return took a tenth longer than planned).  The
 runner sets them before the upload and restores the operator's values after landing.  If they cannot be
 set, the plan is redone with the speed the autopilot will fly and a warning says whether it still fits.
 """

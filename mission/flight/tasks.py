@@ -50,7 +50,7 @@ class FlightTasks:
         self.link_dead = asyncio.Event()
         self.landed_disarmed = asyncio.Event()
         self.mission_done = asyncio.Event()
-        self.armed_seen = asyncio.Event()  # the armed telemetry arrived (issue 28: "armed" before "started")
+        self.armed_seen = asyncio.Event()  # the armed telemetry arrived (PX4 SITL: "armed" before "started")
         self.last_text_wall = -float("inf")  # monotonic time of the last autopilot text
         self.link_lost = False
         self.display = None

@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 
-REFERENCE_HEIGHT_M = 28.5  # the 30 m mission altitude over the 1.5 m default transmitter height
+REFERENCE_ALTITUDE_M = 30.0  # the mission altitude the networks were first trained at
+REFERENCE_HEIGHT_M = REFERENCE_ALTITUDE_M - DEFAULT_TX_HEIGHT_M  # 28.5 m: over the default transmitter height
 MIN_HEIGHT_M = 5.0  # below this height above the transmitter a flight is not a cruise: no scale is claimed
 METADATA_KEY = "altitude_normalisation"  # in a network's ``training_data`` metadata
 

@@ -29,21 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.localize import METHOD_NAMES, Estimate  # METHOD_NAMES lives there (imported by the light CLI)
+from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
-
-
-def shipped_model(name: str) -> Path | None:
-    """``models/<name>`` if it exists: the source checkout's, or the installed package's copy (``mission.shipped``)."""
-    from mission.shipped import models_dir
-
-    p = models_dir() / name
-    return p if p.is_file() else None
 
 
 def default_model_path() -> Path | None:
@@ -88,7 +82,7 @@ def make_localizer(
     model_path: str | Path | None = None,
     physics_model: str = "e2r",
     physics_params: dict | None = None,
-    tx_height_m: float = 1.5,
+    tx_height_m: float = DEFAULT_TX_HEIGHT_M,
     area=None,
     floor_db: float | None = None,
     physics_preset: str | None = None,
@@ -182,7 +176,7 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     from mission.localize.error_circles import attach_circles, card_calibration
     from mission.localize.training_domain import flown_domain
 
-    cal = card_calibration(net.path, "sim" if simulated else "real")  # sized for what was flown (issue 28)
+    cal = card_calibration(net.path, "sim" if simulated else "real")  # sized for what was flown
     flown = flown_domain(part, net.meta, net.model_name)
     if not simulated:  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
         _add_note(est.extras, flown.pop("attitude_note"))
@@ -263,7 +257,7 @@ def localize_log(
     cruise: bool = True,
     physics_model: str | None = None,
     physics_params: dict | None = None,
-    tx_height_m: float = 1.5,
+    tx_height_m: float = DEFAULT_TX_HEIGHT_M,
     floor_db: float | None = None,
     physics_preset: str | None = None,
 ) -> Estimate:

@@ -24,6 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog
 from mission.localize import Estimate
@@ -152,7 +153,7 @@ class ModelGridSearch(_Base):
         self,
         model="e2r",
         model_params: dict | None = None,
-        tx_height_m: float = 1.5,
+        tx_height_m: float = DEFAULT_TX_HEIGHT_M,
         area=None,
         margin_m: float = 60.0,
         step_m: float = 10.0,

@@ -1,5 +1,5 @@
 """Simulated training/test datasets: many transmitter positions, each flown in the simulator, stored as
-compact feature chunks (issue 5 item 1).
+compact feature chunks.
 
 Where things live: the configuration and its randomisation in ``mission.localize.dataset_config``; drawing and
 flying one flight in ``mission.localize.flight_draws``; workers, chunk files and reading here (the names of all

@@ -1,7 +1,7 @@
 """Uncertainty regions for estimates without a posterior: error circles calibrated by split conformal prediction.
 
 Why: a network, the strongest sample, the weighted centroid and the plain grid answer with a point and no
-posterior, yet every estimate must carry 50 % and 90 % regions (issue 10).  Flights like those the method will
+posterior, yet every estimate must carry 50 % and 90 % regions.  Flights like those the method will
 face, never tuned on, give the distribution of its 2D error; the circle around the estimate whose radius is that
 error's conformal quantile (the ``ceil((n + 1) level)``-th smallest of ``n`` calibration errors) holds the truth at
 the nominal rate or more on any flight exchangeable with them.  Nothing about the flight at hand narrows the

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, AFAR2023_TRUTH
 from mission.physics.propagation import MODEL_NAMES
@@ -57,6 +58,38 @@ def parse_method(spec: str) -> tuple[str, dict]:
         raise InputError(f"unknown grid physics {physics!r} (expected {', '.join(GRID_PHYSICS)} or preset:NAME)",
                          field="--methods")
     return name, {"model": physics}
+
+
+SUITE_METHODS = ("default", "strongest", "centroid", "grid", "grid:MODEL", "grid:preset:NAME", "onnx:PATH")
+
+
+def suite_method(spec: str) -> dict:
+    """A benchmark method spec -> ``localize_log`` keyword arguments (everything a real log would get).
+
+    ``default`` (``localize``'s own choice for a real log), ``strongest``, ``centroid``, ``grid`` (the real-log
+    grid: ``afar`` preset), ``grid:MODEL`` / ``grid:preset:NAME``, ``onnx:PATH`` (a network), or any other
+    method name ``mission.localize.api`` knows (``METHOD_NAMES``), run with its defaults.
+    """
+    from mission.localize.api import METHOD_NAMES
+
+    spec = spec.strip()
+    if spec == "default":
+        return {}
+    if spec.startswith("onnx:"):
+        path = spec.removeprefix("onnx:")
+        if not Path(path).is_file():
+            raise InputError("no such model file", source=path, field="--methods")
+        return {"method": "onnx", "model_path": path}
+    name = spec.partition(":")[0]
+    if name in CLASSICAL:
+        method, kw = parse_method(spec)
+        if "preset" in kw:
+            return {"method": method, "physics_preset": kw["preset"]}
+        return {"method": method, "physics_model": kw["model"]} if "model" in kw else {"method": method}
+    if spec in METHOD_NAMES:
+        return {"method": spec}
+    raise InputError(f"unknown method {spec!r} (expected {', '.join(SUITE_METHODS)} or one of "
+                     f"{', '.join(METHOD_NAMES)})", field="--methods")
 
 
 def grid_physics(kw: dict, grid_params: dict) -> tuple[str | None, dict | None, str | None]:
@@ -258,7 +291,7 @@ def evaluate_real(
                 model_path=mp,
                 physics_model=model,
                 physics_params=params,
-                tx_height_m=gp.get("tx_height_m", 1.5),
+                tx_height_m=gp.get("tx_height_m", DEFAULT_TX_HEIGHT_M),
                 physics_preset=preset,
             )
             rows[name].errors.append(float(est.error_m))

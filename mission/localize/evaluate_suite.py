@@ -2,8 +2,9 @@
 ``localize`` would run it on a real log, the error against the truth kept beside the log, the coverage of the
 estimate's uncertainty regions, and a breakdown of the errors by any drawn axis.
 
-Split from ``mission.localize.evaluate`` (simulated test sets and real flights), whose ``Row``, ``CLASSICAL`` and
-``parse_method`` it uses.
+Split from ``mission.localize.evaluate`` (simulated test sets and real flights), whose ``Row`` and
+``suite_method`` (a benchmark method spec -> ``localize_log`` arguments, also used by ``mission.localize.predictive``)
+it uses.
 """
 
 from __future__ import annotations
@@ -15,39 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.evaluate import CLASSICAL, Row, parse_method
+from mission.localize.evaluate import Row, suite_method
 from mission.localize.suite import FamilyArg, resolve_family
-
-SUITE_METHODS = ("default", "strongest", "centroid", "grid", "grid:MODEL", "grid:preset:NAME", "onnx:PATH")
-
-
-def suite_method(spec: str) -> dict:
-    """A benchmark method spec -> ``localize_log`` keyword arguments (everything a real log would get).
-
-    ``default`` (``localize``'s own choice for a real log), ``strongest``, ``centroid``, ``grid`` (the real-log
-    grid: ``afar`` preset), ``grid:MODEL`` / ``grid:preset:NAME``, ``onnx:PATH`` (a network), or any other
-    method name ``mission.localize.api`` knows (``METHOD_NAMES``), run with its defaults.
-    """
-    from mission.localize.api import METHOD_NAMES
-
-    spec = spec.strip()
-    if spec == "default":
-        return {}
-    if spec.startswith("onnx:"):
-        path = spec.removeprefix("onnx:")
-        if not Path(path).is_file():
-            raise InputError("no such model file", source=path, field="--methods")
-        return {"method": "onnx", "model_path": path}
-    name = spec.partition(":")[0]
-    if name in CLASSICAL:
-        method, kw = parse_method(spec)
-        if "preset" in kw:
-            return {"method": method, "physics_preset": kw["preset"]}
-        return {"method": method, "physics_model": kw["model"]} if "model" in kw else {"method": method}
-    if spec in METHOD_NAMES:
-        return {"method": spec}
-    raise InputError(f"unknown method {spec!r} (expected {', '.join(SUITE_METHODS)} or one of "
-                     f"{', '.join(METHOD_NAMES)})", field="--methods")
 
 
 def _level(key, region: dict) -> str | None:

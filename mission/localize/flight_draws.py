@@ -20,6 +20,7 @@ import numpy as np
 
 from mission.localize.dataset_config import PARAM_NAMES, DatasetConfig, pattern_names, trajectory_names
 from mission.samples import FlightSamples
+from mission.trajectory.generators import trajectory_params  # re-exported (mission.localize.dataset)
 
 
 def flight_rng(seed: int, i: int) -> np.random.Generator:
@@ -38,22 +39,6 @@ def _choice(rng: np.random.Generator, options: Sequence[str], default: str) -> s
     if not options:
         return default
     return str(options[int(rng.integers(len(options)))]) if len(options) > 1 else str(options[0])
-
-
-def trajectory_params(name: str, rng: np.random.Generator, base: dict, random_params: bool) -> dict:
-    """Generator parameters: the mission's own ones (same generator) or a random draw."""
-    if not random_params:
-        return dict(base)
-    p: dict = {"spacing_m": float(rng.uniform(16.0, 32.0)), "margin_m": float(rng.uniform(3.0, 10.0))}
-    if name == "spiral":
-        p["start"] = ("se", "sw", "ne", "nw")[int(rng.integers(4))]
-    elif name == "lawnmower":
-        p["direction"] = ("ew", "ns")[int(rng.integers(2))]
-    elif name == "random_waypoints":
-        p = {"n": int(rng.integers(8, 25)), "seed": int(rng.integers(2**31)), "margin_m": p["margin_m"]}
-    elif name == "expanding_square":
-        p["spacing_m"] = float(rng.uniform(20.0, 35.0))
-    return p
 
 
 @dataclass

@@ -22,6 +22,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
@@ -114,7 +115,8 @@ class MatchedLocalizer(_Base):
     name = "matched"
 
     def __init__(self, area=None, family: str | PhysicsFamily | None = None, n_draws: int = 40000,
-                 cell_m: float = 5.0, tx_height_m: float = 1.5, margin_m: float = 60.0, step_m: float = 5.0,
+                 cell_m: float = 5.0, tx_height_m: float = DEFAULT_TX_HEIGHT_M, margin_m: float = 60.0,
+                 step_m: float = 5.0,
                  folds: int = 2, k_frac: float = 0.02, n_pca: int = 64, hidden: tuple[int, ...] = (128, 128),
                  epochs: int = 40, batch: int = 128, lr: float = 2e-3, whiten: bool = True,
                  group: int = 64, n_check: int = 200, calibrate: bool = True, levels: tuple[float, ...] = (0.5, 0.9),

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.geo import Origin
 from mission.localize import Estimate
@@ -82,7 +83,7 @@ class OnnxLocalizer:
         expect_config: FeatureConfig | dict | None = None,
         expect_kind: str | None = None,
         threads: int | None = None,
-        tx_height_m: float = 1.5,
+        tx_height_m: float = DEFAULT_TX_HEIGHT_M,
     ) -> None:
         import onnxruntime as ort
 

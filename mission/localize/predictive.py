@@ -1,7 +1,7 @@
 """Posterior-predictive checks of a benchmark against real flights: does the family look like reality?
 
 Why: a benchmark that errs twice as much as reality, or whose RSS spreads half as much, cannot arbitrate between
-methods (issue 24).  Before a physics family is used to decide anything, the same statistics are computed on
+methods.  Before a physics family is used to decide anything, the same statistics are computed on
 the real flights and on the benchmark flights drawn from it, the same way on both:
 
 - ``rss_spread_db``: the 5-95 % range of the RSS over the samples a localizer uses (cruise);
@@ -116,11 +116,11 @@ def checks_table(checks: Mapping[str, dict], title: str):
 
 def score_real(logs: Sequence, methods: Sequence[str], seed: int = 0) -> tuple[list[dict], dict[str, list[float]]]:
     """(check statistics per real log, {method: error m per log}) of real logs with truth in their sidecars;
-    methods as ``rfsl evaluate --suite`` names them (``mission.localize.evaluate_suite.suite_method``)."""
+    methods as ``rfsl evaluate --suite`` names them (``mission.localize.evaluate.suite_method``)."""
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log
-    from mission.localize.evaluate_suite import suite_method
+    from mission.localize.evaluate import suite_method
 
     kws = {m: suite_method(m) for m in methods}
     stats: list[dict] = []

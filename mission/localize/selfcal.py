@@ -1,7 +1,7 @@
 """Self-calibrating model-based localizer: the per-flight nuisance is profiled out, not taken from a preset.
 
 Why: a physics preset fitted on two teams' flights (one antenna heading, one mounting) did not carry over to
-other teams' flights (issue 10).  Here every candidate transmitter position is scored under a set of antenna
+other teams' flights.  Here every candidate transmitter position is scored under a set of antenna
 *hypotheses* (the measured RM-WB1-DN pattern hanging upside down or upright at every mounting heading in
 ``heading_step_deg`` steps, a vertical dipole, an isotropic antenna), each with its own free RSS offset, and
 the best hypothesis is kept per candidate (profile likelihood).  The distance law is free space
@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.geo import Area
 from mission.localize import Estimate
@@ -37,7 +38,7 @@ from mission.samples import FlightSamples
 
 HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
 # Shadowing correlation length (temperature), calibrated on the unseen-flight benchmark (`afar` family), and the
-# HPD masses that cover the truth at the nominal rates, recalibrated on the reality-fitted benchmark (issue 24:
+# HPD masses that cover the truth at the nominal rates, recalibrated on the reality-fitted benchmark (its
 # family mission/data/afar_family.json from rfsl gap --family, seeds 2027 (200), 2028 (100), 2026 (100), 400
 # flights; benchmarks/calibrate_regions.py --suite-dirs): the HPD sets of mass 0.339 / 0.870 covered the truth in
 # 50.8 % / 89.8 % of held-out flights (5-fold; leave-one-seed-out 45-57 % / 87-94 %) and on the six real flights
@@ -232,7 +233,7 @@ class SelfCalibratingGrid(_Base):
     name = "selfcal"
 
     def __init__(self, area=None, margin_m: float = 60.0, cell_m: float = 5.0, step_m: float = 5.0,
-                 refine_m: float = 1.0, tx_height_m: float = 1.5, heading_step_deg: float = 30.0,
+                 refine_m: float = 1.0, tx_height_m: float = DEFAULT_TX_HEIGHT_M, heading_step_deg: float = 30.0,
                  hypotheses: tuple[str, ...] = HYPOTHESIS_KINDS, corr_m: float = CORR_M, min_cells: int = 8,
                  levels: tuple[float, ...] = (0.5, 0.9), masses: dict[float, float] | None = None,
                  level_gap_m: float = LEVEL_GAP_M) -> None:

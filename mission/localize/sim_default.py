@@ -41,9 +41,9 @@ def spiral_source(meta: dict) -> str | None:
 def sim_default_model(meta: dict, heights_m: np.ndarray, default: Path | None) -> tuple[Path | None, str]:
     """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at ``heights_m``:
     the first spiral network whose training altitudes hold the flight, else ``default`` (``rfsl_default``)."""
-    from mission.localize.api import shipped_model
     from mission.localize.onnx_model import OnnxLocalizer
     from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
+    from mission.shipped import shipped_model
 
     dname = default.name if default is not None else "none"
     why_not = spiral_source(meta)

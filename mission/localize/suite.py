@@ -1,4 +1,4 @@
-"""The "unseen flight" benchmark (issue 10 item 1): simulated flights that vary what real flights vary.
+"""The "unseen flight" benchmark: simulated flights that vary what real flights vary.
 
 How to call it (the lead's entry points)::
 
@@ -76,6 +76,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.localize.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
+    FAMILIES,
     FamilyArg,
     antenna_label,
     family_label,
@@ -84,13 +85,12 @@ from mission.localize.suite_family import (  # noqa: F401  (re-exported: the sui
 )
 
 SUITES = ("unseen",)
-FAMILIES = ("afar", "generic", "afar-heavy")
 # Shadowing per family: (sigma range dB, correlation-length range m).  "afar-heavy" takes the residual field
 # measured on the six real AFAR flights (``rfsl gap``: sigma 11-15 dB, correlation ~70 m) as its centre,
 # because on real flights the RSS spread is about twice what the milder ranges produce (models/README.md).
 SHADOWING = {"afar": ((4.0, 10.0), (10.0, 60.0)), "generic": ((4.0, 10.0), (10.0, 60.0)),
              "afar-heavy": ((8.0, 16.0), (30.0, 120.0))}
-SUITE_TAG = 10  # issue 10: keeps suite seeds apart from rfsl-dataset seeds
+SUITE_TAG = 10  # mixed into every suite seed: keeps suite seeds apart from rfsl-dataset seeds
 BENCHMARK_SEED = 2026
 ALTITUDE_RANGE_M = (15.0, 60.0)  # cruise altitude drawn per flight (networks trained on it report this range)
 P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a third of the flights
@@ -161,8 +161,7 @@ def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
                 center: str = "afar") -> tuple[dict, np.random.Generator]:
     """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the simulation."""
     from mission.geo import afar_field
-    from mission.localize.flight_draws import trajectory_params
-    from mission.trajectory.generators import GENERATORS
+    from mission.trajectory.generators import GENERATORS, trajectory_params
 
     fam = resolve_family(family)
     rng = suite_rng(seed, i)

@@ -1,9 +1,10 @@
 """Physics family files for the unseen-flight benchmark (``mission.localize.suite``): resolve, check, name.
 
-A benchmark flight's family is a built-in name (``mission.localize.suite.FAMILIES``) or a schema-1 family file
-(``mission.physics.family``; ``rfsl gap --family`` writes one).  Files are parsed once per version, refused
-with one ``InputError`` naming the file when malformed or unphysical (a negative sigma), and named by the
-sha256 of their canonical JSON so caches, datasets and models record exactly which family they drew from.
+A benchmark flight's family is a built-in name (``FAMILIES``, re-exported by ``mission.localize.suite``) or a
+schema-1 family file (``mission.physics.family``; ``rfsl gap --family`` writes one).  Files are parsed once per
+version, refused with one ``InputError`` naming the file when malformed or unphysical (a negative sigma), and
+named by the sha256 of their canonical JSON so caches, datasets and models record exactly which family they
+drew from.
 """
 
 from __future__ import annotations
@@ -18,13 +19,12 @@ import numpy as np
 from mission.errors import InputError
 from mission.physics.family import PhysicsFamily, load_family
 
+FAMILIES = ("afar", "generic", "afar-heavy")  # the built-in families (drawn in mission.localize.suite)
 FamilyArg = str | PhysicsFamily  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
 
 
 def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
     """A built-in family name as it is, or the ``PhysicsFamily`` of a ``.json`` path (InputError otherwise)."""
-    from mission.localize.suite import FAMILIES
-
     if isinstance(family, PhysicsFamily) or family in FAMILIES:
         return family
     if str(family).lower().endswith(".json"):

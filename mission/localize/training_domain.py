@@ -3,9 +3,10 @@ how much of its planned track it flew.
 
 Why: a network learns the RSS contrast of the altitude it was trained at.  ``rfsl_spiral_e2r`` (the network
 half of the real-log default, trained at 30 m only) has a 7.4 m mean error on simulated spirals at 30 m, 13.8 /
-14.2 m at 25 / 35 m, 22.9 m at 40 m and 28.8 / 40.7 m at 20 / 47 m (models/README.md, stop 18); teams fly at
-20-47 m.  ``localize`` therefore says when a flight is more than ``ALTITUDE_TOLERANCE_M`` (where the simulated
-error has doubled) outside the range a network was trained on, instead of silently averaging its answer in.
+14.2 m at 25 / 35 m, 22.9 m at 40 m and 28.8 / 40.7 m at 20 / 47 m (models/README.md, the altitude-robust
+spiral network); teams fly at 20-47 m.  ``localize`` therefore says when a flight is more than
+``ALTITUDE_TOLERANCE_M`` (where the simulated error has doubled) outside the range a network was trained on,
+instead of silently averaging its answer in.
 """
 
 from __future__ import annotations

@@ -272,6 +272,23 @@ GENERATORS: dict[str, Generator] = {
 }
 
 
+def trajectory_params(name: str, rng: np.random.Generator, base: dict, random_params: bool) -> dict:
+    """Generator parameters: the mission's own ones (same generator) or a random draw (datasets and the
+    unseen-flight benchmark draw them here)."""
+    if not random_params:
+        return dict(base)
+    p: dict = {"spacing_m": float(rng.uniform(16.0, 32.0)), "margin_m": float(rng.uniform(3.0, 10.0))}
+    if name == "spiral":
+        p["start"] = ("se", "sw", "ne", "nw")[int(rng.integers(4))]
+    elif name == "lawnmower":
+        p["direction"] = ("ew", "ns")[int(rng.integers(2))]
+    elif name == "random_waypoints":
+        p = {"n": int(rng.integers(8, 25)), "seed": int(rng.integers(2**31)), "margin_m": p["margin_m"]}
+    elif name == "expanding_square":
+        p["spacing_m"] = float(rng.uniform(20.0, 35.0))
+    return p
+
+
 def generate(name: str, field: Field, altitude_m: float, **params) -> np.ndarray:
     """Run generator ``name``; unknown names and parameters become an ``InputError``."""
     gen = GENERATORS.get(name)
