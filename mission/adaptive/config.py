@@ -31,7 +31,7 @@ class AdaptiveSpec:
 
 
 def parse_adaptive(r) -> AdaptiveSpec:
-    """The ``adaptive:`` mapping (a ``spec._Reader``) -> ``AdaptiveSpec``; errors name ``adaptive.<key>``."""
+    """The ``adaptive:`` mapping (a ``SpecReader``) -> ``AdaptiveSpec``; errors name ``adaptive.<key>``."""
     en = r.raw("enabled", False)
     if not isinstance(en, bool):
         raise r.err("enabled", f"expected true or false, got {en!r}")
