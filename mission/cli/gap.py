@@ -178,8 +178,8 @@ def _write_family(d, cfg, args, console) -> None:
                       "the real intervals)")
         cal = rec.get("residual_calibration")
         if cal:
-            console.print(f"  (after one recalibration: the total residual std scaled x{cal['p90_scale']:.2f}, "
-                          "checked on fresh draws)")
+            console.print(f"  (after {max(len(cal.get('steps', [])) - 1, 1)} recalibration step(s): the total "
+                          f"residual std scaled x{cal['p90_scale']:.2f}, checked on fresh draws)")
 
 
 def run(args) -> int:

@@ -88,7 +88,7 @@ def power_statement(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], 
     seen = (f"a loss there smaller than {detectable:.1f} dB cannot be seen" if passes >= 2 else
             f"in {passes} pass{'es' if passes != 1 else ''}, so a held-out test cannot see a loss there at all")
     text = (f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} samples "
-            f"({n_eff:.0f} independent) {seen}; {loss_db:.0f} dB would need about {need} samples "
+            f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need about {need} samples "
             f"({need_eff:.0f} independent) in at least two passes.")
     return {"band_deg": list(band), "samples": n, "passes": passes, "effective_samples": n_eff, "residual_sd_db": s,
             "detectable_db": detectable, "loss_db": loss_db, "samples_needed": need,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize
@@ -17,21 +18,29 @@ def minimize_from_grid(fun: Callable[[np.ndarray], float], grid: np.ndarray, ste
     Why: the physics fits (a gap candidate's parameters, a calibration preset's free parameters) have multimodal,
     non-smooth robust losses (headings, floors); a coarse grid finds the basin and the simplex polishes it.  The
     caller clips or wraps x into its bounds (``fun`` should do the same).  ``coarse``: a cheaper version of
-    ``fun`` (fewer samples) that ranks the grid, so that a dense grid costs little; the starts are then
-    scored with ``fun``.
+    ``fun`` (fewer samples): it ranks the grid and polishes the ``n_starts`` best points, and only the best
+    of those is polished on ``fun`` (several starts for about the price of one).
     """
     grid = np.asarray(grid, dtype=float).reshape(len(grid), -1)
-    if coarse is not None and len(grid) > n_starts:
+
+    def nm(f: Callable[[np.ndarray], float], x0: np.ndarray) -> Any:
+        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
+        return minimize(f, x0, method="Nelder-Mead", options={"maxfev": max_evals * len(x0),
+                                                              "initial_simplex": simplex, "xatol": xatol,
+                                                              "fatol": fatol})
+
+    if coarse is not None and len(grid) > 1:
+        # the n_starts best grid points polished on the cheap objective, the best of them polished on ``fun``
         cv = np.array([coarse(g) for g in grid])
-        grid = grid[np.argsort(cv, kind="stable")[: max(n_starts, 3)]]
+        polished = [nm(coarse, grid[k]) for k in np.argsort(cv, kind="stable")[:n_starts]]
+        x0 = np.asarray(min(polished, key=lambda r: r.fun).x, dtype=float)
+        v0 = fun(x0)
+        res = nm(fun, x0)
+        return (np.asarray(res.x, dtype=float), float(res.fun)) if res.fun <= v0 else (x0, float(v0))
     vals = np.array([fun(g) for g in grid])
     best = None
     for k in np.argsort(vals, kind="stable")[:n_starts]:
-        x0 = grid[k]
-        simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
-        res = minimize(fun, x0, method="Nelder-Mead",
-                       options={"maxfev": max_evals * len(x0), "initial_simplex": simplex, "xatol": xatol,
-                                "fatol": fatol})
+        res = nm(fun, grid[k])
         if best is None or res.fun < best.fun:
             best = res
     assert best is not None
