@@ -158,7 +158,8 @@ class PhysicsFamily:
         """Validate and build (bad records raise ``InputError`` naming the field)."""
         if not isinstance(d, dict):
             raise InputError("a physics family must be a JSON object", source=source)
-        if int(d.get("schema", 0)) != SCHEMA:
+        schema = d.get("schema")
+        if isinstance(schema, bool) or not isinstance(schema, int | float) or schema != SCHEMA:
             raise InputError(f"physics family schema {d.get('schema')!r} (expected {SCHEMA})", source=source,
                              field="schema")
         spec = d.get("spec")
