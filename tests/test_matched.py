@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _localize_helpers import lawnmower_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -17,7 +18,6 @@ from mission.localize.matched_sim import FieldBasis, centred, track_cells
 from mission.physics.family import PhysicsFamily, simulate_rss
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
-from tests._localize_helpers import lawnmower_path
 
 FAMILY = PhysicsFamily.from_dict({
     "schema": 1, "name": "test-mild",
