@@ -42,26 +42,11 @@ def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
     try:
         fam = load_family(path)
         fam.draw(np.random.default_rng(0))  # a trial draw: a residual or offset that is not a number fails here
-        for k, v in fam.residual.items():  # a negative sigma, noise or correlation length is no physics
-            if _lowest(v) < 0 or (k == "shadowing_corr_m" and _lowest(v) <= 0):
-                raise InputError(f"residual.{k} can be drawn {'<=' if k == 'shadowing_corr_m' else '<'} 0",
-                                 source=path, field=f"residual.{k}")
         return fam
     except InputError:
         raise
     except (TypeError, ValueError, KeyError, AttributeError) as e:
         raise InputError(f"malformed physics family ({type(e).__name__}: {e})", source=path) from None
-
-
-def _lowest(v) -> float:
-    """The lowest value a family distribution can draw (``mission.physics.family``'s forms)."""
-    if not isinstance(v, dict):
-        return float(v)
-    if v["dist"] in ("uniform", "loguniform"):
-        return float(v["lo"])
-    if v["dist"] == "normal":
-        return float(v.get("lo", -np.inf))
-    return min(float(x) for x in v["options" if v["dist"] == "choice" else "values"])
 
 
 def family_sha256(fam: PhysicsFamily) -> str:

@@ -142,6 +142,17 @@ class FamilyDraw:
                 "noise_db": self.noise_db, "offset_db": self.offset_db}
 
 
+
+def lowest(v: Any) -> float:
+    """The lowest value a distribution (or a number) can draw: what a physical bound is checked against."""
+    if not isinstance(v, dict):
+        return float(v)
+    if v["dist"] in ("uniform", "loguniform"):
+        return float(v["lo"])
+    if v["dist"] == "normal":
+        return float(v.get("lo", -np.inf))
+    return min(float(x) for x in v["options" if v["dist"] == "choice" else "values"])
+
 @dataclass(frozen=True)
 class PhysicsFamily:
     """A distribution over per-flight physics (module docstring); ``draw(rng)`` gives one flight's."""
@@ -171,6 +182,15 @@ class PhysicsFamily:
             raise InputError(f"residual keys must be among {', '.join(RESIDUAL_KEYS)}", source=source,
                              field="residual")
         _check_tree(res, "residual", source)
+        for k, v in res.items():  # a negative sigma, noise or correlation length is no physics
+            try:
+                low = lowest(v)
+            except (TypeError, ValueError, KeyError):
+                raise InputError(f"residual.{k} must be a number or a distribution", source=source,
+                                 field=f"residual.{k}") from None
+            if not low >= 0 or (k == "shadowing_corr_m" and low <= 0):
+                raise InputError(f"residual.{k} can be drawn {'<=' if k == 'shadowing_corr_m' else '<'} 0",
+                                 source=source, field=f"residual.{k}")
         check_dist(d.get("offset_db", 0.0), "offset_db", source)
         variants = d.get("variants", [])
         if not isinstance(variants, list):
