@@ -57,14 +57,15 @@ def simulated_log(folder: Path, n: int, seed: int = 0) -> Path:
     """A spiral flight of the default mission, repeated to ``n`` samples, written as a real receiver's log."""
     import numpy as np
 
+    from mission.defaults import DEFAULT_TX_HEIGHT_M
     from mission.flightlog import make_meta, write_flight_log
     from mission.physics import make_model
     from mission.simulate import simulate_flight
     from mission.spec import load_mission
 
     spec = load_mission(REPO / "missions" / "spiral.yaml")
-    fl = simulate_flight(spec.waypoints_enu(), np.array([120.0, 180.0, 1.5]), make_model("e2r"), spec.sim_config(),
-                         np.random.default_rng(seed))
+    tx = np.array([120.0, 180.0, DEFAULT_TX_HEIGHT_M])
+    fl = simulate_flight(spec.waypoints_enu(), tx, make_model("e2r"), spec.sim_config(), np.random.default_rng(seed))
     cols = fl.log_columns(spec.field.origin)
     reps = int(np.ceil(n / len(cols["t_s"])))
     cols = {k: np.tile(v, reps)[:n] for k, v in cols.items()}
