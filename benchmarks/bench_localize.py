@@ -14,7 +14,7 @@ ms, included in the per-flight figure).
 Flights: the six real AFAR flights of ``../shared/data/afar2023/mat`` (20 500-22 000 rows each; imported
 into a temporary folder), else / also (``--sim``) a simulated spiral flight of ``--samples`` samples written
 as a real receiver's log.  ``--threads N`` sets ``RFSL_THREADS`` (k-means and onnxruntime threads; default 1,
-0 = the libraries' own choice, the behaviour before issue 10's fix).
+0 = the libraries' own choice, i.e. no limit).
 
     python benchmarks/bench_localize.py [--flights all|N] [--sim] [--samples 20000] [--repeat 5] [--threads 1]
 """

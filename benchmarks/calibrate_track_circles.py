@@ -1,6 +1,6 @@
 """Calibrate a network's error circles for full *and partial* flights (``track`` in its card's ``sim`` record).
 
-Why (issue 28): an aborted flight (a third of the spiral) printed the full flight's 12 m circle and missed by
+Why: an aborted flight (a third of the spiral) printed the full flight's 12 m circle and missed by
 51 m.  Mondrian (stratified) conformal prediction: on ``rfsl simulate`` logs of the spiral (the product path:
 take-off, return, landing, phase column), each log is cut to the first ``f`` of its mission legs (an abort:
 ``truncate``), the network localizes it, and ``training_domain.track_coverage`` measures the share of the planned

@@ -1,4 +1,4 @@
-"""Should the real-log fusion weight its members by their own uncertainty instead of a plain mean?  (issue 24 item 3)
+"""Should the real-log fusion weight its members by their own uncertainty instead of a plain mean?
 
 Candidate: the self-calibrating point ``a`` and the network point ``b`` weighted by the inverse square of each
 member's 50 % region scale: ``sqrt(area / pi)`` of the self-calibrating posterior's 50 % HPD set (per flight) and

@@ -1,4 +1,4 @@
-"""Issue 24's one table and the default-changing rule applied (models/README.md, "Decisions with error bars").
+"""The one table of every method and the default-changing rule applied (models/README.md, "Decisions with error bars").
 
 Every method on (a) the six shared real AFAR flights held out by team (LOTO) and (b) a benchmark cache drawn from
 a physics family (``rfsl dataset --suite unseen --logs --family F.json``): mean error with paired bootstrap 90 %

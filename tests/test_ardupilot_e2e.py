@@ -1,4 +1,4 @@
-"""End-to-end flight of ``fly-mission`` against the real ArduCopter SITL in ../shared (issue 12).
+"""End-to-end flight of ``fly-mission`` against the real ArduCopter SITL in ../shared.
 
 Skips cleanly where ``../shared/sitl/ardupilot/arducopter`` is absent.  The spiral is flown at speed-up 20
 (about 35 s of wall clock); the log must carry the mission phase per row, the sidecar the measured speed-up
@@ -125,7 +125,7 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     assert np.percentile(speed[ret], 95) < 1.3 * spec.cruise_speed_mps
     assert np.median(log["pitch_deg"][moving]) < 0.0  # nose down in forward flight
     _attitude_agrees_with_ardupilot(log, spec)
-    # issue 28: the plan reserves ArduPilot's own landing (0.5 m/s below 10 m) and hover (RTL_LOIT_TIME), read
+    # the time budget: the plan reserves ArduPilot's own landing (0.5 m/s below 10 m) and hover (RTL_LOIT_TIME), read
     # from it; the flight keeps that plan (measured: 565 s planned, 575 s used, against 539 s kinematic)
     from mission.trajectory.checks import check_mission
 

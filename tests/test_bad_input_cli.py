@@ -1,4 +1,4 @@
-"""Bad command-line arguments for every command (issue 12): exit 2 and one stderr line naming the argument or
+"""Bad command-line arguments for every command: exit 2 and one stderr line naming the argument or
 file, never a traceback, never a silent wrong answer; odd but valid input (negative coordinates) accepted.
 
 Each case calls the console script's ``main(argv)`` in-process.  ``fly-mission`` cases are only those refused

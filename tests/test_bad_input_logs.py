@@ -1,4 +1,4 @@
-"""Bad flight logs and sidecars through every command that reads a log (issue 12): each is refused with exit 2
+"""Bad flight logs and sidecars through every command that reads a log: each is refused with exit 2
 and one line naming the file, row and field, or, for a real-log quirk, accepted with its note.
 
 Every case runs through ``read_flight_log`` and the CLIs that read logs (``localize``, ``rfsl replay``,

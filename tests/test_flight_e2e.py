@@ -1,4 +1,4 @@
-"""End-to-end flights of ``fly-mission`` against the simulated vehicle (issue 4 acceptance).
+"""End-to-end flights of ``fly-mission`` against the simulated vehicle (the runner's acceptance).
 
 Each test runs the real console entry point in a subprocess (``python -m mission.cli.fly``), so signals,
 exit codes and the embedded vehicle are exercised exactly as a user would.
@@ -274,7 +274,7 @@ def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
 
 
 def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path):
-    """Issue 28 on the PX4-like vehicle (legs 7 % slower than asked, return at its own MPC_XY_CRUISE,
+    """Budget and autopilot texts on the PX4-like vehicle (legs 7 % slower than asked, return at its own MPC_XY_CRUISE,
     STATUSTEXT only while a GCS heartbeat arrived within 2.5 simulated s) at speed-up 10, a short spiral with
     a budget 3 % above its plan: every text the vehicle sent is in the sidecar (tab stripped, none after
     "landed and disarmed"), the overrun is warned during the flight and recorded, MPC_XY_CRUISE is restored,

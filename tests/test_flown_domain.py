@@ -1,6 +1,6 @@
 """What was flown against a network's training (``training_domain``): the share of the planned track flown, the
 attitude against the training's, the legs a network was trained on; and the error circles sized for it
-(``error_circles.flown_radii``): wider for a partial flight, or a note that no calibration applies (issue 28)."""
+(``error_circles.flown_radii``): wider for a partial flight, or a note that no calibration applies."""
 
 from __future__ import annotations
 
@@ -136,7 +136,7 @@ def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
 
 @pytest.mark.slow
 def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
-    """PX4's -28 deg cruise pitch (issue 28): the note says the attitude is outside the network's training and
+    """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training and
     no circle is printed."""
     from mission.localize.api import localize_log
 

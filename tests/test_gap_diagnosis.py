@@ -1,4 +1,4 @@
-"""Tests of the sim-to-real gap diagnosis (issue 6): statistics, alignment, withheld-effect self-test, CLI.
+"""Tests of the sim-to-real gap diagnosis: statistics, alignment, withheld-effect self-test, CLI.
 
 The withheld-effect part runs one seed per candidate here (the full two-seed self-test with the confusion
 table is ``rfsl gap --selftest``) on short, 10 Hz flights to stay within the test budget.
@@ -173,7 +173,7 @@ def test_cli_gap_bad_input(tmp_path) -> None:
 @pytest.mark.real
 def test_real_afar_e2r_gap(shared_dir) -> None:
     """Real AFAR flight 328 loc 1 (19 931 airborne samples): the paper's e2r with dipoles has p90 |error|
-    24.5 dB, worse than free space with isotropic antennas (21.6 dB) -- the finding of issue 6 -- and the gap
+    24.5 dB, worse than free space with isotropic antennas (21.6 dB) -- the gap tool's first finding -- and the gap
     does not depend on the receiver's unknown offset."""
     from mission.gap.align import flight_from_log
     from mission.gap.diagnose import base_pipeline, model_gap

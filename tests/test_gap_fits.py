@@ -1,4 +1,4 @@
-"""Fits that do not miss (issue 26): a withheld narrow effect is found at full and at small strength, and the
+"""Fits that do not miss: a withheld narrow effect is found at full and at small strength, and the
 base ranking and the ladder agree on which named effect helps most; near-nadir loss is found or its power
 statement says how many samples it needs.  Flights from the independent generator (``tests/_gap_synth``);
 the candidates are the withheld effect's competitors (the free-form body map, the other body-fixed effects),

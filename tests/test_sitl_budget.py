@@ -1,4 +1,4 @@
-"""The flight's time budget (issue 28): the plan per waypoint, the prediction from measured progress, one
+"""The flight's time budget: the plan per waypoint, the prediction from measured progress, one
 warning as soon as the remaining plan cannot fit, the sidecar record; speed parameters set and restored."""
 
 from __future__ import annotations

@@ -101,7 +101,7 @@ def test_plain_status_lines_do_not_wrap(monkeypatch):
 
 
 def test_first_status_line_has_no_nan():
-    """Before the first RSS sample the status line says ``rss=-``, not ``rss=nan`` (issue 28)."""
+    """Before the first RSS sample the status line says ``rss=-``, not ``rss=nan``."""
     line = plain_line(FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18))
     assert "nan" not in line and "rss=- " in line
     assert "OVER" in plain_line(FlightStatus(budget_s=600, t_start=0.0, t_now=601.0))
@@ -112,7 +112,7 @@ def test_first_status_line_has_no_nan():
 
 def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
     """A plain message printed under the live panel (``markup=False``) re-renders the panel with that
-    option: the panel's cells must not show their markup tags ([red], [green]) then (issue 28)."""
+    option: the panel's cells must not show their markup tags ([red], [green]) then."""
     from rich.console import Console
 
     from mission.flight.progress import render

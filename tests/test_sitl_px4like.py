@@ -1,4 +1,4 @@
-"""The PX4-like profile of the simulated vehicle (issue 28): parameters over MAVLink, slower legs, the return at
+"""The PX4-like profile of the simulated vehicle: parameters over MAVLink, slower legs, the return at
 ``MPC_XY_CRUISE``, and STATUSTEXT gated on ground-station heartbeats in simulated time as PX4 does."""
 
 from __future__ import annotations

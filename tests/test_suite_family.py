@@ -1,4 +1,4 @@
-"""A physics family file drives the unseen-flight benchmark (issue 24 item 2, issue 26 item 1: --family F.json)."""
+"""A physics family file drives the unseen-flight benchmark (``--family F.json``)."""
 
 from __future__ import annotations
 
