@@ -23,6 +23,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from mission.physics.geometry import link_delta, slant_distance
+
 STATISTICS = ("rss_spread_db", "resid_sill_db", "resid_range_m", "resid_nugget_db")
 BAND = (0.10, 0.90)
 P_PASS = (0.05, 0.95)
@@ -30,7 +32,7 @@ P_PASS = (0.05, 0.95)
 
 def log_distance_residual(pos_enu: np.ndarray, rss_dbm: np.ndarray, tx_enu: np.ndarray) -> np.ndarray:
     """RSS minus its least-squares fit a - 10 n log10(d) at the true transmitter (d 3D, floored at 1 m)."""
-    d = np.maximum(np.linalg.norm(np.asarray(pos_enu, float) - np.asarray(tx_enu, float)[None, :], axis=1), 1.0)
+    d = np.maximum(slant_distance(*link_delta(np.asarray(tx_enu, float)[None, :], np.asarray(pos_enu, float))), 1.0)
     A = np.column_stack([np.ones(len(d)), -10.0 * np.log10(d)])
     y = np.asarray(rss_dbm, float)
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)

@@ -34,6 +34,7 @@ from mission.geo import Area
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
 from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
+from mission.physics.geometry import heading_frame_angles, link_delta
 from mission.samples import FlightSamples
 
 HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
@@ -132,13 +133,11 @@ def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np
     Body azimuth uses the heading only (the receiver antenna hangs below the body; roll and pitch did not
     help on real flights, ``rfsl gap``), clockwise from the nose; elevation is negative below the UAV.
     """
-    dx = (cand_xy[:, None, 0] - cells.enu_m[None, :, 0]).astype(np.float32)
-    dy = (cand_xy[:, None, 1] - cells.enu_m[None, :, 1]).astype(np.float32)
-    dz = (tx_height_m - cells.enu_m[None, :, 2]).astype(np.float32)
+    tx = np.column_stack([cand_xy, np.full(len(cand_xy), float(tx_height_m))])
+    dx, dy, dz = link_delta(tx[:, None, :], cells.enu_m[None, :, :], np.float32)
     dh2 = dx * dx + dy * dy
     pg = np.float32(-10.0) * np.log10(dh2 + dz * dz)                     # -20 log10 d_los
-    el = np.arctan2(dz, np.sqrt(dh2))
-    az = np.mod(np.arctan2(dx, dy) - cells.yaw_rad[None, :].astype(np.float32), np.float32(2 * np.pi))
+    el, az = heading_frame_angles(dx, dy, dz, cells.yaw_rad[None, :].astype(np.float32), np.sqrt(dh2))
     return pg, el, az
 
 

@@ -94,6 +94,11 @@ def body_vectors(u_ned: ArrayLike, attitude_rad: ArrayLike | None) -> NDArray[np
     return np.einsum("...ki,...k->...i", R, u)
 
 
+def body_azimuth(ub_x: ArrayLike, ub_y: ArrayLike) -> NDArray:
+    """az_b = atan2(u_b.y, u_b.x) in [0, 2 pi): 0 = nose, positive to the right; keeps a float32 input float32."""
+    return np.mod(np.arctan2(ub_y, ub_x), TWO_PI)
+
+
 def body_angles(u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Body azimuth az_b in [0, 2 pi) and depression dep_b (rad) of the NED vector(s) u (UAV -> target).
@@ -102,11 +107,49 @@ def body_angles(u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
     """
     ub = body_vectors(u_ned, attitude_rad)
     r = np.linalg.norm(ub, axis=-1)
-    az_b = np.mod(np.arctan2(ub[..., 1], ub[..., 0]), TWO_PI)
+    az_b = body_azimuth(ub[..., 0], ub[..., 1])
     dep_b = np.arcsin(np.clip(ub[..., 2] / np.where(r > 0, r, 1.0), -1.0, 1.0))
     return az_b, dep_b
 
 
-def bearing(dx_east: ArrayLike, dy_north: ArrayLike) -> NDArray[np.float64]:
-    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi)."""
+def bearing(dx_east: ArrayLike, dy_north: ArrayLike) -> NDArray:
+    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi); float32 stays float32."""
     return np.mod(np.arctan2(dx_east, dy_north), TWO_PI)
+
+
+# -- the link UAV -> transmitter from its ENU components (dtype-preserving: the fast paths run in float32)
+def link_delta(tx_enu: ArrayLike, rx_enu: ArrayLike, dtype: DTypeLike | None = None
+               ) -> tuple[NDArray, NDArray, NDArray]:
+    """(dx, dy, dz) = p_tx - p_uav (ENU) on the last axis, broadcast; differenced in the inputs' precision, then
+    cast to ``dtype`` (None: kept), so float32 work on large coordinates keeps the difference's precision."""
+    tx, rx = np.asarray(tx_enu), np.asarray(rx_enu)
+    out = tuple(tx[..., i] - rx[..., i] for i in range(3))
+    return out if dtype is None else tuple(np.asarray(v).astype(dtype) for v in out)
+
+
+def horizontal_distance(dx: ArrayLike, dy: ArrayLike) -> NDArray:
+    """d_2D = sqrt(dx^2 + dy^2), the ground distance UAV -> transmitter."""
+    return np.hypot(dx, dy)
+
+
+def slant_distance(dx: ArrayLike, dy: ArrayLike, dz: ArrayLike) -> NDArray:
+    """d_los = |p_tx - p_uav|, the 3D (line-of-sight) distance."""
+    dx, dy, dz = np.asarray(dx), np.asarray(dy), np.asarray(dz)
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+def elevation(dz: ArrayLike, d_2d: ArrayLike) -> NDArray:
+    """Up-positive elevation atan2(dz, d_2D) of the far end of a link seen from the level frame (rad)."""
+    return np.arctan2(dz, d_2d)
+
+
+def heading_frame_angles(dx: NDArray, dy: NDArray, dz: NDArray, yaw_rad: ArrayLike,
+                         d_2d: NDArray | None = None) -> tuple[NDArray, NDArray]:
+    """Elevation (up-positive, = -dep_b) and body azimuth az_b of the link (dx, dy, dz) = p_tx - p_uav (ENU)
+    seen from a body frame turned to heading ``yaw_rad`` but level (roll = pitch = 0), in the inputs' dtype.
+
+    This is ``body_angles`` at attitude (0, 0, yaw) without the rotation matrix: az_b = bearing - yaw; it is the
+    frame of a receiver antenna hanging below the body whose tilt is not modelled (the self-calibrating grid).
+    """
+    el = elevation(dz, np.sqrt(dx * dx + dy * dy) if d_2d is None else d_2d)
+    return el, np.mod(np.arctan2(dx, dy) - yaw_rad, TWO_PI)

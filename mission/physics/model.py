@@ -21,9 +21,13 @@ from mission.physics.geometry import (
     as_attitude,
     bearing,
     body_angles,
+    body_azimuth,
     body_from_enu_matrix,
     body_from_enu_planes,
+    elevation,
     enu_to_ned,
+    horizontal_distance,
+    link_delta,
 )
 
 CHUNK = 8192  # elements per block: float32 temporaries of 32 KiB stay in L2 and below glibc's mmap threshold
@@ -122,9 +126,7 @@ class PropagationModel:
         ra: RxAntenna | None = self._get("rx_antenna")
         z_t = tx[..., 2]
         z_r = rx[:, 2]
-        dx = tx[..., 0] - rx[:, 0]  # delta = p_tx - p_rx (ENU)
-        dy = tx[..., 1] - rx[:, 1]
-        dz = z_t - z_r
+        dx, dy, dz = link_delta(tx, rx)  # delta = p_tx - p_rx (ENU)
         d2 = dx * dx
         d2 += dy * dy  # d_2D^2
         d_los = np.sqrt(d2 + dz * dz)  # d_los = sqrt(d^2 + (h_r - h_t)^2)
@@ -148,7 +150,7 @@ class PropagationModel:
         if ra is not None:  # arrival: el = -dep_b = -u_b.z / |u|
             s_r = -u_b[2] * inv_los
             c_r = d * inv_los if C is None else np.sqrt(np.maximum(dt(1.0) - s_r * s_r, dt(0.0)))
-            amp_dir = amp_dir * ra._amplitude(s_r, c_r, lambda: np.mod(np.arctan2(u_b[1], u_b[0]), TWO_PI))
+            amp_dir = amp_dir * ra._amplitude(s_r, c_r, lambda: body_azimuth(u_b[0], u_b[1]))
         d_ref = d_los
         if gr is None:
             F2 = amp_dir * amp_dir
@@ -164,14 +166,14 @@ class PropagationModel:
                 if C is None:
                     s_r2, c_r2 = -sin_psi, d * inv_ref
                     def az2() -> NDArray:
-                        return np.mod(np.arctan2(dx, dy), TWO_PI)
+                        return bearing(dx, dy)
                 else:
                     two_zt = z_t + z_t
                     ub2 = tuple(u_b[i] - C[i, 2] * two_zt for i in range(3))
                     s_r2 = -ub2[2] * inv_ref
                     c_r2 = np.sqrt(np.maximum(dt(1.0) - s_r2 * s_r2, dt(0.0)))
                     def az2() -> NDArray:
-                        return np.mod(np.arctan2(ub2[1], ub2[0]), TWO_PI)
+                        return body_azimuth(ub2[0], ub2[1])
                 amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
             g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
             # phase difference k (d_ref - d_los) = k 4 h_t h_r / (d_ref + d_los): no cancellation
@@ -219,12 +221,12 @@ class PropagationModel:
         lam = wavelength(fs.fc_hz)
         u = T - rx  # p_tx - p_uav, ENU
         h_t, h_r = T[..., 2], np.broadcast_to(rx[:, 2], u.shape[:-1])
-        d_2d = np.hypot(u[..., 0], u[..., 1])
+        d_2d = horizontal_distance(u[..., 0], u[..., 1])
         d_los = np.sqrt(d_2d**2 + (h_r - h_t) ** 2)
         d_ref = np.sqrt(d_2d**2 + (h_r + h_t) ** 2)
-        psi = np.arctan2(h_r + h_t, d_2d)  # grazing angle
+        psi = elevation(h_r + h_t, d_2d)  # grazing angle: the image source's depression
         az_tx = bearing(-u[..., 0], -u[..., 1])
-        el_tx_dir = np.arctan2(h_r - h_t, d_2d)
+        el_tx_dir = elevation(h_r - h_t, d_2d)
         el_tx_ref = -psi
         az_b, dep_b = body_angles(enu_to_ned(u), att)
         u_img = u.copy()
