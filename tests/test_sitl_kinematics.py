@@ -49,7 +49,7 @@ def _mission(tmp_path, kin: dict | None):
 
 def _fly_vehicle(spec, speedup: float) -> float:
     """Fly ``spec``'s raw mission on a spawned vehicle; returns take-off-to-landed seconds (vehicle clock)."""
-    from mission.flight.plan import build_items
+    from mission.trajectory.items import build_items
 
     port = free_udp_port()
     o = spec.field.origin
@@ -58,7 +58,7 @@ def _fly_vehicle(spec, speedup: float) -> float:
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255)
     try:
         assert gcs.wait_heartbeat(timeout=10)
-        items = build_items(spec, float(lat), float(lon), float(alt), ardupilot=False)
+        items = build_items(spec, (float(lat), float(lon), float(alt)))
         gcs.mav.mission_count_send(1, 1, len(items), 0)
         while True:
             m = gcs.recv_match(type=["MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True, timeout=5)

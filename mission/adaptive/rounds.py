@@ -70,8 +70,8 @@ async def _upload(r, mission_raw, items) -> None:
 async def adapt(r, action, mission_raw) -> None:
     """Plan, check and upload rounds until the region is small, no round fits, or the mission ends."""
     from mission.adaptive.planner import choose_target, plan_round
-    from mission.flight.plan import build_items
     from mission.spec import TrajectorySpec
+    from mission.trajectory.items import build_items
 
     a, spec = r.adaptive, r.full_spec
     wps = np.asarray(r.spec.waypoints_enu(), dtype=float)
@@ -117,7 +117,7 @@ async def adapt(r, action, mission_raw) -> None:
             return
         new = np.vstack([wps, plan.waypoints])
         items = build_items(dataclasses.replace(r.spec, trajectory=TrajectorySpec("waypoints", {}, new)),
-                            r.home.latitude_deg, r.home.longitude_deg, r.home.absolute_altitude_m, off == 3)
+                            (r.home.latitude_deg, r.home.longitude_deg, r.home.absolute_altitude_m), off == 3)
         if r.mission_done.is_set() or r.abort.is_set():
             r.event("adaptive", f"round {k + 1} planned too late: already returning")
             return

@@ -231,14 +231,15 @@ class Runner(FlightTasks):
         """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the upload."""
         from mavsdk.plugins.mission_raw import MissionRawError
 
-        from mission.flight.plan import build_items, to_mavsdk
+        from mission.flight.plan import to_mavsdk
+        from mission.trajectory.items import build_items
 
         spec, opts = self.spec, self.opts
         self.status.phase = "waiting for position and home"
         await self._race(self._healthy(telemetry), timeout=opts.connect_timeout_s, what="a healthy position and home")
         home = await telemetry.home()
         self._check_home(home)
-        items = build_items(spec, home.latitude_deg, home.longitude_deg, home.absolute_altitude_m, ardupilot)
+        items = build_items(spec, (home.latitude_deg, home.longitude_deg, home.absolute_altitude_m), ardupilot)
         n_wp = len(spec.waypoints_enu())
         self.status.n_waypoints, self.status.waypoint_offset = n_wp, 3 if ardupilot else 2
         self.phases.configure(self.status.waypoint_offset, len(items) - 1,

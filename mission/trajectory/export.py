@@ -1,11 +1,12 @@
 """Mission exports: QGroundControl ``.plan`` JSON, QGC WPL 110 text, GeoJSON and KML.
 
-The ``.plan`` holds a take-off at home, the trajectory as waypoints in frame 3 (global, altitude relative
-to home), then return-to-launch (or a landing at the last waypoint), the planned home position, the flight
-area as an inclusion geofence and the cruise speed; QGroundControl opens it directly.  ``.waypoints``
-(QGC WPL 110) is the same item list in the text format ArduPilot tools and pymavlink's ``MAVWPLoader``
-read.  GeoJSON (lon, lat order) and KML (AERPAW's geofences are KML) carry the trajectory and both areas.
-"""
+The ``.plan`` and ``.waypoints`` hold exactly the items ``fly-mission`` uploads (``mission.trajectory.items``):
+take-off at home, the cruise speed, the trajectory as waypoints in frame 3 (altitude relative to home), then
+return-to-launch (or a landing at the last waypoint); the ``.plan`` adds the planned home position, the flight
+area as an inclusion geofence and the cruise speed, and QGroundControl opens it directly.  ``.waypoints``
+(QGC WPL 110) starts with the home item 0 as an ArduPilot upload does, in the text format ArduPilot tools and
+pymavlink's ``MAVWPLoader`` read.  GeoJSON (lon, lat order) and KML (AERPAW's geofences are KML) carry the
+trajectory and both areas."""
 
 from __future__ import annotations
 
@@ -16,43 +17,9 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from mission.errors import InputError
+from mission.trajectory.items import RawItem, build_items, home_geodetic
 
-MAV_CMD_NAV_WAYPOINT = 16
-MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
-MAV_CMD_NAV_LAND = 21
-MAV_CMD_NAV_TAKEOFF = 22
-MAV_FRAME_GLOBAL = 0
-MAV_FRAME_MISSION = 2
-MAV_FRAME_GLOBAL_RELATIVE_ALT = 3
 FORMATS = ("plan", "wpl", "geojson", "kml")
-
-
-def mission_items(spec) -> list[dict]:
-    """The mission as MAVLink items: dicts of command, frame and 7 params (params[4:7] = lat, lon, alt)."""
-    o = spec.field.origin
-    w = spec.waypoints_enu()
-    lat, lon, _ = o.to_geodetic(np.column_stack([w[:, :2], np.zeros(len(w))]))
-    home = np.asarray(spec.home_enu, dtype=float)
-    hlat, hlon, _ = o.to_geodetic(home)
-    rel = w[:, 2] - home[2]
-    items = [{"command": MAV_CMD_NAV_TAKEOFF, "frame": MAV_FRAME_GLOBAL_RELATIVE_ALT,
-              "params": [0.0, 0.0, 0.0, None, float(hlat), float(hlon), float(rel[0])]}]
-    for i in range(len(w)):
-        items.append({"command": MAV_CMD_NAV_WAYPOINT, "frame": MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                      "params": [0.0, 0.0, 0.0, None, float(lat[i]), float(lon[i]), float(rel[i])]})
-    if spec.return_behaviour == "land":
-        items.append({"command": MAV_CMD_NAV_LAND, "frame": MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                      "params": [0.0, 0.0, 0.0, None, float(lat[-1]), float(lon[-1]), 0.0]})
-    else:
-        items.append({"command": MAV_CMD_NAV_RETURN_TO_LAUNCH, "frame": MAV_FRAME_MISSION,
-                      "params": [0.0] * 7})
-    return items
-
-
-def _home_geodetic(spec) -> tuple[float, float, float]:
-    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
-    return float(lat), float(lon), float(alt)
-
 
 def _ring_latlon(spec, area) -> list[list[float]]:
     v = area.vertices
@@ -60,35 +27,39 @@ def _ring_latlon(spec, area) -> list[list[float]]:
     return [[float(a), float(b)] for a, b in zip(lat, lon, strict=True)]
 
 
+def _params7(it: RawItem) -> list[float | None]:
+    """MISSION_ITEM's seven params: param1-4 (NaN, "unchanged", as JSON null), then lat, lon (deg), altitude."""
+    p4 = [None if np.isnan(v) else float(v) for v in it.params]
+    return p4 + ([it.lat_deg, it.lon_deg, float(it.z)] if it.has_position else [0.0, 0.0, 0.0])
+
+
 def to_plan(spec) -> dict:
-    """QGroundControl ``.plan`` (fileType Plan, version 1) as a dict."""
+    """QGroundControl ``.plan`` (fileType Plan, version 1) as a dict: the uploaded items (``build_items``)."""
     items = []
-    for i, it in enumerate(mission_items(spec)):
-        p = it["params"]
-        items.append({"AMSLAltAboveTerrain": None, "Altitude": p[6], "AltitudeMode": 1, "autoContinue": True,
-                      "command": it["command"], "doJumpId": i + 1, "frame": it["frame"], "params": p,
-                      "type": "SimpleItem"})
+    for i, it in enumerate(build_items(spec)):
+        p = _params7(it)
+        pos = {"AMSLAltAboveTerrain": None, "Altitude": p[6], "AltitudeMode": 1} if it.has_position else {}
+        items.append({**pos, "autoContinue": True, "command": it.command, "doJumpId": i + 1, "frame": it.frame,
+                      "params": p, "type": "SimpleItem"})
     return {
         "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
         "geoFence": {"circles": [], "version": 2, "polygons": [
             {"inclusion": True, "version": 1, "polygon": _ring_latlon(spec, spec.field.flight_area)}]},
         "mission": {"version": 2, "firmwareType": 3, "vehicleType": 2, "globalPlanAltitudeMode": 1,
                     "cruiseSpeed": spec.cruise_speed_mps, "hoverSpeed": spec.cruise_speed_mps,
-                    "plannedHomePosition": list(_home_geodetic(spec)), "items": items},
+                    "plannedHomePosition": list(home_geodetic(spec)), "items": items},
         "rallyPoints": {"points": [], "version": 2},
     }
 
 
 def to_wpl(spec) -> str:
-    """QGC WPL 110 text: item 0 is home (absolute altitude), then the mission items; 8 decimals of degree."""
-    hlat, hlon, halt = _home_geodetic(spec)
-    rows = [(0, 1, MAV_FRAME_GLOBAL, MAV_CMD_NAV_WAYPOINT, [0, 0, 0, 0, hlat, hlon, halt])]
-    for i, it in enumerate(mission_items(spec)):
-        rows.append((i + 1, 0, it["frame"], it["command"], [0.0 if v is None else v for v in it["params"]]))
+    """QGC WPL 110 text: the items an ArduPilot upload sends (home first, the only current item); lat/lon as
+    the items' 1e-7 degrees, NaN params written as ``nan`` as pymavlink's ``MAVWPLoader`` does."""
     lines = ["QGC WPL 110"]
-    for seq, cur, frame, cmd, p in rows:
-        lines.append("\t".join([str(seq), str(cur), str(frame), str(cmd), *(f"{v:.8f}" for v in p[:4]),
-                                f"{p[4]:.10f}", f"{p[5]:.10f}", f"{p[6]:.6f}", "1"]))
+    for seq, it in enumerate(build_items(spec, home_item=True)):
+        p = [float("nan") if v is None else v for v in _params7(it)]
+        lines.append("\t".join([str(seq), str(int(seq == 0)), str(it.frame), str(it.command),
+                                *(f"{v:.8f}" for v in p[:4]), f"{p[4]:.10f}", f"{p[5]:.10f}", f"{p[6]:.6f}", "1"]))
     return "\n".join(lines) + "\n"
 
 
@@ -108,7 +79,7 @@ def to_geojson(spec) -> dict:
         ring = [[b, a] for a, b in _ring_latlon(spec, area)]
         feats.append({"type": "Feature", "properties": {"name": area.name, "kind": kind},
                       "geometry": {"type": "Polygon", "coordinates": [ring + [ring[0]]]}})
-    hlat, hlon, _ = _home_geodetic(spec)
+    hlat, hlon, _ = home_geodetic(spec)
     feats.append({"type": "Feature", "properties": {"name": "home", "kind": "home"},
                   "geometry": {"type": "Point", "coordinates": [hlon, hlat]}})
     return {"type": "FeatureCollection", "name": spec.name, "features": feats}
@@ -126,7 +97,7 @@ def to_kml(spec) -> str:
                 f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{coords(ring + [ring[0]])}"
                 f"</coordinates></LinearRing></outerBoundaryIs></Polygon></Placemark>")
 
-    hlat, hlon, _ = _home_geodetic(spec)
+    hlat, hlon, _ = home_geodetic(spec)
     body = [
         f"<Placemark><name>{escape(spec.name)} trajectory</name><Style><LineStyle><color>ff0000ff</color>"
         f"<width>3</width></LineStyle></Style><LineString><tessellate>1</tessellate>"
