@@ -84,7 +84,7 @@ def test_mavsdk_messages_once_each_without_colour_codes():
 
 
 def test_plain_status_lines_do_not_wrap(monkeypatch):
-    s = FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18, phase="mission", rows=123456,
+    s = FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18, stage="mission", rows=123456,
                      last_rss=-45.25, best_rss=-31.5, best_xy=(1234.0, 5678.0), link_lost=True)
     line = plain_line(s)
     assert line.startswith("[LINK LOST, last mission]")

@@ -34,7 +34,7 @@ class FlightStatus:
     best_rss: float = float("-inf")
     best_xy: tuple[float, float] | None = None
     rel_alt: float = 0.0
-    phase: str = "connecting"
+    stage: str = "connecting"  # the runner's set-up step before arming, then the mission phase
     link_lost: bool = False
     estimate: str = ""  # the live estimate (mission.adaptive.live.describe), empty until there is one
     warnings: list[str] = field(default_factory=list)
@@ -60,8 +60,8 @@ def render(s: FlightStatus) -> Table:
     t = Table(title=Text(f"fly-mission: {s.mission_name}"), show_header=False, expand=False)
     t.add_column(style="bold")
     t.add_column()
-    phase = Text.assemble(("LINK LOST", "red"), f" (last: {s.phase})") if s.link_lost else Text(s.phase)
-    t.add_row("phase", phase)
+    stage = Text.assemble(("LINK LOST", "red"), f" (last: {s.stage})") if s.link_lost else Text(s.stage)
+    t.add_row("stage", stage)
     t.add_row("waypoint", Text(f"{s.waypoint} of {s.n_waypoints} (raw item {s.item}/{s.items})"))
     over = s.budget_s and s.elapsed > s.budget_s
     el = Text(f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget")
@@ -88,11 +88,11 @@ PLAIN_WIDTH = 80
 def plain_line(s: FlightStatus) -> str:
     """The status as plain text for a log or a pipe: one line, or two when it would pass 80 columns."""
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
-    phase = f"LINK LOST, last {s.phase}" if s.link_lost else s.phase
+    stage = f"LINK LOST, last {s.stage}" if s.link_lost else s.stage
     over = " OVER" if s.budget_s and s.elapsed > s.budget_s else ""
     if s.predicted_s is not None and np.isfinite(s.predicted_s) and not over:
         over = f" (land~{s.predicted_s:.0f}s)"
-    head = (f"[{phase}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
+    head = (f"[{stage}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
             f"alt={s.rel_alt:.1f}m rss={_fmt_rss(s.last_rss)} rows={s.rows}")
     tail = f"best={best}" + (f" est={s.estimate}" if s.estimate else "")
     # a log read at 80 columns: the strongest sample and the live estimate go on a second, indented line
@@ -125,7 +125,7 @@ class Display:
             self.console.print(plain_line(self.status), highlight=False, markup=False, soft_wrap=True)
 
     def message(self, text: str, style: str = "") -> None:
-        """A line that stays (warnings, phase changes)."""
+        """A line that stays (warnings, stage changes)."""
         self.console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True)
 
     def __exit__(self, *exc) -> None:

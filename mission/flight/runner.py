@@ -166,7 +166,7 @@ class Runner(FlightTasks):
         """The first autopilot on ``url`` within ``--link-timeout`` (FlightError with one line otherwise)."""
         from mavsdk.asyncio import Autopilot
 
-        self.status.phase = "waiting for autopilot"
+        self.status.stage = "waiting for autopilot"
         try:
             await sdk.add_any_connection(url)
         except Exception as e:  # MavsdkConnectionError: bad address, port in use, no such device
@@ -235,7 +235,7 @@ class Runner(FlightTasks):
         from mission.trajectory.items import build_items
 
         spec, opts = self.spec, self.opts
-        self.status.phase = "waiting for position and home"
+        self.status.stage = "waiting for position and home"
         await self._race(self._healthy(telemetry), timeout=opts.connect_timeout_s, what="a healthy position and home")
         home = await telemetry.home()
         self._check_home(home)
@@ -254,7 +254,7 @@ class Runner(FlightTasks):
             await telemetry.set_rate_landed_state(5.0)
         v_ret = await apply_speeds(self, param, ardupilot)  # restored after the flight
         self.budget = start_budget(self, v_ret, await vertical_speeds(self, param, ardupilot))
-        self.status.phase = "uploading"
+        self.status.stage = "uploading"
         for attempt in range(3):  # a busy link (high speed-up) can time out one transfer
             try:
                 await mission_raw.upload_mission(to_mavsdk(items))
@@ -284,7 +284,7 @@ class Runner(FlightTasks):
         self.rows = RowLogger(writer, self.source, self.tel, self.phases, spec.field.origin, self.status)
         self.event("log", f"logging to {self.log_path}")
         await self.source.start(self.tel.clock.now)
-        self.status.phase = "waiting for the first log row"
+        self.status.stage = "waiting for the first log row"
         end = asyncio.get_running_loop().time() + FIRST_ROW_TIMEOUT_S
         while not writer.rows and asyncio.get_running_loop().time() < end:  # log on the ground before arming
             self._abort_before_takeoff()
@@ -294,7 +294,7 @@ class Runner(FlightTasks):
     async def _mission(self, action, mission_raw) -> tuple[int, str]:
         from mavsdk.plugins.action import ActionError
 
-        self.status.phase = "arming"
+        self.status.stage = "arming"
         for attempt in range(10):  # ArduPilot says "armable" before its EKF uses GPS: retry for 20 s
             self._abort_before_takeoff()
             try:

@@ -128,12 +128,13 @@ class FlightTasks:
             self.st.was_in_air |= self.st.in_air
             if self.st.was_armed or self.st.in_air:
                 self.phases.on_landed_state(self.tel.clock.now(), name)
-            self._show_phase()
+            self._show_stage()
             self._check_landed()
 
-    def _show_phase(self) -> None:
+    def _show_stage(self) -> None:
+        """Once armed, the status line's stage is the mission phase."""
         if self.st.was_armed:
-            self.status.phase = self.phases.current
+            self.status.stage = self.phases.current
 
     def _check_landed(self) -> None:
         st = self.st
@@ -146,7 +147,7 @@ class FlightTasks:
             self.status.item, self.status.items = p.current, p.total
             if self.st.was_in_air:
                 self.phases.on_progress(self.tel.clock.now(), p.current)
-                self._show_phase()
+                self._show_stage()
             if p.total and p.current >= p.total - 1 and self.st.was_in_air:
                 if not self.mission_done.is_set():
                     self.event("mission", f"last mission item ({p.current}) active: returning")
