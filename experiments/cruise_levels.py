@@ -6,7 +6,7 @@ levels), and a cell flown at both altitudes must not be averaged into one point 
 lawnmower over the AFAR overlap flown at A ~ U(15, 30) m and at B ~ U(35, 60) m (``two_level_path``: ``split``
 or ``repeat``), take-off from and landing at the ground, the `afar` preset's physics,
 shadowing 6 dB over 30 m, 2 dB noise, transmitter uniform in the overlap.  Rules compared: the levels rule
-(``cruise_mask``, now) with cells per level (now) or merged, one level only (``max_levels=1``), and the single
+(``cruise_mask``, now) with cells per level (now) or merged, one level only (``max_altitudes=1``), and the single
 band about the upper part's median (the rule before levels; written out here: it no longer exists in the package).
 
     python experiments/cruise_levels.py --n 40 --seed 7      # 48 s, 1 core
@@ -58,12 +58,12 @@ def main() -> None:
     fld = afar_field()
     model = preset_model("afar")
     per_level = SelfCalibratingGrid(area=fld.rover_area)
-    merged = SelfCalibratingGrid(area=fld.rover_area, level_gap_m=np.inf)
+    merged = SelfCalibratingGrid(area=fld.rover_area, altitude_gap_m=np.inf)
     cfg = SimConfig(noise_db=2.0, shadowing_db=6.0, shadowing_corr_m=30.0, attitude_perturbation_deg=2.0,
                     perturbation_corr_s=0.3)
     rules = {"levels, cells per level (now)": (lambda h: cruise_mask(h).mask, per_level),
              "levels, cells merged": (lambda h: cruise_mask(h).mask, merged),
-             "one level": (lambda h: cruise_mask(h, max_levels=1).mask, per_level),
+             "one level": (lambda h: cruise_mask(h, max_altitudes=1).mask, per_level),
              "single band (before)": (single_band_before, merged)}
     for scenario in ("split", "repeat"):
         kept: dict[str, list[float]] = {r: [] for r in rules}

@@ -64,7 +64,7 @@ def one_flight(path) -> dict:
     part, _ = select_samples(log)
     f = as_flight(part)
     sc = SelfCalibratingGrid(area=search_area(log), step_m=STEP_M)  # the search's own cells, area and tx height
-    cells = cell_average(f, sc.cell_m, sc.level_gap_m)
+    cells = cell_average(f, sc.cell_m, sc.altitude_gap_m)
     hyps = antenna_hypotheses(sc.hypotheses, sc.heading_step_deg)
     truth = np.asarray(log.truth_enu[:2])
     grid, _, poly = sc._candidates(f)

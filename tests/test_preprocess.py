@@ -1,5 +1,5 @@
-"""Cruise selection by altitude levels (``mission.localize.preprocess.cruise_mask``): one level as before, several
-levels kept, climbs, descents and the ground dropped, whatever the altitudes and shares."""
+"""Cruise selection by altitude (``mission.localize.preprocess.cruise_mask``): one altitude as before, several
+kept, climbs, descents and the ground dropped, whatever the altitudes and shares."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ from hypothesis import strategies as st
 from mission.localize.preprocess import cruise_mask
 
 
-def profile(levels: list[tuple[float, int]], ramp: int = 60, ground: int = 40, seed: int = 0) -> tuple:
-    """Heights of a flight: ground, climb, each level (altitude, samples) joined by ramps, descent, ground;
-    with 0.3 m of altimeter noise.  Returns (heights, label) with label = level index, -1 ramp, -2 ground."""
+def profile(altitudes: list[tuple[float, int]], ramp: int = 60, ground: int = 40, seed: int = 0) -> tuple:
+    """Heights of a flight: ground, climb, each cruise altitude (altitude, samples) joined by ramps, descent, ground;
+    with 0.3 m of altimeter noise.  Returns (heights, label) with label = altitude index, -1 ramp, -2 ground."""
     rng = np.random.default_rng(seed)
     h, lab = [np.zeros(ground)], [np.full(ground, -2)]
     prev = 0.0
-    for i, (alt, n) in enumerate(levels):
+    for i, (alt, n) in enumerate(altitudes):
         h.append(np.linspace(prev, alt, ramp, endpoint=False)[1:])
         lab.append(np.full(ramp - 1, -1))
         h.append(np.full(n, alt))
@@ -29,40 +29,41 @@ def profile(levels: list[tuple[float, int]], ramp: int = 60, ground: int = 40, s
     return np.maximum(h + rng.normal(0.0, 0.3, h.size) * (lab >= 0), 0.0), lab
 
 
-def test_one_level_as_before():
+def test_one_altitude_as_before():
     h, lab = profile([(30.0, 800)])
     sel = cruise_mask(h)
-    assert sel.cruise_alt_m == pytest.approx(30.0, abs=0.2) and len(sel.levels) == 1
+    assert sel.cruise_alt_m == pytest.approx(30.0, abs=0.2) and len(sel.altitudes) == 1
     assert sel.mask[lab == 0].all() and not sel.mask[lab == -2].any()
     assert sel.mask[lab == -1].sum() < 20  # only the ends of the ramps within the band
 
 
 def test_even_split_between_two_altitudes_keeps_both():
-    """The median of a 50/50 flight at 25 m and 45 m is ~35 m, no level: the single-band rule kept nothing there."""
+    """The median of a 50/50 flight at 25 m and 45 m is ~35 m, at no cruise altitude: the single-band rule
+    kept nothing there."""
     h, lab = profile([(25.0, 1000), (45.0, 1000)])
     sel = cruise_mask(h)
-    assert sorted(round(lv) for lv, _ in sel.levels) == [25, 45]
+    assert sorted(round(lv) for lv, _ in sel.altitudes) == [25, 45]
     assert sel.mask[lab >= 0].all() and not sel.mask[lab == -2].any()
     assert "25.0 m" in sel.reason and "45.0 m" in sel.reason
 
 
-def test_minor_level_kept_short_hover_dropped():
+def test_minor_altitude_kept_short_hover_dropped():
     h, lab = profile([(40.0, 1400), (20.0, 600), (10.0, 60)])  # 30 % at 20 m kept; a 3 % hover at 10 m not
     sel = cruise_mask(h)
     assert sel.mask[lab == 0].all() and sel.mask[lab == 1].all() and not sel.mask[lab == 2].any()
-    assert len(sel.levels) == 2 and sel.cruise_alt_m == pytest.approx(40.0, abs=0.2)
+    assert len(sel.altitudes) == 2 and sel.cruise_alt_m == pytest.approx(40.0, abs=0.2)
 
 
-def test_min_level_share_is_the_threshold():
+def test_min_altitude_share_is_the_threshold():
     h, lab = profile([(40.0, 1400), (20.0, 600)])
-    assert cruise_mask(h, min_level_share=0.5).mask[lab == 1].sum() == 0
+    assert cruise_mask(h, min_altitude_share=0.5).mask[lab == 1].sum() == 0
 
 
 @settings(max_examples=60, deadline=None)
 @given(alts=st.lists(st.floats(15.0, 60.0), min_size=1, max_size=3),
        shares=st.lists(st.integers(300, 1500), min_size=3, max_size=3), seed=st.integers(0, 2**16))
-def test_levels_property(alts, shares, seed):
-    """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every level sample is kept, no ground
+def test_altitudes_property(alts, shares, seed):
+    """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every cruise sample is kept, no ground
     sample is, and the ramps are mostly dropped."""
     alts = sorted(set(round(a) for a in alts))
     alts = [a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2]  # bands do not touch
@@ -73,7 +74,7 @@ def test_levels_property(alts, shares, seed):
     assert sel.mask[lab >= 0].all(), sel.reason
     assert not sel.mask[lab == -2].any()
     assert sel.mask[lab == -1].mean() < 0.5
-    assert len(sel.levels) == len(alts)
+    assert len(sel.altitudes) == len(alts)
 
 
 def test_ground_only_keeps_all():

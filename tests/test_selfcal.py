@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses, cell_average, height_levels
+from mission.localize.selfcal import SelfCalibratingGrid, altitude_index, antenna_hypotheses, cell_average
 from mission.localize.uncertainty import Posterior, hpd_regions, region_covers
 from mission.samples import FlightSamples
 
@@ -81,19 +81,19 @@ def test_cells_average_repeated_passes_and_circular_yaw() -> None:
     assert c.area_m2 == 50.0
 
 
-def test_cells_keep_altitude_levels_apart() -> None:
+def test_cells_keep_cruise_altitudes_apart() -> None:
     """A cell flown at 25 m and at 45 m is two cells (not one at 35 m); it covers one horizontal cell's area;
-    heights within one level (noise, no 5 m gap) stay one level; level_gap_m = inf merges them."""
+    heights within one altitude (noise, no 5 m gap) stay one; altitude_gap_m = inf merges them."""
     rng = np.random.default_rng(3)
     z = np.r_[25.0 + rng.normal(0, 1.0, 40), 45.0 + rng.normal(0, 1.0, 40)]
-    assert set(height_levels(z)) == {0, 1} and (height_levels(z)[:40] == 0).all()
-    assert (height_levels(30.0 + rng.uniform(-4.0, 4.0, 500)) == 0).all()
+    assert set(altitude_index(z)) == {0, 1} and (altitude_index(z)[:40] == 0).all()
+    assert (altitude_index(30.0 + rng.uniform(-4.0, 4.0, 500)) == 0).all()
     rx = np.column_stack([np.full(80, 2.0), np.full(80, 2.0), z])
     f = FlightSamples(enu_m=rx, rss_dbm=np.r_[np.full(40, -50.0), np.full(40, -60.0)])
     c = cell_average(f, 5.0)
     assert len(c) == 2 and c.area_m2 == 25.0
     assert sorted(np.round(c.enu_m[:, 2])) == [25.0, 45.0] and sorted(c.rss_dbm) == [-60.0, -50.0]
-    m = cell_average(f, 5.0, level_gap_m=np.inf)
+    m = cell_average(f, 5.0, altitude_gap_m=np.inf)
     assert len(m) == 1 and m.enu_m[0, 2] == pytest.approx(35.0, abs=0.5)
 
 

@@ -1,6 +1,6 @@
 """Estimate the transmitter position from a flight log (ONNX network or classical estimators).
 
-Keeps the cruise part of the log (mission legs, else the cruise altitude levels) and runs the method.  Default
+Keeps the cruise part of the log (mission legs, else the cruise altitudes) and runs the method.  Default
 method (``mission.localize.api.localize_log``): ``--model`` given -> that network; a real receiver's log ->
 ``fusion`` (mean of the self-calibrating grid and ``models/rfsl_spiral_e2r.onnx``); a simulated log -> the
 shipped ``models/rfsl_default.onnx`` when present, else a grid search with the log's own simulation model.

@@ -157,7 +157,7 @@ class ModelGridSearch(_Base):
         area=None,
         margin_m: float = 60.0,
         step_m: float = 10.0,
-        levels: int = 3,
+        refinements: int = 3,
         keep: int = 5,
         max_points: int = 1500,
         loss: str = "soft_l1",
@@ -173,7 +173,7 @@ class ModelGridSearch(_Base):
         self.area = area
         self.margin_m = float(margin_m)
         self.step_m = float(step_m)
-        self.levels = int(levels)
+        self.refinements = int(refinements)
         self.keep = int(keep)
         self.max_points = int(max_points)
         self.loss = loss
@@ -213,7 +213,7 @@ class ModelGridSearch(_Base):
         return np.asarray(pred, dtype=float).reshape(len(cand_xy), -1)
 
     def coarse_candidates(self, enu: np.ndarray) -> tuple[tuple[float, float, float, float], np.ndarray]:
-        """The search box and the first level's candidates: a ``step_m`` grid from the box's corner, kept inside
+        """The search box and the first pass's candidates: a ``step_m`` grid from the box's corner, kept inside
         the area's polygon when there is one (all of them if none falls inside)."""
         bounds, poly = search_bounds(self.area, enu, self.margin_m)
         xmin, ymin, xmax, ymax = bounds
@@ -228,7 +228,7 @@ class ModelGridSearch(_Base):
     def fixed_geometry(self, enu: np.ndarray, attitude: np.ndarray | None, cand_xy: np.ndarray | None = None
                        ) -> FixedGeometrySearch:
         """This search for many RSS records flown along one geometry (``FixedGeometrySearch``); candidates
-        ``cand_xy`` (K, 2), by default the first level's grid (no refinement)."""
+        ``cand_xy`` (K, 2), by default the first pass's grid (no refinement)."""
         if cand_xy is None:
             cand_xy = self.coarse_candidates(np.asarray(enu, dtype=float))[1]
         return FixedGeometrySearch(self, np.asarray(enu, dtype=float), attitude, np.asarray(cand_xy, dtype=float))
@@ -243,7 +243,7 @@ class ModelGridSearch(_Base):
                 lo = f.rss_dbm < f.rss_dbm.max() - self.floor_db
                 resid = f.rss_dbm[None, :] - pred
                 off0 = np.median(resid[:, ~lo], axis=1)
-                # censored samples: measured level is an upper bound of the signal (noise floor)
+                # censored samples: measured value is an upper bound of the signal (noise floor)
                 resid[:, lo] = np.maximum(resid[:, lo], off0[:, None])
                 offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(resid, self.loss, self.f_scale_db)
                 continue
@@ -265,11 +265,11 @@ class ModelGridSearch(_Base):
         (xmin, ymin, xmax, ymax), cand = self.coarse_candidates(f.enu_m)
         step = self.step_m
         n_eval = 0
-        for level in range(self.levels):
+        for rnd in range(self.refinements):
             cost, off = self.cost(f, cand)
             n_eval += len(cand)
             best = np.argsort(cost)[: self.keep]
-            if level == self.levels - 1:
+            if rnd == self.refinements - 1:
                 break
             step /= 4.0
             d = np.arange(-4, 5) * step

@@ -2,12 +2,12 @@
 
 Why: a network trained on other trajectories and altitudes pays for the difference (the paper: 16-18 m on its
 own spiral, 35 m across trajectories).  Here the track is the flight's own, reduced to ``cell_m`` cells
-(``selfcal.cell_average``: centre of mass, mean heading, sample count per cell and altitude level), and many
+(``selfcal.cell_average``: centre of mass, mean heading, sample count per cell and cruise altitude), and many
 transmitters are simulated along it, each under its own draw of a physics family
 (``mission.physics.family``: model spec, correlated shadowing, white noise, offset).
 
-Per transmitter j with family draw (spec_j, sigma_j, L_j, n_j, c_j), cell m (``family.simulate_rss`` at the
-cell level)::
+Per transmitter j with family draw (spec_j, sigma_j, L_j, n_j, c_j), cell m (``family.simulate_rss`` per
+cell)::
 
     P_jm = model_j(tx_j, cell_m, attitude_m) + c_j + S_jm + e_jm,    S_j ~ N(0, sigma_j^2 rho(|x_m - x_m'|; L_j))
     e_jm ~ N(0, n_j^2 / count_m)                                      # white noise averaged over the cell
@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.selfcal import LEVEL_GAP_M, cell_average
+from mission.localize.selfcal import ALTITUDE_GAP_M, cell_average
 from mission.physics.family import PhysicsFamily, draw_value
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
@@ -51,13 +51,13 @@ class TrackCells:
         return int(self.count.size)
 
 
-def track_cells(f: FlightSamples, cell_m: float, level_gap_m: float = LEVEL_GAP_M) -> TrackCells:
+def track_cells(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M) -> TrackCells:
     """The flight averaged into cells (``selfcal.cell_average``; roll and pitch averaged the same way)."""
-    cells = cell_average(f, cell_m, level_gap_m)
+    cells = cell_average(f, cell_m, altitude_gap_m)
     roll = pitch = np.zeros(len(cells))
     if f.attitude_rad is not None:  # same cells, same order: average the angles as if they were the RSS
-        roll = cell_average(replace(f, rss_dbm=f.attitude_rad[:, 0]), cell_m, level_gap_m).rss_dbm
-        pitch = cell_average(replace(f, rss_dbm=f.attitude_rad[:, 1]), cell_m, level_gap_m).rss_dbm
+        roll = cell_average(replace(f, rss_dbm=f.attitude_rad[:, 0]), cell_m, altitude_gap_m).rss_dbm
+        pitch = cell_average(replace(f, rss_dbm=f.attitude_rad[:, 1]), cell_m, altitude_gap_m).rss_dbm
     att = np.column_stack([roll, pitch, cells.yaw_rad])
     return TrackCells(cells.enu_m, att, cells.count.astype(float), cells.rss_dbm, float(cell_m))
 

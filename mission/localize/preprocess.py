@@ -1,16 +1,16 @@
 """Keep the cruise part of a flight log: drop ground time, take-off, landing and climbs by altitude.
 
-Rule (any cruise altitude, any trajectory, one or several altitude levels): let ``h`` be the height above the
-origin's ground (ENU z, i.e. ``rel_alt_m``-like).  The *upper part* is the samples above half of the flight's
-99th-percentile height; its median is the cruise altitude ``h_c``, and samples within ``band(h_c)`` (default
-``max(3 m, 15 % of h_c)``) of it are the first level, when that band holds at least half of the upper part.
-Otherwise (a flight split between altitudes, whose median falls between them), and for every further level, the
-level is the height whose band holds the most of the remaining airborne samples (refined to their median); a
-further level is kept while its band holds at least ``min_level_share`` of the airborne samples and lies above
-``min_cruise_m``.  Why levels and not "everything airborne": on the real AFAR flights climbs and descents are
-~17 dB off the model (``benchmarks/calibrate_real_afar.py``), while a second survey altitude is good data
-(other teams flew at 20-47 m).  A flight that never leaves the ground (``h_c`` below ``min_cruise_m``) keeps
-everything, and says so.
+Rule (any trajectory, one or several cruise altitudes): let ``h`` be the height above the origin's ground
+(ENU z, i.e. ``rel_alt_m``-like).  The *upper part* is the samples above half of the flight's 99th-percentile
+height; its median is the cruise altitude ``h_c``, and samples within ``band(h_c)`` (default
+``max(3 m, 15 % of h_c)``) of it are the first cruise altitude's, when that band holds at least half of the upper
+part.  Otherwise (a flight split between altitudes, whose median falls between them), and for every further
+altitude, the altitude is the height whose band holds the most of the remaining airborne samples (refined to
+their median); a further altitude is kept while its band holds at least ``min_altitude_share`` of the airborne
+samples and lies above ``min_cruise_m``.  Why cruise altitudes and not "everything airborne": on the real AFAR
+flights climbs and descents are ~17 dB off the model (``benchmarks/calibrate_real_afar.py``), while a second
+survey altitude is good data (other teams flew at 20-47 m).  A flight that never leaves the ground (``h_c``
+below ``min_cruise_m``) keeps everything, and says so.
 """
 
 from __future__ import annotations
@@ -22,14 +22,14 @@ import numpy as np
 
 @dataclass
 class CruiseSelection:
-    """Which samples are cruise (``mask``), at what altitude (the first level) and band, and why; ``levels``
-    lists every kept altitude level as (altitude m, band m)."""
+    """Which samples are cruise (``mask``), at what altitude (the first one) and band, and why; ``altitudes``
+    lists every kept cruise altitude as (altitude m, band m)."""
 
     mask: np.ndarray
     cruise_alt_m: float
     band_m: float
     reason: str
-    levels: list[tuple[float, float]] = field(default_factory=list)
+    altitudes: list[tuple[float, float]] = field(default_factory=list)
 
     @property
     def n_kept(self) -> int:
@@ -37,13 +37,13 @@ class CruiseSelection:
 
 
 def _band(h: np.ndarray | float, band_m: float | None) -> np.ndarray | float:
-    """Half-width of an altitude level's band: ``band_m`` or max(3 m, 15 % of the level)."""
+    """Half-width of a cruise altitude's band: ``band_m`` or max(3 m, 15 % of the altitude)."""
     return band_m if band_m is not None else np.maximum(3.0, 0.15 * np.asarray(h, dtype=float))
 
 
-def _densest_level(hs: np.ndarray, lo: float, band_m: float | None) -> tuple[float, int]:
-    """(level, count): the height in [lo, max] whose band holds the most of the sorted heights ``hs``, refined to
-    the median of the heights in that band (vectorised over a 0.25 m grid of candidate levels)."""
+def _densest_altitude(hs: np.ndarray, lo: float, band_m: float | None) -> tuple[float, int]:
+    """(altitude, count): the height in [lo, max] whose band holds the most of the sorted heights ``hs``, refined to
+    the median of the heights in that band (vectorised over a 0.25 m grid of candidate altitudes)."""
     c = np.arange(lo, hs[-1] + 0.25, 0.25)
     b = _band(c, band_m)
     cnt = np.searchsorted(hs, c + b, "right") - np.searchsorted(hs, c - b, "left")
@@ -54,10 +54,10 @@ def _densest_level(hs: np.ndarray, lo: float, band_m: float | None) -> tuple[flo
 
 
 def cruise_mask(
-    height_m: np.ndarray, band_m: float | None = None, min_cruise_m: float = 5.0, min_level_share: float = 0.15,
-    max_levels: int = 4,
+    height_m: np.ndarray, band_m: float | None = None, min_cruise_m: float = 5.0, min_altitude_share: float = 0.15,
+    max_altitudes: int = 4,
 ) -> CruiseSelection:
-    """Select the cruise part (one or more altitude levels) from heights above ground (N,) in metres."""
+    """Select the cruise part (one or more cruise altitudes) from heights above ground (N,) in metres."""
     h = np.asarray(height_m, dtype=float)
     n = h.size
     if n == 0:
@@ -76,30 +76,30 @@ def cruise_mask(
     n_air = int(airborne.sum())
     b = float(_band(hc, band_m))
     mask = np.abs(h - hc) <= b
-    if int(mask.sum()) < 0.5 * int(upper.sum()):  # split between altitudes: the median is no level
-        hc, _ = _densest_level(np.sort(h[airborne]), min_cruise_m, band_m)
+    if int(mask.sum()) < 0.5 * int(upper.sum()):  # split between altitudes: the median is no cruise altitude
+        hc, _ = _densest_altitude(np.sort(h[airborne]), min_cruise_m, band_m)
         b = float(_band(hc, band_m))
         mask = np.abs(h - hc) <= b
-    levels = [(hc, b)]
-    while len(levels) < max_levels:
+    altitudes = [(hc, b)]
+    while len(altitudes) < max_altitudes:
         rest = np.sort(h[airborne & ~mask])
-        if rest.size < max(2, min_level_share * n_air):
+        if rest.size < max(2, min_altitude_share * n_air):
             break
-        lv, cnt = _densest_level(rest, min_cruise_m, band_m)
+        lv, cnt = _densest_altitude(rest, min_cruise_m, band_m)
         bl = float(_band(lv, band_m))
         new = airborne & ~mask & (np.abs(h - lv) <= bl)
-        if cnt < min_level_share * n_air or int(new.sum()) < min_level_share * n_air:
+        if cnt < min_altitude_share * n_air or int(new.sum()) < min_altitude_share * n_air:
             break
         mask |= new
-        levels.append((lv, bl))
+        altitudes.append((lv, bl))
     dropped = n - int(mask.sum())
     ground = int((h < min_cruise_m).sum())
-    at = " and ".join(f"{lv:.1f} m +- {bl:.1f} m" for lv, bl in levels)
+    at = " and ".join(f"{lv:.1f} m +- {bl:.1f} m" for lv, bl in altitudes)
     reason = (
         f"cruise at {at}: kept {int(mask.sum())} of {n} samples, dropped {dropped} "
         f"(take-off, landing, off-altitude; {ground} below {min_cruise_m:g} m)"
     )
-    return CruiseSelection(mask, levels[0][0], levels[0][1], reason, levels)
+    return CruiseSelection(mask, altitudes[0][0], altitudes[0][1], reason, altitudes)
 
 
 def select_cruise(log, band_m: float | None = None, min_cruise_m: float = 5.0):
@@ -131,7 +131,7 @@ def select_mission_legs(log):
 
 
 def select_samples(log):
-    """The samples a localizer uses, and why: mission legs when the phase is logged, else the cruise altitude levels."""
+    """The samples a localizer uses, and why: mission legs when the phase is logged, else the cruise altitudes."""
     legs = select_mission_legs(log)
     if legs is not None:
         return legs

@@ -9,7 +9,7 @@ the best hypothesis is kept per candidate (profile likelihood).  The distance la
 moved estimates (``models/README.md``).
 
 Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal plane, one
-set per altitude level (:func:`cell_average`), so that a slow pass or a hover does not count its spot many
+set per cruise altitude (:func:`cell_average`), so that a slow pass or a hover does not count its spot many
 times, and the likelihood is tempered to the number of *independent* cells, ``n_eff = covered area / (pi corr_m^2)``
 (exponential shadowing correlation length ``corr_m``), so thousands of correlated samples do not count as
 independent evidence.  The tempered profile likelihood over the search grid is the posterior from which
@@ -46,8 +46,8 @@ HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
 # 3 / 6 of 6 (the afar-family masses 0.511 / 0.954 covered 61 / 94 % of the fitted benchmark: too wide).
 CORR_M = 15.0
 CALIBRATED_MASS = {0.5: 0.339, 0.9: 0.870}
-# Heights further apart than this are separate altitude levels when cells are averaged (height_levels)
-LEVEL_GAP_M = 5.0
+# Heights further apart than this are separate cruise altitudes when cells are averaged (altitude_index)
+ALTITUDE_GAP_M = 5.0
 
 
 @dataclass
@@ -60,7 +60,7 @@ class Cells:
     yaw_rad: np.ndarray
     count: np.ndarray
     cell_m: float
-    n_columns: int | None = None  # distinct horizontal cells (one flown at two altitude levels counts once); None: len
+    n_columns: int | None = None  # distinct horizontal cells (one flown at two altitudes counts once); None: len
 
     def __len__(self) -> int:
         return int(self.rss_dbm.size)
@@ -77,25 +77,25 @@ def corr_is_default(corr_m: float) -> bool:
     return abs(corr_m - CORR_M) < 1e-9
 
 
-def height_levels(z: np.ndarray, gap_m: float = LEVEL_GAP_M) -> np.ndarray:
-    """Altitude level index per sample (N,): heights split wherever sorted heights leave a gap over ``gap_m``.
+def altitude_index(z: np.ndarray, gap_m: float = ALTITUDE_GAP_M) -> np.ndarray:
+    """Cruise altitude index per sample (N,): heights split wherever sorted heights leave a gap over ``gap_m``.
 
-    Why: a flight surveyed at two altitudes (``preprocess.cruise_mask`` keeps both levels) must not average a
-    cell's samples at 25 m and 45 m into one point at 35 m; one level (any noise within it) gives all zeros.
+    Why: a flight surveyed at two altitudes (``preprocess.cruise_mask`` keeps both) must not average a
+    cell's samples at 25 m and 45 m into one point at 35 m; one altitude (any noise within it) gives all zeros.
     """
     zs = np.sort(z)
     cuts = zs[1:][np.diff(zs) > gap_m]
     return np.searchsorted(cuts, z, side="right")
 
 
-def cell_average(f: FlightSamples, cell_m: float, level_gap_m: float = LEVEL_GAP_M) -> Cells:
-    """Average a flight's samples into ``cell_m`` square horizontal cells, one per altitude level (vectorised;
+def cell_average(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M) -> Cells:
+    """Average a flight's samples into ``cell_m`` square horizontal cells, one set per cruise altitude (vectorised;
     yaw averaged on the circle).
 
-    Without attitude the yaw is taken as 0 (nose north); ``level_gap_m`` = inf merges the altitude levels.
+    Without attitude the yaw is taken as 0 (nose north); ``altitude_gap_m`` = inf merges the altitudes.
     """
     xy = np.floor(f.enu_m[:, :2] / cell_m).astype(np.int64)
-    key = np.column_stack([xy, height_levels(f.enu_m[:, 2], level_gap_m)])
+    key = np.column_stack([xy, altitude_index(f.enu_m[:, 2], altitude_gap_m)])
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
     m = cnt.size
@@ -226,7 +226,7 @@ class SelfCalibratingGrid(_Base):
     box grown by ``margin_m``.  ``corr_m`` sets the likelihood's temperature (module docstring) and with it the
     width of the uncertainty regions; its default was calibrated on the unseen-flight benchmark
     (``models/README.md``).
-    ``level_gap_m``: heights further apart than this are altitude levels with cells of their own (inf: one).
+    ``altitude_gap_m``: heights further apart than this are cruise altitudes with cells of their own (inf: one).
     """
 
     name = "selfcal"
@@ -235,7 +235,7 @@ class SelfCalibratingGrid(_Base):
                  refine_m: float = 1.0, tx_height_m: float = DEFAULT_TX_HEIGHT_M, heading_step_deg: float = 30.0,
                  hypotheses: tuple[str, ...] = HYPOTHESIS_KINDS, corr_m: float = CORR_M, min_cells: int = 8,
                  levels: tuple[float, ...] = (0.5, 0.9), masses: dict[float, float] | None = None,
-                 level_gap_m: float = LEVEL_GAP_M) -> None:
+                 altitude_gap_m: float = ALTITUDE_GAP_M) -> None:
         self.area = area
         self.margin_m = float(margin_m)
         self.cell_m = float(cell_m)
@@ -247,7 +247,7 @@ class SelfCalibratingGrid(_Base):
         self.corr_m = float(corr_m)
         self.min_cells = int(min_cells)
         self.levels = tuple(levels)
-        self.level_gap_m = float(level_gap_m)
+        self.altitude_gap_m = float(altitude_gap_m)
         self.masses = (dict(masses) if masses is not None
                        else dict(CALIBRATED_MASS) if corr_is_default(corr_m) else {})
 
@@ -262,7 +262,7 @@ class SelfCalibratingGrid(_Base):
         from mission.localize.uncertainty import grid_posterior, hpd_regions
 
         f = as_flight(flight, origin)
-        cells = cell_average(f, self.cell_m, self.level_gap_m)
+        cells = cell_average(f, self.cell_m, self.altitude_gap_m)
         if len(cells) < self.min_cells:
             raise InputError(f"only {len(cells)} distinct {self.cell_m:g} m cells flown: too few to localize "
                              f"(need {self.min_cells})")
