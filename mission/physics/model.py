@@ -176,7 +176,7 @@ class PropagationModel:
                         return body_azimuth(ub2[0], ub2[1])
                 amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
             g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
-            # phase difference k (d_ref - d_los) = k 4 h_t h_r / (d_ref + d_los): no cancellation
+            # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref + d_los): no cancellation
             dphi = (z_t * z_r) * dt(4.0 * TWO_PI / wavelength(fs.fc_hz)) / (d_ref + d_los)
             # |A + Gamma B e^{-j dphi}|^2 = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})   (eq. 1)
             re = g_re * np.cos(dphi)
@@ -203,7 +203,8 @@ class PropagationModel:
                 ) -> dict[str, NDArray]:
         """Every intermediate quantity (float64 reference, explicit angles) of the broadcast shape.
 
-        Keys: d_2d, d_los, d_ref, h_t, h_r, grazing_rad, gamma_abs, gamma_phase_rad, phase_diff_rad,
+        Keys: d_2d, d_los, d_ref, h_t, h_r, grazing_rad, gamma_abs, gamma_phase_rad (arg Gamma), phase_diff_rad
+        (the paper's RF phase difference psi_phase, eq. 1),
         el_tx_dir_rad, el_tx_ref_rad, az_tx_rad, g_tx_dir_dbi, g_tx_ref_dbi, g_rx_dir_dbi, g_rx_ref_dbi,
         az_b_rad, dep_b_rad, az_b_ref_rad, dep_b_ref_rad, direct_dbm, reflected_dbm, two_ray_dbm,
         shadowed, upsilon_db, rss_dbm (and ``<name>_db`` for other additive effects).
