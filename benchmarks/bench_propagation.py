@@ -19,6 +19,7 @@ import tracemalloc  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M  # noqa: E402
 from mission.physics import make_model  # noqa: E402
 
 
@@ -53,7 +54,7 @@ def main() -> None:
         model = make_model("e2r", pattern=pattern)
         for label, n_tx, n in (("flight", 1, 20_000), ("batch", m_tx, 10_000)):
             rx, att = _flight(n, rng)
-            tx = np.c_[rng.uniform(0, 400, (n_tx, 2)), np.full(n_tx, 1.5)][:, None, :]
+            tx = np.c_[rng.uniform(0, 400, (n_tx, 2)), np.full(n_tx, DEFAULT_TX_HEIGHT_M)][:, None, :]
             if pattern == "measured" and label == "batch":
                 tx = tx[: max(1, n_tx // 10)]  # 10x fewer: the tabulated path is slower
             model.rss_dbm(tx[:1], rx[:1000], att[:1000])  # warm up
