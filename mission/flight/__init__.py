@@ -3,8 +3,8 @@
 Modules: ``runner`` (the order of a flight: check, connect, upload, arm, fly, return, land, close),
 ``tasks`` (one asyncio task per telemetry stream, signals, the watchdog, events), ``preflight`` (option
 checks before anything starts), ``vehicle_process`` (the built-in simulated vehicle as a child that dies
-with its parent), ``plan`` (the raw MAVLink mission), ``ardupilot`` (return nose first at mission speed),
-``telemetry`` (time-stamped position/attitude on the vehicle's clock, measured speed-up and rates),
+with its parent), ``plan`` (the mission items as MAVSDK uploads them), ``ardupilot`` (return nose first at
+mission speed), ``telemetry`` (time-stamped position/attitude on the vehicle's clock, measured speed-up and rates),
 ``phases`` (mission phase over time), ``logrows`` (RSS rows joined with telemetry and phase, appended),
 ``sources`` (RSS sources behind one interface: sim, aerpaw-fifo, udp), ``sdklog`` (MAVSDK's own messages,
 once each), ``progress`` (the live display).
