@@ -58,9 +58,8 @@ def kwargs_of(name: str) -> dict:
 
 def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
     """2D errors (m) of network ``name`` on ``n`` fresh simulated flights of its sim domain."""
-    from mission.localize.altitude_scale import dataset_heights
-    from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
     from mission.localize.onnx_model import OnnxLocalizer
+    from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 
     rec = json.loads((REPO / "models" / f"{name}.json").read_text())["ci_check"]
     cfg = DatasetConfig.from_dict(rec["dataset_config"])
@@ -77,8 +76,8 @@ def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
 
 def _run(est, truth) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where clipped)."""
-    from mission.localize.evaluate_suite import _coverage
     from mission.localize.uncertainty import outer_region
+    from mission.workshop.evaluate_suite import _coverage
 
     reg = outer_region(est.extras) or {}
     share = reg["area_m2"] / (np.pi * reg["radius_m"] ** 2) if "radius_m" in reg else float("nan")
@@ -89,7 +88,7 @@ def _run(est, truth) -> tuple[float, dict, str, float]:
 def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by) on flight i of a benchmark cache."""
     from mission.localize.api import localize_log
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     kw, suite_dir, i = job
     log, truth, _ = read_suite(suite_dir).load(i)
@@ -116,7 +115,7 @@ def _pool(fn, jobs: list) -> list:
 
 def suite_runs(name: str, dirs: list[str]) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` over the flights of benchmark caches ``dirs``."""
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     return _pool(_suite_flight, [(kwargs_of(name), d, i) for d in dirs for i in range(len(read_suite(d)))])
 
@@ -130,7 +129,7 @@ def simulated_runs(kw: dict, missions: list[str], seeds: range) -> list[tuple[fl
 def real_runs(name: str, mat: str) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` on the six real AFAR flights."""
     from mission.localize.api import localize_log
-    from mission.localize.evaluate import import_afar
+    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp:
         ests = [localize_log(p, **kwargs_of(name)) for p in import_afar(mat, tmp)]
@@ -163,7 +162,7 @@ def product_check(seeds: str, methods: list[str]) -> None:
 def benchmark_label(dirs: list[str]) -> str:
     """'unseen-flight benchmark, FAMILY family (seeds ...)' for the caches ``dirs`` (the family their manifests
     name: a built-in name, or a family file's name and sha256 prefix)."""
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     fams = sorted({str(read_suite(d).manifest.get("family", "afar")) for d in dirs})
     seeds = ", ".join(str(read_suite(d).manifest.get("seed")) for d in dirs)

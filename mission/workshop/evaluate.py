@@ -152,7 +152,7 @@ def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def test_label(manifest: dict) -> str:
     """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
-    from mission.localize.dataset import physics_label
+    from mission.workshop.dataset import physics_label
 
     cfg = manifest["config"]
     r = cfg.get("randomisation", {})
@@ -171,9 +171,8 @@ def evaluate_sim(
     progress: Callable[[str], None] | None = None,
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
-    from mission.localize.altitude_scale import dataset_heights
-    from mission.localize.dataset import FlightSimulator, dataset_config, load_dataset, read_manifest
     from mission.localize.onnx_model import OnnxLocalizer
+    from mission.workshop.dataset import FlightSimulator, dataset_config, dataset_heights, load_dataset, read_manifest
 
     m = read_manifest(dataset)
     label = test_label(m)
