@@ -34,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.error_circles import CIRCLE_METHODS
+
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
 MODELS = ("rfsl_spiral_e2r", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar", "rfsl_spiral_e2r_ens5")
-METHODS = ("strongest", "centroid", "grid")
 GENERATOR_MISSIONS = ("spiral", "lawnmower", "edge_sweep", "expanding_square", "random_waypoints")
 OTHER_GENERATORS = GENERATOR_MISSIONS[1:]
 # network -> (how its sim domain differs from its card's CI check set, description)
@@ -53,7 +54,7 @@ SIM_DOMAINS = {
 
 def kwargs_of(name: str) -> dict:
     """``localize_log`` keywords for a shipped network's name or a classical method's."""
-    return {"method": name} if name in METHODS else {"model_path": str(REPO / "models" / f"{name}.onnx")}
+    return {"method": name} if name in CIRCLE_METHODS else {"model_path": str(REPO / "models" / f"{name}.onnx")}
 
 
 def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
@@ -173,16 +174,16 @@ def store(name: str, regions: dict) -> None:
     """Write a calibration: a network's into its card, a classical method's into method_circles.json."""
     from mission.localize.error_circles import METHOD_CIRCLES, REGIONS_KEY
 
-    path = METHOD_CIRCLES if name in METHODS else REPO / "models" / f"{name}.json"
+    path = METHOD_CIRCLES if name in CIRCLE_METHODS else REPO / "models" / f"{name}.json"
     d = json.loads(path.read_text()) if path.is_file() else {}
-    key = name if name in METHODS else REGIONS_KEY
+    key = name if name in CIRCLE_METHODS else REGIONS_KEY
     d[key] = {**d.get(key, {}), **regions}
     path.write_text(json.dumps(d, indent=1) + "\n")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--models", nargs="+", default=list(MODELS) + list(METHODS), help="networks and methods")
+    ap.add_argument("--models", nargs="+", default=list(MODELS) + list(CIRCLE_METHODS), help="networks and methods")
     ap.add_argument("--sim-n", type=int, default=1000, help="networks: simulated calibration flights (0: none)")
     ap.add_argument("--sim-seed", type=int, default=3100)
     ap.add_argument("--method-seeds", default="3100:3160", help="methods: rfsl simulate seeds per mission")
@@ -196,7 +197,7 @@ def main() -> None:
 
     lo, hi = (int(v) for v in args.method_seeds.split(":"))
     for name in args.models:
-        regions, model = {}, None if name in METHODS else REPO / "models" / f"{name}.onnx"
+        regions, model = {}, None if name in CIRCLE_METHODS else REPO / "models" / f"{name}.onnx"
         if model is not None and args.sim_n > 0:
             err, src = sim_errors(name, args.sim_n, args.sim_seed)
             regions["sim"] = calibration_record(err, src, model)
@@ -218,7 +219,7 @@ def main() -> None:
         if args.mat:
             print(f"  six real flights: {coverage_line(real_runs(name, args.mat))}", flush=True)
     if args.product_seeds:
-        product_check(args.product_seeds, [m for m in args.models if m in METHODS])
+        product_check(args.product_seeds, [m for m in args.models if m in CIRCLE_METHODS])
 
 
 if __name__ == "__main__":

@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import argparse
 
+from mission.localize.methods import names_where
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    classical = names_where(kind="classical")
     p.add_argument("--models", nargs="*", default=[], help="ONNX models to compare")
     p.add_argument(
         "--methods",
-        default="strongest,centroid,grid",
-        help="classical methods, comma list of strongest, centroid, grid, grid:MODEL (free-space, two-ray, e2r) "
+        default=",".join(classical),
+        help=f"classical methods, comma list of {', '.join(classical)}, grid:MODEL (free-space, two-ray, e2r) "
         "or grid:preset:NAME ('' for none)",
     )
     p.add_argument(

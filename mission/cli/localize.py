@@ -15,7 +15,7 @@ import sys
 from collections.abc import Sequence
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
-from mission.localize import METHOD_NAMES
+from mission.localize.methods import METHOD_NAMES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,15 +1,13 @@
 """Transmitter localization from a flight log: features, classical estimators, ONNX networks.
 
 Every localizer returns an ``Estimate``; ``mission.localize.api.localize_log`` is the one entry point used
-by the ``localize`` CLI and by ``fly-mission`` after landing.
+by the ``localize`` CLI and by ``fly-mission`` after landing; the methods it runs are registered in
+``mission.localize.methods``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-
-# The methods ``localize_log`` runs (``api.METHOD_NAMES``); here so the CLI offers them without importing numpy.
-METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal", "fusion", "matched")
 
 
 @dataclass

@@ -31,11 +31,11 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
-from mission.localize import METHOD_NAMES, Estimate  # METHOD_NAMES lives there (imported by the light CLI)
+from mission.localize import Estimate
+from mission.localize.methods import DEFAULT_MODEL_NAME, FROM_CARD, method_entry
 from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
-DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
 
@@ -87,43 +87,13 @@ def make_localizer(
     floor_db: float | None = None,
     physics_preset: str | None = None,
 ):
-    """Build the localizer object for a method name (``physics_preset`` replaces ``physics_model``)."""
-    from mission.localize import classical
-
-    if method == "onnx":
-        from mission.localize.onnx_model import OnnxLocalizer
-
-        path = model_path or default_model_path()
-        if path is None:
-            raise InputError(f"method onnx needs --model (no models/{DEFAULT_MODEL_NAME} shipped)")
-        return OnnxLocalizer(path, tx_height_m=tx_height_m)
-    if method == "strongest":
-        return classical.StrongestSample()
-    if method == "centroid":
-        return classical.WeightedCentroid()
-    if method == "selfcal":
-        from mission.localize.selfcal import SelfCalibratingGrid
-
-        return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
-    if method == "matched":  # track-matched ABC under the physics family (trained here, on this flight's track)
-        from mission.localize.matched import MatchedLocalizer
-
-        return MatchedLocalizer(area=area, tx_height_m=tx_height_m)
-    if method == "grid":
-        if physics_preset is not None:
-            from mission.physics.presets import preset_model
-
-            try:
-                model = preset_model(physics_preset, **(physics_params or {}))
-            except InputError:
-                raise
-            except ValueError as e:
-                raise InputError(f"physics preset {physics_preset!r}: {e}", field="physics_params") from None
-            return classical.ModelGridSearch(model, tx_height_m=tx_height_m, area=area, floor_db=floor_db)
-        return classical.ModelGridSearch(
-            physics_model, physics_params, tx_height_m=tx_height_m, area=area, floor_db=floor_db
-        )
-    raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+    """Build the localizer object for a method name: its registry entry's factory (``mission.localize.methods``;
+    ``physics_preset`` replaces ``physics_model``)."""
+    entry = method_entry(method)
+    if entry.factory is None:
+        raise InputError(f"method {method!r} combines other methods: localize_log runs it, not one localizer")
+    return entry.factory(model_path=model_path, physics_model=physics_model, physics_params=physics_params,
+                         tx_height_m=tx_height_m, area=area, floor_db=floor_db, physics_preset=physics_preset)
 
 
 def _is_simulated(log) -> bool:
@@ -305,10 +275,9 @@ def localize_log(
             )
     else:
         choice = f"method {method} requested"
-    if method not in METHOD_NAMES:
-        raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+    entry = method_entry(method)  # an unknown name: InputError listing the known ones
     ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
-    area = ra if method in ("grid", "selfcal", "fusion", "matched") else None
+    area = ra if entry.bounded else None
     origin = log.origin
     if method == "fusion":
         est = _fusion(part, origin, area, tx_height_m, model_path)
@@ -318,7 +287,7 @@ def localize_log(
         from mission.localize.training_domain import trained_legs
 
         est = _in_log_frame(loc, loc.predict(trained_legs(part) if method == "onnx" else part), origin, method)
-        if method == "onnx":
+        if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
         else:
             _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),
