@@ -132,3 +132,16 @@ def test_runtime_never_imports_the_workshop(repo_dir) -> None:
     # the check sees an edge added anywhere the CLI reaches, even outside the runtime packages
     graph["mission.adaptive.live"] = graph["mission.adaptive.live"] | {"mission.workshop.suite"}
     assert workshop_imports(graph) == {"mission.adaptive.live": ["mission.workshop.suite"]}
+
+
+def test_architecture_map_names_every_module_in_its_room(repo_dir) -> None:
+    """ARCHITECTURE.md's row of each room names every module that lives there (and none from the other room)."""
+    rows = {ln.split("|")[1].strip(): ln for ln in (repo_dir / "ARCHITECTURE.md").read_text().splitlines()
+            if ln.startswith("| `mission/")}
+    rooms = {room: sorted(p.name for p in (repo_dir / "mission" / room).glob("*.py") if p.name != "__init__.py")
+             for room in ("localize", "workshop")}
+    for room, files in rooms.items():
+        row = rows[f"`mission/{room}/`"]
+        assert files and not [f for f in files if f"`{f}`" not in row], f"mission/{room}/ row misses modules"
+        other = rooms["workshop" if room == "localize" else "localize"]
+        assert not [f for f in other if f"`{f}`" in row], f"mission/{room}/ row names the other room's modules"
