@@ -22,7 +22,7 @@ def flight_with_truth(kind: str, src: str, i: int):
     """(FlightLog, truth xy in its ENU frame) of benchmark flight ``i`` of the cache ``src`` (kind "suite") or
     of the imported real log at ``src`` (kind "real", truth from its sidecar)."""
     from mission.flightlog import read_flight_log
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     if kind == "suite":
         fl = read_suite(src).load(i)

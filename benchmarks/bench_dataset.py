@@ -19,7 +19,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    from mission.localize.dataset import DatasetConfig, Randomisation, generate_dataset
+    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=60)

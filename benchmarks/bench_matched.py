@@ -75,7 +75,7 @@ def use_family(family: str) -> None:
 
 
 def _sim_one(args: tuple[int, int, str, tuple[str, ...]]) -> dict:
-    from mission.localize.suite import unseen_flight
+    from mission.workshop.suite import unseen_flight
 
     seed, i, family, methods = args
     use_family(family)
@@ -145,7 +145,7 @@ def main() -> None:
 
             logs = real_logs(Path(tmp))[: args.flights] if AFAR_MAT.is_dir() else []
             if not logs:
-                from mission.localize.suite import unseen_flight
+                from mission.workshop.suite import unseen_flight
 
                 logs = [("suite 2026:0", unseen_flight(2026, 0, family=args.family).log)]
             print(_load())

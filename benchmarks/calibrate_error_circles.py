@@ -34,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.error_circles import CIRCLE_METHODS
+
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
 MODELS = ("rfsl_spiral_e2r", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar", "rfsl_spiral_e2r_ens5")
-METHODS = ("strongest", "centroid", "grid")
 GENERATOR_MISSIONS = ("spiral", "lawnmower", "edge_sweep", "expanding_square", "random_waypoints")
 OTHER_GENERATORS = GENERATOR_MISSIONS[1:]
 # network -> (how its sim domain differs from its card's CI check set, description)
@@ -53,14 +54,13 @@ SIM_DOMAINS = {
 
 def kwargs_of(name: str) -> dict:
     """``localize_log`` keywords for a shipped network's name or a classical method's."""
-    return {"method": name} if name in METHODS else {"model_path": str(REPO / "models" / f"{name}.onnx")}
+    return {"method": name} if name in CIRCLE_METHODS else {"model_path": str(REPO / "models" / f"{name}.onnx")}
 
 
 def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
     """2D errors (m) of network ``name`` on ``n`` fresh simulated flights of its sim domain."""
-    from mission.localize.altitude_scale import dataset_heights
-    from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
     from mission.localize.onnx_model import OnnxLocalizer
+    from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 
     rec = json.loads((REPO / "models" / f"{name}.json").read_text())["ci_check"]
     cfg = DatasetConfig.from_dict(rec["dataset_config"])
@@ -77,8 +77,8 @@ def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
 
 def _run(est, truth) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where clipped)."""
-    from mission.localize.evaluate_suite import _coverage
     from mission.localize.uncertainty import outer_region
+    from mission.workshop.evaluate_suite import _coverage
 
     reg = outer_region(est.extras) or {}
     share = reg["area_m2"] / (np.pi * reg["radius_m"] ** 2) if "radius_m" in reg else float("nan")
@@ -89,7 +89,7 @@ def _run(est, truth) -> tuple[float, dict, str, float]:
 def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by) on flight i of a benchmark cache."""
     from mission.localize.api import localize_log
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     kw, suite_dir, i = job
     log, truth, _ = read_suite(suite_dir).load(i)
@@ -116,7 +116,7 @@ def _pool(fn, jobs: list) -> list:
 
 def suite_runs(name: str, dirs: list[str]) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` over the flights of benchmark caches ``dirs``."""
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     return _pool(_suite_flight, [(kwargs_of(name), d, i) for d in dirs for i in range(len(read_suite(d)))])
 
@@ -130,7 +130,7 @@ def simulated_runs(kw: dict, missions: list[str], seeds: range) -> list[tuple[fl
 def real_runs(name: str, mat: str) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` on the six real AFAR flights."""
     from mission.localize.api import localize_log
-    from mission.localize.evaluate import import_afar
+    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp:
         ests = [localize_log(p, **kwargs_of(name)) for p in import_afar(mat, tmp)]
@@ -163,7 +163,7 @@ def product_check(seeds: str, methods: list[str]) -> None:
 def benchmark_label(dirs: list[str]) -> str:
     """'unseen-flight benchmark, FAMILY family (seeds ...)' for the caches ``dirs`` (the family their manifests
     name: a built-in name, or a family file's name and sha256 prefix)."""
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite_cache import read_suite
 
     fams = sorted({str(read_suite(d).manifest.get("family", "afar")) for d in dirs})
     seeds = ", ".join(str(read_suite(d).manifest.get("seed")) for d in dirs)
@@ -174,16 +174,16 @@ def store(name: str, regions: dict) -> None:
     """Write a calibration: a network's into its card, a classical method's into method_circles.json."""
     from mission.localize.error_circles import METHOD_CIRCLES, REGIONS_KEY
 
-    path = METHOD_CIRCLES if name in METHODS else REPO / "models" / f"{name}.json"
+    path = METHOD_CIRCLES if name in CIRCLE_METHODS else REPO / "models" / f"{name}.json"
     d = json.loads(path.read_text()) if path.is_file() else {}
-    key = name if name in METHODS else REGIONS_KEY
+    key = name if name in CIRCLE_METHODS else REGIONS_KEY
     d[key] = {**d.get(key, {}), **regions}
     path.write_text(json.dumps(d, indent=1) + "\n")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--models", nargs="+", default=list(MODELS) + list(METHODS), help="networks and methods")
+    ap.add_argument("--models", nargs="+", default=list(MODELS) + list(CIRCLE_METHODS), help="networks and methods")
     ap.add_argument("--sim-n", type=int, default=1000, help="networks: simulated calibration flights (0: none)")
     ap.add_argument("--sim-seed", type=int, default=3100)
     ap.add_argument("--method-seeds", default="3100:3160", help="methods: rfsl simulate seeds per mission")
@@ -197,7 +197,7 @@ def main() -> None:
 
     lo, hi = (int(v) for v in args.method_seeds.split(":"))
     for name in args.models:
-        regions, model = {}, None if name in METHODS else REPO / "models" / f"{name}.onnx"
+        regions, model = {}, None if name in CIRCLE_METHODS else REPO / "models" / f"{name}.onnx"
         if model is not None and args.sim_n > 0:
             err, src = sim_errors(name, args.sim_n, args.sim_seed)
             regions["sim"] = calibration_record(err, src, model)
@@ -219,7 +219,7 @@ def main() -> None:
         if args.mat:
             print(f"  six real flights: {coverage_line(real_runs(name, args.mat))}", flush=True)
     if args.product_seeds:
-        product_check(args.product_seeds, [m for m in args.models if m in METHODS])
+        product_check(args.product_seeds, [m for m in args.models if m in CIRCLE_METHODS])
 
 
 if __name__ == "__main__":

@@ -27,8 +27,8 @@ def truth_level(job: tuple[int | str, int, str]) -> float:
     """The truth's HPD level under the default selfcal posterior on benchmark flight ``i`` of ``seed`` (or of
     the benchmark cache folder ``seed`` names)."""
     from mission.localize.api import localize_log
-    from mission.localize.suite import unseen_flight
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite import unseen_flight
+    from mission.workshop.suite_cache import read_suite
 
     seed, i, family = job
     log, truth, _ = read_suite(seed).load(i) if isinstance(seed, str) else unseen_flight(seed, i, family)

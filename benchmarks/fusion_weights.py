@@ -64,8 +64,8 @@ def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
 
 def main() -> None:
     from mission.evidence import mean_interval, paired_difference
-    from mission.localize.evaluate import import_afar
     from mission.localize.features import one_thread_process
+    from mission.workshop.evaluate import import_afar
 
     args = scoring_parser(__doc__).parse_args()
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers,

@@ -3,7 +3,7 @@
 Every method on (a) the six shared real AFAR flights held out by team (LOTO) and (b) a benchmark cache drawn from
 a physics family (``rfsl dataset --suite unseen --logs --family F.json``): mean error with paired bootstrap 90 %
 intervals (real: over flights and over teams; benchmark: over flights), the paired difference to the default,
-the share of truths in the 50 % / 90 % regions, then ``mission.localize.decision.pooled_decision``.
+the share of truths in the 50 % / 90 % regions, then ``mission.workshop.decision.pooled_decision``.
 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fam
     python benchmarks/score_decision.py --suite-dir /tmp/suite_fam --n 200 --mat ../shared/data/afar2023/mat \
@@ -28,7 +28,7 @@ FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the grid preset fitted on 
 
 
 def methods(models: Path, extra: list[str]) -> dict[str, str]:
-    """Label -> benchmark method spec (``mission.localize.evaluate_suite.suite_method``)."""
+    """Label -> benchmark method spec (``mission.workshop.evaluate_suite.suite_method``)."""
     out = {INCUMBENT: "default", "selfcal": "selfcal", "grid afar (LOTO fold on real)": "grid"}
     out.update({f"net {n}": f"onnx:{models / (n + '.onnx')}" for n in NETS if (models / (n + ".onnx")).is_file()})
     out["strongest sample"] = "strongest"
@@ -42,8 +42,8 @@ def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, 
     from mission.flightlog import read_flight_log
     from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
     from mission.localize.api import localize_log
-    from mission.localize.evaluate_suite import _coverage, suite_method
-    from mission.localize.predictive import flight_statistics
+    from mission.workshop.evaluate_suite import _coverage, suite_method
+    from mission.workshop.predictive import flight_statistics
 
     files = sorted(Path(mat).glob("results_useful_ori_exp_*_loc_*.mat"))
     if not files:
@@ -82,10 +82,10 @@ def _cov(c: dict, n: int) -> str:
 
 def main() -> None:
     from mission.evidence import compare_methods
-    from mission.localize.decision import pooled_decision
-    from mission.localize.evaluate_suite import evaluate_suite
-    from mission.localize.predictive import family_checks, verdict
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.decision import pooled_decision
+    from mission.workshop.evaluate_suite import evaluate_suite
+    from mission.workshop.predictive import family_checks, verdict
+    from mission.workshop.suite_cache import read_suite
 
     ap = scoring_parser(__doc__)
     ap.add_argument("--json", help="write every figure here")

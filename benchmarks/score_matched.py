@@ -19,7 +19,7 @@ from score_decision import INCUMBENT, score_real
 
 def main() -> None:
     from mission.evidence import compare_methods
-    from mission.localize.evaluate_suite import evaluate_suite
+    from mission.workshop.evaluate_suite import evaluate_suite
 
     ap = scoring_parser(__doc__)
     ap.add_argument("--decision", required=True, help="score_decision.py --json output on the same cache")

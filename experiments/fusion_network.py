@@ -49,8 +49,8 @@ def main() -> None:
     ap = scoring_parser(__doc__)
     ap.add_argument("--nets", nargs="+", required=True, help="ONNX networks (the incumbent first)")
     args = ap.parse_args()
-    from mission.localize.evaluate import import_afar
     from mission.localize.features import one_thread_process
+    from mission.workshop.evaluate import import_afar
 
     nets = tuple(args.nets)
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:

@@ -43,8 +43,8 @@ def one(job: tuple[str, int]) -> dict:
     from mission.localize import classical
     from mission.localize.api import localize_log, search_area
     from mission.localize.preprocess import select_samples
-    from mission.localize.suite_cache import read_suite
     from mission.physics.presets import build_model
+    from mission.workshop.suite_cache import read_suite
 
     src, i = job
     fl = read_suite(src).load(i)

@@ -89,7 +89,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
     args = ap.parse_args()
-    from mission.localize.evaluate import import_afar
+    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp:
         rows = [one_flight(p) for p in import_afar(args.mat, tmp)]

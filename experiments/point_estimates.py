@@ -56,7 +56,7 @@ def errors(rows: list[dict], key: str, fused: bool = True) -> np.ndarray:
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.localize.evaluate import import_afar
+    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers) as ex:
         real = list(ex.map(one, [("real", str(p), 0) for p in import_afar(args.mat, tmp)]))

@@ -98,8 +98,8 @@ _ORIG_SSR = sc.hypothesis_ssr
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.localize.evaluate import import_afar
     from mission.localize.features import one_thread_process
+    from mission.workshop.evaluate import import_afar
 
     res: dict[str, dict[str, list]] = {}
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:

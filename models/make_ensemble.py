@@ -83,7 +83,7 @@ def check(out: str, paths: list[str], dataset: str) -> None:
     """Fail unless ``out`` equals the members' mean on a dataset's clustering features."""
     import onnxruntime as ort
 
-    from mission.localize.dataset import load_dataset
+    from mission.workshop.dataset import load_dataset
 
     x = load_dataset(dataset, ("clustering",))[0]["clustering"].astype(np.float32)
 

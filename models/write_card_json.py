@@ -16,10 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.localize.altitude_scale import dataset_heights
-from mission.localize.dataset import load_dataset
 from mission.localize.error_circles import REGIONS_KEY
 from mission.localize.onnx_model import OnnxLocalizer
+from mission.workshop.dataset import dataset_heights, load_dataset
 
 
 def main(argv: list[str]) -> int:

@@ -72,8 +72,8 @@ def test_scale_factor_and_cluster_scaling():
 def tiny_altitude_net(tmp_path_factory, repo_dir):
     pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    from mission.localize.dataset import DatasetConfig, Randomisation, generate_dataset
-    from mission.localize.train import TrainConfig, train
+    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
+    from mission.workshop.train import TrainConfig, train
 
     d = tmp_path_factory.mktemp("alt")
     r = Randomisation(altitude_m=(15.0, 60.0), truncate=(0.15, 0.25))
@@ -84,9 +84,8 @@ def tiny_altitude_net(tmp_path_factory, repo_dir):
 
 
 def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_net):
-    from mission.localize.altitude_scale import dataset_heights
-    from mission.localize.dataset import load_dataset
     from mission.localize.onnx_model import OnnxLocalizer
+    from mission.workshop.dataset import dataset_heights, load_dataset
 
     d, res = tiny_altitude_net
     assert res.max_onnx_diff < 1e-4
@@ -118,7 +117,7 @@ def test_other_networks_ignore_heights(repo_dir):
 
 
 def test_normalised_rss_cannot_be_altitude_normalised(tmp_path, tiny_altitude_net):
-    from mission.localize.train import TrainConfig, train
+    from mission.workshop.train import TrainConfig, train
 
     d, _ = tiny_altitude_net
     with pytest.raises(InputError, match="clustering") as e:

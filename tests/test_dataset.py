@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from mission.localize.dataset import (
+from mission.workshop.dataset import (
     DatasetConfig,
     Randomisation,
     flight_rng,
@@ -124,7 +124,7 @@ def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
     shadowing leave every flight's bytes as before."""
     from dataclasses import replace
 
-    from mission.localize.dataset import FlightSimulator
+    from mission.workshop.dataset import FlightSimulator
 
     base = FlightSimulator(_cfg(repo_dir)).draw(3).samples
     same = FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0))).draw(3).samples
@@ -135,7 +135,7 @@ def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
 def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
     from dataclasses import replace
 
-    from mission.localize.dataset import FlightSimulator
+    from mission.workshop.dataset import FlightSimulator
 
     r = replace(FAST, fixed_heading=1.0, speed_mps=(3.0, 3.0), shadowing_db=(6.0, 6.0), shadowing_corr_m=(20, 20))
     fd = FlightSimulator(_cfg(repo_dir, randomisation=r)).draw(2)
@@ -151,8 +151,8 @@ def test_physics_preset_fold_is_the_simulated_model(repo_dir):
     geometry, with the heading jitter added to the preset's UAV-antenna heading."""
     from dataclasses import replace
 
-    from mission.localize.dataset import FlightSimulator
     from mission.physics.presets import build_model, load_preset
+    from mission.workshop.dataset import FlightSimulator
 
     r = replace(FAST, noise_db=(0.0, 0.0), offset_db=None, physics_heading_jitter_deg=5.0)
     sim = FlightSimulator(_cfg(repo_dir, randomisation=r, physics="afar:fit328"))

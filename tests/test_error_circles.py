@@ -31,7 +31,7 @@ from mission.localize.error_circles import (
     method_calibration,
     model_digest,
 )
-from mission.localize.evaluate_suite import region_contains
+from mission.workshop.evaluate_suite import region_contains
 
 SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
 
@@ -172,8 +172,8 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     receiver's kind) ``--model`` answers with its 'real' ones; both centred on the estimate, in the log frame."""
     from mission.cli.main import main as rfsl
     from mission.localize.api import localize_log
-    from mission.localize.suite import unseen_flight
     from mission.spec import DEFAULT_MISSION
+    from mission.workshop.suite import unseen_flight
 
     assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7101", "--out", str(tmp_path)]) == 0
     est = localize_log(next(tmp_path.glob("*.csv")))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.localize.evaluate import afar_truth, evaluate_real, evaluate_sim, import_afar, parse_method
+from mission.workshop.evaluate import afar_truth, evaluate_real, evaluate_sim, import_afar, parse_method
 
 
 def test_afar_truth_from_name():
@@ -17,7 +17,7 @@ def test_afar_truth_from_name():
 
 
 def test_evaluate_sim_classical(tmp_path, repo_dir):
-    from mission.localize.dataset import (
+    from mission.workshop.dataset import (
         DatasetConfig,
         FlightSimulator,
         Randomisation,
@@ -61,7 +61,7 @@ def test_method_specs():
 def test_grid_physics_rows_on_a_simulated_set(tmp_path, repo_dir):
     """``grid:MODEL`` runs the grid with that physics: on a noise-free free-space test set the free-space grid is
     exact to the grid's resolution and beats the e2r grid, whose physics is wrong there."""
-    from mission.localize.dataset import DatasetConfig, Randomisation, generate_dataset
+    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
 
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.3, 0.4),
                       noise_db=(0.0, 0.0))

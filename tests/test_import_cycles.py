@@ -1,5 +1,6 @@
 """No new import circles in the package: the module graph (top-level and function-level imports) of
-``mission`` and ``sitl`` has no strongly connected component beyond the circles still waiting to be broken."""
+``mission`` and ``sitl`` has no strongly connected component beyond the circles still waiting to be broken;
+and the runtime (what ``localize`` and ``fly-mission`` run) never imports the workshop (``mission.workshop``)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,11 @@ KNOWN = (
     {"mission.gap.candidates", "mission.gap.fit", "mission.gap.freeform", "mission.gap.spatial"},
     {"mission.gap.familyfit", "mission.gap.loopcheck"},
 )
+
+# the runtime rooms; with every module that ``localize`` / ``fly-mission`` reach from their CLI modules
+RUNTIME_PACKAGES = ("mission.localize", "mission.flight", "mission.flightlog", "mission.physics", "mission.trajectory")
+RUNTIME_ENTRIES = ("mission.cli.localize", "mission.cli.fly")
+WORKSHOP = "mission.workshop"
 
 
 def import_graph(root: Path) -> dict[str, set[str]]:
@@ -77,6 +83,27 @@ def circles(graph: dict[str, set[str]]) -> list[set[str]]:
     return found
 
 
+def reachable(graph: dict[str, set[str]], starts) -> set[str]:
+    """Every module reachable from ``starts`` along import edges (the starts included)."""
+    seen: set[str] = set()
+    todo = list(starts)
+    while todo:
+        m = todo.pop()
+        if m not in seen:
+            seen.add(m)
+            todo.extend(graph[m] - seen)
+    return seen
+
+
+def workshop_imports(graph: dict[str, set[str]]) -> dict[str, list[str]]:
+    """Runtime module -> the workshop modules it imports (empty when the arrow points workshop -> runtime only)."""
+    in_room = [m for m in graph if any(m == p or m.startswith(p + ".") for p in RUNTIME_PACKAGES)]
+    runtime = reachable(graph, [*in_room, *RUNTIME_ENTRIES])
+    runtime = {m for m in runtime if not (m == WORKSHOP or m.startswith(WORKSHOP + "."))}
+    out = {m: sorted(w for w in graph[m] if w == WORKSHOP or w.startswith(WORKSHOP + ".")) for m in runtime}
+    return {m: ws for m, ws in sorted(out.items()) if ws}
+
+
 def test_circle_finder_on_a_known_graph() -> None:
     g = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set(), "f": {"g"}, "g": {"f"}}
     assert sorted(map(sorted, circles(g))) == [["a", "b", "c"], ["f", "g"]]
@@ -88,3 +115,33 @@ def test_no_new_import_circles(repo_dir) -> None:
     assert "mission.trajectory.multicopter" in graph["mission.trajectory.attitude"]
     new = [sorted(c) for c in circles(graph) if not any(c <= k for k in KNOWN)]
     assert not new, f"new import circle(s): {new}"
+
+
+def test_reachable_on_a_known_graph() -> None:
+    g = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
+    assert reachable(g, ["a"]) == {"a", "b", "c"}
+    assert reachable(g, ["d", "e"]) == {"a", "b", "c", "d", "e"}
+
+
+def test_runtime_never_imports_the_workshop(repo_dir) -> None:
+    graph = import_graph(repo_dir)
+    runtime = reachable(graph, RUNTIME_ENTRIES)
+    assert {"mission.localize.api", "mission.adaptive.runner"} <= runtime  # the entries reach what they run
+    assert "mission.workshop.suite" in graph and "mission.localize.api" in graph["mission.workshop.evaluate"]
+    assert not workshop_imports(graph), f"runtime module(s) import the workshop: {workshop_imports(graph)}"
+    # the check sees an edge added anywhere the CLI reaches, even outside the runtime packages
+    graph["mission.adaptive.live"] = graph["mission.adaptive.live"] | {"mission.workshop.suite"}
+    assert workshop_imports(graph) == {"mission.adaptive.live": ["mission.workshop.suite"]}
+
+
+def test_architecture_map_names_every_module_in_its_room(repo_dir) -> None:
+    """ARCHITECTURE.md's row of each room names every module that lives there (and none from the other room)."""
+    rows = {ln.split("|")[1].strip(): ln for ln in (repo_dir / "ARCHITECTURE.md").read_text().splitlines()
+            if ln.startswith("| `mission/")}
+    rooms = {room: sorted(p.name for p in (repo_dir / "mission" / room).glob("*.py") if p.name != "__init__.py")
+             for room in ("localize", "workshop")}
+    for room, files in rooms.items():
+        row = rows[f"`mission/{room}/`"]
+        assert files and not [f for f in files if f"`{f}`" not in row], f"mission/{room}/ row misses modules"
+        other = rooms["workshop" if room == "localize" else "localize"]
+        assert not [f for f in other if f"`{f}`" in row], f"mission/{room}/ row names the other room's modules"

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mission.localize.decision import pooled_decision
-from mission.localize.predictive import family_checks, predictive_check, sample_statistics, verdict
 from mission.physics.shadowing import shadowing_field
+from mission.workshop.decision import pooled_decision
+from mission.workshop.predictive import family_checks, predictive_check, sample_statistics, verdict
 
 
 def test_predictive_check_band_inside_and_p():

@@ -14,8 +14,8 @@ import pytest
 
 from mission.importers.afar import afar2023_id
 from mission.localize.api import localize_log
-from mission.localize.evaluate import import_afar
 from mission.localize.uncertainty import region_covers
+from mission.workshop.evaluate import import_afar
 
 
 @pytest.mark.real

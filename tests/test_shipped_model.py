@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from _onnx_numpy import predict as numpy_predict
 
-from mission.localize.altitude_scale import REFERENCE_HEIGHT_M, dataset_heights, scale_cluster_xy, scale_factor
-from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
+from mission.localize.altitude_scale import REFERENCE_HEIGHT_M, scale_cluster_xy, scale_factor
+from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 
 SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
 

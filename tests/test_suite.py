@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.localize.evaluate_suite import evaluate_suite, region_contains, suite_method
-from mission.localize.suite import (
+from mission.workshop.evaluate_suite import evaluate_suite, region_contains, suite_method
+from mission.workshop.suite import (
     HABITS,
     draw_flight,
     simulate_draw,
     unseen_flight,
     unseen_flights,
 )
-from mission.localize.suite_cache import read_suite, write_suite
+from mission.workshop.suite_cache import read_suite, write_suite
 
 
 def test_flights_are_deterministic_per_index():
@@ -127,7 +127,7 @@ def test_methods_and_regions():
 
 
 def test_training_dataset_from_the_family(tmp_path):
-    from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
+    from mission.workshop.dataset import DatasetConfig, generate_dataset, load_dataset
 
     with pytest.raises(InputError, match="benchmark"):
         generate_dataset(DatasetConfig(None, 2, seed=2026, suite="unseen", features=("clustering",)), tmp_path / "x")
@@ -139,8 +139,8 @@ def test_training_dataset_from_the_family(tmp_path):
 
 
 def test_breakdown_by_axis():
-    from mission.localize.evaluate import Row
-    from mission.localize.evaluate_suite import breakdown
+    from mission.workshop.evaluate import Row
+    from mission.workshop.evaluate_suite import breakdown
 
     draws = [{"habit": h, "alt": a, "physics": {"ant": p}} for h, a, p in
              (("fixed", 20.0, "dipole"), ("fixed", 30.0, "flipped"), ("rot", 50.0, "dipole"), ("rot", 60.0, "x"))]
@@ -156,7 +156,7 @@ def test_breakdown_by_axis():
 def test_heavy_family_changes_only_the_shadowing():
     """``afar-heavy`` draws the same flights as ``afar`` (same generator sequence) with the real-measured
     shadowing: wider and longer-correlated, so its logs spread more in dB."""
-    from mission.localize.suite import SHADOWING
+    from mission.workshop.suite import SHADOWING
 
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING["afar-heavy"]
     spreads = {"afar": [], "afar-heavy": []}

@@ -10,9 +10,9 @@ import pytest
 from _bad_input import run_cli
 
 from mission.cli.main import main as rfsl_main
-from mission.localize.evaluate_suite import evaluate_suite
-from mission.localize.suite import unseen_flight
-from mission.localize.suite_cache import FINGERPRINT_SCHEME, flight_fingerprint, read_suite, write_suite
+from mission.workshop.evaluate_suite import evaluate_suite
+from mission.workshop.suite import unseen_flight
+from mission.workshop.suite_cache import FINGERPRINT_SCHEME, flight_fingerprint, read_suite, write_suite
 
 SEED = 31
 

@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 
 from mission.cli.main import main as rfsl_main
 from mission.errors import InputError
-from mission.localize.predictive import log_distance_residual
 from mission.localize.preprocess import select_samples
-from mission.localize.suite import draw_flight, family_sha256, resolve_family, unseen_flight
-from mission.localize.suite_cache import read_suite, write_suite
+from mission.workshop.predictive import log_distance_residual
+from mission.workshop.suite import draw_flight, family_sha256, resolve_family, unseen_flight
+from mission.workshop.suite_cache import read_suite, write_suite
 
 
 def _family(sigma_db: float, noise_db: float = 0.0, corr_m: float = 60.0) -> dict:

@@ -35,7 +35,7 @@ def test_shipped_networks_training_altitudes(repo_dir):
 
 
 def test_altitudes_from_each_kind_of_dataset_record():
-    from mission.localize.suite import ALTITUDE_RANGE_M
+    from mission.workshop.suite import ALTITUDE_RANGE_M
 
     assert training_altitudes(_meta({"mission_altitude_m": 45.0})) == (45.0, 45.0)
     assert training_altitudes(_meta({"randomisation": {"altitude_m": [22.0, 33.0]}, "mission_altitude_m": 30.0},
@@ -84,9 +84,8 @@ def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_d
     altitude-normalised network trained on 15-60 m does not."""
     from dataclasses import replace
 
-    from mission.localize.altitude_scale import dataset_heights
-    from mission.localize.dataset import DatasetConfig, generate_dataset, load_dataset
     from mission.localize.onnx_model import OnnxLocalizer
+    from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 
     model = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
     if not model.exists():

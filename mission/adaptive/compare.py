@@ -15,8 +15,8 @@ import numpy as np
 def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> dict:
     """Errors, 90 % region coverage and area, durations and rounds of flight ``i``, fixed and adaptive."""
     from mission.adaptive.simflight import FlightWorld, adaptive_flight, estimator, fixed_flight
-    from mission.localize.flight_draws import flight_rng
     from mission.physics.family import load_family
+    from mission.workshop.flight_draws import flight_rng
 
     cfg = dataclasses.replace(spec.sim_config(), dt_s=dt_s)
     loc = estimator(spec)

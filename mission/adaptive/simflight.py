@@ -111,7 +111,7 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
         return None
     from mission.adaptive.planner import posterior_candidates
 
-    reg = next((r for r in e.extras.get("regions", []) if r["level"] == 0.9), None)
+    reg = next((r for r in e.regions if r["level"] == 0.9), None)
     return (e.x_m, e.y_m, None if reg is None else reg["area_m2"], region_covers(e, tx[0], tx[1], 0.9),
             posterior_candidates(e.posterior))
 

@@ -2,7 +2,7 @@
 
 Every flight has its own seed (``SeedSequence(seed).spawn(N)[i]``), so the bytes do not depend on the
 number of workers.  Randomisation flags widen the simulated domain towards real flights (see
-``mission.localize.dataset``); ``--randomise`` switches on the project's recommended set at once.
+``mission.workshop.dataset``); ``--randomise`` switches on the project's recommended set at once.
 """
 
 from __future__ import annotations
@@ -47,13 +47,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", metavar="PRESET",
                    help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
                         "(fitted on team 328 only; score the result on the other team's flights)")
-    s = p.add_argument_group("unseen-flight benchmark family (mission.localize.suite)")
+    s = p.add_argument_group("unseen-flight benchmark family (mission.workshop.suite)")
     s.add_argument("--suite", choices=("unseen",), help="flights drawn from the benchmark's family (every axis "
                    "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)")
     s.add_argument("--logs", action="store_true", help="with --suite: write the flights as CSV logs + suite.json "
                    "(the benchmark cache for rfsl evaluate --suite-dir) instead of feature chunks")
     s.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="with --suite: physics family: a built-in one (mission.localize.suite.FAMILIES: afar, "
+                   help="with --suite: physics family: a built-in one (mission.workshop.suite.FAMILIES: afar, "
                         "generic, afar-heavy) or a physics family file F.json (rfsl gap --family; "
                         "mission/data/afar_family.json), which draws each flight's physics, shadowing, noise and "
                         "offset; a .json implies --suite unseen")
@@ -95,8 +95,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def randomisation_from_args(args: argparse.Namespace):
     """The ``Randomisation`` the flags ask for (``--randomise`` first, single flags override it)."""
-    from mission.localize.dataset import Randomisation
     from mission.trajectory.generators import GENERATORS
+    from mission.workshop.dataset import Randomisation
 
     d: dict = {}
     if args.randomise:
@@ -146,8 +146,8 @@ def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from mission.errors import InputError
-    from mission.localize.dataset import DatasetConfig, check_config, generate_dataset
     from mission.trajectory.generators import GENERATORS
+    from mission.workshop.dataset import DatasetConfig, check_config, generate_dataset
 
     console = Console()
 
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     if args.family != "afar" and not args.suite:
         raise InputError("--family draws benchmark-style flights: add --suite unseen", field="--family")
     if args.suite:
-        from mission.localize.suite import resolve_family
+        from mission.workshop.suite import resolve_family
 
         resolve_family(args.family)  # a bad family file is refused before anything is written
     if args.suite and args.mission:
@@ -184,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
     if args.logs and not args.suite:
         raise InputError("--logs writes benchmark flights: needs --suite unseen", field="--logs")
     if args.logs:
-        from mission.localize.suite import BENCHMARK_SEED
+        from mission.workshop.suite import BENCHMARK_SEED
 
         args.seed = BENCHMARK_SEED if args.seed is None else args.seed
         return _write_logs(args, console)
@@ -237,7 +237,7 @@ def _write_logs(args: argparse.Namespace, console) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from mission.errors import InputError
-    from mission.localize.suite_cache import write_suite
+    from mission.workshop.suite_cache import write_suite
 
     out = Path(args.out)
     if (out / "suite.json").exists() and not args.overwrite:

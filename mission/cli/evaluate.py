@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import argparse
 
+from mission.localize.methods import names_where
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    classical = names_where(kind="classical")
     p.add_argument("--models", nargs="*", default=[], help="ONNX models to compare")
     p.add_argument(
         "--methods",
-        default="strongest,centroid,grid",
-        help="classical methods, comma list of strongest, centroid, grid, grid:MODEL (free-space, two-ray, e2r) "
+        default=",".join(classical),
+        help=f"classical methods, comma list of {', '.join(classical)}, grid:MODEL (free-space, two-ray, e2r) "
         "or grid:preset:NAME ('' for none)",
     )
     p.add_argument(
@@ -49,15 +52,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--workers", type=int, default=2, help="workers for generated test sets")
     p.add_argument("--out", help="JSON report path")
-    g = p.add_argument_group("unseen-flight benchmark (mission.localize.suite; models/README.md)",
+    g = p.add_argument_group("unseen-flight benchmark (mission.workshop.suite; models/README.md)",
                              "with --afar DIR or --real LOGS: also the posterior-predictive checks of the "
-                             "benchmark's family against those real flights (mission.localize.predictive)")
+                             "benchmark's family against those real flights (mission.workshop.predictive)")
     g.add_argument("--suite", choices=("unseen",), help="run the methods (and --models) on the benchmark")
     g.add_argument("--n", type=int, default=200, help="benchmark flights (default 200)")
     g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
     g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
     g.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="physics family: a built-in one (mission.localize.suite.FAMILIES; default afar) or a "
+                   help="physics family: a built-in one (mission.workshop.suite.FAMILIES; default afar) or a "
                         "family file F.json (implies --suite unseen; with --suite-dir: must be the cache's)")
     g.add_argument("--by", default="", help="comma list of draw axes to break the mean error down by, e.g. "
                    "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna")
@@ -90,8 +93,8 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from mission.errors import InputError
-    from mission.localize.dataset import DatasetConfig, Randomisation, generate_dataset
-    from mission.localize.evaluate import (
+    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
+    from mission.workshop.evaluate import (
         afar_truth,
         evaluate_real,
         evaluate_sim,
@@ -187,8 +190,8 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     from rich.table import Table
 
     from mission.errors import InputError
-    from mission.localize.evaluate import write_report
-    from mission.localize.evaluate_suite import evaluate_suite
+    from mission.workshop.evaluate import write_report
+    from mission.workshop.evaluate_suite import evaluate_suite
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()] + [f"onnx:{m}" for m in args.models]
     if args.n < 1:
@@ -224,7 +227,7 @@ def _run_suite(args: argparse.Namespace, console) -> int:
         extra["warnings"] = stale
     axes = [a.strip() for a in args.by.split(",") if a.strip()]
     if axes:
-        from mission.localize.evaluate_suite import breakdown, suite_draws
+        from mission.workshop.evaluate_suite import breakdown, suite_draws
 
         draws = suite_draws(len(rows[0].errors), args.seed, args.suite_dir, family=args.family)
         extra["breakdown"] = {}
@@ -254,7 +257,7 @@ def _real_logs(args: argparse.Namespace) -> list[str]:
 
     logs = list(args.real)
     if args.afar:
-        from mission.localize.evaluate import import_afar
+        from mission.workshop.evaluate import import_afar
 
         work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
         logs += [str(p) for p in import_afar(args.afar, work / "afar_logs")]
@@ -262,8 +265,8 @@ def _real_logs(args: argparse.Namespace) -> list[str]:
 
 
 def _predictive(real_logs: list[str], methods: list[str], rows, stats: list, console) -> dict:
-    """Real flights vs the benchmark drawn from the family (``mission.localize.predictive``): table + verdict."""
-    from mission.localize.predictive import checks_table, family_checks, score_real, verdict
+    """Real flights vs the benchmark drawn from the family (``mission.workshop.predictive``): table + verdict."""
+    from mission.workshop.predictive import checks_table, family_checks, score_real, verdict
 
     rstats, rerr = score_real(real_logs, methods)
     checks = family_checks(rstats, stats, rerr, {r.method: r.errors for r in rows})

@@ -15,7 +15,7 @@ import sys
 from collections.abc import Sequence
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
-from mission.localize import METHOD_NAMES
+from mission.localize.methods import METHOD_NAMES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -160,10 +160,10 @@ def run(args: argparse.Namespace) -> int:
         if "antenna" in est.extras:
             fit += f"; UAV antenna: {est.extras['antenna']}"
         tab.add_row("fit", fit)
-    for reg in est.extras.get("regions", []):
+    for reg in est.regions:
         tab.add_row(f"{100 * reg['level']:.0f} % region", describe_region(reg))
-    if "components" in est.extras:
-        parts = [f"{n} {cx:.1f}, {cy:.1f} m" for n, (cx, cy) in est.extras["components"].items()]
+    if est.components:
+        parts = [f"{n} {e.x_m:.1f}, {e.y_m:.1f} m" for n, e in est.components.items()]
         tab.add_row("components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)")
     if "p_outside_flown_area" in est.extras:
         tab.add_row("outside flown area", f"probability {est.extras['p_outside_flown_area']:.2f}")
@@ -171,8 +171,8 @@ def run(args: argparse.Namespace) -> int:
         sc = est.extras["sim_check"]
         tab.add_row("simulated check", f"median error {sc['median_error_m']:.0f} m on {sc['n']} simulated "
                     f"transmitters along this track (family {est.extras.get('family')})")
-    if "note" in est.extras:
-        tab.add_row("[bold]note", str(est.extras["note"]))
+    if est.notes:
+        tab.add_row("[bold]note", " ".join(est.notes))
     if args.plot:
         tab.add_row("plot", str(args.plot))
     if "warning" in est.extras:

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from mission.localize.train import TrainConfig, train
+    from mission.workshop.train import TrainConfig, train
 
     cfg = TrainConfig(
         features=args.features,
@@ -112,8 +112,8 @@ def run(args: argparse.Namespace) -> int:
 def check_family(path: str, datasets: list[str]) -> dict:
     """The family file's record (label, sha256, record); every dataset must have been drawn from it."""
     from mission.errors import InputError
-    from mission.localize.dataset import read_manifest
-    from mission.localize.suite import family_label, family_sha256, resolve_family
+    from mission.workshop.dataset import read_manifest
+    from mission.workshop.suite import family_label, family_sha256, resolve_family
 
     if not path.lower().endswith(".json"):
         raise InputError("give the physics family file (.json) the datasets were drawn from", field="--family")

@@ -1,20 +1,25 @@
 """Transmitter localization from a flight log: features, classical estimators, ONNX networks.
 
 Every localizer returns an ``Estimate``; ``mission.localize.api.localize_log`` is the one entry point used
-by the ``localize`` CLI and by ``fly-mission`` after landing.
+by the ``localize`` CLI and by ``fly-mission`` after landing; the methods it runs are registered in
+``mission.localize.methods``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-# The methods ``localize_log`` runs (``api.METHOD_NAMES``); here so the CLI offers them without importing numpy.
-METHOD_NAMES = ("onnx", "strongest", "centroid", "grid", "selfcal", "fusion", "matched")
-
 
 @dataclass
 class Estimate:
-    """A transmitter position estimate in the local ENU frame of the log (x east, y north, metres)."""
+    """A transmitter position estimate in the local ENU frame of the log (x east, y north, metres).
+
+    ``extras`` is the ordered record that ``to_dict`` / ``--json`` print after the position.  What consumers
+    read has a typed home: ``regions`` (the 50 / 90 % regions), ``notes`` (the sentences ``localize`` prints
+    under "note"), ``components`` (a fusion's member estimates).  Setting one writes its JSON form into
+    ``extras`` at that moment (``"regions"``, ``"note"`` joined by spaces, ``"components"`` as name -> [x, y]),
+    so the output keeps the key order it always had.
+    """
 
     x_m: float
     y_m: float
@@ -25,6 +30,33 @@ class Estimate:
     error_m: float | None = None
     extras: dict = field(default_factory=dict)
     posterior: object | None = field(default=None, repr=False)  # uncertainty.Posterior, when the method has one
+    notes: list[str] = field(default_factory=list, repr=False)
+    components: dict[str, Estimate] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.notes:
+            self.extras["note"] = " ".join(self.notes)
+
+    @property
+    def regions(self) -> list[dict]:
+        """The uncertainty regions, lowest level first: HPD regions of a posterior (``hpd_mass``, ``polygons``,
+        ``ellipse``) or error circles (``kind`` "error circle", ``radius_m``); empty when none applies."""
+        return self.extras.get("regions", [])
+
+    @regions.setter
+    def regions(self, value: list[dict]) -> None:
+        self.extras["regions"] = value
+
+    def add_note(self, note: str | None) -> None:
+        """Append a sentence to ``notes`` (nothing for an empty one)."""
+        if note:
+            self.notes.append(note)
+            self.extras["note"] = " ".join(self.notes)
+
+    def set_components(self, members: dict[str, Estimate]) -> None:
+        """The member estimates of a fusion, by name (in the log's frame)."""
+        self.components = dict(members)
+        self.extras["components"] = {n: [e.x_m, e.y_m] for n, e in members.items()}
 
     def to_dict(self) -> dict:
         d = {

@@ -67,11 +67,3 @@ def flight_height(z_m: np.ndarray, tx_height_m: float) -> float:
     """A flight's height above the transmitter (m): the median height of the samples used, minus the
     transmitter's (robust to the few take-off or landing samples a selection keeps)."""
     return float(np.median(np.asarray(z_m, dtype=float))) - float(tx_height_m)
-
-
-def dataset_heights(params: np.ndarray) -> np.ndarray:
-    """Each simulated flight's height above its transmitter (B,), from a dataset's ``params`` array."""
-    from mission.localize.dataset_config import PARAM_NAMES
-
-    p = np.asarray(params, dtype=float)
-    return p[:, PARAM_NAMES.index("altitude_m")] - p[:, PARAM_NAMES.index("tx_height_m")]

@@ -31,11 +31,11 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
-from mission.localize import METHOD_NAMES, Estimate  # METHOD_NAMES lives there (imported by the light CLI)
+from mission.localize import Estimate
+from mission.localize.methods import DEFAULT_MODEL_NAME, FROM_CARD, method_entry
 from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
-DEFAULT_MODEL_NAME = "rfsl_default.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
 
@@ -87,43 +87,13 @@ def make_localizer(
     floor_db: float | None = None,
     physics_preset: str | None = None,
 ):
-    """Build the localizer object for a method name (``physics_preset`` replaces ``physics_model``)."""
-    from mission.localize import classical
-
-    if method == "onnx":
-        from mission.localize.onnx_model import OnnxLocalizer
-
-        path = model_path or default_model_path()
-        if path is None:
-            raise InputError(f"method onnx needs --model (no models/{DEFAULT_MODEL_NAME} shipped)")
-        return OnnxLocalizer(path, tx_height_m=tx_height_m)
-    if method == "strongest":
-        return classical.StrongestSample()
-    if method == "centroid":
-        return classical.WeightedCentroid()
-    if method == "selfcal":
-        from mission.localize.selfcal import SelfCalibratingGrid
-
-        return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
-    if method == "matched":  # track-matched ABC under the physics family (trained here, on this flight's track)
-        from mission.localize.matched import MatchedLocalizer
-
-        return MatchedLocalizer(area=area, tx_height_m=tx_height_m)
-    if method == "grid":
-        if physics_preset is not None:
-            from mission.physics.presets import preset_model
-
-            try:
-                model = preset_model(physics_preset, **(physics_params or {}))
-            except InputError:
-                raise
-            except ValueError as e:
-                raise InputError(f"physics preset {physics_preset!r}: {e}", field="physics_params") from None
-            return classical.ModelGridSearch(model, tx_height_m=tx_height_m, area=area, floor_db=floor_db)
-        return classical.ModelGridSearch(
-            physics_model, physics_params, tx_height_m=tx_height_m, area=area, floor_db=floor_db
-        )
-    raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+    """Build the localizer object for a method name: its registry entry's factory (``mission.localize.methods``;
+    ``physics_preset`` replaces ``physics_model``)."""
+    entry = method_entry(method)
+    if entry.factory is None:
+        raise InputError(f"method {method!r} combines other methods: localize_log runs it, not one localizer")
+    return entry.factory(model_path=model_path, physics_model=physics_model, physics_params=physics_params,
+                         tx_height_m=tx_height_m, area=area, floor_db=floor_db, physics_preset=physics_preset)
 
 
 def _is_simulated(log) -> bool:
@@ -156,16 +126,16 @@ def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
     return est
 
 
-def _check_altitude(extras: dict, net, part) -> bool:
+def _check_altitude(est: Estimate, net, part) -> bool:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
     ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``); True then."""
     from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
 
     trained, flown = training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2])
-    extras["network_training_altitude_m"] = None if trained is None else list(trained)
-    extras["flight_altitude_m"] = list(flown)
+    est.extras["network_training_altitude_m"] = None if trained is None else list(trained)
+    est.extras["flight_altitude_m"] = list(flown)
     note = altitude_note(net.model_name, trained, flown)
-    _add_note(extras, note)
+    est.add_note(note)
     return note is not None
 
 
@@ -179,11 +149,11 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     cal = card_calibration(net.path, "sim" if simulated else "real")  # sized for what was flown
     flown = flown_domain(part, net.meta, net.model_name)
     if not simulated:  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
-        _add_note(est.extras, flown.pop("attitude_note"))
-    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
-    if _check_altitude(est.extras, net, part) and simulated and "regions" in est.extras:
-        _add_note(est.extras, "Its error circles were calibrated on flights inside those altitudes: expect them "
-                              "to be too small here.")
+        est.add_note(flown.pop("attitude_note"))
+    est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
+    if _check_altitude(est, net, part) and simulated and est.regions:
+        est.add_note("Its error circles were calibrated on flights inside those altitudes: expect them to be too "
+                     "small here.")
 
 
 def _method_regions(est: Estimate, method: str, simulated: bool, default_config: bool, area) -> None:
@@ -195,17 +165,11 @@ def _method_regions(est: Estimate, method: str, simulated: bool, default_config:
     if method not in CIRCLE_METHODS:
         return
     if not default_config:
-        _add_note(est.extras, "no uncertainty region: the error circles of this method were calibrated for its "
-                              "default physics and sample selection only")
+        est.add_note("no uncertainty region: the error circles of this method were calibrated for its default "
+                     "physics and sample selection only")
         return
     cal = method_calibration(method, "sim" if simulated else "real")
-    _add_note(est.extras, attach_circles(est.extras, est.x_m, est.y_m, cal, area))
-
-
-def _add_note(extras: dict, note: str | None) -> None:
-    """Append a sentence to ``extras["note"]`` (what ``localize`` prints and ``--json`` carries)."""
-    if note:
-        extras["note"] = " ".join(filter(None, [extras.get("note"), note]))
+    est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area))
 
 
 def fusion_model_path() -> Path | None:
@@ -232,20 +196,17 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
     b = _in_log_frame(net, net.predict(trained_legs(part)), origin, "onnx")
     x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
     lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))
-    extras = dict(a.extras)
-    extras["components"] = {"selfcal": [a.x_m, a.y_m], Path(path).name: [b.x_m, b.y_m]}
-    extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
-    if a.posterior is not None and a.posterior.grid is not None:  # is the fused point inside its own regions?
-        extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))  # log frame, as the grid
-        outer = outer_region(extras)
-        if outer is not None and q >= outer["hpd_mass"]:
-            _add_note(extras, f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the "
-                              f"fused point lies outside the {100 * outer['level']:.0f} % region, which is the "
-                              "search's alone")
-    _check_altitude(extras, net, part)
     est = Estimate(float(x), float(y), "fusion", f"mean of selfcal and {Path(path).name}", float(lat),
-                   float(lon), extras=extras)
-    est.posterior = a.posterior
+                   float(lon), extras=dict(a.extras), posterior=a.posterior, notes=list(a.notes))
+    est.set_components({"selfcal": a, Path(path).name: b})
+    est.extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
+    if a.posterior is not None and a.posterior.grid is not None:  # is the fused point inside its own regions?
+        est.extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))  # log frame, as the grid
+        outer = outer_region(est.extras)
+        if outer is not None and q >= outer["hpd_mass"]:
+            est.add_note(f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the fused "
+                         f"point lies outside the {100 * outer['level']:.0f} % region, which is the search's alone")
+    _check_altitude(est, net, part)
     return est
 
 
@@ -305,10 +266,9 @@ def localize_log(
             )
     else:
         choice = f"method {method} requested"
-    if method not in METHOD_NAMES:
-        raise InputError(f"unknown method {method!r} (expected one of {', '.join(METHOD_NAMES)})")
+    entry = method_entry(method)  # an unknown name: InputError listing the known ones
     ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
-    area = ra if method in ("grid", "selfcal", "fusion", "matched") else None
+    area = ra if entry.bounded else None
     origin = log.origin
     if method == "fusion":
         est = _fusion(part, origin, area, tx_height_m, model_path)
@@ -318,7 +278,7 @@ def localize_log(
         from mission.localize.training_domain import trained_legs
 
         est = _in_log_frame(loc, loc.predict(trained_legs(part) if method == "onnx" else part), origin, method)
-        if method == "onnx":
+        if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
         else:
             _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),

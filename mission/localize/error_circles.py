@@ -42,10 +42,12 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.geo import Area, clip_polygon, signed_area_m2
+from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 
 REGIONS_KEY = "regions"
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
-CIRCLE_METHODS = ("strongest", "centroid", "grid")  # classical methods calibrated in their default configuration
+# the methods whose circles mission/data/method_circles.json holds (calibrated in their default configuration)
+CIRCLE_METHODS = names_where(calibration=FROM_METHOD_CIRCLES)
 LEVELS = (0.5, 0.9)
 FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track counts as full
 N_VERTICES = 72

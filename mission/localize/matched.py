@@ -223,11 +223,11 @@ class MatchedLocalizer(_Base):
             p_outside_flown_area=p_out,
             seed=self.seed,
         )
-        if p_out >= 0.5:
-            extras["note"] = (f"the transmitter probably lies outside the flown area (posterior mass "
-                              f"{100 * p_out:.0f} % outside it): the estimate is an extrapolation")
         est = self._estimate(float(xy[0]), float(xy[1]), f"track-matched ABC under physics family {fam.name}",
                              **extras)
+        if p_out >= 0.5:
+            est.add_note(f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                         "outside it): the estimate is an extrapolation")
         est.posterior = post
         return est
 

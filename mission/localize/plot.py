@@ -120,7 +120,7 @@ def plot_localization(
         zorder=5,
         label=f"estimate ({est.method}{', ' + est.model if est.model else ''})",
     )
-    draw_regions(ax, est.extras.get("regions", []))
+    draw_regions(ax, est.regions)
     tx, ty = est.extras.get("truth_x_m"), est.extras.get("truth_y_m")
     if tx is not None:
         ax.plot(tx, ty, marker="X", ms=13, color="white", mec="k", ls="none", zorder=5, label="truth")

@@ -304,10 +304,10 @@ class SelfCalibratingGrid(_Base):
             regions=regions,
             p_outside_flown_area=p_out,
         )
-        if p_out >= 0.5:
-            extras["note"] = (f"the transmitter probably lies outside the flown area (posterior mass "
-                              f"{100 * p_out:.0f} % outside it): the estimate is an extrapolation")
         est = self._estimate(x, y, "free space + profiled UAV antenna", **extras)
+        if p_out >= 0.5:
+            est.add_note(f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                         "outside it): the estimate is an extrapolation")
         est.posterior = post
         return est
 

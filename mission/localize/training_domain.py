@@ -23,6 +23,9 @@ ALTITUDE_TOLERANCE_M = 5.0  # 5 m off its training altitude the spiral network's
 ATTITUDE_TOLERANCE_DEG = 5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
 TRACK_REACH_M = 10.0  # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
 TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
+# cruise altitude the unseen-flight benchmark draws per flight (mission.workshop.suite): a network trained on
+# "suite:" data reports this range
+SUITE_ALTITUDE_RANGE_M = (15.0, 60.0)
 
 
 @lru_cache(maxsize=32)
@@ -48,9 +51,7 @@ def _dataset_altitudes(d: dict) -> tuple[float, float] | None:
         lo, hi = rnd["altitude_m"]
         return float(lo), float(hi)
     if str(d.get("model", "")).startswith("suite:"):
-        from mission.localize.suite import ALTITUDE_RANGE_M
-
-        return ALTITUDE_RANGE_M
+        return SUITE_ALTITUDE_RANGE_M
     alt = d.get("mission_altitude_m")
     if alt is None and d.get("mission"):
         alt = _mission_altitude(str(d["mission"]))

@@ -151,7 +151,7 @@ def region_covers(est, x: float, y: float, level: float) -> bool | None:
     post = getattr(est, "posterior", None)
     if post is None or post.grid is None:
         return None
-    mass = next((r["hpd_mass"] for r in est.extras.get("regions", []) if r["level"] == level), level)
+    mass = next((r["hpd_mass"] for r in est.regions if r["level"] == level), level)
     return post.covers(x, y, mass)
 
 

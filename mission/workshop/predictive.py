@@ -118,11 +118,11 @@ def checks_table(checks: Mapping[str, dict], title: str):
 
 def score_real(logs: Sequence, methods: Sequence[str], seed: int = 0) -> tuple[list[dict], dict[str, list[float]]]:
     """(check statistics per real log, {method: error m per log}) of real logs with truth in their sidecars;
-    methods as ``rfsl evaluate --suite`` names them (``mission.localize.evaluate.suite_method``)."""
+    methods as ``rfsl evaluate --suite`` names them (``mission.workshop.evaluate.suite_method``)."""
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log
-    from mission.localize.evaluate import suite_method
+    from mission.workshop.evaluate import suite_method
 
     kws = {m: suite_method(m) for m in methods}
     stats: list[dict] = []

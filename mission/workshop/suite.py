@@ -2,24 +2,24 @@
 
 How to call it (the lead's entry points)::
 
-    from mission.localize.suite import unseen_flights, unseen_flight
+    from mission.workshop.suite import unseen_flights, unseen_flight
     for log, truth_xy, draw in unseen_flights(200, seed=2026):      # list[SuiteFlight] (a NamedTuple)
         est = localize_log(log, method="grid")                      # log: a FlightLog like an imported one
         err = float(np.hypot(est.x_m - truth_xy[0], est.y_m - truth_xy[1]))
     f = unseen_flight(2026, 17)                                      # one flight, same bytes as in the list
-    # the on-disk cache (write_suite / read_suite / check_current): mission.localize.suite_cache
+    # the on-disk cache (write_suite / read_suite / check_current): mission.workshop.suite_cache
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_unseen_2026     # the cache
     rfsl evaluate --suite unseen --n 200 --seed 2026 --methods strongest,centroid,grid,onnx:models/X.onnx
     rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2      # from the cache
     rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default --by tx_outside_flight_area,heading_habit
-    # in Python: rows, secs = mission.localize.evaluate_suite.evaluate_suite(["default", "grid"], 200, suite_dir=...)
+    # in Python: rows, secs = mission.workshop.evaluate_suite.evaluate_suite(["default", "grid"], 200, suite_dir=...)
     #            breakdown(rows, suite_draws(200, suite_dir=...), "physics.rx_antenna")
 
 Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict keyed by
 level "50"/"90" or 0.5/0.9, or a list of dicts with "level"); each region a polygon (``polygon`` [[x, y], ...],
 log ENU m) or an ellipse (``center_m`` + ``semi_axes_m`` + ``angle_deg`` ccw from east, or ``center_m`` +
-``cov_m2`` + ``chi2``): ``mission.localize.evaluate_suite.region_contains``.
+``cov_m2`` + ``chi2``): ``mission.workshop.evaluate_suite.region_contains``.
 
 Every flight is a deterministic function of ``(seed, i, family)``: all draws come from
 ``np.random.default_rng(np.random.SeedSequence([seed, SUITE_TAG], spawn_key=(i,)))`` (never the worker
@@ -75,7 +75,8 @@ from typing import NamedTuple
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
+from mission.localize.training_domain import SUITE_ALTITUDE_RANGE_M
+from mission.workshop.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
     FAMILIES,
     FamilyArg,
     antenna_label,
@@ -92,7 +93,7 @@ SHADOWING = {"afar": ((4.0, 10.0), (10.0, 60.0)), "generic": ((4.0, 10.0), (10.0
              "afar-heavy": ((8.0, 16.0), (30.0, 120.0))}
 SUITE_TAG = 10  # mixed into every suite seed: keeps suite seeds apart from rfsl-dataset seeds
 BENCHMARK_SEED = 2026
-ALTITUDE_RANGE_M = (15.0, 60.0)  # cruise altitude drawn per flight (networks trained on it report this range)
+ALTITUDE_RANGE_M = SUITE_ALTITUDE_RANGE_M  # cruise altitude drawn per flight (its home: the runtime's training domain)
 P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a third of the flights
 HABITS = ("along_track", "fixed", "slow_rotation", "hover_turn")
 RSS_SOURCE = {"kind": "suite", "receiver": "simulated receiver (unseen-flight benchmark)", "calibrated": False}

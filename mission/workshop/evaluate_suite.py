@@ -2,8 +2,8 @@
 ``localize`` would run it on a real log, the error against the truth kept beside the log, the coverage of the
 estimate's uncertainty regions, and a breakdown of the errors by any drawn axis.
 
-Split from ``mission.localize.evaluate`` (simulated test sets and real flights), whose ``Row`` and
-``suite_method`` (a benchmark method spec -> ``localize_log`` arguments, also used by ``mission.localize.predictive``)
+Split from ``mission.workshop.evaluate`` (simulated test sets and real flights), whose ``Row`` and
+``suite_method`` (a benchmark method spec -> ``localize_log`` arguments, also used by ``mission.workshop.predictive``)
 it uses.
 """
 
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.evaluate import Row, suite_method
-from mission.localize.suite import FamilyArg, resolve_family
+from mission.workshop.evaluate import Row, suite_method
+from mission.workshop.suite import FamilyArg, resolve_family
 
 
 def _level(key, region: dict) -> str | None:
@@ -96,7 +96,7 @@ def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False
     _SUITE.clear()
     _SUITE.update(methods=methods, source=source)
     if "dir" in source:
-        from mission.localize.suite_cache import read_suite
+        from mission.workshop.suite_cache import read_suite
 
         _SUITE["cached"] = read_suite(source["dir"])
 
@@ -111,12 +111,12 @@ def _suite_flight(i: int) -> dict:
     if "cached" in _SUITE:
         log, truth, draw = _SUITE["cached"].load(i)
     else:
-        from mission.localize.suite import unseen_flight
+        from mission.workshop.suite import unseen_flight
 
         log, truth, draw = unseen_flight(src["seed"], i, src["family"], src["center"])
     out: dict = {}
-    if src.get("stats"):  # the posterior-predictive check statistics (mission.localize.predictive)
-        from mission.localize.predictive import flight_statistics
+    if src.get("stats"):  # the posterior-predictive check statistics (mission.workshop.predictive)
+        from mission.workshop.predictive import flight_statistics
 
         out["__stats__"] = flight_statistics(log, truth, draw["tx_height_m"], seed=i)
     for label, kw in _SUITE["methods"].items():
@@ -140,7 +140,7 @@ def evaluate_suite(
     warn: Callable[[str], None] | None = None,
     stats_out: list | None = None,
 ) -> tuple[list[Row], dict[str, float]]:
-    """Methods on the unseen-flight benchmark (``mission.localize.suite``): (rows, mean seconds per flight).
+    """Methods on the unseen-flight benchmark (``mission.workshop.suite``): (rows, mean seconds per flight).
 
     Flights come from ``suite_dir`` (a cache written by ``write_suite``; its first ``n``) or are simulated
     here from ``seed`` (default ``BENCHMARK_SEED``).  Each method sees only the log (``localize_log``); the
@@ -149,10 +149,10 @@ def evaluate_suite(
 
     A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
     its one-line warning goes to ``warn`` first (default: ``warnings.warn``).  ``stats_out`` (a list) receives
-    each flight's posterior-predictive statistics (``mission.localize.predictive.flight_statistics``), in order.
+    each flight's posterior-predictive statistics (``mission.workshop.predictive.flight_statistics``), in order.
     """
-    from mission.localize.suite import BENCHMARK_SEED, family_label
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite import BENCHMARK_SEED, family_label
+    from mission.workshop.suite_cache import read_suite
 
     fam = resolve_family(family)
     labels = {m: suite_method(m) for m in methods}
@@ -213,7 +213,7 @@ def check_cache_family(cs, fam) -> None:
     checked: the CLIs pass ``afar`` by default)."""
     if isinstance(fam, str):
         return
-    from mission.localize.suite import family_sha256
+    from mission.workshop.suite import family_sha256
 
     have = cs.manifest.get("family_sha256")
     if have != family_sha256(fam):
@@ -225,8 +225,8 @@ def check_cache_family(cs, fam) -> None:
 def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: FamilyArg = "afar",
                 center: str = "afar") -> list[dict]:
     """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
-    from mission.localize.suite import BENCHMARK_SEED, draw_flight
-    from mission.localize.suite_cache import read_suite
+    from mission.workshop.suite import BENCHMARK_SEED, draw_flight
+    from mission.workshop.suite_cache import read_suite
 
     if suite_dir is not None:
         return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]

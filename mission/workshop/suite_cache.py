@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.suite import (
+from mission.workshop.suite import (
     BENCHMARK_SEED,
     FamilyArg,
     SuiteFlight,

@@ -30,9 +30,10 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, AFAR2023_TRUTH
+from mission.localize.methods import names_where
 from mission.physics.propagation import MODEL_NAMES
 
-CLASSICAL = ("strongest", "centroid", "grid")
+CLASSICAL = names_where(kind="classical")  # strongest, centroid, grid: run on simulated test sets as well
 GRID_PHYSICS = MODEL_NAMES  # the grid accepts every propagation model make_model builds
 
 
@@ -68,9 +69,9 @@ def suite_method(spec: str) -> dict:
 
     ``default`` (``localize``'s own choice for a real log), ``strongest``, ``centroid``, ``grid`` (the real-log
     grid: ``afar`` preset), ``grid:MODEL`` / ``grid:preset:NAME``, ``onnx:PATH`` (a network), or any other
-    method name ``mission.localize.api`` knows (``METHOD_NAMES``), run with its defaults.
+    method name of the registry (``mission.localize.methods``), run with its defaults.
     """
-    from mission.localize.api import METHOD_NAMES
+    from mission.localize.methods import METHOD_NAMES
 
     spec = spec.strip()
     if spec == "default":
@@ -152,7 +153,7 @@ def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def test_label(manifest: dict) -> str:
     """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
-    from mission.localize.dataset import physics_label
+    from mission.workshop.dataset import physics_label
 
     cfg = manifest["config"]
     r = cfg.get("randomisation", {})
@@ -171,9 +172,8 @@ def evaluate_sim(
     progress: Callable[[str], None] | None = None,
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
-    from mission.localize.altitude_scale import dataset_heights
-    from mission.localize.dataset import FlightSimulator, dataset_config, load_dataset, read_manifest
     from mission.localize.onnx_model import OnnxLocalizer
+    from mission.workshop.dataset import FlightSimulator, dataset_config, dataset_heights, load_dataset, read_manifest
 
     m = read_manifest(dataset)
     label = test_label(m)

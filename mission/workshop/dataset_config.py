@@ -33,12 +33,12 @@ Storage (``DIR``): ``manifest.json`` (every setting, the seed, the feature confi
 the chunk list with sha256 digests) and ``chunk_00000.npz`` ... each holding, for its flights (float32
 
 ``suite="unseen"`` replaces all of the above by the unseen-flight benchmark's family
-(``mission.localize.suite``; ``suite_family`` a built-in name or a physics family .json, ``suite_center`` the
+(``mission.workshop.suite``; ``suite_family`` a built-in name or a physics family .json, ``suite_center`` the
 preset at the afar family's centre): every axis is drawn there, and the seed of the benchmark itself (2026) is
 refused.
 
 ``PARAM_NAMES`` is the column order of a dataset's ``params`` array; each flight's parameters are a dict keyed
-by these names (``mission.localize.flight_draws``), so the order lives here only.
+by these names (``mission.workshop.flight_draws``), so the order lives here only.
 """
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ class DatasetConfig:
     model_params: dict = field(default_factory=dict)
     cruise_only: bool = True  # fly the trajectory only (features see the cruise, as on real logs)
     physics: str | None = None  # a calibrated physics preset (e.g. "afar:fit328"), replaces ``model``
-    suite: str | None = None  # "unseen": flights of the benchmark family (mission.localize.suite), not the mission
+    suite: str | None = None  # "unseen": flights of the benchmark family (mission.workshop.suite), not the mission
     suite_family: str = "afar"
     suite_center: str = "afar"
 
@@ -157,7 +157,7 @@ def check_config(cfg: DatasetConfig) -> None:
     """Refuse configurations that would silently do something else than asked (InputError naming the field)."""
     r = cfg.randomisation
     if cfg.suite:
-        from mission.localize.suite import BENCHMARK_SEED, SUITES, resolve_family
+        from mission.workshop.suite import BENCHMARK_SEED, SUITES, resolve_family
 
         if cfg.suite not in SUITES:
             raise InputError(f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite")

@@ -49,7 +49,6 @@ import numpy as np
 from mission.errors import InputError
 from mission.localize.altitude_scale import (
     METADATA_KEY,
-    dataset_heights,
     metadata_entry,
     scale_cluster_xy,
     scale_factor,
@@ -96,8 +95,8 @@ class TrainResult:
 
 def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of them."""
-    from mission.localize.dataset import load_dataset, physics_label
     from mission.localize.features import FeatureConfig
+    from mission.workshop.dataset import load_dataset, physics_label
 
     xs, ys, descr = [], [], []
     fcfg = origin = None
@@ -176,7 +175,7 @@ def train(
     """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` + ``.train.json``)."""
     import torch
 
-    from mission.localize.nets import CoordinateWrapper, build_net, count_flops, count_parameters
+    from mission.workshop.nets import CoordinateWrapper, build_net, count_flops, count_parameters
 
     cfg = cfg or TrainConfig()
     if cfg.features not in ("clustering", "normalised_rss"):
@@ -193,7 +192,7 @@ def train(
     x, y, data_descr = load_training_data(paths, cfg.features)
     scale = np.ones(len(x))
     if cfg.altitude_normalised:
-        from mission.localize.dataset import load_dataset
+        from mission.workshop.dataset import dataset_heights, load_dataset
 
         scale = scale_factor(np.concatenate([dataset_heights(load_dataset(p, ("params",))[0]["params"])
                                              for p in paths]))

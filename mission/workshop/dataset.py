@@ -1,8 +1,8 @@
 """Simulated training/test datasets: many transmitter positions, each flown in the simulator, stored as
 compact feature chunks.
 
-Where things live: the configuration and its randomisation in ``mission.localize.dataset_config``; drawing and
-flying one flight in ``mission.localize.flight_draws``; workers, chunk files and reading here (the names of all
+Where things live: the configuration and its randomisation in ``mission.workshop.dataset_config``; drawing and
+flying one flight in ``mission.workshop.flight_draws``; workers, chunk files and reading here (the names of all
 three are importable from this module).
 
 raw truth, ``params`` (n, len(PARAM_NAMES)), ``n_samples`` (n,) int32 and ``index`` (n,) int64.
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.localize.dataset_config import (  # noqa: F401  (re-exported: one import site for dataset users)
+from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one import site for dataset users)
     FEATURE_KINDS,
     PARAM_NAMES,
     DatasetConfig,
@@ -31,7 +31,7 @@ from mission.localize.dataset_config import (  # noqa: F401  (re-exported: one i
     physics_label,
     trajectory_names,
 )
-from mission.localize.flight_draws import FlightDraw, FlightSimulator, flight_rng, trajectory_params  # noqa: F401
+from mission.workshop.flight_draws import FlightDraw, FlightSimulator, flight_rng, trajectory_params  # noqa: F401
 
 FORMAT = "rfsl-dataset/1"
 
@@ -187,7 +187,7 @@ def _family_record(cfg: DatasetConfig) -> dict:
     """A suite dataset drawn from a family file keeps the family itself (its sha256 names it; the file may move)."""
     if not cfg.suite:
         return {}
-    from mission.localize.suite import family_label, family_sha256, resolve_family
+    from mission.workshop.suite import family_label, family_sha256, resolve_family
 
     fam = resolve_family(cfg.suite_family)
     if isinstance(fam, str):
@@ -234,3 +234,9 @@ def load_dataset(
 def dataset_config(manifest: dict) -> DatasetConfig:
     """The ``DatasetConfig`` recorded in a manifest (to regenerate flights, e.g. for classical methods)."""
     return DatasetConfig.from_dict(manifest["config"])
+
+
+def dataset_heights(params: np.ndarray) -> np.ndarray:
+    """Each simulated flight's height above its transmitter (B,), from a dataset's ``params`` array."""
+    p = np.asarray(params, dtype=float)
+    return p[:, PARAM_NAMES.index("altitude_m")] - p[:, PARAM_NAMES.index("tx_height_m")]

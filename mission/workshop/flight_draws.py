@@ -18,9 +18,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mission.localize.dataset_config import PARAM_NAMES, DatasetConfig, pattern_names, trajectory_names
 from mission.samples import FlightSamples
-from mission.trajectory.generators import trajectory_params  # re-exported (mission.localize.dataset)
+from mission.trajectory.generators import trajectory_params  # re-exported (mission.workshop.dataset)
+from mission.workshop.dataset_config import PARAM_NAMES, DatasetConfig, pattern_names, trajectory_names
 
 
 def flight_rng(seed: int, i: int) -> np.random.Generator:
@@ -191,7 +191,7 @@ class FlightSimulator:
     def _draw_suite(self, i: int) -> FlightDraw:
         """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as ``localize`` cuts a log."""
         from mission.localize.preprocess import cruise_mask
-        from mission.localize.suite import unseen_flight
+        from mission.workshop.suite import unseen_flight
 
         f = unseen_flight(self.cfg.seed, i, self.cfg.suite_family, self.cfg.suite_center)
         d = f.draw

@@ -1,6 +1,6 @@
-"""Physics family files for the unseen-flight benchmark (``mission.localize.suite``): resolve, check, name.
+"""Physics family files for the unseen-flight benchmark (``mission.workshop.suite``): resolve, check, name.
 
-A benchmark flight's family is a built-in name (``FAMILIES``, re-exported by ``mission.localize.suite``) or a
+A benchmark flight's family is a built-in name (``FAMILIES``, re-exported by ``mission.workshop.suite``) or a
 schema-1 family file (``mission.physics.family``; ``rfsl gap --family`` writes one).  Files are parsed once per
 version, refused with one ``InputError`` naming the file when malformed or unphysical (a negative sigma), and
 named by the sha256 of their canonical JSON so caches, datasets and models record exactly which family they
@@ -19,7 +19,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.physics.family import PhysicsFamily, load_family
 
-FAMILIES = ("afar", "generic", "afar-heavy")  # the built-in families (drawn in mission.localize.suite)
+FAMILIES = ("afar", "generic", "afar-heavy")  # the built-in families (drawn in mission.workshop.suite)
 FamilyArg = str | PhysicsFamily  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
 
 

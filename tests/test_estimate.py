@@ -1,0 +1,62 @@
+"""The typed estimate: ``regions``, ``notes`` and ``components`` are what consumers read, and ``to_dict`` (what
+``--json`` prints) renders them where and how it always did."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from _localize_helpers import write_synthetic_log
+
+from mission.localize import Estimate
+
+TX = (150.0, 120.0, 1.5)
+
+
+def test_notes_render_as_one_sentence_group_where_first_added() -> None:
+    est = Estimate(1.0, 2.0, "grid", extras={"a": 1})
+    est.add_note(None)
+    est.add_note("")
+    assert est.notes == [] and "note" not in est.to_dict()
+    est.add_note("first.")
+    est.extras["b"] = 2
+    est.add_note("second.")
+    assert est.notes == ["first.", "second."]
+    d = est.to_dict()
+    assert d["note"] == "first. second."
+    assert list(d)[-3:] == ["a", "note", "b"]  # the key stays where the first note put it
+    # notes given at construction (a fusion copies its member's) are rendered in place
+    copy = Estimate(0.0, 0.0, "fusion", extras=dict(est.extras), notes=list(est.notes))
+    copy.add_note("third.")
+    assert list(copy.to_dict())[-3:] == ["a", "note", "b"] and copy.to_dict()["note"] == "first. second. third."
+
+
+def test_regions_and_components_are_the_json_record() -> None:
+    est = Estimate(1.0, 2.0, "fusion")
+    assert est.regions == [] and est.components == {}
+    reg = [{"level": 0.5, "hpd_mass": 0.4}, {"level": 0.9, "hpd_mass": 0.87}]
+    est.regions = reg
+    a, b = Estimate(0.0, 1.0, "selfcal"), Estimate(2.0, 3.0, "onnx")
+    est.set_components({"selfcal": a, "net.onnx": b})
+    assert est.regions is reg and est.components["net.onnx"] is b
+    d = est.to_dict()
+    assert d["regions"] == reg and d["components"] == {"selfcal": [0.0, 1.0], "net.onnx": [2.0, 3.0]}
+    json.dumps(d)  # member estimates never leak into the JSON
+
+
+def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
+    """On a real-receiver-like log the default fusion's typed fields are what --json carries."""
+    from mission.localize.api import localize_log
+
+    net = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
+    if not net.exists():
+        pytest.skip("no shipped network")
+    log = write_synthetic_log(tmp_path / "f.csv", TX, n=3000)
+    est = localize_log(log, method="fusion", model_path=net)
+    d = est.to_dict()
+    assert [m.method for m in est.components.values()] == ["selfcal", "onnx"]
+    assert d["components"] == {n: [m.x_m, m.y_m] for n, m in est.components.items()}
+    assert (est.x_m, est.y_m) == pytest.approx(tuple(sum((m.x_m, m.y_m)[i] for m in est.components.values()) / 2
+                                                     for i in range(2)))
+    assert d["regions"] == est.regions and [r["level"] for r in est.regions] == [0.5, 0.9]
+    assert d.get("note") == (" ".join(est.notes) or None)
