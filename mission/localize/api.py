@@ -2,7 +2,7 @@
 
 Steps: read the log (``read_flight_log``: any problem is an ``InputError`` naming file/row/column), keep the
 samples to use (``preprocess.select_samples``: mission legs when the log has a phase column, else the cruise
-altitude levels), run the chosen method, express the estimate in the log's own ENU frame and as lat/lon, and add
+altitudes), run the chosen method, express the estimate in the log's own ENU frame and as lat/lon, and add
 the error when the truth is known (argument, else the sidecar).
 
 Method choice when none is given: an explicit ``model_path`` -> ``onnx``; a real receiver's log (the sidecar's
