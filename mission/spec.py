@@ -10,7 +10,8 @@ mission from one line of output.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -48,9 +49,9 @@ class SourceSpec:
     tx: tuple[float, float, float] | str = "random"
     tx_height_m: float = DEFAULT_TX_HEIGHT_M
     seed: int = 0
-    noise_db: float = 1.0
-    attitude_perturbation_deg: float = 5.0
-    sample_period_s: float = 0.03
+    noise_db: float = SimConfig.noise_db            # the simulator's own defaults: one home (SimConfig)
+    attitude_perturbation_deg: float = SimConfig.attitude_perturbation_deg
+    sample_period_s: float = SimConfig.dt_s
     model_params: dict = field(default_factory=dict)
 
 
@@ -152,6 +153,12 @@ class MissionSpec:
 
 # --------------------------------------------------------------------------------------------- loading
 
+def _default(cls: type, name: str) -> Any:
+    """The dataclass default of ``cls.name``: a key the file omits gets it, so each default is written once."""
+    f = cls.__dataclass_fields__[name]
+    return f.default if f.default is not MISSING else f.default_factory()
+
+
 def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
     """A position: [x, y] / [x, y, z] ENU metres, or {lat, lon[, height_m]} (height above the origin)."""
     if isinstance(v, dict):
@@ -241,11 +248,12 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     r = _Reader(data, src)
     name = r.str_("name", Path(path).stem if path else "mission")
     fld, takeoff = _field(r)
-    altitude = r.num("altitude_m", 30.0, 0.0, strict_lo=True)
-    cruise = r.num("cruise_speed_mps", 5.5, 0.0, 30.0, strict_lo=True)
-    budget = r.num("time_budget_s", 600.0, 0.0, strict_lo=True)
-    margin = r.num("fence_margin_m", 3.0, 0.0)
-    lim = r.raw("altitude_limits_m", [10.0, 120.0])
+    d = partial(_default, MissionSpec)
+    altitude = r.num("altitude_m", d("altitude_m"), 0.0, strict_lo=True)
+    cruise = r.num("cruise_speed_mps", d("cruise_speed_mps"), 0.0, 30.0, strict_lo=True)
+    budget = r.num("time_budget_s", d("time_budget_s"), 0.0, strict_lo=True)
+    margin = r.num("fence_margin_m", d("fence_margin_m"), 0.0)
+    lim = r.raw("altitude_limits_m", list(d("altitude_limits_m")))
     if not (isinstance(lim, list) and len(lim) == 2 and all(
             isinstance(x, int | float) and not isinstance(x, bool) for x in lim) and 0 <= lim[0] < lim[1]):
         raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max, got {lim!r}")
@@ -255,9 +263,9 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
         home = fld.origin.to_enu(*takeoff)
         home[2] = math.nan  # ground level (the origin's ground; earth curvature is not a height)
     else:
-        home = np.zeros(3)
+        home = d("home_enu")
     home = np.array([home[0], home[1], 0.0 if math.isnan(home[2]) else home[2]])
-    ret = r.str_("return_behaviour", "rtl", RETURN_BEHAVIOURS)
+    ret = r.str_("return_behaviour", d("return_behaviour"), RETURN_BEHAVIOURS)
 
     tr = r.sub("trajectory")
     if tr.has("waypoints"):
@@ -273,16 +281,16 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     else:
         from mission.trajectory.generators import GENERATORS
 
-        gen = tr.str_("generator", "spiral", tuple(GENERATORS))
+        gen = tr.str_("generator", d("trajectory").generator, tuple(GENERATORS))
         params = tr.raw("params", {}) or {}
         if not isinstance(params, dict):
             raise tr.err("params", f"expected a mapping of generator parameters, got {params!r}")
         traj = TrajectorySpec(gen, dict(params), None)
     tr.done()
 
-    sr = r.sub("source")
-    tx_raw = sr.raw("tx", "random")
-    tx_h = sr.num("tx_height_m", DEFAULT_TX_HEIGHT_M, 0.0)
+    sr, ds = r.sub("source"), partial(_default, SourceSpec)
+    tx_raw = sr.raw("tx", ds("tx"))
+    tx_h = sr.num("tx_height_m", ds("tx_height_m"), 0.0)
     if isinstance(tx_raw, str):
         if tx_raw != "random":
             raise sr.err("tx", f"expected 'random' or a position, got '{tx_raw}'")
@@ -294,16 +302,16 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     if not isinstance(model_params, dict):
         raise sr.err("model_params", "expected a mapping")
     source = SourceSpec(
-        model=sr.str_("model", "e2r"), tx=tx, tx_height_m=tx_h, seed=sr.int_("seed", 0),
-        noise_db=sr.num("noise_db", 1.0, 0.0),
-        attitude_perturbation_deg=sr.num("attitude_perturbation_deg", 5.0, 0.0, 45.0),
-        sample_period_s=sr.num("sample_period_s", 0.03, 0.0, 10.0, strict_lo=True),
+        model=sr.str_("model", ds("model")), tx=tx, tx_height_m=tx_h, seed=sr.int_("seed", ds("seed")),
+        noise_db=sr.num("noise_db", ds("noise_db"), 0.0),
+        attitude_perturbation_deg=sr.num("attitude_perturbation_deg", ds("attitude_perturbation_deg"), 0.0, 45.0),
+        sample_period_s=sr.num("sample_period_s", ds("sample_period_s"), 0.0, 10.0, strict_lo=True),
         model_params=dict(model_params))
     sr.done()
 
     vr = r.sub("vehicle")
-    conn = vr.str_("connection", None)
-    speedup = vr.num("speedup", 1.0, 0.0, strict_lo=True)
+    conn = vr.str_("connection", _default(VehicleSpec, "connection"))
+    speedup = vr.num("speedup", _default(VehicleSpec, "speedup"), 0.0, strict_lo=True)
     kr = vr.sub("kinematics")
     kin = {k: kr.num(k, getattr(Kinematics, k), 0.0, strict_lo=True) for k in _KIN_FIELDS if kr.has(k)}
     kr.used.update(kin)

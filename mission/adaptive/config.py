@@ -8,6 +8,7 @@ pattern that fits nowhere inside the fence, a budget that cannot hold the survey
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -32,14 +33,14 @@ class AdaptiveSpec:
 
 def parse_adaptive(r) -> AdaptiveSpec:
     """The ``adaptive:`` mapping (a ``SpecReader``) -> ``AdaptiveSpec``; errors name ``adaptive.<key>``."""
-    en = r.raw("enabled", False)
+    d = AdaptiveSpec()  # every default is the dataclass's
+    en = r.raw("enabled", d.enabled)
     if not isinstance(en, bool):
         raise r.err("enabled", f"expected true or false, got {en!r}")
-    ex = r.raw("explore", True)
+    ex = r.raw("explore", d.explore)
     if not isinstance(ex, bool):
         raise r.err("explore", f"expected true or false, got {ex!r}")
-    d = AdaptiveSpec()
-    alt = r.num("altitude_m", 30.0, 0.0, strict_lo=True) if r.has("altitude_m") else None
+    alt = r.num("altitude_m", math.nan, 0.0, strict_lo=True) if r.has("altitude_m") else d.altitude_m
     r.used.add("altitude_m")
     radius = r.num("radius_m", d.radius_m, 0.0, strict_lo=True)
     out = AdaptiveSpec(

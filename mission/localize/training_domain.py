@@ -109,7 +109,7 @@ def planned_track(meta: dict, origin) -> np.ndarray | None:
     when that file is here and still plans the recorded trajectory, else the recorded trajectory (generator,
     parameters, altitude) over the AFAR field; None when the sidecar records no trajectory."""
     from mission.geo import afar_field
-    from mission.spec import load_mission
+    from mission.spec import MissionSpec, load_mission
     from mission.trajectory.generators import generate
 
     traj = meta.get("trajectory") or {}
@@ -128,7 +128,7 @@ def planned_track(meta: dict, origin) -> np.ndarray | None:
                 continue
     if w is None:
         try:
-            w = generate(traj["generator"], afar_field(), float(traj.get("altitude_m", 30.0)),
+            w = generate(traj["generator"], afar_field(), float(traj.get("altitude_m", MissionSpec.altitude_m)),
                          **(traj.get("params") or {}))
         except (InputError, TypeError, ValueError):
             return None
