@@ -116,6 +116,18 @@ class Area:
         return out[:n]
 
 
+def square_grid(bounds, step_m: float, centred: bool = False) -> np.ndarray:
+    """Points (ny, nx, 2) of a square grid with spacing ``step_m`` over the box (xmin, ymin, xmax, ymax): from the
+    corner up to the far edge included (the localizers' candidate transmitters), or with ``centred`` the centres of
+    the ``step_m`` cells inside the box (area coverage).  Rows run along y, columns along x (``np.meshgrid``)."""
+    x0, y0, x1, y1 = bounds
+    if centred:
+        xs, ys = np.arange(x0 + step_m / 2, x1, step_m), np.arange(y0 + step_m / 2, y1, step_m)
+    else:
+        xs, ys = np.arange(x0, x1 + 1e-9, step_m), np.arange(y0, y1 + 1e-9, step_m)
+    return np.stack(np.meshgrid(xs, ys), axis=-1)
+
+
 def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
     """Sutherland-Hodgman: the part of polygon ``subject`` inside the *convex* polygon ``clip`` ((K, 2))."""
     clip = _ccw(np.asarray(clip, dtype=float))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.geo import Area
+from mission.geo import Area, square_grid
 
 # estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y
 # What the default expected-error map assumes, said wherever its numbers are shown (table and plot title).
@@ -50,10 +50,7 @@ def _dist_to_polyline(pts: np.ndarray, path: np.ndarray, chunk: int = 4096) -> n
 
 def area_grid(area: Area, step_m: float) -> np.ndarray:
     """Points (P, 2) of a square grid with spacing ``step_m`` inside ``area`` (cell centres)."""
-    x0, y0, x1, y1 = area.bounds
-    xs = np.arange(x0 + step_m / 2, x1, step_m)
-    ys = np.arange(y0 + step_m / 2, y1, step_m)
-    g = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+    g = square_grid(area.bounds, step_m, centred=True).reshape(-1, 2)
     return g[area.contains(g)]
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.geo import square_grid
 from mission.trajectory.kinematics import FlightProfile, plan_profile
 
 
@@ -60,10 +61,7 @@ def fit_centre(spec, want_xy, r: float, step_m: float = 2.0) -> np.ndarray | Non
     offs = r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
     if min(area.signed_distance(want + offs)) >= margin:
         return want
-    v = np.asarray(area.vertices, dtype=float)
-    xs = np.arange(v[:, 0].min(), v[:, 0].max() + step_m, step_m)
-    ys = np.arange(v[:, 1].min(), v[:, 1].max() + step_m, step_m)
-    g = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+    g = square_grid(area.bounds, step_m).reshape(-1, 2)
     g = g[area.signed_distance(g) >= margin + r]  # a necessary condition first (cheap)
     if not len(g):
         return None

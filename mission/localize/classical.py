@@ -27,6 +27,7 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog
+from mission.geo import square_grid
 from mission.localize import Estimate
 from mission.localize.features import FeatureConfig, preprocess
 from mission.robust import robust_cost
@@ -216,10 +217,7 @@ class ModelGridSearch(_Base):
         """The search box and the first pass's candidates: a ``step_m`` grid from the box's corner, kept inside
         the area's polygon when there is one (all of them if none falls inside)."""
         bounds, poly = search_bounds(self.area, enu, self.margin_m)
-        xmin, ymin, xmax, ymax = bounds
-        xs = np.arange(xmin, xmax + 1e-9, self.step_m)
-        ys = np.arange(ymin, ymax + 1e-9, self.step_m)
-        cand = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        cand = square_grid(bounds, self.step_m).reshape(-1, 2)
         if poly is not None:
             inside = poly.contains(cand)
             cand = cand[inside] if inside.any() else cand

@@ -24,6 +24,7 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
+from mission.geo import square_grid
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
 from mission.localize.matched_net import SummaryNet
@@ -195,9 +196,7 @@ class MatchedLocalizer(_Base):
         h = kde_bandwidth(pts, w, self.step_m)
         check = self._self_check(tx, s_ref, fold, k, rng)
         masses = {lev: conformal_mass(check["hpd_levels"], lev) for lev in self.levels} if self.calibrate else {}
-        xs = np.arange(box[0], box[2] + 1e-9, self.step_m)
-        ys = np.arange(box[1], box[3] + 1e-9, self.step_m)
-        grid = np.stack(np.meshgrid(xs, ys), axis=-1)
+        grid = square_grid(box, self.step_m)
         flat = grid.reshape(-1, 2)
         dens = kde(flat, pts, w, h)
         if poly is not None:

@@ -30,7 +30,7 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
-from mission.geo import Area
+from mission.geo import Area, square_grid
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
 from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
@@ -253,10 +253,7 @@ class SelfCalibratingGrid(_Base):
 
     def _candidates(self, f: FlightSamples) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
         box, poly = search_bounds(self.area, f.enu_m, self.margin_m)
-        xs = np.arange(box[0], box[2] + 1e-9, self.step_m)
-        ys = np.arange(box[1], box[3] + 1e-9, self.step_m)
-        gx, gy = np.meshgrid(xs, ys)
-        return np.stack([gx, gy], axis=-1), box, poly
+        return square_grid(box, self.step_m), box, poly
 
     def predict(self, flight, origin=None) -> Estimate:
         from mission.localize.uncertainty import grid_posterior, hpd_regions
@@ -284,8 +281,8 @@ class SelfCalibratingGrid(_Base):
         k = int(np.argmin(ssr.min(axis=0)))
         best_h = np.argsort(ssr[:, k])[:3]
         c0 = flat[valid][k]
-        d = np.arange(-self.step_m, self.step_m + 1e-9, self.refine_m)
-        fine = (c0[None, :] + np.stack(np.meshgrid(d, d), axis=-1).reshape(-1, 2))
+        s = self.step_m
+        fine = c0[None, :] + square_grid((-s, -s, s, s), self.refine_m).reshape(-1, 2)
         fssr, foff = hypothesis_ssr(fine, cells, [hyps[i] for i in best_h], self.tx_height_m)
         j = np.unravel_index(int(np.argmin(fssr)), fssr.shape)
         x, y = fine[j[1]]
