@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mission.localize.selfcal import Cells, _geometry
+from mission.cells import Cells
+from mission.localize.selfcal import _geometry
 from mission.physics.geometry import (
     body_angles,
     elevation,

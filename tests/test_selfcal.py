@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mission.localize.selfcal import SelfCalibratingGrid, altitude_index, antenna_hypotheses, cell_average
+from mission.cells import altitude_index, cell_average
+from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
 from mission.localize.uncertainty import Posterior, hpd_regions, region_covers
 from mission.samples import FlightSamples
 
@@ -235,7 +236,8 @@ def test_gain_tables_follow_the_pattern_object_not_a_reused_id() -> None:
     with a constant-gain pattern of g dBi the fitted offset is the isotropic one minus g, exactly."""
     import gc
 
-    from mission.localize.selfcal import Cells, hypothesis_ssr
+    from mission.cells import Cells
+    from mission.localize.selfcal import hypothesis_ssr
     from mission.physics.patterns import TabulatedPattern
 
     rx = lawnmower(legs=3, step=20.0)

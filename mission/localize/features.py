@@ -49,6 +49,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from mission.cells import bin_index, bin_means
 from mission.errors import InputError, refuse_unknown_keys
 
 FEATURE_VERSION = 1
@@ -168,11 +169,8 @@ def resample_by_arc(
     sx = gaussian_filter1d(x, smooth_samples, mode="nearest")
     sy = gaussian_filter1d(y, smooth_samples, mode="nearest")
     s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(sx), np.diff(sy)))])
-    b = np.floor(s / step_m).astype(np.int64)
-    cnt = np.bincount(b)
-    keep = cnt > 0
-    c = cnt[keep].astype(float)
-    return tuple(np.bincount(b, weights=v)[keep] / c for v in (x, y, rss))  # type: ignore[return-value]
+    inv, cnt = bin_index(np.floor(s / step_m).astype(np.int64))
+    return tuple(bin_means(inv, cnt, x, y, rss))  # type: ignore[return-value]
 
 
 def preprocess(

@@ -9,7 +9,7 @@ the best hypothesis is kept per candidate (profile likelihood).  The distance la
 moved estimates (``models/README.md``).
 
 Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal plane, one
-set per cruise altitude (:func:`cell_average`), so that a slow pass or a hover does not count its spot many
+set per cruise altitude (``mission.cells.cell_average``), so that a slow pass or a hover does not count its spot many
 times, and the likelihood is tempered to the number of *independent* cells, ``n_eff = covered area / (pi corr_m^2)``
 (exponential shadowing correlation length ``corr_m``), so thousands of correlated samples do not count as
 independent evidence.  The tempered profile likelihood over the search grid is the posterior from which
@@ -24,10 +24,9 @@ Model (per cell m, candidate k, hypothesis h)::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from mission.cells import ALTITUDE_GAP_M, Cells, cell_average
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.geo import Area, square_grid
@@ -46,64 +45,11 @@ HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
 # 3 / 6 of 6 (the afar-family masses 0.511 / 0.954 covered 61 / 94 % of the fitted benchmark: too wide).
 CORR_M = 15.0
 CALIBRATED_MASS = {0.5: 0.339, 0.9: 0.870}
-# Heights further apart than this are separate cruise altitudes when cells are averaged (altitude_index)
-ALTITUDE_GAP_M = 5.0
-
-
-@dataclass
-class Cells:
-    """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dBm, mean yaw (M,) rad,
-    sample counts (M,), the cell size (m)."""
-
-    enu_m: np.ndarray
-    rss_dbm: np.ndarray
-    yaw_rad: np.ndarray
-    count: np.ndarray
-    cell_m: float
-    n_columns: int | None = None  # distinct horizontal cells (one flown at two altitudes counts once); None: len
-
-    def __len__(self) -> int:
-        return int(self.rss_dbm.size)
-
-    @property
-    def area_m2(self) -> float:
-        """Horizontal area the flight covered: the occupied horizontal cells times their area."""
-        n = len(self) if self.n_columns is None else self.n_columns
-        return n * self.cell_m * self.cell_m
 
 
 def corr_is_default(corr_m: float) -> bool:
     """The calibrated masses hold only for the calibrated temperature."""
     return abs(corr_m - CORR_M) < 1e-9
-
-
-def altitude_index(z: np.ndarray, gap_m: float = ALTITUDE_GAP_M) -> np.ndarray:
-    """Cruise altitude index per sample (N,): heights split wherever sorted heights leave a gap over ``gap_m``.
-
-    Why: a flight surveyed at two altitudes (``preprocess.cruise_mask`` keeps both) must not average a
-    cell's samples at 25 m and 45 m into one point at 35 m; one altitude (any noise within it) gives all zeros.
-    """
-    zs = np.sort(z)
-    cuts = zs[1:][np.diff(zs) > gap_m]
-    return np.searchsorted(cuts, z, side="right")
-
-
-def cell_average(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M) -> Cells:
-    """Average a flight's samples into ``cell_m`` square horizontal cells, one set per cruise altitude (vectorised;
-    yaw averaged on the circle).
-
-    Without attitude the yaw is taken as 0 (nose north); ``altitude_gap_m`` = inf merges the altitudes.
-    """
-    xy = np.floor(f.enu_m[:, :2] / cell_m).astype(np.int64)
-    key = np.column_stack([xy, altitude_index(f.enu_m[:, 2], altitude_gap_m)])
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    m = cnt.size
-    pos = np.stack([np.bincount(inv, f.enu_m[:, i], m) / cnt for i in range(3)], axis=1)
-    rss = np.bincount(inv, f.rss_dbm, m) / cnt
-    yaw_s = np.zeros(f.rss_dbm.size) if f.attitude_rad is None else f.attitude_rad[:, 2]
-    yaw = np.arctan2(np.bincount(inv, np.sin(yaw_s), m), np.bincount(inv, np.cos(yaw_s), m))
-    return Cells(pos, rss, yaw, cnt, float(cell_m), len(np.unique(xy, axis=0)))
 
 
 def antenna_hypotheses(kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
