@@ -52,31 +52,39 @@ class SimulatedFlight(FlightSamples):
                 "phase": phase, "mission_item": item}
 
 
-def path_phases(profile: FlightProfile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mission phase (``flightlog.PHASES``) and mission item per time of a path shaped as
+def leg_phases(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mission phase (``flightlog.PHASES``) and mission item (K-1,) of each leg of a path (K, 3) shaped as
     ``MissionSpec.flight_path_enu`` builds it: leading climbing vertical legs are the take-off, trailing
     descending vertical legs the landing, a horizontal leg back over the start just before the landing the
     return, the rest the mission (item k: flying to waypoint k; a path without take-off starts at waypoint 0).
-    """
-    from mission.flightlog import PHASES
 
-    _, takeoff, mission, _, ret, land = PHASES
-    d = np.diff(profile.vertices, axis=0)
+    A planned path's phases from its geometry; a flown vehicle's come from its events instead
+    (``flight.phases.PhaseTracker``), with the same names and item rule.
+    """
+    from mission.flightlog import LAND, MISSION, RETURN, TAKEOFF
+
+    vertices = np.asarray(vertices, dtype=float)
+    d = np.diff(vertices, axis=0)
     vertical = np.linalg.norm(d[:, :2], axis=1) < 1e-6
     n = len(d)
     n_up = int(np.argmin(vertical & (d[:, 2] > 0))) if not np.all(vertical & (d[:, 2] > 0)) else n
     down = (vertical & (d[:, 2] < 0))[::-1]
     n_down = int(np.argmin(down)) if not np.all(down) else n
-    name = np.full(n, mission, dtype=object)
-    name[:n_up] = takeoff
-    name[n - n_down:] = land
+    name = np.full(n, MISSION, dtype=object)
+    name[:n_up] = TAKEOFF
+    name[n - n_down:] = LAND
     last = n - n_down - 1  # the leg before the landing
-    back = np.linalg.norm(profile.vertices[last + 1, :2] - profile.vertices[0, :2]) < 1.0
+    back = np.linalg.norm(vertices[last + 1, :2] - vertices[0, :2]) < 1.0
     if n_up and last > n_up and back:
-        name[last] = ret
+        name[last] = RETURN
     first_wp = n_up + 1 if n_up else 0
-    item = np.where(name == mission, np.arange(n) + 1 - first_wp, -1)
-    leg = np.clip(np.searchsorted(profile.t_vertex, t, side="right") - 1, 0, n - 1)
+    return name, np.where(name == MISSION, np.arange(n) + 1 - first_wp, -1)
+
+
+def path_phases(profile: FlightProfile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mission phase and mission item at times ``t`` along ``profile`` (its legs' ``leg_phases``)."""
+    name, item = leg_phases(profile.vertices)
+    leg = np.clip(np.searchsorted(profile.t_vertex, t, side="right") - 1, 0, len(name) - 1)
     return name[leg].astype(str), item[leg]
 
 

@@ -13,6 +13,8 @@ import dataclasses
 
 import numpy as np
 
+from mission.flight.phases import final_phase
+from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.trajectory.kinematics import plan_profile
 
 MIN_LEAD_WALL_S = 4.0  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
@@ -80,7 +82,7 @@ async def adapt(r, action, mission_raw) -> None:
     if extra > 0.5:
         a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
         r.event("adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing")
-    final = "land" if spec.return_behaviour == "land" else "return"
+    final = final_phase(spec.return_behaviour)
     lead = max(a.lead_s, MIN_LEAD_WALL_S * r.speedup)
     if lead > a.lead_s:
         r.event("adaptive", f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
@@ -150,9 +152,9 @@ def budget_report(r) -> dict:
     item = np.asarray(r.phases.item)
     starts = []
     for rd in r.rounds:
-        hit = np.flatnonzero((ph == "adaptive") & (item >= rd["first_item"]))
+        hit = np.flatnonzero((ph == ADAPTIVE) & (item >= rd["first_item"]))
         starts.append(float(t[hit[0]]) if len(hit) else None)
-    after = np.flatnonzero(np.isin(ph, ("return", "land")) & (t > (starts[0] if starts and starts[0] else np.inf)))
+    after = np.flatnonzero(np.isin(ph, (RETURN, LAND)) & (t > (starts[0] if starts and starts[0] else np.inf)))
     t_ret = float(t[after[0]]) if len(after) else None
     for j, rd in enumerate(r.rounds):
         s = starts[j]

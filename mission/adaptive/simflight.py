@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.flightlog import ADAPTIVE, FLOWN_PHASES, LAND, MISSION, RETURN, TAKEOFF
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
 
@@ -69,8 +70,6 @@ class SimLog:
 
     def samples(self, t_max: float = np.inf) -> FlightSamples | None:
         """Mission and adaptive samples up to ``t_max`` (what the live estimate uses)."""
-        from mission.flightlog import FLOWN_PHASES
-
         t, ph = np.concatenate(self.t), np.concatenate(self.phase).astype(str)
         m = np.isin(ph, FLOWN_PHASES) & (t <= t_max)
         if m.sum() < 2:
@@ -121,12 +120,20 @@ def _climb(spec, first) -> list:
     return [home, np.array([home[0], home[1], first[2]])]
 
 
-def fixed_flight(spec, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
-    """The whole trajectory, then home."""
+def fixed_path(spec) -> tuple[np.ndarray, list[str]]:
+    """The whole trajectory, then back over home and down: the path (K, 3) and each leg's phase.
+
+    The phases are known here by construction (the simulator builds the legs); ``simulate.leg_phases`` derives
+    the same from the geometry of such a path (what ``rfsl simulate`` logs)."""
     wps = spec.waypoints_enu()
     home = np.asarray(spec.home_enu, dtype=float)
     path = np.vstack([*_climb(spec, wps[0]), wps, [home[0], home[1], wps[-1, 2]], home])
-    names = ["takeoff"] + ["mission"] * len(wps) + ["return", "land"]
+    return path, [TAKEOFF] + [MISSION] * len(wps) + [RETURN, LAND]
+
+
+def fixed_flight(spec, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
+    """The whole trajectory, then home."""
+    path, names = fixed_path(spec)
     log = SimLog()
     log.fly(path, names, world, cfg, rng)
     return Outcome(_estimate(loc, log, np.inf, world.tx), _estimate(loc, log, fast_s, world.tx), log.t_end)
@@ -139,7 +146,7 @@ def adaptive_flight(spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_
     sv = survey_profile(spec, a.survey_s).vertices
     home = np.asarray(spec.home_enu, dtype=float)
     log = SimLog()
-    log.fly(np.vstack([*_climb(spec, sv[0]), sv]), ["takeoff"] + ["mission"] * len(sv), world, cfg, rng)
+    log.fly(np.vstack([*_climb(spec, sv[0]), sv]), [TAKEOFF] + [MISSION] * len(sv), world, cfg, rng)
     end, rounds, notes, visited = sv[-1], 0, [], []
     while True:
         est = _estimate(loc, log, log.t_end - a.lead_s, world.tx)
@@ -151,9 +158,9 @@ def adaptive_flight(spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_
         notes += plan.notes
         if not plan.ok:
             break
-        log.fly(np.vstack([end, plan.waypoints]), ["adaptive"] * len(plan.waypoints), world, cfg, rng)
+        log.fly(np.vstack([end, plan.waypoints]), [ADAPTIVE] * len(plan.waypoints), world, cfg, rng)
         end, rounds = plan.waypoints[-1], rounds + 1
         visited.append(plan.centre)
-    log.fly(np.vstack([end, [home[0], home[1], end[2]], home]), ["return", "land"], world, cfg, rng)
+    log.fly(np.vstack([end, [home[0], home[1], end[2]], home]), [RETURN, LAND], world, cfg, rng)
     fast = _estimate(loc, log, fast_s, world.tx)
     return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes)

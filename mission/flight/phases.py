@@ -3,15 +3,20 @@
 Why: later steps (localization) select the mission legs of a log; the vehicle's landed state and the
 mission progress say which phase it is in, but they arrive as events.  ``PhaseTracker`` turns them into a
 step function of vehicle time that the log writer reads for each row.  Phase names: ``flightlog.PHASES``.
+A simulated flight has no events: ``simulate.path_phases`` derives the same columns from its planned path
+(same names, same item rule: the index of the waypoint being flown to, counted from the first).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mission.flightlog import PHASES
+from mission.flightlog import ADAPTIVE, GROUND, LAND, MISSION, RETURN, TAKEOFF
 
-GROUND, TAKEOFF, MISSION, ADAPTIVE, RETURN, LAND = PHASES
+
+def final_phase(return_behaviour: str) -> str:
+    """The phase of a mission's final item: ``land`` for ``return_behaviour: land``, else ``return``."""
+    return LAND if return_behaviour == "land" else RETURN
 
 
 class PhaseTracker:
@@ -88,4 +93,4 @@ class PhaseTracker:
         return np.asarray(self.phase, dtype=object)[k].astype(str), np.asarray(self.item)[k]
 
 
-__all__ = ["PhaseTracker", "GROUND", "TAKEOFF", "MISSION", "ADAPTIVE", "RETURN", "LAND"]
+__all__ = ["PhaseTracker", "final_phase", "GROUND", "TAKEOFF", "MISSION", "ADAPTIVE", "RETURN", "LAND"]

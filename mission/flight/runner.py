@@ -32,7 +32,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.flight.budget import close_budget, start_budget, watch_budget
 from mission.flight.heartbeat import gcs_heartbeats, settle_texts
-from mission.flight.phases import PhaseTracker
+from mission.flight.phases import PhaseTracker, final_phase
 from mission.flight.progress import Display, FlightStatus
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.tasks import EXIT_ABORTED, EXIT_FAILED, EXIT_LINK, EXIT_OK, FlightError, FlightTasks
@@ -242,8 +242,7 @@ class Runner(FlightTasks):
         items = build_items(spec, (home.latitude_deg, home.longitude_deg, home.absolute_altitude_m), ardupilot)
         n_wp = len(spec.waypoints_enu())
         self.status.n_waypoints, self.status.waypoint_offset = n_wp, 3 if ardupilot else 2
-        self.phases.configure(self.status.waypoint_offset, len(items) - 1,
-                              "land" if spec.return_behaviour == "land" else "return")
+        self.phases.configure(self.status.waypoint_offset, len(items) - 1, final_phase(spec.return_behaviour))
         self.rate_requested = opts.rate_hz or auto_rate_hz(self.speedup)
         for name in ("set_rate_position", "set_rate_attitude_euler"):
             try:

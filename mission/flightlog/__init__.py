@@ -13,12 +13,18 @@ for simulated flights, the true transmitter position.
 
 from mission.flightlog.read import read_flight_log
 from mission.flightlog.schema import (
+    ADAPTIVE,
     COLUMNS,
     FLOWN_PHASES,
+    GROUND,
+    LAND,
+    MISSION,
     OPTIONAL,
     PHASE_COLUMNS,
     PHASES,
     REQUIRED,
+    RETURN,
+    TAKEOFF,
     WARNING,
     FlightLog,
     make_meta,
@@ -26,6 +32,6 @@ from mission.flightlog.schema import (
 )
 from mission.flightlog.write import DEFAULT_DIGITS, DIGITS, FlightLogWriter, format_rows, rounded, write_flight_log
 
-__all__ = ["COLUMNS", "DEFAULT_DIGITS", "DIGITS", "FLOWN_PHASES", "OPTIONAL", "PHASES", "PHASE_COLUMNS", "REQUIRED",
-           "WARNING", "FlightLog", "FlightLogWriter", "format_rows", "make_meta", "read_flight_log", "rounded",
-           "sidecar_path", "write_flight_log"]
+__all__ = ["ADAPTIVE", "COLUMNS", "DEFAULT_DIGITS", "DIGITS", "FLOWN_PHASES", "GROUND", "LAND", "MISSION", "OPTIONAL",
+           "PHASES", "PHASE_COLUMNS", "REQUIRED", "RETURN", "TAKEOFF", "WARNING", "FlightLog", "FlightLogWriter",
+           "format_rows", "make_meta", "read_flight_log", "rounded", "sidecar_path", "write_flight_log"]

@@ -22,8 +22,11 @@ OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
 # Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of PHASES,
 # ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the mission phase);
 # ``adaptive``: legs planned in flight from the live posterior (``mission.flight.adaptive``), item = their index.
+# Two producers derive it: ``flight.phases.PhaseTracker`` from a flown vehicle's events, ``simulate.path_phases``
+# from a planned path's geometry; both name phases by these constants, in this order.
 PHASES = ("ground", "takeoff", "mission", "adaptive", "return", "land")
-FLOWN_PHASES = ("mission", "adaptive")  # the legs a localizer uses
+GROUND, TAKEOFF, MISSION, ADAPTIVE, RETURN, LAND = PHASES
+FLOWN_PHASES = (MISSION, ADAPTIVE)  # the legs a localizer uses
 PHASE_COLUMNS = ("phase", "mission_item")
 
 
