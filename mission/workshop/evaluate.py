@@ -153,13 +153,14 @@ def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def test_label(manifest: dict) -> str:
     """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
+    from mission.spec import MissionSpec
     from mission.workshop.dataset import physics_label
 
     cfg = manifest["config"]
     r = cfg.get("randomisation", {})
     traj = "+".join(r.get("trajectories") or [manifest.get("mission_generator", "?")])
     alt = r.get("altitude_m")
-    alt_s = f"{alt[0]:g}-{alt[1]:g}m" if alt else f"{manifest.get('mission_altitude_m', 30):g}m"
+    alt_s = f"{alt[0]:g}-{alt[1]:g}m" if alt else f"{manifest.get('mission_altitude_m', MissionSpec.altitude_m):g}m"
     return f"sim:{physics_label(cfg)}:{traj}@{alt_s}"
 
 
