@@ -17,7 +17,7 @@ import numpy as np
 
 from mission.gap.align import PHASES, Alignment, align
 from mission.gap.candidates import Candidate, describe_params
-from mission.gap.fit import FitConfig, Rung, _pooled, ladder, offset_residual
+from mission.gap.fit import FitConfig, Rung, _pooled, ladder, make_folds, offset_residual
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
 from mission.physics import make_model
@@ -206,9 +206,11 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     struct = {"base": residual_structure(flights, rungs[0].residuals, rng),
               "final": residual_structure(flights, rungs[-1].residuals, rng)}
     fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
-    from mission.gap.nadir import power_statement
+    from mission.gap.power import power_statement
 
-    nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls)
+    m = max(1, len(rungs[0].ranking))
+    nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls, make_folds(flights, cfg),
+                            cfg, m, seed=cfg.seed)
     nadir["found"] = any(r.added == "near_nadir" for r in rungs)
     return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps, nadir)
 
