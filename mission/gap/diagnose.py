@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from mission.gap.align import PHASES, Alignment, align
-from mission.gap.candidates import Candidate, describe_params
+from mission.gap.candidate import Candidate
+from mission.gap.describe import describe_params
 from mission.gap.fit import FitConfig, Rung, _pooled, ladder, make_folds, offset_residual
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
