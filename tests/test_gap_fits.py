@@ -13,7 +13,7 @@ from _gap_synth import make_case
 from mission.gap.candidates import select
 from mission.gap.fit import FitConfig, Fold, ladder, make_folds
 from mission.gap.pipeline import Pipeline
-from mission.gap.power import DEPTHS_DB, band_shape, fit_band, injected_test, power_statement
+from mission.gap.power import DEPTHS_DB, FIT_MARGIN, band_shape, fit_band, injected_test, power_statement
 from mission.gap.stats import block_length
 from mission.gap.structure import identify
 from mission.physics import Attitude, make_model
@@ -102,7 +102,7 @@ def test_power_statement_needs_the_band_in_both_folds() -> None:
     assert "cannot be shown" in one["statement"]
     dep, folds = _one_flight(list(range(100, 4000, 250)))   # 16 passes, both parities
     ps = power_statement([dep], r, [4], folds, CFG, 4)
-    assert ps["passes"] == 16 and np.isfinite(ps["detectable_db"])
-    assert injected_test([dep], r, folds, CFG, 4, 2 * ps["detectable_db"])[0]
-    k = DEPTHS_DB.index(ps["detectable_db"])
+    assert ps["passes"] == 16 and ps["detectable_db"] == FIT_MARGIN * ps["injected_threshold_db"] < 10.0
+    assert injected_test([dep], r, folds, CFG, 4, 2 * ps["injected_threshold_db"])[0]
+    k = DEPTHS_DB.index(ps["injected_threshold_db"])
     assert k == 0 or not injected_test([dep], r, folds, CFG, 4, DEPTHS_DB[k - 1])[0]
