@@ -138,6 +138,7 @@ def nadir_power(args: argparse.Namespace) -> int:
 
 def suspect_loc3(flights) -> dict:
     """Where the strongest RSS of each loc-3 flight is, and where a free-space / e2r grid search puts the rover."""
+    from mission.defaults import DEFAULT_TX_HEIGHT_M
     from mission.gap.diagnose import base_pipeline
     from mission.gap.pipeline import LocalizationModel
     from mission.localize.classical import ModelGridSearch
@@ -154,7 +155,7 @@ def suspect_loc3(flights) -> dict:
                "strongest_to_label_m": float(np.hypot(*(f.enu_m[i, :2] - f.tx_enu_m[:2]))),
                "label_enu": f.tx_enu_m[:2].round(1).tolist()}
         for name, pat in (("free-space", "isotropic"), ("e2r", "dipole")):
-            est = ModelGridSearch(LocalizationModel(base_pipeline(name, pat)), tx_height_m=1.5,
+            est = ModelGridSearch(LocalizationModel(base_pipeline(name, pat)), tx_height_m=DEFAULT_TX_HEIGHT_M,
                                   area=AREA, step_m=10.0, loss="soft_l1")
             e = est.predict(FlightSamples(f.enu_m, f.rss_dbm, f.attitude_rad))
             row[f"grid_{name}_enu"] = [round(e.x_m, 1), round(e.y_m, 1)]

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import PHASES, Alignment, align
+from mission.gap.align import SEGMENTS, Alignment, align
 from mission.gap.candidate import Candidate
 from mission.gap.describe import describe_params
 from mission.gap.fit import FitConfig, Rung, _pooled, ladder, make_folds, offset_residual
@@ -87,13 +87,13 @@ def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, 
 
 def residual_breakdown(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Sequence[int],
                        rng: np.random.Generator, n_boot: int = 300) -> list[BinnedResidual]:
-    """Residual by distance, depression, body/world azimuth, attitude and phase, with flagged bins."""
+    """Residual by distance, depression, body/world azimuth, attitude and flight segment, with flagged bins."""
     out = []
     for var, edges in BREAKDOWN_EDGES.items():
         xs = [a.as_dict()[var] for a in al]
         out.append(binned_residual(var, xs, res, edges, block_lens, rng, n_boot))
-    phases = [a.phase.astype(float) for a in al]
-    b = binned_residual("phase", phases, res, np.arange(len(PHASES), dtype=float), block_lens, rng, n_boot,
+    segments = [a.segment.astype(float) for a in al]
+    b = binned_residual("segment", segments, res, np.arange(len(SEGMENTS), dtype=float), block_lens, rng, n_boot,
                         categorical=True)
     out.append(b)
     return out
