@@ -31,7 +31,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
-from mission.gap.pipeline import Pipeline, offset_residuals
+from mission.gap.pipeline import Pipeline, memo, offset_residuals
 from mission.physics.geometry import body_vectors, enu_to_ned
 from mission.samples import FlightSamples
 
@@ -131,10 +131,16 @@ class FreeFormTerm:
 
     def rss_term_db(self, link: Any) -> np.ndarray:
         a, b = map_variables(self.name, link)
-        out = np.zeros(np.shape(a))
-        for c, col in zip(self.coef, _columns(self.name, a, b), strict=True):
-            out += c * col
-        return out.astype(np.asarray(link.d_los).dtype, copy=False)
+        dtype = np.asarray(link.d_los).dtype
+
+        def compute() -> np.ndarray:
+            out = np.zeros(np.shape(a))
+            for c, col in zip(self.coef, _columns(self.name, a, b), strict=True):
+                out += c * col
+            return out.astype(dtype, copy=False)
+
+        # the same samples are evaluated again and again while other effects are fitted on top
+        return memo(self, (np.asarray(a), np.asarray(b)), compute, extra=dtype.str)
 
     def on_grid(self, n: int = 37) -> dict[str, Any]:
         """The shape on a regular grid of the two variables (for plots and JSON)."""

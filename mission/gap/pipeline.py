@@ -19,7 +19,7 @@ parameterised component.  Effects that change how the radio channel behaves live
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Protocol
 
@@ -169,3 +169,17 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
         p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
         out.append(offset_residual(f.rss_dbm[i], p, slope, loss, f_scale_db))
     return out
+
+
+def memo(obj: object, arrays: tuple[np.ndarray, ...], compute: Callable[[], np.ndarray], extra: object = None,
+         size: int = 256) -> np.ndarray:
+    """Per-object cache of a computed array by the exact input ``arrays`` (their bytes): the fits evaluate a
+    fitted term (a kriged field, a free-form map) on the same samples many times.  The result is shared:
+    callers must not change it in place."""
+    cache: dict = obj.__dict__.setdefault("_cache", {})
+    key = (extra, *(a.shape for a in arrays), *(hash(np.ascontiguousarray(a).tobytes()) for a in arrays))
+    if key not in cache:
+        if len(cache) > size:
+            cache.clear()
+        cache[key] = compute()
+    return cache[key]

@@ -23,7 +23,7 @@ import numpy as np
 
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
 from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_cv, ridge_penalty
-from mission.gap.pipeline import Pipeline
+from mission.gap.pipeline import Pipeline, memo
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
 
@@ -53,7 +53,7 @@ class KrigedShadowing:
         pts = self.points.get(key)
         if pts is None or self.sigma_db <= 0:
             return np.zeros(len(rx_xy))
-        return _memo(self, rx_xy, lambda: self._predict(key, rx_xy), extra=key)
+        return memo(self, (rx_xy,), lambda: self._predict(key, rx_xy), extra=key)
 
     def _predict(self, key: tuple[float, float], rx_xy: np.ndarray) -> np.ndarray:
         xy, r, cnt = self.points[key]
@@ -69,17 +69,6 @@ class KrigedShadowing:
             k = s2 * correlation(pdist(rx_xy[s: s + 4096], xy), self.corr_len_m, COVARIANCE)
             out[s: s + 4096] = k @ alpha
         return out
-
-
-def _memo(obj: object, xy: np.ndarray, compute: Callable[[], np.ndarray], extra: object = None) -> np.ndarray:
-    """Per-object cache of field values by the query positions (fits evaluate the same samples many times)."""
-    cache: dict = obj.__dict__.setdefault("_cache", {})
-    key = (extra, xy.shape, hash(np.ascontiguousarray(xy).tobytes()))
-    if key not in cache:
-        if len(cache) > 64:
-            cache.clear()
-        cache[key] = compute()
-    return cache[key]
 
 
 def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
