@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/bench_gap.py selftest [--seeds 1,2,3] [--effects all] [--out bench_gap_selftest.json]
+    python benchmarks/bench_gap.py nadir-power [--passes 1,2,3,5] [--strengths 0.1,0.25,0.5,1] [--seeds 1,2,3]
     python benchmarks/bench_gap.py family-check [--family F.json] [--repeats 4]
     python benchmarks/bench_gap.py real [--split flights|blocks] [--all] [--sequence a,b] [--floor] [--loc3]
                                         [--per-flight] [--localize] [--candidates all] [--out gap_real_bench]
@@ -11,7 +12,12 @@ Usage::
 ``mission.physics``) with exactly one withheld effect each (or none); the diagnosis
 (``mission.gap.structure.identify``: one ranking on top of two-ray + dipoles + attitude, plus the residual
 structure) must name it first.  Prints the confusion table (rows: withheld, columns: named), the hit rate per
-effect, the size (dB) and where the named effect acts.
+effect, the size (dB) and where the named effect acts.  Scoring rule (``correct``, written before the run): named
+first; a near-nadir case is also correct when the power statement (``mission.gap.power``) says a loss of its
+true depth cannot be shown held out with these flights.
+
+``nadir-power``: is that statement a guarantee?  Stars of passes over the rover, passes and depth varied:
+every case where it says "detectable" must be named ``near_nadir``.
 
 ``real``: the full ``rfsl gap`` diagnosis of the shared AFAR 2023 flights (teams 288, 328; rover locations 1-3;
 airborne samples; without the suspect 288-loc3 unless ``--all``), from free space with isotropic antennas
@@ -45,6 +51,16 @@ MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
 AREA = (-80.0, -80.0, 380.0, 420.0)  # grid-search box (m, ENU about the flight-area corner)
 
 
+def correct(row: dict) -> bool:
+    """The scoring rule, fixed before the run: a case is correct when the withheld effect is named first; a
+    near-nadir case also when the power statement says that a loss of its true depth cannot be shown held out
+    with these flights (``detectable_db`` > depth: the diagnosis was not able to find it and says so)."""
+    if row["named"] == row["expected"]:
+        return True
+    nn = row.get("near_nadir") or {}
+    return row["expected"] == "near_nadir" and nn.get("detectable_db", 0.0) > row["truth"]["depth_db"]
+
+
 def selftest(args: argparse.Namespace) -> int:
     from _gap_synth import EFFECTS, EXPECTED, diagnose_case
 
@@ -63,25 +79,61 @@ def selftest(args: argparse.Namespace) -> int:
                              "params": r.get("params"), "truth": r["truth"],
                              "verdict": r["structure"]["verdict"], "significant": r["significant"],
                              "near_nadir": r.get("near_nadir")})
+                rows[-1]["correct"] = correct(rows[-1])
                 nn = r.get("near_nadir") or {}
-                extra = f" nadir: {nn['samples']} samples, detectable {nn['detectable_db']:.1f} dB" if e == "nadir" \
-                    else ""
-                print(f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} "
-                      f"{'HIT ' if r['hit'] else 'MISS'} size {fp.get('size_db', float('nan')):5.1f} dB{extra} "
-                      f"({time.time() - t0:.0f} s)", flush=True)
+                extra = f" nadir: {nn['samples']} samples, detectable {nn['detectable_db']:.1f} dB" \
+                    if e.startswith("nadir") else ""
+                mark = "HIT " if r["hit"] else "SAID" if rows[-1]["correct"] else "MISS"
+                print(f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} {mark} "
+                      f"size {fp.get('size_db', float('nan')):5.1f} dB{extra} ({time.time() - t0:.0f} s)", flush=True)
                 Path(args.out).write_text(json.dumps({"rows": rows}, indent=1, default=str))
     cols = sorted({str(r["named"] or "nothing") for r in rows} | {str(EXPECTED[e] or "nothing") for e in effects})
-    print("\n| withheld \\ named | " + " | ".join(cols) + " | hit rate |")
-    print("| --- | " + " | ".join("---" for _ in cols) + " | --- |")
+    print("\n| withheld \\ named | " + " | ".join(cols) + " | named first | correct |")
+    print("| --- | " + " | ".join("---" for _ in cols) + " | --- | --- |")
     for e in effects:
         rr = [r for r in rows if r["effect"] == e]
         cnt = [sum(str(r["named"] or "nothing") == c for r in rr) for c in cols]
-        hits = sum(r["hit"] for r in rr)
-        print(f"| {e} | " + " | ".join(str(c) if c else "." for c in cnt) + f" | {hits}/{len(rr)} |")
-    n_hit = sum(r["hit"] for r in rows)
-    print(f"\nnamed first: {n_hit}/{len(rows)} = {n_hit / len(rows):.0%}; {time.time() - t0:.0f} s")
-    Path(args.out).write_text(json.dumps({"rows": rows, "hits": n_hit, "n": len(rows)}, indent=1, default=str))
-    return 0 if n_hit == len(rows) else 1
+        hits, ok = sum(r["hit"] for r in rr), sum(r["correct"] for r in rr)
+        print(f"| {e} | " + " | ".join(str(c) if c else "." for c in cnt) + f" | {hits}/{len(rr)} | {ok}/{len(rr)} |")
+    n_hit, n_ok = sum(r["hit"] for r in rows), sum(r["correct"] for r in rows)
+    print(f"\nnamed first: {n_hit}/{len(rows)} = {n_hit / len(rows):.0%}; correct (named first, or a near-nadir "
+          f"loss the power statement says cannot be shown): {n_ok}/{len(rows)} = {n_ok / len(rows):.0%}; "
+          f"{time.time() - t0:.0f} s")
+    Path(args.out).write_text(json.dumps({"rows": rows, "hits": n_hit, "correct": n_ok, "n": len(rows)}, indent=1,
+                                         default=str))
+    return 0 if n_ok == len(rows) else 1
+
+
+def nadir_power(args: argparse.Namespace) -> int:
+    """Is the near-nadir power statement a guarantee?  The ``nadir_over`` geometry (stars of straight passes
+    over the rover) with the passes and the loss's depth varied: wherever the statement says the true depth
+    can be shown held out, the diagnosis must name ``near_nadir`` (a violation otherwise)."""
+    from _gap_synth import diagnose_case
+
+    rows, t0 = [], time.time()
+    for p in [int(x) for x in args.passes.split(",")]:
+        for k in [float(x) for x in args.strengths.split(",")]:
+            for s in [int(x) for x in args.seeds.split(",")]:
+                r = diagnose_case("nadir_over", s, strength=k, dt=args.dt, passes=p)
+                nn = r["near_nadir"]
+                says = nn["detectable_db"] <= r["truth"]["depth_db"]
+                rows.append({"passes": p, "strength": k, "seed": s, "depth_db": r["truth"]["depth_db"],
+                             "named": r["named"], "found": r["named"] == "near_nadir", "samples": nn["samples"],
+                             "passes_seen": nn["passes"], "detectable_db": nn["detectable_db"], "says": says,
+                             "violation": says and r["named"] != "near_nadir"})
+                q = rows[-1]
+                print(f"passes {p} x{k:<5g} seed {s}: {q['samples']:4d} samples in {q['passes_seen']:2d} passes, "
+                      f"detectable {q['detectable_db']:5.1f} dB vs depth {q['depth_db']:4.1f}: "
+                      f"{'says yes' if says else 'says no '}, named {q['named'] or 'nothing'}"
+                      f"{'  VIOLATION' if q['violation'] else ''} ({time.time() - t0:.0f} s)", flush=True)
+    n_says = sum(r["says"] for r in rows)
+    n_viol = sum(r["violation"] for r in rows)
+    n_cons = sum((not r["says"]) and r["found"] for r in rows)
+    print(f"\n{len(rows)} cases: the statement said detectable in {n_says}, the diagnosis named near_nadir in "
+          f"{sum(r['found'] for r in rows)}; violations (said detectable, not named): {n_viol}; conservative "
+          f"(said not detectable, named anyway): {n_cons}")
+    Path(args.out).write_text(json.dumps({"rows": rows, "violations": n_viol}, indent=1, default=str))
+    return 0 if n_viol == 0 else 1
 
 
 def suspect_loc3(flights) -> dict:
@@ -326,6 +378,12 @@ def main(argv: list[str] | None = None) -> int:
     a.add_argument("--strengths", default="1", help="effect sizes relative to the generator's (e.g. 1,0.5)")
     a.add_argument("--dt", type=float, default=0.25, help="generator sample interval s (0.25)")
     a.add_argument("--out", default="bench_gap_selftest.json")
+    n = sub.add_parser("nadir-power")
+    n.add_argument("--passes", default="1,2,3,5")
+    n.add_argument("--strengths", default="0.1,0.25,0.5,1")
+    n.add_argument("--seeds", default="1,2,3")
+    n.add_argument("--dt", type=float, default=0.5)
+    n.add_argument("--out", default="bench_gap_nadir_power.json")
     b = sub.add_parser("real")
     b.add_argument("--split", choices=("flights", "blocks"), default="flights")
     b.add_argument("--rate-hz", type=float, default=3.0)
@@ -352,6 +410,8 @@ def main(argv: list[str] | None = None) -> int:
     np.seterr(all="ignore")
     if args.cmd == "family-check":
         return family_check(args)
+    if args.cmd == "nadir-power":
+        return nadir_power(args)
     return selftest(args) if args.cmd == "selftest" else real(args)
 
 

@@ -15,6 +15,8 @@ and one withheld effect per case, including effects no candidate names:
 | ``tx_azimuth`` | rover antenna gain + 3 dB cos(az_w - phi) over compass azimuth | tx_gain_map |
 | ``shadowing`` | exponential-covariance ground field, sigma 4 dB, L 30-60 m, one per flight | spatial_shadowing |
 | ``timing`` | RSS stamped late by 0.5-1.0 s | time_offset |
+| ``nadir`` | UAV gain - 8 dB exp(-(dep_b - 75 deg)^2 / 2 (8 deg)^2), any azimuth; the usual flights | near_nadir |
+| ``nadir_over`` | the same loss; both flights: stars of ``passes`` (5) straight passes over the rover | near_nadir |
 
 The base model the diagnosis starts from is two-ray + vertical dipoles + (roll, pitch, yaw) attitude,
 ground permittivity 2, P_t 41 dBm, 3.32 GHz; each flight gets an unknown receiver offset and 1 dB white noise.
@@ -30,10 +32,11 @@ PT_DBM = 41.0
 LAMBDA_M = C_LIGHT / FC_HZ
 EPS0 = 8.8541878128e-12
 LEGS_DEG = (39.0, 150.0, 270.0)
-EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing", "nadir")
+TX_HEIGHT_M = 1.5  # the rover antenna (this generator shares nothing with mission.*, not even its defaults)
+EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing", "nadir", "nadir_over")
 EXPECTED = {"none": None, "legs": "leg_shadowing", "ground": "ground_reflection", "ripple": "rx_gain_map",
             "notch": "rx_gain_map", "tx_azimuth": "tx_gain_map", "shadowing": "spatial_shadowing",
-            "timing": "time_offset", "nadir": "near_nadir"}
+            "timing": "time_offset", "nadir": "near_nadir", "nadir_over": "near_nadir"}
 
 
 # ------------------------------------------------------------------------------------------ trajectories
@@ -52,9 +55,11 @@ def _polyline(points: np.ndarray, speed: float, dt: float, duration: float) -> t
     return xy, course
 
 
-def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float) -> dict[str, np.ndarray]:
-    """A lawnmower (rows east-west) or an outward spiral over a 360 m square at 20-35 m; yaw = course; AR(1)
-    roll/pitch.  Low and wide enough that the legs (dep_b < 10 deg) act beyond ~110-200 m."""
+def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float, centre=(180.0, 180.0),
+               passes: int = 5) -> dict[str, np.ndarray]:
+    """A lawnmower (rows east-west), an outward spiral over a 360 m square, or a star of ``passes`` straight
+    passes crossing at ``centre``, at 20-35 m; yaw = course; AR(1) roll/pitch.  Low and wide enough that the
+    legs (dep_b < 10 deg) act beyond ~110-200 m."""
     h = float(rng.uniform(20.0, 35.0))
     if kind == "lawnmower":
         sp = float(rng.uniform(28.0, 40.0))
@@ -64,6 +69,18 @@ def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float) 
             xs = (0.0, 360.0) if j % 2 == 0 else (360.0, 0.0)
             pts += [(xs[0], y), (xs[1], y)]
         points = np.array(pts)
+    elif kind == "star":  # straight 300 m passes crossing at ``centre``, headings spread over 180 deg
+        c = np.asarray(centre, dtype=float)[:2]
+        th0 = float(rng.uniform(0.0, np.pi))
+        lead = float(rng.uniform(0.0, 150.0))  # a lead-in leg, so that the passes fall in random chunks
+        pts = []
+        for j in range(passes):
+            u = np.array([np.sin(th0 + j * np.pi / passes), np.cos(th0 + j * np.pi / passes)])
+            a, b = (c - 150.0 * u, c + 150.0 * u) if j % 2 == 0 else (c + 150.0 * u, c - 150.0 * u)
+            if j == 0:
+                pts.append(a + lead * np.array([-u[1], u[0]]))
+            pts += [tuple(a), tuple(b)]
+        points = np.array(pts, dtype=float)
     else:
         th = np.linspace(0.0, 4 * 2 * np.pi, 600)
         r = 15.0 + 165.0 * th / th[-1]
@@ -166,11 +183,11 @@ def exp_field(rng: np.random.Generator, sigma: float, L: float, m: int = 500):
 # ------------------------------------------------------------------------------------------------ cases
 
 def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, duration: float = 420.0,
-              noise_db: float = 1.0, strength: float = 1.0) -> tuple[list[dict], dict]:
+              noise_db: float = 1.0, strength: float = 1.0, passes: int = 5) -> tuple[list[dict], dict]:
     """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth.
 
     ``strength`` scales the withheld effect's size (beta, amplitudes, depths, sigma, tau; the ground's
-    permittivity departs from the base's 2 by that factor)."""
+    permittivity departs from the base's 2 by that factor); ``passes``: the star's passes (``nadir_over``)."""
     rng = np.random.default_rng(seed)
     truth: dict = {"effect": effect, "strength": strength}
     k_s = strength
@@ -179,11 +196,15 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
     phi = float(rng.uniform(0.0, 2 * np.pi))
     flights = []
     for k in range(n_flights):
-        tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
-        lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)  # legs: rover near a corner (long range)
-        if effect == "nadir":  # under a lawnmower row, so that the flights pass over the rover
-            lo, hi = 120.0, 240.0
-        tx = np.array([rng.uniform(lo, hi), rng.uniform(lo, hi), 1.5])
+        if effect == "nadir_over":  # the rover first, then passes right over it
+            tx = np.array([rng.uniform(120.0, 240.0), rng.uniform(120.0, 240.0), TX_HEIGHT_M])
+            tr = trajectory("star", rng, dt, duration, centre=tx, passes=passes)
+        else:
+            tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
+            lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)  # legs: rover near a corner (long range)
+            if effect == "nadir":  # under a lawnmower row, so that the flights pass over the rover
+                lo, hi = 120.0, 240.0
+            tx = np.array([rng.uniform(lo, hi), rng.uniform(lo, hi), TX_HEIGHT_M])
         t, pos, att = tr["t"], tr["pos"], tr["att"]
         kw: dict = {}
         if effect == "ground":
@@ -204,7 +225,7 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
         elif effect == "tx_azimuth":
             truth.update(amp_db=3.0 * k_s, azimuth_deg=float(np.rad2deg(phi)))
             kw = {"tx_extra_db": lambda az, phi=phi: 3.0 * k_s * np.cos(az - phi)}
-        elif effect == "nadir":  # airframe and payload below the antenna: a loss at steep depression, any azimuth
+        elif effect in ("nadir", "nadir_over"):  # airframe, payload below the antenna: steep depression, any az
             truth.update(depth_db=8.0 * k_s, centre_deg=75.0, width_deg=8.0)
             kw = {"rx_extra_db": lambda az, dep: -8.0 * k_s * np.exp(-0.5 * ((np.rad2deg(dep) - 75.0) / 8.0) ** 2)}
         q_pos, q_att = pos, att
@@ -245,11 +266,15 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     out.update(effect=effect, seed=seed, truth=truth, expected=EXPECTED[effect],
                hit=out["named"] == EXPECTED[effect])
     from mission.gap.align import align
-    from mission.gap.nadir import power_statement
+    from mission.gap.fit import make_folds
+    from mission.gap.power import power_statement
+    from mission.gap.spatial import usable_candidates
     from mission.gap.stats import block_length
     from mission.robust import offset_residual
 
     res = [offset_residual(f.rss_dbm, base.predict(f), False, "l2") for f in flights]
+    m = sum(c.applicable(base) for c in usable_candidates(list(library().values()), flights))
     out["near_nadir"] = power_statement([np.rad2deg(align(f).dep_b) for f in flights], res,
-                                        [block_length(r) for r in res], loss_db=truth.get("depth_db", 3.0))
+                                        [block_length(r) for r in res], make_folds(flights, cfg), cfg, m,
+                                        loss_db=truth.get("depth_db", 3.0), seed=seed)
     return out

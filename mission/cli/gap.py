@@ -152,7 +152,7 @@ def _write_family(d, cfg, args, console) -> None:
     from datetime import UTC, datetime
     from pathlib import Path
 
-    from mission.gap.familyfit import family_from_diagnosis
+    from mission.gap.familyrun import family_from_diagnosis
     from mission.physics.family import PhysicsFamily
 
     cmd = "rfsl " + " ".join(sys.argv[1:]) if len(sys.argv) > 1 and sys.argv[1] == "gap" else None

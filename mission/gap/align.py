@@ -1,7 +1,7 @@
 """Per-sample alignment: the geometry every candidate effect needs, computed once per flight.
 
 Why: every breakdown of the residual (by distance, depression, body azimuth, world azimuth, attitude,
-flight phase, position) and every candidate effect reads the same few geometric quantities; computing them
+flight segment, position) and every candidate effect reads the same few geometric quantities; computing them
 once, vectorised, keeps the diagnosis fast and makes the breakdown and the effects agree on conventions
 (SPEC section 1, ``mission.physics.geometry``).
 """
@@ -15,7 +15,7 @@ import numpy as np
 from mission.physics.geometry import bearing, body_angles, enu_to_ned
 from mission.samples import FlightSamples
 
-PHASES = ("climb", "cruise", "turn", "descent")
+SEGMENTS = ("climb", "cruise", "turn", "descent")
 
 
 @dataclass
@@ -30,7 +30,7 @@ class Alignment:
     elev: np.ndarray         # elevation of the UAV seen from the transmitter (level frame)
     grazing: np.ndarray      # grazing angle of the ground-reflected ray (image method)
     tilt: np.ndarray         # attitude magnitude: angle between body z and the vertical
-    phase: np.ndarray        # index into PHASES
+    segment: np.ndarray      # index into SEGMENTS (climb, cruise, turn, descent)
     x: np.ndarray            # UAV east (m)
     y: np.ndarray            # UAV north (m)
     h: np.ndarray            # UAV height (m)
@@ -43,9 +43,9 @@ class Alignment:
                 "height_m": self.h}
 
 
-def flight_phase(t_s: np.ndarray, rx_enu: np.ndarray, yaw_rad: np.ndarray, vz_thresh: float = 0.7,
+def flight_segment(t_s: np.ndarray, rx_enu: np.ndarray, yaw_rad: np.ndarray, vz_thresh: float = 0.7,
                  turn_thresh_deg_s: float = 12.0, smooth_s: float = 1.0) -> np.ndarray:
-    """Phase per sample (index into PHASES): climb/descent by vertical speed, turn by yaw rate, else cruise.
+    """Flight segment per sample (index into SEGMENTS): climb/descent by vertical speed, turn by yaw rate, else cruise.
 
     Rates are taken from telemetry smoothed over ``smooth_s`` (GPS heights are noisy at 30 Hz).
     """
@@ -63,11 +63,11 @@ def flight_phase(t_s: np.ndarray, rx_enu: np.ndarray, yaw_rad: np.ndarray, vz_th
     vz = np.gradient(smooth(rx_enu[:, 2]), t_s)
     yaw_u = np.unwrap(yaw_rad)
     yaw_rate = np.rad2deg(np.abs(np.gradient(smooth(yaw_u), t_s)))
-    phase = np.full(n, PHASES.index("cruise"), dtype=int)
-    phase[yaw_rate > turn_thresh_deg_s] = PHASES.index("turn")
-    phase[vz > vz_thresh] = PHASES.index("climb")
-    phase[vz < -vz_thresh] = PHASES.index("descent")
-    return phase
+    seg = np.full(n, SEGMENTS.index("cruise"), dtype=int)
+    seg[yaw_rate > turn_thresh_deg_s] = SEGMENTS.index("turn")
+    seg[vz > vz_thresh] = SEGMENTS.index("climb")
+    seg[vz < -vz_thresh] = SEGMENTS.index("descent")
+    return seg
 
 
 def align(flight: FlightSamples) -> Alignment:
@@ -83,8 +83,8 @@ def align(flight: FlightSamples) -> Alignment:
     elev = np.arctan2(rx[:, 2] - tx[2], np.maximum(d_h, 1e-9))
     grazing = np.arctan2(rx[:, 2] + tx[2], np.maximum(d_h, 1e-9))
     tilt = np.arccos(np.clip(np.cos(att[:, 0]) * np.cos(att[:, 1]), -1.0, 1.0))
-    phase = flight_phase(flight.t_s, rx, att[:, 2])
-    return Alignment(d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, phase, rx[:, 0], rx[:, 1], rx[:, 2])
+    seg = flight_segment(flight.t_s, rx, att[:, 2])
+    return Alignment(d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, seg, rx[:, 0], rx[:, 1], rx[:, 2])
 
 
 def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = None) -> FlightSamples:

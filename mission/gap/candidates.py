@@ -41,14 +41,14 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import Candidate, Param
+from mission.gap.describe import describe_params, pattern_name  # noqa: F401  (describe_params: re-exported)
 from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
 from mission.gap.nadir import near_nadir_candidate
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
-from mission.gap.spatial import KrigedShadowing, site_map_candidate, spatial_candidate
+from mission.gap.spatial import site_map_candidate, spatial_candidate
 from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
 from mission.physics.antenna import Dipole, Isotropic, Pattern, rm_wb1_dn
 from mission.physics.constants import LEG_AZIMUTHS_DEG
-from mission.physics.shadowing import RandomField
 
 PATTERN_NAMES = ("isotropic", "dipole", "measured")
 
@@ -61,14 +61,6 @@ def pattern_by_name(name: str) -> Pattern:
     if name not in makers:
         raise InputError(f"unknown antenna pattern {name!r} (expected {', '.join(PATTERN_NAMES)})", field="pattern")
     return makers[name]()
-
-
-def pattern_name(p: Pattern) -> str:
-    if isinstance(p, Isotropic):
-        return "isotropic"
-    if isinstance(p, Dipole):
-        return "dipole"
-    return "measured"
 
 
 # ------------------------------------------------------------------------------------------- antennas
@@ -250,14 +242,15 @@ def _receiver_candidate() -> Candidate:
 
 def library() -> dict[str, Candidate]:
     """Every candidate effect by name (the order is the report's order)."""
-    cands = [
+    named = [
         _antenna_pattern_candidate("rx"), _antenna_mounting_candidate("rx"),
         _antenna_pattern_candidate("tx"), _antenna_mounting_candidate("tx"), _tx_tilt_candidate(),
         _ground_candidate(), _attitude_like_candidate(True), _attitude_like_candidate(False), _legs_candidate(),
         near_nadir_candidate(), _path_gain_slope_candidate(),
-        _time_offset_candidate(), _receiver_candidate(), *(freeform_candidate(k) for k in FREEFORM_NAMES),
-        spatial_candidate(), site_map_candidate(),
+        _time_offset_candidate(), _receiver_candidate(),
     ]
+    refs = {c.name: c for c in named}   # what a free-form map is compared with (``freeform.resemblance``)
+    cands = [*named, *(freeform_candidate(k, refs) for k in FREEFORM_NAMES), spatial_candidate(), site_map_candidate()]
     return {c.name: c for c in cands}
 
 
@@ -277,33 +270,3 @@ def select(names: str | Sequence[str] | None) -> list[Candidate]:
         raise InputError(f"unknown candidate(s) {', '.join(bad)} (expected {', '.join(lib)} or all)",
                          field="candidates")
     return [lib[n] for n in lst]
-
-
-def describe_params(p: Pipeline) -> dict[str, Any]:
-    """The current values of every parameter the library can fit (for the report)."""
-    m = p.model
-    out: dict[str, Any] = {"effects": list(p.components())}
-    for end in ("rx", "tx"):
-        if m.has(f"{end}_antenna"):
-            e = m.effect(f"{end}_antenna")
-            out[f"{end}_pattern"] = pattern_name(e.pattern) + (" flipped" if e.flipped else "")
-            out[f"{end}_heading_deg"] = float(np.rad2deg(e.heading_rad)) % 360.0
-    if m.has("tx_tilt"):
-        t = m.effect("tx_tilt")
-        out["tx_tilt_deg"], out["tx_tilt_azimuth_deg"] = t.tilt_deg, t.azimuth_deg
-    if m.has("ground_reflection"):
-        g = m.effect("ground_reflection")
-        out.update(eps_r=g.eps_r, sigma_s_m=g.sigma_s_m, polarization=g.polarization)
-    if m.has("attitude"):
-        out["attitude"] = "roll, pitch, yaw" if m.effect("attitude").roll_pitch else "yaw only"
-    if m.has("path_gain_slope"):
-        out["path_gain_n_extra"] = m.effect("path_gain_slope").n_extra
-    if m.has("leg_shadowing"):
-        ls = m.effect("leg_shadowing")
-        out.update(beta=ls.beta, half_width_deg=ls.half_width_deg, legs_deg=list(ls.legs_deg))
-    out["time_offset_s"] = p.time_offset_s
-    if p.receiver is not None:
-        out.update(floor_db=p.receiver.floor_db, sat_db=p.receiver.sat_db)
-    if isinstance(p.spatial, KrigedShadowing | RandomField):
-        out.update(spatial_sigma_db=p.spatial.sigma_db, spatial_corr_len_m=p.spatial.corr_len_m)
-    return out

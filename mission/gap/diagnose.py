@@ -15,9 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import PHASES, Alignment, align
-from mission.gap.candidates import Candidate, describe_params
-from mission.gap.fit import FitConfig, Rung, _pooled, ladder, offset_residual
+from mission.gap.align import SEGMENTS, Alignment, align
+from mission.gap.candidate import Candidate
+from mission.gap.describe import describe_params
+from mission.gap.fit import FitConfig, Rung, _pooled, ladder, make_folds, offset_residual
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
 from mission.physics import make_model
@@ -86,13 +87,13 @@ def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, 
 
 def residual_breakdown(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Sequence[int],
                        rng: np.random.Generator, n_boot: int = 300) -> list[BinnedResidual]:
-    """Residual by distance, depression, body/world azimuth, attitude and phase, with flagged bins."""
+    """Residual by distance, depression, body/world azimuth, attitude and flight segment, with flagged bins."""
     out = []
     for var, edges in BREAKDOWN_EDGES.items():
         xs = [a.as_dict()[var] for a in al]
         out.append(binned_residual(var, xs, res, edges, block_lens, rng, n_boot))
-    phases = [a.phase.astype(float) for a in al]
-    b = binned_residual("phase", phases, res, np.arange(len(PHASES), dtype=float), block_lens, rng, n_boot,
+    segments = [a.segment.astype(float) for a in al]
+    b = binned_residual("segment", segments, res, np.arange(len(SEGMENTS), dtype=float), block_lens, rng, n_boot,
                         categorical=True)
     out.append(b)
     return out
@@ -206,9 +207,11 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     struct = {"base": residual_structure(flights, rungs[0].residuals, rng),
               "final": residual_structure(flights, rungs[-1].residuals, rng)}
     fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
-    from mission.gap.nadir import power_statement
+    from mission.gap.power import power_statement
 
-    nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls)
+    m = max(1, len(rungs[0].ranking))
+    nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls, make_folds(flights, cfg),
+                            cfg, m, seed=cfg.seed)
     nadir["found"] = any(r.added == "near_nadir" for r in rungs)
     return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps, nadir)
 

@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import TIER_FREEFORM, TIER_NAMED, TIER_SMOOTHER, Candidate
-from mission.gap.candidates import describe_params
+from mission.gap.describe import describe_params
 from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
-from mission.gap.pipeline import Pipeline
+from mission.gap.pipeline import Pipeline, offset_residuals
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
 from mission.samples import FlightSamples
@@ -97,15 +97,9 @@ def decimate(idx: np.ndarray, n_max: int) -> np.ndarray:
 
 def residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
               cache: list[np.ndarray] | None = None) -> list[np.ndarray]:
-    """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse)."""
-    out = []
-    for k, (f, i) in enumerate(zip(flights, idx, strict=True)):
-        if len(i) == 0:
-            out.append(np.zeros(0))
-            continue
-        p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
-        out.append(offset_residual(f.rss_dbm[i], p, cfg.slope, cfg.loss, cfg.f_scale_db))
-    return out
+    """Offset-removed residuals per flight on the samples ``idx`` (``pipeline.offset_residuals`` with the
+    config's slope and loss; ``cache``: channel predictions to reuse)."""
+    return offset_residuals(pipe, flights, idx, cfg.slope, cfg.loss, cfg.f_scale_db, cache)
 
 
 def objective(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
@@ -286,13 +280,21 @@ def rank_key(r: CandidateResult) -> tuple[bool, float]:
 
 
 def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[Any]:
-    """``fn`` over ``items``, in ``workers`` threads (numpy releases the GIL in the heavy parts)."""
-    if workers <= 1 or len(items) <= 1:
-        return [fn(x) for x in items]
-    from concurrent.futures import ThreadPoolExecutor
+    """``fn`` over ``items``, in ``workers`` threads (numpy releases the GIL in the heavy parts).
 
-    with ThreadPoolExecutor(max_workers=workers) as ex:
-        return list(ex.map(fn, items))
+    BLAS runs single-threaded meanwhile: the fits' matrices are small (kriging systems of a few hundred
+    cells, Gram matrices of ~100 columns), the parallelism is over the fits, and a multi-threaded OpenBLAS
+    on a busy machine spins for its cores (a 350 x 350 Cholesky took 70 ms with 2 BLAS threads against 2 ms
+    with one at load 10 on 2 cores).  ``threadpoolctl`` comes with scikit-learn."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        if workers <= 1 or len(items) <= 1:
+            return [fn(x) for x in items]
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=workers) as ex:
+            return list(ex.map(fn, items))
 
 
 Progress = Callable[[str, int, int], None]  # (description, done, total)

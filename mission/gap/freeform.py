@@ -23,7 +23,7 @@ yaw) attitude together with the map (``params["adds_attitude"]``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,7 +31,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
-from mission.gap.pipeline import Pipeline
+from mission.gap.pipeline import Pipeline, memo, offset_residuals
 from mission.physics.geometry import body_vectors, enu_to_ned
 from mission.samples import FlightSamples
 
@@ -131,10 +131,16 @@ class FreeFormTerm:
 
     def rss_term_db(self, link: Any) -> np.ndarray:
         a, b = map_variables(self.name, link)
-        out = np.zeros(np.shape(a))
-        for c, col in zip(self.coef, _columns(self.name, a, b), strict=True):
-            out += c * col
-        return out.astype(np.asarray(link.d_los).dtype, copy=False)
+        dtype = np.asarray(link.d_los).dtype
+
+        def compute() -> np.ndarray:
+            out = np.zeros(np.shape(a))
+            for c, col in zip(self.coef, _columns(self.name, a, b), strict=True):
+                out += c * col
+            return out.astype(dtype, copy=False)
+
+        # the same samples are evaluated again and again while other effects are fitted on top
+        return memo(self, (np.asarray(a), np.asarray(b)), compute, extra=dtype.str)
 
     def on_grid(self, n: int = 37) -> dict[str, Any]:
         """The shape on a regular grid of the two variables (for plots and JSON)."""
@@ -182,11 +188,11 @@ def _centered(blocks: Sequence[np.ndarray], ws: Sequence[np.ndarray]) -> np.ndar
 
 
 def resemblance(kind: str, term: Sequence[np.ndarray], pipe: Pipeline, flights: Sequence[FlightSamples],
-                idx: Sequence[np.ndarray]) -> tuple[str, float, dict[str, float]]:
-    """Which named effect's own term (relative to ``pipe``) correlates best with the fitted ``term``."""
-    from mission.gap.candidates import library
-
-    lib = library()
+                idx: Sequence[np.ndarray], named: Mapping[str, Candidate] | None = None
+                ) -> tuple[str, float, dict[str, float]]:
+    """Which named effect's own term (relative to ``pipe``) correlates best with the fitted ``term``
+    (``named``: the named candidates by name, passed in by ``candidates.library``; none: nothing to compare)."""
+    lib = named or {}
     refs: dict[str, dict[str, Any]] = {
         "rx_gain_map": {"leg_shadowing": ({"beta": 1.0, "half_width_deg": 8.0, "legs_rotation_deg": 0.0}, {}),
                         "rx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
@@ -272,7 +278,8 @@ def ridge_cv(Xs: Sequence[np.ndarray], rs: Sequence[np.ndarray], ws: Sequence[np
 
 
 def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                 resid: Sequence[np.ndarray], cfg: Any = None, period_s: float = 30.0) -> tuple[Pipeline, dict]:
+                 resid: Sequence[np.ndarray], cfg: Any = None, period_s: float = 30.0,
+                 named: Mapping[str, Candidate] | None = None) -> tuple[Pipeline, dict]:
     """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold CV."""
     loss = getattr(cfg, "loss", "l2")
     f_scale = getattr(cfg, "f_scale_db", 6.0)
@@ -294,7 +301,7 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], id
     size = float(np.quantile(allv, 0.95) - np.quantile(allv, 0.05)) if allv.size else 0.0
     sub = [np.arange(0, len(i), max(1, len(i) // 1500)) for i in ix]
     like, corr, corrs = resemblance(kind, [v[s] for v, s in zip(vals, sub, strict=True)], pipe, fl,
-                                    [i[s] for i, s in zip(ix, sub, strict=True)])
+                                    [i[s] for i, s in zip(ix, sub, strict=True)], named)
     a_all = np.concatenate([a for a, _ in ab])
     b_all = np.concatenate([b for _, b in ab])
     params = {"lambda": float(lam), "size_db": size, "resembles": like, "resemblance_corr": corr,
@@ -302,7 +309,8 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], id
     return new, params
 
 
-def freeform_candidate(kind: str) -> Candidate:
+def freeform_candidate(kind: str, named: Mapping[str, Candidate] | None = None) -> Candidate:
+    """The ``kind`` map as a candidate; ``named``: the named candidates its fit is compared with."""
     desc = {"rx_gain_map": "smooth UAV body-frame gain map (body azimuth x depression)",
             "tx_gain_map": "smooth transmitter gain map (world azimuth x elevation)",
             "excess_loss": "smooth excess loss over distance and UAV height"}[kind]
@@ -318,14 +326,14 @@ def freeform_candidate(kind: str) -> Candidate:
                    rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
         if kind == "rx_gain_map" and not p.model.has("attitude"):
             # a body-frame map needs the body frame: the logged attitude joins the model with the map
-            from mission.gap.fit import FitConfig, residuals
             from mission.physics import Attitude
 
             p = p.replace(model=p.model.with_effect(Attitude()))
-            resid = residuals(p, flights, idx, cfg if cfg is not None else FitConfig())
-            new, params = fit_freeform(kind, p, flights, idx, resid, cfg)
+            resid = offset_residuals(p, flights, idx, getattr(cfg, "slope", False), getattr(cfg, "loss", "l2"),
+                                     getattr(cfg, "f_scale_db", 6.0))
+            new, params = fit_freeform(kind, p, flights, idx, resid, cfg, named=named)
             return new, {**params, "adds_attitude": True}
-        return fit_freeform(kind, p, flights, idx, resid, cfg)
+        return fit_freeform(kind, p, flights, idx, resid, cfg, named=named)
 
     return Candidate(kind, desc, (), build, lambda p: not p.model.has(kind), withhold, direct_fit=direct_fit,
                      tier=TIER_FREEFORM)

@@ -7,15 +7,12 @@ when the UAV is almost above the rover (at 30 m, depression > 60 deg means < 17 
 
 - ``near_nadir``: a named candidate, elevation only: ``-depth_db exp(-(dep_b - centre)^2 / 2 width^2)``
   (depth, centre and width fitted from a grid of starts);
-- ``power_statement``: how many samples the flights have in the band, their effective number (block
-  length from the residual's autocorrelation), the smallest loss they could detect (one-sided 5 %, power
-  80 %), and how many samples a flight would need to detect a given loss.
+- what the flights can show in the band (the smallest loss a held-out test on them would find, and the
+  samples a flight would need): ``mission.gap.power.power_statement``.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -57,39 +54,3 @@ def near_nadir_candidate() -> Candidate:
         Param("centre_deg", 20.0, 90.0, (35.0, 50.0, 65.0, 80.0), unit="deg"),
         Param("width_deg", 2.0, 30.0, (4.0, 10.0), unit="deg")),
         build, lambda p: p.model.has("attitude") and not p.model.has("near_nadir"), withhold)
-
-
-def power_statement(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], block_lens: Sequence[int],
-                    band: tuple[float, float] = BAND_DEG, loss_db: float = 3.0) -> dict[str, Any]:
-    """What the flights can show about a loss in ``band`` of body depression (module docstring).
-
-    A loss D in the band shifts the band's mean residual by D against the rest; with residual sd s and
-    n_eff effectively independent samples in the band (n / block length), the smallest detectable D is
-    (z_alpha + z_power) s / sqrt(n_eff), and detecting ``loss_db`` needs n_eff = ((z_a + z_p) s / D)^2.
-    A held-out test also needs the band in at least two separate passes (one to fit, one to score: the
-    folds are contiguous chunks); with fewer, nothing is detectable whatever the count.
-    """
-    n, n_eff, ss, passes = 0, 0.0, [], 0
-    for dep, r, L in zip(dep_deg, resid, block_lens, strict=True):
-        ok = np.isfinite(r)
-        inb = ok & (dep >= band[0]) & (dep <= band[1])
-        n += int(inb.sum())
-        n_eff += float(inb.sum()) / max(int(L), 1)
-        idx = np.nonzero(inb)[0]
-        passes += int(idx.size > 0) + int(np.sum(np.diff(idx) > max(int(L), 10)))
-        if ok.any():
-            ss.append(r[ok] - np.median(r[ok]))
-    s = float(np.std(np.concatenate(ss))) if ss else float("nan")
-    z = Z_ALPHA + Z_POWER
-    detectable = z * s / math.sqrt(n_eff) if n_eff > 0 and passes >= 2 else float("inf")
-    need_eff = (z * s / loss_db) ** 2
-    L_mean = n / n_eff if n_eff > 0 else float(np.mean(block_lens)) if len(block_lens) else 1.0
-    need = int(math.ceil(need_eff * L_mean))
-    seen = (f"a loss there smaller than {detectable:.1f} dB cannot be seen" if passes >= 2 else
-            f"in {passes} pass{'es' if passes != 1 else ''}, so a held-out test cannot see a loss there at all")
-    text = (f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} samples "
-            f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need about {need} samples "
-            f"({need_eff:.0f} independent) in at least two passes.")
-    return {"band_deg": list(band), "samples": n, "passes": passes, "effective_samples": n_eff, "residual_sd_db": s,
-            "detectable_db": detectable, "loss_db": loss_db, "samples_needed": need,
-            "effective_needed": need_eff, "alpha": 0.05, "power": 0.8, "statement": text}

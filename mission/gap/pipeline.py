@@ -19,6 +19,7 @@ parameterised component.  Effects that change how the radio channel behaves live
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Protocol
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
+from mission.robust import offset_residual
 from mission.samples import FlightSamples
 
 
@@ -150,3 +152,34 @@ class LocalizationModel:
         if self.pipeline.receiver is not None:
             p = self.pipeline.receiver.apply(p)
         return p
+
+
+def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                     slope: bool = False, loss: str = "l2", f_scale_db: float = 6.0,
+                     cache: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
+    """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse).
+
+    Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each flight's
+    constant offset (and with ``slope`` a path-gain slope) is fitted on the very samples scored."""
+    out = []
+    for k, (f, i) in enumerate(zip(flights, idx, strict=True)):
+        if len(i) == 0:
+            out.append(np.zeros(0))
+            continue
+        p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
+        out.append(offset_residual(f.rss_dbm[i], p, slope, loss, f_scale_db))
+    return out
+
+
+def memo(obj: object, arrays: tuple[np.ndarray, ...], compute: Callable[[], np.ndarray], extra: object = None,
+         size: int = 256) -> np.ndarray:
+    """Per-object cache of a computed array by the exact input ``arrays`` (their bytes): the fits evaluate a
+    fitted term (a kriged field, a free-form map) on the same samples many times.  The result is shared:
+    callers must not change it in place."""
+    cache: dict = obj.__dict__.setdefault("_cache", {})
+    key = (extra, *(a.shape for a in arrays), *(hash(np.ascontiguousarray(a).tobytes()) for a in arrays))
+    if key not in cache:
+        if len(cache) > size:
+            cache.clear()
+        cache[key] = compute()
+    return cache[key]

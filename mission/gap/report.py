@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import PHASES
+from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
 from mission.gap.fit import _pooled
 from mission.gap.stats import ecdf
@@ -182,15 +182,15 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     n = len(d.breakdown)
     fig, axs = plt.subplots(2, (n + 1) // 2, figsize=(4 * ((n + 1) // 2), 7))
     for ax, b in zip(np.ravel(axs), d.breakdown, strict=False):
-        x = np.arange(len(b.mean)) if b.variable == "phase" else b.centers
+        x = np.arange(len(b.mean)) if b.variable == "segment" else b.centers
         yerr = np.vstack([b.mean - b.lo, b.hi - b.mean])
         ax.errorbar(x, b.mean, yerr=np.nan_to_num(yerr), fmt="o", color="C0", ms=4, capsize=2)
         if b.flagged.any():
             ax.plot(np.asarray(x)[b.flagged], b.mean[b.flagged], "o", color="C3", ms=7, label="flagged")
             ax.legend(fontsize=7)
         ax.axhline(0, color="k", lw=0.8)
-        if b.variable == "phase":
-            ax.set_xticks(range(len(PHASES)), PHASES)
+        if b.variable == "segment":
+            ax.set_xticks(range(len(SEGMENTS)), SEGMENTS)
         ax.set(title=b.variable, ylabel="mean residual dB")
     fig.suptitle(f"Residual of '{d.base_label}' (measured - model), 95 % block-bootstrap CI")
     fig.tight_layout()

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.gap.candidate import TIER_FREEFORM
 from mission.gap.candidates import library
 from mission.gap.fit import FitConfig, make_folds, rank_candidates
@@ -112,7 +113,7 @@ def simulate_flights(pipe: Pipeline, rng: np.random.Generator, n_flights: int = 
         t, pos, att, _ = fly_path(wp, cfg, rng)
         keep = t <= max_duration_s
         t, pos, att = t[keep], pos[keep], att[keep]
-        tx = np.array([rng.uniform(x0 + 20, x1 - 20), rng.uniform(y0 + 20, y1 - 60), 1.5])
+        tx = np.array([rng.uniform(x0 + 20, x1 - 20), rng.uniform(y0 + 20, y1 - 60), DEFAULT_TX_HEIGHT_M])
         f = FlightSamples(name=f"sim{k}-{name}", t_s=t, enu_m=pos, attitude_rad=att,
                           rss_dbm=np.zeros(len(t)), tx_enu_m=tx)
         flights.append(f)

@@ -23,7 +23,7 @@ import numpy as np
 
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
 from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_cv, ridge_penalty
-from mission.gap.pipeline import Pipeline
+from mission.gap.pipeline import Pipeline, memo
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
 
@@ -53,7 +53,7 @@ class KrigedShadowing:
         pts = self.points.get(key)
         if pts is None or self.sigma_db <= 0:
             return np.zeros(len(rx_xy))
-        return _memo(self, rx_xy, lambda: self._predict(key, rx_xy), extra=key)
+        return memo(self, (rx_xy,), lambda: self._predict(key, rx_xy), extra=key)
 
     def _predict(self, key: tuple[float, float], rx_xy: np.ndarray) -> np.ndarray:
         xy, r, cnt = self.points[key]
@@ -69,17 +69,6 @@ class KrigedShadowing:
             k = s2 * correlation(pdist(rx_xy[s: s + 4096], xy), self.corr_len_m, COVARIANCE)
             out[s: s + 4096] = k @ alpha
         return out
-
-
-def _memo(obj: object, xy: np.ndarray, compute: Callable[[], np.ndarray], extra: object = None) -> np.ndarray:
-    """Per-object cache of field values by the query positions (fits evaluate the same samples many times)."""
-    cache: dict = obj.__dict__.setdefault("_cache", {})
-    key = (extra, xy.shape, hash(np.ascontiguousarray(xy).tobytes()))
-    if key not in cache:
-        if len(cache) > 64:
-            cache.clear()
-        cache[key] = compute()
-    return cache[key]
 
 
 def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -121,34 +110,55 @@ def choose_kriging(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], 
 
     The training samples are split again into alternating ``period_s`` stretches of flight; each grid point
     (correlation length x nugget fraction, sigma^2 + nugget^2 = residual variance) krigs one half from the
-    other; the pair with the smallest prediction error wins.  Chosen this way because the variogram of a
-    30 Hz track is dominated by along-track pairs and underestimates the across-track correlation length.
+    other (``KrigedShadowing``'s predictor); the pair with the smallest prediction error wins.  Chosen this
+    way because the variogram of a 30 Hz track is dominated by along-track pairs and underestimates the
+    across-track correlation length.  The cells and distances of each half are computed once for the whole
+    grid, the correlations once per length, and each system is solved by Cholesky (it is a covariance).
     """
+    from scipy.linalg import cho_factor, cho_solve
+
     r_all = np.concatenate(list(resid)) if resid else np.zeros(0)
     var = float(np.var(r_all)) if r_all.size else 0.0
     halves = []
     for f, i in zip(flights, idx, strict=True):
         h = (np.floor(f.t_s[i] / period_s).astype(int) % 2) if len(i) else np.zeros(0, int)
         halves.append(h)
+    parts = []  # per half: cells per transmitter (xy distances, mean, count) and the test samples against them
+    for a in (0, 1):
+        tr = [i[h != a] for i, h in zip(idx, halves, strict=True)]
+        rt = [r[h != a] for r, h in zip(resid, halves, strict=True)]
+        grouped = _group_cells(flights, tr, rt, KRIGING_CELL_M)
+        cells = {k: (pdist(xy, xy), m, cnt) for k, (xy, m, cnt) in grouped.items()}
+        tests = []
+        for f, i, r, h in zip(flights, idx, resid, halves, strict=True):
+            te = h == a
+            if te.any():
+                key = tx_key(f.tx_enu_m)
+                d = pdist(f.enu_m[i[te], :2], grouped[key][0]) if key in grouped else None
+                tests.append((key, r[te] - r[te].mean(), d))
+        parts.append((cells, tests))
     best = (np.inf, 0.0, 30.0, float(np.sqrt(var)))
     for L in KRIGING_LENGTHS_M:
+        corr = [({k: correlation(D, L, COVARIANCE) for k, (D, _, _) in cells.items()},
+                 [None if d is None else correlation(d, L, COVARIANCE) for _, _, d in tests])
+                for cells, tests in parts]
         for frac in KRIGING_NUGGET_FRACTIONS:
-            s, n = float(np.sqrt(var * (1 - frac))), float(np.sqrt(var * frac))
+            s2, n2 = var * (1 - frac), var * frac
             err, cnt = 0.0, 0
-            for a in (0, 1):
-                tr = [i[h != a] for i, h in zip(idx, halves, strict=True)]
-                rt = [r[h != a] for r, h in zip(resid, halves, strict=True)]
-                kr = KrigedShadowing(s, L, n, _group_cells(flights, tr, rt, KRIGING_CELL_M))
-                for f, i, r, h in zip(flights, idx, resid, halves, strict=True):
-                    te = h == a
-                    if te.any():
-                        pred = kr.field_db(f, f.enu_m[i[te], :2])
-                        d = r[te] - r[te].mean() - (pred - pred.mean())
-                        err += float(np.sum(d * d))
-                        cnt += int(te.sum())
+            for (cells, tests), (ck, cx) in zip(parts, corr, strict=True):
+                alpha = {}
+                if s2 > 0:
+                    for k, (_, m, c) in cells.items():
+                        K = s2 * ck[k] + np.diag(n2 / np.minimum(c, 20.0) + 1e-6 * s2)
+                        alpha[k] = cho_solve(cho_factor(K, lower=True, check_finite=False), m, check_finite=False)
+                for (key, r0, _), x in zip(tests, cx, strict=True):
+                    pred = s2 * (x @ alpha[key]) if x is not None and key in alpha else np.zeros(len(r0))
+                    d = r0 - (pred - pred.mean())
+                    err += float(np.sum(d * d))
+                    cnt += len(d)
             mse = err / max(cnt, 1)
             if mse < best[0]:
-                best = (mse, s, L, n)
+                best = (mse, float(np.sqrt(s2)), L, float(np.sqrt(n2)))
     return best[1], best[2], best[3]
 
 

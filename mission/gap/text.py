@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.align import PHASES
+from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
 
 WIDTH = 80
@@ -169,7 +169,7 @@ def details_text(d: Diagnosis) -> str:
     rows = []
     for b in d.breakdown:
         for i in np.nonzero(b.flagged)[0]:
-            lab = PHASES[int(b.centers[i])] if b.variable == "phase" else f"{b.edges[i]:g}-{b.edges[i + 1]:g}"
+            lab = SEGMENTS[int(b.centers[i])] if b.variable == "segment" else f"{b.edges[i]:g}-{b.edges[i + 1]:g}"
             rows.append([b.variable, lab, str(int(b.count[i])), f"{b.mean[i]:+.1f}",
                          f"[{b.lo[i]:+.1f}, {b.hi[i]:+.1f}]"])
     parts.append(_table(f"Where {d.base_label} departs (bins whose 95 % CI excludes 0)",
