@@ -28,21 +28,6 @@ def test_bin_means_are_the_per_key_means(seed, n, cell):
         assert np.all(np.floor(xy[mine] / cell) == k)
 
 
-@settings(max_examples=25, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), cell=st.sampled_from([2.0, 5.0, 9.0]))
-def test_gap_cell_means_is_the_same_binning_bit_for_bit(seed, cell):
-    """The gap's kriging cells (``gap.spatial.cell_means``, not yet moved) round exactly as ``mission.cells``."""
-    from mission.gap.spatial import cell_means
-
-    rng = np.random.default_rng(seed)
-    xy, r = rng.uniform(0.0, 200.0, (500, 2)), rng.normal(0.0, 4.0, 500)
-    c_xy, c_r, c_n = cell_means(xy, r, cell)
-    inv, cnt = bin_index(cell_keys(xy, cell))
-    mx, my, mr = bin_means(inv, cnt, xy[:, 0], xy[:, 1], r)
-    assert np.array_equal(c_xy, np.column_stack([mx, my])) and np.array_equal(c_r, mr)
-    assert np.array_equal(c_n, cnt.astype(float))
-
-
 def test_cell_average_two_altitudes_and_yaw_on_the_circle():
     # two samples per cell at 30 m, one cell flown again at 50 m; yaw either side of north
     enu = np.array([[1.0, 1.0, 30.0], [3.0, 2.0, 30.2], [1.0, 1.0, 50.0], [12.0, 1.0, 30.0], [13.0, 2.0, 29.8]])

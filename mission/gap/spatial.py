@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.cells import bin_index, bin_means, cell_keys
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
 from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_cv, ridge_penalty
 from mission.gap.pipeline import Pipeline, memo
@@ -73,12 +74,8 @@ class KrigedShadowing:
 
 def cell_means(xy: np.ndarray, r: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Average residuals in square cells: (cell centroid xy, mean residual, count)."""
-    ij = np.floor(xy / cell_m).astype(np.int64)
-    _, inv, cnt = np.unique(ij, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    sx = np.bincount(inv, weights=xy[:, 0]) / cnt
-    sy = np.bincount(inv, weights=xy[:, 1]) / cnt
-    m = np.bincount(inv, weights=r) / cnt
+    inv, cnt = bin_index(cell_keys(xy, cell_m))
+    sx, sy, m = bin_means(inv, cnt, xy[:, 0], xy[:, 1], r)
     return np.column_stack([sx, sy]), m, cnt.astype(float)
 
 
