@@ -24,6 +24,7 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
+from mission.evidence import conformal_quantile
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
 from mission.localize.matched_net import SummaryNet
@@ -98,10 +99,9 @@ def hpd_level_of(truth: np.ndarray, pts: np.ndarray, w: np.ndarray, h: float) ->
 
 
 def conformal_mass(levels_seen: np.ndarray, level: float) -> float:
-    """The HPD mass that held the truth in a fraction ``level`` of held-out draws (split conformal quantile)."""
-    n = len(levels_seen)
-    q = min(1.0, np.ceil((n + 1) * level) / n)
-    return float(np.clip(np.quantile(levels_seen, q, method="higher"), 0.02, 0.999))
+    """The HPD mass that holds the truth in a fraction ``level`` of held-out draws: the split-conformal quantile
+    of their HPD levels (``evidence.conformal_quantile``), kept inside (0.02, 0.999) so a region exists."""
+    return float(np.clip(conformal_quantile(levels_seen, level), 0.02, 0.999))
 
 
 class MatchedLocalizer(_Base):
