@@ -121,11 +121,11 @@ def conformal_quantile(scores: Sequence[float], level: float) -> float:
 
 def coverage_interval(k: int, n: int, level: float = LEVEL) -> Interval:
     """Share ``k / n`` of truths inside a region with its exact (Clopper-Pearson) binomial interval."""
-    from scipy.stats import beta
+    from scipy.special import betaincinv  # the beta quantile (scipy.stats costs seconds to import)
 
     if n < 1 or not 0 <= k <= n:
         raise ValueError(f"need 0 <= k <= n and n >= 1, got k={k}, n={n}")
     a = (1.0 - level) / 2.0
-    lo = float(beta.ppf(a, k, n - k + 1)) if k > 0 else 0.0
-    hi = float(beta.ppf(1.0 - a, k + 1, n - k)) if k < n else 1.0
+    lo = float(betaincinv(k, n - k + 1, a)) if k > 0 else 0.0
+    hi = float(betaincinv(k + 1, n - k, 1.0 - a)) if k < n else 1.0
     return Interval(k / n, lo, hi, level)
