@@ -82,12 +82,12 @@ def stratum(c: np.ndarray, bounds: list[float]) -> np.ndarray:
 def fit(rows: np.ndarray, source: str) -> dict:
     """The ``track`` record: per coverage stratum (from the lowest coverage seen, 0.5, 0.9) the conformal radii
     of the errors of the flights in it."""
-    from mission.localize.error_circles import conformal_radius
+    from mission.evidence import conformal_quantile
 
     bounds = [round(float(np.min(rows[:, 2])) - 0.005, 2), *STRATA]
     k = stratum(rows[:, 2], bounds)
     return {"bounds": bounds,
-            "radii_m": {f"{lv:g}": [round(conformal_radius(rows[k == s, 3], lv), 2) for s in range(len(bounds))]
+            "radii_m": {f"{lv:g}": [round(conformal_quantile(rows[k == s, 3], lv), 2) for s in range(len(bounds))]
                         for lv in LEVELS},
             "n": [int((k == s).sum()) for s in range(len(bounds))], "calibrated_on": source}
 

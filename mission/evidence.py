@@ -6,10 +6,14 @@ independent (a flight; on real data a team, whose flights share a vehicle, anten
 is *paired*: one bootstrap replicate picks the same flights (or teams) for every method, so what varies is
 the flights, not the pairing.  Cluster bootstrap: a replicate draws whole groups with replacement and keeps
 all their flights.  Every replicate set comes from the caller's seed.
+
+Also the two statistics every coverage claim rests on: the split-conformal quantile (a region's size from
+held-out scores) and the exact binomial interval of a coverage share (k truths inside out of n).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -104,3 +108,24 @@ def compare_methods(errors: Mapping[str, Sequence[float]], reference: str, group
         out[name] = {"mean": _interval(float(e.mean()), (w @ e) / tot, level),
                      "diff": _interval(float((e - ref).mean()), (w @ (e - ref)) / tot, level)}
     return out
+
+
+def conformal_quantile(scores: Sequence[float], level: float) -> float:
+    """Split-conformal quantile: the ``ceil((n + 1) level)``-th smallest of ``n`` held-out scores (inf when n is
+    too small).  A fresh exchangeable score is at most it with probability ``ceil((n + 1) level) / (n + 1)``
+    (rank argument): an error circle's radius, or the HPD mass of a posterior region."""
+    e = np.sort(np.asarray(scores, dtype=float).ravel())
+    k = math.ceil((e.size + 1) * float(level))
+    return float(e[k - 1]) if 1 <= k <= e.size else float("inf")
+
+
+def coverage_interval(k: int, n: int, level: float = LEVEL) -> Interval:
+    """Share ``k / n`` of truths inside a region with its exact (Clopper-Pearson) binomial interval."""
+    from scipy.special import betaincinv  # the beta quantile (scipy.stats costs seconds to import)
+
+    if n < 1 or not 0 <= k <= n:
+        raise ValueError(f"need 0 <= k <= n and n >= 1, got k={k}, n={n}")
+    a = (1.0 - level) / 2.0
+    lo = float(betaincinv(k, n - k + 1, a)) if k > 0 else 0.0
+    hi = float(betaincinv(k + 1, n - k, 1.0 - a)) if k < n else 1.0
+    return Interval(k / n, lo, hi, level)

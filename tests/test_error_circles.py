@@ -1,7 +1,7 @@
 """Estimates without a posterior carry calibrated error circles (``mission/localize/error_circles.py``).
 
-Checked against the closed form of split conformal prediction (coverage ``ceil((n + 1) level) / (n + 1)`` on
-exchangeable draws), on the circles' geometry, on the card contract (missing, malformed, stale), on the shipped
+Checked on the circles' geometry (their radius, the split-conformal quantile, is checked against its closed form
+in ``tests/test_evidence.py``), on the card contract (missing, malformed, stale), on the shipped
 calibrations (every shipped network calibrated on the exact file that ships; the classical methods for both kinds
 of log) and on the product path (``localize`` on simulated and benchmark logs returns the circles of the right
 calibration, and a note instead where none applies).
@@ -26,7 +26,6 @@ from mission.localize.error_circles import (
     calibration_record,
     card_calibration,
     circle_regions,
-    conformal_radius,
     flown_radii,
     method_calibration,
     model_digest,
@@ -34,29 +33,6 @@ from mission.localize.error_circles import (
 from mission.workshop.evaluate_suite import region_contains
 
 SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
-
-
-@pytest.mark.parametrize("n,level", [(19, 0.5), (99, 0.9), (200, 0.9), (40, 0.5)])
-def test_conformal_coverage_matches_the_closed_form(n, level):
-    """Over many calibration/test draws from one distribution, the circle covers a fresh error with probability
-    ceil((n + 1) level) / (n + 1) exactly (rank argument); Rayleigh errors, 4000 repetitions."""
-    rng = np.random.default_rng(0)
-    cal = rng.rayleigh(10.0, (4000, n))
-    test = rng.rayleigh(10.0, 4000)
-    r = np.array([conformal_radius(c, level) for c in cal])
-    want = math.ceil((n + 1) * level) / (n + 1)
-    assert np.mean(test <= r) == pytest.approx(want, abs=0.02)
-
-
-@given(st.lists(st.floats(0.0, 1e4), min_size=1, max_size=60), st.floats(0.05, 0.95))
-@settings(max_examples=60, deadline=None)
-def test_conformal_radius_is_an_order_statistic(errors, level):
-    r = conformal_radius(errors, level)
-    k = math.ceil((len(errors) + 1) * level)
-    if k > len(errors):
-        assert r == math.inf  # too few flights to promise the level
-    else:
-        assert r in errors and sum(e <= r for e in errors) >= k
 
 
 def test_circles_have_their_radius_and_contain_what_they_should():

@@ -1,9 +1,20 @@
-"""Bootstrap intervals over flights: closed forms and limits."""
+"""Bootstrap intervals over flights, the conformal quantile and coverage intervals: closed forms and limits."""
+
+import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from mission.evidence import compare_methods, mean_interval, paired_difference, replicate_weights
+from mission.evidence import (
+    compare_methods,
+    conformal_quantile,
+    coverage_interval,
+    mean_interval,
+    paired_difference,
+    replicate_weights,
+)
 
 
 def test_flight_bootstrap_matches_standard_error():
@@ -51,3 +62,52 @@ def test_compare_methods_reference_difference_is_zero_and_shapes_are_checked():
     assert out["other"]["mean"].value == pytest.approx(70.0 / 3)
     with pytest.raises(ValueError):
         compare_methods({"ref": [1.0, 2.0], "x": [1.0]}, "ref")
+
+
+def test_conformal_quantile_small_example():
+    """n = 9 scores 1..9: level 0.5 -> the ceil(10 x 0.5) = 5th smallest; 0.9 -> the 9th; 0.95 -> none (inf).
+    (np.quantile 'higher' at k / n, the matched localizer's old rule, picked the 6th at 0.5.)"""
+    s = np.array([7.0, 2.0, 9.0, 1.0, 5.0, 3.0, 8.0, 4.0, 6.0])
+    assert conformal_quantile(s, 0.5) == 5.0
+    assert conformal_quantile(s, 0.9) == 9.0
+    assert conformal_quantile(s, 0.95) == math.inf
+    assert conformal_quantile(s, 0.05) == 1.0
+
+
+@pytest.mark.parametrize("n,level", [(19, 0.5), (99, 0.9), (200, 0.9), (40, 0.5)])
+def test_conformal_coverage_matches_the_closed_form(n, level):
+    """Over many calibration/test draws from one distribution, the circle covers a fresh error with probability
+    ceil((n + 1) level) / (n + 1) exactly (rank argument); Rayleigh errors, 4000 repetitions."""
+    rng = np.random.default_rng(0)
+    cal = rng.rayleigh(10.0, (4000, n))
+    test = rng.rayleigh(10.0, 4000)
+    r = np.array([conformal_quantile(c, level) for c in cal])
+    want = math.ceil((n + 1) * level) / (n + 1)
+    assert np.mean(test <= r) == pytest.approx(want, abs=0.02)
+
+
+@given(st.lists(st.floats(0.0, 1e4), min_size=1, max_size=60), st.floats(0.05, 0.95))
+@settings(max_examples=60, deadline=None)
+def test_conformal_quantile_is_an_order_statistic(errors, level):
+    r = conformal_quantile(errors, level)
+    k = math.ceil((len(errors) + 1) * level)
+    if k > len(errors):
+        assert r == math.inf  # too few flights to promise the level
+    else:
+        assert r in errors and sum(e <= r for e in errors) >= k
+
+
+
+def test_coverage_interval_closed_forms():
+    """Clopper-Pearson: k = 0 gives [0, 1 - (a/2)^(1/n)]; k = n gives [(a/2)^(1/n), 1]; the symmetric case is
+    symmetric about 1/2; 95 of 100 at 90 % is about [0.898, 0.980] (tables)."""
+    iv = coverage_interval(0, 10)
+    assert iv.lo == 0.0 and iv.hi == pytest.approx(1 - 0.05 ** 0.1)
+    iv = coverage_interval(10, 10)
+    assert iv.hi == 1.0 and iv.lo == pytest.approx(0.05 ** 0.1)
+    iv = coverage_interval(12, 24)
+    assert iv.value == 0.5 and iv.lo + iv.hi == pytest.approx(1.0)
+    iv = coverage_interval(95, 100)
+    assert (iv.lo, iv.hi) == pytest.approx((0.8979, 0.9799), abs=2e-3)
+    with pytest.raises(ValueError):
+        coverage_interval(3, 2)

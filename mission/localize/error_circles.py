@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.evidence import conformal_quantile
 from mission.geo import Area, clip_polygon, signed_area_m2
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 
@@ -53,13 +54,6 @@ FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track 
 N_VERTICES = 72
 
 
-def conformal_radius(errors, level: float) -> float:
-    """The split-conformal radius: the ``ceil((n + 1) level)``-th smallest error (inf when n is too small)."""
-    e = np.sort(np.asarray(errors, dtype=float))
-    k = math.ceil((e.size + 1) * float(level))
-    return float(e[k - 1]) if 1 <= k <= e.size else float("inf")
-
-
 def model_digest(model_path: str | Path) -> str:
     """sha256 of a model file: a card's calibration names the exact network it was measured on."""
     return hashlib.sha256(Path(model_path).read_bytes()).hexdigest()
@@ -70,7 +64,7 @@ def calibration_record(errors, source: str, model_path: str | Path | None = None
     """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
     network, the digest of the model file they were measured on."""
     e = np.asarray(errors, dtype=float)
-    radii = {f"{lv:g}": round(conformal_radius(e, lv), 2) for lv in levels}
+    radii = {f"{lv:g}": round(conformal_quantile(e, lv), 2) for lv in levels}
     if not all(math.isfinite(r) for r in radii.values()):
         raise ValueError(f"{e.size} flights cannot calibrate levels {levels}: need at least "
                          f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}")

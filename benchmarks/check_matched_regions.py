@@ -1,0 +1,123 @@
+"""Do ``localize --method matched``'s 50 % and 90 % regions hold the truth at their nominal rates on the family's
+benchmark flights?  Paired against the masses of the previous self-check on the same flights.
+
+Acceptance rule (written 2026-11-25 before any figure of this script was measured): on the first ``--n`` = 30
+flights of the shipped family's benchmark cache, seed 2026 (``rfsl dataset --suite unseen --logs --family
+mission/data/afar_family.json --n 200 --seed 2026``), the share of truths inside matched's 50 % and 90 % regions
+must lie within 5 points of nominal (45-55 %, 85-95 %).  Each share is reported with its exact 90 % binomial
+(Clopper-Pearson) interval (``mission.evidence.coverage_interval``): with n = 30 that interval is about +-15 points
+at 50 % and +-9 at 90 %, so a pass says the regions are not shown to miss, not that they are within 5 points; a
+share whose interval excludes nominal fails whatever its point value.
+
+Per flight it records the truth's HPD level under the flight's posterior (``Posterior.hpd_level``) and the masses
+of two self-checks on the same held-out transmitters of the same track: ``union`` (what ``localize`` uses: each
+held-out draw localized as the flight is, the union of every fold's ABC draws) and ``one net`` (the previous
+check: each held-out draw through one fold's net and table only).  A region of mass m holds the truth when the
+truth's level is below m, so both coverages come from one run.
+
+    nice -n 10 python benchmarks/check_matched_regions.py --suite-dir /tmp/suite_2026 --n 30 --workers 2 \\
+        --json /tmp/matched_regions.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+LEVELS = (0.5, 0.9)
+
+
+def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
+    """Masses of the previous check: held-out draw c through fold ``c % folds``'s net and table only."""
+    from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
+
+    lev = np.empty(len(cal))
+    for c, q in enumerate(cal):
+        j = c % loc.folds
+        ref = np.flatnonzero(fold == j)
+        i, w = abc_draws(s_ref[ref], s_cal[j, c], k)
+        pts = tx[ref[i]]
+        lev[c] = hpd_level_of(tx[q], pts, w, kde_bandwidth(pts, w, loc.step_m))
+    return {lv: conformal_mass(lev, lv) for lv in LEVELS}
+
+
+def _flight(job: tuple[str, int]) -> dict:
+    import mission.localize.matched as matched
+    from mission.localize.api import localize_log
+    from mission.workshop.suite_cache import read_suite
+
+    suite_dir, i = job
+    seen: dict = {}
+
+    class Recording(matched.MatchedLocalizer):
+        def _self_check(self, tx, s_ref, s_cal, cal, fold, k):
+            out = super()._self_check(tx, s_ref, s_cal, cal, fold, k)
+            seen["one_net"] = _one_net_masses(self, tx, s_ref, s_cal, cal, fold, k)
+            return out
+
+    log, truth, draw = read_suite(suite_dir).load(i)
+    t0 = time.perf_counter()
+    real_class, matched.MatchedLocalizer = matched.MatchedLocalizer, Recording
+    try:
+        est = localize_log(log, method="matched")
+    finally:
+        matched.MatchedLocalizer = real_class
+    union = {r["level"]: r["hpd_mass"] for r in est.extras["regions"]}
+    return {"flight": i, "error_m": float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
+            "truth_level": est.posterior.hpd_level(float(truth[0]), float(truth[1])),
+            "masses": {"union": union, "one_net": seen["one_net"]},
+            "tx_outside_flight_area": bool(draw.get("tx_outside_flight_area")), "seconds": time.perf_counter() - t0}
+
+
+def summary(rows: list[dict]) -> dict:
+    """Per check and level: k of n inside, the share with its 90 % binomial interval, and the rule's verdict."""
+    from mission.evidence import coverage_interval
+
+    out: dict = {}
+    for check in ("union", "one_net"):
+        for lv in LEVELS:
+            k = sum(r["truth_level"] < r["masses"][check][lv] for r in rows)
+            iv = coverage_interval(k, len(rows))
+            ok = abs(iv.value - lv) <= 0.05 and iv.lo <= lv <= iv.hi
+            out[f"{check} {lv:g}"] = {"k": int(k), "n": len(rows), "share": iv.to_dict(), "passes": bool(ok)}
+    return out
+
+
+def main() -> None:
+    from mission.localize.features import one_thread_process
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--suite-dir", required=True, help="benchmark cache of the shipped family (seed 2026)")
+    ap.add_argument("--n", type=int, default=30)
+    ap.add_argument("--first", type=int, default=0, help="first flight index")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--json", help="write per-flight rows and the summary here")
+    args = ap.parse_args()
+    jobs = [(args.suite_dir, i) for i in range(args.first, args.first + args.n)]
+    rows = []
+    with ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+        for r in ex.map(_flight, jobs):
+            rows.append(r)
+            m = r["masses"]
+            print(f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level {r['truth_level']:.3f}, masses "
+                  f"union {m['union'][0.5]:.2f}/{m['union'][0.9]:.2f}, one net "
+                  f"{m['one_net'][0.5]:.2f}/{m['one_net'][0.9]:.2f}, {r['seconds']:.0f} s", flush=True)
+            if args.json:
+                Path(args.json).write_text(json.dumps({"rows": rows}, indent=1))
+    s = summary(rows)
+    for key, v in s.items():
+        sh = v["share"]
+        print(f"{key:12s} {v['k']:3d}/{v['n']}  {100 * sh['value']:5.1f} % [{100 * sh['lo']:.1f}, "
+              f"{100 * sh['hi']:.1f}]  {'passes' if v['passes'] else 'fails'}")
+    print(f"mean error {np.mean([r['error_m'] for r in rows]):.1f} m over {len(rows)} flights")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"rows": rows, "summary": s}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
