@@ -17,6 +17,11 @@ import pytest
 # MAVLink 2 for every test, fixed before anything imports pymavlink (its dialect module is chosen once,
 # at first import, from this variable; mixing versions breaks pymavlink's waypoint loader).
 os.environ.setdefault("MAVLINK20", "1")
+# One BLAS/OpenMP thread per test process (and the fly-mission / vehicle subprocesses, which inherit it), set before
+# numpy or torch is imported: on a busy 2-core machine (parallel test workers, other jobs) their default pools of
+# spinning threads slow small matrix work by 10-100x (a tiny network's backward pass: 16 ms alone, 1.7 s contended).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 REPO = Path(__file__).resolve().parents[1]
 FULL_TIERS = ("slow", "real")  # left out of a plain `pytest`
