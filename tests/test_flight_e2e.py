@@ -239,14 +239,23 @@ def test_sigterm_before_takeoff_does_not_return_to_launch(tmp_path):
     (["--connect", "tcpout://127.0.0.1"], "--connect"),
     (["--out", "FILE"], "--out"),
 ])
-def test_bad_options_refused_before_anything_starts(tmp_path, args, field):
-    """Exit 2 and one line naming the option, before any vehicle is started (no vehicle, no log)."""
+def test_bad_options_refused_before_anything_starts(tmp_path, capsys, args, field):
+    """Exit 2 and one line naming the option, before any vehicle is started (no vehicle, no log).  The first
+    case runs the console entry point in a subprocess; the others call it in-process (same code path after
+    the interpreter starts, without a fresh Python importing the package each time)."""
     f = tmp_path / "a_file"
     f.write_text("x")
     args = [str(f) if a == "FILE" else a for a in args]
-    p = _fly([str(SPIRAL), *args] + ([] if "--out" in args else ["--out", str(tmp_path / "flights")]))
-    _, err = p.communicate(timeout=60)
-    assert p.returncode == 2, err
+    argv = [str(SPIRAL), *args] + ([] if "--out" in args else ["--out", str(tmp_path / "flights")])
+    if args[:2] == ["--rss-source", "foo"]:
+        p = _fly(argv)
+        _, err = p.communicate(timeout=60)
+        code = p.returncode
+    else:
+        from mission.cli.fly import main
+
+        code, err = main(argv), capsys.readouterr().err
+    assert code == 2, err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and field in lines[0] and "Traceback" not in err, err
     assert not (tmp_path / "flights").exists()
