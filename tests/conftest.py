@@ -5,6 +5,8 @@ Tiers: a plain ``pytest`` (no paths named) runs the fast tier only, leaving out 
 flights in ../shared; every test using the ``shared_dir`` fixture is marked so automatically).
 ``pytest --all`` runs every tier (CI and the README's test command do); naming files or node ids
 (``pytest tests/test_x.py``) runs all their tests; ``-m EXPR`` selects by marker as usual.
+Parallel runs (``pytest -n auto``, pytest-xdist) are safe: temporary paths are per test, the simulated vehicles
+and ArduPilot SITL take ports the OS hands out (or checks free), and every worker starts its slow tests first.
 """
 
 from __future__ import annotations
@@ -68,6 +70,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         where = f"{item.path.name}::{getattr(item, 'originalname', item.name)}"
         if item.path.name in SLOW_FILES or where in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        # parallel workers (pytest -n): the slow tests first (stable otherwise), so that the long ones start early
+        # and the short ones fill the end instead of one worker finishing a flight while the others wait
+        items.sort(key=lambda it: it.get_closest_marker("slow") is None)
     fast_only = (not config.getoption("all_tiers") and not config.option.markexpr
                  and config.args_source == pytest.Config.ArgsSource.TESTPATHS)
     if not fast_only:
