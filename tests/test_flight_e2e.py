@@ -298,7 +298,7 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     from mission.spec import load_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
-    d["trajectory"]["params"]["spacing_m"] = 88  # a short spiral: 280 s of flight, 28 s of wall clock at 10x
+    d["trajectory"]["params"]["spacing_m"] = 200  # one ring: 223 s of flight, 22 s of wall clock at 10x
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
     # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from it
