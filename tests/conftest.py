@@ -61,6 +61,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                      help="run every test tier: also the slow and real-data tests a plain `pytest` leaves out")
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """With ``-n`` (pytest-xdist, default ``--dist load``) and no ``--maxschedchunk`` given: hand the workers one
+    test at a time.  xdist's default first hands each worker a block of about an eighth of the suite in order, so
+    one worker got every slow test (sorted first below) while the other ran short ones and then waited."""
+    if getattr(config.option, "numprocesses", None) and getattr(config.option, "maxschedchunk", 0) is None:
+        config.option.maxschedchunk = 1
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark the tests that read ../shared as ``real`` and the listed slow ones ``slow``; in a plain run, deselect
     the slow and real tiers."""
