@@ -5,6 +5,8 @@ Tiers: a plain ``pytest`` (no paths named) runs the fast tier only, leaving out 
 flights in ../shared; every test using the ``shared_dir`` fixture is marked so automatically).
 ``pytest --all`` runs every tier (CI and the README's test command do); naming files or node ids
 (``pytest tests/test_x.py``) runs all their tests; ``-m EXPR`` selects by marker as usual.
+Parallel runs (``pytest -n auto``, pytest-xdist) are safe: temporary paths are per test, the simulated vehicles
+and ArduPilot SITL take ports the OS hands out (or checks free), and every worker starts its slow tests first.
 """
 
 from __future__ import annotations
@@ -17,6 +19,11 @@ import pytest
 # MAVLink 2 for every test, fixed before anything imports pymavlink (its dialect module is chosen once,
 # at first import, from this variable; mixing versions breaks pymavlink's waypoint loader).
 os.environ.setdefault("MAVLINK20", "1")
+# One BLAS/OpenMP thread per test process (and the fly-mission / vehicle subprocesses, which inherit it), set before
+# numpy or torch is imported: on a busy 2-core machine (parallel test workers, other jobs) their default pools of
+# spinning threads slow small matrix work by 10-100x (a tiny network's backward pass: 16 ms alone, 1.7 s contended).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 REPO = Path(__file__).resolve().parents[1]
 FULL_TIERS = ("slow", "real")  # left out of a plain `pytest`
@@ -54,6 +61,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                      help="run every test tier: also the slow and real-data tests a plain `pytest` leaves out")
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """With ``-n`` (pytest-xdist, default ``--dist load``) and no ``--maxschedchunk`` given: hand the workers one
+    test at a time.  xdist's default first hands each worker a block of about an eighth of the suite in order, so
+    one worker got every slow test (sorted first below) while the other ran short ones and then waited."""
+    if getattr(config.option, "numprocesses", None) and getattr(config.option, "maxschedchunk", 0) is None:
+        config.option.maxschedchunk = 1
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark the tests that read ../shared as ``real`` and the listed slow ones ``slow``; in a plain run, deselect
     the slow and real tiers."""
@@ -63,6 +78,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         where = f"{item.path.name}::{getattr(item, 'originalname', item.name)}"
         if item.path.name in SLOW_FILES or where in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        # parallel workers (pytest -n): the slow tests first (stable otherwise), so that the long ones start early
+        # and the short ones fill the end instead of one worker finishing a flight while the others wait
+        items.sort(key=lambda it: it.get_closest_marker("slow") is None)
     fast_only = (not config.getoption("all_tiers") and not config.option.markexpr
                  and config.args_source == pytest.Config.ArgsSource.TESTPATHS)
     if not fast_only:

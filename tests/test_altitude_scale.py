@@ -79,7 +79,8 @@ def tiny_altitude_net(tmp_path_factory, repo_dir):
     r = Randomisation(altitude_m=(15.0, 60.0), truncate=(0.15, 0.25))
     generate_dataset(DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r),
                      d / "ds", workers=1)
-    res = train([d / "ds"], d / "m.onnx", TrainConfig(epochs=2, batch_size=8, seed=1, altitude_normalised=True))
+    cfg = TrainConfig(epochs=2, batch_size=8, seed=1, altitude_normalised=True, threads=1)
+    res = train([d / "ds"], d / "m.onnx", cfg)
     return d, res
 
 

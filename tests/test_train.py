@@ -34,7 +34,7 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     cfg = DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r)
     generate_dataset(cfg, tmp_path / "ds", workers=1)
     out = tmp_path / "m.onnx"
-    res = train([tmp_path / "ds"], out, TrainConfig(epochs=3, batch_size=8, seed=1))
+    res = train([tmp_path / "ds"], out, TrainConfig(epochs=3, batch_size=8, seed=1, threads=1))
     assert res.max_onnx_diff < 1e-4 and out.exists() and res.metrics["epochs_run"] == 3
     loc = OnnxLocalizer(out)
     assert loc.kind == "clustering" and loc.cfg.c_k == 20
@@ -43,17 +43,17 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     x = np.load(next((tmp_path / "ds").glob("chunk_*.npz")))["clustering"]
     assert np.all(np.isfinite(loc.predict_features(x)))
     # same seed, same weights
-    res2 = train([tmp_path / "ds"], tmp_path / "m2.onnx", TrainConfig(epochs=3, batch_size=8, seed=1))
+    res2 = train([tmp_path / "ds"], tmp_path / "m2.onnx", TrainConfig(epochs=3, batch_size=8, seed=1, threads=1))
     assert res2.metrics == res.metrics
     hist = json.loads((tmp_path / "m.onnx.train.json").read_text())["history"]
     assert len(hist) == 3
     # a spent time budget stops after the epoch that passed it, and still exports the best epoch
-    res_t = train([tmp_path / "ds"], tmp_path / "t.onnx", TrainConfig(epochs=3, batch_size=8, seed=1, max_minutes=0))
+    spent = TrainConfig(epochs=3, batch_size=8, seed=1, max_minutes=0, threads=1)
+    res_t = train([tmp_path / "ds"], tmp_path / "t.onnx", spent)
     assert res_t.metrics["epochs_run"] == 1 and (tmp_path / "t.onnx").exists()
     # the normalised-RSS baseline trains and exports too
-    res3 = train(
-        [tmp_path / "ds"], tmp_path / "n.onnx", TrainConfig(features="normalised_rss", epochs=1, batch_size=8)
-    )
+    nrss = TrainConfig(features="normalised_rss", epochs=1, batch_size=8, threads=1)
+    res3 = train([tmp_path / "ds"], tmp_path / "n.onnx", nrss)
     assert OnnxLocalizer(res3.onnx_path).kind == "normalised_rss"
 
 
@@ -115,7 +115,7 @@ def test_tiny_training_relative_metadata_is_identity(tmp_path, repo_dir):
     generate_dataset(cfg, tmp_path / "ds", workers=1)
     for coords in ("relative", "absolute"):
         out = tmp_path / f"{coords}.onnx"
-        res = train([tmp_path / "ds"], out, TrainConfig(epochs=2, batch_size=4, seed=1, coords=coords))
+        res = train([tmp_path / "ds"], out, TrainConfig(epochs=2, batch_size=4, seed=1, coords=coords, threads=1))
         loc = OnnxLocalizer(out)
         norm = loc.meta["input_normalisation"]
         assert set(norm["input_mean"]) == {0.0} and set(norm["input_std"]) == {1.0}
