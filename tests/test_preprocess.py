@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from mission.localize.preprocess import cruise_mask
@@ -62,9 +62,13 @@ def test_min_altitude_share_is_the_threshold():
 @settings(max_examples=60, deadline=None)
 @given(alts=st.lists(st.floats(15.0, 60.0), min_size=1, max_size=3),
        shares=st.lists(st.integers(300, 1500), min_size=3, max_size=3), seed=st.integers(0, 2**16))
+# found by hypothesis: the upper part's median fell between two altitudes yet its band still held half of it,
+# catching the upper altitude off-centre (its top samples and a ramp were cut; now re-centred)
+@example(alts=[37.0, 56.0], shares=[300, 347, 300], seed=0)
+@example(alts=[34.0, 52.0], shares=[300, 346, 300], seed=0)
 def test_altitudes_property(alts, shares, seed):
     """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every cruise sample is kept, no ground
-    sample is, and the ramps are mostly dropped."""
+    sample is, and no ramp sample well outside every altitude's band is."""
     alts = sorted(set(round(a) for a in alts))
     alts = [a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2]  # bands do not touch
     n = shares[: len(alts)]
@@ -73,7 +77,9 @@ def test_altitudes_property(alts, shares, seed):
     sel = cruise_mask(h)
     assert sel.mask[lab >= 0].all(), sel.reason
     assert not sel.mask[lab == -2].any()
-    assert sel.mask[lab == -1].mean() < 0.5
+    # a ramp sample inside an altitude's band cannot be told from cruise by height; one well outside every band can
+    far = np.all([np.abs(h - a) > 1.6 * max(3.0, 0.15 * a) for a in alts], axis=0)
+    assert not sel.mask[(lab == -1) & far].any()
     assert len(sel.altitudes) == len(alts)
 
 

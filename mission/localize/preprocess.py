@@ -4,7 +4,8 @@ Rule (any trajectory, one or several cruise altitudes): let ``h`` be the height 
 (ENU z, i.e. ``rel_alt_m``-like).  The *upper part* is the samples above half of the flight's 99th-percentile
 height; its median is the cruise altitude ``h_c``, and samples within ``band(h_c)`` (default
 ``max(3 m, 15 % of h_c)``) of it are the first cruise altitude's, when that band holds at least half of the upper
-part.  Otherwise (a flight split between altitudes, whose median falls between them), and for every further
+part and is centred on it (its samples' median within half a band).  Otherwise (a flight split between
+altitudes, whose median falls between them), and for every further
 altitude, the altitude is the height whose band holds the most of the remaining airborne samples (refined to
 their median); a further altitude is kept while its band holds at least ``min_altitude_share`` of the airborne
 samples and lies above ``min_cruise_m``.  Why cruise altitudes and not "everything airborne": on the real AFAR
@@ -76,7 +77,9 @@ def cruise_mask(
     n_air = int(airborne.sum())
     b = float(_band(hc, band_m))
     mask = np.abs(h - hc) <= b
-    if int(mask.sum()) < 0.5 * int(upper.sum()):  # split between altitudes: the median is no cruise altitude
+    # split between altitudes: the median is no cruise altitude (its band holds under half of the upper part, or
+    # it catches one altitude off-centre: the band's own samples sit over half a band away from the median)
+    if int(mask.sum()) < 0.5 * int(upper.sum()) or abs(float(np.median(h[mask])) - hc) > 0.5 * b:
         hc, _ = _densest_altitude(np.sort(h[airborne]), min_cruise_m, band_m)
         b = float(_band(hc, band_m))
         mask = np.abs(h - hc) <= b
