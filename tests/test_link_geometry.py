@@ -9,12 +9,18 @@ import pytest
 from mission.cells import Cells
 from mission.localize.selfcal import _geometry
 from mission.physics.geometry import (
+    bearing,
     body_angles,
+    body_azimuth,
+    body_vectors,
+    depression,
     elevation,
     enu_to_ned,
     heading_frame_angles,
     horizontal_distance,
     link_delta,
+    sin_depression,
+    sin_elevation,
     slant_distance,
 )
 
@@ -75,3 +81,47 @@ def test_link_helpers_are_the_closed_forms_and_keep_float32():
     f32 = link_delta(tx, rx, np.float32)
     assert all(v.dtype == np.float32 for v in f32)
     assert all(v.dtype == np.float32 for v in heading_frame_angles(*f32, np.float32(0.3)))
+
+
+def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_float32():
+    rng = np.random.default_rng(11)
+    u = rng.normal(size=(400, 3)) * rng.uniform(0.1, 300.0, (400, 1))  # NED, any length
+    att = rng.uniform(-0.5, 0.5, (400, 3))
+    ub = body_vectors(u, att)
+    r = np.linalg.norm(ub, axis=1)
+    az_ref, dep_ref = body_angles(u, att)
+    assert np.array_equal(depression(ub[:, 2], r), dep_ref)  # body_angles' dep_b is this function
+    assert np.allclose(sin_depression(ub[:, 2], r), np.sin(dep_ref), atol=1e-12)
+    assert np.array_equal(sin_depression(np.array([2.0, -2.0]), 1.0), [1.0, -1.0])  # clipped, not NaN
+    # sin el = dz / d_los: the sine of the level-frame elevation atan2(dz, d_2D)
+    dx, dy, dz = u[:, 1], u[:, 0], -u[:, 2]
+    assert np.allclose(sin_elevation(dz, slant_distance(dx, dy, dz)),
+                       np.sin(elevation(dz, horizontal_distance(dx, dy))), atol=1e-12)
+    # signed: (-pi, pi], the same direction as the [0, 2 pi) value and that value exactly once wrapped
+    for f, args in ((bearing, (dx, dy)), (body_azimuth, (ub[:, 0], ub[:, 1]))):
+        s_, w = f(*args, signed=True), f(*args)
+        assert np.all((s_ > -np.pi) & (s_ <= np.pi)) and np.all((w >= 0.0) & (w < 2 * np.pi))
+        assert np.array_equal(np.mod(s_, 2 * np.pi), w) and s_.min() < -1.0
+    f32 = [np.asarray(v, np.float32) for v in (ub[:, 0], ub[:, 1], ub[:, 2], r)]
+    assert depression(f32[2], f32[3]).dtype == sin_elevation(f32[2], f32[3]).dtype == np.float32
+    assert bearing(f32[0], f32[1], signed=True).dtype == body_azimuth(f32[0], f32[1]).dtype == np.float32
+
+
+def test_gap_alignment_is_the_physics_models_own_geometry():
+    """The gap's per-sample geometry and the propagation model's float64 explanation agree (one home)."""
+    from mission.gap.align import align
+    from mission.physics import make_model
+    from mission.samples import FlightSamples
+
+    rng = np.random.default_rng(5)
+    n = 300
+    enu = np.column_stack([rng.uniform(-200, 200, (n, 2)), rng.uniform(10.0, 60.0, n)])
+    att = np.column_stack([rng.uniform(-0.3, 0.3, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+    tx = np.array([30.0, -40.0, 1.5])
+    f = FlightSamples(enu, np.zeros(n), att, np.arange(n) * 0.2, tx_enu_m=tx)
+    a = align(f)
+    ex = make_model("e2r").explain(tx, enu, att)
+    for mine, ref in ((a.d_h, "d_2d"), (a.d_3d, "d_los"), (a.grazing, "grazing_rad"), (a.az_world, "az_tx_rad"),
+                      (a.elev, "el_tx_dir_rad"), (a.dep_b, "dep_b_rad")):
+        assert np.allclose(mine, np.ravel(ex[ref]), rtol=1e-12, atol=1e-12), ref
+    assert np.allclose(_wrap(a.az_b - np.ravel(ex["az_b_rad"])), 0.0, atol=1e-12)

@@ -12,7 +12,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mission.physics.geometry import bearing, body_angles, enu_to_ned
+from mission.physics.geometry import (
+    bearing,
+    body_angles,
+    elevation,
+    enu_to_ned,
+    horizontal_distance,
+    link_delta,
+    slant_distance,
+)
 from mission.samples import FlightSamples
 
 SEGMENTS = ("climb", "cruise", "turn", "descent")
@@ -75,13 +83,14 @@ def align(flight: FlightSamples) -> Alignment:
     rx = flight.enu_m
     tx = np.asarray(flight.tx_enu_m, dtype=float)
     att = flight.attitude_rad
-    d = tx[None, :] - rx
-    d_h = np.hypot(d[:, 0], d[:, 1])
-    d_3d = np.linalg.norm(d, axis=1)
-    az_b, dep_b = body_angles(enu_to_ned(d), att)
-    az_world = bearing(-d[:, 0], -d[:, 1])
-    elev = np.arctan2(rx[:, 2] - tx[2], np.maximum(d_h, 1e-9))
-    grazing = np.arctan2(rx[:, 2] + tx[2], np.maximum(d_h, 1e-9))
+    dx, dy, dz = link_delta(tx, rx)  # p_tx - p_uav (ENU)
+    d_h = horizontal_distance(dx, dy)
+    d_3d = slant_distance(dx, dy, dz)
+    az_b, dep_b = body_angles(enu_to_ned(np.stack([dx, dy, dz], axis=-1)), att)
+    az_world = bearing(-dx, -dy)
+    h_t, h_r, d_2d = tx[2], rx[:, 2], np.maximum(d_h, 1e-9)
+    elev = elevation(h_r - h_t, d_2d)
+    grazing = elevation(h_r + h_t, d_2d)  # grazing angle psi, as in PropagationModel.explain
     tilt = np.arccos(np.clip(np.cos(att[:, 0]) * np.cos(att[:, 1]), -1.0, 1.0))
     seg = flight_segment(flight.t_s, rx, att[:, 2])
     return Alignment(d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, seg, rx[:, 0], rx[:, 1], rx[:, 2])

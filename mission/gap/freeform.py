@@ -32,7 +32,16 @@ from numpy.polynomial import legendre
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
 from mission.gap.pipeline import Pipeline, memo, offset_residuals
-from mission.physics.geometry import body_vectors, enu_to_ned
+from mission.physics.geometry import (
+    bearing,
+    body_azimuth,
+    body_vectors,
+    enu_to_ned,
+    link_delta,
+    sin_depression,
+    sin_elevation,
+    slant_distance,
+)
 from mission.samples import FlightSamples
 
 # kind -> (first variable, second variable, orders); see the module table
@@ -44,11 +53,11 @@ def map_variables(kind: str, link: Any) -> tuple[np.ndarray, np.ndarray]:
     """The two variables of ``kind`` from a ``mission.physics.propagation.Link`` (or the same fields)."""
     dx, dy, dz = link.delta
     d = link.d_los
-    if kind == "rx_gain_map":
+    if kind == "rx_gain_map":  # az_b, sin dep_b
         ubx, uby, ubz = link.u_b
-        return np.arctan2(uby, ubx), np.clip(ubz / d, -1.0, 1.0)  # az_b, sin dep_b
-    if kind == "tx_gain_map":
-        return np.arctan2(-dx, -dy), np.clip(-dz / d, -1.0, 1.0)  # compass az tx -> UAV, sin elevation
+        return body_azimuth(ubx, uby, signed=True), sin_depression(ubz, d)
+    if kind == "tx_gain_map":  # compass bearing and sin elevation of the UAV seen from the transmitter
+        return bearing(-dx, -dy, signed=True), sin_elevation(-dz, d)
     if kind == "excess_loss":
         return np.clip(np.log10(d / 100.0), -1.0, 1.0), np.clip((link.z_r - 35.0) / 25.0, -1.0, 1.0)
     raise ValueError(f"unknown free-form kind {kind!r}")
@@ -167,11 +176,10 @@ def link_of(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray) -> Any:
 
     rx, att = pipe.geometry(flight, idx)
     tx = np.asarray(flight.tx_enu_m, dtype=float)
-    delta = tx[None, :] - rx
-    dx, dy, dz = delta.T
-    d_los = np.maximum(np.linalg.norm(delta, axis=1), 1e-3)
+    dx, dy, dz = link_delta(tx, rx)
+    d_los = np.maximum(slant_distance(dx, dy, dz), 1e-3)
     if pipe.model.has("attitude"):
-        ub = body_vectors(enu_to_ned(delta), pipe.model.effect("attitude").apply(att))
+        ub = body_vectors(enu_to_ned(np.stack([dx, dy, dz], axis=-1)), pipe.model.effect("attitude").apply(att))
         u_b = (ub[:, 0], ub[:, 1], ub[:, 2])
     else:
         u_b = (dy, dx, -dz)

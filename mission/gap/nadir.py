@@ -20,6 +20,7 @@ import numpy as np
 
 from mission.gap.candidate import Candidate, Param
 from mission.gap.pipeline import Pipeline
+from mission.physics.geometry import depression
 
 BAND_DEG = (60.0, 90.0)
 Z_ALPHA, Z_POWER = 1.645, 0.842  # one-sided 5 %, power 80 %
@@ -35,8 +36,7 @@ class NearNadirLoss:
     name: ClassVar[str] = "near_nadir"
 
     def rss_term_db(self, link: Any) -> np.ndarray:
-        ubz = link.u_b[2]
-        dep = np.degrees(np.arcsin(np.clip(ubz / link.d_los, -1.0, 1.0)))
+        dep = np.degrees(depression(link.u_b[2], link.d_los))
         term = -self.depth_db * np.exp(-0.5 * ((dep - self.centre_deg) / max(self.width_deg, 0.5)) ** 2)
         return term.astype(np.asarray(link.d_los).dtype, copy=False)
 

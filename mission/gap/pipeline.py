@@ -27,6 +27,7 @@ import numpy as np
 
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
+from mission.physics.geometry import sin_elevation, slant_distance
 from mission.robust import offset_residual
 from mission.samples import FlightSamples
 
@@ -60,13 +61,13 @@ class TxTilt:
     def rss_term_db(self, link: Any) -> np.ndarray:
         """G_dip(angle to the tilted axis) - G_dip(angle to the vertical) on the direct ray, dB."""
         dx, dy, dz = (np.asarray(v, dtype=float) for v in link.delta)
-        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        d = slant_distance(dx, dy, dz)
         # unit vector tx -> rx (ENU) = -delta / d
         ux, uy, uz = -dx / d, -dy / d, -dz / d
         t, a = math.radians(self.tilt_deg), math.radians(self.azimuth_deg)
         ax, ay, az = math.sin(t) * math.sin(a), math.sin(t) * math.cos(a), math.cos(t)
         sin_new = np.clip(ux * ax + uy * ay + uz * az, -1.0, 1.0)
-        term = _dipole_db(sin_new) - _dipole_db(np.clip(uz, -1.0, 1.0))
+        term = _dipole_db(sin_new) - _dipole_db(sin_elevation(-dz, d))  # upright: the UAV's elevation
         return term.astype(np.asarray(link.d_los).dtype, copy=False)
 
 

@@ -25,6 +25,7 @@ from mission.cells import bin_index, bin_means, cell_keys
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
 from mission.gap.freeform import fourier_legendre_columns, fourier_legendre_orders, ridge_cv, ridge_penalty
 from mission.gap.pipeline import Pipeline, memo
+from mission.physics.geometry import bearing, horizontal_distance
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
 
@@ -166,8 +167,8 @@ SITE_LAMBDAS = tuple(np.geomspace(1e-4, 1e1, 11))
 def site_variables(tx: np.ndarray, rx_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(compass azimuth of the UAV from the transmitter (rad), log distance scaled to [-1, 1] over 10-500 m)."""
     d = rx_xy - np.asarray(tx, dtype=float)[None, :2]
-    az = np.arctan2(d[:, 0], d[:, 1])
-    ld = np.log10(np.maximum(np.hypot(d[:, 0], d[:, 1]), 5.0) / 70.7) / 0.85
+    az = bearing(d[:, 0], d[:, 1], signed=True)
+    ld = np.log10(np.maximum(horizontal_distance(d[:, 0], d[:, 1]), 5.0) / 70.7) / 0.85
     return az, np.clip(ld, -1.0, 1.0)
 
 

@@ -94,9 +94,23 @@ def body_vectors(u_ned: ArrayLike, attitude_rad: ArrayLike | None) -> NDArray[np
     return np.einsum("...ki,...k->...i", R, u)
 
 
-def body_azimuth(ub_x: ArrayLike, ub_y: ArrayLike) -> NDArray:
-    """az_b = atan2(u_b.y, u_b.x) in [0, 2 pi): 0 = nose, positive to the right; keeps a float32 input float32."""
-    return np.mod(np.arctan2(ub_y, ub_x), TWO_PI)
+def body_azimuth(ub_x: ArrayLike, ub_y: ArrayLike, signed: bool = False) -> NDArray:
+    """az_b = atan2(u_b.y, u_b.x) in [0, 2 pi): 0 = nose, positive to the right; keeps a float32 input float32.
+
+    ``signed``: atan2's own range (-pi, pi], for periodic uses (a Fourier basis) where the wrap would only round.
+    """
+    az = np.arctan2(ub_y, ub_x)
+    return az if signed else np.mod(az, TWO_PI)
+
+
+def sin_depression(ub_z: ArrayLike, r: ArrayLike) -> NDArray:
+    """sin dep_b = u_b.z / |u|, clipped to [-1, 1]; ``r`` = |u| > 0 (the free-form maps' variable)."""
+    return np.clip(np.asarray(ub_z) / r, -1.0, 1.0)
+
+
+def depression(ub_z: ArrayLike, r: ArrayLike) -> NDArray:
+    """dep_b = asin(u_b.z / |u|) (rad, positive below the body plane); ``r`` = |u| > 0; dtype kept."""
+    return np.arcsin(sin_depression(ub_z, r))
 
 
 def body_angles(u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
@@ -108,13 +122,18 @@ def body_angles(u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
     ub = body_vectors(u_ned, attitude_rad)
     r = np.linalg.norm(ub, axis=-1)
     az_b = body_azimuth(ub[..., 0], ub[..., 1])
-    dep_b = np.arcsin(np.clip(ub[..., 2] / np.where(r > 0, r, 1.0), -1.0, 1.0))
+    dep_b = depression(ub[..., 2], np.where(r > 0, r, 1.0))
     return az_b, dep_b
 
 
-def bearing(dx_east: ArrayLike, dy_north: ArrayLike) -> NDArray:
-    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi); float32 stays float32."""
-    return np.mod(np.arctan2(dx_east, dy_north), TWO_PI)
+def bearing(dx_east: ArrayLike, dy_north: ArrayLike, signed: bool = False) -> NDArray:
+    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi); float32 stays float32.
+
+    The UAV seen from the transmitter is ``bearing(-dx, -dy)`` of the link delta.  ``signed``: (-pi, pi] as in
+    ``body_azimuth``.
+    """
+    az = np.arctan2(dx_east, dy_north)
+    return az if signed else np.mod(az, TWO_PI)
 
 
 # -- the link UAV -> transmitter from its ENU components (dtype-preserving: the fast paths run in float32)
@@ -141,6 +160,11 @@ def slant_distance(dx: ArrayLike, dy: ArrayLike, dz: ArrayLike) -> NDArray:
 def elevation(dz: ArrayLike, d_2d: ArrayLike) -> NDArray:
     """Up-positive elevation atan2(dz, d_2D) of the far end of a link seen from the level frame (rad)."""
     return np.arctan2(dz, d_2d)
+
+
+def sin_elevation(dz: ArrayLike, d_los: ArrayLike) -> NDArray:
+    """sin el = dz / d_los clipped to [-1, 1]: the up-positive elevation's sine of the far end of a link."""
+    return np.clip(np.asarray(dz) / d_los, -1.0, 1.0)
 
 
 def heading_frame_angles(dx: NDArray, dy: NDArray, dz: NDArray, yaw_rad: ArrayLike,
