@@ -30,6 +30,15 @@ from mission.trajectory.multicopter import G, Kinematics
 HOVER_SPEED_MPS = 0.3  # below this the course is held (the nose does not follow GPS jitter)
 
 
+
+def tilt_from_acceleration(a_n: np.ndarray, a_e: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(roll, pitch) in radians, unclipped, that tilt the thrust to give the horizontal acceleration (north, east)
+    (m/s^2) at heading ``yaw``: the one place the multicopter's tilt is derived from its acceleration."""
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    pitch = -np.arctan2(a_n * cy + a_e * sy, G)  # nose down to accelerate forward
+    roll = np.arctan2(-a_n * sy + a_e * cy, G)  # right wing down to accelerate right
+    return roll, pitch
+
 def lag_alpha(dt: float, tau: float) -> float:
     """Gain of a first-order lag of time constant ``tau`` sampled every ``dt`` (exact discretisation)."""
     return 1.0 - math.exp(-dt / tau) if tau > 0 else 1.0
@@ -105,9 +114,7 @@ def run_attitude(pos: np.ndarray, dt: float, kin: Kinematics, state: AttitudeSta
     k_drag = math.tan(math.radians(kin.drag_pitch_deg_per_mps)) * G  # m/s^2 per m/s of airspeed
     a_e = acc[:, 0] + k_drag * (vel[:, 0] - wind[..., 0])
     a_n = acc[:, 1] + k_drag * (vel[:, 1] - wind[..., 1])
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    pitch = -np.arctan2(a_n * cy + a_e * sy, G)  # nose down to accelerate forward
-    roll = np.arctan2(-a_n * sy + a_e * cy, G)  # right wing down to accelerate right
+    roll, pitch = tilt_from_acceleration(a_n, a_e, yaw)
     if turbulence is not None:
         pitch = pitch + turbulence[:, 0]
         roll = roll + turbulence[:, 1]

@@ -250,6 +250,7 @@ def _times(d: dict, profile, rng: np.random.Generator) -> tuple[np.ndarray, np.n
 
 def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -> np.ndarray:
     """Roll, pitch, yaw (N, 3) rad of the heading habit (tilt from the accelerations, as the simulator)."""
+    from mission.trajectory.attitude import tilt_from_acceleration
     from mission.trajectory.kinematics import G, attitude_from_motion
 
     habit = d["heading_habit"]
@@ -262,10 +263,8 @@ def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -
     att = attitude_from_motion(t, pos, replace(kin, heading_deg=0.0))[0]  # nose north: tilt = accel (n, e)
     a_n, a_e = -np.tan(att[:, 1]) * G, np.tan(att[:, 0]) * G
     yaw = np.deg2rad(d["fixed_heading_deg"] + d["rotation_dps"] * t)
-    cy, sy = np.cos(yaw), np.sin(yaw)
     lim = np.deg2rad(kin.max_tilt_deg)
-    pitch = np.clip(-np.arctan2(a_n * cy + a_e * sy, G), -lim, lim)
-    roll = np.clip(np.arctan2(-a_n * sy + a_e * cy, G), -lim, lim)
+    roll, pitch = (np.clip(v, -lim, lim) for v in tilt_from_acceleration(a_n, a_e, yaw))
     return np.stack([roll, pitch, np.mod(yaw, 2 * np.pi)], axis=-1)
 
 
