@@ -166,6 +166,18 @@ def _augment(xb, cfg: TrainConfig, gen):
     return v.reshape(b, f)
 
 
+
+def validation_split(n: int, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(validation, training) flight indices, sorted: a seeded random ``val_fraction`` of the first ``max_train``
+    of a seeded permutation of ``n`` flights; the one place the split is drawn (tests recompute metrics on it)."""
+    perm = np.random.default_rng(cfg.seed).permutation(n)
+    if cfg.max_train is not None:
+        perm = perm[: cfg.max_train]
+    n_val = max(1, int(round(cfg.val_fraction * len(perm))))
+    if len(perm) - n_val < 2:
+        raise InputError(f"too few flights ({len(perm)}) to train and validate")
+    return np.sort(perm[:n_val]), np.sort(perm[n_val:])
+
 def train(
     paths: Sequence[str | Path],
     out: str | Path,
@@ -197,14 +209,7 @@ def train(
         scale = scale_factor(np.concatenate([dataset_heights(load_dataset(p, ("params",))[0]["params"])
                                              for p in paths]))
         x, y = scale_cluster_xy(x, scale).astype(np.float32), (y * scale[:, None]).astype(np.float32)
-    rng = np.random.default_rng(cfg.seed)
-    perm = rng.permutation(len(x))
-    if cfg.max_train is not None:
-        perm = perm[: cfg.max_train]
-    n_val = max(1, int(round(cfg.val_fraction * len(perm))))
-    if len(perm) - n_val < 2:
-        raise InputError(f"too few flights ({len(perm)}) to train and validate")
-    val_idx, tr_idx = np.sort(perm[:n_val]), np.sort(perm[n_val:])
+    val_idx, tr_idx = validation_split(len(x), cfg)
     n_in = x.shape[1]
     xt, yt = torch.from_numpy(x), torch.from_numpy(y)
     x_tr, y_tr = xt[tr_idx], yt[tr_idx]
