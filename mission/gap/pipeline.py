@@ -154,6 +154,28 @@ class LocalizationModel:
         return p
 
 
+def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+                     ) -> list[np.ndarray]:
+    """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample paired with
+    its flight's transmitter and shifted by its flight's centre, so the values equal one call per flight bit
+    for bit (the physics is elementwise), without the per-call overhead that dominates the small fits."""
+    live = [k for k, i in enumerate(idx) if len(i)]
+    geo = {k: pipe.geometry(flights[k], idx[k]) for k in live}
+    if len(live) < 2 or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
+        return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+    rx = [np.asarray(geo[k][0], dtype=float) for k in live]
+    n = [len(r) for r in rx]
+    tx = np.concatenate([np.broadcast_to(np.asarray(flights[k].tx_enu_m, dtype=float).reshape(3), (m, 3))
+                         for k, m in zip(live, n, strict=True)])
+    centre = np.concatenate([np.broadcast_to(np.r_[r[:, :2].mean(axis=0), 0.0], (len(r), 3)) for r in rx])
+    p = np.asarray(pipe.model.rss_dbm(tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]),
+                                      centre=centre), dtype=float)
+    out = [np.zeros(0) for _ in idx]
+    for k, part in zip(live, np.split(p, np.cumsum(n)[:-1]), strict=True):
+        out[k] = part
+    return out
+
+
 def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                      slope: bool = False, loss: str = "l2", f_scale_db: float = 6.0,
                      cache: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
@@ -162,11 +184,12 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each flight's
     constant offset (and with ``slope`` a path-gain slope) is fitted on the very samples scored."""
     out = []
+    cache = predict_channels(pipe, flights, idx) if cache is None else cache
     for k, (f, i) in enumerate(zip(flights, idx, strict=True)):
         if len(i) == 0:
             out.append(np.zeros(0))
             continue
-        p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
+        p = pipe.finish(cache[k], f, i)
         out.append(offset_residual(f.rss_dbm[i], p, slope, loss, f_scale_db))
     return out
 

@@ -84,12 +84,14 @@ class PropagationModel:
         return self.effect(name) if self.has(name) else None
 
     # -- fast path
-    def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None
-                ) -> NDArray:
+    def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None,
+                centre: ArrayLike | None = None) -> NDArray:
         """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N, 3) rad.
 
         tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3) pairs
-        with the samples one to one.
+        with the samples one to one.  ``centre`` (N, 3), z = 0: each sample's shift instead of the samples'
+        mean, so that several flights evaluated in one call (paired tx) keep their own centre and get the
+        very values of one call per flight (the per-call overhead dominates on small fits).
         """
         dt = np.dtype(self.dtype)
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
@@ -97,6 +99,10 @@ class PropagationModel:
         # shift x, y to the samples' centre so float32 keeps millimetres
         c = np.zeros(3)
         c[:2] = rx[:, :2].mean(axis=0) if N else 0.0
+        if centre is not None:
+            if not paired and N > 1:
+                raise ValueError("centre needs tx paired with the samples, shape (N, 3)")
+            c = np.asarray(centre, dtype=float).reshape(N, 3)
         rxc = (rx - c).astype(dt)
         txc = tx - c
         C = None
