@@ -165,13 +165,15 @@ def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
         return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
     rx = [np.asarray(geo[k][0], dtype=float) for k in live]
     n = [len(r) for r in rx]
-    tx = np.concatenate([np.broadcast_to(np.asarray(flights[k].tx_enu_m, dtype=float).reshape(3), (m, 3))
-                         for k, m in zip(live, n, strict=True)])
-    centre = np.concatenate([np.broadcast_to(np.r_[r[:, :2].mean(axis=0), 0.0], (len(r), 3)) for r in rx])
+    ends = np.cumsum(n)
+    tx, centre = np.empty((int(ends[-1]), 3)), np.zeros((int(ends[-1]), 3))
+    for k, r, e, m in zip(live, rx, ends, n, strict=True):
+        tx[e - m: e] = flights[k].tx_enu_m
+        centre[e - m: e, :2] = r[:, :2].mean(axis=0)
     p = np.asarray(pipe.model.rss_dbm(tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]),
                                       centre=centre), dtype=float)
     out = [np.zeros(0) for _ in idx]
-    for k, part in zip(live, np.split(p, np.cumsum(n)[:-1]), strict=True):
+    for k, part in zip(live, np.split(p, ends[:-1]), strict=True):
         out[k] = part
     return out
 
