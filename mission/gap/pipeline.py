@@ -154,15 +154,23 @@ class LocalizationModel:
         return p
 
 
-def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
-                     ) -> list[np.ndarray]:
-    """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample paired with
-    its flight's transmitter and shifted by its flight's centre, so the values equal one call per flight bit
-    for bit (the physics is elementwise), without the per-call overhead that dominates the small fits."""
+_JOINT: dict = {}  # joint geometry of (time offset, flights, sample selections), see _joint_geometry
+_JOINT_MAX_SAMPLES = 20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
+
+
+def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> tuple | None:
+    """(live flights, ends, tx, rx, attitude, centre) of the selected samples of all flights, one row per sample;
+    None where one call per flight is needed.  A fit evaluates the same selections thousands of times, so the
+    result is cached by the identity of the flights and index arrays (the entry holds them, so no id is reused
+    while it lives) and the time offset."""
+    key = (pipe.time_offset_s, *map(id, flights), *map(id, idx))
+    hit = _JOINT.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], (*flights, *idx), strict=True)):
+        return hit[1]
     live = [k for k, i in enumerate(idx) if len(i)]
     geo = {k: pipe.geometry(flights[k], idx[k]) for k in live}
     if len(live) < 2 or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
-        return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+        return None
     rx = [np.asarray(geo[k][0], dtype=float) for k in live]
     n = [len(r) for r in rx]
     ends = np.cumsum(n)
@@ -170,8 +178,26 @@ def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     for k, r, e, m in zip(live, rx, ends, n, strict=True):
         tx[e - m: e] = flights[k].tx_enu_m
         centre[e - m: e, :2] = r[:, :2].mean(axis=0)
-    p = np.asarray(pipe.model.rss_dbm(tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]),
-                                      centre=centre), dtype=float)
+    out = (live, ends, tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]), centre)
+    for a in out[2:]:
+        a.flags.writeable = False  # shared between calls and threads
+    if ends[-1] <= _JOINT_MAX_SAMPLES:
+        if len(_JOINT) > 64:
+            _JOINT.clear()
+        _JOINT[key] = ((*flights, *idx), out)
+    return out
+
+
+def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+                     ) -> list[np.ndarray]:
+    """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample paired with
+    its flight's transmitter and shifted by its flight's centre, so the values equal one call per flight bit
+    for bit (the physics is elementwise), without the per-call overhead that dominates the small fits."""
+    joint = _joint_geometry(pipe, flights, idx)
+    if joint is None:
+        return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+    live, ends, tx, rx, att, centre = joint
+    p = np.asarray(pipe.model.rss_dbm(tx, rx, att, centre=centre), dtype=float)
     out = [np.zeros(0) for _ in idx]
     for k, part in zip(live, np.split(p, ends[:-1]), strict=True):
         out[k] = part
