@@ -45,14 +45,14 @@ def per_sample_loss(r: np.ndarray, loss: str = "l2", f_scale: float = 6.0) -> np
 def robust_offset(resid: np.ndarray, f_scale: float = 6.0, axis: int = -1) -> np.ndarray:
     """Offset of ``resid`` along ``axis``: median, then one Huber IRLS step (weights min(1, f / |r - med|))."""
     resid = np.asarray(resid, dtype=float)
-    off = _median_1d(resid) if resid.ndim == 1 and resid.size else np.median(resid, axis=axis, keepdims=True)
+    off = median_1d(resid) if resid.ndim == 1 and resid.size else np.median(resid, axis=axis, keepdims=True)
     z = resid - off
     w = np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
     off = off + np.sum(w * z, axis=axis, keepdims=True) / np.sum(w, axis=axis, keepdims=True)
     return np.squeeze(off, axis=axis)
 
 
-def _median_1d(r: np.ndarray) -> np.ndarray:
+def median_1d(r: np.ndarray) -> np.ndarray:
     """``np.median(r, keepdims=True)`` of a non-empty 1-D array, bit for bit (the same partition and mean of
     the middle pair; NaN if any), without its generic-axis overhead: the fits call it ~100 000 times."""
     h = r.size // 2

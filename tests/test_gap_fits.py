@@ -17,7 +17,7 @@ from mission.gap.power import DEPTHS_DB, FIT_MARGIN, band_shape, fit_band, injec
 from mission.gap.stats import block_length
 from mission.gap.structure import identify
 from mission.physics import Attitude, make_model
-from mission.robust import offset_residual
+from mission.robust import offset_residual, per_sample_loss
 from mission.samples import FlightSamples
 
 BODY = "leg_shadowing,near_nadir,rx_gain_map,ground_reflection"
@@ -130,3 +130,16 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
         want = pipe.predict_channel(f, i) if len(i) else np.zeros(0)
         assert g.shape == want.shape and np.array_equal(g, want)
     assert any(len(g) for g in got)
+    # the offsets and losses taken on all flights at once: the very values of one flight at a time
+    from mission.gap.fit import objective
+    from mission.gap.pipeline import Receiver, offset_residuals
+
+    pipe = pipe.replace(receiver=Receiver(-95.0, -40.0))
+    for loss in ("l2", "soft_l1", "huber"):
+        got = offset_residuals(pipe, flights, idx, loss=loss, f_scale_db=4.0)
+        want = [offset_residual(f.rss_dbm[i], pipe.predict(f, i), False, loss, 4.0) if len(i) else np.zeros(0)
+                for f, i in zip(flights, idx, strict=True)]
+        assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+        cfg = FitConfig(loss=loss, f_scale_db=4.0)
+        n = sum(len(w) for w in want)
+        assert objective(pipe, flights, idx, cfg) == sum(per_sample_loss(w, loss, 4.0).sum() for w in want) / n

@@ -27,7 +27,7 @@ import numpy as np
 
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
-from mission.robust import offset_residual
+from mission.robust import LOSSES, median_1d, offset_residual
 from mission.samples import FlightSamples
 
 
@@ -159,10 +159,10 @@ _JOINT_MAX_SAMPLES = 20_000  # cache only the fits' small selections (the held-o
 
 
 def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> tuple | None:
-    """(live flights, ends, tx, rx, attitude, centre) of the selected samples of all flights, one row per sample;
-    None where one call per flight is needed.  A fit evaluates the same selections thousands of times, so the
-    result is cached by the identity of the flights and index arrays (the entry holds them, so no id is reused
-    while it lives) and the time offset."""
+    """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all flights, one
+    row per sample; None where one call per flight is needed.  A fit evaluates the same selections thousands
+    of times, so the result is cached by the identity of the flights and index arrays (the entry holds them,
+    so no id is reused while it lives) and the time offset."""
     key = (pipe.time_offset_s, *map(id, flights), *map(id, idx))
     hit = _JOINT.get(key)
     if hit is not None and all(a is b for a, b in zip(hit[0], (*flights, *idx), strict=True)):
@@ -178,7 +178,8 @@ def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Seque
     for k, r, e, m in zip(live, rx, ends, n, strict=True):
         tx[e - m: e] = flights[k].tx_enu_m
         centre[e - m: e, :2] = r[:, :2].mean(axis=0)
-    out = (live, ends, tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]), centre)
+    meas = np.concatenate([np.asarray(flights[k].rss_dbm[idx[k]], dtype=float) for k in live])
+    out = (live, ends, tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]), centre, meas)
     for a in out[2:]:
         a.flags.writeable = False  # shared between calls and threads
     if ends[-1] <= _JOINT_MAX_SAMPLES:
@@ -196,7 +197,7 @@ def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     joint = _joint_geometry(pipe, flights, idx)
     if joint is None:
         return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
-    live, ends, tx, rx, att, centre = joint
+    live, ends, tx, rx, att, centre, _ = joint
     p = np.asarray(pipe.model.rss_dbm(tx, rx, att, centre=centre), dtype=float)
     out = [np.zeros(0) for _ in idx]
     for k, part in zip(live, np.split(p, ends[:-1]), strict=True):
@@ -211,6 +212,13 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
 
     Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each flight's
     constant offset (and with ``slope`` a path-gain slope) is fitted on the very samples scored."""
+    joint = joint_offset_residuals(pipe, flights, idx, slope, loss, f_scale_db, cache)
+    if joint is not None:
+        r, bounds = joint
+        out = [np.zeros(0) for _ in idx]
+        for k, a, b in bounds:
+            out[k] = r[a:b]
+        return out
     out = []
     cache = predict_channels(pipe, flights, idx) if cache is None else cache
     for k, (f, i) in enumerate(zip(flights, idx, strict=True)):
@@ -220,6 +228,43 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
         p = pipe.finish(cache[k], f, i)
         out.append(offset_residual(f.rss_dbm[i], p, slope, loss, f_scale_db))
     return out
+
+
+def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                           slope: bool, loss: str, f_scale_db: float, cache: Sequence[np.ndarray] | None = None
+                           ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
+    """``offset_residuals`` of all flights as one array and (flight, start, end) per non-empty flight, the
+    elementwise steps on all samples at once and only the offsets per flight: the very values of
+    ``mission.robust.offset_residual`` flight by flight (same operations, same per-flight pairwise sums).
+    None where that path does not apply (a slope, a single flight)."""
+    if slope or loss not in LOSSES:
+        return None
+    joint = _joint_geometry(pipe, flights, idx)
+    if joint is None:
+        return None
+    live, ends = joint[0], joint[1]
+    starts = ends - [len(idx[k]) for k in live]
+    if cache is None:
+        p = np.asarray(pipe.model.rss_dbm(*joint[2:5], centre=joint[5]), dtype=float)
+    else:
+        p = np.concatenate([np.asarray(cache[k], dtype=float) for k in live])
+    if pipe.spatial is not None:
+        p = p + np.concatenate([pipe.spatial.field_db(flights[k], flights[k].enu_m[idx[k]][:, :2]) for k in live])
+    if pipe.receiver is not None:
+        p = pipe.receiver.apply(p)
+    r = joint[6] - p
+    bounds = [(k, int(a), int(b)) for k, a, b in zip(live, starts, ends, strict=True)]
+    if loss == "l2":
+        off = np.array([np.add.reduce(r[a:b]) / (b - a) for _, a, b in bounds])
+    else:
+        med = np.array([median_1d(r[a:b])[0] for _, a, b in bounds])
+        n = np.diff(np.r_[0, ends])
+        z = r - np.repeat(med, n)
+        w = np.minimum(1.0, f_scale_db / np.maximum(np.abs(z), 1e-12))
+        wz = w * z
+        off = np.array([m + np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b])
+                        for m, (_, a, b) in zip(med, bounds, strict=True)])
+    return r - np.repeat(off, np.diff(np.r_[0, ends])), bounds
 
 
 def memo(obj: object, arrays: tuple[np.ndarray, ...], compute: Callable[[], np.ndarray], extra: object = None,
