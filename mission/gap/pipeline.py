@@ -230,6 +230,23 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     return out
 
 
+def _joint_field(spatial: SpatialField, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                 live: list[int]) -> np.ndarray:
+    """The spatial field at the selected samples of the ``live`` flights, concatenated; cached like
+    ``_joint_geometry`` by the identity of the (fitted, immutable) field, the flights and the index arrays."""
+    key = ("field", id(spatial), *map(id, flights), *map(id, idx))
+    hit = _JOINT.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)):
+        return hit[1]
+    out = np.concatenate([spatial.field_db(flights[k], flights[k].enu_m[idx[k]][:, :2]) for k in live])
+    if len(out) <= _JOINT_MAX_SAMPLES:
+        out.flags.writeable = False
+        if len(_JOINT) > 64:
+            _JOINT.clear()
+        _JOINT[key] = ((spatial, *flights, *idx), out)
+    return out
+
+
 def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                            slope: bool, loss: str, f_scale_db: float, cache: Sequence[np.ndarray] | None = None
                            ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
@@ -249,7 +266,7 @@ def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx
     else:
         p = np.concatenate([np.asarray(cache[k], dtype=float) for k in live])
     if pipe.spatial is not None:
-        p = p + np.concatenate([pipe.spatial.field_db(flights[k], flights[k].enu_m[idx[k]][:, :2]) for k in live])
+        p = p + _joint_field(pipe.spatial, flights, idx, live)
     if pipe.receiver is not None:
         p = pipe.receiver.apply(p)
     r = joint[6] - p
