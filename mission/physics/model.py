@@ -108,8 +108,7 @@ class PropagationModel:
         C = None
         if self.has("attitude") and attitude_rad is not None:
             # u_b = C delta; stored (3, 3, N) so that C[i, j] is contiguous over the samples
-            att = self.effect("attitude").apply(as_attitude(attitude_rad, N))
-            C = body_from_enu_planes(att, dt)
+            C = _planes(self.effect("attitude"), attitude_rad, N, dt)
         K = txc.shape[0]
         out = np.empty((K, N), dtype=dt)
         nb = min(N, self.chunk) if N else 1
@@ -280,6 +279,27 @@ class PropagationModel:
             two_ray_dbm=two_ray, shadowed=S, upsilon_db=ups, rss_dbm=rss,
         )
         return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+
+
+_PLANES: dict = {}  # rotation planes of read-only attitude arrays, by identity (see _planes)
+
+
+def _planes(effect: Any, attitude_rad: ArrayLike, n: int, dt: np.dtype) -> NDArray:
+    """``body_from_enu_planes`` of the attitude the effect uses.  A read-only attitude array that owns its data
+    (the gap fits hand in the same one thousands of times) is cached by identity; the entry holds it, so its
+    id is not reused."""
+    key = (id(attitude_rad), effect, dt.str)
+    ro = isinstance(attitude_rad, np.ndarray) and not attitude_rad.flags.writeable and attitude_rad.base is None
+    hit = _PLANES.get(key) if ro else None
+    if hit is not None and hit[0] is attitude_rad:
+        return hit[1]
+    C = body_from_enu_planes(effect.apply(as_attitude(attitude_rad, n)), dt)
+    if ro:
+        C.flags.writeable = False
+        if len(_PLANES) > 32:
+            _PLANES.clear()
+        _PLANES[key] = (attitude_rad, C)
+    return C
 
 
 def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:
