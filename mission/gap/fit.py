@@ -55,7 +55,7 @@ class FitConfig:
     min_rel: float = 0.01          # minimum relative held-out loss reduction to call a candidate significant
     n_boot: int = 400
     seed: int = 0
-    workers: int = 2               # threads for the (candidate, fold) fits
+    workers: int = 1               # threads for the (candidate, fold) fits (1: the fits are GIL-bound now)
     rate_hz: float = 0.0           # thin flights to at most this sample rate before the diagnosis (0: all)
 
 
