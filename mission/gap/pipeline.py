@@ -183,7 +183,7 @@ def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Seque
     for a in out[2:]:
         a.flags.writeable = False  # shared between calls and threads
     if ends[-1] <= _JOINT_MAX_SAMPLES:
-        if len(_JOINT) > 64:
+        if len(_JOINT) > 16:
             _JOINT.clear()
         _JOINT[key] = ((*flights, *idx), out)
     return out
@@ -241,7 +241,7 @@ def _joint_field(spatial: SpatialField, flights: Sequence[FlightSamples], idx: S
     out = np.concatenate([spatial.field_db(flights[k], flights[k].enu_m[idx[k]][:, :2]) for k in live])
     if len(out) <= _JOINT_MAX_SAMPLES:
         out.flags.writeable = False
-        if len(_JOINT) > 64:
+        if len(_JOINT) > 16:
             _JOINT.clear()
         _JOINT[key] = ((spatial, *flights, *idx), out)
     return out

@@ -296,7 +296,7 @@ def _planes(effect: Any, attitude_rad: ArrayLike, n: int, dt: np.dtype) -> NDArr
     C = body_from_enu_planes(effect.apply(as_attitude(attitude_rad, n)), dt)
     if ro:
         C.flags.writeable = False
-        if len(_PLANES) > 32:
+        if len(_PLANES) > 16:
             _PLANES.clear()
         _PLANES[key] = (attitude_rad, C)
     return C
