@@ -387,7 +387,7 @@ def main(argv: list[str] | None = None) -> int:
     b = sub.add_parser("real")
     b.add_argument("--split", choices=("flights", "blocks"), default="flights")
     b.add_argument("--rate-hz", type=float, default=3.0)
-    b.add_argument("--workers", type=int, default=2)
+    b.add_argument("--workers", type=int, default=1)
     b.add_argument("--all", action="store_true", help="include the suspect flight 288-loc3")
     b.add_argument("--replicate", type=int, default=0,
                    help="pad to this many flights with copies of the real ones (timing at 13 flights)")

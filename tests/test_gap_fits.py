@@ -17,7 +17,7 @@ from mission.gap.power import DEPTHS_DB, FIT_MARGIN, band_shape, fit_band, injec
 from mission.gap.stats import block_length
 from mission.gap.structure import identify
 from mission.physics import Attitude, make_model
-from mission.robust import offset_residual
+from mission.robust import offset_residual, per_sample_loss
 from mission.samples import FlightSamples
 
 BODY = "leg_shadowing,near_nadir,rx_gain_map,ground_reflection"
@@ -106,3 +106,40 @@ def test_power_statement_needs_the_band_in_both_folds() -> None:
     assert injected_test([dep], r, folds, CFG, 4, 2 * ps["injected_threshold_db"])[0]
     k = DEPTHS_DB.index(ps["injected_threshold_db"])
     assert k == 0 or not injected_test([dep], r, folds, CFG, 4, DEPTHS_DB[k - 1])[0]
+
+
+def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
+    """The fits evaluate all flights in one model call (each sample with its own transmitter and its flight's
+    centre): the values must be exactly those of one call per flight, with a time offset, a body-fixed term,
+    flights far apart (float32 centring) and an empty selection."""
+    from mission.gap.nadir import NearNadirLoss
+    from mission.gap.pipeline import predict_channels
+
+    flights, _ = _flights("legs", 3, 1.0)
+    far = flights[1]
+    flights.append(FlightSamples(name="far", t_s=far.t_s, enu_m=far.enu_m + [5000.0, -3000.0, 0.0],
+                                 attitude_rad=far.attitude_rad, rss_dbm=far.rss_dbm,
+                                 tx_enu_m=far.tx_enu_m + [5000.0, -3000.0, 0.0]))
+    flights.append(far)
+    rng = np.random.default_rng(4)
+    idx = [np.sort(rng.choice(len(f), size=min(len(f), 700), replace=False)) for f in flights]
+    idx[-1] = np.zeros(0, int)
+    pipe = BASE.replace(model=BASE.model.with_effect(NearNadirLoss(6.0, 70.0, 8.0)), time_offset_s=0.4)
+    got = predict_channels(pipe, flights, idx)
+    for f, i, g in zip(flights, idx, got, strict=True):
+        want = pipe.predict_channel(f, i) if len(i) else np.zeros(0)
+        assert g.shape == want.shape and np.array_equal(g, want)
+    assert any(len(g) for g in got)
+    # the offsets and losses taken on all flights at once: the very values of one flight at a time
+    from mission.gap.fit import objective
+    from mission.gap.pipeline import Receiver, offset_residuals
+
+    pipe = pipe.replace(receiver=Receiver(-95.0, -40.0))
+    for loss in ("l2", "soft_l1", "huber"):
+        got = offset_residuals(pipe, flights, idx, loss=loss, f_scale_db=4.0)
+        want = [offset_residual(f.rss_dbm[i], pipe.predict(f, i), False, loss, 4.0) if len(i) else np.zeros(0)
+                for f, i in zip(flights, idx, strict=True)]
+        assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+        cfg = FitConfig(loss=loss, f_scale_db=4.0)
+        n = sum(len(w) for w in want)
+        assert objective(pipe, flights, idx, cfg) == sum(per_sample_loss(w, loss, 4.0).sum() for w in want) / n

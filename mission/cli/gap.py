@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables")
     parser.add_argument("--rate-hz", type=float, default=3.0,
                         help="thin flights to at most this sample rate first (3; 0 = every sample)")
-    parser.add_argument("--workers", type=int, default=2, help="threads for the candidate fits (2)")
+    parser.add_argument("--workers", type=int, default=1, help="threads for the candidate fits (1)")
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
     parser.add_argument("--selftest", action="store_true",
                         help="simulate flights with each effect withheld and check the diagnosis finds it")

@@ -32,7 +32,7 @@ import numpy as np
 from mission.gap.candidate import TIER_FREEFORM, TIER_NAMED, TIER_SMOOTHER, Candidate
 from mission.gap.describe import describe_params
 from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
-from mission.gap.pipeline import Pipeline, offset_residuals
+from mission.gap.pipeline import Pipeline, joint_offset_residuals, offset_residuals
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
 from mission.samples import FlightSamples
@@ -55,7 +55,7 @@ class FitConfig:
     min_rel: float = 0.01          # minimum relative held-out loss reduction to call a candidate significant
     n_boot: int = 400
     seed: int = 0
-    workers: int = 2               # threads for the (candidate, fold) fits
+    workers: int = 1               # threads for the (candidate, fold) fits (1: the fits are GIL-bound now)
     rate_hz: float = 0.0           # thin flights to at most this sample rate before the diagnosis (0: all)
 
 
@@ -104,7 +104,12 @@ def residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np
 
 def objective(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
               cache: list[np.ndarray] | None = None) -> float:
-    """Mean per-sample loss over the given samples of all flights."""
+    """Mean per-sample loss over the given samples of all flights (summed flight by flight)."""
+    joint = joint_offset_residuals(pipe, flights, idx, cfg.slope, cfg.loss, cfg.f_scale_db, cache)
+    if joint is not None:
+        r, bounds = joint
+        loss = per_sample_loss(r, cfg.loss, cfg.f_scale_db)
+        return float(sum(np.add.reduce(loss[a:b]) for _, a, b in bounds) / max(len(r), 1))
     rs = residuals(pipe, flights, idx, cfg, cache)
     n = sum(len(r) for r in rs)
     return float(sum(per_sample_loss(r, cfg.loss, cfg.f_scale_db).sum() for r in rs) / max(n, 1))

@@ -28,7 +28,7 @@ import numpy as np
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
 from mission.physics.geometry import sin_elevation, slant_distance
-from mission.robust import offset_residual
+from mission.robust import LOSSES, median_1d, offset_residual
 from mission.samples import FlightSamples
 
 
@@ -155,6 +155,57 @@ class LocalizationModel:
         return p
 
 
+_JOINT: dict = {}  # joint geometry of (time offset, flights, sample selections), see _joint_geometry
+_JOINT_MAX_SAMPLES = 20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
+
+
+def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> tuple | None:
+    """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all flights, one
+    row per sample; None where one call per flight is needed.  A fit evaluates the same selections thousands
+    of times, so the result is cached by the identity of the flights and index arrays (the entry holds them,
+    so no id is reused while it lives) and the time offset."""
+    key = (pipe.time_offset_s, *map(id, flights), *map(id, idx))
+    hit = _JOINT.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], (*flights, *idx), strict=True)):
+        return hit[1]
+    live = [k for k, i in enumerate(idx) if len(i)]
+    geo = {k: pipe.geometry(flights[k], idx[k]) for k in live}
+    if len(live) < 2 or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
+        return None
+    rx = [np.asarray(geo[k][0], dtype=float) for k in live]
+    n = [len(r) for r in rx]
+    ends = np.cumsum(n)
+    tx, centre = np.empty((int(ends[-1]), 3)), np.zeros((int(ends[-1]), 3))
+    for k, r, e, m in zip(live, rx, ends, n, strict=True):
+        tx[e - m: e] = flights[k].tx_enu_m
+        centre[e - m: e, :2] = r[:, :2].mean(axis=0)
+    meas = np.concatenate([np.asarray(flights[k].rss_dbm[idx[k]], dtype=float) for k in live])
+    out = (live, ends, tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]), centre, meas)
+    for a in out[2:]:
+        a.flags.writeable = False  # shared between calls and threads
+    if ends[-1] <= _JOINT_MAX_SAMPLES:
+        if len(_JOINT) > 16:
+            _JOINT.clear()
+        _JOINT[key] = ((*flights, *idx), out)
+    return out
+
+
+def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+                     ) -> list[np.ndarray]:
+    """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample paired with
+    its flight's transmitter and shifted by its flight's centre, so the values equal one call per flight bit
+    for bit (the physics is elementwise), without the per-call overhead that dominates the small fits."""
+    joint = _joint_geometry(pipe, flights, idx)
+    if joint is None:
+        return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+    live, ends, tx, rx, att, centre, _ = joint
+    p = np.asarray(pipe.model.rss_dbm(tx, rx, att, centre=centre), dtype=float)
+    out = [np.zeros(0) for _ in idx]
+    for k, part in zip(live, np.split(p, ends[:-1]), strict=True):
+        out[k] = part
+    return out
+
+
 def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
                      slope: bool = False, loss: str = "l2", f_scale_db: float = 6.0,
                      cache: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
@@ -162,14 +213,76 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
 
     Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each flight's
     constant offset (and with ``slope`` a path-gain slope) is fitted on the very samples scored."""
+    joint = joint_offset_residuals(pipe, flights, idx, slope, loss, f_scale_db, cache)
+    if joint is not None:
+        r, bounds = joint
+        out = [np.zeros(0) for _ in idx]
+        for k, a, b in bounds:
+            out[k] = r[a:b]
+        return out
     out = []
+    cache = predict_channels(pipe, flights, idx) if cache is None else cache
     for k, (f, i) in enumerate(zip(flights, idx, strict=True)):
         if len(i) == 0:
             out.append(np.zeros(0))
             continue
-        p = pipe.finish(cache[k], f, i) if cache is not None else pipe.predict(f, i)
+        p = pipe.finish(cache[k], f, i)
         out.append(offset_residual(f.rss_dbm[i], p, slope, loss, f_scale_db))
     return out
+
+
+def _joint_field(spatial: SpatialField, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                 live: list[int]) -> np.ndarray:
+    """The spatial field at the selected samples of the ``live`` flights, concatenated; cached like
+    ``_joint_geometry`` by the identity of the (fitted, immutable) field, the flights and the index arrays."""
+    key = ("field", id(spatial), *map(id, flights), *map(id, idx))
+    hit = _JOINT.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)):
+        return hit[1]
+    out = np.concatenate([spatial.field_db(flights[k], flights[k].enu_m[idx[k]][:, :2]) for k in live])
+    if len(out) <= _JOINT_MAX_SAMPLES:
+        out.flags.writeable = False
+        if len(_JOINT) > 16:
+            _JOINT.clear()
+        _JOINT[key] = ((spatial, *flights, *idx), out)
+    return out
+
+
+def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                           slope: bool, loss: str, f_scale_db: float, cache: Sequence[np.ndarray] | None = None
+                           ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
+    """``offset_residuals`` of all flights as one array and (flight, start, end) per non-empty flight, the
+    elementwise steps on all samples at once and only the offsets per flight: the very values of
+    ``mission.robust.offset_residual`` flight by flight (same operations, same per-flight pairwise sums).
+    None where that path does not apply (a slope, a single flight)."""
+    if slope or loss not in LOSSES:
+        return None
+    joint = _joint_geometry(pipe, flights, idx)
+    if joint is None:
+        return None
+    live, ends = joint[0], joint[1]
+    starts = ends - [len(idx[k]) for k in live]
+    if cache is None:
+        p = np.asarray(pipe.model.rss_dbm(*joint[2:5], centre=joint[5]), dtype=float)
+    else:
+        p = np.concatenate([np.asarray(cache[k], dtype=float) for k in live])
+    if pipe.spatial is not None:
+        p = p + _joint_field(pipe.spatial, flights, idx, live)
+    if pipe.receiver is not None:
+        p = pipe.receiver.apply(p)
+    r = joint[6] - p
+    bounds = [(k, int(a), int(b)) for k, a, b in zip(live, starts, ends, strict=True)]
+    if loss == "l2":
+        off = np.array([np.add.reduce(r[a:b]) / (b - a) for _, a, b in bounds])
+    else:
+        med = np.array([median_1d(r[a:b])[0] for _, a, b in bounds])
+        n = np.diff(np.r_[0, ends])
+        z = r - np.repeat(med, n)
+        w = np.minimum(1.0, f_scale_db / np.maximum(np.abs(z), 1e-12))
+        wz = w * z
+        off = np.array([m + np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b])
+                        for m, (_, a, b) in zip(med, bounds, strict=True)])
+    return r - np.repeat(off, np.diff(np.r_[0, ends])), bounds
 
 
 def memo(obj: object, arrays: tuple[np.ndarray, ...], compute: Callable[[], np.ndarray], extra: object = None,

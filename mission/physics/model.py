@@ -84,12 +84,14 @@ class PropagationModel:
         return self.effect(name) if self.has(name) else None
 
     # -- fast path
-    def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None
-                ) -> NDArray:
+    def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None,
+                centre: ArrayLike | None = None) -> NDArray:
         """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N, 3) rad.
 
         tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3) pairs
-        with the samples one to one.
+        with the samples one to one.  ``centre`` (N, 3), z = 0: each sample's shift instead of the samples'
+        mean, so that several flights evaluated in one call (paired tx) keep their own centre and get the
+        very values of one call per flight (the per-call overhead dominates on small fits).
         """
         dt = np.dtype(self.dtype)
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
@@ -97,13 +99,16 @@ class PropagationModel:
         # shift x, y to the samples' centre so float32 keeps millimetres
         c = np.zeros(3)
         c[:2] = rx[:, :2].mean(axis=0) if N else 0.0
+        if centre is not None:
+            if not paired and N > 1:
+                raise ValueError("centre needs tx paired with the samples, shape (N, 3)")
+            c = np.asarray(centre, dtype=float).reshape(N, 3)
         rxc = (rx - c).astype(dt)
         txc = tx - c
         C = None
         if self.has("attitude") and attitude_rad is not None:
             # u_b = C delta; stored (3, 3, N) so that C[i, j] is contiguous over the samples
-            att = self.effect("attitude").apply(as_attitude(attitude_rad, N))
-            C = body_from_enu_planes(att, dt)
+            C = _planes(self.effect("attitude"), attitude_rad, N, dt)
         K = txc.shape[0]
         out = np.empty((K, N), dtype=dt)
         nb = min(N, self.chunk) if N else 1
@@ -274,6 +279,27 @@ class PropagationModel:
             two_ray_dbm=two_ray, shadowed=S, upsilon_db=ups, rss_dbm=rss,
         )
         return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+
+
+_PLANES: dict = {}  # rotation planes of read-only attitude arrays, by identity (see _planes)
+
+
+def _planes(effect: Any, attitude_rad: ArrayLike, n: int, dt: np.dtype) -> NDArray:
+    """``body_from_enu_planes`` of the attitude the effect uses.  A read-only attitude array that owns its data
+    (the gap fits hand in the same one thousands of times) is cached by identity; the entry holds it, so its
+    id is not reused."""
+    key = (id(attitude_rad), effect, dt.str)
+    ro = isinstance(attitude_rad, np.ndarray) and not attitude_rad.flags.writeable and attitude_rad.base is None
+    hit = _PLANES.get(key) if ro else None
+    if hit is not None and hit[0] is attitude_rad:
+        return hit[1]
+    C = body_from_enu_planes(effect.apply(as_attitude(attitude_rad, n)), dt)
+    if ro:
+        C.flags.writeable = False
+        if len(_PLANES) > 16:
+            _PLANES.clear()
+        _PLANES[key] = (attitude_rad, C)
+    return C
 
 
 def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:
