@@ -146,7 +146,7 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
 
 def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
     """``rfsl gap --json`` prints the same summary as the top of gap.json (free-form candidates, shape plot)."""
-    import json
+    from test_jsonsafe import strict_loads
 
     from mission.cli.main import main
 
@@ -155,8 +155,8 @@ def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
     rc = main(["gap", str(p), "--candidates", "rx_gain_map,excess_loss", "--max-rungs", "1", "--no-localize",
                "--json", "--report", str(tmp_path / "rep")])
     assert rc == 0
-    out = json.loads(capsys.readouterr().out)
-    doc = json.loads((tmp_path / "rep" / "gap.json").read_text())
+    out = strict_loads(capsys.readouterr().out)  # strict JSON: no NaN / Infinity (detectable_db can be inf)
+    doc = strict_loads((tmp_path / "rep" / "gap.json").read_text())
     assert out["ladder"] == doc["ladder"] and out["rankings"] == doc["rankings"]
     assert {r["tier"] for rs in out["rankings"].values() for r in rs} == {"free-form"}
     assert_png_drawn(tmp_path / "rep" / "freeform.png")

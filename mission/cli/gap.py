@@ -223,9 +223,8 @@ def run(args) -> int:
     if args.family:
         _write_family(d, cfg, args, c)
     if args.json:
-        import json
+        from mission import jsonsafe
+        from mission.gap.report import summary
 
-        from mission.gap.report import _json_default, summary
-
-        print(json.dumps(summary(d), indent=1, default=_json_default))
+        print(jsonsafe.dumps(summary(d), indent=1))
     return 0

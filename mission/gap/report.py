@@ -6,12 +6,12 @@ re-plotting; every PNG written here has a same-named entry in ``gap.json`` holdi
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from mission import jsonsafe
 from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
 from mission.gap.fit import _pooled
@@ -142,14 +142,6 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
     return out
 
 
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    return str(o)
-
-
 def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the paths."""
     import matplotlib
@@ -273,5 +265,5 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     doc = {**summary(d), "block_lens": d.block_lens, "flights": [
         {"name": f.name, "n": len(f), "tx_enu": f.tx_enu_m.tolist()} for f in d.flights], "figures": figs}
     paths.append(out / "gap.json")
-    paths[-1].write_text(json.dumps(doc, indent=1, default=_json_default))
+    paths[-1].write_text(jsonsafe.dumps(doc, indent=1))
     return paths
