@@ -9,7 +9,7 @@ Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy gener
   parametrisation (with dipoles the RSS peaks on a ring around the transmitter, so the strongest cluster
   is near, not at, the transmitter, and the offset generalises across positions and trajectories);
   ``"absolute"`` is the original one.  Both are done inside the exported graph
-  (``nets.CoordinateWrapper``), so the ONNX model takes the raw features and returns metres.
+  (``nets.CoordinateWrapper``): the ONNX model takes the raw features and returns metres.
 - Standardisation: clustering inputs per *feature type* (one mean/std pooled over all clusters' RSS, one
   over all x, one over all y, so clusters stay on one scale), computed on the (relative or absolute)
   training features; normalised-RSS inputs by one scalar pair; outputs per coordinate (of ``truth - ref``).
@@ -17,10 +17,9 @@ Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy gener
   identity (zeros / ones), so ``OnnxLocalizer`` passes the raw features (the contract is unchanged).
 - Altitude normalisation (``altitude_normalised``, clustering only, off by default): every flight's cluster
   (x, y) and truth are scaled by ``REFERENCE_HEIGHT_M / height above the transmitter`` about the field origin
-  (``mission.localize.altitude_scale``: free space with direction-only antenna gains is scale-invariant), so
-  one network serves every altitude; the metadata's ``training_data.altitude_normalisation`` tells
-  ``OnnxLocalizer`` to scale at inference.  Validation errors stay in metres.
-- Split: a seeded random ``val_fraction`` of the flights is held out for validation / early stopping.
+  (``mission.localize.altitude_scale``: free space with direction-only gains is scale-invariant); the metadata
+  tells ``OnnxLocalizer`` to scale at inference.  Validation errors stay in metres.
+- Split (``validation_split``): a seeded random ``val_fraction`` of the flights held out for early stopping.
 - Optimiser: AdamW, cosine learning-rate decay over ``epochs``, early stopping after ``patience`` epochs
   without a better validation mean error; the best weights are kept.
 - Augmentation (clustering only, train split, fresh each batch) against the sim-to-real gap: the relative
@@ -166,17 +165,15 @@ def _augment(xb, cfg: TrainConfig, gen):
     return v.reshape(b, f)
 
 
-
 def validation_split(n: int, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(validation, training) flight indices, sorted: a seeded random ``val_fraction`` of the first ``max_train``
-    of a seeded permutation of ``n`` flights; the one place the split is drawn (tests recompute metrics on it)."""
-    perm = np.random.default_rng(cfg.seed).permutation(n)
-    if cfg.max_train is not None:
-        perm = perm[: cfg.max_train]
+    """Sorted (validation, training) indices: ``val_fraction`` of the first ``max_train`` of a seeded permutation
+    of ``n`` flights; the one place the split is drawn (tests recompute metrics on it)."""
+    perm = np.random.default_rng(cfg.seed).permutation(n)[: cfg.max_train]  # max_train None: every flight
     n_val = max(1, int(round(cfg.val_fraction * len(perm))))
     if len(perm) - n_val < 2:
         raise InputError(f"too few flights ({len(perm)}) to train and validate")
     return np.sort(perm[:n_val]), np.sort(perm[n_val:])
+
 
 def train(
     paths: Sequence[str | Path],
@@ -334,20 +331,9 @@ def train(
     out.parent.mkdir(parents=True, exist_ok=True)
     diff = export_onnx(net, n_in, out, meta, x_val[:256])
     res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
-    Path(str(out) + ".train.json").write_text(
-        json.dumps(
-            {
-                "metrics": metrics,
-                "history": history,
-                "seconds": round(seconds, 1),
-                "n_params": n_params,
-                "flops": flops,
-                "max_onnx_diff": diff,
-                "training_data": meta["training_data"],
-            },
-            indent=1,
-        )
-    )
+    Path(str(out) + ".train.json").write_text(json.dumps(
+        {"metrics": metrics, "history": history, "seconds": round(seconds, 1), "n_params": n_params,
+         "flops": flops, "max_onnx_diff": diff, "training_data": meta["training_data"]}, indent=1))
     return res
 
 
