@@ -47,9 +47,15 @@ def robust_offset(resid: np.ndarray, f_scale: float = 6.0, axis: int = -1) -> np
     resid = np.asarray(resid, dtype=float)
     off = median_1d(resid) if resid.ndim == 1 and resid.size else np.median(resid, axis=axis, keepdims=True)
     z = resid - off
-    w = np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
+    w = huber_weights(z, f_scale)
     off = off + np.sum(w * z, axis=axis, keepdims=True) / np.sum(w, axis=axis, keepdims=True)
     return np.squeeze(off, axis=axis)
+
+
+def huber_weights(z: np.ndarray, f_scale: float) -> np.ndarray:
+    """IRLS weights of the Huber step about the median: min(1, f / |z|) (``robust_offset``, and the gap's
+    offsets of several flights at once)."""
+    return np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
 
 
 def median_1d(r: np.ndarray) -> np.ndarray:

@@ -28,7 +28,7 @@ import numpy as np
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
 from mission.physics.geometry import sin_elevation, slant_distance
-from mission.robust import LOSSES, median_1d, offset_residual
+from mission.robust import LOSSES, huber_weights, median_1d, offset_residual
 from mission.samples import FlightSamples
 
 
@@ -278,7 +278,7 @@ def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx
         med = np.array([median_1d(r[a:b])[0] for _, a, b in bounds])
         n = np.diff(np.r_[0, ends])
         z = r - np.repeat(med, n)
-        w = np.minimum(1.0, f_scale_db / np.maximum(np.abs(z), 1e-12))
+        w = huber_weights(z, f_scale_db)
         wz = w * z
         off = np.array([m + np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b])
                         for m, (_, a, b) in zip(med, bounds, strict=True)])
