@@ -44,15 +44,46 @@ def _cli_json(args: list[str], capsys) -> dict:
     return json.loads(capsys.readouterr().out)
 
 
+def _with_meta(log_path: Path, out: Path, **extra) -> Path:
+    """A copy of the log whose sidecar carries ``extra`` (a flown log's trajectory or live-estimate record)."""
+    log = read_flight_log(log_path)
+    return write_flight_log(out, dict(log.columns), {**log.meta, **extra})
+
+
 def test_localize_at_reproduces_the_live_estimate(sim_log, capsys):
+    """The live estimate is ``localize``'s own choice for the log: at T it is what ``localize --at T`` prints, and
+    with every row it is the post-flight estimate (no second opinion beside it)."""
     live = estimate_file_at(str(sim_log), 200.0)  # what the flight's worker computes at t = 200 s
     d = _cli_json([str(sim_log), "--at", "200"], capsys)
-    assert d["method"] == "selfcal"
+    default = _cli_json([str(sim_log)], capsys)
+    assert d["method"] == default["method"] == "onnx"  # a simulated spiral: the simulation default
     assert (round(d["x_m"], 2), round(d["y_m"], 2)) == (live["x_m"], live["y_m"])
     assert d["samples_total"] < len(read_flight_log(sim_log))  # only the rows up to T
-    later = estimate_at(read_flight_log(sim_log), None)
-    assert np.hypot(later.x_m - 150.0, later.y_m - 220.0) < np.hypot(live["x_m"] - 150, live["y_m"] - 220) + 5
+    last = estimate_file_at(str(sim_log), 1e9)
+    assert (last["x_m"], last["y_m"]) == (round(default["x_m"], 2), round(default["y_m"], 2))
+
+
+def test_live_estimate_of_an_adaptive_flight_is_the_planners(sim_log, tmp_path, capsys):
+    """An adaptive flight's live estimates come from ``ADAPTIVE_METHOD``, with the posterior candidates the rounds
+    plan on; ``--at`` gives them back."""
+    from mission.localize.methods import ADAPTIVE_METHOD
+
+    log = _with_meta(sim_log, tmp_path / "flight.csv", trajectory={"adaptive": {"survey_s": 300.0}})
+    live = estimate_file_at(str(log), 200.0)
+    d = _cli_json([str(log), "--at", "200"], capsys)
+    assert d["method"] == ADAPTIVE_METHOD
+    assert (round(d["x_m"], 2), round(d["y_m"], 2)) == (live["x_m"], live["y_m"])
     assert live["candidates"][0][2] > 0 and len(live["candidates"]) >= 1
+    later = estimate_at(read_flight_log(log), None)
+    assert np.hypot(later.x_m - 150.0, later.y_m - 220.0) < np.hypot(live["x_m"] - 150, live["y_m"] - 220) + 5
+
+
+def test_localize_at_keeps_an_older_logs_live_method(sim_log, tmp_path, capsys):
+    """A log flown when the live estimates were always selfcal records that method: ``--at`` still uses it."""
+    log = _with_meta(sim_log, tmp_path / "flight.csv", live_estimate={"method": "selfcal", "level": 0.9})
+    assert _cli_json([str(log), "--at", "200"], capsys)["method"] == "selfcal"
+    log = _with_meta(sim_log, tmp_path / "flight2.csv", live_estimate={"method": "default", "level": 0.9})
+    assert _cli_json([str(log), "--at", "200"], capsys)["method"] == "onnx"
 
 
 def test_localize_at_before_the_log_is_refused(sim_log, capsys):
@@ -71,8 +102,8 @@ def test_localize_at_on_a_real_log(shared_dir, tmp_path, capsys):
     capsys.readouterr()
     log = sorted(tmp_path.glob("*.csv"))[0]
     d = _cli_json([str(log), "--at", "180"], capsys)
-    full = _cli_json([str(log), "--method", "selfcal"], capsys)
-    assert d["method"] == "selfcal" and d["samples_total"] < full["samples_total"]
+    full = _cli_json([str(log)], capsys)
+    assert d["method"] == full["method"] == "fusion" and d["samples_total"] < full["samples_total"]
     assert (d["x_m"], d["y_m"]) != (full["x_m"], full["y_m"])
 
 

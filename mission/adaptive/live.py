@@ -1,11 +1,12 @@
 """The estimate a flight has at time T: what ``fly-mission`` shows in flight and ``localize --at T`` reproduces.
 
 Why one function for both: the in-flight estimate is computed from the log file itself (the rows written up to
-T, rounded as written), with the same sample selection and method as ``localize`` (``localize_log``), so a
-finished log, real or simulated, gives back exactly the time series the flight recorded.  The method is the
-self-calibrating cell grid (``selfcal``): fast (under a second), calibrated 90 % regions, no preset physics.
-In flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's thread, so neither
-the loop nor MAVSDK's callback thread waits on it.
+T, rounded as written), with the same sample selection and method choice as ``localize`` (``localize_log`` with
+no method), so a finished log, real or simulated, gives back exactly the time series the flight recorded, and
+the flight's last estimate is the one ``localize`` prints after landing, not a second opinion beside it.  On an
+adaptive flight that choice is ``methods.ADAPTIVE_METHOD`` (the self-calibrating grid), whose posterior the
+rounds plan on.  In flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's thread, so
+neither the loop nor MAVSDK's callback thread waits on it.
 """
 
 from __future__ import annotations
@@ -17,9 +18,18 @@ import numpy as np
 
 from mission.errors import InputError
 
-LIVE_METHOD = "selfcal"
+DEFAULT_LIVE = "default"  # recorded in the sidecar: the live estimates used ``localize``'s own choice
 FAST_ESTIMATE_S = 180.0  # the AFAR rules' fast estimate: 3 minutes after take-off
 LEVEL = 0.9
+
+
+def recorded_method(meta: dict) -> str | None:
+    """The method a flown log's live estimates used (None: ``localize``'s own choice, or no record).
+
+    Why: logs flown before the live estimate followed ``localize`` recorded ``selfcal``; ``localize --at T`` on
+    them must still give back what that flight showed."""
+    m = (meta.get("live_estimate") or {}).get("method")
+    return None if m in (None, DEFAULT_LIVE) else str(m)
 
 
 def log_at(log, t_s: float, source: str | None = None):
@@ -34,8 +44,8 @@ def log_at(log, t_s: float, source: str | None = None):
     return log.select(keep)
 
 
-def estimate_at(log, t_s: float | None = None, method: str = LIVE_METHOD):
-    """The ``localize_log`` estimate from the rows up to ``t_s`` (None: all rows)."""
+def estimate_at(log, t_s: float | None = None, method: str | None = None):
+    """The ``localize_log`` estimate from the rows up to ``t_s`` (None: all rows); ``method`` None: its choice."""
     from mission.localize.api import localize_log
 
     part = log if t_s is None else log_at(log, t_s, str(log.path) if log.path else None)

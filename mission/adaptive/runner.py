@@ -29,6 +29,7 @@ from mission.adaptive import live
 from mission.flight.phases import PhaseTracker
 from mission.flight.runner import Runner
 from mission.flightlog import FLOWN_PHASES
+from mission.localize.methods import ADAPTIVE_METHOD
 
 
 class MonotonicPhases(PhaseTracker):
@@ -75,7 +76,7 @@ class LiveRunner(Runner):
         meta["trajectory"] = self.full_spec.trajectory_meta()
         if self.adaptive:
             meta["trajectory"]["adaptive"] = dataclasses.asdict(self.adaptive)
-        meta["live_estimate"] = {"method": live.LIVE_METHOD, "level": live.LEVEL, "update_s": self.update_s,
+        meta["live_estimate"] = {"method": live.DEFAULT_LIVE, "level": live.LEVEL, "update_s": self.update_s,
                                  "reproduce": "localize LOG --at T (T: the entry's t_s, log time)"}
         self._lock = asyncio.Lock()
         self._live_task = asyncio.create_task(self._live())
@@ -190,7 +191,7 @@ class LiveRunner(Runner):
         if not self.final:
             print("no final estimate (too few samples)", flush=True)
             return
-        print(f"estimate: {live.describe(self.final, self.truth)} [{live.LIVE_METHOD}, in flight]", flush=True)
+        print(f"estimate: {live.describe(self.final, self.truth)} [{ADAPTIVE_METHOD}, in flight]", flush=True)
         print(f"(t={self.final['t_s']:g} s: `localize LOG --at {self.final['t_s']:g}` gives it back)", flush=True)
 
 

@@ -2,7 +2,7 @@
 
 Why here and not MAVLink: hundreds of flights in minutes.  The adaptive flight follows the runner's order of
 events: the survey, then rounds planned ``lead_s`` before the current one ends from the estimate of the
-samples logged so far (``live.LIVE_METHOD``'s estimator), each checked by ``planner.plan_round``; stop when
+samples logged so far (``methods.ADAPTIVE_METHOD``'s estimator), each checked by ``planner.plan_round``; stop when
 the 90 % region is below target or no round fits; return home.  One flight's physics (model draw, offset,
 transmitter and one fixed shadowing map) is shared by its fixed and adaptive versions, so they are paired.
 """
@@ -79,11 +79,11 @@ class SimLog:
 
 
 def estimator(spec):
-    """The live estimator with ``localize_log``'s settings for this field (``live.LIVE_METHOD``)."""
-    from mission.adaptive.live import LIVE_METHOD
+    """The live estimator with ``localize_log``'s settings for this field (``methods.ADAPTIVE_METHOD``)."""
     from mission.localize.api import make_localizer
+    from mission.localize.methods import ADAPTIVE_METHOD
 
-    return make_localizer(LIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M)
+    return make_localizer(ADAPTIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M)
 
 
 @dataclass

@@ -59,8 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--no-cruise", action="store_true", help="use all samples (no cruise selection)")
     parser.add_argument("--at", type=float, default=None, metavar="T",
-                        help="the estimate the flight had at log time T s: rows up to T only, by default with the "
-                        "live method (selfcal), as fly-mission's sidecar records it in 'estimates'")
+                        help="the estimate the flight had at log time T s: rows up to T only, with the method the "
+                        "flight's live estimates used (fly-mission's sidecar: 'estimates'), else the default")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", metavar="OUT.png", help="draw flight, clusters and estimate")
 
@@ -103,9 +103,9 @@ def run(args: argparse.Namespace) -> int:
     log = read_flight_log(args.log, origin=origin)
     print_notes(log.notes)
     if args.at is not None:  # what the flight knew at T (mission.adaptive.live)
-        from mission.adaptive.live import LIVE_METHOD, log_at
+        from mission.adaptive.live import log_at, recorded_method
 
-        log, method = log_at(log, args.at, str(args.log)), method or LIVE_METHOD
+        log, method = log_at(log, args.at, str(args.log)), method or recorded_method(log.meta)
     with warnings.catch_warnings(record=True) as caught:  # numpy's warnings on a too-short log: the error says it
         warnings.simplefilter("always")
         try:

@@ -32,7 +32,7 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.localize import Estimate
-from mission.localize.methods import DEFAULT_MODEL_NAME, FROM_CARD, method_entry
+from mission.localize.methods import ADAPTIVE_METHOD, DEFAULT_MODEL_NAME, FROM_CARD, method_entry
 from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
@@ -246,7 +246,7 @@ def localize_log(
         if model_path is not None:
             method, choice = "onnx", f"model {Path(model_path).name} given"
         elif (log.meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
-            method, choice = "selfcal", ("adaptive flight: the live method its rounds were planned with (the "
+            method, choice = ADAPTIVE_METHOD, ("adaptive flight: the live method its rounds were planned with (the "
                                          "networks know only fixed paths); mission.adaptive.live")
         elif not _is_simulated(log):
             method, choice = "fusion", (

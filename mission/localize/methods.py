@@ -25,6 +25,7 @@ FROM_CARD = "card circles"  # the network's card, models/<name>.json (error_circ
 FROM_METHOD_CIRCLES = "method circles"  # mission/data/method_circles.json (benchmarks/calibrate_error_circles.py)
 
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"  # the network ``onnx`` runs without a model path (models/)
+ADAPTIVE_METHOD = "selfcal"  # an adaptive flight's live and default method: its rounds plan on this posterior
 
 
 @dataclass(frozen=True)
