@@ -9,6 +9,13 @@ must lie within 5 points of nominal (45-55 %, 85-95 %).  Each share is reported 
 at 50 % and +-9 at 90 %, so a pass says the regions are not shown to miss, not that they are within 5 points; a
 share whose interval excludes nominal fails whatever its point value.
 
+Second question (written 2026-11-26 before flights 60-119 were run; the method unchanged since 691a553, which
+flights 0-59 were measured with): the first rule failed at 90 % by one flight (29 / 30), and with n = 30 a region
+of exactly nominal coverage fails it about a third of the time (P(>= 29 of 30) = 0.18 at 90 %, P(<= 25) = 0.18).
+Is the union's over-coverage real?  Flights 60-119 (``--first 60 --n 60``) are run fresh; the verdict is read off
+the 120 flights 0-119 pooled: the union's shares within 5 points of nominal and their 90 % binomial intervals
+holding nominal, as above.  The fresh 60 are reported alone beside it.  This does not undo the first verdict.
+
 Per flight it records the truth's HPD level under the flight's posterior (``Posterior.hpd_level``) and the masses
 of two self-checks on the same held-out transmitters of the same track: ``union`` (what ``localize`` uses: each
 held-out draw localized as the flight is, the union of every fold's ABC draws) and ``one net`` (the previous
