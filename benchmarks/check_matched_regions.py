@@ -53,12 +53,12 @@ def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
     return {lv: conformal_mass(lev, lv) for lv in LEVELS}
 
 
-def _flight(job: tuple[str, int]) -> dict:
+def _flight(job: tuple[str, int, bool]) -> dict:
     import mission.localize.matched as matched
     from mission.localize.api import localize_log
     from mission.workshop.suite_cache import read_suite
 
-    suite_dir, i = job
+    suite_dir, i, with_default = job
     seen: dict = {}
 
     class Recording(matched.MatchedLocalizer):
@@ -75,7 +75,11 @@ def _flight(job: tuple[str, int]) -> dict:
     finally:
         matched.MatchedLocalizer = real_class
     union = {r["level"]: r["hpd_mass"] for r in est.extras["regions"]}
-    return {"flight": i, "error_m": float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
+    extra = {}
+    if with_default:  # the product default on the same flight, for a paired difference
+        d = localize_log(log)
+        extra["default_error_m"] = float(np.hypot(d.x_m - truth[0], d.y_m - truth[1]))
+    return {**extra, "flight": i, "error_m": float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
             "truth_level": est.posterior.hpd_level(float(truth[0]), float(truth[1])),
             "masses": {"union": union, "one_net": seen["one_net"]},
             "tx_outside_flight_area": bool(draw.get("tx_outside_flight_area")), "seconds": time.perf_counter() - t0}
@@ -103,9 +107,10 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=30)
     ap.add_argument("--first", type=int, default=0, help="first flight index")
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--with-default", action="store_true", help="also localize each flight with the default")
     ap.add_argument("--json", help="write per-flight rows and the summary here")
     args = ap.parse_args()
-    jobs = [(args.suite_dir, i) for i in range(args.first, args.first + args.n)]
+    jobs = [(args.suite_dir, i, args.with_default) for i in range(args.first, args.first + args.n)]
     rows = []
     with ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
         for r in ex.map(_flight, jobs):
@@ -121,7 +126,13 @@ def main() -> None:
         sh = v["share"]
         print(f"{key:12s} {v['k']:3d}/{v['n']}  {100 * sh['value']:5.1f} % [{100 * sh['lo']:.1f}, "
               f"{100 * sh['hi']:.1f}]  {'passes' if v['passes'] else 'fails'}")
-    print(f"mean error {np.mean([r['error_m'] for r in rows]):.1f} m over {len(rows)} flights")
+    from mission.evidence import mean_interval, paired_difference
+
+    err = [r["error_m"] for r in rows]
+    print(f"matched mean error {mean_interval(err).fmt()} m over {len(rows)} flights")
+    if args.with_default:
+        dflt = [r["default_error_m"] for r in rows]
+        print(f"default {mean_interval(dflt).fmt()} m; matched - default {paired_difference(err, dflt).fmt()} m")
     if args.json:
         Path(args.json).write_text(json.dumps({"rows": rows, "summary": s}, indent=1))
 

@@ -92,6 +92,16 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         config.hook.pytest_deselected(items=left)
         items[:] = keep
         config.stash[_LEFT_OUT] = len(left)
+        if hasattr(config, "workeroutput"):  # an xdist worker: the controller prints the line
+            config.workeroutput["fast_tier_left_out"] = len(left)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error) -> None:
+    """xdist controller: every worker collected the same tests, so any worker's count of left-out tests is it."""
+    n = getattr(node, "workeroutput", {}).get("fast_tier_left_out")
+    if n:
+        node.config.stash[_LEFT_OUT] = n
 
 
 def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
