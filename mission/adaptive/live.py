@@ -5,8 +5,8 @@ T, rounded as written), with the same sample selection and method choice as ``lo
 no method), so a finished log, real or simulated, gives back exactly the time series the flight recorded, and
 the flight's last estimate is the one ``localize`` prints after landing, not a second opinion beside it.  On an
 adaptive flight that choice is ``methods.ADAPTIVE_METHOD`` (the self-calibrating grid), whose posterior the
-rounds plan on.  In flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's thread, so
-neither the loop nor MAVSDK's callback thread waits on it.
+rounds plan on.  In flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's
+thread, so neither the loop nor MAVSDK's callback thread waits on it.
 """
 
 from __future__ import annotations

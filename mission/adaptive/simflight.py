@@ -2,8 +2,8 @@
 
 Why here and not MAVLink: hundreds of flights in minutes.  The adaptive flight follows the runner's order of
 events: the survey, then rounds planned ``lead_s`` before the current one ends from the estimate of the
-samples logged so far (``methods.ADAPTIVE_METHOD``'s estimator), each checked by ``planner.plan_round``; stop when
-the 90 % region is below target or no round fits; return home.  One flight's physics (model draw, offset,
+samples logged so far (``methods.ADAPTIVE_METHOD``'s estimator), each checked by ``planner.plan_round``; stop
+when the 90 % region is below target or no round fits; return home.  One flight's physics (model draw, offset,
 transmitter and one fixed shadowing map) is shared by its fixed and adaptive versions, so they are paired.
 """
 
