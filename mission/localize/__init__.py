@@ -32,6 +32,7 @@ class Estimate:
     posterior: object | None = field(default=None, repr=False)  # uncertainty.Posterior, when the method has one
     notes: list[str] = field(default_factory=list, repr=False)
     components: dict[str, Estimate] = field(default_factory=dict, repr=False)
+    candidates: list = field(default_factory=list, repr=False)  # candidates.Candidate, most weight first
 
     def __post_init__(self) -> None:
         if self.notes:

@@ -272,6 +272,10 @@ def localize_log(
     origin = log.origin
     if method == "fusion":
         est = _fusion(part, origin, area, tx_height_m, model_path)
+    elif method == "evidence":
+        from mission.localize.evidence_stage import evidence_stage
+
+        est = evidence_stage(part, origin, area, tx_height_m, physics_preset)
     else:
         loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
                              floor_db, physics_preset=physics_preset)

@@ -31,10 +31,10 @@ ADAPTIVE_METHOD = "selfcal"  # an adaptive flight's live and default method: its
 @dataclass(frozen=True)
 class Method:
     """One localization method: ``factory(**kw)`` builds its estimator (``predict(flight) -> Estimate``); None
-    for ``fusion``, which ``localize_log`` composes from two others."""
+    for the meta-estimators ``fusion`` and ``evidence``, which ``localize_log`` composes from others."""
 
     name: str
-    kind: str  # "network", "classical" (classical.py's estimators), "self-calibrating", "fusion"
+    kind: str  # "network", "classical" (classical.py's estimators), "self-calibrating", "fusion", "stacking"
     uncertainty: str  # POSTERIOR or CIRCLE
     calibration: str  # FROM_REGION_MASSES, FROM_DRAWS, FROM_CARD or FROM_METHOD_CIRCLES
     bounded: bool  # searches inside the transmitter's area (localize_log passes it the rover area)
@@ -107,6 +107,8 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "grid search with the antenna and RSS offset profiled out on the flight itself", _selfcal),
     Method("fusion", "fusion", POSTERIOR, FROM_REGION_MASSES, True,
            "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)", None),
+    Method("evidence", "stacking", POSTERIOR, FROM_REGION_MASSES, True,
+           "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions", None),
     Method("matched", "self-calibrating", POSTERIOR, FROM_DRAWS, True,
            "track-matched ABC: transmitters simulated along the flown track under the physics family", _matched),
 )}

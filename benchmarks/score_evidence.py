@@ -1,0 +1,183 @@
+"""The evidence stage (``localize --method evidence``) against today's default, by a rule written before scoring.
+
+Rule (written 2026-11-27 before any flight was scored with the stage's answer; issue 32 item 5):
+1. Answer schemes (how weights over candidates become one point) are compared on the benchmark's flights
+   0-59 only (the development split); the scheme with the lowest mean error there is the stage's answer.
+2. That scheme is scored against today's default (``fusion``) on the benchmark's flights 60-199 (fresh) and
+   on the six shared real flights held out by team (the grid member's physics fitted on the other team; the
+   networks never saw a real flight), with ``mission.workshop.decision.pooled_decision`` (relative paired
+   difference, real resampled by team and the benchmark by flight; adopted when the pooled 90 % interval
+   lies below zero and neither source's lies above zero, and its 90 % regions cover >= 80 % of the
+   benchmark's truths).
+3. Adopted: the real-log default becomes the stage.  Not adopted: it ships as ``--method evidence``.
+Also printed: the best candidate of each flight (the headroom) and the share of it the stage recovers.
+
+    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2026 \
+        --out /tmp/suite_fam
+    python benchmarks/score_evidence.py collect --suite-dir /tmp/suite_fam --first 0 --n 200 \
+        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.json --workers 2     # ~10 min, 2 cores
+    python benchmarks/score_evidence.py score --json /tmp/evidence_cache.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+FOLD_FOR_TEAM = {"288": "afar:fit328", "328": "afar:fit288"}
+DEV = range(0, 60)
+
+
+def _one(job: tuple[str, str, str | None]) -> dict:
+    """Candidates, blocked scores and the default's point of one log (``job``: path, name, grid preset)."""
+    from threadpoolctl import threadpool_limits
+
+    from mission.flightlog import read_flight_log
+    from mission.localize.api import localize_log, search_area
+    from mission.localize.evidence_stage import member_candidates, score_candidates
+    from mission.localize.preprocess import select_samples
+
+    path, name, preset = job
+    with threadpool_limits(1):
+        log = read_flight_log(path)
+        part, _ = select_samples(log)
+        cands, _ = member_candidates(part, log.origin, search_area(log), physics_preset=preset)
+        scores = score_candidates(part, cands)
+        default = localize_log(log)
+    t = log.truth_enu
+    return {"name": name, "truth": [float(t[0]), float(t[1])], "default": [default.x_m, default.y_m],
+            "cands": [c.to_dict() for c in cands], "block_lpd": scores.block_lpd.tolist(), "tau": scores.tau}
+
+
+def collect(args) -> None:
+    from multiprocessing import get_context
+
+    from rich.progress import track
+
+    from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+
+    jobs = [(str(Path(args.suite_dir) / f"flight_{i:05d}.csv"), f"bench {i}", None)
+            for i in range(args.first, args.first + args.n)]
+    with tempfile.TemporaryDirectory() as tmp:
+        for f in sorted(Path(args.mat).glob("results_useful_ori_exp_*_loc_*.mat")) if args.mat else []:
+            name = f.stem.replace("results_useful_ori_exp_", "")
+            log = import_afar_mat(f, tmp, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]).out_path
+            jobs.append((str(log), f"real {name}", FOLD_FOR_TEAM[name[:3]]))
+        with get_context("spawn").Pool(args.workers) as pool:
+            rows = list(track(pool.imap(_one, jobs), total=len(jobs), description="candidates"))
+    Path(args.json).write_text(json.dumps(rows))
+    print(f"{len(rows)} flights -> {args.json}")
+
+
+def _gmed(xy: np.ndarray, w: np.ndarray, iters: int = 100) -> np.ndarray:
+    """Weighted geometric median (Weiszfeld)."""
+    z = (xy * w[:, None]).sum(0) / w.sum()
+    for _ in range(iters):
+        d = np.maximum(np.hypot(*(xy - z).T), 1e-6)
+        z = (xy * (w / d)[:, None]).sum(0) / (w / d).sum()
+    return z
+
+
+def _pbma(lp: np.ndarray) -> np.ndarray:
+    e = lp.sum(axis=1)
+    w = np.exp(e - e.max())
+    return w / w.sum()
+
+
+def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
+    """Answer schemes: a flight's cached row -> its point."""
+    from mission.localize.candidates import Candidate
+    from mission.localize.evidence_stage import answer
+    from mission.localize.stacking import stacking_weights
+
+    def cands(r):
+        return [Candidate(c["x_m"], c["y_m"], c["source"]) for c in r["cands"]]
+
+    def xy(r):
+        return np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
+
+    def fusion_or(r, nats):
+        e = np.asarray(r["block_lpd"]).sum(axis=1)
+        src = [c["source"] for c in r["cands"]]
+        if "fusion" not in src:
+            return np.array(r["default"])
+        k = int(np.argmax(e))
+        return xy(r)[k] if e[k] - e[src.index("fusion")] > nats else np.array(r["default"])
+
+    return {
+        "stacking, top cluster": lambda r: np.array(answer(cands(r), stacking_weights(np.asarray(r["block_lpd"])))),
+        "pseudo-BMA, top cluster": lambda r: np.array(answer(cands(r), _pbma(np.asarray(r["block_lpd"])))),
+        "pseudo-BMA, geometric median": lambda r: _gmed(xy(r), _pbma(np.asarray(r["block_lpd"]))),
+        "stacking, geometric median": lambda r: _gmed(xy(r), stacking_weights(np.asarray(r["block_lpd"]))),
+        "fusion unless 3 nats": lambda r: fusion_or(r, 3.0),
+        "uniform geometric median": lambda r: _gmed(xy(r), np.ones(len(r["cands"]))),
+    }
+
+
+def _err(p, r) -> float:
+    return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
+
+
+def score(args) -> None:
+    from mission.evidence import paired_difference
+    from mission.workshop.decision import pooled_decision
+
+    rows = json.loads(Path(args.json).read_text())
+    bench = [r for r in rows if r["name"].startswith("bench")]
+    real = [r for r in rows if r["name"].startswith("real")]
+    dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
+    fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
+    sch = schemes()
+    print(f"development split: {len(dev)} benchmark flights; default {np.mean([_err(r['default'], r) for r in dev]):.1f} m")
+    dev_err = {}
+    for name, f in sch.items():
+        dev_err[name] = [_err(f(r), r) for r in dev]
+        d = paired_difference(dev_err[name], [_err(r["default"], r) for r in dev], seed=1)
+        print(f"  {name:30s} {np.mean(dev_err[name]):6.1f} m  vs default {d.fmt()}")
+    best = min(sch, key=lambda n: np.mean(dev_err[n]))
+    print(f"chosen on the development split: {best}")
+    f = sch[best]
+    out = {"real": {}, "bench": {}}
+    for src, rs in (("real", real), ("bench", fresh)):
+        out[src] = {"default": [_err(r["default"], r) for r in rs], "evidence": [_err(f(r), r) for r in rs],
+                    "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs]}
+        for k, v in out[src].items():
+            print(f"{src:5s} {k:16s} mean {np.mean(v):6.1f} m  (n={len(v)})")
+        if src == "real":
+            for r, a, b, c in zip(rs, *out[src].values(), strict=True):
+                print(f"    {r['name']:16s} default {a:6.1f}  evidence {b:6.1f}  best {c:6.1f}")
+    teams = [r["name"].split()[1][:3] for r in real]
+    dec = pooled_decision({k: out["real"][k] for k in ("default", "evidence")}, teams,
+                          {k: out["bench"][k] for k in ("default", "evidence")}, "default", seed=3)
+    m = dec["methods"]["evidence"]
+    print(f"relative paired difference: real {m['real'].fmt(3)}, benchmark {m['bench'].fmt(3)}, "
+          f"pooled {m['pooled'].fmt(3)}")
+    print(f"decision: {dec['why']}")
+    for src in ("real", "bench"):
+        d, e, b = (np.asarray(out[src][k]) for k in ("default", "evidence", "best candidate"))
+        print(f"{src}: headroom {np.mean(d - b):.1f} m, recovered {np.mean(d - e):.1f} m")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    c = sub.add_parser("collect")
+    c.add_argument("--suite-dir", required=True)
+    c.add_argument("--first", type=int, default=0)
+    c.add_argument("--n", type=int, default=200)
+    c.add_argument("--mat", default=None)
+    c.add_argument("--json", required=True)
+    c.add_argument("--workers", type=int, default=2)
+    s = sub.add_parser("score")
+    s.add_argument("--json", required=True)
+    a = p.parse_args()
+    collect(a) if a.cmd == "collect" else score(a)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,133 @@
+"""The evidence stage: every member's candidates, weighed by the flight's own held-out RSS, one answer.
+
+A meta-estimator in the shape of scikit-learn's ``StackingRegressor``: the members (the self-calibrating
+search with each separate mode of its posterior, the calibrated-physics grid, the spiral networks, the
+fusion of selfcal and ``rfsl_spiral_e2r``) each propose candidates (``mission.localize.candidates``); the
+flight's blocked cross-validated predictive density scores each and stacking gives their weights
+(``mission.localize.stacking``).  The answer is the weighted mean of the candidates near the heaviest one
+(within ``CLUSTER_M``: a far candidate is another island, not a correction); the regions are the HPD sets of
+the candidates' weighted mixture, so two surviving candidates far apart give two islands.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.localize import Estimate
+from mission.localize.candidates import Candidate, dedupe, posterior_modes
+
+MEMBER_NETWORKS = ("rfsl_spiral_e2r.onnx", "rfsl_spiral_e2r_ens5.onnx")
+CLUSTER_M = 25.0  # candidates this close to the heaviest one make its answer
+SIGMA_M = 20.0  # each candidate's spread in the mixture regions
+# HPD masses of the mixture that cover the truth at the nominal rates (None: nominal, not yet calibrated)
+CALIBRATED_MASS: dict[float, float] | None = None
+
+
+def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidate], dict[str, Estimate]]:
+    """Each shipped spiral network's point, marked out of its training domain when the track's altitude or
+    attitude is (``training_domain``): weighed, never dropped."""
+    from mission.localize.api import _in_log_frame, make_localizer
+    from mission.localize.training_domain import (
+        altitude_note,
+        flight_altitudes,
+        flown_domain,
+        trained_legs,
+        training_altitudes,
+    )
+    from mission.shipped import shipped_model
+
+    cands, ests = [], {}
+    for name in MEMBER_NETWORKS:
+        path = shipped_model(name)
+        if path is None:
+            continue
+        net = make_localizer("onnx", path, tx_height_m=tx_height_m)
+        est = _in_log_frame(net, net.predict(trained_legs(part)), origin, "onnx")
+        off = (altitude_note(net.model_name, training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2]))
+               or flown_domain(part, net.meta, net.model_name)["attitude_note"])
+        label = Path(name).stem
+        cands.append(Candidate(est.x_m, est.y_m, label, in_domain=off is None))
+        ests[label] = est
+    return cands, ests
+
+
+def member_candidates(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
+                      physics_preset: str | None = None) -> tuple[list[Candidate], dict[str, Estimate]]:
+    """Every member's candidates (near-duplicates merged) and the members' estimates by name; the
+    self-calibrating estimate comes first in both (its posterior grid carries the mixture regions)."""
+    from mission.localize.api import DEFAULT_PHYSICS_PRESET, _in_log_frame, make_localizer
+
+    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
+    a = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    cands = [Candidate(a.x_m, a.y_m, "selfcal")]
+    if a.posterior is not None:
+        modes = posterior_modes(a.posterior.prob, a.posterior.grid)
+        cands += [Candidate(x, y, f"selfcal mode {i + 1}", mass=m) for i, (x, y, m) in enumerate(modes)]
+    preset = physics_preset or DEFAULT_PHYSICS_PRESET
+    grid = make_localizer("grid", tx_height_m=tx_height_m, area=area, physics_preset=preset)
+    g = _in_log_frame(grid, grid.predict(part), origin, "grid")
+    cands.append(Candidate(g.x_m, g.y_m, f"grid {preset}"))
+    nets, net_ests = _network_candidates(part, origin, tx_height_m)
+    cands += nets
+    if nets and nets[0].source == Path(MEMBER_NETWORKS[0]).stem:  # today's default, a candidate like the rest
+        cands.append(Candidate(0.5 * (a.x_m + nets[0].x_m), 0.5 * (a.y_m + nets[0].y_m), "fusion"))
+    return dedupe(cands), {"selfcal": a, f"grid {preset}": g, **net_ests}
+
+
+def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_TX_HEIGHT_M):
+    """The flight's blocked held-out scores of the candidates (``stacking.BlockedScores``), on the
+    self-calibrating search's cells, antenna hypotheses and temperature."""
+    from mission.cells import cell_average
+    from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
+    from mission.localize.stacking import blocked_scores
+
+    sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
+    samples = part.samples() if hasattr(part, "samples") else part
+    cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
+    n_eff = max(cells.area_m2 / (np.pi * sc.corr_m**2), 2.0)
+    xy = np.array([[c.x_m, c.y_m] for c in cands])
+    return blocked_scores(cells, xy, antenna_hypotheses(sc.hypotheses, sc.heading_step_deg), tx_height_m,
+                          tau=min(n_eff / len(cells), 1.0))
+
+
+def answer(cands: list[Candidate], weights: np.ndarray) -> tuple[float, float]:
+    """The stage's point: the weighted mean of the candidates within ``CLUSTER_M`` of the heaviest one."""
+    xy = np.array([c.xy for c in cands])
+    w = np.asarray(weights, float)
+    top = xy[int(np.argmax(w))]
+    near = np.hypot(*(xy - top).T) <= CLUSTER_M
+    return tuple((xy[near] * w[near, None]).sum(axis=0) / w[near].sum())
+
+
+def evidence_stage(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
+                   physics_preset: str | None = None) -> Estimate:
+    """Localize ``part`` (the selected samples of a log) with the evidence stage (module docstring); the
+    estimate's ``candidates`` hold every candidate with its evidence and weight, most weight first."""
+    from mission.localize.stacking import mixture_posterior, stacking_weights
+    from mission.localize.uncertainty import hpd_regions
+
+    cands, members = member_candidates(part, origin, area, tx_height_m, physics_preset)
+    scores = score_candidates(part, cands, tx_height_m)
+    w = stacking_weights(scores.block_lpd)
+    x, y = answer(cands, w)
+    cands = [c.scored(e, wi) for c, e, wi in zip(cands, scores.evidence, w, strict=True)]
+    cands = [cands[i] for i in np.argsort(-w, kind="stable")]
+    lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))
+    est = Estimate(float(x), float(y), "evidence", f"stacked candidates (top: {cands[0].source})", float(lat),
+                   float(lon))
+    sc = members["selfcal"]
+    if sc.posterior is not None and sc.posterior.grid is not None:
+        grid = sc.posterior.grid
+        post = mixture_posterior(np.array([c.xy for c in cands]), np.array([c.weight for c in cands]), grid,
+                                 SIGMA_M)
+        est.regions = hpd_regions(post, grid, (0.5, 0.9), CALIBRATED_MASS)
+        est.posterior = post
+    est.extras["candidates"] = [c.to_dict() for c in cands]
+    est.extras["evidence_blocks"] = int(scores.block.max()) + 1
+    est.extras["evidence_tau"] = scores.tau
+    est.candidates = cands
+    est.set_components(members)
+    return est
