@@ -131,7 +131,7 @@ def main() -> None:
                 est = localize_log(path)
                 runs.append(_since(t0))
             allw += runs
-            print(f"  {name:10s} {est.extras['samples_used']:6d}/{est.extras['samples_total']:6d} samples "
+            print(f"  {name:10s} {est.selection.used:6d}/{est.selection.total:6d} samples "
                   f"({est.method}): {_fmt(runs)}")
             if args.parts:
                 from mission.flightlog import read_flight_log

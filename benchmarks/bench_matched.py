@@ -161,7 +161,7 @@ def main() -> None:
                 w0, c0 = time.perf_counter(), time.process_time()
                 est = localize_log(log, method="matched")
                 print(f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU {time.process_time() - c0:.1f} s, "
-                      f"{est.extras['samples_used']} samples, {est.extras['n_cells']} cells, "
+                      f"{est.selection.used} samples, {est.extras['n_cells']} cells, "
                       f"{est.extras['n_draws']} draws; {_load()}")
             return
         if args.mode == "real":

@@ -3,7 +3,7 @@
 Candidate: the self-calibrating point ``a`` and the network point ``b`` weighted by the inverse square of each
 member's 50 % region scale: ``sqrt(area / pi)`` of the self-calibrating posterior's 50 % HPD set (per flight) and
 the network's 50 % error-circle radius for real logs (its card's ``real`` calibration); the plain mean is the
-incumbent (``api._fusion``).  One ``localize --method fusion`` run per flight gives both points, the posterior's
+incumbent (``api.fusion``).  One ``localize --method fusion`` run per flight gives both points, the posterior's
 regions and the truth, so both fusions are scored on identical members.
 
 Rule, written before scoring (this docstring was committed before any figure was computed): adopt the weighted

@@ -15,8 +15,8 @@ Also printed: the best candidate of each flight (the headroom) and the share of 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2026 \
         --out /tmp/suite_fam
     python benchmarks/score_evidence.py collect --suite-dir /tmp/suite_fam --first 0 --n 200 \
-        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.json --workers 2     # ~10 min, 2 cores
-    python benchmarks/score_evidence.py score --json /tmp/evidence_cache.json
+        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.jsonl --workers 2     # ~10 min, 2 cores
+    python benchmarks/score_evidence.py score --json /tmp/evidence_cache.jsonl
 """
 
 from __future__ import annotations
@@ -33,8 +33,9 @@ FOLD_FOR_TEAM = {"288": "afar:fit328", "328": "afar:fit288"}
 DEV = range(0, 60)
 
 
-def _one(job: tuple[str, str, str | None]) -> dict:
-    """Candidates, blocked scores and the default's point of one log (``job``: path, name, grid preset)."""
+def _one(job: tuple[str, str, str | None, list | None]) -> dict:
+    """Candidates, blocked scores and the default's point of one log (``job``: path, name, grid preset, truth
+    in the log's frame or None for the sidecar's)."""
     from threadpoolctl import threadpool_limits
 
     from mission.flightlog import read_flight_log
@@ -42,14 +43,14 @@ def _one(job: tuple[str, str, str | None]) -> dict:
     from mission.localize.evidence_stage import member_candidates, score_candidates
     from mission.localize.preprocess import select_samples
 
-    path, name, preset = job
+    path, name, preset, truth = job
     with threadpool_limits(1):
         log = read_flight_log(path)
         part, _ = select_samples(log)
         cands, _ = member_candidates(part, log.origin, search_area(log), physics_preset=preset)
         scores = score_candidates(part, cands)
         default = localize_log(log)
-    t = log.truth_enu
+    t = log.truth_enu if truth is None else truth
     return {"name": name, "truth": [float(t[0]), float(t[1])], "default": [default.x_m, default.y_m],
             "cands": [c.to_dict() for c in cands], "block_lpd": scores.block_lpd.tolist(), "tau": scores.tau}
 
@@ -61,16 +62,24 @@ def collect(args) -> None:
 
     from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
 
-    jobs = [(str(Path(args.suite_dir) / f"flight_{i:05d}.csv"), f"bench {i}", None)
-            for i in range(args.first, args.first + args.n)]
+    flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
+    flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
+    jobs = []
+    out = Path(args.json)
+    done = {json.loads(line)["name"] for line in out.read_text().splitlines()} if out.is_file() else set()
     with tempfile.TemporaryDirectory() as tmp:
         for f in sorted(Path(args.mat).glob("results_useful_ori_exp_*_loc_*.mat")) if args.mat else []:
             name = f.stem.replace("results_useful_ori_exp_", "")
             log = import_afar_mat(f, tmp, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]).out_path
-            jobs.append((str(log), f"real {name}", FOLD_FOR_TEAM[name[:3]]))
-        with get_context("spawn").Pool(args.workers) as pool:
-            rows = list(track(pool.imap(_one, jobs), total=len(jobs), description="candidates"))
-    Path(args.json).write_text(json.dumps(rows))
+            jobs.append((str(log), f"real {name}", FOLD_FOR_TEAM[name[:3]], None))
+        jobs += [(str(Path(args.suite_dir) / flights[i]["file"]), f"bench {i}", None, flights[i]["truth_xy"])
+                 for i in range(args.first, args.first + args.n)]
+        jobs = [j for j in jobs if j[1] not in done]  # a rerun resumes where the last one stopped
+        with get_context("spawn").Pool(args.workers) as pool, out.open("a") as fh:
+            for row in track(pool.imap(_one, jobs), total=len(jobs), description="candidates"):
+                fh.write(json.dumps(row) + "\n")
+                fh.flush()
+    rows = out.read_text().splitlines()
     print(f"{len(rows)} flights -> {args.json}")
 
 
@@ -119,6 +128,19 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     }
 
 
+def truth_level(r: dict, weights: np.ndarray) -> float:
+    """The smallest HPD mass of the candidates' weighted mixture (``stacking.mixture_posterior``, the stage's
+    ``SIGMA_M``) whose set holds the truth, on a 5 m grid 100 m around the candidates."""
+    from mission.geo import square_grid
+    from mission.localize.evidence_stage import SIGMA_M
+    from mission.localize.stacking import mixture_posterior
+
+    xy = np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
+    lo, hi = xy.min(axis=0) - 100.0, xy.max(axis=0) + 100.0
+    grid = square_grid((lo[0], lo[1], hi[0], hi[1]), 5.0)
+    return mixture_posterior(xy, weights, grid, SIGMA_M).hpd_level(*r["truth"])
+
+
 def _err(p, r) -> float:
     return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
 
@@ -127,13 +149,14 @@ def score(args) -> None:
     from mission.evidence import paired_difference
     from mission.workshop.decision import pooled_decision
 
-    rows = json.loads(Path(args.json).read_text())
+    rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
     bench = [r for r in rows if r["name"].startswith("bench")]
     real = [r for r in rows if r["name"].startswith("real")]
     dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
     fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
     sch = schemes()
-    print(f"development split: {len(dev)} benchmark flights; default {np.mean([_err(r['default'], r) for r in dev]):.1f} m")
+    d0 = np.mean([_err(r["default"], r) for r in dev])
+    print(f"development split: {len(dev)} benchmark flights; default {d0:.1f} m")
     dev_err = {}
     for name, f in sch.items():
         dev_err[name] = [_err(f(r), r) for r in dev]
@@ -151,6 +174,15 @@ def score(args) -> None:
         if src == "real":
             for r, a, b, c in zip(rs, *out[src].values(), strict=True):
                 print(f"    {r['name']:16s} default {a:6.1f}  evidence {b:6.1f}  best {c:6.1f}")
+    from mission.localize.stacking import stacking_weights
+
+    lv = {src: np.array([truth_level(r, stacking_weights(np.asarray(r["block_lpd"]))) for r in rs])
+          for src, rs in (("dev", dev), ("fresh", fresh), ("real", real))}
+    masses = {q: float(np.quantile(lv["dev"], q)) for q in (0.5, 0.9)}
+    print(f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} / {masses[0.9]:.3f}")
+    for src in ("fresh", "real"):
+        cov = [f"{100 * np.mean(lv[src] < masses[q]):.0f} %" for q in (0.5, 0.9)]
+        print(f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region {cov[1]}")
     teams = [r["name"].split()[1][:3] for r in real]
     dec = pooled_decision({k: out["real"][k] for k in ("default", "evidence")}, teams,
                           {k: out["bench"][k] for k in ("default", "evidence")}, "default", seed=3)
@@ -171,7 +203,7 @@ def main() -> None:
     c.add_argument("--first", type=int, default=0)
     c.add_argument("--n", type=int, default=200)
     c.add_argument("--mat", default=None)
-    c.add_argument("--json", required=True)
+    c.add_argument("--json", required=True, help="JSON lines, appended (a rerun resumes)")
     c.add_argument("--workers", type=int, default=2)
     s = sub.add_parser("score")
     s.add_argument("--json", required=True)

@@ -58,7 +58,7 @@ def test_entries_are_consistent() -> None:
     for m in METHODS.values():
         assert m.uncertainty in (POSTERIOR, CIRCLE) and m.description and m.kind
         assert (m.uncertainty == CIRCLE) == (m.calibration in (FROM_CARD, FROM_METHOD_CIRCLES)), m.name
-        assert (m.factory is None) == (m.kind == "fusion"), m.name
+        assert (m.factory is None) == (m.compose is not None) == (m.kind in ("fusion", "stacking")), m.name
 
 
 def test_unknown_method_names_every_known_one() -> None:
@@ -69,8 +69,9 @@ def test_unknown_method_names_every_known_one() -> None:
     assert all(n in str(e.value) for n in METHOD_NAMES)
     with pytest.raises(InputError, match="unknown method 'kriging'"):
         make_localizer("kriging")
-    with pytest.raises(InputError, match="fusion"):  # composed by localize_log, not one estimator
-        make_localizer("fusion")
+    for meta in ("fusion", "evidence"):  # composed by localize_log, not one estimator
+        with pytest.raises(InputError, match=meta):
+            make_localizer(meta)
 
 
 @pytest.mark.parametrize("name", [n for n, m in METHODS.items() if m.factory is not None])
@@ -113,3 +114,42 @@ def test_docs_describe_every_method() -> None:
     for name, m in METHODS.items():
         assert name in rows, f"docs/localize-output.md has no row for method {name}"
         assert (m.uncertainty == POSTERIOR) == ("posterior" in rows[name]), name
+
+
+SPIRAL_SIM = {"rss_source": {"kind": "sim", "model": "e2r", "model_params": {"uav_pattern": "dipole",
+                                                                              "tx_pattern": "dipole"}},
+              "trajectory": {"generator": "spiral"}}
+LAWN_SIM = {"rss_source": {"kind": "sim", "model": "e2r"}, "trajectory": {"generator": "lawnmower"}}
+
+
+@pytest.mark.parametrize(("meta", "height", "model", "default", "method", "net"), [
+    # a model given wins over everything
+    ({"rss_source": {"kind": "afar-mat"}}, 30.0, "x/my.onnx", "D", "onnx", "my.onnx"),
+    (SPIRAL_SIM, 30.0, "x/my.onnx", None, "onnx", "my.onnx"),
+    # an adaptive flight: the method its rounds planned with
+    ({"trajectory": {"adaptive": {"rounds": 2}}, "rss_source": {"kind": "sim"}}, 30.0, None, "D",
+     "selfcal", None),
+    # a real receiver (any source kind but sim, or none recorded): the real-log default
+    ({"rss_source": {"kind": "afar-mat"}}, 37.0, None, "D", "fusion", None),
+    ({}, 30.0, None, "D", "fusion", None),
+    ({"rss_source": {"kind": "suite"}}, 30.0, None, None, "fusion", None),
+    # a simulated spiral at the spiral networks' altitude: a spiral network
+    (SPIRAL_SIM, 30.0, None, "D", "onnx", "rfsl_spiral_e2r_ens5.onnx"),
+    # a simulated spiral far off their altitudes, or another path: the shipped default network
+    (SPIRAL_SIM, 80.0, None, "D", "onnx", "D"),
+    (LAWN_SIM, 30.0, None, "D", "onnx", "D"),
+    # a simulated log and no default network: the grid
+    (LAWN_SIM, 30.0, None, None, "grid", None),
+])
+def test_choose_method_table(meta, height, model, default, method, net) -> None:
+    import numpy as np
+
+    from mission.localize.api import choose_method
+
+    dflt = Path("models") / "D" if default == "D" else None
+    got, path, why = choose_method(meta, np.full(50, height), model, dflt)
+    assert got == method and why
+    if net is None:
+        assert path is None
+    else:
+        assert Path(path).name == net if net != "D" else path == dflt

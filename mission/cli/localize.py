@@ -151,18 +151,16 @@ def run(args: argparse.Namespace) -> int:
             f"[bold]{est.error_m:.1f} m[/] (truth {est.extras['truth_x_m']:.1f}, "
             f"{est.extras['truth_y_m']:.1f} m)",
         )
-    tab.add_row(
-        "samples", f"{est.extras['samples_used']} of {est.extras['samples_total']}: {est.extras['cruise']}"
-    )
-    if "offset_db" in est.extras:
-        rms = est.extras.get("cost_rms_db", est.extras.get("residual_rms_db"))
-        fit = f"offset {est.extras['offset_db']:.1f} dB" + (f", residual rms {rms:.2f} dB" if rms is not None else "")
-        if "antenna" in est.extras:
-            fit += f"; UAV antenna: {est.extras['antenna']}"
-        tab.add_row("fit", fit)
+    if est.selection is not None:
+        tab.add_row("samples", est.selection.line())
+    if est.fit is not None:
+        tab.add_row("fit", est.fit.line())
     for reg in est.regions:
         tab.add_row(f"{100 * reg['level']:.0f} % region", describe_region(reg))
-    if est.components:
+    if est.candidates:
+        tab.add_row("candidates", "\n".join(candidate_line(c) for c in est.candidates[:3])
+                    + (f"\n(+{len(est.candidates) - 3} more in --json)" if len(est.candidates) > 3 else ""))
+    elif est.components:
         parts = [f"{n} {e.x_m:.1f}, {e.y_m:.1f} m" for n, e in est.components.items()]
         tab.add_row("components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)")
     if "p_outside_flown_area" in est.extras:
@@ -182,6 +180,13 @@ def run(args: argparse.Namespace) -> int:
         tab.add_row(f"[bold yellow]{kind}" if kind != "note" else kind, f"[yellow]{text}")
     c.print(tab)
     return 0
+
+
+def candidate_line(c) -> str:
+    """One candidate of the evidence stage in a line: weight, source, point, evidence."""
+    dom = "" if c.in_domain else ", outside training"
+    return (f"{c.weight:.2f} {c.source}: {c.x_m:.0f}, {c.y_m:.0f} m "
+            f"({c.evidence:+.1f} nats{dom})")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -10,6 +10,45 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 
+@dataclass(frozen=True)
+class Selection:
+    """Which samples an estimate used: ``used`` of ``total``, and why (``preprocess.select_samples``)."""
+
+    used: int
+    total: int
+    why: str
+
+    def to_dict(self) -> dict:
+        return {"cruise": self.why, "samples_used": self.used, "samples_total": self.total}
+
+    def line(self) -> str:
+        return f"{self.used} of {self.total}: {self.why}"
+
+
+@dataclass(frozen=True)
+class Fit:
+    """The per-flight nuisance a model-based method fitted: RSS offset (dB), residual rms (dB), UAV antenna."""
+
+    offset_db: float
+    residual_rms_db: float | None = None
+    antenna: str | None = None
+
+    @classmethod
+    def from_extras(cls, extras: dict) -> Fit | None:
+        """The fit a method recorded in its extras (``offset_db``, ``cost_rms_db`` or ``residual_rms_db``,
+        ``antenna``); None for a method that fits no offset."""
+        if "offset_db" not in extras:
+            return None
+        rms = extras.get("cost_rms_db", extras.get("residual_rms_db"))
+        return cls(float(extras["offset_db"]), None if rms is None else float(rms), extras.get("antenna"))
+
+    def line(self) -> str:
+        out = f"offset {self.offset_db:.1f} dB"
+        if self.residual_rms_db is not None:
+            out += f", residual rms {self.residual_rms_db:.2f} dB"
+        return out + (f"; UAV antenna: {self.antenna}" if self.antenna else "")
+
+
 @dataclass
 class Estimate:
     """A transmitter position estimate in the local ENU frame of the log (x east, y north, metres).
@@ -33,6 +72,12 @@ class Estimate:
     notes: list[str] = field(default_factory=list, repr=False)
     components: dict[str, Estimate] = field(default_factory=dict, repr=False)
     candidates: list = field(default_factory=list, repr=False)  # candidates.Candidate, most weight first
+    selection: Selection | None = field(default=None, repr=False)
+
+    @property
+    def fit(self) -> Fit | None:
+        """The nuisance the method fitted, typed (None when it fits none)."""
+        return Fit.from_extras(self.extras)
 
     def __post_init__(self) -> None:
         if self.notes:
@@ -70,5 +115,12 @@ class Estimate:
         }
         if self.error_m is not None:
             d["error_m"] = self.error_m
-        d.update({k: v for k, v in self.extras.items() if k not in d})
+        sel = self.selection.to_dict() if self.selection is not None else {}
+        for k, v in self.extras.items():  # the selection's keys follow method_choice, as they always did
+            if k not in d:
+                d[k] = v
+                if k == "method_choice":
+                    d.update(sel)
+        for k, v in sel.items():
+            d.setdefault(k, v)
         return d

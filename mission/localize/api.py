@@ -31,8 +31,16 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
-from mission.localize import Estimate
-from mission.localize.methods import ADAPTIVE_METHOD, DEFAULT_MODEL_NAME, FROM_CARD, method_entry
+from mission.localize import Estimate, Selection
+from mission.localize.methods import (
+    ADAPTIVE_METHOD,
+    DEFAULT_MODEL_NAME,
+    FROM_CARD,
+    MODEL_FRAME,
+    TRAINED_LEGS,
+    Method,
+    method_entry,
+)
 from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
@@ -98,7 +106,7 @@ def make_localizer(
 
 def _is_simulated(log) -> bool:
     """True when the sidecar says the RSS came from a simulator (not a real receiver)."""
-    return (log.meta.get("rss_source") or {}).get("kind") == "sim"
+    return (log.meta.get("rss_source") or {}).get("kind") == "sim"  # the same test as choose_method's
 
 
 def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
@@ -112,9 +120,10 @@ def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
     return None, None, DEFAULT_PHYSICS_PRESET
 
 
-def _in_log_frame(loc, est: Estimate, origin, method: str) -> Estimate:
-    """Express a localizer's estimate in the log's ENU frame and as lat/lon (networks answer in their own frame)."""
-    if method == "onnx":  # model frame -> lat/lon -> log frame
+def _in_log_frame(loc, est: Estimate, origin, frame: str) -> Estimate:
+    """Express a localizer's estimate in the log's ENU frame and as lat/lon (``frame``: its registry entry's;
+    networks answer in their own frame)."""
+    if frame == MODEL_FRAME:  # model frame -> lat/lon -> log frame
         xy = origin.to_enu(est.lat_deg, est.lon_deg)
         est.extras["model_frame_xy_m"] = [est.x_m, est.y_m]
         est.extras["model_path"] = str(loc.path)
@@ -177,23 +186,33 @@ def fusion_model_path() -> Path | None:
     return shipped_model(FUSION_MODEL_NAME)
 
 
-def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
+def member_samples(part, entry: Method):
+    """The samples a method takes (its registry entry's ``samples``)."""
+    from mission.localize.training_domain import trained_legs
+
+    return trained_legs(part) if entry.samples == TRAINED_LEGS else part
+
+
+def run_member(name: str, part, origin, **kw) -> tuple[object, Estimate]:
+    """(localizer, its estimate in the log's frame) of one registered method on ``part``."""
+    entry = method_entry(name)
+    loc = make_localizer(name, **kw)
+    return loc, _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
+
+
+def fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
     """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
     ``models/README.md``; weighting by each member's 50 % region scale was not adopted, benchmarks/fusion_weights.py);
     the uncertainty regions are the self-calibrating posterior's, and a note says when
     the fused point falls outside them (the two components disagree: ~5 % of benchmark flights)."""
     from mission.localize.uncertainty import outer_region
 
-    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
-    a = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     path = model_path or fusion_model_path()
     if path is None:
         a.extras["fusion"] = f"no network (models/{FUSION_MODEL_NAME}): self-calibrating estimate alone"
         return a
-    net = make_localizer("onnx", path, tx_height_m=tx_height_m)
-    from mission.localize.training_domain import trained_legs
-
-    b = _in_log_frame(net, net.predict(trained_legs(part)), origin, "onnx")
+    net, b = run_member("onnx", part, origin, model_path=path, tx_height_m=tx_height_m)
     x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
     lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))
     est = Estimate(float(x), float(y), "fusion", f"mean of selfcal and {Path(path).name}", float(lat),
@@ -208,6 +227,32 @@ def _fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate
                          f"point lies outside the {100 * outer['level']:.0f} % region, which is the search's alone")
     _check_altitude(est, net, part)
     return est
+
+
+REAL_DEFAULT = "fusion"  # the real-log default, chosen by the rule in models/README.md
+
+
+def choose_method(meta: dict, heights_m: np.ndarray, model_path: str | Path | None = None,
+                  default_model: Path | None = None, physics_label: str = "the log's physics"
+                  ) -> tuple[str, str | Path | None, str]:
+    """(method, model path, why) when none is asked for: a pure function of the sidecar, the selected samples'
+    heights, the model given and the shipped default network (``tests/test_methods.py`` holds its table)."""
+    if model_path is not None:
+        return "onnx", model_path, f"model {Path(model_path).name} given"
+    if (meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
+        return ADAPTIVE_METHOD, None, ("adaptive flight: the live method its rounds were planned with (the networks "
+                                       "know only fixed paths); mission.adaptive.live")
+    if (meta.get("rss_source") or {}).get("kind") != "sim":
+        return REAL_DEFAULT, None, (
+            "real receiver log: mean of the self-calibrating estimate and the network "
+            f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
+            "held-out real flights, models/README.md); --method selfcal / grid / onnx / evidence run one method")
+    if default_model is not None:
+        from mission.localize.sim_default import sim_default_model
+
+        path, why = sim_default_model(meta, heights_m, default_model)
+        return "onnx", path, why
+    return "grid", None, f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_label}"
 
 
 def localize_log(
@@ -243,45 +288,21 @@ def localize_log(
     else:
         part, reason = log, "cruise selection off: all samples used"
     if method is None:
-        if model_path is not None:
-            method, choice = "onnx", f"model {Path(model_path).name} given"
-        elif (log.meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
-            method, choice = ADAPTIVE_METHOD, ("adaptive flight: the live method its rounds were planned with "
-                                               "(the networks know only fixed paths); mission.adaptive.live")
-        elif not _is_simulated(log):
-            method, choice = "fusion", (
-                "real receiver log: mean of the self-calibrating estimate and the network "
-                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
-                "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
-            )
-        elif (dm := default_model_path()) is not None:
-            from mission.localize.sim_default import sim_default_model
-
-            model_path, choice = sim_default_model(log.meta, part.enu()[:, 2], dm)
-            method = "onnx"
-        else:
-            method, choice = (
-                "grid",
-                f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_label}",
-            )
+        method, model_path, choice = choose_method(log.meta, part.enu()[:, 2], model_path, default_model_path(),
+                                                   physics_label)
     else:
         choice = f"method {method} requested"
     entry = method_entry(method)  # an unknown name: InputError listing the known ones
     ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
     area = ra if entry.bounded else None
     origin = log.origin
-    if method == "fusion":
-        est = _fusion(part, origin, area, tx_height_m, model_path)
-    elif method == "evidence":
-        from mission.localize.evidence_stage import evidence_stage
-
-        est = evidence_stage(part, origin, area, tx_height_m, physics_preset)
+    if entry.compose is not None:  # a meta-estimator over other methods
+        est = entry.compose(part, origin, area, tx_height_m=tx_height_m, model_path=model_path,
+                            physics_preset=physics_preset)
     else:
         loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
                              floor_db, physics_preset=physics_preset)
-        from mission.localize.training_domain import trained_legs
-
-        est = _in_log_frame(loc, loc.predict(trained_legs(part) if method == "onnx" else part), origin, method)
+        est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
         if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
         else:
@@ -296,11 +317,7 @@ def localize_log(
     if t is not None:
         est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))
         est.extras["truth_x_m"], est.extras["truth_y_m"] = float(t[0]), float(t[1])
-    est.extras.update(
-        method_choice=choice,
-        cruise=reason,
-        samples_used=len(part),
-        samples_total=n_all,
-        log=str(log.path) if log.path else None,
-    )
+    est.extras["method_choice"] = choice
+    est.selection = Selection(len(part), n_all, reason)
+    est.extras["log"] = str(log.path) if log.path else None
     return est

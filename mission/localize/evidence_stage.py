@@ -29,14 +29,8 @@ CALIBRATED_MASS: dict[float, float] | None = None
 def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidate], dict[str, Estimate]]:
     """Each shipped spiral network's point, marked out of its training domain when the track's altitude or
     attitude is (``training_domain``): weighed, never dropped."""
-    from mission.localize.api import _in_log_frame, make_localizer
-    from mission.localize.training_domain import (
-        altitude_note,
-        flight_altitudes,
-        flown_domain,
-        trained_legs,
-        training_altitudes,
-    )
+    from mission.localize.api import run_member
+    from mission.localize.training_domain import altitude_note, flight_altitudes, flown_domain, training_altitudes
     from mission.shipped import shipped_model
 
     cands, ests = [], {}
@@ -44,8 +38,7 @@ def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidat
         path = shipped_model(name)
         if path is None:
             continue
-        net = make_localizer("onnx", path, tx_height_m=tx_height_m)
-        est = _in_log_frame(net, net.predict(trained_legs(part)), origin, "onnx")
+        net, est = run_member("onnx", part, origin, model_path=path, tx_height_m=tx_height_m)
         off = (altitude_note(net.model_name, training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2]))
                or flown_domain(part, net.meta, net.model_name)["attitude_note"])
         label = Path(name).stem
@@ -58,17 +51,15 @@ def member_candidates(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT
                       physics_preset: str | None = None) -> tuple[list[Candidate], dict[str, Estimate]]:
     """Every member's candidates (near-duplicates merged) and the members' estimates by name; the
     self-calibrating estimate comes first in both (its posterior grid carries the mixture regions)."""
-    from mission.localize.api import DEFAULT_PHYSICS_PRESET, _in_log_frame, make_localizer
+    from mission.localize.api import DEFAULT_PHYSICS_PRESET, run_member
 
-    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
-    a = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     cands = [Candidate(a.x_m, a.y_m, "selfcal")]
     if a.posterior is not None:
         modes = posterior_modes(a.posterior.prob, a.posterior.grid)
         cands += [Candidate(x, y, f"selfcal mode {i + 1}", mass=m) for i, (x, y, m) in enumerate(modes)]
     preset = physics_preset or DEFAULT_PHYSICS_PRESET
-    grid = make_localizer("grid", tx_height_m=tx_height_m, area=area, physics_preset=preset)
-    g = _in_log_frame(grid, grid.predict(part), origin, "grid")
+    _, g = run_member("grid", part, origin, tx_height_m=tx_height_m, area=area, physics_preset=preset)
     cands.append(Candidate(g.x_m, g.y_m, f"grid {preset}"))
     nets, net_ests = _network_candidates(part, origin, tx_height_m)
     cands += nets

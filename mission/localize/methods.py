@@ -24,6 +24,12 @@ FROM_DRAWS = "held-out draws"  # HPD masses that held this flight's own held-out
 FROM_CARD = "card circles"  # the network's card, models/<name>.json (error_circles.card_calibration)
 FROM_METHOD_CIRCLES = "method circles"  # mission/data/method_circles.json (benchmarks/calibrate_error_circles.py)
 
+# the frame an estimator answers in, and the samples it takes
+LOG_FRAME = "log"  # the log's own ENU frame
+MODEL_FRAME = "model"  # a network's own frame (its card's origin): localize_log converts through lat/lon
+SELECTED = "selected"  # the samples preprocess.select_samples keeps
+TRAINED_LEGS = "trained legs"  # those less the transit to the first waypoint, as the networks were trained
+
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"  # the network ``onnx`` runs without a model path (models/)
 ADAPTIVE_METHOD = "selfcal"  # an adaptive flight's live and default method: its rounds plan on this posterior
 
@@ -40,6 +46,9 @@ class Method:
     bounded: bool  # searches inside the transmitter's area (localize_log passes it the rover area)
     description: str
     factory: Callable[..., object] | None
+    compose: Callable[..., object] | None = None  # a meta-estimator: (part, origin, area, **kw) -> Estimate
+    frame: str = LOG_FRAME  # the frame it answers in: LOG_FRAME, or MODEL_FRAME (converted through lat/lon)
+    samples: str = SELECTED  # which samples it takes: SELECTED, or TRAINED_LEGS (training_domain.trained_legs)
 
 
 def _onnx(model_path: str | Path | None = None, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_):
@@ -88,6 +97,19 @@ def _selfcal(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
     return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
 
 
+def _fusion(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_path=None, **_):
+    from mission.localize.api import fusion
+
+    return fusion(part, origin, area, tx_height_m, model_path)
+
+
+def _evidence(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, physics_preset: str | None = None,
+              **_):
+    from mission.localize.evidence_stage import evidence_stage
+
+    return evidence_stage(part, origin, area, tx_height_m, physics_preset)
+
+
 def _matched(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
     from mission.localize.matched import MatchedLocalizer
 
@@ -96,7 +118,8 @@ def _matched(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
 
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("onnx", "network", CIRCLE, FROM_CARD, False,
-           "an ONNX network on the 3D-clustering features (--model, else models/rfsl_default.onnx)", _onnx),
+           "an ONNX network on the 3D-clustering features (--model, else models/rfsl_default.onnx)", _onnx,
+           frame=MODEL_FRAME, samples=TRAINED_LEGS),
     Method("strongest", "classical", CIRCLE, FROM_METHOD_CIRCLES, False,
            "the position of the strongest RSS sample", _strongest),
     Method("centroid", "classical", CIRCLE, FROM_METHOD_CIRCLES, False,
@@ -106,9 +129,11 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("selfcal", "self-calibrating", POSTERIOR, FROM_REGION_MASSES, True,
            "grid search with the antenna and RSS offset profiled out on the flight itself", _selfcal),
     Method("fusion", "fusion", POSTERIOR, FROM_REGION_MASSES, True,
-           "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)", None),
+           "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)", None,
+           compose=_fusion),
     Method("evidence", "stacking", POSTERIOR, FROM_REGION_MASSES, True,
-           "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions", None),
+           "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions", None,
+           compose=_evidence),
     Method("matched", "self-calibrating", POSTERIOR, FROM_DRAWS, True,
            "track-matched ABC: transmitters simulated along the flown track under the physics family", _matched),
 )}

@@ -62,6 +62,18 @@ def draw_regions(ax, regions: list[dict]) -> None:
                     label=f"{100 * reg['level']:.0f} % region" if k == 0 else None)
 
 
+def draw_candidates(ax, cands: list, top: int = 6) -> None:
+    """Mark the evidence stage's candidates (the ``top`` heaviest), the marker's size by weight, labelled
+    with their source; a network outside its training domain is drawn hollow."""
+    for k, c in enumerate(cands[:top]):
+        w = c.weight or 0.0
+        ax.plot(c.x_m, c.y_m, marker="o", ms=5 + 10 * np.sqrt(w), ls="none", zorder=4,
+                mfc="orange" if c.in_domain else "none", mec="k", mew=0.8,
+                label="candidates (size: weight)" if k == 0 else None)
+        ax.annotate(f"{c.source} {w:.2f}", (c.x_m, c.y_m), xytext=(5, -9), textcoords="offset points",
+                    fontsize=6)
+
+
 def plot_localization(
     log, est: Estimate, out: str | Path, cfg: FeatureConfig | None = None, area=None, title: str | None = None
 ) -> Path:
@@ -121,6 +133,7 @@ def plot_localization(
         label=f"estimate ({est.method}{', ' + est.model if est.model else ''})",
     )
     draw_regions(ax, est.regions)
+    draw_candidates(ax, est.candidates)
     tx, ty = est.extras.get("truth_x_m"), est.extras.get("truth_y_m")
     if tx is not None:
         ax.plot(tx, ty, marker="X", ms=13, color="white", mec="k", ls="none", zorder=5, label="truth")
