@@ -60,3 +60,20 @@ def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
                                                      for i in range(2)))
     assert d["regions"] == est.regions and [r["level"] for r in est.regions] == [0.5, 0.9]
     assert d.get("note") == (" ".join(est.notes) or None)
+
+
+def test_selection_follows_the_method_choice_in_the_json_and_fit_reads_the_extras() -> None:
+    from mission.localize import Fit, Selection
+
+    est = Estimate(1.0, 2.0, "selfcal", extras={"antenna": "dipole", "offset_db": -3.25, "residual_rms_db": 4.5})
+    est.extras["method_choice"] = "asked"
+    est.selection = Selection(900, 1000, "mission legs")
+    est.extras["log"] = "f.csv"
+    keys = list(est.to_dict())
+    assert keys[keys.index("method_choice"):] == ["method_choice", "cruise", "samples_used", "samples_total", "log"]
+    assert est.to_dict()["samples_used"] == 900 and est.selection.line() == "900 of 1000: mission legs"
+    assert est.fit == Fit(-3.25, 4.5, "dipole")
+    assert est.fit.line() == "offset -3.2 dB, residual rms 4.50 dB; UAV antenna: dipole"
+    assert Estimate(0.0, 0.0, "onnx").fit is None
+    no_choice = Estimate(0.0, 0.0, "onnx", selection=Selection(1, 2, "all"))
+    assert list(no_choice.to_dict())[-3:] == ["cruise", "samples_used", "samples_total"]
