@@ -83,15 +83,6 @@ def collect(args) -> None:
     print(f"{len(rows)} flights -> {args.json}")
 
 
-def _gmed(xy: np.ndarray, w: np.ndarray, iters: int = 100) -> np.ndarray:
-    """Weighted geometric median (Weiszfeld)."""
-    z = (xy * w[:, None]).sum(0) / w.sum()
-    for _ in range(iters):
-        d = np.maximum(np.hypot(*(xy - z).T), 1e-6)
-        z = (xy * (w / d)[:, None]).sum(0) / (w / d).sum()
-    return z
-
-
 def _pbma(lp: np.ndarray) -> np.ndarray:
     e = lp.sum(axis=1)
     w = np.exp(e - e.max())
@@ -101,8 +92,12 @@ def _pbma(lp: np.ndarray) -> np.ndarray:
 def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     """Answer schemes: a flight's cached row -> its point."""
     from mission.localize.candidates import Candidate
-    from mission.localize.evidence_stage import answer
-    from mission.localize.stacking import stacking_weights
+    from mission.localize.stacking import geometric_median, stacking_weights
+
+    def answer(cs, w):  # the first cut's answer: the weighted mean of the candidates within 25 m of the heaviest
+        pts = np.array([c.xy for c in cs])
+        near = np.hypot(*(pts - pts[int(np.argmax(w))]).T) <= 25.0
+        return (pts[near] * np.asarray(w)[near, None]).sum(axis=0) / np.asarray(w)[near].sum()
 
     def cands(r):
         return [Candidate(c["x_m"], c["y_m"], c["source"]) for c in r["cands"]]
@@ -119,12 +114,12 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
         return xy(r)[k] if e[k] - e[src.index("fusion")] > nats else np.array(r["default"])
 
     return {
-        "stacking, top cluster": lambda r: np.array(answer(cands(r), stacking_weights(np.asarray(r["block_lpd"])))),
-        "pseudo-BMA, top cluster": lambda r: np.array(answer(cands(r), _pbma(np.asarray(r["block_lpd"])))),
-        "pseudo-BMA, geometric median": lambda r: _gmed(xy(r), _pbma(np.asarray(r["block_lpd"]))),
-        "stacking, geometric median": lambda r: _gmed(xy(r), stacking_weights(np.asarray(r["block_lpd"]))),
+        "stacking, top cluster": lambda r: answer(cands(r), stacking_weights(np.asarray(r["block_lpd"]))),
+        "pseudo-BMA, top cluster": lambda r: answer(cands(r), _pbma(np.asarray(r["block_lpd"]))),
+        "pseudo-BMA, geometric median": lambda r: geometric_median(xy(r), _pbma(np.asarray(r["block_lpd"]))),
+        "stacking, geometric median": lambda r: geometric_median(xy(r), stacking_weights(np.asarray(r["block_lpd"]))),
         "fusion unless 3 nats": lambda r: fusion_or(r, 3.0),
-        "uniform geometric median": lambda r: _gmed(xy(r), np.ones(len(r["cands"]))),
+        "uniform geometric median": lambda r: geometric_median(xy(r)),
     }
 
 

@@ -113,6 +113,23 @@ def stacking_weights(block_lpd: np.ndarray, iters: int = 500, tol: float = 1e-10
     return w
 
 
+def geometric_median(xy: np.ndarray, weights: np.ndarray | None = None, iters: int = 200,
+                     tol_m: float = 1e-6) -> np.ndarray:
+    """The (weighted) geometric median of points (K, 2): the point with the least summed distance to them
+    (Weiszfeld's iteration from the weighted mean).  Why: a consensus that a few far candidates (ghost modes,
+    a network off its domain) cannot drag, unlike the mean."""
+    xy = np.asarray(xy, float)
+    w = np.ones(len(xy)) if weights is None else np.asarray(weights, float)
+    z = (xy * w[:, None]).sum(axis=0) / w.sum()
+    for _ in range(iters):
+        d = np.maximum(np.hypot(*(xy - z).T), 1e-9)
+        z_new = (xy * (w / d)[:, None]).sum(axis=0) / (w / d).sum()
+        if np.hypot(*(z_new - z)) < tol_m:
+            return z_new
+        z = z_new
+    return z
+
+
 def mixture_posterior(cand_xy: np.ndarray, weights: np.ndarray, grid: np.ndarray, sigma_m: float):
     """The candidates' mixture as a grid posterior: isotropic Gaussians of ``sigma_m`` about each candidate,
     weighted by stacking; two surviving candidates far apart give two islands."""
