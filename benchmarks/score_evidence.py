@@ -141,7 +141,7 @@ def _err(p, r) -> float:
 
 
 def score(args) -> None:
-    from mission.evidence import paired_difference
+    from mission.evidence import mean_interval, paired_difference
     from mission.workshop.decision import pooled_decision
 
     rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
@@ -164,8 +164,12 @@ def score(args) -> None:
     for src, rs in (("real", real), ("bench", fresh)):
         out[src] = {"default": [_err(r["default"], r) for r in rs], "evidence": [_err(f(r), r) for r in rs],
                     "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs]}
+        groups = [r["name"].split()[1][:3] for r in rs] if src == "real" else None
         for k, v in out[src].items():
-            print(f"{src:5s} {k:16s} mean {np.mean(v):6.1f} m  (n={len(v)})")
+            mi = mean_interval(v, seed=2)
+            vs = "" if k == "default" else f", vs default {paired_difference(v, out[src]['default'], seed=2).fmt()}"
+            by_team = f" [teams {mean_interval(v, groups, seed=2).fmt()}]" if groups else ""
+            print(f"{src:5s} {k:16s} mean {mi.fmt()} m{by_team}{vs} (n={len(v)})")
         if src == "real":
             for r, a, b, c in zip(rs, *out[src].values(), strict=True):
                 print(f"    {r['name']:16s} default {a:6.1f}  evidence {b:6.1f}  best {c:6.1f}")
