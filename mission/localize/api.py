@@ -39,6 +39,7 @@ from mission.localize.methods import (
     MODEL_FRAME,
     TRAINED_LEGS,
     Method,
+    composer,
     method_entry,
 )
 from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
@@ -200,7 +201,7 @@ def run_member(name: str, part, origin, **kw) -> tuple[object, Estimate]:
     return loc, _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
 
 
-def fusion(part, origin, area, tx_height_m: float, model_path=None) -> Estimate:
+def fusion(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_path=None, **_) -> Estimate:
     """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
     ``models/README.md``; weighting by each member's 50 % region scale was not adopted, benchmarks/fusion_weights.py);
     the uncertainty regions are the self-calibrating posterior's, and a note says when
@@ -297,8 +298,8 @@ def localize_log(
     area = ra if entry.bounded else None
     origin = log.origin
     if entry.compose is not None:  # a meta-estimator over other methods
-        est = entry.compose(part, origin, area, tx_height_m=tx_height_m, model_path=model_path,
-                            physics_preset=physics_preset)
+        est = composer(entry)(part, origin, area, tx_height_m=tx_height_m, model_path=model_path,
+                              physics_preset=physics_preset)
     else:
         loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
                              floor_db, physics_preset=physics_preset)

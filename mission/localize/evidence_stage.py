@@ -100,7 +100,7 @@ def answer(cands: list[Candidate]) -> tuple[float, float]:
 
 
 def evidence_stage(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
-                   physics_preset: str | None = None) -> Estimate:
+                   physics_preset: str | None = None, **_) -> Estimate:
     """Localize ``part`` (the selected samples of a log) with the evidence stage (module docstring); the
     estimate's ``candidates`` hold every candidate with its evidence and weight, most weight first."""
     from mission.localize.stacking import mixture_posterior, stacking_weights

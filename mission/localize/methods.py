@@ -46,7 +46,9 @@ class Method:
     bounded: bool  # searches inside the transmitter's area (localize_log passes it the rover area)
     description: str
     factory: Callable[..., object] | None
-    compose: Callable[..., object] | None = None  # a meta-estimator: (part, origin, area, **kw) -> Estimate
+    # a meta-estimator's "module:function", (part, origin, area, **kw) -> Estimate, imported when it runs (it runs
+    # other entries, so naming it here by reference keeps the registry below it: no import circle)
+    compose: str | None = None
     frame: str = LOG_FRAME  # the frame it answers in: LOG_FRAME, or MODEL_FRAME (converted through lat/lon)
     samples: str = SELECTED  # which samples it takes: SELECTED, or TRAINED_LEGS (training_domain.trained_legs)
 
@@ -97,19 +99,6 @@ def _selfcal(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
     return SelfCalibratingGrid(area=area, tx_height_m=tx_height_m)
 
 
-def _fusion(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_path=None, **_):
-    from mission.localize.api import fusion
-
-    return fusion(part, origin, area, tx_height_m, model_path)
-
-
-def _evidence(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, physics_preset: str | None = None,
-              **_):
-    from mission.localize.evidence_stage import evidence_stage
-
-    return evidence_stage(part, origin, area, tx_height_m, physics_preset)
-
-
 def _matched(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
     from mission.localize.matched import MatchedLocalizer
 
@@ -130,10 +119,10 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "grid search with the antenna and RSS offset profiled out on the flight itself", _selfcal),
     Method("fusion", "fusion", POSTERIOR, FROM_REGION_MASSES, True,
            "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)", None,
-           compose=_fusion),
+           compose="mission.localize.api:fusion"),
     Method("evidence", "stacking", POSTERIOR, FROM_REGION_MASSES, True,
            "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions", None,
-           compose=_evidence),
+           compose="mission.localize.evidence_stage:evidence_stage"),
     Method("matched", "self-calibrating", POSTERIOR, FROM_DRAWS, True,
            "track-matched ABC: transmitters simulated along the flown track under the physics family", _matched),
 )}
@@ -146,6 +135,14 @@ def method_entry(name: str) -> Method:
         return METHODS[name]
     except (KeyError, TypeError):
         raise InputError(f"unknown method {name!r} (expected one of {', '.join(METHOD_NAMES)})") from None
+
+
+def composer(entry: Method) -> Callable[..., object]:
+    """The function of a meta-estimator's ``compose`` reference."""
+    from importlib import import_module
+
+    module, _, name = str(entry.compose).partition(":")
+    return getattr(import_module(module), name)
 
 
 def names_where(**fields) -> tuple[str, ...]:
