@@ -247,7 +247,7 @@ def choose_method(meta: dict, heights_m: np.ndarray, model_path: str | Path | No
         return REAL_DEFAULT, None, (
             "real receiver log: mean of the self-calibrating estimate and the network "
             f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
-            "held-out real flights, models/README.md); --method selfcal / grid / onnx / evidence run one method")
+            "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method")
     if default_model is not None:
         from mission.localize.sim_default import sim_default_model
 
