@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-from mission.adaptive.live import estimate_at, estimate_file_at
+from mission.flight.live import estimate_at, estimate_file_at
 from mission.flightlog import PHASES, make_meta, read_flight_log, write_flight_log
 from mission.physics import make_model
 from mission.simulate import simulate_flight

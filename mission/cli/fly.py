@@ -1,7 +1,7 @@
 """Fly a mission on a MAVLink autopilot (or the built-in simulated vehicle), log RSS with attitude, localize.
 
 ``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize] [--adaptive]``.  Every
-flight shows and records a live estimate (``mission.adaptive``); ``--adaptive`` (or the mission's
+flight shows and records a live estimate (``mission.flight.estimates``); ``--adaptive`` (or the mission's
 ``adaptive: {enabled: true}``) flies the survey part, then rounds planned from it.  Without
 ``--connect`` (and no ``vehicle.connection`` in the mission file) the simulated vehicle of ``sitl/`` is
 started on a free local UDP port (it dies with ``fly-mission``).  Options are checked before anything
@@ -79,9 +79,9 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.adaptive.config import AdaptiveSpec
     from mission.adaptive.feasibility import assert_adaptive
-    from mission.adaptive.runner import fly_live
     from mission.errors import InputError
-    from mission.flight.runner import FlightError, FlyOptions
+    from mission.flight.context import FlightError
+    from mission.flight.runner import FlyOptions, fly
     from mission.spec import load_mission
 
     if args.speedup is not None and args.speedup <= 0:
@@ -91,8 +91,12 @@ def run(args: argparse.Namespace) -> int:
     spec = load_mission(args.mission)
     adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
     adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
+    extension = None
     if adaptive is not None:
+        from mission.adaptive.rounds import AdaptiveRounds
+
         assert_adaptive(spec, adaptive)  # before anything starts: one line, exit 2
+        extension = AdaptiveRounds(spec, adaptive)
     opts = FlyOptions(
         connect=args.connect,
         speedup=args.speedup,
@@ -107,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     if os.name == "nt":  # pragma: no cover - signal handlers need a Unix loop
         raise FlightError("fly-mission needs a Unix-like OS (signal handling)")
     try:
-        return fly_live(spec, opts, adaptive)
+        return fly(spec, opts, extension)
     except FlightError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.code

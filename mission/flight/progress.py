@@ -36,7 +36,7 @@ class FlightStatus:
     rel_alt: float = 0.0
     stage: str = "connecting"  # the runner's set-up step before arming, then the mission phase
     link_lost: bool = False
-    estimate: str = ""  # the live estimate (mission.adaptive.live.describe), empty until there is one
+    estimate: str = ""  # the live estimate (mission.flight.live.describe), empty until there is one
     warnings: list[str] = field(default_factory=list)
 
     @property

@@ -82,6 +82,12 @@ class FlightLogWriter:
         tmp.write_text(json.dumps(self.meta, indent=2, default=float))
         os.replace(tmp, sidecar_path(self.path))
 
+    def update_meta(self, **updates) -> None:
+        """Update the sidecar now (an in-flight record such as the live estimates), written whole (temporary
+        name, then rename), so a crash or an abort keeps what was recorded so far."""
+        self.meta.update(updates)
+        self._write_sidecar()
+
     def append(self, columns: dict[str, np.ndarray]) -> None:
         """Append rows given as column arrays (missing optional columns are written empty)."""
         text = format_rows(columns, self.header)
