@@ -7,7 +7,8 @@ flight shows and records a live estimate (``mission.flight.estimates``); ``--ada
 started on a free local UDP port (it dies with ``fly-mission``).  Options are checked before anything
 starts.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves the fence, a bad
 ``--connect``/``--rss-source``/``--out``: nothing is started or uploaded), 3 link lost / no autopilot within
-``--link-timeout``, 130 aborted by Ctrl-C or SIGTERM (after the return to launch once airborne).
+``--link-timeout``, 4 the log is incomplete (a write failed: disk full; the sidecar says how many rows it
+holds), 130 aborted by Ctrl-C, SIGTERM or SIGHUP (after the return to launch once airborne).
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ from mission.flight.progress import FlightStatus
 from mission.flight.telemetry import Telemetry
 
 EXIT_OK, EXIT_FAILED, EXIT_ABORTED, EXIT_LINK = 0, 1, 130, 3
+EXIT_LOG = 4  # flown, but the log is incomplete (a write failed)
 
 
 class FlightError(Exception):
@@ -95,6 +96,7 @@ class FlightContext:
     armed_seen: asyncio.Event = field(default_factory=asyncio.Event)  # PX4 SITL: "armed" before "started"
     last_text_wall: float = -float("inf")  # monotonic time of the last autopilot text
     link_lost: bool = False
+    left_flying: bool = False  # a second signal: the flight stopped waiting for the landing
     display: Any = None
     sdklog: Any = None
     source: Any = None  # the RSS source
@@ -121,16 +123,36 @@ class FlightContext:
 
     def event(self, kind: str, text: str, warn: bool = False) -> None:
         """Record an event for the sidecar and show it as one line."""
-        t = self.tel.clock.now()
-        self.st.events.append({"t_vehicle_s": None if not np.isfinite(t) else round(t, 3), "kind": kind,
-                               "text": text, "wall": time.time()})
+        t = self.tel.clock.now() if not self.link_lost else float("nan")  # no extrapolated time stamps
+        e = {"t_vehicle_s": None if not np.isfinite(t) else round(t, 3), "kind": kind, "text": text,
+             "wall": time.time()}
+        if self.link_lost:  # what was measured: the last telemetry's time
+            last = self.tel.clock.last_measured()
+            e["last_telemetry_vehicle_s"] = round(last, 3) if np.isfinite(last) else None
+        self.st.events.append(e)
         if warn:
             self.status.warnings.append(text)
         line = ("WARNING: " if warn else "") + text
-        if self.display is not None:
-            self.display.message(line, "yellow" if warn else "")
-        else:
-            print(line, file=sys.stderr, flush=True)
+        try:
+            if self.display is not None:
+                self.display.message(line, "yellow" if warn else "")
+            else:
+                print(line, file=sys.stderr, flush=True)
+        except (OSError, ValueError):  # a lost terminal (SIGHUP): the event is in the sidecar, flying goes on
+            pass
+
+    def vehicle_state(self) -> str:
+        """What is known of the vehicle at the end: ``landed``, ``on the ground`` (never flew), ``in flight``
+        (left flying, link alive) or ``unknown`` (the link was lost while it flew)."""
+        if self.landed_disarmed.is_set():
+            return "landed"
+        if not self.st.was_in_air:
+            return "on the ground"
+        return "unknown" if self.link_lost or (self.link_dead.is_set() and not self.left_flying) else "in flight"
+
+    def where(self) -> str:
+        """The vehicle's last measured altitude and phase ("15 m in return")."""
+        return f"{self.status.rel_alt:.0f} m in {self.phases.current}"
 
     def abort_before_takeoff(self) -> None:
         """Raise the abort (exit 130) when one came before the vehicle took off."""

@@ -20,6 +20,7 @@ import numpy as np
 
 from mission.flight import live
 from mission.flight.context import FlightContext
+from mission.flight.vehicle_process import terminal_signals_ignored
 from mission.flightlog import FLOWN_PHASES
 
 
@@ -37,11 +38,15 @@ class LiveEstimates:
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
 
     def start_worker(self) -> None:
-        """spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before connecting."""
-        self.pool = concurrent.futures.ProcessPoolExecutor(
-            1, mp_context=multiprocessing.get_context("spawn"), initializer=live.lower_priority,
-            initargs=(os.getpid(),))
-        self.pool.submit(live.warm_up)
+        """spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before connecting.
+        It starts with the terminal's signals ignored (inherited), so a Ctrl-C during its start-up is no
+        ``KeyboardInterrupt`` traceback either; so does multiprocessing's resource tracker (which ignores
+        SIGINT and SIGTERM itself, not SIGHUP)."""
+        with terminal_signals_ignored():  # the worker (this first submit) and multiprocessing's resource tracker
+            self.pool = concurrent.futures.ProcessPoolExecutor(
+                1, mp_context=multiprocessing.get_context("spawn"), initializer=live.lower_priority,
+                initargs=(os.getpid(),))
+            self.pool.submit(live.warm_up)
 
     def stop_worker(self) -> None:
         if self.pool is not None:
@@ -57,7 +62,7 @@ def log_meta(ctx: FlightContext) -> dict:
 def log_time(ctx: FlightContext) -> float:
     """Log time (``t_s``) up to which every row is written and on disk."""
     ctx.rows.write()
-    ctx.rows.writer.flush()
+    ctx.rows.flush()
     return ctx.tel.covered_until - ctx.rows.t_ref if ctx.rows.t_ref is not None else -np.inf
 
 
@@ -129,10 +134,11 @@ async def final_estimate(ctx: FlightContext) -> None:
 
 
 async def close_estimates(ctx: FlightContext) -> None:
-    """At the close: the final estimate if still due (bounded), the series into the sidecar, the worker
-    stopped."""
-    if ctx.rows is not None:
+    """At the close: the final estimate if still due (bounded; not after a second Ctrl-C, which asked to stop
+    now), the series into the sidecar, the worker stopped."""
+    if ctx.rows is not None and not ctx.left_flying:
         with contextlib.suppress(Exception):
             await asyncio.wait_for(final_estimate(ctx), 30.0)
+    if ctx.rows is not None:
         ctx.rows.writer.meta.update(estimates=ctx.live.estimates)
     ctx.live.stop_worker()

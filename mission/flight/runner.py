@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import signal
 import sys
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ from mission.flight.context import (
     EXIT_ABORTED,
     EXIT_FAILED,
     EXIT_LINK,
+    EXIT_LOG,
     EXIT_OK,
     Autopilot,
     FlightContext,
@@ -61,7 +63,7 @@ FIRST_ROW_TIMEOUT_S = 20.0  # wall seconds to wait for the first log row before 
 # makes it wait up to 5 ms per message and MAVSDK's bounded callback queue overflows ("Dropping
 # subscription callbacks").  A 0.5 ms interval bounds that wait.
 GIL_SWITCH_INTERVAL_S = 0.0005
-SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # SIGHUP: a lost terminal (SSH), as SIGTERM
 
 
 def auto_rate_hz(speedup: float) -> float:
@@ -131,8 +133,16 @@ def new_context(spec, opts: FlyOptions, extension=None) -> FlightContext:
     return ctx
 
 
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 def fly(spec, opts: FlyOptions, extension=None) -> int:
-    """Run one flight to the end (blocking); returns the exit code."""
+    """Run one flight to the end (blocking); returns the exit code.  Until the flight's own handlers are
+    installed (and after they are removed), SIGTERM and SIGHUP are a Ctrl-C: exit 130, no traceback."""
+    for sig in SIGNALS[1:]:
+        signal.signal(sig, _interrupt)
+
     async def main() -> int:
         ctx = new_context(spec, opts, extension)
         ctx.live.start_worker()  # before connecting: the worker imports the localizer meanwhile
@@ -173,13 +183,16 @@ async def run(ctx: FlightContext) -> int:
         switch = sys.getswitchinterval()
         sys.setswitchinterval(min(switch, GIL_SWITCH_INTERVAL_S))
         try:
-            return await fly_sdk(ctx, url, report)
+            code = await fly_sdk(ctx, url, report)
         finally:
             sys.setswitchinterval(switch)
     finally:
         for sig in SIGNALS:
             loop.remove_signal_handler(sig)
         stop_vehicle(ctx.vehicle_proc)
+    if ctx.opts.localize:  # after the flight: a Ctrl-C now is a plain interrupt (exit 130)
+        print_result(ctx)
+    return code
 
 
 def make_source(spec, rss_source: str):
@@ -259,14 +272,22 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
                     ctx.event("error", status, warn=True)
                     await safe_return(ctx, p.action)
                 finally:
-                    await close(ctx, status, p.param, live_task)
+                    try:
+                        status = await close(ctx, status, p.param, live_task)
+                    finally:  # the task group waits for its tasks: none may outlive the close
+                        for t in ctx.tasks:
+                            t.cancel()
     if error is not None:
         raise error
+    if code == EXIT_OK and ctx.abort.is_set():  # a signal after the landing: flown, but stop here
+        code = EXIT_ABORTED
+        status = f"aborted ({ctx.abort_reason}) after the landing"
+    if ctx.status.log_error and code != EXIT_LINK:
+        code, status = EXIT_LOG, log_status(ctx, status)
     if ctx.log_path is not None:
-        print(f"log: {ctx.log_path}", flush=True)
-    if code == EXIT_OK and ctx.opts.localize:
-        print_result(ctx)
-    elif code != EXIT_OK:
+        with contextlib.suppress(OSError):  # a lost terminal (SIGHUP)
+            print(f"log: {ctx.log_path}", flush=True)
+    if code != EXIT_OK:
         raise FlightError(status.removeprefix("failed: "), code)
     return code
 
@@ -331,6 +352,7 @@ async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: 
     meta["live_estimate"] = estimates.log_meta(ctx)
     writer = FlightLogWriter(ctx.log_path, meta, extra_columns=PHASE_COLUMNS + ctx.source.extra_columns)
     ctx.rows = RowLogger(writer, ctx.source, ctx.tel, ctx.phases, spec.field.origin, ctx.status)
+    ctx.rows.on_error = functools.partial(tasks.log_failed, ctx)
     ctx.event("log", f"logging to {ctx.log_path}")
     await ctx.source.start(ctx.tel.clock.now)
     ctx.status.stage = "waiting for the first log row"
@@ -380,10 +402,21 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
         return EXIT_ABORTED, f"aborted ({ctx.abort_reason}) before take-off: disarmed"
     await return_and_land(ctx, action, commanded=ev is ctx.abort)
     if ctx.abort.is_set():
-        return EXIT_ABORTED, f"aborted ({ctx.abort_reason}), returned to launch"
+        return EXIT_ABORTED, f"aborted ({ctx.abort_reason}), {_return_outcome(ctx)}"
     if ctx.link_dead.is_set():
         return EXIT_LINK, "link lost"
     return EXIT_OK, "completed" if ctx.landed_disarmed.is_set() else "landing not confirmed"
+
+
+def _return_outcome(ctx: FlightContext) -> str:
+    """How a commanded return ended, as measured: landed, left in flight (a second signal), or unknown."""
+    if ctx.landed_disarmed.is_set():
+        return "returned to launch"
+    if ctx.left_flying:
+        return f"vehicle left in flight at {ctx.where()}"
+    if ctx.link_dead.is_set():
+        return "return commanded, then the link was lost: vehicle state unknown"
+    return "return commanded, landing not confirmed"
 
 
 async def safe_return(ctx: FlightContext, action) -> None:
@@ -412,9 +445,10 @@ async def return_and_land(ctx: FlightContext, action, commanded: bool = True) ->
     await asyncio.sleep(0.3)  # let the last telemetry after touchdown reach the log
 
 
-async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task | None) -> None:
+async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task | None) -> str:
     """Live estimates and the extension's record, last rows, the coroutines cancelled, autopilot speeds
-    restored, the log closed with its summary and budget."""
+    restored, the log closed with its summary, budget and what is known of the vehicle; returns the final
+    status (naming the autopilot parameters left changed, if any)."""
     if live_task is not None:
         live_task.cancel()
         await asyncio.gather(live_task, return_exceptions=True)
@@ -429,16 +463,35 @@ async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task 
         t.cancel()
     await asyncio.gather(*ctx.tasks, return_exceptions=True)
     await restore_speeds(ctx, param)
+    if ctx.restore_params and ctx.link_dead.is_set():  # not restored (the vehicle may still fly on them)
+        left = ", ".join(f"{k} (was {v:g})" for k, v in ctx.restore_params.items())
+        ctx.event("params", f"autopilot parameters left changed: {left}", warn=True)
+        status += f"; parameters left changed: {', '.join(ctx.restore_params)}"
     if ctx.rows is None:
-        return
+        return status
     await ctx.source.stop()
     summary = ctx.tel.summary()
     if ctx.budget is not None:
         summary["budget"] = close_budget(ctx, ctx.budget)
     w = ctx.rows.writer
-    w.close(status=status, events=ctx.st.events, link_lost=any(e["kind"] == "link" for e in ctx.st.events),
-            speedup=summary["speedup_measured"] or ctx.speedup, **summary)
+    status = log_status(ctx, status)
+    last = ctx.tel.clock.last_measured()
+    try:
+        w.close(status=status, events=ctx.st.events, link_lost=any(e["kind"] == "link" for e in ctx.st.events),
+                speedup=summary["speedup_measured"] or ctx.speedup, vehicle_state=ctx.vehicle_state(),
+                last_telemetry_vehicle_s=round(last, 3) if np.isfinite(last) else None,
+                params_left_changed=dict(ctx.restore_params) if ctx.link_dead.is_set() else {}, **summary)
+    except OSError as e:  # the sidecar itself could not be written (a full disk)
+        ctx.status.log_error = ctx.status.log_error or e.strerror or type(e).__name__
+        ctx.event("log", f"sidecar not written ({e.strerror or e}): it may still say flying", warn=True)
     ctx.display.message(f"log closed: {ctx.log_path} ({w.rows} rows, {status})")
+    return status
+
+
+def log_status(ctx: FlightContext, status: str) -> str:
+    """The end status, saying so when the log is incomplete."""
+    why = ctx.status.log_error
+    return status if not why or "log incomplete" in status else f"{status}; log incomplete ({why})"
 
 
 # ----------------------------------------------------------------- after landing

@@ -10,6 +10,7 @@ so that a failing stream is one warning, never the end of the flight.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import time
 
@@ -42,7 +43,12 @@ def on_signal(ctx: FlightContext, name: str) -> None:
     """SIGINT/SIGTERM/SIGHUP: the first one aborts (return to launch once airborne), a second one stops the
     wait for the landing."""
     if ctx.abort.is_set():
-        ctx.event("signal", f"{name} again: stop waiting for the landing")
+        if ctx.st.in_air:
+            ctx.left_flying = True
+            ctx.event("signal", f"{name} again: stop waiting for the landing (vehicle at {ctx.where()})",
+                      warn=True)
+        else:
+            ctx.event("signal", f"{name} again: stop waiting for the landing")
         ctx.link_dead.set()
         return
     ctx.abort_reason = name
@@ -139,6 +145,26 @@ async def logger(ctx: FlightContext) -> None:
         ctx.rows.write()
 
 
+def log_failed(ctx: FlightContext, error: OSError) -> None:
+    """A log write failed (disk full, file-size limit): said at once (a warning, the status line, the sidecar);
+    by default the flight returns to launch (``logging.on_write_error: continue`` flies on).  Once."""
+    if ctx.status.log_error:
+        return
+    why = error.strerror or type(error).__name__
+    ctx.status.log_error = why
+    w = ctx.rows.writer
+    keep_flying = ctx.spec.on_write_error == "continue"
+    then = ("flying on (logging.on_write_error: continue)" if keep_flying
+            else "returning to launch" if ctx.st.was_in_air else "stopping")
+    ctx.event("log", f"log write failed ({why}): {w.rows} rows kept; {then}", warn=True)
+    with contextlib.suppress(OSError):  # a full disk may refuse the sidecar too: the line above still said it
+        w.update_meta(log_error={"error": why, "rows_kept": w.rows, "policy": ctx.spec.on_write_error,
+                                 "t_vehicle_s": ctx.st.events[-1]["t_vehicle_s"]})
+    if not keep_flying and not ctx.abort.is_set():
+        ctx.abort_reason = "log write failed"
+        ctx.abort.set()
+
+
 async def watchdog(ctx: FlightContext) -> None:
     while True:
         await asyncio.sleep(0.25)
@@ -152,7 +178,8 @@ async def watchdog(ctx: FlightContext) -> None:
         if ctx.st.was_armed and (s.t_start is None or not np.isfinite(s.t_start)):
             s.t_start = s.t_now if ctx.tel.n_pos else None
         if ctx.display is not None:
-            ctx.display.refresh()
+            with contextlib.suppress(OSError, ValueError):  # a lost terminal must not stop the watchdog
+                ctx.display.refresh()
 
 
 def _watch_link(ctx: FlightContext) -> None:
