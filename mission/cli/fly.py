@@ -75,7 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
 
 
-def run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace) -> int:
     import os
 
     from mission.adaptive.config import AdaptiveSpec
@@ -116,6 +116,17 @@ def run(args: argparse.Namespace) -> int:
     except FlightError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.code
+
+
+def run(args: argparse.Namespace) -> int:
+    """The command; a Ctrl-C at any moment ends it with 130 (``run_guarded``), never by a second signal."""
+    from mission.flight.vehicle_process import ignore_terminal_signals
+
+    try:
+        return _run(args)
+    except KeyboardInterrupt:
+        ignore_terminal_signals()
+        raise
 
 
 def main(argv: Sequence[str] | None = None) -> int:

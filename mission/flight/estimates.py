@@ -49,8 +49,14 @@ class LiveEstimates:
             self.pool.submit(live.warm_up)
 
     def stop_worker(self) -> None:
+        """Stop the worker now: an estimate still running must not hold up the exit (where a Ctrl-C would
+        end the process by the signal instead of exit 130)."""
         if self.pool is not None:
+            procs = list(getattr(self.pool, "_processes", None) or {})  # the executor's own record (private)
+            procs = [self.pool._processes[k] for k in procs]
             self.pool.shutdown(wait=False, cancel_futures=True)
+            for proc in procs:
+                proc.kill()
 
 
 def log_meta(ctx: FlightContext) -> dict:

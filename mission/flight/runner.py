@@ -51,7 +51,7 @@ from mission.flight.phases import MonotonicPhases, final_phase
 from mission.flight.progress import Display, FlightStatus
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.telemetry import Telemetry
-from mission.flight.vehicle_process import free_udp_port, spawn_vehicle, stop_vehicle
+from mission.flight.vehicle_process import free_udp_port, ignore_terminal_signals, spawn_vehicle, stop_vehicle
 
 __all__ = ["FlyOptions", "auto_rate_hz", "fly", "free_udp_port", "spawn_vehicle", "wall_clock_notice"]
 
@@ -140,18 +140,27 @@ def _interrupt(signum, frame) -> None:
 def fly(spec, opts: FlyOptions, extension=None) -> int:
     """Run one flight to the end (blocking); returns the exit code.  Until the flight's own handlers are
     installed (and after they are removed), SIGTERM and SIGHUP are a Ctrl-C: exit 130, no traceback."""
-    for sig in SIGNALS[1:]:
-        signal.signal(sig, _interrupt)
+    ctx = new_context(spec, opts, extension)
 
     async def main() -> int:
-        ctx = new_context(spec, opts, extension)
         ctx.live.start_worker()  # before connecting: the worker imports the localizer meanwhile
         try:
             return await run(ctx)
         finally:
             ctx.live.stop_worker()
 
-    return asyncio.run(main())
+    old = {sig: signal.signal(sig, _interrupt) for sig in SIGNALS[1:]}
+    try:
+        return asyncio.run(main())
+    except KeyboardInterrupt:
+        ignore_terminal_signals()  # interrupted: the process ends with 130, not by a second signal at exit
+        raise
+    finally:
+        if ctx.source is not None:  # a flight started and its outcome is decided: a late Ctrl-C during the
+            ignore_terminal_signals()  # exit (threads joined) must not end the process by the signal
+        elif signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:  # refused before anything started
+            for sig, handler in old.items():
+                signal.signal(sig, handler)
 
 
 # ----------------------------------------------------------------- the flight's order
