@@ -45,8 +45,7 @@ def on_signal(ctx: FlightContext, name: str) -> None:
     if ctx.abort.is_set():
         if ctx.st.in_air:
             ctx.left_flying = True
-            ctx.event("signal", f"{name} again: stop waiting for the landing (vehicle at {ctx.where()})",
-                      warn=True)
+            ctx.event("signal", f"{name} again: landing not awaited; vehicle at {ctx.where()}", warn=True)
         else:
             ctx.event("signal", f"{name} again: stop waiting for the landing")
         ctx.link_dead.set()
