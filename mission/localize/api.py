@@ -247,7 +247,7 @@ def localize_log(
             method, choice = "onnx", f"model {Path(model_path).name} given"
         elif (log.meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
             method, choice = ADAPTIVE_METHOD, ("adaptive flight: the live method its rounds were planned with "
-                                               "(the networks know only fixed paths); mission.flight.live")
+                                               "(the networks know only fixed paths); mission.adaptive.live")
         elif not _is_simulated(log):
             method, choice = "fusion", (
                 "real receiver log: mean of the self-calibrating estimate and the network "
