@@ -352,7 +352,7 @@ def _fly_group(args: list[str]) -> subprocess.Popen:
     return _fly(args, start_new_session=True)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGHUP])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGHUP], ids=["SIGINT", "SIGHUP"])
 def test_terminal_signal_to_the_whole_group_returns_to_launch(tmp_path, sig):
     """A terminal's Ctrl-C (or a lost SSH session's SIGHUP) reaches every process of the group, the
     live-estimate worker included: the flight still returns to launch and lands, exits 130 with no
