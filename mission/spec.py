@@ -27,6 +27,7 @@ from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")
+WRITE_ERROR_POLICIES = ("return", "continue")  # logging.on_write_error: what a failed log write does
 # heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not command yaw,
 # so a mission may not ask for it (its vehicle would fly differently from the simulated one)
 _KIN_FIELDS = tuple(k for k in Kinematics.__dataclass_fields__ if k not in ("cruise_speed_mps", "heading_deg"))
@@ -82,6 +83,7 @@ class MissionSpec:
     source: SourceSpec = field(default_factory=SourceSpec)
     vehicle: VehicleSpec = field(default_factory=VehicleSpec)
     adaptive: Any = None  # mission.adaptive.config.AdaptiveSpec when the file has an ``adaptive:`` block
+    on_write_error: str = "return"  # ``logging.on_write_error``: a failed log write returns to launch or not
 
     @property
     def source_name(self) -> str:
@@ -320,12 +322,16 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     from mission.adaptive.config import parse_adaptive
 
     adaptive = parse_adaptive(r.sub("adaptive")) if "adaptive" in r.d else None
+    lg = r.sub("logging")
+    on_write_error = lg.str_("on_write_error", d("on_write_error"), WRITE_ERROR_POLICIES)
+    lg.done()
     r.done()
     return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
                        cruise_speed_mps=cruise, time_budget_s=budget, fence_margin_m=margin,
                        altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
                        return_behaviour=ret, trajectory=traj, source=source,
-                       vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive)
+                       vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive,
+                       on_write_error=on_write_error)
 
 
 def load_mission(path: str | Path | None = None) -> MissionSpec:

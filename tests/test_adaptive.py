@@ -198,7 +198,7 @@ def test_preview_shows_adaptive_against_fixed(spec):
 
 
 def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
-    from mission.adaptive.runner import MonotonicPhases
+    from mission.flight.phases import MonotonicPhases
 
     p = MonotonicPhases()
     p.configure(2, 9, "return")

@@ -179,3 +179,50 @@ def test_samples_view_of_a_log(tmp_path):
     m = s.select(s.phase == "mission")
     assert len(m) == 3 and m.t_s.shape == (3,) and m.enu_m.shape == (3, 3) and m.tx_enu_m is s.tx_enu_m
     assert log.samples(Origin(35.7, -78.7, 90.0)).tx_enu_m is None  # the sidecar's truth is in its own frame
+
+
+_FULL_DISK = """
+import resource, signal, sys
+import numpy as np
+from mission.flightlog import FlightLogWriter, make_meta
+from mission.geo import Origin
+
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the limit gives EFBIG, as a full disk gives ENOSPC
+resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[2]), int(sys.argv[2])))
+n = 40
+t = np.arange(n) * 0.03
+c = {"t_s": t, "lat_deg": np.full(n, 35.7), "lon_deg": np.full(n, -78.7), "alt_m": np.full(n, 120.0),
+     "rel_alt_m": np.full(n, 30.0), "rss_dbm": -60.0 + t}
+w = FlightLogWriter(sys.argv[1], make_meta(Origin(35.727, -78.698, 90.0), {"kind": "sim"}))
+failed = None
+for k in range(200):
+    try:
+        w.append({key: v + (k * n * 0.03 if key == "t_s" else 0) for key, v in c.items()})
+        w.flush()
+    except OSError as e:
+        failed = k
+        break
+w.append(c)  # after a failure: dropped, never a partial line
+w.close(status="flying on")
+print(failed, w.rows, type(w.error).__name__)
+"""
+
+
+@pytest.mark.parametrize("limit", [3000, 20000, 20011])
+def test_a_failed_write_leaves_whole_rows_and_a_matching_sidecar(tmp_path, limit):
+    """A file-size limit (as a full disk) mid-log: the writer raises once, the CSV is cut back to the rows last
+    flushed whole (no partial line, whatever byte the limit falls on), later rows are dropped and the
+    sidecar's ``rows`` is what the file holds."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "f.csv"
+    r = subprocess.run([sys.executable, "-c", _FULL_DISK, str(path), str(limit)], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    failed, rows, error = r.stdout.split()
+    assert failed != "None" and error == "OSError" and int(rows) == 40 * int(failed)
+    log = read_flight_log(path)
+    assert len(log) == int(rows) == log.meta["rows"] and log.meta["status"] == "flying on"
+    assert path.stat().st_size <= limit and path.read_text().endswith("\n")
+    assert np.all(np.diff(log["t_s"]) > 0)

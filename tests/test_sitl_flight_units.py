@@ -127,3 +127,61 @@ def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
         assert "[red]" not in text and "[green]" not in text and "[/" not in text, text
         assert "(over budget)" in text and "-31.50 dB at (10, 20) m" in text and "[odd] text" in text
         assert "landing at ~660 s" in text
+
+
+def _context(tmp_path, policy: str, in_air: bool = True):
+    """A flight's context with a real log writer and no vehicle (what ``tasks.log_failed`` acts on)."""
+    from types import SimpleNamespace
+
+    from mission.flight.context import FlightContext
+    from mission.flight.phases import MonotonicPhases
+    from mission.flight.telemetry import Telemetry
+    from mission.flightlog import FlightLogWriter, make_meta
+    from mission.geo import Origin
+
+    ctx = FlightContext(spec=SimpleNamespace(on_write_error=policy), opts=None, speedup=1.0, url=None,
+                        status=FlightStatus(), tel=Telemetry(), phases=MonotonicPhases())
+    ctx.st.was_in_air = ctx.st.in_air = in_air
+    writer = FlightLogWriter(tmp_path / "f.csv", make_meta(Origin(35.7, -78.7, 90.0), {"kind": "sim"}))
+    ctx.rows = SimpleNamespace(writer=writer)
+    return ctx
+
+
+@pytest.mark.parametrize("policy, returns", [("return", True), ("continue", False)])
+def test_a_failed_log_write_is_said_at_once_and_returns_by_default(tmp_path, capsys, policy, returns):
+    import errno
+    import json
+
+    from mission.flight.tasks import log_failed
+    from mission.flightlog import sidecar_path
+
+    ctx = _context(tmp_path, policy)
+    log_failed(ctx, OSError(errno.ENOSPC, "No space left on device"))
+    log_failed(ctx, OSError(errno.ENOSPC, "No space left on device"))  # said once
+    err = capsys.readouterr().err
+    assert err.count("log write failed (No space left on device)") == 1
+    assert ("returning to launch" in err) == returns and ("flying on" in err) == (not returns)
+    assert ctx.abort.is_set() == returns and (ctx.abort_reason == "log write failed") == returns
+    assert ctx.status.log_error == "No space left on device"
+    assert "LOG FAILED" in plain_line(ctx.status)
+    rec = json.loads(sidecar_path(tmp_path / "f.csv").read_text())["log_error"]  # in the sidecar at once
+    assert rec == {"error": "No space left on device", "rows_kept": 0, "policy": policy, "t_vehicle_s": None}
+
+
+def test_events_during_a_link_loss_carry_only_measured_times(tmp_path, capsys):
+    """After a link loss no event is stamped with an extrapolated vehicle time: the last telemetry's time."""
+    ctx = _context(tmp_path, "return")
+    ctx.tel.add_position(100.0, 35.7, -78.7, 120.0, 30.0)
+    ctx.tel.add_attitude(100.0, 0.0, 0.0, 0.0)
+    ctx.event("x", "before")
+    ctx.link_lost = True
+    ctx.event("link", "lost")
+    before, lost = ctx.st.events
+    assert before["t_vehicle_s"] == 100.0 and "last_telemetry_vehicle_s" not in before
+    assert lost["t_vehicle_s"] is None and lost["last_telemetry_vehicle_s"] == 100.0
+    assert ctx.vehicle_state() == "unknown"
+    ctx.link_lost, ctx.left_flying = False, True
+    ctx.link_dead.set()
+    assert ctx.vehicle_state() == "in flight"
+    ctx.landed_disarmed.set()
+    assert ctx.vehicle_state() == "landed"

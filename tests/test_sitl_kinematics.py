@@ -18,6 +18,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
 from mission.flight.runner import auto_rate_hz, free_udp_port, spawn_vehicle, wall_clock_notice  # noqa: E402
+from mission.flight.vehicle_process import stop_vehicle  # noqa: E402
 
 mav = mavutil.mavlink
 
@@ -90,8 +91,7 @@ def _fly_vehicle(spec, speedup: float) -> float:
         return t_down - t_up
     finally:
         gcs.close()
-        proc.terminate()
-        proc.wait(5)
+        stop_vehicle(proc)  # it ignores the terminal's signals: the flight stops it so
 
 
 @pytest.mark.parametrize("kin", [NON_DEFAULT, None], ids=["non-default", "default"])

@@ -1,13 +1,14 @@
 """Fly a mission on a MAVLink autopilot (or the built-in simulated vehicle), log RSS with attitude, localize.
 
 ``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize] [--adaptive]``.  Every
-flight shows and records a live estimate (``mission.adaptive``); ``--adaptive`` (or the mission's
+flight shows and records a live estimate (``mission.flight.estimates``); ``--adaptive`` (or the mission's
 ``adaptive: {enabled: true}``) flies the survey part, then rounds planned from it.  Without
 ``--connect`` (and no ``vehicle.connection`` in the mission file) the simulated vehicle of ``sitl/`` is
 started on a free local UDP port (it dies with ``fly-mission``).  Options are checked before anything
 starts.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves the fence, a bad
 ``--connect``/``--rss-source``/``--out``: nothing is started or uploaded), 3 link lost / no autopilot within
-``--link-timeout``, 130 aborted by Ctrl-C or SIGTERM (after the return to launch once airborne).
+``--link-timeout``, 4 the log is incomplete (a write failed: disk full; the sidecar says how many rows it
+holds), 130 aborted by Ctrl-C, SIGTERM or SIGHUP (after the return to launch once airborne).
 """
 
 from __future__ import annotations
@@ -74,14 +75,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
 
 
-def run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace) -> int:
     import os
 
     from mission.adaptive.config import AdaptiveSpec
     from mission.adaptive.feasibility import assert_adaptive
-    from mission.adaptive.runner import fly_live
     from mission.errors import InputError
-    from mission.flight.runner import FlightError, FlyOptions
+    from mission.flight.context import FlightError
+    from mission.flight.runner import FlyOptions, fly
     from mission.spec import load_mission
 
     if args.speedup is not None and args.speedup <= 0:
@@ -91,8 +92,12 @@ def run(args: argparse.Namespace) -> int:
     spec = load_mission(args.mission)
     adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
     adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
+    extension = None
     if adaptive is not None:
+        from mission.adaptive.rounds import AdaptiveRounds
+
         assert_adaptive(spec, adaptive)  # before anything starts: one line, exit 2
+        extension = AdaptiveRounds(spec, adaptive)
     opts = FlyOptions(
         connect=args.connect,
         speedup=args.speedup,
@@ -107,10 +112,21 @@ def run(args: argparse.Namespace) -> int:
     if os.name == "nt":  # pragma: no cover - signal handlers need a Unix loop
         raise FlightError("fly-mission needs a Unix-like OS (signal handling)")
     try:
-        return fly_live(spec, opts, adaptive)
+        return fly(spec, opts, extension)
     except FlightError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.code
+
+
+def run(args: argparse.Namespace) -> int:
+    """The command; a Ctrl-C at any moment ends it with 130 (``run_guarded``), never by a second signal."""
+    from mission.flight.vehicle_process import ignore_terminal_signals
+
+    try:
+        return _run(args)
+    except KeyboardInterrupt:
+        ignore_terminal_signals()
+        raise
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -102,8 +102,8 @@ def run(args: argparse.Namespace) -> int:
         image_out(args.plot, "--plot")
     log = read_flight_log(args.log, origin=origin)
     print_notes(log.notes)
-    if args.at is not None:  # what the flight knew at T (mission.adaptive.live)
-        from mission.adaptive.live import log_at, recorded_method
+    if args.at is not None:  # what the flight knew at T (mission.flight.live)
+        from mission.flight.live import log_at, recorded_method
 
         log, method = log_at(log, args.at, str(args.log)), method or recorded_method(log.meta)
     with warnings.catch_warnings(record=True) as caught:  # numpy's warnings on a too-short log: the error says it

@@ -201,7 +201,8 @@ def start_budget(runner, return_speed_mps: float | None, vertical: VerticalSpeed
 
 def close_budget(runner, watch: BudgetWatch) -> dict:
     """The sidecar record, and one line: used vs budget (a warning when over)."""
-    used = used_seconds(runner.st.events, runner.status.t_start, runner.tel.clock.now())
+    now = runner.tel.clock.now() if runner.landed_disarmed.is_set() else float("nan")  # no disarm seen: no
+    used = used_seconds(runner.st.events, runner.status.t_start, now)  # extrapolated time (a lost link)
     rec = watch.record(used)
     if used is not None:
         text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget (plan {rec['planned_s']:.0f} s)"

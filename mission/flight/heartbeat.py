@@ -24,26 +24,25 @@ def heartbeat_hz(speedup: float) -> float:
     return max(1.0, float(speedup))
 
 
-async def gcs_heartbeats(runner, direct, speedup: float) -> None:
+async def gcs_heartbeats(ctx, direct, speedup: float) -> None:
     """Task: HEARTBEAT to the vehicle at ``heartbeat_hz(speedup)``; a failure is reported once."""
     from mavsdk.plugins.mavlink_direct import MavlinkMessage
 
     msg = MavlinkMessage("HEARTBEAT", GCS_SYSID, GCS_COMPID, 0, 0, _HEARTBEAT)
     period, failed = 1.0 / heartbeat_hz(speedup), False
-    runner.heartbeats_sent = 0
     while True:
         try:
             await direct.send_message(msg)
-            runner.heartbeats_sent += 1
+            ctx.heartbeats_sent += 1
         except Exception as e:
             if not failed:
                 failed = True
-                runner.event("heartbeat", f"GCS heartbeat not sent ({e}): autopilot texts may be lost",
+                ctx.event("heartbeat", f"GCS heartbeat not sent ({e}): autopilot texts may be lost",
                              warn=True)
         await asyncio.sleep(period)
 
 
-async def settle_texts(runner, speedup: float, quiet_s: float = 0.3, most_s: float = 3.0) -> None:
+async def settle_texts(ctx, speedup: float, quiet_s: float = 0.3, most_s: float = 3.0) -> None:
     """Wait (wall clock) until no autopilot text arrived for ``quiet_s`` and at least 2 vehicle seconds have
     passed, at most ``most_s``: the texts sent around the disarm ("Disarmed by landing") are then logged
     before "landed and disarmed", not after it."""
@@ -51,6 +50,6 @@ async def settle_texts(runner, speedup: float, quiet_s: float = 0.3, most_s: flo
     least = min(2.0 / max(speedup, 1e-9), most_s)
     while time.monotonic() - t0 < most_s:
         now = time.monotonic()
-        if now - t0 >= least and now - getattr(runner, "last_text_wall", -1e9) >= quiet_s:
+        if now - t0 >= least and now - ctx.last_text_wall >= quiet_s:
             return
         await asyncio.sleep(0.05)

@@ -43,9 +43,26 @@ class RowLogger:
         self.origin, self.status = origin, status
         self.t_ref: float | None = None
         self._last_flush = 0.0
+        self.on_error = None  # called once with the OSError of a failed write (the flight decides what next)
 
     def write(self, final: bool = False) -> None:
-        """Append every sample the telemetry covers (``final``: receivers' samples up to now as well)."""
+        """Append every sample the telemetry covers (``final``: receivers' samples up to now as well); a failed
+        write (disk full) goes to ``on_error`` once, never up into the caller."""
+        self._guard(self._write, final)
+
+    def flush(self) -> None:
+        """Rows written so far onto the disk (a failure as in ``write``)."""
+        self._guard(self.writer.flush)
+
+    def _guard(self, fn, *args) -> None:
+        try:
+            fn(*args)
+        except OSError as e:
+            if self.on_error is None:
+                raise
+            self.on_error(e)
+
+    def _write(self, final: bool) -> None:
         if not self.tel.n_pos or not self.tel.n_att:
             return
         t_until = self.tel.covered_until

@@ -94,3 +94,12 @@ class PhaseTracker:
 
 
 __all__ = ["PhaseTracker", "final_phase", "GROUND", "TAKEOFF", "MISSION", "ADAPTIVE", "RETURN", "LAND"]
+
+
+class MonotonicPhases(PhaseTracker):
+    """The tracker a flight uses: mission progress never goes back in flight (a re-upload briefly reports item 0
+    before the current item is set again, which must not relabel rows as take-off)."""
+
+    def on_progress(self, t: float, raw_item: int) -> None:
+        if self.landed_state == "ON_GROUND" or raw_item >= self.raw_item or self.returning:
+            super().on_progress(t, raw_item)

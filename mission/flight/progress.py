@@ -36,7 +36,8 @@ class FlightStatus:
     rel_alt: float = 0.0
     stage: str = "connecting"  # the runner's set-up step before arming, then the mission phase
     link_lost: bool = False
-    estimate: str = ""  # the live estimate (mission.adaptive.live.describe), empty until there is one
+    log_error: str = ""  # a failed log write ("disk full"), shown until the end
+    estimate: str = ""  # the live estimate (mission.flight.live.describe), empty until there is one
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -62,6 +63,8 @@ def render(s: FlightStatus) -> Table:
     t.add_column()
     stage = Text.assemble(("LINK LOST", "red"), f" (last: {s.stage})") if s.link_lost else Text(s.stage)
     t.add_row("stage", stage)
+    if s.log_error:
+        t.add_row("log", Text(f"WRITE FAILED: {s.log_error}", "red"))
     t.add_row("waypoint", Text(f"{s.waypoint} of {s.n_waypoints} (raw item {s.item}/{s.items})"))
     over = s.budget_s and s.elapsed > s.budget_s
     el = Text(f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget")
@@ -89,6 +92,7 @@ def plain_line(s: FlightStatus) -> str:
     """The status as plain text for a log or a pipe: one line, or two when it would pass 80 columns."""
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
     stage = f"LINK LOST, last {s.stage}" if s.link_lost else s.stage
+    stage = f"LOG FAILED, {stage}" if s.log_error else stage
     over = " OVER" if s.budget_s and s.elapsed > s.budget_s else ""
     if s.predicted_s is not None and np.isfinite(s.predicted_s) and not over:
         over = f" (land~{s.predicted_s:.0f}s)"

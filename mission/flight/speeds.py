@@ -5,7 +5,7 @@ item (``MAV_CMD_DO_CHANGE_SPEED``) covers the legs; the return to launch (comman
 on a failure) is flown at the autopilot's own speed: ArduPilot's ``RTL_SPEED`` (cm/s; with
 ``WP_YAW_BEHAVIOR`` = 1 for a nose-first return, see ``mission.flight.ardupilot``), PX4's ``MPC_XY_CRUISE``
 (m/s, 4.8 on a v1.16 SITL quad, where the spiral's return took a tenth longer than planned).  The
-runner sets them before the upload and restores the operator's values after landing.  If they cannot be
+flight sets them before the upload and restores the operator's values after landing.  If they cannot be
 set, the plan is redone with the speed the autopilot will fly and a warning says whether it still fits.
 """
 
@@ -39,19 +39,19 @@ async def _return_speed_now(param, ardupilot: bool) -> float | None:
         return None
 
 
-async def apply_speeds(runner, param, ardupilot: bool) -> float | None:
-    """Set the speed parameters (previous values into ``runner.restore_params``); returns the return speed
+async def apply_speeds(ctx, param, ardupilot: bool) -> float | None:
+    """Set the speed parameters (previous values into ``ctx.restore_params``); returns the return speed
     the autopilot will fly (m/s): the mission's when set, else its own (None when it cannot be read)."""
-    cruise = runner.spec.cruise_speed_mps
+    cruise = ctx.spec.cruise_speed_mps
     values = speed_params(ardupilot, cruise)
     try:
-        await set_params(param, values, runner.restore_params)
+        await set_params(param, values, ctx.restore_params)
     except Exception as e:
-        runner.event("params", f"could not set {', '.join(values)} ({e or type(e).__name__}): return at the "
+        ctx.event("params", f"could not set {', '.join(values)} ({e or type(e).__name__}): return at the "
                      "autopilot's own speed" + (", maybe tail first" if ardupilot else ""), warn=True)
         return await _return_speed_now(param, ardupilot)
     what = "return nose first at the mission's speed" if ardupilot else "cruise and return at the mission's speed"
-    runner.event("params", f"{what}: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
+    ctx.event("params", f"{what}: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
     return cruise
 
 
@@ -63,7 +63,7 @@ async def _get(param, name: str) -> float:
         return float(await asyncio.wait_for(param.get_param_int(name), 5.0))
 
 
-async def vertical_speeds(runner, param, ardupilot: bool) -> VerticalSpeeds | None:
+async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
     """The autopilot's take-off and landing speeds, read (not changed: landing speeds are the operator's safety
     settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0: ``WPNAV_SPEED_DN``), ``LAND_SPEED`` below
     ``LAND_ALT_LOW`` (cm/s, cm), the hover ``RTL_LOIT_TIME`` (ms); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``,
@@ -80,18 +80,18 @@ async def vertical_speeds(runner, param, ardupilot: bool) -> VerticalSpeeds | No
                 "MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2", "RTL_LAND_DELAY")]
             v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0))  # -1: hovers until told: not planned
     except Exception as e:
-        runner.event("budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used")
+        ctx.event("budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used")
         return None
     return v if v.valid() else None
 
 
-async def restore_speeds(runner, param) -> None:
+async def restore_speeds(ctx, param) -> None:
     """Put back the parameters ``apply_speeds`` changed (not over a dead link)."""
-    restore = runner.restore_params
-    if not restore or runner.link_dead.is_set():
+    restore = ctx.restore_params
+    if not restore or ctx.link_dead.is_set():
         return
     try:
         await set_params(param, restore)
-        runner.event("params", "restored " + ", ".join(f"{k}={v:g}" for k, v in restore.items()))
+        ctx.event("params", "restored " + ", ".join(f"{k}={v:g}" for k, v in restore.items()))
     except Exception as e:
-        runner.event("params", f"could not restore {restore} ({e})", warn=True)
+        ctx.event("params", f"could not restore {restore} ({e})", warn=True)

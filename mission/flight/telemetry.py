@@ -94,6 +94,10 @@ class VehicleClock:
         w, v = self._hist[-1]
         return v + (time.monotonic() - w) * self.rate
 
+    def last_measured(self) -> float:
+        """The vehicle time of the last telemetry (s), measured, never extrapolated; NaN before any."""
+        return self._hist[-1][1] if self._hist else float("nan")
+
     def silent_for(self) -> float:
         """Wall-clock seconds since the last telemetry (inf before any)."""
         return time.monotonic() - self.last_wall

@@ -6,6 +6,7 @@ it will be read back, so what a simulated source used is what the log holds).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -60,8 +61,10 @@ def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
 class FlightLogWriter:
     """Appends rows to a flight log and flushes them to disk, so a crash loses at most the unflushed rows.
 
-    The sidecar is written when the writer opens (so a log is never without its metadata) and rewritten
-    by ``close`` (with ``meta_updates`` such as the end status).
+    The sidecar is written when the writer opens (so a log is never without its metadata), updated in flight
+    (``update_meta``) and rewritten by ``close`` (with ``meta_updates`` such as the end status).  A failed write
+    (a full disk, a file-size limit: ``OSError``) is raised once and leaves the CSV cut back to the rows last
+    flushed whole (``rows``, ``error``); later appends are dropped, so the sidecar's ``rows`` matches the file.
     """
 
     def __init__(self, path: str | Path, meta: dict, extra_columns: tuple[str, ...] = ()) -> None:
@@ -72,7 +75,10 @@ class FlightLogWriter:
         self.header = COLUMNS + tuple(extra_columns)
         self.meta = dict(meta)
         self.rows = 0
+        self.error: OSError | None = None
+        self._closed = False
         self._f = open(self.path, "w", newline="")
+        self._good = (0, 0)  # (bytes, rows) on disk at the last whole flush
         self._f.write(",".join(self.header) + "\n")
         self._write_sidecar()
         self.flush()
@@ -82,21 +88,56 @@ class FlightLogWriter:
         tmp.write_text(json.dumps(self.meta, indent=2, default=float))
         os.replace(tmp, sidecar_path(self.path))
 
+    def update_meta(self, **updates) -> None:
+        """Update the sidecar now (an in-flight record such as the live estimates, the status), written whole
+        (temporary name, then rename), so a crash or an abort keeps what was recorded so far."""
+        self.meta.update(updates)
+        self._write_sidecar()
+
     def append(self, columns: dict[str, np.ndarray]) -> None:
         """Append rows given as column arrays (missing optional columns are written empty)."""
+        if self.error is not None:
+            return  # the log failed: nothing more is written to it
         text = format_rows(columns, self.header)
-        self._f.write(text)
+        try:
+            self._f.write(text)
+        except OSError as e:
+            self._fail(e)
+            raise
         self.rows += len(columns["t_s"])
 
     def flush(self) -> None:
-        self._f.flush()
-        os.fsync(self._f.fileno())
+        if self.error is not None:
+            return
+        try:
+            self._f.flush()
+            os.fsync(self._f.fileno())
+        except OSError as e:
+            self._fail(e)
+            raise
+        self._good = (self._f.tell(), self.rows)
+
+    def _fail(self, e: OSError) -> None:
+        """Stop writing rows: the file cut back to its last whole flush (no partial line), ``rows`` to match."""
+        self.error = e
+        size, self.rows = self._good
+        with contextlib.suppress(OSError, ValueError):
+            self._f.close()  # its buffer cannot be written either; the descriptor is closed regardless
+        with contextlib.suppress(OSError):
+            os.truncate(self.path, size)
 
     def close(self, **meta_updates) -> None:
-        if self._f.closed:
+        """Flush and close the CSV, then write the sidecar with ``meta_updates`` and the row count."""
+        if self._closed:
             return
-        self.flush()
-        self._f.close()
+        self._closed = True
+        if self.error is None:
+            try:
+                self.flush()
+            except OSError:
+                pass  # recorded in ``error``; the sidecar below says how many rows the file holds
+            with contextlib.suppress(OSError, ValueError):
+                self._f.close()
         self.meta.update(meta_updates)
         self.meta["rows"] = self.rows
         self._write_sidecar()

@@ -87,14 +87,16 @@ def estimate_file_at(path: str, t_s: float) -> dict | None:
 def lower_priority(parent_pid: int | None = None) -> None:
     """Worker initializer: the estimate yields the CPU to the flight (telemetry, log writer, a local SITL).
 
-    The worker also dies with ``fly-mission``: a ``kill -9`` of the runner must not leave it holding the
-    runner's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not available)."""
+    The worker also dies with ``fly-mission``: a ``kill -9`` of the flight must not leave it holding the
+    flight's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not available); it
+    ignores the terminal's signals (a Ctrl-C reaches the whole process group): the flight stops it."""
     import os
     import threading
     import time
 
-    from mission.flight.vehicle_process import die_with_parent
+    from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
 
+    ignore_terminal_signals()
     with contextlib.suppress(OSError):
         os.nice(5)
     die_with_parent()
