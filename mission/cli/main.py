@@ -123,10 +123,11 @@ def image_out(path: str | Path, flag: str = "--out") -> Path:
 
 
 def out_parent_ok(path: Path, flag: str = "--out", folder: bool = False) -> Path:
-    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is a file."""
-    for parent in (path, *path.parents) if folder else path.parents:
-        if parent.exists() and not parent.is_dir():
-            raise InputError(f"{parent} is a file, not a folder", source=str(path), field=flag)
+    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is a file
+    or the folder it would be written in cannot be written (``mission.files.check_writable_dir``)."""
+    from mission.files import check_writable_dir
+
+    check_writable_dir(path if folder else path.parent, flag)
     return path
 
 

@@ -195,12 +195,10 @@ def import_afar_mat(
     if Path(out_dir).exists() and not Path(out_dir).is_dir():
         raise InputError("is a file, not an output folder", source=str(out_dir), field="--out")
     out = Path(out_dir) / (Path(path).stem + ".csv")
-    if out.exists():
-        if not overwrite:
-            raise InputError("output exists (use --overwrite)", source=str(out))
-        out.unlink()
-        out.with_suffix(".json").unlink(missing_ok=True)
-    write_flight_log(out, res.log.columns, res.log.meta)
+    for p in (out, out.with_suffix(".json")):
+        if p.exists() and not overwrite:
+            raise InputError("output exists (use --overwrite)", source=str(p))
+    write_flight_log(out, res.log.columns, res.log.meta, overwrite=overwrite)
     res.out_path = out
     res.log.path = out
     return res
