@@ -19,7 +19,7 @@ from pathlib import Path
 
 from mission.errors import InputError
 
-MAX_TEXT_BYTES = 200 * 2**20  # a flight log of a few hours at 50 Hz is ~100 MB; more is not an input we read
+MAX_TEXT_BYTES = 200_000_000  # a flight log of a few hours at 50 Hz is ~100 MB; more is not an input we read
 
 
 def _why(e: OSError) -> str:
@@ -43,7 +43,7 @@ def check_regular(path: str | Path, what: str = "file", field: str | None = None
     if not stat.S_ISREG(st.st_mode):
         raise InputError(f"is not a regular file (a pipe or a device?); give a {what}", source=str(p), field=field)
     if max_bytes is not None and st.st_size > max_bytes:
-        raise InputError(f"is {st.st_size / 2**20:.1f} MB; a {what} may be at most {max_bytes / 2**20:g} MB",
+        raise InputError(f"is {st.st_size / 1e6:.1f} MB; a {what} may be at most {max_bytes / 1e6:g} MB",
                          source=str(p), field=field)
     return p
 

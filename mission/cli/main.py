@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import re
 import sys
 from collections.abc import Callable, Sequence
@@ -105,6 +106,21 @@ def print_notes(notes: Sequence[str]) -> None:
     'note: ...', or the note as it is when it already says 'warning: ...' (``mission.flightlog.WARNING``)."""
     for n in notes:
         print(n if n.startswith("warning: ") else f"note: {n}", file=sys.stderr)
+
+
+def check_number(value: float, flag: str, lo: float | None = None, hi: float | None = None,
+                 strict_lo: bool = False) -> float:
+    """A numeric option checked at the boundary: finite and within its bounds, else one line naming the
+    option and the bound (``--speedup 1e9`` or ``nan`` ran until killed; the bound is what keeps the work
+    finite)."""
+    v = float(value)
+    if not math.isfinite(v):
+        raise InputError(f"expected a finite number, got {value}", field=flag)
+    if lo is not None and (v <= lo if strict_lo else v < lo):
+        raise InputError(f"must be {'>' if strict_lo else '>='} {lo:g}, got {v:g}", field=flag)
+    if hi is not None and v > hi:
+        raise InputError(f"must be <= {hi:g}, got {v:g}", field=flag)
+    return v
 
 
 def image_out(path: str | Path, flag: str = "--out") -> Path:
