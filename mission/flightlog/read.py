@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.flightlog.schema import COLUMNS, OPTIONAL, REQUIRED, WARNING, FlightLog, sidecar_path
+from mission.flightlog.schema import COLUMNS, OPTIONAL, REQUIRED, RSS_RANGE_DB, WARNING, FlightLog, sidecar_path
 from mission.geo import Origin, latlon_unit_problem
 
 
@@ -201,7 +201,7 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
 
 
 # Magnitudes no real value reaches: a larger one is a unit or logging error, not data (1e300 dBm gave NaN).
-_ABS_LIMITS = {"rss_dbm": 400.0, "alt_m": 20000.0, "rel_alt_m": 20000.0}
+_ABS_LIMITS = {"alt_m": 20000.0, "rel_alt_m": 20000.0}
 
 
 def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list[str] | None = None,
@@ -219,11 +219,16 @@ def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list
         if badv.size:
             raise InputError(f"{arr[badv[0]]} is outside +-{lim} degrees (wrong units?)", source=src,
                              row=int(badv[0]) + 2, field=name)
-    for name, lim in (("roll_deg", 180.0), ("pitch_deg", 180.0), ("yaw_deg", 360.0)):
+    for name, lim in (("roll_deg", 180.0), ("pitch_deg", 180.0), ("yaw_deg", 3600.0)):
         badv = np.flatnonzero(np.abs(np.nan_to_num(columns[name])) > lim)
         if badv.size:
             raise InputError(f"{columns[name][badv[0]]:g} is outside +-{lim:g} degrees (radians given?)", source=src,
                              row=int(badv[0]) + 2, field=name)
+    lo, hi = RSS_RANGE_DB
+    badv = np.flatnonzero(~((columns["rss_dbm"] >= lo) & (columns["rss_dbm"] <= hi)) & ~np.isnan(columns["rss_dbm"]))
+    if badv.size:
+        raise InputError(f"{columns['rss_dbm'][badv[0]]:g} dB is not a plausible receiver reading "
+                         f"(expected {lo:g}..{hi:g})", source=src, row=int(badv[0]) + 2, field="rss_dbm")
     for name, lim in _ABS_LIMITS.items():
         badv = np.flatnonzero(np.abs(columns[name]) > lim)
         if badv.size:
