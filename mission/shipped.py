@@ -34,3 +34,18 @@ def shipped_model(name: str) -> Path | None:
     """``models/<name>`` if it exists: the source checkout's, or the installed package's copy."""
     p = models_dir() / name
     return p if p.is_file() else None
+
+
+def resolve_shipped(path: str | Path, kind: str, suffix: str) -> Path:
+    """``path`` when it exists; else the shipped file it names (``spiral``, ``spiral.yaml`` or
+    ``missions/spiral.yaml``; ``rfsl_default.onnx`` or ``models/rfsl_default.onnx``), so the README's commands
+    work from any folder after a plain ``pip install``; else ``path`` unchanged (the caller says it is missing)."""
+    p = Path(path)
+    if p.exists():
+        return p
+    parts = p.parts
+    if len(parts) == 1 or (len(parts) == 2 and parts[0] == kind):
+        shipped = shipped_dir(kind) / (p.name if p.suffix else p.name + suffix)
+        if shipped.is_file():
+            return shipped
+    return p

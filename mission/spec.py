@@ -368,15 +368,11 @@ def load_mission(path: str | Path | None = None) -> MissionSpec:
 
 def resolve_mission_path(path: str | Path | None) -> Path:
     """The mission file ``path`` names: the path itself when it exists, else the shipped mission of that name
-    (``spiral``, ``spiral.yaml`` or ``missions/spiral.yaml``, so the README's commands work from any folder
-    after a plain ``pip install``); an InputError when neither exists."""
-    p = Path(path) if path is not None else DEFAULT_MISSION
+    (``mission.shipped.resolve_shipped``); an InputError when neither exists."""
+    from mission.shipped import resolve_shipped
+
+    p = resolve_shipped(path, "missions", ".yaml") if path is not None else DEFAULT_MISSION
     if p.exists():
         return p
-    parts = p.parts
-    if len(parts) == 1 or (len(parts) == 2 and parts[0] == "missions"):
-        shipped = missions_dir() / (p.name if p.suffix in (".yaml", ".yml") else p.name + ".yaml")
-        if shipped.is_file():
-            return shipped
     names = ", ".join(sorted(q.stem for q in missions_dir().glob("*.yaml")))
     raise InputError(f"mission file not found (shipped missions: {names})", source=str(p))

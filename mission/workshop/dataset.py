@@ -210,8 +210,10 @@ def read_manifest(path: str | Path) -> dict:
         if isinstance(e, InputError):
             raise
         raise InputError(f"manifest is not valid JSON ({str(e).splitlines()[0][:80]})", source=str(mf)) from None
-    if not isinstance(m, dict) or not isinstance(m.get("chunks"), list):
-        raise InputError("manifest is not a dataset manifest (no chunk list)", source=str(mf))
+    if not isinstance(m, dict) or not isinstance(m.get("chunks"), list) or not all(
+            isinstance(m.get(k), dict) for k in ("config", "feature_config", "field_origin")):
+        raise InputError("not a dataset manifest (it needs a chunk list and the objects config, feature_config "
+                         "and field_origin)", source=str(mf))
     if m.get("format") != FORMAT:
         raise InputError(f"unknown dataset format {m.get('format')!r} (expected {FORMAT})", source=str(mf))
     return m
