@@ -45,3 +45,16 @@ def test_commands_name_real_subcommands_and_files(readme, repo_dir):
             assert sub in SUBCOMMANDS, ln
         for path in re.findall(r"\b(missions/\w+\.yaml)", ln):
             assert (repo_dir / path).is_file(), ln
+
+
+def test_exit_code_table_matches_the_code(readme):
+    """The README's exit-code table names the codes the commands return (bad input, dead link, interrupted)."""
+    from mission.errors import InputError
+    from mission.flight.tasks import EXIT_ABORTED, EXIT_FAILED, EXIT_LINK, EXIT_OK
+
+    (row,) = [ln for ln in readme.splitlines() if ln.startswith("| exit |")]
+    codes = [int(c) for c in row.strip("| ").split("|")[1:]]
+    assert codes == sorted({EXIT_OK, EXIT_FAILED, InputError.exit_code, EXIT_LINK, EXIT_ABORTED})
+    means = next(ln for ln in readme.splitlines() if ln.startswith("| means |")).split("|")[2:-1]
+    assert "bad input" in means[codes.index(InputError.exit_code)] and "dead link" in means[codes.index(EXIT_LINK)]
+    assert "interrupted" in means[codes.index(EXIT_ABORTED)]
