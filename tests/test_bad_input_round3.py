@@ -42,6 +42,7 @@ MISSIONS = {
     "nul": 'name: "a\\0b"\n', "long": f"name: {'n' * 300}\n", "dots": "name: ..\n",
     "conn": "vehicle:\n  connection: garbage\n", "conn256": "vehicle:\n  connection: udpin://256.1.1.1:14540\n",
     "deep": "a: " + "[" * 5000 + "]" * 5000 + "\n",
+    "ctrl": 'trajectory:\n  "a\\x1db\\nc": 1\n',  # a key that holds line breaks: still one error line
 }
 
 
@@ -153,6 +154,7 @@ REFUSED = [
     ("rfsl simulate {comments} --out {tmp}", ["comments.yaml", "empty mission file"]),
     ("rfsl simulate {dup} --out {tmp}", ["dup.yaml", "duplicated key 'altitude_m'", "line 2"]),
     ("rfsl simulate {deep} --out {tmp}", ["deep.yaml"]),
+    ("rfsl simulate {ctrl} --out {tmp}", ["ctrl.yaml", "'trajectory.a\\x1db\\nc'", "unknown key"]),
     ("rfsl simulate {nonutf} --out {tmp}", ["nonutf.yaml", "UTF-8"]),
     ("rfsl simulate {binary} --out {tmp}", ["binary.yaml"]),
     ("rfsl simulate {seedneg} --out {tmp}", ["seedneg.yaml", "'source.seed'", ">= 0"]),
@@ -195,6 +197,8 @@ REFUSED = [
     ("fly-mission {mission} --link-timeout nan", ["--link-timeout"]),
     ("fly-mission {mission} --land-timeout -5", ["--land-timeout"]),
     ("fly-mission {mission} --land-timeout 1e300", ["--land-timeout"]),
+    ("fly-mission {mission} --link-timeout=--", ["--link-timeout", "one value"]),
+    ("rfsl dataset {mission} --n=-- --out {tmp}/ds", ["--n", "one value"]),
     # --connect: a malformed address is bad input at once (an unreachable one is a dead link, exit 3)
     ("fly-mission {mission} --connect udpin://256.1.1.1:14540", ["--connect", "256.1.1.1", "IP address"]),
     ("fly-mission {mission} --connect tcpout://bad_host!:5760", ["--connect", "host name"]),
@@ -284,3 +288,9 @@ def test_shipped_missions_and_models_resolve_from_any_folder(tmp_path, monkeypat
     (tmp_path / "spiral.yaml").write_text("name: mine\n")
     assert load_mission("spiral.yaml").name == "mine"
     assert resolve_shipped("elsewhere/x.onnx", "models", ".onnx").as_posix() == "elsewhere/x.onnx"
+
+
+@pytest.mark.parametrize("value", ["a\x1db", "a\nb", "a\u2028b"])
+def test_an_option_value_with_a_line_break_stays_one_line(capsys, value):
+    rc, _, err = run_cli(rfsl_main, ["simulate", SPIRAL, "--model", value], capsys)
+    assert_refused(rc, err, "--model", repr(value)[2:-2])

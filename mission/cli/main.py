@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from mission import __version__
-from mission.errors import InputError
+from mission.errors import InputError, one_line
 
 # name -> (module, one-line purpose). The order is the order of `rfsl --help`.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -47,7 +47,7 @@ class OneLineParser(argparse.ArgumentParser):
     text is one ``--help`` away; a wall of usage hides which argument was wrong)."""
 
     def error(self, message: str):  # type: ignore[override]
-        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+        self.exit(2, one_line(f"error: {self.prog}: {message} (see {self.prog} --help)") + "\n")
 
 
 # A value that starts with a minus and a digit: a negative number or a list such as -100,200,1.5.
@@ -80,7 +80,22 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -
 
 def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
     """``parser.parse_args`` with negative option values accepted (``join_negative_values``)."""
-    return parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
+    args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
+    for p in _parsers(parser, args):  # argparse turns '--speedup=--' into [] past its own type check
+        for a in p._actions:
+            if a.option_strings and a.nargs is None and a.type is not None and isinstance(
+                    getattr(args, a.dest, None), list):
+                p.error(f"argument {'/'.join(a.option_strings)}: expected one value")
+    return args
+
+
+def _parsers(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list[argparse.ArgumentParser]:
+    """The parser and the subcommand parser that ``args`` came through."""
+    out = [parser]
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction) and getattr(args, a.dest, None) in a.choices:
+            out.append(a.choices[getattr(args, a.dest)])
+    return out
 
 
 def model_name_arg(value: str) -> str:
@@ -113,7 +128,10 @@ def check_number(value: float, flag: str, lo: float | None = None, hi: float | N
     """A numeric option checked at the boundary: finite and within its bounds, else one line naming the
     option and the bound (``--speedup 1e9`` or ``nan`` ran until killed; the bound is what keeps the work
     finite)."""
-    v = float(value)
+    try:
+        v = float(value)
+    except (TypeError, ValueError):  # argparse hands '--link-timeout=--' over as a list
+        raise InputError(f"expected a number, got {value!r}", field=flag) from None
     if not math.isfinite(v):
         raise InputError(f"expected a finite number, got {value}", field=flag)
     if lo is not None and (v <= lo if strict_lo else v < lo):
