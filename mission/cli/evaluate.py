@@ -71,7 +71,7 @@ def _table(rows, title: str):
 
     t = Table(title=title)
     for c in ("test", "method", "train data", "features", "n", "mean m", "median m", "p90 m"):
-        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left")
+        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left", overflow="fold")  # never cut
     for r in rows:
         s = r.summary()
         t.add_row(
@@ -235,7 +235,7 @@ def _run_suite(args: argparse.Namespace, console) -> int:
             bd = breakdown(rows, draws, axis)
             extra["breakdown"][axis] = bd
             bt = Table(title=escape(f"mean error (m) by {axis}"))
-            bt.add_column(axis)
+            bt.add_column(axis, overflow="fold")
             bt.add_column("n", justify="right")
             for r in rows:
                 bt.add_column(escape(r.method), justify="right", overflow="fold")

@@ -119,7 +119,6 @@ def _selftest(args) -> int:
     import time
 
     from rich.console import Console
-    from rich.table import Table
 
     from mission.errors import InputError
     from mission.gap.fit import FitConfig
@@ -148,14 +147,7 @@ def _selftest(args) -> int:
 
     results = run_selftest(cases, seeds, None, progress)
     rows, cols, M = confusion(results)
-    t = Table(title="Confusion: withheld (rows) vs ranked first and significant (columns)")
-    t.add_column("withheld")
-    for col in cols:
-        t.add_column(col.replace("_", "\n"), justify="right")
-    for i, r in enumerate(rows):
-        t.add_row(r, *[(f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
-                       for j, v in enumerate(M[i])])
-    c.print(t)
+    c.print(confusion_table(rows, cols, M))
     n_pass = sum(r.passed for r in results)
     c.print(f"{n_pass}/{len(results)} cases passed")
     if args.report:
@@ -171,6 +163,25 @@ def _selftest(args) -> int:
              "config": FitConfig().__dict__}, indent=1, default=str))
         c.print(f"wrote {out / 'selftest.json'}")
     return 0 if n_pass == len(results) else 1
+
+
+def confusion_table(rows: list[str], cols: list[str], M):
+    """The self-test's confusion as a rich Table that reads at 80 columns: the columns are numbered and the
+    rows carry the number of their effect, so no effect name is cut (14 named columns took 150)."""
+    from rich import box
+    from rich.table import Table
+
+    t = Table(title="Confusion: withheld (rows) vs ranked first and significant",
+              box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 0, 0, 1), pad_edge=False,
+              caption="columns: " + ", ".join(f"{j + 1} {c}" for j, c in enumerate(cols)), caption_justify="left")
+    t.add_column("withheld", no_wrap=True)
+    for j in range(len(cols)):
+        t.add_column(str(j + 1), justify="right", no_wrap=True, min_width=2)
+    for i, r in enumerate(rows):
+        num = f"{cols.index(r) + 1:>2} " if r in cols else "   "
+        t.add_row(num + r, *[(f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
+                             for j, v in enumerate(M[i])])
+    return t
 
 
 def _write_family(d, cfg, args, console) -> None:
