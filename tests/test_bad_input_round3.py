@@ -294,3 +294,29 @@ def test_shipped_missions_and_models_resolve_from_any_folder(tmp_path, monkeypat
 def test_an_option_value_with_a_line_break_stays_one_line(capsys, value):
     rc, _, err = run_cli(rfsl_main, ["simulate", SPIRAL, "--model", value], capsys)
     assert_refused(rc, err, "--model", repr(value)[2:-2])
+
+
+def test_shipped_digests_match_the_shipped_networks():
+    """models/sha256.json holds every shipped network's digest (``rfsl train --out models/X.onnx`` updates it)."""
+    from mission.shipped import file_sha256, models_dir, shipped_digests
+
+    nets = sorted(p.name for p in models_dir().glob("*.onnx"))
+    assert sorted(shipped_digests()) == nets
+    for name in nets:
+        assert file_sha256(models_dir() / name) == shipped_digests()[name], f"update models/sha256.json for {name}"
+
+
+@pytest.mark.parametrize("where", ["middle", "end"])
+def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys, where):
+    """Bytes flipped in the weights still load and answer (wrongly); under a shipped name it is refused."""
+    from mission.shipped import shipped_model
+
+    data = bytearray(shipped_model("rfsl_default.onnx").read_bytes())
+    at = len(data) // 2 if where == "middle" else len(data) - 200
+    data[at:at + 16] = bytes(b ^ 0xFF for b in data[at:at + 16])
+    (tmp_path / "rfsl_default.onnx").write_bytes(bytes(data))
+    rc, _, err = run_cli(localize_main, [files["log"], "--model", tmp_path / "rfsl_default.onnx"], capsys)
+    assert_refused(rc, err, "rfsl_default.onnx", "differs from the shipped")
+    (tmp_path / "mine.onnx").write_bytes(shipped_model("rfsl_default.onnx").read_bytes())  # a copy renamed: fine
+    rc, _, err = run_cli(localize_main, [files["log"], "--model", tmp_path / "mine.onnx", "--json"], capsys)
+    assert rc == 0, err
