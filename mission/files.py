@@ -122,7 +122,7 @@ def save_figure(fig, path: str | Path, field: str | None = None, **kw) -> Path:
     """``fig.savefig`` whole or not at all (the format from ``path``'s suffix, not the temporary name's)."""
     p = Path(path)
     with writing(p, field) as tmp:
-        fig.savefig(tmp, format=p.suffix.lstrip(".").lower() or None, **kw)
+        fig.savefig(tmp, format=p.suffix.lstrip(".").lower() or "png", **kw)
     return p
 
 

@@ -307,7 +307,9 @@ def write_report(rows: Sequence[Row], path: str | Path, extra: dict | None = Non
     rep = {"rows": [r.summary() for r in rows]}
     if extra:
         rep.update(extra)
-    Path(path).write_text(json.dumps(rep, indent=1))
+    from mission.files import write_text
+
+    write_text(path, json.dumps(rep, indent=1), "--out")
     return rep
 
 
