@@ -16,7 +16,7 @@ import shutil
 import numpy as np
 import pytest
 import scipy.io as sio
-from _bad_input import SPIRAL, assert_accepted, assert_refused, run_cli, write_log
+from _bad_input import SPIRAL, assert_accepted, assert_refused, mat_arrays, run_cli, write_log
 
 from mission.cli.fly import main as fly_main
 from mission.cli.localize import main as localize_main
@@ -77,12 +77,8 @@ def files(tmp_path_factory):
     (d / "report").mkdir()
     (d / "report" / "gap.json").write_text("{}")
     os.mkfifo(d / "fifo")
-    n = 300
-    t = 1.7e9 + np.arange(n) * 0.1
-    good = {"timestamp_power": t, "mX": np.full(n, -78.698), "mY": 35.728 + np.linspace(0, 1e-3, n),
-            "mZ": np.full(n, 30.0), "mRoll": np.zeros(n), "mPitch": np.zeros(n), "mYaw": np.zeros(n),
-            "mpower": np.full(n, -50.0)}
-    sio.savemat(d / "tneg.mat", {**good, "timestamp_power": -1e18 + np.arange(n) * 0.1})
+    good = mat_arrays(300)
+    sio.savemat(d / "tneg.mat", {**good, "timestamp_power": -1e18 + np.arange(300) * 0.1})
     for name, var, k, v in (("p300", "mpower", 5, 1e300), ("y300", "mYaw", 7, 1e300),
                             ("t300", "timestamp_power", 3, 1e300), ("dbm300", "mpower", 9, 300.0),
                             ("roll", "mRoll", 11, 200.0)):

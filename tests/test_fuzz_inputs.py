@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import scipy.io as sio
 import yaml
-from _bad_input import SPIRAL, write_log
+from _bad_input import SPIRAL, mat_arrays, write_log
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
@@ -121,13 +121,8 @@ def base(tmp_path_factory):
     d = tmp_path_factory.mktemp("fuzz")
     log = write_log(d / "log.csv")
     (d / "plain.txt").write_text("x\n")
-    n = 300
-    t = 1.7e9 + np.arange(n) * 0.1
-    mat = {"timestamp_power": t, "mX": np.full(n, -78.698), "mY": 35.728 + np.linspace(0, 1e-3, n),
-           "mZ": np.full(n, 30.0), "mRoll": np.zeros(n), "mPitch": np.zeros(n), "mYaw": np.zeros(n),
-           "mpower": np.full(n, -50.0)}
     return {"dir": d, "log": log, "meta": json.loads((d / "log.json").read_text()),
-            "mission": yaml.safe_load(Path(SPIRAL).read_text()), "mat": mat, "plain": d / "plain.txt"}
+            "mission": yaml.safe_load(Path(SPIRAL).read_text()), "mat": mat_arrays(300), "plain": d / "plain.txt"}
 
 
 SIDECAR_KEYS = ["rss_source", "rss_source.kind", "rss_source.model", "rss_source.seed", "rss_source.model_params",

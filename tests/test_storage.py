@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.io as sio
-from _bad_input import SPIRAL
+from _bad_input import SPIRAL, mat_arrays
 
 from mission import files
 from mission.errors import InputError
@@ -55,11 +55,7 @@ def no_partial_files(folder: Path) -> list[str]:
 @pytest.fixture(scope="module")
 def mat(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("mat")
-    n = 2000
-    t = 1.7e9 + np.arange(n) * 0.1
-    sio.savemat(d / "f.mat", {"timestamp_power": t, "mX": np.full(n, -78.698), "mY": 35.728 + np.linspace(0, 1e-3, n),
-                              "mZ": np.full(n, 30.0), "mRoll": np.zeros(n), "mPitch": np.zeros(n),
-                              "mYaw": np.zeros(n), "mpower": np.full(n, -50.0)})
+    sio.savemat(d / "f.mat", mat_arrays(2000))
     return d / "f.mat"
 
 
