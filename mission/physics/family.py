@@ -252,6 +252,8 @@ def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
                          field="family")
     from mission.files import read_text
 
+    if not p.exists():
+        raise InputError("cannot read physics family: no such file", source=s)
     try:
         d = json.loads(read_text(p, "physics family", max_bytes=50_000_000))
     except json.JSONDecodeError as e:

@@ -196,8 +196,8 @@ def _family_record(cfg: DatasetConfig) -> dict:
     return {"physics_family": {"label": family_label(fam), "sha256": family_sha256(fam), "record": fam.to_dict()}}
 
 
-def read_manifest(path: str | Path) -> dict:
-    """The manifest of a dataset folder (or of the manifest file itself)."""
+def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
+    """The manifest of a dataset folder (or of the manifest file itself); ``need``: keys the caller reads."""
     p = Path(path)
     mf = p / "manifest.json" if p.is_dir() else p
     if not mf.is_file():
@@ -210,10 +210,12 @@ def read_manifest(path: str | Path) -> dict:
         if isinstance(e, InputError):
             raise
         raise InputError(f"manifest is not valid JSON ({str(e).splitlines()[0][:80]})", source=str(mf)) from None
-    if not isinstance(m, dict) or not isinstance(m.get("chunks"), list) or not all(
-            isinstance(m.get(k), dict) for k in ("config", "feature_config", "field_origin")):
-        raise InputError("not a dataset manifest (it needs a chunk list and the objects config, feature_config "
-                         "and field_origin)", source=str(mf))
+    if not isinstance(m, dict):
+        raise InputError("not a dataset manifest (a JSON object)", source=str(mf))
+    for k in need:  # what the caller reads: a list of chunks, objects otherwise (a KeyError before)
+        if not isinstance(m.get(k), list if k == "chunks" else dict):
+            raise InputError(f"not a dataset manifest: no {'list' if k == 'chunks' else 'object'} {k!r}",
+                             source=str(mf), field=k)
     if m.get("format") != FORMAT:
         raise InputError(f"unknown dataset format {m.get('format')!r} (expected {FORMAT})", source=str(mf))
     return m
@@ -227,7 +229,7 @@ def load_dataset(
     ``verify`` checks every chunk's sha256 against the manifest.
     """
     root = Path(path)
-    m = read_manifest(root)
+    m = read_manifest(root, need=("chunks",))
     parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for i, c in enumerate(m["chunks"]):
         if not (isinstance(c, dict) and isinstance(c.get("file"), str) and Path(c["file"]).name == c["file"]):

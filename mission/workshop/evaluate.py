@@ -176,7 +176,7 @@ def evaluate_sim(
     from mission.localize.onnx_model import OnnxLocalizer
     from mission.workshop.dataset import FlightSimulator, dataset_config, dataset_heights, load_dataset, read_manifest
 
-    m = read_manifest(dataset)
+    m = read_manifest(dataset, need=("chunks", "config", "feature_config", "field_origin"))
     label = test_label(m)
     rows: list[Row] = []
     cache: dict[str, np.ndarray] = {}
