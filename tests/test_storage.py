@@ -86,7 +86,7 @@ def test_export_under_a_full_disk_keeps_the_old_file(tmp_path):
 
 @pytest.mark.slow
 def test_dataset_under_a_full_disk_fails_in_one_line(tmp_path):
-    r = run_limited(["dataset", SPIRAL, "--n", "3", "--out", tmp_path / "ds"], 32 * 1024, tmp_path)
+    r = run_limited(["dataset", SPIRAL, "--n", "1", "--out", tmp_path / "ds"], 8 * 1024, tmp_path)
     assert_one_line_failure(r, "chunk_00000.npz")
     assert not (tmp_path / "ds" / "manifest.json").exists()
     assert no_partial_files(tmp_path) == []
