@@ -316,3 +316,15 @@ def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys
     (tmp_path / "mine.onnx").write_bytes(shipped_model("rfsl_default.onnx").read_bytes())  # a copy renamed: fine
     rc, _, err = run_cli(localize_main, [files["log"], "--model", tmp_path / "mine.onnx", "--json"], capsys)
     assert rc == 0, err
+
+
+def test_a_reader_that_goes_away_is_no_traceback(files):
+    """``localize LOG --json | head -c 1``: the pipe closed before the estimate is written ends quietly."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "mission.cli.localize", str(files["log"]), "--method", "centroid",
+                          "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()  # before anything is written
+    _, err = p.communicate(timeout=120)
+    assert b"Traceback" not in err and p.returncode == 141, err

@@ -187,6 +187,11 @@ def run_guarded(fn: Callable[[], int | None]) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader went away (``localize LOG --json | head``): no traceback for that
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # Python's exit flush must not fail too
+        return 141  # 128 + SIGPIPE, as a shell reports it
 
 
 def standalone_main(prog: str, module, argv: Sequence[str] | None = None) -> int:
