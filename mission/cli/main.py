@@ -180,7 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
 def run_guarded(fn: Callable[[], int | None]) -> int:
     """Run a CLI body: bad input becomes one line on stderr and exit code 2, Ctrl-C exit code 130."""
     try:
-        return int(fn() or 0)
+        rc = int(fn() or 0)
+        sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's exit flush
+        return rc
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code
