@@ -10,3 +10,4 @@ DEFAULT_TX_HEIGHT_M = 1.5
 MAX_SPEEDUP = 1000.0     # the built-in vehicle's simulated seconds per wall-clock second (fly-mission, rfsl sitl)
 MAX_RATE_HZ = 1000.0     # position/attitude rate a flight may request
 MAX_DURATION_S = 86400.0  # one day: any timeout or duration a command accepts
+MAX_WORKERS = 256        # processes or threads a command may start (--workers 100000 would fork that many)

@@ -160,8 +160,10 @@ def run(args: argparse.Namespace) -> int:
                 f"unknown generator {t.strip()!r} (expected {', '.join(GENERATORS)})",
                 field="--trajectories",
             )
-    if args.workers < 1:
-        raise InputError("must be >= 1", field="--workers")
+    from mission.defaults import MAX_WORKERS
+
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
     if args.n > MAX_FLIGHTS:  # a billion flights ran until killed for memory
         raise InputError(f"must be <= {MAX_FLIGHTS:,} flights (split a larger set over seeds), got {args.n:,}",
                          field="--n")

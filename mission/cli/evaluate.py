@@ -92,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
+    from mission.defaults import MAX_WORKERS
     from mission.errors import InputError
     from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
     from mission.workshop.evaluate import (
@@ -104,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
     )
 
     console = Console()
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
     if args.family.lower().endswith(".json") or args.suite or args.suite_dir:
         return _run_suite(args, console)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]

@@ -56,9 +56,14 @@ def check_outputs(args) -> None:
     that can be written and holds no earlier report unless --overwrite, --family a new file."""
     from pathlib import Path
 
+    from mission.defaults import MAX_WORKERS
     from mission.errors import InputError
     from mission.files import check_out_file, check_writable_dir
 
+    if not args.rate_hz >= 0 or args.rate_hz == float("inf"):
+        raise InputError(f"must be a finite rate >= 0 (0: every sample), got {args.rate_hz}", field="--rate-hz")
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
     for name in ("max_rungs", "family_repeats"):
         if getattr(args, name) < 0:
             raise InputError(f"must be >= 0, got {getattr(args, name)}", field="--" + name.replace("_", "-"))
@@ -242,8 +247,6 @@ def run(args) -> int:
         raise InputError(str(e), field="base") from None
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
-    if not args.rate_hz >= 0 or args.workers < 1:
-        raise InputError("--rate-hz must be >= 0 and --workers >= 1", field="rate-hz")
     cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed, rate_hz=args.rate_hz,
                     workers=args.workers)
     err = Console(stderr=True)
