@@ -21,8 +21,18 @@ class InputError(ValueError):
         if field:
             where.append(f"field '{field}'")
         prefix = ", ".join(where)
-        super().__init__(f"{prefix}: {message}" if prefix else message)
+        super().__init__(one_line(f"{prefix}: {message}" if prefix else message))
         self.source, self.row, self.field = source, row, field
+
+
+# Characters that end a line for ``str.splitlines`` (a terminal or a log reader): a user's key or value holding
+# one (a YAML key with \x1d) must not split the one error line in two.
+_LINE_BREAKS = {c: repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"}
+
+
+def one_line(text: str) -> str:
+    """``text`` with every line-breaking character written as its escape (``\\n``, ``\\x1d``)."""
+    return "".join(_LINE_BREAKS.get(c, c) for c in text) if any(c in _LINE_BREAKS for c in text) else text
 
 
 def refuse_unknown_keys(d: dict, allowed, what: str) -> None:

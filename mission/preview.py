@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -236,7 +235,10 @@ def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Sum
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right", fontsize=9, framealpha=0.9)
     fig.tight_layout()
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
+    from mission.files import save_figure
+
+    try:
+        save_figure(fig, out, "--out", dpi=dpi)
+    finally:
+        plt.close(fig)
     return out

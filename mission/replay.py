@@ -69,8 +69,10 @@ def plot(log: FlightLog, png: Path) -> Path:
     ax.legend(loc="best")
     ax.set_title(f"{log.label}: path coloured by RSS")
     fig.tight_layout()
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=120)
-    plt.close(fig)
+    from mission.files import save_figure
+
+    try:
+        png = save_figure(fig, png, "--out", dpi=120)
+    finally:
+        plt.close(fig)
     return png

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.defaults import DEFAULT_TX_HEIGHT_M, MAX_DURATION_S, MAX_SPEEDUP
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
@@ -28,6 +28,10 @@ from mission.trajectory.kinematics import Kinematics
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")
 WRITE_ERROR_POLICIES = ("return", "continue")  # logging.on_write_error: what a failed log write does
+MAX_LOCAL_M = 1e6       # |ENU coordinate| of a position in a mission file (a waypoint at 1e300 overflowed)
+MAX_ALTITUDE_M = 1e4    # altitudes and heights in a mission file (1e308 overflowed)
+MAX_NAME_CHARS = 100    # a mission name becomes a folder and file name
+MAX_MISSION_BYTES = 1_000_000  # the shipped missions are ~2 kB; a 30 MB file ran for minutes
 # heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not command yaw,
 # so a mission may not ask for it (its vehicle would fly differently from the simulated one)
 _KIN_FIELDS = tuple(k for k in Kinematics.__dataclass_fields__ if k not in ("cruise_speed_mps", "heading_deg"))
@@ -168,12 +172,15 @@ def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
         lat, lon = pr.num("lat", 0.0, -90, 90), pr.num("lon", 0.0, -180, 180)
         if not (pr.has("lat") and pr.has("lon")):
             raise InputError("needs both 'lat' and 'lon'", source=r.src, field=key)
-        h = pr.num("height_m", 0.0) if pr.has("height_m") else math.nan
+        h = pr.num("height_m", 0.0, -MAX_LOCAL_M, MAX_LOCAL_M) if pr.has("height_m") else math.nan
         pr.done()
         e = origin.to_enu(lat, lon)
         return np.array([e[0], e[1], h])
     if isinstance(v, list | tuple) and len(v) in (2, 3) and all(
             isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v):
+        if any(abs(c) > MAX_LOCAL_M for c in v):
+            raise InputError(f"{v!r} is more than {MAX_LOCAL_M:g} m from the origin (ENU metres)",
+                             source=r.src, field=key)
         return np.array([float(v[0]), float(v[1]), float(v[2]) if len(v) == 3 else math.nan])
     raise InputError(f"expected [x, y], [x, y, z] (ENU metres) or {{lat: .., lon: ..}}, got {v!r}",
                      source=r.src, field=key)
@@ -244,21 +251,37 @@ def _field(r: _Reader) -> tuple[Field, tuple[float, float] | None]:
     return Field(origin, areas["flight_area"], areas["rover_area"], name=name, takeoff_home=home), home
 
 
+def mission_name(name: str, src: str) -> str:
+    """``name`` if it is safe as one folder or file name (flights go to ``<out>/<name>_<time>/``, simulated
+    logs to ``<out>/<name>_sim_...csv``), else an InputError: no path separator, no '.'/'..', no control
+    character or NUL, at most ``MAX_NAME_CHARS`` (``../../x`` wrote a flight two levels above --out)."""
+    bad = next((c for c in name if c in "/\\" or ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None or name.strip() in ("", ".", "..") or len(name) > MAX_NAME_CHARS:
+        why = (f"holds {bad!r}" if bad is not None else
+               f"is {len(name)} characters (at most {MAX_NAME_CHARS})" if len(name) > MAX_NAME_CHARS else
+               f"is {name!r}")
+        raise InputError(f"a mission name becomes a folder name: it {why}; use letters, digits, '-', '_' or '.'",
+                         source=src, field="name")
+    return name
+
+
 def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     """Validate a parsed YAML document (a mapping) into a ``MissionSpec``."""
     src = str(path) if path else "<mission>"
     r = _Reader(data, src)
-    name = r.str_("name", Path(path).stem if path else "mission")
+    name = mission_name(r.str_("name", Path(path).stem if path else "mission"), src)
     fld, takeoff = _field(r)
     d = partial(_default, MissionSpec)
-    altitude = r.num("altitude_m", d("altitude_m"), 0.0, strict_lo=True)
+    altitude = r.num("altitude_m", d("altitude_m"), 0.0, MAX_ALTITUDE_M, strict_lo=True)
     cruise = r.num("cruise_speed_mps", d("cruise_speed_mps"), 0.0, 30.0, strict_lo=True)
-    budget = r.num("time_budget_s", d("time_budget_s"), 0.0, strict_lo=True)
-    margin = r.num("fence_margin_m", d("fence_margin_m"), 0.0)
+    budget = r.num("time_budget_s", d("time_budget_s"), 0.0, MAX_DURATION_S, strict_lo=True)
+    margin = r.num("fence_margin_m", d("fence_margin_m"), 0.0, MAX_LOCAL_M)
     lim = r.raw("altitude_limits_m", list(d("altitude_limits_m")))
     if not (isinstance(lim, list) and len(lim) == 2 and all(
-            isinstance(x, int | float) and not isinstance(x, bool) for x in lim) and 0 <= lim[0] < lim[1]):
-        raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max, got {lim!r}")
+            isinstance(x, int | float) and not isinstance(x, bool) for x in lim)
+            and 0 <= lim[0] < lim[1] <= MAX_ALTITUDE_M):
+        raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max <= {MAX_ALTITUDE_M:g}, "
+                    f"got {lim!r}")
     if r.has("home"):
         home = _point(r.raw("home"), r, "home", fld.origin)
     elif takeoff is not None:
@@ -292,7 +315,7 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
 
     sr, ds = r.sub("source"), partial(_default, SourceSpec)
     tx_raw = sr.raw("tx", ds("tx"))
-    tx_h = sr.num("tx_height_m", ds("tx_height_m"), 0.0)
+    tx_h = sr.num("tx_height_m", ds("tx_height_m"), 0.0, MAX_ALTITUDE_M)
     if isinstance(tx_raw, str):
         if tx_raw != "random":
             raise sr.err("tx", f"expected 'random' or a position, got '{tx_raw}'")
@@ -304,8 +327,8 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     if not isinstance(model_params, dict):
         raise sr.err("model_params", "expected a mapping")
     source = SourceSpec(
-        model=sr.str_("model", ds("model")), tx=tx, tx_height_m=tx_h, seed=sr.int_("seed", ds("seed")),
-        noise_db=sr.num("noise_db", ds("noise_db"), 0.0),
+        model=sr.str_("model", ds("model")), tx=tx, tx_height_m=tx_h, seed=sr.int_("seed", ds("seed"), 0, 2**63 - 1),
+        noise_db=sr.num("noise_db", ds("noise_db"), 0.0, 100.0),
         attitude_perturbation_deg=sr.num("attitude_perturbation_deg", ds("attitude_perturbation_deg"), 0.0, 45.0),
         sample_period_s=sr.num("sample_period_s", ds("sample_period_s"), 0.0, 10.0, strict_lo=True),
         model_params=dict(model_params))
@@ -313,9 +336,9 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
 
     vr = r.sub("vehicle")
     conn = vr.str_("connection", _default(VehicleSpec, "connection"))
-    speedup = vr.num("speedup", _default(VehicleSpec, "speedup"), 0.0, strict_lo=True)
+    speedup = vr.num("speedup", _default(VehicleSpec, "speedup"), 0.0, MAX_SPEEDUP, strict_lo=True)
     kr = vr.sub("kinematics")
-    kin = {k: kr.num(k, getattr(Kinematics, k), 0.0, strict_lo=True) for k in _KIN_FIELDS if kr.has(k)}
+    kin = {k: kr.num(k, getattr(Kinematics, k), 0.0, 1e4, strict_lo=True) for k in _KIN_FIELDS if kr.has(k)}
     kr.used.update(kin)
     kr.done()
     vr.done()
@@ -335,24 +358,27 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
 
 
 def load_mission(path: str | Path | None = None) -> MissionSpec:
-    """Read and validate a mission YAML file (default: ``missions/spiral.yaml``)."""
-    import yaml
+    """Read and validate a mission YAML file (default: ``missions/spiral.yaml``): a path, or the name of a
+    shipped mission (``spiral``, ``missions/spiral.yaml`` from any folder: ``mission.shipped``)."""
+    from mission.spec_reader import read_yaml
 
-    p = Path(path) if path is not None else DEFAULT_MISSION
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise InputError("mission file not found", source=str(p)) from None
-    except OSError as e:
-        raise InputError(f"cannot read mission file: {e.strerror or e}", source=str(p)) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise InputError(f"malformed YAML{where}: {problem}", source=str(p)) from None
+    p = resolve_mission_path(path)
+    data = read_yaml(p, "mission file", max_bytes=MAX_MISSION_BYTES)
+    if data is None:
+        raise InputError("empty mission file (no keys); see missions/spiral.yaml for the schema", source=str(p))
     spec = parse_mission(data, p)
     if spec.trajectory.waypoints is None:
         spec.waypoints_enu()  # validate generator parameters now, with the key in the message
     return spec
+
+
+def resolve_mission_path(path: str | Path | None) -> Path:
+    """The mission file ``path`` names: the path itself when it exists, else the shipped mission of that name
+    (``mission.shipped.resolve_shipped``); an InputError when neither exists."""
+    from mission.shipped import resolve_shipped
+
+    p = resolve_shipped(path, "missions", ".yaml") if path is not None else DEFAULT_MISSION
+    if p.exists():
+        return p
+    names = ", ".join(sorted(q.stem for q in missions_dir().glob("*.yaml")))
+    raise InputError(f"mission file not found (shipped missions: {names})", source=str(p))

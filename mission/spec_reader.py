@@ -6,7 +6,9 @@ Why a module of its own: the mission parser (``mission.spec``) and the blocks it
 
 from __future__ import annotations
 
+import functools
 import math
+from pathlib import Path
 from typing import Any
 
 from mission.errors import InputError
@@ -46,10 +48,14 @@ class SpecReader:
             raise self.err(name, f"must be <= {hi}, got {v}")
         return float(v)
 
-    def int_(self, name: str, default: int) -> int:
+    def int_(self, name: str, default: int, lo: int | None = None, hi: int | None = None) -> int:
         v = self.raw(name, default)
         if isinstance(v, bool) or not isinstance(v, int):
             raise self.err(name, f"expected an integer, got {v!r}")
+        if lo is not None and v < lo:
+            raise self.err(name, f"must be >= {lo}, got {v}")
+        if hi is not None and v > hi:
+            raise self.err(name, f"must be <= {hi}, got {v}")
         return v
 
     def str_(self, name: str, default: str | None, choices: tuple[str, ...] | None = None) -> str | None:
@@ -69,3 +75,54 @@ class SpecReader:
         extra = [k for k in self.d if k not in self.used]
         if extra:
             raise self.err(str(extra[0]), "unknown key (see the schema at the top of missions/spiral.yaml)")
+
+
+def read_yaml(path: str | Path, what: str = "mission file", max_bytes: int = 1_000_000) -> Any:
+    """Parse a YAML file with limits: a regular UTF-8 file of at most ``max_bytes``, no aliases (a "billion
+    laughs" bomb is refused, not expanded), no duplicated key (the last one silently won), bounded nesting;
+    every problem is an InputError naming the file and line."""
+    import yaml
+
+    from mission.files import read_text
+
+    text = read_text(path, what, max_bytes=max_bytes)
+    src = str(path)
+    try:
+        return yaml.load(text, Loader=_limited_loader())  # a SafeLoader subclass
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise InputError(f"malformed YAML{where}: {problem}", source=src) from None
+    except RecursionError:
+        raise InputError("YAML nested too deeply", source=src) from None
+
+
+@functools.cache
+def _limited_loader():
+    import yaml
+
+    class LimitedLoader(yaml.SafeLoader):
+        """``yaml.SafeLoader`` that refuses aliases and duplicated keys."""
+
+        def compose_node(self, parent, index):
+            if self.check_event(yaml.AliasEvent):
+                ev = self.peek_event()
+                raise yaml.composer.ComposerError(None, None, f"alias *{ev.anchor} refused (anchors and aliases "
+                                                  "are not accepted: write the value out)", ev.start_mark)
+            return super().compose_node(parent, index)
+
+        def construct_mapping(self, node, deep=False):
+            if isinstance(node, yaml.MappingNode):
+                seen: set = set()
+                for key_node, _ in node.value:
+                    key = key_node.value if isinstance(key_node, yaml.ScalarNode) else id(key_node)
+                    if key in seen:
+                        raise yaml.constructor.ConstructorError(None, None, f"duplicated key '{key}'",
+                                                                key_node.start_mark)
+                    seen.add(key)
+            return super().construct_mapping(node, deep)
+
+    LimitedLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+                                  LimitedLoader.construct_mapping)
+    return LimitedLoader

@@ -68,3 +68,11 @@ def write_log(path: Path, n: int = 900, seed: int = 0, truth: bool = True) -> Pa
     tlat, tlon, _ = o.to_geodetic(tx)
     tr = {"lat_deg": float(tlat), "lon_deg": float(tlon), "height_m": 1.5} if truth else None
     return write_flight_log(path, cols, make_meta(o, {"kind": "sim", "model": "log-distance", "seed": seed}, tr))
+
+
+def mat_arrays(n: int = 300) -> dict[str, np.ndarray]:
+    """The variables of a good AFAR MAT file (``rfsl import afar-mat``): n samples 0.1 s apart at 30 m."""
+    t = 1.7e9 + np.arange(n) * 0.1
+    return {"timestamp_power": t, "mX": np.full(n, -78.698), "mY": 35.728 + np.linspace(0, 1e-3, n),
+            "mZ": np.full(n, 30.0), "mRoll": np.zeros(n), "mPitch": np.zeros(n), "mYaw": np.zeros(n),
+            "mpower": np.full(n, -50.0)}

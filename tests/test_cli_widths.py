@@ -67,3 +67,41 @@ def test_import_fits(shared_dir, capsys):
     assert rfsl(["import", "afar-mat", str(mat), "--out", "real"]) == 0
     out = capsys.readouterr().out
     assert "note: dropped" in out and not too_wide(out), too_wide(out)
+
+
+def _render(table) -> str:
+    import io
+
+    from rich.console import Console
+
+    c = Console(width=WIDTH, file=io.StringIO(), record=True)
+    c.print(table)
+    return c.export_text()
+
+
+def test_gap_selftest_confusion_keeps_every_effect_name():
+    """``rfsl gap --selftest``'s confusion matrix at 80 columns: every effect name whole, nothing cut."""
+    import numpy as np
+
+    from mission.cli.gap import confusion_table
+    from mission.gap.selftest import WITHHELD_ALL
+
+    names = [*WITHHELD_ALL, "none"]
+    text = _render(confusion_table(names, names, np.eye(len(names), dtype=int) * 2))
+    assert not too_wide(text) and "…" not in text, text
+    for i, name in enumerate(names):
+        assert f"{i + 1:>2} {name} " in text, name
+
+
+def test_evaluate_table_does_not_cut_labels():
+    """``rfsl evaluate``'s table at 80 columns: a long method or test name is folded, never cut with '…'."""
+    from mission.cli.evaluate import _table
+    from mission.workshop.evaluate import Row
+
+    rows = [Row("sim_e2r_spiral_n200_s7_with_a_long_name", f"onnx:rfsl_spiral_e2r_ens5_variant_{k}.onnx",
+                "e2r_randomised_physics", "clustering3d_v2", [1.0, 2.0, 3.0]) for k in range(2)]
+    text = _render(_table(rows, "simulated test sets"))
+    assert not too_wide(text) and "…" not in text, text
+    cells = [ln.split("│") for ln in text.splitlines() if ln.startswith("│")]
+    for col, want in ((1, rows[0].test), (2, rows[0].method + rows[1].method)):
+        assert want in "".join(c[col].strip() for c in cells), text

@@ -45,3 +45,25 @@ def test_commands_name_real_subcommands_and_files(readme, repo_dir):
             assert sub in SUBCOMMANDS, ln
         for path in re.findall(r"\b(missions/\w+\.yaml)", ln):
             assert (repo_dir / path).is_file(), ln
+
+
+def test_exit_code_table_matches_the_code(readme):
+    """The README's exit-code table names every code the commands return: bad input, and each flight
+    ``EXIT_*`` constant (a new one needs its column)."""
+    import importlib
+
+    from mission.errors import InputError
+
+    mods = []
+    for name in ("mission.flight.context", "mission.flight.tasks"):  # where the flight's codes live
+        try:
+            mods.append(importlib.import_module(name))
+        except ImportError:
+            continue
+    codes_in_code = {v for m in mods for k, v in vars(m).items() if k.startswith("EXIT_") and isinstance(v, int)}
+    (row,) = [ln for ln in readme.splitlines() if ln.startswith("| exit |")]
+    codes = [int(c) for c in row.strip("| ").split("|")[1:]]
+    assert codes == sorted(codes_in_code | {InputError.exit_code}), codes_in_code
+    means = next(ln for ln in readme.splitlines() if ln.startswith("| means |")).split("|")[2:-1]
+    assert "bad input" in means[codes.index(InputError.exit_code)] and "dead link" in means[codes.index(3)]
+    assert "interrupted" in means[codes.index(130)]

@@ -97,7 +97,9 @@ def run(args: argparse.Namespace) -> int:
                         progress=lambda n: prog.update(task, description=f"held-out fits of {n}", advance=1))
     cmd = "rfsl calibrate " + " ".join(shlex.quote(a) for a in sys.argv[2:])
     rec = preset_record(args.name or out.stem, res, flights, groups, cmd, data=", ".join(str(p) for p in paths))
-    out.write_text(json.dumps(rec, indent=1, default=float) + "\n")
+    from mission.files import write_text
+
+    write_text(out, json.dumps(rec, indent=1, default=float) + "\n", "--out")
     from rich.table import Table
 
     tab = Table(title="held-out fit (leave one group out): |measured - model - offset|")

@@ -22,6 +22,9 @@ def _range(text: str) -> tuple[float, float]:
     return (vals[0], vals[1])
 
 
+MAX_FLIGHTS = 1_000_000  # one dataset's flights (the largest shipped training set is far smaller)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from mission.cli.main import model_name_arg
 
@@ -157,8 +160,15 @@ def run(args: argparse.Namespace) -> int:
                 f"unknown generator {t.strip()!r} (expected {', '.join(GENERATORS)})",
                 field="--trajectories",
             )
-    if args.workers < 1:
-        raise InputError("must be >= 1", field="--workers")
+    from mission.defaults import MAX_WORKERS
+
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
+    if args.n > MAX_FLIGHTS:  # a billion flights ran until killed for memory
+        raise InputError(f"must be <= {MAX_FLIGHTS:,} flights (split a larger set over seeds), got {args.n:,}",
+                         field="--n")
+    if not 1 <= args.chunk <= MAX_FLIGHTS:
+        raise InputError(f"must be 1..{MAX_FLIGHTS:,}, got {args.chunk}", field="--chunk")
     for flag in ("altitude", "tx_height", "noise", "shadowing", "shadowing_corr", "speed", "beta", "eps_r",
                  "truncate"):  # physical ranges that cannot be negative (numpy raised "scale < 0")
         r = getattr(args, flag, None)

@@ -71,7 +71,7 @@ def _table(rows, title: str):
 
     t = Table(title=title)
     for c in ("test", "method", "train data", "features", "n", "mean m", "median m", "p90 m"):
-        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left")
+        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left", overflow="fold")  # never cut
     for r in rows:
         s = r.summary()
         t.add_row(
@@ -92,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
+    from mission.defaults import MAX_WORKERS
     from mission.errors import InputError
     from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
     from mission.workshop.evaluate import (
@@ -104,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
     )
 
     console = Console()
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
     if args.family.lower().endswith(".json") or args.suite or args.suite_dir:
         return _run_suite(args, console)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
@@ -235,7 +238,7 @@ def _run_suite(args: argparse.Namespace, console) -> int:
             bd = breakdown(rows, draws, axis)
             extra["breakdown"][axis] = bd
             bt = Table(title=escape(f"mean error (m) by {axis}"))
-            bt.add_column(axis)
+            bt.add_column(axis, overflow="fold")
             bt.add_column("n", justify="right")
             for r in rows:
                 bt.add_column(escape(r.method), justify="right", overflow="fold")

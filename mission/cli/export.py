@@ -11,7 +11,7 @@ import argparse
 
 FORMATS = ("plan", "wpl", "geojson", "kml")
 SUFFIX = {"plan": ".plan", "wpl": ".waypoints", "geojson": ".geojson", "kml": ".kml"}
-BY_SUFFIX = {v: k for k, v in SUFFIX.items()} | {".json": "geojson", ".txt": "wpl"}
+BY_SUFFIX = {v: k for k, v in SUFFIX.items()} | {".json": "geojson", ".txt": "wpl", ".wpl": "wpl"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -80,16 +80,30 @@ def _run(args: argparse.Namespace) -> int:
 
     from mission.adaptive.config import AdaptiveSpec
     from mission.adaptive.feasibility import assert_adaptive
+    from mission.cli.main import check_number
+    from mission.defaults import MAX_DURATION_S, MAX_RATE_HZ, MAX_SPEEDUP
     from mission.errors import InputError
     from mission.flight.context import FlightError
+    from mission.flight.preflight import check_connect, check_out
     from mission.flight.runner import FlyOptions, fly
     from mission.spec import load_mission
 
     if args.speedup is not None and args.speedup <= 0:
         raise InputError(f"must be positive, got {args.speedup:g}", field="--speedup")
+    if args.speedup is not None:
+        check_number(args.speedup, "--speedup", 0.0, MAX_SPEEDUP, strict_lo=True)
     if args.rate is not None and args.rate < 30:
         raise InputError(f"position/attitude rate must be >= 30 Hz, got {args.rate:g}", field="--rate")
+    if args.rate is not None:
+        check_number(args.rate, "--rate", 30.0, MAX_RATE_HZ)
+    for flag, v in (("--link-timeout", args.link_timeout), ("--land-timeout", args.land_timeout)):
+        check_number(v, flag, 0.0, MAX_DURATION_S, strict_lo=True)
+    if args.connect is not None:
+        check_connect(args.connect, "--connect")  # '' is a mistake, not the built-in vehicle
+    check_out(args.out)  # an unwritable --out: refused before the mission file is even read
     spec = load_mission(args.mission)
+    if args.connect is None and spec.vehicle.connection is not None:
+        check_connect(spec.vehicle.connection, "vehicle.connection", source=spec.source_name)
     adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
     adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
     extension = None

@@ -44,6 +44,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulate flights with each effect withheld and check the diagnosis finds it")
     parser.add_argument("--seeds", default="1,2", help="self-test seeds (1,2)")
     parser.add_argument("--withheld", default="all", help="self-test cases: effect names, none, or all")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing --family file or the report files in --report")
+
+
+REPORT_FILES = ("gap.json", "selftest.json")  # a --report folder holding one of these is a previous report
+
+
+def check_outputs(args) -> None:
+    """--report, --family and the counts checked before any work (a fit takes minutes): --report a folder
+    that can be written and holds no earlier report unless --overwrite, --family a new file."""
+    from pathlib import Path
+
+    from mission.defaults import MAX_WORKERS
+    from mission.errors import InputError
+    from mission.files import check_out_file, check_writable_dir
+
+    if not args.rate_hz >= 0 or args.rate_hz == float("inf"):
+        raise InputError(f"must be a finite rate >= 0 (0: every sample), got {args.rate_hz}", field="--rate-hz")
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
+    for name in ("max_rungs", "family_repeats"):
+        if getattr(args, name) < 0:
+            raise InputError(f"must be >= 0, got {getattr(args, name)}", field="--" + name.replace("_", "-"))
+    if args.report:
+        rep = check_writable_dir(Path(args.report), "--report")
+        old = [f for f in REPORT_FILES if (rep / f).exists()]
+        if old and not args.overwrite:
+            raise InputError(f"holds an earlier report ({old[0]}); use --overwrite or another folder",
+                             source=str(rep), field="--report")
+    if args.family:
+        check_out_file(args.family, "--family", args.overwrite)
 
 
 MIN_SAMPLES = 200  # fewer cannot support block splits and the per-effect fits (a 1-row log raised numpy errors)
@@ -93,13 +124,13 @@ def _selftest(args) -> int:
     import time
 
     from rich.console import Console
-    from rich.table import Table
 
     from mission.errors import InputError
     from mission.gap.fit import FitConfig
     from mission.gap.selftest import WITHHELD_ALL, confusion, run_selftest
 
     c = Console()
+    check_outputs(args)
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
@@ -121,28 +152,41 @@ def _selftest(args) -> int:
 
     results = run_selftest(cases, seeds, None, progress)
     rows, cols, M = confusion(results)
-    t = Table(title="Confusion: withheld (rows) vs ranked first and significant (columns)")
-    t.add_column("withheld")
-    for col in cols:
-        t.add_column(col.replace("_", "\n"), justify="right")
-    for i, r in enumerate(rows):
-        t.add_row(r, *[(f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
-                       for j, v in enumerate(M[i])])
-    c.print(t)
+    c.print(confusion_table(rows, cols, M))
     n_pass = sum(r.passed for r in results)
     c.print(f"{n_pass}/{len(results)} cases passed")
     if args.report:
         import json
         from pathlib import Path
 
+        from mission.files import write_text
+
         out = Path(args.report)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "selftest.json").write_text(json.dumps(
+        write_text(out / "selftest.json", json.dumps(
             {"cases": [r.as_dict() for r in results], "confusion": {"rows": rows, "cols": cols,
                                                                      "counts": M.tolist()},
              "config": FitConfig().__dict__}, indent=1, default=str))
         c.print(f"wrote {out / 'selftest.json'}")
     return 0 if n_pass == len(results) else 1
+
+
+def confusion_table(rows: list[str], cols: list[str], M):
+    """The self-test's confusion as a rich Table that reads at 80 columns: the columns are numbered and the
+    rows carry the number of their effect, so no effect name is cut (14 named columns took 150)."""
+    from rich import box
+    from rich.table import Table
+
+    t = Table(title="Confusion: withheld (rows) vs ranked first and significant",
+              box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 0, 0, 1), pad_edge=False,
+              caption="columns: " + ", ".join(f"{j + 1} {c}" for j, c in enumerate(cols)), caption_justify="left")
+    t.add_column("withheld", no_wrap=True)
+    for j in range(len(cols)):
+        t.add_column(str(j + 1), justify="right", no_wrap=True, min_width=2)
+    for i, r in enumerate(rows):
+        num = f"{cols.index(r) + 1:>2} " if r in cols else "   "
+        t.add_row(num + r, *[(f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
+                             for j, v in enumerate(M[i])])
+    return t
 
 
 def _write_family(d, cfg, args, console) -> None:
@@ -162,10 +206,9 @@ def _write_family(d, cfg, args, console) -> None:
     rec = family_from_diagnosis(d, cfg, name=args.family_name, source=src, check=args.family_repeats > 0,
                                 repeats=max(args.family_repeats, 1))
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
-    out = Path(args.family)
-    if out.parent != Path(""):
-        out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(rec, indent=1) + "\n")
+    from mission.files import write_text
+
+    out = write_text(Path(args.family), json.dumps(rec, indent=1) + "\n", field="--family")
     console.print(f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; {len(rec['per_flight'])} flights)")
     lc = rec["checks"].get("loop")
     if lc:
@@ -189,6 +232,7 @@ def run(args) -> int:
         return _selftest(args)
     if not args.logs:
         raise InputError("give at least one flight log (or --selftest)", field="logs")
+    check_outputs(args)
     import numpy as np
     from rich.console import Console
 
@@ -203,8 +247,6 @@ def run(args) -> int:
         raise InputError(str(e), field="base") from None
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
-    if args.rate_hz < 0 or args.workers < 1:
-        raise InputError("--rate-hz must be >= 0 and --workers >= 1", field="rate-hz")
     cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed, rate_hz=args.rate_hz,
                     workers=args.workers)
     err = Console(stderr=True)

@@ -78,6 +78,10 @@ def run(args: argparse.Namespace) -> int:
             files += mats
         else:
             files.append(f)
+    for f in files:  # every output checked before the first is written
+        for p in (Path(args.out) / f"{f.stem}.csv", Path(args.out) / f"{f.stem}.json"):
+            if p.exists() and not args.overwrite:
+                raise InputError("output exists (use --overwrite)", source=str(p))
     for f in files:
         res = import_afar_mat(
             f, args.out, truth=truth, truth_height_m=args.truth_height, overwrite=args.overwrite

@@ -81,6 +81,10 @@ def run(args: argparse.Namespace) -> int:
     method = args.method
     if args.model and method not in (None, "onnx", "fusion"):
         raise InputError(f"--model needs --method onnx or fusion (got --method {method})")
+    if args.model:  # rfsl_default.onnx from any folder: the shipped network of that name
+        from mission.shipped import resolve_shipped
+
+        args.model = str(resolve_shipped(args.model, "models", ".onnx"))
     if not (math.isfinite(args.tx_height) and 0 <= args.tx_height <= 1000):
         raise InputError(f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
                          field="--tx-height")

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from mission import __version__
-from mission.errors import InputError
+from mission.errors import InputError, one_line
 
 # name -> (module, one-line purpose). The order is the order of `rfsl --help`.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -46,7 +47,7 @@ class OneLineParser(argparse.ArgumentParser):
     text is one ``--help`` away; a wall of usage hides which argument was wrong)."""
 
     def error(self, message: str):  # type: ignore[override]
-        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+        self.exit(2, one_line(f"error: {self.prog}: {message} (see {self.prog} --help)") + "\n")
 
 
 # A value that starts with a minus and a digit: a negative number or a list such as -100,200,1.5.
@@ -79,7 +80,22 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -
 
 def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
     """``parser.parse_args`` with negative option values accepted (``join_negative_values``)."""
-    return parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
+    args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
+    for p in _parsers(parser, args):  # argparse turns '--speedup=--' into [] past its own type check
+        for a in p._actions:
+            if a.option_strings and a.nargs is None and a.type is not None and isinstance(
+                    getattr(args, a.dest, None), list):
+                p.error(f"argument {'/'.join(a.option_strings)}: expected one value")
+    return args
+
+
+def _parsers(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list[argparse.ArgumentParser]:
+    """The parser and the subcommand parser that ``args`` came through."""
+    out = [parser]
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction) and getattr(args, a.dest, None) in a.choices:
+            out.append(a.choices[getattr(args, a.dest)])
+    return out
 
 
 def model_name_arg(value: str) -> str:
@@ -107,6 +123,24 @@ def print_notes(notes: Sequence[str]) -> None:
         print(n if n.startswith("warning: ") else f"note: {n}", file=sys.stderr)
 
 
+def check_number(value: float, flag: str, lo: float | None = None, hi: float | None = None,
+                 strict_lo: bool = False) -> float:
+    """A numeric option checked at the boundary: finite and within its bounds, else one line naming the
+    option and the bound (``--speedup 1e9`` or ``nan`` ran until killed; the bound is what keeps the work
+    finite)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):  # argparse hands '--link-timeout=--' over as a list
+        raise InputError(f"expected a number, got {value!r}", field=flag) from None
+    if not math.isfinite(v):
+        raise InputError(f"expected a finite number, got {value}", field=flag)
+    if lo is not None and (v <= lo if strict_lo else v < lo):
+        raise InputError(f"must be {'>' if strict_lo else '>='} {lo:g}, got {v:g}", field=flag)
+    if hi is not None and v > hi:
+        raise InputError(f"must be <= {hi:g}, got {v:g}", field=flag)
+    return v
+
+
 def image_out(path: str | Path, flag: str = "--out") -> Path:
     """Check an image output path before any heavy work: a format matplotlib writes, not a directory."""
     p = Path(path)
@@ -123,10 +157,11 @@ def image_out(path: str | Path, flag: str = "--out") -> Path:
 
 
 def out_parent_ok(path: Path, flag: str = "--out", folder: bool = False) -> Path:
-    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is a file."""
-    for parent in (path, *path.parents) if folder else path.parents:
-        if parent.exists() and not parent.is_dir():
-            raise InputError(f"{parent} is a file, not a folder", source=str(path), field=flag)
+    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is a file
+    or the folder it would be written in cannot be written (``mission.files.check_writable_dir``)."""
+    from mission.files import check_writable_dir
+
+    check_writable_dir(path if folder else path.parent, flag)
     return path
 
 
@@ -145,13 +180,20 @@ def build_parser() -> argparse.ArgumentParser:
 def run_guarded(fn: Callable[[], int | None]) -> int:
     """Run a CLI body: bad input becomes one line on stderr and exit code 2, Ctrl-C exit code 130."""
     try:
-        return int(fn() or 0)
+        rc = int(fn() or 0)
+        sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's exit flush
+        return rc
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader went away (``localize LOG --json | head``): no traceback for that
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # Python's exit flush must not fail too
+        return 141  # 128 + SIGPIPE, as a shell reports it
 
 
 def standalone_main(prog: str, module, argv: Sequence[str] | None = None) -> int:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+MAX_PIXELS = 8000  # per side: 100000x100000 ran until killed
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("mission", help="mission YAML file (e.g. missions/spiral.yaml)")
@@ -41,10 +43,10 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         w, h = (int(v) for v in str(args.size).lower().split("x"))
-        if w < 200 or h < 200:
+        if not (200 <= w <= MAX_PIXELS and 200 <= h <= MAX_PIXELS):
             raise ValueError
     except ValueError:
-        raise InputError(f"expected WxH pixels (each >= 200), got '{args.size}'", field="--size") from None
+        raise InputError(f"expected WxH pixels (each 200..{MAX_PIXELS}), got '{args.size}'", field="--size") from None
     if not 2 <= args.grid <= 200:
         raise InputError(f"must be 2..200, got {args.grid}", field="--grid")
     if args.seed is not None and args.seed < 0:

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.cli.main import console, out_parent_ok
     from mission.errors import InputError
-    from mission.flightlog import make_meta, write_flight_log
+    from mission.flightlog import make_meta, sidecar_path, write_flight_log
     from mission.physics import make_model
     from mission.simulate import simulate_flight
     from mission.spec import load_mission
@@ -69,14 +69,15 @@ def run(args: argparse.Namespace) -> int:
         if bad:
             raise InputError(bad[0].message, source=spec.source_name, field=bad[0].key)
     model_name = args.model or spec.source.model
+    out = Path(args.out)
+    csv = out / f"{spec.name}_sim_{model_name}_seed{seed}.csv"
+    for p in (csv, sidecar_path(csv)):  # before the work: neither half of an earlier log is replaced
+        if p.exists():
+            raise InputError("a flight log of this name exists already; choose another --out or --seed",
+                             source=str(p))
     model = make_model(model_name, **spec.source.model_params)
     path = spec.waypoints_enu() if args.cruise_only else spec.flight_path_enu()
     flight = simulate_flight(path, tx, model, spec.sim_config(), rng)
-    out = Path(args.out)
-    name = f"{spec.name}_sim_{model_name}_seed{seed}"
-    csv = out / f"{name}.csv"
-    if csv.exists():
-        raise InputError("a flight log of this name exists already; choose another --out or --seed", source=str(csv))
     lat, lon, _ = spec.field.origin.to_geodetic(tx)
     meta = make_meta(spec.field.origin,
                      {"kind": "sim", "simulator": "kinematic", "model": model_name, "seed": seed,

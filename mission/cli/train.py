@@ -93,6 +93,10 @@ def run(args: argparse.Namespace) -> int:
         res = train(args.datasets, args.out, cfg, progress=cb)
     if family is not None:
         record_family(res.onnx_path, family)
+    from mission.shipped import record_shipped_digest
+
+    if record_shipped_digest(res.onnx_path):
+        console.print(f"recorded its sha256 in models/sha256.json ({res.onnx_path.name} is a shipped network)")
     m = res.metrics
     console.print(
         f"{args.features} ({res.meta['training_data']['coords']} coordinates"

@@ -6,6 +6,8 @@ must be one line and exit 2 at once, not a failure after the vehicle took off or
 
 from __future__ import annotations
 
+import ipaddress
+import re
 import socket
 from pathlib import Path
 
@@ -15,21 +17,52 @@ from mission.errors import InputError
 SCHEMES = ("udpin", "udpout", "tcpin", "tcpout", "serial", "serial_flowcontrol", "udp", "tcp")
 
 
-def check_connect(url: str | None) -> None:
-    """``--connect`` must be ``scheme://address`` with a scheme MAVSDK knows and, for a network, a port."""
-    if not url:
+def check_host(host: str, what: str, field: str, source: str | None = None) -> None:
+    """A network address's host: a valid IPv4/IPv6 address when it looks like one (``256.1.1.1`` is bad
+    input, exit 2; an address nobody answers at is a dead link, exit 3), else a plausible host name."""
+    h = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    looks_numeric = bool(re.fullmatch(r"[0-9.]+", h)) or ":" in h
+    try:
+        if looks_numeric:
+            ipaddress.ip_address(h)
+            return
+    except ValueError:
+        raise InputError(f"{host!r} in {what!r} is not an IP address", source=source, field=field) from None
+    if not _HOSTNAME.fullmatch(h):
+        raise InputError(f"{host!r} in {what!r} is not a host name or IP address", source=source, field=field)
+
+
+_HOSTNAME = re.compile(r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}"
+                       r"[A-Za-z0-9])?)*\.?")
+
+
+def check_connect(url: str | None, field: str = "--connect", source: str | None = None) -> None:
+    """A connection URL (``--connect`` or the mission's ``vehicle.connection``) is well formed: a scheme MAVSDK
+    knows, for a network a valid host and port, for a serial link a device that exists.  None: the built-in
+    vehicle; an empty string is refused (it silently flew the built-in vehicle in real time)."""
+    if url is None:
         return
+    example = "use e.g. udpin://0.0.0.0:14540, tcpout://127.0.0.1:5760 or serial:///dev/ttyACM0:57600"
+    if not url.strip():
+        raise InputError(f"empty connection; {example}, or leave it out for the built-in vehicle", source=source,
+                         field=field)
     scheme, sep, rest = url.partition("://")
     if not sep or scheme not in SCHEMES:
-        raise InputError(
-            f"unknown connection {url!r}; use e.g. udpin://0.0.0.0:14540, tcpout://127.0.0.1:5760 or "
-            "serial:///dev/ttyACM0:57600",
-            field="--connect",
-        )
+        raise InputError(f"unknown connection {url!r}; {example}", source=source, field=field)
     if scheme.startswith(("udp", "tcp")):
         host, _, port = rest.rpartition(":")
         if not host or not port.isdigit() or not 0 < int(port) < 65536:
-            raise InputError(f"{url!r} needs HOST:PORT after {scheme}://", field="--connect")
+            raise InputError(f"{url!r} needs HOST:PORT (port 1-65535) after {scheme}://", source=source,
+                             field=field)
+        check_host(host, url, field, source)
+    else:  # serial:///dev/ttyACM0[:57600]
+        dev, _, baud = rest.rpartition(":")
+        if not baud.isdigit():
+            dev = rest
+        if not dev or not Path(dev).exists():
+            raise InputError(f"no such serial device {dev or '(none)'!r} in {url!r}", source=source, field=field)
+        if Path(dev).is_dir() or Path(dev).is_file():
+            raise InputError(f"{dev!r} in {url!r} is not a serial device", source=source, field=field)
 
 
 def check_rss_source(text: str) -> None:
@@ -56,12 +89,16 @@ def check_rss_source(text: str) -> None:
 
 
 def check_out(out: Path) -> None:
-    """``--out`` is a folder (existing or creatable), not a file."""
+    """``--out`` is a folder (existing or creatable) that can be written, not a file: refused before the
+    vehicle starts (it failed only once the mission was uploaded)."""
+    from mission.files import check_writable_dir
+
     for p in (out, *out.parents):
         if p.exists():
             if not p.is_dir():
                 raise InputError("is a file; --out wants a folder for flight logs", source=str(p), field="--out")
             break
+    check_writable_dir(out, "--out")
 
 
 def check_options(opts) -> None:

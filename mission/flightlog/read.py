@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.flightlog.schema import COLUMNS, OPTIONAL, REQUIRED, WARNING, FlightLog, sidecar_path
+from mission.flightlog.schema import COLUMNS, OPTIONAL, REQUIRED, RSS_RANGE_DB, WARNING, FlightLog, sidecar_path
 from mission.geo import Origin, latlon_unit_problem
 
 
@@ -51,19 +51,18 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     (dropped), a missing sidecar, a flight the sidecar says did not complete.  ``origin`` (e.g. from
     ``--origin``) replaces the sidecar's.
     """
+    from mission.files import check_regular, read_bytes
+
     path = Path(path)
     src = str(path)
     if path.is_dir():
         some = ", ".join(p.name for p in sorted(path.glob("*.csv"))[:3])
         raise InputError(f"is a directory, not a flight-log CSV{f' (it holds {some})' if some else ''}", source=src)
-    if not path.exists():
-        raise InputError("no such flight log", source=src)
+    check_regular(path, "flight log")  # a FIFO or /dev/zero would block or never end
     try:
-        text = path.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark is not part of "t_s"
+        text = read_bytes(path, "flight log").decode("utf-8-sig")  # a spreadsheet's BOM is not part of "t_s"
     except UnicodeDecodeError:
         raise InputError("not a text CSV file", source=src) from None
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror or e}", source=src) from None
     notes: list[str] = []
     reader = csv.reader(io.StringIO(text))
     try:
@@ -95,7 +94,7 @@ def _written_here(path: Path) -> bool:
     try:
         meta = json.loads(sidecar_path(path).read_text())
         return isinstance(meta, dict) and str(meta.get("format", "")).startswith("rfsl-flight-log")
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return False
 
 
@@ -202,7 +201,7 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
 
 
 # Magnitudes no real value reaches: a larger one is a unit or logging error, not data (1e300 dBm gave NaN).
-_ABS_LIMITS = {"rss_dbm": 400.0, "alt_m": 20000.0, "rel_alt_m": 20000.0}
+_ABS_LIMITS = {"alt_m": 20000.0, "rel_alt_m": 20000.0}
 
 
 def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list[str] | None = None,
@@ -220,11 +219,16 @@ def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list
         if badv.size:
             raise InputError(f"{arr[badv[0]]} is outside +-{lim} degrees (wrong units?)", source=src,
                              row=int(badv[0]) + 2, field=name)
-    for name in ("roll_deg", "pitch_deg"):
-        badv = np.flatnonzero(np.abs(np.nan_to_num(columns[name])) > 180.0)
+    for name, lim in (("roll_deg", 180.0), ("pitch_deg", 180.0), ("yaw_deg", 3600.0)):
+        badv = np.flatnonzero(np.abs(np.nan_to_num(columns[name])) > lim)
         if badv.size:
-            raise InputError(f"{columns[name][badv[0]]} is outside +-180 degrees (radians given?)", source=src,
+            raise InputError(f"{columns[name][badv[0]]:g} is outside +-{lim:g} degrees (radians given?)", source=src,
                              row=int(badv[0]) + 2, field=name)
+    lo, hi = RSS_RANGE_DB
+    badv = np.flatnonzero(~((columns["rss_dbm"] >= lo) & (columns["rss_dbm"] <= hi)) & ~np.isnan(columns["rss_dbm"]))
+    if badv.size:
+        raise InputError(f"{columns['rss_dbm'][badv[0]]:g} dB is not a plausible receiver reading "
+                         f"(expected {lo:g}..{hi:g})", source=src, row=int(badv[0]) + 2, field="rss_dbm")
     for name, lim in _ABS_LIMITS.items():
         badv = np.flatnonzero(np.abs(columns[name]) > lim)
         if badv.size:
@@ -250,6 +254,42 @@ def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list
     return FlightLog(columns, meta, path, notes)
 
 
+MAX_SIDECAR_BYTES = 10_000_000  # a sidecar with every live estimate of a long flight is well under 1 MB
+
+# The sidecar keys the readers use, with the JSON types they expect (dotted: a key inside an object). A value of
+# another type (a string where an object belongs) reached the user as an AttributeError.
+SIDECAR_TYPES: dict[str, tuple[type, ...]] = {
+    "format": (str,), "status": (str,), "mission": (str,), "mission_file": (str,), "rows": (int,),
+    "rss_source": (dict,), "rss_source.kind": (str,), "rss_source.model": (str,), "rss_source.seed": (int,),
+    "rss_source.model_params": (dict,),
+    "trajectory": (dict,), "trajectory.generator": (str,), "trajectory.params": (dict,),
+    "trajectory.altitude_m": (int, float), "trajectory.adaptive": (bool, dict, str),
+    "live_estimate": (dict,), "live_estimate.method": (str,),
+    "rover_area": (list,), "budget": (dict,), "adaptive": (dict,), "final_estimate": (dict,),
+    "fast_estimate": (dict,), "estimates": (list,),
+}
+
+
+def check_types(d: dict, types: dict[str, tuple[type, ...]], source: str) -> None:
+    """Every key of ``types`` present (not null) in ``d`` has one of its types; else an InputError naming the
+    dotted key.  A number must be finite; bool is not a number."""
+    for key, ok in types.items():
+        head, _, tail = key.rpartition(".")
+        parent = d
+        for part in head.split(".") if head else ():
+            parent = parent.get(part) if isinstance(parent, dict) else None
+        if not isinstance(parent, dict) or parent.get(tail) is None:
+            continue
+        v = parent[tail]
+        good = isinstance(v, ok) and not (isinstance(v, bool) and bool not in ok)
+        if good and isinstance(v, float) and not np.isfinite(v):
+            good = False
+        if not good:
+            names = " or ".join({dict: "an object", list: "a list", str: "a string", int: "an integer",
+                                 float: "a number", bool: "true/false"}[t] for t in ok)
+            raise InputError(f"expected {names}, got {type(v).__name__} {str(v)[:40]!r}", source=source, field=key)
+
+
 def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> dict:
     """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and key)."""
     sc = sidecar_path(path)
@@ -258,14 +298,17 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
                  "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)")
         notes.append(f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth")
         return {}
+    from mission.files import read_text
+
     try:
-        meta = json.loads(sc.read_text())
+        meta = json.loads(read_text(sc, "sidecar", max_bytes=MAX_SIDECAR_BYTES))
     except json.JSONDecodeError as e:
         raise InputError(f"sidecar is not valid JSON ({e.msg} at line {e.lineno})", source=str(sc)) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"cannot read the sidecar ({e})", source=str(sc)) from None
+    except RecursionError:
+        raise InputError("sidecar nested too deeply to be a flight log's", source=str(sc)) from None
     if not isinstance(meta, dict):
         raise InputError(f"sidecar must be a JSON object, got {type(meta).__name__}", source=str(sc))
+    check_types(meta, SIDECAR_TYPES, str(sc))
 
     def num(d: dict, key: str, where: str, lim: float | None = None, required: bool = True) -> None:
         v = d.get(key)

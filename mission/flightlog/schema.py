@@ -17,6 +17,9 @@ from mission.samples import FlightSamples
 
 WARNING = "warning: "  # prefix of a FlightLog note that puts the result in doubt (not just a tidied row)
 COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
+# The RSS a log may hold, dB(m): a real receiver's "dBm" is uncalibrated (the AFAR sounder reads up to +33), so
+# "above 0 dBm" is no bound; a value outside this range is a unit or logging error, not a reading (+300 passed).
+RSS_RANGE_DB = (-250.0, 100.0)
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
 # Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of PHASES,

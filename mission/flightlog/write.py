@@ -149,10 +149,31 @@ class FlightLogWriter:
         self.close()
 
 
-def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict) -> Path:
+def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict, overwrite: bool = False) -> Path:
     """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond ``COLUMNS``
-    (such as ``PHASE_COLUMNS``) are written after them in the dict's order."""
-    with FlightLogWriter(path, meta, extra_columns=tuple(c for c in columns if c not in COLUMNS)) as w:
-        w.append(columns)
-    return Path(path)
+    (such as ``PHASE_COLUMNS``) are written after them in the dict's order.
 
+    Both files are written whole or not at all (``mission.files.writing``): a full disk leaves neither a
+    truncated CSV beside a sidecar nor a sidecar alone.  An existing log (CSV or sidecar) is refused unless
+    ``overwrite``."""
+    from mission.files import write_text, writing
+
+    path = Path(path)
+    side = sidecar_path(path)
+    if not overwrite:
+        for p in (path, side):
+            if p.exists():
+                raise InputError("refusing to overwrite an existing flight log", source=str(p))
+    header = COLUMNS + tuple(c for c in columns if c not in COLUMNS)
+    meta = {**meta, "rows": len(columns["t_s"])}
+    text = ",".join(header) + "\n" + format_rows(columns, header)
+    had_side = side.exists()
+    try:
+        with writing(path) as tmp:
+            tmp.write_text(text)
+            write_text(side, json.dumps(meta, indent=2, default=float))
+    except BaseException:
+        if not had_side:  # the CSV did not land: a sidecar of ours must not stand alone
+            side.unlink(missing_ok=True)
+        raise
+    return path

@@ -149,6 +149,8 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from mission.files import save_figure, write_text
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figs = figures(d)
@@ -168,7 +170,7 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax[1].legend(fontsize=7)
     fig.tight_layout()
     paths.append(out / "cdf.png")
-    fig.savefig(paths[-1], dpi=110)
+    save_figure(fig, paths[-1], dpi=110)
     plt.close(fig)
 
     n = len(d.breakdown)
@@ -187,7 +189,7 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     fig.suptitle(f"Residual of '{d.base_label}' (measured - model), 95 % block-bootstrap CI")
     fig.tight_layout()
     paths.append(out / "breakdown.png")
-    fig.savefig(paths[-1], dpi=100)
+    save_figure(fig, paths[-1], dpi=100)
     plt.close(fig)
 
     fm = d.field_map
@@ -206,7 +208,7 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     paths.append(out / "field_map.png")
-    fig.savefig(paths[-1], dpi=100)
+    save_figure(fig, paths[-1], dpi=100)
     plt.close(fig)
 
     fig = plt.figure(figsize=(6, 6))
@@ -220,7 +222,7 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.1, -0.15))
     fig.tight_layout()
     paths.append(out / "polar_body_azimuth.png")
-    fig.savefig(paths[-1], dpi=100)
+    save_figure(fig, paths[-1], dpi=100)
     plt.close(fig)
 
     if d.localization:
@@ -233,7 +235,7 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         ax.legend(fontsize=7)
         fig.tight_layout()
         paths.append(out / "localization.png")
-        fig.savefig(paths[-1], dpi=100)
+        save_figure(fig, paths[-1], dpi=100)
         plt.close(fig)
 
     shapes = figs["freeform_shapes"]
@@ -257,13 +259,13 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
                          f"({sh['resemblance_corr']:.2f})", fontsize=9)
         fig.tight_layout()
         paths.append(out / "freeform.png")
-        fig.savefig(paths[-1], dpi=100)
+        save_figure(fig, paths[-1], dpi=100)
         plt.close(fig)
 
     paths.append(out / "details.txt")
-    paths[-1].write_text(details_text(d))
+    write_text(paths[-1], details_text(d))
     doc = {**summary(d), "block_lens": d.block_lens, "flights": [
         {"name": f.name, "n": len(f), "tx_enu": f.tx_enu_m.tolist()} for f in d.flights], "figures": figs}
     paths.append(out / "gap.json")
-    paths[-1].write_text(jsonsafe.dumps(doc, indent=1))
+    write_text(paths[-1], jsonsafe.dumps(doc, indent=1))
     return paths

@@ -29,6 +29,7 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta, write_flight_log
+from mission.flightlog.schema import RSS_RANGE_DB
 from mission.geo import Origin, afar_field, latlon_unit_problem
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
@@ -104,6 +105,33 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
+# What no sample of a real flight can hold, per MAT variable: (low, high, what it means). The power is the
+# uncalibrated receiver's dB (RSS_RANGE_DB: the AFAR sounder reads up to +33, so 0 dBm is no bound); attitude
+# within +-180 (yaw, wrapped later, within ten turns); the time stamps are Unix seconds.
+IMPOSSIBLE = {"mpower": (*RSS_RANGE_DB, f"power outside {RSS_RANGE_DB[0]:g}..{RSS_RANGE_DB[1]:g} dB"),
+              "mRoll": (-180.0, 180.0, "roll outside +-180 deg"), "mPitch": (-180.0, 180.0, "pitch outside +-180 deg"),
+              "mYaw": (-3600.0, 3600.0, "yaw beyond ten turns"), "mZ": (-1000.0, 20000.0, "height outside -1..20 km"),
+              "timestamp_power": (0.0, 1e11, "time stamp that is not Unix seconds")}
+MAX_SPAN_S = 86400.0  # one flight's time stamps span less than a day
+
+
+def _drop_impossible(m: dict[str, np.ndarray], notes: list[str]) -> dict[str, np.ndarray]:
+    """Drop the samples holding a physically impossible value, with one note per kind naming the samples
+    (1-based, as in the MAT file); and those whose time stamp lies a day or more from the flight's median."""
+    bad_all = np.zeros(m["timestamp_power"].size, dtype=bool)
+    for v, (lo, hi, what) in IMPOSSIBLE.items():
+        bad = np.asarray(~((m[v] >= lo) & (m[v] <= hi)) & np.isfinite(m[v]))
+        if v == "timestamp_power" and not bad.all():
+            t = m[v]
+            bad |= np.abs(t - np.median(t[~bad])) > MAX_SPAN_S
+        if bad.any():
+            rows = np.flatnonzero(bad) + 1
+            shown = ", ".join(map(str, rows[:5])) + (", ..." if rows.size > 5 else "")
+            notes.append(f"dropped {rows.size} sample(s) with {what} ({v}; sample {shown})")
+        bad_all |= bad
+    return {k: a[~bad_all] for k, a in m.items()} if bad_all.any() else m
+
+
 def convert_afar_mat(
     path: str | Path,
     truth: tuple[float, float] | None = None,
@@ -121,8 +149,9 @@ def convert_afar_mat(
     if not finite.all():
         notes.append(f"dropped {int((~finite).sum())} rows with NaN/inf time, position or power")
         m = {k: a[finite] for k, a in m.items()}
+    m = _drop_impossible(m, notes)
     if m["timestamp_power"].size < 2:
-        raise InputError("fewer than 2 usable samples", source=src)
+        raise InputError("fewer than 2 usable samples" + (f" ({notes[-1]})" if notes else ""), source=src)
     t = m["timestamp_power"]
     if np.any(np.diff(t) < 0):
         notes.append(f"sorted {int((np.diff(t) < 0).sum())} out-of-order timestamps")
@@ -195,12 +224,10 @@ def import_afar_mat(
     if Path(out_dir).exists() and not Path(out_dir).is_dir():
         raise InputError("is a file, not an output folder", source=str(out_dir), field="--out")
     out = Path(out_dir) / (Path(path).stem + ".csv")
-    if out.exists():
-        if not overwrite:
-            raise InputError("output exists (use --overwrite)", source=str(out))
-        out.unlink()
-        out.with_suffix(".json").unlink(missing_ok=True)
-    write_flight_log(out, res.log.columns, res.log.meta)
+    for p in (out, out.with_suffix(".json")):
+        if p.exists() and not overwrite:
+            raise InputError("output exists (use --overwrite)", source=str(p))
+    write_flight_log(out, res.log.columns, res.log.meta, overwrite=overwrite)
     res.out_path = out
     res.log.path = out
     return res

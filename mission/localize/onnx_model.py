@@ -42,6 +42,7 @@ from mission.localize.features import (
     normalised_rss,
 )
 from mission.samples import FlightSamples
+from mission.shipped import check_shipped_digest
 
 REQUIRED_KEYS = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
 FEATURE_KINDS = ("clustering", "normalised_rss")
@@ -93,6 +94,7 @@ class OnnxLocalizer:
         src = str(self.path)
         if not self.path.exists():
             raise InputError("no such model file", source=src)
+        check_shipped_digest(self.path)  # a shipped name with flipped bytes loads and answers wrongly
         try:
             opts = session_options(self.threads)
             self.session = ort.InferenceSession(src, sess_options=opts, providers=["CPUExecutionProvider"])

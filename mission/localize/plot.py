@@ -158,8 +158,10 @@ def plot_localization(
     ax.legend(loc="best", fontsize=7, framealpha=0.85)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    plt.close(fig)
+    from mission.files import save_figure
+
+    try:
+        out = save_figure(fig, out, "--plot")  # whole or not at all; an OS error is one line
+    finally:
+        plt.close(fig)
     return out

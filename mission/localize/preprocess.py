@@ -139,4 +139,9 @@ def select_samples(log):
     if legs is not None:
         return legs
     part, sel = select_cruise(log)
+    if len(part) == 0:  # e.g. ``localize --at 0``: the vehicle was still on the ground (an IndexError before)
+        from mission.errors import InputError
+
+        raise InputError(f"no samples to localize from ({sel.reason}); the flight had not reached its legs",
+                         source=str(log.path) if log.path else None)
     return part, sel.reason

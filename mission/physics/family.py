@@ -250,12 +250,16 @@ def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
     if not p.suffix.lower() == ".json":
         raise InputError(f"unknown physics family {s!r} (a shipped name: {', '.join(SHIPPED)}, or a .json file)",
                          field="family")
+    from mission.files import read_text
+
+    if not p.exists():
+        raise InputError("cannot read physics family: no such file", source=s)
     try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise InputError(f"cannot read physics family: {e.strerror or e}", source=s) from None
+        d = json.loads(read_text(p, "physics family", max_bytes=50_000_000))
     except json.JSONDecodeError as e:
         raise InputError(f"not JSON (line {e.lineno}): {e.msg}", source=s) from None
+    except RecursionError:
+        raise InputError("JSON nested too deeply to be a physics family", source=s) from None
     return PhysicsFamily.from_dict(d, source=s)
 
 

@@ -98,12 +98,14 @@ def load_calibration(name: str = "afar") -> dict[str, Any]:
     a preset file written by ``rfsl calibrate``."""
     base = name.strip().partition(":")[0] if not name.strip().lower().endswith(".json") else name.strip()
     if base.lower().endswith(".json"):  # a preset written by ``rfsl calibrate --out FILE.json``
-        from pathlib import Path
+        from mission.files import read_text
 
         try:
-            rec = json.loads(Path(base).read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as e:
-            raise InputError(f"cannot read physics preset file: {e}", source=base) from None
+            rec = json.loads(read_text(base, "physics preset file", "--physics-preset", max_bytes=10_000_000))
+        except (ValueError, RecursionError) as e:
+            if isinstance(e, InputError):
+                raise
+            raise InputError(f"cannot read physics preset file: {str(e)[:120]}", source=base) from None
         if not isinstance(rec, dict) or not isinstance(rec.get("model"), dict):
             raise InputError("not a physics preset (no 'model' block)", source=base)
         return rec

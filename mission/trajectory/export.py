@@ -16,7 +16,6 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from mission.errors import InputError
 from mission.trajectory.items import RawItem, build_items, home_geodetic
 
 FORMATS = ("plan", "wpl", "geojson", "kml")
@@ -125,9 +124,6 @@ def export_mission(spec, fmt: str, out: str | Path) -> Path:
         text = to_kml(spec)
     else:
         raise ValueError(f"unknown export format {fmt!r}")
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text)
-    except OSError as e:  # a parent that is a file, a read-only folder
-        raise InputError(f"cannot write: {e.strerror or e}", source=str(out)) from None
-    return out
+    from mission.files import write_text
+
+    return write_text(out, text)  # whole or not at all; an OS error is one line naming the file

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.files import write_bytes, write_text
 from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one import site for dataset users)
     FEATURE_KINDS,
     PARAM_NAMES,
@@ -132,7 +133,7 @@ def generate_dataset(
         arrays = _stack(buf)
         data = _npz_bytes(arrays)
         name = f"chunk_{len(chunks):05d}.npz"
-        (out / name).write_bytes(data)
+        write_bytes(out / name, data)
         chunks.append(
             {
                 "file": name,
@@ -176,7 +177,7 @@ def generate_dataset(
         },
     }
     # the timing block differs between runs; everything else is deterministic
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=2, default=float))
+    write_text(out / "manifest.json", json.dumps(manifest, indent=2, default=float))
     return manifest
 
 
@@ -195,13 +196,26 @@ def _family_record(cfg: DatasetConfig) -> dict:
     return {"physics_family": {"label": family_label(fam), "sha256": family_sha256(fam), "record": fam.to_dict()}}
 
 
-def read_manifest(path: str | Path) -> dict:
-    """The manifest of a dataset folder (or of the manifest file itself)."""
+def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
+    """The manifest of a dataset folder (or of the manifest file itself); ``need``: keys the caller reads."""
     p = Path(path)
     mf = p / "manifest.json" if p.is_dir() else p
     if not mf.is_file():
         raise InputError("not a dataset (no manifest.json)", source=str(p))
-    m = json.loads(mf.read_text())
+    from mission.files import read_text
+
+    try:
+        m = json.loads(read_text(mf, "dataset manifest"))
+    except (ValueError, RecursionError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(f"manifest is not valid JSON ({str(e).splitlines()[0][:80]})", source=str(mf)) from None
+    if not isinstance(m, dict):
+        raise InputError("not a dataset manifest (a JSON object)", source=str(mf))
+    for k in need:  # what the caller reads: a list of chunks, objects otherwise (a KeyError before)
+        if not isinstance(m.get(k), list if k == "chunks" else dict):
+            raise InputError(f"not a dataset manifest: no {'list' if k == 'chunks' else 'object'} {k!r}",
+                             source=str(mf), field=k)
     if m.get("format") != FORMAT:
         raise InputError(f"unknown dataset format {m.get('format')!r} (expected {FORMAT})", source=str(mf))
     return m
@@ -215,19 +229,28 @@ def load_dataset(
     ``verify`` checks every chunk's sha256 against the manifest.
     """
     root = Path(path)
-    m = read_manifest(root)
+    m = read_manifest(root, need=("chunks",))
     parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
-    for c in m["chunks"]:
+    for i, c in enumerate(m["chunks"]):
+        if not (isinstance(c, dict) and isinstance(c.get("file"), str) and Path(c["file"]).name == c["file"]):
+            raise InputError("expected {file: chunk_NNNNN.npz, ...} naming a file of the dataset folder",
+                             source=str(root / "manifest.json"), field=f"chunks[{i}]")
         f = root / c["file"]
         if verify:
             h = hashlib.sha256(f.read_bytes()).hexdigest()
-            if h != c["sha256"]:
+            if h != c.get("sha256"):
                 raise InputError("chunk digest does not match the manifest", source=str(f))
-        with np.load(f) as z:
-            for k in keys:
-                if k not in z:
-                    raise InputError(f"dataset has no {k!r} array (generated without it?)", source=str(f))
-                parts[k].append(z[k])
+        try:
+            with np.load(f, allow_pickle=False) as z:
+                for k in keys:
+                    if k not in z:
+                        raise InputError(f"dataset has no {k!r} array (generated without it?)", source=str(f))
+                    parts[k].append(z[k])
+        except InputError:
+            raise
+        except Exception as e:  # zipfile, zlib, numpy and OS errors all mean a damaged or missing chunk
+            raise InputError(f"damaged or unreadable dataset chunk ({type(e).__name__}: "
+                             f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})", source=str(f)) from None
     return {k: np.concatenate(v) for k, v in parts.items()}, m
 
 

@@ -176,7 +176,7 @@ def evaluate_sim(
     from mission.localize.onnx_model import OnnxLocalizer
     from mission.workshop.dataset import FlightSimulator, dataset_config, dataset_heights, load_dataset, read_manifest
 
-    m = read_manifest(dataset)
+    m = read_manifest(dataset, need=("chunks", "config", "feature_config", "field_origin"))
     label = test_label(m)
     rows: list[Row] = []
     cache: dict[str, np.ndarray] = {}
@@ -307,7 +307,9 @@ def write_report(rows: Sequence[Row], path: str | Path, extra: dict | None = Non
     rep = {"rows": [r.summary() for r in rows]}
     if extra:
         rep.update(extra)
-    Path(path).write_text(json.dumps(rep, indent=1))
+    from mission.files import write_text
+
+    write_text(path, json.dumps(rep, indent=1), "--out")
     return rep
 
 
