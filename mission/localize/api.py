@@ -172,6 +172,28 @@ def _method_regions(est: Estimate, method: str, simulated: bool, default_config:
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area))
 
 
+def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> None:
+    """A default network's answer without regions (its circles do not apply: e.g. PX4 SITL's SIH flies at -28 deg
+    pitch, outside the networks' training attitudes) takes the self-calibrating posterior's regions, whose
+    calibration holds for any attitude (it models the flight's own attitude), with a note: as ``fusion`` does,
+    the regions are the search's and the point stays the network's.  Why: every flight ends with a region."""
+    if est.regions:
+        return
+    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
+    alt = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    if not alt.regions:
+        return
+    from mission.localize.error_circles import NO_CIRCLE_APPLIES
+
+    est.regions, est.posterior = alt.regions, alt.posterior
+    est.extras["regions_from"] = "selfcal"
+    est.notes = [n.replace(NO_CIRCLE_APPLIES, "Its error circles do not apply.")
+                 .replace("no uncertainty region: ", "no error circle: ", 1) for n in est.notes]
+    est.add_note(f"The regions are the self-calibrating search's posterior's (its estimate "
+                 f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} m from "
+                 "this one).")
+
+
 def fusion_model_path() -> Path | None:
     """The network of the fused default (``models/rfsl_spiral_e2r.onnx``), if present."""
     return shipped_model(FUSION_MODEL_NAME)
@@ -242,6 +264,7 @@ def localize_log(
         part, reason = select_samples(log)
     else:
         part, reason = log, "cruise selection off: all samples used"
+    fallback = False  # the default network answers: regions from selfcal where its circles do not apply
     if method is None:
         if model_path is not None:
             method, choice = "onnx", f"model {Path(model_path).name} given"
@@ -258,7 +281,7 @@ def localize_log(
             from mission.localize.sim_default import sim_default_model
 
             model_path, choice = sim_default_model(log.meta, part.enu()[:, 2], dm)
-            method = "onnx"
+            method, fallback = "onnx", True
         else:
             method, choice = (
                 "grid",
@@ -280,6 +303,8 @@ def localize_log(
         est = _in_log_frame(loc, loc.predict(trained_legs(part) if method == "onnx" else part), origin, method)
         if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
+            if fallback:
+                _fallback_regions(est, part, origin, ra, tx_height_m)
         else:
             _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),
                             ra)
