@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.defaults import BUDGET_POLICIES, DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
@@ -74,6 +74,8 @@ class MissionSpec:
     altitude_m: float = 30.0
     cruise_speed_mps: float = 5.5
     time_budget_s: float = 600.0
+    budget_policy: str = "trim"  # BUDGET_POLICIES: when the landing would pass the budget less its reserve
+    budget_reserve_s: float = 10.0  # kept free at landing by the policy
     fence_margin_m: float = 3.0
     altitude_limits_m: tuple[float, float] = (10.0, 120.0)
     home_enu: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -252,6 +254,10 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     altitude = r.num("altitude_m", d("altitude_m"), 0.0, strict_lo=True)
     cruise = r.num("cruise_speed_mps", d("cruise_speed_mps"), 0.0, 30.0, strict_lo=True)
     budget = r.num("time_budget_s", d("time_budget_s"), 0.0, strict_lo=True)
+    policy = r.str_("budget_policy", d("budget_policy"), BUDGET_POLICIES)
+    reserve = r.num("budget_reserve_s", d("budget_reserve_s"), 0.0)
+    if reserve >= budget:
+        raise r.err("budget_reserve_s", f"must be less than time_budget_s ({budget:g} s), got {reserve:g}")
     margin = r.num("fence_margin_m", d("fence_margin_m"), 0.0)
     lim = r.raw("altitude_limits_m", list(d("altitude_limits_m")))
     if not (isinstance(lim, list) and len(lim) == 2 and all(
@@ -322,7 +328,8 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     adaptive = parse_adaptive(r.sub("adaptive")) if "adaptive" in r.d else None
     r.done()
     return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
-                       cruise_speed_mps=cruise, time_budget_s=budget, fence_margin_m=margin,
+                       cruise_speed_mps=cruise, time_budget_s=budget, budget_policy=policy,
+                       budget_reserve_s=reserve, fence_margin_m=margin,
                        altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
                        return_behaviour=ret, trajectory=traj, source=source,
                        vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive)
