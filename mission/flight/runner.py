@@ -205,7 +205,7 @@ class Runner(FlightTasks):
                     items = await self._prepare(telemetry, mission_raw, param, ardupilot)
                     await self._open_log(url, ap_name, report, len(items))
                     tasks.append(asyncio.create_task(self._logger()))
-                    tasks.append(asyncio.create_task(watch_budget(self, self.budget)))
+                    tasks.append(asyncio.create_task(watch_budget(self, self.budget, mission_raw, action)))
                     code, status = await self._mission(action, mission_raw)
                 except FlightError as e:
                     code, status = e.code, f"failed: {e}"
@@ -239,6 +239,7 @@ class Runner(FlightTasks):
         await self._race(self._healthy(telemetry), timeout=opts.connect_timeout_s, what="a healthy position and home")
         home = await telemetry.home()
         self._check_home(home)
+        self.home = home  # the mission's items are built about it (budget.act re-uploads them)
         items = build_items(spec, (home.latitude_deg, home.longitude_deg, home.absolute_altitude_m), ardupilot)
         n_wp = len(spec.waypoints_enu())
         self.status.n_waypoints, self.status.waypoint_offset = n_wp, 3 if ardupilot else 2
@@ -252,7 +253,7 @@ class Runner(FlightTasks):
         with contextlib.suppress(Exception):
             await telemetry.set_rate_landed_state(5.0)
         v_ret = await apply_speeds(self, param, ardupilot)  # restored after the flight
-        self.budget = start_budget(self, v_ret, await vertical_speeds(self, param, ardupilot))
+        self.budget = start_budget(self, v_ret, await vertical_speeds(self, param, ardupilot), ardupilot)
         self.status.stage = "uploading"
         for attempt in range(3):  # a busy link (high speed-up) can time out one transfer
             try:
