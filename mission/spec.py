@@ -23,6 +23,7 @@ from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
 from mission.simulate import SimConfig
 from mission.spec_reader import SpecReader as _Reader
+from mission.trajectory.checks import RETURN_OVERSHOOT_M
 from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
@@ -77,6 +78,7 @@ class MissionSpec:
     budget_policy: str = "trim"  # BUDGET_POLICIES: when the landing would pass the budget less its reserve
     budget_reserve_s: float = 10.0  # kept free at landing by the policy
     fence_margin_m: float = 3.0
+    home_margin_m: float = 2.0  # home keeps the autopilots' known return overshoot plus this from the fence
     altitude_limits_m: tuple[float, float] = (10.0, 120.0)
     home_enu: np.ndarray = field(default_factory=lambda: np.zeros(3))
     return_behaviour: str = "rtl"
@@ -244,6 +246,19 @@ def _field(r: _Reader) -> tuple[Field, tuple[float, float] | None]:
     return Field(origin, areas["flight_area"], areas["rover_area"], name=name, takeoff_home=home), home
 
 
+def _inside(area: Area, p: np.ndarray, clearance: float) -> np.ndarray:
+    """``p`` moved straight away from the nearest edge of ``area`` until it is ``clearance`` inside (unchanged
+    when it already is): the AFAR launch point is 0.44 m inside the fence, where a real autopilot's take-off and
+    landing drift outside (``checks.RETURN_OVERSHOOT_M``)."""
+    d = float(area.signed_distance(p[None])[0])
+    if d >= clearance:
+        return p
+    h = 1e-3
+    g = np.array([area.signed_distance((p + e)[None])[0] - area.signed_distance((p - e)[None])[0]
+                  for e in (np.array([h, 0.0]), np.array([0.0, h]))]) / (2 * h)
+    return p + (clearance - d) * g / max(float(np.hypot(*g)), 1e-9)
+
+
 def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     """Validate a parsed YAML document (a mapping) into a ``MissionSpec``."""
     src = str(path) if path else "<mission>"
@@ -263,11 +278,13 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     if not (isinstance(lim, list) and len(lim) == 2 and all(
             isinstance(x, int | float) and not isinstance(x, bool) for x in lim) and 0 <= lim[0] < lim[1]):
         raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max, got {lim!r}")
+    home_margin = r.num("home_margin_m", d("home_margin_m"), 0.0)
     if r.has("home"):
         home = _point(r.raw("home"), r, "home", fld.origin)
     elif takeoff is not None:
         home = fld.origin.to_enu(*takeoff)
         home[2] = math.nan  # ground level (the origin's ground; earth curvature is not a height)
+        home[:2] = _inside(fld.flight_area, home[:2], RETURN_OVERSHOOT_M + home_margin + 1.0)
     else:
         home = d("home_enu")
     home = np.array([home[0], home[1], 0.0 if math.isnan(home[2]) else home[2]])
@@ -329,7 +346,7 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     r.done()
     return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
                        cruise_speed_mps=cruise, time_budget_s=budget, budget_policy=policy,
-                       budget_reserve_s=reserve, fence_margin_m=margin,
+                       budget_reserve_s=reserve, fence_margin_m=margin, home_margin_m=home_margin,
                        altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
                        return_behaviour=ret, trajectory=traj, source=source,
                        vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive)

@@ -55,18 +55,10 @@ def autopilot_return_extra_s(r, frm) -> float:
 
 
 async def _upload(r, mission_raw, items) -> None:
-    from mavsdk.plugins.mission_raw import MissionRawError
+    from mission.flight.plan import upload_items
 
-    from mission.flight.plan import to_mavsdk
-
-    for attempt in range(3):
-        try:
-            await mission_raw.upload_mission(to_mavsdk(items))
-            return
-        except MissionRawError as e:
-            if attempt == 2:
-                raise
-            r.event("adaptive", f"upload failed ({e.result.name}); retrying", warn=True)
+    await upload_items(mission_raw, items, on_retry=lambda why: r.event(
+        "adaptive", f"upload failed ({why}); retrying", warn=True))
 
 
 async def adapt(r, action, mission_raw) -> None:

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mission.flight.plan import upload_error, upload_items
+from mission.flight.plan import upload_items
 from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
@@ -346,7 +346,8 @@ async def act(runner, watch: BudgetWatch, decision: tuple[str, int], mission_raw
         await mission_raw.set_current_mission_item(max(cur, runner.phases.raw_item))
     except Exception as e:
         watch.policy = "warn"  # the autopilot keeps the whole mission
-        runner.event("budget", f"could not drop the mission's tail ({upload_error(e)}): flying it all", warn=True)
+        why = str(e) if str(e) and len(str(e)) < 60 else type(e).__name__
+        runner.event("budget", f"could not drop the mission's tail ({why}): flying it all", warn=True)
         return
     runner.phases.configure(off, len(items) - 1, runner.phases.final)
     s.n_waypoints = keep + 1

@@ -23,9 +23,16 @@ def to_mavsdk(items: list[RawItem]):
     return out
 
 
+
+class UploadFailed(Exception):
+    """A mission upload the autopilot refused or let time out, in one line: the result's name (TIMEOUT,
+    PROTOCOL_ERROR...) and the item count, never the object reprs of MAVSDK's own message (3.5 kB on
+    ArduPilot)."""
+
+
 async def upload_items(mission_raw, items: list[RawItem], attempts: int = 3, on_retry=None) -> None:
     """Upload ``items`` (``MissionRawAsync.upload_mission``), retrying a failed transfer (a busy link at a high
-    speed-up can time one out); ``on_retry(error)`` is called before each retry; the last error propagates."""
+    speed-up can time one out); ``on_retry(result_name)`` before each retry; ``UploadFailed`` after the last."""
     from mavsdk.plugins.mission_raw import MissionRawError
 
     for attempt in range(attempts):
@@ -33,14 +40,8 @@ async def upload_items(mission_raw, items: list[RawItem], attempts: int = 3, on_
             await mission_raw.upload_mission(to_mavsdk(items))
             return
         except MissionRawError as e:
+            name = getattr(getattr(e, "result", None), "name", None) or type(e).__name__
             if attempt == attempts - 1:
-                raise
+                raise UploadFailed(f"mission upload failed: {name}, {len(items)} items") from None
             if on_retry is not None:
-                on_retry(e)
-
-
-def upload_error(e: BaseException, n_items: int | None = None) -> str:
-    """A failed upload in a few words: the MAVSDK result's name (TIMEOUT, PROTOCOL_ERROR...), never the
-    object reprs MAVSDK's own message holds (3.5 kB on ArduPilot), and the item count when given."""
-    result = getattr(getattr(e, "result", None), "name", None) or type(e).__name__
-    return result + (f", {n_items} items" if n_items is not None else "")
+                on_retry(name)
