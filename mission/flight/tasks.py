@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.flight.progress import FoldedTexts, fit_width
+
 LINK_LOST_AFTER_S = 3.0
 SOURCE_STALLED_AFTER_S = 2.0
 EXIT_OK, EXIT_FAILED, EXIT_ABORTED, EXIT_LINK = 0, 1, 130, 3
@@ -57,20 +59,25 @@ class FlightTasks:
         self.sdklog = None
         self.source = None
         self._source_warned = False
+        self.texts = FoldedTexts()  # autopilot texts on screen: repeats counted, not shown
 
     # ----------------------------------------------------------------- events and signals
-    def event(self, kind: str, text: str, warn: bool = False) -> None:
-        """Record an event for the sidecar and show it as one line."""
+    def event(self, kind: str, text: str, warn: bool = False, show: bool = True) -> None:
+        """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80 columns."""
         t = self.tel.clock.now()
         self.st.events.append({"t_vehicle_s": None if not np.isfinite(t) else round(t, 3), "kind": kind,
                                "text": text, "wall": time.time()})
         if warn:
             self.status.warnings.append(text)
-        line = ("WARNING: " if warn else "") + text
+        if show:
+            self.say(("WARNING: " if warn else "") + text, "yellow" if warn else "")
+
+    def say(self, line: str, style: str = "") -> None:
+        """Show a line (not recorded), wrapped at 80 columns."""
         if self.display is not None:
-            self.display.message(line, "yellow" if warn else "")
+            self.display.message(line, style)
         else:
-            print(line, file=sys.stderr, flush=True)
+            print(fit_width(line), file=sys.stderr, flush=True)
 
     def _on_signal(self, name: str) -> None:
         if self.abort.is_set():
@@ -156,7 +163,8 @@ class FlightTasks:
     async def _status_texts(self, telemetry) -> None:
         async for s in telemetry.subscribe_status_text():
             self.last_text_wall = time.monotonic()
-            self.event("statustext", f"autopilot: {s.text.rstrip()}")  # PX4 ends some with a tab
+            text = f"autopilot: {s.text.rstrip()}"  # PX4 ends some with a tab
+            self.event("statustext", text, show=self.texts.show(text))
 
     async def _logger(self) -> None:
         while True:
