@@ -74,11 +74,11 @@ class FlyOptions:
 
 
 def wall_clock_notice(duration_s: float, speedup: float, hint: bool = True) -> str:
-    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint."""
+    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint (no vehicle
+    seconds: the one plan figure is the budget's, with the autopilot's own speeds, ``budget.start_budget``)."""
     wall = duration_s / speedup
     text = (
-        f"estimated flight {duration_s / 60:.1f} min of vehicle time: about {_fmt_wall(wall)} "
-        f"of wall-clock time at speed-up {speedup:g}"
+        f"estimated flight: about {_fmt_wall(wall)} of wall-clock time at speed-up {speedup:g}"
     )
     if hint and speedup < 20 and wall > 60:
         text += f" (add --speedup 20 for about {_fmt_wall(duration_s / 20)})"
@@ -229,9 +229,7 @@ class Runner(FlightTasks):
 
     async def _prepare(self, telemetry, mission_raw, param, ardupilot: bool):
         """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the upload."""
-        from mavsdk.plugins.mission_raw import MissionRawError
-
-        from mission.flight.plan import to_mavsdk
+        from mission.flight.plan import UploadFailed, upload_items
         from mission.trajectory.items import build_items
 
         spec, opts = self.spec, self.opts
@@ -255,14 +253,11 @@ class Runner(FlightTasks):
         v_ret = await apply_speeds(self, param, ardupilot)  # restored after the flight
         self.budget = start_budget(self, v_ret, await vertical_speeds(self, param, ardupilot), ardupilot)
         self.status.stage = "uploading"
-        for attempt in range(3):  # a busy link (high speed-up) can time out one transfer
-            try:
-                await mission_raw.upload_mission(to_mavsdk(items))
-                break
-            except MissionRawError as e:
-                if attempt == 2:
-                    raise FlightError(f"mission upload failed: {e.result.name}", EXIT_LINK) from None
-                self.event("upload", f"mission upload failed ({e.result.name}); retrying", warn=True)
+        try:  # a busy link (high speed-up) can time one transfer out: retried
+            await upload_items(mission_raw, items, on_retry=lambda why: self.event(
+                "upload", f"mission upload failed ({why}); retrying", warn=True))
+        except UploadFailed as e:
+            raise FlightError(str(e), EXIT_LINK) from None
         self.event("upload", f"mission uploaded: {len(items)} raw items ({n_wp} waypoints)")
         self._abort_before_takeoff()
         return items
@@ -306,7 +301,7 @@ class Runner(FlightTasks):
                 await asyncio.sleep(2.0)
         await self._wait(self.armed_seen, timeout=3.0)  # "armed" (the telemetry) before "mission started"
         self.status.t_start = self.tel.clock.now()
-        await mission_raw.start_mission()
+        await self._start_mission(action, mission_raw)
         self.event("start", "mission started")
         ev = await self._wait(self.mission_done, self.landed_disarmed, self.abort, self.link_dead)
         if ev is self.link_dead:
@@ -321,6 +316,25 @@ class Runner(FlightTasks):
         if self.link_dead.is_set():
             return EXIT_LINK, "link lost"
         return EXIT_OK, "completed" if self.landed_disarmed.is_set() else "landing not confirmed"
+
+    async def _start_mission(self, action, mission_raw) -> None:
+        """``start_mission``, retried: a loaded link (PX4 SITL at 10x on two busy cores) timed it out, and PX4
+        disarms an armed vehicle that does not take off within seconds (re-armed then)."""
+        from mavsdk.plugins.mission_raw import MissionRawError
+
+        for attempt in range(3):
+            self._abort_before_takeoff()
+            try:
+                await mission_raw.start_mission()
+                return
+            except MissionRawError as e:
+                why = getattr(e.result, "name", type(e).__name__)
+                if attempt == 2:
+                    raise FlightError(f"mission start refused: {why}") from None
+                self.event("start", f"mission start failed ({why}); retrying", warn=True)
+                if not self.st.armed:
+                    with contextlib.suppress(Exception):
+                        await action.arm()
 
     async def _safe_return(self, action) -> None:
         if self.st.in_air and not self.link_dead.is_set():
@@ -358,6 +372,8 @@ class Runner(FlightTasks):
         if self.rows is None:
             return
         await self.source.stop()
+        for line in self.texts.summary():  # the autopilot's repeated texts, folded on screen
+            self.say(line)
         summary = self.tel.summary()
         if self.budget is not None:
             summary["budget"] = close_budget(self, self.budget)
