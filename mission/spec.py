@@ -136,6 +136,12 @@ class MissionSpec:
             return np.array([xy[0], xy[1], self.source.tx_height_m])
         return np.array(self.source.tx, dtype=float)
 
+    def transmitter(self, seed: int | None = None) -> np.ndarray:
+        """The simulated transmitter of draw ``seed`` (default: the mission's ``source.seed``): the one home of
+        that draw, so ``rfsl simulate`` and ``fly-mission`` put seed N's transmitter in the same place
+        (``resolve_tx`` with ``default_rng([seed, 1])``, a stream apart from the flight's noise)."""
+        return self.resolve_tx(np.random.default_rng([self.source.seed if seed is None else seed, 1]))
+
     def sim_config(self) -> SimConfig:
         """Simulator settings (sample period, perturbation, noise, kinematics) of this mission."""
         s = self.source

