@@ -154,10 +154,10 @@ class Runner(FlightTasks):
         if kind != "sim":
             return make_receiver(kind, arg), None
         s = self.spec.source
-        rng = np.random.default_rng(s.seed)
-        tx = self.spec.resolve_tx(rng)
+        rng = np.random.default_rng(s.seed)  # the RSS noise
+        tx = self.spec.transmitter()  # seed N's transmitter, where rfsl simulate puts it
         info = {"model": s.model, "model_params": s.model_params, "seed": s.seed, "tx_enu": [float(v) for v in tx],
-                "tx_resolution": "rng=default_rng(seed); tx=spec.resolve_tx(rng)"}
+                "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: default_rng(seed)"}
         src = SimSource(self.spec.propagation_model(), tx, rng, s.noise_db, s.sample_period_s,
                         self.spec.field.origin, info)
         return src, {"x_m": float(tx[0]), "y_m": float(tx[1]), "z_m": float(tx[2])}
