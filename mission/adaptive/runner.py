@@ -69,6 +69,20 @@ class LiveRunner(Runner):
         self.home = home
         super()._check_home(home)
 
+    async def _prepare(self, telemetry, mission_raw, param, ardupilot: bool):
+        """The base preparation, then the adaptive budget again with the autopilot's own return (known now):
+        refused before take-off, exit 2, when it leaves no round."""
+        items = await super()._prepare(telemetry, mission_raw, param, ardupilot)
+        if self.adaptive:
+            from mission.adaptive.feasibility import adaptive_violations
+            from mission.adaptive.rounds import autopilot_return_extra_s
+            from mission.flight.runner import FlightError
+
+            extra = autopilot_return_extra_s(self, self.spec.waypoints_enu()[-1])
+            if v := adaptive_violations(self.full_spec, self.adaptive, extra):
+                raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
+        return items
+
     # ----------------------------------------------------------------- live estimates
     async def _open_log(self, url, ap_name, report, n_items) -> None:
         await super()._open_log(url, ap_name, report, n_items)
