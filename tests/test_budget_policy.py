@@ -42,7 +42,7 @@ def _truth(plan, pace: Pace, last: int) -> tuple[np.ndarray, float]:
     return t, float(t[last] + pace.legs(np.array([plan.ret_s[last]])) + plan.land_s)
 
 
-def _fly(plan, pace: Pace, policy: str, reserve_s: float = 10.0, dt: float = 1.0):
+def _fly(plan, pace: Pace, policy: str, reserve_s: float = 10.0, dt: float = 2.0):
     """Fly the synthetic vehicle under the watch, re-planning as the policy acts; the watch, the flown arrival
     times, the true arm-to-disarm time and the decisions taken."""
     w = BudgetWatch(plan, policy=policy, reserve_s=reserve_s)

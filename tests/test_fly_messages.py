@@ -116,25 +116,42 @@ def test_fly_mission_seed_puts_the_transmitter_where_simulate_does(tmp_path, see
     np.testing.assert_allclose([truth["x_m"], truth["y_m"], truth["z_m"]], log.truth_enu, atol=1e-6)
 
 
-def _fly_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "mission.cli.fly", *args], cwd=ROOT, capture_output=True,
-                          text=True, timeout=120)
+def test_fly_mission_refuses_a_negative_seed_in_one_line(capsys):
+    from mission.cli.fly import main
+
+    assert main([str(SPIRAL), "--seed", "-3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--seed" in err[0] and "-3" in err[0], err
 
 
-def test_fly_mission_refuses_a_negative_seed_in_one_line():
-    p = _fly_cli(str(SPIRAL), "--seed", "-3")
-    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--seed" in p.stderr, p.stderr
+@pytest.mark.parametrize("block, flag, flown, said", [
+    ("adaptive: {}", False, False, True), ("adaptive: null", False, False, True),
+    ("adaptive: {enabled: false}", False, False, True), ("adaptive: {enabled: true}", False, True, False),
+    ("adaptive: {}", True, True, False), ("", False, False, False), ("", True, True, False),
+])
+def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(block, flag, flown, said):
+    import yaml
+
+    from mission.cli.fly import choose_adaptive
+    from mission.spec import parse_mission
+
+    spec = parse_mission(yaml.safe_load(SPIRAL.read_text() + "\n" + block + "\n"))
+    a, note = choose_adaptive(spec, flag)
+    assert (a is not None) == flown and (note is not None) == said
+    if said:
+        assert note == "adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission"
 
 
-@pytest.mark.parametrize("block", ["adaptive: {}", "adaptive: null", "adaptive: {enabled: false}"])
-def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(tmp_path, block):
-    """One line before anything starts; a mission that then cannot connect fails with its own line."""
-    m = tmp_path / "m.yaml"
-    m.write_text(SPIRAL.read_text() + "\n" + block + "\n")
+@pytest.mark.slow
+def test_the_fixed_mission_line_comes_first_in_a_real_run(tmp_path):
+    """``adaptive: null``: the one line, before anything starts (then no autopilot answers: its own line)."""
     from mission.flight.vehicle_process import free_udp_port
 
-    p = _fly_cli(str(m), "--connect", f"udpin://127.0.0.1:{free_udp_port()}", "--link-timeout", "1",
-                 "--out", str(tmp_path / "f"))
+    m = tmp_path / "m.yaml"
+    m.write_text(SPIRAL.read_text() + "\nadaptive: null\n")
+    p = subprocess.run([sys.executable, "-m", "mission.cli.fly", str(m), "--connect",
+                        f"udpin://127.0.0.1:{free_udp_port()}", "--link-timeout", "1", "--out", str(tmp_path / "f")],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120)
     lines = p.stderr.strip().splitlines()
-    assert lines[0] == "adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission", p.stderr
+    assert p.returncode == 3 and lines[0].startswith("adaptive: not enabled"), p.stderr
     assert sum("adaptive" in ln for ln in lines) == 1

@@ -81,10 +81,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
 
 
+def choose_adaptive(spec, flag: bool):
+    """(the ``AdaptiveSpec`` to fly or None, a line to show or None): the mission's ``adaptive:`` block when
+    enabled or ``--adaptive`` is given (the defaults without a block); a block that is present but not enabled
+    (``adaptive: {}``, ``adaptive: null``, ``enabled: false``) says in one line that the fixed mission is flown."""
+    from mission.adaptive.config import AdaptiveSpec
+
+    a = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
+    if flag or a.enabled:
+        return a, None
+    if spec.adaptive is not None:
+        return None, "adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission"
+    return None, None
+
+
 def run(args: argparse.Namespace) -> int:
     import os
 
-    from mission.adaptive.config import AdaptiveSpec
     from mission.adaptive.feasibility import assert_adaptive
     from mission.adaptive.runner import fly_live
     from mission.errors import InputError
@@ -102,10 +115,9 @@ def run(args: argparse.Namespace) -> int:
         import dataclasses
 
         spec = dataclasses.replace(spec, source=dataclasses.replace(spec.source, seed=args.seed))
-    adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
-    adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
-    if adaptive is None and spec.adaptive is not None:  # adaptive: {} / null / enabled: false
-        print("adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission", file=sys.stderr)
+    adaptive, note = choose_adaptive(spec, args.adaptive)
+    if note:
+        print(note, file=sys.stderr)
     if adaptive is not None:
         assert_adaptive(spec, adaptive)  # before anything starts: one line, exit 2
     opts = FlyOptions(
