@@ -340,3 +340,43 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     assert b["warned_at_s"] is not None and b["warned_at_s"] < 0.6 * b["used_s"]  # warned early, not at the end
     assert "WARNING: budget will not hold" in err and f"{b['overrun_s']:.0f} s over" in err
     assert any(e["kind"] == "params" and e["text"] == "restored MPC_XY_CRUISE=4.8" for e in ev)
+
+
+def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
+    """The default ``budget_policy: trim`` on the PX4-like vehicle (legs 7 % slower than asked) at speed-up 20,
+    the spiral with a 560 s budget (about 580 s flown whole): the tail is dropped in flight with one line, the
+    vehicle lands inside the budget (arm to disarm, measured), and the sidecar names what was dropped."""
+    import yaml
+
+    d = yaml.safe_load(SPIRAL.read_text())
+    d["time_budget_s"] = 560  # the kinematic plan (538 s) fits; flown 7 % slow it would not
+    mfile = tmp_path / "tight.yaml"
+    mfile.write_text(yaml.safe_dump(d))
+    from mission.spec import load_mission
+
+    spec = load_mission(mfile)
+    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
+    port = free_udp_port()
+    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "20", "--profile",
+                            "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}"], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", "20", "--out",
+                  str(tmp_path / "f"), "--no-localize"])
+        _, err = p.communicate(timeout=150)
+    finally:
+        veh.terminate()
+        veh.wait(5)
+        p.kill()
+    assert p.returncode == 0, err[-3000:]
+    log = read_flight_log(_log_of(tmp_path / "f"))
+    b = log.meta["budget"]
+    n = len(spec.waypoints_enu())
+    assert b["policy"] == "trim" and b["dropped_waypoints"] and b["dropped_waypoints"][-1] == n, b
+    assert b["dropped_waypoints"] == list(range(b["dropped_waypoints"][0], n + 1))  # the tail, whole
+    assert b["arm_to_disarm_s"] is not None and b["arm_to_disarm_s"] <= 560, b
+    assert not b["overrun"]
+    dropped_lines = [ln for ln in err.splitlines() if "budget: dropped waypoint" in ln]
+    assert 1 <= len(dropped_lines) <= 3 and all(len(ln) <= 80 for ln in err.splitlines() if len(ln.split()) > 1), err
+    items = log.columns["mission_item"][log.columns["phase"] == "mission"]
+    assert items.max() == b["dropped_waypoints"][0] - 2  # waypoints after the last kept one were not flown
