@@ -220,7 +220,8 @@ class BudgetWatch:
         if elapsed > b:
             return f"over the time budget: {elapsed:.0f} s flown of {b:.0f} s, still flying"
         act = {"trim": ": dropping the tail", "return": ": returning"}.get(self.policy, "")
-        return (f"budget will not hold: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
+        what = "budget will not hold" if self.predicted_s > b else f"inside the {self.reserve_s:g} s reserve"
+        return (f"{what}: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
                 f"(pace {self.pace():.2f}, {len(self.reached_at)}/{len(self.plan.t_wp)} wp){act}")
 
     def keep_until(self, elapsed: float) -> int:
