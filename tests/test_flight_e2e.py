@@ -284,6 +284,28 @@ def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
     raise AssertionError("the simulated vehicle outlived fly-mission's kill -9")
 
 
+def _fly_px4_like(mfile: Path, speedup: float, out: Path, *extra: str) -> tuple[int, str]:
+    """Fly ``mfile`` with ``--no-localize`` on the built-in vehicle with the PX4-like profile (vehicle options
+    ``extra``), started apart at the mission's home on a free UDP port; (exit code, stderr)."""
+    from mission.spec import load_mission
+
+    spec = load_mission(mfile)
+    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
+    port = free_udp_port()
+    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", f"{speedup:g}",
+                            "--profile", "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
+                            *extra], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", f"{speedup:g}", "--out",
+                  str(out), "--no-localize"])
+        _, err = p.communicate(timeout=150)
+    finally:
+        veh.terminate()
+        veh.wait(5)
+        p.kill()
+    return p.returncode, err
+
+
 def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path):
     """Budget and autopilot texts on the PX4-like vehicle (legs 7 % slower than asked, return at its own MPC_XY_CRUISE,
     STATUSTEXT only while a GCS heartbeat arrived within 2.5 simulated s) at speed-up 10, a short spiral with
@@ -308,22 +330,9 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     plan = base + LANDED_TO_DISARM_S["PX4"]
     d["time_budget_s"] = round(base * 1.03)  # the built-in vehicle disarms at touchdown: 3 % above its flight
     mfile.write_text(yaml.safe_dump(d))
-    spec = load_mission(mfile)
-    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
-    port, texts = free_udp_port(), tmp_path / "texts.jsonl"
-    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "10", "--profile",
-                            "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
-                            "--statustext-log", str(texts)], cwd=ROOT, stdout=subprocess.DEVNULL,
-                           stderr=subprocess.DEVNULL)
-    try:
-        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", "10", "--out",
-                  str(tmp_path / "f"), "--no-localize"])
-        _, err = p.communicate(timeout=150)
-    finally:
-        veh.terminate()
-        veh.wait(5)
-        p.kill()
-    assert p.returncode == 0, err[-3000:]
+    texts = tmp_path / "texts.jsonl"
+    rc, err = _fly_px4_like(mfile, 10, tmp_path / "f", "--statustext-log", str(texts))
+    assert rc == 0, err[-3000:]
     assert "of wall-clock time at speed-up 10" in err and "add --speedup" not in err  # duration line, --connect
     log = read_flight_log(_log_of(tmp_path / "f"))
     ev = log.meta["events"]
@@ -355,20 +364,8 @@ def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
     from mission.spec import load_mission
 
     spec = load_mission(mfile)
-    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
-    port = free_udp_port()
-    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "20", "--profile",
-                            "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}"], cwd=ROOT,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", "20", "--out",
-                  str(tmp_path / "f"), "--no-localize"])
-        _, err = p.communicate(timeout=150)
-    finally:
-        veh.terminate()
-        veh.wait(5)
-        p.kill()
-    assert p.returncode == 0, err[-3000:]
+    rc, err = _fly_px4_like(mfile, 20, tmp_path / "f")
+    assert rc == 0, err[-3000:]
     log = read_flight_log(_log_of(tmp_path / "f"))
     b = log.meta["budget"]
     n = len(spec.waypoints_enu())

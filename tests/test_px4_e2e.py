@@ -13,9 +13,7 @@ load: 10x flew the spiral every time; 20x timed the mission upload out).
 from __future__ import annotations
 
 import os
-import random
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -23,6 +21,7 @@ import time
 from pathlib import Path
 
 import pytest
+from _sitl_process import SitlProcess, free_instance
 
 from mission.flightlog import read_flight_log
 
@@ -41,24 +40,17 @@ pytestmark = [
 def _free_instance() -> int:
     """A PX4 instance whose UDP ports (app link 14540 + I and PX4's own 14580 + I, 18570 + I) are free now;
     1..9 only: from instance 10 on PX4's start script sends the app link to a shared port."""
-    for _ in range(50):
-        i = random.randint(1, 9)
-        try:
-            for port in (14540 + i, 14580 + i, 18570 + i):
-                with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-                    s.bind(("0.0.0.0", port))
-            return i
-        except OSError:
-            continue
-    pytest.skip("no free PX4 SITL instance ports")
+    return free_instance(1, 9, lambda i: (14540 + i, 14580 + i, 18570 + i), True, "PX4 SITL")
 
 
-class _Px4:
+class _Px4(SitlProcess):
     """One PX4 SITL in its own instance and run folder; ``url`` is the app's MAVSDK address."""
 
+    log_name = "px4.log"
+
     def __init__(self, root: Path, speedup: float = SPEEDUP):
-        self.root, self.speedup, self.pid, self.url = root, speedup, None, ""
-        self.run = root / "px4"
+        super().__init__(root)
+        self.speedup, self.run = speedup, root / "px4"
 
     def start(self) -> str:
         from mission.spec import load_mission
@@ -66,20 +58,10 @@ class _Px4:
         spec = load_mission(SPIRAL)  # the vehicle takes off from the missions' home (4 m inside the fence)
         lat, lon, _ = spec.field.origin.to_geodetic(spec.home_enu)
         inst = _free_instance()
-        out = subprocess.run([str(PX4 / "start.sh"), str(self.speedup), str(inst), f"{lat:.7f},{lon:.7f},0"],
-                             env=dict(os.environ, RUN=str(self.run)), capture_output=True, text=True, timeout=30)
-        self.pid = int(out.stdout.split()[-1])
-        end = time.monotonic() + 60
-        while "Ready for takeoff!" not in self.log():
-            if time.monotonic() > end or not self.alive():
-                pytest.fail("PX4 SITL did not get ready: " + self.log()[-2000:])
-            time.sleep(0.2)
+        self.launch(PX4 / "start.sh", [str(self.speedup), str(inst), f"{lat:.7f},{lon:.7f},0"], "Ready for takeoff!",
+                    "PX4 SITL")
         self.url = f"udpin://0.0.0.0:{14540 + inst}"
         return self.url
-
-    def log(self) -> str:
-        f = self.run / "px4.log"
-        return f.read_text(errors="replace") if f.exists() else ""
 
     def texts(self) -> list[str]:
         """The autopilot texts PX4 wrote to its console after the app connected (PX4 ends those it sends as
@@ -87,23 +69,6 @@ class _Px4:
         lines = self.log().split("partner IP", 1)[-1].splitlines()
         out = [ln.split("] ", 1)[1].rstrip() for ln in lines if ln.endswith("\t") and "] " in ln]
         return [t for t in out if t != "Connection to ground station lost"]
-
-    def alive(self) -> bool:
-        try:
-            os.kill(self.pid, 0)
-        except ProcessLookupError:
-            return False
-        return True
-
-    def stop(self) -> None:
-        for sig in (signal.SIGTERM, signal.SIGKILL):
-            if self.pid is None or not self.alive():
-                return
-            os.kill(self.pid, sig)
-            for _ in range(20):
-                if not self.alive():
-                    return
-                time.sleep(0.25)
 
 
 @pytest.fixture
