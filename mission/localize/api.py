@@ -256,6 +256,7 @@ def localize_log(
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     physics_given = physics_preset is not None or physics_model is not None or floor_db is not None
+    by_default = method is None and model_path is None  # a default network: selfcal's regions if its circles fail
     if physics_preset is None and physics_model is None:
         physics_model, physics_params, physics_preset = _default_physics(log)
     physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
@@ -264,7 +265,6 @@ def localize_log(
         part, reason = select_samples(log)
     else:
         part, reason = log, "cruise selection off: all samples used"
-    fallback = False  # the default network answers: regions from selfcal where its circles do not apply
     if method is None:
         if model_path is not None:
             method, choice = "onnx", f"model {Path(model_path).name} given"
@@ -281,7 +281,7 @@ def localize_log(
             from mission.localize.sim_default import sim_default_model
 
             model_path, choice = sim_default_model(log.meta, part.enu()[:, 2], dm)
-            method, fallback = "onnx", True
+            method = "onnx"
         else:
             method, choice = (
                 "grid",
@@ -303,7 +303,7 @@ def localize_log(
         est = _in_log_frame(loc, loc.predict(trained_legs(part) if method == "onnx" else part), origin, method)
         if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
-            if fallback:
+            if by_default:
                 _fallback_regions(est, part, origin, ra, tx_height_m)
         else:
             _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),
