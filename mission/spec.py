@@ -17,12 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from mission.defaults import DEFAULT_TX_HEIGHT_M, MAX_DURATION_S, MAX_SPEEDUP
+from mission.defaults import BUDGET_POLICIES, DEFAULT_TX_HEIGHT_M, MAX_DURATION_S, MAX_SPEEDUP
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
 from mission.simulate import SimConfig
 from mission.spec_reader import SpecReader as _Reader
+from mission.trajectory.checks import RETURN_OVERSHOOT_M
 from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
@@ -79,7 +80,10 @@ class MissionSpec:
     altitude_m: float = 30.0
     cruise_speed_mps: float = 5.5
     time_budget_s: float = 600.0
+    budget_policy: str = "trim"  # BUDGET_POLICIES: when the landing would pass the budget less its reserve
+    budget_reserve_s: float = 10.0  # kept free at landing by the policy
     fence_margin_m: float = 3.0
+    home_margin_m: float = 2.0  # home keeps the autopilots' known return overshoot plus this from the fence
     altitude_limits_m: tuple[float, float] = (10.0, 120.0)
     home_enu: np.ndarray = field(default_factory=lambda: np.zeros(3))
     return_behaviour: str = "rtl"
@@ -137,6 +141,12 @@ class MissionSpec:
             xy = self.field.rover_area.sample_uniform(1, rng)[0]
             return np.array([xy[0], xy[1], self.source.tx_height_m])
         return np.array(self.source.tx, dtype=float)
+
+    def transmitter(self, seed: int | None = None) -> np.ndarray:
+        """The simulated transmitter of draw ``seed`` (default: the mission's ``source.seed``): the one home of
+        that draw, so ``rfsl simulate`` and ``fly-mission`` put seed N's transmitter in the same place
+        (``resolve_tx`` with ``default_rng([seed, 1])``, a stream apart from the flight's noise)."""
+        return self.resolve_tx(np.random.default_rng([self.source.seed if seed is None else seed, 1]))
 
     def sim_config(self) -> SimConfig:
         """Simulator settings (sample period, perturbation, noise, kinematics) of this mission."""
@@ -265,6 +275,19 @@ def mission_name(name: str, src: str) -> str:
     return name
 
 
+def _inside(area: Area, p: np.ndarray, clearance: float) -> np.ndarray:
+    """``p`` moved straight away from the nearest edge of ``area`` until it is ``clearance`` inside (unchanged
+    when it already is): the AFAR launch point is 0.44 m inside the fence, where a real autopilot's take-off and
+    landing drift outside (``checks.RETURN_OVERSHOOT_M``)."""
+    d = float(area.signed_distance(p[None])[0])
+    if d >= clearance:
+        return p
+    h = 1e-3
+    g = np.array([area.signed_distance((p + e)[None])[0] - area.signed_distance((p - e)[None])[0]
+                  for e in (np.array([h, 0.0]), np.array([0.0, h]))]) / (2 * h)
+    return p + (clearance - d) * g / max(float(np.hypot(*g)), 1e-9)
+
+
 def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     """Validate a parsed YAML document (a mapping) into a ``MissionSpec``."""
     src = str(path) if path else "<mission>"
@@ -275,6 +298,10 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     altitude = r.num("altitude_m", d("altitude_m"), 0.0, MAX_ALTITUDE_M, strict_lo=True)
     cruise = r.num("cruise_speed_mps", d("cruise_speed_mps"), 0.0, 30.0, strict_lo=True)
     budget = r.num("time_budget_s", d("time_budget_s"), 0.0, MAX_DURATION_S, strict_lo=True)
+    policy = r.str_("budget_policy", d("budget_policy"), BUDGET_POLICIES)
+    reserve = r.num("budget_reserve_s", d("budget_reserve_s"), 0.0, MAX_DURATION_S)
+    if reserve >= budget:
+        raise r.err("budget_reserve_s", f"must be less than time_budget_s ({budget:g} s), got {reserve:g}")
     margin = r.num("fence_margin_m", d("fence_margin_m"), 0.0, MAX_LOCAL_M)
     lim = r.raw("altitude_limits_m", list(d("altitude_limits_m")))
     if not (isinstance(lim, list) and len(lim) == 2 and all(
@@ -282,11 +309,13 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
             and 0 <= lim[0] < lim[1] <= MAX_ALTITUDE_M):
         raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max <= {MAX_ALTITUDE_M:g}, "
                     f"got {lim!r}")
+    home_margin = r.num("home_margin_m", d("home_margin_m"), 0.0, MAX_LOCAL_M)
     if r.has("home"):
         home = _point(r.raw("home"), r, "home", fld.origin)
     elif takeoff is not None:
         home = fld.origin.to_enu(*takeoff)
         home[2] = math.nan  # ground level (the origin's ground; earth curvature is not a height)
+        home[:2] = _inside(fld.flight_area, home[:2], RETURN_OVERSHOOT_M + home_margin + 1.0)
     else:
         home = d("home_enu")
     home = np.array([home[0], home[1], 0.0 if math.isnan(home[2]) else home[2]])
@@ -350,7 +379,8 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     lg.done()
     r.done()
     return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
-                       cruise_speed_mps=cruise, time_budget_s=budget, fence_margin_m=margin,
+                       cruise_speed_mps=cruise, time_budget_s=budget, budget_policy=policy,
+                       budget_reserve_s=reserve, fence_margin_m=margin, home_margin_m=home_margin,
                        altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
                        return_behaviour=ret, trajectory=traj, source=source,
                        vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive,

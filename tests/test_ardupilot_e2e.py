@@ -9,10 +9,7 @@ at the mission's speed (ArduPilot's defaults fly it tail first at 10 m/s).
 from __future__ import annotations
 
 import os
-import random
 import shutil
-import signal
-import socket
 import subprocess
 import sys
 import time
@@ -21,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _sitl_process import SitlProcess, free_instance
 
 from mission.flightlog import PHASES, read_flight_log
 
@@ -36,60 +34,27 @@ pytestmark = [
 
 
 def _free_instance() -> int:
-    """A SITL instance number whose TCP ports (5760 + 10 I .. + 3) are free now."""
-    for _ in range(50):
-        i = random.randint(20, 250)  # the SITL keeps the instance in 8 bits
-        try:
-            for port in (5760 + 10 * i, 5762 + 10 * i, 5763 + 10 * i):
-                with socket.socket() as s:
-                    s.bind(("127.0.0.1", port))
-            return i
-        except OSError:
-            continue
-    pytest.skip("no free ArduPilot SITL instance ports")
+    """A SITL instance number whose TCP ports (5760 + 10 I .. + 3) are free now (the SITL keeps it in 8 bits)."""
+    return free_instance(20, 250, lambda i: (5760 + 10 * i, 5762 + 10 * i, 5763 + 10 * i), False, "ArduPilot SITL")
 
 
-class _Sitl:
+class _Sitl(SitlProcess):
     """One ArduCopter SITL at speed-up 20 in its own instance and folder; ``url`` is its MAVSDK address.
 
     Why a class: the SITL is an outside process; when it is gone before the flight connects, the test says so
     with its log and starts a fresh one once, instead of failing with only "connection refused"."""
 
     def __init__(self, root: Path):
-        self.root, self.starts, self.pid, self.url, self.run = root, 0, None, "", root
+        super().__init__(root)
+        self.starts = 0
 
     def start(self) -> str:
         self.starts += 1
         inst = _free_instance()
         self.run = self.root / f"sitl{self.starts}"
-        out = subprocess.run([str(SITL / "start.sh"), str(SPEEDUP), str(inst)], env=dict(os.environ, RUN=str(self.run)),
-                             capture_output=True, text=True, timeout=30)
-        self.pid = int(out.stdout.split()[-1])
-        end = time.monotonic() + 60
-        while "Waiting for connection" not in self.log():
-            if time.monotonic() > end or not self.alive():
-                pytest.fail("ArduCopter SITL did not start: " + self.log()[-2000:])
-            time.sleep(0.2)
+        self.launch(SITL / "start.sh", [str(SPEEDUP), str(inst)], "Waiting for connection", "ArduCopter SITL")
         self.url = f"tcpout://127.0.0.1:{5760 + 10 * inst}"
         return self.url
-
-    def log(self) -> str:
-        f = self.run / "sitl.log"
-        return f.read_text(errors="replace") if f.exists() else ""
-
-    def alive(self) -> bool:
-        try:
-            os.kill(self.pid, 0)
-        except ProcessLookupError:
-            return False
-        return True
-
-    def stop(self) -> None:
-        for sig in (signal.SIGTERM, signal.SIGKILL):
-            if self.pid is None or not self.alive():
-                return
-            os.kill(self.pid, sig)
-            time.sleep(0.5)
 
 
 @pytest.fixture

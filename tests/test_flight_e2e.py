@@ -113,7 +113,7 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
         assert np.std(log[c][cruise]) > 0.5
     assert np.ptp(log["yaw_deg"][cruise]) > 180
     rng = np.random.default_rng(spec.source.seed)
-    tx = spec.resolve_tx(rng)
+    tx = spec.transmitter()  # where rfsl simulate puts the same seed's transmitter
     assert np.allclose(tx, log.truth_enu)
     rss = recompute_sim_rss(log, spec.propagation_model(), rng, tx, spec.source.noise_db)
     assert np.max(np.abs(rss - log["rss_dbm"])) < 0.01
@@ -226,7 +226,7 @@ def test_connecting_to_nothing_times_out_with_one_line(tmp_path, scheme):
     assert time.monotonic() - t0 < 30
     lines = err.strip().splitlines()
     # the pre-flight duration line (printed with --connect too), then exactly one error line, no traceback
-    assert lines[0].startswith("estimated flight ") and "add --speedup" not in lines[0], err
+    assert lines[0].startswith("estimated flight: ") and "add --speedup" not in lines[0], err
     assert len(lines) == 2 and lines[1].startswith("error: no autopilot on") and "within 3 s" in lines[1], err
     assert not list(tmp_path.glob("*/flight.csv"))
 
@@ -292,6 +292,28 @@ def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
     raise AssertionError("the simulated vehicle outlived fly-mission's kill -9")
 
 
+def _fly_px4_like(mfile: Path, speedup: float, out: Path, *extra: str) -> tuple[int, str]:
+    """Fly ``mfile`` with ``--no-localize`` on the built-in vehicle with the PX4-like profile (vehicle options
+    ``extra``), started apart at the mission's home on a free UDP port; (exit code, stderr)."""
+    from mission.spec import load_mission
+
+    spec = load_mission(mfile)
+    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
+    port = free_udp_port()
+    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", f"{speedup:g}",
+                            "--profile", "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
+                            *extra], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", f"{speedup:g}", "--out",
+                  str(out), "--no-localize"])
+        _, err = p.communicate(timeout=150)
+    finally:
+        veh.terminate()
+        veh.wait(5)
+        p.kill()
+    return p.returncode, err
+
+
 def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path):
     """Budget and autopilot texts on the PX4-like vehicle (legs 7 % slower than asked, return at its own MPC_XY_CRUISE,
     STATUSTEXT only while a GCS heartbeat arrived within 2.5 simulated s) at speed-up 10, a short spiral with
@@ -302,33 +324,23 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
 
     import yaml
 
-    from mission.flight.budget import VerticalSpeeds, plan_times
+    from mission.flight.budget import LANDED_TO_DISARM_S, VerticalSpeeds, plan_times
     from mission.spec import load_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
     d["trajectory"]["params"]["spacing_m"] = 200  # one ring: 223 s of flight, 22 s of wall clock at 10x
+    d["budget_policy"] = "warn"  # this test is about the warning (the default, trim, acts on it)
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
-    # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from it
-    plan = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
-    d["time_budget_s"] = round(plan * 1.03)
+    # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from it, and PX4's
+    # touchdown-to-disarm delay (over --connect the runner takes it for PX4)
+    base = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
+    plan = base + LANDED_TO_DISARM_S["PX4"]
+    d["time_budget_s"] = round(base * 1.03)  # the built-in vehicle disarms at touchdown: 3 % above its flight
     mfile.write_text(yaml.safe_dump(d))
-    spec = load_mission(mfile)
-    lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
-    port, texts = free_udp_port(), tmp_path / "texts.jsonl"
-    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "10", "--profile",
-                            "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
-                            "--statustext-log", str(texts)], cwd=ROOT, stdout=subprocess.DEVNULL,
-                           stderr=subprocess.DEVNULL)
-    try:
-        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", "10", "--out",
-                  str(tmp_path / "f"), "--no-localize"])
-        _, err = p.communicate(timeout=150)
-    finally:
-        veh.terminate()
-        veh.wait(5)
-        p.kill()
-    assert p.returncode == 0, err[-3000:]
+    texts = tmp_path / "texts.jsonl"
+    rc, err = _fly_px4_like(mfile, 10, tmp_path / "f", "--statustext-log", str(texts))
+    assert rc == 0, err[-3000:]
     assert "of wall-clock time at speed-up 10" in err and "add --speedup" not in err  # duration line, --connect
     log = read_flight_log(_log_of(tmp_path / "f"))
     ev = log.meta["events"]
@@ -436,3 +448,31 @@ def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
     assert m["status"].startswith("aborted (log write failed), returned to launch; log incomplete"), m["status"]
     assert m["vehicle_state"] == "landed" and any(e["kind"] == "rtl" for e in m["events"])
     assert _log_of(tmp_path).stat().st_size <= limit
+
+
+def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
+    """The default ``budget_policy: trim`` on the PX4-like vehicle (legs 7 % slower than asked) at speed-up 20,
+    the spiral with a 560 s budget (about 580 s flown whole): the tail is dropped in flight with one line, the
+    vehicle lands inside the budget (arm to disarm, measured), and the sidecar names what was dropped."""
+    import yaml
+
+    d = yaml.safe_load(SPIRAL.read_text())
+    d["time_budget_s"] = 560  # the kinematic plan (538 s) fits; flown 7 % slow it would not
+    mfile = tmp_path / "tight.yaml"
+    mfile.write_text(yaml.safe_dump(d))
+    from mission.spec import load_mission
+
+    spec = load_mission(mfile)
+    rc, err = _fly_px4_like(mfile, 20, tmp_path / "f")
+    assert rc == 0, err[-3000:]
+    log = read_flight_log(_log_of(tmp_path / "f"))
+    b = log.meta["budget"]
+    n = len(spec.waypoints_enu())
+    assert b["policy"] == "trim" and b["dropped_waypoints"] and b["dropped_waypoints"][-1] == n, b
+    assert b["dropped_waypoints"] == list(range(b["dropped_waypoints"][0], n + 1))  # the tail, whole
+    assert b["arm_to_disarm_s"] is not None and b["arm_to_disarm_s"] <= 560, b
+    assert not b["overrun"]
+    dropped_lines = [ln for ln in err.splitlines() if "budget: dropped waypoint" in ln]
+    assert 1 <= len(dropped_lines) <= 3 and all(len(ln) <= 80 for ln in err.splitlines() if len(ln.split()) > 1), err
+    items = log.columns["mission_item"][log.columns["phase"] == "mission"]
+    assert items.max() == b["dropped_waypoints"][0] - 2  # waypoints after the last kept one were not flown

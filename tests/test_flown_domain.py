@@ -136,17 +136,24 @@ def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
 
 @pytest.mark.slow
 def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
-    """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training and
-    no circle is printed."""
+    """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training, no circle
+    is printed, and the regions fall back to the self-calibrating posterior's (every flight ends with a region),
+    whose 90 % region holds the truth here."""
     from mission.localize.api import localize_log
+    from mission.localize.uncertainty import region_covers
 
     cols = dict(spiral.columns)
     cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -28.0, 0.0)
     steep = type(spiral)(cols, dict(spiral.meta), spiral.path)
     est = localize_log(steep)
-    assert "regions" not in est.extras
-    assert "attitude is outside" in est.extras["note"] and "pitch -28 to -28 deg" in est.extras["note"]
-    assert "regions" in localize_log(spiral).extras
+    assert est.extras["regions_from"] == "selfcal" and all(r.get("kind") != "error circle" for r in est.regions)
+    assert [r["level"] for r in est.regions] == [0.5, 0.9]
+    note = est.extras["note"]
+    assert "attitude is outside" in note and "pitch -28 to -28 deg" in note and "No uncertainty region" not in note
+    assert "self-calibrating search's posterior" in note
+    assert region_covers(est, *steep.truth_enu[:2], 0.9)
+    plain = localize_log(spiral)
+    assert "regions_from" not in plain.extras and plain.regions[0]["kind"] == "error circle"
 
 
 @pytest.mark.parametrize("track, ok", [

@@ -31,7 +31,9 @@ def test_default_mission_values():
     spec = load_mission()
     assert spec.name == "spiral" and spec.altitude_m == 30.0 and spec.time_budget_s == 600.0
     assert spec.return_behaviour == "rtl" and spec.vehicle.connection is None
-    assert spec.home_enu == pytest.approx([300.21, 54.14, 0.0], abs=0.05)  # AFAR launch point
+    # the AFAR launch point (300.21, 54.14) m is 0.44 m inside the east edge: moved 4 m inside
+    # (checks.RETURN_OVERSHOOT_M + home_margin_m + 1 m), straight west
+    assert spec.home_enu == pytest.approx([296.65, 54.14, 0.0], abs=0.05)
     assert spec.sim_config().dt_s == 0.03 and spec.kinematics().cruise_speed_mps == spec.cruise_speed_mps
 
 

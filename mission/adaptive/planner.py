@@ -147,23 +147,23 @@ def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
     while r >= a.min_radius_m - 1e-9:
         c = fit_centre(spec, est_xy, r)
         if c is None:
-            notes.append(f"a {r:.0f} m square fits nowhere inside the fence")
+            notes.append(f"a {2 * r:.0f} m square fits nowhere inside the fence")
         else:
             wps = box_pattern(c, r, alt, start)
             fly = plan_profile(np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin).duration_s
             back = return_s(spec, wps[-1])
             bad = leg_violations(spec, start, wps)
             if bad:
-                notes.append(f"refused a {r:.0f} m square: {bad[0].message}")
+                notes.append(f"refused a {2 * r:.0f} m square: {bad[0].message}")
             elif fly + back <= left:
                 moved = float(np.hypot(*(c - np.asarray(est_xy, dtype=float)[:2])))
                 if moved > 0.5:
                     notes.append(f"centre moved {moved:.0f} m to keep the fence margin")
                 if r < a.radius_m:
-                    notes.append(f"square shrunk to half side {r:.0f} m to fit")
+                    notes.append(f"square shrunk to {2 * r:.0f} m to fit")
                 return RoundPlan(wps, (float(c[0]), float(c[1])), r, fly, back, notes)
             else:
-                notes.append(f"a {r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
+                notes.append(f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
                              "left")
         r = r * 0.7 if r * 0.7 >= a.min_radius_m or r <= a.min_radius_m else a.min_radius_m
     return RoundPlan(None, notes=notes, reason=notes[-1] if notes else "no round fits")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mission.flight import estimates, live
-from mission.flight.context import FlightContext
+from mission.flight.context import FlightContext, FlightError
 from mission.flight.phases import final_phase
 from mission.flight.plan import upload_with_retries
 from mission.flightlog import ADAPTIVE, LAND, RETURN
@@ -40,6 +40,7 @@ class AdaptiveRounds:
     full_spec: object
     config: object
     rounds: list[dict] = field(default_factory=list)
+    flown_s: float | None = None  # the rounds' flown seconds, once ``record`` measured them
 
     def __post_init__(self) -> None:
         from mission.adaptive.planner import survey_spec
@@ -52,10 +53,21 @@ class AdaptiveRounds:
         meta["adaptive"] = dataclasses.asdict(self.config)
         return meta
 
+    def check(self, ctx: FlightContext) -> None:
+        """The adaptive settings again with the autopilot's own return (known now, ``ctx.budget``): refused
+        before the upload and take-off, exit 2, when they leave no round."""
+        from mission.adaptive.feasibility import adaptive_violations
+
+        extra = autopilot_return_extra_s(ctx, ctx.spec.waypoints_enu()[-1])
+        if v := adaptive_violations(self.full_spec, self.config, extra):
+            raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
+
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None:
         try:
             await adapt(ctx, self, action, mission_raw)
-        except asyncio.CancelledError:
+        except asyncio.CancelledError:  # the mission ended first: said when it left no round at all
+            if not self.rounds and not ctx.abort.is_set():
+                _no_round(ctx)
             raise
         except Exception as e:  # the survey's RTL stays uploaded: the vehicle returns by itself
             ctx.event("adaptive", f"adaptive part stopped ({type(e).__name__}: {e}); returning", warn=True)
@@ -69,6 +81,13 @@ class AdaptiveRounds:
             return ["no final estimate (too few samples)"]
         return [f"estimate: {live.describe(final, ctx.truth)} [{ADAPTIVE_METHOD}, in flight]",
                 f"(t={final['t_s']:g} s: `localize LOG --at {final['t_s']:g}` gives it back)"]
+
+
+def _no_round(ctx: FlightContext) -> None:
+    """One line when the survey ended before a round was planned (the live estimate was late: a starved
+    worker)."""
+    ctx.event("adaptive", "no adaptive round: the survey ended before one was planned (live estimate late)",
+              warn=True)
 
 
 def _position_enu(ctx: FlightContext) -> np.ndarray:
@@ -127,6 +146,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
     while True:
         while True:
             if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
+                if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
+                    _no_round(ctx)
                 return
             rem = remaining_s(ctx, wps, off) if ctx.st.was_in_air else None
             ctx.live.planning = rem is not None and rem <= 1.5 * lead
@@ -170,6 +191,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         await mission_raw.set_current_mission_item(max(cur, ctx.phases.raw_item))
         ctx.status.n_waypoints = len(new)
         left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
+        ctx.status.predicted_s = spec.time_budget_s - left  # land~ now the round's plan, no longer the survey's
         ext.rounds.append({"round": k + 1, "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
                          "estimate": d, "target": target, "centre": plan.centre, "radius_m": plan.radius_m,
                          "first_item": len(wps) - n_survey, "n_waypoints": len(plan.waypoints),
@@ -196,6 +218,8 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
     for j, rd in enumerate(ext.rounds):
         s = starts[j]
         e = starts[j + 1] if j + 1 < len(starts) else t_ret
+        if s is not None and e is None:  # the log ended in the round (link lost): flown until the last telemetry
+            e = float(ctx.tel.covered_until) if np.isfinite(ctx.tel.covered_until) else None
         if s is None or e is None:
             continue
         rd["flown_s"] = round(e - s, 1)
@@ -204,5 +228,6 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
                               f"{rd['planned_s']:.0f} s planned", warn=True)
     flown = sum(rd.get("flown_s", 0.0) for rd in ext.rounds)
     planned = sum(rd["planned_s"] for rd in ext.rounds)
+    ext.flown_s = flown  # the budget's closing line says survey and rounds apart (flight.budget)
     ctx.event("adaptive", f"adaptive: {len(ext.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned")
     return {"budget_s": ext.full_spec.time_budget_s, "rounds": ext.rounds}  # time used: the sidecar's budget

@@ -72,13 +72,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="after the survey part, fly rounds planned from the live estimate (the mission's adaptive: block, "
         "defaults otherwise; docs/adaptive.md)",
     )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="seed of the simulated transmitter and RSS noise (default: the mission's source.seed); seed N "
+        "puts the transmitter where `rfsl simulate --seed N` does",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
+
+
+def choose_adaptive(spec, flag: bool):
+    """(the ``AdaptiveSpec`` to fly or None, a line to show or None): the mission's ``adaptive:`` block when
+    enabled or ``--adaptive`` is given (the defaults without a block); a block that is present but not enabled
+    (``adaptive: {}``, ``adaptive: null``, ``enabled: false``) says in one line that the fixed mission is flown."""
+    from mission.adaptive.config import AdaptiveSpec
+
+    a = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
+    if flag or a.enabled:
+        return a, None
+    if spec.adaptive is not None:
+        return None, "adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission"
+    return None, None
 
 
 def _run(args: argparse.Namespace) -> int:
     import os
 
-    from mission.adaptive.config import AdaptiveSpec
     from mission.adaptive.feasibility import assert_adaptive
     from mission.cli.main import check_number
     from mission.defaults import MAX_DURATION_S, MAX_RATE_HZ, MAX_SPEEDUP
@@ -101,11 +121,18 @@ def _run(args: argparse.Namespace) -> int:
     if args.connect is not None:
         check_connect(args.connect, "--connect")  # '' is a mistake, not the built-in vehicle
     check_out(args.out)  # an unwritable --out: refused before the mission file is even read
+    if args.seed is not None and args.seed < 0:
+        raise InputError(f"must be >= 0, got {args.seed}", field="--seed")
     spec = load_mission(args.mission)
+    if args.seed is not None:
+        import dataclasses
+
+        spec = dataclasses.replace(spec, source=dataclasses.replace(spec.source, seed=args.seed))
     if args.connect is None and spec.vehicle.connection is not None:
         check_connect(spec.vehicle.connection, "vehicle.connection", source=spec.source_name)
-    adaptive = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
-    adaptive = adaptive if (args.adaptive or adaptive.enabled) else None
+    adaptive, note = choose_adaptive(spec, args.adaptive)
+    if note:
+        print(note, file=sys.stderr)
     extension = None
     if adaptive is not None:
         from mission.adaptive.rounds import AdaptiveRounds

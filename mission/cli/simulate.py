@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         if not spec.field.rover_area.contains(tx[:2]):
             console(stderr=True).print(f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area")
     else:
-        tx = spec.resolve_tx(np.random.default_rng([seed, 1]))
+        tx = spec.transmitter(seed)
         bad = source_violations(spec)
         if bad:
             raise InputError(bad[0].message, source=spec.source_name, field=bad[0].key)

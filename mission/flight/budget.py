@@ -12,6 +12,15 @@ not change) and ``pace`` the measured over planned time of the mission legs flow
 ``MIN_PACE_S`` of them); it is never less than the time already used. When it passes the budget the runner
 warns once (a line and a ``budget`` event); after landing the sidecar's ``budget`` records planned and used
 seconds and the overrun.
+
+A budget that holds: the pace is fitted per leg once ``MIN_FIT_LEGS`` legs are measured (``Pace``: flown =
+scale x planned + a fixed cost per leg; PX4 v1.16 SITL slows to a stop at every waypoint, 3 s a leg, so it
+fell further behind as the spiral's legs shortened), the return is predicted from wherever the mission would
+end (``BudgetPlan.ret_s``), and touchdown to disarm is the autopilot's known delay (``LANDED_TO_DISARM_S``).
+When the prediction passes the budget less its reserve the mission's ``budget_policy`` acts (``decide``):
+``trim`` (default) drops the tail waypoints that no longer fit, as late as is safe (``TRIM_LOOKAHEAD``
+waypoints before the cut, when the pace is best known), ``return`` returns to launch at once, ``warn`` only
+warns.  The sidecar's ``budget`` records the policy, what was dropped and the measured arm-to-disarm time.
 """
 
 from __future__ import annotations
@@ -21,9 +30,43 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.flight.plan import upload_with_retries
 from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
+MIN_FIT_LEGS = 4  # measured legs before the per-leg cost is fitted (fewer: the ratio alone)
+TRIM_LOOKAHEAD = 3  # waypoints before the cut at which the tail is dropped (the upload takes a few seconds)
+# touchdown to disarm (s, vehicle clock): not in the kinematic plan.  Measured: PX4 v1.16 SITL 7.2 s (land
+# detector + COM_DISARM_LAND 2 s), ArduCopter 4.7 SITL 3 s; the built-in vehicle disarms at touchdown.
+LANDED_TO_DISARM_S = {"PX4": 7.2, "ARDUPILOT": 3.0}
+
+
+@dataclass(frozen=True)
+class Pace:
+    """Flown leg time = ``scale`` x planned + ``per_leg_s`` (the stop and restart at a waypoint)."""
+
+    scale: float = 1.0
+    per_leg_s: float = 0.0
+
+    def legs(self, planned: np.ndarray) -> float:
+        """Seconds to fly legs planned at ``planned`` seconds each."""
+        planned = np.asarray(planned, dtype=float)
+        return float(self.scale * planned.sum() + self.per_leg_s * planned.size)
+
+
+def fit_pace(planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray) -> Pace:
+    """Least-squares ``Pace`` from measured segments (each ``n_legs`` legs planned at ``planned`` s in total,
+    flown in ``flown`` s); the ratio alone when the cost per leg would come out negative or the fit is
+    degenerate (legs of one length), scale kept within 0.5..3."""
+    planned, n_legs, flown = (np.asarray(a, dtype=float) for a in (planned, n_legs, flown))
+    ratio = Pace(float(np.clip(flown.sum() / max(planned.sum(), 1e-9), 0.5, 3.0)), 0.0)
+    A = np.column_stack([planned, n_legs])
+    if len(flown) < 2 or np.linalg.matrix_rank(A) < 2:
+        return ratio
+    (a, b), *_ = np.linalg.lstsq(A, flown, rcond=None)
+    if b < 0 or not 0.5 <= a <= 3.0:
+        return ratio
+    return Pace(float(a), float(b))
 
 
 @dataclass
@@ -34,6 +77,16 @@ class BudgetPlan:
     t_wp: np.ndarray
     duration_s: float
     land_s: float = 0.0  # the final descent's share of duration_s (vertical: not slowed by a slow cruise)
+    ret_s: np.ndarray | None = None  # seconds from waypoint j back over home (the return if the mission ends at j)
+    disarm_s: float = 0.0  # touchdown to disarm (the autopilot's), inside duration_s and land_s
+
+    def __post_init__(self) -> None:
+        if self.ret_s is None:  # only the full mission's return is known
+            self.ret_s = np.full(len(self.t_wp), self.duration_s - self.land_s - self.t_wp[-1])
+
+    def end_s(self, last: int) -> float:
+        """Planned arm-to-disarm seconds when the mission ends at waypoint ``last`` (its tail dropped)."""
+        return float(self.t_wp[last] + self.ret_s[last] + self.land_s)
 
 
 @dataclass(frozen=True)
@@ -52,10 +105,12 @@ class VerticalSpeeds:
         return min(self.up_mps, self.down_mps, self.land_mps) > 0 and self.low_alt_m >= 0 <= self.hover_s
 
 
-def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSpeeds | None = None) -> BudgetPlan:
+def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSpeeds | None = None,
+               disarm_s: float = 0.0) -> BudgetPlan:
     """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check), with the
-    return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed, and the
-    take-off and landing at the autopilot's ``vertical`` speeds when known."""
+    return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed, the
+    take-off and landing at the autopilot's ``vertical`` speeds when known, and ``disarm_s`` from touchdown to
+    disarm; ``ret_s`` holds the return from every waypoint (what a dropped tail leaves)."""
     path = spec.flight_path_enu()
     kin = spec.kinematics()
     n = len(spec.waypoints_enu())
@@ -80,18 +135,37 @@ def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSp
     while j > 0 and vert[j - 1] and d[j - 1, 2] < 0:
         j -= 1
     hover = vertical.hover_s if vertical is not None and spec.return_behaviour == "rtl" else 0.0
-    return BudgetPlan(float(spec.time_budget_s), t[2:2 + n], prof.duration_s + hover, float(t[-1] - t[j]) + hover)
+    t_wp, land = t[2:2 + n], float(t[-1] - t[j]) + hover + disarm_s
+    duration = prof.duration_s + hover + disarm_s
+    ret = np.full(n, duration - land - t_wp[-1])
+    if spec.return_behaviour == "rtl":  # from waypoint j straight back over home, at the return speed
+        w, home = spec.waypoints_enu(), np.asarray(spec.home_enu, dtype=float)
+        v = return_speed_mps or kin.cruise_speed_mps
+        for i in range(n - 1):
+            back = np.array([w[i], [home[0], home[1], w[i, 2]]])
+            ret[i] = plan_profile(back, kin, speeds=np.array([v])).duration_s if np.ptp(back[:, :2], 0).any() else 0.0
+    return BudgetPlan(float(spec.time_budget_s), t_wp, duration, land, ret, disarm_s)
 
 
 @dataclass
 class BudgetWatch:
-    """Measured waypoint times against the plan; ``update`` returns the warning text once, when due."""
+    """Measured waypoint times against the plan; ``update`` returns the warning text once, when due;
+    ``decide`` what the mission's ``policy`` does about a prediction past the budget less ``reserve_s``."""
 
     plan: BudgetPlan
     reached_at: list[float] = field(default_factory=list)  # elapsed s when waypoint k was reached
     predicted_s: float | None = None
     warned_at_s: float | None = None
     predicted_at_warning_s: float | None = None
+    policy: str = "warn"
+    reserve_s: float = 0.0
+    last: int = -1  # the last waypoint kept (-1: all); lowered when the tail is dropped
+    dropped: list[int] = field(default_factory=list)  # waypoints dropped (0-based), in order
+    actions: list[dict] = field(default_factory=list)  # what the policy did, when (sidecar)
+
+    def __post_init__(self) -> None:
+        if self.last < 0:
+            self.last = len(self.plan.t_wp) - 1
 
     def pace(self) -> float:
         k = len(self.reached_at) - 1
@@ -101,20 +175,36 @@ class BudgetWatch:
         flown = self.reached_at[k] - self.reached_at[0]
         return flown / planned if planned >= MIN_PACE_S and flown > 0 else 1.0  # several at once: no pace
 
-    def predict(self, elapsed: float) -> float:
-        """Predicted arm-to-landing seconds given what was measured up to ``elapsed``."""
-        p, k = self.plan, len(self.reached_at) - 1
-        pace, end = self.pace(), p.duration_s - p.land_s  # the landing is added at the plan's own time
+    def pace_model(self) -> Pace:
+        """The pace of the legs flown so far: fitted per leg from ``MIN_FIT_LEGS`` measured legs (waypoints
+        reached together count as one segment), else the plain ratio (``pace``)."""
+        r, t = np.asarray(self.reached_at), self.plan.t_wp[:len(self.reached_at)]
+        if len(r) < 2 or t[-1] - t[0] < MIN_PACE_S:
+            return Pace(self.pace(), 0.0)
+        ends = np.flatnonzero(np.diff(r) > 0) + 1  # a segment ends where a new arrival time starts
+        starts = np.concatenate([[0], ends[:-1]])
+        if len(ends) < MIN_FIT_LEGS:
+            return Pace(self.pace(), 0.0)
+        return fit_pace(t[ends] - t[starts], ends - starts, r[ends] - r[starts])
 
-        def rest(t_from: float) -> float:
-            return (end - t_from) * pace + p.land_s
+    def predict(self, elapsed: float, last: int | None = None) -> float:
+        """Predicted arm-to-disarm seconds given what was measured up to ``elapsed``, the mission ending at
+        waypoint ``last`` (default: the last one kept)."""
+        p, k = self.plan, min(len(self.reached_at), self.last + 1) - 1
+        last = self.last if last is None else last
+        pace = self.pace_model()
+        tail = p.land_s  # the landing, hover and disarm at the plan's own time (vertical: not slowed)
+
+        def rest(i: int) -> float:  # from waypoint i (reached) to the end
+            legs = np.diff(p.t_wp[i:last + 1])
+            return pace.legs(legs) + pace.legs(np.array([p.ret_s[last]])) + tail
 
         if k < 0:
-            pred = elapsed + rest(p.t_wp[0]) + max(p.t_wp[0] - elapsed, 0.0)
+            pred = max(elapsed, p.t_wp[0] * pace.scale) + rest(0)
         else:
-            pred = self.reached_at[k] + rest(p.t_wp[k])
-            if k + 1 < len(p.t_wp):  # the next waypoint is not reached yet: at least the rest after it
-                pred = max(pred, elapsed + rest(p.t_wp[k + 1]))
+            pred = self.reached_at[k] + rest(k)
+            if k + 1 <= last:  # the next waypoint is not reached yet: at least the rest after it
+                pred = max(pred, elapsed + rest(k + 1))
         return float(max(pred, elapsed))
 
     def update(self, elapsed: float, reached: int) -> str | None:
@@ -124,22 +214,67 @@ class BudgetWatch:
             self.reached_at.append(elapsed)
         self.predicted_s = self.predict(elapsed)
         b = self.plan.budget_s
-        if self.warned_at_s is not None or self.predicted_s <= b:
+        if self.warned_at_s is not None or self.predicted_s <= b - (self.reserve_s if self.policy != "warn" else 0):
             return None
         self.warned_at_s, self.predicted_at_warning_s = elapsed, self.predicted_s
         if elapsed > b:
             return f"over the time budget: {elapsed:.0f} s flown of {b:.0f} s, still flying"
-        return (f"budget will not hold: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
-                f"(pace {self.pace():.2f}, {len(self.reached_at)}/{len(self.plan.t_wp)} wp)")
+        act = {"trim": ": dropping the tail", "return": ": returning"}.get(self.policy, "")
+        what = "budget will not hold" if self.predicted_s > b else f"inside the {self.reserve_s:g} s reserve"
+        return (f"{what}: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
+                f"(pace {self.pace():.2f}, {len(self.reached_at)}/{len(self.plan.t_wp)} wp){act}")
+
+    def keep_until(self, elapsed: float) -> int:
+        """The last waypoint to keep so that the predicted landing is inside the budget less the reserve:
+        the largest that fits, at least the one being flown to (the vehicle is on its way)."""
+        lo = min(len(self.reached_at), self.last)
+        limit = self.plan.budget_s - self.reserve_s
+        for j in range(self.last, lo, -1):
+            if self.predict(elapsed, j) <= limit:
+                return j
+        return lo
+
+    def decide(self, elapsed: float) -> tuple[str, int] | None:
+        """What the policy does now: ("trim", last waypoint kept) when the tail must go and the vehicle is within
+        ``TRIM_LOOKAHEAD`` waypoints of the cut; ("return", -1) at once under ``return``; None otherwise."""
+        if self.predicted_s is None or self.predicted_s <= self.plan.budget_s - self.reserve_s:
+            return None
+        if self.policy == "return" and not any(a["action"] == "return" for a in self.actions):
+            return "return", -1
+        if self.policy != "trim":
+            return None
+        keep = self.keep_until(elapsed)
+        if keep < self.last and keep - len(self.reached_at) < TRIM_LOOKAHEAD:
+            return "trim", keep
+        return None
+
+    def apply(self, elapsed: float, action: str, keep: int) -> str:
+        """Record ``action`` (after the autopilot took it); the one line that names what was done."""
+        b, before = self.plan.budget_s, self.predicted_s
+        if action == "return":
+            self.actions.append({"t_s": round(elapsed, 1), "action": "return", "predicted_s": round(before, 1)})
+            return f"budget: returning to launch now (landing was ~{before:.0f} s of {b:.0f} s)"
+        gone = list(range(keep + 1, self.last + 1))
+        self.dropped += gone
+        self.last = keep
+        self.predicted_s = self.predict(elapsed)
+        self.actions.append({"t_s": round(elapsed, 1), "action": "trim", "dropped": gone,
+                             "predicted_before_s": round(before, 1), "predicted_s": round(self.predicted_s, 1)})
+        which = f"{gone[0] + 1}" if len(gone) == 1 else f"{gone[0] + 1}-{gone[-1] + 1}"
+        return (f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of {len(self.plan.t_wp)}: "
+                f"landing ~{self.predicted_s:.0f} s, was ~{before:.0f} s")
 
     def record(self, used_s: float | None) -> dict:
-        """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was warned."""
+        """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was warned, the
+        policy and what it dropped (1-based waypoint numbers, as printed)."""
         b = self.plan.budget_s
         r2 = lambda v: None if v is None or not np.isfinite(v) else round(float(v), 2)  # noqa: E731
         over = used_s is not None and used_s > b
         return {"budget_s": b, "planned_s": r2(self.plan.duration_s), "used_s": r2(used_s), "overrun": bool(over),
                 "overrun_s": r2(used_s - b) if over else 0.0, "warned_at_s": r2(self.warned_at_s),
-                "predicted_at_warning_s": r2(self.predicted_at_warning_s)}
+                "predicted_at_warning_s": r2(self.predicted_at_warning_s), "policy": self.policy,
+                "reserve_s": self.reserve_s, "dropped_waypoints": [i + 1 for i in self.dropped],
+                "actions": self.actions}
 
 
 def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> float | None:
@@ -152,6 +287,13 @@ def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> flo
     return float(end - arm) if np.isfinite(end) else None
 
 
+def arm_to_disarm_s(events: list[dict]) -> float | None:
+    """Arm to disarm on the vehicle's clock, measured only: None when no disarm after the arm was seen."""
+    arm = next((e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None), None)
+    off = [e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None]
+    return round(float(off[-1] - arm), 2) if arm is not None and off and off[-1] > arm else None
+
+
 def _reached(phase: str, item: int, n: int) -> int | None:
     """Waypoints reached when the phase tracker says ``phase``/``item`` (None: no mission progress yet)."""
     if phase == "mission":
@@ -159,13 +301,14 @@ def _reached(phase: str, item: int, n: int) -> int | None:
     return n if phase in ("adaptive", "return", "land") else None
 
 
-async def watch_budget(runner, watch: BudgetWatch) -> None:
-    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget`` event).
-    Waypoint times are the vehicle times at which the progress arrived (``runner.phases``), not the poll's."""
-    s, ph, seen, reached = runner.status, runner.phases, 1, 0
-    while not runner.landed_disarmed.is_set():
+async def watch_budget(ctx, watch: BudgetWatch, mission_raw=None, action=None) -> None:
+    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget`` event) and
+    let the policy act (``act``: needs ``mission_raw`` and ``action``).  Waypoint times are the vehicle times
+    at which the progress arrived (``ctx.phases``), not the poll's."""
+    s, ph, seen, reached = ctx.status, ctx.phases, 1, 0
+    while not ctx.landed_disarmed.is_set():
         await asyncio.sleep(0.25)
-        if runner.abort.is_set() or getattr(ph, "returning", False):
+        if ctx.abort.is_set() or getattr(ph, "returning", False):
             return  # a commanded return (Ctrl-C, a failure) ends the plan: nothing left to predict
         if s.t_start is None or not np.isfinite(s.t_start):
             continue
@@ -173,40 +316,91 @@ async def watch_budget(runner, watch: BudgetWatch) -> None:
         seen += len(steps)
         texts = []
         for t, phase, item in steps:
-            if (r := _reached(phase, item, s.n_waypoints)) is not None and r > reached:
+            if (r := _reached(phase, item, watch.last + 1)) is not None and r > reached:
                 reached = r
                 texts.append(watch.update(max(t - s.t_start, 0.0), reached))
         texts.append(watch.update(s.elapsed, reached))
-        s.predicted_s = watch.predicted_s
+        if not getattr(ctx.extension, "rounds", None):  # adaptive rounds: land~ is their plan
+            s.predicted_s = watch.predicted_s
         for text in filter(None, texts):
-            runner.event("budget", text, warn=True)
+            ctx.event("budget", text, warn=True)
+        if mission_raw is not None and (d := watch.decide(s.elapsed)) is not None:
+            await act(ctx, watch, d, mission_raw, action)
+            s.predicted_s = watch.predicted_s
 
 
-def start_budget(runner, return_speed_mps: float | None, vertical: VerticalSpeeds | None) -> BudgetWatch:
-    """The watch of ``runner``'s flight, planned with the return, climb and descent speeds the autopilot will
-    fly; one line with that plan, a warning before take-off when it no longer fits the budget."""
-    spec = runner.spec
+async def act(ctx, watch: BudgetWatch, decision: tuple[str, int], mission_raw, action) -> None:
+    """Carry out ``decision`` (``BudgetWatch.decide``) on the autopilot: the mission re-uploaded without its
+    dropped tail (the current item kept: items already flown keep their indices), or return to launch.  A
+    failed upload leaves the whole mission (safe, over budget) and says so."""
+    import dataclasses
+
+    from mission.spec import TrajectorySpec
+    from mission.trajectory.items import build_items
+
+    what, keep = decision
+    s = ctx.status
+    if what == "return":
+        ctx.phases.on_return(ctx.tel.clock.now())
+        await action.return_to_launch()
+        ctx.event("budget", watch.apply(s.elapsed, what, keep), warn=True)
+        return
+    spec, home, off = ctx.spec, ctx.home, s.waypoint_offset
+    w = spec.waypoints_enu()[:keep + 1]
+    items = build_items(dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, w)),
+                        (home.latitude_deg, home.longitude_deg, home.absolute_altitude_m), off == 3)
+    cur = ctx.st.progress[0]
+    try:
+        await upload_with_retries(ctx, mission_raw, items, kind="budget")
+        await mission_raw.set_current_mission_item(max(cur, ctx.phases.raw_item))
+    except Exception as e:
+        watch.policy = "warn"  # the autopilot keeps the whole mission
+        why = str(e) if str(e) and len(str(e)) < 60 else type(e).__name__
+        ctx.event("budget", f"could not drop the mission's tail ({why}): flying it all", warn=True)
+        return
+    ctx.phases.configure(off, len(items) - 1, ctx.phases.final)
+    s.n_waypoints = keep + 1
+    ctx.event("budget", watch.apply(s.elapsed, what, keep), warn=True)
+
+
+def start_budget(ctx, return_speed_mps: float | None, vertical: VerticalSpeeds | None,
+                 ardupilot: bool | None = None) -> BudgetWatch:
+    """The watch of ``ctx``'s flight, planned with the return, climb and descent speeds the autopilot will
+    fly and its known touchdown-to-disarm delay (``ardupilot`` True/False for a connected autopilot, None for
+    the built-in vehicle); one line with that plan, a warning before take-off when it no longer fits the budget.
+    An adaptive flight's rounds are planned against the budget by the round planner: its survey is only
+    watched."""
+    spec = ctx.spec
     own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
-    watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None, vertical))
+    known = None if ardupilot is None or not ctx.url else ("ARDUPILOT" if ardupilot else "PX4")
+    adaptive = ctx.extension is not None
+    watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None, vertical,
+                                   LANDED_TO_DISARM_S.get(known, 0.0)),
+                        policy="warn" if adaptive else spec.budget_policy, reserve_s=spec.budget_reserve_s)
     d, b = watch.plan.duration_s, spec.time_budget_s
     how = [f"return {return_speed_mps:g}"] if own else []
     if vertical is not None:  # one line at 80 columns: "plan 565 s of 600 s (autopilot m/s: up 2.5, ...)"
         v = vertical
         slow = f"/{v.land_mps:g} below {v.low_alt_m:g} m" if v.low_alt_m > 0 and v.land_mps != v.down_mps else ""
         how.append(f"up {v.up_mps:g}, down {v.down_mps:g}{slow}" + (f", hover {v.hover_s:g} s" if v.hover_s else ""))
-    text = f"plan {d:.0f} s of {b:g} s" + (f" (autopilot m/s: {'; '.join(how)})" if how else "")
-    runner.event("budget", text + (f": {d - b:.0f} s over budget" if d > b else ""), warn=d > b)
+    text = ("survey " if adaptive else "") + f"plan {d:.0f} s of {b:g} s" + (
+        f" (autopilot m/s: {'; '.join(how)})" if how else "")
+    ctx.event("budget", text + (f": {d - b:.0f} s over budget" if d > b else ""), warn=d > b)
     return watch
 
 
-def close_budget(runner, watch: BudgetWatch) -> dict:
+def close_budget(ctx, watch: BudgetWatch) -> dict:
     """The sidecar record, and one line: used vs budget (a warning when over)."""
-    now = runner.tel.clock.now() if runner.landed_disarmed.is_set() else float("nan")  # no disarm seen: no
-    used = used_seconds(runner.st.events, runner.status.t_start, now)  # extrapolated time (a lost link)
+    now = ctx.tel.clock.now() if ctx.landed_disarmed.is_set() else float("nan")  # no disarm seen: no
+    used = used_seconds(ctx.st.events, ctx.status.t_start, now)  # extrapolated time (a lost link)
     rec = watch.record(used)
+    rec["arm_to_disarm_s"] = arm_to_disarm_s(ctx.st.events)
     if used is not None:
-        text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget (plan {rec['planned_s']:.0f} s)"
+        rounds = getattr(ctx.extension, "flown_s", None)  # an adaptive flight: survey and rounds apart
+        plan = f"plan {rec['planned_s']:.0f} s" if rounds is None else \
+            f"survey plan {rec['planned_s']:.0f} s, rounds flew {rounds:.0f} s"
+        text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget ({plan})"
         if rec["overrun"]:
             text += f": {rec['overrun_s']:.0f} s over"
-        runner.event("budget", text, warn=rec["overrun"])
+        ctx.event("budget", text, warn=rec["overrun"])
     return rec

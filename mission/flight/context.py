@@ -19,7 +19,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from mission.flight.phases import PhaseTracker
-from mission.flight.progress import FlightStatus
+from mission.flight.progress import FlightStatus, FoldedTexts, fit_width
 from mission.flight.telemetry import Telemetry
 
 EXIT_OK, EXIT_FAILED, EXIT_ABORTED, EXIT_LINK = 0, 1, 130, 3
@@ -60,12 +60,14 @@ class VehicleState:
 
 class Extension(Protocol):
     """What a mission adds to a plain flight (``mission.adaptive.rounds.AdaptiveRounds``): the spec flown, the
-    sidecar's trajectory record, a coroutine run while the mission flies, its record and closing lines."""
+    sidecar's trajectory record, its checks once the autopilot's plan is known, a coroutine run while the
+    mission flies, its record and closing lines."""
 
     spec: Any  # the spec whose items are uploaded first (the adaptive survey)
     update_s: float  # live-estimate period (vehicle s)
 
     def trajectory_meta(self) -> dict: ...
+    def check(self, ctx: FlightContext) -> None: ...  # FlightError (exit 2) refuses before the upload
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None: ...
     def record(self, ctx: FlightContext) -> tuple[str, dict]: ...
     def result_lines(self, ctx: FlightContext) -> list[str]: ...
@@ -112,6 +114,7 @@ class FlightContext:
     vehicle_proc: Any = None
     source_warned: bool = False
     tasks: list[asyncio.Task] = field(default_factory=list)  # background coroutines, cancelled at the close
+    texts: FoldedTexts = field(default_factory=FoldedTexts)  # autopilot texts on screen: repeats counted
 
     def __post_init__(self) -> None:
         if self.full_spec is None:
@@ -121,8 +124,8 @@ class FlightContext:
     def ardupilot(self) -> bool:
         return self.autopilot is Autopilot.ARDUPILOT
 
-    def event(self, kind: str, text: str, warn: bool = False) -> None:
-        """Record an event for the sidecar and show it as one line."""
+    def event(self, kind: str, text: str, warn: bool = False, show: bool = True) -> None:
+        """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80 columns."""
         t = self.tel.clock.now() if not self.link_lost else float("nan")  # no extrapolated time stamps
         e = {"t_vehicle_s": None if not np.isfinite(t) else round(t, 3), "kind": kind, "text": text,
              "wall": time.time()}
@@ -132,12 +135,16 @@ class FlightContext:
         self.st.events.append(e)
         if warn:
             self.status.warnings.append(text)
-        line = ("WARNING: " if warn else "") + text
+        if show:
+            self.say(("WARNING: " if warn else "") + text, "yellow" if warn else "")
+
+    def say(self, line: str, style: str = "") -> None:
+        """Show a line (not recorded), wrapped at 80 columns."""
         try:
             if self.display is not None:
-                self.display.message(line, "yellow" if warn else "")
+                self.display.message(line, style)
             else:
-                print(line, file=sys.stderr, flush=True)
+                print(fit_width(line), file=sys.stderr, flush=True)
         except (OSError, ValueError):  # a lost terminal (SIGHUP): the event is in the sidecar, flying goes on
             pass
 

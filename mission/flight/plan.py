@@ -2,7 +2,8 @@
 shared with ``rfsl export``) turned into ``mavsdk.plugins.mission_raw.MissionItem``.
 
 Exactly one item carries ``current=1`` (MAVSDK refuses the upload otherwise).  ``upload_with_retries``: the one
-upload of a flight (the mission, then each adaptive round).
+upload of a flight (the mission, each adaptive round, a budget trim); its last failure is one line
+(``UploadFailed``).
 """
 
 from __future__ import annotations
@@ -25,9 +26,19 @@ def to_mavsdk(items: list[RawItem]):
     return out
 
 
+class UploadFailed(FlightError):
+    """A mission upload the autopilot refused or let time out, in one line (exit 3): the result's name
+    (TIMEOUT, PROTOCOL_ERROR...) and the item count, never the object reprs of MAVSDK's own message (3.5 kB
+    on ArduPilot)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, EXIT_LINK)
+
+
 async def upload_with_retries(ctx, mission_raw, items: list[RawItem], kind: str = "upload", tries: int = 3) -> None:
-    """Upload the raw items, retrying a failed transfer (a busy link at a high speed-up can time one out) with
-    one warning each; the last failure is a ``FlightError`` (exit 3) naming MAVSDK's result."""
+    """Upload the raw items (``MissionRawAsync.upload_mission``), retrying a failed transfer (a busy link at a
+    high speed-up can time one out) with one warning each (event ``kind``); the last failure is an
+    ``UploadFailed`` naming MAVSDK's result and the item count."""
     from mavsdk.plugins.mission_raw import MissionRawError
 
     for attempt in range(tries):
@@ -35,6 +46,7 @@ async def upload_with_retries(ctx, mission_raw, items: list[RawItem], kind: str 
             await mission_raw.upload_mission(to_mavsdk(items))
             return
         except MissionRawError as e:
+            name = getattr(getattr(e, "result", None), "name", None) or type(e).__name__
             if attempt == tries - 1:
-                raise FlightError(f"mission upload failed: {e.result.name}", EXIT_LINK) from None
-            ctx.event(kind, f"mission upload failed ({e.result.name}); retrying", warn=True)
+                raise UploadFailed(f"mission upload failed: {name}, {len(items)} items") from None
+            ctx.event(kind, f"mission upload failed ({name}); retrying", warn=True)

@@ -88,6 +88,42 @@ def render(s: FlightStatus) -> Table:
 PLAIN_WIDTH = 80
 
 
+def fit_width(text: str, width: int = PLAIN_WIDTH) -> str:
+    """``text`` wrapped at ``width`` columns, continuation lines indented two spaces; a single word longer than
+    that (a path, a URL) stays whole on its own line."""
+    import textwrap
+
+    out = []
+    for line in text.splitlines() or [""]:
+        out += textwrap.wrap(line, width, subsequent_indent="  ", break_long_words=False,
+                             break_on_hyphens=False) or [""]
+    return "\n".join(out)
+
+
+class FoldedTexts:
+    """Autopilot texts for the screen, each shown once: a repeat (ArduPilot's "Auto mission changed, restarted
+    command" after every re-upload: 75-112 of 270-376 lines of an adaptive flight) is counted, and ``summary``
+    gives one line per repeated text at the end.  The sidecar keeps every text."""
+
+    def __init__(self) -> None:
+        self.counts: dict[str, int] = {}
+
+    def show(self, text: str) -> bool:
+        """Whether to show ``text`` (its first time)."""
+        self.counts[text] = self.counts.get(text, 0) + 1
+        return self.counts[text] == 1
+
+    def summary(self) -> list[str]:
+        """One line per text seen more than once: the text (shortened to fit 80 columns) and its count."""
+        out = []
+        for text, n in self.counts.items():
+            if n > 1:
+                tail = f" (x{n}, shown once)"
+                room = PLAIN_WIDTH - len(tail)
+                out.append((text if len(text) <= room else text[:room - 3] + "...") + tail)
+        return out
+
+
 def plain_line(s: FlightStatus) -> str:
     """The status as plain text for a log or a pipe: one line, or two when it would pass 80 columns."""
     best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
@@ -129,8 +165,8 @@ class Display:
             self.console.print(plain_line(self.status), highlight=False, markup=False, soft_wrap=True)
 
     def message(self, text: str, style: str = "") -> None:
-        """A line that stays (warnings, stage changes)."""
-        self.console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True)
+        """A line that stays (warnings, stage changes), wrapped at 80 columns."""
+        self.console.print(fit_width(text), style=style or None, highlight=False, markup=False, soft_wrap=True)
 
     def __exit__(self, *exc) -> None:
         if self.live is not None:

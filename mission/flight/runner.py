@@ -102,11 +102,11 @@ class Plugins:
 
 
 def wall_clock_notice(duration_s: float, speedup: float, hint: bool = True) -> str:
-    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint."""
+    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint (no vehicle
+    seconds: the one plan figure is the budget's, with the autopilot's own speeds, ``budget.start_budget``)."""
     wall = duration_s / speedup
     text = (
-        f"estimated flight {duration_s / 60:.1f} min of vehicle time: about {_fmt_wall(wall)} "
-        f"of wall-clock time at speed-up {speedup:g}"
+        f"estimated flight: about {_fmt_wall(wall)} of wall-clock time at speed-up {speedup:g}"
     )
     if hint and speedup < 20 and wall > 60:
         text += f" (add --speedup 20 for about {_fmt_wall(duration_s / 20)})"
@@ -212,10 +212,10 @@ def make_source(spec, rss_source: str):
     if kind != "sim":
         return make_receiver(kind, arg), None
     s = spec.source
-    rng = np.random.default_rng(s.seed)
-    tx = spec.resolve_tx(rng)
+    rng = np.random.default_rng(s.seed)  # the RSS noise
+    tx = spec.transmitter()  # seed N's transmitter, where rfsl simulate puts it
     info = {"model": s.model, "model_params": s.model_params, "seed": s.seed, "tx_enu": [float(v) for v in tx],
-            "tx_resolution": "rng=default_rng(seed); tx=spec.resolve_tx(rng)"}
+            "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: default_rng(seed)"}
     src = SimSource(spec.propagation_model(), tx, rng, s.noise_db, s.sample_period_s, spec.field.origin, info)
     return src, {"x_m": float(tx[0]), "y_m": float(tx[1]), "z_m": float(tx[2])}
 
@@ -266,7 +266,7 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
                     items = await prepare(ctx, p)
                     await open_log(ctx, url, ap_name, report, len(items))
                     tasks.spawn(ctx, tg, tasks.logger(ctx), "log writer")
-                    tasks.spawn(ctx, tg, watch_budget(ctx, ctx.budget), "budget watch")
+                    tasks.spawn(ctx, tg, watch_budget(ctx, ctx.budget, p.mission_raw, p.action), "budget watch")
                     live_task = tasks.spawn(ctx, tg, estimates.live_estimates(ctx), "live estimates")
                     code, status = await fly_mission(ctx, tg, p)
                 except FlightError as e:
@@ -325,7 +325,9 @@ async def prepare(ctx: FlightContext, p: Plugins):
     with contextlib.suppress(Exception):
         await p.telemetry.set_rate_landed_state(5.0)
     v_ret = await apply_speeds(ctx, p.param, ctx.ardupilot)  # restored after the flight
-    ctx.budget = start_budget(ctx, v_ret, await vertical_speeds(ctx, p.param, ctx.ardupilot))
+    ctx.budget = start_budget(ctx, v_ret, await vertical_speeds(ctx, p.param, ctx.ardupilot), ctx.ardupilot)
+    if ctx.extension is not None:  # its own checks, now that the autopilot's plan is known (exit 2)
+        ctx.extension.check(ctx)
     ctx.status.stage = "uploading"
     await upload_with_retries(ctx, p.mission_raw, items)
     ctx.event("upload", f"mission uploaded: {len(items)} raw items ({n_wp} waypoints)")
@@ -400,7 +402,7 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
             await asyncio.sleep(2.0)
     await wait_any(ctx.armed_seen, timeout=3.0)  # "armed" (the telemetry) before "mission started"
     ctx.status.t_start = ctx.tel.clock.now()
-    await mission_raw.start_mission()
+    await start_mission(ctx, action, mission_raw)
     ctx.event("start", "mission started")
     ev = await wait_any(ctx.mission_done, ctx.landed_disarmed, ctx.abort, ctx.link_dead)
     if ev is ctx.link_dead:
@@ -415,6 +417,26 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
     if ctx.link_dead.is_set():
         return EXIT_LINK, "link lost"
     return EXIT_OK, "completed" if ctx.landed_disarmed.is_set() else "landing not confirmed"
+
+
+async def start_mission(ctx: FlightContext, action, mission_raw) -> None:
+    """``start_mission``, retried: a loaded link (PX4 SITL at 10x on two busy cores) timed it out, and PX4
+    disarms an armed vehicle that does not take off within seconds (re-armed then)."""
+    from mavsdk.plugins.mission_raw import MissionRawError
+
+    for attempt in range(3):
+        ctx.abort_before_takeoff()
+        try:
+            await mission_raw.start_mission()
+            return
+        except MissionRawError as e:
+            why = getattr(getattr(e, "result", None), "name", None) or type(e).__name__
+            if attempt == 2:
+                raise FlightError(f"mission start refused: {why}") from None
+            ctx.event("start", f"mission start failed ({why}); retrying", warn=True)
+            if not ctx.st.armed:
+                with contextlib.suppress(Exception):
+                    await action.arm()
 
 
 def _return_outcome(ctx: FlightContext) -> str:
@@ -479,6 +501,8 @@ async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task 
     if ctx.rows is None:
         return status
     await ctx.source.stop()
+    for line in ctx.texts.summary():  # the autopilot's repeated texts, folded on screen
+        ctx.say(line)
     summary = ctx.tel.summary()
     if ctx.budget is not None:
         summary["budget"] = close_budget(ctx, ctx.budget)

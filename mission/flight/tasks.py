@@ -134,7 +134,8 @@ async def progress(ctx: FlightContext, mission_raw) -> None:
 async def status_texts(ctx: FlightContext, telemetry) -> None:
     async for s in telemetry.subscribe_status_text():
         ctx.last_text_wall = time.monotonic()
-        ctx.event("statustext", f"autopilot: {s.text.rstrip()}")  # PX4 ends some with a tab
+        text = f"autopilot: {s.text.rstrip()}"  # PX4 ends some with a tab
+        ctx.event("statustext", text, show=ctx.texts.show(text))  # recorded always, shown once
 
 
 async def logger(ctx: FlightContext) -> None:

@@ -182,6 +182,28 @@ def _method_regions(est: Estimate, method: str, simulated: bool, default_config:
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area))
 
 
+def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> None:
+    """A default network's answer without regions (its circles do not apply: e.g. PX4 SITL's SIH flies at -28 deg
+    pitch, outside the networks' training attitudes) takes the self-calibrating posterior's regions, whose
+    calibration holds for any attitude (it models the flight's own attitude), with a note: as ``fusion`` does,
+    the regions are the search's and the point stays the network's.  Why: every flight ends with a region."""
+    if est.regions:
+        return
+    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
+    alt = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    if not alt.regions:
+        return
+    from mission.localize.error_circles import NO_CIRCLE_APPLIES
+
+    est.regions, est.posterior = alt.regions, alt.posterior
+    est.extras["regions_from"] = "selfcal"
+    est.notes = [n.replace(NO_CIRCLE_APPLIES, "Its error circles do not apply.")
+                 .replace("no uncertainty region: ", "no error circle: ", 1) for n in est.notes]
+    est.add_note(f"The regions are the self-calibrating search's posterior's (its estimate "
+                 f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} m from "
+                 "this one).")
+
+
 def fusion_model_path() -> Path | None:
     """The network of the fused default (``models/rfsl_spiral_e2r.onnx``), if present."""
     return shipped_model(FUSION_MODEL_NAME)
@@ -280,6 +302,7 @@ def localize_log(
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     physics_given = physics_preset is not None or physics_model is not None or floor_db is not None
+    by_default = method is None and model_path is None  # a default network: selfcal's regions if its circles fail
     if physics_preset is None and physics_model is None:
         physics_model, physics_params, physics_preset = _default_physics(log)
     physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
@@ -306,6 +329,8 @@ def localize_log(
         est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
         if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
+            if by_default:
+                _fallback_regions(est, part, origin, ra, tx_height_m)
         else:
             _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),
                             ra)

@@ -50,6 +50,7 @@ METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circl
 # the methods whose circles mission/data/method_circles.json holds (calibrated in their default configuration)
 CIRCLE_METHODS = names_where(calibration=FROM_METHOD_CIRCLES)
 LEVELS = (0.5, 0.9)
+NO_CIRCLE_APPLIES = "No uncertainty region: no calibration applies to it."
 FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track counts as full
 N_VERTICES = 72
 
@@ -191,7 +192,7 @@ def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | N
     if cov is not None:
         extras["track_coverage"] = round(float(cov), 3)
     if flown.get("attitude_note"):
-        return f"{flown['attitude_note']}. No uncertainty region: no calibration applies to it."
+        return f"{flown['attitude_note']}. {NO_CIRCLE_APPLIES}"
     rec, why = calibration
     if rec is None:
         return f"no uncertainty region: {why}"

@@ -7,7 +7,8 @@ a mission that passes here also fits its budget in simulation.
 Fence rule: every trajectory waypoint and every leg between them must be inside the flight area with at
 least ``fence_margin_m`` to its edge.  The take-off point is wherever the crew launches (AERPAW's launch
 point is 0.4 m inside the AFAR fence), so the climb, the transit legs to/from home and the landing need
-only stay inside the flight area.
+only stay inside the flight area; home itself must keep ``RETURN_OVERSHOOT_M`` (the largest return and landing
+overshoot measured on an autopilot) plus the mission's ``home_margin_m`` from the edge.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ import numpy as np
 from mission.errors import InputError
 from mission.trajectory.kinematics import FlightProfile, plan_profile
 
+# metres a real autopilot's take-off, return and landing drift past home: PX4 v1.16 SITL's take-off and landing
+# rows 0.9 m, ArduCopter 4.7 SITL's return 0.03 m (the AFAR launch point is only 0.44 m inside the fence)
+RETURN_OVERSHOOT_M = 1.0
 _TOL = 1e-6  # metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
 
 
@@ -116,6 +120,13 @@ def check_mission(spec) -> MissionReport:
     legs = [(home, wps[0], "transit from home to waypoint 0")]
     if spec.return_behaviour == "rtl":
         legs.append((wps[-1], home, f"return from waypoint {len(wps) - 1} to home"))
+    need, h_clear = RETURN_OVERSHOOT_M + spec.home_margin_m, float(area.signed_distance(home[None, :2])[0])
+    if h_clear < need - _TOL:
+        v.append(Violation("home", f"home at ({home[0]:.1f}, {home[1]:.1f}) m is "
+                           + (f"{-h_clear:.1f} m outside the flight area" if h_clear < 0 else
+                              f"only {h_clear:.1f} m inside the flight area, {need:g} m required (return "
+                              f"overshoot {RETURN_OVERSHOOT_M:g} m + home_margin_m {spec.home_margin_m:g})"),
+                           need - h_clear))
     for a, b, what in legs:
         d, at = _leg_clearance(area, a, b)
         if d < -_TOL:

@@ -1,0 +1,140 @@
+"""A budget that holds: the per-leg pace fitted in flight, the return predicted from wherever the mission would
+end, and the mission's ``budget_policy`` (trim the tail, warn, return) acting on the prediction.
+
+The vehicle here is synthetic and exact: each leg takes ``scale`` x planned + ``per_leg_s`` (PX4 v1.16 SITL
+flew the spiral at about 1.03 x + 3 s), so what the policy achieves can be checked against the closed form."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mission.errors import InputError
+from mission.flight.budget import (
+    TRIM_LOOKAHEAD,
+    BudgetWatch,
+    Pace,
+    VerticalSpeeds,
+    fit_pace,
+    plan_times,
+)
+from mission.spec import load_mission, parse_mission
+
+SPIRAL = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"
+PX4_VERTICAL = VerticalSpeeds(1.5, 1.5, 0.7, 5.0)
+
+
+@pytest.fixture(scope="module")
+def plan():
+    return plan_times(load_mission(SPIRAL), vertical=PX4_VERTICAL, disarm_s=7.2)
+
+
+def _truth(plan, pace: Pace, last: int) -> tuple[np.ndarray, float]:
+    """Arrival times at waypoints 0..last and the arm-to-disarm time of a vehicle flying at ``pace``."""
+    t = np.empty(last + 1)
+    t[0] = pace.scale * plan.t_wp[0] + pace.per_leg_s
+    for i in range(1, last + 1):
+        t[i] = t[i - 1] + pace.legs(np.diff(plan.t_wp[i - 1:i + 1]))
+    return t, float(t[last] + pace.legs(np.array([plan.ret_s[last]])) + plan.land_s)
+
+
+def _fly(plan, pace: Pace, policy: str, reserve_s: float = 10.0, dt: float = 2.0):
+    """Fly the synthetic vehicle under the watch, re-planning as the policy acts; the watch, the flown arrival
+    times, the true arm-to-disarm time and the decisions taken."""
+    w = BudgetWatch(plan, policy=policy, reserve_s=reserve_s)
+    decisions = []
+    e = 0.0
+    while True:
+        arrive, end = _truth(plan, pace, w.last)
+        if any(d[0] == "return" for d in decisions):
+            return w, arrive, decisions[-1][2], decisions
+        if e >= arrive[-1]:
+            return w, arrive, end, decisions
+        w.update(e, int(np.sum(arrive <= e)))
+        if (d := w.decide(e)) is not None:
+            w.apply(e, *d)
+            decisions.append((*d, e))
+        e += dt
+
+
+@given(st.floats(0.7, 1.6), st.floats(0.0, 8.0), st.integers(5, 30))
+@settings(max_examples=60, deadline=None)
+def test_fit_pace_recovers_scale_and_cost_per_leg(scale, per_leg, seed):
+    rng = np.random.default_rng(seed)
+    planned = rng.uniform(4.0, 50.0, 12)
+    n = rng.integers(1, 3, 12)  # some segments are two legs (waypoints reached together)
+    p = fit_pace(planned, n, scale * planned + per_leg * n)
+    assert p.scale == pytest.approx(scale, abs=1e-6) and p.per_leg_s == pytest.approx(per_leg, abs=1e-6)
+    # a faster-than-planned vehicle with a negative 'cost' is the plain ratio, never a negative leg
+    q = fit_pace(planned, n, np.maximum(1.0 * planned - 2.0 * n, 0.1))
+    assert q.per_leg_s == 0.0 and 0.5 <= q.scale <= 3.0
+
+
+def test_return_from_every_waypoint_and_the_plan_ends_where_the_full_mission_does(plan):
+    spec = load_mission(SPIRAL)
+    w, home = spec.waypoints_enu(), spec.home_enu
+    d = np.hypot(*(w[:, :2] - home[:2]).T)
+    assert plan.end_s(len(w) - 1) == pytest.approx(plan.duration_s, abs=1e-6)
+    # a straight leg at 5.5 m/s from rest to rest (1.5 m/s^2): d / v + v / a, within a second
+    far = d > 60
+    np.testing.assert_allclose(plan.ret_s[:-1][far[:-1]], d[:-1][far[:-1]] / 5.5 + 5.5 / 1.5, atol=1.5)
+    assert plan.disarm_s == 7.2 and plan.land_s > 7.2 + 25 / 1.5
+
+
+@given(st.floats(1.0, 1.25), st.floats(0.0, 6.0))
+@settings(max_examples=8, deadline=None)
+def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_must(plan, scale, per_leg):
+    pace, n = Pace(scale, per_leg), len(plan.t_wp)
+    w, _, used, decisions = _fly(plan, pace, "trim")
+    untouched = _truth(plan, pace, n - 1)[1]
+    limit = plan.budget_s - w.reserve_s
+    if untouched <= limit:
+        assert not w.dropped and not decisions and used == pytest.approx(untouched)
+        return
+    assert used <= limit + 1.0, (used, w.actions)
+    assert w.dropped == list(range(w.last + 1, n))  # the tail, in order
+    # not more than needed: keeping one more waypoint would not have fitted (the vehicle lands within the
+    # reserve) unless the cut could not come later (the vehicle was already flying to it)
+    if w.last + 1 < n:
+        assert _truth(plan, pace, w.last + 1)[1] > limit - 1.0
+    assert all(d[0] == "trim" for d in decisions) and len(decisions) <= 3
+    # each cut is taken near it, when the pace is known best
+    first_cut = decisions[0]
+    reached_then = int(np.sum(_truth(plan, pace, n - 1)[0] <= first_cut[2]))
+    assert first_cut[1] - reached_then < TRIM_LOOKAHEAD
+
+
+def test_warn_never_acts_and_return_acts_once(plan):
+    pace = Pace(1.03, 3.0)  # PX4 v1.16 SITL's spiral: 638 s against 600
+    w, _, used, decisions = _fly(plan, pace, "warn")
+    assert decisions == [] and used > plan.budget_s and w.warned_at_s is not None
+    assert w.predicted_at_warning_s > plan.budget_s - 10.0
+    w2, _, _, decisions = _fly(plan, pace, "return")
+    assert [d[0] for d in decisions] == ["return"] and w2.dropped == []
+    rec = w2.record(500.0)
+    assert rec["policy"] == "return" and rec["actions"][0]["action"] == "return"
+
+
+def test_record_names_policy_reserve_and_dropped_waypoints(plan):
+    w, _, used, _ = _fly(plan, Pace(1.03, 3.0), "trim")
+    rec = w.record(used)
+    assert rec["policy"] == "trim" and rec["reserve_s"] == 10.0 and not rec["overrun"]
+    assert rec["dropped_waypoints"] == [i + 1 for i in w.dropped] and rec["dropped_waypoints"][-1] == 18
+    assert rec["actions"][0]["predicted_before_s"] > rec["actions"][-1]["predicted_s"]
+
+
+@pytest.mark.parametrize("key, value, msg", [
+    ("budget_policy", "abort", "budget_policy"),
+    ("budget_policy", 3, "budget_policy"),
+    ("budget_reserve_s", -1, "budget_reserve_s"),
+    ("budget_reserve_s", 600, "budget_reserve_s"),
+    ("budget_reserve_s", "ten", "budget_reserve_s"),
+])
+def test_bad_policy_keys_are_refused_naming_the_key(key, value, msg):
+    with pytest.raises(InputError, match=msg):
+        parse_mission({key: value}, "m.yaml")
+    assert parse_mission({"budget_policy": "warn", "budget_reserve_s": 0}).budget_policy == "warn"

@@ -1,0 +1,195 @@
+"""End-to-end flights of ``fly-mission`` against the real PX4 v1.16 SITL (SIH quadrotor) in ../shared.
+
+Skips cleanly where ``../shared/sitl/px4`` is absent.  Three flights, each against its own PX4 instance
+(UDP 14540 + instance): the spiral end to end (exit 0, landed inside its 600 s budget arm to disarm on the
+vehicle's clock, every STATUSTEXT PX4 wrote to its console kept in the sidecar, a region printed: SIH's -28 deg
+cruise pitch is outside the networks' training attitudes, so the region is the self-calibrating posterior's),
+a Ctrl-C in the mission (returned, landed, exit 130, the log closed as aborted) and the adaptive mission
+(survey, rounds, landed inside the budget).  Speed-up ``SPEEDUP``: PX4's SIH sleeps open-loop, so a speed-up
+the CPU cannot hold makes its MAVLink transfers time out (measured on the 2-core development machine under
+load: 10x flew the spiral every time; 20x timed the mission upload out).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+from _sitl_process import SitlProcess, free_instance
+
+from mission.flightlog import read_flight_log
+
+ROOT = Path(__file__).resolve().parents[1]
+PX4 = ROOT.parent / "shared" / "sitl" / "px4"
+SPIRAL = ROOT / "missions" / "spiral.yaml"
+ADAPTIVE = ROOT / "missions" / "spiral_adaptive.yaml"
+SPEEDUP = 10
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(not (PX4 / "bin" / "px4").exists() or not (PX4 / "start.sh").exists(),
+                       reason="PX4 SITL not in ../shared/sitl/px4"),
+]
+
+
+def _free_instance() -> int:
+    """A PX4 instance whose UDP ports (app link 14540 + I and PX4's own 14580 + I, 18570 + I) are free now;
+    1..9 only: from instance 10 on PX4's start script sends the app link to a shared port."""
+    return free_instance(1, 9, lambda i: (14540 + i, 14580 + i, 18570 + i), True, "PX4 SITL")
+
+
+class _Px4(SitlProcess):
+    """One PX4 SITL in its own instance and run folder; ``url`` is the app's MAVSDK address."""
+
+    log_name = "px4.log"
+
+    def __init__(self, root: Path, speedup: float = SPEEDUP):
+        super().__init__(root)
+        self.speedup, self.run = speedup, root / "px4"
+
+    def start(self) -> str:
+        from mission.spec import load_mission
+
+        spec = load_mission(SPIRAL)  # the vehicle takes off from the missions' home (4 m inside the fence)
+        lat, lon, _ = spec.field.origin.to_geodetic(spec.home_enu)
+        inst = _free_instance()
+        self.launch(PX4 / "start.sh", [str(self.speedup), str(inst), f"{lat:.7f},{lon:.7f},0"], "Ready for takeoff!",
+                    "PX4 SITL")
+        self.url = f"udpin://0.0.0.0:{14540 + inst}"
+        return self.url
+
+    def texts(self) -> list[str]:
+        """The autopilot texts PX4 wrote to its console after the app connected (PX4 ends those it sends as
+        STATUSTEXT with a tab), but the one that says the app is gone (it cannot reach the app)."""
+        lines = self.log().split("partner IP", 1)[-1].splitlines()
+        out = [ln.split("] ", 1)[1].rstrip() for ln in lines if ln.endswith("\t") and "] " in ln]
+        return [t for t in out if t != "Connection to ground station lost"]
+
+
+@pytest.fixture
+def px4(tmp_path):
+    """A fresh PX4 SITL (``_Px4``), stopped after the test."""
+    sitl = _Px4(tmp_path)
+    sitl.start()
+    try:
+        yield sitl
+    finally:
+        sitl.stop()
+
+
+def _fly(mission: Path, url: str, out: Path, *extra: str, interrupt_on: str | None = None):
+    """Run ``fly-mission`` to the end; with ``interrupt_on``, send SIGINT at the first output line holding it.
+    Returns (exit code, output lines, wall seconds)."""
+    cmd = [sys.executable, "-m", "mission.cli.fly", str(mission), "--connect", url, "--speedup", str(SPEEDUP),
+           "--out", str(out), "--link-timeout", "60", *extra]
+    t0 = time.monotonic()
+    p = subprocess.Popen(cmd, cwd=ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+
+    def read() -> None:
+        sent = False
+        for line in p.stdout:
+            lines.append(line.rstrip("\n"))
+            if interrupt_on and not sent and interrupt_on in line:
+                p.send_signal(signal.SIGINT)
+                sent = True
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        p.wait(timeout=400)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        raise
+    reader.join(5)
+    return p.returncode, lines, time.monotonic() - t0
+
+
+def _arm_to_disarm(meta: dict) -> float:
+    """Arm to disarm on the vehicle's clock, from the sidecar's events (measured, not predicted)."""
+    ev = meta["events"]
+    arm = next(e["t_vehicle_s"] for e in ev if e["kind"] == "armed")
+    off = [e["t_vehicle_s"] for e in ev if e["kind"] == "disarmed"]
+    assert off, "no disarm seen"
+    return off[-1] - arm
+
+
+def _too_wide(lines: list[str]) -> list[str]:
+    """Lines over 80 columns other than a path standing alone (``log: /long/tmp/path``: it cannot wrap)."""
+    return [ln for ln in lines if len(ln) > 80 and not (len(ln.split()) <= 2 and "/" in ln.split()[-1])]
+
+
+def _sidecar_texts(meta: dict) -> list[str]:
+    return [e["text"].removeprefix("autopilot: ") for e in meta["events"] if e["kind"] == "statustext"]
+
+
+def test_spiral_on_px4(px4, tmp_path):
+    rc, lines, wall = _fly(SPIRAL, px4.url, tmp_path / "flights")
+    out = "\n".join(lines)
+    assert rc == 0, out[-3000:] + "\nPX4 log:\n" + px4.log()[-1500:]
+    assert "autopilot PX4" in out
+    (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
+    log = read_flight_log(csv)
+    m = log.meta
+    assert m["status"] == "completed"
+    used = _arm_to_disarm(m)
+    assert used <= m["budget"]["budget_s"] == 600, (used, m["budget"])
+    assert m["budget"]["used_s"] == pytest.approx(used, abs=0.1)
+    # the STATUSTEXTs: the sidecar keeps what arrived, in PX4's order, none folded away; all of them unless
+    # MAVSDK said it dropped callbacks (a starved CPU: on two cores shared with four other jobs, load 15, it lost
+    # 4 of 9 texts at 10x, and said so)
+    kept, sent = _sidecar_texts(m), px4.texts()
+    it = iter(sent)
+    assert all(t in it for t in kept), (sent, kept)  # a subsequence: nothing invented or reordered
+    dropped = any(e["kind"] == "mavsdk" and "Dropping subscription callbacks" in e["text"] for e in m["events"])
+    assert kept == sent or (dropped and len(kept) >= 0.5 * len(sent)), (sent, kept, dropped)
+    assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
+    # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's regions do
+    assert any(ln.startswith("  90 % region: ") for ln in lines), out[-1500:]
+    assert "region: none" not in out
+    assert not _too_wide(lines), _too_wide(lines)
+    print(f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, budget {m['budget']}")
+
+
+def test_ctrl_c_on_px4_returns_and_lands(px4, tmp_path):
+    rc, lines, wall = _fly(SPIRAL, px4.url, tmp_path / "flights", "--no-localize", interrupt_on="wp 2/18")
+    out = "\n".join(lines)
+    assert rc == 130, out[-3000:]
+    (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
+    log = read_flight_log(csv)
+    m = log.meta
+    assert m["status"] == "aborted (SIGINT), returned to launch", m["status"]
+    assert _arm_to_disarm(m) < 300  # returned from the second leg, not after the mission
+    phase = log.columns["phase"]
+    assert "return" in set(phase) and phase[-1] in ("land", "ground"), set(phase)
+    assert log["rel_alt_m"][-1] < 1.0
+    assert not any(e["kind"] == "budget" and "over" in e["text"] for e in m["events"])
+    print(f"PX4 abort: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {_arm_to_disarm(m):.0f} s")
+
+
+def test_adaptive_mission_on_px4(px4, tmp_path):
+    rc, lines, wall = _fly(ADAPTIVE, px4.url, tmp_path / "flights")
+    out = "\n".join(lines)
+    assert rc == 0, out[-3000:] + "\nPX4 log:\n" + px4.log()[-1500:]
+    (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
+    m = read_flight_log(csv).meta
+    assert m["status"] == "completed"
+    used = _arm_to_disarm(m)
+    assert used <= 600, (used, m["budget"])
+    # rounds are planned from the live estimate, computed in a worker at a lowered priority: on a starved CPU
+    # (load 15 on two cores) it came too late for any round, and the flight says so in one line
+    late = "no adaptive round: the survey ended before one was planned" in out
+    assert m["adaptive"]["rounds"] or late, out[-2500:]
+    if late:
+        warnings.warn("PX4 adaptive flight: no round (live estimate late on a starved CPU)", stacklevel=1)
+    assert any(ln.startswith("estimate: ") for ln in lines) or late
+    assert not _too_wide(lines), _too_wide(lines)
+    print(f"PX4 adaptive: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, "
+          f"{len(m['adaptive']['rounds'])} rounds")
