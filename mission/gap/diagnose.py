@@ -195,7 +195,7 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
         bar, progress = _rich_progress()
         bar.start()
     try:
-        rungs = ladder(base, flights, usable_candidates(candidates, flights), cfg, max_rungs=max_rungs,
+        rungs = ladder(base, flights, usable_candidates(candidates, flights, cfg.split), cfg, max_rungs=max_rungs,
                        label=base_label, progress=progress or None)
     finally:
         if bar is not None:

@@ -168,19 +168,22 @@ def identify(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     rng = np.random.default_rng(cfg.seed)
     from mission.gap.spatial import usable_candidates
 
-    candidates = usable_candidates(candidates, flights)
+    candidates = usable_candidates(candidates, flights, cfg.split)
     folds = make_folds(flights, cfg)
     pipes = [base] * len(folds)
     base_res = heldout_residuals(pipes, flights, folds, cfg)
     ranking = rank_candidates(pipes, flights, folds, candidates, cfg, rng, base_res, progress, "rank")
     struct = residual_structure(flights, base_res, rng)
-    named = name_missing(ranking, struct)
-    out: dict[str, Any] = {"named": named, "rule": RANKING_RULE, "structure": struct,
+    from mission.gap.frame import frame_for, resolve
+
+    frame = frame_for(ranking, base, flights, cfg, cfg.seed)
+    named = resolve(name_missing(ranking, struct), ranking, frame)
+    out: dict[str, Any] = {"named": named, "rule": RANKING_RULE, "structure": struct, "frame": frame,
                            "significant": [r.name for r in ranking if r.significant],
                            "ranking": [{"name": r.name, "tier": r.tier, "rel_reduction": r.rel_reduction,
                                         "loss_reduction_db2": r.loss_reduction, "ci_lo_db2": r.ci_lo,
                                         "significant": r.significant} for r in ranking]}
-    hit = next((r for r in ranking if r.name == named and r.significant), None)
+    hit = next((r for r in ranking if r.name == named and (r.significant or frame is not None)), None)
     if hit is not None:
         out["footprint"] = footprint(base, hit.pipes[0], flights)
         out["params"] = {k: v for k, v in hit.params_mean().items() if k not in ("shape", "resemblances")}

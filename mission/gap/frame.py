@@ -1,0 +1,140 @@
+"""Ground-fixed or body-fixed?  When a map over the ground and a map over the UAV's body angles both explain a
+residual, which one holds out.
+
+Why: a body-fixed effect seen only in a few places (the legs shadowing the rover at shallow depression, far
+from it) looks like a patch of shadowing on the ground, and a ground map absorbs it; shadowing seen from a
+few body angles looks like an antenna pattern.  The two are told apart by flying the *same ground at
+different headings*: a ground-fixed effect is the same there whatever the heading, a body-fixed one moves
+with the body angles.  So both candidates are refitted on two extra held-out splits:
+
+- ``headings``: per flight, samples flown towards one half of the compass (about the flight's main axis,
+  e.g. a lawnmower's eastbound rows) train, the other half test, and the reverse: the same ground, other
+  headings;
+- ``ground``: a checkerboard of ``CELL_M`` cells: the body map must carry over to ground it has not seen,
+  a ground map cannot (beyond its correlation length).
+
+``FRAME_RULE`` (stated before any run): body-fixed when, held out across headings, the body candidate's
+relative loss reduction exceeds the ground map's by at least ``MARGIN`` and is positive; ground-fixed when
+the reverse holds; otherwise undecided (both, or neither, carry over).  The ground split is reported as
+supporting evidence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from mission.gap.fit import FitConfig, Fold, heldout_residuals, rank_candidates
+from mission.gap.pipeline import Pipeline
+from mission.samples import FlightSamples
+
+BODY = ("leg_shadowing", "rx_gain_map", "near_nadir", "rx_pattern", "rx_mounting", "attitude", "yaw_attitude")
+GROUND = ("spatial_shadowing", "site_map")
+CELL_M = 80.0
+MARGIN = 0.01
+FRAME_RULE = ("body-fixed when, held out across headings (the same ground flown the other way), the body-angle "
+              "candidate's relative loss reduction exceeds the ground map's by at least 1 % and is positive; "
+              "ground-fixed when the reverse holds; else undecided")
+
+
+def heading_groups(f: FlightSamples) -> np.ndarray:
+    """0/1 per sample: flying towards one or the other half of the compass about the flight's main axis (half
+    the circular mean of twice the yaw: a lawnmower's rows), the axis turned by 90 deg where that balances
+    the halves better."""
+    yaw = np.asarray(f.attitude_rad[:, 2], dtype=float)
+    axis = 0.5 * np.arctan2(np.sin(2 * yaw).mean(), np.cos(2 * yaw).mean())
+    best = None
+    for a in (axis, axis + np.pi / 2):
+        g = (np.cos(yaw - a) < 0).astype(int)
+        bal = abs(g.mean() - 0.5)
+        if best is None or bal < best[0] - 0.1:
+            best = (bal, g)
+    assert best is not None
+    return best[1]
+
+
+def _two_folds(groups: Sequence[np.ndarray]) -> list[Fold]:
+    return [Fold([np.nonzero(g != a)[0] for g in groups], [np.nonzero(g == a)[0] for g in groups]) for a in (0, 1)]
+
+
+def heading_folds(flights: Sequence[FlightSamples]) -> list[Fold]:
+    """Train on one heading half of every flight, test on the other, and the reverse."""
+    return _two_folds([heading_groups(f) for f in flights])
+
+
+def ground_folds(flights: Sequence[FlightSamples], cell_m: float = CELL_M) -> list[Fold]:
+    """A checkerboard of ``cell_m`` cells over the ground (the same for every flight): black trains, white
+    tests, and the reverse."""
+    return _two_folds([((np.floor(f.enu_m[:, 0] / cell_m) + np.floor(f.enu_m[:, 1] / cell_m)) % 2).astype(int)
+                       for f in flights])
+
+
+def contenders(ranking: Sequence[Any], min_rel: float) -> tuple[str | None, str | None]:
+    """The best body-angle and the best ground candidate that each explain the residual held out (relative
+    reduction at least ``min_rel``), by loss reduction; None where there is none."""
+    def best(names: tuple[str, ...]) -> str | None:
+        ok = [r for r in ranking if r.name in names and r.rel_reduction >= min_rel]
+        return max(ok, key=lambda r: r.loss_reduction).name if ok else None
+
+    return best(BODY), best(GROUND)
+
+
+def frame_test(pipe: Pipeline, flights: Sequence[FlightSamples], body: str, ground: str, cfg: FitConfig,
+               seed: int = 0) -> dict[str, Any]:
+    """Refit ``body`` and ``ground`` (candidate names) on top of ``pipe`` on the ``headings`` and ``ground``
+    splits; the verdict by ``FRAME_RULE``.  Needs the flights' attitudes (the headings)."""
+    from mission.gap.candidates import select
+
+    cands = select([body, ground])
+    out: dict[str, Any] = {"body": body, "ground": ground, "rule": FRAME_RULE, "splits": {}}
+    rng = np.random.default_rng(seed)
+    for split, folds in (("headings", heading_folds(flights)), ("ground", ground_folds(flights))):
+        pipes = [pipe] * len(folds)
+        base = heldout_residuals(pipes, flights, folds, cfg)
+        res = rank_candidates(pipes, flights, folds, cands, cfg, rng, base)
+        out["splits"][split] = {r.name: {"rel_reduction": r.rel_reduction, "ci_lo": r.ci_lo,
+                                         "significant": r.significant} for r in res}
+    h = out["splits"]["headings"]
+    rb = h.get(body, {}).get("rel_reduction", 0.0)
+    rg = h.get(ground, {}).get("rel_reduction", 0.0)
+    if rb > max(rg, 0.0) + MARGIN:
+        verdict = "body-fixed"
+    elif rg > max(rb, 0.0) + MARGIN:
+        verdict = "ground-fixed"
+    else:
+        verdict = "undecided"
+    g = out["splits"]["ground"]
+    out["verdict"] = verdict
+    out["winner"] = body if verdict == "body-fixed" else ground if verdict == "ground-fixed" else None
+    out["text"] = (f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground flown the "
+                   f"other way) {body} reduces the loss {rb:+.1%}, {ground} {rg:+.1%}; on unseen ground "
+                   f"({CELL_M:.0f} m checkerboard) {body} {g.get(body, {}).get('rel_reduction', 0.0):+.1%}, {ground} "
+                   f"{g.get(ground, {}).get('rel_reduction', 0.0):+.1%}.")
+    return out
+
+
+def frame_for(ranking: Sequence[Any], pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig,
+              seed: int = 0) -> dict[str, Any] | None:
+    """``frame_test`` of the two contenders of ``ranking`` when both explain the residual; else None."""
+    if any(f.attitude_rad is None for f in flights):
+        return None
+    body, ground = contenders(ranking, cfg.min_rel)
+    if body is None or ground is None:
+        return None
+    return frame_test(pipe, flights, body, ground, cfg, seed)
+
+
+def resolve(named: str | None, ranking: Sequence[Any], frame: dict[str, Any] | None) -> str | None:
+    """What is named once the frame test has spoken: a ground map named first gives way to the body candidate
+    when the effect is body-fixed, and the reverse; where nothing was named, the winner is named only when it is
+    significant across headings."""
+    if frame is None or frame["winner"] is None:
+        return named
+    loser = frame["ground"] if frame["winner"] == frame["body"] else frame["body"]
+    if named == loser:
+        return frame["winner"]
+    if named is None and frame["splits"]["headings"][frame["winner"]]["significant"]:
+        return frame["winner"]
+    return named
