@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -313,10 +314,10 @@ def real(args: argparse.Namespace) -> int:
     if args.loc3:
         extra["loc3"] = suspect_loc3(every)
         c.print(extra["loc3"])
-    t0, cpu0 = time.time(), time.process_time()
+    t0, cpu0, ch0 = time.time(), time.process_time(), _children_cpu()
     c.print(f"{len(flights)} flights, {n} samples, loaded in {t0 - t_load:.1f} s")
     cfg = FitConfig(split=args.split, loss="soft_l1", seed=0, rate_hz=args.rate_hz, workers=args.workers,
-                    slope=args.slope, fit_max_samples=args.fit_max)
+                    slope=args.slope, fit_max_samples=args.fit_max, processes=args.processes)
     d = diagnose(flights, base_pipeline("free-space", "isotropic"), select(args.candidates), cfg,
                  base_label="free-space(iso)", localize=args.localize, area=AREA, progress=True)
     dt, cpu = time.time() - t0, time.process_time() - cpu0
@@ -328,10 +329,14 @@ def real(args: argparse.Namespace) -> int:
                                for k, f in enumerate(d.flights)}
     s["timing"] = {"seconds": dt, "cpu_seconds": cpu, "samples": n, "flights": len(flights),
                    "s_per_10k_samples": dt / n * 1e4,
-                   "extrapolated_270k_s": dt / n * 270_000, "rate_hz": args.rate_hz, "workers": args.workers}
+                   "extrapolated_270k_s": dt / n * 270_000, "rate_hz": args.rate_hz, "workers": args.workers,
+                   "processes": args.processes, "load_avg_1_5_15": list(os.getloadavg()),
+                   "children_cpu_seconds": _children_cpu() - ch0}
     if d.localization:
         s["localization"] = d.localization
     c.print(f"diagnosis of {len(flights)} flights ({n} samples): {dt:.1f} s wall, {cpu:.1f} s CPU "
+            f"(+ {s['timing']['children_cpu_seconds']:.1f} s in {args.processes} worker processes; load "
+            f"{os.getloadavg()[0]:.1f}) "
             f"({dt / n * 1e4:.2f} s per 10k samples; linear extrapolation to 13 flights, ~270 000 samples: "
             f"{dt / n * 270_000:.0f} s; the fits are capped per fold, so this is an upper bound)")
     for f in d.flights:
@@ -399,6 +404,14 @@ def family_check(args: argparse.Namespace) -> int:
     return 0
 
 
+def _children_cpu() -> float:
+    """CPU seconds of this process's finished children (the forked fit workers)."""
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return float(ru.ru_utime + ru.ru_stime)
+
+
 def _p90(r: np.ndarray) -> float:
     r = r[np.isfinite(r)]
     return float(np.quantile(np.abs(r), 0.9)) if r.size else float("nan")
@@ -424,6 +437,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--split", choices=("flights", "blocks"), default="flights")
     b.add_argument("--rate-hz", type=float, default=3.0)
     b.add_argument("--workers", type=int, default=1)
+    b.add_argument("--processes", type=int, default=1, help="processes for the candidate fits (1)")
     b.add_argument("--all", action="store_true", help="include the suspect flight 288-loc3")
     b.add_argument("--replicate", type=int, default=0,
                    help="pad to this many flights with copies of the real ones (timing at 13 flights)")

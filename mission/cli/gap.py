@@ -39,6 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate-hz", type=float, default=3.0,
                         help="thin flights to at most this sample rate first (3; 0 = every sample)")
     parser.add_argument("--workers", type=int, default=1, help="threads for the candidate fits (1)")
+    parser.add_argument("--processes", type=int, default=1,
+                        help="processes for the candidate fits (1; results bit-identical to one process)")
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
     parser.add_argument("--selftest", action="store_true",
                         help="simulate flights with each effect withheld and check the diagnosis finds it")
@@ -203,10 +205,10 @@ def run(args) -> int:
         raise InputError(str(e), field="base") from None
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
-    if args.rate_hz < 0 or args.workers < 1:
-        raise InputError("--rate-hz must be >= 0 and --workers >= 1", field="rate-hz")
+    if args.rate_hz < 0 or args.workers < 1 or args.processes < 1:
+        raise InputError("--rate-hz must be >= 0, --workers and --processes >= 1", field="rate-hz")
     cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed, rate_hz=args.rate_hz,
-                    workers=args.workers)
+                    workers=args.workers, processes=args.processes)
     err = Console(stderr=True)
     try:
         d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,

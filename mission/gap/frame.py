@@ -26,12 +26,12 @@ from typing import Any
 
 import numpy as np
 
+from mission.gap.candidate import FRAME_BODY as BODY
+from mission.gap.candidate import FRAME_GROUND as GROUND
 from mission.gap.fit import FitConfig, Fold, heldout_residuals, rank_candidates
 from mission.gap.pipeline import Pipeline
 from mission.samples import FlightSamples
 
-BODY = ("leg_shadowing", "rx_gain_map", "near_nadir", "rx_pattern", "rx_mounting", "attitude", "yaw_attitude")
-GROUND = ("spatial_shadowing", "site_map")
 CELL_M = 80.0
 MARGIN = 0.01
 FRAME_RULE = ("body-fixed when, held out across headings (the same ground flown the other way), the body-angle "

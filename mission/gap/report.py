@@ -125,7 +125,7 @@ def summary(d: Diagnosis) -> dict[str, Any]:
                                                         "nugget_db", "nugget_ci_db", "correlated_fraction")}
                              for kk in ("along_path", "spatial") if kk in v}
                           for k, v in d.structure.items()},
-            "near_nadir": d.near_nadir, "config": d.config,
+            "near_nadir": d.near_nadir, "time_power": d.time_power, "frames": d.frames, "config": d.config,
             "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
 
 

@@ -34,8 +34,25 @@ RATIO_THRESHOLD = 0.8       # near / all semivariance below this: correlated std
 STRUCTURE_RULE = ("correlated shadowing when the semivariance of residual pairs closer than 15 m (same "
                   "transmitter), divided by that of all pairs, has a one-sided 95 % block-bootstrap upper bound "
                   "below 0.8 (the correlated std is at least half the uncorrelated one) and the correlated std "
-                  "sqrt((1 - ratio) var) is at least 1 dB; otherwise white noise.  The fitted variogram (sigma, "
-                  "L, nugget) is reported but not used: L's lower bound can reach 0 on real data")
+                  "sqrt((1 - ratio) var) is at least 1 dB; otherwise correlated within flights when the along-path "
+                  "variogram's correlated fraction exceeds 0.5 (sigma >= 1 dB): structure along each flight that "
+                  "does not repeat over the same ground; otherwise white noise.  The spatial variogram (sigma, L, "
+                  "nugget) is reported but not used: L's lower bound can reach 0 on real data")
+
+
+WITHIN_FLIGHT = "correlated within flights"
+
+
+def structure_verdict(test: dict[str, Any], along: dict[str, Any]) -> str:
+    """One verdict on what is left (``STRUCTURE_RULE``): "correlated shadowing" when near pairs over the ground
+    are alike (``correlation_test``); else "correlated within flights" when the residual along each flight's
+    path is mostly correlated (variogram ``correlated_fraction`` > 0.5, correlated sigma >= 1 dB) yet does not
+    repeat over the same ground; else "white noise"."""
+    if test.get("correlated"):
+        return "correlated shadowing"
+    if along.get("correlated_fraction", 0.0) > 0.5 and along.get("sigma_db", 0.0) >= 1.0:
+        return WITHIN_FLIGHT
+    return "white noise"
 
 
 def correlation_test(xy: np.ndarray, r: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
@@ -114,7 +131,7 @@ def residual_structure(flights: Sequence[FlightSamples], resid: Sequence[np.ndar
     space = fit_variogram(XY, R, rng, max_lag=150.0, n_bins=30, max_points=max_points, n_boot=n_boot,
                           groups=np.concatenate(g_tx), unit="m")
     test = correlation_test(XY, R, np.concatenate(g_tx), rng)
-    return {"verdict": "correlated shadowing" if test["correlated"] else "white noise", "rule": STRUCTURE_RULE,
+    return {"verdict": structure_verdict(test, along.as_dict()), "rule": STRUCTURE_RULE,
             "test": test,
             "residual_std_db": float(np.std(R)), "along_path": along.as_dict(), "spatial": space.as_dict()}
 

@@ -68,7 +68,11 @@ def flight_events(flight: FlightSamples) -> np.ndarray:
         change = np.abs(np.interp(t + half, t, yaw) - np.interp(t - half, t, yaw))
         deg = np.rad2deg(change)
         peak = (deg >= TURN_DEG) & (deg >= np.r_[deg[1:], -1.0]) & (deg > np.r_[-1.0, deg[:-1]])
-        cand += [(float(deg[i]), float(t[i])) for i in np.nonzero(peak)[0]]
+        rate = np.abs(np.diff(yaw))                  # the turn itself: the fastest heading change near the peak
+        for i in np.nonzero(peak)[0]:
+            w = np.nonzero(np.abs(t[:-1] - t[i]) <= TURN_WINDOW_S)[0]
+            j = int(w[np.argmax(rate[w])]) if len(w) else i
+            cand.append((float(deg[i]), float(t[min(j + 1, len(t) - 1)])))
     lo, hi = t[0] + 10.0, t[-1] - 10.0
     chosen: list[float] = []
     for _, te in sorted(cand, key=lambda c: (-c[0], c[1])):
