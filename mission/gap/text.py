@@ -51,8 +51,9 @@ def summary_paragraph(d: Diagnosis) -> str:
         s = base + "The model misses " + "; ".join(parts) + f" (p90 {p90[0]:.1f} -> {p90[-1]:.1f} dB). "
     else:
         s = base + "No candidate effect closes a significant part of the gap. "
-    for fr in d.frames.values():
-        s += " " + fr["text"]
+    for fr in d.frames.values():   # a decided test changes what is added: say so (all of them in details.txt)
+        if fr["winner"] is not None:
+            s += " " + fr["text"]
     s += _time_sentence(d)
     st = d.structure.get("final", {})
     if st:
@@ -60,7 +61,7 @@ def summary_paragraph(d: Diagnosis) -> str:
     nn = d.near_nadir
     if nn and not nn.get("found"):
         s += " " + nn["statement"]
-    return s
+    return " ".join(s.split())
 
 
 def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left") -> str:
@@ -214,6 +215,8 @@ def details_text(d: Diagnosis) -> str:
     for k, r in enumerate(d.rungs):
         if r.ranking:
             parts.append(ranking_text(d, k, top=None))
+        if r.frame is not None:
+            parts.append(wrap(f"On '{_added(r.label)}': " + r.frame["text"] + " Rule: " + r.frame["rule"] + "."))
     from mission.gap.fit import RANKING_RULE
 
     parts.append(wrap("Ranking rule: " + RANKING_RULE))
