@@ -203,7 +203,8 @@ def identify(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     hit = next((r for r in ranking if r.name == named and (r.significant or frame is not None)), None)
     if hit is not None:
         out["footprint"] = footprint(base, hit.pipes[0], flights)
-        out["params"] = {k: v for k, v in hit.params_mean().items() if k not in ("shape", "resemblances")}
+        big = ("shape", "resemblances", "time_shapes")
+        out["params"] = {k: v for k, v in hit.params_mean().items() if k not in big}
     elif named == "spatial_shadowing":
         sp = struct["spatial"]
         out["footprint"] = {"size_db": 2 * 1.645 * sp["sigma_db"], "where": {"corr_len_m": sp["corr_len"]}}

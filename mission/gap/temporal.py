@@ -152,8 +152,9 @@ def fit_time_term(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], r
         v = X @ c
         sizes.append(float(np.quantile(v, 0.95) - np.quantile(v, 0.05)))
         events[f.name] = len(ev)
-    return TimeTerm(per), {"lambda": lam, "size_db": float(np.mean(sizes)), "events": events,
-                           "drift_order": DRIFT_ORDER}
+    term = TimeTerm(per)
+    return term, {"lambda": lam, "size_db": float(np.mean(sizes)), "events": events, "drift_order": DRIFT_ORDER,
+                  "time_shapes": {f.name: term.shape(f) for f, _, _, _ in blocks}}
 
 
 def time_candidate() -> Candidate:
