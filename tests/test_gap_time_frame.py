@@ -126,3 +126,21 @@ def test_one_verdict_on_what_is_left():
     s = verdict_sentence(st, 2.0)
     assert "correlated along each flight" in s and "not shown to repeat over the same ground" in s
     assert "white noise of" not in s
+
+
+def test_diagnosis_report_with_a_time_rung(tmp_path):
+    """The ladder adds ``time_drift`` on a gain step; the report, gap.json and the summary say so."""
+    import json
+
+    from mission.gap.candidates import select
+    from mission.gap.diagnose import diagnose
+    from mission.gap.report import write_report
+
+    fl, _ = _flights("step", 1)
+    d = diagnose(fl, _base(), select(["time_drift", "path_gain_slope"]), FitConfig(seed=1, fit_max_samples=800),
+                 reference=("two-ray",), localize=False)
+    assert [r.added for r in d.rungs][1] == "time_drift"
+    write_report(d, tmp_path)
+    doc = json.loads((tmp_path / "gap.json").read_text())
+    assert "better explained along the flight's time than by geometry" in doc["text"]
+    assert doc["ladder"][1]["added"] == "time_drift" and "time_power" in doc
