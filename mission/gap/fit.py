@@ -427,8 +427,10 @@ def ladder(base: Pipeline, flights: Sequence[FlightSamples], candidates: Sequenc
         if not sig:
             break
         best = physical[0] if physical else sig[0]
-        if best.name in FRAME_BODY + FRAME_GROUND:
-            # a ground map and a body-angle map both explain it: add the one that holds out across headings
+        if best.name in FRAME_GROUND or (best.name in FRAME_BODY and any(
+                r.name in FRAME_GROUND and r.loss_reduction >= best.loss_reduction for r in ranking)):
+            # a ground map would absorb it, or explains more than the body-angle map chosen: add the one that
+            # holds out across headings and on unseen ground (``frame``)
             from mission.gap.frame import frame_for
 
             rung.frame = frame_for(ranking, rung.pipes[0], flights, cfg, cfg.seed)
