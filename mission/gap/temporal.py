@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
-from mission.gap.freeform import ridge_cv
+from mission.gap.freeform import _legendre_all, ridge_cv
 from mission.gap.pipeline import Pipeline, memo
 from mission.samples import FlightSamples
 
@@ -41,13 +41,6 @@ MIN_EVENT_GAP_S = 20.0
 MAX_EVENTS = 16
 LAMBDAS = tuple(np.geomspace(1e-4, 1e2, 13))
 NAME = "time_drift"
-
-
-def _legendre(u: np.ndarray, n: int) -> list[np.ndarray]:
-    out = [np.ones_like(u), u]
-    for k in range(1, n):
-        out.append(((2 * k + 1) * u * out[k] - k * out[k - 1]) / (k + 1))
-    return out[1: n + 1]
 
 
 def flight_events(flight: FlightSamples) -> np.ndarray:
@@ -86,7 +79,7 @@ def flight_events(flight: FlightSamples) -> np.ndarray:
 def time_columns(t: np.ndarray, t0: float, t1: float, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Design (N, K) of one flight's time basis and its ridge weights (module table)."""
     u = np.clip(2.0 * (np.asarray(t, dtype=float) - t0) / max(t1 - t0, 1e-9) - 1.0, -1.0, 1.0)
-    cols = _legendre(u, DRIFT_ORDER) + [(t >= e).astype(float) for e in events]
+    cols = _legendre_all(u, DRIFT_ORDER)[1:] + [(t >= e).astype(float) for e in events]
     pen = [1.0 + p * p for p in range(1, DRIFT_ORDER + 1)] + [STEP_WEIGHT] * len(events)
     return np.column_stack(cols), np.array(pen)
 
