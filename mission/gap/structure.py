@@ -177,8 +177,10 @@ def identify(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
              progress: Any = None) -> dict[str, Any]:
     """One ranking on top of ``base`` plus the residual structure: what is missing, how large, where.
 
-    Returns ``named`` (``name_missing``), the ranking rows, the structure of the base's held-out residuals,
-    and for the named effect its ``footprint`` (fold 0's fit against the base) and fitted parameters.
+    Returns ``named`` (``name_missing``, then ``frame.resolve``: where a ground map and a body-angle map both
+    explain the residual, the one that holds out across headings and on unseen ground), the ranking rows, the
+    structure of the base's held-out residuals, ``frame`` (that test, or None), and for the named effect its
+    ``footprint`` (fold 0's fit against the base) and fitted parameters.
     """
     from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
 
