@@ -17,6 +17,14 @@ and one withheld effect per case, including effects no candidate names:
 | ``timing`` | RSS stamped late by 0.5-1.0 s | time_offset |
 | ``nadir`` | UAV gain - 8 dB exp(-(dep_b - 75 deg)^2 / 2 (8 deg)^2), any azimuth; the usual flights | near_nadir |
 | ``nadir_over`` | the same loss; both flights: stars of ``passes`` (5) straight passes over the rover | near_nadir |
+| ``drift`` | a receiver warming up: gain A (1 - exp(-t / 120 s)), A 3-4 dB, sign per flight | time_drift |
+| ``step`` | a gain step of 2.5-3 dB (sign per flight) at an event in the middle half (*) | time_drift |
+| ``legs_far`` | eqs. 8-9, a quad's four legs, only below 8 deg depression, far from the rover (**) | body-fixed |
+
+(*) at a turn of the lawnmower; the spiral has no sharp turn there, so its log records the switch as a phase
+change (``mission`` -> ``adaptive``).  (**) legs at 45/135/225/315 deg, 7 deg half width, beta 0.5-0.7; the
+rover mid-way along an edge (20-60 m in), so the legs act only over the far half of the field (> 140-250 m);
+"body-fixed": ``leg_shadowing`` or ``rx_gain_map`` (``BODY_FIXED``).
 
 The base model the diagnosis starts from is two-ray + vertical dipoles + (roll, pitch, yaw) attitude,
 ground permittivity 2, P_t 41 dBm, 3.32 GHz; each flight gets an unknown receiver offset and 1 dB white noise.
@@ -32,11 +40,16 @@ PT_DBM = 41.0
 LAMBDA_M = C_LIGHT / FC_HZ
 EPS0 = 8.8541878128e-12
 LEGS_DEG = (39.0, 150.0, 270.0)
+QUAD_LEGS_DEG = (45.0, 135.0, 225.0, 315.0)  # ``legs_far``: a quad's four legs, a layout the library does not name
 TX_HEIGHT_M = 1.5  # the rover antenna (this generator shares nothing with mission.*, not even its defaults)
-EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing", "nadir", "nadir_over")
+EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing", "nadir", "nadir_over",
+           "drift", "step", "legs_far")
 EXPECTED = {"none": None, "legs": "leg_shadowing", "ground": "ground_reflection", "ripple": "rx_gain_map",
             "notch": "rx_gain_map", "tx_azimuth": "tx_gain_map", "shadowing": "spatial_shadowing",
-            "timing": "time_offset", "nadir": "near_nadir", "nadir_over": "near_nadir"}
+            "timing": "time_offset", "nadir": "near_nadir", "nadir_over": "near_nadir", "drift": "time_drift",
+            "step": "time_drift", "legs_far": "leg_shadowing"}
+# a body-fixed effect the library has no exact name for is diagnosed when a body-frame candidate is named first
+BODY_FIXED = ("leg_shadowing", "rx_gain_map")
 
 
 # ------------------------------------------------------------------------------------------ trajectories
@@ -160,13 +173,13 @@ def channel_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, eps_r: float = 
 
 
 def leg_loss_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, beta: float, half_width_deg: float = 5.0,
-                threshold_deg: float = 10.0) -> np.ndarray:
+                threshold_deg: float = 10.0, legs_deg: tuple[float, ...] = LEGS_DEG) -> np.ndarray:
     """-Upsilon = -10 beta log10(d_los) where a leg blocks the LOS (paper eqs. 8-9)."""
     bx, by, bz = body_los(tx, pos, att)
     az = np.rad2deg(np.arctan2(by, bx)) % 360.0
     dep = np.rad2deg(np.arcsin(np.clip(bz, -1, 1)))
     near = np.zeros(len(az), bool)
-    for leg in LEGS_DEG:
+    for leg in legs_deg:
         near |= np.abs((az - leg + 180.0) % 360.0 - 180.0) <= half_width_deg
     s = near & (dep < threshold_deg)
     d_los = np.linalg.norm(tx - pos, axis=1)
@@ -202,9 +215,14 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
         else:
             tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
             lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)  # legs: rover near a corner (long range)
+            if effect == "legs_far":  # mid-way along an edge: the legs act only over the far half of the field
+                lo, hi = 100.0, 260.0
             if effect == "nadir":  # under a lawnmower row, so that the flights pass over the rover
                 lo, hi = 120.0, 240.0
             tx = np.array([rng.uniform(lo, hi), rng.uniform(lo, hi), TX_HEIGHT_M])
+            if effect == "legs_far":
+                edge = float(rng.uniform(20.0, 60.0))
+                tx[int(rng.integers(0, 2))] = edge if rng.uniform() < 0.5 else 360.0 - edge
         t, pos, att = tr["t"], tr["pos"], tr["att"]
         kw: dict = {}
         if effect == "ground":
@@ -237,13 +255,32 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
             q_att = np.column_stack([np.interp(tq, t, att[:, 0]), np.interp(tq, t, att[:, 1]),
                                      np.interp(tq, t, yaw) % (2 * np.pi)])
         p = channel_db(tx, q_pos, q_att, **kw)
-        if effect == "legs":
+        if effect in ("legs", "legs_far"):
             truth.setdefault("beta", k_s * float(rng.uniform(0.5, 0.7)))
-            p = p + leg_loss_db(tx, q_pos, q_att, truth["beta"])
+            truth["threshold_deg"] = 10.0 if effect == "legs" else 8.0
+            truth["legs_deg"] = LEGS_DEG if effect == "legs" else QUAD_LEGS_DEG
+            p = p + leg_loss_db(tx, q_pos, q_att, truth["beta"], threshold_deg=truth["threshold_deg"],
+                                legs_deg=truth["legs_deg"], half_width_deg=5.0 if effect == "legs" else 7.0)
+        phase = None
+        if effect == "drift":  # a receiver warming up: its gain settles over a couple of minutes
+            amp = k_s * float(rng.uniform(3.0, 4.0)) * float(rng.choice([-1.0, 1.0]))
+            truth.setdefault("amp_db", []).append(amp)
+            p = p + amp * (1.0 - np.exp(-t / 120.0))
+        elif effect == "step":  # a gain step at an event the log shows: a turn, or a logged phase change
+            n = len(t)
+            turns = np.nonzero(np.abs(np.angle(np.exp(1j * np.diff(att[:, 2])))) > np.deg2rad(90.0))[0] + 1
+            mid = turns[(turns > n // 4) & (turns < 3 * n // 4)]
+            i_step = int(rng.choice(mid)) if len(mid) and k % 2 == 0 else int(rng.integers(n // 4, 3 * n // 4))
+            if not (len(mid) and k % 2 == 0):  # no sharp turn there (the spiral): the log records the switch
+                phase = np.where(np.arange(n) < i_step, "mission", "adaptive")
+            amp = k_s * float(rng.uniform(2.5, 3.0)) * float(rng.choice([-1.0, 1.0]))
+            truth.setdefault("amp_db", []).append(amp)
+            truth.setdefault("step_s", []).append(float(t[i_step]))
+            p = p + amp * (np.arange(n) >= i_step)
         if effect == "shadowing":  # fixed over the ground; a fresh field per flight (another rover position)
             p = p + exp_field(rng, truth["sigma_db"], truth["corr_len_m"])(pos[:, :2])
         rss = p + float(rng.uniform(-60.0, 20.0)) + rng.normal(0.0, noise_db, len(p))
-        flights.append({"t": t, "pos": pos, "att": att, "rss": rss, "tx": tx})
+        flights.append({"t": t, "pos": pos, "att": att, "rss": rss, "tx": tx, "phase": phase})
     return flights, truth
 
 
@@ -257,7 +294,7 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
 
     raw, truth = make_case(effect, seed, **kw)
     flights = [FlightSamples(name=f"synth{k}", t_s=f["t"], enu_m=f["pos"], attitude_rad=f["att"],
-                             rss_dbm=f["rss"], tx_enu_m=f["tx"]) for k, f in enumerate(raw)]
+                             rss_dbm=f["rss"], tx_enu_m=f["tx"], phase=f.get("phase")) for k, f in enumerate(raw)]
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     cfg = FitConfig(seed=seed, fit_max_samples=1200, workers=1)
     from mission.gap.structure import identify
@@ -277,4 +314,7 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     out["near_nadir"] = power_statement([np.rad2deg(align(f).dep_b) for f in flights], res,
                                         [block_length(r) for r in res], make_folds(flights, cfg), cfg, m,
                                         loss_db=truth.get("depth_db", 3.0), seed=seed)
+    from mission.gap.temporal import time_power_statement
+
+    out["time_power"] = time_power_statement(flights, res, make_folds(flights, cfg), cfg, m, cfg.split, seed=seed)
     return out

@@ -138,7 +138,9 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
     r0 = ranked[0]
     assert r0["tier"] == "named" and r0["significant"] == (r0["ci_lo_db2"] > 0 and r0["rel_reduction"] >= 0.01)
     assert "smoother" in doc["rule"] and doc["named"] == ("time_offset" if r0["significant"] else None)
-    assert doc["structure"]["base"]["verdict"] == "white noise"  # the simulated log has no shadowing field
+    # the simulated log has no shadowing field: nothing fixed to the ground; the withheld lag leaves an error that
+    # follows the flight (issue 34: "correlated within flights"), or white noise where it is small
+    assert doc["structure"]["base"]["verdict"] in ("white noise", "correlated within flights")
     for png in ("cdf.png", "breakdown.png", "field_map.png", "polar_body_azimuth.png"):
         assert_png_drawn(tmp_path / "rep" / png)  # decoded: an image with curves/colours, not an empty canvas
     assert main(["gap", str(p), "--candidates", "nope"]) == 2

@@ -39,6 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate-hz", type=float, default=3.0,
                         help="thin flights to at most this sample rate first (3; 0 = every sample)")
     parser.add_argument("--workers", type=int, default=1, help="threads for the candidate fits (1)")
+    parser.add_argument("--processes", type=int, default=1,
+                        help="processes for the candidate fits (1; results bit-identical to one process)")
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
     parser.add_argument("--selftest", action="store_true",
                         help="simulate flights with each effect withheld and check the diagnosis finds it")
@@ -64,6 +66,8 @@ def check_outputs(args) -> None:
         raise InputError(f"must be a finite rate >= 0 (0: every sample), got {args.rate_hz}", field="--rate-hz")
     if not 1 <= args.workers <= MAX_WORKERS:
         raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
+    if not 1 <= args.processes <= MAX_WORKERS:
+        raise InputError(f"must be 1..{MAX_WORKERS}, got {args.processes}", field="--processes")
     for name in ("max_rungs", "family_repeats"):
         if getattr(args, name) < 0:
             raise InputError(f"must be >= 0, got {getattr(args, name)}", field="--" + name.replace("_", "-"))
@@ -248,7 +252,7 @@ def run(args) -> int:
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
     cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed, rate_hz=args.rate_hz,
-                    workers=args.workers)
+                    workers=args.workers, processes=args.processes)
     err = Console(stderr=True)
     try:
         d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,

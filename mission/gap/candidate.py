@@ -15,6 +15,10 @@ from mission.gap.pipeline import Pipeline
 # ranking tiers (``mission.gap.fit.rank_key``): named physical effects explain, free-form shapes describe,
 # smoothers interpolate
 TIER_NAMED, TIER_FREEFORM, TIER_SMOOTHER = "named", "free-form", "smoother"
+# candidates fixed to the UAV's body (its angles) and to the ground: when one of each explains a residual,
+# ``mission.gap.frame`` tests which holds out across headings
+FRAME_BODY = ("leg_shadowing", "rx_gain_map", "near_nadir", "rx_pattern", "rx_mounting", "attitude", "yaw_attitude")
+FRAME_GROUND = ("spatial_shadowing", "site_map")
 
 
 @dataclass(frozen=True)

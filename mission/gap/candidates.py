@@ -18,13 +18,14 @@ the ground permittivity of an e2r base); one that is absent *adds* it.
 | ``attitude`` | receiver angles in the body frame (roll, pitch, yaw); also on top of yaw-only | heading_deg (*) |
 | ``yaw_attitude`` | receiver angles in a frame turned by the yaw only (body level) | heading_deg (*) |
 | ``path_gain_slope`` | extra path-gain exponent, -10 n_extra log10(d / 100 m) | n_extra |
-| ``leg_shadowing`` | paper eqs. 8-9 | beta, half_width_deg, legs_rotation_deg |
+| ``leg_shadowing`` | paper eqs. 8-9 (three legs, or a quad's four: ``LEG_LAYOUTS``) | beta, half width, rotation |
 | ``near_nadir`` | body-fixed loss over a band of depression angles (``mission.gap.nadir``) | depth, centre, width |
 | ``time_offset`` | RSS lags telemetry by tau | tau_s |
 | ``receiver`` | soft noise floor and saturation | floor_db, sat_db (model dB scale) |
 | ``rx_gain_map`` | free-form: smooth UAV body-frame gain map (``mission.gap.freeform``) | ridge coefficients |
 | ``tx_gain_map`` | free-form: smooth rover gain map over compass azimuth x elevation | ridge coefficients |
 | ``excess_loss`` | free-form: smooth excess loss over distance and UAV height | ridge coefficients |
+| ``time_drift`` | free-form: a gain drifting / stepping over each flight's time (``temporal``) | ridge coefs |
 | ``spatial_shadowing`` | smoother: kriged residuals over the field (``mission.gap.spatial``) | sigma_db, corr_len_m |
 | ``site_map`` | smoother: per transmitter position, compass azimuth x log distance map (``spatial``) | ridge coefs |
 
@@ -46,6 +47,7 @@ from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
 from mission.gap.nadir import near_nadir_candidate
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
 from mission.gap.spatial import site_map_candidate, spatial_candidate
+from mission.gap.temporal import time_candidate
 from mission.physics import Attitude, GroundReflection, LegShadowing, PathGainSlope, RxAntenna, TxAntenna
 from mission.physics.antenna import Dipole, Isotropic, Pattern, rm_wb1_dn
 from mission.physics.constants import LEG_AZIMUTHS_DEG
@@ -196,9 +198,14 @@ def _path_gain_slope_candidate() -> Candidate:
         withhold)
 
 
+# leg layouts the legs candidate tries: the paper's three legs, and a quad's four (an X, 90 deg apart)
+LEG_LAYOUTS: dict[str, tuple[float, ...]] = {"paper": tuple(LEG_AZIMUTHS_DEG), "quad": (45.0, 135.0, 225.0, 315.0)}
+
+
 def _legs_candidate() -> Candidate:
     def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
-        legs = tuple(float((a + th["legs_rotation_deg"]) % 360.0) for a in LEG_AZIMUTHS_DEG)
+        base = LEG_LAYOUTS[ch.get("layout", "paper")]
+        legs = tuple(float((a + th["legs_rotation_deg"]) % 360.0) for a in base)
         e = LegShadowing(beta=float(th["beta"]), legs_deg=legs, half_width_deg=float(th["half_width_deg"]))
         return p.replace(model=p.model.with_effect(e))
 
@@ -209,7 +216,7 @@ def _legs_candidate() -> Candidate:
         Param("beta", 0.0, 8.0, (0.3, 1.0, 2.5)),
         Param("half_width_deg", 1.0, 25.0, (3.0, 6.0, 12.0, 20.0), unit="deg"),
         Param("legs_rotation_deg", -60.0, 60.0, (-45.0, -30.0, -15.0, -5.0, 0.0, 5.0, 15.0, 30.0, 45.0), unit="deg")),
-        build, lambda p: p.model.has("attitude"), withhold)
+        build, lambda p: p.model.has("attitude"), withhold, lambda p: ({"layout": "paper"}, {"layout": "quad"}))
 
 
 # ------------------------------------------------------------------------------------ around the channel
@@ -250,7 +257,8 @@ def library() -> dict[str, Candidate]:
         _time_offset_candidate(), _receiver_candidate(),
     ]
     refs = {c.name: c for c in named}   # what a free-form map is compared with (``freeform.resemblance``)
-    cands = [*named, *(freeform_candidate(k, refs) for k in FREEFORM_NAMES), spatial_candidate(), site_map_candidate()]
+    cands = [*named, *(freeform_candidate(k, refs) for k in FREEFORM_NAMES), time_candidate(), spatial_candidate(),
+             site_map_candidate()]
     return {c.name: c for c in cands}
 
 

@@ -70,6 +70,8 @@ class Diagnosis:
     structure: dict[str, Any] = field(default_factory=dict)   # residual structure: "base" and "final" rungs
     footprints: dict[str, Any] = field(default_factory=dict)  # per added rung: size (dB) and where it acts
     near_nadir: dict[str, Any] = field(default_factory=dict)  # what the data can show below the UAV (nadir.py)
+    time_power: dict[str, Any] = field(default_factory=dict)  # what the data can show along time (temporal.py)
+    frames: dict[str, Any] = field(default_factory=dict)      # rung label -> ground- or body-fixed test (frame.py)
 
 
 def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, name: str) -> ModelGap:
@@ -195,7 +197,7 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
         bar, progress = _rich_progress()
         bar.start()
     try:
-        rungs = ladder(base, flights, usable_candidates(candidates, flights), cfg, max_rungs=max_rungs,
+        rungs = ladder(base, flights, usable_candidates(candidates, flights, cfg.split), cfg, max_rungs=max_rungs,
                        label=base_label, progress=progress or None)
     finally:
         if bar is not None:
@@ -213,7 +215,13 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
     nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls, make_folds(flights, cfg),
                             cfg, m, seed=cfg.seed)
     nadir["found"] = any(r.added == "near_nadir" for r in rungs)
-    return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps, nadir)
+    from mission.gap.temporal import time_power_statement
+
+    tpow = time_power_statement(flights, rungs[-1].residuals, make_folds(flights, cfg), cfg, m, cfg.split,
+                                seed=cfg.seed)
+    frames = {r.label: r.frame for r in rungs if r.frame is not None}
+    return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps, nadir,
+                     tpow, frames)
 
 
 def rung_table(d: Diagnosis) -> list[dict[str, Any]]:

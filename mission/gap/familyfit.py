@@ -339,7 +339,8 @@ def fit_family(flights: Sequence[FlightSamples], effects: Sequence[str], cfg: Fi
 
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
-    fits = _map(lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]), jobs, cfg.workers)
+    fits = _map(lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]), jobs, cfg.workers,
+                cfg.processes)
     for f in fits:
         if is_afar2023_suspect(f.name):
             f.excluded = AFAR2023_SUSPECT_NOTE

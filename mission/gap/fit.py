@@ -29,7 +29,14 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.candidate import TIER_FREEFORM, TIER_NAMED, TIER_SMOOTHER, Candidate
+from mission.gap.candidate import (
+    FRAME_BODY,
+    FRAME_GROUND,
+    TIER_FREEFORM,
+    TIER_NAMED,
+    TIER_SMOOTHER,
+    Candidate,
+)
 from mission.gap.describe import describe_params
 from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
 from mission.gap.pipeline import Pipeline, joint_offset_residuals, offset_residuals
@@ -56,6 +63,7 @@ class FitConfig:
     n_boot: int = 400
     seed: int = 0
     workers: int = 1               # threads for the (candidate, fold) fits (1: the fits are GIL-bound now)
+    processes: int = 1             # processes for the (candidate, fold) fits (fork; results bit-identical to 1)
     rate_hz: float = 0.0           # thin flights to at most this sample rate before the diagnosis (0: all)
 
 
@@ -284,8 +292,26 @@ def rank_key(r: CandidateResult) -> tuple[bool, float]:
     return (not r.significant, -r.loss_reduction / TIER_MARGIN.get(r.tier, 1.0))
 
 
-def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[Any]:
-    """``fn`` over ``items``, in ``workers`` threads (numpy releases the GIL in the heavy parts).
+_FORKED: list[Any] = []  # (fn, items) of the running process map: the forked workers read it, nothing is pickled
+
+
+def _forked_call(i: int) -> Any:
+    fn, items = _FORKED[-1]
+    return fn(items[i])
+
+
+def _limit_blas() -> None:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")
+
+
+def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int, processes: int = 1,
+         done: Callable[[int], None] | None = None) -> list[Any]:
+    """``fn`` over ``items``, in ``processes`` forked processes (the closures are inherited by the fork, only
+    the results travel back, pickled), else in ``workers`` threads (numpy releases the GIL in the heavy
+    parts); in order, so the results are those of one call after another, bit for bit.  ``done(k)``: called
+    in this process as the k-th result arrives (progress).
 
     BLAS runs single-threaded meanwhile: the fits' matrices are small (kriging systems of a few hundred
     cells, Gram matrices of ~100 columns), the parallelism is over the fits, and a multi-threaded OpenBLAS
@@ -293,13 +319,30 @@ def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[A
     with one at load 10 on 2 cores).  ``threadpoolctl`` comes with scikit-learn."""
     from threadpoolctl import threadpool_limits
 
+    def tick(it: Any) -> list[Any]:
+        out = []
+        for k, r in enumerate(it):
+            out.append(r)
+            if done is not None:
+                done(k + 1)
+        return out
+
     with threadpool_limits(limits=1, user_api="blas"):
+        if processes > 1 and len(items) > 1:
+            import multiprocessing as mp
+
+            _FORKED.append((fn, items))
+            try:
+                with mp.get_context("fork").Pool(min(processes, len(items)), initializer=_limit_blas) as pool:
+                    return tick(pool.imap(_forked_call, range(len(items))))
+            finally:
+                _FORKED.pop()
         if workers <= 1 or len(items) <= 1:
-            return [fn(x) for x in items]
+            return tick(fn(x) for x in items)
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=workers) as ex:
-            return list(ex.map(fn, items))
+            return tick(ex.map(fn, items))
 
 
 Progress = Callable[[str, int, int], None]  # (description, done, total)
@@ -311,26 +354,26 @@ def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples],
                     label: str = "") -> list[CandidateResult]:
     """Fit every applicable candidate on each fold's training data, score on its test data, rank (``rank_key``).
 
-    The (candidate, fold) fits run in ``cfg.workers`` threads; each gets its own generator spawned from
-    ``rng`` in a fixed order, so results do not depend on the scheduling.
+    The (candidate, fold) fits run in ``cfg.processes`` processes or ``cfg.workers`` threads; each gets its own
+    generator spawned from ``rng`` in a fixed order, so results do not depend on the scheduling.
     """
     base_res = base_res if base_res is not None else heldout_residuals(pipes, flights, folds, cfg)
     bsum = summarize(_pooled(base_res))
     tried = [c for c in candidates if c.applicable(pipes[0])]
     tasks = [(c, k) for c in tried for k in range(len(folds))]
     seeds = rng.integers(0, 2**63 - 1, size=len(tasks))
-    done = [0]
 
     def run(task_seed: tuple[tuple[Candidate, int], int]) -> tuple[CandidateFit, list[np.ndarray]]:
         (cand, k), seed = task_seed
         ft = fit_candidate(cand, pipes[k], flights, folds[k].train, cfg, np.random.default_rng(seed))
         res = residuals(ft.pipeline, flights, folds[k].test, cfg)
-        done[0] += 1
-        if progress is not None:
-            progress(f"{label}: {cand.name}", done[0], len(tasks))
         return ft, res
 
-    results = _map(run, list(zip(tasks, seeds, strict=True)), cfg.workers)
+    def done(n: int) -> None:
+        if progress is not None:
+            progress(f"{label}: {tasks[n - 1][0].name}", n, len(tasks))
+
+    results = _map(run, list(zip(tasks, seeds, strict=True)), cfg.workers, cfg.processes, done)
     out = []
     nf = len(folds)
     for j, cand in enumerate(tried):
@@ -358,6 +401,7 @@ class Rung:
     residuals: list[np.ndarray]
     params: dict[str, Any] = field(default_factory=dict)
     ranking: list[CandidateResult] = field(default_factory=list)  # candidates tried on top of this rung
+    frame: dict[str, Any] | None = None  # ground- or body-fixed test of this rung's ranking (``frame.frame_for``)
 
     def describe(self) -> dict[str, Any]:
         return describe_params(self.pipes[0])
@@ -383,6 +427,20 @@ def ladder(base: Pipeline, flights: Sequence[FlightSamples], candidates: Sequenc
         if not sig:
             break
         best = physical[0] if physical else sig[0]
+        if best.name in FRAME_GROUND or (best.name in FRAME_BODY and any(
+                r.name in FRAME_GROUND and r.loss_reduction >= best.loss_reduction for r in ranking)):
+            # a ground map would absorb it, or explains more than the body-angle map chosen: add the one that
+            # holds out across headings and on unseen ground (``frame``)
+            from mission.gap.frame import frame_for
+
+            rung.frame = frame_for(ranking, rung.pipes[0], flights, cfg, cfg.seed)
+            if rung.frame is not None and rung.frame["winner"] is not None and best.name != rung.frame["winner"]:
+                loser = rung.frame["ground"] if rung.frame["winner"] == rung.frame["body"] else rung.frame["body"]
+                sig = [r for r in sig if r.name != loser]
+                physical = [r for r in sig if r.tier != TIER_SMOOTHER]
+                if not sig:
+                    break
+                best = physical[0] if physical else sig[0]
         rung = Rung(f"{rung.label} + {best.name}", best.name, best.pipes, best.residuals, best.params_mean())
         rungs.append(rung)
         pool = [c for c in pool if c.name != best.name]

@@ -38,6 +38,12 @@ class SpatialField(Protocol):
     def field_db(self, flight: FlightSamples, rx_xy: np.ndarray) -> np.ndarray: ...
 
 
+class TemporalField(Protocol):
+    """Additive dB term over a flight's time (a gain drifting or stepping; ``mission.gap.temporal``)."""
+
+    def field_db(self, flight: FlightSamples, t: np.ndarray) -> np.ndarray: ...
+
+
 @dataclass(frozen=True)
 class Receiver:
     """Soft noise floor and saturation of the receiver, in the model's dB scale (before the free offset)."""
@@ -84,6 +90,7 @@ class Pipeline:
     time_offset_s: float = 0.0
     receiver: Receiver | None = None
     spatial: SpatialField | None = None
+    temporal: TemporalField | None = None
 
     def replace(self, **kw: Any) -> Pipeline:
         return replace(self, **kw)
@@ -106,6 +113,8 @@ class Pipeline:
         if self.spatial is not None:
             xy = (flight.enu_m if idx is None else flight.enu_m[idx])[:, :2]
             p = p + self.spatial.field_db(flight, xy)
+        if self.temporal is not None:
+            p = p + self.temporal.field_db(flight, flight.t_s if idx is None else flight.t_s[idx])
         if self.receiver is not None:
             p = self.receiver.apply(p)
         return p
@@ -123,6 +132,8 @@ class Pipeline:
             names.append("receiver")
         if self.spatial is not None:
             names.append(getattr(self.spatial, "name", "spatial_shadowing"))
+        if self.temporal is not None:
+            names.append(getattr(self.temporal, "name", "time_drift"))
         return tuple(names)
 
 
@@ -231,15 +242,17 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     return out
 
 
-def _joint_field(spatial: SpatialField, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                 live: list[int]) -> np.ndarray:
-    """The spatial field at the selected samples of the ``live`` flights, concatenated; cached like
-    ``_joint_geometry`` by the identity of the (fitted, immutable) field, the flights and the index arrays."""
+def _joint_field(spatial: SpatialField | TemporalField, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
+                 live: list[int], time: bool = False) -> np.ndarray:
+    """The spatial field (``time``: the temporal term) at the selected samples of the ``live`` flights,
+    concatenated; cached like ``_joint_geometry`` by the identity of the (fitted, immutable) field, the flights
+    and the index arrays."""
     key = ("field", id(spatial), *map(id, flights), *map(id, idx))
     hit = _JOINT.get(key)
     if hit is not None and all(a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)):
         return hit[1]
-    out = np.concatenate([spatial.field_db(flights[k], flights[k].enu_m[idx[k]][:, :2]) for k in live])
+    out = np.concatenate([spatial.field_db(flights[k], flights[k].t_s[idx[k]] if time else
+                                           flights[k].enu_m[idx[k]][:, :2]) for k in live])
     if len(out) <= _JOINT_MAX_SAMPLES:
         out.flags.writeable = False
         if len(_JOINT) > 16:
@@ -268,6 +281,8 @@ def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx
         p = np.concatenate([np.asarray(cache[k], dtype=float) for k in live])
     if pipe.spatial is not None:
         p = p + _joint_field(pipe.spatial, flights, idx, live)
+    if pipe.temporal is not None:
+        p = p + _joint_field(pipe.temporal, flights, idx, live, time=True)
     if pipe.receiver is not None:
         p = pipe.receiver.apply(p)
     r = joint[6] - p

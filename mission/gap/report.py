@@ -31,7 +31,7 @@ def _fmt(v: Any) -> str:
 
 def params_text(p: dict[str, Any]) -> str:
     """Fitted parameters in a compact human form (log-parameters converted back)."""
-    q = {k: v for k, v in p.items() if k not in ("shape", "resemblances", "lambda")}
+    q = {k: v for k, v in p.items() if k not in ("shape", "resemblances", "lambda", "time_shapes")}
     if isinstance(q.get("where"), dict):
         q["where"] = " ".join(f"{k.split('_')[0]}{k.split('_')[1][:3]}={v:.0f}" for k, v in q["where"].items())
     if "log10_eps_r" in q:
@@ -85,7 +85,7 @@ def figures(d: Diagnosis) -> dict[str, Any]:
 
 
 SCHEMA_VERSION = 2
-_BIG = ("shape", "resemblances")  # free-form shapes go to figures["freeform_shapes"], not into the summary
+_BIG = ("shape", "resemblances", "time_shapes")  # shapes go to figures["freeform_shapes"], not into the summary
 
 
 def _small(p: dict[str, Any]) -> dict[str, Any]:
@@ -125,7 +125,7 @@ def summary(d: Diagnosis) -> dict[str, Any]:
                                                         "nugget_db", "nugget_ci_db", "correlated_fraction")}
                              for kk in ("along_path", "spatial") if kk in v}
                           for k, v in d.structure.items()},
-            "near_nadir": d.near_nadir, "config": d.config,
+            "near_nadir": d.near_nadir, "time_power": d.time_power, "frames": d.frames, "config": d.config,
             "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
 
 
@@ -136,6 +136,8 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
         for x in r.ranking:
             if x.tier == "free-form" and (r is d.rungs[0] or x.name in {q.added for q in d.rungs}):
                 p = x.fold_params[0]
+                if not p.get("shape"):   # time_drift: its per-flight curves are in its params (``time_shapes``)
+                    continue
                 out.setdefault(x.name, {"rung": r.label, "size_db": p.get("size_db"), "resembles": p.get("resembles"),
                                         "resemblance_corr": p.get("resemblance_corr"), "where": p.get("where"),
                                         "resemblances": p.get("resemblances"), "shape": p.get("shape")})

@@ -258,9 +258,15 @@ def shares_site(flights: Sequence[Any]) -> bool:
     return len(set(keys)) < len(keys)
 
 
-def usable_candidates(candidates: Sequence[Candidate], flights: Sequence[Any]) -> list[Candidate]:
-    """``candidates`` without ``site_map`` when no two flights share a transmitter position."""
-    return [c for c in candidates if c.name != "site_map" or shares_site(flights)]
+def usable_candidates(candidates: Sequence[Candidate], flights: Sequence[Any], split: str = "blocks"
+                      ) -> list[Candidate]:
+    """``candidates`` without ``site_map`` when no two flights share a transmitter position, and without the
+    per-flight ``time_drift`` when whole flights are held out or a flight has no times
+    (``temporal.usable_in``)."""
+    from mission.gap.temporal import NAME, usable_in
+
+    return [c for c in candidates if (c.name != "site_map" or shares_site(flights))
+            and (c.name != NAME or usable_in(split, flights))]
 
 
 def _kriging_fit(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], resid: Sequence[np.ndarray],

@@ -34,8 +34,25 @@ RATIO_THRESHOLD = 0.8       # near / all semivariance below this: correlated std
 STRUCTURE_RULE = ("correlated shadowing when the semivariance of residual pairs closer than 15 m (same "
                   "transmitter), divided by that of all pairs, has a one-sided 95 % block-bootstrap upper bound "
                   "below 0.8 (the correlated std is at least half the uncorrelated one) and the correlated std "
-                  "sqrt((1 - ratio) var) is at least 1 dB; otherwise white noise.  The fitted variogram (sigma, "
-                  "L, nugget) is reported but not used: L's lower bound can reach 0 on real data")
+                  "sqrt((1 - ratio) var) is at least 1 dB; otherwise correlated within flights when the along-path "
+                  "variogram's correlated fraction exceeds 0.5 (sigma >= 1 dB): structure along each flight that "
+                  "does not repeat over the same ground; otherwise white noise.  The spatial variogram (sigma, L, "
+                  "nugget) is reported but not used: L's lower bound can reach 0 on real data")
+
+
+WITHIN_FLIGHT = "correlated within flights"
+
+
+def structure_verdict(test: dict[str, Any], along: dict[str, Any]) -> str:
+    """One verdict on what is left (``STRUCTURE_RULE``): "correlated shadowing" when near pairs over the ground
+    are alike (``correlation_test``); else "correlated within flights" when the residual along each flight's
+    path is mostly correlated (variogram ``correlated_fraction`` > 0.5, correlated sigma >= 1 dB) yet does not
+    repeat over the same ground; else "white noise"."""
+    if test.get("correlated"):
+        return "correlated shadowing"
+    if along.get("correlated_fraction", 0.0) > 0.5 and along.get("sigma_db", 0.0) >= 1.0:
+        return WITHIN_FLIGHT
+    return "white noise"
 
 
 def correlation_test(xy: np.ndarray, r: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
@@ -114,7 +131,7 @@ def residual_structure(flights: Sequence[FlightSamples], resid: Sequence[np.ndar
     space = fit_variogram(XY, R, rng, max_lag=150.0, n_bins=30, max_points=max_points, n_boot=n_boot,
                           groups=np.concatenate(g_tx), unit="m")
     test = correlation_test(XY, R, np.concatenate(g_tx), rng)
-    return {"verdict": "correlated shadowing" if test["correlated"] else "white noise", "rule": STRUCTURE_RULE,
+    return {"verdict": structure_verdict(test, along.as_dict()), "rule": STRUCTURE_RULE,
             "test": test,
             "residual_std_db": float(np.std(R)), "along_path": along.as_dict(), "spatial": space.as_dict()}
 
@@ -160,30 +177,36 @@ def identify(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
              progress: Any = None) -> dict[str, Any]:
     """One ranking on top of ``base`` plus the residual structure: what is missing, how large, where.
 
-    Returns ``named`` (``name_missing``), the ranking rows, the structure of the base's held-out residuals,
-    and for the named effect its ``footprint`` (fold 0's fit against the base) and fitted parameters.
+    Returns ``named`` (``name_missing``, then ``frame.resolve``: where a ground map and a body-angle map both
+    explain the residual, the one that holds out across headings and on unseen ground), the ranking rows, the
+    structure of the base's held-out residuals, ``frame`` (that test, or None), and for the named effect its
+    ``footprint`` (fold 0's fit against the base) and fitted parameters.
     """
     from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
 
     rng = np.random.default_rng(cfg.seed)
     from mission.gap.spatial import usable_candidates
 
-    candidates = usable_candidates(candidates, flights)
+    candidates = usable_candidates(candidates, flights, cfg.split)
     folds = make_folds(flights, cfg)
     pipes = [base] * len(folds)
     base_res = heldout_residuals(pipes, flights, folds, cfg)
     ranking = rank_candidates(pipes, flights, folds, candidates, cfg, rng, base_res, progress, "rank")
     struct = residual_structure(flights, base_res, rng)
-    named = name_missing(ranking, struct)
-    out: dict[str, Any] = {"named": named, "rule": RANKING_RULE, "structure": struct,
+    from mission.gap.frame import frame_for, resolve
+
+    frame = frame_for(ranking, base, flights, cfg, cfg.seed)
+    named = resolve(name_missing(ranking, struct), ranking, frame)
+    out: dict[str, Any] = {"named": named, "rule": RANKING_RULE, "structure": struct, "frame": frame,
                            "significant": [r.name for r in ranking if r.significant],
                            "ranking": [{"name": r.name, "tier": r.tier, "rel_reduction": r.rel_reduction,
                                         "loss_reduction_db2": r.loss_reduction, "ci_lo_db2": r.ci_lo,
                                         "significant": r.significant} for r in ranking]}
-    hit = next((r for r in ranking if r.name == named and r.significant), None)
+    hit = next((r for r in ranking if r.name == named and (r.significant or frame is not None)), None)
     if hit is not None:
         out["footprint"] = footprint(base, hit.pipes[0], flights)
-        out["params"] = {k: v for k, v in hit.params_mean().items() if k not in ("shape", "resemblances")}
+        big = ("shape", "resemblances", "time_shapes")
+        out["params"] = {k: v for k, v in hit.params_mean().items() if k not in big}
     elif named == "spatial_shadowing":
         sp = struct["spatial"]
         out["footprint"] = {"size_db": 2 * 1.645 * sp["sigma_db"], "where": {"corr_len_m": sp["corr_len"]}}

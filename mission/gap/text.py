@@ -15,6 +15,7 @@ import numpy as np
 
 from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
+from mission.gap.structure import WITHIN_FLIGHT
 
 WIDTH = 80
 PLAIN: dict[str, str] = {
@@ -50,24 +51,57 @@ def summary_paragraph(d: Diagnosis) -> str:
         s = base + "The model misses " + "; ".join(parts) + f" (p90 {p90[0]:.1f} -> {p90[-1]:.1f} dB). "
     else:
         s = base + "No candidate effect closes a significant part of the gap. "
+    for fr in d.frames.values():   # a decided test changes what is added: say so (all of them in details.txt)
+        if fr["winner"] is not None:
+            s += " " + fr["text"]
+    s += _time_sentence(d)
     st = d.structure.get("final", {})
-    te, sp, al = st.get("test", {}), st.get("spatial", {}), st.get("along_path", {})
-    if st.get("verdict") == "correlated shadowing":
-        s += (f"After it, what is left is {te.get('correlated_std_db', float('nan')):.1f} dB of shadowing correlated "
-              f"over about {sp.get('corr_len', float('nan')):.0f} m that no model here predicts, plus "
-              f"{sp.get('nugget_db', float('nan')):.1f} dB of white noise.")
-    elif al and al.get("correlated_fraction", 0.0) > 0.5:
-        v = _speed(d)
-        s += (f"After it, what is left ({st.get('residual_std_db', float('nan')):.1f} dB) does not repeat between "
-              f"flights over the same ground, but within a flight {al['sigma_db']:.1f} dB of it is shadowing "
-              f"correlated over about {al['corr_len'] * v:.0f} m ({al['corr_len']:.0f} s at {v:.1f} m/s) that no "
-              f"model here predicts, plus {al['nugget_db']:.1f} dB of white noise.")
-    elif st:
-        s += f"What is left looks like white noise of {st.get('residual_std_db', float('nan')):.1f} dB."
+    if st:
+        s += " " + verdict_sentence(st, _speed(d), "After it, what is left" if parts else "What is left")
     nn = d.near_nadir
     if nn and not nn.get("found"):
         s += " " + nn["statement"]
-    return s
+    return " ".join(s.split())
+
+
+def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left") -> str:
+    """The one verdict on a rung's residual (``structure.structure_verdict``) in words a reader can act on; the
+    summary and the structure lines both use it, so they cannot disagree."""
+    te, sp, al = st.get("test", {}), st.get("spatial", {}), st.get("along_path", {})
+    std, v = st.get("residual_std_db", float("nan")), st.get("verdict")
+    ratio = (f"near/all-pair semivariance {te.get('ratio', float('nan')):.2f}, upper bound "
+             f"{te.get('ratio_ci', [float('nan')] * 2)[1]:.2f}")
+    if v == "correlated shadowing":
+        return (f"{lead} ({std:.1f} dB) is shadowing fixed to the ground: near samples over the same ground are "
+                f"alike ({ratio} < 0.8), {te.get('correlated_std_db', float('nan')):.1f} dB of it correlated over "
+                f"about {sp.get('corr_len', float('nan')):.0f} m, that no model here predicts on unflown ground, "
+                f"plus {sp.get('nugget_db', float('nan')):.1f} dB of white noise.")
+    if v == WITHIN_FLIGHT:
+        return (f"{lead} ({std:.1f} dB) is correlated along each flight ({al['sigma_db']:.1f} dB over about "
+                f"{al['corr_len']:.0f} s, {al['corr_len'] * speed:.0f} m at {speed:.1f} m/s; white noise "
+                f"{al['nugget_db']:.1f} dB) but is not shown to repeat over the same ground ({ratio}, not below "
+                "0.8): it follows the flight rather than the ground (its own path's shadowing seen once, a gain "
+                "changing over the flight, or a per-flight state such as the rover's heading or transmit power). "
+                "A ground map will not predict it on new flights; per-flight terms (time_drift, chunks held out) "
+                "or the same ground flown twice in a flight can tell which.")
+    return f"{lead} looks like white noise of {std:.1f} dB ({ratio})."
+
+
+def _time_sentence(d: Diagnosis) -> str:
+    """Whether an effect is better explained along time than by geometry, or what time could show."""
+    from mission.gap.temporal import NAME
+
+    first = d.rungs[0].ranking
+    t = next((r for r in first if r.name == NAME), None)
+    geo = next((r for r in first if r.name != NAME and r.significant), None)
+    if t is not None and t.significant and (geo is None or first.index(t) < first.index(geo)):
+        other = f" against {geo.rel_reduction:.0%} for the best geometric candidate ({geo.name})" if geo else ""
+        return (f" The first effect is better explained along the flight's time than by geometry: a gain drifting "
+                f"or stepping over each flight reduces the held-out loss {t.rel_reduction:.0%}{other}.")
+    if any(r.added == NAME for r in d.rungs):
+        return ""
+    tp = d.time_power
+    return (" " + tp["statement"]) if tp.get("statement") else ""
 
 
 def _speed(d: Diagnosis) -> float:
@@ -142,11 +176,14 @@ def structure_text(d: Diagnosis) -> str:
     for k, st in d.structure.items():
         if "spatial" not in st:
             continue
-        sp, te = st["spatial"], st.get("test", {})
+        sp, te, al = st["spatial"], st.get("test", {}), st.get("along_path", {})
         out.append(wrap(f"What is left ({k} rung): {st['verdict']}; near/all-pair semivariance "
                         f"{te.get('ratio', float('nan')):.2f}, correlated std {te.get('correlated_std_db', 0):.1f} "
                         f"dB; over space sigma {sp['sigma_db']:.1f} dB, L {sp['corr_len']:.0f} m "
-                        f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget {sp['nugget_db']:.1f} dB."))
+                        f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget {sp['nugget_db']:.1f} dB; "
+                        f"along the path sigma {al.get('sigma_db', float('nan')):.1f} dB over "
+                        f"{al.get('corr_len', float('nan')):.0f} s, correlated fraction "
+                        f"{al.get('correlated_fraction', float('nan')):.2f}."))
     return "\n".join(out)
 
 
@@ -178,6 +215,8 @@ def details_text(d: Diagnosis) -> str:
     for k, r in enumerate(d.rungs):
         if r.ranking:
             parts.append(ranking_text(d, k, top=None))
+        if r.frame is not None:
+            parts.append(wrap(f"On '{_added(r.label)}': " + r.frame["text"] + " Rule: " + r.frame["rule"] + "."))
     from mission.gap.fit import RANKING_RULE
 
     parts.append(wrap("Ranking rule: " + RANKING_RULE))
