@@ -25,6 +25,14 @@ os.environ.setdefault("MAVLINK20", "1")
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+# Property tests draw their examples from a fixed seed under CI (every random result reproducible; a red CI is
+# then a failure anyone can rerun); locally they keep exploring new examples.
+from hypothesis import settings as _hsettings  # noqa: E402
+
+_hsettings.register_profile("ci", derandomize=True, database=None)
+if os.environ.get("CI"):
+    _hsettings.load_profile("ci")
+
 REPO = Path(__file__).resolve().parents[1]
 FULL_TIERS = ("slow", "real")  # left out of a plain `pytest`
 # Slow tests in files that other work was editing when the tiers were introduced, marked here instead of in the
