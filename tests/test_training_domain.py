@@ -1,4 +1,5 @@
-"""A network's training altitudes, read from its metadata, and the note when a flight leaves them.
+"""A network's training altitudes, measured from its training metadata into its card, and the note when a flight
+leaves them.
 
 The note rests on a measured premise (the spiral network loses accuracy off its 30 m training altitude), so
 one test re-measures it on freshly simulated spirals instead of trusting the card's figures.
@@ -12,16 +13,8 @@ from _localize_helpers import write_synthetic_log
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mission.localize.training_domain import (
-    ALTITUDE_TOLERANCE_M,
-    altitude_note,
-    flight_altitudes,
-    training_altitudes,
-)
-
-
-def _meta(*datasets: dict) -> dict:
-    return {"training_data": {"datasets": list(datasets)}}
+from mission.localize.training_domain import ALTITUDE_TOLERANCE_M, altitude_note, flight_altitudes
+from mission.workshop.domain import training_altitudes, training_domain
 
 
 def test_shipped_networks_training_altitudes(repo_dir):
@@ -30,12 +23,29 @@ def test_shipped_networks_training_altitudes(repo_dir):
     spiral, default = repo_dir / "models" / "rfsl_spiral_e2r.onnx", repo_dir / "models" / "rfsl_default.onnx"
     if not spiral.exists() or not default.exists():
         pytest.skip("shipped models absent")
-    assert training_altitudes(OnnxLocalizer(spiral).meta) == (30.0, 30.0)       # missions/spiral.yaml's altitude
-    assert training_altitudes(OnnxLocalizer(default).meta) == (20.0, 47.0)      # randomised 20-47 m + spiral 30 m
+    assert OnnxLocalizer(spiral).card.domain.altitude_m == (30.0, 30.0)       # missions/spiral.yaml's altitude
+    assert OnnxLocalizer(default).card.domain.altitude_m == (20.0, 47.0)      # randomised 20-47 m + spiral 30 m
+
+
+def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
+    """Each shipped card's training domain (written once by ``mission.workshop.domain``) is what its network's
+    training metadata measures today: a card edited by hand, or a training record whose mission changed, fails."""
+    from mission.localize.onnx_model import OnnxLocalizer
+
+    models = sorted((repo_dir / "models").glob("*.onnx"))
+    if not models:
+        pytest.skip("shipped models absent")
+    for p in models:
+        net = OnnxLocalizer(p, threads=1)
+        assert net.card.domain == training_domain(net.meta.get("training_data")), p.name
+    assert net.card.domain.attitude_deg is not None  # the spiral networks know their attitude span
 
 
 def test_altitudes_from_each_kind_of_dataset_record():
     from mission.workshop.suite import ALTITUDE_RANGE_M
+
+    def _meta(*datasets: dict) -> dict:
+        return {"datasets": list(datasets)}
 
     assert training_altitudes(_meta({"mission_altitude_m": 45.0})) == (45.0, 45.0)
     assert training_altitudes(_meta({"randomisation": {"altitude_m": [22.0, 33.0]}, "mission_altitude_m": 30.0},

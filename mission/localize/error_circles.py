@@ -33,7 +33,6 @@ and ``ellipse`` the circle's.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -43,20 +42,15 @@ import numpy as np
 from mission.errors import InputError
 from mission.evidence import conformal_quantile
 from mission.geo import Area, clip_polygon, signed_area_m2
+from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 
-REGIONS_KEY = "regions"
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
 # the methods whose circles mission/data/method_circles.json holds (calibrated in their default configuration)
 CIRCLE_METHODS = names_where(calibration=FROM_METHOD_CIRCLES)
 LEVELS = (0.5, 0.9)
 FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track counts as full
 N_VERTICES = 72
-
-
-def model_digest(model_path: str | Path) -> str:
-    """sha256 of a model file: a card's calibration names the exact network it was measured on."""
-    return hashlib.sha256(Path(model_path).read_bytes()).hexdigest()
 
 
 def calibration_record(errors, source: str, model_path: str | Path | None = None,
@@ -72,11 +66,6 @@ def calibration_record(errors, source: str, model_path: str | Path | None = None
     if model_path is not None:
         rec["model_sha256"] = model_digest(model_path)
     return rec
-
-
-def card_path(model_path: str | Path) -> Path:
-    """The model card beside a network: ``models/<name>.json`` for ``models/<name>.onnx``."""
-    return Path(model_path).with_suffix(".json")
 
 
 def _read_entries(p: Path, what: str) -> dict:
@@ -134,19 +123,27 @@ def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] |
                   f"circles were calibrated on flights that flew {lo}-100 %")
 
 
-def card_calibration(model_path: str | Path, domain: str) -> tuple[dict | None, str | None]:
+def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
     """(the card's calibration for ``domain`` ("sim" or "real"), None) or (None, why there is none: no card, no
     entry, or an entry measured on another model file); a malformed entry is an ``InputError`` naming the card
-    and key."""
-    p = card_path(model_path)
+    and key.  ``model``: a ``card.ModelCard`` (read once with its network) or a model file's path."""
+    path = model.path if isinstance(model, ModelCard) else model
+    p = card_path(path)
     where = f"{p.name}, benchmarks/calibrate_error_circles.py"
-    if not p.is_file():
-        return None, f"{Path(model_path).name} has no model card ({where})"
-    rec = _read_entries(p, REGIONS_KEY).get(domain)
+    if isinstance(model, ModelCard):
+        entries, digest = model.regions, model.sha256
+        if entries is not None and not isinstance(entries, dict):
+            raise InputError(f"not a JSON object with a {REGIONS_KEY} mapping", source=str(p), field=REGIONS_KEY)
+    else:
+        entries = _read_entries(p, REGIONS_KEY) if p.is_file() else None
+        digest = None
+    if entries is None:
+        return None, f"{Path(path).name} has no model card ({where})"
+    rec = entries.get(domain)
     if rec is None:
-        return None, f"{Path(model_path).name} has no '{domain}' calibration in its card ({where})"
+        return None, f"{Path(path).name} has no '{domain}' calibration in its card ({where})"
     rec = _checked(rec, p, f"{REGIONS_KEY}.{domain}")
-    if rec.get("model_sha256") != model_digest(model_path):
+    if rec.get("model_sha256") != (digest or model_digest(path)):
         return None, f"the '{domain}' calibration in {p.name} was measured on another version of the model file"
     return rec, None
 
