@@ -108,9 +108,9 @@ def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str
 
 
 def _pool(fn, jobs: list) -> list:
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
-    with ProcessPoolExecutor(2, initializer=one_thread_process) as ex:
+    with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
         return list(ex.map(fn, jobs, chunksize=4))
 
 

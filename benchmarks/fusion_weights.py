@@ -64,12 +64,12 @@ def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
 
 def main() -> None:
     from mission.evidence import mean_interval, paired_difference
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
     from mission.workshop.evaluate import import_afar
 
     args = scoring_parser(__doc__).parse_args()
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers,
-                                                                   initializer=one_thread_process) as ex:
+                                                                   initializer=limit_worker) as ex:
         real = sorted(import_afar(args.mat, tmp))
         rows_r = list(ex.map(one, [("real", str(p), 0) for p in real]))
         rows_b = list(ex.map(one, [("suite", args.suite_dir, i) for i in range(args.n)], chunksize=4))

@@ -143,9 +143,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_guarded(fn: Callable[[], int | None]) -> int:
-    """Run a CLI body: bad input becomes one line on stderr and exit code 2, Ctrl-C exit code 130."""
+    """Run a CLI body under the thread limits (``mission.threads``, ``$RFSL_THREADS``): bad input becomes one
+    line on stderr and exit code 2, Ctrl-C exit code 130."""
+    from mission.threads import thread_limits
+
     try:
-        return int(fn() or 0)
+        with thread_limits():
+            return int(fn() or 0)
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code

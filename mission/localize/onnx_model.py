@@ -19,8 +19,9 @@ from mission.localize import Estimate
 from mission.localize.altitude_scale import flight_height, scale_cluster_xy, scale_factor
 from mission.localize.card import ModelCard
 from mission.localize.classical import as_flight
-from mission.localize.features import FeatureConfig, cluster_features, compute_threads, normalised_rss
+from mission.localize.features import FeatureConfig, cluster_features, normalised_rss
 from mission.samples import FlightSamples
+from mission.threads import compute_threads
 
 
 def session_options(threads: int):
@@ -45,7 +46,7 @@ class OnnxLocalizer:
 
     ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with anything else
     is refused (``InputError`` naming the differing key).  ``threads``: onnxruntime's intra/inter-op threads
-    (None: ``features.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
+    (None: ``mission.threads.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
     An altitude-normalised network (``training_data.altitude_normalisation`` in its metadata,
     ``mission.localize.altitude_scale``) sees each flight's coordinates rescaled by its height above the
     transmitter (``tx_height_m`` assumed); ``predict_features`` then needs those heights.
