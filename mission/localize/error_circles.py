@@ -41,7 +41,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.evidence import conformal_quantile
-from mission.geo import Area, clip_polygon, signed_area_m2
+from mission.geo import Area, clip_polygon, polygon_area_m2
 from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 
@@ -169,11 +169,10 @@ def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on:
                "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
                "polygons": [np.round(ring, 1).tolist()], "calibrated_on": calibrated_on}
         if area is not None and not area.contains(ring[:-1]).all():
-            # the area is the subject and the (convex) circle the clip, so any area polygon works
-            part = clip_polygon(area.vertices, ring[:-1])
-            if len(part) >= 3:
-                reg.update(area_m2=abs(signed_area_m2(part)), clipped_to=area.name,
-                           polygons=[np.round(np.vstack([part, part[:1]]), 1).tolist()])
+            parts = clip_polygon(area.vertices, ring[:-1])  # a non-convex area may leave several
+            if parts:
+                reg.update(area_m2=sum(polygon_area_m2(p) for p in parts), clipped_to=area.name,
+                           polygons=[np.round(np.vstack([p, p[:1]]), 1).tolist() for p in parts])
         out.append(reg)
     return out
 
