@@ -10,8 +10,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from _localize_helpers import write_synthetic_log
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from mission.localize.training_domain import ALTITUDE_TOLERANCE_M, altitude_note, flight_altitudes
 from mission.workshop.domain import training_altitudes, training_domain
@@ -56,16 +54,19 @@ def test_altitudes_from_each_kind_of_dataset_record():
     assert training_altitudes({}) is None
 
 
-@settings(max_examples=200, deadline=None)
-@given(lo=st.floats(10, 60), width=st.floats(0, 30), f_lo=st.floats(5, 90), f_w=st.floats(0, 20))
-def test_note_exactly_when_outside_by_more_than_the_tolerance(lo, width, f_lo, f_w):
-    trained, flown = (lo, lo + width), (f_lo, f_lo + f_w)
-    off = max(trained[0] - flown[0], flown[1] - trained[1])
+@pytest.mark.parametrize("trained, flown, says", [
+    ((30.0, 30.0), (30.0, 30.0), None),
+    ((30.0, 30.0), (25.5, 34.5), None),                               # 4.5 m off: within the 5 m tolerance
+    ((30.0, 30.0), (35.0, 36.0), "at 30 m; this one flew at 35-36 m, 6 m outside"),
+    ((30.0, 30.0), (22.0, 24.0), "at 30 m; this one flew at 22-24 m, 8 m outside"),
+    ((20.0, 47.0), (21.0, 46.0), None),                               # the default's span holds every team
+    ((20.0, 47.0), (55.0, 55.2), "at 20-47 m; this one flew at 55 m, 8 m outside"),
+])
+def test_altitude_note_cases(trained, flown, says):
     note = altitude_note("net.onnx", trained, flown)
-    assert (note is not None) == (off > ALTITUDE_TOLERANCE_M)
-    if note:
-        assert note.startswith("net.onnx was trained on flights at ") and f"{off:.0f} m outside" in note
-    assert altitude_note("net.onnx", None, flown) is None
+    assert note is None if says is None else note.startswith(f"net.onnx was trained on flights {says}")
+    assert altitude_note("net.onnx", None, flown) is None  # unknown training altitudes: no claim
+    assert ALTITUDE_TOLERANCE_M == 5.0  # the cases above are written for it
 
 
 def test_flight_altitudes_are_robust_percentiles():

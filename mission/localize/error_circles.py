@@ -40,7 +40,6 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.evidence import conformal_quantile
 from mission.geo import Area, clip_polygon, polygon_area_m2
 from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
@@ -51,21 +50,6 @@ CIRCLE_METHODS = names_where(calibration=FROM_METHOD_CIRCLES)
 LEVELS = (0.5, 0.9)
 FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track counts as full
 N_VERTICES = 72
-
-
-def calibration_record(errors, source: str, model_path: str | Path | None = None,
-                       levels: tuple[float, ...] = LEVELS) -> dict:
-    """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
-    network, the digest of the model file they were measured on."""
-    e = np.asarray(errors, dtype=float)
-    radii = {f"{lv:g}": round(conformal_quantile(e, lv), 2) for lv in levels}
-    if not all(math.isfinite(r) for r in radii.values()):
-        raise ValueError(f"{e.size} flights cannot calibrate levels {levels}: need at least "
-                         f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}")
-    rec = {"radii_m": radii, "n": int(e.size), "mean_error_m": round(float(e.mean()), 2), "calibrated_on": source}
-    if model_path is not None:
-        rec["model_sha256"] = model_digest(model_path)
-    return rec
 
 
 def _read_entries(p: Path, what: str) -> dict:
