@@ -20,21 +20,21 @@ Progress = Callable[[str, int, int], None]
 
 
 class Pca:
-    """Mean and leading principal axes of a data set (scikit-learn's ``PCA``, fitted once, then ``transform``):
-    each axis scaled to unit variance (``whiten``, with a floor) or all by the first axis's spread (the weak,
-    noisy axes stay small)."""
+    """Mean and leading principal axes of a data set (fitted once, then ``transform``): each axis scaled to unit
+    variance (``whiten``) or all by the first axis's spread (the weak, noisy axes stay small)."""
 
     def __init__(self, x: np.ndarray, n_components: int, whiten: bool = True) -> None:
-        from sklearn.decomposition import PCA
-
         x = np.asarray(x, dtype=np.float64)
-        k = int(min(n_components, x.shape[1], len(x)))
-        pca = PCA(k, svd_solver="covariance_eigh").fit(x)  # the covariance's eigenvectors, signs made deterministic
-        self.variance = np.maximum(pca.explained_variance_, 0.0)
+        self.mean = x.mean(axis=0)
+        xc = x - self.mean
+        vals, vecs = np.linalg.eigh(xc.T @ xc / max(len(x) - 1, 1))
+        k = int(min(n_components, x.shape[1]))
+        top = np.argsort(vals)[::-1][:k]
+        self.variance = np.maximum(vals[top], 0.0)
         top_var = max(float(self.variance.max()), 1e-12)
         scale = np.sqrt(np.maximum(self.variance, 1e-9 * top_var)) if whiten else np.full(k, np.sqrt(top_var))
-        self.basis = (pca.components_.T / scale).astype(np.float32)
-        self.mean = pca.mean_.astype(np.float32)
+        self.basis = (vecs[:, top] / scale).astype(np.float32)
+        self.mean = self.mean.astype(np.float32)
 
     def transform(self, x: np.ndarray) -> np.ndarray:
         return (np.asarray(x, dtype=np.float32) - self.mean) @ self.basis
