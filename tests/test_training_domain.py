@@ -35,7 +35,12 @@ def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
         pytest.skip("shipped models absent")
     for p in models:
         net = OnnxLocalizer(p, threads=1)
-        assert net.card.domain == training_domain(net.meta.get("training_data")), p.name
+        card, now = net.card.domain, training_domain(net.meta.get("training_data"))
+        assert card.altitude_m == now.altitude_m, p.name
+        # the simulator's attitude percentiles vary in the last bits with the libraries' thread counts
+        assert (card.attitude_deg is None) == (now.attitude_deg is None), p.name
+        if now.attitude_deg is not None:
+            assert np.asarray(card.attitude_deg) == pytest.approx(np.asarray(now.attitude_deg), abs=1e-9), p.name
     assert net.card.domain.attitude_deg is not None  # the spiral networks know their attitude span
 
 
