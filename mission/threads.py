@@ -52,14 +52,12 @@ def thread_limits(n: int | None = None, controller=None, user_api: str | None = 
         yield
 
 
-_WORKER_LIMIT = contextlib.ExitStack()  # held for a worker process's whole life (limit_worker)
-
-
 def limit_worker() -> None:
     """A pool worker's entry (``ProcessPoolExecutor(initializer=limit_worker)``): the worker runs its whole
     life with one OpenMP/BLAS thread (scikit-learn's OpenMP runtime loaded first so that the limit reaches it;
-    ``OMP_NUM_THREADS`` for runtimes loaded later)."""
+    ``OMP_NUM_THREADS`` for runtimes loaded later); never restored, the worker ends with it."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     import sklearn.cluster  # noqa: F401
+    from threadpoolctl import ThreadpoolController
 
-    _WORKER_LIMIT.enter_context(thread_limits(1))
+    ThreadpoolController().limit(limits=1)
