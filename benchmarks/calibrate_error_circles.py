@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
@@ -34,10 +35,29 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.localize.error_circles import CIRCLE_METHODS
+from mission.evidence import conformal_quantile
+from mission.localize.card import model_digest
+from mission.localize.error_circles import CIRCLE_METHODS, LEVELS
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
+
+
+def calibration_record(errors, source: str, model_path: str | Path | None = None,
+                       levels: tuple[float, ...] = LEVELS) -> dict:
+    """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
+    network, the digest of the model file they were measured on."""
+    e = np.asarray(errors, dtype=float)
+    radii = {f"{lv:g}": round(conformal_quantile(e, lv), 2) for lv in levels}
+    if not all(math.isfinite(r) for r in radii.values()):
+        raise ValueError(f"{e.size} flights cannot calibrate levels {levels}: need at least "
+                         f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}")
+    rec = {"radii_m": radii, "n": int(e.size), "mean_error_m": round(float(e.mean()), 2), "calibrated_on": source}
+    if model_path is not None:
+        rec["model_sha256"] = model_digest(model_path)
+    return rec
+
+
 MODELS = ("rfsl_spiral_e2r", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar", "rfsl_spiral_e2r_ens5")
 GENERATOR_MISSIONS = ("spiral", "lawnmower", "edge_sweep", "expanding_square", "random_waypoints")
 OTHER_GENERATORS = GENERATOR_MISSIONS[1:]
@@ -108,9 +128,9 @@ def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str
 
 
 def _pool(fn, jobs: list) -> list:
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
-    with ProcessPoolExecutor(2, initializer=one_thread_process) as ex:
+    with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
         return list(ex.map(fn, jobs, chunksize=4))
 
 
@@ -193,7 +213,6 @@ def main() -> None:
     ap.add_argument("--product-seeds", help="first:last: coverage on simulated logs of the product path")
     ap.add_argument("--write", action="store_true", help="store the calibrations")
     args = ap.parse_args()
-    from mission.localize.error_circles import calibration_record
 
     lo, hi = (int(v) for v in args.method_seeds.split(":"))
     for name in args.models:

@@ -49,7 +49,7 @@ def coverage(q: np.ndarray, m: dict[float, float]) -> dict[float, float]:
 def main() -> None:
     from rich.progress import track
 
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", nargs="+", default=["2026:200", "2027:100", "2028:200"], help="SEED:N ...")
@@ -62,7 +62,7 @@ def main() -> None:
     seeds = ([(d.rsplit(":", 1)[0], int(d.rsplit(":", 1)[1])) for d in args.suite_dirs] if args.suite_dirs
              else [tuple(int(v) for v in s.split(":")) for s in args.seeds])
     jobs = [(seed, i, args.family) for seed, n in seeds for i in range(n)]
-    with ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+    with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         q_all = np.array(list(track(ex.map(truth_level, jobs, chunksize=4), total=len(jobs),
                                     description="truth HPD levels")))
     by_seed = {seed: q_all[[j[0] == seed for j in jobs]] for seed, _ in seeds}

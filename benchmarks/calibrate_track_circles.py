@@ -66,10 +66,10 @@ def collect(model: str, missions: list[str], seeds: range, fractions: tuple[floa
     """(n, 4) rows of seed, cut fraction, track coverage and error over every mission and seed."""
     from rich.progress import track
 
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
     jobs = [(model, m, s, fractions) for m in missions for s in seeds]
-    with ProcessPoolExecutor(2, initializer=one_thread_process) as ex:
+    with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
         res = list(track(ex.map(_runs, jobs, chunksize=2), total=len(jobs), description=f"{model} flights"))
     return np.array([(j[2], *r) for j, rr in zip(jobs, res, strict=True) for r in rr])
 

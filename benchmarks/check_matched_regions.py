@@ -100,7 +100,7 @@ def summary(rows: list[dict]) -> dict:
 
 
 def main() -> None:
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--suite-dir", required=True, help="benchmark cache of the shipped family (seed 2026)")
@@ -112,7 +112,7 @@ def main() -> None:
     args = ap.parse_args()
     jobs = [(args.suite_dir, i, args.with_default) for i in range(args.first, args.first + args.n)]
     rows = []
-    with ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+    with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         for r in ex.map(_flight, jobs):
             rows.append(r)
             m = r["masses"]

@@ -26,10 +26,25 @@ import numpy as np
 from _scoring import flight_with_truth, scoring_parser
 
 
+def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
+    """The radius of the disc with the area of an estimate's ``level`` region, ``sqrt(area / pi)`` (for an error
+    circle its radius), or None when it has no such region: the member's own uncertainty in metres."""
+    reg = next((r for r in regions if r["level"] == level), None)
+    if reg is None:
+        return None
+    return float(reg["radius_m"]) if "radius_m" in reg else float(np.sqrt(reg["area_m2"] / np.pi))
+
+
+def inverse_square_weight(scale_a: float, scale_b: float) -> float:
+    """Weight of member a in a two-member fusion weighted by the inverse square of each member's region scale
+    (inverse variance for isotropic errors): ``b^2 / (a^2 + b^2)``; a member with the tighter region counts more."""
+    a2, b2 = float(scale_a) ** 2, float(scale_b) ** 2
+    return b2 / (a2 + b2)
+
+
 def one(job: tuple[str, str, int]) -> dict:
     """Both members' points, their 50 % scales and the truth on one flight (log ENU m)."""
     from mission.localize.api import fusion_model_path, localize_log
-    from mission.localize.uncertainty import region_scale_m
 
     kind, src, i = job
     log, truth = flight_with_truth(kind, src, i)
@@ -52,7 +67,6 @@ def network_radius() -> float:
 
 def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
     """(plain-mean errors, weighted-mean errors) in metres; ``rb`` the network's 50 % radius."""
-    from mission.localize.uncertainty import inverse_square_weight
 
     plain, weighted = [], []
     for r in rows:
@@ -64,12 +78,12 @@ def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
 
 def main() -> None:
     from mission.evidence import mean_interval, paired_difference
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
     from mission.workshop.evaluate import import_afar
 
     args = scoring_parser(__doc__).parse_args()
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers,
-                                                                   initializer=one_thread_process) as ex:
+                                                                   initializer=limit_worker) as ex:
         real = sorted(import_afar(args.mat, tmp))
         rows_r = list(ex.map(one, [("real", str(p), 0) for p in real]))
         rows_b = list(ex.map(one, [("suite", args.suite_dir, i) for i in range(args.n)], chunksize=4))

@@ -73,10 +73,10 @@ def main() -> None:
     ap.add_argument("--variants", action="store_true", help="spirals with other generator parameters instead")
     ap.add_argument("--only", help="run only the sets whose label contains this text (e.g. 'spiral 30')")
     args = ap.parse_args()
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
     lo, hi = (int(v) for v in args.seeds.split(":"))
-    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         sets = ([(label, "missions/spiral.yaml", None, p) for label, p in VARIANTS] if args.variants
                 else [(*s, None) for s in SETS])
         sets = [s for s in sets if args.only is None or args.only in s[0]]

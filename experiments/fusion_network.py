@@ -49,11 +49,11 @@ def main() -> None:
     ap = scoring_parser(__doc__)
     ap.add_argument("--nets", nargs="+", required=True, help="ONNX networks (the incumbent first)")
     args = ap.parse_args()
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
     from mission.workshop.evaluate import import_afar
 
     nets = tuple(args.nets)
-    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         real = list(ex.map(one, [("real", str(p), 0, nets) for p in import_afar(args.mat, tmp)]))
         bench = list(ex.map(one, [("suite", args.suite_dir, i, nets) for i in range(args.n)], chunksize=4))
     u = {n: errors(bench, n).mean() for n in nets}

@@ -68,9 +68,9 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
-    with ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+    with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         rows = list(ex.map(one, [(args.suite_dir, i) for i in range(args.n)], chunksize=2))
     out = np.array([r["outside"] for r in rows])
     print(f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside ({out.sum()})")

@@ -50,7 +50,7 @@ def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int
     k_all, m = len(cand_xy), len(cells)
     ssr = np.empty((len(uav), len(rover), k_all))
     off = np.empty_like(ssr)
-    look_rover = sc.gain_lookup(rm_wb1_dn())
+    look_rover = sc.GainLookup(rm_wb1_dn())
     y = cells.rss_dbm.astype(np.float32)[None, :]
     for s in range(0, k_all, chunk):
         cx = cand_xy[s:s + chunk]
@@ -98,11 +98,11 @@ _ORIG_SSR = sc.hypothesis_ssr
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
     from mission.workshop.evaluate import import_afar
 
     res: dict[str, dict[str, list]] = {}
-    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=one_thread_process) as ex:
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         real = [str(p) for p in import_afar(args.mat, tmp)]
         for cand in ("A", "B"):
             res[cand] = {"R": list(ex.map(one, [("real", p, 0, cand) for p in real])),

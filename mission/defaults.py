@@ -14,3 +14,6 @@ MAX_WORKERS = 256        # processes or threads a command may start (--workers 1
 # What a flight does when its predicted landing passes the time budget less its reserve (mission key
 # ``budget_policy``, ``mission.flight.budget``): drop the mission's tail, only warn, or return at once.
 BUDGET_POLICIES = ("trim", "warn", "return")
+# A mission's cruise altitude above the origin's ground when its file gives none (``MissionSpec.altitude_m``;
+# also what a sidecar's trajectory record without an altitude was planned at).
+DEFAULT_ALTITUDE_M = 30.0

@@ -1,4 +1,4 @@
-"""Geodesy and mission areas: WGS84 <-> local ENU about a mission origin, and polygon areas.
+"""Geodesy and mission areas: WGS84 <-> local ENU about a mission origin, and polygon areas (shapely).
 
 The local frame is ENU metres about the mission origin (SPEC section 1): x east, y north, z up above the
 origin's ground.  The conversion is delegated to ``pymap3d`` rather than hand-rolled trigonometry.
@@ -7,11 +7,12 @@ origin's ground.  The conversion is delegated to ``pymap3d`` rather than hand-ro
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pymap3d
+import shapely
 
 from mission.errors import InputError
 
@@ -53,12 +54,16 @@ class Area:
 
     name: str
     vertices: np.ndarray
+    _polygon: shapely.Polygon = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         v = np.asarray(self.vertices, dtype=float)
         if v.ndim != 2 or v.shape[1] != 2 or len(v) < 3:
             raise InputError(f"area '{self.name}' needs at least 3 (x, y) vertices, got shape {v.shape}")
         object.__setattr__(self, "vertices", v)
+        poly = shapely.Polygon(v)
+        shapely.prepare(poly)
+        object.__setattr__(self, "_polygon", poly)  # derived from the vertices once, in construction
 
     @classmethod
     def from_geodetic(cls, name: str, lat_lon: np.ndarray, origin: Origin) -> Area:
@@ -73,27 +78,24 @@ class Area:
                        [box["lat_max"], box["lon_max"]], [box["lat_max"], box["lon_min"]]])
         return cls.from_geodetic(name, ll, origin)
 
+    @property
+    def polygon(self) -> shapely.Polygon:
+        """The area as a (prepared) shapely polygon: what its geometric queries run on."""
+        return self._polygon
+
     def contains(self, xy, margin_m: float = 0.0) -> np.ndarray:
-        """True where points (..., 2) lie inside the polygon and at least ``margin_m`` from its edges."""
+        """True where points (..., 2) lie inside the polygon (its boundary excluded) and at least ``margin_m``
+        from its edges."""
         p = np.asarray(xy, dtype=float)[..., :2]
-        x, y = p[..., 0][..., None], p[..., 1][..., None]
-        v0, v1 = self.vertices, np.roll(self.vertices, -1, axis=0)
-        cond = (v0[:, 1] > y) != (v1[:, 1] > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xint = v0[:, 0] + (y - v0[:, 1]) * (v1[:, 0] - v0[:, 0]) / (v1[:, 1] - v0[:, 1])
-        inside = (np.count_nonzero(cond & (x < xint), axis=-1) % 2) == 1
+        inside = shapely.contains_xy(self._polygon, p[..., 0], p[..., 1])
         if margin_m > 0:
             inside &= self.edge_distance(p) >= margin_m
         return inside
 
     def edge_distance(self, xy) -> np.ndarray:
         """Distance (m) from points (..., 2) to the nearest polygon edge (unsigned)."""
-        p = np.asarray(xy, dtype=float)[..., None, :2]
-        a, b = self.vertices, np.roll(self.vertices, -1, axis=0)
-        ab = b - a
-        t = np.clip(np.sum((p - a) * ab, axis=-1) / np.sum(ab * ab, axis=-1), 0.0, 1.0)
-        closest = a + t[..., None] * ab
-        return np.min(np.linalg.norm(p - closest, axis=-1), axis=-1)
+        p = np.asarray(xy, dtype=float)[..., :2]
+        return shapely.distance(self._polygon.exterior, shapely.points(p))
 
     def signed_distance(self, xy) -> np.ndarray:
         """Distance to the boundary, positive inside and negative outside (m)."""
@@ -128,45 +130,18 @@ def square_grid(bounds, step_m: float, centred: bool = False) -> np.ndarray:
     return np.stack(np.meshgrid(xs, ys), axis=-1)
 
 
-def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
-    """Sutherland-Hodgman: the part of polygon ``subject`` inside the *convex* polygon ``clip`` ((K, 2))."""
-    clip = _ccw(np.asarray(clip, dtype=float))
-    out = [tuple(p) for p in np.asarray(subject, dtype=float)]
-    for a, b in zip(clip, np.roll(clip, -1, axis=0), strict=True):
-        if not out:
-            break
-        inp, out = out, []
-        e = b - a
-
-        def inside(p, a=a, e=e) -> bool:
-            return e[0] * (p[1] - a[1]) - e[1] * (p[0] - a[0]) >= -1e-9
-
-        def cross(p, q, a=a, e=e):
-            n = np.array([-e[1], e[0]])
-            dp, dq = np.dot(np.subtract(p, a), n), np.dot(np.subtract(q, a), n)
-            t = dp / (dp - dq)
-            return tuple(np.add(p, t * np.subtract(q, p)))
-
-        prev = inp[-1]
-        for cur in inp:
-            if inside(cur):
-                if not inside(prev):
-                    out.append(cross(prev, cur))
-                out.append(cur)
-            elif inside(prev):
-                out.append(cross(prev, cur))
-            prev = cur
-    return np.array(out, dtype=float).reshape(-1, 2)
+def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> list[np.ndarray]:
+    """The parts of polygon ``subject`` inside polygon ``clip`` ((K, 2) each, either may be non-convex): a list of
+    (M, 2) rings, counter-clockwise, without the closing vertex; empty when they do not overlap."""
+    inter = shapely.intersection(*(shapely.make_valid(shapely.Polygon(np.asarray(v, dtype=float)))
+                                   for v in (subject, clip)))
+    parts = [g for g in shapely.get_parts(inter) if isinstance(g, shapely.Polygon) and g.area > 0]
+    return [np.asarray(shapely.orient_polygons(g).exterior.coords, dtype=float)[:-1] for g in parts]
 
 
-def signed_area_m2(v: np.ndarray) -> float:
-    """Shoelace area of the polygon (K, 2), positive when its vertices run counter-clockwise."""
-    v = np.asarray(v, dtype=float)
-    return 0.5 * float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
-
-
-def _ccw(v: np.ndarray) -> np.ndarray:
-    return v if signed_area_m2(v) >= 0 else v[::-1]
+def polygon_area_m2(v: np.ndarray) -> float:
+    """Area (m^2) of the polygon (K, 2)."""
+    return float(shapely.area(shapely.Polygon(np.asarray(v, dtype=float))))
 
 
 @dataclass(frozen=True)

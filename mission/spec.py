@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.defaults import BUDGET_POLICIES, DEFAULT_TX_HEIGHT_M, MAX_DURATION_S, MAX_SPEEDUP
+from mission.defaults import BUDGET_POLICIES, DEFAULT_ALTITUDE_M, DEFAULT_TX_HEIGHT_M, MAX_DURATION_S, MAX_SPEEDUP
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
@@ -77,7 +77,7 @@ class MissionSpec:
     name: str
     path: Path | None
     field: Field
-    altitude_m: float = 30.0
+    altitude_m: float = DEFAULT_ALTITUDE_M
     cruise_speed_mps: float = 5.5
     time_budget_s: float = 600.0
     budget_policy: str = "trim"  # BUDGET_POLICIES: when the landing would pass the budget less its reserve

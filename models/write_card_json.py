@@ -1,5 +1,6 @@
 """Write ``models/<name>.json``: the CI check (dataset config + metrics of the shipped model on it) and the
-evaluation reports (``rfsl evaluate --out`` JSON files) that the model card quotes.
+evaluation reports (``rfsl evaluate --out`` JSON files) that the model card quotes, and the training domain
+(``mission.workshop.domain``: altitude and attitude spans) that ``localize`` reads from it.
 
     python models/write_card_json.py models/NAME.onnx CI_DATASET models/NAME.json [REPORT.json ...]
 
@@ -16,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.localize.error_circles import REGIONS_KEY
+from mission.localize.card import DOMAIN_KEY, REGIONS_KEY
 from mission.localize.onnx_model import OnnxLocalizer
 from mission.workshop.dataset import dataset_heights, load_dataset
+from mission.workshop.domain import training_domain
 
 
 def main(argv: list[str]) -> int:
@@ -45,6 +47,7 @@ def main(argv: list[str]) -> int:
         "training": loc.meta.get("training_data"),
         "evaluations": [json.loads(Path(r).read_text()) for r in argv[3:]],
     }
+    card[DOMAIN_KEY] = training_domain(loc.meta.get("training_data")).to_dict()  # what the runtime checks
     if Path(out).is_file():  # the error circles' calibration (error_circles) stays; it names the model's digest
         old = json.loads(Path(out).read_text())
         if REGIONS_KEY in old:

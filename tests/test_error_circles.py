@@ -23,7 +23,6 @@ from mission.localize.error_circles import (
     CIRCLE_METHODS,
     REGIONS_KEY,
     attach_circles,
-    calibration_record,
     card_calibration,
     circle_regions,
     flown_radii,
@@ -65,7 +64,7 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
     assert reg["clipped_to"] == "rover area" and reg["radius_m"] == r
     assert reg["area_m2"] == pytest.approx(_segment_area(r, frac * r), rel=3e-3)
     ring = np.asarray(reg["polygons"][0])
-    assert np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()  # vertices rounded to 0.1 m
+    assert np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()  # rounded to 0.1 m
     assert region_contains(reg, (0.99 * r * math.cos(2.0), 0.99 * r * math.sin(2.0)))
 
 
@@ -101,13 +100,24 @@ def net(tmp_path, repo_dir):
     return p
 
 
+def _calibration_record(*args):
+    """The record ``benchmarks/calibrate_error_circles.py`` writes into a card."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from calibrate_error_circles import calibration_record
+
+    return calibration_record(*args)
+
+
 def test_card_contract(net):
     assert card_calibration(net, "sim") == (None, "net.onnx has no model card (net.json, "
                                             "benchmarks/calibrate_error_circles.py)")
     card = net.with_suffix(".json")
     with pytest.raises(ValueError, match="need at least 9"):  # 4 flights cannot promise 90 %
-        calibration_record([1.0, 2.0, 3.0, 4.0], "t", net)
-    card.write_text(json.dumps({REGIONS_KEY: {"sim": calibration_record(np.arange(1.0, 21.0), "t", net)}}))
+        _calibration_record([1.0, 2.0, 3.0, 4.0], "t", net)
+    card.write_text(json.dumps({REGIONS_KEY: {"sim": _calibration_record(np.arange(1.0, 21.0), "t", net)}}))
     rec, why = card_calibration(net, "sim")
     assert rec["radii_m"] == {0.5: 11.0, 0.9: 19.0} and rec["model_sha256"] == model_digest(net)
     assert card_calibration(net, "real")[0] is None and "no 'real' calibration" in card_calibration(net, "real")[1]

@@ -70,3 +70,20 @@ def test_afar_field_matches_shared_geometry(shared_dir):
     # the flight area is about 300 m x 270 m, origin at its south-west corner
     assert abs(xmin) < 0.5 and abs(ymin) < 0.5
     assert 290 < xmax < 310 and 260 < ymax < 280
+
+
+def test_clipping_a_non_convex_area_keeps_every_part_and_its_area():
+    """An L-shaped subject clipped by a square (closed forms), and a U clipped by a band across its arms: two
+    parts, each inside both polygons."""
+    from mission.geo import clip_polygon, polygon_area_m2
+
+    ell = np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100.0]])
+    parts = clip_polygon(ell, np.array([[20, 20], [80, 20], [80, 80], [20, 80.0]]))
+    assert len(parts) == 1 and polygon_area_m2(parts[0]) == pytest.approx(60 * 60 - 40 * 40)
+    u = np.array([[0, 0], [100, 0], [100, 100], [70, 100], [70, 30], [30, 30], [30, 100], [0, 100.0]])
+    band = np.array([[-10, 50], [110, 50], [110, 80], [-10, 80.0]])
+    parts = clip_polygon(u, band)
+    assert sorted(polygon_area_m2(p) for p in parts) == pytest.approx([30 * 30, 30 * 30])
+    for p in parts:
+        assert Area("u", u).contains(p.mean(axis=0)) and Area("b", band).contains(p.mean(axis=0))
+    assert clip_polygon(u, band + [500.0, 0.0]) == []  # apart: nothing

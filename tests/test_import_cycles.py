@@ -1,6 +1,8 @@
 """No new import circles in the package: the module graph (top-level and function-level imports) of
 ``mission`` and ``sitl`` has no strongly connected component beyond the circles still waiting to be broken;
-and the runtime (what ``localize`` and ``fly-mission`` run) never imports the workshop (``mission.workshop``)."""
+the runtime (what ``localize`` and ``fly-mission`` run) never imports the workshop (``mission.workshop``); and the
+localizer (``mission.localize`` and every module it reaches) imports neither the simulator (``mission.simulate``)
+nor the mission parser (``mission.spec``): a network's training facts are read from its card."""
 
 from __future__ import annotations
 
@@ -15,6 +17,9 @@ KNOWN: tuple[set[str], ...] = ()
 RUNTIME_PACKAGES = ("mission.localize", "mission.flight", "mission.flightlog", "mission.physics", "mission.trajectory")
 RUNTIME_ENTRIES = ("mission.cli.localize", "mission.cli.fly")
 WORKSHOP = "mission.workshop"
+# what the localizer never reaches: it reads a network's training domain from the card written at training time
+# (``localize --at`` also reaches the adaptive planner, part of the flight, which builds mission specs)
+LOCALIZE_FORBIDDEN = ("mission.simulate", "mission.spec", WORKSHOP)
 
 
 def import_graph(root: Path) -> dict[str, set[str]]:
@@ -101,6 +106,18 @@ def workshop_imports(graph: dict[str, set[str]]) -> dict[str, list[str]]:
     return {m: ws for m, ws in sorted(out.items()) if ws}
 
 
+def _inside(m: str, packages) -> bool:
+    return any(m == p or m.startswith(p + ".") for p in packages)
+
+
+def localizer_imports(graph: dict[str, set[str]]) -> dict[str, list[str]]:
+    """Module the localizer reaches -> the simulator / mission-parser / workshop modules it imports."""
+    starts = [m for m in graph if _inside(m, ("mission.localize",))]
+    reached = {m for m in reachable(graph, starts) if not _inside(m, LOCALIZE_FORBIDDEN)}
+    out = {m: sorted(w for w in graph[m] if _inside(w, LOCALIZE_FORBIDDEN)) for m in reached}
+    return {m: ws for m, ws in sorted(out.items()) if ws}
+
+
 def test_circle_finder_on_a_known_graph() -> None:
     g = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set(), "f": {"g"}, "g": {"f"}}
     assert sorted(map(sorted, circles(g))) == [["a", "b", "c"], ["f", "g"]]
@@ -130,6 +147,18 @@ def test_runtime_never_imports_the_workshop(repo_dir) -> None:
     # the check sees an edge added anywhere the CLI reaches, even outside the runtime packages
     graph["mission.flight.live"] = graph["mission.flight.live"] | {"mission.workshop.suite"}
     assert workshop_imports(graph) == {"mission.flight.live": ["mission.workshop.suite"]}
+
+
+def test_the_localizer_imports_neither_simulator_nor_mission_parser(repo_dir) -> None:
+    graph = import_graph(repo_dir)
+    assert {"mission.localize.training_domain", "mission.localize.card", "mission.geo"} <= reachable(
+        graph, ["mission.localize.api"])
+    assert not localizer_imports(graph), f"the localizer imports: {localizer_imports(graph)}"
+    # the check sees an edge added anywhere localize reaches, the way training_domain once reached both
+    graph["mission.localize.training_domain"] = graph["mission.localize.training_domain"] | {"mission.spec"}
+    graph["mission.geo"] = graph["mission.geo"] | {"mission.simulate"}
+    assert localizer_imports(graph) == {"mission.geo": ["mission.simulate"],
+                                        "mission.localize.training_domain": ["mission.spec"]}
 
 
 def test_architecture_map_names_every_module_in_its_room(repo_dir) -> None:

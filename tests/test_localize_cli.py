@@ -48,7 +48,8 @@ def test_default_method_and_plot(log_path, tmp_path, capsys):
     with capture_figures() as figs:
         assert localize([str(log_path), "--json", "--plot", str(png)]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["method"] in ("fusion", "onnx") and "method_choice" in d
+    # a simulated log (sidecar rss_source kind "sim") without a trajectory: the simulated-log route, rfsl_default
+    assert (d["method"], d["model"]) == ("onnx", "rfsl_default.onnx") and "no trajectory" in d["method_choice"]
     assert_png_drawn(png, size=(1020, 900))  # 8.5 x 7.5 in at 120 dpi
     (fig,) = figs
     ax = fig.axes[0]  # the map (then its colour bar)

@@ -277,3 +277,21 @@ def test_body_matrix_planes_equal_the_matrix():
 
     att = np.random.default_rng(5).uniform(-np.pi, np.pi, (257, 3))
     assert np.allclose(body_from_enu_planes(att), body_from_enu_matrix(att).transpose(1, 2, 0), atol=1e-15)
+
+
+def test_planes_made_once_give_the_same_rss_and_belong_to_their_model() -> None:
+    """``attitude_planes`` handed back to ``rss_dbm`` (the gap fits' way to skip the rotation per call) give
+    the very values of passing the attitude; planes of another attitude effect or sample count are refused."""
+    rng = np.random.default_rng(5)
+    rx = np.column_stack([rng.uniform(0, 300, 400), rng.uniform(0, 300, 400), rng.uniform(20, 50, 400)])
+    att = np.radians(rng.uniform(-20, 20, (400, 3)))
+    tx = np.array([[120.0, 80.0, 1.5], [10.0, 250.0, 3.0]])[:, None, :]
+    m = make_model("e2r", pattern="measured")
+    planes = m.attitude_planes(att)
+    np.testing.assert_array_equal(m.rss_dbm(tx, rx, planes=planes), m.rss_dbm(tx, rx, att))
+    assert not planes.planes.flags.writeable
+    yaw_only = m.with_params("attitude", roll_pitch=False)
+    with pytest.raises(ValueError, match="another model"):
+        yaw_only.rss_dbm(tx, rx, planes=planes)
+    with pytest.raises(ValueError, match="another model"):
+        m.rss_dbm(tx, rx[:10], planes=planes)

@@ -48,13 +48,10 @@ def test_preset_loads_and_builds_a_model():
 
 def test_preset_folds_by_name():
     """``afar:FOLD`` is the fold's own spec (fitted without the other team's flights), named apart."""
-    from mission.physics.presets import preset_fold_info
-
     rec = load_calibration("afar")
     for name, fold in rec["folds"].items():
         assert load_preset(f"afar:{name}") == fold["model"]
-        info = preset_fold_info(f"afar:{name}")
-        assert info["fitted_on"] == fold["fitted_on"] and not set(info["fitted_on"]) & set(info["tested_on"])
+        assert fold["fitted_on"] and not set(fold["fitted_on"]) & set(fold["tested_on"])  # held out means held out
         assert preset_model(f"afar:{name}").name == f"afar-{name}-calibrated"
     assert load_preset("afar:fit328") != load_preset("afar:fit288")
     with pytest.raises(InputError, match="no fold"):
@@ -230,10 +227,13 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
     real = write_flight_log(tmp_path / "real.csv", f.log_columns(origin), make_meta(origin, {"kind": "aerpaw-fifo"}))
     make = api.make_localizer
 
+    from mission.localize.card import ModelCard, TrainingDomain
+
     class FarNetwork:  # a network answer 300 m east of the truth (what a net off its training domain can do)
         path = tmp_path / "far.onnx"
         model_name = "far.onnx"
-        meta: dict = {}  # no training metadata: no altitude claim
+        # no card beside it: no training domain (no altitude or attitude claim), no calibrated circles
+        card = ModelCard(path, "clustering", None, None, origin, None, TrainingDomain(), None, "", {})
         cfg = type("Cfg", (), {"to_dict": lambda self: {}})()
 
         def predict(self, part):

@@ -231,13 +231,11 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path, monk
     assert main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--out", str(out)]) == 2  # refuses to overwrite
 
 
-def test_gain_tables_follow_the_pattern_object_not_a_reused_id() -> None:
-    """Patterns made and dropped one after another (CPython reuses their ids) each get their own gain table:
-    with a constant-gain pattern of g dBi the fitted offset is the isotropic one minus g, exactly."""
-    import gc
-
+def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
+    """The grid owns its gain tables (no module cache): a pattern met again reuses its table, another pattern
+    object gets its own; with a constant-gain pattern of g dBi the fitted offset is the isotropic one minus g."""
     from mission.cells import Cells
-    from mission.localize.selfcal import hypothesis_ssr
+    from mission.localize.selfcal import GainTables, SelfCalibratingGrid, hypothesis_ssr
     from mission.physics.patterns import TabulatedPattern
 
     rx = lawnmower(legs=3, step=20.0)
@@ -245,9 +243,13 @@ def test_gain_tables_follow_the_pattern_object_not_a_reused_id() -> None:
                   np.ones(len(rx), dtype=int), 5.0)
     cand = np.array([[100.0, 100.0], [40.0, 160.0]])
     _, off_iso = hypothesis_ssr(cand, cells, [("iso", None, 0.0, False)], 1.5)
-    for g in (3.0, -7.0, 11.0, 0.5):
-        pat = TabulatedPattern(np.array([-90.0, 90.0]), np.array([0.0, 180.0]), np.full((2, 2), g))
-        _, off = hypothesis_ssr(cand, cells, [("const", pat, 0.0, True)], 1.5)
-        np.testing.assert_allclose(off[0], off_iso[0] - g, atol=1e-3)
-        del pat
-        gc.collect()
+    tables = SelfCalibratingGrid().gain_tables
+    pats = [TabulatedPattern(np.array([-90.0, 90.0]), np.array([0.0, 180.0]), np.full((2, 2), g))
+            for g in (3.0, -7.0, 11.0)]
+    for _ in range(2):
+        for g, pat in zip((3.0, -7.0, 11.0), pats, strict=True):
+            _, off = hypothesis_ssr(cand, cells, [("const", pat, 0.0, True)], 1.5, tables)
+            np.testing.assert_allclose(off[0], off_iso[0] - g, atol=1e-3)
+    made = [tables(p) for p in pats]
+    assert len({id(t) for t in made}) == 3 and [tables(p) for p in pats] == made  # one table per pattern, kept
+    assert GainTables()(pats[0]) is not made[0]  # another grid: its own

@@ -39,7 +39,7 @@ def test_installed_copy_wins(tmp_path):
 @pytest.mark.slow
 def test_plain_build_localizes_with_shipped_default(repo_dir, tmp_path):
     """setup.py's build step copies models/ and missions/ into the built package; run from that build alone
-    (no checkout beside it), ``localize`` uses the shipped fusion network and the shipped spiral mission."""
+    (no checkout beside it), ``localize`` uses the shipped default network and the shipped spiral mission."""
     src = tmp_path / "src"
     src.mkdir()
     for name in ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md", "LICENSE"):
@@ -60,4 +60,5 @@ def test_plain_build_localizes_with_shipped_default(repo_dir, tmp_path):
                          capture_output=True, text=True, check=True).stdout.splitlines()
     where, est = json.loads(out[0]), json.loads("\n".join(out[1:]))
     assert where["mission_file"] == str(lib / "mission" / "data" / "missions" / "spiral.yaml")
-    assert est["method"] in ("fusion", "onnx") and est["model"] and "rfsl_" in est["model"], est["method_choice"]
+    # a simulated log without a trajectory: the simulated-log route to the shipped rfsl_default, found in the build
+    assert (est["method"], est["model"]) == ("onnx", "rfsl_default.onnx"), est["method_choice"]

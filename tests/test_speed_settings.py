@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mission import threads
 from mission.errors import InputError
-from mission.localize import features
-from mission.localize.features import FeatureConfig, cluster_features, compute_threads
+from mission.localize.features import FeatureConfig, cluster_features
+from mission.threads import compute_threads
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "rfsl_spiral_e2r.onnx"
 
@@ -24,13 +25,13 @@ def _flight(n: int = 3000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def test_thread_count_from_environment(monkeypatch) -> None:
-    monkeypatch.delenv(features.THREADS_ENV, raising=False)
+    monkeypatch.delenv(threads.THREADS_ENV, raising=False)
     assert compute_threads() == 1
-    monkeypatch.setenv(features.THREADS_ENV, "3")
+    monkeypatch.setenv(threads.THREADS_ENV, "3")
     assert compute_threads() == 3
     for bad in ("two", "-1"):
-        monkeypatch.setenv(features.THREADS_ENV, bad)
-        with pytest.raises(InputError, match=features.THREADS_ENV):
+        monkeypatch.setenv(threads.THREADS_ENV, bad)
+        with pytest.raises(InputError, match=threads.THREADS_ENV):
             compute_threads()
 
 
@@ -38,11 +39,11 @@ def test_thread_count_from_environment(monkeypatch) -> None:
 def test_onnx_session_thread_options(monkeypatch) -> None:
     from mission.localize.onnx_model import OnnxLocalizer
 
-    monkeypatch.delenv(features.THREADS_ENV, raising=False)
+    monkeypatch.delenv(threads.THREADS_ENV, raising=False)
     opts = OnnxLocalizer(MODEL).session.get_session_options()
     assert (opts.intra_op_num_threads, opts.inter_op_num_threads) == (1, 1)
     assert opts.get_session_config_entry("session.intra_op.allow_spinning") == "0"
-    monkeypatch.setenv(features.THREADS_ENV, "2")
+    monkeypatch.setenv(threads.THREADS_ENV, "2")
     assert OnnxLocalizer(MODEL).session.get_session_options().intra_op_num_threads == 2
     assert OnnxLocalizer(MODEL, threads=0).session.get_session_options().intra_op_num_threads == 0  # ort default
     one, dflt = OnnxLocalizer(MODEL, threads=1), OnnxLocalizer(MODEL, threads=0)
@@ -64,18 +65,18 @@ def test_kmeans_runs_under_the_openmp_limit(monkeypatch) -> None:
     monkeypatch.setattr(KMeans, "fit_predict", spy)
     x, y, rss = _flight()
     cfg = FeatureConfig(c_k=8)
-    monkeypatch.delenv(features.THREADS_ENV, raising=False)
+    monkeypatch.delenv(threads.THREADS_ENV, raising=False)
     one = cluster_features(x, y, rss, cfg)
     assert seen and all(n == 1 for n in seen[-1])
-    monkeypatch.setenv(features.THREADS_ENV, "0")  # the libraries' own choice: same features
+    monkeypatch.setenv(threads.THREADS_ENV, "0")  # the libraries' own choice: same features
     np.testing.assert_array_equal(cluster_features(x, y, rss, cfg), one)
 
 
 def test_mounted_gain_tables_equal_the_index_formula() -> None:
-    from mission.localize.selfcal import _GainLookup
+    from mission.localize.selfcal import GainLookup
     from mission.physics.antenna import rm_wb1_dn
 
-    look = _GainLookup(rm_wb1_dn())
+    look = GainLookup(rm_wb1_dn())
     rng = np.random.default_rng(1)
     i_el, i_az = rng.integers(0, 181, 5000), rng.integers(0, 360, 5000)
     flat = i_el * 360 + i_az
@@ -83,3 +84,30 @@ def test_mounted_gain_tables_equal_the_index_formula() -> None:
     for head in (0, 30, 62, 330):
         np.testing.assert_array_equal(look.gain_db(flat, head, True), fl[i_el * 360 + np.mod(i_az - head, 360)])
         np.testing.assert_array_equal(look.gain_db(flat, head, False), up[i_el * 360 + np.mod(head - i_az, 360)])
+
+
+def _pool_threads() -> list[int]:
+    from threadpoolctl import threadpool_info
+
+    return sorted({i["num_threads"] for i in threadpool_info()})
+
+
+def test_commands_and_pool_workers_run_under_the_limit(monkeypatch) -> None:
+    """A command body (``run_guarded``) runs with ``$RFSL_THREADS`` threads and the process is restored after;
+    a pool worker started with ``limit_worker`` runs its whole life with one (OpenMP included)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from threadpoolctl import threadpool_limits
+
+    from mission.cli.main import run_guarded
+    from mission.threads import limit_worker
+
+    seen: list[list[int]] = []
+    with threadpool_limits(limits=2):
+        monkeypatch.setenv(threads.THREADS_ENV, "1")
+        assert run_guarded(lambda: seen.append(_pool_threads())) == 0
+        assert seen == [[1]] and _pool_threads() == [2]
+        monkeypatch.setenv(threads.THREADS_ENV, "x")
+        assert run_guarded(lambda: seen.append(_pool_threads())) == 2 and len(seen) == 1  # bad value: one line
+    with ProcessPoolExecutor(1, initializer=limit_worker) as ex:
+        assert ex.submit(_pool_threads).result() == [1]

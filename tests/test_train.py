@@ -40,6 +40,9 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     assert loc.kind == "clustering" and loc.cfg.c_k == 20
     td = loc.meta["training_data"]
     assert td["datasets"][0]["seed"] == 3 and td["train_config"]["seed"] == 1
+    # the card beside it holds the training domain the runtime reads: the dataset's mission altitude (30 m), and
+    # no attitude claim for randomised trajectories
+    assert loc.card.domain.altitude_m == (30.0, 30.0) and loc.card.domain.attitude_deg is None
     x = np.load(next((tmp_path / "ds").glob("chunk_*.npz")))["clustering"]
     assert np.all(np.isfinite(loc.predict_features(x)))
     # same seed, same weights

@@ -178,9 +178,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_guarded(fn: Callable[[], int | None]) -> int:
-    """Run a CLI body: bad input becomes one line on stderr and exit code 2, Ctrl-C exit code 130."""
+    """Run a CLI body under the thread limits (``mission.threads``, ``$RFSL_THREADS``): bad input becomes one
+    line on stderr and exit code 2, Ctrl-C exit code 130."""
+    from mission.threads import thread_limits
+
     try:
-        rc = int(fn() or 0)
+        with thread_limits():
+            rc = int(fn() or 0)
         sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's exit flush
         return rc
     except InputError as e:

@@ -139,9 +139,9 @@ def _in_log_frame(loc, est: Estimate, origin, frame: str) -> Estimate:
 def _check_altitude(est: Estimate, net, part) -> bool:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
     ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``); True then."""
-    from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
+    from mission.localize.training_domain import altitude_note, flight_altitudes
 
-    trained, flown = training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2])
+    trained, flown = net.card.domain.altitude_m, flight_altitudes(part.enu()[:, 2])
     est.extras["network_training_altitude_m"] = None if trained is None else list(trained)
     est.extras["flight_altitude_m"] = list(flown)
     note = altitude_note(net.model_name, trained, flown)
@@ -156,8 +156,8 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     from mission.localize.error_circles import attach_circles, card_calibration
     from mission.localize.training_domain import flown_domain
 
-    cal = card_calibration(net.path, "sim" if simulated else "real")  # sized for what was flown
-    flown = flown_domain(part, net.meta, net.model_name)
+    cal = card_calibration(net.card, "sim" if simulated else "real")  # sized for what was flown
+    flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name)
     if not simulated:  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
         est.add_note(flown.pop("attitude_note"))
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
@@ -189,8 +189,7 @@ def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> 
     the regions are the search's and the point stays the network's.  Why: every flight ends with a region."""
     if est.regions:
         return
-    sc = make_localizer("selfcal", tx_height_m=tx_height_m, area=area)
-    alt = _in_log_frame(sc, sc.predict(part), origin, "selfcal")
+    _, alt = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     if not alt.regions:
         return
     from mission.localize.error_circles import NO_CIRCLE_APPLIES

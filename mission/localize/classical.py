@@ -318,5 +318,3 @@ class FixedGeometrySearch:
         sse = self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T  # + |rc|^2, the same for every candidate
         return self.cand[np.argmin(sse, axis=0)]
 
-
-METHODS = {"strongest": StrongestSample, "centroid": WeightedCentroid, "grid": ModelGridSearch}

@@ -33,7 +33,6 @@ and ``ellipse`` the circle's.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -41,11 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.evidence import conformal_quantile
-from mission.geo import Area, clip_polygon, signed_area_m2
+from mission.geo import Area, clip_polygon, polygon_area_m2
+from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 
-REGIONS_KEY = "regions"
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
 # the methods whose circles mission/data/method_circles.json holds (calibrated in their default configuration)
 CIRCLE_METHODS = names_where(calibration=FROM_METHOD_CIRCLES)
@@ -53,31 +51,6 @@ LEVELS = (0.5, 0.9)
 NO_CIRCLE_APPLIES = "No uncertainty region: no calibration applies to it."
 FULL_TRACK = 0.9  # a flight that flew at least this share of its planned track counts as full
 N_VERTICES = 72
-
-
-def model_digest(model_path: str | Path) -> str:
-    """sha256 of a model file: a card's calibration names the exact network it was measured on."""
-    return hashlib.sha256(Path(model_path).read_bytes()).hexdigest()
-
-
-def calibration_record(errors, source: str, model_path: str | Path | None = None,
-                       levels: tuple[float, ...] = LEVELS) -> dict:
-    """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
-    network, the digest of the model file they were measured on."""
-    e = np.asarray(errors, dtype=float)
-    radii = {f"{lv:g}": round(conformal_quantile(e, lv), 2) for lv in levels}
-    if not all(math.isfinite(r) for r in radii.values()):
-        raise ValueError(f"{e.size} flights cannot calibrate levels {levels}: need at least "
-                         f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}")
-    rec = {"radii_m": radii, "n": int(e.size), "mean_error_m": round(float(e.mean()), 2), "calibrated_on": source}
-    if model_path is not None:
-        rec["model_sha256"] = model_digest(model_path)
-    return rec
-
-
-def card_path(model_path: str | Path) -> Path:
-    """The model card beside a network: ``models/<name>.json`` for ``models/<name>.onnx``."""
-    return Path(model_path).with_suffix(".json")
 
 
 def _read_entries(p: Path, what: str) -> dict:
@@ -135,19 +108,27 @@ def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] |
                   f"circles were calibrated on flights that flew {lo}-100 %")
 
 
-def card_calibration(model_path: str | Path, domain: str) -> tuple[dict | None, str | None]:
+def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
     """(the card's calibration for ``domain`` ("sim" or "real"), None) or (None, why there is none: no card, no
     entry, or an entry measured on another model file); a malformed entry is an ``InputError`` naming the card
-    and key."""
-    p = card_path(model_path)
+    and key.  ``model``: a ``card.ModelCard`` (read once with its network) or a model file's path."""
+    path = model.path if isinstance(model, ModelCard) else model
+    p = card_path(path)
     where = f"{p.name}, benchmarks/calibrate_error_circles.py"
-    if not p.is_file():
-        return None, f"{Path(model_path).name} has no model card ({where})"
-    rec = _read_entries(p, REGIONS_KEY).get(domain)
+    if isinstance(model, ModelCard):
+        entries, digest = model.regions, model.sha256
+        if entries is not None and not isinstance(entries, dict):
+            raise InputError(f"not a JSON object with a {REGIONS_KEY} mapping", source=str(p), field=REGIONS_KEY)
+    else:
+        entries = _read_entries(p, REGIONS_KEY) if p.is_file() else None
+        digest = None
+    if entries is None:
+        return None, f"{Path(path).name} has no model card ({where})"
+    rec = entries.get(domain)
     if rec is None:
-        return None, f"{Path(model_path).name} has no '{domain}' calibration in its card ({where})"
+        return None, f"{Path(path).name} has no '{domain}' calibration in its card ({where})"
     rec = _checked(rec, p, f"{REGIONS_KEY}.{domain}")
-    if rec.get("model_sha256") != model_digest(model_path):
+    if rec.get("model_sha256") != (digest or model_digest(path)):
         return None, f"the '{domain}' calibration in {p.name} was measured on another version of the model file"
     return rec, None
 
@@ -173,11 +154,10 @@ def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on:
                "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
                "polygons": [np.round(ring, 1).tolist()], "calibrated_on": calibrated_on}
         if area is not None and not area.contains(ring[:-1]).all():
-            # the area is the subject and the (convex) circle the clip, so any area polygon works
-            part = clip_polygon(area.vertices, ring[:-1])
-            if len(part) >= 3:
-                reg.update(area_m2=abs(signed_area_m2(part)), clipped_to=area.name,
-                           polygons=[np.round(np.vstack([part, part[:1]]), 1).tolist()])
+            parts = clip_polygon(area.vertices, ring[:-1])  # a non-convex area may leave several
+            if parts:
+                reg.update(area_m2=sum(polygon_area_m2(p) for p in parts), clipped_to=area.name,
+                           polygons=[np.round(np.vstack([p, p[:1]]), 1).tolist() for p in parts])
         out.append(reg)
     return out
 

@@ -31,7 +31,7 @@ def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidat
     """Each shipped spiral network's point, marked out of its training domain when the track's altitude or
     attitude is (``training_domain``): weighed, never dropped."""
     from mission.localize.api import run_member
-    from mission.localize.training_domain import altitude_note, flight_altitudes, flown_domain, training_altitudes
+    from mission.localize.training_domain import altitude_note, flight_altitudes, flown_domain
     from mission.shipped import shipped_model
 
     cands, ests = [], {}
@@ -40,8 +40,9 @@ def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidat
         if path is None:
             continue
         net, est = run_member("onnx", part, origin, model_path=path, tx_height_m=tx_height_m)
-        off = (altitude_note(net.model_name, training_altitudes(net.meta), flight_altitudes(part.enu()[:, 2]))
-               or flown_domain(part, net.meta, net.model_name)["attitude_note"])
+        dom = net.card.domain
+        off = (altitude_note(net.model_name, dom.altitude_m, flight_altitudes(part.enu()[:, 2]))
+               or flown_domain(part, dom.attitude_deg, net.model_name)["attitude_note"])
         label = Path(name).stem
         cands.append(Candidate(est.x_m, est.y_m, label, in_domain=off is None))
         ests[label] = est

@@ -32,7 +32,7 @@ Speed: k-means per flight is unavoidable.  Measured on a real AFAR flight (about
 ``elkan`` and ``MiniBatchKMeans`` were not faster at this size; hence the default ``n_init=1`` with
 k-means++ seeding (deterministic with the fixed seed).  ``cluster_features_batch`` vectorises grouping
 and smoothing over flights and runs one k-means per flight.  k-means runs with one OpenMP thread
-(``compute_threads``, ``$RFSL_THREADS``): on a busy 2-core machine its default threads spin against each other
+(``mission.threads``, ``$RFSL_THREADS``): on a busy 2-core machine its default threads spin against each other
 (0.38 s instead of 0.02 s per flight; same labels).
 
 ``arc_step_m`` > 0 (off by default, the paper has no such step) first resamples a flight to one point per
@@ -51,6 +51,7 @@ import numpy as np
 
 from mission.cells import bin_index, bin_means
 from mission.errors import InputError, refuse_unknown_keys
+from mission.threads import thread_limits
 
 FEATURE_VERSION = 1
 # keys added after version 1, with the value that reproduces the features of models/datasets written before
@@ -206,64 +207,18 @@ def _standardise(a: np.ndarray) -> np.ndarray:
     return (a - a.mean(axis=0)) / np.where(s > 0, s, 1.0)
 
 
-THREADS_ENV = "RFSL_THREADS"
-_CONTROLLER: list = []  # the threadpoolctl controller, made once (making one scans the loaded libraries: ms)
-
-
-def compute_threads() -> int:
-    """Threads for k-means (OpenMP) and onnxruntime: ``$RFSL_THREADS`` (default 1; 0 = the libraries' own choice).
-
-    Why 1: per flight both run for milliseconds, and on a busy 2-core machine their thread pools spin-wait
-    (k-means 0.38 s with the default threads vs 0.02 s with one; ``benchmarks/bench_localize.py``).
-    """
-    import os
-
-    raw = os.environ.get(THREADS_ENV, "").strip()
-    if not raw:
-        return 1
-    try:
-        n = int(raw)
-    except ValueError:
-        raise InputError(f"{THREADS_ENV} must be a whole number of threads, got {raw!r}") from None
-    if n < 0:
-        raise InputError(f"{THREADS_ENV} must be >= 0, got {n}")
-    return n
-
-
-def _thread_limit(n: int):
-    """Context limiting OpenMP (k-means) to ``n`` threads; a no-op for ``n`` = 0 or without threadpoolctl."""
-    import contextlib
-
-    if n <= 0:
-        return contextlib.nullcontext()
-    if not _CONTROLLER:
-        try:
-            from threadpoolctl import ThreadpoolController
-        except ImportError:  # pragma: no cover - a scikit-learn dependency
-            return contextlib.nullcontext()
-        _CONTROLLER.append(ThreadpoolController())
-    return _CONTROLLER[0].limit(limits=n, user_api="openmp")
-
-
-def one_thread_process() -> None:
-    """Limit this (worker) process to one OpenMP/BLAS thread: workers of a pool already fill the cores, and
-    extra threads per worker only spin against each other (dataset generation, the benchmark's workers)."""
-    import os
-
-    os.environ.setdefault("OMP_NUM_THREADS", "1")  # runtimes loaded later
-    try:
-        import sklearn.cluster  # noqa: F401  (load its OpenMP runtime so that the limit applies to it)
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - scikit-learn and threadpoolctl are dependencies
-        return
-    threadpool_limits(1)
+_KMEANS_LIMIT: list = []  # the threadpoolctl controller for k-means, made once (making one scans libraries: ms)
 
 
 def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
     from sklearn.cluster import KMeans  # loads its OpenMP runtime before the controller looks for it
 
     km = KMeans(n_clusters=cfg.c_k, n_init=cfg.n_init, random_state=cfg.seed, algorithm="lloyd")
-    with _thread_limit(compute_threads()):
+    if not _KMEANS_LIMIT:
+        from threadpoolctl import ThreadpoolController
+
+        _KMEANS_LIMIT.append(ThreadpoolController())
+    with thread_limits(controller=_KMEANS_LIMIT[0], user_api="openmp"):
         return km.fit_predict(pts)
 
 

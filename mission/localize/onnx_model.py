@@ -1,23 +1,13 @@
 """Run a trained localizer network (ONNX, onnxruntime) on a flight, with its features computed by features.py.
 
-The model file's ``metadata_props`` (JSON strings) are the contract with the trainer:
-
-- ``feature_kind``: ``"clustering"`` (3 C_k cluster features) or ``"normalised_rss"`` (paper baseline).
-- ``feature_config``: ``FeatureConfig.to_dict()`` used for training (required; compared key by key).
-- ``input_normalisation``: ``{"input_mean": [F], "input_std": [F], "output_mean": [2], "output_std": [2]}``;
-  the network sees ``(features - input_mean) / input_std`` and its output ``o`` is de-normalised as
-  ``o * output_std + output_mean`` (metres, ENU about ``field_origin``).  Scalars broadcast.
-- ``field_origin``: ``{"lat_deg", "lon_deg", "alt_m"}``: the frame of the features' coordinates and of the
-  output; the log's positions are converted into it first.
-- ``training_data``: free-form description (shown, not checked).
-
-The network's single input is float32 ``(batch, F)`` or ``(batch, 1, F)`` (rank read from the graph); its
-first output is ``(batch, 2)`` = x, y.
+What the network expects and where it was trained is its card (``mission.localize.card.ModelCard``: the ONNX
+file's ``metadata_props`` and the JSON card beside it), read once when the network is loaded.  The network's
+single input is float32 ``(batch, F)`` or ``(batch, 1, F)`` (rank read from the graph); its first output is
+``(batch, 2)`` = x, y.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -26,26 +16,13 @@ from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.geo import Origin
 from mission.localize import Estimate
-from mission.localize.altitude_scale import (
-    METADATA_KEY,
-    flight_height,
-    reference_height,
-    scale_cluster_xy,
-    scale_factor,
-)
+from mission.localize.altitude_scale import flight_height, scale_cluster_xy, scale_factor
+from mission.localize.card import ModelCard
 from mission.localize.classical import as_flight
-from mission.localize.features import (
-    FEATURE_VERSION,
-    FeatureConfig,
-    cluster_features,
-    compute_threads,
-    normalised_rss,
-)
+from mission.localize.features import FeatureConfig, cluster_features, normalised_rss
 from mission.samples import FlightSamples
 from mission.shipped import check_shipped_digest
-
-REQUIRED_KEYS = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
-FEATURE_KINDS = ("clustering", "normalised_rss")
+from mission.threads import compute_threads
 
 
 def session_options(threads: int):
@@ -70,7 +47,7 @@ class OnnxLocalizer:
 
     ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with anything else
     is refused (``InputError`` naming the differing key).  ``threads``: onnxruntime's intra/inter-op threads
-    (None: ``features.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
+    (None: ``mission.threads.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
     An altitude-normalised network (``training_data.altitude_normalisation`` in its metadata,
     ``mission.localize.altitude_scale``) sees each flight's coordinates rescaled by its height above the
     transmitter (``tx_height_m`` assumed); ``predict_features`` then needs those heights.
@@ -103,92 +80,14 @@ class OnnxLocalizer:
                 f"not a loadable ONNX model ({str(e).splitlines()[0][:200]})", source=src
             ) from None
         props = self.session.get_modelmeta().custom_metadata_map
-        self.meta: dict = {}
-        for key in REQUIRED_KEYS:
-            if key not in props:
-                raise InputError("model metadata lacks this key", source=src, field=key)
-        for key, val in props.items():
-            if key in REQUIRED_KEYS or key == "training_data":
-                try:
-                    self.meta[key] = json.loads(val)
-                except json.JSONDecodeError:
-                    if key == "feature_kind":
-                        self.meta[key] = val
-                    else:
-                        raise InputError("model metadata is not valid JSON", source=src, field=key) from None
-            else:
-                self.meta[key] = val
-        self.kind = self.meta["feature_kind"]
-        if self.kind not in FEATURE_KINDS:
-            raise InputError(
-                f"unknown feature kind {self.kind!r} (expected {', '.join(FEATURE_KINDS)})",
-                source=src,
-                field="feature_kind",
-            )
-        if expect_kind is not None and expect_kind != self.kind:
-            raise InputError(
-                f"model was trained on {self.kind!r} features, caller asks for {expect_kind!r}",
-                source=src,
-                field="feature_kind",
-            )
-        fc = self.meta["feature_config"]
-        if not isinstance(fc, dict):
-            raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
-        fc = FeatureConfig.normalised(fc)  # a model older than a later key was made with its neutral value
-        if expect_config is not None:
-            want = (
-                expect_config.to_dict() if isinstance(expect_config, FeatureConfig) else dict(expect_config)
-            )
-            for k in sorted(set(want) | set(fc)):
-                if k not in fc:
-                    raise InputError(
-                        f"model's feature_config lacks {k!r} (caller expects {want[k]!r})",
-                        source=src,
-                        field=f"feature_config.{k}",
-                    )
-                if k not in want or want[k] != fc[k]:
-                    raise InputError(
-                        f"model's feature_config {k}={fc[k]!r} does not match the expected {want.get(k)!r}",
-                        source=src,
-                        field=f"feature_config.{k}",
-                    )
-        try:
-            self.cfg = FeatureConfig.from_dict(fc)
-        except (InputError, TypeError) as e:
-            raise InputError(f"bad feature_config ({e})", source=src, field="feature_config") from None
-        norm = self.meta["input_normalisation"]
-        try:
-            self.in_mean = np.asarray(norm["input_mean"], dtype=np.float64)
-            self.in_std = np.asarray(norm["input_std"], dtype=np.float64)
-            self.out_mean = np.asarray(norm["output_mean"], dtype=np.float64)
-            self.out_std = np.asarray(norm["output_std"], dtype=np.float64)
-        except (KeyError, TypeError) as e:
-            raise InputError(
-                f"input_normalisation needs input_mean/input_std/output_mean/output_std ({e})",
-                source=src,
-                field="input_normalisation",
-            ) from None
-        try:
-            self.origin = Origin.from_dict(self.meta["field_origin"])
-        except (KeyError, TypeError, ValueError):
-            raise InputError(
-                "field_origin needs lat_deg, lon_deg", source=src, field="field_origin"
-            ) from None
-        if self.cfg.version != FEATURE_VERSION:
-            raise InputError(
-                f"model's features are version {self.cfg.version}, this software computes version "
-                f"{FEATURE_VERSION}",
-                source=src,
-                field="feature_config.version",
-            )
-        self.reference_height_m = reference_height(self.meta.get("training_data"))
-        if self.reference_height_m is not None and self.kind != "clustering":
-            raise InputError("altitude normalisation needs clustering features", source=src,
-                             field=f"training_data.{METADATA_KEY}")
+        self.card = ModelCard.read(self.path, props, expect_config, expect_kind)
+        norm = self.card.normalisation
+        self.in_mean, self.in_std, self.out_mean, self.out_std = (
+            norm.input_mean, norm.input_std, norm.output_mean, norm.output_std)
         inp = self.session.get_inputs()[0]
         self.input_name = inp.name
         self.input_rank = len(inp.shape)
-        self.n_features = self.cfg.n_features if self.kind == "clustering" else self.cfg.rss_length
+        self.n_features = self.card.n_features
         width = inp.shape[-1] if inp.shape else None
         if isinstance(width, int) and width != self.n_features:
             key = "feature_config.c_k" if self.kind == "clustering" else "feature_config.rss_length"
@@ -203,6 +102,28 @@ class OnnxLocalizer:
                 source=src,
                 field="input_normalisation",
             )
+
+    @property
+    def kind(self) -> str:
+        """The features the network reads: "clustering" or "normalised_rss"."""
+        return self.card.kind
+
+    @property
+    def cfg(self) -> FeatureConfig:
+        return self.card.feature_config
+
+    @property
+    def origin(self) -> Origin:
+        return self.card.origin
+
+    @property
+    def meta(self) -> dict:
+        """The ONNX metadata, decoded (``training_data`` shown by reports, not checked)."""
+        return self.card.meta
+
+    @property
+    def reference_height_m(self) -> float | None:
+        return self.card.reference_height_m
 
     @property
     def model_name(self) -> str:

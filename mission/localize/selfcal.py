@@ -87,7 +87,7 @@ def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np
     return pg, el, az
 
 
-class _GainLookup:
+class GainLookup:
     """A pattern resampled once to a 1-degree (elevation x azimuth) table, looked up by nearest index.
 
     Why: every candidate x cell x mounting heading needs a gain; with integer indices computed once per call
@@ -119,26 +119,32 @@ class _GainLookup:
         return self.mounted(heading_deg, flipped)[i_flat]
 
 
-# id(pattern) -> (pattern, table): holding the pattern keeps its id from being reused by another object
-_LOOKUPS: dict[int, tuple[Pattern, _GainLookup]] = {}
+class GainTables:
+    """The 1-degree gain tables (``GainLookup``) of the patterns one grid has met, each made once: owned by the
+    grid (``SelfCalibratingGrid.gain_tables``), so its two searches per flight and its later flights share them."""
 
+    def __init__(self) -> None:
+        self._made: list[tuple[Pattern, GainLookup]] = []  # a pattern is found by identity (patterns hold arrays)
 
-def gain_lookup(pat: Pattern) -> _GainLookup:
-    """The 1-degree gain table of ``pat``, made once per pattern (not per call)."""
-    entry = _LOOKUPS.get(id(pat))
-    if entry is None or entry[0] is not pat:
-        entry = _LOOKUPS[id(pat)] = (pat, _GainLookup(pat))
-    return entry[1]
+    def __call__(self, pat: Pattern) -> GainLookup:
+        for p, table in self._made:
+            if p is pat:
+                return table
+        table = GainLookup(pat)
+        self._made.append((pat, table))
+        return table
 
 
 def flat_index(el: np.ndarray, az: np.ndarray) -> np.ndarray:
-    """Index ``(el + 90) * 360 + az`` (whole degrees) into a ``_GainLookup`` table, from angles in rad."""
+    """Index ``(el + 90) * 360 + az`` (whole degrees) into a ``GainLookup`` table, from angles in rad."""
     return ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
             + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
 
 
-def hypothesis_residuals(base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps):
-    """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from ``_geometry``."""
+def hypothesis_residuals(base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps, tables: GainTables | None = None):
+    """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from ``_geometry``;
+    tabulated patterns are looked up in ``tables`` (a fresh ``GainTables`` when None)."""
+    tables = GainTables() if tables is None else tables
     idx = None
     for _, pat, head, flipped in hyps:
         if pat is None:
@@ -148,17 +154,18 @@ def hypothesis_residuals(base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps)
         else:
             if idx is None:
                 idx = flat_index(el, az)
-            yield base - gain_lookup(pat).gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
+            yield base - tables(pat).gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
 
 
-def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float
+def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float, tables: GainTables | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate."""
+    """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate
+    (``tables``: the caller's gain tables, see ``hypothesis_residuals``)."""
     pg, el, az = _geometry(cand_xy, cells, tx_height_m)
     y = cells.rss_dbm.astype(np.float32)[None, :]
     ssr = np.empty((len(hyps), len(cand_xy)))
     off = np.empty((len(hyps), len(cand_xy)))
-    for i, r in enumerate(hypothesis_residuals(y - pg, el, az, hyps)):
+    for i, r in enumerate(hypothesis_residuals(y - pg, el, az, hyps, tables)):
         c = r.mean(axis=1)
         off[i] = c
         ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2
@@ -196,6 +203,7 @@ class SelfCalibratingGrid(_Base):
         self.altitude_gap_m = float(altitude_gap_m)
         self.masses = (dict(masses) if masses is not None
                        else dict(CALIBRATED_MASS) if corr_is_default(corr_m) else {})
+        self.gain_tables = GainTables()  # the hypotheses' pattern tables, made on first use
 
     def _candidates(self, f: FlightSamples) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
         box, poly = search_bounds(self.area, f.enu_m, self.margin_m)
@@ -215,7 +223,7 @@ class SelfCalibratingGrid(_Base):
         valid = np.ones(len(flat), dtype=bool) if poly is None else poly.contains(flat)
         if not valid.any():
             valid[:] = True
-        ssr, off = hypothesis_ssr(flat[valid], cells, hyps, self.tx_height_m)
+        ssr, off = hypothesis_ssr(flat[valid], cells, hyps, self.tx_height_m, self.gain_tables)
         m = len(cells)
         s2 = max(float(ssr.min()) / max(m - 1, 1), 1e-6)
         n_eff = max(cells.area_m2 / (np.pi * self.corr_m**2), 2.0)
@@ -229,7 +237,7 @@ class SelfCalibratingGrid(_Base):
         c0 = flat[valid][k]
         s = self.step_m
         fine = c0[None, :] + square_grid((-s, -s, s, s), self.refine_m).reshape(-1, 2)
-        fssr, foff = hypothesis_ssr(fine, cells, [hyps[i] for i in best_h], self.tx_height_m)
+        fssr, foff = hypothesis_ssr(fine, cells, [hyps[i] for i in best_h], self.tx_height_m, self.gain_tables)
         j = np.unravel_index(int(np.argmin(fssr)), fssr.shape)
         x, y = fine[j[1]]
         h = int(best_h[j[0]])

@@ -42,7 +42,7 @@ def sim_default_model(meta: dict, heights_m: np.ndarray, default: Path | None) -
     """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at ``heights_m``:
     the first spiral network whose training altitudes hold the flight, else ``default`` (``rfsl_default``)."""
     from mission.localize.onnx_model import OnnxLocalizer
-    from mission.localize.training_domain import altitude_note, flight_altitudes, training_altitudes
+    from mission.localize.training_domain import altitude_note, flight_altitudes
     from mission.shipped import shipped_model
 
     dname = default.name if default is not None else "none"
@@ -54,7 +54,7 @@ def sim_default_model(meta: dict, heights_m: np.ndarray, default: Path | None) -
         path = shipped_model(name)
         if path is None:
             continue
-        trained = training_altitudes(OnnxLocalizer(path, threads=1).meta)
+        trained = OnnxLocalizer(path, threads=1).card.domain.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
             return path, (f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the kind of "
                           f"flight it was trained on (spiral, dipoles, {trained[0]:.0f}-{trained[1]:.0f} m)")

@@ -6,67 +6,21 @@ half of the real-log default, trained at 30 m only) has a 7.4 m mean error on si
 14.2 m at 25 / 35 m, 22.9 m at 40 m and 28.8 / 40.7 m at 20 / 47 m (models/README.md, the altitude-robust
 spiral network); teams fly at 20-47 m.  ``localize`` therefore says when a flight is more than
 ``ALTITUDE_TOLERANCE_M`` (where the simulated error has doubled) outside the range a network was trained on,
-instead of silently averaging its answer in.
+instead of silently averaging its answer in.  The training's spans are the network's card's
+(``card.TrainingDomain``, measured at training time by ``mission.workshop.domain``).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
-from functools import lru_cache
-from pathlib import Path
-
 import numpy as np
 
+from mission.defaults import DEFAULT_ALTITUDE_M
 from mission.errors import InputError
 
 ALTITUDE_TOLERANCE_M = 5.0  # 5 m off its training altitude the spiral network's simulated error doubles
 ATTITUDE_TOLERANCE_DEG = 5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
 TRACK_REACH_M = 10.0  # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
 TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
-# cruise altitude the unseen-flight benchmark draws per flight (mission.workshop.suite): a network trained on
-# "suite:" data reports this range
-SUITE_ALTITUDE_RANGE_M = (15.0, 60.0)
-
-
-@lru_cache(maxsize=32)
-def _mission_altitude(mission: str) -> float | None:
-    """Cruise altitude (m) of a training mission named by path (as the dataset recorded it; tried as given and
-    relative to the repository), or None when the file is not here or not a mission.  Cached: a network's
-    datasets usually name one mission, and parsing its YAML on every ``localize`` call cost ~8 ms."""
-    from mission.spec import DEFAULT_MISSION, load_mission
-
-    for p in (Path(mission), DEFAULT_MISSION.parents[1] / mission):  # as given, or in this checkout
-        if p.is_file():
-            try:
-                return float(load_mission(p).altitude_m)
-            except InputError:
-                return None
-    return None
-
-
-def _dataset_altitudes(d: dict) -> tuple[float, float] | None:
-    """Altitude range (m) of one training dataset's flights from its metadata entry, or None if unknown."""
-    rnd = d.get("randomisation") or {}
-    if rnd.get("altitude_m"):
-        lo, hi = rnd["altitude_m"]
-        return float(lo), float(hi)
-    if str(d.get("model", "")).startswith("suite:"):
-        return SUITE_ALTITUDE_RANGE_M
-    alt = d.get("mission_altitude_m")
-    if alt is None and d.get("mission"):
-        alt = _mission_altitude(str(d["mission"]))
-    return None if alt is None else (float(alt), float(alt))
-
-
-def training_altitudes(meta: dict) -> tuple[float, float] | None:
-    """Cruise altitude range (m) covered by a network's training flights (the union over its datasets), from the
-    ONNX metadata's ``training_data``; None when any dataset's altitude is unknown (no claim is better than a
-    wrong one)."""
-    datasets = (meta.get("training_data") or {}).get("datasets") or []
-    ranges = [_dataset_altitudes(d) for d in datasets]
-    if not ranges or any(r is None for r in ranges):
-        return None
-    return min(r[0] for r in ranges), max(r[1] for r in ranges)
 
 
 def flight_altitudes(z_m: np.ndarray) -> tuple[float, float]:
@@ -105,35 +59,28 @@ def trained_legs(part):
 
 
 def planned_track(meta: dict, origin) -> np.ndarray | None:
-    """The mission's planned trajectory (K, 2) in the log's frame, from the sidecar: the mission file it names
-    when that file is here and still plans the recorded trajectory, else the recorded trajectory (generator,
-    parameters, altitude) over the AFAR field; None when the sidecar records no trajectory."""
+    """The mission's planned trajectory (K, 2) in the log's frame, from the sidecar's record (generator,
+    parameters, altitude) over the AFAR field; None when the sidecar records no generated trajectory or the log
+    is not in the AFAR field's frame (a custom field: its plan cannot be rebuilt from the record)."""
     from mission.geo import afar_field
-    from mission.spec import MissionSpec, load_mission
     from mission.trajectory.generators import generate
 
     traj = meta.get("trajectory") or {}
-    if not traj.get("generator"):
+    field = afar_field()
+    if not traj.get("generator") or not _same_origin(origin, field.origin):
         return None
-    w, frame = None, afar_field().origin
-    for key in ("mission_file", "mission"):
-        p = meta.get(key)
-        if isinstance(p, str) and Path(p).is_file():
-            try:
-                spec = load_mission(p)
-                if spec.trajectory_meta() == traj:
-                    w, frame = spec.waypoints_enu(), spec.field.origin
-                    break
-            except InputError:
-                continue
-    if w is None:
-        try:
-            w = generate(traj["generator"], afar_field(), float(traj.get("altitude_m", MissionSpec.altitude_m)),
-                         **(traj.get("params") or {}))
-        except (InputError, TypeError, ValueError):
-            return None
-    lat, lon, _ = frame.to_geodetic(np.asarray(w, dtype=float))
+    try:
+        w = generate(traj["generator"], field, float(traj.get("altitude_m", DEFAULT_ALTITUDE_M)),
+                     **(traj.get("params") or {}))
+    except (InputError, TypeError, ValueError):
+        return None
+    lat, lon, _ = field.origin.to_geodetic(np.asarray(w, dtype=float))
     return np.asarray(origin.to_enu(lat, lon))[..., :2]
+
+
+def _same_origin(a, b) -> bool:
+    """Whether two ``Origin`` s are the same point (to a millimetre)."""
+    return bool(np.allclose(a.to_enu(b.lat_deg, b.lon_deg, b.alt_m), 0.0, atol=1e-3))
 
 
 def track_coverage(planned_xy: np.ndarray, flown_xy: np.ndarray, reach_m: float = TRACK_REACH_M,
@@ -157,46 +104,6 @@ def flight_attitude(part) -> tuple[tuple[float, float], tuple[float, float]]:
     return (float(r[0]), float(r[1])), (float(p[0]), float(p[1]))
 
 
-@lru_cache(maxsize=32)
-def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, float]] | None:
-    """(roll, pitch) 1-99 % spans (deg) of the simulator flying a training mission's trajectory with its own
-    kinematics and perturbation (seed 0), as ``rfsl dataset`` flies it; None when the mission is not here."""
-    from mission.simulate import fly_path
-    from mission.spec import DEFAULT_MISSION, load_mission
-
-    for p in (Path(mission), DEFAULT_MISSION.parents[1] / mission):
-        if p.is_file():
-            try:
-                spec = load_mission(p)
-            except InputError:
-                return None
-            cfg = replace(spec.sim_config(), dt_s=0.2)  # percentiles of a 0.2 s sampling: 10x cheaper, same spans
-            _, _, att, _ = fly_path(spec.waypoints_enu(), cfg, np.random.default_rng(0))
-            deg = np.rad2deg(att[:, :2])
-            r, q = (np.percentile(deg[:, k], [1.0, 99.0]) for k in (0, 1))
-            return (float(r[0]), float(r[1])), (float(q[0]), float(q[1]))
-    return None
-
-
-def training_attitude(meta: dict) -> tuple[tuple[float, float], tuple[float, float]] | None:
-    """(roll, pitch) spans (deg) of a network's training flights (union over its datasets): known for datasets
-    that flew one mission's trajectory with its kinematics; None when any dataset drew trajectories, speeds or
-    headings at random or has no mission here (no claim is better than a wrong one)."""
-    spans = []
-    for d in (meta.get("training_data") or {}).get("datasets") or []:
-        rnd = d.get("randomisation") or {}
-        if not d.get("mission") or rnd.get("trajectories") or rnd.get("random_params") or rnd.get("speed_mps") \
-                or rnd.get("random_heading"):
-            return None
-        span = _mission_attitude(str(d["mission"]))
-        if span is None:
-            return None
-        spans.append(span)
-    if not spans:
-        return None
-    return tuple((min(s[k][0] for s in spans), max(s[k][1] for s in spans)) for k in (0, 1))  # type: ignore
-
-
 def attitude_note(model_name: str, trained, flown, tolerance_deg: float = ATTITUDE_TOLERANCE_DEG) -> str | None:
     """A one-sentence note when the flown roll or pitch leaves the trained span by more than ``tolerance_deg``."""
     if trained is None:
@@ -211,10 +118,11 @@ def attitude_note(model_name: str, trained, flown, tolerance_deg: float = ATTITU
             "samples used against the training flights' 1-99 %): the network never saw RSS at these tilts")
 
 
-def flown_domain(part, net_meta: dict, model_name: str) -> dict:
+def flown_domain(part, trained_attitude, model_name: str) -> dict:
     """What was flown against a network's training: ``track_coverage`` (share of the planned track flown, None
-    without a plan in the sidecar) and ``attitude_note`` (None inside the training's attitudes or when unknown)."""
+    without a plan in the sidecar) and ``attitude_note`` (None inside the training's attitudes, ``trained_attitude``
+    from its card, or when unknown)."""
     plan = planned_track(part.meta, part.origin)
     cov = None if plan is None or len(part) < 2 else track_coverage(plan, part.enu()[:, :2])
     return {"track_coverage": cov,
-            "attitude_note": attitude_note(model_name, training_attitude(net_meta), flight_attitude(part))}
+            "attitude_note": attitude_note(model_name, trained_attitude, flight_attitude(part))}

@@ -153,19 +153,3 @@ def region_covers(est, x: float, y: float, level: float) -> bool | None:
         return None
     mass = next((r["hpd_mass"] for r in est.regions if r["level"] == level), level)
     return post.covers(x, y, mass)
-
-
-def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
-    """The radius of the disc with the area of an estimate's ``level`` region, ``sqrt(area / pi)`` (for an error
-    circle its radius), or None when it has no such region: the member's own uncertainty in metres."""
-    reg = next((r for r in regions if r["level"] == level), None)
-    if reg is None:
-        return None
-    return float(reg["radius_m"]) if "radius_m" in reg else float(np.sqrt(reg["area_m2"] / np.pi))
-
-
-def inverse_square_weight(scale_a: float, scale_b: float) -> float:
-    """Weight of member a in a two-member fusion weighted by the inverse square of each member's region scale
-    (inverse variance for isotropic errors): ``b^2 / (a^2 + b^2)``; a member with the tighter region counts more."""
-    a2, b2 = float(scale_a) ** 2, float(scale_b) ** 2
-    return b2 / (a2 + b2)

@@ -34,6 +34,17 @@ CHUNK = 8192  # elements per block: float32 temporaries of 32 KiB stay in L2 and
 
 
 @dataclass(frozen=True)
+class AttitudePlanes:
+    """The body-from-ENU rotation planes (3, 3, N) of one attitude series under one model's attitude effect, in
+    the model's dtype: made once by ``PropagationModel.attitude_planes`` and handed back to ``rss_dbm`` by a
+    caller that evaluates the same samples many times (the gap fits), instead of a cache inside the model."""
+
+    effect: Any
+    dtype: str
+    planes: NDArray
+
+
+@dataclass(frozen=True)
 class PropagationModel:
     """A propagation model = a tuple of named effects; see ``mission.physics.propagation`` for the effects."""
 
@@ -84,14 +95,26 @@ class PropagationModel:
         return self.effect(name) if self.has(name) else None
 
     # -- fast path
+    def attitude_planes(self, attitude_rad: ArrayLike, n: int | None = None) -> AttitudePlanes:
+        """The rotation planes of ``attitude_rad`` ((N, 3) rad, or one attitude for ``n`` samples) under this
+        model's attitude effect, read-only, for ``rss_dbm(..., planes=)``."""
+        dt = np.dtype(self.dtype)
+        a = np.asarray(attitude_rad, dtype=float)
+        att = as_attitude(a, n if n is not None else len(a) if a.ndim == 2 else 1)
+        C = body_from_enu_planes(self.effect("attitude").apply(att), dt)
+        C.flags.writeable = False
+        return AttitudePlanes(self.effect("attitude"), dt.str, C)
+
     def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None,
-                centre: ArrayLike | None = None) -> NDArray:
+                centre: ArrayLike | None = None, planes: AttitudePlanes | None = None) -> NDArray:
         """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N, 3) rad.
 
         tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3) pairs
         with the samples one to one.  ``centre`` (N, 3), z = 0: each sample's shift instead of the samples'
         mean, so that several flights evaluated in one call (paired tx) keep their own centre and get the
-        very values of one call per flight (the per-call overhead dominates on small fits).
+        very values of one call per flight (the per-call overhead dominates on small fits).  ``planes``: the
+        attitude's rotation planes from ``attitude_planes`` (this model's, these samples'), used instead of
+        ``attitude_rad``.
         """
         dt = np.dtype(self.dtype)
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
@@ -106,9 +129,13 @@ class PropagationModel:
         rxc = (rx - c).astype(dt)
         txc = tx - c
         C = None
-        if self.has("attitude") and attitude_rad is not None:
+        if self.has("attitude") and planes is not None:
+            if planes.effect != self.effect("attitude") or planes.dtype != dt.str or planes.planes.shape[-1] != N:
+                raise ValueError("planes were made for another model's attitude effect, dtype or samples")
+            C = planes.planes
+        elif self.has("attitude") and attitude_rad is not None:
             # u_b = C delta; stored (3, 3, N) so that C[i, j] is contiguous over the samples
-            C = _planes(self.effect("attitude"), attitude_rad, N, dt)
+            C = body_from_enu_planes(self.effect("attitude").apply(as_attitude(attitude_rad, N)), dt)
         K = txc.shape[0]
         out = np.empty((K, N), dtype=dt)
         nb = min(N, self.chunk) if N else 1
@@ -279,27 +306,6 @@ class PropagationModel:
             two_ray_dbm=two_ray, shadowed=S, upsilon_db=ups, rss_dbm=rss,
         )
         return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
-
-
-_PLANES: dict = {}  # rotation planes of read-only attitude arrays, by identity (see _planes)
-
-
-def _planes(effect: Any, attitude_rad: ArrayLike, n: int, dt: np.dtype) -> NDArray:
-    """``body_from_enu_planes`` of the attitude the effect uses.  A read-only attitude array that owns its data
-    (the gap fits hand in the same one thousands of times) is cached by identity; the entry holds it, so its
-    id is not reused."""
-    key = (id(attitude_rad), effect, dt.str)
-    ro = isinstance(attitude_rad, np.ndarray) and not attitude_rad.flags.writeable and attitude_rad.base is None
-    hit = _PLANES.get(key) if ro else None
-    if hit is not None and hit[0] is attitude_rad:
-        return hit[1]
-    C = body_from_enu_planes(effect.apply(as_attitude(attitude_rad, n)), dt)
-    if ro:
-        C.flags.writeable = False
-        if len(_PLANES) > 16:
-            _PLANES.clear()
-        _PLANES[key] = (attitude_rad, C)
-    return C
 
 
 def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:

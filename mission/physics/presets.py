@@ -137,16 +137,6 @@ def load_preset(name: str = "afar") -> dict[str, Any]:
     return dict(folds[fold]["model"])
 
 
-def preset_fold_info(name: str) -> dict[str, Any]:
-    """Which flights the preset (or fold) ``name`` was fitted on and which it was held out from."""
-    base, _, fold = name.partition(":")
-    rec = load_calibration(base)
-    if not fold:
-        return {"fitted_on": list(rec.get("fitted_on", [])), "tested_on": []}
-    f = rec["folds"][fold]
-    return {"fitted_on": list(f.get("fitted_on", [])), "tested_on": list(f.get("tested_on", []))}
-
-
 def preset_model(name: str = "afar", **overrides: Any) -> PropagationModel:
     """The calibrated model of preset ``name``; ``overrides`` replace spec entries (e.g. ``attitude=False``)."""
     spec = {**load_preset(name), **overrides}

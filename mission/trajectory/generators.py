@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mission.errors import InputError
-from mission.geo import Area, Field, clip_polygon
+from mission.geo import Area, Field, clip_polygon, polygon_area_m2
 
 Generator = Callable[..., np.ndarray]
 
@@ -28,11 +28,12 @@ Generator = Callable[..., np.ndarray]
 # ---------------------------------------------------------------------------------------------- regions
 
 def overlap_area(field: Field) -> Area:
-    """The overlap of the rover area with the flight area (the flight area must be convex)."""
-    v = clip_polygon(field.rover_area.vertices, field.flight_area.vertices)
-    if len(v) < 3:
+    """The overlap of the rover area with the flight area (its largest part where non-convex areas leave
+    several)."""
+    parts = clip_polygon(field.rover_area.vertices, field.flight_area.vertices)
+    if not parts:
         raise InputError("the rover area and the flight area do not overlap", field="rover_area")
-    return Area("overlap", v)
+    return Area("overlap", max(parts, key=polygon_area_m2))
 
 
 def region_area(field: Field, region: str) -> Area:

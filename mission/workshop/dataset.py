@@ -43,9 +43,9 @@ _WORKER: FlightSimulator | None = None
 
 def _init_worker(cfg_dict: dict) -> None:
     global _WORKER
-    from mission.localize.features import one_thread_process
+    from mission.threads import limit_worker
 
-    one_thread_process()
+    limit_worker()
     _WORKER = FlightSimulator(DatasetConfig.from_dict(cfg_dict))
 
 

@@ -90,9 +90,9 @@ _SUITE: dict = {}
 
 def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False) -> None:
     if one_thread:  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
-        from mission.localize.features import one_thread_process
+        from mission.threads import limit_worker
 
-        one_thread_process()
+        limit_worker()
     _SUITE.clear()
     _SUITE.update(methods=methods, source=source)
     if "dir" in source:

@@ -28,9 +28,10 @@ Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy gener
   rule still holds (the reference cluster is the strongest one *after* the augmentation, as at inference).
   A constant offset needs no augmentation: the features are offset-invariant.
 - Export: ``torch.onnx.export`` (opset 17, dynamic batch), metadata_props in the keys that
-  ``mission.localize.onnx_model.OnnxLocalizer`` reads (``feature_kind``, ``feature_config``,
+  ``mission.localize.card.ModelCard`` reads (``feature_kind``, ``feature_config``,
   ``input_normalisation``, ``field_origin``, ``training_data``), then onnxruntime is run on validation
-  inputs and must match torch to 1e-4.
+  inputs and must match torch to 1e-4; the JSON card beside the model gets the training domain
+  (``mission.workshop.domain.write_domain``: altitude and attitude spans), which the runtime reads.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from mission.localize.altitude_scale import (
     scale_cluster_xy,
     scale_factor,
 )
+from mission.workshop.domain import write_domain
 
 
 @dataclass(frozen=True)
@@ -330,6 +332,7 @@ def train(
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     diff = export_onnx(net, n_in, out, meta, x_val[:256])
+    write_domain(out, meta["training_data"])  # the card the runtime reads: the training's altitude, attitude
     res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
     Path(str(out) + ".train.json").write_text(json.dumps(
         {"metrics": metrics, "history": history, "seconds": round(seconds, 1), "n_params": n_params,
