@@ -11,7 +11,8 @@ import pytest
 from _gap_synth import make_case
 
 from mission.gap.candidates import select
-from mission.gap.fit import FitConfig, Fold, ladder, make_folds
+from mission.gap.fit import FitConfig, Fold, make_folds
+from mission.gap.ladder import ladder
 from mission.gap.pipeline import Pipeline
 from mission.gap.power import DEPTHS_DB, FIT_MARGIN, band_shape, fit_band, injected_test, power_statement
 from mission.gap.stats import block_length

@@ -18,7 +18,8 @@ import numpy as np
 from mission.gap.align import SEGMENTS, Alignment, align
 from mission.gap.candidate import Candidate
 from mission.gap.describe import describe_params
-from mission.gap.fit import FitConfig, Rung, _pooled, ladder, make_folds, offset_residual
+from mission.gap.fit import FitConfig, _pooled, make_folds, offset_residual
+from mission.gap.ladder import Rung, ladder
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
 from mission.physics import make_model

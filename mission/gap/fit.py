@@ -24,20 +24,17 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from mission.gap.candidate import (
-    FRAME_BODY,
-    FRAME_GROUND,
     TIER_FREEFORM,
     TIER_NAMED,
     TIER_SMOOTHER,
     Candidate,
 )
-from mission.gap.describe import describe_params
 from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
 from mission.gap.pipeline import Pipeline, joint_offset_residuals, offset_residuals
 from mission.gap.stats import block_length, bootstrap_mean, summarize
@@ -389,59 +386,3 @@ def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples],
                                    rel, lo, sig, bsum.rms, s.rms, bsum.p90_abs, s.p90_abs, L, cand.tier))
     out.sort(key=rank_key)
     return out
-
-
-@dataclass
-class Rung:
-    """One rung of the ladder: the pipelines (per fold), their held-out residuals and what was added."""
-
-    label: str
-    added: str | None
-    pipes: list[Pipeline]
-    residuals: list[np.ndarray]
-    params: dict[str, Any] = field(default_factory=dict)
-    ranking: list[CandidateResult] = field(default_factory=list)  # candidates tried on top of this rung
-    frame: dict[str, Any] | None = None  # ground- or body-fixed test of this rung's ranking (``frame.frame_for``)
-
-    def describe(self) -> dict[str, Any]:
-        return describe_params(self.pipes[0])
-
-
-
-
-def ladder(base: Pipeline, flights: Sequence[FlightSamples], candidates: Sequence[Candidate], cfg: FitConfig,
-           max_rungs: int = 6, label: str = "base", progress: Progress | None = None) -> list[Rung]:
-    """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is significant."""
-    rng = np.random.default_rng(cfg.seed)
-    folds = make_folds(flights, cfg)
-    pipes = [base] * len(folds)
-    rung = Rung(label, None, pipes, heldout_residuals(pipes, flights, folds, cfg))
-    rungs = [rung]
-    pool = list(candidates)
-    while pool and len(rungs) <= max_rungs:
-        ranking = rank_candidates(rung.pipes, flights, folds, pool, cfg, rng, rung.residuals, progress,
-                                  f"rung {len(rungs)}")
-        rung.ranking = ranking
-        sig = [r for r in ranking if r.significant]
-        physical = [r for r in sig if r.tier != TIER_SMOOTHER]
-        if not sig:
-            break
-        best = physical[0] if physical else sig[0]
-        if best.name in FRAME_GROUND or (best.name in FRAME_BODY and any(
-                r.name in FRAME_GROUND and r.loss_reduction >= best.loss_reduction for r in ranking)):
-            # a ground map would absorb it, or explains more than the body-angle map chosen: add the one that
-            # holds out across headings and on unseen ground (``frame``)
-            from mission.gap.frame import frame_for
-
-            rung.frame = frame_for(ranking, rung.pipes[0], flights, cfg, cfg.seed)
-            if rung.frame is not None and rung.frame["winner"] is not None and best.name != rung.frame["winner"]:
-                loser = rung.frame["ground"] if rung.frame["winner"] == rung.frame["body"] else rung.frame["body"]
-                sig = [r for r in sig if r.name != loser]
-                physical = [r for r in sig if r.tier != TIER_SMOOTHER]
-                if not sig:
-                    break
-                best = physical[0] if physical else sig[0]
-        rung = Rung(f"{rung.label} + {best.name}", best.name, best.pipes, best.residuals, best.params_mean())
-        rungs.append(rung)
-        pool = [c for c in pool if c.name != best.name]
-    return rungs
