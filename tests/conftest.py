@@ -67,6 +67,9 @@ def repo_dir() -> Path:
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--all", action="store_true", dest="all_tiers",
                      help="run every test tier: also the slow and real-data tests a plain `pytest` leaves out")
+    parser.addoption("--px4", action="store_true", dest="px4_only",
+                     help="run only the PX4 SITL flights, one at a time (each SITL takes a whole core: run beside "
+                     "other tests or each other they starve the flights)")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -86,11 +89,17 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         where = f"{item.path.name}::{getattr(item, 'originalname', item.name)}"
         if item.path.name in SLOW_FILES or where in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+    px4 = [it for it in items if it.get_closest_marker("px4")]
+    if config.getoption("px4_only") or px4:  # --px4: those alone; any other run: all but those
+        drop = [it for it in items if (it in set(px4)) != bool(config.getoption("px4_only"))]
+        if drop:
+            config.hook.pytest_deselected(items=drop)
+            items[:] = [it for it in items if it not in set(drop)]
     if os.environ.get("PYTEST_XDIST_WORKER"):
         # parallel workers (pytest -n): the slow tests first (stable otherwise), so that the long ones start early
         # and the short ones fill the end instead of one worker finishing a flight while the others wait
         items.sort(key=lambda it: it.get_closest_marker("slow") is None)
-    fast_only = (not config.getoption("all_tiers") and not config.option.markexpr
+    fast_only = (not config.getoption("all_tiers") and not config.getoption("px4_only") and not config.option.markexpr
                  and config.args_source == pytest.Config.ArgsSource.TESTPATHS)
     if not fast_only:
         return

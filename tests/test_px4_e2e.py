@@ -33,6 +33,7 @@ ADAPTIVE = ROOT / "missions" / "spiral_adaptive.yaml"
 SPEEDUP = 10
 pytestmark = [
     pytest.mark.slow,
+    pytest.mark.px4,  # run by `pytest --px4`, one at a time, after the rest (tests/conftest.py)
     pytest.mark.skipif(not (PX4 / "bin" / "px4").exists() or not (PX4 / "start.sh").exists(),
                        reason="PX4 SITL not in ../shared/sitl/px4"),
 ]
