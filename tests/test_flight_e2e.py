@@ -420,7 +420,9 @@ def test_ctrl_c_twice_says_the_vehicle_was_left_in_flight(tmp_path):
     assert "parameters left changed: MPC_XY_CRUISE" in m["status"]
     assert "autopilot parameters left changed: MPC_XY_CRUISE (was 4.8)" in err
     assert m["budget"]["used_s"] is None  # never disarmed: no time is made up
-    assert err.strip().splitlines()[-1].startswith("error: aborted (SIGINT), vehicle left in flight at ")
+    last = err.strip().split("\nerror: ")[-1]  # the closing error, wrapped at 80 columns
+    assert last.startswith("aborted (SIGINT), vehicle left in flight at ")
+    assert max(len(ln) for ln in ("error: " + last).splitlines()) <= 80
 
 
 def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
