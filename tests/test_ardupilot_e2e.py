@@ -8,8 +8,10 @@ at the mission's speed (ArduPilot's defaults fly it tail first at 10 m/s).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -18,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _flight_logs import log_of, wait_rows
 from _sitl_process import SitlProcess, free_instance
 
 from mission.flightlog import PHASES, read_flight_log
@@ -171,3 +174,29 @@ def _attitude_agrees_with_ardupilot(log, spec) -> None:
     t_plan, pos = plan_profile(spec.waypoints_enu(), spec.kinematics()).sample(dt)
     planned = np.rad2deg(attitude_from_motion(t_plan, pos, spec.kinematics())[0][:, 0])
     assert abs(np.abs(planned).max() - np.abs(roll_ap).max()) < 5.0, (np.abs(planned).max(), np.abs(roll_ap).max())
+
+
+def test_terminal_ctrl_c_on_ardupilot_returns_and_lands(ardupilot, tmp_path):
+    """Issue 37's signal case against a real autopilot: a terminal's Ctrl-C reaches fly-mission's whole process
+    group (the live-estimate worker too) mid-mission; ArduCopter is sent home and lands, the exit is 130 with no
+    traceback, and the sidecar says aborted with the rows it holds.  The moment is picked on the log's rows."""
+    out = tmp_path / "flights"
+    p = subprocess.Popen(
+        [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", ardupilot.url, "--speedup", str(SPEEDUP),
+         "--out", str(out), "--no-localize", "--link-timeout", "60"],
+        cwd=ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True)
+    try:
+        wait_rows(out, 1500, 120)
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=240)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(p.pid, signal.SIGKILL)
+    assert p.returncode == 130, err[-3000:] + f"\nSITL alive: {ardupilot.alive()}"
+    assert "Traceback" not in err and "return to launch commanded" in err, err[-3000:]
+    log = read_flight_log(log_of(out))
+    assert log.meta["status"].startswith("aborted (SIGINT)") and "completed" not in log.meta["status"]
+    assert log.meta["rows"] == len(log)
+    assert any(e["kind"] == "landed" for e in log.meta["events"])
+    assert log["rel_alt_m"][-1] < 1.0

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _flight_logs import log_of as _log_of
+from _flight_logs import wait_rows as _wait_rows
 
 from mission.flight.runner import free_udp_port
 from mission.flightlog import read_flight_log
@@ -45,22 +47,6 @@ def _vehicle(port: int, speedup: float) -> subprocess.Popen:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-
-
-def _log_of(out: Path) -> Path:
-    logs = sorted(out.glob("*/flight.csv"))
-    assert len(logs) == 1, logs
-    return logs[0]
-
-
-def _wait_rows(out: Path, rows: int, timeout: float) -> Path:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        logs = list(out.glob("*/flight.csv"))
-        if logs and sum(1 for _ in open(logs[0])) > rows:
-            return logs[0]
-        time.sleep(0.5)
-    raise AssertionError(f"no log with {rows} rows under {out}")
 
 
 def test_spiral_end_to_end(tmp_path, repo_dir):

@@ -1,0 +1,25 @@
+"""The flight log a ``fly-mission`` run under test writes, found and waited for (the end-to-end flight tests)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+
+def log_of(out: Path) -> Path:
+    """The one ``flight.csv`` under ``out``."""
+    logs = sorted(out.glob("*/flight.csv"))
+    assert len(logs) == 1, logs
+    return logs[0]
+
+
+def wait_rows(out: Path, rows: int, timeout: float) -> Path:
+    """The log under ``out`` once it holds more than ``rows`` rows: a moment picked on the flight's own progress,
+    not on the wall clock or on stderr text."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        logs = list(out.glob("*/flight.csv"))
+        if logs and sum(1 for _ in open(logs[0])) > rows:
+            return logs[0]
+        time.sleep(0.5)
+    raise AssertionError(f"no log with {rows} rows under {out}")
