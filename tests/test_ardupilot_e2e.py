@@ -176,10 +176,12 @@ def _attitude_agrees_with_ardupilot(log, spec) -> None:
     assert abs(np.abs(planned).max() - np.abs(roll_ap).max()) < 5.0, (np.abs(planned).max(), np.abs(roll_ap).max())
 
 
-def test_terminal_ctrl_c_on_ardupilot_returns_and_lands(ardupilot, tmp_path):
-    """Issue 37's signal case against a real autopilot: a terminal's Ctrl-C reaches fly-mission's whole process
-    group (the live-estimate worker too) mid-mission; ArduCopter is sent home and lands, the exit is 130 with no
-    traceback, and the sidecar says aborted with the rows it holds.  The moment is picked on the log's rows."""
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGHUP], ids=["SIGINT", "SIGHUP"])
+def test_terminal_signal_on_ardupilot_returns_and_lands(ardupilot, tmp_path, sig):
+    """Issue 37's signal cases against a real autopilot: a terminal's Ctrl-C (or a lost SSH session's SIGHUP)
+    reaches fly-mission's whole process group (the live-estimate worker too) mid-mission; ArduCopter is sent home
+    and lands, the exit is 130 with no traceback, and the sidecar says aborted with the rows it holds.  The moment
+    is picked on the log's rows."""
     out = tmp_path / "flights"
     p = subprocess.Popen(
         [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", ardupilot.url, "--speedup", str(SPEEDUP),
@@ -188,7 +190,7 @@ def test_terminal_ctrl_c_on_ardupilot_returns_and_lands(ardupilot, tmp_path):
         text=True, start_new_session=True)
     try:
         wait_rows(out, 1500, 120)
-        os.killpg(p.pid, signal.SIGINT)
+        os.killpg(p.pid, sig)
         _, err = p.communicate(timeout=240)
     finally:
         with contextlib.suppress(ProcessLookupError):
@@ -196,7 +198,7 @@ def test_terminal_ctrl_c_on_ardupilot_returns_and_lands(ardupilot, tmp_path):
     assert p.returncode == 130, err[-3000:] + f"\nSITL alive: {ardupilot.alive()}"
     assert "Traceback" not in err and "return to launch commanded" in err, err[-3000:]
     log = read_flight_log(log_of(out))
-    assert log.meta["status"].startswith("aborted (SIGINT)") and "completed" not in log.meta["status"]
+    assert log.meta["status"].startswith(f"aborted ({sig.name})") and "completed" not in log.meta["status"]
     assert log.meta["rows"] == len(log)
     assert any(e["kind"] == "landed" for e in log.meta["events"])
     assert log["rel_alt_m"][-1] < 1.0
