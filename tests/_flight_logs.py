@@ -1,7 +1,12 @@
-"""The flight log a ``fly-mission`` run under test writes, found and waited for (the end-to-end flight tests)."""
+"""The flight log a ``fly-mission`` run under test writes, found and waited for (the end-to-end
+flight tests)."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import subprocess
 import time
 from pathlib import Path
 
@@ -14,8 +19,8 @@ def log_of(out: Path) -> Path:
 
 
 def wait_rows(out: Path, rows: int, timeout: float) -> Path:
-    """The log under ``out`` once it holds more than ``rows`` rows: a moment picked on the flight's own progress,
-    not on the wall clock or on stderr text."""
+    """The log under ``out`` once it holds more than ``rows`` rows: a moment picked on the flight's
+    own progress, not on the wall clock or on stderr text."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         logs = list(out.glob("*/flight.csv"))
@@ -23,3 +28,17 @@ def wait_rows(out: Path, rows: int, timeout: float) -> Path:
             return logs[0]
         time.sleep(0.5)
     raise AssertionError(f"no log with {rows} rows under {out}")
+
+
+def signal_group_at_rows(p: subprocess.Popen, out: Path, rows: int, sig: int, wait_s: float,
+                         exit_s: float) -> str:
+    """Send ``sig`` to the whole process group of ``p`` (as a terminal does) once its log under
+    ``out`` holds ``rows`` rows, and give its stderr once it exits; the group is killed if anything
+    of it is left."""
+    try:
+        wait_rows(out, rows, wait_s)
+        os.killpg(p.pid, sig)
+        return p.communicate(timeout=exit_s)[1]
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(p.pid, signal.SIGKILL)

@@ -8,7 +8,6 @@ at the mission's speed (ArduPilot's defaults fly it tail first at 10 m/s).
 
 from __future__ import annotations
 
-import contextlib
 import os
 import shutil
 import signal
@@ -20,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _flight_logs import log_of, wait_rows
+from _flight_logs import log_of, signal_group_at_rows
 from _sitl_process import SitlProcess, free_instance
 
 from mission.flightlog import PHASES, read_flight_log
@@ -75,12 +74,18 @@ def _wrap_deg(a):
     return (np.asarray(a) + 180.0) % 360.0 - 180.0
 
 
+def _spiral_cmd(url: str, out: Path) -> list[str]:
+    """``fly-mission`` flying the spiral against the SITL at ``url``, logging under ``out``."""
+    return [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", url,
+            "--speedup", str(SPEEDUP), "--out", str(out), "--no-localize", "--link-timeout", "60"]
+
+
+ENV = dict(os.environ, PYTHONUNBUFFERED="1")
+
+
 def _fly_spiral(url: str, out: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", url, "--speedup", str(SPEEDUP),
-         "--out", str(out), "--no-localize", "--link-timeout", "60"],
-        cwd=ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), capture_output=True, text=True, timeout=300,
-    )
+    return subprocess.run(_spiral_cmd(url, out), cwd=ROOT, env=ENV, capture_output=True, text=True,
+                          timeout=300)
 
 
 def test_spiral_on_ardupilot(ardupilot, tmp_path):
@@ -178,27 +183,19 @@ def _attitude_agrees_with_ardupilot(log, spec) -> None:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGHUP], ids=["SIGINT", "SIGHUP"])
 def test_terminal_signal_on_ardupilot_returns_and_lands(ardupilot, tmp_path, sig):
-    """Issue 37's signal cases against a real autopilot: a terminal's Ctrl-C (or a lost SSH session's SIGHUP)
-    reaches fly-mission's whole process group (the live-estimate worker too) mid-mission; ArduCopter is sent home
-    and lands, the exit is 130 with no traceback, and the sidecar says aborted with the rows it holds.  The moment
-    is picked on the log's rows."""
+    """Issue 37's signal cases against a real autopilot: a terminal's Ctrl-C (or a lost SSH
+    session's SIGHUP) reaches fly-mission's whole process group (the live-estimate worker too)
+    mid-mission; ArduCopter is sent home and lands, the exit is 130 with no traceback, and the
+    sidecar says aborted with the rows it holds.  The moment is picked on the log's rows."""
     out = tmp_path / "flights"
-    p = subprocess.Popen(
-        [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", ardupilot.url, "--speedup", str(SPEEDUP),
-         "--out", str(out), "--no-localize", "--link-timeout", "60"],
-        cwd=ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True)
-    try:
-        wait_rows(out, 1500, 120)
-        os.killpg(p.pid, sig)
-        _, err = p.communicate(timeout=240)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(p.pid, signal.SIGKILL)
+    p = subprocess.Popen(_spiral_cmd(ardupilot.url, out), cwd=ROOT, env=ENV, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    err = signal_group_at_rows(p, out, 1500, sig, 120, 240)
     assert p.returncode == 130, err[-3000:] + f"\nSITL alive: {ardupilot.alive()}"
     assert "Traceback" not in err and "return to launch commanded" in err, err[-3000:]
     log = read_flight_log(log_of(out))
-    assert log.meta["status"].startswith(f"aborted ({sig.name})") and "completed" not in log.meta["status"]
+    status = log.meta["status"]
+    assert status.startswith(f"aborted ({sig.name})") and "completed" not in status
     assert log.meta["rows"] == len(log)
     assert any(e["kind"] == "landed" for e in log.meta["events"])
     assert log["rel_alt_m"][-1] < 1.0

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _flight_logs import log_of as _log_of
+from _flight_logs import signal_group_at_rows
 from _flight_logs import wait_rows as _wait_rows
 
 from mission.flight.runner import free_udp_port
@@ -356,13 +357,7 @@ def test_terminal_signal_to_the_whole_group_returns_to_launch(tmp_path, sig):
     live-estimate worker included: the flight still returns to launch and lands, exits 130 with no
     traceback, and the sidecar says aborted with the rows it holds.  The moment is picked on the log's rows."""
     p = _fly_group([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
-    try:
-        _wait_rows(tmp_path, 1500, 90)
-        os.killpg(p.pid, sig)
-        _, err = p.communicate(timeout=120)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(p.pid, signal.SIGKILL)
+    err = signal_group_at_rows(p, tmp_path, 1500, sig, 90, 120)
     assert p.returncode == 130, err[-3000:]
     assert "Traceback" not in err, err[-3000:]
     assert "return to launch commanded" in err
