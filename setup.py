@@ -25,7 +25,9 @@ class BuildPyWithShipped(build_py):
         for folder, patterns in SHIPPED.items():
             files = sorted(f for pat in patterns for f in (ROOT / folder).glob(pat))
             if not files:
-                raise SystemExit(f"setup.py: nothing to ship in {ROOT / folder} ({', '.join(patterns)})")
+                raise SystemExit(
+                    f"setup.py: nothing to ship in {ROOT / folder} ({', '.join(patterns)})"
+                )
             dest = Path(self.build_lib) / "mission" / "data" / folder
             dest.mkdir(parents=True, exist_ok=True)
             for f in files:

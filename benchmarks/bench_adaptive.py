@@ -51,32 +51,50 @@ def table(rows: list[dict]) -> str:
     from mission.adaptive.compare import summarize_pairs
 
     s = summarize_pairs(rows)
-    lines = [f"{s['n']} flights (of {s['n_total']}); 90 % bootstrap intervals over flights",
-             "| mission | mean error m | adaptive - fixed m | p90 m | 90 % coverage | region m^2 (median) | flight s "
-             "| rounds |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = [
+        f"{s['n']} flights (of {s['n_total']}); 90 % bootstrap intervals over flights",
+        "| mission | mean error m | adaptive - fixed m | p90 m | 90 % coverage | region m^2 (median) | flight s "
+        "| rounds |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for k in ("fixed", "adaptive"):
         r = s[k]
         diff = "-" if k == "fixed" else r["diff"].fmt()
-        lines.append(f"| {k} | {r['mean'].fmt()} | {diff} | {r['p90_m']:.1f} | {100 * r['coverage']:.0f} % | "
-                     f"{r['area_m2']:.0f} | {r['duration_s']:.0f} | {r['rounds']:.1f} |")
+        lines.append(
+            f"| {k} | {r['mean'].fmt()} | {diff} | {r['p90_m']:.1f} | {100 * r['coverage']:.0f} % | "
+            f"{r['area_m2']:.0f} | {r['duration_s']:.0f} | {r['rounds']:.1f} |"
+        )
     if s["fast"]:
-        lines.append(f"fast estimate (3 min, same survey for both): mean {s['fast'][0].fmt()} m, "
-                     f"p90 {s['fast'][1]:.1f} m")
+        lines.append(
+            f"fast estimate (3 min, same survey for both): mean {s['fast'][0].fmt()} m, "
+            f"p90 {s['fast'][1]:.1f} m"
+        )
     halves = s["ratio"] <= 0.5 and s["adaptive"]["diff"].hi < 0
-    lines.append(f"adaptive / fixed mean error = {s['ratio']:.2f}: {'halves' if halves else 'does not halve'} the "
-                 "fixed spiral's error (rule: ratio <= 0.5 and the paired interval below zero)")
+    lines.append(
+        f"adaptive / fixed mean error = {s['ratio']:.2f}: {'halves' if halves else 'does not halve'} the "
+        "fixed spiral's error (rule: ratio <= 0.5 and the paired interval below zero)"
+    )
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--mission", default="missions/spiral_adaptive.yaml")
-    p.add_argument("--family", default="afar", help="physics family: a shipped name or a fitted JSON file")
+    p.add_argument(
+        "--family", default="afar", help="physics family: a shipped name or a fitted JSON file"
+    )
     p.add_argument("--flights", type=int, default=40)
     p.add_argument("--seed", type=int, default=2025)
-    p.add_argument("--dt", type=float, default=0.1, help="RSS sample period s (0.1: cells average alike, 3x faster)")
+    p.add_argument(
+        "--dt",
+        type=float,
+        default=0.1,
+        help="RSS sample period s (0.1: cells average alike, 3x faster)",
+    )
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override an adaptive: key")
+    p.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override an adaptive: key"
+    )
     p.add_argument("--json", type=Path, help="write the per-flight results")
     a = p.parse_args(argv)
     sets = dict((k, _value(v)) for k, v in (s.split("=", 1) for s in a.set))
@@ -84,10 +102,14 @@ def main(argv=None) -> int:
     from rich.progress import track
 
     with ProcessPoolExecutor(a.jobs) as ex:
-        rows = list(track(ex.map(one_flight, jobs), total=len(jobs), description="flights", transient=True))
+        rows = list(
+            track(ex.map(one_flight, jobs), total=len(jobs), description="flights", transient=True)
+        )
     if a.json:
         a.json.write_text(json.dumps(rows, indent=1))
-    print(f"mission {a.mission}, family {a.family}, seed {a.seed}, adaptive overrides {sets or 'none'}")
+    print(
+        f"mission {a.mission}, family {a.family}, seed {a.seed}, adaptive overrides {sets or 'none'}"
+    )
     print(table(rows))
     return 0
 

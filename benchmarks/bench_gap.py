@@ -74,7 +74,9 @@ def correct(row: dict) -> bool:
         tp = row.get("time_power") or {}
         return tp.get("detectable_db", 0.0) > max(abs(a) for a in row["truth"]["amp_db"])
     nn = row.get("near_nadir") or {}
-    return row["expected"] == "near_nadir" and nn.get("detectable_db", 0.0) > row["truth"]["depth_db"]
+    return (
+        row["expected"] == "near_nadir" and nn.get("detectable_db", 0.0) > row["truth"]["depth_db"]
+    )
 
 
 def _one_case(case: tuple[str, int, float, float]) -> dict:
@@ -105,38 +107,73 @@ def selftest(args: argparse.Namespace) -> int:
     strengths = [float(x) for x in args.strengths.split(",")]
     rows = []
     t0 = time.time()
-    cases = [(e, s, k) for k in strengths for s in seeds  # strengths, seeds, effects: a partial run covers all
-             for e in (effects if k == strengths[0] else [x for x in effects if x != "none"])]
+    cases = [
+        (e, s, k)
+        for k in strengths
+        for s in seeds  # strengths, seeds, effects: a partial run covers all
+        for e in (effects if k == strengths[0] else [x for x in effects if x != "none"])
+    ]
     for (e, s, k), r in zip(cases, _cases_map(cases, args.dt, args.jobs), strict=True):
         fp = r.get("footprint", {})
-        rows.append({"effect": e, "seed": s, "strength": k, "expected": EXPECTED[e], "named": r["named"],
-                     "hit": r["hit"], "size_db": fp.get("size_db"), "where": fp.get("where"),
-                     "params": r.get("params"), "truth": r["truth"],
-                     "verdict": r["structure"]["verdict"], "significant": r["significant"],
-                     "near_nadir": r.get("near_nadir"), "time_power": r.get("time_power"),
-                     "frame": r.get("frame")})
+        rows.append(
+            {
+                "effect": e,
+                "seed": s,
+                "strength": k,
+                "expected": EXPECTED[e],
+                "named": r["named"],
+                "hit": r["hit"],
+                "size_db": fp.get("size_db"),
+                "where": fp.get("where"),
+                "params": r.get("params"),
+                "truth": r["truth"],
+                "verdict": r["structure"]["verdict"],
+                "significant": r["significant"],
+                "near_nadir": r.get("near_nadir"),
+                "time_power": r.get("time_power"),
+                "frame": r.get("frame"),
+            }
+        )
         rows[-1]["correct"] = correct(rows[-1])
         nn = r.get("near_nadir") or {}
-        extra = f" nadir: {nn['samples']} samples, detectable {nn['detectable_db']:.1f} dB" \
-            if e.startswith("nadir") else ""
+        extra = (
+            f" nadir: {nn['samples']} samples, detectable {nn['detectable_db']:.1f} dB"
+            if e.startswith("nadir")
+            else ""
+        )
         mark = "HIT " if r["hit"] else "SAID" if rows[-1]["correct"] else "MISS"
-        print(f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} {mark} "
-              f"size {fp.get('size_db', float('nan')):5.1f} dB{extra} ({time.time() - t0:.0f} s)", flush=True)
+        print(
+            f"{e:10s} x{k:<4g} seed {s}: named {r['named'] or 'nothing':17s} {mark} "
+            f"size {fp.get('size_db', float('nan')):5.1f} dB{extra} ({time.time() - t0:.0f} s)",
+            flush=True,
+        )
         Path(args.out).write_text(json.dumps({"rows": rows}, indent=1, default=str))
-    cols = sorted({str(r["named"] or "nothing") for r in rows} | {str(EXPECTED[e] or "nothing") for e in effects})
+    cols = sorted(
+        {str(r["named"] or "nothing") for r in rows}
+        | {str(EXPECTED[e] or "nothing") for e in effects}
+    )
     print("\n| withheld \\ named | " + " | ".join(cols) + " | named first | correct |")
     print("| --- | " + " | ".join("---" for _ in cols) + " | --- | --- |")
     for e in effects:
         rr = [r for r in rows if r["effect"] == e]
         cnt = [sum(str(r["named"] or "nothing") == c for r in rr) for c in cols]
         hits, ok = sum(r["hit"] for r in rr), sum(r["correct"] for r in rr)
-        print(f"| {e} | " + " | ".join(str(c) if c else "." for c in cnt) + f" | {hits}/{len(rr)} | {ok}/{len(rr)} |")
+        print(
+            f"| {e} | "
+            + " | ".join(str(c) if c else "." for c in cnt)
+            + f" | {hits}/{len(rr)} | {ok}/{len(rr)} |"
+        )
     n_hit, n_ok = sum(r["hit"] for r in rows), sum(r["correct"] for r in rows)
-    print(f"\nnamed first: {n_hit}/{len(rows)} = {n_hit / len(rows):.0%}; correct (named first, or a near-nadir "
-          f"loss the power statement says cannot be shown): {n_ok}/{len(rows)} = {n_ok / len(rows):.0%}; "
-          f"{time.time() - t0:.0f} s")
-    Path(args.out).write_text(json.dumps({"rows": rows, "hits": n_hit, "correct": n_ok, "n": len(rows)}, indent=1,
-                                         default=str))
+    print(
+        f"\nnamed first: {n_hit}/{len(rows)} = {n_hit / len(rows):.0%}; correct (named first, or a near-nadir "
+        f"loss the power statement says cannot be shown): {n_ok}/{len(rows)} = {n_ok / len(rows):.0%}; "
+        f"{time.time() - t0:.0f} s"
+    )
+    Path(args.out).write_text(
+        json.dumps(
+            {"rows": rows, "hits": n_hit, "correct": n_ok, "n": len(rows)}, indent=1, default=str
+        )
+    )
     return 0 if n_ok == len(rows) else 1
 
 
@@ -153,22 +190,40 @@ def nadir_power(args: argparse.Namespace) -> int:
                 r = diagnose_case("nadir_over", s, strength=k, dt=args.dt, passes=p)
                 nn = r["near_nadir"]
                 says = nn["detectable_db"] <= r["truth"]["depth_db"]
-                rows.append({"passes": p, "strength": k, "seed": s, "depth_db": r["truth"]["depth_db"],
-                             "named": r["named"], "found": r["named"] == "near_nadir", "samples": nn["samples"],
-                             "passes_seen": nn["passes"], "detectable_db": nn["detectable_db"], "says": says,
-                             "violation": says and r["named"] != "near_nadir"})
+                rows.append(
+                    {
+                        "passes": p,
+                        "strength": k,
+                        "seed": s,
+                        "depth_db": r["truth"]["depth_db"],
+                        "named": r["named"],
+                        "found": r["named"] == "near_nadir",
+                        "samples": nn["samples"],
+                        "passes_seen": nn["passes"],
+                        "detectable_db": nn["detectable_db"],
+                        "says": says,
+                        "violation": says and r["named"] != "near_nadir",
+                    }
+                )
                 q = rows[-1]
-                print(f"passes {p} x{k:<5g} seed {s}: {q['samples']:4d} samples in {q['passes_seen']:2d} passes, "
-                      f"detectable {q['detectable_db']:5.1f} dB vs depth {q['depth_db']:4.1f}: "
-                      f"{'says yes' if says else 'says no '}, named {q['named'] or 'nothing'}"
-                      f"{'  VIOLATION' if q['violation'] else ''} ({time.time() - t0:.0f} s)", flush=True)
+                print(
+                    f"passes {p} x{k:<5g} seed {s}: {q['samples']:4d} samples in {q['passes_seen']:2d} passes, "
+                    f"detectable {q['detectable_db']:5.1f} dB vs depth {q['depth_db']:4.1f}: "
+                    f"{'says yes' if says else 'says no '}, named {q['named'] or 'nothing'}"
+                    f"{'  VIOLATION' if q['violation'] else ''} ({time.time() - t0:.0f} s)",
+                    flush=True,
+                )
     n_says = sum(r["says"] for r in rows)
     n_viol = sum(r["violation"] for r in rows)
     n_cons = sum((not r["says"]) and r["found"] for r in rows)
-    print(f"\n{len(rows)} cases: the statement said detectable in {n_says}, the diagnosis named near_nadir in "
-          f"{sum(r['found'] for r in rows)}; violations (said detectable, not named): {n_viol}; conservative "
-          f"(said not detectable, named anyway): {n_cons}")
-    Path(args.out).write_text(json.dumps({"rows": rows, "violations": n_viol}, indent=1, default=str))
+    print(
+        f"\n{len(rows)} cases: the statement said detectable in {n_says}, the diagnosis named near_nadir in "
+        f"{sum(r['found'] for r in rows)}; violations (said detectable, not named): {n_viol}; conservative "
+        f"(said not detectable, named anyway): {n_cons}"
+    )
+    Path(args.out).write_text(
+        json.dumps({"rows": rows, "violations": n_viol}, indent=1, default=str)
+    )
     return 0 if n_viol == 0 else 1
 
 
@@ -187,15 +242,24 @@ def suspect_loc3(flights) -> dict:
         k = 31
         sm = np.convolve(f.rss_dbm, np.ones(k) / k, mode="same")
         i = int(np.argmax(sm))
-        row = {"strongest_rss_enu": f.enu_m[i, :2].round(1).tolist(),
-               "strongest_to_label_m": float(np.hypot(*(f.enu_m[i, :2] - f.tx_enu_m[:2]))),
-               "label_enu": f.tx_enu_m[:2].round(1).tolist()}
+        row = {
+            "strongest_rss_enu": f.enu_m[i, :2].round(1).tolist(),
+            "strongest_to_label_m": float(np.hypot(*(f.enu_m[i, :2] - f.tx_enu_m[:2]))),
+            "label_enu": f.tx_enu_m[:2].round(1).tolist(),
+        }
         for name, pat in (("free-space", "isotropic"), ("e2r", "dipole")):
-            est = ModelGridSearch(LocalizationModel(base_pipeline(name, pat)), tx_height_m=DEFAULT_TX_HEIGHT_M,
-                                  area=AREA, step_m=10.0, loss="soft_l1")
+            est = ModelGridSearch(
+                LocalizationModel(base_pipeline(name, pat)),
+                tx_height_m=DEFAULT_TX_HEIGHT_M,
+                area=AREA,
+                step_m=10.0,
+                loss="soft_l1",
+            )
             e = est.predict(FlightSamples(f.enu_m, f.rss_dbm, f.attitude_rad))
             row[f"grid_{name}_enu"] = [round(e.x_m, 1), round(e.y_m, 1)]
-            row[f"grid_{name}_to_label_m"] = float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
+            row[f"grid_{name}_to_label_m"] = float(
+                np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1])
+            )
         out[f.name] = row
     return out
 
@@ -208,7 +272,9 @@ def colocated_differences(flights, resid, cell_m: float = 20.0) -> dict:
     by_site: dict = {}
     for f, r in zip(flights, resid, strict=True):
         ok = np.isfinite(r)
-        by_site.setdefault(tx_key(f.tx_enu_m), []).append((f.name, f.enu_m[ok, :2], r[ok] - np.median(r[ok])))
+        by_site.setdefault(tx_key(f.tx_enu_m), []).append(
+            (f.name, f.enu_m[ok, :2], r[ok] - np.median(r[ok]))
+        )
     out = {}
     for parts in by_site.values():
         if len(parts) != 2:
@@ -222,9 +288,13 @@ def colocated_differences(flights, resid, cell_m: float = 20.0) -> dict:
             continue
         a = np.array([ka[k][0] for k in common])
         b = np.array([kb[k][0] for k in common])
-        out[f"{na} vs {nb}"] = {"cells": len(common), "corr": float(np.corrcoef(a, b)[0, 1]),
-                                "std_a_db": float(a.std()), "std_b_db": float(b.std()),
-                                "std_diff_db": float(np.std(a - b))}
+        out[f"{na} vs {nb}"] = {
+            "cells": len(common),
+            "corr": float(np.corrcoef(a, b)[0, 1]),
+            "std_a_db": float(a.std()),
+            "std_b_db": float(b.std()),
+            "std_diff_db": float(np.std(a - b)),
+        }
     return out
 
 
@@ -239,8 +309,12 @@ def floor(d, cfg, names: list[str] | None = None) -> dict:
     for k in ("along_path", "spatial"):
         v = st[k]
         tot = float(np.hypot(v["sigma_db"], v["nugget_db"]))
-        out[f"variogram_{k}"] = {"sigma_db": v["sigma_db"], "nugget_db": v["nugget_db"], "total_db": tot,
-                                 "gaussian_p90_db": 1.645 * tot}
+        out[f"variogram_{k}"] = {
+            "sigma_db": v["sigma_db"],
+            "nugget_db": v["nugget_db"],
+            "total_db": tot,
+            "gaussian_p90_db": 1.645 * tot,
+        }
     out["heldout_final"] = summarize(_pooled(final.residuals)).as_dict()
     # in-sample oracle (leakage, a bound only): the final rung's effects (or ``names``) refitted on all samples
     # and scored on the same samples
@@ -271,14 +345,25 @@ def sequence(d, cfg, names: list[str]) -> list[dict]:
     folds = make_folds(d.flights, cfg)
     rng = np.random.default_rng(cfg.seed)
     pipes, res = d.rungs[0].pipes, d.rungs[0].residuals
-    rows = [{"added": None, **summarize(_pooled(res)).as_dict(), "per_flight": {
-        f.name: _p90(r) for f, r in zip(d.flights, res, strict=True)}}]
+    rows = [
+        {
+            "added": None,
+            **summarize(_pooled(res)).as_dict(),
+            "per_flight": {f.name: _p90(r) for f, r in zip(d.flights, res, strict=True)},
+        }
+    ]
     for name in names:
         r = rank_candidates(pipes, d.flights, folds, select([name]), cfg, rng, res)[0]
         pipes, res = r.pipes, r.residuals
-        rows.append({"added": name, **summarize(_pooled(res)).as_dict(), "significant_alone": r.significant,
-                     "rel_reduction": r.rel_reduction,
-                     "per_flight": {f.name: _p90(x) for f, x in zip(d.flights, res, strict=True)}})
+        rows.append(
+            {
+                "added": name,
+                **summarize(_pooled(res)).as_dict(),
+                "significant_alone": r.significant,
+                "rel_reduction": r.rel_reduction,
+                "per_flight": {f.name: _p90(x) for f, x in zip(d.flights, res, strict=True)},
+            }
+        )
     return rows
 
 
@@ -300,13 +385,23 @@ def real(args: argparse.Namespace) -> int:
     t_load = time.time()
     every = afar2023_flights(MAT)
     flights = [f for f in every if args.all or not is_afar2023_suspect(f.name)]
-    if args.replicate > len(flights):  # timing at the size of the 13-flight set: copies of the real flights
+    if args.replicate > len(
+        flights
+    ):  # timing at the size of the 13-flight set: copies of the real flights
         base_fl = list(flights)
         while len(flights) < args.replicate:
             f = base_fl[len(flights) % len(base_fl)]
-            flights.append(FlightSamples(name=f"{f.name}-copy{len(flights)}", t_s=f.t_s, enu_m=f.enu_m,
-                                         attitude_rad=f.attitude_rad, rss_dbm=f.rss_dbm,
-                                         tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]), meta=dict(f.meta)))
+            flights.append(
+                FlightSamples(
+                    name=f"{f.name}-copy{len(flights)}",
+                    t_s=f.t_s,
+                    enu_m=f.enu_m,
+                    attitude_rad=f.attitude_rad,
+                    rss_dbm=f.rss_dbm,
+                    tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]),
+                    meta=dict(f.meta),
+                )
+            )
     n = sum(len(f) for f in flights)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -316,50 +411,101 @@ def real(args: argparse.Namespace) -> int:
         c.print(extra["loc3"])
     t0, cpu0, ch0 = time.time(), time.process_time(), _children_cpu()
     c.print(f"{len(flights)} flights, {n} samples, loaded in {t0 - t_load:.1f} s")
-    cfg = FitConfig(split=args.split, loss="soft_l1", seed=0, rate_hz=args.rate_hz, workers=args.workers,
-                    slope=args.slope, fit_max_samples=args.fit_max, processes=args.processes)
-    d = diagnose(flights, base_pipeline("free-space", "isotropic"), select(args.candidates), cfg,
-                 base_label="free-space(iso)", localize=args.localize, area=AREA, progress=True)
+    cfg = FitConfig(
+        split=args.split,
+        loss="soft_l1",
+        seed=0,
+        rate_hz=args.rate_hz,
+        workers=args.workers,
+        slope=args.slope,
+        fit_max_samples=args.fit_max,
+        processes=args.processes,
+    )
+    d = diagnose(
+        flights,
+        base_pipeline("free-space", "isotropic"),
+        select(args.candidates),
+        cfg,
+        base_label="free-space(iso)",
+        localize=args.localize,
+        area=AREA,
+        progress=True,
+    )
     dt, cpu = time.time() - t0, time.process_time() - cpu0
     print_report(d, c)
     write_report(d, out)
     s = summary(d)
     s["gaps"] = {g.name: {"pooled": g.pooled, "per_flight": g.per_flight} for g in d.gaps}
-    s["heldout_per_flight"] = {f.name: {r.label: _p90(r.residuals[k]) for r in d.rungs}
-                               for k, f in enumerate(d.flights)}
-    s["timing"] = {"seconds": dt, "cpu_seconds": cpu, "samples": n, "flights": len(flights),
-                   "s_per_10k_samples": dt / n * 1e4,
-                   "extrapolated_270k_s": dt / n * 270_000, "rate_hz": args.rate_hz, "workers": args.workers,
-                   "processes": args.processes, "load_avg_1_5_15": list(os.getloadavg()),
-                   "children_cpu_seconds": _children_cpu() - ch0}
+    s["heldout_per_flight"] = {
+        f.name: {r.label: _p90(r.residuals[k]) for r in d.rungs} for k, f in enumerate(d.flights)
+    }
+    s["timing"] = {
+        "seconds": dt,
+        "cpu_seconds": cpu,
+        "samples": n,
+        "flights": len(flights),
+        "s_per_10k_samples": dt / n * 1e4,
+        "extrapolated_270k_s": dt / n * 270_000,
+        "rate_hz": args.rate_hz,
+        "workers": args.workers,
+        "processes": args.processes,
+        "load_avg_1_5_15": list(os.getloadavg()),
+        "children_cpu_seconds": _children_cpu() - ch0,
+    }
     if d.localization:
         s["localization"] = d.localization
-    c.print(f"diagnosis of {len(flights)} flights ({n} samples): {dt:.1f} s wall, {cpu:.1f} s CPU "
-            f"(+ {s['timing']['children_cpu_seconds']:.1f} s in {args.processes} worker processes; load "
-            f"{os.getloadavg()[0]:.1f}) "
-            f"({dt / n * 1e4:.2f} s per 10k samples; linear extrapolation to 13 flights, ~270 000 samples: "
-            f"{dt / n * 270_000:.0f} s; the fits are capped per fold, so this is an upper bound)")
+    c.print(
+        f"diagnosis of {len(flights)} flights ({n} samples): {dt:.1f} s wall, {cpu:.1f} s CPU "
+        f"(+ {s['timing']['children_cpu_seconds']:.1f} s in {args.processes} worker processes; load "
+        f"{os.getloadavg()[0]:.1f}) "
+        f"({dt / n * 1e4:.2f} s per 10k samples; linear extrapolation to 13 flights, ~270 000 samples: "
+        f"{dt / n * 270_000:.0f} s; the fits are capped per fold, so this is an upper bound)"
+    )
     for f in d.flights:
-        c.print(f"held-out p90 {f.name}: " + ", ".join(f"{v:.1f}" for v in s["heldout_per_flight"][f.name].values()))
+        c.print(
+            f"held-out p90 {f.name}: "
+            + ", ".join(f"{v:.1f}" for v in s["heldout_per_flight"][f.name].values())
+        )
     if args.sequence:
         s["sequence"] = sequence(d, cfg, args.sequence.split(","))
         for row in s["sequence"]:
-            c.print(f"sequence + {row['added']}: median {row['median_abs_db']:.1f} p90 {row['p90_abs_db']:.1f} "
-                    f"rms {row['rms_db']:.1f} | " + " ".join(f"{k} {v:.1f}" for k, v in row["per_flight"].items()))
+            c.print(
+                f"sequence + {row['added']}: median {row['median_abs_db']:.1f} p90 {row['p90_abs_db']:.1f} "
+                f"rms {row['rms_db']:.1f} | "
+                + " ".join(f"{k} {v:.1f}" for k, v in row["per_flight"].items())
+            )
     if args.floor:
         s["floor"] = floor(d, cfg, args.sequence.split(",") if args.sequence else None)
         c.print({"floor": s["floor"]})
     if args.per_flight:
         s["per_flight_runs"] = {}
         for f in flights:
-            cf = FitConfig(split="blocks", loss="soft_l1", seed=0, rate_hz=args.rate_hz, workers=args.workers,
-                           slope=args.slope, fit_max_samples=args.fit_max)
-            df = diagnose([f], base_pipeline("free-space", "isotropic"), select(args.candidates), cf,
-                          base_label="free-space(iso)", localize=False)
+            cf = FitConfig(
+                split="blocks",
+                loss="soft_l1",
+                seed=0,
+                rate_hz=args.rate_hz,
+                workers=args.workers,
+                slope=args.slope,
+                fit_max_samples=args.fit_max,
+            )
+            df = diagnose(
+                [f],
+                base_pipeline("free-space", "isotropic"),
+                select(args.candidates),
+                cf,
+                base_label="free-space(iso)",
+                localize=False,
+            )
             write_report(df, out / f.name)
             s["per_flight_runs"][f.name] = summary(df)["ladder"]
-            c.print(f"{f.name} alone (blocks): " + ", ".join(
-                f"{r['rung']}: p90 {r['heldout']['p90_abs_db']:.1f}" for r in s["per_flight_runs"][f.name]))
+            c.print(
+                f"{f.name} alone (blocks): "
+                + ", ".join(
+                    f"{r['rung']}: p90 {r['heldout']['p90_abs_db']:.1f}"
+                    for r in s["per_flight_runs"][f.name]
+                )
+            )
     s.update(extra)
     (out / "bench.json").write_text(json.dumps(s, indent=1, default=str))
     return 0
@@ -381,8 +527,11 @@ def family_check(args: argparse.Namespace) -> int:
         print(f"no AFAR data at {MAT}", file=sys.stderr)
         return 2
     rec = json.loads(Path(args.family).read_text())
-    fl = [replace(decimate_flight(f, 3.0), name=f.name.replace("-loc", "_loc_"))
-          for f in afar2023_flights(MAT) if not is_afar2023_suspect(f.name)]
+    fl = [
+        replace(decimate_flight(f, 3.0), name=f.name.replace("-loc", "_loc_"))
+        for f in afar2023_flights(MAT)
+        if not is_afar2023_suspect(f.name)
+    ]
     cfg = FitConfig(loss="soft_l1", rate_hz=3.0, workers=args.workers)
     t0 = time.time()
     out = {"family": args.family, "repeats": []}
@@ -390,16 +539,23 @@ def family_check(args: argparse.Namespace) -> int:
         lc = loop_check(rec, fl, cfg, seed=100 + k)
         out["repeats"].append({q: v for q, v in lc.items() if q not in ("draws", "refit")})
         p = lc["heldout_p90_db"]
-        print(f"copy {k + 1}: p90 sim {p['sim']:.1f} vs real {p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} "
-              f"dB, range {lc['range_m']['sim']:.0f} m; params inside: "
-              f"{sum(v['inside'] for v in lc['params'].values())}/{len(lc['params'])} ({time.time() - t0:.0f} s)",
-              flush=True)
+        print(
+            f"copy {k + 1}: p90 sim {p['sim']:.1f} vs real {p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} "
+            f"dB, range {lc['range_m']['sim']:.0f} m; params inside: "
+            f"{sum(v['inside'] for v in lc['params'].values())}/{len(lc['params'])} ({time.time() - t0:.0f} s)",
+            flush=True,
+        )
         Path(args.out).write_text(json.dumps(out, indent=1, default=str))
     sims = [r["heldout_p90_db"]["sim"] for r in out["repeats"]]
     real_p90 = out["repeats"][0]["heldout_p90_db"]["real"]
-    out["p90_sim_mean"], out["p90_sim_sd"] = float(np.mean(sims)), float(np.std(sims, ddof=1)) if len(sims) > 1 else 0.0
-    print(f"held-out p90 over {len(sims)} copies of the {len(fl)} tracks: {out['p90_sim_mean']:.1f} "
-          f"(sd {out['p90_sim_sd']:.1f}) vs real {real_p90:.1f} dB")
+    out["p90_sim_mean"], out["p90_sim_sd"] = (
+        float(np.mean(sims)),
+        float(np.std(sims, ddof=1)) if len(sims) > 1 else 0.0,
+    )
+    print(
+        f"held-out p90 over {len(sims)} copies of the {len(fl)} tracks: {out['p90_sim_mean']:.1f} "
+        f"(sd {out['p90_sim_sd']:.1f}) vs real {real_p90:.1f} dB"
+    )
     Path(args.out).write_text(json.dumps(out, indent=1, default=str))
     return 0
 
@@ -423,7 +579,9 @@ def main(argv: list[str] | None = None) -> int:
     a = sub.add_parser("selftest")
     a.add_argument("--seeds", default="1,2,3")
     a.add_argument("--effects", default="all")
-    a.add_argument("--strengths", default="1", help="effect sizes relative to the generator's (e.g. 1,0.5)")
+    a.add_argument(
+        "--strengths", default="1", help="effect sizes relative to the generator's (e.g. 1,0.5)"
+    )
     a.add_argument("--dt", type=float, default=0.25, help="generator sample interval s (0.25)")
     a.add_argument("--jobs", type=int, default=1, help="cases run in this many processes (1)")
     a.add_argument("--out", default="bench_gap_selftest.json")
@@ -439,17 +597,42 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--workers", type=int, default=1)
     b.add_argument("--processes", type=int, default=1, help="processes for the candidate fits (1)")
     b.add_argument("--all", action="store_true", help="include the suspect flight 288-loc3")
-    b.add_argument("--replicate", type=int, default=0,
-                   help="pad to this many flights with copies of the real ones (timing at 13 flights)")
+    b.add_argument(
+        "--replicate",
+        type=int,
+        default=0,
+        help="pad to this many flights with copies of the real ones (timing at 13 flights)",
+    )
     b.add_argument("--candidates", default="all", help="comma-separated candidate names, or all")
-    b.add_argument("--sequence", default="", help="effects added in this order whatever their significance "
-                   "(comma-separated): the held-out share of the gap each closes")
-    b.add_argument("--floor", action="store_true", help="what no model fitted elsewhere can predict")
-    b.add_argument("--loc3", action="store_true", help="strongest RSS and grid-search estimate of the loc-3 flights")
-    b.add_argument("--per-flight", action="store_true", help="also each flight alone (blocks split)")
+    b.add_argument(
+        "--sequence",
+        default="",
+        help="effects added in this order whatever their significance "
+        "(comma-separated): the held-out share of the gap each closes",
+    )
+    b.add_argument(
+        "--floor", action="store_true", help="what no model fitted elsewhere can predict"
+    )
+    b.add_argument(
+        "--loc3",
+        action="store_true",
+        help="strongest RSS and grid-search estimate of the loc-3 flights",
+    )
+    b.add_argument(
+        "--per-flight", action="store_true", help="also each flight alone (blocks split)"
+    )
     b.add_argument("--localize", action="store_true", help="localization cost per rung")
-    b.add_argument("--slope", action="store_true", help="also fit a per-flight path-gain slope (held-out flight too)")
-    b.add_argument("--fit-max", type=int, default=3000, help="training samples per flight used by the optimiser")
+    b.add_argument(
+        "--slope",
+        action="store_true",
+        help="also fit a per-flight path-gain slope (held-out flight too)",
+    )
+    b.add_argument(
+        "--fit-max",
+        type=int,
+        default=3000,
+        help="training samples per flight used by the optimiser",
+    )
     b.add_argument("--out", default="gap_real_bench")
     c = sub.add_parser("family-check")
     c.add_argument("--family", default=str(REPO / "mission" / "data" / "afar_family.json"))

@@ -46,12 +46,18 @@ def _since(t0: tuple[float, float]) -> tuple[float, float]:
 def _fmt(samples: list[tuple[float, float]]) -> str:
     w = [s[0] for s in samples]
     c = [s[1] for s in samples]
-    return (f"wall median {statistics.median(w):.3f} s (min {min(w):.3f}, max {max(w):.3f}), "
-            f"CPU median {statistics.median(c):.3f} s")
+    return (
+        f"wall median {statistics.median(w):.3f} s (min {min(w):.3f}, max {max(w):.3f}), "
+        f"CPU median {statistics.median(c):.3f} s"
+    )
 
 
 def _load() -> str:
-    return "load average " + " ".join(f"{v:.2f}" for v in os.getloadavg()) + f" on {os.cpu_count()} cores"
+    return (
+        "load average "
+        + " ".join(f"{v:.2f}" for v in os.getloadavg())
+        + f" on {os.cpu_count()} cores"
+    )
 
 
 def simulated_log(folder: Path, n: int, seed: int = 0) -> Path:
@@ -66,27 +72,48 @@ def simulated_log(folder: Path, n: int, seed: int = 0) -> Path:
 
     spec = load_mission(REPO / "missions" / "spiral.yaml")
     tx = np.array([120.0, 180.0, DEFAULT_TX_HEIGHT_M])
-    fl = simulate_flight(spec.waypoints_enu(), tx, make_model("e2r"), spec.sim_config(), np.random.default_rng(seed))
+    fl = simulate_flight(
+        spec.waypoints_enu(), tx, make_model("e2r"), spec.sim_config(), np.random.default_rng(seed)
+    )
     cols = fl.log_columns(spec.field.origin)
     reps = int(np.ceil(n / len(cols["t_s"])))
     cols = {k: np.tile(v, reps)[:n] for k, v in cols.items()}
     cols["t_s"] = np.arange(n) * 0.03
-    return write_flight_log(folder / f"sim_{n}.csv", cols, make_meta(spec.field.origin, {"kind": "real"}))
+    return write_flight_log(
+        folder / f"sim_{n}.csv", cols, make_meta(spec.field.origin, {"kind": "real"})
+    )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--flights", default="all", help="'all' six real flights, or how many of them (0: none)")
-    ap.add_argument("--sim", action="store_true", help="also a simulated flight (always when ../shared is absent)")
+    ap.add_argument(
+        "--flights", default="all", help="'all' six real flights, or how many of them (0: none)"
+    )
+    ap.add_argument(
+        "--sim",
+        action="store_true",
+        help="also a simulated flight (always when ../shared is absent)",
+    )
     ap.add_argument("--samples", type=int, default=20000, help="samples of the simulated flight")
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--threads", type=int, default=None, help="RFSL_THREADS for this run (default: as set, else 1)")
-    ap.add_argument("--parts", action="store_true", help="also time the parts (read, selfcal, network)")
-    ap.add_argument("--method", default=None, help="time this method instead of the default (e.g. evidence)")
+    ap.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="RFSL_THREADS for this run (default: as set, else 1)",
+    )
+    ap.add_argument(
+        "--parts", action="store_true", help="also time the parts (read, selfcal, network)"
+    )
+    ap.add_argument(
+        "--method", default=None, help="time this method instead of the default (e.g. evidence)"
+    )
     args = ap.parse_args()
     if args.threads is not None:
         os.environ["RFSL_THREADS"] = str(args.threads)
-    print(f"python {sys.version.split()[0]}; RFSL_THREADS={os.environ.get('RFSL_THREADS', '(unset: 1)')}; {_load()}")
+    print(
+        f"python {sys.version.split()[0]}; RFSL_THREADS={os.environ.get('RFSL_THREADS', '(unset: 1)')}; {_load()}"
+    )
 
     t0 = _clock()
     import numpy  # noqa: F401
@@ -113,18 +140,30 @@ def main() -> None:
 
             for f in mats[:take]:
                 loc = int(f.stem.rsplit("_", 1)[1])
-                logs.append((f.stem.replace("results_useful_ori_exp_", "afar "),
-                             import_afar_mat(f, d, truth=AFAR2023_TRUTH[loc]).out_path))
+                logs.append(
+                    (
+                        f.stem.replace("results_useful_ori_exp_", "afar "),
+                        import_afar_mat(f, d, truth=AFAR2023_TRUTH[loc]).out_path,
+                    )
+                )
         if args.sim or not logs:
             logs.append((f"sim {args.samples}", simulated_log(d, args.samples)))
 
         t0 = _clock()
-        localize_log(logs[0][1], method=args.method)  # warm-up: first k-means, first pattern tables, lazy imports
+        localize_log(
+            logs[0][1], method=args.method
+        )  # warm-up: first k-means, first pattern tables, lazy imports
         t_warm = _since(t0)
-        print(f"start-up (once): imports {t_import[0]:.2f} s wall / {t_import[1]:.2f} s CPU; onnxruntime session "
-              f"{1e3 * t_session[0]:.1f} ms; first localize_log (warm-up) {t_warm[0]:.2f} s wall / "
-              f"{t_warm[1]:.2f} s CPU")
-        what = f"localize_log --method {args.method}" if args.method else "default localize_log (fusion)"
+        print(
+            f"start-up (once): imports {t_import[0]:.2f} s wall / {t_import[1]:.2f} s CPU; onnxruntime session "
+            f"{1e3 * t_session[0]:.1f} ms; first localize_log (warm-up) {t_warm[0]:.2f} s wall / "
+            f"{t_warm[1]:.2f} s CPU"
+        )
+        what = (
+            f"localize_log --method {args.method}"
+            if args.method
+            else "default localize_log (fusion)"
+        )
         print(f"{what} per flight, {args.repeat} repeats after start-up; target wall < 1 s")
         allw: list[tuple[float, float]] = []
         for name, path in logs:
@@ -134,14 +173,20 @@ def main() -> None:
                 est = localize_log(path, method=args.method)
                 runs.append(_since(t0))
             allw += runs
-            print(f"  {name:10s} {est.selection.used:6d}/{est.selection.total:6d} samples "
-                  f"({est.method}): {_fmt(runs)}")
+            print(
+                f"  {name:10s} {est.selection.used:6d}/{est.selection.total:6d} samples "
+                f"({est.method}): {_fmt(runs)}"
+            )
             if args.parts:
                 from mission.flightlog import read_flight_log
                 from mission.localize.preprocess import select_samples
 
-                parts: dict[str, list[tuple[float, float]]] = {"read+select": [], "selfcal": [], "network": [],
-                                                               "session": []}
+                parts: dict[str, list[tuple[float, float]]] = {
+                    "read+select": [],
+                    "selfcal": [],
+                    "network": [],
+                    "session": [],
+                }
                 for _ in range(args.repeat):
                     t0 = _clock()
                     log = read_flight_log(path)

@@ -42,7 +42,10 @@ def run_one(mission: Path, speedup: float) -> dict:
     c0 = _cpu()
     veh = subprocess.Popen(
         [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup)]
-        + ["--kinematics", kin],  # the mission's kinematics, as fly-mission's embedded vehicle gets them
+        + [
+            "--kinematics",
+            kin,
+        ],  # the mission's kinematics, as fly-mission's embedded vehicle gets them
         cwd=ROOT,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

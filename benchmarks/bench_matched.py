@@ -40,7 +40,11 @@ METHODS = ("matched", "fusion", "selfcal")
 
 
 def _load() -> str:
-    return "load average " + " ".join(f"{v:.2f}" for v in os.getloadavg()) + f" on {os.cpu_count()} cores"
+    return (
+        "load average "
+        + " ".join(f"{v:.2f}" for v in os.getloadavg())
+        + f" on {os.cpu_count()} cores"
+    )
 
 
 def real_logs(folder: Path) -> list[tuple[str, Path]]:
@@ -50,7 +54,14 @@ def real_logs(folder: Path) -> list[tuple[str, Path]]:
     out = []
     for f in sorted(AFAR_MAT.glob("results_useful_ori_exp_*_loc_*.mat")):
         name = f.stem.replace("results_useful_ori_exp_", "")
-        out.append((name, import_afar_mat(f, folder, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]).out_path))
+        out.append(
+            (
+                name,
+                import_afar_mat(
+                    f, folder, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]
+                ).out_path,
+            )
+        )
     return out
 
 
@@ -63,10 +74,12 @@ def score(log, truth_xy, methods=METHODS) -> dict:
     for m in methods:
         t0 = time.perf_counter()
         est = localize_log(log, method=m)
-        row[m] = {"error_m": float(np.hypot(est.x_m - truth_xy[0], est.y_m - truth_xy[1])),
-                  "wall_s": time.perf_counter() - t0,
-                  "cover50": region_covers(est, truth_xy[0], truth_xy[1], 0.5),
-                  "cover90": region_covers(est, truth_xy[0], truth_xy[1], 0.9)}
+        row[m] = {
+            "error_m": float(np.hypot(est.x_m - truth_xy[0], est.y_m - truth_xy[1])),
+            "wall_s": time.perf_counter() - t0,
+            "cover50": region_covers(est, truth_xy[0], truth_xy[1], 0.5),
+            "cover90": region_covers(est, truth_xy[0], truth_xy[1], 0.9),
+        }
         if "sim_check" in est.extras:
             row[m]["sim_check"] = est.extras["sim_check"]
     return row
@@ -93,7 +106,11 @@ def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dic
     from mission.evidence import compare_methods
 
     errs = {m: [r[m]["error_m"] for r in rows] for m in methods}
-    out: dict = {"n": len(rows), "methods": list(methods), "flights": compare_methods(errs, "fusion", seed=0)}
+    out: dict = {
+        "n": len(rows),
+        "methods": list(methods),
+        "flights": compare_methods(errs, "fusion", seed=0),
+    }
     if teams:
         out["teams"] = compare_methods(errs, "fusion", groups=teams, seed=0)
     for m in methods:
@@ -106,11 +123,15 @@ def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dic
 
 
 def print_summary(s: dict) -> None:
-    print(f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} {'50%':>6s} {'90%':>6s}")
+    print(
+        f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} {'50%':>6s} {'90%':>6s}"
+    )
     for m in s["methods"]:
         f = s["flights"][m]
-        print(f"{m:8s} {f['mean'].fmt():>24s} {f['diff'].fmt():>20s} {s[m]['median_m']:7.1f} "
-              f"{s[m]['cover50']:>6s} {s[m]['cover90']:>6s}")
+        print(
+            f"{m:8s} {f['mean'].fmt():>24s} {f['diff'].fmt():>20s} {s[m]['median_m']:7.1f} "
+            f"{s[m]['cover50']:>6s} {s[m]['cover90']:>6s}"
+        )
     if "teams" in s:
         print("over teams (cluster bootstrap):")
         for m in s["methods"]:
@@ -133,13 +154,27 @@ def main() -> None:
     ap.add_argument("--mode", choices=("time", "real", "sim"), default="time")
     ap.add_argument("--flights", type=int, default=6, help="time mode: how many real flights")
     ap.add_argument("--n", type=int, default=50, help="sim mode: number of suite flights")
-    ap.add_argument("--seed", type=int, default=2026, help="sim mode: suite seed (2026 = the benchmark)")
-    ap.add_argument("--family", default=str(FAMILY),
-                    help="physics family JSON the matched localizer draws from (and, sim mode, the suite's)")
+    ap.add_argument(
+        "--seed", type=int, default=2026, help="sim mode: suite seed (2026 = the benchmark)"
+    )
+    ap.add_argument(
+        "--family",
+        default=str(FAMILY),
+        help="physics family JSON the matched localizer draws from (and, sim mode, the suite's)",
+    )
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated; must include fusion (reference)")
-    ap.add_argument("--held-out-family", action="append", default=[], metavar="TEAM=F.json",
-                    help="real mode: matched draws from F.json (fitted without TEAM) on TEAM's flights")
+    ap.add_argument(
+        "--methods",
+        default=",".join(METHODS),
+        help="comma-separated; must include fusion (reference)",
+    )
+    ap.add_argument(
+        "--held-out-family",
+        action="append",
+        default=[],
+        metavar="TEAM=F.json",
+        help="real mode: matched draws from F.json (fitted without TEAM) on TEAM's flights",
+    )
     ap.add_argument("--json", help="write per-flight rows and the summary here")
     args = ap.parse_args()
     held_out = dict(a.split("=", 1) for a in args.held_out_family)
@@ -160,9 +195,11 @@ def main() -> None:
             for name, log in logs:
                 w0, c0 = time.perf_counter(), time.process_time()
                 est = localize_log(log, method="matched")
-                print(f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU {time.process_time() - c0:.1f} s, "
-                      f"{est.selection.used} samples, {est.extras['n_cells']} cells, "
-                      f"{est.extras['n_draws']} draws; {_load()}")
+                print(
+                    f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU {time.process_time() - c0:.1f} s, "
+                    f"{est.selection.used} samples, {est.extras['n_cells']} cells, "
+                    f"{est.extras['n_draws']} draws; {_load()}"
+                )
             return
         if args.mode == "real":
             from mission.flightlog import read_flight_log
@@ -174,7 +211,9 @@ def main() -> None:
                 use_family(held_out.get(team, args.family))
                 rows.append({"flight": name, **score(log, log.truth_enu[:2], methods)})
                 teams.append(team)
-                print(name, " ".join(f"{m} {rows[-1][m]['error_m']:.1f}" for m in methods), flush=True)
+                print(
+                    name, " ".join(f"{m} {rows[-1][m]['error_m']:.1f}" for m in methods), flush=True
+                )
         else:
             jobs = [(args.seed, i, args.family, methods) for i in range(args.n)]
             teams = None
@@ -182,13 +221,28 @@ def main() -> None:
                 rows = []
                 for r in ex.map(_sim_one, jobs):
                     rows.append(r)
-                    print(r["flight"], " ".join(f"{m} {r[m]['error_m']:.1f}" for m in methods), flush=True)
+                    print(
+                        r["flight"],
+                        " ".join(f"{m} {r[m]['error_m']:.1f}" for m in methods),
+                        flush=True,
+                    )
     s = summarise(rows, teams, methods)
     print_summary(s)
     if args.json:
-        Path(args.json).write_text(json.dumps({"mode": args.mode, "rows": rows, "summary": _jsonable(s),
-                                               "family": args.family, "held_out_family": held_out,
-                                               "seed": args.seed}, indent=1, default=float))
+        Path(args.json).write_text(
+            json.dumps(
+                {
+                    "mode": args.mode,
+                    "rows": rows,
+                    "summary": _jsonable(s),
+                    "family": args.family,
+                    "held_out_family": held_out,
+                    "seed": args.seed,
+                },
+                indent=1,
+                default=float,
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -45,7 +45,9 @@ def _time(fn, repeat: int) -> tuple[float, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="100 transmitters in the batch instead of 1 000")
+    ap.add_argument(
+        "--quick", action="store_true", help="100 transmitters in the batch instead of 1 000"
+    )
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     m_tx = 100 if args.quick else 1000
@@ -54,7 +56,9 @@ def main() -> None:
         model = make_model("e2r", pattern=pattern)
         for label, n_tx, n in (("flight", 1, 20_000), ("batch", m_tx, 10_000)):
             rx, att = _flight(n, rng)
-            tx = np.c_[rng.uniform(0, 400, (n_tx, 2)), np.full(n_tx, DEFAULT_TX_HEIGHT_M)][:, None, :]
+            tx = np.c_[rng.uniform(0, 400, (n_tx, 2)), np.full(n_tx, DEFAULT_TX_HEIGHT_M)][
+                :, None, :
+            ]
             if pattern == "measured" and label == "batch":
                 tx = tx[: max(1, n_tx // 10)]  # 10x fewer: the tabulated path is slower
             model.rss_dbm(tx[:1], rx[:1000], att[:1000])  # warm up
@@ -65,13 +69,26 @@ def main() -> None:
             _, peak = tracemalloc.get_traced_memory()
             tracemalloc.stop()
             n_s = tx.shape[0] * n
-            rows.append((f"e2r {pattern}", label, f"{tx.shape[0]} x {n}", n_s / sec / 1e6, n_s / cpu / 1e6,
-                         sec * 1e3, peak / 2**20))
+            rows.append(
+                (
+                    f"e2r {pattern}",
+                    label,
+                    f"{tx.shape[0]} x {n}",
+                    n_s / sec / 1e6,
+                    n_s / cpu / 1e6,
+                    sec * 1e3,
+                    peak / 2**20,
+                )
+            )
     maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"{'model':<14} {'case':<7} {'tx x samples':>14} {'M/s wall':>9} {'M/s cpu':>8} {'wall ms':>9} "
-          f"{'peak MiB':>9}")
+    print(
+        f"{'model':<14} {'case':<7} {'tx x samples':>14} {'M/s wall':>9} {'M/s cpu':>8} {'wall ms':>9} "
+        f"{'peak MiB':>9}"
+    )
     for name, case, shape, rate, rate_cpu, ms, mib in rows:
-        print(f"{name:<14} {case:<7} {shape:>14} {rate:>9.2f} {rate_cpu:>8.2f} {ms:>9.1f} {mib:>9.1f}")
+        print(
+            f"{name:<14} {case:<7} {shape:>14} {rate:>9.2f} {rate_cpu:>8.2f} {ms:>9.1f} {mib:>9.1f}"
+        )
     print(f"process max RSS {maxrss:.0f} MiB; numpy {np.__version__}; one thread")
 
 

@@ -43,16 +43,24 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
 
 
-def calibration_record(errors, source: str, model_path: str | Path | None = None,
-                       levels: tuple[float, ...] = LEVELS) -> dict:
+def calibration_record(
+    errors, source: str, model_path: str | Path | None = None, levels: tuple[float, ...] = LEVELS
+) -> dict:
     """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
     network, the digest of the model file they were measured on."""
     e = np.asarray(errors, dtype=float)
     radii = {f"{lv:g}": round(conformal_quantile(e, lv), 2) for lv in levels}
     if not all(math.isfinite(r) for r in radii.values()):
-        raise ValueError(f"{e.size} flights cannot calibrate levels {levels}: need at least "
-                         f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}")
-    rec = {"radii_m": radii, "n": int(e.size), "mean_error_m": round(float(e.mean()), 2), "calibrated_on": source}
+        raise ValueError(
+            f"{e.size} flights cannot calibrate levels {levels}: need at least "
+            f"{math.ceil(max(levels) / (1 - max(levels)) - 1e-9)}"
+        )
+    rec = {
+        "radii_m": radii,
+        "n": int(e.size),
+        "mean_error_m": round(float(e.mean()), 2),
+        "calibrated_on": source,
+    }
     if model_path is not None:
         rec["model_sha256"] = model_digest(model_path)
     return rec
@@ -66,27 +74,44 @@ SIM_DOMAINS = {
     "rfsl_spiral_e2r": ({}, "simulated spirals at 30 m, e2r, dipoles"),
     "rfsl_spiral_e2r_ens5": ({}, "simulated spirals at 30 m, e2r, dipoles"),
     "rfsl_spiral_alt": ({}, "simulated spirals at 15-60 m, e2r, dipoles"),
-    "rfsl_default": ({"altitude_m": (20.0, 47.0), "trajectories": OTHER_GENERATORS, "random_params": True},
-                     "simulated lawnmower / edge sweep / expanding square / random waypoints at 20-47 m, e2r"),
+    "rfsl_default": (
+        {"altitude_m": (20.0, 47.0), "trajectories": OTHER_GENERATORS, "random_params": True},
+        "simulated lawnmower / edge sweep / expanding square / random waypoints at 20-47 m, e2r",
+    ),
     "rfsl_afar": ({}, "simulated AFAR-physics flights (its CI check domain)"),
 }
 
 
 def kwargs_of(name: str) -> dict:
     """``localize_log`` keywords for a shipped network's name or a classical method's."""
-    return {"method": name} if name in CIRCLE_METHODS else {"model_path": str(REPO / "models" / f"{name}.onnx")}
+    return (
+        {"method": name}
+        if name in CIRCLE_METHODS
+        else {"model_path": str(REPO / "models" / f"{name}.onnx")}
+    )
 
 
 def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
     """2D errors (m) of network ``name`` on ``n`` fresh simulated flights of its sim domain."""
     from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
+    from mission.workshop.dataset import (
+        DatasetConfig,
+        dataset_heights,
+        generate_dataset,
+        load_dataset,
+    )
 
     rec = json.loads((REPO / "models" / f"{name}.json").read_text())["ci_check"]
     cfg = DatasetConfig.from_dict(rec["dataset_config"])
     change, what = SIM_DOMAINS[name]
-    cfg = replace(cfg, n=n, seed=seed, chunk=max(n, 1), mission=str(REPO / cfg.mission),
-                  randomisation=replace(cfg.randomisation, **change))
+    cfg = replace(
+        cfg,
+        n=n,
+        seed=seed,
+        chunk=max(n, 1),
+        mission=str(REPO / cfg.mission),
+        randomisation=replace(cfg.randomisation, **change),
+    )
     loc = OnnxLocalizer(REPO / "models" / f"{name}.onnx")
     with tempfile.TemporaryDirectory() as tmp:
         generate_dataset(cfg, Path(tmp) / "ds", workers=2)
@@ -102,8 +127,12 @@ def _run(est, truth) -> tuple[float, dict, str, float]:
 
     reg = outer_region(est.extras) or {}
     share = reg["area_m2"] / (np.pi * reg["radius_m"] ** 2) if "radius_m" in reg else float("nan")
-    return (float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])), _coverage(est, truth),
-            Path(est.extras.get("model_path", est.method)).name, float(share))
+    return (
+        float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
+        _coverage(est, truth),
+        Path(est.extras.get("model_path", est.method)).name,
+        float(share),
+    )
 
 
 def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
@@ -138,10 +167,14 @@ def suite_runs(name: str, dirs: list[str]) -> list[tuple[float, dict, str, float
     """Per-flight runs of ``name`` over the flights of benchmark caches ``dirs``."""
     from mission.workshop.suite_cache import read_suite
 
-    return _pool(_suite_flight, [(kwargs_of(name), d, i) for d in dirs for i in range(len(read_suite(d)))])
+    return _pool(
+        _suite_flight, [(kwargs_of(name), d, i) for d in dirs for i in range(len(read_suite(d)))]
+    )
 
 
-def simulated_runs(kw: dict, missions: list[str], seeds: range) -> list[tuple[float, dict, str, float]]:
+def simulated_runs(
+    kw: dict, missions: list[str], seeds: range
+) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs on ``rfsl simulate`` logs of each mission file for each seed."""
     with tempfile.TemporaryDirectory() as tmp:
         return _pool(_simulated_flight, [(kw, m, tmp, s) for m in missions for s in seeds])
@@ -162,9 +195,13 @@ def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
     e = np.array([r[0] for r in runs])
     cov = {lv: np.mean([r[1].get(lv, False) for r in runs]) for lv in ("50", "90")}
     by = ", ".join(sorted({r[2] for r in runs}))
-    share = np.nanmean([r[3] for r in runs]) if any(np.isfinite(r[3]) for r in runs) else float("nan")
-    return (f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} %, 90 % region "
-            f"{100 * share:.0f} % of its circle after clipping to the rover area (n={len(e)}; {by})")
+    share = (
+        np.nanmean([r[3] for r in runs]) if any(np.isfinite(r[3]) for r in runs) else float("nan")
+    )
+    return (
+        f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} %, 90 % region "
+        f"{100 * share:.0f} % of its circle after clipping to the rover area (n={len(e)}; {by})"
+    )
 
 
 def product_check(seeds: str, methods: list[str]) -> None:
@@ -177,7 +214,10 @@ def product_check(seeds: str, methods: list[str]) -> None:
             mission = mission_variant(str(REPO / mission), tmp, label, alt)
             for kw in [{}] + [{"method": m} for m in methods]:
                 runs = simulated_runs(kw, [mission], range(lo, hi))
-                print(f"product path, {label}, {kw.get('method', 'default')}: {coverage_line(runs)}", flush=True)
+                print(
+                    f"product path, {label}, {kw.get('method', 'default')}: {coverage_line(runs)}",
+                    flush=True,
+                )
 
 
 def benchmark_label(dirs: list[str]) -> str:
@@ -203,14 +243,27 @@ def store(name: str, regions: dict) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--models", nargs="+", default=list(MODELS) + list(CIRCLE_METHODS), help="networks and methods")
-    ap.add_argument("--sim-n", type=int, default=1000, help="networks: simulated calibration flights (0: none)")
+    ap.add_argument(
+        "--models",
+        nargs="+",
+        default=list(MODELS) + list(CIRCLE_METHODS),
+        help="networks and methods",
+    )
+    ap.add_argument(
+        "--sim-n", type=int, default=1000, help="networks: simulated calibration flights (0: none)"
+    )
     ap.add_argument("--sim-seed", type=int, default=3100)
-    ap.add_argument("--method-seeds", default="3100:3160", help="methods: rfsl simulate seeds per mission")
-    ap.add_argument("--calib-dirs", nargs="*", default=[], help="benchmark caches for the 'real' calibration")
+    ap.add_argument(
+        "--method-seeds", default="3100:3160", help="methods: rfsl simulate seeds per mission"
+    )
+    ap.add_argument(
+        "--calib-dirs", nargs="*", default=[], help="benchmark caches for the 'real' calibration"
+    )
     ap.add_argument("--check-dir", help="a held-out benchmark cache (seed 2026)")
     ap.add_argument("--mat", help="../shared/data/afar2023/mat: coverage on the six real flights")
-    ap.add_argument("--product-seeds", help="first:last: coverage on simulated logs of the product path")
+    ap.add_argument(
+        "--product-seeds", help="first:last: coverage on simulated logs of the product path"
+    )
     ap.add_argument("--write", action="store_true", help="store the calibrations")
     args = ap.parse_args()
 
@@ -223,18 +276,27 @@ def main() -> None:
         elif model is None and hi > lo:
             missions = [str(REPO / "missions" / f"{m}.yaml") for m in GENERATOR_MISSIONS]
             runs = simulated_runs(kwargs_of(name), missions, range(lo, hi))
-            regions["sim"] = calibration_record([r[0] for r in runs], f"rfsl simulate logs of missions/"
-                                                f"{{{','.join(GENERATOR_MISSIONS)}}}.yaml, seeds {lo}-{hi - 1}")
+            regions["sim"] = calibration_record(
+                [r[0] for r in runs],
+                f"rfsl simulate logs of missions/"
+                f"{{{','.join(GENERATOR_MISSIONS)}}}.yaml, seeds {lo}-{hi - 1}",
+            )
         if args.calib_dirs:
             runs = suite_runs(name, args.calib_dirs)
-            regions["real"] = calibration_record([r[0] for r in runs], f"{benchmark_label(args.calib_dirs)}; "
-                                                 f"{len(runs)} flights", model)
+            regions["real"] = calibration_record(
+                [r[0] for r in runs],
+                f"{benchmark_label(args.calib_dirs)}; {len(runs)} flights",
+                model,
+            )
         print(name, json.dumps(regions), flush=True)
         if args.write and regions:
             store(name, regions)
         if args.check_dir:
-            print(f"  held-out benchmark {Path(args.check_dir).name}: "
-                  f"{coverage_line(suite_runs(name, [args.check_dir]))}", flush=True)
+            print(
+                f"  held-out benchmark {Path(args.check_dir).name}: "
+                f"{coverage_line(suite_runs(name, [args.check_dir]))}",
+                flush=True,
+            )
         if args.mat:
             print(f"  six real flights: {coverage_line(real_runs(name, args.mat))}", flush=True)
     if args.product_seeds:

@@ -49,7 +49,9 @@ ATT_VARIANTS = {
     "roll_flipped": lambda a: a * np.array([-1.0, 1.0, 1.0]),
     "pitch_flipped": lambda a: a * np.array([1.0, -1.0, 1.0]),
     "yaw_flipped": lambda a: np.column_stack([a[:, 0], a[:, 1], np.mod(-a[:, 2], 2 * np.pi)]),
-    "yaw_plus_180": lambda a: np.column_stack([a[:, 0], a[:, 1], np.mod(a[:, 2] + np.pi, 2 * np.pi)]),
+    "yaw_plus_180": lambda a: np.column_stack(
+        [a[:, 0], a[:, 1], np.mod(a[:, 2] + np.pi, 2 * np.pi)]
+    ),
     "yaw_only": lambda a: np.column_stack([0 * a[:, 0], 0 * a[:, 1], a[:, 2]]),
     "none": None,  # the model without the attitude effect (level, nose north)
 }
@@ -88,7 +90,9 @@ def gap_stats(model, f, att_variant: str = "logged") -> dict:
     return _cal.gap_stats(model, f, _att(att_variant))
 
 
-def fit_config(cfg: dict, flights, att_variant: str = "logged", max_samples: int = 1200, max_evals: int = 80):
+def fit_config(
+    cfg: dict, flights, att_variant: str = "logged", max_samples: int = 1200, max_evals: int = 80
+):
     """Fit the free parameters of ``cfg`` on ``flights`` (``mission.calibrate.fit_config``)."""
     return _cal.fit_config(cfg, flights, max_samples, max_evals, _att(att_variant))
 
@@ -96,8 +100,10 @@ def fit_config(cfg: dict, flights, att_variant: str = "logged", max_samples: int
 # ---------------------------------------------------------------------------------------------- splits
 
 GOOD = ["288-loc1", "288-loc2", "328-loc1", "328-loc2", "328-loc3"]
-LOTO = {"fit328": (["328-loc1", "328-loc2", "328-loc3"], ["288-loc1", "288-loc2", SUSPECT]),
-        "fit288": (["288-loc1", "288-loc2"], ["328-loc1", "328-loc2", "328-loc3"])}
+LOTO = {
+    "fit328": (["328-loc1", "328-loc2", "328-loc3"], ["288-loc1", "288-loc2", SUSPECT]),
+    "fit288": (["288-loc1", "288-loc2"], ["328-loc1", "328-loc2", "328-loc3"]),
+}
 
 
 def heldout(cfg: dict, flights, split: str, att_variant: str = "logged", **kw) -> dict:
@@ -105,8 +111,11 @@ def heldout(cfg: dict, flights, split: str, att_variant: str = "logged", **kw) -
     from mission.physics.presets import build_model
 
     out = {}
-    folds = (list(LOTO.values()) if split == "loto"
-             else [([g for g in GOOD if g != t], [t]) for t in GOOD])
+    folds = (
+        list(LOTO.values())
+        if split == "loto"
+        else [([g for g in GOOD if g != t], [t]) for t in GOOD]
+    )
     for train, test in folds:
         spec, _ = fit_config(cfg, by_name(flights, train), att_variant, **kw)
         m = build_model(spec)
@@ -118,8 +127,10 @@ def heldout(cfg: dict, flights, split: str, att_variant: str = "logged", **kw) -
 def pooled(res: dict, names=GOOD) -> dict:
     keys = [n for n in names if n in res]
     w = np.array([res[k]["n"] for k in keys], float)
-    return {s: float(np.average([res[k][s] for k in keys], weights=w))
-            for s in ("median_abs_db", "p90_abs_db", "rms_db", "soft_l1")}
+    return {
+        s: float(np.average([res[k][s] for k in keys], weights=w))
+        for s in ("median_abs_db", "p90_abs_db", "rms_db", "soft_l1")
+    }
 
 
 # -------------------------------------------------------------------------------------------- localize
@@ -133,8 +144,13 @@ def localize(model, f, att_variant: str = "logged", floor_db: float | None = Non
 
     fn = ATT_VARIANTS[att_variant]
     att = None if fn is None else fn(f.attitude_rad)
-    est = ModelGridSearch(model, tx_height_m=DEFAULT_TX_HEIGHT_M, area=afar_field().rover_area, floor_db=floor_db,
-                          use_attitude=att is not None)
+    est = ModelGridSearch(
+        model,
+        tx_height_m=DEFAULT_TX_HEIGHT_M,
+        area=afar_field().rover_area,
+        floor_db=floor_db,
+        use_attitude=att is not None,
+    )
     e = est.predict(FlightSamples(enu_m=f.enu_m, rss_dbm=f.rss_dbm, attitude_rad=att))
     return float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
 
@@ -145,11 +161,18 @@ def localize(model, f, att_variant: str = "logged", floor_db: float | None = Non
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="calib_real")
-    ap.add_argument("--steps", default="attitude,configs,localize", help="attitude,configs,localize")
+    ap.add_argument(
+        "--steps", default="attitude,configs,localize", help="attitude,configs,localize"
+    )
     ap.add_argument("--configs", default="all")
-    ap.add_argument("--choose", default=None, help="configuration for the preset (default: best LOTO soft-L1)")
-    ap.add_argument("--loc-configs", default="fs_rxflip_yaw_slope,fs_rxflip",
-                    help="further configurations localized with their LOTO fits")
+    ap.add_argument(
+        "--choose", default=None, help="configuration for the preset (default: best LOTO soft-L1)"
+    )
+    ap.add_argument(
+        "--loc-configs",
+        default="fs_rxflip_yaw_slope,fs_rxflip",
+        help="further configurations localized with their LOTO fits",
+    )
     ap.add_argument("--write-preset", action="store_true")
     ap.add_argument("--max-samples", type=int, default=1200)
     args = ap.parse_args(argv)
@@ -178,11 +201,18 @@ def main(argv: list[str] | None = None) -> int:
                 res = heldout(cfg, flights, split, v, **kw)
                 row[split] = {"pooled": pooled(res), "per_flight": res}
             summary["attitude"][v] = row
-            print(f"attitude {v:14s} LOTO " + " ".join(f"{k}={x:.2f}" for k, x in row["loto"]["pooled"].items())
-                  + " | LOFO " + " ".join(f"{k}={x:.2f}" for k, x in row["lofo"]["pooled"].items())
-                  + f"  ({time.time() - t0:.0f} s)", flush=True)
+            print(
+                f"attitude {v:14s} LOTO "
+                + " ".join(f"{k}={x:.2f}" for k, x in row["loto"]["pooled"].items())
+                + " | LOFO "
+                + " ".join(f"{k}={x:.2f}" for k, x in row["lofo"]["pooled"].items())
+                + f"  ({time.time() - t0:.0f} s)",
+                flush=True,
+            )
             dump()
-    if "attitude" in steps:  # handedness of the pattern's azimuth: the measured pattern mirrored (az -> -az)
+    if (
+        "attitude" in steps
+    ):  # handedness of the pattern's azimuth: the measured pattern mirrored (az -> -az)
         from mission.physics.antenna import TabulatedPattern, rm_wb1_dn
 
         p = rm_wb1_dn()
@@ -192,13 +222,27 @@ def main(argv: list[str] | None = None) -> int:
         summary["handedness"] = {}
         for lab, pat in (("measured", "measured"), ("mirrored", mirrored)):
             for att in (True, "yaw"):
-                cfg = {"spec": {"base": "free-space", "rx_pattern": pat, "rx_flipped": True, "attitude": att},
-                       "free": ["rx_heading_deg"]}
-                row = {split: pooled(heldout(cfg, flights, split, **kw)) for split in ("loto", "lofo")}
+                cfg = {
+                    "spec": {
+                        "base": "free-space",
+                        "rx_pattern": pat,
+                        "rx_flipped": True,
+                        "attitude": att,
+                    },
+                    "free": ["rx_heading_deg"],
+                }
+                row = {
+                    split: pooled(heldout(cfg, flights, split, **kw)) for split in ("loto", "lofo")
+                }
                 summary["handedness"][f"{lab}/attitude={att}"] = row
-                print(f"handedness {lab:9s} attitude={att!s:5s} "
-                      + " | ".join(f"{sp.upper()} p90 {r['p90_abs_db']:.2f} soft_l1 {r['soft_l1']:.2f}"
-                                   for sp, r in row.items()), flush=True)
+                print(
+                    f"handedness {lab:9s} attitude={att!s:5s} "
+                    + " | ".join(
+                        f"{sp.upper()} p90 {r['p90_abs_db']:.2f} soft_l1 {r['soft_l1']:.2f}"
+                        for sp, r in row.items()
+                    ),
+                    flush=True,
+                )
         dump()
     if "configs" in steps:
         names = list(CONFIGS) if args.configs == "all" else args.configs.split(",")
@@ -209,51 +253,90 @@ def main(argv: list[str] | None = None) -> int:
                 res = heldout(CONFIGS[name], flights, split, **kw)
                 row[split] = {"pooled": pooled(res), "per_flight": res}
             summary["configs"][name] = row
-            print(f"config {name:26s} LOTO " + " ".join(f"{k}={x:.2f}" for k, x in row["loto"]["pooled"].items())
-                  + " | LOFO " + " ".join(f"{k}={x:.2f}" for k, x in row["lofo"]["pooled"].items())
-                  + f"  ({time.time() - t0:.0f} s)", flush=True)
+            print(
+                f"config {name:26s} LOTO "
+                + " ".join(f"{k}={x:.2f}" for k, x in row["loto"]["pooled"].items())
+                + " | LOFO "
+                + " ".join(f"{k}={x:.2f}" for k, x in row["lofo"]["pooled"].items())
+                + f"  ({time.time() - t0:.0f} s)",
+                flush=True,
+            )
             for fn, r in row["loto"]["per_flight"].items():
-                print(f"    {fn}: med {r['median_abs_db']:.1f} p90 {r['p90_abs_db']:.1f}  {r['spec']}")
+                print(
+                    f"    {fn}: med {r['median_abs_db']:.1f} p90 {r['p90_abs_db']:.1f}  {r['spec']}"
+                )
             dump()
     cfgs = summary.get("configs", {})
-    choose = args.choose or (min((k for k in cfgs if CONFIGS[k]["free"]),
-                                 key=lambda k: cfgs[k]["loto"]["pooled"]["soft_l1"]) if cfgs else None)
+    choose = args.choose or (
+        min(
+            (k for k in cfgs if CONFIGS[k]["free"]),
+            key=lambda k: cfgs[k]["loto"]["pooled"]["soft_l1"],
+        )
+        if cfgs
+        else None
+    )
     if "localize" in steps and choose:
         loc: dict = {}
         extra = [c for c in args.loc_configs.split(",") if c and c != choose]
-        fold_specs = {c: {fold: fit_config(CONFIGS[c], by_name(flights, tr), **kw)[0] for fold, (tr, _) in LOTO.items()}
-                      for c in [choose] + extra}
-        fixed = {"fs_iso": build_model(CONFIGS["fs_iso"]["spec"]),
-                 "e2r_dipole_default": build_model(CONFIGS["e2r_dipole_default"]["spec"])}
+        fold_specs = {
+            c: {
+                fold: fit_config(CONFIGS[c], by_name(flights, tr), **kw)[0]
+                for fold, (tr, _) in LOTO.items()
+            }
+            for c in [choose] + extra
+        }
+        fixed = {
+            "fs_iso": build_model(CONFIGS["fs_iso"]["spec"]),
+            "e2r_dipole_default": build_model(CONFIGS["e2r_dipole_default"]["spec"]),
+        }
         for fold, (_, test) in LOTO.items():
             for f in by_name(flights, test):
                 row = {k: localize(m, f) for k, m in fixed.items()}
                 for c in [choose] + extra:
                     row[f"calibrated:{c}"] = localize(build_model(fold_specs[c][fold]), f)
                 row["fs_iso+floor35*"] = localize(fixed["fs_iso"], f, floor_db=35.0)
-                row[f"calibrated:{choose}+floor35*"] = localize(build_model(fold_specs[choose][fold]), f,
-                                                                floor_db=35.0)
+                row[f"calibrated:{choose}+floor35*"] = localize(
+                    build_model(fold_specs[choose][fold]), f, floor_db=35.0
+                )
                 loc[f.name] = row
-                print(f"localize {f.name}: " + " ".join(f"{k}={v:.1f}" for k, v in row.items())
-                      + f"  ({time.time() - t0:.0f} s)", flush=True)
+                print(
+                    f"localize {f.name}: "
+                    + " ".join(f"{k}={v:.1f}" for k, v in row.items())
+                    + f"  ({time.time() - t0:.0f} s)",
+                    flush=True,
+                )
         # receiver noise floor (censoring, ModelGridSearch.floor_db) chosen on the training team's flights
         floors = (None, 25.0, 30.0, 35.0, 40.0)
         summary["floor_loto"] = {}
         for fold, (train, test) in LOTO.items():
             cal = build_model(fold_specs[choose][fold])
             tr = [f for f in by_name(flights, train) if not is_afar2023_suspect(f.name)]
-            score = {fl: float(np.mean([localize(cal, f, floor_db=fl) for f in tr])) for fl in floors}
+            score = {
+                fl: float(np.mean([localize(cal, f, floor_db=fl) for f in tr])) for fl in floors
+            }
             best = min(score, key=score.get)
-            summary["floor_loto"][fold] = {"train_mean_error_m": {str(k): v for k, v in score.items()},
-                                           "chosen_floor_db": best}
+            summary["floor_loto"][fold] = {
+                "train_mean_error_m": {str(k): v for k, v in score.items()},
+                "chosen_floor_db": best,
+            }
             for f in by_name(flights, test):
-                loc[f.name][f"calibrated:{choose}+floor(LOTO-chosen)"] = localize(cal, f, floor_db=best)
+                loc[f.name][f"calibrated:{choose}+floor(LOTO-chosen)"] = localize(
+                    cal, f, floor_db=best
+                )
             print(f"floor {fold}: train mean errors {score} -> {best}", flush=True)
         cols = list(next(iter(loc.values())))
         summary["localization_loto"] = {
-            "config": choose, "fold_specs": fold_specs, "errors_m": loc,
-            "mean_median_good": {c: [float(np.mean([loc[n][c] for n in GOOD])),
-                                     float(np.median([loc[n][c] for n in GOOD]))] for c in cols}}
+            "config": choose,
+            "fold_specs": fold_specs,
+            "errors_m": loc,
+            "mean_median_good": {
+                c: [
+                    float(np.mean([loc[n][c] for n in GOOD])),
+                    float(np.median([loc[n][c] for n in GOOD])),
+                ]
+                for c in cols
+            },
+        }
         for c, (a, b) in summary["localization_loto"]["mean_median_good"].items():
             print(f"  {c:40s} mean {a:6.1f} m  median {b:6.1f} m (5 good flights)")
         dump()
@@ -263,20 +346,26 @@ def main(argv: list[str] | None = None) -> int:
         rec = {
             "name": "afar",
             "description": "Propagation model calibrated on the AFAR 2023 testbed flights (cruise samples, "
-                           "per-flight free offset, soft-L1 loss, f_scale 6 dB)",
+            "per-flight free offset, soft-L1 loss, f_scale 6 dB)",
             "model": spec,
             "config": choose,
             "fitted_on": GOOD,
             "excluded": {SUSPECT: AFAR2023_SUSPECT_NOTE},
-            "folds": {fold: {"fitted_on": tr, "tested_on": te,
-                             "model": loto_specs.get(fold)
-                             or fit_config(CONFIGS[choose], by_name(flights, tr), **kw)[0]}
-                      for fold, (tr, te) in LOTO.items()},
+            "folds": {
+                fold: {
+                    "fitted_on": tr,
+                    "tested_on": te,
+                    "model": loto_specs.get(fold)
+                    or fit_config(CONFIGS[choose], by_name(flights, tr), **kw)[0],
+                }
+                for fold, (tr, te) in LOTO.items()
+            },
             "heldout_loto_gap": cfgs.get(choose, {}).get("loto", {}).get("pooled"),
             "heldout_loto_gap_free_space": cfgs.get("fs_iso", {}).get("loto", {}).get("pooled"),
             "heldout_loto_localization_m": summary.get("localization_loto", {}).get("errors_m"),
             "data": "../shared/data/afar2023/mat (MPACT-Lab/shadow-fading-ang-corr, MIT)",
-            "command": "nice -n 5 python benchmarks/calibrate_real_afar.py " + " ".join(argv or sys.argv[1:]),
+            "command": "nice -n 5 python benchmarks/calibrate_real_afar.py "
+            + " ".join(argv or sys.argv[1:]),
             "date": datetime.date.today().isoformat(),
         }
         p = REPO / "mission" / "data" / "afar_calibration.json"

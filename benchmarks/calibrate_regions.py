@@ -31,7 +31,9 @@ def truth_level(job: tuple[int | str, int, str]) -> float:
     from mission.workshop.suite_cache import read_suite
 
     seed, i, family = job
-    log, truth, _ = read_suite(seed).load(i) if isinstance(seed, str) else unseen_flight(seed, i, family)
+    log, truth, _ = (
+        read_suite(seed).load(i) if isinstance(seed, str) else unseen_flight(seed, i, family)
+    )
     est = localize_log(log, method="selfcal")
     return est.posterior.hpd_level(float(truth[0]), float(truth[1]))
 
@@ -52,30 +54,59 @@ def main() -> None:
     from mission.threads import limit_worker
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", nargs="+", default=["2026:200", "2027:100", "2028:200"], help="SEED:N ...")
+    ap.add_argument(
+        "--seeds", nargs="+", default=["2026:200", "2027:100", "2028:200"], help="SEED:N ..."
+    )
     ap.add_argument("--family", default="afar")
-    ap.add_argument("--suite-dirs", nargs="+", help="benchmark caches instead of --seeds (DIR:N ...; e.g. "
-                    "rfsl dataset --suite unseen --logs --family mission/data/afar_family.json)")
+    ap.add_argument(
+        "--suite-dirs",
+        nargs="+",
+        help="benchmark caches instead of --seeds (DIR:N ...; e.g. "
+        "rfsl dataset --suite unseen --logs --family mission/data/afar_family.json)",
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", help="write masses, coverages and every flight's level here")
     args = ap.parse_args()
-    seeds = ([(d.rsplit(":", 1)[0], int(d.rsplit(":", 1)[1])) for d in args.suite_dirs] if args.suite_dirs
-             else [tuple(int(v) for v in s.split(":")) for s in args.seeds])
+    seeds = (
+        [(d.rsplit(":", 1)[0], int(d.rsplit(":", 1)[1])) for d in args.suite_dirs]
+        if args.suite_dirs
+        else [tuple(int(v) for v in s.split(":")) for s in args.seeds]
+    )
     jobs = [(seed, i, args.family) for seed, n in seeds for i in range(n)]
     with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
-        q_all = np.array(list(track(ex.map(truth_level, jobs, chunksize=4), total=len(jobs),
-                                    description="truth HPD levels")))
+        q_all = np.array(
+            list(
+                track(
+                    ex.map(truth_level, jobs, chunksize=4),
+                    total=len(jobs),
+                    description="truth HPD levels",
+                )
+            )
+        )
     by_seed = {seed: q_all[[j[0] == seed for j in jobs]] for seed, _ in seeds}
     m = masses(q_all)
-    out = {"family": args.family, "seeds": dict(seeds), "masses": m, "coverage_in_sample": {},
-           "coverage_leave_one_seed_out": {}, "levels": {str(s): q.tolist() for s, q in by_seed.items()}}
-    print(f"masses from {q_all.size} flights: " + ", ".join(f"{lev:g} -> {v:.3f}" for lev, v in m.items()))
+    out = {
+        "family": args.family,
+        "seeds": dict(seeds),
+        "masses": m,
+        "coverage_in_sample": {},
+        "coverage_leave_one_seed_out": {},
+        "levels": {str(s): q.tolist() for s, q in by_seed.items()},
+    }
+    print(
+        f"masses from {q_all.size} flights: "
+        + ", ".join(f"{lev:g} -> {v:.3f}" for lev, v in m.items())
+    )
     for seed, q in by_seed.items():
-        rest = np.concatenate([v for s, v in by_seed.items() if s != seed]) if len(by_seed) > 1 else q
+        rest = (
+            np.concatenate([v for s, v in by_seed.items() if s != seed]) if len(by_seed) > 1 else q
+        )
         out["coverage_in_sample"][seed] = cin = coverage(q, m)
         out["coverage_leave_one_seed_out"][seed] = cout = coverage(q, masses(rest))
-        print(f"seed {seed} ({q.size}): in-sample {cin[0.5]:.1f} / {cin[0.9]:.1f} %, "
-              f"held out {cout[0.5]:.1f} / {cout[0.9]:.1f} %")
+        print(
+            f"seed {seed} ({q.size}): in-sample {cin[0.5]:.1f} / {cin[0.9]:.1f} %, "
+            f"held out {cout[0.5]:.1f} / {cout[0.9]:.1f} %"
+        )
     folds = np.array_split(np.random.default_rng(0).permutation(q_all.size), 5)
     hits = {lev: 0 for lev in LEVELS}
     for f in folds:

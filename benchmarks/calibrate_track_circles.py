@@ -27,10 +27,15 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's simulate_log, mission_variant
+sys.path.insert(
+    0, str(Path(__file__).resolve().parent)
+)  # sim_default's simulate_log, mission_variant
 LEVELS = (0.5, 0.9)
 MIN_FRACTION = 0.2  # calibration cuts are drawn in [0.2, 1]
-STRATA = (0.5, 0.9)  # coverage strata above the lowest calibrated coverage: < 0.5, 0.5-0.9, full (>= 0.9)
+STRATA = (
+    0.5,
+    0.9,
+)  # coverage strata above the lowest calibrated coverage: < 0.5, 0.5-0.9, full (>= 0.9)
 CHECK_FRACTIONS = (1 / 3, 2 / 3, 1.0)
 
 
@@ -57,12 +62,16 @@ def _runs(job: tuple[str, str, int, tuple[float, ...]]) -> list[tuple[float, flo
     fr = fractions or (1.0, float(np.random.default_rng([seed, 28]).uniform(MIN_FRACTION, 1.0)))
     out = []
     for f in fr:
-        est = localize_log(truncate(log, f) if f < 1.0 else log, model_path=str(REPO / "models" / f"{model}.onnx"))
+        est = localize_log(
+            truncate(log, f) if f < 1.0 else log, model_path=str(REPO / "models" / f"{model}.onnx")
+        )
         out.append((f, float(est.extras["track_coverage"]), float(est.error_m)))
     return out
 
 
-def collect(model: str, missions: list[str], seeds: range, fractions: tuple[float, ...] = ()) -> np.ndarray:
+def collect(
+    model: str, missions: list[str], seeds: range, fractions: tuple[float, ...] = ()
+) -> np.ndarray:
     """(n, 4) rows of seed, cut fraction, track coverage and error over every mission and seed."""
     from rich.progress import track
 
@@ -70,7 +79,9 @@ def collect(model: str, missions: list[str], seeds: range, fractions: tuple[floa
 
     jobs = [(model, m, s, fractions) for m in missions for s in seeds]
     with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
-        res = list(track(ex.map(_runs, jobs, chunksize=2), total=len(jobs), description=f"{model} flights"))
+        res = list(
+            track(ex.map(_runs, jobs, chunksize=2), total=len(jobs), description=f"{model} flights")
+        )
     return np.array([(j[2], *r) for j, rr in zip(jobs, res, strict=True) for r in rr])
 
 
@@ -86,10 +97,17 @@ def fit(rows: np.ndarray, source: str) -> dict:
 
     bounds = [round(float(np.min(rows[:, 2])) - 0.005, 2), *STRATA]
     k = stratum(rows[:, 2], bounds)
-    return {"bounds": bounds,
-            "radii_m": {f"{lv:g}": [round(conformal_quantile(rows[k == s, 3], lv), 2) for s in range(len(bounds))]
-                        for lv in LEVELS},
-            "n": [int((k == s).sum()) for s in range(len(bounds))], "calibrated_on": source}
+    return {
+        "bounds": bounds,
+        "radii_m": {
+            f"{lv:g}": [
+                round(conformal_quantile(rows[k == s, 3], lv), 2) for s in range(len(bounds))
+            ]
+            for lv in LEVELS
+        },
+        "n": [int((k == s).sum()) for s in range(len(bounds))],
+        "calibrated_on": source,
+    }
 
 
 def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
@@ -103,19 +121,31 @@ def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
     for f in parts:
         test = np.isin(rows[:, 0], f)
         tr = fit(rows[~test], "")
-        rec = {"radii_m": {}, "track": dict(tr, radii_m={float(k): v for k, v in tr["radii_m"].items()})}
+        rec = {
+            "radii_m": {},
+            "track": dict(tr, radii_m={float(k): v for k, v in tr["radii_m"].items()}),
+        }
         for _, cut, cov, err in rows[test]:
-            kind = ("cut 1/3" if np.isclose(cut, 1 / 3) else "cut 2/3" if np.isclose(cut, 2 / 3)
-                    else "full" if cut == 1.0 else "cut U(0.2, 1)")
+            kind = (
+                "cut 1/3"
+                if np.isclose(cut, 1 / 3)
+                else "cut 2/3"
+                if np.isclose(cut, 2 / 3)
+                else "full"
+                if cut == 1.0
+                else "cut U(0.2, 1)"
+            )
             radii, _ = flown_radii(rec, cov)
             for lv in LEVELS:
                 got.setdefault((kind, lv), []).append(radii is not None and err <= radii[lv])
             got.setdefault((kind, "r"), []).append(radii[0.9] if radii else np.inf)
     for kind in ("cut 1/3", "cut 2/3", "cut U(0.2, 1)", "full"):
         if (kind, 0.5) in got:
-            print(f"  {kind} (n={len(got[kind, 0.5])}): in 50 % / 90 %: {100 * np.mean(got[kind, 0.5]):.1f} / "
-                  f"{100 * np.mean(got[kind, 0.9]):.1f} %, median 90 % radius {np.median(got[kind, 'r']):.1f} m",
-                  flush=True)
+            print(
+                f"  {kind} (n={len(got[kind, 0.5])}): in 50 % / 90 %: {100 * np.mean(got[kind, 0.5]):.1f} / "
+                f"{100 * np.mean(got[kind, 0.9]):.1f} %, median 90 % radius {np.median(got[kind, 'r']):.1f} m",
+                flush=True,
+            )
 
 
 def main() -> None:
@@ -125,12 +155,21 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--model", default="rfsl_spiral_e2r_ens5")
-    ap.add_argument("--alts", nargs="+", type=float, default=[30.0], help="spiral cruise altitudes (m)")
+    ap.add_argument(
+        "--alts", nargs="+", type=float, default=[30.0], help="spiral cruise altitudes (m)"
+    )
     ap.add_argument("--seeds", default="3100:3300", help="calibration seeds first:last")
-    ap.add_argument("--check-seeds", default="3400:3460", help="seeds cut at 1/3, 2/3 and 1 (first:last)")
-    ap.add_argument("--write", action="store_true", help="store the record in the card's 'sim' calibration")
-    ap.add_argument("--rows", help="keep the calibration rows in this .npy, the check's in .check.npy (reused "
-                    "when they exist)")
+    ap.add_argument(
+        "--check-seeds", default="3400:3460", help="seeds cut at 1/3, 2/3 and 1 (first:last)"
+    )
+    ap.add_argument(
+        "--write", action="store_true", help="store the record in the card's 'sim' calibration"
+    )
+    ap.add_argument(
+        "--rows",
+        help="keep the calibration rows in this .npy, the check's in .check.npy (reused "
+        "when they exist)",
+    )
     args = ap.parse_args()
     card = REPO / "models" / f"{args.model}.json"
     d = json.loads(card.read_text())
@@ -138,12 +177,21 @@ def main() -> None:
     if sim.get("model_sha256") != model_digest(REPO / "models" / f"{args.model}.onnx"):
         sys.exit(f"{card.name}: its sim calibration was measured on another model file")
     with tempfile.TemporaryDirectory() as tmp:
-        missions = [mission_variant(str(REPO / "missions/spiral.yaml"), tmp, f"{a:g} m", None if a == 30 else a)
-                    for a in args.alts]
+        missions = [
+            mission_variant(
+                str(REPO / "missions/spiral.yaml"), tmp, f"{a:g} m", None if a == 30 else a
+            )
+            for a in args.alts
+        ]
         sets = []
-        for seeds, fractions, cache in ((args.seeds, (), args.rows),
-                                        (args.check_seeds, CHECK_FRACTIONS,
-                                         args.rows and str(Path(args.rows).with_suffix(".check.npy")))):
+        for seeds, fractions, cache in (
+            (args.seeds, (), args.rows),
+            (
+                args.check_seeds,
+                CHECK_FRACTIONS,
+                args.rows and str(Path(args.rows).with_suffix(".check.npy")),
+            ),
+        ):
             lo, hi = (int(v) for v in seeds.split(":"))
             if cache and Path(cache).is_file():
                 sets.append(np.load(cache))
@@ -153,8 +201,11 @@ def main() -> None:
                     np.save(cache, sets[-1])
     rows = np.vstack(sets)
     alts = ", ".join(f"{a:g}" for a in args.alts)
-    rec = fit(rows, f"{len(rows)} rfsl simulate spirals at {alts} m, full and cut short (seeds {args.seeds}, "
-                    f"{args.check_seeds})")
+    rec = fit(
+        rows,
+        f"{len(rows)} rfsl simulate spirals at {alts} m, full and cut short (seeds {args.seeds}, "
+        f"{args.check_seeds})",
+    )
     print(args.model, json.dumps(rec), flush=True)
     print("held out, 5-fold over seeds:")
     cross_validate(rows)

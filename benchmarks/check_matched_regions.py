@@ -79,10 +79,15 @@ def _flight(job: tuple[str, int, bool]) -> dict:
     if with_default:  # the product default on the same flight, for a paired difference
         d = localize_log(log)
         extra["default_error_m"] = float(np.hypot(d.x_m - truth[0], d.y_m - truth[1]))
-    return {**extra, "flight": i, "error_m": float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
-            "truth_level": est.posterior.hpd_level(float(truth[0]), float(truth[1])),
-            "masses": {"union": union, "one_net": seen["one_net"]},
-            "tx_outside_flight_area": bool(draw.get("tx_outside_flight_area")), "seconds": time.perf_counter() - t0}
+    return {
+        **extra,
+        "flight": i,
+        "error_m": float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
+        "truth_level": est.posterior.hpd_level(float(truth[0]), float(truth[1])),
+        "masses": {"union": union, "one_net": seen["one_net"]},
+        "tx_outside_flight_area": bool(draw.get("tx_outside_flight_area")),
+        "seconds": time.perf_counter() - t0,
+    }
 
 
 def summary(rows: list[dict]) -> dict:
@@ -95,7 +100,12 @@ def summary(rows: list[dict]) -> dict:
             k = sum(r["truth_level"] < r["masses"][check][lv] for r in rows)
             iv = coverage_interval(k, len(rows))
             ok = abs(iv.value - lv) <= 0.05 and iv.lo <= lv <= iv.hi
-            out[f"{check} {lv:g}"] = {"k": int(k), "n": len(rows), "share": iv.to_dict(), "passes": bool(ok)}
+            out[f"{check} {lv:g}"] = {
+                "k": int(k),
+                "n": len(rows),
+                "share": iv.to_dict(),
+                "passes": bool(ok),
+            }
     return out
 
 
@@ -103,11 +113,15 @@ def main() -> None:
     from mission.threads import limit_worker
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--suite-dir", required=True, help="benchmark cache of the shipped family (seed 2026)")
+    ap.add_argument(
+        "--suite-dir", required=True, help="benchmark cache of the shipped family (seed 2026)"
+    )
     ap.add_argument("--n", type=int, default=30)
     ap.add_argument("--first", type=int, default=0, help="first flight index")
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--with-default", action="store_true", help="also localize each flight with the default")
+    ap.add_argument(
+        "--with-default", action="store_true", help="also localize each flight with the default"
+    )
     ap.add_argument("--json", help="write per-flight rows and the summary here")
     args = ap.parse_args()
     jobs = [(args.suite_dir, i, args.with_default) for i in range(args.first, args.first + args.n)]
@@ -116,23 +130,30 @@ def main() -> None:
         for r in ex.map(_flight, jobs):
             rows.append(r)
             m = r["masses"]
-            print(f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level {r['truth_level']:.3f}, masses "
-                  f"union {m['union'][0.5]:.2f}/{m['union'][0.9]:.2f}, one net "
-                  f"{m['one_net'][0.5]:.2f}/{m['one_net'][0.9]:.2f}, {r['seconds']:.0f} s", flush=True)
+            print(
+                f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level {r['truth_level']:.3f}, masses "
+                f"union {m['union'][0.5]:.2f}/{m['union'][0.9]:.2f}, one net "
+                f"{m['one_net'][0.5]:.2f}/{m['one_net'][0.9]:.2f}, {r['seconds']:.0f} s",
+                flush=True,
+            )
             if args.json:
                 Path(args.json).write_text(json.dumps({"rows": rows}, indent=1))
     s = summary(rows)
     for key, v in s.items():
         sh = v["share"]
-        print(f"{key:12s} {v['k']:3d}/{v['n']}  {100 * sh['value']:5.1f} % [{100 * sh['lo']:.1f}, "
-              f"{100 * sh['hi']:.1f}]  {'passes' if v['passes'] else 'fails'}")
+        print(
+            f"{key:12s} {v['k']:3d}/{v['n']}  {100 * sh['value']:5.1f} % [{100 * sh['lo']:.1f}, "
+            f"{100 * sh['hi']:.1f}]  {'passes' if v['passes'] else 'fails'}"
+        )
     from mission.evidence import mean_interval, paired_difference
 
     err = [r["error_m"] for r in rows]
     print(f"matched mean error {mean_interval(err).fmt()} m over {len(rows)} flights")
     if args.with_default:
         dflt = [r["default_error_m"] for r in rows]
-        print(f"default {mean_interval(dflt).fmt()} m; matched - default {paired_difference(err, dflt).fmt()} m")
+        print(
+            f"default {mean_interval(dflt).fmt()} m; matched - default {paired_difference(err, dflt).fmt()} m"
+        )
     if args.json:
         Path(args.json).write_text(json.dumps({"rows": rows, "summary": s}, indent=1))
 

@@ -38,9 +38,14 @@ FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the fold whose physics did
 def _row(name: str, errs: list[float], flights: list[str]) -> dict:
     e = np.array(errs)
     ok = np.array([not is_afar2023_suspect(n) for n in flights])
-    return {"method": name, "per_flight_m": dict(zip(flights, map(float, e), strict=True)),
-            "mean6_m": float(e.mean()), "median6_m": float(np.median(e)),
-            "mean5_m": float(e[ok].mean()), "median5_m": float(np.median(e[ok]))}
+    return {
+        "method": name,
+        "per_flight_m": dict(zip(flights, map(float, e), strict=True)),
+        "mean6_m": float(e.mean()),
+        "median6_m": float(np.median(e)),
+        "mean5_m": float(e[ok].mean()),
+        "median5_m": float(np.median(e[ok])),
+    }
 
 
 def main() -> None:
@@ -52,8 +57,12 @@ def main() -> None:
     ap.add_argument("--data", default=str(default))
     ap.add_argument("--net-fit328", help="network trained on afar:fit328 physics (scores team 288)")
     ap.add_argument("--net-fit288", help="network trained on afar:fit288 physics (scores team 328)")
-    ap.add_argument("--nets", nargs="*", default=[], help="networks trained without any real-flight physics")
-    ap.add_argument("--net-all", help="optional network trained on the all-five-flight preset (not held out)")
+    ap.add_argument(
+        "--nets", nargs="*", default=[], help="networks trained without any real-flight physics"
+    )
+    ap.add_argument(
+        "--net-all", help="optional network trained on the all-five-flight preset (not held out)"
+    )
     ap.add_argument("--json", help="write the rows here")
     args = ap.parse_args()
     if (args.net_fit328 is None) != (args.net_fit288 is None):
@@ -66,7 +75,9 @@ def main() -> None:
     if nets:
         cols.update({"net LOTO": [], "mean(grid, net) LOTO": []})
     for p in args.nets:
-        cols.update({f"net {Path(p).stem} (no real flight)": [], f"mean(grid LOTO, {Path(p).stem})": []})
+        cols.update(
+            {f"net {Path(p).stem} (no real flight)": [], f"mean(grid LOTO, {Path(p).stem})": []}
+        )
     if args.net_all:
         cols["net all-five (not held out)"] = []
     flights = []
@@ -80,24 +91,43 @@ def main() -> None:
             tx, ty = g.extras["truth_x_m"], g.extras["truth_y_m"]
             cols["grid LOTO"].append(g.error_m)
             for label, path in ([("net LOTO", nets[fold])] if nets else []) + [
-                    (f"net {Path(p).stem} (no real flight)", p) for p in args.nets]:
+                (f"net {Path(p).stem} (no real flight)", p) for p in args.nets
+            ]:
                 n = localize_log(log, method="onnx", model_path=path)
-                mean = "mean(grid, net) LOTO" if label == "net LOTO" else f"mean(grid LOTO, {Path(path).stem})"
+                mean = (
+                    "mean(grid, net) LOTO"
+                    if label == "net LOTO"
+                    else f"mean(grid LOTO, {Path(path).stem})"
+                )
                 cols[label].append(n.error_m)
-                cols[mean].append(float(np.hypot(0.5 * (g.x_m + n.x_m) - tx, 0.5 * (g.y_m + n.y_m) - ty)))
+                cols[mean].append(
+                    float(np.hypot(0.5 * (g.x_m + n.x_m) - tx, 0.5 * (g.y_m + n.y_m) - ty))
+                )
             if args.net_all:
-                cols["net all-five (not held out)"].append(localize_log(log, method="onnx",
-                                                                        model_path=args.net_all).error_m)
+                cols["net all-five (not held out)"].append(
+                    localize_log(log, method="onnx", model_path=args.net_all).error_m
+                )
             flights.append(name)
     rows = [_row(k, v, flights) for k, v in cols.items()]
-    print(f"{'method':42s}" + "".join(f"{n:>11s}" for n in flights) + f"{'mean6':>8s}{'med6':>7s}{'mean5':>8s}"
-          f"{'med5':>7s}")
+    print(
+        f"{'method':42s}"
+        + "".join(f"{n:>11s}" for n in flights)
+        + f"{'mean6':>8s}{'med6':>7s}{'mean5':>8s}"
+        f"{'med5':>7s}"
+    )
     for r in rows:
-        print(f"{r['method']:42s}" + "".join(f"{v:11.1f}" for v in r["per_flight_m"].values())
-              + f"{r['mean6_m']:8.1f}{r['median6_m']:7.1f}{r['mean5_m']:8.1f}{r['median5_m']:7.1f}")
+        print(
+            f"{r['method']:42s}"
+            + "".join(f"{v:11.1f}" for v in r["per_flight_m"].values())
+            + f"{r['mean6_m']:8.1f}{r['median6_m']:7.1f}{r['mean5_m']:8.1f}{r['median5_m']:7.1f}"
+        )
     if args.json:
-        Path(args.json).write_text(json.dumps({"rows": rows, "nets": nets, "no_real_nets": args.nets,
-                                                  "net_all": args.net_all}, indent=1))
+        Path(args.json).write_text(
+            json.dumps(
+                {"rows": rows, "nets": nets, "no_real_nets": args.nets, "net_all": args.net_all},
+                indent=1,
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -51,8 +51,14 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
         scores = score_candidates(part, cands)
         default = localize_log(log)
     t = log.truth_enu if truth is None else truth
-    return {"name": name, "truth": [float(t[0]), float(t[1])], "default": [default.x_m, default.y_m],
-            "cands": [c.to_dict() for c in cands], "block_lpd": scores.block_lpd.tolist(), "tau": scores.tau}
+    return {
+        "name": name,
+        "truth": [float(t[0]), float(t[1])],
+        "default": [default.x_m, default.y_m],
+        "cands": [c.to_dict() for c in cands],
+        "block_lpd": scores.block_lpd.tolist(),
+        "tau": scores.tau,
+    }
 
 
 def collect(args) -> None:
@@ -66,14 +72,29 @@ def collect(args) -> None:
     flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
     jobs = []
     out = Path(args.json)
-    done = {json.loads(line)["name"] for line in out.read_text().splitlines()} if out.is_file() else set()
+    done = (
+        {json.loads(line)["name"] for line in out.read_text().splitlines()}
+        if out.is_file()
+        else set()
+    )
     with tempfile.TemporaryDirectory() as tmp:
-        for f in sorted(Path(args.mat).glob("results_useful_ori_exp_*_loc_*.mat")) if args.mat else []:
+        for f in (
+            sorted(Path(args.mat).glob("results_useful_ori_exp_*_loc_*.mat")) if args.mat else []
+        ):
             name = f.stem.replace("results_useful_ori_exp_", "")
-            log = import_afar_mat(f, tmp, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]).out_path
+            log = import_afar_mat(
+                f, tmp, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]
+            ).out_path
             jobs.append((str(log), f"real {name}", FOLD_FOR_TEAM[name[:3]], None))
-        jobs += [(str(Path(args.suite_dir) / flights[i]["file"]), f"bench {i}", None, flights[i]["truth_xy"])
-                 for i in range(args.first, args.first + args.n)]
+        jobs += [
+            (
+                str(Path(args.suite_dir) / flights[i]["file"]),
+                f"bench {i}",
+                None,
+                flights[i]["truth_xy"],
+            )
+            for i in range(args.first, args.first + args.n)
+        ]
         jobs = [j for j in jobs if j[1] not in done]  # a rerun resumes where the last one stopped
         with get_context("spawn").Pool(args.workers) as pool, out.open("a") as fh:
             for row in track(pool.imap(_one, jobs), total=len(jobs), description="candidates"):
@@ -94,7 +115,9 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     from mission.localize.candidates import Candidate
     from mission.localize.stacking import geometric_median, stacking_weights
 
-    def answer(cs, w):  # the first cut's answer: the weighted mean of the candidates within 25 m of the heaviest
+    def answer(
+        cs, w
+    ):  # the first cut's answer: the weighted mean of the candidates within 25 m of the heaviest
         pts = np.array([c.xy for c in cs])
         near = np.hypot(*(pts - pts[int(np.argmax(w))]).T) <= 25.0
         return (pts[near] * np.asarray(w)[near, None]).sum(axis=0) / np.asarray(w)[near].sum()
@@ -114,10 +137,16 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
         return xy(r)[k] if e[k] - e[src.index("fusion")] > nats else np.array(r["default"])
 
     return {
-        "stacking, top cluster": lambda r: answer(cands(r), stacking_weights(np.asarray(r["block_lpd"]))),
+        "stacking, top cluster": lambda r: answer(
+            cands(r), stacking_weights(np.asarray(r["block_lpd"]))
+        ),
         "pseudo-BMA, top cluster": lambda r: answer(cands(r), _pbma(np.asarray(r["block_lpd"]))),
-        "pseudo-BMA, geometric median": lambda r: geometric_median(xy(r), _pbma(np.asarray(r["block_lpd"]))),
-        "stacking, geometric median": lambda r: geometric_median(xy(r), stacking_weights(np.asarray(r["block_lpd"]))),
+        "pseudo-BMA, geometric median": lambda r: geometric_median(
+            xy(r), _pbma(np.asarray(r["block_lpd"]))
+        ),
+        "stacking, geometric median": lambda r: geometric_median(
+            xy(r), stacking_weights(np.asarray(r["block_lpd"]))
+        ),
         "fusion unless 3 nats": lambda r: fusion_or(r, 3.0),
         "uniform geometric median": lambda r: geometric_median(xy(r)),
     }
@@ -162,12 +191,19 @@ def score(args) -> None:
     f = sch[best]
     out = {"real": {}, "bench": {}}
     for src, rs in (("real", real), ("bench", fresh)):
-        out[src] = {"default": [_err(r["default"], r) for r in rs], "evidence": [_err(f(r), r) for r in rs],
-                    "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs]}
+        out[src] = {
+            "default": [_err(r["default"], r) for r in rs],
+            "evidence": [_err(f(r), r) for r in rs],
+            "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
+        }
         groups = [r["name"].split()[1][:3] for r in rs] if src == "real" else None
         for k, v in out[src].items():
             mi = mean_interval(v, seed=2)
-            vs = "" if k == "default" else f", vs default {paired_difference(v, out[src]['default'], seed=2).fmt()}"
+            vs = (
+                ""
+                if k == "default"
+                else f", vs default {paired_difference(v, out[src]['default'], seed=2).fmt()}"
+            )
             by_team = f" [teams {mean_interval(v, groups, seed=2).fmt()}]" if groups else ""
             print(f"{src:5s} {k:16s} mean {mi.fmt()} m{by_team}{vs} (n={len(v)})")
         if src == "real":
@@ -175,19 +211,32 @@ def score(args) -> None:
                 print(f"    {r['name']:16s} default {a:6.1f}  evidence {b:6.1f}  best {c:6.1f}")
     from mission.localize.stacking import stacking_weights
 
-    lv = {src: np.array([truth_level(r, stacking_weights(np.asarray(r["block_lpd"]))) for r in rs])
-          for src, rs in (("dev", dev), ("fresh", fresh), ("real", real))}
+    lv = {
+        src: np.array([truth_level(r, stacking_weights(np.asarray(r["block_lpd"]))) for r in rs])
+        for src, rs in (("dev", dev), ("fresh", fresh), ("real", real))
+    }
     masses = {q: float(np.quantile(lv["dev"], q)) for q in (0.5, 0.9)}
-    print(f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} / {masses[0.9]:.3f}")
+    print(
+        f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} / {masses[0.9]:.3f}"
+    )
     for src in ("fresh", "real"):
         cov = [f"{100 * np.mean(lv[src] < masses[q]):.0f} %" for q in (0.5, 0.9)]
-        print(f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region {cov[1]}")
+        print(
+            f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region {cov[1]}"
+        )
     teams = [r["name"].split()[1][:3] for r in real]
-    dec = pooled_decision({k: out["real"][k] for k in ("default", "evidence")}, teams,
-                          {k: out["bench"][k] for k in ("default", "evidence")}, "default", seed=3)
+    dec = pooled_decision(
+        {k: out["real"][k] for k in ("default", "evidence")},
+        teams,
+        {k: out["bench"][k] for k in ("default", "evidence")},
+        "default",
+        seed=3,
+    )
     m = dec["methods"]["evidence"]
-    print(f"relative paired difference: real {m['real'].fmt(3)}, benchmark {m['bench'].fmt(3)}, "
-          f"pooled {m['pooled'].fmt(3)}")
+    print(
+        f"relative paired difference: real {m['real'].fmt(3)}, benchmark {m['bench'].fmt(3)}, "
+        f"pooled {m['pooled'].fmt(3)}"
+    )
     print(f"decision: {dec['why']}")
     for src in ("real", "bench"):
         d, e, b = (np.asarray(out[src][k]) for k in ("default", "evidence", "best candidate"))

@@ -21,12 +21,20 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-SETS = (("spiral 30 m", "missions/spiral.yaml", None), ("spiral 45 m", "missions/spiral.yaml", 45.0),
-        ("lawnmower 30 m", "missions/lawnmower.yaml", None))
+SETS = (
+    ("spiral 30 m", "missions/spiral.yaml", None),
+    ("spiral 45 m", "missions/spiral.yaml", 45.0),
+    ("lawnmower 30 m", "missions/lawnmower.yaml", None),
+)
 # --variants: the spiral at 30 m with other generator parameters (the router matches generator and altitude only)
-VARIANTS = (("spacing 12 m", {"spacing_m": 12}), ("spacing 35 m", {"spacing_m": 35}),
-            ("spacing 50 m", {"spacing_m": 50}), ("margin 30 m", {"margin_m": 30}),
-            ("region flight", {"region": "flight"}), ("start nw", {"start": "nw"}))
+VARIANTS = (
+    ("spacing 12 m", {"spacing_m": 12}),
+    ("spacing 35 m", {"spacing_m": 35}),
+    ("spacing 50 m", {"spacing_m": 50}),
+    ("margin 30 m", {"margin_m": 30}),
+    ("region flight", {"region": "flight"}),
+    ("start nw", {"start": "nw"}),
+)
 
 
 def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
@@ -34,15 +42,23 @@ def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
     from mission.cli.main import main as rfsl
 
     d = Path(out) / f"s{seed}_{Path(mission).stem}"
-    with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):  # rfsl simulate's three lines per log
+    with (
+        open(os.devnull, "w") as null,
+        contextlib.redirect_stdout(null),
+    ):  # rfsl simulate's three lines per log
         code = rfsl(["simulate", str(mission), "--seed", str(seed), "--out", str(d)])
     if code != 0:
         raise RuntimeError(f"rfsl simulate failed for {mission} seed {seed}")
     return next(d.glob("*.csv"))
 
 
-def mission_variant(mission: str, folder: str | Path, label: str, alt: float | None = None,
-                    params: dict | None = None) -> str:
+def mission_variant(
+    mission: str,
+    folder: str | Path,
+    label: str,
+    alt: float | None = None,
+    params: dict | None = None,
+) -> str:
     """``mission`` itself, or a copy in ``folder`` flown at ``alt`` and/or with other generator ``params``."""
     if alt is None and params is None:
         return str(mission)
@@ -50,7 +66,9 @@ def mission_variant(mission: str, folder: str | Path, label: str, alt: float | N
     spec["name"] = f"{Path(mission).stem}_{label.replace(' ', '_')}"
     spec["altitude_m"] = spec["altitude_m"] if alt is None else alt
     spec["trajectory"]["params"].update(params or {})
-    spec["time_budget_s"] = 1500  # a denser spiral takes longer than the paper's 10 minutes (a check only)
+    spec["time_budget_s"] = (
+        1500  # a denser spiral takes longer than the paper's 10 minutes (a check only)
+    )
     out = Path(folder) / f"{spec['name']}.yaml"
     out.write_text(yaml.safe_dump(spec))
     return str(out)
@@ -70,15 +88,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default="7000:7040", help="first:last (exclusive)")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--variants", action="store_true", help="spirals with other generator parameters instead")
-    ap.add_argument("--only", help="run only the sets whose label contains this text (e.g. 'spiral 30')")
+    ap.add_argument(
+        "--variants", action="store_true", help="spirals with other generator parameters instead"
+    )
+    ap.add_argument(
+        "--only", help="run only the sets whose label contains this text (e.g. 'spiral 30')"
+    )
     args = ap.parse_args()
     from mission.threads import limit_worker
 
     lo, hi = (int(v) for v in args.seeds.split(":"))
-    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
-        sets = ([(label, "missions/spiral.yaml", None, p) for label, p in VARIANTS] if args.variants
-                else [(*s, None) for s in SETS])
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex,
+    ):
+        sets = (
+            [(label, "missions/spiral.yaml", None, p) for label, p in VARIANTS]
+            if args.variants
+            else [(*s, None) for s in SETS]
+        )
         sets = [s for s in sets if args.only is None or args.only in s[0]]
         for label, mission, alt, params in sets:
             mission = mission_variant(mission, tmp, label, alt, params)
@@ -86,9 +114,11 @@ def main() -> None:
             rows = list(ex.map(one, [(mission, out, s) for s in range(lo, hi)]))
             a, b = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
             used = {m: sum(r[2] == m for r in rows) for m in dict.fromkeys(r[2] for r in rows)}
-            print(f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / {np.percentile(a, 90):.1f}  "
-                  f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / {np.percentile(b, 90):.1f}  models {used}",
-                  flush=True)
+            print(
+                f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / {np.percentile(a, 90):.1f}  "
+                f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / {np.percentile(b, 90):.1f}  models {used}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -32,7 +32,9 @@ def two_level_path(fld, rng: np.random.Generator, scenario: str) -> np.ndarray:
     legs at A, the rest at B (each level covers part of the area); ``repeat``: the whole lawnmower at A, then back
     along it at B (both levels over the same cells)."""
     a, b = rng.uniform(15.0, 30.0), rng.uniform(35.0, 60.0)
-    wp = lawnmower(fld, 1.0, spacing_m=rng.uniform(18.0, 30.0), direction=str(rng.choice(["ew", "ns"])))
+    wp = lawnmower(
+        fld, 1.0, spacing_m=rng.uniform(18.0, 30.0), direction=str(rng.choice(["ew", "ns"]))
+    )
     if scenario == "repeat":
         wp = np.vstack([wp, wp[::-1]])
         k = len(wp) // 2
@@ -59,12 +61,19 @@ def main() -> None:
     model = preset_model("afar")
     per_level = SelfCalibratingGrid(area=fld.rover_area)
     merged = SelfCalibratingGrid(area=fld.rover_area, altitude_gap_m=np.inf)
-    cfg = SimConfig(noise_db=2.0, shadowing_db=6.0, shadowing_corr_m=30.0, attitude_perturbation_deg=2.0,
-                    perturbation_corr_s=0.3)
-    rules = {"levels, cells per level (now)": (lambda h: cruise_mask(h).mask, per_level),
-             "levels, cells merged": (lambda h: cruise_mask(h).mask, merged),
-             "one level": (lambda h: cruise_mask(h, max_altitudes=1).mask, per_level),
-             "single band (before)": (single_band_before, merged)}
+    cfg = SimConfig(
+        noise_db=2.0,
+        shadowing_db=6.0,
+        shadowing_corr_m=30.0,
+        attitude_perturbation_deg=2.0,
+        perturbation_corr_s=0.3,
+    )
+    rules = {
+        "levels, cells per level (now)": (lambda h: cruise_mask(h).mask, per_level),
+        "levels, cells merged": (lambda h: cruise_mask(h).mask, merged),
+        "one level": (lambda h: cruise_mask(h, max_altitudes=1).mask, per_level),
+        "single band (before)": (single_band_before, merged),
+    }
     for scenario in ("split", "repeat"):
         kept: dict[str, list[float]] = {r: [] for r in rules}
         err: dict[str, list[float]] = {r: [] for r in rules}
@@ -81,12 +90,16 @@ def main() -> None:
                     err[r].append(np.nan)
                     continue
                 err[r].append(float(np.hypot(e.x_m - tx[0], e.y_m - tx[1])))
-        print(f"{args.n} two-level flights, scenario {scenario} (seed {args.seed}); selfcal on the kept samples")
+        print(
+            f"{args.n} two-level flights, scenario {scenario} (seed {args.seed}); selfcal on the kept samples"
+        )
         for r in rules:
             e = np.asarray(err[r])
             ok = np.isfinite(e)
-            print(f"  {r:30s} kept {100 * np.mean(kept[r]):5.1f} % (min {100 * np.min(kept[r]):4.1f} %), localized "
-                  f"{ok.sum()}/{e.size}, error mean {np.nanmean(e):5.1f} m, median {np.nanmedian(e):5.1f} m")
+            print(
+                f"  {r:30s} kept {100 * np.mean(kept[r]):5.1f} % (min {100 * np.min(kept[r]):4.1f} %), localized "
+                f"{ok.sum()}/{e.size}, error mean {np.nanmean(e):5.1f} m, median {np.nanmedian(e):5.1f} m"
+            )
 
 
 if __name__ == "__main__":

@@ -26,15 +26,28 @@ VARIANTS = {
         "grid",
         {"physics_model": "free-space", "physics_params": {"pattern": "isotropic"}},
     ),
-    "grid two-ray iso": ("grid", {"physics_model": "two-ray", "physics_params": {"pattern": "isotropic"}}),
-    "grid two-ray dipole": ("grid", {"physics_model": "two-ray", "physics_params": {"pattern": "dipole"}}),
+    "grid two-ray iso": (
+        "grid",
+        {"physics_model": "two-ray", "physics_params": {"pattern": "isotropic"}},
+    ),
+    "grid two-ray dipole": (
+        "grid",
+        {"physics_model": "two-ray", "physics_params": {"pattern": "dipole"}},
+    ),
     "grid e2r dipole": ("grid", {"physics_model": "e2r", "physics_params": {"pattern": "dipole"}}),
-    "grid e2r measured": ("grid", {"physics_model": "e2r", "physics_params": {"pattern": "measured"}}),
+    "grid e2r measured": (
+        "grid",
+        {"physics_model": "e2r", "physics_params": {"pattern": "measured"}},
+    ),
     # exploratory (chosen after looking at these six flights, so NOT a held-out figure): samples more than
     # 35 dB below the flight's maximum treated as censored by the receiver's noise floor
     "grid fs iso floor35*": (
         "grid",
-        {"physics_model": "free-space", "physics_params": {"pattern": "isotropic"}, "floor_db": 35.0},
+        {
+            "physics_model": "free-space",
+            "physics_params": {"pattern": "isotropic"},
+            "floor_db": 35.0,
+        },
     ),
 }
 
@@ -51,7 +64,9 @@ def main() -> None:
     files = sorted(Path(args.data).glob("results_useful_ori_exp_*_loc_*.mat"))
     if not files:
         raise SystemExit(f"no AFAR MAT files under {args.data}")
-    names = list(VARIANTS) if args.variants == "all" else [v.strip() for v in args.variants.split(",")]
+    names = (
+        list(VARIANTS) if args.variants == "all" else [v.strip() for v in args.variants.split(",")]
+    )
     with tempfile.TemporaryDirectory() as tmp:
         logs = []
         for f in files:

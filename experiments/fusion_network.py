@@ -42,7 +42,12 @@ def one(job: tuple[str, str, int, tuple[str, ...]]) -> dict:
 
 def errors(rows: list[dict], net: str, fused: bool = True) -> np.ndarray:
     """2D errors (m) of the fusion with ``net`` (or of ``net`` alone)."""
-    return np.array([np.hypot(*((0.5 * (r["selfcal"] + r[net]) if fused else r[net]) - r["truth"])) for r in rows])
+    return np.array(
+        [
+            np.hypot(*((0.5 * (r["selfcal"] + r[net]) if fused else r[net]) - r["truth"]))
+            for r in rows
+        ]
+    )
 
 
 def main() -> None:
@@ -53,19 +58,31 @@ def main() -> None:
     from mission.workshop.evaluate import import_afar
 
     nets = tuple(args.nets)
-    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex,
+    ):
         real = list(ex.map(one, [("real", str(p), 0, nets) for p in import_afar(args.mat, tmp)]))
-        bench = list(ex.map(one, [("suite", args.suite_dir, i, nets) for i in range(args.n)], chunksize=4))
+        bench = list(
+            ex.map(one, [("suite", args.suite_dir, i, nets) for i in range(args.n)], chunksize=4)
+        )
     u = {n: errors(bench, n).mean() for n in nets}
     r = {n: errors(real, n).mean() for n in nets}
     for n in nets:
-        eu, er, au, ar = errors(bench, n), errors(real, n), errors(bench, n, False), errors(real, n, False)
+        eu, er, au, ar = (
+            errors(bench, n),
+            errors(real, n),
+            errors(bench, n, False),
+            errors(real, n, False),
+        )
         score = u[n] / min(u.values()) + r[n] / min(r.values())
         five, five_alone = np.delete(er, SUSPECT).mean(), np.delete(ar, SUSPECT).mean()
-        print(f"{Path(n).name}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R "
-              f"{er.mean():.1f} [{five:.1f}]  score {score:.3f}  | alone U {au.mean():.1f} / {np.median(au):.1f}  "
-              f"R {ar.mean():.1f} [{five_alone:.1f}]  | R per flight fused {' '.join(f'{e:.1f}' for e in er)}; "
-              f"alone {' '.join(f'{e:.1f}' for e in ar)}")
+        print(
+            f"{Path(n).name}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R "
+            f"{er.mean():.1f} [{five:.1f}]  score {score:.3f}  | alone U {au.mean():.1f} / {np.median(au):.1f}  "
+            f"R {ar.mean():.1f} [{five_alone:.1f}]  | R per flight fused {' '.join(f'{e:.1f}' for e in er)}; "
+            f"alone {' '.join(f'{e:.1f}' for e in ar)}"
+        )
 
 
 if __name__ == "__main__":

@@ -19,8 +19,14 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 # each rung removes its knowledge from the true spec; "known antenna only" removes all four
-RUNGS = ("oracle", "no path-gain slope", "no ground reflection", "isotropic rover", "yaw only",
-         "known antenna only")
+RUNGS = (
+    "oracle",
+    "no path-gain slope",
+    "no ground reflection",
+    "isotropic rover",
+    "yaw only",
+    "known antenna only",
+)
 
 
 def degraded(spec: dict, rung: str) -> dict:
@@ -54,7 +60,9 @@ def one(job: tuple[str, int]) -> dict:
     out = {"outside": bool(d["tx_outside_flight_area"])}
     for rung in RUNGS:
         model = build_model(degraded(d["physics"]["spec"], rung), name=rung)
-        tx_h = 1.5 if rung == "known antenna only" else d["tx_height_m"]  # the search's assumed height
+        tx_h = (
+            1.5 if rung == "known antenna only" else d["tx_height_m"]
+        )  # the search's assumed height
         e = classical.ModelGridSearch(model, tx_height_m=tx_h, area=area).predict(part)
         out[rung] = float(np.hypot(e.x_m - truth[0], e.y_m - truth[1]))
     e = localize_log(fl.log, method="selfcal")
@@ -73,10 +81,14 @@ def main() -> None:
     with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         rows = list(ex.map(one, [(args.suite_dir, i) for i in range(args.n)], chunksize=2))
     out = np.array([r["outside"] for r in rows])
-    print(f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside ({out.sum()})")
+    print(
+        f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside ({out.sum()})"
+    )
     for k in (*RUNGS, "selfcal"):
         e = np.array([r[k] for r in rows])
-        print(f"{k:22s} {e.mean():6.1f} / {np.median(e):5.1f}   {e[~out].mean():6.1f}   {e[out].mean():6.1f}")
+        print(
+            f"{k:22s} {e.mean():6.1f} / {np.median(e):5.1f}   {e[~out].mean():6.1f}   {e[out].mean():6.1f}"
+        )
 
 
 if __name__ == "__main__":

@@ -30,7 +30,9 @@ def _minus_gain(geom: tuple[np.ndarray, ...], hyp) -> np.ndarray:
     return next(hypothesis_residuals(np.zeros_like(pg), el, az, [hyp]))
 
 
-def fit_at_truth(y: np.ndarray, geom_t: tuple[np.ndarray, ...], hyps, free_n: bool) -> tuple[int, np.ndarray]:
+def fit_at_truth(
+    y: np.ndarray, geom_t: tuple[np.ndarray, ...], hyps, free_n: bool
+) -> tuple[int, np.ndarray]:
     """The hypothesis index and coefficients (offset c, and the exponent term 10 n when ``free_n``) that fit
     the cells ``y`` (M,) best with the transmitter at the truth (least squares; ``geom_t`` from ``_geometry``
     of one candidate).  Model: y = c + G_h + (10 n / 20) pg, pg = -20 log10 d (n = 2 when not free)."""
@@ -38,8 +40,11 @@ def fit_at_truth(y: np.ndarray, geom_t: tuple[np.ndarray, ...], hyps, free_n: bo
     for h, hyp in enumerate(hyps):
         t = y + _minus_gain(geom_t, hyp)[0]
         x = np.column_stack([np.ones_like(y), geom_t[0][0] / 20.0])
-        coef = (np.linalg.lstsq(x, t, rcond=None)[0] if free_n
-                else np.array([np.mean(t - geom_t[0][0]), 20.0]))
+        coef = (
+            np.linalg.lstsq(x, t, rcond=None)[0]
+            if free_n
+            else np.array([np.mean(t - geom_t[0][0]), 20.0])
+        )
         ss = float(((t - x @ coef) ** 2).sum())
         if ss < best[0]:
             best = (ss, h, coef)
@@ -63,7 +68,9 @@ def one_flight(path) -> dict:
     log = read_flight_log(path)
     part, _ = select_samples(log)
     f = as_flight(part)
-    sc = SelfCalibratingGrid(area=search_area(log), step_m=STEP_M)  # the search's own cells, area and tx height
+    sc = SelfCalibratingGrid(
+        area=search_area(log), step_m=STEP_M
+    )  # the search's own cells, area and tx height
     cells = cell_average(f, sc.cell_m, sc.altitude_gap_m)
     hyps = antenna_hypotheses(sc.hypotheses, sc.heading_step_deg)
     truth = np.asarray(log.truth_enu[:2])
@@ -72,7 +79,10 @@ def one_flight(path) -> dict:
     if poly is not None:
         grid = grid[poly.contains(grid)]
     y = cells.rss_dbm.astype(float)
-    geom_t, geom = _geometry(truth[None, :], cells, sc.tx_height_m), _geometry(grid, cells, sc.tx_height_m)
+    geom_t, geom = (
+        _geometry(truth[None, :], cells, sc.tx_height_m),
+        _geometry(grid, cells, sc.tx_height_m),
+    )
     out = {"flight": path.stem}
     for rung, free_n in (("h+c", False), ("h+c+n", True)):
         h, (c, k) = fit_at_truth(y, geom_t, hyps, free_n)
@@ -94,11 +104,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         rows = [one_flight(p) for p in import_afar(args.mat, tmp)]
     for r in rows:
-        print(f"{r['flight']}: h+c {r['h+c']:6.1f} m ({r['h+c fit']})   h+c+n {r['h+c+n']:6.1f} m "
-              f"({r['h+c+n fit']})   selfcal {r['selfcal']:6.1f} m")
+        print(
+            f"{r['flight']}: h+c {r['h+c']:6.1f} m ({r['h+c fit']})   h+c+n {r['h+c+n']:6.1f} m "
+            f"({r['h+c+n fit']})   selfcal {r['selfcal']:6.1f} m"
+        )
     for k in ("h+c", "h+c+n", "selfcal"):
         e = np.array([r[k] for r in rows])
-        print(f"{k:8s} mean of {len(e)} {e.mean():5.1f} m, of the five trusted {np.delete(e, SUSPECT).mean():5.1f} m")
+        print(
+            f"{k:8s} mean of {len(e)} {e.mean():5.1f} m, of the five trusted {np.delete(e, SUSPECT).mean():5.1f} m"
+        )
 
 
 if __name__ == "__main__":

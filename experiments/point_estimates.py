@@ -51,7 +51,9 @@ def one(job: tuple[str, str, int]) -> dict:
 
 def errors(rows: list[dict], key: str, fused: bool = True) -> np.ndarray:
     """2D errors (m) of candidate ``key``, fused with the network (or alone)."""
-    return np.array([np.hypot(*((0.5 * (r[key] + r["net"]) if fused else r[key]) - r["truth"])) for r in rows])
+    return np.array(
+        [np.hypot(*((0.5 * (r[key] + r["net"]) if fused else r[key]) - r["truth"])) for r in rows]
+    )
 
 
 def main() -> None:
@@ -65,10 +67,12 @@ def main() -> None:
     r = {k: errors(real, k).mean() for k in CANDIDATES}
     for k in CANDIDATES:
         eu, er = errors(bench, k), errors(real, k)
-        print(f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
-              f"  score {u[k] / min(u.values()) + r[k] / min(r.values()):.3f}  | selfcal alone U "
-              f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R per flight "
-              f"{' '.join(f'{e:.1f}' for e in er)}")
+        print(
+            f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
+            f"  score {u[k] / min(u.values()) + r[k] / min(r.values()):.3f}  | selfcal alone U "
+            f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R per flight "
+            f"{' '.join(f'{e:.1f}' for e in er)}"
+        )
 
 
 if __name__ == "__main__":

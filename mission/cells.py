@@ -57,7 +57,9 @@ class Cells:
     yaw_rad: np.ndarray
     count: np.ndarray
     cell_m: float
-    n_columns: int | None = None  # distinct horizontal cells (one flown at two altitudes counts once); None: len
+    n_columns: int | None = (
+        None  # distinct horizontal cells (one flown at two altitudes counts once); None: len
+    )
 
     def __len__(self) -> int:
         return int(self.rss_dbm.size)

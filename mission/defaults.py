@@ -7,10 +7,12 @@ DEFAULT_TX_HEIGHT_M = 1.5
 
 # Bounds of the options that size the work: past them a run never ends or exhausts memory (issue 37: a
 # speed-up of 1e9 or nan, a billion dataset flights), so every command and mission key refuses them in one line.
-MAX_SPEEDUP = 1000.0     # the built-in vehicle's simulated seconds per wall-clock second (fly-mission, rfsl sitl)
-MAX_RATE_HZ = 1000.0     # position/attitude rate a flight may request
+MAX_SPEEDUP = 1000.0  # the built-in vehicle's simulated seconds per wall-clock second (fly-mission, rfsl sitl)
+MAX_RATE_HZ = 1000.0  # position/attitude rate a flight may request
 MAX_DURATION_S = 86400.0  # one day: any timeout or duration a command accepts
-MAX_WORKERS = 256        # processes or threads a command may start (--workers 100000 would fork that many)
+MAX_WORKERS = (
+    256  # processes or threads a command may start (--workers 100000 would fork that many)
+)
 # What a flight does when its predicted landing passes the time budget less its reserve (mission key
 # ``budget_policy``, ``mission.flight.budget``): drop the mission's tail, only warn, or return at once.
 BUDGET_POLICIES = ("trim", "warn", "return")

@@ -11,8 +11,14 @@ class InputError(ValueError):
 
     exit_code = 2
 
-    def __init__(self, message: str, *, source: str | None = None, row: int | None = None,
-                 field: str | None = None) -> None:
+    def __init__(
+        self,
+        message: str,
+        *,
+        source: str | None = None,
+        row: int | None = None,
+        field: str | None = None,
+    ) -> None:
         where = []
         if source:
             where.append(str(source))
@@ -32,7 +38,11 @@ _LINE_BREAKS = {c: repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"
 
 def one_line(text: str) -> str:
     """``text`` with every line-breaking character written as its escape (``\\n``, ``\\x1d``)."""
-    return "".join(_LINE_BREAKS.get(c, c) for c in text) if any(c in _LINE_BREAKS for c in text) else text
+    return (
+        "".join(_LINE_BREAKS.get(c, c) for c in text)
+        if any(c in _LINE_BREAKS for c in text)
+        else text
+    )
 
 
 def refuse_unknown_keys(d: dict, allowed, what: str) -> None:

@@ -44,7 +44,9 @@ class Interval:
         return {"value": self.value, "lo": self.lo, "hi": self.hi, "level": self.level}
 
 
-def replicate_weights(n: int, groups: Sequence | None = None, n_boot: int = N_BOOT, seed: int = 0) -> np.ndarray:
+def replicate_weights(
+    n: int, groups: Sequence | None = None, n_boot: int = N_BOOT, seed: int = 0
+) -> np.ndarray:
     """(n_boot, n) multiplicities of each flight in each replicate: flights drawn with replacement, or, with
     ``groups`` (one label per flight), whole groups drawn with replacement (cluster bootstrap)."""
     rng = np.random.default_rng(seed)
@@ -72,8 +74,13 @@ def _interval(stat: float, reps: np.ndarray, level: float) -> Interval:
     return Interval(float(stat), float(lo), float(hi), level)
 
 
-def mean_interval(errors: Sequence[float], groups: Sequence | None = None, level: float = LEVEL,
-                  n_boot: int = N_BOOT, seed: int = 0) -> Interval:
+def mean_interval(
+    errors: Sequence[float],
+    groups: Sequence | None = None,
+    level: float = LEVEL,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+) -> Interval:
     """Mean error over flights with its (cluster) bootstrap interval."""
     e = np.asarray(errors, dtype=float)
     w = replicate_weights(len(e), groups, n_boot, seed)
@@ -81,8 +88,14 @@ def mean_interval(errors: Sequence[float], groups: Sequence | None = None, level
     return _interval(float(e.mean()), reps, level)
 
 
-def paired_difference(errors_a: Sequence[float], errors_b: Sequence[float], groups: Sequence | None = None,
-                      level: float = LEVEL, n_boot: int = N_BOOT, seed: int = 0) -> Interval:
+def paired_difference(
+    errors_a: Sequence[float],
+    errors_b: Sequence[float],
+    groups: Sequence | None = None,
+    level: float = LEVEL,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+) -> Interval:
     """Mean of ``a - b`` over the same flights, with its paired (cluster) bootstrap interval: negative = a
     errs less."""
     a, b = np.asarray(errors_a, dtype=float), np.asarray(errors_b, dtype=float)
@@ -91,8 +104,14 @@ def paired_difference(errors_a: Sequence[float], errors_b: Sequence[float], grou
     return mean_interval(a - b, groups, level, n_boot, seed)
 
 
-def compare_methods(errors: Mapping[str, Sequence[float]], reference: str, groups: Sequence | None = None,
-                    level: float = LEVEL, n_boot: int = N_BOOT, seed: int = 0) -> dict[str, dict[str, Interval]]:
+def compare_methods(
+    errors: Mapping[str, Sequence[float]],
+    reference: str,
+    groups: Sequence | None = None,
+    level: float = LEVEL,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+) -> dict[str, dict[str, Interval]]:
     """Per method: its mean error and its paired difference to ``reference``, all from one replicate set."""
     if reference not in errors:
         raise ValueError(f"reference {reference!r} is not among the methods")
@@ -105,8 +124,10 @@ def compare_methods(errors: Mapping[str, Sequence[float]], reference: str, group
         e = np.asarray(e, dtype=float)
         if e.shape != ref.shape:
             raise ValueError(f"{name}: {e.shape} errors, reference has {ref.shape}")
-        out[name] = {"mean": _interval(float(e.mean()), (w @ e) / tot, level),
-                     "diff": _interval(float((e - ref).mean()), (w @ (e - ref)) / tot, level)}
+        out[name] = {
+            "mean": _interval(float(e.mean()), (w @ e) / tot, level),
+            "diff": _interval(float((e - ref).mean()), (w @ (e - ref)) / tot, level),
+        }
     return out
 
 

@@ -19,7 +19,9 @@ from pathlib import Path
 
 from mission.errors import InputError
 
-MAX_TEXT_BYTES = 200_000_000  # a flight log of a few hours at 50 Hz is ~100 MB; more is not an input we read
+MAX_TEXT_BYTES = (
+    200_000_000  # a flight log of a few hours at 50 Hz is ~100 MB; more is not an input we read
+)
 
 
 def _why(e: OSError) -> str:
@@ -27,8 +29,9 @@ def _why(e: OSError) -> str:
     return e.strerror or (errno.errorcode.get(e.errno or 0) or str(e))
 
 
-def check_regular(path: str | Path, what: str = "file", field: str | None = None,
-                  max_bytes: int | None = None) -> Path:
+def check_regular(
+    path: str | Path, what: str = "file", field: str | None = None, max_bytes: int | None = None
+) -> Path:
     """``path`` if it is an existing regular file (not a folder, FIFO or device) of at most ``max_bytes``;
     else an InputError naming it.  A FIFO with no writer or ``/dev/zero`` would block or never end."""
     p = Path(path)
@@ -41,15 +44,23 @@ def check_regular(path: str | Path, what: str = "file", field: str | None = None
     if stat.S_ISDIR(st.st_mode):
         raise InputError(f"is a directory, not a {what}", source=str(p), field=field)
     if not stat.S_ISREG(st.st_mode):
-        raise InputError(f"is not a regular file (a pipe or a device?); give a {what}", source=str(p), field=field)
+        raise InputError(
+            f"is not a regular file (a pipe or a device?); give a {what}",
+            source=str(p),
+            field=field,
+        )
     if max_bytes is not None and st.st_size > max_bytes:
-        raise InputError(f"is {st.st_size / 1e6:.1f} MB; a {what} may be at most {max_bytes / 1e6:g} MB",
-                         source=str(p), field=field)
+        raise InputError(
+            f"is {st.st_size / 1e6:.1f} MB; a {what} may be at most {max_bytes / 1e6:g} MB",
+            source=str(p),
+            field=field,
+        )
     return p
 
 
-def read_bytes(path: str | Path, what: str = "file", field: str | None = None,
-               max_bytes: int = MAX_TEXT_BYTES) -> bytes:
+def read_bytes(
+    path: str | Path, what: str = "file", field: str | None = None, max_bytes: int = MAX_TEXT_BYTES
+) -> bytes:
     """The bytes of a regular input file (``check_regular``), read errors as one-line InputErrors."""
     p = check_regular(path, what, field, max_bytes)
     try:
@@ -58,16 +69,24 @@ def read_bytes(path: str | Path, what: str = "file", field: str | None = None,
         raise InputError(f"cannot read the {what}: {_why(e)}", source=str(p), field=field) from None
 
 
-def read_text(path: str | Path, what: str = "file", field: str | None = None,
-              max_bytes: int = MAX_TEXT_BYTES, encoding: str = "utf-8") -> str:
+def read_text(
+    path: str | Path,
+    what: str = "file",
+    field: str | None = None,
+    max_bytes: int = MAX_TEXT_BYTES,
+    encoding: str = "utf-8",
+) -> str:
     """The text of a regular input file; bytes that are not ``encoding`` are an InputError (a binary or
     Latin-1 file given where a YAML or JSON file belongs)."""
     data = read_bytes(path, what, field, max_bytes)
     try:
         return data.decode(encoding)
     except UnicodeDecodeError as e:
-        raise InputError(f"is not a UTF-8 text {what} (byte {e.start} is 0x{data[e.start]:02x}); binary?",
-                         source=str(path), field=field) from None
+        raise InputError(
+            f"is not a UTF-8 text {what} (byte {e.start} is 0x{data[e.start]:02x}); binary?",
+            source=str(path),
+            field=field,
+        ) from None
 
 
 @contextlib.contextmanager
@@ -92,7 +111,9 @@ def writing(path: str | Path, field: str | None = None) -> Iterator[Path]:
         os.replace(tmp, p)
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot write: {_why(e)} (nothing written)", source=str(p), field=field) from None
+        raise InputError(
+            f"cannot write: {_why(e)} (nothing written)", source=str(p), field=field
+        ) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -147,12 +168,18 @@ def check_writable_dir(folder: str | Path, field: str | None = "--out") -> Path:
         with tempfile.TemporaryFile(dir=base):
             pass
     except OSError as e:
-        raise InputError(f"cannot write in {base}: {_why(e)}", source=str(folder), field=field) from None
+        raise InputError(
+            f"cannot write in {base}: {_why(e)}", source=str(folder), field=field
+        ) from None
     return folder
 
 
-def check_out_file(path: str | Path, field: str | None = "--out", overwrite: bool = False,
-                   hint: str = "use --overwrite to replace it") -> Path:
+def check_out_file(
+    path: str | Path,
+    field: str | None = "--out",
+    overwrite: bool = False,
+    hint: str = "use --overwrite to replace it",
+) -> Path:
     """An output file's path checked before any work: not a folder, its folder writable (or creatable),
     and not an existing file unless ``overwrite``."""
     p = Path(path)

@@ -36,8 +36,9 @@ class Origin:
     def to_geodetic(self, enu) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Local ENU (..., 3) -> (lat_deg, lon_deg, alt_m AMSL)."""
         enu = np.asarray(enu, dtype=float)
-        lat, lon, alt = pymap3d.enu2geodetic(enu[..., 0], enu[..., 1], enu[..., 2],
-                                             self.lat_deg, self.lon_deg, self.alt_m)
+        lat, lon, alt = pymap3d.enu2geodetic(
+            enu[..., 0], enu[..., 1], enu[..., 2], self.lat_deg, self.lon_deg, self.alt_m
+        )
         return np.asarray(lat), np.asarray(lon), np.asarray(alt)
 
     def to_dict(self) -> dict:
@@ -59,11 +60,15 @@ class Area:
     def __post_init__(self) -> None:
         v = np.asarray(self.vertices, dtype=float)
         if v.ndim != 2 or v.shape[1] != 2 or len(v) < 3:
-            raise InputError(f"area '{self.name}' needs at least 3 (x, y) vertices, got shape {v.shape}")
+            raise InputError(
+                f"area '{self.name}' needs at least 3 (x, y) vertices, got shape {v.shape}"
+            )
         object.__setattr__(self, "vertices", v)
         poly = shapely.Polygon(v)
         shapely.prepare(poly)
-        object.__setattr__(self, "_polygon", poly)  # derived from the vertices once, in construction
+        object.__setattr__(
+            self, "_polygon", poly
+        )  # derived from the vertices once, in construction
 
     @classmethod
     def from_geodetic(cls, name: str, lat_lon: np.ndarray, origin: Origin) -> Area:
@@ -74,8 +79,14 @@ class Area:
     @classmethod
     def from_box(cls, name: str, box: dict, origin: Origin) -> Area:
         """Build from a lat/lon box ``{lat_min, lat_max, lon_min, lon_max}`` (the AFAR geometry format)."""
-        ll = np.array([[box["lat_min"], box["lon_min"]], [box["lat_min"], box["lon_max"]],
-                       [box["lat_max"], box["lon_max"]], [box["lat_max"], box["lon_min"]]])
+        ll = np.array(
+            [
+                [box["lat_min"], box["lon_min"]],
+                [box["lat_min"], box["lon_max"]],
+                [box["lat_max"], box["lon_max"]],
+                [box["lat_max"], box["lon_min"]],
+            ]
+        )
         return cls.from_geodetic(name, ll, origin)
 
     @property
@@ -106,7 +117,12 @@ class Area:
     def bounds(self) -> tuple[float, float, float, float]:
         """(xmin, ymin, xmax, ymax) in metres."""
         v = self.vertices
-        return float(v[:, 0].min()), float(v[:, 1].min()), float(v[:, 0].max()), float(v[:, 1].max())
+        return (
+            float(v[:, 0].min()),
+            float(v[:, 1].min()),
+            float(v[:, 0].max()),
+            float(v[:, 1].max()),
+        )
 
     def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` points drawn uniformly inside the polygon (rejection sampling on its bounding box)."""
@@ -133,8 +149,9 @@ def square_grid(bounds, step_m: float, centred: bool = False) -> np.ndarray:
 def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> list[np.ndarray]:
     """The parts of polygon ``subject`` inside polygon ``clip`` ((K, 2) each, either may be non-convex): a list of
     (M, 2) rings, counter-clockwise, without the closing vertex; empty when they do not overlap."""
-    inter = shapely.intersection(*(shapely.make_valid(shapely.Polygon(np.asarray(v, dtype=float)))
-                                   for v in (subject, clip)))
+    inter = shapely.intersection(
+        *(shapely.make_valid(shapely.Polygon(np.asarray(v, dtype=float))) for v in (subject, clip))
+    )
     parts = [g for g in shapely.get_parts(inter) if isinstance(g, shapely.Polygon) and g.area > 0]
     return [np.asarray(shapely.orient_polygons(g).exterior.coords, dtype=float)[:-1] for g in parts]
 
@@ -155,7 +172,9 @@ class Field:
     takeoff_home: tuple[float, float] | None = None  # lat, lon
 
 
-MAX_FLIGHT_KM = 200.0  # a sample farther than this from its mission origin is not a position in degrees
+MAX_FLIGHT_KM = (
+    200.0  # a sample farther than this from its mission origin is not a position in degrees
+)
 
 
 def latlon_unit_problem(lat, lon, origin: Origin | None) -> tuple[int, str] | None:
@@ -169,28 +188,43 @@ def latlon_unit_problem(lat, lon, origin: Origin | None) -> tuple[int, str] | No
     if lat.size == 0:
         return None
     radians = bool(np.all(np.abs(lat) <= np.pi / 2) and np.all(np.abs(lon) <= np.pi))
-    hint = (f" (radians? in degrees that is {np.degrees(lat[0]):.5f}, {np.degrees(lon[0]):.5f})"
-            if radians else " (wrong units?)")
+    hint = (
+        f" (radians? in degrees that is {np.degrees(lat[0]):.5f}, {np.degrees(lon[0]):.5f})"
+        if radians
+        else " (wrong units?)"
+    )
     if origin is None:
         return (0, f"the whole track lies within +-pi/2, +-pi{hint}") if radians else None
     dlat = np.radians(lat - origin.lat_deg)
-    dlon = np.radians((lon - origin.lon_deg + 180.0) % 360.0 - 180.0) * np.cos(np.radians(origin.lat_deg))
+    dlon = np.radians((lon - origin.lon_deg + 180.0) % 360.0 - 180.0) * np.cos(
+        np.radians(origin.lat_deg)
+    )
     km = 6371.0 * np.hypot(dlat, dlon)
     far = np.flatnonzero(km > MAX_FLIGHT_KM)
     if not far.size:
         return None
     i = int(far[0])
-    return i, (f"{lat[i]:g}, {lon[i]:g} is {km[i]:,.0f} km from the origin "
-               f"{origin.lat_deg:.5f}, {origin.lon_deg:.5f}{hint}")
+    return i, (
+        f"{lat[i]:g}, {lon[i]:g} is {km[i]:,.0f} km from the origin "
+        f"{origin.lat_deg:.5f}, {origin.lon_deg:.5f}{hint}"
+    )
 
 
 AFAR_GEOMETRY = {
     "field": "AERPAW Lake Wheeler Road Field Labs, AFAR challenge (December 2023)",
     "source": "AFAR_Drone.kml / AFAR_Rover.kml of SunLab-UGA/AERPAW_AFAR (commit aeb1a793)",
-    "flight_area": {"lat_min": 35.72688213193035, "lat_max": 35.72931030026633,
-                    "lon_min": -78.69953825817279, "lon_max": -78.69621514941473},
-    "rover_area": {"lat_min": 35.72774492720433, "lat_max": 35.7303079937812,
-                   "lon_min": -78.69980159100491, "lon_max": -78.69670002283071},
+    "flight_area": {
+        "lat_min": 35.72688213193035,
+        "lat_max": 35.72931030026633,
+        "lon_min": -78.69953825817279,
+        "lon_max": -78.69621514941473,
+    },
+    "rover_area": {
+        "lat_min": 35.72774492720433,
+        "lat_max": 35.7303079937812,
+        "lon_min": -78.69980159100491,
+        "lon_max": -78.69670002283071,
+    },
     "takeoff_home": {"lat": 35.72737, "lon": -78.69622},
 }
 
@@ -210,5 +244,10 @@ def afar_field(geometry: dict | str | Path | None = None, origin: Origin | None 
     fa = g["flight_area"]
     origin = origin or Origin(fa["lat_min"], fa["lon_min"], 0.0)
     home = g.get("takeoff_home")
-    return Field(origin, Area.from_box("flight area", fa, origin), Area.from_box("rover area", g["rover_area"], origin),
-                 name=g.get("field", "AFAR"), takeoff_home=(home["lat"], home["lon"]) if home else None)
+    return Field(
+        origin,
+        Area.from_box("flight area", fa, origin),
+        Area.from_box("rover area", g["rover_area"], origin),
+        name=g.get("field", "AFAR"),
+        takeoff_home=(home["lat"], home["lon"]) if home else None,
+    )

@@ -21,7 +21,9 @@ from mission.geo import Area, square_grid
 
 # estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y
 # What the default expected-error map assumes, said wherever its numbers are shown (table and plot title).
-ESTIMATOR_NOTE = "assuming an ML grid search with the mission's own {model} physics (an optimistic bound)"
+ESTIMATOR_NOTE = (
+    "assuming an ML grid search with the mission's own {model} physics (an optimistic bound)"
+)
 Estimator = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
@@ -29,7 +31,7 @@ Estimator = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 class Coverage:
     """How close the flight path comes to the rover area (horizontal distances, metres)."""
 
-    max_m: float                    # worst point of the rover area: its distance to the path
+    max_m: float  # worst point of the rover area: its distance to the path
     mean_m: float
     quadrant_max_m: dict[str, float]  # NW, NE, SW, SE quarter of the rover area's bounding box
 
@@ -41,9 +43,9 @@ def _dist_to_polyline(pts: np.ndarray, path: np.ndarray, chunk: int = 4096) -> n
     den = np.maximum(np.sum(ab * ab, axis=1), 1e-12)
     out = np.empty(len(pts))
     for s in range(0, len(pts), chunk):
-        p = pts[s:s + chunk, None, :]
+        p = pts[s : s + chunk, None, :]
         t = np.clip(np.sum((p - a) * ab, axis=-1) / den, 0.0, 1.0)
-        out[s:s + chunk] = np.min(np.linalg.norm(p - (a + t[..., None] * ab), axis=-1), axis=-1)
+        out[s : s + chunk] = np.min(np.linalg.norm(p - (a + t[..., None] * ab), axis=-1), axis=-1)
     return out
 
 
@@ -59,10 +61,17 @@ def coverage(area: Area, path: np.ndarray, step_m: float = 2.0) -> Coverage:
     d = _dist_to_polyline(g, path)
     x0, y0, x1, y1 = area.bounds
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    quads = {"NW": (g[:, 0] < cx) & (g[:, 1] >= cy), "NE": (g[:, 0] >= cx) & (g[:, 1] >= cy),
-             "SW": (g[:, 0] < cx) & (g[:, 1] < cy), "SE": (g[:, 0] >= cx) & (g[:, 1] < cy)}
-    return Coverage(float(d.max()), float(d.mean()),
-                    {k: float(d[m].max()) if m.any() else float("nan") for k, m in quads.items()})
+    quads = {
+        "NW": (g[:, 0] < cx) & (g[:, 1] >= cy),
+        "NE": (g[:, 0] >= cx) & (g[:, 1] >= cy),
+        "SW": (g[:, 0] < cx) & (g[:, 1] < cy),
+        "SE": (g[:, 0] >= cx) & (g[:, 1] < cy),
+    }
+    return Coverage(
+        float(d.max()),
+        float(d.mean()),
+        {k: float(d[m].max()) if m.any() else float("nan") for k, m in quads.items()},
+    )
 
 
 @dataclass
@@ -85,12 +94,26 @@ def summarize(spec) -> Summary:
 
     rep = check_mission(spec)
     cov = coverage(spec.field.rover_area, spec.waypoints_enu())
-    return Summary(rep.length_m, rep.duration_s, rep.time_budget_s, rep.n_samples, rep.n_waypoints, cov,
-                   rep.min_fence_clearance_m, [v.message for v in rep.violations])
+    return Summary(
+        rep.length_m,
+        rep.duration_s,
+        rep.time_budget_s,
+        rep.n_samples,
+        rep.n_waypoints,
+        cov,
+        rep.min_fence_clearance_m,
+        [v.message for v in rep.violations],
+    )
 
 
-def ml_grid_estimator(model, area: Area, tx_height_m: float, positions: np.ndarray, attitude: np.ndarray,
-                      step_m: float = 4.0) -> Estimator:
+def ml_grid_estimator(
+    model,
+    area: Area,
+    tx_height_m: float,
+    positions: np.ndarray,
+    attitude: np.ndarray,
+    step_m: float = 4.0,
+) -> Estimator:
     """The default ``Estimator`` (module docstring): ``ModelGridSearch(model).fixed_geometry`` along the flown
     ``positions`` / ``attitude`` with the cell centres of a ``step_m`` grid over ``area`` as candidates."""
     from mission.localize.classical import ModelGridSearch
@@ -108,8 +131,8 @@ def ml_grid_estimator(model, area: Area, tx_height_m: float, positions: np.ndarr
 class ErrorMap:
     """Expected localization error (m) on a grid of transmitter positions over the rover area."""
 
-    x: np.ndarray        # (G,) cell centres east
-    y: np.ndarray        # (H,) cell centres north
+    x: np.ndarray  # (G,) cell centres east
+    y: np.ndarray  # (H,) cell centres north
     error_m: np.ndarray  # (H, G); NaN outside the rover area
     estimates: np.ndarray  # (H, G, 2)
 
@@ -122,9 +145,15 @@ class ErrorMap:
         return float(np.nanmedian(self.error_m))
 
 
-def expected_error_map(spec, grid: int, rng: np.random.Generator, estimator: Estimator | None = None,
-                       model=None, subsample: int = 10, progress: Callable[[int, int], None] | None = None,
-                       ) -> ErrorMap:
+def expected_error_map(
+    spec,
+    grid: int,
+    rng: np.random.Generator,
+    estimator: Estimator | None = None,
+    model=None,
+    subsample: int = 10,
+    progress: Callable[[int, int], None] | None = None,
+) -> ErrorMap:
     """Simulate the mission for a ``grid`` x ``grid`` lattice of transmitters over the rover area and
     localize each with ``estimator`` (default: ``ml_grid_estimator`` with the mission's own model).
 
@@ -161,9 +190,16 @@ def expected_error_map(spec, grid: int, rng: np.random.Generator, estimator: Est
     return ErrorMap(xs, ys, err, est)
 
 
-def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Summary | None = None,
-                   rng: np.random.Generator | None = None, size_px: tuple[int, int] = (1200, 1000),
-                   dpi: int = 100):
+def render_preview(
+    spec,
+    out,
+    *,
+    error_map: ErrorMap | None = None,
+    summary: Summary | None = None,
+    rng: np.random.Generator | None = None,
+    size_px: tuple[int, int] = (1200, 1000),
+    dpi: int = 100,
+):
     """Draw the areas, waypoints, simulated flown path, budget and (optionally) the error heatmap."""
     import matplotlib
 
@@ -180,18 +216,49 @@ def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Sum
     fa, ra = spec.field.flight_area, spec.field.rover_area
 
     fig, ax = plt.subplots(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi)
-    ax.add_patch(Polygon(fa.vertices, closed=True, fc=(0.12, 0.47, 0.71, 0.10), ec="#1f77b4", lw=2.5,
-                         label="flight area (UAV)", zorder=2))
-    ax.add_patch(Polygon(ra.vertices, closed=True, fc=(0.17, 0.63, 0.17, 0.10), ec="#2ca02c", lw=2.5,
-                         ls="--", label="rover area (transmitter)", zorder=2))
+    ax.add_patch(
+        Polygon(
+            fa.vertices,
+            closed=True,
+            fc=(0.12, 0.47, 0.71, 0.10),
+            ec="#1f77b4",
+            lw=2.5,
+            label="flight area (UAV)",
+            zorder=2,
+        )
+    )
+    ax.add_patch(
+        Polygon(
+            ra.vertices,
+            closed=True,
+            fc=(0.17, 0.63, 0.17, 0.10),
+            ec="#2ca02c",
+            lw=2.5,
+            ls="--",
+            label="rover area (transmitter)",
+            zorder=2,
+        )
+    )
     if error_map is not None:
         em = error_map
-        dx, dy = np.diff(em.x[:2]) if len(em.x) > 1 else [1.0], np.diff(em.y[:2]) if len(em.y) > 1 else [1.0]
+        dx, dy = (
+            np.diff(em.x[:2]) if len(em.x) > 1 else [1.0],
+            np.diff(em.y[:2]) if len(em.y) > 1 else [1.0],
+        )
         ext = (em.x[0] - dx[0] / 2, em.x[-1] + dx[0] / 2, em.y[0] - dy[0] / 2, em.y[-1] + dy[0] / 2)
-        im = ax.imshow(em.error_m, origin="lower", extent=ext, cmap="magma_r", alpha=0.85,
-                       interpolation="nearest", zorder=1)
+        im = ax.imshow(
+            em.error_m,
+            origin="lower",
+            extent=ext,
+            cmap="magma_r",
+            alpha=0.85,
+            interpolation="nearest",
+            zorder=1,
+        )
         cb = fig.colorbar(im, ax=ax, fraction=0.04, pad=0.02)
-        lo, hi = np.nanpercentile(em.error_m, [0, 98]) if np.isfinite(em.error_m).any() else (0.0, 1.0)
+        lo, hi = (
+            np.nanpercentile(em.error_m, [0, 98]) if np.isfinite(em.error_m).any() else (0.0, 1.0)
+        )
         im.set_clim(lo, max(hi, lo + 1e-6))  # one failed cell must not wash out the scale
         cb.set_label("expected localization error (m), clipped at the 98th percentile")
     if error_map is None:
@@ -202,28 +269,63 @@ def render_preview(spec, out, *, error_map: ErrorMap | None = None, summary: Sum
         ax.plot(pos[:, 0], pos[:, 1], color="#17becf", lw=1.6, zorder=3, label="simulated path")
     ax.plot(wps[:, 0], wps[:, 1], "o", ms=5, mfc="white", mec="black", zorder=4, label="waypoints")
     for i in (0, len(wps) - 1) if len(wps) > 30 else range(len(wps)):
-        ax.annotate(str(i), wps[i, :2], xytext=(4, 4), textcoords="offset points", fontsize=8, zorder=5)
+        ax.annotate(
+            str(i), wps[i, :2], xytext=(4, 4), textcoords="offset points", fontsize=8, zorder=5
+        )
     home = spec.home_enu
-    ax.plot(home[0], home[1], marker="^", ms=11, color="#d62728", mec="black", ls="none", zorder=5,
-            label="home (take-off)")
+    ax.plot(
+        home[0],
+        home[1],
+        marker="^",
+        ms=11,
+        color="#d62728",
+        mec="black",
+        ls="none",
+        zorder=5,
+        label="home (take-off)",
+    )
     if not isinstance(spec.source.tx, str):
-        ax.plot(spec.source.tx[0], spec.source.tx[1], marker="*", ms=16, color="gold", mec="black",
-                ls="none", zorder=6, label="transmitter")
+        ax.plot(
+            spec.source.tx[0],
+            spec.source.tx[1],
+            marker="*",
+            ms=16,
+            color="gold",
+            mec="black",
+            ls="none",
+            zorder=6,
+            label="transmitter",
+        )
     used = summary.duration_s / summary.time_budget_s
-    title = (f"{spec.name}: {spec.trajectory.generator} at {spec.altitude_m:g} m, "
-             f"{summary.length_m / 1000:.2f} km, {summary.duration_s / 60:.1f} of "
-             f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS samples")
+    title = (
+        f"{spec.name}: {spec.trajectory.generator} at {spec.altitude_m:g} m, "
+        f"{summary.length_m / 1000:.2f} km, {summary.duration_s / 60:.1f} of "
+        f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS samples"
+    )
     if error_map is not None:
-        title += f"\nexpected error: mean {error_map.mean_m:.1f} m, median {error_map.median_m:.1f} m, " \
-                 + ESTIMATOR_NOTE.format(model=spec.source.model)
+        title += (
+            f"\nexpected error: mean {error_map.mean_m:.1f} m, median {error_map.median_m:.1f} m, "
+            + ESTIMATOR_NOTE.format(model=spec.source.model)
+        )
     ax.set_title(title, fontsize=11, color="black" if used <= 1 else "#d62728")
-    text = [f"worst rover-area point {summary.coverage.max_m:.0f} m from the path",
-            "per quadrant: " + ", ".join(f"{k} {v:.0f}" for k, v in summary.coverage.quadrant_max_m.items()),
-            f"fence clearance >= {summary.min_fence_clearance_m:.1f} m (margin {spec.fence_margin_m:g} m)"]
+    text = [
+        f"worst rover-area point {summary.coverage.max_m:.0f} m from the path",
+        "per quadrant: "
+        + ", ".join(f"{k} {v:.0f}" for k, v in summary.coverage.quadrant_max_m.items()),
+        f"fence clearance >= {summary.min_fence_clearance_m:.1f} m (margin {spec.fence_margin_m:g} m)",
+    ]
     if summary.violations:
         text.append("NOT FLYABLE: " + summary.violations[0])
-    ax.text(0.01, 0.01, "\n".join(text), transform=ax.transAxes, fontsize=9, va="bottom", zorder=7,
-            bbox={"boxstyle": "round", "fc": "white", "alpha": 0.85, "ec": "0.7"})
+    ax.text(
+        0.01,
+        0.01,
+        "\n".join(text),
+        transform=ax.transAxes,
+        fontsize=9,
+        va="bottom",
+        zorder=7,
+        bbox={"boxstyle": "round", "fc": "white", "alpha": 0.85, "ec": "0.7"},
+    )
     allv = np.vstack([fa.vertices, ra.vertices, wps[:, :2], home[None, :2]])
     lo, hi = allv.min(axis=0), allv.max(axis=0)
     pad = 0.05 * (hi - lo).max()

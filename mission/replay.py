@@ -55,8 +55,12 @@ def plot(log: FlightLog, png: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 6))
     draw_areas(ax, field_areas(log))
     ax.plot(enu[:, 0], enu[:, 1], color="0.8", lw=0.6, zorder=1)
-    lo, hi = robust_limits(log["rss_dbm"])  # take-off outliers and deep nulls must not wash out the scale
-    sc = ax.scatter(enu[:, 0], enu[:, 1], c=log["rss_dbm"], s=3, cmap="viridis", vmin=lo, vmax=hi, zorder=2)
+    lo, hi = robust_limits(
+        log["rss_dbm"]
+    )  # take-off outliers and deep nulls must not wash out the scale
+    sc = ax.scatter(
+        enu[:, 0], enu[:, 1], c=log["rss_dbm"], s=3, cmap="viridis", vmin=lo, vmax=hi, zorder=2
+    )
     fig.colorbar(sc, ax=ax, label=f"RSS ({power_unit(log)}), 2-99.5 % range")
     i = int(np.argmax(log["rss_dbm"]))
     ax.plot(enu[i, 0], enu[i, 1], "r*", ms=14, label="strongest RSS", zorder=3)

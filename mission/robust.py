@@ -45,7 +45,11 @@ def per_sample_loss(r: np.ndarray, loss: str = "l2", f_scale: float = 6.0) -> np
 def robust_offset(resid: np.ndarray, f_scale: float = 6.0, axis: int = -1) -> np.ndarray:
     """Offset of ``resid`` along ``axis``: median, then one Huber IRLS step (weights min(1, f / |r - med|))."""
     resid = np.asarray(resid, dtype=float)
-    off = median_1d(resid) if resid.ndim == 1 and resid.size else np.median(resid, axis=axis, keepdims=True)
+    off = (
+        median_1d(resid)
+        if resid.ndim == 1 and resid.size
+        else np.median(resid, axis=axis, keepdims=True)
+    )
     z = resid - off
     w = huber_weights(z, f_scale)
     off = off + np.sum(w * z, axis=axis, keepdims=True) / np.sum(w, axis=axis, keepdims=True)
@@ -68,7 +72,9 @@ def median_1d(r: np.ndarray) -> np.ndarray:
     return np.array([(part[h - 1] + part[h]) / 2.0 if r.size % 2 == 0 else part[h]])
 
 
-def robust_cost(resid: np.ndarray, loss: str = "soft_l1", f_scale: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+def robust_cost(
+    resid: np.ndarray, loss: str = "soft_l1", f_scale: float = 6.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Offset and mean robust cost along the last axis of ``resid`` (e.g. (K candidates, N samples) -> (K,)).
 
     The offset is ``robust_offset`` for every loss (the grid search's convention); the cost is the mean of
@@ -80,8 +86,9 @@ def robust_cost(resid: np.ndarray, loss: str = "soft_l1", f_scale: float = 6.0) 
     return off, f_scale**2 * rho(z, loss).mean(axis=-1)
 
 
-def offset_residual(meas: np.ndarray, pred: np.ndarray, slope: bool = False, loss: str = "l2",
-                    f_scale: float = 6.0) -> np.ndarray:
+def offset_residual(
+    meas: np.ndarray, pred: np.ndarray, slope: bool = False, loss: str = "l2", f_scale: float = 6.0
+) -> np.ndarray:
     """``meas - (c + s pred)`` with the free constants fitted: the offset ``c`` is the mean (l2) or
     ``robust_offset`` (soft_l1, huber); with ``slope`` also a path-gain slope ``s`` (least squares)."""
     meas = np.asarray(meas, dtype=float)

@@ -25,12 +25,12 @@ class FlightSamples:
     unknown.  Power is dBm (a real receiver's uncalibrated dB; everything downstream is offset-invariant).
     """
 
-    enu_m: np.ndarray                        # (N, 3) UAV positions, local ENU metres (z above the origin's ground)
-    rss_dbm: np.ndarray                      # (N,) received power
-    attitude_rad: np.ndarray | None = None   # (N, 3) roll, pitch, yaw (SPEC section 1)
-    t_s: np.ndarray | None = None            # (N,) time since the log's start
-    phase: np.ndarray | None = None          # (N,) mission phase names (``flightlog.PHASES``)
-    tx_enu_m: np.ndarray | None = None       # (3,) true transmitter position
+    enu_m: np.ndarray  # (N, 3) UAV positions, local ENU metres (z above the origin's ground)
+    rss_dbm: np.ndarray  # (N,) received power
+    attitude_rad: np.ndarray | None = None  # (N, 3) roll, pitch, yaw (SPEC section 1)
+    t_s: np.ndarray | None = None  # (N,) time since the log's start
+    phase: np.ndarray | None = None  # (N,) mission phase names (``flightlog.PHASES``)
+    tx_enu_m: np.ndarray | None = None  # (3,) true transmitter position
     name: str = "flight"
     meta: dict = field(default_factory=dict)  # the log's sidecar metadata, when it came from one
 

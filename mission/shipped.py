@@ -8,14 +8,19 @@ from __future__ import annotations
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent
-SHIPPED_FOLDERS = ("models", "missions")  # repository folders copied into the installed package's data/
+SHIPPED_FOLDERS = (
+    "models",
+    "missions",
+)  # repository folders copied into the installed package's data/
 
 
 def shipped_dir(kind: str, package_dir: Path = PACKAGE_DIR) -> Path:
     """The folder holding the shipped ``kind`` (``models`` or ``missions``): the installed copy in
     ``<package>/data/<kind>`` when there is one, else the source checkout's ``<repository>/<kind>``."""
     if kind not in SHIPPED_FOLDERS:
-        raise ValueError(f"unknown shipped folder {kind!r} (expected one of {', '.join(SHIPPED_FOLDERS)})")
+        raise ValueError(
+            f"unknown shipped folder {kind!r} (expected one of {', '.join(SHIPPED_FOLDERS)})"
+        )
     installed = package_dir / "data" / kind
     return installed if installed.is_dir() else package_dir.parent / kind
 
@@ -88,9 +93,11 @@ def check_shipped_digest(path: str | Path) -> None:
     p = Path(path)
     want = shipped_digests().get(p.name)
     if want is not None and file_sha256(p) != want:
-        raise InputError(f"differs from the shipped {p.name} (sha256 {file_sha256(p)[:12]}.., expected "
-                         f"{want[:12]}..): damaged, or another network under a shipped name (rename it)",
-                         source=str(p))
+        raise InputError(
+            f"differs from the shipped {p.name} (sha256 {file_sha256(p)[:12]}.., expected "
+            f"{want[:12]}..): damaged, or another network under a shipped name (rename it)",
+            source=str(p),
+        )
 
 
 def record_shipped_digest(path: str | Path) -> bool:

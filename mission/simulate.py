@@ -18,7 +18,12 @@ import numpy as np
 from mission.geo import Origin
 from mission.physics.shadowing import shadowing_field  # noqa: F401  (its home; re-exported)
 from mission.samples import FlightSamples
-from mission.trajectory.kinematics import FlightProfile, Kinematics, attitude_from_motion, plan_profile
+from mission.trajectory.kinematics import (
+    FlightProfile,
+    Kinematics,
+    attitude_from_motion,
+    plan_profile,
+)
 
 
 @dataclass(frozen=True)
@@ -26,12 +31,12 @@ class SimConfig:
     """Sampling, perturbation and noise settings of a simulated flight."""
 
     dt_s: float = 0.03
-    attitude_perturbation_deg: float = 5.0   # half-width of the uniform roll/pitch/yaw perturbation
-    perturbation_corr_s: float = 0.0         # 0: independent per sample (paper); >0: smoothed (gust-like)
-    noise_db: float = 1.0                    # Gaussian RSS noise standard deviation
-    rss_offset_db: float = 0.0               # constant receiver offset (uncalibrated real receivers)
-    shadowing_db: float = 0.0                # std of the spatially correlated shadowing field (0: none)
-    shadowing_corr_m: float = 30.0           # its correlation distance (correlation 1/e at this distance)
+    attitude_perturbation_deg: float = 5.0  # half-width of the uniform roll/pitch/yaw perturbation
+    perturbation_corr_s: float = 0.0  # 0: independent per sample (paper); >0: smoothed (gust-like)
+    noise_db: float = 1.0  # Gaussian RSS noise standard deviation
+    rss_offset_db: float = 0.0  # constant receiver offset (uncalibrated real receivers)
+    shadowing_db: float = 0.0  # std of the spatially correlated shadowing field (0: none)
+    shadowing_corr_m: float = 30.0  # its correlation distance (correlation 1/e at this distance)
     kinematics: Kinematics = field(default_factory=Kinematics)
 
 
@@ -47,9 +52,19 @@ class SimulatedFlight(FlightSamples):
         lat, lon, alt = origin.to_geodetic(self.enu_m)
         att = np.rad2deg(self.attitude_rad)
         phase, item = path_phases(self.profile, self.t_s)
-        return {"t_s": self.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": self.enu_m[:, 2],
-                "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": self.rss_dbm,
-                "phase": phase, "mission_item": item}
+        return {
+            "t_s": self.t_s,
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "alt_m": alt,
+            "rel_alt_m": self.enu_m[:, 2],
+            "roll_deg": att[:, 0],
+            "pitch_deg": att[:, 1],
+            "yaw_deg": att[:, 2],
+            "rss_dbm": self.rss_dbm,
+            "phase": phase,
+            "mission_item": item,
+        }
 
 
 def leg_phases(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -72,7 +87,7 @@ def leg_phases(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n_down = int(np.argmin(down)) if not np.all(down) else n
     name = np.full(n, MISSION, dtype=object)
     name[:n_up] = TAKEOFF
-    name[n - n_down:] = LAND
+    name[n - n_down :] = LAND
     last = n - n_down - 1  # the leg before the landing
     back = np.linalg.norm(vertices[last + 1, :2] - vertices[0, :2]) < 1.0
     if n_up and last > n_up and back:
@@ -88,8 +103,12 @@ def path_phases(profile: FlightProfile, t: np.ndarray) -> tuple[np.ndarray, np.n
     return name[leg].astype(str), item[leg]
 
 
-def fly_path(waypoints_enu: np.ndarray, cfg: SimConfig, rng: np.random.Generator,
-             profile: FlightProfile | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, FlightProfile]:
+def fly_path(
+    waypoints_enu: np.ndarray,
+    cfg: SimConfig,
+    rng: np.random.Generator,
+    profile: FlightProfile | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, FlightProfile]:
     """Times, positions and perturbed attitudes of a kinematic flight through ``waypoints_enu``."""
     profile = profile or plan_profile(waypoints_enu, cfg.kinematics)
     t, pos = profile.sample(cfg.dt_s)
@@ -112,8 +131,14 @@ def perturbation(n: int, cfg: SimConfig, rng: np.random.Generator) -> np.ndarray
     return p
 
 
-def simulate_flight(waypoints_enu: np.ndarray, tx_enu: np.ndarray, model, cfg: SimConfig | None = None,
-                    rng: np.random.Generator | None = None, profile: FlightProfile | None = None) -> SimulatedFlight:
+def simulate_flight(
+    waypoints_enu: np.ndarray,
+    tx_enu: np.ndarray,
+    model,
+    cfg: SimConfig | None = None,
+    rng: np.random.Generator | None = None,
+    profile: FlightProfile | None = None,
+) -> SimulatedFlight:
     """Fly ``waypoints_enu`` and sample RSS from a transmitter at ``tx_enu`` (3,) through ``model``.
 
     ``model`` is a ``mission.physics`` propagation model (``rss_dbm(tx, rx, attitude)``).  Draw order is
@@ -127,6 +152,12 @@ def simulate_flight(waypoints_enu: np.ndarray, tx_enu: np.ndarray, model, cfg: S
     rss = rss + cfg.rss_offset_db + rng.normal(0.0, cfg.noise_db, size=rss.shape)
     if cfg.shadowing_db > 0:  # drawn last, so flights without shadowing keep their bytes
         rss = rss + shadowing_field(pos[:, :2], cfg.shadowing_db, cfg.shadowing_corr_m, rng)
-    return SimulatedFlight(enu_m=pos, rss_dbm=rss, attitude_rad=att, t_s=t, phase=path_phases(profile, t)[0],
-                           tx_enu_m=tx, profile=profile)
-
+    return SimulatedFlight(
+        enu_m=pos,
+        rss_dbm=rss,
+        attitude_rad=att,
+        t_s=t,
+        phase=path_phases(profile, t)[0],
+        tx_enu_m=tx,
+        profile=profile,
+    )

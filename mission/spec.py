@@ -17,7 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from mission.defaults import BUDGET_POLICIES, DEFAULT_ALTITUDE_M, DEFAULT_TX_HEIGHT_M, MAX_DURATION_S, MAX_SPEEDUP
+from mission.defaults import (
+    BUDGET_POLICIES,
+    DEFAULT_ALTITUDE_M,
+    DEFAULT_TX_HEIGHT_M,
+    MAX_DURATION_S,
+    MAX_SPEEDUP,
+)
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.shipped import missions_dir
@@ -28,14 +34,21 @@ from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")
-WRITE_ERROR_POLICIES = ("return", "continue")  # logging.on_write_error: what a failed log write does
-MAX_LOCAL_M = 1e6       # |ENU coordinate| of a position in a mission file (a waypoint at 1e300 overflowed)
-MAX_ALTITUDE_M = 1e4    # altitudes and heights in a mission file (1e308 overflowed)
-MAX_NAME_CHARS = 100    # a mission name becomes a folder and file name
+WRITE_ERROR_POLICIES = (
+    "return",
+    "continue",
+)  # logging.on_write_error: what a failed log write does
+MAX_LOCAL_M = (
+    1e6  # |ENU coordinate| of a position in a mission file (a waypoint at 1e300 overflowed)
+)
+MAX_ALTITUDE_M = 1e4  # altitudes and heights in a mission file (1e308 overflowed)
+MAX_NAME_CHARS = 100  # a mission name becomes a folder and file name
 MAX_MISSION_BYTES = 1_000_000  # the shipped missions are ~2 kB; a 30 MB file ran for minutes
 # heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not command yaw,
 # so a mission may not ask for it (its vehicle would fly differently from the simulated one)
-_KIN_FIELDS = tuple(k for k in Kinematics.__dataclass_fields__ if k not in ("cruise_speed_mps", "heading_deg"))
+_KIN_FIELDS = tuple(
+    k for k in Kinematics.__dataclass_fields__ if k not in ("cruise_speed_mps", "heading_deg")
+)
 
 
 @dataclass(frozen=True)
@@ -44,7 +57,9 @@ class TrajectorySpec:
 
     generator: str
     params: dict = field(default_factory=dict)
-    waypoints: np.ndarray | None = None   # (K, 3) ENU; z = the mission altitude unless given per waypoint
+    waypoints: np.ndarray | None = (
+        None  # (K, 3) ENU; z = the mission altitude unless given per waypoint
+    )
 
 
 @dataclass(frozen=True)
@@ -55,7 +70,7 @@ class SourceSpec:
     tx: tuple[float, float, float] | str = "random"
     tx_height_m: float = DEFAULT_TX_HEIGHT_M
     seed: int = 0
-    noise_db: float = SimConfig.noise_db            # the simulator's own defaults: one home (SimConfig)
+    noise_db: float = SimConfig.noise_db  # the simulator's own defaults: one home (SimConfig)
     attitude_perturbation_deg: float = SimConfig.attitude_perturbation_deg
     sample_period_s: float = SimConfig.dt_s
     model_params: dict = field(default_factory=dict)
@@ -67,7 +82,9 @@ class VehicleSpec:
 
     connection: str | None = None
     speedup: float = 1.0
-    kinematics: dict = field(default_factory=dict)   # overrides of Kinematics fields (accel_mps2, ...)
+    kinematics: dict = field(
+        default_factory=dict
+    )  # overrides of Kinematics fields (accel_mps2, ...)
 
 
 @dataclass(frozen=True)
@@ -80,18 +97,26 @@ class MissionSpec:
     altitude_m: float = DEFAULT_ALTITUDE_M
     cruise_speed_mps: float = 5.5
     time_budget_s: float = 600.0
-    budget_policy: str = "trim"  # BUDGET_POLICIES: when the landing would pass the budget less its reserve
+    budget_policy: str = (
+        "trim"  # BUDGET_POLICIES: when the landing would pass the budget less its reserve
+    )
     budget_reserve_s: float = 10.0  # kept free at landing by the policy
     fence_margin_m: float = 3.0
-    home_margin_m: float = 2.0  # home keeps the autopilots' known return overshoot plus this from the fence
+    home_margin_m: float = (
+        2.0  # home keeps the autopilots' known return overshoot plus this from the fence
+    )
     altitude_limits_m: tuple[float, float] = (10.0, 120.0)
     home_enu: np.ndarray = field(default_factory=lambda: np.zeros(3))
     return_behaviour: str = "rtl"
     trajectory: TrajectorySpec = field(default_factory=lambda: TrajectorySpec("spiral"))
     source: SourceSpec = field(default_factory=SourceSpec)
     vehicle: VehicleSpec = field(default_factory=VehicleSpec)
-    adaptive: Any = None  # mission.adaptive.config.AdaptiveSpec when the file has an ``adaptive:`` block
-    on_write_error: str = "return"  # ``logging.on_write_error``: a failed log write returns to launch or not
+    adaptive: Any = (
+        None  # mission.adaptive.config.AdaptiveSpec when the file has an ``adaptive:`` block
+    )
+    on_write_error: str = (
+        "return"  # ``logging.on_write_error``: a failed log write returns to launch or not
+    )
 
     @property
     def source_name(self) -> str:
@@ -106,7 +131,11 @@ class MissionSpec:
         """What a flight log's sidecar records of the path (``trajectory``): generator, its parameters and the
         cruise altitude, so a localizer can tell which networks were trained on this kind of flight."""
         t = self.trajectory
-        return {"generator": t.generator, "params": dict(t.params), "altitude_m": float(self.altitude_m)}
+        return {
+            "generator": t.generator,
+            "params": dict(t.params),
+            "altitude_m": float(self.altitude_m),
+        }
 
     def waypoints_enu(self) -> np.ndarray:
         """The trajectory (K, 3) ENU at cruise altitude (generated, or the explicit waypoints)."""
@@ -118,8 +147,13 @@ class MissionSpec:
         try:
             return generate(t.generator, self.field, self.altitude_m, **t.params)
         except InputError as e:
-            key = "trajectory.generator" if e.field == "generator" else \
-                f"trajectory.params.{e.field}" if e.field else "trajectory.params"
+            key = (
+                "trajectory.generator"
+                if e.field == "generator"
+                else f"trajectory.params.{e.field}"
+                if e.field
+                else "trajectory.params"
+            )
             msg = str(e).split(": ", 1)[1] if e.field else str(e)
             raise InputError(msg, source=self.source_name, field=key) from None
 
@@ -146,13 +180,19 @@ class MissionSpec:
         """The simulated transmitter of draw ``seed`` (default: the mission's ``source.seed``): the one home of
         that draw, so ``rfsl simulate`` and ``fly-mission`` put seed N's transmitter in the same place
         (``resolve_tx`` with ``default_rng([seed, 1])``, a stream apart from the flight's noise)."""
-        return self.resolve_tx(np.random.default_rng([self.source.seed if seed is None else seed, 1]))
+        return self.resolve_tx(
+            np.random.default_rng([self.source.seed if seed is None else seed, 1])
+        )
 
     def sim_config(self) -> SimConfig:
         """Simulator settings (sample period, perturbation, noise, kinematics) of this mission."""
         s = self.source
-        return SimConfig(dt_s=s.sample_period_s, attitude_perturbation_deg=s.attitude_perturbation_deg,
-                         noise_db=s.noise_db, kinematics=self.kinematics())
+        return SimConfig(
+            dt_s=s.sample_period_s,
+            attitude_perturbation_deg=s.attitude_perturbation_deg,
+            noise_db=s.noise_db,
+            kinematics=self.kinematics(),
+        )
 
     def propagation_model(self):
         """The ``mission.physics`` model named by ``source.model`` (with ``source.model_params``)."""
@@ -163,11 +203,15 @@ class MissionSpec:
         except (ValueError, TypeError, KeyError) as e:
             if isinstance(e, InputError):
                 raise
-            raise InputError(f"cannot build propagation model '{self.source.model}': {e}",
-                             source=self.source_name, field="source.model") from None
+            raise InputError(
+                f"cannot build propagation model '{self.source.model}': {e}",
+                source=self.source_name,
+                field="source.model",
+            ) from None
 
 
 # --------------------------------------------------------------------------------------------- loading
+
 
 def _default(cls: type, name: str) -> Any:
     """The dataclass default of ``cls.name``: a key the file omits gets it, so each default is written once."""
@@ -186,14 +230,25 @@ def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
         pr.done()
         e = origin.to_enu(lat, lon)
         return np.array([e[0], e[1], h])
-    if isinstance(v, list | tuple) and len(v) in (2, 3) and all(
-            isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v):
+    if (
+        isinstance(v, list | tuple)
+        and len(v) in (2, 3)
+        and all(
+            isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v
+        )
+    ):
         if any(abs(c) > MAX_LOCAL_M for c in v):
-            raise InputError(f"{v!r} is more than {MAX_LOCAL_M:g} m from the origin (ENU metres)",
-                             source=r.src, field=key)
+            raise InputError(
+                f"{v!r} is more than {MAX_LOCAL_M:g} m from the origin (ENU metres)",
+                source=r.src,
+                field=key,
+            )
         return np.array([float(v[0]), float(v[1]), float(v[2]) if len(v) == 3 else math.nan])
-    raise InputError(f"expected [x, y], [x, y, z] (ENU metres) or {{lat: .., lon: ..}}, got {v!r}",
-                     source=r.src, field=key)
+    raise InputError(
+        f"expected [x, y], [x, y, z] (ENU metres) or {{lat: .., lon: ..}}, got {v!r}",
+        source=r.src,
+        field=key,
+    )
 
 
 def _area(v: Any, r: _Reader, key: str, name: str, origin: Origin) -> Area:
@@ -212,7 +267,9 @@ def _area(v: Any, r: _Reader, key: str, name: str, origin: Origin) -> Area:
             box = {}
             for k in ("lat_min", "lat_max", "lon_min", "lon_max"):
                 if not ar.has(k):
-                    raise ar.err(k, "missing (an area is a lat/lon box, {polygon: ...} or {enu: ...})")
+                    raise ar.err(
+                        k, "missing (an area is a lat/lon box, {polygon: ...} or {enu: ...})"
+                    )
                 box[k] = ar.num(k, 0.0, -180.0, 180.0)
             if box["lat_min"] >= box["lat_max"] or box["lon_min"] >= box["lon_max"]:
                 raise ar.err("lat_min", "needs lat_min < lat_max and lon_min < lon_max")
@@ -238,8 +295,11 @@ def _field(r: _Reader) -> tuple[Field, tuple[float, float] | None]:
         for k in ("lat_deg", "lon_deg"):
             if not orr.has(k):
                 raise orr.err(k, "missing (the origin needs lat_deg, lon_deg and optionally alt_m)")
-        origin = Origin(orr.num("lat_deg", 0.0, -90, 90), orr.num("lon_deg", 0.0, -180, 180),
-                        orr.num("alt_m", 0.0))
+        origin = Origin(
+            orr.num("lat_deg", 0.0, -90, 90),
+            orr.num("lon_deg", 0.0, -180, 180),
+            orr.num("alt_m", 0.0),
+        )
         orr.done()
     elif preset == "afar":
         fa = AFAR_GEOMETRY["flight_area"]
@@ -258,7 +318,9 @@ def _field(r: _Reader) -> tuple[Field, tuple[float, float] | None]:
     name = fr.str_("name", "AFAR" if preset == "afar" else "custom field")
     fr.done()
     home = base.takeoff_home if base is not None else None
-    return Field(origin, areas["flight_area"], areas["rover_area"], name=name, takeoff_home=home), home
+    return Field(
+        origin, areas["flight_area"], areas["rover_area"], name=name, takeoff_home=home
+    ), home
 
 
 def mission_name(name: str, src: str) -> str:
@@ -267,11 +329,18 @@ def mission_name(name: str, src: str) -> str:
     character or NUL, at most ``MAX_NAME_CHARS`` (``../../x`` wrote a flight two levels above --out)."""
     bad = next((c for c in name if c in "/\\" or ord(c) < 32 or ord(c) == 127), None)
     if bad is not None or name.strip() in ("", ".", "..") or len(name) > MAX_NAME_CHARS:
-        why = (f"holds {bad!r}" if bad is not None else
-               f"is {len(name)} characters (at most {MAX_NAME_CHARS})" if len(name) > MAX_NAME_CHARS else
-               f"is {name!r}")
-        raise InputError(f"a mission name becomes a folder name: it {why}; use letters, digits, '-', '_' or '.'",
-                         source=src, field="name")
+        why = (
+            f"holds {bad!r}"
+            if bad is not None
+            else f"is {len(name)} characters (at most {MAX_NAME_CHARS})"
+            if len(name) > MAX_NAME_CHARS
+            else f"is {name!r}"
+        )
+        raise InputError(
+            f"a mission name becomes a folder name: it {why}; use letters, digits, '-', '_' or '.'",
+            source=src,
+            field="name",
+        )
     return name
 
 
@@ -283,8 +352,12 @@ def _inside(area: Area, p: np.ndarray, clearance: float) -> np.ndarray:
     if d >= clearance:
         return p
     h = 1e-3
-    g = np.array([area.signed_distance((p + e)[None])[0] - area.signed_distance((p - e)[None])[0]
-                  for e in (np.array([h, 0.0]), np.array([0.0, h]))]) / (2 * h)
+    g = np.array(
+        [
+            area.signed_distance((p + e)[None])[0] - area.signed_distance((p - e)[None])[0]
+            for e in (np.array([h, 0.0]), np.array([0.0, h]))
+        ]
+    ) / (2 * h)
     return p + (clearance - d) * g / max(float(np.hypot(*g)), 1e-9)
 
 
@@ -301,14 +374,21 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     policy = r.str_("budget_policy", d("budget_policy"), BUDGET_POLICIES)
     reserve = r.num("budget_reserve_s", d("budget_reserve_s"), 0.0, MAX_DURATION_S)
     if reserve >= budget:
-        raise r.err("budget_reserve_s", f"must be less than time_budget_s ({budget:g} s), got {reserve:g}")
+        raise r.err(
+            "budget_reserve_s", f"must be less than time_budget_s ({budget:g} s), got {reserve:g}"
+        )
     margin = r.num("fence_margin_m", d("fence_margin_m"), 0.0, MAX_LOCAL_M)
     lim = r.raw("altitude_limits_m", list(d("altitude_limits_m")))
-    if not (isinstance(lim, list) and len(lim) == 2 and all(
-            isinstance(x, int | float) and not isinstance(x, bool) for x in lim)
-            and 0 <= lim[0] < lim[1] <= MAX_ALTITUDE_M):
-        raise r.err("altitude_limits_m", f"expected [min, max] metres with 0 <= min < max <= {MAX_ALTITUDE_M:g}, "
-                    f"got {lim!r}")
+    if not (
+        isinstance(lim, list)
+        and len(lim) == 2
+        and all(isinstance(x, int | float) and not isinstance(x, bool) for x in lim)
+        and 0 <= lim[0] < lim[1] <= MAX_ALTITUDE_M
+    ):
+        raise r.err(
+            "altitude_limits_m",
+            f"expected [min, max] metres with 0 <= min < max <= {MAX_ALTITUDE_M:g}, got {lim!r}",
+        )
     home_margin = r.num("home_margin_m", d("home_margin_m"), 0.0, MAX_LOCAL_M)
     if r.has("home"):
         home = _point(r.raw("home"), r, "home", fld.origin)
@@ -326,7 +406,9 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
         wps = tr.raw("waypoints")
         if not isinstance(wps, list) or len(wps) < 1:
             raise tr.err("waypoints", "expected a non-empty list of waypoints")
-        pts = np.array([_point(w, tr, f"trajectory.waypoints[{i}]", fld.origin) for i, w in enumerate(wps)])
+        pts = np.array(
+            [_point(w, tr, f"trajectory.waypoints[{i}]", fld.origin) for i, w in enumerate(wps)]
+        )
         pts[np.isnan(pts[:, 2]), 2] = altitude
         gen = tr.str_("generator", "waypoints", ("waypoints",))
         if tr.has("params"):
@@ -356,18 +438,28 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     if not isinstance(model_params, dict):
         raise sr.err("model_params", "expected a mapping")
     source = SourceSpec(
-        model=sr.str_("model", ds("model")), tx=tx, tx_height_m=tx_h, seed=sr.int_("seed", ds("seed"), 0, 2**63 - 1),
+        model=sr.str_("model", ds("model")),
+        tx=tx,
+        tx_height_m=tx_h,
+        seed=sr.int_("seed", ds("seed"), 0, 2**63 - 1),
         noise_db=sr.num("noise_db", ds("noise_db"), 0.0, 100.0),
-        attitude_perturbation_deg=sr.num("attitude_perturbation_deg", ds("attitude_perturbation_deg"), 0.0, 45.0),
+        attitude_perturbation_deg=sr.num(
+            "attitude_perturbation_deg", ds("attitude_perturbation_deg"), 0.0, 45.0
+        ),
         sample_period_s=sr.num("sample_period_s", ds("sample_period_s"), 0.0, 10.0, strict_lo=True),
-        model_params=dict(model_params))
+        model_params=dict(model_params),
+    )
     sr.done()
 
     vr = r.sub("vehicle")
     conn = vr.str_("connection", _default(VehicleSpec, "connection"))
     speedup = vr.num("speedup", _default(VehicleSpec, "speedup"), 0.0, MAX_SPEEDUP, strict_lo=True)
     kr = vr.sub("kinematics")
-    kin = {k: kr.num(k, getattr(Kinematics, k), 0.0, 1e4, strict_lo=True) for k in _KIN_FIELDS if kr.has(k)}
+    kin = {
+        k: kr.num(k, getattr(Kinematics, k), 0.0, 1e4, strict_lo=True)
+        for k in _KIN_FIELDS
+        if kr.has(k)
+    }
     kr.used.update(kin)
     kr.done()
     vr.done()
@@ -378,13 +470,26 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     on_write_error = lg.str_("on_write_error", d("on_write_error"), WRITE_ERROR_POLICIES)
     lg.done()
     r.done()
-    return MissionSpec(name=name, path=Path(path) if path else None, field=fld, altitude_m=altitude,
-                       cruise_speed_mps=cruise, time_budget_s=budget, budget_policy=policy,
-                       budget_reserve_s=reserve, fence_margin_m=margin, home_margin_m=home_margin,
-                       altitude_limits_m=(float(lim[0]), float(lim[1])), home_enu=home,
-                       return_behaviour=ret, trajectory=traj, source=source,
-                       vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin), adaptive=adaptive,
-                       on_write_error=on_write_error)
+    return MissionSpec(
+        name=name,
+        path=Path(path) if path else None,
+        field=fld,
+        altitude_m=altitude,
+        cruise_speed_mps=cruise,
+        time_budget_s=budget,
+        budget_policy=policy,
+        budget_reserve_s=reserve,
+        fence_margin_m=margin,
+        home_margin_m=home_margin,
+        altitude_limits_m=(float(lim[0]), float(lim[1])),
+        home_enu=home,
+        return_behaviour=ret,
+        trajectory=traj,
+        source=source,
+        vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin),
+        adaptive=adaptive,
+        on_write_error=on_write_error,
+    )
 
 
 def load_mission(path: str | Path | None = None) -> MissionSpec:
@@ -395,7 +500,9 @@ def load_mission(path: str | Path | None = None) -> MissionSpec:
     p = resolve_mission_path(path)
     data = read_yaml(p, "mission file", max_bytes=MAX_MISSION_BYTES)
     if data is None:
-        raise InputError("empty mission file (no keys); see missions/spiral.yaml for the schema", source=str(p))
+        raise InputError(
+            "empty mission file (no keys); see missions/spiral.yaml for the schema", source=str(p)
+        )
     spec = parse_mission(data, p)
     if spec.trajectory.waypoints is None:
         spec.waypoints_enu()  # validate generator parameters now, with the key in the message

@@ -21,7 +21,9 @@ class SpecReader:
         if data is None:
             data = {}
         if not isinstance(data, dict):
-            raise InputError(f"expected a mapping, got {type(data).__name__}", source=src, field=key or None)
+            raise InputError(
+                f"expected a mapping, got {type(data).__name__}", source=src, field=key or None
+            )
         self.d, self.src, self.key, self.used = data, src, key, set()
 
     def k(self, name: str) -> str:
@@ -37,8 +39,14 @@ class SpecReader:
     def has(self, name: str) -> bool:
         return name in self.d and self.d[name] is not None
 
-    def num(self, name: str, default: float, lo: float | None = None, hi: float | None = None,
-            strict_lo: bool = False) -> float:
+    def num(
+        self,
+        name: str,
+        default: float,
+        lo: float | None = None,
+        hi: float | None = None,
+        strict_lo: bool = False,
+    ) -> float:
         v = self.raw(name, default)
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise self.err(name, f"expected a number, got {v!r}")
@@ -58,7 +66,9 @@ class SpecReader:
             raise self.err(name, f"must be <= {hi}, got {v}")
         return v
 
-    def str_(self, name: str, default: str | None, choices: tuple[str, ...] | None = None) -> str | None:
+    def str_(
+        self, name: str, default: str | None, choices: tuple[str, ...] | None = None
+    ) -> str | None:
         v = self.raw(name, default)
         if v is None and default is None:
             return None
@@ -74,7 +84,9 @@ class SpecReader:
     def done(self) -> None:
         extra = [k for k in self.d if k not in self.used]
         if extra:
-            raise self.err(str(extra[0]), "unknown key (see the schema at the top of missions/spiral.yaml)")
+            raise self.err(
+                str(extra[0]), "unknown key (see the schema at the top of missions/spiral.yaml)"
+            )
 
 
 def read_yaml(path: str | Path, what: str = "mission file", max_bytes: int = 1_000_000) -> Any:
@@ -108,8 +120,13 @@ def _limited_loader():
         def compose_node(self, parent, index):
             if self.check_event(yaml.AliasEvent):
                 ev = self.peek_event()
-                raise yaml.composer.ComposerError(None, None, f"alias *{ev.anchor} refused (anchors and aliases "
-                                                  "are not accepted: write the value out)", ev.start_mark)
+                raise yaml.composer.ComposerError(
+                    None,
+                    None,
+                    f"alias *{ev.anchor} refused (anchors and aliases "
+                    "are not accepted: write the value out)",
+                    ev.start_mark,
+                )
             return super().compose_node(parent, index)
 
         def construct_mapping(self, node, deep=False):
@@ -118,11 +135,13 @@ def _limited_loader():
                 for key_node, _ in node.value:
                     key = key_node.value if isinstance(key_node, yaml.ScalarNode) else id(key_node)
                     if key in seen:
-                        raise yaml.constructor.ConstructorError(None, None, f"duplicated key '{key}'",
-                                                                key_node.start_mark)
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"duplicated key '{key}'", key_node.start_mark
+                        )
                     seen.add(key)
             return super().construct_mapping(node, deep)
 
-    LimitedLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
-                                  LimitedLoader.construct_mapping)
+    LimitedLoader.add_constructor(
+        yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, LimitedLoader.construct_mapping
+    )
     return LimitedLoader

@@ -35,7 +35,9 @@ def compute_threads() -> int:
 
 
 @contextlib.contextmanager
-def thread_limits(n: int | None = None, controller=None, user_api: str | None = None) -> Iterator[None]:
+def thread_limits(
+    n: int | None = None, controller=None, user_api: str | None = None
+) -> Iterator[None]:
     """Limit the thread pools of the libraries loaded now to ``n`` threads (None: ``compute_threads()``; 0: no
     limit) for the ``with`` block, then restore them.  ``controller``: a ``threadpoolctl.ThreadpoolController``
     made once by the caller (making one scans the loaded libraries: ~10 ms); ``user_api``: "openmp" or

@@ -46,11 +46,17 @@ def build(out: str, paths: list[str]) -> None:
         if _reference_height(meta) != _reference_height(meta0):  # inputs scaled differently
             bad.append(f"training_data.{METADATA_KEY}")
         if bad or m.graph.input[0].name != inp or m.graph.output[0].name != outn:
-            raise SystemExit(f"{p}: its contract differs from {paths[0]} ({', '.join(bad) or 'input/output names'})")
+            raise SystemExit(
+                f"{p}: its contract differs from {paths[0]} ({', '.join(bad) or 'input/output names'})"
+            )
     norm = json.loads(meta0["input_normalisation"])
-    if not (all(v == 0 for v in norm["input_mean"] + norm["output_mean"])
-            and all(v == 1 for v in norm["input_std"] + norm["output_std"])):
-        raise SystemExit("a mean of outputs needs identity normalisation (relative-coordinate graphs)")
+    if not (
+        all(v == 0 for v in norm["input_mean"] + norm["output_mean"])
+        and all(v == 1 for v in norm["input_std"] + norm["output_std"])
+    ):
+        raise SystemExit(
+            "a mean of outputs needs identity normalisation (relative-coordinate graphs)"
+        )
     nodes, inits, vinfo, outs = [], [], [], []
     for i, m in enumerate(models):
         g = compose.add_prefix(m, prefix=f"m{i}_").graph
@@ -63,17 +69,33 @@ def build(out: str, paths: list[str]) -> None:
         vinfo += list(g.value_info)
         outs.append(g.output[0].name)
     nodes.append(helper.make_node("Mean", outs, [outn], name="ensemble_mean"))
-    graph = helper.make_graph(nodes, "ensemble_mean", [m0.graph.input[0]], [m0.graph.output[0]], inits,
-                              value_info=vinfo)
-    em = helper.make_model(graph, opset_imports=list(m0.opset_import), producer_name="models/make_ensemble.py")
+    graph = helper.make_graph(
+        nodes, "ensemble_mean", [m0.graph.input[0]], [m0.graph.output[0]], inits, value_info=vinfo
+    )
+    em = helper.make_model(
+        graph, opset_imports=list(m0.opset_import), producer_name="models/make_ensemble.py"
+    )
     em.ir_version = m0.ir_version
     for k, v in meta0.items():
         em.metadata_props.add(key=k, value=v)
-    em.metadata_props.add(key="ensemble", value=json.dumps({
-        "rule": "plain mean of the members' outputs (xy, metres)",
-        "members": [{"file": Path(p).name, "sha256": hashlib.sha256(Path(p).read_bytes()).hexdigest()}
-                    for p in paths]}))
-    em.doc_string = f"plain mean of {len(paths)} networks: " + ", ".join(Path(p).name for p in paths)
+    em.metadata_props.add(
+        key="ensemble",
+        value=json.dumps(
+            {
+                "rule": "plain mean of the members' outputs (xy, metres)",
+                "members": [
+                    {
+                        "file": Path(p).name,
+                        "sha256": hashlib.sha256(Path(p).read_bytes()).hexdigest(),
+                    }
+                    for p in paths
+                ],
+            }
+        ),
+    )
+    em.doc_string = f"plain mean of {len(paths)} networks: " + ", ".join(
+        Path(p).name for p in paths
+    )
     onnx.checker.check_model(em, full_check=True)
     onnx.save(em, out)
     print("wrote", out, Path(out).stat().st_size, "bytes")

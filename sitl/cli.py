@@ -32,12 +32,16 @@ def parse_kinematics(text: str | None):
         raise ValueError(f"--kinematics is not valid JSON: {e}") from None
     names = {f.name for f in dataclasses.fields(Kinematics)}
     if not isinstance(d, dict) or set(d) - names:
-        raise ValueError(f"--kinematics wants a JSON object with keys among {sorted(names)}, got {text!r}")
+        raise ValueError(
+            f"--kinematics wants a JSON object with keys among {sorted(names)}, got {text!r}"
+        )
     return Kinematics(**{k: None if v is None else float(v) for k, v in d.items()})
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m sitl.vehicle", description="A simulated PX4-like MAVLink multicopter.")
+    p = argparse.ArgumentParser(
+        prog="python -m sitl.vehicle", description="A simulated PX4-like MAVLink multicopter."
+    )
     add_arguments(p)
     return p
 
@@ -52,10 +56,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--host", default="127.0.0.1", help="ground-station host (default 127.0.0.1)")
     p.add_argument(
-        "--url", default=None, help="full pymavlink URL instead of --host/--port (e.g. tcpin:0.0.0.0:5760)"
+        "--url",
+        default=None,
+        help="full pymavlink URL instead of --host/--port (e.g. tcpin:0.0.0.0:5760)",
     )
-    p.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall-clock second")
-    p.add_argument("--home", default=None, help="LAT,LON[,ALT] of the take-off point (default: AFAR field)")
+    p.add_argument(
+        "--speedup", type=float, default=1.0, help="simulated seconds per wall-clock second"
+    )
+    p.add_argument(
+        "--home", default=None, help="LAT,LON[,ALT] of the take-off point (default: AFAR field)"
+    )
     p.add_argument(
         "--kinematics",
         default=None,
@@ -77,12 +87,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "1.5 m/s then 0.7 m/s below 5 m; STATUSTEXT only while a ground-station heartbeat arrived within 2.5 "
         "simulated s)",
     )
-    p.add_argument("--speed-factor", type=float, default=None, help="fly legs at this fraction of the speed asked "
-                   "(default: the profile's, 1 or 0.93)")
-    p.add_argument("--statustext-log", default=None, help="append every STATUSTEXT generated (sent or dropped) "
-                   "to this file as JSON lines")
+    p.add_argument(
+        "--speed-factor",
+        type=float,
+        default=None,
+        help="fly legs at this fraction of the speed asked (default: the profile's, 1 or 0.93)",
+    )
+    p.add_argument(
+        "--statustext-log",
+        default=None,
+        help="append every STATUSTEXT generated (sent or dropped) to this file as JSON lines",
+    )
     p.add_argument("--gust", type=float, default=1.5, help="wind gust standard deviation, m/s")
     p.add_argument("--seed", type=int, default=0, help="seed of the wind and turbulence")
-    p.add_argument("--duration", type=float, default=None, help="stop after this many wall-clock seconds")
-    p.add_argument("--parent-pid", type=int, default=None, help="exit when this parent process is gone")
+    p.add_argument(
+        "--duration", type=float, default=None, help="stop after this many wall-clock seconds"
+    )
+    p.add_argument(
+        "--parent-pid", type=int, default=None, help="exit when this parent process is gone"
+    )
     p.add_argument("-v", "--verbose", action="store_true", help="print state changes to stderr")

@@ -40,18 +40,25 @@ class Dynamics:
             while pl.reach and pl.reach[0][0] <= tau:
                 _, seq = pl.reach.pop(0)
                 self.mav.mission_item_reached_send(seq)
-                if seq + 1 < len(self.items) and self.items[seq + 1].command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+                if (
+                    seq + 1 < len(self.items)
+                    and self.items[seq + 1].command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH
+                ):
                     self.say(f"RTL: start return at {max(self.pos[2], 5.0):.0f} m")
                 self.current_seq = seq + 1 if seq + 1 < len(self.items) else seq
                 self.send_mission_current()
             done = tau >= pl.profile.duration_s
             if self.flying:
-                if self.landed_state == mav.MAV_LANDED_STATE_TAKEOFF and (self.pos[2] > 1.0 or done):
+                if self.landed_state == mav.MAV_LANDED_STATE_TAKEOFF and (
+                    self.pos[2] > 1.0 or done
+                ):
                     self.landed_state = mav.MAV_LANDED_STATE_IN_AIR
                     self.say("Takeoff detected" + self.tab)
                 if pl.land_at_end:
                     i = int(np.searchsorted(pl.profile.t_vertex, tau, side="right")) - 1
-                    top = pl.profile.vertices[-1 - pl.land_legs][2]  # where the final descent starts
+                    top = pl.profile.vertices[-1 - pl.land_legs][
+                        2
+                    ]  # where the final descent starts
                     if i >= pl.n_legs - pl.land_legs and self.pos[2] < top - 0.1:
                         self.landed_state = mav.MAV_LANDED_STATE_LANDING
             if done:

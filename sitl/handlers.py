@@ -20,7 +20,15 @@ class MavlinkHandlers:
         if t == "COMMAND_LONG":
             self.on_command(
                 msg.command,
-                [msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7],
+                [
+                    msg.param1,
+                    msg.param2,
+                    msg.param3,
+                    msg.param4,
+                    msg.param5,
+                    msg.param6,
+                    msg.param7,
+                ],
                 msg.get_srcSystem(),
                 msg.get_srcComponent(),
             )

@@ -96,7 +96,9 @@ class MissionStore:
         if rx is not None and now - rx["asked"] > 0.5:
             rx["tries"] += 1
             if rx["tries"] > 5:
-                self.mav.mission_ack_send(*rx["src"], mav.MAV_MISSION_OPERATION_CANCELLED, rx["type"])
+                self.mav.mission_ack_send(
+                    *rx["src"], mav.MAV_MISSION_OPERATION_CANCELLED, rx["type"]
+                )
                 self._rx = None
             else:
                 rx["asked"] = now

@@ -30,7 +30,9 @@ class Plan:
 
     profile: FlightProfile
     t0: float
-    reach: list[tuple[float, int]] = field(default_factory=list)  # (time since t0, item seq), ascending
+    reach: list[tuple[float, int]] = field(
+        default_factory=list
+    )  # (time since t0, item seq), ascending
     land_at_end: bool = False
     from_ground: bool = False
     n_legs: int = 0
@@ -72,8 +74,15 @@ class ModeMachine:
         P = np.asarray(pts, dtype=float)
         land_legs = 1
         low = self.param("MPC_LAND_ALT2")
-        if land and len(P) >= 2 and 0 < low < P[-2, 2] - P[-1, 2] and np.allclose(P[-2, :2], P[-1, :2]):
-            P = np.vstack([P[:-1], P[-1] + [0.0, 0.0, low], P[-1:]])  # the final descent slows below ``low``
+        if (
+            land
+            and len(P) >= 2
+            and 0 < low < P[-2, 2] - P[-1, 2]
+            and np.allclose(P[-2, :2], P[-1, :2])
+        ):
+            P = np.vstack(
+                [P[:-1], P[-1] + [0.0, 0.0, low], P[-1:]]
+            )  # the final descent slows below ``low``
             seq_at_vertex = [(v + (v == len(P) - 2), s) for v, s in seq_at_vertex]
             land_legs = 2
         if len(P) < 2:  # nothing to fly: hover here, every item reached at once
@@ -86,16 +95,27 @@ class ModeMachine:
                 speeds = [self.param("MPC_XY_CRUISE")] * len(L)
             speeds = list(speeds) + [speeds[-1]] * (len(L) - len(speeds))  # the vertex added above
             vert = np.abs(legs[:, 2]) / np.maximum(L, 1e-9) > 0.7
-            horiz = np.asarray(speeds, dtype=float) * self.profile.speed_factor  # a profile that flies slower
-            vs = np.where(legs[:, 2] > 0, self.param("MPC_TKO_SPEED"), self.param("MPC_Z_V_AUTO_DN"))
+            horiz = (
+                np.asarray(speeds, dtype=float) * self.profile.speed_factor
+            )  # a profile that flies slower
+            vs = np.where(
+                legs[:, 2] > 0, self.param("MPC_TKO_SPEED"), self.param("MPC_Z_V_AUTO_DN")
+            )
             if land and vert[-1] and legs[-1, 2] < 0 and (land_legs == 2 or low >= -legs[-1, 2]):
                 vs[-1] = self.param("MPC_LAND_SPEED")
             sp = np.where(vert, vs, horiz)
             prof = plan_profile(P, self.kin, speeds=sp)
-            reach = [(float(prof.t_vertex[min(v, len(prof.t_vertex) - 1)]), s) for v, s in seq_at_vertex]
+            reach = [
+                (float(prof.t_vertex[min(v, len(prof.t_vertex) - 1)]), s) for v, s in seq_at_vertex
+            ]
         self.plan = Plan(
-            prof, self.sim_t, sorted(reach), land, from_ground=not self.flying, n_legs=len(P) - 1,
-            land_legs=land_legs
+            prof,
+            self.sim_t,
+            sorted(reach),
+            land,
+            from_ground=not self.flying,
+            n_legs=len(P) - 1,
+            land_legs=land_legs,
         )
         if not self.flying and prof.duration_s > 0:
             self.landed_state = mav.MAV_LANDED_STATE_TAKEOFF
@@ -143,7 +163,9 @@ class ModeMachine:
             elif it.command == mav.MAV_CMD_DO_CHANGE_SPEED and it.params[1] > 0:
                 speed = float(it.params[1])
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-                speed = self.param("MPC_XY_CRUISE")  # the return is flown at the autopilot's own speed
+                speed = self.param(
+                    "MPC_XY_CRUISE"
+                )  # the return is flown at the autopilot's own speed
                 z = max(pts[-1][2], 5.0)
                 self._append(pts, np.array([pts[-1][0], pts[-1][1], z]))
                 self._append(pts, np.array([0.0, 0.0, z]))

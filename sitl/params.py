@@ -21,7 +21,9 @@ class ParamStore:
 
     def _send_param(self, name: str, dest: tuple[int, int] | None = None) -> None:
         names = list(self.params)
-        self.mav.param_value_send(name.encode(), float(self.params[name]), REAL32, len(names), names.index(name))
+        self.mav.param_value_send(
+            name.encode(), float(self.params[name]), REAL32, len(names), names.index(name)
+        )
 
     def on_param_message(self, msg) -> None:
         """PARAM_REQUEST_READ (by name or index), PARAM_REQUEST_LIST, PARAM_SET (echoes the stored value;
@@ -32,7 +34,11 @@ class ParamStore:
             for n in names:
                 self._send_param(n)
             return
-        pid = msg.param_id.rstrip("\x00") if isinstance(msg.param_id, str) else msg.param_id.decode().rstrip("\x00")
+        pid = (
+            msg.param_id.rstrip("\x00")
+            if isinstance(msg.param_id, str)
+            else msg.param_id.decode().rstrip("\x00")
+        )
         if t == "PARAM_REQUEST_READ":
             if msg.param_index >= 0 and not pid:
                 if msg.param_index < len(names):

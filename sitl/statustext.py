@@ -15,7 +15,9 @@ import json
 
 from sitl.protocol import mav
 
-GCS_TIMEOUT_S = 2.5  # simulated s: PX4 sends texts on a link only while a GCS heartbeat is this recent
+GCS_TIMEOUT_S = (
+    2.5  # simulated s: PX4 sends texts on a link only while a GCS heartbeat is this recent
+)
 MAX_AGE_S = 5.0  # simulated s: older queued texts are dropped
 GCS_TYPE = mav.MAV_TYPE_GCS
 
@@ -65,5 +67,7 @@ class StatusTexts:
 
     def _record(self, t: float, text: str, sent: bool) -> None:
         if self._text_log is not None:
-            self._text_log.write(json.dumps({"t_s": round(t, 3), "text": text, "sent": sent}) + "\n")
+            self._text_log.write(
+                json.dumps({"t_s": round(t, 3), "text": text, "sent": sent}) + "\n"
+            )
             self._text_log.flush()

@@ -9,7 +9,14 @@ from __future__ import annotations
 
 import math
 
-from sitl.protocol import FAST_STREAMS, PX4_AUTO_MISSION, PX4_MAIN_AUTO, SENSORS, STATUS_WALL_HZ, mav
+from sitl.protocol import (
+    FAST_STREAMS,
+    PX4_AUTO_MISSION,
+    PX4_MAIN_AUTO,
+    SENSORS,
+    STATUS_WALL_HZ,
+    mav,
+)
 
 
 class StreamScheduler:

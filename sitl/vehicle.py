@@ -51,11 +51,21 @@ from sitl.protocol import (
 from sitl.statustext import StatusTexts
 from sitl.streams import StreamScheduler
 
-__all__ = ["SimVehicle", "Item", "add_arguments", "build_parser", "main", "parse_home", "parse_kinematics",
-           "run_from_args"]
+__all__ = [
+    "SimVehicle",
+    "Item",
+    "add_arguments",
+    "build_parser",
+    "main",
+    "parse_home",
+    "parse_kinematics",
+    "run_from_args",
+]
 
 
-class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamScheduler, ParamStore, StatusTexts):
+class SimVehicle(
+    MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamScheduler, ParamStore, StatusTexts
+):
     """State of one simulated multicopter (one MAVLink system, component 1) and its main loop."""
 
     def __init__(
@@ -82,8 +92,11 @@ class SimVehicle(MavlinkHandlers, MissionStore, ModeMachine, Dynamics, StreamSch
         cruise = self.profile.mpc_xy_cruise or self.kin.cruise_speed_mps
         c = self.kin.climb_rate_mps
         vertical = self.profile.vertical or (c, c, c, 0.0)
-        self.params = {"MPC_XY_CRUISE": float(cruise), **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True)),
-                       **OTHER_PARAMS}
+        self.params = {
+            "MPC_XY_CRUISE": float(cruise),
+            **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True)),
+            **OTHER_PARAMS,
+        }
         self.cruise: float | None = None  # set by MAV_CMD_DO_CHANGE_SPEED; None: MPC_XY_CRUISE
         self.verbose = verbose
         self.noise = np.random.default_rng(seed)  # wind gusts and turbulence
@@ -175,8 +188,17 @@ def run_from_args(args: argparse.Namespace) -> int:
         if not 0 < args.speed_factor <= 2:
             raise ValueError("--speed-factor must be in (0, 2]")
         profile = dataclasses.replace(profile, speed_factor=float(args.speed_factor))
-    v = SimVehicle(url, home, args.speedup, args.seed, kin, gust_mps=args.gust, verbose=args.verbose,
-                   profile=profile, statustext_log=args.statustext_log)
+    v = SimVehicle(
+        url,
+        home,
+        args.speedup,
+        args.seed,
+        kin,
+        gust_mps=args.gust,
+        verbose=args.verbose,
+        profile=profile,
+        statustext_log=args.statustext_log,
+    )
     print(
         f"sitl: simulated PX4 quadrotor ({profile.name} profile), MAVLink 2 on {url}, "
         f"home {home[0]:.6f},{home[1]:.6f}, speed-up {args.speedup:g}",

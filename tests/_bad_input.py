@@ -18,7 +18,9 @@ REPO = Path(__file__).resolve().parents[1]
 SPIRAL = str(REPO / "missions" / "spiral.yaml")
 
 
-def run_cli(main: Callable[[Sequence[str]], int], argv: Sequence[str], capsys) -> tuple[int, str, str]:
+def run_cli(
+    main: Callable[[Sequence[str]], int], argv: Sequence[str], capsys
+) -> tuple[int, str, str]:
     """Call a console-script ``main(argv)``; argparse's SystemExit counts as its return code."""
     capsys.readouterr()
     try:
@@ -63,16 +65,34 @@ def write_log(path: Path, n: int = 900, seed: int = 0, truth: bool = True) -> Pa
     tx = np.array([150.0, 120.0, 1.5])
     rss = 30 - 20 * np.log10(np.linalg.norm(enu - tx, axis=1)) + rng.normal(0, 1, n)
     lat, lon, alt = o.to_geodetic(enu)
-    cols = {"t_s": np.arange(n) * 0.1, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": z,
-            "roll_deg": np.zeros(n), "pitch_deg": np.zeros(n), "yaw_deg": np.full(n, 90.0), "rss_dbm": rss}
+    cols = {
+        "t_s": np.arange(n) * 0.1,
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": alt,
+        "rel_alt_m": z,
+        "roll_deg": np.zeros(n),
+        "pitch_deg": np.zeros(n),
+        "yaw_deg": np.full(n, 90.0),
+        "rss_dbm": rss,
+    }
     tlat, tlon, _ = o.to_geodetic(tx)
     tr = {"lat_deg": float(tlat), "lon_deg": float(tlon), "height_m": 1.5} if truth else None
-    return write_flight_log(path, cols, make_meta(o, {"kind": "sim", "model": "log-distance", "seed": seed}, tr))
+    return write_flight_log(
+        path, cols, make_meta(o, {"kind": "sim", "model": "log-distance", "seed": seed}, tr)
+    )
 
 
 def mat_arrays(n: int = 300) -> dict[str, np.ndarray]:
     """The variables of a good AFAR MAT file (``rfsl import afar-mat``): n samples 0.1 s apart at 30 m."""
     t = 1.7e9 + np.arange(n) * 0.1
-    return {"timestamp_power": t, "mX": np.full(n, -78.698), "mY": 35.728 + np.linspace(0, 1e-3, n),
-            "mZ": np.full(n, 30.0), "mRoll": np.zeros(n), "mPitch": np.zeros(n), "mYaw": np.zeros(n),
-            "mpower": np.full(n, -50.0)}
+    return {
+        "timestamp_power": t,
+        "mX": np.full(n, -78.698),
+        "mY": 35.728 + np.linspace(0, 1e-3, n),
+        "mZ": np.full(n, 30.0),
+        "mRoll": np.zeros(n),
+        "mPitch": np.zeros(n),
+        "mYaw": np.zeros(n),
+        "mpower": np.full(n, -50.0),
+    }

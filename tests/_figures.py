@@ -33,8 +33,12 @@ def capture_figures() -> Iterator[list]:
         Figure.savefig = original  # type: ignore[method-assign]
 
 
-def assert_png_drawn(path: str | Path, size: tuple[int, int] | None = None, min_colours: int = 16,
-                     min_ink: float = 0.02) -> np.ndarray:
+def assert_png_drawn(
+    path: str | Path,
+    size: tuple[int, int] | None = None,
+    min_colours: int = 16,
+    min_ink: float = 0.02,
+) -> np.ndarray:
     """Decode ``path``; assert its (width, height), at least ``min_colours`` distinct colours and at least
     ``min_ink`` of the pixels differing from the most common (background) colour. Returns the RGB array."""
     import matplotlib.image as mpimg

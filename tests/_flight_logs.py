@@ -30,8 +30,9 @@ def wait_rows(out: Path, rows: int, timeout: float) -> Path:
     raise AssertionError(f"no log with {rows} rows under {out}")
 
 
-def signal_group_at_rows(p: subprocess.Popen, out: Path, rows: int, sig: int, wait_s: float,
-                         exit_s: float) -> str:
+def signal_group_at_rows(
+    p: subprocess.Popen, out: Path, rows: int, sig: int, wait_s: float, exit_s: float
+) -> str:
     """Send ``sig`` to the whole process group of ``p`` (as a terminal does) once its log under
     ``out`` holds ``rows`` rows, and give its stderr once it exits; the group is killed if anything
     of it is left."""

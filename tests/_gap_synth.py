@@ -40,21 +40,55 @@ PT_DBM = 41.0
 LAMBDA_M = C_LIGHT / FC_HZ
 EPS0 = 8.8541878128e-12
 LEGS_DEG = (39.0, 150.0, 270.0)
-QUAD_LEGS_DEG = (45.0, 135.0, 225.0, 315.0)  # ``legs_far``: a quad's four legs, a layout the library does not name
-TX_HEIGHT_M = 1.5  # the rover antenna (this generator shares nothing with mission.*, not even its defaults)
-EFFECTS = ("none", "legs", "ground", "ripple", "notch", "tx_azimuth", "shadowing", "timing", "nadir", "nadir_over",
-           "drift", "step", "legs_far")
-EXPECTED = {"none": None, "legs": "leg_shadowing", "ground": "ground_reflection", "ripple": "rx_gain_map",
-            "notch": "rx_gain_map", "tx_azimuth": "tx_gain_map", "shadowing": "spatial_shadowing",
-            "timing": "time_offset", "nadir": "near_nadir", "nadir_over": "near_nadir", "drift": "time_drift",
-            "step": "time_drift", "legs_far": "leg_shadowing"}
+QUAD_LEGS_DEG = (
+    45.0,
+    135.0,
+    225.0,
+    315.0,
+)  # ``legs_far``: a quad's four legs, a layout the library does not name
+TX_HEIGHT_M = (
+    1.5  # the rover antenna (this generator shares nothing with mission.*, not even its defaults)
+)
+EFFECTS = (
+    "none",
+    "legs",
+    "ground",
+    "ripple",
+    "notch",
+    "tx_azimuth",
+    "shadowing",
+    "timing",
+    "nadir",
+    "nadir_over",
+    "drift",
+    "step",
+    "legs_far",
+)
+EXPECTED = {
+    "none": None,
+    "legs": "leg_shadowing",
+    "ground": "ground_reflection",
+    "ripple": "rx_gain_map",
+    "notch": "rx_gain_map",
+    "tx_azimuth": "tx_gain_map",
+    "shadowing": "spatial_shadowing",
+    "timing": "time_offset",
+    "nadir": "near_nadir",
+    "nadir_over": "near_nadir",
+    "drift": "time_drift",
+    "step": "time_drift",
+    "legs_far": "leg_shadowing",
+}
 # a body-fixed effect the library has no exact name for is diagnosed when a body-frame candidate is named first
 BODY_FIXED = ("leg_shadowing", "rx_gain_map")
 
 
 # ------------------------------------------------------------------------------------------ trajectories
 
-def _polyline(points: np.ndarray, speed: float, dt: float, duration: float) -> tuple[np.ndarray, np.ndarray]:
+
+def _polyline(
+    points: np.ndarray, speed: float, dt: float, duration: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Positions (N, 2) at constant speed along ``points`` and the course (compass, rad) of each sample."""
     seg = np.diff(points, axis=0)
     L = np.hypot(seg[:, 0], seg[:, 1])
@@ -68,8 +102,14 @@ def _polyline(points: np.ndarray, speed: float, dt: float, duration: float) -> t
     return xy, course
 
 
-def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float, centre=(180.0, 180.0),
-               passes: int = 5) -> dict[str, np.ndarray]:
+def trajectory(
+    kind: str,
+    rng: np.random.Generator,
+    dt: float,
+    duration: float,
+    centre=(180.0, 180.0),
+    passes: int = 5,
+) -> dict[str, np.ndarray]:
     """A lawnmower (rows east-west), an outward spiral over a 360 m square, or a star of ``passes`` straight
     passes crossing at ``centre``, at 20-35 m; yaw = course; AR(1) roll/pitch.  Low and wide enough that the
     legs (dep_b < 10 deg) act beyond ~110-200 m."""
@@ -82,10 +122,14 @@ def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float, 
             xs = (0.0, 360.0) if j % 2 == 0 else (360.0, 0.0)
             pts += [(xs[0], y), (xs[1], y)]
         points = np.array(pts)
-    elif kind == "star":  # straight 300 m passes crossing at ``centre``, headings spread over 180 deg
+    elif (
+        kind == "star"
+    ):  # straight 300 m passes crossing at ``centre``, headings spread over 180 deg
         c = np.asarray(centre, dtype=float)[:2]
         th0 = float(rng.uniform(0.0, np.pi))
-        lead = float(rng.uniform(0.0, 150.0))  # a lead-in leg, so that the passes fall in random chunks
+        lead = float(
+            rng.uniform(0.0, 150.0)
+        )  # a lead-in leg, so that the passes fall in random chunks
         pts = []
         for j in range(passes):
             u = np.array([np.sin(th0 + j * np.pi / passes), np.cos(th0 + j * np.pi / passes)])
@@ -105,7 +149,9 @@ def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float, 
     e = rng.normal(0.0, np.deg2rad(3.0) * np.sqrt(1 - phi * phi), size=(n, 2))
     for i in range(1, n):
         rp[i] = phi * rp[i - 1] + e[i]
-    att = np.column_stack([rp[:, 0], rp[:, 1] - np.deg2rad(4.0), course])  # cruising: nose 4 deg down
+    att = np.column_stack(
+        [rp[:, 0], rp[:, 1] - np.deg2rad(4.0), course]
+    )  # cruising: nose 4 deg down
     t = np.arange(n) * dt
     pos = np.column_stack([xy, np.full(n, h) + rng.normal(0.0, 0.3, n)])
     return {"t": t, "pos": pos, "att": att}
@@ -113,7 +159,10 @@ def trajectory(kind: str, rng: np.random.Generator, dt: float, duration: float, 
 
 # --------------------------------------------------------------------------------------------- channel
 
-def body_los(tx: np.ndarray, pos: np.ndarray, att: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+def body_los(
+    tx: np.ndarray, pos: np.ndarray, att: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Body-frame unit LOS (FRD) from the UAV to ``tx`` (ENU point or (N, 3)): u_b = R_nb^T u_ned,
     R_nb = Rz(yaw) Ry(pitch) Rx(roll) (SPEC section 1), written out."""
     d = np.broadcast_to(tx, pos.shape) - pos
@@ -123,8 +172,16 @@ def body_los(tx: np.ndarray, pos: np.ndarray, att: np.ndarray) -> tuple[np.ndarr
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     # rows of R_nb^T = columns of R_nb
     bx = (cy * cp) * u[:, 0] + (sy * cp) * u[:, 1] - sp * u[:, 2]
-    by = (cy * sp * sr - sy * cr) * u[:, 0] + (sy * sp * sr + cy * cr) * u[:, 1] + (cp * sr) * u[:, 2]
-    bz = (cy * sp * cr + sy * sr) * u[:, 0] + (sy * sp * cr - cy * sr) * u[:, 1] + (cp * cr) * u[:, 2]
+    by = (
+        (cy * sp * sr - sy * cr) * u[:, 0]
+        + (sy * sp * sr + cy * cr) * u[:, 1]
+        + (cp * sr) * u[:, 2]
+    )
+    bz = (
+        (cy * sp * cr + sy * sr) * u[:, 0]
+        + (sy * sp * cr - cy * sr) * u[:, 1]
+        + (cp * cr) * u[:, 2]
+    )
     return bx, by, bz
 
 
@@ -142,8 +199,15 @@ def gamma_v(sin_psi: np.ndarray, eps_r: float, sigma: float) -> np.ndarray:
     return (eps * sin_psi - root) / (eps * sin_psi + root)
 
 
-def channel_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, eps_r: float = 2.0, sigma: float = 0.0,
-               rx_extra_db=None, tx_extra_db=None) -> np.ndarray:
+def channel_db(
+    tx: np.ndarray,
+    pos: np.ndarray,
+    att: np.ndarray,
+    eps_r: float = 2.0,
+    sigma: float = 0.0,
+    rx_extra_db=None,
+    tx_extra_db=None,
+) -> np.ndarray:
     """Two-ray (eq. 1) with per-ray dipole gains; the UAV's at body-frame angles, the rover's upright.
 
     ``rx_extra_db(az_b, dep_b)`` / ``tx_extra_db(az_world)``: extra antenna gain (dB) on both rays.
@@ -162,18 +226,29 @@ def channel_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, eps_r: float = 
     g_t2 = dipole_db(sin_psi)
     if rx_extra_db is not None:
         g_r1 = g_r1 + rx_extra_db(np.arctan2(by, bx) % (2 * np.pi), np.arcsin(np.clip(bz, -1, 1)))
-        g_r2 = g_r2 + rx_extra_db(np.arctan2(by2, bx2) % (2 * np.pi), np.arcsin(np.clip(bz2, -1, 1)))
+        g_r2 = g_r2 + rx_extra_db(
+            np.arctan2(by2, bx2) % (2 * np.pi), np.arcsin(np.clip(bz2, -1, 1))
+        )
     if tx_extra_db is not None:
         az_w = np.arctan2(-d_vec[:, 0], -d_vec[:, 1]) % (2 * np.pi)
         g_t1, g_t2 = g_t1 + tx_extra_db(az_w), g_t2 + tx_extra_db(az_w)
     a1 = 10 ** ((g_r1 + g_t1) / 20) / d_los
     a2 = 10 ** ((g_r2 + g_t2) / 20) / d_ref
-    field = a1 + gamma_v(sin_psi, eps_r, sigma) * a2 * np.exp(-1j * 2 * np.pi * (d_ref - d_los) / LAMBDA_M)
+    field = a1 + gamma_v(sin_psi, eps_r, sigma) * a2 * np.exp(
+        -1j * 2 * np.pi * (d_ref - d_los) / LAMBDA_M
+    )
     return PT_DBM + 20 * np.log10(LAMBDA_M / (4 * np.pi)) + 20 * np.log10(np.abs(field))
 
 
-def leg_loss_db(tx: np.ndarray, pos: np.ndarray, att: np.ndarray, beta: float, half_width_deg: float = 5.0,
-                threshold_deg: float = 10.0, legs_deg: tuple[float, ...] = LEGS_DEG) -> np.ndarray:
+def leg_loss_db(
+    tx: np.ndarray,
+    pos: np.ndarray,
+    att: np.ndarray,
+    beta: float,
+    half_width_deg: float = 5.0,
+    threshold_deg: float = 10.0,
+    legs_deg: tuple[float, ...] = LEGS_DEG,
+) -> np.ndarray:
     """-Upsilon = -10 beta log10(d_los) where a leg blocks the LOS (paper eqs. 8-9)."""
     bx, by, bz = body_los(tx, pos, att)
     az = np.rad2deg(np.arctan2(by, bx)) % 360.0
@@ -195,8 +270,17 @@ def exp_field(rng: np.random.Generator, sigma: float, L: float, m: int = 500):
 
 # ------------------------------------------------------------------------------------------------ cases
 
-def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, duration: float = 420.0,
-              noise_db: float = 1.0, strength: float = 1.0, passes: int = 5) -> tuple[list[dict], dict]:
+
+def make_case(
+    effect: str,
+    seed: int,
+    n_flights: int = 2,
+    dt: float = 0.25,
+    duration: float = 420.0,
+    noise_db: float = 1.0,
+    strength: float = 1.0,
+    passes: int = 5,
+) -> tuple[list[dict], dict]:
     """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth.
 
     ``strength`` scales the withheld effect's size (beta, amplitudes, depths, sigma, tau; the ground's
@@ -214,8 +298,12 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
             tr = trajectory("star", rng, dt, duration, centre=tx, passes=passes)
         else:
             tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
-            lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)  # legs: rover near a corner (long range)
-            if effect == "legs_far":  # mid-way along an edge: the legs act only over the far half of the field
+            lo, hi = (
+                (20.0, 90.0) if effect == "legs" else (60.0, 300.0)
+            )  # legs: rover near a corner (long range)
+            if (
+                effect == "legs_far"
+            ):  # mid-way along an edge: the legs act only over the far half of the field
                 lo, hi = 100.0, 260.0
             if effect == "nadir":  # under a lawnmower row, so that the flights pass over the rover
                 lo, hi = 120.0, 240.0
@@ -226,58 +314,102 @@ def make_case(effect: str, seed: int, n_flights: int = 2, dt: float = 0.25, dura
         t, pos, att = tr["t"], tr["pos"], tr["att"]
         kw: dict = {}
         if effect == "ground":
-            truth.update(eps_r=truth.get("eps_r", 2.0 + k_s * (float(rng.uniform(10.0, 25.0)) - 2.0)), sigma_s_m=0.005)
+            truth.update(
+                eps_r=truth.get("eps_r", 2.0 + k_s * (float(rng.uniform(10.0, 25.0)) - 2.0)),
+                sigma_s_m=0.005,
+            )
             kw = {"eps_r": truth["eps_r"], "sigma": 0.005}
         elif effect == "ripple":
             truth.setdefault("amp_db", k_s * float(rng.uniform(2.0, 2.5)))
             truth["phase_deg"] = np.rad2deg(phi)
             kw = {"rx_extra_db": lambda az, dep, phi=phi: truth["amp_db"] * np.cos(3 * (az - phi))}
         elif effect == "notch":
-            if "azimuth_deg" not in truth:  # centred where the flights see the rover (else nothing could see it)
+            if (
+                "azimuth_deg" not in truth
+            ):  # centred where the flights see the rover (else nothing could see it)
                 bx, by, _ = body_los(tx, pos, att)
                 az_seen = np.arctan2(by, bx) % (2 * np.pi)
                 phi = float(az_seen[rng.integers(0, len(az_seen))])
-                truth.update(depth_db=10.0 * k_s, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0)
-            kw = {"rx_extra_db": lambda az, dep, phi=phi: -10.0 * k_s * np.exp(
-                -0.5 * ((np.angle(np.exp(1j * (az - phi)))) / np.deg2rad(15.0)) ** 2)}
+                truth.update(
+                    depth_db=10.0 * k_s, azimuth_deg=float(np.rad2deg(phi)), width_deg=15.0
+                )
+            kw = {
+                "rx_extra_db": lambda az, dep, phi=phi: (
+                    -10.0
+                    * k_s
+                    * np.exp(-0.5 * ((np.angle(np.exp(1j * (az - phi)))) / np.deg2rad(15.0)) ** 2)
+                )
+            }
         elif effect == "tx_azimuth":
             truth.update(amp_db=3.0 * k_s, azimuth_deg=float(np.rad2deg(phi)))
             kw = {"tx_extra_db": lambda az, phi=phi: 3.0 * k_s * np.cos(az - phi)}
-        elif effect in ("nadir", "nadir_over"):  # airframe, payload below the antenna: steep depression, any az
+        elif effect in (
+            "nadir",
+            "nadir_over",
+        ):  # airframe, payload below the antenna: steep depression, any az
             truth.update(depth_db=8.0 * k_s, centre_deg=75.0, width_deg=8.0)
-            kw = {"rx_extra_db": lambda az, dep: -8.0 * k_s * np.exp(-0.5 * ((np.rad2deg(dep) - 75.0) / 8.0) ** 2)}
+            kw = {
+                "rx_extra_db": lambda az, dep: (
+                    -8.0 * k_s * np.exp(-0.5 * ((np.rad2deg(dep) - 75.0) / 8.0) ** 2)
+                )
+            }
         q_pos, q_att = pos, att
         if effect == "timing":
             truth.setdefault("tau_s", k_s * float(rng.uniform(0.5, 1.0)))
             tq = t - truth["tau_s"]  # received where the UAV was tau earlier
             q_pos = np.column_stack([np.interp(tq, t, pos[:, j]) for j in range(3)])
             yaw = np.unwrap(att[:, 2])
-            q_att = np.column_stack([np.interp(tq, t, att[:, 0]), np.interp(tq, t, att[:, 1]),
-                                     np.interp(tq, t, yaw) % (2 * np.pi)])
+            q_att = np.column_stack(
+                [
+                    np.interp(tq, t, att[:, 0]),
+                    np.interp(tq, t, att[:, 1]),
+                    np.interp(tq, t, yaw) % (2 * np.pi),
+                ]
+            )
         p = channel_db(tx, q_pos, q_att, **kw)
         if effect in ("legs", "legs_far"):
             truth.setdefault("beta", k_s * float(rng.uniform(0.5, 0.7)))
             truth["threshold_deg"] = 10.0 if effect == "legs" else 8.0
             truth["legs_deg"] = LEGS_DEG if effect == "legs" else QUAD_LEGS_DEG
-            p = p + leg_loss_db(tx, q_pos, q_att, truth["beta"], threshold_deg=truth["threshold_deg"],
-                                legs_deg=truth["legs_deg"], half_width_deg=5.0 if effect == "legs" else 7.0)
+            p = p + leg_loss_db(
+                tx,
+                q_pos,
+                q_att,
+                truth["beta"],
+                threshold_deg=truth["threshold_deg"],
+                legs_deg=truth["legs_deg"],
+                half_width_deg=5.0 if effect == "legs" else 7.0,
+            )
         phase = None
         if effect == "drift":  # a receiver warming up: its gain settles over a couple of minutes
             amp = k_s * float(rng.uniform(3.0, 4.0)) * float(rng.choice([-1.0, 1.0]))
             truth.setdefault("amp_db", []).append(amp)
             p = p + amp * (1.0 - np.exp(-t / 120.0))
-        elif effect == "step":  # a gain step at an event the log shows: a turn, or a logged phase change
+        elif (
+            effect == "step"
+        ):  # a gain step at an event the log shows: a turn, or a logged phase change
             n = len(t)
-            turns = np.nonzero(np.abs(np.angle(np.exp(1j * np.diff(att[:, 2])))) > np.deg2rad(90.0))[0] + 1
+            turns = (
+                np.nonzero(np.abs(np.angle(np.exp(1j * np.diff(att[:, 2])))) > np.deg2rad(90.0))[0]
+                + 1
+            )
             mid = turns[(turns > n // 4) & (turns < 3 * n // 4)]
-            i_step = int(rng.choice(mid)) if len(mid) and k % 2 == 0 else int(rng.integers(n // 4, 3 * n // 4))
-            if not (len(mid) and k % 2 == 0):  # no sharp turn there (the spiral): the log records the switch
+            i_step = (
+                int(rng.choice(mid))
+                if len(mid) and k % 2 == 0
+                else int(rng.integers(n // 4, 3 * n // 4))
+            )
+            if not (
+                len(mid) and k % 2 == 0
+            ):  # no sharp turn there (the spiral): the log records the switch
                 phase = np.where(np.arange(n) < i_step, "mission", "adaptive")
             amp = k_s * float(rng.uniform(2.5, 3.0)) * float(rng.choice([-1.0, 1.0]))
             truth.setdefault("amp_db", []).append(amp)
             truth.setdefault("step_s", []).append(float(t[i_step]))
             p = p + amp * (np.arange(n) >= i_step)
-        if effect == "shadowing":  # fixed over the ground; a fresh field per flight (another rover position)
+        if (
+            effect == "shadowing"
+        ):  # fixed over the ground; a fresh field per flight (another rover position)
             p = p + exp_field(rng, truth["sigma_db"], truth["corr_len_m"])(pos[:, :2])
         rss = p + float(rng.uniform(-60.0, 20.0)) + rng.normal(0.0, noise_db, len(p))
         flights.append({"t": t, "pos": pos, "att": att, "rss": rss, "tx": tx, "phase": phase})
@@ -293,15 +425,30 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     from mission.samples import FlightSamples
 
     raw, truth = make_case(effect, seed, **kw)
-    flights = [FlightSamples(name=f"synth{k}", t_s=f["t"], enu_m=f["pos"], attitude_rad=f["att"],
-                             rss_dbm=f["rss"], tx_enu_m=f["tx"], phase=f.get("phase")) for k, f in enumerate(raw)]
+    flights = [
+        FlightSamples(
+            name=f"synth{k}",
+            t_s=f["t"],
+            enu_m=f["pos"],
+            attitude_rad=f["att"],
+            rss_dbm=f["rss"],
+            tx_enu_m=f["tx"],
+            phase=f.get("phase"),
+        )
+        for k, f in enumerate(raw)
+    ]
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     cfg = FitConfig(seed=seed, fit_max_samples=1200, workers=1)
     from mission.gap.structure import identify
 
     out = identify(flights, base, list(library().values()), cfg)
-    out.update(effect=effect, seed=seed, truth=truth, expected=EXPECTED[effect],
-               hit=out["named"] == EXPECTED[effect])
+    out.update(
+        effect=effect,
+        seed=seed,
+        truth=truth,
+        expected=EXPECTED[effect],
+        hit=out["named"] == EXPECTED[effect],
+    )
     from mission.gap.align import align
     from mission.gap.fit import make_folds
     from mission.gap.power import power_statement
@@ -311,10 +458,19 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
 
     res = [offset_residual(f.rss_dbm, base.predict(f), False, "l2") for f in flights]
     m = sum(c.applicable(base) for c in usable_candidates(list(library().values()), flights))
-    out["near_nadir"] = power_statement([np.rad2deg(align(f).dep_b) for f in flights], res,
-                                        [block_length(r) for r in res], make_folds(flights, cfg), cfg, m,
-                                        loss_db=truth.get("depth_db", 3.0), seed=seed)
+    out["near_nadir"] = power_statement(
+        [np.rad2deg(align(f).dep_b) for f in flights],
+        res,
+        [block_length(r) for r in res],
+        make_folds(flights, cfg),
+        cfg,
+        m,
+        loss_db=truth.get("depth_db", 3.0),
+        seed=seed,
+    )
     from mission.gap.temporal import time_power_statement
 
-    out["time_power"] = time_power_statement(flights, res, make_folds(flights, cfg), cfg, m, cfg.split, seed=seed)
+    out["time_power"] = time_power_statement(
+        flights, res, make_folds(flights, cfg), cfg, m, cfg.split, seed=seed
+    )
     return out

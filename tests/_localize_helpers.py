@@ -40,7 +40,11 @@ def lawnmower_path(
 
 
 def synthetic_flight(
-    tx=(150.0, 120.0, 1.5), n: int = 12000, seed: int = 0, offset: float = 0.0, noise: float = 1.0,
+    tx=(150.0, 120.0, 1.5),
+    n: int = 12000,
+    seed: int = 0,
+    offset: float = 0.0,
+    noise: float = 1.0,
     alt: float = 30.0,
 ):
     """(enu, rss, attitude) of a lawnmower flight at ``alt`` m over a log-distance field with noise."""
@@ -51,8 +55,14 @@ def synthetic_flight(
     return enu, rss, att
 
 
-def write_synthetic_log(path, tx=(150.0, 120.0, 1.5), n: int = 6000, seed: int = 0, truth: bool = True,
-                        alt: float = 30.0):
+def write_synthetic_log(
+    path,
+    tx=(150.0, 120.0, 1.5),
+    n: int = 6000,
+    seed: int = 0,
+    truth: bool = True,
+    alt: float = 30.0,
+):
     """A flight log (CSV + sidecar) in the AFAR field frame at ``alt`` m, with take-off and landing ramps."""
     origin = afar_field().origin
     enu, rss, att = synthetic_flight(tx, n, seed, alt=alt)
@@ -75,6 +85,10 @@ def write_synthetic_log(path, tx=(150.0, 120.0, 1.5), n: int = 6000, seed: int =
         "rss_dbm": rss,
     }
     tlat, tlon, _ = origin.to_geodetic(np.asarray(tx, dtype=float))
-    tr = {"lat_deg": float(tlat), "lon_deg": float(tlon), "height_m": float(tx[2])} if truth else None
+    tr = (
+        {"lat_deg": float(tlat), "lon_deg": float(tlon), "height_m": float(tx[2])}
+        if truth
+        else None
+    )
     meta = make_meta(origin, {"kind": "sim", "model": "log-distance", "seed": seed}, tr)
     return write_flight_log(path, cols, meta)

@@ -14,12 +14,16 @@ from pathlib import Path
 import numpy as np
 
 
-def _conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray | None, stride: int, pads: list[int]) -> np.ndarray:
+def _conv1d(
+    x: np.ndarray, w: np.ndarray, b: np.ndarray | None, stride: int, pads: list[int]
+) -> np.ndarray:
     """ONNX Conv, 1-D, group 1, dilation 1: x (B, C, L), w (M, C, K) -> (B, M, L_out)."""
     xp = np.pad(x, ((0, 0), (0, 0), (pads[0], pads[1])))
     k = w.shape[2]
     n_out = (xp.shape[2] - k) // stride + 1
-    cols = np.stack([xp[:, :, i * stride:i * stride + k] for i in range(n_out)], axis=2)  # (B, C, L, K)
+    cols = np.stack(
+        [xp[:, :, i * stride : i * stride + k] for i in range(n_out)], axis=2
+    )  # (B, C, L, K)
     y = np.einsum("bclk,mck->bml", cols, w)
     return y if b is None else y + b[None, :, None]
 
@@ -29,8 +33,10 @@ def _avgpool1d(x: np.ndarray, kernel: int, stride: int, ceil_mode: bool) -> np.n
     length = x.shape[2]
     rnd = math.ceil if ceil_mode else math.floor
     n_out = int(rnd((length - kernel) / stride)) + 1
-    return np.stack([x[:, :, i * stride:min(i * stride + kernel, length)].mean(axis=2) for i in range(n_out)],
-                    axis=2)
+    return np.stack(
+        [x[:, :, i * stride : min(i * stride + kernel, length)].mean(axis=2) for i in range(n_out)],
+        axis=2,
+    )
 
 
 def _slice(x: np.ndarray, starts, ends, axes=None, steps=None) -> np.ndarray:
@@ -55,7 +61,9 @@ def run_graph(path: str | Path, features: np.ndarray) -> np.ndarray:
 
     model = onnx.load(str(path))
     g = model.graph
-    env: dict[str, np.ndarray] = {t.name: numpy_helper.to_array(t).astype(np.float64) for t in g.initializer}
+    env: dict[str, np.ndarray] = {
+        t.name: numpy_helper.to_array(t).astype(np.float64) for t in g.initializer
+    }
     inp = g.input[0]
     x = np.asarray(features, dtype=np.float64)
     if len(inp.type.tensor_type.shape.dim) == 3:
@@ -87,24 +95,32 @@ def run_graph(path: str | Path, features: np.ndarray) -> np.ndarray:
         elif op == "Unsqueeze":
             out = np.expand_dims(ins[0], tuple(int(v) for v in ins[1]))
         elif op in ("Add", "Sub", "Mul", "Div"):
-            out = {"Add": np.add, "Sub": np.subtract, "Mul": np.multiply, "Div": np.divide}[op](ins[0], ins[1])
+            out = {"Add": np.add, "Sub": np.subtract, "Mul": np.multiply, "Div": np.divide}[op](
+                ins[0], ins[1]
+            )
         elif op == "Mean":  # an ensemble's plain mean of its members' outputs
             out = np.mean(np.stack(ins), axis=0)
         elif op == "Relu":
             out = np.maximum(ins[0], 0.0)
         elif op == "Conv":
             assert a.get("group", 1) == 1 and list(a.get("dilations", [1])) == [1], node
-            out = _conv1d(ins[0], ins[1], ins[2] if len(ins) > 2 else None, a["strides"][0], list(a["pads"]))
+            out = _conv1d(
+                ins[0], ins[1], ins[2] if len(ins) > 2 else None, a["strides"][0], list(a["pads"])
+            )
         elif op == "AveragePool":
             assert list(a.get("pads", [0, 0])) == [0, 0], node
-            out = _avgpool1d(ins[0], a["kernel_shape"][0], a["strides"][0], bool(a.get("ceil_mode", 0)))
+            out = _avgpool1d(
+                ins[0], a["kernel_shape"][0], a["strides"][0], bool(a.get("ceil_mode", 0))
+            )
         elif op == "Flatten":
             ax = a.get("axis", 1)
             out = ins[0].reshape(int(np.prod(ins[0].shape[:ax])), -1)
         elif op == "Gemm":
             A = ins[0].T if a.get("transA", 0) else ins[0]
             B = ins[1].T if a.get("transB", 0) else ins[1]
-            out = a.get("alpha", 1.0) * A @ B + (a.get("beta", 1.0) * ins[2] if len(ins) > 2 else 0.0)
+            out = a.get("alpha", 1.0) * A @ B + (
+                a.get("beta", 1.0) * ins[2] if len(ins) > 2 else 0.0
+            )
         else:
             raise NotImplementedError(f"operator {op} is not in the reference evaluator")
         env[node.output[0]] = np.asarray(out)

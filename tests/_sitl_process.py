@@ -15,7 +15,9 @@ from pathlib import Path
 import pytest
 
 
-def free_instance(lo: int, hi: int, ports: Callable[[int], tuple[int, ...]], udp: bool, what: str) -> int:
+def free_instance(
+    lo: int, hi: int, ports: Callable[[int], tuple[int, ...]], udp: bool, what: str
+) -> int:
     """A random instance in lo..hi whose ``ports(instance)`` (UDP or TCP) are all free now; skip when none is."""
     kind = socket.SOCK_DGRAM if udp else socket.SOCK_STREAM
     for _ in range(50):
@@ -40,8 +42,13 @@ class SitlProcess:
 
     def launch(self, script: Path, args: list[str], ready: str, what: str) -> None:
         """Run ``script`` (a start.sh) with ``RUN`` = ``self.run`` and wait until its log says ``ready``."""
-        out = subprocess.run([str(script), *args], env=dict(os.environ, RUN=str(self.run)), capture_output=True,
-                             text=True, timeout=30)
+        out = subprocess.run(
+            [str(script), *args],
+            env=dict(os.environ, RUN=str(self.run)),
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
         self.pid = int(out.stdout.split()[-1])
         end = time.monotonic() + 60
         while ready not in self.log():

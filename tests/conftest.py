@@ -65,18 +65,29 @@ def repo_dir() -> Path:
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption("--all", action="store_true", dest="all_tiers",
-                     help="run every test tier: also the slow and real-data tests a plain `pytest` leaves out")
-    parser.addoption("--px4", action="store_true", dest="px4_only",
-                     help="run only the PX4 SITL flights, one at a time (each SITL takes a whole core: run beside "
-                     "other tests or each other they starve the flights)")
+    parser.addoption(
+        "--all",
+        action="store_true",
+        dest="all_tiers",
+        help="run every test tier: also the slow and real-data tests a plain `pytest` leaves out",
+    )
+    parser.addoption(
+        "--px4",
+        action="store_true",
+        dest="px4_only",
+        help="run only the PX4 SITL flights, one at a time (each SITL takes a whole core: run beside "
+        "other tests or each other they starve the flights)",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """With ``-n`` (pytest-xdist, default ``--dist load``) and no ``--maxschedchunk`` given: hand the workers one
     test at a time.  xdist's default first hands each worker a block of about an eighth of the suite in order, so
     one worker got every slow test (sorted first below) while the other ran short ones and then waited."""
-    if getattr(config.option, "numprocesses", None) and getattr(config.option, "maxschedchunk", 0) is None:
+    if (
+        getattr(config.option, "numprocesses", None)
+        and getattr(config.option, "maxschedchunk", 0) is None
+    ):
         config.option.maxschedchunk = 1
 
 
@@ -99,8 +110,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         # parallel workers (pytest -n): the slow tests first (stable otherwise), so that the long ones start early
         # and the short ones fill the end instead of one worker finishing a flight while the others wait
         items.sort(key=lambda it: it.get_closest_marker("slow") is None)
-    fast_only = (not config.getoption("all_tiers") and not config.getoption("px4_only") and not config.option.markexpr
-                 and config.args_source == pytest.Config.ArgsSource.TESTPATHS)
+    fast_only = (
+        not config.getoption("all_tiers")
+        and not config.getoption("px4_only")
+        and not config.option.markexpr
+        and config.args_source == pytest.Config.ArgsSource.TESTPATHS
+    )
     if not fast_only:
         return
     keep = [it for it in items if not any(it.get_closest_marker(m) for m in FULL_TIERS)]
@@ -124,4 +139,6 @@ def pytest_testnodedown(node, error) -> None:
 def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
     n = config.stash.get(_LEFT_OUT, 0)
     if n:
-        terminalreporter.write_line(f"fast tier: {n} slow / real-data tests not run (pytest --all runs every tier)")
+        terminalreporter.write_line(
+            f"fast tier: {n} slow / real-data tests not run (pytest --all runs every tier)"
+        )

@@ -44,16 +44,24 @@ def test_block_parsed_and_unknown_key_named(spec, repo_dir):
     assert load_mission(repo_dir / "missions/spiral.yaml").adaptive is None
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(key=st.sampled_from(["altitude_m", "radius_m", "survey_s"]),
-       value=st.one_of(st.floats(max_value=0.0, allow_nan=False), st.just(float("nan")), st.text(max_size=3)))
+@settings(
+    max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    key=st.sampled_from(["altitude_m", "radius_m", "survey_s"]),
+    value=st.one_of(
+        st.floats(max_value=0.0, allow_nan=False), st.just(float("nan")), st.text(max_size=3)
+    ),
+)
 def test_bad_numbers_refused_naming_the_key(repo_dir, key, value):
     with pytest.raises(InputError) as e:
         parse_mission(_doc(repo_dir, **{key: value}), "m.yaml")
     assert e.value.field == f"adaptive.{key}"
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(case=st.sampled_from(["budget", "fence", "altitude"]), x=st.floats(0.0, 1.0))
 def test_unflyable_settings_refused_before_takeoff(spec, case, x):
     """A budget too small to return, a square the fence cannot hold, an altitude outside the limits."""
@@ -61,7 +69,11 @@ def test_unflyable_settings_refused_before_takeoff(spec, case, x):
     if case == "budget":
         s, key = dataclasses.replace(spec, time_budget_s=a.survey_s + 30 * x), "time_budget_s"
     elif case == "fence":
-        s, a, key = spec, dataclasses.replace(a, min_radius_m=250 + 500 * x, radius_m=800), "adaptive.radius_m"
+        s, a, key = (
+            spec,
+            dataclasses.replace(a, min_radius_m=250 + 500 * x, radius_m=800),
+            "adaptive.radius_m",
+        )
     else:
         s, a, key = spec, dataclasses.replace(a, altitude_m=121 + 100 * x), "adaptive.altitude_m"
     v = adaptive_violations(s, a)
@@ -69,9 +81,16 @@ def test_unflyable_settings_refused_before_takeoff(spec, case, x):
     assert adaptive_violations(spec, spec.adaptive) == []
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(case=st.sampled_from(["budget", "fence", "negative altitude", "altitude limit"]), x=st.floats(0.0, 1.0))
-def test_cli_refuses_bad_adaptive_settings_with_one_line(tmp_path_factory, repo_dir, capsys, case, x):
+@settings(
+    max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    case=st.sampled_from(["budget", "fence", "negative altitude", "altitude limit"]),
+    x=st.floats(0.0, 1.0),
+)
+def test_cli_refuses_bad_adaptive_settings_with_one_line(
+    tmp_path_factory, repo_dir, capsys, case, x
+):
     """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight folder)."""
     from mission.cli.fly import main
 
@@ -101,7 +120,11 @@ def test_survey_cut_and_square(spec):
     whole = survey_profile(spec, 1e6)
     assert len(whole.vertices) == len(spec.waypoints_enu())
     sq = box_pattern((100.0, 200.0), 10.0, 15.0, start=(200.0, 300.0))
-    assert np.allclose(sq[0, :2], (110.0, 210.0)) and np.allclose(sq[4], sq[0]) and np.allclose(sq[-1, :2], (100, 200))
+    assert (
+        np.allclose(sq[0, :2], (110.0, 210.0))
+        and np.allclose(sq[4], sq[0])
+        and np.allclose(sq[-1, :2], (100, 200))
+    )
     assert np.all(sq[:, 2] == 15.0)
     assert np.allclose(np.abs(sq[:4, :2] - (100.0, 200.0)), 10.0)
 
@@ -136,10 +159,14 @@ def test_candidates_and_target():
 
     xs, ys = np.meshgrid(np.arange(0, 200, 5.0), np.arange(0, 200, 5.0))
     grid = np.stack([xs, ys], -1)
-    p = np.exp(-((xs - 50) ** 2 + (ys - 50) ** 2) / 200) + 0.5 * np.exp(-((xs - 150) ** 2 + (ys - 120) ** 2) / 200)
+    p = np.exp(-((xs - 50) ** 2 + (ys - 50) ** 2) / 200) + 0.5 * np.exp(
+        -((xs - 150) ** 2 + (ys - 120) ** 2) / 200
+    )
     post = Posterior(p / p.sum(), grid)
     c = posterior_candidates(post, k=3)
-    assert np.allclose(c[0][:2], (50, 50)) and np.allclose(c[1][:2], (150, 120)) and c[0][2] > c[1][2]
+    assert (
+        np.allclose(c[0][:2], (50, 50)) and np.allclose(c[1][:2], (150, 120)) and c[0][2] > c[1][2]
+    )
     assert choose_target((50, 50), c, [], 20.0) == (50.0, 50.0)
     assert choose_target((50, 50), c, [(52.0, 49.0)], 20.0) == (150.0, 120.0)
     assert choose_target((50, 50), None, [(52.0, 49.0)], 20.0) == (50.0, 50.0)
@@ -178,7 +205,9 @@ def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
 def test_preview_adaptive_bad_flights_refused(repo_dir, tmp_path, capsys):
     from mission.cli.main import main
 
-    code = main(["preview", str(repo_dir / ADAPTIVE), "--flights", "0", "--out", str(tmp_path / "p.png")])
+    code = main(
+        ["preview", str(repo_dir / ADAPTIVE), "--flights", "0", "--out", str(tmp_path / "p.png")]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--flights" in err[0]
 
@@ -189,7 +218,9 @@ def test_preview_shows_adaptive_against_fixed(spec):
 
     from mission.adaptive.preview import adaptive_rows
 
-    s = dataclasses.replace(spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0))
+    s = dataclasses.replace(
+        spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0)
+    )
     with open(os.devnull, "w") as sink:
         rows = dict(adaptive_rows(s, 1, 0, "afar", Console(file=sink)))
     assert rows and any(k.startswith("expected error, fixed") for k in rows)
@@ -204,7 +235,9 @@ def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
     p.configure(2, 9, "return")
     p.on_landed_state(0.0, "IN_AIR")
     p.on_progress(1.0, 4)
-    p.configure(2, 15, "return", first_adaptive=9)  # the mission extended by a round from raw item 9
+    p.configure(
+        2, 15, "return", first_adaptive=9
+    )  # the mission extended by a round from raw item 9
     p.on_progress(2.0, 0)  # the upload resets the reported item: not a take-off again
     p.on_progress(3.0, 9)
     p.on_progress(4.0, 11)

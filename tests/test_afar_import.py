@@ -87,7 +87,12 @@ def test_bad_files(tmp_path):
 
 def test_cli(tmp_path, capsys):
     mat = make_mat(tmp_path / "f.mat")
-    assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path / "o"), "--truth", "35.7,-78.6"]) == 0
+    assert (
+        rfsl(
+            ["import", "afar-mat", str(mat), "--out", str(tmp_path / "o"), "--truth", "35.7,-78.6"]
+        )
+        == 0
+    )
     assert (tmp_path / "o" / "f.csv").exists() and (tmp_path / "o" / "f.json").exists()
     assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path / "o")]) == 2  # exists
     assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path / "p"), "--truth", "x"]) == 2

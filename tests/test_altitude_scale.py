@@ -21,12 +21,18 @@ from mission.physics.propagation import make_model
 
 
 @settings(max_examples=25, deadline=None)
-@given(s=st.floats(0.3, 3.0), seed=st.integers(0, 2**16), pattern=st.sampled_from(["dipole", "measured"]))
+@given(
+    s=st.floats(0.3, 3.0),
+    seed=st.integers(0, 2**16),
+    pattern=st.sampled_from(["dipole", "measured"]),
+)
 def test_free_space_is_scale_invariant_up_to_friis_constant(s, seed, pattern):
     """Every horizontal offset from the transmitter and the height above it times s: every link direction is
     the same, every distance s times longer, so every RSS drops by exactly 20 log10 s (SPEC section 3)."""
     rng = np.random.default_rng(seed)
-    m = make_model("free-space", pattern=pattern, rx_heading_rad=rng.uniform(0, 6.28), dtype=np.float64)
+    m = make_model(
+        "free-space", pattern=pattern, rx_heading_rad=rng.uniform(0, 6.28), dtype=np.float64
+    )
     tx = np.array([rng.uniform(-50, 50), rng.uniform(-50, 50), rng.uniform(1, 2)])
     rx = np.column_stack([rng.uniform(-150, 150, (300, 2)), rng.uniform(15, 60, 300)])
     att = rng.normal(0.0, 0.05, (300, 3))
@@ -48,8 +54,14 @@ def test_ground_reflection_breaks_the_invariance():
 
 
 @settings(max_examples=40, deadline=None)
-@given(h=st.one_of(st.floats(-100, MIN_HEIGHT_M, exclude_max=True), st.just(float("nan")), st.just(float("inf"))),
-       good=st.lists(st.floats(MIN_HEIGHT_M, 200.0), max_size=4))
+@given(
+    h=st.one_of(
+        st.floats(-100, MIN_HEIGHT_M, exclude_max=True),
+        st.just(float("nan")),
+        st.just(float("inf")),
+    ),
+    good=st.lists(st.floats(MIN_HEIGHT_M, 200.0), max_size=4),
+)
 def test_scale_factor_refuses_heights_that_are_no_cruise(h, good):
     who = f"flight {len(good)}" if good else "the flight"
     with pytest.raises(InputError, match=rf"{who} is .*at least {MIN_HEIGHT_M:.0f} m") as e:
@@ -58,14 +70,18 @@ def test_scale_factor_refuses_heights_that_are_no_cruise(h, good):
 
 
 def test_scale_factor_and_cluster_scaling():
-    np.testing.assert_allclose(scale_factor([REFERENCE_HEIGHT_M, 2 * REFERENCE_HEIGHT_M]), [1.0, 0.5])
+    np.testing.assert_allclose(
+        scale_factor([REFERENCE_HEIGHT_M, 2 * REFERENCE_HEIGHT_M]), [1.0, 0.5]
+    )
     f = np.arange(12.0).reshape(2, 6)  # two flights, two clusters each: [p, x, y, p, x, y]
     g = scale_cluster_xy(f, np.array([2.0, 0.5]))
     np.testing.assert_array_equal(g[:, 0::3], f[:, 0::3])  # RSS untouched
     np.testing.assert_array_equal(g[0, [1, 2, 4, 5]], 2.0 * f[0, [1, 2, 4, 5]])
     np.testing.assert_array_equal(g[1, [1, 2, 4, 5]], 0.5 * f[1, [1, 2, 4, 5]])
     assert f[0, 1] == 1.0  # a copy
-    assert flight_height(np.array([0.0, 31.0, 31.5, 32.0, 100.0]), 1.5) == 30.0  # median: ramps do not move it
+    assert (
+        flight_height(np.array([0.0, 31.0, 31.5, 32.0, 100.0]), 1.5) == 30.0
+    )  # median: ramps do not move it
 
 
 @pytest.fixture(scope="module")
@@ -77,8 +93,13 @@ def tiny_altitude_net(tmp_path_factory, repo_dir):
 
     d = tmp_path_factory.mktemp("alt")
     r = Randomisation(altitude_m=(15.0, 60.0), truncate=(0.15, 0.25))
-    generate_dataset(DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r),
-                     d / "ds", workers=1)
+    generate_dataset(
+        DatasetConfig(
+            str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r
+        ),
+        d / "ds",
+        workers=1,
+    )
     cfg = TrainConfig(epochs=2, batch_size=8, seed=1, altitude_normalised=True, threads=1)
     res = train([d / "ds"], d / "m.onnx", cfg)
     return d, res
@@ -102,9 +123,13 @@ def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_ne
     err = np.hypot(*(p - a["tx_enu"][:, :2]).T)
     from mission.workshop.train import TrainConfig, validation_split
 
-    val, _ = validation_split(len(h), TrainConfig(seed=1))  # the fixture's seed: the split training drew
+    val, _ = validation_split(
+        len(h), TrainConfig(seed=1)
+    )  # the fixture's seed: the split training drew
     assert res.metrics["val_mean_m"] == pytest.approx(err[val].mean(), rel=1e-3)
-    assert not np.allclose(scale_factor(h[val]), 1.0, atol=0.05)  # a metric in scaled units would differ
+    assert not np.allclose(
+        scale_factor(h[val]), 1.0, atol=0.05
+    )  # a metric in scaled units would differ
 
 
 def test_other_networks_ignore_heights(repo_dir):
@@ -116,7 +141,9 @@ def test_other_networks_ignore_heights(repo_dir):
     loc = OnnxLocalizer(model)
     x = np.random.default_rng(0).normal(0.0, 50.0, (4, loc.n_features))
     assert not loc.needs_heights
-    np.testing.assert_array_equal(loc.predict_features(x, np.full(4, 50.0)), loc.predict_features(x))
+    np.testing.assert_array_equal(
+        loc.predict_features(x, np.full(4, 50.0)), loc.predict_features(x)
+    )
 
 
 def test_normalised_rss_cannot_be_altitude_normalised(tmp_path, tiny_altitude_net):
@@ -124,7 +151,11 @@ def test_normalised_rss_cannot_be_altitude_normalised(tmp_path, tiny_altitude_ne
 
     d, _ = tiny_altitude_net
     with pytest.raises(InputError, match="clustering") as e:
-        train([d / "ds"], tmp_path / "n.onnx", TrainConfig(features="normalised_rss", altitude_normalised=True))
+        train(
+            [d / "ds"],
+            tmp_path / "n.onnx",
+            TrainConfig(features="normalised_rss", altitude_normalised=True),
+        )
     assert e.value.field == "--altitude-normalised"
 
 
@@ -143,8 +174,14 @@ def test_altitude_normalised_prediction_is_scale_equivariant(shipped_alt):
     loc = OnnxLocalizer(shipped_alt)
     rng = np.random.default_rng(0)
     c = loc.n_features // 3
-    feats = np.stack([np.sort(rng.uniform(-30, 0, (16, c)))[:, ::-1], rng.uniform(0, 300, (16, c)),
-                      rng.uniform(0, 270, (16, c))], axis=2).reshape(16, -1)
+    feats = np.stack(
+        [
+            np.sort(rng.uniform(-30, 0, (16, c)))[:, ::-1],
+            rng.uniform(0, 300, (16, c)),
+            rng.uniform(0, 270, (16, c)),
+        ],
+        axis=2,
+    ).reshape(16, -1)
     h = rng.uniform(15, 60, 16)
     p = loc.predict_features(feats, h)
     assert np.ptp(p, axis=0).min() > 1.0
@@ -153,7 +190,9 @@ def test_altitude_normalised_prediction_is_scale_equivariant(shipped_alt):
         np.testing.assert_allclose(pk, k * p, rtol=1e-4, atol=1e-3)
 
 
-def test_localize_scales_by_the_logs_median_height_above_the_assumed_transmitter(tmp_path, shipped_alt):
+def test_localize_scales_by_the_logs_median_height_above_the_assumed_transmitter(
+    tmp_path, shipped_alt
+):
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log
     from mission.localize.classical import as_flight
@@ -168,10 +207,14 @@ def test_localize_scales_by_the_logs_median_height_above_the_assumed_transmitter
     for tx_h in (1.5, 4.0):
         est = got[tx_h] = localize_log(path, model_path=shipped_alt, tx_height_m=tx_h)
         want = loc.predict_features(loc.features(f)[None], [np.median(f.enu_m[:, 2]) - tx_h])[0]
-        np.testing.assert_allclose([est.x_m, est.y_m], want, atol=0.05)  # the log and the model share the origin
+        np.testing.assert_allclose(
+            [est.x_m, est.y_m], want, atol=0.05
+        )  # the log and the model share the origin
         assert est.extras["height_above_tx_m"] == pytest.approx(np.median(f.enu_m[:, 2]) - tx_h)
         assert np.median(f.enu_m[:, 2]) == pytest.approx(45.0, abs=0.5)
-    assert abs(got[1.5].x_m - got[4.0].x_m) + abs(got[1.5].y_m - got[4.0].y_m) > 0.1  # the height matters
+    assert (
+        abs(got[1.5].x_m - got[4.0].x_m) + abs(got[1.5].y_m - got[4.0].y_m) > 0.1
+    )  # the height matters
     assert "note" not in got[1.5].extras  # 45 m is inside its 15-60 m training range
 
 
@@ -184,7 +227,9 @@ def test_a_flight_too_low_over_the_transmitter_is_a_clear_error(tmp_path, shippe
     assert "the flight is 3.0 m above the transmitter" in err and "Traceback" not in err
 
 
-def test_an_ensemble_keeps_the_normalisation_and_refuses_mixed_members(tmp_path, shipped_alt, repo_dir):
+def test_an_ensemble_keeps_the_normalisation_and_refuses_mixed_members(
+    tmp_path, shipped_alt, repo_dir
+):
     pytest.importorskip("onnx")
     import sys
 
@@ -195,9 +240,14 @@ def test_an_ensemble_keeps_the_normalisation_and_refuses_mixed_members(tmp_path,
 
     build(str(tmp_path / "e.onnx"), [str(shipped_alt), str(shipped_alt)])
     ens, one = OnnxLocalizer(tmp_path / "e.onnx"), OnnxLocalizer(shipped_alt)
-    feats, h = np.random.default_rng(2).uniform(0, 200, (3, one.n_features)), np.array([20.0, 35.0, 50.0])
+    feats, h = (
+        np.random.default_rng(2).uniform(0, 200, (3, one.n_features)),
+        np.array([20.0, 35.0, 50.0]),
+    )
     assert ens.needs_heights
-    np.testing.assert_allclose(ens.predict_features(feats, h), one.predict_features(feats, h), atol=1e-3)
+    np.testing.assert_allclose(
+        ens.predict_features(feats, h), one.predict_features(feats, h), atol=1e-3
+    )
     spiral = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
     if spiral.exists():
         with pytest.raises(SystemExit, match="altitude_normalisation"):

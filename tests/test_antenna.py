@@ -35,8 +35,9 @@ def test_dipole_formula():
     d = Dipole()
     # G = 1.641 (cos(pi/2 sin el) / cos el)^2 worked by hand
     assert d.gain_dbi(0.0) == pytest.approx(2.1511, abs=1e-3)
-    assert d.gain_dbi(math.radians(30)) == pytest.approx(10 * math.log10(1.641 * (0.70711 / 0.86603) ** 2),
-                                                         abs=1e-3)
+    assert d.gain_dbi(math.radians(30)) == pytest.approx(
+        10 * math.log10(1.641 * (0.70711 / 0.86603) ** 2), abs=1e-3
+    )
     s60 = math.sin(math.radians(60))
     g60 = 1.641 * (math.cos(math.pi / 2 * s60) / 0.5) ** 2
     assert d.gain_dbi(math.radians(60)) == pytest.approx(10 * math.log10(g60), abs=1e-9)
@@ -69,8 +70,9 @@ def test_tabulated_exact_at_nodes_bilinear_and_periodic():
     # fast path (float32, uniform grid) agrees
     rng = np.random.default_rng(1)
     el, az = rng.uniform(-1.5, 1.5, 500), rng.uniform(-7, 7, 500)
-    q = TabulatedPattern(np.arange(-90.0, 91, 30), np.arange(0.0, 360, 45),
-                         rng.uniform(-10, 5, (7, 8)))
+    q = TabulatedPattern(
+        np.arange(-90.0, 91, 30), np.arange(0.0, 360, 45), rng.uniform(-10, 5, (7, 8))
+    )
     fast = 20 * np.log10(q.amplitude_at(el.astype(np.float32), az.astype(np.float32)))
     assert np.allclose(fast, q.gain_dbi(el, az), atol=2e-3)
 
@@ -98,7 +100,9 @@ def test_csv_round_trip_and_errors(tmp_path):
 
 def test_mounting_heading_and_flip():
     el, az = mount_angles(0.3, math.radians(100), heading_rad=math.radians(40))
-    assert el == pytest.approx(0.3) and az == pytest.approx(math.radians(300))  # -(100 - 40) mod 360
+    assert el == pytest.approx(0.3) and az == pytest.approx(
+        math.radians(300)
+    )  # -(100 - 40) mod 360
     el, az = mount_angles(0.3, math.radians(100), heading_rad=math.radians(40), flipped=True)
     assert el == pytest.approx(-0.3) and az == pytest.approx(math.radians(60))
     p = _grid()

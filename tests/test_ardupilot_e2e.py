@@ -30,14 +30,18 @@ SPIRAL = ROOT / "missions" / "spiral.yaml"
 SPEEDUP = 20
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.skipif(not (SITL / "arducopter").exists() or not (SITL / "start.sh").exists(),
-                       reason="ArduCopter SITL not in ../shared/sitl/ardupilot"),
+    pytest.mark.skipif(
+        not (SITL / "arducopter").exists() or not (SITL / "start.sh").exists(),
+        reason="ArduCopter SITL not in ../shared/sitl/ardupilot",
+    ),
 ]
 
 
 def _free_instance() -> int:
     """A SITL instance number whose TCP ports (5760 + 10 I .. + 3) are free now (the SITL keeps it in 8 bits)."""
-    return free_instance(20, 250, lambda i: (5760 + 10 * i, 5762 + 10 * i, 5763 + 10 * i), False, "ArduPilot SITL")
+    return free_instance(
+        20, 250, lambda i: (5760 + 10 * i, 5762 + 10 * i, 5763 + 10 * i), False, "ArduPilot SITL"
+    )
 
 
 class _Sitl(SitlProcess):
@@ -54,7 +58,12 @@ class _Sitl(SitlProcess):
         self.starts += 1
         inst = _free_instance()
         self.run = self.root / f"sitl{self.starts}"
-        self.launch(SITL / "start.sh", [str(SPEEDUP), str(inst)], "Waiting for connection", "ArduCopter SITL")
+        self.launch(
+            SITL / "start.sh",
+            [str(SPEEDUP), str(inst)],
+            "Waiting for connection",
+            "ArduCopter SITL",
+        )
         self.url = f"tcpout://127.0.0.1:{5760 + 10 * inst}"
         return self.url
 
@@ -76,16 +85,30 @@ def _wrap_deg(a):
 
 def _spiral_cmd(url: str, out: Path) -> list[str]:
     """``fly-mission`` flying the spiral against the SITL at ``url``, logging under ``out``."""
-    return [sys.executable, "-m", "mission.cli.fly", str(SPIRAL), "--connect", url,
-            "--speedup", str(SPEEDUP), "--out", str(out), "--no-localize", "--link-timeout", "60"]
+    return [
+        sys.executable,
+        "-m",
+        "mission.cli.fly",
+        str(SPIRAL),
+        "--connect",
+        url,
+        "--speedup",
+        str(SPEEDUP),
+        "--out",
+        str(out),
+        "--no-localize",
+        "--link-timeout",
+        "60",
+    ]
 
 
 ENV = dict(os.environ, PYTHONUNBUFFERED="1")
 
 
 def _fly_spiral(url: str, out: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(_spiral_cmd(url, out), cwd=ROOT, env=ENV, capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        _spiral_cmd(url, out), cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=300
+    )
 
 
 def test_spiral_on_ardupilot(ardupilot, tmp_path):
@@ -100,13 +123,19 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
         gone = ardupilot.log()[-1500:]
         ardupilot.stop()
         ardupilot.start()
-        warnings.warn(f"ArduCopter SITL exited before the flight connected; its log ended: {gone}", stacklevel=1)
+        warnings.warn(
+            f"ArduCopter SITL exited before the flight connected; its log ended: {gone}",
+            stacklevel=1,
+        )
         shutil.rmtree(tmp_path / "flights", ignore_errors=True)
         t0 = time.monotonic()
         p = _fly_spiral(ardupilot.url, tmp_path / "flights")
     wall = time.monotonic() - t0
-    assert p.returncode == 0, (p.stderr[-3000:] + f"\nSITL alive: {ardupilot.alive()}; its log ended:\n"
-                               + ardupilot.log()[-1500:])
+    assert p.returncode == 0, (
+        p.stderr[-3000:]
+        + f"\nSITL alive: {ardupilot.alive()}; its log ended:\n"
+        + ardupilot.log()[-1500:]
+    )
     assert "autopilot ARDUPILOT" in p.stderr
     (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
     log = read_flight_log(csv)
@@ -117,9 +146,13 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     assert m["speedup"] == m["speedup_measured"]
     assert m["speedup_requested"] == SPEEDUP
     for stream in ("position", "attitude"):  # what arrived, against what was asked for
-        assert 0.7 * m["telemetry_rate_requested_hz"] < m["telemetry_rate_hz"][stream] < 60.0, m["telemetry_rate_hz"]
+        assert 0.7 * m["telemetry_rate_requested_hz"] < m["telemetry_rate_hz"][stream] < 60.0, m[
+            "telemetry_rate_hz"
+        ]
     t = log["t_s"]
-    assert len(log) >= 0.95 * ((t[-1] - t[0]) / spec.source.sample_period_s + 1)  # no gaps in the RSS rows
+    assert len(log) >= 0.95 * (
+        (t[-1] - t[0]) / spec.source.sample_period_s + 1
+    )  # no gaps in the RSS rows
     # the phase column: every row has a phase, in flight order, mission items over all waypoints
     phase, item = log.columns["phase"], log.columns["mission_item"]
     assert set(phase) <= set(PHASES)
@@ -152,10 +185,16 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
 
     b = m["budget"]
     assert "(autopilot m/s: up 2.5, down 1.5/0.5 below 10 m, hover 5 s)" in p.stderr
-    assert b["planned_s"] > check_mission(spec).duration_s + 20 and not b["overrun"] and b["warned_at_s"] is None
+    assert (
+        b["planned_s"] > check_mission(spec).duration_s + 20
+        and not b["overrun"]
+        and b["warned_at_s"] is None
+    )
     assert abs(b["used_s"] - b["planned_s"]) < 0.05 * b["planned_s"], b
-    print(f"ArduPilot e2e: wall {wall:.0f} s, speed-up measured {m['speedup_measured']}, "
-          f"rates {m['telemetry_rate_hz']}, rows {len(log)}")
+    print(
+        f"ArduPilot e2e: wall {wall:.0f} s, speed-up measured {m['speedup_measured']}, "
+        f"rates {m['telemetry_rate_hz']}, rows {len(log)}"
+    )
 
 
 def _attitude_agrees_with_ardupilot(log, spec) -> None:
@@ -173,12 +212,17 @@ def _attitude_agrees_with_ardupilot(log, spec) -> None:
     tu = np.arange(t[0], t[-1], dt)
     path = np.stack([np.interp(tu, t, enu[:, k]) for k in range(3)], axis=-1)
     kin = dataclasses.replace(spec.kinematics(), response_s=0.2)
-    att, _, _ = run_attitude(path, dt, kin, AttitudeState.at_rest(path[0], np.deg2rad(log["yaw_deg"][m][0])))
+    att, _, _ = run_attitude(
+        path, dt, kin, AttitudeState.at_rest(path[0], np.deg2rad(log["yaw_deg"][m][0]))
+    )
     roll_model, roll_ref = np.rad2deg(att[200:, 0]), np.interp(tu, t, roll_ap)[200:]
     assert np.corrcoef(roll_model, roll_ref)[0, 1] > 0.7
     t_plan, pos = plan_profile(spec.waypoints_enu(), spec.kinematics()).sample(dt)
     planned = np.rad2deg(attitude_from_motion(t_plan, pos, spec.kinematics())[0][:, 0])
-    assert abs(np.abs(planned).max() - np.abs(roll_ap).max()) < 5.0, (np.abs(planned).max(), np.abs(roll_ap).max())
+    assert abs(np.abs(planned).max() - np.abs(roll_ap).max()) < 5.0, (
+        np.abs(planned).max(),
+        np.abs(roll_ap).max(),
+    )
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGHUP], ids=["SIGINT", "SIGHUP"])
@@ -188,8 +232,15 @@ def test_terminal_signal_on_ardupilot_returns_and_lands(ardupilot, tmp_path, sig
     mid-mission; ArduCopter is sent home and lands, the exit is 130 with no traceback, and the
     sidecar says aborted with the rows it holds.  The moment is picked on the log's rows."""
     out = tmp_path / "flights"
-    p = subprocess.Popen(_spiral_cmd(ardupilot.url, out), cwd=ROOT, env=ENV, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    p = subprocess.Popen(
+        _spiral_cmd(ardupilot.url, out),
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     err = signal_group_at_rows(p, out, 1500, sig, 120, 240)
     assert p.returncode == 130, err[-3000:] + f"\nSITL alive: {ardupilot.alive()}"
     assert "Traceback" not in err and "return to launch commanded" in err, err[-3000:]

@@ -23,8 +23,12 @@ from mission.cli.fly import main as fly_main
 from mission.cli.localize import main as localize_main
 from mission.cli.main import main as rfsl_main
 
-HYPO = settings(max_examples=30, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.function_scoped_fixture])
+HYPO = settings(
+    max_examples=30,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +54,16 @@ def files(tmp_path_factory):
     t = 1.7e9 + np.arange(n) * 0.1
     lat = 35.728 + np.linspace(0, 1e-3, n)
     lon = np.full(n, -78.698)
-    good = {"timestamp_power": t, "mX": lon, "mY": lat, "mZ": np.full(n, 30.0), "mRoll": np.zeros(n),
-            "mPitch": np.zeros(n), "mYaw": np.zeros(n), "mpower": np.full(n, -50.0)}
+    good = {
+        "timestamp_power": t,
+        "mX": lon,
+        "mY": lat,
+        "mZ": np.full(n, 30.0),
+        "mRoll": np.zeros(n),
+        "mPitch": np.zeros(n),
+        "mYaw": np.zeros(n),
+        "mpower": np.full(n, -50.0),
+    }
     sio.savemat(mats / "a.mat", good)
     sio.savemat(mats / "b.mat", {**good, "timestamp_power": np.repeat(t[::2], 2)})
     bad = d / "badmats"
@@ -60,16 +72,31 @@ def files(tmp_path_factory):
     sio.savemat(bad / "novar.mat", {k: v for k, v in good.items() if k != "mpower"})
     sio.savemat(bad / "ragged.mat", {**good, "mpower": np.zeros(n - 5)})
     sio.savemat(bad / "text.mat", {**good, "mpower": np.array(["a"] * n)})
-    return {"dir": d, "log": log, "short": short, "one": one, "notruth": notruth, "mission": SPIRAL,
-            "far": d / "far.yaml", "neg": d / "neg.yaml", "bad": d / "bad.yaml", "typo": d / "typo.yaml",
-            "plain": d / "plain.txt", "empty": d / "empty", "exists": d / "exists.plan", "mats": mats,
-            "badmats": bad}
+    return {
+        "dir": d,
+        "log": log,
+        "short": short,
+        "one": one,
+        "notruth": notruth,
+        "mission": SPIRAL,
+        "far": d / "far.yaml",
+        "neg": d / "neg.yaml",
+        "bad": d / "bad.yaml",
+        "typo": d / "typo.yaml",
+        "plain": d / "plain.txt",
+        "empty": d / "empty",
+        "exists": d / "exists.plan",
+        "mats": mats,
+        "badmats": bad,
+    }
 
 
 def _argv(template: str, files: dict, tmp) -> list[str]:
     """Split a case's argv template and fill ``{name}`` from ``files`` (``{tmp}``: the test's own folder)."""
-    return [re.sub(r"\{(\w+)\}", lambda m: str(tmp if m.group(1) == "tmp" else files[m.group(1)]), a)
-            for a in template.split()]
+    return [
+        re.sub(r"\{(\w+)\}", lambda m: str(tmp if m.group(1) == "tmp" else files[m.group(1)]), a)
+        for a in template.split()
+    ]
 
 
 MAINS = {"rfsl": rfsl_main, "localize": localize_main, "fly-mission": fly_main}
@@ -156,7 +183,10 @@ REFUSED = [
     ("rfsl import afar-mat {tmp}/nope.mat --out {tmp}", ["nope.mat", "no such"]),
     ("rfsl import afar-mat {mats}/a.mat --out {tmp} --truth 95,0", ["--truth"]),
     ("rfsl import afar-mat {mats}/a.mat --out {tmp} --truth abc", ["--truth", "LAT,LON"]),
-    ("rfsl import afar-mat {mats}/a.mat --out {tmp} --truth-height -1", ["--truth-height", "below ground"]),
+    (
+        "rfsl import afar-mat {mats}/a.mat --out {tmp} --truth-height -1",
+        ["--truth-height", "below ground"],
+    ),
     ("rfsl import afar-mat {mats}/a.mat --out {plain}", ["--out", "plain.txt", "not a folder"]),
     ("rfsl import afar-mat {badmats}/rad.mat --out {tmp}", ["rad.mat", "'mY'", "radians"]),
     ("rfsl import afar-mat {badmats}/novar.mat --out {tmp}", ["novar.mat", "mpower"]),
@@ -289,13 +319,17 @@ def test_export_refuses_to_overwrite_unless_asked(files, tmp_path, capsys):
 
 
 def test_preview_of_a_far_transmitter_is_not_flyable(files, tmp_path, capsys):
-    rc, out, err = run_cli(rfsl_main, ["preview", files["far"], "--out", tmp_path / "p.png"], capsys)
+    rc, out, err = run_cli(
+        rfsl_main, ["preview", files["far"], "--out", tmp_path / "p.png"], capsys
+    )
     assert_accepted(rc, err)
     assert "no: transmitter at (5000.0, 5000.0) m" in " ".join(out.split())
 
 
 def test_import_of_a_folder_imports_every_mat(files, tmp_path, capsys):
-    rc, out, err = run_cli(rfsl_main, ["import", "afar-mat", files["mats"], "--out", tmp_path], capsys)
+    rc, out, err = run_cli(
+        rfsl_main, ["import", "afar-mat", files["mats"], "--out", tmp_path], capsys
+    )
     assert_accepted(rc, err)
     assert sorted(p.name for p in tmp_path.glob("*.csv")) == ["a.csv", "b.csv"]
 
@@ -314,8 +348,11 @@ def test_image_suffix_is_checked_before_the_work(files, tmp_path, capsys, monkey
 
 # --- generated with hypothesis -----------------------------------------------------------------------------
 
-coord = st.one_of(st.floats(-2e3, 2e3), st.floats(allow_nan=True, allow_infinity=True),
-                  st.sampled_from([0.0, -0.0, 1e6, -1e6, 1e300, 1e-300]))
+coord = st.one_of(
+    st.floats(-2e3, 2e3),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0.0, -0.0, 1e6, -1e6, 1e300, 1e-300]),
+)
 
 
 @HYPO
@@ -326,9 +363,22 @@ def test_generated_rss_geometry_never_gives_nan_or_warnings(tx, rx):
     import io
     import warnings
 
-    argv = ["rss", "--model", "e2r", "--tx", ",".join(map(repr, tx)), "--rx", ",".join(map(repr, rx)), "--json"]
+    argv = [
+        "rss",
+        "--model",
+        "e2r",
+        "--tx",
+        ",".join(map(repr, tx)),
+        "--rx",
+        ",".join(map(repr, rx)),
+        "--json",
+    ]
     out, err = io.StringIO(), io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with (
+        warnings.catch_warnings(),
+        contextlib.redirect_stdout(out),
+        contextlib.redirect_stderr(err),
+    ):
         warnings.simplefilter("error")  # a numpy RuntimeWarning fails the case
         rc = rfsl_main(argv)
     if rc == 0:
@@ -344,24 +394,30 @@ def test_generated_rss_geometry_never_gives_nan_or_warnings(tx, rx):
 def test_generated_negative_coordinates_are_accepted(capsys, xyz):
     """Negative coordinates after an option (``--tx -100,200,1.5``) are values, not options."""
     text = ",".join(f"{v:.3f}" for v in xyz)
-    rc, out, err = run_cli(rfsl_main, ["rss", "--tx", text, "--rx", "1,1,30", "--model", "free-space"], capsys)
+    rc, out, err = run_cli(
+        rfsl_main, ["rss", "--tx", text, "--rx", "1,1,30", "--model", "free-space"], capsys
+    )
     if math.dist(xyz, (1, 1, 30)) >= 0.1:
         assert_accepted(rc, err)
         assert out.strip().endswith("dBm")
 
 
 @HYPO
-@given(suffix=st.text(alphabet="abcdefghijklmnopqrstuvwxyz0123456789", min_size=1, max_size=5),
-       cmd=st.sampled_from(["localize", "replay", "preview"]))
+@given(
+    suffix=st.text(alphabet="abcdefghijklmnopqrstuvwxyz0123456789", min_size=1, max_size=5),
+    cmd=st.sampled_from(["localize", "replay", "preview"]),
+)
 def test_generated_image_suffixes(files, capsys, suffix, cmd):
     """Any --plot/--out suffix: a matplotlib format is taken, anything else refused naming the option."""
     from matplotlib.backend_bases import FigureCanvasBase
 
     known = suffix in FigureCanvasBase.get_supported_filetypes()
     out = files["dir"] / "gen" / f"x.{suffix}"
-    argv = {"localize": (localize_main, [files["one"], "--plot", out]),
-            "replay": (rfsl_main, ["replay", files["one"], "--out", out]),
-            "preview": (rfsl_main, ["preview", files["plain"], "--out", out])}[cmd]
+    argv = {
+        "localize": (localize_main, [files["one"], "--plot", out]),
+        "replay": (rfsl_main, ["replay", files["one"], "--out", out]),
+        "preview": (rfsl_main, ["preview", files["plain"], "--out", out]),
+    }[cmd]
     rc, _, err = run_cli(*argv, capsys)
     if known:  # the suffix passes; the (bad) input behind it is what is refused
         assert_refused(rc, err)

@@ -23,8 +23,12 @@ from mission.errors import InputError
 from mission.flightlog import COLUMNS, read_flight_log, sidecar_path
 
 COL = {c: i for i, c in enumerate(COLUMNS)}
-HYPO = settings(max_examples=25, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+HYPO = settings(
+    max_examples=25,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
 
 class _Base(tuple):
@@ -68,35 +72,64 @@ def _backwards(lines: list[str], row: int) -> list[str]:
 CSV_REFUSED = {
     "nan rss": (lambda L: _cell(L, 10, "rss_dbm", "nan"), ["row 10", "'rss_dbm'"]),
     "empty rss": (lambda L: _cell(L, 11, "rss_dbm", ""), ["row 11", "'rss_dbm'"]),
-    "text latitude": (lambda L: _cell(L, 12, "lat_deg", "abc"), ["row 12", "'lat_deg'", "not a number"]),
+    "text latitude": (
+        lambda L: _cell(L, 12, "lat_deg", "abc"),
+        ["row 12", "'lat_deg'", "not a number"],
+    ),
     "inf altitude": (lambda L: _cell(L, 15, "alt_m", "inf"), ["row 15", "'alt_m'"]),
     "-inf time": (lambda L: _cell(L, 20, "t_s", "-inf"), ["row 20", "'t_s'"]),
     "rss 1e300": (lambda L: _cell(L, 30, "rss_dbm", "1e300"), ["row 30", "'rss_dbm'", "plausible"]),
     "rss -1e5": (lambda L: _cell(L, 31, "rss_dbm", "-100000"), ["row 31", "'rss_dbm'"]),
     "altitude 1e7": (lambda L: _cell(L, 40, "alt_m", "1e7"), ["row 40", "'alt_m'"]),
-    "relative altitude in mm": (lambda L: _column(L, "rel_alt_m", lambda v: v * 1000), ["row 2", "'rel_alt_m'"]),
-    "latitude 95": (lambda L: _cell(L, 50, "lat_deg", "95.0"), ["row 50", "'lat_deg'", "wrong units"]),
+    "relative altitude in mm": (
+        lambda L: _column(L, "rel_alt_m", lambda v: v * 1000),
+        ["row 2", "'rel_alt_m'"],
+    ),
+    "latitude 95": (
+        lambda L: _cell(L, 50, "lat_deg", "95.0"),
+        ["row 50", "'lat_deg'", "wrong units"],
+    ),
     "longitude -200": (lambda L: _cell(L, 51, "lon_deg", "-200.0"), ["row 51", "'lon_deg'"]),
-    "latitude 1e7 scaled": (lambda L: _column(L, "lat_deg", lambda v: v * 1e7), ["'lat_deg'", "wrong units"]),
+    "latitude 1e7 scaled": (
+        lambda L: _column(L, "lat_deg", lambda v: v * 1e7),
+        ["'lat_deg'", "wrong units"],
+    ),
     "roll 200": (lambda L: _cell(L, 60, "roll_deg", "200"), ["row 60", "'roll_deg'", "radians"]),
     "pitch -500": (lambda L: _cell(L, 61, "pitch_deg", "-500"), ["row 61", "'pitch_deg'"]),
     "time backwards": (lambda L: _backwards(L, 70), ["row 70", "'t_s'", "backwards"]),
     "time backwards late": (lambda L: _backwards(L, 700), ["row 700", "'t_s'", "backwards"]),
     "extra field mid-file": (lambda L: L[:79] + [L[79] + ",9"] + L[80:], ["row 80", "fields"]),
-    "missing field mid-file": (lambda L: L[:80] + [L[80].rsplit(",", 1)[0]] + L[81:], ["row 81", "fields"]),
+    "missing field mid-file": (
+        lambda L: L[:80] + [L[80].rsplit(",", 1)[0]] + L[81:],
+        ["row 81", "fields"],
+    ),
     "cut row mid-file": (lambda L: L[:99] + [L[99][:12]] + L[100:], ["row 100", "fields"]),
     "empty time": (lambda L: _cell(L, 90, "t_s", ""), ["row 90", "'t_s'"]),
     "nan time": (lambda L: _cell(L, 5, "t_s", "nan"), ["row 5", "'t_s'"]),
-    "missing rss column": (lambda L: [ln.rsplit(",", 1)[0] for ln in L], ["missing required column", "rss_dbm"]),
-    "missing time column": (lambda L: [ln.split(",", 1)[1] for ln in L], ["missing required column", "t_s"]),
+    "missing rss column": (
+        lambda L: [ln.rsplit(",", 1)[0] for ln in L],
+        ["missing required column", "rss_dbm"],
+    ),
+    "missing time column": (
+        lambda L: [ln.split(",", 1)[1] for ln in L],
+        ["missing required column", "t_s"],
+    ),
     "header only": (lambda L: L[:1], ["no data rows"]),
     "one row": (lambda L: L[:2], ["only 1 data row"]),
-    "radians": (lambda L: _column(_column(L, "lat_deg", math.radians), "lon_deg", math.radians),
-                ["row 2", "'lat_deg'", "radians"]),
-    "lat and lon swapped": (lambda L: L[:1] + [",".join([f[0], f[2], f[1], *f[3:]]) for f in (ln.split(",")
-                                                                                          for ln in L[1:])],
-                            ["'lat_deg'", "km from the origin"]),
-    "semicolon separated": (lambda L: [ln.replace(",", ";") for ln in L], ["missing required column"]),
+    "radians": (
+        lambda L: _column(_column(L, "lat_deg", math.radians), "lon_deg", math.radians),
+        ["row 2", "'lat_deg'", "radians"],
+    ),
+    "lat and lon swapped": (
+        lambda L: (
+            L[:1] + [",".join([f[0], f[2], f[1], *f[3:]]) for f in (ln.split(",") for ln in L[1:])]
+        ),
+        ["'lat_deg'", "km from the origin"],
+    ),
+    "semicolon separated": (
+        lambda L: [ln.replace(",", ";") for ln in L],
+        ["missing required column"],
+    ),
     "not text": (lambda L: b"\xff\xfe\x00\x81garbage", ["not a text CSV file"]),
     "empty file": (lambda L: "", ["empty file"]),
 }
@@ -106,38 +139,89 @@ SIDECAR_REFUSED = {
     "json list": (lambda m: "[1, 2]", ["flight.json", "JSON object"]),
     "origin not a mapping": (lambda m: {**m, "origin": [35.7, -78.7]}, ["flight.json", "'origin'"]),
     "origin without lat": (lambda m: {**m, "origin": {"lon_deg": -78.7}}, ["'origin.lat_deg'"]),
-    "origin lat text": (lambda m: {**m, "origin": {**m["origin"], "lat_deg": "35.7"}}, ["'origin.lat_deg'"]),
-    "origin lat 200": (lambda m: {**m, "origin": {**m["origin"], "lat_deg": 200.0}}, ["'origin.lat_deg'"]),
-    "origin lon NaN": (lambda m: {**m, "origin": {**m["origin"], "lon_deg": float("nan")}}, ["'origin.lon_deg'"]),
-    "origin alt 1e9": (lambda m: {**m, "origin": {**m["origin"], "alt_m": 1e9}}, ["'origin.alt_m'"]),
-    "origin far away": (lambda m: {**m, "origin": {"lat_deg": 0.0, "lon_deg": 0.0, "alt_m": 0.0}},
-                        ["'lat_deg'", "km from the origin"]),
+    "origin lat text": (
+        lambda m: {**m, "origin": {**m["origin"], "lat_deg": "35.7"}},
+        ["'origin.lat_deg'"],
+    ),
+    "origin lat 200": (
+        lambda m: {**m, "origin": {**m["origin"], "lat_deg": 200.0}},
+        ["'origin.lat_deg'"],
+    ),
+    "origin lon NaN": (
+        lambda m: {**m, "origin": {**m["origin"], "lon_deg": float("nan")}},
+        ["'origin.lon_deg'"],
+    ),
+    "origin alt 1e9": (
+        lambda m: {**m, "origin": {**m["origin"], "alt_m": 1e9}},
+        ["'origin.alt_m'"],
+    ),
+    "origin far away": (
+        lambda m: {**m, "origin": {"lat_deg": 0.0, "lon_deg": 0.0, "alt_m": 0.0}},
+        ["'lat_deg'", "km from the origin"],
+    ),
     "truth a list": (lambda m: {**m, "truth": [1, 2]}, ["'truth'"]),
-    "truth lat text": (lambda m: {**m, "truth": {**m["truth"], "lat_deg": "x"}}, ["'truth.lat_deg'"]),
-    "truth below ground": (lambda m: {**m, "truth": {**m["truth"], "height_m": -3.0}},
-                           ["'truth.height_m'", "below ground"]),
+    "truth lat text": (
+        lambda m: {**m, "truth": {**m["truth"], "lat_deg": "x"}},
+        ["'truth.lat_deg'"],
+    ),
+    "truth below ground": (
+        lambda m: {**m, "truth": {**m["truth"], "height_m": -3.0}},
+        ["'truth.height_m'", "below ground"],
+    ),
     "truth x without y": (lambda m: {**m, "truth": {"x_m": 10.0}}, ["'truth.y_m'"]),
 }
 
 # name -> (CSV mutation, sidecar mutation or None, the note it must be accepted with)
 ACCEPTED = {
-    "repeated timestamp": (lambda L: _cell(L, 101, "t_s", L[99].split(",")[0]), None, "dropped 1 row(s)"),
+    "repeated timestamp": (
+        lambda L: _cell(L, 101, "t_s", L[99].split(",")[0]),
+        None,
+        "dropped 1 row(s)",
+    ),
     "five repeated timestamps": (
-        lambda L: [_cell(L, r, "t_s", L[r - 2].split(",")[0])[r - 1] if r in (50, 150, 250, 350, 450) else ln
-                   for r, ln in enumerate(L, start=1)], None, "dropped 5 row(s)"),
-    "last line cut to a few fields": (lambda L: L[:-1] + [L[-1][:15]], None, "dropped the last line"),
-    "last line cut, rss missing": (lambda L: L[:-1] + [L[-1].rsplit(",", 1)[0] + ","], None, "dropped the last line"),
+        lambda L: [
+            _cell(L, r, "t_s", L[r - 2].split(",")[0])[r - 1]
+            if r in (50, 150, 250, 350, 450)
+            else ln
+            for r, ln in enumerate(L, start=1)
+        ],
+        None,
+        "dropped 5 row(s)",
+    ),
+    "last line cut to a few fields": (
+        lambda L: L[:-1] + [L[-1][:15]],
+        None,
+        "dropped the last line",
+    ),
+    "last line cut, rss missing": (
+        lambda L: L[:-1] + [L[-1].rsplit(",", 1)[0] + ","],
+        None,
+        "dropped the last line",
+    ),
     "last line cut without newline": (lambda L: "\n".join(L)[:-2], None, "no line end"),
     "no sidecar": (lambda L: L, "delete", "no sidecar flight.json"),
-    "flight did not complete": (lambda L: L, lambda m: {**m, "status": "flying"}, "did not complete"),
-    "flight failed": (lambda L: L, lambda m: {**m, "status": "failed: link lost"}, "'failed: link lost'"),
+    "flight did not complete": (
+        lambda L: L,
+        lambda m: {**m, "status": "flying"},
+        "did not complete",
+    ),
+    "flight failed": (
+        lambda L: L,
+        lambda m: {**m, "status": "failed: link lost"},
+        "'failed: link lost'",
+    ),
     "windows line ends": (lambda L: "\r\n".join(L) + "\r\n", None, None),
     "byte-order mark": (lambda L: "\ufeff" + "\n".join(L) + "\n", None, None),
     "trailing blank lines": (lambda L: L + ["", "", ""], None, None),
     "extra text column": (lambda L: [L[0] + ",comment"] + [ln + ",ok" for ln in L[1:]], None, None),
-    "receiver-only, no attitude": (lambda L: [",".join(f[:5] + ["", "", ""] + f[8:]) if i else ln
-                                              for i, (ln, f) in enumerate((ln, ln.split(",")) for ln in L)],
-                                   None, None),
+    "receiver-only, no attitude": (
+        lambda L: [
+            ",".join(f[:5] + ["", "", ""] + f[8:]) if i else ln
+            for i, (ln, f) in enumerate((ln, ln.split(",")) for ln in L)
+        ],
+        None,
+        None,
+    ),
 }
 
 
@@ -232,26 +316,47 @@ def test_origin_option_places_a_sidecarless_log(tmp_path, base, capsys):
     bare.mkdir()
     shutil.copy(good, bare / "flight.csv")
     o = base[1]["origin"]
-    rc, out, err = run_cli(localize_main, [bare / "flight.csv", "--method", "centroid", "--json", "--origin",
-                                           f"{o['lat_deg']},{o['lon_deg']},{o['alt_m']}"], capsys)
+    rc, out, err = run_cli(
+        localize_main,
+        [
+            bare / "flight.csv",
+            "--method",
+            "centroid",
+            "--json",
+            "--origin",
+            f"{o['lat_deg']},{o['lon_deg']},{o['alt_m']}",
+        ],
+        capsys,
+    )
     assert_accepted(rc, err, "no sidecar")
     d = json.loads(out)
     assert abs(d["x_m"] - ref["x_m"]) < 0.01 and abs(d["y_m"] - ref["y_m"]) < 0.01
-    rc, out, err = run_cli(localize_main, [bare / "flight.csv", "--method", "centroid", "--json"], capsys)
+    rc, out, err = run_cli(
+        localize_main, [bare / "flight.csv", "--method", "centroid", "--json"], capsys
+    )
     assert "origin at the first sample" in err and abs(json.loads(out)["x_m"] - ref["x_m"]) > 10
 
 
 # --- generated with hypothesis -----------------------------------------------------------------------------
 
 BAD_VALUES = {  # values no column accepts, and the words the error uses for them
-    "nan": "NaN", "": "empty", "inf": "infinite", "-inf": "infinite", "abc": "not a number", "1,5": "fields",
-    "--": "not a number", "0x1F": "not a number",
+    "nan": "NaN",
+    "": "empty",
+    "inf": "infinite",
+    "-inf": "infinite",
+    "abc": "not a number",
+    "1,5": "fields",
+    "--": "not a number",
+    "0x1F": "not a number",
 }
 
 
 @HYPO
-@given(row=st.integers(3, 800), col=st.sampled_from(["t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m",
-                                                     "rss_dbm"]), value=st.sampled_from(sorted(BAD_VALUES)))
+@given(
+    row=st.integers(3, 800),
+    col=st.sampled_from(["t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm"]),
+    value=st.sampled_from(sorted(BAD_VALUES)),
+)
 def test_generated_bad_cell_names_row_and_field(tmp_path_factory, base, row, col, value):
     p = _make(tmp_path_factory.mktemp("h"), base, lambda L: _cell(L, row, col, value))
     with pytest.raises(InputError) as ei:
@@ -263,8 +368,12 @@ def test_generated_bad_cell_names_row_and_field(tmp_path_factory, base, row, col
 
 
 @HYPO
-@given(row=st.integers(3, 899), col=st.sampled_from(["rss_dbm", "alt_m", "rel_alt_m"]),
-       mag=st.floats(401, 1e300), sign=st.sampled_from([-1, 1]))
+@given(
+    row=st.integers(3, 899),
+    col=st.sampled_from(["rss_dbm", "alt_m", "rel_alt_m"]),
+    mag=st.floats(401, 1e300),
+    sign=st.sampled_from([-1, 1]),
+)
 def test_generated_absurd_magnitude_is_refused(tmp_path_factory, base, row, col, mag, sign):
     v = sign * (mag if col == "rss_dbm" else mag * 50)  # altitudes: beyond 20 km
     p = _make(tmp_path_factory.mktemp("h"), base, lambda L: _cell(L, row, col, repr(v)))
@@ -306,12 +415,16 @@ def test_generated_crash_cut_last_line_is_dropped(tmp_path_factory, base, cut):
     cut = min(cut, len(last) - 1)
     p = _make(tmp_path_factory.mktemp("h"), base, lambda L: text.rstrip("\n")[:-cut])
     log = read_flight_log(p)
-    assert len(log) == 899 and any("dropped the last line (row 901)" in n for n in log.notes), log.notes
+    assert len(log) == 899 and any("dropped the last line (row 901)" in n for n in log.notes), (
+        log.notes
+    )
 
 
 @HYPO
-@given(scale=st.sampled_from([math.radians, lambda v: v / 1000.0, lambda v: v * 0.0174]),
-       with_sidecar=st.booleans())
+@given(
+    scale=st.sampled_from([math.radians, lambda v: v / 1000.0, lambda v: v * 0.0174]),
+    with_sidecar=st.booleans(),
+)
 def test_generated_wrong_angle_units_are_refused(tmp_path_factory, base, scale, with_sidecar):
     def mut(L):
         return _column(_column(L, "lat_deg", scale), "lon_deg", scale)

@@ -34,13 +34,23 @@ def _bomb() -> str:
 
 
 MISSIONS = {
-    "bomb": _bomb(), "empty": "", "comments": "# nothing but a comment\n",
-    "dup": "altitude_m: 30\naltitude_m: 40\n", "seedneg": "source:\n  seed: -1\n",
-    "alt308": "altitude_m: 1.0e+308\n", "wp300": "trajectory:\n  waypoints: [[1.0e+300, 0], [10, 10]]\n",
-    "tx300": "source:\n  tx: [1.0e+300, 5]\n", "budget300": "time_budget_s: 1.0e+300\n",
-    "speedup": "vehicle:\n  speedup: 1.0e+9\n", "escape": "name: ../../escaped_by_name\n", "slash": "name: a/b\n",
-    "nul": 'name: "a\\0b"\n', "long": f"name: {'n' * 300}\n", "dots": "name: ..\n",
-    "conn": "vehicle:\n  connection: garbage\n", "conn256": "vehicle:\n  connection: udpin://256.1.1.1:14540\n",
+    "bomb": _bomb(),
+    "empty": "",
+    "comments": "# nothing but a comment\n",
+    "dup": "altitude_m: 30\naltitude_m: 40\n",
+    "seedneg": "source:\n  seed: -1\n",
+    "alt308": "altitude_m: 1.0e+308\n",
+    "wp300": "trajectory:\n  waypoints: [[1.0e+300, 0], [10, 10]]\n",
+    "tx300": "source:\n  tx: [1.0e+300, 5]\n",
+    "budget300": "time_budget_s: 1.0e+300\n",
+    "speedup": "vehicle:\n  speedup: 1.0e+9\n",
+    "escape": "name: ../../escaped_by_name\n",
+    "slash": "name: a/b\n",
+    "nul": 'name: "a\\0b"\n',
+    "long": f"name: {'n' * 300}\n",
+    "dots": "name: ..\n",
+    "conn": "vehicle:\n  connection: garbage\n",
+    "conn256": "vehicle:\n  connection: udpin://256.1.1.1:14540\n",
     "deep": "a: " + "[" * 5000 + "]" * 5000 + "\n",
     "ctrl": 'trajectory:\n  "a\\x1db\\nc": 1\n',  # a key that holds line breaks: still one error line
 }
@@ -51,10 +61,15 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("r3")
     log = write_log(d / "log.csv")
     meta = json.loads((d / "log.json").read_text())
-    for name, key, value in (("rss_str", "rss_source", "x"), ("rss_list", "rss_source", [1]),
-                             ("traj_str", "trajectory", "spiral"), ("traj_list", "trajectory", [1, 2]),
-                             ("live_str", "live_estimate", "selfcal"), ("live_list", "live_estimate", [1]),
-                             ("gen_num", "trajectory", {"generator": 5})):
+    for name, key, value in (
+        ("rss_str", "rss_source", "x"),
+        ("rss_list", "rss_source", [1]),
+        ("traj_str", "trajectory", "spiral"),
+        ("traj_list", "trajectory", [1, 2]),
+        ("live_str", "live_estimate", "selfcal"),
+        ("live_list", "live_estimate", [1]),
+        ("gen_num", "trajectory", {"generator": 5}),
+    ):
         shutil.copy(log, d / f"{name}.csv")
         (d / f"{name}.json").write_text(json.dumps({**meta, key: value}))
     shutil.copy(log, d / "nest.csv")
@@ -69,7 +84,9 @@ def files(tmp_path_factory):
         (d / f"{name}.yaml").write_text(text)
     (d / "nonutf.yaml").write_bytes(b"name: caf\xe9\n")
     (d / "binary.yaml").write_bytes(bytes(range(256)) * 8)
-    with open(d / "big.yaml", "wb") as f:  # 30 MB, sparse: refused by its size before a byte is read
+    with open(
+        d / "big.yaml", "wb"
+    ) as f:  # 30 MB, sparse: refused by its size before a byte is read
         f.truncate(30_000_000)
     (d / "rand.json").write_bytes(np.random.default_rng(0).bytes(3000))
     (d / "plain.txt").write_text("x\n")
@@ -79,9 +96,13 @@ def files(tmp_path_factory):
     os.mkfifo(d / "fifo")
     good = mat_arrays(300)
     sio.savemat(d / "tneg.mat", {**good, "timestamp_power": -1e18 + np.arange(300) * 0.1})
-    for name, var, k, v in (("p300", "mpower", 5, 1e300), ("y300", "mYaw", 7, 1e300),
-                            ("t300", "timestamp_power", 3, 1e300), ("dbm300", "mpower", 9, 300.0),
-                            ("roll", "mRoll", 11, 200.0)):
+    for name, var, k, v in (
+        ("p300", "mpower", 5, 1e300),
+        ("y300", "mYaw", 7, 1e300),
+        ("t300", "timestamp_power", 3, 1e300),
+        ("dbm300", "mpower", 9, 300.0),
+        ("roll", "mRoll", 11, 200.0),
+    ):
         a = good[var].copy()
         a[k] = v
         sio.savemat(d / f"{name}.mat", {**good, var: a})
@@ -91,28 +112,64 @@ def files(tmp_path_factory):
     from mission.shipped import shipped_model
     from mission.workshop.dataset import FORMAT, DatasetConfig
 
-    net = OnnxLocalizer(shipped_model("rfsl_default.onnx"))  # the manifest matches the network evaluate runs
-    (ds / "manifest.json").write_text(json.dumps({
-        "format": FORMAT, "config": DatasetConfig(SPIRAL, n=5).to_dict(), "n": 5,
-        "feature_config": net.cfg.to_dict(), "field_origin": net.origin.to_dict(),
-        "chunks": [{"file": "chunk_00000.npz", "n": 5, "first_index": 0, "sha256": "0"}]}))
+    net = OnnxLocalizer(
+        shipped_model("rfsl_default.onnx")
+    )  # the manifest matches the network evaluate runs
+    (ds / "manifest.json").write_text(
+        json.dumps(
+            {
+                "format": FORMAT,
+                "config": DatasetConfig(SPIRAL, n=5).to_dict(),
+                "n": 5,
+                "feature_config": net.cfg.to_dict(),
+                "field_origin": net.origin.to_dict(),
+                "chunks": [{"file": "chunk_00000.npz", "n": 5, "first_index": 0, "sha256": "0"}],
+            }
+        )
+    )
     (d / "ds_nocfg").mkdir()
     (d / "ds_nocfg" / "manifest.json").write_text(json.dumps({"format": FORMAT, "chunks": []}))
     (ds / "chunk_00000.npz").write_bytes(b"PK\x03\x04" + bytes(100))
-    return {"dir": d, "log": log, "mission": SPIRAL, "net": shipped_model("rfsl_default.onnx"),
-            **{k: d / f"{k}.yaml" for k in MISSIONS}, "rand": d / "rand.json",
-            "nonutf": d / "nonutf.yaml", "binary": d / "binary.yaml", "big": d / "big.yaml", "fifo": d / "fifo",
-            "plain": d / "plain.txt", "family": d / "family.json", "report": d / "report", "ds": ds,
-            "ds_nocfg": d / "ds_nocfg",
-            **{k: d / f"{k}.csv" for k in ("rss_str", "rss_list", "traj_str", "traj_list", "live_str",
-                                           "live_list", "gen_num", "nest", "rss300")},
-            **{k: d / f"{k}.mat" for k in ("tneg", "p300", "y300", "t300", "dbm300", "roll")}}
+    return {
+        "dir": d,
+        "log": log,
+        "mission": SPIRAL,
+        "net": shipped_model("rfsl_default.onnx"),
+        **{k: d / f"{k}.yaml" for k in MISSIONS},
+        "rand": d / "rand.json",
+        "nonutf": d / "nonutf.yaml",
+        "binary": d / "binary.yaml",
+        "big": d / "big.yaml",
+        "fifo": d / "fifo",
+        "plain": d / "plain.txt",
+        "family": d / "family.json",
+        "report": d / "report",
+        "ds": ds,
+        "ds_nocfg": d / "ds_nocfg",
+        **{
+            k: d / f"{k}.csv"
+            for k in (
+                "rss_str",
+                "rss_list",
+                "traj_str",
+                "traj_list",
+                "live_str",
+                "live_list",
+                "gen_num",
+                "nest",
+                "rss300",
+            )
+        },
+        **{k: d / f"{k}.mat" for k in ("tneg", "p300", "y300", "t300", "dbm300", "roll")},
+    }
 
 
 def _argv(template: str, files: dict, tmp) -> list[str]:
     out = []
     for a in template.split():
-        a = re.sub(r"\{(\w+)\}", lambda m: str(tmp if m.group(1) == "tmp" else files[m.group(1)]), a)
+        a = re.sub(
+            r"\{(\w+)\}", lambda m: str(tmp if m.group(1) == "tmp" else files[m.group(1)]), a
+        )
         out.append("" if a == "''" else a)
     return out
 
@@ -200,10 +257,16 @@ REFUSED = [
     ("fly-mission {mission} --link-timeout=--", ["--link-timeout", "one value"]),
     ("rfsl dataset {mission} --n=-- --out {tmp}/ds", ["--n", "one value"]),
     # --connect: a malformed address is bad input at once (an unreachable one is a dead link, exit 3)
-    ("fly-mission {mission} --connect udpin://256.1.1.1:14540", ["--connect", "256.1.1.1", "IP address"]),
+    (
+        "fly-mission {mission} --connect udpin://256.1.1.1:14540",
+        ["--connect", "256.1.1.1", "IP address"],
+    ),
     ("fly-mission {mission} --connect tcpout://bad_host!:5760", ["--connect", "host name"]),
     ("fly-mission {mission} --connect udpin://0.0.0.0:0", ["--connect", "HOST:PORT"]),
-    ("fly-mission {mission} --connect serial:///dev/rfsl-no-such-tty:57600", ["--connect", "no such serial device"]),
+    (
+        "fly-mission {mission} --connect serial:///dev/rfsl-no-such-tty:57600",
+        ["--connect", "no such serial device"],
+    ),
     ("fly-mission {mission} --connect ''", ["--connect", "empty connection"]),
     ("fly-mission {mission} --connect garbage", ["--connect", "unknown connection"]),
     ("fly-mission {mission} --connect gopher://x:1", ["--connect", "unknown connection"]),
@@ -241,8 +304,13 @@ def test_refused_in_one_line(files, tmp_path, capsys, cmd, names):
 
 
 # (MAT file, the note that names the dropped samples)
-DROPPED = [("p300", "sample 6"), ("y300", "sample 8"), ("t300", "sample 4"), ("dbm300", "sample 10"),
-           ("roll", "sample 12")]
+DROPPED = [
+    ("p300", "sample 6"),
+    ("y300", "sample 8"),
+    ("t300", "sample 4"),
+    ("dbm300", "sample 10"),
+    ("roll", "sample 12"),
+]
 
 
 @pytest.mark.parametrize("mat, note", DROPPED, ids=[m for m, _ in DROPPED])
@@ -268,10 +336,17 @@ def test_simulate_and_import_do_not_replace_a_sidecar(files, tmp_path, capsys):
     rc, _, err = run_cli(rfsl_main, ["simulate", SPIRAL, "--out", tmp_path], capsys)
     assert_refused(rc, err, "spiral_sim_e2r_seed0.json", "exists already")
     (tmp_path / "p300.json").write_text('{"mine": 2}')
-    rc, _, err = run_cli(rfsl_main, ["import", "afar-mat", files["p300"], "--out", tmp_path], capsys)
+    rc, _, err = run_cli(
+        rfsl_main, ["import", "afar-mat", files["p300"], "--out", tmp_path], capsys
+    )
     assert_refused(rc, err, "p300.json", "--overwrite")
-    assert side.read_text() == '{"mine": 1}' and (tmp_path / "p300.json").read_text() == '{"mine": 2}'
-    assert not (tmp_path / "spiral_sim_e2r_seed0.csv").exists() and not (tmp_path / "p300.csv").exists()
+    assert (
+        side.read_text() == '{"mine": 1}' and (tmp_path / "p300.json").read_text() == '{"mine": 2}'
+    )
+    assert (
+        not (tmp_path / "spiral_sim_e2r_seed0.csv").exists()
+        and not (tmp_path / "p300.csv").exists()
+    )
 
 
 def test_shipped_missions_and_models_resolve_from_any_folder(tmp_path, monkeypatch):
@@ -283,8 +358,14 @@ def test_shipped_missions_and_models_resolve_from_any_folder(tmp_path, monkeypat
     monkeypatch.chdir(tmp_path)
     for name in ("spiral", "spiral.yaml", "missions/spiral.yaml"):
         assert load_mission(name).path == missions_dir() / "spiral.yaml"
-    assert resolve_shipped("rfsl_default.onnx", "models", ".onnx") == models_dir() / "rfsl_default.onnx"
-    assert resolve_shipped("models/rfsl_default.onnx", "models", ".onnx") == models_dir() / "rfsl_default.onnx"
+    assert (
+        resolve_shipped("rfsl_default.onnx", "models", ".onnx")
+        == models_dir() / "rfsl_default.onnx"
+    )
+    assert (
+        resolve_shipped("models/rfsl_default.onnx", "models", ".onnx")
+        == models_dir() / "rfsl_default.onnx"
+    )
     (tmp_path / "spiral.yaml").write_text("name: mine\n")
     assert load_mission("spiral.yaml").name == "mine"
     assert resolve_shipped("elsewhere/x.onnx", "models", ".onnx").as_posix() == "elsewhere/x.onnx"
@@ -303,7 +384,9 @@ def test_shipped_digests_match_the_shipped_networks():
     nets = sorted(p.name for p in models_dir().glob("*.onnx"))
     assert sorted(shipped_digests()) == nets
     for name in nets:
-        assert file_sha256(models_dir() / name) == shipped_digests()[name], f"update models/sha256.json for {name}"
+        assert file_sha256(models_dir() / name) == shipped_digests()[name], (
+            f"update models/sha256.json for {name}"
+        )
 
 
 @pytest.mark.parametrize("where", ["middle", "end"])
@@ -313,12 +396,18 @@ def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys
 
     data = bytearray(shipped_model("rfsl_default.onnx").read_bytes())
     at = len(data) // 2 if where == "middle" else len(data) - 200
-    data[at:at + 16] = bytes(b ^ 0xFF for b in data[at:at + 16])
+    data[at : at + 16] = bytes(b ^ 0xFF for b in data[at : at + 16])
     (tmp_path / "rfsl_default.onnx").write_bytes(bytes(data))
-    rc, _, err = run_cli(localize_main, [files["log"], "--model", tmp_path / "rfsl_default.onnx"], capsys)
+    rc, _, err = run_cli(
+        localize_main, [files["log"], "--model", tmp_path / "rfsl_default.onnx"], capsys
+    )
     assert_refused(rc, err, "rfsl_default.onnx", "differs from the shipped")
-    (tmp_path / "mine.onnx").write_bytes(shipped_model("rfsl_default.onnx").read_bytes())  # a copy renamed: fine
-    rc, _, err = run_cli(localize_main, [files["log"], "--model", tmp_path / "mine.onnx", "--json"], capsys)
+    (tmp_path / "mine.onnx").write_bytes(
+        shipped_model("rfsl_default.onnx").read_bytes()
+    )  # a copy renamed: fine
+    rc, _, err = run_cli(
+        localize_main, [files["log"], "--model", tmp_path / "mine.onnx", "--json"], capsys
+    )
     assert rc == 0, err
 
 
@@ -327,8 +416,19 @@ def test_a_reader_that_goes_away_is_no_traceback(files):
     import subprocess
     import sys
 
-    p = subprocess.Popen([sys.executable, "-m", "mission.cli.localize", str(files["log"]), "--method", "centroid",
-                          "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "mission.cli.localize",
+            str(files["log"]),
+            "--method",
+            "centroid",
+            "--json",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     p.stdout.close()  # before anything is written
     _, err = p.communicate(timeout=120)
     assert b"Traceback" not in err and p.returncode == 141, err

@@ -38,7 +38,7 @@ def _truth(plan, pace: Pace, last: int) -> tuple[np.ndarray, float]:
     t = np.empty(last + 1)
     t[0] = pace.scale * plan.t_wp[0] + pace.per_leg_s
     for i in range(1, last + 1):
-        t[i] = t[i - 1] + pace.legs(np.diff(plan.t_wp[i - 1:i + 1]))
+        t[i] = t[i - 1] + pace.legs(np.diff(plan.t_wp[i - 1 : i + 1]))
     return t, float(t[last] + pace.legs(np.array([plan.ret_s[last]])) + plan.land_s)
 
 
@@ -68,7 +68,9 @@ def test_fit_pace_recovers_scale_and_cost_per_leg(scale, per_leg, seed):
     planned = rng.uniform(4.0, 50.0, 12)
     n = rng.integers(1, 3, 12)  # some segments are two legs (waypoints reached together)
     p = fit_pace(planned, n, scale * planned + per_leg * n)
-    assert p.scale == pytest.approx(scale, abs=1e-6) and p.per_leg_s == pytest.approx(per_leg, abs=1e-6)
+    assert p.scale == pytest.approx(scale, abs=1e-6) and p.per_leg_s == pytest.approx(
+        per_leg, abs=1e-6
+    )
     # a faster-than-planned vehicle with a negative 'cost' is the plain ratio, never a negative leg
     q = fit_pace(planned, n, np.maximum(1.0 * planned - 2.0 * n, 0.1))
     assert q.per_leg_s == 0.0 and 0.5 <= q.scale <= 3.0
@@ -81,13 +83,17 @@ def test_return_from_every_waypoint_and_the_plan_ends_where_the_full_mission_doe
     assert plan.end_s(len(w) - 1) == pytest.approx(plan.duration_s, abs=1e-6)
     # a straight leg at 5.5 m/s from rest to rest (1.5 m/s^2): d / v + v / a, within a second
     far = d > 60
-    np.testing.assert_allclose(plan.ret_s[:-1][far[:-1]], d[:-1][far[:-1]] / 5.5 + 5.5 / 1.5, atol=1.5)
+    np.testing.assert_allclose(
+        plan.ret_s[:-1][far[:-1]], d[:-1][far[:-1]] / 5.5 + 5.5 / 1.5, atol=1.5
+    )
     assert plan.disarm_s == 7.2 and plan.land_s > 7.2 + 25 / 1.5
 
 
 @given(st.floats(1.0, 1.25), st.floats(0.0, 6.0))
 @settings(max_examples=8, deadline=None)
-def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_must(plan, scale, per_leg):
+def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_must(
+    plan, scale, per_leg
+):
     pace, n = Pace(scale, per_leg), len(plan.t_wp)
     w, _, used, decisions = _fly(plan, pace, "trim")
     untouched = _truth(plan, pace, n - 1)[1]
@@ -125,17 +131,23 @@ def test_record_names_policy_reserve_and_dropped_waypoints(plan):
     w, _, used, _ = _fly(plan, Pace(1.03, 3.0), "trim")
     rec = w.record(used)
     assert rec["policy"] == "trim" and rec["reserve_s"] == 10.0 and not rec["overrun"]
-    assert rec["dropped_waypoints"] == [i + 1 for i in w.dropped] and rec["dropped_waypoints"][-1] == 18
+    assert (
+        rec["dropped_waypoints"] == [i + 1 for i in w.dropped]
+        and rec["dropped_waypoints"][-1] == 18
+    )
     assert rec["actions"][0]["predicted_before_s"] > rec["actions"][-1]["predicted_s"]
 
 
-@pytest.mark.parametrize("key, value, msg", [
-    ("budget_policy", "abort", "budget_policy"),
-    ("budget_policy", 3, "budget_policy"),
-    ("budget_reserve_s", -1, "budget_reserve_s"),
-    ("budget_reserve_s", 600, "budget_reserve_s"),
-    ("budget_reserve_s", "ten", "budget_reserve_s"),
-])
+@pytest.mark.parametrize(
+    "key, value, msg",
+    [
+        ("budget_policy", "abort", "budget_policy"),
+        ("budget_policy", 3, "budget_policy"),
+        ("budget_reserve_s", -1, "budget_reserve_s"),
+        ("budget_reserve_s", 600, "budget_reserve_s"),
+        ("budget_reserve_s", "ten", "budget_reserve_s"),
+    ],
+)
 def test_bad_policy_keys_are_refused_naming_the_key(key, value, msg):
     with pytest.raises(InputError, match=msg):
         parse_mission({key: value}, "m.yaml")

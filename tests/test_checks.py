@@ -43,14 +43,19 @@ def test_waypoint_inside_but_within_margin(tmp_path):
 
 def test_leg_leaving_a_non_convex_fence(tmp_path):
     # an L-shaped flight area: both waypoints inside, the leg between them cuts the missing corner
-    p = _mission(tmp_path, """
+    p = _mission(
+        tmp_path,
+        """
 field:
   flight_area: {enu: [[0, 0], [300, 0], [300, 150], [150, 150], [150, 270], [0, 270]]}
   rover_area: {enu: [[0, 0], [300, 0], [300, 270], [0, 270]]}
 home: [290, 10]
 trajectory: {waypoints: [[100, 250], [280, 100]]}
-""")
-    with pytest.raises(InputError, match=r"leg from waypoint 0 to 1 .* outside the flight area") as ei:
+""",
+    )
+    with pytest.raises(
+        InputError, match=r"leg from waypoint 0 to 1 .* outside the flight area"
+    ) as ei:
         assert_flyable(load_mission(p))
     assert ei.value.field == "trajectory.waypoints[0]"
 

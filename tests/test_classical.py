@@ -45,7 +45,11 @@ def test_grid_search_with_physics_on_simulated_flight():
     rng = np.random.default_rng(5)
     enu, _, _ = synthetic_flight(TX, n=8000)
     att = np.column_stack([rng.uniform(-0.08, 0.08, (len(enu), 2)), np.zeros(len(enu))])
-    rss = np.asarray(model.rss_dbm(np.asarray(TX), enu, att), dtype=float) + rng.normal(0, 1, len(enu)) - 20.0
+    rss = (
+        np.asarray(model.rss_dbm(np.asarray(TX), enu, att), dtype=float)
+        + rng.normal(0, 1, len(enu))
+        - 20.0
+    )
     e = ModelGridSearch("e2r", {"pattern": "dipole"}, tx_height_m=1.5, max_points=800).predict(
         (enu, rss, att)
     )
@@ -55,7 +59,9 @@ def test_grid_search_with_physics_on_simulated_flight():
 def test_block_average_and_cruise():
     enu, rss, att = synthetic_flight(n=1000)
     f = block_average(as_flight((enu, rss, att)), 100)
-    assert f.rss_dbm.shape == (100,) and f.enu_m.shape == (100, 3) and f.attitude_rad.shape == (100, 3)
+    assert (
+        f.rss_dbm.shape == (100,) and f.enu_m.shape == (100, 3) and f.attitude_rad.shape == (100, 3)
+    )
     h = np.concatenate([np.linspace(0, 30, 100), np.full(800, 30.0), np.linspace(30, 0, 100)])
     sel = cruise_mask(h)
     assert 800 <= sel.n_kept < 900 and sel.cruise_alt_m == pytest.approx(30.0)

@@ -13,7 +13,9 @@ def test_every_registered_subcommand_is_available():
 
 
 def test_help_lists_every_subcommand_with_a_purpose():
-    r = subprocess.run([sys.executable, "-m", "mission.cli.main", "--help"], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "mission.cli.main", "--help"], capture_output=True, text=True
+    )
     assert r.returncode == 0
     out = " ".join(r.stdout.split())
     for name, (_, purpose) in SUBCOMMANDS.items():
@@ -21,5 +23,7 @@ def test_help_lists_every_subcommand_with_a_purpose():
 
 
 def test_unknown_subcommand_exit_2():
-    r = subprocess.run([sys.executable, "-m", "mission.cli.main", "nope"], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "mission.cli.main", "nope"], capture_output=True, text=True
+    )
     assert r.returncode == 2 and "Traceback" not in r.stderr

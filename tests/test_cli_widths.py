@@ -38,12 +38,29 @@ def test_calibrate_help_keeps_configuration_names_whole(capsys):
     with pytest.raises(SystemExit):
         rfsl(["calibrate", "--help"])
     words = capsys.readouterr().out.replace(",", " ").replace(")", " ").split()
-    assert all(c in words for c in DEFAULT_CONFIGS), "a default configuration name is folded mid-word or missing"
+    assert all(c in words for c in DEFAULT_CONFIGS), (
+        "a default configuration name is folded mid-word or missing"
+    )
 
 
 def test_rss_explain_fits(capsys):
-    assert rfsl(["rss", "--model", "e2r", "--tx", "100,200,1.5", "--rx", "120,180,30", "--attitude", "2,-3,90",
-                 "--explain"]) == 0
+    assert (
+        rfsl(
+            [
+                "rss",
+                "--model",
+                "e2r",
+                "--tx",
+                "100,200,1.5",
+                "--rx",
+                "120,180,30",
+                "--attitude",
+                "2,-3,90",
+                "--explain",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "leg_shadowing" in out and not too_wide(out), too_wide(out)
 
@@ -98,8 +115,16 @@ def test_evaluate_table_does_not_cut_labels():
     from mission.cli.evaluate import _table
     from mission.workshop.evaluate import Row
 
-    rows = [Row("sim_e2r_spiral_n200_s7_with_a_long_name", f"onnx:rfsl_spiral_e2r_ens5_variant_{k}.onnx",
-                "e2r_randomised_physics", "clustering3d_v2", [1.0, 2.0, 3.0]) for k in range(2)]
+    rows = [
+        Row(
+            "sim_e2r_spiral_n200_s7_with_a_long_name",
+            f"onnx:rfsl_spiral_e2r_ens5_variant_{k}.onnx",
+            "e2r_randomised_physics",
+            "clustering3d_v2",
+            [1.0, 2.0, 3.0],
+        )
+        for k in range(2)
+    ]
     text = _render(_table(rows, "simulated test sets"))
     assert not too_wide(text) and "…" not in text, text
     cells = [ln.split("│") for ln in text.splitlines() if ln.startswith("│")]

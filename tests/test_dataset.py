@@ -59,16 +59,22 @@ def test_same_seed_same_bytes_any_workers_and_chunks(tmp_path, repo_dir):
 def test_chunks_manifest_and_contents(tmp_path, repo_dir):
     m = generate_dataset(_cfg(repo_dir, n=5, chunk=2), tmp_path / "ds", workers=1)
     assert [c["n"] for c in m["chunks"]] == [2, 2, 1]
-    assert sorted(p.name for p in (tmp_path / "ds").glob("chunk_*.npz")) == [c["file"] for c in m["chunks"]]
+    assert sorted(p.name for p in (tmp_path / "ds").glob("chunk_*.npz")) == [
+        c["file"] for c in m["chunks"]
+    ]
     mf = read_manifest(tmp_path / "ds")
     assert mf["config"]["seed"] == 5 and mf["config"]["randomisation"]["truncate"] == [0.15, 0.25]
     assert mf["feature_config"]["c_k"] == 20 and "lat_deg" in mf["field_origin"]
     json.dumps(mf)
-    arrays, _ = load_dataset(tmp_path / "ds", ("clustering", "tx_enu", "params", "index"), verify=True)
+    arrays, _ = load_dataset(
+        tmp_path / "ds", ("clustering", "tx_enu", "params", "index"), verify=True
+    )
     assert arrays["clustering"].shape == (5, 60) and arrays["clustering"].dtype == np.float32
     assert np.array_equal(arrays["index"], np.arange(5))
     spec_rover = (-30.0, 90.0, 260.0, 385.0)
-    assert np.all((arrays["tx_enu"][:, 0] > spec_rover[0]) & (arrays["tx_enu"][:, 1] > spec_rover[1]))
+    assert np.all(
+        (arrays["tx_enu"][:, 0] > spec_rover[0]) & (arrays["tx_enu"][:, 1] > spec_rover[1])
+    )
     assert np.all((arrays["tx_enu"][:, 2] >= 1.5) & (arrays["tx_enu"][:, 2] <= 5.0))
     alt = arrays["params"][:, mf["param_names"].index("altitude_m")]
     assert np.all((alt >= 20) & (alt <= 47))
@@ -82,7 +88,8 @@ def test_chunks_manifest_and_contents(tmp_path, repo_dir):
 def test_flight_seed_is_the_spawned_child():
     child = np.random.SeedSequence(42).spawn(5)[3]
     assert np.array_equal(
-        flight_rng(42, 3).integers(1 << 30, size=4), np.random.default_rng(child).integers(1 << 30, size=4)
+        flight_rng(42, 3).integers(1 << 30, size=4),
+        np.random.default_rng(child).integers(1 << 30, size=4),
     )
 
 
@@ -112,9 +119,23 @@ def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
         ]
     )
     assert rc == 0 and (tmp_path / "ds" / "manifest.json").exists()
-    assert main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "ds")]) == 2  # exists already
     assert (
-        main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "x"), "--trajectories", "zigzag"]) == 2
+        main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "ds")]) == 2
+    )  # exists already
+    assert (
+        main(
+            [
+                "dataset",
+                mission,
+                "--n",
+                "2",
+                "--out",
+                str(tmp_path / "x"),
+                "--trajectories",
+                "zigzag",
+            ]
+        )
+        == 2
     )
     assert "zigzag" in capsys.readouterr().err
 
@@ -127,7 +148,11 @@ def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
     from mission.workshop.dataset import FlightSimulator
 
     base = FlightSimulator(_cfg(repo_dir)).draw(3).samples
-    same = FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0))).draw(3).samples
+    same = (
+        FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0)))
+        .draw(3)
+        .samples
+    )
     assert base.rss_dbm.tobytes() == same.rss_dbm.tobytes()
     assert np.array_equal(base.tx_enu_m, same.tx_enu_m)
 
@@ -137,10 +162,19 @@ def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
 
     from mission.workshop.dataset import FlightSimulator
 
-    r = replace(FAST, fixed_heading=1.0, speed_mps=(3.0, 3.0), shadowing_db=(6.0, 6.0), shadowing_corr_m=(20, 20))
+    r = replace(
+        FAST,
+        fixed_heading=1.0,
+        speed_mps=(3.0, 3.0),
+        shadowing_db=(6.0, 6.0),
+        shadowing_corr_m=(20, 20),
+    )
     fd = FlightSimulator(_cfg(repo_dir, randomisation=r)).draw(2)
     yaw = np.rad2deg(fd.samples.attitude_rad[:, 2])
-    assert np.ptp(np.rad2deg(np.angle(np.exp(1j * np.deg2rad(yaw - fd.params["fixed_heading_deg"]))))) <= 10.01
+    assert (
+        np.ptp(np.rad2deg(np.angle(np.exp(1j * np.deg2rad(yaw - fd.params["fixed_heading_deg"])))))
+        <= 10.01
+    )
     assert fd.params["speed_mps"] == 3.0 and fd.params["shadowing_db"] == 6.0
     step = np.linalg.norm(np.diff(fd.samples.enu_m[:, :2], axis=0), axis=1) / 0.03
     assert step.max() <= 3.0 + 1e-6
@@ -171,9 +205,15 @@ def test_physics_preset_fold_is_the_simulated_model(repo_dir):
 @pytest.mark.parametrize(
     ("kw", "field"),
     [
-        ({"physics": "afar:fit328", "randomisation": Randomisation(patterns=("dipole",))}, "patterns"),
+        (
+            {"physics": "afar:fit328", "randomisation": Randomisation(patterns=("dipole",))},
+            "patterns",
+        ),
         ({"physics": "afar:nofold"}, "preset"),
-        ({"randomisation": Randomisation(physics_heading_jitter_deg=5.0)}, "physics_heading_jitter_deg"),
+        (
+            {"randomisation": Randomisation(physics_heading_jitter_deg=5.0)},
+            "physics_heading_jitter_deg",
+        ),
         ({"randomisation": Randomisation(fixed_heading=1.5)}, "fixed_heading"),
         ({"randomisation": Randomisation(speed_mps=(0.0, 3.0))}, "speed_mps"),
     ],
@@ -189,14 +229,54 @@ def test_cli_physics_preset_and_its_errors(tmp_path, repo_dir, capsys):
     from mission.cli.main import main
 
     mission = str(repo_dir / "missions" / "spiral.yaml")
-    args = ["dataset", mission, "--n", "2", "--workers", "1", "--features", "clustering", "--trajectories",
-            "random_waypoints", "--random-params", "--truncate", "0.1,0.2"]
-    assert main([*args, "--physics", "afar:fit288", "--fixed-heading", "0.5", "--shadowing", "2,6",
-                 "--out", str(tmp_path / "ds")]) == 0
+    args = [
+        "dataset",
+        mission,
+        "--n",
+        "2",
+        "--workers",
+        "1",
+        "--features",
+        "clustering",
+        "--trajectories",
+        "random_waypoints",
+        "--random-params",
+        "--truncate",
+        "0.1,0.2",
+    ]
+    assert (
+        main(
+            [
+                *args,
+                "--physics",
+                "afar:fit288",
+                "--fixed-heading",
+                "0.5",
+                "--shadowing",
+                "2,6",
+                "--out",
+                str(tmp_path / "ds"),
+            ]
+        )
+        == 0
+    )
     mf = read_manifest(tmp_path / "ds")
     assert mf["config"]["physics"] == "afar:fit288"
     assert mf["config"]["randomisation"]["shadowing_db"] == [2.0, 6.0]
     capsys.readouterr()
-    assert main([*args, "--physics", "afar:fit288", "--patterns", "dipole", "--out", str(tmp_path / "x")]) == 2
+    assert (
+        main(
+            [
+                *args,
+                "--physics",
+                "afar:fit288",
+                "--patterns",
+                "dipole",
+                "--out",
+                str(tmp_path / "x"),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert "patterns" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -31,7 +31,13 @@ from mission.localize.error_circles import (
 )
 from mission.workshop.evaluate_suite import region_contains
 
-SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
+SHIPPED = (
+    "rfsl_default",
+    "rfsl_spiral_e2r",
+    "rfsl_afar",
+    "rfsl_spiral_e2r_ens5",
+    "rfsl_spiral_alt",
+)
 
 
 def test_circles_have_their_radius_and_contain_what_they_should():
@@ -39,7 +45,9 @@ def test_circles_have_their_radius_and_contain_what_they_should():
     assert [r["level"] for r in regs] == [0.5, 0.9]
     for reg in regs:
         ring = np.asarray(reg["polygons"][0])
-        assert np.allclose(np.hypot(ring[:, 0] - 100.0, ring[:, 1] + 20.0), reg["radius_m"], atol=0.1)
+        assert np.allclose(
+            np.hypot(ring[:, 0] - 100.0, ring[:, 1] + 20.0), reg["radius_m"], atol=0.1
+        )
         assert reg["area_m2"] == pytest.approx(np.pi * reg["radius_m"] ** 2)
         assert region_contains(reg, (100.0 + 0.99 * reg["radius_m"], -20.0))
         assert not region_contains(reg, (100.0, -20.0 + 1.01 * reg["radius_m"]))
@@ -58,13 +66,17 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
     every clipped vertex lies in the square, and coverage stays the circle's (the ellipse is unchanged)."""
     from mission.geo import Area
 
-    sq = Area("rover area", np.array([[-2000.0, -2000.0], [frac * r, -2000.0], [frac * r, 2000.0],
-                                      [-2000.0, 2000.0]]))
+    sq = Area(
+        "rover area",
+        np.array([[-2000.0, -2000.0], [frac * r, -2000.0], [frac * r, 2000.0], [-2000.0, 2000.0]]),
+    )
     reg = circle_regions(0.0, 0.0, {0.9: r}, "test", sq)[0]
     assert reg["clipped_to"] == "rover area" and reg["radius_m"] == r
     assert reg["area_m2"] == pytest.approx(_segment_area(r, frac * r), rel=3e-3)
     ring = np.asarray(reg["polygons"][0])
-    assert np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()  # rounded to 0.1 m
+    assert (
+        np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()
+    )  # rounded to 0.1 m
     assert region_contains(reg, (0.99 * r * math.cos(2.0), 0.99 * r * math.sin(2.0)))
 
 
@@ -73,7 +85,9 @@ def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
     that area's own polygon and area; one that misses the area is kept whole."""
     from mission.geo import Area
 
-    ell = Area("L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float))
+    ell = Area(
+        "L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float)
+    )
     inside = circle_regions(20.0, 20.0, {0.5: 10.0}, "test", ell)[0]
     assert "clipped_to" not in inside and inside["area_m2"] == pytest.approx(np.pi * 100.0)
     whole = circle_regions(30.0, 30.0, {0.9: 500.0}, "test", ell)[0]
@@ -87,7 +101,9 @@ def test_a_circle_across_the_inner_corner_of_a_non_convex_area_has_the_right_are
     notch (three quarters remain, to the 72-gon's resolution)."""
     from mission.geo import Area
 
-    ell = Area("L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float))
+    ell = Area(
+        "L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float)
+    )
     reg = circle_regions(40.0, 40.0, {0.9: 30.0}, "test", ell)[0]
     assert reg["area_m2"] == pytest.approx(0.75 * np.pi * 900.0, rel=3e-3)
 
@@ -112,27 +128,47 @@ def _calibration_record(*args):
 
 
 def test_card_contract(net):
-    assert card_calibration(net, "sim") == (None, "net.onnx has no model card (net.json, "
-                                            "benchmarks/calibrate_error_circles.py)")
+    assert card_calibration(net, "sim") == (
+        None,
+        "net.onnx has no model card (net.json, benchmarks/calibrate_error_circles.py)",
+    )
     card = net.with_suffix(".json")
     with pytest.raises(ValueError, match="need at least 9"):  # 4 flights cannot promise 90 %
         _calibration_record([1.0, 2.0, 3.0, 4.0], "t", net)
-    card.write_text(json.dumps({REGIONS_KEY: {"sim": _calibration_record(np.arange(1.0, 21.0), "t", net)}}))
+    card.write_text(
+        json.dumps({REGIONS_KEY: {"sim": _calibration_record(np.arange(1.0, 21.0), "t", net)}})
+    )
     rec, why = card_calibration(net, "sim")
     assert rec["radii_m"] == {0.5: 11.0, 0.9: 19.0} and rec["model_sha256"] == model_digest(net)
-    assert card_calibration(net, "real")[0] is None and "no 'real' calibration" in card_calibration(net, "real")[1]
+    assert (
+        card_calibration(net, "real")[0] is None
+        and "no 'real' calibration" in card_calibration(net, "real")[1]
+    )
     extras: dict = {}
-    assert "no uncertainty region" in attach_circles(extras, 0.0, 0.0, card_calibration(net, "real"))
+    assert "no uncertainty region" in attach_circles(
+        extras, 0.0, 0.0, card_calibration(net, "real")
+    )
     assert "regions" not in extras
     assert attach_circles(extras, 5.0, 6.0, card_calibration(net, "sim")) is None
     assert [r["radius_m"] for r in extras["regions"]] == [11.0, 19.0]
-    net.write_bytes(net.read_bytes() + b"\0")  # another model file: the calibration no longer applies
+    net.write_bytes(
+        net.read_bytes() + b"\0"
+    )  # another model file: the calibration no longer applies
     rec, why = card_calibration(net, "sim")
     assert rec is None and "another version of the model file" in why
 
 
-@pytest.mark.parametrize("entry", [{"radii_m": {"0.9": -1.0}}, {"radii_m": {"1.5": 3.0}}, {"radii_m": "x"}, {},
-                                   {"radii_m": {"0.9": "Infinity"}}, {"radii_m": {}}])
+@pytest.mark.parametrize(
+    "entry",
+    [
+        {"radii_m": {"0.9": -1.0}},
+        {"radii_m": {"1.5": 3.0}},
+        {"radii_m": "x"},
+        {},
+        {"radii_m": {"0.9": "Infinity"}},
+        {"radii_m": {}},
+    ],
+)
 def test_a_malformed_card_entry_names_the_card_and_key(net, entry):
     net.with_suffix(".json").write_text(json.dumps({REGIONS_KEY: {"sim": entry}}))
     with pytest.raises(InputError) as e:
@@ -164,14 +200,20 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7101", "--out", str(tmp_path)]) == 0
     est = localize_log(next(tmp_path.glob("*.csv")))
     model = est.extras["model_path"]
-    want, _ = flown_radii(card_calibration(model, "sim")[0], est.extras["track_coverage"])  # sized for the flight
+    want, _ = flown_radii(
+        card_calibration(model, "sim")[0], est.extras["track_coverage"]
+    )  # sized for the flight
     assert est.extras["track_coverage"] > 0.95
     assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items())
-    assert all(r["ellipse"]["x_m"] == est.x_m and r["ellipse"]["y_m"] == est.y_m for r in est.extras["regions"])
+    assert all(
+        r["ellipse"]["x_m"] == est.x_m and r["ellipse"]["y_m"] == est.y_m
+        for r in est.extras["regions"]
+    )
     log, truth, _ = unseen_flight(2027, 3)
     est = localize_log(log, model_path=model)
-    assert [r["radius_m"] for r in est.extras["regions"]] == sorted(card_calibration(model, "real")[0]["radii_m"]
-                                                                    .values())
+    assert [r["radius_m"] for r in est.extras["regions"]] == sorted(
+        card_calibration(model, "real")[0]["radii_m"].values()
+    )
     # the 'real' 90 % circle (~160 m) overhangs the AFAR rover area: the region is its part inside that area
     from mission.localize.api import search_area
 
@@ -185,7 +227,9 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
 
 _BAD_ENTRY = st.one_of(
     st.none().map(lambda _: {}),
-    st.dictionaries(st.text(max_size=4), st.floats(allow_nan=True), max_size=3).map(lambda d: {"radii_m": d}),
+    st.dictionaries(st.text(max_size=4), st.floats(allow_nan=True), max_size=3).map(
+        lambda d: {"radii_m": d}
+    ),
     st.floats(-1e3, 0.0).map(lambda r: {"radii_m": {"0.5": r, "0.9": 10.0}}),
     st.floats(1.0, 5.0).map(lambda lv: {"radii_m": {f"{lv}": 10.0}}),
     st.text(max_size=5).map(lambda t: {"radii_m": t}),
@@ -193,7 +237,9 @@ _BAD_ENTRY = st.one_of(
 
 
 @given(entry=_BAD_ENTRY)
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 def test_localize_refuses_a_malformed_card_with_one_line_and_exit_2(entry, net, tmp_path, capsys):
     """``localize --model`` with a card whose calibration is malformed: one line naming the card and the key,
     exit 2, never a traceback or a circle of made-up size."""
@@ -208,14 +254,22 @@ def test_localize_refuses_a_malformed_card_with_one_line_and_exit_2(entry, net, 
     capsys.readouterr()
     assert localize([str(log), "--model", str(net)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("error:") and "net.json" in err[0] and "regions." in err[0], err
+    assert (
+        len(err) == 1
+        and err[0].startswith("error:")
+        and "net.json" in err[0]
+        and "regions." in err[0]
+    ), err
 
 
 @pytest.mark.parametrize("method", CIRCLE_METHODS)
 def test_every_classical_method_is_calibrated_for_both_kinds_of_log(method):
     """The grid with the simulated log's own physics is near-exact (sub-metre circles); on the benchmark every
     method's circles are tens of metres, wider than on simulated logs."""
-    (sim, why_s), (real, why_r) = method_calibration(method, "sim"), method_calibration(method, "real")
+    (sim, why_s), (real, why_r) = (
+        method_calibration(method, "sim"),
+        method_calibration(method, "real"),
+    )
     assert why_s is None and why_r is None
     for rec in (sim, real):
         assert rec["radii_m"][0.5] < rec["radii_m"][0.9] < math.inf and rec["n"] >= 300
@@ -244,8 +298,14 @@ def test_classical_methods_get_circles_only_in_their_calibrated_configuration(tm
     for method in CIRCLE_METHODS:
         est = localize_log(log, method=method)
         want = method_calibration(method, "sim")[0]["radii_m"]
-        assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items()), method
-    est = localize_log(log, method="grid", physics_model="free-space")  # not the calibrated configuration
-    assert "regions" not in est.extras and "calibrated for its default physics" in est.extras["note"]
+        assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(
+            want.items()
+        ), method
+    est = localize_log(
+        log, method="grid", physics_model="free-space"
+    )  # not the calibrated configuration
+    assert (
+        "regions" not in est.extras and "calibrated for its default physics" in est.extras["note"]
+    )
     est = localize_log(log, method="strongest", cruise=False)
     assert "regions" not in est.extras and "sample selection" in est.extras["note"]

@@ -28,7 +28,10 @@ def test_notes_render_as_one_sentence_group_where_first_added() -> None:
     # notes given at construction (a fusion copies its member's) are rendered in place
     copy = Estimate(0.0, 0.0, "fusion", extras=dict(est.extras), notes=list(est.notes))
     copy.add_note("third.")
-    assert list(copy.to_dict())[-3:] == ["a", "note", "b"] and copy.to_dict()["note"] == "first. second. third."
+    assert (
+        list(copy.to_dict())[-3:] == ["a", "note", "b"]
+        and copy.to_dict()["note"] == "first. second. third."
+    )
 
 
 def test_regions_and_components_are_the_json_record() -> None:
@@ -40,7 +43,10 @@ def test_regions_and_components_are_the_json_record() -> None:
     est.set_components({"selfcal": a, "net.onnx": b})
     assert est.regions is reg and est.components["net.onnx"] is b
     d = est.to_dict()
-    assert d["regions"] == reg and d["components"] == {"selfcal": [0.0, 1.0], "net.onnx": [2.0, 3.0]}
+    assert d["regions"] == reg and d["components"] == {
+        "selfcal": [0.0, 1.0],
+        "net.onnx": [2.0, 3.0],
+    }
     json.dumps(d)  # member estimates never leak into the JSON
 
 
@@ -56,8 +62,9 @@ def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
     d = est.to_dict()
     assert [m.method for m in est.components.values()] == ["selfcal", "onnx"]
     assert d["components"] == {n: [m.x_m, m.y_m] for n, m in est.components.items()}
-    assert (est.x_m, est.y_m) == pytest.approx(tuple(sum((m.x_m, m.y_m)[i] for m in est.components.values()) / 2
-                                                     for i in range(2)))
+    assert (est.x_m, est.y_m) == pytest.approx(
+        tuple(sum((m.x_m, m.y_m)[i] for m in est.components.values()) / 2 for i in range(2))
+    )
     assert d["regions"] == est.regions and [r["level"] for r in est.regions] == [0.5, 0.9]
     assert d.get("note") == (" ".join(est.notes) or None)
 
@@ -65,13 +72,26 @@ def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
 def test_selection_follows_the_method_choice_in_the_json_and_fit_reads_the_extras() -> None:
     from mission.localize import Fit, Selection
 
-    est = Estimate(1.0, 2.0, "selfcal", extras={"antenna": "dipole", "offset_db": -3.25, "residual_rms_db": 4.5})
+    est = Estimate(
+        1.0,
+        2.0,
+        "selfcal",
+        extras={"antenna": "dipole", "offset_db": -3.25, "residual_rms_db": 4.5},
+    )
     est.extras["method_choice"] = "asked"
     est.selection = Selection(900, 1000, "mission legs")
     est.extras["log"] = "f.csv"
     keys = list(est.to_dict())
-    assert keys[keys.index("method_choice"):] == ["method_choice", "cruise", "samples_used", "samples_total", "log"]
-    assert est.to_dict()["samples_used"] == 900 and est.selection.line() == "900 of 1000: mission legs"
+    assert keys[keys.index("method_choice") :] == [
+        "method_choice",
+        "cruise",
+        "samples_used",
+        "samples_total",
+        "log",
+    ]
+    assert (
+        est.to_dict()["samples_used"] == 900 and est.selection.line() == "900 of 1000: mission legs"
+    )
     assert est.fit == Fit(-3.25, 4.5, "dipole")
     assert est.fit.line() == "offset -3.2 dB, residual rms 4.50 dB; UAV antenna: dipole"
     assert Estimate(0.0, 0.0, "onnx").fit is None

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.workshop.evaluate import afar_truth, evaluate_real, evaluate_sim, import_afar, parse_method
+from mission.workshop.evaluate import (
+    afar_truth,
+    evaluate_real,
+    evaluate_sim,
+    import_afar,
+    parse_method,
+)
 
 
 def test_afar_truth_from_name():
@@ -29,7 +35,11 @@ def test_evaluate_sim_classical(tmp_path, repo_dir):
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.2, 0.3))
     generate_dataset(
         DatasetConfig(
-            str(repo_dir / "missions" / "spiral.yaml"), 3, seed=2, randomisation=r, features=("clustering",)
+            str(repo_dir / "missions" / "spiral.yaml"),
+            3,
+            seed=2,
+            randomisation=r,
+            features=("clustering",),
         ),
         tmp_path / "ds",
     )
@@ -63,13 +73,32 @@ def test_grid_physics_rows_on_a_simulated_set(tmp_path, repo_dir):
     exact to the grid's resolution and beats the e2r grid, whose physics is wrong there."""
     from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
 
-    r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.3, 0.4),
-                      noise_db=(0.0, 0.0))
-    cfg = DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 3, model="free-space", seed=4,
-                        randomisation=r, features=("clustering",), model_params={"pattern": "isotropic"})
+    r = Randomisation(
+        trajectories=("random_waypoints",),
+        random_params=True,
+        truncate=(0.3, 0.4),
+        noise_db=(0.0, 0.0),
+    )
+    cfg = DatasetConfig(
+        str(repo_dir / "missions" / "spiral.yaml"),
+        3,
+        model="free-space",
+        seed=4,
+        randomisation=r,
+        features=("clustering",),
+        model_params={"pattern": "isotropic"},
+    )
     generate_dataset(cfg, tmp_path / "ds")
-    rows = {x.method: x for x in evaluate_sim([], tmp_path / "ds", ("grid:free-space", "grid:e2r"),
-                                              n_classical=3, grid_params={"params": {"pattern": "isotropic"}})}
+    rows = {
+        x.method: x
+        for x in evaluate_sim(
+            [],
+            tmp_path / "ds",
+            ("grid:free-space", "grid:e2r"),
+            n_classical=3,
+            grid_params={"params": {"pattern": "isotropic"}},
+        )
+    }
     fs, e2r = np.array(rows["grid:free-space"].errors), np.array(rows["grid:e2r"].errors)
     assert fs.max() < 3.0 and fs.mean() < e2r.mean()
     assert rows["grid:free-space"].test.startswith("sim:free-space:")

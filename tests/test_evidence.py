@@ -97,14 +97,13 @@ def test_conformal_quantile_is_an_order_statistic(errors, level):
         assert r in errors and sum(e <= r for e in errors) >= k
 
 
-
 def test_coverage_interval_closed_forms():
     """Clopper-Pearson: k = 0 gives [0, 1 - (a/2)^(1/n)]; k = n gives [(a/2)^(1/n), 1]; the symmetric case is
     symmetric about 1/2; 95 of 100 at 90 % is about [0.898, 0.980] (tables)."""
     iv = coverage_interval(0, 10)
-    assert iv.lo == 0.0 and iv.hi == pytest.approx(1 - 0.05 ** 0.1)
+    assert iv.lo == 0.0 and iv.hi == pytest.approx(1 - 0.05**0.1)
     iv = coverage_interval(10, 10)
-    assert iv.hi == 1.0 and iv.lo == pytest.approx(0.05 ** 0.1)
+    assert iv.hi == 1.0 and iv.lo == pytest.approx(0.05**0.1)
     iv = coverage_interval(12, 24)
     assert iv.value == 0.5 and iv.lo + iv.hi == pytest.approx(1.0)
     iv = coverage_interval(95, 100)

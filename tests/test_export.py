@@ -58,7 +58,10 @@ def test_plan_round_trips_through_mavwploader(tmp_path, name):
 
 def test_geojson(tmp_path):
     out = tmp_path / "m.geojson"
-    assert main(["export", str(MISSIONS / "spiral.yaml"), "--format", "geojson", "--out", str(out)]) == 0
+    assert (
+        main(["export", str(MISSIONS / "spiral.yaml"), "--format", "geojson", "--out", str(out)])
+        == 0
+    )
     fc = json.loads(out.read_text())
     kinds = {f["properties"]["kind"]: f["geometry"] for f in fc["features"]}
     assert fc["type"] == "FeatureCollection"
@@ -71,7 +74,9 @@ def test_geojson(tmp_path):
 
 def test_kml(tmp_path):
     out = tmp_path / "m.kml"
-    assert main(["export", str(MISSIONS / "edge_sweep.yaml"), "--out", str(out)]) == 0  # format from suffix
+    assert (
+        main(["export", str(MISSIONS / "edge_sweep.yaml"), "--out", str(out)]) == 0
+    )  # format from suffix
     root = ET.parse(out).getroot()
     ns = {"k": "http://www.opengis.net/kml/2.2"}
     marks = root.findall(".//k:Placemark", ns)
@@ -102,10 +107,27 @@ def _uploaded_to_sitl(mavsdk_items) -> list:
     gcs = mavlink2.MAVLink(io.BytesIO(), srcSystem=255, srcComponent=190)
     store = _Store()
     decode = mavlink2.MAVLink(io.BytesIO())
-    store.on_mission_count(decode.decode(bytearray(gcs.mission_count_encode(1, 1, len(mavsdk_items), 0).pack(gcs))))
+    store.on_mission_count(
+        decode.decode(bytearray(gcs.mission_count_encode(1, 1, len(mavsdk_items), 0).pack(gcs)))
+    )
     for m in mavsdk_items:
-        msg = gcs.mission_item_int_encode(1, 1, m.seq, m.frame, m.command, m.current, m.autocontinue, m.param1,
-                                          m.param2, m.param3, m.param4, m.x, m.y, m.z, m.mission_type)
+        msg = gcs.mission_item_int_encode(
+            1,
+            1,
+            m.seq,
+            m.frame,
+            m.command,
+            m.current,
+            m.autocontinue,
+            m.param1,
+            m.param2,
+            m.param3,
+            m.param4,
+            m.x,
+            m.y,
+            m.z,
+            m.mission_type,
+        )
         store.on_mission_item(decode.decode(bytearray(msg.pack(gcs))))
     assert store.uploads == 1
     return store.items
@@ -133,15 +155,30 @@ def test_exported_items_are_the_uploaded_items(tmp_path, name):
     assert len(plan_items) == len(stored) - 1  # the .plan keeps home apart (plannedHomePosition)
     for it in stored:
         w = loader.wp(it.seq)
-        assert (w.seq, w.frame, w.command, w.current, w.autocontinue) == \
-            (it.seq, it.frame, it.command, it.current, it.autocontinue)
-        assert all(_same(a, b, 1e-8) for a, b in zip((w.param1, w.param2, w.param3, w.param4), it.params, strict=True))
-        assert (round(w.x * 1e7), round(w.y * 1e7)) == (it.x, it.y) and w.z == pytest.approx(it.z, abs=1e-6)
+        assert (w.seq, w.frame, w.command, w.current, w.autocontinue) == (
+            it.seq,
+            it.frame,
+            it.command,
+            it.current,
+            it.autocontinue,
+        )
+        assert all(
+            _same(a, b, 1e-8)
+            for a, b in zip((w.param1, w.param2, w.param3, w.param4), it.params, strict=True)
+        )
+        assert (round(w.x * 1e7), round(w.y * 1e7)) == (it.x, it.y) and w.z == pytest.approx(
+            it.z, abs=1e-6
+        )
         if it.seq == 0:
             continue
         p = plan_items[it.seq - 1]
         assert (p["command"], p["frame"]) == (it.command, it.frame)
-        assert all(_same(np.nan if a is None else a, b) for a, b in zip(p["params"][:4], it.params, strict=True))
+        assert all(
+            _same(np.nan if a is None else a, b)
+            for a, b in zip(p["params"][:4], it.params, strict=True)
+        )
         if it.frame == 3:
             assert (round(p["params"][4] * 1e7), round(p["params"][5] * 1e7)) == (it.x, it.y)
-            assert p["params"][6] == pytest.approx(it.z, abs=1e-6) and p["Altitude"] == p["params"][6]
+            assert (
+                p["params"][6] == pytest.approx(it.z, abs=1e-6) and p["Altitude"] == p["params"][6]
+            )

@@ -15,12 +15,20 @@ from mission.gap.loopcheck import loop_check, simulate_along
 from mission.physics.family import PhysicsFamily, load_family
 from mission.samples import FlightSamples
 
-TRUTH = {"schema": 1, "name": "truth",
-         "spec": {"base": "free-space", "attitude": "yaw", "rx_pattern": "measured", "rx_flipped": True,
-                  "rx_heading_deg": {"dist": "normal", "mean": 60.0, "sd": 5.0},
-                  "path_gain_slope": {"dist": "normal", "mean": 0.8, "sd": 0.1}},
-         "residual": {"shadowing_db": 5.0, "shadowing_corr_m": 40.0, "noise_db": 2.0},
-         "offset_db": {"dist": "uniform", "lo": -20.0, "hi": 20.0}}
+TRUTH = {
+    "schema": 1,
+    "name": "truth",
+    "spec": {
+        "base": "free-space",
+        "attitude": "yaw",
+        "rx_pattern": "measured",
+        "rx_flipped": True,
+        "rx_heading_deg": {"dist": "normal", "mean": 60.0, "sd": 5.0},
+        "path_gain_slope": {"dist": "normal", "mean": 0.8, "sd": 0.1},
+    },
+    "residual": {"shadowing_db": 5.0, "shadowing_corr_m": 40.0, "noise_db": 2.0},
+    "offset_db": {"dist": "uniform", "lo": -20.0, "hi": 20.0},
+}
 CFG = FitConfig(loss="soft_l1", workers=1, fit_max_samples=600)
 
 
@@ -28,10 +36,20 @@ def _tracks(n: int, seed: int = 3) -> list[FlightSamples]:
     rng = np.random.default_rng(seed)
     out = []
     for k in range(n):
-        tr = trajectory("lawnmower", rng, 1.0, 700.0)  # a spiral around the rover cannot tell the heading
+        tr = trajectory(
+            "lawnmower", rng, 1.0, 700.0
+        )  # a spiral around the rover cannot tell the heading
         tx = np.array([rng.uniform(80, 280), rng.uniform(80, 280), 1.5])
-        out.append(FlightSamples(enu_m=tr["pos"], rss_dbm=np.zeros(len(tr["t"])), attitude_rad=tr["att"],
-                                 t_s=tr["t"], tx_enu_m=tx, name=f"exp_{(288, 328)[k % 2]}_loc_{k}"))
+        out.append(
+            FlightSamples(
+                enu_m=tr["pos"],
+                rss_dbm=np.zeros(len(tr["t"])),
+                attitude_rad=tr["att"],
+                t_s=tr["t"],
+                tx_enu_m=tx,
+                name=f"exp_{(288, 328)[k % 2]}_loc_{k}",
+            )
+        )
     return out
 
 
@@ -55,14 +73,21 @@ def test_family_fit_recovers_and_loop_closes(tmp_path) -> None:
     rec, fits = fit_family(flights, ["rx_antenna", "path_gain_slope"], CFG, name="fitted")
     p = tmp_path / "fam.json"
     p.write_text(json.dumps(rec))
-    fam = load_family(p)                                   # schema 1, loads and builds
+    fam = load_family(p)  # schema 1, loads and builds
     assert fam.name == "fitted" and fam.draw(np.random.default_rng(0)).spec["base"] == "free-space"
     # the drawn physics comes back per flight
     for ft, dr in zip(fits, draws, strict=True):
         assert ft.spec["rx_pattern"] == "measured" and ft.spec["rx_flipped"] is True
-        assert abs((ft.spec["rx_heading_deg"] - dr["spec"]["rx_heading_deg"] + 180) % 360 - 180) < 15
-    s = rec["spread"]  # the slope per flight scatters with the 5 dB shadowing (+-0.7); its mean does not
-    assert abs(s["path_gain_slope"]["mean"] - np.mean([d["spec"]["path_gain_slope"] for d in draws])) < 0.4
+        assert (
+            abs((ft.spec["rx_heading_deg"] - dr["spec"]["rx_heading_deg"] + 180) % 360 - 180) < 15
+        )
+    s = rec[
+        "spread"
+    ]  # the slope per flight scatters with the 5 dB shadowing (+-0.7); its mean does not
+    assert (
+        abs(s["path_gain_slope"]["mean"] - np.mean([d["spec"]["path_gain_slope"] for d in draws]))
+        < 0.4
+    )
     assert 3.0 < s["shadowing_db"]["mean"] < 7.5 and s["noise_db"]["mean"] < 4.0
     assert set(s["path_gain_slope"]["per_team"]) == {"288", "328"}
     assert rec["variants"] and abs(sum(v["p"] for v in rec["variants"]) - 1) < 1e-9

@@ -47,7 +47,9 @@ def test_shape_offset_invariance_and_determinism():
     cfg = FeatureConfig()
     v = cluster_features(enu[:, 0], enu[:, 1], rss, cfg)
     assert v.shape == (3 * cfg.c_k,)
-    np.testing.assert_allclose(cluster_features(enu[:, 0], enu[:, 1], rss + 37.5, cfg), v, atol=1e-9)
+    np.testing.assert_allclose(
+        cluster_features(enu[:, 0], enu[:, 1], rss + 37.5, cfg), v, atol=1e-9
+    )
     np.testing.assert_array_equal(cluster_features(enu[:, 0], enu[:, 1], rss, cfg), v)
     p = v[0::3]
     assert np.all(np.diff(p) <= 0)  # ordered by relative RSS, descending
@@ -93,7 +95,9 @@ def test_batch_matches_single_and_handles_shared_xy():
     assert batch.shape == (3, 30)
     np.testing.assert_allclose(batch, per)
     for i in range(3):
-        np.testing.assert_allclose(batch[i], cluster_features(enu[:, 0], enu[:, 1], rss[i], cfg), atol=1e-9)
+        np.testing.assert_allclose(
+            batch[i], cluster_features(enu[:, 0], enu[:, 1], rss[i], cfg), atol=1e-9
+        )
     del rng
 
 
@@ -137,7 +141,9 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
         t = np.arange(0, 100.0 / speed, dt)
         x = speed * t
         if hover_s:
-            x = np.concatenate([x[: len(x) // 2], np.full(int(hover_s / dt), x[len(x) // 2]), x[len(x) // 2 :]])
+            x = np.concatenate(
+                [x[: len(x) // 2], np.full(int(hover_s / dt), x[len(x) // 2]), x[len(x) // 2 :]]
+            )
         y = np.zeros_like(x) + rng.normal(0, jitter, x.size)
         rss = -40.0 - 0.2 * x
         return x, y, rss
@@ -147,7 +153,9 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
     hover = resample_by_arc(*leg(5.0, hover_s=60.0, jitter=0.05), 0.15)
     n = len(slow[0])
     assert n == pytest.approx(100 / 0.15, rel=0.01)
-    assert len(fast[0]) == pytest.approx(n, rel=0.03) and len(hover[0]) == pytest.approx(n, rel=0.05)
+    assert len(fast[0]) == pytest.approx(n, rel=0.03) and len(hover[0]) == pytest.approx(
+        n, rel=0.05
+    )
     assert np.diff(slow[0]).mean() == pytest.approx(0.15, rel=0.01)
     np.testing.assert_allclose(np.interp(fast[0], slow[0], slow[2]), fast[2], atol=0.05)
     assert resample_by_arc(*leg(5.0), 0.0)[0].size == leg(5.0)[0].size  # off: untouched
@@ -166,7 +174,9 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
     plain = FeatureConfig(c_k=6, n_t=10)
     pa = cluster_features(path_x, path_y, rss, plain).reshape(-1, 3)
     pb = cluster_features(path_x[slow_idx], path_y[slow_idx], rss[slow_idx], plain).reshape(-1, 3)
-    assert np.abs(pa[:, 1:] - pb[:, 1:]).max() > 10.0  # without resampling the crept leg takes more clusters
+    assert (
+        np.abs(pa[:, 1:] - pb[:, 1:]).max() > 10.0
+    )  # without resampling the crept leg takes more clusters
 
 
 def test_configs_written_before_a_later_key_still_match():

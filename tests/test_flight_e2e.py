@@ -68,7 +68,9 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     assert log.meta["rows"] == len(log)
     t = log["t_s"]
     spec = load_mission(SPIRAL)
-    assert log.meta["trajectory"] == spec.trajectory_meta()  # what picks the spiral network (sim_default)
+    assert (
+        log.meta["trajectory"] == spec.trajectory_meta()
+    )  # what picks the spiral network (sim_default)
     expected = (t[-1] - t[0]) / spec.source.sample_period_s + 1
     assert len(log) >= 0.95 * expected
     assert t[-1] - t[0] > 0.8 * log.meta["planned_duration_s"]  # the whole spiral was flown
@@ -76,7 +78,11 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     # measured speed-up and telemetry rates; phases in flight order, the first row before take-off
     assert 10 < log.meta["speedup_measured"] < 22 and log.meta["speedup_requested"] == 20
     for stream in ("position", "attitude"):
-        assert 0.7 * log.meta["telemetry_rate_requested_hz"] < log.meta["telemetry_rate_hz"][stream] < 40
+        assert (
+            0.7 * log.meta["telemetry_rate_requested_hz"]
+            < log.meta["telemetry_rate_hz"][stream]
+            < 40
+        )
     phase = log.columns["phase"]
     assert phase[0] == "ground" and {"takeoff", "mission", "return", "land"} <= set(phase)
     armed = next(e for e in log.meta["events"] if e["kind"] == "armed")
@@ -86,14 +92,20 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     last = "estimate:" + out.rsplit("\nestimate:", 1)[-1]
     assert last.startswith("estimate: x=") and "\n  error: " in last, out
     assert max(len(ln) for ln in last.splitlines()) <= 80, last
-    assert "\n  method: onnx rfsl_spiral_e2r_ens5.onnx\n" in last, last  # the spiral network answered its own flight
+    assert "\n  method: onnx rfsl_spiral_e2r_ens5.onnx\n" in last, (
+        last
+    )  # the spiral network answered its own flight
     from mission.localize.error_circles import card_calibration, flown_radii
     from mission.localize.preprocess import select_samples
     from mission.localize.training_domain import planned_track, track_coverage
 
-    part, _ = select_samples(log)  # the whole spiral flown: the full-flight stratum of its calibrated circles
+    part, _ = select_samples(
+        log
+    )  # the whole spiral flown: the full-flight stratum of its calibrated circles
     cov = track_coverage(planned_track(log.meta, log.origin), part.enu()[:, :2])
-    r90 = flown_radii(card_calibration(repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx", "sim")[0], cov)[0][0.9]
+    r90 = flown_radii(
+        card_calibration(repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx", "sim")[0], cov
+    )[0][0.9]
     assert cov > 0.95 and f"\n  90 % region: within {r90:.0f} m of the estimate\n" in last, last
     cruise = log["rel_alt_m"] > 25
     for c in ("roll_deg", "pitch_deg"):
@@ -120,7 +132,9 @@ def test_fence_refused_nothing_uploaded(tmp_path):
     port = free_udp_port()
     veh = _vehicle(port, 5)
     try:
-        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--out", str(tmp_path / "f")])
+        p = _fly(
+            [str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--out", str(tmp_path / "f")]
+        )
         _, err = p.communicate(timeout=60)
         assert p.returncode == 2, err[-2000:]
         assert "error:" in err and "waypoint" in err.lower()
@@ -153,7 +167,9 @@ def test_ctrl_c_returns_to_launch(tmp_path):
     assert any(e["kind"] == "rtl" for e in log.meta["events"])
     assert any(e["kind"] == "landed" for e in log.meta["events"])
     assert log["rel_alt_m"][-1] < 0.5
-    assert "mission" in set(log.columns["phase"]) and "return" in set(log.columns["phase"])  # stopped mid-mission
+    assert "mission" in set(log.columns["phase"]) and "return" in set(
+        log.columns["phase"]
+    )  # stopped mid-mission
     enu = log.enu()
     assert np.hypot(*enu[-1, :2] - enu[0, :2]) < 2.0  # landed back at home
 
@@ -207,20 +223,36 @@ def _no_autopilot_url(scheme: str) -> str:
 @pytest.mark.parametrize("scheme", ["udpin", "tcpout"])
 def test_connecting_to_nothing_times_out_with_one_line(tmp_path, scheme):
     t0 = time.monotonic()
-    p = _fly([str(SPIRAL), "--connect", _no_autopilot_url(scheme), "--link-timeout", "3", "--out", str(tmp_path)])
+    p = _fly(
+        [
+            str(SPIRAL),
+            "--connect",
+            _no_autopilot_url(scheme),
+            "--link-timeout",
+            "3",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     out, err = p.communicate(timeout=60)
     assert p.returncode == 3, err
     assert time.monotonic() - t0 < 30
     lines = err.strip().splitlines()
     # the pre-flight duration line (printed with --connect too), then exactly one error line, no traceback
     assert lines[0].startswith("estimated flight: ") and "add --speedup" not in lines[0], err
-    assert len(lines) == 2 and lines[1].startswith("error: no autopilot on") and "within 3 s" in lines[1], err
+    assert (
+        len(lines) == 2
+        and lines[1].startswith("error: no autopilot on")
+        and "within 3 s" in lines[1]
+    ), err
     assert not list(tmp_path.glob("*/flight.csv"))
 
 
 def test_sigterm_before_takeoff_does_not_return_to_launch(tmp_path):
     p = _fly([str(SPIRAL), "--connect", _no_autopilot_url("udpin"), "--out", str(tmp_path)])
-    assert p.stderr.readline().startswith("estimated flight")  # checked, handlers on, waiting for an autopilot
+    assert p.stderr.readline().startswith(
+        "estimated flight"
+    )  # checked, handlers on, waiting for an autopilot
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=30)
     assert p.returncode == 130, err
@@ -228,14 +260,17 @@ def test_sigterm_before_takeoff_does_not_return_to_launch(tmp_path):
     assert "before take-off" in err.strip().splitlines()[-1]
 
 
-@pytest.mark.parametrize("args, field", [
-    (["--rss-source", "foo"], "--rss-source"),
-    (["--rss-source", "aerpaw-fifo:/no/such/Power"], "--rss-source"),
-    (["--rss-source", "udp:99999"], "--rss-source"),
-    (["--connect", "foo://bar"], "--connect"),
-    (["--connect", "tcpout://127.0.0.1"], "--connect"),
-    (["--out", "FILE"], "--out"),
-])
+@pytest.mark.parametrize(
+    "args, field",
+    [
+        (["--rss-source", "foo"], "--rss-source"),
+        (["--rss-source", "aerpaw-fifo:/no/such/Power"], "--rss-source"),
+        (["--rss-source", "udp:99999"], "--rss-source"),
+        (["--connect", "foo://bar"], "--connect"),
+        (["--connect", "tcpout://127.0.0.1"], "--connect"),
+        (["--out", "FILE"], "--out"),
+    ],
+)
 def test_bad_options_refused_before_anything_starts(tmp_path, capsys, args, field):
     """Exit 2 and one line naming the option, before any vehicle is started (no vehicle, no log).  The first
     case runs the console entry point in a subprocess; the others call it in-process (same code path after
@@ -287,12 +322,38 @@ def _fly_px4_like(mfile: Path, speedup: float, out: Path, *extra: str) -> tuple[
     spec = load_mission(mfile)
     lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
     port = free_udp_port()
-    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", f"{speedup:g}",
-                            "--profile", "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
-                            *extra], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    veh = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sitl.vehicle",
+            "--port",
+            str(port),
+            "--speedup",
+            f"{speedup:g}",
+            "--profile",
+            "px4",
+            "--home",
+            f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
+            *extra,
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
-        p = _fly([str(mfile), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", f"{speedup:g}", "--out",
-                  str(out), "--no-localize"])
+        p = _fly(
+            [
+                str(mfile),
+                "--connect",
+                f"udpin://127.0.0.1:{port}",
+                "--speedup",
+                f"{speedup:g}",
+                "--out",
+                str(out),
+                "--no-localize",
+            ]
+        )
         _, err = p.communicate(timeout=150)
     finally:
         veh.terminate()
@@ -315,7 +376,9 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     from mission.spec import load_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
-    d["trajectory"]["params"]["spacing_m"] = 200  # one ring: 223 s of flight, 22 s of wall clock at 10x
+    d["trajectory"]["params"]["spacing_m"] = (
+        200  # one ring: 223 s of flight, 22 s of wall clock at 10x
+    )
     d["budget_policy"] = "warn"  # this test is about the warning (the default, trim, acts on it)
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
@@ -323,25 +386,33 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     # touchdown-to-disarm delay (over --connect the runner takes it for PX4)
     base = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
     plan = base + LANDED_TO_DISARM_S["PX4"]
-    d["time_budget_s"] = round(base * 1.03)  # the built-in vehicle disarms at touchdown: 3 % above its flight
+    d["time_budget_s"] = round(
+        base * 1.03
+    )  # the built-in vehicle disarms at touchdown: 3 % above its flight
     mfile.write_text(yaml.safe_dump(d))
     texts = tmp_path / "texts.jsonl"
     rc, err = _fly_px4_like(mfile, 10, tmp_path / "f", "--statustext-log", str(texts))
     assert rc == 0, err[-3000:]
-    assert "of wall-clock time at speed-up 10" in err and "add --speedup" not in err  # duration line, --connect
+    assert (
+        "of wall-clock time at speed-up 10" in err and "add --speedup" not in err
+    )  # duration line, --connect
     log = read_flight_log(_log_of(tmp_path / "f"))
     ev = log.meta["events"]
     kinds = [e["kind"] for e in ev]
     sent = [json.loads(line) for line in texts.read_text().splitlines()]
     assert len(sent) >= 6 and all(r["sent"] for r in sent)  # the vehicle dropped none
     got = [e["text"] for e in ev if e["kind"] == "statustext"]
-    assert got == ["autopilot: " + r["text"].rstrip() for r in sent]  # every text, in order, tab stripped
+    assert got == [
+        "autopilot: " + r["text"].rstrip() for r in sent
+    ]  # every text, in order, tab stripped
     assert max(i for i, k in enumerate(kinds) if k == "statustext") < kinds.index("landed")
     assert kinds.index("armed") < kinds.index("start")
     b = log.meta["budget"]
     assert b["planned_s"] == pytest.approx(plan, abs=1) and b["overrun"] and b["overrun_s"] > 0
     assert b["used_s"] == pytest.approx(b["budget_s"] + b["overrun_s"])
-    assert b["warned_at_s"] is not None and b["warned_at_s"] < 0.6 * b["used_s"]  # warned early, not at the end
+    assert (
+        b["warned_at_s"] is not None and b["warned_at_s"] < 0.6 * b["used_s"]
+    )  # warned early, not at the end
     assert "WARNING: budget will not hold" in err and f"{b['overrun_s']:.0f} s over" in err
     assert any(e["kind"] == "params" and e["text"] == "restored MPC_XY_CRUISE=4.8" for e in ev)
 
@@ -362,7 +433,10 @@ def test_terminal_signal_to_the_whole_group_returns_to_launch(tmp_path, sig):
     assert "Traceback" not in err, err[-3000:]
     assert "return to launch commanded" in err
     log = read_flight_log(_log_of(tmp_path))
-    assert log.meta["status"].startswith(f"aborted ({sig.name})") and "completed" not in log.meta["status"]
+    assert (
+        log.meta["status"].startswith(f"aborted ({sig.name})")
+        and "completed" not in log.meta["status"]
+    )
     assert log.meta["rows"] == len(log)
     assert any(e["kind"] == "landed" for e in log.meta["events"])
     assert log["rel_alt_m"][-1] < 0.5
@@ -377,11 +451,36 @@ def test_ctrl_c_twice_says_the_vehicle_was_left_in_flight(tmp_path):
     spec = load_mission(SPIRAL)
     lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
     port = free_udp_port()
-    veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "20", "--profile",
-                            "px4", "--home", f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}"], cwd=ROOT,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    p = _fly_group([str(SPIRAL), "--connect", f"udpin://127.0.0.1:{port}", "--speedup", "20", "--out",
-                    str(tmp_path), "--no-localize"])
+    veh = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sitl.vehicle",
+            "--port",
+            str(port),
+            "--speedup",
+            "20",
+            "--profile",
+            "px4",
+            "--home",
+            f"{float(lat):.9f},{float(lon):.9f},{float(alt):.3f}",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    p = _fly_group(
+        [
+            str(SPIRAL),
+            "--connect",
+            f"udpin://127.0.0.1:{port}",
+            "--speedup",
+            "20",
+            "--out",
+            str(tmp_path),
+            "--no-localize",
+        ]
+    )
     try:
         _wait_rows(tmp_path, 1500, 90)
         os.killpg(p.pid, signal.SIGINT)
@@ -397,7 +496,9 @@ def test_ctrl_c_twice_says_the_vehicle_was_left_in_flight(tmp_path):
     m = read_flight_log(_log_of(tmp_path)).meta
     assert "vehicle left in flight at" in m["status"] and " m in " in m["status"], m["status"]
     assert "returned to launch" not in m["status"] and "completed" not in m["status"]
-    assert m["vehicle_state"] == "in flight" and m["params_left_changed"] == {"MPC_XY_CRUISE": pytest.approx(4.8)}
+    assert m["vehicle_state"] == "in flight" and m["params_left_changed"] == {
+        "MPC_XY_CRUISE": pytest.approx(4.8)
+    }
     assert "parameters left changed: MPC_XY_CRUISE" in m["status"]
     assert "autopilot parameters left changed: MPC_XY_CRUISE (was 4.8)" in err
     assert m["budget"]["used_s"] is None  # never disarmed: no time is made up
@@ -417,7 +518,10 @@ def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
-    p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"], preexec_fn=full_disk)
+    p = _fly(
+        [str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"],
+        preexec_fn=full_disk,
+    )
     try:
         _, err = p.communicate(timeout=150)
     finally:
@@ -427,8 +531,13 @@ def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
     assert "log write failed (File too large)" in err and "returning to launch" in err
     log = read_flight_log(_log_of(tmp_path))
     m = log.meta
-    assert m["rows"] == len(log) == m["log_error"]["rows_kept"] and m["log_error"]["policy"] == "return"
-    assert m["status"].startswith("aborted (log write failed), returned to launch; log incomplete"), m["status"]
+    assert (
+        m["rows"] == len(log) == m["log_error"]["rows_kept"]
+        and m["log_error"]["policy"] == "return"
+    )
+    assert m["status"].startswith(
+        "aborted (log write failed), returned to launch; log incomplete"
+    ), m["status"]
     assert m["vehicle_state"] == "landed" and any(e["kind"] == "rtl" for e in m["events"])
     assert _log_of(tmp_path).stat().st_size <= limit
 
@@ -452,10 +561,16 @@ def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
     b = log.meta["budget"]
     n = len(spec.waypoints_enu())
     assert b["policy"] == "trim" and b["dropped_waypoints"] and b["dropped_waypoints"][-1] == n, b
-    assert b["dropped_waypoints"] == list(range(b["dropped_waypoints"][0], n + 1))  # the tail, whole
+    assert b["dropped_waypoints"] == list(
+        range(b["dropped_waypoints"][0], n + 1)
+    )  # the tail, whole
     assert b["arm_to_disarm_s"] is not None and b["arm_to_disarm_s"] <= 560, b
     assert not b["overrun"]
     dropped_lines = [ln for ln in err.splitlines() if "budget: dropped waypoint" in ln]
-    assert 1 <= len(dropped_lines) <= 3 and all(len(ln) <= 80 for ln in err.splitlines() if len(ln.split()) > 1), err
+    assert 1 <= len(dropped_lines) <= 3 and all(
+        len(ln) <= 80 for ln in err.splitlines() if len(ln.split()) > 1
+    ), err
     items = log.columns["mission_item"][log.columns["phase"] == "mission"]
-    assert items.max() == b["dropped_waypoints"][0] - 2  # waypoints after the last kept one were not flown
+    assert (
+        items.max() == b["dropped_waypoints"][0] - 2
+    )  # waypoints after the last kept one were not flown

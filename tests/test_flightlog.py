@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.flightlog import FlightLogWriter, make_meta, read_flight_log, sidecar_path, write_flight_log
+from mission.flightlog import (
+    FlightLogWriter,
+    make_meta,
+    read_flight_log,
+    sidecar_path,
+    write_flight_log,
+)
 from mission.geo import Origin
 
 O = Origin(35.727, -78.698, 90.0)
@@ -18,8 +24,14 @@ def _cols(n=50, attitude=True):
     t = np.arange(n) * 0.03
     enu = np.stack([np.linspace(0, 100, n), np.linspace(0, 50, n), np.full(n, 30.0)], axis=1)
     lat, lon, alt = O.to_geodetic(enu)
-    c = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": enu[:, 2],
-         "rss_dbm": -60 + np.sin(t)}
+    c = {
+        "t_s": t,
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": alt,
+        "rel_alt_m": enu[:, 2],
+        "rss_dbm": -60 + np.sin(t),
+    }
     if attitude:
         c.update(roll_deg=np.full(n, 1.5), pitch_deg=np.full(n, -3.0), yaw_deg=np.full(n, 90.0))
     return c, enu
@@ -27,7 +39,9 @@ def _cols(n=50, attitude=True):
 
 def test_round_trip(tmp_path):
     c, enu = _cols()
-    meta = make_meta(O, {"kind": "sim", "model": "e2r", "seed": 4}, truth={"x_m": 10, "y_m": 20, "z_m": 1.5})
+    meta = make_meta(
+        O, {"kind": "sim", "model": "e2r", "seed": 4}, truth={"x_m": 10, "y_m": 20, "z_m": 1.5}
+    )
     p = write_flight_log(tmp_path / "f.csv", c, meta)
     log = read_flight_log(p)
     assert len(log) == 50
@@ -49,23 +63,38 @@ def test_receiver_only_log_has_no_attitude(tmp_path):
 
 def test_extra_columns_are_kept(tmp_path):
     p = tmp_path / "x.csv"
-    p.write_text("t_s,lat_deg,lon_deg,alt_m,rel_alt_m,rss_dbm,quality_db,note\n"
-                 "0,35.7,-78.7,120,30,-50,40,a\n0.03,35.7,-78.7,120,30,-51,41,b\n")
+    p.write_text(
+        "t_s,lat_deg,lon_deg,alt_m,rel_alt_m,rss_dbm,quality_db,note\n"
+        "0,35.7,-78.7,120,30,-50,40,a\n0.03,35.7,-78.7,120,30,-51,41,b\n"
+    )
     log = read_flight_log(p)
     assert log["quality_db"].tolist() == [40, 41]
     assert log["note"].tolist() == ["a", "b"]
 
 
-@pytest.mark.parametrize("mutate, expect", [
-    (lambda L: [L[0].replace(",rss_dbm", "")] + [r.rsplit(",", 1)[0] for r in L[1:]],
-     r"missing required column\(s\) rss_dbm"),
-    (lambda L: L[:3] + [L[3].replace(L[3].split(",")[-1], "nan")] + L[4:], r"row 4, field 'rss_dbm': NaN"),
-    (lambda L: L[:2] + [L[2].replace(L[2].split(",")[-1], "abc")] + L[3:], r"row 3, field 'rss_dbm': not a number"),
-    (lambda L: L[:5] + [L[5].replace(L[5].split(",")[0], "0.0000", 1)] + L[6:],
-     r"row 6, field 't_s': time goes backwards"),
-    (lambda L: L[:2] + [L[2] + ",9"] + L[3:], r"row 3: expected 9 fields, found 10"),
-    (lambda L: L[:1], "no data rows"),
-])
+@pytest.mark.parametrize(
+    "mutate, expect",
+    [
+        (
+            lambda L: [L[0].replace(",rss_dbm", "")] + [r.rsplit(",", 1)[0] for r in L[1:]],
+            r"missing required column\(s\) rss_dbm",
+        ),
+        (
+            lambda L: L[:3] + [L[3].replace(L[3].split(",")[-1], "nan")] + L[4:],
+            r"row 4, field 'rss_dbm': NaN",
+        ),
+        (
+            lambda L: L[:2] + [L[2].replace(L[2].split(",")[-1], "abc")] + L[3:],
+            r"row 3, field 'rss_dbm': not a number",
+        ),
+        (
+            lambda L: L[:5] + [L[5].replace(L[5].split(",")[0], "0.0000", 1)] + L[6:],
+            r"row 6, field 't_s': time goes backwards",
+        ),
+        (lambda L: L[:2] + [L[2] + ",9"] + L[3:], r"row 3: expected 9 fields, found 10"),
+        (lambda L: L[:1], "no data rows"),
+    ],
+)
 def test_validation_errors_name_file_row_and_column(tmp_path, mutate, expect):
     c, _ = _cols()
     p = write_flight_log(tmp_path / "f.csv", c, make_meta(O, {"kind": "sim"}))
@@ -131,8 +160,8 @@ def test_phase_log_parsed_in_one_pass_as_the_row_parser_would(tmp_path):
 
     lines = _phase_log_text()
     rows = [ln.split(",") for ln in lines]
-    rows[2][-2] = ""      # phase left empty on data row 2
-    rows[3][-1] = "  "    # mission_item blank with spaces on data row 3
+    rows[2][-2] = ""  # phase left empty on data row 2
+    rows[3][-1] = "  "  # mission_item blank with spaces on data row 3
     text = "\n".join(",".join(r) for r in rows) + "\n"
     header = rows[0]
     fast = _fast_parse(text, header)
@@ -146,7 +175,9 @@ def test_phase_log_parsed_in_one_pass_as_the_row_parser_would(tmp_path):
             assert fast[k].tolist() == slow[k].tolist()
         else:
             assert np.array_equal(fast[k], slow[k], equal_nan=True), k
-    assert fast["phase"].tolist()[:3] == ["takeoff", "", "mission"] and np.isnan(fast["mission_item"][2])
+    assert fast["phase"].tolist()[:3] == ["takeoff", "", "mission"] and np.isnan(
+        fast["mission_item"][2]
+    )
     p = tmp_path / "p.csv"
     p.write_text(text)
     assert read_flight_log(p)["phase"].tolist()[2] == "mission"
@@ -170,15 +201,21 @@ def test_samples_view_of_a_log(tmp_path):
     lines = _phase_log_text()
     p = tmp_path / "s.csv"
     p.write_text("\n".join(lines) + "\n")
-    sidecar_path(p).write_text(json.dumps(make_meta(O, {"kind": "sim"}, truth={"x_m": 10, "y_m": 20, "z_m": 1.5})))
+    sidecar_path(p).write_text(
+        json.dumps(make_meta(O, {"kind": "sim"}, truth={"x_m": 10, "y_m": 20, "z_m": 1.5}))
+    )
     log = read_flight_log(p)
     s = log.samples()
     assert len(s) == 6 and s.name == "s" and np.allclose(s.tx_enu_m, [10, 20, 1.5])
     assert np.allclose(s.enu_m, log.enu()) and np.allclose(np.rad2deg(s.attitude_rad[:, 0]), 1.5)
     assert s.phase.tolist() == log["phase"].tolist()
     m = s.select(s.phase == "mission")
-    assert len(m) == 3 and m.t_s.shape == (3,) and m.enu_m.shape == (3, 3) and m.tx_enu_m is s.tx_enu_m
-    assert log.samples(Origin(35.7, -78.7, 90.0)).tx_enu_m is None  # the sidecar's truth is in its own frame
+    assert (
+        len(m) == 3 and m.t_s.shape == (3,) and m.enu_m.shape == (3, 3) and m.tx_enu_m is s.tx_enu_m
+    )
+    assert (
+        log.samples(Origin(35.7, -78.7, 90.0)).tx_enu_m is None
+    )  # the sidecar's truth is in its own frame
 
 
 _FULL_DISK = """
@@ -217,8 +254,12 @@ def test_a_failed_write_leaves_whole_rows_and_a_matching_sidecar(tmp_path, limit
     import sys
 
     path = tmp_path / "f.csv"
-    r = subprocess.run([sys.executable, "-c", _FULL_DISK, str(path), str(limit)], capture_output=True, text=True,
-                       timeout=60)
+    r = subprocess.run(
+        [sys.executable, "-c", _FULL_DISK, str(path), str(limit)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     failed, rows, error = r.stdout.split()
     assert failed != "None" and error == "OSError" and int(rows) == 40 * int(failed)

@@ -40,7 +40,9 @@ def test_coverage_is_the_share_of_the_track_flown(frac, offset):
     flown = _along(SQUARE, 0.0, frac) + np.array([0.0, offset * TRACK_REACH_M])
     c = track_coverage(SQUARE, flown)
     assert abs(c - frac) <= (TRACK_REACH_M + 5.0) / 600.0 + 0.02
-    assert track_coverage(SQUARE, flown + np.array([0.0, 3 * TRACK_REACH_M])) < 0.35  # only the track's far legs
+    assert (
+        track_coverage(SQUARE, flown + np.array([0.0, 3 * TRACK_REACH_M])) < 0.35
+    )  # only the track's far legs
 
 
 def test_planned_track_from_the_sidecar_record():
@@ -54,19 +56,24 @@ def test_planned_track_from_the_sidecar_record():
     assert planned_track({}, afar_field().origin) is None  # a real receiver's log: no plan
 
 
-@pytest.mark.parametrize("flown_pitch, says", [
-    ((-13.0, 10.0), None),            # inside the training's -12.9 .. 10.1 deg
-    ((-17.0, 14.0), None),            # 4.1 / 3.9 deg beyond each end: within the 5 deg tolerance
-    ((-18.5, 0.0), "pitch -18 to 0 deg against -13 to 10 deg"),   # 5.6 deg below
-    ((0.0, 15.5), "pitch 0 to 16 deg against -13 to 10 deg"),     # 5.4 deg above
-    ((-28.0, -28.0), "pitch -28 to -28 deg"),                     # PX4's steep cruise pitch
-])
+@pytest.mark.parametrize(
+    "flown_pitch, says",
+    [
+        ((-13.0, 10.0), None),  # inside the training's -12.9 .. 10.1 deg
+        ((-17.0, 14.0), None),  # 4.1 / 3.9 deg beyond each end: within the 5 deg tolerance
+        ((-18.5, 0.0), "pitch -18 to 0 deg against -13 to 10 deg"),  # 5.6 deg below
+        ((0.0, 15.5), "pitch 0 to 16 deg against -13 to 10 deg"),  # 5.4 deg above
+        ((-28.0, -28.0), "pitch -28 to -28 deg"),  # PX4's steep cruise pitch
+    ],
+)
 def test_attitude_note_cases(flown_pitch, says):
     """Hand-written cases against the shipped spiral network's pitch span (-12.9 .. 10.1 deg; roll inside)."""
     trained = ((-4.9, 17.4), (-12.9, 10.1))
     note = attitude_note("net", trained, ((0.0, 10.0), flown_pitch))
     assert note is None if says is None else (says in note and "roll" not in note)
-    assert attitude_note("net", None, ((0.0, 10.0), flown_pitch)) is None  # unknown training attitude: no claim
+    assert (
+        attitude_note("net", None, ((0.0, 10.0), flown_pitch)) is None
+    )  # unknown training attitude: no claim
     assert ATTITUDE_TOLERANCE_DEG == 5.0  # the cases above are written for it
 
 
@@ -80,8 +87,13 @@ def test_trained_legs_drop_the_transit_to_the_first_waypoint():
     assert trained_legs(plain) is plain
 
 
-REC = {"radii_m": {0.5: 5.0, 0.9: 12.0},
-       "track": {"bounds": [0.25, 0.5, 0.9], "radii_m": {0.5: [20.0, 9.0, 4.0], 0.9: [90.0, 30.0, 10.0]}}}
+REC = {
+    "radii_m": {0.5: 5.0, 0.9: 12.0},
+    "track": {
+        "bounds": [0.25, 0.5, 0.9],
+        "radii_m": {0.5: [20.0, 9.0, 4.0], 0.9: [90.0, 30.0, 10.0]},
+    },
+}
 
 
 @given(st.floats(0.0, 1.0))
@@ -92,7 +104,10 @@ def test_flown_radii_are_their_stratums_then_stop(c):
         assert radii is None and "no calibration applies" in how
     else:
         k = 0 if c < 0.5 else 1 if c < 0.9 else 2
-        assert radii == {0.5: [20.0, 9.0, 4.0][k], 0.9: [90.0, 30.0, 10.0][k]} and f"{100 * c:.0f} %" in how
+        assert (
+            radii == {0.5: [20.0, 9.0, 4.0][k], 0.9: [90.0, 30.0, 10.0][k]}
+            and f"{100 * c:.0f} %" in how
+        )
     no_track = {"radii_m": REC["radii_m"]}
     radii, how = flown_radii(no_track, c)
     assert (radii is None) == (c < FULL_TRACK)
@@ -101,7 +116,9 @@ def test_flown_radii_are_their_stratums_then_stop(c):
 
 def test_an_attitude_outside_the_training_gives_the_note_and_no_circle():
     ex: dict = {}
-    note = attach_circles(ex, 0.0, 0.0, (REC, None), flown={"track_coverage": 1.0, "attitude_note": "pitch out"})
+    note = attach_circles(
+        ex, 0.0, 0.0, (REC, None), flown={"track_coverage": 1.0, "attitude_note": "pitch out"}
+    )
     assert "regions" not in ex and "pitch out" in note and "no calibration applies" in note
 
 
@@ -150,27 +167,36 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -28.0, 0.0)
     steep = type(spiral)(cols, dict(spiral.meta), spiral.path)
     est = localize_log(steep)
-    assert est.extras["regions_from"] == "selfcal" and all(r.get("kind") != "error circle" for r in est.regions)
+    assert est.extras["regions_from"] == "selfcal" and all(
+        r.get("kind") != "error circle" for r in est.regions
+    )
     assert [r["level"] for r in est.regions] == [0.5, 0.9]
     note = est.extras["note"]
-    assert "attitude is outside" in note and "pitch -28 to -28 deg" in note and "No uncertainty region" not in note
+    assert (
+        "attitude is outside" in note
+        and "pitch -28 to -28 deg" in note
+        and "No uncertainty region" not in note
+    )
     assert "self-calibrating search's posterior" in note
     assert region_covers(est, *steep.truth_enu[:2], 0.9)
     plain = localize_log(spiral)
     assert "regions_from" not in plain.extras and plain.regions[0]["kind"] == "error circle"
 
 
-@pytest.mark.parametrize("track, ok", [
-    ({"bounds": [0.2, 0.5, 0.9], "radii_m": {"0.5": [20, 9, 4], "0.9": [90, 30, 10]}}, True),
-    ({"bounds": [0.2], "radii_m": {"0.5": [20], "0.9": [90]}}, True),
-    ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90]}}, False),
-    ({"bounds": [0.5, 0.2], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
-    ({"bounds": [0.0, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
-    ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, -9], "0.9": [90, 30]}}, False),
-    ({"bounds": "x", "radii_m": {"0.5": [20], "0.9": [90]}}, False),
-    ({"radii_m": {"0.5": [20], "0.9": [90]}}, False),
-    ({"bounds": [0.2], "radii_m": {"0.5": [20]}}, False),
-])
+@pytest.mark.parametrize(
+    "track, ok",
+    [
+        ({"bounds": [0.2, 0.5, 0.9], "radii_m": {"0.5": [20, 9, 4], "0.9": [90, 30, 10]}}, True),
+        ({"bounds": [0.2], "radii_m": {"0.5": [20], "0.9": [90]}}, True),
+        ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90]}}, False),
+        ({"bounds": [0.5, 0.2], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
+        ({"bounds": [0.0, 0.5], "radii_m": {"0.5": [20, 9], "0.9": [90, 30]}}, False),
+        ({"bounds": [0.2, 0.5], "radii_m": {"0.5": [20, -9], "0.9": [90, 30]}}, False),
+        ({"bounds": "x", "radii_m": {"0.5": [20], "0.9": [90]}}, False),
+        ({"radii_m": {"0.5": [20], "0.9": [90]}}, False),
+        ({"bounds": [0.2], "radii_m": {"0.5": [20]}}, False),
+    ],
+)
 def test_a_stored_track_record_is_read_per_stratum_or_refused_naming_the_key(tmp_path, track, ok):
     import json
 
@@ -178,7 +204,9 @@ def test_a_stored_track_record_is_read_per_stratum_or_refused_naming_the_key(tmp
     from mission.localize.error_circles import method_calibration
 
     p = tmp_path / "circles.json"
-    p.write_text(json.dumps({"grid": {"sim": {"radii_m": {"0.5": 5.0, "0.9": 12.0}, "track": track}}}))
+    p.write_text(
+        json.dumps({"grid": {"sim": {"radii_m": {"0.5": 5.0, "0.9": 12.0}, "track": track}}})
+    )
     if not ok:
         with pytest.raises(InputError, match="grid.sim.track"):
             method_calibration("grid", "sim", p)

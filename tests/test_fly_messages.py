@@ -32,8 +32,20 @@ def test_fit_width_keeps_every_word_and_each_line_within_80_columns(paragraphs):
         assert len(line) <= PLAIN_WIDTH or len(line.split()) == 1
 
 
-@given(st.lists(st.sampled_from(["Auto mission changed, restarted command", "Mission: 9 WP", "Reached command #9",
-                                 "x" * 120]), min_size=1, max_size=60))
+@given(
+    st.lists(
+        st.sampled_from(
+            [
+                "Auto mission changed, restarted command",
+                "Mission: 9 WP",
+                "Reached command #9",
+                "x" * 120,
+            ]
+        ),
+        min_size=1,
+        max_size=60,
+    )
+)
 @settings(max_examples=60, deadline=None)
 def test_repeated_texts_are_shown_once_and_counted(texts):
     f = FoldedTexts()
@@ -43,7 +55,9 @@ def test_repeated_texts_are_shown_once_and_counted(texts):
     counts = {t: texts.count(t) for t in set(texts)}
     assert len(summary) == sum(n > 1 for n in counts.values())
     for line in summary:
-        assert len(line) <= PLAIN_WIDTH and any(line.endswith(f"(x{n}, shown once)") for n in counts.values())
+        assert len(line) <= PLAIN_WIDTH and any(
+            line.endswith(f"(x{n}, shown once)") for n in counts.values()
+        )
 
 
 def test_a_failed_upload_is_one_line_with_the_result_name_and_item_count():
@@ -60,14 +74,19 @@ def test_a_failed_upload_is_one_line_with_the_result_name_and_item_count():
 
         async def upload_mission(self, items):
             Refusing.calls += 1
-            raise MissionRawError(MissionRawResult.TIMEOUT, "upload_mission()", *([object()] * 25))  # reprs
+            raise MissionRawError(
+                MissionRawResult.TIMEOUT, "upload_mission()", *([object()] * 25)
+            )  # reprs
 
     spec = load_mission(SPIRAL)
     items = build_items(spec, (35.72737, -78.69622, 0.0), True)
     ctx = new_context(spec, FlyOptions())
     with pytest.raises(UploadFailed) as ei:
         asyncio.run(upload_with_retries(ctx, Refusing(), items))
-    assert str(ei.value) == f"mission upload failed: TIMEOUT, {len(items)} items" and ei.value.code == EXIT_LINK
+    assert (
+        str(ei.value) == f"mission upload failed: TIMEOUT, {len(items)} items"
+        and ei.value.code == EXIT_LINK
+    )
     retried = [e["text"] for e in ctx.st.events if e["kind"] == "upload"]
     assert Refusing.calls == 3 and retried == ["mission upload failed (TIMEOUT); retrying"] * 2
 
@@ -86,7 +105,11 @@ def test_home_must_keep_the_return_overshoot_plus_the_margin_from_the_fence(insi
     home = [east - inside_m, 54.1]
     spec = parse_mission({"home": home, "home_margin_m": margin})
     clear = float(area.signed_distance(np.array([home]))[0])
-    bad = [v for v in check_mission(spec).violations if v.key == "home" and v.message.startswith("home at")]
+    bad = [
+        v
+        for v in check_mission(spec).violations
+        if v.key == "home" and v.message.startswith("home at")
+    ]
     assert bool(bad) == (clear < RETURN_OVERSHOOT_M + margin - 1e-6), (clear, bad)
 
 
@@ -128,12 +151,21 @@ def test_fly_mission_refuses_a_negative_seed_in_one_line(capsys):
     assert len(err) == 1 and "--seed" in err[0] and "-3" in err[0], err
 
 
-@pytest.mark.parametrize("block, flag, flown, said", [
-    ("adaptive: {}", False, False, True), ("adaptive: null", False, False, True),
-    ("adaptive: {enabled: false}", False, False, True), ("adaptive: {enabled: true}", False, True, False),
-    ("adaptive: {}", True, True, False), ("", False, False, False), ("", True, True, False),
-])
-def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(block, flag, flown, said):
+@pytest.mark.parametrize(
+    "block, flag, flown, said",
+    [
+        ("adaptive: {}", False, False, True),
+        ("adaptive: null", False, False, True),
+        ("adaptive: {enabled: false}", False, False, True),
+        ("adaptive: {enabled: true}", False, True, False),
+        ("adaptive: {}", True, True, False),
+        ("", False, False, False),
+        ("", True, True, False),
+    ],
+)
+def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(
+    block, flag, flown, said
+):
     import yaml
 
     from mission.cli.fly import choose_adaptive
@@ -143,7 +175,9 @@ def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(b
     a, note = choose_adaptive(spec, flag)
     assert (a is not None) == flown and (note is not None) == said
     if said:
-        assert note == "adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission"
+        assert (
+            note == "adaptive: not enabled (enabled: true or --adaptive): flying the fixed mission"
+        )
 
 
 @pytest.mark.slow
@@ -153,9 +187,24 @@ def test_the_fixed_mission_line_comes_first_in_a_real_run(tmp_path):
 
     m = tmp_path / "m.yaml"
     m.write_text(SPIRAL.read_text() + "\nadaptive: null\n")
-    p = subprocess.run([sys.executable, "-m", "mission.cli.fly", str(m), "--connect",
-                        f"udpin://127.0.0.1:{free_udp_port()}", "--link-timeout", "1", "--out", str(tmp_path / "f")],
-                       cwd=ROOT, capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mission.cli.fly",
+            str(m),
+            "--connect",
+            f"udpin://127.0.0.1:{free_udp_port()}",
+            "--link-timeout",
+            "1",
+            "--out",
+            str(tmp_path / "f"),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 3 and lines[0].startswith("adaptive: not enabled"), p.stderr
     assert sum("adaptive" in ln for ln in lines) == 1

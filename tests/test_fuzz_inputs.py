@@ -34,9 +34,14 @@ from mission.cli.main import main as rfsl_main
 pytestmark = pytest.mark.slow
 
 # no shrinking phase: the time stays bounded by max_examples (a failure prints its unshrunk case)
-FUZZ = settings(max_examples=40, deadline=None, derandomize=True, database=None,
-                phases=[Phase.explicit, Phase.generate],
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    phases=[Phase.explicit, Phase.generate],
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 CALL_LIMIT_S = 60
 
 
@@ -54,7 +59,11 @@ def call(main, argv: list) -> tuple[int, str, str]:
     old = signal.signal(signal.SIGALRM, alarm)
     signal.alarm(CALL_LIMIT_S)
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings():
+        with (
+            contextlib.redirect_stdout(out),
+            contextlib.redirect_stderr(err),
+            warnings.catch_warnings(),
+        ):
             warnings.simplefilter("ignore")
             try:
                 rc = main([str(a) for a in argv])
@@ -71,20 +80,34 @@ def assert_promise(rc: int, err: str, argv) -> None:
     assert "Traceback" not in err, (argv, err)
     if rc == 0:
         return
-    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith(("note: ", "warning: ", "  "))]
+    lines = [
+        ln
+        for ln in err.splitlines()
+        if ln.strip() and not ln.startswith(("note: ", "warning: ", "  "))
+    ]
     assert rc == 2, (argv, rc, err)
     assert len(lines) == 1 and lines[0].startswith("error: "), (argv, err)
 
 
 # --- values: every JSON/YAML type, extreme numbers, odd text, nesting ----------------------------------------
 
-NUMBERS = st.one_of(st.integers(-2**70, 2**70), st.floats(allow_nan=True, allow_infinity=True),
-                    st.sampled_from([0, -1, 1e300, -1e300, 1e-300, 2**63, -(2**63), 1e18, -1e18]))
-TEXT = st.one_of(st.text(max_size=30), st.sampled_from(["", "\x00", "../../x", "/", "a" * 300, "é", "\ud7ff", "nan"]))
+NUMBERS = st.one_of(
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0, -1, 1e300, -1e300, 1e-300, 2**63, -(2**63), 1e18, -1e18]),
+)
+TEXT = st.one_of(
+    st.text(max_size=30),
+    st.sampled_from(["", "\x00", "../../x", "/", "a" * 300, "é", "\ud7ff", "nan"]),
+)
 LEAF = st.one_of(st.none(), st.booleans(), NUMBERS, TEXT)
-VALUE = st.recursive(LEAF, lambda inner: st.one_of(st.lists(inner, max_size=4),
-                                                    st.dictionaries(st.text(max_size=8), inner, max_size=4)),
-                     max_leaves=12)
+VALUE = st.recursive(
+    LEAF,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)
+    ),
+    max_leaves=12,
+)
 
 
 def nested(depth: int):
@@ -121,15 +144,43 @@ def base(tmp_path_factory):
     d = tmp_path_factory.mktemp("fuzz")
     log = write_log(d / "log.csv")
     (d / "plain.txt").write_text("x\n")
-    return {"dir": d, "log": log, "meta": json.loads((d / "log.json").read_text()),
-            "mission": yaml.safe_load(Path(SPIRAL).read_text()), "mat": mat_arrays(300), "plain": d / "plain.txt"}
+    return {
+        "dir": d,
+        "log": log,
+        "meta": json.loads((d / "log.json").read_text()),
+        "mission": yaml.safe_load(Path(SPIRAL).read_text()),
+        "mat": mat_arrays(300),
+        "plain": d / "plain.txt",
+    }
 
 
-SIDECAR_KEYS = ["rss_source", "rss_source.kind", "rss_source.model", "rss_source.seed", "rss_source.model_params",
-                "trajectory", "trajectory.generator", "trajectory.params", "trajectory.altitude_m",
-                "trajectory.adaptive", "live_estimate", "live_estimate.method", "truth", "truth.lat_deg",
-                "truth.height_m", "origin", "origin.lat_deg", "origin.alt_m", "status", "rover_area", "format",
-                "mission", "rows", "estimates", "budget"]
+SIDECAR_KEYS = [
+    "rss_source",
+    "rss_source.kind",
+    "rss_source.model",
+    "rss_source.seed",
+    "rss_source.model_params",
+    "trajectory",
+    "trajectory.generator",
+    "trajectory.params",
+    "trajectory.altitude_m",
+    "trajectory.adaptive",
+    "live_estimate",
+    "live_estimate.method",
+    "truth",
+    "truth.lat_deg",
+    "truth.height_m",
+    "origin",
+    "origin.lat_deg",
+    "origin.alt_m",
+    "status",
+    "rover_area",
+    "format",
+    "mission",
+    "rows",
+    "estimates",
+    "budget",
+]
 
 
 @FUZZ
@@ -142,18 +193,47 @@ def test_generated_sidecars(base, tmp_path_factory, data, value):
     csv = d / "f.csv"
     csv.write_bytes(base["log"].read_bytes())
     (d / "f.json").write_text(json.dumps(mutate(base["meta"], path, value), allow_nan=True))
-    for argv in (["localize", csv, "--method", "centroid"], ["localize", csv, "--method", "centroid", "--json"]):
+    for argv in (
+        ["localize", csv, "--method", "centroid"],
+        ["localize", csv, "--method", "centroid", "--json"],
+    ):
         main = localize_main
         rc, _, err = call(main, argv[1:])
         assert_promise(rc, err, (path, value))
 
 
-MISSION_KEYS = ["name", "altitude_m", "cruise_speed_mps", "time_budget_s", "fence_margin_m", "altitude_limits_m",
-                "home", "return_behaviour", "trajectory", "trajectory.generator", "trajectory.params",
-                "trajectory.params.spacing_m", "trajectory.waypoints", "source", "source.tx", "source.seed",
-                "source.model", "source.noise_db", "source.model_params", "vehicle", "vehicle.connection",
-                "vehicle.speedup", "vehicle.kinematics", "vehicle.kinematics.accel_mps2", "field", "field.preset",
-                "field.origin", "field.flight_area", "adaptive", "adaptive.enabled"]
+MISSION_KEYS = [
+    "name",
+    "altitude_m",
+    "cruise_speed_mps",
+    "time_budget_s",
+    "fence_margin_m",
+    "altitude_limits_m",
+    "home",
+    "return_behaviour",
+    "trajectory",
+    "trajectory.generator",
+    "trajectory.params",
+    "trajectory.params.spacing_m",
+    "trajectory.waypoints",
+    "source",
+    "source.tx",
+    "source.seed",
+    "source.model",
+    "source.noise_db",
+    "source.model_params",
+    "vehicle",
+    "vehicle.connection",
+    "vehicle.speedup",
+    "vehicle.kinematics",
+    "vehicle.kinematics.accel_mps2",
+    "field",
+    "field.preset",
+    "field.origin",
+    "field.flight_area",
+    "adaptive",
+    "adaptive.enabled",
+]
 
 
 @FUZZ
@@ -161,7 +241,9 @@ MISSION_KEYS = ["name", "altitude_m", "cruise_speed_mps", "time_budget_s", "fenc
 def test_generated_missions(base, tmp_path_factory, data, value):
     """The shipped spiral with one key set to any value, through ``rfsl export`` (parse, checks, write) and
     ``fly-mission`` (refused at the latest by its --out under a file: nothing starts)."""
-    path = data.draw(st.sampled_from([p.split(".") for p in MISSION_KEYS] + key_paths(base["mission"])))
+    path = data.draw(
+        st.sampled_from([p.split(".") for p in MISSION_KEYS] + key_paths(base["mission"]))
+    )
     d = tmp_path_factory.mktemp("m")
     m = d / "m.yaml"
     m.write_text(yaml.safe_dump(mutate(base["mission"], path, value), allow_unicode=True))
@@ -173,11 +255,24 @@ def test_generated_missions(base, tmp_path_factory, data, value):
 
 
 @FUZZ
-@given(text=st.one_of(st.binary(max_size=2000),
-                      st.text(max_size=400).map(lambda s: s.encode("utf-8", "surrogatepass")),
-                      st.sampled_from([b"", b"\xef\xbb\xbf", b"a: &x [1]\nb: *x\n", b"a: 1\na: 2\n", b"[" * 3000,
-                                       b"!!python/object:os.system x\n", "name: café\n".encode("latin-1")]),
-                      st.integers(1, 5).map(lambda k: (b"altitude_m: 30\n" * k) + b"\xff")))
+@given(
+    text=st.one_of(
+        st.binary(max_size=2000),
+        st.text(max_size=400).map(lambda s: s.encode("utf-8", "surrogatepass")),
+        st.sampled_from(
+            [
+                b"",
+                b"\xef\xbb\xbf",
+                b"a: &x [1]\nb: *x\n",
+                b"a: 1\na: 2\n",
+                b"[" * 3000,
+                b"!!python/object:os.system x\n",
+                "name: café\n".encode("latin-1"),
+            ]
+        ),
+        st.integers(1, 5).map(lambda k: (b"altitude_m: 30\n" * k) + b"\xff"),
+    )
+)
 def test_generated_mission_encodings(tmp_path_factory, text):
     """Any bytes as a mission file: binary, Latin-1, BOM, aliases, duplicates, tags, deep nesting."""
     d = tmp_path_factory.mktemp("e")
@@ -192,8 +287,12 @@ EXTREME = st.sampled_from([np.nan, np.inf, -np.inf, 1e300, -1e300, -1e18, 1e18, 
 
 
 @FUZZ
-@given(var=st.sampled_from(MAT_VARS), kind=st.sampled_from(["values", "length", "text", "drop", "int", "matrix"]),
-       idx=st.lists(st.integers(0, 299), min_size=1, max_size=300), v=EXTREME)
+@given(
+    var=st.sampled_from(MAT_VARS),
+    kind=st.sampled_from(["values", "length", "text", "drop", "int", "matrix"]),
+    idx=st.lists(st.integers(0, 299), min_size=1, max_size=300),
+    v=EXTREME,
+)
 def test_generated_mat_files(base, tmp_path_factory, var, kind, idx, v):
     """A real-looking AFAR MAT file with one variable damaged: extreme values at some samples, the wrong
     length, text, missing, integers or a matrix; through ``rfsl import``."""
@@ -221,26 +320,48 @@ def test_generated_mat_files(base, tmp_path_factory, var, kind, idx, v):
         assert_promise(rc2, err2, (var, kind, v, "localize"))
 
 
-OPTION_VALUE = st.one_of(NUMBERS.map(repr), TEXT, st.sampled_from(["1e9", "-0", "0x10", "1,2", "91,0", "nan,nan",
-                                                                    "/dev/zero", "/proc/x", "", " ", "--"]))
+OPTION_VALUE = st.one_of(
+    NUMBERS.map(repr),
+    TEXT,
+    st.sampled_from(
+        ["1e9", "-0", "0x10", "1,2", "91,0", "nan,nan", "/dev/zero", "/proc/x", "", " ", "--"]
+    ),
+)
 # (program, option, the rest of the command line: its last output path lies under a file)
-OPTIONS = [
-    ("fly-mission", o, "{mission} --out {plain}/f") for o in
-    ("--speedup", "--rate", "--link-timeout", "--land-timeout", "--connect", "--rss-source")
-] + [
-    ("rfsl", o, "dataset {mission} --n 5 --out {plain}/ds") for o in ("--n", "--chunk", "--workers", "--altitude",
-                                                                     "--noise", "--seed")
-] + [
-    ("rfsl", o, "preview {mission} --out {plain}/p.png") for o in ("--size", "--grid", "--seed")
-] + [
-    ("rfsl", o, "gap {log} --report {plain}/r") for o in ("--max-rungs", "--family-repeats", "--rate-hz",
-                                                         "--truth", "--truth-height", "--workers")
-] + [
-    ("rfsl", o, "simulate {mission} --out {plain}/s") for o in ("--source", "--seed", "--model")
-] + [
-    ("localize", o, "{log} --method centroid --plot {plain}/x.png") for o in ("--at", "--tx-height", "--truth",
-                                                                            "--origin", "--physics-preset")
-]
+OPTIONS = (
+    [
+        ("fly-mission", o, "{mission} --out {plain}/f")
+        for o in (
+            "--speedup",
+            "--rate",
+            "--link-timeout",
+            "--land-timeout",
+            "--connect",
+            "--rss-source",
+        )
+    ]
+    + [
+        ("rfsl", o, "dataset {mission} --n 5 --out {plain}/ds")
+        for o in ("--n", "--chunk", "--workers", "--altitude", "--noise", "--seed")
+    ]
+    + [("rfsl", o, "preview {mission} --out {plain}/p.png") for o in ("--size", "--grid", "--seed")]
+    + [
+        ("rfsl", o, "gap {log} --report {plain}/r")
+        for o in (
+            "--max-rungs",
+            "--family-repeats",
+            "--rate-hz",
+            "--truth",
+            "--truth-height",
+            "--workers",
+        )
+    ]
+    + [("rfsl", o, "simulate {mission} --out {plain}/s") for o in ("--source", "--seed", "--model")]
+    + [
+        ("localize", o, "{log} --method centroid --plot {plain}/x.png")
+        for o in ("--at", "--tx-height", "--truth", "--origin", "--physics-preset")
+    ]
+)
 
 
 @FUZZ

@@ -61,8 +61,14 @@ def test_alignment_geometry() -> None:
     t = np.arange(5) * 0.1
     rx = np.tile([0.0, 100.0, 30.0], (5, 1))
     att = np.zeros((5, 3))
-    f = FlightSamples(name="x", t_s=t, enu_m=rx, attitude_rad=att, rss_dbm=np.zeros(5),
-                      tx_enu_m=np.array([0.0, 0.0, 1.5]))
+    f = FlightSamples(
+        name="x",
+        t_s=t,
+        enu_m=rx,
+        attitude_rad=att,
+        rss_dbm=np.zeros(5),
+        tx_enu_m=np.array([0.0, 0.0, 1.5]),
+    )
     a = align(f)
     assert a.d_h[0] == pytest.approx(100.0)
     assert np.rad2deg(a.az_b[0]) == pytest.approx(180.0)
@@ -73,8 +79,14 @@ def test_alignment_geometry() -> None:
 
 def test_folds_are_contiguous_and_complementary() -> None:
     t = np.arange(1000) * 0.1
-    f = FlightSamples(name="x", t_s=t, enu_m=np.zeros((1000, 3)), attitude_rad=np.zeros((1000, 3)),
-                      rss_dbm=np.zeros(1000), tx_enu_m=np.zeros(3))
+    f = FlightSamples(
+        name="x",
+        t_s=t,
+        enu_m=np.zeros((1000, 3)),
+        attitude_rad=np.zeros((1000, 3)),
+        rss_dbm=np.zeros(1000),
+        tx_enu_m=np.zeros(3),
+    )
     folds = make_folds([f, f], FitConfig(n_chunks=8))
     assert len(folds) == 2
     a, b = folds[0].test[0], folds[1].test[0]
@@ -114,9 +126,20 @@ def _simulated_log(tmp_path, withheld: str | None, seed: int, dt_s: float):
     origin = afar_field().origin
     lat, lon, alt = origin.to_geodetic(f.enu_m)
     att = np.rad2deg(f.attitude_rad)
-    cols = {"t_s": f.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": f.enu_m[:, 2],
-            "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": f.rss_dbm}
-    meta = make_meta(origin, {"kind": "sim"}, {"x_m": f.tx_enu_m[0], "y_m": f.tx_enu_m[1], "z_m": f.tx_enu_m[2]})
+    cols = {
+        "t_s": f.t_s,
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": alt,
+        "rel_alt_m": f.enu_m[:, 2],
+        "roll_deg": att[:, 0],
+        "pitch_deg": att[:, 1],
+        "yaw_deg": att[:, 2],
+        "rss_dbm": f.rss_dbm,
+    }
+    meta = make_meta(
+        origin, {"kind": "sim"}, {"x_m": f.tx_enu_m[0], "y_m": f.tx_enu_m[1], "z_m": f.tx_enu_m[2]}
+    )
     return write_flight_log(tmp_path / "f.csv", cols, meta)
 
 
@@ -127,22 +150,45 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
     from mission.cli.main import main
 
     p = _simulated_log(tmp_path, "time_offset", 5, 0.2)
-    rc = main(["gap", str(p), "--base", "e2r", "--candidates", "time_offset,attitude", "--max-rungs", "2",
-               "--report", str(tmp_path / "rep")])
+    rc = main(
+        [
+            "gap",
+            str(p),
+            "--base",
+            "e2r",
+            "--candidates",
+            "time_offset,attitude",
+            "--max-rungs",
+            "2",
+            "--report",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert rc == 0
     doc = json.loads((tmp_path / "rep" / "gap.json").read_text())
     ladder = doc["ladder"]  # the stable top level (schema 2)
-    assert ladder[0]["added"] is None and set(ladder[0]["heldout"]) == {"n", "median_abs_db", "p90_abs_db", "rms_db"}
+    assert ladder[0]["added"] is None and set(ladder[0]["heldout"]) == {
+        "n",
+        "median_abs_db",
+        "p90_abs_db",
+        "rms_db",
+    }
     ranked = doc["rankings"][ladder[0]["rung"]]
     assert {r["name"] for r in ranked} == {"time_offset"}  # attitude is already in e2r
     r0 = ranked[0]
-    assert r0["tier"] == "named" and r0["significant"] == (r0["ci_lo_db2"] > 0 and r0["rel_reduction"] >= 0.01)
-    assert "smoother" in doc["rule"] and doc["named"] == ("time_offset" if r0["significant"] else None)
+    assert r0["tier"] == "named" and r0["significant"] == (
+        r0["ci_lo_db2"] > 0 and r0["rel_reduction"] >= 0.01
+    )
+    assert "smoother" in doc["rule"] and doc["named"] == (
+        "time_offset" if r0["significant"] else None
+    )
     # the simulated log has no shadowing field: nothing fixed to the ground; the withheld lag leaves an error that
     # follows the flight (issue 34: "correlated within flights"), or white noise where it is small
     assert doc["structure"]["base"]["verdict"] in ("white noise", "correlated within flights")
     for png in ("cdf.png", "breakdown.png", "field_map.png", "polar_body_azimuth.png"):
-        assert_png_drawn(tmp_path / "rep" / png)  # decoded: an image with curves/colours, not an empty canvas
+        assert_png_drawn(
+            tmp_path / "rep" / png
+        )  # decoded: an image with curves/colours, not an empty canvas
     assert main(["gap", str(p), "--candidates", "nope"]) == 2
 
 
@@ -154,10 +200,24 @@ def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
 
     p = _simulated_log(tmp_path, None, 6, 0.5)
     capsys.readouterr()
-    rc = main(["gap", str(p), "--candidates", "rx_gain_map,excess_loss", "--max-rungs", "1", "--no-localize",
-               "--json", "--report", str(tmp_path / "rep")])
+    rc = main(
+        [
+            "gap",
+            str(p),
+            "--candidates",
+            "rx_gain_map,excess_loss",
+            "--max-rungs",
+            "1",
+            "--no-localize",
+            "--json",
+            "--report",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert rc == 0
-    out = strict_loads(capsys.readouterr().out)  # strict JSON: no NaN / Infinity (detectable_db can be inf)
+    out = strict_loads(
+        capsys.readouterr().out
+    )  # strict JSON: no NaN / Infinity (detectable_db can be inf)
     doc = strict_loads((tmp_path / "rep" / "gap.json").read_text())
     assert out["ladder"] == doc["ladder"] and out["rankings"] == doc["rankings"]
     assert {r["tier"] for rs in out["rankings"].values() for r in rs} == {"free-form"}

@@ -14,7 +14,14 @@ from mission.gap.candidates import select
 from mission.gap.fit import FitConfig, Fold, make_folds
 from mission.gap.ladder import ladder
 from mission.gap.pipeline import Pipeline
-from mission.gap.power import DEPTHS_DB, FIT_MARGIN, band_shape, fit_band, injected_test, power_statement
+from mission.gap.power import (
+    DEPTHS_DB,
+    FIT_MARGIN,
+    band_shape,
+    fit_band,
+    injected_test,
+    power_statement,
+)
 from mission.gap.stats import block_length
 from mission.gap.structure import identify
 from mission.physics import Attitude, make_model
@@ -26,8 +33,17 @@ BODY = "leg_shadowing,near_nadir,rx_gain_map,ground_reflection"
 
 def _flights(effect: str, seed: int, strength: float) -> tuple[list[FlightSamples], dict]:
     raw, truth = make_case(effect, seed, dt=0.5, strength=strength)
-    return [FlightSamples(name=f"s{k}", t_s=f["t"], enu_m=f["pos"], attitude_rad=f["att"], rss_dbm=f["rss"],
-                          tx_enu_m=f["tx"]) for k, f in enumerate(raw)], truth
+    return [
+        FlightSamples(
+            name=f"s{k}",
+            t_s=f["t"],
+            enu_m=f["pos"],
+            attitude_rad=f["att"],
+            rss_dbm=f["rss"],
+            tx_enu_m=f["tx"],
+        )
+        for k, f in enumerate(raw)
+    ], truth
 
 
 BASE = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
@@ -63,11 +79,19 @@ def test_near_nadir_found_or_power_statement_says_why(effect: str) -> None:
     out = identify(flights, BASE, cands, CFG)
     dep = [np.rad2deg(np.arcsin(np.clip(_dep_sin(f), -1, 1))) for f in flights]
     res = [offset_residual(f.rss_dbm, BASE.predict(f)) for f in flights]
-    ps = power_statement(dep, res, [block_length(r) for r in res], make_folds(flights, CFG), CFG, len(cands))
+    ps = power_statement(
+        dep, res, [block_length(r) for r in res], make_folds(flights, CFG), CFG, len(cands)
+    )
     if effect == "nadir":
-        assert out["named"] != "near_nadir" and ps["detectable_db"] > truth["depth_db"], (out["ranking"][:3], ps)
+        assert out["named"] != "near_nadir" and ps["detectable_db"] > truth["depth_db"], (
+            out["ranking"][:3],
+            ps,
+        )
     else:
-        assert out["named"] == "near_nadir" and ps["detectable_db"] <= truth["depth_db"], (out["ranking"][:3], ps)
+        assert out["named"] == "near_nadir" and ps["detectable_db"] <= truth["depth_db"], (
+            out["ranking"][:3],
+            ps,
+        )
         assert abs(out["params"]["centre_deg"] - 75.0) < 12.0
 
 
@@ -83,10 +107,12 @@ def test_fit_band_recovers_a_noiseless_band() -> None:
     assert (depth, centre, width) == (pytest.approx(6.0), 70.0, 8.0)
 
 
-def _one_flight(band_starts: list[int], n: int = 4000, chunks: int = 8) -> tuple[np.ndarray, list[Fold]]:
+def _one_flight(
+    band_starts: list[int], n: int = 4000, chunks: int = 8
+) -> tuple[np.ndarray, list[Fold]]:
     dep = np.full(n, 20.0)
     for a in band_starts:
-        dep[a: a + 20] = np.linspace(60.0, 90.0, 20)
+        dep[a : a + 20] = np.linspace(60.0, 90.0, 20)
     parity = (np.arange(n) * chunks // n) % 2
     folds = [Fold([np.nonzero(parity != p)[0]], [np.nonzero(parity == p)[0]]) for p in (0, 1)]
     return dep, folds
@@ -97,13 +123,16 @@ def test_power_statement_needs_the_band_in_both_folds() -> None:
     both folds: a finite smallest loss, which the injected test calls significant (and half of it not)."""
     rng = np.random.default_rng(0)
     r = [rng.normal(0.0, 1.0, 4000)]
-    dep, folds = _one_flight([100, 1100, 2100, 3100])   # chunks of 500: all even
+    dep, folds = _one_flight([100, 1100, 2100, 3100])  # chunks of 500: all even
     one = power_statement([dep], r, [4], folds, CFG, 4)
     assert one["samples"] == 80 and one["passes"] == 4 and one["detectable_db"] == np.inf
     assert "cannot be shown" in one["statement"]
-    dep, folds = _one_flight(list(range(100, 4000, 250)))   # 16 passes, both parities
+    dep, folds = _one_flight(list(range(100, 4000, 250)))  # 16 passes, both parities
     ps = power_statement([dep], r, [4], folds, CFG, 4)
-    assert ps["passes"] == 16 and ps["detectable_db"] == FIT_MARGIN * ps["injected_threshold_db"] < 10.0
+    assert (
+        ps["passes"] == 16
+        and ps["detectable_db"] == FIT_MARGIN * ps["injected_threshold_db"] < 10.0
+    )
     assert injected_test([dep], r, folds, CFG, 4, 2 * ps["injected_threshold_db"])[0]
     k = DEPTHS_DB.index(ps["injected_threshold_db"])
     assert k == 0 or not injected_test([dep], r, folds, CFG, 4, DEPTHS_DB[k - 1])[0]
@@ -118,14 +147,23 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
 
     flights, _ = _flights("legs", 3, 1.0)
     far = flights[1]
-    flights.append(FlightSamples(name="far", t_s=far.t_s, enu_m=far.enu_m + [5000.0, -3000.0, 0.0],
-                                 attitude_rad=far.attitude_rad, rss_dbm=far.rss_dbm,
-                                 tx_enu_m=far.tx_enu_m + [5000.0, -3000.0, 0.0]))
+    flights.append(
+        FlightSamples(
+            name="far",
+            t_s=far.t_s,
+            enu_m=far.enu_m + [5000.0, -3000.0, 0.0],
+            attitude_rad=far.attitude_rad,
+            rss_dbm=far.rss_dbm,
+            tx_enu_m=far.tx_enu_m + [5000.0, -3000.0, 0.0],
+        )
+    )
     flights.append(far)
     rng = np.random.default_rng(4)
     idx = [np.sort(rng.choice(len(f), size=min(len(f), 700), replace=False)) for f in flights]
     idx[-1] = np.zeros(0, int)
-    pipe = BASE.replace(model=BASE.model.with_effect(NearNadirLoss(6.0, 70.0, 8.0)), time_offset_s=0.4)
+    pipe = BASE.replace(
+        model=BASE.model.with_effect(NearNadirLoss(6.0, 70.0, 8.0)), time_offset_s=0.4
+    )
     got = predict_channels(pipe, flights, idx)
     for f, i, g in zip(flights, idx, got, strict=True):
         want = pipe.predict_channel(f, i) if len(i) else np.zeros(0)
@@ -138,9 +176,16 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
     pipe = pipe.replace(receiver=Receiver(-95.0, -40.0))
     for loss in ("l2", "soft_l1", "huber"):
         got = offset_residuals(pipe, flights, idx, loss=loss, f_scale_db=4.0)
-        want = [offset_residual(f.rss_dbm[i], pipe.predict(f, i), False, loss, 4.0) if len(i) else np.zeros(0)
-                for f, i in zip(flights, idx, strict=True)]
+        want = [
+            offset_residual(f.rss_dbm[i], pipe.predict(f, i), False, loss, 4.0)
+            if len(i)
+            else np.zeros(0)
+            for f, i in zip(flights, idx, strict=True)
+        ]
         assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
         cfg = FitConfig(loss=loss, f_scale_db=4.0)
         n = sum(len(w) for w in want)
-        assert objective(pipe, flights, idx, cfg) == sum(per_sample_loss(w, loss, 4.0).sum() for w in want) / n
+        assert (
+            objective(pipe, flights, idx, cfg)
+            == sum(per_sample_loss(w, loss, 4.0).sum() for w in want) / n
+        )

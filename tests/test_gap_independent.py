@@ -37,7 +37,9 @@ def test_withheld_effect_named_first(effect: str) -> None:
         return
     fp = r["footprint"]
     assert fp["size_db"] > 1.0
-    if effect == "ripple":  # A cos(3 az): the map's size where it acts is about the amplitude A (2-2.5 dB)
+    if (
+        effect == "ripple"
+    ):  # A cos(3 az): the map's size where it acts is about the amplitude A (2-2.5 dB)
         assert 1.2 < fp["size_db"] < 4.0
         # its trough lies in a minimum of cos(3 (az - phi)): phi + 60 deg + k 120 deg
         off = (r["params"]["where"]["trough_body_azimuth_deg"] - r["truth"]["phase_deg"]) % 120.0
@@ -70,7 +72,9 @@ def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
 
     raw, _ = make_case("none", 6, n_flights=1, duration=300.0)
     f0 = raw[0]
-    fl = FlightSamples(f0["pos"], np.zeros(len(f0["t"])), f0["att"], f0["t"], tx_enu_m=f0["tx"], name="x")
+    fl = FlightSamples(
+        f0["pos"], np.zeros(len(f0["t"])), f0["att"], f0["t"], tx_enu_m=f0["tx"], name="x"
+    )
     pipe = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     az, _ = map_variables("rx_gain_map", link_of(pipe, fl, np.arange(len(fl))))
     truth = 2.0 * np.cos(3 * (az - 1.0))
@@ -102,11 +106,19 @@ def test_one_home_rules() -> None:
     assert np.allclose(_dipole_db(s), Dipole().gain_dbi(np.arcsin(s)))
 
 
-@pytest.mark.parametrize(("effect", "noise_db", "correlated"), [
-    ("none", 1.0, False), ("none", 4.0, False), ("timing", 1.0, False),
-    ("shadowing", 1.0, True), ("shadowing", 4.0, True)])
-def test_white_or_correlated_decision_on_the_independent_generator(effect: str, noise_db: float,
-                                                                   correlated: bool) -> None:
+@pytest.mark.parametrize(
+    ("effect", "noise_db", "correlated"),
+    [
+        ("none", 1.0, False),
+        ("none", 4.0, False),
+        ("timing", 1.0, False),
+        ("shadowing", 1.0, True),
+        ("shadowing", 4.0, True),
+    ],
+)
+def test_white_or_correlated_decision_on_the_independent_generator(
+    effect: str, noise_db: float, correlated: bool
+) -> None:
     """The verdict rests on the near/all-pair semivariance ratio (bootstrap bound), not on the fitted L:
     white noise (1 or 4 dB, or a withheld time offset) gives ratio ~ 1, a 4 dB exponential field ratio < 0.8."""
     from mission.gap.pipeline import Pipeline
@@ -117,10 +129,15 @@ def test_white_or_correlated_decision_on_the_independent_generator(effect: str, 
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     for seed in (1, 2):
         raw, _ = make_case(effect, seed, noise_db=noise_db, dt=0.5)
-        fl = [FlightSamples(f["pos"], f["rss"], f["att"], f["t"], tx_enu_m=f["tx"], name=f"s{k}")
-              for k, f in enumerate(raw)]
-        s = residual_structure(fl, [offset_residual(f.rss_dbm, base.predict(f)) for f in fl],
-                               np.random.default_rng(seed))
+        fl = [
+            FlightSamples(f["pos"], f["rss"], f["att"], f["t"], tx_enu_m=f["tx"], name=f"s{k}")
+            for k, f in enumerate(raw)
+        ]
+        s = residual_structure(
+            fl,
+            [offset_residual(f.rss_dbm, base.predict(f)) for f in fl],
+            np.random.default_rng(seed),
+        )
         t = s["test"]
         assert (s["verdict"] == "correlated shadowing") is correlated, (effect, noise_db, seed, t)
         assert t["ratio_ci"][0] <= t["ratio"] <= t["ratio_ci"][1] and t["n_near_pairs"] > 1000
@@ -136,9 +153,20 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     from mission.gap.spatial import SiteMap, fit_site_map, site_variables
 
     raw, _ = make_case("none", 3, n_flights=3, dt=0.5)
-    tx = np.array([180.0, 180.0, 1.5])  # mid-field: the spiral (flight 1) sees it from every azimuth
-    fl = [FlightSamples(f["pos"], np.zeros(len(f["t"])), f["att"], f["t"], tx_enu_m=tx if k < 2 else f["tx"],
-                        name=f"s{k}") for k, f in enumerate(raw)]
+    tx = np.array(
+        [180.0, 180.0, 1.5]
+    )  # mid-field: the spiral (flight 1) sees it from every azimuth
+    fl = [
+        FlightSamples(
+            f["pos"],
+            np.zeros(len(f["t"])),
+            f["att"],
+            f["t"],
+            tx_enu_m=tx if k < 2 else f["tx"],
+            name=f"s{k}",
+        )
+        for k, f in enumerate(raw)
+    ]
 
     def site(f: FlightSamples) -> np.ndarray:
         az, _ = site_variables(f.tx_enu_m, f.enu_m[:, :2])
@@ -148,7 +176,10 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     r1 = site(fl[1]) + rng.normal(0.0, 2.0, len(fl[1]))
     sm, params = fit_site_map([fl[1]], [np.arange(len(fl[1]))], [r1 - r1.mean()], loss="soft_l1")
     assert isinstance(sm, SiteMap) and params["sites"] == 1 and params["size_db"] > 8.0
-    pred, truth = sm.field_db(fl[0], fl[0].enu_m[:, :2]), site(fl[0])  # the lawnmower: learned from the spiral
+    pred, truth = (
+        sm.field_db(fl[0], fl[0].enu_m[:, :2]),
+        site(fl[0]),
+    )  # the lawnmower: learned from the spiral
     assert np.corrcoef(pred, truth)[0, 1] > 0.9
     assert np.std(pred - truth) < 0.4 * np.std(truth)
     assert not np.any(sm.field_db(fl[2], fl[2].enu_m[:, :2]))
@@ -156,4 +187,6 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     from mission.gap.spatial import usable_candidates
 
     names = [c.name for c in usable_candidates(select("all"), fl[:2])]
-    assert "site_map" in names and "site_map" not in [c.name for c in usable_candidates(select("all"), fl[1:])]
+    assert "site_map" in names and "site_map" not in [
+        c.name for c in usable_candidates(select("all"), fl[1:])
+    ]

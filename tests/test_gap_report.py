@@ -21,9 +21,22 @@ def _logs(tmp_path, n: int = 2) -> list[str]:
     for k, f in enumerate(flights):
         lat, lon, alt = origin.to_geodetic(f.enu_m)
         att = np.rad2deg(f.attitude_rad)
-        cols = {"t_s": f.t_s, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": f.enu_m[:, 2],
-                "roll_deg": att[:, 0], "pitch_deg": att[:, 1], "yaw_deg": att[:, 2], "rss_dbm": f.rss_dbm}
-        meta = make_meta(origin, {"kind": "sim"}, {"x_m": f.tx_enu_m[0], "y_m": f.tx_enu_m[1], "z_m": f.tx_enu_m[2]})
+        cols = {
+            "t_s": f.t_s,
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "alt_m": alt,
+            "rel_alt_m": f.enu_m[:, 2],
+            "roll_deg": att[:, 0],
+            "pitch_deg": att[:, 1],
+            "yaw_deg": att[:, 2],
+            "rss_dbm": f.rss_dbm,
+        }
+        meta = make_meta(
+            origin,
+            {"kind": "sim"},
+            {"x_m": f.tx_enu_m[0], "y_m": f.tx_enu_m[1], "z_m": f.tx_enu_m[2]},
+        )
         p = tmp_path / f"results_useful_ori_exp_{(288, 328)[k % 2]}_loc_{k + 1}.csv"
         out.append(str(write_flight_log(p, cols, meta)))
     return out
@@ -36,24 +49,54 @@ def test_report_fits_80_columns_and_family_loads(tmp_path, capsys, monkeypatch) 
     logs = _logs(tmp_path)
     capsys.readouterr()
     fam = tmp_path / "fam" / "f.json"
-    rc = main(["gap", *logs, "--base", "e2r", "--pattern", "isotropic", "--candidates", "rx_pattern,time_offset",
-               "--max-rungs", "2", "--no-localize", "--report", str(tmp_path / "rep"), "--family", str(fam),
-               "--family-name", "t", "--family-repeats", "0"])  # the loop check: test_family_fit.py
+    rc = main(
+        [
+            "gap",
+            *logs,
+            "--base",
+            "e2r",
+            "--pattern",
+            "isotropic",
+            "--candidates",
+            "rx_pattern,time_offset",
+            "--max-rungs",
+            "2",
+            "--no-localize",
+            "--report",
+            str(tmp_path / "rep"),
+            "--family",
+            str(fam),
+            "--family-name",
+            "t",
+            "--family-repeats",
+            "0",
+        ]
+    )  # the loop check: test_family_fit.py
     assert rc == 0
     out = capsys.readouterr().out
-    lines = [x for x in out.splitlines() if not x.startswith("wrote ")]  # a path is as long as it is
+    lines = [
+        x for x in out.splitlines() if not x.startswith("wrote ")
+    ]  # a path is as long as it is
     assert max(len(x) for x in lines) <= 80, max(lines, key=len)
-    assert lines[0].startswith("Held-out p90 |error| of e2r(isotropic)")        # the plain summary comes first
+    assert lines[0].startswith(
+        "Held-out p90 |error| of e2r(isotropic)"
+    )  # the plain summary comes first
     assert "The model misses the UAV antenna's pattern" in " ".join(lines[:6])
-    assert "288_loc_1" in out and "results_useful" not in out                # short labels
+    assert "288_loc_1" in out and "results_useful" not in out  # short labels
     ladder = [x for x in out.split("\n\n") if x.startswith("The ladder")][0].splitlines()
-    assert len(ladder) == 3 + 2 and ladder[-1].startswith("+ rx_pattern")    # title, head, rule, one per rung
+    assert len(ladder) == 3 + 2 and ladder[-1].startswith(
+        "+ rx_pattern"
+    )  # title, head, rule, one per rung
     details = (tmp_path / "rep" / "details.txt").read_text().splitlines()
     assert max(len(x) for x in details) <= 80 and len(details) > len(lines)
     doc = json.loads((tmp_path / "rep" / "gap.json").read_text())
     assert doc["text"].startswith("Held-out p90") and doc["flights"][0]["name"] == "288_loc_1"
     f = load_family(fam)
     rec = json.loads(fam.read_text())
-    assert f.name == "t" and rec["effects"] == ["rx_antenna"] and rec["source"]["kind"] == "rfsl gap --family"
+    assert (
+        f.name == "t"
+        and rec["effects"] == ["rx_antenna"]
+        and rec["source"]["kind"] == "rfsl gap --family"
+    )
     assert [p["flight"] for p in rec["per_flight"]] == ["288_loc_1", "328_loc_2"]
     assert {p["team"] for p in rec["per_flight"]} == {"288", "328"}

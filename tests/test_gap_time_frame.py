@@ -17,8 +17,18 @@ from mission.samples import FlightSamples
 
 def _flights(effect: str, seed: int, dt: float = 1.0, **kw) -> tuple[list[FlightSamples], dict]:
     raw, truth = make_case(effect, seed, dt=dt, **kw)
-    return [FlightSamples(name=f"synth{k}", t_s=f["t"], enu_m=f["pos"], attitude_rad=f["att"], rss_dbm=f["rss"],
-                          tx_enu_m=f["tx"], phase=f.get("phase")) for k, f in enumerate(raw)], truth
+    return [
+        FlightSamples(
+            name=f"synth{k}",
+            t_s=f["t"],
+            enu_m=f["pos"],
+            attitude_rad=f["att"],
+            rss_dbm=f["rss"],
+            tx_enu_m=f["tx"],
+            phase=f.get("phase"),
+        )
+        for k, f in enumerate(raw)
+    ], truth
 
 
 def _base() -> Pipeline:
@@ -31,8 +41,12 @@ def _rank(flights, names, cfg, pipe=None):
     folds = make_folds(flights, cfg)
     pipes = [pipe or _base()] * len(folds)
     base = heldout_residuals(pipes, flights, folds, cfg)
-    return {r.name: r for r in rank_candidates(pipes, flights, folds, select(names), cfg,
-                                               np.random.default_rng(cfg.seed), base)}
+    return {
+        r.name: r
+        for r in rank_candidates(
+            pipes, flights, folds, select(names), cfg, np.random.default_rng(cfg.seed), base
+        )
+    }
 
 
 def test_flight_events_find_turns_and_phase_changes():
@@ -51,7 +65,10 @@ def test_time_drift_finds_a_step_and_nothing_in_noise():
     cfg = FitConfig(seed=1, fit_max_samples=800)
     fl, truth = _flights("step", 1)
     r = _rank(fl, ["time_drift", "path_gain_slope"], cfg)
-    assert r["time_drift"].significant and r["time_drift"].rel_reduction > 2 * r["path_gain_slope"].rel_reduction
+    assert (
+        r["time_drift"].significant
+        and r["time_drift"].rel_reduction > 2 * r["path_gain_slope"].rel_reduction
+    )
     fl0, _ = _flights("none", 1)
     assert not _rank(fl0, ["time_drift"], cfg)["time_drift"].significant
 
@@ -74,7 +91,7 @@ def test_heading_groups_split_a_lawnmower_by_row_direction():
     from mission.gap.frame import heading_groups
 
     fl, _ = _flights("none", 1)
-    g = heading_groups(fl[0])                                    # lawnmower: east- and westbound rows
+    g = heading_groups(fl[0])  # lawnmower: east- and westbound rows
     assert 0.35 < g.mean() < 0.65
     yaw = fl[0].attitude_rad[:, 2]
     east = np.abs(np.angle(np.exp(1j * (yaw - np.pi / 2)))) < 0.2
@@ -82,20 +99,28 @@ def test_heading_groups_split_a_lawnmower_by_row_direction():
     assert len(set(g[east])) == 1 and len(set(g[west])) == 1 and g[east][0] != g[west][0]
 
 
-@pytest.mark.parametrize(("effect", "verdict"), [("ripple", "body-fixed"), ("shadowing", "ground-fixed")])
+@pytest.mark.parametrize(
+    ("effect", "verdict"), [("ripple", "body-fixed"), ("shadowing", "ground-fixed")]
+)
 def test_frame_test_tells_body_from_ground(effect, verdict):
     from mission.gap.frame import frame_test
 
     fl, _ = _flights(effect, 2)
-    out = frame_test(_base(), fl, "rx_gain_map", "spatial_shadowing", FitConfig(seed=2, fit_max_samples=800))
+    out = frame_test(
+        _base(), fl, "rx_gain_map", "spatial_shadowing", FitConfig(seed=2, fit_max_samples=800)
+    )
     assert out["verdict"] == verdict, out["text"]
 
 
 def test_resolve_gives_way_to_the_frame_winner():
     from mission.gap.frame import resolve
 
-    fr = {"body": "leg_shadowing", "ground": "spatial_shadowing", "winner": "leg_shadowing",
-          "splits": {"headings": {"leg_shadowing": {"significant": False}}}}
+    fr = {
+        "body": "leg_shadowing",
+        "ground": "spatial_shadowing",
+        "winner": "leg_shadowing",
+        "splits": {"headings": {"leg_shadowing": {"significant": False}}},
+    }
     assert resolve("spatial_shadowing", [], fr) == "leg_shadowing"
     assert resolve("ground_reflection", [], fr) == "ground_reflection"
     assert resolve(None, [], fr) is None  # not significant across headings: nothing is named
@@ -122,7 +147,13 @@ def test_one_verdict_on_what_is_left():
     assert structure_verdict(test, along) == WITHIN_FLIGHT
     assert structure_verdict({**test, "correlated": True}, along) == "correlated shadowing"
     assert structure_verdict(test, {**along, "correlated_fraction": 0.2}) == "white noise"
-    st = {"verdict": WITHIN_FLIGHT, "test": test, "along_path": along, "spatial": {}, "residual_std_db": 11.0}
+    st = {
+        "verdict": WITHIN_FLIGHT,
+        "test": test,
+        "along_path": along,
+        "spatial": {},
+        "residual_std_db": 11.0,
+    }
     s = verdict_sentence(st, 2.0)
     assert "correlated along each flight" in s and "not shown to repeat over the same ground" in s
     assert "white noise of" not in s
@@ -137,8 +168,14 @@ def test_diagnosis_report_with_a_time_rung(tmp_path):
     from mission.gap.report import write_report
 
     fl, _ = _flights("step", 1)
-    d = diagnose(fl, _base(), select(["time_drift", "path_gain_slope"]), FitConfig(seed=1, fit_max_samples=800),
-                 reference=("two-ray",), localize=False)
+    d = diagnose(
+        fl,
+        _base(),
+        select(["time_drift", "path_gain_slope"]),
+        FitConfig(seed=1, fit_max_samples=800),
+        reference=("two-ray",),
+        localize=False,
+    )
     assert [r.added for r in d.rungs][1] == "time_drift"
     write_report(d, tmp_path)
     doc = json.loads((tmp_path / "gap.json").read_text())

@@ -8,7 +8,13 @@ import pytest
 from mission.errors import InputError
 from mission.geo import afar_field
 from mission.preview import _dist_to_polyline
-from mission.trajectory.generators import GENERATORS, coverage_radius, generate, overlap_area, spiral
+from mission.trajectory.generators import (
+    GENERATORS,
+    coverage_radius,
+    generate,
+    overlap_area,
+    spiral,
+)
 from mission.trajectory.kinematics import Kinematics, plan_profile
 
 

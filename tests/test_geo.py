@@ -80,7 +80,9 @@ def test_clipping_a_non_convex_area_keeps_every_part_and_its_area():
     ell = np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100.0]])
     parts = clip_polygon(ell, np.array([[20, 20], [80, 20], [80, 80], [20, 80.0]]))
     assert len(parts) == 1 and polygon_area_m2(parts[0]) == pytest.approx(60 * 60 - 40 * 40)
-    u = np.array([[0, 0], [100, 0], [100, 100], [70, 100], [70, 30], [30, 30], [30, 100], [0, 100.0]])
+    u = np.array(
+        [[0, 0], [100, 0], [100, 100], [70, 100], [70, 30], [30, 30], [30, 100], [0, 100.0]]
+    )
     band = np.array([[-10, 50], [110, 50], [110, 80], [-10, 80.0]])
     parts = clip_polygon(u, band)
     assert sorted(polygon_area_m2(p) for p in parts) == pytest.approx([30 * 30, 30 * 30])

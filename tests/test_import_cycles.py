@@ -14,7 +14,13 @@ from pathlib import Path
 KNOWN: tuple[set[str], ...] = ()
 
 # the runtime rooms; with every module that ``localize`` / ``fly-mission`` reach from their CLI modules
-RUNTIME_PACKAGES = ("mission.localize", "mission.flight", "mission.flightlog", "mission.physics", "mission.trajectory")
+RUNTIME_PACKAGES = (
+    "mission.localize",
+    "mission.flight",
+    "mission.flightlog",
+    "mission.physics",
+    "mission.trajectory",
+)
 RUNTIME_ENTRIES = ("mission.cli.localize", "mission.cli.fly")
 WORKSHOP = "mission.workshop"
 # what the localizer never reaches: it reads a network's training domain from the card written at training time
@@ -102,7 +108,10 @@ def workshop_imports(graph: dict[str, set[str]]) -> dict[str, list[str]]:
     in_room = [m for m in graph if any(m == p or m.startswith(p + ".") for p in RUNTIME_PACKAGES)]
     runtime = reachable(graph, [*in_room, *RUNTIME_ENTRIES])
     runtime = {m for m in runtime if not (m == WORKSHOP or m.startswith(WORKSHOP + "."))}
-    out = {m: sorted(w for w in graph[m] if w == WORKSHOP or w.startswith(WORKSHOP + ".")) for m in runtime}
+    out = {
+        m: sorted(w for w in graph[m] if w == WORKSHOP or w.startswith(WORKSHOP + "."))
+        for m in runtime
+    }
     return {m: ws for m, ws in sorted(out.items()) if ws}
 
 
@@ -142,8 +151,13 @@ def test_runtime_never_imports_the_workshop(repo_dir) -> None:
     runtime = reachable(graph, RUNTIME_ENTRIES)
     # the entries reach what they run
     assert {"mission.localize.api", "mission.flight.runner", "mission.adaptive.rounds"} <= runtime
-    assert "mission.workshop.suite" in graph and "mission.localize.api" in graph["mission.workshop.evaluate"]
-    assert not workshop_imports(graph), f"runtime module(s) import the workshop: {workshop_imports(graph)}"
+    assert (
+        "mission.workshop.suite" in graph
+        and "mission.localize.api" in graph["mission.workshop.evaluate"]
+    )
+    assert not workshop_imports(graph), (
+        f"runtime module(s) import the workshop: {workshop_imports(graph)}"
+    )
     # the check sees an edge added anywhere the CLI reaches, even outside the runtime packages
     graph["mission.flight.live"] = graph["mission.flight.live"] | {"mission.workshop.suite"}
     assert workshop_imports(graph) == {"mission.flight.live": ["mission.workshop.suite"]}
@@ -151,24 +165,42 @@ def test_runtime_never_imports_the_workshop(repo_dir) -> None:
 
 def test_the_localizer_imports_neither_simulator_nor_mission_parser(repo_dir) -> None:
     graph = import_graph(repo_dir)
-    assert {"mission.localize.training_domain", "mission.localize.card", "mission.geo"} <= reachable(
-        graph, ["mission.localize.api"])
+    assert {
+        "mission.localize.training_domain",
+        "mission.localize.card",
+        "mission.geo",
+    } <= reachable(graph, ["mission.localize.api"])
     assert not localizer_imports(graph), f"the localizer imports: {localizer_imports(graph)}"
     # the check sees an edge added anywhere localize reaches, the way training_domain once reached both
-    graph["mission.localize.training_domain"] = graph["mission.localize.training_domain"] | {"mission.spec"}
+    graph["mission.localize.training_domain"] = graph["mission.localize.training_domain"] | {
+        "mission.spec"
+    }
     graph["mission.geo"] = graph["mission.geo"] | {"mission.simulate"}
-    assert localizer_imports(graph) == {"mission.geo": ["mission.simulate"],
-                                        "mission.localize.training_domain": ["mission.spec"]}
+    assert localizer_imports(graph) == {
+        "mission.geo": ["mission.simulate"],
+        "mission.localize.training_domain": ["mission.spec"],
+    }
 
 
 def test_architecture_map_names_every_module_in_its_room(repo_dir) -> None:
     """ARCHITECTURE.md's row of each room names every module that lives there (and none from the other room)."""
-    rows = {ln.split("|")[1].strip(): ln for ln in (repo_dir / "ARCHITECTURE.md").read_text().splitlines()
-            if ln.startswith("| `mission/")}
-    rooms = {room: sorted(p.name for p in (repo_dir / "mission" / room).glob("*.py") if p.name != "__init__.py")
-             for room in ("localize", "workshop")}
+    rows = {
+        ln.split("|")[1].strip(): ln
+        for ln in (repo_dir / "ARCHITECTURE.md").read_text().splitlines()
+        if ln.startswith("| `mission/")
+    }
+    rooms = {
+        room: sorted(
+            p.name for p in (repo_dir / "mission" / room).glob("*.py") if p.name != "__init__.py"
+        )
+        for room in ("localize", "workshop")
+    }
     for room, files in rooms.items():
         row = rows[f"`mission/{room}/`"]
-        assert files and not [f for f in files if f"`{f}`" not in row], f"mission/{room}/ row misses modules"
+        assert files and not [f for f in files if f"`{f}`" not in row], (
+            f"mission/{room}/ row misses modules"
+        )
         other = rooms["workshop" if room == "localize" else "localize"]
-        assert not [f for f in other if f"`{f}`" in row], f"mission/{room}/ row names the other room's modules"
+        assert not [f for f in other if f"`{f}`" in row], (
+            f"mission/{room}/ row names the other room's modules"
+        )

@@ -26,7 +26,9 @@ def test_short_leg_is_triangular():
 
 def test_speed_and_acceleration_limits_hold():
     kin = Kinematics(cruise_speed_mps=6.0, accel_mps2=1.5)
-    wp = np.array([[0, 0, 0], [0, 0, 30], [120, 0, 30], [120, 80, 30], [-40, 80, 30], [0, 0, 30], [0, 0, 0]])
+    wp = np.array(
+        [[0, 0, 0], [0, 0, 30], [120, 0, 30], [120, 80, 30], [-40, 80, 30], [0, 0, 30], [0, 0, 0]]
+    )
     p = plan_profile(wp, kin)
     t, pos = p.sample(0.01)
     v = np.linalg.norm(np.diff(pos, axis=0), axis=1) / 0.01
@@ -43,7 +45,7 @@ def test_speed_and_acceleration_limits_hold():
 def test_corners_slow_down_and_reversal_stops():
     kin = Kinematics(cruise_speed_mps=5.0, accel_mps2=1.5)
     p = plan_profile(np.array([[0, 0, 30], [100, 0, 30], [100, 100, 30], [100, 0, 30]]), kin)
-    assert 0 < p.v_vertex[1] < 5.0          # 90 deg corner: cos(45)^2 * 5 = 2.5 m/s
+    assert 0 < p.v_vertex[1] < 5.0  # 90 deg corner: cos(45)^2 * 5 = 2.5 m/s
     assert p.v_vertex[1] == pytest.approx(2.5)
     assert p.v_vertex[2] == pytest.approx(0.0, abs=1e-9)  # 180 deg reversal
 
@@ -55,15 +57,19 @@ def test_attitude_follows_motion():
     att, vel = attitude_from_motion(t, pos, kin)
     deg = np.rad2deg(att)
     mid = np.searchsorted(t, p.t_vertex[1] / 2)
-    assert deg[mid, 2] == pytest.approx(90.0, abs=1.0)          # flying east: yaw 90 (clockwise from north)
-    assert deg[mid, 1] == pytest.approx(-3.0, abs=0.5)          # steady nose-down pitch against drag
+    assert deg[mid, 2] == pytest.approx(90.0, abs=1.0)  # flying east: yaw 90 (clockwise from north)
+    assert deg[mid, 1] == pytest.approx(-3.0, abs=0.5)  # steady nose-down pitch against drag
     assert abs(deg[mid, 0]) < 0.5
     early = np.searchsorted(t, 1.0)
-    assert deg[early, 1] < deg[mid, 1]                           # accelerating forward: more nose-down
+    assert deg[early, 1] < deg[mid, 1]  # accelerating forward: more nose-down
     corner = np.searchsorted(t, p.t_vertex[1])
-    assert deg[corner - 20:corner + 20, 0].min() < -3.0          # left turn (east -> north): left wing down
+    assert (
+        deg[corner - 20 : corner + 20, 0].min() < -3.0
+    )  # left turn (east -> north): left wing down
     end = np.searchsorted(t, p.t_vertex[2] - 3)
-    assert deg[end, 2] == pytest.approx(0.0, abs=1.0) or deg[end, 2] == pytest.approx(360.0, abs=1.0)
+    assert deg[end, 2] == pytest.approx(0.0, abs=1.0) or deg[end, 2] == pytest.approx(
+        360.0, abs=1.0
+    )
     assert np.abs(deg[:, :2]).max() <= kin.max_tilt_deg
 
 
@@ -80,14 +86,18 @@ def test_fixed_heading_holds_the_nose_and_tilts_along_the_motion():
     assert np.all(att_f[:, 2] == 0.0)
     mid = np.searchsorted(t, p.t_vertex[1] / 2)
     deg = np.rad2deg(att_f[mid])
-    assert deg[0] == pytest.approx(3.0, abs=0.5)    # flying east, nose north: right wing down against drag
-    assert abs(deg[1]) < 0.5                         # no pitch: no motion along the nose
+    assert deg[0] == pytest.approx(
+        3.0, abs=0.5
+    )  # flying east, nose north: right wing down against drag
+    assert abs(deg[1]) < 0.5  # no pitch: no motion along the nose
     tilt_f = np.hypot(att_f[:, 0], att_f[:, 1])
     tilt_c = np.hypot(att_c[:, 0], att_c[:, 1])
     assert np.allclose(tilt_f[mid], tilt_c[mid], atol=np.deg2rad(0.05))
     east = Kinematics(cruise_speed_mps=5.0, heading_deg=90.0)
     att_e, _ = attitude_from_motion(t, pos, east)
-    assert np.rad2deg(att_e[mid, 1]) == pytest.approx(np.rad2deg(att_c[mid, 1]), abs=0.05)  # nose east = course
+    assert np.rad2deg(att_e[mid, 1]) == pytest.approx(
+        np.rad2deg(att_c[mid, 1]), abs=0.05
+    )  # nose east = course
 
 
 def test_attitude_model_stepped_equals_vectorised():
@@ -96,7 +106,9 @@ def test_attitude_model_stepped_equals_vectorised():
     from mission.trajectory.attitude import AttitudeState, ou_process, run_attitude
 
     kin = Kinematics(cruise_speed_mps=6.0)
-    p = plan_profile(np.array([[0, 0, 0], [0, 0, 30], [150, 0, 30], [150, 120, 30], [20, 40, 30]]), kin)
+    p = plan_profile(
+        np.array([[0, 0, 0], [0, 0, 30], [150, 0, 30], [150, 120, 30], [20, 40, 30]]), kin
+    )
     dt = 0.02
     t, pos = p.sample(dt)
     rng = np.random.default_rng(3)
@@ -110,7 +122,9 @@ def test_attitude_model_stepped_equals_vectorised():
     for k in sizes:
         if i >= len(t):
             break
-        att, _, state = run_attitude(pos[i:i + k], dt, kin, state, wind[i:i + k], turb[i:i + k])
+        att, _, state = run_attitude(
+            pos[i : i + k], dt, kin, state, wind[i : i + k], turb[i : i + k]
+        )
         parts.append(att)
         i += k
     stepped = np.concatenate(parts)
@@ -135,7 +149,9 @@ def test_attitude_is_causal():
     first_diff = int(np.argmax(np.any(np.abs(a - b) > 1e-9, axis=1)))
     assert first_diff > 100
     np.testing.assert_array_equal(att1[:first_diff], att2[:first_diff])
-    assert np.abs(att1[first_diff + 50:, 0] - att2[first_diff + 50:, 0]).max() > np.deg2rad(3)  # opposite turns
+    assert np.abs(att1[first_diff + 50 :, 0] - att2[first_diff + 50 :, 0]).max() > np.deg2rad(
+        3
+    )  # opposite turns
 
 
 # Real AFAR 2023 cruise attitude (six flights, samples above 80 % of the 95th-percentile height), degrees:
@@ -159,9 +175,13 @@ def _spiral_attitude(heading_deg=None, seed=0):
     dt = 0.03
     t, pos = plan_profile(spec.flight_path_enu(), kin).sample(dt)
     g = np.random.default_rng(seed).standard_normal((len(t), 4))
-    wind = ou_process(g[:, :2], dt, 6.0, 1.5, np.zeros(2))  # sitl.protocol: WIND_TAU_S, --gust default
+    wind = ou_process(
+        g[:, :2], dt, 6.0, 1.5, np.zeros(2)
+    )  # sitl.protocol: WIND_TAU_S, --gust default
     turb = ou_process(g[:, 2:], dt, 0.6, math.radians(0.8), np.zeros(2))  # TURB_TAU_S, TURB_DEG
-    att, _, _ = run_attitude(pos, dt, kin, AttitudeState.at_rest(pos[0], initial_course(pos)), wind, turb)
+    att, _, _ = run_attitude(
+        pos, dt, kin, AttitudeState.at_rest(pos[0], initial_course(pos)), wind, turb
+    )
     cruise = pos[:, 2] > 0.8 * 30.0
     return np.rad2deg(att[cruise])
 
@@ -175,7 +195,9 @@ def test_simulated_cruise_attitude_is_near_real_afar():
     fixed = _spiral_attitude(heading_deg=345.0)
     roll = np.percentile(fixed[:, 0], [5, 95])
     assert np.all(np.abs(roll - AFAR_ROLL_P5_P95) < 1.5), roll
-    assert np.abs(course[:, :2]).max() < 25.0  # hard corners stay below ArduPilot's 30 deg lean limit
+    assert (
+        np.abs(course[:, :2]).max() < 25.0
+    )  # hard corners stay below ArduPilot's 30 deg lean limit
 
 
 @pytest.mark.real
@@ -191,9 +213,15 @@ def test_real_afar_cruise_attitude_constants():
     roll, pitch = [], []
     for team in (288, 328):
         for loc in (1, 2, 3):
-            c = convert_afar_mat(mat / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc]).log.columns
+            c = convert_afar_mat(
+                mat / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc]
+            ).log.columns
             cruise = c["rel_alt_m"] > 0.8 * np.percentile(c["rel_alt_m"], 95)
             roll.append(c["roll_deg"][cruise])
             pitch.append(c["pitch_deg"][cruise])
-    np.testing.assert_allclose(np.percentile(np.concatenate(roll), [5, 95]), AFAR_ROLL_P5_P95, atol=0.1)
-    np.testing.assert_allclose(np.percentile(np.concatenate(pitch), [5, 50, 95]), AFAR_PITCH_P5_P50_P95, atol=0.1)
+    np.testing.assert_allclose(
+        np.percentile(np.concatenate(roll), [5, 95]), AFAR_ROLL_P5_P95, atol=0.1
+    )
+    np.testing.assert_allclose(
+        np.percentile(np.concatenate(pitch), [5, 50, 95]), AFAR_PITCH_P5_P50_P95, atol=0.1
+    )

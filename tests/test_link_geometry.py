@@ -37,10 +37,14 @@ def _wrap(a: np.ndarray) -> np.ndarray:
 def _random_geometry(seed: int, k: int = 40, m: int = 300):
     """K candidate transmitters and M cells over a 400 m field (ENU offset like a real origin), random attitude."""
     rng = np.random.default_rng(seed)
-    off = rng.uniform(-2000.0, 2000.0, 2)  # large coordinates: float32 must difference after the float64 one
+    off = rng.uniform(
+        -2000.0, 2000.0, 2
+    )  # large coordinates: float32 must difference after the float64 one
     cand = off + rng.uniform(0.0, 400.0, (k, 2))
     enu = np.column_stack([off + rng.uniform(0.0, 400.0, (m, 2)), rng.uniform(5.0, 60.0, m)])
-    att = np.column_stack([rng.uniform(-0.3, 0.3, m), rng.uniform(-0.3, 0.3, m), rng.uniform(-np.pi, np.pi, m)])
+    att = np.column_stack(
+        [rng.uniform(-0.3, 0.3, m), rng.uniform(-0.3, 0.3, m), rng.uniform(-np.pi, np.pi, m)]
+    )
     cells = Cells(enu, np.zeros(m), att[:, 2].copy(), np.ones(m, int), 10.0)
     return cand, cells, att, float(rng.uniform(0.5, 5.0))
 
@@ -72,12 +76,15 @@ def test_link_helpers_are_the_closed_forms_and_keep_float32():
     dx, dy, dz = link_delta(tx, rx)
     assert np.allclose(horizontal_distance(dx, dy), np.linalg.norm((tx - rx)[:, :2], axis=1))
     assert np.allclose(slant_distance(dx, dy, dz), np.linalg.norm(tx - rx, axis=1))
-    assert np.allclose(elevation(dz, horizontal_distance(dx, dy)),
-                       np.arcsin(dz / np.linalg.norm(tx - rx, axis=1)))
+    assert np.allclose(
+        elevation(dz, horizontal_distance(dx, dy)), np.arcsin(dz / np.linalg.norm(tx - rx, axis=1))
+    )
     # heading frame at yaw = 0 is the compass frame: az_b = bearing, el = -dep_b of the level body
     el, az = heading_frame_angles(dx, dy, dz, 0.0)
     az_ref, dep_ref = body_angles(enu_to_ned(tx - rx))
-    assert np.allclose(_wrap(az - az_ref), 0.0, atol=1e-12) and np.allclose(el, -dep_ref, atol=1e-12)
+    assert np.allclose(_wrap(az - az_ref), 0.0, atol=1e-12) and np.allclose(
+        el, -dep_ref, atol=1e-12
+    )
     f32 = link_delta(tx, rx, np.float32)
     assert all(v.dtype == np.float32 for v in f32)
     assert all(v.dtype == np.float32 for v in heading_frame_angles(*f32, np.float32(0.3)))
@@ -92,11 +99,16 @@ def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_floa
     az_ref, dep_ref = body_angles(u, att)
     assert np.array_equal(depression(ub[:, 2], r), dep_ref)  # body_angles' dep_b is this function
     assert np.allclose(sin_depression(ub[:, 2], r), np.sin(dep_ref), atol=1e-12)
-    assert np.array_equal(sin_depression(np.array([2.0, -2.0]), 1.0), [1.0, -1.0])  # clipped, not NaN
+    assert np.array_equal(
+        sin_depression(np.array([2.0, -2.0]), 1.0), [1.0, -1.0]
+    )  # clipped, not NaN
     # sin el = dz / d_los: the sine of the level-frame elevation atan2(dz, d_2D)
     dx, dy, dz = u[:, 1], u[:, 0], -u[:, 2]
-    assert np.allclose(sin_elevation(dz, slant_distance(dx, dy, dz)),
-                       np.sin(elevation(dz, horizontal_distance(dx, dy))), atol=1e-12)
+    assert np.allclose(
+        sin_elevation(dz, slant_distance(dx, dy, dz)),
+        np.sin(elevation(dz, horizontal_distance(dx, dy))),
+        atol=1e-12,
+    )
     # signed: (-pi, pi], the same direction as the [0, 2 pi) value and that value exactly once wrapped
     for f, args in ((bearing, (dx, dy)), (body_azimuth, (ub[:, 0], ub[:, 1]))):
         s_, w = f(*args, signed=True), f(*args)
@@ -104,7 +116,11 @@ def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_floa
         assert np.array_equal(np.mod(s_, 2 * np.pi), w) and s_.min() < -1.0
     f32 = [np.asarray(v, np.float32) for v in (ub[:, 0], ub[:, 1], ub[:, 2], r)]
     assert depression(f32[2], f32[3]).dtype == sin_elevation(f32[2], f32[3]).dtype == np.float32
-    assert bearing(f32[0], f32[1], signed=True).dtype == body_azimuth(f32[0], f32[1]).dtype == np.float32
+    assert (
+        bearing(f32[0], f32[1], signed=True).dtype
+        == body_azimuth(f32[0], f32[1]).dtype
+        == np.float32
+    )
 
 
 def test_gap_alignment_is_the_physics_models_own_geometry():
@@ -121,7 +137,13 @@ def test_gap_alignment_is_the_physics_models_own_geometry():
     f = FlightSamples(enu, np.zeros(n), att, np.arange(n) * 0.2, tx_enu_m=tx)
     a = align(f)
     ex = make_model("e2r").explain(tx, enu, att)
-    for mine, ref in ((a.d_h, "d_2d"), (a.d_3d, "d_los"), (a.grazing, "grazing_rad"), (a.az_world, "az_tx_rad"),
-                      (a.elev, "el_tx_dir_rad"), (a.dep_b, "dep_b_rad")):
+    for mine, ref in (
+        (a.d_h, "d_2d"),
+        (a.d_3d, "d_los"),
+        (a.grazing, "grazing_rad"),
+        (a.az_world, "az_tx_rad"),
+        (a.elev, "el_tx_dir_rad"),
+        (a.dep_b, "dep_b_rad"),
+    ):
         assert np.allclose(mine, np.ravel(ex[ref]), rtol=1e-12, atol=1e-12), ref
     assert np.allclose(_wrap(a.az_b - np.ravel(ex["az_b_rad"])), 0.0, atol=1e-12)

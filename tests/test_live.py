@@ -30,10 +30,15 @@ def sim_log(tmp_path_factory) -> Path:
     spec = load_mission(ROOT / "missions/spiral.yaml")
     tx = np.array([150.0, 220.0, 1.5])
     cfg = dataclasses.replace(spec.sim_config(), dt_s=0.12)  # a lighter log: 4 500 rows
-    f = simulate_flight(spec.flight_path_enu(), tx, make_model("free-space"), cfg, np.random.default_rng(2))
+    f = simulate_flight(
+        spec.flight_path_enu(), tx, make_model("free-space"), cfg, np.random.default_rng(2)
+    )
     cols = f.log_columns(spec.field.origin)
-    meta = make_meta(spec.field.origin, {"kind": "sim", "model": "free-space"},
-                     {"x_m": 150.0, "y_m": 220.0, "z_m": 1.5})
+    meta = make_meta(
+        spec.field.origin,
+        {"kind": "sim", "model": "free-space"},
+        {"x_m": 150.0, "y_m": 220.0, "z_m": 1.5},
+    )
     return write_flight_log(tmp_path_factory.mktemp("live") / "flight.csv", cols, meta)
 
 
@@ -75,14 +80,21 @@ def test_live_estimate_of_an_adaptive_flight_is_the_planners(sim_log, tmp_path, 
     assert (round(d["x_m"], 2), round(d["y_m"], 2)) == (live["x_m"], live["y_m"])
     assert live["candidates"][0][2] > 0 and len(live["candidates"]) >= 1
     later = estimate_at(read_flight_log(log), None)
-    assert np.hypot(later.x_m - 150.0, later.y_m - 220.0) < np.hypot(live["x_m"] - 150, live["y_m"] - 220) + 5
+    assert (
+        np.hypot(later.x_m - 150.0, later.y_m - 220.0)
+        < np.hypot(live["x_m"] - 150, live["y_m"] - 220) + 5
+    )
 
 
 def test_localize_at_keeps_an_older_logs_live_method(sim_log, tmp_path, capsys):
     """A log flown when the live estimates were always selfcal records that method: ``--at`` still uses it."""
-    log = _with_meta(sim_log, tmp_path / "flight.csv", live_estimate={"method": "selfcal", "level": 0.9})
+    log = _with_meta(
+        sim_log, tmp_path / "flight.csv", live_estimate={"method": "selfcal", "level": 0.9}
+    )
     assert _cli_json([str(log), "--at", "200"], capsys)["method"] == "selfcal"
-    log = _with_meta(sim_log, tmp_path / "flight2.csv", live_estimate={"method": "default", "level": 0.9})
+    log = _with_meta(
+        sim_log, tmp_path / "flight2.csv", live_estimate={"method": "default", "level": 0.9}
+    )
     assert _cli_json([str(log), "--at", "200"], capsys)["method"] == "onnx"
 
 
@@ -109,6 +121,7 @@ def test_localize_at_on_a_real_log(shared_dir, tmp_path, capsys):
 
 # --------------------------------------------------------------------------- flown end to end (built-in vehicle)
 
+
 def _mission(tmp_path: Path) -> Path:
     d = yaml.safe_load((ROOT / "missions/spiral_adaptive.yaml").read_text())
     d.update(name="short_adaptive", time_budget_s=250)
@@ -119,16 +132,23 @@ def _mission(tmp_path: Path) -> Path:
 
 
 def _fly(args: list[str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "mission.cli.fly", *args], cwd=ROOT, text=True,
-                            env=dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(ROOT)),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [sys.executable, "-m", "mission.cli.fly", *args],
+        cwd=ROOT,
+        text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(ROOT)),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
 
 
 @pytest.mark.slow
 def test_adaptive_flight_end_to_end(tmp_path, capsys):
     """Survey, adaptive rounds, return: phases in order, estimates series, fast and final estimates, budget
     held, and ``localize`` on the log gives back the in-flight final estimate."""
-    p = _fly([str(_mission(tmp_path)), "--speedup", "15", "--out", str(tmp_path / "f"), "--adaptive"])
+    p = _fly(
+        [str(_mission(tmp_path)), "--speedup", "15", "--out", str(tmp_path / "f"), "--adaptive"]
+    )
     out, err = p.communicate(timeout=150)
     assert p.returncode == 0, err[-3000:]
     path = next((tmp_path / "f").glob("*/flight.csv"))
@@ -137,8 +157,16 @@ def test_adaptive_flight_end_to_end(tmp_path, capsys):
     air = ph[ph != "ground"]  # on the ground before take-off and after landing
     assert "adaptive" in set(ph) and np.all(np.diff([PHASES.index(s) for s in air]) >= 0)
     m = log.meta
-    assert m["status"] == "completed" and m["adaptive"]["rounds"] and m["trajectory"]["adaptive"]["survey_s"] == 100
-    assert len(m["estimates"]) >= 3 and m["fast_estimate"]["t_s"] > 180 and "fast (3 min) estimate" in err
+    assert (
+        m["status"] == "completed"
+        and m["adaptive"]["rounds"]
+        and m["trajectory"]["adaptive"]["survey_s"] == 100
+    )
+    assert (
+        len(m["estimates"]) >= 3
+        and m["fast_estimate"]["t_s"] > 180
+        and "fast (3 min) estimate" in err
+    )
     assert m["budget"]["used_s"] <= 250 and not m["budget"]["overrun"]
     final = m["final_estimate"]
     assert f"--at {final['t_s']:g}" in out
@@ -151,7 +179,9 @@ def test_adaptive_flight_end_to_end(tmp_path, capsys):
     area = load_mission(ROOT / "missions/spiral_adaptive.yaml").field.flight_area
     assert area.signed_distance(enu[ad, :2]).min() > 0  # inside the fence
     assert abs(np.median(log["rel_alt_m"][ad][-50:]) - 20.0) < 2.0
-    v = np.gradient(enu[:, :2], log["t_s"], axis=0)  # nose first: heading along the course on adaptive legs
+    v = np.gradient(
+        enu[:, :2], log["t_s"], axis=0
+    )  # nose first: heading along the course on adaptive legs
     moving = ad & (np.hypot(*v.T) > 3.0)
     off = (log["yaw_deg"] - np.degrees(np.arctan2(v[:, 0], v[:, 1])) + 180.0) % 360.0 - 180.0
     assert moving.sum() > 100 and np.median(np.abs(off[moving])) < 10.0
@@ -171,18 +201,35 @@ def test_abort_in_the_adaptive_part_keeps_the_log(tmp_path, how):
     from mission.flight.runner import free_udp_port
 
     out = tmp_path / "f"
-    args = [str(_mission(tmp_path)), "--speedup", "10", "--out", str(out), "--adaptive", "--no-localize"]
+    args = [
+        str(_mission(tmp_path)),
+        "--speedup",
+        "10",
+        "--out",
+        str(out),
+        "--adaptive",
+        "--no-localize",
+    ]
     veh = None
     if how == "link-loss":
         port = free_udp_port()
-        veh = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "10"],
-                               cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        veh = subprocess.Popen(
+            [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "10"],
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         args += ["--connect", f"udpin://127.0.0.1:{port}", "--link-timeout", "4"]
     errfile = tmp_path / "stderr.txt"
     with open(errfile, "w") as ef:
-        p = subprocess.Popen([sys.executable, "-m", "mission.cli.fly", *args], cwd=ROOT, text=True,
-                             env=dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(ROOT)),
-                             stdout=subprocess.DEVNULL, stderr=ef)
+        p = subprocess.Popen(
+            [sys.executable, "-m", "mission.cli.fly", *args],
+            cwd=ROOT,
+            text=True,
+            env=dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(ROOT)),
+            stdout=subprocess.DEVNULL,
+            stderr=ef,
+        )
         try:
             end = time.monotonic() + 150
             while time.monotonic() < end and p.poll() is None and _adaptive_rows(out) <= 100:

@@ -49,7 +49,9 @@ def test_default_method_and_plot(log_path, tmp_path, capsys):
         assert localize([str(log_path), "--json", "--plot", str(png)]) == 0
     d = json.loads(capsys.readouterr().out)
     # a simulated log (sidecar rss_source kind "sim") without a trajectory: the simulated-log route, rfsl_default
-    assert (d["method"], d["model"]) == ("onnx", "rfsl_default.onnx") and "no trajectory" in d["method_choice"]
+    assert (d["method"], d["model"]) == ("onnx", "rfsl_default.onnx") and "no trajectory" in d[
+        "method_choice"
+    ]
     assert_png_drawn(png, size=(1020, 900))  # 8.5 x 7.5 in at 120 dpi
     (fig,) = figs
     ax = fig.axes[0]  # the map (then its colour bar)
@@ -57,7 +59,9 @@ def test_default_method_and_plot(log_path, tmp_path, capsys):
     assert labels[-1] == "truth" and any(lb.startswith(f"estimate ({d['method']}") for lb in labels)
     star = [ln for ln in ax.lines if ln.get_label().startswith("estimate")][0]
     truth = [ln for ln in ax.lines if ln.get_label() == "truth"][0]
-    assert (star.get_xdata()[0], star.get_ydata()[0]) == pytest.approx((d["x_m"], d["y_m"]), abs=0.01)
+    assert (star.get_xdata()[0], star.get_ydata()[0]) == pytest.approx(
+        (d["x_m"], d["y_m"]), abs=0.01
+    )
     assert (truth.get_xdata()[0], truth.get_ydata()[0]) == pytest.approx(TX[:2], abs=0.01)
     assert f"error {d['error_m']:.1f} m" in ax.get_title()
 
@@ -73,7 +77,10 @@ def _rewrite(src, dst, edit):
     "edit,needles",
     [
         (lambda ls: ls[:5] + [ls[5].replace(",", ";", 1)] + ls[6:], ["row 6"]),
-        (lambda ls: ls[:7] + [",".join(ls[7].split(",")[:-1] + ["nan"])] + ls[8:], ["row 8", "rss_dbm"]),
+        (
+            lambda ls: ls[:7] + [",".join(ls[7].split(",")[:-1] + ["nan"])] + ls[8:],
+            ["row 8", "rss_dbm"],
+        ),
         (lambda ls: [ls[0].replace(",rss_dbm", ",power")] + ls[1:], ["rss_dbm"]),
         (lambda ls: ls[:10] + [ls[8]] + ls[11:], ["row 11", "t_s"]),
         (lambda ls: ls[:4] + [ls[4].replace("35.7", "3570.", 1)] + ls[5:], ["row 5", "lat_deg"]),
@@ -105,7 +112,10 @@ def make_onnx(
 
     f = width or w.shape[0]
     g = helper.make_graph(
-        [helper.make_node("MatMul", ["x", "W"], ["h"]), helper.make_node("Add", ["h", "b"], ["xy"])],
+        [
+            helper.make_node("MatMul", ["x", "W"], ["h"]),
+            helper.make_node("Add", ["h", "b"], ["xy"]),
+        ],
         "lin",
         [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["batch", f])],
         [helper.make_tensor_value_info("xy", TensorProto.FLOAT, ["batch", 2])],
@@ -180,7 +190,9 @@ def test_onnx_refusals(log_path, tmp_path, capsys):
     with pytest.raises(InputError, match="feature_config"):
         OnnxLocalizer(nocfg)
     # a model whose feature configuration does not match its own network / this software: CLI exit 2
-    wrong = make_onnx(tmp_path / "w.onnx", FeatureConfig(c_k=10), np.zeros((f, 2)), np.zeros(2), norm)
+    wrong = make_onnx(
+        tmp_path / "w.onnx", FeatureConfig(c_k=10), np.zeros((f, 2)), np.zeros(2), norm
+    )
     assert localize([str(log_path), "--model", str(wrong)]) == 2
     one_error_line(capsys, "w.onnx", "feature_config.c_k")
     old = FeatureConfig(version=99)
@@ -198,7 +210,12 @@ def test_estimate_far_outside_the_rover_area_is_flagged(log_path, tmp_path, caps
     warning (JSON field and table row), never silently; one inside gets none."""
     cfg = FeatureConfig()
     f = cfg.n_features
-    far = {"input_mean": 0.0, "input_std": 1.0, "output_mean": [900.0, -700.0], "output_std": [1, 1]}
+    far = {
+        "input_mean": 0.0,
+        "input_std": 1.0,
+        "output_mean": [900.0, -700.0],
+        "output_std": [1, 1],
+    }
     path = make_onnx(tmp_path / "far.onnx", cfg, np.zeros((f, 2)), np.zeros(2), far)
     assert localize([str(log_path), "--model", str(path), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)

@@ -19,13 +19,23 @@ from mission.physics.family import PhysicsFamily, simulate_rss
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
 
-FAMILY = PhysicsFamily.from_dict({
-    "schema": 1, "name": "test-mild",
-    "spec": {"base": "free-space", "tx_pattern": "isotropic", "path_gain_slope": {"dist": "uniform", "lo": 0.0,
-                                                                                   "hi": 0.3}},
-    "residual": {"shadowing_db": {"dist": "uniform", "lo": 1.0, "hi": 3.0}, "shadowing_corr_m": 30.0,
-                 "noise_db": 2.0},
-    "offset_db": {"dist": "uniform", "lo": -30.0, "hi": 30.0}})
+FAMILY = PhysicsFamily.from_dict(
+    {
+        "schema": 1,
+        "name": "test-mild",
+        "spec": {
+            "base": "free-space",
+            "tx_pattern": "isotropic",
+            "path_gain_slope": {"dist": "uniform", "lo": 0.0, "hi": 0.3},
+        },
+        "residual": {
+            "shadowing_db": {"dist": "uniform", "lo": 1.0, "hi": 3.0},
+            "shadowing_corr_m": 30.0,
+            "noise_db": 2.0,
+        },
+        "offset_db": {"dist": "uniform", "lo": -30.0, "hi": 30.0},
+    }
+)
 BOX = (0.0, 0.0, 240.0, 240.0)
 TX = np.array([150.0, 90.0, 1.5])
 
@@ -39,9 +49,21 @@ def _flight(seed: int = 1) -> FlightSamples:
 
 
 def _loc(**kw) -> MatchedLocalizer:
-    args = dict(area=BOX, family=FAMILY, n_draws=4000, cell_m=10.0, epochs=30, batch=64, whiten=False, n_pca=32,
-                hidden=(64, 64),
-                n_check=60, step_m=5.0, progress=False, seed=3)
+    args = dict(
+        area=BOX,
+        family=FAMILY,
+        n_draws=4000,
+        cell_m=10.0,
+        epochs=30,
+        batch=64,
+        whiten=False,
+        n_pca=32,
+        hidden=(64, 64),
+        n_check=60,
+        step_m=5.0,
+        progress=False,
+        seed=3,
+    )
     args.update(kw)
     return MatchedLocalizer(**args)
 
@@ -76,7 +98,9 @@ def test_regions_are_nested_and_hold_the_estimate(estimate):
 def test_offset_invariant(flight, estimate):
     shifted = FlightSamples(flight.enu_m, flight.rss_dbm + 23.7, flight.attitude_rad)
     e = _loc().predict(shifted)
-    assert e.x_m == pytest.approx(estimate.x_m, abs=1e-6) and e.y_m == pytest.approx(estimate.y_m, abs=1e-6)
+    assert e.x_m == pytest.approx(estimate.x_m, abs=1e-6) and e.y_m == pytest.approx(
+        estimate.y_m, abs=1e-6
+    )
     np.testing.assert_allclose(e.posterior.prob, estimate.posterior.prob, atol=1e-9)
 
 
@@ -94,7 +118,11 @@ def test_too_few_cells_is_input_error(flight):
 
 
 @settings(max_examples=25, deadline=None)
-@given(i=st.integers(0, 2999), bad=st.sampled_from([np.nan, np.inf, -np.inf]), where=st.sampled_from(["rss", "z"]))
+@given(
+    i=st.integers(0, 2999),
+    bad=st.sampled_from([np.nan, np.inf, -np.inf]),
+    where=st.sampled_from(["rss", "z"]),
+)
 def test_non_finite_input_is_input_error(flight, i, bad, where):
     rss, enu = flight.rss_dbm.copy(), flight.enu_m.copy()
     if where == "rss":
@@ -111,7 +139,9 @@ def test_field_basis_reproduces_the_gaussian_correlation():
     b = FieldBasis(xy)
     f = b.factor(40.0)
     corr_used = 1.06 ** round(np.log(40.0) / np.log(1.06))
-    np.testing.assert_allclose(f @ f.T, correlation(pdist(xy, xy), corr_used, "gaussian"), atol=1e-5)
+    np.testing.assert_allclose(
+        f @ f.T, correlation(pdist(xy, xy), corr_used, "gaussian"), atol=1e-5
+    )
     assert b.factor(40.3) is f  # rounds to the same length: one factor
 
 
@@ -120,7 +150,9 @@ def test_cells_centring_and_conformal_mass(flight):
     assert tr.attitude_rad.shape == (len(tr), 3) and tr.count.sum() == len(flight.rss_dbm)
     assert np.allclose(centred(tr.rss_dbm + 5.0), centred(tr.rss_dbm))
     lev = np.linspace(0.0, 1.0, 101)[:-1]  # uniform HPD levels: a calibrated posterior
-    assert conformal_mass(lev, 0.9) == pytest.approx(0.9)  # the ceil(101 x 0.9) = 91st smallest, not the 92nd
+    assert conformal_mass(lev, 0.9) == pytest.approx(
+        0.9
+    )  # the ceil(101 x 0.9) = 91st smallest, not the 92nd
 
 
 def test_wired_into_localize():
@@ -135,7 +167,9 @@ def test_wired_into_localize():
     assert p.parse_args(["x.csv", "--method", "matched"]).method == "matched"
     loc = make_localizer("matched", area=BOX, tx_height_m=2.0)
     assert isinstance(loc, MatchedLocalizer) and loc.area == BOX and loc.tx_height_m == 2.0
-    assert loc.n_draws >= 20000 and loc.family is None  # the shipped family, read through load_family
+    assert (
+        loc.n_draws >= 20000 and loc.family is None
+    )  # the shipped family, read through load_family
 
 
 def test_self_check_localizes_held_out_draws_with_every_fold():

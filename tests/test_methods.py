@@ -47,7 +47,11 @@ def test_every_name_list_reads_from_the_registry() -> None:
     (act,) = [a for a in p._actions if a.dest == "method"]
     assert tuple(act.choices) == METHOD_NAMES
     # the shipped method circles are exactly the registry's circle-calibrated methods
-    assert CIRCLE_METHODS == names_where(calibration=FROM_METHOD_CIRCLES) == ("strongest", "centroid", "grid")
+    assert (
+        CIRCLE_METHODS
+        == names_where(calibration=FROM_METHOD_CIRCLES)
+        == ("strongest", "centroid", "grid")
+    )
     assert sorted(json.loads(METHOD_CIRCLES.read_text())) == sorted(CIRCLE_METHODS)
     assert set(CLASSICAL) <= set(METHOD_NAMES)
     for name in METHOD_NAMES:  # rfsl evaluate --suite takes every registered name
@@ -57,8 +61,12 @@ def test_every_name_list_reads_from_the_registry() -> None:
 def test_entries_are_consistent() -> None:
     for m in METHODS.values():
         assert m.uncertainty in (POSTERIOR, CIRCLE) and m.description and m.kind
-        assert (m.uncertainty == CIRCLE) == (m.calibration in (FROM_CARD, FROM_METHOD_CIRCLES)), m.name
-        assert (m.factory is None) == (m.compose is not None) == (m.kind in ("fusion", "stacking")), m.name
+        assert (m.uncertainty == CIRCLE) == (m.calibration in (FROM_CARD, FROM_METHOD_CIRCLES)), (
+            m.name
+        )
+        assert (
+            (m.factory is None) == (m.compose is not None) == (m.kind in ("fusion", "stacking"))
+        ), m.name
 
 
 def test_unknown_method_names_every_known_one() -> None:
@@ -98,10 +106,18 @@ def test_declared_uncertainty_is_what_localize_gives(log_path, name) -> None:
 
 
 def test_cli_help_lists_every_method_without_numpy() -> None:
-    code = ("import argparse, sys; from mission.cli.localize import add_arguments; p = argparse.ArgumentParser(); "
-            "add_arguments(p); print('numpy' in sys.modules); print(p.format_help())")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         cwd=REPO, env={"PYTHONPATH": str(REPO), "COLUMNS": "80"}).stdout
+    code = (
+        "import argparse, sys; from mission.cli.localize import add_arguments; p = argparse.ArgumentParser(); "
+        "add_arguments(p); print('numpy' in sys.modules); print(p.format_help())"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=REPO,
+        env={"PYTHONPATH": str(REPO), "COLUMNS": "80"},
+    ).stdout
     first, _, helptext = out.partition("\n")
     assert first == "False"
     flat = re.sub(r"\s+", " ", helptext)
@@ -116,31 +132,45 @@ def test_docs_describe_every_method() -> None:
         assert (m.uncertainty == POSTERIOR) == ("posterior" in rows[name]), name
 
 
-SPIRAL_SIM = {"rss_source": {"kind": "sim", "model": "e2r", "model_params": {"uav_pattern": "dipole",
-                                                                              "tx_pattern": "dipole"}},
-              "trajectory": {"generator": "spiral"}}
+SPIRAL_SIM = {
+    "rss_source": {
+        "kind": "sim",
+        "model": "e2r",
+        "model_params": {"uav_pattern": "dipole", "tx_pattern": "dipole"},
+    },
+    "trajectory": {"generator": "spiral"},
+}
 LAWN_SIM = {"rss_source": {"kind": "sim", "model": "e2r"}, "trajectory": {"generator": "lawnmower"}}
 
 
-@pytest.mark.parametrize(("meta", "height", "model", "default", "method", "net"), [
-    # a model given wins over everything
-    ({"rss_source": {"kind": "afar-mat"}}, 30.0, "x/my.onnx", "D", "onnx", "my.onnx"),
-    (SPIRAL_SIM, 30.0, "x/my.onnx", None, "onnx", "my.onnx"),
-    # an adaptive flight: the method its rounds planned with
-    ({"trajectory": {"adaptive": {"rounds": 2}}, "rss_source": {"kind": "sim"}}, 30.0, None, "D",
-     "selfcal", None),
-    # a real receiver (any source kind but sim, or none recorded): the real-log default
-    ({"rss_source": {"kind": "afar-mat"}}, 37.0, None, "D", "fusion", None),
-    ({}, 30.0, None, "D", "fusion", None),
-    ({"rss_source": {"kind": "suite"}}, 30.0, None, None, "fusion", None),
-    # a simulated spiral at the spiral networks' altitude: a spiral network
-    (SPIRAL_SIM, 30.0, None, "D", "onnx", "rfsl_spiral_e2r_ens5.onnx"),
-    # a simulated spiral far off their altitudes, or another path: the shipped default network
-    (SPIRAL_SIM, 80.0, None, "D", "onnx", "D"),
-    (LAWN_SIM, 30.0, None, "D", "onnx", "D"),
-    # a simulated log and no default network: the grid
-    (LAWN_SIM, 30.0, None, None, "grid", None),
-])
+@pytest.mark.parametrize(
+    ("meta", "height", "model", "default", "method", "net"),
+    [
+        # a model given wins over everything
+        ({"rss_source": {"kind": "afar-mat"}}, 30.0, "x/my.onnx", "D", "onnx", "my.onnx"),
+        (SPIRAL_SIM, 30.0, "x/my.onnx", None, "onnx", "my.onnx"),
+        # an adaptive flight: the method its rounds planned with
+        (
+            {"trajectory": {"adaptive": {"rounds": 2}}, "rss_source": {"kind": "sim"}},
+            30.0,
+            None,
+            "D",
+            "selfcal",
+            None,
+        ),
+        # a real receiver (any source kind but sim, or none recorded): the real-log default
+        ({"rss_source": {"kind": "afar-mat"}}, 37.0, None, "D", "fusion", None),
+        ({}, 30.0, None, "D", "fusion", None),
+        ({"rss_source": {"kind": "suite"}}, 30.0, None, None, "fusion", None),
+        # a simulated spiral at the spiral networks' altitude: a spiral network
+        (SPIRAL_SIM, 30.0, None, "D", "onnx", "rfsl_spiral_e2r_ens5.onnx"),
+        # a simulated spiral far off their altitudes, or another path: the shipped default network
+        (SPIRAL_SIM, 80.0, None, "D", "onnx", "D"),
+        (LAWN_SIM, 30.0, None, "D", "onnx", "D"),
+        # a simulated log and no default network: the grid
+        (LAWN_SIM, 30.0, None, None, "grid", None),
+    ],
+)
 def test_choose_method_table(meta, height, model, default, method, net) -> None:
     import numpy as np
 

@@ -25,12 +25,24 @@ def test_a_domain_survives_its_json_record(alt, att):
     assert TrainingDomain.from_dict(json.loads(json.dumps(dom.to_dict())), "c.json") == dom
 
 
-@given(key=st.sampled_from(["altitude_m", "roll_deg", "pitch_deg"]),
-       bad=st.one_of(st.text(max_size=3), st.lists(finite, max_size=1), st.lists(finite, min_size=3, max_size=4),
-                     st.tuples(finite, finite).filter(lambda t: t[0] > t[1]).map(list), st.just({"lo": 1})))
+@given(
+    key=st.sampled_from(["altitude_m", "roll_deg", "pitch_deg"]),
+    bad=st.one_of(
+        st.text(max_size=3),
+        st.lists(finite, max_size=1),
+        st.lists(finite, min_size=3, max_size=4),
+        st.tuples(finite, finite).filter(lambda t: t[0] > t[1]).map(list),
+        st.just({"lo": 1}),
+    ),
+)
 @settings(max_examples=100, deadline=None)
 def test_a_malformed_span_names_the_card_and_key(key, bad):
-    rec = {"altitude_m": [20.0, 40.0], "roll_deg": [-5.0, 15.0], "pitch_deg": [-12.0, 10.0], key: bad}
+    rec = {
+        "altitude_m": [20.0, 40.0],
+        "roll_deg": [-5.0, 15.0],
+        "pitch_deg": [-12.0, 10.0],
+        key: bad,
+    }
     with pytest.raises(InputError) as e:
         TrainingDomain.from_dict(rec, "net.json")
     assert str(e.value).startswith(f"net.json, field '{DOMAIN_KEY}.{key}': ")
@@ -38,7 +50,9 @@ def test_a_malformed_span_names_the_card_and_key(key, bad):
 
 def test_roll_and_pitch_come_together():
     with pytest.raises(InputError, match="both"):
-        TrainingDomain.from_dict({"altitude_m": None, "roll_deg": [0, 1], "pitch_deg": None}, "c.json")
+        TrainingDomain.from_dict(
+            {"altitude_m": None, "roll_deg": [0, 1], "pitch_deg": None}, "c.json"
+        )
 
 
 @pytest.fixture
@@ -58,12 +72,20 @@ def test_the_runtime_reads_the_cards_domain_and_circles(net):
 
     card = OnnxLocalizer(net).card
     assert card.domain.altitude_m == (30.0, 30.0)
-    assert card.domain.attitude_deg[1][0] < 0 < card.domain.attitude_deg[1][1]  # pitch down and up on the spiral
-    assert card_calibration(card, "sim") == card_calibration(net, "sim") and card_calibration(card, "sim")[0]
+    assert (
+        card.domain.attitude_deg[1][0] < 0 < card.domain.attitude_deg[1][1]
+    )  # pitch down and up on the spiral
+    assert (
+        card_calibration(card, "sim") == card_calibration(net, "sim")
+        and card_calibration(card, "sim")[0]
+    )
     doc = json.loads(card_path(net).read_text())
     doc[DOMAIN_KEY]["altitude_m"] = [25.0, 35.0]
     card_path(net).write_text(json.dumps(doc))
-    assert OnnxLocalizer(net).card.domain.altitude_m == (25.0, 35.0)  # read from the card, not re-derived
+    assert OnnxLocalizer(net).card.domain.altitude_m == (
+        25.0,
+        35.0,
+    )  # read from the card, not re-derived
     doc[DOMAIN_KEY]["pitch_deg"] = [3.0]
     card_path(net).write_text(json.dumps(doc))
     with pytest.raises(InputError) as e:
@@ -78,8 +100,10 @@ def test_a_network_without_a_card_makes_no_claim(net):
     card_path(net).unlink()
     card = OnnxLocalizer(net).card
     assert card.domain == TrainingDomain() and card.regions is None
-    assert card_calibration(card, "real") == (None, "net.onnx has no model card (net.json, "
-                                                    "benchmarks/calibrate_error_circles.py)")
+    assert card_calibration(card, "real") == (
+        None,
+        "net.onnx has no model card (net.json, benchmarks/calibrate_error_circles.py)",
+    )
 
 
 def test_write_domain_adds_the_domain_and_keeps_the_rest(net):
@@ -90,8 +114,13 @@ def test_write_domain_adds_the_domain_and_keeps_the_rest(net):
     dom = write_domain(net, {"datasets": [{"randomisation": {"altitude_m": [22.0, 33.0]}}]})
     after = json.loads(card_path(net).read_text())
     assert dom == TrainingDomain((22.0, 33.0), None) and after[DOMAIN_KEY] == dom.to_dict()
-    assert {k: v for k, v in after.items() if k != DOMAIN_KEY} == {k: v for k, v in before.items() if k != DOMAIN_KEY}
+    assert {k: v for k, v in after.items() if k != DOMAIN_KEY} == {
+        k: v for k, v in before.items() if k != DOMAIN_KEY
+    }
     assert OnnxLocalizer(net).card.domain == dom
     card_path(net).unlink()
     write_domain(net, None)  # no card yet: one is made, with no claim
-    assert json.loads(card_path(net).read_text()) == {"model": "net.onnx", DOMAIN_KEY: TrainingDomain().to_dict()}
+    assert json.loads(card_path(net).read_text()) == {
+        "model": "net.onnx",
+        DOMAIN_KEY: TrainingDomain().to_dict(),
+    }

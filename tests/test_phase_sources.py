@@ -51,11 +51,17 @@ def test_flown_events_give_the_planned_paths_phases_and_items(behaviour):
     first_wp, last_item = 2, n + 2  # items: take-off, change speed, n waypoints, RTL or LAND
     tr = PhaseTracker()
     tr.configure(first_wp, last_item, final_phase(behaviour))
-    events = [lambda t: tr.on_landed_state(t, "TAKING_OFF"), lambda t: tr.on_landed_state(t, "IN_AIR")]
+    events = [
+        lambda t: tr.on_landed_state(t, "TAKING_OFF"),
+        lambda t: tr.on_landed_state(t, "IN_AIR"),
+    ]
     events += [lambda t, k=k: tr.on_progress(t, first_wp + k) for k in range(n)]
     if behaviour == "rtl":
         events.append(lambda t: tr.on_progress(t, last_item))
-    events += [lambda t: tr.on_landed_state(t, "LANDING"), lambda t: tr.on_landed_state(t, "ON_GROUND")]
+    events += [
+        lambda t: tr.on_landed_state(t, "LANDING"),
+        lambda t: tr.on_landed_state(t, "ON_GROUND"),
+    ]
     for t, e in enumerate(events):
         e(float(t))
     flown = _runs(*tr.at(np.arange(len(events), dtype=float)))

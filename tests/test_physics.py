@@ -85,9 +85,13 @@ def test_fresnel_limits():
         for pol in ("V", "H"):
             g = GroundReflection(eps_r=eps, polarization=pol)
             assert g.gamma(1e-7, FC) == pytest.approx(-1.0, abs=1e-5)  # grazing
-            assert abs(g.gamma(math.pi / 2, FC)) == pytest.approx(abs((1 - eps**0.5) / (1 + eps**0.5)))
+            assert abs(g.gamma(math.pi / 2, FC)) == pytest.approx(
+                abs((1 - eps**0.5) / (1 + eps**0.5))
+            )
         # lossy ground still -> -1 at grazing
-        assert GroundReflection(eps_r=eps, sigma_s_m=0.005).gamma(1e-8, FC) == pytest.approx(-1.0, abs=1e-5)
+        assert GroundReflection(eps_r=eps, sigma_s_m=0.005).gamma(1e-8, FC) == pytest.approx(
+            -1.0, abs=1e-5
+        )
         psi = np.radians(np.linspace(0.01, 89.99, 20001))
         gv = np.abs(GroundReflection(eps_r=eps, polarization="V").gamma(psi, FC))
         brewster = math.atan(1 / math.sqrt(eps))
@@ -103,7 +107,9 @@ def test_reflected_ray_geometry_and_image_source():
     e = m.explain([0, 0, h_t], [[d, 0, h_r]], np.zeros((1, 3)))
     assert e["d_ref"][0] == pytest.approx(math.hypot(d, h_r + h_t))
     assert e["el_tx_ref_rad"][0] == pytest.approx(-math.atan2(h_r + h_t, d))  # departs downwards
-    assert e["dep_b_ref_rad"][0] == pytest.approx(math.atan2(h_r + h_t, d))  # arrives from the image
+    assert e["dep_b_ref_rad"][0] == pytest.approx(
+        math.atan2(h_r + h_t, d)
+    )  # arrives from the image
     assert e["dep_b_rad"][0] == pytest.approx(math.atan2(h_r - h_t, d))
     g = m.effect("rx_antenna").pattern.gain_dbi(-math.atan2(h_r + h_t, d), 0.0)
     assert e["g_rx_ref_dbi"][0] == pytest.approx(float(g))
@@ -118,7 +124,9 @@ def test_zero_attitude_equals_two_ray():
         tr = make_model("two-ray", pattern=pattern, dtype=np.float64)
         a = e2r.without("leg_shadowing").rss_dbm(tx, rx, np.zeros((800, 3)))
         assert np.allclose(a, tr.rss_dbm(tx, rx), atol=1e-6)
-        assert np.allclose(e2r.rss_dbm(tx, rx, None), e2r.rss_dbm(tx, rx, np.zeros((800, 3))), atol=1e-6)
+        assert np.allclose(
+            e2r.rss_dbm(tx, rx, None), e2r.rss_dbm(tx, rx, np.zeros((800, 3))), atol=1e-6
+        )
 
 
 def test_yaw_rotates_body_azimuth_by_minus_yaw():
@@ -166,7 +174,13 @@ def test_leg_shadowing_intervals_threshold_and_upsilon():
     cases = []
     for psi in (39.0, 150.0, 270.0):
         for off, inside in ((0.0, True), (4.9, True), (-4.9, True), (5.1, False), (-5.1, False)):
-            for dep, below_thr in ((5.0, True), (-20.0, True), (9.9, True), (10.1, False), (40.0, False)):
+            for dep, below_thr in (
+                (5.0, True),
+                (-20.0, True),
+                (9.9, True),
+                (10.1, False),
+                (40.0, False),
+            ):
                 cases.append((psi + off, dep, inside and below_thr))
     for az in (0.0, 90.0, 200.0, 330.0):
         cases.append((az, 0.0, False))
@@ -206,7 +220,7 @@ def test_broadcasting_equals_loop():
     pr = m.rss_dbm(txp, rx, att)
     assert pr.shape == (N,)
     idx = rng.choice(N, 20, replace=False)
-    loop = [m.rss_dbm(txp[i], rx[i:i + 1], att[i:i + 1])[0] for i in idx]
+    loop = [m.rss_dbm(txp[i], rx[i : i + 1], att[i : i + 1])[0] for i in idx]
     assert np.allclose(pr[idx], loop, atol=1e-4)
     # small chunks give the same answer as one block
     from dataclasses import replace
@@ -233,8 +247,14 @@ def test_float32_fast_path_matches_float64_reference(name, pattern):
 
 def test_model_composition_api():
     m = make_model("e2r")
-    assert m.names == ("free_space", "tx_antenna", "rx_antenna", "ground_reflection", "attitude",
-                       "leg_shadowing")
+    assert m.names == (
+        "free_space",
+        "tx_antenna",
+        "rx_antenna",
+        "ground_reflection",
+        "attitude",
+        "leg_shadowing",
+    )
     assert m.effect("leg_shadowing").beta == 2.0
     m2 = m.with_params("leg_shadowing", beta=3.0)
     assert m2.effect("leg_shadowing").beta == 3.0 and m.effect("leg_shadowing").beta == 2.0
@@ -262,7 +282,9 @@ def test_custom_additive_effect_plugs_in():
 
     m = make_model("two-ray", dtype=np.float64)
     rx = np.array([[50.0, 0, 30], [100, 0, 30]])
-    assert np.allclose(m.with_effect(Offset()).rss_dbm([0, 0, 2], rx), m.rss_dbm([0, 0, 2], rx) - 3.0)
+    assert np.allclose(
+        m.with_effect(Offset()).rss_dbm([0, 0, 2], rx), m.rss_dbm([0, 0, 2], rx) - 3.0
+    )
     e = m.with_effect(Offset()).explain([0, 0, 2], rx)
     assert np.allclose(e["offset_db"], -3.0)
 
@@ -276,14 +298,18 @@ def test_body_matrix_planes_equal_the_matrix():
     from mission.physics.geometry import body_from_enu_matrix, body_from_enu_planes
 
     att = np.random.default_rng(5).uniform(-np.pi, np.pi, (257, 3))
-    assert np.allclose(body_from_enu_planes(att), body_from_enu_matrix(att).transpose(1, 2, 0), atol=1e-15)
+    assert np.allclose(
+        body_from_enu_planes(att), body_from_enu_matrix(att).transpose(1, 2, 0), atol=1e-15
+    )
 
 
 def test_planes_made_once_give_the_same_rss_and_belong_to_their_model() -> None:
     """``attitude_planes`` handed back to ``rss_dbm`` (the gap fits' way to skip the rotation per call) give
     the very values of passing the attitude; planes of another attitude effect or sample count are refused."""
     rng = np.random.default_rng(5)
-    rx = np.column_stack([rng.uniform(0, 300, 400), rng.uniform(0, 300, 400), rng.uniform(20, 50, 400)])
+    rx = np.column_stack(
+        [rng.uniform(0, 300, 400), rng.uniform(0, 300, 400), rng.uniform(20, 50, 400)]
+    )
     att = np.radians(rng.uniform(-20, 20, (400, 3)))
     tx = np.array([[120.0, 80.0, 1.5], [10.0, 250.0, 3.0]])[:, None, :]
     m = make_model("e2r", pattern="measured")

@@ -51,15 +51,39 @@ def test_sample_statistics_recover_known_spread_and_residual():
     assert s["rss_spread_db"] == pytest.approx(hi - lo)
     field = clean + shadowing_field(pos[:, :2], 10.0, 40.0, np.random.default_rng(1))
     f = sample_statistics(pos, field, tx, np.random.default_rng(0))
-    assert 6.0 < f["resid_sill_db"] < 14.0 and f["resid_nugget_db"] < 2.0 and 10.0 < f["resid_range_m"] < 120.0
+    assert (
+        6.0 < f["resid_sill_db"] < 14.0
+        and f["resid_nugget_db"] < 2.0
+        and 10.0 < f["resid_range_m"] < 120.0
+    )
 
 
 def test_family_checks_verdict():
-    sim = [{"rss_spread_db": v, "resid_sill_db": v / 4, "resid_range_m": 50.0 + v, "resid_nugget_db": 2.0}
-           for v in np.linspace(20, 60, 41)]
-    real = [{"rss_spread_db": 40.0, "resid_sill_db": 10.0, "resid_range_m": 90.0, "resid_nugget_db": 2.0}] * 6
+    sim = [
+        {
+            "rss_spread_db": v,
+            "resid_sill_db": v / 4,
+            "resid_range_m": 50.0 + v,
+            "resid_nugget_db": 2.0,
+        }
+        for v in np.linspace(20, 60, 41)
+    ]
+    real = [
+        {
+            "rss_spread_db": 40.0,
+            "resid_sill_db": 10.0,
+            "resid_range_m": 90.0,
+            "resid_nugget_db": 2.0,
+        }
+    ] * 6
     ok = family_checks(real, sim, {"a": [40.0] * 6}, {"a": list(np.linspace(20, 60, 41))})
-    assert set(ok) == {"rss_spread_db", "resid_sill_db", "resid_range_m", "resid_nugget_db", "error m: a"}
+    assert set(ok) == {
+        "rss_spread_db",
+        "resid_sill_db",
+        "resid_range_m",
+        "resid_nugget_db",
+        "error m: a",
+    }
     assert verdict(ok).startswith("the family passes all 5")
     bad = family_checks([{**r, "rss_spread_db": 90.0} for r in real], sim)
     assert "fails 1 of 4" in verdict(bad) and "rss_spread_db" in verdict(bad)
@@ -75,7 +99,9 @@ def _errors(seed: int, n: int, scale: float) -> np.ndarray:
 def test_rule_adopts_a_clear_win():
     """A candidate that errs 40 % less on every real flight and every benchmark flight wins and is chosen."""
     inc_r, inc_b = _errors(1, 6, 40.0), _errors(2, 200, 70.0)
-    out = pooled_decision({"inc": inc_r, "new": 0.6 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.6 * inc_b}, "inc")
+    out = pooled_decision(
+        {"inc": inc_r, "new": 0.6 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.6 * inc_b}, "inc"
+    )
     assert out["changed"] and out["choice"] == "new"
     assert out["methods"]["new"]["pooled"].value == pytest.approx(-0.4)
     assert out["methods"]["new"]["pooled"].hi < 0
@@ -98,7 +124,9 @@ def test_rule_keeps_the_incumbent_on_a_win_inside_the_interval():
 def test_rule_refuses_a_pooled_win_that_loses_on_one_source():
     """Much better on the benchmark, clearly worse on both real teams: pooled below zero, yet refused."""
     inc_r, inc_b = _errors(1, 6, 40.0), _errors(2, 200, 70.0)
-    out = pooled_decision({"inc": inc_r, "new": 1.1 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.3 * inc_b}, "inc")
+    out = pooled_decision(
+        {"inc": inc_r, "new": 1.1 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.3 * inc_b}, "inc"
+    )
     d = out["methods"]["new"]
     assert d["pooled"].hi < 0 and d["real"].lo > 0
     assert not out["changed"] and "worse beyond its interval on real" in d["reason"]
@@ -106,6 +134,11 @@ def test_rule_refuses_a_pooled_win_that_loses_on_one_source():
 
 def test_rule_reports_but_does_not_adopt_a_winner_with_poor_coverage():
     inc_r, inc_b = _errors(1, 6, 40.0), _errors(2, 200, 70.0)
-    out = pooled_decision({"inc": inc_r, "new": 0.6 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.6 * inc_b}, "inc",
-                          coverage_90={"new": 0.6})
+    out = pooled_decision(
+        {"inc": inc_r, "new": 0.6 * inc_r},
+        TEAMS,
+        {"inc": inc_b, "new": 0.6 * inc_b},
+        "inc",
+        coverage_90={"new": 0.6},
+    )
     assert out["methods"]["new"]["wins"] and not out["changed"]

@@ -11,7 +11,9 @@ from hypothesis import strategies as st
 from mission.localize.preprocess import cruise_mask
 
 
-def profile(altitudes: list[tuple[float, int]], ramp: int = 60, ground: int = 40, seed: int = 0) -> tuple:
+def profile(
+    altitudes: list[tuple[float, int]], ramp: int = 60, ground: int = 40, seed: int = 0
+) -> tuple:
     """Heights of a flight: ground, climb, each cruise altitude (altitude, samples) joined by ramps, descent, ground;
     with 0.3 m of altimeter noise.  Returns (heights, label) with label = altitude index, -1 ramp, -2 ground."""
     rng = np.random.default_rng(seed)
@@ -48,7 +50,9 @@ def test_even_split_between_two_altitudes_keeps_both():
 
 
 def test_minor_altitude_kept_short_hover_dropped():
-    h, lab = profile([(40.0, 1400), (20.0, 600), (10.0, 60)])  # 30 % at 20 m kept; a 3 % hover at 10 m not
+    h, lab = profile(
+        [(40.0, 1400), (20.0, 600), (10.0, 60)]
+    )  # 30 % at 20 m kept; a 3 % hover at 10 m not
     sel = cruise_mask(h)
     assert sel.mask[lab == 0].all() and sel.mask[lab == 1].all() and not sel.mask[lab == 2].any()
     assert len(sel.altitudes) == 2 and sel.cruise_alt_m == pytest.approx(40.0, abs=0.2)
@@ -60,8 +64,11 @@ def test_min_altitude_share_is_the_threshold():
 
 
 @settings(max_examples=60, deadline=None)
-@given(alts=st.lists(st.floats(15.0, 60.0), min_size=1, max_size=3),
-       shares=st.lists(st.integers(300, 1500), min_size=3, max_size=3), seed=st.integers(0, 2**16))
+@given(
+    alts=st.lists(st.floats(15.0, 60.0), min_size=1, max_size=3),
+    shares=st.lists(st.integers(300, 1500), min_size=3, max_size=3),
+    seed=st.integers(0, 2**16),
+)
 # found by hypothesis: the upper part's median fell between two altitudes yet its band still held half of it,
 # catching the upper altitude off-centre (its top samples and a ramp were cut; now re-centred)
 @example(alts=[37.0, 56.0], shares=[300, 347, 300], seed=0)
@@ -70,7 +77,9 @@ def test_altitudes_property(alts, shares, seed):
     """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every cruise sample is kept, no ground
     sample is, and no ramp sample well outside every altitude's band is."""
     alts = sorted(set(round(a) for a in alts))
-    alts = [a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2]  # bands do not touch
+    alts = [
+        a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2
+    ]  # bands do not touch
     n = shares[: len(alts)]
     assume(min(n) >= 0.2 * sum(n))
     h, lab = profile(list(zip(map(float, alts), n, strict=True)), seed=seed)

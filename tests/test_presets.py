@@ -22,8 +22,12 @@ TRUTH = {1: (35.72806709, -78.69730398), 2: (35.72911779, -78.69918128)}
 
 def _geometry(n: int = 200, seed: int = 0):
     rng = np.random.default_rng(seed)
-    rx = np.column_stack([rng.uniform(-300, 300, n), rng.uniform(-300, 300, n), rng.uniform(10, 60, n)])
-    att = np.column_stack([rng.normal(0, 0.1, n), rng.normal(0, 0.1, n), rng.uniform(0, 2 * np.pi, n)])
+    rx = np.column_stack(
+        [rng.uniform(-300, 300, n), rng.uniform(-300, 300, n), rng.uniform(10, 60, n)]
+    )
+    att = np.column_stack(
+        [rng.normal(0, 0.1, n), rng.normal(0, 0.1, n), rng.uniform(0, 2 * np.pi, n)]
+    )
     return np.array([12.0, -30.0, 1.5]), rx, att
 
 
@@ -51,7 +55,9 @@ def test_preset_folds_by_name():
     rec = load_calibration("afar")
     for name, fold in rec["folds"].items():
         assert load_preset(f"afar:{name}") == fold["model"]
-        assert fold["fitted_on"] and not set(fold["fitted_on"]) & set(fold["tested_on"])  # held out means held out
+        assert fold["fitted_on"] and not set(fold["fitted_on"]) & set(
+            fold["tested_on"]
+        )  # held out means held out
         assert preset_model(f"afar:{name}").name == f"afar-{name}-calibrated"
     assert load_preset("afar:fit328") != load_preset("afar:fit288")
     with pytest.raises(InputError, match="no fold"):
@@ -66,12 +72,28 @@ def test_preset_errors():
 
 
 def test_build_model_effects():
-    m = build_model({"base": "e2r", "ground": None, "leg_shadowing_beta": None, "attitude": "yaw",
-                     "path_gain_slope": 0.5, "rx_pattern": "measured", "rx_flipped": True, "rx_heading_deg": 30})
+    m = build_model(
+        {
+            "base": "e2r",
+            "ground": None,
+            "leg_shadowing_beta": None,
+            "attitude": "yaw",
+            "path_gain_slope": 0.5,
+            "rx_pattern": "measured",
+            "rx_flipped": True,
+            "rx_heading_deg": 30,
+        }
+    )
     assert set(m.names) == {"free_space", "tx_antenna", "rx_antenna", "attitude", "path_gain_slope"}
     assert m.effect("attitude").roll_pitch is False and m.effect("rx_antenna").flipped
     assert m.effect("rx_antenna").heading_rad == pytest.approx(np.radians(30))
-    m2 = build_model({"base": "free-space", "ground": {"eps_r": 15, "sigma_s_m": 0.005}, "leg_shadowing_beta": 1.0})
+    m2 = build_model(
+        {
+            "base": "free-space",
+            "ground": {"eps_r": 15, "sigma_s_m": 0.005},
+            "leg_shadowing_beta": 1.0,
+        }
+    )
     assert m2.effect("ground_reflection").eps_r == 15 and m2.effect("leg_shadowing").beta == 1.0
 
 
@@ -86,11 +108,16 @@ def test_path_gain_slope_closed_form(base, n_extra):
     d_los = np.linalg.norm(rx - tx, axis=1)
     want = -10.0 * n_extra * np.log10(d_los / d_ref)
     np.testing.assert_allclose(m1.rss_dbm(tx, rx, att) - m0.rss_dbm(tx, rx, att), want, atol=1e-9)
-    np.testing.assert_allclose(m1.explain(tx, rx, att)["rss_dbm"] - m0.explain(tx, rx, att)["rss_dbm"], want,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        m1.explain(tx, rx, att)["rss_dbm"] - m0.explain(tx, rx, att)["rss_dbm"], want, atol=1e-9
+    )
     # float32 fast path agrees with the float64 reference
-    m32 = make_model(base, pattern="dipole").with_effect(PathGainSlope(n_extra=n_extra, d_ref_m=d_ref))
-    np.testing.assert_allclose(m32.rss_dbm(tx, rx, att), m1.explain(tx, rx, att)["rss_dbm"], atol=2e-3)
+    m32 = make_model(base, pattern="dipole").with_effect(
+        PathGainSlope(n_extra=n_extra, d_ref_m=d_ref)
+    )
+    np.testing.assert_allclose(
+        m32.rss_dbm(tx, rx, att), m1.explain(tx, rx, att)["rss_dbm"], atol=2e-3
+    )
 
 
 def test_yaw_only_attitude_equals_level_body_with_the_logged_yaw():
@@ -99,8 +126,9 @@ def test_yaw_only_attitude_equals_level_body_with_the_logged_yaw():
     my = m.with_effect(Attitude(roll_pitch=False))
     yaw_only = att * np.array([0.0, 0.0, 1.0])
     np.testing.assert_allclose(my.rss_dbm(tx, rx, att), m.rss_dbm(tx, rx, yaw_only), atol=1e-9)
-    np.testing.assert_allclose(my.explain(tx, rx, att)["rss_dbm"], m.explain(tx, rx, yaw_only)["rss_dbm"],
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        my.explain(tx, rx, att)["rss_dbm"], m.explain(tx, rx, yaw_only)["rss_dbm"], atol=1e-9
+    )
     assert not np.allclose(m.rss_dbm(tx, rx, att), m.rss_dbm(tx, rx, yaw_only))
 
 
@@ -143,7 +171,9 @@ def test_calibrated_model_beats_free_space_on_held_out_team_288():
     """The fold fitted on team 328 only, scored on team 288 locations 1-2 (never seen by that fit)."""
     from mission.gap.fit import offset_residual
 
-    rec = json.loads((Path(__file__).parents[1] / "mission" / "data" / "afar_calibration.json").read_text())
+    rec = json.loads(
+        (Path(__file__).parents[1] / "mission" / "data" / "afar_calibration.json").read_text()
+    )
     fold = rec["folds"]["fit328"]
     assert all(n.startswith("328") for n in fold["fitted_on"])
     cal = build_model(fold["model"])
@@ -167,7 +197,9 @@ def test_default_grid_physics_follows_the_log_source():
     from mission.localize.api import _default_physics
 
     cols = {"t_s": np.zeros(1)}
-    sim = FlightLog(cols, {"rss_source": {"kind": "sim", "model": "two-ray", "model_params": {"eps_r": 5}}})
+    sim = FlightLog(
+        cols, {"rss_source": {"kind": "sim", "model": "two-ray", "model_params": {"eps_r": 5}}}
+    )
     assert _default_physics(sim) == ("two-ray", {"eps_r": 5}, None)
     real = FlightLog(cols, {"rss_source": {"kind": "real", "calibrated": False}})
     assert _default_physics(real) == (None, None, "afar")
@@ -189,7 +221,13 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     spec = load_mission()
     origin = afar_field().origin
     tx = np.array([120.0, 200.0, 1.5])
-    f = simulate_flight(spec.waypoints_enu()[:6], tx, make_model("free-space"), SimConfig(), np.random.default_rng(0))
+    f = simulate_flight(
+        spec.waypoints_enu()[:6],
+        tx,
+        make_model("free-space"),
+        SimConfig(),
+        np.random.default_rng(0),
+    )
     cols = f.log_columns(origin)
     real = write_flight_log(tmp_path / "real.csv", cols, make_meta(origin, {"kind": "aerpaw-fifo"}))
     est = localize_log(real)
@@ -199,10 +237,16 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     mean = np.mean(list(comp.values()), axis=0)
     assert (est.x_m, est.y_m) == pytest.approx(tuple(mean))
     assert [r["level"] for r in est.extras["regions"]] == [0.5, 0.9]
-    q = est.extras["fused_point_hpd_level"]  # the fused point's place in its own regions, and the note on it
+    q = est.extras[
+        "fused_point_hpd_level"
+    ]  # the fused point's place in its own regions, and the note on it
     assert q == pytest.approx(est.posterior.hpd_level(est.x_m, est.y_m)) and 0.0 <= q <= 1.0
-    assert ("outside the 90 % region" in est.extras.get("note", "")) == (q >= est.extras["regions"][1]["hpd_mass"])
-    sim = write_flight_log(tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"}))
+    assert ("outside the 90 % region" in est.extras.get("note", "")) == (
+        q >= est.extras["regions"][1]["hpd_mass"]
+    )
+    sim = write_flight_log(
+        tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"})
+    )
     est = localize_log(sim)
     assert default_model_path() is not None, "the repository ships models/rfsl_default.onnx"
     assert est.method == "onnx" and est.model == default_model_path().name
@@ -223,8 +267,12 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
     spec = load_mission()
     origin = afar_field().origin
     tx = np.array([120.0, 200.0, 1.5])
-    f = simulate_flight(spec.waypoints_enu(), tx, make_model("free-space"), SimConfig(), np.random.default_rng(1))
-    real = write_flight_log(tmp_path / "real.csv", f.log_columns(origin), make_meta(origin, {"kind": "aerpaw-fifo"}))
+    f = simulate_flight(
+        spec.waypoints_enu(), tx, make_model("free-space"), SimConfig(), np.random.default_rng(1)
+    )
+    real = write_flight_log(
+        tmp_path / "real.csv", f.log_columns(origin), make_meta(origin, {"kind": "aerpaw-fifo"})
+    )
     make = api.make_localizer
 
     from mission.localize.card import ModelCard, TrainingDomain
@@ -233,14 +281,18 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
         path = tmp_path / "far.onnx"
         model_name = "far.onnx"
         # no card beside it: no training domain (no altitude or attitude claim), no calibrated circles
-        card = ModelCard(path, "clustering", None, None, origin, None, TrainingDomain(), None, "", {})
+        card = ModelCard(
+            path, "clustering", None, None, origin, None, TrainingDomain(), None, "", {}
+        )
         cfg = type("Cfg", (), {"to_dict": lambda self: {}})()
 
         def predict(self, part):
             lat, lon, _ = origin.to_geodetic(np.array([tx[0] + 300.0, tx[1], 0.0]))
             return api.Estimate(0.0, 0.0, "onnx", "far", float(lat), float(lon))
 
-    monkeypatch.setattr(api, "make_localizer", lambda m, *a, **k: FarNetwork() if m == "onnx" else make(m, *a, **k))
+    monkeypatch.setattr(
+        api, "make_localizer", lambda m, *a, **k: FarNetwork() if m == "onnx" else make(m, *a, **k)
+    )
     monkeypatch.setattr(api, "fusion_model_path", lambda: FarNetwork.path)
     est = api.localize_log(real)
     assert est.extras["component_distance_m"] > 250.0

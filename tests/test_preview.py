@@ -25,8 +25,11 @@ class _FreeSpace:
     """Free-space path loss with isotropic antennas (used where mission.physics is not importable)."""
 
     def rss_dbm(self, tx, rx, attitude=None):
-        d = np.linalg.norm(np.asarray(tx)[..., None, :] - np.asarray(rx), axis=-1) \
-            if np.asarray(tx).ndim == 1 else np.linalg.norm(np.asarray(tx) - np.asarray(rx), axis=-1)
+        d = (
+            np.linalg.norm(np.asarray(tx)[..., None, :] - np.asarray(rx), axis=-1)
+            if np.asarray(tx).ndim == 1
+            else np.linalg.norm(np.asarray(tx) - np.asarray(rx), axis=-1)
+        )
         lam = 299792458.0 / 3.32e9
         return 41.0 + 20 * np.log10(lam / (4 * np.pi * np.maximum(d, 1.0)))
 
@@ -63,8 +66,10 @@ def test_estimator_is_offset_invariant_and_finds_the_source():
     # reference written out: per record, the cell centre minimising sum((r - mean r - (p - mean p))^2)
     noisy = rss + np.random.default_rng(5).normal(0.0, 3.0, rss.shape)
     cand = area_grid(spec.field.rover_area, 4.0)
-    pred = np.asarray(model.rss_dbm(np.column_stack([cand, np.full(len(cand), 1.5)])[:, None, :], pos, att),
-                      dtype=float)
+    pred = np.asarray(
+        model.rss_dbm(np.column_stack([cand, np.full(len(cand), 1.5)])[:, None, :], pos, att),
+        dtype=float,
+    )
     pred_c = pred - pred.mean(axis=1, keepdims=True)
     for r, got in zip(noisy, est(pos, att, noisy), strict=True):
         sse = np.sum((pred_c - (r - r.mean())) ** 2, axis=1)
@@ -90,7 +95,10 @@ def test_expected_error_map_and_custom_estimator():
 def test_preview_png_has_expected_size(tmp_path, capsys):
     out = tmp_path / "p.png"
     with capture_figures() as figs:
-        assert main(["preview", str(MISSIONS / "spiral.yaml"), "--out", str(out), "--size", "800x600"]) == 0
+        assert (
+            main(["preview", str(MISSIONS / "spiral.yaml"), "--out", str(out), "--size", "800x600"])
+            == 0
+        )
     assert _png_size(out) == (800, 600)
     assert_png_drawn(out, size=(800, 600))
     (fig,) = figs
@@ -106,8 +114,22 @@ def test_preview_accuracy_png(tmp_path):
     pytest.importorskip("mission.physics")
     out = tmp_path / "a.png"
     with capture_figures() as figs:
-        assert main(["preview", str(MISSIONS / "waypoints.yaml"), "--out", str(out), "--accuracy",
-                     "--grid", "4", "--seed", "3"]) == 0
+        assert (
+            main(
+                [
+                    "preview",
+                    str(MISSIONS / "waypoints.yaml"),
+                    "--out",
+                    str(out),
+                    "--accuracy",
+                    "--grid",
+                    "4",
+                    "--seed",
+                    "3",
+                ]
+            )
+            == 0
+        )
     assert _png_size(out) == (1200, 1000)
     assert_png_drawn(out, size=(1200, 1000))
     (fig,) = figs

@@ -34,8 +34,10 @@ SPEEDUP = 10
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.px4,  # run by `pytest --px4`, one at a time, after the rest (tests/conftest.py)
-    pytest.mark.skipif(not (PX4 / "bin" / "px4").exists() or not (PX4 / "start.sh").exists(),
-                       reason="PX4 SITL not in ../shared/sitl/px4"),
+    pytest.mark.skipif(
+        not (PX4 / "bin" / "px4").exists() or not (PX4 / "start.sh").exists(),
+        reason="PX4 SITL not in ../shared/sitl/px4",
+    ),
 ]
 
 
@@ -57,11 +59,17 @@ class _Px4(SitlProcess):
     def start(self) -> str:
         from mission.spec import load_mission
 
-        spec = load_mission(SPIRAL)  # the vehicle takes off from the missions' home (4 m inside the fence)
+        spec = load_mission(
+            SPIRAL
+        )  # the vehicle takes off from the missions' home (4 m inside the fence)
         lat, lon, _ = spec.field.origin.to_geodetic(spec.home_enu)
         inst = _free_instance()
-        self.launch(PX4 / "start.sh", [str(self.speedup), str(inst), f"{lat:.7f},{lon:.7f},0"], "Ready for takeoff!",
-                    "PX4 SITL")
+        self.launch(
+            PX4 / "start.sh",
+            [str(self.speedup), str(inst), f"{lat:.7f},{lon:.7f},0"],
+            "Ready for takeoff!",
+            "PX4 SITL",
+        )
         self.url = f"udpin://0.0.0.0:{14540 + inst}"
         return self.url
 
@@ -87,11 +95,30 @@ def px4(tmp_path):
 def _fly(mission: Path, url: str, out: Path, *extra: str, interrupt_on: str | None = None):
     """Run ``fly-mission`` to the end; with ``interrupt_on``, send SIGINT at the first output line holding it.
     Returns (exit code, output lines, wall seconds)."""
-    cmd = [sys.executable, "-m", "mission.cli.fly", str(mission), "--connect", url, "--speedup", str(SPEEDUP),
-           "--out", str(out), "--link-timeout", "60", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "mission.cli.fly",
+        str(mission),
+        "--connect",
+        url,
+        "--speedup",
+        str(SPEEDUP),
+        "--out",
+        str(out),
+        "--link-timeout",
+        "60",
+        *extra,
+    ]
     t0 = time.monotonic()
-    p = subprocess.Popen(cmd, cwd=ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, text=True)
+    p = subprocess.Popen(
+        cmd,
+        cwd=ROOT,
+        env=dict(os.environ, PYTHONUNBUFFERED="1"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     lines: list[str] = []
 
     def read() -> None:
@@ -124,11 +151,15 @@ def _arm_to_disarm(meta: dict) -> float:
 
 def _too_wide(lines: list[str]) -> list[str]:
     """Lines over 80 columns other than a path standing alone (``log: /long/tmp/path``: it cannot wrap)."""
-    return [ln for ln in lines if len(ln) > 80 and not (len(ln.split()) <= 2 and "/" in ln.split()[-1])]
+    return [
+        ln for ln in lines if len(ln) > 80 and not (len(ln.split()) <= 2 and "/" in ln.split()[-1])
+    ]
 
 
 def _sidecar_texts(meta: dict) -> list[str]:
-    return [e["text"].removeprefix("autopilot: ") for e in meta["events"] if e["kind"] == "statustext"]
+    return [
+        e["text"].removeprefix("autopilot: ") for e in meta["events"] if e["kind"] == "statustext"
+    ]
 
 
 def test_spiral_on_px4(px4, tmp_path):
@@ -149,18 +180,25 @@ def test_spiral_on_px4(px4, tmp_path):
     kept, sent = _sidecar_texts(m), px4.texts()
     it = iter(sent)
     assert all(t in it for t in kept), (sent, kept)  # a subsequence: nothing invented or reordered
-    dropped = any(e["kind"] == "mavsdk" and "Dropping subscription callbacks" in e["text"] for e in m["events"])
+    dropped = any(
+        e["kind"] == "mavsdk" and "Dropping subscription callbacks" in e["text"]
+        for e in m["events"]
+    )
     assert kept == sent or (dropped and len(kept) >= 0.5 * len(sent)), (sent, kept, dropped)
     assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
     # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's regions do
     assert any(ln.startswith("  90 % region: ") for ln in lines), out[-1500:]
     assert "region: none" not in out
     assert not _too_wide(lines), _too_wide(lines)
-    print(f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, budget {m['budget']}")
+    print(
+        f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, budget {m['budget']}"
+    )
 
 
 def test_ctrl_c_on_px4_returns_and_lands(px4, tmp_path):
-    rc, lines, wall = _fly(SPIRAL, px4.url, tmp_path / "flights", "--no-localize", interrupt_on="wp 2/18")
+    rc, lines, wall = _fly(
+        SPIRAL, px4.url, tmp_path / "flights", "--no-localize", interrupt_on="wp 2/18"
+    )
     out = "\n".join(lines)
     assert rc == 130, out[-3000:]
     (csv,) = sorted((tmp_path / "flights").glob("*/flight.csv"))
@@ -189,8 +227,12 @@ def test_adaptive_mission_on_px4(px4, tmp_path):
     late = "no adaptive round: the survey ended before one was planned" in out
     assert m["adaptive"]["rounds"] or late, out[-2500:]
     if late:
-        warnings.warn("PX4 adaptive flight: no round (live estimate late on a starved CPU)", stacklevel=1)
+        warnings.warn(
+            "PX4 adaptive flight: no round (live estimate late on a starved CPU)", stacklevel=1
+        )
     assert any(ln.startswith("estimate: ") for ln in lines) or late
     assert not _too_wide(lines), _too_wide(lines)
-    print(f"PX4 adaptive: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, "
-          f"{len(m['adaptive']['rounds'])} rounds")
+    print(
+        f"PX4 adaptive: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, "
+        f"{len(m['adaptive']['rounds'])} rounds"
+    )

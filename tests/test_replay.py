@@ -38,15 +38,22 @@ def test_summary_and_plot(tmp_path):
     assert abs(s["path_length_m"] - 49.5) < 0.1 and s["rss_max_db"] == -50.1
     with capture_figures() as figs:
         png = plot(log, tmp_path / "f.png")
-    assert_png_drawn(png, size=(840, 720))  # 7 x 6 in at 120 dpi, coloured path on a white background
+    assert_png_drawn(
+        png, size=(840, 720)
+    )  # 7 x 6 in at 120 dpi, coloured path on a white background
     (fig,) = figs
     ax, cbar = fig.axes  # the map and its RSS colour bar
     assert "RSS" in cbar.get_ylabel()
     (path,) = ax.collections[-1:]  # every sample drawn, coloured by its RSS
-    assert np.allclose(path.get_offsets(), log.enu()[:, :2]) and np.allclose(path.get_array(), log["rss_dbm"])
+    assert np.allclose(path.get_offsets(), log.enu()[:, :2]) and np.allclose(
+        path.get_array(), log["rss_dbm"]
+    )
     assert legend_labels(ax) == ["strongest RSS", "true transmitter"]
     star = [ln for ln in ax.lines if ln.get_label() == "strongest RSS"][0]
-    assert (star.get_xdata()[0], star.get_ydata()[0]) == (log.enu()[-1, 0], log.enu()[-1, 1])  # RSS rises with t
+    assert (star.get_xdata()[0], star.get_ydata()[0]) == (
+        log.enu()[-1, 0],
+        log.enu()[-1, 1],
+    )  # RSS rises with t
 
 
 def test_cli(tmp_path, capsys):

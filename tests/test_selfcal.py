@@ -40,7 +40,9 @@ def test_noise_free_free_space_is_found_exactly_with_any_offset() -> None:
     rx = lawnmower()
     tx = np.array([123.0, 77.0, 1.5])
     for off in (-90.0, 13.0):
-        f = FlightSamples(enu_m=rx, rss_dbm=free_space_rss(tx, rx, off), attitude_rad=np.zeros_like(rx))
+        f = FlightSamples(
+            enu_m=rx, rss_dbm=free_space_rss(tx, rx, off), attitude_rad=np.zeros_like(rx)
+        )
         est = SelfCalibratingGrid(area=(-50, -50, 250, 250), hypotheses=("isotropic",)).predict(f)
         assert np.hypot(est.x_m - tx[0], est.y_m - tx[1]) < 1.01  # refine step 1 m
         assert est.extras["residual_rms_db"] < 0.05
@@ -62,23 +64,29 @@ def test_antenna_heading_is_profiled_out() -> None:
     g = rm_wb1_dn().gain_dbi(el_a, az_a)
     rss = free_space_rss(tx, rx) + g
     att = np.column_stack([np.zeros(len(rx)), np.zeros(len(rx)), yaw])
-    est = SelfCalibratingGrid(area=(-50, -50, 250, 250)).predict(FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att))
+    est = SelfCalibratingGrid(area=(-50, -50, 250, 250)).predict(
+        FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att)
+    )
     assert "upside down heading 120" in est.extras["antenna"]
     assert np.hypot(est.x_m - tx[0], est.y_m - tx[1]) < 3.0
     iso = SelfCalibratingGrid(area=(-50, -50, 250, 250), hypotheses=("isotropic",)).predict(
-        FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att))
+        FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att)
+    )
     assert iso.extras["residual_rms_db"] > 3 * est.extras["residual_rms_db"]
 
 
 def test_cells_average_repeated_passes_and_circular_yaw() -> None:
     rx = np.array([[1.0, 1.0, 30.0], [2.0, 2.0, 30.0], [12.0, 1.0, 30.0]])
     att = np.radians([[0, 0, 359.0], [0, 0, 1.0], [0, 0, 90.0]])
-    c = cell_average(FlightSamples(enu_m=rx, rss_dbm=np.array([-50.0, -52.0, -60.0]), attitude_rad=att), 5.0)
+    c = cell_average(
+        FlightSamples(enu_m=rx, rss_dbm=np.array([-50.0, -52.0, -60.0]), attitude_rad=att), 5.0
+    )
     assert len(c) == 2
     i = int(np.argmax(c.count))
     assert c.count[i] == 2 and c.rss_dbm[i] == pytest.approx(-51.0)
-    assert np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(0.0, abs=1e-6) or \
-        np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(360.0, abs=1e-6)
+    assert np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(
+        0.0, abs=1e-6
+    ) or np.degrees(np.mod(c.yaw_rad[i], 2 * np.pi)) == pytest.approx(360.0, abs=1e-6)
     assert c.area_m2 == 50.0
 
 
@@ -134,7 +142,9 @@ def test_hpd_level_of_an_isotropic_gaussian_is_its_closed_form() -> None:
     for r in (10.0, 20.0, 35.0, 50.0):
         for ang in (0.0, 1.0, 2.5):
             x, y = r * np.cos(ang), r * np.sin(ang)
-            assert post.hpd_level(x, y) == pytest.approx(1.0 - np.exp(-0.5 * r * r / s**2), abs=0.02)
+            assert post.hpd_level(x, y) == pytest.approx(
+                1.0 - np.exp(-0.5 * r * r / s**2), abs=0.02
+            )
     assert post.hpd_level(0.0, 0.0) == pytest.approx(0.0, abs=1e-3)
     assert post.hpd_level(400.0, 0.0) == 1.0 and not post.covers(400.0, 0.0, 0.99)
     r50 = s * np.sqrt(-2.0 * np.log(0.5))
@@ -154,7 +164,8 @@ def test_regions_cover_truth_on_noisy_flights_and_stay_informative() -> None:
         tx = np.array([rng.uniform(0, 200), rng.uniform(0, 200), 1.5])
         rss = free_space_rss(tx, rx) + rng.normal(0, 6.0, len(rx))
         est = SelfCalibratingGrid(area=(-50, -50, 250, 250), hypotheses=("isotropic",)).predict(
-            FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=None))
+            FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=None)
+        )
         cov50 += region_covers(est, tx[0], tx[1], 0.5)
         cov90 += region_covers(est, tx[0], tx[1], 0.9)
         a50, a90 = (r["area_m2"] for r in est.extras["regions"])
@@ -166,11 +177,15 @@ def test_outside_flown_area_is_said() -> None:
     rx = lawnmower(x1=100.0, y1=100.0, legs=6)
     tx = np.array([50.0, 190.0, 1.5])
     est = SelfCalibratingGrid(area=(-20, -20, 220, 220), hypotheses=("isotropic",)).predict(
-        FlightSamples(enu_m=rx, rss_dbm=free_space_rss(tx, rx), attitude_rad=None))
+        FlightSamples(enu_m=rx, rss_dbm=free_space_rss(tx, rx), attitude_rad=None)
+    )
     assert est.extras["p_outside_flown_area"] > 0.5
     assert "outside the flown area" in est.extras["note"]
     inside = SelfCalibratingGrid(area=(-20, -20, 220, 220), hypotheses=("isotropic",)).predict(
-        FlightSamples(enu_m=rx, rss_dbm=free_space_rss(np.array([50.0, 50.0, 1.5]), rx), attitude_rad=None))
+        FlightSamples(
+            enu_m=rx, rss_dbm=free_space_rss(np.array([50.0, 50.0, 1.5]), rx), attitude_rad=None
+        )
+    )
     assert inside.extras["p_outside_flown_area"] < 0.2 and "note" not in inside.extras
 
 
@@ -184,18 +199,33 @@ def test_mission_phase_selects_legs_and_height_band_otherwise() -> None:
     h = np.r_[np.linspace(0, 30, 20), np.full(60, 30.0), np.full(20, 30.0)]
     enu = np.column_stack([np.linspace(0, 100, n), np.zeros(n), h])
     lat, lon, alt = o.to_geodetic(enu)
-    cols = {"t_s": np.arange(n) * 0.1, "lat_deg": lat, "lon_deg": lon, "alt_m": alt, "rel_alt_m": h,
-            "rss_dbm": np.zeros(n), "roll_deg": np.zeros(n), "pitch_deg": np.zeros(n), "yaw_deg": np.zeros(n)}
+    cols = {
+        "t_s": np.arange(n) * 0.1,
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": alt,
+        "rel_alt_m": h,
+        "rss_dbm": np.zeros(n),
+        "roll_deg": np.zeros(n),
+        "pitch_deg": np.zeros(n),
+        "yaw_deg": np.zeros(n),
+    }
     meta = {"origin": o.to_dict()}
     part, why = select_samples(FlightLog(dict(cols), meta))
-    assert len(part) >= 80 and "cruise" in why  # no phase column: the height band keeps the return at 30 m
+    assert (
+        len(part) >= 80 and "cruise" in why
+    )  # no phase column: the height band keeps the return at 30 m
     phase = np.array(["takeoff"] * 20 + ["mission"] * 60 + ["return"] * 20, dtype=object)
-    part, why = select_samples(FlightLog({**cols, "phase": phase, "mission_item": np.zeros(n)}, meta))
+    part, why = select_samples(
+        FlightLog({**cols, "phase": phase, "mission_item": np.zeros(n)}, meta)
+    )
     assert len(part) == 60 and "mission legs" in why
 
 
 @pytest.mark.real
-def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path, monkeypatch, capsys) -> None:
+def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
+    tmp_path, monkeypatch, capsys
+) -> None:
     mat = SHARED / "data" / "afar2023" / "mat"
     if not mat.is_dir():
         pytest.skip("../shared/data absent")
@@ -204,18 +234,40 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path, monk
 
     logs = []
     for team, loc in ((288, 1), (328, 1), (328, 2)):
-        r = import_afar_mat(mat / f"results_useful_ori_exp_{team}_loc_{loc}.mat", tmp_path, truth=AFAR2023_TRUTH[loc])
+        r = import_afar_mat(
+            mat / f"results_useful_ori_exp_{team}_loc_{loc}.mat",
+            tmp_path,
+            truth=AFAR2023_TRUTH[loc],
+        )
         logs.append(str(r.out_path))
     out = tmp_path / "p.json"
     monkeypatch.setenv("COLUMNS", "80")
     capsys.readouterr()
-    rc = main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--configs", "fs_iso,fs_rxflip_yaw",
-               "--max-samples", "300", "--out", str(out)])
+    rc = main(
+        [
+            "calibrate",
+            *logs,
+            "--groups",
+            r"exp_(\d+)_",
+            "--configs",
+            "fs_iso,fs_rxflip_yaw",
+            "--max-samples",
+            "300",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     printed = capsys.readouterr()
     assert "(chosen)" in printed.out and "rx_flipped True" in printed.out
-    wide = [ln for ln in (printed.out + printed.err).splitlines() if len(ln) > 80 and str(tmp_path) not in ln]
-    assert not wide, wide  # reads at 80 columns (but for the output path, which is the test's long folder)
+    wide = [
+        ln
+        for ln in (printed.out + printed.err).splitlines()
+        if len(ln) > 80 and str(tmp_path) not in ln
+    ]
+    assert not wide, (
+        wide
+    )  # reads at 80 columns (but for the output path, which is the test's long folder)
     rec = json.loads(out.read_text())
     assert set(rec["groups"].values()) == {"288", "328"}
     assert set(rec["folds"]) == {"without-288", "without-328"}
@@ -228,7 +280,9 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(tmp_path, monk
 
     m = preset_model(str(out))
     assert m.has("rx_antenna")
-    assert main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--out", str(out)]) == 2  # refuses to overwrite
+    assert (
+        main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--out", str(out)]) == 2
+    )  # refuses to overwrite
 
 
 def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
@@ -239,17 +293,26 @@ def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
     from mission.physics.patterns import TabulatedPattern
 
     rx = lawnmower(legs=3, step=20.0)
-    cells = Cells(rx, free_space_rss(np.array([100.0, 100.0, 1.5]), rx), np.zeros(len(rx)),
-                  np.ones(len(rx), dtype=int), 5.0)
+    cells = Cells(
+        rx,
+        free_space_rss(np.array([100.0, 100.0, 1.5]), rx),
+        np.zeros(len(rx)),
+        np.ones(len(rx), dtype=int),
+        5.0,
+    )
     cand = np.array([[100.0, 100.0], [40.0, 160.0]])
     _, off_iso = hypothesis_ssr(cand, cells, [("iso", None, 0.0, False)], 1.5)
     tables = SelfCalibratingGrid().gain_tables
-    pats = [TabulatedPattern(np.array([-90.0, 90.0]), np.array([0.0, 180.0]), np.full((2, 2), g))
-            for g in (3.0, -7.0, 11.0)]
+    pats = [
+        TabulatedPattern(np.array([-90.0, 90.0]), np.array([0.0, 180.0]), np.full((2, 2), g))
+        for g in (3.0, -7.0, 11.0)
+    ]
     for _ in range(2):
         for g, pat in zip((3.0, -7.0, 11.0), pats, strict=True):
             _, off = hypothesis_ssr(cand, cells, [("const", pat, 0.0, True)], 1.5, tables)
             np.testing.assert_allclose(off[0], off_iso[0] - g, atol=1e-3)
     made = [tables(p) for p in pats]
-    assert len({id(t) for t in made}) == 3 and [tables(p) for p in pats] == made  # one table per pattern, kept
+    assert (
+        len({id(t) for t in made}) == 3 and [tables(p) for p in pats] == made
+    )  # one table per pattern, kept
     assert GainTables()(pats[0]) is not made[0]  # another grid: its own

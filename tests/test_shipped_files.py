@@ -23,12 +23,16 @@ def test_checkout_folders(repo_dir):
     assert shipped_model(FUSION_MODEL_NAME) == repo_dir / "models" / FUSION_MODEL_NAME
     assert shipped_model("no_such_model.onnx") is None
     assert DEFAULT_MISSION == repo_dir / "missions" / "spiral.yaml"
-    assert not (PACKAGE_DIR / "data" / "models").exists(), "the installed copy must not appear in a checkout"
+    assert not (PACKAGE_DIR / "data" / "models").exists(), (
+        "the installed copy must not appear in a checkout"
+    )
 
 
 def test_installed_copy_wins(tmp_path):
     pkg = tmp_path / "site" / "mission"
-    assert shipped_dir("models", pkg) == tmp_path / "site" / "models"  # no copy: the folder beside the package
+    assert (
+        shipped_dir("models", pkg) == tmp_path / "site" / "models"
+    )  # no copy: the folder beside the package
     (pkg / "data" / "models").mkdir(parents=True)
     assert shipped_dir("models", pkg) == pkg / "data" / "models"
     assert shipped_dir("missions", pkg) == tmp_path / "site" / "missions"
@@ -48,16 +52,28 @@ def test_plain_build_localizes_with_shipped_default(repo_dir, tmp_path):
     for name in ("mission", "sitl", "models", "missions"):
         shutil.copytree(repo_dir / name, src / name, ignore=ignore)
     lib = tmp_path / "lib"
-    subprocess.run([sys.executable, "setup.py", "-q", "build_py", "--build-lib", str(lib)], cwd=src, check=True,
-                   capture_output=True)
+    subprocess.run(
+        [sys.executable, "setup.py", "-q", "build_py", "--build-lib", str(lib)],
+        cwd=src,
+        check=True,
+        capture_output=True,
+    )
     assert (lib / "mission" / "data" / "models" / "rfsl_spiral_e2r.onnx").is_file()
     assert (lib / "mission" / "data" / "missions" / "spiral.yaml").is_file()
     log = write_synthetic_log(tmp_path / "run" / "flight.csv", (150.0, 120.0, 1.5))
     env = {**os.environ, "PYTHONPATH": str(lib)}
-    code = ("import json, sys; from mission.cli.localize import main; import mission.spec as s; "
-            "print(json.dumps({'mission_file': str(s.DEFAULT_MISSION)})); sys.exit(main(sys.argv[1:]))")
-    out = subprocess.run([sys.executable, "-c", code, str(log), "--json"], cwd=tmp_path / "run", env=env,
-                         capture_output=True, text=True, check=True).stdout.splitlines()
+    code = (
+        "import json, sys; from mission.cli.localize import main; import mission.spec as s; "
+        "print(json.dumps({'mission_file': str(s.DEFAULT_MISSION)})); sys.exit(main(sys.argv[1:]))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(log), "--json"],
+        cwd=tmp_path / "run",
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.splitlines()
     where, est = json.loads(out[0]), json.loads("\n".join(out[1:]))
     assert where["mission_file"] == str(lib / "mission" / "data" / "missions" / "spiral.yaml")
     # a simulated log without a trajectory: the simulated-log route to the shipped rfsl_default, found in the build

@@ -21,7 +21,13 @@ from _onnx_numpy import predict as numpy_predict
 from mission.localize.altitude_scale import REFERENCE_HEIGHT_M, scale_cluster_xy, scale_factor
 from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 
-SHIPPED = ("rfsl_default", "rfsl_spiral_e2r", "rfsl_afar", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt")
+SHIPPED = (
+    "rfsl_default",
+    "rfsl_spiral_e2r",
+    "rfsl_afar",
+    "rfsl_spiral_e2r_ens5",
+    "rfsl_spiral_alt",
+)
 
 
 @pytest.fixture(scope="module")
@@ -67,10 +73,18 @@ def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
         "p90_m": float(np.percentile(err, 90)),
     }
     for k, want in rec["metrics"].items():
-        assert got[k] == pytest.approx(want, rel=rec.get("tolerance", 0.05)), (k, got, rec["metrics"])
+        assert got[k] == pytest.approx(want, rel=rec.get("tolerance", 0.05)), (
+            k,
+            got,
+            rec["metrics"],
+        )
     # the same predictions from the weights by the independent numpy evaluator (float32 runtime: < 1 mm);
     # an altitude-normalised network's graph sees coordinates scaled by the flight's height (altitude_scale)
-    sc = scale_factor(heights, loc.reference_height_m) if loc.needs_heights else np.ones(len(heights))
+    sc = (
+        scale_factor(heights, loc.reference_height_m)
+        if loc.needs_heights
+        else np.ones(len(heights))
+    )
     ref = numpy_predict(model, scale_cluster_xy(arrays[loc.kind], sc)) / sc[:, None]
     assert np.max(np.abs(pred - ref)) < 1e-2
 
@@ -86,9 +100,19 @@ def test_onnxruntime_matches_numpy_forward_pass(name, repo_dir):
     loc = OnnxLocalizer(model)
     rng = np.random.default_rng(0)
     n_features = loc.in_mean.size
-    feats = np.stack([rng.normal(-10.0, 8.0, (32, n_features // 3)), rng.uniform(0.0, 300.0, (32, n_features // 3)),
-                      rng.uniform(0.0, 400.0, (32, n_features // 3))], axis=2).reshape(32, -1)
-    pred = loc.predict_features(feats, np.full(32, REFERENCE_HEIGHT_M))  # at the reference height: unscaled
+    feats = np.stack(
+        [
+            rng.normal(-10.0, 8.0, (32, n_features // 3)),
+            rng.uniform(0.0, 300.0, (32, n_features // 3)),
+            rng.uniform(0.0, 400.0, (32, n_features // 3)),
+        ],
+        axis=2,
+    ).reshape(32, -1)
+    pred = loc.predict_features(
+        feats, np.full(32, REFERENCE_HEIGHT_M)
+    )  # at the reference height: unscaled
     ref = numpy_predict(model, feats)
-    assert np.ptp(ref, axis=0).min() > 1.0  # the inputs move the answer: not a constant-output comparison
+    assert (
+        np.ptp(ref, axis=0).min() > 1.0
+    )  # the inputs move the answer: not a constant-output comparison
     assert np.max(np.abs(pred - ref)) < 1e-2

@@ -11,20 +11,35 @@ from hypothesis import strategies as st
 
 from mission.localize.sim_default import SPIRAL_NETWORKS, sim_default_model, spiral_source
 
-SPIRAL_META = {"trajectory": {"generator": "spiral", "params": {}, "altitude_m": 30.0},
-               "rss_source": {"kind": "sim", "model": "e2r", "model_params": {}}}
+SPIRAL_META = {
+    "trajectory": {"generator": "spiral", "params": {}, "altitude_m": 30.0},
+    "rss_source": {"kind": "sim", "model": "e2r", "model_params": {}},
+}
 
 
 def _meta(generator="spiral", model="e2r", params=None) -> dict:
-    return {"trajectory": {"generator": generator}, "rss_source": {"kind": "sim", "model": model,
-                                                                    "model_params": params or {}}}
+    return {
+        "trajectory": {"generator": generator},
+        "rss_source": {"kind": "sim", "model": model, "model_params": params or {}},
+    }
 
 
-@given(generator=st.sampled_from(["spiral", "lawnmower", "edge_sweep", "expanding_square", "random_waypoints",
-                                  "waypoints", None]),
-       model=st.sampled_from(["e2r", "two-ray", "free-space", None]),
-       pattern=st.sampled_from([None, "dipole", "measured", "isotropic"]),
-       key=st.sampled_from(["pattern", "tx_pattern", "rx_pattern"]))
+@given(
+    generator=st.sampled_from(
+        [
+            "spiral",
+            "lawnmower",
+            "edge_sweep",
+            "expanding_square",
+            "random_waypoints",
+            "waypoints",
+            None,
+        ]
+    ),
+    model=st.sampled_from(["e2r", "two-ray", "free-space", None]),
+    pattern=st.sampled_from([None, "dipole", "measured", "isotropic"]),
+    key=st.sampled_from(["pattern", "tx_pattern", "rx_pattern"]),
+)
 @settings(max_examples=60, deadline=None)
 def test_only_e2r_dipole_spirals_are_the_spiral_networks_kind(generator, model, pattern, key):
     params = {} if pattern is None else {key: pattern}
@@ -43,8 +58,9 @@ def nets(repo_dir):
     return paths
 
 
-@pytest.mark.parametrize("height,expected", [(30.0, 0), (33.0, 0), (45.0, 1), (20.0, 1), (58.0, 1), (80.0, 2),
-                                             (8.0, 2)])
+@pytest.mark.parametrize(
+    "height,expected", [(30.0, 0), (33.0, 0), (45.0, 1), (20.0, 1), (58.0, 1), (80.0, 2), (8.0, 2)]
+)
 def test_the_first_network_whose_altitudes_hold_the_flight_answers(nets, height, expected):
     rng = np.random.default_rng(0)
     z = height + rng.normal(0.0, 0.3, 500)
@@ -59,7 +75,9 @@ def test_other_flights_keep_the_default_and_say_why(nets):
     assert path == nets[2] and "trajectory lawnmower" in why
     path, why = sim_default_model(_meta(params={"pattern": "measured"}), z, nets[2])
     assert path == nets[2] and "antenna pattern measured" in why
-    path, why = sim_default_model({"rss_source": {"kind": "sim", "model": "e2r"}}, z, nets[2])  # an old sidecar
+    path, why = sim_default_model(
+        {"rss_source": {"kind": "sim", "model": "e2r"}}, z, nets[2]
+    )  # an old sidecar
     assert path == nets[2] and "no trajectory" in why
 
 
@@ -74,7 +92,19 @@ def test_simulated_spirals_get_the_spiral_network_and_it_is_better(nets, tmp_pat
 
     errs = []
     for seed in range(7100, 7106):
-        assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", str(seed), "--out", str(tmp_path / str(seed))]) == 0
+        assert (
+            rfsl(
+                [
+                    "simulate",
+                    str(DEFAULT_MISSION),
+                    "--seed",
+                    str(seed),
+                    "--out",
+                    str(tmp_path / str(seed)),
+                ]
+            )
+            == 0
+        )
         log = read_flight_log(next((tmp_path / str(seed)).glob("*.csv")))
         assert log.meta["trajectory"] == load_mission(DEFAULT_MISSION).trajectory_meta()
         a = localize_log(log)

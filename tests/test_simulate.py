@@ -30,8 +30,13 @@ def test_same_seed_same_bytes_and_other_seed_differs(spiral):
 
 def test_sampling_period_and_perturbation_range(spiral):
     cfg = SimConfig(dt_s=0.03)
-    f = simulate_flight(spiral.waypoints_enu(), np.array([50.0, 150.0, 1.5]), make_model("two-ray"), cfg,
-                        np.random.default_rng(1))
+    f = simulate_flight(
+        spiral.waypoints_enu(),
+        np.array([50.0, 150.0, 1.5]),
+        make_model("two-ray"),
+        cfg,
+        np.random.default_rng(1),
+    )
     assert np.allclose(np.diff(f.t_s), 0.03)
     assert len(f.t_s) == pytest.approx(f.profile.duration_s / 0.03, abs=2)
     # roll in steady cruise is the perturbation alone: uniform in +-5 deg, all of that range used
@@ -48,7 +53,9 @@ def test_noise_free_rss_equals_model_at_logged_geometry(spiral):
     again = model.rss_dbm(tx, f.enu_m, f.attitude_rad)
     assert np.max(np.abs(again - f.rss_dbm)) < 1e-9
     # noise is zero-mean with the configured standard deviation
-    g = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(noise_db=1.0), np.random.default_rng(2))
+    g = simulate_flight(
+        spiral.waypoints_enu(), tx, model, SimConfig(noise_db=1.0), np.random.default_rng(2)
+    )
     resid = g.rss_dbm - f.rss_dbm
     assert abs(resid.mean()) < 0.05 and resid.std() == pytest.approx(1.0, abs=0.05)
 
@@ -58,15 +65,22 @@ def test_noise_free_rss_equals_closed_form(spiral, name):
     """Independent reference: Friis / paper eq. 1 written out here (vertical dipoles at both ends, Fresnel Gamma
     for vertical polarisation over eps_r = 2 ground) at the logged positions, not the library's kernel."""
     tx = np.array([120.0, 180.0, 1.5])
-    f = simulate_flight(spiral.waypoints_enu(), tx, make_model(name), SimConfig(noise_db=0.0),
-                        np.random.default_rng(3))
+    f = simulate_flight(
+        spiral.waypoints_enu(),
+        tx,
+        make_model(name),
+        SimConfig(noise_db=0.0),
+        np.random.default_rng(3),
+    )
     lam = 299_792_458.0 / 3.32e9
     k = 2.0 * np.pi / lam
     h_t, h_r = tx[2], f.enu_m[:, 2]
     d = np.hypot(f.enu_m[:, 0] - tx[0], f.enu_m[:, 1] - tx[1])
     d_los, d_ref = np.hypot(d, h_r - h_t), np.hypot(d, h_r + h_t)
 
-    def dipole(sin_el: np.ndarray) -> np.ndarray:  # G_0 (cos(pi/2 sin el) / cos el)^2, floor -40 dBi
+    def dipole(
+        sin_el: np.ndarray,
+    ) -> np.ndarray:  # G_0 (cos(pi/2 sin el) / cos el)^2, floor -40 dBi
         return np.maximum(1.641 * (np.cos(0.5 * np.pi * sin_el) ** 2 / (1.0 - sin_el**2)), 1e-4)
 
     # both ends see the same |elevation|, so sqrt(G_t G_r) = G(el)
@@ -82,25 +96,60 @@ def test_noise_free_rss_equals_closed_form(spiral, name):
 
 def test_strongest_sample_lies_near_the_transmitter(spiral):
     tx = np.array([150.0, 150.0, 1.5])
-    f = simulate_flight(spiral.waypoints_enu(), tx, make_model("free-space", pattern="isotropic"),
-                        SimConfig(noise_db=0.0, attitude_perturbation_deg=0.0), np.random.default_rng(0))
+    f = simulate_flight(
+        spiral.waypoints_enu(),
+        tx,
+        make_model("free-space", pattern="isotropic"),
+        SimConfig(noise_db=0.0, attitude_perturbation_deg=0.0),
+        np.random.default_rng(0),
+    )
     best = f.enu_m[np.argmax(f.rss_dbm)]
     # the spiral's rings are ~20 m apart: its closest pass is within half that of any point of the overlap
     assert np.linalg.norm(best[:2] - tx[:2]) < 15.0
 
 
 def test_cli_writes_a_readable_log_with_truth(tmp_path, repo_dir):
-    rc = main(["simulate", str(repo_dir / "missions" / "spiral.yaml"), "--source", "60,200", "--seed", "5",
-               "--cruise-only", "--out", str(tmp_path)])
+    rc = main(
+        [
+            "simulate",
+            str(repo_dir / "missions" / "spiral.yaml"),
+            "--source",
+            "60,200",
+            "--seed",
+            "5",
+            "--cruise-only",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     (csv,) = tmp_path.glob("*.csv")
     log = read_flight_log(csv)
     assert np.allclose(log.truth_enu, [60, 200, 1.5], atol=1e-3)
-    assert log.meta["rss_source"] == {**log.meta["rss_source"], "kind": "sim", "model": "e2r", "seed": 5}
+    assert log.meta["rss_source"] == {
+        **log.meta["rss_source"],
+        "kind": "sim",
+        "model": "e2r",
+        "seed": 5,
+    }
     assert np.allclose(log.enu()[:, 2], 30.0, atol=1e-3)  # cruise only: all at 30 m
     # writing the same flight again would overwrite it: refused
-    assert main(["simulate", str(repo_dir / "missions" / "spiral.yaml"), "--source", "60,200", "--seed", "5",
-                 "--cruise-only", "--out", str(tmp_path)]) == 2
+    assert (
+        main(
+            [
+                "simulate",
+                str(repo_dir / "missions" / "spiral.yaml"),
+                "--source",
+                "60,200",
+                "--seed",
+                "5",
+                "--cruise-only",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 2
+    )
 
 
 def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir, capsys):
@@ -142,9 +191,18 @@ def test_shadowing_off_keeps_the_bytes_of_the_plain_simulator(spiral):
     model = make_model("e2r")
     tx = np.array([100.0, 200.0, 1.5])
     a = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(), np.random.default_rng(7))
-    b = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(shadowing_db=0.0, shadowing_corr_m=5.0),
-                        np.random.default_rng(7))
-    c = simulate_flight(spiral.waypoints_enu(), tx, model, SimConfig(shadowing_db=6.0), np.random.default_rng(7))
+    b = simulate_flight(
+        spiral.waypoints_enu(),
+        tx,
+        model,
+        SimConfig(shadowing_db=0.0, shadowing_corr_m=5.0),
+        np.random.default_rng(7),
+    )
+    c = simulate_flight(
+        spiral.waypoints_enu(), tx, model, SimConfig(shadowing_db=6.0), np.random.default_rng(7)
+    )
     assert a.rss_dbm.tobytes() == b.rss_dbm.tobytes()
     d = c.rss_dbm - a.rss_dbm
-    assert 3.0 < d.std() < 9.0 and np.abs(np.diff(d)).max() < 1.0  # smooth along the path, not white noise
+    assert (
+        3.0 < d.std() < 9.0 and np.abs(np.diff(d)).max() < 1.0
+    )  # smooth along the path, not white noise

@@ -31,7 +31,9 @@ def test_heartbeat_upload_download_and_streams():
         # upload 2 items
         gcs.mav.mission_count_send(1, 1, 2, 0)
         for seq in range(2):
-            req = gcs.recv_match(type=["MISSION_REQUEST_INT", "MISSION_REQUEST"], blocking=True, timeout=5)
+            req = gcs.recv_match(
+                type=["MISSION_REQUEST_INT", "MISSION_REQUEST"], blocking=True, timeout=5
+            )
             assert req is not None and req.seq == seq
             gcs.mav.mission_item_int_send(
                 1,
@@ -61,7 +63,17 @@ def test_heartbeat_upload_download_and_streams():
         assert it.seq == 1 and it.x == 357275400
         # message interval in simulated time: 40 Hz of vehicle time
         gcs.mav.command_long_send(
-            1, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mav.MAVLINK_MSG_ID_ATTITUDE, 25000, 0, 0, 0, 0, 0
+            1,
+            1,
+            mav.MAV_CMD_SET_MESSAGE_INTERVAL,
+            0,
+            mav.MAVLINK_MSG_ID_ATTITUDE,
+            25000,
+            0,
+            0,
+            0,
+            0,
+            0,
         )
         ack = gcs.recv_match(type="COMMAND_ACK", blocking=True, timeout=5)
         assert ack.result == mav.MAV_RESULT_ACCEPTED

@@ -28,8 +28,12 @@ def test_plan_times_is_the_preflight_plan(spec):
     assert p.duration_s == pytest.approx(check_mission(spec).duration_s, abs=1e-6)
     assert len(p.t_wp) == len(spec.waypoints_enu()) and np.all(np.diff(p.t_wp) > 0)
     assert 0 < p.t_wp[0] < p.t_wp[-1] < p.duration_s
-    slow = plan_times(spec, return_speed_mps=4.8)  # PX4's own return speed: only the return is longer
-    np.testing.assert_allclose(slow.t_wp, p.t_wp, atol=0.1)  # the last corner slows for the slower leg
+    slow = plan_times(
+        spec, return_speed_mps=4.8
+    )  # PX4's own return speed: only the return is longer
+    np.testing.assert_allclose(
+        slow.t_wp, p.t_wp, atol=0.1
+    )  # the last corner slows for the slower leg
     back = float(np.hypot(*(spec.waypoints_enu()[-1, :2] - np.asarray(spec.home_enu)[:2])))
     assert slow.duration_s - p.duration_s == pytest.approx(back / 4.8 - back / 5.5, rel=0.15)
 
@@ -67,7 +71,11 @@ def test_slow_autopilot_warned_early_with_an_honest_prediction(spec):
     assert at < 0.3 * plan.duration_s and "budget will not hold" in text and "560 s" in text
     assert w.predicted_at_warning_s == pytest.approx(plan.duration_s * 1.07, rel=0.02)
     rec = w.record(577.0)
-    assert rec["overrun"] is True and rec["overrun_s"] == pytest.approx(17.0) and rec["warned_at_s"] == at
+    assert (
+        rec["overrun"] is True
+        and rec["overrun_s"] == pytest.approx(17.0)
+        and rec["warned_at_s"] == at
+    )
     assert w.record(550.0)["overrun"] is False and w.record(550.0)["overrun_s"] == 0.0
 
 
@@ -79,8 +87,11 @@ def test_a_stalled_vehicle_is_warned_before_the_budget_runs_out(spec):
 
 
 def test_used_seconds_arm_to_disarm():
-    ev = [{"kind": "armed", "t_vehicle_s": 20.0}, {"kind": "statustext", "t_vehicle_s": 30.0},
-          {"kind": "disarmed", "t_vehicle_s": 606.0}]
+    ev = [
+        {"kind": "armed", "t_vehicle_s": 20.0},
+        {"kind": "statustext", "t_vehicle_s": 30.0},
+        {"kind": "disarmed", "t_vehicle_s": 606.0},
+    ]
     assert used_seconds(ev, 21.0, 700.0) == pytest.approx(586.0)
     assert used_seconds(ev[:2], 21.0, 700.0) == pytest.approx(680.0)  # not disarmed: to now
     assert used_seconds([], None, 5.0) is None
@@ -121,14 +132,19 @@ def test_speed_params_set_and_restored_on_both_autopilots():
 
     assert speed_params(False, 5.5) == {"MPC_XY_CRUISE": 5.5}
     assert speed_params(True, 5.5) == {"WP_YAW_BEHAVIOR": 1, "RTL_SPEED": 550}
-    for ardupilot, own in ((False, {"MPC_XY_CRUISE": 4.8}), (True, {"WP_YAW_BEHAVIOR": 2, "RTL_SPEED": 0})):
+    for ardupilot, own in (
+        (False, {"MPC_XY_CRUISE": 4.8}),
+        (True, {"WP_YAW_BEHAVIOR": 2, "RTL_SPEED": 0}),
+    ):
         p = _Params(own)
         old = asyncio.run(set_params(p, speed_params(ardupilot, 5.5)))
         assert old == own and p.values == speed_params(ardupilot, 5.5)
         asyncio.run(set_params(p, old))
         assert p.values == own
     p = _Params({"MPC_XY_CRUISE": 5.5})
-    assert asyncio.run(set_params(p, {"MPC_XY_CRUISE": 5.5})) == {} and p.sets == []  # already so: untouched
+    assert (
+        asyncio.run(set_params(p, {"MPC_XY_CRUISE": 5.5})) == {} and p.sets == []
+    )  # already so: untouched
 
 
 def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
@@ -152,13 +168,19 @@ def test_hover_before_landing_is_reserved_outside_the_pace(spec):
     from mission.flight.budget import VerticalSpeeds
 
     v = VerticalSpeeds(2.5, 1.5, 0.5, 10.0)
-    a, b = plan_times(spec, vertical=v), plan_times(spec, vertical=VerticalSpeeds(2.5, 1.5, 0.5, 10.0, 5.0))
-    assert b.duration_s - a.duration_s == pytest.approx(5.0) and b.land_s - a.land_s == pytest.approx(5.0)
+    a, b = (
+        plan_times(spec, vertical=v),
+        plan_times(spec, vertical=VerticalSpeeds(2.5, 1.5, 0.5, 10.0, 5.0)),
+    )
+    assert b.duration_s - a.duration_s == pytest.approx(
+        5.0
+    ) and b.land_s - a.land_s == pytest.approx(5.0)
     assert a.land_s == pytest.approx(20 / 1.5 + 10 / 0.5, abs=2.0)
     w = BudgetWatch(b)
     w.update(0.0, 0)
     w.update(b.t_wp[0], 1)
     k = int(np.searchsorted(b.t_wp, 100.0))
     w.update(b.t_wp[k] * 1.1, k + 1)  # 10 % slow so far
-    assert w.predicted_s == pytest.approx(b.t_wp[k] * 1.1 + (b.duration_s - b.land_s - b.t_wp[k]) * w.pace()
-                                          + b.land_s)
+    assert w.predicted_s == pytest.approx(
+        b.t_wp[k] * 1.1 + (b.duration_s - b.land_s - b.t_wp[k]) * w.pace() + b.land_s
+    )

@@ -16,7 +16,9 @@ from mission.flight.sdklog import SdkLog
 
 def test_phase_tracker_follows_landed_state_and_mission_progress():
     ph = PhaseTracker()
-    ph.configure(first_wp=3, last_item=21, final="return")  # ArduPilot: home, take-off, speed, waypoints, RTL
+    ph.configure(
+        first_wp=3, last_item=21, final="return"
+    )  # ArduPilot: home, take-off, speed, waypoints, RTL
     ph.on_landed_state(1.0, "TAKING_OFF")
     ph.on_progress(2.0, 1)
     ph.on_landed_state(3.0, "IN_AIR")
@@ -26,7 +28,16 @@ def test_phase_tracker_follows_landed_state_and_mission_progress():
     ph.on_landed_state(30.0, "LANDING")
     ph.on_landed_state(40.0, "ON_GROUND")
     names, items = ph.at(np.array([0.0, 1.5, 4.0, 6.0, 10.0, 25.0, 35.0, 45.0]))
-    assert names.tolist() == ["ground", "takeoff", "takeoff", "mission", "mission", "return", "land", "ground"]
+    assert names.tolist() == [
+        "ground",
+        "takeoff",
+        "takeoff",
+        "mission",
+        "mission",
+        "return",
+        "land",
+        "ground",
+    ]
     assert items.tolist() == [-1, -1, -1, 0, 1, -1, -1, -1]
 
 
@@ -45,15 +56,25 @@ def test_phase_tracker_commanded_return_and_land_item():
     assert ph2.at(np.array([1.5]))[0].tolist() == ["land"]
 
 
-@pytest.mark.parametrize("url", ["foo://bar", "udpin:0.0.0.0:14540", "tcpout://127.0.0.1", "udpin://:x",
-                                 "serial:///dev/no_such_tty:57600"])
+@pytest.mark.parametrize(
+    "url",
+    [
+        "foo://bar",
+        "udpin:0.0.0.0:14540",
+        "tcpout://127.0.0.1",
+        "udpin://:x",
+        "serial:///dev/no_such_tty:57600",
+    ],
+)
 def test_bad_connection_urls(url):
     with pytest.raises(InputError, match="--connect"):
         check_connect(url)
 
 
 # a serial link needs a device that exists: /dev/null is a character device on every test machine
-@pytest.mark.parametrize("url", ["udpin://0.0.0.0:14540", "tcpout://127.0.0.1:5760", "serial:///dev/null:57600"])
+@pytest.mark.parametrize(
+    "url", ["udpin://0.0.0.0:14540", "tcpout://127.0.0.1:5760", "serial:///dev/null:57600"]
+)
 def test_good_connection_urls(url):
     check_connect(url)
 
@@ -80,14 +101,26 @@ def test_mavsdk_messages_once_each_without_colour_codes():
     for k in range(5):
         log.on_log(f"\x1b[31m[12:00:0{k}|Error] Connection refused (errno {k})\x1b[0m")
     log.on_log("Sending message failed")
-    assert log.new_messages() == ["[12:00:00|Error] Connection refused (errno 0)", "Sending message failed"]
+    assert log.new_messages() == [
+        "[12:00:00|Error] Connection refused (errno 0)",
+        "Sending message failed",
+    ]
     log.on_log("[12:00:09|Error] Connection refused (errno 9)")
     assert log.new_messages() == []
 
 
 def test_plain_status_lines_do_not_wrap(monkeypatch):
-    s = FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18, stage="mission", rows=123456,
-                     last_rss=-45.25, best_rss=-31.5, best_xy=(1234.0, 5678.0), link_lost=True)
+    s = FlightStatus(
+        mission_name="spiral",
+        budget_s=600,
+        n_waypoints=18,
+        stage="mission",
+        rows=123456,
+        last_rss=-45.25,
+        best_rss=-31.5,
+        best_xy=(1234.0, 5678.0),
+        link_lost=True,
+    )
     line = plain_line(s)
     assert line.startswith("[LINK LOST, last mission]")
     d = Display(s, plain_every_s=0.0)
@@ -98,7 +131,10 @@ def test_plain_status_lines_do_not_wrap(monkeypatch):
     d.refresh()
     d.message("a warning that is much longer than forty characters, as warnings are")
     lines = buf.getvalue().splitlines()
-    assert lines == [*line.splitlines(), "a warning that is much longer than forty characters, as warnings are"]
+    assert lines == [
+        *line.splitlines(),
+        "a warning that is much longer than forty characters, as warnings are",
+    ]
     assert all(len(ln) <= 80 for ln in line.splitlines())
 
 
@@ -119,15 +155,26 @@ def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
 
     from mission.flight.progress import render
 
-    s = FlightStatus(mission_name="spiral", budget_s=600, n_waypoints=18, t_start=0.0, t_now=650.0,
-                     best_rss=-31.5, best_xy=(10.0, 20.0), link_lost=True, warnings=["[odd] text"])
+    s = FlightStatus(
+        mission_name="spiral",
+        budget_s=600,
+        n_waypoints=18,
+        t_start=0.0,
+        t_now=650.0,
+        best_rss=-31.5,
+        best_xy=(10.0, 20.0),
+        link_lost=True,
+        warnings=["[odd] text"],
+    )
     s.predicted_s = 660.0
     for markup in (True, False):
         buf = io.StringIO()
         Console(file=buf, width=100, force_terminal=False).print(render(s), markup=markup)
         text = buf.getvalue()
         assert "[red]" not in text and "[green]" not in text and "[/" not in text, text
-        assert "(over budget)" in text and "-31.50 dB at (10, 20) m" in text and "[odd] text" in text
+        assert (
+            "(over budget)" in text and "-31.50 dB at (10, 20) m" in text and "[odd] text" in text
+        )
         assert "landing at ~660 s" in text
 
 
@@ -141,16 +188,27 @@ def _context(tmp_path, policy: str, in_air: bool = True):
     from mission.flightlog import FlightLogWriter, make_meta
     from mission.geo import Origin
 
-    ctx = FlightContext(spec=SimpleNamespace(on_write_error=policy), opts=None, speedup=1.0, url=None,
-                        status=FlightStatus(), tel=Telemetry(), phases=MonotonicPhases())
+    ctx = FlightContext(
+        spec=SimpleNamespace(on_write_error=policy),
+        opts=None,
+        speedup=1.0,
+        url=None,
+        status=FlightStatus(),
+        tel=Telemetry(),
+        phases=MonotonicPhases(),
+    )
     ctx.st.was_in_air = ctx.st.in_air = in_air
-    writer = FlightLogWriter(tmp_path / "f.csv", make_meta(Origin(35.7, -78.7, 90.0), {"kind": "sim"}))
+    writer = FlightLogWriter(
+        tmp_path / "f.csv", make_meta(Origin(35.7, -78.7, 90.0), {"kind": "sim"})
+    )
     ctx.rows = SimpleNamespace(writer=writer)
     return ctx
 
 
 @pytest.mark.parametrize("policy, returns", [("return", True), ("continue", False)])
-def test_a_failed_log_write_is_said_at_once_and_returns_by_default(tmp_path, capsys, policy, returns):
+def test_a_failed_log_write_is_said_at_once_and_returns_by_default(
+    tmp_path, capsys, policy, returns
+):
     import errno
     import json
 
@@ -166,8 +224,15 @@ def test_a_failed_log_write_is_said_at_once_and_returns_by_default(tmp_path, cap
     assert ctx.abort.is_set() == returns and (ctx.abort_reason == "log write failed") == returns
     assert ctx.status.log_error == "No space left on device"
     assert "LOG FAILED" in plain_line(ctx.status)
-    rec = json.loads(sidecar_path(tmp_path / "f.csv").read_text())["log_error"]  # in the sidecar at once
-    assert rec == {"error": "No space left on device", "rows_kept": 0, "policy": policy, "t_vehicle_s": None}
+    rec = json.loads(sidecar_path(tmp_path / "f.csv").read_text())[
+        "log_error"
+    ]  # in the sidecar at once
+    assert rec == {
+        "error": "No space left on device",
+        "rows_kept": 0,
+        "policy": policy,
+        "t_vehicle_s": None,
+    }
 
 
 def test_events_during_a_link_loss_carry_only_measured_times(tmp_path, capsys):

@@ -62,23 +62,48 @@ def _fly_vehicle(spec, speedup: float) -> float:
         items = build_items(spec, (float(lat), float(lon), float(alt)))
         gcs.mav.mission_count_send(1, 1, len(items), 0)
         while True:
-            m = gcs.recv_match(type=["MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True, timeout=5)
+            m = gcs.recv_match(
+                type=["MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True, timeout=5
+            )
             assert m is not None
             if m.get_type() == "MISSION_ACK":
                 assert m.type == mav.MAV_MISSION_ACCEPTED
                 break
             it = items[m.seq]
             gcs.mav.mission_item_int_send(
-                1, 1, m.seq, it.frame, it.command, int(m.seq == 0), 1, *it.params, it.x, it.y, it.z, 0
+                1,
+                1,
+                m.seq,
+                it.frame,
+                it.command,
+                int(m.seq == 0),
+                1,
+                *it.params,
+                it.x,
+                it.y,
+                it.z,
+                0,
             )
         gcs.mav.command_long_send(  # 50 Hz positions: the time of the landed-state changes to 20 ms
-            1, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 20000, 0, 0, 0, 0, 0
+            1,
+            1,
+            mav.MAV_CMD_SET_MESSAGE_INTERVAL,
+            0,
+            mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+            20000,
+            0,
+            0,
+            0,
+            0,
+            0,
         )
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_MISSION_START, 0, 0, 0, 0, 0, 0, 0, 0)
         t_up = t_down = t_last = None
         while t_down is None:
-            m = gcs.recv_match(type=["EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT"], blocking=True, timeout=10)
+            m = gcs.recv_match(
+                type=["EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT"], blocking=True, timeout=10
+            )
             assert m is not None, "vehicle went silent"
             if m.get_type() == "GLOBAL_POSITION_INT":
                 t_last = m.time_boot_ms / 1000.0
@@ -121,16 +146,23 @@ def test_vehicle_flight_time_matches_closed_form(tmp_path, kin):
     from mission.spec import load_mission
     from mission.trajectory.kinematics import Kinematics
 
-    d = {"name": "outback", "altitude_m": 20, "cruise_speed_mps": 9.0, "time_budget_s": 600,
-         "return_behaviour": "rtl", "home": [80, 80],
-         "trajectory": {"waypoints": [[80, 80], [200, 80], [80, 80]]},
-         "vehicle": {"speedup": 1.0, **({"kinematics": kin} if kin else {})}}
+    d = {
+        "name": "outback",
+        "altitude_m": 20,
+        "cruise_speed_mps": 9.0,
+        "time_budget_s": 600,
+        "return_behaviour": "rtl",
+        "home": [80, 80],
+        "trajectory": {"waypoints": [[80, 80], [200, 80], [80, 80]]},
+        "vehicle": {"speedup": 1.0, **({"kinematics": kin} if kin else {})},
+    }
     f = tmp_path / "outback.yaml"
     f.write_text(_yaml.safe_dump(d))
     spec = load_mission(f)
     k = Kinematics(**(kin or {}))
-    reference = 2 * _leg_time_from_rest_to_rest(20.0, k.climb_rate_mps, k.accel_mps2) + 2 * _leg_time_from_rest_to_rest(
-        120.0, 9.0, k.accel_mps2)
+    reference = 2 * _leg_time_from_rest_to_rest(
+        20.0, k.climb_rate_mps, k.accel_mps2
+    ) + 2 * _leg_time_from_rest_to_rest(120.0, 9.0, k.accel_mps2)
     flown = _fly_vehicle(spec, speedup=100)
     assert abs(flown - reference) <= 0.03 * reference + 0.5, (flown, reference)
 
@@ -155,7 +187,9 @@ def test_kinematics_round_trip_through_the_command_line():
     assert parse_kinematics(None) == Kinematics()
     with pytest.raises(ValueError):
         parse_kinematics('{"warp_speed": 9}')
-    args = build_parser().parse_args(["--kinematics", json.dumps({"accel_mps2": 2.0}), "--cruise-speed", "6"])
+    args = build_parser().parse_args(
+        ["--kinematics", json.dumps({"accel_mps2": 2.0}), "--cruise-speed", "6"]
+    )
     assert args.cruise_speed == 6.0 and json.loads(args.kinematics) == {"accel_mps2": 2.0}
 
 

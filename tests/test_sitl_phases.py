@@ -16,10 +16,16 @@ O = Origin(35.727, -78.698, 90.0)
 
 def test_text_phase_column_round_trips(tmp_path):
     n = 6
-    cols = {"t_s": np.arange(n) * 0.1, "lat_deg": np.full(n, O.lat_deg), "lon_deg": np.full(n, O.lon_deg),
-            "alt_m": np.full(n, 120.0), "rel_alt_m": np.full(n, 30.0), "rss_dbm": np.full(n, -60.0),
-            "phase": np.array(["ground", "takeoff", "mission", "mission", "return", "land"]),
-            "mission_item": np.array([-1, -1, 0, 1, -1, -1])}
+    cols = {
+        "t_s": np.arange(n) * 0.1,
+        "lat_deg": np.full(n, O.lat_deg),
+        "lon_deg": np.full(n, O.lon_deg),
+        "alt_m": np.full(n, 120.0),
+        "rel_alt_m": np.full(n, 30.0),
+        "rss_dbm": np.full(n, -60.0),
+        "phase": np.array(["ground", "takeoff", "mission", "mission", "return", "land"]),
+        "mission_item": np.array([-1, -1, 0, 1, -1, -1]),
+    }
     p = write_flight_log(tmp_path / "f.csv", cols, make_meta(O, {"kind": "sim"}))
     header, first = p.read_text().splitlines()[:2]
     assert header.endswith(",rss_dbm,phase,mission_item")
@@ -31,8 +37,13 @@ def test_text_phase_column_round_trips(tmp_path):
 
 def test_simulated_log_has_phases_in_flight_order(tmp_path):
     spec = load_mission("missions/spiral.yaml")
-    f = simulate_flight(spec.flight_path_enu(), np.array([10.0, 10.0, 1.5]), make_model("free-space"),
-                        spec.sim_config(), np.random.default_rng(1))
+    f = simulate_flight(
+        spec.flight_path_enu(),
+        np.array([10.0, 10.0, 1.5]),
+        make_model("free-space"),
+        spec.sim_config(),
+        np.random.default_rng(1),
+    )
     cols = f.log_columns(spec.field.origin)
     phase, item = cols["phase"], cols["mission_item"]
     order = [PHASES.index(p) for p in phase]

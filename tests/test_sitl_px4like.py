@@ -26,15 +26,30 @@ def _items(vehicle, speed: float | None):
     from sitl.protocol import Item
 
     o = vehicle.origin
+
     def wp(seq, cmd, e, n, z, params=(0.0, 0.0, 0.0, 0.0)):
         lat, lon, _ = o.to_geodetic(np.array([e, n, 0.0]))
-        return Item(seq, 3, cmd, int(seq == 0), 1, params, int(round(float(lat) * 1e7)),
-                    int(round(float(lon) * 1e7)), z)
+        return Item(
+            seq,
+            3,
+            cmd,
+            int(seq == 0),
+            1,
+            params,
+            int(round(float(lat) * 1e7)),
+            int(round(float(lon) * 1e7)),
+            z,
+        )
+
     items = [wp(0, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 30.0)]
     if speed is not None:
-        items.append(Item(1, 2, mav.MAV_CMD_DO_CHANGE_SPEED, 0, 1, (1.0, speed, -1.0, 0.0), 0, 0, 0.0))
-    items += [wp(len(items), mav.MAV_CMD_NAV_WAYPOINT, 200, 0, 30.0), wp(len(items) + 1, mav.MAV_CMD_NAV_WAYPOINT,
-                                                                       200, 200, 30.0)]
+        items.append(
+            Item(1, 2, mav.MAV_CMD_DO_CHANGE_SPEED, 0, 1, (1.0, speed, -1.0, 0.0), 0, 0, 0.0)
+        )
+    items += [
+        wp(len(items), mav.MAV_CMD_NAV_WAYPOINT, 200, 0, 30.0),
+        wp(len(items) + 1, mav.MAV_CMD_NAV_WAYPOINT, 200, 200, 30.0),
+    ]
     items.append(Item(len(items), 2, mav.MAV_CMD_NAV_RETURN_TO_LAUNCH, 0, 1, (0.0,) * 4, 0, 0, 0.0))
     return items
 
@@ -47,8 +62,10 @@ def _speeds(plan):
     return plan.profile.v_cruise[~vert], plan.profile.v_cruise[vert], d[vert, 2]
 
 
-@pytest.mark.parametrize("profile, factor, ret, up, down, land, low", [
-    ("default", 1.0, 5.0, 2.5, 2.5, 2.5, 0.0), ("px4", 0.93, 4.8, 1.5, 1.5, 0.7, 5.0)])
+@pytest.mark.parametrize(
+    "profile, factor, ret, up, down, land, low",
+    [("default", 1.0, 5.0, 2.5, 2.5, 2.5, 0.0), ("px4", 0.93, 4.8, 1.5, 1.5, 0.7, 5.0)],
+)
 def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land, low):
     """Legs after a speed item fly at factor * that speed; the return at factor * MPC_XY_CRUISE (PX4: 4.8 m/s
     unless set; the default profile: the kinematics' cruise speed, so its flown time matches the plan); take-off
@@ -62,7 +79,9 @@ def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land,
         v.armed = True
         assert v.start_mission()
         horiz, vert, dz = _speeds(v.plan)
-        assert horiz == pytest.approx([5.5 * factor] * 2 + [ret * factor])  # home->wp1, wp1->wp2, the return
+        assert horiz == pytest.approx(
+            [5.5 * factor] * 2 + [ret * factor]
+        )  # home->wp1, wp1->wp2, the return
         expect = [(30.0, up)] + ([(-25.0, down), (-5.0, land)] if low else [(-30.0, down)])
         np.testing.assert_allclose(np.column_stack([dz, vert]), expect, atol=1e-6)
         assert v.plan.land_legs == (2 if low else 1)
@@ -83,10 +102,27 @@ def test_params_and_statustext_gate_over_mavlink(tmp_path):
     heartbeat within 2.5 simulated s, queued texts older than 5 s dropped, every text logged (sent or not)."""
     port = free_udp_port()
     log = tmp_path / "texts.jsonl"
-    v = subprocess.Popen([sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", "10",
-                          "--profile", "px4", "--statustext-log", str(log)], cwd=ROOT,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=245, source_component=190)
+    v = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sitl.vehicle",
+            "--port",
+            str(port),
+            "--speedup",
+            "10",
+            "--profile",
+            "px4",
+            "--statustext-log",
+            str(log),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    gcs = mavutil.mavlink_connection(
+        f"udpin:127.0.0.1:{port}", source_system=245, source_component=190
+    )
     try:
         assert gcs.wait_heartbeat(timeout=10)
         gcs.mav.param_request_read_send(1, 1, b"MPC_XY_CRUISE", -1)
@@ -106,19 +142,31 @@ def test_params_and_statustext_gate_over_mavlink(tmp_path):
             return out
 
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
-        assert texts(1.0) == []  # no GCS heartbeat: 10 simulated s pass, the text is dropped after 5
-        gcs.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE)
+        assert (
+            texts(1.0) == []
+        )  # no GCS heartbeat: 10 simulated s pass, the text is dropped after 5
+        gcs.mav.heartbeat_send(
+            mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE
+        )
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
-        assert texts(0.15) == ["Disarmed by external command"]  # within 2.5 simulated s of the heartbeat
+        assert texts(0.15) == [
+            "Disarmed by external command"
+        ]  # within 2.5 simulated s of the heartbeat
         time.sleep(0.35)  # 3.5 simulated s: the gate is closed again
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
         assert texts(0.2) == []
-        gcs.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE)
-        assert texts(0.2) == ["Armed by external command"]  # queued < 5 s: sent once a heartbeat came
+        gcs.mav.heartbeat_send(
+            mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE
+        )
+        assert texts(0.2) == [
+            "Armed by external command"
+        ]  # queued < 5 s: sent once a heartbeat came
         rec = [json.loads(line) for line in log.read_text().splitlines()]
-        assert [(r["text"], r["sent"]) for r in rec] == [("Armed by external command", False),
-                                                         ("Disarmed by external command", True),
-                                                         ("Armed by external command", True)]
+        assert [(r["text"], r["sent"]) for r in rec] == [
+            ("Armed by external command", False),
+            ("Disarmed by external command", True),
+            ("Armed by external command", True),
+        ]
     finally:
         gcs.close()
         v.terminate()

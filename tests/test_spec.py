@@ -34,7 +34,10 @@ def test_default_mission_values():
     # the AFAR launch point (300.21, 54.14) m is 0.44 m inside the east edge: moved 4 m inside
     # (checks.RETURN_OVERSHOOT_M + home_margin_m + 1 m), straight west
     assert spec.home_enu == pytest.approx([296.65, 54.14, 0.0], abs=0.05)
-    assert spec.sim_config().dt_s == 0.03 and spec.kinematics().cruise_speed_mps == spec.cruise_speed_mps
+    assert (
+        spec.sim_config().dt_s == 0.03
+        and spec.kinematics().cruise_speed_mps == spec.cruise_speed_mps
+    )
 
 
 def test_explicit_waypoints_and_geodetic_points():
@@ -76,8 +79,16 @@ BAD = [
     ("altitude_m: thirty\n", "altitude_m", "expected a number"),
     ("cruise_speed_mps: -3\n", "cruise_speed_mps", "must be >"),
     ("trajectory: {generator: zigzag}\n", "trajectory.generator", "zigzag"),
-    ("trajectory: {generator: spiral, params: {spacing_m: -5}}\n", "trajectory.params.spacing_m", "positive"),
-    ("trajectory: {generator: spiral, params: {spacing: 5}}\n", "trajectory.params.spacing", "unknown"),
+    (
+        "trajectory: {generator: spiral, params: {spacing_m: -5}}\n",
+        "trajectory.params.spacing_m",
+        "positive",
+    ),
+    (
+        "trajectory: {generator: spiral, params: {spacing: 5}}\n",
+        "trajectory.params.spacing",
+        "unknown",
+    ),
     ("trajectory: {waypoints: [[1, 2], [3]]}\n", "trajectory.waypoints[1]", "expected [x, y]"),
     ("source: {tx: somewhere}\n", "source.tx", "random"),
     ("source: {seed: 1.5}\n", "source.seed", "integer"),

@@ -14,7 +14,12 @@ from hypothesis import strategies as st
 from mission.cells import cell_average
 from mission.geo import square_grid
 from mission.localize.candidates import Candidate, dedupe, posterior_modes
-from mission.localize.stacking import blocked_scores, cell_blocks, mixture_posterior, stacking_weights
+from mission.localize.stacking import (
+    blocked_scores,
+    cell_blocks,
+    mixture_posterior,
+    stacking_weights,
+)
 from mission.samples import FlightSamples
 
 ISO = [("isotropic", None, 0.0, False)]
@@ -72,7 +77,7 @@ def test_stacking_weights_lie_on_the_simplex_and_beat_uniform(k: int, b: int, se
     assert np.all(w >= 0) and w.sum() == pytest.approx(1.0)
 
     def objective(v):
-        return np.log(np.exp(lp) .T @ v).sum()
+        return np.log(np.exp(lp).T @ v).sum()
 
     assert objective(w) >= objective(np.full(k, 1.0 / k)) - 1e-9
 
@@ -125,23 +130,38 @@ def test_two_surviving_candidates_give_two_islands() -> None:
     from mission.localize.uncertainty import hpd_regions
 
     grid = square_grid((0.0, 0.0, 300.0, 300.0), 5.0)
-    post = mixture_posterior(np.array([[60.0, 60.0], [240.0, 240.0]]), np.array([0.5, 0.5]), grid, 15.0)
+    post = mixture_posterior(
+        np.array([[60.0, 60.0], [240.0, 240.0]]), np.array([0.5, 0.5]), grid, 15.0
+    )
     reg = hpd_regions(post, grid, (0.5,))[0]
     assert len(reg["polygons"]) == 2
-    assert post.covers(60.0, 60.0, 0.5) and post.covers(240.0, 240.0, 0.5) and not post.covers(150, 150, 0.9)
+    assert (
+        post.covers(60.0, 60.0, 0.5)
+        and post.covers(240.0, 240.0, 0.5)
+        and not post.covers(150, 150, 0.9)
+    )
 
 
 def test_candidate_json_carries_its_evidence() -> None:
     c = Candidate(1.234, 5.678, "selfcal mode 1", mass=0.41234, in_domain=False).scored(-1.5, 0.25)
-    assert c.to_dict() == {"source": "selfcal mode 1", "x_m": 1.23, "y_m": 5.68, "mode_mass": 0.4123,
-                           "in_domain": False, "evidence_nats": -1.5, "weight": 0.25}
+    assert c.to_dict() == {
+        "source": "selfcal mode 1",
+        "x_m": 1.23,
+        "y_m": 5.68,
+        "mode_mass": 0.4123,
+        "in_domain": False,
+        "evidence_nats": -1.5,
+        "weight": 0.25,
+    }
 
 
 @pytest.fixture(scope="module")
 def synthetic_log(tmp_path_factory):
     from _localize_helpers import write_synthetic_log
 
-    return write_synthetic_log(tmp_path_factory.mktemp("ev") / "flight.csv", (150.0, 120.0, 1.5), n=4000)
+    return write_synthetic_log(
+        tmp_path_factory.mktemp("ev") / "flight.csv", (150.0, 120.0, 1.5), n=4000
+    )
 
 
 def test_the_stage_answers_with_weighted_candidates_and_their_mixture(synthetic_log) -> None:
@@ -184,7 +204,9 @@ def test_geometric_median_closed_forms() -> None:
     from mission.localize.stacking import geometric_median
 
     line = np.array([[0.0, 0.0], [1.0, 0.0], [10.0, 0.0]])
-    assert geometric_median(line) == pytest.approx([1.0, 0.0], abs=1e-4)  # collinear: the middle point
+    assert geometric_median(line) == pytest.approx(
+        [1.0, 0.0], abs=1e-4
+    )  # collinear: the middle point
     square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
     assert geometric_median(square) == pytest.approx([1.0, 1.0], abs=1e-6)  # symmetry: the centre
     # a far ghost moves the mean by 200 m / 5 but the median by almost nothing

@@ -25,12 +25,16 @@ from mission.errors import InputError
 
 def run_limited(argv: list[str], limit: int, cwd: Path) -> subprocess.CompletedProcess:
     """``rfsl argv`` in a child whose files may not grow past ``limit`` bytes."""
-    code = ("import resource, signal, sys\n"
-            "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
-            f"resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))\n"
-            "from mission.cli.main import main\n"
-            f"sys.exit(main({[str(a) for a in argv]!r}))\n")
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=cwd)
+    code = (
+        "import resource, signal, sys\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+        f"resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))\n"
+        "from mission.cli.main import main\n"
+        f"sys.exit(main({[str(a) for a in argv]!r}))\n"
+    )
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=cwd
+    )
 
 
 def assert_one_line_failure(r: subprocess.CompletedProcess, *names: str) -> None:
@@ -107,9 +111,17 @@ def test_writing_replaces_only_when_complete(tmp_path):
 def test_write_flight_log_refuses_an_existing_sidecar(tmp_path):
     """A sidecar alone (its CSV deleted or not yet written) is not replaced silently."""
     (tmp_path / "f.json").write_text(json.dumps({"mine": 1}))
-    cols = {"t_s": np.arange(3.0), "lat_deg": np.full(3, 35.7), "lon_deg": np.full(3, -78.7),
-            "alt_m": np.full(3, 30.0), "rel_alt_m": np.full(3, 30.0), "roll_deg": np.zeros(3),
-            "pitch_deg": np.zeros(3), "yaw_deg": np.zeros(3), "rss_dbm": np.full(3, -50.0)}
+    cols = {
+        "t_s": np.arange(3.0),
+        "lat_deg": np.full(3, 35.7),
+        "lon_deg": np.full(3, -78.7),
+        "alt_m": np.full(3, 30.0),
+        "rel_alt_m": np.full(3, 30.0),
+        "roll_deg": np.zeros(3),
+        "pitch_deg": np.zeros(3),
+        "yaw_deg": np.zeros(3),
+        "rss_dbm": np.full(3, -50.0),
+    }
     from mission.flightlog import write_flight_log
 
     with pytest.raises(InputError, match="f.json"):

@@ -37,7 +37,9 @@ def test_log_looks_like_a_real_import_without_truth():
     json.dumps(draw)  # the draw is JSON-able (it goes into suite.json)
     assert np.allclose(truth, draw["tx_xy"])
     h = log.enu()[:, 2]
-    assert h.min() < 1.0 and abs(np.percentile(h, 90) - draw["altitude_m"]) < 2.0  # take-off + cruise in the log
+    assert (
+        h.min() < 1.0 and abs(np.percentile(h, 90) - draw["altitude_m"]) < 2.0
+    )  # take-off + cruise in the log
     from mission.localize.api import localize_log
 
     est = localize_log(log)  # a real log's default path (not the simulated-log network)
@@ -115,23 +117,37 @@ def test_cache_roundtrip_and_workers(tmp_path):
 
 def test_methods_and_regions():
     assert suite_method("default") == {}
-    assert suite_method("grid:preset:afar:fit328") == {"method": "grid", "physics_preset": "afar:fit328"}
+    assert suite_method("grid:preset:afar:fit328") == {
+        "method": "grid",
+        "physics_preset": "afar:fit328",
+    }
     assert suite_method("grid:two-ray") == {"method": "grid", "physics_model": "two-ray"}
     for bad in ("gird", "onnx:/no/such.onnx"):
         with pytest.raises(InputError):
             suite_method(bad)
-    ell = {"center_m": [10.0, 0.0], "semi_axes_m": [20.0, 5.0], "angle_deg": 90.0}  # long axis north
+    ell = {
+        "center_m": [10.0, 0.0],
+        "semi_axes_m": [20.0, 5.0],
+        "angle_deg": 90.0,
+    }  # long axis north
     assert region_contains(ell, (10.0, 18.0)) and not region_contains(ell, (28.0, 0.0))
     assert region_contains({"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]}, (5, 5))
-    assert not region_contains({"center_m": [0, 0], "cov_m2": [[4, 0], [0, 1]], "chi2": 1.0}, (0, 1.5))
+    assert not region_contains(
+        {"center_m": [0, 0], "cov_m2": [[4, 0], [0, 1]], "chi2": 1.0}, (0, 1.5)
+    )
 
 
 def test_training_dataset_from_the_family(tmp_path):
     from mission.workshop.dataset import DatasetConfig, generate_dataset, load_dataset
 
     with pytest.raises(InputError, match="benchmark"):
-        generate_dataset(DatasetConfig(None, 2, seed=2026, suite="unseen", features=("clustering",)), tmp_path / "x")
-    generate_dataset(DatasetConfig(None, 2, seed=4, suite="unseen", features=("clustering",)), tmp_path / "d")
+        generate_dataset(
+            DatasetConfig(None, 2, seed=2026, suite="unseen", features=("clustering",)),
+            tmp_path / "x",
+        )
+    generate_dataset(
+        DatasetConfig(None, 2, seed=4, suite="unseen", features=("clustering",)), tmp_path / "d"
+    )
     arrays, m = load_dataset(tmp_path / "d")
     assert arrays["clustering"].shape == (2, 60) and np.isfinite(arrays["clustering"]).all()
     assert np.allclose(arrays["tx_enu"][1, :2], unseen_flight(4, 1).truth_xy)
@@ -142,10 +158,20 @@ def test_breakdown_by_axis():
     from mission.workshop.evaluate import Row
     from mission.workshop.evaluate_suite import breakdown
 
-    draws = [{"habit": h, "alt": a, "physics": {"ant": p}} for h, a, p in
-             (("fixed", 20.0, "dipole"), ("fixed", 30.0, "flipped"), ("rot", 50.0, "dipole"), ("rot", 60.0, "x"))]
+    draws = [
+        {"habit": h, "alt": a, "physics": {"ant": p}}
+        for h, a, p in (
+            ("fixed", 20.0, "dipole"),
+            ("fixed", 30.0, "flipped"),
+            ("rot", 50.0, "dipole"),
+            ("rot", 60.0, "x"),
+        )
+    ]
     rows = [Row("t", "m1", None, None, [10.0, 20.0, 30.0, 50.0])]
-    assert breakdown(rows, draws, "habit") == {"fixed": {"n": 2, "m1": 15.0}, "rot": {"n": 2, "m1": 40.0}}
+    assert breakdown(rows, draws, "habit") == {
+        "fixed": {"n": 2, "m1": 15.0},
+        "rot": {"n": 2, "m1": 40.0},
+    }
     assert breakdown(rows, draws, "physics.ant")["dipole"]["m1"] == 20.0
     by_alt = breakdown(rows, draws, "alt", bins=2)
     assert [d["n"] for d in by_alt.values()] == [2, 2] and list(by_alt.values())[1]["m1"] == 40.0

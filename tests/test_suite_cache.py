@@ -12,7 +12,12 @@ from _bad_input import run_cli
 from mission.cli.main import main as rfsl_main
 from mission.workshop.evaluate_suite import evaluate_suite
 from mission.workshop.suite import unseen_flight
-from mission.workshop.suite_cache import FINGERPRINT_SCHEME, flight_fingerprint, read_suite, write_suite
+from mission.workshop.suite_cache import (
+    FINGERPRINT_SCHEME,
+    flight_fingerprint,
+    read_suite,
+    write_suite,
+)
 
 SEED = 31
 
@@ -63,7 +68,9 @@ def test_edited_or_missing_fingerprint_warns(suite, tmp_path):
     text = read_suite(edited).check_current()
     assert text is not None and "\n" not in text
     assert "fingerprint of flight 0 differs" in text and str(edited) in text
-    assert f"rfsl dataset --suite unseen --logs --n 2 --seed {SEED} --out {edited} --overwrite" in text
+    assert (
+        f"rfsl dataset --suite unseen --logs --n 2 --seed {SEED} --out {edited} --overwrite" in text
+    )
     old = _edited(suite, tmp_path / "old", lambda m: m.pop("fingerprint"))
     text = read_suite(old).check_current()
     assert text is not None and "\n" not in text and "no fingerprint" in text and str(old) in text
@@ -77,13 +84,30 @@ def test_edited_or_missing_fingerprint_warns(suite, tmp_path):
 def test_cli_prints_one_warning_line_and_scores(suite, tmp_path, capsys):
     edited = _edited(suite, tmp_path / "edited", _tamper)
     report = tmp_path / "r.json"
-    argv = ["evaluate", "--suite-dir", edited, "--methods", "strongest", "--n", "1", "--workers", "1", "--out", report]
+    argv = [
+        "evaluate",
+        "--suite-dir",
+        edited,
+        "--methods",
+        "strongest",
+        "--n",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        report,
+    ]
     rc, out, err = run_cli(rfsl_main, argv, capsys)
     assert rc == 0, err
     lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith(f"warning: {edited} was written by other simulator code")
+    assert len(lines) == 1 and lines[0].startswith(
+        f"warning: {edited} was written by other simulator code"
+    )
     assert "strongest" in out
     assert "differs" in json.loads(report.read_text())["warnings"][0]
-    rc, out, err = run_cli(rfsl_main, ["evaluate", "--suite-dir", suite, "--methods", "strongest", "--n", "1",
-                                       "--workers", "1"], capsys)
+    rc, out, err = run_cli(
+        rfsl_main,
+        ["evaluate", "--suite-dir", suite, "--methods", "strongest", "--n", "1", "--workers", "1"],
+        capsys,
+    )
     assert rc == 0 and "warning" not in err, err

@@ -22,11 +22,18 @@ from mission.workshop.suite_cache import read_suite, write_suite
 def _family(sigma_db: float, noise_db: float = 0.0, corr_m: float = 60.0) -> dict:
     """A family whose only randomness beyond the path is a correlated field of fixed sigma (isotropic free space:
     the log-distance fit removes the model exactly, so the residual is the field)."""
-    return {"schema": 1, "name": f"s{sigma_db:g}",
-            "spec": {"base": "free-space", "rx_pattern": "isotropic", "tx_pattern": "isotropic",
-                     "path_gain_slope": 0.0},
-            "residual": {"shadowing_db": sigma_db, "shadowing_corr_m": corr_m, "noise_db": noise_db},
-            "offset_db": {"dist": "uniform", "lo": -5.0, "hi": 5.0}}
+    return {
+        "schema": 1,
+        "name": f"s{sigma_db:g}",
+        "spec": {
+            "base": "free-space",
+            "rx_pattern": "isotropic",
+            "tx_pattern": "isotropic",
+            "path_gain_slope": 0.0,
+        },
+        "residual": {"shadowing_db": sigma_db, "shadowing_corr_m": corr_m, "noise_db": noise_db},
+        "offset_db": {"dist": "uniform", "lo": -5.0, "hi": 5.0},
+    }
 
 
 def _write(tmp_path: Path, d: dict, name: str = "fam.json") -> str:
@@ -58,7 +65,9 @@ def test_family_draws_are_reproducible_and_seeded():
     b, _ = draw_flight(7, 3, fam)
     c, _ = draw_flight(8, 3, SHIPPED)
     assert a == b and a != c
-    assert a["family"] == f"json:afar@{family_sha256(fam)[:8]}" and a["family_sha256"] == family_sha256(fam)
+    assert a["family"] == f"json:afar@{family_sha256(fam)[:8]}" and a[
+        "family_sha256"
+    ] == family_sha256(fam)
     res = fam.residual
     for d in (a, c):
         for key in ("shadowing_db", "shadowing_corr_m", "noise_db"):
@@ -67,10 +76,15 @@ def test_family_draws_are_reproducible_and_seeded():
         lo, hi = _bounds(fam.offset_db)
         assert lo <= d["rss_offset_db"] <= hi
         pats = {v["spec"].get("rx_pattern", fam.spec.get("rx_pattern")) for v in fam.variants} or {
-            fam.spec.get("rx_pattern")}
+            fam.spec.get("rx_pattern")
+        }
         assert d["physics"]["spec"].get("rx_pattern") in pats
-    built_in, _ = draw_flight(7, 3, "afar")  # the other axes are drawn as before, before the physics
-    assert built_in["tx_xy"] == a["tx_xy"] and built_in["trajectory_params"] == a["trajectory_params"]
+    built_in, _ = draw_flight(
+        7, 3, "afar"
+    )  # the other axes are drawn as before, before the physics
+    assert (
+        built_in["tx_xy"] == a["tx_xy"] and built_in["trajectory_params"] == a["trajectory_params"]
+    )
 
 
 @pytest.mark.slow  # three simulated flights: ~3 s on an idle core
@@ -102,21 +116,32 @@ def test_cache_keeps_the_family_and_checks_it(tmp_path):
     assert cs.manifest["family_sha256"] and f"--family {fam}" in cs.rewrite_command()
 
 
-BAD = [{"schema": 2}, {"schema": 1, "spec": {"base": "free-space"}, "residual": {"sigma": 3}},
-       {"schema": 1, "spec": {"base": "free-space", "path_gain_slope": {"dist": "uniform", "lo": 2, "hi": 1}}}]
+BAD = [
+    {"schema": 2},
+    {"schema": 1, "spec": {"base": "free-space"}, "residual": {"sigma": 3}},
+    {
+        "schema": 1,
+        "spec": {"base": "free-space", "path_gain_slope": {"dist": "uniform", "lo": 2, "hi": 1}},
+    },
+]
 
 
-@pytest.mark.parametrize("argv", [
-    ["dataset", "--n", "2", "--out", "{out}", "--family", "{fam}"],
-    ["train", "{ds}", "--out", "{out}/m.onnx", "--family", "{fam}"],
-    ["evaluate", "--n", "2", "--methods", "strongest", "--family", "{fam}"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["dataset", "--n", "2", "--out", "{out}", "--family", "{fam}"],
+        ["train", "{ds}", "--out", "{out}/m.onnx", "--family", "{fam}"],
+        ["evaluate", "--n", "2", "--methods", "strongest", "--family", "{fam}"],
+    ],
+)
 @pytest.mark.parametrize("bad", range(len(BAD)))
 def test_bad_family_file_is_one_line_exit_2(tmp_path, capsys, argv, bad):
     fam = _write(tmp_path, BAD[bad])
     (tmp_path / "ds").mkdir()
     sub = {"{fam}": fam, "{out}": str(tmp_path / "out"), "{ds}": str(tmp_path / "ds")}
-    rc, _, err = run_cli(rfsl_main, [sub.get(a, a.replace("{out}", sub["{out}"])) for a in argv], capsys)
+    rc, _, err = run_cli(
+        rfsl_main, [sub.get(a, a.replace("{out}", sub["{out}"])) for a in argv], capsys
+    )
     assert_refused(rc, err, "fam.json")
 
 
@@ -127,14 +152,29 @@ def test_missing_family_file_is_refused(tmp_path):
         resolve_family("no-such-family")
 
 
-_VALUE = st.one_of(st.floats(allow_nan=True), st.text(max_size=3), st.none(),
-                   st.fixed_dictionaries({"dist": st.sampled_from(["uniform", "normal", "bogus"]),
-                                          "lo": st.floats(-5, 5), "hi": st.floats(-5, 5)}))
+_VALUE = st.one_of(
+    st.floats(allow_nan=True),
+    st.text(max_size=3),
+    st.none(),
+    st.fixed_dictionaries(
+        {
+            "dist": st.sampled_from(["uniform", "normal", "bogus"]),
+            "lo": st.floats(-5, 5),
+            "hi": st.floats(-5, 5),
+        }
+    ),
+)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(key=st.sampled_from(["shadowing_db", "shadowing_corr_m", "noise_db", "offset", "slope", "schema"]),
-       value=_VALUE)
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    key=st.sampled_from(
+        ["shadowing_db", "shadowing_corr_m", "noise_db", "offset", "slope", "schema"]
+    ),
+    value=_VALUE,
+)
 def test_generated_bad_families_raise_input_error_only(tmp_path, key, value):
     """Any edit of a valid family either loads or raises InputError naming the file (never another exception)."""
     d = _family(4.0)
@@ -175,9 +215,12 @@ def test_train_family_check_and_record(tmp_path):
     with pytest.raises(InputError, match="another family") as e:
         check_family(fam, [str(tmp_path / "ok"), str(tmp_path / "other")])
     assert "other" in str(e.value)
-    graph = helper.make_graph([helper.make_node("Identity", ["x"], ["y"])], "g",
-                              [helper.make_tensor_value_info("x", TensorProto.FLOAT, [1])],
-                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, [1])])
+    graph = helper.make_graph(
+        [helper.make_node("Identity", ["x"], ["y"])],
+        "g",
+        [helper.make_tensor_value_info("x", TensorProto.FLOAT, [1])],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, [1])],
+    )
     model = helper.make_model(graph)
     model.metadata_props.add(key="training_data", value=json.dumps({"datasets": []}))
     path = tmp_path / "m.onnx"
@@ -186,7 +229,9 @@ def test_train_family_check_and_record(tmp_path):
     record_family(path, rec)
     meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
     assert json.loads(meta["training_data"])["physics_family"]["sha256"] == sha
-    assert json.loads((tmp_path / "m.onnx.train.json").read_text())["training_data"]["physics_family"]["label"]
+    assert json.loads((tmp_path / "m.onnx.train.json").read_text())["training_data"][
+        "physics_family"
+    ]["label"]
 
 
 @pytest.mark.slow  # two benchmark flights and two real-like logs: ~4 s
@@ -198,8 +243,25 @@ def test_evaluate_prints_predictive_checks(tmp_path, capsys):
     write_suite(tmp_path / "s", 2, seed=3, family=fam)
     logs = [str(write_log(tmp_path / f"r{k}.csv", seed=k)) for k in range(2)]
     out = tmp_path / "r.json"
-    rc, text, err = run_cli(rfsl_main, ["evaluate", "--suite-dir", tmp_path / "s", "--family", fam, "--methods",
-                                        "strongest", "--real", *logs, "--workers", "1", "--out", out], capsys)
+    rc, text, err = run_cli(
+        rfsl_main,
+        [
+            "evaluate",
+            "--suite-dir",
+            tmp_path / "s",
+            "--family",
+            fam,
+            "--methods",
+            "strongest",
+            "--real",
+            *logs,
+            "--workers",
+            "1",
+            "--out",
+            out,
+        ],
+        capsys,
+    )
     assert_accepted(rc, err)
     assert "posterior-predictive checks: 2 real flights vs 2 benchmark flights" in text
     rep = json.loads(out.read_text())["predictive_checks"]

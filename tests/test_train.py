@@ -31,7 +31,9 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     from mission.workshop.train import TrainConfig, train
 
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.15, 0.25))
-    cfg = DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r)
+    cfg = DatasetConfig(
+        str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r
+    )
     generate_dataset(cfg, tmp_path / "ds", workers=1)
     out = tmp_path / "m.onnx"
     res = train([tmp_path / "ds"], out, TrainConfig(epochs=3, batch_size=8, seed=1, threads=1))
@@ -46,7 +48,11 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     x = np.load(next((tmp_path / "ds").glob("chunk_*.npz")))["clustering"]
     assert np.all(np.isfinite(loc.predict_features(x)))
     # same seed, same weights
-    res2 = train([tmp_path / "ds"], tmp_path / "m2.onnx", TrainConfig(epochs=3, batch_size=8, seed=1, threads=1))
+    res2 = train(
+        [tmp_path / "ds"],
+        tmp_path / "m2.onnx",
+        TrainConfig(epochs=3, batch_size=8, seed=1, threads=1),
+    )
     assert res2.metrics == res.metrics
     hist = json.loads((tmp_path / "m.onnx.train.json").read_text())["history"]
     assert len(hist) == 3
@@ -85,7 +91,12 @@ def test_relative_graph_is_translation_equivariant_and_matches_onnxruntime(tmp_p
     meta = {
         "feature_kind": "clustering",
         "feature_config": {},
-        "input_normalisation": {"input_mean": 0.0, "input_std": 1.0, "output_mean": 0.0, "output_std": 1.0},
+        "input_normalisation": {
+            "input_mean": 0.0,
+            "input_std": 1.0,
+            "output_mean": 0.0,
+            "output_std": 1.0,
+        },
         "field_origin": {"lat_deg": 0.0, "lon_deg": 0.0},
     }
     assert export_onnx(net, 60, path, meta, torch.from_numpy(x)) < 1e-4
@@ -114,11 +125,17 @@ def test_tiny_training_relative_metadata_is_identity(tmp_path, repo_dir):
     from mission.workshop.train import TrainConfig, train
 
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.15, 0.25))
-    cfg = DatasetConfig(str(repo_dir / "missions" / "spiral.yaml"), 12, seed=4, chunk=12, randomisation=r)
+    cfg = DatasetConfig(
+        str(repo_dir / "missions" / "spiral.yaml"), 12, seed=4, chunk=12, randomisation=r
+    )
     generate_dataset(cfg, tmp_path / "ds", workers=1)
     for coords in ("relative", "absolute"):
         out = tmp_path / f"{coords}.onnx"
-        res = train([tmp_path / "ds"], out, TrainConfig(epochs=2, batch_size=4, seed=1, coords=coords, threads=1))
+        res = train(
+            [tmp_path / "ds"],
+            out,
+            TrainConfig(epochs=2, batch_size=4, seed=1, coords=coords, threads=1),
+        )
         loc = OnnxLocalizer(out)
         norm = loc.meta["input_normalisation"]
         assert set(norm["input_mean"]) == {0.0} and set(norm["input_std"]) == {1.0}

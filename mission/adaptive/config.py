@@ -17,15 +17,19 @@ class AdaptiveSpec:
     """Settings of the adaptive finish (schema in missions/spiral_adaptive.yaml)."""
 
     enabled: bool = False
-    survey_s: float = 300.0          # seconds of the trajectory (from its first waypoint) flown before adapting
+    survey_s: float = (
+        300.0  # seconds of the trajectory (from its first waypoint) flown before adapting
+    )
     altitude_m: float | None = None  # altitude of the adaptive legs (None: the mission's)
-    radius_m: float = 20.0           # half side of the square flown around the live estimate
-    min_radius_m: float = 6.0        # a round is shrunk down to this to fit fence or budget, else refused
-    target_area_m2: float = 150.0    # stop adapting once the 90 % region is this small
-    lead_s: float = 30.0             # plan the next round this many vehicle seconds before the current one ends
-    update_s: float = 5.0            # live estimate period (vehicle seconds)
-    reserve_s: float = 15.0          # kept free in the budget beyond the return and landing
-    explore: bool = True             # fly over the posterior's competing peaks in turn (planner.choose_target)
+    radius_m: float = 20.0  # half side of the square flown around the live estimate
+    min_radius_m: float = 6.0  # a round is shrunk down to this to fit fence or budget, else refused
+    target_area_m2: float = 150.0  # stop adapting once the 90 % region is this small
+    lead_s: float = (
+        30.0  # plan the next round this many vehicle seconds before the current one ends
+    )
+    update_s: float = 5.0  # live estimate period (vehicle seconds)
+    reserve_s: float = 15.0  # kept free in the budget beyond the return and landing
+    explore: bool = True  # fly over the posterior's competing peaks in turn (planner.choose_target)
 
     def altitude(self, spec) -> float:
         return float(spec.altitude_m if self.altitude_m is None else self.altitude_m)
@@ -40,14 +44,24 @@ def parse_adaptive(r) -> AdaptiveSpec:
     ex = r.raw("explore", d.explore)
     if not isinstance(ex, bool):
         raise r.err("explore", f"expected true or false, got {ex!r}")
-    alt = r.num("altitude_m", math.nan, 0.0, strict_lo=True) if r.has("altitude_m") else d.altitude_m
+    alt = (
+        r.num("altitude_m", math.nan, 0.0, strict_lo=True) if r.has("altitude_m") else d.altitude_m
+    )
     r.used.add("altitude_m")
     radius = r.num("radius_m", d.radius_m, 0.0, strict_lo=True)
     out = AdaptiveSpec(
-        enabled=en, survey_s=r.num("survey_s", d.survey_s, 0.0, strict_lo=True), altitude_m=alt, radius_m=radius,
-        min_radius_m=r.num("min_radius_m", min(d.min_radius_m, radius), 0.0, radius, strict_lo=True),
+        enabled=en,
+        survey_s=r.num("survey_s", d.survey_s, 0.0, strict_lo=True),
+        altitude_m=alt,
+        radius_m=radius,
+        min_radius_m=r.num(
+            "min_radius_m", min(d.min_radius_m, radius), 0.0, radius, strict_lo=True
+        ),
         target_area_m2=r.num("target_area_m2", d.target_area_m2, 0.0),
-        lead_s=r.num("lead_s", d.lead_s, 0.0), update_s=r.num("update_s", d.update_s, 0.5),
-        reserve_s=r.num("reserve_s", d.reserve_s, 0.0), explore=ex)
+        lead_s=r.num("lead_s", d.lead_s, 0.0),
+        update_s=r.num("update_s", d.update_s, 0.5),
+        reserve_s=r.num("reserve_s", d.reserve_s, 0.0),
+        explore=ex,
+    )
     r.done()
     return out

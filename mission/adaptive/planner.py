@@ -116,7 +116,9 @@ def return_s(spec, frm) -> float:
     """Seconds from ``frm`` (3,) back over home at that altitude and down to landing."""
     home = np.asarray(spec.home_enu, dtype=float)
     frm = np.asarray(frm, dtype=float)
-    return plan_profile(np.vstack([frm, [home[0], home[1], frm[2]], home]), spec.kinematics()).duration_s
+    return plan_profile(
+        np.vstack([frm, [home[0], home[1], frm[2]], home]), spec.kinematics()
+    ).duration_s
 
 
 @dataclass
@@ -126,8 +128,8 @@ class RoundPlan:
     waypoints: np.ndarray | None
     centre: tuple[float, float] | None = None
     radius_m: float = 0.0
-    fly_s: float = 0.0       # from the start point through the round
-    return_s: float = 0.0    # from its last waypoint home and down
+    fly_s: float = 0.0  # from the start point through the round
+    return_s: float = 0.0  # from its last waypoint home and down
     notes: list[str] = field(default_factory=list)
     reason: str = ""
 
@@ -150,7 +152,9 @@ def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
             notes.append(f"a {2 * r:.0f} m square fits nowhere inside the fence")
         else:
             wps = box_pattern(c, r, alt, start)
-            fly = plan_profile(np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin).duration_s
+            fly = plan_profile(
+                np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin
+            ).duration_s
             back = return_s(spec, wps[-1])
             bad = leg_violations(spec, start, wps)
             if bad:
@@ -163,7 +167,9 @@ def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
                     notes.append(f"square shrunk to {2 * r:.0f} m to fit")
                 return RoundPlan(wps, (float(c[0]), float(c[1])), r, fly, back, notes)
             else:
-                notes.append(f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
-                             "left")
+                notes.append(
+                    f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
+                    "left"
+                )
         r = r * 0.7 if r * 0.7 >= a.min_radius_m or r <= a.min_radius_m else a.min_radius_m
     return RoundPlan(None, notes=notes, reason=notes[-1] if notes else "no round fits")

@@ -22,8 +22,14 @@ def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[t
     a = spec.adaptive or AdaptiveSpec()
     assert_adaptive(spec, a)
     rows = []
-    with Progress(TextColumn("adaptive vs fixed"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=console, transient=True) as prog:
+    with Progress(
+        TextColumn("adaptive vs fixed"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    ) as prog:
         task = prog.add_task("flights", total=flights)
         for i in range(flights):
             rows.append(pair(spec, a, family, seed, i))
@@ -33,12 +39,22 @@ def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[t
         return [("adaptive vs fixed", "no flight could be localized")]
     f, ad = s["fixed"], s["adaptive"]
     where = f"{s['n']} simulated flights, {family} family, selfcal"
-    out = [(f"expected error, fixed ({where})", f"{f['mean'].fmt()} m, p90 {f['p90_m']:.0f} m"),
-           (f"expected error, adaptive after {a.survey_s:g} s", f"{ad['mean'].fmt()} m, p90 {ad['p90_m']:.0f} m"),
-           ("adaptive - fixed (paired)", f"{ad['diff'].fmt()} m"),
-           ("adaptive rounds / flight time", f"{ad['rounds']:.1f} / {ad['duration_s']:.0f} s "
-                                             f"(fixed {f['duration_s']:.0f} s)"),
-           ("90 % region covers truth (fixed / adaptive)", f"{100 * f['coverage']:.0f} / {100 * ad['coverage']:.0f} %")]
+    out = [
+        (f"expected error, fixed ({where})", f"{f['mean'].fmt()} m, p90 {f['p90_m']:.0f} m"),
+        (
+            f"expected error, adaptive after {a.survey_s:g} s",
+            f"{ad['mean'].fmt()} m, p90 {ad['p90_m']:.0f} m",
+        ),
+        ("adaptive - fixed (paired)", f"{ad['diff'].fmt()} m"),
+        (
+            "adaptive rounds / flight time",
+            f"{ad['rounds']:.1f} / {ad['duration_s']:.0f} s (fixed {f['duration_s']:.0f} s)",
+        ),
+        (
+            "90 % region covers truth (fixed / adaptive)",
+            f"{100 * f['coverage']:.0f} / {100 * ad['coverage']:.0f} %",
+        ),
+    ]
     if s["fast"]:
         out.append(("fast estimate (3 min)", f"{s['fast'][0].fmt()} m"))
     return out

@@ -29,7 +29,9 @@ from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
 from mission.trajectory.kinematics import plan_profile
 
-MIN_LEAD_WALL_S = 4.0  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
+MIN_LEAD_WALL_S = (
+    4.0  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
+)
 
 
 @dataclass
@@ -70,7 +72,9 @@ class AdaptiveRounds:
                 _no_round(ctx)
             raise
         except Exception as e:  # the survey's RTL stays uploaded: the vehicle returns by itself
-            ctx.event("adaptive", f"adaptive part stopped ({type(e).__name__}: {e}); returning", warn=True)
+            ctx.event(
+                "adaptive", f"adaptive part stopped ({type(e).__name__}: {e}); returning", warn=True
+            )
 
     def record(self, ctx: FlightContext) -> tuple[str, dict]:
         return "adaptive", budget_report(ctx, self)
@@ -79,15 +83,20 @@ class AdaptiveRounds:
         final = ctx.live.final
         if not final:
             return ["no final estimate (too few samples)"]
-        return [f"estimate: {live.describe(final, ctx.truth)} [{ADAPTIVE_METHOD}, in flight]",
-                f"(t={final['t_s']:g} s: `localize LOG --at {final['t_s']:g}` gives it back)"]
+        return [
+            f"estimate: {live.describe(final, ctx.truth)} [{ADAPTIVE_METHOD}, in flight]",
+            f"(t={final['t_s']:g} s: `localize LOG --at {final['t_s']:g}` gives it back)",
+        ]
 
 
 def _no_round(ctx: FlightContext) -> None:
     """One line when the survey ended before a round was planned (the live estimate was late: a starved
     worker)."""
-    ctx.event("adaptive", "no adaptive round: the survey ended before one was planned (live estimate late)",
-              warn=True)
+    ctx.event(
+        "adaptive",
+        "no adaptive round: the survey ended before one was planned (live estimate late)",
+        warn=True,
+    )
 
 
 def _position_enu(ctx: FlightContext) -> np.ndarray:
@@ -105,7 +114,9 @@ def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int) -> float | Non
         return None
     if idx >= len(wps):
         return 0.0
-    return plan_profile(np.vstack([_position_enu(ctx)[None, :], wps[idx:]]), ctx.spec.kinematics()).duration_s
+    return plan_profile(
+        np.vstack([_position_enu(ctx)[None, :], wps[idx:]]), ctx.spec.kinematics()
+    ).duration_s
 
 
 def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
@@ -136,12 +147,17 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
     extra = autopilot_return_extra_s(ctx, wps[-1])
     if extra > 0.5:
         a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
-        ctx.event("adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing")
+        ctx.event(
+            "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
+        )
     final = final_phase(spec.return_behaviour)
     lead = max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup)
     if lead > a.lead_s:
-        ctx.event("adaptive", f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
-                            f"{ctx.speedup:g})")
+        ctx.event(
+            "adaptive",
+            f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
+            f"{ctx.speedup:g})",
+        )
     k = 0
     while True:
         while True:
@@ -162,12 +178,17 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             ctx.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
             return
         if d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2:
-            ctx.event("adaptive", f"90 % region {d['area_m2']:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing")
+            ctx.event(
+                "adaptive",
+                f"90 % region {d['area_m2']:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing",
+            )
             return
         rem = remaining_s(ctx, wps, off) or 0.0
         t_end = ctx.tel.clock.now() - ctx.status.t_start + rem
         visited = [rd["centre"] for rd in ext.rounds]
-        target = choose_target((d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m)
+        target = choose_target(
+            (d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m
+        )
         plan = plan_round(spec, a, target, wps[-1], t_end)
         for n in plan.notes if plan.ok else ():
             ctx.event("adaptive", f"round {k + 1}: {n}")
@@ -175,32 +196,55 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             ctx.event("adaptive", f"round {k + 1} refused: {plan.reason}")
             return
         new = np.vstack([wps, plan.waypoints])
-        items = build_items(dataclasses.replace(ctx.spec, trajectory=TrajectorySpec("waypoints", {}, new)),
-                            (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
-                            ctx.ardupilot)
+        items = build_items(
+            dataclasses.replace(ctx.spec, trajectory=TrajectorySpec("waypoints", {}, new)),
+            (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
+            ctx.ardupilot,
+        )
         if ctx.mission_done.is_set() or ctx.abort.is_set():
             ctx.event("adaptive", f"round {k + 1} planned too late: already returning")
             return
         cur = ctx.st.progress[0]
         ctx.phases.configure(off, len(items) - 1, final, first_adaptive=off + n_survey)
         await upload_with_retries(ctx, mission_raw, items, kind="adaptive")
-        if ctx.mission_done.is_set() or ctx.abort.is_set():  # the old RTL became active during the upload
+        if (
+            ctx.mission_done.is_set() or ctx.abort.is_set()
+        ):  # the old RTL became active during the upload
             await action.return_to_launch()
             ctx.event("adaptive", f"round {k + 1} uploaded too late: return to launch commanded")
             return
         await mission_raw.set_current_mission_item(max(cur, ctx.phases.raw_item))
         ctx.status.n_waypoints = len(new)
         left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
-        ctx.status.predicted_s = spec.time_budget_s - left  # land~ now the round's plan, no longer the survey's
-        ext.rounds.append({"round": k + 1, "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
-                         "estimate": d, "target": target, "centre": plan.centre, "radius_m": plan.radius_m,
-                         "first_item": len(wps) - n_survey, "n_waypoints": len(plan.waypoints),
-                         "planned_s": round(plan_profile(np.vstack([wps[-1:], plan.waypoints]),
-                                                         spec.kinematics()).duration_s, 1),
-                         "budget_left_after_return_s": round(left, 1), "notes": plan.notes})
-        ctx.event("adaptive", f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
-                            f"{plan.centre[1]:.0f}) m, {ext.rounds[-1]['planned_s']:.0f} s; {left:.0f} s spare "
-                            "after the return")
+        ctx.status.predicted_s = (
+            spec.time_budget_s - left
+        )  # land~ now the round's plan, no longer the survey's
+        ext.rounds.append(
+            {
+                "round": k + 1,
+                "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
+                "estimate": d,
+                "target": target,
+                "centre": plan.centre,
+                "radius_m": plan.radius_m,
+                "first_item": len(wps) - n_survey,
+                "n_waypoints": len(plan.waypoints),
+                "planned_s": round(
+                    plan_profile(
+                        np.vstack([wps[-1:], plan.waypoints]), spec.kinematics()
+                    ).duration_s,
+                    1,
+                ),
+                "budget_left_after_return_s": round(left, 1),
+                "notes": plan.notes,
+            }
+        )
+        ctx.event(
+            "adaptive",
+            f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
+            f"{plan.centre[1]:.0f}) m, {ext.rounds[-1]['planned_s']:.0f} s; {left:.0f} s spare "
+            "after the return",
+        )
         wps, k = new, k + 1
 
 
@@ -213,21 +257,35 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
     for rd in ext.rounds:
         hit = np.flatnonzero((ph == ADAPTIVE) & (item >= rd["first_item"]))
         starts.append(float(t[hit[0]]) if len(hit) else None)
-    after = np.flatnonzero(np.isin(ph, (RETURN, LAND)) & (t > (starts[0] if starts and starts[0] else np.inf)))
+    after = np.flatnonzero(
+        np.isin(ph, (RETURN, LAND)) & (t > (starts[0] if starts and starts[0] else np.inf))
+    )
     t_ret = float(t[after[0]]) if len(after) else None
     for j, rd in enumerate(ext.rounds):
         s = starts[j]
         e = starts[j + 1] if j + 1 < len(starts) else t_ret
-        if s is not None and e is None:  # the log ended in the round (link lost): flown until the last telemetry
+        if (
+            s is not None and e is None
+        ):  # the log ended in the round (link lost): flown until the last telemetry
             e = float(ctx.tel.covered_until) if np.isfinite(ctx.tel.covered_until) else None
         if s is None or e is None:
             continue
         rd["flown_s"] = round(e - s, 1)
         if rd["flown_s"] > 1.2 * rd["planned_s"] + 5.0:
-            ctx.event("budget", f"adaptive round {rd['round']} overran: {rd['flown_s']:.0f} s flown against "
-                              f"{rd['planned_s']:.0f} s planned", warn=True)
+            ctx.event(
+                "budget",
+                f"adaptive round {rd['round']} overran: {rd['flown_s']:.0f} s flown against "
+                f"{rd['planned_s']:.0f} s planned",
+                warn=True,
+            )
     flown = sum(rd.get("flown_s", 0.0) for rd in ext.rounds)
     planned = sum(rd["planned_s"] for rd in ext.rounds)
     ext.flown_s = flown  # the budget's closing line says survey and rounds apart (flight.budget)
-    ctx.event("adaptive", f"adaptive: {len(ext.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned")
-    return {"budget_s": ext.full_spec.time_budget_s, "rounds": ext.rounds}  # time used: the sidecar's budget
+    ctx.event(
+        "adaptive",
+        f"adaptive: {len(ext.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned",
+    )
+    return {
+        "budget_s": ext.full_spec.time_budget_s,
+        "rounds": ext.rounds,
+    }  # time used: the sidecar's budget

@@ -34,7 +34,9 @@ class FlightWorld:
         xs = np.arange(v[:, 0].min() - 30, v[:, 0].max() + 30 + step_m, step_m)
         ys = np.arange(v[:, 1].min() - 30, v[:, 1].max() + 30 + step_m, step_m)
         g = np.stack(np.meshgrid(xs, ys, indexing="ij"), -1).reshape(-1, 2)
-        sh = shadowing_field(g, self.draw.shadowing_db, self.draw.shadowing_corr_m, rng).reshape(len(xs), len(ys))
+        sh = shadowing_field(g, self.draw.shadowing_db, self.draw.shadowing_corr_m, rng).reshape(
+            len(xs), len(ys)
+        )
         self._shadow = RegularGridInterpolator((xs, ys), sh, bounds_error=False, fill_value=0.0)
 
     def rss(self, pos: np.ndarray, att: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -74,8 +76,12 @@ class SimLog:
         m = np.isin(ph, FLOWN_PHASES) & (t <= t_max)
         if m.sum() < 2:
             return None
-        return FlightSamples(enu_m=np.concatenate(self.pos)[m], rss_dbm=np.concatenate(self.rss)[m],
-                             attitude_rad=np.concatenate(self.att)[m], t_s=t[m])
+        return FlightSamples(
+            enu_m=np.concatenate(self.pos)[m],
+            rss_dbm=np.concatenate(self.rss)[m],
+            attitude_rad=np.concatenate(self.att)[m],
+            t_s=t[m],
+        )
 
 
 def estimator(spec):
@@ -83,7 +89,9 @@ def estimator(spec):
     from mission.localize.api import make_localizer
     from mission.localize.methods import ADAPTIVE_METHOD
 
-    return make_localizer(ADAPTIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M)
+    return make_localizer(
+        ADAPTIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M
+    )
 
 
 @dataclass
@@ -111,8 +119,13 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
     from mission.adaptive.planner import posterior_candidates
 
     reg = next((r for r in e.regions if r["level"] == 0.9), None)
-    return (e.x_m, e.y_m, None if reg is None else reg["area_m2"], region_covers(e, tx[0], tx[1], 0.9),
-            posterior_candidates(e.posterior))
+    return (
+        e.x_m,
+        e.y_m,
+        None if reg is None else reg["area_m2"],
+        region_covers(e, tx[0], tx[1], 0.9),
+        posterior_candidates(e.posterior),
+    )
 
 
 def _climb(spec, first) -> list:
@@ -131,15 +144,21 @@ def fixed_path(spec) -> tuple[np.ndarray, list[str]]:
     return path, [TAKEOFF] + [MISSION] * len(wps) + [RETURN, LAND]
 
 
-def fixed_flight(spec, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
+def fixed_flight(
+    spec, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0
+) -> Outcome:
     """The whole trajectory, then home."""
     path, names = fixed_path(spec)
     log = SimLog()
     log.fly(path, names, world, cfg, rng)
-    return Outcome(_estimate(loc, log, np.inf, world.tx), _estimate(loc, log, fast_s, world.tx), log.t_end)
+    return Outcome(
+        _estimate(loc, log, np.inf, world.tx), _estimate(loc, log, fast_s, world.tx), log.t_end
+    )
 
 
-def adaptive_flight(spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0) -> Outcome:
+def adaptive_flight(
+    spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0
+) -> Outcome:
     """The survey, rounds planned from the live estimate (``plan_round``), then home."""
     from mission.adaptive.planner import choose_target, plan_round, survey_profile
 

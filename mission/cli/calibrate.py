@@ -14,17 +14,30 @@ import textwrap
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("logs", nargs="+", help="flight logs with the transmitter truth in their sidecars")
+    parser.add_argument(
+        "logs", nargs="+", help="flight logs with the transmitter truth in their sidecars"
+    )
     parser.add_argument("--out", required=True, metavar="PRESET.json", help="preset file to write")
-    parser.add_argument("--name", default=None, help="preset name recorded in the file (default: the file stem)")
-    parser.add_argument("--groups", default=None, metavar="REGEX",
-                        help="group of a flight = first capture group of REGEX in its file name (e.g. "
-                             "'exp_(\\d+)_' for AFAR teams); default: its folder when the logs lie in several "
-                             "folders, else every flight is its own group (leave one flight out)")
-    parser.add_argument("--configs", default=None,
-                        help="configurations to compare, comma-separated (default: fs_iso, fs_slope, "
-                             "fs_rxflip, fs_rxflip_yaw, fs_rxflip_yaw_slope, fs_rxup_yaw)")
-    parser.add_argument("--max-samples", type=int, default=1200, help="samples per flight used for fitting (1200)")
+    parser.add_argument(
+        "--name", default=None, help="preset name recorded in the file (default: the file stem)"
+    )
+    parser.add_argument(
+        "--groups",
+        default=None,
+        metavar="REGEX",
+        help="group of a flight = first capture group of REGEX in its file name (e.g. "
+        "'exp_(\\d+)_' for AFAR teams); default: its folder when the logs lie in several "
+        "folders, else every flight is its own group (leave one flight out)",
+    )
+    parser.add_argument(
+        "--configs",
+        default=None,
+        help="configurations to compare, comma-separated (default: fs_iso, fs_slope, "
+        "fs_rxflip, fs_rxflip_yaw, fs_rxflip_yaw_slope, fs_rxup_yaw)",
+    )
+    parser.add_argument(
+        "--max-samples", type=int, default=1200, help="samples per flight used for fitting (1200)"
+    )
     parser.add_argument("--force", action="store_true", help="overwrite an existing --out file")
 
 
@@ -42,8 +55,11 @@ def _groups(paths, regex: str | None) -> tuple[list[str], str]:
         for p in paths:
             m = rx.search(p.name)
             if m is None:
-                raise InputError(f"--groups {regex!r} does not match this file name", source=str(p),
-                                 field="--groups")
+                raise InputError(
+                    f"--groups {regex!r} does not match this file name",
+                    source=str(p),
+                    field="--groups",
+                )
             out.append(m.group(1) if m.groups() else m.group(0))
         return out, f"groups from --groups {regex!r}"
     folders = [str(p.resolve().parent) for p in paths]
@@ -69,18 +85,25 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() != ".json":
         raise InputError("the preset file must end in .json", source=str(out), field="--out")
     if out.is_dir() or (out.exists() and not args.force):
-        raise InputError("exists (use --force to overwrite)" if out.is_file() else "is a folder",
-                         source=str(out), field="--out")
+        raise InputError(
+            "exists (use --force to overwrite)" if out.is_file() else "is a folder",
+            source=str(out),
+            field="--out",
+        )
     out_parent_ok(out)
     if args.max_samples < 50:
-        raise InputError(f"--max-samples must be at least 50, got {args.max_samples}", field="--max-samples")
+        raise InputError(
+            f"--max-samples must be at least 50, got {args.max_samples}", field="--max-samples"
+        )
     configs = tuple(args.configs.split(",")) if args.configs else DEFAULT_CONFIGS
     for c in configs:
         config(c)
     paths = [Path(p) for p in args.logs]
     groups, how = _groups(paths, args.groups)
     if len(set(groups)) < 2:
-        raise InputError("held-out calibration needs flights of at least two groups", field="--groups")
+        raise InputError(
+            "held-out calibration needs flights of at least two groups", field="--groups"
+        )
     flights = []
     for p in paths:
         log = read_flight_log(p)
@@ -93,10 +116,17 @@ def run(args: argparse.Namespace) -> int:
 
     with Progress(console=con, transient=True) as prog:
         task = prog.add_task("calibrating", total=len(configs))
-        res = calibrate(flights, groups, configs, max_samples=args.max_samples,
-                        progress=lambda n: prog.update(task, description=f"held-out fits of {n}", advance=1))
+        res = calibrate(
+            flights,
+            groups,
+            configs,
+            max_samples=args.max_samples,
+            progress=lambda n: prog.update(task, description=f"held-out fits of {n}", advance=1),
+        )
     cmd = "rfsl calibrate " + " ".join(shlex.quote(a) for a in sys.argv[2:])
-    rec = preset_record(args.name or out.stem, res, flights, groups, cmd, data=", ".join(str(p) for p in paths))
+    rec = preset_record(
+        args.name or out.stem, res, flights, groups, cmd, data=", ".join(str(p) for p in paths)
+    )
     from mission.files import write_text
 
     write_text(out, json.dumps(rec, indent=1, default=float) + "\n", "--out")
@@ -108,10 +138,17 @@ def run(args: argparse.Namespace) -> int:
     for name, row in res["configs"].items():
         p = row["pooled"]
         mark = " (chosen)" if name == res["chosen"] else ""
-        tab.add_row(name + mark, f"{p['median_abs_db']:.2f}", f"{p['p90_abs_db']:.2f}", f"{p['rms_db']:.2f}",
-                    f"{p['soft_l1']:.2f}")
+        tab.add_row(
+            name + mark,
+            f"{p['median_abs_db']:.2f}",
+            f"{p['p90_abs_db']:.2f}",
+            f"{p['rms_db']:.2f}",
+            f"{p['soft_l1']:.2f}",
+        )
     console().print(tab)
-    params = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in res["model"].items())
+    params = ", ".join(
+        f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in res["model"].items()
+    )
     console().print(f"wrote {out}: {res['chosen']}")
     console().print(textwrap.fill(params, 80, initial_indent="  ", subsequent_indent="  "))
     return 0

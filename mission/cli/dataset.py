@@ -28,13 +28,24 @@ MAX_FLIGHTS = 1_000_000  # one dataset's flights (the largest shipped training s
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from mission.cli.main import model_name_arg
 
-    p.add_argument("mission", nargs="?", help="mission YAML (field, altitude, trajectory, source defaults); "
-                   "not with --suite")
+    p.add_argument(
+        "mission",
+        nargs="?",
+        help="mission YAML (field, altitude, trajectory, source defaults); not with --suite",
+    )
     p.add_argument("--n", type=int, required=True, help="number of transmitter positions (flights)")
-    p.add_argument("--model", default="e2r", type=model_name_arg,
-                   help="propagation model: free-space, two-ray, e2r (aliases as make_model)")
-    p.add_argument("--seed", type=int, default=None,
-                   help="dataset seed (default 0; with --suite --logs 2026, the benchmark's own)")
+    p.add_argument(
+        "--model",
+        default="e2r",
+        type=model_name_arg,
+        help="propagation model: free-space, two-ray, e2r (aliases as make_model)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="dataset seed (default 0; with --suite --logs 2026, the benchmark's own)",
+    )
     p.add_argument("--out", required=True, help="output folder (manifest.json + chunk_*.npz)")
     p.add_argument("--chunk", type=int, default=500, help="flights per chunk file (default 500)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
@@ -44,24 +55,48 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="comma list of stored inputs: clustering, normalised_rss (default both)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing dataset in --out")
-    p.add_argument("--arc-step", type=float, default=0.0, metavar="M",
-                   help="clustering features: resample each flight to one point per M metres of path first "
-                        "(speed/hover invariant; 0 = off, the paper's features)")
-    p.add_argument("--physics", metavar="PRESET",
-                   help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
-                        "(fitted on team 328 only; score the result on the other team's flights)")
+    p.add_argument(
+        "--arc-step",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="clustering features: resample each flight to one point per M metres of path first "
+        "(speed/hover invariant; 0 = off, the paper's features)",
+    )
+    p.add_argument(
+        "--physics",
+        metavar="PRESET",
+        help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
+        "(fitted on team 328 only; score the result on the other team's flights)",
+    )
     s = p.add_argument_group("unseen-flight benchmark family (mission.workshop.suite)")
-    s.add_argument("--suite", choices=("unseen",), help="flights drawn from the benchmark's family (every axis "
-                   "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)")
-    s.add_argument("--logs", action="store_true", help="with --suite: write the flights as CSV logs + suite.json "
-                   "(the benchmark cache for rfsl evaluate --suite-dir) instead of feature chunks")
-    s.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="with --suite: physics family: a built-in one (mission.workshop.suite.FAMILIES: afar, "
-                        "generic, afar-heavy) or a physics family file F.json (rfsl gap --family; "
-                        "mission/data/afar_family.json), which draws each flight's physics, shadowing, noise and "
-                        "offset; a .json implies --suite unseen")
-    s.add_argument("--center", default="afar", metavar="PRESET",
-                   help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)")
+    s.add_argument(
+        "--suite",
+        choices=("unseen",),
+        help="flights drawn from the benchmark's family (every axis "
+        "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)",
+    )
+    s.add_argument(
+        "--logs",
+        action="store_true",
+        help="with --suite: write the flights as CSV logs + suite.json "
+        "(the benchmark cache for rfsl evaluate --suite-dir) instead of feature chunks",
+    )
+    s.add_argument(
+        "--family",
+        default="afar",
+        metavar="FAMILY",
+        help="with --suite: physics family: a built-in one (mission.workshop.suite.FAMILIES: afar, "
+        "generic, afar-heavy) or a physics family file F.json (rfsl gap --family; "
+        "mission/data/afar_family.json), which draws each flight's physics, shadowing, noise and "
+        "offset; a .json implies --suite unseen",
+    )
+    s.add_argument(
+        "--center",
+        default="afar",
+        metavar="PRESET",
+        help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)",
+    )
     g = p.add_argument_group("domain randomisation (each off unless given)")
     g.add_argument(
         "--randomise",
@@ -73,12 +108,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--altitude", type=_range, help="cruise altitude range LO,HI metres")
     g.add_argument("--offset", type=_range, help="constant RSS offset range LO,HI dB")
     g.add_argument(
-        "--trajectories", help="comma list of trajectory generators drawn per flight (e.g. spiral,lawnmower: the "
-        "names of a mission's trajectory.generator; an unknown one is refused with the list)"
+        "--trajectories",
+        help="comma list of trajectory generators drawn per flight (e.g. spiral,lawnmower: the "
+        "names of a mission's trajectory.generator; an unknown one is refused with the list)",
     )
-    g.add_argument("--random-params", action="store_true", help="random generator parameters per flight")
+    g.add_argument(
+        "--random-params", action="store_true", help="random generator parameters per flight"
+    )
     g.add_argument("--truncate", type=_range, help="kept fraction of the cruise LO,HI (e.g. 0.5,1)")
-    g.add_argument("--patterns", help="comma list of antenna patterns drawn per flight (dipole, measured)")
+    g.add_argument(
+        "--patterns", help="comma list of antenna patterns drawn per flight (dipole, measured)"
+    )
     g.add_argument(
         "--random-heading", action="store_true", help="random mounting heading of measured patterns"
     )
@@ -86,14 +126,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--eps-r", type=_range, help="ground relative permittivity range LO,HI")
     g.add_argument("--tx-height", type=_range, help="transmitter height range LO,HI metres")
     g.add_argument("--noise", type=_range, help="RSS noise standard deviation range LO,HI dB")
-    g.add_argument("--fixed-heading", type=float, metavar="P",
-                   help="probability that a flight holds one random compass heading instead of yawing along the "
-                        "track (AFAR 2023 vehicles held a near-constant heading)")
+    g.add_argument(
+        "--fixed-heading",
+        type=float,
+        metavar="P",
+        help="probability that a flight holds one random compass heading instead of yawing along the "
+        "track (AFAR 2023 vehicles held a near-constant heading)",
+    )
     g.add_argument("--speed", type=_range, help="cruise speed range LO,HI m/s")
-    g.add_argument("--shadowing", type=_range, help="std range LO,HI dB of a spatially correlated shadowing field")
-    g.add_argument("--shadowing-corr", type=_range, help="its correlation distance range LO,HI m (default 30)")
-    g.add_argument("--physics-heading-jitter", type=float, metavar="DEG",
-                   help="with --physics: jitter the preset's UAV-antenna heading by U(-DEG, DEG) per flight")
+    g.add_argument(
+        "--shadowing",
+        type=_range,
+        help="std range LO,HI dB of a spatially correlated shadowing field",
+    )
+    g.add_argument(
+        "--shadowing-corr", type=_range, help="its correlation distance range LO,HI m (default 30)"
+    )
+    g.add_argument(
+        "--physics-heading-jitter",
+        type=float,
+        metavar="DEG",
+        help="with --physics: jitter the preset's UAV-antenna heading by U(-DEG, DEG) per flight",
+    )
 
 
 def randomisation_from_args(args: argparse.Namespace):
@@ -146,7 +200,13 @@ def randomisation_from_args(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
 
     from mission.errors import InputError
     from mission.trajectory.generators import GENERATORS
@@ -165,15 +225,28 @@ def run(args: argparse.Namespace) -> int:
     if not 1 <= args.workers <= MAX_WORKERS:
         raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
     if args.n > MAX_FLIGHTS:  # a billion flights ran until killed for memory
-        raise InputError(f"must be <= {MAX_FLIGHTS:,} flights (split a larger set over seeds), got {args.n:,}",
-                         field="--n")
+        raise InputError(
+            f"must be <= {MAX_FLIGHTS:,} flights (split a larger set over seeds), got {args.n:,}",
+            field="--n",
+        )
     if not 1 <= args.chunk <= MAX_FLIGHTS:
         raise InputError(f"must be 1..{MAX_FLIGHTS:,}, got {args.chunk}", field="--chunk")
-    for flag in ("altitude", "tx_height", "noise", "shadowing", "shadowing_corr", "speed", "beta", "eps_r",
-                 "truncate"):  # physical ranges that cannot be negative (numpy raised "scale < 0")
+    for flag in (
+        "altitude",
+        "tx_height",
+        "noise",
+        "shadowing",
+        "shadowing_corr",
+        "speed",
+        "beta",
+        "eps_r",
+        "truncate",
+    ):  # physical ranges that cannot be negative (numpy raised "scale < 0")
         r = getattr(args, flag, None)
         if r is not None and r[0] < 0:
-            raise InputError(f"must not be negative, got {r[0]:g},{r[1]:g}", field="--" + flag.replace("_", "-"))
+            raise InputError(
+                f"must not be negative, got {r[0]:g},{r[1]:g}", field="--" + flag.replace("_", "-")
+            )
     from pathlib import Path
 
     from mission.cli.main import out_parent_ok
@@ -182,13 +255,18 @@ def run(args: argparse.Namespace) -> int:
     if args.family.lower().endswith(".json") and not args.suite:
         args.suite = "unseen"  # a family file draws benchmark-style flights
     if args.family != "afar" and not args.suite:
-        raise InputError("--family draws benchmark-style flights: add --suite unseen", field="--family")
+        raise InputError(
+            "--family draws benchmark-style flights: add --suite unseen", field="--family"
+        )
     if args.suite:
         from mission.workshop.suite import resolve_family
 
         resolve_family(args.family)  # a bad family file is refused before anything is written
     if args.suite and args.mission:
-        raise InputError("--suite flights fly the AFAR field with their own paths: give no mission", field="mission")
+        raise InputError(
+            "--suite flights fly the AFAR field with their own paths: give no mission",
+            field="mission",
+        )
     if not args.suite and not args.mission:
         raise InputError("give a mission YAML (or --suite unseen)", field="mission")
     if args.logs and not args.suite:
@@ -244,7 +322,13 @@ def _write_logs(args: argparse.Namespace, console) -> int:
     import time
     from pathlib import Path
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
 
     from mission.errors import InputError
     from mission.workshop.suite_cache import write_suite
@@ -253,11 +337,25 @@ def _write_logs(args: argparse.Namespace, console) -> int:
     if (out / "suite.json").exists() and not args.overwrite:
         raise InputError("a suite exists already here (use --overwrite)", source=str(out))
     t0 = time.perf_counter()
-    with Progress(TextColumn("[bold]suite logs"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                  console=console) as prog:
+    with Progress(
+        TextColumn("[bold]suite logs"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeRemainingColumn(),
+        console=console,
+    ) as prog:
         task = prog.add_task("flights", total=args.n)
-        write_suite(out, args.n, args.seed, args.family, args.center, args.workers,
-                    progress=lambda d, _t: prog.update(task, completed=d))
-    console.print(f"{args.n} benchmark flights (seed {args.seed}, family {args.family}) in "
-                  f"{time.perf_counter() - t0:.1f} s -> {out}")
+        write_suite(
+            out,
+            args.n,
+            args.seed,
+            args.family,
+            args.center,
+            args.workers,
+            progress=lambda d, _t: prog.update(task, completed=d),
+        )
+    console.print(
+        f"{args.n} benchmark flights (seed {args.seed}, family {args.family}) in "
+        f"{time.perf_counter() - t0:.1f} s -> {out}"
+    )
     return 0

@@ -31,9 +31,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         help="generate a test set per generator here (with --mission, --sim-n, --sim-seed)",
     )
-    p.add_argument("--mission", default="missions/spiral.yaml", help="mission for generated test sets")
-    p.add_argument("--sim-n", type=int, default=300, help="positions per generated test set (default 300)")
-    p.add_argument("--sim-seed", type=int, default=1000, help="seed of generated test sets (default 1000)")
+    p.add_argument(
+        "--mission", default="missions/spiral.yaml", help="mission for generated test sets"
+    )
+    p.add_argument(
+        "--sim-n", type=int, default=300, help="positions per generated test set (default 300)"
+    )
+    p.add_argument(
+        "--sim-seed", type=int, default=1000, help="seed of generated test sets (default 1000)"
+    )
     p.add_argument(
         "--sim-model", default="e2r", help="propagation model of generated test sets (default e2r)"
     )
@@ -43,27 +49,48 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=50,
         help="simulated flights per test set for the classical methods (default 50; grid is slow)",
     )
-    p.add_argument("--real", nargs="*", default=[], help="real flight logs (CSV) with truth in the sidecar")
+    p.add_argument(
+        "--real", nargs="*", default=[], help="real flight logs (CSV) with truth in the sidecar"
+    )
     p.add_argument(
         "--afar", help="folder of AFAR MAT files: import them (truth from the README table) and add"
     )
     p.add_argument(
-        "--workdir", default=None, help="where imported logs / generated test sets go (default: temp)"
+        "--workdir",
+        default=None,
+        help="where imported logs / generated test sets go (default: temp)",
     )
     p.add_argument("--workers", type=int, default=2, help="workers for generated test sets")
     p.add_argument("--out", help="JSON report path")
-    g = p.add_argument_group("unseen-flight benchmark (mission.workshop.suite; models/README.md)",
-                             "with --afar DIR or --real LOGS: also the posterior-predictive checks of the "
-                             "benchmark's family against those real flights (mission.workshop.predictive)")
-    g.add_argument("--suite", choices=("unseen",), help="run the methods (and --models) on the benchmark")
+    g = p.add_argument_group(
+        "unseen-flight benchmark (mission.workshop.suite; models/README.md)",
+        "with --afar DIR or --real LOGS: also the posterior-predictive checks of the "
+        "benchmark's family against those real flights (mission.workshop.predictive)",
+    )
+    g.add_argument(
+        "--suite", choices=("unseen",), help="run the methods (and --models) on the benchmark"
+    )
     g.add_argument("--n", type=int, default=200, help="benchmark flights (default 200)")
-    g.add_argument("--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)")
-    g.add_argument("--suite-dir", help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite")
-    g.add_argument("--family", default="afar", metavar="FAMILY",
-                   help="physics family: a built-in one (mission.workshop.suite.FAMILIES; default afar) or a "
-                        "family file F.json (implies --suite unseen; with --suite-dir: must be the cache's)")
-    g.add_argument("--by", default="", help="comma list of draw axes to break the mean error down by, e.g. "
-                   "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna")
+    g.add_argument(
+        "--seed", type=int, default=None, help="benchmark seed (default 2026, the benchmark's)"
+    )
+    g.add_argument(
+        "--suite-dir",
+        help="cached benchmark logs (rfsl dataset --suite unseen --logs); implies --suite",
+    )
+    g.add_argument(
+        "--family",
+        default="afar",
+        metavar="FAMILY",
+        help="physics family: a built-in one (mission.workshop.suite.FAMILIES; default afar) or a "
+        "family file F.json (implies --suite unseen; with --suite-dir: must be the cache's)",
+    )
+    g.add_argument(
+        "--by",
+        default="",
+        help="comma list of draw axes to break the mean error down by, e.g. "
+        "tx_outside_flight_area,heading_habit,altitude_m,physics.rx_antenna",
+    )
 
 
 def _table(rows, title: str):
@@ -71,7 +98,9 @@ def _table(rows, title: str):
 
     t = Table(title=title)
     for c in ("test", "method", "train data", "features", "n", "mean m", "median m", "p90 m"):
-        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left", overflow="fold")  # never cut
+        t.add_column(
+            c, justify="right" if c.endswith("m") or c == "n" else "left", overflow="fold"
+        )  # never cut
     for r in rows:
         s = r.summary()
         t.add_row(
@@ -119,8 +148,11 @@ def run(args: argparse.Namespace) -> int:
         from mission.cli.main import out_parent_ok
 
         if Path(args.out).is_dir():
-            raise InputError("is a directory; give a JSON file name such as report.json", source=args.out,
-                             field="--out")
+            raise InputError(
+                "is a directory; give a JSON file name such as report.json",
+                source=args.out,
+                field="--out",
+            )
         out_parent_ok(Path(args.out))
     work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
     work.mkdir(parents=True, exist_ok=True)
@@ -196,14 +228,24 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     from mission.workshop.evaluate import write_report
     from mission.workshop.evaluate_suite import evaluate_suite
 
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()] + [f"onnx:{m}" for m in args.models]
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()] + [
+        f"onnx:{m}" for m in args.models
+    ]
     if args.n < 1:
         raise InputError(f"--n must be >= 1, got {args.n}", field="--n")
-    cols = (TextColumn("[bold]unseen flights"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-            TextColumn("eta"), TimeRemainingColumn())
+    cols = (
+        TextColumn("[bold]unseen flights"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(),
+    )
     stale: list[str] = []
 
-    def warn(text: str) -> None:  # a cache written by other simulator code: one stderr line, before the table
+    def warn(
+        text: str,
+    ) -> None:  # a cache written by other simulator code: one stderr line, before the table
         stale.append(text)
         print(f"warning: {text}", file=sys.stderr)
 
@@ -211,9 +253,17 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     stats: list | None = [] if real_logs else None
     with Progress(*cols, console=console, transient=True, disable=not console.is_terminal) as prog:
         task = prog.add_task("suite", total=args.n)
-        rows, secs = evaluate_suite(methods, args.n, args.seed, args.suite_dir, family=args.family,
-                                    workers=args.workers, progress=lambda d, _t: prog.update(task, completed=d),
-                                    warn=warn, stats_out=stats)
+        rows, secs = evaluate_suite(
+            methods,
+            args.n,
+            args.seed,
+            args.suite_dir,
+            family=args.family,
+            workers=args.workers,
+            progress=lambda d, _t: prog.update(task, completed=d),
+            warn=warn,
+            stats_out=stats,
+        )
     from rich.markup import escape
 
     t = Table(title=escape(f"{rows[0].test} (2D error; regions: share of truths inside)"))
@@ -222,8 +272,13 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     for r in rows:
         s = r.summary()
         cov = [f"{100 * s[k]:.0f} %" if k in s else "-" for k in ("coverage_50", "coverage_90")]
-        t.add_row(escape(s["method"]), str(s["n"]), *(f"{s[k]:.1f}" for k in ("mean_m", "median_m", "p90_m")), *cov,
-                  f"{secs[s['method']]:.2f}")
+        t.add_row(
+            escape(s["method"]),
+            str(s["n"]),
+            *(f"{s[k]:.1f}" for k in ("mean_m", "median_m", "p90_m")),
+            *cov,
+            f"{secs[s['method']]:.2f}",
+        )
     console.print(t)
     extra: dict = {"command": " ".join(sys.argv), "seconds_per_flight": secs}
     if stale:
@@ -273,9 +328,20 @@ def _predictive(real_logs: list[str], methods: list[str], rows, stats: list, con
 
     rstats, rerr = score_real(real_logs, methods)
     checks = family_checks(rstats, stats, rerr, {r.method: r.errors for r in rows})
-    console.print(checks_table(checks, f"posterior-predictive checks: {len(real_logs)} real flights vs "
-                                       f"{len(stats)} benchmark flights"))
+    console.print(
+        checks_table(
+            checks,
+            f"posterior-predictive checks: {len(real_logs)} real flights vs "
+            f"{len(stats)} benchmark flights",
+        )
+    )
     line = verdict(checks)
     console.print(line, highlight=False)
-    return {"checks": checks, "verdict": line, "real_logs": real_logs, "real_statistics": rstats,
-            "real_errors_m": rerr, "benchmark_statistics": stats}
+    return {
+        "checks": checks,
+        "verdict": line,
+        "real_logs": real_logs,
+        "real_statistics": rstats,
+        "real_errors_m": rerr,
+        "benchmark_statistics": stats,
+    }

@@ -40,7 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=Path("flights"),
         help="folder for flight logs; each flight gets a new timestamped subfolder",
     )
-    parser.add_argument("--no-localize", action="store_true", help="do not run the localizer after landing")
+    parser.add_argument(
+        "--no-localize", action="store_true", help="do not run the localizer after landing"
+    )
     parser.add_argument(
         "--rss-source",
         default="sim",
@@ -79,7 +81,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="seed of the simulated transmitter and RSS noise (default: the mission's source.seed); seed N "
         "puts the transmitter where `rfsl simulate --seed N` does",
     )
-    parser.add_argument("-v", "--verbose", action="store_true", help="show the simulated vehicle's messages")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="show the simulated vehicle's messages"
+    )
 
 
 def choose_adaptive(spec, flag: bool):
@@ -113,7 +117,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.speedup is not None:
         check_number(args.speedup, "--speedup", 0.0, MAX_SPEEDUP, strict_lo=True)
     if args.rate is not None and args.rate < 30:
-        raise InputError(f"position/attitude rate must be >= 30 Hz, got {args.rate:g}", field="--rate")
+        raise InputError(
+            f"position/attitude rate must be >= 30 Hz, got {args.rate:g}", field="--rate"
+        )
     if args.rate is not None:
         check_number(args.rate, "--rate", 30.0, MAX_RATE_HZ)
     for flag, v in (("--link-timeout", args.link_timeout), ("--land-timeout", args.land_timeout)):
@@ -154,7 +160,9 @@ def _run(args: argparse.Namespace) -> int:
         raise FlightError("fly-mission needs a Unix-like OS (signal handling)")
     try:
         return fly(spec, opts, extension)
-    except FlightError as e:  # bad input (2) and a dead link (3) stay one line; an abort is wrapped at 80 columns
+    except (
+        FlightError
+    ) as e:  # bad input (2) and a dead link (3) stay one line; an abort is wrapped at 80 columns
         from mission.flight.progress import fit_width
 
         print(f"error: {e}" if e.code in (2, 3) else fit_width(f"error: {e}"), file=sys.stderr)

@@ -15,42 +15,97 @@ from dataclasses import replace
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("logs", nargs="*", help="flight logs (CSV with JSON sidecar)")
-    parser.add_argument("--truth", action="append", default=None, metavar="LAT,LON",
-                        help="transmitter position: once for all logs or once per log (default: the sidecar)")
-    parser.add_argument("--truth-height", type=float, default=1.5, help="transmitter antenna height m (1.5)")
-    parser.add_argument("--base", default="e2r", help="base model: free-space, two-ray or e2r (default e2r)")
-    parser.add_argument("--pattern", default="dipole",
-                        help="antenna pattern of the base and reference models: isotropic, dipole, measured")
-    parser.add_argument("--candidates", default="all", help="candidate effects, comma-separated, or all")
-    parser.add_argument("--split", choices=("blocks", "flights"), default="blocks",
-                        help="held-out data: alternate contiguous chunks of every flight, or whole flights")
-    parser.add_argument("--slope", action="store_true", help="also fit a per-flight path-gain slope")
-    parser.add_argument("--loss", choices=("l2", "soft_l1"), default="l2", help="fit/ranking loss (l2)")
+    parser.add_argument(
+        "--truth",
+        action="append",
+        default=None,
+        metavar="LAT,LON",
+        help="transmitter position: once for all logs or once per log (default: the sidecar)",
+    )
+    parser.add_argument(
+        "--truth-height", type=float, default=1.5, help="transmitter antenna height m (1.5)"
+    )
+    parser.add_argument(
+        "--base", default="e2r", help="base model: free-space, two-ray or e2r (default e2r)"
+    )
+    parser.add_argument(
+        "--pattern",
+        default="dipole",
+        help="antenna pattern of the base and reference models: isotropic, dipole, measured",
+    )
+    parser.add_argument(
+        "--candidates", default="all", help="candidate effects, comma-separated, or all"
+    )
+    parser.add_argument(
+        "--split",
+        choices=("blocks", "flights"),
+        default="blocks",
+        help="held-out data: alternate contiguous chunks of every flight, or whole flights",
+    )
+    parser.add_argument(
+        "--slope", action="store_true", help="also fit a per-flight path-gain slope"
+    )
+    parser.add_argument(
+        "--loss", choices=("l2", "soft_l1"), default="l2", help="fit/ranking loss (l2)"
+    )
     parser.add_argument("--max-rungs", type=int, default=6, help="most effects the ladder adds (6)")
-    parser.add_argument("--no-localize", action="store_true", help="skip the localization cost per rung")
+    parser.add_argument(
+        "--no-localize", action="store_true", help="skip the localization cost per rung"
+    )
     parser.add_argument("--report", metavar="DIR", help="write PNG plots and gap.json here")
-    parser.add_argument("--family", metavar="F.json",
-                        help="also fit a physics family (schema 1) from the ladder's effects, per flight, and write it")
-    parser.add_argument("--family-name", default="family", help="the family's name in F.json (family)")
-    parser.add_argument("--family-repeats", type=int, default=4,
-                        help="simulated copies of every track in the family's loop check (4; 0 = no check)")
-    parser.add_argument("--json", action="store_true",
-                        help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables")
-    parser.add_argument("--rate-hz", type=float, default=3.0,
-                        help="thin flights to at most this sample rate first (3; 0 = every sample)")
+    parser.add_argument(
+        "--family",
+        metavar="F.json",
+        help="also fit a physics family (schema 1) from the ladder's effects, per flight, and write it",
+    )
+    parser.add_argument(
+        "--family-name", default="family", help="the family's name in F.json (family)"
+    )
+    parser.add_argument(
+        "--family-repeats",
+        type=int,
+        default=4,
+        help="simulated copies of every track in the family's loop check (4; 0 = no check)",
+    )
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables",
+    )
+    parser.add_argument(
+        "--rate-hz",
+        type=float,
+        default=3.0,
+        help="thin flights to at most this sample rate first (3; 0 = every sample)",
+    )
     parser.add_argument("--workers", type=int, default=1, help="threads for the candidate fits (1)")
-    parser.add_argument("--processes", type=int, default=1,
-                        help="processes for the candidate fits (1; results bit-identical to one process)")
+    parser.add_argument(
+        "--processes",
+        type=int,
+        default=1,
+        help="processes for the candidate fits (1; results bit-identical to one process)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
-    parser.add_argument("--selftest", action="store_true",
-                        help="simulate flights with each effect withheld and check the diagnosis finds it")
+    parser.add_argument(
+        "--selftest",
+        action="store_true",
+        help="simulate flights with each effect withheld and check the diagnosis finds it",
+    )
     parser.add_argument("--seeds", default="1,2", help="self-test seeds (1,2)")
-    parser.add_argument("--withheld", default="all", help="self-test cases: effect names, none, or all")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace an existing --family file or the report files in --report")
+    parser.add_argument(
+        "--withheld", default="all", help="self-test cases: effect names, none, or all"
+    )
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --family file or the report files in --report",
+    )
 
 
-REPORT_FILES = ("gap.json", "selftest.json")  # a --report folder holding one of these is a previous report
+REPORT_FILES = (
+    "gap.json",
+    "selftest.json",
+)  # a --report folder holding one of these is a previous report
 
 
 def check_outputs(args) -> None:
@@ -63,20 +118,27 @@ def check_outputs(args) -> None:
     from mission.files import check_out_file, check_writable_dir
 
     if not args.rate_hz >= 0 or args.rate_hz == float("inf"):
-        raise InputError(f"must be a finite rate >= 0 (0: every sample), got {args.rate_hz}", field="--rate-hz")
+        raise InputError(
+            f"must be a finite rate >= 0 (0: every sample), got {args.rate_hz}", field="--rate-hz"
+        )
     if not 1 <= args.workers <= MAX_WORKERS:
         raise InputError(f"must be 1..{MAX_WORKERS}, got {args.workers}", field="--workers")
     if not 1 <= args.processes <= MAX_WORKERS:
         raise InputError(f"must be 1..{MAX_WORKERS}, got {args.processes}", field="--processes")
     for name in ("max_rungs", "family_repeats"):
         if getattr(args, name) < 0:
-            raise InputError(f"must be >= 0, got {getattr(args, name)}", field="--" + name.replace("_", "-"))
+            raise InputError(
+                f"must be >= 0, got {getattr(args, name)}", field="--" + name.replace("_", "-")
+            )
     if args.report:
         rep = check_writable_dir(Path(args.report), "--report")
         old = [f for f in REPORT_FILES if (rep / f).exists()]
         if old and not args.overwrite:
-            raise InputError(f"holds an earlier report ({old[0]}); use --overwrite or another folder",
-                             source=str(rep), field="--report")
+            raise InputError(
+                f"holds an earlier report ({old[0]}); use --overwrite or another folder",
+                source=str(rep),
+                field="--report",
+            )
     if args.family:
         check_out_file(args.family, "--family", args.overwrite)
 
@@ -104,7 +166,9 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
     from mission.gap.align import flight_from_log
 
     if truths and len(truths) not in (1, len(paths)):
-        raise InputError(f"give --truth once or once per log ({len(paths)}), got {len(truths)}", field="truth")
+        raise InputError(
+            f"give --truth once or once per log ({len(paths)}), got {len(truths)}", field="truth"
+        )
     flights = []
     for k, p in enumerate(paths):
         log = read_flight_log(p)
@@ -116,12 +180,17 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
             tx = o.to_enu(lat, lon, o.alt_m + height)
         f = flight_from_log(log, tx)
         if len(f.t_s) < MIN_SAMPLES:
-            raise InputError(f"only {len(f.t_s)} samples with RSS; the gap diagnosis needs at least {MIN_SAMPLES}",
-                             source=str(p))
+            raise InputError(
+                f"only {len(f.t_s)} samples with RSS; the gap diagnosis needs at least {MIN_SAMPLES}",
+                source=str(p),
+            )
         flights.append(f)
     from mission.gap.labels import short_labels
 
-    return [replace(f, name=lab) for f, lab in zip(flights, short_labels([f.name for f in flights]), strict=True)]
+    return [
+        replace(f, name=lab)
+        for f, lab in zip(flights, short_labels([f.name for f in flights]), strict=True)
+    ]
 
 
 def _selftest(args) -> int:
@@ -138,7 +207,9 @@ def _selftest(args) -> int:
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
-        raise InputError(f"expected comma-separated integers, got {args.seeds!r}", field="--seeds") from None
+        raise InputError(
+            f"expected comma-separated integers, got {args.seeds!r}", field="--seeds"
+        ) from None
     if args.withheld == "all":
         cases = [*WITHHELD_ALL, None]
     else:
@@ -150,9 +221,11 @@ def _selftest(args) -> int:
 
     def progress(r) -> None:
         mark = "[green]PASS" if r.passed else "[red]FAIL"
-        c.print(f"{mark}[/] withheld={r.withheld or 'none'} seed={r.seed} first={r.ranked_first or 'none'} "
-                f"significant={r.significant} rms {r.rms_base:.2f} -> {r.rms_after:.2f} dB; {r.param_text} "
-                f"({time.time() - t0:.0f} s)")
+        c.print(
+            f"{mark}[/] withheld={r.withheld or 'none'} seed={r.seed} first={r.ranked_first or 'none'} "
+            f"significant={r.significant} rms {r.rms_base:.2f} -> {r.rms_after:.2f} dB; {r.param_text} "
+            f"({time.time() - t0:.0f} s)"
+        )
 
     results = run_selftest(cases, seeds, None, progress)
     rows, cols, M = confusion(results)
@@ -166,10 +239,18 @@ def _selftest(args) -> int:
         from mission.files import write_text
 
         out = Path(args.report)
-        write_text(out / "selftest.json", json.dumps(
-            {"cases": [r.as_dict() for r in results], "confusion": {"rows": rows, "cols": cols,
-                                                                     "counts": M.tolist()},
-             "config": FitConfig().__dict__}, indent=1, default=str))
+        write_text(
+            out / "selftest.json",
+            json.dumps(
+                {
+                    "cases": [r.as_dict() for r in results],
+                    "confusion": {"rows": rows, "cols": cols, "counts": M.tolist()},
+                    "config": FitConfig().__dict__,
+                },
+                indent=1,
+                default=str,
+            ),
+        )
         c.print(f"wrote {out / 'selftest.json'}")
     return 0 if n_pass == len(results) else 1
 
@@ -180,16 +261,27 @@ def confusion_table(rows: list[str], cols: list[str], M):
     from rich import box
     from rich.table import Table
 
-    t = Table(title="Confusion: withheld (rows) vs ranked first and significant",
-              box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 0, 0, 1), pad_edge=False,
-              caption="columns: " + ", ".join(f"{j + 1} {c}" for j, c in enumerate(cols)), caption_justify="left")
+    t = Table(
+        title="Confusion: withheld (rows) vs ranked first and significant",
+        box=box.SIMPLE_HEAD,
+        show_edge=False,
+        padding=(0, 0, 0, 1),
+        pad_edge=False,
+        caption="columns: " + ", ".join(f"{j + 1} {c}" for j, c in enumerate(cols)),
+        caption_justify="left",
+    )
     t.add_column("withheld", no_wrap=True)
     for j in range(len(cols)):
         t.add_column(str(j + 1), justify="right", no_wrap=True, min_width=2)
     for i, r in enumerate(rows):
         num = f"{cols.index(r) + 1:>2} " if r in cols else "   "
-        t.add_row(num + r, *[(f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
-                             for j, v in enumerate(M[i])])
+        t.add_row(
+            num + r,
+            *[
+                (f"[bold]{v}" if v and (r == cols[j]) else ("." if not v else f"[red]{v}"))
+                for j, v in enumerate(M[i])
+            ],
+        )
     return t
 
 
@@ -204,29 +296,49 @@ def _write_family(d, cfg, args, console) -> None:
     from mission.physics.family import PhysicsFamily
 
     cmd = "rfsl " + " ".join(sys.argv[1:]) if len(sys.argv) > 1 and sys.argv[1] == "gap" else None
-    src = {"kind": "rfsl gap --family", "command": cmd, "created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
-           "files": [str(p) for p in args.logs], "base": args.base, "pattern": args.pattern, "split": args.split,
-           "loss": args.loss, "rate_hz": args.rate_hz}
-    rec = family_from_diagnosis(d, cfg, name=args.family_name, source=src, check=args.family_repeats > 0,
-                                repeats=max(args.family_repeats, 1))
+    src = {
+        "kind": "rfsl gap --family",
+        "command": cmd,
+        "created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "files": [str(p) for p in args.logs],
+        "base": args.base,
+        "pattern": args.pattern,
+        "split": args.split,
+        "loss": args.loss,
+        "rate_hz": args.rate_hz,
+    }
+    rec = family_from_diagnosis(
+        d,
+        cfg,
+        name=args.family_name,
+        source=src,
+        check=args.family_repeats > 0,
+        repeats=max(args.family_repeats, 1),
+    )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text
 
     out = write_text(Path(args.family), json.dumps(rec, indent=1) + "\n", field="--family")
-    console.print(f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; {len(rec['per_flight'])} flights)")
+    console.print(
+        f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; {len(rec['per_flight'])} flights)"
+    )
     lc = rec["checks"].get("loop")
     if lc:
         p = lc["heldout_p90_db"]
         bad = [k for k, v in lc["params"].items() if not v["inside"]]
-        console.print(f"loop check ({'passed' if lc['passed'] else 'FAILED'}): simulated flights re-fit inside the "
-                      f"intervals{' except ' + ', '.join(bad) if bad else ''}; held-out p90 {p['sim']:.1f} vs real "
-                      f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range {lc['range_m']['sim']:.0f} m "
-                      f"({'inside' if lc['sill_db']['inside'] and lc['range_m']['inside'] else 'NOT inside'} "
-                      "the real intervals)")
+        console.print(
+            f"loop check ({'passed' if lc['passed'] else 'FAILED'}): simulated flights re-fit inside the "
+            f"intervals{' except ' + ', '.join(bad) if bad else ''}; held-out p90 {p['sim']:.1f} vs real "
+            f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range {lc['range_m']['sim']:.0f} m "
+            f"({'inside' if lc['sill_db']['inside'] and lc['range_m']['inside'] else 'NOT inside'} "
+            "the real intervals)"
+        )
         cal = rec.get("residual_calibration")
         if cal:
-            console.print(f"  (after {max(len(cal.get('steps', [])) - 1, 1)} recalibration step(s): the total "
-                          f"residual std scaled x{cal['p90_scale']:.2f}, checked on fresh draws)")
+            console.print(
+                f"  (after {max(len(cal.get('steps', [])) - 1, 1)} recalibration step(s): the total "
+                f"residual std scaled x{cal['p90_scale']:.2f}, checked on fresh draws)"
+            )
 
 
 def run(args) -> int:
@@ -251,15 +363,33 @@ def run(args) -> int:
         raise InputError(str(e), field="base") from None
     flights = load_flights(args.logs, args.truth, args.truth_height)
     cands = select(args.candidates)
-    cfg = FitConfig(split=args.split, slope=args.slope, loss=args.loss, seed=args.seed, rate_hz=args.rate_hz,
-                    workers=args.workers, processes=args.processes)
+    cfg = FitConfig(
+        split=args.split,
+        slope=args.slope,
+        loss=args.loss,
+        seed=args.seed,
+        rate_hz=args.rate_hz,
+        workers=args.workers,
+        processes=args.processes,
+    )
     err = Console(stderr=True)
     try:
-        d = diagnose(flights, base, cands, cfg, base_label=f"{args.base}({args.pattern})", pattern=args.pattern,
-                     max_rungs=args.max_rungs, localize=not args.no_localize, progress=err.is_terminal)
+        d = diagnose(
+            flights,
+            base,
+            cands,
+            cfg,
+            base_label=f"{args.base}({args.pattern})",
+            pattern=args.pattern,
+            max_rungs=args.max_rungs,
+            localize=not args.no_localize,
+            progress=err.is_terminal,
+        )
     except np.linalg.LinAlgError as e:
-        raise InputError(f"the fit is singular on these flights ({e}): too short, or too little ground covered",
-                         source=", ".join(args.logs)) from None
+        raise InputError(
+            f"the fit is singular on these flights ({e}): too short, or too little ground covered",
+            source=", ".join(args.logs),
+        ) from None
     c = err if args.json else Console()
     if not args.json:
         print_report(d, c)

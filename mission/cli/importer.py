@@ -43,10 +43,16 @@ def parse_origin(text: str, name: str = "--origin"):
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("kind", choices=["afar-mat"], help="input format (AFAR challenge MAT files)")
+    parser.add_argument(
+        "kind", choices=["afar-mat"], help="input format (AFAR challenge MAT files)"
+    )
     parser.add_argument("files", nargs="+", metavar="FILE", help="input file(s)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="output directory for CSV + sidecar")
-    parser.add_argument("--truth", metavar="LAT,LON", help="transmitter truth (applied to every file given)")
+    parser.add_argument(
+        "--out", required=True, metavar="DIR", help="output directory for CSV + sidecar"
+    )
+    parser.add_argument(
+        "--truth", metavar="LAT,LON", help="transmitter truth (applied to every file given)"
+    )
     parser.add_argument(
         "--truth-height",
         type=float,
@@ -67,7 +73,9 @@ def run(args: argparse.Namespace) -> int:
     console = make_console()
     truth = parse_latlon(args.truth) if args.truth else None
     if not args.truth_height >= 0:
-        raise InputError(f"transmitter height {args.truth_height:g} m is below ground", field="--truth-height")
+        raise InputError(
+            f"transmitter height {args.truth_height:g} m is below ground", field="--truth-height"
+        )
     out_parent_ok(Path(args.out), folder=True)
     files: list[Path] = []
     for f in map(Path, args.files):  # a folder stands for every .mat file in it

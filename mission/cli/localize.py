@@ -20,8 +20,11 @@ from mission.localize.methods import METHOD_NAMES
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="flight log (CSV with its JSON sidecar)")
-    parser.add_argument("--model", metavar="MODEL.onnx",
-                        help="ONNX localizer (implies --method onnx; with --method fusion: the fused network)")
+    parser.add_argument(
+        "--model",
+        metavar="MODEL.onnx",
+        help="ONNX localizer (implies --method onnx; with --method fusion: the fused network)",
+    )
     parser.add_argument(
         "--method",
         choices=METHOD_NAMES,
@@ -57,10 +60,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="LAT,LON[,ALT]",
         help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the sidecar's)",
     )
-    parser.add_argument("--no-cruise", action="store_true", help="use all samples (no cruise selection)")
-    parser.add_argument("--at", type=float, default=None, metavar="T",
-                        help="the estimate the flight had at log time T s: rows up to T only, with the method the "
-                        "flight's live estimates used (fly-mission's sidecar: 'estimates'), else the default")
+    parser.add_argument(
+        "--no-cruise", action="store_true", help="use all samples (no cruise selection)"
+    )
+    parser.add_argument(
+        "--at",
+        type=float,
+        default=None,
+        metavar="T",
+        help="the estimate the flight had at log time T s: rows up to T only, with the method the "
+        "flight's live estimates used (fly-mission's sidecar: 'estimates'), else the default",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", metavar="OUT.png", help="draw flight, clusters and estimate")
 
@@ -86,8 +96,10 @@ def run(args: argparse.Namespace) -> int:
 
         args.model = str(resolve_shipped(args.model, "models", ".onnx"))
     if not (math.isfinite(args.tx_height) and 0 <= args.tx_height <= 1000):
-        raise InputError(f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
-                         field="--tx-height")
+        raise InputError(
+            f"transmitter height must be 0..1000 m above ground, got {args.tx_height:g}",
+            field="--tx-height",
+        )
     if args.physics is not None:
         from mission.physics.propagation import canonical_model_name
 
@@ -110,16 +122,27 @@ def run(args: argparse.Namespace) -> int:
         from mission.flight.live import log_at, recorded_method
 
         log, method = log_at(log, args.at, str(args.log)), method or recorded_method(log.meta)
-    with warnings.catch_warnings(record=True) as caught:  # numpy's warnings on a too-short log: the error says it
+    with warnings.catch_warnings(
+        record=True
+    ) as caught:  # numpy's warnings on a too-short log: the error says it
         warnings.simplefilter("always")
         try:
-            est = localize_log(log, method=method, model_path=args.model, truth=truth, cruise=not args.no_cruise,
-                               physics_model=args.physics, tx_height_m=args.tx_height,
-                               physics_preset=args.physics_preset)
+            est = localize_log(
+                log,
+                method=method,
+                model_path=args.model,
+                truth=truth,
+                cruise=not args.no_cruise,
+                physics_model=args.physics,
+                tx_height_m=args.tx_height,
+                physics_preset=args.physics_preset,
+            )
         except InputError as e:
             if e.source or e.field:
                 raise
-            raise InputError(str(e), source=str(args.log)) from None  # "only 5 grouped samples" names the log
+            raise InputError(
+                str(e), source=str(args.log)
+            ) from None  # "only 5 grouped samples" names the log
     for w in caught:
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     if args.plot:
@@ -162,17 +185,27 @@ def run(args: argparse.Namespace) -> int:
     for reg in est.regions:
         tab.add_row(f"{100 * reg['level']:.0f} % region", describe_region(reg))
     if est.candidates:
-        tab.add_row("candidates", "\n".join(candidate_line(c) for c in est.candidates[:3])
-                    + (f"\n(+{len(est.candidates) - 3} more in --json)" if len(est.candidates) > 3 else ""))
+        tab.add_row(
+            "candidates",
+            "\n".join(candidate_line(c) for c in est.candidates[:3])
+            + (f"\n(+{len(est.candidates) - 3} more in --json)" if len(est.candidates) > 3 else ""),
+        )
     elif est.components:
         parts = [f"{n} {e.x_m:.1f}, {e.y_m:.1f} m" for n, e in est.components.items()]
-        tab.add_row("components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)")
+        tab.add_row(
+            "components", "; ".join(parts) + f" ({est.extras['component_distance_m']:.0f} m apart)"
+        )
     if "p_outside_flown_area" in est.extras:
         tab.add_row("outside flown area", f"probability {est.extras['p_outside_flown_area']:.2f}")
-    if est.extras.get("sim_check", {}).get("n"):  # matched: how it did on simulated transmitters of this track
+    if est.extras.get("sim_check", {}).get(
+        "n"
+    ):  # matched: how it did on simulated transmitters of this track
         sc = est.extras["sim_check"]
-        tab.add_row("simulated check", f"median error {sc['median_error_m']:.0f} m on {sc['n']} simulated "
-                    f"transmitters along this track (family {est.extras.get('family')})")
+        tab.add_row(
+            "simulated check",
+            f"median error {sc['median_error_m']:.0f} m on {sc['n']} simulated "
+            f"transmitters along this track (family {est.extras.get('family')})",
+        )
     if est.notes:
         tab.add_row("[bold]note", " ".join(est.notes))
     if args.plot:
@@ -189,8 +222,7 @@ def run(args: argparse.Namespace) -> int:
 def candidate_line(c) -> str:
     """One candidate of the evidence stage in a line: weight, source, point, evidence."""
     dom = "" if c.in_domain else ", outside training"
-    return (f"{c.weight:.2f} {c.source}: {c.x_m:.0f}, {c.y_m:.0f} m "
-            f"({c.evidence:+.1f} nats{dom})")
+    return f"{c.weight:.2f} {c.source}: {c.x_m:.0f}, {c.y_m:.0f} m ({c.evidence:+.1f} nats{dom})"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -15,19 +15,49 @@ from mission.errors import InputError, one_line
 
 # name -> (module, one-line purpose). The order is the order of `rfsl --help`.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "rss": ("mission.cli.rss", "link budget for one geometry (free-space, two-ray, enhanced two-ray)"),
-    "simulate": ("mission.cli.simulate", "fly a mission in the fast kinematic simulator and write a flight log"),
-    "preview": ("mission.cli.preview", "plot a mission, its simulated path and (--accuracy) expected error"),
+    "rss": (
+        "mission.cli.rss",
+        "link budget for one geometry (free-space, two-ray, enhanced two-ray)",
+    ),
+    "simulate": (
+        "mission.cli.simulate",
+        "fly a mission in the fast kinematic simulator and write a flight log",
+    ),
+    "preview": (
+        "mission.cli.preview",
+        "plot a mission, its simulated path and (--accuracy) expected error",
+    ),
     "export": ("mission.cli.export", "export a mission as QGroundControl .plan, GeoJSON or KML"),
-    "sitl": ("mission.cli.sitl", "run the simulated MAVLink vehicle alone (for QGroundControl or MAVProxy)"),
+    "sitl": (
+        "mission.cli.sitl",
+        "run the simulated MAVLink vehicle alone (for QGroundControl or MAVProxy)",
+    ),
     "replay": ("mission.cli.replay", "summarise a flight log and draw its path coloured by RSS"),
-    "import": ("mission.cli.importer", "convert real flights (AFAR challenge MAT files) into flight logs"),
-    "dataset": ("mission.cli.dataset", "generate a simulated training dataset of many transmitter positions"),
-    "train": ("mission.cli.train", "train a localizer network and export it to ONNX (needs the [train] extra)"),
-    "evaluate": ("mission.cli.evaluate", "compare localizers on simulated test sets and real flights"),
+    "import": (
+        "mission.cli.importer",
+        "convert real flights (AFAR challenge MAT files) into flight logs",
+    ),
+    "dataset": (
+        "mission.cli.dataset",
+        "generate a simulated training dataset of many transmitter positions",
+    ),
+    "train": (
+        "mission.cli.train",
+        "train a localizer network and export it to ONNX (needs the [train] extra)",
+    ),
+    "evaluate": (
+        "mission.cli.evaluate",
+        "compare localizers on simulated test sets and real flights",
+    ),
     "localize": ("mission.cli.localize", "estimate the transmitter position from a flight log"),
-    "calibrate": ("mission.cli.calibrate", "fit a physics preset on real flights with known transmitters (held out)"),
-    "gap": ("mission.cli.gap", "diagnose the sim-to-real gap of a propagation model on flights with known truth"),
+    "calibrate": (
+        "mission.cli.calibrate",
+        "fit a physics preset on real flights with known transmitters (held out)",
+    ),
+    "gap": (
+        "mission.cli.gap",
+        "diagnose the sim-to-real gap of a propagation model on flights with known truth",
+    ),
 }
 
 
@@ -80,16 +110,26 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -
 
 def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
     """``parser.parse_args`` with negative option values accepted (``join_negative_values``)."""
-    args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
-    for p in _parsers(parser, args):  # argparse turns '--speedup=--' into [] past its own type check
+    args = parser.parse_args(
+        join_negative_values(parser, sys.argv[1:] if argv is None else list(argv))
+    )
+    for p in _parsers(
+        parser, args
+    ):  # argparse turns '--speedup=--' into [] past its own type check
         for a in p._actions:
-            if a.option_strings and a.nargs is None and a.type is not None and isinstance(
-                    getattr(args, a.dest, None), list):
+            if (
+                a.option_strings
+                and a.nargs is None
+                and a.type is not None
+                and isinstance(getattr(args, a.dest, None), list)
+            ):
                 p.error(f"argument {'/'.join(a.option_strings)}: expected one value")
     return args
 
 
-def _parsers(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list[argparse.ArgumentParser]:
+def _parsers(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> list[argparse.ArgumentParser]:
     """The parser and the subcommand parser that ``args`` came through."""
     out = [parser]
     for a in parser._actions:
@@ -123,8 +163,13 @@ def print_notes(notes: Sequence[str]) -> None:
         print(n if n.startswith("warning: ") else f"note: {n}", file=sys.stderr)
 
 
-def check_number(value: float, flag: str, lo: float | None = None, hi: float | None = None,
-                 strict_lo: bool = False) -> float:
+def check_number(
+    value: float,
+    flag: str,
+    lo: float | None = None,
+    hi: float | None = None,
+    strict_lo: bool = False,
+) -> float:
     """A numeric option checked at the boundary: finite and within its bounds, else one line naming the
     option and the bound (``--speedup 1e9`` or ``nan`` ran until killed; the bound is what keeps the work
     finite)."""
@@ -145,14 +190,20 @@ def image_out(path: str | Path, flag: str = "--out") -> Path:
     """Check an image output path before any heavy work: a format matplotlib writes, not a directory."""
     p = Path(path)
     if p.is_dir():
-        raise InputError("is a directory; give an image file name such as plot.png", source=str(p), field=flag)
+        raise InputError(
+            "is a directory; give an image file name such as plot.png", source=str(p), field=flag
+        )
     from matplotlib.backend_bases import FigureCanvasBase
 
     formats = FigureCanvasBase.get_supported_filetypes()
     suffix = p.suffix.lower().lstrip(".")
     if suffix not in formats:
-        raise InputError(f"unknown image format '{p.suffix or '(no suffix)'}'; use one of "
-                          f"{', '.join('.' + f for f in sorted(formats))}", source=str(p), field=flag)
+        raise InputError(
+            f"unknown image format '{p.suffix or '(no suffix)'}'; use one of "
+            f"{', '.join('.' + f for f in sorted(formats))}",
+            source=str(p),
+            field=flag,
+        )
     return out_parent_ok(p, flag)
 
 
@@ -167,11 +218,14 @@ def out_parent_ok(path: Path, flag: str = "--out", folder: bool = False) -> Path
 
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(
-        prog="rfsl", description="UAV-based RF source localization toolkit (see README.md).")
+        prog="rfsl", description="UAV-based RF source localization toolkit (see README.md)."
+    )
     parser.add_argument("--version", action="version", version=f"rfsl {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (mod, purpose) in _available().items():
-        p = sub.add_parser(name, help=purpose, description=(mod.__doc__ or purpose).strip().splitlines()[0])
+        p = sub.add_parser(
+            name, help=purpose, description=(mod.__doc__ or purpose).strip().splitlines()[0]
+        )
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser
@@ -193,10 +247,14 @@ def run_guarded(fn: Callable[[], int | None]) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # the reader went away (``localize LOG --json | head``): no traceback for that
+    except (
+        BrokenPipeError
+    ):  # the reader went away (``localize LOG --json | head``): no traceback for that
         import os
 
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # Python's exit flush must not fail too
+        os.dup2(
+            os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno()
+        )  # Python's exit flush must not fail too
         return 141  # 128 + SIGPIPE, as a shell reports it
 
 

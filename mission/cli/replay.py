@@ -8,7 +8,9 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path, help="flight log CSV (with its JSON sidecar)")
-    parser.add_argument("--out", type=Path, default=None, help="PNG to write (default: beside the log, .png)")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="PNG to write (default: beside the log, .png)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

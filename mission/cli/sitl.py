@@ -50,7 +50,9 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(str(e), field="--home") from None
         from mission.cli.importer import parse_origin
 
-        parse_origin(args.home, "--home")  # the ranges: |lat| <= 90, |lon| <= 180, a plausible altitude
+        parse_origin(
+            args.home, "--home"
+        )  # the ranges: |lat| <= 90, |lon| <= 180, a plausible altitude
     if args.kinematics:
         from sitl.cli import parse_kinematics
 
@@ -61,8 +63,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         return run_from_args(args)
     except OSError as e:  # the port taken, the host not local
-        raise InputError(f"cannot open the vehicle's link: {e.strerror or e}",
-                         field="--url" if args.url else "--port") from None
+        raise InputError(
+            f"cannot open the vehicle's link: {e.strerror or e}",
+            field="--url" if args.url else "--port",
+        ) from None
 
 
 def check_port(port: int, field: str = "--port") -> int:
@@ -87,7 +91,10 @@ def check_vehicle_url(url: str) -> None:
     scheme, _, rest = url.partition(":")
     host, _, port = rest.rpartition(":")
     if scheme not in VEHICLE_SCHEMES or not host or not port.isdigit():
-        raise InputError(f"expected SCHEME:HOST:PORT with a scheme among {', '.join(VEHICLE_SCHEMES)} "
-                         f"(e.g. tcpin:0.0.0.0:5760), got {url!r}", field="--url")
+        raise InputError(
+            f"expected SCHEME:HOST:PORT with a scheme among {', '.join(VEHICLE_SCHEMES)} "
+            f"(e.g. tcpin:0.0.0.0:5760), got {url!r}",
+            field="--url",
+        )
     check_port(int(port), "--url")
     check_host(host, url, "--url")

@@ -20,15 +20,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="network input (default clustering = RealAdaptRNet)",
     )
     p.add_argument("--epochs", type=int, default=300, help="maximum epochs (default 300)")
-    p.add_argument("--patience", type=int, default=40, help="early-stopping patience in epochs (default 40)")
+    p.add_argument(
+        "--patience", type=int, default=40, help="early-stopping patience in epochs (default 40)"
+    )
     p.add_argument("--batch-size", type=int, default=128)
     p.add_argument("--lr", type=float, default=2e-3, help="AdamW learning rate (default 2e-3)")
-    p.add_argument("--seed", type=int, default=0, help="seed of weights, split, batches, augmentation")
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of weights, split, batches, augmentation"
+    )
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
-    p.add_argument("--no-augment", action="store_true", help="switch training-time augmentation off")
+    p.add_argument(
+        "--no-augment", action="store_true", help="switch training-time augmentation off"
+    )
     p.add_argument("--max-train", type=int, help="use at most this many flights (quick runs)")
-    p.add_argument("--max-minutes", type=float, help="wall-time budget: stop after the epoch that passes it, "
-                   "export the best epoch so far (metadata records the budget)")
+    p.add_argument(
+        "--max-minutes",
+        type=float,
+        help="wall-time budget: stop after the epoch that passes it, "
+        "export the best epoch so far (metadata records the budget)",
+    )
     p.add_argument(
         "--coords",
         default="relative",
@@ -36,16 +46,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="clustering coordinates: relative to the strongest cluster (default; translation-equivariant, "
         "done inside the exported graph) or absolute",
     )
-    p.add_argument("--family", metavar="F.json",
-                   help="the physics family file the datasets were drawn from (rfsl dataset --family F.json): "
-                        "checked against every dataset's manifest and recorded in the model's training_data")
-    p.add_argument("--altitude-normalised", action="store_true",
-                   help="clustering: coordinates in units of each flight's height above the transmitter, so one "
-                   "network serves every altitude (train on a range of altitudes, e.g. rfsl dataset --altitude 15,60)")
+    p.add_argument(
+        "--family",
+        metavar="F.json",
+        help="the physics family file the datasets were drawn from (rfsl dataset --family F.json): "
+        "checked against every dataset's manifest and recorded in the model's training_data",
+    )
+    p.add_argument(
+        "--altitude-normalised",
+        action="store_true",
+        help="clustering: coordinates in units of each flight's height above the transmitter, so one "
+        "network serves every altitude (train on a range of altitudes, e.g. rfsl dataset --altitude 15,60)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    family = check_family(args.family, args.datasets) if args.family else None  # before the (slow) torch import
+    family = (
+        check_family(args.family, args.datasets) if args.family else None
+    )  # before the (slow) torch import
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -96,7 +114,9 @@ def run(args: argparse.Namespace) -> int:
     from mission.shipped import record_shipped_digest
 
     if record_shipped_digest(res.onnx_path):
-        console.print(f"recorded its sha256 in models/sha256.json ({res.onnx_path.name} is a shipped network)")
+        console.print(
+            f"recorded its sha256 in models/sha256.json ({res.onnx_path.name} is a shipped network)"
+        )
     m = res.metrics
     console.print(
         f"{args.features} ({res.meta['training_data']['coords']} coordinates"
@@ -120,14 +140,20 @@ def check_family(path: str, datasets: list[str]) -> dict:
     from mission.workshop.suite import family_label, family_sha256, resolve_family
 
     if not path.lower().endswith(".json"):
-        raise InputError("give the physics family file (.json) the datasets were drawn from", field="--family")
+        raise InputError(
+            "give the physics family file (.json) the datasets were drawn from", field="--family"
+        )
     fam = resolve_family(path)
     sha = family_sha256(fam)
     for d in datasets:
         got = (read_manifest(d).get("physics_family") or {}).get("sha256")
         if got != sha:
-            raise InputError(f"dataset was not drawn from {path} ({'another family' if got else 'no family file'}; "
-                             f"rfsl dataset --family {path})", source=str(d), field="--family")
+            raise InputError(
+                f"dataset was not drawn from {path} ({'another family' if got else 'no family file'}; "
+                f"rfsl dataset --family {path})",
+                source=str(d),
+                field="--family",
+            )
     return {"label": family_label(fam), "path": path, "sha256": sha, "record": fam.to_dict()}
 
 
@@ -144,7 +170,9 @@ def record_family(onnx_path, family: dict) -> None:
     td["physics_family"] = family
     props["training_data"].value = json.dumps(td)
     onnx.save(m, str(onnx_path))
-    side = Path(str(onnx_path) + ".train.json")  # the training report beside the model says the same
+    side = Path(
+        str(onnx_path) + ".train.json"
+    )  # the training report beside the model says the same
     if side.is_file():
         rep = json.loads(side.read_text())
         rep.setdefault("training_data", {})["physics_family"] = family

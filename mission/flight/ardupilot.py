@@ -17,11 +17,15 @@ SET_TIMEOUT_S = 5.0
 
 def return_params(cruise_speed_mps: float) -> dict[str, int]:
     """The integer parameters to set for a nose-first return at the mission's speed."""
-    return {"WP_YAW_BEHAVIOR": WP_YAW_FACE_NEXT_INCLUDING_RTL, "RTL_SPEED": int(round(cruise_speed_mps * 100))}
+    return {
+        "WP_YAW_BEHAVIOR": WP_YAW_FACE_NEXT_INCLUDING_RTL,
+        "RTL_SPEED": int(round(cruise_speed_mps * 100)),
+    }
 
 
-async def set_params(param, values: dict[str, int | float], old: dict[str, int | float] | None = None
-                     ) -> dict[str, int | float]:
+async def set_params(
+    param, values: dict[str, int | float], old: dict[str, int | float] | None = None
+) -> dict[str, int | float]:
     """Set parameters (an ``int`` value as an integer parameter, a ``float`` as a float one); the previous
     value of each one set goes into ``old`` as soon as it is set (so a failure half way still knows what to
     restore), which is returned.  Errors propagate."""

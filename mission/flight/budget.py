@@ -35,7 +35,9 @@ from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
 MIN_FIT_LEGS = 4  # measured legs before the per-leg cost is fitted (fewer: the ratio alone)
-TRIM_LOOKAHEAD = 3  # waypoints before the cut at which the tail is dropped (the upload takes a few seconds)
+TRIM_LOOKAHEAD = (
+    3  # waypoints before the cut at which the tail is dropped (the upload takes a few seconds)
+)
 # touchdown to disarm (s, vehicle clock): not in the kinematic plan.  Measured: PX4 v1.16 SITL 7.2 s (land
 # detector + COM_DISARM_LAND 2 s), ArduCopter 4.7 SITL 3 s; the built-in vehicle disarms at touchdown.
 LANDED_TO_DISARM_S = {"PX4": 7.2, "ARDUPILOT": 3.0}
@@ -76,8 +78,12 @@ class BudgetPlan:
     budget_s: float
     t_wp: np.ndarray
     duration_s: float
-    land_s: float = 0.0  # the final descent's share of duration_s (vertical: not slowed by a slow cruise)
-    ret_s: np.ndarray | None = None  # seconds from waypoint j back over home (the return if the mission ends at j)
+    land_s: float = (
+        0.0  # the final descent's share of duration_s (vertical: not slowed by a slow cruise)
+    )
+    ret_s: np.ndarray | None = (
+        None  # seconds from waypoint j back over home (the return if the mission ends at j)
+    )
     disarm_s: float = 0.0  # touchdown to disarm (the autopilot's), inside duration_s and land_s
 
     def __post_init__(self) -> None:
@@ -99,14 +105,23 @@ class VerticalSpeeds:
     down_mps: float
     land_mps: float
     low_alt_m: float
-    hover_s: float = 0.0  # hover over home before the descent of a return (ArduPilot RTL_LOIT_TIME: 5 s)
+    hover_s: float = (
+        0.0  # hover over home before the descent of a return (ArduPilot RTL_LOIT_TIME: 5 s)
+    )
 
     def valid(self) -> bool:
-        return min(self.up_mps, self.down_mps, self.land_mps) > 0 and self.low_alt_m >= 0 <= self.hover_s
+        return (
+            min(self.up_mps, self.down_mps, self.land_mps) > 0
+            and self.low_alt_m >= 0 <= self.hover_s
+        )
 
 
-def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSpeeds | None = None,
-               disarm_s: float = 0.0) -> BudgetPlan:
+def plan_times(
+    spec,
+    return_speed_mps: float | None = None,
+    vertical: VerticalSpeeds | None = None,
+    disarm_s: float = 0.0,
+) -> BudgetPlan:
     """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check), with the
     return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed, the
     take-off and landing at the autopilot's ``vertical`` speeds when known, and ``disarm_s`` from touchdown to
@@ -115,35 +130,49 @@ def plan_times(spec, return_speed_mps: float | None = None, vertical: VerticalSp
     kin = spec.kinematics()
     n = len(spec.waypoints_enu())
     drop = path[-2, 2] - path[-1, 2]  # the final descent (both return behaviours end with one)
-    if vertical is not None and 0 < vertical.low_alt_m < drop:  # it slows down below low_alt_m: a vertex there
+    if (
+        vertical is not None and 0 < vertical.low_alt_m < drop
+    ):  # it slows down below low_alt_m: a vertex there
         path = np.vstack([path[:-1], path[-1] + [0.0, 0.0, vertical.low_alt_m], path[-1:]])
     d = np.diff(path, axis=0)
     L = np.linalg.norm(d, axis=1)
-    vert = np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7  # plan_profile's rule for take-off and landing legs
+    vert = (
+        np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7
+    )  # plan_profile's rule for take-off and landing legs
     vs = np.full(len(L), kin.climb_rate_mps)
     if vertical is not None:
         vs = np.where(d[:, 2] > 0, vertical.up_mps, vertical.down_mps)
         vs[-1] = vertical.land_mps  # the last leg ends on the ground below low_alt_m
     speeds = np.where(vert, vs, kin.cruise_speed_mps)
-    if return_speed_mps and spec.return_behaviour == "rtl":  # legs after the last waypoint (n + 1 on)
-        speeds[n + 1:] = np.where(vert[n + 1:], speeds[n + 1:], return_speed_mps)
+    if (
+        return_speed_mps and spec.return_behaviour == "rtl"
+    ):  # legs after the last waypoint (n + 1 on)
+        speeds[n + 1 :] = np.where(vert[n + 1 :], speeds[n + 1 :], return_speed_mps)
     keep = L > 1e-6
     prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
     s_path = np.concatenate([[0.0], np.cumsum(L)])
     t = np.interp(s_path, prof.s_vertex, prof.t_vertex)
-    j = len(L) - 1  # the final descent: the last leg, or the last two when it slows down near the ground
+    j = (
+        len(L) - 1
+    )  # the final descent: the last leg, or the last two when it slows down near the ground
     while j > 0 and vert[j - 1] and d[j - 1, 2] < 0:
         j -= 1
     hover = vertical.hover_s if vertical is not None and spec.return_behaviour == "rtl" else 0.0
-    t_wp, land = t[2:2 + n], float(t[-1] - t[j]) + hover + disarm_s
+    t_wp, land = t[2 : 2 + n], float(t[-1] - t[j]) + hover + disarm_s
     duration = prof.duration_s + hover + disarm_s
     ret = np.full(n, duration - land - t_wp[-1])
-    if spec.return_behaviour == "rtl":  # from waypoint j straight back over home, at the return speed
+    if (
+        spec.return_behaviour == "rtl"
+    ):  # from waypoint j straight back over home, at the return speed
         w, home = spec.waypoints_enu(), np.asarray(spec.home_enu, dtype=float)
         v = return_speed_mps or kin.cruise_speed_mps
         for i in range(n - 1):
             back = np.array([w[i], [home[0], home[1], w[i, 2]]])
-            ret[i] = plan_profile(back, kin, speeds=np.array([v])).duration_s if np.ptp(back[:, :2], 0).any() else 0.0
+            ret[i] = (
+                plan_profile(back, kin, speeds=np.array([v])).duration_s
+                if np.ptp(back[:, :2], 0).any()
+                else 0.0
+            )
     return BudgetPlan(float(spec.time_budget_s), t_wp, duration, land, ret, disarm_s)
 
 
@@ -173,12 +202,14 @@ class BudgetWatch:
             return 1.0
         planned = self.plan.t_wp[k] - self.plan.t_wp[0]
         flown = self.reached_at[k] - self.reached_at[0]
-        return flown / planned if planned >= MIN_PACE_S and flown > 0 else 1.0  # several at once: no pace
+        return (
+            flown / planned if planned >= MIN_PACE_S and flown > 0 else 1.0
+        )  # several at once: no pace
 
     def pace_model(self) -> Pace:
         """The pace of the legs flown so far: fitted per leg from ``MIN_FIT_LEGS`` measured legs (waypoints
         reached together count as one segment), else the plain ratio (``pace``)."""
-        r, t = np.asarray(self.reached_at), self.plan.t_wp[:len(self.reached_at)]
+        r, t = np.asarray(self.reached_at), self.plan.t_wp[: len(self.reached_at)]
         if len(r) < 2 or t[-1] - t[0] < MIN_PACE_S:
             return Pace(self.pace(), 0.0)
         ends = np.flatnonzero(np.diff(r) > 0) + 1  # a segment ends where a new arrival time starts
@@ -193,10 +224,12 @@ class BudgetWatch:
         p, k = self.plan, min(len(self.reached_at), self.last + 1) - 1
         last = self.last if last is None else last
         pace = self.pace_model()
-        tail = p.land_s  # the landing, hover and disarm at the plan's own time (vertical: not slowed)
+        tail = (
+            p.land_s
+        )  # the landing, hover and disarm at the plan's own time (vertical: not slowed)
 
         def rest(i: int) -> float:  # from waypoint i (reached) to the end
-            legs = np.diff(p.t_wp[i:last + 1])
+            legs = np.diff(p.t_wp[i : last + 1])
             return pace.legs(legs) + pace.legs(np.array([p.ret_s[last]])) + tail
 
         if k < 0:
@@ -214,15 +247,23 @@ class BudgetWatch:
             self.reached_at.append(elapsed)
         self.predicted_s = self.predict(elapsed)
         b = self.plan.budget_s
-        if self.warned_at_s is not None or self.predicted_s <= b - (self.reserve_s if self.policy != "warn" else 0):
+        if self.warned_at_s is not None or self.predicted_s <= b - (
+            self.reserve_s if self.policy != "warn" else 0
+        ):
             return None
         self.warned_at_s, self.predicted_at_warning_s = elapsed, self.predicted_s
         if elapsed > b:
             return f"over the time budget: {elapsed:.0f} s flown of {b:.0f} s, still flying"
         act = {"trim": ": dropping the tail", "return": ": returning"}.get(self.policy, "")
-        what = "budget will not hold" if self.predicted_s > b else f"inside the {self.reserve_s:g} s reserve"
-        return (f"{what}: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
-                f"(pace {self.pace():.2f}, {len(self.reached_at)}/{len(self.plan.t_wp)} wp){act}")
+        what = (
+            "budget will not hold"
+            if self.predicted_s > b
+            else f"inside the {self.reserve_s:g} s reserve"
+        )
+        return (
+            f"{what}: landing at ~{self.predicted_s:.0f} s of {b:.0f} s "
+            f"(pace {self.pace():.2f}, {len(self.reached_at)}/{len(self.plan.t_wp)} wp){act}"
+        )
 
     def keep_until(self, elapsed: float) -> int:
         """The last waypoint to keep so that the predicted landing is inside the budget less the reserve:
@@ -252,17 +293,28 @@ class BudgetWatch:
         """Record ``action`` (after the autopilot took it); the one line that names what was done."""
         b, before = self.plan.budget_s, self.predicted_s
         if action == "return":
-            self.actions.append({"t_s": round(elapsed, 1), "action": "return", "predicted_s": round(before, 1)})
+            self.actions.append(
+                {"t_s": round(elapsed, 1), "action": "return", "predicted_s": round(before, 1)}
+            )
             return f"budget: returning to launch now (landing was ~{before:.0f} s of {b:.0f} s)"
         gone = list(range(keep + 1, self.last + 1))
         self.dropped += gone
         self.last = keep
         self.predicted_s = self.predict(elapsed)
-        self.actions.append({"t_s": round(elapsed, 1), "action": "trim", "dropped": gone,
-                             "predicted_before_s": round(before, 1), "predicted_s": round(self.predicted_s, 1)})
+        self.actions.append(
+            {
+                "t_s": round(elapsed, 1),
+                "action": "trim",
+                "dropped": gone,
+                "predicted_before_s": round(before, 1),
+                "predicted_s": round(self.predicted_s, 1),
+            }
+        )
         which = f"{gone[0] + 1}" if len(gone) == 1 else f"{gone[0] + 1}-{gone[-1] + 1}"
-        return (f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of {len(self.plan.t_wp)}: "
-                f"landing ~{self.predicted_s:.0f} s, was ~{before:.0f} s")
+        return (
+            f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of {len(self.plan.t_wp)}: "
+            f"landing ~{self.predicted_s:.0f} s, was ~{before:.0f} s"
+        )
 
     def record(self, used_s: float | None) -> dict:
         """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was warned, the
@@ -270,27 +322,45 @@ class BudgetWatch:
         b = self.plan.budget_s
         r2 = lambda v: None if v is None or not np.isfinite(v) else round(float(v), 2)  # noqa: E731
         over = used_s is not None and used_s > b
-        return {"budget_s": b, "planned_s": r2(self.plan.duration_s), "used_s": r2(used_s), "overrun": bool(over),
-                "overrun_s": r2(used_s - b) if over else 0.0, "warned_at_s": r2(self.warned_at_s),
-                "predicted_at_warning_s": r2(self.predicted_at_warning_s), "policy": self.policy,
-                "reserve_s": self.reserve_s, "dropped_waypoints": [i + 1 for i in self.dropped],
-                "actions": self.actions}
+        return {
+            "budget_s": b,
+            "planned_s": r2(self.plan.duration_s),
+            "used_s": r2(used_s),
+            "overrun": bool(over),
+            "overrun_s": r2(used_s - b) if over else 0.0,
+            "warned_at_s": r2(self.warned_at_s),
+            "predicted_at_warning_s": r2(self.predicted_at_warning_s),
+            "policy": self.policy,
+            "reserve_s": self.reserve_s,
+            "dropped_waypoints": [i + 1 for i in self.dropped],
+            "actions": self.actions,
+        }
 
 
 def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> float | None:
     """Arm-to-disarm seconds on the vehicle's clock from the flight's events (to now if not disarmed)."""
-    arm = next((e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None), t_start)
+    arm = next(
+        (e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None),
+        t_start,
+    )
     if arm is None:
         return None
-    off = [e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None]
+    off = [
+        e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None
+    ]
     end = off[-1] if off and off[-1] > arm else t_now
     return float(end - arm) if np.isfinite(end) else None
 
 
 def arm_to_disarm_s(events: list[dict]) -> float | None:
     """Arm to disarm on the vehicle's clock, measured only: None when no disarm after the arm was seen."""
-    arm = next((e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None), None)
-    off = [e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None]
+    arm = next(
+        (e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None),
+        None,
+    )
+    off = [
+        e["t_vehicle_s"] for e in events if e["kind"] == "disarmed" and e["t_vehicle_s"] is not None
+    ]
     return round(float(off[-1] - arm), 2) if arm is not None and off and off[-1] > arm else None
 
 
@@ -346,9 +416,12 @@ async def act(ctx, watch: BudgetWatch, decision: tuple[str, int], mission_raw, a
         ctx.event("budget", watch.apply(s.elapsed, what, keep), warn=True)
         return
     spec, home, off = ctx.spec, ctx.home, s.waypoint_offset
-    w = spec.waypoints_enu()[:keep + 1]
-    items = build_items(dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, w)),
-                        (home.latitude_deg, home.longitude_deg, home.absolute_altitude_m), off == 3)
+    w = spec.waypoints_enu()[: keep + 1]
+    items = build_items(
+        dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, w)),
+        (home.latitude_deg, home.longitude_deg, home.absolute_altitude_m),
+        off == 3,
+    )
     cur = ctx.st.progress[0]
     try:
         await upload_with_retries(ctx, mission_raw, items, kind="budget")
@@ -363,8 +436,12 @@ async def act(ctx, watch: BudgetWatch, decision: tuple[str, int], mission_raw, a
     ctx.event("budget", watch.apply(s.elapsed, what, keep), warn=True)
 
 
-def start_budget(ctx, return_speed_mps: float | None, vertical: VerticalSpeeds | None,
-                 ardupilot: bool | None = None) -> BudgetWatch:
+def start_budget(
+    ctx,
+    return_speed_mps: float | None,
+    vertical: VerticalSpeeds | None,
+    ardupilot: bool | None = None,
+) -> BudgetWatch:
     """The watch of ``ctx``'s flight, planned with the return, climb and descent speeds the autopilot will
     fly and its known touchdown-to-disarm delay (``ardupilot`` True/False for a connected autopilot, None for
     the built-in vehicle); one line with that plan, a warning before take-off when it no longer fits the budget.
@@ -374,31 +451,54 @@ def start_budget(ctx, return_speed_mps: float | None, vertical: VerticalSpeeds |
     own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
     known = None if ardupilot is None or not ctx.url else ("ARDUPILOT" if ardupilot else "PX4")
     adaptive = ctx.extension is not None
-    watch = BudgetWatch(plan_times(spec, return_speed_mps if own else None, vertical,
-                                   LANDED_TO_DISARM_S.get(known, 0.0)),
-                        policy="warn" if adaptive else spec.budget_policy, reserve_s=spec.budget_reserve_s)
+    watch = BudgetWatch(
+        plan_times(
+            spec, return_speed_mps if own else None, vertical, LANDED_TO_DISARM_S.get(known, 0.0)
+        ),
+        policy="warn" if adaptive else spec.budget_policy,
+        reserve_s=spec.budget_reserve_s,
+    )
     d, b = watch.plan.duration_s, spec.time_budget_s
     how = [f"return {return_speed_mps:g}"] if own else []
-    if vertical is not None:  # one line at 80 columns: "plan 565 s of 600 s (autopilot m/s: up 2.5, ...)"
+    if (
+        vertical is not None
+    ):  # one line at 80 columns: "plan 565 s of 600 s (autopilot m/s: up 2.5, ...)"
         v = vertical
-        slow = f"/{v.land_mps:g} below {v.low_alt_m:g} m" if v.low_alt_m > 0 and v.land_mps != v.down_mps else ""
-        how.append(f"up {v.up_mps:g}, down {v.down_mps:g}{slow}" + (f", hover {v.hover_s:g} s" if v.hover_s else ""))
-    text = ("survey " if adaptive else "") + f"plan {d:.0f} s of {b:g} s" + (
-        f" (autopilot m/s: {'; '.join(how)})" if how else "")
+        slow = (
+            f"/{v.land_mps:g} below {v.low_alt_m:g} m"
+            if v.low_alt_m > 0 and v.land_mps != v.down_mps
+            else ""
+        )
+        how.append(
+            f"up {v.up_mps:g}, down {v.down_mps:g}{slow}"
+            + (f", hover {v.hover_s:g} s" if v.hover_s else "")
+        )
+    text = (
+        ("survey " if adaptive else "")
+        + f"plan {d:.0f} s of {b:g} s"
+        + (f" (autopilot m/s: {'; '.join(how)})" if how else "")
+    )
     ctx.event("budget", text + (f": {d - b:.0f} s over budget" if d > b else ""), warn=d > b)
     return watch
 
 
 def close_budget(ctx, watch: BudgetWatch) -> dict:
     """The sidecar record, and one line: used vs budget (a warning when over)."""
-    now = ctx.tel.clock.now() if ctx.landed_disarmed.is_set() else float("nan")  # no disarm seen: no
+    now = (
+        ctx.tel.clock.now() if ctx.landed_disarmed.is_set() else float("nan")
+    )  # no disarm seen: no
     used = used_seconds(ctx.st.events, ctx.status.t_start, now)  # extrapolated time (a lost link)
     rec = watch.record(used)
     rec["arm_to_disarm_s"] = arm_to_disarm_s(ctx.st.events)
     if used is not None:
-        rounds = getattr(ctx.extension, "flown_s", None)  # an adaptive flight: survey and rounds apart
-        plan = f"plan {rec['planned_s']:.0f} s" if rounds is None else \
-            f"survey plan {rec['planned_s']:.0f} s, rounds flew {rounds:.0f} s"
+        rounds = getattr(
+            ctx.extension, "flown_s", None
+        )  # an adaptive flight: survey and rounds apart
+        plan = (
+            f"plan {rec['planned_s']:.0f} s"
+            if rounds is None
+            else f"survey plan {rec['planned_s']:.0f} s, rounds flew {rounds:.0f} s"
+        )
         text = f"flight used {used:.0f} s of its {rec['budget_s']:.0f} s budget ({plan})"
         if rec["overrun"]:
             text += f": {rec['overrun_s']:.0f} s over"

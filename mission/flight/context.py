@@ -67,7 +67,9 @@ class Extension(Protocol):
     update_s: float  # live-estimate period (vehicle s)
 
     def trajectory_meta(self) -> dict: ...
-    def check(self, ctx: FlightContext) -> None: ...  # FlightError (exit 2) refuses before the upload
+    def check(
+        self, ctx: FlightContext
+    ) -> None: ...  # FlightError (exit 2) refuses before the upload
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None: ...
     def record(self, ctx: FlightContext) -> tuple[str, dict]: ...
     def result_lines(self, ctx: FlightContext) -> list[str]: ...
@@ -95,7 +97,9 @@ class FlightContext:
     link_dead: asyncio.Event = field(default_factory=asyncio.Event)
     landed_disarmed: asyncio.Event = field(default_factory=asyncio.Event)
     mission_done: asyncio.Event = field(default_factory=asyncio.Event)
-    armed_seen: asyncio.Event = field(default_factory=asyncio.Event)  # PX4 SITL: "armed" before "started"
+    armed_seen: asyncio.Event = field(
+        default_factory=asyncio.Event
+    )  # PX4 SITL: "armed" before "started"
     last_text_wall: float = -float("inf")  # monotonic time of the last autopilot text
     link_lost: bool = False
     left_flying: bool = False  # a second signal: the flight stopped waiting for the landing
@@ -106,15 +110,21 @@ class FlightContext:
     rows: Any = None  # RowLogger once the log is open (its ``writer``: the FlightLogWriter)
     log_path: Any = None
     home: Any = None  # the vehicle's home (MAVSDK Position) once known
-    restore_params: dict[str, int | float] = field(default_factory=dict)  # put back after the flight
+    restore_params: dict[str, int | float] = field(
+        default_factory=dict
+    )  # put back after the flight
     budget: Any = None  # BudgetWatch once the plan is known
     live: Any = None  # LiveEstimates
     rate_requested: float = 0.0
     heartbeats_sent: int = 0
     vehicle_proc: Any = None
     source_warned: bool = False
-    tasks: list[asyncio.Task] = field(default_factory=list)  # background coroutines, cancelled at the close
-    texts: FoldedTexts = field(default_factory=FoldedTexts)  # autopilot texts on screen: repeats counted
+    tasks: list[asyncio.Task] = field(
+        default_factory=list
+    )  # background coroutines, cancelled at the close
+    texts: FoldedTexts = field(
+        default_factory=FoldedTexts
+    )  # autopilot texts on screen: repeats counted
 
     def __post_init__(self) -> None:
         if self.full_spec is None:
@@ -126,9 +136,15 @@ class FlightContext:
 
     def event(self, kind: str, text: str, warn: bool = False, show: bool = True) -> None:
         """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80 columns."""
-        t = self.tel.clock.now() if not self.link_lost else float("nan")  # no extrapolated time stamps
-        e = {"t_vehicle_s": None if not np.isfinite(t) else round(t, 3), "kind": kind, "text": text,
-             "wall": time.time()}
+        t = (
+            self.tel.clock.now() if not self.link_lost else float("nan")
+        )  # no extrapolated time stamps
+        e = {
+            "t_vehicle_s": None if not np.isfinite(t) else round(t, 3),
+            "kind": kind,
+            "text": text,
+            "wall": time.time(),
+        }
         if self.link_lost:  # what was measured: the last telemetry's time
             last = self.tel.clock.last_measured()
             e["last_telemetry_vehicle_s"] = round(last, 3) if np.isfinite(last) else None
@@ -145,7 +161,10 @@ class FlightContext:
                 self.display.message(line, style)
             else:
                 print(fit_width(line), file=sys.stderr, flush=True)
-        except (OSError, ValueError):  # a lost terminal (SIGHUP): the event is in the sidecar, flying goes on
+        except (
+            OSError,
+            ValueError,
+        ):  # a lost terminal (SIGHUP): the event is in the sidecar, flying goes on
             pass
 
     def vehicle_state(self) -> str:
@@ -155,7 +174,11 @@ class FlightContext:
             return "landed"
         if not self.st.was_in_air:
             return "on the ground"
-        return "unknown" if self.link_lost or (self.link_dead.is_set() and not self.left_flying) else "in flight"
+        return (
+            "unknown"
+            if self.link_lost or (self.link_dead.is_set() and not self.left_flying)
+            else "in flight"
+        )
 
     def where(self) -> str:
         """The vehicle's last measured altitude and phase ("15 m in return")."""
@@ -164,7 +187,9 @@ class FlightContext:
     def abort_before_takeoff(self) -> None:
         """Raise the abort (exit 130) when one came before the vehicle took off."""
         if self.abort.is_set():
-            raise FlightError(f"aborted ({self.abort_reason}) before take-off: nothing was flown", EXIT_ABORTED)
+            raise FlightError(
+                f"aborted ({self.abort_reason}) before take-off: nothing was flown", EXIT_ABORTED
+            )
 
 
 async def wait_any(*events: asyncio.Event, timeout: float | None = None) -> asyncio.Event | None:

@@ -15,11 +15,21 @@ import json
 import time
 
 GCS_SYSID, GCS_COMPID = 245, 190  # MAVSDK's ground-station identity
-_HEARTBEAT = json.dumps({"type": 6, "autopilot": 8, "base_mode": 0, "custom_mode": 0, "system_status": 4,
-                         "mavlink_version": 3})  # MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, MAV_STATE_ACTIVE
+_HEARTBEAT = json.dumps(
+    {
+        "type": 6,
+        "autopilot": 8,
+        "base_mode": 0,
+        "custom_mode": 0,
+        "system_status": 4,
+        "mavlink_version": 3,
+    }
+)  # MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, MAV_STATE_ACTIVE
 
 
-PER_VEHICLE_S = 3.0  # heartbeats per vehicle second: a late one (a starved CPU) still leaves the gate open
+PER_VEHICLE_S = (
+    3.0  # heartbeats per vehicle second: a late one (a starved CPU) still leaves the gate open
+)
 
 
 def heartbeat_hz(speedup: float) -> float:
@@ -42,8 +52,11 @@ async def gcs_heartbeats(ctx, direct, speedup: float) -> None:
         except Exception as e:
             if not failed:
                 failed = True
-                ctx.event("heartbeat", f"GCS heartbeat not sent ({e}): autopilot texts may be lost",
-                             warn=True)
+                ctx.event(
+                    "heartbeat",
+                    f"GCS heartbeat not sent ({e}): autopilot texts may be lost",
+                    warn=True,
+                )
         await asyncio.sleep(period)
 
 

@@ -18,7 +18,9 @@ import numpy as np
 
 from mission.errors import InputError
 
-DEFAULT_LIVE = "default"  # recorded in the sidecar: the live estimates used ``localize``'s own choice
+DEFAULT_LIVE = (
+    "default"  # recorded in the sidecar: the live estimates used ``localize``'s own choice
+)
 FAST_ESTIMATE_S = 180.0  # the AFAR rules' fast estimate: 3 minutes after take-off
 LEVEL = 0.9
 
@@ -39,8 +41,11 @@ def log_at(log, t_s: float, source: str | None = None):
     t = np.asarray(log["t_s"], dtype=float)
     keep = t <= t_s + 1e-9
     if not keep.any():
-        raise InputError(f"no rows at or before t = {t_s:g} s (the log starts at {t[0]:g} s)", source=source,
-                         field="--at")
+        raise InputError(
+            f"no rows at or before t = {t_s:g} s (the log starts at {t[0]:g} s)",
+            source=source,
+            field="--at",
+        )
     return log.select(keep)
 
 
@@ -55,15 +60,21 @@ def estimate_at(log, t_s: float | None = None, method: str | None = None):
 def summary(est, t_s: float) -> dict:
     """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when known)."""
     reg = next((r for r in est.regions if r["level"] == LEVEL), None)
-    d = {"t_s": round(float(t_s), 3), "x_m": round(est.x_m, 2), "y_m": round(est.y_m, 2),
-         "area_m2": None if reg is None else round(float(reg["area_m2"]), 1)}
+    d = {
+        "t_s": round(float(t_s), 3),
+        "x_m": round(est.x_m, 2),
+        "y_m": round(est.y_m, 2),
+        "area_m2": None if reg is None else round(float(reg["area_m2"]), 1),
+    }
     if est.error_m is not None:
         d["error_m"] = round(float(est.error_m), 2)
     if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
         from mission.adaptive.planner import posterior_candidates
 
-        d["candidates"] = [[round(v, 1 if i < 2 else 3) for i, v in enumerate(c)]
-                           for c in posterior_candidates(est.posterior)]
+        d["candidates"] = [
+            [round(v, 1 if i < 2 else 3) for i, v in enumerate(c)]
+            for c in posterior_candidates(est.posterior)
+        ]
     return d
 
 
@@ -101,6 +112,7 @@ def lower_priority(parent_pid: int | None = None) -> None:
         os.nice(5)
     die_with_parent()
     if parent_pid is not None:
+
         def watch() -> None:
             while os.getppid() == parent_pid:
                 time.sleep(1.0)

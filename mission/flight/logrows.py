@@ -43,7 +43,9 @@ class RowLogger:
         self.origin, self.status = origin, status
         self.t_ref: float | None = None
         self._last_flush = 0.0
-        self.on_error = None  # called once with the OSError of a failed write (the flight decides what next)
+        self.on_error = (
+            None  # called once with the OSError of a failed write (the flight decides what next)
+        )
 
     def write(self, final: bool = False) -> None:
         """Append every sample the telemetry covers (``final``: receivers' samples up to now as well); a failed
@@ -87,7 +89,10 @@ class RowLogger:
         cols.update({c: rounded(att_deg[:, j], c) for j, c in enumerate(ATTITUDE_COLUMNS)})
         if vals is None:
             vals = self.source.evaluate(
-                cols["lat_deg"], cols["lon_deg"], cols["alt_m"], np.stack([cols[c] for c in ATTITUDE_COLUMNS], -1)
+                cols["lat_deg"],
+                cols["lon_deg"],
+                cols["alt_m"],
+                np.stack([cols[c] for c in ATTITUDE_COLUMNS], -1),
             )
         cols["rss_dbm"] = np.asarray(vals, dtype=float)
         cols["phase"], cols["mission_item"] = self.phases.at(t)

@@ -34,9 +34,13 @@ class PhaseTracker:
         self.landed_state = "ON_GROUND"
         self.raw_item = -1
         self.returning = False
-        self.first_adaptive = 1 << 30  # raw index of the first adaptive waypoint (missions extended in flight)
+        self.first_adaptive = (
+            1 << 30
+        )  # raw index of the first adaptive waypoint (missions extended in flight)
 
-    def configure(self, first_wp: int, last_item: int, final: str, first_adaptive: int | None = None) -> None:
+    def configure(
+        self, first_wp: int, last_item: int, final: str, first_adaptive: int | None = None
+    ) -> None:
         """Raw indices of the first waypoint and the final item; ``first_adaptive``: raw items from there on
         are legs planned in flight (``adaptive``, item counted from 0 there)."""
         self.first_wp, self.last_item, self.final = first_wp, last_item, final
@@ -93,7 +97,16 @@ class PhaseTracker:
         return np.asarray(self.phase, dtype=object)[k].astype(str), np.asarray(self.item)[k]
 
 
-__all__ = ["PhaseTracker", "final_phase", "GROUND", "TAKEOFF", "MISSION", "ADAPTIVE", "RETURN", "LAND"]
+__all__ = [
+    "PhaseTracker",
+    "final_phase",
+    "GROUND",
+    "TAKEOFF",
+    "MISSION",
+    "ADAPTIVE",
+    "RETURN",
+    "LAND",
+]
 
 
 class MonotonicPhases(PhaseTracker):

@@ -20,7 +20,16 @@ def to_mavsdk(items: list[RawItem]):
     for seq, it in enumerate(items):
         out.append(
             MissionItem(
-                seq, it.frame, it.command, 1 if seq == 0 else 0, 1, *it.params, it.x, it.y, float(it.z), 0
+                seq,
+                it.frame,
+                it.command,
+                1 if seq == 0 else 0,
+                1,
+                *it.params,
+                it.x,
+                it.y,
+                float(it.z),
+                0,
             )
         )
     return out
@@ -35,7 +44,9 @@ class UploadFailed(FlightError):
         super().__init__(message, EXIT_LINK)
 
 
-async def upload_with_retries(ctx, mission_raw, items: list[RawItem], kind: str = "upload", tries: int = 3) -> None:
+async def upload_with_retries(
+    ctx, mission_raw, items: list[RawItem], kind: str = "upload", tries: int = 3
+) -> None:
     """Upload the raw items (``MissionRawAsync.upload_mission``), retrying a failed transfer (a busy link at a
     high speed-up can time one out) with one warning each (event ``kind``); the last failure is an
     ``UploadFailed`` naming MAVSDK's result and the item count."""

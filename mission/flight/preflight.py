@@ -27,13 +27,19 @@ def check_host(host: str, what: str, field: str, source: str | None = None) -> N
             ipaddress.ip_address(h)
             return
     except ValueError:
-        raise InputError(f"{host!r} in {what!r} is not an IP address", source=source, field=field) from None
+        raise InputError(
+            f"{host!r} in {what!r} is not an IP address", source=source, field=field
+        ) from None
     if not _HOSTNAME.fullmatch(h):
-        raise InputError(f"{host!r} in {what!r} is not a host name or IP address", source=source, field=field)
+        raise InputError(
+            f"{host!r} in {what!r} is not a host name or IP address", source=source, field=field
+        )
 
 
-_HOSTNAME = re.compile(r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}"
-                       r"[A-Za-z0-9])?)*\.?")
+_HOSTNAME = re.compile(
+    r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}"
+    r"[A-Za-z0-9])?)*\.?"
+)
 
 
 def check_connect(url: str | None, field: str = "--connect", source: str | None = None) -> None:
@@ -42,27 +48,39 @@ def check_connect(url: str | None, field: str = "--connect", source: str | None 
     vehicle; an empty string is refused (it silently flew the built-in vehicle in real time)."""
     if url is None:
         return
-    example = "use e.g. udpin://0.0.0.0:14540, tcpout://127.0.0.1:5760 or serial:///dev/ttyACM0:57600"
+    example = (
+        "use e.g. udpin://0.0.0.0:14540, tcpout://127.0.0.1:5760 or serial:///dev/ttyACM0:57600"
+    )
     if not url.strip():
-        raise InputError(f"empty connection; {example}, or leave it out for the built-in vehicle", source=source,
-                         field=field)
+        raise InputError(
+            f"empty connection; {example}, or leave it out for the built-in vehicle",
+            source=source,
+            field=field,
+        )
     scheme, sep, rest = url.partition("://")
     if not sep or scheme not in SCHEMES:
         raise InputError(f"unknown connection {url!r}; {example}", source=source, field=field)
     if scheme.startswith(("udp", "tcp")):
         host, _, port = rest.rpartition(":")
         if not host or not port.isdigit() or not 0 < int(port) < 65536:
-            raise InputError(f"{url!r} needs HOST:PORT (port 1-65535) after {scheme}://", source=source,
-                             field=field)
+            raise InputError(
+                f"{url!r} needs HOST:PORT (port 1-65535) after {scheme}://",
+                source=source,
+                field=field,
+            )
         check_host(host, url, field, source)
     else:  # serial:///dev/ttyACM0[:57600]
         dev, _, baud = rest.rpartition(":")
         if not baud.isdigit():
             dev = rest
         if not dev or not Path(dev).exists():
-            raise InputError(f"no such serial device {dev or '(none)'!r} in {url!r}", source=source, field=field)
+            raise InputError(
+                f"no such serial device {dev or '(none)'!r} in {url!r}", source=source, field=field
+            )
         if Path(dev).is_dir() or Path(dev).is_file():
-            raise InputError(f"{dev!r} in {url!r} is not a serial device", source=source, field=field)
+            raise InputError(
+                f"{dev!r} in {url!r} is not a serial device", source=source, field=field
+            )
 
 
 def check_rss_source(text: str) -> None:
@@ -75,7 +93,9 @@ def check_rss_source(text: str) -> None:
         if not p.exists():
             raise InputError("no such file or named pipe", source=str(p), field="--rss-source")
         if p.is_dir():
-            raise InputError("is a folder, not a named pipe or file", source=str(p), field="--rss-source")
+            raise InputError(
+                "is a folder, not a named pipe or file", source=str(p), field="--rss-source"
+            )
     elif kind == "udp":
         host, _, port = arg.rpartition(":")
         if not port.isdigit() or not 0 <= int(port) < 65536:
@@ -85,7 +105,9 @@ def check_rss_source(text: str) -> None:
             try:
                 s.bind((host or "0.0.0.0", int(port)))
             except OSError as e:
-                raise InputError(f"cannot listen on {arg!r}: {e.strerror}", field="--rss-source") from None
+                raise InputError(
+                    f"cannot listen on {arg!r}: {e.strerror}", field="--rss-source"
+                ) from None
 
 
 def check_out(out: Path) -> None:
@@ -96,7 +118,9 @@ def check_out(out: Path) -> None:
     for p in (out, *out.parents):
         if p.exists():
             if not p.is_dir():
-                raise InputError("is a file; --out wants a folder for flight logs", source=str(p), field="--out")
+                raise InputError(
+                    "is a file; --out wants a folder for flight logs", source=str(p), field="--out"
+                )
             break
     check_writable_dir(out, "--out")
 
@@ -109,4 +133,7 @@ def check_options(opts) -> None:
     for name in ("link_timeout_s", "land_timeout_s", "connect_timeout_s"):
         v = getattr(opts, name)
         if v is not None and not v > 0:
-            raise InputError(f"must be positive, got {v:g}", field="--" + name.removesuffix("_s").replace("_", "-"))
+            raise InputError(
+                f"must be positive, got {v:g}",
+                field="--" + name.removesuffix("_s").replace("_", "-"),
+            )

@@ -22,7 +22,9 @@ class FlightStatus:
 
     mission_name: str = ""
     budget_s: float = 0.0
-    predicted_s: float | None = None  # arm-to-landing time predicted from the measured pace (budget watch)
+    predicted_s: float | None = (
+        None  # arm-to-landing time predicted from the measured pace (budget watch)
+    )
     item: int = 0
     items: int = 0
     waypoint_offset: int = 2  # raw items before the first waypoint (take-off, speed [, home])
@@ -61,7 +63,9 @@ def render(s: FlightStatus) -> Table:
     t = Table(title=Text(f"fly-mission: {s.mission_name}"), show_header=False, expand=False)
     t.add_column(style="bold")
     t.add_column()
-    stage = Text.assemble(("LINK LOST", "red"), f" (last: {s.stage})") if s.link_lost else Text(s.stage)
+    stage = (
+        Text.assemble(("LINK LOST", "red"), f" (last: {s.stage})") if s.link_lost else Text(s.stage)
+    )
     t.add_row("stage", stage)
     if s.log_error:
         t.add_row("log", Text(f"WRITE FAILED: {s.log_error}", "red"))
@@ -69,14 +73,20 @@ def render(s: FlightStatus) -> Table:
     over = s.budget_s and s.elapsed > s.budget_s
     el = Text(f"{s.elapsed:6.1f} s of {s.budget_s:.0f} s budget")
     if s.predicted_s is not None and np.isfinite(s.predicted_s):
-        el.append(f", landing at ~{s.predicted_s:.0f} s", "red" if s.predicted_s > s.budget_s else "")
+        el.append(
+            f", landing at ~{s.predicted_s:.0f} s", "red" if s.predicted_s > s.budget_s else ""
+        )
     if over:
         el.append(" (over budget)", "red")
     t.add_row("elapsed", el)
     t.add_row("altitude", Text(f"{s.rel_alt:5.1f} m"))
     t.add_row("RSS rows", Text(str(s.rows)))
     t.add_row("last RSS", Text(f"{_fmt_rss(s.last_rss):>7} dB"))
-    best = "-" if s.best_xy is None else f"{s.best_rss:7.2f} dB at ({s.best_xy[0]:.0f}, {s.best_xy[1]:.0f}) m"
+    best = (
+        "-"
+        if s.best_xy is None
+        else f"{s.best_rss:7.2f} dB at ({s.best_xy[0]:.0f}, {s.best_xy[1]:.0f}) m"
+    )
     t.add_row("strongest", Text(f"* {best}", "green"))
     if s.estimate:
         t.add_row("estimate", Text(s.estimate))
@@ -95,8 +105,9 @@ def fit_width(text: str, width: int = PLAIN_WIDTH) -> str:
 
     out = []
     for line in text.splitlines() or [""]:
-        out += textwrap.wrap(line, width, subsequent_indent="  ", break_long_words=False,
-                             break_on_hyphens=False) or [""]
+        out += textwrap.wrap(
+            line, width, subsequent_indent="  ", break_long_words=False, break_on_hyphens=False
+        ) or [""]
     return "\n".join(out)
 
 
@@ -120,20 +131,24 @@ class FoldedTexts:
             if n > 1:
                 tail = f" (x{n}, shown once)"
                 room = PLAIN_WIDTH - len(tail)
-                out.append((text if len(text) <= room else text[:room - 3] + "...") + tail)
+                out.append((text if len(text) <= room else text[: room - 3] + "...") + tail)
         return out
 
 
 def plain_line(s: FlightStatus) -> str:
     """The status as plain text for a log or a pipe: one line, or two when it would pass 80 columns."""
-    best = "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
+    best = (
+        "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
+    )
     stage = f"LINK LOST, last {s.stage}" if s.link_lost else s.stage
     stage = f"LOG FAILED, {stage}" if s.log_error else stage
     over = " OVER" if s.budget_s and s.elapsed > s.budget_s else ""
     if s.predicted_s is not None and np.isfinite(s.predicted_s) and not over:
         over = f" (land~{s.predicted_s:.0f}s)"
-    head = (f"[{stage}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
-            f"alt={s.rel_alt:.1f}m rss={_fmt_rss(s.last_rss)} rows={s.rows}")
+    head = (
+        f"[{stage}] wp {s.waypoint}/{s.n_waypoints} t={s.elapsed:.0f}/{s.budget_s:.0f}s{over} "
+        f"alt={s.rel_alt:.1f}m rss={_fmt_rss(s.last_rss)} rows={s.rows}"
+    )
     tail = f"best={best}" + (f" est={s.estimate}" if s.estimate else "")
     # a log read at 80 columns: the strongest sample and the live estimate go on a second, indented line
     return f"{head} {tail}" if len(head) + 1 + len(tail) <= PLAIN_WIDTH else f"{head}\n  {tail}"
@@ -153,7 +168,9 @@ class Display:
         if self.console.is_terminal:
             from rich.live import Live
 
-            self.live = Live(render(self.status), console=self.console, refresh_per_second=4, transient=False)
+            self.live = Live(
+                render(self.status), console=self.console, refresh_per_second=4, transient=False
+            )
             self.live.__enter__()
         return self
 
@@ -162,11 +179,15 @@ class Display:
             self.live.update(render(self.status))
         elif time.monotonic() >= self._next:
             self._next = time.monotonic() + self.plain_every
-            self.console.print(plain_line(self.status), highlight=False, markup=False, soft_wrap=True)
+            self.console.print(
+                plain_line(self.status), highlight=False, markup=False, soft_wrap=True
+            )
 
     def message(self, text: str, style: str = "") -> None:
         """A line that stays (warnings, stage changes), wrapped at 80 columns."""
-        self.console.print(fit_width(text), style=style or None, highlight=False, markup=False, soft_wrap=True)
+        self.console.print(
+            fit_width(text), style=style or None, highlight=False, markup=False, soft_wrap=True
+        )
 
     def __exit__(self, *exc) -> None:
         if self.live is not None:

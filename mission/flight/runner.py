@@ -51,19 +51,40 @@ from mission.flight.phases import MonotonicPhases, final_phase
 from mission.flight.progress import Display, FlightStatus
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.telemetry import Telemetry
-from mission.flight.vehicle_process import free_udp_port, ignore_terminal_signals, spawn_vehicle, stop_vehicle
+from mission.flight.vehicle_process import (
+    free_udp_port,
+    ignore_terminal_signals,
+    spawn_vehicle,
+    stop_vehicle,
+)
 
-__all__ = ["FlyOptions", "auto_rate_hz", "fly", "free_udp_port", "spawn_vehicle", "wall_clock_notice"]
+__all__ = [
+    "FlyOptions",
+    "auto_rate_hz",
+    "fly",
+    "free_udp_port",
+    "spawn_vehicle",
+    "wall_clock_notice",
+]
 
-RATE_HZ, MIN_RATE_HZ = 50.0, 30.0  # position/attitude rate requested (vehicle time); the issue's floor
-WALL_CALLBACKS_PER_STREAM = 600.0  # at most this many per wall-clock second per stream (sped-up vehicles)
+RATE_HZ, MIN_RATE_HZ = (
+    50.0,
+    30.0,
+)  # position/attitude rate requested (vehicle time); the issue's floor
+WALL_CALLBACKS_PER_STREAM = (
+    600.0  # at most this many per wall-clock second per stream (sped-up vehicles)
+)
 FIRST_ROW_TIMEOUT_S = 20.0  # wall seconds to wait for the first log row before arming
 # While flying, MAVSDK's callback thread needs the GIL for every telemetry message (thousands a second at
 # high speed-up); with CPython's default 5 ms switch interval a busy asyncio thread (log writer, display)
 # makes it wait up to 5 ms per message and MAVSDK's bounded callback queue overflows ("Dropping
 # subscription callbacks").  A 0.5 ms interval bounds that wait.
 GIL_SWITCH_INTERVAL_S = 0.0005
-SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # SIGHUP: a lost terminal (SSH), as SIGTERM
+SIGNALS = (
+    signal.SIGINT,
+    signal.SIGTERM,
+    signal.SIGHUP,
+)  # SIGHUP: a lost terminal (SSH), as SIGTERM
 
 
 def auto_rate_hz(speedup: float) -> float:
@@ -105,9 +126,7 @@ def wall_clock_notice(duration_s: float, speedup: float, hint: bool = True) -> s
     """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint (no vehicle
     seconds: the one plan figure is the budget's, with the autopilot's own speeds, ``budget.start_budget``)."""
     wall = duration_s / speedup
-    text = (
-        f"estimated flight: about {_fmt_wall(wall)} of wall-clock time at speed-up {speedup:g}"
-    )
+    text = f"estimated flight: about {_fmt_wall(wall)} of wall-clock time at speed-up {speedup:g}"
     if hint and speedup < 20 and wall > 60:
         text += f" (add --speedup 20 for about {_fmt_wall(duration_s / 20)})"
     return text
@@ -125,9 +144,15 @@ def new_context(spec, opts: FlyOptions, extension=None) -> FlightContext:
     url = opts.connect or spec.vehicle.connection
     flown = extension.spec if extension is not None else spec
     ctx = FlightContext(
-        spec=flown, opts=opts, speedup=speedup, url=url, full_spec=spec, extension=extension,
+        spec=flown,
+        opts=opts,
+        speedup=speedup,
+        url=url,
+        full_spec=spec,
+        extension=extension,
         status=FlightStatus(mission_name=flown.name, budget_s=flown.time_budget_s),
-        tel=Telemetry(rate_hint=speedup if not url else 1.0), phases=MonotonicPhases(),
+        tel=Telemetry(rate_hint=speedup if not url else 1.0),
+        phases=MonotonicPhases(),
         live=LiveEstimates(update_s=extension.update_s if extension is not None else 5.0),
     )
     return ctx
@@ -156,9 +181,13 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
         ignore_terminal_signals()  # interrupted: the process ends with 130, not by a second signal at exit
         raise
     finally:
-        if ctx.source is not None:  # a flight started and its outcome is decided: a late Ctrl-C during the
+        if (
+            ctx.source is not None
+        ):  # a flight started and its outcome is decided: a late Ctrl-C during the
             ignore_terminal_signals()  # exit (threads joined) must not end the process by the signal
-        elif signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:  # refused before anything started
+        elif (
+            signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
+        ):  # refused before anything started
             for sig, handler in old.items():
                 signal.signal(sig, handler)
 
@@ -171,7 +200,9 @@ async def run(ctx: FlightContext) -> int:
 
     spec = ctx.spec
     check_options(ctx.opts)  # options: before anything starts
-    report = assert_flyable(spec)  # fence and budget: refuse before connecting or uploading anything
+    report = assert_flyable(
+        spec
+    )  # fence and budget: refuse before connecting or uploading anything
     ctx.source, ctx.truth = make_source(spec, ctx.opts.rss_source)
     loop = asyncio.get_running_loop()
     for sig in SIGNALS:
@@ -182,12 +213,19 @@ async def run(ctx: FlightContext) -> int:
             port = free_udp_port()
             lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
             ctx.vehicle_proc = spawn_vehicle(
-                port, ctx.speedup, (float(lat), float(lon), float(alt)), spec.kinematics(),
-                spec.source.seed, ctx.opts.verbose,
+                port,
+                ctx.speedup,
+                (float(lat), float(lon), float(alt)),
+                spec.kinematics(),
+                spec.source.seed,
+                ctx.opts.verbose,
             )
             url = f"udpin://127.0.0.1:{port}"
-            ctx.event("vehicle", f"simulated vehicle started (pid {ctx.vehicle_proc.pid}), {url}, "
-                      f"speed-up {ctx.speedup:g}")
+            ctx.event(
+                "vehicle",
+                f"simulated vehicle started (pid {ctx.vehicle_proc.pid}), {url}, "
+                f"speed-up {ctx.speedup:g}",
+            )
         ctx.event("duration", wall_clock_notice(report.duration_s, ctx.speedup, hint=not ctx.url))
         switch = sys.getswitchinterval()
         sys.setswitchinterval(min(switch, GIL_SWITCH_INTERVAL_S))
@@ -214,9 +252,16 @@ def make_source(spec, rss_source: str):
     s = spec.source
     rng = np.random.default_rng(s.seed)  # the RSS noise
     tx = spec.transmitter()  # seed N's transmitter, where rfsl simulate puts it
-    info = {"model": s.model, "model_params": s.model_params, "seed": s.seed, "tx_enu": [float(v) for v in tx],
-            "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: default_rng(seed)"}
-    src = SimSource(spec.propagation_model(), tx, rng, s.noise_db, s.sample_period_s, spec.field.origin, info)
+    info = {
+        "model": s.model,
+        "model_params": s.model_params,
+        "seed": s.seed,
+        "tx_enu": [float(v) for v in tx],
+        "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: default_rng(seed)",
+    }
+    src = SimSource(
+        spec.propagation_model(), tx, rng, s.noise_db, s.sample_period_s, spec.field.origin, info
+    )
     return src, {"x_m": float(tx[0]), "y_m": float(tx[1]), "z_m": float(tx[2])}
 
 
@@ -230,7 +275,9 @@ async def connect(ctx: FlightContext, sdk, url: str):
     except Exception as e:  # MavsdkConnectionError: bad address, port in use, no such device
         raise FlightError(f"cannot open {url}: {e}", EXIT_LINK) from None
     t = ctx.opts.link_timeout_s
-    system = await race(ctx, sdk.first_autopilot(timeout_s=t), timeout=t + 5.0, what=f"an autopilot on {url}")
+    system = await race(
+        ctx, sdk.first_autopilot(timeout_s=t), timeout=t + 5.0, what=f"an autopilot on {url}"
+    )
     if system is None:
         seen = ctx.sdklog.new_messages()
         why = f" (MAVSDK: {seen[-1]})" if seen else ""
@@ -254,10 +301,17 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
 
     code, status, error = EXIT_OK, "completed", None
     with SdkLog(ctx.opts.verbose) as ctx.sdklog, Display(ctx.status) as ctx.display:
-        async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
+        async with Mavsdk(
+            Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+        ) as sdk:
             system, ap_name = await connect(ctx, sdk, url)
-            p = Plugins(TelemetryAsync(system), ActionAsync(system), MissionRawAsync(system), ParamAsync(system),
-                        MavlinkDirectAsync(system))
+            p = Plugins(
+                TelemetryAsync(system),
+                ActionAsync(system),
+                MissionRawAsync(system),
+                ParamAsync(system),
+                MavlinkDirectAsync(system),
+            )
             async with asyncio.TaskGroup() as tg:
                 tasks.start_telemetry(ctx, tg, p.telemetry, p.mission_raw, p.direct)
                 tasks.spawn(ctx, tg, gcs_heartbeats(ctx, p.direct, ctx.speedup), "heartbeat")
@@ -266,8 +320,15 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
                     items = await prepare(ctx, p)
                     await open_log(ctx, url, ap_name, report, len(items))
                     tasks.spawn(ctx, tg, tasks.logger(ctx), "log writer")
-                    tasks.spawn(ctx, tg, watch_budget(ctx, ctx.budget, p.mission_raw, p.action), "budget watch")
-                    live_task = tasks.spawn(ctx, tg, estimates.live_estimates(ctx), "live estimates")
+                    tasks.spawn(
+                        ctx,
+                        tg,
+                        watch_budget(ctx, ctx.budget, p.mission_raw, p.action),
+                        "budget watch",
+                    )
+                    live_task = tasks.spawn(
+                        ctx, tg, estimates.live_estimates(ctx), "live estimates"
+                    )
                     code, status = await fly_mission(ctx, tg, p)
                 except FlightError as e:
                     code, status = e.code, f"failed: {e}"
@@ -276,7 +337,9 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
                     else:
                         ctx.event("error", str(e), warn=True)
                         await safe_return(ctx, p.action)
-                except Exception as e:  # a bug must not leave the vehicle without a plan, nor lose the log
+                except (
+                    Exception
+                ) as e:  # a bug must not leave the vehicle without a plan, nor lose the log
                     code, status = EXIT_FAILED, f"failed: {type(e).__name__}: {e}"
                     ctx.event("error", status, warn=True)
                     await safe_return(ctx, p.action)
@@ -308,14 +371,24 @@ async def prepare(ctx: FlightContext, p: Plugins):
 
     spec, opts = ctx.spec, ctx.opts
     ctx.status.stage = "waiting for position and home"
-    await race(ctx, tasks.healthy(p.telemetry), timeout=opts.connect_timeout_s, what="a healthy position and home")
+    await race(
+        ctx,
+        tasks.healthy(p.telemetry),
+        timeout=opts.connect_timeout_s,
+        what="a healthy position and home",
+    )
     ctx.home = await p.telemetry.home()
     check_home(ctx, ctx.home)
-    items = build_items(spec, (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
-                        ctx.ardupilot)
+    items = build_items(
+        spec,
+        (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
+        ctx.ardupilot,
+    )
     n_wp = len(spec.waypoints_enu())
     ctx.status.n_waypoints, ctx.status.waypoint_offset = n_wp, ctx.autopilot.waypoint_offset
-    ctx.phases.configure(ctx.status.waypoint_offset, len(items) - 1, final_phase(spec.return_behaviour))
+    ctx.phases.configure(
+        ctx.status.waypoint_offset, len(items) - 1, final_phase(spec.return_behaviour)
+    )
     ctx.rate_requested = opts.rate_hz or auto_rate_hz(ctx.speedup)
     for name in ("set_rate_position", "set_rate_attitude_euler"):
         try:
@@ -325,7 +398,9 @@ async def prepare(ctx: FlightContext, p: Plugins):
     with contextlib.suppress(Exception):
         await p.telemetry.set_rate_landed_state(5.0)
     v_ret = await apply_speeds(ctx, p.param, ctx.ardupilot)  # restored after the flight
-    ctx.budget = start_budget(ctx, v_ret, await vertical_speeds(ctx, p.param, ctx.ardupilot), ctx.ardupilot)
+    ctx.budget = start_budget(
+        ctx, v_ret, await vertical_speeds(ctx, p.param, ctx.ardupilot), ctx.ardupilot
+    )
     if ctx.extension is not None:  # its own checks, now that the autopilot's plan is known (exit 2)
         ctx.extension.check(ctx)
     ctx.status.stage = "uploading"
@@ -341,7 +416,11 @@ def check_home(ctx: FlightContext, home) -> None:
     enu = o.to_enu(home.latitude_deg, home.longitude_deg, home.absolute_altitude_m)
     d = float(np.hypot(enu[0] - ctx.spec.home_enu[0], enu[1] - ctx.spec.home_enu[1]))
     if d > 30.0:
-        ctx.event("home", f"vehicle home is {d:.0f} m from the mission's home; take-off from there", warn=True)
+        ctx.event(
+            "home",
+            f"vehicle home is {d:.0f} m from the mission's home; take-off from there",
+            warn=True,
+        )
 
 
 async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: int) -> None:
@@ -351,24 +430,38 @@ async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: 
 
     spec = ctx.spec
     ctx.log_path = new_flight_dir(ctx.opts.out, spec.name) / "flight.csv"
-    trajectory = (ctx.extension.trajectory_meta() if ctx.extension is not None
-                  else ctx.full_spec.trajectory_meta())
+    trajectory = (
+        ctx.extension.trajectory_meta()
+        if ctx.extension is not None
+        else ctx.full_spec.trajectory_meta()
+    )
     meta = make_meta(
-        spec.field.origin, ctx.source.meta(), ctx.truth, mission=spec.name,
-        mission_file=str(spec.path) if spec.path else None, trajectory=trajectory,
-        connection=url, autopilot=ap_name,
-        speedup_requested=ctx.speedup, telemetry_rate_requested_hz=ctx.rate_requested,
-        status="flying", planned_duration_s=float(report.duration_s),
+        spec.field.origin,
+        ctx.source.meta(),
+        ctx.truth,
+        mission=spec.name,
+        mission_file=str(spec.path) if spec.path else None,
+        trajectory=trajectory,
+        connection=url,
+        autopilot=ap_name,
+        speedup_requested=ctx.speedup,
+        telemetry_rate_requested_hz=ctx.rate_requested,
+        status="flying",
+        planned_duration_s=float(report.duration_s),
     )
     meta["live_estimate"] = estimates.log_meta(ctx)
-    writer = FlightLogWriter(ctx.log_path, meta, extra_columns=PHASE_COLUMNS + ctx.source.extra_columns)
+    writer = FlightLogWriter(
+        ctx.log_path, meta, extra_columns=PHASE_COLUMNS + ctx.source.extra_columns
+    )
     ctx.rows = RowLogger(writer, ctx.source, ctx.tel, ctx.phases, spec.field.origin, ctx.status)
     ctx.rows.on_error = functools.partial(tasks.log_failed, ctx)
     ctx.event("log", f"logging to {ctx.log_path}")
     await ctx.source.start(ctx.tel.clock.now)
     ctx.status.stage = "waiting for the first log row"
     end = asyncio.get_running_loop().time() + FIRST_ROW_TIMEOUT_S
-    while not writer.rows and asyncio.get_running_loop().time() < end:  # log on the ground before arming
+    while (
+        not writer.rows and asyncio.get_running_loop().time() < end
+    ):  # log on the ground before arming
         ctx.abort_before_takeoff()
         ctx.rows.write()
         await asyncio.sleep(0.05)
@@ -472,7 +565,9 @@ async def return_and_land(ctx: FlightContext, action, commanded: bool = True) ->
         await settle_texts(ctx, ctx.speedup)  # the autopilot's last texts before this line
         ctx.event("landed", "landed and disarmed")
     elif ev is None:
-        ctx.event("landed", f"landing not confirmed within {ctx.opts.land_timeout_s:g} s", warn=True)
+        ctx.event(
+            "landed", f"landing not confirmed within {ctx.opts.land_timeout_s:g} s", warn=True
+        )
     await asyncio.sleep(0.3)  # let the last telemetry after touchdown reach the log
 
 
@@ -494,7 +589,9 @@ async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task 
         t.cancel()
     await asyncio.gather(*ctx.tasks, return_exceptions=True)
     await restore_speeds(ctx, param)
-    if ctx.restore_params and ctx.link_dead.is_set():  # not restored (the vehicle may still fly on them)
+    if (
+        ctx.restore_params and ctx.link_dead.is_set()
+    ):  # not restored (the vehicle may still fly on them)
         left = ", ".join(f"{k} (was {v:g})" for k, v in ctx.restore_params.items())
         ctx.event("params", f"autopilot parameters left changed: {left}", warn=True)
         status += f"; parameters left changed: {', '.join(ctx.restore_params)}"
@@ -510,13 +607,21 @@ async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task 
     status = log_status(ctx, status)
     last = ctx.tel.clock.last_measured()
     try:
-        w.close(status=status, events=ctx.st.events, link_lost=any(e["kind"] == "link" for e in ctx.st.events),
-                speedup=summary["speedup_measured"] or ctx.speedup, vehicle_state=ctx.vehicle_state(),
-                last_telemetry_vehicle_s=round(last, 3) if np.isfinite(last) else None,
-                params_left_changed=dict(ctx.restore_params) if ctx.link_dead.is_set() else {}, **summary)
+        w.close(
+            status=status,
+            events=ctx.st.events,
+            link_lost=any(e["kind"] == "link" for e in ctx.st.events),
+            speedup=summary["speedup_measured"] or ctx.speedup,
+            vehicle_state=ctx.vehicle_state(),
+            last_telemetry_vehicle_s=round(last, 3) if np.isfinite(last) else None,
+            params_left_changed=dict(ctx.restore_params) if ctx.link_dead.is_set() else {},
+            **summary,
+        )
     except OSError as e:  # the sidecar itself could not be written (a full disk)
         ctx.status.log_error = ctx.status.log_error or e.strerror or type(e).__name__
-        ctx.event("log", f"sidecar not written ({e.strerror or e}): it may still say flying", warn=True)
+        ctx.event(
+            "log", f"sidecar not written ({e.strerror or e}): it may still say flying", warn=True
+        )
     ctx.display.message(f"log closed: {ctx.log_path} ({w.rows} rows, {status})")
     return status
 
@@ -537,7 +642,9 @@ def print_result(ctx: FlightContext) -> None:
         from mission.localize.api import localize_log
         from mission.localize.uncertainty import describe_region, outer_region
     except ImportError as e:
-        print(f"localizer not available ({e}); run `localize {ctx.log_path}` later", file=sys.stderr)
+        print(
+            f"localizer not available ({e}); run `localize {ctx.log_path}` later", file=sys.stderr
+        )
         return
     try:
         est = localize_log(ctx.log_path)
@@ -546,13 +653,20 @@ def print_result(ctx: FlightContext) -> None:
         return
     model = est.extras.get("model_path")  # which network answered, when one did
     label = est.method + (f" {Path(model).name}" if model else "")
-    lines = [f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f})",
-             f"  method: {label}"]
+    lines = [
+        f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f})",
+        f"  method: {label}",
+    ]
     outer = outer_region(est.extras)
-    lines.append(f"  {100 * outer['level']:.0f} % region: {describe_region(outer, short=True)}" if outer is not None
-                 else "  region: none: no calibration applies to this flight (localize --json: notes)")
+    lines.append(
+        f"  {100 * outer['level']:.0f} % region: {describe_region(outer, short=True)}"
+        if outer is not None
+        else "  region: none: no calibration applies to this flight (localize --json: notes)"
+    )
     if ctx.truth is not None:
         err = float(np.hypot(est.x_m - ctx.truth["x_m"], est.y_m - ctx.truth["y_m"]))
-        lines.append(f"  error: {err:.1f} m (true transmitter at {ctx.truth['x_m']:.1f}, "
-                     f"{ctx.truth['y_m']:.1f} m)")
+        lines.append(
+            f"  error: {err:.1f} m (true transmitter at {ctx.truth['x_m']:.1f}, "
+            f"{ctx.truth['y_m']:.1f} m)"
+        )
     print("\n".join(lines), flush=True)  # the last lines of the run, each within 80 columns

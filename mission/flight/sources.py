@@ -99,10 +99,14 @@ class SimSource(RssSource):
             self.count += len(t)
         return t, None, {}
 
-    def evaluate(self, lat: np.ndarray, lon: np.ndarray, alt: np.ndarray, att_deg: np.ndarray) -> np.ndarray:
+    def evaluate(
+        self, lat: np.ndarray, lon: np.ndarray, alt: np.ndarray, att_deg: np.ndarray
+    ) -> np.ndarray:
         """RSS (dBm) at the logged positions/attitudes (the logged decimals) plus the next noise draws."""
         enu = self.origin.to_enu(lat, lon, alt)
-        rss = np.asarray(self.model.rss_dbm(self.tx, enu, np.deg2rad(att_deg)), dtype=float).reshape(-1)
+        rss = np.asarray(
+            self.model.rss_dbm(self.tx, enu, np.deg2rad(att_deg)), dtype=float
+        ).reshape(-1)
         return rss + self.rng.normal(0.0, self.noise_db, size=rss.shape)
 
     def meta(self) -> dict:
@@ -166,7 +170,9 @@ class FifoSource(_QueueSource):
         super().__init__()
         self.path = Path(path)
         if not self.path.exists():
-            raise InputError("no such file or named pipe", source=str(self.path), field="--rss-source")
+            raise InputError(
+                "no such file or named pipe", source=str(self.path), field="--rss-source"
+            )
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -277,7 +283,8 @@ def parse_source(text: str) -> tuple[str, str | None]:
     kind, _, arg = text.partition(":")
     if kind not in ("sim", "aerpaw-fifo", "udp"):
         raise InputError(
-            f"unknown RSS source {text!r}; use sim, aerpaw-fifo:PATH or udp:[HOST:]PORT", field="--rss-source"
+            f"unknown RSS source {text!r}; use sim, aerpaw-fifo:PATH or udp:[HOST:]PORT",
+            field="--rss-source",
         )
     if kind != "sim" and not arg:
         raise InputError(f"RSS source {kind} needs an argument ({kind}:...)", field="--rss-source")
@@ -301,5 +308,7 @@ def recompute_sim_rss(
     """Offline: the sim source's RSS for a log's rows (same model, tx and generator state) -> (N,)."""
     enu = log.enu()
     att = np.stack([log["roll_deg"], log["pitch_deg"], log["yaw_deg"]], axis=-1)
-    rss = np.asarray(model.rss_dbm(np.asarray(tx_enu, float), enu, np.deg2rad(att)), dtype=float).reshape(-1)
+    rss = np.asarray(
+        model.rss_dbm(np.asarray(tx_enu, float), enu, np.deg2rad(att)), dtype=float
+    ).reshape(-1)
     return rss + seed_rng.normal(0.0, noise_db, size=rss.shape)

@@ -47,10 +47,18 @@ async def apply_speeds(ctx, param, ardupilot: bool) -> float | None:
     try:
         await set_params(param, values, ctx.restore_params)
     except Exception as e:
-        ctx.event("params", f"could not set {', '.join(values)} ({e or type(e).__name__}): return at the "
-                     "autopilot's own speed" + (", maybe tail first" if ardupilot else ""), warn=True)
+        ctx.event(
+            "params",
+            f"could not set {', '.join(values)} ({e or type(e).__name__}): return at the "
+            "autopilot's own speed" + (", maybe tail first" if ardupilot else ""),
+            warn=True,
+        )
         return await _return_speed_now(param, ardupilot)
-    what = "return nose first at the mission's speed" if ardupilot else "cruise and return at the mission's speed"
+    what = (
+        "return nose first at the mission's speed"
+        if ardupilot
+        else "cruise and return at the mission's speed"
+    )
     ctx.event("params", f"{what}: " + ", ".join(f"{k}={v:g}" for k, v in values.items()))
     return cruise
 
@@ -71,16 +79,36 @@ async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
     None (and one line) when they cannot be read: the plan keeps the mission's."""
     try:
         if ardupilot:
-            up, high, dn, land, low = [await _get(param, n) / 100.0 for n in (
-                "WPNAV_SPEED_UP", "LAND_SPEED_HIGH", "WPNAV_SPEED_DN", "LAND_SPEED", "LAND_ALT_LOW")]
+            up, high, dn, land, low = [
+                await _get(param, n) / 100.0
+                for n in (
+                    "WPNAV_SPEED_UP",
+                    "LAND_SPEED_HIGH",
+                    "WPNAV_SPEED_DN",
+                    "LAND_SPEED",
+                    "LAND_ALT_LOW",
+                )
+            ]
             hover = await _get(param, "RTL_LOIT_TIME") / 1000.0
             v = VerticalSpeeds(up, high if high > 0 else dn, land, low, hover)
         else:
-            up, dn, land, low, delay = [await _get(param, n) for n in (
-                "MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2", "RTL_LAND_DELAY")]
-            v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0))  # -1: hovers until told: not planned
+            up, dn, land, low, delay = [
+                await _get(param, n)
+                for n in (
+                    "MPC_TKO_SPEED",
+                    "MPC_Z_V_AUTO_DN",
+                    "MPC_LAND_SPEED",
+                    "MPC_LAND_ALT2",
+                    "RTL_LAND_DELAY",
+                )
+            ]
+            v = VerticalSpeeds(
+                up, dn, land, low, max(delay, 0.0)
+            )  # -1: hovers until told: not planned
     except Exception as e:
-        ctx.event("budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used")
+        ctx.event(
+            "budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used"
+        )
         return None
     return v if v.valid() else None
 

@@ -45,7 +45,9 @@ def on_signal(ctx: FlightContext, name: str) -> None:
     if ctx.abort.is_set():
         if ctx.st.in_air:
             ctx.left_flying = True
-            ctx.event("signal", f"{name} again: landing not awaited; vehicle at {ctx.where()}", warn=True)
+            ctx.event(
+                "signal", f"{name} again: landing not awaited; vehicle at {ctx.where()}", warn=True
+            )
         else:
             ctx.event("signal", f"{name} again: stop waiting for the landing")
         ctx.link_dead.set()
@@ -60,27 +62,43 @@ def on_signal(ctx: FlightContext, name: str) -> None:
     ctx.abort.set()
 
 
-def start_telemetry(ctx: FlightContext, tg: asyncio.TaskGroup, telemetry, mission_raw, direct) -> None:
+def start_telemetry(
+    ctx: FlightContext, tg: asyncio.TaskGroup, telemetry, mission_raw, direct
+) -> None:
     """Subscribe to every stream at once (before arming, so the log starts on the ground)."""
-    for name, coro in (("positions", positions(ctx, direct)), ("attitudes", attitudes(ctx, telemetry)),
-                       ("armed", armed(ctx, telemetry)), ("landed state", landed(ctx, telemetry)),
-                       ("mission progress", progress(ctx, mission_raw)),
-                       ("status texts", status_texts(ctx, telemetry)), ("watchdog", watchdog(ctx))):
+    for name, coro in (
+        ("positions", positions(ctx, direct)),
+        ("attitudes", attitudes(ctx, telemetry)),
+        ("armed", armed(ctx, telemetry)),
+        ("landed state", landed(ctx, telemetry)),
+        ("mission progress", progress(ctx, mission_raw)),
+        ("status texts", status_texts(ctx, telemetry)),
+        ("watchdog", watchdog(ctx)),
+    ):
         spawn(ctx, tg, coro, name)
 
 
 async def positions(ctx: FlightContext, direct) -> None:
     async for m in direct.subscribe_message("GLOBAL_POSITION_INT"):
         f = json.loads(m.fields_json)
-        ctx.tel.add_position(f["time_boot_ms"] / 1000.0, f["lat"] * 1e-7, f["lon"] * 1e-7, f["alt"] / 1000.0,
-                             f["relative_alt"] / 1000.0)
+        ctx.tel.add_position(
+            f["time_boot_ms"] / 1000.0,
+            f["lat"] * 1e-7,
+            f["lon"] * 1e-7,
+            f["alt"] / 1000.0,
+            f["relative_alt"] / 1000.0,
+        )
         ctx.status.rel_alt = f["relative_alt"] / 1000.0
 
 
 async def attitudes(ctx: FlightContext, telemetry) -> None:
     async for a in telemetry.subscribe_attitude_euler():
-        ctx.tel.add_attitude(a.timestamp_us / 1e6, np.deg2rad(a.roll_deg), np.deg2rad(a.pitch_deg),
-                             np.deg2rad(a.yaw_deg))
+        ctx.tel.add_attitude(
+            a.timestamp_us / 1e6,
+            np.deg2rad(a.roll_deg),
+            np.deg2rad(a.pitch_deg),
+            np.deg2rad(a.yaw_deg),
+        )
 
 
 async def armed(ctx: FlightContext, telemetry) -> None:
@@ -154,12 +172,25 @@ def log_failed(ctx: FlightContext, error: OSError) -> None:
     ctx.status.log_error = why
     w = ctx.rows.writer
     keep_flying = ctx.spec.on_write_error == "continue"
-    then = ("flying on (logging.on_write_error: continue)" if keep_flying
-            else "returning to launch" if ctx.st.was_in_air else "stopping")
+    then = (
+        "flying on (logging.on_write_error: continue)"
+        if keep_flying
+        else "returning to launch"
+        if ctx.st.was_in_air
+        else "stopping"
+    )
     ctx.event("log", f"log write failed ({why}): {w.rows} rows kept; {then}", warn=True)
-    with contextlib.suppress(OSError):  # a full disk may refuse the sidecar too: the line above still said it
-        w.update_meta(log_error={"error": why, "rows_kept": w.rows, "policy": ctx.spec.on_write_error,
-                                 "t_vehicle_s": ctx.st.events[-1]["t_vehicle_s"]})
+    with contextlib.suppress(
+        OSError
+    ):  # a full disk may refuse the sidecar too: the line above still said it
+        w.update_meta(
+            log_error={
+                "error": why,
+                "rows_kept": w.rows,
+                "policy": ctx.spec.on_write_error,
+                "t_vehicle_s": ctx.st.events[-1]["t_vehicle_s"],
+            }
+        )
     if not keep_flying and not ctx.abort.is_set():
         ctx.abort_reason = "log write failed"
         ctx.abort.set()
@@ -178,7 +209,9 @@ async def watchdog(ctx: FlightContext) -> None:
         if ctx.st.was_armed and (s.t_start is None or not np.isfinite(s.t_start)):
             s.t_start = s.t_now if ctx.tel.n_pos else None
         if ctx.display is not None:
-            with contextlib.suppress(OSError, ValueError):  # a lost terminal must not stop the watchdog
+            with contextlib.suppress(
+                OSError, ValueError
+            ):  # a lost terminal must not stop the watchdog
                 ctx.display.refresh()
 
 
@@ -186,7 +219,9 @@ def _watch_link(ctx: FlightContext) -> None:
     silent = ctx.tel.clock.silent_for()
     if ctx.tel.n_pos and silent > LINK_LOST_AFTER_S and not ctx.link_lost:
         ctx.link_lost = ctx.status.link_lost = True
-        ctx.event("link", f"MAVLink link lost (no telemetry for {silent:.0f} s); still logging", warn=True)
+        ctx.event(
+            "link", f"MAVLink link lost (no telemetry for {silent:.0f} s); still logging", warn=True
+        )
     elif ctx.link_lost and silent < 1.0:
         ctx.link_lost = ctx.status.link_lost = False
         if ctx.sdklog is not None:

@@ -30,8 +30,37 @@ from mission.flightlog.schema import (
     make_meta,
     sidecar_path,
 )
-from mission.flightlog.write import DEFAULT_DIGITS, DIGITS, FlightLogWriter, format_rows, rounded, write_flight_log
+from mission.flightlog.write import (
+    DEFAULT_DIGITS,
+    DIGITS,
+    FlightLogWriter,
+    format_rows,
+    rounded,
+    write_flight_log,
+)
 
-__all__ = ["ADAPTIVE", "COLUMNS", "DEFAULT_DIGITS", "DIGITS", "FLOWN_PHASES", "GROUND", "LAND", "MISSION", "OPTIONAL",
-           "PHASES", "PHASE_COLUMNS", "REQUIRED", "RETURN", "TAKEOFF", "WARNING", "FlightLog", "FlightLogWriter",
-           "format_rows", "make_meta", "read_flight_log", "rounded", "sidecar_path", "write_flight_log"]
+__all__ = [
+    "ADAPTIVE",
+    "COLUMNS",
+    "DEFAULT_DIGITS",
+    "DIGITS",
+    "FLOWN_PHASES",
+    "GROUND",
+    "LAND",
+    "MISSION",
+    "OPTIONAL",
+    "PHASES",
+    "PHASE_COLUMNS",
+    "REQUIRED",
+    "RETURN",
+    "TAKEOFF",
+    "WARNING",
+    "FlightLog",
+    "FlightLogWriter",
+    "format_rows",
+    "make_meta",
+    "read_flight_log",
+    "rounded",
+    "sidecar_path",
+    "write_flight_log",
+]

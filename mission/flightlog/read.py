@@ -14,7 +14,15 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.flightlog.schema import COLUMNS, OPTIONAL, REQUIRED, RSS_RANGE_DB, WARNING, FlightLog, sidecar_path
+from mission.flightlog.schema import (
+    COLUMNS,
+    OPTIONAL,
+    REQUIRED,
+    RSS_RANGE_DB,
+    WARNING,
+    FlightLog,
+    sidecar_path,
+)
 from mission.geo import Origin, latlon_unit_problem
 
 
@@ -32,7 +40,9 @@ def _parse_column(values: list[str], name: str, source: str, allow_empty: bool) 
             try:
                 float(v)
             except ValueError:
-                raise InputError(f"not a number: {v!r}", source=source, row=i + 2, field=name) from None
+                raise InputError(
+                    f"not a number: {v!r}", source=source, row=i + 2, field=name
+                ) from None
         raise
     if not allow_empty and np.isnan(out).any():
         row = int(np.argmax(np.isnan(out))) + 2
@@ -57,10 +67,15 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     src = str(path)
     if path.is_dir():
         some = ", ".join(p.name for p in sorted(path.glob("*.csv"))[:3])
-        raise InputError(f"is a directory, not a flight-log CSV{f' (it holds {some})' if some else ''}", source=src)
+        raise InputError(
+            f"is a directory, not a flight-log CSV{f' (it holds {some})' if some else ''}",
+            source=src,
+        )
     check_regular(path, "flight log")  # a FIFO or /dev/zero would block or never end
     try:
-        text = read_bytes(path, "flight log").decode("utf-8-sig")  # a spreadsheet's BOM is not part of "t_s"
+        text = read_bytes(path, "flight log").decode(
+            "utf-8-sig"
+        )  # a spreadsheet's BOM is not part of "t_s"
     except UnicodeDecodeError:
         raise InputError("not a text CSV file", source=src) from None
     notes: list[str] = []
@@ -71,8 +86,10 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
         raise InputError("empty file (no header)", source=src) from None
     missing = [c for c in REQUIRED if c not in header]
     if missing:
-        raise InputError(f"missing required column(s) {', '.join(missing)}; header is {','.join(header)}",
-                         source=src)
+        raise InputError(
+            f"missing required column(s) {', '.join(missing)}; header is {','.join(header)}",
+            source=src,
+        )
     text, cut = _drop_cut_last_line(text, header, _written_here(path))
     if cut:
         notes.append(cut)
@@ -98,7 +115,9 @@ def _written_here(path: Path) -> bool:
         return False
 
 
-def _drop_cut_last_line(text: str, header: list[str], newline_ends_rows: bool = False) -> tuple[str, str | None]:
+def _drop_cut_last_line(
+    text: str, header: list[str], newline_ends_rows: bool = False
+) -> tuple[str, str | None]:
     """Drop a last line cut short (fields missing, a required value empty or unreadable, or, in a log this
     project wrote, no line end) and say so.
 
@@ -128,8 +147,10 @@ def _drop_cut_last_line(text: str, header: list[str], newline_ends_rows: bool = 
                 break
     if reason is None:
         return text, None
-    return ("\n".join(lines[:-1]) + "\n",
-            f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger stops mid-write")
+    return (
+        "\n".join(lines[:-1]) + "\n",
+        f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger stops mid-write",
+    )
 
 
 def _fast_parse(text: str, header: list[str]) -> dict[str, np.ndarray] | None:
@@ -157,8 +178,12 @@ def _fast_parse(text: str, header: list[str]) -> dict[str, np.ndarray] | None:
     columns: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
         values = table[:, j] if table is not None else _as_float(num[:, j])
-        if values is None and name not in COLUMNS:  # blank fields padded with spaces still read as NaN
-            values = _as_float(np.where(np.char.strip(raw[:, j].astype(str)) == "", "nan", raw[:, j]))
+        if (
+            values is None and name not in COLUMNS
+        ):  # blank fields padded with spaces still read as NaN
+            values = _as_float(
+                np.where(np.char.strip(raw[:, j].astype(str)) == "", "nan", raw[:, j])
+            )
         if values is None:
             if name in COLUMNS:
                 return None
@@ -196,7 +221,9 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
         except InputError:
             if name in COLUMNS:
                 raise
-            columns[name] = np.array(cols_text[j], dtype=object)  # extra non-numeric column: keep as text
+            columns[name] = np.array(
+                cols_text[j], dtype=object
+            )  # extra non-numeric column: keep as text
     return columns, len(rows)
 
 
@@ -204,69 +231,116 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
 _ABS_LIMITS = {"alt_m": 20000.0, "rel_alt_m": 20000.0}
 
 
-def _validated(columns: dict[str, np.ndarray], path: Path, src: str, notes: list[str] | None = None,
-               origin: Origin | None = None) -> FlightLog:
+def _validated(
+    columns: dict[str, np.ndarray],
+    path: Path,
+    src: str,
+    notes: list[str] | None = None,
+    origin: Origin | None = None,
+) -> FlightLog:
     """Check time order, units and ranges; attach the sidecar; drop repeated timestamps with a note."""
     notes = [] if notes is None else notes
     t = columns["t_s"]
     bad = np.flatnonzero(np.diff(t) < 0)
     if bad.size:
         i = int(bad[0]) + 1
-        raise InputError(f"time goes backwards ({t[i - 1]} then {t[i]})", source=src, row=i + 2, field="t_s")
+        raise InputError(
+            f"time goes backwards ({t[i - 1]} then {t[i]})", source=src, row=i + 2, field="t_s"
+        )
     lat, lon = columns["lat_deg"], columns["lon_deg"]
     for name, arr, lim in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
         badv = np.flatnonzero(np.abs(arr) > lim)
         if badv.size:
-            raise InputError(f"{arr[badv[0]]} is outside +-{lim} degrees (wrong units?)", source=src,
-                             row=int(badv[0]) + 2, field=name)
+            raise InputError(
+                f"{arr[badv[0]]} is outside +-{lim} degrees (wrong units?)",
+                source=src,
+                row=int(badv[0]) + 2,
+                field=name,
+            )
     for name, lim in (("roll_deg", 180.0), ("pitch_deg", 180.0), ("yaw_deg", 3600.0)):
         badv = np.flatnonzero(np.abs(np.nan_to_num(columns[name])) > lim)
         if badv.size:
-            raise InputError(f"{columns[name][badv[0]]:g} is outside +-{lim:g} degrees (radians given?)", source=src,
-                             row=int(badv[0]) + 2, field=name)
+            raise InputError(
+                f"{columns[name][badv[0]]:g} is outside +-{lim:g} degrees (radians given?)",
+                source=src,
+                row=int(badv[0]) + 2,
+                field=name,
+            )
     lo, hi = RSS_RANGE_DB
-    badv = np.flatnonzero(~((columns["rss_dbm"] >= lo) & (columns["rss_dbm"] <= hi)) & ~np.isnan(columns["rss_dbm"]))
+    badv = np.flatnonzero(
+        ~((columns["rss_dbm"] >= lo) & (columns["rss_dbm"] <= hi)) & ~np.isnan(columns["rss_dbm"])
+    )
     if badv.size:
-        raise InputError(f"{columns['rss_dbm'][badv[0]]:g} dB is not a plausible receiver reading "
-                         f"(expected {lo:g}..{hi:g})", source=src, row=int(badv[0]) + 2, field="rss_dbm")
+        raise InputError(
+            f"{columns['rss_dbm'][badv[0]]:g} dB is not a plausible receiver reading "
+            f"(expected {lo:g}..{hi:g})",
+            source=src,
+            row=int(badv[0]) + 2,
+            field="rss_dbm",
+        )
     for name, lim in _ABS_LIMITS.items():
         badv = np.flatnonzero(np.abs(columns[name]) > lim)
         if badv.size:
-            raise InputError(f"{columns[name][badv[0]]:g} is not a plausible value (|value| > {lim:g})", source=src,
-                             row=int(badv[0]) + 2, field=name)
+            raise InputError(
+                f"{columns[name][badv[0]]:g} is not a plausible value (|value| > {lim:g})",
+                source=src,
+                row=int(badv[0]) + 2,
+                field=name,
+            )
     meta = _read_sidecar(path, notes, origin_given=origin is not None)
     if origin is not None:
         if "origin" in meta:
             notes.append("the origin given replaces the sidecar's")
         meta["origin"] = origin.to_dict()
-    problem = latlon_unit_problem(lat, lon, Origin.from_dict(meta["origin"]) if "origin" in meta else None)
+    problem = latlon_unit_problem(
+        lat, lon, Origin.from_dict(meta["origin"]) if "origin" in meta else None
+    )
     if problem:
         raise InputError(problem[1], source=src, row=problem[0] + 2, field="lat_deg")
     dup = np.diff(t) == 0
     if dup.any():
         keep = np.concatenate([[True], ~dup])
         columns = {k: v[keep] for k, v in columns.items()}
-        notes.append(f"dropped {int(dup.sum())} row(s) whose time repeats the previous row's (first kept), "
-                     f"e.g. row {int(np.argmax(dup)) + 3}")
+        notes.append(
+            f"dropped {int(dup.sum())} row(s) whose time repeats the previous row's (first kept), "
+            f"e.g. row {int(np.argmax(dup)) + 3}"
+        )
     n = len(columns["t_s"])
     if n < 2:
         raise InputError(f"only {n} data row; a flight log needs at least 2", source=src)
     return FlightLog(columns, meta, path, notes)
 
 
-MAX_SIDECAR_BYTES = 10_000_000  # a sidecar with every live estimate of a long flight is well under 1 MB
+MAX_SIDECAR_BYTES = (
+    10_000_000  # a sidecar with every live estimate of a long flight is well under 1 MB
+)
 
 # The sidecar keys the readers use, with the JSON types they expect (dotted: a key inside an object). A value of
 # another type (a string where an object belongs) reached the user as an AttributeError.
 SIDECAR_TYPES: dict[str, tuple[type, ...]] = {
-    "format": (str,), "status": (str,), "mission": (str,), "mission_file": (str,), "rows": (int,),
-    "rss_source": (dict,), "rss_source.kind": (str,), "rss_source.model": (str,), "rss_source.seed": (int,),
+    "format": (str,),
+    "status": (str,),
+    "mission": (str,),
+    "mission_file": (str,),
+    "rows": (int,),
+    "rss_source": (dict,),
+    "rss_source.kind": (str,),
+    "rss_source.model": (str,),
+    "rss_source.seed": (int,),
     "rss_source.model_params": (dict,),
-    "trajectory": (dict,), "trajectory.generator": (str,), "trajectory.params": (dict,),
-    "trajectory.altitude_m": (int, float), "trajectory.adaptive": (bool, dict, str),
-    "live_estimate": (dict,), "live_estimate.method": (str,),
-    "rover_area": (list,), "budget": (dict,), "adaptive": (dict,), "final_estimate": (dict,),
-    "fast_estimate": (dict,), "estimates": (list,),
+    "trajectory": (dict,),
+    "trajectory.generator": (str,),
+    "trajectory.params": (dict,),
+    "trajectory.altitude_m": (int, float),
+    "trajectory.adaptive": (bool, dict, str),
+    "live_estimate": (dict,),
+    "live_estimate.method": (str,),
+    "rover_area": (list,),
+    "budget": (dict,),
+    "adaptive": (dict,),
+    "final_estimate": (dict,),
+    "fast_estimate": (dict,),
+    "estimates": (list,),
 }
 
 
@@ -285,29 +359,51 @@ def check_types(d: dict, types: dict[str, tuple[type, ...]], source: str) -> Non
         if good and isinstance(v, float) and not np.isfinite(v):
             good = False
         if not good:
-            names = " or ".join({dict: "an object", list: "a list", str: "a string", int: "an integer",
-                                 float: "a number", bool: "true/false"}[t] for t in ok)
-            raise InputError(f"expected {names}, got {type(v).__name__} {str(v)[:40]!r}", source=source, field=key)
+            names = " or ".join(
+                {
+                    dict: "an object",
+                    list: "a list",
+                    str: "a string",
+                    int: "an integer",
+                    float: "a number",
+                    bool: "true/false",
+                }[t]
+                for t in ok
+            )
+            raise InputError(
+                f"expected {names}, got {type(v).__name__} {str(v)[:40]!r}",
+                source=source,
+                field=key,
+            )
 
 
 def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> dict:
     """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and key)."""
     sc = sidecar_path(path)
     if not sc.exists():
-        where = ("the origin given" if origin_given else
-                 "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)")
-        notes.append(f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth")
+        where = (
+            "the origin given"
+            if origin_given
+            else "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)"
+        )
+        notes.append(
+            f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth"
+        )
         return {}
     from mission.files import read_text
 
     try:
         meta = json.loads(read_text(sc, "sidecar", max_bytes=MAX_SIDECAR_BYTES))
     except json.JSONDecodeError as e:
-        raise InputError(f"sidecar is not valid JSON ({e.msg} at line {e.lineno})", source=str(sc)) from None
+        raise InputError(
+            f"sidecar is not valid JSON ({e.msg} at line {e.lineno})", source=str(sc)
+        ) from None
     except RecursionError:
         raise InputError("sidecar nested too deeply to be a flight log's", source=str(sc)) from None
     if not isinstance(meta, dict):
-        raise InputError(f"sidecar must be a JSON object, got {type(meta).__name__}", source=str(sc))
+        raise InputError(
+            f"sidecar must be a JSON object, got {type(meta).__name__}", source=str(sc)
+        )
     check_types(meta, SIDECAR_TYPES, str(sc))
 
     def num(d: dict, key: str, where: str, lim: float | None = None, required: bool = True) -> None:
@@ -329,8 +425,11 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
     tr = meta.get("truth")
     if tr:
         if not isinstance(tr, dict):
-            raise InputError("expected {lat_deg, lon_deg, height_m} or {x_m, y_m, z_m}", source=str(sc),
-                             field="truth")
+            raise InputError(
+                "expected {lat_deg, lon_deg, height_m} or {x_m, y_m, z_m}",
+                source=str(sc),
+                field="truth",
+            )
         if "x_m" in tr:
             for k in ("x_m", "y_m", "z_m"):
                 num(tr, k, "truth", 1e6, required=k != "z_m")
@@ -340,9 +439,13 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
         for k in ("z_m", "height_m"):
             num(tr, k, "truth", 1e4, required=False)
             if tr.get(k) is not None and tr[k] < 0:
-                raise InputError(f"transmitter below ground ({tr[k]:g} m)", source=str(sc), field=f"truth.{k}")
+                raise InputError(
+                    f"transmitter below ground ({tr[k]:g} m)", source=str(sc), field=f"truth.{k}"
+                )
     status = meta.get("status")
     if status is not None and status != "completed":
-        notes.append(f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the log may end "
-                     "early or miss part of the pattern")
+        notes.append(
+            f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the log may end "
+            "early or miss part of the pattern"
+        )
     return meta

@@ -15,8 +15,20 @@ from mission import __version__
 from mission.geo import Origin
 from mission.samples import FlightSamples
 
-WARNING = "warning: "  # prefix of a FlightLog note that puts the result in doubt (not just a tidied row)
-COLUMNS = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "roll_deg", "pitch_deg", "yaw_deg", "rss_dbm")
+WARNING = (
+    "warning: "  # prefix of a FlightLog note that puts the result in doubt (not just a tidied row)
+)
+COLUMNS = (
+    "t_s",
+    "lat_deg",
+    "lon_deg",
+    "alt_m",
+    "rel_alt_m",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "rss_dbm",
+)
 # The RSS a log may hold, dB(m): a real receiver's "dBm" is uncalibrated (the AFAR sounder reads up to +33), so
 # "above 0 dBm" is no bound; a value outside this range is a unit or logging error, not a reading (+300 passed).
 RSS_RANGE_DB = (-250.0, 100.0)
@@ -90,16 +102,25 @@ class FlightLog:
         tx = self.meta.get("truth")
         if not tx:
             return None
-        if "x_m" in tx:  # exact local coordinates take precedence over lat/lon (no curvature round trip)
+        if (
+            "x_m" in tx
+        ):  # exact local coordinates take precedence over lat/lon (no curvature round trip)
             return np.array([tx["x_m"], tx["y_m"], tx.get("z_m", 0.0)], dtype=float)
         o = self.origin
         enu = o.to_enu(tx["lat_deg"], tx["lon_deg"], o.alt_m + float(tx.get("height_m", 0.0)))
-        enu[2] = float(tx.get("height_m", 0.0))  # height above ground, not above the origin's tangent plane
+        enu[2] = float(
+            tx.get("height_m", 0.0)
+        )  # height above ground, not above the origin's tangent plane
         return enu
 
     def select(self, mask: np.ndarray) -> FlightLog:
         """A new log holding only the rows where ``mask`` is true."""
-        return FlightLog({k: v[mask] for k, v in self.columns.items()}, dict(self.meta), self.path, list(self.notes))
+        return FlightLog(
+            {k: v[mask] for k, v in self.columns.items()},
+            dict(self.meta),
+            self.path,
+            list(self.notes),
+        )
 
     def samples(self, origin: Origin | None = None) -> FlightSamples:
         """The log as ``FlightSamples`` (positions in ``origin``'s ENU frame, the log's own by default).
@@ -109,16 +130,25 @@ class FlightLog:
         phase = self.columns.get("phase")
         own = origin is None or origin == self.origin
         return FlightSamples(
-            enu_m=self.enu(origin), rss_dbm=np.asarray(self["rss_dbm"], dtype=float),
-            attitude_rad=self.attitude_rad, t_s=np.asarray(self["t_s"], dtype=float),
+            enu_m=self.enu(origin),
+            rss_dbm=np.asarray(self["rss_dbm"], dtype=float),
+            attitude_rad=self.attitude_rad,
+            t_s=np.asarray(self["t_s"], dtype=float),
             phase=phase if phase is not None and phase.dtype.kind in "OUS" else None,
-            tx_enu_m=self.truth_enu if own else None, name=self.label, meta=dict(self.meta))
+            tx_enu_m=self.truth_enu if own else None,
+            name=self.label,
+            meta=dict(self.meta),
+        )
 
 
 def make_meta(origin: Origin, rss_source: dict, truth: dict | None = None, **extra) -> dict:
     """Sidecar metadata in the project's layout (``rss_source`` e.g. {"kind": "sim", "model": "e2r", "seed": 1})."""
-    meta = {"format": "rfsl-flight-log/1", "software_version": __version__, "origin": origin.to_dict(),
-            "rss_source": rss_source}
+    meta = {
+        "format": "rfsl-flight-log/1",
+        "software_version": __version__,
+        "origin": origin.to_dict(),
+        "rss_source": rss_source,
+    }
     if truth is not None:
         meta["truth"] = truth
     meta.update(extra)

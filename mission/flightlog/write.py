@@ -22,14 +22,26 @@ def _fmt(a: np.ndarray, digits: int) -> np.ndarray:
     return np.where(np.isnan(a), "", s)
 
 
-DIGITS = {"t_s": 4, "lat_deg": 9, "lon_deg": 9, "alt_m": 3, "rel_alt_m": 3, "roll_deg": 3,
-          "pitch_deg": 3, "yaw_deg": 3, "rss_dbm": 4, "mission_item": 0}
+DIGITS = {
+    "t_s": 4,
+    "lat_deg": 9,
+    "lon_deg": 9,
+    "alt_m": 3,
+    "rel_alt_m": 3,
+    "roll_deg": 3,
+    "pitch_deg": 3,
+    "yaw_deg": 3,
+    "rss_dbm": 4,
+    "mission_item": 0,
+}
 DEFAULT_DIGITS = 6
 
 
 def rounded(values, column: str) -> np.ndarray:
     """``values`` rounded exactly as the log writes ``column`` (decimal text read back): logged == used."""
-    return np.char.mod(f"%.{DIGITS.get(column, DEFAULT_DIGITS)}f", np.asarray(values, dtype=float)).astype(float)
+    return np.char.mod(
+        f"%.{DIGITS.get(column, DEFAULT_DIGITS)}f", np.asarray(values, dtype=float)
+    ).astype(float)
 
 
 def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
@@ -149,7 +161,9 @@ class FlightLogWriter:
         self.close()
 
 
-def write_flight_log(path: str | Path, columns: dict[str, np.ndarray], meta: dict, overwrite: bool = False) -> Path:
+def write_flight_log(
+    path: str | Path, columns: dict[str, np.ndarray], meta: dict, overwrite: bool = False
+) -> Path:
     """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond ``COLUMNS``
     (such as ``PHASE_COLUMNS``) are written after them in the dict's order.
 

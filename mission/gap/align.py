@@ -30,29 +30,40 @@ SEGMENTS = ("climb", "cruise", "turn", "descent")
 class Alignment:
     """Per-sample geometry of one flight w.r.t. its transmitter (arrays of length N, angles in radians)."""
 
-    d_h: np.ndarray          # horizontal distance UAV-transmitter (m)
-    d_3d: np.ndarray         # direct-ray length (m)
-    az_b: np.ndarray         # body azimuth of the transmitter, [0, 2 pi), 0 = nose, clockwise
-    dep_b: np.ndarray        # body depression of the transmitter, positive below the body plane
-    az_world: np.ndarray     # compass bearing of the UAV seen from the transmitter, [0, 2 pi)
-    elev: np.ndarray         # elevation of the UAV seen from the transmitter (level frame)
-    grazing: np.ndarray      # grazing angle of the ground-reflected ray (image method)
-    tilt: np.ndarray         # attitude magnitude: angle between body z and the vertical
-    segment: np.ndarray      # index into SEGMENTS (climb, cruise, turn, descent)
-    x: np.ndarray            # UAV east (m)
-    y: np.ndarray            # UAV north (m)
-    h: np.ndarray            # UAV height (m)
+    d_h: np.ndarray  # horizontal distance UAV-transmitter (m)
+    d_3d: np.ndarray  # direct-ray length (m)
+    az_b: np.ndarray  # body azimuth of the transmitter, [0, 2 pi), 0 = nose, clockwise
+    dep_b: np.ndarray  # body depression of the transmitter, positive below the body plane
+    az_world: np.ndarray  # compass bearing of the UAV seen from the transmitter, [0, 2 pi)
+    elev: np.ndarray  # elevation of the UAV seen from the transmitter (level frame)
+    grazing: np.ndarray  # grazing angle of the ground-reflected ray (image method)
+    tilt: np.ndarray  # attitude magnitude: angle between body z and the vertical
+    segment: np.ndarray  # index into SEGMENTS (climb, cruise, turn, descent)
+    x: np.ndarray  # UAV east (m)
+    y: np.ndarray  # UAV north (m)
+    h: np.ndarray  # UAV height (m)
 
     def as_dict(self) -> dict[str, np.ndarray]:
         """The binnable variables by name (angles in degrees, for people)."""
-        return {"distance_m": self.d_h, "depression_deg": np.rad2deg(self.dep_b),
-                "body_azimuth_deg": np.rad2deg(self.az_b), "world_azimuth_deg": np.rad2deg(self.az_world),
-                "attitude_deg": np.rad2deg(self.tilt), "grazing_deg": np.rad2deg(self.grazing),
-                "height_m": self.h}
+        return {
+            "distance_m": self.d_h,
+            "depression_deg": np.rad2deg(self.dep_b),
+            "body_azimuth_deg": np.rad2deg(self.az_b),
+            "world_azimuth_deg": np.rad2deg(self.az_world),
+            "attitude_deg": np.rad2deg(self.tilt),
+            "grazing_deg": np.rad2deg(self.grazing),
+            "height_m": self.h,
+        }
 
 
-def flight_segment(t_s: np.ndarray, rx_enu: np.ndarray, yaw_rad: np.ndarray, vz_thresh: float = 0.7,
-                 turn_thresh_deg_s: float = 12.0, smooth_s: float = 1.0) -> np.ndarray:
+def flight_segment(
+    t_s: np.ndarray,
+    rx_enu: np.ndarray,
+    yaw_rad: np.ndarray,
+    vz_thresh: float = 0.7,
+    turn_thresh_deg_s: float = 12.0,
+    smooth_s: float = 1.0,
+) -> np.ndarray:
     """Flight segment per sample (index into SEGMENTS): climb/descent by vertical speed, turn by yaw rate, else cruise.
 
     Rates are taken from telemetry smoothed over ``smooth_s`` (GPS heights are noisy at 30 Hz).
@@ -93,10 +104,14 @@ def align(flight: FlightSamples) -> Alignment:
     grazing = elevation(h_r + h_t, d_2d)  # grazing angle psi, as in PropagationModel.explain
     tilt = np.arccos(np.clip(np.cos(att[:, 0]) * np.cos(att[:, 1]), -1.0, 1.0))
     seg = flight_segment(flight.t_s, rx, att[:, 2])
-    return Alignment(d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, seg, rx[:, 0], rx[:, 1], rx[:, 2])
+    return Alignment(
+        d_h, d_3d, az_b, dep_b, az_world, elev, grazing, tilt, seg, rx[:, 0], rx[:, 1], rx[:, 2]
+    )
 
 
-def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = None) -> FlightSamples:
+def flight_from_log(
+    log, tx_enu: np.ndarray | None = None, name: str | None = None
+) -> FlightSamples:
     """A ``mission.flightlog.FlightLog``'s samples ready for diagnosis: truth from the sidecar unless given,
     attitude required (NaN read as 0), samples without RSS dropped, named after the file's stem."""
     from mission.errors import InputError
@@ -104,13 +119,21 @@ def flight_from_log(log, tx_enu: np.ndarray | None = None, name: str | None = No
     src = str(log.path) if log.path is not None else (name or "log")
     tx = tx_enu if tx_enu is not None else log.truth_enu
     if tx is None:
-        raise InputError("no transmitter truth: give --truth LAT,LON or a sidecar with 'truth'", source=src)
+        raise InputError(
+            "no transmitter truth: give --truth LAT,LON or a sidecar with 'truth'", source=src
+        )
     s = log.samples()
     if s.attitude_rad is None:
-        raise InputError("the log has no attitude (roll/pitch/yaw); the gap diagnosis needs it", source=src)
+        raise InputError(
+            "the log has no attitude (roll/pitch/yaw); the gap diagnosis needs it", source=src
+        )
     nm = name or (log.path.stem if log.path is not None else "flight")
-    f = replace(s, attitude_rad=np.where(np.isnan(s.attitude_rad), 0.0, s.attitude_rad),
-                tx_enu_m=np.asarray(tx, dtype=float), name=nm)
+    f = replace(
+        s,
+        attitude_rad=np.where(np.isnan(s.attitude_rad), 0.0, s.attitude_rad),
+        tx_enu_m=np.asarray(tx, dtype=float),
+        name=nm,
+    )
     return f.select(np.isfinite(f.rss_dbm))
 
 
@@ -124,7 +147,9 @@ def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[FlightSamples]
     out = []
     for team in (288, 328):
         for loc in (1, 2, 3):
-            res = convert_afar_mat(Path(mat_dir) / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc])
+            res = convert_afar_mat(
+                Path(mat_dir) / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc]
+            )
             f = flight_from_log(res.log, name=f"{team}-loc{loc}")
             out.append(f.select(f.enu_m[:, 2] > min_height_m))
     return out

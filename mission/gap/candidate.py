@@ -17,7 +17,15 @@ from mission.gap.pipeline import Pipeline
 TIER_NAMED, TIER_FREEFORM, TIER_SMOOTHER = "named", "free-form", "smoother"
 # candidates fixed to the UAV's body (its angles) and to the ground: when one of each explains a residual,
 # ``mission.gap.frame`` tests which holds out across headings
-FRAME_BODY = ("leg_shadowing", "rx_gain_map", "near_nadir", "rx_pattern", "rx_mounting", "attitude", "yaw_attitude")
+FRAME_BODY = (
+    "leg_shadowing",
+    "rx_gain_map",
+    "near_nadir",
+    "rx_pattern",
+    "rx_mounting",
+    "attitude",
+    "yaw_attitude",
+)
 FRAME_GROUND = ("spatial_shadowing", "site_map")
 
 
@@ -47,9 +55,15 @@ class Candidate:
     applicable: Callable[[Pipeline], bool]
     withhold: Callable[[Pipeline], Pipeline]
     choices: Callable[[Pipeline], Sequence[dict[str, Any]]] = field(default=lambda p: ({},))
-    post_only: bool = False  # only changes the post-processing (the channel prediction can be cached)
-    direct_fit: Callable[..., tuple[Pipeline, dict[str, Any]]] | None = None  # (pipe, flights, idx, resid, rng, cfg)
-    params_of: Callable[[Pipeline], tuple[Param, ...]] | None = None  # parameters that depend on the pipeline
+    post_only: bool = (
+        False  # only changes the post-processing (the channel prediction can be cached)
+    )
+    direct_fit: Callable[..., tuple[Pipeline, dict[str, Any]]] | None = (
+        None  # (pipe, flights, idx, resid, rng, cfg)
+    )
+    params_of: Callable[[Pipeline], tuple[Param, ...]] | None = (
+        None  # parameters that depend on the pipeline
+    )
     tier: str = TIER_NAMED
 
     def params_for(self, p: Pipeline) -> tuple[Param, ...]:

@@ -68,14 +68,26 @@ class Diagnosis:
     localization: list[dict[str, Any]]
     block_lens: list[int]
     config: dict[str, Any]
-    structure: dict[str, Any] = field(default_factory=dict)   # residual structure: "base" and "final" rungs
-    footprints: dict[str, Any] = field(default_factory=dict)  # per added rung: size (dB) and where it acts
-    near_nadir: dict[str, Any] = field(default_factory=dict)  # what the data can show below the UAV (nadir.py)
-    time_power: dict[str, Any] = field(default_factory=dict)  # what the data can show along time (temporal.py)
-    frames: dict[str, Any] = field(default_factory=dict)      # rung label -> ground- or body-fixed test (frame.py)
+    structure: dict[str, Any] = field(
+        default_factory=dict
+    )  # residual structure: "base" and "final" rungs
+    footprints: dict[str, Any] = field(
+        default_factory=dict
+    )  # per added rung: size (dB) and where it acts
+    near_nadir: dict[str, Any] = field(
+        default_factory=dict
+    )  # what the data can show below the UAV (nadir.py)
+    time_power: dict[str, Any] = field(
+        default_factory=dict
+    )  # what the data can show along time (temporal.py)
+    frames: dict[str, Any] = field(
+        default_factory=dict
+    )  # rung label -> ground- or body-fixed test (frame.py)
 
 
-def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, name: str) -> ModelGap:
+def model_gap(
+    pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, name: str
+) -> ModelGap:
     """Gap of ``pipe`` on all samples with the free constants fitted per flight."""
     res = []
     per = {}
@@ -88,38 +100,82 @@ def model_gap(pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig, 
     return ModelGap(name, per, summarize(pooled).as_dict(), x, q, res)
 
 
-def residual_breakdown(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Sequence[int],
-                       rng: np.random.Generator, n_boot: int = 300) -> list[BinnedResidual]:
+def residual_breakdown(
+    al: Sequence[Alignment],
+    res: Sequence[np.ndarray],
+    block_lens: Sequence[int],
+    rng: np.random.Generator,
+    n_boot: int = 300,
+) -> list[BinnedResidual]:
     """Residual by distance, depression, body/world azimuth, attitude and flight segment, with flagged bins."""
     out = []
     for var, edges in BREAKDOWN_EDGES.items():
         xs = [a.as_dict()[var] for a in al]
         out.append(binned_residual(var, xs, res, edges, block_lens, rng, n_boot))
     segments = [a.segment.astype(float) for a in al]
-    b = binned_residual("segment", segments, res, np.arange(len(SEGMENTS), dtype=float), block_lens, rng, n_boot,
-                        categorical=True)
+    b = binned_residual(
+        "segment",
+        segments,
+        res,
+        np.arange(len(SEGMENTS), dtype=float),
+        block_lens,
+        rng,
+        n_boot,
+        categorical=True,
+    )
     out.append(b)
     return out
 
 
-def field_map(al: Sequence[Alignment], res: Sequence[np.ndarray], block_lens: Sequence[int],
-              rng: np.random.Generator, cell_m: float = 20.0, n_boot: int = 200) -> dict[str, Any]:
+def field_map(
+    al: Sequence[Alignment],
+    res: Sequence[np.ndarray],
+    block_lens: Sequence[int],
+    rng: np.random.Generator,
+    cell_m: float = 20.0,
+    n_boot: int = 200,
+) -> dict[str, Any]:
     """Mean residual on a grid of ``cell_m`` cells over the field, with block-bootstrap flags per cell."""
     x = np.concatenate([a.x for a in al])
     y = np.concatenate([a.y for a in al])
     x0, y0 = np.floor(x.min() / cell_m) * cell_m, np.floor(y.min() / cell_m) * cell_m
     nx = int(np.ceil((x.max() - x0) / cell_m)) + 1
     ny = int(np.ceil((y.max() - y0) / cell_m)) + 1
-    cells = [((np.floor((a.y - y0) / cell_m)) * nx + np.floor((a.x - x0) / cell_m)).astype(float) for a in al]
-    b = binned_residual("cell", cells, res, np.arange(nx * ny, dtype=float), block_lens, rng, n_boot,
-                        min_count=20, categorical=True)
-    return {"x0": float(x0), "y0": float(y0), "cell_m": cell_m, "nx": nx, "ny": ny,
-            "mean_db": b.mean.reshape(ny, nx), "count": b.count.reshape(ny, nx),
-            "flagged": b.flagged.reshape(ny, nx)}
+    cells = [
+        ((np.floor((a.y - y0) / cell_m)) * nx + np.floor((a.x - x0) / cell_m)).astype(float)
+        for a in al
+    ]
+    b = binned_residual(
+        "cell",
+        cells,
+        res,
+        np.arange(nx * ny, dtype=float),
+        block_lens,
+        rng,
+        n_boot,
+        min_count=20,
+        categorical=True,
+    )
+    return {
+        "x0": float(x0),
+        "y0": float(y0),
+        "cell_m": cell_m,
+        "nx": nx,
+        "ny": ny,
+        "mean_db": b.mean.reshape(ny, nx),
+        "count": b.count.reshape(ny, nx),
+        "flagged": b.flagged.reshape(ny, nx),
+    }
 
 
-def localization_cost(rungs: Sequence[Rung], flights: Sequence[FlightSamples], area: Any = None,
-                      step_m: float = 10.0, max_points: int = 1500, split: str = "blocks") -> list[dict[str, Any]]:
+def localization_cost(
+    rungs: Sequence[Rung],
+    flights: Sequence[FlightSamples],
+    area: Any = None,
+    step_m: float = 10.0,
+    max_points: int = 1500,
+    split: str = "blocks",
+) -> list[dict[str, Any]]:
     """Model-based grid-search error per rung and flight (``mission.localize.classical.ModelGridSearch``).
 
     With ``split="flights"`` flight k is localized with the rung fitted without it (fold k): held-out
@@ -131,11 +187,22 @@ def localization_cost(rungs: Sequence[Rung], flights: Sequence[FlightSamples], a
     for rung in rungs:
         row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
         for k, f in enumerate(flights):
-            pipe = rung.pipes[k % len(rung.pipes)] if split == "flights" else rung.pipes[0]  # make_folds' deal
-            rx, att = (f.enu_m, f.attitude_rad) if pipe.time_offset_s == 0 else shifted_geometry(
-                f, f.t_s - pipe.time_offset_s)
-            est = ModelGridSearch(LocalizationModel(pipe, rung.label), tx_height_m=float(f.tx_enu_m[2]), area=area,
-                                  step_m=step_m, max_points=max_points, loss="l2" if area is None else "soft_l1")
+            pipe = (
+                rung.pipes[k % len(rung.pipes)] if split == "flights" else rung.pipes[0]
+            )  # make_folds' deal
+            rx, att = (
+                (f.enu_m, f.attitude_rad)
+                if pipe.time_offset_s == 0
+                else shifted_geometry(f, f.t_s - pipe.time_offset_s)
+            )
+            est = ModelGridSearch(
+                LocalizationModel(pipe, rung.label),
+                tx_height_m=float(f.tx_enu_m[2]),
+                area=area,
+                step_m=step_m,
+                max_points=max_points,
+                loss="l2" if area is None else "soft_l1",
+            )
             e = est.predict(FlightSamples(enu_m=rx, rss_dbm=f.rss_dbm, attitude_rad=att))
             row["errors_m"][f.name] = float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
         errs = np.array(list(row["errors_m"].values()))
@@ -161,8 +228,13 @@ def _rich_progress() -> tuple[Any, Any]:
     """A rich progress bar and the ``(description, done, total)`` callback that drives it."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    bar = Progress(TextColumn("{task.description:<40}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                   TimeElapsedColumn(), transient=False)
+    bar = Progress(
+        TextColumn("{task.description:<40}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+        transient=False,
+    )
     task = bar.add_task("fits", total=1)
 
     def tick(desc: str, done: int, total: int) -> None:
@@ -171,9 +243,19 @@ def _rich_progress() -> tuple[Any, Any]:
     return bar, tick
 
 
-def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Sequence[Candidate], cfg: FitConfig,
-             base_label: str = "base", reference: Sequence[str] = REFERENCE_MODELS, pattern: str = "dipole",
-             max_rungs: int = 6, localize: bool = True, area: Any = None, progress: bool | Any = False) -> Diagnosis:
+def diagnose(
+    flights: Sequence[FlightSamples],
+    base: Pipeline,
+    candidates: Sequence[Candidate],
+    cfg: FitConfig,
+    base_label: str = "base",
+    reference: Sequence[str] = REFERENCE_MODELS,
+    pattern: str = "dipole",
+    max_rungs: int = 6,
+    localize: bool = True,
+    area: Any = None,
+    progress: bool | Any = False,
+) -> Diagnosis:
     """Run the full diagnosis (see the module docstring).
 
     ``cfg.rate_hz`` > 0 first thins every flight to that sample rate (the residual is correlated over
@@ -198,38 +280,90 @@ def diagnose(flights: Sequence[FlightSamples], base: Pipeline, candidates: Seque
         bar, progress = _rich_progress()
         bar.start()
     try:
-        rungs = ladder(base, flights, usable_candidates(candidates, flights, cfg.split), cfg, max_rungs=max_rungs,
-                       label=base_label, progress=progress or None)
+        rungs = ladder(
+            base,
+            flights,
+            usable_candidates(candidates, flights, cfg.split),
+            cfg,
+            max_rungs=max_rungs,
+            label=base_label,
+            progress=progress or None,
+        )
     finally:
         if bar is not None:
             bar.stop()
     loc = localization_cost(rungs, flights, area, split=cfg.split) if localize else []
-    conf = {"split": cfg.split, "n_chunks": cfg.n_chunks, "slope": cfg.slope, "loss": cfg.loss,
-            "alpha": cfg.alpha, "min_rel": cfg.min_rel, "seed": cfg.seed, "rate_hz": cfg.rate_hz,
-            "base": describe_params(base), "candidates": [c.name for c in candidates]}
-    struct = {"base": residual_structure(flights, rungs[0].residuals, rng),
-              "final": residual_structure(flights, rungs[-1].residuals, rng)}
+    conf = {
+        "split": cfg.split,
+        "n_chunks": cfg.n_chunks,
+        "slope": cfg.slope,
+        "loss": cfg.loss,
+        "alpha": cfg.alpha,
+        "min_rel": cfg.min_rel,
+        "seed": cfg.seed,
+        "rate_hz": cfg.rate_hz,
+        "base": describe_params(base),
+        "candidates": [c.name for c in candidates],
+    }
+    struct = {
+        "base": residual_structure(flights, rungs[0].residuals, rng),
+        "final": residual_structure(flights, rungs[-1].residuals, rng),
+    }
     fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
     from mission.gap.power import power_statement
 
     m = max(1, len(rungs[0].ranking))
-    nadir = power_statement([np.rad2deg(a.dep_b) for a in als], rungs[-1].residuals, Ls, make_folds(flights, cfg),
-                            cfg, m, seed=cfg.seed)
+    nadir = power_statement(
+        [np.rad2deg(a.dep_b) for a in als],
+        rungs[-1].residuals,
+        Ls,
+        make_folds(flights, cfg),
+        cfg,
+        m,
+        seed=cfg.seed,
+    )
     nadir["found"] = any(r.added == "near_nadir" for r in rungs)
     from mission.gap.temporal import time_power_statement
 
-    tpow = time_power_statement(flights, rungs[-1].residuals, make_folds(flights, cfg), cfg, m, cfg.split,
-                                seed=cfg.seed)
+    tpow = time_power_statement(
+        flights, rungs[-1].residuals, make_folds(flights, cfg), cfg, m, cfg.split, seed=cfg.seed
+    )
     frames = {r.label: r.frame for r in rungs if r.frame is not None}
-    return Diagnosis(flights, als, base_label, gaps, breakdown, fmap, rungs, loc, Ls, conf, struct, fps, nadir,
-                     tpow, frames)
+    return Diagnosis(
+        flights,
+        als,
+        base_label,
+        gaps,
+        breakdown,
+        fmap,
+        rungs,
+        loc,
+        Ls,
+        conf,
+        struct,
+        fps,
+        nadir,
+        tpow,
+        frames,
+    )
 
 
 def rung_table(d: Diagnosis) -> list[dict[str, Any]]:
     """Per rung: held-out gap pooled and per flight, what was added, fitted parameters."""
     rows = []
     for r in d.rungs:
-        per = {f.name: summarize(x[np.isfinite(x)]).as_dict() for f, x in zip(d.flights, r.residuals, strict=True)}
-        rows.append({"rung": r.label, "added": r.added, "params": r.params, "model": r.describe(),
-                     "pooled": summarize(_pooled(r.residuals)).as_dict(), "per_flight": per})
+        per = {
+            f.name: summarize(x[np.isfinite(x)]).as_dict()
+            for f, x in zip(d.flights, r.residuals, strict=True)
+        }
+        rows.append(
+            {
+                "rung": r.label,
+                "added": r.added,
+                "params": r.params,
+                "model": r.describe(),
+                "pooled": summarize(_pooled(r.residuals)).as_dict(),
+                "per_flight": per,
+            }
+        )
     return rows

@@ -29,27 +29,59 @@ from mission.physics.shadowing import fit_variogram
 from mission.robust import robust_offset
 from mission.samples import FlightSamples
 
-FAMILY_BASE: dict[str, Any] = {"base": "free-space", "attitude": "yaw", "rx_pattern": "isotropic",
-                               "tx_pattern": "isotropic"}
+FAMILY_BASE: dict[str, Any] = {
+    "base": "free-space",
+    "attitude": "yaw",
+    "rx_pattern": "isotropic",
+    "tx_pattern": "isotropic",
+}
 # ladder rung -> family effect (what a model spec can express); None: nothing a spec holds
 FAMILY_EFFECT: dict[str, str | None] = {
-    "rx_pattern": "rx_antenna", "rx_mounting": "rx_antenna", "rx_gain_map": "rx_antenna", "attitude": "rx_antenna",
-    "yaw_attitude": "rx_antenna", "tx_pattern": "tx_antenna", "tx_mounting": "tx_antenna",
-    "tx_gain_map": "tx_antenna", "excess_loss": "path_gain_slope", "path_gain_slope": "path_gain_slope",
-    "ground_reflection": "ground", "leg_shadowing": "leg_shadowing", "spatial_shadowing": "residual",
-    "site_map": "residual", "time_offset": None, "receiver": None, "tx_tilt": None}
+    "rx_pattern": "rx_antenna",
+    "rx_mounting": "rx_antenna",
+    "rx_gain_map": "rx_antenna",
+    "attitude": "rx_antenna",
+    "yaw_attitude": "rx_antenna",
+    "tx_pattern": "tx_antenna",
+    "tx_mounting": "tx_antenna",
+    "tx_gain_map": "tx_antenna",
+    "excess_loss": "path_gain_slope",
+    "path_gain_slope": "path_gain_slope",
+    "ground_reflection": "ground",
+    "leg_shadowing": "leg_shadowing",
+    "spatial_shadowing": "residual",
+    "site_map": "residual",
+    "time_offset": None,
+    "receiver": None,
+    "tx_tilt": None,
+}
 # family effect -> the named candidates fitted per flight, in this order
-EFFECT_FITS: dict[str, tuple[str, ...]] = {"rx_antenna": ("rx_pattern",), "tx_antenna": ("tx_pattern",),
-                                           "path_gain_slope": ("path_gain_slope",), "ground": ("ground_reflection",),
-                                           "leg_shadowing": ("leg_shadowing",)}
+EFFECT_FITS: dict[str, tuple[str, ...]] = {
+    "rx_antenna": ("rx_pattern",),
+    "tx_antenna": ("tx_pattern",),
+    "path_gain_slope": ("path_gain_slope",),
+    "ground": ("ground_reflection",),
+    "leg_shadowing": ("leg_shadowing",),
+}
 EFFECT_ORDER = ("rx_antenna", "tx_antenna", "path_gain_slope", "ground", "leg_shadowing")
 # spec parameter -> physical bounds of its distribution
-BOUNDS = {"path_gain_slope": (-1.5, 5.0), "leg_shadowing_beta": (0.0, 8.0), "ground.eps_r": (1.1, 80.0),
-          "ground.sigma_s_m": (0.0, 1.0), "shadowing_db": (0.0, 30.0), "shadowing_corr_m": (5.0, 400.0),
-          "noise_db": (0.0, 20.0), "offset_db": (-200.0, 200.0)}
+BOUNDS = {
+    "path_gain_slope": (-1.5, 5.0),
+    "leg_shadowing_beta": (0.0, 8.0),
+    "ground.eps_r": (1.1, 80.0),
+    "ground.sigma_s_m": (0.0, 1.0),
+    "shadowing_db": (0.0, 30.0),
+    "shadowing_corr_m": (5.0, 400.0),
+    "noise_db": (0.0, 20.0),
+    "offset_db": (-200.0, 200.0),
+}
 PATTERN_KEYS = ("rx_pattern", "rx_flipped", "tx_pattern", "tx_flipped")
-FIT_SAMPLES = 1200   # samples per fit (the residual is correlated over ~10 s: more add time, not information)
-MIN_HEIGHT_M = 10.0  # airborne samples only: take-off and landing see the rover through the ground clutter
+FIT_SAMPLES = (
+    1200  # samples per fit (the residual is correlated over ~10 s: more add time, not information)
+)
+MIN_HEIGHT_M = (
+    10.0  # airborne samples only: take-off and landing see the rover through the ground clutter
+)
 
 
 def team_of(name: str) -> str:
@@ -76,8 +108,11 @@ def spec_of(pipe: Pipeline) -> dict[str, Any]:
         if pat.startswith("measured"):
             spec[f"{end}_heading_deg"] = float(d.get(f"{end}_heading_deg", 0.0)) % 360.0
     if "eps_r" in d:
-        spec["ground"] = {"eps_r": float(d["eps_r"]), "sigma_s_m": float(d["sigma_s_m"]),
-                          "polarization": str(d["polarization"])}
+        spec["ground"] = {
+            "eps_r": float(d["eps_r"]),
+            "sigma_s_m": float(d["sigma_s_m"]),
+            "polarization": str(d["polarization"]),
+        }
     if "path_gain_n_extra" in d:
         spec["path_gain_slope"] = float(d["path_gain_n_extra"])
     if "beta" in d:
@@ -90,13 +125,28 @@ def base_family_pipeline() -> Pipeline:
 
 
 # continuous spec parameters polished jointly: (key, start grid, simplex step, lo, hi); headings are periodic
-_JOINT = (("rx_heading_deg", (0.0, 90.0, 180.0, 270.0), 15.0, -np.inf, np.inf),   # offsets from the sequential fit
-          ("tx_heading_deg", (0.0, 120.0, 240.0), 20.0, -np.inf, np.inf),
-          ("path_gain_slope", (), 0.3, -1.5, 5.0), ("leg_shadowing_beta", (), 0.3, 0.0, 8.0))
+_JOINT = (
+    (
+        "rx_heading_deg",
+        (0.0, 90.0, 180.0, 270.0),
+        15.0,
+        -np.inf,
+        np.inf,
+    ),  # offsets from the sequential fit
+    ("tx_heading_deg", (0.0, 120.0, 240.0), 20.0, -np.inf, np.inf),
+    ("path_gain_slope", (), 0.3, -1.5, 5.0),
+    ("leg_shadowing_beta", (), 0.3, 0.0, 8.0),
+)
 
 
-def fit_effects(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, effects: Sequence[str], cfg: FitConfig,
-                rng: np.random.Generator) -> Pipeline:
+def fit_effects(
+    pipe: Pipeline,
+    flight: FlightSamples,
+    idx: np.ndarray,
+    effects: Sequence[str],
+    cfg: FitConfig,
+    rng: np.random.Generator,
+) -> Pipeline:
     """The family effects fitted in order on one flight's samples ``idx`` (multi-start fits of ``fit.py``), then
     their continuous parameters polished jointly (``polish``: a heading fitted before the slope is biased).
     An antenna pattern is chosen with its heading fitted for every choice (a measured pattern at a wrong
@@ -113,8 +163,14 @@ def fit_effects(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, effects:
     return polish(pipe, flight, idx, cfg) if effects else pipe
 
 
-def _fit_antenna(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, names: Sequence[str], cfg: FitConfig,
-                 rng: np.random.Generator) -> Pipeline:
+def _fit_antenna(
+    pipe: Pipeline,
+    flight: FlightSamples,
+    idx: np.ndarray,
+    names: Sequence[str],
+    cfg: FitConfig,
+    rng: np.random.Generator,
+) -> Pipeline:
     from mission.gap.fit import decimate, objective
 
     pat = select([names[0]])[0]
@@ -155,8 +211,14 @@ def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfi
     def f(x: np.ndarray) -> float:
         return objective(make(x), [flight], ii, cfg)
 
-    grid = list(itertools.product(*[(spec[k] + np.array(g)) % 360.0 if g else (spec[k],) for k, g, _, _, _ in keys]))
-    x, _ = minimize_from_grid(f, np.array(grid, dtype=float), [j[2] for j in keys], cfg.max_evals, n_starts=2)
+    grid = list(
+        itertools.product(
+            *[(spec[k] + np.array(g)) % 360.0 if g else (spec[k],) for k, g, _, _, _ in keys]
+        )
+    )
+    x, _ = minimize_from_grid(
+        f, np.array(grid, dtype=float), [j[2] for j in keys], cfg.max_evals, n_starts=2
+    )
     new = make(x)
     return new if f(x) <= objective(pipe, [flight], ii, cfg) else pipe
 
@@ -172,21 +234,38 @@ class FlightFit:
     heldout: np.ndarray = field(repr=False)
     variogram: dict[str, float]
     heldout_p90_db: float
-    excluded: str = ""   # why the family's distributions leave this flight out (e.g. a suspect truth label)
+    excluded: str = (
+        ""  # why the family's distributions leave this flight out (e.g. a suspect truth label)
+    )
 
     def as_dict(self) -> dict[str, Any]:
-        d = {"flight": self.name, "team": self.team, "spec": self.spec, "offset_db": self.offset_db,
-             "residual": self.variogram, "heldout_p90_db": self.heldout_p90_db, "n": int(len(self.heldout))}
+        d = {
+            "flight": self.name,
+            "team": self.team,
+            "spec": self.spec,
+            "offset_db": self.offset_db,
+            "residual": self.variogram,
+            "heldout_p90_db": self.heldout_p90_db,
+            "n": int(len(self.heldout)),
+        }
         return d | ({"excluded": self.excluded} if self.excluded else {})
 
 
-def fit_flight(flight: FlightSamples, effects: Sequence[str], cfg: FitConfig, seed: int = 0,
-               label: str | None = None) -> FlightFit:
+def fit_flight(
+    flight: FlightSamples,
+    effects: Sequence[str],
+    cfg: FitConfig,
+    seed: int = 0,
+    label: str | None = None,
+) -> FlightFit:
     """Fit the family effects on one flight; residual structure from two folds of alternate chunks."""
     rng = np.random.default_rng(seed)
     cfg = FitConfig(**{**cfg.__dict__, "fit_max_samples": min(cfg.fit_max_samples, FIT_SAMPLES)})
-    flight = flight.select(flight.enu_m[:, 2] > MIN_HEIGHT_M) if (flight.enu_m[:, 2] > MIN_HEIGHT_M).sum() > 200 \
+    flight = (
+        flight.select(flight.enu_m[:, 2] > MIN_HEIGHT_M)
+        if (flight.enu_m[:, 2] > MIN_HEIGHT_M).sum() > 200
         else flight
+    )
     base = base_family_pipeline()
     every = np.arange(len(flight))
     pipe = fit_effects(base, flight, every, effects, cfg, rng)
@@ -203,33 +282,59 @@ def fit_flight(flight: FlightSamples, effects: Sequence[str], cfg: FitConfig, se
     vg["variogram_sigma_db"] = vg["shadowing_db"]
     vg["shadowing_db"] = float(math.sqrt(max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2, 0.0)))
     vg["sill_db"] = float(math.hypot(vg["variogram_sigma_db"], vg["noise_db"]))
-    return FlightFit(label or flight.name, team_of(label or flight.name), spec_of(pipe), off, held, vg, p90)
+    return FlightFit(
+        label or flight.name, team_of(label or flight.name), spec_of(pipe), off, held, vg, p90
+    )
 
 
-def residual_variogram(flight: FlightSamples, r: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
+def residual_variogram(
+    flight: FlightSamples, r: np.ndarray, rng: np.random.Generator
+) -> dict[str, float]:
     """Gaussian-covariance variogram over space (the covariance ``simulate_rss`` draws): sigma and range; the
     white noise from consecutive samples (half the mean squared difference of neighbours < 10 m apart), not
     from the variogram's nugget, which a fit to 5 m lag bins puts too low (and a re-fit of flights simulated
     with it lower still)."""
     ok = np.isfinite(r)
-    vg = fit_variogram(flight.enu_m[ok, :2], r[ok] - np.mean(r[ok]), rng, kind="gaussian", max_lag=200.0,
-                       n_bins=40, max_points=1500, n_boot=0)
+    vg = fit_variogram(
+        flight.enu_m[ok, :2],
+        r[ok] - np.mean(r[ok]),
+        rng,
+        kind="gaussian",
+        max_lag=200.0,
+        n_bins=40,
+        max_points=1500,
+        n_boot=0,
+    )
     d = np.diff(r)
     step = np.linalg.norm(np.diff(flight.enu_m[:, :2], axis=0), axis=1)
     near = np.isfinite(d) & (step < 10.0)
     noise = float(np.sqrt(0.5 * np.mean(d[near] ** 2))) if near.sum() > 10 else float(vg.nugget_db)
-    return {"shadowing_db": float(vg.sigma_db), "shadowing_corr_m": float(vg.corr_len), "noise_db": noise,
-            "sill_db": float(math.hypot(vg.sigma_db, noise)), "variogram_nugget_db": float(vg.nugget_db)}
+    return {
+        "shadowing_db": float(vg.sigma_db),
+        "shadowing_corr_m": float(vg.corr_len),
+        "noise_db": noise,
+        "sill_db": float(math.hypot(vg.sigma_db, noise)),
+        "variogram_nugget_db": float(vg.nugget_db),
+    }
 
 
 def _spread(vals: Sequence[float], teams: Sequence[str]) -> dict[str, Any]:
     v = np.asarray(vals, dtype=float)
-    out: dict[str, Any] = {"mean": float(v.mean()), "sd": float(v.std(ddof=1)) if len(v) > 1 else 0.0,
-                           "min": float(v.min()), "max": float(v.max()), "per_flight": v.round(4).tolist()}
+    out: dict[str, Any] = {
+        "mean": float(v.mean()),
+        "sd": float(v.std(ddof=1)) if len(v) > 1 else 0.0,
+        "min": float(v.min()),
+        "max": float(v.max()),
+        "per_flight": v.round(4).tolist(),
+    }
     by = {}
     for t in sorted(set(teams)):
         w = v[[k for k, tt in enumerate(teams) if tt == t]]
-        by[t] = {"n": len(w), "mean": float(w.mean()), "sd": float(w.std(ddof=1)) if len(w) > 1 else 0.0}
+        by[t] = {
+            "n": len(w),
+            "mean": float(w.mean()),
+            "sd": float(w.std(ddof=1)) if len(w) > 1 else 0.0,
+        }
     if len(by) > 1:
         out["per_team"] = by
         # between-team share of the spread (what a new team may add beyond a new flight of a known team)
@@ -261,8 +366,13 @@ def _circular(vals: Sequence[float]) -> tuple[Any, dict[str, Any]]:
     return {"dist": "normal", "mean": round(mean, 2), "sd": round(max(sd, 5.0), 2)}, info
 
 
-def build_family(fits: Sequence[FlightFit], effects: Sequence[str], name: str = "family",
-                 source: dict[str, Any] | None = None, not_in_family: Sequence[str] = ()) -> dict[str, Any]:
+def build_family(
+    fits: Sequence[FlightFit],
+    effects: Sequence[str],
+    name: str = "family",
+    source: dict[str, Any] | None = None,
+    not_in_family: Sequence[str] = (),
+) -> dict[str, Any]:
     """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads and intervals.
     Flights marked ``excluded`` are listed in ``per_flight`` but enter no distribution."""
     every = list(fits)
@@ -272,10 +382,14 @@ def build_family(fits: Sequence[FlightFit], effects: Sequence[str], name: str = 
     spreads: dict[str, Any] = {}
     combos: dict[tuple, int] = {}
     for f in fits:
-        key = tuple(f.spec.get(k, False if k.endswith("flipped") else "isotropic") for k in PATTERN_KEYS)
+        key = tuple(
+            f.spec.get(k, False if k.endswith("flipped") else "isotropic") for k in PATTERN_KEYS
+        )
         combos[key] = combos.get(key, 0) + 1
-    variants = [{"p": round(n / len(fits), 6), "spec": dict(zip(PATTERN_KEYS, k, strict=True))}
-                for k, n in sorted(combos.items(), key=lambda kv: -kv[1])]
+    variants = [
+        {"p": round(n / len(fits), 6), "spec": dict(zip(PATTERN_KEYS, k, strict=True))}
+        for k, n in sorted(combos.items(), key=lambda kv: -kv[1])
+    ]
     if variants:
         variants[0]["p"] = round(1.0 - sum(v["p"] for v in variants[1:]), 6)
     for end in ("rx", "tx"):
@@ -305,17 +419,25 @@ def build_family(fits: Sequence[FlightFit], effects: Sequence[str], name: str = 
     p90["pooled"] = float(np.quantile(np.abs(held), 0.9)) if held.size else float("nan")
     sill = _spread([f.variogram["sill_db"] for f in fits], teams)
     spreads["sill_db"] = sill
-    return {"schema": 1, "name": name,
-            "description": "physics family fitted by rfsl gap --family: each ladder effect fitted per flight "
-                           "(airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
-                           "between-team sd; antenna patterns as variants by share of flights), the held-out "
-                           "residual's gaussian variogram per flight (shadowing sigma and range) and white noise "
-                           "(neighbour differences), the offsets; flights with 'excluded' enter no distribution",
-            "source": source or {}, "spec": spec, "variants": variants, "residual": residual,
-            "offset_db": _normal(off, "offset_db"),
-            "effects": list(effects), "not_in_family": list(not_in_family), "spread": spreads,
-            "checks": {"heldout_p90_db": p90, "sill_db": sill, "intervals": intervals(spreads)},
-            "per_flight": [f.as_dict() for f in every]}
+    return {
+        "schema": 1,
+        "name": name,
+        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted per flight "
+        "(airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
+        "between-team sd; antenna patterns as variants by share of flights), the held-out "
+        "residual's gaussian variogram per flight (shadowing sigma and range) and white noise "
+        "(neighbour differences), the offsets; flights with 'excluded' enter no distribution",
+        "source": source or {},
+        "spec": spec,
+        "variants": variants,
+        "residual": residual,
+        "offset_db": _normal(off, "offset_db"),
+        "effects": list(effects),
+        "not_in_family": list(not_in_family),
+        "spread": spreads,
+        "checks": {"heldout_p90_db": p90, "sill_db": sill, "intervals": intervals(spreads)},
+        "per_flight": [f.as_dict() for f in every],
+    }
 
 
 def intervals(spreads: dict[str, Any]) -> dict[str, list[float]]:
@@ -331,21 +453,39 @@ def intervals(spreads: dict[str, Any]) -> dict[str, list[float]]:
     return out
 
 
-def fit_family(flights: Sequence[FlightSamples], effects: Sequence[str], cfg: FitConfig,
-               labels: Sequence[str] | None = None, seed: int = 0, **kw: Any) -> tuple[dict[str, Any], list[FlightFit]]:
+def fit_family(
+    flights: Sequence[FlightSamples],
+    effects: Sequence[str],
+    cfg: FitConfig,
+    labels: Sequence[str] | None = None,
+    seed: int = 0,
+    **kw: Any,
+) -> tuple[dict[str, Any], list[FlightFit]]:
     """Fit ``effects`` on every flight and build the family record (``build_family``)."""
     from mission.gap.fit import _map
     from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
 
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
-    fits = _map(lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]), jobs, cfg.workers,
-                cfg.processes)
+    fits = _map(
+        lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]),
+        jobs,
+        cfg.workers,
+        cfg.processes,
+    )
     for f in fits:
         if is_afar2023_suspect(f.name):
             f.excluded = AFAR2023_SUSPECT_NOTE
     return build_family(fits, effects, **kw), fits
 
 
-__all__ = ["FAMILY_EFFECT", "Fold", "FlightFit", "build_family", "effects_of_ladder", "fit_family", "fit_flight",
-           "team_of"]
+__all__ = [
+    "FAMILY_EFFECT",
+    "Fold",
+    "FlightFit",
+    "build_family",
+    "effects_of_ladder",
+    "fit_family",
+    "fit_flight",
+    "team_of",
+]

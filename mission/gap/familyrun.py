@@ -15,19 +15,31 @@ from mission.gap.fit import FitConfig
 from mission.gap.loopcheck import P90_TOL_DB, calibrate_residual, loop_check
 
 
-def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family", source: dict[str, Any] | None = None,
-                          check: bool = True, repeats: int = 4) -> dict[str, Any]:
+def family_from_diagnosis(
+    d: Any,
+    cfg: FitConfig,
+    name: str = "family",
+    source: dict[str, Any] | None = None,
+    check: bool = True,
+    repeats: int = 4,
+) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per flight; with
     ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on, in ``checks.loop``
     (``repeats`` simulated copies of every track: one copy of five flights scatters by +-1.5 dB in p90)."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
-    rec, fits = fit_family(d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left)
+    rec, fits = fit_family(
+        d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left
+    )
     rec["ladder"] = [r.added for r in d.rungs if r.added]
     if check:
         used = [f for f, ft in zip(d.flights, fits, strict=True) if not ft.excluded]
         lc = loop_check(rec, used, cfg, seed=cfg.seed + 1, repeats=repeats)
-        if not lc["heldout_p90_db"]["within_1db"]:  # recalibrate (secant on the total-std scale), fresh draws
-            rec["checks"]["loop_before_calibration"] = {k: v for k, v in lc.items() if k not in ("draws", "refit")}
+        if not lc["heldout_p90_db"][
+            "within_1db"
+        ]:  # recalibrate (secant on the total-std scale), fresh draws
+            rec["checks"]["loop_before_calibration"] = {
+                k: v for k, v in lc.items() if k not in ("draws", "refit")
+            }
             base_sh = rec["residual"]["shadowing_db"]
             pts = [(1.0, lc["heldout_p90_db"]["sim"])]
             k = calibrate_residual(rec, lc)
@@ -41,7 +53,9 @@ def family_from_diagnosis(d: Any, cfg: FitConfig, name: str = "family", source: 
                 k = k1 + (real - p1) * (k1 - k0) / (p1 - p0) if p1 != p0 else k1 * real / p1
                 rec["residual"]["shadowing_db"] = base_sh
                 calibrate_residual(rec, {"heldout_p90_db": {"real": k, "sim": 1.0}})
-            rec["residual_calibration"].update(shadowing_db_before=base_sh, steps=[list(q) for q in pts])
+            rec["residual_calibration"].update(
+                shadowing_db_before=base_sh, steps=[list(q) for q in pts]
+            )
         rec["checks"]["loop"] = {k: v for k, v in lc.items() if k not in ("draws", "refit")}
         rec["checks"]["loop"]["p90_tolerance_db"] = P90_TOL_DB
     return rec

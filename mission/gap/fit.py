@@ -46,22 +46,28 @@ from mission.samples import FlightSamples
 class FitConfig:
     """Settings of the fits and the significance test."""
 
-    split: str = "blocks"          # blocks | flights
-    n_chunks: int = 8              # contiguous chunks per flight (blocks split)
-    fit_max_samples: int = 3000    # training samples per flight used by the optimiser (evenly decimated)
-    fit_max_total: int = 5000      # ... and in all flights together (many flights: fewer per flight)
-    max_folds: int = 4             # flights split: at most this many folds (groups of whole flights)
-    slope: bool = False            # also fit a per-flight path-gain slope
-    loss: str = "l2"               # l2 | soft_l1
-    f_scale_db: float = 6.0        # soft_l1 scale
-    max_evals: int = 60            # Nelder-Mead evaluations per start
+    split: str = "blocks"  # blocks | flights
+    n_chunks: int = 8  # contiguous chunks per flight (blocks split)
+    fit_max_samples: int = (
+        3000  # training samples per flight used by the optimiser (evenly decimated)
+    )
+    fit_max_total: int = 5000  # ... and in all flights together (many flights: fewer per flight)
+    max_folds: int = 4  # flights split: at most this many folds (groups of whole flights)
+    slope: bool = False  # also fit a per-flight path-gain slope
+    loss: str = "l2"  # l2 | soft_l1
+    f_scale_db: float = 6.0  # soft_l1 scale
+    max_evals: int = 60  # Nelder-Mead evaluations per start
     alpha: float = 0.05
-    min_rel: float = 0.01          # minimum relative held-out loss reduction to call a candidate significant
+    min_rel: float = (
+        0.01  # minimum relative held-out loss reduction to call a candidate significant
+    )
     n_boot: int = 400
     seed: int = 0
-    workers: int = 1               # threads for the (candidate, fold) fits (1: the fits are GIL-bound now)
-    processes: int = 1             # processes for the (candidate, fold) fits (fork; results bit-identical to 1)
-    rate_hz: float = 0.0           # thin flights to at most this sample rate before the diagnosis (0: all)
+    workers: int = 1  # threads for the (candidate, fold) fits (1: the fits are GIL-bound now)
+    processes: int = (
+        1  # processes for the (candidate, fold) fits (fork; results bit-identical to 1)
+    )
+    rate_hz: float = 0.0  # thin flights to at most this sample rate before the diagnosis (0: all)
 
 
 @dataclass
@@ -80,11 +86,20 @@ def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
         k_folds = min(len(flights), cfg.max_folds)
         folds = []
         for k in range(k_folds):
-            tr = [np.arange(len(f)) if j % k_folds != k else np.zeros(0, int) for j, f in enumerate(flights)]
-            te = [np.arange(len(f)) if j % k_folds == k else np.zeros(0, int) for j, f in enumerate(flights)]
+            tr = [
+                np.arange(len(f)) if j % k_folds != k else np.zeros(0, int)
+                for j, f in enumerate(flights)
+            ]
+            te = [
+                np.arange(len(f)) if j % k_folds == k else np.zeros(0, int)
+                for j, f in enumerate(flights)
+            ]
             folds.append(Fold(tr, te))
         return folds
-    chunk_of = [np.minimum((np.arange(len(f)) * cfg.n_chunks) // max(len(f), 1), cfg.n_chunks - 1) for f in flights]
+    chunk_of = [
+        np.minimum((np.arange(len(f)) * cfg.n_chunks) // max(len(f), 1), cfg.n_chunks - 1)
+        for f in flights
+    ]
     folds = []
     for parity in (0, 1):
         te = [np.nonzero(c % 2 == parity)[0] for c in chunk_of]
@@ -100,15 +115,25 @@ def decimate(idx: np.ndarray, n_max: int) -> np.ndarray:
     return idx[:: int(np.ceil(len(idx) / n_max))]
 
 
-def residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
-              cache: list[np.ndarray] | None = None) -> list[np.ndarray]:
+def residuals(
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    cfg: FitConfig,
+    cache: list[np.ndarray] | None = None,
+) -> list[np.ndarray]:
     """Offset-removed residuals per flight on the samples ``idx`` (``pipeline.offset_residuals`` with the
     config's slope and loss; ``cache``: channel predictions to reuse)."""
     return offset_residuals(pipe, flights, idx, cfg.slope, cfg.loss, cfg.f_scale_db, cache)
 
 
-def objective(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig,
-              cache: list[np.ndarray] | None = None) -> float:
+def objective(
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    cfg: FitConfig,
+    cache: list[np.ndarray] | None = None,
+) -> float:
     """Mean per-sample loss over the given samples of all flights (summed flight by flight)."""
     joint = joint_offset_residuals(pipe, flights, idx, cfg.slope, cfg.loss, cfg.f_scale_db, cache)
     if joint is not None:
@@ -120,7 +145,9 @@ def objective(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np
     return float(sum(per_sample_loss(r, cfg.loss, cfg.f_scale_db).sum() for r in rs) / max(n, 1))
 
 
-def _start_grid(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()) -> list[tuple[float, ...]]:
+def _start_grid(
+    cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()
+) -> list[tuple[float, ...]]:
     if cand.name == "receiver" and cache is not None:
         p = np.concatenate(cache)
         lo, hi = float(p.min()), float(p.max())
@@ -130,7 +157,9 @@ def _start_grid(cand: Candidate, cache: list[np.ndarray] | None, params: Sequenc
     return list(itertools.product(*[prm.grid for prm in params]))
 
 
-def _bounds(cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()) -> list[tuple[float, float]]:
+def _bounds(
+    cand: Candidate, cache: list[np.ndarray] | None, params: Sequence[Any] = ()
+) -> list[tuple[float, float]]:
     if cand.name == "receiver" and cache is not None:
         p = np.concatenate(cache)
         lo, hi = float(p.min()), float(p.max())
@@ -147,18 +176,29 @@ class CandidateFit:
     train_loss: float
 
 
-def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                  cfg: FitConfig, rng: np.random.Generator) -> CandidateFit:
+def fit_candidate(
+    cand: Candidate,
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    cfg: FitConfig,
+    rng: np.random.Generator,
+) -> CandidateFit:
     """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded Nelder-Mead."""
     n_used = max(1, sum(len(i) > 0 for i in idx))
-    idx = [decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx]
+    idx = [
+        decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx
+    ]
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
         new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)
         return CandidateFit(new, params, objective(new, flights, idx, cfg))
     cache = None
     if cand.post_only:
-        cache = [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+        cache = [
+            pipe.predict_channel(f, i) if len(i) else np.zeros(0)
+            for f, i in zip(flights, idx, strict=True)
+        ]
     params = cand.params_for(pipe)
     names = [p.name for p in params]
     # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over seconds)
@@ -176,21 +216,43 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSampl
 
         def f_obj(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
             xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
-            return objective(cand.build(pipe, dict(zip(names, xx, strict=True)), choice), flights, idx, cfg, cache)
+            return objective(
+                cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
+                flights,
+                idx,
+                cfg,
+                cache,
+            )
 
         steps = [(b - a) / 8.0 if np.isfinite(b - a) else 10.0 for a, b in bounds]
         for j, prm in enumerate(params):
             if len(prm.grid) > 1:
                 steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
-        def f_coarse(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
+
+        def f_coarse(
+            x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds
+        ) -> float:
             xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
-            return objective(cand.build(pipe, dict(zip(names, xx, strict=True)), choice), flights, idx_c, cfg,
-                             cache_c)
+            return objective(
+                cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
+                flights,
+                idx_c,
+                cfg,
+                cache_c,
+            )
 
         grid = np.array(_start_grid(cand, cache, params), dtype=float)
-        multi = len(params) >= 2 and len(grid) > 8   # several starts where the loss is multimodal in several dims
-        xb, loss = minimize_from_grid(f_obj, grid, steps, cfg.max_evals, n_starts=3 if multi else 1,
-                                      coarse=f_coarse if multi else None)
+        multi = (
+            len(params) >= 2 and len(grid) > 8
+        )  # several starts where the loss is multimodal in several dims
+        xb, loss = minimize_from_grid(
+            f_obj,
+            grid,
+            steps,
+            cfg.max_evals,
+            n_starts=3 if multi else 1,
+            coarse=f_coarse if multi else None,
+        )
         x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(xb, bounds, strict=True)]
         for j, prm in enumerate(params):
             if prm.period:
@@ -203,8 +265,12 @@ def fit_candidate(cand: Candidate, pipe: Pipeline, flights: Sequence[FlightSampl
     return best
 
 
-def heldout_residuals(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples], folds: Sequence[Fold],
-                      cfg: FitConfig) -> list[np.ndarray]:
+def heldout_residuals(
+    pipes: Sequence[Pipeline],
+    flights: Sequence[FlightSamples],
+    folds: Sequence[Fold],
+    cfg: FitConfig,
+) -> list[np.ndarray]:
     """Held-out residual per sample (NaN where a sample is in no test set), one array per flight."""
     out = [np.full(len(f), np.nan) for f in flights]
     for pipe, fold in zip(pipes, folds, strict=True):
@@ -222,9 +288,9 @@ class CandidateResult:
     fold_params: list[dict[str, Any]]
     pipes: list[Pipeline]
     residuals: list[np.ndarray]
-    loss_reduction: float          # held-out mean loss reduction (dB^2)
-    rel_reduction: float           # relative to the current rung's held-out loss
-    ci_lo: float                   # one-sided lower bound of the reduction (block bootstrap)
+    loss_reduction: float  # held-out mean loss reduction (dB^2)
+    rel_reduction: float  # relative to the current rung's held-out loss
+    ci_lo: float  # one-sided lower bound of the reduction (block bootstrap)
     significant: bool
     rms_before: float
     rms_after: float
@@ -254,20 +320,31 @@ def _pooled(rs: Sequence[np.ndarray]) -> np.ndarray:
     return np.concatenate([r[np.isfinite(r)] for r in rs]) if rs else np.zeros(0)
 
 
-def compare(base_res: Sequence[np.ndarray], new_res: Sequence[np.ndarray], cfg: FitConfig, m: int,
-            rng: np.random.Generator) -> tuple[float, float, float, bool, int]:
+def compare(
+    base_res: Sequence[np.ndarray],
+    new_res: Sequence[np.ndarray],
+    cfg: FitConfig,
+    m: int,
+    rng: np.random.Generator,
+) -> tuple[float, float, float, bool, int]:
     """Held-out loss reduction: mean, relative, one-sided lower bound, significant, block length."""
     ds, Ls = [], []
     for a, b in zip(base_res, new_res, strict=True):
         ok = np.isfinite(a) & np.isfinite(b)
-        d = per_sample_loss(a[ok], cfg.loss, cfg.f_scale_db) - per_sample_loss(b[ok], cfg.loss, cfg.f_scale_db)
+        d = per_sample_loss(a[ok], cfg.loss, cfg.f_scale_db) - per_sample_loss(
+            b[ok], cfg.loss, cfg.f_scale_db
+        )
         ds.append(d)
         Ls.append(block_length(d) if d.size > 3 else 1)
     alld = np.concatenate(ds)
     base_loss = float(np.mean(per_sample_loss(_pooled(base_res), cfg.loss, cfg.f_scale_db)))
     mean = float(alld.mean()) if alld.size else 0.0
-    boot = bootstrap_mean([d for d in ds if d.size], [L for d, L in zip(ds, Ls, strict=True) if d.size],
-                          cfg.n_boot, rng)
+    boot = bootstrap_mean(
+        [d for d in ds if d.size],
+        [L for d, L in zip(ds, Ls, strict=True) if d.size],
+        cfg.n_boot,
+        rng,
+    )
     # one-sided lower bound: the alpha / m quantile of the replicates (percentile bootstrap; the reductions are
     # right-skewed -- a few deep fades fixed -- so a normal approximation would be far too conservative)
     lo = float(np.quantile(boot, cfg.alpha / max(m, 1)))
@@ -280,16 +357,20 @@ def compare(base_res: Sequence[np.ndarray], new_res: Sequence[np.ndarray], cfg: 
 # reduce the loss 25 % more than a named physical effect to be ranked above it, and a generic smoother
 # (kriging) twice as much as either: explanations are preferred to descriptions, descriptions to smoothers.
 TIER_MARGIN = {TIER_NAMED: 1.0, TIER_FREEFORM: 1.25, TIER_SMOOTHER: 2.0}
-RANKING_RULE = ("significant first, then by held-out loss reduction / tier margin (named 1.0, free-form 1.25, "
-                "smoother 2.0): a free-form shape must beat a named effect by 25 %, a smoother must beat both "
-                "by 100 %; the ladder adds a smoother only when nothing else is significant")
+RANKING_RULE = (
+    "significant first, then by held-out loss reduction / tier margin (named 1.0, free-form 1.25, "
+    "smoother 2.0): a free-form shape must beat a named effect by 25 %, a smoother must beat both "
+    "by 100 %; the ladder adds a smoother only when nothing else is significant"
+)
 
 
 def rank_key(r: CandidateResult) -> tuple[bool, float]:
     return (not r.significant, -r.loss_reduction / TIER_MARGIN.get(r.tier, 1.0))
 
 
-_FORKED: list[Any] = []  # (fn, items) of the running process map: the forked workers read it, nothing is pickled
+_FORKED: list[
+    Any
+] = []  # (fn, items) of the running process map: the forked workers read it, nothing is pickled
 
 
 def _forked_call(i: int) -> Any:
@@ -303,8 +384,13 @@ def _limit_blas() -> None:
     threadpool_limits(limits=1, user_api="blas")
 
 
-def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int, processes: int = 1,
-         done: Callable[[int], None] | None = None) -> list[Any]:
+def _map(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    workers: int,
+    processes: int = 1,
+    done: Callable[[int], None] | None = None,
+) -> list[Any]:
     """``fn`` over ``items``, in ``processes`` forked processes (the closures are inherited by the fork, only
     the results travel back, pickled), else in ``workers`` threads (numpy releases the GIL in the heavy
     parts); in order, so the results are those of one call after another, bit for bit.  ``done(k)``: called
@@ -330,7 +416,9 @@ def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int, processes
 
             _FORKED.append((fn, items))
             try:
-                with mp.get_context("fork").Pool(min(processes, len(items)), initializer=_limit_blas) as pool:
+                with mp.get_context("fork").Pool(
+                    min(processes, len(items)), initializer=_limit_blas
+                ) as pool:
                     return tick(pool.imap(_forked_call, range(len(items))))
             finally:
                 _FORKED.pop()
@@ -345,10 +433,17 @@ def _map(fn: Callable[[Any], Any], items: Sequence[Any], workers: int, processes
 Progress = Callable[[str, int, int], None]  # (description, done, total)
 
 
-def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples], folds: Sequence[Fold],
-                    candidates: Sequence[Candidate], cfg: FitConfig, rng: np.random.Generator,
-                    base_res: list[np.ndarray] | None = None, progress: Progress | None = None,
-                    label: str = "") -> list[CandidateResult]:
+def rank_candidates(
+    pipes: Sequence[Pipeline],
+    flights: Sequence[FlightSamples],
+    folds: Sequence[Fold],
+    candidates: Sequence[Candidate],
+    cfg: FitConfig,
+    rng: np.random.Generator,
+    base_res: list[np.ndarray] | None = None,
+    progress: Progress | None = None,
+    label: str = "",
+) -> list[CandidateResult]:
     """Fit every applicable candidate on each fold's training data, score on its test data, rank (``rank_key``).
 
     The (candidate, fold) fits run in ``cfg.processes`` processes or ``cfg.workers`` threads; each gets its own
@@ -362,7 +457,9 @@ def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples],
 
     def run(task_seed: tuple[tuple[Candidate, int], int]) -> tuple[CandidateFit, list[np.ndarray]]:
         (cand, k), seed = task_seed
-        ft = fit_candidate(cand, pipes[k], flights, folds[k].train, cfg, np.random.default_rng(seed))
+        ft = fit_candidate(
+            cand, pipes[k], flights, folds[k].train, cfg, np.random.default_rng(seed)
+        )
         res = residuals(ft.pipeline, flights, folds[k].test, cfg)
         return ft, res
 
@@ -374,7 +471,7 @@ def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples],
     out = []
     nf = len(folds)
     for j, cand in enumerate(tried):
-        part = results[j * nf: (j + 1) * nf]
+        part = results[j * nf : (j + 1) * nf]
         fits = [ft for ft, _ in part]
         res = [np.full(len(f), np.nan) for f in flights]
         for (_, rs), fold in zip(part, folds, strict=True):
@@ -382,7 +479,23 @@ def rank_candidates(pipes: Sequence[Pipeline], flights: Sequence[FlightSamples],
                 res[q][i] = r
         mean, rel, lo, sig, L = compare(base_res, res, cfg, len(tried), rng)
         s = summarize(_pooled(res))
-        out.append(CandidateResult(cand.name, [ft.params for ft in fits], [ft.pipeline for ft in fits], res, mean,
-                                   rel, lo, sig, bsum.rms, s.rms, bsum.p90_abs, s.p90_abs, L, cand.tier))
+        out.append(
+            CandidateResult(
+                cand.name,
+                [ft.params for ft in fits],
+                [ft.pipeline for ft in fits],
+                res,
+                mean,
+                rel,
+                lo,
+                sig,
+                bsum.rms,
+                s.rms,
+                bsum.p90_abs,
+                s.p90_abs,
+                L,
+                cand.tier,
+            )
+        )
     out.sort(key=rank_key)
     return out

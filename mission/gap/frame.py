@@ -40,13 +40,17 @@ from mission.gap.pipeline import Pipeline
 from mission.samples import FlightSamples
 
 CELL_M = 80.0
-BUFFER_S = 15.0   # seconds around each change of heading half that neither train nor test (``buffered``)
+BUFFER_S = (
+    15.0  # seconds around each change of heading half that neither train nor test (``buffered``)
+)
 MIN_REL = 0.01
-FRAME_RULE = ("on a split, a candidate wins when it reduces the held-out loss by at least 1 % and the other keeps "
-              "less than half of that; body-fixed when the body-angle candidate wins on unseen ground (80 m "
-              "checkerboard) or across headings (the same ground flown the other way, 15 s around each change "
-              "left out); ground-fixed when the ground map wins across headings and the body candidate does not "
-              "win on unseen ground; else undecided")
+FRAME_RULE = (
+    "on a split, a candidate wins when it reduces the held-out loss by at least 1 % and the other keeps "
+    "less than half of that; body-fixed when the body-angle candidate wins on unseen ground (80 m "
+    "checkerboard) or across headings (the same ground flown the other way, 15 s around each change "
+    "left out); ground-fixed when the ground map wins across headings and the body candidate does not "
+    "win on unseen ground; else undecided"
+)
 
 
 def heading_groups(f: FlightSamples) -> np.ndarray:
@@ -67,8 +71,13 @@ def heading_groups(f: FlightSamples) -> np.ndarray:
 
 def _two_folds(groups: Sequence[np.ndarray]) -> list[Fold]:
     """Group 0 trains and 1 tests, and the reverse; samples marked -1 sit both out."""
-    return [Fold([np.nonzero((g != a) & (g >= 0))[0] for g in groups], [np.nonzero(g == a)[0] for g in groups])
-            for a in (0, 1)]
+    return [
+        Fold(
+            [np.nonzero((g != a) & (g >= 0))[0] for g in groups],
+            [np.nonzero(g == a)[0] for g in groups],
+        )
+        for a in (0, 1)
+    ]
 
 
 def buffered(g: np.ndarray, t: np.ndarray, buffer_s: float) -> np.ndarray:
@@ -85,19 +94,26 @@ def buffered(g: np.ndarray, t: np.ndarray, buffer_s: float) -> np.ndarray:
 
 def heading_folds(flights: Sequence[FlightSamples], buffer_s: float = BUFFER_S) -> list[Fold]:
     """Train on one heading half of every flight, test on the other, and the reverse (``buffered``)."""
-    return _two_folds([buffered(heading_groups(f), np.asarray(f.t_s, dtype=float), buffer_s) for f in flights])
+    return _two_folds(
+        [buffered(heading_groups(f), np.asarray(f.t_s, dtype=float), buffer_s) for f in flights]
+    )
 
 
 def ground_folds(flights: Sequence[FlightSamples], cell_m: float = CELL_M) -> list[Fold]:
     """A checkerboard of ``cell_m`` cells over the ground (the same for every flight): black trains, white
     tests, and the reverse."""
-    return _two_folds([((np.floor(f.enu_m[:, 0] / cell_m) + np.floor(f.enu_m[:, 1] / cell_m)) % 2).astype(int)
-                       for f in flights])
+    return _two_folds(
+        [
+            ((np.floor(f.enu_m[:, 0] / cell_m) + np.floor(f.enu_m[:, 1] / cell_m)) % 2).astype(int)
+            for f in flights
+        ]
+    )
 
 
 def contenders(ranking: Sequence[Any], min_rel: float) -> tuple[str | None, str | None]:
     """The best body-angle and the best ground candidate that each explain the residual held out (relative
     reduction at least ``min_rel``), by loss reduction; None where there is none."""
+
     def best(names: tuple[str, ...]) -> str | None:
         ok = [r for r in ranking if r.name in names and r.rel_reduction >= min_rel]
         return max(ok, key=lambda r: r.loss_reduction).name if ok else None
@@ -105,8 +121,14 @@ def contenders(ranking: Sequence[Any], min_rel: float) -> tuple[str | None, str 
     return best(BODY), best(GROUND)
 
 
-def frame_test(pipe: Pipeline, flights: Sequence[FlightSamples], body: str, ground: str, cfg: FitConfig,
-               seed: int = 0) -> dict[str, Any]:
+def frame_test(
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    body: str,
+    ground: str,
+    cfg: FitConfig,
+    seed: int = 0,
+) -> dict[str, Any]:
     """Refit ``body`` and ``ground`` (candidate names) on top of ``pipe`` on the ``headings`` and ``ground``
     splits; the verdict by ``FRAME_RULE``.  Needs the flights' attitudes (the headings)."""
     from mission.gap.candidates import select
@@ -118,8 +140,14 @@ def frame_test(pipe: Pipeline, flights: Sequence[FlightSamples], body: str, grou
         pipes = [pipe] * len(folds)
         base = heldout_residuals(pipes, flights, folds, cfg)
         res = rank_candidates(pipes, flights, folds, cands, cfg, rng, base)
-        out["splits"][split] = {r.name: {"rel_reduction": r.rel_reduction, "ci_lo": r.ci_lo,
-                                         "significant": r.significant} for r in res}
+        out["splits"][split] = {
+            r.name: {
+                "rel_reduction": r.rel_reduction,
+                "ci_lo": r.ci_lo,
+                "significant": r.significant,
+            }
+            for r in res
+        }
     h, g = out["splits"]["headings"], out["splits"]["ground"]
     rb = h.get(body, {}).get("rel_reduction", 0.0)
     rg = h.get(ground, {}).get("rel_reduction", 0.0)
@@ -136,15 +164,24 @@ def frame_test(pipe: Pipeline, flights: Sequence[FlightSamples], body: str, grou
     else:
         verdict = "undecided"
     out["verdict"] = verdict
-    out["winner"] = body if verdict == "body-fixed" else ground if verdict == "ground-fixed" else None
-    out["text"] = (f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground flown the "
-                   f"other way) {body} reduces the loss {rb:+.1%}, {ground} {rg:+.1%}; on unseen ground "
-                   f"({CELL_M:.0f} m checkerboard) {body} {gb:+.1%}, {ground} {gg:+.1%}.")
+    out["winner"] = (
+        body if verdict == "body-fixed" else ground if verdict == "ground-fixed" else None
+    )
+    out["text"] = (
+        f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground flown the "
+        f"other way) {body} reduces the loss {rb:+.1%}, {ground} {rg:+.1%}; on unseen ground "
+        f"({CELL_M:.0f} m checkerboard) {body} {gb:+.1%}, {ground} {gg:+.1%}."
+    )
     return out
 
 
-def frame_for(ranking: Sequence[Any], pipe: Pipeline, flights: Sequence[FlightSamples], cfg: FitConfig,
-              seed: int = 0) -> dict[str, Any] | None:
+def frame_for(
+    ranking: Sequence[Any],
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    cfg: FitConfig,
+    seed: int = 0,
+) -> dict[str, Any] | None:
     """``frame_test`` of the two contenders of ``ranking`` when both explain the residual; else None."""
     if any(f.attitude_rad is None for f in flights):
         return None

@@ -45,7 +45,11 @@ from mission.physics.geometry import (
 from mission.samples import FlightSamples
 
 # kind -> (first variable, second variable, orders); see the module table
-KINDS: dict[str, tuple[int, int]] = {"rx_gain_map": (6, 3), "tx_gain_map": (4, 2), "excess_loss": (3, 2)}
+KINDS: dict[str, tuple[int, int]] = {
+    "rx_gain_map": (6, 3),
+    "tx_gain_map": (4, 2),
+    "excess_loss": (3, 2),
+}
 LAMBDAS = tuple(np.geomspace(1e-3, 1e3, 13))
 
 
@@ -56,7 +60,9 @@ def map_variables(kind: str, link: Any) -> tuple[np.ndarray, np.ndarray]:
     if kind == "rx_gain_map":  # az_b, sin dep_b
         ubx, uby, ubz = link.u_b
         return body_azimuth(ubx, uby, signed=True), sin_depression(ubz, d)
-    if kind == "tx_gain_map":  # compass bearing and sin elevation of the UAV seen from the transmitter
+    if (
+        kind == "tx_gain_map"
+    ):  # compass bearing and sin elevation of the UAV seen from the transmitter
         return bearing(-dx, -dy, signed=True), sin_elevation(-dz, d)
     if kind == "excess_loss":
         return np.clip(np.log10(d / 100.0), -1.0, 1.0), np.clip((link.z_r - 35.0) / 25.0, -1.0, 1.0)
@@ -155,19 +161,33 @@ class FreeFormTerm:
         """The shape on a regular grid of the two variables (for plots and JSON)."""
         if self.name == "excess_loss":
             la = np.linspace(-1.0, 1.0, n)
-            d_m = 100.0 * 10 ** la
+            d_m = 100.0 * 10**la
             h = 35.0 + 25.0 * np.linspace(-1.0, 1.0, n)
-            ca = [c for c, (fn, _, _) in zip(self.coef, basis_orders(self.name), strict=True) if fn == "a"]
-            cb = [c for c, (fn, _, _) in zip(self.coef, basis_orders(self.name), strict=True) if fn == "b"]
-            return {"distance_m": d_m.tolist(), "loss_vs_distance_db": legendre.legval(la, [0.0, *ca]).tolist(),
-                    "height_m": h.tolist(), "loss_vs_height_db": legendre.legval(np.linspace(-1, 1, n),
-                                                                                  [0.0, *cb]).tolist()}
+            ca = [
+                c
+                for c, (fn, _, _) in zip(self.coef, basis_orders(self.name), strict=True)
+                if fn == "a"
+            ]
+            cb = [
+                c
+                for c, (fn, _, _) in zip(self.coef, basis_orders(self.name), strict=True)
+                if fn == "b"
+            ]
+            return {
+                "distance_m": d_m.tolist(),
+                "loss_vs_distance_db": legendre.legval(la, [0.0, *ca]).tolist(),
+                "height_m": h.tolist(),
+                "loss_vs_height_db": legendre.legval(np.linspace(-1, 1, n), [0.0, *cb]).tolist(),
+            }
         az = np.deg2rad(np.linspace(0.0, 360.0, 2 * n - 1))
         s = np.sin(np.deg2rad(np.linspace(-30.0, 90.0, n)))
         A, B = np.meshgrid(az, s)
         Z = design(self.name, A.ravel(), B.ravel()) @ np.asarray(self.coef)
-        return {"azimuth_deg": np.rad2deg(az).tolist(), "elevation_deg": np.rad2deg(np.arcsin(s)).tolist(),
-                "gain_db": Z.reshape(A.shape).tolist()}
+        return {
+            "azimuth_deg": np.rad2deg(az).tolist(),
+            "elevation_deg": np.rad2deg(np.arcsin(s)).tolist(),
+            "gain_db": Z.reshape(A.shape).tolist(),
+        }
 
 
 def link_of(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray) -> Any:
@@ -179,11 +199,15 @@ def link_of(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray) -> Any:
     dx, dy, dz = link_delta(tx, rx)
     d_los = np.maximum(slant_distance(dx, dy, dz), 1e-3)
     if pipe.model.has("attitude"):
-        ub = body_vectors(enu_to_ned(np.stack([dx, dy, dz], axis=-1)), pipe.model.effect("attitude").apply(att))
+        ub = body_vectors(
+            enu_to_ned(np.stack([dx, dy, dz], axis=-1)), pipe.model.effect("attitude").apply(att)
+        )
         u_b = (ub[:, 0], ub[:, 1], ub[:, 2])
     else:
         u_b = (dy, dx, -dz)
-    return SimpleNamespace(delta=(dx, dy, dz), z_t=np.full(len(rx), tx[2]), z_r=rx[:, 2], d_los=d_los, u_b=u_b)
+    return SimpleNamespace(
+        delta=(dx, dy, dz), z_t=np.full(len(rx), tx[2]), z_r=rx[:, 2], d_los=d_los, u_b=u_b
+    )
 
 
 def _centered(blocks: Sequence[np.ndarray], ws: Sequence[np.ndarray]) -> np.ndarray:
@@ -195,20 +219,31 @@ def _centered(blocks: Sequence[np.ndarray], ws: Sequence[np.ndarray]) -> np.ndar
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def resemblance(kind: str, term: Sequence[np.ndarray], pipe: Pipeline, flights: Sequence[FlightSamples],
-                idx: Sequence[np.ndarray], named: Mapping[str, Candidate] | None = None
-                ) -> tuple[str, float, dict[str, float]]:
+def resemblance(
+    kind: str,
+    term: Sequence[np.ndarray],
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    named: Mapping[str, Candidate] | None = None,
+) -> tuple[str, float, dict[str, float]]:
     """Which named effect's own term (relative to ``pipe``) correlates best with the fitted ``term``
     (``named``: the named candidates by name, passed in by ``candidates.library``; none: nothing to compare)."""
     lib = named or {}
     refs: dict[str, dict[str, Any]] = {
-        "rx_gain_map": {"leg_shadowing": ({"beta": 1.0, "half_width_deg": 8.0, "legs_rotation_deg": 0.0}, {}),
-                        "rx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
-                        "rx_pattern measured flipped": ({}, {"pattern": "measured", "flipped": True})},
-        "tx_gain_map": {"tx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
-                        "tx_tilt": ({"tilt_deg": 20.0, "azimuth_deg": 0.0}, {})},
-        "excess_loss": {"path_gain_slope": ({"n_extra": 1.0}, {}),
-                        "ground_reflection": ({"log10_eps_r": 1.2, "log10_sigma": -2.3}, {"polarization": "V"})},
+        "rx_gain_map": {
+            "leg_shadowing": ({"beta": 1.0, "half_width_deg": 8.0, "legs_rotation_deg": 0.0}, {}),
+            "rx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
+            "rx_pattern measured flipped": ({}, {"pattern": "measured", "flipped": True}),
+        },
+        "tx_gain_map": {
+            "tx_pattern measured": ({}, {"pattern": "measured", "flipped": False}),
+            "tx_tilt": ({"tilt_deg": 20.0, "azimuth_deg": 0.0}, {}),
+        },
+        "excess_loss": {
+            "path_gain_slope": ({"n_extra": 1.0}, {}),
+            "ground_reflection": ({"log10_eps_r": 1.2, "log10_sigma": -2.3}, {"polarization": "V"}),
+        },
     }[kind]
     base = [pipe.predict_channel(f, i) for f, i in zip(flights, idx, strict=True)]
     t = _centered(list(term), [np.ones(len(x)) for x in term])
@@ -248,9 +283,15 @@ def where_it_acts(kind: str, a: np.ndarray, b: np.ndarray, term: np.ndarray) -> 
     return out
 
 
-def ridge_cv(Xs: Sequence[np.ndarray], rs: Sequence[np.ndarray], ws: Sequence[np.ndarray],
-             halves: Sequence[np.ndarray], pen: np.ndarray, lambdas: Sequence[float], min_n: int = 0
-             ) -> tuple[np.ndarray, Any]:
+def ridge_cv(
+    Xs: Sequence[np.ndarray],
+    rs: Sequence[np.ndarray],
+    ws: Sequence[np.ndarray],
+    halves: Sequence[np.ndarray],
+    pen: np.ndarray,
+    lambdas: Sequence[float],
+    min_n: int = 0,
+) -> tuple[np.ndarray, Any]:
     """Weighted ridge regression of residuals ``rs`` on designs ``Xs`` (one per flight), both centred per flight
     (the free offset), penalty ``lambda * n * diag(pen)``: the two-fold cross-validation error for each lambda
     (train on one of ``halves`` 0/1, score the other) and ``fit_all(lambda)`` -> coefficients on every sample.
@@ -258,6 +299,7 @@ def ridge_cv(Xs: Sequence[np.ndarray], rs: Sequence[np.ndarray], ws: Sequence[np
     Why one routine: the free-form maps and the site map are the same smooth fit over other variables.
     Flights with fewer than ``min_n`` samples in a selection sit that selection out.
     """
+
     def gram(sel: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
         """X^T W X and X^T W y of the selected samples, centred per flight (computed once per selection)."""
         use = [k for k, s in enumerate(sel) if s.sum() >= min_n]
@@ -279,15 +321,24 @@ def ridge_cv(Xs: Sequence[np.ndarray], rs: Sequence[np.ndarray], ws: Sequence[np
             coef = solve(grams[a], lam)
             te = [h == a for h in halves]
             use = [k for k, s in enumerate(te) if s.sum() >= max(min_n, 1)]
-            d = _centered([rs[k][te[k]] - Xs[k][te[k]] @ coef for k in use], [ws[k][te[k]] for k in use])
+            d = _centered(
+                [rs[k][te[k]] - Xs[k][te[k]] @ coef for k in use], [ws[k][te[k]] for k in use]
+            )
             w_te = np.concatenate([ws[k][te[k]] for k in use]) if use else np.zeros(0)
             errs[j] += float(np.sum(w_te * d * d))
     return errs, lambda lam: solve(gram([np.ones(len(r), bool) for r in rs]), lam)
 
 
-def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                 resid: Sequence[np.ndarray], cfg: Any = None, period_s: float = 30.0,
-                 named: Mapping[str, Candidate] | None = None) -> tuple[Pipeline, dict]:
+def fit_freeform(
+    kind: str,
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    resid: Sequence[np.ndarray],
+    cfg: Any = None,
+    period_s: float = 30.0,
+    named: Mapping[str, Candidate] | None = None,
+) -> tuple[Pipeline, dict]:
     """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold CV."""
     loss = getattr(cfg, "loss", "l2")
     f_scale = getattr(cfg, "f_scale_db", 6.0)
@@ -308,43 +359,79 @@ def fit_freeform(kind: str, pipe: Pipeline, flights: Sequence[FlightSamples], id
     allv = np.concatenate(vals) if vals else np.zeros(1)
     size = float(np.quantile(allv, 0.95) - np.quantile(allv, 0.05)) if allv.size else 0.0
     sub = [np.arange(0, len(i), max(1, len(i) // 1500)) for i in ix]
-    like, corr, corrs = resemblance(kind, [v[s] for v, s in zip(vals, sub, strict=True)], pipe, fl,
-                                    [i[s] for i, s in zip(ix, sub, strict=True)], named)
+    like, corr, corrs = resemblance(
+        kind,
+        [v[s] for v, s in zip(vals, sub, strict=True)],
+        pipe,
+        fl,
+        [i[s] for i, s in zip(ix, sub, strict=True)],
+        named,
+    )
     a_all = np.concatenate([a for a, _ in ab])
     b_all = np.concatenate([b for _, b in ab])
-    params = {"lambda": float(lam), "size_db": size, "resembles": like, "resemblance_corr": corr,
-              "where": where_it_acts(kind, a_all, b_all, allv), "resemblances": corrs, "shape": term.on_grid()}
+    params = {
+        "lambda": float(lam),
+        "size_db": size,
+        "resembles": like,
+        "resemblance_corr": corr,
+        "where": where_it_acts(kind, a_all, b_all, allv),
+        "resemblances": corrs,
+        "shape": term.on_grid(),
+    }
     return new, params
 
 
 def freeform_candidate(kind: str, named: Mapping[str, Candidate] | None = None) -> Candidate:
     """The ``kind`` map as a candidate; ``named``: the named candidates its fit is compared with."""
-    desc = {"rx_gain_map": "smooth UAV body-frame gain map (body azimuth x depression)",
-            "tx_gain_map": "smooth transmitter gain map (world azimuth x elevation)",
-            "excess_loss": "smooth excess loss over distance and UAV height"}[kind]
+    desc = {
+        "rx_gain_map": "smooth UAV body-frame gain map (body azimuth x depression)",
+        "tx_gain_map": "smooth transmitter gain map (world azimuth x elevation)",
+        "excess_loss": "smooth excess loss over distance and UAV height",
+    }[kind]
 
-    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:  # only via direct_fit
+    def build(
+        p: Pipeline, th: dict[str, float], ch: dict[str, Any]
+    ) -> Pipeline:  # only via direct_fit
         return p
 
     def withhold(p: Pipeline) -> Pipeline:
         return p.replace(model=p.model.without(kind)) if p.model.has(kind) else p
 
-    def direct_fit(p: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                   resid: Sequence[np.ndarray],
-                   rng: np.random.Generator, cfg: Any = None) -> tuple[Pipeline, dict[str, Any]]:
+    def direct_fit(
+        p: Pipeline,
+        flights: Sequence[FlightSamples],
+        idx: Sequence[np.ndarray],
+        resid: Sequence[np.ndarray],
+        rng: np.random.Generator,
+        cfg: Any = None,
+    ) -> tuple[Pipeline, dict[str, Any]]:
         if kind == "rx_gain_map" and not p.model.has("attitude"):
             # a body-frame map needs the body frame: the logged attitude joins the model with the map
             from mission.physics import Attitude
 
             p = p.replace(model=p.model.with_effect(Attitude()))
-            resid = offset_residuals(p, flights, idx, getattr(cfg, "slope", False), getattr(cfg, "loss", "l2"),
-                                     getattr(cfg, "f_scale_db", 6.0))
+            resid = offset_residuals(
+                p,
+                flights,
+                idx,
+                getattr(cfg, "slope", False),
+                getattr(cfg, "loss", "l2"),
+                getattr(cfg, "f_scale_db", 6.0),
+            )
             new, params = fit_freeform(kind, p, flights, idx, resid, cfg, named=named)
             return new, {**params, "adds_attitude": True}
         return fit_freeform(kind, p, flights, idx, resid, cfg, named=named)
 
-    return Candidate(kind, desc, (), build, lambda p: not p.model.has(kind), withhold, direct_fit=direct_fit,
-                     tier=TIER_FREEFORM)
+    return Candidate(
+        kind,
+        desc,
+        (),
+        build,
+        lambda p: not p.model.has(kind),
+        withhold,
+        direct_fit=direct_fit,
+        tier=TIER_FREEFORM,
+    )
 
 
 FREEFORM_NAMES = tuple(KINDS)

@@ -15,7 +15,14 @@ import numpy as np
 
 from mission.gap.candidate import FRAME_BODY, FRAME_GROUND, TIER_SMOOTHER, Candidate
 from mission.gap.describe import describe_params
-from mission.gap.fit import CandidateResult, FitConfig, Progress, heldout_residuals, make_folds, rank_candidates
+from mission.gap.fit import (
+    CandidateResult,
+    FitConfig,
+    Progress,
+    heldout_residuals,
+    make_folds,
+    rank_candidates,
+)
 from mission.gap.frame import frame_for
 from mission.gap.pipeline import Pipeline
 from mission.samples import FlightSamples
@@ -30,15 +37,26 @@ class Rung:
     pipes: list[Pipeline]
     residuals: list[np.ndarray]
     params: dict[str, Any] = field(default_factory=dict)
-    ranking: list[CandidateResult] = field(default_factory=list)  # candidates tried on top of this rung
-    frame: dict[str, Any] | None = None  # ground- or body-fixed test of this rung's ranking (``frame.frame_for``)
+    ranking: list[CandidateResult] = field(
+        default_factory=list
+    )  # candidates tried on top of this rung
+    frame: dict[str, Any] | None = (
+        None  # ground- or body-fixed test of this rung's ranking (``frame.frame_for``)
+    )
 
     def describe(self) -> dict[str, Any]:
         return describe_params(self.pipes[0])
 
 
-def ladder(base: Pipeline, flights: Sequence[FlightSamples], candidates: Sequence[Candidate], cfg: FitConfig,
-           max_rungs: int = 6, label: str = "base", progress: Progress | None = None) -> list[Rung]:
+def ladder(
+    base: Pipeline,
+    flights: Sequence[FlightSamples],
+    candidates: Sequence[Candidate],
+    cfg: FitConfig,
+    max_rungs: int = 6,
+    label: str = "base",
+    progress: Progress | None = None,
+) -> list[Rung]:
     """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is significant."""
     rng = np.random.default_rng(cfg.seed)
     folds = make_folds(flights, cfg)
@@ -47,27 +65,50 @@ def ladder(base: Pipeline, flights: Sequence[FlightSamples], candidates: Sequenc
     rungs = [rung]
     pool = list(candidates)
     while pool and len(rungs) <= max_rungs:
-        ranking = rank_candidates(rung.pipes, flights, folds, pool, cfg, rng, rung.residuals, progress,
-                                  f"rung {len(rungs)}")
+        ranking = rank_candidates(
+            rung.pipes,
+            flights,
+            folds,
+            pool,
+            cfg,
+            rng,
+            rung.residuals,
+            progress,
+            f"rung {len(rungs)}",
+        )
         rung.ranking = ranking
         sig = [r for r in ranking if r.significant]
         physical = [r for r in sig if r.tier != TIER_SMOOTHER]
         if not sig:
             break
         best = physical[0] if physical else sig[0]
-        if best.name in FRAME_GROUND or (best.name in FRAME_BODY and any(
-                r.name in FRAME_GROUND and r.loss_reduction >= best.loss_reduction for r in ranking)):
+        if best.name in FRAME_GROUND or (
+            best.name in FRAME_BODY
+            and any(
+                r.name in FRAME_GROUND and r.loss_reduction >= best.loss_reduction for r in ranking
+            )
+        ):
             # a ground map would absorb it, or explains more than the body-angle map chosen: add the one that
             # holds out across headings and on unseen ground (``frame``)
             rung.frame = frame_for(ranking, rung.pipes[0], flights, cfg, cfg.seed)
-            if rung.frame is not None and rung.frame["winner"] is not None and best.name != rung.frame["winner"]:
-                loser = rung.frame["ground"] if rung.frame["winner"] == rung.frame["body"] else rung.frame["body"]
+            if (
+                rung.frame is not None
+                and rung.frame["winner"] is not None
+                and best.name != rung.frame["winner"]
+            ):
+                loser = (
+                    rung.frame["ground"]
+                    if rung.frame["winner"] == rung.frame["body"]
+                    else rung.frame["body"]
+                )
                 sig = [r for r in sig if r.name != loser]
                 physical = [r for r in sig if r.tier != TIER_SMOOTHER]
                 if not sig:
                     break
                 best = physical[0] if physical else sig[0]
-        rung = Rung(f"{rung.label} + {best.name}", best.name, best.pipes, best.residuals, best.params_mean())
+        rung = Rung(
+            f"{rung.label} + {best.name}", best.name, best.pipes, best.residuals, best.params_mean()
+        )
         rungs.append(rung)
         pool = [c for c in pool if c.name != best.name]
     return rungs

@@ -28,8 +28,9 @@ from mission.samples import FlightSamples
 P90_TOL_DB = 1.0
 
 
-def simulate_along(family: PhysicsFamily, flights: list[FlightSamples], rng: np.random.Generator
-                   ) -> tuple[list[FlightSamples], list[dict[str, Any]]]:
+def simulate_along(
+    family: PhysicsFamily, flights: list[FlightSamples], rng: np.random.Generator
+) -> tuple[list[FlightSamples], list[dict[str, Any]]]:
     """One family draw per real track: the simulated flights and their draws."""
     sims, draws = [], []
     for f in flights:
@@ -44,8 +45,13 @@ def _inside(v: float, iv: list[float]) -> bool:
     return bool(iv[0] <= v <= iv[1])
 
 
-def loop_check(record: dict[str, Any], flights: list[FlightSamples], cfg: FitConfig, seed: int = 0,
-               repeats: int = 1) -> dict[str, Any]:
+def loop_check(
+    record: dict[str, Any],
+    flights: list[FlightSamples],
+    cfg: FitConfig,
+    seed: int = 0,
+    repeats: int = 1,
+) -> dict[str, Any]:
     """Simulate ``repeats`` copies of the real tracks from ``record``, re-fit, compare (module docstring)."""
     fam = PhysicsFamily.from_dict(record)
     rng = np.random.default_rng(seed)
@@ -59,21 +65,43 @@ def loop_check(record: dict[str, Any], flights: list[FlightSamples], cfg: FitCon
     params = {}
     for k, s in rec2["spread"].items():
         if k in iv and "mean" in s and k != "offset_db":
-            params[k] = {"refit_mean": s["mean"], "interval": iv[k], "inside": _inside(s["mean"], iv[k])}
-    same = [all(ft.spec.get(k) == dr["spec"].get(k, ft.spec.get(k)) for k in PATTERN_KEYS)
-            for ft, dr in zip(fits2, draws, strict=True)]
+            params[k] = {
+                "refit_mean": s["mean"],
+                "interval": iv[k],
+                "inside": _inside(s["mean"], iv[k]),
+            }
+    same = [
+        all(ft.spec.get(k) == dr["spec"].get(k, ft.spec.get(k)) for k in PATTERN_KEYS)
+        for ft, dr in zip(fits2, draws, strict=True)
+    ]
     real_p90 = record["checks"]["heldout_p90_db"]["pooled"]
     sim_p90 = rec2["checks"]["heldout_p90_db"]["pooled"]
     sill, rng_m = rec2["checks"]["sill_db"]["mean"], rec2["spread"]["shadowing_corr_m"]["mean"]
-    out = {"flights": len(sims), "params": params, "patterns_recovered": float(np.mean(same)) if same else 1.0,
-           "heldout_p90_db": {"real": real_p90, "sim": sim_p90, "diff": sim_p90 - real_p90,
-                              "within_1db": bool(abs(sim_p90 - real_p90) <= P90_TOL_DB)},
-           "sill_db": {"sim": sill, "interval": iv["sill_db"], "inside": _inside(sill, iv["sill_db"])},
-           "range_m": {"sim": rng_m, "interval": iv["shadowing_corr_m"],
-                       "inside": _inside(rng_m, iv["shadowing_corr_m"])},
-           "draws": draws, "refit": [f.as_dict() for f in fits2]}
-    out["passed"] = bool(all(p["inside"] for p in params.values()) and out["heldout_p90_db"]["within_1db"]
-                         and out["sill_db"]["inside"] and out["range_m"]["inside"])
+    out = {
+        "flights": len(sims),
+        "params": params,
+        "patterns_recovered": float(np.mean(same)) if same else 1.0,
+        "heldout_p90_db": {
+            "real": real_p90,
+            "sim": sim_p90,
+            "diff": sim_p90 - real_p90,
+            "within_1db": bool(abs(sim_p90 - real_p90) <= P90_TOL_DB),
+        },
+        "sill_db": {"sim": sill, "interval": iv["sill_db"], "inside": _inside(sill, iv["sill_db"])},
+        "range_m": {
+            "sim": rng_m,
+            "interval": iv["shadowing_corr_m"],
+            "inside": _inside(rng_m, iv["shadowing_corr_m"]),
+        },
+        "draws": draws,
+        "refit": [f.as_dict() for f in fits2],
+    }
+    out["passed"] = bool(
+        all(p["inside"] for p in params.values())
+        and out["heldout_p90_db"]["within_1db"]
+        and out["sill_db"]["inside"]
+        and out["range_m"]["inside"]
+    )
     return out
 
 
@@ -92,9 +120,16 @@ def calibrate_residual(record: dict[str, Any], check: dict[str, Any]) -> float:
     m = float(sh["mean"]) if isinstance(sh, dict) else float(sh)
     m_new = float(np.sqrt(max(k * k * (m * m + n * n) - n * n, 0.0)))
     if isinstance(sh, dict):
-        res["shadowing_db"] = {**sh, "mean": round(m_new, 4), "sd": round(float(sh["sd"]) * m_new / max(m, 1e-9), 4)}
+        res["shadowing_db"] = {
+            **sh,
+            "mean": round(m_new, 4),
+            "sd": round(float(sh["sd"]) * m_new / max(m, 1e-9), 4),
+        }
     else:
         res["shadowing_db"] = round(m_new, 4)
-    record["residual_calibration"] = {"p90_scale": k, "shadowing_db_before": sh,
-                                      "rule": "total std scaled by real / simulated held-out p90 (one step)"}
+    record["residual_calibration"] = {
+        "p90_scale": k,
+        "shadowing_db_before": sh,
+        "rule": "total std scaled by real / simulated held-out p90 (one step)",
+    }
     return k

@@ -37,7 +37,9 @@ class NearNadirLoss:
 
     def rss_term_db(self, link: Any) -> np.ndarray:
         dep = np.degrees(depression(link.u_b[2], link.d_los))
-        term = -self.depth_db * np.exp(-0.5 * ((dep - self.centre_deg) / max(self.width_deg, 0.5)) ** 2)
+        term = -self.depth_db * np.exp(
+            -0.5 * ((dep - self.centre_deg) / max(self.width_deg, 0.5)) ** 2
+        )
         return term.astype(np.asarray(link.d_los).dtype, copy=False)
 
 
@@ -49,8 +51,15 @@ def near_nadir_candidate() -> Candidate:
     def withhold(p: Pipeline) -> Pipeline:
         return p.replace(model=p.model.without("near_nadir")) if p.model.has("near_nadir") else p
 
-    return Candidate("near_nadir", "body-fixed loss over a band of depression angles below the UAV", (
-        Param("depth_db", -5.0, 25.0, (3.0, 8.0), unit="dB"),
-        Param("centre_deg", 20.0, 90.0, (35.0, 50.0, 65.0, 80.0), unit="deg"),
-        Param("width_deg", 2.0, 30.0, (4.0, 10.0), unit="deg")),
-        build, lambda p: p.model.has("attitude") and not p.model.has("near_nadir"), withhold)
+    return Candidate(
+        "near_nadir",
+        "body-fixed loss over a band of depression angles below the UAV",
+        (
+            Param("depth_db", -5.0, 25.0, (3.0, 8.0), unit="dB"),
+            Param("centre_deg", 20.0, 90.0, (35.0, 50.0, 65.0, 80.0), unit="deg"),
+            Param("width_deg", 2.0, 30.0, (4.0, 10.0), unit="deg"),
+        ),
+        build,
+        lambda p: p.model.has("attitude") and not p.model.has("near_nadir"),
+        withhold,
+    )

@@ -9,9 +9,16 @@ import numpy as np
 from scipy.optimize import minimize
 
 
-def minimize_from_grid(fun: Callable[[np.ndarray], float], grid: np.ndarray, steps: Sequence[float],
-                       max_evals: int, n_starts: int = 1, xatol: float = 1e-3, fatol: float = 1e-6,
-                       coarse: Callable[[np.ndarray], float] | None = None) -> tuple[np.ndarray, float]:
+def minimize_from_grid(
+    fun: Callable[[np.ndarray], float],
+    grid: np.ndarray,
+    steps: Sequence[float],
+    max_evals: int,
+    n_starts: int = 1,
+    xatol: float = 1e-3,
+    fatol: float = 1e-6,
+    coarse: Callable[[np.ndarray], float] | None = None,
+) -> tuple[np.ndarray, float]:
     """Evaluate ``fun`` on the start ``grid`` (G, P), then run Nelder-Mead (``max_evals`` x P evaluations, first
     simplex edge ``steps[j]`` along parameter j) from the ``n_starts`` best starts; returns the best (x, value).
 
@@ -25,9 +32,17 @@ def minimize_from_grid(fun: Callable[[np.ndarray], float], grid: np.ndarray, ste
 
     def nm(f: Callable[[np.ndarray], float], x0: np.ndarray) -> Any:
         simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[j] * steps[j] for j in range(len(x0))])
-        return minimize(f, x0, method="Nelder-Mead", options={"maxfev": max_evals * len(x0),
-                                                              "initial_simplex": simplex, "xatol": xatol,
-                                                              "fatol": fatol})
+        return minimize(
+            f,
+            x0,
+            method="Nelder-Mead",
+            options={
+                "maxfev": max_evals * len(x0),
+                "initial_simplex": simplex,
+                "xatol": xatol,
+                "fatol": fatol,
+            },
+        )
 
     if coarse is not None and len(grid) > 1:
         # the n_starts best grid points polished on the cheap objective, the best of them polished on ``fun``
@@ -36,7 +51,9 @@ def minimize_from_grid(fun: Callable[[np.ndarray], float], grid: np.ndarray, ste
         x0 = np.asarray(min(polished, key=lambda r: r.fun).x, dtype=float)
         v0 = fun(x0)
         res = nm(fun, x0)
-        return (np.asarray(res.x, dtype=float), float(res.fun)) if res.fun <= v0 else (x0, float(v0))
+        return (
+            (np.asarray(res.x, dtype=float), float(res.fun)) if res.fun <= v0 else (x0, float(v0))
+        )
     vals = np.array([fun(g) for g in grid])
     best = None
     for k in np.argsort(vals, kind="stable")[:n_starts]:

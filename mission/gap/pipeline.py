@@ -52,8 +52,12 @@ class Receiver:
     sat_db: float = 300.0
 
     def apply(self, p: np.ndarray) -> np.ndarray:
-        out = np.logaddexp(p * (np.log(10) / 10), self.floor_db * (np.log(10) / 10)) * (10 / np.log(10))
-        return -np.logaddexp(-out * (np.log(10) / 10), -self.sat_db * (np.log(10) / 10)) * (10 / np.log(10))
+        out = np.logaddexp(p * (np.log(10) / 10), self.floor_db * (np.log(10) / 10)) * (
+            10 / np.log(10)
+        )
+        return -np.logaddexp(-out * (np.log(10) / 10), -self.sat_db * (np.log(10) / 10)) * (
+            10 / np.log(10)
+        )
 
 
 @dataclass(frozen=True)
@@ -73,7 +77,9 @@ class TxTilt:
         t, a = math.radians(self.tilt_deg), math.radians(self.azimuth_deg)
         ax, ay, az = math.sin(t) * math.sin(a), math.sin(t) * math.cos(a), math.cos(t)
         sin_new = np.clip(ux * ax + uy * ay + uz * az, -1.0, 1.0)
-        term = _dipole_db(sin_new) - _dipole_db(sin_elevation(-dz, d))  # upright: the UAV's elevation
+        term = _dipole_db(sin_new) - _dipole_db(
+            sin_elevation(-dz, d)
+        )  # upright: the UAV's elevation
         return term.astype(np.asarray(link.d_los).dtype, copy=False)
 
 
@@ -95,7 +101,9 @@ class Pipeline:
     def replace(self, **kw: Any) -> Pipeline:
         return replace(self, **kw)
 
-    def geometry(self, flight: FlightSamples, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def geometry(
+        self, flight: FlightSamples, idx: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """UAV positions and attitudes for the samples ``idx`` at their RSS times shifted by the time offset."""
         t = flight.t_s if idx is None else flight.t_s[idx]
         if self.time_offset_s == 0.0:
@@ -108,7 +116,9 @@ class Pipeline:
         rx, att = self.geometry(flight, idx)
         return np.asarray(self.model.rss_dbm(flight.tx_enu_m, rx, att), dtype=float)
 
-    def finish(self, p: np.ndarray, flight: FlightSamples, idx: np.ndarray | None = None) -> np.ndarray:
+    def finish(
+        self, p: np.ndarray, flight: FlightSamples, idx: np.ndarray | None = None
+    ) -> np.ndarray:
         """Add the spatial field and pass through the receiver."""
         if self.spatial is not None:
             xy = (flight.enu_m if idx is None else flight.enu_m[idx])[:, :2]
@@ -143,8 +153,14 @@ def shifted_geometry(flight: FlightSamples, t_query: np.ndarray) -> tuple[np.nda
     rx = np.stack([np.interp(t_query, t, flight.enu_m[:, k]) for k in range(3)], axis=-1)
     att = flight.attitude_rad
     yaw = np.unwrap(att[:, 2])
-    a = np.stack([np.interp(t_query, t, att[:, 0]), np.interp(t_query, t, att[:, 1]),
-                  np.mod(np.interp(t_query, t, yaw), 2 * np.pi)], axis=-1)
+    a = np.stack(
+        [
+            np.interp(t_query, t, att[:, 0]),
+            np.interp(t_query, t, att[:, 1]),
+            np.mod(np.interp(t_query, t, yaw), 2 * np.pi),
+        ],
+        axis=-1,
+    )
     return rx, a
 
 
@@ -159,7 +175,9 @@ class LocalizationModel:
         self.pipeline = pipeline
         self.name = name
 
-    def rss_dbm(self, tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray | None = None) -> np.ndarray:
+    def rss_dbm(
+        self, tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray | None = None
+    ) -> np.ndarray:
         p = np.asarray(self.pipeline.model.rss_dbm(tx_enu, rx_enu, attitude_rad), dtype=float)
         if self.pipeline.receiver is not None:
             p = self.pipeline.receiver.apply(p)
@@ -167,10 +185,14 @@ class LocalizationModel:
 
 
 _JOINT: dict = {}  # joint geometry of (time offset, flights, sample selections), see _joint_geometry
-_JOINT_MAX_SAMPLES = 20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
+_JOINT_MAX_SAMPLES = (
+    20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
+)
 
 
-def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> tuple | None:
+def _joint_geometry(
+    pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+) -> tuple | None:
     """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all flights, one
     row per sample; None where one call per flight is needed.  A fit evaluates the same selections thousands
     of times, so the result is cached by the identity of the flights and index arrays (the entry holds them,
@@ -188,10 +210,18 @@ def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Seque
     ends = np.cumsum(n)
     tx, centre = np.empty((int(ends[-1]), 3)), np.zeros((int(ends[-1]), 3))
     for k, r, e, m in zip(live, rx, ends, n, strict=True):
-        tx[e - m: e] = flights[k].tx_enu_m
-        centre[e - m: e, :2] = r[:, :2].mean(axis=0)
+        tx[e - m : e] = flights[k].tx_enu_m
+        centre[e - m : e, :2] = r[:, :2].mean(axis=0)
     meas = np.concatenate([np.asarray(flights[k].rss_dbm[idx[k]], dtype=float) for k in live])
-    out = (live, ends, tx, np.concatenate(rx), np.concatenate([geo[k][1] for k in live]), centre, meas)
+    out = (
+        live,
+        ends,
+        tx,
+        np.concatenate(rx),
+        np.concatenate([geo[k][1] for k in live]),
+        centre,
+        meas,
+    )
     for a in out[2:]:
         a.flags.writeable = False  # shared between calls and threads
     if ends[-1] <= _JOINT_MAX_SAMPLES:
@@ -201,14 +231,18 @@ def _joint_geometry(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Seque
     return out
 
 
-def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
-                     ) -> list[np.ndarray]:
+def predict_channels(
+    pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+) -> list[np.ndarray]:
     """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample paired with
     its flight's transmitter and shifted by its flight's centre, so the values equal one call per flight bit
     for bit (the physics is elementwise), without the per-call overhead that dominates the small fits."""
     joint = _joint_geometry(pipe, flights, idx)
     if joint is None:
-        return [pipe.predict_channel(f, i) if len(i) else np.zeros(0) for f, i in zip(flights, idx, strict=True)]
+        return [
+            pipe.predict_channel(f, i) if len(i) else np.zeros(0)
+            for f, i in zip(flights, idx, strict=True)
+        ]
     live, ends, tx, rx, att, centre, _ = joint
     p = np.asarray(pipe.model.rss_dbm(tx, rx, att, centre=centre), dtype=float)
     out = [np.zeros(0) for _ in idx]
@@ -217,9 +251,15 @@ def predict_channels(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     return out
 
 
-def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                     slope: bool = False, loss: str = "l2", f_scale_db: float = 6.0,
-                     cache: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
+def offset_residuals(
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    slope: bool = False,
+    loss: str = "l2",
+    f_scale_db: float = 6.0,
+    cache: Sequence[np.ndarray] | None = None,
+) -> list[np.ndarray]:
     """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse).
 
     Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each flight's
@@ -242,17 +282,30 @@ def offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequ
     return out
 
 
-def _joint_field(spatial: SpatialField | TemporalField, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                 live: list[int], time: bool = False) -> np.ndarray:
+def _joint_field(
+    spatial: SpatialField | TemporalField,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    live: list[int],
+    time: bool = False,
+) -> np.ndarray:
     """The spatial field (``time``: the temporal term) at the selected samples of the ``live`` flights,
     concatenated; cached like ``_joint_geometry`` by the identity of the (fitted, immutable) field, the flights
     and the index arrays."""
     key = ("field", id(spatial), *map(id, flights), *map(id, idx))
     hit = _JOINT.get(key)
-    if hit is not None and all(a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)):
+    if hit is not None and all(
+        a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)
+    ):
         return hit[1]
-    out = np.concatenate([spatial.field_db(flights[k], flights[k].t_s[idx[k]] if time else
-                                           flights[k].enu_m[idx[k]][:, :2]) for k in live])
+    out = np.concatenate(
+        [
+            spatial.field_db(
+                flights[k], flights[k].t_s[idx[k]] if time else flights[k].enu_m[idx[k]][:, :2]
+            )
+            for k in live
+        ]
+    )
     if len(out) <= _JOINT_MAX_SAMPLES:
         out.flags.writeable = False
         if len(_JOINT) > 16:
@@ -261,9 +314,15 @@ def _joint_field(spatial: SpatialField | TemporalField, flights: Sequence[Flight
     return out
 
 
-def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray],
-                           slope: bool, loss: str, f_scale_db: float, cache: Sequence[np.ndarray] | None = None
-                           ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
+def joint_offset_residuals(
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    slope: bool,
+    loss: str,
+    f_scale_db: float,
+    cache: Sequence[np.ndarray] | None = None,
+) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
     """``offset_residuals`` of all flights as one array and (flight, start, end) per non-empty flight, the
     elementwise steps on all samples at once and only the offsets per flight: the very values of
     ``mission.robust.offset_residual`` flight by flight (same operations, same per-flight pairwise sums).
@@ -295,18 +354,31 @@ def joint_offset_residuals(pipe: Pipeline, flights: Sequence[FlightSamples], idx
         z = r - np.repeat(med, n)
         w = huber_weights(z, f_scale_db)
         wz = w * z
-        off = np.array([m + np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b])
-                        for m, (_, a, b) in zip(med, bounds, strict=True)])
+        off = np.array(
+            [
+                m + np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b])
+                for m, (_, a, b) in zip(med, bounds, strict=True)
+            ]
+        )
     return r - np.repeat(off, np.diff(np.r_[0, ends])), bounds
 
 
-def memo(obj: object, arrays: tuple[np.ndarray, ...], compute: Callable[[], np.ndarray], extra: object = None,
-         size: int = 256) -> np.ndarray:
+def memo(
+    obj: object,
+    arrays: tuple[np.ndarray, ...],
+    compute: Callable[[], np.ndarray],
+    extra: object = None,
+    size: int = 256,
+) -> np.ndarray:
     """Per-object cache of a computed array by the exact input ``arrays`` (their bytes): the fits evaluate a
     fitted term (a kriged field, a free-form map) on the same samples many times.  The result is shared:
     callers must not change it in place."""
     cache: dict = obj.__dict__.setdefault("_cache", {})
-    key = (extra, *(a.shape for a in arrays), *(hash(np.ascontiguousarray(a).tobytes()) for a in arrays))
+    key = (
+        extra,
+        *(a.shape for a in arrays),
+        *(hash(np.ascontiguousarray(a).tobytes()) for a in arrays),
+    )
     if key not in cache:
         if len(cache) > size:
             cache.clear()

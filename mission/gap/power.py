@@ -27,7 +27,10 @@ import numpy as np
 from mission.gap.fit import FitConfig, Fold, compare, decimate
 from mission.gap.nadir import BAND_DEG, Z_ALPHA, Z_POWER
 
-SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG = 75.0, 8.0   # the loss the statement is about: gaussian in body depression
+SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG = (
+    75.0,
+    8.0,
+)  # the loss the statement is about: gaussian in body depression
 # the ranking's fit (Nelder-Mead from grid starts ranked on a thinned copy) is noisier than the closed form
 # here: the statement's depth is the injected test's threshold times this margin.  Calibrated on the
 # generator (``bench_gap.py nadir-power``): without it 1 of 24 cases was said detectable and not named
@@ -38,7 +41,9 @@ _CENTRES = np.arange(30.0, 90.1, 5.0)
 _WIDTHS = np.array([3.0, 5.0, 8.0, 12.0, 20.0])
 
 
-def band_shape(dep_deg: np.ndarray, centre: float | np.ndarray, width: float | np.ndarray) -> np.ndarray:
+def band_shape(
+    dep_deg: np.ndarray, centre: float | np.ndarray, width: float | np.ndarray
+) -> np.ndarray:
     """exp(-(dep - centre)^2 / 2 width^2): the near-nadir loss's shape (``nadir.NearNadirLoss``)."""
     return np.exp(-0.5 * ((dep_deg - centre) / width) ** 2)
 
@@ -50,34 +55,57 @@ def fit_band(dep_deg: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
     dep, r = dep_deg[ok], r[ok]
     if dep.size < 3:
         return 0.0, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG
-    G = band_shape(dep[None, None, :], _CENTRES[:, None, None], _WIDTHS[None, :, None])   # (nc, nw, n)
+    G = band_shape(
+        dep[None, None, :], _CENTRES[:, None, None], _WIDTHS[None, :, None]
+    )  # (nc, nw, n)
     gg = np.einsum("cwn,cwn->cw", G, G)
     depth = np.clip(-np.einsum("cwn,n->cw", G, r) / np.maximum(gg, 1e-12), -5.0, 25.0)
-    sse = np.einsum("cwn,cwn->cw", r[None, None, :] + depth[:, :, None] * G, r[None, None, :] + depth[:, :, None] * G)
+    sse = np.einsum(
+        "cwn,cwn->cw",
+        r[None, None, :] + depth[:, :, None] * G,
+        r[None, None, :] + depth[:, :, None] * G,
+    )
     c, w = np.unravel_index(int(np.argmin(sse)), sse.shape)
     return float(depth[c, w]), float(_CENTRES[c]), float(_WIDTHS[w])
 
 
-def _passes(dep: np.ndarray, ok: np.ndarray, band: tuple[float, float], gap: int) -> tuple[int, np.ndarray]:
+def _passes(
+    dep: np.ndarray, ok: np.ndarray, band: tuple[float, float], gap: int
+) -> tuple[int, np.ndarray]:
     inb = ok & (dep >= band[0]) & (dep <= band[1])
     idx = np.nonzero(inb)[0]
     return int(idx.size > 0) + int(np.sum(np.diff(idx) > gap)), inb
 
 
-def injected_test(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], folds: Sequence[Fold],
-                  cfg: FitConfig, m: int, depth_db: float, seed: int = 0) -> tuple[bool, float]:
+def injected_test(
+    dep_deg: Sequence[np.ndarray],
+    resid: Sequence[np.ndarray],
+    folds: Sequence[Fold],
+    cfg: FitConfig,
+    m: int,
+    depth_db: float,
+    seed: int = 0,
+) -> tuple[bool, float]:
     """Would the ranking call a band loss of ``depth_db`` significant on these flights?  (significant, lower bd).
 
     ``resid``: per flight, residuals without the band loss (NaN where unknown); the loss is added, fitted on
     each fold's (decimated, as in ``fit.fit_candidate``) training samples and scored on its test samples."""
-    a = [r - depth_db * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG) for d, r in zip(dep_deg, resid, strict=True)]
+    a = [
+        r - depth_db * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
+        for d, r in zip(dep_deg, resid, strict=True)
+    ]
     base = [np.full(len(x), np.nan) for x in a]
     new = [np.full(len(x), np.nan) for x in a]
     for fold in folds:
         n_used = max(1, sum(len(i) > 0 for i in fold.train))
-        tr = [decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in fold.train]
-        dd, cc, ww = fit_band(np.concatenate([d[i] for d, i in zip(dep_deg, tr, strict=True)]),
-                              np.concatenate([x[i] for x, i in zip(a, tr, strict=True)]))
+        tr = [
+            decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used)))
+            for i in fold.train
+        ]
+        dd, cc, ww = fit_band(
+            np.concatenate([d[i] for d, i in zip(dep_deg, tr, strict=True)]),
+            np.concatenate([x[i] for x, i in zip(a, tr, strict=True)]),
+        )
         for k, i in enumerate(fold.test):
             base[k][i] = a[k][i]
             new[k][i] = a[k][i] + dd * band_shape(dep_deg[k][i], cc, ww)
@@ -85,9 +113,17 @@ def injected_test(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], fo
     return sig, lo
 
 
-def power_statement(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], block_lens: Sequence[int],
-                    folds: Sequence[Fold], cfg: FitConfig, m: int, band: tuple[float, float] = BAND_DEG,
-                    loss_db: float = 3.0, seed: int = 0) -> dict[str, Any]:
+def power_statement(
+    dep_deg: Sequence[np.ndarray],
+    resid: Sequence[np.ndarray],
+    block_lens: Sequence[int],
+    folds: Sequence[Fold],
+    cfg: FitConfig,
+    m: int,
+    band: tuple[float, float] = BAND_DEG,
+    loss_db: float = 3.0,
+    seed: int = 0,
+) -> dict[str, Any]:
     """What the flights can show about a loss in ``band`` of body depression (module docstring).
 
     ``detectable_db``: ``FIT_MARGIN`` x the smallest depth on ``DEPTHS_DB`` from which on every depth is called
@@ -111,8 +147,10 @@ def power_statement(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], 
     g = band_shape(alld, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
     ok = np.isfinite(allr)
     d0 = float(-np.sum(allr[ok] * g[ok]) / max(float(np.sum(g[ok] ** 2)), 1e-12))
-    clean = [np.asarray(r, float) + d0 * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
-             for d, r in zip(dep_deg, resid, strict=True)]
+    clean = [
+        np.asarray(r, float) + d0 * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
+        for d, r in zip(dep_deg, resid, strict=True)
+    ]
     threshold, lo_at = math.inf, float("nan")
     if n > 0:  # from the deepest loss down: every depth from ``threshold`` up is significant
         for D in DEPTHS_DB[::-1]:
@@ -126,15 +164,33 @@ def power_statement(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray], 
     L_mean = n / n_eff if n_eff > 0 else float(np.mean(block_lens)) if len(block_lens) else 1.0
     need = int(math.ceil(need_eff * L_mean))
     pl = f"{passes} pass{'es' if passes != 1 else ''}"
-    seen = (f"a loss there (peaking mid-band, {SHAPE_WIDTH_DEG:.0f} deg wide) smaller than {detectable:.1f} dB "
-            "cannot be shown held out" if math.isfinite(detectable) else
-            f"a loss there of any size up to {DEPTHS_DB[-1]:.0f} dB cannot be shown held out")
-    text = (f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} samples in {pl} "
-            f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need at least {need} samples "
-            f"({need_eff:.0f} independent) spread over several passes.")
-    return {"band_deg": list(band), "samples": n, "passes": passes, "effective_samples": n_eff,
-            "residual_sd_db": s, "detectable_db": detectable, "injected_threshold_db": threshold,
-            "fit_margin": FIT_MARGIN, "lower_bound_at_threshold": lo_at,
-            "loss_db": loss_db, "samples_needed": need, "effective_needed": need_eff, "alpha": cfg.alpha,
-            "bonferroni_m": m, "shape": {"centre_deg": SHAPE_CENTRE_DEG, "width_deg": SHAPE_WIDTH_DEG},
-            "method": "injected held-out test", "statement": text}
+    seen = (
+        f"a loss there (peaking mid-band, {SHAPE_WIDTH_DEG:.0f} deg wide) smaller than {detectable:.1f} dB "
+        "cannot be shown held out"
+        if math.isfinite(detectable)
+        else f"a loss there of any size up to {DEPTHS_DB[-1]:.0f} dB cannot be shown held out"
+    )
+    text = (
+        f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} samples in {pl} "
+        f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need at least {need} samples "
+        f"({need_eff:.0f} independent) spread over several passes."
+    )
+    return {
+        "band_deg": list(band),
+        "samples": n,
+        "passes": passes,
+        "effective_samples": n_eff,
+        "residual_sd_db": s,
+        "detectable_db": detectable,
+        "injected_threshold_db": threshold,
+        "fit_margin": FIT_MARGIN,
+        "lower_bound_at_threshold": lo_at,
+        "loss_db": loss_db,
+        "samples_needed": need,
+        "effective_needed": need_eff,
+        "alpha": cfg.alpha,
+        "bonferroni_m": m,
+        "shape": {"centre_deg": SHAPE_CENTRE_DEG, "width_deg": SHAPE_WIDTH_DEG},
+        "method": "injected held-out test",
+        "statement": text,
+    }

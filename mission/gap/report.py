@@ -18,7 +18,9 @@ from mission.gap.fit import _pooled
 from mission.gap.stats import ecdf
 from mission.gap.text import details_text, print_report  # noqa: F401  (the terminal report's home; re-exported)
 
-PAPER_P90_DB = 22.0  # "over 90 % of the errors contained within 22 dB" (enhanced two-ray, paper Fig. Abserror)
+PAPER_P90_DB = (
+    22.0  # "over 90 % of the errors contained within 22 dB" (enhanced two-ray, paper Fig. Abserror)
+)
 
 
 def _fmt(v: Any) -> str:
@@ -33,7 +35,9 @@ def params_text(p: dict[str, Any]) -> str:
     """Fitted parameters in a compact human form (log-parameters converted back)."""
     q = {k: v for k, v in p.items() if k not in ("shape", "resemblances", "lambda", "time_shapes")}
     if isinstance(q.get("where"), dict):
-        q["where"] = " ".join(f"{k.split('_')[0]}{k.split('_')[1][:3]}={v:.0f}" for k, v in q["where"].items())
+        q["where"] = " ".join(
+            f"{k.split('_')[0]}{k.split('_')[1][:3]}={v:.0f}" for k, v in q["where"].items()
+        )
     if "log10_eps_r" in q:
         q["eps_r"] = 10 ** q.pop("log10_eps_r")
     if "log10_sigma" in q:
@@ -43,11 +47,19 @@ def params_text(p: dict[str, Any]) -> str:
 
 # -------------------------------------------------------------------------------------------- figures
 
+
 def figures(d: Diagnosis) -> dict[str, Any]:
     """The data of every figure (also the JSON)."""
     figs: dict[str, Any] = {}
-    figs["cdf_models"] = {g.name: {"abs_error_db": g.cdf_x.tolist(), "cdf": g.cdf_q.tolist(), "pooled": g.pooled,
-                                   "per_flight": g.per_flight} for g in d.gaps}
+    figs["cdf_models"] = {
+        g.name: {
+            "abs_error_db": g.cdf_x.tolist(),
+            "cdf": g.cdf_q.tolist(),
+            "pooled": g.pooled,
+            "per_flight": g.per_flight,
+        }
+        for g in d.gaps
+    }
     figs["cdf_ladder"] = {}
     for r in d.rungs:
         x, q = ecdf(_pooled(r.residuals))
@@ -56,7 +68,9 @@ def figures(d: Diagnosis) -> dict[str, Any]:
     fm = d.field_map
     figs["field_map"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in fm.items()}
     for k in ("mean_db",):
-        figs["field_map"][k] = [[None if not np.isfinite(v) else float(v) for v in row] for row in fm[k]]
+        figs["field_map"][k] = [
+            [None if not np.isfinite(v) else float(v) for v in row] for row in fm[k]
+        ]
     figs["field_map"]["transmitters"] = [f.tx_enu_m.tolist() for f in d.flights]
     polar = {}
     for r in (d.rungs[0], d.rungs[-1]):
@@ -68,16 +82,32 @@ def figures(d: Diagnosis) -> dict[str, Any]:
         g = np.digitize(az[ok], edges) - 1
         cnt = np.bincount(g, minlength=24)[:24]
         m = np.bincount(g, weights=res[ok], minlength=24)[:24] / np.maximum(cnt, 1)
-        polar[r.label] = {"body_azimuth_deg": (0.5 * (edges[:-1] + edges[1:])).tolist(), "mean_db": m.tolist(),
-                          "count": cnt.tolist()}
+        polar[r.label] = {
+            "body_azimuth_deg": (0.5 * (edges[:-1] + edges[1:])).tolist(),
+            "mean_db": m.tolist(),
+            "count": cnt.tolist(),
+        }
     figs["polar_body_azimuth"] = polar
     figs["ladder"] = rung_table(d)
-    figs["rankings"] = {r.label: [{"name": x.name, "rms_before_db": x.rms_before, "rms_after_db": x.rms_after,
-                                   "p90_after_db": x.p90_after, "loss_reduction_db2": x.loss_reduction,
-                                   "rel_reduction": x.rel_reduction, "ci_lo_db2": x.ci_lo,
-                                   "significant": x.significant, "block_len": x.block_len,
-                                   "params_fold_mean": x.params_mean(), "params_per_fold": x.fold_params}
-                                  for x in r.ranking] for r in d.rungs}
+    figs["rankings"] = {
+        r.label: [
+            {
+                "name": x.name,
+                "rms_before_db": x.rms_before,
+                "rms_after_db": x.rms_after,
+                "p90_after_db": x.p90_after,
+                "loss_reduction_db2": x.loss_reduction,
+                "rel_reduction": x.rel_reduction,
+                "ci_lo_db2": x.ci_lo,
+                "significant": x.significant,
+                "block_len": x.block_len,
+                "params_fold_mean": x.params_mean(),
+                "params_per_fold": x.fold_params,
+            }
+            for x in r.ranking
+        ]
+        for r in d.rungs
+    }
     figs["localization"] = d.localization
     figs["freeform_shapes"] = freeform_shapes(d)
     figs["structure"] = d.structure
@@ -85,7 +115,11 @@ def figures(d: Diagnosis) -> dict[str, Any]:
 
 
 SCHEMA_VERSION = 2
-_BIG = ("shape", "resemblances", "time_shapes")  # shapes go to figures["freeform_shapes"], not into the summary
+_BIG = (
+    "shape",
+    "resemblances",
+    "time_shapes",
+)  # shapes go to figures["freeform_shapes"], not into the summary
 
 
 def _small(p: dict[str, Any]) -> dict[str, Any]:
@@ -109,24 +143,77 @@ def summary(d: Diagnosis) -> dict[str, Any]:
     ladder = []
     for row in rung_table(d):
         s = row["pooled"]
-        ladder.append({"rung": row["rung"], "added": row["added"], "params": _small(row["params"]),
-                       "heldout": {"n": s["n"], "median_abs_db": s["median_abs_db"], "p90_abs_db": s["p90_abs_db"],
-                                   "rms_db": s["rms_db"]},
-                       "footprint": d.footprints.get(row["rung"])})
-    rankings = {r.label: [{"name": x.name, "tier": x.tier, "loss_reduction_db2": x.loss_reduction,
-                           "rel_reduction": x.rel_reduction, "ci_lo_db2": x.ci_lo, "significant": x.significant,
-                           "rms_after_db": x.rms_after, "p90_after_db": x.p90_after,
-                           "params": _small(x.params_mean())} for x in r.ranking] for r in d.rungs if r.ranking}
+        ladder.append(
+            {
+                "rung": row["rung"],
+                "added": row["added"],
+                "params": _small(row["params"]),
+                "heldout": {
+                    "n": s["n"],
+                    "median_abs_db": s["median_abs_db"],
+                    "p90_abs_db": s["p90_abs_db"],
+                    "rms_db": s["rms_db"],
+                },
+                "footprint": d.footprints.get(row["rung"]),
+            }
+        )
+    rankings = {
+        r.label: [
+            {
+                "name": x.name,
+                "tier": x.tier,
+                "loss_reduction_db2": x.loss_reduction,
+                "rel_reduction": x.rel_reduction,
+                "ci_lo_db2": x.ci_lo,
+                "significant": x.significant,
+                "rms_after_db": x.rms_after,
+                "p90_after_db": x.p90_after,
+                "params": _small(x.params_mean()),
+            }
+            for x in r.ranking
+        ]
+        for r in d.rungs
+        if r.ranking
+    }
     first = d.rungs[0].ranking
-    return {"schema": SCHEMA_VERSION, "named": name_missing(first, d.structure.get("base")),
-            "text": summary_paragraph(d), "rule": RANKING_RULE, "ladder": ladder, "rankings": rankings,
-            "structure": {k: {kk: vv for kk, vv in v.items() if kk in ("verdict", "rule", "residual_std_db", "test")}
-                          | {kk: {q: v[kk][q] for q in ("sigma_db", "sigma_ci_db", "corr_len", "corr_len_ci", "unit",
-                                                        "nugget_db", "nugget_ci_db", "correlated_fraction")}
-                             for kk in ("along_path", "spatial") if kk in v}
-                          for k, v in d.structure.items()},
-            "near_nadir": d.near_nadir, "time_power": d.time_power, "frames": d.frames, "config": d.config,
-            "flights": [{"name": f.name, "n": len(f)} for f in d.flights]}
+    return {
+        "schema": SCHEMA_VERSION,
+        "named": name_missing(first, d.structure.get("base")),
+        "text": summary_paragraph(d),
+        "rule": RANKING_RULE,
+        "ladder": ladder,
+        "rankings": rankings,
+        "structure": {
+            k: {
+                kk: vv
+                for kk, vv in v.items()
+                if kk in ("verdict", "rule", "residual_std_db", "test")
+            }
+            | {
+                kk: {
+                    q: v[kk][q]
+                    for q in (
+                        "sigma_db",
+                        "sigma_ci_db",
+                        "corr_len",
+                        "corr_len_ci",
+                        "unit",
+                        "nugget_db",
+                        "nugget_ci_db",
+                        "correlated_fraction",
+                    )
+                }
+                for kk in ("along_path", "spatial")
+                if kk in v
+            }
+            for k, v in d.structure.items()
+        },
+        "near_nadir": d.near_nadir,
+        "time_power": d.time_power,
+        "frames": d.frames,
+        "config": d.config,
+        "flights": [{"name": f.name, "n": len(f)} for f in d.flights],
+    }
 
 
 def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
@@ -136,11 +223,22 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
         for x in r.ranking:
             if x.tier == "free-form" and (r is d.rungs[0] or x.name in {q.added for q in d.rungs}):
                 p = x.fold_params[0]
-                if not p.get("shape"):   # time_drift: its per-flight curves are in its params (``time_shapes``)
+                if not p.get(
+                    "shape"
+                ):  # time_drift: its per-flight curves are in its params (``time_shapes``)
                     continue
-                out.setdefault(x.name, {"rung": r.label, "size_db": p.get("size_db"), "resembles": p.get("resembles"),
-                                        "resemblance_corr": p.get("resemblance_corr"), "where": p.get("where"),
-                                        "resemblances": p.get("resemblances"), "shape": p.get("shape")})
+                out.setdefault(
+                    x.name,
+                    {
+                        "rung": r.label,
+                        "size_db": p.get("size_db"),
+                        "resembles": p.get("resembles"),
+                        "resemblance_corr": p.get("resemblance_corr"),
+                        "where": p.get("where"),
+                        "resemblances": p.get("resemblances"),
+                        "shape": p.get("shape"),
+                    },
+                )
     return out
 
 
@@ -160,13 +258,21 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
 
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     for name, g in figs["cdf_models"].items():
-        ax[0].plot(g["abs_error_db"], g["cdf"], label=f"{name} (p90 {g['pooled']['p90_abs_db']:.1f} dB)")
+        ax[0].plot(
+            g["abs_error_db"], g["cdf"], label=f"{name} (p90 {g['pooled']['p90_abs_db']:.1f} dB)"
+        )
     ax[0].axvline(PAPER_P90_DB, color="k", ls=":", lw=1, label="paper: 90 % within 22 dB")
     ax[0].axhline(0.9, color="grey", ls=":", lw=0.8)
-    ax[0].set(xlabel="|measured - model| (dB, offset fitted)", ylabel="CDF", title="Reference models (all samples)")
+    ax[0].set(
+        xlabel="|measured - model| (dB, offset fitted)",
+        ylabel="CDF",
+        title="Reference models (all samples)",
+    )
     ax[0].legend(fontsize=8)
     for name, g in figs["cdf_ladder"].items():
-        ax[1].plot(g["abs_error_db"], g["cdf"], label=name if len(name) < 60 else "..." + name[-57:])
+        ax[1].plot(
+            g["abs_error_db"], g["cdf"], label=name if len(name) < 60 else "..." + name[-57:]
+        )
     ax[1].axhline(0.9, color="grey", ls=":", lw=0.8)
     ax[1].set(xlabel="|error| (dB), held-out", ylabel="CDF", title="Ladder rungs (held-out)")
     ax[1].legend(fontsize=7)
@@ -182,7 +288,9 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         yerr = np.vstack([b.mean - b.lo, b.hi - b.mean])
         ax.errorbar(x, b.mean, yerr=np.nan_to_num(yerr), fmt="o", color="C0", ms=4, capsize=2)
         if b.flagged.any():
-            ax.plot(np.asarray(x)[b.flagged], b.mean[b.flagged], "o", color="C3", ms=7, label="flagged")
+            ax.plot(
+                np.asarray(x)[b.flagged], b.mean[b.flagged], "o", color="C3", ms=7, label="flagged"
+            )
             ax.legend(fontsize=7)
         ax.axhline(0, color="k", lw=0.8)
         if b.variable == "segment":
@@ -196,17 +304,31 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
 
     fm = d.field_map
     fig, ax = plt.subplots(figsize=(7, 6))
-    ext = [fm["x0"], fm["x0"] + fm["nx"] * fm["cell_m"], fm["y0"], fm["y0"] + fm["ny"] * fm["cell_m"]]
+    ext = [
+        fm["x0"],
+        fm["x0"] + fm["nx"] * fm["cell_m"],
+        fm["y0"],
+        fm["y0"] + fm["ny"] * fm["cell_m"],
+    ]
     lim = np.nanmax(np.abs(fm["mean_db"])) if np.isfinite(fm["mean_db"]).any() else 1.0
     im = ax.imshow(fm["mean_db"], origin="lower", extent=ext, cmap="RdBu_r", vmin=-lim, vmax=lim)
     yy, xx = np.nonzero(fm["flagged"])
-    ax.plot(fm["x0"] + (xx + 0.5) * fm["cell_m"], fm["y0"] + (yy + 0.5) * fm["cell_m"], "k.", ms=3,
-            label="significant cell")
+    ax.plot(
+        fm["x0"] + (xx + 0.5) * fm["cell_m"],
+        fm["y0"] + (yy + 0.5) * fm["cell_m"],
+        "k.",
+        ms=3,
+        label="significant cell",
+    )
     for f in d.flights:
         ax.plot(f.enu_m[:, 0], f.enu_m[:, 1], lw=0.3, color="grey", alpha=0.6)
         ax.plot(*f.tx_enu_m[:2], "k*", ms=12)
     fig.colorbar(im, label="mean residual dB (measured - model)")
-    ax.set(xlabel="east m", ylabel="north m", title=f"Residual of '{d.base_label}' over the field (* = transmitter)")
+    ax.set(
+        xlabel="east m",
+        ylabel="north m",
+        title=f"Residual of '{d.base_label}' over the field (* = transmitter)",
+    )
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     paths.append(out / "field_map.png")
@@ -219,7 +341,11 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax.set_theta_direction(-1)
     for name, p in figs["polar_body_azimuth"].items():
         th = np.deg2rad(np.append(p["body_azimuth_deg"], p["body_azimuth_deg"][0]))
-        ax.plot(th, np.append(p["mean_db"], p["mean_db"][0]), label=name if len(name) < 50 else "..." + name[-47:])
+        ax.plot(
+            th,
+            np.append(p["mean_db"], p["mean_db"][0]),
+            label=name if len(name) < 50 else "..." + name[-47:],
+        )
     ax.set_title("Mean residual (dB) over body azimuth (0 = nose, clockwise)")
     ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.1, -0.15))
     fig.tight_layout()
@@ -231,9 +357,18 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         fig, ax = plt.subplots(figsize=(8, 4))
         labels = [r["rung"].split(" + ")[-1] for r in d.localization]
         for f in d.flights:
-            ax.plot(range(len(labels)), [r["errors_m"][f.name] for r in d.localization], "o-", label=f.name, ms=4)
+            ax.plot(
+                range(len(labels)),
+                [r["errors_m"][f.name] for r in d.localization],
+                "o-",
+                label=f.name,
+                ms=4,
+            )
         ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right")
-        ax.set(ylabel="grid-search error m", title="Localization cost per rung (model-based grid search)")
+        ax.set(
+            ylabel="grid-search error m",
+            title="Localization cost per rung (model-based grid search)",
+        )
         ax.legend(fontsize=7)
         fig.tight_layout()
         paths.append(out / "localization.png")
@@ -246,19 +381,29 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         for ax, (name, sh) in zip(axs[0], shapes.items(), strict=True):
             g = sh["shape"]
             if "gain_db" in g:
-                im = ax.pcolormesh(g["azimuth_deg"], g["elevation_deg"], np.array(g["gain_db"]), cmap="RdBu_r",
-                                   shading="auto")
+                im = ax.pcolormesh(
+                    g["azimuth_deg"],
+                    g["elevation_deg"],
+                    np.array(g["gain_db"]),
+                    cmap="RdBu_r",
+                    shading="auto",
+                )
                 fig.colorbar(im, ax=ax, label="dB")
-                ax.set(xlabel="body azimuth deg" if name == "rx_gain_map" else "compass azimuth deg",
-                       ylabel="body depression deg" if name == "rx_gain_map" else "elevation deg")
+                ax.set(
+                    xlabel="body azimuth deg" if name == "rx_gain_map" else "compass azimuth deg",
+                    ylabel="body depression deg" if name == "rx_gain_map" else "elevation deg",
+                )
             else:
                 ax.plot(g["distance_m"], g["loss_vs_distance_db"], label="vs distance (m)")
                 ax2 = ax.twiny()
                 ax2.plot(g["height_m"], g["loss_vs_height_db"], "C1", label="vs height (m)")
                 ax.set(xscale="log", xlabel="distance m", ylabel="dB")
                 ax2.set_xlabel("UAV height m (orange)")
-            ax.set_title(f"{name}: {sh['size_db']:.1f} dB, like {sh['resembles']} "
-                         f"({sh['resemblance_corr']:.2f})", fontsize=9)
+            ax.set_title(
+                f"{name}: {sh['size_db']:.1f} dB, like {sh['resembles']} "
+                f"({sh['resemblance_corr']:.2f})",
+                fontsize=9,
+            )
         fig.tight_layout()
         paths.append(out / "freeform.png")
         save_figure(fig, paths[-1], dpi=100)
@@ -266,8 +411,14 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
 
     paths.append(out / "details.txt")
     write_text(paths[-1], details_text(d))
-    doc = {**summary(d), "block_lens": d.block_lens, "flights": [
-        {"name": f.name, "n": len(f), "tx_enu": f.tx_enu_m.tolist()} for f in d.flights], "figures": figs}
+    doc = {
+        **summary(d),
+        "block_lens": d.block_lens,
+        "flights": [
+            {"name": f.name, "n": len(f), "tx_enu": f.tx_enu_m.tolist()} for f in d.flights
+        ],
+        "figures": figs,
+    }
     paths.append(out / "gap.json")
     write_text(paths[-1], jsonsafe.dumps(doc, indent=1))
     return paths

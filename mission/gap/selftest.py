@@ -37,9 +37,21 @@ from mission.physics.shadowing import RandomField
 from mission.samples import FlightSamples
 
 NOISE_DB = 1.0
-WITHHELD_ALL = ("rx_pattern", "rx_mounting", "tx_pattern", "tx_mounting", "tx_tilt", "ground_reflection",
-                "attitude", "yaw_attitude", "leg_shadowing", "path_gain_slope", "time_offset", "receiver",
-                "spatial_shadowing")
+WITHHELD_ALL = (
+    "rx_pattern",
+    "rx_mounting",
+    "tx_pattern",
+    "tx_mounting",
+    "tx_tilt",
+    "ground_reflection",
+    "attitude",
+    "yaw_attitude",
+    "leg_shadowing",
+    "path_gain_slope",
+    "time_offset",
+    "receiver",
+    "spatial_shadowing",
+)
 
 
 @dataclass
@@ -74,9 +86,16 @@ def truth_pipeline(p: dict[str, Any], rng: np.random.Generator) -> Pipeline:
     """e2r with a measured UAV antenna (heading offset), tilted rover dipole, ground, legs, time offset,
     spatial shadowing (the receiver is added by ``simulate_case``)."""
     tx_pat = rm_wb1_dn() if p["tx_pattern"] == "measured" else "dipole"
-    model = make_model("e2r", rx_pattern=rm_wb1_dn(), tx_pattern=tx_pat, eps_r=p["eps_r"], sigma_s_m=p["sigma_s_m"],
-                       beta=p["beta"], rx_heading_rad=np.deg2rad(p["rx_heading_deg"]),
-                       tx_heading_rad=np.deg2rad(p["tx_heading_deg"]))
+    model = make_model(
+        "e2r",
+        rx_pattern=rm_wb1_dn(),
+        tx_pattern=tx_pat,
+        eps_r=p["eps_r"],
+        sigma_s_m=p["sigma_s_m"],
+        beta=p["beta"],
+        rx_heading_rad=np.deg2rad(p["rx_heading_deg"]),
+        tx_heading_rad=np.deg2rad(p["tx_heading_deg"]),
+    )
     if p["tx_pattern"] == "dipole":
         model = model.with_effect(TxTilt(p["tilt_deg"], p["tilt_az_deg"]))
     if p.get("yaw_only"):
@@ -90,8 +109,13 @@ def truth_pipeline(p: dict[str, Any], rng: np.random.Generator) -> Pipeline:
 TRAJECTORIES = ("spiral", "lawnmower", "random_waypoints")
 
 
-def simulate_flights(pipe: Pipeline, rng: np.random.Generator, n_flights: int = 2, dt_s: float = 0.1,
-                     max_duration_s: float = 420.0) -> tuple[list[FlightSamples], list[np.ndarray]]:
+def simulate_flights(
+    pipe: Pipeline,
+    rng: np.random.Generator,
+    n_flights: int = 2,
+    dt_s: float = 0.1,
+    max_duration_s: float = 420.0,
+) -> tuple[list[FlightSamples], list[np.ndarray]]:
     """Fly ``n_flights`` trajectories (different patterns, altitudes and transmitters) and return flights
     whose RSS is the truth pipeline's *channel* prediction (receiver and noise added by the caller)."""
     from mission.geo import afar_field
@@ -109,20 +133,35 @@ def simulate_flights(pipe: Pipeline, rng: np.random.Generator, n_flights: int = 
         if name == "random_waypoints":
             kw = {"n": 12, "seed": int(rng.integers(0, 1 << 30))}
         wp = generate(name, fld, alt, **kw)
-        cfg = SimConfig(dt_s=dt_s, attitude_perturbation_deg=5.0, perturbation_corr_s=0.5, noise_db=0.0)
+        cfg = SimConfig(
+            dt_s=dt_s, attitude_perturbation_deg=5.0, perturbation_corr_s=0.5, noise_db=0.0
+        )
         t, pos, att, _ = fly_path(wp, cfg, rng)
         keep = t <= max_duration_s
         t, pos, att = t[keep], pos[keep], att[keep]
-        tx = np.array([rng.uniform(x0 + 20, x1 - 20), rng.uniform(y0 + 20, y1 - 60), DEFAULT_TX_HEIGHT_M])
-        f = FlightSamples(name=f"sim{k}-{name}", t_s=t, enu_m=pos, attitude_rad=att,
-                          rss_dbm=np.zeros(len(t)), tx_enu_m=tx)
+        tx = np.array(
+            [rng.uniform(x0 + 20, x1 - 20), rng.uniform(y0 + 20, y1 - 60), DEFAULT_TX_HEIGHT_M]
+        )
+        f = FlightSamples(
+            name=f"sim{k}-{name}",
+            t_s=t,
+            enu_m=pos,
+            attitude_rad=att,
+            rss_dbm=np.zeros(len(t)),
+            tx_enu_m=tx,
+        )
         flights.append(f)
         chans.append(pipe.predict_channel(f) + pipe.spatial.field_db(f, pos[:, :2]))  # type: ignore[union-attr]
     return flights, chans
 
 
-def simulate_case(withheld: str | None, seed: int, n_flights: int = 2, dt_s: float = 0.1,
-                  max_duration_s: float = 420.0) -> tuple[Truth, Pipeline, list[FlightSamples]]:
+def simulate_case(
+    withheld: str | None,
+    seed: int,
+    n_flights: int = 2,
+    dt_s: float = 0.1,
+    max_duration_s: float = 420.0,
+) -> tuple[Truth, Pipeline, list[FlightSamples]]:
     """Truth, base pipeline (truth minus ``withheld``) and simulated flights for one self-test case."""
     rng = np.random.default_rng(seed)
     p = draw_truth(rng, withheld)
@@ -150,46 +189,77 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
     f = fitted
     if withheld == "rx_pattern":
         ok = f.get("pattern") == "measured" and not f.get("flipped")
-        return ok, f"pattern {f.get('pattern')}{' flipped' if f.get('flipped') else ''} (truth measured)"
+        return (
+            ok,
+            f"pattern {f.get('pattern')}{' flipped' if f.get('flipped') else ''} (truth measured)",
+        )
     if withheld == "tx_pattern":
         return f.get("pattern") == "dipole", f"pattern {f.get('pattern')} (truth dipole)"
     if withheld == "rx_mounting":
         e = _angle_err(f["heading_deg"], truth["rx_heading_deg"])
-        return e <= 10.0, f"heading {f['heading_deg']:.1f} (truth {truth['rx_heading_deg']:.1f}) deg"
+        return (
+            e <= 10.0,
+            f"heading {f['heading_deg']:.1f} (truth {truth['rx_heading_deg']:.1f}) deg",
+        )
     if withheld == "tx_mounting":
         e = _angle_err(f["heading_deg"], truth["tx_heading_deg"])
-        return e <= 15.0, f"heading {f['heading_deg']:.1f} (truth {truth['tx_heading_deg']:.1f}) deg"
+        return (
+            e <= 15.0,
+            f"heading {f['heading_deg']:.1f} (truth {truth['tx_heading_deg']:.1f}) deg",
+        )
     if withheld == "tx_tilt":
-        ok = abs(f["tilt_deg"] - truth["tilt_deg"]) <= 6.0 and _angle_err(f["azimuth_deg"], truth["tilt_az_deg"]) <= 25
-        return ok, (f"tilt {f['tilt_deg']:.1f} (truth {truth['tilt_deg']:.1f}) deg towards {f['azimuth_deg']:.0f} "
-                    f"(truth {truth['tilt_az_deg']:.0f}) deg")
+        ok = (
+            abs(f["tilt_deg"] - truth["tilt_deg"]) <= 6.0
+            and _angle_err(f["azimuth_deg"], truth["tilt_az_deg"]) <= 25
+        )
+        return ok, (
+            f"tilt {f['tilt_deg']:.1f} (truth {truth['tilt_deg']:.1f}) deg towards {f['azimuth_deg']:.0f} "
+            f"(truth {truth['tilt_az_deg']:.0f}) deg"
+        )
     if withheld == "ground_reflection":
         eps = 10 ** f["log10_eps_r"]
         ok = abs(np.log10(eps / truth["eps_r"])) <= 0.2 and f.get("polarization") == "V"
-        return ok, f"eps_r {eps:.1f} (truth {truth['eps_r']:.1f}), pol {f.get('polarization')} (truth V)"
+        return (
+            ok,
+            f"eps_r {eps:.1f} (truth {truth['eps_r']:.1f}), pol {f.get('polarization')} (truth V)",
+        )
     if withheld == "leg_shadowing":
         ok = abs(f["beta"] - truth["beta"]) <= 0.15
-        return ok, (f"beta {f['beta']:.2f} (truth {truth['beta']:.2f}), half-width {f['half_width_deg']:.1f} "
-                    f"(truth 5), legs rotated {f['legs_rotation_deg']:.1f} (truth 0) deg")
+        return ok, (
+            f"beta {f['beta']:.2f} (truth {truth['beta']:.2f}), half-width {f['half_width_deg']:.1f} "
+            f"(truth 5), legs rotated {f['legs_rotation_deg']:.1f} (truth 0) deg"
+        )
     if withheld == "time_offset":
-        return abs(f["tau_s"] - truth["tau_s"]) <= 0.08, f"tau {f['tau_s']:.3f} (truth {truth['tau_s']:.3f}) s"
+        return abs(
+            f["tau_s"] - truth["tau_s"]
+        ) <= 0.08, f"tau {f['tau_s']:.3f} (truth {truth['tau_s']:.3f}) s"
     if withheld == "receiver":
-        ok = abs(f["floor_db"] - truth["floor_db"]) <= 2.5 and abs(f["sat_db"] - truth["sat_db"]) <= 2.5
-        return ok, (f"floor {f['floor_db']:.1f} (truth {truth['floor_db']:.1f}), sat {f['sat_db']:.1f} "
-                    f"(truth {truth['sat_db']:.1f}) dB")
+        ok = (
+            abs(f["floor_db"] - truth["floor_db"]) <= 2.5
+            and abs(f["sat_db"] - truth["sat_db"]) <= 2.5
+        )
+        return ok, (
+            f"floor {f['floor_db']:.1f} (truth {truth['floor_db']:.1f}), sat {f['sat_db']:.1f} "
+            f"(truth {truth['sat_db']:.1f}) dB"
+        )
     if withheld == "spatial_shadowing":
         # sigma against the field's std over the flown samples (the offset absorbs the field's mean per flight);
         # the correlation length is weakly identified on held-out chunks ~30 m from the training passes
         real = truth["spatial_realized_std_db"]
         ok = 0.6 <= f["sigma_db"] / real <= 1.5  # L is reported, not required (see above)
-        return ok, (f"sigma {f['sigma_db']:.2f} (field std on the flights {real:.2f}, nominal "
-                    f"{truth['spatial_sigma_db']:.2f}) dB, L {f['corr_len_m']:.0f} (truth "
-                    f"{truth['spatial_corr_len_m']:.0f}) m")
+        return ok, (
+            f"sigma {f['sigma_db']:.2f} (field std on the flights {real:.2f}, nominal "
+            f"{truth['spatial_sigma_db']:.2f}) dB, L {f['corr_len_m']:.0f} (truth "
+            f"{truth['spatial_corr_len_m']:.0f}) m"
+        )
     if withheld in ("attitude", "yaw_attitude"):
         if "heading_deg" not in f:
             return True, "no parameters"
         e = _angle_err(f["heading_deg"], truth["rx_heading_deg"])
-        return e <= 10.0, f"UAV antenna heading {f['heading_deg']:.1f} (truth {truth['rx_heading_deg']:.1f}) deg"
+        return (
+            e <= 10.0,
+            f"UAV antenna heading {f['heading_deg']:.1f} (truth {truth['rx_heading_deg']:.1f}) deg",
+        )
     if withheld == "path_gain_slope":
         ok = abs(f["n_extra"] - truth["n_extra"]) <= 0.15
         return ok, f"n_extra {f['n_extra']:.2f} (truth {truth['n_extra']:.2f})"
@@ -215,14 +285,27 @@ class CaseResult:
     def passed(self) -> bool:
         if self.withheld is None:
             return not self.significant
-        return self.ranked_first == self.withheld and self.param_ok and self.gap_ok and \
-            self.withheld in self.significant
+        return (
+            self.ranked_first == self.withheld
+            and self.param_ok
+            and self.gap_ok
+            and self.withheld in self.significant
+        )
 
     def as_dict(self) -> dict[str, Any]:
-        return {"withheld": self.withheld, "seed": self.seed, "ranked_first": self.ranked_first,
-                "significant": self.significant, "param_ok": self.param_ok, "params": self.param_text,
-                "rms_base_db": self.rms_base, "rms_after_db": self.rms_after, "gap_ok": self.gap_ok,
-                "passed": self.passed, "ranking": self.ranking}
+        return {
+            "withheld": self.withheld,
+            "seed": self.seed,
+            "ranked_first": self.ranked_first,
+            "significant": self.significant,
+            "param_ok": self.param_ok,
+            "params": self.param_text,
+            "rms_base_db": self.rms_base,
+            "rms_after_db": self.rms_after,
+            "gap_ok": self.gap_ok,
+            "passed": self.passed,
+            "ranking": self.ranking,
+        }
 
 
 def gap_tolerance(withheld: str | None, oracle_rms: float | None = None) -> float:
@@ -234,7 +317,9 @@ def gap_tolerance(withheld: str | None, oracle_rms: float | None = None) -> floa
     return NOISE_DB * 1.2
 
 
-def oracle_spatial_rms(base: Pipeline, truth: Truth, flights: Sequence[FlightSamples], cfg: FitConfig) -> float:
+def oracle_spatial_rms(
+    base: Pipeline, truth: Truth, flights: Sequence[FlightSamples], cfg: FitConfig
+) -> float:
     """Held-out RMS of kriging with the true field's covariance (the best a spatial candidate can do)."""
     from mission.gap.fit import decimate, heldout_residuals, residuals
     from mission.gap.spatial import KrigedShadowing, _group_cells
@@ -244,15 +329,26 @@ def oracle_spatial_rms(base: Pipeline, truth: Truth, flights: Sequence[FlightSam
     for fold in folds:
         tr = [decimate(i, cfg.fit_max_samples) for i in fold.train]
         res = residuals(base, flights, tr, cfg)
-        k = KrigedShadowing(truth.params["spatial_realized_std_db"], truth.params["spatial_corr_len_m"], NOISE_DB,
-                            _group_cells(flights, tr, res, 5.0))
+        k = KrigedShadowing(
+            truth.params["spatial_realized_std_db"],
+            truth.params["spatial_corr_len_m"],
+            NOISE_DB,
+            _group_cells(flights, tr, res, 5.0),
+        )
         pipes.append(base.replace(spatial=k))
     r = heldout_residuals(pipes, flights, folds, cfg)
     return summarize(np.concatenate([x[np.isfinite(x)] for x in r])).rms
 
 
-def run_case(withheld: str | None, seed: int, cfg: FitConfig | None = None, n_flights: int = 2,
-             dt_s: float = 0.1, max_duration_s: float = 420.0, candidates: Sequence[str] | None = None) -> CaseResult:
+def run_case(
+    withheld: str | None,
+    seed: int,
+    cfg: FitConfig | None = None,
+    n_flights: int = 2,
+    dt_s: float = 0.1,
+    max_duration_s: float = 420.0,
+    candidates: Sequence[str] | None = None,
+) -> CaseResult:
     """Simulate, withhold, rank the candidates once on top of the base and check the three requirements."""
     cfg = cfg or FitConfig(seed=seed)
     truth, base, flights = simulate_case(withheld, seed, n_flights, dt_s, max_duration_s)
@@ -260,10 +356,16 @@ def run_case(withheld: str | None, seed: int, cfg: FitConfig | None = None, n_fl
     # the library's own consistency check: named effects and the smoother; the free-form maps are checked
     # against the independent generator (tests/_gap_synth.py, benchmarks/bench_gap.py selftest)
     # (site_map needs flights that share a transmitter position: no withheld truth here)
-    cands = [lib[n] for n in (candidates or [k for k, c in lib.items() if c.tier != TIER_FREEFORM
-                                             and k != "site_map"])]
+    cands = [
+        lib[n]
+        for n in (
+            candidates or [k for k, c in lib.items() if c.tier != TIER_FREEFORM and k != "site_map"]
+        )
+    ]
     folds = make_folds(flights, cfg)
-    ranking = rank_candidates([base] * len(folds), flights, folds, cands, cfg, np.random.default_rng(seed))
+    ranking = rank_candidates(
+        [base] * len(folds), flights, folds, cands, cfg, np.random.default_rng(seed)
+    )
     sig = [r.name for r in ranking if r.significant]
     first = ranking[0].name if ranking and ranking[0].significant else None
     base_rms = ranking[0].rms_before if ranking else float("nan")
@@ -273,17 +375,32 @@ def run_case(withheld: str | None, seed: int, cfg: FitConfig | None = None, n_fl
     else:
         pok, ptxt = param_check(withheld, hit.params_mean(), truth.params)
         after = summarize(np.concatenate([r[np.isfinite(r)] for r in hit.residuals])).rms
-    oracle = oracle_spatial_rms(base, truth, flights, cfg) if withheld == "spatial_shadowing" else None
+    oracle = (
+        oracle_spatial_rms(base, truth, flights, cfg) if withheld == "spatial_shadowing" else None
+    )
     gap_ok = after <= gap_tolerance(withheld, oracle)
     if oracle is not None:
         ptxt += f"; oracle kriging rms {oracle:.2f} dB"
-    table = [{"name": r.name, "rms_after_db": r.rms_after, "rel_reduction": r.rel_reduction,
-              "significant": r.significant, "params": r.params_mean()} for r in ranking]
+    table = [
+        {
+            "name": r.name,
+            "rms_after_db": r.rms_after,
+            "rel_reduction": r.rel_reduction,
+            "significant": r.significant,
+            "params": r.params_mean(),
+        }
+        for r in ranking
+    ]
     return CaseResult(withheld, seed, first, sig, pok, ptxt, base_rms, after, gap_ok, table)
 
 
-def run_selftest(withheld: Sequence[str | None] | None = None, seeds: Sequence[int] = (1, 2),
-                 cfg: FitConfig | None = None, progress: Any = None, **kw: Any) -> list[CaseResult]:
+def run_selftest(
+    withheld: Sequence[str | None] | None = None,
+    seeds: Sequence[int] = (1, 2),
+    cfg: FitConfig | None = None,
+    progress: Any = None,
+    **kw: Any,
+) -> list[CaseResult]:
     """Every candidate withheld (plus the negative case) for every seed."""
     cases = list(withheld) if withheld is not None else [*WITHHELD_ALL, None]
     out = []

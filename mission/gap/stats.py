@@ -28,7 +28,9 @@ def autocorrelation(x: np.ndarray, max_lag: int | None = None) -> np.ndarray:
     return ac / ac[0] if ac[0] > 0 else np.zeros_like(ac)
 
 
-def block_length(x: np.ndarray, cutoff: float = 0.05, min_len: int = 1, max_frac: float = 0.1) -> int:
+def block_length(
+    x: np.ndarray, cutoff: float = 0.05, min_len: int = 1, max_frac: float = 0.1
+) -> int:
     """Bootstrap block length ~ 2 x the integrated autocorrelation time of ``x``.
 
     tau_int = 1 + 2 sum_{k < K} rho_k with K the first lag where rho drops below ``cutoff``; the block is
@@ -51,11 +53,17 @@ def _window_sums(v: np.ndarray, L: int) -> np.ndarray:
     n = v.shape[-1]
     ext = np.concatenate([v, v[..., : min(L, n)]], axis=-1)
     c = np.concatenate([np.zeros(v.shape[:-1] + (1,)), np.cumsum(ext, axis=-1)], axis=-1)
-    return c[..., L: L + n] - c[..., :n]
+    return c[..., L : L + n] - c[..., :n]
 
 
-def bootstrap_group_means(values: Sequence[np.ndarray], groups: Sequence[np.ndarray], n_groups: int,
-                          block_lens: Sequence[int], n_boot: int, rng: np.random.Generator) -> np.ndarray:
+def bootstrap_group_means(
+    values: Sequence[np.ndarray],
+    groups: Sequence[np.ndarray],
+    n_groups: int,
+    block_lens: Sequence[int],
+    n_boot: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """Circular block bootstrap of per-group means, pooled over independent flights.
 
     ``values[f]``, ``groups[f]`` (ints in [0, n_groups), -1 = excluded) belong to flight f, resampled with
@@ -80,8 +88,9 @@ def bootstrap_group_means(values: Sequence[np.ndarray], groups: Sequence[np.ndar
         return np.where(cnts > 0, sums / np.where(cnts > 0, cnts, 1.0), np.nan)
 
 
-def bootstrap_mean(values: Sequence[np.ndarray], block_lens: Sequence[int], n_boot: int,
-                   rng: np.random.Generator) -> np.ndarray:
+def bootstrap_mean(
+    values: Sequence[np.ndarray], block_lens: Sequence[int], n_boot: int, rng: np.random.Generator
+) -> np.ndarray:
     """Block-bootstrap replicates (n_boot,) of the pooled mean of ``values`` (one array per flight)."""
     groups = [np.zeros(v.size, dtype=int) for v in values]
     return bootstrap_group_means(values, groups, 1, block_lens, n_boot, rng)[:, 0]
@@ -98,8 +107,13 @@ class ErrorSummary:
     mean: float
 
     def as_dict(self) -> dict[str, float]:
-        return {"n": self.n, "median_abs_db": self.median_abs, "p90_abs_db": self.p90_abs, "rms_db": self.rms,
-                "mean_db": self.mean}
+        return {
+            "n": self.n,
+            "median_abs_db": self.median_abs,
+            "p90_abs_db": self.p90_abs,
+            "rms_db": self.rms,
+            "mean_db": self.mean,
+        }
 
 
 def summarize(err: np.ndarray) -> ErrorSummary:
@@ -109,8 +123,13 @@ def summarize(err: np.ndarray) -> ErrorSummary:
     if e.size == 0:
         return ErrorSummary(0, np.nan, np.nan, np.nan, np.nan)
     a = np.abs(e)
-    return ErrorSummary(int(e.size), float(np.median(a)), float(np.percentile(a, 90)), float(np.sqrt(np.mean(e * e))),
-                        float(np.mean(e)))
+    return ErrorSummary(
+        int(e.size),
+        float(np.median(a)),
+        float(np.percentile(a, 90)),
+        float(np.sqrt(np.mean(e * e))),
+        float(np.mean(e)),
+    )
 
 
 def ecdf(x: np.ndarray, n_points: int = 200) -> tuple[np.ndarray, np.ndarray]:
@@ -136,18 +155,34 @@ class BinnedResidual:
     flagged: np.ndarray
 
     def as_dict(self) -> dict:
-        return {"variable": self.variable, "edges": self.edges.tolist(), "centers": self.centers.tolist(),
-                "count": self.count.tolist(), "mean_db": _nan_list(self.mean), "ci_lo_db": _nan_list(self.lo),
-                "ci_hi_db": _nan_list(self.hi), "flagged": self.flagged.tolist()}
+        return {
+            "variable": self.variable,
+            "edges": self.edges.tolist(),
+            "centers": self.centers.tolist(),
+            "count": self.count.tolist(),
+            "mean_db": _nan_list(self.mean),
+            "ci_lo_db": _nan_list(self.lo),
+            "ci_hi_db": _nan_list(self.hi),
+            "flagged": self.flagged.tolist(),
+        }
 
 
 def _nan_list(a: np.ndarray) -> list:
     return [None if not np.isfinite(v) else float(v) for v in np.asarray(a, dtype=float)]
 
 
-def binned_residual(variable: str, xs: Sequence[np.ndarray], residuals: Sequence[np.ndarray], edges: np.ndarray,
-                    block_lens: Sequence[int], rng: np.random.Generator, n_boot: int = 300, level: float = 0.95,
-                    min_count: int = 30, categorical: bool = False) -> BinnedResidual:
+def binned_residual(
+    variable: str,
+    xs: Sequence[np.ndarray],
+    residuals: Sequence[np.ndarray],
+    edges: np.ndarray,
+    block_lens: Sequence[int],
+    rng: np.random.Generator,
+    n_boot: int = 300,
+    level: float = 0.95,
+    min_count: int = 30,
+    categorical: bool = False,
+) -> BinnedResidual:
     """Bin ``residuals`` by ``xs`` (one array per flight) and flag bins whose mean departs from zero.
 
     A bin is flagged when its block-bootstrap ``level`` interval excludes 0 (the residual has the per-flight

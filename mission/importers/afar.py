@@ -33,7 +33,9 @@ from mission.flightlog.schema import RSS_RANGE_DB
 from mission.geo import Origin, afar_field, latlon_unit_problem
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
-MIN_DT_S = 1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
+MIN_DT_S = (
+    1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
+)
 # Rover (transmitter) truth of the AFAR 2023 challenge flights by location number in the MAT file name
 # (``../shared/data/README.md``); antenna about 1.5 m above ground.
 AFAR2023_TRUTH: dict[int, tuple[float, float]] = {
@@ -44,7 +46,9 @@ AFAR2023_TRUTH: dict[int, tuple[float, float]] = {
 # The one flight whose truth label is suspect, as (team, location): its strongest airborne RSS sample lies 147 m
 # from the labelled point (team 328 at the same location: 73 m). Benchmarks never fit on it and report it apart.
 AFAR2023_SUSPECT: tuple[int, int] = (288, 3)
-AFAR2023_SUSPECT_NOTE = "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
+AFAR2023_SUSPECT_NOTE = (
+    "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
+)
 
 
 def afar2023_id(name: str | Path) -> tuple[int, int] | None:
@@ -58,6 +62,8 @@ def afar2023_id(name: str | Path) -> tuple[int, int] | None:
 def is_afar2023_suspect(name: str | Path) -> bool:
     """Whether ``name`` (any form ``afar2023_id`` reads) is the flight with the suspect truth label."""
     return afar2023_id(name) == AFAR2023_SUSPECT
+
+
 RSS_SOURCE = {"kind": "real", "receiver": "AERPAW channel sounder", "calibrated": False}
 
 
@@ -75,8 +81,11 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
 
     src = str(path)
     if path.is_dir():
-        raise InputError("is a directory, not a MAT file (give the folder to `rfsl import` to import every .mat "
-                         "in it)", source=src)
+        raise InputError(
+            "is a directory, not a MAT file (give the folder to `rfsl import` to import every .mat "
+            "in it)",
+            source=src,
+        )
     if not path.exists():
         raise InputError("no such MAT file", source=src)
     try:
@@ -98,7 +107,9 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
         if n is None:
             n = a.size
         elif a.size != n:
-            raise InputError(f"has {a.size} rows, expected {n} (as timestamp_power)", source=src, field=v)
+            raise InputError(
+                f"has {a.size} rows, expected {n} (as timestamp_power)", source=src, field=v
+            )
         out[v] = a
     if not n:
         raise InputError("no samples", source=src)
@@ -108,10 +119,14 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
 # What no sample of a real flight can hold, per MAT variable: (low, high, what it means). The power is the
 # uncalibrated receiver's dB (RSS_RANGE_DB: the AFAR sounder reads up to +33, so 0 dBm is no bound); attitude
 # within +-180 (yaw, wrapped later, within ten turns); the time stamps are Unix seconds.
-IMPOSSIBLE = {"mpower": (*RSS_RANGE_DB, f"power outside {RSS_RANGE_DB[0]:g}..{RSS_RANGE_DB[1]:g} dB"),
-              "mRoll": (-180.0, 180.0, "roll outside +-180 deg"), "mPitch": (-180.0, 180.0, "pitch outside +-180 deg"),
-              "mYaw": (-3600.0, 3600.0, "yaw beyond ten turns"), "mZ": (-1000.0, 20000.0, "height outside -1..20 km"),
-              "timestamp_power": (0.0, 1e11, "time stamp that is not Unix seconds")}
+IMPOSSIBLE = {
+    "mpower": (*RSS_RANGE_DB, f"power outside {RSS_RANGE_DB[0]:g}..{RSS_RANGE_DB[1]:g} dB"),
+    "mRoll": (-180.0, 180.0, "roll outside +-180 deg"),
+    "mPitch": (-180.0, 180.0, "pitch outside +-180 deg"),
+    "mYaw": (-3600.0, 3600.0, "yaw beyond ten turns"),
+    "mZ": (-1000.0, 20000.0, "height outside -1..20 km"),
+    "timestamp_power": (0.0, 1e11, "time stamp that is not Unix seconds"),
+}
 MAX_SPAN_S = 86400.0  # one flight's time stamps span less than a day
 
 
@@ -151,7 +166,9 @@ def convert_afar_mat(
         m = {k: a[finite] for k, a in m.items()}
     m = _drop_impossible(m, notes)
     if m["timestamp_power"].size < 2:
-        raise InputError("fewer than 2 usable samples" + (f" ({notes[-1]})" if notes else ""), source=src)
+        raise InputError(
+            "fewer than 2 usable samples" + (f" ({notes[-1]})" if notes else ""), source=src
+        )
     t = m["timestamp_power"]
     if np.any(np.diff(t) < 0):
         notes.append(f"sorted {int((np.diff(t) < 0).sum())} out-of-order timestamps")
@@ -180,7 +197,9 @@ def convert_afar_mat(
     if problem:
         raise InputError(f"sample {problem[0]}: mY/mX {problem[1]}", source=src, field="mY")
     if not truth_height_m >= 0:
-        raise InputError(f"transmitter height {truth_height_m:g} m is below ground", field="--truth-height")
+        raise InputError(
+            f"transmitter height {truth_height_m:g} m is below ground", field="--truth-height"
+        )
     z = m["mZ"]
     cols = {
         "t_s": t - t[0],
@@ -195,7 +214,11 @@ def convert_afar_mat(
     }
     truth_d = None
     if truth is not None:
-        truth_d = {"lat_deg": float(truth[0]), "lon_deg": float(truth[1]), "height_m": float(truth_height_m)}
+        truth_d = {
+            "lat_deg": float(truth[0]),
+            "lon_deg": float(truth[1]),
+            "height_m": float(truth_height_m),
+        }
     start = np.datetime64(int(round(t[0] * 1e6)), "us")
     meta = make_meta(
         origin,

@@ -40,7 +40,9 @@ class Fit:
         if "offset_db" not in extras:
             return None
         rms = extras.get("cost_rms_db", extras.get("residual_rms_db"))
-        return cls(float(extras["offset_db"]), None if rms is None else float(rms), extras.get("antenna"))
+        return cls(
+            float(extras["offset_db"]), None if rms is None else float(rms), extras.get("antenna")
+        )
 
     def line(self) -> str:
         out = f"offset {self.offset_db:.1f} dB"
@@ -68,10 +70,14 @@ class Estimate:
     lon_deg: float | None = None
     error_m: float | None = None
     extras: dict = field(default_factory=dict)
-    posterior: object | None = field(default=None, repr=False)  # uncertainty.Posterior, when the method has one
+    posterior: object | None = field(
+        default=None, repr=False
+    )  # uncertainty.Posterior, when the method has one
     notes: list[str] = field(default_factory=list, repr=False)
     components: dict[str, Estimate] = field(default_factory=dict, repr=False)
-    candidates: list = field(default_factory=list, repr=False)  # candidates.Candidate, most weight first
+    candidates: list = field(
+        default_factory=list, repr=False
+    )  # candidates.Candidate, most weight first
     selection: Selection | None = field(default=None, repr=False)
 
     @property
@@ -116,7 +122,10 @@ class Estimate:
         if self.error_m is not None:
             d["error_m"] = self.error_m
         sel = self.selection.to_dict() if self.selection is not None else {}
-        for k, v in self.extras.items():  # the selection's keys follow method_choice, as they always did
+        for (
+            k,
+            v,
+        ) in self.extras.items():  # the selection's keys follow method_choice, as they always did
             if k not in d:
                 d[k] = v
                 if k == "method_choice":

@@ -23,16 +23,22 @@ from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 
 REFERENCE_ALTITUDE_M = 30.0  # the mission altitude the networks were first trained at
-REFERENCE_HEIGHT_M = REFERENCE_ALTITUDE_M - DEFAULT_TX_HEIGHT_M  # 28.5 m: over the default transmitter height
-MIN_HEIGHT_M = 5.0  # below this height above the transmitter a flight is not a cruise: no scale is claimed
+REFERENCE_HEIGHT_M = (
+    REFERENCE_ALTITUDE_M - DEFAULT_TX_HEIGHT_M
+)  # 28.5 m: over the default transmitter height
+MIN_HEIGHT_M = (
+    5.0  # below this height above the transmitter a flight is not a cruise: no scale is claimed
+)
 METADATA_KEY = "altitude_normalisation"  # in a network's ``training_data`` metadata
 
 
 def metadata_entry() -> dict:
     """What ``rfsl train --altitude-normalised`` records under ``training_data[METADATA_KEY]``."""
-    return {"reference_height_m": REFERENCE_HEIGHT_M,
-            "scaled": "cluster x, y and the output about the field origin by reference_height_m / (median height "
-                      "of the samples used - transmitter height)"}
+    return {
+        "reference_height_m": REFERENCE_HEIGHT_M,
+        "scaled": "cluster x, y and the output about the field origin by reference_height_m / (median height "
+        "of the samples used - transmitter height)",
+    }
 
 
 def reference_height(training_data: dict | None) -> float | None:
@@ -49,8 +55,11 @@ def scale_factor(height_m, reference_m: float = REFERENCE_HEIGHT_M) -> np.ndarra
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         who = "the flight" if h.size == 1 else f"flight {i}"
-        raise InputError(f"{who} is {h[i]:.1f} m above the transmitter: an altitude-normalised network needs a "
-                         f"cruise at least {MIN_HEIGHT_M:.0f} m above it (transmitter height right?)", field="height")
+        raise InputError(
+            f"{who} is {h[i]:.1f} m above the transmitter: an altitude-normalised network needs a "
+            f"cruise at least {MIN_HEIGHT_M:.0f} m above it (transmitter height right?)",
+            field="height",
+        )
     return reference_m / h
 
 

@@ -42,7 +42,9 @@ from mission.localize.methods import (
     composer,
     method_entry,
 )
-from mission.shipped import shipped_model  # re-exported: importers say mission.localize.api.shipped_model
+from mission.shipped import (
+    shipped_model,
+)  # re-exported: importers say mission.localize.api.shipped_model
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
@@ -83,7 +85,9 @@ def _truth_enu(log, truth) -> np.ndarray | None:
     try:
         return log.truth_enu
     except (KeyError, TypeError, ValueError):
-        raise InputError("sidecar truth is malformed", source=str(log.path), field="truth") from None
+        raise InputError(
+            "sidecar truth is malformed", source=str(log.path), field="truth"
+        ) from None
 
 
 def make_localizer(
@@ -100,14 +104,25 @@ def make_localizer(
     ``physics_preset`` replaces ``physics_model``)."""
     entry = method_entry(method)
     if entry.factory is None:
-        raise InputError(f"method {method!r} combines other methods: localize_log runs it, not one localizer")
-    return entry.factory(model_path=model_path, physics_model=physics_model, physics_params=physics_params,
-                         tx_height_m=tx_height_m, area=area, floor_db=floor_db, physics_preset=physics_preset)
+        raise InputError(
+            f"method {method!r} combines other methods: localize_log runs it, not one localizer"
+        )
+    return entry.factory(
+        model_path=model_path,
+        physics_model=physics_model,
+        physics_params=physics_params,
+        tx_height_m=tx_height_m,
+        area=area,
+        floor_db=floor_db,
+        physics_preset=physics_preset,
+    )
 
 
 def _is_simulated(log) -> bool:
     """True when the sidecar says the RSS came from a simulator (not a real receiver)."""
-    return (log.meta.get("rss_source") or {}).get("kind") == "sim"  # the same test as choose_method's
+    return (log.meta.get("rss_source") or {}).get(
+        "kind"
+    ) == "sim"  # the same test as choose_method's
 
 
 def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
@@ -158,15 +173,21 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
 
     cal = card_calibration(net.card, "sim" if simulated else "real")  # sized for what was flown
     flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name)
-    if not simulated:  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
+    if (
+        not simulated
+    ):  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
         est.add_note(flown.pop("attitude_note"))
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
     if _check_altitude(est, net, part) and simulated and est.regions:
-        est.add_note("Its error circles were calibrated on flights inside those altitudes: expect them to be too "
-                     "small here.")
+        est.add_note(
+            "Its error circles were calibrated on flights inside those altitudes: expect them to be too "
+            "small here."
+        )
 
 
-def _method_regions(est: Estimate, method: str, simulated: bool, default_config: bool, area) -> None:
+def _method_regions(
+    est: Estimate, method: str, simulated: bool, default_config: bool, area
+) -> None:
     """Strongest sample, centroid and grid get error circles calibrated for their default configuration (the
     grid's default physics, the default sample selection), clipped to the rover ``area`` when known; any other
     configuration gets a note instead."""
@@ -175,8 +196,10 @@ def _method_regions(est: Estimate, method: str, simulated: bool, default_config:
     if method not in CIRCLE_METHODS:
         return
     if not default_config:
-        est.add_note("no uncertainty region: the error circles of this method were calibrated for its default "
-                     "physics and sample selection only")
+        est.add_note(
+            "no uncertainty region: the error circles of this method were calibrated for its default "
+            "physics and sample selection only"
+        )
         return
     cal = method_calibration(method, "sim" if simulated else "real")
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area))
@@ -196,11 +219,17 @@ def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> 
 
     est.regions, est.posterior = alt.regions, alt.posterior
     est.extras["regions_from"] = "selfcal"
-    est.notes = [n.replace(NO_CIRCLE_APPLIES, "Its error circles do not apply.")
-                 .replace("no uncertainty region: ", "no error circle: ", 1) for n in est.notes]
-    est.add_note(f"The regions are the self-calibrating search's posterior's (its estimate "
-                 f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} m from "
-                 "this one).")
+    est.notes = [
+        n.replace(NO_CIRCLE_APPLIES, "Its error circles do not apply.").replace(
+            "no uncertainty region: ", "no error circle: ", 1
+        )
+        for n in est.notes
+    ]
+    est.add_note(
+        f"The regions are the self-calibrating search's posterior's (its estimate "
+        f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} m from "
+        "this one)."
+    )
 
 
 def fusion_model_path() -> Path | None:
@@ -222,7 +251,9 @@ def run_member(name: str, part, origin, **kw) -> tuple[object, Estimate]:
     return loc, _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
 
 
-def fusion(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_path=None, **_) -> Estimate:
+def fusion(
+    part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_path=None, **_
+) -> Estimate:
     """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
     ``models/README.md``; weighting by each member's 50 % region scale was not adopted, benchmarks/fusion_weights.py);
     the uncertainty regions are the self-calibrating posterior's, and a note says when
@@ -232,21 +263,38 @@ def fusion(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_p
     _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     path = model_path or fusion_model_path()
     if path is None:
-        a.extras["fusion"] = f"no network (models/{FUSION_MODEL_NAME}): self-calibrating estimate alone"
+        a.extras["fusion"] = (
+            f"no network (models/{FUSION_MODEL_NAME}): self-calibrating estimate alone"
+        )
         return a
     net, b = run_member("onnx", part, origin, model_path=path, tx_height_m=tx_height_m)
     x, y = 0.5 * (a.x_m + b.x_m), 0.5 * (a.y_m + b.y_m)
     lat, lon, _ = origin.to_geodetic(np.array([x, y, 0.0]))
-    est = Estimate(float(x), float(y), "fusion", f"mean of selfcal and {Path(path).name}", float(lat),
-                   float(lon), extras=dict(a.extras), posterior=a.posterior, notes=list(a.notes))
+    est = Estimate(
+        float(x),
+        float(y),
+        "fusion",
+        f"mean of selfcal and {Path(path).name}",
+        float(lat),
+        float(lon),
+        extras=dict(a.extras),
+        posterior=a.posterior,
+        notes=list(a.notes),
+    )
     est.set_components({"selfcal": a, Path(path).name: b})
     est.extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
-    if a.posterior is not None and a.posterior.grid is not None:  # is the fused point inside its own regions?
-        est.extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))  # log frame, as the grid
+    if (
+        a.posterior is not None and a.posterior.grid is not None
+    ):  # is the fused point inside its own regions?
+        est.extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(
+            float(x), float(y)
+        )  # log frame, as the grid
         outer = outer_region(est.extras)
         if outer is not None and q >= outer["hpd_mass"]:
-            est.add_note(f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the fused "
-                         f"point lies outside the {100 * outer['level']:.0f} % region, which is the search's alone")
+            est.add_note(
+                f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the fused "
+                f"point lies outside the {100 * outer['level']:.0f} % region, which is the search's alone"
+            )
     _check_altitude(est, net, part)
     return est
 
@@ -254,27 +302,46 @@ def fusion(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_p
 REAL_DEFAULT = "fusion"  # the real-log default, chosen by the rule in models/README.md
 
 
-def choose_method(meta: dict, heights_m: np.ndarray, model_path: str | Path | None = None,
-                  default_model: Path | None = None, physics_label: str = "the log's physics"
-                  ) -> tuple[str, str | Path | None, str]:
+def choose_method(
+    meta: dict,
+    heights_m: np.ndarray,
+    model_path: str | Path | None = None,
+    default_model: Path | None = None,
+    physics_label: str = "the log's physics",
+) -> tuple[str, str | Path | None, str]:
     """(method, model path, why) when none is asked for: a pure function of the sidecar, the selected samples'
     heights, the model given and the shipped default network (``tests/test_methods.py`` holds its table)."""
     if model_path is not None:
         return "onnx", model_path, f"model {Path(model_path).name} given"
     if (meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
-        return ADAPTIVE_METHOD, None, ("adaptive flight: the live method its rounds were planned with (the networks "
-                                       "know only fixed paths); mission.adaptive.live")
+        return (
+            ADAPTIVE_METHOD,
+            None,
+            (
+                "adaptive flight: the live method its rounds were planned with (the networks "
+                "know only fixed paths); mission.adaptive.live"
+            ),
+        )
     if (meta.get("rss_source") or {}).get("kind") != "sim":
-        return REAL_DEFAULT, None, (
-            "real receiver log: mean of the self-calibrating estimate and the network "
-            f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
-            "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method")
+        return (
+            REAL_DEFAULT,
+            None,
+            (
+                "real receiver log: mean of the self-calibrating estimate and the network "
+                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
+                "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
+            ),
+        )
     if default_model is not None:
         from mission.localize.sim_default import sim_default_model
 
         path, why = sim_default_model(meta, heights_m, default_model)
         return "onnx", path, why
-    return "grid", None, f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_label}"
+    return (
+        "grid",
+        None,
+        f"no default model (models/{DEFAULT_MODEL_NAME}); grid search with {physics_label}",
+    )
 
 
 def localize_log(
@@ -301,7 +368,9 @@ def localize_log(
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     physics_given = physics_preset is not None or physics_model is not None or floor_db is not None
-    by_default = method is None and model_path is None  # a default network: selfcal's regions if its circles fail
+    by_default = (
+        method is None and model_path is None
+    )  # a default network: selfcal's regions if its circles fail
     if physics_preset is None and physics_model is None:
         physics_model, physics_params, physics_preset = _default_physics(log)
     physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
@@ -311,33 +380,59 @@ def localize_log(
     else:
         part, reason = log, "cruise selection off: all samples used"
     if method is None:
-        method, model_path, choice = choose_method(log.meta, part.enu()[:, 2], model_path, default_model_path(),
-                                                   physics_label)
+        method, model_path, choice = choose_method(
+            log.meta, part.enu()[:, 2], model_path, default_model_path(), physics_label
+        )
     else:
         choice = f"method {method} requested"
     entry = method_entry(method)  # an unknown name: InputError listing the known ones
-    ra = search_area(log)  # the transmitter's area: bounds the searches, clips error circles, checks estimates
+    ra = search_area(
+        log
+    )  # the transmitter's area: bounds the searches, clips error circles, checks estimates
     area = ra if entry.bounded else None
     origin = log.origin
     if entry.compose is not None:  # a meta-estimator over other methods
-        est = composer(entry)(part, origin, area, tx_height_m=tx_height_m, model_path=model_path,
-                              physics_preset=physics_preset)
+        est = composer(entry)(
+            part,
+            origin,
+            area,
+            tx_height_m=tx_height_m,
+            model_path=model_path,
+            physics_preset=physics_preset,
+        )
     else:
-        loc = make_localizer(method, model_path, physics_model or "e2r", physics_params, tx_height_m, area,
-                             floor_db, physics_preset=physics_preset)
+        loc = make_localizer(
+            method,
+            model_path,
+            physics_model or "e2r",
+            physics_params,
+            tx_height_m,
+            area,
+            floor_db,
+            physics_preset=physics_preset,
+        )
         est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
         if entry.calibration == FROM_CARD:  # a network: its card's circles
             _network_regions(est, loc, part, _is_simulated(log), ra)
             if by_default:
                 _fallback_regions(est, part, origin, ra, tx_height_m)
         else:
-            _method_regions(est, method, _is_simulated(log), cruise and not (method == "grid" and physics_given),
-                            ra)
-    if ra is not None:  # networks are not bounded: say so when an estimate leaves the transmitter's area
+            _method_regions(
+                est,
+                method,
+                _is_simulated(log),
+                cruise and not (method == "grid" and physics_given),
+                ra,
+            )
+    if (
+        ra is not None
+    ):  # networks are not bounded: say so when an estimate leaves the transmitter's area
         out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
         if out_m > OUTSIDE_WARN_M:
-            est.extras["warning"] = (f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
-                                     "recognise this flight (other path or physics than it was trained on?)")
+            est.extras["warning"] = (
+                f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
+                "recognise this flight (other path or physics than it was trained on?)"
+            )
     t = _truth_enu(log, truth)
     if t is not None:
         est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))

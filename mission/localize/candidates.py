@@ -51,8 +51,13 @@ class Candidate:
         return d
 
 
-def posterior_modes(prob: np.ndarray, grid: np.ndarray, min_mass: float = 0.05, sep_m: float = 30.0,
-                    max_modes: int = 3) -> list[tuple[float, float, float]]:
+def posterior_modes(
+    prob: np.ndarray,
+    grid: np.ndarray,
+    min_mass: float = 0.05,
+    sep_m: float = 30.0,
+    max_modes: int = 3,
+) -> list[tuple[float, float, float]]:
     """The separate modes of a grid posterior as (x, y, mass), most massive first.
 
     A mode is a local maximum over a window of ``sep_m``; every grid cell belongs to the nearest mode (its
@@ -68,7 +73,9 @@ def posterior_modes(prob: np.ndarray, grid: np.ndarray, min_mass: float = 0.05, 
     iy, ix = np.nonzero(peak)
     if iy.size == 0:
         return []
-    order = np.argsort(p[iy, ix])[::-1][: 4 * max_modes]  # a plateau can make many ties: the highest few
+    order = np.argsort(p[iy, ix])[::-1][
+        : 4 * max_modes
+    ]  # a plateau can make many ties: the highest few
     pk = grid[iy[order], ix[order]]  # (P, 2)
     pts = grid.reshape(-1, 2)
     basin = np.argmin(((pts[:, None, :] - pk[None, :, :]) ** 2).sum(-1), axis=1)

@@ -61,11 +61,18 @@ class Normalisation:
     @classmethod
     def from_dict(cls, norm, src: str) -> Normalisation:
         try:
-            return cls(*(np.asarray(norm[k], dtype=np.float64)
-                         for k in ("input_mean", "input_std", "output_mean", "output_std")))
+            return cls(
+                *(
+                    np.asarray(norm[k], dtype=np.float64)
+                    for k in ("input_mean", "input_std", "output_mean", "output_std")
+                )
+            )
         except (KeyError, TypeError) as e:
-            raise InputError(f"input_normalisation needs input_mean/input_std/output_mean/output_std ({e})",
-                             source=src, field="input_normalisation") from None
+            raise InputError(
+                f"input_normalisation needs input_mean/input_std/output_mean/output_std ({e})",
+                source=src,
+                field="input_normalisation",
+            ) from None
 
 
 @dataclass(frozen=True)
@@ -77,9 +84,11 @@ class TrainingDomain:
 
     def to_dict(self) -> dict:
         att = self.attitude_deg
-        return {"altitude_m": None if self.altitude_m is None else list(self.altitude_m),
-                "roll_deg": None if att is None else list(att[0]),
-                "pitch_deg": None if att is None else list(att[1])}
+        return {
+            "altitude_m": None if self.altitude_m is None else list(self.altitude_m),
+            "roll_deg": None if att is None else list(att[0]),
+            "pitch_deg": None if att is None else list(att[1]),
+        }
 
     @classmethod
     def from_dict(cls, d, src: str) -> TrainingDomain:
@@ -95,9 +104,13 @@ class TrainingDomain:
             except (TypeError, ValueError, IndexError, KeyError):
                 ok = False
             if not ok:
-                raise InputError("needs [low, high] or null", source=src, field=f"{DOMAIN_KEY}.{key}")
+                raise InputError(
+                    "needs [low, high] or null", source=src, field=f"{DOMAIN_KEY}.{key}"
+                )
         if (spans["roll_deg"] is None) != (spans["pitch_deg"] is None):
-            raise InputError("roll_deg and pitch_deg are both given or both null", source=src, field=DOMAIN_KEY)
+            raise InputError(
+                "roll_deg and pitch_deg are both given or both null", source=src, field=DOMAIN_KEY
+            )
         att = None if spans["roll_deg"] is None else (spans["roll_deg"], spans["pitch_deg"])
         return cls(spans["altitude_m"], att)
 
@@ -114,7 +127,9 @@ def _metadata(props: dict, src: str) -> dict:
                 meta[key] = json.loads(val)
             except json.JSONDecodeError:
                 if key != "feature_kind":
-                    raise InputError("model metadata is not valid JSON", source=src, field=key) from None
+                    raise InputError(
+                        "model metadata is not valid JSON", source=src, field=key
+                    ) from None
                 meta[key] = val
         else:
             meta[key] = val
@@ -125,23 +140,39 @@ def _feature_config(fc, expect_config: FeatureConfig | dict | None, src: str) ->
     """The model's feature configuration, compared key by key with what the caller intends to feed."""
     if not isinstance(fc, dict):
         raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
-    fc = FeatureConfig.normalised(fc)  # a model older than a later key was made with its neutral value
+    fc = FeatureConfig.normalised(
+        fc
+    )  # a model older than a later key was made with its neutral value
     if expect_config is not None:
-        want = expect_config.to_dict() if isinstance(expect_config, FeatureConfig) else dict(expect_config)
+        want = (
+            expect_config.to_dict()
+            if isinstance(expect_config, FeatureConfig)
+            else dict(expect_config)
+        )
         for k in sorted(set(want) | set(fc)):
             if k not in fc:
-                raise InputError(f"model's feature_config lacks {k!r} (caller expects {want[k]!r})",
-                                 source=src, field=f"feature_config.{k}")
+                raise InputError(
+                    f"model's feature_config lacks {k!r} (caller expects {want[k]!r})",
+                    source=src,
+                    field=f"feature_config.{k}",
+                )
             if k not in want or want[k] != fc[k]:
-                raise InputError(f"model's feature_config {k}={fc[k]!r} does not match the expected {want.get(k)!r}",
-                                 source=src, field=f"feature_config.{k}")
+                raise InputError(
+                    f"model's feature_config {k}={fc[k]!r} does not match the expected {want.get(k)!r}",
+                    source=src,
+                    field=f"feature_config.{k}",
+                )
     try:
         cfg = FeatureConfig.from_dict(fc)
     except (InputError, TypeError) as e:
         raise InputError(f"bad feature_config ({e})", source=src, field="feature_config") from None
     if cfg.version != FEATURE_VERSION:
-        raise InputError(f"model's features are version {cfg.version}, this software computes version "
-                         f"{FEATURE_VERSION}", source=src, field="feature_config.version")
+        raise InputError(
+            f"model's features are version {cfg.version}, this software computes version "
+            f"{FEATURE_VERSION}",
+            source=src,
+            field="feature_config.version",
+        )
     return cfg
 
 
@@ -180,11 +211,20 @@ class ModelCard:
     @property
     def n_features(self) -> int:
         """Width of the network's feature vector."""
-        return self.feature_config.n_features if self.kind == "clustering" else self.feature_config.rss_length
+        return (
+            self.feature_config.n_features
+            if self.kind == "clustering"
+            else self.feature_config.rss_length
+        )
 
     @classmethod
-    def read(cls, path: str | Path, props: dict, expect_config: FeatureConfig | dict | None = None,
-             expect_kind: str | None = None) -> ModelCard:
+    def read(
+        cls,
+        path: str | Path,
+        props: dict,
+        expect_config: FeatureConfig | dict | None = None,
+        expect_kind: str | None = None,
+    ) -> ModelCard:
         """The card of the network at ``path`` whose ONNX ``metadata_props`` are ``props``; ``expect_config`` /
         ``expect_kind``: what the caller intends to feed (a model trained on anything else is refused,
         ``InputError`` naming the differing key)."""
@@ -193,21 +233,32 @@ class ModelCard:
         meta = _metadata(props, src)
         kind = meta["feature_kind"]
         if kind not in FEATURE_KINDS:
-            raise InputError(f"unknown feature kind {kind!r} (expected {', '.join(FEATURE_KINDS)})",
-                             source=src, field="feature_kind")
+            raise InputError(
+                f"unknown feature kind {kind!r} (expected {', '.join(FEATURE_KINDS)})",
+                source=src,
+                field="feature_kind",
+            )
         if expect_kind is not None and expect_kind != kind:
-            raise InputError(f"model was trained on {kind!r} features, caller asks for {expect_kind!r}",
-                             source=src, field="feature_kind")
+            raise InputError(
+                f"model was trained on {kind!r} features, caller asks for {expect_kind!r}",
+                source=src,
+                field="feature_kind",
+            )
         cfg = _feature_config(meta["feature_config"], expect_config, src)
         norm = Normalisation.from_dict(meta["input_normalisation"], src)
         try:
             origin = Origin.from_dict(meta["field_origin"])
         except (KeyError, TypeError, ValueError):
-            raise InputError("field_origin needs lat_deg, lon_deg", source=src, field="field_origin") from None
+            raise InputError(
+                "field_origin needs lat_deg, lon_deg", source=src, field="field_origin"
+            ) from None
         ref = reference_height(meta.get("training_data"))
         if ref is not None and kind != "clustering":
-            raise InputError("altitude normalisation needs clustering features", source=src,
-                             field=f"training_data.{METADATA_KEY}")
+            raise InputError(
+                "altitude normalisation needs clustering features",
+                source=src,
+                field=f"training_data.{METADATA_KEY}",
+            )
         card = _json_card(path)
         domain = TrainingDomain()
         if card is not None and card.get(DOMAIN_KEY) is not None:

@@ -45,7 +45,9 @@ def as_flight(obj, origin=None) -> FlightSamples:
         fs = FlightSamples(
             enu_m=np.asarray(obj[0], dtype=float),
             rss_dbm=np.asarray(obj[1], dtype=float),
-            attitude_rad=None if len(obj) == 2 or obj[2] is None else np.asarray(obj[2], dtype=float),
+            attitude_rad=None
+            if len(obj) == 2 or obj[2] is None
+            else np.asarray(obj[2], dtype=float),
         )
     else:
         raise InputError(
@@ -54,7 +56,9 @@ def as_flight(obj, origin=None) -> FlightSamples:
     enu = np.asarray(fs.enu_m, dtype=float)
     rss = np.asarray(fs.rss_dbm, dtype=float).ravel()
     if enu.ndim != 2 or enu.shape[1] != 3 or enu.shape[0] != rss.size:
-        raise InputError(f"positions must be (N, 3) with N = {rss.size} RSS samples, got {enu.shape}")
+        raise InputError(
+            f"positions must be (N, 3) with N = {rss.size} RSS samples, got {enu.shape}"
+        )
     att = fs.attitude_rad
     if att is not None:
         att = np.asarray(att, dtype=float)
@@ -106,7 +110,9 @@ class WeightedCentroid(_Base):
         k = min(self.top_k, gp.size)
         idx = np.argpartition(-gp, k - 1)[:k]
         w = 10.0 ** ((gp[idx] - gp.max()) / 10.0)
-        return self._estimate(np.sum(w * gx[idx]) / w.sum(), np.sum(w * gy[idx]) / w.sum(), None, top_k=k)
+        return self._estimate(
+            np.sum(w * gx[idx]) / w.sum(), np.sum(w * gy[idx]) / w.sum(), None, top_k=k
+        )
 
 
 def search_bounds(area, enu: np.ndarray, margin_m: float):
@@ -205,7 +211,9 @@ class ModelGridSearch(_Base):
                 self._model_obj = self.model
         return self._model_obj
 
-    def candidate_rss(self, cand_xy: np.ndarray, enu: np.ndarray, attitude: np.ndarray | None) -> np.ndarray:
+    def candidate_rss(
+        self, cand_xy: np.ndarray, enu: np.ndarray, attitude: np.ndarray | None
+    ) -> np.ndarray:
         """Model RSS (K, N) dBm of transmitters at candidates (K, 2), ``tx_height_m`` high, along the positions
         (N, 3) and attitude (N, 3) rad (ignored unless ``use_attitude``): what every cost compares with."""
         tx = np.column_stack([cand_xy, np.full(len(cand_xy), self.tx_height_m)])
@@ -213,7 +221,9 @@ class ModelGridSearch(_Base):
         pred = self._get_model().rss_dbm(tx[:, None, :], enu, att)
         return np.asarray(pred, dtype=float).reshape(len(cand_xy), -1)
 
-    def coarse_candidates(self, enu: np.ndarray) -> tuple[tuple[float, float, float, float], np.ndarray]:
+    def coarse_candidates(
+        self, enu: np.ndarray
+    ) -> tuple[tuple[float, float, float, float], np.ndarray]:
         """The search box and the first pass's candidates: a ``step_m`` grid from the box's corner, kept inside
         the area's polygon when there is one (all of them if none falls inside)."""
         bounds, poly = search_bounds(self.area, enu, self.margin_m)
@@ -223,13 +233,16 @@ class ModelGridSearch(_Base):
             cand = cand[inside] if inside.any() else cand
         return bounds, cand
 
-    def fixed_geometry(self, enu: np.ndarray, attitude: np.ndarray | None, cand_xy: np.ndarray | None = None
-                       ) -> FixedGeometrySearch:
+    def fixed_geometry(
+        self, enu: np.ndarray, attitude: np.ndarray | None, cand_xy: np.ndarray | None = None
+    ) -> FixedGeometrySearch:
         """This search for many RSS records flown along one geometry (``FixedGeometrySearch``); candidates
         ``cand_xy`` (K, 2), by default the first pass's grid (no refinement)."""
         if cand_xy is None:
             cand_xy = self.coarse_candidates(np.asarray(enu, dtype=float))[1]
-        return FixedGeometrySearch(self, np.asarray(enu, dtype=float), attitude, np.asarray(cand_xy, dtype=float))
+        return FixedGeometrySearch(
+            self, np.asarray(enu, dtype=float), attitude, np.asarray(cand_xy, dtype=float)
+        )
 
     def cost(self, f: FlightSamples, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced) flight."""
@@ -243,7 +256,9 @@ class ModelGridSearch(_Base):
                 off0 = np.median(resid[:, ~lo], axis=1)
                 # censored samples: measured value is an upper bound of the signal (noise floor)
                 resid[:, lo] = np.maximum(resid[:, lo], off0[:, None])
-                offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(resid, self.loss, self.f_scale_db)
+                offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(
+                    resid, self.loss, self.f_scale_db
+                )
                 continue
             offs[s : s + len(c)], costs[s : s + len(c)] = robust_cost(
                 f.rss_dbm[None, :] - pred, self.loss, self.f_scale_db
@@ -303,11 +318,21 @@ class FixedGeometrySearch:
     soft-L1 for real fades; that offset would cost a median per candidate and record.)
     """
 
-    def __init__(self, search: ModelGridSearch, enu: np.ndarray, attitude: np.ndarray | None,
-                 cand_xy: np.ndarray) -> None:
+    def __init__(
+        self,
+        search: ModelGridSearch,
+        enu: np.ndarray,
+        attitude: np.ndarray | None,
+        cand_xy: np.ndarray,
+    ) -> None:
         self.cand = cand_xy
-        pred = np.concatenate([search.candidate_rss(cand_xy[s : s + search.chunk], enu, attitude)
-                               for s in range(0, len(cand_xy), search.chunk)], axis=0)
+        pred = np.concatenate(
+            [
+                search.candidate_rss(cand_xy[s : s + search.chunk], enu, attitude)
+                for s in range(0, len(cand_xy), search.chunk)
+            ],
+            axis=0,
+        )
         self.pred_c = pred - pred.mean(axis=1, keepdims=True)
         self.pred_sq = np.sum(self.pred_c**2, axis=1)
 
@@ -315,6 +340,7 @@ class FixedGeometrySearch:
         """RSS records (T, N) (or one (N,)) -> best candidates (T, 2)."""
         r = np.atleast_2d(np.asarray(rss, dtype=float))
         rc = r - r.mean(axis=1, keepdims=True)
-        sse = self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T  # + |rc|^2, the same for every candidate
+        sse = (
+            self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T
+        )  # + |rc|^2, the same for every candidate
         return self.cand[np.argmin(sse, axis=0)]
-

@@ -60,7 +60,9 @@ def _read_entries(p: Path, what: str) -> dict:
         if not isinstance(entries, dict):
             raise AttributeError
     except (json.JSONDecodeError, AttributeError):
-        raise InputError(f"not a JSON object with a {what} mapping", source=str(p), field=what) from None
+        raise InputError(
+            f"not a JSON object with a {what} mapping", source=str(p), field=what
+        ) from None
     return entries
 
 
@@ -71,20 +73,40 @@ def _checked(rec, p: Path, key: str) -> dict:
     except (KeyError, TypeError, ValueError, AttributeError):
         raise InputError("needs radii_m: {level: metres}", source=str(p), field=key) from None
     if not radii or not all(0.0 < k < 1.0 and 0.0 < v < math.inf for k, v in radii.items()):
-        raise InputError("radii_m needs levels in (0, 1) and positive finite radii", source=str(p),
-                         field=f"{key}.radii_m")
+        raise InputError(
+            "radii_m needs levels in (0, 1) and positive finite radii",
+            source=str(p),
+            field=f"{key}.radii_m",
+        )
     tr = rec.get("track")
     if tr is not None:
         try:
-            tr = dict(tr, bounds=[float(b) for b in tr["bounds"]],
-                      radii_m={float(k): [float(r) for r in v] for k, v in tr["radii_m"].items()})
+            tr = dict(
+                tr,
+                bounds=[float(b) for b in tr["bounds"]],
+                radii_m={float(k): [float(r) for r in v] for k, v in tr["radii_m"].items()},
+            )
         except (KeyError, TypeError, ValueError, AttributeError):
-            raise InputError("track needs bounds and radii_m", source=str(p), field=f"{key}.track") from None
+            raise InputError(
+                "track needs bounds and radii_m", source=str(p), field=f"{key}.track"
+            ) from None
         b = tr["bounds"]
-        if set(tr["radii_m"]) != set(radii) or not b or not 0.0 < b[0] <= 1.0 or b != sorted(b) or \
-                not all(len(v) == len(b) and all(0.0 < r < math.inf for r in v) for v in tr["radii_m"].values()):
-            raise InputError("track needs ascending coverage bounds in (0, 1] and, for each of the record's levels, "
-                             "one positive radius per bound", source=str(p), field=f"{key}.track")
+        if (
+            set(tr["radii_m"]) != set(radii)
+            or not b
+            or not 0.0 < b[0] <= 1.0
+            or b != sorted(b)
+            or not all(
+                len(v) == len(b) and all(0.0 < r < math.inf for r in v)
+                for v in tr["radii_m"].values()
+            )
+        ):
+            raise InputError(
+                "track needs ascending coverage bounds in (0, 1] and, for each of the record's levels, "
+                "one positive radius per bound",
+                source=str(p),
+                field=f"{key}.track",
+            )
         rec = dict(rec, track=tr)
     return dict(rec, radii_m=radii)
 
@@ -98,14 +120,18 @@ def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] |
     if tr is not None and coverage >= tr["bounds"][0]:
         k = int(np.searchsorted(tr["bounds"], coverage, side="right")) - 1
         hi = tr["bounds"][k + 1] if k + 1 < len(tr["bounds"]) else 1.0
-        return ({lv: r[k] for lv, r in tr["radii_m"].items()},
-                f"; for flights that flew {100 * tr['bounds'][k]:.0f}-{100 * hi:.0f} % of their planned track "
-                f"(this one {100 * coverage:.0f} %)")
+        return (
+            {lv: r[k] for lv, r in tr["radii_m"].items()},
+            f"; for flights that flew {100 * tr['bounds'][k]:.0f}-{100 * hi:.0f} % of their planned track "
+            f"(this one {100 * coverage:.0f} %)",
+        )
     if coverage >= FULL_TRACK:
         return rec["radii_m"], ""
     lo = f"{100 * tr['bounds'][0]:.0f}" if tr is not None else f"{100 * FULL_TRACK:.0f}"
-    return None, (f"no calibration applies: this flight flew {100 * coverage:.0f} % of its planned track, its "
-                  f"circles were calibrated on flights that flew {lo}-100 %")
+    return None, (
+        f"no calibration applies: this flight flew {100 * coverage:.0f} % of its planned track, its "
+        f"circles were calibrated on flights that flew {lo}-100 %"
+    )
 
 
 def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
@@ -118,7 +144,9 @@ def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
     if isinstance(model, ModelCard):
         entries, digest = model.regions, model.sha256
         if entries is not None and not isinstance(entries, dict):
-            raise InputError(f"not a JSON object with a {REGIONS_KEY} mapping", source=str(p), field=REGIONS_KEY)
+            raise InputError(
+                f"not a JSON object with a {REGIONS_KEY} mapping", source=str(p), field=REGIONS_KEY
+            )
     else:
         entries = _read_entries(p, REGIONS_KEY) if p.is_file() else None
         digest = None
@@ -129,11 +157,16 @@ def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
         return None, f"{Path(path).name} has no '{domain}' calibration in its card ({where})"
     rec = _checked(rec, p, f"{REGIONS_KEY}.{domain}")
     if rec.get("model_sha256") != (digest or model_digest(path)):
-        return None, f"the '{domain}' calibration in {p.name} was measured on another version of the model file"
+        return (
+            None,
+            f"the '{domain}' calibration in {p.name} was measured on another version of the model file",
+        )
     return rec, None
 
 
-def method_calibration(method: str, domain: str, path: Path = METHOD_CIRCLES) -> tuple[dict | None, str | None]:
+def method_calibration(
+    method: str, domain: str, path: Path = METHOD_CIRCLES
+) -> tuple[dict | None, str | None]:
     """(the calibration of a classical method's default configuration for ``domain``, None) or (None, why not)."""
     rec = _read_entries(path, method).get(domain) if path.is_file() else None
     if rec is None:
@@ -141,29 +174,51 @@ def method_calibration(method: str, domain: str, path: Path = METHOD_CIRCLES) ->
     return _checked(rec, path, f"{method}.{domain}"), None
 
 
-def circle_regions(x: float, y: float, radii: dict[float, float], calibrated_on: str,
-                   area: Area | None = None) -> list[dict]:
+def circle_regions(
+    x: float, y: float, radii: dict[float, float], calibrated_on: str, area: Area | None = None
+) -> list[dict]:
     """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout; clipped to
     ``area`` where it is given and overlaps the circle (a circle that misses it is kept whole)."""
     t = np.linspace(0.0, 2.0 * np.pi, N_VERTICES + 1)
     out = []
     for lv, r in sorted(radii.items()):
         ring = np.stack([x + r * np.cos(t), y + r * np.sin(t)], axis=1)
-        reg = {"level": float(lv), "hpd_mass": float(lv), "kind": "error circle", "radius_m": float(r),
-               "area_m2": float(np.pi * r * r),
-               "ellipse": {"x_m": float(x), "y_m": float(y), "a_m": float(r), "b_m": float(r), "angle_deg": 0.0},
-               "polygons": [np.round(ring, 1).tolist()], "calibrated_on": calibrated_on}
+        reg = {
+            "level": float(lv),
+            "hpd_mass": float(lv),
+            "kind": "error circle",
+            "radius_m": float(r),
+            "area_m2": float(np.pi * r * r),
+            "ellipse": {
+                "x_m": float(x),
+                "y_m": float(y),
+                "a_m": float(r),
+                "b_m": float(r),
+                "angle_deg": 0.0,
+            },
+            "polygons": [np.round(ring, 1).tolist()],
+            "calibrated_on": calibrated_on,
+        }
         if area is not None and not area.contains(ring[:-1]).all():
             parts = clip_polygon(area.vertices, ring[:-1])  # a non-convex area may leave several
             if parts:
-                reg.update(area_m2=sum(polygon_area_m2(p) for p in parts), clipped_to=area.name,
-                           polygons=[np.round(np.vstack([p, p[:1]]), 1).tolist() for p in parts])
+                reg.update(
+                    area_m2=sum(polygon_area_m2(p) for p in parts),
+                    clipped_to=area.name,
+                    polygons=[np.round(np.vstack([p, p[:1]]), 1).tolist() for p in parts],
+                )
         out.append(reg)
     return out
 
 
-def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | None, str | None],
-                   area: Area | None = None, flown: dict | None = None) -> str | None:
+def attach_circles(
+    extras: dict,
+    x: float,
+    y: float,
+    calibration: tuple[dict | None, str | None],
+    area: Area | None = None,
+    flown: dict | None = None,
+) -> str | None:
     """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration`` answer) around
     (x, y), clipped to ``area``, into ``extras["regions"]``, sized for what was ``flown``
     (``training_domain.flown_domain``); returns the note to show when there is no calibration."""
@@ -179,6 +234,10 @@ def attach_circles(extras: dict, x: float, y: float, calibration: tuple[dict | N
     radii, how = flown_radii(rec, cov)
     if radii is None:
         return f"no uncertainty region: {how}"
-    src = rec["track"].get("calibrated_on", "") if how and "track" in rec else rec.get("calibrated_on", "")
+    src = (
+        rec["track"].get("calibrated_on", "")
+        if how and "track" in rec
+        else rec.get("calibrated_on", "")
+    )
     extras["regions"] = circle_regions(x, y, radii, str(src) + how, area)
     return None

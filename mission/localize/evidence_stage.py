@@ -27,7 +27,9 @@ SIGMA_M = 35.0  # each candidate's spread in the mixture regions (chosen of 20, 
 CALIBRATED_MASS: dict[float, float] = {0.5: 0.680, 0.9: 0.999}
 
 
-def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidate], dict[str, Estimate]]:
+def _network_candidates(
+    part, origin, tx_height_m: float
+) -> tuple[list[Candidate], dict[str, Estimate]]:
     """Each shipped spiral network's point, marked out of its training domain when the track's altitude or
     attitude is (``training_domain``): weighed, never dropped."""
     from mission.localize.api import run_member
@@ -41,16 +43,19 @@ def _network_candidates(part, origin, tx_height_m: float) -> tuple[list[Candidat
             continue
         net, est = run_member("onnx", part, origin, model_path=path, tx_height_m=tx_height_m)
         dom = net.card.domain
-        off = (altitude_note(net.model_name, dom.altitude_m, flight_altitudes(part.enu()[:, 2]))
-               or flown_domain(part, dom.attitude_deg, net.model_name)["attitude_note"])
+        off = (
+            altitude_note(net.model_name, dom.altitude_m, flight_altitudes(part.enu()[:, 2]))
+            or flown_domain(part, dom.attitude_deg, net.model_name)["attitude_note"]
+        )
         label = Path(name).stem
         cands.append(Candidate(est.x_m, est.y_m, label, in_domain=off is None))
         ests[label] = est
     return cands, ests
 
 
-def member_candidates(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
-                      physics_preset: str | None = None) -> tuple[list[Candidate], dict[str, Estimate]]:
+def member_candidates(
+    part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, physics_preset: str | None = None
+) -> tuple[list[Candidate], dict[str, Estimate]]:
     """Every member's candidates (near-duplicates merged) and the members' estimates by name; the
     self-calibrating estimate comes first in both (its posterior grid carries the mixture regions)."""
     from mission.localize.api import DEFAULT_PHYSICS_PRESET, run_member
@@ -59,13 +64,19 @@ def member_candidates(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT
     cands = [Candidate(a.x_m, a.y_m, "selfcal")]
     if a.posterior is not None:
         modes = posterior_modes(a.posterior.prob, a.posterior.grid)
-        cands += [Candidate(x, y, f"selfcal mode {i + 1}", mass=m) for i, (x, y, m) in enumerate(modes)]
+        cands += [
+            Candidate(x, y, f"selfcal mode {i + 1}", mass=m) for i, (x, y, m) in enumerate(modes)
+        ]
     preset = physics_preset or DEFAULT_PHYSICS_PRESET
-    _, g = run_member("grid", part, origin, tx_height_m=tx_height_m, area=area, physics_preset=preset)
+    _, g = run_member(
+        "grid", part, origin, tx_height_m=tx_height_m, area=area, physics_preset=preset
+    )
     cands.append(Candidate(g.x_m, g.y_m, f"grid {preset}"))
     nets, net_ests = _network_candidates(part, origin, tx_height_m)
     cands += nets
-    if nets and nets[0].source == Path(MEMBER_NETWORKS[0]).stem:  # today's default, a candidate like the rest
+    if (
+        nets and nets[0].source == Path(MEMBER_NETWORKS[0]).stem
+    ):  # today's default, a candidate like the rest
         cands.append(Candidate(0.5 * (a.x_m + nets[0].x_m), 0.5 * (a.y_m + nets[0].y_m), "fusion"))
     return dedupe(cands), {"selfcal": a, f"grid {preset}": g, **net_ests}
 
@@ -82,8 +93,13 @@ def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_
     cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
     n_eff = max(cells.area_m2 / (np.pi * sc.corr_m**2), 2.0)
     xy = np.array([[c.x_m, c.y_m] for c in cands])
-    return blocked_scores(cells, xy, antenna_hypotheses(sc.hypotheses, sc.heading_step_deg), tx_height_m,
-                          tau=min(n_eff / len(cells), 1.0))
+    return blocked_scores(
+        cells,
+        xy,
+        antenna_hypotheses(sc.hypotheses, sc.heading_step_deg),
+        tx_height_m,
+        tau=min(n_eff / len(cells), 1.0),
+    )
 
 
 def answer(cands: list[Candidate]) -> tuple[float, float]:
@@ -100,8 +116,14 @@ def answer(cands: list[Candidate]) -> tuple[float, float]:
     return float(x), float(y)
 
 
-def evidence_stage(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
-                   physics_preset: str | None = None, **_) -> Estimate:
+def evidence_stage(
+    part,
+    origin,
+    area,
+    tx_height_m: float = DEFAULT_TX_HEIGHT_M,
+    physics_preset: str | None = None,
+    **_,
+) -> Estimate:
     """Localize ``part`` (the selected samples of a log) with the evidence stage (module docstring); the
     estimate's ``candidates`` hold every candidate with its evidence and weight, most weight first."""
     from mission.localize.stacking import mixture_posterior, stacking_weights
@@ -118,8 +140,9 @@ def evidence_stage(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
     sc = members["selfcal"]
     if sc.posterior is not None and sc.posterior.grid is not None:
         grid = sc.posterior.grid
-        post = mixture_posterior(np.array([c.xy for c in cands]), np.array([c.weight for c in cands]), grid,
-                                 SIGMA_M)
+        post = mixture_posterior(
+            np.array([c.xy for c in cands]), np.array([c.weight for c in cands]), grid, SIGMA_M
+        )
         est.regions = hpd_regions(post, grid, (0.5, 0.9), CALIBRATED_MASS)
         est.posterior = post
     est.extras["candidates"] = [c.to_dict() for c in cands]

@@ -71,13 +71,24 @@ class FeatureConfig:
     offset_invariant: bool = True  # subtract max(smoothed RSS) from the cluster RSS values
     seed: int = 0  # k-means random_state
     n_init: int = 1  # k-means restarts
-    rss_length: int = 10000  # normalised-RSS baseline: resampled length (S / N_g for a 10 min flight)
+    rss_length: int = (
+        10000  # normalised-RSS baseline: resampled length (S / N_g for a 10 min flight)
+    )
     rss_scale_db: float = 20.0  # normalised-RSS baseline: dB per unit
-    arc_step_m: float = 0.0  # > 0: resample the flight to one point per arc_step_m of path first (0: off)
+    arc_step_m: float = (
+        0.0  # > 0: resample the flight to one point per arc_step_m of path first (0: off)
+    )
     version: int = FEATURE_VERSION
 
     def __post_init__(self) -> None:
-        if self.n_g < 1 or self.c_k < 1 or self.n_t < 1 or self.sigma < 0 or self.n_init < 1 or self.arc_step_m < 0:
+        if (
+            self.n_g < 1
+            or self.c_k < 1
+            or self.n_t < 1
+            or self.sigma < 0
+            or self.n_init < 1
+            or self.arc_step_m < 0
+        ):
             raise InputError(f"invalid feature configuration {self.to_dict()}")
         if self.order != "rss_desc":
             raise InputError(
@@ -211,7 +222,9 @@ _KMEANS_LIMIT: list = []  # the threadpoolctl controller for k-means, made once 
 
 
 def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
-    from sklearn.cluster import KMeans  # loads its OpenMP runtime before the controller looks for it
+    from sklearn.cluster import (
+        KMeans,
+    )  # loads its OpenMP runtime before the controller looks for it
 
     km = KMeans(n_clusters=cfg.c_k, n_init=cfg.n_init, random_state=cfg.seed, algorithm="lloyd")
     if not _KMEANS_LIMIT:
@@ -240,7 +253,9 @@ def summarise_clusters(
     top[order[top_sorted]] = True
     cnt = np.bincount(labels[top], minlength=k).astype(float)
     if np.any(cnt == 0):
-        raise InputError(f"k-means left an empty cluster ({int((cnt == 0).sum())} of {k}); too few samples?")
+        raise InputError(
+            f"k-means left an empty cluster ({int((cnt == 0).sum())} of {k}); too few samples?"
+        )
     pc = np.bincount(labels[top], weights=gp[top], minlength=k) / cnt
     xc = np.bincount(labels[top], weights=gx[top], minlength=k) / cnt
     yc = np.bincount(labels[top], weights=gy[top], minlength=k) / cnt
@@ -273,7 +288,9 @@ def cluster_features(
     return cluster_details(x, y, rss, cfg).vector
 
 
-def cluster_features_batch(xy: np.ndarray, rss: np.ndarray, cfg: FeatureConfig | None = None) -> np.ndarray:
+def cluster_features_batch(
+    xy: np.ndarray, rss: np.ndarray, cfg: FeatureConfig | None = None
+) -> np.ndarray:
     """Features of M flights: ``xy`` (N, 2) shared by all flights or (M, N, 2); ``rss`` (M, N) -> (M, 3 C_k).
 
     Grouping and smoothing are vectorised over flights; k-means runs once per flight.
@@ -286,7 +303,9 @@ def cluster_features_batch(xy: np.ndarray, rss: np.ndarray, cfg: FeatureConfig |
         raise InputError(f"xy must be ({n}, 2) or ({m}, {n}, 2), got {xy.shape}")
     if cfg.arc_step_m > 0:  # resampled lengths differ per flight: one flight at a time
         xys = np.broadcast_to(xy, (m, n, 2))
-        return np.stack([cluster_features(xys[i, :, 0], xys[i, :, 1], rss[i], cfg) for i in range(m)])
+        return np.stack(
+            [cluster_features(xys[i, :, 0], xys[i, :, 1], rss[i], cfg) for i in range(m)]
+        )
     if not np.isfinite(rss).all() or not np.isfinite(xy).all():
         raise InputError("NaN or inf in the dataset positions or RSS")
     gp = gaussian_smooth(grouping(rss, cfg.n_g), cfg.sigma, cfg.kernel_sigmas)

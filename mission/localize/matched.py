@@ -53,8 +53,15 @@ def rich_progress(enabled: bool | None = None):
 
     con = console(stderr=True)
     show = con.is_terminal if enabled is None else enabled
-    with Progress(TextColumn("{task.description:<24}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=con, transient=True, disable=not show) as bar:
+    with Progress(
+        TextColumn("{task.description:<24}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=con,
+        transient=True,
+        disable=not show,
+    ) as bar:
         task = bar.add_task("matched", total=1)
 
         def tick(desc: str, done: int, total: int) -> None:
@@ -118,13 +125,31 @@ class MatchedLocalizer(_Base):
 
     name = "matched"
 
-    def __init__(self, area=None, family: str | PhysicsFamily | None = None, n_draws: int = 40000,
-                 cell_m: float = 5.0, tx_height_m: float = DEFAULT_TX_HEIGHT_M, margin_m: float = 60.0,
-                 step_m: float = 5.0,
-                 folds: int = 2, k_frac: float = 0.02, n_pca: int = 64, hidden: tuple[int, ...] = (128, 128),
-                 epochs: int = 40, batch: int = 128, lr: float = 2e-3, whiten: bool = True,
-                 group: int = 64, n_check: int = 200, calibrate: bool = True, levels: tuple[float, ...] = (0.5, 0.9),
-                 min_cells: int = 8, seed: int = 0, progress=None) -> None:
+    def __init__(
+        self,
+        area=None,
+        family: str | PhysicsFamily | None = None,
+        n_draws: int = 40000,
+        cell_m: float = 5.0,
+        tx_height_m: float = DEFAULT_TX_HEIGHT_M,
+        margin_m: float = 60.0,
+        step_m: float = 5.0,
+        folds: int = 2,
+        k_frac: float = 0.02,
+        n_pca: int = 64,
+        hidden: tuple[int, ...] = (128, 128),
+        epochs: int = 40,
+        batch: int = 128,
+        lr: float = 2e-3,
+        whiten: bool = True,
+        group: int = 64,
+        n_check: int = 200,
+        calibrate: bool = True,
+        levels: tuple[float, ...] = (0.5, 0.9),
+        min_cells: int = 8,
+        seed: int = 0,
+        progress=None,
+    ) -> None:
         self.area = area
         self.family = family
         self.n_draws = int(n_draws)
@@ -154,25 +179,36 @@ class MatchedLocalizer(_Base):
 
     def _check(self, f) -> None:
         if self.folds < 2 or self.n_draws < 20 * self.folds:
-            raise InputError(f"matched needs >= 2 folds and >= {20 * self.folds} draws, got {self.folds} folds "
-                             f"and {self.n_draws} draws", field="n_draws")
+            raise InputError(
+                f"matched needs >= 2 folds and >= {20 * self.folds} draws, got {self.folds} folds "
+                f"and {self.n_draws} draws",
+                field="n_draws",
+            )
         for name, a in (("rss_dbm", f.rss_dbm), ("position", f.enu_m)):
             bad = ~np.isfinite(a).reshape(len(f.rss_dbm), -1).all(axis=1)
             if bad.any():
-                raise InputError(f"{int(bad.sum())} samples with a non-finite {name} (first: sample "
-                                 f"{int(np.argmax(bad))})", field=name)
+                raise InputError(
+                    f"{int(bad.sum())} samples with a non-finite {name} (first: sample "
+                    f"{int(np.argmax(bad))})",
+                    field=name,
+                )
 
     def predict(self, flight, origin=None) -> Estimate:
         f = as_flight(flight, origin)
         self._check(f)
         track = track_cells(f, self.cell_m)
         if len(track) < self.min_cells:
-            raise InputError(f"only {len(track)} distinct {self.cell_m:g} m cells flown: too few to localize "
-                             f"(need {self.min_cells})")
+            raise InputError(
+                f"only {len(track)} distinct {self.cell_m:g} m cells flown: too few to localize "
+                f"(need {self.min_cells})"
+            )
         from threadpoolctl import threadpool_limits
 
         # one BLAS thread: the products are small, and threads that wait for a busy core cost 10-30x more
-        with threadpool_limits(1), (rich_progress() if self.progress is None else _given(self.progress)) as tick:
+        with (
+            threadpool_limits(1),
+            rich_progress() if self.progress is None else _given(self.progress) as tick,
+        ):
             return self._predict(f, track, tick)
 
     def _predict(self, f, track, tick) -> Estimate:
@@ -183,10 +219,14 @@ class MatchedLocalizer(_Base):
         rng = np.random.default_rng(self.seed)
         box, poly = search_bounds(self.area, f.enu_m, self.margin_m)
         tx = draw_transmitters(poly, box, self.n_draws, rng)
-        x = centred(simulate_track(track, fam, tx, self.tx_height_m, rng, self.group, tick)).astype(np.float32)
+        x = centred(simulate_track(track, fam, tx, self.tx_height_m, rng, self.group, tick)).astype(
+            np.float32
+        )
         x_obs = centred(track.rss_dbm).astype(np.float32)
         n_cal = min(self.n_check, self.n_draws // 10) if self.n_check >= 10 else 0
-        cal = np.sort(rng.choice(self.n_draws, n_cal, replace=False))  # held out of every net and table
+        cal = np.sort(
+            rng.choice(self.n_draws, n_cal, replace=False)
+        )  # held out of every net and table
         fold = np.full(self.n_draws, -1)
         ref = np.ones(self.n_draws, dtype=bool)
         ref[cal] = False
@@ -195,7 +235,9 @@ class MatchedLocalizer(_Base):
         s_obs = np.empty((self.folds, 2))
         s_cal = np.empty((self.folds, n_cal, 2))
         for j in range(self.folds):
-            net = SummaryNet(self.n_pca, self.hidden, self.epochs, self.batch, self.lr, whiten=self.whiten)
+            net = SummaryNet(
+                self.n_pca, self.hidden, self.epochs, self.batch, self.lr, whiten=self.whiten
+            )
             train = ref & (fold != j)
             net.fit(x[train], tx[train], rng, tick, f"training net {j + 1}/{self.folds}")
             s_ref[fold == j] = net.predict(x[fold == j])
@@ -206,7 +248,11 @@ class MatchedLocalizer(_Base):
         pts = tx[idx]
         h = kde_bandwidth(pts, w, self.step_m)
         check = self._self_check(tx, s_ref, s_cal, cal, fold, k)
-        masses = {lev: conformal_mass(check["hpd_levels"], lev) for lev in self.levels} if self.calibrate else {}
+        masses = (
+            {lev: conformal_mass(check["hpd_levels"], lev) for lev in self.levels}
+            if self.calibrate
+            else {}
+        )
         grid = square_grid(box, self.step_m)
         flat = grid.reshape(-1, 2)
         dens = kde(flat, pts, w, h)
@@ -233,11 +279,17 @@ class MatchedLocalizer(_Base):
             p_outside_flown_area=p_out,
             seed=self.seed,
         )
-        est = self._estimate(float(xy[0]), float(xy[1]), f"track-matched ABC under physics family {fam.name}",
-                             **extras)
+        est = self._estimate(
+            float(xy[0]),
+            float(xy[1]),
+            f"track-matched ABC under physics family {fam.name}",
+            **extras,
+        )
         if p_out >= 0.5:
-            est.add_note(f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
-                         "outside it): the estimate is an extrapolation")
+            est.add_note(
+                f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                "outside it): the estimate is an extrapolation"
+            )
         est.posterior = post
         return est
 
@@ -251,8 +303,15 @@ class MatchedLocalizer(_Base):
             w.append(ww)
         return np.concatenate(idx), np.concatenate(w)
 
-    def _self_check(self, tx: np.ndarray, s_ref: np.ndarray, s_cal: np.ndarray, cal: np.ndarray,
-                    fold: np.ndarray, k: int) -> dict:
+    def _self_check(
+        self,
+        tx: np.ndarray,
+        s_ref: np.ndarray,
+        s_cal: np.ndarray,
+        cal: np.ndarray,
+        fold: np.ndarray,
+        k: int,
+    ) -> dict:
         """Error and HPD levels of the held-out simulated transmitters ``cal`` along this track (never trained
         on, in no reference table), each localized exactly as the flight is: its summary under every fold's net
         (``s_cal``, one row per fold), the union of every fold's ABC draws."""
@@ -267,8 +326,12 @@ class MatchedLocalizer(_Base):
             errs[c] = float(np.hypot(*(est - tx[q])))
             lev[c] = hpd_level_of(tx[q], pts, w, kde_bandwidth(pts, w, self.step_m))
         held = fold >= 0
-        out = {"n": n, "mean_error_m": float(errs.mean()), "median_error_m": float(np.median(errs)),
-               "summary_median_error_m": float(np.median(np.hypot(*(s_ref[held] - tx[held]).T))),
-               "hpd_levels": lev}
+        out = {
+            "n": n,
+            "mean_error_m": float(errs.mean()),
+            "median_error_m": float(np.median(errs)),
+            "summary_median_error_m": float(np.median(np.hypot(*(s_ref[held] - tx[held]).T))),
+            "hpd_levels": lev,
+        }
         out.update({f"coverage_{round(100 * lv)}": float((lev < lv).mean()) for lv in self.levels})
         return out

@@ -32,7 +32,11 @@ class Pca:
         top = np.argsort(vals)[::-1][:k]
         self.variance = np.maximum(vals[top], 0.0)
         top_var = max(float(self.variance.max()), 1e-12)
-        scale = np.sqrt(np.maximum(self.variance, 1e-9 * top_var)) if whiten else np.full(k, np.sqrt(top_var))
+        scale = (
+            np.sqrt(np.maximum(self.variance, 1e-9 * top_var))
+            if whiten
+            else np.full(k, np.sqrt(top_var))
+        )
         self.basis = (vecs[:, top] / scale).astype(np.float32)
         self.mean = self.mean.astype(np.float32)
 
@@ -43,8 +47,16 @@ class Pca:
 class SummaryNet:
     """MLP regression ``fit(X, Y, rng)`` / ``predict(X)`` (module docstring); Y (N, 2) positions in metres."""
 
-    def __init__(self, n_pca: int = 64, hidden: tuple[int, ...] = (128, 128), epochs: int = 40, batch: int = 256,
-                 lr: float = 2e-3, weight_decay: float = 1e-4, whiten: bool = True) -> None:
+    def __init__(
+        self,
+        n_pca: int = 64,
+        hidden: tuple[int, ...] = (128, 128),
+        epochs: int = 40,
+        batch: int = 256,
+        lr: float = 2e-3,
+        weight_decay: float = 1e-4,
+        whiten: bool = True,
+    ) -> None:
         self.whiten = bool(whiten)
         self.n_pca = int(n_pca)
         self.hidden = tuple(int(h) for h in hidden)
@@ -67,8 +79,14 @@ class SummaryNet:
             acts.append(h)
         return h, acts
 
-    def fit(self, x: np.ndarray, y: np.ndarray, rng: np.random.Generator, progress: Progress | None = None,
-            label: str = "training") -> SummaryNet:
+    def fit(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        rng: np.random.Generator,
+        progress: Progress | None = None,
+        label: str = "training",
+    ) -> SummaryNet:
         """Fit on inputs ``x`` (N, M) and targets ``y`` (N, 2); ``progress(label, epoch, epochs)`` per epoch."""
         self.pca = Pca(x, self.n_pca, self.whiten)
         z = self.pca.transform(x)
@@ -76,8 +94,10 @@ class SummaryNet:
         self.y_mean, self.y_scale = y.mean(axis=0), np.maximum(y.std(axis=0), 1e-6)
         t = ((y - self.y_mean) / self.y_scale).astype(np.float32)
         sizes = (z.shape[1], *self.hidden, t.shape[1])
-        self.weights = [(rng.standard_normal((a, b)) * np.sqrt(2.0 / a)).astype(np.float32)
-                        for a, b in zip(sizes[:-1], sizes[1:], strict=True)]
+        self.weights = [
+            (rng.standard_normal((a, b)) * np.sqrt(2.0 / a)).astype(np.float32)
+            for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+        ]
         self.biases = [np.zeros(b, dtype=np.float32) for b in sizes[1:]]
         params = self.weights + self.biases
         m1 = [np.zeros_like(p) for p in params]
@@ -92,7 +112,7 @@ class SummaryNet:
             perm = rng.permutation(n)
             tot = 0.0
             for bi in range(nb):
-                idx = perm[bi * self.batch:(bi + 1) * self.batch]
+                idx = perm[bi * self.batch : (bi + 1) * self.batch]
                 out, acts = self._forward(z[idx])
                 g = out - t[idx]
                 tot += float((g * g).sum())

@@ -51,13 +51,21 @@ class TrackCells:
         return int(self.count.size)
 
 
-def track_cells(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M) -> TrackCells:
+def track_cells(
+    f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M
+) -> TrackCells:
     """The flight averaged into cells (``selfcal.cell_average``; roll and pitch averaged the same way)."""
     cells = cell_average(f, cell_m, altitude_gap_m)
     roll = pitch = np.zeros(len(cells))
-    if f.attitude_rad is not None:  # same cells, same order: average the angles as if they were the RSS
-        roll = cell_average(replace(f, rss_dbm=f.attitude_rad[:, 0]), cell_m, altitude_gap_m).rss_dbm
-        pitch = cell_average(replace(f, rss_dbm=f.attitude_rad[:, 1]), cell_m, altitude_gap_m).rss_dbm
+    if (
+        f.attitude_rad is not None
+    ):  # same cells, same order: average the angles as if they were the RSS
+        roll = cell_average(
+            replace(f, rss_dbm=f.attitude_rad[:, 0]), cell_m, altitude_gap_m
+        ).rss_dbm
+        pitch = cell_average(
+            replace(f, rss_dbm=f.attitude_rad[:, 1]), cell_m, altitude_gap_m
+        ).rss_dbm
     att = np.column_stack([roll, pitch, cells.yaw_rad])
     return TrackCells(cells.enu_m, att, cells.count.astype(float), cells.rss_dbm, float(cell_m))
 
@@ -68,7 +76,9 @@ def centred(rss: np.ndarray) -> np.ndarray:
     return r - r.mean(axis=-1, keepdims=True)
 
 
-CORR_RATIO = 1.06  # correlation lengths are rounded to a geometric grid of this ratio (one factor each)
+CORR_RATIO = (
+    1.06  # correlation lengths are rounded to a geometric grid of this ratio (one factor each)
+)
 
 
 class FieldBasis:
@@ -92,8 +102,15 @@ class FieldBasis:
         return self._factors[i]
 
 
-def simulate_track(track: TrackCells, family: PhysicsFamily, tx_xy: np.ndarray, tx_height_m: float,
-                   rng: np.random.Generator, group: int = 64, progress: Progress | None = None) -> np.ndarray:
+def simulate_track(
+    track: TrackCells,
+    family: PhysicsFamily,
+    tx_xy: np.ndarray,
+    tx_height_m: float,
+    rng: np.random.Generator,
+    group: int = 64,
+    progress: Progress | None = None,
+) -> np.ndarray:
     """Cell RSS (N, M) float32 of N transmitters ``tx_xy`` (N, 2) along ``track`` (module docstring)."""
     tx_xy = np.asarray(tx_xy, dtype=float)
     n, m = len(tx_xy), len(track)
@@ -105,8 +122,12 @@ def simulate_track(track: TrackCells, family: PhysicsFamily, tx_xy: np.ndarray, 
         g1 = min(n, g0 + group)
         k = g1 - g0
         d = family.draw(rng)
-        rss = np.asarray(d.model().rss_dbm(tx[g0:g1], track.enu_m, track.attitude_rad), dtype=np.float64)
-        rss += np.array([d.offset_db] + [float(draw_value(family.offset_db, rng)) for _ in range(k - 1)])[:, None]
+        rss = np.asarray(
+            d.model().rss_dbm(tx[g0:g1], track.enu_m, track.attitude_rad), dtype=np.float64
+        )
+        rss += np.array(
+            [d.offset_db] + [float(draw_value(family.offset_db, rng)) for _ in range(k - 1)]
+        )[:, None]
         if d.shadowing_db > 0:
             fac = basis.factor(d.shadowing_corr_m)
             rss += d.shadowing_db * (fac @ rng.standard_normal((fac.shape[1], k))).T
@@ -117,7 +138,9 @@ def simulate_track(track: TrackCells, family: PhysicsFamily, tx_xy: np.ndarray, 
     return out
 
 
-def draw_transmitters(area, box: tuple[float, float, float, float], n: int, rng: np.random.Generator) -> np.ndarray:
+def draw_transmitters(
+    area, box: tuple[float, float, float, float], n: int, rng: np.random.Generator
+) -> np.ndarray:
     """``n`` transmitter positions uniform over the prior: the ``area`` polygon when given, else ``box``."""
     if area is not None:
         return area.sample_uniform(n, rng)

@@ -19,19 +19,33 @@ from mission.errors import InputError
 POSTERIOR = "posterior"  # HPD regions of the method's own posterior (uncertainty.hpd_regions)
 CIRCLE = "circle"  # split-conformal error circles about the point (error_circles)
 # where its 50 / 90 % sizes come from
-FROM_REGION_MASSES = "region masses"  # HPD masses recalibrated on the benchmark (benchmarks/calibrate_regions.py)
-FROM_DRAWS = "held-out draws"  # HPD masses that held this flight's own held-out simulated draws (matched)
-FROM_CARD = "card circles"  # the network's card, models/<name>.json (error_circles.card_calibration)
-FROM_METHOD_CIRCLES = "method circles"  # mission/data/method_circles.json (benchmarks/calibrate_error_circles.py)
+FROM_REGION_MASSES = (
+    "region masses"  # HPD masses recalibrated on the benchmark (benchmarks/calibrate_regions.py)
+)
+FROM_DRAWS = (
+    "held-out draws"  # HPD masses that held this flight's own held-out simulated draws (matched)
+)
+FROM_CARD = (
+    "card circles"  # the network's card, models/<name>.json (error_circles.card_calibration)
+)
+FROM_METHOD_CIRCLES = (
+    "method circles"  # mission/data/method_circles.json (benchmarks/calibrate_error_circles.py)
+)
 
 # the frame an estimator answers in, and the samples it takes
 LOG_FRAME = "log"  # the log's own ENU frame
-MODEL_FRAME = "model"  # a network's own frame (its card's origin): localize_log converts through lat/lon
+MODEL_FRAME = (
+    "model"  # a network's own frame (its card's origin): localize_log converts through lat/lon
+)
 SELECTED = "selected"  # the samples preprocess.select_samples keeps
-TRAINED_LEGS = "trained legs"  # those less the transit to the first waypoint, as the networks were trained
+TRAINED_LEGS = (
+    "trained legs"  # those less the transit to the first waypoint, as the networks were trained
+)
 
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"  # the network ``onnx`` runs without a model path (models/)
-ADAPTIVE_METHOD = "selfcal"  # an adaptive flight's live and default method: its rounds plan on this posterior
+ADAPTIVE_METHOD = (
+    "selfcal"  # an adaptive flight's live and default method: its rounds plan on this posterior
+)
 
 
 @dataclass(frozen=True)
@@ -49,8 +63,12 @@ class Method:
     # a meta-estimator's "module:function", (part, origin, area, **kw) -> Estimate, imported when it runs (it runs
     # other entries, so naming it here by reference keeps the registry below it: no import circle)
     compose: str | None = None
-    frame: str = LOG_FRAME  # the frame it answers in: LOG_FRAME, or MODEL_FRAME (converted through lat/lon)
-    samples: str = SELECTED  # which samples it takes: SELECTED, or TRAINED_LEGS (training_domain.trained_legs)
+    frame: str = (
+        LOG_FRAME  # the frame it answers in: LOG_FRAME, or MODEL_FRAME (converted through lat/lon)
+    )
+    samples: str = (
+        SELECTED  # which samples it takes: SELECTED, or TRAINED_LEGS (training_domain.trained_legs)
+    )
 
 
 def _onnx(model_path: str | Path | None = None, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_):
@@ -75,8 +93,15 @@ def _centroid(**_):
     return WeightedCentroid()
 
 
-def _grid(physics_model="e2r", physics_params: dict | None = None, tx_height_m: float = DEFAULT_TX_HEIGHT_M,
-          area=None, floor_db: float | None = None, physics_preset: str | None = None, **_):
+def _grid(
+    physics_model="e2r",
+    physics_params: dict | None = None,
+    tx_height_m: float = DEFAULT_TX_HEIGHT_M,
+    area=None,
+    floor_db: float | None = None,
+    physics_preset: str | None = None,
+    **_,
+):
     """``physics_preset`` (a calibrated preset) replaces ``physics_model`` and its ``physics_params``."""
     from mission.localize.classical import ModelGridSearch
 
@@ -88,9 +113,13 @@ def _grid(physics_model="e2r", physics_params: dict | None = None, tx_height_m: 
         except InputError:
             raise
         except ValueError as e:
-            raise InputError(f"physics preset {physics_preset!r}: {e}", field="physics_params") from None
+            raise InputError(
+                f"physics preset {physics_preset!r}: {e}", field="physics_params"
+            ) from None
         return ModelGridSearch(model, tx_height_m=tx_height_m, area=area, floor_db=floor_db)
-    return ModelGridSearch(physics_model, physics_params, tx_height_m=tx_height_m, area=area, floor_db=floor_db)
+    return ModelGridSearch(
+        physics_model, physics_params, tx_height_m=tx_height_m, area=area, floor_db=floor_db
+    )
 
 
 def _selfcal(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
@@ -105,27 +134,87 @@ def _matched(tx_height_m: float = DEFAULT_TX_HEIGHT_M, area=None, **_):
     return MatchedLocalizer(area=area, tx_height_m=tx_height_m)
 
 
-METHODS: dict[str, Method] = {m.name: m for m in (
-    Method("onnx", "network", CIRCLE, FROM_CARD, False,
-           "an ONNX network on the 3D-clustering features (--model, else models/rfsl_default.onnx)", _onnx,
-           frame=MODEL_FRAME, samples=TRAINED_LEGS),
-    Method("strongest", "classical", CIRCLE, FROM_METHOD_CIRCLES, False,
-           "the position of the strongest RSS sample", _strongest),
-    Method("centroid", "classical", CIRCLE, FROM_METHOD_CIRCLES, False,
-           "RSS-weighted centroid of the strongest samples", _centroid),
-    Method("grid", "classical", CIRCLE, FROM_METHOD_CIRCLES, True,
-           "grid search under a propagation model or a calibrated physics preset", _grid),
-    Method("selfcal", "self-calibrating", POSTERIOR, FROM_REGION_MASSES, True,
-           "grid search with the antenna and RSS offset profiled out on the flight itself", _selfcal),
-    Method("fusion", "fusion", POSTERIOR, FROM_REGION_MASSES, True,
-           "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)", None,
-           compose="mission.localize.api:fusion"),
-    Method("evidence", "stacking", POSTERIOR, FROM_REGION_MASSES, True,
-           "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions", None,
-           compose="mission.localize.evidence_stage:evidence_stage"),
-    Method("matched", "self-calibrating", POSTERIOR, FROM_DRAWS, True,
-           "track-matched ABC: transmitters simulated along the flown track under the physics family", _matched),
-)}
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method(
+            "onnx",
+            "network",
+            CIRCLE,
+            FROM_CARD,
+            False,
+            "an ONNX network on the 3D-clustering features (--model, else models/rfsl_default.onnx)",
+            _onnx,
+            frame=MODEL_FRAME,
+            samples=TRAINED_LEGS,
+        ),
+        Method(
+            "strongest",
+            "classical",
+            CIRCLE,
+            FROM_METHOD_CIRCLES,
+            False,
+            "the position of the strongest RSS sample",
+            _strongest,
+        ),
+        Method(
+            "centroid",
+            "classical",
+            CIRCLE,
+            FROM_METHOD_CIRCLES,
+            False,
+            "RSS-weighted centroid of the strongest samples",
+            _centroid,
+        ),
+        Method(
+            "grid",
+            "classical",
+            CIRCLE,
+            FROM_METHOD_CIRCLES,
+            True,
+            "grid search under a propagation model or a calibrated physics preset",
+            _grid,
+        ),
+        Method(
+            "selfcal",
+            "self-calibrating",
+            POSTERIOR,
+            FROM_REGION_MASSES,
+            True,
+            "grid search with the antenna and RSS offset profiled out on the flight itself",
+            _selfcal,
+        ),
+        Method(
+            "fusion",
+            "fusion",
+            POSTERIOR,
+            FROM_REGION_MASSES,
+            True,
+            "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)",
+            None,
+            compose="mission.localize.api:fusion",
+        ),
+        Method(
+            "evidence",
+            "stacking",
+            POSTERIOR,
+            FROM_REGION_MASSES,
+            True,
+            "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions",
+            None,
+            compose="mission.localize.evidence_stage:evidence_stage",
+        ),
+        Method(
+            "matched",
+            "self-calibrating",
+            POSTERIOR,
+            FROM_DRAWS,
+            True,
+            "track-matched ABC: transmitters simulated along the flown track under the physics family",
+            _matched,
+        ),
+    )
+}
 METHOD_NAMES = tuple(METHODS)
 
 
@@ -134,7 +223,9 @@ def method_entry(name: str) -> Method:
     try:
         return METHODS[name]
     except (KeyError, TypeError):
-        raise InputError(f"unknown method {name!r} (expected one of {', '.join(METHOD_NAMES)})") from None
+        raise InputError(
+            f"unknown method {name!r} (expected one of {', '.join(METHOD_NAMES)})"
+        ) from None
 
 
 def composer(entry: Method) -> Callable[..., object]:
@@ -148,4 +239,6 @@ def composer(entry: Method) -> Callable[..., object]:
 def names_where(**fields) -> tuple[str, ...]:
     """The names of the methods whose entry has every given field value, in registry order
     (``names_where(calibration=FROM_METHOD_CIRCLES)`` -> the methods calibrated by method circles)."""
-    return tuple(m.name for m in METHODS.values() if all(getattr(m, k) == v for k, v in fields.items()))
+    return tuple(
+        m.name for m in METHODS.values() if all(getattr(m, k) == v for k, v in fields.items())
+    )

@@ -71,10 +71,14 @@ class OnnxLocalizer:
         src = str(self.path)
         if not self.path.exists():
             raise InputError("no such model file", source=src)
-        check_shipped_digest(self.path)  # a shipped name with flipped bytes loads and answers wrongly
+        check_shipped_digest(
+            self.path
+        )  # a shipped name with flipped bytes loads and answers wrongly
         try:
             opts = session_options(self.threads)
-            self.session = ort.InferenceSession(src, sess_options=opts, providers=["CPUExecutionProvider"])
+            self.session = ort.InferenceSession(
+                src, sess_options=opts, providers=["CPUExecutionProvider"]
+            )
         except Exception as e:  # onnxruntime raises its own exception types
             raise InputError(
                 f"not a loadable ONNX model ({str(e).splitlines()[0][:200]})", source=src
@@ -83,7 +87,11 @@ class OnnxLocalizer:
         self.card = ModelCard.read(self.path, props, expect_config, expect_kind)
         norm = self.card.normalisation
         self.in_mean, self.in_std, self.out_mean, self.out_std = (
-            norm.input_mean, norm.input_std, norm.output_mean, norm.output_std)
+            norm.input_mean,
+            norm.input_std,
+            norm.output_mean,
+            norm.output_std,
+        )
         inp = self.session.get_inputs()[0]
         self.input_name = inp.name
         self.input_rank = len(inp.shape)
@@ -96,7 +104,10 @@ class OnnxLocalizer:
                 source=src,
                 field=key,
             )
-        if self.in_mean.size not in (1, self.n_features) or self.in_std.size not in (1, self.n_features):
+        if self.in_mean.size not in (1, self.n_features) or self.in_std.size not in (
+            1,
+            self.n_features,
+        ):
             raise InputError(
                 f"input normalisation has {self.in_mean.size} values, the features {self.n_features}",
                 source=src,
@@ -140,14 +151,19 @@ class OnnxLocalizer:
         """Whether ``predict_features`` needs each flight's height above the transmitter."""
         return self.reference_height_m is not None
 
-    def predict_features(self, feats: np.ndarray, heights_m: np.ndarray | None = None) -> np.ndarray:
+    def predict_features(
+        self, feats: np.ndarray, heights_m: np.ndarray | None = None
+    ) -> np.ndarray:
         """(B, F) features -> (B, 2) positions in metres about the model's field origin; ``heights_m`` (B,):
         each flight's height above the transmitter, needed (and only used) by an altitude-normalised network."""
         s = None
         if self.needs_heights:
             if heights_m is None:
-                raise InputError("an altitude-normalised network needs each flight's height above the transmitter",
-                                 source=str(self.path), field="heights_m")
+                raise InputError(
+                    "an altitude-normalised network needs each flight's height above the transmitter",
+                    source=str(self.path),
+                    field="heights_m",
+                )
             s = scale_factor(heights_m, self.reference_height_m)
             feats = scale_cluster_xy(feats, s)
         x = (np.atleast_2d(feats) - self.in_mean) / self.in_std
@@ -166,8 +182,15 @@ class OnnxLocalizer:
         else:
             f = as_flight(flight)
         h = None
-        if self.needs_heights:  # the log's own frame: heights above its ground origin, as the note reports them
-            h = [flight_height((flight.enu() if hasattr(flight, "columns") else f.enu_m)[:, 2], self.tx_height_m)]
+        if (
+            self.needs_heights
+        ):  # the log's own frame: heights above its ground origin, as the note reports them
+            h = [
+                flight_height(
+                    (flight.enu() if hasattr(flight, "columns") else f.enu_m)[:, 2],
+                    self.tx_height_m,
+                )
+            ]
         xy = self.predict_features(self.features(f)[None, :], h)[0]
         lat, lon, _ = self.origin.to_geodetic(np.array([xy[0], xy[1], 0.0]))
         est = Estimate(

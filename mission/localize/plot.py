@@ -31,8 +31,15 @@ def draw_areas(ax, areas) -> None:
     for a in areas:
         rover = "rover" in a.name
         v = np.vstack([a.vertices, a.vertices[:1]])
-        ax.plot(v[:, 0], v[:, 1], "--" if rover else "-", color="#2ca02c" if rover else "#1f77b4", lw=1.2,
-                label=a.name, zorder=0)
+        ax.plot(
+            v[:, 0],
+            v[:, 1],
+            "--" if rover else "-",
+            color="#2ca02c" if rover else "#1f77b4",
+            lw=1.2,
+            label=a.name,
+            zorder=0,
+        )
 
 
 def robust_limits(values, lo_pct: float = 2.0, hi_pct: float = 99.5) -> tuple[float, float]:
@@ -58,8 +65,15 @@ def draw_regions(ax, regions: list[dict]) -> None:
         ls, lw = styles.get(round(reg["level"], 2), (":", 1.0))
         for k, poly in enumerate(reg["polygons"]):
             a = np.asarray(poly)
-            ax.plot(a[:, 0], a[:, 1], color="crimson", ls=ls, lw=lw, zorder=4,
-                    label=f"{100 * reg['level']:.0f} % region" if k == 0 else None)
+            ax.plot(
+                a[:, 0],
+                a[:, 1],
+                color="crimson",
+                ls=ls,
+                lw=lw,
+                zorder=4,
+                label=f"{100 * reg['level']:.0f} % region" if k == 0 else None,
+            )
 
 
 def draw_candidates(ax, cands: list, top: int = 6) -> None:
@@ -67,15 +81,34 @@ def draw_candidates(ax, cands: list, top: int = 6) -> None:
     with their source; a network outside its training domain is drawn hollow."""
     for k, c in enumerate(cands[:top]):
         w = c.weight or 0.0
-        ax.plot(c.x_m, c.y_m, marker="o", ms=5 + 10 * np.sqrt(w), ls="none", zorder=4,
-                mfc="orange" if c.in_domain else "none", mec="k", mew=0.8,
-                label="candidates (size: weight)" if k == 0 else None)
-        ax.annotate(f"{c.source} {w:.2f}", (c.x_m, c.y_m), xytext=(5, -9), textcoords="offset points",
-                    fontsize=6)
+        ax.plot(
+            c.x_m,
+            c.y_m,
+            marker="o",
+            ms=5 + 10 * np.sqrt(w),
+            ls="none",
+            zorder=4,
+            mfc="orange" if c.in_domain else "none",
+            mec="k",
+            mew=0.8,
+            label="candidates (size: weight)" if k == 0 else None,
+        )
+        ax.annotate(
+            f"{c.source} {w:.2f}",
+            (c.x_m, c.y_m),
+            xytext=(5, -9),
+            textcoords="offset points",
+            fontsize=6,
+        )
 
 
 def plot_localization(
-    log, est: Estimate, out: str | Path, cfg: FeatureConfig | None = None, area=None, title: str | None = None
+    log,
+    est: Estimate,
+    out: str | Path,
+    cfg: FeatureConfig | None = None,
+    area=None,
+    title: str | None = None,
 ) -> Path:
     """Draw ``log`` (its cruise part, positions in the log's frame) with ``est``; writes ``out`` (PNG)."""
     import matplotlib
@@ -119,8 +152,12 @@ def plot_localization(
         zorder=3,
         label=f"cluster means (C_k={cfg.c_k})",
     )
-    for i, (p, x, y) in enumerate(v3[:5]):  # cluster means are relative to the strongest: dB, not dBm
-        ax.annotate(f"{i + 1}: {p:.1f} dB", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7)
+    for i, (p, x, y) in enumerate(
+        v3[:5]
+    ):  # cluster means are relative to the strongest: dB, not dBm
+        ax.annotate(
+            f"{i + 1}: {p:.1f} dB", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7
+        )
     ax.plot(
         est.x_m,
         est.y_m,
@@ -136,7 +173,9 @@ def plot_localization(
     draw_candidates(ax, est.candidates)
     tx, ty = est.extras.get("truth_x_m"), est.extras.get("truth_y_m")
     if tx is not None:
-        ax.plot(tx, ty, marker="X", ms=13, color="white", mec="k", ls="none", zorder=5, label="truth")
+        ax.plot(
+            tx, ty, marker="X", ms=13, color="white", mec="k", ls="none", zorder=5, label="truth"
+        )
         ax.plot([tx, est.x_m], [ty, est.y_m], "r:", lw=1.2, zorder=4)
         ax.annotate(
             f"{est.error_m:.1f} m",

@@ -55,7 +55,10 @@ def _densest_altitude(hs: np.ndarray, lo: float, band_m: float | None) -> tuple[
 
 
 def cruise_mask(
-    height_m: np.ndarray, band_m: float | None = None, min_cruise_m: float = 5.0, min_altitude_share: float = 0.15,
+    height_m: np.ndarray,
+    band_m: float | None = None,
+    min_cruise_m: float = 5.0,
+    min_altitude_share: float = 0.15,
     max_altitudes: int = 4,
 ) -> CruiseSelection:
     """Select the cruise part (one or more cruise altitudes) from heights above ground (N,) in metres."""
@@ -126,7 +129,9 @@ def select_mission_legs(log):
     ph = np.asarray(phase).astype(str)
     if not np.isin(ph, PHASES).all():
         return None
-    mask = np.isin(ph, FLOWN_PHASES)  # the mission's own legs and those planned in flight (adaptive)
+    mask = np.isin(
+        ph, FLOWN_PHASES
+    )  # the mission's own legs and those planned in flight (adaptive)
     if mask.sum() < 2:
         return None
     n = len(ph)
@@ -139,9 +144,13 @@ def select_samples(log):
     if legs is not None:
         return legs
     part, sel = select_cruise(log)
-    if len(part) == 0:  # e.g. ``localize --at 0``: the vehicle was still on the ground (an IndexError before)
+    if (
+        len(part) == 0
+    ):  # e.g. ``localize --at 0``: the vehicle was still on the ground (an IndexError before)
         from mission.errors import InputError
 
-        raise InputError(f"no samples to localize from ({sel.reason}); the flight had not reached its legs",
-                         source=str(log.path) if log.path else None)
+        raise InputError(
+            f"no samples to localize from ({sel.reason}); the flight had not reached its legs",
+            source=str(log.path) if log.path else None,
+        )
     return part, sel.reason

@@ -52,8 +52,9 @@ def corr_is_default(corr_m: float) -> bool:
     return abs(corr_m - CORR_M) < 1e-9
 
 
-def antenna_hypotheses(kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
-                       ) -> list[tuple[str, Pattern | None, float, bool]]:
+def antenna_hypotheses(
+    kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
+) -> list[tuple[str, Pattern | None, float, bool]]:
     """The UAV antenna hypotheses as (label, pattern or None for isotropic, mounting heading rad, flipped)."""
     out: list[tuple[str, Pattern | None, float, bool]] = []
     heads = np.arange(0.0, 360.0, float(heading_step_deg))
@@ -61,15 +62,23 @@ def antenna_hypotheses(kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_d
         if kind in ("measured-flipped", "measured"):
             flipped = kind == "measured-flipped"
             for h in heads:
-                out.append((f"RM-WB1-DN {'upside down' if flipped else 'upright'} heading {h:.0f} deg",
-                            rm_wb1_dn(), float(np.radians(h)), flipped))
+                out.append(
+                    (
+                        f"RM-WB1-DN {'upside down' if flipped else 'upright'} heading {h:.0f} deg",
+                        rm_wb1_dn(),
+                        float(np.radians(h)),
+                        flipped,
+                    )
+                )
         elif kind == "dipole":
             out.append(("vertical dipole", Dipole(), 0.0, False))
         elif kind == "isotropic":
             out.append(("isotropic", None, 0.0, False))
         else:
-            raise InputError(f"unknown antenna hypothesis {kind!r} (known: {', '.join(HYPOTHESIS_KINDS)})",
-                             field="hypotheses")
+            raise InputError(
+                f"unknown antenna hypothesis {kind!r} (known: {', '.join(HYPOTHESIS_KINDS)})",
+                field="hypotheses",
+            )
     return out
 
 
@@ -82,8 +91,10 @@ def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np
     tx = np.column_stack([cand_xy, np.full(len(cand_xy), float(tx_height_m))])
     dx, dy, dz = link_delta(tx[:, None, :], cells.enu_m[None, :, :], np.float32)
     dh2 = dx * dx + dy * dy
-    pg = np.float32(-10.0) * np.log10(dh2 + dz * dz)                     # -20 log10 d_los
-    el, az = heading_frame_angles(dx, dy, dz, cells.yaw_rad[None, :].astype(np.float32), np.sqrt(dh2))
+    pg = np.float32(-10.0) * np.log10(dh2 + dz * dz)  # -20 log10 d_los
+    el, az = heading_frame_angles(
+        dx, dy, dz, cells.yaw_rad[None, :].astype(np.float32), np.sqrt(dh2)
+    )
     return pg, el, az
 
 
@@ -96,11 +107,14 @@ class GainLookup:
     """
 
     def __init__(self, pat: Pattern) -> None:
-        e, a = np.meshgrid(np.radians(np.arange(-90.0, 90.5, 1.0)), np.radians(np.arange(0.0, 360.0, 1.0)),
-                           indexing="ij")
-        t = pat.gain_dbi(e, a).astype(np.float32)            # (181, 360), antenna frame
+        e, a = np.meshgrid(
+            np.radians(np.arange(-90.0, 90.5, 1.0)),
+            np.radians(np.arange(0.0, 360.0, 1.0)),
+            indexing="ij",
+        )
+        t = pat.gain_dbi(e, a).astype(np.float32)  # (181, 360), antenna frame
         self.upright = t
-        self.flipped = t[::-1]                                # el -> -el (180 deg about the antenna's x axis)
+        self.flipped = t[::-1]  # el -> -el (180 deg about the antenna's x axis)
         self._mounted: dict[tuple[int, bool], np.ndarray] = {}
 
     def mounted(self, heading_deg: int, flipped: bool) -> np.ndarray:
@@ -111,7 +125,9 @@ class GainLookup:
         if key not in self._mounted:
             a = np.arange(360)
             cols = np.mod(a - heading_deg, 360) if flipped else np.mod(heading_deg - a, 360)
-            self._mounted[key] = np.ascontiguousarray((self.flipped if flipped else self.upright)[:, cols]).ravel()
+            self._mounted[key] = np.ascontiguousarray(
+                (self.flipped if flipped else self.upright)[:, cols]
+            ).ravel()
         return self._mounted[key]
 
     def gain_db(self, i_flat: np.ndarray, heading_deg: int, flipped: bool) -> np.ndarray:
@@ -124,7 +140,9 @@ class GainTables:
     grid (``SelfCalibratingGrid.gain_tables``), so its two searches per flight and its later flights share them."""
 
     def __init__(self) -> None:
-        self._made: list[tuple[Pattern, GainLookup]] = []  # a pattern is found by identity (patterns hold arrays)
+        self._made: list[
+            tuple[Pattern, GainLookup]
+        ] = []  # a pattern is found by identity (patterns hold arrays)
 
     def __call__(self, pat: Pattern) -> GainLookup:
         for p, table in self._made:
@@ -137,11 +155,14 @@ class GainTables:
 
 def flat_index(el: np.ndarray, az: np.ndarray) -> np.ndarray:
     """Index ``(el + 90) * 360 + az`` (whole degrees) into a ``GainLookup`` table, from angles in rad."""
-    return ((np.rint(np.degrees(el)).astype(np.int32) + 90) * 360
-            + np.mod(np.rint(np.degrees(az)).astype(np.int32), 360))
+    return (np.rint(np.degrees(el)).astype(np.int32) + 90) * 360 + np.mod(
+        np.rint(np.degrees(az)).astype(np.int32), 360
+    )
 
 
-def hypothesis_residuals(base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps, tables: GainTables | None = None):
+def hypothesis_residuals(
+    base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps, tables: GainTables | None = None
+):
     """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from ``_geometry``;
     tabulated patterns are looked up in ``tables`` (a fresh ``GainTables`` when None)."""
     tables = GainTables() if tables is None else tables
@@ -157,8 +178,9 @@ def hypothesis_residuals(base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps,
             yield base - tables(pat).gain_db(idx, int(round(np.degrees(head))) % 360, flipped)
 
 
-def hypothesis_ssr(cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float, tables: GainTables | None = None
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def hypothesis_ssr(
+    cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float, tables: GainTables | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate
     (``tables``: the caller's gain tables, see ``hypothesis_residuals``)."""
     pg, el, az = _geometry(cand_xy, cells, tx_height_m)
@@ -184,11 +206,22 @@ class SelfCalibratingGrid(_Base):
 
     name = "selfcal"
 
-    def __init__(self, area=None, margin_m: float = 60.0, cell_m: float = 5.0, step_m: float = 5.0,
-                 refine_m: float = 1.0, tx_height_m: float = DEFAULT_TX_HEIGHT_M, heading_step_deg: float = 30.0,
-                 hypotheses: tuple[str, ...] = HYPOTHESIS_KINDS, corr_m: float = CORR_M, min_cells: int = 8,
-                 levels: tuple[float, ...] = (0.5, 0.9), masses: dict[float, float] | None = None,
-                 altitude_gap_m: float = ALTITUDE_GAP_M) -> None:
+    def __init__(
+        self,
+        area=None,
+        margin_m: float = 60.0,
+        cell_m: float = 5.0,
+        step_m: float = 5.0,
+        refine_m: float = 1.0,
+        tx_height_m: float = DEFAULT_TX_HEIGHT_M,
+        heading_step_deg: float = 30.0,
+        hypotheses: tuple[str, ...] = HYPOTHESIS_KINDS,
+        corr_m: float = CORR_M,
+        min_cells: int = 8,
+        levels: tuple[float, ...] = (0.5, 0.9),
+        masses: dict[float, float] | None = None,
+        altitude_gap_m: float = ALTITUDE_GAP_M,
+    ) -> None:
         self.area = area
         self.margin_m = float(margin_m)
         self.cell_m = float(cell_m)
@@ -201,11 +234,18 @@ class SelfCalibratingGrid(_Base):
         self.min_cells = int(min_cells)
         self.levels = tuple(levels)
         self.altitude_gap_m = float(altitude_gap_m)
-        self.masses = (dict(masses) if masses is not None
-                       else dict(CALIBRATED_MASS) if corr_is_default(corr_m) else {})
+        self.masses = (
+            dict(masses)
+            if masses is not None
+            else dict(CALIBRATED_MASS)
+            if corr_is_default(corr_m)
+            else {}
+        )
         self.gain_tables = GainTables()  # the hypotheses' pattern tables, made on first use
 
-    def _candidates(self, f: FlightSamples) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
+    def _candidates(
+        self, f: FlightSamples
+    ) -> tuple[np.ndarray, tuple[float, float, float, float], object]:
         box, poly = search_bounds(self.area, f.enu_m, self.margin_m)
         return square_grid(box, self.step_m), box, poly
 
@@ -215,8 +255,10 @@ class SelfCalibratingGrid(_Base):
         f = as_flight(flight, origin)
         cells = cell_average(f, self.cell_m, self.altitude_gap_m)
         if len(cells) < self.min_cells:
-            raise InputError(f"only {len(cells)} distinct {self.cell_m:g} m cells flown: too few to localize "
-                             f"(need {self.min_cells})")
+            raise InputError(
+                f"only {len(cells)} distinct {self.cell_m:g} m cells flown: too few to localize "
+                f"(need {self.min_cells})"
+            )
         hyps = antenna_hypotheses(self.hypotheses, self.heading_step_deg)
         grid, box, poly = self._candidates(f)
         flat = grid.reshape(-1, 2)
@@ -237,7 +279,9 @@ class SelfCalibratingGrid(_Base):
         c0 = flat[valid][k]
         s = self.step_m
         fine = c0[None, :] + square_grid((-s, -s, s, s), self.refine_m).reshape(-1, 2)
-        fssr, foff = hypothesis_ssr(fine, cells, [hyps[i] for i in best_h], self.tx_height_m, self.gain_tables)
+        fssr, foff = hypothesis_ssr(
+            fine, cells, [hyps[i] for i in best_h], self.tx_height_m, self.gain_tables
+        )
         j = np.unravel_index(int(np.argmin(fssr)), fssr.shape)
         x, y = fine[j[1]]
         h = int(best_h[j[0]])
@@ -257,8 +301,10 @@ class SelfCalibratingGrid(_Base):
         )
         est = self._estimate(x, y, "free space + profiled UAV antenna", **extras)
         if p_out >= 0.5:
-            est.add_note(f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
-                         "outside it): the estimate is an extrapolation")
+            est.add_note(
+                f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                "outside it): the estimate is an extrapolation"
+            )
         est.posterior = post
         return est
 

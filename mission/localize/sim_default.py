@@ -16,9 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
-SPIRAL_NETWORKS = ("rfsl_spiral_e2r_ens5.onnx", "rfsl_spiral_alt.onnx")  # the most specialised first
+SPIRAL_NETWORKS = (
+    "rfsl_spiral_e2r_ens5.onnx",
+    "rfsl_spiral_alt.onnx",
+)  # the most specialised first
 SPIRAL_SOURCE_MODEL = "e2r"
-DIPOLE_KEYS = ("pattern", "tx_pattern", "rx_pattern")  # model_params keys that would change the dipole default
+DIPOLE_KEYS = (
+    "pattern",
+    "tx_pattern",
+    "rx_pattern",
+)  # model_params keys that would change the dipole default
 
 
 def spiral_source(meta: dict) -> str | None:
@@ -38,7 +45,9 @@ def spiral_source(meta: dict) -> str | None:
     return None
 
 
-def sim_default_model(meta: dict, heights_m: np.ndarray, default: Path | None) -> tuple[Path | None, str]:
+def sim_default_model(
+    meta: dict, heights_m: np.ndarray, default: Path | None
+) -> tuple[Path | None, str]:
     """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at ``heights_m``:
     the first spiral network whose training altitudes hold the flight, else ``default`` (``rfsl_default``)."""
     from mission.localize.onnx_model import OnnxLocalizer
@@ -56,7 +65,11 @@ def sim_default_model(meta: dict, heights_m: np.ndarray, default: Path | None) -
             continue
         trained = OnnxLocalizer(path, threads=1).card.domain.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
-            return path, (f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the kind of "
-                          f"flight it was trained on (spiral, dipoles, {trained[0]:.0f}-{trained[1]:.0f} m)")
-    return default, (f"default model {dname} (spiral at {np.median(heights_m):.0f} m: outside the spiral "
-                     "networks' altitudes)")
+            return path, (
+                f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the kind of "
+                f"flight it was trained on (spiral, dipoles, {trained[0]:.0f}-{trained[1]:.0f} m)"
+            )
+    return default, (
+        f"default model {dname} (spiral at {np.median(heights_m):.0f} m: outside the spiral "
+        "networks' altitudes)"
+    )

@@ -26,7 +26,9 @@ from scipy.special import logsumexp
 from mission.cells import Cells
 
 BLOCK_M = 50.0  # block side: above the real flights' shadowing correlation (35 m, mission/data/afar_family.json)
-SLOPE_WEIGHT = 200.0  # ridge weight pulling the path-gain slope to free space (cells' PG spread ~ 10 dB)
+SLOPE_WEIGHT = (
+    200.0  # ridge weight pulling the path-gain slope to free space (cells' PG spread ~ 10 dB)
+)
 
 
 @dataclass(frozen=True)
@@ -53,8 +55,15 @@ def cell_blocks(cells: Cells, block_m: float) -> np.ndarray:
     return inv.ravel()
 
 
-def blocked_scores(cells: Cells, cand_xy: np.ndarray, hyps, tx_height_m: float, tau: float,
-                   block_m: float = BLOCK_M, slope_weight: float = SLOPE_WEIGHT) -> BlockedScores:
+def blocked_scores(
+    cells: Cells,
+    cand_xy: np.ndarray,
+    hyps,
+    tx_height_m: float,
+    tau: float,
+    block_m: float = BLOCK_M,
+    slope_weight: float = SLOPE_WEIGHT,
+) -> BlockedScores:
     """Blocked cross-validated predictive log densities of every candidate (module docstring), vectorised
     over candidates, blocks and cells; one pass per antenna hypothesis."""
     from mission.localize.selfcal import _geometry, hypothesis_residuals
@@ -70,7 +79,9 @@ def blocked_scores(cells: Cells, cand_xy: np.ndarray, hyps, tx_height_m: float, 
     y = cells.rss_dbm.astype(np.float64)
     n = len(block) - onehot.sum(axis=0)  # training cells per fold (B,)
 
-    def train(v: np.ndarray) -> np.ndarray:  # (K, M) -> sums over the training cells of each fold (K, B)
+    def train(
+        v: np.ndarray,
+    ) -> np.ndarray:  # (K, M) -> sums over the training cells of each fold (K, B)
         s = v @ onehot
         return s.sum(axis=1, keepdims=True) - s
 
@@ -113,8 +124,9 @@ def stacking_weights(block_lpd: np.ndarray, iters: int = 500, tol: float = 1e-10
     return w
 
 
-def geometric_median(xy: np.ndarray, weights: np.ndarray | None = None, iters: int = 200,
-                     tol_m: float = 1e-6) -> np.ndarray:
+def geometric_median(
+    xy: np.ndarray, weights: np.ndarray | None = None, iters: int = 200, tol_m: float = 1e-6
+) -> np.ndarray:
     """The (weighted) geometric median of points (K, 2): the point with the least summed distance to them
     (Weiszfeld's iteration from the weighted mean).  Why: a consensus that a few far candidates (ghost modes,
     a network off its domain) cannot drag, unlike the mean."""

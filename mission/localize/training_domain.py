@@ -17,8 +17,12 @@ import numpy as np
 from mission.defaults import DEFAULT_ALTITUDE_M
 from mission.errors import InputError
 
-ALTITUDE_TOLERANCE_M = 5.0  # 5 m off its training altitude the spiral network's simulated error doubles
-ATTITUDE_TOLERANCE_DEG = 5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
+ALTITUDE_TOLERANCE_M = (
+    5.0  # 5 m off its training altitude the spiral network's simulated error doubles
+)
+ATTITUDE_TOLERANCE_DEG = (
+    5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
+)
 TRACK_REACH_M = 10.0  # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
 TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
 
@@ -29,19 +33,33 @@ def flight_altitudes(z_m: np.ndarray) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def altitude_note(model_name: str, trained: tuple[float, float] | None, flown: tuple[float, float],
-                  tolerance_m: float = ALTITUDE_TOLERANCE_M) -> str | None:
+def altitude_note(
+    model_name: str,
+    trained: tuple[float, float] | None,
+    flown: tuple[float, float],
+    tolerance_m: float = ALTITUDE_TOLERANCE_M,
+) -> str | None:
     """A one-sentence note when the flown altitudes leave the trained range by more than ``tolerance_m``."""
     if trained is None:
         return None
     off = max(trained[0] - flown[0], flown[1] - trained[1])
     if off <= tolerance_m:
         return None
-    t = f"{trained[0]:.0f} m" if trained[0] == trained[1] else f"{trained[0]:.0f}-{trained[1]:.0f} m"
-    f = f"{flown[0]:.0f} m" if round(flown[0]) == round(flown[1]) else f"{flown[0]:.0f}-{flown[1]:.0f} m"
-    return (f"{model_name} was trained on flights at {t}; this one flew at {f}, {off:.0f} m outside that: networks "
-            "lose accuracy off their training altitude (in simulation the shipped spiral network's error doubles 5 m "
-            "off and grows 3-5x 10-17 m off, models/README.md), so its half of the estimate is less reliable")
+    t = (
+        f"{trained[0]:.0f} m"
+        if trained[0] == trained[1]
+        else f"{trained[0]:.0f}-{trained[1]:.0f} m"
+    )
+    f = (
+        f"{flown[0]:.0f} m"
+        if round(flown[0]) == round(flown[1])
+        else f"{flown[0]:.0f}-{flown[1]:.0f} m"
+    )
+    return (
+        f"{model_name} was trained on flights at {t}; this one flew at {f}, {off:.0f} m outside that: networks "
+        "lose accuracy off their training altitude (in simulation the shipped spiral network's error doubles 5 m "
+        "off and grows 3-5x 10-17 m off, models/README.md), so its half of the estimate is less reliable"
+    )
 
 
 def trained_legs(part):
@@ -70,8 +88,12 @@ def planned_track(meta: dict, origin) -> np.ndarray | None:
     if not traj.get("generator") or not _same_origin(origin, field.origin):
         return None
     try:
-        w = generate(traj["generator"], field, float(traj.get("altitude_m", DEFAULT_ALTITUDE_M)),
-                     **(traj.get("params") or {}))
+        w = generate(
+            traj["generator"],
+            field,
+            float(traj.get("altitude_m", DEFAULT_ALTITUDE_M)),
+            **(traj.get("params") or {}),
+        )
     except (InputError, TypeError, ValueError):
         return None
     lat, lon, _ = field.origin.to_geodetic(np.asarray(w, dtype=float))
@@ -83,8 +105,12 @@ def _same_origin(a, b) -> bool:
     return bool(np.allclose(a.to_enu(b.lat_deg, b.lon_deg, b.alt_m), 0.0, atol=1e-3))
 
 
-def track_coverage(planned_xy: np.ndarray, flown_xy: np.ndarray, reach_m: float = TRACK_REACH_M,
-                   step_m: float = TRACK_STEP_M) -> float:
+def track_coverage(
+    planned_xy: np.ndarray,
+    flown_xy: np.ndarray,
+    reach_m: float = TRACK_REACH_M,
+    step_m: float = TRACK_STEP_M,
+) -> float:
     """Share of the planned track (every ``step_m`` along it) that a flown sample passed within ``reach_m`` of:
     1 for a full flight, about a third for a flight aborted a third of the way."""
     from scipy.spatial import cKDTree
@@ -104,7 +130,9 @@ def flight_attitude(part) -> tuple[tuple[float, float], tuple[float, float]]:
     return (float(r[0]), float(r[1])), (float(p[0]), float(p[1]))
 
 
-def attitude_note(model_name: str, trained, flown, tolerance_deg: float = ATTITUDE_TOLERANCE_DEG) -> str | None:
+def attitude_note(
+    model_name: str, trained, flown, tolerance_deg: float = ATTITUDE_TOLERANCE_DEG
+) -> str | None:
     """A one-sentence note when the flown roll or pitch leaves the trained span by more than ``tolerance_deg``."""
     if trained is None:
         return None
@@ -114,8 +142,10 @@ def attitude_note(model_name: str, trained, flown, tolerance_deg: float = ATTITU
             out.append(f"{what} {flo:.0f} to {fhi:.0f} deg against {tlo:.0f} to {thi:.0f} deg")
     if not out:
         return None
-    return (f"this flight's attitude is outside {model_name}'s training domain ({'; '.join(out)}, 5-95 % of the "
-            "samples used against the training flights' 1-99 %): the network never saw RSS at these tilts")
+    return (
+        f"this flight's attitude is outside {model_name}'s training domain ({'; '.join(out)}, 5-95 % of the "
+        "samples used against the training flights' 1-99 %): the network never saw RSS at these tilts"
+    )
 
 
 def flown_domain(part, trained_attitude, model_name: str) -> dict:
@@ -124,5 +154,7 @@ def flown_domain(part, trained_attitude, model_name: str) -> dict:
     from its card, or when unknown)."""
     plan = planned_track(part.meta, part.origin)
     cov = None if plan is None or len(part) < 2 else track_coverage(plan, part.enu()[:, :2])
-    return {"track_coverage": cov,
-            "attitude_note": attitude_note(model_name, trained_attitude, flight_attitude(part))}
+    return {
+        "track_coverage": cov,
+        "attitude_note": attitude_note(model_name, trained_attitude, flight_attitude(part)),
+    }

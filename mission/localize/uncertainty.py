@@ -89,11 +89,21 @@ def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> dict:
     k = float(np.sqrt(chi2.ppf(level, 2)))
     a, b = k * np.sqrt(np.maximum(vals[::-1], 0.0))
     ang = float(np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1])))
-    return {"x_m": float(mu[0]), "y_m": float(mu[1]), "a_m": float(a), "b_m": float(b), "angle_deg": ang}
+    return {
+        "x_m": float(mu[0]),
+        "y_m": float(mu[1]),
+        "a_m": float(a),
+        "b_m": float(b),
+        "angle_deg": ang,
+    }
 
 
-def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (0.5, 0.9),
-                masses: dict[float, float] | None = None) -> list[dict]:
+def hpd_regions(
+    post: Posterior,
+    grid: np.ndarray,
+    levels: tuple[float, ...] = (0.5, 0.9),
+    masses: dict[float, float] | None = None,
+) -> list[dict]:
     """The regions of ``post`` at each nominal level (module docstring layout); also attaches ``grid`` to it.
 
     ``masses`` maps a nominal level to the HPD mass that covers the truth at that rate on a benchmark (a
@@ -105,7 +115,11 @@ def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (
     pts = grid.reshape(-1, 2)
     p = post.prob.ravel()
     out = []
-    gen = contourpy.contour_generator(grid[..., 0], grid[..., 1], post.prob) if min(post.prob.shape) > 1 else None
+    gen = (
+        contourpy.contour_generator(grid[..., 0], grid[..., 1], post.prob)
+        if min(post.prob.shape) > 1
+        else None
+    )
     for lev in levels:
         mass = float((masses or {}).get(lev, lev))
         thr = post.mass_threshold(mass)
@@ -116,14 +130,18 @@ def hpd_regions(post: Posterior, grid: np.ndarray, levels: tuple[float, ...] = (
                 arr = np.asarray(line)
                 if arr.ndim == 2 and len(arr) >= 3:
                     polys.append(np.round(arr, 1).tolist())
-        out.append({
-            "level": float(lev),
-            "hpd_mass": mass,
-            "area_m2": float(inside.sum() * post.cell_area_m2),
-            "density": float(thr / post.cell_area_m2),
-            "ellipse": _ellipse(pts[inside], p[inside], mass) if inside.sum() > 2 else _ellipse(pts, p, mass),
-            "polygons": polys,
-        })
+        out.append(
+            {
+                "level": float(lev),
+                "hpd_mass": mass,
+                "area_m2": float(inside.sum() * post.cell_area_m2),
+                "density": float(thr / post.cell_area_m2),
+                "ellipse": _ellipse(pts[inside], p[inside], mass)
+                if inside.sum() > 2
+                else _ellipse(pts, p, mass),
+                "polygons": polys,
+            }
+        )
     return out
 
 
@@ -132,13 +150,22 @@ def describe_region(reg: dict, short: bool = False) -> str:
     leaves out where the circle was calibrated and where the ellipse lies."""
     el = reg["ellipse"]
     if reg.get("kind") == "error circle":
-        clipped = f"; clipped to the {reg['clipped_to']}: {reg['area_m2']:.0f} m^2" if "clipped_to" in reg else ""
+        clipped = (
+            f"; clipped to the {reg['clipped_to']}: {reg['area_m2']:.0f} m^2"
+            if "clipped_to" in reg
+            else ""
+        )
         return f"within {reg['radius_m']:.0f} m of the estimate" + (
-            "" if short else f" (error circle; calibrated on {reg.get('calibrated_on') or 'the card'}{clipped})")
+            ""
+            if short
+            else f" (error circle; calibrated on {reg.get('calibrated_on') or 'the card'}{clipped})"
+        )
     if short:
         return f"{reg['area_m2']:.0f} m^2 (ellipse {el['a_m']:.0f} x {el['b_m']:.0f} m)"
-    return (f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
-            f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east")
+    return (
+        f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
+        f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east"
+    )
 
 
 def outer_region(extras: dict) -> dict | None:

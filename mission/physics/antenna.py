@@ -29,9 +29,21 @@ from mission.physics.patterns import (
 )
 
 __all__ = [
-    "AERPAW_CREDIT", "SHIPPED_RM_WB1_DN", "TWO_PI", "Dipole", "Isotropic", "Mounted", "Pattern",
-    "TabulatedPattern", "load_aerpaw_pattern", "load_pattern", "load_pattern_csv", "mount_angles", "rm_wb1_dn",
-    "save_pattern_csv", "sphere_integral",
+    "AERPAW_CREDIT",
+    "SHIPPED_RM_WB1_DN",
+    "TWO_PI",
+    "Dipole",
+    "Isotropic",
+    "Mounted",
+    "Pattern",
+    "TabulatedPattern",
+    "load_aerpaw_pattern",
+    "load_pattern",
+    "load_pattern_csv",
+    "mount_angles",
+    "rm_wb1_dn",
+    "save_pattern_csv",
+    "sphere_integral",
 ]
 
 SHIPPED_RM_WB1_DN = "rm_wb1_dn_right_side_up_3300mhz.csv"
@@ -51,8 +63,9 @@ def load_pattern(spec: str | Path) -> Pattern:
         return rm_wb1_dn()
     path = Path(spec)
     if not path.is_file():
-        raise InputError("antenna pattern file not found (or use isotropic, dipole, measured)",
-                         source=str(path))
+        raise InputError(
+            "antenna pattern file not found (or use isotropic, dipole, measured)", source=str(path)
+        )
     if path.suffix.lower() == ".csv":
         return load_pattern_csv(path)
     return load_aerpaw_pattern(path)

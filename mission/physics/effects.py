@@ -76,8 +76,9 @@ class GroundReflection:
             return (eps * s - root) / (eps * s + root)
         return (s - root) / (s + root)
 
-    def _gamma_fast(self, sin_psi: NDArray, cos2_psi: NDArray, fc_hz: float
-                    ) -> tuple[NDArray, NDArray | None]:
+    def _gamma_fast(
+        self, sin_psi: NDArray, cos2_psi: NDArray, fc_hz: float
+    ) -> tuple[NDArray, NDArray | None]:
         """(Re Gamma, Im Gamma or None) from sin psi and cos^2 psi, no trig; real arithmetic if sigma = 0."""
         dt = np.result_type(sin_psi)
         eps = self.eps_complex(fc_hz)

@@ -57,19 +57,35 @@ def check_dist(v: Any, where: str, source: str | None = None) -> None:
             raise InputError(f"{where} is not finite", source=source, field=where)
         return
     if not _is_dist(v):
-        raise InputError(f"{where} is neither a number nor a distribution", source=source, field=where)
+        raise InputError(
+            f"{where} is neither a number nor a distribution", source=source, field=where
+        )
     kind = v["dist"]
-    need = {"uniform": ("lo", "hi"), "loguniform": ("lo", "hi"), "normal": ("mean", "sd"),
-            "choice": ("options",), "empirical": ("values",)}.get(kind)
+    need = {
+        "uniform": ("lo", "hi"),
+        "loguniform": ("lo", "hi"),
+        "normal": ("mean", "sd"),
+        "choice": ("options",),
+        "empirical": ("values",),
+    }.get(kind)
     if need is None:
-        raise InputError(f"{where}: unknown distribution {kind!r} (expected {', '.join(DISTS)})",
-                         source=source, field=where)
+        raise InputError(
+            f"{where}: unknown distribution {kind!r} (expected {', '.join(DISTS)})",
+            source=source,
+            field=where,
+        )
     missing = [k for k in need if k not in v]
     if missing:
-        raise InputError(f"{where}: {kind} distribution needs {', '.join(missing)}", source=source, field=where)
+        raise InputError(
+            f"{where}: {kind} distribution needs {', '.join(missing)}", source=source, field=where
+        )
     if kind in ("uniform", "loguniform"):
         lo, hi = float(v["lo"]), float(v["hi"])
-        if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or (kind == "loguniform" and lo <= 0):
+        if (
+            not (math.isfinite(lo) and math.isfinite(hi))
+            or hi < lo
+            or (kind == "loguniform" and lo <= 0)
+        ):
             raise InputError(f"{where}: bad range [{lo}, {hi}]", source=source, field=where)
     if kind == "normal" and not float(v["sd"]) >= 0:
         raise InputError(f"{where}: sd must be >= 0", source=source, field=where)
@@ -77,8 +93,16 @@ def check_dist(v: Any, where: str, source: str | None = None) -> None:
         vals = v["options"] if kind == "choice" else v["values"]
         if not isinstance(vals, list) or not vals:
             raise InputError(f"{where}: needs a non-empty list", source=source, field=where)
-        if kind == "choice" and "p" in v and (len(v["p"]) != len(vals) or abs(sum(v["p"]) - 1.0) > 1e-6):
-            raise InputError(f"{where}: p must have one weight per option and sum to 1", source=source, field=where)
+        if (
+            kind == "choice"
+            and "p" in v
+            and (len(v["p"]) != len(vals) or abs(sum(v["p"]) - 1.0) > 1e-6)
+        ):
+            raise InputError(
+                f"{where}: p must have one weight per option and sum to 1",
+                source=source,
+                field=where,
+            )
 
 
 def draw_value(v: Any, rng: np.random.Generator) -> Any:
@@ -138,9 +162,13 @@ class FamilyDraw:
         return build_model(self.spec, name=name)
 
     def to_dict(self) -> dict:
-        return {"spec": self.spec, "shadowing_db": self.shadowing_db, "shadowing_corr_m": self.shadowing_corr_m,
-                "noise_db": self.noise_db, "offset_db": self.offset_db}
-
+        return {
+            "spec": self.spec,
+            "shadowing_db": self.shadowing_db,
+            "shadowing_corr_m": self.shadowing_corr_m,
+            "noise_db": self.noise_db,
+            "offset_db": self.offset_db,
+        }
 
 
 def lowest(v: Any) -> float:
@@ -152,6 +180,7 @@ def lowest(v: Any) -> float:
     if v["dist"] == "normal":
         return float(v.get("lo", -np.inf))
     return min(float(x) for x in v["options" if v["dist"] == "choice" else "values"])
+
 
 @dataclass(frozen=True)
 class PhysicsFamily:
@@ -171,38 +200,66 @@ class PhysicsFamily:
             raise InputError("a physics family must be a JSON object", source=source)
         schema = d.get("schema")
         if isinstance(schema, bool) or not isinstance(schema, int | float) or schema != SCHEMA:
-            raise InputError(f"physics family schema {d.get('schema')!r} (expected {SCHEMA})", source=source,
-                             field="schema")
+            raise InputError(
+                f"physics family schema {d.get('schema')!r} (expected {SCHEMA})",
+                source=source,
+                field="schema",
+            )
         spec = d.get("spec")
         if not isinstance(spec, dict) or "base" not in spec:
-            raise InputError("physics family needs a 'spec' object with a 'base'", source=source, field="spec")
+            raise InputError(
+                "physics family needs a 'spec' object with a 'base'", source=source, field="spec"
+            )
         _check_tree(spec, "spec", source)
         res = d.get("residual", {})
         if not isinstance(res, dict) or set(res) - set(RESIDUAL_KEYS):
-            raise InputError(f"residual keys must be among {', '.join(RESIDUAL_KEYS)}", source=source,
-                             field="residual")
+            raise InputError(
+                f"residual keys must be among {', '.join(RESIDUAL_KEYS)}",
+                source=source,
+                field="residual",
+            )
         _check_tree(res, "residual", source)
         for k, v in res.items():  # a negative sigma, noise or correlation length is no physics
             try:
                 low = lowest(v)
             except (TypeError, ValueError, KeyError):
-                raise InputError(f"residual.{k} must be a number or a distribution", source=source,
-                                 field=f"residual.{k}") from None
+                raise InputError(
+                    f"residual.{k} must be a number or a distribution",
+                    source=source,
+                    field=f"residual.{k}",
+                ) from None
             if not low >= 0 or (k == "shadowing_corr_m" and low <= 0):
-                raise InputError(f"residual.{k} can be drawn {'<=' if k == 'shadowing_corr_m' else '<'} 0",
-                                 source=source, field=f"residual.{k}")
+                raise InputError(
+                    f"residual.{k} can be drawn {'<=' if k == 'shadowing_corr_m' else '<'} 0",
+                    source=source,
+                    field=f"residual.{k}",
+                )
         check_dist(d.get("offset_db", 0.0), "offset_db", source)
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
         for i, v in enumerate(variants):
-            if not isinstance(v, dict) or not isinstance(v.get("spec"), dict) or not float(v.get("p", -1)) >= 0:
-                raise InputError(f"variants[{i}] needs 'p' >= 0 and a 'spec' object", source=source,
-                                 field=f"variants[{i}]")
+            if (
+                not isinstance(v, dict)
+                or not isinstance(v.get("spec"), dict)
+                or not float(v.get("p", -1)) >= 0
+            ):
+                raise InputError(
+                    f"variants[{i}] needs 'p' >= 0 and a 'spec' object",
+                    source=source,
+                    field=f"variants[{i}]",
+                )
             _check_tree(v["spec"], f"variants[{i}].spec", source)
         if variants and abs(sum(float(v["p"]) for v in variants) - 1.0) > 1e-6:
             raise InputError("variants' p must sum to 1", source=source, field="variants")
-        fam = cls(str(d.get("name", "family")), spec, res, d.get("offset_db", 0.0), tuple(variants), dict(d))
+        fam = cls(
+            str(d.get("name", "family")),
+            spec,
+            res,
+            d.get("offset_db", 0.0),
+            tuple(variants),
+            dict(d),
+        )
         fam._check_builds(source)
         return fam
 
@@ -214,7 +271,9 @@ class PhysicsFamily:
             try:
                 FamilyDraw(spec, 0.0, 1.0, 0.0, 0.0).model()
             except (ValueError, KeyError, TypeError) as e:
-                raise InputError(f"physics family spec does not build: {e}", source=source, field="spec") from None
+                raise InputError(
+                    f"physics family spec does not build: {e}", source=source, field="spec"
+                ) from None
 
     def draw(self, rng: np.random.Generator) -> FamilyDraw:
         """One flight's physics (draw order in the module docstring)."""
@@ -224,12 +283,23 @@ class PhysicsFamily:
             v = self.variants[int(rng.choice(len(p), p=p / p.sum()))]
             spec.update(_draw_tree(v["spec"], rng))
         res = _draw_tree(self.residual, rng)
-        return FamilyDraw(spec, float(res.get("shadowing_db", 0.0)), float(res.get("shadowing_corr_m", 30.0)),
-                          float(res.get("noise_db", 0.0)), float(draw_value(self.offset_db, rng)))
+        return FamilyDraw(
+            spec,
+            float(res.get("shadowing_db", 0.0)),
+            float(res.get("shadowing_corr_m", 30.0)),
+            float(res.get("noise_db", 0.0)),
+            float(draw_value(self.offset_db, rng)),
+        )
 
     def to_dict(self) -> dict:
         d = dict(self.record)
-        d.update(schema=SCHEMA, name=self.name, spec=self.spec, residual=self.residual, offset_db=self.offset_db)
+        d.update(
+            schema=SCHEMA,
+            name=self.name,
+            spec=self.spec,
+            residual=self.residual,
+            offset_db=self.offset_db,
+        )
         if self.variants:
             d["variants"] = list(self.variants)
         return d
@@ -248,8 +318,10 @@ def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
         return PhysicsFamily.from_dict(d, source=src)
     p = Path(s)
     if not p.suffix.lower() == ".json":
-        raise InputError(f"unknown physics family {s!r} (a shipped name: {', '.join(SHIPPED)}, or a .json file)",
-                         field="family")
+        raise InputError(
+            f"unknown physics family {s!r} (a shipped name: {', '.join(SHIPPED)}, or a .json file)",
+            field="family",
+        )
     from mission.files import read_text
 
     if not p.exists():
@@ -263,8 +335,14 @@ def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
     return PhysicsFamily.from_dict(d, source=s)
 
 
-def simulate_rss(draw: FamilyDraw, tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray,
-                 rng: np.random.Generator, model=None) -> np.ndarray:
+def simulate_rss(
+    draw: FamilyDraw,
+    tx_enu: np.ndarray,
+    rx_enu: np.ndarray,
+    attitude_rad: np.ndarray,
+    rng: np.random.Generator,
+    model=None,
+) -> np.ndarray:
     """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing + white noise.
 
     ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive part)."""

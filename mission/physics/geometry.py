@@ -29,7 +29,9 @@ def as_attitude(attitude_rad: ArrayLike | None, n: int) -> NDArray[np.float64]:
     if att.ndim == 1 and att.shape == (3,):
         att = np.broadcast_to(att, (n, 3))
     if att.shape != (n, 3):
-        raise ValueError(f"attitude must have shape ({n}, 3) (roll, pitch, yaw rad), got {att.shape}")
+        raise ValueError(
+            f"attitude must have shape ({n}, 3) (roll, pitch, yaw rad), got {att.shape}"
+        )
     return att
 
 
@@ -113,8 +115,9 @@ def depression(ub_z: ArrayLike, r: ArrayLike) -> NDArray:
     return np.arcsin(sin_depression(ub_z, r))
 
 
-def body_angles(u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
-                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def body_angles(
+    u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Body azimuth az_b in [0, 2 pi) and depression dep_b (rad) of the NED vector(s) u (UAV -> target).
 
     ``attitude_rad`` (..., 3) roll, pitch, yaw broadcasts against u's leading shape; None = level, yaw 0.
@@ -137,8 +140,9 @@ def bearing(dx_east: ArrayLike, dy_north: ArrayLike, signed: bool = False) -> ND
 
 
 # -- the link UAV -> transmitter from its ENU components (dtype-preserving: the fast paths run in float32)
-def link_delta(tx_enu: ArrayLike, rx_enu: ArrayLike, dtype: DTypeLike | None = None
-               ) -> tuple[NDArray, NDArray, NDArray]:
+def link_delta(
+    tx_enu: ArrayLike, rx_enu: ArrayLike, dtype: DTypeLike | None = None
+) -> tuple[NDArray, NDArray, NDArray]:
     """(dx, dy, dz) = p_tx - p_uav (ENU) on the last axis, broadcast; differenced in the inputs' precision, then
     cast to ``dtype`` (None: kept), so float32 work on large coordinates keeps the difference's precision."""
     tx, rx = np.asarray(tx_enu), np.asarray(rx_enu)
@@ -167,8 +171,9 @@ def sin_elevation(dz: ArrayLike, d_los: ArrayLike) -> NDArray:
     return np.clip(np.asarray(dz) / d_los, -1.0, 1.0)
 
 
-def heading_frame_angles(dx: NDArray, dy: NDArray, dz: NDArray, yaw_rad: ArrayLike,
-                         d_2d: NDArray | None = None) -> tuple[NDArray, NDArray]:
+def heading_frame_angles(
+    dx: NDArray, dy: NDArray, dz: NDArray, yaw_rad: ArrayLike, d_2d: NDArray | None = None
+) -> tuple[NDArray, NDArray]:
     """Elevation (up-positive, = -dep_b) and body azimuth az_b of the link (dx, dy, dz) = p_tx - p_uav (ENU)
     seen from a body frame turned to heading ``yaw_rad`` but level (roll = pitch = 0), in the inputs' dtype.
 

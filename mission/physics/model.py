@@ -83,7 +83,9 @@ class PropagationModel:
     def with_effect(self, effect: Any) -> PropagationModel:
         """The model with ``effect`` replacing the effect of the same name, or appended."""
         if self.has(effect.name):
-            return replace(self, effects=tuple(effect if e.name == effect.name else e for e in self.effects))
+            return replace(
+                self, effects=tuple(effect if e.name == effect.name else e for e in self.effects)
+            )
         return replace(self, effects=self.effects + (effect,))
 
     def with_params(self, name: str, **params: Any) -> PropagationModel:
@@ -105,8 +107,14 @@ class PropagationModel:
         C.flags.writeable = False
         return AttitudePlanes(self.effect("attitude"), dt.str, C)
 
-    def rss_dbm(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None,
-                centre: ArrayLike | None = None, planes: AttitudePlanes | None = None) -> NDArray:
+    def rss_dbm(
+        self,
+        tx_enu: ArrayLike,
+        rx_enu: ArrayLike,
+        attitude_rad: ArrayLike | None = None,
+        centre: ArrayLike | None = None,
+        planes: AttitudePlanes | None = None,
+    ) -> NDArray:
         """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N, 3) rad.
 
         tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3) pairs
@@ -130,12 +138,20 @@ class PropagationModel:
         txc = tx - c
         C = None
         if self.has("attitude") and planes is not None:
-            if planes.effect != self.effect("attitude") or planes.dtype != dt.str or planes.planes.shape[-1] != N:
-                raise ValueError("planes were made for another model's attitude effect, dtype or samples")
+            if (
+                planes.effect != self.effect("attitude")
+                or planes.dtype != dt.str
+                or planes.planes.shape[-1] != N
+            ):
+                raise ValueError(
+                    "planes were made for another model's attitude effect, dtype or samples"
+                )
             C = planes.planes
         elif self.has("attitude") and attitude_rad is not None:
             # u_b = C delta; stored (3, 3, N) so that C[i, j] is contiguous over the samples
-            C = body_from_enu_planes(self.effect("attitude").apply(as_attitude(attitude_rad, N)), dt)
+            C = body_from_enu_planes(
+                self.effect("attitude").apply(as_attitude(attitude_rad, N)), dt
+            )
         K = txc.shape[0]
         out = np.empty((K, N), dtype=dt)
         nb = min(N, self.chunk) if N else 1
@@ -172,12 +188,16 @@ class PropagationModel:
         amp_dir = inv_los  # sqrt(G_t G_r) / d_los
         az_tx_cache: list[NDArray] = []
 
-        def az_tx() -> NDArray:  # compass bearing TX -> UAV, shared by both rays, computed at most once
+        def az_tx() -> (
+            NDArray
+        ):  # compass bearing TX -> UAV, shared by both rays, computed at most once
             if not az_tx_cache:
                 az_tx_cache.append(bearing(-dx, -dy))
             return az_tx_cache[0]
 
-        if ta is not None:  # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
+        if (
+            ta is not None
+        ):  # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
             amp_dir = amp_dir * ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
         if ra is not None:  # arrival: el = -dep_b = -u_b.z / |u|
             s_r = -u_b[2] * inv_los
@@ -197,6 +217,7 @@ class PropagationModel:
             if ra is not None:  # arrives from the image source at (x_t, y_t, -h_t)
                 if C is None:
                     s_r2, c_r2 = -sin_psi, d * inv_ref
+
                     def az2() -> NDArray:
                         return bearing(dx, dy)
                 else:
@@ -204,8 +225,10 @@ class PropagationModel:
                     ub2 = tuple(u_b[i] - C[i, 2] * two_zt for i in range(3))
                     s_r2 = -ub2[2] * inv_ref
                     c_r2 = np.sqrt(np.maximum(dt(1.0) - s_r2 * s_r2, dt(0.0)))
+
                     def az2() -> NDArray:
                         return body_azimuth(ub2[0], ub2[1])
+
                 amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
             g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
             # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref + d_los): no cancellation
@@ -231,8 +254,9 @@ class PropagationModel:
         return rss
 
     # -- reference / explanation
-    def explain(self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None
-                ) -> dict[str, NDArray]:
+    def explain(
+        self, tx_enu: ArrayLike, rx_enu: ArrayLike, attitude_rad: ArrayLike | None = None
+    ) -> dict[str, NDArray]:
         """Every intermediate quantity (float64 reference, explicit angles) of the broadcast shape.
 
         Keys: d_2d, d_los, d_ref, h_t, h_r, grazing_rad, gamma_abs, gamma_phase_rad (arg Gamma), phase_diff_rad
@@ -289,26 +313,52 @@ class PropagationModel:
         S = ls.shadowed(az_b, dep_b) if ls else np.zeros(d_los.shape, bool)
         ups = np.where(S, ls.upsilon_db(d_los), 0.0) if ls else zero
         rss -= ups
-        others = [e for e in self.effects if hasattr(e, "rss_term_db") and e.name != "leg_shadowing"]
+        others = [
+            e for e in self.effects if hasattr(e, "rss_term_db") and e.name != "leg_shadowing"
+        ]
         if others:
-            C = body_from_enu_matrix(att) if self.has("attitude") else body_from_enu_matrix(np.zeros((N, 3)))
+            C = (
+                body_from_enu_matrix(att)
+                if self.has("attitude")
+                else body_from_enu_matrix(np.zeros((N, 3)))
+            )
             ub = tuple(np.einsum("nj,...nj->...n", C[:, i, :], u) for i in range(3))
             link = Link((u[..., 0], u[..., 1], u[..., 2]), h_t, h_r, d_los, d_ref, ub)
             for e in others:
                 res[f"{e.name}_db"] = np.asarray(e.rss_term_db(link), dtype=float)
                 rss = rss + res[f"{e.name}_db"]
         res.update(
-            d_2d=d_2d, d_los=d_los, d_ref=d_ref, h_t=h_t, h_r=h_r, grazing_rad=psi,
-            gamma_abs=np.abs(Gam), gamma_phase_rad=np.angle(Gam), phase_diff_rad=dphi,
-            el_tx_dir_rad=el_tx_dir, el_tx_ref_rad=el_tx_ref, az_tx_rad=az_tx,
-            g_tx_dir_dbi=g_td, g_tx_ref_dbi=g_tr, g_rx_dir_dbi=g_rd, g_rx_ref_dbi=g_rr,
-            az_b_rad=az_b, dep_b_rad=dep_b, az_b_ref_rad=az_b2, dep_b_ref_rad=dep_b2,
-            two_ray_dbm=two_ray, shadowed=S, upsilon_db=ups, rss_dbm=rss,
+            d_2d=d_2d,
+            d_los=d_los,
+            d_ref=d_ref,
+            h_t=h_t,
+            h_r=h_r,
+            grazing_rad=psi,
+            gamma_abs=np.abs(Gam),
+            gamma_phase_rad=np.angle(Gam),
+            phase_diff_rad=dphi,
+            el_tx_dir_rad=el_tx_dir,
+            el_tx_ref_rad=el_tx_ref,
+            az_tx_rad=az_tx,
+            g_tx_dir_dbi=g_td,
+            g_tx_ref_dbi=g_tr,
+            g_rx_dir_dbi=g_rd,
+            g_rx_ref_dbi=g_rr,
+            az_b_rad=az_b,
+            dep_b_rad=dep_b,
+            az_b_ref_rad=az_b2,
+            dep_b_ref_rad=dep_b2,
+            two_ray_dbm=two_ray,
+            shadowed=S,
+            upsilon_db=ups,
+            rss_dbm=rss,
         )
         return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
 
 
-def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:
+def _prepare(
+    tx_enu: ArrayLike, rx_enu: ArrayLike
+) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:
     """tx -> (K, 1, 3) (outer) or (K, N, 3) (paired), rx -> (N, 3), the output shape and the mode."""
     tx = np.asarray(tx_enu, dtype=float)
     rx = np.asarray(rx_enu, dtype=float)
@@ -323,4 +373,3 @@ def _prepare(tx_enu: ArrayLike, rx_enu: ArrayLike) -> tuple[NDArray, NDArray, tu
         return tx.reshape(-1, 1, 3), rx, out_shape, False
     txb = np.broadcast_to(tx, out_shape + (3,)).reshape(-1, N, 3)
     return txb, rx, out_shape, True
-

@@ -43,8 +43,10 @@ import numpy as np
 from mission.errors import InputError
 from mission.physics.patterns import TabulatedPattern, sphere_integral
 
-AERPAW_CREDIT = ('AERPAW "3D antenna radiation pattern measurement" data set (anechoic chamber), as carried '
-                 "in anilgurses/CHEM data/antenna (commit 6b9e58f8)")
+AERPAW_CREDIT = (
+    'AERPAW "3D antenna radiation pattern measurement" data set (anechoic chamber), as carried '
+    "in anilgurses/CHEM data/antenna (commit 6b9e58f8)"
+)
 
 
 def load_pattern_csv(path: str | Path, name: str | None = None) -> TabulatedPattern:
@@ -53,7 +55,9 @@ def load_pattern_csv(path: str | Path, name: str | None = None) -> TabulatedPatt
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
-        raise InputError(f"cannot read antenna pattern: {e.strerror or e}", source=str(path)) from None
+        raise InputError(
+            f"cannot read antenna pattern: {e.strerror or e}", source=str(path)
+        ) from None
     header: list[float] | None = None
     els: list[float] = []
     rows: list[list[float]] = []
@@ -70,14 +74,19 @@ def load_pattern_csv(path: str | Path, name: str | None = None) -> TabulatedPatt
             try:
                 header = [float(c) for c in cells[1:]]
             except ValueError:
-                raise InputError("header must be a label then azimuths in degrees", source=str(path),
-                                 row=lineno) from None
+                raise InputError(
+                    "header must be a label then azimuths in degrees", source=str(path), row=lineno
+                ) from None
             if len(header) < 2:
                 raise InputError("need at least 2 azimuth columns", source=str(path), row=lineno)
             continue
         if len(cells) != len(header) + 1:
-            raise InputError(f"expected {len(header) + 1} cells (elevation + {len(header)} gains), "
-                             f"got {len(cells)}", source=str(path), row=lineno)
+            raise InputError(
+                f"expected {len(header) + 1} cells (elevation + {len(header)} gains), "
+                f"got {len(cells)}",
+                source=str(path),
+                row=lineno,
+            )
         try:
             vals = [float(c) for c in cells]
         except ValueError:
@@ -85,24 +94,39 @@ def load_pattern_csv(path: str | Path, name: str | None = None) -> TabulatedPatt
         if not all(math.isfinite(v) for v in vals):
             raise InputError("non-finite value", source=str(path), row=lineno)
         if els and vals[0] <= els[-1]:
-            raise InputError("elevations must be strictly ascending", source=str(path), row=lineno,
-                             field="elevation")
+            raise InputError(
+                "elevations must be strictly ascending",
+                source=str(path),
+                row=lineno,
+                field="elevation",
+            )
         if not -90.0 <= vals[0] <= 90.0:
-            raise InputError("elevation must be within [-90, 90] deg", source=str(path), row=lineno,
-                             field="elevation")
+            raise InputError(
+                "elevation must be within [-90, 90] deg",
+                source=str(path),
+                row=lineno,
+                field="elevation",
+            )
         els.append(vals[0])
         rows.append(vals[1:])
     if header is None or len(els) < 2:
         raise InputError("need a header row and at least 2 elevation rows", source=str(path))
     az = np.asarray(header)
     if np.any(np.diff(az) <= 0) or az[-1] - az[0] >= 360.0:
-        raise InputError("azimuths must be strictly ascending and distinct modulo 360", source=str(path),
-                         row=None, field="azimuth")
-    return TabulatedPattern(np.asarray(els), az, np.asarray(rows), name=name or path.stem,
-                            note="; ".join(notes))
+        raise InputError(
+            "azimuths must be strictly ascending and distinct modulo 360",
+            source=str(path),
+            row=None,
+            field="azimuth",
+        )
+    return TabulatedPattern(
+        np.asarray(els), az, np.asarray(rows), name=name or path.stem, note="; ".join(notes)
+    )
 
 
-def save_pattern_csv(pattern: TabulatedPattern, path: str | Path, comments: tuple[str, ...] = ()) -> None:
+def save_pattern_csv(
+    pattern: TabulatedPattern, path: str | Path, comments: tuple[str, ...] = ()
+) -> None:
     """Write a tabulated pattern in the module's CSV format (gains to 0.01 dB)."""
     lines = [f"# {c}" for c in comments]
     lines.append("el\\az," + ",".join(f"{a:g}" for a in pattern.az_deg))
@@ -117,12 +141,16 @@ def load_aerpaw_pattern(path: str | Path, name: str | None = None) -> TabulatedP
     try:
         lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
     except OSError as e:
-        raise InputError(f"cannot read antenna pattern: {e.strerror or e}", source=str(path)) from None
+        raise InputError(
+            f"cannot read antenna pattern: {e.strerror or e}", source=str(path)
+        ) from None
     start = next((k for k, s in enumerate(lines) if s.strip().lower().startswith("phi")), None)
     if start is None:
-        raise InputError("no 'Phi Theta ...' header line: not an AERPAW pattern file", source=str(path))
+        raise InputError(
+            "no 'Phi Theta ...' header line: not an AERPAW pattern file", source=str(path)
+        )
     data = []
-    for lineno, s in enumerate(lines[start + 1:], start=start + 2):
+    for lineno, s in enumerate(lines[start + 1 :], start=start + 2):
         if not s.strip():
             continue
         try:
@@ -137,8 +165,10 @@ def load_aerpaw_pattern(path: str | Path, name: str | None = None) -> TabulatedP
     theta = np.round(np.degrees(a[:, 1]), 6)
     P, T = np.unique(phi), np.unique(theta)
     if a.shape[0] != P.size * T.size or not np.allclose(T, -T[::-1]) or T.min() > -179.999:
-        raise InputError("expected a full Phi x Theta grid with Theta symmetric over [-180, 180]",
-                         source=str(path))
+        raise InputError(
+            "expected a full Phi x Theta grid with Theta symmetric over [-180, 180]",
+            source=str(path),
+        )
     dphi = np.diff(P)
     if not np.allclose(dphi, dphi[0]) or not np.isclose(P[-1] + dphi[0], 180.0):
         raise InputError("expected Phi uniform over [0, 180)", source=str(path))
@@ -152,6 +182,10 @@ def load_aerpaw_pattern(path: str | Path, name: str | None = None) -> TabulatedP
     g = np.concatenate([E[:, it_pos].T, E[:, it_neg].T], axis=1)  # (el, az)
     # directivity normalisation: (1 / 4 pi) * integral of 10^(g/10) dOmega = 1
     offset = 10.0 * np.log10(4.0 * np.pi / sphere_integral(el, az, 10.0 ** (g / 10.0)))
-    return TabulatedPattern(el, az, g + offset, name=name or path.stem,
-                            note=f"{path.name}: ETotal_dB + {offset:.3f} dB (directivity by integration)")
-
+    return TabulatedPattern(
+        el,
+        az,
+        g + offset,
+        name=name or path.stem,
+        note=f"{path.name}: ETotal_dB + {offset:.3f} dB (directivity by integration)",
+    )

@@ -32,8 +32,9 @@ from mission.physics.constants import DIPOLE_G0, GAIN_FLOOR_DBI
 TWO_PI = 2.0 * np.pi
 
 
-def mount_angles(el_p: ArrayLike, az_p: ArrayLike, heading_rad: float = 0.0, flipped: bool = False
-                 ) -> tuple[NDArray, NDArray]:
+def mount_angles(
+    el_p: ArrayLike, az_p: ArrayLike, heading_rad: float = 0.0, flipped: bool = False
+) -> tuple[NDArray, NDArray]:
     """Platform angles (el up-positive, az clockwise from forward) -> antenna-frame (el_a, az_a), rad."""
     el_p = np.asarray(el_p)
     az_p = np.asarray(az_p)
@@ -161,8 +162,9 @@ class TabulatedPattern(Pattern):
         u = (e - self.el_deg[i]) / (self.el_deg[i + 1] - self.el_deg[i])
         t = (a - self._az_ext[j]) / (self._az_ext[j + 1] - self._az_ext[j])
         G = self._gain_ext
-        g = ((1 - u) * ((1 - t) * G[i, j] + t * G[i, j + 1])
-             + u * ((1 - t) * G[i + 1, j] + t * G[i + 1, j + 1]))
+        g = (1 - u) * ((1 - t) * G[i, j] + t * G[i, j + 1]) + u * (
+            (1 - t) * G[i + 1, j] + t * G[i + 1, j + 1]
+        )
         return np.maximum(g, self.floor_dbi)
 
     def amplitude_at(self, el: NDArray, az: NDArray) -> NDArray:
@@ -171,7 +173,9 @@ class TabulatedPattern(Pattern):
             g = self.gain_dbi(el, az)
             return np.exp(g * (np.log(10.0) / 20.0)).astype(np.result_type(el), copy=False)
         g = self.gain_db_at(el, az)
-        g *= np.result_type(el).type(np.log(10.0) / 20.0)  # table is dB; floor applied at build time
+        g *= np.result_type(el).type(
+            np.log(10.0) / 20.0
+        )  # table is dB; floor applied at build time
         return np.exp(g, out=g)
 
     def gain_db_at(self, el: NDArray, az: NDArray) -> NDArray:
@@ -230,4 +234,3 @@ def sphere_integral(el_deg: NDArray, az_deg: NDArray, f: NDArray) -> float:
     w_az = np.diff(az)  # each column owns the interval to its successor
     ring = np.trapezoid(f * np.cos(el)[:, None], el, axis=0)
     return float(np.sum(ring * w_az))
-

@@ -43,8 +43,21 @@ from mission.physics.propagation import (
 )
 
 PRESETS = ("afar",)
-SPEC_KEYS = ("base", "tx_pattern", "tx_flipped", "tx_heading_deg", "rx_pattern", "rx_flipped", "rx_heading_deg",
-             "ground", "attitude", "leg_shadowing_beta", "path_gain_slope", "pt_dbm", "fc_hz")
+SPEC_KEYS = (
+    "base",
+    "tx_pattern",
+    "tx_flipped",
+    "tx_heading_deg",
+    "rx_pattern",
+    "rx_flipped",
+    "rx_heading_deg",
+    "ground",
+    "attitude",
+    "leg_shadowing_beta",
+    "path_gain_slope",
+    "pt_dbm",
+    "fc_hz",
+)
 
 
 def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationModel:
@@ -71,9 +84,13 @@ def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationMo
         g = spec["ground"]
         m = m.without("ground_reflection") if (g is None and m.has("ground_reflection")) else m
         if g is not None:
-            m = m.with_effect(GroundReflection(eps_r=float(g.get("eps_r", 2.0)),
-                                               sigma_s_m=float(g.get("sigma_s_m", 0.0)),
-                                               polarization=str(g.get("polarization", "V"))))
+            m = m.with_effect(
+                GroundReflection(
+                    eps_r=float(g.get("eps_r", 2.0)),
+                    sigma_s_m=float(g.get("sigma_s_m", 0.0)),
+                    polarization=str(g.get("polarization", "V")),
+                )
+            )
     if "attitude" in spec:
         if spec["attitude"] == "yaw":
             m = m.with_effect(Attitude(roll_pitch=False))
@@ -96,22 +113,32 @@ def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationMo
 def load_calibration(name: str = "afar") -> dict[str, Any]:
     """The whole calibration record of preset ``name`` (the JSON file as a dict); a path ending in ``.json`` reads
     a preset file written by ``rfsl calibrate``."""
-    base = name.strip().partition(":")[0] if not name.strip().lower().endswith(".json") else name.strip()
+    base = (
+        name.strip().partition(":")[0]
+        if not name.strip().lower().endswith(".json")
+        else name.strip()
+    )
     if base.lower().endswith(".json"):  # a preset written by ``rfsl calibrate --out FILE.json``
         from mission.files import read_text
 
         try:
-            rec = json.loads(read_text(base, "physics preset file", "--physics-preset", max_bytes=10_000_000))
+            rec = json.loads(
+                read_text(base, "physics preset file", "--physics-preset", max_bytes=10_000_000)
+            )
         except (ValueError, RecursionError) as e:
             if isinstance(e, InputError):
                 raise
-            raise InputError(f"cannot read physics preset file: {str(e)[:120]}", source=base) from None
+            raise InputError(
+                f"cannot read physics preset file: {str(e)[:120]}", source=base
+            ) from None
         if not isinstance(rec, dict) or not isinstance(rec.get("model"), dict):
             raise InputError("not a physics preset (no 'model' block)", source=base)
         return rec
     key = base.lower()
     if key not in PRESETS:
-        raise InputError(f"unknown physics preset {name!r} (known: {', '.join(PRESETS)})", field="preset")
+        raise InputError(
+            f"unknown physics preset {name!r} (known: {', '.join(PRESETS)})", field="preset"
+        )
     ref = resources.files("mission").joinpath("data", f"{key}_calibration.json")
     try:
         return json.loads(ref.read_text(encoding="utf-8"))
@@ -132,8 +159,10 @@ def load_preset(name: str = "afar") -> dict[str, Any]:
         return dict(rec["model"])
     folds = rec.get("folds", {})
     if fold not in folds:
-        raise InputError(f"physics preset {base!r} has no fold {fold!r} (known: {', '.join(folds)})",
-                         field="preset")
+        raise InputError(
+            f"physics preset {base!r} has no fold {fold!r} (known: {', '.join(folds)})",
+            field="preset",
+        )
     return dict(folds[fold]["model"])
 
 

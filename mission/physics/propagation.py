@@ -53,15 +53,33 @@ from mission.physics.effects import (
 from mission.physics.model import CHUNK, PropagationModel
 
 __all__ = [
-    "CHUNK", "MODEL_ALIASES", "MODEL_NAMES", "Attitude", "Effect", "FreeSpace", "GroundReflection",
-    "LegShadowing", "Link", "PathGainSlope", "PropagationModel", "RxAntenna", "TxAntenna",
-    "canonical_model_name", "make_model",
+    "CHUNK",
+    "MODEL_ALIASES",
+    "MODEL_NAMES",
+    "Attitude",
+    "Effect",
+    "FreeSpace",
+    "GroundReflection",
+    "LegShadowing",
+    "Link",
+    "PathGainSlope",
+    "PropagationModel",
+    "RxAntenna",
+    "TxAntenna",
+    "canonical_model_name",
+    "make_model",
 ]
 
 
 MODEL_NAMES = ("free-space", "two-ray", "e2r")
-MODEL_ALIASES = {"fs": "free-space", "freespace": "free-space", "2ray": "two-ray", "tworay": "two-ray",
-                 "enhanced-two-ray": "e2r", "e-2ray": "e2r"}
+MODEL_ALIASES = {
+    "fs": "free-space",
+    "freespace": "free-space",
+    "2ray": "two-ray",
+    "tworay": "two-ray",
+    "enhanced-two-ray": "e2r",
+    "e-2ray": "e2r",
+}
 
 
 def canonical_model_name(name: str) -> str:
@@ -74,13 +92,24 @@ def canonical_model_name(name: str) -> str:
     return key
 
 
-def make_model(name: str = "e2r", *, pattern: str | Pattern = "dipole",
-               tx_pattern: str | Pattern | None = None, rx_pattern: str | Pattern | None = None,
-               pt_dbm: float = DEFAULT_PT_DBM,
-               fc_hz: float = DEFAULT_FC_HZ, eps_r: float = DEFAULT_EPS_R,
-               sigma_s_m: float = DEFAULT_SIGMA_S_M, polarization: str = "V", beta: float = DEFAULT_BETA,
-               rx_heading_rad: float = 0.0, rx_flipped: bool = False, tx_heading_rad: float = 0.0,
-               tx_flipped: bool = False, dtype: DTypeLike = np.float32) -> PropagationModel:
+def make_model(
+    name: str = "e2r",
+    *,
+    pattern: str | Pattern = "dipole",
+    tx_pattern: str | Pattern | None = None,
+    rx_pattern: str | Pattern | None = None,
+    pt_dbm: float = DEFAULT_PT_DBM,
+    fc_hz: float = DEFAULT_FC_HZ,
+    eps_r: float = DEFAULT_EPS_R,
+    sigma_s_m: float = DEFAULT_SIGMA_S_M,
+    polarization: str = "V",
+    beta: float = DEFAULT_BETA,
+    rx_heading_rad: float = 0.0,
+    rx_flipped: bool = False,
+    tx_heading_rad: float = 0.0,
+    tx_flipped: bool = False,
+    dtype: DTypeLike = np.float32,
+) -> PropagationModel:
     """Build "free-space", "two-ray" or "e2r" (enhanced two-ray = two-ray + attitude + leg shadowing).
 
     ``pattern`` ("dipole", "isotropic", "measured" = shipped RM-WB1-DN, a file path or a Pattern) is
@@ -99,8 +128,9 @@ def make_model(name: str = "e2r", *, pattern: str | Pattern = "dipole",
         RxAntenna(_pat(rx_pattern), heading_rad=rx_heading_rad, flipped=rx_flipped),
     ]
     if key in ("two-ray", "e2r"):
-        effects.append(GroundReflection(eps_r=eps_r, sigma_s_m=sigma_s_m, polarization=polarization))
+        effects.append(
+            GroundReflection(eps_r=eps_r, sigma_s_m=sigma_s_m, polarization=polarization)
+        )
     if key == "e2r":
         effects += [Attitude(), LegShadowing(beta=beta)]
     return PropagationModel(tuple(effects), name=key, dtype=dtype)
-

@@ -39,8 +39,13 @@ def pdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt((d * d).sum(-1))
 
 
-def shadowing_field(xy: np.ndarray, sigma_db: float, corr_m: float, rng: np.random.Generator,
-                    cells_per_corr: float = 4.0) -> np.ndarray:
+def shadowing_field(
+    xy: np.ndarray,
+    sigma_db: float,
+    corr_m: float,
+    rng: np.random.Generator,
+    cells_per_corr: float = 4.0,
+) -> np.ndarray:
     """Zero-mean Gaussian-covariance shadowing (dB) at positions ``xy`` (N, 2): one random field per call.
 
     White noise on a grid (``corr_m / cells_per_corr`` cells, at least 1 m) is smoothed by a Gaussian of
@@ -84,8 +89,14 @@ class RandomField:
     _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
-    def draw(cls, sigma_db: float, corr_len_m: float, rng: np.random.Generator, m: int = 400,
-             kind: str = "exponential") -> RandomField:
+    def draw(
+        cls,
+        sigma_db: float,
+        corr_len_m: float,
+        rng: np.random.Generator,
+        m: int = 400,
+        kind: str = "exponential",
+    ) -> RandomField:
         z = rng.normal(size=(m, 2))
         if kind == "exponential":
             w = z / (corr_len_m * np.sqrt(rng.chisquare(1.0, size=(m, 1))))
@@ -97,7 +108,11 @@ class RandomField:
 
     def at(self, xy: np.ndarray) -> np.ndarray:
         """Field values (dB) at positions ``xy`` (N, 2)."""
-        return self.sigma_db * np.sqrt(2.0 / self.b.size) * np.cos(np.asarray(xy) @ self.w.T + self.b).sum(axis=1)
+        return (
+            self.sigma_db
+            * np.sqrt(2.0 / self.b.size)
+            * np.cos(np.asarray(xy) @ self.w.T + self.b).sum(axis=1)
+        )
 
     def field_db(self, flight: object, rx_xy: np.ndarray) -> np.ndarray:
         """``SpatialField`` protocol of ``mission.gap.pipeline`` (memoised by the query positions)."""
@@ -132,15 +147,25 @@ class Variogram:
         return float(self.sigma_db**2 / tot) if tot > 0 else 0.0
 
     def as_dict(self) -> dict:
-        return {"kind": self.kind, "sigma_db": self.sigma_db, "corr_len": self.corr_len, "unit": self.unit,
-                "nugget_db": self.nugget_db, "sigma_ci_db": list(self.sigma_ci),
-                "corr_len_ci": list(self.corr_len_ci), "nugget_ci_db": list(self.nugget_ci),
-                "correlated_fraction": self.correlated_fraction, "lags": self.lags.tolist(),
-                "gamma_db2": self.gamma.tolist(), "counts": self.counts.tolist()}
+        return {
+            "kind": self.kind,
+            "sigma_db": self.sigma_db,
+            "corr_len": self.corr_len,
+            "unit": self.unit,
+            "nugget_db": self.nugget_db,
+            "sigma_ci_db": list(self.sigma_ci),
+            "corr_len_ci": list(self.corr_len_ci),
+            "nugget_ci_db": list(self.nugget_ci),
+            "correlated_fraction": self.correlated_fraction,
+            "lags": self.lags.tolist(),
+            "gamma_db2": self.gamma.tolist(),
+            "counts": self.counts.tolist(),
+        }
 
 
-def empirical_variogram(xy: np.ndarray, r: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray,
-                                                                                    np.ndarray]:
+def empirical_variogram(
+    xy: np.ndarray, r: np.ndarray, edges: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Semivariance 0.5 mean (r_i - r_j)^2 of pairs binned by distance: (lag centres, gamma, pair counts).
 
     ``xy`` (N, d) may be positions (m) or times (N, 1) (s); O(N^2) memory: pass at most a few thousand points.
@@ -158,8 +183,9 @@ def empirical_variogram(xy: np.ndarray, r: np.ndarray, edges: np.ndarray) -> tup
     return 0.5 * (edges[:-1] + edges[1:]), gm, cnt
 
 
-def _fit_model(lags: np.ndarray, gamma: np.ndarray, cnt: np.ndarray, kind: str,
-               lengths: np.ndarray) -> tuple[float, float, float, float]:
+def _fit_model(
+    lags: np.ndarray, gamma: np.ndarray, cnt: np.ndarray, kind: str, lengths: np.ndarray
+) -> tuple[float, float, float, float]:
     """(weighted SSE, sigma, L, nugget): grid over L, non-negative linear fit of (n^2, s^2) per L."""
     from scipy.optimize import nnls
 
@@ -176,9 +202,19 @@ def _fit_model(lags: np.ndarray, gamma: np.ndarray, cnt: np.ndarray, kind: str,
     return best
 
 
-def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, kind: str = "exponential",
-                  max_lag: float = 150.0, n_bins: int = 30, max_points: int = 1500, n_boot: int = 50,
-                  groups: np.ndarray | None = None, unit: str = "m", boot_points: int = 400) -> Variogram:
+def fit_variogram(
+    xy: np.ndarray,
+    r: np.ndarray,
+    rng: np.random.Generator,
+    kind: str = "exponential",
+    max_lag: float = 150.0,
+    n_bins: int = 30,
+    max_points: int = 1500,
+    n_boot: int = 50,
+    groups: np.ndarray | None = None,
+    unit: str = "m",
+    boot_points: int = 400,
+) -> Variogram:
     """Fit ``kind`` (or ``"best"``: the family with the smaller weighted misfit) to residuals ``r`` at ``xy``.
 
     ``xy``: positions (N, 2) in m, or times (N,) in s for the variogram along the path.  Points are
@@ -206,7 +242,9 @@ def fit_variogram(xy: np.ndarray, r: np.ndarray, rng: np.random.Generator, kind:
     k, (_, s, L, n), (lags, gm, cnt) = fit(xy, r)
     boots = []
     nblk = 20
-    if len(r) > boot_points:  # the intervals come from a thinned copy (every k-th point keeps the blocks)
+    if (
+        len(r) > boot_points
+    ):  # the intervals come from a thinned copy (every k-th point keeps the blocks)
         thin = np.arange(0, len(r), int(np.ceil(len(r) / boot_points)))
         xy, r = xy[thin], r[thin]
     blocks = np.array_split(np.arange(len(r)), nblk)

@@ -30,14 +30,16 @@ from mission.trajectory.multicopter import G, Kinematics
 HOVER_SPEED_MPS = 0.3  # below this the course is held (the nose does not follow GPS jitter)
 
 
-
-def tilt_from_acceleration(a_n: np.ndarray, a_e: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def tilt_from_acceleration(
+    a_n: np.ndarray, a_e: np.ndarray, yaw: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(roll, pitch) in radians, unclipped, that tilt the thrust to give the horizontal acceleration (north, east)
     (m/s^2) at heading ``yaw``: the one place the multicopter's tilt is derived from its acceleration."""
     cy, sy = np.cos(yaw), np.sin(yaw)
     pitch = -np.arctan2(a_n * cy + a_e * sy, G)  # nose down to accelerate forward
     roll = np.arctan2(-a_n * sy + a_e * cy, G)  # right wing down to accelerate right
     return roll, pitch
+
 
 def lag_alpha(dt: float, tau: float) -> float:
     """Gain of a first-order lag of time constant ``tau`` sampled every ``dt`` (exact discretisation)."""
@@ -79,12 +81,19 @@ class AttitudeState:
     def at_rest(pos, yaw: float = 0.0) -> AttitudeState:
         """A vehicle standing at ``pos`` with its nose at ``yaw``."""
         z = np.zeros(3)
-        return AttitudeState(np.asarray(pos, dtype=float).copy(), z, z.copy(), float(yaw), float(yaw))
+        return AttitudeState(
+            np.asarray(pos, dtype=float).copy(), z, z.copy(), float(yaw), float(yaw)
+        )
 
 
-def run_attitude(pos: np.ndarray, dt: float, kin: Kinematics, state: AttitudeState,
-                 wind_en: np.ndarray | None = None,
-                 turbulence: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, AttitudeState]:
+def run_attitude(
+    pos: np.ndarray,
+    dt: float,
+    kin: Kinematics,
+    state: AttitudeState,
+    wind_en: np.ndarray | None = None,
+    turbulence: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, AttitudeState]:
     """Roll, pitch, yaw (N, 3, radians, yaw in [0, 2 pi)), smoothed velocity (N, 3) and the new state for
     positions ``pos`` (N, 3, ENU) sampled every ``dt`` after ``state``.
 
@@ -119,6 +128,10 @@ def run_attitude(pos: np.ndarray, dt: float, kin: Kinematics, state: AttitudeSta
         pitch = pitch + turbulence[:, 0]
         roll = roll + turbulence[:, 1]
     lim = math.radians(kin.max_tilt_deg)
-    att = np.stack([np.clip(roll, -lim, lim), np.clip(pitch, -lim, lim), np.mod(yaw, 2 * np.pi)], axis=-1)
-    new = AttitudeState(pos[-1].copy(), vel[-1].copy(), acc[-1].copy(), float(course[-1]), float(yaw[-1]))
+    att = np.stack(
+        [np.clip(roll, -lim, lim), np.clip(pitch, -lim, lim), np.mod(yaw, 2 * np.pi)], axis=-1
+    )
+    new = AttitudeState(
+        pos[-1].copy(), vel[-1].copy(), acc[-1].copy(), float(course[-1]), float(yaw[-1])
+    )
     return att, vel, new

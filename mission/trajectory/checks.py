@@ -43,8 +43,8 @@ class MissionReport:
     duration_s: float
     time_budget_s: float
     n_waypoints: int
-    n_samples: int                  # RSS samples at the source's sample period over the whole flight
-    min_fence_clearance_m: float    # smallest distance of a trajectory point to the flight-area edge
+    n_samples: int  # RSS samples at the source's sample period over the whole flight
+    min_fence_clearance_m: float  # smallest distance of a trajectory point to the flight-area edge
     altitude_range_m: tuple[float, float]
     profile: FlightProfile
     violations: list[Violation] = field(default_factory=list)
@@ -60,10 +60,16 @@ class MissionReport:
 
 
 def _wp_key(spec, i: int) -> str:
-    return f"trajectory.waypoints[{i}]" if spec.trajectory.waypoints is not None else "trajectory.params"
+    return (
+        f"trajectory.waypoints[{i}]"
+        if spec.trajectory.waypoints is not None
+        else "trajectory.params"
+    )
 
 
-def _leg_clearance(area, a: np.ndarray, b: np.ndarray, step: float = 0.5) -> tuple[float, np.ndarray]:
+def _leg_clearance(
+    area, a: np.ndarray, b: np.ndarray, step: float = 0.5
+) -> tuple[float, np.ndarray]:
     """Smallest signed clearance (m, negative outside) along the leg a -> b, and where it occurs."""
     n = max(int(np.ceil(np.linalg.norm(b[:2] - a[:2]) / step)), 1) + 1
     pts = a[:2] + np.linspace(0.0, 1.0, n)[:, None] * (b[:2] - a[:2])
@@ -89,10 +95,18 @@ def source_violations(spec, tx=None) -> list[Violation]:
     fa, ra = spec.field.flight_area, spec.field.rover_area
     d = max(float(fa.signed_distance(tx[:2])), float(ra.signed_distance(tx[:2])))
     if d < -_TOL:
-        out.append(Violation("source.tx", f"transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m is {-d:.1f} m outside the "
-                             "flight and rover areas", -d))
+        out.append(
+            Violation(
+                "source.tx",
+                f"transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m is {-d:.1f} m outside the "
+                "flight and rover areas",
+                -d,
+            )
+        )
     if tx[2] < 0:
-        out.append(Violation("source.tx", f"transmitter height {tx[2]:g} m is below ground", -float(tx[2])))
+        out.append(
+            Violation("source.tx", f"transmitter height {tx[2]:g} m is below ground", -float(tx[2]))
+        )
     return out
 
 
@@ -106,52 +120,106 @@ def check_mission(spec) -> MissionReport:
 
     clear = area.signed_distance(wps[:, :2])
     for i in np.flatnonzero(clear < margin - _TOL):
-        v.append(Violation(_wp_key(spec, i), f"waypoint {i} at ({wps[i, 0]:.1f}, {wps[i, 1]:.1f}) m is "
-                           f"{_where(float(clear[i]), margin)}", float(margin - clear[i])))
+        v.append(
+            Violation(
+                _wp_key(spec, i),
+                f"waypoint {i} at ({wps[i, 0]:.1f}, {wps[i, 1]:.1f}) m is "
+                f"{_where(float(clear[i]), margin)}",
+                float(margin - clear[i]),
+            )
+        )
     min_clear = float(clear.min())
     bad_wp = set(np.flatnonzero(clear < margin - _TOL).tolist())
     for i in range(len(wps) - 1):
         d, at = _leg_clearance(area, wps[i], wps[i + 1])
         min_clear = min(min_clear, d)
         if d < margin - _TOL and not ({i, i + 1} & bad_wp):
-            v.append(Violation(_wp_key(spec, i), f"leg from waypoint {i} to {i + 1} passes ({at[0]:.1f}, "
-                               f"{at[1]:.1f}) m, {_where(d, margin)}", margin - d))
+            v.append(
+                Violation(
+                    _wp_key(spec, i),
+                    f"leg from waypoint {i} to {i + 1} passes ({at[0]:.1f}, "
+                    f"{at[1]:.1f}) m, {_where(d, margin)}",
+                    margin - d,
+                )
+            )
     home = np.asarray(spec.home_enu, dtype=float)
     legs = [(home, wps[0], "transit from home to waypoint 0")]
     if spec.return_behaviour == "rtl":
         legs.append((wps[-1], home, f"return from waypoint {len(wps) - 1} to home"))
-    need, h_clear = RETURN_OVERSHOOT_M + spec.home_margin_m, float(area.signed_distance(home[None, :2])[0])
+    need, h_clear = (
+        RETURN_OVERSHOOT_M + spec.home_margin_m,
+        float(area.signed_distance(home[None, :2])[0]),
+    )
     if h_clear < need - _TOL:
-        v.append(Violation("home", f"home at ({home[0]:.1f}, {home[1]:.1f}) m is "
-                           + (f"{-h_clear:.1f} m outside the flight area" if h_clear < 0 else
-                              f"only {h_clear:.1f} m inside the flight area, {need:g} m required (return "
-                              f"overshoot {RETURN_OVERSHOOT_M:g} m + home_margin_m {spec.home_margin_m:g})"),
-                           need - h_clear))
+        v.append(
+            Violation(
+                "home",
+                f"home at ({home[0]:.1f}, {home[1]:.1f}) m is "
+                + (
+                    f"{-h_clear:.1f} m outside the flight area"
+                    if h_clear < 0
+                    else f"only {h_clear:.1f} m inside the flight area, {need:g} m required (return "
+                    f"overshoot {RETURN_OVERSHOOT_M:g} m + home_margin_m {spec.home_margin_m:g})"
+                ),
+                need - h_clear,
+            )
+        )
     for a, b, what in legs:
         d, at = _leg_clearance(area, a, b)
         if d < -_TOL:
-            v.append(Violation("home", f"{what} passes ({at[0]:.1f}, {at[1]:.1f}) m, {-d:.1f} m outside "
-                               "the flight area", -d))
+            v.append(
+                Violation(
+                    "home",
+                    f"{what} passes ({at[0]:.1f}, {at[1]:.1f}) m, {-d:.1f} m outside "
+                    "the flight area",
+                    -d,
+                )
+            )
 
     lo, hi = spec.altitude_limits_m
     for i, z in enumerate(wps[:, 2]):
         if z < lo - _TOL:
-            v.append(Violation(_wp_key(spec, i) if spec.trajectory.waypoints is not None else "altitude_m",
-                               f"waypoint {i} altitude {z:.1f} m is {lo - z:.1f} m below the lower limit "
-                               f"{lo:g} m", lo - z))
+            v.append(
+                Violation(
+                    _wp_key(spec, i) if spec.trajectory.waypoints is not None else "altitude_m",
+                    f"waypoint {i} altitude {z:.1f} m is {lo - z:.1f} m below the lower limit "
+                    f"{lo:g} m",
+                    lo - z,
+                )
+            )
         elif z > hi + _TOL:
-            v.append(Violation(_wp_key(spec, i) if spec.trajectory.waypoints is not None else "altitude_m",
-                               f"waypoint {i} altitude {z:.1f} m is {z - hi:.1f} m above the upper limit "
-                               f"{hi:g} m", z - hi))
+            v.append(
+                Violation(
+                    _wp_key(spec, i) if spec.trajectory.waypoints is not None else "altitude_m",
+                    f"waypoint {i} altitude {z:.1f} m is {z - hi:.1f} m above the upper limit "
+                    f"{hi:g} m",
+                    z - hi,
+                )
+            )
 
     v += source_violations(spec)
     if profile.duration_s > spec.time_budget_s:
         over = profile.duration_s - spec.time_budget_s
-        v.append(Violation("time_budget_s", f"estimated flight time {profile.duration_s:.0f} s exceeds the "
-                           f"time budget {spec.time_budget_s:g} s by {over:.0f} s", over))
+        v.append(
+            Violation(
+                "time_budget_s",
+                f"estimated flight time {profile.duration_s:.0f} s exceeds the "
+                f"time budget {spec.time_budget_s:g} s by {over:.0f} s",
+                over,
+            )
+        )
     n_samples = int(np.floor(profile.duration_s / spec.source.sample_period_s + 1e-9)) + 1
-    return MissionReport(profile.length_m, profile.duration_s, spec.time_budget_s, len(wps), n_samples,
-                         min_clear, (float(wps[:, 2].min()), float(wps[:, 2].max())), profile, v)
+    return MissionReport(
+        profile.length_m,
+        profile.duration_s,
+        spec.time_budget_s,
+        len(wps),
+        n_samples,
+        min_clear,
+        (float(wps[:, 2].min()), float(wps[:, 2].max())),
+        profile,
+        v,
+    )
 
 
 def assert_flyable(spec) -> MissionReport:

@@ -20,6 +20,7 @@ from mission.trajectory.items import RawItem, build_items, home_geodetic
 
 FORMATS = ("plan", "wpl", "geojson", "kml")
 
+
 def _ring_latlon(spec, area) -> list[list[float]]:
     v = area.vertices
     lat, lon, _ = spec.field.origin.to_geodetic(np.column_stack([v, np.zeros(len(v))]))
@@ -37,16 +38,47 @@ def to_plan(spec) -> dict:
     items = []
     for i, it in enumerate(build_items(spec)):
         p = _params7(it)
-        pos = {"AMSLAltAboveTerrain": None, "Altitude": p[6], "AltitudeMode": 1} if it.has_position else {}
-        items.append({**pos, "autoContinue": True, "command": it.command, "doJumpId": i + 1, "frame": it.frame,
-                      "params": p, "type": "SimpleItem"})
+        pos = (
+            {"AMSLAltAboveTerrain": None, "Altitude": p[6], "AltitudeMode": 1}
+            if it.has_position
+            else {}
+        )
+        items.append(
+            {
+                **pos,
+                "autoContinue": True,
+                "command": it.command,
+                "doJumpId": i + 1,
+                "frame": it.frame,
+                "params": p,
+                "type": "SimpleItem",
+            }
+        )
     return {
-        "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
-        "geoFence": {"circles": [], "version": 2, "polygons": [
-            {"inclusion": True, "version": 1, "polygon": _ring_latlon(spec, spec.field.flight_area)}]},
-        "mission": {"version": 2, "firmwareType": 3, "vehicleType": 2, "globalPlanAltitudeMode": 1,
-                    "cruiseSpeed": spec.cruise_speed_mps, "hoverSpeed": spec.cruise_speed_mps,
-                    "plannedHomePosition": list(home_geodetic(spec)), "items": items},
+        "fileType": "Plan",
+        "version": 1,
+        "groundStation": "QGroundControl",
+        "geoFence": {
+            "circles": [],
+            "version": 2,
+            "polygons": [
+                {
+                    "inclusion": True,
+                    "version": 1,
+                    "polygon": _ring_latlon(spec, spec.field.flight_area),
+                }
+            ],
+        },
+        "mission": {
+            "version": 2,
+            "firmwareType": 3,
+            "vehicleType": 2,
+            "globalPlanAltitudeMode": 1,
+            "cruiseSpeed": spec.cruise_speed_mps,
+            "hoverSpeed": spec.cruise_speed_mps,
+            "plannedHomePosition": list(home_geodetic(spec)),
+            "items": items,
+        },
         "rallyPoints": {"points": [], "version": 2},
     }
 
@@ -57,8 +89,21 @@ def to_wpl(spec) -> str:
     lines = ["QGC WPL 110"]
     for seq, it in enumerate(build_items(spec, home_item=True)):
         p = [float("nan") if v is None else v for v in _params7(it)]
-        lines.append("\t".join([str(seq), str(int(seq == 0)), str(it.frame), str(it.command),
-                                *(f"{v:.8f}" for v in p[:4]), f"{p[4]:.10f}", f"{p[5]:.10f}", f"{p[6]:.6f}", "1"]))
+        lines.append(
+            "\t".join(
+                [
+                    str(seq),
+                    str(int(seq == 0)),
+                    str(it.frame),
+                    str(it.command),
+                    *(f"{v:.8f}" for v in p[:4]),
+                    f"{p[4]:.10f}",
+                    f"{p[5]:.10f}",
+                    f"{p[6]:.6f}",
+                    "1",
+                ]
+            )
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -70,31 +115,57 @@ def _lonlat_line(spec) -> list[list[float]]:
 
 def to_geojson(spec) -> dict:
     """GeoJSON FeatureCollection: the trajectory LineString (lon, lat, height), both areas, home."""
-    feats = [{"type": "Feature", "properties": {"name": f"{spec.name} trajectory", "kind": "trajectory",
-                                                "altitude_mode": "relative_to_home",
-                                                "generator": spec.trajectory.generator},
-              "geometry": {"type": "LineString", "coordinates": _lonlat_line(spec)}}]
-    for area, kind in ((spec.field.flight_area, "flight_area"), (spec.field.rover_area, "rover_area")):
+    feats = [
+        {
+            "type": "Feature",
+            "properties": {
+                "name": f"{spec.name} trajectory",
+                "kind": "trajectory",
+                "altitude_mode": "relative_to_home",
+                "generator": spec.trajectory.generator,
+            },
+            "geometry": {"type": "LineString", "coordinates": _lonlat_line(spec)},
+        }
+    ]
+    for area, kind in (
+        (spec.field.flight_area, "flight_area"),
+        (spec.field.rover_area, "rover_area"),
+    ):
         ring = [[b, a] for a, b in _ring_latlon(spec, area)]
-        feats.append({"type": "Feature", "properties": {"name": area.name, "kind": kind},
-                      "geometry": {"type": "Polygon", "coordinates": [ring + [ring[0]]]}})
+        feats.append(
+            {
+                "type": "Feature",
+                "properties": {"name": area.name, "kind": kind},
+                "geometry": {"type": "Polygon", "coordinates": [ring + [ring[0]]]},
+            }
+        )
     hlat, hlon, _ = home_geodetic(spec)
-    feats.append({"type": "Feature", "properties": {"name": "home", "kind": "home"},
-                  "geometry": {"type": "Point", "coordinates": [hlon, hlat]}})
+    feats.append(
+        {
+            "type": "Feature",
+            "properties": {"name": "home", "kind": "home"},
+            "geometry": {"type": "Point", "coordinates": [hlon, hlat]},
+        }
+    )
     return {"type": "FeatureCollection", "name": spec.name, "features": feats}
 
 
 def to_kml(spec) -> str:
     """KML document: the trajectory (relativeToGround LineString), both areas as polygons, home."""
+
     def coords(pts) -> str:
-        return " ".join(",".join(f"{c:.9f}" if k < 2 else f"{c:.2f}" for k, c in enumerate(p)) for p in pts)
+        return " ".join(
+            ",".join(f"{c:.9f}" if k < 2 else f"{c:.2f}" for k, c in enumerate(p)) for p in pts
+        )
 
     def poly(area, colour: str) -> str:
         ring = [[b, a, 0.0] for a, b in _ring_latlon(spec, area)]
-        return (f"<Placemark><name>{escape(area.name)}</name><Style><LineStyle><color>ff{colour}</color>"
-                f"<width>2</width></LineStyle><PolyStyle><color>40{colour}</color></PolyStyle></Style>"
-                f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{coords(ring + [ring[0]])}"
-                f"</coordinates></LinearRing></outerBoundaryIs></Polygon></Placemark>")
+        return (
+            f"<Placemark><name>{escape(area.name)}</name><Style><LineStyle><color>ff{colour}</color>"
+            f"<width>2</width></LineStyle><PolyStyle><color>40{colour}</color></PolyStyle></Style>"
+            f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{coords(ring + [ring[0]])}"
+            f"</coordinates></LinearRing></outerBoundaryIs></Polygon></Placemark>"
+        )
 
     hlat, hlon, _ = home_geodetic(spec)
     body = [
@@ -102,13 +173,15 @@ def to_kml(spec) -> str:
         f"<width>3</width></LineStyle></Style><LineString><tessellate>1</tessellate>"
         f"<altitudeMode>relativeToGround</altitudeMode><coordinates>{coords(_lonlat_line(spec))}"
         f"</coordinates></LineString></Placemark>",
-        poly(spec.field.flight_area, "ff7f1f"),   # KML colours are aabbggrr: blue
-        poly(spec.field.rover_area, "2ca02c"),    # green
+        poly(spec.field.flight_area, "ff7f1f"),  # KML colours are aabbggrr: blue
+        poly(spec.field.rover_area, "2ca02c"),  # green
         f"<Placemark><name>home</name><Point><coordinates>{hlon:.9f},{hlat:.9f},0</coordinates></Point>"
         f"</Placemark>",
     ]
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Document>'
-            f"<name>{escape(spec.name)}</name>\n" + "\n".join(body) + "\n</Document></kml>\n")
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Document>'
+        f"<name>{escape(spec.name)}</name>\n" + "\n".join(body) + "\n</Document></kml>\n"
+    )
 
 
 def export_mission(spec, fmt: str, out: str | Path) -> Path:

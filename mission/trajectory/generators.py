@@ -27,6 +27,7 @@ Generator = Callable[..., np.ndarray]
 
 # ---------------------------------------------------------------------------------------------- regions
 
+
 def overlap_area(field: Field) -> Area:
     """The overlap of the rover area with the flight area (its largest part where non-convex areas leave
     several)."""
@@ -45,7 +46,9 @@ def region_area(field: Field, region: str) -> Area:
         return overlap_area(field)
     if region == "flight":
         return field.flight_area
-    raise InputError(f"unknown region '{region}' (expected overlap, flight or rover)", field="region")
+    raise InputError(
+        f"unknown region '{region}' (expected overlap, flight or rover)", field="region"
+    )
 
 
 def _box(area: Area, margin_m: float) -> tuple[float, float, float, float]:
@@ -78,7 +81,11 @@ def _chord(area: Area, margin_m: float, y: float, horizontal: bool = True, step:
     x0, y0, x1, y1 = area.bounds
     lo, hi = (x0, x1) if horizontal else (y0, y1)
     s = np.arange(lo, hi + step, step)
-    pts = np.stack([s, np.full_like(s, y)], -1) if horizontal else np.stack([np.full_like(s, y), s], -1)
+    pts = (
+        np.stack([s, np.full_like(s, y)], -1)
+        if horizontal
+        else np.stack([np.full_like(s, y), s], -1)
+    )
     ok = area.contains(pts, max(margin_m - 1e-6, 0.0))
     if not ok.any():
         return None
@@ -87,7 +94,9 @@ def _chord(area: Area, margin_m: float, y: float, horizontal: bool = True, step:
 
 def _check_positive(**kw: float) -> None:
     for k, v in kw.items():
-        if not (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v > 0):
+        if not (
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+        ):
             raise InputError(f"must be a positive number, got {v!r}", field=k)
 
 
@@ -100,6 +109,7 @@ def _at(xy: np.ndarray, altitude_m: float) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------- patterns
 
+
 def coverage_radius(spacing_m: float) -> float:
     """Largest distance from a point of the covered box to a rectangular spiral with this ring spacing.
 
@@ -109,8 +119,14 @@ def coverage_radius(spacing_m: float) -> float:
     return spacing_m * math.sqrt(2) / (1 + math.sqrt(2))
 
 
-def spiral(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m: float = 5.0,
-           region: str = "overlap", start: str = "se") -> np.ndarray:
+def spiral(
+    field: Field,
+    altitude_m: float,
+    spacing_m: float = 22.0,
+    margin_m: float = 5.0,
+    region: str = "overlap",
+    start: str = "se",
+) -> np.ndarray:
     """The paper's fixed rectangular spiral, inward from the outer ring over the region's bounding box.
 
     Rows (east-west legs) and columns (north-south legs) are spread evenly between the box inset by
@@ -140,19 +156,19 @@ def spiral(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m: f
     while True:
         if lft > r:
             break
-        pts.append((xs[lft], ys[b]))          # west along the bottom row
+        pts.append((xs[lft], ys[b]))  # west along the bottom row
         b += 1
         if b > t:
             break
-        pts.append((xs[lft], ys[t]))          # north along the left column
+        pts.append((xs[lft], ys[t]))  # north along the left column
         lft += 1
         if lft > r:
             break
-        pts.append((xs[r], ys[t]))            # east along the top row
+        pts.append((xs[r], ys[t]))  # east along the top row
         t -= 1
         if b > t:
             break
-        pts.append((xs[r], ys[b]))            # south along the right column
+        pts.append((xs[r], ys[b]))  # south along the right column
         r -= 1
     xy = np.array(pts)
     if flip_x:
@@ -162,8 +178,14 @@ def spiral(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m: f
     return _at(xy, altitude_m)
 
 
-def lawnmower(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m: float = 5.0,
-              region: str = "overlap", direction: str = "ew") -> np.ndarray:
+def lawnmower(
+    field: Field,
+    altitude_m: float,
+    spacing_m: float = 22.0,
+    margin_m: float = 5.0,
+    region: str = "overlap",
+    direction: str = "ew",
+) -> np.ndarray:
     """Boustrophedon: parallel legs (``ew`` east-west rows or ``ns`` north-south columns), clipped to the
     region with ``margin_m`` (any convex region), starting from the south (or east) side."""
     _check_positive(spacing_m=spacing_m)
@@ -183,8 +205,13 @@ def lawnmower(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m
     return _at(np.array(pts), altitude_m)
 
 
-def edge_sweep(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m: float = 5.0,
-               region: str = "overlap") -> np.ndarray:
+def edge_sweep(
+    field: Field,
+    altitude_m: float,
+    spacing_m: float = 22.0,
+    margin_m: float = 5.0,
+    region: str = "overlap",
+) -> np.ndarray:
     """The bottom edge (east to west) and the left edge (south to north) first, as one AFAR team flew,
     then north-south columns inward from the left edge to the right edge."""
     _check_positive(spacing_m=spacing_m)
@@ -198,8 +225,14 @@ def edge_sweep(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_
     return _at(np.array(pts), altitude_m)
 
 
-def expanding_square(field: Field, altitude_m: float, spacing_m: float = 22.0, margin_m: float = 5.0,
-                     region: str = "overlap", center: tuple[float, float] | None = None) -> np.ndarray:
+def expanding_square(
+    field: Field,
+    altitude_m: float,
+    spacing_m: float = 22.0,
+    margin_m: float = 5.0,
+    region: str = "overlap",
+    center: tuple[float, float] | None = None,
+) -> np.ndarray:
     """Search-and-rescue expanding square from ``center`` (default: the region's box centre): legs of
     1, 1, 2, 2, 3, 3, ... spacings turning clockwise, until a leg would leave the box; that last leg is
     cut at the box edge."""
@@ -207,8 +240,9 @@ def expanding_square(field: Field, altitude_m: float, spacing_m: float = 22.0, m
     x0, y0, x1, y1 = _box(region_area(field, region), margin_m)
     c = np.array(center if center is not None else ((x0 + x1) / 2, (y0 + y1) / 2), dtype=float)
     if c.shape != (2,) or not (x0 <= c[0] <= x1 and y0 <= c[1] <= y1):
-        raise InputError(f"center {center} must be an (x, y) inside the region with the margin",
-                         field="center")
+        raise InputError(
+            f"center {center} must be an (x, y) inside the region with the margin", field="center"
+        )
     dirs = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=float)  # N, E, S, W: clockwise
     pts, p, k = [c.copy()], c.copy(), 0
     while True:
@@ -222,8 +256,15 @@ def expanding_square(field: Field, altitude_m: float, spacing_m: float = 22.0, m
     return _at(np.array(pts), altitude_m)
 
 
-def random_waypoints(field: Field, altitude_m: float, n: int = 14, seed: int = 0, margin_m: float = 5.0,
-                     region: str = "overlap", order: str = "nearest") -> np.ndarray:
+def random_waypoints(
+    field: Field,
+    altitude_m: float,
+    n: int = 14,
+    seed: int = 0,
+    margin_m: float = 5.0,
+    region: str = "overlap",
+    order: str = "nearest",
+) -> np.ndarray:
     """``n`` waypoints drawn uniformly in the region with ``margin_m`` (seeded: same seed, same path),
     visited in draw order (``order: random``) or greedily nearest-first from the south-east corner
     (``nearest``, shorter).  Legs leaving a non-convex region are redrawn."""
@@ -278,13 +319,20 @@ def trajectory_params(name: str, rng: np.random.Generator, base: dict, random_pa
     unseen-flight benchmark draw them here)."""
     if not random_params:
         return dict(base)
-    p: dict = {"spacing_m": float(rng.uniform(16.0, 32.0)), "margin_m": float(rng.uniform(3.0, 10.0))}
+    p: dict = {
+        "spacing_m": float(rng.uniform(16.0, 32.0)),
+        "margin_m": float(rng.uniform(3.0, 10.0)),
+    }
     if name == "spiral":
         p["start"] = ("se", "sw", "ne", "nw")[int(rng.integers(4))]
     elif name == "lawnmower":
         p["direction"] = ("ew", "ns")[int(rng.integers(2))]
     elif name == "random_waypoints":
-        p = {"n": int(rng.integers(8, 25)), "seed": int(rng.integers(2**31)), "margin_m": p["margin_m"]}
+        p = {
+            "n": int(rng.integers(8, 25)),
+            "seed": int(rng.integers(2**31)),
+            "margin_m": p["margin_m"],
+        }
     elif name == "expanding_square":
         p["spacing_m"] = float(rng.uniform(20.0, 35.0))
     return p
@@ -294,15 +342,20 @@ def generate(name: str, field: Field, altitude_m: float, **params) -> np.ndarray
     """Run generator ``name``; unknown names and parameters become an ``InputError``."""
     gen = GENERATORS.get(name)
     if gen is None:
-        raise InputError(f"unknown generator '{name}' (expected one of {', '.join(GENERATORS)})",
-                         field="generator")
+        raise InputError(
+            f"unknown generator '{name}' (expected one of {', '.join(GENERATORS)})",
+            field="generator",
+        )
     import inspect
 
     allowed = set(inspect.signature(gen).parameters) - {"field", "altitude_m"}
     for k in params:
         if k not in allowed:
-            raise InputError(f"unknown parameter '{k}' of generator '{name}' (expected one of "
-                             f"{', '.join(sorted(allowed))})", field=k)
+            raise InputError(
+                f"unknown parameter '{k}' of generator '{name}' (expected one of "
+                f"{', '.join(sorted(allowed))})",
+                field=k,
+            )
     try:
         return gen(field, altitude_m, **params)
     except TypeError as e:  # e.g. a string where a number belongs

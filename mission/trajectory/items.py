@@ -57,7 +57,9 @@ def home_geodetic(spec) -> tuple[float, float, float]:
     return float(lat), float(lon), float(alt)
 
 
-def build_items(spec, home: tuple[float, float, float] | None = None, home_item: bool = False) -> list[RawItem]:
+def build_items(
+    spec, home: tuple[float, float, float] | None = None, home_item: bool = False
+) -> list[RawItem]:
     """The raw items of ``spec``; ``home`` (lat, lon, alt AMSL) is the vehicle's (None: the spec's home), and
     ``home_item`` puts it first as item 0 (ArduPilot's convention, and a QGC WPL file's)."""
     hlat, hlon, halt = home_geodetic(spec) if home is None else home
@@ -68,16 +70,49 @@ def build_items(spec, home: tuple[float, float, float] | None = None, home_item:
     nan = float("nan")
     items: list[RawItem] = []
     if home_item:
-        items.append(RawItem(mavlink.MAV_CMD_NAV_WAYPOINT, MAV_FRAME_GLOBAL, _e7(hlat), _e7(hlon), float(halt)))
-    items.append(RawItem(mavlink.MAV_CMD_NAV_TAKEOFF, MAV_FRAME_GLOBAL_RELATIVE_ALT, _e7(hlat), _e7(hlon),
-                         float(rel[0]), (0.0, 0.0, 0.0, nan)))
-    items.append(RawItem(mavlink.MAV_CMD_DO_CHANGE_SPEED, MAV_FRAME_MISSION,
-                         params=(1.0, float(spec.cruise_speed_mps), -1.0, 0.0)))  # ground speed, no throttle
+        items.append(
+            RawItem(
+                mavlink.MAV_CMD_NAV_WAYPOINT, MAV_FRAME_GLOBAL, _e7(hlat), _e7(hlon), float(halt)
+            )
+        )
+    items.append(
+        RawItem(
+            mavlink.MAV_CMD_NAV_TAKEOFF,
+            MAV_FRAME_GLOBAL_RELATIVE_ALT,
+            _e7(hlat),
+            _e7(hlon),
+            float(rel[0]),
+            (0.0, 0.0, 0.0, nan),
+        )
+    )
+    items.append(
+        RawItem(
+            mavlink.MAV_CMD_DO_CHANGE_SPEED,
+            MAV_FRAME_MISSION,
+            params=(1.0, float(spec.cruise_speed_mps), -1.0, 0.0),
+        )
+    )  # ground speed, no throttle
     for i in range(len(wps)):
-        items.append(RawItem(mavlink.MAV_CMD_NAV_WAYPOINT, MAV_FRAME_GLOBAL_RELATIVE_ALT, _e7(lat[i]), _e7(lon[i]),
-                             float(rel[i]), (0.0, ACCEPTANCE_RADIUS_M, 0.0, nan)))
+        items.append(
+            RawItem(
+                mavlink.MAV_CMD_NAV_WAYPOINT,
+                MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                _e7(lat[i]),
+                _e7(lon[i]),
+                float(rel[i]),
+                (0.0, ACCEPTANCE_RADIUS_M, 0.0, nan),
+            )
+        )
     if spec.return_behaviour == "land":
-        items.append(RawItem(mavlink.MAV_CMD_NAV_LAND, MAV_FRAME_GLOBAL_RELATIVE_ALT, _e7(lat[-1]), _e7(lon[-1]), 0.0))
+        items.append(
+            RawItem(
+                mavlink.MAV_CMD_NAV_LAND,
+                MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                _e7(lat[-1]),
+                _e7(lon[-1]),
+                0.0,
+            )
+        )
     else:
         items.append(RawItem(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_FRAME_MISSION))
     return items

@@ -21,17 +21,25 @@ import numpy as np
 from mission.trajectory.attitude import AttitudeState, run_attitude
 from mission.trajectory.multicopter import G, Kinematics
 
-__all__ = ["G", "Kinematics", "FlightProfile", "plan_profile", "initial_course", "attitude_from_motion"]
+__all__ = [
+    "G",
+    "Kinematics",
+    "FlightProfile",
+    "plan_profile",
+    "initial_course",
+    "attitude_from_motion",
+]
+
 
 @dataclass
 class FlightProfile:
     """A planned flight of a polyline: cumulative arc length per vertex and the speed profile per leg."""
 
-    vertices: np.ndarray      # (K, 3) ENU
-    s_vertex: np.ndarray      # (K,) arc length at each vertex
-    t_vertex: np.ndarray      # (K,) time at each vertex
-    v_vertex: np.ndarray      # (K,) speed at each vertex
-    v_cruise: np.ndarray      # (K-1,) cruise speed per leg
+    vertices: np.ndarray  # (K, 3) ENU
+    s_vertex: np.ndarray  # (K,) arc length at each vertex
+    t_vertex: np.ndarray  # (K,) time at each vertex
+    v_vertex: np.ndarray  # (K,) speed at each vertex
+    v_cruise: np.ndarray  # (K-1,) cruise speed per leg
     accel: float
 
     @property
@@ -56,9 +64,17 @@ class FlightProfile:
         s_dec = (vp + v1) / 2 * t_dec
         t_cru = np.where(vp > 0, (L - s_acc - s_dec) / np.maximum(vp, 1e-9), 0.0)
         s = np.where(
-            tau < t_acc, v0 * tau + 0.5 * a * tau**2,
-            np.where(tau < t_acc + t_cru, s_acc + vp * (tau - t_acc),
-                     s_acc + vp * t_cru + vp * (tau - t_acc - t_cru) - 0.5 * a * (tau - t_acc - t_cru) ** 2))
+            tau < t_acc,
+            v0 * tau + 0.5 * a * tau**2,
+            np.where(
+                tau < t_acc + t_cru,
+                s_acc + vp * (tau - t_acc),
+                s_acc
+                + vp * t_cru
+                + vp * (tau - t_acc - t_cru)
+                - 0.5 * a * (tau - t_acc - t_cru) ** 2,
+            ),
+        )
         return self.s_vertex[i] + np.clip(s, 0.0, L)
 
     def position(self, t) -> np.ndarray:
@@ -88,8 +104,9 @@ def _leg_time(L, v0, v1, vc, a):
     return t_acc + t_dec + np.where(vp > 0, np.maximum(s_rest, 0) / np.maximum(vp, 1e-9), 0.0)
 
 
-def plan_profile(waypoints: np.ndarray, kin: Kinematics | None = None,
-                 speeds: np.ndarray | None = None) -> FlightProfile:
+def plan_profile(
+    waypoints: np.ndarray, kin: Kinematics | None = None, speeds: np.ndarray | None = None
+) -> FlightProfile:
     """Plan the timed flight of the polyline ``waypoints`` (K, 3) ENU, starting and ending at rest.
 
     Vertical legs (take-off, landing) use the climb rate as their cruise speed.  ``speeds`` optionally
@@ -101,18 +118,25 @@ def plan_profile(waypoints: np.ndarray, kin: Kinematics | None = None,
     P = P[keep]
     if len(P) < 2:
         z = np.zeros(1)
-        return FlightProfile(P[:1].repeat(2, 0), np.zeros(2), np.zeros(2), np.zeros(2), z, kin.accel_mps2)
+        return FlightProfile(
+            P[:1].repeat(2, 0), np.zeros(2), np.zeros(2), np.zeros(2), z, kin.accel_mps2
+        )
     d = np.diff(P, axis=0)
     L = np.linalg.norm(d, axis=1)
     horiz = np.linalg.norm(d[:, :2], axis=1)
     vert_frac = np.abs(d[:, 2]) / np.maximum(L, 1e-9)
-    vc = np.where(vert_frac > 0.7, kin.climb_rate_mps, kin.cruise_speed_mps) if speeds is None \
+    vc = (
+        np.where(vert_frac > 0.7, kin.climb_rate_mps, kin.cruise_speed_mps)
+        if speeds is None
         else np.asarray(speeds, dtype=float)
+    )
     u = d / L[:, None]
     cos_turn = np.clip(np.sum(u[:-1] * u[1:], axis=1), -1.0, 1.0)
     turn = np.arccos(cos_turn)
     v_corner = np.minimum(vc[:-1], vc[1:]) * np.cos(turn / 2) ** kin.corner_exponent
-    v_corner[(horiz[:-1] < 1e-6) | (horiz[1:] < 1e-6)] = 0.0  # stop between vertical and horizontal legs
+    v_corner[(horiz[:-1] < 1e-6) | (horiz[1:] < 1e-6)] = (
+        0.0  # stop between vertical and horizontal legs
+    )
     v = np.concatenate([[0.0], v_corner, [0.0]])
     a = kin.accel_mps2
     # Enforce reachability: forward then backward pass so every leg can brake/accelerate in time.
@@ -136,8 +160,9 @@ def initial_course(pos: np.ndarray, min_move_m: float = 0.5) -> float:
     return float(np.arctan2(e, n))
 
 
-def attitude_from_motion(t: np.ndarray, pos: np.ndarray, kin: Kinematics | None = None,
-                         wind_ne: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def attitude_from_motion(
+    t: np.ndarray, pos: np.ndarray, kin: Kinematics | None = None, wind_ne: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path
     sampled at (uniform) times ``t``, from rest with the nose along the first course.
 

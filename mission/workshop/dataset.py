@@ -87,7 +87,9 @@ def iter_rows(
     import multiprocessing as mp
 
     ctx = (
-        mp.get_context("spawn") if mp.get_start_method(allow_none=True) != "fork" else mp.get_context("fork")
+        mp.get_context("spawn")
+        if mp.get_start_method(allow_none=True) != "fork"
+        else mp.get_context("fork")
     )
     with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg.to_dict(),)) as pool:
         yield from pool.imap(_work, idx, chunksize=4)
@@ -113,7 +115,8 @@ def generate_dataset(
     bad = [f for f in cfg.features if f not in FEATURE_KINDS]
     if bad:
         raise InputError(
-            f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})", field="features"
+            f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})",
+            field="features",
         )
     check_config(cfg)
     out = Path(out_dir)
@@ -193,7 +196,13 @@ def _family_record(cfg: DatasetConfig) -> dict:
     fam = resolve_family(cfg.suite_family)
     if isinstance(fam, str):
         return {}
-    return {"physics_family": {"label": family_label(fam), "sha256": family_sha256(fam), "record": fam.to_dict()}}
+    return {
+        "physics_family": {
+            "label": family_label(fam),
+            "sha256": family_sha256(fam),
+            "record": fam.to_dict(),
+        }
+    }
 
 
 def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
@@ -209,15 +218,22 @@ def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
     except (ValueError, RecursionError) as e:
         if isinstance(e, InputError):
             raise
-        raise InputError(f"manifest is not valid JSON ({str(e).splitlines()[0][:80]})", source=str(mf)) from None
+        raise InputError(
+            f"manifest is not valid JSON ({str(e).splitlines()[0][:80]})", source=str(mf)
+        ) from None
     if not isinstance(m, dict):
         raise InputError("not a dataset manifest (a JSON object)", source=str(mf))
     for k in need:  # what the caller reads: a list of chunks, objects otherwise (a KeyError before)
         if not isinstance(m.get(k), list if k == "chunks" else dict):
-            raise InputError(f"not a dataset manifest: no {'list' if k == 'chunks' else 'object'} {k!r}",
-                             source=str(mf), field=k)
+            raise InputError(
+                f"not a dataset manifest: no {'list' if k == 'chunks' else 'object'} {k!r}",
+                source=str(mf),
+                field=k,
+            )
     if m.get("format") != FORMAT:
-        raise InputError(f"unknown dataset format {m.get('format')!r} (expected {FORMAT})", source=str(mf))
+        raise InputError(
+            f"unknown dataset format {m.get('format')!r} (expected {FORMAT})", source=str(mf)
+        )
     return m
 
 
@@ -232,9 +248,16 @@ def load_dataset(
     m = read_manifest(root, need=("chunks",))
     parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for i, c in enumerate(m["chunks"]):
-        if not (isinstance(c, dict) and isinstance(c.get("file"), str) and Path(c["file"]).name == c["file"]):
-            raise InputError("expected {file: chunk_NNNNN.npz, ...} naming a file of the dataset folder",
-                             source=str(root / "manifest.json"), field=f"chunks[{i}]")
+        if not (
+            isinstance(c, dict)
+            and isinstance(c.get("file"), str)
+            and Path(c["file"]).name == c["file"]
+        ):
+            raise InputError(
+                "expected {file: chunk_NNNNN.npz, ...} naming a file of the dataset folder",
+                source=str(root / "manifest.json"),
+                field=f"chunks[{i}]",
+            )
         f = root / c["file"]
         if verify:
             h = hashlib.sha256(f.read_bytes()).hexdigest()
@@ -244,13 +267,20 @@ def load_dataset(
             with np.load(f, allow_pickle=False) as z:
                 for k in keys:
                     if k not in z:
-                        raise InputError(f"dataset has no {k!r} array (generated without it?)", source=str(f))
+                        raise InputError(
+                            f"dataset has no {k!r} array (generated without it?)", source=str(f)
+                        )
                     parts[k].append(z[k])
         except InputError:
             raise
-        except Exception as e:  # zipfile, zlib, numpy and OS errors all mean a damaged or missing chunk
-            raise InputError(f"damaged or unreadable dataset chunk ({type(e).__name__}: "
-                             f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})", source=str(f)) from None
+        except (
+            Exception
+        ) as e:  # zipfile, zlib, numpy and OS errors all mean a damaged or missing chunk
+            raise InputError(
+                f"damaged or unreadable dataset chunk ({type(e).__name__}: "
+                f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})",
+                source=str(f),
+            ) from None
     return {k: np.concatenate(v) for k, v in parts.items()}, m
 
 

@@ -109,8 +109,12 @@ class DatasetConfig:
     randomisation: Randomisation = field(default_factory=Randomisation)
     model_params: dict = field(default_factory=dict)
     cruise_only: bool = True  # fly the trajectory only (features see the cruise, as on real logs)
-    physics: str | None = None  # a calibrated physics preset (e.g. "afar:fit328"), replaces ``model``
-    suite: str | None = None  # "unseen": flights of the benchmark family (mission.workshop.suite), not the mission
+    physics: str | None = (
+        None  # a calibrated physics preset (e.g. "afar:fit328"), replaces ``model``
+    )
+    suite: str | None = (
+        None  # "unseen": flights of the benchmark family (mission.workshop.suite), not the mission
+    )
     suite_family: str = "afar"
     suite_center: str = "afar"
 
@@ -160,27 +164,44 @@ def check_config(cfg: DatasetConfig) -> None:
         from mission.workshop.suite import BENCHMARK_SEED, SUITES, resolve_family
 
         if cfg.suite not in SUITES:
-            raise InputError(f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite")
+            raise InputError(
+                f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite"
+            )
         resolve_family(cfg.suite_family)  # a built-in name or a readable, valid family file
         if cfg.seed == BENCHMARK_SEED:
-            raise InputError(f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds", field="seed")
+            raise InputError(
+                f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds", field="seed"
+            )
         if cfg.physics or r != Randomisation():
-            raise InputError("--suite draws every axis itself: no --physics or randomisation flags", field="suite")
+            raise InputError(
+                "--suite draws every axis itself: no --physics or randomisation flags",
+                field="suite",
+            )
     if cfg.physics:
         from mission.physics.presets import load_preset
 
         try:
             load_preset(cfg.physics)
         except KeyError as e:
-            raise InputError(f"physics preset {cfg.physics!r} is incomplete ({e})", field="physics") from None
+            raise InputError(
+                f"physics preset {cfg.physics!r} is incomplete ({e})", field="physics"
+            ) from None
         for name in ("patterns", "beta", "eps_r"):
             if getattr(r, name):
-                raise InputError(f"{name} randomisation applies to make_model models, not to the physics "
-                                 f"preset {cfg.physics!r}", field=name)
+                raise InputError(
+                    f"{name} randomisation applies to make_model models, not to the physics "
+                    f"preset {cfg.physics!r}",
+                    field=name,
+                )
     elif r.physics_heading_jitter_deg:
-        raise InputError("physics_heading_jitter_deg needs a physics preset", field="physics_heading_jitter_deg")
+        raise InputError(
+            "physics_heading_jitter_deg needs a physics preset", field="physics_heading_jitter_deg"
+        )
     if r.fixed_heading is not None and not 0.0 <= r.fixed_heading <= 1.0:
-        raise InputError(f"fixed_heading is a probability in [0, 1], got {r.fixed_heading}", field="fixed_heading")
+        raise InputError(
+            f"fixed_heading is a probability in [0, 1], got {r.fixed_heading}",
+            field="fixed_heading",
+        )
     for name in ("speed_mps", "shadowing_corr_m"):
         v = getattr(r, name)
         if v is not None and min(v) <= 0:

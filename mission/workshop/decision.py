@@ -28,9 +28,16 @@ def _relative(w: np.ndarray, cand: np.ndarray, inc: np.ndarray) -> np.ndarray:
     return (w @ (cand - inc)) / np.maximum(w @ inc, 1e-12)
 
 
-def pooled_decision(real: Mapping[str, Sequence[float]], teams: Sequence, bench: Mapping[str, Sequence[float]],
-                    incumbent: str, coverage_90: Mapping[str, float] | None = None, level: float = LEVEL,
-                    n_boot: int = N_BOOT, seed: int = 0) -> dict:
+def pooled_decision(
+    real: Mapping[str, Sequence[float]],
+    teams: Sequence,
+    bench: Mapping[str, Sequence[float]],
+    incumbent: str,
+    coverage_90: Mapping[str, float] | None = None,
+    level: float = LEVEL,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+) -> dict:
     """Apply the rule (module docstring); returns ``{"choice", "changed", "why", "methods": {name: {...}}}``.
 
     Candidates are the methods present in both ``real`` and ``bench`` other than the incumbent."""
@@ -47,18 +54,30 @@ def pooled_decision(real: Mapping[str, Sequence[float]], teams: Sequence, bench:
         if rc.shape != r_inc.shape or bc.shape != b_inc.shape:
             raise ValueError(f"{name}: errors must be paired with the incumbent's flights")
         rr, rb = _relative(w_r, rc, r_inc), _relative(w_b, bc, b_inc)
-        ivs = {"real": _interval(float(_relative(one_r, rc, r_inc)[0]), rr, level),
-               "bench": _interval(float(_relative(one_b, bc, b_inc)[0]), rb, level)}
-        ivs["pooled"] = _interval(0.5 * (ivs["real"].value + ivs["bench"].value), 0.5 * (rr + rb), level)
+        ivs = {
+            "real": _interval(float(_relative(one_r, rc, r_inc)[0]), rr, level),
+            "bench": _interval(float(_relative(one_b, bc, b_inc)[0]), rb, level),
+        }
+        ivs["pooled"] = _interval(
+            0.5 * (ivs["real"].value + ivs["bench"].value), 0.5 * (rr + rb), level
+        )
         out[name] = {**ivs, **_verdict(ivs, (coverage_90 or {}).get(name))}
     winners = [m for m, d in out.items() if d["adoptable"]]
     if not winners:
-        return {"choice": incumbent, "changed": False, "methods": out,
-                "why": "no candidate wins on the pooled evidence beyond its interval: the incumbent stays"}
+        return {
+            "choice": incumbent,
+            "changed": False,
+            "methods": out,
+            "why": "no candidate wins on the pooled evidence beyond its interval: the incumbent stays",
+        }
     best = min(winners, key=lambda m: out[m]["pooled"].value)
-    return {"choice": best, "changed": True, "methods": out,
-            "why": f"{best} errs {-100 * out[best]['pooled'].value:.0f} % less on the pooled evidence "
-                   f"({_pct(out[best]['pooled'])}), not worse on either source"}
+    return {
+        "choice": best,
+        "changed": True,
+        "methods": out,
+        "why": f"{best} errs {-100 * out[best]['pooled'].value:.0f} % less on the pooled evidence "
+        f"({_pct(out[best]['pooled'])}), not worse on either source",
+    }
 
 
 def _pct(iv: Interval) -> str:
@@ -70,11 +89,22 @@ def _verdict(ivs: dict[str, Interval], cov90: float | None) -> dict:
     if ivs["pooled"].lo > 0:
         return {"wins": False, "adoptable": False, "reason": f"worse: pooled {_pct(ivs['pooled'])}"}
     if not ivs["pooled"].hi < 0:
-        return {"wins": False, "adoptable": False, "reason": f"pooled {_pct(ivs['pooled'])} reaches zero"}
+        return {
+            "wins": False,
+            "adoptable": False,
+            "reason": f"pooled {_pct(ivs['pooled'])} reaches zero",
+        }
     worse = [k for k in ("real", "bench") if ivs[k].lo >= 0]
     if worse:
-        return {"wins": False, "adoptable": False,
-                "reason": f"worse beyond its interval on {worse[0]} ({_pct(ivs[worse[0]])})"}
+        return {
+            "wins": False,
+            "adoptable": False,
+            "reason": f"worse beyond its interval on {worse[0]} ({_pct(ivs[worse[0]])})",
+        }
     if cov90 is not None and cov90 < MIN_COVERAGE_90:
-        return {"wins": True, "adoptable": False, "reason": f"wins, but its 90 % regions cover {100 * cov90:.0f} %"}
+        return {
+            "wins": True,
+            "adoptable": False,
+            "reason": f"wins, but its 90 % regions cover {100 * cov90:.0f} %",
+        }
     return {"wins": True, "adoptable": True, "reason": f"wins: pooled {_pct(ivs['pooled'])}"}

@@ -78,22 +78,31 @@ def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, f
         spec = load_mission(p)
     except InputError:
         return None
-    cfg = replace(spec.sim_config(), dt_s=0.2)  # percentiles of a 0.2 s sampling: 10x cheaper, same spans
+    cfg = replace(
+        spec.sim_config(), dt_s=0.2
+    )  # percentiles of a 0.2 s sampling: 10x cheaper, same spans
     _, _, att, _ = fly_path(spec.waypoints_enu(), cfg, np.random.default_rng(0))
     deg = np.rad2deg(att[:, :2])
     r, q = (np.percentile(deg[:, k], [1.0, 99.0]) for k in (0, 1))
     return (float(r[0]), float(r[1])), (float(q[0]), float(q[1]))
 
 
-def training_attitude(training_data: dict | None) -> tuple[tuple[float, float], tuple[float, float]] | None:
+def training_attitude(
+    training_data: dict | None,
+) -> tuple[tuple[float, float], tuple[float, float]] | None:
     """(roll, pitch) spans (deg) of a network's training flights (union over its datasets): known for datasets
     that flew one mission's trajectory with its kinematics; None when any dataset drew trajectories, speeds or
     headings at random or has no mission here (no claim is better than a wrong one)."""
     spans = []
     for d in (training_data or {}).get("datasets") or []:
         rnd = d.get("randomisation") or {}
-        if not d.get("mission") or rnd.get("trajectories") or rnd.get("random_params") or rnd.get("speed_mps") \
-                or rnd.get("random_heading"):
+        if (
+            not d.get("mission")
+            or rnd.get("trajectories")
+            or rnd.get("random_params")
+            or rnd.get("speed_mps")
+            or rnd.get("random_heading")
+        ):
             return None
         span = _mission_attitude(str(d["mission"]))
         if span is None:

@@ -33,7 +33,9 @@ from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, AFAR
 from mission.localize.methods import names_where
 from mission.physics.propagation import MODEL_NAMES
 
-CLASSICAL = names_where(kind="classical")  # strongest, centroid, grid: run on simulated test sets as well
+CLASSICAL = names_where(
+    kind="classical"
+)  # strongest, centroid, grid: run on simulated test sets as well
 GRID_PHYSICS = MODEL_NAMES  # the grid accepts every propagation model make_model builds
 
 
@@ -46,22 +48,37 @@ def parse_method(spec: str) -> tuple[str, dict]:
     """
     name, _, physics = spec.partition(":")
     if name not in CLASSICAL or (physics and name != "grid"):
-        raise InputError(f"unknown method {spec!r} (expected {', '.join(CLASSICAL)}, grid:MODEL or "
-                         "grid:preset:NAME)", field="--methods")
+        raise InputError(
+            f"unknown method {spec!r} (expected {', '.join(CLASSICAL)}, grid:MODEL or "
+            "grid:preset:NAME)",
+            field="--methods",
+        )
     if not physics:
         return name, {}
     if physics.startswith("preset:"):
         from mission.physics.presets import load_preset
 
-        load_preset(physics.removeprefix("preset:"))  # unknown preset: InputError now, not mid-evaluation
+        load_preset(
+            physics.removeprefix("preset:")
+        )  # unknown preset: InputError now, not mid-evaluation
         return name, {"preset": physics.removeprefix("preset:")}
     if physics not in GRID_PHYSICS:
-        raise InputError(f"unknown grid physics {physics!r} (expected {', '.join(GRID_PHYSICS)} or preset:NAME)",
-                         field="--methods")
+        raise InputError(
+            f"unknown grid physics {physics!r} (expected {', '.join(GRID_PHYSICS)} or preset:NAME)",
+            field="--methods",
+        )
     return name, {"model": physics}
 
 
-SUITE_METHODS = ("default", "strongest", "centroid", "grid", "grid:MODEL", "grid:preset:NAME", "onnx:PATH")
+SUITE_METHODS = (
+    "default",
+    "strongest",
+    "centroid",
+    "grid",
+    "grid:MODEL",
+    "grid:preset:NAME",
+    "onnx:PATH",
+)
 
 
 def suite_method(spec: str) -> dict:
@@ -86,11 +103,18 @@ def suite_method(spec: str) -> dict:
         method, kw = parse_method(spec)
         if "preset" in kw:
             return {"method": method, "physics_preset": kw["preset"]}
-        return {"method": method, "physics_model": kw["model"]} if "model" in kw else {"method": method}
+        return (
+            {"method": method, "physics_model": kw["model"]}
+            if "model" in kw
+            else {"method": method}
+        )
     if spec in METHOD_NAMES:
         return {"method": spec}
-    raise InputError(f"unknown method {spec!r} (expected {', '.join(SUITE_METHODS)} or one of "
-                     f"{', '.join(METHOD_NAMES)})", field="--methods")
+    raise InputError(
+        f"unknown method {spec!r} (expected {', '.join(SUITE_METHODS)} or one of "
+        f"{', '.join(METHOD_NAMES)})",
+        field="--methods",
+    )
 
 
 def grid_physics(kw: dict, grid_params: dict) -> tuple[str | None, dict | None, str | None]:
@@ -99,6 +123,7 @@ def grid_physics(kw: dict, grid_params: dict) -> tuple[str | None, dict | None, 
     if "preset" in kw:
         return None, None, kw["preset"]
     return kw.get("model", grid_params.get("model", "e2r")), grid_params.get("params"), None
+
 
 # Rover truth by AFAR location number (../shared/data/README.md; antenna about 1.5 m above ground).
 AFAR_TRUTH = AFAR2023_TRUTH
@@ -114,7 +139,9 @@ class Row:
     features: str | None
     errors: list[float]
     names: list[str] = field(default_factory=list)
-    covered: dict[str, list[bool]] = field(default_factory=dict)  # region level ("50", "90") -> truth inside
+    covered: dict[str, list[bool]] = field(
+        default_factory=dict
+    )  # region level ("50", "90") -> truth inside
 
     def summary(self) -> dict:
         e = np.asarray(self.errors, dtype=float)
@@ -126,7 +153,11 @@ class Row:
             "n": int(e.size),
         }
         if e.size:
-            d.update(mean_m=float(e.mean()), median_m=float(np.median(e)), p90_m=float(np.percentile(e, 90)))
+            d.update(
+                mean_m=float(e.mean()),
+                median_m=float(np.median(e)),
+                p90_m=float(np.percentile(e, 90)),
+            )
         for lvl, c in sorted(self.covered.items()):
             if c:
                 d[f"coverage_{lvl}"] = float(np.mean(c))
@@ -142,7 +173,9 @@ def model_label(path: str | Path) -> tuple[str, str, str]:
 
     loc = OnnxLocalizer(path)
     td = loc.meta.get("training_data") or {}
-    models = sorted({d.get("model") for d in td.get("datasets", []) if isinstance(d, dict)} - {None})
+    models = sorted(
+        {d.get("model") for d in td.get("datasets", []) if isinstance(d, dict)} - {None}
+    )
     tm = "+".join(models) if models else "?"
     return f"net:{Path(path).stem}", tm, loc.kind
 
@@ -160,7 +193,11 @@ def test_label(manifest: dict) -> str:
     r = cfg.get("randomisation", {})
     traj = "+".join(r.get("trajectories") or [manifest.get("mission_generator", "?")])
     alt = r.get("altitude_m")
-    alt_s = f"{alt[0]:g}-{alt[1]:g}m" if alt else f"{manifest.get('mission_altitude_m', MissionSpec.altitude_m):g}m"
+    alt_s = (
+        f"{alt[0]:g}-{alt[1]:g}m"
+        if alt
+        else f"{manifest.get('mission_altitude_m', MissionSpec.altitude_m):g}m"
+    )
     return f"sim:{physics_label(cfg)}:{traj}@{alt_s}"
 
 
@@ -174,7 +211,13 @@ def evaluate_sim(
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
     from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import FlightSimulator, dataset_config, dataset_heights, load_dataset, read_manifest
+    from mission.workshop.dataset import (
+        FlightSimulator,
+        dataset_config,
+        dataset_heights,
+        load_dataset,
+        read_manifest,
+    )
 
     m = read_manifest(dataset, need=("chunks", "config", "feature_config", "field_origin"))
     label = test_label(m)
@@ -243,7 +286,10 @@ def afar_truth(path: str | Path) -> tuple[tuple[float, float] | None, str | None
     if not mm:
         return None, None
     team, loc = mm.group(1), int(mm.group(2))
-    return AFAR_TRUTH.get(loc), AFAR2023_SUSPECT_NOTE if (int(team), loc) == AFAR2023_SUSPECT else None
+    return AFAR_TRUTH.get(loc), AFAR2023_SUSPECT_NOTE if (
+        int(team),
+        loc,
+    ) == AFAR2023_SUSPECT else None
 
 
 def import_afar(mat_dir: str | Path, out_dir: str | Path) -> list[Path]:

@@ -39,21 +39,33 @@ def region_contains(region: dict, xy) -> bool:
     ``ellipse`` of ``mission.localize.uncertainty``'s layout (``x_m, y_m, a_m, b_m, angle_deg``).
     """
     p = np.asarray(xy, dtype=float)[:2]
-    if "ellipse" in region and not any(k in region for k in ("polygon", "polygon_xy_m", "center_m")):
-        el = region["ellipse"]  # the mission.localize.uncertainty layout (error circles of error_circles too)
-        region = {"center_m": [el["x_m"], el["y_m"]], "semi_axes_m": [el["a_m"], el["b_m"]],
-                  "angle_deg": el["angle_deg"]}
+    if "ellipse" in region and not any(
+        k in region for k in ("polygon", "polygon_xy_m", "center_m")
+    ):
+        el = region[
+            "ellipse"
+        ]  # the mission.localize.uncertainty layout (error circles of error_circles too)
+        region = {
+            "center_m": [el["x_m"], el["y_m"]],
+            "semi_axes_m": [el["a_m"], el["b_m"]],
+            "angle_deg": el["angle_deg"],
+        }
     poly = region.get("polygon", region.get("polygon_xy_m"))
     if poly is not None:
         from matplotlib.path import Path as MPath
 
         return bool(MPath(np.asarray(poly, dtype=float)).contains_point(p))
-    c = np.asarray(next(region[k] for k in ("center_m", "center_xy_m", "center") if k in region), dtype=float)
+    c = np.asarray(
+        next(region[k] for k in ("center_m", "center_xy_m", "center") if k in region), dtype=float
+    )
     d = p - c[:2]
     if "cov_m2" in region or "cov" in region:
         cov = np.asarray(region.get("cov_m2", region.get("cov")), dtype=float)
         return bool(d @ np.linalg.solve(cov, d) <= float(region.get("chi2", 1.0)))
-    a, b = (float(v) for v in next(region[k] for k in ("semi_axes_m", "axes_m", "semi_axes") if k in region))
+    a, b = (
+        float(v)
+        for v in next(region[k] for k in ("semi_axes_m", "axes_m", "semi_axes") if k in region)
+    )
     t = math.radians(float(region.get("angle_deg", region.get("angle", 0.0))))
     u = d[0] * math.cos(t) + d[1] * math.sin(t)
     v = -d[0] * math.sin(t) + d[1] * math.cos(t)
@@ -80,7 +92,11 @@ def _coverage(est, truth) -> dict[str, bool]:
 
     out = {}
     for lvl, r in _regions(est).items():
-        c = region_covers(est, float(truth[0]), float(truth[1]), float(r["level"])) if "level" in r else None
+        c = (
+            region_covers(est, float(truth[0]), float(truth[1]), float(r["level"]))
+            if "level" in r
+            else None
+        )
         out[lvl] = region_contains(r, truth) if c is None else c
     return out
 
@@ -89,7 +105,9 @@ _SUITE: dict = {}
 
 
 def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False) -> None:
-    if one_thread:  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
+    if (
+        one_thread
+    ):  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
         from mission.threads import limit_worker
 
         limit_worker()
@@ -174,10 +192,17 @@ def evaluate_suite(
         test = f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]"
     else:
         seed = BENCHMARK_SEED if seed is None else seed
-        source = {"seed": int(seed), "family": fam, "center": center, "stats": stats_out is not None}
+        source = {
+            "seed": int(seed),
+            "family": fam,
+            "center": center,
+            "stats": stats_out is not None,
+        }
         test = f"suite:unseen[seed={seed},family={family_label(fam)},n={n}]"
-    rows = {m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
-            for m, kw in labels.items()}
+    rows = {
+        m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
+        for m, kw in labels.items()
+    }
     secs = {m: 0.0 for m in labels}
     if workers <= 1:
         _suite_init(labels, source)
@@ -217,13 +242,21 @@ def check_cache_family(cs, fam) -> None:
 
     have = cs.manifest.get("family_sha256")
     if have != family_sha256(fam):
-        raise InputError(f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the family file "
-                         f"given ({fam.name!r}); drop --family or rewrite the cache", source=str(cs.path),
-                         field="--family")
+        raise InputError(
+            f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the family file "
+            f"given ({fam.name!r}); drop --family or rewrite the cache",
+            source=str(cs.path),
+            field="--family",
+        )
 
 
-def suite_draws(n: int, seed: int | None = None, suite_dir: str | Path | None = None, family: FamilyArg = "afar",
-                center: str = "afar") -> list[dict]:
+def suite_draws(
+    n: int,
+    seed: int | None = None,
+    suite_dir: str | Path | None = None,
+    family: FamilyArg = "afar",
+    center: str = "afar",
+) -> list[dict]:
     """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
     from mission.workshop.suite import BENCHMARK_SEED, draw_flight
     from mission.workshop.suite_cache import read_suite
@@ -238,13 +271,18 @@ def _axis_value(draw: dict, axis: str):
     v: object = draw
     for part in axis.split("."):  # e.g. physics.rx_antenna, trajectory_params.region
         if not isinstance(v, dict) or part not in v:
-            raise InputError(f"benchmark draws have no axis {axis!r} (e.g. heading_habit, tx_outside_flight_area, "
-                             "altitude_m, physics.rx_antenna, trajectory)", field="--by")
+            raise InputError(
+                f"benchmark draws have no axis {axis!r} (e.g. heading_habit, tx_outside_flight_area, "
+                "altitude_m, physics.rx_antenna, trajectory)",
+                field="--by",
+            )
         v = v[part]
     return v
 
 
-def breakdown(rows: Sequence[Row], draws: Sequence[dict], axis: str, bins: int = 3) -> dict[str, dict[str, float]]:
+def breakdown(
+    rows: Sequence[Row], draws: Sequence[dict], axis: str, bins: int = 3
+) -> dict[str, dict[str, float]]:
     """Mean error per method by the value of one draw axis: {group label: {method: mean m, "n": count}}.
 
     Text / bool axes group by value; numeric axes by ``bins`` equal-count bins (label ``lo-hi``)."""

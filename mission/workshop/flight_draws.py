@@ -19,8 +19,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mission.samples import FlightSamples
-from mission.trajectory.generators import trajectory_params  # re-exported (mission.workshop.dataset)
-from mission.workshop.dataset_config import PARAM_NAMES, DatasetConfig, pattern_names, trajectory_names
+from mission.trajectory.generators import (
+    trajectory_params,
+)  # re-exported (mission.workshop.dataset)
+from mission.workshop.dataset_config import (
+    PARAM_NAMES,
+    DatasetConfig,
+    pattern_names,
+    trajectory_names,
+)
 
 
 def flight_rng(seed: int, i: int) -> np.random.Generator:
@@ -28,7 +35,9 @@ def flight_rng(seed: int, i: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
 
 
-def _uniform(rng: np.random.Generator, rng_range: tuple[float, float] | None, default: float) -> float:
+def _uniform(
+    rng: np.random.Generator, rng_range: tuple[float, float] | None, default: float
+) -> float:
     if rng_range is None:
         return float(default)
     lo, hi = float(rng_range[0]), float(rng_range[1])
@@ -62,7 +71,9 @@ class FlightSimulator:
 
         self.cfg = cfg
         self.spec = load_mission(cfg.mission)
-        self.fcfg = FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
+        self.fcfg = (
+            FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
+        )
         self.sim = self.spec.sim_config()
         self._models: dict = {}
         self._preset_spec: dict | None = None
@@ -71,8 +82,15 @@ class FlightSimulator:
 
             self._preset_spec = {**load_preset(cfg.physics), **cfg.model_params}
 
-    def _model(self, pattern: str, beta: float | None, eps_r: float | None, rx_h: float, tx_h: float,
-               jitter: float = 0.0):
+    def _model(
+        self,
+        pattern: str,
+        beta: float | None,
+        eps_r: float | None,
+        rx_h: float,
+        tx_h: float,
+        jitter: float = 0.0,
+    ):
         from mission.physics import make_model
 
         if self.cfg.physics:
@@ -126,7 +144,9 @@ class FlightSimulator:
         alt = _uniform(rng, r.altitude_m, spec.altitude_m)
         traj = _choice(rng, r.trajectories, spec.trajectory.generator)
         same = traj == spec.trajectory.generator
-        tparams = trajectory_params(traj, rng, spec.trajectory.params if same else {}, r.random_params)
+        tparams = trajectory_params(
+            traj, rng, spec.trajectory.params if same else {}, r.random_params
+        )
         pattern = _choice(rng, r.patterns, "")
         beta = None if r.beta is None else _uniform(rng, r.beta, 0.0)
         eps_r = None if r.eps_r is None else _uniform(rng, r.eps_r, 0.0)
@@ -146,12 +166,18 @@ class FlightSimulator:
             fixed_h = h if fixed else None
         speed = None if r.speed_mps is None else _uniform(rng, r.speed_mps, 0.0)
         shadow = 0.0 if r.shadowing_db is None else _uniform(rng, r.shadowing_db, 0.0)
-        corr = self.sim.shadowing_corr_m if r.shadowing_corr_m is None else _uniform(rng, r.shadowing_corr_m, 0.0)
+        corr = (
+            self.sim.shadowing_corr_m
+            if r.shadowing_corr_m is None
+            else _uniform(rng, r.shadowing_corr_m, 0.0)
+        )
         jitter = 0.0
         if r.physics_heading_jitter_deg:
             jitter = float(rng.uniform(-r.physics_heading_jitter_deg, r.physics_heading_jitter_deg))
 
-        if traj == "waypoints" or (spec.trajectory.waypoints is not None and same and not r.random_params):
+        if traj == "waypoints" or (
+            spec.trajectory.waypoints is not None and same and not r.random_params
+        ):
             wps = np.array(spec.waypoints_enu(), dtype=float)
             wps[:, 2] = alt
         else:
@@ -160,10 +186,19 @@ class FlightSimulator:
         model = self._model(pattern, beta, eps_r, rx_h, tx_h, jitter)
         kin = self.sim.kinematics
         if fixed_h is not None or speed is not None:
-            kin = replace(kin, heading_deg=fixed_h if fixed_h is not None else kin.heading_deg,
-                          cruise_speed_mps=speed if speed is not None else kin.cruise_speed_mps)
-        sim = replace(self.sim, noise_db=noise, rss_offset_db=offset, kinematics=kin, shadowing_db=shadow,
-                      shadowing_corr_m=corr)
+            kin = replace(
+                kin,
+                heading_deg=fixed_h if fixed_h is not None else kin.heading_deg,
+                cruise_speed_mps=speed if speed is not None else kin.cruise_speed_mps,
+            )
+        sim = replace(
+            self.sim,
+            noise_db=noise,
+            rss_offset_db=offset,
+            kinematics=kin,
+            shadowing_db=shadow,
+            shadowing_corr_m=corr,
+        )
         fl: FlightSamples = simulate_flight(wps, tx, model, sim, rng)
         if keep < 1.0:
             n = len(fl)
@@ -199,12 +234,21 @@ class FlightSimulator:
         spec = d["physics"]["spec"]
         ground = spec.get("ground") or {}
         params = {
-            "altitude_m": d["altitude_m"], "offset_db": d["rss_offset_db"], "beta": np.nan,
-            "eps_r": ground.get("eps_r", np.nan), "tx_height_m": d["tx_height_m"], "noise_db": d["noise_db"],
-            "rx_heading_deg": spec.get("rx_heading_deg", 0.0), "tx_heading_deg": spec.get("tx_heading_deg", 0.0),
+            "altitude_m": d["altitude_m"],
+            "offset_db": d["rss_offset_db"],
+            "beta": np.nan,
+            "eps_r": ground.get("eps_r", np.nan),
+            "tx_height_m": d["tx_height_m"],
+            "noise_db": d["noise_db"],
+            "rx_heading_deg": spec.get("rx_heading_deg", 0.0),
+            "tx_heading_deg": spec.get("tx_heading_deg", 0.0),
             "keep_fraction": d["keep_fraction"],
-            "fixed_heading_deg": d["fixed_heading_deg"] if d["heading_habit"] == "fixed" else np.nan,
-            "speed_mps": d["speed_mps"], "shadowing_db": d["shadowing_db"], "shadowing_corr_m": d["shadowing_corr_m"],
+            "fixed_heading_deg": d["fixed_heading_deg"]
+            if d["heading_habit"] == "fixed"
+            else np.nan,
+            "speed_mps": d["speed_mps"],
+            "shadowing_db": d["shadowing_db"],
+            "shadowing_corr_m": d["shadowing_corr_m"],
             "trajectory_params": d["trajectory_params"],
         }
         tx = np.array([*d["tx_xy"], d["tx_height_m"]])
@@ -223,8 +267,14 @@ class FlightSimulator:
             row["clustering"] = cluster_features(s.enu_m[:, 0], s.enu_m[:, 1], s.rss_dbm, self.fcfg)
         if "normalised_rss" in self.cfg.features:
             row["normalised_rss"] = normalised_rss(s.rss_dbm, self.fcfg)
-        p = {**fd.params, "trajectory": traj_names.index(fd.trajectory), "pattern": pat_names.index(fd.pattern)}
-        row["params"] = np.array([p[k] for k in PARAM_NAMES], dtype=float)  # column order = PARAM_NAMES
+        p = {
+            **fd.params,
+            "trajectory": traj_names.index(fd.trajectory),
+            "pattern": pat_names.index(fd.pattern),
+        }
+        row["params"] = np.array(
+            [p[k] for k in PARAM_NAMES], dtype=float
+        )  # column order = PARAM_NAMES
         row["tx_enu"] = s.tx_enu_m
         row["n_samples"] = np.array(len(s))
         row["index"] = np.array(fd.index)

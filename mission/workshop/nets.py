@@ -120,7 +120,11 @@ class NormalisedRssNet(_ConvHeadNet):
     """
 
     def __init__(
-        self, n_in: int = 10000, width: int = 32, hidden: Sequence[int] = (800, 256, 64), dropout: float = 0.1
+        self,
+        n_in: int = 10000,
+        width: int = 32,
+        hidden: Sequence[int] = (800, 256, 64),
+        dropout: float = 0.1,
     ) -> None:
         super().__init__()
         self.n_in = n_in

@@ -30,17 +30,27 @@ BAND = (0.10, 0.90)
 P_PASS = (0.05, 0.95)
 
 
-def log_distance_residual(pos_enu: np.ndarray, rss_dbm: np.ndarray, tx_enu: np.ndarray) -> np.ndarray:
+def log_distance_residual(
+    pos_enu: np.ndarray, rss_dbm: np.ndarray, tx_enu: np.ndarray
+) -> np.ndarray:
     """RSS minus its least-squares fit a - 10 n log10(d) at the true transmitter (d 3D, floored at 1 m)."""
-    d = np.maximum(slant_distance(*link_delta(np.asarray(tx_enu, float)[None, :], np.asarray(pos_enu, float))), 1.0)
+    d = np.maximum(
+        slant_distance(*link_delta(np.asarray(tx_enu, float)[None, :], np.asarray(pos_enu, float))),
+        1.0,
+    )
     A = np.column_stack([np.ones(len(d)), -10.0 * np.log10(d)])
     y = np.asarray(rss_dbm, float)
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     return y - A @ coef
 
 
-def sample_statistics(pos_enu: np.ndarray, rss_dbm: np.ndarray, tx_enu: np.ndarray, rng: np.random.Generator,
-                      max_points: int = 800) -> dict[str, float]:
+def sample_statistics(
+    pos_enu: np.ndarray,
+    rss_dbm: np.ndarray,
+    tx_enu: np.ndarray,
+    rng: np.random.Generator,
+    max_points: int = 800,
+) -> dict[str, float]:
     """The check statistics (module docstring) of one flight's used samples."""
     from mission.physics.shadowing import fit_variogram
 
@@ -50,8 +60,12 @@ def sample_statistics(pos_enu: np.ndarray, rss_dbm: np.ndarray, tx_enu: np.ndarr
     lo, hi = np.percentile(rss, [5.0, 95.0])
     r = log_distance_residual(pos, rss, tx_enu)
     vg = fit_variogram(pos[:, :2], r, rng, kind="exponential", max_points=max_points, n_boot=0)
-    return {"rss_spread_db": float(hi - lo), "resid_sill_db": float(np.hypot(vg.sigma_db, vg.nugget_db)),
-            "resid_range_m": float(vg.corr_len), "resid_nugget_db": float(vg.nugget_db)}
+    return {
+        "rss_spread_db": float(hi - lo),
+        "resid_sill_db": float(np.hypot(vg.sigma_db, vg.nugget_db)),
+        "resid_range_m": float(vg.corr_len),
+        "resid_nugget_db": float(vg.nugget_db),
+    }
 
 
 def flight_statistics(log, truth_xy, tx_height_m: float, seed: int = 0) -> dict[str, float]:
@@ -63,8 +77,9 @@ def flight_statistics(log, truth_xy, tx_height_m: float, seed: int = 0) -> dict[
     return sample_statistics(part.enu(), part["rss_dbm"], tx, np.random.default_rng(seed))
 
 
-def predictive_check(real: Sequence[float], sim: Sequence[float], n_boot: int = 4000,
-                     seed: int = 0) -> dict:
+def predictive_check(
+    real: Sequence[float], sim: Sequence[float], n_boot: int = 4000, seed: int = 0
+) -> dict:
     """Real per-flight values against the benchmark's: band, real inside it, predictive p of the real mean."""
     x = np.asarray(real, float)
     s = np.asarray(sim, float)
@@ -75,18 +90,32 @@ def predictive_check(real: Sequence[float], sim: Sequence[float], n_boot: int = 
     rng = np.random.default_rng(seed)
     means = s[rng.integers(0, s.size, size=(n_boot, x.size))].mean(axis=1)
     p = float(np.mean(means < x.mean()) + 0.5 * np.mean(means == x.mean()))
-    return {"real_mean": float(x.mean()), "real_median": float(np.median(x)), "sim_mean": float(s.mean()),
-            "sim_median": float(np.median(s)), "band": [float(lo), float(hi)],
-            "inside": int(np.sum((x >= lo) & (x <= hi))), "n_real": int(x.size), "n_sim": int(s.size), "p": p,
-            "passes": bool(P_PASS[0] <= p <= P_PASS[1])}
+    return {
+        "real_mean": float(x.mean()),
+        "real_median": float(np.median(x)),
+        "sim_mean": float(s.mean()),
+        "sim_median": float(np.median(s)),
+        "band": [float(lo), float(hi)],
+        "inside": int(np.sum((x >= lo) & (x <= hi))),
+        "n_real": int(x.size),
+        "n_sim": int(s.size),
+        "p": p,
+        "passes": bool(P_PASS[0] <= p <= P_PASS[1]),
+    }
 
 
-def family_checks(real_stats: Sequence[Mapping[str, float]], sim_stats: Sequence[Mapping[str, float]],
-                  real_errors: Mapping[str, Sequence[float]] | None = None,
-                  sim_errors: Mapping[str, Sequence[float]] | None = None, seed: int = 0) -> dict[str, dict]:
+def family_checks(
+    real_stats: Sequence[Mapping[str, float]],
+    sim_stats: Sequence[Mapping[str, float]],
+    real_errors: Mapping[str, Sequence[float]] | None = None,
+    sim_errors: Mapping[str, Sequence[float]] | None = None,
+    seed: int = 0,
+) -> dict[str, dict]:
     """Every check: the RSS and residual statistics, then ``error m: METHOD`` per method present on both."""
-    out = {k: predictive_check([r[k] for r in real_stats], [r[k] for r in sim_stats], seed=seed)
-           for k in STATISTICS}
+    out = {
+        k: predictive_check([r[k] for r in real_stats], [r[k] for r in sim_stats], seed=seed)
+        for k in STATISTICS
+    }
     for m, e in (real_errors or {}).items():
         if sim_errors and m in sim_errors:
             out[f"error m: {m}"] = predictive_check(e, sim_errors[m], seed=seed)
@@ -111,12 +140,20 @@ def checks_table(checks: Mapping[str, dict], title: str):
         t.add_column(c, justify="left" if c == "statistic" else "right", overflow="fold")
     for k, c in checks.items():
         lo, hi = c["band"]
-        t.add_row(escape(k), f"{c['real_mean']:.1f}", f"{lo:.1f}-{hi:.1f}", f"{c['inside']}/{c['n_real']}",
-                  f"{c['p']:.2f}", "yes" if c["passes"] else "NO")
+        t.add_row(
+            escape(k),
+            f"{c['real_mean']:.1f}",
+            f"{lo:.1f}-{hi:.1f}",
+            f"{c['inside']}/{c['n_real']}",
+            f"{c['p']:.2f}",
+            "yes" if c["passes"] else "NO",
+        )
     return t
 
 
-def score_real(logs: Sequence, methods: Sequence[str], seed: int = 0) -> tuple[list[dict], dict[str, list[float]]]:
+def score_real(
+    logs: Sequence, methods: Sequence[str], seed: int = 0
+) -> tuple[list[dict], dict[str, list[float]]]:
     """(check statistics per real log, {method: error m per log}) of real logs with truth in their sidecars;
     methods as ``rfsl evaluate --suite`` names them (``mission.workshop.evaluate.suite_method``)."""
     from mission.errors import InputError
@@ -131,7 +168,10 @@ def score_real(logs: Sequence, methods: Sequence[str], seed: int = 0) -> tuple[l
         log = p if hasattr(p, "columns") else read_flight_log(p)  # a FlightLog or a path
         truth = log.truth_enu
         if truth is None:
-            raise InputError("a real flight for the predictive checks needs its truth in the sidecar", source=str(p))
+            raise InputError(
+                "a real flight for the predictive checks needs its truth in the sidecar",
+                source=str(p),
+            )
         stats.append(flight_statistics(log, truth[:2], float(truth[2]), seed=seed))
         for m, kw in kws.items():
             est = localize_log(log, **kw)

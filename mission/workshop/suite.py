@@ -88,15 +88,24 @@ SUITES = ("unseen",)
 # Shadowing per family: (sigma range dB, correlation-length range m).  "afar-heavy" takes the residual field
 # measured on the six real AFAR flights (``rfsl gap``: sigma 11-15 dB, correlation ~70 m) as its centre,
 # because on real flights the RSS spread is about twice what the milder ranges produce (models/README.md).
-SHADOWING = {"afar": ((4.0, 10.0), (10.0, 60.0)), "generic": ((4.0, 10.0), (10.0, 60.0)),
-             "afar-heavy": ((8.0, 16.0), (30.0, 120.0))}
+SHADOWING = {
+    "afar": ((4.0, 10.0), (10.0, 60.0)),
+    "generic": ((4.0, 10.0), (10.0, 60.0)),
+    "afar-heavy": ((8.0, 16.0), (30.0, 120.0)),
+}
 SUITE_TAG = 10  # mixed into every suite seed: keeps suite seeds apart from rfsl-dataset seeds
 BENCHMARK_SEED = 2026
-ALTITUDE_RANGE_M = (15.0, 60.0)  # cruise altitude drawn per flight (a network trained on "suite:" data spans it)
+ALTITUDE_RANGE_M = (
+    15.0,
+    60.0,
+)  # cruise altitude drawn per flight (a network trained on "suite:" data spans it)
 P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a third of the flights
 HABITS = ("along_track", "fixed", "slow_rotation", "hover_turn")
-RSS_SOURCE = {"kind": "suite", "receiver": "simulated receiver (unseen-flight benchmark)", "calibrated": False}
-
+RSS_SOURCE = {
+    "kind": "suite",
+    "receiver": "simulated receiver (unseen-flight benchmark)",
+    "calibrated": False,
+}
 
 
 class SuiteFlight(NamedTuple):
@@ -109,7 +118,9 @@ class SuiteFlight(NamedTuple):
 
 def suite_rng(seed: int, i: int) -> np.random.Generator:
     """The generator of flight ``i`` of suite seed ``seed``."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), SUITE_TAG], spawn_key=(int(i),)))
+    return np.random.default_rng(
+        np.random.SeedSequence([int(seed), SUITE_TAG], spawn_key=(int(i),))
+    )
 
 
 def _u(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -133,19 +144,30 @@ def _physics(rng: np.random.Generator, family: str, center: str) -> dict:
     tx = _pick(rng, ("isotropic", "dipole", "measured"), (0.5, 0.25, 0.25))
     tx_heading = _u(rng, 0.0, 360.0)
     slope = _u(rng, -0.2, 0.8)
-    ground = {"eps_r": float(math.exp(rng.uniform(math.log(3.0), math.log(30.0)))), "sigma_s_m": _u(rng, 0, 0.01)}
+    ground = {
+        "eps_r": float(math.exp(rng.uniform(math.log(3.0), math.log(30.0)))),
+        "sigma_s_m": _u(rng, 0, 0.01),
+    }
     ground_on = bool(rng.uniform() < 0.5)
     if use_preset:
         spec = load_preset(center)
         spec["rx_heading_deg"] = float((float(spec.get("rx_heading_deg", 0.0)) + jitter) % 360.0)
     else:
-        spec = {"base": "free-space", "rx_pattern": "dipole" if antenna == "dipole" else "measured",
-                "rx_flipped": antenna == "flipped", "rx_heading_deg": heading, "attitude": attitude,
-                "path_gain_slope": slope}
+        spec = {
+            "base": "free-space",
+            "rx_pattern": "dipole" if antenna == "dipole" else "measured",
+            "rx_flipped": antenna == "flipped",
+            "rx_heading_deg": heading,
+            "attitude": attitude,
+            "path_gain_slope": slope,
+        }
     spec.update(tx_pattern=tx, tx_heading_deg=tx_heading if tx == "measured" else 0.0)
     spec["ground"] = ground if ground_on else None
-    return {"spec": spec, "from_preset": center if use_preset else None,
-            "rx_antenna": "preset" if use_preset else antenna}
+    return {
+        "spec": spec,
+        "from_preset": center if use_preset else None,
+        "rx_antenna": "preset" if use_preset else antenna,
+    }
 
 
 def _rover_position(fld, outside: bool, rng: np.random.Generator) -> np.ndarray:
@@ -157,8 +179,9 @@ def _rover_position(fld, outside: bool, rng: np.random.Generator) -> np.ndarray:
             return xy[int(np.argmax(ok))]
 
 
-def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
-                center: str = "afar") -> tuple[dict, np.random.Generator]:
+def draw_flight(
+    seed: int, i: int, family: FamilyArg = "afar", center: str = "afar"
+) -> tuple[dict, np.random.Generator]:
     """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the simulation."""
     from mission.geo import afar_field
     from mission.trajectory.generators import GENERATORS, trajectory_params
@@ -168,8 +191,13 @@ def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
     fld = afar_field()
     outside = bool(rng.uniform() < P_OUTSIDE)
     xy = _rover_position(fld, outside, rng)
-    d: dict = {"seed": int(seed), "index": int(i), "family": family_label(fam),
-               "tx_xy": [float(xy[0]), float(xy[1])], "tx_height_m": _u(rng, 1.0, 2.0)}
+    d: dict = {
+        "seed": int(seed),
+        "index": int(i),
+        "family": family_label(fam),
+        "tx_xy": [float(xy[0]), float(xy[1])],
+        "tx_height_m": _u(rng, 1.0, 2.0),
+    }
     d["tx_outside_flight_area"] = outside
     d["altitude_m"] = _u(rng, *ALTITUDE_RANGE_M)
     d["speed_mps"] = _u(rng, 2.0, 10.0)
@@ -185,11 +213,17 @@ def draw_flight(seed: int, i: int, family: FamilyArg = "afar",
     d["fixed_heading_deg"] = _u(rng, 0.0, 360.0)
     d["rotation_dps"] = _u(rng, 2.0, 10.0) * (1 if rng.uniform() < 0.5 else -1)
     d["attitude_perturbation_deg"] = _u(rng, 0.5, 4.0)
-    if not isinstance(fam, str):  # a physics family file: physics, residual and offset are the family's draw
+    if not isinstance(
+        fam, str
+    ):  # a physics family file: physics, residual and offset are the family's draw
         fd = fam.draw(rng)
         d["family_sha256"] = family_sha256(fam)
         d["physics"] = {"spec": fd.spec, "from_preset": None, "rx_antenna": antenna_label(fd.spec)}
-        d["shadowing_db"], d["shadowing_corr_m"], d["noise_db"] = fd.shadowing_db, fd.shadowing_corr_m, fd.noise_db
+        d["shadowing_db"], d["shadowing_corr_m"], d["noise_db"] = (
+            fd.shadowing_db,
+            fd.shadowing_corr_m,
+            fd.noise_db,
+        )
         d["time_offset_s"] = _u(rng, -0.5, 0.5)
         d["rss_offset_db"] = fd.offset_db
         return d, rng
@@ -259,7 +293,9 @@ def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -
         att = attitude_from_motion(t, pos, kin)[0]
         att[:, 2] = np.mod(att[:, 2] + 2 * np.pi * turns, 2 * np.pi)
         return att
-    att = attitude_from_motion(t, pos, replace(kin, heading_deg=0.0))[0]  # nose north: tilt = accel (n, e)
+    att = attitude_from_motion(t, pos, replace(kin, heading_deg=0.0))[
+        0
+    ]  # nose north: tilt = accel (n, e)
     a_n, a_e = -np.tan(att[:, 1]) * G, np.tan(att[:, 0]) * G
     yaw = np.deg2rad(d["fixed_heading_deg"] + d["rotation_dps"] * t)
     lim = np.deg2rad(kin.max_tilt_deg)
@@ -267,7 +303,9 @@ def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -
     return np.stack([roll, pitch, np.mod(yaw, 2 * np.pi)], axis=-1)
 
 
-def simulate_draw(d: dict, rng: np.random.Generator) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+def simulate_draw(
+    d: dict, rng: np.random.Generator
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
     """(log columns, true ENU positions (N, 3), cruise mask) of a drawn flight."""
     from mission.geo import afar_field
     from mission.physics.presets import build_model
@@ -280,7 +318,11 @@ def simulate_draw(d: dict, rng: np.random.Generator) -> tuple[dict[str, np.ndarr
     path = _path(d, fld)
     t, pos, turns = _times(d, plan_profile(path, kin), rng)
     att = _attitude(d, t, pos, turns, kin)
-    pcfg = SimConfig(dt_s=d["dt_s"], attitude_perturbation_deg=d["attitude_perturbation_deg"], perturbation_corr_s=0.3)
+    pcfg = SimConfig(
+        dt_s=d["dt_s"],
+        attitude_perturbation_deg=d["attitude_perturbation_deg"],
+        perturbation_corr_s=0.3,
+    )
     att = att + perturbation(len(t), pcfg, rng)
     att[:, 2] = np.mod(att[:, 2], 2 * np.pi)
     model = build_model(d["physics"]["spec"], name="suite")
@@ -291,12 +333,22 @@ def simulate_draw(d: dict, rng: np.random.Generator) -> tuple[dict[str, np.ndarr
     # telemetry read time_offset_s late: the logged pose of sample k is the true pose at t_k + offset
     ts = np.clip(t + d["time_offset_s"], t[0], t[-1])
     lpos = np.stack([np.interp(ts, t, pos[:, k]) for k in range(3)], axis=1)
-    latt = np.stack([np.interp(ts, t, a) for a in (att[:, 0], att[:, 1], np.unwrap(att[:, 2]))], axis=1)
+    latt = np.stack(
+        [np.interp(ts, t, a) for a in (att[:, 0], att[:, 1], np.unwrap(att[:, 2]))], axis=1
+    )
     lat, lon, _ = fld.origin.to_geodetic(lpos)
     deg = np.rad2deg(latt)
-    cols = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "alt_m": fld.origin.alt_m + lpos[:, 2],
-            "rel_alt_m": lpos[:, 2], "roll_deg": deg[:, 0], "pitch_deg": deg[:, 1],
-            "yaw_deg": np.mod(deg[:, 2], 360.0), "rss_dbm": rss}
+    cols = {
+        "t_s": t,
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": fld.origin.alt_m + lpos[:, 2],
+        "rel_alt_m": lpos[:, 2],
+        "roll_deg": deg[:, 0],
+        "pitch_deg": deg[:, 1],
+        "yaw_deg": np.mod(deg[:, 2], 360.0),
+        "rss_dbm": rss,
+    }
     cruise = np.abs(pos[:, 2] - d["altitude_m"]) < 0.5
     return cols, pos, cruise
 
@@ -315,11 +367,18 @@ def _meta(d: dict) -> dict:
     from mission.flightlog import make_meta
     from mission.geo import afar_field
 
-    return make_meta(afar_field().origin, dict(RSS_SOURCE), None, rover_area=rover_area_latlon(),
-                     source={"suite": "unseen", "seed": d["seed"], "index": d["index"]})
+    return make_meta(
+        afar_field().origin,
+        dict(RSS_SOURCE),
+        None,
+        rover_area=rover_area_latlon(),
+        source={"suite": "unseen", "seed": d["seed"], "index": d["index"]},
+    )
 
 
-def unseen_flight(seed: int, i: int, family: FamilyArg = "afar", center: str = "afar") -> SuiteFlight:
+def unseen_flight(
+    seed: int, i: int, family: FamilyArg = "afar", center: str = "afar"
+) -> SuiteFlight:
     """Flight ``i`` of the benchmark with seed ``seed`` (module docstring)."""
     from mission.flightlog import FlightLog
 
@@ -329,8 +388,13 @@ def unseen_flight(seed: int, i: int, family: FamilyArg = "afar", center: str = "
     return SuiteFlight(FlightLog(cols, _meta(d)), np.array(d["tx_xy"]), d)
 
 
-def unseen_flights(n: int, seed: int = BENCHMARK_SEED, family: FamilyArg = "afar", center: str = "afar",
-                   start: int = 0) -> list[SuiteFlight]:
+def unseen_flights(
+    n: int,
+    seed: int = BENCHMARK_SEED,
+    family: FamilyArg = "afar",
+    center: str = "afar",
+    start: int = 0,
+) -> list[SuiteFlight]:
     """Flights ``start .. start + n - 1`` of the benchmark (in memory; ~20 000 rows each)."""
     if n < 1:
         raise InputError(f"need n >= 1, got {n}", field="n")

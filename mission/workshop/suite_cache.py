@@ -39,12 +39,26 @@ FORMAT = "rfsl-suite/1"
 FINGERPRINT_SCHEME = "quantised-columns/1"
 # Quantum per log column of the fingerprint: coarse enough that another machine's last-bit float differences do
 # not flip it, fine enough that any change of what the simulation produces does (1e-7 deg ~ 1 cm).
-FINGERPRINT_STEPS = {"t_s": 1e-3, "lat_deg": 1e-7, "lon_deg": 1e-7, "alt_m": 1e-2, "rel_alt_m": 1e-2,
-                     "roll_deg": 1e-2, "pitch_deg": 1e-2, "yaw_deg": 1e-2, "rss_dbm": 1e-2}
+FINGERPRINT_STEPS = {
+    "t_s": 1e-3,
+    "lat_deg": 1e-7,
+    "lon_deg": 1e-7,
+    "alt_m": 1e-2,
+    "rel_alt_m": 1e-2,
+    "roll_deg": 1e-2,
+    "pitch_deg": 1e-2,
+    "yaw_deg": 1e-2,
+    "rss_dbm": 1e-2,
+}
 
 
 def _quantised(v, step: float) -> bytes:
-    q = np.nan_to_num(np.rint(np.asarray(v, dtype=float) / step), nan=-(2.0**62), posinf=2.0**62, neginf=-(2.0**62))
+    q = np.nan_to_num(
+        np.rint(np.asarray(v, dtype=float) / step),
+        nan=-(2.0**62),
+        posinf=2.0**62,
+        neginf=-(2.0**62),
+    )
     return q.astype(np.int64).tobytes()
 
 
@@ -73,9 +87,15 @@ def _write_one(args: tuple) -> tuple[dict, str | None]:
     return {"file": p.name, "truth_xy": f.truth_xy.tolist(), "draw": f.draw}, fp
 
 
-def write_suite(out_dir: str | Path, n: int, seed: int = BENCHMARK_SEED, family: FamilyArg = "afar",
-                center: str = "afar", workers: int = 1,
-                progress: Callable[[int, int], None] | None = None) -> dict:
+def write_suite(
+    out_dir: str | Path,
+    n: int,
+    seed: int = BENCHMARK_SEED,
+    family: FamilyArg = "afar",
+    center: str = "afar",
+    workers: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict:
     """Write flights 0..n-1 as CSV logs + sidecars and ``suite.json`` (truths, draws) into ``out_dir``.
 
     With a family file the manifest keeps the family itself (``family_record``, ``family_sha256``) beside its
@@ -93,10 +113,18 @@ def write_suite(out_dir: str | Path, n: int, seed: int = BENCHMARK_SEED, family:
         fingerprint = fp or fingerprint
         if progress:
             progress(k + 1, n)
-    man = {"format": FORMAT, "suite": "unseen", "seed": int(seed), "family": family_label(fam), "center": center,
-           "n": n, **_family_fields(fam, family),
-           "seeding": "flight i: SeedSequence([seed, SUITE_TAG=10], spawn_key=(i,))",
-           "fingerprint": {"flight": 0, "scheme": FINGERPRINT_SCHEME, "sha256": fingerprint}, "flights": rows}
+    man = {
+        "format": FORMAT,
+        "suite": "unseen",
+        "seed": int(seed),
+        "family": family_label(fam),
+        "center": center,
+        "n": n,
+        **_family_fields(fam, family),
+        "seeding": "flight i: SeedSequence([seed, SUITE_TAG=10], spawn_key=(i,))",
+        "fingerprint": {"flight": 0, "scheme": FINGERPRINT_SCHEME, "sha256": fingerprint},
+        "flights": rows,
+    }
     (out / "suite.json").write_text(json.dumps(man, indent=1, default=float))
     return man
 
@@ -104,8 +132,11 @@ def write_suite(out_dir: str | Path, n: int, seed: int = BENCHMARK_SEED, family:
 def _family_fields(fam, given: FamilyArg) -> dict:
     if isinstance(fam, str):
         return {}
-    return {"family_path": str(given) if isinstance(given, str) else None, "family_sha256": family_sha256(fam),
-            "family_record": fam.to_dict()}
+    return {
+        "family_path": str(given) if isinstance(given, str) else None,
+        "family_sha256": family_sha256(fam),
+        "family_record": fam.to_dict(),
+    }
 
 
 def _map(fn, jobs: list, workers: int):
@@ -127,11 +158,16 @@ class CachedSuite:
         self.path = Path(path)
         mf = self.path / "suite.json"
         if not mf.is_file():
-            raise InputError("not a suite folder (no suite.json; write one with rfsl dataset --suite unseen "
-                             "--logs)", source=str(self.path))
+            raise InputError(
+                "not a suite folder (no suite.json; write one with rfsl dataset --suite unseen "
+                "--logs)",
+                source=str(self.path),
+            )
         self.manifest = json.loads(mf.read_text())
         if self.manifest.get("format") != FORMAT:
-            raise InputError(f"unknown suite format {self.manifest.get('format')!r}", source=str(mf))
+            raise InputError(
+                f"unknown suite format {self.manifest.get('format')!r}", source=str(mf)
+            )
 
     def __len__(self) -> int:
         return len(self.manifest["flights"])
@@ -140,7 +176,9 @@ class CachedSuite:
         from mission.flightlog import read_flight_log
 
         r = self.manifest["flights"][i]
-        return SuiteFlight(read_flight_log(self.path / r["file"]), np.array(r["truth_xy"]), r["draw"])
+        return SuiteFlight(
+            read_flight_log(self.path / r["file"]), np.array(r["truth_xy"]), r["draw"]
+        )
 
     def family(self) -> FamilyArg:
         """The family the cache was drawn from: a built-in name, or the ``PhysicsFamily`` its manifest keeps."""
@@ -166,22 +204,37 @@ class CachedSuite:
         """A one-line warning if this cache is not what this code simulates (flight 0 re-simulated), else None."""
         fp = self.manifest.get("fingerprint")
         redo = f"rewrite it with {self.rewrite_command()}"
-        if not isinstance(fp, dict) or not fp.get("sha256") or fp.get("scheme") != FINGERPRINT_SCHEME:
-            why = ("no fingerprint in suite.json: written before fingerprints" if not isinstance(fp, dict)
-                   else f"fingerprint scheme {fp.get('scheme')!r} unknown to this code")
-            return (f"{self.path} may have been written by other simulator code than this one ({why}): its figures "
-                    f"may not be the current code's; {redo}")
+        if (
+            not isinstance(fp, dict)
+            or not fp.get("sha256")
+            or fp.get("scheme") != FINGERPRINT_SCHEME
+        ):
+            why = (
+                "no fingerprint in suite.json: written before fingerprints"
+                if not isinstance(fp, dict)
+                else f"fingerprint scheme {fp.get('scheme')!r} unknown to this code"
+            )
+            return (
+                f"{self.path} may have been written by other simulator code than this one ({why}): its figures "
+                f"may not be the current code's; {redo}"
+            )
         mf = self.manifest
         i = int(fp.get("flight", 0))
         try:
-            now = flight_fingerprint(unseen_flight(int(mf["seed"]), i, self.family(), mf.get("center", "afar")))
+            now = flight_fingerprint(
+                unseen_flight(int(mf["seed"]), i, self.family(), mf.get("center", "afar"))
+            )
         except (InputError, KeyError, ValueError) as e:
-            return (f"{self.path}: this code cannot re-simulate its flight {i} ({str(e).splitlines()[0]}): its "
-                    f"figures may not be the current code's; {redo}")
+            return (
+                f"{self.path}: this code cannot re-simulate its flight {i} ({str(e).splitlines()[0]}): its "
+                f"figures may not be the current code's; {redo}"
+            )
         if now == fp["sha256"]:
             return None
-        return (f"{self.path} was written by other simulator code than this one (fingerprint of flight {i} "
-                f"differs): its figures are not the current code's; {redo}")
+        return (
+            f"{self.path} was written by other simulator code than this one (fingerprint of flight {i} "
+            f"differs): its figures are not the current code's; {redo}"
+        )
 
 
 def read_suite(path: str | Path) -> CachedSuite:

@@ -19,8 +19,14 @@ import numpy as np
 from mission.errors import InputError
 from mission.physics.family import PhysicsFamily, load_family
 
-FAMILIES = ("afar", "generic", "afar-heavy")  # the built-in families (drawn in mission.workshop.suite)
-FamilyArg = str | PhysicsFamily  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
+FAMILIES = (
+    "afar",
+    "generic",
+    "afar-heavy",
+)  # the built-in families (drawn in mission.workshop.suite)
+FamilyArg = (
+    str | PhysicsFamily
+)  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
 
 
 def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
@@ -30,9 +36,14 @@ def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
     if str(family).lower().endswith(".json"):
         p = Path(family)
         st = p.stat() if p.is_file() else None
-        return _load_json_family(str(p.resolve()), st.st_mtime_ns if st else -1, st.st_size if st else -1)
-    raise InputError(f"unknown suite family {family!r} (expected {', '.join(FAMILIES)} or a physics family "
-                     ".json file)", field="family")
+        return _load_json_family(
+            str(p.resolve()), st.st_mtime_ns if st else -1, st.st_size if st else -1
+        )
+    raise InputError(
+        f"unknown suite family {family!r} (expected {', '.join(FAMILIES)} or a physics family "
+        ".json file)",
+        field="family",
+    )
 
 
 @lru_cache(maxsize=8)
@@ -41,17 +52,23 @@ def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
     the wrong type that ``load_family``'s checks let through (e.g. ``"schema": null``) is refused here too."""
     try:
         fam = load_family(path)
-        fam.draw(np.random.default_rng(0))  # a trial draw: a residual or offset that is not a number fails here
+        fam.draw(
+            np.random.default_rng(0)
+        )  # a trial draw: a residual or offset that is not a number fails here
         return fam
     except InputError:
         raise
     except (TypeError, ValueError, KeyError, AttributeError) as e:
-        raise InputError(f"malformed physics family ({type(e).__name__}: {e})", source=path) from None
+        raise InputError(
+            f"malformed physics family ({type(e).__name__}: {e})", source=path
+        ) from None
 
 
 def family_sha256(fam: PhysicsFamily) -> str:
     """sha256 of the family's canonical JSON: what a cache or a model records to name the family it drew from."""
-    return hashlib.sha256(json.dumps(fam.to_dict(), sort_keys=True, default=float).encode()).hexdigest()
+    return hashlib.sha256(
+        json.dumps(fam.to_dict(), sort_keys=True, default=float).encode()
+    ).hexdigest()
 
 
 def family_label(fam: str | PhysicsFamily) -> str:

@@ -76,8 +76,12 @@ class TrainConfig:
     net: dict = field(default_factory=dict)
     max_train: int | None = None  # cap the number of flights used (quick runs)
     coords: str = "relative"  # clustering: "relative" (to the strongest cluster) or "absolute"
-    max_minutes: float | None = None  # wall-time budget: stop after the epoch that passes it (best state kept)
-    altitude_normalised: bool = False  # clustering: coordinates in units of the flight's height (altitude_scale)
+    max_minutes: float | None = (
+        None  # wall-time budget: stop after the epoch that passes it (best state kept)
+    )
+    altitude_normalised: bool = (
+        False  # clustering: coordinates in units of the flight's height (altitude_scale)
+    )
 
 
 @dataclass
@@ -94,7 +98,9 @@ class TrainResult:
     meta: dict
 
 
-def load_training_data(paths: Sequence[str | Path], kind: str) -> tuple[np.ndarray, np.ndarray, dict]:
+def load_training_data(
+    paths: Sequence[str | Path], kind: str
+) -> tuple[np.ndarray, np.ndarray, dict]:
     """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of them."""
     from mission.localize.features import FeatureConfig
     from mission.workshop.dataset import load_dataset, physics_label
@@ -170,7 +176,9 @@ def _augment(xb, cfg: TrainConfig, gen):
 def validation_split(n: int, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
     """Sorted (validation, training) indices: ``val_fraction`` of the first ``max_train`` of a seeded permutation
     of ``n`` flights; the one place the split is drawn (tests recompute metrics on it)."""
-    perm = np.random.default_rng(cfg.seed).permutation(n)[: cfg.max_train]  # max_train None: every flight
+    perm = np.random.default_rng(cfg.seed).permutation(n)[
+        : cfg.max_train
+    ]  # max_train None: every flight
     n_val = max(1, int(round(cfg.val_fraction * len(perm))))
     if len(perm) - n_val < 2:
         raise InputError(f"too few flights ({len(perm)}) to train and validate")
@@ -192,10 +200,14 @@ def train(
     if cfg.features not in ("clustering", "normalised_rss"):
         raise InputError(f"unknown feature kind {cfg.features!r}", field="--features")
     if cfg.coords not in ("relative", "absolute"):
-        raise InputError(f"unknown coordinates {cfg.coords!r} (relative or absolute)", field="--coords")
+        raise InputError(
+            f"unknown coordinates {cfg.coords!r} (relative or absolute)", field="--coords"
+        )
     relative = cfg.coords == "relative" and cfg.features == "clustering"
     if cfg.altitude_normalised and cfg.features != "clustering":
-        raise InputError("altitude normalisation needs clustering features", field="--altitude-normalised")
+        raise InputError(
+            "altitude normalisation needs clustering features", field="--altitude-normalised"
+        )
     t_start = time.perf_counter()
     torch.manual_seed(cfg.seed)
     torch.use_deterministic_algorithms(True)
@@ -205,9 +217,15 @@ def train(
     if cfg.altitude_normalised:
         from mission.workshop.dataset import dataset_heights, load_dataset
 
-        scale = scale_factor(np.concatenate([dataset_heights(load_dataset(p, ("params",))[0]["params"])
-                                             for p in paths]))
-        x, y = scale_cluster_xy(x, scale).astype(np.float32), (y * scale[:, None]).astype(np.float32)
+        scale = scale_factor(
+            np.concatenate(
+                [dataset_heights(load_dataset(p, ("params",))[0]["params"]) for p in paths]
+            )
+        )
+        x, y = (
+            scale_cluster_xy(x, scale).astype(np.float32),
+            (y * scale[:, None]).astype(np.float32),
+        )
     val_idx, tr_idx = validation_split(len(x), cfg)
     n_in = x.shape[1]
     xt, yt = torch.from_numpy(x), torch.from_numpy(y)
@@ -230,11 +248,15 @@ def train(
         n_in,
     )
     n_params = count_parameters(net)
-    flops = count_flops(inner, n_in) + (2 * n_in + 6) * 2  # + the wrapper's shift / scale (negligible)
+    flops = (
+        count_flops(inner, n_in) + (2 * n_in + 6) * 2
+    )  # + the wrapper's shift / scale (negligible)
     out_std = net.out_std
     out_mean = net.out_mean
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(1, cfg.epochs), eta_min=cfg.lr * 0.01)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(
+        opt, T_max=max(1, cfg.epochs), eta_min=cfg.lr * 0.01
+    )
     gen = torch.Generator().manual_seed(cfg.seed)
     loss_fn = torch.nn.SmoothL1Loss(beta=0.1)
     best = (math.inf, -1)
@@ -332,11 +354,24 @@ def train(
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     diff = export_onnx(net, n_in, out, meta, x_val[:256])
-    write_domain(out, meta["training_data"])  # the card the runtime reads: the training's altitude, attitude
+    write_domain(
+        out, meta["training_data"]
+    )  # the card the runtime reads: the training's altitude, attitude
     res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
-    Path(str(out) + ".train.json").write_text(json.dumps(
-        {"metrics": metrics, "history": history, "seconds": round(seconds, 1), "n_params": n_params,
-         "flops": flops, "max_onnx_diff": diff, "training_data": meta["training_data"]}, indent=1))
+    Path(str(out) + ".train.json").write_text(
+        json.dumps(
+            {
+                "metrics": metrics,
+                "history": history,
+                "seconds": round(seconds, 1),
+                "n_params": n_params,
+                "flops": flops,
+                "max_onnx_diff": diff,
+                "training_data": meta["training_data"],
+            },
+            indent=1,
+        )
+    )
     return res
 
 
@@ -344,7 +379,9 @@ def _jsonable(d):
     return json.loads(json.dumps(d, default=lambda o: list(o) if isinstance(o, tuple) else str(o)))
 
 
-def export_onnx(net, n_in: int, path: str | Path, meta: dict, check_inputs=None, tol: float = 1e-4) -> float:
+def export_onnx(
+    net, n_in: int, path: str | Path, meta: dict, check_inputs=None, tol: float = 1e-4
+) -> float:
     """Export ``net`` (eval mode) to ONNX opset 17 with a dynamic batch axis, attach ``meta`` as
     metadata_props (JSON strings; ``feature_kind`` as plain text), and check onnxruntime against torch.
 
@@ -359,7 +396,9 @@ def export_onnx(net, n_in: int, path: str | Path, meta: dict, check_inputs=None,
     path = Path(path)
     net.eval()
     dummy = torch.zeros(1, n_in)
-    with warnings.catch_warnings():  # the TorchScript exporter is deprecated but needs no onnxscript
+    with (
+        warnings.catch_warnings()
+    ):  # the TorchScript exporter is deprecated but needs no onnxscript
         warnings.simplefilter("ignore", DeprecationWarning)
         warnings.filterwarnings("ignore", message="Constant folding", category=UserWarning)
         torch.onnx.export(
