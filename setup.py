@@ -1,7 +1,8 @@
-"""Build step beside pyproject.toml (which holds all the metadata): a plain, non-editable ``pip install .``
-also installs the shipped networks and missions, copied from the repository's ``models/`` and ``missions/``
-into the package as ``mission/data/models`` and ``mission/data/missions`` (``mission.shipped`` finds them).
-Editable installs skip the copy: they read the checkout's folders directly."""
+"""Build step beside pyproject.toml (which holds all the metadata): a plain, non-editable ``pip
+install .`` also installs the shipped networks and missions, copied from the repository's
+``models/`` and ``missions/`` into the package as ``mission/data/models`` and
+``mission/data/missions`` (``mission.shipped`` finds them). Editable installs skip the copy: they
+read the checkout's folders directly."""
 
 from __future__ import annotations
 

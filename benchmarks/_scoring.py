@@ -1,5 +1,6 @@
-"""Shared by the rule-scoring benchmarks (point_estimates, rover_hypotheses, fusion_network): their command line
-and the loading of one scored flight, a benchmark flight or an imported real log, with its truth."""
+"""Shared by the rule-scoring benchmarks (point_estimates, rover_hypotheses, fusion_network): their
+command line and the loading of one scored flight, a benchmark flight or an imported real log, with
+its truth."""
 
 from __future__ import annotations
 
@@ -19,8 +20,8 @@ def scoring_parser(doc: str | None) -> argparse.ArgumentParser:
 
 
 def flight_with_truth(kind: str, src: str, i: int):
-    """(FlightLog, truth xy in its ENU frame) of benchmark flight ``i`` of the cache ``src`` (kind "suite") or
-    of the imported real log at ``src`` (kind "real", truth from its sidecar)."""
+    """(FlightLog, truth xy in its ENU frame) of benchmark flight ``i`` of the cache ``src`` (kind
+    "suite") or of the imported real log at ``src`` (kind "real", truth from its sidecar)."""
     from mission.flightlog import read_flight_log
     from mission.workshop.suite_cache import read_suite
 

@@ -1,19 +1,22 @@
-"""Adaptive finish vs the fixed spiral at equal flight budget, on the fast simulator under a physics family.
+"""Adaptive finish vs the fixed spiral at equal flight budget, on the fast simulator under a physics
+family.
 
     nice -n 10 python benchmarks/bench_adaptive.py --flights 40 --jobs 2      # a few minutes on 2 cores
     python benchmarks/bench_adaptive.py --flights 4 --set altitude_m=15        # a variant of the adaptive block
 
-Each flight i draws its physics from the family (``load_family``; ``afar`` by default, a fitted JSON later),
-its transmitter uniformly in the rover area and one shadowing map (``simflight.FlightWorld``, seed
-``SeedSequence(seed, spawn_key=(i,))``); the fixed mission (the whole spiral) and the adaptive one (its first
-``survey_s`` s, then rounds planned from the live estimate) fly in that same world within the same 10-minute
-budget, and both are scored with the live estimator (``selfcal``, what ``fly-mission`` and ``localize --at``
-use).  Reported: mean error with its bootstrap 90 % interval, the paired difference adaptive - fixed with its
-interval (``mission.evidence``), p90 error, 90 % region coverage and area, flight time, and the 3-minute
+Each flight i draws its physics from the family (``load_family``; ``afar`` by default, a fitted JSON
+later), its transmitter uniformly in the rover area and one shadowing map
+(``simflight.FlightWorld``, seed ``SeedSequence(seed, spawn_key=(i,))``); the fixed mission (the
+whole spiral) and the adaptive one (its first ``survey_s`` s, then rounds planned from the live
+estimate) fly in that same world within the same 10-minute budget, and both are scored with the live
+estimator (``selfcal``, what ``fly-mission`` and ``localize --at`` use).  Reported: mean error with
+its bootstrap 90 % interval, the paired difference adaptive - fixed with its interval
+(``mission.evidence``), p90 error, 90 % region coverage and area, flight time, and the 3-minute
 (fast) estimate, identical for both while the survey lasts at least 3 minutes.
 
-Rule written before scoring: the adaptive finish "halves the error" only if its mean is at most half the fixed
-spiral's and the paired interval of the difference excludes zero; otherwise the table says what it reached.
+Rule written before scoring: the adaptive finish "halves the error" only if its mean is at most half
+the fixed spiral's and the paired interval of the difference excludes zero; otherwise the table says
+what it reached.
 """
 
 from __future__ import annotations

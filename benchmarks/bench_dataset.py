@@ -2,9 +2,9 @@
 
 python benchmarks/bench_dataset.py [--n 60] [--workers 1 2] [--randomise | --suite] [--features clustering]
 
-Prints wall-clock flights/s and CPU milliseconds per flight (this process and its workers): on a shared,
-busy machine the CPU figure is the robust one (flights/s on k idle cores ~= k * 1000 / cpu_ms); the load
-average at the end of each run is printed with it.
+Prints wall-clock flights/s and CPU milliseconds per flight (this process and its workers): on a
+shared, busy machine the CPU figure is the robust one (flights/s on k idle cores ~= k * 1000 /
+cpu_ms); the load average at the end of each run is printed with it.
 """
 
 from __future__ import annotations

@@ -1,20 +1,22 @@
-"""Benchmark: the default ``localize`` on ~20 000-sample flights, after start-up (wall and CPU seconds).
+"""Benchmark: the default ``localize`` on ~20 000-sample flights, after start-up (wall and CPU
+seconds).
 
-What is timed, per flight, ``--repeat`` times (median, min, max): ``localize_log(path)`` with no method, i.e.
-the real-log default ``fusion`` (self-calibrating grid + ``models/rfsl_spiral_e2r.onnx``), from reading the
-CSV to the estimate with its uncertainty regions; then its parts (CSV read + sample selection, the
-self-calibrating grid, the network: features + inference).  Wall seconds (``perf_counter``) and this
-process's CPU seconds (``process_time``: all its threads) are both printed with the load average, so a figure
-taken on a shared machine can be judged.  Target: wall < 1 s per flight.
+What is timed, per flight, ``--repeat`` times (median, min, max): ``localize_log(path)`` with no
+method, i.e. the real-log default ``fusion`` (self-calibrating grid +
+``models/rfsl_spiral_e2r.onnx``), from reading the CSV to the estimate with its uncertainty regions;
+then its parts (CSV read + sample selection, the self-calibrating grid, the network: features +
+inference).  Wall seconds (``perf_counter``) and this process's CPU seconds (``process_time``: all
+its threads) are both printed with the load average, so a figure taken on a shared machine can be
+judged.  Target: wall < 1 s per flight.
 
-Start-up, timed once and printed separately: importing the package and its numerical libraries, creating the
-onnxruntime session, and the first (warm-up) call.  The default path creates its session on every call (a few
-ms, included in the per-flight figure).
+Start-up, timed once and printed separately: importing the package and its numerical libraries,
+creating the onnxruntime session, and the first (warm-up) call.  The default path creates its
+session on every call (a few ms, included in the per-flight figure).
 
-Flights: the six real AFAR flights of ``../shared/data/afar2023/mat`` (20 500-22 000 rows each; imported
-into a temporary folder), else / also (``--sim``) a simulated spiral flight of ``--samples`` samples written
-as a real receiver's log.  ``--threads N`` sets ``RFSL_THREADS`` (k-means and onnxruntime threads; default 1,
-0 = the libraries' own choice, i.e. no limit).
+Flights: the six real AFAR flights of ``../shared/data/afar2023/mat`` (20 500-22 000 rows each;
+imported into a temporary folder), else / also (``--sim``) a simulated spiral flight of
+``--samples`` samples written as a real receiver's log.  ``--threads N`` sets ``RFSL_THREADS``
+(k-means and onnxruntime threads; default 1, 0 = the libraries' own choice, i.e. no limit).
 
     python benchmarks/bench_localize.py [--flights all|N] [--sim] [--samples 20000] [--repeat 5] [--threads 1]
     python benchmarks/bench_localize.py --method evidence --flights 2 --repeat 3   # the evidence stage
@@ -61,7 +63,8 @@ def _load() -> str:
 
 
 def simulated_log(folder: Path, n: int, seed: int = 0) -> Path:
-    """A spiral flight of the default mission, repeated to ``n`` samples, written as a real receiver's log."""
+    """A spiral flight of the default mission, repeated to ``n`` samples, written as a real
+    receiver's log."""
     import numpy as np
 
     from mission.defaults import DEFAULT_TX_HEIGHT_M

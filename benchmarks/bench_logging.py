@@ -1,9 +1,10 @@
-"""Benchmark of the flight logging path: RSS rows per second the runner sustains, CPU per flight-minute.
+"""Benchmark of the flight logging path: RSS rows per second the runner sustains, CPU per
+flight-minute.
 
-Flies ``missions/spiral.yaml`` with ``fly-mission`` against the simulated vehicle at high speed-ups and
-reports, per speed-up: rows logged per wall-clock second, coverage of the expected samples, and the CPU
-seconds (user + system) of the runner and of the vehicle per minute of flown (vehicle) time.  The CPU of
-each process is read from ``resource.getrusage(RUSAGE_CHILDREN)`` after it exits.
+Flies ``missions/spiral.yaml`` with ``fly-mission`` against the simulated vehicle at high speed-ups
+and reports, per speed-up: rows logged per wall-clock second, coverage of the expected samples, and
+the CPU seconds (user + system) of the runner and of the vehicle per minute of flown (vehicle) time.
+The CPU of each process is read from ``resource.getrusage(RUSAGE_CHILDREN)`` after it exits.
 
     python benchmarks/bench_logging.py [--speedups 20 50 100] [--mission missions/spiral.yaml]
 """
@@ -27,7 +28,8 @@ def _cpu() -> float:
 
 
 def run_one(mission: Path, speedup: float) -> dict:
-    """One flight; returns rows, wall seconds, coverage and CPU per flight-minute (runner incl. vehicle)."""
+    """One flight; returns rows, wall seconds, coverage and CPU per flight-minute (runner incl.
+    vehicle)."""
     import dataclasses
     import json
 

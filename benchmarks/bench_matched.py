@@ -1,20 +1,22 @@
-"""Benchmark: the track-matched localizer (``localize --method matched``): time, and accuracy with intervals.
+"""Benchmark: the track-matched localizer (``localize --method matched``): time, and accuracy with
+intervals.
 
 Modes (``--mode``):
 
-- ``time``: ``localize_log(path, method="matched")`` on ~20 000-sample flights (the six real AFAR flights of
-  ``../shared`` imported to a temporary folder, else a simulated suite flight), wall and CPU seconds with the
-  load average.  Target: under 60 s per flight on 2 cores.
-- ``real``: the six real flights: per-flight error of matched, the default (``fusion``) and ``selfcal``, mean
-  with its bootstrap interval over flights and over teams (288, 328), the paired difference to the default
-  (``mission.evidence``), and whether each method's 50 % / 90 % region holds the truth.
-  With ``--held-out-family TEAM=F.json`` (repeatable) a team's flights are localized by matched under a family
-  fitted without them (``rfsl gap --family`` on the other team's three flights): matched's real figure held out
-  by team.  Question written 2026-11-26 before the two team families were fitted: how far does matched's real
-  error (84.9 m with the family fitted on all six flights) move when its family has not seen the flight's team?
-  Reported with its interval; no decision hangs on it (matched is not a default candidate: see models/README.md).
-- ``sim``: ``--n`` flights of the unseen-flight suite drawn from the physics family (``--family``, default the
-  shipped ``mission/data/afar_family.json``; benchmark seed 2026): the same columns.
+- ``time``: ``localize_log(path, method="matched")`` on ~20 000-sample flights (the six real AFAR
+  flights of ``../shared`` imported to a temporary folder, else a simulated suite flight), wall and
+  CPU seconds with the load average.  Target: under 60 s per flight on 2 cores.
+- ``real``: the six real flights: per-flight error of matched, the default (``fusion``) and
+  ``selfcal``, mean with its bootstrap interval over flights and over teams (288, 328), the paired
+  difference to the default (``mission.evidence``), and whether each method's 50 % / 90 % region
+  holds the truth. With ``--held-out-family TEAM=F.json`` (repeatable) a team's flights are
+  localized by matched under a family fitted without them (``rfsl gap --family`` on the other team's
+  three flights): matched's real figure held out by team.  Question written 2026-11-26 before the
+  two team families were fitted: how far does matched's real error (84.9 m with the family fitted on
+  all six flights) move when its family has not seen the flight's team? Reported with its interval;
+  no decision hangs on it (matched is not a default candidate: see models/README.md).
+- ``sim``: ``--n`` flights of the unseen-flight suite drawn from the physics family (``--family``,
+  default the shipped ``mission/data/afar_family.json``; benchmark seed 2026): the same columns.
 
     python benchmarks/bench_matched.py --mode time [--flights 2]
     python benchmarks/bench_matched.py --mode real --json out.json
@@ -66,7 +68,8 @@ def real_logs(folder: Path) -> list[tuple[str, Path]]:
 
 
 def score(log, truth_xy, methods=METHODS) -> dict:
-    """Error (m), seconds and region coverage of each method on one log (``truth_xy`` in the log's frame)."""
+    """Error (m), seconds and region coverage of each method on one log (``truth_xy`` in the log's
+    frame)."""
     from mission.localize.api import localize_log
     from mission.localize.uncertainty import region_covers
 
@@ -86,7 +89,8 @@ def score(log, truth_xy, methods=METHODS) -> dict:
 
 
 def use_family(family: str) -> None:
-    """The matched localizer draws from ``family`` in this process (``localize_log`` builds it with the default)."""
+    """The matched localizer draws from ``family`` in this process (``localize_log`` builds it with
+    the default)."""
     import mission.localize.matched as matched
 
     matched.DEFAULT_FAMILY = family
@@ -102,7 +106,8 @@ def _sim_one(args: tuple[int, int, str, tuple[str, ...]]) -> dict:
 
 
 def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dict:
-    """Means with intervals (over flights, and teams when given), paired differences to fusion, coverage."""
+    """Means with intervals (over flights, and teams when given), paired differences to fusion,
+    coverage."""
     from mission.evidence import compare_methods
 
     errs = {m: [r[m]["error_m"] for r in rows] for m in methods}

@@ -34,7 +34,8 @@ def _flight(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _time(fn, repeat: int) -> tuple[float, float]:
-    """Best wall time and best CPU time (process_time: robust when other processes share the core)."""
+    """Best wall time and best CPU time (process_time: robust when other processes share the
+    core)."""
     wall = cpu = float("inf")
     for _ in range(repeat):
         t0, c0 = time.perf_counter(), time.process_time()

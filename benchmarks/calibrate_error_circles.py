@@ -1,18 +1,22 @@
-"""Calibrate and check the error circles of estimates without a posterior (``mission/localize/error_circles.py``).
+"""Calibrate and check the error circles of estimates without a posterior
+(``mission/localize/error_circles.py``).
 
-Calibration (``--write`` stores it: networks in their card ``models/<name>.json`` key ``regions``, the classical
-methods in ``mission/data/method_circles.json``):
+Calibration (``--write`` stores it: networks in their card ``models/<name>.json`` key ``regions``,
+the classical methods in ``mission/data/method_circles.json``):
 
-- ``sim``: a network on ``--sim-n`` simulated flights (seed ``--sim-seed``, never trained on) of the domain where
-  ``localize`` uses it on simulated logs (``SIM_DOMAINS``): the spiral networks on their spirals, ``rfsl_default``
-  on every other generator at 20-47 m (its training altitudes), ``rfsl_afar`` on its AFAR-physics check domain; a
-  classical method on ``rfsl simulate`` logs of the five generator missions (``--method-seeds``);
-- ``real``: the unseen-flight benchmark caches given by ``--calib-dirs`` (seeds 2027 and 2028 of the reality-fitted
-  family ``mission/data/afar_family.json``, the output of ``rfsl gap --family`` on the six real flights).
+- ``sim``: a network on ``--sim-n`` simulated flights (seed ``--sim-seed``, never trained on) of the
+  domain where ``localize`` uses it on simulated logs (``SIM_DOMAINS``): the spiral networks on
+  their spirals, ``rfsl_default`` on every other generator at 20-47 m (its training altitudes),
+  ``rfsl_afar`` on its AFAR-physics check domain; a classical method on ``rfsl simulate`` logs of
+  the five generator missions (``--method-seeds``);
+- ``real``: the unseen-flight benchmark caches given by ``--calib-dirs`` (seeds 2027 and 2028 of the
+  reality-fitted family ``mission/data/afar_family.json``, the output of ``rfsl gap --family`` on
+  the six real flights).
 
-Check (held out, ``--check-dir`` and ``--mat``): coverage on the benchmark seed 2026 and on the six real AFAR
-flights, and on simulated logs of the product path (``--product-seeds``: ``benchmarks/sim_default.py``'s sets,
-``localize``'s default and each classical method on ``rfsl simulate`` logs).
+Check (held out, ``--check-dir`` and ``--mat``): coverage on the benchmark seed 2026 and on the six
+real AFAR flights, and on simulated logs of the product path (``--product-seeds``:
+``benchmarks/sim_default.py``'s sets, ``localize``'s default and each classical method on ``rfsl
+simulate`` logs).
 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2027 \\
         --out /tmp/suite_2027                                                          # and 2028, 2026
@@ -46,8 +50,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
 def calibration_record(
     errors, source: str, model_path: str | Path | None = None, levels: tuple[float, ...] = LEVELS
 ) -> dict:
-    """What is stored for one domain: radii per level, the number of flights, where they came from and, for a
-    network, the digest of the model file they were measured on."""
+    """What is stored for one domain: radii per level, the number of flights, where they came from
+    and, for a network, the digest of the model file they were measured on."""
     e = np.asarray(errors, dtype=float)
     radii = {f"{lv:g}": round(conformal_quantile(e, lv), 2) for lv in levels}
     if not all(math.isfinite(r) for r in radii.values()):
@@ -121,7 +125,8 @@ def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
 
 
 def _run(est, truth) -> tuple[float, dict, str, float]:
-    """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where clipped)."""
+    """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where
+    clipped)."""
     from mission.localize.uncertainty import outer_region
     from mission.workshop.evaluate_suite import _coverage
 
@@ -146,7 +151,8 @@ def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
 
 
 def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str, float]:
-    """(error, coverage, answered by) on one ``rfsl simulate`` log of a mission (``kw`` {} = the default)."""
+    """(error, coverage, answered by) on one ``rfsl simulate`` log of a mission (``kw`` {} = the
+    default)."""
     from sim_default import simulate_log
 
     from mission.localize.api import localize_log
@@ -191,7 +197,8 @@ def real_runs(name: str, mat: str) -> list[tuple[float, dict, str, float]]:
 
 
 def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
-    """'mean m, truth in 50 % / 90 %, the 90 % region's mean share of its circle' over per-flight runs."""
+    """'mean m, truth in 50 % / 90 %, the 90 % region's mean share of its circle' over per-flight
+    runs."""
     e = np.array([r[0] for r in runs])
     cov = {lv: np.mean([r[1].get(lv, False) for r in runs]) for lv in ("50", "90")}
     by = ", ".join(sorted({r[2] for r in runs}))
@@ -205,7 +212,8 @@ def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
 
 
 def product_check(seeds: str, methods: list[str]) -> None:
-    """Coverage on simulated logs of the product path (``sim_default.SETS``): the default and each method."""
+    """Coverage on simulated logs of the product path (``sim_default.SETS``): the default and each
+    method."""
     from sim_default import SETS, mission_variant
 
     lo, hi = (int(v) for v in seeds.split(":"))
@@ -221,8 +229,8 @@ def product_check(seeds: str, methods: list[str]) -> None:
 
 
 def benchmark_label(dirs: list[str]) -> str:
-    """'unseen-flight benchmark, FAMILY family (seeds ...)' for the caches ``dirs`` (the family their manifests
-    name: a built-in name, or a family file's name and sha256 prefix)."""
+    """'unseen-flight benchmark, FAMILY family (seeds ...)' for the caches ``dirs`` (the family
+    their manifests name: a built-in name, or a family file's name and sha256 prefix)."""
     from mission.workshop.suite_cache import read_suite
 
     fams = sorted({str(read_suite(d).manifest.get("family", "afar")) for d in dirs})
@@ -231,7 +239,8 @@ def benchmark_label(dirs: list[str]) -> str:
 
 
 def store(name: str, regions: dict) -> None:
-    """Write a calibration: a network's into its card, a classical method's into method_circles.json."""
+    """Write a calibration: a network's into its card, a classical method's into
+    method_circles.json."""
     from mission.localize.error_circles import METHOD_CIRCLES, REGIONS_KEY
 
     path = METHOD_CIRCLES if name in CIRCLE_METHODS else REPO / "models" / f"{name}.json"

@@ -4,25 +4,31 @@ Usage::
 
     nice -n 5 python benchmarks/calibrate_real_afar.py [--out /tmp/calib_real] [--write-preset] [--choose CONFIG]
 
-Data: the six flights of ``../shared/data/afar2023/mat`` (truth: ``../shared/data/README.md``), cruise part
-only (``mission.localize.preprocess.cruise_mask``: climb/descent are ~17 dB off).  Team 288 location 3 has a
-suspect label (its strong-RSS region is ~148 m from it): it is never fitted on and is reported separately.
+Data: the six flights of ``../shared/data/afar2023/mat`` (truth: ``../shared/data/README.md``),
+cruise part only (``mission.localize.preprocess.cruise_mask``: climb/descent are ~17 dB off).  Team
+288 location 3 has a suspect label (its strong-RSS region is ~148 m from it): it is never fitted on
+and is reported separately.
 
-Scores (always on samples not used for fitting): per flight, the measured RSS minus the model after the best
-constant offset (the receiver's dB are uncalibrated; median + one soft-L1 step, ``mission.gap.fit``), as
-median and 90th percentile of |error|; and the error of ``ModelGridSearch`` with the model.
+Scores (always on samples not used for fitting): per flight, the measured RSS minus the model after
+the best constant offset (the receiver's dB are uncalibrated; median + one soft-L1 step,
+``mission.gap.fit``), as median and 90th percentile of |error|; and the error of ``ModelGridSearch``
+with the model.
 
-1. Attitude conventions: measured UAV pattern mounted upside down (azimuth-dependent) with its heading
-   fitted, attitude as logged / roll sign flipped / pitch sign flipped / yaw sign flipped / yaw + 180 / yaw only /
-   none; leave-one-flight-out (LOFO) over the five good flights and leave-one-team-out (LOTO).  Also the
-   azimuth handedness of the pattern: the measured table vs its mirror image (az -> -az).
-2. Model configurations (UAV pattern, rover pattern, ground ray, leg-shadowing beta, path-gain slope), each
-   fitted (soft-L1, per-flight offsets, Nelder-Mead from a start grid) on the training flights.  LOTO: fit on
-   team 328 (3 flights), test on team 288 locations 1-2, and vice versa; LOFO as a second view.
-3. Localization per flight with the LOTO-fitted model vs free space (isotropic) and the default e2r (dipole);
-   the censoring floor (``ModelGridSearch.floor_db``) chosen on the training team, applied to the test team.
+1. Attitude conventions: measured UAV pattern mounted upside down (azimuth-dependent) with its
+   heading fitted, attitude as logged / roll sign flipped / pitch sign flipped / yaw sign flipped /
+   yaw + 180 / yaw only / none; leave-one-flight-out (LOFO) over the five good flights and
+   leave-one-team-out (LOTO).  Also the azimuth handedness of the pattern: the measured table vs its
+   mirror image (az -> -az).
+2. Model configurations (UAV pattern, rover pattern, ground ray, leg-shadowing beta, path-gain
+   slope), each fitted (soft-L1, per-flight offsets, Nelder-Mead from a start grid) on the training
+   flights.  LOTO: fit on team 328 (3 flights), test on team 288 locations 1-2, and vice versa; LOFO
+   as a second view.
+3. Localization per flight with the LOTO-fitted model vs free space (isotropic) and the default e2r
+   (dipole); the censoring floor (``ModelGridSearch.floor_db``) chosen on the training team, applied
+   to the test team.
 4. ``--write-preset``: the chosen configuration refitted on all five good flights ->
-   ``mission/data/afar_calibration.json`` (with the LOTO fold fits, used by ``tests/test_presets.py``).
+   ``mission/data/afar_calibration.json`` (with the LOTO fold fits, used by
+   ``tests/test_presets.py``).
 """
 
 from __future__ import annotations
@@ -57,7 +63,8 @@ ATT_VARIANTS = {
 }
 
 
-# ------------------------------------------------------------------------------------------------ data
+# ------------------------------------------------------------------------------------------------
+# data
 
 
 def load_flights(min_height_m: float = 10.0):
@@ -74,12 +81,14 @@ def by_name(flights, names):
 
 
 # ------------------------------------------------------------------------------ scoring and fitting
-# One home: mission.calibrate (``rfsl calibrate``) holds the configurations, the fit and the held-out scores;
-# this script adds the AFAR-specific experiments (attitude conventions, handedness, censoring floor).
+# One home: mission.calibrate (``rfsl calibrate``) holds the configurations, the fit and the
+# held-out scores; this script adds the AFAR-specific experiments (attitude conventions, handedness,
+# censoring floor).
 
 
 def _att(att_variant: str):
-    """The attitude transform of an ``ATT_VARIANTS`` name for ``mission.calibrate`` (None = as logged)."""
+    """The attitude transform of an ``ATT_VARIANTS`` name for ``mission.calibrate`` (None = as
+    logged)."""
     if att_variant == "logged":
         return None
     fn = ATT_VARIANTS[att_variant]
@@ -97,7 +106,8 @@ def fit_config(
     return _cal.fit_config(cfg, flights, max_samples, max_evals, _att(att_variant))
 
 
-# ---------------------------------------------------------------------------------------------- splits
+# ----------------------------------------------------------------------------------------------
+# splits
 
 GOOD = ["288-loc1", "288-loc2", "328-loc1", "328-loc2", "328-loc3"]
 LOTO = {
@@ -133,7 +143,8 @@ def pooled(res: dict, names=GOOD) -> dict:
     }
 
 
-# -------------------------------------------------------------------------------------------- localize
+# --------------------------------------------------------------------------------------------
+# localize
 
 
 def localize(model, f, att_variant: str = "logged", floor_db: float | None = None) -> float:
@@ -155,7 +166,8 @@ def localize(model, f, att_variant: str = "logged", floor_db: float | None = Non
     return float(np.hypot(e.x_m - f.tx_enu_m[0], e.y_m - f.tx_enu_m[1]))
 
 
-# ------------------------------------------------------------------------------------------------ main
+# ------------------------------------------------------------------------------------------------
+# main
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -305,7 +317,8 @@ def main(argv: list[str] | None = None) -> int:
                     + f"  ({time.time() - t0:.0f} s)",
                     flush=True,
                 )
-        # receiver noise floor (censoring, ModelGridSearch.floor_db) chosen on the training team's flights
+        # receiver noise floor (censoring, ModelGridSearch.floor_db) chosen on the training team's
+        # flights
         floors = (None, 25.0, 30.0, 35.0, 40.0)
         summary["floor_loto"] = {}
         for fold, (train, test) in LOTO.items():

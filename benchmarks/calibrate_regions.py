@@ -1,10 +1,12 @@
-"""Calibrate the self-calibrating posterior's HPD masses on the unseen-flight benchmark (``selfcal.CALIBRATED_MASS``).
+"""Calibrate the self-calibrating posterior's HPD masses on the unseen-flight benchmark
+(``selfcal.CALIBRATED_MASS``).
 
-Why: the tempered likelihood is not an exact posterior, so an HPD set of mass 0.9 need not hold the truth 90 % of
-the time.  For every benchmark flight the truth's HPD level ``q`` (``Posterior.hpd_level``: the mass of the cells
-more probable than the truth's) is recorded; the set of mass M covers the truth exactly when ``q < M``, so the
-50th / 90th percentiles of ``q`` over the flights are the masses that cover at the nominal rates.  Printed with
-the coverage per seed, leave-one-seed-out and 5-fold (seeded) cross-validated coverage.
+Why: the tempered likelihood is not an exact posterior, so an HPD set of mass 0.9 need not hold the
+truth 90 % of the time.  For every benchmark flight the truth's HPD level ``q``
+(``Posterior.hpd_level``: the mass of the cells more probable than the truth's) is recorded; the set
+of mass M covers the truth exactly when ``q < M``, so the 50th / 90th percentiles of ``q`` over the
+flights are the masses that cover at the nominal rates.  Printed with the coverage per seed,
+leave-one-seed-out and 5-fold (seeded) cross-validated coverage.
 
 Usage (the shipped masses: three seeds of the ``afar`` family, 500 flights, 33 s on 2 cores)::
 
@@ -24,8 +26,8 @@ LEVELS = (0.5, 0.9)
 
 
 def truth_level(job: tuple[int | str, int, str]) -> float:
-    """The truth's HPD level under the default selfcal posterior on benchmark flight ``i`` of ``seed`` (or of
-    the benchmark cache folder ``seed`` names)."""
+    """The truth's HPD level under the default selfcal posterior on benchmark flight ``i`` of
+    ``seed`` (or of the benchmark cache folder ``seed`` names)."""
     from mission.localize.api import localize_log
     from mission.workshop.suite import unseen_flight
     from mission.workshop.suite_cache import read_suite
@@ -39,7 +41,8 @@ def truth_level(job: tuple[int | str, int, str]) -> float:
 
 
 def masses(q: np.ndarray) -> dict[float, float]:
-    """Nominal level -> the HPD mass that covers the truths ``q`` at that rate (their percentile)."""
+    """Nominal level -> the HPD mass that covers the truths ``q`` at that rate (their
+    percentile)."""
     return {lev: float(np.percentile(q, 100 * lev)) for lev in LEVELS}
 
 

@@ -1,15 +1,17 @@
-"""Calibrate a network's error circles for full *and partial* flights (``track`` in its card's ``sim`` record).
+"""Calibrate a network's error circles for full *and partial* flights (``track`` in its card's
+``sim`` record).
 
 Why: an aborted flight (a third of the spiral) printed the full flight's 12 m circle and missed by
-51 m.  Mondrian (stratified) conformal prediction: on ``rfsl simulate`` logs of the spiral (the product path:
-take-off, return, landing, phase column), each log is cut to the first ``f`` of its mission legs (an abort:
-``truncate``), the network localizes it, and ``training_domain.track_coverage`` measures the share of the planned
-track flown (``c``).  The flights are split into strata of ``c`` (from the lowest seen, 0.5, 0.9) and each
-stratum's circles are the conformal radii of its own errors (``error_circles.flown_radii``).  Flights: per
-``--seeds`` seed one full flight and one cut at ``f ~ U(0.2, 1)``; per ``--check-seeds`` seed cuts at 1/3, 2/3
-and 1.  Coverage is reported held out: 5-fold over seeds (each fold's circles fitted on the other folds), per
-kind of cut.  A power law ``error ~ c ** -a`` (normalised conformal) was tried first and under-covered the
-2/3 cuts (78 % at 90 %): errors do not scale as one power of the coverage.
+51 m.  Mondrian (stratified) conformal prediction: on ``rfsl simulate`` logs of the spiral (the
+product path: take-off, return, landing, phase column), each log is cut to the first ``f`` of its
+mission legs (an abort: ``truncate``), the network localizes it, and
+``training_domain.track_coverage`` measures the share of the planned track flown (``c``).  The
+flights are split into strata of ``c`` (from the lowest seen, 0.5, 0.9) and each stratum's circles
+are the conformal radii of its own errors (``error_circles.flown_radii``).  Flights: per ``--seeds``
+seed one full flight and one cut at ``f ~ U(0.2, 1)``; per ``--check-seeds`` seed cuts at 1/3, 2/3
+and 1.  Coverage is reported held out: 5-fold over seeds (each fold's circles fitted on the other
+folds), per kind of cut.  A power law ``error ~ c ** -a`` (normalised conformal) was tried first and
+under-covered the 2/3 cuts (78 % at 90 %): errors do not scale as one power of the coverage.
 
     python benchmarks/calibrate_track_circles.py --model rfsl_spiral_e2r_ens5 --alts 30 \\
         --seeds 3100:3300 --check-seeds 3400:3460 --rows /tmp/track.npy --write   # ~20 min on 2 busy cores
@@ -40,8 +42,8 @@ CHECK_FRACTIONS = (1 / 3, 2 / 3, 1.0)
 
 
 def truncate(log, fraction: float):
-    """The log of a flight aborted after the first ``fraction`` of its mission-phase samples (later mission
-    rows dropped; take-off, return and landing rows kept)."""
+    """The log of a flight aborted after the first ``fraction`` of its mission-phase samples (later
+    mission rows dropped; take-off, return and landing rows kept)."""
     ph = np.asarray(log["phase"]).astype(str)
     mission = ph == "mission"
     keep = ~mission | (np.cumsum(mission) <= fraction * mission.sum())
@@ -49,8 +51,9 @@ def truncate(log, fraction: float):
 
 
 def _runs(job: tuple[str, str, int, tuple[float, ...]]) -> list[tuple[float, float, float]]:
-    """(cut fraction, track coverage, error m) of network ``model`` on one simulated log cut at each fraction
-    (``fractions`` empty: one full flight and one cut drawn in [MIN_FRACTION, 1] from the seed)."""
+    """(cut fraction, track coverage, error m) of network ``model`` on one simulated log cut at each
+    fraction (``fractions`` empty: one full flight and one cut drawn in [MIN_FRACTION, 1] from the
+    seed)."""
     from sim_default import simulate_log
 
     from mission.flightlog import read_flight_log
@@ -91,8 +94,8 @@ def stratum(c: np.ndarray, bounds: list[float]) -> np.ndarray:
 
 
 def fit(rows: np.ndarray, source: str) -> dict:
-    """The ``track`` record: per coverage stratum (from the lowest coverage seen, 0.5, 0.9) the conformal radii
-    of the errors of the flights in it."""
+    """The ``track`` record: per coverage stratum (from the lowest coverage seen, 0.5, 0.9) the
+    conformal radii of the errors of the flights in it."""
     from mission.evidence import conformal_quantile
 
     bounds = [round(float(np.min(rows[:, 2])) - 0.005, 2), *STRATA]
@@ -111,8 +114,8 @@ def fit(rows: np.ndarray, source: str) -> dict:
 
 
 def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
-    """Coverage of the circles fitted without each fold of seeds, on that fold: per cut kind (1/3, 2/3, random
-    cuts, full flights)."""
+    """Coverage of the circles fitted without each fold of seeds, on that fold: per cut kind (1/3,
+    2/3, random cuts, full flights)."""
     from mission.localize.error_circles import flown_radii
 
     seeds = np.unique(rows[:, 0])

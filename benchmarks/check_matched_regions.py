@@ -1,26 +1,30 @@
-"""Do ``localize --method matched``'s 50 % and 90 % regions hold the truth at their nominal rates on the family's
-benchmark flights?  Paired against the masses of the previous self-check on the same flights.
+"""Do ``localize --method matched``'s 50 % and 90 % regions hold the truth at their nominal rates on
+the family's benchmark flights?  Paired against the masses of the previous self-check on the same
+flights.
 
-Acceptance rule (written 2026-11-25 before any figure of this script was measured): on the first ``--n`` = 30
-flights of the shipped family's benchmark cache, seed 2026 (``rfsl dataset --suite unseen --logs --family
-mission/data/afar_family.json --n 200 --seed 2026``), the share of truths inside matched's 50 % and 90 % regions
-must lie within 5 points of nominal (45-55 %, 85-95 %).  Each share is reported with its exact 90 % binomial
-(Clopper-Pearson) interval (``mission.evidence.coverage_interval``): with n = 30 that interval is about +-15 points
-at 50 % and +-9 at 90 %, so a pass says the regions are not shown to miss, not that they are within 5 points; a
+Acceptance rule (written 2026-11-25 before any figure of this script was measured): on the first
+``--n`` = 30 flights of the shipped family's benchmark cache, seed 2026 (``rfsl dataset --suite
+unseen --logs --family mission/data/afar_family.json --n 200 --seed 2026``), the share of truths
+inside matched's 50 % and 90 % regions must lie within 5 points of nominal (45-55 %, 85-95 %).  Each
+share is reported with its exact 90 % binomial (Clopper-Pearson) interval
+(``mission.evidence.coverage_interval``): with n = 30 that interval is about +-15 points at 50 % and
++-9 at 90 %, so a pass says the regions are not shown to miss, not that they are within 5 points; a
 share whose interval excludes nominal fails whatever its point value.
 
-Second question (written 2026-11-26 before flights 60-119 were run; the method unchanged since 691a553, which
-flights 0-59 were measured with): the first rule failed at 90 % by one flight (29 / 30), and with n = 30 a region
-of exactly nominal coverage fails it about a third of the time (P(>= 29 of 30) = 0.18 at 90 %, P(<= 25) = 0.18).
-Is the union's over-coverage real?  Flights 60-119 (``--first 60 --n 60``) are run fresh; the verdict is read off
-the 120 flights 0-119 pooled: the union's shares within 5 points of nominal and their 90 % binomial intervals
-holding nominal, as above.  The fresh 60 are reported alone beside it.  This does not undo the first verdict.
+Second question (written 2026-11-26 before flights 60-119 were run; the method unchanged since
+691a553, which flights 0-59 were measured with): the first rule failed at 90 % by one flight (29 /
+30), and with n = 30 a region of exactly nominal coverage fails it about a third of the time (P(>=
+29 of 30) = 0.18 at 90 %, P(<= 25) = 0.18). Is the union's over-coverage real?  Flights 60-119
+(``--first 60 --n 60``) are run fresh; the verdict is read off the 120 flights 0-119 pooled: the
+union's shares within 5 points of nominal and their 90 % binomial intervals holding nominal, as
+above.  The fresh 60 are reported alone beside it.  This does not undo the first verdict.
 
-Per flight it records the truth's HPD level under the flight's posterior (``Posterior.hpd_level``) and the masses
-of two self-checks on the same held-out transmitters of the same track: ``union`` (what ``localize`` uses: each
-held-out draw localized as the flight is, the union of every fold's ABC draws) and ``one net`` (the previous
-check: each held-out draw through one fold's net and table only).  A region of mass m holds the truth when the
-truth's level is below m, so both coverages come from one run.
+Per flight it records the truth's HPD level under the flight's posterior (``Posterior.hpd_level``)
+and the masses of two self-checks on the same held-out transmitters of the same track: ``union``
+(what ``localize`` uses: each held-out draw localized as the flight is, the union of every fold's
+ABC draws) and ``one net`` (the previous check: each held-out draw through one fold's net and table
+only).  A region of mass m holds the truth when the truth's level is below m, so both coverages come
+from one run.
 
     nice -n 10 python benchmarks/check_matched_regions.py --suite-dir /tmp/suite_2026 --n 30 --workers 2 \\
         --json /tmp/matched_regions.json
@@ -40,7 +44,8 @@ LEVELS = (0.5, 0.9)
 
 
 def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
-    """Masses of the previous check: held-out draw c through fold ``c % folds``'s net and table only."""
+    """Masses of the previous check: held-out draw c through fold ``c % folds``'s net and table
+    only."""
     from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
 
     lev = np.empty(len(cal))
@@ -91,7 +96,8 @@ def _flight(job: tuple[str, int, bool]) -> dict:
 
 
 def summary(rows: list[dict]) -> dict:
-    """Per check and level: k of n inside, the share with its 90 % binomial interval, and the rule's verdict."""
+    """Per check and level: k of n inside, the share with its 90 % binomial interval, and the rule's
+    verdict."""
     from mission.evidence import coverage_interval
 
     out: dict = {}

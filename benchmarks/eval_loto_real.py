@@ -1,5 +1,5 @@
-"""Leave-one-team-out (LOTO) scores on the six real AFAR flights: nothing is scored by a model whose physics
-saw the flight's team.
+"""Leave-one-team-out (LOTO) scores on the six real AFAR flights: nothing is scored by a model whose
+physics saw the flight's team.
 
 Usage::
 
@@ -7,18 +7,19 @@ Usage::
         [--data ../shared/data/afar2023/mat] [--json OUT.json]
     python benchmarks/eval_loto_real.py --nets models/rfsl_family.onnx models/rfsl_spiral_e2r.onnx
 
-Rows (error per flight in metres, then mean/median over six flights and over the five without the suspect
-team-288 location 3):
+Rows (error per flight in metres, then mean/median over six flights and over the five without the
+suspect team-288 location 3):
 
 - ``grid LOTO``: model-based grid search with the fold preset fitted on the *other* team
   (``afar:fit328`` for team 288's flights, ``afar:fit288`` for team 328's);
 - ``net LOTO``: the network trained on data simulated with that same held-out fold physics;
-- ``mean(grid, net) LOTO``: the plain average of the two estimates (declared before scoring; no weights);
-- ``net NAME (no real flight)`` (``--nets``): networks whose training physics never saw a real flight (the
-  ``generic`` unseen-suite family, the e2r networks): held out on every flight by construction, scored on
-  all six; with ``mean(grid LOTO, NAME)`` beside each;
-- ``net all-five`` (``--net-all``, optional): a network whose physics was fitted on all five flights; it is
-  NOT a held-out figure and is printed for reference only.
+- ``mean(grid, net) LOTO``: the plain average of the two estimates (declared before scoring; no
+  weights);
+- ``net NAME (no real flight)`` (``--nets``): networks whose training physics never saw a real
+  flight (the ``generic`` unseen-suite family, the e2r networks): held out on every flight by
+  construction, scored on all six; with ``mean(grid LOTO, NAME)`` beside each;
+- ``net all-five`` (``--net-all``, optional): a network whose physics was fitted on all five
+  flights; it is NOT a held-out figure and is printed for reference only.
 """
 
 from __future__ import annotations

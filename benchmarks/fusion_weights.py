@@ -1,16 +1,18 @@
 """Should the real-log fusion weight its members by their own uncertainty instead of a plain mean?
 
-Candidate: the self-calibrating point ``a`` and the network point ``b`` weighted by the inverse square of each
-member's 50 % region scale: ``sqrt(area / pi)`` of the self-calibrating posterior's 50 % HPD set (per flight) and
-the network's 50 % error-circle radius for real logs (its card's ``real`` calibration); the plain mean is the
-incumbent (``api.fusion``).  One ``localize --method fusion`` run per flight gives both points, the posterior's
-regions and the truth, so both fusions are scored on identical members.
+Candidate: the self-calibrating point ``a`` and the network point ``b`` weighted by the inverse
+square of each member's 50 % region scale: ``sqrt(area / pi)`` of the self-calibrating posterior's
+50 % HPD set (per flight) and the network's 50 % error-circle radius for real logs (its card's
+``real`` calibration); the plain mean is the incumbent (``api.fusion``).  One ``localize --method
+fusion`` run per flight gives both points, the posterior's regions and the truth, so both fusions
+are scored on identical members.
 
-Rule, written before scoring (this docstring was committed before any figure was computed): adopt the weighted
-mean unless it is worse beyond the interval on either source, i.e. unless the 90 % paired bootstrap interval of
-(weighted - plain) mean error lies entirely above zero (a) on the six real AFAR flights, resampled over teams
-(nothing is fitted on real flights: the weights come from the benchmark calibrations, so every real flight is
-held out), or (b) on the reality-fitted benchmark cache (``--suite-dir``), resampled over flights.
+Rule, written before scoring (this docstring was committed before any figure was computed): adopt
+the weighted mean unless it is worse beyond the interval on either source, i.e. unless the 90 %
+paired bootstrap interval of (weighted - plain) mean error lies entirely above zero (a) on the six
+real AFAR flights, resampled over teams (nothing is fitted on real flights: the weights come from
+the benchmark calibrations, so every real flight is held out), or (b) on the reality-fitted
+benchmark cache (``--suite-dir``), resampled over flights.
 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fit
     python benchmarks/fusion_weights.py --suite-dir /tmp/suite_fit --mat ../shared/data/afar2023/mat
@@ -27,8 +29,9 @@ from _scoring import flight_with_truth, scoring_parser
 
 
 def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
-    """The radius of the disc with the area of an estimate's ``level`` region, ``sqrt(area / pi)`` (for an error
-    circle its radius), or None when it has no such region: the member's own uncertainty in metres."""
+    """The radius of the disc with the area of an estimate's ``level`` region, ``sqrt(area / pi)``
+    (for an error circle its radius), or None when it has no such region: the member's own
+    uncertainty in metres."""
     reg = next((r for r in regions if r["level"] == level), None)
     if reg is None:
         return None
@@ -36,8 +39,9 @@ def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
 
 
 def inverse_square_weight(scale_a: float, scale_b: float) -> float:
-    """Weight of member a in a two-member fusion weighted by the inverse square of each member's region scale
-    (inverse variance for isotropic errors): ``b^2 / (a^2 + b^2)``; a member with the tighter region counts more."""
+    """Weight of member a in a two-member fusion weighted by the inverse square of each member's
+    region scale (inverse variance for isotropic errors): ``b^2 / (a^2 + b^2)``; a member with the
+    tighter region counts more."""
     a2, b2 = float(scale_a) ** 2, float(scale_b) ** 2
     return b2 / (a2 + b2)
 
@@ -59,7 +63,8 @@ def one(job: tuple[str, str, int]) -> dict:
 
 
 def network_radius() -> float:
-    """The fusion network's 50 % error-circle radius for real logs (its card's ``real`` calibration)."""
+    """The fusion network's 50 % error-circle radius for real logs (its card's ``real``
+    calibration)."""
     from mission.localize.api import fusion_model_path
     from mission.localize.error_circles import card_calibration
 
@@ -119,12 +124,13 @@ def main() -> None:
             else "adopt the weighted mean (not worse beyond the interval on either source)"
         )
     )
-    # Scored 2026-11-25 on the reality-fitted family's cache seed 2026 (200 flights) with rfsl_spiral_e2r's real
-    # 50 % radius 76.2 m.  With the afar-family selfcal masses (0.511 / 0.954): real 34.2 -> 34.6 m, paired +0.3
-    # [-1.2, +1.9] m over teams; benchmark 74.0 -> 72.5 m, -1.5 [-2.6, -0.4] m: adopt.  With the masses
-    # recalibrated on the reality-fitted family (0.339 / 0.870, the shipped ones; selfcal weight median 0.70):
-    # real 34.2 -> 36.9 m, +2.7 [+2.1, +3.3] m over teams (two teams: a narrow interval); benchmark 74.0 -> 72.5
-    # m, -1.5 [-3.0, 0.0] m: worse beyond the interval on the real flights, so the plain mean stays.
+    # Scored 2026-11-25 on the reality-fitted family's cache seed 2026 (200 flights) with
+    # rfsl_spiral_e2r's real 50 % radius 76.2 m.  With the afar-family selfcal masses (0.511 /
+    # 0.954): real 34.2 -> 34.6 m, paired +0.3 [-1.2, +1.9] m over teams; benchmark 74.0 -> 72.5 m,
+    # -1.5 [-2.6, -0.4] m: adopt.  With the masses recalibrated on the reality-fitted family (0.339
+    # / 0.870, the shipped ones; selfcal weight median 0.70): real 34.2 -> 36.9 m, +2.7 [+2.1, +3.3]
+    # m over teams (two teams: a narrow interval); benchmark 74.0 -> 72.5 m, -1.5 [-3.0, 0.0] m:
+    # worse beyond the interval on the real flights, so the plain mean stays.
 
 
 if __name__ == "__main__":

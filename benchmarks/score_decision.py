@@ -1,9 +1,11 @@
-"""The one table of every method and the default-changing rule applied (models/README.md, "Decisions with error bars").
+"""The one table of every method and the default-changing rule applied (models/README.md, "Decisions
+with error bars").
 
-Every method on (a) the six shared real AFAR flights held out by team (LOTO) and (b) a benchmark cache drawn from
-a physics family (``rfsl dataset --suite unseen --logs --family F.json``): mean error with paired bootstrap 90 %
-intervals (real: over flights and over teams; benchmark: over flights), the paired difference to the default,
-the share of truths in the 50 % / 90 % regions, then ``mission.workshop.decision.pooled_decision``.
+Every method on (a) the six shared real AFAR flights held out by team (LOTO) and (b) a benchmark
+cache drawn from a physics family (``rfsl dataset --suite unseen --logs --family F.json``): mean
+error with paired bootstrap 90 % intervals (real: over flights and over teams; benchmark: over
+flights), the paired difference to the default, the share of truths in the 50 % / 90 % regions, then
+``mission.workshop.decision.pooled_decision``.
 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fam
     python benchmarks/score_decision.py --suite-dir /tmp/suite_fam --n 200 --mat ../shared/data/afar2023/mat \
@@ -45,8 +47,8 @@ def methods(models: Path, extra: list[str]) -> dict[str, str]:
 
 
 def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, list[dict]]:
-    """(flight names, {label: errors}, {label: {level: [covered]}}, predictive-check statistics per flight) on
-    the six real flights, LOTO."""
+    """(flight names, {label: errors}, {label: {level: [covered]}}, predictive-check statistics per
+    flight) on the six real flights, LOTO."""
     from mission.flightlog import read_flight_log
     from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
     from mission.localize.api import localize_log

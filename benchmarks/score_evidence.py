@@ -1,14 +1,16 @@
-"""The evidence stage (``localize --method evidence``) against today's default, by a rule written before scoring.
+"""The evidence stage (``localize --method evidence``) against today's default, by a rule written
+before scoring.
 
 Rule (written 2026-11-27 before any flight was scored with the stage's answer; issue 32 item 5):
-1. Answer schemes (how weights over candidates become one point) are compared on the benchmark's flights
-   0-59 only (the development split); the scheme with the lowest mean error there is the stage's answer.
-2. That scheme is scored against today's default (``fusion``) on the benchmark's flights 60-199 (fresh) and
-   on the six shared real flights held out by team (the grid member's physics fitted on the other team; the
-   networks never saw a real flight), with ``mission.workshop.decision.pooled_decision`` (relative paired
-   difference, real resampled by team and the benchmark by flight; adopted when the pooled 90 % interval
-   lies below zero and neither source's lies above zero, and its 90 % regions cover >= 80 % of the
-   benchmark's truths).
+1. Answer schemes (how weights over candidates become one point) are compared on the benchmark's
+   flights 0-59 only (the development split); the scheme with the lowest mean error there is the
+   stage's answer.
+2. That scheme is scored against today's default (``fusion``) on the benchmark's flights 60-199
+   (fresh) and on the six shared real flights held out by team (the grid member's physics fitted on
+   the other team; the networks never saw a real flight), with
+   ``mission.workshop.decision.pooled_decision`` (relative paired difference, real resampled by team
+   and the benchmark by flight; adopted when the pooled 90 % interval lies below zero and neither
+   source's lies above zero, and its 90 % regions cover >= 80 % of the benchmark's truths).
 3. Adopted: the real-log default becomes the stage.  Not adopted: it ships as ``--method evidence``.
 Also printed: the best candidate of each flight (the headroom) and the share of it the stage recovers.
 
@@ -34,8 +36,8 @@ DEV = range(0, 60)
 
 
 def _one(job: tuple[str, str, str | None, list | None]) -> dict:
-    """Candidates, blocked scores and the default's point of one log (``job``: path, name, grid preset, truth
-    in the log's frame or None for the sidecar's)."""
+    """Candidates, blocked scores and the default's point of one log (``job``: path, name, grid
+    preset, truth in the log's frame or None for the sidecar's)."""
     from threadpoolctl import threadpool_limits
 
     from mission.flightlog import read_flight_log
@@ -153,8 +155,9 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
 
 
 def truth_level(r: dict, weights: np.ndarray) -> float:
-    """The smallest HPD mass of the candidates' weighted mixture (``stacking.mixture_posterior``, the stage's
-    ``SIGMA_M``) whose set holds the truth, on a 5 m grid 100 m around the candidates."""
+    """The smallest HPD mass of the candidates' weighted mixture (``stacking.mixture_posterior``,
+    the stage's ``SIGMA_M``) whose set holds the truth, on a 5 m grid 100 m around the
+    candidates."""
     from mission.geo import square_grid
     from mission.localize.evidence_stage import SIGMA_M
     from mission.localize.stacking import mixture_posterior

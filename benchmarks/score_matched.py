@@ -1,6 +1,6 @@
-"""``localize --method matched`` on the six real flights and the first K flights of a benchmark cache, paired with
-the methods of a ``score_decision.py --json`` run on the same flights (it trains per flight, ~1 min each on 2
-idle cores: too slow for the full 200-flight table on shared cores).
+"""``localize --method matched`` on the six real flights and the first K flights of a benchmark
+cache, paired with the methods of a ``score_decision.py --json`` run on the same flights (it trains
+per flight, ~1 min each on 2 idle cores: too slow for the full 200-flight table on shared cores).
 
     python benchmarks/score_matched.py --suite-dir /tmp/suite_fam --n 10 --mat ../shared/data/afar2023/mat \
         --decision /tmp/decision.json --json /tmp/matched.json

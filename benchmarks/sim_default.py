@@ -1,9 +1,10 @@
-"""Which network should answer a simulated log by default?  ``rfsl_default`` everywhere, or the domain router
-(``mission/localize/sim_default.py``: a spiral network on simulated e2r dipole spirals inside its altitudes).
+"""Which network should answer a simulated log by default?  ``rfsl_default`` everywhere, or the
+domain router (``mission/localize/sim_default.py``: a spiral network on simulated e2r dipole spirals
+inside its altitudes).
 
-Scored on the product path: ``rfsl simulate`` logs (take-off, return, landing, phase column) of fresh seeds,
-then ``localize``'s default against ``--model rfsl_default.onnx`` on the same log; the stop-20 rule in
-models/README.md.
+Scored on the product path: ``rfsl simulate`` logs (take-off, return, landing, phase column) of
+fresh seeds, then ``localize``'s default against ``--model rfsl_default.onnx`` on the same log; the
+stop-20 rule in models/README.md.
 
     python benchmarks/sim_default.py --seeds 7000:7040 --workers 2        # 14 s on 2 cores
     python benchmarks/sim_default.py --seeds 7100:7130 --variants         # spirals with other parameters, 25 s
@@ -26,7 +27,8 @@ SETS = (
     ("spiral 45 m", "missions/spiral.yaml", 45.0),
     ("lawnmower 30 m", "missions/lawnmower.yaml", None),
 )
-# --variants: the spiral at 30 m with other generator parameters (the router matches generator and altitude only)
+# --variants: the spiral at 30 m with other generator parameters (the router matches generator and
+# altitude only)
 VARIANTS = (
     ("spacing 12 m", {"spacing_m": 12}),
     ("spacing 35 m", {"spacing_m": 35}),
@@ -38,7 +40,8 @@ VARIANTS = (
 
 
 def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
-    """``rfsl simulate`` one flight of ``mission`` (seed ``seed``) into a folder of ``out``, quietly; its log."""
+    """``rfsl simulate`` one flight of ``mission`` (seed ``seed``) into a folder of ``out``,
+    quietly; its log."""
     from mission.cli.main import main as rfsl
 
     d = Path(out) / f"s{seed}_{Path(mission).stem}"
@@ -59,7 +62,8 @@ def mission_variant(
     alt: float | None = None,
     params: dict | None = None,
 ) -> str:
-    """``mission`` itself, or a copy in ``folder`` flown at ``alt`` and/or with other generator ``params``."""
+    """``mission`` itself, or a copy in ``folder`` flown at ``alt`` and/or with other generator
+    ``params``."""
     if alt is None and params is None:
         return str(mission)
     spec = yaml.safe_load(Path(mission).read_text())

@@ -1,13 +1,15 @@
-"""Flights surveyed at two altitudes: what the cruise selection keeps, and the self-calibrating error.
+"""Flights surveyed at two altitudes: what the cruise selection keeps, and the self-calibrating
+error.
 
-Why: the unseen-flight benchmark flies one altitude per flight, but other teams fly at 20-47 m, and a flight split
-between two survey altitudes defeated the single-band rule (its band sat at the median height, between the
-levels), and a cell flown at both altitudes must not be averaged into one point between them. Each flight: a
-lawnmower over the AFAR overlap flown at A ~ U(15, 30) m and at B ~ U(35, 60) m (``two_level_path``: ``split``
-or ``repeat``), take-off from and landing at the ground, the `afar` preset's physics,
-shadowing 6 dB over 30 m, 2 dB noise, transmitter uniform in the overlap.  Rules compared: the levels rule
-(``cruise_mask``, now) with cells per level (now) or merged, one level only (``max_altitudes=1``), and the single
-band about the upper part's median (the rule before levels; written out here: it no longer exists in the package).
+Why: the unseen-flight benchmark flies one altitude per flight, but other teams fly at 20-47 m, and
+a flight split between two survey altitudes defeated the single-band rule (its band sat at the
+median height, between the levels), and a cell flown at both altitudes must not be averaged into one
+point between them. Each flight: a lawnmower over the AFAR overlap flown at A ~ U(15, 30) m and at B
+~ U(35, 60) m (``two_level_path``: ``split`` or ``repeat``), take-off from and landing at the
+ground, the `afar` preset's physics, shadowing 6 dB over 30 m, 2 dB noise, transmitter uniform in
+the overlap.  Rules compared: the levels rule (``cruise_mask``, now) with cells per level (now) or
+merged, one level only (``max_altitudes=1``), and the single band about the upper part's median (the
+rule before levels; written out here: it no longer exists in the package).
 
     python experiments/cruise_levels.py --n 40 --seed 7      # 48 s, 1 core
 """
@@ -28,9 +30,9 @@ from mission.trajectory.generators import lawnmower, overlap_area
 
 
 def two_level_path(fld, rng: np.random.Generator, scenario: str) -> np.ndarray:
-    """Ground -> legs at A -> legs at B -> ground (waypoints ENU, m). ``split``: the first share of the lawnmower's
-    legs at A, the rest at B (each level covers part of the area); ``repeat``: the whole lawnmower at A, then back
-    along it at B (both levels over the same cells)."""
+    """Ground -> legs at A -> legs at B -> ground (waypoints ENU, m). ``split``: the first share of
+    the lawnmower's legs at A, the rest at B (each level covers part of the area); ``repeat``: the
+    whole lawnmower at A, then back along it at B (both levels over the same cells)."""
     a, b = rng.uniform(15.0, 30.0), rng.uniform(35.0, 60.0)
     wp = lawnmower(
         fld, 1.0, spacing_m=rng.uniform(18.0, 30.0), direction=str(rng.choice(["ew", "ns"]))
@@ -47,7 +49,8 @@ def two_level_path(fld, rng: np.random.Generator, scenario: str) -> np.ndarray:
 
 
 def single_band_before(h: np.ndarray) -> np.ndarray:
-    """The rule before levels: the band max(3 m, 15 %) about the median of the samples above half the 99th pct."""
+    """The rule before levels: the band max(3 m, 15 %) about the median of the samples above half
+    the 99th pct."""
     hc = float(np.median(h[h >= 0.5 * np.percentile(h, 99)]))
     return np.abs(h - hc) <= max(3.0, 0.15 * hc)
 

@@ -1,9 +1,11 @@
-"""Classical localizers on the six real AFAR flights (../shared/data/afar2023/mat): error per flight.
+"""Classical localizers on the six real AFAR flights (../shared/data/afar2023/mat): error per
+flight.
 
-Usage: ``python experiments/eval_classical_real.py [--data ../shared/data/afar2023/mat] [--variants all]``.
-Imports the MAT files into a temporary directory (truth from the data README's table), keeps the cruise
-part, runs each estimator and prints per-flight errors plus mean/median over all six flights and over the
-five without the suspect team-288 location 3.  No parameter is tuned on these flights here.
+Usage: ``python experiments/eval_classical_real.py [--data ../shared/data/afar2023/mat] [--variants
+all]``. Imports the MAT files into a temporary directory (truth from the data README's table), keeps
+the cruise part, runs each estimator and prints per-flight errors plus mean/median over all six
+flights and over the five without the suspect team-288 location 3.  No parameter is tuned on these
+flights here.
 """
 
 from __future__ import annotations
@@ -39,8 +41,8 @@ VARIANTS = {
         "grid",
         {"physics_model": "e2r", "physics_params": {"pattern": "measured"}},
     ),
-    # exploratory (chosen after looking at these six flights, so NOT a held-out figure): samples more than
-    # 35 dB below the flight's maximum treated as censored by the receiver's noise floor
+    # exploratory (chosen after looking at these six flights, so NOT a held-out figure): samples
+    # more than 35 dB below the flight's maximum treated as censored by the receiver's noise floor
     "grid fs iso floor35*": (
         "grid",
         {

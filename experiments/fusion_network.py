@@ -1,8 +1,11 @@
-"""Which network should the default fusion use?  Each candidate network as the fusion's network component.
+"""Which network should the default fusion use?  Each candidate network as the fusion's network
+component.
 
-Why: the real-log default is mean(selfcal point, network point); a new network replaces ``rfsl_spiral_e2r`` only
-under a rule written before scoring (models/README.md), which scores the *fusion* on the unseen-flight benchmark
-(U) and the six real flights (R): score U/min(U) + R/min(R) over the candidates.  The self-calibrating point is
+Why: the real-log default is mean(selfcal point, network point); a new network replaces
+``rfsl_spiral_e2r`` only under a rule written before scoring (models/README.md), which scores the
+*fusion* on the unseen-flight benchmark
+(U) and the six real flights (R): score U/min(U) + R/min(R) over the candidates.  The
+    self-calibrating point is
 computed once per flight and shared by all candidates.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026

@@ -1,10 +1,12 @@
-"""What does self-calibration cost?  The grid search given each benchmark flight's *true* physics, and with one
-piece of that knowledge removed at a time, against the self-calibrating search on the same flights.
+"""What does self-calibration cost?  The grid search given each benchmark flight's *true* physics,
+and with one piece of that knowledge removed at a time, against the self-calibrating search on the
+same flights.
 
-Why: the self-calibrating search knows neither the UAV antenna (it profiles 26 hypotheses) nor the path-gain
-slope, the ground, the rover's antenna or the roll/pitch coupling.  The oracle knows all of them and only the
-shadowing and noise realisations and the offset are unknown to it, so its error is what the benchmark's
-shadowing and geometry leave to any model-based method, and the rungs say which knowledge is worth most.
+Why: the self-calibrating search knows neither the UAV antenna (it profiles 26 hypotheses) nor the
+path-gain slope, the ground, the rover's antenna or the roll/pitch coupling.  The oracle knows all
+of them and only the shadowing and noise realisations and the offset are unknown to it, so its error
+is what the benchmark's shadowing and geometry leave to any model-based method, and the rungs say
+which knowledge is worth most.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
     python experiments/oracle_physics.py --suite-dir /tmp/suite_2026          # ~2 min on 2 cores

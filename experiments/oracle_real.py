@@ -1,12 +1,14 @@
-"""What do the real flights allow?  The self-calibrating model with its nuisance fitted *at the truth*.
+"""What do the real flights allow?  The self-calibrating model with its nuisance fitted *at the
+truth*.
 
-Why: issue 10 asks for under 15 m mean held out by team on the six shared flights.  Before chasing that figure,
-measure what the search's own model class reaches when it is handed what no estimator has: for each flight the
-UAV-antenna hypothesis and RSS offset (rung "h+c"), or those and a free path-loss exponent (rung "h+c+n"),
-least-squares fitted to that flight's cells *with the transmitter at its labelled position* (in-sample, a
-leak by design).  Only the position is then searched (2 m grid over the rover area).  Its error is a floor
-for every estimator of that model class on that flight: what is left is shadowing and multipath the model
-cannot express.  The profiled search (selfcal, the default's component) on the same grid is printed beside.
+Why: issue 10 asks for under 15 m mean held out by team on the six shared flights.  Before chasing
+that figure, measure what the search's own model class reaches when it is handed what no estimator
+has: for each flight the UAV-antenna hypothesis and RSS offset (rung "h+c"), or those and a free
+path-loss exponent (rung "h+c+n"), least-squares fitted to that flight's cells *with the transmitter
+at its labelled position* (in-sample, a leak by design).  Only the position is then searched (2 m
+grid over the rover area).  Its error is a floor for every estimator of that model class on that
+flight: what is left is shadowing and multipath the model cannot express.  The profiled search
+(selfcal, the default's component) on the same grid is printed beside.
 
     python experiments/oracle_real.py --mat ../shared/data/afar2023/mat          # ~10 s
 """
@@ -23,7 +25,8 @@ STEP_M = 2.0
 
 
 def _minus_gain(geom: tuple[np.ndarray, ...], hyp) -> np.ndarray:
-    """-G_h (K, M) dB: the hypothesis' gain toward each candidate, as ``hypothesis_residuals`` subtracts it."""
+    """-G_h (K, M) dB: the hypothesis' gain toward each candidate, as ``hypothesis_residuals``
+    subtracts it."""
     from mission.localize.selfcal import hypothesis_residuals
 
     pg, el, az = geom
@@ -33,9 +36,10 @@ def _minus_gain(geom: tuple[np.ndarray, ...], hyp) -> np.ndarray:
 def fit_at_truth(
     y: np.ndarray, geom_t: tuple[np.ndarray, ...], hyps, free_n: bool
 ) -> tuple[int, np.ndarray]:
-    """The hypothesis index and coefficients (offset c, and the exponent term 10 n when ``free_n``) that fit
-    the cells ``y`` (M,) best with the transmitter at the truth (least squares; ``geom_t`` from ``_geometry``
-    of one candidate).  Model: y = c + G_h + (10 n / 20) pg, pg = -20 log10 d (n = 2 when not free)."""
+    """The hypothesis index and coefficients (offset c, and the exponent term 10 n when ``free_n``)
+    that fit the cells ``y`` (M,) best with the transmitter at the truth (least squares; ``geom_t``
+    from ``_geometry`` of one candidate).  Model: y = c + G_h + (10 n / 20) pg, pg = -20 log10 d (n
+    = 2 when not free)."""
     best = (np.inf, 0, np.zeros(2))
     for h, hyp in enumerate(hyps):
         t = y + _minus_gain(geom_t, hyp)[0]
@@ -52,7 +56,8 @@ def fit_at_truth(
 
 
 def one_flight(path) -> dict:
-    """Errors (m) of the two oracles and of the profiled search on one imported real log, same 2 m grid."""
+    """Errors (m) of the two oracles and of the profiled search on one imported real log, same 2 m
+    grid."""
     from mission.flightlog import read_flight_log
     from mission.localize.api import search_area
     from mission.localize.classical import as_flight

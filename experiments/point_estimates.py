@@ -1,9 +1,11 @@
-"""Which point should the self-calibrating search report? MAP against posterior means, inside the default fusion.
+"""Which point should the self-calibrating search report? MAP against posterior means, inside the
+default fusion.
 
-Why: on the benchmark the MAP jumps between modes of a flat likelihood and a posterior mean hedges; on real
-flights the posteriors are wide.  The stop-17 rule (models/README.md) scores each candidate as the selfcal
-component of the fusion = mean(selfcal point, network), on the benchmark (U) and the six real flights (R):
-score U/min(U) + R/min(R), the incumbent MAP kept unless another is lower by more than 0.05.
+Why: on the benchmark the MAP jumps between modes of a flat likelihood and a posterior mean hedges;
+on real flights the posteriors are wide.  The stop-17 rule (models/README.md) scores each candidate
+as the selfcal component of the fusion = mean(selfcal point, network), on the benchmark (U) and the
+six real flights (R): score U/min(U) + R/min(R), the incumbent MAP kept unless another is lower by
+more than 0.05.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
     python experiments/point_estimates.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat   # 2 min
@@ -26,7 +28,8 @@ CANDIDATES = ("MAP", "PM", "C50", "C90")
 
 
 def candidates(est) -> dict[str, np.ndarray]:
-    """The four points of one fusion estimate: its selfcal MAP and three posterior means (log ENU m)."""
+    """The four points of one fusion estimate: its selfcal MAP and three posterior means (log ENU
+    m)."""
     from mission.localize.selfcal import CALIBRATED_MASS
 
     post = est.posterior

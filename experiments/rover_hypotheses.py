@@ -1,17 +1,19 @@
 """Does profiling the rover's antenna help the self-calibrating search?  (Stop-18 rule: no.)
 
-Why: the AFAR rover carries the same RM-WB1-DN as the UAV; at low elevations its measured gain varies by ~13 dB
-with azimuth, an effect the search does not model.  Candidate B scores every candidate under the product of the
-UAV-antenna hypotheses (26) and rover hypotheses (isotropic, or RM-WB1-DN upright at 12 mounting headings), each
-pair with its own offset; the incumbent A has the UAV hypotheses only.  Both are scored as the selfcal component
-of the default fusion, mean(selfcal point, ``rfsl_spiral_e2r``), on the benchmark (U) and the six real flights
-(R); rule and outcome in models/README.md.
+Why: the AFAR rover carries the same RM-WB1-DN as the UAV; at low elevations its measured gain
+varies by ~13 dB with azimuth, an effect the search does not model.  Candidate B scores every
+candidate under the product of the UAV-antenna hypotheses (26) and rover hypotheses (isotropic, or
+RM-WB1-DN upright at 12 mounting headings), each pair with its own offset; the incumbent A has the
+UAV hypotheses only.  Both are scored as the selfcal component of the default fusion, mean(selfcal
+point, ``rfsl_spiral_e2r``), on the benchmark (U) and the six real flights (R); rule and outcome in
+models/README.md.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
     python experiments/rover_hypotheses.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat  # ~1 min
 
-The product SSR per (UAV hypothesis h, rover hypothesis t, candidate k) comes from sufficient statistics with
-one batched matmul per candidate chunk: SSR = S2_h - 2 X_ht + T2_t - (S1_h - T1_t)^2 / M, X_ht = sum_m r_hm g_tm.
+The product SSR per (UAV hypothesis h, rover hypothesis t, candidate k) comes from sufficient
+statistics with one batched matmul per candidate chunk: SSR = S2_h - 2 X_ht + T2_t - (S1_h - T1_t)^2
+/ M, X_ht = sum_m r_hm g_tm.
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ _UAV_HYPOTHESES = sc.antenna_hypotheses
 
 
 def product_hypotheses(kinds=sc.HYPOTHESIS_KINDS, heading_step_deg: float = 30.0) -> list[tuple]:
-    """UAV hypotheses x rover hypotheses as 5-tuples (label, pattern, heading rad, flipped, rover heading deg)."""
+    """UAV hypotheses x rover hypotheses as 5-tuples (label, pattern, heading rad, flipped, rover
+    heading deg)."""
     return [
         (lab + ("" if t is None else f" + rover RM-WB1-DN heading {t}"), pat, head, fl, t)
         for t in ROVER_HEADINGS
@@ -45,7 +48,8 @@ def product_hypotheses(kinds=sc.HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
 
 
 def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int = 256):
-    """Drop-in for ``selfcal.hypothesis_ssr`` over ``product_hypotheses``: SSR and offset (H*T, K)."""
+    """Drop-in for ``selfcal.hypothesis_ssr`` over ``product_hypotheses``: SSR and offset (H*T,
+    K)."""
     uav = list(dict.fromkeys(h[:4] for h in hyps))
     rover = list(dict.fromkeys(h[4] for h in hyps))
     iu = {h: i for i, h in enumerate(uav)}
@@ -89,7 +93,8 @@ def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int
 
 
 def one(job: tuple[str, str, int, str]) -> dict:
-    """Selfcal (A or B) and the fusion's network on one flight: points, truth, the truth's HPD level."""
+    """Selfcal (A or B) and the fusion's network on one flight: points, truth, the truth's HPD
+    level."""
     from mission.localize.api import localize_log, search_area
     from mission.localize.preprocess import select_samples
 

@@ -1,14 +1,17 @@
-"""Calibrate a physics preset on real flights with known transmitters, with held-out figures (``rfsl calibrate``).
+"""Calibrate a physics preset on real flights with known transmitters, with held-out figures (``rfsl
+calibrate``).
 
-A *configuration* is a model spec (``mission.physics.presets`` layout) plus the names of its free parameters
-(UAV-antenna heading, path-gain slope, leg-shadowing beta, ground permittivity).  Fitting: every flight gets
-its own free RSS offset (real receivers are not calibrated, SPEC section 5) and the loss is soft-L1
-(``mission.robust``), minimised by Nelder-Mead from the best points of a start grid (the heading is multimodal).
+A *configuration* is a model spec (``mission.physics.presets`` layout) plus the names of its free
+parameters (UAV-antenna heading, path-gain slope, leg-shadowing beta, ground permittivity).
+Fitting: every flight gets its own free RSS offset (real receivers are not calibrated, SPEC section
+5) and the loss is soft-L1 (``mission.robust``), minimised by Nelder-Mead from the best points of a
+start grid (the heading is multimodal).
 
-Held-out figures: flights are put in *groups* (a team, a day, a vehicle: whatever must not leak); every group
-is scored by the configuration fitted on the other groups (leave one group out).  The configuration with the
-lowest held-out soft-L1 is chosen, refitted on all flights, and written as a preset record that says what it
-was fitted on, its per-group folds and its held-out figures (``preset_record``).
+Held-out figures: flights are put in *groups* (a team, a day, a vehicle: whatever must not leak);
+every group is scored by the configuration fitted on the other groups (leave one group out).  The
+configuration with the lowest held-out soft-L1 is chosen, refitted on all flights, and written as a
+preset record that says what it was fitted on, its per-group folds and its held-out figures
+(``preset_record``).
 """
 
 from __future__ import annotations
@@ -184,7 +187,8 @@ START_GRID = {
 
 
 def config(name: str) -> dict:
-    """The configuration ``name`` (``CONFIGS``); an unknown name is an InputError listing the known ones."""
+    """The configuration ``name`` (``CONFIGS``); an unknown name is an InputError listing the known
+    ones."""
     if name not in CONFIGS:
         raise InputError(
             f"unknown calibration configuration {name!r} (known: {', '.join(CONFIGS)})",
@@ -211,15 +215,16 @@ AttitudeFn = Callable[[np.ndarray], np.ndarray | None]
 
 
 def predict(model, f: FlightSamples, idx=None, attitude: AttitudeFn | None = None) -> np.ndarray:
-    """Model RSS along flight ``f`` (optionally at samples ``idx``) with its logged attitude, or with
-    ``attitude(logged)`` (an attitude-convention experiment; None from it = no attitude)."""
+    """Model RSS along flight ``f`` (optionally at samples ``idx``) with its logged attitude, or
+    with ``attitude(logged)`` (an attitude-convention experiment; None from it = no attitude)."""
     sl = slice(None) if idx is None else idx
     att = f.attitude_rad[sl] if attitude is None else attitude(f.attitude_rad[sl])
     return np.asarray(model.rss_dbm(f.tx_enu_m, f.enu_m[sl], att), dtype=float)
 
 
 def gap_stats(model, f: FlightSamples, attitude: AttitudeFn | None = None) -> dict:
-    """Held-out fit of ``model`` on flight ``f``: |measured - model - offset| median / p90, rms, soft-L1."""
+    """Held-out fit of ``model`` on flight ``f``: |measured - model - offset| median / p90, rms,
+    soft-L1."""
     r = offset_residual(f.rss_dbm, predict(model, f, None, attitude), loss=LOSS, f_scale=F_SCALE_DB)
     a = np.abs(r)
     return {
@@ -238,7 +243,8 @@ def fit_config(
     max_evals: int = 80,
     attitude: AttitudeFn | None = None,
 ) -> tuple[dict, float]:
-    """Fit the free parameters of ``cfg`` on ``flights`` (per-flight offsets, soft-L1) -> (spec, train loss)."""
+    """Fit the free parameters of ``cfg`` on ``flights`` (per-flight offsets, soft-L1) -> (spec,
+    train loss)."""
     idx = [np.arange(0, len(f), max(1, math.ceil(len(f) / max_samples))) for f in flights]
     names = list(cfg["free"])
 
@@ -262,7 +268,8 @@ def fit_config(
         .T
     )
     steps = [20.0 if n == "rx_heading_deg" else 0.3 for n in names]
-    # two best starts (the heading is multimodal); the fit procedure is the gap candidates' (one home)
+    # two best starts (the heading is multimodal); the fit procedure is the gap candidates' (one
+    # home)
     x, fun = minimize_from_grid(loss, grid, steps, max_evals, n_starts=2, xatol=1e-2, fatol=1e-4)
     th = {n: float(np.clip(v, *BOUNDS[n])) for n, v in zip(names, x, strict=True)}
     return spec_with(cfg, th), fun
@@ -280,7 +287,8 @@ def pooled(per_flight: dict[str, dict]) -> dict[str, float]:
 def leave_one_group_out(
     cfg: dict, flights: Sequence[FlightSamples], groups: Sequence[str], **kw
 ) -> dict:
-    """Fit on all groups but one, score the held-out group's flights; -> {"folds", "per_flight", "pooled"}."""
+    """Fit on all groups but one, score the held-out group's flights; -> {"folds", "per_flight",
+    "pooled"}."""
     folds, per_flight = {}, {}
     for g in sorted(set(groups)):
         train = [f for f, gg in zip(flights, groups, strict=True) if gg != g]
@@ -308,7 +316,8 @@ def calibrate(
     progress: Callable[[str], None] | None = None,
     **kw,
 ) -> dict:
-    """Held-out comparison of ``configs`` and the chosen one refitted on all flights (``preset_record`` input)."""
+    """Held-out comparison of ``configs`` and the chosen one refitted on all flights
+    (``preset_record`` input)."""
     if len(flights) != len(groups):
         raise InputError("one group per flight is needed")
     rows = {}
@@ -329,7 +338,8 @@ def preset_record(
     command: str,
     data: str = "",
 ) -> dict:
-    """A preset file (``mission.physics.presets`` record): model, what it was fitted on, folds, held-out figures."""
+    """A preset file (``mission.physics.presets`` record): model, what it was fitted on, folds,
+    held-out figures."""
     ch = result["configs"][result["chosen"]]
     return {
         "name": name,

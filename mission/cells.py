@@ -1,10 +1,11 @@
-"""Samples binned and averaged per bin: square horizontal cells (one set per cruise altitude) or path bins.
+"""Samples binned and averaged per bin: square horizontal cells (one set per cruise altitude) or
+path bins.
 
-Why one home: the self-calibrating grid and the matched localizer average a flight into cells so that a slow
-pass or a hover does not count its spot many times; the features average it into arc-length bins for the same
-reason; the gap's kriging averages residuals into cells.  All are "an integer key per sample, then the mean of
-each quantity per distinct key", done here with ``np.bincount`` (sums in sample order, so every caller rounds
-the same way).
+Why one home: the self-calibrating grid and the matched localizer average a flight into cells so
+that a slow pass or a hover does not count its spot many times; the features average it into
+arc-length bins for the same reason; the gap's kriging averages residuals into cells.  All are "an
+integer key per sample, then the mean of each quantity per distinct key", done here with
+``np.bincount`` (sums in sample order, so every caller rounds the same way).
 """
 
 from __future__ import annotations
@@ -15,13 +16,14 @@ import numpy as np
 
 from mission.samples import FlightSamples
 
-# Heights further apart than this are separate cruise altitudes when cells are averaged (altitude_index)
+# Heights further apart than this are separate cruise altitudes when cells are averaged
+# (altitude_index)
 ALTITUDE_GAP_M = 5.0
 
 
 def bin_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(bin of each sample (N,), samples per bin (M,)) for integer keys (N,) or (N, k): one bin per distinct key
-    (row), bins in sorted key order."""
+    """(bin of each sample (N,), samples per bin (M,)) for integer keys (N,) or (N, k): one bin per
+    distinct key (row), bins in sorted key order."""
     _, inv, cnt = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     return inv.ravel(), cnt
 
@@ -32,15 +34,18 @@ def bin_means(inv: np.ndarray, cnt: np.ndarray, *values: np.ndarray) -> list[np.
 
 
 def cell_keys(xy: np.ndarray, cell_m: float) -> np.ndarray:
-    """Integer (i, j) of the ``cell_m`` square cell holding each position (N, 2) (cells from the ENU origin)."""
+    """Integer (i, j) of the ``cell_m`` square cell holding each position (N, 2) (cells from the ENU
+    origin)."""
     return np.floor(xy / cell_m).astype(np.int64)
 
 
 def altitude_index(z: np.ndarray, gap_m: float = ALTITUDE_GAP_M) -> np.ndarray:
-    """Cruise altitude index per sample (N,): heights split wherever sorted heights leave a gap over ``gap_m``.
+    """Cruise altitude index per sample (N,): heights split wherever sorted heights leave a gap over
+    ``gap_m``.
 
-    Why: a flight surveyed at two altitudes (``preprocess.cruise_mask`` keeps both) must not average a
-    cell's samples at 25 m and 45 m into one point at 35 m; one altitude (any noise within it) gives all zeros.
+    Why: a flight surveyed at two altitudes (``preprocess.cruise_mask`` keeps both) must not average
+    a cell's samples at 25 m and 45 m into one point at 35 m; one altitude (any noise within it)
+    gives all zeros.
     """
     zs = np.sort(z)
     cuts = zs[1:][np.diff(zs) > gap_m]
@@ -49,8 +54,8 @@ def altitude_index(z: np.ndarray, gap_m: float = ALTITUDE_GAP_M) -> np.ndarray:
 
 @dataclass
 class Cells:
-    """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dBm, mean yaw (M,) rad,
-    sample counts (M,), the cell size (m)."""
+    """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dBm, mean
+    yaw (M,) rad, sample counts (M,), the cell size (m)."""
 
     enu_m: np.ndarray
     rss_dbm: np.ndarray
@@ -72,10 +77,11 @@ class Cells:
 
 
 def cell_average(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M) -> Cells:
-    """Average a flight's samples into ``cell_m`` square horizontal cells, one set per cruise altitude (vectorised;
-    yaw averaged on the circle).
+    """Average a flight's samples into ``cell_m`` square horizontal cells, one set per cruise
+    altitude (vectorised; yaw averaged on the circle).
 
-    Without attitude the yaw is taken as 0 (nose north); ``altitude_gap_m`` = inf merges the altitudes.
+    Without attitude the yaw is taken as 0 (nose north); ``altitude_gap_m`` = inf merges the
+    altitudes.
     """
     xy = cell_keys(f.enu_m[:, :2], cell_m)
     inv, cnt = bin_index(np.column_stack([xy, altitude_index(f.enu_m[:, 2], altitude_gap_m)]))

@@ -1,4 +1,5 @@
-"""One exception type for bad user input, so every CLI can turn it into a one-line error and exit code 2."""
+"""One exception type for bad user input, so every CLI can turn it into a one-line error and exit
+code 2."""
 
 from __future__ import annotations
 
@@ -31,8 +32,8 @@ class InputError(ValueError):
         self.source, self.row, self.field = source, row, field
 
 
-# Characters that end a line for ``str.splitlines`` (a terminal or a log reader): a user's key or value holding
-# one (a YAML key with \x1d) must not split the one error line in two.
+# Characters that end a line for ``str.splitlines`` (a terminal or a log reader): a user's key or
+# value holding one (a YAML key with \x1d) must not split the one error line in two.
 _LINE_BREAKS = {c: repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"}
 
 
@@ -46,8 +47,8 @@ def one_line(text: str) -> str:
 
 
 def refuse_unknown_keys(d: dict, allowed, what: str) -> None:
-    """Raise an ``InputError`` naming the first key of ``d`` that is not in ``allowed`` (a typo must not be
-    silently ignored when a configuration is read back from a file or a model's metadata)."""
+    """Raise an ``InputError`` naming the first key of ``d`` that is not in ``allowed`` (a typo must
+    not be silently ignored when a configuration is read back from a file or a model's metadata)."""
     allowed = set(allowed)
     unknown = [k for k in d if k not in allowed]
     if unknown:

@@ -1,14 +1,16 @@
 """Error bars over flights: paired bootstrap intervals of mean errors and of their differences.
 
-Why: with a handful of real flights at three transmitter positions a 10 m difference of means is noise; a
-comparison is only worth reporting with the interval of its difference, resampled over the unit that is
-independent (a flight; on real data a team, whose flights share a vehicle, antenna and habits).  Resampling
-is *paired*: one bootstrap replicate picks the same flights (or teams) for every method, so what varies is
-the flights, not the pairing.  Cluster bootstrap: a replicate draws whole groups with replacement and keeps
-all their flights.  Every replicate set comes from the caller's seed.
+Why: with a handful of real flights at three transmitter positions a 10 m difference of means is
+noise; a comparison is only worth reporting with the interval of its difference, resampled over the
+unit that is independent (a flight; on real data a team, whose flights share a vehicle, antenna and
+habits).  Resampling is *paired*: one bootstrap replicate picks the same flights (or teams) for
+every method, so what varies is the flights, not the pairing.  Cluster bootstrap: a replicate draws
+whole groups with replacement and keeps all their flights.  Every replicate set comes from the
+caller's seed.
 
-Also the two statistics every coverage claim rests on: the split-conformal quantile (a region's size from
-held-out scores) and the exact binomial interval of a coverage share (k truths inside out of n).
+Also the two statistics every coverage claim rests on: the split-conformal quantile (a region's size
+from held-out scores) and the exact binomial interval of a coverage share (k truths inside out of
+n).
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ class Interval:
     level: float = LEVEL
 
     def excludes_zero(self) -> bool:
-        """True when the whole interval lies on one side of zero (a difference that the data resolve)."""
+        """True when the whole interval lies on one side of zero (a difference that the data
+        resolve)."""
         return self.lo > 0.0 or self.hi < 0.0
 
     def fmt(self, digits: int = 1) -> str:
@@ -47,8 +50,9 @@ class Interval:
 def replicate_weights(
     n: int, groups: Sequence | None = None, n_boot: int = N_BOOT, seed: int = 0
 ) -> np.ndarray:
-    """(n_boot, n) multiplicities of each flight in each replicate: flights drawn with replacement, or, with
-    ``groups`` (one label per flight), whole groups drawn with replacement (cluster bootstrap)."""
+    """(n_boot, n) multiplicities of each flight in each replicate: flights drawn with replacement,
+    or, with ``groups`` (one label per flight), whole groups drawn with replacement (cluster
+    bootstrap)."""
     rng = np.random.default_rng(seed)
     if n < 1:
         raise ValueError("need at least one flight")
@@ -96,8 +100,8 @@ def paired_difference(
     n_boot: int = N_BOOT,
     seed: int = 0,
 ) -> Interval:
-    """Mean of ``a - b`` over the same flights, with its paired (cluster) bootstrap interval: negative = a
-    errs less."""
+    """Mean of ``a - b`` over the same flights, with its paired (cluster) bootstrap interval:
+    negative = a errs less."""
     a, b = np.asarray(errors_a, dtype=float), np.asarray(errors_b, dtype=float)
     if a.shape != b.shape:
         raise ValueError(f"paired errors need the same flights: {a.shape} vs {b.shape}")
@@ -112,7 +116,8 @@ def compare_methods(
     n_boot: int = N_BOOT,
     seed: int = 0,
 ) -> dict[str, dict[str, Interval]]:
-    """Per method: its mean error and its paired difference to ``reference``, all from one replicate set."""
+    """Per method: its mean error and its paired difference to ``reference``, all from one replicate
+    set."""
     if reference not in errors:
         raise ValueError(f"reference {reference!r} is not among the methods")
     n = len(next(iter(errors.values())))
@@ -132,16 +137,18 @@ def compare_methods(
 
 
 def conformal_quantile(scores: Sequence[float], level: float) -> float:
-    """Split-conformal quantile: the ``ceil((n + 1) level)``-th smallest of ``n`` held-out scores (inf when n is
-    too small).  A fresh exchangeable score is at most it with probability ``ceil((n + 1) level) / (n + 1)``
-    (rank argument): an error circle's radius, or the HPD mass of a posterior region."""
+    """Split-conformal quantile: the ``ceil((n + 1) level)``-th smallest of ``n`` held-out scores
+    (inf when n is too small).  A fresh exchangeable score is at most it with probability ``ceil((n
+    + 1) level) / (n + 1)`` (rank argument): an error circle's radius, or the HPD mass of a
+    posterior region."""
     e = np.sort(np.asarray(scores, dtype=float).ravel())
     k = math.ceil((e.size + 1) * float(level))
     return float(e[k - 1]) if 1 <= k <= e.size else float("inf")
 
 
 def coverage_interval(k: int, n: int, level: float = LEVEL) -> Interval:
-    """Share ``k / n`` of truths inside a region with its exact (Clopper-Pearson) binomial interval."""
+    """Share ``k / n`` of truths inside a region with its exact (Clopper-Pearson) binomial
+    interval."""
     from scipy.special import betaincinv  # the beta quantile (scipy.stats costs seconds to import)
 
     if n < 1 or not 0 <= k <= n:

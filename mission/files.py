@@ -1,10 +1,11 @@
-"""Files the commands read and write, checked at the boundary: inputs must be regular files of a bounded
-size, outputs are written whole or not at all, and output paths are checked before any work starts.
+"""Files the commands read and write, checked at the boundary: inputs must be regular files of a
+bounded size, outputs are written whole or not at all, and output paths are checked before any work
+starts.
 
-Why one module: a full disk left a truncated CSV beside a normal sidecar (which ``localize`` then accepted),
-a FIFO or ``/dev/zero`` as an input blocked forever, and an unwritable output failed with a traceback after
-minutes of work.  Every command reads and writes through these few functions, so the promise (one line,
-exit 2, nothing half-written) has one home.
+Why one module: a full disk left a truncated CSV beside a normal sidecar (which ``localize`` then
+accepted), a FIFO or ``/dev/zero`` as an input blocked forever, and an unwritable output failed with
+a traceback after minutes of work.  Every command reads and writes through these few functions, so
+the promise (one line, exit 2, nothing half-written) has one home.
 """
 
 from __future__ import annotations
@@ -32,8 +33,9 @@ def _why(e: OSError) -> str:
 def check_regular(
     path: str | Path, what: str = "file", field: str | None = None, max_bytes: int | None = None
 ) -> Path:
-    """``path`` if it is an existing regular file (not a folder, FIFO or device) of at most ``max_bytes``;
-    else an InputError naming it.  A FIFO with no writer or ``/dev/zero`` would block or never end."""
+    """``path`` if it is an existing regular file (not a folder, FIFO or device) of at most
+    ``max_bytes``; else an InputError naming it.  A FIFO with no writer or ``/dev/zero`` would block
+    or never end."""
     p = Path(path)
     try:
         st = p.stat()
@@ -61,7 +63,8 @@ def check_regular(
 def read_bytes(
     path: str | Path, what: str = "file", field: str | None = None, max_bytes: int = MAX_TEXT_BYTES
 ) -> bytes:
-    """The bytes of a regular input file (``check_regular``), read errors as one-line InputErrors."""
+    """The bytes of a regular input file (``check_regular``), read errors as one-line
+    InputErrors."""
     p = check_regular(path, what, field, max_bytes)
     try:
         return p.read_bytes()
@@ -76,8 +79,8 @@ def read_text(
     max_bytes: int = MAX_TEXT_BYTES,
     encoding: str = "utf-8",
 ) -> str:
-    """The text of a regular input file; bytes that are not ``encoding`` are an InputError (a binary or
-    Latin-1 file given where a YAML or JSON file belongs)."""
+    """The text of a regular input file; bytes that are not ``encoding`` are an InputError (a binary
+    or Latin-1 file given where a YAML or JSON file belongs)."""
     data = read_bytes(path, what, field, max_bytes)
     try:
         return data.decode(encoding)
@@ -91,10 +94,10 @@ def read_text(
 
 @contextlib.contextmanager
 def writing(path: str | Path, field: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path in ``path``'s folder; when the block ends, move it onto ``path`` at once
-    (``os.replace``).  A failure (full disk, file-size limit, Ctrl-C) removes the temporary file and leaves
-    whatever ``path`` held before: the file is written whole or not at all.  OS errors become an InputError
-    naming ``path``."""
+    """Yield a temporary path in ``path``'s folder; when the block ends, move it onto ``path`` at
+    once (``os.replace``).  A failure (full disk, file-size limit, Ctrl-C) removes the temporary
+    file and leaves whatever ``path`` held before: the file is written whole or not at all.  OS
+    errors become an InputError naming ``path``."""
     p = Path(path)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -140,7 +143,8 @@ def write_bytes(path: str | Path, data: bytes, field: str | None = None) -> Path
 
 
 def save_figure(fig, path: str | Path, field: str | None = None, **kw) -> Path:
-    """``fig.savefig`` whole or not at all (the format from ``path``'s suffix, not the temporary name's)."""
+    """``fig.savefig`` whole or not at all (the format from ``path``'s suffix, not the temporary
+    name's)."""
     p = Path(path)
     with writing(p, field) as tmp:
         fig.savefig(tmp, format=p.suffix.lstrip(".").lower() or "png", **kw)
@@ -155,10 +159,12 @@ def _nearest_existing(path: Path) -> Path:
 
 
 def check_writable_dir(folder: str | Path, field: str | None = "--out") -> Path:
-    """``folder`` if it is, or can be made, a writable folder (nothing is created); else an InputError.
+    """``folder`` if it is, or can be made, a writable folder (nothing is created); else an
+    InputError.
 
-    Why a probe and not ``os.access``: as root ``os.access`` says yes to a read-only mount or ``/proc``; an
-    anonymous temporary file in the nearest existing folder is the honest test and leaves nothing behind."""
+    Why a probe and not ``os.access``: as root ``os.access`` says yes to a read-only mount or
+    ``/proc``; an anonymous temporary file in the nearest existing folder is the honest test and
+    leaves nothing behind."""
     folder = Path(folder)
     for p in (folder, *folder.parents):
         if p.exists() and not p.is_dir():
@@ -180,8 +186,8 @@ def check_out_file(
     overwrite: bool = False,
     hint: str = "use --overwrite to replace it",
 ) -> Path:
-    """An output file's path checked before any work: not a folder, its folder writable (or creatable),
-    and not an existing file unless ``overwrite``."""
+    """An output file's path checked before any work: not a folder, its folder writable (or
+    creatable), and not an existing file unless ``overwrite``."""
     p = Path(path)
     if p.is_dir():
         raise InputError("is a directory; give a file name", source=str(p), field=field)

@@ -1,7 +1,9 @@
-"""Geodesy and mission areas: WGS84 <-> local ENU about a mission origin, and polygon areas (shapely).
+"""Geodesy and mission areas: WGS84 <-> local ENU about a mission origin, and polygon areas
+(shapely).
 
-The local frame is ENU metres about the mission origin (SPEC section 1): x east, y north, z up above the
-origin's ground.  The conversion is delegated to ``pymap3d`` rather than hand-rolled trigonometry.
+The local frame is ENU metres about the mission origin (SPEC section 1): x east, y north, z up above
+the origin's ground.  The conversion is delegated to ``pymap3d`` rather than hand-rolled
+trigonometry.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ class Origin:
     alt_m: float = 0.0
 
     def to_enu(self, lat_deg, lon_deg, alt_m=None) -> np.ndarray:
-        """Geodetic -> local ENU (..., 3) in metres; ``alt_m`` is AMSL (defaults to the origin's ground)."""
+        """Geodetic -> local ENU (..., 3) in metres; ``alt_m`` is AMSL (defaults to the origin's
+        ground)."""
         lat = np.asarray(lat_deg, dtype=float)
         lon = np.asarray(lon_deg, dtype=float)
         alt = np.full_like(lat, self.alt_m) if alt_m is None else np.asarray(alt_m, dtype=float)
@@ -51,7 +54,8 @@ class Origin:
 
 @dataclass(frozen=True)
 class Area:
-    """A named polygon in the local ENU plane (vertices (K, 2), metres), e.g. the flight or rover area."""
+    """A named polygon in the local ENU plane (vertices (K, 2), metres), e.g. the flight or rover
+    area."""
 
     name: str
     vertices: np.ndarray
@@ -78,7 +82,8 @@ class Area:
 
     @classmethod
     def from_box(cls, name: str, box: dict, origin: Origin) -> Area:
-        """Build from a lat/lon box ``{lat_min, lat_max, lon_min, lon_max}`` (the AFAR geometry format)."""
+        """Build from a lat/lon box ``{lat_min, lat_max, lon_min, lon_max}`` (the AFAR geometry
+        format)."""
         ll = np.array(
             [
                 [box["lat_min"], box["lon_min"]],
@@ -95,8 +100,8 @@ class Area:
         return self._polygon
 
     def contains(self, xy, margin_m: float = 0.0) -> np.ndarray:
-        """True where points (..., 2) lie inside the polygon (its boundary excluded) and at least ``margin_m``
-        from its edges."""
+        """True where points (..., 2) lie inside the polygon (its boundary excluded) and at least
+        ``margin_m`` from its edges."""
         p = np.asarray(xy, dtype=float)[..., :2]
         inside = shapely.contains_xy(self._polygon, p[..., 0], p[..., 1])
         if margin_m > 0:
@@ -125,7 +130,8 @@ class Area:
         )
 
     def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` points drawn uniformly inside the polygon (rejection sampling on its bounding box)."""
+        """``n`` points drawn uniformly inside the polygon (rejection sampling on its bounding
+        box)."""
         xmin, ymin, xmax, ymax = self.bounds
         out = np.empty((0, 2))
         while len(out) < n:
@@ -135,9 +141,10 @@ class Area:
 
 
 def square_grid(bounds, step_m: float, centred: bool = False) -> np.ndarray:
-    """Points (ny, nx, 2) of a square grid with spacing ``step_m`` over the box (xmin, ymin, xmax, ymax): from the
-    corner up to the far edge included (the localizers' candidate transmitters), or with ``centred`` the centres of
-    the ``step_m`` cells inside the box (area coverage).  Rows run along y, columns along x (``np.meshgrid``)."""
+    """Points (ny, nx, 2) of a square grid with spacing ``step_m`` over the box (xmin, ymin, xmax,
+    ymax): from the corner up to the far edge included (the localizers' candidate transmitters), or
+    with ``centred`` the centres of the ``step_m`` cells inside the box (area coverage).  Rows run
+    along y, columns along x (``np.meshgrid``)."""
     x0, y0, x1, y1 = bounds
     if centred:
         xs, ys = np.arange(x0 + step_m / 2, x1, step_m), np.arange(y0 + step_m / 2, y1, step_m)
@@ -147,8 +154,9 @@ def square_grid(bounds, step_m: float, centred: bool = False) -> np.ndarray:
 
 
 def clip_polygon(subject: np.ndarray, clip: np.ndarray) -> list[np.ndarray]:
-    """The parts of polygon ``subject`` inside polygon ``clip`` ((K, 2) each, either may be non-convex): a list of
-    (M, 2) rings, counter-clockwise, without the closing vertex; empty when they do not overlap."""
+    """The parts of polygon ``subject`` inside polygon ``clip`` ((K, 2) each, either may be
+    non-convex): a list of (M, 2) rings, counter-clockwise, without the closing vertex; empty when
+    they do not overlap."""
     inter = shapely.intersection(
         *(shapely.make_valid(shapely.Polygon(np.asarray(v, dtype=float))) for v in (subject, clip))
     )
@@ -163,7 +171,8 @@ def polygon_area_m2(v: np.ndarray) -> float:
 
 @dataclass(frozen=True)
 class Field:
-    """A mission field: origin, flight area (the UAV must stay inside) and rover area (the transmitter)."""
+    """A mission field: origin, flight area (the UAV must stay inside) and rover area (the
+    transmitter)."""
 
     origin: Origin
     flight_area: Area
@@ -178,11 +187,13 @@ MAX_FLIGHT_KM = (
 
 
 def latlon_unit_problem(lat, lon, origin: Origin | None) -> tuple[int, str] | None:
-    """Index and reason of the first lat/lon sample that cannot be a flight position in degrees, or None.
+    """Index and reason of the first lat/lon sample that cannot be a flight position in degrees, or
+    None.
 
-    Why: radians pass the +-90/+-180 range check and then give NaN fits or estimates thousands of km away.
-    With an origin, any sample more than ``MAX_FLIGHT_KM`` from it is wrong; without one, a whole track
-    within +-pi/2, +-pi is taken for radians (a flight near 0 N 0 E needs a sidecar with its origin).
+    Why: radians pass the +-90/+-180 range check and then give NaN fits or estimates thousands of km
+    away. With an origin, any sample more than ``MAX_FLIGHT_KM`` from it is wrong; without one, a
+    whole track within +-pi/2, +-pi is taken for radians (a flight near 0 N 0 E needs a sidecar with
+    its origin).
     """
     lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
     if lat.size == 0:
@@ -230,7 +241,8 @@ AFAR_GEOMETRY = {
 
 
 def afar_field(geometry: dict | str | Path | None = None, origin: Origin | None = None) -> Field:
-    """The AFAR Lake Wheeler field (embedded copy of ``shared/afar_geometry.json``, or a given file).
+    """The AFAR Lake Wheeler field (embedded copy of ``shared/afar_geometry.json``, or a given
+    file).
 
     The default origin is the flight area's south-west corner at ground level (0 m AMSL nominal), so
     all of the field lies at positive x, y.

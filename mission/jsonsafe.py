@@ -1,5 +1,6 @@
-"""Strict JSON out of numpy-laden results: non-finite numbers become ``null`` (JSON has no NaN or Infinity, and
-strict readers such as ``jq`` or JavaScript's ``JSON.parse`` refuse Python's ``NaN`` / ``Infinity``)."""
+"""Strict JSON out of numpy-laden results: non-finite numbers become ``null`` (JSON has no NaN or
+Infinity, and strict readers such as ``jq`` or JavaScript's ``JSON.parse`` refuse Python's ``NaN`` /
+``Infinity``)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import numpy as np
 
 
 def finite_or_none(o: Any) -> Any:
-    """``o`` with numpy arrays and scalars as Python lists and numbers, and every non-finite float as None."""
+    """``o`` with numpy arrays and scalars as Python lists and numbers, and every non-finite float
+    as None."""
     if isinstance(o, dict):
         return {k: finite_or_none(v) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
@@ -26,5 +28,6 @@ def finite_or_none(o: Any) -> Any:
 
 
 def dumps(o: Any, **kw: Any) -> str:
-    """``json.dumps`` that always writes strict JSON (see ``finite_or_none``); other objects by ``str``."""
+    """``json.dumps`` that always writes strict JSON (see ``finite_or_none``); other objects by
+    ``str``."""
     return json.dumps(finite_or_none(o), allow_nan=False, default=str, **kw)

@@ -1,13 +1,14 @@
 """Mission preview: summary numbers, an expected-localization-error map, and a map-like PNG.
 
 The expected error comes by default from ``ml_grid_estimator``: the localizer's model grid search
-(``mission.localize.classical.ModelGridSearch``) in its many-records form (``FixedGeometrySearch``) with the
-same propagation model that simulated the RSS, on a ``step_m`` grid of cell centres over the rover area.
-With Gaussian dB noise and an unknown constant receiver offset (SPEC section 5) the likelihood is maximised by
-the candidate whose predicted RSS, after removing its mean, is closest in least squares to the measured RSS
-after removing its mean; so the estimate is offset-invariant.  It is an optimistic bound (the model is exact
-apart from noise and attitude perturbation; the product's default for real logs is ``fusion``); plug another
-localizer in through ``expected_error_map(..., estimator=...)``.
+(``mission.localize.classical.ModelGridSearch``) in its many-records form (``FixedGeometrySearch``)
+with the same propagation model that simulated the RSS, on a ``step_m`` grid of cell centres over
+the rover area. With Gaussian dB noise and an unknown constant receiver offset (SPEC section 5) the
+likelihood is maximised by the candidate whose predicted RSS, after removing its mean, is closest in
+least squares to the measured RSS after removing its mean; so the estimate is offset-invariant.  It
+is an optimistic bound (the model is exact apart from noise and attitude perturbation; the product's
+default for real logs is ``fusion``); plug another localizer in through ``expected_error_map(...,
+estimator=...)``.
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ import numpy as np
 
 from mission.geo import Area, square_grid
 
-# estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y
-# What the default expected-error map assumes, said wherever its numbers are shown (table and plot title).
+# estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y What the
+# default expected-error map assumes, said wherever its numbers are shown (table and plot title).
 ESTIMATOR_NOTE = (
     "assuming an ML grid search with the mission's own {model} physics (an optimistic bound)"
 )
@@ -114,8 +115,9 @@ def ml_grid_estimator(
     attitude: np.ndarray,
     step_m: float = 4.0,
 ) -> Estimator:
-    """The default ``Estimator`` (module docstring): ``ModelGridSearch(model).fixed_geometry`` along the flown
-    ``positions`` / ``attitude`` with the cell centres of a ``step_m`` grid over ``area`` as candidates."""
+    """The default ``Estimator`` (module docstring): ``ModelGridSearch(model).fixed_geometry`` along
+    the flown ``positions`` / ``attitude`` with the cell centres of a ``step_m`` grid over ``area``
+    as candidates."""
     from mission.localize.classical import ModelGridSearch
 
     search = ModelGridSearch(model, tx_height_m=tx_height_m, area=area, step_m=step_m)
@@ -154,12 +156,13 @@ def expected_error_map(
     subsample: int = 10,
     progress: Callable[[int, int], None] | None = None,
 ) -> ErrorMap:
-    """Simulate the mission for a ``grid`` x ``grid`` lattice of transmitters over the rover area and
+    """Simulate the mission for a ``grid`` x ``grid`` lattice of transmitters over the rover area
+    and
     localize each with ``estimator`` (default: ``ml_grid_estimator`` with the mission's own model).
 
-    One kinematic flight is flown (attitude perturbation from ``rng``) and every ``subsample``-th RSS
-    sample is kept, as a localizer would average them anyway; each transmitter gets its own noise draw.
-    ``progress(done, total)`` is called after each row of the lattice.
+    One kinematic flight is flown (attitude perturbation from ``rng``) and every ``subsample``-th
+    RSS sample is kept, as a localizer would average them anyway; each transmitter gets its own
+    noise draw. ``progress(done, total)`` is called after each row of the lattice.
     """
     from mission.simulate import fly_path
 
@@ -200,7 +203,8 @@ def render_preview(
     size_px: tuple[int, int] = (1200, 1000),
     dpi: int = 100,
 ):
-    """Draw the areas, waypoints, simulated flown path, budget and (optionally) the error heatmap."""
+    """Draw the areas, waypoints, simulated flown path, budget and (optionally) the error
+    heatmap."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,7 +1,8 @@
-"""Replay a flight log: its summary (duration, samples, rate, altitude, RSS, attitude) and its path by RSS.
+"""Replay a flight log: its summary (duration, samples, rate, altitude, RSS, attitude) and its path
+by RSS.
 
-Why: the first look at any flight, simulated or real, before localizing it: did it cover the area, was the
-receiver delivering at the expected rate, did the attitude behave.
+Why: the first look at any flight, simulated or real, before localizing it: did it cover the area,
+was the receiver delivering at the expected rate, did the attitude behave.
 """
 
 from __future__ import annotations
@@ -43,7 +44,8 @@ def summary(log: FlightLog) -> dict[str, float | int | str]:
 
 
 def plot(log: FlightLog, png: Path) -> Path:
-    """Path in ENU coloured by RSS (plus the true transmitter when known), saved as PNG (Agg backend)."""
+    """Path in ENU coloured by RSS (plus the true transmitter when known), saved as PNG (Agg
+    backend)."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,12 +1,15 @@
-"""Offset-invariant robust residuals: one home for the free RSS offset and the soft-L1 / Huber / L2 losses.
+"""Offset-invariant robust residuals: one home for the free RSS offset and the soft-L1 / Huber / L2
+losses.
 
-Why: a real receiver's dB carry an unknown constant offset (SPEC section 5), so every comparison of a model
-with measured RSS removes a constant fitted on the very samples being scored, and real flights have deep
-fades, so the fit uses a robust loss.  The localizer's grid search (``mission.localize.classical``), the gap
-diagnosis (``mission.gap.fit``) and the calibration all need the same two things, written once here:
+Why: a real receiver's dB carry an unknown constant offset (SPEC section 5), so every comparison of
+a model with measured RSS removes a constant fitted on the very samples being scored, and real
+flights have deep fades, so the fit uses a robust loss.  The localizer's grid search
+(``mission.localize.classical``), the gap diagnosis (``mission.gap.fit``) and the calibration all
+need the same two things, written once here:
 
-- ``robust_offset``: the offset of residuals under a robust loss: the median as a start, then one Huber
-  IRLS step with weights ``w = min(1, f / |r - median|)`` (closed form, vectorised over leading axes);
+- ``robust_offset``: the offset of residuals under a robust loss: the median as a start, then one
+  Huber IRLS step with weights ``w = min(1, f / |r - median|)`` (closed form, vectorised over
+  leading axes);
 - ``rho`` / ``per_sample_loss``: ``f^2 rho(r / f)`` with ``rho(z) = z^2`` (l2),
   ``2 (sqrt(1 + z^2) - 1)`` (soft_l1, the ``scipy.optimize.least_squares`` definition) or
   ``z^2 if |z| <= 1 else 2 |z| - 1`` (huber); all three are ~ r^2 for |r| << f.
@@ -22,7 +25,8 @@ LOSSES = ("l2", "soft_l1", "huber")
 
 
 def rho(z: np.ndarray, loss: str) -> np.ndarray:
-    """Dimensionless loss of the scaled residual ``z = r / f`` (``LOSSES``); unknown names raise InputError."""
+    """Dimensionless loss of the scaled residual ``z = r / f`` (``LOSSES``); unknown names raise
+    InputError."""
     z = np.asarray(z, dtype=float)
     if loss == "l2":
         return z * z
@@ -43,7 +47,8 @@ def per_sample_loss(r: np.ndarray, loss: str = "l2", f_scale: float = 6.0) -> np
 
 
 def robust_offset(resid: np.ndarray, f_scale: float = 6.0, axis: int = -1) -> np.ndarray:
-    """Offset of ``resid`` along ``axis``: median, then one Huber IRLS step (weights min(1, f / |r - med|))."""
+    """Offset of ``resid`` along ``axis``: median, then one Huber IRLS step (weights min(1, f / |r -
+    med|))."""
     resid = np.asarray(resid, dtype=float)
     off = (
         median_1d(resid)
@@ -57,14 +62,15 @@ def robust_offset(resid: np.ndarray, f_scale: float = 6.0, axis: int = -1) -> np
 
 
 def huber_weights(z: np.ndarray, f_scale: float) -> np.ndarray:
-    """IRLS weights of the Huber step about the median: min(1, f / |z|) (``robust_offset``, and the gap's
-    offsets of several flights at once)."""
+    """IRLS weights of the Huber step about the median: min(1, f / |z|) (``robust_offset``, and the
+    gap's offsets of several flights at once)."""
     return np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
 
 
 def median_1d(r: np.ndarray) -> np.ndarray:
-    """``np.median(r, keepdims=True)`` of a non-empty 1-D array, bit for bit (the same partition and mean of
-    the middle pair; NaN if any), without its generic-axis overhead: the fits call it ~100 000 times."""
+    """``np.median(r, keepdims=True)`` of a non-empty 1-D array, bit for bit (the same partition and
+    mean of the middle pair; NaN if any), without its generic-axis overhead: the fits call it ~100
+    000 times."""
     h = r.size // 2
     part = np.partition(r, [h - 1, h, -1] if r.size % 2 == 0 else [h, -1])
     if np.isnan(part[-1]):
@@ -75,10 +81,11 @@ def median_1d(r: np.ndarray) -> np.ndarray:
 def robust_cost(
     resid: np.ndarray, loss: str = "soft_l1", f_scale: float = 6.0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Offset and mean robust cost along the last axis of ``resid`` (e.g. (K candidates, N samples) -> (K,)).
+    """Offset and mean robust cost along the last axis of ``resid`` (e.g. (K candidates, N samples)
+    -> (K,)).
 
-    The offset is ``robust_offset`` for every loss (the grid search's convention); the cost is the mean of
-    ``per_sample_loss`` of the offset-removed residuals.
+    The offset is ``robust_offset`` for every loss (the grid search's convention); the cost is the
+    mean of ``per_sample_loss`` of the offset-removed residuals.
     """
     resid = np.asarray(resid, dtype=float)
     off = robust_offset(resid, f_scale, axis=-1)
@@ -90,7 +97,8 @@ def offset_residual(
     meas: np.ndarray, pred: np.ndarray, slope: bool = False, loss: str = "l2", f_scale: float = 6.0
 ) -> np.ndarray:
     """``meas - (c + s pred)`` with the free constants fitted: the offset ``c`` is the mean (l2) or
-    ``robust_offset`` (soft_l1, huber); with ``slope`` also a path-gain slope ``s`` (least squares)."""
+    ``robust_offset`` (soft_l1, huber); with ``slope`` also a path-gain slope ``s`` (least
+    squares)."""
     meas = np.asarray(meas, dtype=float)
     pred = np.asarray(pred, dtype=float)
     if meas.size == 0:

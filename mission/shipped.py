@@ -1,7 +1,8 @@
-"""Where the shipped networks and missions live: ``models/`` and ``missions/`` beside the package in a source
-checkout (editable install, ``PYTHONPATH``), or the copies that a plain ``pip install .`` carries inside the
-package as ``mission/data/models`` and ``mission/data/missions`` (``setup.py``'s build step puts them there),
-so that an installed package localizes with the shipped default instead of falling back to a weaker method."""
+"""Where the shipped networks and missions live: ``models/`` and ``missions/`` beside the package in
+a source checkout (editable install, ``PYTHONPATH``), or the copies that a plain ``pip install .``
+carries inside the package as ``mission/data/models`` and ``mission/data/missions`` (``setup.py``'s
+build step puts them there), so that an installed package localizes with the shipped default instead
+of falling back to a weaker method."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ SHIPPED_FOLDERS = (
 
 def shipped_dir(kind: str, package_dir: Path = PACKAGE_DIR) -> Path:
     """The folder holding the shipped ``kind`` (``models`` or ``missions``): the installed copy in
-    ``<package>/data/<kind>`` when there is one, else the source checkout's ``<repository>/<kind>``."""
+    ``<package>/data/<kind>`` when there is one, else the source checkout's
+    ``<repository>/<kind>``."""
     if kind not in SHIPPED_FOLDERS:
         raise ValueError(
             f"unknown shipped folder {kind!r} (expected one of {', '.join(SHIPPED_FOLDERS)})"
@@ -43,8 +45,9 @@ def shipped_model(name: str) -> Path | None:
 
 def resolve_shipped(path: str | Path, kind: str, suffix: str) -> Path:
     """``path`` when it exists; else the shipped file it names (``spiral``, ``spiral.yaml`` or
-    ``missions/spiral.yaml``; ``rfsl_default.onnx`` or ``models/rfsl_default.onnx``), so the README's commands
-    work from any folder after a plain ``pip install``; else ``path`` unchanged (the caller says it is missing)."""
+    ``missions/spiral.yaml``; ``rfsl_default.onnx`` or ``models/rfsl_default.onnx``), so the
+    README's commands work from any folder after a plain ``pip install``; else ``path`` unchanged
+    (the caller says it is missing)."""
     p = Path(path)
     if p.exists():
         return p
@@ -75,7 +78,8 @@ _checked: dict[tuple[str, int, int], str] = {}
 
 
 def file_sha256(path: Path) -> str:
-    """The sha256 of a file, cached by path, size and modification time (a model is loaded many times)."""
+    """The sha256 of a file, cached by path, size and modification time (a model is loaded many
+    times)."""
     import hashlib
 
     st = path.stat()
@@ -86,8 +90,9 @@ def file_sha256(path: Path) -> str:
 
 
 def check_shipped_digest(path: str | Path) -> None:
-    """A network under a shipped name (``rfsl_default.onnx``) must be that network: bytes flipped in its weights
-    still load and answer, wrongly and silently, so its digest is checked against ``models/sha256.json``."""
+    """A network under a shipped name (``rfsl_default.onnx``) must be that network: bytes flipped in
+    its weights still load and answer, wrongly and silently, so its digest is checked against
+    ``models/sha256.json``."""
     from mission.errors import InputError
 
     p = Path(path)
@@ -101,8 +106,9 @@ def check_shipped_digest(path: str | Path) -> None:
 
 
 def record_shipped_digest(path: str | Path) -> bool:
-    """After ``rfsl train --out models/NAME.onnx`` replaced a shipped network: record its new digest in the
-    checkout's ``models/sha256.json`` (True), so the check above keeps guarding it; other paths: False."""
+    """After ``rfsl train --out models/NAME.onnx`` replaced a shipped network: record its new digest
+    in the checkout's ``models/sha256.json`` (True), so the check above keeps guarding it; other
+    paths: False."""
     import json
 
     p = Path(path)

@@ -1,12 +1,13 @@
-"""Fast flight simulator: fly a waypoint path kinematically and sample RSS through a propagation model.
+"""Fast flight simulator: fly a waypoint path kinematically and sample RSS through a propagation
+model.
 
 No MAVLink is involved: dataset generation, previews and tests use this.  The vehicle follows
-``trajectory.kinematics`` (speed/acceleration limits, yaw along the track, roll/pitch from the commanded
-accelerations) plus a random attitude perturbation (uniform in [-5, 5] deg per sample by default, as in the
-paper's training data), and RSS is sampled every ``dt`` = 0.03 s with Gaussian noise (1 dB by default).
-Optionally (``shadowing_db`` > 0) a spatially correlated log-normal shadowing field is added: real flights
-depart from any deterministic model by errors that persist over tens of metres (buildings, trees, the
-vehicle's own body), not by white noise.
+``trajectory.kinematics`` (speed/acceleration limits, yaw along the track, roll/pitch from the
+commanded accelerations) plus a random attitude perturbation (uniform in [-5, 5] deg per sample by
+default, as in the paper's training data), and RSS is sampled every ``dt`` = 0.03 s with Gaussian
+noise (1 dB by default). Optionally (``shadowing_db`` > 0) a spatially correlated log-normal
+shadowing field is added: real flights depart from any deterministic model by errors that persist
+over tens of metres (buildings, trees, the vehicle's own body), not by white noise.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ class SimConfig:
 
 @dataclass
 class SimulatedFlight(FlightSamples):
-    """A simulated flight: its ``FlightSamples`` (with the true transmitter and the phase) and the flight profile
-    it was sampled from (for the phase, the path length, the duration)."""
+    """A simulated flight: its ``FlightSamples`` (with the true transmitter and the phase) and the
+    flight profile it was sampled from (for the phase, the path length, the duration)."""
 
     profile: FlightProfile | None = None
 
@@ -68,10 +69,11 @@ class SimulatedFlight(FlightSamples):
 
 
 def leg_phases(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mission phase (``flightlog.PHASES``) and mission item (K-1,) of each leg of a path (K, 3) shaped as
-    ``MissionSpec.flight_path_enu`` builds it: leading climbing vertical legs are the take-off, trailing
-    descending vertical legs the landing, a horizontal leg back over the start just before the landing the
-    return, the rest the mission (item k: flying to waypoint k; a path without take-off starts at waypoint 0).
+    """Mission phase (``flightlog.PHASES``) and mission item (K-1,) of each leg of a path (K, 3)
+    shaped as ``MissionSpec.flight_path_enu`` builds it: leading climbing vertical legs are the
+    take-off, trailing descending vertical legs the landing, a horizontal leg back over the start
+    just before the landing the return, the rest the mission (item k: flying to waypoint k; a path
+    without take-off starts at waypoint 0).
 
     A planned path's phases from its geometry; a flown vehicle's come from its events instead
     (``flight.phases.PhaseTracker``), with the same names and item rule.
@@ -97,7 +99,8 @@ def leg_phases(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def path_phases(profile: FlightProfile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mission phase and mission item at times ``t`` along ``profile`` (its legs' ``leg_phases``)."""
+    """Mission phase and mission item at times ``t`` along ``profile`` (its legs'
+    ``leg_phases``)."""
     name, item = leg_phases(profile.vertices)
     leg = np.clip(np.searchsorted(profile.t_vertex, t, side="right") - 1, 0, len(name) - 1)
     return name[leg].astype(str), item[leg]
@@ -119,7 +122,8 @@ def fly_path(
 
 
 def perturbation(n: int, cfg: SimConfig, rng: np.random.Generator) -> np.ndarray:
-    """Random roll/pitch/yaw perturbation (n, 3) radians, uniform in +-``attitude_perturbation_deg``."""
+    """Random roll/pitch/yaw perturbation (n, 3) radians, uniform in
+    +-``attitude_perturbation_deg``."""
     w = np.deg2rad(cfg.attitude_perturbation_deg)
     p = rng.uniform(-w, w, size=(n, 3))
     if cfg.perturbation_corr_s > 0 and n > 1:
@@ -141,8 +145,8 @@ def simulate_flight(
 ) -> SimulatedFlight:
     """Fly ``waypoints_enu`` and sample RSS from a transmitter at ``tx_enu`` (3,) through ``model``.
 
-    ``model`` is a ``mission.physics`` propagation model (``rss_dbm(tx, rx, attitude)``).  Draw order is
-    fixed (attitude perturbation, then noise) so a seed reproduces the same bytes.
+    ``model`` is a ``mission.physics`` propagation model (``rss_dbm(tx, rx, attitude)``).  Draw
+    order is fixed (attitude perturbation, then noise) so a seed reproduces the same bytes.
     """
     cfg = cfg or SimConfig()
     rng = rng if rng is not None else np.random.default_rng(0)

@@ -1,10 +1,11 @@
-"""YAML mission files -> typed, validated ``MissionSpec`` (the schema is documented in missions/spiral.yaml).
+"""YAML mission files -> typed, validated ``MissionSpec`` (the schema is documented in
+missions/spiral.yaml).
 
-A mission names its field (AFAR by default), altitude, speed, time budget, fence margin, take-off and
-return behaviour, the trajectory (a generator with parameters, or explicit waypoints), the simulated RSS
-source and the vehicle connection.  Files are read with ``yaml.safe_load``; every bad or unknown key is an
-``InputError`` naming the file and the dotted key (``trajectory.params.spacing_m``), so a user fixes a
-mission from one line of output.
+A mission names its field (AFAR by default), altitude, speed, time budget, fence margin, take-off
+and return behaviour, the trajectory (a generator with parameters, or explicit waypoints), the
+simulated RSS source and the vehicle connection.  Files are read with ``yaml.safe_load``; every bad
+or unknown key is an ``InputError`` naming the file and the dotted key
+(``trajectory.params.spacing_m``), so a user fixes a mission from one line of output.
 """
 
 from __future__ import annotations
@@ -44,8 +45,9 @@ MAX_LOCAL_M = (
 MAX_ALTITUDE_M = 1e4  # altitudes and heights in a mission file (1e308 overflowed)
 MAX_NAME_CHARS = 100  # a mission name becomes a folder and file name
 MAX_MISSION_BYTES = 1_000_000  # the shipped missions are ~2 kB; a 30 MB file ran for minutes
-# heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not command yaw,
-# so a mission may not ask for it (its vehicle would fly differently from the simulated one)
+# heading_deg (fixed-heading flight) is a simulator/dataset option: the mission runner does not
+# command yaw, so a mission may not ask for it (its vehicle would fly differently from the simulated
+# one)
 _KIN_FIELDS = tuple(
     k for k in Kinematics.__dataclass_fields__ if k not in ("cruise_speed_mps", "heading_deg")
 )
@@ -64,7 +66,8 @@ class TrajectorySpec:
 
 @dataclass(frozen=True)
 class SourceSpec:
-    """The simulated RSS source: propagation model, transmitter (ENU or "random"), seed and noise."""
+    """The simulated RSS source: propagation model, transmitter (ENU or "random"), seed and
+    noise."""
 
     model: str = "e2r"
     tx: tuple[float, float, float] | str = "random"
@@ -78,7 +81,8 @@ class SourceSpec:
 
 @dataclass(frozen=True)
 class VehicleSpec:
-    """How to reach the vehicle: a MAVSDK connection URL, or None for the built-in simulated vehicle."""
+    """How to reach the vehicle: a MAVSDK connection URL, or None for the built-in simulated
+    vehicle."""
 
     connection: str | None = None
     speedup: float = 1.0
@@ -128,8 +132,9 @@ class MissionSpec:
         return Kinematics(cruise_speed_mps=self.cruise_speed_mps, **self.vehicle.kinematics)
 
     def trajectory_meta(self) -> dict:
-        """What a flight log's sidecar records of the path (``trajectory``): generator, its parameters and the
-        cruise altitude, so a localizer can tell which networks were trained on this kind of flight."""
+        """What a flight log's sidecar records of the path (``trajectory``): generator, its
+        parameters and the cruise altitude, so a localizer can tell which networks were trained on
+        this kind of flight."""
         t = self.trajectory
         return {
             "generator": t.generator,
@@ -158,8 +163,8 @@ class MissionSpec:
             raise InputError(msg, source=self.source_name, field=key) from None
 
     def flight_path_enu(self) -> np.ndarray:
-        """Home (ground) -> climb -> waypoints -> back over home -> land; with ``return_behaviour: land``
-        the vehicle lands below the last waypoint instead."""
+        """Home (ground) -> climb -> waypoints -> back over home -> land; with ``return_behaviour:
+        land`` the vehicle lands below the last waypoint instead."""
         w = self.waypoints_enu()
         home = np.asarray(self.home_enu, dtype=float)
         up = np.array([home[0], home[1], w[0, 2]])
@@ -170,16 +175,18 @@ class MissionSpec:
         return np.vstack([home, up, w, *tail])
 
     def resolve_tx(self, rng: np.random.Generator) -> np.ndarray:
-        """The transmitter (3,) ENU: the configured one, or uniform in the rover area at ``tx_height_m``."""
+        """The transmitter (3,) ENU: the configured one, or uniform in the rover area at
+        ``tx_height_m``."""
         if isinstance(self.source.tx, str):
             xy = self.field.rover_area.sample_uniform(1, rng)[0]
             return np.array([xy[0], xy[1], self.source.tx_height_m])
         return np.array(self.source.tx, dtype=float)
 
     def transmitter(self, seed: int | None = None) -> np.ndarray:
-        """The simulated transmitter of draw ``seed`` (default: the mission's ``source.seed``): the one home of
-        that draw, so ``rfsl simulate`` and ``fly-mission`` put seed N's transmitter in the same place
-        (``resolve_tx`` with ``default_rng([seed, 1])``, a stream apart from the flight's noise)."""
+        """The simulated transmitter of draw ``seed`` (default: the mission's ``source.seed``): the
+        one home of that draw, so ``rfsl simulate`` and ``fly-mission`` put seed N's transmitter in
+        the same place (``resolve_tx`` with ``default_rng([seed, 1])``, a stream apart from the
+        flight's noise)."""
         return self.resolve_tx(
             np.random.default_rng([self.source.seed if seed is None else seed, 1])
         )
@@ -195,7 +202,8 @@ class MissionSpec:
         )
 
     def propagation_model(self):
-        """The ``mission.physics`` model named by ``source.model`` (with ``source.model_params``)."""
+        """The ``mission.physics`` model named by ``source.model`` (with
+        ``source.model_params``)."""
         from mission.physics import make_model
 
         try:
@@ -210,17 +218,20 @@ class MissionSpec:
             ) from None
 
 
-# --------------------------------------------------------------------------------------------- loading
+# ---------------------------------------------------------------------------------------------
+# loading
 
 
 def _default(cls: type, name: str) -> Any:
-    """The dataclass default of ``cls.name``: a key the file omits gets it, so each default is written once."""
+    """The dataclass default of ``cls.name``: a key the file omits gets it, so each default is
+    written once."""
     f = cls.__dataclass_fields__[name]
     return f.default if f.default is not MISSING else f.default_factory()
 
 
 def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
-    """A position: [x, y] / [x, y, z] ENU metres, or {lat, lon[, height_m]} (height above the origin)."""
+    """A position: [x, y] / [x, y, z] ENU metres, or {lat, lon[, height_m]} (height above the
+    origin)."""
     if isinstance(v, dict):
         pr = _Reader(v, r.src, key)
         lat, lon = pr.num("lat", 0.0, -90, 90), pr.num("lon", 0.0, -180, 180)
@@ -324,9 +335,10 @@ def _field(r: _Reader) -> tuple[Field, tuple[float, float] | None]:
 
 
 def mission_name(name: str, src: str) -> str:
-    """``name`` if it is safe as one folder or file name (flights go to ``<out>/<name>_<time>/``, simulated
-    logs to ``<out>/<name>_sim_...csv``), else an InputError: no path separator, no '.'/'..', no control
-    character or NUL, at most ``MAX_NAME_CHARS`` (``../../x`` wrote a flight two levels above --out)."""
+    """``name`` if it is safe as one folder or file name (flights go to ``<out>/<name>_<time>/``,
+    simulated logs to ``<out>/<name>_sim_...csv``), else an InputError: no path separator, no
+    '.'/'..', no control character or NUL, at most ``MAX_NAME_CHARS`` (``../../x`` wrote a flight
+    two levels above --out)."""
     bad = next((c for c in name if c in "/\\" or ord(c) < 32 or ord(c) == 127), None)
     if bad is not None or name.strip() in ("", ".", "..") or len(name) > MAX_NAME_CHARS:
         why = (
@@ -345,9 +357,9 @@ def mission_name(name: str, src: str) -> str:
 
 
 def _inside(area: Area, p: np.ndarray, clearance: float) -> np.ndarray:
-    """``p`` moved straight away from the nearest edge of ``area`` until it is ``clearance`` inside (unchanged
-    when it already is): the AFAR launch point is 0.44 m inside the fence, where a real autopilot's take-off and
-    landing drift outside (``checks.RETURN_OVERSHOOT_M``)."""
+    """``p`` moved straight away from the nearest edge of ``area`` until it is ``clearance`` inside
+    (unchanged when it already is): the AFAR launch point is 0.44 m inside the fence, where a real
+    autopilot's take-off and landing drift outside (``checks.RETURN_OVERSHOOT_M``)."""
     d = float(area.signed_distance(p[None])[0])
     if d >= clearance:
         return p
@@ -493,8 +505,9 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
 
 
 def load_mission(path: str | Path | None = None) -> MissionSpec:
-    """Read and validate a mission YAML file (default: ``missions/spiral.yaml``): a path, or the name of a
-    shipped mission (``spiral``, ``missions/spiral.yaml`` from any folder: ``mission.shipped``)."""
+    """Read and validate a mission YAML file (default: ``missions/spiral.yaml``): a path, or the
+    name of a shipped mission (``spiral``, ``missions/spiral.yaml`` from any folder:
+    ``mission.shipped``)."""
     from mission.spec_reader import read_yaml
 
     p = resolve_mission_path(path)
@@ -510,8 +523,8 @@ def load_mission(path: str | Path | None = None) -> MissionSpec:
 
 
 def resolve_mission_path(path: str | Path | None) -> Path:
-    """The mission file ``path`` names: the path itself when it exists, else the shipped mission of that name
-    (``mission.shipped.resolve_shipped``); an InputError when neither exists."""
+    """The mission file ``path`` names: the path itself when it exists, else the shipped mission of
+    that name (``mission.shipped.resolve_shipped``); an InputError when neither exists."""
     from mission.shipped import resolve_shipped
 
     p = resolve_shipped(path, "missions", ".yaml") if path is not None else DEFAULT_MISSION

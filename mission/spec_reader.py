@@ -1,7 +1,8 @@
 """Typed access to a mission file's YAML mappings: every error names the file and the dotted key.
 
-Why a module of its own: the mission parser (``mission.spec``) and the blocks it delegates (``adaptive:`` in
-``mission.adaptive.config``) read their keys the same way, with the same one-line errors.
+Why a module of its own: the mission parser (``mission.spec``) and the blocks it delegates
+(``adaptive:`` in ``mission.adaptive.config``) read their keys the same way, with the same one-line
+errors.
 """
 
 from __future__ import annotations
@@ -90,9 +91,9 @@ class SpecReader:
 
 
 def read_yaml(path: str | Path, what: str = "mission file", max_bytes: int = 1_000_000) -> Any:
-    """Parse a YAML file with limits: a regular UTF-8 file of at most ``max_bytes``, no aliases (a "billion
-    laughs" bomb is refused, not expanded), no duplicated key (the last one silently won), bounded nesting;
-    every problem is an InputError naming the file and line."""
+    """Parse a YAML file with limits: a regular UTF-8 file of at most ``max_bytes``, no aliases (a
+    "billion laughs" bomb is refused, not expanded), no duplicated key (the last one silently won),
+    bounded nesting; every problem is an InputError naming the file and line."""
     import yaml
 
     from mission.files import read_text

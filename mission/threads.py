@@ -1,11 +1,11 @@
-"""Thread limits for the numerical libraries' pools (OpenMP: k-means; BLAS; onnxruntime's own), one policy in
-one place: ``$RFSL_THREADS`` (``compute_threads``, default 1) applied by the ``thread_limits`` context manager
-where a command starts (``mission.cli.main.run_guarded``) and around k-means, and by ``limit_worker`` as the
-entry of each worker process a command's pool starts.
+"""Thread limits for the numerical libraries' pools (OpenMP: k-means; BLAS; onnxruntime's own), one
+policy in one place: ``$RFSL_THREADS`` (``compute_threads``, default 1) applied by the
+``thread_limits`` context manager where a command starts (``mission.cli.main.run_guarded``) and
+around k-means, and by ``limit_worker`` as the entry of each worker process a command's pool starts.
 
-Why 1: per flight k-means and the networks run for milliseconds, and on a busy 2-core machine their thread
-pools spin-wait against each other (k-means 0.38 s with the default threads vs 0.02 s with one;
-``benchmarks/bench_localize.py``); a pool's workers already fill the cores.
+Why 1: per flight k-means and the networks run for milliseconds, and on a busy 2-core machine their
+thread pools spin-wait against each other (k-means 0.38 s with the default threads vs 0.02 s with
+one; ``benchmarks/bench_localize.py``); a pool's workers already fill the cores.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ THREADS_ENV = "RFSL_THREADS"
 
 
 def compute_threads() -> int:
-    """Threads for k-means (OpenMP), BLAS and onnxruntime: ``$RFSL_THREADS`` (default 1; 0 = the libraries' own
-    choice)."""
+    """Threads for k-means (OpenMP), BLAS and onnxruntime: ``$RFSL_THREADS`` (default 1; 0 = the
+    libraries' own choice)."""
     raw = os.environ.get(THREADS_ENV, "").strip()
     if not raw:
         return 1
@@ -38,10 +38,10 @@ def compute_threads() -> int:
 def thread_limits(
     n: int | None = None, controller=None, user_api: str | None = None
 ) -> Iterator[None]:
-    """Limit the thread pools of the libraries loaded now to ``n`` threads (None: ``compute_threads()``; 0: no
-    limit) for the ``with`` block, then restore them.  ``controller``: a ``threadpoolctl.ThreadpoolController``
-    made once by the caller (making one scans the loaded libraries: ~10 ms); ``user_api``: "openmp" or
-    "blas" only."""
+    """Limit the thread pools of the libraries loaded now to ``n`` threads (None:
+    ``compute_threads()``; 0: no limit) for the ``with`` block, then restore them.  ``controller``:
+    a ``threadpoolctl.ThreadpoolController`` made once by the caller (making one scans the loaded
+    libraries: ~10 ms); ``user_api``: "openmp" or "blas" only."""
     n = compute_threads() if n is None else int(n)
     if n <= 0:
         yield
@@ -55,9 +55,10 @@ def thread_limits(
 
 
 def limit_worker() -> None:
-    """A pool worker's entry (``ProcessPoolExecutor(initializer=limit_worker)``): the worker runs its whole
-    life with one OpenMP/BLAS thread (scikit-learn's OpenMP runtime loaded first so that the limit reaches it;
-    ``OMP_NUM_THREADS`` for runtimes loaded later); never restored, the worker ends with it."""
+    """A pool worker's entry (``ProcessPoolExecutor(initializer=limit_worker)``): the worker runs
+    its whole life with one OpenMP/BLAS thread (scikit-learn's OpenMP runtime loaded first so that
+    the limit reaches it; ``OMP_NUM_THREADS`` for runtimes loaded later); never restored, the worker
+    ends with it."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     import sklearn.cluster  # noqa: F401
     from threadpoolctl import ThreadpoolController

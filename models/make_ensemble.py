@@ -1,15 +1,17 @@
-"""Build one ONNX file whose output ``xy`` is the plain mean of N member networks' ``xy`` (same input ``features``).
+"""Build one ONNX file whose output ``xy`` is the plain mean of N member networks' ``xy`` (same
+input ``features``).
 
-Why one file: ``localize --model`` and the fusion take one model; the members run side by side in one graph
-(``Mean`` of their outputs), so the ensemble needs nothing at inference beyond onnxruntime.  The members must
-share the feature contract (kind, configuration, identity input normalisation: relative-coordinate graphs,
-``rfsl train --coords relative``) and the field origin.  Metadata: member 0's ``metadata_props`` plus
-``ensemble`` (JSON: the rule and each member's file name and sha256).
+Why one file: ``localize --model`` and the fusion take one model; the members run side by side in
+one graph (``Mean`` of their outputs), so the ensemble needs nothing at inference beyond
+onnxruntime.  The members must share the feature contract (kind, configuration, identity input
+normalisation: relative-coordinate graphs, ``rfsl train --coords relative``) and the field origin.
+Metadata: member 0's ``metadata_props`` plus ``ensemble`` (JSON: the rule and each member's file
+name and sha256).
 
     python models/make_ensemble.py OUT.onnx MEMBER0.onnx MEMBER1.onnx ... [--check DATASET_DIR]
 
-``--check`` runs every member and the ensemble with onnxruntime on a dataset's clustering features and fails
-unless the ensemble equals the members' mean (relative difference < 1e-5).
+``--check`` runs every member and the ensemble with onnxruntime on a dataset's clustering features
+and fails unless the ensemble equals the members' mean (relative difference < 1e-5).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ CONTRACT = ("feature_kind", "feature_config", "input_normalisation", "field_orig
 
 
 def _reference_height(meta: dict) -> float | None:
-    """A member's altitude-normalisation reference (``mission.localize.altitude_scale``); None: metres."""
+    """A member's altitude-normalisation reference (``mission.localize.altitude_scale``); None:
+    metres."""
     return reference_height(json.loads(meta.get("training_data", "{}")))
 
 

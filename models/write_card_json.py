@@ -1,12 +1,14 @@
-"""Write ``models/<name>.json``: the CI check (dataset config + metrics of the shipped model on it) and the
-evaluation reports (``rfsl evaluate --out`` JSON files) that the model card quotes, and the training domain
-(``mission.workshop.domain``: altitude and attitude spans) that ``localize`` reads from it.
+"""Write ``models/<name>.json``: the CI check (dataset config + metrics of the shipped model on it)
+and the evaluation reports (``rfsl evaluate --out`` JSON files) that the model card quotes, and the
+training domain (``mission.workshop.domain``: altitude and attitude spans) that ``localize`` reads
+from it.
 
     python models/write_card_json.py models/NAME.onnx CI_DATASET models/NAME.json [REPORT.json ...]
 
-``CI_DATASET`` is a small simulated set written by ``rfsl dataset`` (the card uses
-``rfsl dataset missions/spiral.yaml --n 200 --seed 2000 --model e2r --features clustering --out DIR``);
-``tests/test_shipped_model.py`` regenerates it from the recorded configuration and checks the metrics.
+``CI_DATASET`` is a small simulated set written by ``rfsl dataset`` (the card uses ``rfsl dataset
+missions/spiral.yaml --n 200 --seed 2000 --model e2r --features clustering --out DIR``);
+``tests/test_shipped_model.py`` regenerates it from the recorded configuration and checks the
+metrics.
 """
 
 from __future__ import annotations

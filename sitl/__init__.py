@@ -1,1 +1,2 @@
-"""A simulated MAVLink multicopter (PX4-like) for flying missions without hardware: see ``sitl/README.md``."""
+"""A simulated MAVLink multicopter (PX4-like) for flying missions without hardware: see
+``sitl/README.md``."""

@@ -1,8 +1,9 @@
-"""Command line of the simulated vehicle (``python -m sitl.vehicle``, ``rfsl sitl``): its options and their parsing.
+"""Command line of the simulated vehicle (``python -m sitl.vehicle``, ``rfsl sitl``): its options
+and their parsing.
 
-Light at import (argparse only): ``rfsl``'s parser imports ``add_arguments`` without loading numpy or
-pymavlink.  Building and running the vehicle from these options (``run_from_args``) lives in ``sitl.vehicle``,
-so that this module never imports the vehicle back.
+Light at import (argparse only): ``rfsl``'s parser imports ``add_arguments`` without loading numpy
+or pymavlink.  Building and running the vehicle from these options (``run_from_args``) lives in
+``sitl.vehicle``, so that this module never imports the vehicle back.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ def parse_home(text: str) -> tuple[float, float, float]:
 
 
 def parse_kinematics(text: str | None):
-    """``--kinematics`` JSON (an object of ``Kinematics`` fields) -> ``Kinematics``; None -> defaults."""
+    """``--kinematics`` JSON (an object of ``Kinematics`` fields) -> ``Kinematics``; None ->
+    defaults."""
     from mission.trajectory.kinematics import Kinematics
 
     if not text:

@@ -1,11 +1,12 @@
-"""Dynamics of the simulated vehicle: the plan flown in simulated time, its attitude, and flight events.
+"""Dynamics of the simulated vehicle: the plan flown in simulated time, its attitude, and flight
+events.
 
-Positions come vectorised from the current plan (``FlightProfile.position``); attitude from the project's one
-attitude model (``mission.trajectory.attitude.run_attitude``, the same as the fast simulator's) driven by
-Ornstein-Uhlenbeck wind gusts and turbulence; events (item reached, take-off and landing transitions,
-auto-disarm) run only at the times where something can happen.  The physics step is 10 ms of simulated time
-up to speed-up 10 and coarser above (at most 50 ms, never coarser than the fastest requested
-position/attitude stream).  A mixin of ``sitl.vehicle.SimVehicle``.
+Positions come vectorised from the current plan (``FlightProfile.position``); attitude from the
+project's one attitude model (``mission.trajectory.attitude.run_attitude``, the same as the fast
+simulator's) driven by Ornstein-Uhlenbeck wind gusts and turbulence; events (item reached, take-off
+and landing transitions, auto-disarm) run only at the times where something can happen.  The physics
+step is 10 ms of simulated time up to speed-up 10 and coarser above (at most 50 ms, never coarser
+than the fastest requested position/attitude stream).  A mixin of ``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ class Dynamics:
     """Advancing simulated time: motion, attitude, events and the telemetry due on the way."""
 
     def _events(self) -> None:
-        """Item reached, take-off/landing transitions and auto-disarm at the current simulated time."""
+        """Item reached, take-off/landing transitions and auto-disarm at the current simulated
+        time."""
         pl = self.plan
         if pl is not None:
             tau = self.sim_t - pl.t0
@@ -84,19 +86,22 @@ class Dynamics:
 
     @property
     def tab(self) -> str:
-        """PX4 ends some texts with a tab (seen on PX4 v1.16 SITL); the PX4-like profile does too."""
+        """PX4 ends some texts with a tab (seen on PX4 v1.16 SITL); the PX4-like profile does
+        too."""
         return "\t" if self.profile.tab_texts else ""
 
     def physics_dt(self) -> float:
-        """Simulated seconds per physics step: 10 ms up to speed-up 10, coarser above (a multiple of 10 ms,
-        at most ``MAX_PHYSICS_DT`` and never coarser than the fastest requested position/attitude stream),
-        so that the cost per wall-clock second stays bounded while the requested rates hold in vehicle time."""
+        """Simulated seconds per physics step: 10 ms up to speed-up 10, coarser above (a multiple of
+        10 ms, at most ``MAX_PHYSICS_DT`` and never coarser than the fastest requested
+        position/attitude stream), so that the cost per wall-clock second stays bounded while the
+        requested rates hold in vehicle time."""
         dt = min(PHYSICS_DT * max(self.speedup / 10.0, 1.0), MAX_PHYSICS_DT)
         fastest = min((iv for m, iv in self.intervals.items() if m in FAST_STREAMS), default=dt)
         return PHYSICS_DT * max(1, math.floor(min(dt, fastest) / PHYSICS_DT + 1e-6))
 
     def _next_event_time(self) -> float:
-        """The simulated time at which ``_events`` must next run (item reached, plan end, landing, disarm)."""
+        """The simulated time at which ``_events`` must next run (item reached, plan end, landing,
+        disarm)."""
         t = self.disarm_at if self.disarm_at is not None else math.inf
         pl = self.plan
         if pl is None:
@@ -114,8 +119,9 @@ class Dynamics:
     def advance(self, target_t: float) -> None:
         """Step the simulation up to simulated time ``target_t``, emitting the due telemetry.
 
-        The whole chunk (positions, wind, turbulence, attitude) is computed vectorised; the loop visits only
-        the steps where an event or a stream is due.  Roll and pitch are zero on the ground."""
+        The whole chunk (positions, wind, turbulence, attitude) is computed vectorised; the loop
+        visits only the steps where an event or a stream is due.  Roll and pitch are zero on the
+        ground."""
         dt = self.physics_dt()
         n = int((target_t - self.sim_t) / dt + 1e-9)
         if n <= 0:

@@ -1,8 +1,8 @@
 """MAVLink handlers of the simulated vehicle: messages and commands in, acknowledgements out.
 
 Commands: ARM_DISARM, DO_SET_MODE, MISSION_START, NAV_TAKEOFF, NAV_RETURN_TO_LAUNCH, NAV_LAND,
-DO_PAUSE_CONTINUE, DO_CHANGE_SPEED, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES.
-A mixin of ``sitl.vehicle.SimVehicle``.
+DO_PAUSE_CONTINUE, DO_CHANGE_SPEED, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE,
+REQUEST_AUTOPILOT_CAPABILITIES. A mixin of ``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from sitl.protocol import DEFAULT_INTERVALS, PHYSICS_DT, PX4_AUTO_MISSION, mav
 
 
 class MavlinkHandlers:
-    """Dispatch of received messages to the mission store, the mode machine and the stream scheduler."""
+    """Dispatch of received messages to the mission store, the mode machine and the stream
+    scheduler."""
 
     def handle(self, msg) -> None:
         t = msg.get_type()

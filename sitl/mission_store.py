@@ -1,7 +1,9 @@
-"""Mission storage of the simulated vehicle: the MAVLink mission protocol (upload, download, retries).
+"""Mission storage of the simulated vehicle: the MAVLink mission protocol (upload, download,
+retries).
 
-MISSION_COUNT -> MISSION_REQUEST_INT (MISSION_ITEM accepted too) -> MISSION_ACK; MISSION_REQUEST_LIST
-download; geofence/rally types acknowledged and ignored.  A mixin of ``sitl.vehicle.SimVehicle``.
+MISSION_COUNT -> MISSION_REQUEST_INT (MISSION_ITEM accepted too) -> MISSION_ACK;
+MISSION_REQUEST_LIST download; geofence/rally types acknowledged and ignored.  A mixin of
+``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations
@@ -91,7 +93,8 @@ class MissionStore:
         )
 
     def retry_upload(self, now: float) -> None:
-        """Ask again for an item the ground station did not send (5 tries, 0.5 s apart), then cancel."""
+        """Ask again for an item the ground station did not send (5 tries, 0.5 s apart), then
+        cancel."""
         rx = self._rx
         if rx is not None and now - rx["asked"] > 0.5:
             rx["tries"] += 1

@@ -1,8 +1,9 @@
-"""The mode machine of the simulated vehicle: mission, hold, return to launch, land, take-off (PX4 modes).
+"""The mode machine of the simulated vehicle: mission, hold, return to launch, land, take-off (PX4
+modes).
 
 Every mode change plans the path it implies from the current position with the project's kinematics
-(``plan_profile``), starting from rest, so the flown time matches the mission's time-budget check.  A mixin of
-``sitl.vehicle.SimVehicle``.
+(``plan_profile``), starting from rest, so the flown time matches the mission's time-budget check.
+A mixin of ``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from sitl.protocol import (
 
 @dataclass
 class Plan:
-    """A timed flight the vehicle is executing: profile from ``t0`` (sim s), item reach times, end action."""
+    """A timed flight the vehicle is executing: profile from ``t0`` (sim s), item reach times, end
+    action."""
 
     profile: FlightProfile
     t0: float
@@ -43,7 +45,8 @@ class ModeMachine:
     """Mode changes and the plans they start (``self.plan``)."""
 
     def _item_enu(self, it: Item, last: np.ndarray) -> np.ndarray:
-        """ENU of a mission item (lat/lon 0 means 'here'); z relative to home unless the frame is global."""
+        """ENU of a mission item (lat/lon 0 means 'here'); z relative to home unless the frame is
+        global."""
         if it.frame in (
             mav.MAV_FRAME_GLOBAL_INT,
             mav.MAV_FRAME_GLOBAL,
@@ -70,7 +73,8 @@ class ModeMachine:
         land: bool,
         speeds: list[float] | None = None,
     ) -> None:
-        """Plan and start flying the polyline ``pts`` from the current position (already ``pts[0]``)."""
+        """Plan and start flying the polyline ``pts`` from the current position (already
+        ``pts[0]``)."""
         P = np.asarray(pts, dtype=float)
         land_legs = 1
         low = self.param("MPC_LAND_ALT2")

@@ -1,9 +1,11 @@
-"""Parameters of the simulated vehicle over the MAVLink parameter protocol (PARAM_REQUEST_READ/LIST, PARAM_SET).
+"""Parameters of the simulated vehicle over the MAVLink parameter protocol (PARAM_REQUEST_READ/LIST,
+PARAM_SET).
 
-Why: the runner plans a flight with the speed the autopilot will fly and sets the autopilot's own cruise and
-return speed for it (PX4: ``MPC_XY_CRUISE``, the speed of legs without a speed item and of the return),
-restoring the operator's value afterwards; the simulated vehicle must answer that the way PX4 does
-(``PARAM_VALUE`` with ``MAV_PARAM_TYPE_REAL32``, echoed after a set).  A mixin of ``sitl.vehicle.SimVehicle``.
+Why: the runner plans a flight with the speed the autopilot will fly and sets the autopilot's own
+cruise and return speed for it (PX4: ``MPC_XY_CRUISE``, the speed of legs without a speed item and
+of the return), restoring the operator's value afterwards; the simulated vehicle must answer that
+the way PX4 does (``PARAM_VALUE`` with ``MAV_PARAM_TYPE_REAL32``, echoed after a set).  A mixin of
+``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations
@@ -26,8 +28,8 @@ class ParamStore:
         )
 
     def on_param_message(self, msg) -> None:
-        """PARAM_REQUEST_READ (by name or index), PARAM_REQUEST_LIST, PARAM_SET (echoes the stored value;
-        an unknown name gets no answer, as on PX4, so the ground station times out)."""
+        """PARAM_REQUEST_READ (by name or index), PARAM_REQUEST_LIST, PARAM_SET (echoes the stored
+        value; an unknown name gets no answer, as on PX4, so the ground station times out)."""
         t = msg.get_type()
         names = list(self.params)
         if t == "PARAM_REQUEST_LIST":

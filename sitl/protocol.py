@@ -1,6 +1,8 @@
-"""The MAVLink vocabulary of the simulated vehicle: PX4 modes, sensor bits, default streams, mission items.
+"""The MAVLink vocabulary of the simulated vehicle: PX4 modes, sensor bits, default streams, mission
+items.
 
-Why a module of its own: the handlers, the mode machine, the stream scheduler and the dynamics all speak it.
+Why a module of its own: the handlers, the mode machine, the stream scheduler and the dynamics all
+speak it.
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ WIND_TAU_S, TURB_TAU_S, TURB_DEG = (
     0.8,
 )  # gust and turbulence correlation times; turbulence sd
 # streams sent exactly at their requested rate in vehicle time; the others (status: GPS_RAW_INT,
-# EXTENDED_SYS_STATE, ...) repeat the same content and are sent at most STATUS_WALL_HZ times per wall-clock
-# second at high speed-up (the landed state is also sent at once whenever it changes)
+# EXTENDED_SYS_STATE, ...) repeat the same content and are sent at most STATUS_WALL_HZ times per
+# wall-clock second at high speed-up (the landed state is also sent at once whenever it changes)
 STATUS_WALL_HZ = 10.0
 SENSORS = (
     mav.MAV_SYS_STATUS_SENSOR_3D_GYRO
@@ -63,20 +65,21 @@ DEFAULT_INTERVALS = {
 
 @dataclass(frozen=True)
 class Profile:
-    """How the vehicle behaves beyond the protocol: ``default`` flies exactly the project's kinematics (the
-    flown time matches the plan); ``px4`` behaves like PX4 v1.16 SITL as flown against the runner: legs at 93 % of
-    the speed asked (corner smoothing and acceptance radii the plan does not model), the return and legs
-    without a speed item at its ``MPC_XY_CRUISE`` parameter (4.8 m/s unless set), STATUSTEXT gated on
-    ground-station heartbeats (``sitl.statustext``), some texts with PX4's trailing tab."""
+    """How the vehicle behaves beyond the protocol: ``default`` flies exactly the project's
+    kinematics (the flown time matches the plan); ``px4`` behaves like PX4 v1.16 SITL as flown
+    against the runner: legs at 93 % of the speed asked (corner smoothing and acceptance radii the
+    plan does not model), the return and legs without a speed item at its ``MPC_XY_CRUISE``
+    parameter (4.8 m/s unless set), STATUSTEXT gated on ground-station heartbeats
+    (``sitl.statustext``), some texts with PX4's trailing tab."""
 
     name: str
     speed_factor: float = 1.0
     mpc_xy_cruise: float | None = None  # None: the kinematics' cruise speed
     gate_texts: bool = False
     tab_texts: bool = False
-    # take-off speed, descent speed, final landing speed (m/s) and the height below which it lands at the
-    # last one (PX4: MPC_TKO_SPEED, MPC_Z_V_AUTO_DN, MPC_LAND_SPEED, MPC_LAND_ALT2); None: the kinematics'
-    # climb rate throughout
+    # take-off speed, descent speed, final landing speed (m/s) and the height below which it lands
+    # at the last one (PX4: MPC_TKO_SPEED, MPC_Z_V_AUTO_DN, MPC_LAND_SPEED, MPC_LAND_ALT2); None:
+    # the kinematics' climb rate throughout
     vertical: tuple[float, float, float, float] | None = None
 
 

@@ -1,12 +1,13 @@
-"""Autopilot status texts of the simulated vehicle, optionally gated on ground-station heartbeats as PX4 does.
+"""Autopilot status texts of the simulated vehicle, optionally gated on ground-station heartbeats as
+PX4 does.
 
-Why: PX4 sends STATUSTEXT on a link only while a ground-station HEARTBEAT arrived there within the last
-2.5 s (of its own, i.e. simulated, time) and drops queued texts older than 5 s.  MAVSDK heartbeats once per
-wall-clock second, i.e. every 10 simulated seconds at speed-up 10: most texts were lost.  The
-PX4-like profile reproduces that gate so the runner's fix (heartbeats scaled with the speed-up) is tested
-against it; every text generated is counted, and with ``--statustext-log`` written (sent or dropped) as
-one JSON line, so a test can check that every text sent reached the ground station.
-A mixin of ``sitl.vehicle.SimVehicle``.
+Why: PX4 sends STATUSTEXT on a link only while a ground-station HEARTBEAT arrived there within the
+last 2.5 s (of its own, i.e. simulated, time) and drops queued texts older than 5 s.  MAVSDK
+heartbeats once per wall-clock second, i.e. every 10 simulated seconds at speed-up 10: most texts
+were lost.  The PX4-like profile reproduces that gate so the runner's fix (heartbeats scaled with
+the speed-up) is tested against it; every text generated is counted, and with ``--statustext-log``
+written (sent or dropped) as one JSON line, so a test can check that every text sent reached the
+ground station. A mixin of ``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
-"""Telemetry out of the simulated vehicle: status messages on the wall clock, streams on simulated time.
+"""Telemetry out of the simulated vehicle: status messages on the wall clock, streams on simulated
+time.
 
 Rates set by SET_MESSAGE_INTERVAL count in simulated time (as PX4/ArduPilot SITL do); status streams
-(GPS_RAW_INT, EXTENDED_SYS_STATE, ...) repeat at most ``STATUS_WALL_HZ`` times per wall-clock second, so the
-cost per wall second stays bounded at high speed-up.  A mixin of ``sitl.vehicle.SimVehicle``.
+(GPS_RAW_INT, EXTENDED_SYS_STATE, ...) repeat at most ``STATUS_WALL_HZ`` times per wall-clock
+second, so the cost per wall second stays bounded at high speed-up.  A mixin of
+``sitl.vehicle.SimVehicle``.
 """
 
 from __future__ import annotations
@@ -123,7 +125,8 @@ class StreamScheduler:
             self.send_by_id(msgid)
 
     def _interval(self, msgid: int, iv: float) -> float:
-        """Effective interval (sim s) of a stream: status streams at most ``STATUS_WALL_HZ`` per wall second."""
+        """Effective interval (sim s) of a stream: status streams at most ``STATUS_WALL_HZ`` per
+        wall second."""
         return iv if msgid in FAST_STREAMS else max(iv, self.speedup / STATUS_WALL_HZ)
 
     def _send_due(self, la: float, lo: float) -> float:

@@ -1,16 +1,17 @@
-"""A simulated PX4-like MAVLink multicopter: mission protocol, commands, telemetry on a simulated clock.
+"""A simulated PX4-like MAVLink multicopter: mission protocol, commands, telemetry on a simulated
+clock.
 
 Why: ``fly-mission`` must be testable end to end (and usable for demos and training) without a real
-autopilot, and it must exercise the same MAVLink paths as PX4 so that the runner is not written against a
-toy.  The vehicle speaks MAVLink 2 over UDP and *sends* to the ground station's port, exactly like PX4 SITL
-does: the ground station listens (MAVSDK ``udpin://0.0.0.0:14540``, QGroundControl on 14550) and the
-vehicle answers whoever talks back to it.
+autopilot, and it must exercise the same MAVLink paths as PX4 so that the runner is not written
+against a toy.  The vehicle speaks MAVLink 2 over UDP and *sends* to the ground station's port,
+exactly like PX4 SITL does: the ground station listens (MAVSDK ``udpin://0.0.0.0:14540``,
+QGroundControl on 14550) and the vehicle answers whoever talks back to it.
 
 One job per module: ``protocol`` (the MAVLink vocabulary), ``handlers`` (messages and commands in),
-``mission_store`` (the mission protocol), ``modes`` (the mode machine and its plans), ``dynamics`` (motion,
-attitude, events), ``streams`` (telemetry out), ``cli`` (options); this module holds the state and the main
-loop.  Simulated time runs ``--speedup`` times faster than the wall clock and is the ``time_boot_ms`` of
-every message.
+``mission_store`` (the mission protocol), ``modes`` (the mode machine and its plans), ``dynamics``
+(motion, attitude, events), ``streams`` (telemetry out), ``cli`` (options); this module holds the
+state and the main loop.  Simulated time runs ``--speedup`` times faster than the wall clock and is
+the ``time_boot_ms`` of every message.
 
 Run: ``python -m sitl.vehicle --port 14540 --speedup 5`` or ``rfsl sitl``.
 """
@@ -143,8 +144,9 @@ class SimVehicle(
     def run(self, duration_s: float | None = None, parent_pid: int | None = None) -> None:
         """Main loop: read MAVLink, advance simulated time with the wall clock times ``speedup``.
 
-        With ``parent_pid`` the loop ends once that process is gone (checked every wall-clock second), so
-        a vehicle started by ``fly-mission`` never outlives it, even after a ``kill -9``."""
+        With ``parent_pid`` the loop ends once that process is gone (checked every wall-clock
+        second), so a vehicle started by ``fly-mission`` never outlives it, even after a ``kill
+        -9``."""
         wall0 = time.monotonic()
         fd = self.conn.port.fileno()
         next_parent_check = wall0

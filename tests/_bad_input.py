@@ -1,7 +1,8 @@
-"""Helpers of the bad-input suite: run a CLI in-process and check the project's promise on what it printed.
+"""Helpers of the bad-input suite: run a CLI in-process and check the project's promise on what it
+printed.
 
-The promise (README): bad input gives exit code 2 and exactly one line on stderr naming the file, row or
-field, never a traceback; real-log quirks are accepted with a note.
+The promise (README): bad input gives exit code 2 and exactly one line on stderr naming the file,
+row or field, never a traceback; real-log quirks are accepted with a note.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ def run_cli(
 
 
 def assert_refused(rc: int, err: str, *names: str) -> None:
-    """Exit 2, one stderr line, no traceback, and every one of ``names`` (file, row, field) in that line."""
+    """Exit 2, one stderr line, no traceback, and every one of ``names`` (file, row, field) in that
+    line."""
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert "Traceback" not in err, err
     assert rc == 2, f"exit {rc}, stderr: {err}"
@@ -42,7 +44,8 @@ def assert_refused(rc: int, err: str, *names: str) -> None:
 
 
 def assert_accepted(rc: int, err: str, note: str | None = None) -> None:
-    """Exit 0, no traceback or Python warning, and (when given) the note among stderr's note/warning lines."""
+    """Exit 0, no traceback or Python warning, and (when given) the note among stderr's note/warning
+    lines."""
     assert "Traceback" not in err and "Warning:" not in err, err
     assert rc == 0, f"exit {rc}, stderr: {err}"
     if note is not None:
@@ -51,8 +54,9 @@ def assert_accepted(rc: int, err: str, note: str | None = None) -> None:
 
 
 def write_log(path: Path, n: int = 900, seed: int = 0, truth: bool = True) -> Path:
-    """A small simulated-looking flight log (lawnmower at 30 m over the AFAR field, log-distance RSS) with its
-    sidecar; rows are 0.1 s apart so that every row number in a test is a real line of the file."""
+    """A small simulated-looking flight log (lawnmower at 30 m over the AFAR field, log-distance
+    RSS) with its sidecar; rows are 0.1 s apart so that every row number in a test is a real line of
+    the file."""
     rng = np.random.default_rng(seed)
     fld = afar_field()
     o = fld.origin
@@ -84,7 +88,8 @@ def write_log(path: Path, n: int = 900, seed: int = 0, truth: bool = True) -> Pa
 
 
 def mat_arrays(n: int = 300) -> dict[str, np.ndarray]:
-    """The variables of a good AFAR MAT file (``rfsl import afar-mat``): n samples 0.1 s apart at 30 m."""
+    """The variables of a good AFAR MAT file (``rfsl import afar-mat``): n samples 0.1 s apart at 30
+    m."""
     t = 1.7e9 + np.arange(n) * 0.1
     return {
         "timestamp_power": t,

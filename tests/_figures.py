@@ -1,8 +1,8 @@
 """Checks of saved figures that look at what is drawn, not only at the file size.
 
-``capture_figures()`` records every matplotlib figure saved inside it (the figure object: axes, artists,
-legend); ``assert_png_drawn`` decodes a PNG and asserts it is an image with content (not blank, more than a
-couple of colours, optionally of a given size).
+``capture_figures()`` records every matplotlib figure saved inside it (the figure object: axes,
+artists, legend); ``assert_png_drawn`` decodes a PNG and asserts it is an image with content (not
+blank, more than a couple of colours, optionally of a given size).
 """
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ import numpy as np
 
 @contextmanager
 def capture_figures() -> Iterator[list]:
-    """Within the block, every ``Figure.savefig`` call also appends its figure to the yielded list."""
+    """Within the block, every ``Figure.savefig`` call also appends its figure to the yielded
+    list."""
     from matplotlib.figure import Figure
 
     saved: list = []
@@ -39,8 +40,9 @@ def assert_png_drawn(
     min_colours: int = 16,
     min_ink: float = 0.02,
 ) -> np.ndarray:
-    """Decode ``path``; assert its (width, height), at least ``min_colours`` distinct colours and at least
-    ``min_ink`` of the pixels differing from the most common (background) colour. Returns the RGB array."""
+    """Decode ``path``; assert its (width, height), at least ``min_colours`` distinct colours and at
+    least ``min_ink`` of the pixels differing from the most common (background) colour. Returns the
+    RGB array."""
     import matplotlib.image as mpimg
 
     img = mpimg.imread(str(path))

@@ -1,9 +1,11 @@
-"""An independent flight generator for the gap self-test: written here from the formulas, not via mission.physics.
+"""An independent flight generator for the gap self-test: written here from the formulas, not via
+mission.physics.
 
-Why: a self-test that generates its flights with the library it diagnoses with can only find what the library
-already contains, with the library's own conventions.  This generator shares nothing with ``mission.physics``
-(only numpy): trajectories, attitude, the two-ray channel with vertical dipoles (SPEC section 3, paper eq. 1),
-and one withheld effect per case, including effects no candidate names:
+Why: a self-test that generates its flights with the library it diagnoses with can only find what
+the library already contains, with the library's own conventions.  This generator shares nothing
+with ``mission.physics`` (only numpy): trajectories, attitude, the two-ray channel with vertical
+dipoles (SPEC section 3, paper eq. 1), and one withheld effect per case, including effects no
+candidate names:
 
 | effect | truth | expected name |
 | --- | --- | --- |
@@ -21,13 +23,14 @@ and one withheld effect per case, including effects no candidate names:
 | ``step`` | a gain step of 2.5-3 dB (sign per flight) at an event in the middle half (*) | time_drift |
 | ``legs_far`` | eqs. 8-9, a quad's four legs, only below 8 deg depression, far from the rover (**) | body-fixed |
 
-(*) at a turn of the lawnmower; the spiral has no sharp turn there, so its log records the switch as a phase
-change (``mission`` -> ``adaptive``).  (**) legs at 45/135/225/315 deg, 7 deg half width, beta 0.5-0.7; the
-rover mid-way along an edge (20-60 m in), so the legs act only over the far half of the field (> 140-250 m);
-"body-fixed": ``leg_shadowing`` or ``rx_gain_map`` (``BODY_FIXED``).
+(*) at a turn of the lawnmower; the spiral has no sharp turn there, so its log records the switch as
+a phase change (``mission`` -> ``adaptive``).  (**) legs at 45/135/225/315 deg, 7 deg half width,
+beta 0.5-0.7; the rover mid-way along an edge (20-60 m in), so the legs act only over the far half
+of the field (> 140-250 m); "body-fixed": ``leg_shadowing`` or ``rx_gain_map`` (``BODY_FIXED``).
 
-The base model the diagnosis starts from is two-ray + vertical dipoles + (roll, pitch, yaw) attitude,
-ground permittivity 2, P_t 41 dBm, 3.32 GHz; each flight gets an unknown receiver offset and 1 dB white noise.
+The base model the diagnosis starts from is two-ray + vertical dipoles + (roll, pitch, yaw)
+attitude, ground permittivity 2, P_t 41 dBm, 3.32 GHz; each flight gets an unknown receiver offset
+and 1 dB white noise.
 """
 
 from __future__ import annotations
@@ -79,17 +82,20 @@ EXPECTED = {
     "step": "time_drift",
     "legs_far": "leg_shadowing",
 }
-# a body-fixed effect the library has no exact name for is diagnosed when a body-frame candidate is named first
+# a body-fixed effect the library has no exact name for is diagnosed when a body-frame candidate is
+# named first
 BODY_FIXED = ("leg_shadowing", "rx_gain_map")
 
 
-# ------------------------------------------------------------------------------------------ trajectories
+# ------------------------------------------------------------------------------------------
+# trajectories
 
 
 def _polyline(
     points: np.ndarray, speed: float, dt: float, duration: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (N, 2) at constant speed along ``points`` and the course (compass, rad) of each sample."""
+    """Positions (N, 2) at constant speed along ``points`` and the course (compass, rad) of each
+    sample."""
     seg = np.diff(points, axis=0)
     L = np.hypot(seg[:, 0], seg[:, 1])
     s_cum = np.concatenate([[0.0], np.cumsum(L)])
@@ -110,9 +116,9 @@ def trajectory(
     centre=(180.0, 180.0),
     passes: int = 5,
 ) -> dict[str, np.ndarray]:
-    """A lawnmower (rows east-west), an outward spiral over a 360 m square, or a star of ``passes`` straight
-    passes crossing at ``centre``, at 20-35 m; yaw = course; AR(1) roll/pitch.  Low and wide enough that the
-    legs (dep_b < 10 deg) act beyond ~110-200 m."""
+    """A lawnmower (rows east-west), an outward spiral over a 360 m square, or a star of ``passes``
+    straight passes crossing at ``centre``, at 20-35 m; yaw = course; AR(1) roll/pitch.  Low and
+    wide enough that the legs (dep_b < 10 deg) act beyond ~110-200 m."""
     h = float(rng.uniform(20.0, 35.0))
     if kind == "lawnmower":
         sp = float(rng.uniform(28.0, 40.0))
@@ -157,7 +163,8 @@ def trajectory(
     return {"t": t, "pos": pos, "att": att}
 
 
-# --------------------------------------------------------------------------------------------- channel
+# ---------------------------------------------------------------------------------------------
+# channel
 
 
 def body_los(
@@ -186,14 +193,16 @@ def body_los(
 
 
 def dipole_db(sin_el: np.ndarray) -> np.ndarray:
-    """Vertical half-wave dipole, G = 1.641 (cos(pi/2 sin el) / cos el)^2 (SPEC section 3), floored at -40 dBi."""
+    """Vertical half-wave dipole, G = 1.641 (cos(pi/2 sin el) / cos el)^2 (SPEC section 3), floored
+    at -40 dBi."""
     cos_el = np.sqrt(np.maximum(1.0 - sin_el**2, 1e-12))
     g = 1.641 * (np.cos(0.5 * np.pi * sin_el) / cos_el) ** 2
     return 10 * np.log10(np.maximum(g, 1e-4))
 
 
 def gamma_v(sin_psi: np.ndarray, eps_r: float, sigma: float) -> np.ndarray:
-    """Fresnel reflection coefficient, vertical polarisation, eps = eps_r - j sigma / (omega eps0)."""
+    """Fresnel reflection coefficient, vertical polarisation, eps = eps_r - j sigma / (omega
+    eps0)."""
     eps = eps_r - 1j * sigma / (2 * np.pi * FC_HZ * EPS0)
     root = np.sqrt(eps - (1 - sin_psi**2) + 0j)
     return (eps * sin_psi - root) / (eps * sin_psi + root)
@@ -208,7 +217,8 @@ def channel_db(
     rx_extra_db=None,
     tx_extra_db=None,
 ) -> np.ndarray:
-    """Two-ray (eq. 1) with per-ray dipole gains; the UAV's at body-frame angles, the rover's upright.
+    """Two-ray (eq. 1) with per-ray dipole gains; the UAV's at body-frame angles, the rover's
+    upright.
 
     ``rx_extra_db(az_b, dep_b)`` / ``tx_extra_db(az_world)``: extra antenna gain (dB) on both rays.
     """
@@ -268,7 +278,8 @@ def exp_field(rng: np.random.Generator, sigma: float, L: float, m: int = 500):
     return lambda xy: sigma * np.sqrt(2.0 / m) * np.cos(xy @ w.T + b).sum(axis=1)
 
 
-# ------------------------------------------------------------------------------------------------ cases
+# ------------------------------------------------------------------------------------------------
+# cases
 
 
 def make_case(
@@ -281,10 +292,12 @@ def make_case(
     strength: float = 1.0,
     passes: int = 5,
 ) -> tuple[list[dict], dict]:
-    """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the truth.
+    """Flights (dicts of t, pos, att, rss, tx) with ``effect`` withheld from the base, and the
+    truth.
 
-    ``strength`` scales the withheld effect's size (beta, amplitudes, depths, sigma, tau; the ground's
-    permittivity departs from the base's 2 by that factor); ``passes``: the star's passes (``nadir_over``)."""
+    ``strength`` scales the withheld effect's size (beta, amplitudes, depths, sigma, tau; the
+    ground's permittivity departs from the base's 2 by that factor); ``passes``: the star's passes
+    (``nadir_over``)."""
     rng = np.random.default_rng(seed)
     truth: dict = {"effect": effect, "strength": strength}
     k_s = strength

@@ -9,7 +9,8 @@ from mission.geo import afar_field
 
 
 class LogDistance:
-    """RSS = P - 10 n log10(d_3d): a free-space-like field, broadcasting like mission.physics models."""
+    """RSS = P - 10 n log10(d_3d): a free-space-like field, broadcasting like mission.physics
+    models."""
 
     name = "log-distance"
 
@@ -47,7 +48,8 @@ def synthetic_flight(
     noise: float = 1.0,
     alt: float = 30.0,
 ):
-    """(enu, rss, attitude) of a lawnmower flight at ``alt`` m over a log-distance field with noise."""
+    """(enu, rss, attitude) of a lawnmower flight at ``alt`` m over a log-distance field with
+    noise."""
     rng = np.random.default_rng(seed)
     enu = lawnmower_path(n, alt=alt)
     rss = LogDistance().rss_dbm(np.asarray(tx, dtype=float), enu) + offset + rng.normal(0, noise, n)
@@ -63,7 +65,8 @@ def write_synthetic_log(
     truth: bool = True,
     alt: float = 30.0,
 ):
-    """A flight log (CSV + sidecar) in the AFAR field frame at ``alt`` m, with take-off and landing ramps."""
+    """A flight log (CSV + sidecar) in the AFAR field frame at ``alt`` m, with take-off and landing
+    ramps."""
     origin = afar_field().origin
     enu, rss, att = synthetic_flight(tx, n, seed, alt=alt)
     ramp = np.linspace(0, alt, 300)

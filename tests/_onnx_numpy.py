@@ -1,8 +1,8 @@
-"""A from-scratch float64 numpy evaluator of the shipped networks' ONNX graphs: an independent reference for
-onnxruntime (and for ``OnnxLocalizer``'s normalisation) in ``test_shipped_model``.
+"""A from-scratch float64 numpy evaluator of the shipped networks' ONNX graphs: an independent
+reference for onnxruntime (and for ``OnnxLocalizer``'s normalisation) in ``test_shipped_model``.
 
-Only the operators the shipped graphs use, with the ONNX semantics written out here (1-D Conv, AveragePool,
-Gemm, Slice, Pad, ...); an unknown operator fails loudly rather than being skipped.
+Only the operators the shipped graphs use, with the ONNX semantics written out here (1-D Conv,
+AveragePool, Gemm, Slice, Pad, ...); an unknown operator fails loudly rather than being skipped.
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ def _conv1d(
 
 
 def _avgpool1d(x: np.ndarray, kernel: int, stride: int, ceil_mode: bool) -> np.ndarray:
-    """ONNX AveragePool, 1-D, no padding: a window cut by the end (ceil_mode) averages what it covers."""
+    """ONNX AveragePool, 1-D, no padding: a window cut by the end (ceil_mode) averages what it
+    covers."""
     length = x.shape[2]
     rnd = math.ceil if ceil_mode else math.floor
     n_out = int(rnd((length - kernel) / stride)) + 1
@@ -128,8 +129,9 @@ def run_graph(path: str | Path, features: np.ndarray) -> np.ndarray:
 
 
 def predict(path: str | Path, features: np.ndarray) -> np.ndarray:
-    """(B, F) features -> (B, 2) metres: the metadata's normalisation around ``run_graph`` (module docstring
-    of ``mission.localize.onnx_model``: network input (f - input_mean) / input_std, output o * std + mean)."""
+    """(B, F) features -> (B, 2) metres: the metadata's normalisation around ``run_graph`` (module
+    docstring of ``mission.localize.onnx_model``: network input (f - input_mean) / input_std, output
+    o * std + mean)."""
     import onnx
 
     meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}

@@ -1,5 +1,5 @@
-"""A real autopilot SITL from ../shared (``start.sh`` prints its PID) as a test sees it: its log, whether it is
-alive, a bounded stop.  Shared by the ArduPilot and PX4 end-to-end tests."""
+"""A real autopilot SITL from ../shared (``start.sh`` prints its PID) as a test sees it: its log,
+whether it is alive, a bounded stop.  Shared by the ArduPilot and PX4 end-to-end tests."""
 
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ import pytest
 def free_instance(
     lo: int, hi: int, ports: Callable[[int], tuple[int, ...]], udp: bool, what: str
 ) -> int:
-    """A random instance in lo..hi whose ``ports(instance)`` (UDP or TCP) are all free now; skip when none is."""
+    """A random instance in lo..hi whose ``ports(instance)`` (UDP or TCP) are all free now; skip
+    when none is."""
     kind = socket.SOCK_DGRAM if udp else socket.SOCK_STREAM
     for _ in range(50):
         i = random.randint(lo, hi)
@@ -41,7 +42,8 @@ class SitlProcess:
         self.root, self.pid, self.url, self.run = root, None, "", root
 
     def launch(self, script: Path, args: list[str], ready: str, what: str) -> None:
-        """Run ``script`` (a start.sh) with ``RUN`` = ``self.run`` and wait until its log says ``ready``."""
+        """Run ``script`` (a start.sh) with ``RUN`` = ``self.run`` and wait until its log says
+        ``ready``."""
         out = subprocess.run(
             [str(script), *args],
             env=dict(os.environ, RUN=str(self.run)),

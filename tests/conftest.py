@@ -1,12 +1,14 @@
-"""Shared test fixtures (the location of ../shared, real data, skipped cleanly where absent) and the test tiers.
+"""Shared test fixtures (the location of ../shared, real data, skipped cleanly where absent) and the
+test tiers.
 
-Tiers: a plain ``pytest`` (no paths named) runs the fast tier only, leaving out the tests marked ``slow``
-(end-to-end flights, the gap self-test, builds, anything over a few seconds) and ``real`` (reads the real AFAR
-flights in ../shared; every test using the ``shared_dir`` fixture is marked so automatically).
-``pytest --all`` runs every tier (CI and the README's test command do); naming files or node ids
-(``pytest tests/test_x.py``) runs all their tests; ``-m EXPR`` selects by marker as usual.
-Parallel runs (``pytest -n auto``, pytest-xdist) are safe: temporary paths are per test, the simulated vehicles
-and ArduPilot SITL take ports the OS hands out (or checks free), and every worker starts its slow tests first.
+Tiers: a plain ``pytest`` (no paths named) runs the fast tier only, leaving out the tests marked
+``slow`` (end-to-end flights, the gap self-test, builds, anything over a few seconds) and ``real``
+(reads the real AFAR flights in ../shared; every test using the ``shared_dir`` fixture is marked so
+automatically). ``pytest --all`` runs every tier (CI and the README's test command do); naming files
+or node ids (``pytest tests/test_x.py``) runs all their tests; ``-m EXPR`` selects by marker as
+usual. Parallel runs (``pytest -n auto``, pytest-xdist) are safe: temporary paths are per test, the
+simulated vehicles and ArduPilot SITL take ports the OS hands out (or checks free), and every worker
+starts its slow tests first.
 """
 
 from __future__ import annotations
@@ -16,17 +18,18 @@ from pathlib import Path
 
 import pytest
 
-# MAVLink 2 for every test, fixed before anything imports pymavlink (its dialect module is chosen once,
-# at first import, from this variable; mixing versions breaks pymavlink's waypoint loader).
+# MAVLink 2 for every test, fixed before anything imports pymavlink (its dialect module is chosen
+# once, at first import, from this variable; mixing versions breaks pymavlink's waypoint loader).
 os.environ.setdefault("MAVLINK20", "1")
-# One BLAS/OpenMP thread per test process (and the fly-mission / vehicle subprocesses, which inherit it), set before
-# numpy or torch is imported: on a busy 2-core machine (parallel test workers, other jobs) their default pools of
-# spinning threads slow small matrix work by 10-100x (a tiny network's backward pass: 16 ms alone, 1.7 s contended).
+# One BLAS/OpenMP thread per test process (and the fly-mission / vehicle subprocesses, which inherit
+# it), set before numpy or torch is imported: on a busy 2-core machine (parallel test workers, other
+# jobs) their default pools of spinning threads slow small matrix work by 10-100x (a tiny network's
+# backward pass: 16 ms alone, 1.7 s contended).
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-# Property tests draw their examples from a fixed seed under CI (every random result reproducible; a red CI is
-# then a failure anyone can rerun); locally they keep exploring new examples.
+# Property tests draw their examples from a fixed seed under CI (every random result reproducible; a
+# red CI is then a failure anyone can rerun); locally they keep exploring new examples.
 from hypothesis import settings as _hsettings  # noqa: E402
 
 _hsettings.register_profile("ci", derandomize=True, database=None)
@@ -35,10 +38,11 @@ if os.environ.get("CI"):
 
 REPO = Path(__file__).resolve().parents[1]
 FULL_TIERS = ("slow", "real")  # left out of a plain `pytest`
-# Slow tests in files that other work was editing when the tiers were introduced, marked here instead of in the
-# file (a test file's own ``@pytest.mark.slow`` / ``pytestmark`` is the usual place; move them there in time):
-# whole files (the gap self-test on the independent generator, network training) and single tests (file::name,
-# every parametrisation), each over ~3 s on a quiet 2-core machine.
+# Slow tests in files that other work was editing when the tiers were introduced, marked here
+# instead of in the file (a test file's own ``@pytest.mark.slow`` / ``pytestmark`` is the usual
+# place; move them there in time): whole files (the gap self-test on the independent generator,
+# network training) and single tests (file::name, every parametrisation), each over ~3 s on a quiet
+# 2-core machine.
 SLOW_FILES = ("test_gap_independent.py", "test_train.py")
 SLOW_TESTS = (
     "test_altitude_scale.py::test_training_flag_writes_the_metadata_that_inference_obeys",
@@ -53,7 +57,8 @@ SHARED = (REPO / ".." / "shared").resolve()
 
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
-    """The read-only ../shared folder (paper, spec, real AFAR data); skip the test where it is absent."""
+    """The read-only ../shared folder (paper, spec, real AFAR data); skip the test where it is
+    absent."""
     if not (SHARED / "data").is_dir():
         pytest.skip("../shared is absent (real data only on the development machines)")
     return SHARED
@@ -81,9 +86,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """With ``-n`` (pytest-xdist, default ``--dist load``) and no ``--maxschedchunk`` given: hand the workers one
-    test at a time.  xdist's default first hands each worker a block of about an eighth of the suite in order, so
-    one worker got every slow test (sorted first below) while the other ran short ones and then waited."""
+    """With ``-n`` (pytest-xdist, default ``--dist load``) and no ``--maxschedchunk`` given: hand
+    the workers one test at a time.  xdist's default first hands each worker a block of about an
+    eighth of the suite in order, so one worker got every slow test (sorted first below) while the
+    other ran short ones and then waited."""
     if (
         getattr(config.option, "numprocesses", None)
         and getattr(config.option, "maxschedchunk", 0) is None
@@ -92,8 +98,8 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark the tests that read ../shared as ``real`` and the listed slow ones ``slow``; in a plain run, deselect
-    the slow and real tiers."""
+    """Mark the tests that read ../shared as ``real`` and the listed slow ones ``slow``; in a plain
+    run, deselect the slow and real tiers."""
     for item in items:
         if "shared_dir" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.real)
@@ -107,8 +113,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             config.hook.pytest_deselected(items=drop)
             items[:] = [it for it in items if it not in set(drop)]
     if os.environ.get("PYTEST_XDIST_WORKER"):
-        # parallel workers (pytest -n): the slow tests first (stable otherwise), so that the long ones start early
-        # and the short ones fill the end instead of one worker finishing a flight while the others wait
+        # parallel workers (pytest -n): the slow tests first (stable otherwise), so that the long
+        # ones start early and the short ones fill the end instead of one worker finishing a flight
+        # while the others wait
         items.sort(key=lambda it: it.get_closest_marker("slow") is None)
     fast_only = (
         not config.getoption("all_tiers")
@@ -130,7 +137,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_testnodedown(node, error) -> None:
-    """xdist controller: every worker collected the same tests, so any worker's count of left-out tests is it."""
+    """xdist controller: every worker collected the same tests, so any worker's count of left-out
+    tests is it."""
     n = getattr(node, "workeroutput", {}).get("fast_tier_left_out")
     if n:
         node.config.stash[_LEFT_OUT] = n

@@ -1,4 +1,5 @@
-"""Adaptive finish: the adaptive: block, its pre-flight refusals, the round planner, the simulated flight."""
+"""Adaptive finish: the adaptive: block, its pre-flight refusals, the round planner, the simulated
+flight."""
 
 from __future__ import annotations
 
@@ -64,7 +65,8 @@ def test_bad_numbers_refused_naming_the_key(repo_dir, key, value):
 )
 @given(case=st.sampled_from(["budget", "fence", "altitude"]), x=st.floats(0.0, 1.0))
 def test_unflyable_settings_refused_before_takeoff(spec, case, x):
-    """A budget too small to return, a square the fence cannot hold, an altitude outside the limits."""
+    """A budget too small to return, a square the fence cannot hold, an altitude outside the
+    limits."""
     a = spec.adaptive
     if case == "budget":
         s, key = dataclasses.replace(spec, time_budget_s=a.survey_s + 30 * x), "time_budget_s"
@@ -173,7 +175,8 @@ def test_candidates_and_target():
 
 
 def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
-    """A short adaptive flight on the fast simulator: survey, rounds inside the fence, return within budget."""
+    """A short adaptive flight on the fast simulator: survey, rounds inside the fence, return within
+    budget."""
     from mission.adaptive.simflight import FlightWorld, SimLog, adaptive_flight, estimator
     from mission.physics.family import load_family
 

@@ -1,4 +1,5 @@
-"""AFAR MAT importer: a small synthetic MAT fixture (scipy.io.savemat) and, when present, the real files."""
+"""AFAR MAT importer: a small synthetic MAT fixture (scipy.io.savemat) and, when present, the real
+files."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""Altitude-normalised network coordinates: the physics premise (closed form), the scaling helpers, and the
-wiring from a log's heights to the network (training flag, metadata, inference)."""
+"""Altitude-normalised network coordinates: the physics premise (closed form), the scaling helpers,
+and the wiring from a log's heights to the network (training flag, metadata, inference)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,9 @@ from mission.physics.propagation import make_model
     pattern=st.sampled_from(["dipole", "measured"]),
 )
 def test_free_space_is_scale_invariant_up_to_friis_constant(s, seed, pattern):
-    """Every horizontal offset from the transmitter and the height above it times s: every link direction is
-    the same, every distance s times longer, so every RSS drops by exactly 20 log10 s (SPEC section 3)."""
+    """Every horizontal offset from the transmitter and the height above it times s: every link
+    direction is the same, every distance s times longer, so every RSS drops by exactly 20 log10 s
+    (SPEC section 3)."""
     rng = np.random.default_rng(seed)
     m = make_model(
         "free-space", pattern=pattern, rx_heading_rad=rng.uniform(0, 6.28), dtype=np.float64
@@ -42,8 +43,9 @@ def test_free_space_is_scale_invariant_up_to_friis_constant(s, seed, pattern):
 
 
 def test_ground_reflection_breaks_the_invariance():
-    """The limit of the premise: with the two-ray ground reflection the fringes move when scaled (so the network
-    trained on scaled coordinates is an approximation, measured in models/README.md, not an identity)."""
+    """The limit of the premise: with the two-ray ground reflection the fringes move when scaled (so
+    the network trained on scaled coordinates is an approximation, measured in models/README.md, not
+    an identity)."""
     rng = np.random.default_rng(1)
     m = make_model("two-ray", dtype=np.float64)
     tx = np.array([0.0, 0.0, 1.5])
@@ -119,7 +121,8 @@ def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_ne
     with pytest.raises(InputError, match="height above the transmitter"):
         loc.predict_features(a["clustering"])
     p = loc.predict_features(a["clustering"], h)
-    # the validation metric is in metres, not scaled units: recompute it on the same seeded split's flights
+    # the validation metric is in metres, not scaled units: recompute it on the same seeded split's
+    # flights
     err = np.hypot(*(p - a["tx_enu"][:, :2]).T)
     from mission.workshop.train import TrainConfig, validation_split
 
@@ -168,7 +171,8 @@ def shipped_alt(repo_dir):
 
 
 def test_altitude_normalised_prediction_is_scale_equivariant(shipped_alt):
-    """A flight k times larger and k times higher is answered k times further from the field origin, exactly."""
+    """A flight k times larger and k times higher is answered k times further from the field origin,
+    exactly."""
     from mission.localize.onnx_model import OnnxLocalizer
 
     loc = OnnxLocalizer(shipped_alt)

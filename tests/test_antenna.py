@@ -1,4 +1,5 @@
-"""Antenna patterns: dipole formula, tabulated interpolation, CSV format, measured AERPAW patterns."""
+"""Antenna patterns: dipole formula, tabulated interpolation, CSV format, measured AERPAW
+patterns."""
 
 from __future__ import annotations
 

@@ -1,9 +1,10 @@
 """End-to-end flight of ``fly-mission`` against the real ArduCopter SITL in ../shared.
 
-Skips cleanly where ``../shared/sitl/ardupilot/arducopter`` is absent.  The spiral is flown at speed-up 20
-(about 35 s of wall clock); the log must carry the mission phase per row, the sidecar the measured speed-up
-and telemetry rates, the first row must come before take-off, and the return leg must be flown nose first
-at the mission's speed (ArduPilot's defaults fly it tail first at 10 m/s).
+Skips cleanly where ``../shared/sitl/ardupilot/arducopter`` is absent.  The spiral is flown at
+speed-up 20 (about 35 s of wall clock); the log must carry the mission phase per row, the sidecar
+the measured speed-up and telemetry rates, the first row must come before take-off, and the return
+leg must be flown nose first at the mission's speed (ArduPilot's defaults fly it tail first at 10
+m/s).
 """
 
 from __future__ import annotations
@@ -38,17 +39,20 @@ pytestmark = [
 
 
 def _free_instance() -> int:
-    """A SITL instance number whose TCP ports (5760 + 10 I .. + 3) are free now (the SITL keeps it in 8 bits)."""
+    """A SITL instance number whose TCP ports (5760 + 10 I .. + 3) are free now (the SITL keeps it
+    in 8 bits)."""
     return free_instance(
         20, 250, lambda i: (5760 + 10 * i, 5762 + 10 * i, 5763 + 10 * i), False, "ArduPilot SITL"
     )
 
 
 class _Sitl(SitlProcess):
-    """One ArduCopter SITL at speed-up 20 in its own instance and folder; ``url`` is its MAVSDK address.
+    """One ArduCopter SITL at speed-up 20 in its own instance and folder; ``url`` is its MAVSDK
+    address.
 
-    Why a class: the SITL is an outside process; when it is gone before the flight connects, the test says so
-    with its log and starts a fresh one once, instead of failing with only "connection refused"."""
+    Why a class: the SITL is an outside process; when it is gone before the flight connects, the
+    test says so with its log and starts a fresh one once, instead of failing with only "connection
+    refused"."""
 
     def __init__(self, root: Path):
         super().__init__(root)
@@ -118,8 +122,8 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     t0 = time.monotonic()
     p = _fly_spiral(ardupilot.url, tmp_path / "flights")
     if p.returncode == 3 and "no autopilot" in p.stderr and not ardupilot.alive():
-        # the SITL process was gone before the flight connected: not the runner's doing (it never reached it);
-        # say so with the SITL's own log and fly once more against a fresh one
+        # the SITL process was gone before the flight connected: not the runner's doing (it never
+        # reached it); say so with the SITL's own log and fly once more against a fresh one
         gone = ardupilot.log()[-1500:]
         ardupilot.stop()
         ardupilot.start()
@@ -167,7 +171,8 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     armed = next(e for e in m["events"] if e["kind"] == "armed")
     assert m["t0_vehicle_s"] < armed["t_vehicle_s"]  # the first row is logged before arming
     assert t[np.argmax(phase == "takeoff")] - t[0] < 15.0
-    # the return: nose first (yaw along the course) at about the mission's speed, not tail first at 10 m/s
+    # the return: nose first (yaw along the course) at about the mission's speed, not tail first at
+    # 10 m/s
     enu = log.enu()
     ret = (phase == "return") & (log["rel_alt_m"] > 20)
     v = np.gradient(enu[:, :2], t, axis=0)
@@ -179,8 +184,9 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     assert np.percentile(speed[ret], 95) < 1.3 * spec.cruise_speed_mps
     assert np.median(log["pitch_deg"][moving]) < 0.0  # nose down in forward flight
     _attitude_agrees_with_ardupilot(log, spec)
-    # the time budget: the plan reserves ArduPilot's own landing (0.5 m/s below 10 m) and hover (RTL_LOIT_TIME), read
-    # from it; the flight keeps that plan (measured: 565 s planned, 575 s used, against 539 s kinematic)
+    # the time budget: the plan reserves ArduPilot's own landing (0.5 m/s below 10 m) and hover
+    # (RTL_LOIT_TIME), read from it; the flight keeps that plan (measured: 565 s planned, 575 s
+    # used, against 539 s kinematic)
     from mission.trajectory.checks import check_mission
 
     b = m["budget"]
@@ -198,9 +204,10 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
 
 
 def _attitude_agrees_with_ardupilot(log, spec) -> None:
-    """The project's attitude model against a real autopilot: (1) run on ArduPilot's own flown mission path
-    (already smoothed by the vehicle, so a short response time), it follows ArduPilot's roll; (2) on the
-    planned spiral, its hard-corner roll is as large as ArduPilot's (about 18 deg), within 5 deg."""
+    """The project's attitude model against a real autopilot: (1) run on ArduPilot's own flown
+    mission path (already smoothed by the vehicle, so a short response time), it follows ArduPilot's
+    roll; (2) on the planned spiral, its hard-corner roll is as large as ArduPilot's (about 18 deg),
+    within 5 deg."""
     import dataclasses
 
     from mission.trajectory.attitude import AttitudeState, run_attitude

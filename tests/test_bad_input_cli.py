@@ -1,9 +1,10 @@
 """Bad command-line arguments for every command: exit 2 and one stderr line naming the argument or
-file, never a traceback, never a silent wrong answer; odd but valid input (negative coordinates) accepted.
+file, never a traceback, never a silent wrong answer; odd but valid input (negative coordinates)
+accepted.
 
-Each case calls the console script's ``main(argv)`` in-process.  ``fly-mission`` cases are only those refused
-before anything connects (argument parsing and its first checks).  ``{log}``, ``{mission}``, ``{tmp}`` and
-friends in an argv are filled from the fixtures below.
+Each case calls the console script's ``main(argv)`` in-process.  ``fly-mission`` cases are only
+those refused before anything connects (argument parsing and its first checks).  ``{log}``,
+``{mission}``, ``{tmp}`` and friends in an argv are filled from the fixtures below.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ HYPO = settings(
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    """Paths the cases refer to: a good log, a one-row log, missions, MAT files, a plain file, a folder."""
+    """Paths the cases refer to: a good log, a one-row log, missions, MAT files, a plain file, a
+    folder."""
     d = tmp_path_factory.mktemp("cli")
     log = write_log(d / "log.csv")
     short = write_log(d / "short.csv", n=60)
@@ -92,7 +94,8 @@ def files(tmp_path_factory):
 
 
 def _argv(template: str, files: dict, tmp) -> list[str]:
-    """Split a case's argv template and fill ``{name}`` from ``files`` (``{tmp}``: the test's own folder)."""
+    """Split a case's argv template and fill ``{name}`` from ``files`` (``{tmp}``: the test's own
+    folder)."""
     return [
         re.sub(r"\{(\w+)\}", lambda m: str(tmp if m.group(1) == "tmp" else files[m.group(1)]), a)
         for a in template.split()
@@ -335,7 +338,8 @@ def test_import_of_a_folder_imports_every_mat(files, tmp_path, capsys):
 
 
 def test_image_suffix_is_checked_before_the_work(files, tmp_path, capsys, monkeypatch):
-    """--plot x.foo must fail before localizing, not after (a traceback after minutes of work before)."""
+    """--plot x.foo must fail before localizing, not after (a traceback after minutes of work
+    before)."""
     import mission.localize.api as api
 
     def boom(*a, **k):
@@ -346,7 +350,8 @@ def test_image_suffix_is_checked_before_the_work(files, tmp_path, capsys, monkey
     assert_refused(rc, err, "--plot")
 
 
-# --- generated with hypothesis -----------------------------------------------------------------------------
+# --- generated with hypothesis
+# -----------------------------------------------------------------------------
 
 coord = st.one_of(
     st.floats(-2e3, 2e3),
@@ -358,7 +363,8 @@ coord = st.one_of(
 @HYPO
 @given(tx=st.tuples(coord, coord, coord), rx=st.tuples(coord, coord, coord))
 def test_generated_rss_geometry_never_gives_nan_or_warnings(tx, rx):
-    """Any --tx/--rx: a finite dBm value with exit 0, or exit 2 with one line naming --tx or --rx."""
+    """Any --tx/--rx: a finite dBm value with exit 0, or exit 2 with one line naming --tx or
+    --rx."""
     import contextlib
     import io
     import warnings
@@ -408,7 +414,8 @@ def test_generated_negative_coordinates_are_accepted(capsys, xyz):
     cmd=st.sampled_from(["localize", "replay", "preview"]),
 )
 def test_generated_image_suffixes(files, capsys, suffix, cmd):
-    """Any --plot/--out suffix: a matplotlib format is taken, anything else refused naming the option."""
+    """Any --plot/--out suffix: a matplotlib format is taken, anything else refused naming the
+    option."""
     from matplotlib.backend_bases import FigureCanvasBase
 
     known = suffix in FigureCanvasBase.get_supported_filetypes()

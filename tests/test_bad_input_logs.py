@@ -1,8 +1,9 @@
 """Bad flight logs and sidecars through every command that reads a log: each is refused with exit 2
 and one line naming the file, row and field, or, for a real-log quirk, accepted with its note.
 
-Every case runs through ``read_flight_log`` and the CLIs that read logs (``localize``, ``rfsl replay``,
-``rfsl gap``, ``rfsl evaluate --real``), in-process.  Hypothesis generates further corruptions.
+Every case runs through ``read_flight_log`` and the CLIs that read logs (``localize``, ``rfsl
+replay``, ``rfsl gap``, ``rfsl evaluate --real``), in-process.  Hypothesis generates further
+corruptions.
 """
 
 from __future__ import annotations
@@ -308,7 +309,8 @@ def test_localize_json_carries_the_notes(tmp_path, base, capsys):
 
 
 def test_origin_option_places_a_sidecarless_log(tmp_path, base, capsys):
-    """Without a sidecar the origin is the first sample (about 160 m off on AFAR); --origin puts it right."""
+    """Without a sidecar the origin is the first sample (about 160 m off on AFAR); --origin puts it
+    right."""
     good = _make(tmp_path, base)
     rc, out, _ = run_cli(localize_main, [good, "--method", "centroid", "--json"], capsys)
     ref = json.loads(out)
@@ -337,7 +339,8 @@ def test_origin_option_places_a_sidecarless_log(tmp_path, base, capsys):
     assert "origin at the first sample" in err and abs(json.loads(out)["x_m"] - ref["x_m"]) > 10
 
 
-# --- generated with hypothesis -----------------------------------------------------------------------------
+# --- generated with hypothesis
+# -----------------------------------------------------------------------------
 
 BAD_VALUES = {  # values no column accepts, and the words the error uses for them
     "nan": "NaN",

@@ -1,9 +1,9 @@
-"""Issue 37's sweep of malformed inputs, one case each: exit 2 with exactly one stderr line naming the file or
-field, never a traceback, nothing started, nothing written outside the folder named.
+"""Issue 37's sweep of malformed inputs, one case each: exit 2 with exactly one stderr line naming
+the file or field, never a traceback, nothing started, nothing written outside the folder named.
 
-Every case calls a console script's ``main(argv)`` in-process (``fly-mission`` cases are refused before any
-vehicle starts: a case that started one would hang the test, not pass it).  ``{name}`` in an argv is filled
-from the ``files`` fixture, ``{tmp}`` with the test's own folder.
+Every case calls a console script's ``main(argv)`` in-process (``fly-mission`` cases are refused
+before any vehicle starts: a case that started one would hang the test, not pass it).  ``{name}`` in
+an argv is filled from the ``files`` fixture, ``{tmp}`` with the test's own folder.
 """
 
 from __future__ import annotations
@@ -256,7 +256,8 @@ REFUSED = [
     ("fly-mission {mission} --land-timeout 1e300", ["--land-timeout"]),
     ("fly-mission {mission} --link-timeout=--", ["--link-timeout", "one value"]),
     ("rfsl dataset {mission} --n=-- --out {tmp}/ds", ["--n", "one value"]),
-    # --connect: a malformed address is bad input at once (an unreachable one is a dead link, exit 3)
+    # --connect: a malformed address is bad input at once (an unreachable one is a dead link, exit
+    # 3)
     (
         "fly-mission {mission} --connect udpin://256.1.1.1:14540",
         ["--connect", "256.1.1.1", "IP address"],
@@ -330,7 +331,8 @@ def test_a_mission_name_never_leaves_the_output_folder(files, tmp_path, capsys):
 
 
 def test_simulate_and_import_do_not_replace_a_sidecar(files, tmp_path, capsys):
-    """A sidecar of the same name (its CSV gone) is kept, for simulate and for import without --overwrite."""
+    """A sidecar of the same name (its CSV gone) is kept, for simulate and for import without
+    --overwrite."""
     side = tmp_path / "spiral_sim_e2r_seed0.json"
     side.write_text('{"mine": 1}')
     rc, _, err = run_cli(rfsl_main, ["simulate", SPIRAL, "--out", tmp_path], capsys)
@@ -350,8 +352,9 @@ def test_simulate_and_import_do_not_replace_a_sidecar(files, tmp_path, capsys):
 
 
 def test_shipped_missions_and_models_resolve_from_any_folder(tmp_path, monkeypatch):
-    """After a plain pip install the README's names work outside the clone: ``spiral``, ``missions/spiral.yaml``
-    and ``rfsl_default.onnx`` fall back to the shipped copies; a file of that name in the folder wins."""
+    """After a plain pip install the README's names work outside the clone: ``spiral``,
+    ``missions/spiral.yaml`` and ``rfsl_default.onnx`` fall back to the shipped copies; a file of
+    that name in the folder wins."""
     from mission.shipped import missions_dir, models_dir, resolve_shipped
     from mission.spec import load_mission
 
@@ -378,7 +381,8 @@ def test_an_option_value_with_a_line_break_stays_one_line(capsys, value):
 
 
 def test_shipped_digests_match_the_shipped_networks():
-    """models/sha256.json holds every shipped network's digest (``rfsl train --out models/X.onnx`` updates it)."""
+    """models/sha256.json holds every shipped network's digest (``rfsl train --out models/X.onnx``
+    updates it)."""
     from mission.shipped import file_sha256, models_dir, shipped_digests
 
     nets = sorted(p.name for p in models_dir().glob("*.onnx"))
@@ -391,7 +395,8 @@ def test_shipped_digests_match_the_shipped_networks():
 
 @pytest.mark.parametrize("where", ["middle", "end"])
 def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys, where):
-    """Bytes flipped in the weights still load and answer (wrongly); under a shipped name it is refused."""
+    """Bytes flipped in the weights still load and answer (wrongly); under a shipped name it is
+    refused."""
     from mission.shipped import shipped_model
 
     data = bytearray(shipped_model("rfsl_default.onnx").read_bytes())

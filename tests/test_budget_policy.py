@@ -1,8 +1,10 @@
-"""A budget that holds: the per-leg pace fitted in flight, the return predicted from wherever the mission would
-end, and the mission's ``budget_policy`` (trim the tail, warn, return) acting on the prediction.
+"""A budget that holds: the per-leg pace fitted in flight, the return predicted from wherever the
+mission would end, and the mission's ``budget_policy`` (trim the tail, warn, return) acting on the
+prediction.
 
-The vehicle here is synthetic and exact: each leg takes ``scale`` x planned + ``per_leg_s`` (PX4 v1.16 SITL
-flew the spiral at about 1.03 x + 3 s), so what the policy achieves can be checked against the closed form."""
+The vehicle here is synthetic and exact: each leg takes ``scale`` x planned + ``per_leg_s`` (PX4
+v1.16 SITL flew the spiral at about 1.03 x + 3 s), so what the policy achieves can be checked
+against the closed form."""
 
 from __future__ import annotations
 
@@ -34,7 +36,8 @@ def plan():
 
 
 def _truth(plan, pace: Pace, last: int) -> tuple[np.ndarray, float]:
-    """Arrival times at waypoints 0..last and the arm-to-disarm time of a vehicle flying at ``pace``."""
+    """Arrival times at waypoints 0..last and the arm-to-disarm time of a vehicle flying at
+    ``pace``."""
     t = np.empty(last + 1)
     t[0] = pace.scale * plan.t_wp[0] + pace.per_leg_s
     for i in range(1, last + 1):
@@ -43,8 +46,8 @@ def _truth(plan, pace: Pace, last: int) -> tuple[np.ndarray, float]:
 
 
 def _fly(plan, pace: Pace, policy: str, reserve_s: float = 10.0, dt: float = 2.0):
-    """Fly the synthetic vehicle under the watch, re-planning as the policy acts; the watch, the flown arrival
-    times, the true arm-to-disarm time and the decisions taken."""
+    """Fly the synthetic vehicle under the watch, re-planning as the policy acts; the watch, the
+    flown arrival times, the true arm-to-disarm time and the decisions taken."""
     w = BudgetWatch(plan, policy=policy, reserve_s=reserve_s)
     decisions = []
     e = 0.0
@@ -103,10 +106,10 @@ def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_mu
         return
     assert used <= limit + 1.0, (used, w.actions)
     assert w.dropped == list(range(w.last + 1, n))  # the tail, in order
-    # not more than needed: keeping one more waypoint would not have fitted (the vehicle lands within the
-    # reserve) unless the cut could not come later (the vehicle was already flying to it); the cut is decided a
-    # few waypoints ahead on the pace fitted so far, so it may be conservative by a few seconds (hypothesis
-    # found 1.6 s at scale 1.25, 5.9 s per leg)
+    # not more than needed: keeping one more waypoint would not have fitted (the vehicle lands
+    # within the reserve) unless the cut could not come later (the vehicle was already flying to
+    # it); the cut is decided a few waypoints ahead on the pace fitted so far, so it may be
+    # conservative by a few seconds (hypothesis found 1.6 s at scale 1.25, 5.9 s per leg)
     if w.last + 1 < n:
         assert _truth(plan, pace, w.last + 1)[1] > limit - 3.0
     assert all(d[0] == "trim" for d in decisions) and len(decisions) <= 3

@@ -1,4 +1,5 @@
-"""``mission.cells``: binning samples by an integer key and averaging per bin, the one home of cell averaging."""
+"""``mission.cells``: binning samples by an integer key and averaging per bin, the one home of cell
+averaging."""
 
 from __future__ import annotations
 

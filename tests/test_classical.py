@@ -1,4 +1,5 @@
-"""Classical localizers find a synthetic / simulated transmitter; smoke tests on real AFAR flights."""
+"""Classical localizers find a synthetic / simulated transmitter; smoke tests on real AFAR
+flights."""
 
 from __future__ import annotations
 

@@ -108,7 +108,8 @@ def test_subprocess_exit_code():
 
 
 def test_model_aliases_that_make_model_accepts_are_accepted(capsys) -> None:
-    """One home for model names: the CLI takes every alias make_model takes (e.g. fs, two_ray) and folds it."""
+    """One home for model names: the CLI takes every alias make_model takes (e.g. fs, two_ray) and
+    folds it."""
     from mission.cli.main import main
     from mission.physics.propagation import MODEL_ALIASES, canonical_model_name
 

@@ -1,7 +1,7 @@
-"""Terminal output reads at 80 columns: with ``COLUMNS=80`` the help of ``rfsl`` and of every subcommand, and
-the output of ``rfsl rss --explain``, ``simulate``, ``replay``, ``export`` and ``import``, have no line wider
-than 80 characters (paths kept short by working in the test folder; ``calibrate``'s is checked with its
-real-flight test in test_selfcal)."""
+"""Terminal output reads at 80 columns: with ``COLUMNS=80`` the help of ``rfsl`` and of every
+subcommand, and the output of ``rfsl rss --explain``, ``simulate``, ``replay``, ``export`` and
+``import``, have no line wider than 80 characters (paths kept short by working in the test folder;
+``calibrate``'s is checked with its real-flight test in test_selfcal)."""
 
 from __future__ import annotations
 
@@ -97,7 +97,8 @@ def _render(table) -> str:
 
 
 def test_gap_selftest_confusion_keeps_every_effect_name():
-    """``rfsl gap --selftest``'s confusion matrix at 80 columns: every effect name whole, nothing cut."""
+    """``rfsl gap --selftest``'s confusion matrix at 80 columns: every effect name whole, nothing
+    cut."""
     import numpy as np
 
     from mission.cli.gap import confusion_table
@@ -111,7 +112,8 @@ def test_gap_selftest_confusion_keeps_every_effect_name():
 
 
 def test_evaluate_table_does_not_cut_labels():
-    """``rfsl evaluate``'s table at 80 columns: a long method or test name is folded, never cut with '…'."""
+    """``rfsl evaluate``'s table at 80 columns: a long method or test name is folded, never cut with
+    '…'."""
     from mission.cli.evaluate import _table
     from mission.workshop.evaluate import Row
 

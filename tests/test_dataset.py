@@ -1,5 +1,5 @@
-"""Dataset generation: determinism (same seed, same bytes, any worker count or chunk size), chunking,
-manifest, reading back, and the CLI's error handling."""
+"""Dataset generation: determinism (same seed, same bytes, any worker count or chunk size),
+chunking, manifest, reading back, and the CLI's error handling."""
 
 from __future__ import annotations
 
@@ -78,7 +78,8 @@ def test_chunks_manifest_and_contents(tmp_path, repo_dir):
     assert np.all((arrays["tx_enu"][:, 2] >= 1.5) & (arrays["tx_enu"][:, 2] <= 5.0))
     alt = arrays["params"][:, mf["param_names"].index("altitude_m")]
     assert np.all((alt >= 20) & (alt <= 47))
-    # offset invariance of the stored features: the RSS of the strongest cluster is relative (<= 0 dB)
+    # offset invariance of the stored features: the RSS of the strongest cluster is relative (<= 0
+    # dB)
     assert np.all(arrays["clustering"][:, 0] <= 0.0)
     with pytest.raises(ValueError, match="digest"):
         (tmp_path / "ds" / "chunk_00001.npz").write_bytes(b"x" * 10)
@@ -141,8 +142,8 @@ def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
 
 
 def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
-    """Items added later draw only when switched on: a zero-probability fixed heading, no speed range and no
-    shadowing leave every flight's bytes as before."""
+    """Items added later draw only when switched on: a zero-probability fixed heading, no speed
+    range and no shadowing leave every flight's bytes as before."""
     from dataclasses import replace
 
     from mission.workshop.dataset import FlightSimulator
@@ -181,8 +182,8 @@ def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
 
 
 def test_physics_preset_fold_is_the_simulated_model(repo_dir):
-    """``physics="afar:fit328"`` flies the fold's fitted model: noise-free RSS equals that model at the logged
-    geometry, with the heading jitter added to the preset's UAV-antenna heading."""
+    """``physics="afar:fit328"`` flies the fold's fitted model: noise-free RSS equals that model at
+    the logged geometry, with the heading jitter added to the preset's UAV-antenna heading."""
     from dataclasses import replace
 
     from mission.physics.presets import build_model, load_preset

@@ -1,10 +1,11 @@
-"""Estimates without a posterior carry calibrated error circles (``mission/localize/error_circles.py``).
+"""Estimates without a posterior carry calibrated error circles
+(``mission/localize/error_circles.py``).
 
-Checked on the circles' geometry (their radius, the split-conformal quantile, is checked against its closed form
-in ``tests/test_evidence.py``), on the card contract (missing, malformed, stale), on the shipped
-calibrations (every shipped network calibrated on the exact file that ships; the classical methods for both kinds
-of log) and on the product path (``localize`` on simulated and benchmark logs returns the circles of the right
-calibration, and a note instead where none applies).
+Checked on the circles' geometry (their radius, the split-conformal quantile, is checked against its
+closed form in ``tests/test_evidence.py``), on the card contract (missing, malformed, stale), on the
+shipped calibrations (every shipped network calibrated on the exact file that ships; the classical
+methods for both kinds of log) and on the product path (``localize`` on simulated and benchmark logs
+returns the circles of the right calibration, and a note instead where none applies).
 """
 
 from __future__ import annotations
@@ -54,16 +55,18 @@ def test_circles_have_their_radius_and_contain_what_they_should():
 
 
 def _segment_area(r: float, d: float) -> float:
-    """Area of a circle of radius r cut by a straight line at distance d from its centre (the larger part)."""
+    """Area of a circle of radius r cut by a straight line at distance d from its centre (the larger
+    part)."""
     return math.pi * r * r - (r * r * math.acos(d / r) - d * math.sqrt(r * r - d * d))
 
 
 @given(r=st.floats(5.0, 300.0), frac=st.floats(0.02, 0.98))
 @settings(max_examples=60, deadline=None)
 def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
-    """A circle whose centre lies inside a large square, ``frac * r`` from its east edge, is clipped to the
-    circle minus the segment beyond that edge (closed form; the 72-gon underestimates the circle by < 0.2 %);
-    every clipped vertex lies in the square, and coverage stays the circle's (the ellipse is unchanged)."""
+    """A circle whose centre lies inside a large square, ``frac * r`` from its east edge, is clipped
+    to the circle minus the segment beyond that edge (closed form; the 72-gon underestimates the
+    circle by < 0.2 %); every clipped vertex lies in the square, and coverage stays the circle's
+    (the ellipse is unchanged)."""
     from mission.geo import Area
 
     sq = Area(
@@ -81,8 +84,8 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
 
 
 def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
-    """Inside the area the circle is untouched; a circle holding a (non-convex, L-shaped) area whole clips to
-    that area's own polygon and area; one that misses the area is kept whole."""
+    """Inside the area the circle is untouched; a circle holding a (non-convex, L-shaped) area whole
+    clips to that area's own polygon and area; one that misses the area is kept whole."""
     from mission.geo import Area
 
     ell = Area(
@@ -97,8 +100,8 @@ def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
 
 
 def test_a_circle_across_the_inner_corner_of_a_non_convex_area_has_the_right_area():
-    """The L's inner corner at (40, 40): a circle of radius 30 there loses exactly the quarter inside the
-    notch (three quarters remain, to the 72-gon's resolution)."""
+    """The L's inner corner at (40, 40): a circle of radius 30 there loses exactly the quarter
+    inside the notch (three quarters remain, to the 72-gon's resolution)."""
     from mission.geo import Area
 
     ell = Area(
@@ -178,8 +181,9 @@ def test_a_malformed_card_entry_names_the_card_and_key(net, entry):
 
 @pytest.mark.parametrize("name", SHIPPED)
 def test_every_shipped_network_is_calibrated_on_the_file_that_ships(name, repo_dir):
-    """Both calibrations present and measured on this very file; circles grow with the level, and the real
-    (benchmark) circles are wider than the simulated ones wherever the network is a simulation specialist."""
+    """Both calibrations present and measured on this very file; circles grow with the level, and
+    the real (benchmark) circles are wider than the simulated ones wherever the network is a
+    simulation specialist."""
     model = repo_dir / "models" / f"{name}.onnx"
     sim, real = (card_calibration(model, d) for d in ("sim", "real"))
     assert sim[1] is None and real[1] is None, (sim[1], real[1])
@@ -190,8 +194,9 @@ def test_every_shipped_network_is_calibrated_on_the_file_that_ships(name, repo_d
 
 
 def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tmp_path, repo_dir):
-    """On a simulated spiral the default network answers with its 'sim' circles; on a benchmark log (a real
-    receiver's kind) ``--model`` answers with its 'real' ones; both centred on the estimate, in the log frame."""
+    """On a simulated spiral the default network answers with its 'sim' circles; on a benchmark log
+    (a real receiver's kind) ``--model`` answers with its 'real' ones; both centred on the estimate,
+    in the log frame."""
     from mission.cli.main import main as rfsl
     from mission.localize.api import localize_log
     from mission.spec import DEFAULT_MISSION
@@ -214,7 +219,8 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     assert [r["radius_m"] for r in est.extras["regions"]] == sorted(
         card_calibration(model, "real")[0]["radii_m"].values()
     )
-    # the 'real' 90 % circle (~160 m) overhangs the AFAR rover area: the region is its part inside that area
+    # the 'real' 90 % circle (~160 m) overhangs the AFAR rover area: the region is its part inside
+    # that area
     from mission.localize.api import search_area
 
     ra = search_area(log)
@@ -241,8 +247,8 @@ _BAD_ENTRY = st.one_of(
     max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 def test_localize_refuses_a_malformed_card_with_one_line_and_exit_2(entry, net, tmp_path, capsys):
-    """``localize --model`` with a card whose calibration is malformed: one line naming the card and the key,
-    exit 2, never a traceback or a circle of made-up size."""
+    """``localize --model`` with a card whose calibration is malformed: one line naming the card and
+    the key, exit 2, never a traceback or a circle of made-up size."""
     from _localize_helpers import write_synthetic_log
 
     from mission.cli.localize import main as localize
@@ -264,8 +270,8 @@ def test_localize_refuses_a_malformed_card_with_one_line_and_exit_2(entry, net, 
 
 @pytest.mark.parametrize("method", CIRCLE_METHODS)
 def test_every_classical_method_is_calibrated_for_both_kinds_of_log(method):
-    """The grid with the simulated log's own physics is near-exact (sub-metre circles); on the benchmark every
-    method's circles are tens of metres, wider than on simulated logs."""
+    """The grid with the simulated log's own physics is near-exact (sub-metre circles); on the
+    benchmark every method's circles are tens of metres, wider than on simulated logs."""
     (sim, why_s), (real, why_r) = (
         method_calibration(method, "sim"),
         method_calibration(method, "real"),

@@ -1,5 +1,5 @@
-"""The typed estimate: ``regions``, ``notes`` and ``components`` are what consumers read, and ``to_dict`` (what
-``--json`` prints) renders them where and how it always did."""
+"""The typed estimate: ``regions``, ``notes`` and ``components`` are what consumers read, and
+``to_dict`` (what ``--json`` prints) renders them where and how it always did."""
 
 from __future__ import annotations
 

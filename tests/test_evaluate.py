@@ -47,10 +47,11 @@ def test_evaluate_sim_classical(tmp_path, repo_dir):
     assert [r.method for r in rows] == ["strongest", "centroid"]
     s = rows[0].summary()
     assert s["n"] == 3 and 0 <= s["median_m"] <= s["p90_m"]
-    # Reference from the flown geometry: the truncated paths (20-30 % of random waypoints) stay 149-236 m from
-    # their transmitters. The strongest (smoothed) sample is a point of the path, so its error lies between the
-    # path's closest and farthest distance to the truth (measured: 149, 220, 222 m against closest 149, 193,
-    # 216 m); the centroid lies in the path's convex hull, so it is no farther than the farthest sample.
+    # Reference from the flown geometry: the truncated paths (20-30 % of random waypoints) stay
+    # 149-236 m from their transmitters. The strongest (smoothed) sample is a point of the path, so
+    # its error lies between the path's closest and farthest distance to the truth (measured: 149,
+    # 220, 222 m against closest 149, 193, 216 m); the centroid lies in the path's convex hull, so
+    # it is no farther than the farthest sample.
     sim = FlightSimulator(dataset_config(read_manifest(tmp_path / "ds")))
     for i in range(3):
         fs = sim.draw(i).samples
@@ -69,8 +70,9 @@ def test_method_specs():
 
 
 def test_grid_physics_rows_on_a_simulated_set(tmp_path, repo_dir):
-    """``grid:MODEL`` runs the grid with that physics: on a noise-free free-space test set the free-space grid is
-    exact to the grid's resolution and beats the e2r grid, whose physics is wrong there."""
+    """``grid:MODEL`` runs the grid with that physics: on a noise-free free-space test set the
+    free-space grid is exact to the grid's resolution and beats the e2r grid, whose physics is wrong
+    there."""
     from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
 
     r = Randomisation(

@@ -1,4 +1,5 @@
-"""Bootstrap intervals over flights, the conformal quantile and coverage intervals: closed forms and limits."""
+"""Bootstrap intervals over flights, the conformal quantile and coverage intervals: closed forms and
+limits."""
 
 import math
 
@@ -27,7 +28,8 @@ def test_flight_bootstrap_matches_standard_error():
 
 
 def test_cluster_bootstrap_is_wider_when_groups_share_errors():
-    """Two teams whose flights are alike: resampling teams must give a wider interval than flights."""
+    """Two teams whose flights are alike: resampling teams must give a wider interval than
+    flights."""
     e = np.r_[np.full(10, 10.0), np.full(10, 50.0)] + np.random.default_rng(0).normal(0, 1, 20)
     teams = ["a"] * 10 + ["b"] * 10
     flights = mean_interval(e, seed=2)
@@ -36,7 +38,8 @@ def test_cluster_bootstrap_is_wider_when_groups_share_errors():
 
 
 def test_paired_difference_resolves_a_constant_gain_that_unpaired_spread_hides():
-    """b = a + 5 m on every flight: the paired interval is a point at -5 m, never straddling zero."""
+    """b = a + 5 m on every flight: the paired interval is a point at -5 m, never straddling
+    zero."""
     a = np.random.default_rng(1).uniform(5, 250, size=6)
     d = paired_difference(a, a + 5.0, seed=0)
     assert d.value == pytest.approx(-5.0)
@@ -65,8 +68,9 @@ def test_compare_methods_reference_difference_is_zero_and_shapes_are_checked():
 
 
 def test_conformal_quantile_small_example():
-    """n = 9 scores 1..9: level 0.5 -> the ceil(10 x 0.5) = 5th smallest; 0.9 -> the 9th; 0.95 -> none (inf).
-    (np.quantile 'higher' at k / n, the matched localizer's old rule, picked the 6th at 0.5.)"""
+    """n = 9 scores 1..9: level 0.5 -> the ceil(10 x 0.5) = 5th smallest; 0.9 -> the 9th; 0.95 ->
+    none (inf). (np.quantile 'higher' at k / n, the matched localizer's old rule, picked the 6th at
+    0.5.)"""
     s = np.array([7.0, 2.0, 9.0, 1.0, 5.0, 3.0, 8.0, 4.0, 6.0])
     assert conformal_quantile(s, 0.5) == 5.0
     assert conformal_quantile(s, 0.9) == 9.0
@@ -76,8 +80,9 @@ def test_conformal_quantile_small_example():
 
 @pytest.mark.parametrize("n,level", [(19, 0.5), (99, 0.9), (200, 0.9), (40, 0.5)])
 def test_conformal_coverage_matches_the_closed_form(n, level):
-    """Over many calibration/test draws from one distribution, the circle covers a fresh error with probability
-    ceil((n + 1) level) / (n + 1) exactly (rank argument); Rayleigh errors, 4000 repetitions."""
+    """Over many calibration/test draws from one distribution, the circle covers a fresh error with
+    probability ceil((n + 1) level) / (n + 1) exactly (rank argument); Rayleigh errors, 4000
+    repetitions."""
     rng = np.random.default_rng(0)
     cal = rng.rayleigh(10.0, (4000, n))
     test = rng.rayleigh(10.0, 4000)
@@ -98,8 +103,8 @@ def test_conformal_quantile_is_an_order_statistic(errors, level):
 
 
 def test_coverage_interval_closed_forms():
-    """Clopper-Pearson: k = 0 gives [0, 1 - (a/2)^(1/n)]; k = n gives [(a/2)^(1/n), 1]; the symmetric case is
-    symmetric about 1/2; 95 of 100 at 90 % is about [0.898, 0.980] (tables)."""
+    """Clopper-Pearson: k = 0 gives [0, 1 - (a/2)^(1/n)]; k = n gives [(a/2)^(1/n), 1]; the
+    symmetric case is symmetric about 1/2; 95 of 100 at 90 % is about [0.898, 0.980] (tables)."""
     iv = coverage_interval(0, 10)
     assert iv.lo == 0.0 and iv.hi == pytest.approx(1 - 0.05**0.1)
     iv = coverage_interval(10, 10)

@@ -1,4 +1,5 @@
-"""Exports: the .plan items round-trip through pymavlink's waypoint loader; GeoJSON, KML well formed."""
+"""Exports: the .plan items round-trip through pymavlink's waypoint loader; GeoJSON, KML well
+formed."""
 
 from __future__ import annotations
 
@@ -89,7 +90,8 @@ def test_kml(tmp_path):
 
 
 class _Store(MissionStore):
-    """sitl's mission store on a MAVLink encoder that writes nowhere: what the simulated vehicle keeps."""
+    """sitl's mission store on a MAVLink encoder that writes nowhere: what the simulated vehicle
+    keeps."""
 
     def __init__(self) -> None:
         self.mav = mavlink2.MAVLink(io.BytesIO(), srcSystem=1, srcComponent=1)
@@ -103,7 +105,8 @@ class _Store(MissionStore):
 
 
 def _uploaded_to_sitl(mavsdk_items) -> list:
-    """Feed MAVSDK's upload items to sitl's mission store as the ground station's MISSION_ITEM_INTs."""
+    """Feed MAVSDK's upload items to sitl's mission store as the ground station's
+    MISSION_ITEM_INTs."""
     gcs = mavlink2.MAVLink(io.BytesIO(), srcSystem=255, srcComponent=190)
     store = _Store()
     decode = mavlink2.MAVLink(io.BytesIO())
@@ -139,8 +142,8 @@ def _same(a: float, b: float, tol: float = 0.0) -> bool:
 
 @pytest.mark.parametrize("name", ["spiral", "waypoints"])
 def test_exported_items_are_the_uploaded_items(tmp_path, name):
-    """One builder: the items MAVSDK uploads (as sitl's mission store keeps them) are the ones the WPL file and
-    the .plan hold, field by field (lat/lon to the 1e-7 degree of MISSION_ITEM_INT)."""
+    """One builder: the items MAVSDK uploads (as sitl's mission store keeps them) are the ones the
+    WPL file and the .plan hold, field by field (lat/lon to the 1e-7 degree of MISSION_ITEM_INT)."""
     from mission.flight.plan import to_mavsdk
     from mission.trajectory.items import build_items, home_geodetic
 

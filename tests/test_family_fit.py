@@ -1,4 +1,5 @@
-"""``rfsl gap --family``: per-flight fits -> a schema-1 family that loads, and the loop closes on it."""
+"""``rfsl gap --family``: per-flight fits -> a schema-1 family that loads, and the loop closes on
+it."""
 
 from __future__ import annotations
 

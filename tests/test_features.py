@@ -1,4 +1,5 @@
-"""Features: grouping and smoothing closed forms, offset invariance, determinism, ordering, shapes."""
+"""Features: grouping and smoothing closed forms, offset invariance, determinism, ordering,
+shapes."""
 
 from __future__ import annotations
 
@@ -129,9 +130,9 @@ def test_normalised_rss():
 
 
 def test_arc_resampling_collapses_hovers_and_ignores_speed():
-    """``resample_by_arc``: a hover becomes one averaged point, a path flown at 1 m/s or 5 m/s gives the same
-    points, GPS jitter while hovering adds no path, and features with ``arc_step_m`` see the same flight at
-    any speed."""
+    """``resample_by_arc``: a hover becomes one averaged point, a path flown at 1 m/s or 5 m/s gives
+    the same points, GPS jitter while hovering adds no path, and features with ``arc_step_m`` see
+    the same flight at any speed."""
     from mission.localize.features import resample_by_arc
 
     rng = np.random.default_rng(0)
@@ -165,7 +166,8 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
     path_x = np.concatenate([xs, xs[::-1]])
     path_y = np.concatenate([np.zeros(3000), np.full(3000, 30.0)])
     rss = -40.0 - 0.1 * np.hypot(path_x - 120, path_y - 10)
-    # the same path, crept over at a fifth of the speed on its first leg (as AFAR team 288 did in places)
+    # the same path, crept over at a fifth of the speed on its first leg (as AFAR team 288 did in
+    # places)
     slow_idx = np.repeat(np.arange(6000), np.where(np.arange(6000) < 3000, 5, 1))
     a = cluster_features(path_x, path_y, rss, cfg).reshape(-1, 3)
     b = cluster_features(path_x[slow_idx], path_y[slow_idx], rss[slow_idx], cfg).reshape(-1, 3)

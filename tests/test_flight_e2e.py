@@ -1,7 +1,7 @@
 """End-to-end flights of ``fly-mission`` against the simulated vehicle (the runner's acceptance).
 
-Each test runs the real console entry point in a subprocess (``python -m mission.cli.fly``), so signals,
-exit codes and the embedded vehicle are exercised exactly as a user would.
+Each test runs the real console entry point in a subprocess (``python -m mission.cli.fly``), so
+signals, exit codes and the embedded vehicle are exercised exactly as a user would.
 """
 
 from __future__ import annotations
@@ -51,16 +51,18 @@ def _vehicle(port: int, speedup: float) -> subprocess.Popen:
 
 
 def test_spiral_end_to_end(tmp_path, repo_dir):
-    """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS reproducible, phases
-    logged, measured speed-up recorded, the final line gives the localization error."""
+    """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS
+    reproducible, phases logged, measured speed-up recorded, the final line gives the localization
+    error."""
     from mission.flight.sources import recompute_sim_rss
     from mission.spec import load_mission
 
     p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path)])
     out, err = p.communicate(timeout=150)
     assert p.returncode == 0, err[-3000:]
-    # MAVSDK's callbacks kept up: the telemetry that arrived is close to what was asked for (a few dropped
-    # callbacks on a loaded machine are tolerated: "Dropping subscription callbacks" may appear once)
+    # MAVSDK's callbacks kept up: the telemetry that arrived is close to what was asked for (a few
+    # dropped callbacks on a loaded machine are tolerated: "Dropping subscription callbacks" may
+    # appear once)
     assert "|Info" not in err and "|Debug" not in err  # MAVSDK's chatter is off by default
     assert "27 s of wall-clock time at speed-up 20" in err  # the duration notice
     log = read_flight_log(_log_of(tmp_path))
@@ -88,7 +90,8 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     armed = next(e for e in log.meta["events"] if e["kind"] == "armed")
     assert log.meta["t0_vehicle_s"] < armed["t_vehicle_s"]  # the first row is logged before arming
     assert log.columns["mission_item"][phase == "mission"].max() == len(spec.waypoints_enu()) - 1
-    # the run ends with the localizer's estimate, its method, region and error against the known truth
+    # the run ends with the localizer's estimate, its method, region and error against the known
+    # truth
     last = "estimate:" + out.rsplit("\nestimate:", 1)[-1]
     assert last.startswith("estimate: x=") and "\n  error: " in last, out
     assert max(len(ln) for ln in last.splitlines()) <= 80, last
@@ -151,8 +154,9 @@ def test_fence_refused_nothing_uploaded(tmp_path):
 
 
 def test_ctrl_c_returns_to_launch(tmp_path):
-    """SIGINT mid-mission: RTL commanded, the vehicle lands, the log is closed and readable, exit 130.  The
-    signal comes 1500 rows (45 s of vehicle time) in: on the first legs, so the return is short."""
+    """SIGINT mid-mission: RTL commanded, the vehicle lands, the log is closed and readable, exit
+    130.  The signal comes 1500 rows (45 s of vehicle time) in: on the first legs, so the return is
+    short."""
     p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
     try:
         _wait_rows(tmp_path, 1500, 60)
@@ -207,7 +211,8 @@ def test_vehicle_killed_link_loss(tmp_path):
     log = read_flight_log(_log_of(tmp_path))
     assert log.meta["link_lost"] is True
     assert len(log) > 2000
-    # only measured times: no extrapolated arm-to-disarm time, the last telemetry's time, the state unknown
+    # only measured times: no extrapolated arm-to-disarm time, the last telemetry's time, the state
+    # unknown
     m = log.meta
     assert m["budget"]["used_s"] is None and m["vehicle_state"] == "unknown"
     lost = [e for e in m["events"] if e["kind"] == "link"]
@@ -238,7 +243,8 @@ def test_connecting_to_nothing_times_out_with_one_line(tmp_path, scheme):
     assert p.returncode == 3, err
     assert time.monotonic() - t0 < 30
     lines = err.strip().splitlines()
-    # the pre-flight duration line (printed with --connect too), then exactly one error line, no traceback
+    # the pre-flight duration line (printed with --connect too), then exactly one error line, no
+    # traceback
     assert lines[0].startswith("estimated flight: ") and "add --speedup" not in lines[0], err
     assert (
         len(lines) == 2
@@ -272,9 +278,10 @@ def test_sigterm_before_takeoff_does_not_return_to_launch(tmp_path):
     ],
 )
 def test_bad_options_refused_before_anything_starts(tmp_path, capsys, args, field):
-    """Exit 2 and one line naming the option, before any vehicle is started (no vehicle, no log).  The first
-    case runs the console entry point in a subprocess; the others call it in-process (same code path after
-    the interpreter starts, without a fresh Python importing the package each time)."""
+    """Exit 2 and one line naming the option, before any vehicle is started (no vehicle, no log).
+    The first case runs the console entry point in a subprocess; the others call it in-process
+    (same code path after the interpreter starts, without a fresh Python importing the package
+    each time)."""
     f = tmp_path / "a_file"
     f.write_text("x")
     args = [str(f) if a == "FILE" else a for a in args]
@@ -315,8 +322,9 @@ def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
 
 
 def _fly_px4_like(mfile: Path, speedup: float, out: Path, *extra: str) -> tuple[int, str]:
-    """Fly ``mfile`` with ``--no-localize`` on the built-in vehicle with the PX4-like profile (vehicle options
-    ``extra``), started apart at the mission's home on a free UDP port; (exit code, stderr)."""
+    """Fly ``mfile`` with ``--no-localize`` on the built-in vehicle with the PX4-like profile
+    (vehicle options ``extra``), started apart at the mission's home on a free UDP port; (exit code,
+    stderr)."""
     from mission.spec import load_mission
 
     spec = load_mission(mfile)
@@ -363,11 +371,12 @@ def _fly_px4_like(mfile: Path, speedup: float, out: Path, *extra: str) -> tuple[
 
 
 def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path):
-    """Budget and autopilot texts on the PX4-like vehicle (legs 7 % slower than asked, return at its own MPC_XY_CRUISE,
-    STATUSTEXT only while a GCS heartbeat arrived within 2.5 simulated s) at speed-up 10, a short spiral with
-    a budget 3 % above its plan: every text the vehicle sent is in the sidecar (tab stripped, none after
-    "landed and disarmed"), the overrun is warned during the flight and recorded, MPC_XY_CRUISE is restored,
-    "armed" comes before "mission started" and the duration line shows with --connect."""
+    """Budget and autopilot texts on the PX4-like vehicle (legs 7 % slower than asked, return at its
+    own MPC_XY_CRUISE, STATUSTEXT only while a GCS heartbeat arrived within 2.5 simulated s) at
+    speed-up 10, a short spiral with a budget 3 % above its plan: every text the vehicle sent is in
+    the sidecar (tab stripped, none after "landed and disarmed"), the overrun is warned during the
+    flight and recorded, MPC_XY_CRUISE is restored, "armed" comes before "mission started" and the
+    duration line shows with --connect."""
     import json
 
     import yaml
@@ -382,8 +391,8 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     d["budget_policy"] = "warn"  # this test is about the warning (the default, trim, acts on it)
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
-    # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from it, and PX4's
-    # touchdown-to-disarm delay (over --connect the runner takes it for PX4)
+    # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from
+    # it, and PX4's touchdown-to-disarm delay (over --connect the runner takes it for PX4)
     base = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
     plan = base + LANDED_TO_DISARM_S["PX4"]
     d["time_budget_s"] = round(
@@ -426,7 +435,8 @@ def _fly_group(args: list[str]) -> subprocess.Popen:
 def test_terminal_signal_to_the_whole_group_returns_to_launch(tmp_path, sig):
     """A terminal's Ctrl-C (or a lost SSH session's SIGHUP) reaches every process of the group, the
     live-estimate worker included: the flight still returns to launch and lands, exits 130 with no
-    traceback, and the sidecar says aborted with the rows it holds.  The moment is picked on the log's rows."""
+    traceback, and the sidecar says aborted with the rows it holds.  The moment is picked on the
+    log's rows."""
     p = _fly_group([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
     err = signal_group_at_rows(p, tmp_path, 1500, sig, 90, 120)
     assert p.returncode == 130, err[-3000:]
@@ -443,9 +453,10 @@ def test_terminal_signal_to_the_whole_group_returns_to_launch(tmp_path, sig):
 
 
 def test_ctrl_c_twice_says_the_vehicle_was_left_in_flight(tmp_path):
-    """Two Ctrl-Cs 0.3 s apart to the whole group: the second stops waiting for the landing; the status and the
-    sidecar say the vehicle was left in flight (altitude, phase) and name the parameters left changed (the
-    PX4-like vehicle's MPC_XY_CRUISE, 4.8 m/s, set to the mission's 5.5 and not restored under a flying vehicle)."""
+    """Two Ctrl-Cs 0.3 s apart to the whole group: the second stops waiting for the landing; the
+    status and the sidecar say the vehicle was left in flight (altitude, phase) and name the
+    parameters left changed (the PX4-like vehicle's MPC_XY_CRUISE, 4.8 m/s, set to the mission's 5.5
+    and not restored under a flying vehicle)."""
     from mission.spec import load_mission
 
     spec = load_mission(SPIRAL)
@@ -508,8 +519,9 @@ def test_ctrl_c_twice_says_the_vehicle_was_left_in_flight(tmp_path):
 
 
 def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
-    """A file-size limit (as a full disk) that the log passes mid-mission: said at once, the vehicle returns to
-    launch and lands, the CSV holds whole rows only and the sidecar says how many; exit 4, no traceback."""
+    """A file-size limit (as a full disk) that the log passes mid-mission: said at once, the vehicle
+    returns to launch and lands, the CSV holds whole rows only and the sidecar says how many; exit
+    4, no traceback."""
     import resource
 
     limit = 400 * 1024  # about 4 500 rows: the log passes it on the first legs
@@ -543,9 +555,10 @@ def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
 
 
 def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
-    """The default ``budget_policy: trim`` on the PX4-like vehicle (legs 7 % slower than asked) at speed-up 20,
-    the spiral with a 560 s budget (about 580 s flown whole): the tail is dropped in flight with one line, the
-    vehicle lands inside the budget (arm to disarm, measured), and the sidecar names what was dropped."""
+    """The default ``budget_policy: trim`` on the PX4-like vehicle (legs 7 % slower than asked) at
+    speed-up 20, the spiral with a 560 s budget (about 580 s flown whole): the tail is dropped in
+    flight with one line, the vehicle lands inside the budget (arm to disarm, measured), and the
+    sidecar names what was dropped."""
     import yaml
 
     d = yaml.safe_load(SPIRAL.read_text())

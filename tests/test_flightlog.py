@@ -1,4 +1,5 @@
-"""Flight-log format: round trip, validation errors naming file/row/column, crash safety of the writer."""
+"""Flight-log format: round trip, validation errors naming file/row/column, crash safety of the
+writer."""
 
 from __future__ import annotations
 
@@ -151,8 +152,8 @@ def _phase_log_text(n: int = 6) -> list[str]:
 
 
 def test_phase_log_parsed_in_one_pass_as_the_row_parser_would(tmp_path):
-    """The vectorised reader keeps ``phase`` as text and agrees with the row-by-row parser on odd fields (an empty
-    phase, a blank padded with spaces in an extra numeric column)."""
+    """The vectorised reader keeps ``phase`` as text and agrees with the row-by-row parser on odd
+    fields (an empty phase, a blank padded with spaces in an extra numeric column)."""
     import csv
     import io
 
@@ -184,7 +185,8 @@ def test_phase_log_parsed_in_one_pass_as_the_row_parser_would(tmp_path):
 
 
 def test_phase_log_with_a_bad_number_names_its_row(tmp_path):
-    """A bad value in a format column of a phase log still reaches the row-by-row parser's message."""
+    """A bad value in a format column of a phase log still reaches the row-by-row parser's
+    message."""
     lines = _phase_log_text()
     rows = [ln.split(",") for ln in lines]
     rows[3][rows[0].index("rss_dbm")] = "-6x.5"
@@ -196,8 +198,8 @@ def test_phase_log_with_a_bad_number_names_its_row(tmp_path):
 
 
 def test_samples_view_of_a_log(tmp_path):
-    """``FlightLog.samples()``: positions, radians, the phase and the truth in the log's frame; ``select`` cuts
-    every per-sample array and keeps the rest."""
+    """``FlightLog.samples()``: positions, radians, the phase and the truth in the log's frame;
+    ``select`` cuts every per-sample array and keeps the rest."""
     lines = _phase_log_text()
     p = tmp_path / "s.csv"
     p.write_text("\n".join(lines) + "\n")
@@ -247,9 +249,9 @@ print(failed, w.rows, type(w.error).__name__)
 
 @pytest.mark.parametrize("limit", [3000, 20000, 20011])
 def test_a_failed_write_leaves_whole_rows_and_a_matching_sidecar(tmp_path, limit):
-    """A file-size limit (as a full disk) mid-log: the writer raises once, the CSV is cut back to the rows last
-    flushed whole (no partial line, whatever byte the limit falls on), later rows are dropped and the
-    sidecar's ``rows`` is what the file holds."""
+    """A file-size limit (as a full disk) mid-log: the writer raises once, the CSV is cut back to
+    the rows last flushed whole (no partial line, whatever byte the limit falls on), later rows are
+    dropped and the sidecar's ``rows`` is what the file holds."""
     import subprocess
     import sys
 

@@ -1,6 +1,7 @@
-"""What was flown against a network's training (``training_domain``): the share of the planned track flown, the
-attitude against the training's, the legs a network was trained on; and the error circles sized for it
-(``error_circles.flown_radii``): wider for a partial flight, or a note that no calibration applies."""
+"""What was flown against a network's training (``training_domain``): the share of the planned track
+flown, the attitude against the training's, the legs a network was trained on; and the error circles
+sized for it (``error_circles.flown_radii``): wider for a partial flight, or a note that no
+calibration applies."""
 
 from __future__ import annotations
 
@@ -35,8 +36,9 @@ def _along(w: np.ndarray, a: float, b: float, step: float = 1.0) -> np.ndarray:
 @given(st.floats(0.05, 1.0), st.floats(-0.8, 0.8))
 @settings(max_examples=40, deadline=None)
 def test_coverage_is_the_share_of_the_track_flown(frac, offset):
-    """Flying the first ``frac`` of a 600 m track, ``offset`` x reach to one side: coverage ~ frac (within the
-    reach at the cut and 5 m of sampling), and 0 when the flown path runs farther off than the reach."""
+    """Flying the first ``frac`` of a 600 m track, ``offset`` x reach to one side: coverage ~ frac
+    (within the reach at the cut and 5 m of sampling), and 0 when the flown path runs farther off
+    than the reach."""
     flown = _along(SQUARE, 0.0, frac) + np.array([0.0, offset * TRACK_REACH_M])
     c = track_coverage(SQUARE, flown)
     assert abs(c - frac) <= (TRACK_REACH_M + 5.0) / 600.0 + 0.02
@@ -67,7 +69,8 @@ def test_planned_track_from_the_sidecar_record():
     ],
 )
 def test_attitude_note_cases(flown_pitch, says):
-    """Hand-written cases against the shipped spiral network's pitch span (-12.9 .. 10.1 deg; roll inside)."""
+    """Hand-written cases against the shipped spiral network's pitch span (-12.9 .. 10.1 deg; roll
+    inside)."""
     trained = ((-4.9, 17.4), (-12.9, 10.1))
     note = attitude_note("net", trained, ((0.0, 10.0), flown_pitch))
     assert note is None if says is None else (says in note and "roll" not in note)
@@ -138,8 +141,9 @@ def spiral(tmp_path_factory, repo_dir):
 
 @pytest.mark.slow
 def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
-    """The same simulated spiral cut at 1/3 and 2/3 of its mission legs (an abort): the default's track
-    coverage follows the cut, and its 90 % circle widens as the cut shrinks (or says no calibration applies)."""
+    """The same simulated spiral cut at 1/3 and 2/3 of its mission legs (an abort): the default's
+    track coverage follows the cut, and its 90 % circle widens as the cut shrinks (or says no
+    calibration applies)."""
     sys.path.insert(0, str(repo_dir / "benchmarks"))
     from calibrate_track_circles import truncate
 
@@ -157,9 +161,9 @@ def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
 
 @pytest.mark.slow
 def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
-    """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training, no circle
-    is printed, and the regions fall back to the self-calibrating posterior's (every flight ends with a region),
-    whose 90 % region holds the truth here."""
+    """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training, no
+    circle is printed, and the regions fall back to the self-calibrating posterior's (every flight
+    ends with a region), whose 90 % region holds the truth here."""
     from mission.localize.api import localize_log
     from mission.localize.uncertainty import region_covers
 

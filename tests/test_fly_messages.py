@@ -1,6 +1,7 @@
-"""What ``fly-mission`` says and checks before flying: lines within 80 columns, repeated autopilot texts folded
-with a count, a failed upload in one line, home far enough inside the fence, the simulated transmitter of a
-seed in one place for ``rfsl simulate`` and ``fly-mission --seed``, an adaptive block that is not enabled."""
+"""What ``fly-mission`` says and checks before flying: lines within 80 columns, repeated autopilot
+texts folded with a count, a failed upload in one line, home far enough inside the fence, the
+simulated transmitter of a seed in one place for ``rfsl simulate`` and ``fly-mission --seed``, an
+adaptive block that is not enabled."""
 
 from __future__ import annotations
 
@@ -94,8 +95,8 @@ def test_a_failed_upload_is_one_line_with_the_result_name_and_item_count():
 @given(st.floats(-5.0, 12.0), st.floats(0.0, 6.0))
 @settings(max_examples=40, deadline=None)
 def test_home_must_keep_the_return_overshoot_plus_the_margin_from_the_fence(inside_m, margin):
-    """A home ``inside_m`` west of the AFAR flight area's east edge: refused exactly when it is closer than
-    the known return overshoot plus ``home_margin_m``, naming the key ``home``."""
+    """A home ``inside_m`` west of the AFAR flight area's east edge: refused exactly when it is
+    closer than the known return overshoot plus ``home_margin_m``, naming the key ``home``."""
     from mission.spec import parse_mission
     from mission.trajectory.checks import RETURN_OVERSHOOT_M, check_mission
 
@@ -127,7 +128,8 @@ def test_shipped_missions_keep_their_home_inside_the_margin():
 
 @pytest.mark.parametrize("seed", [0, 1, 7])
 def test_fly_mission_seed_puts_the_transmitter_where_simulate_does(tmp_path, seed):
-    """``fly-mission --seed N``'s truth (the runner's simulated source) is ``rfsl simulate --seed N``'s."""
+    """``fly-mission --seed N``'s truth (the runner's simulated source) is ``rfsl simulate --seed
+    N``'s."""
     import dataclasses
 
     from mission.cli.main import main as rfsl
@@ -182,7 +184,8 @@ def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(
 
 @pytest.mark.slow
 def test_the_fixed_mission_line_comes_first_in_a_real_run(tmp_path):
-    """``adaptive: null``: the one line, before anything starts (then no autopilot answers: its own line)."""
+    """``adaptive: null``: the one line, before anything starts (then no autopilot answers: its own
+    line)."""
     from mission.flight.vehicle_process import free_udp_port
 
     m = tmp_path / "m.yaml"
@@ -212,8 +215,9 @@ def test_the_fixed_mission_line_comes_first_in_a_real_run(tmp_path):
 
 @pytest.mark.parametrize("return_mps, refused", [(None, False), (0.3, True)])
 def test_the_adaptive_budget_is_checked_again_with_the_autopilots_return(return_mps, refused):
-    """Once the autopilot's return speed is known (its budget plan), an adaptive mission whose rounds no longer
-    fit is refused before the upload with exit 2 naming the field; the mission's own return passes."""
+    """Once the autopilot's return speed is known (its budget plan), an adaptive mission whose
+    rounds no longer fit is refused before the upload with exit 2 naming the field; the mission's
+    own return passes."""
     from mission.adaptive.rounds import AdaptiveRounds, autopilot_return_extra_s
     from mission.flight.budget import start_budget
     from mission.flight.context import FlightError

@@ -1,12 +1,14 @@
-"""Generated malformed inputs for every kind of file and option (issue 37's sweep as a suite): hypothesis mutates
-a real sidecar, a real mission, a real MAT file and command-line options (types, ranges, nesting, encodings,
-sizes) and asserts the promise on each: success, or exit 2 with exactly one error line (besides the 'note:' /
-'warning:' lines of what was accepted), never a traceback, never a hang.
+"""Generated malformed inputs for every kind of file and option (issue 37's sweep as a suite):
+hypothesis mutates a real sidecar, a real mission, a real MAT file and command-line options (types,
+ranges, nesting, encodings, sizes) and asserts the promise on each: success, or exit 2 with exactly
+one error line (besides the 'note:' / 'warning:' lines of what was accepted), never a traceback,
+never a hang.
 
-Slow tier, fixed seed (``derandomize=True``), a bounded number of examples, and each call under an alarm
-(``CALL_LIMIT_S``): a case that hangs (a FIFO, a bomb) fails instead of stalling the suite.  The CLIs are called
-in-process (``main(argv)``) to keep it fast.  Option cases end in an output path under a file, so a valid
-combination is refused at that path and nothing heavy (a flight, a dataset) ever starts.
+Slow tier, fixed seed (``derandomize=True``), a bounded number of examples, and each call under an
+alarm (``CALL_LIMIT_S``): a case that hangs (a FIFO, a bomb) fails instead of stalling the suite.
+The CLIs are called in-process (``main(argv)``) to keep it fast.  Option cases end in an output path
+under a file, so a valid combination is refused at that path and nothing heavy (a flight, a dataset)
+ever starts.
 """
 
 from __future__ import annotations
@@ -76,7 +78,8 @@ def call(main, argv: list) -> tuple[int, str, str]:
 
 
 def assert_promise(rc: int, err: str, argv) -> None:
-    """Success, or exit 2 with one error line; never a traceback (any other exception fails the test)."""
+    """Success, or exit 2 with one error line; never a traceback (any other exception fails the
+    test)."""
     assert "Traceback" not in err, (argv, err)
     if rc == 0:
         return
@@ -89,7 +92,8 @@ def assert_promise(rc: int, err: str, argv) -> None:
     assert len(lines) == 1 and lines[0].startswith("error: "), (argv, err)
 
 
-# --- values: every JSON/YAML type, extreme numbers, odd text, nesting ----------------------------------------
+# --- values: every JSON/YAML type, extreme numbers, odd text, nesting
+# ----------------------------------------
 
 NUMBERS = st.one_of(
     st.integers(-(2**70), 2**70),
@@ -118,8 +122,8 @@ def nested(depth: int):
 
 
 def mutate(doc: dict, path: list[str], value) -> dict:
-    """``doc`` with the key at ``path`` (created where missing) set to ``value``; a non-mapping on the way is
-    replaced by a mapping, so every path is reachable."""
+    """``doc`` with the key at ``path`` (created where missing) set to ``value``; a non-mapping on
+    the way is replaced by a mapping, so every path is reachable."""
     doc = json.loads(json.dumps(doc))
     cur = doc
     for k in path[:-1]:
@@ -239,8 +243,8 @@ MISSION_KEYS = [
 @FUZZ
 @given(data=st.data(), value=VALUE)
 def test_generated_missions(base, tmp_path_factory, data, value):
-    """The shipped spiral with one key set to any value, through ``rfsl export`` (parse, checks, write) and
-    ``fly-mission`` (refused at the latest by its --out under a file: nothing starts)."""
+    """The shipped spiral with one key set to any value, through ``rfsl export`` (parse, checks,
+    write) and ``fly-mission`` (refused at the latest by its --out under a file: nothing starts)."""
     path = data.draw(
         st.sampled_from([p.split(".") for p in MISSION_KEYS] + key_paths(base["mission"]))
     )
@@ -274,7 +278,8 @@ def test_generated_missions(base, tmp_path_factory, data, value):
     )
 )
 def test_generated_mission_encodings(tmp_path_factory, text):
-    """Any bytes as a mission file: binary, Latin-1, BOM, aliases, duplicates, tags, deep nesting."""
+    """Any bytes as a mission file: binary, Latin-1, BOM, aliases, duplicates, tags, deep
+    nesting."""
     d = tmp_path_factory.mktemp("e")
     m = d / "m.yaml"
     m.write_bytes(text)
@@ -294,8 +299,8 @@ EXTREME = st.sampled_from([np.nan, np.inf, -np.inf, 1e300, -1e300, -1e18, 1e18, 
     v=EXTREME,
 )
 def test_generated_mat_files(base, tmp_path_factory, var, kind, idx, v):
-    """A real-looking AFAR MAT file with one variable damaged: extreme values at some samples, the wrong
-    length, text, missing, integers or a matrix; through ``rfsl import``."""
+    """A real-looking AFAR MAT file with one variable damaged: extreme values at some samples, the
+    wrong length, text, missing, integers or a matrix; through ``rfsl import``."""
     m = dict(base["mat"])
     a = m[var].copy()
     if kind == "values":
@@ -367,8 +372,8 @@ OPTIONS = (
 @FUZZ
 @given(case=st.sampled_from(OPTIONS), value=OPTION_VALUE)
 def test_generated_options(base, case, value):
-    """Any value for the options that size the work or name a place: refused in one line (a valid value is
-    refused at the output path under a file), never a traceback or a start."""
+    """Any value for the options that size the work or name a place: refused in one line (a valid
+    value is refused at the output path under a file), never a traceback or a start."""
     prog, opt, rest = case
     fill = {"mission": SPIRAL, "plain": base["plain"], "log": base["log"]}
     argv = [a.format(**fill) for a in rest.split()]

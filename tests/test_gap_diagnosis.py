@@ -1,7 +1,7 @@
 """Tests of the sim-to-real gap diagnosis: statistics, alignment, withheld-effect self-test, CLI.
 
-The withheld-effect part runs one seed per candidate here (the full two-seed self-test with the confusion
-table is ``rfsl gap --selftest``) on short, 10 Hz flights to stay within the test budget.
+The withheld-effect part runs one seed per candidate here (the full two-seed self-test with the
+confusion table is ``rfsl gap --selftest``) on short, 10 Hz flights to stay within the test budget.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ def test_block_length_grows_with_autocorrelation() -> None:
 
 
 def test_block_bootstrap_covers_the_mean_of_autocorrelated_data() -> None:
-    """With blocks, the 95 % interval of an AR(1) mean covers 0 about 95 % of the time (i.i.d. would not)."""
+    """With blocks, the 95 % interval of an AR(1) mean covers 0 about 95 % of the time (i.i.d. would
+    not)."""
     rng = np.random.default_rng(1)
     hits = 0
     for _ in range(40):
@@ -57,7 +58,8 @@ def test_offset_residual_and_summary() -> None:
 
 
 def test_alignment_geometry() -> None:
-    """UAV 100 m north of the transmitter at 30 m, nose north, level: transmitter behind (az_b 180)."""
+    """UAV 100 m north of the transmitter at 30 m, nose north, level: transmitter behind (az_b
+    180)."""
     t = np.arange(5) * 0.1
     rx = np.tile([0.0, 100.0, 30.0], (5, 1))
     att = np.zeros((5, 3))
@@ -102,7 +104,8 @@ FAST = dict(n_flights=2, dt_s=0.2, max_duration_s=330.0)
 @pytest.mark.slow
 @pytest.mark.parametrize("withheld", WITHHELD_ALL)
 def test_withheld_effect_is_found(withheld: str) -> None:
-    """Ranked first and significant, parameters near the truth, gap back to the noise (or oracle) level."""
+    """Ranked first and significant, parameters near the truth, gap back to the noise (or oracle)
+    level."""
     r = run_case(withheld, seed=11, cfg=FitConfig(seed=11, fit_max_samples=1200), **FAST)
     assert r.ranked_first == withheld, r.as_dict()
     assert r.param_ok, r.param_text
@@ -116,7 +119,8 @@ def test_nothing_withheld_nothing_significant() -> None:
 
 
 def _simulated_log(tmp_path, withheld: str | None, seed: int, dt_s: float):
-    """One simulated flight (library self-test truth) written as a flight log with its transmitter truth."""
+    """One simulated flight (library self-test truth) written as a flight log with its transmitter
+    truth."""
     from mission.flightlog import make_meta, write_flight_log
     from mission.gap.selftest import simulate_case
     from mission.geo import afar_field
@@ -182,8 +186,9 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
     assert "smoother" in doc["rule"] and doc["named"] == (
         "time_offset" if r0["significant"] else None
     )
-    # the simulated log has no shadowing field: nothing fixed to the ground; the withheld lag leaves an error that
-    # follows the flight (issue 34: "correlated within flights"), or white noise where it is small
+    # the simulated log has no shadowing field: nothing fixed to the ground; the withheld lag leaves
+    # an error that follows the flight (issue 34: "correlated within flights"), or white noise where
+    # it is small
     assert doc["structure"]["base"]["verdict"] in ("white noise", "correlated within flights")
     for png in ("cdf.png", "breakdown.png", "field_map.png", "polar_body_azimuth.png"):
         assert_png_drawn(
@@ -193,7 +198,8 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
 
 
 def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
-    """``rfsl gap --json`` prints the same summary as the top of gap.json (free-form candidates, shape plot)."""
+    """``rfsl gap --json`` prints the same summary as the top of gap.json (free-form candidates,
+    shape plot)."""
     from test_jsonsafe import strict_loads
 
     from mission.cli.main import main
@@ -234,9 +240,9 @@ def test_cli_gap_bad_input(tmp_path) -> None:
 
 @pytest.mark.real
 def test_real_afar_e2r_gap(shared_dir) -> None:
-    """Real AFAR flight 328 loc 1 (19 931 airborne samples): the paper's e2r with dipoles has p90 |error|
-    24.5 dB, worse than free space with isotropic antennas (21.6 dB) -- the gap tool's first finding -- and the gap
-    does not depend on the receiver's unknown offset."""
+    """Real AFAR flight 328 loc 1 (19 931 airborne samples): the paper's e2r with dipoles has p90
+    |error| 24.5 dB, worse than free space with isotropic antennas (21.6 dB) -- the gap tool's first
+    finding -- and the gap does not depend on the receiver's unknown offset."""
     from mission.gap.align import flight_from_log
     from mission.gap.diagnose import base_pipeline, model_gap
     from mission.importers.afar import convert_afar_mat
@@ -259,8 +265,9 @@ def test_real_afar_e2r_gap(shared_dir) -> None:
 
 
 def test_attitude_candidates_and_mounting_applicability() -> None:
-    """rx_mounting needs the body frame (attitude or yaw-only); yaw_attitude/attitude fit the UAV antenna
-    heading jointly when the pattern depends on azimuth; attitude also upgrades yaw-only attitude."""
+    """rx_mounting needs the body frame (attitude or yaw-only); yaw_attitude/attitude fit the UAV
+    antenna heading jointly when the pattern depends on azimuth; attitude also upgrades yaw-only
+    attitude."""
     from mission.gap.candidates import library
     from mission.gap.pipeline import Pipeline
     from mission.physics import Attitude, make_model

@@ -1,8 +1,8 @@
 """Fits that do not miss: a withheld narrow effect is found at full and at small strength, and the
-base ranking and the ladder agree on which named effect helps most; near-nadir loss is found or its power
-statement says how many samples it needs.  Flights from the independent generator (``tests/_gap_synth``);
-the candidates are the withheld effect's competitors (the free-form body map, the other body-fixed effects),
-to keep the test cheap."""
+base ranking and the ladder agree on which named effect helps most; near-nadir loss is found or its
+power statement says how many samples it needs.  Flights from the independent generator
+(``tests/_gap_synth``); the candidates are the withheld effect's competitors (the free-form body
+map, the other body-fixed effects), to keep the test cheap."""
 
 from __future__ import annotations
 
@@ -72,8 +72,9 @@ def test_base_ranking_and_ladder_agree_on_the_best_named_effect() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("effect", ["nadir", "nadir_over"])
 def test_near_nadir_found_or_power_statement_says_why(effect: str) -> None:
-    """The usual flights see 60-90 deg below the UAV in a few samples: not named, and the statement says a loss
-    of the true depth cannot be shown; stars of passes over the rover: named, centred near the truth."""
+    """The usual flights see 60-90 deg below the UAV in a few samples: not named, and the statement
+    says a loss of the true depth cannot be shown; stars of passes over the rover: named, centred
+    near the truth."""
     flights, truth = _flights(effect, 1, 0.5)
     cands = select(BODY)
     out = identify(flights, BASE, cands, CFG)
@@ -119,8 +120,9 @@ def _one_flight(
 
 
 def test_power_statement_needs_the_band_in_both_folds() -> None:
-    """Passes in the even chunks only: nothing can be shown held out, whatever the depth; passes spread over
-    both folds: a finite smallest loss, which the injected test calls significant (and half of it not)."""
+    """Passes in the even chunks only: nothing can be shown held out, whatever the depth; passes
+    spread over both folds: a finite smallest loss, which the injected test calls significant (and
+    half of it not)."""
     rng = np.random.default_rng(0)
     r = [rng.normal(0.0, 1.0, 4000)]
     dep, folds = _one_flight([100, 1100, 2100, 3100])  # chunks of 500: all even
@@ -139,9 +141,9 @@ def test_power_statement_needs_the_band_in_both_folds() -> None:
 
 
 def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
-    """The fits evaluate all flights in one model call (each sample with its own transmitter and its flight's
-    centre): the values must be exactly those of one call per flight, with a time offset, a body-fixed term,
-    flights far apart (float32 centring) and an empty selection."""
+    """The fits evaluate all flights in one model call (each sample with its own transmitter and its
+    flight's centre): the values must be exactly those of one call per flight, with a time offset, a
+    body-fixed term, flights far apart (float32 centring) and an empty selection."""
     from mission.gap.nadir import NearNadirLoss
     from mission.gap.pipeline import predict_channels
 

@@ -1,4 +1,5 @@
-"""Gap diagnosis against an independent generator (``tests/_gap_synth.py``: formulas written for the test).
+"""Gap diagnosis against an independent generator (``tests/_gap_synth.py``: formulas written for the
+test).
 
 The full confusion table over three seeds is ``python benchmarks/bench_gap.py selftest`` (results in
 ``benchmarks/README.md``); here a few cases at one seed keep the suite fast.
@@ -15,7 +16,8 @@ from mission.samples import FlightSamples
 
 
 def test_library_two_ray_agrees_with_the_independent_formulas() -> None:
-    """mission.physics two-ray + dipoles + attitude (eps 2) equals the generator's own eq. 1 (away from nulls)."""
+    """mission.physics two-ray + dipoles + attitude (eps 2) equals the generator's own eq. 1 (away
+    from nulls)."""
     from mission.physics import Attitude, make_model
 
     raw, _ = make_case("none", 4, n_flights=2, duration=120.0)
@@ -29,7 +31,8 @@ def test_library_two_ray_agrees_with_the_independent_formulas() -> None:
 
 @pytest.mark.parametrize("effect", ["none", "ripple", "timing", "shadowing"])
 def test_withheld_effect_named_first(effect: str) -> None:
-    """The diagnosis names the withheld effect (nothing for none), with its size in dB and where it acts."""
+    """The diagnosis names the withheld effect (nothing for none), with its size in dB and where it
+    acts."""
     r = diagnose_case(effect, 1)
     assert r["hit"], (r["named"], r["ranking"][:3], r["structure"]["verdict"])
     if effect == "none":
@@ -51,7 +54,8 @@ def test_withheld_effect_named_first(effect: str) -> None:
 
 
 def test_variogram_separates_correlated_shadowing_from_white_noise() -> None:
-    """fit_variogram on an exponential field (sigma 4 dB, L 40 m) + 1 dB noise, and on noise alone."""
+    """fit_variogram on an exponential field (sigma 4 dB, L 40 m) + 1 dB noise, and on noise
+    alone."""
     from mission.physics.shadowing import fit_variogram
 
     rng = np.random.default_rng(0)
@@ -65,7 +69,8 @@ def test_variogram_separates_correlated_shadowing_from_white_noise() -> None:
 
 
 def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
-    """A pure 3-lobe ripple in body azimuth is drawn back by rx_gain_map (corr > 0.95, amplitude within 20 %)."""
+    """A pure 3-lobe ripple in body azimuth is drawn back by rx_gain_map (corr > 0.95, amplitude
+    within 20 %)."""
     from mission.gap.freeform import fit_freeform, link_of, map_variables
     from mission.gap.pipeline import Pipeline
     from mission.physics import Attitude, make_model
@@ -95,7 +100,8 @@ def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
 
 
 def test_one_home_rules() -> None:
-    """Unknown pattern names are refused; the tilt term uses the library dipole (zero tilt: zero term)."""
+    """Unknown pattern names are refused; the tilt term uses the library dipole (zero tilt: zero
+    term)."""
     from mission.gap.candidates import pattern_by_name
     from mission.gap.pipeline import _dipole_db
     from mission.physics.antenna import Dipole
@@ -119,8 +125,9 @@ def test_one_home_rules() -> None:
 def test_white_or_correlated_decision_on_the_independent_generator(
     effect: str, noise_db: float, correlated: bool
 ) -> None:
-    """The verdict rests on the near/all-pair semivariance ratio (bootstrap bound), not on the fitted L:
-    white noise (1 or 4 dB, or a withheld time offset) gives ratio ~ 1, a 4 dB exponential field ratio < 0.8."""
+    """The verdict rests on the near/all-pair semivariance ratio (bootstrap bound), not on the
+    fitted L: white noise (1 or 4 dB, or a withheld time offset) gives ratio ~ 1, a 4 dB exponential
+    field ratio < 0.8."""
     from mission.gap.pipeline import Pipeline
     from mission.gap.structure import RATIO_THRESHOLD, residual_structure
     from mission.physics import Attitude, make_model
@@ -148,8 +155,9 @@ def test_white_or_correlated_decision_on_the_independent_generator(
 
 
 def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> None:
-    """A loss over compass azimuth around one transmitter, learned from one flight, predicts it on another
-    flight at the same transmitter (corr > 0.9) and adds nothing around a transmitter it has not seen."""
+    """A loss over compass azimuth around one transmitter, learned from one flight, predicts it on
+    another flight at the same transmitter (corr > 0.9) and adds nothing around a transmitter it has
+    not seen."""
     from mission.gap.spatial import SiteMap, fit_site_map, site_variables
 
     raw, _ = make_case("none", 3, n_flights=3, dt=0.5)

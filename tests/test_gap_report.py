@@ -1,5 +1,5 @@
-"""``rfsl gap`` reads at 80 columns: summary paragraph first, one line per rung, short flight labels; the
-details go to the report folder; ``--family`` writes a family that loads."""
+"""``rfsl gap`` reads at 80 columns: summary paragraph first, one line per rung, short flight
+labels; the details go to the report folder; ``--family`` writes a family that loads."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""mission.robust: the one home of the free RSS offset and the robust losses (closed forms and limits)."""
+"""mission.robust: the one home of the free RSS offset and the robust losses (closed forms and
+limits)."""
 
 from __future__ import annotations
 

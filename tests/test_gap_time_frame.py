@@ -1,5 +1,6 @@
-"""Round 4 of the gap diagnosis (issue 34): effects along time, ground- or body-fixed, one verdict on what is
-left, and process-level parallelism.  Small seeded cases from the independent generator (``_gap_synth``)."""
+"""Round 4 of the gap diagnosis (issue 34): effects along time, ground- or body-fixed, one verdict
+on what is left, and process-level parallelism.  Small seeded cases from the independent generator
+(``_gap_synth``)."""
 
 from __future__ import annotations
 
@@ -56,7 +57,8 @@ def test_flight_events_find_turns_and_phase_changes():
     for f in fl:
         ev = flight_events(f)
         assert len(ev) >= 1 and np.all(np.diff(ev) >= MIN_EVENT_GAP_S)
-    # the step sits at an event of every flight (a lawnmower turn, or the spiral's logged phase change)
+    # the step sits at an event of every flight (a lawnmower turn, or the spiral's logged phase
+    # change)
     for f, ts in zip(fl, truth["step_s"], strict=True):
         assert np.min(np.abs(flight_events(f) - ts)) <= f.t_s[1] - f.t_s[0] + 1e-9
 
@@ -160,7 +162,8 @@ def test_one_verdict_on_what_is_left():
 
 
 def test_diagnosis_report_with_a_time_rung(tmp_path):
-    """The ladder adds ``time_drift`` on a gain step; the report, gap.json and the summary say so."""
+    """The ladder adds ``time_drift`` on a gain step; the report, gap.json and the summary say
+    so."""
     import json
 
     from mission.gap.candidates import select

@@ -1,4 +1,5 @@
-"""Trajectory generators: the spiral covers the overlap and fits the budget; all respect the fence."""
+"""Trajectory generators: the spiral covers the overlap and fits the budget; all respect the
+fence."""
 
 from __future__ import annotations
 
@@ -42,13 +43,14 @@ def test_spiral_inside_flight_area_and_covers_overlap(field, spacing):
     w = spiral(field, 30.0, spacing_m=spacing, margin_m=5.0)
     assert np.all(w[:, 2] == 30.0)
     assert np.all(field.flight_area.contains(w, margin_m=5.0 - 1e-6))
-    # consecutive legs alternate east-west / north-south (a rectangular spiral), each ring inside the last
+    # consecutive legs alternate east-west / north-south (a rectangular spiral), each ring inside
+    # the last
     d = np.diff(w[:, :2], axis=0)
     assert np.all((np.abs(d[:, 0]) < 1e-9) ^ (np.abs(d[:, 1]) < 1e-9))
     g = _overlap_grid(field)
     dist = _dist_to_polyline(g, w)
-    # half a ring spacing everywhere except the small triangles outside inner ring corners, which are
-    # bounded by the exact corner geometry (see generators.coverage_radius)
+    # half a ring spacing everywhere except the small triangles outside inner ring corners, which
+    # are bounded by the exact corner geometry (see generators.coverage_radius)
     assert np.mean(dist <= spacing / 2 + 1e-6) > 0.98
     assert dist.max() <= coverage_radius(spacing) + 1e-6
 

@@ -73,8 +73,8 @@ def test_afar_field_matches_shared_geometry(shared_dir):
 
 
 def test_clipping_a_non_convex_area_keeps_every_part_and_its_area():
-    """An L-shaped subject clipped by a square (closed forms), and a U clipped by a band across its arms: two
-    parts, each inside both polygons."""
+    """An L-shaped subject clipped by a square (closed forms), and a U clipped by a band across its
+    arms: two parts, each inside both polygons."""
     from mission.geo import clip_polygon, polygon_area_m2
 
     ell = np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100.0]])

@@ -1,19 +1,22 @@
 """No new import circles in the package: the module graph (top-level and function-level imports) of
-``mission`` and ``sitl`` has no strongly connected component beyond the circles still waiting to be broken;
-the runtime (what ``localize`` and ``fly-mission`` run) never imports the workshop (``mission.workshop``); and the
-localizer (``mission.localize`` and every module it reaches) imports neither the simulator (``mission.simulate``)
-nor the mission parser (``mission.spec``): a network's training facts are read from its card."""
+``mission`` and ``sitl`` has no strongly connected component beyond the circles still waiting to be
+broken; the runtime (what ``localize`` and ``fly-mission`` run) never imports the workshop
+(``mission.workshop``); and the localizer (``mission.localize`` and every module it reaches) imports
+neither the simulator (``mission.simulate``) nor the mission parser (``mission.spec``): a network's
+training facts are read from its card."""
 
 from __future__ import annotations
 
 import ast
 from pathlib import Path
 
-# circles known when this test was written, each to be broken by moving the shared piece down (remove an entry
-# when it is gone; the test fails on any circle that is not inside one of these).  None is left.
+# circles known when this test was written, each to be broken by moving the shared piece down
+# (remove an entry when it is gone; the test fails on any circle that is not inside one of these).
+# None is left.
 KNOWN: tuple[set[str], ...] = ()
 
-# the runtime rooms; with every module that ``localize`` / ``fly-mission`` reach from their CLI modules
+# the runtime rooms; with every module that ``localize`` / ``fly-mission`` reach from their CLI
+# modules
 RUNTIME_PACKAGES = (
     "mission.localize",
     "mission.flight",
@@ -23,14 +26,16 @@ RUNTIME_PACKAGES = (
 )
 RUNTIME_ENTRIES = ("mission.cli.localize", "mission.cli.fly")
 WORKSHOP = "mission.workshop"
-# what the localizer never reaches: it reads a network's training domain from the card written at training time
-# (``localize --at`` also reaches the adaptive planner, part of the flight, which builds mission specs)
+# what the localizer never reaches: it reads a network's training domain from the card written at
+# training time (``localize --at`` also reaches the adaptive planner, part of the flight, which
+# builds mission specs)
 LOCALIZE_FORBIDDEN = ("mission.simulate", "mission.spec", WORKSHOP)
 
 
 def import_graph(root: Path) -> dict[str, set[str]]:
-    """Module -> the package modules it imports anywhere in its source (``from a.b import c`` counts ``a.b``
-    and, when it is a module, ``a.b.c``; a package's own ``__init__`` is not an edge of its submodules)."""
+    """Module -> the package modules it imports anywhere in its source (``from a.b import c`` counts
+    ``a.b`` and, when it is a module, ``a.b.c``; a package's own ``__init__`` is not an edge of its
+    submodules)."""
     files = [*root.glob("mission/**/*.py"), *root.glob("sitl/**/*.py")]
     mods = {}
     for p in files:
@@ -104,7 +109,8 @@ def reachable(graph: dict[str, set[str]], starts) -> set[str]:
 
 
 def workshop_imports(graph: dict[str, set[str]]) -> dict[str, list[str]]:
-    """Runtime module -> the workshop modules it imports (empty when the arrow points workshop -> runtime only)."""
+    """Runtime module -> the workshop modules it imports (empty when the arrow points workshop ->
+    runtime only)."""
     in_room = [m for m in graph if any(m == p or m.startswith(p + ".") for p in RUNTIME_PACKAGES)]
     runtime = reachable(graph, [*in_room, *RUNTIME_ENTRIES])
     runtime = {m for m in runtime if not (m == WORKSHOP or m.startswith(WORKSHOP + "."))}
@@ -120,7 +126,8 @@ def _inside(m: str, packages) -> bool:
 
 
 def localizer_imports(graph: dict[str, set[str]]) -> dict[str, list[str]]:
-    """Module the localizer reaches -> the simulator / mission-parser / workshop modules it imports."""
+    """Module the localizer reaches -> the simulator / mission-parser / workshop modules it
+    imports."""
     starts = [m for m in graph if _inside(m, ("mission.localize",))]
     reached = {m for m in reachable(graph, starts) if not _inside(m, LOCALIZE_FORBIDDEN)}
     out = {m: sorted(w for w in graph[m] if _inside(w, LOCALIZE_FORBIDDEN)) for m in reached}
@@ -171,7 +178,8 @@ def test_the_localizer_imports_neither_simulator_nor_mission_parser(repo_dir) ->
         "mission.geo",
     } <= reachable(graph, ["mission.localize.api"])
     assert not localizer_imports(graph), f"the localizer imports: {localizer_imports(graph)}"
-    # the check sees an edge added anywhere localize reaches, the way training_domain once reached both
+    # the check sees an edge added anywhere localize reaches, the way training_domain once reached
+    # both
     graph["mission.localize.training_domain"] = graph["mission.localize.training_domain"] | {
         "mission.spec"
     }
@@ -183,7 +191,8 @@ def test_the_localizer_imports_neither_simulator_nor_mission_parser(repo_dir) ->
 
 
 def test_architecture_map_names_every_module_in_its_room(repo_dir) -> None:
-    """ARCHITECTURE.md's row of each room names every module that lives there (and none from the other room)."""
+    """ARCHITECTURE.md's row of each room names every module that lives there (and none from the
+    other room)."""
     rows = {
         ln.split("|")[1].strip(): ln
         for ln in (repo_dir / "ARCHITECTURE.md").read_text().splitlines()

@@ -1,4 +1,5 @@
-"""Strict JSON (``mission.jsonsafe``): what ``rfsl gap`` writes must load in strict readers (no NaN/Infinity)."""
+"""Strict JSON (``mission.jsonsafe``): what ``rfsl gap`` writes must load in strict readers (no
+NaN/Infinity)."""
 
 from __future__ import annotations
 

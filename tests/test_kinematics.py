@@ -1,4 +1,5 @@
-"""Multicopter kinematics: limits respected, closed-form leg times, attitude signs and magnitudes."""
+"""Multicopter kinematics: limits respected, closed-form leg times, attitude signs and
+magnitudes."""
 
 from __future__ import annotations
 
@@ -74,8 +75,9 @@ def test_attitude_follows_motion():
 
 
 def test_fixed_heading_holds_the_nose_and_tilts_along_the_motion():
-    """A fixed-heading vehicle (as AERPAW's AFAR flights) never turns its nose; flying east with the nose north
-    it rolls right (not pitches) against drag, and the tilt magnitude equals the course-following case."""
+    """A fixed-heading vehicle (as AERPAW's AFAR flights) never turns its nose; flying east with the
+    nose north it rolls right (not pitches) against drag, and the tilt magnitude equals the
+    course-following case."""
     path = np.array([[0, 0, 30], [200, 0, 30], [200, 200, 30]])
     free = Kinematics(cruise_speed_mps=5.0)
     fixed = Kinematics(cruise_speed_mps=5.0, heading_deg=0.0)
@@ -101,8 +103,8 @@ def test_fixed_heading_holds_the_nose_and_tilts_along_the_motion():
 
 
 def test_attitude_model_stepped_equals_vectorised():
-    """The vehicle runs the attitude model in chunks of any size (one sample: a step); the result must be the
-    whole-array result of the fast simulator, wind and turbulence included."""
+    """The vehicle runs the attitude model in chunks of any size (one sample: a step); the result
+    must be the whole-array result of the fast simulator, wind and turbulence included."""
     from mission.trajectory.attitude import AttitudeState, ou_process, run_attitude
 
     kin = Kinematics(cruise_speed_mps=6.0)
@@ -138,7 +140,8 @@ def test_attitude_model_stepped_equals_vectorised():
 
 
 def test_attitude_is_causal():
-    """Changing the path after time T leaves the attitude before T untouched (the vehicle cannot look ahead)."""
+    """Changing the path after time T leaves the attitude before T untouched (the vehicle cannot
+    look ahead)."""
     kin = Kinematics()
     p1 = plan_profile(np.array([[0, 0, 30], [100, 0, 30], [100, 100, 30]]), kin)
     p2 = plan_profile(np.array([[0, 0, 30], [100, 0, 30], [100, -100, 30]]), kin)
@@ -154,14 +157,16 @@ def test_attitude_is_causal():
     )  # opposite turns
 
 
-# Real AFAR 2023 cruise attitude (six flights, samples above 80 % of the 95th-percentile height), degrees:
-# `.venv/bin/python -m pytest tests/test_kinematics.py -k real_afar` recomputes these when ../shared is there.
+# Real AFAR 2023 cruise attitude (six flights, samples above 80 % of the 95th-percentile height),
+# degrees: `.venv/bin/python -m pytest tests/test_kinematics.py -k real_afar` recomputes these when
+# ../shared is there.
 AFAR_ROLL_P5_P95 = (-5.7, 5.5)
 AFAR_PITCH_P5_P50_P95 = (-7.5, -2.2, 2.7)
 
 
 def _spiral_attitude(heading_deg=None, seed=0):
-    """The spiral mission flown by the attitude model with the simulated vehicle's gusts and turbulence."""
+    """The spiral mission flown by the attitude model with the simulated vehicle's gusts and
+    turbulence."""
     import dataclasses
     import math
     from pathlib import Path
@@ -187,8 +192,9 @@ def _spiral_attitude(heading_deg=None, seed=0):
 
 
 def test_simulated_cruise_attitude_is_near_real_afar():
-    """Course-following spiral: pitch percentiles (steady nose-down against drag) within 1.5 deg of the real
-    flights; fixed-heading spiral (as the AFAR vehicles flew, nose north): roll percentiles within 1.5 deg."""
+    """Course-following spiral: pitch percentiles (steady nose-down against drag) within 1.5 deg of
+    the real flights; fixed-heading spiral (as the AFAR vehicles flew, nose north): roll percentiles
+    within 1.5 deg."""
     course = _spiral_attitude()
     pitch = np.percentile(course[:, 1], [5, 50, 95])
     assert np.all(np.abs(pitch - AFAR_PITCH_P5_P50_P95) < 1.5), pitch
@@ -202,7 +208,8 @@ def test_simulated_cruise_attitude_is_near_real_afar():
 
 @pytest.mark.real
 def test_real_afar_cruise_attitude_constants():
-    """The real-flight figures above, recomputed from the AFAR MAT files (skips where ../shared is absent)."""
+    """The real-flight figures above, recomputed from the AFAR MAT files (skips where ../shared is
+    absent)."""
     from pathlib import Path
 
     mat = Path(__file__).resolve().parents[2] / "shared" / "data" / "afar2023" / "mat"

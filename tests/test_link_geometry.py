@@ -1,5 +1,6 @@
-"""Link geometry has one home (``mission.physics.geometry``): the self-calibrating grid's float32 fast path and
-the level/heading-frame helpers agree with the float64 reference ``body_angles`` on random seeded geometry."""
+"""Link geometry has one home (``mission.physics.geometry``): the self-calibrating grid's float32
+fast path and the level/heading-frame helpers agree with the float64 reference ``body_angles`` on
+random seeded geometry."""
 
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ from mission.physics.geometry import (
     slant_distance,
 )
 
-# float32 keeps ~7 digits: angles of order 2 pi to about 1e-6 rad; the stated tolerances leave a margin of ~10
+# float32 keeps ~7 digits: angles of order 2 pi to about 1e-6 rad; the stated tolerances leave a
+# margin of ~10
 ANGLE_TOL_RAD = 2e-5
 PATH_GAIN_TOL_DB = 1e-4
 
@@ -35,7 +37,8 @@ def _wrap(a: np.ndarray) -> np.ndarray:
 
 
 def _random_geometry(seed: int, k: int = 40, m: int = 300):
-    """K candidate transmitters and M cells over a 400 m field (ENU offset like a real origin), random attitude."""
+    """K candidate transmitters and M cells over a 400 m field (ENU offset like a real origin),
+    random attitude."""
     rng = np.random.default_rng(seed)
     off = rng.uniform(
         -2000.0, 2000.0, 2
@@ -56,14 +59,16 @@ def test_selfcal_float32_geometry_matches_float64_body_angles(seed):
     assert pg.dtype == el.dtype == az.dtype == np.float32
     tx = np.column_stack([cand, np.full(len(cand), h)])
     u = tx[:, None, :] - cells.enu_m[None, :, :]  # (K, M, 3) ENU, float64
-    # selfcal's frame is the heading only (antenna hanging below the body): the reference at roll = pitch = 0
+    # selfcal's frame is the heading only (antenna hanging below the body): the reference at roll =
+    # pitch = 0
     heading_only = np.column_stack([np.zeros((len(att), 2)), att[:, 2]])
     az_ref, dep_ref = body_angles(enu_to_ned(u), heading_only[None, :, :])
     assert np.max(np.abs(_wrap(az.astype(float) - az_ref))) < ANGLE_TOL_RAD
     assert np.max(np.abs(el.astype(float) + dep_ref)) < ANGLE_TOL_RAD
     d_los = np.linalg.norm(u, axis=-1)
     assert np.max(np.abs(pg.astype(float) + 20.0 * np.log10(d_los))) < PATH_GAIN_TOL_DB
-    # with the full attitude the body angles move by at most the tilt: what the heading-only frame leaves out
+    # with the full attitude the body angles move by at most the tilt: what the heading-only frame
+    # leaves out
     az_full, dep_full = body_angles(enu_to_ned(u), att[None, :, :])
     tilt = np.abs(att[:, 0]) + np.abs(att[:, 1])
     assert np.all(np.abs(dep_full - dep_ref) <= tilt[None, :] + 1e-9)
@@ -109,7 +114,8 @@ def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_floa
         np.sin(elevation(dz, horizontal_distance(dx, dy))),
         atol=1e-12,
     )
-    # signed: (-pi, pi], the same direction as the [0, 2 pi) value and that value exactly once wrapped
+    # signed: (-pi, pi], the same direction as the [0, 2 pi) value and that value exactly once
+    # wrapped
     for f, args in ((bearing, (dx, dy)), (body_azimuth, (ub[:, 0], ub[:, 1]))):
         s_, w = f(*args, signed=True), f(*args)
         assert np.all((s_ > -np.pi) & (s_ <= np.pi)) and np.all((w >= 0.0) & (w < 2 * np.pi))
@@ -124,7 +130,8 @@ def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_floa
 
 
 def test_gap_alignment_is_the_physics_models_own_geometry():
-    """The gap's per-sample geometry and the propagation model's float64 explanation agree (one home)."""
+    """The gap's per-sample geometry and the propagation model's float64 explanation agree (one
+    home)."""
     from mission.gap.align import align
     from mission.physics import make_model
     from mission.samples import FlightSamples

@@ -1,5 +1,6 @@
-"""Live estimates: ``localize --at T`` reproduces what a flight knew at T (simulated and real logs), and the
-adaptive mission flown end to end on the built-in vehicle, including Ctrl-C and link loss in its adaptive part."""
+"""Live estimates: ``localize --at T`` reproduces what a flight knew at T (simulated and real logs),
+and the adaptive mission flown end to end on the built-in vehicle, including Ctrl-C and link loss in
+its adaptive part."""
 
 from __future__ import annotations
 
@@ -50,14 +51,15 @@ def _cli_json(args: list[str], capsys) -> dict:
 
 
 def _with_meta(log_path: Path, out: Path, **extra) -> Path:
-    """A copy of the log whose sidecar carries ``extra`` (a flown log's trajectory or live-estimate record)."""
+    """A copy of the log whose sidecar carries ``extra`` (a flown log's trajectory or live-estimate
+    record)."""
     log = read_flight_log(log_path)
     return write_flight_log(out, dict(log.columns), {**log.meta, **extra})
 
 
 def test_localize_at_reproduces_the_live_estimate(sim_log, capsys):
-    """The live estimate is ``localize``'s own choice for the log: at T it is what ``localize --at T`` prints, and
-    with every row it is the post-flight estimate (no second opinion beside it)."""
+    """The live estimate is ``localize``'s own choice for the log: at T it is what ``localize --at
+    T`` prints, and with every row it is the post-flight estimate (no second opinion beside it)."""
     live = estimate_file_at(str(sim_log), 200.0)  # what the flight's worker computes at t = 200 s
     d = _cli_json([str(sim_log), "--at", "200"], capsys)
     default = _cli_json([str(sim_log)], capsys)
@@ -69,8 +71,8 @@ def test_localize_at_reproduces_the_live_estimate(sim_log, capsys):
 
 
 def test_live_estimate_of_an_adaptive_flight_is_the_planners(sim_log, tmp_path, capsys):
-    """An adaptive flight's live estimates come from ``ADAPTIVE_METHOD``, with the posterior candidates the rounds
-    plan on; ``--at`` gives them back."""
+    """An adaptive flight's live estimates come from ``ADAPTIVE_METHOD``, with the posterior
+    candidates the rounds plan on; ``--at`` gives them back."""
     from mission.localize.methods import ADAPTIVE_METHOD
 
     log = _with_meta(sim_log, tmp_path / "flight.csv", trajectory={"adaptive": {"survey_s": 300.0}})
@@ -87,7 +89,8 @@ def test_live_estimate_of_an_adaptive_flight_is_the_planners(sim_log, tmp_path, 
 
 
 def test_localize_at_keeps_an_older_logs_live_method(sim_log, tmp_path, capsys):
-    """A log flown when the live estimates were always selfcal records that method: ``--at`` still uses it."""
+    """A log flown when the live estimates were always selfcal records that method: ``--at`` still
+    uses it."""
     log = _with_meta(
         sim_log, tmp_path / "flight.csv", live_estimate={"method": "selfcal", "level": 0.9}
     )
@@ -119,7 +122,8 @@ def test_localize_at_on_a_real_log(shared_dir, tmp_path, capsys):
     assert (d["x_m"], d["y_m"]) != (full["x_m"], full["y_m"])
 
 
-# --------------------------------------------------------------------------- flown end to end (built-in vehicle)
+# --------------------------------------------------------------------------- flown end to end
+# (built-in vehicle)
 
 
 def _mission(tmp_path: Path) -> Path:
@@ -144,8 +148,8 @@ def _fly(args: list[str]) -> subprocess.Popen:
 
 @pytest.mark.slow
 def test_adaptive_flight_end_to_end(tmp_path, capsys):
-    """Survey, adaptive rounds, return: phases in order, estimates series, fast and final estimates, budget
-    held, and ``localize`` on the log gives back the in-flight final estimate."""
+    """Survey, adaptive rounds, return: phases in order, estimates series, fast and final estimates,
+    budget held, and ``localize`` on the log gives back the in-flight final estimate."""
     p = _fly(
         [str(_mission(tmp_path)), "--speedup", "15", "--out", str(tmp_path / "f"), "--adaptive"]
     )
@@ -195,9 +199,10 @@ def _adaptive_rows(out: Path) -> int:
 @pytest.mark.slow
 @pytest.mark.parametrize("how", ["ctrl-c", "link-loss"])
 def test_abort_in_the_adaptive_part_keeps_the_log(tmp_path, how):
-    """Ctrl-C or the vehicle dying during the adaptive rounds: everything logged so far stays, estimates too.
-    The moment is picked on the log's rows (adaptive rows on disk), not on stderr text; at speed-up 10 a
-    loaded machine still has the wall-clock time to plan round 1 before the survey ends."""
+    """Ctrl-C or the vehicle dying during the adaptive rounds: everything logged so far stays,
+    estimates too. The moment is picked on the log's rows (adaptive rows on disk), not on stderr
+    text; at speed-up 10 a loaded machine still has the wall-clock time to plan round 1 before the
+    survey ends."""
     from mission.flight.runner import free_udp_port
 
     out = tmp_path / "f"

@@ -1,4 +1,5 @@
-"""``localize`` CLI and ONNX inference: errors as one line + exit 2, JSON schema, a hand-built ONNX model."""
+"""``localize`` CLI and ONNX inference: errors as one line + exit 2, JSON schema, a hand-built ONNX
+model."""
 
 from __future__ import annotations
 
@@ -48,7 +49,8 @@ def test_default_method_and_plot(log_path, tmp_path, capsys):
     with capture_figures() as figs:
         assert localize([str(log_path), "--json", "--plot", str(png)]) == 0
     d = json.loads(capsys.readouterr().out)
-    # a simulated log (sidecar rss_source kind "sim") without a trajectory: the simulated-log route, rfsl_default
+    # a simulated log (sidecar rss_source kind "sim") without a trajectory: the simulated-log route,
+    # rfsl_default
     assert (d["method"], d["model"]) == ("onnx", "rfsl_default.onnx") and "no trajectory" in d[
         "method_choice"
     ]
@@ -206,8 +208,8 @@ def test_onnx_refusals(log_path, tmp_path, capsys):
 
 
 def test_estimate_far_outside_the_rover_area_is_flagged(log_path, tmp_path, capsys):
-    """A network is not bounded to the field: an estimate far outside the rover area is reported with a
-    warning (JSON field and table row), never silently; one inside gets none."""
+    """A network is not bounded to the field: an estimate far outside the rover area is reported
+    with a warning (JSON field and table row), never silently; one inside gets none."""
     cfg = FeatureConfig()
     f = cfg.n_features
     far = {
@@ -227,8 +229,8 @@ def test_estimate_far_outside_the_rover_area_is_flagged(log_path, tmp_path, caps
 
 
 def test_fusion_takes_another_network(log_path, repo_dir, capsys):
-    """--method fusion --model X fuses the self-calibrating estimate with network X (the mean of the two);
-    --model with a method that has no network is refused with one line."""
+    """--method fusion --model X fuses the self-calibrating estimate with network X (the mean of the
+    two); --model with a method that has no network is refused with one line."""
     net = repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx"
     if not net.exists():
         pytest.skip("no shipped ensemble")

@@ -1,7 +1,9 @@
-"""Track-matched localizer (``mission.localize.matched``): recovery, regions, offset invariance, seeds, bad input.
+"""Track-matched localizer (``mission.localize.matched``): recovery, regions, offset invariance,
+seeds, bad input.
 
-The flight's RSS comes from ``family.simulate_rss`` on the raw samples (shadowing on ``shadowing_field``'s grid),
-not from the cell-level simulator the localizer trains on, so the test also checks that the two agree enough.
+The flight's RSS comes from ``family.simulate_rss`` on the raw samples (shadowing on
+``shadowing_field``'s grid), not from the cell-level simulator the localizer trains on, so the test
+also checks that the two agree enough.
 """
 
 from __future__ import annotations
@@ -173,9 +175,10 @@ def test_wired_into_localize():
 
 
 def test_self_check_localizes_held_out_draws_with_every_fold():
-    """The held-out draws are localized as the flight is: the union of every fold's ABC draws.  Here fold 0's
-    net summarises a held-out draw at its truth and fold 1's 30 m east of it, so the union's mean errs ~15 m
-    (a check through one net alone would err ~0 m and calibrate too narrow a region for the flight's union)."""
+    """The held-out draws are localized as the flight is: the union of every fold's ABC draws.  Here
+    fold 0's net summarises a held-out draw at its truth and fold 1's 30 m east of it, so the
+    union's mean errs ~15 m (a check through one net alone would err ~0 m and calibrate too narrow a
+    region for the flight's union)."""
     rng = np.random.default_rng(0)
     tx = rng.uniform(0.0, 300.0, (2000, 2))
     cal = np.arange(1800, 2000)

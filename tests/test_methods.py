@@ -1,6 +1,6 @@
-"""The method registry (``mission.localize.methods``): every list of method names reads from it, each factory
-builds a working estimator, and what an entry declares (posterior or circle, its calibration) is what
-``localize_log`` gives."""
+"""The method registry (``mission.localize.methods``): every list of method names reads from it,
+each factory builds a working estimator, and what an entry declares (posterior or circle, its
+calibration) is what ``localize_log`` gives."""
 
 from __future__ import annotations
 
@@ -92,7 +92,8 @@ def test_factory_builds_an_estimator(name) -> None:
 
 @pytest.mark.parametrize("name", ["strongest", "selfcal"])
 def test_declared_uncertainty_is_what_localize_gives(log_path, name) -> None:
-    """A circle method's regions are error circles; a posterior method's are HPD regions of its posterior."""
+    """A circle method's regions are error circles; a posterior method's are HPD regions of its
+    posterior."""
     from mission.localize.api import localize_log
 
     est = localize_log(log_path, method=name)

@@ -1,6 +1,6 @@
-"""The model card the runtime reads (``mission.localize.card``): the training domain written beside a network
-is read back exactly, a malformed one is refused naming the card and key, and a network without a card makes
-no claim."""
+"""The model card the runtime reads (``mission.localize.card``): the training domain written beside
+a network is read back exactly, a malformed one is refused naming the card and key, and a network
+without a card makes no claim."""
 
 from __future__ import annotations
 

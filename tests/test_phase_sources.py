@@ -1,6 +1,7 @@
-"""The mission phase per row has two producers that must agree where both apply: a planned path's geometry
-(``simulate.leg_phases``, what ``rfsl simulate`` logs; the adaptive simulator's legs by construction) and a flown
-vehicle's events (``flight.phases.PhaseTracker``); one set of names (``flightlog.PHASES``) and one item rule."""
+"""The mission phase per row has two producers that must agree where both apply: a planned path's
+geometry (``simulate.leg_phases``, what ``rfsl simulate`` logs; the adaptive simulator's legs by
+construction) and a flown vehicle's events (``flight.phases.PhaseTracker``); one set of names
+(``flightlog.PHASES``) and one item rule."""
 
 from __future__ import annotations
 
@@ -42,8 +43,9 @@ def test_planned_path_geometry_agrees_with_the_simulators_construction(path):
 
 @pytest.mark.parametrize("behaviour", ["rtl", "land"])
 def test_flown_events_give_the_planned_paths_phases_and_items(behaviour):
-    """A vehicle flying the mission as uploaded (take-off, speed, waypoints, final item) logs, through
-    ``PhaseTracker``, the same phase/item sequence the simulator derives from the planned path."""
+    """A vehicle flying the mission as uploaded (take-off, speed, waypoints, final item) logs,
+    through ``PhaseTracker``, the same phase/item sequence the simulator derives from the planned
+    path."""
     import dataclasses
 
     spec = dataclasses.replace(load_mission(), return_behaviour=behaviour)

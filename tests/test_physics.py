@@ -147,7 +147,8 @@ def test_yaw_rotates_body_azimuth_by_minus_yaw():
 
 
 def test_180_degree_symmetry():
-    """Turning the TX 180 deg about the UAV and the UAV yaw by 180 deg leaves the body geometry unchanged."""
+    """Turning the TX 180 deg about the UAV and the UAV yaw by 180 deg leaves the body geometry
+    unchanged."""
     rng = np.random.default_rng(4)
     m = make_model("e2r", tx_pattern="dipole", rx_pattern="measured", dtype=np.float64)
     rx = np.c_[rng.uniform(-200, 200, (300, 2)), rng.uniform(20, 50, 300)]
@@ -304,8 +305,9 @@ def test_body_matrix_planes_equal_the_matrix():
 
 
 def test_planes_made_once_give_the_same_rss_and_belong_to_their_model() -> None:
-    """``attitude_planes`` handed back to ``rss_dbm`` (the gap fits' way to skip the rotation per call) give
-    the very values of passing the attitude; planes of another attitude effect or sample count are refused."""
+    """``attitude_planes`` handed back to ``rss_dbm`` (the gap fits' way to skip the rotation per
+    call) give the very values of passing the attitude; planes of another attitude effect or sample
+    count are refused."""
     rng = np.random.default_rng(5)
     rx = np.column_stack(
         [rng.uniform(0, 300, 400), rng.uniform(0, 300, 400), rng.uniform(20, 50, 400)]

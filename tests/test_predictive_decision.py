@@ -1,5 +1,5 @@
-"""Posterior-predictive checks on synthetic cases with known answers, and the default-changing rule as written
-(models/README.md, "Decisions with error bars")."""
+"""Posterior-predictive checks on synthetic cases with known answers, and the default-changing rule
+as written (models/README.md, "Decisions with error bars")."""
 
 from __future__ import annotations
 
@@ -12,13 +12,15 @@ from mission.workshop.predictive import family_checks, predictive_check, sample_
 
 
 def test_predictive_check_band_inside_and_p():
-    """Benchmark values 0..1000: band = their 10-90 % quantiles (100, 900); a real mean inside passes with the
-    closed-form p, one beyond every benchmark value fails (p = 1), one below all fails (p = 0)."""
+    """Benchmark values 0..1000: band = their 10-90 % quantiles (100, 900); a real mean inside
+    passes with the closed-form p, one beyond every benchmark value fails (p = 1), one below all
+    fails (p = 0)."""
     sim = np.arange(1001.0)
     mid = predictive_check([400, 450, 500, 550, 600, 120], sim)
     assert mid["band"] == pytest.approx([100.0, 900.0])
     assert mid["inside"] == 6 and mid["n_real"] == 6
-    # the mean of 6 uniform(0, 1000) draws is ~normal(500, 288.8 / sqrt 6 = 117.9): p = Phi((436.7 - 500) / 117.9)
+    # the mean of 6 uniform(0, 1000) draws is ~normal(500, 288.8 / sqrt 6 = 117.9): p = Phi((436.7 -
+    # 500) / 117.9)
     assert mid["p"] == pytest.approx(0.296, abs=0.025) and mid["passes"]
     far = predictive_check([1500.0] * 6, sim)
     assert far["inside"] == 0 and far["p"] == 1.0 and not far["passes"]
@@ -35,9 +37,9 @@ def _track(n: int = 1500) -> np.ndarray:
 
 
 def test_sample_statistics_recover_known_spread_and_residual():
-    """RSS = free space + offset + white noise 3 dB: the residual's sill is 3 dB with the nugget carrying it;
-    the RSS 5-95 % range is the closed form's; a correlated 10 dB field adds a sill near 10 dB and a range
-    of tens of metres."""
+    """RSS = free space + offset + white noise 3 dB: the residual's sill is 3 dB with the nugget
+    carrying it; the RSS 5-95 % range is the closed form's; a correlated 10 dB field adds a sill
+    near 10 dB and a range of tens of metres."""
     rng = np.random.default_rng(4)
     pos = _track()
     tx = np.array([80.0, 120.0, 1.5])
@@ -97,7 +99,8 @@ def _errors(seed: int, n: int, scale: float) -> np.ndarray:
 
 
 def test_rule_adopts_a_clear_win():
-    """A candidate that errs 40 % less on every real flight and every benchmark flight wins and is chosen."""
+    """A candidate that errs 40 % less on every real flight and every benchmark flight wins and is
+    chosen."""
     inc_r, inc_b = _errors(1, 6, 40.0), _errors(2, 200, 70.0)
     out = pooled_decision(
         {"inc": inc_r, "new": 0.6 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.6 * inc_b}, "inc"
@@ -108,9 +111,9 @@ def test_rule_adopts_a_clear_win():
 
 
 def test_rule_keeps_the_incumbent_on_a_win_inside_the_interval():
-    """A candidate better on average but not beyond its interval: 30 % better on one team, 20 % worse on the
-    other; on the benchmark 2 % better on average with per-flight ratios 0.4-1.56: the pooled interval reaches
-    zero, the incumbent stays."""
+    """A candidate better on average but not beyond its interval: 30 % better on one team, 20 %
+    worse on the other; on the benchmark 2 % better on average with per-flight ratios 0.4-1.56: the
+    pooled interval reaches zero, the incumbent stays."""
     rng = np.random.default_rng(3)
     inc_r, inc_b = _errors(1, 6, 40.0), _errors(2, 200, 70.0)
     new_r = inc_r * np.array([0.7, 0.7, 0.7, 1.2, 1.2, 1.2])
@@ -122,7 +125,8 @@ def test_rule_keeps_the_incumbent_on_a_win_inside_the_interval():
 
 
 def test_rule_refuses_a_pooled_win_that_loses_on_one_source():
-    """Much better on the benchmark, clearly worse on both real teams: pooled below zero, yet refused."""
+    """Much better on the benchmark, clearly worse on both real teams: pooled below zero, yet
+    refused."""
     inc_r, inc_b = _errors(1, 6, 40.0), _errors(2, 200, 70.0)
     out = pooled_decision(
         {"inc": inc_r, "new": 1.1 * inc_r}, TEAMS, {"inc": inc_b, "new": 0.3 * inc_b}, "inc"

@@ -1,5 +1,5 @@
-"""Cruise selection by altitude (``mission.localize.preprocess.cruise_mask``): one altitude as before, several
-kept, climbs, descents and the ground dropped, whatever the altitudes and shares."""
+"""Cruise selection by altitude (``mission.localize.preprocess.cruise_mask``): one altitude as
+before, several kept, climbs, descents and the ground dropped, whatever the altitudes and shares."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ from mission.localize.preprocess import cruise_mask
 def profile(
     altitudes: list[tuple[float, int]], ramp: int = 60, ground: int = 40, seed: int = 0
 ) -> tuple:
-    """Heights of a flight: ground, climb, each cruise altitude (altitude, samples) joined by ramps, descent, ground;
-    with 0.3 m of altimeter noise.  Returns (heights, label) with label = altitude index, -1 ramp, -2 ground."""
+    """Heights of a flight: ground, climb, each cruise altitude (altitude, samples) joined by ramps,
+    descent, ground; with 0.3 m of altimeter noise.  Returns (heights, label) with label = altitude
+    index, -1 ramp, -2 ground."""
     rng = np.random.default_rng(seed)
     h, lab = [np.zeros(ground)], [np.full(ground, -2)]
     prev = 0.0
@@ -40,8 +41,8 @@ def test_one_altitude_as_before():
 
 
 def test_even_split_between_two_altitudes_keeps_both():
-    """The median of a 50/50 flight at 25 m and 45 m is ~35 m, at no cruise altitude: the single-band rule
-    kept nothing there."""
+    """The median of a 50/50 flight at 25 m and 45 m is ~35 m, at no cruise altitude: the
+    single-band rule kept nothing there."""
     h, lab = profile([(25.0, 1000), (45.0, 1000)])
     sel = cruise_mask(h)
     assert sorted(round(lv) for lv, _ in sel.altitudes) == [25, 45]
@@ -69,13 +70,14 @@ def test_min_altitude_share_is_the_threshold():
     shares=st.lists(st.integers(300, 1500), min_size=3, max_size=3),
     seed=st.integers(0, 2**16),
 )
-# found by hypothesis: the upper part's median fell between two altitudes yet its band still held half of it,
-# catching the upper altitude off-centre (its top samples and a ramp were cut; now re-centred)
+# found by hypothesis: the upper part's median fell between two altitudes yet its band still held
+# half of it, catching the upper altitude off-centre (its top samples and a ramp were cut; now
+# re-centred)
 @example(alts=[37.0, 56.0], shares=[300, 347, 300], seed=0)
 @example(alts=[34.0, 52.0], shares=[300, 346, 300], seed=0)
 def test_altitudes_property(alts, shares, seed):
-    """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every cruise sample is kept, no ground
-    sample is, and no ramp sample well outside every altitude's band is."""
+    """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every cruise sample is
+    kept, no ground sample is, and no ramp sample well outside every altitude's band is."""
     alts = sorted(set(round(a) for a in alts))
     alts = [
         a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2
@@ -86,7 +88,8 @@ def test_altitudes_property(alts, shares, seed):
     sel = cruise_mask(h)
     assert sel.mask[lab >= 0].all(), sel.reason
     assert not sel.mask[lab == -2].any()
-    # a ramp sample inside an altitude's band cannot be told from cruise by height; one well outside every band can
+    # a ramp sample inside an altitude's band cannot be told from cruise by height; one well outside
+    # every band can
     far = np.all([np.abs(h - a) > 1.6 * max(3.0, 0.15 * a) for a in alts], axis=0)
     assert not sel.mask[(lab == -1) & far].any()
     assert len(sel.altitudes) == len(alts)

@@ -1,6 +1,8 @@
-"""Physics presets (mission.physics.presets), the PathGainSlope effect, yaw-only attitude, the grid default.
+"""Physics presets (mission.physics.presets), the PathGainSlope effect, yaw-only attitude, the grid
+default.
 
-The real-data test reads ../shared/data/afar2023 and skips when it is absent (a fresh clone has no ../shared).
+The real-data test reads ../shared/data/afar2023 and skips when it is absent (a fresh clone has no
+../shared).
 """
 
 from __future__ import annotations
@@ -51,7 +53,8 @@ def test_preset_loads_and_builds_a_model():
 
 
 def test_preset_folds_by_name():
-    """``afar:FOLD`` is the fold's own spec (fitted without the other team's flights), named apart."""
+    """``afar:FOLD`` is the fold's own spec (fitted without the other team's flights), named
+    apart."""
     rec = load_calibration("afar")
     for name, fold in rec["folds"].items():
         assert load_preset(f"afar:{name}") == fold["model"]
@@ -168,7 +171,8 @@ def _cruise_flight(team: int, loc: int):
 @pytest.mark.real
 @pytest.mark.skipif(not MAT.is_dir(), reason="../shared (real AFAR data) not present")
 def test_calibrated_model_beats_free_space_on_held_out_team_288():
-    """The fold fitted on team 328 only, scored on team 288 locations 1-2 (never seen by that fit)."""
+    """The fold fitted on team 328 only, scored on team 288 locations 1-2 (never seen by that
+    fit)."""
     from mission.gap.fit import offset_residual
 
     rec = json.loads(
@@ -190,7 +194,8 @@ def test_calibrated_model_beats_free_space_on_held_out_team_288():
 
 
 def test_default_grid_physics_follows_the_log_source():
-    """A simulated log is searched with its own simulation model; a real receiver's with the afar preset."""
+    """A simulated log is searched with its own simulation model; a real receiver's with the afar
+    preset."""
     import numpy as np
 
     from mission.flightlog import FlightLog
@@ -207,8 +212,9 @@ def test_default_grid_physics_follows_the_log_source():
 
 
 def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
-    """Without --method, a real receiver's log gets the fused self-calibrating + network estimate (the rule in
-    models/README.md), a simulated one the network (or its own model), and it says why."""
+    """Without --method, a real receiver's log gets the fused self-calibrating + network estimate
+    (the rule in models/README.md), a simulated one the network (or its own model), and it says
+    why."""
     import numpy as np
 
     from mission.flightlog import make_meta, write_flight_log
@@ -253,8 +259,9 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
 
 
 def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) -> None:
-    """When the network lands far from a sharp self-calibrating posterior, the fused point falls outside the
-    90 % region (which is the search's alone) and the estimate says so instead of drawing a region beside it."""
+    """When the network lands far from a sharp self-calibrating posterior, the fused point falls
+    outside the 90 % region (which is the search's alone) and the estimate says so instead of
+    drawing a region beside it."""
     import numpy as np
 
     from mission.flightlog import make_meta, write_flight_log
@@ -280,7 +287,8 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
     class FarNetwork:  # a network answer 300 m east of the truth (what a net off its training domain can do)
         path = tmp_path / "far.onnx"
         model_name = "far.onnx"
-        # no card beside it: no training domain (no altitude or attitude claim), no calibrated circles
+        # no card beside it: no training domain (no altitude or attitude claim), no calibrated
+        # circles
         card = ModelCard(
             path, "clustering", None, None, origin, None, TrainingDomain(), None, "", {}
         )

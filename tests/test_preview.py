@@ -1,4 +1,5 @@
-"""Preview: summary numbers, the expected-error map with the model-based estimator, the PNG and its size."""
+"""Preview: summary numbers, the expected-error map with the model-based estimator, the PNG and its
+size."""
 
 from __future__ import annotations
 
@@ -22,7 +23,8 @@ def _png_size(path: Path) -> tuple[int, int]:
 
 
 class _FreeSpace:
-    """Free-space path loss with isotropic antennas (used where mission.physics is not importable)."""
+    """Free-space path loss with isotropic antennas (used where mission.physics is not
+    importable)."""
 
     def rss_dbm(self, tx, rx, attitude=None):
         d = (
@@ -44,7 +46,8 @@ def _model(spec):
 def test_coverage_of_default_spiral():
     spec = load_mission()
     cov = coverage(spec.field.rover_area, spec.waypoints_enu())
-    # the south quadrants lie in the overlap the spiral covers; the north ones reach beyond the flight area
+    # the south quadrants lie in the overlap the spiral covers; the north ones reach beyond the
+    # flight area
     assert cov.quadrant_max_m["SE"] < 15 and cov.quadrant_max_m["SW"] < 30
     assert cov.max_m == pytest.approx(max(cov.quadrant_max_m.values()))
 
@@ -63,7 +66,8 @@ def test_estimator_is_offset_invariant_and_finds_the_source():
     b = est(pos, att, rss + 17.0)  # an uncalibrated receiver
     assert np.array_equal(a, b)
     assert np.all(np.linalg.norm(a - tx[:, :2], axis=1) < 4.0)
-    # reference written out: per record, the cell centre minimising sum((r - mean r - (p - mean p))^2)
+    # reference written out: per record, the cell centre minimising sum((r - mean r - (p - mean
+    # p))^2)
     noisy = rss + np.random.default_rng(5).normal(0.0, 3.0, rss.shape)
     cand = area_grid(spec.field.rover_area, 4.0)
     pred = np.asarray(

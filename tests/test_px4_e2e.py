@@ -1,13 +1,15 @@
-"""End-to-end flights of ``fly-mission`` against the real PX4 v1.16 SITL (SIH quadrotor) in ../shared.
+"""End-to-end flights of ``fly-mission`` against the real PX4 v1.16 SITL (SIH quadrotor) in
+../shared.
 
-Skips cleanly where ``../shared/sitl/px4`` is absent.  Three flights, each against its own PX4 instance
-(UDP 14540 + instance): the spiral end to end (exit 0, landed inside its 600 s budget arm to disarm on the
-vehicle's clock, every STATUSTEXT PX4 wrote to its console kept in the sidecar, a region printed: SIH's -28 deg
-cruise pitch is outside the networks' training attitudes, so the region is the self-calibrating posterior's),
-a Ctrl-C in the mission (returned, landed, exit 130, the log closed as aborted) and the adaptive mission
-(survey, rounds, landed inside the budget).  Speed-up ``SPEEDUP``: PX4's SIH sleeps open-loop, so a speed-up
-the CPU cannot hold makes its MAVLink transfers time out (measured on the 2-core development machine under
-load: 10x flew the spiral every time; 20x timed the mission upload out).
+Skips cleanly where ``../shared/sitl/px4`` is absent.  Three flights, each against its own PX4
+instance (UDP 14540 + instance): the spiral end to end (exit 0, landed inside its 600 s budget arm
+to disarm on the vehicle's clock, every STATUSTEXT PX4 wrote to its console kept in the sidecar, a
+region printed: SIH's -28 deg cruise pitch is outside the networks' training attitudes, so the
+region is the self-calibrating posterior's), a Ctrl-C in the mission (returned, landed, exit 130,
+the log closed as aborted) and the adaptive mission (survey, rounds, landed inside the budget).
+Speed-up ``SPEEDUP``: PX4's SIH sleeps open-loop, so a speed-up the CPU cannot hold makes its
+MAVLink transfers time out (measured on the 2-core development machine under load: 10x flew the
+spiral every time; 20x timed the mission upload out).
 """
 
 from __future__ import annotations
@@ -42,8 +44,9 @@ pytestmark = [
 
 
 def _free_instance() -> int:
-    """A PX4 instance whose UDP ports (app link 14540 + I and PX4's own 14580 + I, 18570 + I) are free now;
-    1..9 only: from instance 10 on PX4's start script sends the app link to a shared port."""
+    """A PX4 instance whose UDP ports (app link 14540 + I and PX4's own 14580 + I, 18570 + I) are
+    free now; 1..9 only: from instance 10 on PX4's start script sends the app link to a shared
+    port."""
     return free_instance(1, 9, lambda i: (14540 + i, 14580 + i, 18570 + i), True, "PX4 SITL")
 
 
@@ -74,8 +77,9 @@ class _Px4(SitlProcess):
         return self.url
 
     def texts(self) -> list[str]:
-        """The autopilot texts PX4 wrote to its console after the app connected (PX4 ends those it sends as
-        STATUSTEXT with a tab), but the one that says the app is gone (it cannot reach the app)."""
+        """The autopilot texts PX4 wrote to its console after the app connected (PX4 ends those it
+        sends as STATUSTEXT with a tab), but the one that says the app is gone (it cannot reach the
+        app)."""
         lines = self.log().split("partner IP", 1)[-1].splitlines()
         out = [ln.split("] ", 1)[1].rstrip() for ln in lines if ln.endswith("\t") and "] " in ln]
         return [t for t in out if t != "Connection to ground station lost"]
@@ -93,8 +97,8 @@ def px4(tmp_path):
 
 
 def _fly(mission: Path, url: str, out: Path, *extra: str, interrupt_on: str | None = None):
-    """Run ``fly-mission`` to the end; with ``interrupt_on``, send SIGINT at the first output line holding it.
-    Returns (exit code, output lines, wall seconds)."""
+    """Run ``fly-mission`` to the end; with ``interrupt_on``, send SIGINT at the first output line
+    holding it. Returns (exit code, output lines, wall seconds)."""
     cmd = [
         sys.executable,
         "-m",
@@ -150,7 +154,8 @@ def _arm_to_disarm(meta: dict) -> float:
 
 
 def _too_wide(lines: list[str]) -> list[str]:
-    """Lines over 80 columns other than a path standing alone (``log: /long/tmp/path``: it cannot wrap)."""
+    """Lines over 80 columns other than a path standing alone (``log: /long/tmp/path``: it cannot
+    wrap)."""
     return [
         ln for ln in lines if len(ln) > 80 and not (len(ln.split()) <= 2 and "/" in ln.split()[-1])
     ]
@@ -174,9 +179,9 @@ def test_spiral_on_px4(px4, tmp_path):
     used = _arm_to_disarm(m)
     assert used <= m["budget"]["budget_s"] == 600, (used, m["budget"])
     assert m["budget"]["used_s"] == pytest.approx(used, abs=0.1)
-    # the STATUSTEXTs: the sidecar keeps what arrived, in PX4's order, none folded away; all of them unless
-    # MAVSDK said it dropped callbacks (a starved CPU: on two cores shared with four other jobs, load 15, it lost
-    # 4 of 9 texts at 10x, and said so)
+    # the STATUSTEXTs: the sidecar keeps what arrived, in PX4's order, none folded away; all of them
+    # unless MAVSDK said it dropped callbacks (a starved CPU: on two cores shared with four other
+    # jobs, load 15, it lost 4 of 9 texts at 10x, and said so)
     kept, sent = _sidecar_texts(m), px4.texts()
     it = iter(sent)
     assert all(t in it for t in kept), (sent, kept)  # a subsequence: nothing invented or reordered
@@ -186,7 +191,8 @@ def test_spiral_on_px4(px4, tmp_path):
     )
     assert kept == sent or (dropped and len(kept) >= 0.5 * len(sent)), (sent, kept, dropped)
     assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
-    # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's regions do
+    # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's
+    # regions do
     assert any(ln.startswith("  90 % region: ") for ln in lines), out[-1500:]
     assert "region: none" not in out
     assert not _too_wide(lines), _too_wide(lines)
@@ -222,8 +228,9 @@ def test_adaptive_mission_on_px4(px4, tmp_path):
     assert m["status"] == "completed"
     used = _arm_to_disarm(m)
     assert used <= 600, (used, m["budget"])
-    # rounds are planned from the live estimate, computed in a worker at a lowered priority: on a starved CPU
-    # (load 15 on two cores) it came too late for any round, and the flight says so in one line
+    # rounds are planned from the live estimate, computed in a worker at a lowered priority: on a
+    # starved CPU (load 15 on two cores) it came too late for any round, and the flight says so in
+    # one line
     late = "no adaptive round: the survey ended before one was planned" in out
     assert m["adaptive"]["rounds"] or late, out[-2500:]
     if late:

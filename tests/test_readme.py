@@ -1,4 +1,5 @@
-"""README.md is for users: short, its test command is the one CI runs, its links and commands exist."""
+"""README.md is for users: short, its test command is the one CI runs, its links and commands
+exist."""
 
 from __future__ import annotations
 

@@ -1,8 +1,10 @@
-"""The real-log default reproduces its card on the six shared AFAR flights (``models/real_default.json``).
+"""The real-log default reproduces its card on the six shared AFAR flights
+(``models/real_default.json``).
 
-Why: the default's figures in ``models/README.md`` are the project's claim about real flights; a change to the
-self-calibrating search, the fusion, the shipped network or the sample selection that moves them must re-record
-the card (and say so), not drift silently.  Skipped where ``../shared`` is absent.
+Why: the default's figures in ``models/README.md`` are the project's claim about real flights; a
+change to the self-calibrating search, the fusion, the shipped network or the sample selection that
+moves them must re-record the card (and say so), not drift silently.  Skipped where ``../shared`` is
+absent.
 """
 
 from __future__ import annotations

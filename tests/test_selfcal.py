@@ -1,8 +1,9 @@
-"""Self-calibrating localizer, uncertainty regions, phase-based sample selection and ``rfsl calibrate``.
+"""Self-calibrating localizer, uncertainty regions, phase-based sample selection and ``rfsl
+calibrate``.
 
-The synthetic flights here are written from the closed forms (free space ``-20 log10 d``, an antenna gain
-table looked up by hand), not through ``mission.physics``'s propagation kernel, so the estimator is checked
-against an independent reference.
+The synthetic flights here are written from the closed forms (free space ``-20 log10 d``, an antenna
+gain table looked up by hand), not through ``mission.physics``'s propagation kernel, so the
+estimator is checked against an independent reference.
 """
 
 from __future__ import annotations
@@ -50,8 +51,8 @@ def test_noise_free_free_space_is_found_exactly_with_any_offset() -> None:
 
 
 def test_antenna_heading_is_profiled_out() -> None:
-    """An upside-down RM-WB1-DN at an unknown heading: the estimator names the right hypothesis and finds the
-    transmitter; a fixed wrong antenna (isotropic only) does worse."""
+    """An upside-down RM-WB1-DN at an unknown heading: the estimator names the right hypothesis and
+    finds the transmitter; a fixed wrong antenna (isotropic only) does worse."""
     from mission.physics.antenna import mount_angles, rm_wb1_dn
 
     rx = lawnmower(h=35.0)
@@ -91,8 +92,9 @@ def test_cells_average_repeated_passes_and_circular_yaw() -> None:
 
 
 def test_cells_keep_cruise_altitudes_apart() -> None:
-    """A cell flown at 25 m and at 45 m is two cells (not one at 35 m); it covers one horizontal cell's area;
-    heights within one altitude (noise, no 5 m gap) stay one; altitude_gap_m = inf merges them."""
+    """A cell flown at 25 m and at 45 m is two cells (not one at 35 m); it covers one horizontal
+    cell's area; heights within one altitude (noise, no 5 m gap) stay one; altitude_gap_m = inf
+    merges them."""
     rng = np.random.default_rng(3)
     z = np.r_[25.0 + rng.normal(0, 1.0, 40), 45.0 + rng.normal(0, 1.0, 40)]
     assert set(altitude_index(z)) == {0, 1} and (altitude_index(z)[:40] == 0).all()
@@ -116,7 +118,8 @@ def test_hypotheses_are_named_and_unknown_refused() -> None:
 
 
 def test_hpd_regions_of_a_gaussian_match_the_closed_form() -> None:
-    """A 2-D Gaussian posterior: the 50 % / 90 % HPD areas are pi sigma^2 chi2_2(p) = -2 pi sigma^2 ln(1-p)."""
+    """A 2-D Gaussian posterior: the 50 % / 90 % HPD areas are pi sigma^2 chi2_2(p) = -2 pi sigma^2
+    ln(1-p)."""
     s = 20.0
     xs = np.arange(-150.0, 150.01, 2.0)
     gx, gy = np.meshgrid(xs, xs)
@@ -132,8 +135,9 @@ def test_hpd_regions_of_a_gaussian_match_the_closed_form() -> None:
 
 
 def test_hpd_level_of_an_isotropic_gaussian_is_its_closed_form() -> None:
-    """The HPD level of a point at radius r under an isotropic Gaussian (sigma s) is 1 - exp(-r^2 / 2 s^2);
-    the centre's level is 0, a point off the grid 1, and ``covers`` agrees with the level."""
+    """The HPD level of a point at radius r under an isotropic Gaussian (sigma s) is 1 - exp(-r^2
+    / 2 s^2); the centre's level is 0, a point off the grid 1, and ``covers`` agrees with the
+    level."""
     s = 20.0
     xs = np.arange(-150.0, 150.01, 1.0)
     gx, gy = np.meshgrid(xs, xs)
@@ -152,11 +156,12 @@ def test_hpd_level_of_an_isotropic_gaussian_is_its_closed_form() -> None:
 
 
 def test_regions_cover_truth_on_noisy_flights_and_stay_informative() -> None:
-    """White noise 6 dB on cells of a partial path, 12 flights: both regions hold the truth in most flights (the
-    temperature is set for correlated shadowing, so white noise is over-covered: 12 / 12 at both levels when
-    written) while staying informative: every 90 % region under a quarter of the 300 m x 300 m search box and
-    every 50 % region under half its 90 % region (a regression guard of the temperature from both sides: too
-    hot and the regions swell past the box limit, too cold and they stop covering)."""
+    """White noise 6 dB on cells of a partial path, 12 flights: both regions hold the truth in most
+    flights (the temperature is set for correlated shadowing, so white noise is over-covered: 12 /
+    12 at both levels when written) while staying informative: every 90 % region under a quarter of
+    the 300 m x 300 m search box and every 50 % region under half its 90 % region (a regression
+    guard of the temperature from both sides: too hot and the regions swell past the box limit, too
+    cold and they stop covering)."""
     rng = np.random.default_rng(5)
     cov50 = cov90 = 0
     for _ in range(12):
@@ -272,7 +277,8 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
     assert set(rec["groups"].values()) == {"288", "328"}
     assert set(rec["folds"]) == {"without-288", "without-328"}
     assert rec["folds"]["without-288"]["tested_on"] == [Path(logs[0]).stem]
-    # the measured antenna upside down explains real flights better than free space on held-out teams
+    # the measured antenna upside down explains real flights better than free space on held-out
+    # teams
     by = rec["heldout_gap_by_config"]
     assert by["fs_rxflip_yaw"]["soft_l1"] < by["fs_iso"]["soft_l1"]
     assert rec["config"] == "fs_rxflip_yaw"
@@ -286,8 +292,9 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
 
 
 def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
-    """The grid owns its gain tables (no module cache): a pattern met again reuses its table, another pattern
-    object gets its own; with a constant-gain pattern of g dBi the fitted offset is the isotropic one minus g."""
+    """The grid owns its gain tables (no module cache): a pattern met again reuses its table,
+    another pattern object gets its own; with a constant-gain pattern of g dBi the fitted offset is
+    the isotropic one minus g."""
     from mission.cells import Cells
     from mission.localize.selfcal import GainTables, SelfCalibratingGrid, hypothesis_ssr
     from mission.physics.patterns import TabulatedPattern

@@ -1,5 +1,6 @@
-"""Shipped networks and missions: found in a source checkout and, after a plain (non-editable) build, inside the
-installed package, so that an installed ``localize`` runs the shipped default rather than a weaker fallback."""
+"""Shipped networks and missions: found in a source checkout and, after a plain (non-editable)
+build, inside the installed package, so that an installed ``localize`` runs the shipped default
+rather than a weaker fallback."""
 
 from __future__ import annotations
 
@@ -42,8 +43,9 @@ def test_installed_copy_wins(tmp_path):
 
 @pytest.mark.slow
 def test_plain_build_localizes_with_shipped_default(repo_dir, tmp_path):
-    """setup.py's build step copies models/ and missions/ into the built package; run from that build alone
-    (no checkout beside it), ``localize`` uses the shipped default network and the shipped spiral mission."""
+    """setup.py's build step copies models/ and missions/ into the built package; run from that
+    build alone (no checkout beside it), ``localize`` uses the shipped default network and the
+    shipped spiral mission."""
     src = tmp_path / "src"
     src.mkdir()
     for name in ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md", "LICENSE"):
@@ -76,5 +78,6 @@ def test_plain_build_localizes_with_shipped_default(repo_dir, tmp_path):
     ).stdout.splitlines()
     where, est = json.loads(out[0]), json.loads("\n".join(out[1:]))
     assert where["mission_file"] == str(lib / "mission" / "data" / "missions" / "spiral.yaml")
-    # a simulated log without a trajectory: the simulated-log route to the shipped rfsl_default, found in the build
+    # a simulated log without a trajectory: the simulated-log route to the shipped rfsl_default,
+    # found in the build
     assert (est["method"], est["model"]) == ("onnx", "rfsl_default.onnx"), est["method_choice"]

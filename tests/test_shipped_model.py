@@ -1,11 +1,12 @@
 """The shipped models reproduce their model card's simulated-test metrics (within 5 %).
 
-``models/<name>.json`` records the exact dataset configuration (seed, mission, model) of a small simulated
-test set and the metrics the shipped model ``models/<name>.onnx`` reached on it; the test regenerates that
-set (bytes depend only on the seed; models sharing a configuration share one regeneration) and recomputes
-the metrics with onnxruntime.  Independent reference: ``tests/_onnx_numpy.py`` evaluates the same graphs from
-their weights in float64 numpy (no onnxruntime, no ``OnnxLocalizer``), so a wrong normalisation, input rank or
-runtime result would show as a disagreement, not as a silently moved golden number.
+``models/<name>.json`` records the exact dataset configuration (seed, mission, model) of a small
+simulated test set and the metrics the shipped model ``models/<name>.onnx`` reached on it; the test
+regenerates that set (bytes depend only on the seed; models sharing a configuration share one
+regeneration) and recomputes the metrics with onnxruntime.  Independent reference:
+``tests/_onnx_numpy.py`` evaluates the same graphs from their weights in float64 numpy (no
+onnxruntime, no ``OnnxLocalizer``), so a wrong normalisation, input rank or runtime result would
+show as a disagreement, not as a silently moved golden number.
 """
 
 from __future__ import annotations
@@ -78,8 +79,9 @@ def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
             got,
             rec["metrics"],
         )
-    # the same predictions from the weights by the independent numpy evaluator (float32 runtime: < 1 mm);
-    # an altitude-normalised network's graph sees coordinates scaled by the flight's height (altitude_scale)
+    # the same predictions from the weights by the independent numpy evaluator (float32 runtime: < 1
+    # mm); an altitude-normalised network's graph sees coordinates scaled by the flight's height
+    # (altitude_scale)
     sc = (
         scale_factor(heights, loc.reference_height_m)
         if loc.needs_heights
@@ -91,7 +93,8 @@ def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
 
 @pytest.mark.parametrize("name", SHIPPED)
 def test_onnxruntime_matches_numpy_forward_pass(name, repo_dir):
-    """Fast check on synthetic cluster features (per cluster: RSS dB, x m, y m) of every shipped network."""
+    """Fast check on synthetic cluster features (per cluster: RSS dB, x m, y m) of every shipped
+    network."""
     model = repo_dir / "models" / f"{name}.onnx"
     if not model.exists():
         pytest.skip(f"no shipped model {name}")

@@ -1,6 +1,7 @@
-"""The simulated-log default network (``mission/localize/sim_default.py``): a spiral network only on its own kind
-of flight (spiral, e2r dipoles, inside its altitudes), ``rfsl_default`` on everything else; and on simulated
-spirals the chosen network is more accurate than ``rfsl_default`` (the premise, re-measured)."""
+"""The simulated-log default network (``mission/localize/sim_default.py``): a spiral network only on
+its own kind of flight (spiral, e2r dipoles, inside its altitudes), ``rfsl_default`` on everything
+else; and on simulated spirals the chosen network is more accurate than ``rfsl_default`` (the
+premise, re-measured)."""
 
 from __future__ import annotations
 
@@ -82,9 +83,10 @@ def test_other_flights_keep_the_default_and_say_why(nets):
 
 
 def test_simulated_spirals_get_the_spiral_network_and_it_is_better(nets, tmp_path):
-    """The premise on the product path: ``rfsl simulate`` logs (take-off, return, landing) of the default spiral
-    mission; the default (spiral network) errs less than rfsl_default on the same logs (benchmarks/sim_default.py
-    over 200 seeds, rfsl_spiral_e2r_ens5 on the legs from the first waypoint: 5.1 against 16.3 m mean)."""
+    """The premise on the product path: ``rfsl simulate`` logs (take-off, return, landing) of the
+    default spiral mission; the default (spiral network) errs less than rfsl_default on the same
+    logs (benchmarks/sim_default.py over 200 seeds, rfsl_spiral_e2r_ens5 on the legs from the first
+    waypoint: 5.1 against 16.3 m mean)."""
     from mission.cli.main import main as rfsl
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log

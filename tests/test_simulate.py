@@ -62,8 +62,9 @@ def test_noise_free_rss_equals_model_at_logged_geometry(spiral):
 
 @pytest.mark.parametrize("name", ["free-space", "two-ray"])
 def test_noise_free_rss_equals_closed_form(spiral, name):
-    """Independent reference: Friis / paper eq. 1 written out here (vertical dipoles at both ends, Fresnel Gamma
-    for vertical polarisation over eps_r = 2 ground) at the logged positions, not the library's kernel."""
+    """Independent reference: Friis / paper eq. 1 written out here (vertical dipoles at both ends,
+    Fresnel Gamma for vertical polarisation over eps_r = 2 ground) at the logged positions, not the
+    library's kernel."""
     tx = np.array([120.0, 180.0, 1.5])
     f = simulate_flight(
         spiral.waypoints_enu(),
@@ -104,7 +105,8 @@ def test_strongest_sample_lies_near_the_transmitter(spiral):
         np.random.default_rng(0),
     )
     best = f.enu_m[np.argmax(f.rss_dbm)]
-    # the spiral's rings are ~20 m apart: its closest pass is within half that of any point of the overlap
+    # the spiral's rings are ~20 m apart: its closest pass is within half that of any point of the
+    # overlap
     assert np.linalg.norm(best[:2] - tx[:2]) < 15.0
 
 
@@ -153,7 +155,8 @@ def test_cli_writes_a_readable_log_with_truth(tmp_path, repo_dir):
 
 
 def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir, capsys):
-    """In process (the exit code of ``rfsl`` is what ``main`` returns: test_cli_main runs the subprocess)."""
+    """In process (the exit code of ``rfsl`` is what ``main`` returns: test_cli_main runs the
+    subprocess)."""
     from mission.cli.main import main
 
     mission = str(repo_dir / "missions" / "spiral.yaml")
@@ -164,8 +167,8 @@ def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir, capsys):
 
 
 def test_shadowing_field_statistics_and_revisits():
-    """The shadowing field has the asked std, correlation exp(-d^2/corr^2) (1/e at corr), the same value when
-    a place is revisited, a fresh field per draw, and nothing at sigma 0."""
+    """The shadowing field has the asked std, correlation exp(-d^2/corr^2) (1/e at corr), the same
+    value when a place is revisited, a fresh field per draw, and nothing at sigma 0."""
     from mission.simulate import shadowing_field
 
     rng = np.random.default_rng(3)

@@ -1,4 +1,5 @@
-"""The simulated vehicle speaks the MAVLink protocols a ground station uses (pymavlink as the GCS)."""
+"""The simulated vehicle speaks the MAVLink protocols a ground station uses (pymavlink as the
+GCS)."""
 
 from __future__ import annotations
 

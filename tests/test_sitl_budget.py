@@ -1,5 +1,6 @@
 """The flight's time budget: the plan per waypoint, the prediction from measured progress, one
-warning as soon as the remaining plan cannot fit, the sidecar record; speed parameters set and restored."""
+warning as soon as the remaining plan cannot fit, the sidecar record; speed parameters set and
+restored."""
 
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ def test_plan_times_is_the_preflight_plan(spec):
 
 
 def _fly(watch: BudgetWatch, pace: float, stop_at: int | None = None, dt: float = 0.5):
-    """Feed the watch a flight flown ``pace`` times slower than planned (stalled after ``stop_at``)."""
+    """Feed the watch a flight flown ``pace`` times slower than planned (stalled after
+    ``stop_at``)."""
     p, warned = watch.plan, None
     for e in np.arange(0.0, p.duration_s * pace, dt):  # the task stops at landing
         reached = int(np.sum(p.t_wp * pace <= e))
@@ -61,8 +63,9 @@ def test_on_plan_no_warning_and_prediction_is_the_plan(spec):
 
 
 def test_slow_autopilot_warned_early_with_an_honest_prediction(spec):
-    """PX4 flew 7 % slower: 539 s * 1.07 = 577 s fits 600 s, but not 560 s; the warning comes after the first
-    30 s of mission legs, long before the budget is used up, predicting the true landing within 2 %."""
+    """PX4 flew 7 % slower: 539 s * 1.07 = 577 s fits 600 s, but not 560 s; the warning comes after
+    the first 30 s of mission legs, long before the budget is used up, predicting the true landing
+    within 2 %."""
     plan = plan_times(spec)
     assert _fly(BudgetWatch(plan), 1.07) is None
     plan.budget_s = 560.0
@@ -98,14 +101,16 @@ def test_used_seconds_arm_to_disarm():
 
 
 def test_heartbeat_rate_follows_the_speedup():
-    """Three ground-station heartbeats per vehicle second: PX4's 2.5 s gate stays open at any speed-up."""
+    """Three ground-station heartbeats per vehicle second: PX4's 2.5 s gate stays open at any
+    speed-up."""
     for su in (1, 5, 10, 20):
         assert heartbeat_hz(su) == 3 * su and su / heartbeat_hz(su) <= 0.34
     assert heartbeat_hz(0.5) == 1.5 and heartbeat_hz(0.1) == 1.0
 
 
 class _Params:
-    """MAVSDK's ParamAsync surface (get/set int and float) over a dict, to check what is set and restored."""
+    """MAVSDK's ParamAsync surface (get/set int and float) over a dict, to check what is set and
+    restored."""
 
     def __init__(self, values):
         self.values, self.sets = dict(values), []
@@ -148,9 +153,9 @@ def test_speed_params_set_and_restored_on_both_autopilots():
 
 
 def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
-    """ArduCopter lands at 1.5 m/s, then 0.5 m/s below 10 m: 20/1.5 + 10/0.5 = 33 s where the mission's
-    kinematics plan 30/2.5 = 12 s; PX4 climbs at 1.5 m/s (20 s, not 12).  Waypoint times move only by the
-    take-off difference."""
+    """ArduCopter lands at 1.5 m/s, then 0.5 m/s below 10 m: 20/1.5 + 10/0.5 = 33 s where the
+    mission's kinematics plan 30/2.5 = 12 s; PX4 climbs at 1.5 m/s (20 s, not 12).  Waypoint times
+    move only by the take-off difference."""
     from mission.flight.budget import VerticalSpeeds
 
     base = plan_times(spec)
@@ -163,8 +168,8 @@ def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
 
 
 def test_hover_before_landing_is_reserved_outside_the_pace(spec):
-    """ArduCopter hovers RTL_LOIT_TIME (5 s) over home before landing: planned, and like the landing not
-    stretched by a slow cruise."""
+    """ArduCopter hovers RTL_LOIT_TIME (5 s) over home before landing: planned, and like the landing
+    not stretched by a slow cruise."""
     from mission.flight.budget import VerticalSpeeds
 
     v = VerticalSpeeds(2.5, 1.5, 0.5, 10.0)

@@ -1,4 +1,5 @@
-"""Units of the flight runner without a vehicle: phase tracking, option checks, MAVSDK log dedupe, status lines."""
+"""Units of the flight runner without a vehicle: phase tracking, option checks, MAVSDK log dedupe,
+status lines."""
 
 from __future__ import annotations
 
@@ -149,8 +150,8 @@ def test_first_status_line_has_no_nan():
 
 
 def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
-    """A plain message printed under the live panel (``markup=False``) re-renders the panel with that
-    option: the panel's cells must not show their markup tags ([red], [green]) then."""
+    """A plain message printed under the live panel (``markup=False``) re-renders the panel with
+    that option: the panel's cells must not show their markup tags ([red], [green]) then."""
     from rich.console import Console
 
     from mission.flight.progress import render
@@ -179,7 +180,8 @@ def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
 
 
 def _context(tmp_path, policy: str, in_air: bool = True):
-    """A flight's context with a real log writer and no vehicle (what ``tasks.log_failed`` acts on)."""
+    """A flight's context with a real log writer and no vehicle (what ``tasks.log_failed`` acts
+    on)."""
     from types import SimpleNamespace
 
     from mission.flight.context import FlightContext
@@ -236,7 +238,8 @@ def test_a_failed_log_write_is_said_at_once_and_returns_by_default(
 
 
 def test_events_during_a_link_loss_carry_only_measured_times(tmp_path, capsys):
-    """After a link loss no event is stamped with an extrapolated vehicle time: the last telemetry's time."""
+    """After a link loss no event is stamped with an extrapolated vehicle time: the last telemetry's
+    time."""
     ctx = _context(tmp_path, "return")
     ctx.tel.add_position(100.0, 35.7, -78.7, 120.0, 30.0)
     ctx.tel.add_attitude(100.0, 0.0, 0.0, 0.0)

@@ -1,9 +1,10 @@
-"""The embedded vehicle flies with the mission's full kinematics, so its flight time matches the budget check.
+"""The embedded vehicle flies with the mission's full kinematics, so its flight time matches the
+budget check.
 
 The vehicle is spawned exactly as ``fly-mission`` does (``runner.spawn_vehicle`` with the mission's
-``Kinematics`` as JSON), a pymavlink ground station uploads the mission's raw items, arms and starts it,
-and the take-off-to-landing time on the vehicle's clock is compared with ``check_mission(spec).duration_s``.
-Also: the speed-up notice and the automatic telemetry rate.
+``Kinematics`` as JSON), a pymavlink ground station uploads the mission's raw items, arms and starts
+it, and the take-off-to-landing time on the vehicle's clock is compared with
+``check_mission(spec).duration_s``. Also: the speed-up notice and the automatic telemetry rate.
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def _mission(tmp_path, kin: dict | None):
 
 
 def _fly_vehicle(spec, speedup: float) -> float:
-    """Fly ``spec``'s raw mission on a spawned vehicle; returns take-off-to-landed seconds (vehicle clock)."""
+    """Fly ``spec``'s raw mission on a spawned vehicle; returns take-off-to-landed seconds (vehicle
+    clock)."""
     from mission.trajectory.items import build_items
 
     port = free_udp_port()
@@ -131,7 +133,8 @@ def test_vehicle_flight_time_matches_budget_check(tmp_path, kin):
 
 
 def _leg_time_from_rest_to_rest(length_m: float, speed: float, accel: float) -> float:
-    """Closed form: accelerate at ``accel`` to ``speed`` (or as far as half the leg allows), cruise, brake."""
+    """Closed form: accelerate at ``accel`` to ``speed`` (or as far as half the leg allows), cruise,
+    brake."""
     if length_m >= speed**2 / accel:
         return length_m / speed + speed / accel
     return 2.0 * (length_m / accel) ** 0.5
@@ -139,8 +142,9 @@ def _leg_time_from_rest_to_rest(length_m: float, speed: float, accel: float) -> 
 
 @pytest.mark.parametrize("kin", [NON_DEFAULT, None], ids=["non-default", "default"])
 def test_vehicle_flight_time_matches_closed_form(tmp_path, kin):
-    """Independent reference: an out-and-back mission from above home stops at every vertex (climb, 120 m
-    out, reversal, 120 m back, descent), so its flight time is a sum of rest-to-rest legs in closed form."""
+    """Independent reference: an out-and-back mission from above home stops at every vertex (climb,
+    120 m out, reversal, 120 m back, descent), so its flight time is a sum of rest-to-rest legs in
+    closed form."""
     import yaml as _yaml
 
     from mission.spec import load_mission
@@ -168,7 +172,8 @@ def test_vehicle_flight_time_matches_closed_form(tmp_path, kin):
 
 
 def test_non_default_kinematics_change_the_flight_time(tmp_path):
-    """Guard for the test above: the overrides matter (else it would pass with cruise speed alone)."""
+    """Guard for the test above: the overrides matter (else it would pass with cruise speed
+    alone)."""
     from mission.trajectory.checks import check_mission
 
     a = check_mission(_mission(tmp_path, NON_DEFAULT)).duration_s

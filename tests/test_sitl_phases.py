@@ -1,5 +1,5 @@
-"""Mission phase per log row (``phase``, ``mission_item``): written as text/int columns, read back, and
-derived from the flight path in simulated logs."""
+"""Mission phase per log row (``phase``, ``mission_item``): written as text/int columns, read back,
+and derived from the flight path in simulated logs."""
 
 from __future__ import annotations
 

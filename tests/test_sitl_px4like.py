@@ -1,5 +1,6 @@
-"""The PX4-like profile of the simulated vehicle: parameters over MAVLink, slower legs, the return at
-``MPC_XY_CRUISE``, and STATUSTEXT gated on ground-station heartbeats in simulated time as PX4 does."""
+"""The PX4-like profile of the simulated vehicle: parameters over MAVLink, slower legs, the return
+at ``MPC_XY_CRUISE``, and STATUSTEXT gated on ground-station heartbeats in simulated time as PX4
+does."""
 
 from __future__ import annotations
 
@@ -67,9 +68,10 @@ def _speeds(plan):
     [("default", 1.0, 5.0, 2.5, 2.5, 2.5, 0.0), ("px4", 0.93, 4.8, 1.5, 1.5, 0.7, 5.0)],
 )
 def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land, low):
-    """Legs after a speed item fly at factor * that speed; the return at factor * MPC_XY_CRUISE (PX4: 4.8 m/s
-    unless set; the default profile: the kinematics' cruise speed, so its flown time matches the plan); take-off
-    at MPC_TKO_SPEED, the final descent at MPC_Z_V_AUTO_DN, then MPC_LAND_SPEED below MPC_LAND_ALT2."""
+    """Legs after a speed item fly at factor * that speed; the return at factor * MPC_XY_CRUISE
+    (PX4: 4.8 m/s unless set; the default profile: the kinematics' cruise speed, so its flown time
+    matches the plan); take-off at MPC_TKO_SPEED, the final descent at MPC_Z_V_AUTO_DN, then
+    MPC_LAND_SPEED below MPC_LAND_ALT2."""
     from sitl.vehicle import SimVehicle
 
     v = SimVehicle(f"udpout:127.0.0.1:{free_udp_port()}", profile=profile)
@@ -98,8 +100,9 @@ def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land,
 
 @pytest.mark.slow
 def test_params_and_statustext_gate_over_mavlink(tmp_path):
-    """PARAM_REQUEST_READ/PARAM_SET answered with REAL32 PARAM_VALUE; no STATUSTEXT without a ground-station
-    heartbeat within 2.5 simulated s, queued texts older than 5 s dropped, every text logged (sent or not)."""
+    """PARAM_REQUEST_READ/PARAM_SET answered with REAL32 PARAM_VALUE; no STATUSTEXT without a
+    ground-station heartbeat within 2.5 simulated s, queued texts older than 5 s dropped, every text
+    logged (sent or not)."""
     port = free_udp_port()
     log = tmp_path / "texts.jsonl"
     v = subprocess.Popen(

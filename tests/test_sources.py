@@ -1,4 +1,5 @@
-"""RSS sources: the AERPAW named pipe (written by another process), UDP datagrams, the sim source order."""
+"""RSS sources: the AERPAW named pipe (written by another process), UDP datagrams, the sim source
+order."""
 
 from __future__ import annotations
 
@@ -58,7 +59,8 @@ def test_fifo_named_pipe_from_another_process(tmp_path):
 
 
 def test_float32_matches_aerpaw_values():
-    # values like those of afar2023/aerpaw_logs/*_power_log.txt (od -f output of the sounder's float32)
+    # values like those of afar2023/aerpaw_logs/*_power_log.txt (od -f output of the sounder's
+    # float32)
     vals = np.array([-38.7461, -41.2059, -52.8867], dtype="<f4")
     assert np.allclose(parse_float32_le(vals.tobytes()), vals.astype(float))
 

@@ -1,4 +1,5 @@
-"""Mission YAML: every shipped mission loads and is flyable; bad fields name the key and the file."""
+"""Mission YAML: every shipped mission loads and is flyable; bad fields name the key and the
+file."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""Mission defaults are written once: a key a mission file omits gets its dataclass's default, and the schema
-comments in missions/*.yaml document those same values (so the reader, the dataclasses and the docs cannot drift).
+"""Mission defaults are written once: a key a mission file omits gets its dataclass's default, and
+the schema comments in missions/*.yaml document those same values (so the reader, the dataclasses
+and the docs cannot drift).
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ GIVEN = {
 
 
 def _built_in_defaults() -> dict:
-    """Each key's default as the dataclasses hold it (instances built in code, not read from a file)."""
+    """Each key's default as the dataclasses hold it (instances built in code, not read from a
+    file)."""
     m = MissionSpec(name="m", path=None, field=afar_field())
     s, v, a = SourceSpec(), VehicleSpec(), AdaptiveSpec()
     out = {
@@ -171,7 +173,8 @@ def _documented(path: Path) -> list[tuple[str, str, str, str]]:
 
 @pytest.mark.parametrize("name", ["spiral.yaml", "spiral_adaptive.yaml"])
 def test_schema_comments_document_the_dataclass_defaults(name):
-    """A value in a schema comment is the default, unless its description names another ("default: ...")."""
+    """A value in a schema comment is the default, unless its description names another ("default:
+    ...")."""
     owner = {
         "": MissionSpec,
         "source": SourceSpec,

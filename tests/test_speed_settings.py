@@ -1,5 +1,5 @@
-"""Speed settings change no result: thread limits are applied (onnxruntime session, k-means' OpenMP) and the
-self-calibrating grid's pre-rotated gain tables equal the per-sample index formula."""
+"""Speed settings change no result: thread limits are applied (onnxruntime session, k-means' OpenMP)
+and the self-calibrating grid's pre-rotated gain tables equal the per-sample index formula."""
 
 from __future__ import annotations
 
@@ -99,8 +99,9 @@ def _pool_threads() -> list[int]:
 
 
 def test_commands_and_pool_workers_run_under_the_limit(monkeypatch) -> None:
-    """A command body (``run_guarded``) runs with ``$RFSL_THREADS`` threads and the process is restored after;
-    a pool worker started with ``limit_worker`` runs its whole life with one (OpenMP included)."""
+    """A command body (``run_guarded``) runs with ``$RFSL_THREADS`` threads and the process is
+    restored after; a pool worker started with ``limit_worker`` runs its whole life with one (OpenMP
+    included)."""
     from concurrent.futures import ProcessPoolExecutor
 
     from threadpoolctl import threadpool_limits

@@ -1,4 +1,5 @@
-"""``geo.square_grid``: the one builder of candidate grids (localizers, preview coverage, adaptive planner)."""
+"""``geo.square_grid``: the one builder of candidate grids (localizers, preview coverage, adaptive
+planner)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
-"""Candidates, blocked cross-validated evidence and stacking weights (``localize.candidates``, ``localize.stacking``).
+"""Candidates, blocked cross-validated evidence and stacking weights (``localize.candidates``,
+``localize.stacking``).
 
-The blocked fit is checked against a direct least-squares solve of one fold; the synthetic flights are written
-from the closed form (free space ``-20 log10 d``), not through ``mission.physics``.
+The blocked fit is checked against a direct least-squares solve of one fold; the synthetic flights
+are written from the closed form (free space ``-20 log10 d``), not through ``mission.physics``.
 """
 
 from __future__ import annotations
@@ -100,7 +101,8 @@ def test_the_candidate_at_the_transmitter_wins_the_held_out_blocks() -> None:
 
 
 def test_the_blocked_fit_is_ridge_least_squares_on_the_other_blocks() -> None:
-    """One fold, solved directly: rows of the training cells plus one ridge row sqrt(lam) (b - 1) = 0."""
+    """One fold, solved directly: rows of the training cells plus one ridge row sqrt(lam) (b - 1) =
+    0."""
     tx = np.array([100.0, 100.0, 1.5])
     cells = cell_average(_flight(tx, sd_db=3.0, seed=4), 5.0)
     cand = np.array([[90.0, 130.0]])
@@ -165,10 +167,10 @@ def synthetic_log(tmp_path_factory):
 
 
 def test_the_stage_answers_with_weighted_candidates_and_their_mixture(synthetic_log) -> None:
-    """On a free-space lawnmower (1 dB noise) the held-out evidence is decisive and right: the candidate at the
-    transmitter (selfcal's) leads by tens of nats while the spiral networks, off their path, err 40-80 m; the
-    answer is the candidates' geometric median (the rule's choice), the weights lie on the simplex, and the
-    mixture's regions hold the heaviest candidate."""
+    """On a free-space lawnmower (1 dB noise) the held-out evidence is decisive and right: the
+    candidate at the transmitter (selfcal's) leads by tens of nats while the spiral networks, off
+    their path, err 40-80 m; the answer is the candidates' geometric median (the rule's choice), the
+    weights lie on the simplex, and the mixture's regions hold the heaviest candidate."""
     from mission.localize.api import localize_log
     from mission.localize.stacking import geometric_median
 
@@ -212,5 +214,6 @@ def test_geometric_median_closed_forms() -> None:
     # a far ghost moves the mean by 200 m / 5 but the median by almost nothing
     pts = np.array([[0.0, 0.0], [4.0, 0.0], [0.0, 4.0], [4.0, 4.0], [200.0, 2.0]])
     assert abs(geometric_median(pts)[0] - 2.0) < 1.5 and pts.mean(axis=0)[0] > 40
-    # one point holding more than half the weight is the weighted median (Weiszfeld's majority theorem)
+    # one point holding more than half the weight is the weighted median (Weiszfeld's majority
+    # theorem)
     assert geometric_median(line, np.array([0.1, 0.1, 0.8])) == pytest.approx([10.0, 0.0], abs=1e-3)

@@ -1,10 +1,10 @@
-"""Files the commands write are written whole or not at all (issue 37): under a file-size limit (a full disk)
-``rfsl import``, ``simulate``, ``export`` and ``dataset`` exit non-zero with one line, and leave no truncated CSV
-beside a sidecar (which ``localize`` accepted), no partial export, no leftover temporary file; an existing
-file is kept as it was.
+"""Files the commands write are written whole or not at all (issue 37): under a file-size limit (a
+full disk) ``rfsl import``, ``simulate``, ``export`` and ``dataset`` exit non-zero with one line,
+and leave no truncated CSV beside a sidecar (which ``localize`` accepted), no partial export, no
+leftover temporary file; an existing file is kept as it was.
 
-The limit is ``RLIMIT_FSIZE`` in a child process with ``SIGXFSZ`` ignored, so a write past it fails with
-EFBIG exactly where a full disk fails with ENOSPC.
+The limit is ``RLIMIT_FSIZE`` in a child process with ``SIGXFSZ`` ignored, so a write past it fails
+with EFBIG exactly where a full disk fails with ENOSPC.
 """
 
 from __future__ import annotations
@@ -47,8 +47,8 @@ def assert_one_line_failure(r: subprocess.CompletedProcess, *names: str) -> None
 
 
 def no_partial_files(folder: Path) -> list[str]:
-    """Names under ``folder`` that a failed write must not leave: temporary parts, a CSV without its sidecar
-    or a sidecar without its CSV."""
+    """Names under ``folder`` that a failed write must not leave: temporary parts, a CSV without its
+    sidecar or a sidecar without its CSV."""
     names = {p.name for p in folder.rglob("*") if p.is_file()}
     bad = [n for n in names if n.endswith(".part")]
     bad += [n for n in names if n.endswith(".csv") and n[:-4] + ".json" not in names]
@@ -97,7 +97,8 @@ def test_dataset_under_a_full_disk_fails_in_one_line(tmp_path):
 
 
 def test_writing_replaces_only_when_complete(tmp_path):
-    """A failure inside the block leaves the old file and no temporary; success replaces it at once."""
+    """A failure inside the block leaves the old file and no temporary; success replaces it at
+    once."""
     p = tmp_path / "a.txt"
     p.write_text("old")
     with pytest.raises(RuntimeError), files.writing(p) as tmp:

@@ -1,4 +1,5 @@
-"""The unseen-flight benchmark: deterministic flights in the real-log form, every axis drawn, no truth leak."""
+"""The unseen-flight benchmark: deterministic flights in the real-log form, every axis drawn, no
+truth leak."""
 
 from __future__ import annotations
 
@@ -180,8 +181,8 @@ def test_breakdown_by_axis():
 
 
 def test_heavy_family_changes_only_the_shadowing():
-    """``afar-heavy`` draws the same flights as ``afar`` (same generator sequence) with the real-measured
-    shadowing: wider and longer-correlated, so its logs spread more in dB."""
+    """``afar-heavy`` draws the same flights as ``afar`` (same generator sequence) with the
+    real-measured shadowing: wider and longer-correlated, so its logs spread more in dB."""
     from mission.workshop.suite import SHADOWING
 
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING["afar-heavy"]

@@ -1,4 +1,5 @@
-"""A benchmark cache written by other simulator code is never read silently: its fingerprint is checked."""
+"""A benchmark cache written by other simulator code is never read silently: its fingerprint is
+checked."""
 
 from __future__ import annotations
 
@@ -31,7 +32,8 @@ def suite(tmp_path_factory) -> Path:
 
 
 def _edited(src: Path, dst: Path, edit) -> Path:
-    """A copy of the suite folder ``src`` at ``dst`` with its manifest changed by ``edit(manifest)``."""
+    """A copy of the suite folder ``src`` at ``dst`` with its manifest changed by
+    ``edit(manifest)``."""
     dst.mkdir()
     for p in src.iterdir():
         (dst / p.name).write_bytes(p.read_bytes())

@@ -20,8 +20,9 @@ from mission.workshop.suite_cache import read_suite, write_suite
 
 
 def _family(sigma_db: float, noise_db: float = 0.0, corr_m: float = 60.0) -> dict:
-    """A family whose only randomness beyond the path is a correlated field of fixed sigma (isotropic free space:
-    the log-distance fit removes the model exactly, so the residual is the field)."""
+    """A family whose only randomness beyond the path is a correlated field of fixed sigma
+    (isotropic free space: the log-distance fit removes the model exactly, so the residual is the
+    field)."""
     return {
         "schema": 1,
         "name": f"s{sigma_db:g}",
@@ -58,8 +59,8 @@ SHIPPED = str(Path(__file__).resolve().parents[1] / "mission" / "data" / "afar_f
 
 
 def test_family_draws_are_reproducible_and_seeded():
-    """Same (seed, i, family) -> the same draw; another seed -> another; physics, residual, offset inside the
-    shipped family's own ranges; the label naming the file's content."""
+    """Same (seed, i, family) -> the same draw; another seed -> another; physics, residual, offset
+    inside the shipped family's own ranges; the label naming the file's content."""
     fam = resolve_family(SHIPPED)
     a, _ = draw_flight(7, 3, SHIPPED)
     b, _ = draw_flight(7, 3, fam)
@@ -89,8 +90,8 @@ def test_family_draws_are_reproducible_and_seeded():
 
 @pytest.mark.slow  # three simulated flights: ~3 s on an idle core
 def test_family_sigma_shows_in_the_simulated_residual(tmp_path):
-    """Same seed, families differing only in shadowing sigma (2 vs 12 dB): the same field scaled, so the
-    log-distance residual's spread scales by 6 and sits near the family's sigma."""
+    """Same seed, families differing only in shadowing sigma (2 vs 12 dB): the same field scaled, so
+    the log-distance residual's spread scales by 6 and sits near the family's sigma."""
     lo = unseen_flight(11, 0, _write(tmp_path, _family(2.0), "lo.json"))
     hi = unseen_flight(11, 0, _write(tmp_path, _family(12.0), "hi.json"))
     assert lo.draw["tx_xy"] == hi.draw["tx_xy"]
@@ -106,8 +107,8 @@ def test_family_sigma_shows_in_the_simulated_residual(tmp_path):
 
 
 def test_cache_keeps_the_family_and_checks_it(tmp_path):
-    """A cache drawn from a family file keeps its record: the fingerprint check re-simulates from it even after
-    the file is gone, and the rewrite command names the file."""
+    """A cache drawn from a family file keeps its record: the fingerprint check re-simulates from it
+    even after the file is gone, and the rewrite command names the file."""
     fam = _write(tmp_path, _family(6.0))
     write_suite(tmp_path / "s", 1, seed=5, family=fam)
     Path(fam).unlink()
@@ -176,7 +177,8 @@ _VALUE = st.one_of(
     value=_VALUE,
 )
 def test_generated_bad_families_raise_input_error_only(tmp_path, key, value):
-    """Any edit of a valid family either loads or raises InputError naming the file (never another exception)."""
+    """Any edit of a valid family either loads or raises InputError naming the file (never another
+    exception)."""
     d = _family(4.0)
     if key == "offset":
         d["offset_db"] = value

@@ -1,4 +1,5 @@
-"""Networks (shapes, parameter and FLOP counts) and a tiny end-to-end training run exported to ONNX."""
+"""Networks (shapes, parameter and FLOP counts) and a tiny end-to-end training run exported to
+ONNX."""
 
 from __future__ import annotations
 
@@ -42,8 +43,8 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
     assert loc.kind == "clustering" and loc.cfg.c_k == 20
     td = loc.meta["training_data"]
     assert td["datasets"][0]["seed"] == 3 and td["train_config"]["seed"] == 1
-    # the card beside it holds the training domain the runtime reads: the dataset's mission altitude (30 m), and
-    # no attitude claim for randomised trajectories
+    # the card beside it holds the training domain the runtime reads: the dataset's mission altitude
+    # (30 m), and no attitude claim for randomised trajectories
     assert loc.card.domain.altitude_m == (30.0, 30.0) and loc.card.domain.attitude_deg is None
     x = np.load(next((tmp_path / "ds").glob("chunk_*.npz")))["clustering"]
     assert np.all(np.isfinite(loc.predict_features(x)))

@@ -1,8 +1,9 @@
-"""A network's training altitudes, measured from its training metadata into its card, and the note when a flight
-leaves them.
+"""A network's training altitudes, measured from its training metadata into its card, and the note
+when a flight leaves them.
 
-The note rests on a measured premise (the spiral network loses accuracy off its 30 m training altitude), so
-one test re-measures it on freshly simulated spirals instead of trusting the card's figures.
+The note rests on a measured premise (the spiral network loses accuracy off its 30 m training
+altitude), so one test re-measures it on freshly simulated spirals instead of trusting the card's
+figures.
 """
 
 from __future__ import annotations
@@ -35,8 +36,9 @@ def test_shipped_networks_training_altitudes(repo_dir):
 
 
 def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
-    """Each shipped card's training domain (written once by ``mission.workshop.domain``) is what its network's
-    training metadata measures today: a card edited by hand, or a training record whose mission changed, fails."""
+    """Each shipped card's training domain (written once by ``mission.workshop.domain``) is what its
+    network's training metadata measures today: a card edited by hand, or a training record whose
+    mission changed, fails."""
     from mission.localize.onnx_model import OnnxLocalizer
 
     models = sorted((repo_dir / "models").glob("*.onnx"))
@@ -46,7 +48,8 @@ def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
         net = OnnxLocalizer(p, threads=1)
         card, now = net.card.domain, training_domain(net.meta.get("training_data"))
         assert card.altitude_m == now.altitude_m, p.name
-        # the simulator's attitude percentiles vary in the last bits with the libraries' thread counts
+        # the simulator's attitude percentiles vary in the last bits with the libraries' thread
+        # counts
         assert (card.attitude_deg is None) == (now.attitude_deg is None), p.name
         if now.attitude_deg is not None:
             assert np.asarray(card.attitude_deg) == pytest.approx(
@@ -121,8 +124,8 @@ def test_localize_notes_a_flight_off_the_networks_altitude(tmp_path, repo_dir, a
 
 @pytest.mark.slow
 def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_dir):
-    """The note's premise, re-measured: 15 m above its training altitude the spiral network errs >2x more; the
-    altitude-normalised network trained on 15-60 m does not."""
+    """The note's premise, re-measured: 15 m above its training altitude the spiral network errs >2x
+    more; the altitude-normalised network trained on 15-60 m does not."""
     from dataclasses import replace
 
     from mission.localize.onnx_model import OnnxLocalizer
@@ -160,7 +163,8 @@ def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_d
             pred = alt_net.predict_features(arrays["clustering"], dataset_heights(arrays["params"]))
             err_alt[alt] = np.hypot(*(pred - arrays["tx_enu"][:, :2]).T).mean()
     assert err[45.0] > 2.0 * err[30.0], err
-    # ... and the altitude-normalised network (altitude_scale) does not: within 1.5x of its 30 m error at 45 m
+    # ... and the altitude-normalised network (altitude_scale) does not: within 1.5x of its 30 m
+    # error at 45 m
     if alt_net is not None:
         assert err_alt[45.0] < 1.5 * err_alt[30.0] and err_alt[45.0] < 0.5 * err[45.0], (
             err,

@@ -1,8 +1,10 @@
-"""Fixed vs adaptive flights of one mission, paired in the same simulated worlds (benchmark and preview).
+"""Fixed vs adaptive flights of one mission, paired in the same simulated worlds (benchmark and
+preview).
 
-Flight ``i`` of seed ``S`` draws its physics from the family, its transmitter and its shadowing map from
-``SeedSequence(S, spawn_key=(i,))`` (``flight_rng``); its fixed and adaptive versions share them and the same
-attitude/noise seed, so their difference is the path's alone.  Both are scored with the live estimator.
+Flight ``i`` of seed ``S`` draws its physics from the family, its transmitter and its shadowing map
+from ``SeedSequence(S, spawn_key=(i,))`` (``flight_rng``); its fixed and adaptive versions share
+them and the same attitude/noise seed, so their difference is the path's alone.  Both are scored
+with the live estimator.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ import numpy as np
 
 
 def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> dict:
-    """Errors, 90 % region coverage and area, durations and rounds of flight ``i``, fixed and adaptive."""
+    """Errors, 90 % region coverage and area, durations and rounds of flight ``i``, fixed and
+    adaptive."""
     from mission.adaptive.simflight import FlightWorld, adaptive_flight, estimator, fixed_flight
     from mission.physics.family import load_family
     from mission.workshop.flight_draws import flight_rng
@@ -42,8 +45,8 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
 
 
 def summarize_pairs(rows: list[dict]) -> dict:
-    """Mean (90 % bootstrap interval), paired difference adaptive - fixed, p90, coverage, median region area,
-    mean duration and rounds per mission; the fast (3-minute) estimate's mean error."""
+    """Mean (90 % bootstrap interval), paired difference adaptive - fixed, p90, coverage, median
+    region area, mean duration and rounds per mission; the fast (3-minute) estimate's mean error."""
     from mission.evidence import compare_methods, mean_interval
 
     ok = [

@@ -1,9 +1,11 @@
-"""The mission's ``adaptive:`` block: how long to survey, the pattern flown around the live estimate, when to stop.
+"""The mission's ``adaptive:`` block: how long to survey, the pattern flown around the live
+estimate, when to stop.
 
-Why a block of its own: the same mission file flies fixed (the whole trajectory) or adaptive (the trajectory's
-first ``survey_s`` seconds, then rounds planned in flight); ``fly-mission --adaptive`` or ``enabled: true``
-choose.  Bad settings are refused before take-off (``mission.adaptive.feasibility``): an altitude outside the limits, a
-pattern that fits nowhere inside the fence, a budget that cannot hold the survey, one round and the return.
+Why a block of its own: the same mission file flies fixed (the whole trajectory) or adaptive (the
+trajectory's first ``survey_s`` seconds, then rounds planned in flight); ``fly-mission --adaptive``
+or ``enabled: true`` choose.  Bad settings are refused before take-off
+(``mission.adaptive.feasibility``): an altitude outside the limits, a pattern that fits nowhere
+inside the fence, a budget that cannot hold the survey, one round and the return.
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ class AdaptiveSpec:
 
 
 def parse_adaptive(r) -> AdaptiveSpec:
-    """The ``adaptive:`` mapping (a ``SpecReader``) -> ``AdaptiveSpec``; errors name ``adaptive.<key>``."""
+    """The ``adaptive:`` mapping (a ``SpecReader``) -> ``AdaptiveSpec``; errors name
+    ``adaptive.<key>``."""
     d = AdaptiveSpec()  # every default is the dataclass's
     en = r.raw("enabled", d.enabled)
     if not isinstance(en, bool):

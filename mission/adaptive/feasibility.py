@@ -1,7 +1,9 @@
-"""Whether a mission's adaptive settings can be flown: altitude limits, a pattern inside the fence, the budget.
+"""Whether a mission's adaptive settings can be flown: altitude limits, a pattern inside the fence,
+the budget.
 
-Why apart from ``config``: the mission parser reads the ``adaptive:`` block (``config``) while these checks
-plan flights (``planner``, which reads the mission spec); kept here, no import runs in a circle.
+Why apart from ``config``: the mission parser reads the ``adaptive:`` block (``config``) while these
+checks plan flights (``planner``, which reads the mission spec); kept here, no import runs in a
+circle.
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ def adaptive_violations(
     spec, a: AdaptiveSpec, return_extra_s: float = 0.0
 ) -> list[tuple[str, str]]:
     """(key, one-line message) for settings that cannot be flown: altitude, fence fit, budget; with
-    ``return_extra_s``, the seconds the autopilot's own return and landing take beyond the kinematic plan
-    (known once connected: ``rounds.autopilot_return_extra_s``; ArduCopter SITL 26 s)."""
+    ``return_extra_s``, the seconds the autopilot's own return and landing take beyond the kinematic
+    plan (known once connected: ``rounds.autopilot_return_extra_s``; ArduCopter SITL 26 s)."""
     out: list[tuple[str, str]] = []
     lo, hi = spec.altitude_limits_m
     alt = a.altitude(spec)
@@ -74,7 +76,8 @@ def adaptive_violations(
 
 
 def assert_adaptive(spec, a: AdaptiveSpec, return_extra_s: float = 0.0) -> None:
-    """Refuse unflyable adaptive settings with one ``InputError`` naming the mission file and key."""
+    """Refuse unflyable adaptive settings with one ``InputError`` naming the mission file and
+    key."""
     v = adaptive_violations(spec, a, return_extra_s)
     if v:
         more = f" (and {len(v) - 1} more problems)" if len(v) > 1 else ""

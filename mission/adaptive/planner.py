@@ -1,12 +1,14 @@
-"""Legs planned from the live posterior: the survey cut, the square around the estimate, fence/altitude/budget.
+"""Legs planned from the live posterior: the survey cut, the square around the estimate,
+fence/altitude/budget.
 
-One round = a square of half side ``radius_m`` centred on the live estimate, flown corner to corner and closed,
-then through its centre (RSS gradients are steepest near the transmitter, so four sides and a pass over the
-estimate constrain it from every side).  Every round is checked before it is sent: the fence and altitude
-limits with ``trajectory.checks.check_mission`` (the same rule as the mission's own waypoints), the time with
-``plan_profile`` from where the current leg ends through the round and back home to landing, plus a reserve,
-against what is left of the budget.  A round that does not fit is moved inside the fence (its centre towards
-the flight area's interior) or shrunk (down to ``min_radius_m``) and says so; otherwise it is refused.
+One round = a square of half side ``radius_m`` centred on the live estimate, flown corner to corner
+and closed, then through its centre (RSS gradients are steepest near the transmitter, so four sides
+and a pass over the estimate constrain it from every side).  Every round is checked before it is
+sent: the fence and altitude limits with ``trajectory.checks.check_mission`` (the same rule as the
+mission's own waypoints), the time with ``plan_profile`` from where the current leg ends through the
+round and back home to landing, plus a reserve, against what is left of the budget.  A round that
+does not fit is moved inside the fence (its centre towards the flight area's interior) or shrunk
+(down to ``min_radius_m``) and says so; otherwise it is refused.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from mission.trajectory.kinematics import FlightProfile, plan_profile
 
 
 def survey_profile(spec, survey_s: float) -> FlightProfile:
-    """The trajectory's waypoints flown from the first one for ``survey_s`` seconds (cut inside a leg)."""
+    """The trajectory's waypoints flown from the first one for ``survey_s`` seconds (cut inside a
+    leg)."""
     wps = spec.waypoints_enu()
     kin = spec.kinematics()
     prof = plan_profile(wps, kin)
@@ -33,7 +36,8 @@ def survey_profile(spec, survey_s: float) -> FlightProfile:
 
 
 def survey_spec(spec, survey_s: float):
-    """``spec`` whose trajectory is the survey part only (explicit waypoints): what is uploaded first."""
+    """``spec`` whose trajectory is the survey part only (explicit waypoints): what is uploaded
+    first."""
     from mission.spec import TrajectorySpec
 
     wps = survey_profile(spec, survey_s).vertices
@@ -41,8 +45,8 @@ def survey_spec(spec, survey_s: float):
 
 
 def box_pattern(centre, r: float, alt: float, start=None) -> np.ndarray:
-    """(6, 3) waypoints: the four corners of a square of half side ``r`` about ``centre``, closed, then the
-    centre; starting at the corner nearest ``start`` (saves a crossing)."""
+    """(6, 3) waypoints: the four corners of a square of half side ``r`` about ``centre``, closed,
+    then the centre; starting at the corner nearest ``start`` (saves a crossing)."""
     c = np.asarray(centre, dtype=float)[:2]
     corners = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
     if start is not None:
@@ -53,9 +57,11 @@ def box_pattern(centre, r: float, alt: float, start=None) -> np.ndarray:
 
 
 def fit_centre(spec, want_xy, r: float, step_m: float = 2.0) -> np.ndarray | None:
-    """The centre nearest ``want_xy`` whose square (half side ``r``) keeps the fence margin (None: nowhere).
+    """The centre nearest ``want_xy`` whose square (half side ``r``) keeps the fence margin (None:
+    nowhere).
 
-    The flight area is convex (``geo.Area``), so corners inside with the margin keep every leg inside too."""
+    The flight area is convex (``geo.Area``), so corners inside with the margin keep every leg
+    inside too."""
     area, margin = spec.field.flight_area, spec.fence_margin_m
     want = np.asarray(want_xy, dtype=float)[:2]
     offs = r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -73,8 +79,8 @@ def fit_centre(spec, want_xy, r: float, step_m: float = 2.0) -> np.ndarray | Non
 
 
 def posterior_candidates(post, k: int = 4, sep_m: float = 40.0) -> list[list[float]]:
-    """Up to ``k`` distinct hypotheses [x, y, mass] of a grid posterior, most probable first: greedy peaks at
-    least ``sep_m`` apart, each with the mass within ``sep_m / 2`` of it."""
+    """Up to ``k`` distinct hypotheses [x, y, mass] of a grid posterior, most probable first: greedy
+    peaks at least ``sep_m`` apart, each with the mass within ``sep_m / 2`` of it."""
     pts = post.grid.reshape(-1, 2)
     p = post.prob.ravel()
     order = np.argsort(p)[::-1]
@@ -92,9 +98,10 @@ def posterior_candidates(post, k: int = 4, sep_m: float = 40.0) -> list[list[flo
 
 
 def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, float]:
-    """Where the next round goes: the most probable hypothesis not yet flown over (no earlier round centre
-    within ``visit_m``), else the estimate.  Why: a square around a wrong estimate teaches little; flying over
-    each competing peak in turn either finds the transmitter's near field or removes that peak."""
+    """Where the next round goes: the most probable hypothesis not yet flown over (no earlier round
+    centre within ``visit_m``), else the estimate.  Why: a square around a wrong estimate teaches
+    little; flying over each competing peak in turn either finds the transmitter's near field or
+    removes that peak."""
     for x, y, _ in candidates or []:
         if all(np.hypot(x - vx, y - vy) > visit_m for vx, vy in visited):
             return float(x), float(y)
@@ -102,8 +109,8 @@ def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, f
 
 
 def leg_violations(spec, start, wps) -> list:
-    """Fence and altitude violations of flying ``start`` -> ``wps`` (``check_mission``'s rules; its time check,
-    which assumes a flight from home, is replaced by the caller's budget check)."""
+    """Fence and altitude violations of flying ``start`` -> ``wps`` (``check_mission``'s rules; its
+    time check, which assumes a flight from home, is replaced by the caller's budget check)."""
     from mission.spec import TrajectorySpec
     from mission.trajectory.checks import check_mission
 
@@ -123,7 +130,8 @@ def return_s(spec, frm) -> float:
 
 @dataclass
 class RoundPlan:
-    """A planned round (``waypoints`` None: refused, ``reason`` says why) with its timing and what was changed."""
+    """A planned round (``waypoints`` None: refused, ``reason`` says why) with its timing and what
+    was changed."""
 
     waypoints: np.ndarray | None
     centre: tuple[float, float] | None = None
@@ -139,8 +147,9 @@ class RoundPlan:
 
 
 def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
-    """The next round around ``est_xy`` flown from ``start`` (3,), which the vehicle reaches ``t_start_s`` after
-    take-off; it must end with the return and ``a.reserve_s`` inside the time budget."""
+    """The next round around ``est_xy`` flown from ``start`` (3,), which the vehicle reaches
+    ``t_start_s`` after take-off; it must end with the return and ``a.reserve_s`` inside the time
+    budget."""
     alt = a.altitude(spec)
     kin = spec.kinematics()
     notes: list[str] = []

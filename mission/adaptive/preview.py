@@ -1,15 +1,17 @@
 """``rfsl preview --adaptive``: the adaptive finish's expected error against the fixed trajectory's.
 
-Why simulated flights and not the preview's error map: the adaptive path depends on what the flight measured,
-so it has no single geometry to map; a few paired flights (``compare.pair``) under the physics family give
-the expected errors of both with their intervals, the adaptive rounds flown and the time used.
+Why simulated flights and not the preview's error map: the adaptive path depends on what the flight
+measured, so it has no single geometry to map; a few paired flights (``compare.pair``) under the
+physics family give the expected errors of both with their intervals, the adaptive rounds flown and
+the time used.
 """
 
 from __future__ import annotations
 
 
 def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[tuple[str, str]]:
-    """(label, value) rows for the preview table (a progress bar while the flights are simulated)."""
+    """(label, value) rows for the preview table (a progress bar while the flights are
+    simulated)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from mission.adaptive.compare import pair, summarize_pairs

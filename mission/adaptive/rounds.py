@@ -1,16 +1,18 @@
-"""The adaptive rounds of a flown mission: an extension of the flight (``AdaptiveRounds``) and the budget it used.
+"""The adaptive rounds of a flown mission: an extension of the flight (``AdaptiveRounds``) and the
+budget it used.
 
-Why an extension, not a runner: the order of a flight (check, connect, upload, arm, fly, return, land, close)
-and its safety paths stay in ``mission.flight.runner``; this adds one coroutine (``adapt``) run beside the
-mission, which reads and updates the flight's ``FlightContext``.  Each round: wait until the current segment
-(the survey, then the last round) has ``lead_s`` vehicle seconds left, take the live estimate of the rows logged
-so far, stop if its 90 % region is below target, else plan the next square (``planner.plan_round``: fence,
-altitude limits, budget with return and reserve; clipped, shrunk or refused, each logged as an event) and
-re-upload the mission extended by it, the final RTL moved behind it.  Items already flown keep their indices,
-so the current item stays valid (``set_current_mission_item`` re-asserts it: PX4 and the built-in vehicle reset
-it on upload); a round that comes too late means the vehicle is already returning, which is safe.  MAVSDK v4
-API: ``MissionRawAsync.upload_mission`` and ``set_current_mission_item`` (PX4 and ArduPilot alike, no guided
-mode needed).
+Why an extension, not a runner: the order of a flight (check, connect, upload, arm, fly, return,
+land, close) and its safety paths stay in ``mission.flight.runner``; this adds one coroutine
+(``adapt``) run beside the mission, which reads and updates the flight's ``FlightContext``.  Each
+round: wait until the current segment (the survey, then the last round) has ``lead_s`` vehicle
+seconds left, take the live estimate of the rows logged so far, stop if its 90 % region is below
+target, else plan the next square (``planner.plan_round``: fence, altitude limits, budget with
+return and reserve; clipped, shrunk or refused, each logged as an event) and re-upload the mission
+extended by it, the final RTL moved behind it.  Items already flown keep their indices, so the
+current item stays valid (``set_current_mission_item`` re-asserts it: PX4 and the built-in vehicle
+reset it on upload); a round that comes too late means the vehicle is already returning, which is
+safe.  MAVSDK v4 API: ``MissionRawAsync.upload_mission`` and ``set_current_mission_item`` (PX4 and
+ArduPilot alike, no guided mode needed).
 """
 
 from __future__ import annotations
@@ -36,8 +38,9 @@ MIN_LEAD_WALL_S = (
 
 @dataclass
 class AdaptiveRounds:
-    """The adaptive finish of ``full_spec`` (``config``: its ``AdaptiveSpec``): the survey part is flown first,
-    then rounds planned from the live estimate; the flight's ``extension`` (``mission.flight.context``)."""
+    """The adaptive finish of ``full_spec`` (``config``: its ``AdaptiveSpec``): the survey part is
+    flown first, then rounds planned from the live estimate; the flight's ``extension``
+    (``mission.flight.context``)."""
 
     full_spec: object
     config: object
@@ -56,8 +59,8 @@ class AdaptiveRounds:
         return meta
 
     def check(self, ctx: FlightContext) -> None:
-        """The adaptive settings again with the autopilot's own return (known now, ``ctx.budget``): refused
-        before the upload and take-off, exit 2, when they leave no round."""
+        """The adaptive settings again with the autopilot's own return (known now, ``ctx.budget``):
+        refused before the upload and take-off, exit 2, when they leave no round."""
         from mission.adaptive.feasibility import adaptive_violations
 
         extra = autopilot_return_extra_s(ctx, ctx.spec.waypoints_enu()[-1])
@@ -90,8 +93,8 @@ class AdaptiveRounds:
 
 
 def _no_round(ctx: FlightContext) -> None:
-    """One line when the survey ended before a round was planned (the live estimate was late: a starved
-    worker)."""
+    """One line when the survey ended before a round was planned (the live estimate was late: a
+    starved worker)."""
     ctx.event(
         "adaptive",
         "no adaptive round: the survey ended before one was planned (live estimate late)",
@@ -108,7 +111,8 @@ def _position_enu(ctx: FlightContext) -> np.ndarray:
 
 
 def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int) -> float | None:
-    """Vehicle seconds until the last of ``wps`` is reached (None before the first waypoint is flown to)."""
+    """Vehicle seconds until the last of ``wps`` is reached (None before the first waypoint is flown
+    to)."""
     idx = ctx.st.progress[0] - offset
     if idx < 0 or not ctx.tel.n_pos:
         return None
@@ -120,11 +124,13 @@ def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int) -> float | Non
 
 
 def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
-    """How much longer the autopilot's return and landing from ``frm`` take than the kinematic plan's.
+    """How much longer the autopilot's return and landing from ``frm`` take than the kinematic
+    plan's.
 
-    The runner's budget plan (``flight.budget``) knows the autopilot's own return speed, descent speeds and
-    hover (ArduCopter: RTL_LOIT_TIME 5 s, LAND_SPEED 0.5 m/s below 10 m: its return took 85 s against 55 s
-    planned on the SITL, 615 s of 600 flown); its return from the survey's end against ours is the extra."""
+    The runner's budget plan (``flight.budget``) knows the autopilot's own return speed, descent
+    speeds and hover (ArduCopter: RTL_LOIT_TIME 5 s, LAND_SPEED 0.5 m/s below 10 m: its return took
+    85 s against 55 s planned on the SITL, 615 s of 600 flown); its return from the survey's end
+    against ours is the extra."""
     from mission.adaptive.planner import return_s
 
     plan = getattr(getattr(ctx, "budget", None), "plan", None)
@@ -136,7 +142,8 @@ def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
 
 
 async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) -> None:
-    """Plan, check and upload rounds until the region is small, no round fits, or the mission ends."""
+    """Plan, check and upload rounds until the region is small, no round fits, or the mission
+    ends."""
     from mission.adaptive.planner import choose_target, plan_round
     from mission.spec import TrajectorySpec
     from mission.trajectory.items import build_items
@@ -249,7 +256,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
 
 
 def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
-    """Each round's flown against planned time; warns on overruns (the flight's budget: ``flight.budget``)."""
+    """Each round's flown against planned time; warns on overruns (the flight's budget:
+    ``flight.budget``)."""
     ph = np.asarray(ctx.phases.phase)
     t = np.asarray(ctx.phases.t)
     item = np.asarray(ctx.phases.item)

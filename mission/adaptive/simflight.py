@@ -1,10 +1,11 @@
 """Fixed and adaptive flights on the fast simulator under a physics family (benchmark and preview).
 
-Why here and not MAVLink: hundreds of flights in minutes.  The adaptive flight follows the runner's order of
-events: the survey, then rounds planned ``lead_s`` before the current one ends from the estimate of the
-samples logged so far (``methods.ADAPTIVE_METHOD``'s estimator), each checked by ``planner.plan_round``; stop
-when the 90 % region is below target or no round fits; return home.  One flight's physics (model draw, offset,
-transmitter and one fixed shadowing map) is shared by its fixed and adaptive versions, so they are paired.
+Why here and not MAVLink: hundreds of flights in minutes.  The adaptive flight follows the runner's
+order of events: the survey, then rounds planned ``lead_s`` before the current one ends from the
+estimate of the samples logged so far (``methods.ADAPTIVE_METHOD``'s estimator), each checked by
+``planner.plan_round``; stop when the 90 % region is below target or no round fits; return home.
+One flight's physics (model draw, offset, transmitter and one fixed shadowing map) is shared by its
+fixed and adaptive versions, so they are paired.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from mission.simulate import SimConfig, fly_path
 
 
 class FlightWorld:
-    """One flight's physics: a family draw, its transmitter and a shadowing map fixed over the flight area."""
+    """One flight's physics: a family draw, its transmitter and a shadowing map fixed over the
+    flight area."""
 
     def __init__(self, spec, family, rng: np.random.Generator, step_m: float = 3.0) -> None:
         from scipy.interpolate import RegularGridInterpolator
@@ -85,7 +87,8 @@ class SimLog:
 
 
 def estimator(spec):
-    """The live estimator with ``localize_log``'s settings for this field (``methods.ADAPTIVE_METHOD``)."""
+    """The live estimator with ``localize_log``'s settings for this field
+    (``methods.ADAPTIVE_METHOD``)."""
     from mission.localize.api import make_localizer
     from mission.localize.methods import ADAPTIVE_METHOD
 
@@ -96,7 +99,8 @@ def estimator(spec):
 
 @dataclass
 class Outcome:
-    """A flight's estimates: (x, y, area90, covered) finals and the fast (3 min) one; duration; rounds."""
+    """A flight's estimates: (x, y, area90, covered) finals and the fast (3 min) one; duration;
+    rounds."""
 
     final: tuple | None
     fast: tuple | None
@@ -136,8 +140,9 @@ def _climb(spec, first) -> list:
 def fixed_path(spec) -> tuple[np.ndarray, list[str]]:
     """The whole trajectory, then back over home and down: the path (K, 3) and each leg's phase.
 
-    The phases are known here by construction (the simulator builds the legs); ``simulate.leg_phases`` derives
-    the same from the geometry of such a path (what ``rfsl simulate`` logs)."""
+    The phases are known here by construction (the simulator builds the legs);
+    ``simulate.leg_phases`` derives the same from the geometry of such a path (what ``rfsl
+    simulate`` logs)."""
     wps = spec.waypoints_enu()
     home = np.asarray(spec.home_enu, dtype=float)
     path = np.vstack([*_climb(spec, wps[0]), wps, [home[0], home[1], wps[-1, 2]], home])

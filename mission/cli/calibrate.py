@@ -1,10 +1,11 @@
-"""Calibrate a physics preset on real flights with known transmitters, with leave-one-group-out figures.
+"""Calibrate a physics preset on real flights with known transmitters, with leave-one-group-out
+figures.
 
-``rfsl calibrate LOG.csv [LOG2.csv ...] --out my_preset.json [--groups REGEX] [--configs a,b,c]`` fits every
-configuration (``mission.calibrate.CONFIGS``) on all groups but one and scores the held-out group, chooses the
-configuration with the lowest held-out soft-L1, refits it on all flights and writes a preset file that records
-what it was fitted on and its held-out figures.  Use it with ``localize --physics-preset my_preset.json`` or
-``rfsl dataset --physics my_preset.json``.
+``rfsl calibrate LOG.csv [LOG2.csv ...] --out my_preset.json [--groups REGEX] [--configs a,b,c]``
+fits every configuration (``mission.calibrate.CONFIGS``) on all groups but one and scores the
+held-out group, chooses the configuration with the lowest held-out soft-L1, refits it on all flights
+and writes a preset file that records what it was fitted on and its held-out figures.  Use it with
+``localize --physics-preset my_preset.json`` or ``rfsl dataset --physics my_preset.json``.
 """
 
 from __future__ import annotations

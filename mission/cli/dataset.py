@@ -1,7 +1,8 @@
-"""Generate a simulated dataset: N transmitter positions, each flown in the simulator, stored as feature chunks.
+"""Generate a simulated dataset: N transmitter positions, each flown in the simulator, stored as
+feature chunks.
 
-Every flight has its own seed (``SeedSequence(seed).spawn(N)[i]``), so the bytes do not depend on the
-number of workers.  Randomisation flags widen the simulated domain towards real flights (see
+Every flight has its own seed (``SeedSequence(seed).spawn(N)[i]``), so the bytes do not depend on
+the number of workers.  Randomisation flags widen the simulated domain towards real flights (see
 ``mission.workshop.dataset``); ``--randomise`` switches on the project's recommended set at once.
 """
 
@@ -318,7 +319,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _write_logs(args: argparse.Namespace, console) -> int:
-    """``--suite unseen --logs``: the benchmark's flights as CSV logs (the cache ``rfsl evaluate`` reads)."""
+    """``--suite unseen --logs``: the benchmark's flights as CSV logs (the cache ``rfsl evaluate``
+    reads)."""
     import time
     from pathlib import Path
 

@@ -1,9 +1,10 @@
 """Compare localizers (ONNX networks, classical estimators) on simulated test sets and real flights.
 
-The paper's table on one command: {free-space, two-ray, e2r} training data x {clustering, normalised RSS,
-classical} x trajectories, on held-out simulated test sets (``--sim-test``, or generated here with
-``--trajectories``) and on real flights with truth (``--real LOG.csv``, or ``--afar DIR`` to import the
-AFAR MAT files with the README's truth table).  Mean, median and 90th-percentile error in metres.
+The paper's table on one command: {free-space, two-ray, e2r} training data x {clustering, normalised
+RSS, classical} x trajectories, on held-out simulated test sets (``--sim-test``, or generated here
+with ``--trajectories``) and on real flights with truth (``--real LOG.csv``, or ``--afar DIR`` to
+import the AFAR MAT files with the README's truth table).  Mean, median and 90th-percentile error in
+metres.
 """
 
 from __future__ import annotations
@@ -309,7 +310,8 @@ def _run_suite(args: argparse.Namespace, console) -> int:
 
 
 def _real_logs(args: argparse.Namespace) -> list[str]:
-    """Real logs with truth for the benchmark's posterior-predictive checks (``--real``, ``--afar``)."""
+    """Real logs with truth for the benchmark's posterior-predictive checks (``--real``,
+    ``--afar``)."""
     import tempfile
     from pathlib import Path
 
@@ -323,7 +325,8 @@ def _real_logs(args: argparse.Namespace) -> list[str]:
 
 
 def _predictive(real_logs: list[str], methods: list[str], rows, stats: list, console) -> dict:
-    """Real flights vs the benchmark drawn from the family (``mission.workshop.predictive``): table + verdict."""
+    """Real flights vs the benchmark drawn from the family (``mission.workshop.predictive``): table
+    + verdict."""
     from mission.workshop.predictive import checks_table, family_checks, score_real, verdict
 
     rstats, rerr = score_real(real_logs, methods)

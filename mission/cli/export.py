@@ -1,8 +1,10 @@
-"""Export a mission as QGroundControl .plan, QGC WPL text, GeoJSON or KML (after the pre-flight checks).
+"""Export a mission as QGroundControl .plan, QGC WPL text, GeoJSON or KML (after the pre-flight
+checks).
 
-A mission that fails the geofence, altitude or time-budget check is refused (exit code 2) and nothing is
-written, unless --force is given.  An existing output file is kept unless --overwrite is given, and an
---out suffix that does not match the format is refused (``x.gpx`` must not hold plan JSON).
+A mission that fails the geofence, altitude or time-budget check is refused (exit code 2) and
+nothing is written, unless --force is given.  An existing output file is kept unless --overwrite is
+given, and an --out suffix that does not match the format is refused (``x.gpx`` must not hold plan
+JSON).
 """
 
 from __future__ import annotations

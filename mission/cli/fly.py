@@ -1,14 +1,16 @@
-"""Fly a mission on a MAVLink autopilot (or the built-in simulated vehicle), log RSS with attitude, localize.
+"""Fly a mission on a MAVLink autopilot (or the built-in simulated vehicle), log RSS with attitude,
+localize.
 
-``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize] [--adaptive]``.  Every
-flight shows and records a live estimate (``mission.flight.estimates``); ``--adaptive`` (or the mission's
-``adaptive: {enabled: true}``) flies the survey part, then rounds planned from it.  Without
-``--connect`` (and no ``vehicle.connection`` in the mission file) the simulated vehicle of ``sitl/`` is
-started on a free local UDP port (it dies with ``fly-mission``).  Options are checked before anything
-starts.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves the fence, a bad
-``--connect``/``--rss-source``/``--out``: nothing is started or uploaded), 3 link lost / no autopilot within
-``--link-timeout``, 4 the log is incomplete (a write failed: disk full; the sidecar says how many rows it
-holds), 130 aborted by Ctrl-C, SIGTERM or SIGHUP (after the return to launch once airborne).
+``fly-mission MISSION.yaml [--connect URL] [--speedup N] [--out DIR] [--no-localize] [--adaptive]``.
+Every flight shows and records a live estimate (``mission.flight.estimates``); ``--adaptive`` (or
+the mission's ``adaptive: {enabled: true}``) flies the survey part, then rounds planned from it.
+Without ``--connect`` (and no ``vehicle.connection`` in the mission file) the simulated vehicle of
+``sitl/`` is started on a free local UDP port (it dies with ``fly-mission``).  Options are checked
+before anything starts.  Exit codes: 0 flown and landed, 2 bad input (e.g. the mission leaves the
+fence, a bad ``--connect``/``--rss-source``/``--out``: nothing is started or uploaded), 3 link lost
+/ no autopilot within ``--link-timeout``, 4 the log is incomplete (a write failed: disk full; the
+sidecar says how many rows it holds), 130 aborted by Ctrl-C, SIGTERM or SIGHUP (after the return to
+launch once airborne).
 """
 
 from __future__ import annotations
@@ -87,9 +89,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def choose_adaptive(spec, flag: bool):
-    """(the ``AdaptiveSpec`` to fly or None, a line to show or None): the mission's ``adaptive:`` block when
-    enabled or ``--adaptive`` is given (the defaults without a block); a block that is present but not enabled
-    (``adaptive: {}``, ``adaptive: null``, ``enabled: false``) says in one line that the fixed mission is flown."""
+    """(the ``AdaptiveSpec`` to fly or None, a line to show or None): the mission's ``adaptive:``
+    block when enabled or ``--adaptive`` is given (the defaults without a block); a block that is
+    present but not enabled (``adaptive: {}``, ``adaptive: null``, ``enabled: false``) says in one
+    line that the fixed mission is flown."""
     from mission.adaptive.config import AdaptiveSpec
 
     a = spec.adaptive if spec.adaptive is not None else AdaptiveSpec()
@@ -170,7 +173,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """The command; a Ctrl-C at any moment ends it with 130 (``run_guarded``), never by a second signal."""
+    """The command; a Ctrl-C at any moment ends it with 130 (``run_guarded``), never by a second
+    signal."""
     from mission.flight.vehicle_process import ignore_terminal_signals
 
     try:

@@ -1,10 +1,11 @@
 """Diagnose the sim-to-real gap of a propagation model on flights with known transmitter positions.
 
-``rfsl gap LOG.csv [LOG2.csv ...] [--truth LAT,LON ...] [--base e2r] [--candidates all|a,b] [--report DIR]``
-fits the free constants (RSS offset, optionally a slope), shows the gap of free-space / two-ray / e2r, where
-the base model departs (block-bootstrap flags), ranks candidate effects on held-out blocks, climbs the greedy
-ladder and reports the localization cost of every rung.  ``rfsl gap --selftest`` simulates flights with one
-effect withheld and checks that the diagnosis finds it (confusion table).
+``rfsl gap LOG.csv [LOG2.csv ...] [--truth LAT,LON ...] [--base e2r] [--candidates all|a,b]
+[--report DIR]`` fits the free constants (RSS offset, optionally a slope), shows the gap of
+free-space / two-ray / e2r, where the base model departs (block-bootstrap flags), ranks candidate
+effects on held-out blocks, climbs the greedy ladder and reports the localization cost of every
+rung.  ``rfsl gap --selftest`` simulates flights with one effect withheld and checks that the
+diagnosis finds it (confusion table).
 """
 
 from __future__ import annotations
@@ -109,8 +110,9 @@ REPORT_FILES = (
 
 
 def check_outputs(args) -> None:
-    """--report, --family and the counts checked before any work (a fit takes minutes): --report a folder
-    that can be written and holds no earlier report unless --overwrite, --family a new file."""
+    """--report, --family and the counts checked before any work (a fit takes minutes): --report
+    a folder that can be written and holds no earlier report unless --overwrite, --family a new
+    file."""
     from pathlib import Path
 
     from mission.defaults import MAX_WORKERS
@@ -159,7 +161,8 @@ def _parse_latlon(s: str):
 
 
 def load_flights(paths: list[str], truths: list[str] | None, height: float):
-    """Flight logs -> ``FlightSamples`` objects with their transmitter truth in each log's ENU frame."""
+    """Flight logs -> ``FlightSamples`` objects with their transmitter truth in each log's ENU
+    frame."""
     from mission.cli.main import print_notes
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
@@ -256,8 +259,9 @@ def _selftest(args) -> int:
 
 
 def confusion_table(rows: list[str], cols: list[str], M):
-    """The self-test's confusion as a rich Table that reads at 80 columns: the columns are numbered and the
-    rows carry the number of their effect, so no effect name is cut (14 named columns took 150)."""
+    """The self-test's confusion as a rich Table that reads at 80 columns: the columns are numbered
+    and the rows carry the number of their effect, so no effect name is cut (14 named columns took
+    150)."""
     from rich import box
     from rich.table import Table
 
@@ -286,7 +290,8 @@ def confusion_table(rows: list[str], cols: list[str], M):
 
 
 def _write_family(d, cfg, args, console) -> None:
-    """Fit the ladder's effects per flight into a physics family and write it (validated by ``load_family``)."""
+    """Fit the ladder's effects per flight into a physics family and write it (validated by
+    ``load_family``)."""
     import json
     import sys
     from datetime import UTC, datetime

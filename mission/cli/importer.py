@@ -1,4 +1,5 @@
-"""Convert real flights (AFAR challenge MAT files) into the project's flight logs (CSV + JSON sidecar).
+"""Convert real flights (AFAR challenge MAT files) into the project's flight logs (CSV + JSON
+sidecar).
 
 Example: ``rfsl import afar-mat exp_288_loc_1.mat --out logs/ --truth 35.72806709,-78.69730398``.
 The truth is taken only from ``--truth``, never guessed from the file name.
@@ -26,7 +27,8 @@ def parse_latlon(text: str, name: str = "--truth") -> tuple[float, float]:
 
 
 def parse_origin(text: str, name: str = "--origin"):
-    """'LAT,LON' or 'LAT,LON,ALT' (degrees, metres AMSL) -> ``Origin``, or InputError naming the option."""
+    """'LAT,LON' or 'LAT,LON,ALT' (degrees, metres AMSL) -> ``Origin``, or InputError naming the
+    option."""
     from mission.geo import Origin
 
     parts = str(text).split(",")

@@ -1,11 +1,12 @@
 """Estimate the transmitter position from a flight log (ONNX network or classical estimators).
 
-Keeps the cruise part of the log (mission legs, else the cruise altitudes) and runs the method.  Default
-method (``mission.localize.api.localize_log``): ``--model`` given -> that network; a real receiver's log ->
-``fusion`` (mean of the self-calibrating grid and ``models/rfsl_spiral_e2r.onnx``); a simulated log -> the
-shipped ``models/rfsl_default.onnx`` when present, else a grid search with the log's own simulation model.
-The grid's physics: ``--physics`` / ``--physics-preset``, by default the simulator's model for a simulated log
-and the calibrated ``afar`` preset for a real one.
+Keeps the cruise part of the log (mission legs, else the cruise altitudes) and runs the method.
+Default method (``mission.localize.api.localize_log``): ``--model`` given -> that network; a real
+receiver's log -> ``fusion`` (mean of the self-calibrating grid and
+``models/rfsl_spiral_e2r.onnx``); a simulated log -> the shipped ``models/rfsl_default.onnx`` when
+present, else a grid search with the log's own simulation model. The grid's physics: ``--physics`` /
+``--physics-preset``, by default the simulator's model for a simulated log and the calibrated
+``afar`` preset for a real one.
 """
 
 from __future__ import annotations

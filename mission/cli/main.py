@@ -61,6 +61,11 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+def doc_summary(doc: str | None) -> str:
+    """A module docstring's first paragraph on one line: the description ``--help`` prints."""
+    return " ".join((doc or "").strip().split("\n\n")[0].split())
+
+
 def _available() -> dict[str, tuple[object, str]]:
     mods = {}
     for name, (modname, purpose) in SUBCOMMANDS.items():
@@ -73,8 +78,8 @@ def _available() -> dict[str, tuple[object, str]]:
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """argparse with the project's error convention: one line naming the argument and exit code 2 (the usage
-    text is one ``--help`` away; a wall of usage hides which argument was wrong)."""
+    """argparse with the project's error convention: one line naming the argument and exit code 2
+    (the usage text is one ``--help`` away; a wall of usage hides which argument was wrong)."""
 
     def error(self, message: str):  # type: ignore[override]
         self.exit(2, one_line(f"error: {self.prog}: {message} (see {self.prog} --help)") + "\n")
@@ -87,8 +92,8 @@ _NEGATIVE_VALUE = re.compile(r"^-\.?\d")
 def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -> list[str]:
     """``--tx -100,200,1.5`` -> ``--tx=-100,200,1.5`` for options that take one value.
 
-    argparse reads a token starting with '-' as an option unless it is a plain negative number, so negative
-    coordinates (normal in the local ENU frame) failed as "expected one argument".
+    argparse reads a token starting with '-' as an option unless it is a plain negative number, so
+    negative coordinates (normal in the local ENU frame) failed as "expected one argument".
     """
     takes_value: set[str] = set()
     stack = [parser]
@@ -139,7 +144,8 @@ def _parsers(
 
 
 def model_name_arg(value: str) -> str:
-    """argparse ``type`` for a propagation-model name: the aliases ``make_model`` accepts, folded to its name."""
+    """argparse ``type`` for a propagation-model name: the aliases ``make_model`` accepts, folded to
+    its name."""
     from mission.physics.propagation import canonical_model_name
 
     try:
@@ -157,8 +163,9 @@ def console(stderr: bool = False):
 
 
 def print_notes(notes: Sequence[str]) -> None:
-    """Print what was accepted with a remark (a real-log quirk, a missing sidecar) as one stderr line each:
-    'note: ...', or the note as it is when it already says 'warning: ...' (``mission.flightlog.WARNING``)."""
+    """Print what was accepted with a remark (a real-log quirk, a missing sidecar) as one stderr
+    line each: 'note: ...', or the note as it is when it already says 'warning: ...'
+    (``mission.flightlog.WARNING``)."""
     for n in notes:
         print(n if n.startswith("warning: ") else f"note: {n}", file=sys.stderr)
 
@@ -170,9 +177,9 @@ def check_number(
     hi: float | None = None,
     strict_lo: bool = False,
 ) -> float:
-    """A numeric option checked at the boundary: finite and within its bounds, else one line naming the
-    option and the bound (``--speedup 1e9`` or ``nan`` ran until killed; the bound is what keeps the work
-    finite)."""
+    """A numeric option checked at the boundary: finite and within its bounds, else one line naming
+    the option and the bound (``--speedup 1e9`` or ``nan`` ran until killed; the bound is what keeps
+    the work finite)."""
     try:
         v = float(value)
     except (TypeError, ValueError):  # argparse hands '--link-timeout=--' over as a list
@@ -187,7 +194,8 @@ def check_number(
 
 
 def image_out(path: str | Path, flag: str = "--out") -> Path:
-    """Check an image output path before any heavy work: a format matplotlib writes, not a directory."""
+    """Check an image output path before any heavy work: a format matplotlib writes, not a
+    directory."""
     p = Path(path)
     if p.is_dir():
         raise InputError(
@@ -208,8 +216,9 @@ def image_out(path: str | Path, flag: str = "--out") -> Path:
 
 
 def out_parent_ok(path: Path, flag: str = "--out", folder: bool = False) -> Path:
-    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is a file
-    or the folder it would be written in cannot be written (``mission.files.check_writable_dir``)."""
+    """``path`` unchanged, or an InputError when one of its parents (or itself, for a ``folder``) is
+    a file or the folder it would be written in cannot be written
+    (``mission.files.check_writable_dir``)."""
     from mission.files import check_writable_dir
 
     check_writable_dir(path if folder else path.parent, flag)
@@ -223,17 +232,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"rfsl {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (mod, purpose) in _available().items():
-        p = sub.add_parser(
-            name, help=purpose, description=(mod.__doc__ or purpose).strip().splitlines()[0]
-        )
+        p = sub.add_parser(name, help=purpose, description=doc_summary(mod.__doc__) or purpose)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser
 
 
 def run_guarded(fn: Callable[[], int | None]) -> int:
-    """Run a CLI body under the thread limits (``mission.threads``, ``$RFSL_THREADS``): bad input becomes one
-    line on stderr and exit code 2, Ctrl-C exit code 130."""
+    """Run a CLI body under the thread limits (``mission.threads``, ``$RFSL_THREADS``): bad input
+    becomes one line on stderr and exit code 2, Ctrl-C exit code 130."""
     from mission.threads import thread_limits
 
     try:
@@ -259,8 +266,9 @@ def run_guarded(fn: Callable[[], int | None]) -> int:
 
 
 def standalone_main(prog: str, module, argv: Sequence[str] | None = None) -> int:
-    """Entry point of a console script (``fly-mission``, ``localize``) that is also an ``rfsl`` subcommand."""
-    parser = OneLineParser(prog=prog, description=(module.__doc__ or "").strip().splitlines()[0])
+    """Entry point of a console script (``fly-mission``, ``localize``) that is also an ``rfsl``
+    subcommand."""
+    parser = OneLineParser(prog=prog, description=doc_summary(module.__doc__))
     module.add_arguments(parser)
     args = parse_args(parser, argv)
     return run_guarded(lambda: module.run(args))

@@ -1,9 +1,10 @@
-"""Plot a mission (areas, waypoints, simulated path, time budget) and, with --accuracy, expected error.
+"""Plot a mission (areas, waypoints, simulated path, time budget) and, with --accuracy, expected
+error.
 
-Also prints a summary table: length, duration, RSS samples, and how close the path comes to each part of
-the rover area.  The accuracy heatmap uses the model-based estimator of ``mission.preview``.  An adaptive
-mission (``--adaptive`` or ``adaptive: {enabled: true}``) adds its expected error against the fixed trajectory's
-on paired simulated flights (``mission.adaptive.preview``).
+Also prints a summary table: length, duration, RSS samples, and how close the path comes to each
+part of the rover area.  The accuracy heatmap uses the model-based estimator of ``mission.preview``.
+An adaptive mission (``--adaptive`` or ``adaptive: {enabled: true}``) adds its expected error
+against the fixed trajectory's on paired simulated flights (``mission.adaptive.preview``).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Link budget for one geometry: RSS (dBm) of the free-space, two-ray or enhanced two-ray model.
 
-Positions are local ENU metres (z = height above ground); attitude is roll, pitch, yaw in degrees (yaw
-clockwise from north). ``--explain`` shows each effect's contribution (path lengths, Gamma, antenna
-gains, shadowing loss).
+Positions are local ENU metres (z = height above ground); attitude is roll, pitch, yaw in degrees
+(yaw clockwise from north). ``--explain`` shows each effect's contribution (path lengths, Gamma,
+antenna gains, shadowing loss).
 
 Example: ``rfsl rss --model e2r --tx 0,0,1.5 --rx 120,40,30 --attitude 2,-3,90 --explain``
 """

@@ -1,7 +1,7 @@
 """Fly a mission in the fast kinematic simulator and write a flight log (CSV + JSON sidecar).
 
-No MAVLink is involved: the vehicle follows the project's multicopter kinematics, RSS is sampled every
-0.03 s through the chosen propagation model with seeded attitude perturbation and noise.
+No MAVLink is involved: the vehicle follows the project's multicopter kinematics, RSS is sampled
+every 0.03 s through the chosen propagation model with seeded attitude perturbation and noise.
 """
 
 from __future__ import annotations

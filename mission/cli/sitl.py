@@ -1,8 +1,9 @@
-"""Run the simulated MAVLink vehicle alone, for QGroundControl, MAVProxy or ``fly-mission --connect``.
+"""Run the simulated MAVLink vehicle alone, for QGroundControl, MAVProxy or ``fly-mission
+--connect``.
 
-The vehicle sends MAVLink 2 over UDP to the ground station's port (like PX4 SITL): ``rfsl sitl`` then
-``fly-mission missions/spiral.yaml --connect udpin://0.0.0.0:14540``; ``rfsl sitl --port 14550`` for
-QGroundControl; ``mavproxy.py --master udpin:0.0.0.0:14540``.  See sitl/README.md.
+The vehicle sends MAVLink 2 over UDP to the ground station's port (like PX4 SITL): ``rfsl sitl``
+then ``fly-mission missions/spiral.yaml --connect udpin://0.0.0.0:14540``; ``rfsl sitl --port
+14550`` for QGroundControl; ``mavproxy.py --master udpin:0.0.0.0:14540``.  See sitl/README.md.
 """
 
 from __future__ import annotations
@@ -83,8 +84,9 @@ VEHICLE_SCHEMES = ("udpin", "udpout", "udp", "udpbcast", "tcp", "tcpin")
 
 
 def check_vehicle_url(url: str) -> None:
-    """``--url`` is a pymavlink network address ``SCHEME:HOST:PORT`` (``tcpin:0.0.0.0:5760``); anything else
-    is one line (a garbage URL ended in a traceback about a missing ``serial`` module)."""
+    """``--url`` is a pymavlink network address ``SCHEME:HOST:PORT`` (``tcpin:0.0.0.0:5760``);
+    anything else is one line (a garbage URL ended in a traceback about a missing ``serial``
+    module)."""
     from mission.errors import InputError
     from mission.flight.preflight import check_host
 

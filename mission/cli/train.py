@@ -1,4 +1,5 @@
-"""Train a localizer network on simulated datasets and export it to ONNX (needs the [train] extra: torch).
+"""Train a localizer network on simulated datasets and export it to ONNX (needs the [train] extra:
+torch).
 
 Fixed seed, seeded validation split with early stopping, AdamW with cosine decay, input/output
 standardisation and (clustering) augmentation; the ONNX file carries the feature configuration, the
@@ -134,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def check_family(path: str, datasets: list[str]) -> dict:
-    """The family file's record (label, sha256, record); every dataset must have been drawn from it."""
+    """The family file's record (label, sha256, record); every dataset must have been drawn from
+    it."""
     from mission.errors import InputError
     from mission.workshop.dataset import read_manifest
     from mission.workshop.suite import family_label, family_sha256, resolve_family
@@ -158,7 +160,8 @@ def check_family(path: str, datasets: list[str]) -> dict:
 
 
 def record_family(onnx_path, family: dict) -> None:
-    """Add ``physics_family`` to the model's ``training_data`` metadata (what the card and localize read)."""
+    """Add ``physics_family`` to the model's ``training_data`` metadata (what the card and localize
+    read)."""
     import json
     from pathlib import Path
 

@@ -1,10 +1,12 @@
-"""ArduPilot parameters that make its return leg look like the mission: nose first, at the mission's speed.
+"""ArduPilot parameters that make its return leg look like the mission: nose first, at the mission's
+speed.
 
 Why: ArduCopter keeps its last heading on RTL (``WP_YAW_BEHAVIOR`` 2, its default) and returns at
-``WPNAV_SPEED`` (10 m/s in SITL), so the return leg of the AFAR-like spiral was flown backwards, pitched up
-22-24 deg for half a minute.  Before flight the runner sets ``WP_YAW_BEHAVIOR`` = 1 (face the next waypoint,
-RTL included) and ``RTL_SPEED`` (cm/s) = the mission's cruise speed; both also hold for an RTL commanded
-on Ctrl-C.  The previous values are restored after landing, so an operator's vehicle keeps its settings.
+``WPNAV_SPEED`` (10 m/s in SITL), so the return leg of the AFAR-like spiral was flown backwards,
+pitched up 22-24 deg for half a minute.  Before flight the runner sets ``WP_YAW_BEHAVIOR`` = 1 (face
+the next waypoint, RTL included) and ``RTL_SPEED`` (cm/s) = the mission's cruise speed; both also
+hold for an RTL commanded on Ctrl-C.  The previous values are restored after landing, so an
+operator's vehicle keeps its settings.
 """
 
 from __future__ import annotations
@@ -26,9 +28,9 @@ def return_params(cruise_speed_mps: float) -> dict[str, int]:
 async def set_params(
     param, values: dict[str, int | float], old: dict[str, int | float] | None = None
 ) -> dict[str, int | float]:
-    """Set parameters (an ``int`` value as an integer parameter, a ``float`` as a float one); the previous
-    value of each one set goes into ``old`` as soon as it is set (so a failure half way still knows what to
-    restore), which is returned.  Errors propagate."""
+    """Set parameters (an ``int`` value as an integer parameter, a ``float`` as a float one); the
+    previous value of each one set goes into ``old`` as soon as it is set (so a failure half way
+    still knows what to restore), which is returned.  Errors propagate."""
     old = {} if old is None else old
     for name, value in values.items():
         real = isinstance(value, float)

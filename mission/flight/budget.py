@@ -1,26 +1,28 @@
-"""The time budget during a flight: the plan's time per waypoint, the pace measured against it, one warning as
-soon as the remaining plan no longer fits, and the overrun recorded in the sidecar.
+"""The time budget during a flight: the plan's time per waypoint, the pace measured against it, one
+warning as soon as the remaining plan no longer fits, and the overrun recorded in the sidecar.
 
-Why: the pre-flight check (``mission.trajectory.checks``) plans take-off, transit, the trajectory, the return
-and the landing with the mission's kinematics; a real autopilot flies its own way (PX4 v1.16 SITL cruised at a
-median 5.1 m/s where 5.5 was asked and returned at its own 4.8 m/s: 640-651 s against a 539 s plan and a 600 s
-budget, with no warning). During the flight the arm-to-landing time is predicted from the waypoint
-times measured so far (vehicle clock, when the mission progress arrived): ``e_k + (D - T_k - D_land) * pace +
-D_land``, where ``T_k`` is the plan's time at the last waypoint reached, ``e_k`` the measured one, ``D`` the
-plan's total, ``D_land`` its final descent (flown at the autopilot's landing speeds, which a slow cruise does
-not change) and ``pace`` the measured over planned time of the mission legs flown so far (1 until
-``MIN_PACE_S`` of them); it is never less than the time already used. When it passes the budget the runner
-warns once (a line and a ``budget`` event); after landing the sidecar's ``budget`` records planned and used
-seconds and the overrun.
+Why: the pre-flight check (``mission.trajectory.checks``) plans take-off, transit, the trajectory,
+the return and the landing with the mission's kinematics; a real autopilot flies its own way (PX4
+v1.16 SITL cruised at a median 5.1 m/s where 5.5 was asked and returned at its own 4.8 m/s: 640-651
+s against a 539 s plan and a 600 s budget, with no warning). During the flight the arm-to-landing
+time is predicted from the waypoint times measured so far (vehicle clock, when the mission progress
+arrived): ``e_k + (D - T_k - D_land) * pace + D_land``, where ``T_k`` is the plan's time at the last
+waypoint reached, ``e_k`` the measured one, ``D`` the plan's total, ``D_land`` its final descent
+(flown at the autopilot's landing speeds, which a slow cruise does not change) and ``pace`` the
+measured over planned time of the mission legs flown so far (1 until ``MIN_PACE_S`` of them); it is
+never less than the time already used. When it passes the budget the runner warns once (a line and a
+``budget`` event); after landing the sidecar's ``budget`` records planned and used seconds and the
+overrun.
 
-A budget that holds: the pace is fitted per leg once ``MIN_FIT_LEGS`` legs are measured (``Pace``: flown =
-scale x planned + a fixed cost per leg; PX4 v1.16 SITL slows to a stop at every waypoint, 3 s a leg, so it
-fell further behind as the spiral's legs shortened), the return is predicted from wherever the mission would
-end (``BudgetPlan.ret_s``), and touchdown to disarm is the autopilot's known delay (``LANDED_TO_DISARM_S``).
-When the prediction passes the budget less its reserve the mission's ``budget_policy`` acts (``decide``):
-``trim`` (default) drops the tail waypoints that no longer fit, as late as is safe (``TRIM_LOOKAHEAD``
-waypoints before the cut, when the pace is best known), ``return`` returns to launch at once, ``warn`` only
-warns.  The sidecar's ``budget`` records the policy, what was dropped and the measured arm-to-disarm time.
+A budget that holds: the pace is fitted per leg once ``MIN_FIT_LEGS`` legs are measured (``Pace``:
+flown = scale x planned + a fixed cost per leg; PX4 v1.16 SITL slows to a stop at every waypoint, 3
+s a leg, so it fell further behind as the spiral's legs shortened), the return is predicted from
+wherever the mission would end (``BudgetPlan.ret_s``), and touchdown to disarm is the autopilot's
+known delay (``LANDED_TO_DISARM_S``). When the prediction passes the budget less its reserve the
+mission's ``budget_policy`` acts (``decide``): ``trim`` (default) drops the tail waypoints that no
+longer fit, as late as is safe (``TRIM_LOOKAHEAD`` waypoints before the cut, when the pace is best
+known), ``return`` returns to launch at once, ``warn`` only warns.  The sidecar's ``budget`` records
+the policy, what was dropped and the measured arm-to-disarm time.
 """
 
 from __future__ import annotations
@@ -38,8 +40,9 @@ MIN_FIT_LEGS = 4  # measured legs before the per-leg cost is fitted (fewer: the 
 TRIM_LOOKAHEAD = (
     3  # waypoints before the cut at which the tail is dropped (the upload takes a few seconds)
 )
-# touchdown to disarm (s, vehicle clock): not in the kinematic plan.  Measured: PX4 v1.16 SITL 7.2 s (land
-# detector + COM_DISARM_LAND 2 s), ArduCopter 4.7 SITL 3 s; the built-in vehicle disarms at touchdown.
+# touchdown to disarm (s, vehicle clock): not in the kinematic plan.  Measured: PX4 v1.16 SITL 7.2 s
+# (land detector + COM_DISARM_LAND 2 s), ArduCopter 4.7 SITL 3 s; the built-in vehicle disarms at
+# touchdown.
 LANDED_TO_DISARM_S = {"PX4": 7.2, "ARDUPILOT": 3.0}
 
 
@@ -57,9 +60,9 @@ class Pace:
 
 
 def fit_pace(planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray) -> Pace:
-    """Least-squares ``Pace`` from measured segments (each ``n_legs`` legs planned at ``planned`` s in total,
-    flown in ``flown`` s); the ratio alone when the cost per leg would come out negative or the fit is
-    degenerate (legs of one length), scale kept within 0.5..3."""
+    """Least-squares ``Pace`` from measured segments (each ``n_legs`` legs planned at ``planned`` s
+    in total, flown in ``flown`` s); the ratio alone when the cost per leg would come out negative
+    or the fit is degenerate (legs of one length), scale kept within 0.5..3."""
     planned, n_legs, flown = (np.asarray(a, dtype=float) for a in (planned, n_legs, flown))
     ratio = Pace(float(np.clip(flown.sum() / max(planned.sum(), 1e-9), 0.5, 3.0)), 0.0)
     A = np.column_stack([planned, n_legs])
@@ -73,7 +76,8 @@ def fit_pace(planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray) -> Pace
 
 @dataclass
 class BudgetPlan:
-    """Planned arm-to-landing time ``duration_s``, the planned time at each waypoint, and the budget."""
+    """Planned arm-to-landing time ``duration_s``, the planned time at each waypoint, and the
+    budget."""
 
     budget_s: float
     t_wp: np.ndarray
@@ -91,15 +95,16 @@ class BudgetPlan:
             self.ret_s = np.full(len(self.t_wp), self.duration_s - self.land_s - self.t_wp[-1])
 
     def end_s(self, last: int) -> float:
-        """Planned arm-to-disarm seconds when the mission ends at waypoint ``last`` (its tail dropped)."""
+        """Planned arm-to-disarm seconds when the mission ends at waypoint ``last`` (its tail
+        dropped)."""
         return float(self.t_wp[last] + self.ret_s[last] + self.land_s)
 
 
 @dataclass(frozen=True)
 class VerticalSpeeds:
-    """The autopilot's own climb and descent speeds (m/s): take-off at ``up_mps``; the final descent at
-    ``down_mps`` down to ``low_alt_m`` above ground, then at ``land_mps`` (ArduCopter: 0.5 m/s below 10 m,
-    which made its landing 36 s where the mission's kinematics plan 12 s)."""
+    """The autopilot's own climb and descent speeds (m/s): take-off at ``up_mps``; the final descent
+    at ``down_mps`` down to ``low_alt_m`` above ground, then at ``land_mps`` (ArduCopter: 0.5 m/s
+    below 10 m, which made its landing 36 s where the mission's kinematics plan 12 s)."""
 
     up_mps: float
     down_mps: float
@@ -122,10 +127,11 @@ def plan_times(
     vertical: VerticalSpeeds | None = None,
     disarm_s: float = 0.0,
 ) -> BudgetPlan:
-    """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check), with the
-    return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's speed, the
-    take-off and landing at the autopilot's ``vertical`` speeds when known, and ``disarm_s`` from touchdown to
-    disarm; ``ret_s`` holds the return from every waypoint (what a dropped tail leaves)."""
+    """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check),
+    with the return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's
+    speed, the take-off and landing at the autopilot's ``vertical`` speeds when known, and
+    ``disarm_s`` from touchdown to disarm; ``ret_s`` holds the return from every waypoint (what a
+    dropped tail leaves)."""
     path = spec.flight_path_enu()
     kin = spec.kinematics()
     n = len(spec.waypoints_enu())
@@ -179,7 +185,8 @@ def plan_times(
 @dataclass
 class BudgetWatch:
     """Measured waypoint times against the plan; ``update`` returns the warning text once, when due;
-    ``decide`` what the mission's ``policy`` does about a prediction past the budget less ``reserve_s``."""
+    ``decide`` what the mission's ``policy`` does about a prediction past the budget less
+    ``reserve_s``."""
 
     plan: BudgetPlan
     reached_at: list[float] = field(default_factory=list)  # elapsed s when waypoint k was reached
@@ -207,8 +214,8 @@ class BudgetWatch:
         )  # several at once: no pace
 
     def pace_model(self) -> Pace:
-        """The pace of the legs flown so far: fitted per leg from ``MIN_FIT_LEGS`` measured legs (waypoints
-        reached together count as one segment), else the plain ratio (``pace``)."""
+        """The pace of the legs flown so far: fitted per leg from ``MIN_FIT_LEGS`` measured legs
+        (waypoints reached together count as one segment), else the plain ratio (``pace``)."""
         r, t = np.asarray(self.reached_at), self.plan.t_wp[: len(self.reached_at)]
         if len(r) < 2 or t[-1] - t[0] < MIN_PACE_S:
             return Pace(self.pace(), 0.0)
@@ -219,8 +226,8 @@ class BudgetWatch:
         return fit_pace(t[ends] - t[starts], ends - starts, r[ends] - r[starts])
 
     def predict(self, elapsed: float, last: int | None = None) -> float:
-        """Predicted arm-to-disarm seconds given what was measured up to ``elapsed``, the mission ending at
-        waypoint ``last`` (default: the last one kept)."""
+        """Predicted arm-to-disarm seconds given what was measured up to ``elapsed``, the mission
+        ending at waypoint ``last`` (default: the last one kept)."""
         p, k = self.plan, min(len(self.reached_at), self.last + 1) - 1
         last = self.last if last is None else last
         pace = self.pace_model()
@@ -241,8 +248,8 @@ class BudgetWatch:
         return float(max(pred, elapsed))
 
     def update(self, elapsed: float, reached: int) -> str | None:
-        """``reached`` waypoints were reached by ``elapsed`` (s since arming); the warning text once, when
-        the predicted landing time first passes the budget."""
+        """``reached`` waypoints were reached by ``elapsed`` (s since arming); the warning text
+        once, when the predicted landing time first passes the budget."""
         while len(self.reached_at) < min(reached, len(self.plan.t_wp)):
             self.reached_at.append(elapsed)
         self.predicted_s = self.predict(elapsed)
@@ -266,8 +273,9 @@ class BudgetWatch:
         )
 
     def keep_until(self, elapsed: float) -> int:
-        """The last waypoint to keep so that the predicted landing is inside the budget less the reserve:
-        the largest that fits, at least the one being flown to (the vehicle is on its way)."""
+        """The last waypoint to keep so that the predicted landing is inside the budget less the
+        reserve: the largest that fits, at least the one being flown to (the vehicle is on its
+        way)."""
         lo = min(len(self.reached_at), self.last)
         limit = self.plan.budget_s - self.reserve_s
         for j in range(self.last, lo, -1):
@@ -276,8 +284,9 @@ class BudgetWatch:
         return lo
 
     def decide(self, elapsed: float) -> tuple[str, int] | None:
-        """What the policy does now: ("trim", last waypoint kept) when the tail must go and the vehicle is within
-        ``TRIM_LOOKAHEAD`` waypoints of the cut; ("return", -1) at once under ``return``; None otherwise."""
+        """What the policy does now: ("trim", last waypoint kept) when the tail must go and the
+        vehicle is within ``TRIM_LOOKAHEAD`` waypoints of the cut; ("return", -1) at once under
+        ``return``; None otherwise."""
         if self.predicted_s is None or self.predicted_s <= self.plan.budget_s - self.reserve_s:
             return None
         if self.policy == "return" and not any(a["action"] == "return" for a in self.actions):
@@ -290,7 +299,8 @@ class BudgetWatch:
         return None
 
     def apply(self, elapsed: float, action: str, keep: int) -> str:
-        """Record ``action`` (after the autopilot took it); the one line that names what was done."""
+        """Record ``action`` (after the autopilot took it); the one line that names what was
+        done."""
         b, before = self.plan.budget_s, self.predicted_s
         if action == "return":
             self.actions.append(
@@ -317,8 +327,8 @@ class BudgetWatch:
         )
 
     def record(self, used_s: float | None) -> dict:
-        """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was warned, the
-        policy and what it dropped (1-based waypoint numbers, as printed)."""
+        """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was
+        warned, the policy and what it dropped (1-based waypoint numbers, as printed)."""
         b = self.plan.budget_s
         r2 = lambda v: None if v is None or not np.isfinite(v) else round(float(v), 2)  # noqa: E731
         over = used_s is not None and used_s > b
@@ -338,7 +348,8 @@ class BudgetWatch:
 
 
 def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> float | None:
-    """Arm-to-disarm seconds on the vehicle's clock from the flight's events (to now if not disarmed)."""
+    """Arm-to-disarm seconds on the vehicle's clock from the flight's events (to now if not
+    disarmed)."""
     arm = next(
         (e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None),
         t_start,
@@ -353,7 +364,8 @@ def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> flo
 
 
 def arm_to_disarm_s(events: list[dict]) -> float | None:
-    """Arm to disarm on the vehicle's clock, measured only: None when no disarm after the arm was seen."""
+    """Arm to disarm on the vehicle's clock, measured only: None when no disarm after the arm was
+    seen."""
     arm = next(
         (e["t_vehicle_s"] for e in events if e["kind"] == "armed" and e["t_vehicle_s"] is not None),
         None,
@@ -365,16 +377,17 @@ def arm_to_disarm_s(events: list[dict]) -> float | None:
 
 
 def _reached(phase: str, item: int, n: int) -> int | None:
-    """Waypoints reached when the phase tracker says ``phase``/``item`` (None: no mission progress yet)."""
+    """Waypoints reached when the phase tracker says ``phase``/``item`` (None: no mission progress
+    yet)."""
     if phase == "mission":
         return max(item, 0)
     return n if phase in ("adaptive", "return", "land") else None
 
 
 async def watch_budget(ctx, watch: BudgetWatch, mission_raw=None, action=None) -> None:
-    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget`` event) and
-    let the policy act (``act``: needs ``mission_raw`` and ``action``).  Waypoint times are the vehicle times
-    at which the progress arrived (``ctx.phases``), not the poll's."""
+    """Task: every 0.25 s compare the flight's progress with the plan; warn once (line + ``budget``
+    event) and let the policy act (``act``: needs ``mission_raw`` and ``action``).  Waypoint times
+    are the vehicle times at which the progress arrived (``ctx.phases``), not the poll's."""
     s, ph, seen, reached = ctx.status, ctx.phases, 1, 0
     while not ctx.landed_disarmed.is_set():
         await asyncio.sleep(0.25)
@@ -400,9 +413,9 @@ async def watch_budget(ctx, watch: BudgetWatch, mission_raw=None, action=None) -
 
 
 async def act(ctx, watch: BudgetWatch, decision: tuple[str, int], mission_raw, action) -> None:
-    """Carry out ``decision`` (``BudgetWatch.decide``) on the autopilot: the mission re-uploaded without its
-    dropped tail (the current item kept: items already flown keep their indices), or return to launch.  A
-    failed upload leaves the whole mission (safe, over budget) and says so."""
+    """Carry out ``decision`` (``BudgetWatch.decide``) on the autopilot: the mission re-uploaded
+    without its dropped tail (the current item kept: items already flown keep their indices), or
+    return to launch.  A failed upload leaves the whole mission (safe, over budget) and says so."""
     import dataclasses
 
     from mission.spec import TrajectorySpec
@@ -442,11 +455,11 @@ def start_budget(
     vertical: VerticalSpeeds | None,
     ardupilot: bool | None = None,
 ) -> BudgetWatch:
-    """The watch of ``ctx``'s flight, planned with the return, climb and descent speeds the autopilot will
-    fly and its known touchdown-to-disarm delay (``ardupilot`` True/False for a connected autopilot, None for
-    the built-in vehicle); one line with that plan, a warning before take-off when it no longer fits the budget.
-    An adaptive flight's rounds are planned against the budget by the round planner: its survey is only
-    watched."""
+    """The watch of ``ctx``'s flight, planned with the return, climb and descent speeds the
+    autopilot will fly and its known touchdown-to-disarm delay (``ardupilot`` True/False for a
+    connected autopilot, None for the built-in vehicle); one line with that plan, a warning before
+    take-off when it no longer fits the budget. An adaptive flight's rounds are planned against the
+    budget by the round planner: its survey is only watched."""
     spec = ctx.spec
     own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
     known = None if ardupilot is None or not ctx.url else ("ARDUPILOT" if ardupilot else "PX4")

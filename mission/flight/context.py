@@ -1,10 +1,12 @@
-"""One flight's shared state (``FlightContext``), its exit codes and errors, and the waits its coroutines use.
+"""One flight's shared state (``FlightContext``), its exit codes and errors, and the waits its
+coroutines use.
 
-Why: the concerns of a flight (telemetry streams, the watchdog, the log writer, live estimates, the budget,
-an extension such as the adaptive rounds) are standalone coroutines under one ``asyncio.TaskGroup``
-(``mission.flight.runner``); each reads and updates this one context, and none holds a reference to a runner
-object.  The context records events (sidecar ``events`` and one line each), owns the asyncio events the
-coroutines signal each other with, and says which autopilot flies (``Autopilot``), not a raw item count.
+Why: the concerns of a flight (telemetry streams, the watchdog, the log writer, live estimates, the
+budget, an extension such as the adaptive rounds) are standalone coroutines under one
+``asyncio.TaskGroup`` (``mission.flight.runner``); each reads and updates this one context, and none
+holds a reference to a runner object.  The context records events (sidecar ``events`` and one line
+each), owns the asyncio events the coroutines signal each other with, and says which autopilot flies
+(``Autopilot``), not a raw item count.
 """
 
 from __future__ import annotations
@@ -35,8 +37,8 @@ class FlightError(Exception):
 
 
 class Autopilot(StrEnum):
-    """The autopilot family on the link: it decides the mission's raw items (ArduPilot's item 0 is home)
-    and which parameters set the return speed."""
+    """The autopilot family on the link: it decides the mission's raw items (ArduPilot's item 0 is
+    home) and which parameters set the return speed."""
 
     ARDUPILOT = "ardupilot"
     PX4 = "px4"  # PX4 and PX4-like vehicles (the built-in one)
@@ -59,9 +61,9 @@ class VehicleState:
 
 
 class Extension(Protocol):
-    """What a mission adds to a plain flight (``mission.adaptive.rounds.AdaptiveRounds``): the spec flown, the
-    sidecar's trajectory record, its checks once the autopilot's plan is known, a coroutine run while the
-    mission flies, its record and closing lines."""
+    """What a mission adds to a plain flight (``mission.adaptive.rounds.AdaptiveRounds``): the spec
+    flown, the sidecar's trajectory record, its checks once the autopilot's plan is known, a
+    coroutine run while the mission flies, its record and closing lines."""
 
     spec: Any  # the spec whose items are uploaded first (the adaptive survey)
     update_s: float  # live-estimate period (vehicle s)
@@ -77,9 +79,9 @@ class Extension(Protocol):
 
 @dataclass
 class FlightContext:
-    """Everything one flight's coroutines share: what is flown (``spec``, ``opts``), measured state (``tel``,
-    ``st``, ``phases``), what is shown (``status``, ``display``), the log (``rows``: its writer and row joiner)
-    and the flags the coroutines signal each other with."""
+    """Everything one flight's coroutines share: what is flown (``spec``, ``opts``), measured state
+    (``tel``, ``st``, ``phases``), what is shown (``status``, ``display``), the log (``rows``: its
+    writer and row joiner) and the flags the coroutines signal each other with."""
 
     spec: Any  # MissionSpec as uploaded (an extension may fly a part of ``full_spec``)
     opts: Any  # FlyOptions
@@ -135,7 +137,8 @@ class FlightContext:
         return self.autopilot is Autopilot.ARDUPILOT
 
     def event(self, kind: str, text: str, warn: bool = False, show: bool = True) -> None:
-        """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80 columns."""
+        """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80
+        columns."""
         t = (
             self.tel.clock.now() if not self.link_lost else float("nan")
         )  # no extrapolated time stamps
@@ -168,8 +171,8 @@ class FlightContext:
             pass
 
     def vehicle_state(self) -> str:
-        """What is known of the vehicle at the end: ``landed``, ``on the ground`` (never flew), ``in flight``
-        (left flying, link alive) or ``unknown`` (the link was lost while it flew)."""
+        """What is known of the vehicle at the end: ``landed``, ``on the ground`` (never flew), ``in
+        flight`` (left flying, link alive) or ``unknown`` (the link was lost while it flew)."""
         if self.landed_disarmed.is_set():
             return "landed"
         if not self.st.was_in_air:

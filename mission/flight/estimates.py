@@ -1,10 +1,12 @@
-"""The live estimates of every flight: a series from the log as written, the 3-minute fast one, the final one.
+"""The live estimates of every flight: a series from the log as written, the 3-minute fast one, the
+final one.
 
-Why here: every flight has them (adaptive or not).  ``live_estimates`` asks for an estimate every ``update_s``
-vehicle seconds from the log as written (``live.estimate_file_at`` in a worker process, so the loop and
-MAVSDK's callback thread never wait on numpy), the fast estimate 3 minutes after take-off and the final one
-(every mission and adaptive row, up to the switch to the return).  The series goes into the sidecar
-(``estimates``, rewritten through the writer after each, so an abort keeps it).
+Why here: every flight has them (adaptive or not).  ``live_estimates`` asks for an estimate every
+``update_s`` vehicle seconds from the log as written (``live.estimate_file_at`` in a worker process,
+so the loop and MAVSDK's callback thread never wait on numpy), the fast estimate 3 minutes after
+take-off and the final one (every mission and adaptive row, up to the switch to the return).  The
+series goes into the sidecar (``estimates``, rewritten through the writer after each, so an abort
+keeps it).
 """
 
 from __future__ import annotations
@@ -26,8 +28,8 @@ from mission.flightlog import FLOWN_PHASES
 
 @dataclass
 class LiveEstimates:
-    """The worker process and the series of one flight; ``planning``: an extension needs the worker soon (no
-    periodic estimate meanwhile)."""
+    """The worker process and the series of one flight; ``planning``: an extension needs the worker
+    soon (no periodic estimate meanwhile)."""
 
     update_s: float = 5.0
     estimates: list[dict] = field(default_factory=list)
@@ -38,10 +40,10 @@ class LiveEstimates:
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
 
     def start_worker(self) -> None:
-        """spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before connecting.
-        It starts with the terminal's signals ignored (inherited), so a Ctrl-C during its start-up is no
-        ``KeyboardInterrupt`` traceback either; so does multiprocessing's resource tracker (which ignores
-        SIGINT and SIGTERM itself, not SIGHUP)."""
+        """spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before
+        connecting. It starts with the terminal's signals ignored (inherited), so a Ctrl-C during
+        its start-up is no ``KeyboardInterrupt`` traceback either; so does multiprocessing's
+        resource tracker (which ignores SIGINT and SIGTERM itself, not SIGHUP)."""
         with (
             terminal_signals_ignored()
         ):  # the worker (this first submit) and multiprocessing's resource tracker
@@ -54,8 +56,8 @@ class LiveEstimates:
             self.pool.submit(live.warm_up)
 
     def stop_worker(self) -> None:
-        """Stop the worker now: an estimate still running must not hold up the exit (where a Ctrl-C would
-        end the process by the signal instead of exit 130)."""
+        """Stop the worker now: an estimate still running must not hold up the exit (where a Ctrl-C
+        would end the process by the signal instead of exit 130)."""
         if self.pool is not None:
             procs = list(
                 getattr(self.pool, "_processes", None) or {}
@@ -90,7 +92,8 @@ async def until_logged(ctx: FlightContext, t_log: float, timeout: float = 5.0) -
 
 
 async def estimate(ctx: FlightContext, t_log: float | None = None) -> dict | None:
-    """The live estimate from the rows up to ``t_log`` (None: all written so far), in the worker process."""
+    """The live estimate from the rows up to ``t_log`` (None: all written so far), in the worker
+    process."""
     async with ctx.live.lock:
         t = log_time(ctx) if t_log is None else t_log
         fut = ctx.live.pool.submit(live.estimate_file_at, str(ctx.log_path), float(t))
@@ -110,7 +113,8 @@ def _record(ctx: FlightContext, d: dict, what: str = "") -> None:
 
 
 async def live_estimates(ctx: FlightContext) -> None:
-    """Task: the periodic series, the fast estimate at 3 minutes, the final one once the mission ends."""
+    """Task: the periodic series, the fast estimate at 3 minutes, the final one once the mission
+    ends."""
     lv, last = ctx.live, -np.inf
     while True:
         await asyncio.sleep(0.2)
@@ -135,7 +139,8 @@ async def live_estimates(ctx: FlightContext) -> None:
 
 
 async def final_estimate(ctx: FlightContext) -> None:
-    """The in-flight final estimate: every mission and adaptive row, up to the switch to the return."""
+    """The in-flight final estimate: every mission and adaptive row, up to the switch to the
+    return."""
     lv = ctx.live
     if lv.final is not None or ctx.rows is None or ctx.rows.t_ref is None:
         return
@@ -153,8 +158,8 @@ async def final_estimate(ctx: FlightContext) -> None:
 
 
 async def close_estimates(ctx: FlightContext) -> None:
-    """At the close: the final estimate if still due (bounded; not after a second Ctrl-C, which asked to stop
-    now), the series into the sidecar, the worker stopped."""
+    """At the close: the final estimate if still due (bounded; not after a second Ctrl-C, which
+    asked to stop now), the series into the sidecar, the worker stopped."""
     if ctx.rows is not None and not ctx.left_flying:
         with contextlib.suppress(Exception):
             await asyncio.wait_for(final_estimate(ctx), 30.0)

@@ -1,11 +1,12 @@
-"""The ground station's heartbeat at the vehicle's pace, and the autopilot's last texts awaited before landing
-is announced.
+"""The ground station's heartbeat at the vehicle's pace, and the autopilot's last texts awaited
+before landing is announced.
 
-Why: PX4 sends STATUSTEXT on a link only while a ground-station HEARTBEAT arrived within the last 2.5 s of
-its own time, and drops queued texts older than 5 s; MAVSDK heartbeats once per wall-clock second, i.e. every
-10 vehicle seconds at speed-up 10, and 2 to 7 of 9 texts were lost.  This task sends the
-ground station's HEARTBEAT (MAVSDK v4's ``MavlinkDirectAsync.send_message``, same system and component id as
-MAVSDK's own: 245/190) once per *vehicle* second, i.e. ``speed-up`` times per wall second.
+Why: PX4 sends STATUSTEXT on a link only while a ground-station HEARTBEAT arrived within the last
+2.5 s of its own time, and drops queued texts older than 5 s; MAVSDK heartbeats once per wall-clock
+second, i.e. every 10 vehicle seconds at speed-up 10, and 2 to 7 of 9 texts were lost.  This task
+sends the ground station's HEARTBEAT (MAVSDK v4's ``MavlinkDirectAsync.send_message``, same system
+and component id as MAVSDK's own: 245/190) once per *vehicle* second, i.e. ``speed-up`` times per
+wall second.
 """
 
 from __future__ import annotations
@@ -33,9 +34,9 @@ PER_VEHICLE_S = (
 
 
 def heartbeat_hz(speedup: float) -> float:
-    """Wall-clock rate: three heartbeats per vehicle second (at least 1 Hz), well inside PX4's 2.5 s even when
-    the loop runs a few heartbeats late (PX4 SITL at 10x on two loaded cores lost 3 to 6 of 12 texts at one a
-    vehicle second)."""
+    """Wall-clock rate: three heartbeats per vehicle second (at least 1 Hz), well inside PX4's 2.5 s
+    even when the loop runs a few heartbeats late (PX4 SITL at 10x on two loaded cores lost 3 to 6
+    of 12 texts at one a vehicle second)."""
     return max(1.0, PER_VEHICLE_S * float(speedup))
 
 
@@ -61,9 +62,9 @@ async def gcs_heartbeats(ctx, direct, speedup: float) -> None:
 
 
 async def settle_texts(ctx, speedup: float, quiet_s: float = 0.3, most_s: float = 3.0) -> None:
-    """Wait (wall clock) until no autopilot text arrived for ``quiet_s`` and at least 2 vehicle seconds have
-    passed, at most ``most_s``: the texts sent around the disarm ("Disarmed by landing") are then logged
-    before "landed and disarmed", not after it."""
+    """Wait (wall clock) until no autopilot text arrived for ``quiet_s`` and at least 2 vehicle
+    seconds have passed, at most ``most_s``: the texts sent around the disarm ("Disarmed by
+    landing") are then logged before "landed and disarmed", not after it."""
     t0 = time.monotonic()
     least = min(2.0 / max(speedup, 1e-9), most_s)
     while time.monotonic() - t0 < most_s:

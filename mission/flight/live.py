@@ -1,12 +1,14 @@
-"""The estimate a flight has at time T: what ``fly-mission`` shows in flight and ``localize --at T`` reproduces.
+"""The estimate a flight has at time T: what ``fly-mission`` shows in flight and ``localize --at T``
+reproduces.
 
-Why one function for both: the in-flight estimate is computed from the log file itself (the rows written up to
-T, rounded as written), with the same sample selection and method choice as ``localize`` (``localize_log`` with
-no method), so a finished log, real or simulated, gives back exactly the time series the flight recorded, and
-the flight's last estimate is the one ``localize`` prints after landing, not a second opinion beside it.  On an
-adaptive flight that choice is ``methods.ADAPTIVE_METHOD`` (the self-calibrating grid), whose posterior the
-rounds plan on.  In flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's
-thread, so neither the loop nor MAVSDK's callback thread waits on it.
+Why one function for both: the in-flight estimate is computed from the log file itself (the rows
+written up to T, rounded as written), with the same sample selection and method choice as
+``localize`` (``localize_log`` with no method), so a finished log, real or simulated, gives back
+exactly the time series the flight recorded, and the flight's last estimate is the one ``localize``
+prints after landing, not a second opinion beside it.  On an adaptive flight that choice is
+``methods.ADAPTIVE_METHOD`` (the self-calibrating grid), whose posterior the rounds plan on.  In
+flight it runs in a separate process (``estimate_file_at``), never in the asyncio loop's thread, so
+neither the loop nor MAVSDK's callback thread waits on it.
 """
 
 from __future__ import annotations
@@ -28,14 +30,15 @@ LEVEL = 0.9
 def recorded_method(meta: dict) -> str | None:
     """The method a flown log's live estimates used (None: ``localize``'s own choice, or no record).
 
-    Why: logs flown before the live estimate followed ``localize`` recorded ``selfcal``; ``localize --at T`` on
-    them must still give back what that flight showed."""
+    Why: logs flown before the live estimate followed ``localize`` recorded ``selfcal``; ``localize
+    --at T`` on them must still give back what that flight showed."""
     m = (meta.get("live_estimate") or {}).get("method")
     return None if m in (None, DEFAULT_LIVE) else str(m)
 
 
 def log_at(log, t_s: float, source: str | None = None):
-    """The rows of ``log`` with ``t_s`` <= T (a ``FlightLog``); T before the first row is an ``InputError``."""
+    """The rows of ``log`` with ``t_s`` <= T (a ``FlightLog``); T before the first row is an
+    ``InputError``."""
     if not math.isfinite(t_s):
         raise InputError(f"time must be finite, got {t_s}", source=source, field="--at")
     t = np.asarray(log["t_s"], dtype=float)
@@ -50,7 +53,8 @@ def log_at(log, t_s: float, source: str | None = None):
 
 
 def estimate_at(log, t_s: float | None = None, method: str | None = None):
-    """The ``localize_log`` estimate from the rows up to ``t_s`` (None: all rows); ``method`` None: its choice."""
+    """The ``localize_log`` estimate from the rows up to ``t_s`` (None: all rows); ``method`` None:
+    its choice."""
     from mission.localize.api import localize_log
 
     part = log if t_s is None else log_at(log, t_s, str(log.path) if log.path else None)
@@ -58,7 +62,8 @@ def estimate_at(log, t_s: float | None = None, method: str | None = None):
 
 
 def summary(est, t_s: float) -> dict:
-    """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when known)."""
+    """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when
+    known)."""
     reg = next((r for r in est.regions if r["level"] == LEVEL), None)
     d = {
         "t_s": round(float(t_s), 3),
@@ -79,9 +84,11 @@ def summary(est, t_s: float) -> dict:
 
 
 def estimate_file_at(path: str, t_s: float) -> dict | None:
-    """``summary`` of the estimate from the log file's rows up to ``t_s`` (None: too few samples yet).
+    """``summary`` of the estimate from the log file's rows up to ``t_s`` (None: too few samples
+    yet).
 
-    Runs in a worker process: reads the file as far as it is written (a cut last line is dropped)."""
+    Runs in a worker process: reads the file as far as it is written (a cut last line is
+    dropped)."""
     import warnings
 
     from mission.flightlog import read_flight_log
@@ -96,11 +103,13 @@ def estimate_file_at(path: str, t_s: float) -> dict | None:
 
 
 def lower_priority(parent_pid: int | None = None) -> None:
-    """Worker initializer: the estimate yields the CPU to the flight (telemetry, log writer, a local SITL).
+    """Worker initializer: the estimate yields the CPU to the flight (telemetry, log writer, a local
+    SITL).
 
-    The worker also dies with ``fly-mission``: a ``kill -9`` of the flight must not leave it holding the
-    flight's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not available); it
-    ignores the terminal's signals (a Ctrl-C reaches the whole process group): the flight stops it."""
+    The worker also dies with ``fly-mission``: a ``kill -9`` of the flight must not leave it holding
+    the flight's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not
+    available); it ignores the terminal's signals (a Ctrl-C reaches the whole process group): the
+    flight stops it."""
     import os
     import threading
     import time
@@ -122,7 +131,8 @@ def lower_priority(parent_pid: int | None = None) -> None:
 
 
 def warm_up() -> None:
-    """Import the localizer in a fresh worker process (seconds) before the first estimate is needed."""
+    """Import the localizer in a fresh worker process (seconds) before the first estimate is
+    needed."""
     import mission.flightlog  # noqa: F401
     import mission.localize.api  # noqa: F401
 

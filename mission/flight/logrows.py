@@ -1,9 +1,9 @@
 """Log rows of a flight: RSS samples joined with telemetry and phase, rounded as written, appended.
 
 Why: every RSS sample (simulated or from a receiver) becomes one row with the position and attitude
-interpolated to its vehicle time and the mission phase at that time.  Values are rounded exactly as the log
-writes them (``flightlog.rounded``) *before* the sim source evaluates its model, so a log's RSS is
-reproducible offline from its own rows.  The file is fsynced at least twice a second.
+interpolated to its vehicle time and the mission phase at that time.  Values are rounded exactly as
+the log writes them (``flightlog.rounded``) *before* the sim source evaluates its model, so a log's
+RSS is reproducible offline from its own rows.  The file is fsynced at least twice a second.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ def new_flight_dir(out: Path, name: str) -> Path:
 
 
 class RowLogger:
-    """Drains an RSS source up to the telemetry's coverage and appends the joined rows to a log writer."""
+    """Drains an RSS source up to the telemetry's coverage and appends the joined rows to a log
+    writer."""
 
     def __init__(self, writer, source, tel, phases, origin, status) -> None:
         self.writer, self.source, self.tel, self.phases = writer, source, tel, phases
@@ -48,8 +49,8 @@ class RowLogger:
         )
 
     def write(self, final: bool = False) -> None:
-        """Append every sample the telemetry covers (``final``: receivers' samples up to now as well); a failed
-        write (disk full) goes to ``on_error`` once, never up into the caller."""
+        """Append every sample the telemetry covers (``final``: receivers' samples up to now as
+        well); a failed write (disk full) goes to ``on_error`` once, never up into the caller."""
         self._guard(self._write, final)
 
     def flush(self) -> None:

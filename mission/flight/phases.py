@@ -1,10 +1,11 @@
 """The mission phase of a flown vehicle over time, for the ``phase`` / ``mission_item`` log columns.
 
 Why: later steps (localization) select the mission legs of a log; the vehicle's landed state and the
-mission progress say which phase it is in, but they arrive as events.  ``PhaseTracker`` turns them into a
-step function of vehicle time that the log writer reads for each row.  Phase names: ``flightlog.PHASES``.
-A simulated flight has no events: ``simulate.path_phases`` derives the same columns from its planned path
-(same names, same item rule: the index of the waypoint being flown to, counted from the first).
+mission progress say which phase it is in, but they arrive as events.  ``PhaseTracker`` turns them
+into a step function of vehicle time that the log writer reads for each row.  Phase names:
+``flightlog.PHASES``. A simulated flight has no events: ``simulate.path_phases`` derives the same
+columns from its planned path (same names, same item rule: the index of the waypoint being flown to,
+counted from the first).
 """
 
 from __future__ import annotations
@@ -15,15 +16,18 @@ from mission.flightlog import ADAPTIVE, GROUND, LAND, MISSION, RETURN, TAKEOFF
 
 
 def final_phase(return_behaviour: str) -> str:
-    """The phase of a mission's final item: ``land`` for ``return_behaviour: land``, else ``return``."""
+    """The phase of a mission's final item: ``land`` for ``return_behaviour: land``, else
+    ``return``."""
     return LAND if return_behaviour == "land" else RETURN
 
 
 class PhaseTracker:
-    """Phase and mission item as a step function of vehicle time, fed by landed-state and progress events.
+    """Phase and mission item as a step function of vehicle time, fed by landed-state and progress
+    events.
 
-    ``first_wp`` is the raw item index of the first waypoint, ``last_item`` that of the final item (RTL or
-    LAND, ``final`` names which); mission item = raw index - ``first_wp`` while flying the waypoints.
+    ``first_wp`` is the raw item index of the first waypoint, ``last_item`` that of the final item
+    (RTL or LAND, ``final`` names which); mission item = raw index - ``first_wp`` while flying the
+    waypoints.
     """
 
     def __init__(self) -> None:
@@ -41,8 +45,8 @@ class PhaseTracker:
     def configure(
         self, first_wp: int, last_item: int, final: str, first_adaptive: int | None = None
     ) -> None:
-        """Raw indices of the first waypoint and the final item; ``first_adaptive``: raw items from there on
-        are legs planned in flight (``adaptive``, item counted from 0 there)."""
+        """Raw indices of the first waypoint and the final item; ``first_adaptive``: raw items from
+        there on are legs planned in flight (``adaptive``, item counted from 0 there)."""
         self.first_wp, self.last_item, self.final = first_wp, last_item, final
         if first_adaptive is not None:
             self.first_adaptive = first_adaptive
@@ -75,7 +79,8 @@ class PhaseTracker:
             self._set(t, MISSION, self.raw_item - self.first_wp)
 
     def on_landed_state(self, t: float, name: str) -> None:
-        """MAVSDK ``LandedState`` name (ON_GROUND, TAKING_OFF, IN_AIR, LANDING) at vehicle time ``t``."""
+        """MAVSDK ``LandedState`` name (ON_GROUND, TAKING_OFF, IN_AIR, LANDING) at vehicle time
+        ``t``."""
         if name == "ON_GROUND" and self.landed_state != "ON_GROUND":
             self.returning = False
         self.landed_state = name
@@ -110,8 +115,9 @@ __all__ = [
 
 
 class MonotonicPhases(PhaseTracker):
-    """The tracker a flight uses: mission progress never goes back in flight (a re-upload briefly reports item 0
-    before the current item is set again, which must not relabel rows as take-off)."""
+    """The tracker a flight uses: mission progress never goes back in flight (a re-upload briefly
+    reports item 0 before the current item is set again, which must not relabel rows as
+    take-off)."""
 
     def on_progress(self, t: float, raw_item: int) -> None:
         if self.landed_state == "ON_GROUND" or raw_item >= self.raw_item or self.returning:

@@ -1,9 +1,9 @@
-"""The raw MAVLink mission as MAVSDK upload items: ``mission.trajectory.items.build_items`` (the one builder,
-shared with ``rfsl export``) turned into ``mavsdk.plugins.mission_raw.MissionItem``.
+"""The raw MAVLink mission as MAVSDK upload items: ``mission.trajectory.items.build_items`` (the one
+builder, shared with ``rfsl export``) turned into ``mavsdk.plugins.mission_raw.MissionItem``.
 
-Exactly one item carries ``current=1`` (MAVSDK refuses the upload otherwise).  ``upload_with_retries``: the one
-upload of a flight (the mission, each adaptive round, a budget trim); its last failure is one line
-(``UploadFailed``).
+Exactly one item carries ``current=1`` (MAVSDK refuses the upload otherwise).
+``upload_with_retries``: the one upload of a flight (the mission, each adaptive round, a budget
+trim); its last failure is one line (``UploadFailed``).
 """
 
 from __future__ import annotations
@@ -36,9 +36,9 @@ def to_mavsdk(items: list[RawItem]):
 
 
 class UploadFailed(FlightError):
-    """A mission upload the autopilot refused or let time out, in one line (exit 3): the result's name
-    (TIMEOUT, PROTOCOL_ERROR...) and the item count, never the object reprs of MAVSDK's own message (3.5 kB
-    on ArduPilot)."""
+    """A mission upload the autopilot refused or let time out, in one line (exit 3): the result's
+    name (TIMEOUT, PROTOCOL_ERROR...) and the item count, never the object reprs of MAVSDK's own
+    message (3.5 kB on ArduPilot)."""
 
     def __init__(self, message: str) -> None:
         super().__init__(message, EXIT_LINK)
@@ -47,9 +47,9 @@ class UploadFailed(FlightError):
 async def upload_with_retries(
     ctx, mission_raw, items: list[RawItem], kind: str = "upload", tries: int = 3
 ) -> None:
-    """Upload the raw items (``MissionRawAsync.upload_mission``), retrying a failed transfer (a busy link at a
-    high speed-up can time one out) with one warning each (event ``kind``); the last failure is an
-    ``UploadFailed`` naming MAVSDK's result and the item count."""
+    """Upload the raw items (``MissionRawAsync.upload_mission``), retrying a failed transfer (a busy
+    link at a high speed-up can time one out) with one warning each (event ``kind``); the last
+    failure is an ``UploadFailed`` naming MAVSDK's result and the item count."""
     from mavsdk.plugins.mission_raw import MissionRawError
 
     for attempt in range(tries):

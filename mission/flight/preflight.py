@@ -1,7 +1,9 @@
-"""Checks of ``fly-mission``'s options before anything starts (no vehicle, no connection, no upload).
+"""Checks of ``fly-mission``'s options before anything starts (no vehicle, no connection, no
+upload).
 
-Why: a bad ``--rss-source``, a missing FIFO, an ``--out`` that is a file or an unknown ``--connect`` scheme
-must be one line and exit 2 at once, not a failure after the vehicle took off or the mission was uploaded.
+Why: a bad ``--rss-source``, a missing FIFO, an ``--out`` that is a file or an unknown ``--connect``
+scheme must be one line and exit 2 at once, not a failure after the vehicle took off or the mission
+was uploaded.
 """
 
 from __future__ import annotations
@@ -18,8 +20,9 @@ SCHEMES = ("udpin", "udpout", "tcpin", "tcpout", "serial", "serial_flowcontrol",
 
 
 def check_host(host: str, what: str, field: str, source: str | None = None) -> None:
-    """A network address's host: a valid IPv4/IPv6 address when it looks like one (``256.1.1.1`` is bad
-    input, exit 2; an address nobody answers at is a dead link, exit 3), else a plausible host name."""
+    """A network address's host: a valid IPv4/IPv6 address when it looks like one (``256.1.1.1`` is
+    bad input, exit 2; an address nobody answers at is a dead link, exit 3), else a plausible host
+    name."""
     h = host[1:-1] if host.startswith("[") and host.endswith("]") else host
     looks_numeric = bool(re.fullmatch(r"[0-9.]+", h)) or ":" in h
     try:
@@ -43,9 +46,10 @@ _HOSTNAME = re.compile(
 
 
 def check_connect(url: str | None, field: str = "--connect", source: str | None = None) -> None:
-    """A connection URL (``--connect`` or the mission's ``vehicle.connection``) is well formed: a scheme MAVSDK
-    knows, for a network a valid host and port, for a serial link a device that exists.  None: the built-in
-    vehicle; an empty string is refused (it silently flew the built-in vehicle in real time)."""
+    """A connection URL (``--connect`` or the mission's ``vehicle.connection``) is well formed: a
+    scheme MAVSDK knows, for a network a valid host and port, for a serial link a device that
+    exists.  None: the built-in vehicle; an empty string is refused (it silently flew the built-in
+    vehicle in real time)."""
     if url is None:
         return
     example = (
@@ -111,8 +115,8 @@ def check_rss_source(text: str) -> None:
 
 
 def check_out(out: Path) -> None:
-    """``--out`` is a folder (existing or creatable) that can be written, not a file: refused before the
-    vehicle starts (it failed only once the mission was uploaded)."""
+    """``--out`` is a folder (existing or creatable) that can be written, not a file: refused before
+    the vehicle starts (it failed only once the mission was uploaded)."""
     from mission.files import check_writable_dir
 
     for p in (out, *out.parents):
@@ -126,7 +130,8 @@ def check_out(out: Path) -> None:
 
 
 def check_options(opts) -> None:
-    """All checks of ``FlyOptions`` that need no vehicle; raises ``InputError`` on the first problem."""
+    """All checks of ``FlyOptions`` that need no vehicle; raises ``InputError`` on the first
+    problem."""
     check_connect(opts.connect)
     check_rss_source(opts.rss_source)
     check_out(Path(opts.out))

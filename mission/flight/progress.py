@@ -2,7 +2,8 @@
 
 Why: the operator must see at a glance that the flight is on plan, that RSS is arriving, where the
 strongest signal so far was, and any link or receiver trouble.  On a terminal it is a ``rich.live``
-panel; otherwise (CI, a pipe) one plain status line every few seconds, never wrapped, so logs stay readable.
+panel; otherwise (CI, a pipe) one plain status line every few seconds, never wrapped, so logs stay
+readable.
 """
 
 from __future__ import annotations
@@ -57,9 +58,10 @@ def _fmt_rss(v: float) -> str:
 
 
 def render(s: FlightStatus) -> Table:
-    """A two-column table of the status.  Cells are ``Text`` built from markup here, so that the panel
-    looks the same whatever options the console renders it with (a plain ``markup=False`` message line
-    printed under a live panel re-renders the panel with those options: string cells showed raw tags)."""
+    """A two-column table of the status.  Cells are ``Text`` built from markup here, so that the
+    panel looks the same whatever options the console renders it with (a plain ``markup=False``
+    message line printed under a live panel re-renders the panel with those options: string cells
+    showed raw tags)."""
     t = Table(title=Text(f"fly-mission: {s.mission_name}"), show_header=False, expand=False)
     t.add_column(style="bold")
     t.add_column()
@@ -99,8 +101,8 @@ PLAIN_WIDTH = 80
 
 
 def fit_width(text: str, width: int = PLAIN_WIDTH) -> str:
-    """``text`` wrapped at ``width`` columns, continuation lines indented two spaces; a single word longer than
-    that (a path, a URL) stays whole on its own line."""
+    """``text`` wrapped at ``width`` columns, continuation lines indented two spaces; a single word
+    longer than that (a path, a URL) stays whole on its own line."""
     import textwrap
 
     out = []
@@ -112,9 +114,10 @@ def fit_width(text: str, width: int = PLAIN_WIDTH) -> str:
 
 
 class FoldedTexts:
-    """Autopilot texts for the screen, each shown once: a repeat (ArduPilot's "Auto mission changed, restarted
-    command" after every re-upload: 75-112 of 270-376 lines of an adaptive flight) is counted, and ``summary``
-    gives one line per repeated text at the end.  The sidecar keeps every text."""
+    """Autopilot texts for the screen, each shown once: a repeat (ArduPilot's "Auto mission changed,
+    restarted command" after every re-upload: 75-112 of 270-376 lines of an adaptive flight) is
+    counted, and ``summary`` gives one line per repeated text at the end.  The sidecar keeps every
+    text."""
 
     def __init__(self) -> None:
         self.counts: dict[str, int] = {}
@@ -125,7 +128,8 @@ class FoldedTexts:
         return self.counts[text] == 1
 
     def summary(self) -> list[str]:
-        """One line per text seen more than once: the text (shortened to fit 80 columns) and its count."""
+        """One line per text seen more than once: the text (shortened to fit 80 columns) and its
+        count."""
         out = []
         for text, n in self.counts.items():
             if n > 1:
@@ -136,7 +140,8 @@ class FoldedTexts:
 
 
 def plain_line(s: FlightStatus) -> str:
-    """The status as plain text for a log or a pipe: one line, or two when it would pass 80 columns."""
+    """The status as plain text for a log or a pipe: one line, or two when it would pass 80
+    columns."""
     best = (
         "-" if s.best_xy is None else f"{s.best_rss:.1f}dB@({s.best_xy[0]:.0f},{s.best_xy[1]:.0f})"
     )
@@ -150,7 +155,8 @@ def plain_line(s: FlightStatus) -> str:
         f"alt={s.rel_alt:.1f}m rss={_fmt_rss(s.last_rss)} rows={s.rows}"
     )
     tail = f"best={best}" + (f" est={s.estimate}" if s.estimate else "")
-    # a log read at 80 columns: the strongest sample and the live estimate go on a second, indented line
+    # a log read at 80 columns: the strongest sample and the live estimate go on a second, indented
+    # line
     return f"{head} {tail}" if len(head) + 1 + len(tail) <= PLAIN_WIDTH else f"{head}\n  {tail}"
 
 

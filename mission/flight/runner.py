@@ -1,20 +1,22 @@
 """The asyncio flight on MAVSDK v4: connect, check, upload, arm, fly, log RSS, return, land, close.
 
-Why this shape: one ``FlightContext`` (``mission.flight.context``) and standalone coroutines over it under one
-``asyncio.TaskGroup``: one per telemetry stream (``tasks``), the log writer, the watchdog/display, the budget
-watch, the live estimates (``estimates``) and a mission's extension (the adaptive rounds,
-``mission.adaptive.rounds``), so a slow or silent part (a stalled receiver, a lost link) never blocks the
-others; every exit path (end of mission, Ctrl-C/SIGTERM/SIGHUP, link loss, an exception) goes through one
-``finally`` that commands return-to-launch if the vehicle is still flying, waits for the landing (bounded)
-and closes the log.  Telemetry is subscribed right after connecting, so the log starts on the ground before
-arming.  Options are checked (``preflight``) before anything starts.  Times are the vehicle's clock
-(``time_boot_ms``); the sidecar records the measured speed-up and telemetry rates.
+Why this shape: one ``FlightContext`` (``mission.flight.context``) and standalone coroutines over it
+under one ``asyncio.TaskGroup``: one per telemetry stream (``tasks``), the log writer, the
+watchdog/display, the budget watch, the live estimates (``estimates``) and a mission's extension
+(the adaptive rounds, ``mission.adaptive.rounds``), so a slow or silent part (a stalled receiver, a
+lost link) never blocks the others; every exit path (end of mission, Ctrl-C/SIGTERM/SIGHUP, link
+loss, an exception) goes through one ``finally`` that commands return-to-launch if the vehicle is
+still flying, waits for the landing (bounded) and closes the log.  Telemetry is subscribed right
+after connecting, so the log starts on the ground before arming.  Options are checked
+(``preflight``) before anything starts.  Times are the vehicle's clock (``time_boot_ms``); the
+sidecar records the measured speed-up and telemetry rates.
 
-MAVSDK v4 API used (native binding, ``mavsdk.asyncio``): ``Mavsdk(Configuration.create_with_component_type(
-ComponentType.GROUND_STATION))`` as an async context manager, ``add_any_connection``, ``first_autopilot``;
-``TelemetryAsync`` (health, home, attitude_euler, armed, landed_state, set_rate_*), ``ActionAsync`` (arm,
-disarm, return_to_launch), ``MissionRawAsync`` (upload_mission, start_mission, subscribe_mission_progress),
-``ParamAsync`` (ArduPilot return settings) and ``MavlinkDirectAsync`` (GLOBAL_POSITION_INT with its
+MAVSDK v4 API used (native binding, ``mavsdk.asyncio``):
+``Mavsdk(Configuration.create_with_component_type( ComponentType.GROUND_STATION))`` as an async
+context manager, ``add_any_connection``, ``first_autopilot``; ``TelemetryAsync`` (health, home,
+attitude_euler, armed, landed_state, set_rate_*), ``ActionAsync`` (arm, disarm, return_to_launch),
+``MissionRawAsync`` (upload_mission, start_mission, subscribe_mission_progress), ``ParamAsync``
+(ArduPilot return settings) and ``MavlinkDirectAsync`` (GLOBAL_POSITION_INT with its
 ``time_boot_ms``, which the Telemetry plugin's position lacks).
 """
 
@@ -75,10 +77,10 @@ WALL_CALLBACKS_PER_STREAM = (
     600.0  # at most this many per wall-clock second per stream (sped-up vehicles)
 )
 FIRST_ROW_TIMEOUT_S = 20.0  # wall seconds to wait for the first log row before arming
-# While flying, MAVSDK's callback thread needs the GIL for every telemetry message (thousands a second at
-# high speed-up); with CPython's default 5 ms switch interval a busy asyncio thread (log writer, display)
-# makes it wait up to 5 ms per message and MAVSDK's bounded callback queue overflows ("Dropping
-# subscription callbacks").  A 0.5 ms interval bounds that wait.
+# While flying, MAVSDK's callback thread needs the GIL for every telemetry message (thousands a
+# second at high speed-up); with CPython's default 5 ms switch interval a busy asyncio thread (log
+# writer, display) makes it wait up to 5 ms per message and MAVSDK's bounded callback queue
+# overflows ("Dropping subscription callbacks").  A 0.5 ms interval bounds that wait.
 GIL_SWITCH_INTERVAL_S = 0.0005
 SIGNALS = (
     signal.SIGINT,
@@ -88,10 +90,11 @@ SIGNALS = (
 
 
 def auto_rate_hz(speedup: float) -> float:
-    """Position/attitude rate to request (Hz of vehicle time): 50 Hz, lowered for a sped-up vehicle so that
-    each stream stays under ``WALL_CALLBACKS_PER_STREAM`` callbacks per wall-clock second (MAVSDK delivers
-    every message through one bounded callback queue that a Python consumer must keep up with), never
-    below 30 Hz.  At speed-up 20: 30 Hz, i.e. 600 position + 600 attitude callbacks per second."""
+    """Position/attitude rate to request (Hz of vehicle time): 50 Hz, lowered for a sped-up vehicle
+    so that each stream stays under ``WALL_CALLBACKS_PER_STREAM`` callbacks per wall-clock second
+    (MAVSDK delivers every message through one bounded callback queue that a Python consumer must
+    keep up with), never below 30 Hz.  At speed-up 20: 30 Hz, i.e. 600 position + 600 attitude
+    callbacks per second."""
     return max(MIN_RATE_HZ, min(RATE_HZ, WALL_CALLBACKS_PER_STREAM / max(speedup, 1e-9)))
 
 
@@ -123,8 +126,9 @@ class Plugins:
 
 
 def wall_clock_notice(duration_s: float, speedup: float, hint: bool = True) -> str:
-    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint (no vehicle
-    seconds: the one plan figure is the budget's, with the autopilot's own speeds, ``budget.start_budget``)."""
+    """How long a flight of ``duration_s`` vehicle seconds takes on the wall clock, with a hint (no
+    vehicle seconds: the one plan figure is the budget's, with the autopilot's own speeds,
+    ``budget.start_budget``)."""
     wall = duration_s / speedup
     text = f"estimated flight: about {_fmt_wall(wall)} of wall-clock time at speed-up {speedup:g}"
     if hint and speedup < 20 and wall > 60:
@@ -163,8 +167,9 @@ def _interrupt(signum, frame) -> None:
 
 
 def fly(spec, opts: FlyOptions, extension=None) -> int:
-    """Run one flight to the end (blocking); returns the exit code.  Until the flight's own handlers are
-    installed (and after they are removed), SIGTERM and SIGHUP are a Ctrl-C: exit 130, no traceback."""
+    """Run one flight to the end (blocking); returns the exit code.  Until the flight's own handlers
+    are installed (and after they are removed), SIGTERM and SIGHUP are a Ctrl-C: exit 130, no
+    traceback."""
     ctx = new_context(spec, opts, extension)
 
     async def main() -> int:
@@ -194,7 +199,8 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
 
 # ----------------------------------------------------------------- the flight's order
 async def run(ctx: FlightContext) -> int:
-    """Check, start the built-in vehicle if no connection is given, fly; signals abort (RTL once airborne)."""
+    """Check, start the built-in vehicle if no connection is given, fly; signals abort (RTL once
+    airborne)."""
     from mission.flight.preflight import check_options
     from mission.trajectory.checks import assert_flyable
 
@@ -243,7 +249,8 @@ async def run(ctx: FlightContext) -> int:
 
 
 def make_source(spec, rss_source: str):
-    """The RSS source (a receiver, or the simulated one with its true transmitter) and the truth record."""
+    """The RSS source (a receiver, or the simulated one with its true transmitter) and the truth
+    record."""
     from mission.flight.sources import SimSource, make_receiver, parse_source
 
     kind, arg = parse_source(rss_source)
@@ -266,7 +273,8 @@ def make_source(spec, rss_source: str):
 
 
 async def connect(ctx: FlightContext, sdk, url: str):
-    """The first autopilot on ``url`` within ``--link-timeout`` (FlightError with one line otherwise)."""
+    """The first autopilot on ``url`` within ``--link-timeout`` (FlightError with one line
+    otherwise)."""
     from mavsdk.asyncio import Autopilot as SdkAutopilot
 
     ctx.status.stage = "waiting for autopilot"
@@ -289,7 +297,8 @@ async def connect(ctx: FlightContext, sdk, url: str):
 
 
 async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
-    """Connect, then every coroutine of the flight under one task group; the log closed on every path."""
+    """Connect, then every coroutine of the flight under one task group; the log closed on every
+    path."""
     from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
     from mavsdk.asyncio.plugins.action import ActionAsync
     from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
@@ -365,7 +374,8 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
 
 
 async def prepare(ctx: FlightContext, p: Plugins):
-    """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the upload."""
+    """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the
+    upload."""
     from mission.flight.plan import upload_with_retries
     from mission.trajectory.items import build_items
 
@@ -424,7 +434,8 @@ def check_home(ctx: FlightContext, home) -> None:
 
 
 async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: int) -> None:
-    """A new flight folder, the writer with its sidecar (``status: flying``), the first row before arming."""
+    """A new flight folder, the writer with its sidecar (``status: flying``), the first row before
+    arming."""
     from mission.flight.logrows import RowLogger, new_flight_dir
     from mission.flightlog import PHASE_COLUMNS, FlightLogWriter, make_meta
 
@@ -513,8 +524,8 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
 
 
 async def start_mission(ctx: FlightContext, action, mission_raw) -> None:
-    """``start_mission``, retried: a loaded link (PX4 SITL at 10x on two busy cores) timed it out, and PX4
-    disarms an armed vehicle that does not take off within seconds (re-armed then)."""
+    """``start_mission``, retried: a loaded link (PX4 SITL at 10x on two busy cores) timed it out,
+    and PX4 disarms an armed vehicle that does not take off within seconds (re-armed then)."""
     from mavsdk.plugins.mission_raw import MissionRawError
 
     for attempt in range(3):
@@ -533,7 +544,8 @@ async def start_mission(ctx: FlightContext, action, mission_raw) -> None:
 
 
 def _return_outcome(ctx: FlightContext) -> str:
-    """How a commanded return ended, as measured: landed, left in flight (a second signal), or unknown."""
+    """How a commanded return ended, as measured: landed, left in flight (a second signal), or
+    unknown."""
     if ctx.landed_disarmed.is_set():
         return "returned to launch"
     if ctx.left_flying:
@@ -549,7 +561,8 @@ async def safe_return(ctx: FlightContext, action) -> None:
 
 
 async def return_and_land(ctx: FlightContext, action, commanded: bool = True) -> None:
-    """Command RTL (if asked or still flying without a return), then wait for landed and disarmed."""
+    """Command RTL (if asked or still flying without a return), then wait for landed and
+    disarmed."""
     if commanded:
         ctx.phases.on_return(ctx.tel.clock.now())
         for _ in range(5):
@@ -572,9 +585,9 @@ async def return_and_land(ctx: FlightContext, action, commanded: bool = True) ->
 
 
 async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task | None) -> str:
-    """Live estimates and the extension's record, last rows, the coroutines cancelled, autopilot speeds
-    restored, the log closed with its summary, budget and what is known of the vehicle; returns the final
-    status (naming the autopilot parameters left changed, if any)."""
+    """Live estimates and the extension's record, last rows, the coroutines cancelled, autopilot
+    speeds restored, the log closed with its summary, budget and what is known of the vehicle;
+    returns the final status (naming the autopilot parameters left changed, if any)."""
     if live_task is not None:
         live_task.cancel()
         await asyncio.gather(live_task, return_exceptions=True)
@@ -634,7 +647,8 @@ def log_status(ctx: FlightContext, status: str) -> str:
 
 # ----------------------------------------------------------------- after landing
 def print_result(ctx: FlightContext) -> None:
-    """The last lines of the run: the extension's (the in-flight final estimate) or ``localize``'s answer."""
+    """The last lines of the run: the extension's (the in-flight final estimate) or ``localize``'s
+    answer."""
     if ctx.extension is not None:
         print("\n".join(ctx.extension.result_lines(ctx)), flush=True)
         return

@@ -1,9 +1,11 @@
-"""MAVSDK's own log lines, kept off the terminal and turned into one plain warning per kind of trouble.
+"""MAVSDK's own log lines, kept off the terminal and turned into one plain warning per kind of
+trouble.
 
 Why: on a lost link MAVSDK prints e.g. "Connection refused" every second, with raw colour codes; the
-operator needs one line saying the link is lost (the runner's watchdog says that), not a scroll of errors.
-Without ``--verbose`` every MAVSDK line is swallowed; warnings and errors are queued (from MAVSDK's thread)
-and the runner shows the first of each distinct text once (digits ignored), while the link is up.
+operator needs one line saying the link is lost (the runner's watchdog says that), not a scroll of
+errors. Without ``--verbose`` every MAVSDK line is swallowed; warnings and errors are queued (from
+MAVSDK's thread) and the runner shows the first of each distinct text once (digits ignored), while
+the link is up.
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
 class SdkLog:
-    """Subscribes to MAVSDK's log (unless verbose) and hands out new distinct warning/error texts."""
+    """Subscribes to MAVSDK's log (unless verbose) and hands out new distinct warning/error
+    texts."""
 
     def __init__(self, verbose: bool) -> None:
         self.verbose = verbose
@@ -41,7 +44,8 @@ class SdkLog:
         return self
 
     def on_log(self, message: str) -> None:
-        """Queue one MAVSDK warning/error (called on MAVSDK's thread), without terminal colour codes."""
+        """Queue one MAVSDK warning/error (called on MAVSDK's thread), without terminal colour
+        codes."""
         self.queue.append(_ANSI.sub("", message).strip())
 
     def new_messages(self) -> list[str]:

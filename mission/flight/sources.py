@@ -1,14 +1,17 @@
-"""RSS sources behind one interface: ``sim`` (the propagation model), ``aerpaw-fifo`` and ``udp`` receivers.
+"""RSS sources behind one interface: ``sim`` (the propagation model), ``aerpaw-fifo`` and ``udp``
+receivers.
 
-Why one interface: the runner logs whatever produces RSS the same way, so a flight with a real receiver and
-a simulated one give identical logs.  A source is drained by the log task with the telemetry's coverage
-time; it returns the sample times (vehicle clock) it has up to then and, for receivers, their values.  The
-``sim`` source instead *evaluates* the model at the logged (already rounded) position and attitude of each
-row, with one noise draw per row in row order, so a log's RSS is exactly reproducible offline from its
-positions, attitudes and seed (see ``SimSource.evaluate`` and ``recompute_sim_rss``).
+Why one interface: the runner logs whatever produces RSS the same way, so a flight with a real
+receiver and a simulated one give identical logs.  A source is drained by the log task with the
+telemetry's coverage time; it returns the sample times (vehicle clock) it has up to then and, for
+receivers, their values.  The ``sim`` source instead *evaluates* the model at the logged (already
+rounded) position and attitude of each row, with one noise draw per row in row order, so a log's RSS
+is exactly reproducible offline from its positions, attitudes and seed (see ``SimSource.evaluate``
+and ``recompute_sim_rss``).
 
-Receivers (``aerpaw-fifo``, ``udp``) time-stamp a value when it arrives with the vehicle clock estimate
-(``telemetry.VehicleClock``); ``stalled_for`` lets the runner warn when a source stops delivering.
+Receivers (``aerpaw-fifo``, ``udp``) time-stamp a value when it arrives with the vehicle clock
+estimate (``telemetry.VehicleClock``); ``stalled_for`` lets the runner warn when a source stops
+delivering.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ from mission.errors import InputError
 
 
 class RssSource:
-    """Base class: ``start``/``stop`` around a flight, ``drain(t_until)`` -> (times, values or None)."""
+    """Base class: ``start``/``stop`` around a flight, ``drain(t_until)`` -> (times, values or
+    None)."""
 
     kind = "base"
     needs_model = False
@@ -49,7 +53,8 @@ class RssSource:
         """Stop receiving (idempotent)."""
 
     def drain(self, t_until: float) -> tuple[np.ndarray, np.ndarray | None, dict[str, np.ndarray]]:
-        """Samples with time <= ``t_until``: times, values (None: evaluate the model), extra columns."""
+        """Samples with time <= ``t_until``: times, values (None: evaluate the model), extra
+        columns."""
         raise NotImplementedError
 
     def stalled_for(self) -> float:
@@ -62,7 +67,8 @@ class RssSource:
 
 
 class SimSource(RssSource):
-    """The propagation model evaluated at each logged row; noise from a seeded Generator, one draw per row."""
+    """The propagation model evaluated at each logged row; noise from a seeded Generator, one draw
+    per row."""
 
     kind = "sim"
     needs_model = True
@@ -102,7 +108,8 @@ class SimSource(RssSource):
     def evaluate(
         self, lat: np.ndarray, lon: np.ndarray, alt: np.ndarray, att_deg: np.ndarray
     ) -> np.ndarray:
-        """RSS (dBm) at the logged positions/attitudes (the logged decimals) plus the next noise draws."""
+        """RSS (dBm) at the logged positions/attitudes (the logged decimals) plus the next noise
+        draws."""
         enu = self.origin.to_enu(lat, lon, alt)
         rss = np.asarray(
             self.model.rss_dbm(self.tx, enu, np.deg2rad(att_deg)), dtype=float
@@ -121,7 +128,8 @@ class SimSource(RssSource):
 
 
 class _QueueSource(RssSource):
-    """A receiver: values arrive on another thread or callback and are stamped with the vehicle clock."""
+    """A receiver: values arrive on another thread or callback and are stamped with the vehicle
+    clock."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -158,7 +166,8 @@ def parse_float32_le(buf: bytes) -> np.ndarray:
 
 
 class FifoSource(_QueueSource):
-    """AERPAW's channel sounder output: little-endian float32 dB values in a named pipe (or a growing file).
+    """AERPAW's channel sounder output: little-endian float32 dB values in a named pipe (or a
+    growing file).
 
     A named pipe is read from its start (the writer may open it later; a closed writer is waited for
     again); a regular file is followed from its current end, like ``tail -f``.
@@ -227,7 +236,8 @@ class FifoSource(_QueueSource):
 
 
 class UdpSource(_QueueSource):
-    """Datagrams from another receiver: 4 bytes = one float32 little-endian, or text ``t,rss`` / ``rss``.
+    """Datagrams from another receiver: 4 bytes = one float32 little-endian, or text ``t,rss`` /
+    ``rss``.
 
     The value is time-stamped on arrival with the vehicle clock; a sender's own ``t`` is kept in the
     extra column ``src_t_s`` (its clock is not the vehicle's, so it is not used for alignment).
@@ -305,7 +315,8 @@ def make_receiver(kind: str, arg: str) -> RssSource:
 def recompute_sim_rss(
     log, model, seed_rng: np.random.Generator, tx_enu: np.ndarray, noise_db: float
 ) -> np.ndarray:
-    """Offline: the sim source's RSS for a log's rows (same model, tx and generator state) -> (N,)."""
+    """Offline: the sim source's RSS for a log's rows (same model, tx and generator state) ->
+    (N,)."""
     enu = log.enu()
     att = np.stack([log["roll_deg"], log["pitch_deg"], log["yaw_deg"]], axis=-1)
     rss = np.asarray(

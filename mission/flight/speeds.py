@@ -1,12 +1,14 @@
-"""The autopilot's own speeds set to the mission's before flight and restored after it (ArduPilot and PX4).
+"""The autopilot's own speeds set to the mission's before flight and restored after it (ArduPilot
+and PX4).
 
-Why: a mission's time budget holds only if the vehicle flies the speed the plan assumes.  The mission's speed
-item (``MAV_CMD_DO_CHANGE_SPEED``) covers the legs; the return to launch (commanded at the end, on Ctrl-C or
-on a failure) is flown at the autopilot's own speed: ArduPilot's ``RTL_SPEED`` (cm/s; with
-``WP_YAW_BEHAVIOR`` = 1 for a nose-first return, see ``mission.flight.ardupilot``), PX4's ``MPC_XY_CRUISE``
-(m/s, 4.8 on a v1.16 SITL quad, where the spiral's return took a tenth longer than planned).  The
-flight sets them before the upload and restores the operator's values after landing.  If they cannot be
-set, the plan is redone with the speed the autopilot will fly and a warning says whether it still fits.
+Why: a mission's time budget holds only if the vehicle flies the speed the plan assumes.  The
+mission's speed item (``MAV_CMD_DO_CHANGE_SPEED``) covers the legs; the return to launch (commanded
+at the end, on Ctrl-C or on a failure) is flown at the autopilot's own speed: ArduPilot's
+``RTL_SPEED`` (cm/s; with ``WP_YAW_BEHAVIOR`` = 1 for a nose-first return, see
+``mission.flight.ardupilot``), PX4's ``MPC_XY_CRUISE`` (m/s, 4.8 on a v1.16 SITL quad, where the
+spiral's return took a tenth longer than planned).  The flight sets them before the upload and
+restores the operator's values after landing.  If they cannot be set, the plan is redone with the
+speed the autopilot will fly and a warning says whether it still fits.
 """
 
 from __future__ import annotations
@@ -20,14 +22,16 @@ PX4_CRUISE = "MPC_XY_CRUISE"
 
 
 def speed_params(ardupilot: bool, cruise_speed_mps: float) -> dict[str, int | float]:
-    """Parameters that make the autopilot return (and fly legs without a speed item) at the mission's speed."""
+    """Parameters that make the autopilot return (and fly legs without a speed item) at the
+    mission's speed."""
     if ardupilot:
         return return_params(cruise_speed_mps)
     return {PX4_CRUISE: float(cruise_speed_mps)}
 
 
 async def _return_speed_now(param, ardupilot: bool) -> float | None:
-    """The return speed the autopilot will fly with its own settings (m/s), None if it cannot be read."""
+    """The return speed the autopilot will fly with its own settings (m/s), None if it cannot be
+    read."""
     try:
         if ardupilot:
             v = int(await asyncio.wait_for(param.get_param_int("RTL_SPEED"), 5.0))
@@ -40,8 +44,9 @@ async def _return_speed_now(param, ardupilot: bool) -> float | None:
 
 
 async def apply_speeds(ctx, param, ardupilot: bool) -> float | None:
-    """Set the speed parameters (previous values into ``ctx.restore_params``); returns the return speed
-    the autopilot will fly (m/s): the mission's when set, else its own (None when it cannot be read)."""
+    """Set the speed parameters (previous values into ``ctx.restore_params``); returns the return
+    speed the autopilot will fly (m/s): the mission's when set, else its own (None when it cannot be
+    read)."""
     cruise = ctx.spec.cruise_speed_mps
     values = speed_params(ardupilot, cruise)
     try:
@@ -72,11 +77,12 @@ async def _get(param, name: str) -> float:
 
 
 async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
-    """The autopilot's take-off and landing speeds, read (not changed: landing speeds are the operator's safety
-    settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0: ``WPNAV_SPEED_DN``), ``LAND_SPEED`` below
-    ``LAND_ALT_LOW`` (cm/s, cm), the hover ``RTL_LOIT_TIME`` (ms); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``,
-    ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2`` (m/s, m), the hover ``RTL_LAND_DELAY`` (s).
-    None (and one line) when they cannot be read: the plan keeps the mission's."""
+    """The autopilot's take-off and landing speeds, read (not changed: landing speeds are the
+    operator's safety settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0:
+    ``WPNAV_SPEED_DN``), ``LAND_SPEED`` below ``LAND_ALT_LOW`` (cm/s, cm), the hover
+    ``RTL_LOIT_TIME`` (ms); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``, ``MPC_LAND_SPEED`` below
+    ``MPC_LAND_ALT2`` (m/s, m), the hover ``RTL_LAND_DELAY`` (s). None (and one line) when they
+    cannot be read: the plan keeps the mission's."""
     try:
         if ardupilot:
             up, high, dn, land, low = [

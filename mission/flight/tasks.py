@@ -1,10 +1,12 @@
-"""The concurrent concerns of a flight: telemetry streams, vehicle state, signals, the watchdog, the log writer.
+"""The concurrent concerns of a flight: telemetry streams, vehicle state, signals, the watchdog, the
+log writer.
 
-Why: each stream is one standalone coroutine (MAVSDK-Python example style) that only updates the shared
-``FlightContext`` (``Telemetry``, ``PhaseTracker``, ``FlightStatus``, asyncio events); the flight's order
-(``mission.flight.runner``) decides what to do with it.  The watchdog reports a lost link once (and shows it
-in the status line), a silent receiver once, and MAVSDK's own warnings once each.  ``guarded`` wraps each one
-so that a failing stream is one warning, never the end of the flight.
+Why: each stream is one standalone coroutine (MAVSDK-Python example style) that only updates the
+shared ``FlightContext`` (``Telemetry``, ``PhaseTracker``, ``FlightStatus``, asyncio events); the
+flight's order (``mission.flight.runner``) decides what to do with it.  The watchdog reports a lost
+link once (and shows it in the status line), a silent receiver once, and MAVSDK's own warnings once
+each.  ``guarded`` wraps each one so that a failing stream is one warning, never the end of the
+flight.
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ def spawn(ctx: FlightContext, tg: asyncio.TaskGroup, coro, name: str) -> asyncio
 
 
 def on_signal(ctx: FlightContext, name: str) -> None:
-    """SIGINT/SIGTERM/SIGHUP: the first one aborts (return to launch once airborne), a second one stops the
-    wait for the landing."""
+    """SIGINT/SIGTERM/SIGHUP: the first one aborts (return to launch once airborne), a second one
+    stops the wait for the landing."""
     if ctx.abort.is_set():
         if ctx.st.in_air:
             ctx.left_flying = True
@@ -164,8 +166,9 @@ async def logger(ctx: FlightContext) -> None:
 
 
 def log_failed(ctx: FlightContext, error: OSError) -> None:
-    """A log write failed (disk full, file-size limit): said at once (a warning, the status line, the sidecar);
-    by default the flight returns to launch (``logging.on_write_error: continue`` flies on).  Once."""
+    """A log write failed (disk full, file-size limit): said at once (a warning, the status line,
+    the sidecar); by default the flight returns to launch (``logging.on_write_error: continue``
+    flies on).  Once."""
     if ctx.status.log_error:
         return
     why = error.strerror or type(error).__name__

@@ -1,8 +1,9 @@
 """Time-stamped telemetry on the vehicle's clock, and interpolation of it to RSS sample times.
 
-Why: RSS samples and telemetry arrive on different schedules; every logged RSS row carries the position
-and attitude interpolated to *its* time stamp.  All times are the vehicle's (``time_boot_ms``), not the
-wall clock, so that a sped-up simulated vehicle (or a SITL running faster than real time) logs correctly.
+Why: RSS samples and telemetry arrive on different schedules; every logged RSS row carries the
+position and attitude interpolated to *its* time stamp.  All times are the vehicle's
+(``time_boot_ms``), not the wall clock, so that a sped-up simulated vehicle (or a SITL running
+faster than real time) logs correctly.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import numpy as np
 
 
 class Series:
-    """An append-only time series of fixed-width float rows, kept in a bounded ring (the recent past)."""
+    """An append-only time series of fixed-width float rows, kept in a bounded ring (the recent
+    past)."""
 
     def __init__(self, width: int, keep: int = 20000) -> None:
         self.t: deque[float] = deque(maxlen=keep)
@@ -39,7 +41,8 @@ class Series:
         return self.t[0] if self.t else np.inf
 
     def interp(self, tq: np.ndarray, angle_cols: tuple[int, ...] = ()) -> np.ndarray:
-        """Values at times ``tq`` (linear, held at the ends); ``angle_cols`` (radians) are unwrapped first."""
+        """Values at times ``tq`` (linear, held at the ends); ``angle_cols`` (radians) are unwrapped
+        first."""
         # only the recent part that brackets tq is converted (the ring holds minutes of samples)
         t0 = float(np.min(tq)) if len(tq) else np.inf
         k = 0
@@ -62,11 +65,12 @@ class Series:
 
 
 class VehicleClock:
-    """The vehicle's time now, estimated from the last telemetry time stamp and the observed clock rate.
+    """The vehicle's time now, estimated from the last telemetry time stamp and the observed clock
+    rate.
 
     A real autopilot runs at rate 1; a SITL at its speed-up.  The rate is measured over the last few
-    seconds of telemetry (falls back to ``rate_hint``), so that samples from a receiver that knows only
-    the wall clock land at the right vehicle time.
+    seconds of telemetry (falls back to ``rate_hint``), so that samples from a receiver that knows
+    only the wall clock land at the right vehicle time.
     """
 
     def __init__(self, rate_hint: float = 1.0) -> None:
@@ -95,7 +99,8 @@ class VehicleClock:
         return v + (time.monotonic() - w) * self.rate
 
     def last_measured(self) -> float:
-        """The vehicle time of the last telemetry (s), measured, never extrapolated; NaN before any."""
+        """The vehicle time of the last telemetry (s), measured, never extrapolated; NaN before
+        any."""
         return self._hist[-1][1] if self._hist else float("nan")
 
     def silent_for(self) -> float:
@@ -103,7 +108,8 @@ class VehicleClock:
         return time.monotonic() - self.last_wall
 
     def measured_speedup(self) -> float | None:
-        """Vehicle seconds per wall-clock second over all telemetry so far (None before 1 s of it)."""
+        """Vehicle seconds per wall-clock second over all telemetry so far (None before 1 s of
+        it)."""
         if self.first is None or not self._hist:
             return None
         (w0, v0), (w1, v1) = self.first, self._hist[-1]
@@ -111,7 +117,8 @@ class VehicleClock:
 
 
 class Telemetry:
-    """Position (lat, lon, alt AMSL, rel. alt) and attitude (roll, pitch, yaw rad) series, and the clock."""
+    """Position (lat, lon, alt AMSL, rel. alt) and attitude (roll, pitch, yaw rad) series, and the
+    clock."""
 
     def __init__(self, rate_hint: float = 1.0) -> None:
         self.pos = Series(4)
@@ -135,7 +142,8 @@ class Telemetry:
             self.clock.update(t)
 
     def summary(self) -> dict:
-        """Measured speed-up (vehicle time per wall time) and telemetry rates (Hz of vehicle time)."""
+        """Measured speed-up (vehicle time per wall time) and telemetry rates (Hz of vehicle
+        time)."""
 
         def rate(n: int, t0: float, t1: float) -> float | None:
             return round((n - 1) / (t1 - t0), 2) if n > 1 and t1 > t0 else None
@@ -151,11 +159,13 @@ class Telemetry:
 
     @property
     def covered_until(self) -> float:
-        """Latest time at which both position and attitude can be interpolated (not extrapolated)."""
+        """Latest time at which both position and attitude can be interpolated (not
+        extrapolated)."""
         return min(self.pos.last_t, self.att.last_t)
 
     def at(self, tq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Position (N, 4) and attitude (N, 3, radians, yaw wrapped to [0, 2 pi)) at times ``tq``."""
+        """Position (N, 4) and attitude (N, 3, radians, yaw wrapped to [0, 2 pi)) at times
+        ``tq``."""
         p = self.pos.interp(tq)
         a = self.att.interp(tq, angle_cols=(0, 1, 2))
         a[:, 2] = np.mod(a[:, 2], 2 * np.pi)

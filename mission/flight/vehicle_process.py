@@ -1,11 +1,12 @@
 """Starting the built-in simulated vehicle as a child process whose life is tied to the parent's.
 
-Why: ``fly-mission`` without ``--connect`` runs ``python -m sitl.vehicle`` beside itself; a ``kill -9`` of
-``fly-mission`` must not leave it running.  The child asks the kernel for SIGKILL when its parent dies
-(``prctl(PR_SET_PDEATHSIG)``, Linux) and, everywhere, polls its parent pid (``--parent-pid``).  Children
-(the vehicle, the live-estimate worker) ignore the terminal's SIGINT, SIGTERM and SIGHUP
-(``ignore_terminal_signals``): a Ctrl-C or a lost SSH session reaches the whole process group, and the
-parent, not the signal, decides when they stop (after the landing), so it stops them itself (SIGKILL).
+Why: ``fly-mission`` without ``--connect`` runs ``python -m sitl.vehicle`` beside itself; a ``kill
+-9`` of ``fly-mission`` must not leave it running.  The child asks the kernel for SIGKILL when its
+parent dies (``prctl(PR_SET_PDEATHSIG)``, Linux) and, everywhere, polls its parent pid
+(``--parent-pid``).  Children (the vehicle, the live-estimate worker) ignore the terminal's SIGINT,
+SIGTERM and SIGHUP (``ignore_terminal_signals``): a Ctrl-C or a lost SSH session reaches the whole
+process group, and the parent, not the signal, decides when they stop (after the landing), so it
+stops them itself (SIGKILL).
 """
 
 from __future__ import annotations
@@ -32,8 +33,8 @@ def free_udp_port() -> int:
 
 
 def die_with_parent() -> None:
-    """In a child: have the kernel send SIGKILL when the parent dies (Linux; elsewhere a no-op).  SIGKILL,
-    because the child ignores the terminal's SIGTERM."""
+    """In a child: have the kernel send SIGKILL when the parent dies (Linux; elsewhere a no-op).
+    SIGKILL, because the child ignores the terminal's SIGTERM."""
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
@@ -42,15 +43,16 @@ def die_with_parent() -> None:
 
 
 def ignore_terminal_signals() -> None:
-    """In a child: ignore SIGINT, SIGTERM and SIGHUP (inherited through exec, and a Python started with SIGINT
-    ignored installs no KeyboardInterrupt), so only its parent stops it."""
+    """In a child: ignore SIGINT, SIGTERM and SIGHUP (inherited through exec, and a Python started
+    with SIGINT ignored installs no KeyboardInterrupt), so only its parent stops it."""
     for sig in TERMINAL_SIGNALS:
         signal.signal(sig, signal.SIG_IGN)
 
 
 @contextlib.contextmanager
 def terminal_signals_ignored():
-    """Ignore SIGINT/SIGTERM/SIGHUP in this (main) thread while a child starts, then put the handlers back."""
+    """Ignore SIGINT/SIGTERM/SIGHUP in this (main) thread while a child starts, then put the
+    handlers back."""
     old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in TERMINAL_SIGNALS}
     try:
         yield
@@ -74,8 +76,9 @@ def spawn_vehicle(
 ) -> subprocess.Popen:
     """Start the simulated vehicle (``python -m sitl.vehicle``) sending to 127.0.0.1:``port``.
 
-    ``kin`` is the mission's full ``Kinematics`` (cruise speed, acceleration, climb rate, corner exponent,
-    yaw rate, ...), passed as JSON so that the flown time matches the pre-flight budget check.
+    ``kin`` is the mission's full ``Kinematics`` (cruise speed, acceleration, climb rate, corner
+    exponent, yaw rate, ...), passed as JSON so that the flown time matches the pre-flight budget
+    check.
     """
     cmd = [
         sys.executable,

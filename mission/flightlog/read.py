@@ -1,7 +1,7 @@
 """Reading flight logs: parse and validate a CSV and its sidecar into a ``FlightLog``.
 
-Any problem is an ``InputError`` naming the file, row and column; real-log quirks (repeated timestamps, a
-last line cut by a crash, no sidecar, an incomplete flight) are accepted with a note.
+Any problem is an ``InputError`` naming the file, row and column; real-log quirks (repeated
+timestamps, a last line cut by a crash, no sidecar, an incomplete flight) are accepted with a note.
 """
 
 from __future__ import annotations
@@ -54,12 +54,13 @@ def _parse_column(values: list[str], name: str, source: str, allow_empty: bool) 
 
 
 def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog:
-    """Read and validate a flight log; any problem is an ``InputError`` naming the file, row and column.
+    """Read and validate a flight log; any problem is an ``InputError`` naming the file, row and
+    column.
 
-    Rows are numbered as lines of the file (the header is line 1).  Real-log quirks are accepted with a
-    note in ``FlightLog.notes``: repeated timestamps (first kept), a last line cut short by a crash
-    (dropped), a missing sidecar, a flight the sidecar says did not complete.  ``origin`` (e.g. from
-    ``--origin``) replaces the sidecar's.
+    Rows are numbered as lines of the file (the header is line 1).  Real-log quirks are accepted
+    with a note in ``FlightLog.notes``: repeated timestamps (first kept), a last line cut short by a
+    crash (dropped), a missing sidecar, a flight the sidecar says did not complete.  ``origin``
+    (e.g. from ``--origin``) replaces the sidecar's.
     """
     from mission.files import check_regular, read_bytes
 
@@ -107,7 +108,8 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
 
 
 def _written_here(path: Path) -> bool:
-    """True when the log's sidecar says ``FlightLogWriter`` wrote it (so every complete row ends in a newline)."""
+    """True when the log's sidecar says ``FlightLogWriter`` wrote it (so every complete row ends in
+    a newline)."""
     try:
         meta = json.loads(sidecar_path(path).read_text())
         return isinstance(meta, dict) and str(meta.get("format", "")).startswith("rfsl-flight-log")
@@ -118,12 +120,13 @@ def _written_here(path: Path) -> bool:
 def _drop_cut_last_line(
     text: str, header: list[str], newline_ends_rows: bool = False
 ) -> tuple[str, str | None]:
-    """Drop a last line cut short (fields missing, a required value empty or unreadable, or, in a log this
-    project wrote, no line end) and say so.
+    """Drop a last line cut short (fields missing, a required value empty or unreadable, or, in a
+    log this project wrote, no line end) and say so.
 
-    Why: a logger killed mid-write leaves exactly this, and the rows before it are good; the same damage
-    in the middle of a file is refused by the parser with its row.  ``FlightLogWriter`` ends every row with a
-    newline, so in its logs a last line without one was cut even when what is left still parses (-71.5 -> -7).
+    Why: a logger killed mid-write leaves exactly this, and the rows before it are good; the same
+    damage in the middle of a file is refused by the parser with its row.  ``FlightLogWriter`` ends
+    every row with a newline, so in its logs a last line without one was cut even when what is left
+    still parses (-71.5 -> -7).
     """
     lines = text.rstrip().splitlines()
     if len(lines) < 3:  # header + one data row: nothing would be left, let the parser report it
@@ -156,10 +159,10 @@ def _drop_cut_last_line(
 def _fast_parse(text: str, header: list[str]) -> dict[str, np.ndarray] | None:
     """The CSV body as column arrays in one vectorised pass, or None when anything is unusual.
 
-    Numeric columns become float64 (an empty field NaN); an extra column that is not all numbers (``phase``)
-    is kept as text, as the row-by-row parser keeps it.  Quotes, ragged rows, a bad number in a format
-    column or an infinite value return None: the caller falls back to the row-by-row parser, which names the
-    offending row.
+    Numeric columns become float64 (an empty field NaN); an extra column that is not all numbers
+    (``phase``) is kept as text, as the row-by-row parser keeps it.  Quotes, ragged rows, a bad
+    number in a format column or an infinite value return None: the caller falls back to the
+    row-by-row parser, which names the offending row.
     """
     body = text.split("\n", 1)[1] if "\n" in text else ""
     lines = [ln for ln in body.splitlines() if ln.strip()]
@@ -227,7 +230,8 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
     return columns, len(rows)
 
 
-# Magnitudes no real value reaches: a larger one is a unit or logging error, not data (1e300 dBm gave NaN).
+# Magnitudes no real value reaches: a larger one is a unit or logging error, not data (1e300 dBm
+# gave NaN).
 _ABS_LIMITS = {"alt_m": 20000.0, "rel_alt_m": 20000.0}
 
 
@@ -238,7 +242,8 @@ def _validated(
     notes: list[str] | None = None,
     origin: Origin | None = None,
 ) -> FlightLog:
-    """Check time order, units and ranges; attach the sidecar; drop repeated timestamps with a note."""
+    """Check time order, units and ranges; attach the sidecar; drop repeated timestamps with a
+    note."""
     notes = [] if notes is None else notes
     t = columns["t_s"]
     bad = np.flatnonzero(np.diff(t) < 0)
@@ -315,8 +320,9 @@ MAX_SIDECAR_BYTES = (
     10_000_000  # a sidecar with every live estimate of a long flight is well under 1 MB
 )
 
-# The sidecar keys the readers use, with the JSON types they expect (dotted: a key inside an object). A value of
-# another type (a string where an object belongs) reached the user as an AttributeError.
+# The sidecar keys the readers use, with the JSON types they expect (dotted: a key inside an
+# object). A value of another type (a string where an object belongs) reached the user as an
+# AttributeError.
 SIDECAR_TYPES: dict[str, tuple[type, ...]] = {
     "format": (str,),
     "status": (str,),
@@ -345,8 +351,8 @@ SIDECAR_TYPES: dict[str, tuple[type, ...]] = {
 
 
 def check_types(d: dict, types: dict[str, tuple[type, ...]], source: str) -> None:
-    """Every key of ``types`` present (not null) in ``d`` has one of its types; else an InputError naming the
-    dotted key.  A number must be finite; bool is not a number."""
+    """Every key of ``types`` present (not null) in ``d`` has one of its types; else an InputError
+    naming the dotted key.  A number must be finite; bool is not a number."""
     for key, ok in types.items():
         head, _, tail = key.rpartition(".")
         parent = d
@@ -378,7 +384,8 @@ def check_types(d: dict, types: dict[str, tuple[type, ...]], source: str) -> Non
 
 
 def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> dict:
-    """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and key)."""
+    """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and
+    key)."""
     sc = sidecar_path(path)
     if not sc.exists():
         where = (

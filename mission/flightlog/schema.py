@@ -1,7 +1,7 @@
 """The flight-log format: column names, the sidecar's layout and ``FlightLog``, a log in memory.
 
-Reading (with its validation) is ``flightlog.read``, writing ``flightlog.write``; ``mission.flightlog``
-exports all three.
+Reading (with its validation) is ``flightlog.read``, writing ``flightlog.write``;
+``mission.flightlog`` exports all three.
 """
 
 from __future__ import annotations
@@ -29,16 +29,18 @@ COLUMNS = (
     "yaw_deg",
     "rss_dbm",
 )
-# The RSS a log may hold, dB(m): a real receiver's "dBm" is uncalibrated (the AFAR sounder reads up to +33), so
-# "above 0 dBm" is no bound; a value outside this range is a unit or logging error, not a reading (+300 passed).
+# The RSS a log may hold, dB(m): a real receiver's "dBm" is uncalibrated (the AFAR sounder reads up
+# to +33), so "above 0 dBm" is no bound; a value outside this range is a unit or logging error, not
+# a reading (+300 passed).
 RSS_RANGE_DB = (-250.0, 100.0)
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
-# Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of PHASES,
-# ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the mission phase);
-# ``adaptive``: legs planned in flight from the live posterior (``mission.flight.adaptive``), item = their index.
-# Two producers derive it: ``flight.phases.PhaseTracker`` from a flown vehicle's events, ``simulate.path_phases``
-# from a planned path's geometry; both name phases by these constants, in this order.
+# Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of
+# PHASES, ``mission_item`` the 0-based index of the mission waypoint being flown to (-1 outside the
+# mission phase); ``adaptive``: legs planned in flight from the live posterior
+# (``mission.flight.adaptive``), item = their index. Two producers derive it:
+# ``flight.phases.PhaseTracker`` from a flown vehicle's events, ``simulate.path_phases`` from a
+# planned path's geometry; both name phases by these constants, in this order.
 PHASES = ("ground", "takeoff", "mission", "adaptive", "return", "land")
 GROUND, TAKEOFF, MISSION, ADAPTIVE, RETURN, LAND = PHASES
 FLOWN_PHASES = (MISSION, ADAPTIVE)  # the legs a localizer uses
@@ -57,8 +59,8 @@ class FlightLog:
     columns: dict[str, np.ndarray]
     meta: dict = field(default_factory=dict)
     path: Path | None = None
-    # What reading accepted with a remark (CLIs print one line each); those that put the result in doubt
-    # start with WARNING (no sidecar, a flight that did not complete).
+    # What reading accepted with a remark (CLIs print one line each); those that put the result in
+    # doubt start with WARNING (no sidecar, a flight that did not complete).
     notes: list[str] = field(default_factory=list)
 
     def __len__(self) -> int:
@@ -77,14 +79,16 @@ class FlightLog:
 
     @property
     def label(self) -> str:
-        """The flight's name for titles: its folder for ``flights/<time>/flight.csv``, else the file's stem."""
+        """The flight's name for titles: its folder for ``flights/<time>/flight.csv``, else the
+        file's stem."""
         if self.path is None:
             return "flight"
         p = Path(self.path)
         return p.parent.name if p.stem == "flight" and p.parent.name else p.stem
 
     def enu(self, origin: Origin | None = None) -> np.ndarray:
-        """UAV positions (N, 3) in the local ENU frame; z is the height above the origin's ground."""
+        """UAV positions (N, 3) in the local ENU frame; z is the height above the origin's
+        ground."""
         o = origin or self.origin
         return o.to_enu(self["lat_deg"], self["lon_deg"], self["alt_m"])
 
@@ -123,9 +127,11 @@ class FlightLog:
         )
 
     def samples(self, origin: Origin | None = None) -> FlightSamples:
-        """The log as ``FlightSamples`` (positions in ``origin``'s ENU frame, the log's own by default).
+        """The log as ``FlightSamples`` (positions in ``origin``'s ENU frame, the log's own by
+        default).
 
-        The truth is the sidecar's, which is in the log's own frame: it is left out under another origin.
+        The truth is the sidecar's, which is in the log's own frame: it is left out under another
+        origin.
         """
         phase = self.columns.get("phase")
         own = origin is None or origin == self.origin
@@ -142,7 +148,8 @@ class FlightLog:
 
 
 def make_meta(origin: Origin, rss_source: dict, truth: dict | None = None, **extra) -> dict:
-    """Sidecar metadata in the project's layout (``rss_source`` e.g. {"kind": "sim", "model": "e2r", "seed": 1})."""
+    """Sidecar metadata in the project's layout (``rss_source`` e.g. {"kind": "sim", "model": "e2r",
+    "seed": 1})."""
     meta = {
         "format": "rfsl-flight-log/1",
         "software_version": __version__,

@@ -1,7 +1,8 @@
-"""Writing flight logs: vectorised CSV rows with fixed digits per column, a crash-safe appending writer.
+"""Writing flight logs: vectorised CSV rows with fixed digits per column, a crash-safe appending
+writer.
 
-Why here: the digits a column is written with are part of the format (``rounded`` gives a value exactly as
-it will be read back, so what a simulated source used is what the log holds).
+Why here: the digits a column is written with are part of the format (``rounded`` gives a value
+exactly as it will be read back, so what a simulated source used is what the log holds).
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ DEFAULT_DIGITS = 6
 
 
 def rounded(values, column: str) -> np.ndarray:
-    """``values`` rounded exactly as the log writes ``column`` (decimal text read back): logged == used."""
+    """``values`` rounded exactly as the log writes ``column`` (decimal text read back): logged ==
+    used."""
     return np.char.mod(
         f"%.{DIGITS.get(column, DEFAULT_DIGITS)}f", np.asarray(values, dtype=float)
     ).astype(float)
@@ -47,8 +49,8 @@ def rounded(values, column: str) -> np.ndarray:
 def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
     """CSV text (no header) for column arrays, vectorised; NaN becomes an empty field.
 
-    Numeric columns get the digits of ``DIGITS``; text columns (str/object arrays such as ``phase``) are
-    written as they are and must not contain commas, quotes or newlines.
+    Numeric columns get the digits of ``DIGITS``; text columns (str/object arrays such as ``phase``)
+    are written as they are and must not contain commas, quotes or newlines.
     """
     n = len(columns["t_s"])
     if n == 0:
@@ -71,12 +73,14 @@ def format_rows(columns: dict[str, np.ndarray], header: tuple[str, ...]) -> str:
 
 
 class FlightLogWriter:
-    """Appends rows to a flight log and flushes them to disk, so a crash loses at most the unflushed rows.
+    """Appends rows to a flight log and flushes them to disk, so a crash loses at most the unflushed
+    rows.
 
-    The sidecar is written when the writer opens (so a log is never without its metadata), updated in flight
-    (``update_meta``) and rewritten by ``close`` (with ``meta_updates`` such as the end status).  A failed write
-    (a full disk, a file-size limit: ``OSError``) is raised once and leaves the CSV cut back to the rows last
-    flushed whole (``rows``, ``error``); later appends are dropped, so the sidecar's ``rows`` matches the file.
+    The sidecar is written when the writer opens (so a log is never without its metadata), updated
+    in flight (``update_meta``) and rewritten by ``close`` (with ``meta_updates`` such as the end
+    status).  A failed write (a full disk, a file-size limit: ``OSError``) is raised once and leaves
+    the CSV cut back to the rows last flushed whole (``rows``, ``error``); later appends are
+    dropped, so the sidecar's ``rows`` matches the file.
     """
 
     def __init__(self, path: str | Path, meta: dict, extra_columns: tuple[str, ...] = ()) -> None:
@@ -101,8 +105,9 @@ class FlightLogWriter:
         os.replace(tmp, sidecar_path(self.path))
 
     def update_meta(self, **updates) -> None:
-        """Update the sidecar now (an in-flight record such as the live estimates, the status), written whole
-        (temporary name, then rename), so a crash or an abort keeps what was recorded so far."""
+        """Update the sidecar now (an in-flight record such as the live estimates, the status),
+        written whole (temporary name, then rename), so a crash or an abort keeps what was recorded
+        so far."""
         self.meta.update(updates)
         self._write_sidecar()
 
@@ -130,7 +135,8 @@ class FlightLogWriter:
         self._good = (self._f.tell(), self.rows)
 
     def _fail(self, e: OSError) -> None:
-        """Stop writing rows: the file cut back to its last whole flush (no partial line), ``rows`` to match."""
+        """Stop writing rows: the file cut back to its last whole flush (no partial line), ``rows``
+        to match."""
         self.error = e
         size, self.rows = self._good
         with contextlib.suppress(OSError, ValueError):
@@ -139,7 +145,8 @@ class FlightLogWriter:
             os.truncate(self.path, size)
 
     def close(self, **meta_updates) -> None:
-        """Flush and close the CSV, then write the sidecar with ``meta_updates`` and the row count."""
+        """Flush and close the CSV, then write the sidecar with ``meta_updates`` and the row
+        count."""
         if self._closed:
             return
         self._closed = True
@@ -164,12 +171,12 @@ class FlightLogWriter:
 def write_flight_log(
     path: str | Path, columns: dict[str, np.ndarray], meta: dict, overwrite: bool = False
 ) -> Path:
-    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond ``COLUMNS``
-    (such as ``PHASE_COLUMNS``) are written after them in the dict's order.
+    """Write a whole log (CSV + sidecar) at once, e.g. from the simulator; columns beyond
+    ``COLUMNS`` (such as ``PHASE_COLUMNS``) are written after them in the dict's order.
 
-    Both files are written whole or not at all (``mission.files.writing``): a full disk leaves neither a
-    truncated CSV beside a sidecar nor a sidecar alone.  An existing log (CSV or sidecar) is refused unless
-    ``overwrite``."""
+    Both files are written whole or not at all (``mission.files.writing``): a full disk leaves
+    neither a truncated CSV beside a sidecar nor a sidecar alone.  An existing log (CSV or sidecar)
+    is refused unless ``overwrite``."""
     from mission.files import write_text, writing
 
     path = Path(path)

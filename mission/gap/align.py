@@ -1,9 +1,9 @@
 """Per-sample alignment: the geometry every candidate effect needs, computed once per flight.
 
-Why: every breakdown of the residual (by distance, depression, body azimuth, world azimuth, attitude,
-flight segment, position) and every candidate effect reads the same few geometric quantities; computing them
-once, vectorised, keeps the diagnosis fast and makes the breakdown and the effects agree on conventions
-(SPEC section 1, ``mission.physics.geometry``).
+Why: every breakdown of the residual (by distance, depression, body azimuth, world azimuth,
+attitude, flight segment, position) and every candidate effect reads the same few geometric
+quantities; computing them once, vectorised, keeps the diagnosis fast and makes the breakdown and
+the effects agree on conventions (SPEC section 1, ``mission.physics.geometry``).
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ SEGMENTS = ("climb", "cruise", "turn", "descent")
 
 @dataclass
 class Alignment:
-    """Per-sample geometry of one flight w.r.t. its transmitter (arrays of length N, angles in radians)."""
+    """Per-sample geometry of one flight w.r.t. its transmitter (arrays of length N, angles in
+    radians)."""
 
     d_h: np.ndarray  # horizontal distance UAV-transmitter (m)
     d_3d: np.ndarray  # direct-ray length (m)
@@ -64,7 +65,8 @@ def flight_segment(
     turn_thresh_deg_s: float = 12.0,
     smooth_s: float = 1.0,
 ) -> np.ndarray:
-    """Flight segment per sample (index into SEGMENTS): climb/descent by vertical speed, turn by yaw rate, else cruise.
+    """Flight segment per sample (index into SEGMENTS): climb/descent by vertical speed, turn by yaw
+    rate, else cruise.
 
     Rates are taken from telemetry smoothed over ``smooth_s`` (GPS heights are noisy at 30 Hz).
     """
@@ -90,7 +92,8 @@ def flight_segment(
 
 
 def align(flight: FlightSamples) -> Alignment:
-    """Compute the per-sample geometry of ``flight`` (vectorised; it needs the truth and the attitude)."""
+    """Compute the per-sample geometry of ``flight`` (vectorised; it needs the truth and the
+    attitude)."""
     rx = flight.enu_m
     tx = np.asarray(flight.tx_enu_m, dtype=float)
     att = flight.attitude_rad
@@ -112,8 +115,9 @@ def align(flight: FlightSamples) -> Alignment:
 def flight_from_log(
     log, tx_enu: np.ndarray | None = None, name: str | None = None
 ) -> FlightSamples:
-    """A ``mission.flightlog.FlightLog``'s samples ready for diagnosis: truth from the sidecar unless given,
-    attitude required (NaN read as 0), samples without RSS dropped, named after the file's stem."""
+    """A ``mission.flightlog.FlightLog``'s samples ready for diagnosis: truth from the sidecar
+    unless given, attitude required (NaN read as 0), samples without RSS dropped, named after the
+    file's stem."""
     from mission.errors import InputError
 
     src = str(log.path) if log.path is not None else (name or "log")
@@ -138,8 +142,9 @@ def flight_from_log(
 
 
 def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[FlightSamples]:
-    """The six AFAR 2023 challenge flights (teams 288, 328; rover locations 1-3) with their rover truth,
-    airborne samples only; named ``<team>-loc<n>``.  Used by the real-flight benchmark scripts."""
+    """The six AFAR 2023 challenge flights (teams 288, 328; rover locations 1-3) with their rover
+    truth, airborne samples only; named ``<team>-loc<n>``.  Used by the real-flight benchmark
+    scripts."""
     from pathlib import Path
 
     from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat

@@ -1,7 +1,8 @@
 """One candidate effect of the gap diagnosis: its parameters, how to build, fit and withhold it.
 
-Why a module of its own: the effect library (``candidates``), the free-form shapes (``freeform``) and the
-spatial smoother (``spatial``) all define candidates; the fitting code (``fit``) only needs this interface.
+Why a module of its own: the effect library (``candidates``), the free-form shapes (``freeform``)
+and the spatial smoother (``spatial``) all define candidates; the fitting code (``fit``) only needs
+this interface.
 """
 
 from __future__ import annotations
@@ -12,11 +13,11 @@ from typing import Any
 
 from mission.gap.pipeline import Pipeline
 
-# ranking tiers (``mission.gap.fit.rank_key``): named physical effects explain, free-form shapes describe,
-# smoothers interpolate
+# ranking tiers (``mission.gap.fit.rank_key``): named physical effects explain, free-form shapes
+# describe, smoothers interpolate
 TIER_NAMED, TIER_FREEFORM, TIER_SMOOTHER = "named", "free-form", "smoother"
-# candidates fixed to the UAV's body (its angles) and to the ground: when one of each explains a residual,
-# ``mission.gap.frame`` tests which holds out across headings
+# candidates fixed to the UAV's body (its angles) and to the ground: when one of each explains a
+# residual, ``mission.gap.frame`` tests which holds out across headings
 FRAME_BODY = (
     "leg_shadowing",
     "rx_gain_map",

@@ -1,9 +1,13 @@
-"""The effect library: named, parameterised candidate effects that the diagnosis tries one at a time.
+"""The effect library: named, parameterised candidate effects that the diagnosis tries one at a
+time.
 
-Why: "which effect is missing?" is answered by adding each candidate to the current model, fitting its
-parameters on training blocks and measuring the held-out gap (``mission.gap.fit``).  Each candidate knows
+Why: "which effect is missing?" is answered by adding each candidate to the current model, fitting
+its parameters on training blocks and measuring the held-out gap (``mission.gap.fit``).  Each
+candidate knows
 (a) whether it can be tried on a pipeline, (b) how to build the pipeline for given parameter values,
-(c) its parameter bounds and a coarse start grid (angles are multimodal), and (d) how to *withhold* it from
+(c) its parameter bounds and a coarse start grid (angles are multimodal), and (d) how to *withhold*
+    it from
+    it from
 a truth pipeline (for the self-test).  A candidate whose effect is already in the model *refits* it (e.g.
 the ground permittivity of an e2r base); one that is absent *adds* it.
 
@@ -29,8 +33,9 @@ the ground permittivity of an e2r base); one that is absent *adds* it.
 | ``spatial_shadowing`` | smoother: kriged residuals over the field (``mission.gap.spatial``) | sigma_db, corr_len_m |
 | ``site_map`` | smoother: per transmitter position, compass azimuth x log distance map (``spatial``) | ridge coefs |
 
-(*) the UAV antenna heading is fitted jointly with the (yaw) attitude when the UAV pattern depends on azimuth:
-without yaw a heading is a fixed compass direction, with yaw and a wrong heading the pattern is turned wrongly.
+(*) the UAV antenna heading is fitted jointly with the (yaw) attitude when the UAV pattern depends
+on azimuth: without yaw a heading is a fixed compass direction, with yaw and a wrong heading the
+pattern is turned wrongly.
 """
 
 from __future__ import annotations
@@ -75,7 +80,8 @@ def pattern_by_name(name: str) -> Pattern:
     return makers[name]()
 
 
-# ------------------------------------------------------------------------------------------- antennas
+# -------------------------------------------------------------------------------------------
+# antennas
 
 _PATTERN_CHOICES = (
     {"pattern": "isotropic", "flipped": False},
@@ -131,8 +137,9 @@ def _antenna_mounting_candidate(end: str) -> Candidate:
         return p.replace(model=p.model.with_effect(e))
 
     def applicable(p: Pipeline) -> bool:
-        # the UAV antenna's heading is relative to the nose: meaningless unless the model turns the body by the
-        # logged yaw (attitude or yaw_attitude); the rover's frame is fixed (forward = north)
+        # the UAV antenna's heading is relative to the nose: meaningless unless the model turns the
+        # body by the logged yaw (attitude or yaw_attitude); the rover's frame is fixed (forward =
+        # north)
         return (
             p.model.has(eff)
             and not p.model.effect(eff).pattern.azimuth_symmetric
@@ -187,7 +194,8 @@ def _tx_tilt_candidate() -> Candidate:
     )
 
 
-# ------------------------------------------------------------------------------------------- channel
+# -------------------------------------------------------------------------------------------
+# channel
 
 
 def _ground_candidate() -> Candidate:
@@ -223,10 +231,11 @@ def _rx_azimuthal(p: Pipeline) -> bool:
 def _attitude_like_candidate(roll_pitch: bool) -> Candidate:
     """``attitude`` (roll, pitch, yaw) or ``yaw_attitude`` (yaw only, body level).
 
-    Adding the body frame makes the UAV antenna's heading relative to the nose meaningful, and a wrong heading
-    can make the yaw look useless (and vice versa: a heading without yaw is a fixed compass direction), so
-    when the UAV pattern depends on azimuth the candidate fits that heading jointly (``heading_deg``).
-    ``attitude`` also applies on top of yaw-only attitude (does roll/pitch add anything?).
+    Adding the body frame makes the UAV antenna's heading relative to the nose meaningful, and a
+    wrong heading can make the yaw look useless (and vice versa: a heading without yaw is a fixed
+    compass direction), so when the UAV pattern depends on azimuth the candidate fits that heading
+    jointly (``heading_deg``). ``attitude`` also applies on top of yaw-only attitude (does
+    roll/pitch add anything?).
     """
 
     def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
@@ -291,7 +300,8 @@ def _path_gain_slope_candidate() -> Candidate:
     )
 
 
-# leg layouts the legs candidate tries: the paper's three legs, and a quad's four (an X, 90 deg apart)
+# leg layouts the legs candidate tries: the paper's three legs, and a quad's four (an X, 90 deg
+# apart)
 LEG_LAYOUTS: dict[str, tuple[float, ...]] = {
     "paper": tuple(LEG_AZIMUTHS_DEG),
     "quad": (45.0, 135.0, 225.0, 315.0),
@@ -331,7 +341,8 @@ def _legs_candidate() -> Candidate:
     )
 
 
-# ------------------------------------------------------------------------------------ around the channel
+# ------------------------------------------------------------------------------------ around the
+# channel
 
 
 def _time_offset_candidate() -> Candidate:
@@ -358,7 +369,8 @@ def _receiver_candidate() -> Candidate:
     def withhold(p: Pipeline) -> Pipeline:
         return p.replace(receiver=None)
 
-    # bounds are relative to the model's dB scale; fit.py rescales them to the data (see ``relative``)
+    # bounds are relative to the model's dB scale; fit.py rescales them to the data (see
+    # ``relative``)
     return Candidate(
         "receiver",
         "receiver noise floor and saturation",
@@ -370,7 +382,8 @@ def _receiver_candidate() -> Candidate:
     )
 
 
-# ------------------------------------------------------------------------------------------- library
+# -------------------------------------------------------------------------------------------
+# library
 
 
 def library() -> dict[str, Candidate]:

@@ -1,8 +1,8 @@
 """What a pipeline's fitted parameters are, in words and numbers (for the report and ``gap.json``).
 
-Why a module of its own: the fitting (``fit``), the candidates and the diagnosis all describe pipelines,
-and the candidates build on the free-form and smoother modules; a description that lives below all of
-them keeps the imports one-way.
+Why a module of its own: the fitting (``fit``), the candidates and the diagnosis all describe
+pipelines, and the candidates build on the free-form and smoother modules; a description that lives
+below all of them keeps the imports one-way.
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
-"""The whole diagnosis of one set of flights: the gap, where it lies, which effect, how far it shrinks.
+"""The whole diagnosis of one set of flights: the gap, where it lies, which effect, how far it
+shrinks.
 
-Why one function: the CLI, the self-test, the real-flight benchmark and the tests all need the same sequence
-(alignment -> gap of the reference models -> residual breakdown with block-bootstrap flags -> candidate
-ranking and greedy ladder on held-out data -> localization cost per rung), and a single ``Diagnosis`` object
-is what the report renders.
+Why one function: the CLI, the self-test, the real-flight benchmark and the tests all need the same
+sequence (alignment -> gap of the reference models -> residual breakdown with block-bootstrap flags
+-> candidate ranking and greedy ladder on held-out data -> localization cost per rung), and a single
+``Diagnosis`` object is what the report renders.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ BREAKDOWN_EDGES: dict[str, np.ndarray] = {
 
 
 def base_pipeline(name: str = "e2r", pattern: str = "dipole", **params: Any) -> Pipeline:
-    """A pipeline from a reference model name (``make_model``) and an antenna pattern for both ends."""
+    """A pipeline from a reference model name (``make_model``) and an antenna pattern for both
+    ends."""
     return Pipeline(make_model(name, pattern=pattern, **params))
 
 
@@ -107,7 +109,8 @@ def residual_breakdown(
     rng: np.random.Generator,
     n_boot: int = 300,
 ) -> list[BinnedResidual]:
-    """Residual by distance, depression, body/world azimuth, attitude and flight segment, with flagged bins."""
+    """Residual by distance, depression, body/world azimuth, attitude and flight segment, with
+    flagged bins."""
     out = []
     for var, edges in BREAKDOWN_EDGES.items():
         xs = [a.as_dict()[var] for a in al]
@@ -135,7 +138,8 @@ def field_map(
     cell_m: float = 20.0,
     n_boot: int = 200,
 ) -> dict[str, Any]:
-    """Mean residual on a grid of ``cell_m`` cells over the field, with block-bootstrap flags per cell."""
+    """Mean residual on a grid of ``cell_m`` cells over the field, with block-bootstrap flags per
+    cell."""
     x = np.concatenate([a.x for a in al])
     y = np.concatenate([a.y for a in al])
     x0, y0 = np.floor(x.min() / cell_m) * cell_m, np.floor(y.min() / cell_m) * cell_m
@@ -176,10 +180,11 @@ def localization_cost(
     max_points: int = 1500,
     split: str = "blocks",
 ) -> list[dict[str, Any]]:
-    """Model-based grid-search error per rung and flight (``mission.localize.classical.ModelGridSearch``).
+    """Model-based grid-search error per rung and flight
+    (``mission.localize.classical.ModelGridSearch``).
 
-    With ``split="flights"`` flight k is localized with the rung fitted without it (fold k): held-out
-    localization; otherwise with the first fold's fit.
+    With ``split="flights"`` flight k is localized with the rung fitted without it (fold k):
+    held-out localization; otherwise with the first fold's fit.
     """
     from mission.localize.classical import ModelGridSearch
 
@@ -212,7 +217,8 @@ def localization_cost(
 
 
 def decimate_flight(f: FlightSamples, rate_hz: float) -> FlightSamples:
-    """Every k-th sample so that the rate is at most ``rate_hz`` (0: unchanged); times stay absolute."""
+    """Every k-th sample so that the rate is at most ``rate_hz`` (0: unchanged); times stay
+    absolute."""
     if rate_hz <= 0 or len(f) < 3:
         return f
     dt = float(np.median(np.diff(f.t_s)))
@@ -258,9 +264,9 @@ def diagnose(
 ) -> Diagnosis:
     """Run the full diagnosis (see the module docstring).
 
-    ``cfg.rate_hz`` > 0 first thins every flight to that sample rate (the residual is correlated over
-    seconds, so 3 Hz loses little and makes every fit and bootstrap ~10x cheaper on 30 Hz logs).
-    ``progress``: True for a rich progress bar, or a ``(description, done, total)`` callback.
+    ``cfg.rate_hz`` > 0 first thins every flight to that sample rate (the residual is correlated
+    over seconds, so 3 Hz loses little and makes every fit and bootstrap ~10x cheaper on 30 Hz
+    logs). ``progress``: True for a rich progress bar, or a ``(description, done, total)`` callback.
     """
     from mission.gap.spatial import usable_candidates
     from mission.gap.structure import footprint, residual_structure

@@ -1,14 +1,16 @@
-"""From a diagnosis to a physics family: each ladder effect fitted per flight, its spread, the residual structure.
+"""From a diagnosis to a physics family: each ladder effect fitted per flight, its spread, the
+residual structure.
 
-Why: the diagnosis says *which* effects close the gap on the real flights; the rest of the product (simulated
-benchmarks, training sets) needs a *distribution* of physics that spreads the way the real flights spread
-(``mission.physics.family``, schema 1).  Every effect the ladder added is mapped to what a model spec can
-express (``FAMILY_EFFECT``: the free-form UAV map becomes the UAV antenna pattern and heading it resembles, the
-excess loss a path-gain slope, the smoothers the correlated residual), fitted on each flight alone (all its
-samples, soft-L1), and its per-flight values become a distribution (normal over flights, physical bounds;
-a categorical pattern becomes a variant with its share of flights).  The residual of each flight after that
-fit, held out (two folds of alternate chunks), gives the correlated shadowing (gaussian variogram over space:
-sigma, range, nugget), the white noise and the held-out p90; the offsets give ``offset_db``.
+Why: the diagnosis says *which* effects close the gap on the real flights; the rest of the product
+(simulated benchmarks, training sets) needs a *distribution* of physics that spreads the way the
+real flights spread (``mission.physics.family``, schema 1).  Every effect the ladder added is mapped
+to what a model spec can express (``FAMILY_EFFECT``: the free-form UAV map becomes the UAV antenna
+pattern and heading it resembles, the excess loss a path-gain slope, the smoothers the correlated
+residual), fitted on each flight alone (all its samples, soft-L1), and its per-flight values become
+a distribution (normal over flights, physical bounds; a categorical pattern becomes a variant with
+its share of flights).  The residual of each flight after that fit, held out (two folds of alternate
+chunks), gives the correlated shadowing (gaussian variogram over space: sigma, range, nugget), the
+white noise and the held-out p90; the offsets give ``offset_db``.
 """
 
 from __future__ import annotations
@@ -85,13 +87,15 @@ MIN_HEIGHT_M = (
 
 
 def team_of(name: str) -> str:
-    """Team of an AFAR flight from its name (``..exp_288_loc_1``, ``288_loc_1``, ``288-loc1``), else the name."""
+    """Team of an AFAR flight from its name (``..exp_288_loc_1``, ``288_loc_1``, ``288-loc1``), else
+    the name."""
     m = re.search(r"(\d+)[_-]loc_?\d+", name)
     return m.group(1) if m else name
 
 
 def effects_of_ladder(added: Sequence[str | None]) -> tuple[list[str], list[str]]:
-    """Family effects (in ``EFFECT_ORDER``) of the rungs ``added``, and the rungs no spec can hold."""
+    """Family effects (in ``EFFECT_ORDER``) of the rungs ``added``, and the rungs no spec can
+    hold."""
     eff = {FAMILY_EFFECT.get(a) for a in added if a}
     left = [a for a in added if a and FAMILY_EFFECT.get(a, None) is None]
     return [e for e in EFFECT_ORDER if e in eff], left
@@ -124,7 +128,8 @@ def base_family_pipeline() -> Pipeline:
     return Pipeline(build_model(FAMILY_BASE, name="family-base"))
 
 
-# continuous spec parameters polished jointly: (key, start grid, simplex step, lo, hi); headings are periodic
+# continuous spec parameters polished jointly: (key, start grid, simplex step, lo, hi); headings are
+# periodic
 _JOINT = (
     (
         "rx_heading_deg",
@@ -147,10 +152,10 @@ def fit_effects(
     cfg: FitConfig,
     rng: np.random.Generator,
 ) -> Pipeline:
-    """The family effects fitted in order on one flight's samples ``idx`` (multi-start fits of ``fit.py``), then
-    their continuous parameters polished jointly (``polish``: a heading fitted before the slope is biased).
-    An antenna pattern is chosen with its heading fitted for every choice (a measured pattern at a wrong
-    heading loses to a dipole)."""
+    """The family effects fitted in order on one flight's samples ``idx`` (multi-start fits of
+    ``fit.py``), then their continuous parameters polished jointly (``polish``: a heading fitted
+    before the slope is biased). An antenna pattern is chosen with its heading fitted for every
+    choice (a measured pattern at a wrong heading loses to a dipole)."""
     for eff in effects:
         names = EFFECT_FITS[eff]
         if eff in ("rx_antenna", "tx_antenna"):
@@ -188,8 +193,8 @@ def _fit_antenna(
 
 
 def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfig) -> Pipeline:
-    """Joint multi-start Nelder-Mead over the spec's continuous parameters (headings on a grid, the others from
-    the sequential fit), the three best starts polished."""
+    """Joint multi-start Nelder-Mead over the spec's continuous parameters (headings on a grid, the
+    others from the sequential fit), the three best starts polished."""
     import itertools
 
     from mission.gap.fit import decimate, minimize_from_grid, objective
@@ -258,7 +263,8 @@ def fit_flight(
     seed: int = 0,
     label: str | None = None,
 ) -> FlightFit:
-    """Fit the family effects on one flight; residual structure from two folds of alternate chunks."""
+    """Fit the family effects on one flight; residual structure from two folds of alternate
+    chunks."""
     rng = np.random.default_rng(seed)
     cfg = FitConfig(**{**cfg.__dict__, "fit_max_samples": min(cfg.fit_max_samples, FIT_SAMPLES)})
     flight = (
@@ -277,8 +283,9 @@ def fit_flight(
         held[fold.test[0]] = residuals(p, [flight], fold.test, cfg)[0]
     vg = residual_variogram(flight, held, rng)
     p90 = float(np.quantile(np.abs(held[np.isfinite(held)]), 0.9))
-    # the variogram's sill (lags up to 200 m, gaussian) misses the heavy tail and the largest scales; the family's
-    # shadowing std is set so that the gaussian p90 1.645 sqrt(s^2 + n^2) equals the held-out p90
+    # the variogram's sill (lags up to 200 m, gaussian) misses the heavy tail and the largest
+    # scales; the family's shadowing std is set so that the gaussian p90 1.645 sqrt(s^2 + n^2)
+    # equals the held-out p90
     vg["variogram_sigma_db"] = vg["shadowing_db"]
     vg["shadowing_db"] = float(math.sqrt(max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2, 0.0)))
     vg["sill_db"] = float(math.hypot(vg["variogram_sigma_db"], vg["noise_db"]))
@@ -290,10 +297,10 @@ def fit_flight(
 def residual_variogram(
     flight: FlightSamples, r: np.ndarray, rng: np.random.Generator
 ) -> dict[str, float]:
-    """Gaussian-covariance variogram over space (the covariance ``simulate_rss`` draws): sigma and range; the
-    white noise from consecutive samples (half the mean squared difference of neighbours < 10 m apart), not
-    from the variogram's nugget, which a fit to 5 m lag bins puts too low (and a re-fit of flights simulated
-    with it lower still)."""
+    """Gaussian-covariance variogram over space (the covariance ``simulate_rss`` draws): sigma and
+    range; the white noise from consecutive samples (half the mean squared difference of neighbours
+    < 10 m apart), not from the variogram's nugget, which a fit to 5 m lag bins puts too low (and a
+    re-fit of flights simulated with it lower still)."""
     ok = np.isfinite(r)
     vg = fit_variogram(
         flight.enu_m[ok, :2],
@@ -337,13 +344,15 @@ def _spread(vals: Sequence[float], teams: Sequence[str]) -> dict[str, Any]:
         }
     if len(by) > 1:
         out["per_team"] = by
-        # between-team share of the spread (what a new team may add beyond a new flight of a known team)
+        # between-team share of the spread (what a new team may add beyond a new flight of a known
+        # team)
         out["team_sd"] = float(np.std([b["mean"] for b in by.values()], ddof=1))
     return out
 
 
 def _normal(s: dict[str, Any], key: str) -> Any:
-    """A parameter's family distribution: normal over flights (sd at least the between-team sd), clipped."""
+    """A parameter's family distribution: normal over flights (sd at least the between-team sd),
+    clipped."""
     sd = max(s["sd"], s.get("team_sd", 0.0))
     if sd <= 0:
         return s["mean"]
@@ -373,8 +382,9 @@ def build_family(
     source: dict[str, Any] | None = None,
     not_in_family: Sequence[str] = (),
 ) -> dict[str, Any]:
-    """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads and intervals.
-    Flights marked ``excluded`` are listed in ``per_flight`` but enter no distribution."""
+    """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads
+    and intervals. Flights marked ``excluded`` are listed in ``per_flight`` but enter no
+    distribution."""
     every = list(fits)
     fits = [f for f in fits if not f.excluded] or every
     teams = [f.team for f in fits]
@@ -441,8 +451,9 @@ def build_family(
 
 
 def intervals(spreads: dict[str, Any]) -> dict[str, list[float]]:
-    """Per parameter, the interval a re-diagnosis must fall in: the per-flight range widened by one standard
-    error of the flights' mean on each side (a re-fit mean over as many flights scatters by about that)."""
+    """Per parameter, the interval a re-diagnosis must fall in: the per-flight range widened by one
+    standard error of the flights' mean on each side (a re-fit mean over as many flights scatters by
+    about that)."""
     out = {}
     for k, s in spreads.items():
         if "min" not in s:

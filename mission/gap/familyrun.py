@@ -1,9 +1,10 @@
 """From a diagnosis to a checked physics family (``rfsl gap --family F.json``).
 
-Why a module of its own: the per-flight fits (``familyfit``) and the loop-closing check (``loopcheck``,
-which re-runs those fits on simulated flights) are separate jobs; this one strings them together -- fit the
-ladder's effects per flight, check the loop, recalibrate the shadowing while the check misses -- so that
-the check may import the fits without the fits importing the check.
+Why a module of its own: the per-flight fits (``familyfit``) and the loop-closing check
+(``loopcheck``, which re-runs those fits on simulated flights) are separate jobs; this one strings
+them together -- fit the ladder's effects per flight, check the loop, recalibrate the shadowing
+while the check misses -- so that the check may import the fits without the fits importing the
+check.
 """
 
 from __future__ import annotations
@@ -23,9 +24,10 @@ def family_from_diagnosis(
     check: bool = True,
     repeats: int = 4,
 ) -> dict[str, Any]:
-    """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per flight; with
-    ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on, in ``checks.loop``
-    (``repeats`` simulated copies of every track: one copy of five flights scatters by +-1.5 dB in p90)."""
+    """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per
+    flight; with ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on,
+    in ``checks.loop`` (``repeats`` simulated copies of every track: one copy of five flights
+    scatters by +-1.5 dB in p90)."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
     rec, fits = fit_family(
         d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left

@@ -2,22 +2,26 @@
 
 Why these choices:
 
-- The receiver's dB are uncalibrated (SPEC section 5), so every comparison removes a per-flight constant
-  offset (and, optionally, a per-flight path-gain slope: ``meas ~ c + s * pred``) fitted on the very samples
-  being scored.  This costs one (two) degrees of freedom per flight and fold, the same for every candidate.
+- The receiver's dB are uncalibrated (SPEC section 5), so every comparison removes a per-flight
+  constant offset (and, optionally, a per-flight path-gain slope: ``meas ~ c + s * pred``) fitted on
+  the very samples being scored.  This costs one (two) degrees of freedom per flight and fold, the
+  same for every candidate.
 - Candidates are fitted on training blocks and scored on the complementary blocks ("cross-fitting"):
-  each flight is cut into ``n_chunks`` contiguous chunks (default 8, tens of seconds each, far longer than
-  the residual's correlation time) and the two folds are the even and the odd chunks, so both folds see the
-  whole geometry; or (``split="flights"``) each whole flight is held out in turn.  Never random samples:
-  neighbouring samples share their shadowing, so a random split would reward over-fitting.
-- Ranking: by the held-out mean reduction of the per-sample loss (squared error, or soft-L1 for real data
-  with deep fades); significance by a circular block bootstrap of that reduction (block length from its
-  autocorrelation, per flight), one-sided at ``alpha / m`` (Bonferroni over the m candidates tried), and
-  at least ``min_rel`` relative reduction (a practically negligible gain is not "significant").
-- The greedy ladder adds the best significant candidate, keeps its fitted parameters (fold by fold) and
-  ranks the remaining ones on top, until none is significant.  Spatially correlated shadowing is a
-  catch-all (kriged residuals absorb any smooth misfit, and would go stale when a channel effect is added
-  after it), so it joins the ladder only once no structured effect is significant; it is always ranked.
+  each flight is cut into ``n_chunks`` contiguous chunks (default 8, tens of seconds each, far
+  longer than the residual's correlation time) and the two folds are the even and the odd chunks, so
+  both folds see the whole geometry; or (``split="flights"``) each whole flight is held out in turn.
+  Never random samples: neighbouring samples share their shadowing, so a random split would reward
+  over-fitting.
+- Ranking: by the held-out mean reduction of the per-sample loss (squared error, or soft-L1 for real
+  data with deep fades); significance by a circular block bootstrap of that reduction (block length
+  from its autocorrelation, per flight), one-sided at ``alpha / m`` (Bonferroni over the m
+  candidates tried), and at least ``min_rel`` relative reduction (a practically negligible gain is
+  not "significant").
+- The greedy ladder adds the best significant candidate, keeps its fitted parameters (fold by fold)
+  and ranks the remaining ones on top, until none is significant.  Spatially correlated shadowing is
+  a catch-all (kriged residuals absorb any smooth misfit, and would go stale when a channel effect
+  is added after it), so it joins the ladder only once no structured effect is significant; it is
+  always ranked.
 """
 
 from __future__ import annotations
@@ -79,9 +83,10 @@ class Fold:
 
 
 def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
-    """Contiguous-chunk folds (even/odd chunks), or whole flights held out: one flight per fold up to
-    ``cfg.max_folds`` flights, beyond that the flights are dealt round-robin into ``max_folds`` groups (the
-    cost of a diagnosis grows with folds x training samples, so it stays bounded for many flights)."""
+    """Contiguous-chunk folds (even/odd chunks), or whole flights held out: one flight per fold up
+    to ``cfg.max_folds`` flights, beyond that the flights are dealt round-robin into ``max_folds``
+    groups (the cost of a diagnosis grows with folds x training samples, so it stays bounded for
+    many flights)."""
     if cfg.split == "flights" and len(flights) >= 2:
         k_folds = min(len(flights), cfg.max_folds)
         folds = []
@@ -122,8 +127,8 @@ def residuals(
     cfg: FitConfig,
     cache: list[np.ndarray] | None = None,
 ) -> list[np.ndarray]:
-    """Offset-removed residuals per flight on the samples ``idx`` (``pipeline.offset_residuals`` with the
-    config's slope and loss; ``cache``: channel predictions to reuse)."""
+    """Offset-removed residuals per flight on the samples ``idx`` (``pipeline.offset_residuals``
+    with the config's slope and loss; ``cache``: channel predictions to reuse)."""
     return offset_residuals(pipe, flights, idx, cfg.slope, cfg.loss, cfg.f_scale_db, cache)
 
 
@@ -184,7 +189,8 @@ def fit_candidate(
     cfg: FitConfig,
     rng: np.random.Generator,
 ) -> CandidateFit:
-    """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded Nelder-Mead."""
+    """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded
+    Nelder-Mead."""
     n_used = max(1, sum(len(i) > 0 for i in idx))
     idx = [
         decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx
@@ -201,7 +207,8 @@ def fit_candidate(
         ]
     params = cand.params_for(pipe)
     names = [p.name for p in params]
-    # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over seconds)
+    # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over
+    # seconds)
     idx_c = [i[::4] for i in idx]
     cache_c = None if cache is None else [c[::4] for c in cache]
     best: CandidateFit | None = None
@@ -300,7 +307,8 @@ class CandidateResult:
     tier: str = TIER_NAMED
 
     def params_mean(self) -> dict[str, Any]:
-        """Fold-averaged parameters (circular mean for angles); categorical ones from the first fold."""
+        """Fold-averaged parameters (circular mean for angles); categorical ones from the first
+        fold."""
         out: dict[str, Any] = {}
         for k, v in self.fold_params[0].items():
             vals = [fp.get(k) for fp in self.fold_params]
@@ -345,17 +353,19 @@ def compare(
         cfg.n_boot,
         rng,
     )
-    # one-sided lower bound: the alpha / m quantile of the replicates (percentile bootstrap; the reductions are
-    # right-skewed -- a few deep fades fixed -- so a normal approximation would be far too conservative)
+    # one-sided lower bound: the alpha / m quantile of the replicates (percentile bootstrap; the
+    # reductions are right-skewed -- a few deep fades fixed -- so a normal approximation would be
+    # far too conservative)
     lo = float(np.quantile(boot, cfg.alpha / max(m, 1)))
     rel = mean / base_loss if base_loss > 0 else 0.0
     return mean, rel, lo, bool(lo > 0 and rel >= cfg.min_rel), int(max(Ls) if Ls else 1)
 
 
-# The ranking rule (reported with every ranking): a candidate's score is its held-out loss reduction divided
-# by its tier's margin; significant candidates come first, then by score.  A free-form shape must therefore
-# reduce the loss 25 % more than a named physical effect to be ranked above it, and a generic smoother
-# (kriging) twice as much as either: explanations are preferred to descriptions, descriptions to smoothers.
+# The ranking rule (reported with every ranking): a candidate's score is its held-out loss reduction
+# divided by its tier's margin; significant candidates come first, then by score.  A free-form shape
+# must therefore reduce the loss 25 % more than a named physical effect to be ranked above it, and a
+# generic smoother (kriging) twice as much as either: explanations are preferred to descriptions,
+# descriptions to smoothers.
 TIER_MARGIN = {TIER_NAMED: 1.0, TIER_FREEFORM: 1.25, TIER_SMOOTHER: 2.0}
 RANKING_RULE = (
     "significant first, then by held-out loss reduction / tier margin (named 1.0, free-form 1.25, "
@@ -391,15 +401,16 @@ def _map(
     processes: int = 1,
     done: Callable[[int], None] | None = None,
 ) -> list[Any]:
-    """``fn`` over ``items``, in ``processes`` forked processes (the closures are inherited by the fork, only
-    the results travel back, pickled), else in ``workers`` threads (numpy releases the GIL in the heavy
-    parts); in order, so the results are those of one call after another, bit for bit.  ``done(k)``: called
-    in this process as the k-th result arrives (progress).
+    """``fn`` over ``items``, in ``processes`` forked processes (the closures are inherited by the
+    fork, only the results travel back, pickled), else in ``workers`` threads (numpy releases the
+    GIL in the heavy parts); in order, so the results are those of one call after another, bit for
+    bit.  ``done(k)``: called in this process as the k-th result arrives (progress).
 
-    BLAS runs single-threaded meanwhile: the fits' matrices are small (kriging systems of a few hundred
-    cells, Gram matrices of ~100 columns), the parallelism is over the fits, and a multi-threaded OpenBLAS
-    on a busy machine spins for its cores (a 350 x 350 Cholesky took 70 ms with 2 BLAS threads against 2 ms
-    with one at load 10 on 2 cores).  ``threadpoolctl`` comes with scikit-learn."""
+    BLAS runs single-threaded meanwhile: the fits' matrices are small (kriging systems of a few
+    hundred cells, Gram matrices of ~100 columns), the parallelism is over the fits, and a
+    multi-threaded OpenBLAS on a busy machine spins for its cores (a 350 x 350 Cholesky took 70 ms
+    with 2 BLAS threads against 2 ms with one at load 10 on 2 cores).  ``threadpoolctl`` comes with
+    scikit-learn."""
     from threadpoolctl import threadpool_limits
 
     def tick(it: Any) -> list[Any]:
@@ -444,10 +455,12 @@ def rank_candidates(
     progress: Progress | None = None,
     label: str = "",
 ) -> list[CandidateResult]:
-    """Fit every applicable candidate on each fold's training data, score on its test data, rank (``rank_key``).
+    """Fit every applicable candidate on each fold's training data, score on its test data, rank
+    (``rank_key``).
 
-    The (candidate, fold) fits run in ``cfg.processes`` processes or ``cfg.workers`` threads; each gets its own
-    generator spawned from ``rng`` in a fixed order, so results do not depend on the scheduling.
+    The (candidate, fold) fits run in ``cfg.processes`` processes or ``cfg.workers`` threads; each
+    gets its own generator spawned from ``rng`` in a fixed order, so results do not depend on the
+    scheduling.
     """
     base_res = base_res if base_res is not None else heldout_residuals(pipes, flights, folds, cfg)
     bsum = summarize(_pooled(base_res))

@@ -1,29 +1,32 @@
-"""Ground-fixed or body-fixed?  When a map over the ground and a map over the UAV's body angles both explain a
-residual, which one holds out.
+"""Ground-fixed or body-fixed?  When a map over the ground and a map over the UAV's body angles both
+explain a residual, which one holds out.
 
-Why: a body-fixed effect seen only in a few places (the legs shadowing the rover at shallow depression, far
-from it) looks like a patch of shadowing on the ground, and a ground map absorbs it; shadowing seen from a
-few body angles looks like an antenna pattern.  The two are told apart by flying the *same ground at
-different headings*: a ground-fixed effect is the same there whatever the heading, a body-fixed one moves
-with the body angles.  So both candidates are refitted on two extra held-out splits:
+Why: a body-fixed effect seen only in a few places (the legs shadowing the rover at shallow
+depression, far from it) looks like a patch of shadowing on the ground, and a ground map absorbs it;
+shadowing seen from a few body angles looks like an antenna pattern.  The two are told apart by
+flying the *same ground at different headings*: a ground-fixed effect is the same there whatever the
+heading, a body-fixed one moves with the body angles.  So both candidates are refitted on two extra
+held-out splits:
 
-- ``headings``: per flight, samples flown towards one half of the compass (about the flight's main axis,
-  e.g. a lawnmower's eastbound rows) train, the other half test, and the reverse: the same ground, other
-  headings; the ``BUFFER_S`` seconds around every change of half sit out (else a ground map predicts a test
-  sample from the same pass seconds earlier, through the residual's correlation along the path);
-- ``ground``: a checkerboard of ``CELL_M`` cells: the body map must carry over to ground it has not seen,
-  a ground map cannot (beyond its correlation length).
+- ``headings``: per flight, samples flown towards one half of the compass (about the flight's main
+  axis, e.g. a lawnmower's eastbound rows) train, the other half test, and the reverse: the same
+  ground, other headings; the ``BUFFER_S`` seconds around every change of half sit out (else a
+  ground map predicts a test sample from the same pass seconds earlier, through the residual's
+  correlation along the path);
+- ``ground``: a checkerboard of ``CELL_M`` cells: the body map must carry over to ground it has not
+  seen, a ground map cannot (beyond its correlation length).
 
-``FRAME_RULE``: on a split, one candidate *wins* when it reduces the held-out loss by at least ``MIN_REL``
-and the other keeps less than half of that.  Body-fixed when the body candidate wins on unseen ground (a
-ground map cannot reach ground it has not seen beyond its correlation length) or across headings;
-ground-fixed when the ground map wins across headings and the body candidate does not win on unseen ground;
-otherwise undecided (both carry over, or neither), and nothing is overruled.  Why both splits: a body-fixed
-effect symmetric under the turn between the headings flown (a quad's four legs, a lawnmower's east/west
-rows) falls on the same ground both ways, so across headings it looks ground-fixed; on unseen ground it does
-not.  (Earlier rules, each replaced before this one: "beats it by 1 % across headings" called the real
-flights' UAV antenna map ground-fixed at 20.0 % against 23.9 %; without the ``BUFFER_S`` margin a ground map
-predicted test samples from the same pass seconds away.)
+``FRAME_RULE``: on a split, one candidate *wins* when it reduces the held-out loss by at least
+``MIN_REL`` and the other keeps less than half of that.  Body-fixed when the body candidate wins on
+unseen ground (a ground map cannot reach ground it has not seen beyond its correlation length) or
+across headings; ground-fixed when the ground map wins across headings and the body candidate does
+not win on unseen ground; otherwise undecided (both carry over, or neither), and nothing is
+overruled.  Why both splits: a body-fixed effect symmetric under the turn between the headings flown
+(a quad's four legs, a lawnmower's east/west rows) falls on the same ground both ways, so across
+headings it looks ground-fixed; on unseen ground it does not.  (Earlier rules, each replaced before
+this one: "beats it by 1 % across headings" called the real flights' UAV antenna map ground-fixed at
+20.0 % against 23.9 %; without the ``BUFFER_S`` margin a ground map predicted test samples from the
+same pass seconds away.)
 """
 
 from __future__ import annotations
@@ -54,9 +57,9 @@ FRAME_RULE = (
 
 
 def heading_groups(f: FlightSamples) -> np.ndarray:
-    """0/1 per sample: flying towards one or the other half of the compass about the flight's main axis (half
-    the circular mean of twice the yaw: a lawnmower's rows), the axis turned by 90 deg where that balances
-    the halves better."""
+    """0/1 per sample: flying towards one or the other half of the compass about the flight's main
+    axis (half the circular mean of twice the yaw: a lawnmower's rows), the axis turned by 90 deg
+    where that balances the halves better."""
     yaw = np.asarray(f.attitude_rad[:, 2], dtype=float)
     axis = 0.5 * np.arctan2(np.sin(2 * yaw).mean(), np.cos(2 * yaw).mean())
     best = None
@@ -81,9 +84,10 @@ def _two_folds(groups: Sequence[np.ndarray]) -> list[Fold]:
 
 
 def buffered(g: np.ndarray, t: np.ndarray, buffer_s: float) -> np.ndarray:
-    """``g`` with the samples within ``buffer_s`` of a change of group set to -1: a test sample's residual must
-    not be predicted from the seconds before or after it on the same pass (the residual is correlated along the
-    path over 10-30 s on real flights), only from the same ground flown at another time."""
+    """``g`` with the samples within ``buffer_s`` of a change of group set to -1: a test sample's
+    residual must not be predicted from the seconds before or after it on the same pass (the
+    residual is correlated along the path over 10-30 s on real flights), only from the same ground
+    flown at another time."""
     out = g.copy()
     sw = t[1:][g[1:] != g[:-1]]
     if len(sw):
@@ -93,15 +97,16 @@ def buffered(g: np.ndarray, t: np.ndarray, buffer_s: float) -> np.ndarray:
 
 
 def heading_folds(flights: Sequence[FlightSamples], buffer_s: float = BUFFER_S) -> list[Fold]:
-    """Train on one heading half of every flight, test on the other, and the reverse (``buffered``)."""
+    """Train on one heading half of every flight, test on the other, and the reverse
+    (``buffered``)."""
     return _two_folds(
         [buffered(heading_groups(f), np.asarray(f.t_s, dtype=float), buffer_s) for f in flights]
     )
 
 
 def ground_folds(flights: Sequence[FlightSamples], cell_m: float = CELL_M) -> list[Fold]:
-    """A checkerboard of ``cell_m`` cells over the ground (the same for every flight): black trains, white
-    tests, and the reverse."""
+    """A checkerboard of ``cell_m`` cells over the ground (the same for every flight): black trains,
+    white tests, and the reverse."""
     return _two_folds(
         [
             ((np.floor(f.enu_m[:, 0] / cell_m) + np.floor(f.enu_m[:, 1] / cell_m)) % 2).astype(int)
@@ -111,8 +116,8 @@ def ground_folds(flights: Sequence[FlightSamples], cell_m: float = CELL_M) -> li
 
 
 def contenders(ranking: Sequence[Any], min_rel: float) -> tuple[str | None, str | None]:
-    """The best body-angle and the best ground candidate that each explain the residual held out (relative
-    reduction at least ``min_rel``), by loss reduction; None where there is none."""
+    """The best body-angle and the best ground candidate that each explain the residual held out
+    (relative reduction at least ``min_rel``), by loss reduction; None where there is none."""
 
     def best(names: tuple[str, ...]) -> str | None:
         ok = [r for r in ranking if r.name in names and r.rel_reduction >= min_rel]
@@ -129,8 +134,9 @@ def frame_test(
     cfg: FitConfig,
     seed: int = 0,
 ) -> dict[str, Any]:
-    """Refit ``body`` and ``ground`` (candidate names) on top of ``pipe`` on the ``headings`` and ``ground``
-    splits; the verdict by ``FRAME_RULE``.  Needs the flights' attitudes (the headings)."""
+    """Refit ``body`` and ``ground`` (candidate names) on top of ``pipe`` on the ``headings`` and
+    ``ground`` splits; the verdict by ``FRAME_RULE``.  Needs the flights' attitudes (the
+    headings)."""
     from mission.gap.candidates import select
 
     cands = select([body, ground])
@@ -182,7 +188,8 @@ def frame_for(
     cfg: FitConfig,
     seed: int = 0,
 ) -> dict[str, Any] | None:
-    """``frame_test`` of the two contenders of ``ranking`` when both explain the residual; else None."""
+    """``frame_test`` of the two contenders of ``ranking`` when both explain the residual; else
+    None."""
     if any(f.attitude_rad is None for f in flights):
         return None
     body, ground = contenders(ranking, cfg.min_rel)
@@ -192,9 +199,9 @@ def frame_for(
 
 
 def resolve(named: str | None, ranking: Sequence[Any], frame: dict[str, Any] | None) -> str | None:
-    """What is named once the frame test has spoken: a ground map named first gives way to the body candidate
-    when the effect is body-fixed, and the reverse; where nothing was named, the winner is named only when it is
-    significant across headings."""
+    """What is named once the frame test has spoken: a ground map named first gives way to the body
+    candidate when the effect is body-fixed, and the reverse; where nothing was named, the winner is
+    named only when it is significant across headings."""
     if frame is None or frame["winner"] is None:
         return named
     loser = frame["ground"] if frame["winner"] == frame["body"] else frame["body"]

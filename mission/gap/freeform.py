@@ -1,8 +1,10 @@
-"""Free-form candidates: let the data draw the missing effect as a smooth map, then say what it resembles.
+"""Free-form candidates: let the data draw the missing effect as a smooth map, then say what it
+resembles.
 
-Why: a library of named effects can only name what it contains; an antenna ripple, a notch or a rover
-antenna's azimuth pattern outside the list would otherwise be blamed on shadowing.  Three smooth additive
-terms (dB), each linear in its coefficients, so a fit is one regularised least-squares solve:
+Why: a library of named effects can only name what it contains; an antenna ripple, a notch or a
+rover antenna's azimuth pattern outside the list would otherwise be blamed on shadowing.  Three
+smooth additive terms (dB), each linear in its coefficients, so a fit is one regularised
+least-squares solve:
 
 | name | variables (from the LOS geometry the physics model already computes) | basis |
 | --- | --- | --- |
@@ -10,15 +12,16 @@ terms (dB), each linear in its coefficients, so a fit is one regularised least-s
 | ``tx_gain_map`` | compass azimuth of the UAV seen from the rover x sin(elevation) | Fourier(M=4) x Legendre(P=2) |
 | ``excess_loss`` | log10(d_los / 100 m) and UAV height | Legendre(P=3) + Legendre(P=2) |
 
-The constant is left out (the free per-flight offset absorbs it).  Coefficients are shrunk by a ridge penalty
-lambda (1 + m^2 + p^2) (higher orders cost more: smooth maps), lambda chosen by an inner two-fold split of the
-training samples (alternate 30 s stretches of flight, never random samples); with a robust loss the solve is
-weighted by soft-L1 IRLS weights.  Each fit reports its shape on a grid (``params["shape"]``, for the plot),
-its size (5-95 % range over the flown samples, dB), where it acts (the geometry of its strongest departure)
-and which named effect it resembles (largest |correlation| with that effect's own term on the same samples).
-The terms are ``mission.physics`` effects (``rss_term_db``), so a fitted map also serves localization.
-``rx_gain_map`` is a body-frame map: on a model without the attitude effect it adds the logged (roll, pitch,
-yaw) attitude together with the map (``params["adds_attitude"]``).
+The constant is left out (the free per-flight offset absorbs it).  Coefficients are shrunk by a
+ridge penalty lambda (1 + m^2 + p^2) (higher orders cost more: smooth maps), lambda chosen by an
+inner two-fold split of the training samples (alternate 30 s stretches of flight, never random
+samples); with a robust loss the solve is weighted by soft-L1 IRLS weights.  Each fit reports its
+shape on a grid (``params["shape"]``, for the plot), its size (5-95 % range over the flown samples,
+dB), where it acts (the geometry of its strongest departure) and which named effect it resembles
+(largest |correlation| with that effect's own term on the same samples). The terms are
+``mission.physics`` effects (``rss_term_db``), so a fitted map also serves localization.
+``rx_gain_map`` is a body-frame map: on a model without the attitude effect it adds the logged
+(roll, pitch, yaw) attitude together with the map (``params["adds_attitude"]``).
 """
 
 from __future__ import annotations
@@ -54,7 +57,8 @@ LAMBDAS = tuple(np.geomspace(1e-3, 1e3, 13))
 
 
 def map_variables(kind: str, link: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The two variables of ``kind`` from a ``mission.physics.propagation.Link`` (or the same fields)."""
+    """The two variables of ``kind`` from a ``mission.physics.propagation.Link`` (or the same
+    fields)."""
     dx, dy, dz = link.delta
     d = link.d_los
     if kind == "rx_gain_map":  # az_b, sin dep_b
@@ -70,8 +74,8 @@ def map_variables(kind: str, link: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def basis_orders(kind: str) -> list[tuple[str, int, int]]:
-    """(function, order m, order p) per coefficient: ``c``/``s`` = cos/sin(m a) P_p(b); ``a``/``b`` = P_m(a)
-    or P_p(b) alone (the additive excess-loss basis)."""
+    """(function, order m, order p) per coefficient: ``c``/``s`` = cos/sin(m a) P_p(b); ``a``/``b``
+    = P_m(a) or P_p(b) alone (the additive excess-loss basis)."""
     M, P = KINDS[kind]
     if kind == "excess_loss":
         return [("a", m, 0) for m in range(1, M + 1)] + [("b", 0, p) for p in range(1, P + 1)]
@@ -114,8 +118,9 @@ def _legendre_all(x: np.ndarray, n: int) -> list[np.ndarray]:
 
 
 def fourier_legendre_columns(a: np.ndarray, b: np.ndarray, M: int, P: int) -> list[np.ndarray]:
-    """cos/sin(m a) P_p(b) for m <= M, p <= P without the constant, in the order of ``basis_orders``: the smooth
-    map over an angle ``a`` (rad) and a variable ``b`` in [-1, 1] that the gain maps and the site map share."""
+    """cos/sin(m a) P_p(b) for m <= M, p <= P without the constant, in the order of
+    ``basis_orders``: the smooth map over an angle ``a`` (rad) and a variable ``b`` in [-1, 1] that
+    the gain maps and the site map share."""
     lb = _legendre_all(b, P)
     cols = lb[1:]
     for m in range(1, M + 1):
@@ -125,7 +130,8 @@ def fourier_legendre_columns(a: np.ndarray, b: np.ndarray, M: int, P: int) -> li
 
 
 def _columns(kind: str, a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
-    """Every basis column of ``kind`` (the order of ``basis_orders``), sharing the Legendre and Fourier terms."""
+    """Every basis column of ``kind`` (the order of ``basis_orders``), sharing the Legendre and
+    Fourier terms."""
     M, P = KINDS[kind]
     if kind == "excess_loss":
         return _legendre_all(a, M)[1:] + _legendre_all(b, P)[1:]
@@ -191,7 +197,8 @@ class FreeFormTerm:
 
 
 def link_of(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray) -> Any:
-    """The model's per-sample LOS geometry (``Link`` fields) for the samples ``idx`` (time offset applied)."""
+    """The model's per-sample LOS geometry (``Link`` fields) for the samples ``idx`` (time offset
+    applied)."""
     from types import SimpleNamespace
 
     rx, att = pipe.geometry(flight, idx)
@@ -228,7 +235,8 @@ def resemblance(
     named: Mapping[str, Candidate] | None = None,
 ) -> tuple[str, float, dict[str, float]]:
     """Which named effect's own term (relative to ``pipe``) correlates best with the fitted ``term``
-    (``named``: the named candidates by name, passed in by ``candidates.library``; none: nothing to compare)."""
+    (``named``: the named candidates by name, passed in by ``candidates.library``; none: nothing to
+    compare)."""
     lib = named or {}
     refs: dict[str, dict[str, Any]] = {
         "rx_gain_map": {
@@ -292,16 +300,18 @@ def ridge_cv(
     lambdas: Sequence[float],
     min_n: int = 0,
 ) -> tuple[np.ndarray, Any]:
-    """Weighted ridge regression of residuals ``rs`` on designs ``Xs`` (one per flight), both centred per flight
-    (the free offset), penalty ``lambda * n * diag(pen)``: the two-fold cross-validation error for each lambda
-    (train on one of ``halves`` 0/1, score the other) and ``fit_all(lambda)`` -> coefficients on every sample.
+    """Weighted ridge regression of residuals ``rs`` on designs ``Xs`` (one per flight), both
+    centred per flight (the free offset), penalty ``lambda * n * diag(pen)``: the two-fold
+    cross-validation error for each lambda (train on one of ``halves`` 0/1, score the other) and
+    ``fit_all(lambda)`` -> coefficients on every sample.
 
-    Why one routine: the free-form maps and the site map are the same smooth fit over other variables.
-    Flights with fewer than ``min_n`` samples in a selection sit that selection out.
+    Why one routine: the free-form maps and the site map are the same smooth fit over other
+    variables. Flights with fewer than ``min_n`` samples in a selection sit that selection out.
     """
 
     def gram(sel: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
-        """X^T W X and X^T W y of the selected samples, centred per flight (computed once per selection)."""
+        """X^T W X and X^T W y of the selected samples, centred per flight (computed once per
+        selection)."""
         use = [k for k, s in enumerate(sel) if s.sum() >= min_n]
         X = _centered([Xs[k][sel[k]] for k in use], [ws[k][sel[k]] for k in use])
         y = _centered([rs[k][sel[k]] for k in use], [ws[k][sel[k]] for k in use])
@@ -339,7 +349,8 @@ def fit_freeform(
     period_s: float = 30.0,
     named: Mapping[str, Candidate] | None = None,
 ) -> tuple[Pipeline, dict]:
-    """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold CV."""
+    """Fit the ``kind`` map to the offset-removed training residuals; lambda by inner two-fold
+    CV."""
     loss = getattr(cfg, "loss", "l2")
     f_scale = getattr(cfg, "f_scale_db", 6.0)
     keep = [k for k, i in enumerate(idx) if len(i)]
@@ -406,7 +417,8 @@ def freeform_candidate(kind: str, named: Mapping[str, Candidate] | None = None) 
         cfg: Any = None,
     ) -> tuple[Pipeline, dict[str, Any]]:
         if kind == "rx_gain_map" and not p.model.has("attitude"):
-            # a body-frame map needs the body frame: the logged attitude joins the model with the map
+            # a body-frame map needs the body frame: the logged attitude joins the model with the
+            # map
             from mission.physics import Attitude
 
             p = p.replace(model=p.model.with_effect(Attitude()))

@@ -1,5 +1,6 @@
 """Short flight labels: file stems without the prefix they all share (``288_loc_1``, not
-``results_useful_ori_exp_288_loc_1``), so that tables fit 80 columns and flights stay recognisable."""
+``results_useful_ori_exp_288_loc_1``), so that tables fit 80 columns and flights stay
+recognisable."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ _SEP = re.compile(r"(?<=[_\-. ])")
 
 
 def short_labels(names: Sequence[str], max_len: int = 16) -> list[str]:
-    """Drop the leading tokens (split after ``_ - . space``) every name shares; keep at least one token before
-    a purely numeric rest (``loc_1``, not ``1``); cut to ``max_len`` (keeping the end); unique or unchanged."""
+    """Drop the leading tokens (split after ``_ - . space``) every name shares; keep at least one
+    token before a purely numeric rest (``loc_1``, not ``1``); cut to ``max_len`` (keeping the end);
+    unique or unchanged."""
     names = [str(n) for n in names]
     if len(names) < 2:
         return [n[-max_len:] for n in names]

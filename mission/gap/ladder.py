@@ -1,8 +1,9 @@
-"""The greedy ladder of the gap diagnosis: base -> + best candidate -> + next, while the best is significant.
+"""The greedy ladder of the gap diagnosis: base -> + best candidate -> + next, while the best is
+significant.
 
-Why its own module: a rung whose best is a ground map (or a body-angle map that a ground map out-explains)
-asks ``frame`` whether the effect is ground- or body-fixed, and ``frame`` refits candidates with ``fit``; the
-ladder sits above both, so neither imports the other back.
+Why its own module: a rung whose best is a ground map (or a body-angle map that a ground map
+out-explains) asks ``frame`` whether the effect is ground- or body-fixed, and ``frame`` refits
+candidates with ``fit``; the ladder sits above both, so neither imports the other back.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ from mission.samples import FlightSamples
 
 @dataclass
 class Rung:
-    """One rung of the ladder: the pipelines (per fold), their held-out residuals and what was added."""
+    """One rung of the ladder: the pipelines (per fold), their held-out residuals and what was
+    added."""
 
     label: str
     added: str | None
@@ -57,7 +59,8 @@ def ladder(
     label: str = "base",
     progress: Progress | None = None,
 ) -> list[Rung]:
-    """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is significant."""
+    """Greedy ladder: base -> +best -> +next ... while the best remaining candidate is
+    significant."""
     rng = np.random.default_rng(cfg.seed)
     folds = make_folds(flights, cfg)
     pipes = [base] * len(folds)
@@ -88,8 +91,8 @@ def ladder(
                 r.name in FRAME_GROUND and r.loss_reduction >= best.loss_reduction for r in ranking
             )
         ):
-            # a ground map would absorb it, or explains more than the body-angle map chosen: add the one that
-            # holds out across headings and on unseen ground (``frame``)
+            # a ground map would absorb it, or explains more than the body-angle map chosen: add the
+            # one that holds out across headings and on unseen ground (``frame``)
             rung.frame = frame_for(ranking, rung.pipes[0], flights, cfg, cfg.seed)
             if (
                 rung.frame is not None

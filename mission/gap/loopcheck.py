@@ -1,16 +1,18 @@
-"""Closing the loop: flights simulated from a fitted family, diagnosed again, must give the family back.
+"""Closing the loop: flights simulated from a fitted family, diagnosed again, must give the family
+back.
 
-Why: a family is only useful if what it simulates looks like the flights it came from.  Along each real
-track (same positions, attitudes, transmitter), one flight's physics is drawn from the family and its RSS
-simulated (``mission.physics.family.simulate_rss``); the same per-flight fit (``familyfit.fit_flight``) is run
-on the simulated flights.  Pass rules, written before scoring:
+Why: a family is only useful if what it simulates looks like the flights it came from.  Along each
+real track (same positions, attitudes, transmitter), one flight's physics is drawn from the family
+and its RSS simulated (``mission.physics.family.simulate_rss``); the same per-flight fit
+(``familyfit.fit_flight``) is run on the simulated flights.  Pass rules, written before scoring:
 
 - every fitted parameter's mean over the simulated flights lies inside the family's interval for it
   (``checks.intervals``: the real per-flight range widened by one standard error);
-- the UAV/rover antenna pattern fitted on a simulated flight is the one drawn for it (reported as a share);
+- the UAV/rover antenna pattern fitted on a simulated flight is the one drawn for it (reported as a
+  share);
 - the pooled held-out p90 |residual| of the simulated flights is within 1 dB of the real flights';
-- the variogram sill (sqrt(sigma^2 + nugget^2)) and range (``shadowing_corr_m``) averaged over the simulated
-  flights lie inside the real flights' intervals.
+- the variogram sill (sqrt(sigma^2 + nugget^2)) and range (``shadowing_corr_m``) averaged over the
+  simulated flights lie inside the real flights' intervals.
 """
 
 from __future__ import annotations
@@ -52,7 +54,8 @@ def loop_check(
     seed: int = 0,
     repeats: int = 1,
 ) -> dict[str, Any]:
-    """Simulate ``repeats`` copies of the real tracks from ``record``, re-fit, compare (module docstring)."""
+    """Simulate ``repeats`` copies of the real tracks from ``record``, re-fit, compare (module
+    docstring)."""
     fam = PhysicsFamily.from_dict(record)
     rng = np.random.default_rng(seed)
     sims, draws = [], []
@@ -106,11 +109,13 @@ def loop_check(
 
 
 def calibrate_residual(record: dict[str, Any], check: dict[str, Any]) -> float:
-    """Scale the family's shadowing so that simulated flights' held-out p90 meets the real one (in place).
+    """Scale the family's shadowing so that simulated flights' held-out p90 meets the real one (in
+    place).
 
-    Why: the per-flight fits absorb part of a simulated field (a slope, a heading bend with it), so flights
-    simulated with the real held-out spread come out narrower.  One indirect-inference step: the total std
-    sqrt(s^2 + n^2) is scaled by real p90 / simulated p90, the noise kept; returns the factor.
+    Why: the per-flight fits absorb part of a simulated field (a slope, a heading bend with it), so
+    flights simulated with the real held-out spread come out narrower.  One indirect-inference step:
+    the total std sqrt(s^2 + n^2) is scaled by real p90 / simulated p90, the noise kept; returns the
+    factor.
     """
     p = check["heldout_p90_db"]
     k = float(p["real"] / p["sim"]) if p["sim"] > 0 else 1.0

@@ -1,14 +1,16 @@
-"""Near-nadir loss: a body-fixed loss over a band of depression angles below the UAV, and what the data can show.
+"""Near-nadir loss: a body-fixed loss over a band of depression angles below the UAV, and what the
+data can show.
 
-Why: the airframe, battery and payload sit below the UAV's antenna, so rays leaving the body at steep
-depression angles can lose several dB whatever their azimuth.  The free-form body map (``rx_gain_map``) can
-draw it only where its Legendre basis and smoothness penalty allow, and the flights see those angles only
-when the UAV is almost above the rover (at 30 m, depression > 60 deg means < 17 m horizontally).  So:
+Why: the airframe, battery and payload sit below the UAV's antenna, so rays leaving the body at
+steep depression angles can lose several dB whatever their azimuth.  The free-form body map
+(``rx_gain_map``) can draw it only where its Legendre basis and smoothness penalty allow, and the
+flights see those angles only when the UAV is almost above the rover (at 30 m, depression > 60 deg
+means < 17 m horizontally).  So:
 
-- ``near_nadir``: a named candidate, elevation only: ``-depth_db exp(-(dep_b - centre)^2 / 2 width^2)``
-  (depth, centre and width fitted from a grid of starts);
-- what the flights can show in the band (the smallest loss a held-out test on them would find, and the
-  samples a flight would need): ``mission.gap.power.power_statement``.
+- ``near_nadir``: a named candidate, elevation only: ``-depth_db exp(-(dep_b - centre)^2 / 2
+  width^2)`` (depth, centre and width fitted from a grid of starts);
+- what the flights can show in the band (the smallest loss a held-out test on them would find, and
+  the samples a flight would need): ``mission.gap.power.power_statement``.
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ Z_ALPHA, Z_POWER = 1.645, 0.842  # one-sided 5 %, power 80 %
 
 @dataclass(frozen=True)
 class NearNadirLoss:
-    """Loss ``depth_db`` centred on body depression ``centre_deg`` (gaussian of ``width_deg``), any azimuth."""
+    """Loss ``depth_db`` centred on body depression ``centre_deg`` (gaussian of ``width_deg``), any
+    azimuth."""
 
     depth_db: float = 0.0
     centre_deg: float = 75.0

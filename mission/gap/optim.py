@@ -1,4 +1,5 @@
-"""Multi-start minimisation for the physics fits: a coarse grid finds the basin, Nelder-Mead polishes it."""
+"""Multi-start minimisation for the physics fits: a coarse grid finds the basin, Nelder-Mead
+polishes it."""
 
 from __future__ import annotations
 
@@ -19,14 +20,16 @@ def minimize_from_grid(
     fatol: float = 1e-6,
     coarse: Callable[[np.ndarray], float] | None = None,
 ) -> tuple[np.ndarray, float]:
-    """Evaluate ``fun`` on the start ``grid`` (G, P), then run Nelder-Mead (``max_evals`` x P evaluations, first
-    simplex edge ``steps[j]`` along parameter j) from the ``n_starts`` best starts; returns the best (x, value).
+    """Evaluate ``fun`` on the start ``grid`` (G, P), then run Nelder-Mead (``max_evals`` x P
+    evaluations, first simplex edge ``steps[j]`` along parameter j) from the ``n_starts`` best
+    starts; returns the best (x, value).
 
-    Why: the physics fits (a gap candidate's parameters, a calibration preset's free parameters) have multimodal,
-    non-smooth robust losses (headings, floors); a coarse grid finds the basin and the simplex polishes it.  The
-    caller clips or wraps x into its bounds (``fun`` should do the same).  ``coarse``: a cheaper version of
-    ``fun`` (fewer samples): it ranks the grid and polishes the ``n_starts`` best points, and only the best
-    of those is polished on ``fun`` (several starts for about the price of one).
+    Why: the physics fits (a gap candidate's parameters, a calibration preset's free parameters)
+    have multimodal, non-smooth robust losses (headings, floors); a coarse grid finds the basin and
+    the simplex polishes it.  The caller clips or wraps x into its bounds (``fun`` should do the
+    same).  ``coarse``: a cheaper version of ``fun`` (fewer samples): it ranks the grid and polishes
+    the ``n_starts`` best points, and only the best of those is polished on ``fun`` (several starts
+    for about the price of one).
     """
     grid = np.asarray(grid, dtype=float).reshape(len(grid), -1)
 
@@ -45,7 +48,8 @@ def minimize_from_grid(
         )
 
     if coarse is not None and len(grid) > 1:
-        # the n_starts best grid points polished on the cheap objective, the best of them polished on ``fun``
+        # the n_starts best grid points polished on the cheap objective, the best of them polished
+        # on ``fun``
         cv = np.array([coarse(g) for g in grid])
         polished = [nm(coarse, grid[k]) for k in np.argsort(cv, kind="stable")[:n_starts]]
         x0 = np.asarray(min(polished, key=lambda r: r.fun).x, dtype=float)

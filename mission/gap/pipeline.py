@@ -1,19 +1,20 @@
 """A prediction pipeline = a physics propagation model plus the effects the physics does not model.
 
-Why: the sim-to-real diagnosis tries effects one at a time, so every effect must be a separately switchable,
-parameterised component.  Effects that change how the radio channel behaves live in ``mission.physics``
-(``PropagationModel`` effects).  What happens *around* the channel lives here:
+Why: the sim-to-real diagnosis tries effects one at a time, so every effect must be a separately
+switchable, parameterised component.  Effects that change how the radio channel behaves live in
+``mission.physics`` (``PropagationModel`` effects).  What happens *around* the channel lives here:
 
-- ``time_offset_s``: the RSS sample stamped ``t`` was received where the UAV was at ``t - tau`` (a lag of
-  the receiver's clock or pipe behind the telemetry); applied by interpolating the telemetry.
-- ``Receiver``: noise floor and saturation, both soft (in the model's dB scale, before the free offset):
-  ``p -> 10 log10(10^(p/10) + 10^(floor/10))`` then ``-10 log10(10^(-p/10) + 10^(-sat/10))``.
+- ``time_offset_s``: the RSS sample stamped ``t`` was received where the UAV was at ``t - tau`` (a
+  lag of the receiver's clock or pipe behind the telemetry); applied by interpolating the telemetry.
+- ``Receiver``: noise floor and saturation, both soft (in the model's dB scale, before the free
+  offset): ``p -> 10 log10(10^(p/10) + 10^(floor/10))`` then ``-10 log10(10^(-p/10) +
+  10^(-sat/10))``.
 - ``TxTilt``: a ``mission.physics`` effect (``rss_term_db``) for a tilted transmitter dipole: the
-  direct ray's gain change between a dipole tilted by ``tilt_deg`` towards compass ``azimuth_deg`` and an
-  upright one.  It is an additive approximation (the reflected ray keeps the upright gain).
-- Spatially correlated shadowing (``spatial``): an additive field over the UAV's horizontal position per
-  transmitter; the truth in simulations is a random field, in diagnosis a kriging predictor fitted on the
-  training part of the data (``mission.gap.candidates.KrigedShadowing``).
+  direct ray's gain change between a dipole tilted by ``tilt_deg`` towards compass ``azimuth_deg``
+  and an upright one.  It is an additive approximation (the reflected ray keeps the upright gain).
+- Spatially correlated shadowing (``spatial``): an additive field over the UAV's horizontal position
+  per transmitter; the truth in simulations is a random field, in diagnosis a kriging predictor
+  fitted on the training part of the data (``mission.gap.candidates.KrigedShadowing``).
 """
 
 from __future__ import annotations
@@ -39,14 +40,16 @@ class SpatialField(Protocol):
 
 
 class TemporalField(Protocol):
-    """Additive dB term over a flight's time (a gain drifting or stepping; ``mission.gap.temporal``)."""
+    """Additive dB term over a flight's time (a gain drifting or stepping;
+    ``mission.gap.temporal``)."""
 
     def field_db(self, flight: FlightSamples, t: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
 class Receiver:
-    """Soft noise floor and saturation of the receiver, in the model's dB scale (before the free offset)."""
+    """Soft noise floor and saturation of the receiver, in the model's dB scale (before the free
+    offset)."""
 
     floor_db: float = -300.0
     sat_db: float = 300.0
@@ -62,7 +65,8 @@ class Receiver:
 
 @dataclass(frozen=True)
 class TxTilt:
-    """Transmitter dipole tilted by ``tilt_deg`` towards compass ``azimuth_deg`` (additive gain change)."""
+    """Transmitter dipole tilted by ``tilt_deg`` towards compass ``azimuth_deg`` (additive gain
+    change)."""
 
     tilt_deg: float = 0.0
     azimuth_deg: float = 0.0
@@ -84,13 +88,15 @@ class TxTilt:
 
 
 def _dipole_db(sin_el: np.ndarray) -> np.ndarray:
-    """The library's vertical dipole (``mission.physics.antenna.Dipole``, floor GAIN_FLOOR_DBI) at asin(sin_el)."""
+    """The library's vertical dipole (``mission.physics.antenna.Dipole``, floor GAIN_FLOOR_DBI) at
+    asin(sin_el)."""
     return Dipole().gain_dbi(np.arcsin(sin_el))
 
 
 @dataclass(frozen=True)
 class Pipeline:
-    """Physics model + time offset + receiver + spatial shadowing: predicts a flight's RSS (model dB)."""
+    """Physics model + time offset + receiver + spatial shadowing: predicts a flight's RSS (model
+    dB)."""
 
     model: PropagationModel
     time_offset_s: float = 0.0
@@ -104,7 +110,8 @@ class Pipeline:
     def geometry(
         self, flight: FlightSamples, idx: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """UAV positions and attitudes for the samples ``idx`` at their RSS times shifted by the time offset."""
+        """UAV positions and attitudes for the samples ``idx`` at their RSS times shifted by the
+        time offset."""
         t = flight.t_s if idx is None else flight.t_s[idx]
         if self.time_offset_s == 0.0:
             sl = slice(None) if idx is None else idx
@@ -148,7 +155,8 @@ class Pipeline:
 
 
 def shifted_geometry(flight: FlightSamples, t_query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Telemetry (positions, attitudes) linearly interpolated at ``t_query`` (yaw unwrapped; clamped ends)."""
+    """Telemetry (positions, attitudes) linearly interpolated at ``t_query`` (yaw unwrapped; clamped
+    ends)."""
     t = flight.t_s
     rx = np.stack([np.interp(t_query, t, flight.enu_m[:, k]) for k in range(3)], axis=-1)
     att = flight.attitude_rad
@@ -167,8 +175,8 @@ def shifted_geometry(flight: FlightSamples, t_query: np.ndarray) -> tuple[np.nda
 class LocalizationModel:
     """Adapter: a pipeline as an ``rss_dbm(tx (K,1,3), rx, att)`` model for ``ModelGridSearch``.
 
-    The spatial field is dropped (it is tied to the true transmitter) and the time offset must already be
-    applied to the geometry handed in; the receiver nonlinearity is kept.
+    The spatial field is dropped (it is tied to the true transmitter) and the time offset must
+    already be applied to the geometry handed in; the receiver nonlinearity is kept.
     """
 
     def __init__(self, pipeline: Pipeline, name: str = "rung") -> None:
@@ -193,10 +201,10 @@ _JOINT_MAX_SAMPLES = (
 def _joint_geometry(
     pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
 ) -> tuple | None:
-    """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all flights, one
-    row per sample; None where one call per flight is needed.  A fit evaluates the same selections thousands
-    of times, so the result is cached by the identity of the flights and index arrays (the entry holds them,
-    so no id is reused while it lives) and the time offset."""
+    """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all
+    flights, one row per sample; None where one call per flight is needed.  A fit evaluates the same
+    selections thousands of times, so the result is cached by the identity of the flights and index
+    arrays (the entry holds them, so no id is reused while it lives) and the time offset."""
     key = (pipe.time_offset_s, *map(id, flights), *map(id, idx))
     hit = _JOINT.get(key)
     if hit is not None and all(a is b for a, b in zip(hit[0], (*flights, *idx), strict=True)):
@@ -234,9 +242,10 @@ def _joint_geometry(
 def predict_channels(
     pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
 ) -> list[np.ndarray]:
-    """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample paired with
-    its flight's transmitter and shifted by its flight's centre, so the values equal one call per flight bit
-    for bit (the physics is elementwise), without the per-call overhead that dominates the small fits."""
+    """``pipe.predict_channel`` of every flight's samples ``idx``, in one model call: each sample
+    paired with its flight's transmitter and shifted by its flight's centre, so the values equal one
+    call per flight bit for bit (the physics is elementwise), without the per-call overhead that
+    dominates the small fits."""
     joint = _joint_geometry(pipe, flights, idx)
     if joint is None:
         return [
@@ -260,10 +269,12 @@ def offset_residuals(
     f_scale_db: float = 6.0,
     cache: Sequence[np.ndarray] | None = None,
 ) -> list[np.ndarray]:
-    """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to reuse).
+    """Offset-removed residuals per flight on the samples ``idx`` (``cache``: channel predictions to
+    reuse).
 
-    Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each flight's
-    constant offset (and with ``slope`` a path-gain slope) is fitted on the very samples scored."""
+    Every score in the diagnosis is taken on these: the receiver's dB are uncalibrated, so each
+    flight's constant offset (and with ``slope`` a path-gain slope) is fitted on the very samples
+    scored."""
     joint = joint_offset_residuals(pipe, flights, idx, slope, loss, f_scale_db, cache)
     if joint is not None:
         r, bounds = joint
@@ -289,9 +300,9 @@ def _joint_field(
     live: list[int],
     time: bool = False,
 ) -> np.ndarray:
-    """The spatial field (``time``: the temporal term) at the selected samples of the ``live`` flights,
-    concatenated; cached like ``_joint_geometry`` by the identity of the (fitted, immutable) field, the flights
-    and the index arrays."""
+    """The spatial field (``time``: the temporal term) at the selected samples of the ``live``
+    flights, concatenated; cached like ``_joint_geometry`` by the identity of the (fitted,
+    immutable) field, the flights and the index arrays."""
     key = ("field", id(spatial), *map(id, flights), *map(id, idx))
     hit = _JOINT.get(key)
     if hit is not None and all(
@@ -323,10 +334,10 @@ def joint_offset_residuals(
     f_scale_db: float,
     cache: Sequence[np.ndarray] | None = None,
 ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
-    """``offset_residuals`` of all flights as one array and (flight, start, end) per non-empty flight, the
-    elementwise steps on all samples at once and only the offsets per flight: the very values of
-    ``mission.robust.offset_residual`` flight by flight (same operations, same per-flight pairwise sums).
-    None where that path does not apply (a slope, a single flight)."""
+    """``offset_residuals`` of all flights as one array and (flight, start, end) per non-empty
+    flight, the elementwise steps on all samples at once and only the offsets per flight: the very
+    values of ``mission.robust.offset_residual`` flight by flight (same operations, same per-flight
+    pairwise sums). None where that path does not apply (a slope, a single flight)."""
     if slope or loss not in LOSSES:
         return None
     joint = _joint_geometry(pipe, flights, idx)
@@ -370,9 +381,9 @@ def memo(
     extra: object = None,
     size: int = 256,
 ) -> np.ndarray:
-    """Per-object cache of a computed array by the exact input ``arrays`` (their bytes): the fits evaluate a
-    fitted term (a kriged field, a free-form map) on the same samples many times.  The result is shared:
-    callers must not change it in place."""
+    """Per-object cache of a computed array by the exact input ``arrays`` (their bytes): the fits
+    evaluate a fitted term (a kriged field, a free-form map) on the same samples many times.  The
+    result is shared: callers must not change it in place."""
     cache: dict = obj.__dict__.setdefault("_cache", {})
     key = (
         extra,

@@ -1,19 +1,21 @@
-"""What the flights can show below the UAV: a power statement for a near-nadir loss that is a guarantee.
+"""What the flights can show below the UAV: a power statement for a near-nadir loss that is a
+guarantee.
 
-Why: a loss over a band of steep depression angles (``mission.gap.nadir``) is seen only when the UAV is almost
-above the rover, often in a handful of samples.  A count of samples says little about whether the diagnosis
-could have found such a loss: the ranking fits a three-parameter band on one fold's training samples
-(decimated as every fit is), scores it on the held-out chunks or flights, and calls it significant only when
-a block-bootstrap lower bound at alpha / m (Bonferroni over the m candidates) is positive.  So the statement
-runs that very test on the flights at hand: a loss of depth D (the band's shape: gaussian in body depression,
-``SHAPE_CENTRE_DEG`` +- ``SHAPE_WIDTH_DEG``) is injected into the flights' own residuals (any band loss they
-already show fitted out first), the band is fitted per fold on its training samples (depth in closed form
-over a grid of centres and widths: at least as good as the ranking's starts), scored held out with
-``fit.compare``; "the smallest loss the flights could show" is the smallest D on a grid such that it and
-every deeper loss on the grid come out significant (the test is not monotone in D for a few samples), times
-a margin of 1.5 for the ranking's noisier fit.
-Checked on the independent generator (``benchmarks/bench_gap.py nadir-power``: passes right over the rover
-varied): wherever it said a loss of the true size was detectable, the diagnosis named it.
+Why: a loss over a band of steep depression angles (``mission.gap.nadir``) is seen only when the UAV
+is almost above the rover, often in a handful of samples.  A count of samples says little about
+whether the diagnosis could have found such a loss: the ranking fits a three-parameter band on one
+fold's training samples (decimated as every fit is), scores it on the held-out chunks or flights,
+and calls it significant only when a block-bootstrap lower bound at alpha / m (Bonferroni over the m
+candidates) is positive.  So the statement runs that very test on the flights at hand: a loss of
+depth D (the band's shape: gaussian in body depression, ``SHAPE_CENTRE_DEG`` +- ``SHAPE_WIDTH_DEG``)
+is injected into the flights' own residuals (any band loss they already show fitted out first), the
+band is fitted per fold on its training samples (depth in closed form over a grid of centres and
+widths: at least as good as the ranking's starts), scored held out with ``fit.compare``; "the
+smallest loss the flights could show" is the smallest D on a grid such that it and every deeper loss
+on the grid come out significant (the test is not monotone in D for a few samples), times a margin
+of 1.5 for the ranking's noisier fit. Checked on the independent generator
+(``benchmarks/bench_gap.py nadir-power``: passes right over the rover varied): wherever it said a
+loss of the true size was detectable, the diagnosis named it.
 """
 
 from __future__ import annotations
@@ -31,10 +33,10 @@ SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG = (
     75.0,
     8.0,
 )  # the loss the statement is about: gaussian in body depression
-# the ranking's fit (Nelder-Mead from grid starts ranked on a thinned copy) is noisier than the closed form
-# here: the statement's depth is the injected test's threshold times this margin.  Calibrated on the
-# generator (``bench_gap.py nadir-power``): without it 1 of 24 cases was said detectable and not named
-# (2.0 dB against a 2.0 dB threshold, 4 passes)
+# the ranking's fit (Nelder-Mead from grid starts ranked on a thinned copy) is noisier than the
+# closed form here: the statement's depth is the injected test's threshold times this margin.
+# Calibrated on the generator (``bench_gap.py nadir-power``): without it 1 of 24 cases was said
+# detectable and not named (2.0 dB against a 2.0 dB threshold, 4 passes)
 FIT_MARGIN = 1.5
 DEPTHS_DB = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0)
 _CENTRES = np.arange(30.0, 90.1, 5.0)
@@ -49,8 +51,9 @@ def band_shape(
 
 
 def fit_band(dep_deg: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
-    """Least-squares band ``r ~ -depth g(dep; centre, width)``: depth in closed form for every (centre, width)
-    of a grid, the best kept; depth clipped to the candidate's bounds (-5, 25) dB.  (depth, centre, width)."""
+    """Least-squares band ``r ~ -depth g(dep; centre, width)``: depth in closed form for every
+    (centre, width) of a grid, the best kept; depth clipped to the candidate's bounds (-5, 25) dB.
+    (depth, centre, width)."""
     ok = np.isfinite(r) & np.isfinite(dep_deg)
     dep, r = dep_deg[ok], r[ok]
     if dep.size < 3:
@@ -86,10 +89,12 @@ def injected_test(
     depth_db: float,
     seed: int = 0,
 ) -> tuple[bool, float]:
-    """Would the ranking call a band loss of ``depth_db`` significant on these flights?  (significant, lower bd).
+    """Would the ranking call a band loss of ``depth_db`` significant on these flights?
+    (significant, lower bd).
 
-    ``resid``: per flight, residuals without the band loss (NaN where unknown); the loss is added, fitted on
-    each fold's (decimated, as in ``fit.fit_candidate``) training samples and scored on its test samples."""
+    ``resid``: per flight, residuals without the band loss (NaN where unknown); the loss is added,
+    fitted on each fold's (decimated, as in ``fit.fit_candidate``) training samples and scored on
+    its test samples."""
     a = [
         r - depth_db * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
         for d, r in zip(dep_deg, resid, strict=True)
@@ -126,10 +131,11 @@ def power_statement(
 ) -> dict[str, Any]:
     """What the flights can show about a loss in ``band`` of body depression (module docstring).
 
-    ``detectable_db``: ``FIT_MARGIN`` x the smallest depth on ``DEPTHS_DB`` from which on every depth is called
-    significant by the injected held-out test (inf: not even 48 dB).  ``samples_needed``: the samples in the
-    band a flight would need for ``loss_db`` by the ideal count (n_eff = ((z_a + z_p) s / D)^2 blocks of the residual's
-    length), a lower bound: the held-out test also needs them spread over several passes in both folds."""
+    ``detectable_db``: ``FIT_MARGIN`` x the smallest depth on ``DEPTHS_DB`` from which on every
+    depth is called significant by the injected held-out test (inf: not even 48 dB).
+    ``samples_needed``: the samples in the band a flight would need for ``loss_db`` by the ideal
+    count (n_eff = ((z_a + z_p) s / D)^2 blocks of the residual's length), a lower bound: the
+    held-out test also needs them spread over several passes in both folds."""
     dep_deg = [np.asarray(d, dtype=float) for d in dep_deg]
     n, n_eff, passes, ss = 0, 0.0, 0, []
     for dep, r, L in zip(dep_deg, resid, block_lens, strict=True):
@@ -142,8 +148,8 @@ def power_statement(
             ss.append(r[ok] - np.median(r[ok]))
     allr = np.concatenate([np.asarray(r, float) for r in resid])
     alld = np.concatenate(dep_deg)
-    # a band loss the flights already show is fitted out first (depth only, at the statement's shape: one
-    # parameter, so that little of the band's noise goes with it)
+    # a band loss the flights already show is fitted out first (depth only, at the statement's
+    # shape: one parameter, so that little of the band's noise goes with it)
     g = band_shape(alld, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
     ok = np.isfinite(allr)
     d0 = float(-np.sum(allr[ok] * g[ok]) / max(float(np.sum(g[ok] ** 2)), 1e-12))

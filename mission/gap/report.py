@@ -1,7 +1,8 @@
 """Rendering a ``Diagnosis``: rich tables in the terminal, PNG plots and a JSON of every figure.
 
-Why JSON of every figure: plots are for people, the numbers behind them are for regression checks and for
-re-plotting; every PNG written here has a same-named entry in ``gap.json`` holding exactly what was drawn.
+Why JSON of every figure: plots are for people, the numbers behind them are for regression checks
+and for re-plotting; every PNG written here has a same-named entry in ``gap.json`` holding exactly
+what was drawn.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ def params_text(p: dict[str, Any]) -> str:
     return ", ".join(f"{k}={_fmt(v)}" for k, v in q.items())
 
 
-# -------------------------------------------------------------------------------------------- figures
+# --------------------------------------------------------------------------------------------
+# figures
 
 
 def figures(d: Diagnosis) -> dict[str, Any]:
@@ -129,12 +131,13 @@ def _small(p: dict[str, Any]) -> dict[str, Any]:
 def summary(d: Diagnosis) -> dict[str, Any]:
     """The stable machine-readable result (top of ``gap.json``; ``rfsl gap --json`` prints it).
 
-    ``ladder``: one entry per rung: ``rung`` (label), ``added`` (effect or null), ``params`` (fitted, fold
-    mean), ``heldout`` (median/p90/rms |error| dB, n), ``footprint`` (size_db where it acts, where).
-    ``rankings``: rung label -> candidates tried on top of it, in rank order: ``name``, ``tier``,
-    ``loss_reduction_db2``, ``rel_reduction``, ``ci_lo_db2`` (one-sided lower bound), ``significant``,
-    ``rms_after_db``, ``p90_after_db``, ``params``.  ``named``: what the diagnosis names as missing first;
-    ``structure``: residual variograms and verdict of the base and final rungs; ``rule``: the ranking rule.
+    ``ladder``: one entry per rung: ``rung`` (label), ``added`` (effect or null), ``params``
+    (fitted, fold mean), ``heldout`` (median/p90/rms |error| dB, n), ``footprint`` (size_db where it
+    acts, where). ``rankings``: rung label -> candidates tried on top of it, in rank order:
+    ``name``, ``tier``, ``loss_reduction_db2``, ``rel_reduction``, ``ci_lo_db2`` (one-sided lower
+    bound), ``significant``, ``rms_after_db``, ``p90_after_db``, ``params``.  ``named``: what the
+    diagnosis names as missing first; ``structure``: residual variograms and verdict of the base and
+    final rungs; ``rule``: the ranking rule.
     """
     from mission.gap.fit import RANKING_RULE
     from mission.gap.structure import name_missing
@@ -217,7 +220,8 @@ def summary(d: Diagnosis) -> dict[str, Any]:
 
 
 def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
-    """The fitted shape of every free-form candidate on the first rung (fold 0) and of any added one."""
+    """The fitted shape of every free-form candidate on the first rung (fold 0) and of any added
+    one."""
     out = {}
     for r in d.rungs:
         for x in r.ranking:
@@ -243,7 +247,8 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
 
 
 def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
-    """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the paths."""
+    """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the
+    paths."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,9 +1,10 @@
 """Self-test on data whose effect is withheld: does the diagnosis find what was left out?
 
-Why: a diagnosis tool is only trustworthy if, on data where the answer is known, it names the missing effect,
-recovers its parameters and closes the gap.  Each case simulates flights from a *truth* pipeline with every
-effect switched on (random, realistic parameters; several trajectories and transmitter positions), builds the
-base model as the truth minus one effect (the rest at their true values) and requires that
+Why: a diagnosis tool is only trustworthy if, on data where the answer is known, it names the
+missing effect, recovers its parameters and closes the gap.  Each case simulates flights from a
+*truth* pipeline with every effect switched on (random, realistic parameters; several trajectories
+and transmitter positions), builds the base model as the truth minus one effect (the rest at their
+true values) and requires that
 
 1. the withheld effect is ranked first (and significant),
 2. its fitted parameters land near the truth,
@@ -11,10 +12,10 @@ base model as the truth minus one effect (the rest at their true values) and req
 
 The negative case withholds nothing: no candidate may come out significant.
 
-The truth has full (roll, pitch, yaw) attitude and no path-gain slope, except in two cases: when ``yaw_attitude``
-is withheld the truth turns the body by the yaw only (so the case tells yaw-only from full attitude), and when
-``path_gain_slope`` is withheld the truth has one (n_extra drawn in 0.4-2.0).  Both are drawn only in their
-own case so the other cases' random truths are unchanged.
+The truth has full (roll, pitch, yaw) attitude and no path-gain slope, except in two cases: when
+``yaw_attitude`` is withheld the truth turns the body by the yaw only (so the case tells yaw-only
+from full attitude), and when ``path_gain_slope`` is withheld the truth has one (n_extra drawn in
+0.4-2.0).  Both are drawn only in their own case so the other cases' random truths are unchanged.
 """
 
 from __future__ import annotations
@@ -63,7 +64,8 @@ class Truth:
 
 
 def draw_truth(rng: np.random.Generator, withheld: str | None) -> dict[str, Any]:
-    """Random, realistic truth parameters (the receiver levels are set later from the simulated channel)."""
+    """Random, realistic truth parameters (the receiver levels are set later from the simulated
+    channel)."""
     p: dict[str, Any] = {
         "rx_heading_deg": float(rng.uniform(40.0, 320.0)),
         "eps_r": float(10 ** rng.uniform(np.log10(4.0), np.log10(25.0))),
@@ -83,8 +85,8 @@ def draw_truth(rng: np.random.Generator, withheld: str | None) -> dict[str, Any]
 
 
 def truth_pipeline(p: dict[str, Any], rng: np.random.Generator) -> Pipeline:
-    """e2r with a measured UAV antenna (heading offset), tilted rover dipole, ground, legs, time offset,
-    spatial shadowing (the receiver is added by ``simulate_case``)."""
+    """e2r with a measured UAV antenna (heading offset), tilted rover dipole, ground, legs, time
+    offset, spatial shadowing (the receiver is added by ``simulate_case``)."""
     tx_pat = rm_wb1_dn() if p["tx_pattern"] == "measured" else "dipole"
     model = make_model(
         "e2r",
@@ -116,8 +118,9 @@ def simulate_flights(
     dt_s: float = 0.1,
     max_duration_s: float = 420.0,
 ) -> tuple[list[FlightSamples], list[np.ndarray]]:
-    """Fly ``n_flights`` trajectories (different patterns, altitudes and transmitters) and return flights
-    whose RSS is the truth pipeline's *channel* prediction (receiver and noise added by the caller)."""
+    """Fly ``n_flights`` trajectories (different patterns, altitudes and transmitters) and return
+    flights whose RSS is the truth pipeline's *channel* prediction (receiver and noise added by the
+    caller)."""
     from mission.geo import afar_field
     from mission.simulate import SimConfig, fly_path
     from mission.trajectory.generators import generate
@@ -162,7 +165,8 @@ def simulate_case(
     dt_s: float = 0.1,
     max_duration_s: float = 420.0,
 ) -> tuple[Truth, Pipeline, list[FlightSamples]]:
-    """Truth, base pipeline (truth minus ``withheld``) and simulated flights for one self-test case."""
+    """Truth, base pipeline (truth minus ``withheld``) and simulated flights for one self-test
+    case."""
     rng = np.random.default_rng(seed)
     p = draw_truth(rng, withheld)
     pipe = truth_pipeline(p, rng)
@@ -243,8 +247,9 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
             f"(truth {truth['sat_db']:.1f}) dB"
         )
     if withheld == "spatial_shadowing":
-        # sigma against the field's std over the flown samples (the offset absorbs the field's mean per flight);
-        # the correlation length is weakly identified on held-out chunks ~30 m from the training passes
+        # sigma against the field's std over the flown samples (the offset absorbs the field's mean
+        # per flight); the correlation length is weakly identified on held-out chunks ~30 m from the
+        # training passes
         real = truth["spatial_realized_std_db"]
         ok = 0.6 <= f["sigma_db"] / real <= 1.5  # L is reported, not required (see above)
         return ok, (
@@ -309,9 +314,9 @@ class CaseResult:
 
 
 def gap_tolerance(withheld: str | None, oracle_rms: float | None = None) -> float:
-    """Held-out RMS allowed after adding the withheld effect: 1.2 x the noise; for spatial shadowing, which no
-    model can predict on held-out ground it never flew over, 1.05 x the oracle (kriging with the true
-    covariance on the same folds)."""
+    """Held-out RMS allowed after adding the withheld effect: 1.2 x the noise; for spatial
+    shadowing, which no model can predict on held-out ground it never flew over, 1.05 x the oracle
+    (kriging with the true covariance on the same folds)."""
     if withheld == "spatial_shadowing" and oracle_rms is not None:
         return 1.05 * oracle_rms
     return NOISE_DB * 1.2
@@ -320,7 +325,8 @@ def gap_tolerance(withheld: str | None, oracle_rms: float | None = None) -> floa
 def oracle_spatial_rms(
     base: Pipeline, truth: Truth, flights: Sequence[FlightSamples], cfg: FitConfig
 ) -> float:
-    """Held-out RMS of kriging with the true field's covariance (the best a spatial candidate can do)."""
+    """Held-out RMS of kriging with the true field's covariance (the best a spatial candidate can
+    do)."""
     from mission.gap.fit import decimate, heldout_residuals, residuals
     from mission.gap.spatial import KrigedShadowing, _group_cells
 
@@ -349,13 +355,14 @@ def run_case(
     max_duration_s: float = 420.0,
     candidates: Sequence[str] | None = None,
 ) -> CaseResult:
-    """Simulate, withhold, rank the candidates once on top of the base and check the three requirements."""
+    """Simulate, withhold, rank the candidates once on top of the base and check the three
+    requirements."""
     cfg = cfg or FitConfig(seed=seed)
     truth, base, flights = simulate_case(withheld, seed, n_flights, dt_s, max_duration_s)
     lib = library()
-    # the library's own consistency check: named effects and the smoother; the free-form maps are checked
-    # against the independent generator (tests/_gap_synth.py, benchmarks/bench_gap.py selftest)
-    # (site_map needs flights that share a transmitter position: no withheld truth here)
+    # the library's own consistency check: named effects and the smoother; the free-form maps are
+    # checked against the independent generator (tests/_gap_synth.py, benchmarks/bench_gap.py
+    # selftest) (site_map needs flights that share a transmitter position: no withheld truth here)
     cands = [
         lib[n]
         for n in (
@@ -414,7 +421,8 @@ def run_selftest(
 
 
 def confusion(results: Sequence[CaseResult]) -> tuple[list[str], list[str], np.ndarray]:
-    """Confusion table: rows = withheld (``none`` = negative case), columns = ranked first (``none``)."""
+    """Confusion table: rows = withheld (``none`` = negative case), columns = ranked first
+    (``none``)."""
     rows = [*dict.fromkeys((r.withheld or "none") for r in results)]
     cols = [*dict.fromkeys([*WITHHELD_ALL, "none"])]
     M = np.zeros((len(rows), len(cols)), dtype=int)

@@ -1,16 +1,19 @@
-"""Spatially correlated shadowing as gap candidates: kriging of training residuals and a site map (smoothers).
+"""Spatially correlated shadowing as gap candidates: kriging of training residuals and a site map
+(smoothers).
 
-Why here and not in ``mission.physics.shadowing``: kriging is a *predictor* fitted on a flight's residuals
-around its own transmitter (it cannot be used to localize an unknown one); the covariance model it uses and
-the random fields of the self-test are the physics module's (``COVARIANCE`` = exponential, Gudmundson's
-model of measured shadowing).  In the ranking it is a *smoother* (``mission.gap.fit.TIERS``): it absorbs any
-smooth misfit, so it must beat the explanations by a stated margin to come first.
+Why here and not in ``mission.physics.shadowing``: kriging is a *predictor* fitted on a flight's
+residuals around its own transmitter (it cannot be used to localize an unknown one); the covariance
+model it uses and the random fields of the self-test are the physics module's (``COVARIANCE`` =
+exponential, Gudmundson's model of measured shadowing).  In the ranking it is a *smoother*
+(``mission.gap.fit.TIERS``): it absorbs any smooth misfit, so it must beat the explanations by a
+stated margin to come first.
 
-``site_map`` is the site-specific version for flights that share a transmitter position (the same rover
-location flown by several teams): a smooth map over the compass azimuth of the UAV seen from the transmitter
-x log horizontal distance, one per transmitter position (``tx_key``), fitted on the training flights there.
-Held out by flight, it carries what the *environment around the transmitter* does (a building blocking a
-sector, trees at some range) from one flight to another; a transmitter with no training flight gets no map.
+``site_map`` is the site-specific version for flights that share a transmitter position (the same
+rover location flown by several teams): a smooth map over the compass azimuth of the UAV seen from
+the transmitter x log horizontal distance, one per transmitter position (``tx_key``), fitted on the
+training flights there. Held out by flight, it carries what the *environment around the transmitter*
+does (a building blocking a sector, trees at some range) from one flight to another; a transmitter
+with no training flight gets no map.
 """
 
 from __future__ import annotations
@@ -44,10 +47,11 @@ def tx_key(tx: np.ndarray) -> tuple[float, float]:
 
 @dataclass(frozen=True, eq=False)
 class KrigedShadowing:
-    """Fitted spatial shadowing: simple kriging (exponential covariance + nugget) of training residuals.
+    """Fitted spatial shadowing: simple kriging (exponential covariance + nugget) of training
+    residuals.
 
-    Training residuals are averaged in square cells of ``cell_m`` first (the samples of one pass are not
-    independent anyway); one set of points per transmitter position (``tx_key``).
+    Training residuals are averaged in square cells of ``cell_m`` first (the samples of one pass are
+    not independent anyway); one set of points per transmitter position (``tx_key``).
     """
 
     sigma_db: float
@@ -127,12 +131,13 @@ def choose_kriging(
 ) -> tuple[float, float, float]:
     """(sigma_db, corr_len_m, nugget_db) by inner two-fold cross-validation on the training samples.
 
-    The training samples are split again into alternating ``period_s`` stretches of flight; each grid point
-    (correlation length x nugget fraction, sigma^2 + nugget^2 = residual variance) krigs one half from the
-    other (``KrigedShadowing``'s predictor); the pair with the smallest prediction error wins.  Chosen this
-    way because the variogram of a 30 Hz track is dominated by along-track pairs and underestimates the
-    across-track correlation length.  The cells and distances of each half are computed once for the whole
-    grid, the correlations once per length, and each system is solved by Cholesky (it is a covariance).
+    The training samples are split again into alternating ``period_s`` stretches of flight; each
+    grid point (correlation length x nugget fraction, sigma^2 + nugget^2 = residual variance) krigs
+    one half from the other (``KrigedShadowing``'s predictor); the pair with the smallest prediction
+    error wins.  Chosen this way because the variogram of a 30 Hz track is dominated by along-track
+    pairs and underestimates the across-track correlation length.  The cells and distances of each
+    half are computed once for the whole grid, the correlations once per length, and each system is
+    solved by Cholesky (it is a covariance).
     """
     from scipy.linalg import cho_factor, cho_solve
 
@@ -196,7 +201,8 @@ SITE_LAMBDAS = tuple(np.geomspace(1e-4, 1e1, 11))
 
 
 def site_variables(tx: np.ndarray, rx_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(compass azimuth of the UAV from the transmitter (rad), log distance scaled to [-1, 1] over 10-500 m)."""
+    """(compass azimuth of the UAV from the transmitter (rad), log distance scaled to [-1, 1] over
+    10-500 m)."""
     d = rx_xy - np.asarray(tx, dtype=float)[None, :2]
     az = bearing(d[:, 0], d[:, 1], signed=True)
     ld = np.log10(np.maximum(horizontal_distance(d[:, 0], d[:, 1]), 5.0) / 70.7) / 0.85
@@ -204,8 +210,9 @@ def site_variables(tx: np.ndarray, rx_xy: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def site_design(az: np.ndarray, ld: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Design matrix (N, K) Fourier(az, SITE_M) x Legendre(ld, SITE_P), no constant, and its ridge penalty:
-    the free-form maps' basis (``freeform.fourier_legendre_columns``) over the site variables."""
+    """Design matrix (N, K) Fourier(az, SITE_M) x Legendre(ld, SITE_P), no constant, and its ridge
+    penalty: the free-form maps' basis (``freeform.fourier_legendre_columns``) over the site
+    variables."""
     return (
         np.column_stack(fourier_legendre_columns(az, ld, SITE_M, SITE_P)),
         ridge_penalty(fourier_legendre_orders(SITE_M, SITE_P)),
@@ -214,7 +221,8 @@ def site_design(az: np.ndarray, ld: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 @dataclass(frozen=True, eq=False)
 class SiteMap:
-    """Fitted site-specific shadowing: per transmitter position, ridge coefficients of ``site_design``."""
+    """Fitted site-specific shadowing: per transmitter position, ridge coefficients of
+    ``site_design``."""
 
     coef: dict[tuple[float, float], np.ndarray]
     lam: float
@@ -235,9 +243,9 @@ def fit_site_map(
     f_scale_db: float = 6.0,
     period_s: float = 30.0,
 ) -> tuple[SiteMap, dict[str, Any]]:
-    """Per transmitter position, a weighted ridge fit of the offset-free training residuals (centred per
-    flight, soft-L1 IRLS weights for a robust loss); lambda by inner two-fold CV over alternate ``period_s``
-    stretches of flight, pooled over the positions."""
+    """Per transmitter position, a weighted ridge fit of the offset-free training residuals (centred
+    per flight, soft-L1 IRLS weights for a robust loss); lambda by inner two-fold CV over alternate
+    ``period_s`` stretches of flight, pooled over the positions."""
     groups: dict[
         tuple[float, float], list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
     ] = {}
@@ -250,7 +258,8 @@ def fit_site_map(
         w = np.ones(len(r)) if loss == "l2" else 1.0 / np.sqrt(1.0 + (r / f_scale_db) ** 2)
         half = np.floor(f.t_s[i] / period_s).astype(int) % 2
         groups.setdefault(tx_key(f.tx_enu_m), []).append((X, r, w, half))
-    # one ridge fit per transmitter position, one lambda for all (CV errors pooled over the positions)
+    # one ridge fit per transmitter position, one lambda for all (CV errors pooled over the
+    # positions)
     fits = {
         key: ridge_cv(*(list(col) for col in zip(*parts, strict=True)), pen, SITE_LAMBDAS, min_n=5)
         for key, parts in groups.items()
@@ -278,8 +287,9 @@ def _smoother(
         tuple[Any, dict[str, Any]],
     ],
 ) -> Candidate:
-    """A smoother candidate: ``fit(flights, idx, resid, cfg) -> (field, params)`` fills the pipeline's spatial
-    slot (fitted directly on the training residuals, no parameter search); withholding it empties the slot."""
+    """A smoother candidate: ``fit(flights, idx, resid, cfg) -> (field, params)`` fills the
+    pipeline's spatial slot (fitted directly on the training residuals, no parameter search);
+    withholding it empties the slot."""
 
     def build(
         p: Pipeline, th: dict[str, float], ch: dict[str, Any]
@@ -324,8 +334,9 @@ def site_map_candidate() -> Candidate:
 
 
 def shares_site(flights: Sequence[Any]) -> bool:
-    """Whether at least two flights share a transmitter position (``tx_key``): only then can ``site_map``
-    carry anything from one flight to another (alone, it is one more smoother beside kriging)."""
+    """Whether at least two flights share a transmitter position (``tx_key``): only then can
+    ``site_map`` carry anything from one flight to another (alone, it is one more smoother beside
+    kriging)."""
     keys = [tx_key(f.tx_enu_m) for f in flights]
     return len(set(keys)) < len(keys)
 
@@ -333,8 +344,8 @@ def shares_site(flights: Sequence[Any]) -> bool:
 def usable_candidates(
     candidates: Sequence[Candidate], flights: Sequence[Any], split: str = "blocks"
 ) -> list[Candidate]:
-    """``candidates`` without ``site_map`` when no two flights share a transmitter position, and without the
-    per-flight ``time_drift`` when whole flights are held out or a flight has no times
+    """``candidates`` without ``site_map`` when no two flights share a transmitter position, and
+    without the per-flight ``time_drift`` when whole flights are held out or a flight has no times
     (``temporal.usable_in``)."""
     from mission.gap.temporal import NAME, usable_in
 

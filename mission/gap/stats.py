@@ -1,10 +1,12 @@
-"""Statistics for autocorrelated residuals: block length from the autocorrelation, circular block bootstrap.
+"""Statistics for autocorrelated residuals: block length from the autocorrelation, circular block
+bootstrap.
 
-Why: consecutive RSS samples (30 Hz) share the same shadowing, multipath and pointing, so their residuals are
-strongly autocorrelated; an i.i.d. bootstrap or a t-interval would call almost every bin "significant".
-Resampling whole blocks whose length covers the autocorrelation keeps that dependence inside each block.
-The block length comes from the integrated autocorrelation time of the residual (Sokal's window), and every
-flight is resampled on its own (flights are independent of each other).
+Why: consecutive RSS samples (30 Hz) share the same shadowing, multipath and pointing, so their
+residuals are strongly autocorrelated; an i.i.d. bootstrap or a t-interval would call almost every
+bin "significant". Resampling whole blocks whose length covers the autocorrelation keeps that
+dependence inside each block. The block length comes from the integrated autocorrelation time of the
+residual (Sokal's window), and every flight is resampled on its own (flights are independent of each
+other).
 """
 
 from __future__ import annotations
@@ -33,8 +35,9 @@ def block_length(
 ) -> int:
     """Bootstrap block length ~ 2 x the integrated autocorrelation time of ``x``.
 
-    tau_int = 1 + 2 sum_{k < K} rho_k with K the first lag where rho drops below ``cutoff``; the block is
-    ceil(2 tau_int), kept within [min_len, max_frac * n] so that there are at least ~10 blocks.
+    tau_int = 1 + 2 sum_{k < K} rho_k with K the first lag where rho drops below ``cutoff``; the
+    block is ceil(2 tau_int), kept within [min_len, max_frac * n] so that there are at least ~10
+    blocks.
     """
     x = np.asarray(x, dtype=float)
     n = x.size
@@ -66,9 +69,9 @@ def bootstrap_group_means(
 ) -> np.ndarray:
     """Circular block bootstrap of per-group means, pooled over independent flights.
 
-    ``values[f]``, ``groups[f]`` (ints in [0, n_groups), -1 = excluded) belong to flight f, resampled with
-    block length ``block_lens[f]``.  Returns (n_boot, n_groups) replicate means (NaN where a replicate has
-    no sample of that group).
+    ``values[f]``, ``groups[f]`` (ints in [0, n_groups), -1 = excluded) belong to flight f,
+    resampled with block length ``block_lens[f]``.  Returns (n_boot, n_groups) replicate means (NaN
+    where a replicate has no sample of that group).
     """
     sums = np.zeros((n_boot, n_groups))
     cnts = np.zeros((n_boot, n_groups))
@@ -91,7 +94,8 @@ def bootstrap_group_means(
 def bootstrap_mean(
     values: Sequence[np.ndarray], block_lens: Sequence[int], n_boot: int, rng: np.random.Generator
 ) -> np.ndarray:
-    """Block-bootstrap replicates (n_boot,) of the pooled mean of ``values`` (one array per flight)."""
+    """Block-bootstrap replicates (n_boot,) of the pooled mean of ``values`` (one array per
+    flight)."""
     groups = [np.zeros(v.size, dtype=int) for v in values]
     return bootstrap_group_means(values, groups, 1, block_lens, n_boot, rng)[:, 0]
 
@@ -143,7 +147,8 @@ def ecdf(x: np.ndarray, n_points: int = 200) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class BinnedResidual:
-    """Mean residual per bin of one variable, with block-bootstrap confidence intervals and flags."""
+    """Mean residual per bin of one variable, with block-bootstrap confidence intervals and
+    flags."""
 
     variable: str
     centers: np.ndarray
@@ -183,10 +188,11 @@ def binned_residual(
     min_count: int = 30,
     categorical: bool = False,
 ) -> BinnedResidual:
-    """Bin ``residuals`` by ``xs`` (one array per flight) and flag bins whose mean departs from zero.
+    """Bin ``residuals`` by ``xs`` (one array per flight) and flag bins whose mean departs from
+    zero.
 
-    A bin is flagged when its block-bootstrap ``level`` interval excludes 0 (the residual has the per-flight
-    offset removed, so a flagged bin is a systematic departure of the model there).
+    A bin is flagged when its block-bootstrap ``level`` interval excludes 0 (the residual has the
+    per-flight offset removed, so a flagged bin is a systematic departure of the model there).
     """
     edges = np.asarray(edges, dtype=float)
     nb = len(edges) if categorical else len(edges) - 1

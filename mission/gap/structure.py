@@ -1,19 +1,21 @@
-"""What is left and how large: residual correlation (variograms) and the footprint of a fitted effect.
+"""What is left and how large: residual correlation (variograms) and the footprint of a fitted
+effect.
 
-Why: an effect that no candidate can predict on held-out data can still be *measured*.  Correlated shadowing
-is the common case: kriging cannot predict a chunk of flight over ground never flown, but the residual's
-semivariogram shows a correlated part (sigma, correlation length) above a white-noise floor (nugget).  Two
-variograms are fitted (``mission.physics.shadowing.fit_variogram``, exponential covariance, bootstrap 90 %
-intervals): along the path (lag in seconds, pairs within a flight) and over space (lag in metres, pairs
-around the same transmitter).  The verdict (``STRUCTURE_RULE``, ``correlation_test``) does not rest on the
-fitted correlation length, whose lower bound can reach 0 on real data: it compares the semivariance of near
-pairs (< 15 m) with that of all pairs, with a block-bootstrap bound, and names "correlated shadowing" when
-the correlated part is clearly there, else "white noise".
+Why: an effect that no candidate can predict on held-out data can still be *measured*.  Correlated
+shadowing is the common case: kriging cannot predict a chunk of flight over ground never flown, but
+the residual's semivariogram shows a correlated part (sigma, correlation length) above a white-noise
+floor (nugget).  Two variograms are fitted (``mission.physics.shadowing.fit_variogram``, exponential
+covariance, bootstrap 90 % intervals): along the path (lag in seconds, pairs within a flight) and
+over space (lag in metres, pairs around the same transmitter).  The verdict (``STRUCTURE_RULE``,
+``correlation_test``) does not rest on the fitted correlation length, whose lower bound can reach 0
+on real data: it compares the semivariance of near pairs (< 15 m) with that of all pairs, with a
+block-bootstrap bound, and names "correlated shadowing" when the correlated part is clearly there,
+else "white noise".
 
-``footprint`` turns a fitted candidate into "how large and where": the change it makes to the prediction on
-the flown samples (``size_db``: median |change| where it is at least half its maximum, i.e. its size where it
-acts; also the 5-95 % range) and the geometry (distance, body azimuth/depression, world azimuth) of
-the samples where it acts most.
+``footprint`` turns a fitted candidate into "how large and where": the change it makes to the
+prediction on the flown samples (``size_db``: median |change| where it is at least half its maximum,
+i.e. its size where it acts; also the 5-95 % range) and the geometry (distance, body
+azimuth/depression, world azimuth) of the samples where it acts most.
 """
 
 from __future__ import annotations
@@ -48,10 +50,10 @@ WITHIN_FLIGHT = "correlated within flights"
 
 
 def structure_verdict(test: dict[str, Any], along: dict[str, Any]) -> str:
-    """One verdict on what is left (``STRUCTURE_RULE``): "correlated shadowing" when near pairs over the ground
-    are alike (``correlation_test``); else "correlated within flights" when the residual along each flight's
-    path is mostly correlated (variogram ``correlated_fraction`` > 0.5, correlated sigma >= 1 dB) yet does not
-    repeat over the same ground; else "white noise"."""
+    """One verdict on what is left (``STRUCTURE_RULE``): "correlated shadowing" when near pairs over
+    the ground are alike (``correlation_test``); else "correlated within flights" when the residual
+    along each flight's path is mostly correlated (variogram ``correlated_fraction`` > 0.5,
+    correlated sigma >= 1 dB) yet does not repeat over the same ground; else "white noise"."""
     if test.get("correlated"):
         return "correlated shadowing"
     if along.get("correlated_fraction", 0.0) > 0.5 and along.get("sigma_db", 0.0) >= 1.0:
@@ -69,13 +71,13 @@ def correlation_test(
     n_blocks: int = 20,
     n_boot: int = 400,
 ) -> dict[str, Any]:
-    """Near-pair to all-pair semivariance ratio of residuals ``r`` at ``xy`` (pairs within a group only),
-    with a one-sided 95 % upper bound from a bootstrap of contiguous blocks of points.
+    """Near-pair to all-pair semivariance ratio of residuals ``r`` at ``xy`` (pairs within a group
+    only), with a one-sided 95 % upper bound from a bootstrap of contiguous blocks of points.
 
-    White noise: every pair differs alike, ratio ~ 1.  Correlated shadowing: near pairs are alike, ratio ~
-    nugget^2 / sill.  Model-free (no correlation length to fit), so it cannot be fooled by an unidentified L.
-    The block bootstrap is exact on precomputed block-pair sums: a replicate with block multiplicities m
-    has pair sums m^T S m.
+    White noise: every pair differs alike, ratio ~ 1.  Correlated shadowing: near pairs are alike,
+    ratio ~ nugget^2 / sill.  Model-free (no correlation length to fit), so it cannot be fooled by
+    an unidentified L. The block bootstrap is exact on precomputed block-pair sums: a replicate with
+    block multiplicities m has pair sums m^T S m.
     """
     r = np.asarray(r, dtype=float)
     if len(r) > max_points:
@@ -195,7 +197,8 @@ def residual_structure(
 def footprint(
     base: Pipeline, new: Pipeline, flights: Sequence[FlightSamples], max_samples: int = 3000
 ) -> dict[str, Any]:
-    """Size (5-95 % range of new - base, dB, offset-free) and where the change acts most (top 5 % |change|)."""
+    """Size (5-95 % range of new - base, dB, offset-free) and where the change acts most (top 5 %
+    |change|)."""
     d, geo = [], []
     for f in flights:
         i = np.arange(0, len(f), max(1, len(f) // max_samples))
@@ -233,8 +236,8 @@ def footprint(
 
 
 def name_missing(ranking: Sequence[Any], structure: dict[str, Any] | None) -> str | None:
-    """What the diagnosis names: the top-ranked significant candidate; else "spatial_shadowing" when the
-    residual structure is correlated shadowing; else None (nothing)."""
+    """What the diagnosis names: the top-ranked significant candidate; else "spatial_shadowing" when
+    the residual structure is correlated shadowing; else None (nothing)."""
     if ranking and ranking[0].significant:
         return ranking[0].name
     if structure is not None and structure.get("verdict") == "correlated shadowing":
@@ -249,12 +252,14 @@ def identify(
     cfg: Any,
     progress: Any = None,
 ) -> dict[str, Any]:
-    """One ranking on top of ``base`` plus the residual structure: what is missing, how large, where.
+    """One ranking on top of ``base`` plus the residual structure: what is missing, how large,
+    where.
 
-    Returns ``named`` (``name_missing``, then ``frame.resolve``: where a ground map and a body-angle map both
-    explain the residual, the one that holds out across headings and on unseen ground), the ranking rows, the
-    structure of the base's held-out residuals, ``frame`` (that test, or None), and for the named effect its
-    ``footprint`` (fold 0's fit against the base) and fitted parameters.
+    Returns ``named`` (``name_missing``, then ``frame.resolve``: where a ground map and a body-angle
+    map both explain the residual, the one that holds out across headings and on unseen ground), the
+    ranking rows, the structure of the base's held-out residuals, ``frame`` (that test, or None),
+    and for the named effect its ``footprint`` (fold 0's fit against the base) and fitted
+    parameters.
     """
     from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
 

@@ -1,23 +1,26 @@
-"""Effects that live in time: a gain that drifts or steps over a flight, as a candidate and a power statement.
+"""Effects that live in time: a gain that drifts or steps over a flight, as a candidate and a power
+statement.
 
-Why: a receiver or transmitter whose gain is not constant over the flight (warming up, an AGC step, a cable
-moved at a waypoint) leaves a residual that follows the flight's *time*, not its geometry.  No geometric
-candidate can draw it, so it was blamed on shadowing or a path-gain slope.  ``time_drift`` is a free-form
-basis over each flight's own time, fitted per flight (the offset is per flight, so is its drift):
+Why: a receiver or transmitter whose gain is not constant over the flight (warming up, an AGC step,
+a cable moved at a waypoint) leaves a residual that follows the flight's *time*, not its geometry.
+No geometric candidate can draw it, so it was blamed on shadowing or a path-gain slope.
+``time_drift`` is a free-form basis over each flight's own time, fitted per flight (the offset is
+per flight, so is its drift):
 
 | part | columns (per flight) | ridge weight |
 | --- | --- | --- |
 | smooth drift | Legendre P_1..P_4 of the flight's time scaled to [-1, 1] | 1 + p^2 |
 | steps at events | H(t - t_e) per event (``flight_events``: phase changes, sharp turns) | ``STEP_WEIGHT`` |
 
-Events: a change of the log's phase column, or a turn (the heading changes by at least ``TURN_DEG`` within
-``TURN_WINDOW_S``), at least ``MIN_EVENT_GAP_S`` apart, at most ``MAX_EVENTS`` per flight.
+Events: a change of the log's phase column, or a turn (the heading changes by at least ``TURN_DEG``
+within ``TURN_WINDOW_S``), at least ``MIN_EVENT_GAP_S`` apart, at most ``MAX_EVENTS`` per flight.
 
-Ridge lambda by inner two-fold CV over alternate 30 s stretches of flight (``freeform.ridge_cv``, as every
-free-form map).  A per-flight term predicts held-out *chunks* of a flight it was trained on; it cannot say
-anything about a flight held out whole (it has no coefficients for it), so with ``split="flights"`` it is
-not tried, and the power statement says so.  ``time_power_statement`` runs the ranking's own test on the
-flights at hand with a drift of known size injected: the smallest drift the diagnosis could show.
+Ridge lambda by inner two-fold CV over alternate 30 s stretches of flight (``freeform.ridge_cv``, as
+every free-form map).  A per-flight term predicts held-out *chunks* of a flight it was trained on;
+it cannot say anything about a flight held out whole (it has no coefficients for it), so with
+``split="flights"`` it is not tried, and the power statement says so.  ``time_power_statement`` runs
+the ranking's own test on the flights at hand with a drift of known size injected: the smallest
+drift the diagnosis could show.
 """
 
 from __future__ import annotations
@@ -44,9 +47,10 @@ NAME = "time_drift"
 
 
 def flight_events(flight: FlightSamples) -> np.ndarray:
-    """Times (s) at which a gain might step: changes of the phase column and the sharpest turns (heading change
-    over ``TURN_WINDOW_S`` of at least ``TURN_DEG``), at least ``MIN_EVENT_GAP_S`` apart, at most ``MAX_EVENTS``
-    (the strongest turns first), never within the first or last 10 s."""
+    """Times (s) at which a gain might step: changes of the phase column and the sharpest turns
+    (heading change over ``TURN_WINDOW_S`` of at least ``TURN_DEG``), at least
+    ``MIN_EVENT_GAP_S`` apart, at most ``MAX_EVENTS`` (the strongest turns first), never within
+    the first or last 10 s."""
     t = np.asarray(flight.t_s, dtype=float)
     if len(t) < 5:
         return np.zeros(0)
@@ -88,7 +92,8 @@ def time_columns(
 
 @dataclass(frozen=True, eq=False)
 class TimeTerm:
-    """A fitted gain over each flight's time (dB), by flight name: (t0, t1, events, coefficients)."""
+    """A fitted gain over each flight's time (dB), by flight name: (t0, t1, events,
+    coefficients)."""
 
     per_flight: dict[str, tuple[float, float, np.ndarray, np.ndarray]]
     name: str = NAME
@@ -126,8 +131,9 @@ def fit_time_term(
     f_scale_db: float = 6.0,
     period_s: float = 30.0,
 ) -> tuple[TimeTerm, dict[str, Any]]:
-    """Per flight a ridge fit of the offset-free training residuals on ``time_columns`` (block design: every
-    flight's own columns), one lambda for all by inner two-fold CV over alternate ``period_s`` stretches."""
+    """Per flight a ridge fit of the offset-free training residuals on ``time_columns`` (block
+    design: every flight's own columns), one lambda for all by inner two-fold CV over alternate
+    ``period_s`` stretches."""
     use = [k for k, i in enumerate(idx) if len(i) >= 10 and flights[k].t_s is not None]
     blocks = []
     for k in use:
@@ -224,11 +230,12 @@ def time_power_statement(
     split: str,
     seed: int = 0,
 ) -> dict[str, Any]:
-    """The smallest drift (dB from the flight's start to its end, linear) the ranking's held-out test would call
-    significant on these flights: the drift is injected into the residuals, ``time_drift`` fitted on each fold's
-    training samples (decimated as every fit is) and scored with ``fit.compare`` (``power.injected_test``'s
-    method); ``detectable_db`` = the smallest drift on ``DRIFTS_DB`` from which on every larger one is
-    significant (inf: not even the largest; with whole flights held out, inf by construction)."""
+    """The smallest drift (dB from the flight's start to its end, linear) the ranking's held-out
+    test would call significant on these flights: the drift is injected into the residuals,
+    ``time_drift`` fitted on each fold's training samples (decimated as every fit is) and scored
+    with ``fit.compare`` (``power.injected_test``'s method); ``detectable_db`` = the smallest drift
+    on ``DRIFTS_DB`` from which on every larger one is significant (inf: not even the largest; with
+    whole flights held out, inf by construction)."""
     from mission.gap.fit import compare, decimate
     from mission.robust import offset_residual
 

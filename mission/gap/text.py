@@ -1,10 +1,10 @@
-"""The diagnosis as text that reads at 80 columns: a plain-language summary, one line per ladder rung, short
-tables; the full tables (every candidate on every rung, every flagged bin, every flight) go to
-``details.txt`` in the report folder and to ``gap.json``.
+"""The diagnosis as text that reads at 80 columns: a plain-language summary, one line per ladder
+rung, short tables; the full tables (every candidate on every rung, every flagged bin, every flight)
+go to ``details.txt`` in the report folder and to ``gap.json``.
 
-Why: at 80 columns the wide rich tables of earlier rounds wrapped into unreadable cells.  Every table here
-has columns whose widths add up to less than 80 (``WIDTH``), labels are short (``labels.short_labels``),
-and what a reader needs first is a sentence, not a table.
+Why: at 80 columns the wide rich tables of earlier rounds wrapped into unreadable cells.  Every
+table here has columns whose widths add up to less than 80 (``WIDTH``), labels are short
+(``labels.short_labels``), and what a reader needs first is a sentence, not a table.
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ def _added(label: str) -> str:
 
 
 def summary_paragraph(d: Diagnosis) -> str:
-    """One paragraph: what the model misses, worth how many dB, and what is left (size, correlation range)."""
+    """One paragraph: what the model misses, worth how many dB, and what is left (size, correlation
+    range)."""
     rows = rung_table(d)
     p90 = [r["pooled"]["p90_abs_db"] for r in rows]
     parts = []
@@ -83,8 +84,8 @@ def summary_paragraph(d: Diagnosis) -> str:
 
 
 def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left") -> str:
-    """The one verdict on a rung's residual (``structure.structure_verdict``) in words a reader can act on; the
-    summary and the structure lines both use it, so they cannot disagree."""
+    """The one verdict on a rung's residual (``structure.structure_verdict``) in words a reader can
+    act on; the summary and the structure lines both use it, so they cannot disagree."""
     te, sp, al = st.get("test", {}), st.get("spatial", {}), st.get("along_path", {})
     std, v = st.get("residual_std_db", float("nan")), st.get("verdict")
     ratio = (
@@ -112,7 +113,8 @@ def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left
 
 
 def _time_sentence(d: Diagnosis) -> str:
-    """Whether an effect is better explained along time than by geometry, or what time could show."""
+    """Whether an effect is better explained along time than by geometry, or what time could
+    show."""
     from mission.gap.temporal import NAME
 
     first = d.rungs[0].ranking
@@ -151,7 +153,8 @@ def wrap(text: str, width: int = WIDTH) -> str:
 
 
 def _table(title: str, cols: list[tuple[str, int, str]], rows: list[list[str]]) -> str:
-    """A plain text table; ``cols``: (header, width, '<' or '>'); cells longer than their width are cut."""
+    """A plain text table; ``cols``: (header, width, '<' or '>'); cells longer than their width are
+    cut."""
 
     def line(cells: list[str]) -> str:
         out = []
@@ -165,7 +168,8 @@ def _table(title: str, cols: list[tuple[str, int, str]], rows: list[list[str]]) 
 
 
 def ladder_text(d: Diagnosis) -> str:
-    """One line per rung: what was added, held-out median/p90/rms, p90 gained, size where it acts, loc. error."""
+    """One line per rung: what was added, held-out median/p90/rms, p90 gained, size where it acts,
+    loc. error."""
     loc = {row["rung"]: row for row in d.localization}
     rows, prev = [], None
     for row in rung_table(d):
@@ -200,7 +204,8 @@ def ladder_text(d: Diagnosis) -> str:
 
 
 def ranking_text(d: Diagnosis, k: int = 0, top: int | None = 6) -> str:
-    """Candidates tried on rung ``k``: p90 after, relative loss reduction, its lower bound, significant."""
+    """Candidates tried on rung ``k``: p90 after, relative loss reduction, its lower bound,
+    significant."""
     r = d.rungs[k]
     rows = [
         [
@@ -278,7 +283,8 @@ def report_text(d: Diagnosis) -> str:
 
 
 def details_text(d: Diagnosis) -> str:
-    """Everything else, still at 80 columns: the reference models per flight, the flagged bins, every ranking."""
+    """Everything else, still at 80 columns: the reference models per flight, the flagged bins,
+    every ranking."""
     parts = [report_text(d)]
     rows = [
         [
@@ -356,7 +362,8 @@ def details_text(d: Diagnosis) -> str:
 
 
 def print_report(d: Diagnosis, console: Any = None) -> None:
-    """Print ``report_text`` (plain text: no markup, so what is printed is what the test measures)."""
+    """Print ``report_text`` (plain text: no markup, so what is printed is what the test
+    measures)."""
     from rich.console import Console
 
     c = console or Console()

@@ -1,20 +1,22 @@
 """AFAR challenge MAT files (AERPAW, December 2023) -> project flight logs (CSV + JSON sidecar).
 
-Variables read (``../shared/data/README.md``): ``timestamp_power`` (s, node wall clock), ``mX`` longitude,
-``mY`` latitude, ``mZ`` height above the *first GPS fix* (m), ``mRoll``/``mPitch``/``mYaw`` (deg, yaw
-clockwise from north) and ``mpower`` (channel-sounder dB, NOT calibrated dBm).
+Variables read (``../shared/data/README.md``): ``timestamp_power`` (s, node wall clock), ``mX``
+longitude, ``mY`` latitude, ``mZ`` height above the *first GPS fix* (m),
+``mRoll``/``mPitch``/``mYaw`` (deg, yaw clockwise from north) and ``mpower`` (channel-sounder dB,
+NOT calibrated dBm).
 
 Choices:
 
-- Origin: the AFAR field origin (``mission.geo.afar_field().origin``, the flight-area SW corner, 0 m), so
-  every imported log shares one local frame.
-- ``alt_m = rel_alt_m = mZ``: the files carry no AMSL altitude; ``mZ`` is height above the first fix (about
-  3-4 m below the autopilot's relative altitude), which is used as the height above the origin's ground.
+- Origin: the AFAR field origin (``mission.geo.afar_field().origin``, the flight-area SW corner, 0
+  m), so every imported log shares one local frame.
+- ``alt_m = rel_alt_m = mZ``: the files carry no AMSL altitude; ``mZ`` is height above the first fix
+  (about 3-4 m below the autopilot's relative altitude), which is used as the height above the
+  origin's ground.
 - ``t_s`` is seconds since the first kept sample; the absolute start time goes into the sidecar.
-- Out-of-order rows are sorted; duplicate timestamps, and samples less than 1 ms after the previous one
-  (the sounder's values are time-stamped when read from a pipe, and about 15 per flight come in bursts
-  some 20 us apart, below the log's 0.1 ms resolution), are dropped (first kept); the sidecar's
-  ``import_notes`` says how many.
+- Out-of-order rows are sorted; duplicate timestamps, and samples less than 1 ms after the previous
+  one (the sounder's values are time-stamped when read from a pipe, and about 15 per flight come in
+  bursts some 20 us apart, below the log's 0.1 ms resolution), are dropped (first kept); the
+  sidecar's ``import_notes`` says how many.
 - Truth is only ever taken from the caller (``--truth``), never guessed from the file name.
 """
 
@@ -36,15 +38,16 @@ REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw",
 MIN_DT_S = (
     1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
 )
-# Rover (transmitter) truth of the AFAR 2023 challenge flights by location number in the MAT file name
-# (``../shared/data/README.md``); antenna about 1.5 m above ground.
+# Rover (transmitter) truth of the AFAR 2023 challenge flights by location number in the MAT file
+# name (``../shared/data/README.md``); antenna about 1.5 m above ground.
 AFAR2023_TRUTH: dict[int, tuple[float, float]] = {
     1: (35.72806709, -78.69730398),
     2: (35.72911779, -78.69918128),
     3: (35.72985129, -78.69711002),
 }
-# The one flight whose truth label is suspect, as (team, location): its strongest airborne RSS sample lies 147 m
-# from the labelled point (team 328 at the same location: 73 m). Benchmarks never fit on it and report it apart.
+# The one flight whose truth label is suspect, as (team, location): its strongest airborne RSS
+# sample lies 147 m from the labelled point (team 328 at the same location: 73 m). Benchmarks never
+# fit on it and report it apart.
 AFAR2023_SUSPECT: tuple[int, int] = (288, 3)
 AFAR2023_SUSPECT_NOTE = (
     "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
@@ -53,14 +56,15 @@ AFAR2023_SUSPECT_NOTE = (
 
 def afar2023_id(name: str | Path) -> tuple[int, int] | None:
     """(team, location) of an AFAR 2023 flight from any of its names: a MAT/log file
-    ``results_useful_ori_exp_288_loc_3.mat``, a stem ``288_loc_3`` or a benchmark flight ``288-loc3``; None
-    for other names."""
+    ``results_useful_ori_exp_288_loc_3.mat``, a stem ``288_loc_3`` or a benchmark flight
+    ``288-loc3``; None for other names."""
     m = re.search(r"(\d+)(?:_loc_|-loc)(\d+)", Path(name).name)
     return (int(m.group(1)), int(m.group(2))) if m else None
 
 
 def is_afar2023_suspect(name: str | Path) -> bool:
-    """Whether ``name`` (any form ``afar2023_id`` reads) is the flight with the suspect truth label."""
+    """Whether ``name`` (any form ``afar2023_id`` reads) is the flight with the suspect truth
+    label."""
     return afar2023_id(name) == AFAR2023_SUSPECT
 
 
@@ -116,9 +120,10 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
-# What no sample of a real flight can hold, per MAT variable: (low, high, what it means). The power is the
-# uncalibrated receiver's dB (RSS_RANGE_DB: the AFAR sounder reads up to +33, so 0 dBm is no bound); attitude
-# within +-180 (yaw, wrapped later, within ten turns); the time stamps are Unix seconds.
+# What no sample of a real flight can hold, per MAT variable: (low, high, what it means). The power
+# is the uncalibrated receiver's dB (RSS_RANGE_DB: the AFAR sounder reads up to +33, so 0 dBm is no
+# bound); attitude within +-180 (yaw, wrapped later, within ten turns); the time stamps are Unix
+# seconds.
 IMPOSSIBLE = {
     "mpower": (*RSS_RANGE_DB, f"power outside {RSS_RANGE_DB[0]:g}..{RSS_RANGE_DB[1]:g} dB"),
     "mRoll": (-180.0, 180.0, "roll outside +-180 deg"),
@@ -131,8 +136,9 @@ MAX_SPAN_S = 86400.0  # one flight's time stamps span less than a day
 
 
 def _drop_impossible(m: dict[str, np.ndarray], notes: list[str]) -> dict[str, np.ndarray]:
-    """Drop the samples holding a physically impossible value, with one note per kind naming the samples
-    (1-based, as in the MAT file); and those whose time stamp lies a day or more from the flight's median."""
+    """Drop the samples holding a physically impossible value, with one note per kind naming the
+    samples (1-based, as in the MAT file); and those whose time stamp lies a day or more from the
+    flight's median."""
     bad_all = np.zeros(m["timestamp_power"].size, dtype=bool)
     for v, (lo, hi, what) in IMPOSSIBLE.items():
         bad = np.asarray(~((m[v] >= lo) & (m[v] <= hi)) & np.isfinite(m[v]))
@@ -242,7 +248,8 @@ def import_afar_mat(
     truth_height_m: float = DEFAULT_TX_HEIGHT_M,
     overwrite: bool = False,
 ) -> ImportResult:
-    """Convert one MAT file and write ``out_dir/<stem>.csv`` + sidecar; the result carries ``out_path``."""
+    """Convert one MAT file and write ``out_dir/<stem>.csv`` + sidecar; the result carries
+    ``out_path``."""
     res = convert_afar_mat(path, truth, truth_height_m)
     if Path(out_dir).exists() and not Path(out_dir).is_dir():
         raise InputError("is a file, not an output folder", source=str(out_dir), field="--out")

@@ -1,8 +1,8 @@
 """Transmitter localization from a flight log: features, classical estimators, ONNX networks.
 
-Every localizer returns an ``Estimate``; ``mission.localize.api.localize_log`` is the one entry point used
-by the ``localize`` CLI and by ``fly-mission`` after landing; the methods it runs are registered in
-``mission.localize.methods``.
+Every localizer returns an ``Estimate``; ``mission.localize.api.localize_log`` is the one entry
+point used by the ``localize`` CLI and by ``fly-mission`` after landing; the methods it runs are
+registered in ``mission.localize.methods``.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 @dataclass(frozen=True)
 class Selection:
-    """Which samples an estimate used: ``used`` of ``total``, and why (``preprocess.select_samples``)."""
+    """Which samples an estimate used: ``used`` of ``total``, and why
+    (``preprocess.select_samples``)."""
 
     used: int
     total: int
@@ -27,7 +28,8 @@ class Selection:
 
 @dataclass(frozen=True)
 class Fit:
-    """The per-flight nuisance a model-based method fitted: RSS offset (dB), residual rms (dB), UAV antenna."""
+    """The per-flight nuisance a model-based method fitted: RSS offset (dB), residual rms (dB), UAV
+    antenna."""
 
     offset_db: float
     residual_rms_db: float | None = None
@@ -35,8 +37,8 @@ class Fit:
 
     @classmethod
     def from_extras(cls, extras: dict) -> Fit | None:
-        """The fit a method recorded in its extras (``offset_db``, ``cost_rms_db`` or ``residual_rms_db``,
-        ``antenna``); None for a method that fits no offset."""
+        """The fit a method recorded in its extras (``offset_db``, ``cost_rms_db`` or
+        ``residual_rms_db``, ``antenna``); None for a method that fits no offset."""
         if "offset_db" not in extras:
             return None
         rms = extras.get("cost_rms_db", extras.get("residual_rms_db"))
@@ -55,11 +57,11 @@ class Fit:
 class Estimate:
     """A transmitter position estimate in the local ENU frame of the log (x east, y north, metres).
 
-    ``extras`` is the ordered record that ``to_dict`` / ``--json`` print after the position.  What consumers
-    read has a typed home: ``regions`` (the 50 / 90 % regions), ``notes`` (the sentences ``localize`` prints
-    under "note"), ``components`` (a fusion's member estimates).  Setting one writes its JSON form into
-    ``extras`` at that moment (``"regions"``, ``"note"`` joined by spaces, ``"components"`` as name -> [x, y]),
-    so the output keeps the key order it always had.
+    ``extras`` is the ordered record that ``to_dict`` / ``--json`` print after the position.  What
+    consumers read has a typed home: ``regions`` (the 50 / 90 % regions), ``notes`` (the sentences
+    ``localize`` prints under "note"), ``components`` (a fusion's member estimates).  Setting one
+    writes its JSON form into ``extras`` at that moment (``"regions"``, ``"note"`` joined by spaces,
+    ``"components"`` as name -> [x, y]), so the output keeps the key order it always had.
     """
 
     x_m: float
@@ -91,8 +93,9 @@ class Estimate:
 
     @property
     def regions(self) -> list[dict]:
-        """The uncertainty regions, lowest level first: HPD regions of a posterior (``hpd_mass``, ``polygons``,
-        ``ellipse``) or error circles (``kind`` "error circle", ``radius_m``); empty when none applies."""
+        """The uncertainty regions, lowest level first: HPD regions of a posterior (``hpd_mass``,
+        ``polygons``, ``ellipse``) or error circles (``kind`` "error circle", ``radius_m``); empty
+        when none applies."""
         return self.extras.get("regions", [])
 
     @regions.setter

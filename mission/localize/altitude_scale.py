@@ -1,18 +1,20 @@
-"""Altitude-normalised network coordinates: horizontal metres rescaled by the flight's height above the transmitter.
+"""Altitude-normalised network coordinates: horizontal metres rescaled by the flight's height above
+the transmitter.
 
-Why: free space with antenna gains that depend only on the direction of the link is scale-invariant.  Multiplying
-every sample's horizontal offset from the transmitter *and* its height above it by ``s`` multiplies every link
-distance by ``s`` and leaves every direction unchanged, so every RSS moves by the same ``-20 log10 s`` dB (Friis,
-SPEC section 2), which the offset-invariant features ignore (the k-means runs on z-scored columns, so its clusters
-do not change either).  A network that sees horizontal coordinates in units of the flight's height therefore
-learns one function for every altitude.  Two-ray interference is not exactly invariant (its fringes move), so it
-stays an approximation.  In simulation (e2r spirals), the spiral network trained this way on altitudes 15-60 m
-held a 7-9 m mean error from 20 to 55 m, where the one trained at 30 m only went from 7 m at 30 m to 60 m at 55 m
-(models/README.md).
+Why: free space with antenna gains that depend only on the direction of the link is scale-invariant.
+Multiplying every sample's horizontal offset from the transmitter *and* its height above it by ``s``
+multiplies every link distance by ``s`` and leaves every direction unchanged, so every RSS moves by
+the same ``-20 log10 s`` dB (Friis, SPEC section 2), which the offset-invariant features ignore (the
+k-means runs on z-scored columns, so its clusters do not change either).  A network that sees
+horizontal coordinates in units of the flight's height therefore learns one function for every
+altitude.  Two-ray interference is not exactly invariant (its fringes move), so it stays an
+approximation.  In simulation (e2r spirals), the spiral network trained this way on altitudes 15-60
+m held a 7-9 m mean error from 20 to 55 m, where the one trained at 30 m only went from 7 m at 30 m
+to 60 m at 55 m (models/README.md).
 
-Coordinates are scaled about the model's field origin by ``s = REFERENCE_HEIGHT_M / height``, and the network's
-output is divided by ``s``.  At the reference height (a 30 m flight over a 1.5 m transmitter) scaled metres are
-metres.
+Coordinates are scaled about the model's field origin by ``s = REFERENCE_HEIGHT_M / height``, and
+the network's output is divided by ``s``.  At the reference height (a 30 m flight over a 1.5 m
+transmitter) scaled metres are metres.
 """
 
 from __future__ import annotations
@@ -42,14 +44,15 @@ def metadata_entry() -> dict:
 
 
 def reference_height(training_data: dict | None) -> float | None:
-    """The reference height (m) of an altitude-normalised network from its ``training_data`` metadata; None for
-    a network whose coordinates are metres."""
+    """The reference height (m) of an altitude-normalised network from its ``training_data``
+    metadata; None for a network whose coordinates are metres."""
     entry = (training_data or {}).get(METADATA_KEY)
     return None if entry is None else float(entry["reference_height_m"])
 
 
 def scale_factor(height_m, reference_m: float = REFERENCE_HEIGHT_M) -> np.ndarray:
-    """``s = reference / height`` per flight (B,); refuses heights under ``MIN_HEIGHT_M`` or not finite."""
+    """``s = reference / height`` per flight (B,); refuses heights under ``MIN_HEIGHT_M`` or not
+    finite."""
     h = np.atleast_1d(np.asarray(height_m, dtype=float))
     bad = ~np.isfinite(h) | (h < MIN_HEIGHT_M)
     if bad.any():
@@ -64,8 +67,9 @@ def scale_factor(height_m, reference_m: float = REFERENCE_HEIGHT_M) -> np.ndarra
 
 
 def scale_cluster_xy(feats: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Clustering features (B, 3 C_k) laid out ``[p_1, x_1, y_1, ...]`` (``features.cluster_features``) with every
-    cluster's x and y multiplied by its flight's ``s`` (B,); the RSS columns are unchanged.  Returns a copy."""
+    """Clustering features (B, 3 C_k) laid out ``[p_1, x_1, y_1, ...]``
+    (``features.cluster_features``) with every cluster's x and y multiplied by its flight's ``s``
+    (B,); the RSS columns are unchanged.  Returns a copy."""
     out = np.array(feats, dtype=np.float64, ndmin=2)
     out[:, 1::3] *= s[:, None]
     out[:, 2::3] *= s[:, None]

@@ -1,26 +1,26 @@
 """``localize_log``: the one function the ``localize`` CLI and ``fly-mission`` (after landing) call.
 
-Steps: read the log (``read_flight_log``: any problem is an ``InputError`` naming file/row/column), keep the
-samples to use (``preprocess.select_samples``: mission legs when the log has a phase column, else the cruise
-altitudes), run the chosen method, express the estimate in the log's own ENU frame and as lat/lon, and add
-the error when the truth is known (argument, else the sidecar).
+Steps: read the log (``read_flight_log``: any problem is an ``InputError`` naming file/row/column),
+keep the samples to use (``preprocess.select_samples``: mission legs when the log has a phase
+column, else the cruise altitudes), run the chosen method, express the estimate in the log's own ENU
+frame and as lat/lon, and add the error when the truth is known (argument, else the sidecar).
 
-Method choice when none is given: an explicit ``model_path`` -> ``onnx``; a real receiver's log (the sidecar's
-``rss_source.kind`` is not ``sim``) -> ``fusion``: the plain mean of the self-calibrating estimate
-(``selfcal.SelfCalibratingGrid``: antenna hypotheses and offset profiled out per flight, no preset) and the
-network ``models/rfsl_spiral_e2r.onnx``, chosen by the rule written before scoring on the unseen-flight
-benchmark and the held-out real flights (``models/README.md``); its uncertainty regions are the
-self-calibrating posterior's.  A simulated log -> the shipped default model (``models/rfsl_default.onnx``,
-see ``default_model_path``) when present, else ``grid`` with the log's own simulation model.  The estimate's
-``extras["method_choice"]`` says which and why.
+Method choice when none is given: an explicit ``model_path`` -> ``onnx``; a real receiver's log (the
+sidecar's ``rss_source.kind`` is not ``sim``) -> ``fusion``: the plain mean of the self-calibrating
+estimate (``selfcal.SelfCalibratingGrid``: antenna hypotheses and offset profiled out per flight, no
+preset) and the network ``models/rfsl_spiral_e2r.onnx``, chosen by the rule written before scoring
+on the unseen-flight benchmark and the held-out real flights (``models/README.md``); its uncertainty
+regions are the self-calibrating posterior's.  A simulated log -> the shipped default model
+(``models/rfsl_default.onnx``, see ``default_model_path``) when present, else ``grid`` with the
+log's own simulation model.  The estimate's ``extras["method_choice"]`` says which and why.
 
-Grid physics: ``physics_preset`` (a preset name) or ``physics_model`` (a ``make_model`` name or a model
-object, with ``physics_params``); neither -> the simulator's own model for a simulated log (from its
-sidecar), else the ``afar`` preset (real receivers).
+Grid physics: ``physics_preset`` (a preset name) or ``physics_model`` (a ``make_model`` name or a
+model object, with ``physics_params``); neither -> the simulator's own model for a simulated log
+(from its sidecar), else the ``afar`` preset (real receivers).
 
-Search area of ``grid``: the sidecar's ``rover_area`` (list of [lat, lon] vertices) when present; else the
-AFAR rover area when the log's origin is the AFAR field origin (the transmitter can be anywhere in it);
-else the flight's bounding box grown by 60 m.
+Search area of ``grid``: the sidecar's ``rover_area`` (list of [lat, lon] vertices) when present;
+else the AFAR rover area when the log's origin is the AFAR field origin (the transmitter can be
+anywhere in it); else the flight's bounding box grown by 60 m.
 """
 
 from __future__ import annotations
@@ -57,7 +57,8 @@ def default_model_path() -> Path | None:
 
 
 def search_area(log):
-    """The grid search region for a log (``Area`` in the log's frame, or None for the flight's box)."""
+    """The grid search region for a log (``Area`` in the log's frame, or None for the flight's
+    box)."""
     from mission.geo import Area, afar_field
 
     origin = log.origin
@@ -100,8 +101,8 @@ def make_localizer(
     floor_db: float | None = None,
     physics_preset: str | None = None,
 ):
-    """Build the localizer object for a method name: its registry entry's factory (``mission.localize.methods``;
-    ``physics_preset`` replaces ``physics_model``)."""
+    """Build the localizer object for a method name: its registry entry's factory
+    (``mission.localize.methods``; ``physics_preset`` replaces ``physics_model``)."""
     entry = method_entry(method)
     if entry.factory is None:
         raise InputError(
@@ -126,8 +127,9 @@ def _is_simulated(log) -> bool:
 
 
 def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
-    """Grid physics when none is asked for: the simulator's own model for a simulated log (its sidecar says
-    which, with its parameters), else the ``afar`` preset calibrated on real receivers."""
+    """Grid physics when none is asked for: the simulator's own model for a simulated log (its
+    sidecar says which, with its parameters), else the ``afar`` preset calibrated on real
+    receivers."""
     src = log.meta.get("rss_source") or {}
     from mission.physics.propagation import MODEL_NAMES
 
@@ -137,8 +139,8 @@ def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
 
 
 def _in_log_frame(loc, est: Estimate, origin, frame: str) -> Estimate:
-    """Express a localizer's estimate in the log's ENU frame and as lat/lon (``frame``: its registry entry's;
-    networks answer in their own frame)."""
+    """Express a localizer's estimate in the log's ENU frame and as lat/lon (``frame``: its registry
+    entry's; networks answer in their own frame)."""
     if frame == MODEL_FRAME:  # model frame -> lat/lon -> log frame
         xy = origin.to_enu(est.lat_deg, est.lon_deg)
         est.extras["model_frame_xy_m"] = [est.x_m, est.y_m]
@@ -153,7 +155,8 @@ def _in_log_frame(loc, est: Estimate, origin, frame: str) -> Estimate:
 
 def _check_altitude(est: Estimate, net, part) -> bool:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
-    ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``); True then."""
+    ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``);
+    True then."""
     from mission.localize.training_domain import altitude_note, flight_altitudes
 
     trained, flown = net.card.domain.altitude_m, flight_altitudes(part.enu()[:, 2])
@@ -165,9 +168,9 @@ def _check_altitude(est: Estimate, net, part) -> bool:
 
 
 def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
-    """A network's estimate gets its card's calibrated error circles (``error_circles``, clipped to the rover
-    ``area`` when known) and the altitude check; on a simulated log outside the training altitudes the circles
-    (calibrated inside them) are too small."""
+    """A network's estimate gets its card's calibrated error circles (``error_circles``, clipped to
+    the rover ``area`` when known) and the altitude check; on a simulated log outside the training
+    altitudes the circles (calibrated inside them) are too small."""
     from mission.localize.error_circles import attach_circles, card_calibration
     from mission.localize.training_domain import flown_domain
 
@@ -188,9 +191,9 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
 def _method_regions(
     est: Estimate, method: str, simulated: bool, default_config: bool, area
 ) -> None:
-    """Strongest sample, centroid and grid get error circles calibrated for their default configuration (the
-    grid's default physics, the default sample selection), clipped to the rover ``area`` when known; any other
-    configuration gets a note instead."""
+    """Strongest sample, centroid and grid get error circles calibrated for their default
+    configuration (the grid's default physics, the default sample selection), clipped to the rover
+    ``area`` when known; any other configuration gets a note instead."""
     from mission.localize.error_circles import CIRCLE_METHODS, attach_circles, method_calibration
 
     if method not in CIRCLE_METHODS:
@@ -206,10 +209,11 @@ def _method_regions(
 
 
 def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> None:
-    """A default network's answer without regions (its circles do not apply: e.g. PX4 SITL's SIH flies at -28 deg
-    pitch, outside the networks' training attitudes) takes the self-calibrating posterior's regions, whose
-    calibration holds for any attitude (it models the flight's own attitude), with a note: as ``fusion`` does,
-    the regions are the search's and the point stays the network's.  Why: every flight ends with a region."""
+    """A default network's answer without regions (its circles do not apply: e.g. PX4 SITL's SIH
+    flies at -28 deg pitch, outside the networks' training attitudes) takes the self-calibrating
+    posterior's regions, whose calibration holds for any attitude (it models the flight's own
+    attitude), with a note: as ``fusion`` does, the regions are the search's and the point stays the
+    network's.  Why: every flight ends with a region."""
     if est.regions:
         return
     _, alt = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
@@ -254,10 +258,11 @@ def run_member(name: str, part, origin, **kw) -> tuple[object, Estimate]:
 def fusion(
     part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, model_path=None, **_
 ) -> Estimate:
-    """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule in
-    ``models/README.md``; weighting by each member's 50 % region scale was not adopted, benchmarks/fusion_weights.py);
-    the uncertainty regions are the self-calibrating posterior's, and a note says when
-    the fused point falls outside them (the two components disagree: ~5 % of benchmark flights)."""
+    """The plain mean of the self-calibrating estimate and a network's (no weights fitted: the rule
+    in ``models/README.md``; weighting by each member's 50 % region scale was not adopted,
+    benchmarks/fusion_weights.py); the uncertainty regions are the self-calibrating posterior's, and
+    a note says when the fused point falls outside them (the two components disagree: ~5 % of
+    benchmark flights)."""
     from mission.localize.uncertainty import outer_region
 
     _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
@@ -309,8 +314,9 @@ def choose_method(
     default_model: Path | None = None,
     physics_label: str = "the log's physics",
 ) -> tuple[str, str | Path | None, str]:
-    """(method, model path, why) when none is asked for: a pure function of the sidecar, the selected samples'
-    heights, the model given and the shipped default network (``tests/test_methods.py`` holds its table)."""
+    """(method, model path, why) when none is asked for: a pure function of the sidecar, the
+    selected samples' heights, the model given and the shipped default network
+    (``tests/test_methods.py`` holds its table)."""
     if model_path is not None:
         return "onnx", model_path, f"model {Path(model_path).name} given"
     if (meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
@@ -358,8 +364,8 @@ def localize_log(
 ) -> Estimate:
     """Estimate the transmitter position from a flight log (path or ``FlightLog``).
 
-    Grid physics: ``physics_preset`` or ``physics_model`` (not both); neither -> the sidecar's simulation
-    model for a simulated log, else the ``afar`` preset.
+    Grid physics: ``physics_preset`` or ``physics_model`` (not both); neither -> the sidecar's
+    simulation model for a simulated log, else the ``afar`` preset.
     """
     if physics_preset is not None and physics_model is not None:
         raise InputError("give a physics model or a physics preset, not both")

@@ -1,10 +1,12 @@
-"""Candidates: the positions a flight's estimators propose, each a hypothesis the flight's own RSS can weigh.
+"""Candidates: the positions a flight's estimators propose, each a hypothesis the flight's own RSS
+can weigh.
 
-Why: on every real flight one of the methods is close to the truth, a different one each time; a ghost mode
-of a posterior is a position like any other.  So every estimator hands over its point, and a method with a
-posterior also each separate mode of it with the mode's mass (``posterior_modes``); a network facing a track
-or attitude outside its training still proposes its point, marked ``in_domain=False``, and is weighed rather
-than trusted or dropped.  ``mission.localize.stacking`` scores them.
+Why: on every real flight one of the methods is close to the truth, a different one each time; a
+ghost mode of a posterior is a position like any other.  So every estimator hands over its point,
+and a method with a posterior also each separate mode of it with the mode's mass
+(``posterior_modes``); a network facing a track or attitude outside its training still proposes its
+point, marked ``in_domain=False``, and is weighed rather than trusted or dropped.
+``mission.localize.stacking`` scores them.
 """
 
 from __future__ import annotations
@@ -18,9 +20,10 @@ import numpy as np
 class Candidate:
     """A proposed transmitter position in the log's ENU frame (metres) and where it came from.
 
-    ``mass``: the posterior mass of the mode it stands for (None for a point estimate without a posterior);
-    ``evidence``: the flight's held-out log predictive density of it relative to the best candidate (nats,
-    0 for the best; set by the stacking stage); ``weight``: its stacking weight.
+    ``mass``: the posterior mass of the mode it stands for (None for a point estimate without a
+    posterior); ``evidence``: the flight's held-out log predictive density of it relative to the
+    best candidate (nats, 0 for the best; set by the stacking stage); ``weight``: its stacking
+    weight.
     """
 
     x_m: float
@@ -60,9 +63,9 @@ def posterior_modes(
 ) -> list[tuple[float, float, float]]:
     """The separate modes of a grid posterior as (x, y, mass), most massive first.
 
-    A mode is a local maximum over a window of ``sep_m``; every grid cell belongs to the nearest mode (its
-    basin), and a mode's mass is its basin's.  Modes lighter than ``min_mass`` are dropped (their mass is not
-    redistributed: the masses kept may sum to less than 1).
+    A mode is a local maximum over a window of ``sep_m``; every grid cell belongs to the nearest
+    mode (its basin), and a mode's mass is its basin's.  Modes lighter than ``min_mass`` are dropped
+    (their mass is not redistributed: the masses kept may sum to less than 1).
     """
     from scipy.ndimage import maximum_filter
 
@@ -85,7 +88,8 @@ def posterior_modes(
 
 
 def dedupe(cands: list[Candidate], tol_m: float = 2.0) -> list[Candidate]:
-    """Candidates with the near-duplicates (within ``tol_m`` of an earlier one) left out, order kept."""
+    """Candidates with the near-duplicates (within ``tol_m`` of an earlier one) left out, order
+    kept."""
     out: list[Candidate] = []
     for c in cands:
         if all(np.hypot(c.x_m - o.x_m, c.y_m - o.y_m) > tol_m for o in out):

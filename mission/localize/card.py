@@ -4,16 +4,18 @@ Two files hold it, both written at training time:
 
 - the ONNX file's ``metadata_props`` (JSON strings), the contract with the trainer: ``feature_kind``
   (``"clustering"`` or ``"normalised_rss"``), ``feature_config`` (``FeatureConfig.to_dict()``), the
-  ``input_normalisation`` (``input_mean``, ``input_std``, ``output_mean``, ``output_std``: the network sees
-  ``(features - input_mean) / input_std``, its output ``o`` is ``o * output_std + output_mean`` metres),
-  ``field_origin`` (``lat_deg``, ``lon_deg``, ``alt_m``: the frame of features and output) and ``training_data``
-  (free-form; its ``altitude_normalisation`` entry, ``altitude_scale``, is read);
-- the JSON card beside it (``models/<name>.json``): ``training_domain`` (the training flights' cruise altitude
-  and roll / pitch spans, measured by ``mission.workshop.domain`` when the network was trained or its card
-  written) and ``regions`` (the calibrated error circles, ``error_circles``, each naming the model file's
-  sha256).
+  ``input_normalisation`` (``input_mean``, ``input_std``, ``output_mean``, ``output_std``: the
+  network sees ``(features - input_mean) / input_std``, its output ``o`` is ``o * output_std +
+  output_mean`` metres), ``field_origin`` (``lat_deg``, ``lon_deg``, ``alt_m``: the frame of
+  features and output) and ``training_data`` (free-form; its ``altitude_normalisation`` entry,
+  ``altitude_scale``, is read);
+- the JSON card beside it (``models/<name>.json``): ``training_domain`` (the training flights'
+  cruise altitude and roll / pitch spans, measured by ``mission.workshop.domain`` when the network
+  was trained or its card written) and ``regions`` (the calibrated error circles, ``error_circles``,
+  each naming the model file's sha256).
 
-A network without a JSON card, or whose card has no ``training_domain``, makes no claim about its domain.
+A network without a JSON card, or whose card has no ``training_domain``, makes no claim about its
+domain.
 """
 
 from __future__ import annotations
@@ -77,7 +79,8 @@ class Normalisation:
 
 @dataclass(frozen=True)
 class TrainingDomain:
-    """The training flights' cruise altitude span (m) and (roll, pitch) spans (deg); None where unknown."""
+    """The training flights' cruise altitude span (m) and (roll, pitch) spans (deg); None where
+    unknown."""
 
     altitude_m: Span | None = None
     attitude_deg: tuple[Span, Span] | None = None
@@ -92,7 +95,8 @@ class TrainingDomain:
 
     @classmethod
     def from_dict(cls, d, src: str) -> TrainingDomain:
-        """The card's record; ``InputError`` naming the card and key when a span is not two ascending numbers."""
+        """The card's record; ``InputError`` naming the card and key when a span is not two
+        ascending numbers."""
         if not isinstance(d, dict):
             raise InputError("needs a JSON object", source=src, field=DOMAIN_KEY)
         spans = {}
@@ -116,7 +120,8 @@ class TrainingDomain:
 
 
 def _metadata(props: dict, src: str) -> dict:
-    """The ONNX metadata with the contract's keys decoded from JSON (``feature_kind`` may be plain text)."""
+    """The ONNX metadata with the contract's keys decoded from JSON (``feature_kind`` may be plain
+    text)."""
     for key in REQUIRED_KEYS:
         if key not in props:
             raise InputError("model metadata lacks this key", source=src, field=key)
@@ -137,7 +142,8 @@ def _metadata(props: dict, src: str) -> dict:
 
 
 def _feature_config(fc, expect_config: FeatureConfig | dict | None, src: str) -> FeatureConfig:
-    """The model's feature configuration, compared key by key with what the caller intends to feed."""
+    """The model's feature configuration, compared key by key with what the caller intends to
+    feed."""
     if not isinstance(fc, dict):
         raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
     fc = FeatureConfig.normalised(
@@ -177,7 +183,8 @@ def _feature_config(fc, expect_config: FeatureConfig | dict | None, src: str) ->
 
 
 def _json_card(path: Path) -> dict | None:
-    """The JSON card beside a model (None when absent); ``InputError`` when it is not a JSON object."""
+    """The JSON card beside a model (None when absent); ``InputError`` when it is not a JSON
+    object."""
     p = card_path(path)
     if not p.is_file():
         return None
@@ -194,8 +201,9 @@ def _json_card(path: Path) -> dict | None:
 class ModelCard:
     """Everything the runtime reads about a network, validated once (``ModelCard.read``).
 
-    ``regions`` is the JSON card's raw ``regions`` mapping (None without a card): each record is checked when a
-    flight asks for it (``error_circles.card_calibration``), so a malformed one is reported where it is used."""
+    ``regions`` is the JSON card's raw ``regions`` mapping (None without a card): each record is
+    checked when a flight asks for it (``error_circles.card_calibration``), so a malformed one is
+    reported where it is used."""
 
     path: Path
     kind: str
@@ -225,9 +233,9 @@ class ModelCard:
         expect_config: FeatureConfig | dict | None = None,
         expect_kind: str | None = None,
     ) -> ModelCard:
-        """The card of the network at ``path`` whose ONNX ``metadata_props`` are ``props``; ``expect_config`` /
-        ``expect_kind``: what the caller intends to feed (a model trained on anything else is refused,
-        ``InputError`` naming the differing key)."""
+        """The card of the network at ``path`` whose ONNX ``metadata_props`` are ``props``;
+        ``expect_config`` / ``expect_kind``: what the caller intends to feed (a model trained on
+        anything else is refused, ``InputError`` naming the differing key)."""
         path = Path(path)
         src = str(path)
         meta = _metadata(props, src)

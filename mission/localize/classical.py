@@ -1,21 +1,26 @@
-"""Classical transmitter localizers, scikit-learn style: ``fit`` (no-op), ``predict(flight) -> Estimate``.
+"""Classical transmitter localizers, scikit-learn style: ``fit`` (no-op), ``predict(flight) ->
+Estimate``.
 
-``flight`` is a ``FlightLog`` (positions in its own origin's ENU frame), a ``mission.samples.FlightSamples``
-or a tuple ``(enu (N, 3), rss (N,), attitude (N, 3) radians or None)``.  All estimators are invariant to a constant
-RSS offset (a real receiver's dB are not calibrated dBm, SPEC section 5).
+``flight`` is a ``FlightLog`` (positions in its own origin's ENU frame), a
+``mission.samples.FlightSamples`` or a tuple ``(enu (N, 3), rss (N,), attitude (N, 3) radians or
+None)``.  All estimators are invariant to a constant RSS offset (a real receiver's dB are not
+calibrated dBm, SPEC section 5).
 
-- ``StrongestSample``: position of the maximum of the grouped, Gaussian-smoothed RSS (features.py settings).
-- ``WeightedCentroid``: centroid of the ``top_k`` strongest smoothed samples weighted by *relative* linear
-  power ``10^((p - p_max)/10)``.
-- ``ModelGridSearch``: maximum likelihood with a propagation model from ``mission.physics``: for each
-  candidate transmitter position (x, y, ``tx_height_m``) the model's predicted RSS along the logged
-  positions and attitudes is compared with the measured RSS after removing the best constant offset
-  (robust: median, then one Huber IRLS step); the cost is a robust loss (``soft_l1`` or ``huber``, scale
-  ``f_scale_db``) of the residuals.  Candidates form a grid over the search area, refined coarse to fine
-  around the best few; the flight is block-averaged in dB to at most ``max_points`` samples first.
-- ``FixedGeometrySearch`` (``ModelGridSearch.fixed_geometry``): the same model and candidates for many RSS
-  records along one flown geometry, predictions computed once, least squares with each record's mean offset
-  (maximum likelihood under Gaussian noise); the mission preview's expected-error map uses it.
+- ``StrongestSample``: position of the maximum of the grouped, Gaussian-smoothed RSS (features.py
+  settings).
+- ``WeightedCentroid``: centroid of the ``top_k`` strongest smoothed samples weighted by *relative*
+  linear power ``10^((p - p_max)/10)``.
+- ``ModelGridSearch``: maximum likelihood with a propagation model from ``mission.physics``: for
+  each candidate transmitter position (x, y, ``tx_height_m``) the model's predicted RSS along the
+  logged positions and attitudes is compared with the measured RSS after removing the best constant
+  offset (robust: median, then one Huber IRLS step); the cost is a robust loss (``soft_l1`` or
+  ``huber``, scale ``f_scale_db``) of the residuals.  Candidates form a grid over the search area,
+  refined coarse to fine around the best few; the flight is block-averaged in dB to at most
+  ``max_points`` samples first.
+- ``FixedGeometrySearch`` (``ModelGridSearch.fixed_geometry``): the same model and candidates for
+  many RSS records along one flown geometry, predictions computed once, least squares with each
+  record's mean offset (maximum likelihood under Gaussian noise); the mission preview's
+  expected-error map uses it.
 """
 
 from __future__ import annotations
@@ -35,8 +40,9 @@ from mission.samples import FlightSamples
 
 
 def as_flight(obj, origin=None) -> FlightSamples:
-    """FlightLog / FlightSamples / (enu, rss[, attitude]) -> FlightSamples, validated and float64: the input
-    boundary of every localizer (a partly NaN attitude reads as 0, an all-NaN one as none)."""
+    """FlightLog / FlightSamples / (enu, rss[, attitude]) -> FlightSamples, validated and float64:
+    the input boundary of every localizer (a partly NaN attitude reads as 0, an all-NaN one as
+    none)."""
     if isinstance(obj, FlightSamples):
         fs = obj
     elif isinstance(obj, FlightLog):
@@ -116,8 +122,9 @@ class WeightedCentroid(_Base):
 
 
 def search_bounds(area, enu: np.ndarray, margin_m: float):
-    """(xmin, ymin, xmax, ymax) and the polygon (or None) of a grid search: an ``Area`` (its box and polygon),
-    a ``(xmin, ymin, xmax, ymax)`` box, or None for the flight's box grown by ``margin_m``."""
+    """(xmin, ymin, xmax, ymax) and the polygon (or None) of a grid search: an ``Area`` (its box and
+    polygon), a ``(xmin, ymin, xmax, ymax)`` box, or None for the flight's box grown by
+    ``margin_m``."""
     from mission.geo import Area
 
     if isinstance(area, Area):
@@ -132,7 +139,8 @@ def search_bounds(area, enu: np.ndarray, margin_m: float):
 def block_average(f: FlightSamples, max_points: int) -> FlightSamples:
     """Average RSS (dB) and positions over consecutive blocks so at most ``max_points`` remain.
 
-    The attitude of a block is that of its middle sample (angles are not averaged across the yaw wrap).
+    The attitude of a block is that of its middle sample (angles are not averaged across the yaw
+    wrap).
     """
     n = f.rss_dbm.size
     b = max(1, int(np.ceil(n / max_points)))
@@ -148,10 +156,11 @@ def block_average(f: FlightSamples, max_points: int) -> FlightSamples:
 class ModelGridSearch(_Base):
     """Model-based maximum-likelihood grid search with a free constant offset and a robust loss.
 
-    ``model``: a ``mission.physics`` model name (built with ``make_model(model, **model_params)``) or any
+    ``model``: a ``mission.physics`` model name (built with ``make_model(model, **model_params)``)
+    or any
     object with ``rss_dbm(tx (K, 1, 3), rx (N, 3), attitude (N, 3) | None) -> (K, N)`` (outer product).
-    ``area``: search region, an ``Area`` or ``(xmin, ymin, xmax, ymax)``; by default the flight's bounding
-    box grown by ``margin_m``.  Candidates outside an ``Area`` polygon are not considered.
+    ``area``: search region, an ``Area`` or ``(xmin, ymin, xmax, ymax)``; by default the flight's
+    bounding box grown by ``margin_m``.  Candidates outside an ``Area`` polygon are not considered.
     """
 
     name = "grid"
@@ -214,8 +223,9 @@ class ModelGridSearch(_Base):
     def candidate_rss(
         self, cand_xy: np.ndarray, enu: np.ndarray, attitude: np.ndarray | None
     ) -> np.ndarray:
-        """Model RSS (K, N) dBm of transmitters at candidates (K, 2), ``tx_height_m`` high, along the positions
-        (N, 3) and attitude (N, 3) rad (ignored unless ``use_attitude``): what every cost compares with."""
+        """Model RSS (K, N) dBm of transmitters at candidates (K, 2), ``tx_height_m`` high, along
+        the positions (N, 3) and attitude (N, 3) rad (ignored unless ``use_attitude``): what every
+        cost compares with."""
         tx = np.column_stack([cand_xy, np.full(len(cand_xy), self.tx_height_m)])
         att = attitude if self.use_attitude else None
         pred = self._get_model().rss_dbm(tx[:, None, :], enu, att)
@@ -224,8 +234,8 @@ class ModelGridSearch(_Base):
     def coarse_candidates(
         self, enu: np.ndarray
     ) -> tuple[tuple[float, float, float, float], np.ndarray]:
-        """The search box and the first pass's candidates: a ``step_m`` grid from the box's corner, kept inside
-        the area's polygon when there is one (all of them if none falls inside)."""
+        """The search box and the first pass's candidates: a ``step_m`` grid from the box's corner,
+        kept inside the area's polygon when there is one (all of them if none falls inside)."""
         bounds, poly = search_bounds(self.area, enu, self.margin_m)
         cand = square_grid(bounds, self.step_m).reshape(-1, 2)
         if poly is not None:
@@ -236,8 +246,8 @@ class ModelGridSearch(_Base):
     def fixed_geometry(
         self, enu: np.ndarray, attitude: np.ndarray | None, cand_xy: np.ndarray | None = None
     ) -> FixedGeometrySearch:
-        """This search for many RSS records flown along one geometry (``FixedGeometrySearch``); candidates
-        ``cand_xy`` (K, 2), by default the first pass's grid (no refinement)."""
+        """This search for many RSS records flown along one geometry (``FixedGeometrySearch``);
+        candidates ``cand_xy`` (K, 2), by default the first pass's grid (no refinement)."""
         if cand_xy is None:
             cand_xy = self.coarse_candidates(np.asarray(enu, dtype=float))[1]
         return FixedGeometrySearch(
@@ -245,7 +255,8 @@ class ModelGridSearch(_Base):
         )
 
     def cost(self, f: FlightSamples, cand_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced) flight."""
+        """Robust cost and fitted offset for candidate positions (K, 2) on an (already reduced)
+        flight."""
         costs, offs = np.empty(len(cand_xy)), np.empty(len(cand_xy))
         for s in range(0, len(cand_xy), self.chunk):
             c = cand_xy[s : s + self.chunk]
@@ -309,13 +320,14 @@ class ModelGridSearch(_Base):
 
 
 class FixedGeometrySearch:
-    """``ModelGridSearch`` for many RSS records flown along one geometry (simulation studies: the preview's
-    expected-error map scores hundreds of transmitters on one simulated flight).
+    """``ModelGridSearch`` for many RSS records flown along one geometry (simulation studies: the
+    preview's expected-error map scores hundreds of transmitters on one simulated flight).
 
-    The model's predictions at the fixed candidates are computed once; each record is scored by least squares
-    after removing its own mean offset from both sides, the maximum-likelihood estimate under Gaussian dB noise
-    with an unknown constant offset.  (A single flight's ``predict`` is robust instead: median/Huber offset and
-    soft-L1 for real fades; that offset would cost a median per candidate and record.)
+    The model's predictions at the fixed candidates are computed once; each record is scored by
+    least squares after removing its own mean offset from both sides, the maximum-likelihood
+    estimate under Gaussian dB noise with an unknown constant offset.  (A single flight's
+    ``predict`` is robust instead: median/Huber offset and soft-L1 for real fades; that offset would
+    cost a median per candidate and record.)
     """
 
     def __init__(

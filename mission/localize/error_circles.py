@@ -1,34 +1,39 @@
-"""Uncertainty regions for estimates without a posterior: error circles calibrated by split conformal prediction.
+"""Uncertainty regions for estimates without a posterior: error circles calibrated by split
+conformal prediction.
 
-Why: a network, the strongest sample, the weighted centroid and the plain grid answer with a point and no
-posterior, yet every estimate must carry 50 % and 90 % regions.  Flights like those the method will
-face, never tuned on, give the distribution of its 2D error; the circle around the estimate whose radius is that
-error's conformal quantile (the ``ceil((n + 1) level)``-th smallest of ``n`` calibration errors) holds the truth at
-the nominal rate or more on any flight exchangeable with them.  Nothing about the flight at hand narrows the
-circle: it is honest on average over its calibration domain and says nothing finer.
+Why: a network, the strongest sample, the weighted centroid and the plain grid answer with a point
+and no posterior, yet every estimate must carry 50 % and 90 % regions.  Flights like those the
+method will face, never tuned on, give the distribution of its 2D error; the circle around the
+estimate whose radius is that error's conformal quantile (the ``ceil((n + 1) level)``-th smallest of
+``n`` calibration errors) holds the truth at the nominal rate or more on any flight exchangeable
+with them.  Nothing about the flight at hand narrows the circle: it is honest on average over its
+calibration domain and says nothing finer.
 
 One calibration per kind of log:
 
-- ``sim``: held-out simulated flights (for a network, the domain where ``localize`` uses it on simulated logs);
-- ``real``: the unseen-flight benchmark (``afar`` family, seeds 2027 and 2028), for receiver and benchmark logs.
+- ``sim``: held-out simulated flights (for a network, the domain where ``localize`` uses it on
+  simulated logs);
+- ``real``: the unseen-flight benchmark (``afar`` family, seeds 2027 and 2028), for receiver and
+  benchmark logs.
 
-Networks keep theirs in their card (``models/<name>.json``, key ``regions``, with the model file's sha256);
-the classical methods in their default configuration in ``mission/data/method_circles.json``
-(``benchmarks/calibrate_error_circles.py`` writes both).  Regions use the layout of
-:mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``, ``ellipse``, ``polygons``) plus
-``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
+Networks keep theirs in their card (``models/<name>.json``, key ``regions``, with the model file's
+sha256); the classical methods in their default configuration in
+``mission/data/method_circles.json`` (``benchmarks/calibrate_error_circles.py`` writes both).
+Regions use the layout of :mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``,
+``ellipse``, ``polygons``) plus ``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
 
-What was flown: a flight that flew only part of its planned track (an aborted mission) errs more than the full
-flights a record was calibrated on.  A record may carry ``track``: Mondrian (stratified) conformal radii per
-stratum of ``coverage``, the share of the planned track flown (``training_domain.track_coverage``), with the
-strata's lower ``bounds`` (e.g. [0.18, 0.5, 0.9]); below the first bound, or for a partial flight under a record
-without ``track``, no calibration applies and the estimate says so instead of printing a circle.  A flight whose
-attitude leaves the network's training span gets that note too.
+What was flown: a flight that flew only part of its planned track (an aborted mission) errs more
+than the full flights a record was calibrated on.  A record may carry ``track``: Mondrian
+(stratified) conformal radii per stratum of ``coverage``, the share of the planned track flown
+(``training_domain.track_coverage``), with the strata's lower ``bounds`` (e.g. [0.18, 0.5, 0.9]);
+below the first bound, or for a partial flight under a record without ``track``, no calibration
+applies and the estimate says so instead of printing a circle.  A flight whose attitude leaves the
+network's training span gets that note too.
 
-Where the transmitter's area is known (the rover area), each circle is clipped to it: the transmitter cannot lie
-outside, so the clipped region holds the truth exactly as often as the circle and is smaller.  Clipped regions
-carry ``clipped_to`` (the area's name); ``polygons`` and ``area_m2`` are then the clipped region's, ``radius_m``
-and ``ellipse`` the circle's.
+Where the transmitter's area is known (the rover area), each circle is clipped to it: the
+transmitter cannot lie outside, so the clipped region holds the truth exactly as often as the circle
+and is smaller.  Clipped regions carry ``clipped_to`` (the area's name); ``polygons`` and
+``area_m2`` are then the clipped region's, ``radius_m`` and ``ellipse`` the circle's.
 """
 
 from __future__ import annotations
@@ -45,7 +50,8 @@ from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_diges
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
-# the methods whose circles mission/data/method_circles.json holds (calibrated in their default configuration)
+# the methods whose circles mission/data/method_circles.json holds (calibrated in their default
+# configuration)
 CIRCLE_METHODS = names_where(calibration=FROM_METHOD_CIRCLES)
 LEVELS = (0.5, 0.9)
 NO_CIRCLE_APPLIES = "No uncertainty region: no calibration applies to it."
@@ -67,7 +73,8 @@ def _read_entries(p: Path, what: str) -> dict:
 
 
 def _checked(rec, p: Path, key: str) -> dict:
-    """A stored record with its radii as {level: metres}; ``InputError`` naming file and key when malformed."""
+    """A stored record with its radii as {level: metres}; ``InputError`` naming file and key when
+    malformed."""
     try:
         radii = {float(k): float(v) for k, v in rec["radii_m"].items()}
     except (KeyError, TypeError, ValueError, AttributeError):
@@ -112,8 +119,8 @@ def _checked(rec, p: Path, key: str) -> dict:
 
 
 def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] | None, str]:
-    """(level -> radius, how) for a flight that flew ``coverage`` of its planned track (None: no plan known),
-    or (None, why no calibration applies)."""
+    """(level -> radius, how) for a flight that flew ``coverage`` of its planned track (None: no
+    plan known), or (None, why no calibration applies)."""
     tr = rec.get("track")
     if coverage is None:
         return rec["radii_m"], ""
@@ -135,9 +142,10 @@ def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] |
 
 
 def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
-    """(the card's calibration for ``domain`` ("sim" or "real"), None) or (None, why there is none: no card, no
-    entry, or an entry measured on another model file); a malformed entry is an ``InputError`` naming the card
-    and key.  ``model``: a ``card.ModelCard`` (read once with its network) or a model file's path."""
+    """(the card's calibration for ``domain`` ("sim" or "real"), None) or (None, why there is none:
+    no card, no entry, or an entry measured on another model file); a malformed entry is an
+    ``InputError`` naming the card and key.  ``model``: a ``card.ModelCard`` (read once with its
+    network) or a model file's path."""
     path = model.path if isinstance(model, ModelCard) else model
     p = card_path(path)
     where = f"{p.name}, benchmarks/calibrate_error_circles.py"
@@ -167,7 +175,8 @@ def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
 def method_calibration(
     method: str, domain: str, path: Path = METHOD_CIRCLES
 ) -> tuple[dict | None, str | None]:
-    """(the calibration of a classical method's default configuration for ``domain``, None) or (None, why not)."""
+    """(the calibration of a classical method's default configuration for ``domain``, None) or
+    (None, why not)."""
     rec = _read_entries(path, method).get(domain) if path.is_file() else None
     if rec is None:
         return None, f"no '{domain}' calibration of {method} in {path.name}"
@@ -177,8 +186,9 @@ def method_calibration(
 def circle_regions(
     x: float, y: float, radii: dict[float, float], calibrated_on: str, area: Area | None = None
 ) -> list[dict]:
-    """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout; clipped to
-    ``area`` where it is given and overlaps the circle (a circle that misses it is kept whole)."""
+    """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout;
+    clipped to ``area`` where it is given and overlaps the circle (a circle that misses it is kept
+    whole)."""
     t = np.linspace(0.0, 2.0 * np.pi, N_VERTICES + 1)
     out = []
     for lv, r in sorted(radii.items()):
@@ -219,9 +229,10 @@ def attach_circles(
     area: Area | None = None,
     flown: dict | None = None,
 ) -> str | None:
-    """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration`` answer) around
-    (x, y), clipped to ``area``, into ``extras["regions"]``, sized for what was ``flown``
-    (``training_domain.flown_domain``); returns the note to show when there is no calibration."""
+    """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration``
+    answer) around (x, y), clipped to ``area``, into ``extras["regions"]``, sized for what was
+    ``flown`` (``training_domain.flown_domain``); returns the note to show when there is no
+    calibration."""
     flown = flown or {}
     cov = flown.get("track_coverage")
     if cov is not None:

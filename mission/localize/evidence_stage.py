@@ -1,12 +1,14 @@
-"""The evidence stage: every member's candidates, weighed by the flight's own held-out RSS, one answer.
+"""The evidence stage: every member's candidates, weighed by the flight's own held-out RSS, one
+answer.
 
-A meta-estimator in the shape of scikit-learn's ``StackingRegressor``: the members (the self-calibrating
-search with each separate mode of its posterior, the calibrated-physics grid, the spiral networks, the
-fusion of selfcal and ``rfsl_spiral_e2r``) each propose candidates (``mission.localize.candidates``); the
-flight's blocked cross-validated predictive density scores each and stacking gives their weights
-(``mission.localize.stacking``).  The answer is the candidates' geometric median (``answer``: chosen by a rule
-written before scoring); the regions are the HPD sets of the candidates' mixture weighted by the evidence, so
-two surviving candidates far apart give two islands.
+A meta-estimator in the shape of scikit-learn's ``StackingRegressor``: the members (the
+self-calibrating search with each separate mode of its posterior, the calibrated-physics grid, the
+spiral networks, the fusion of selfcal and ``rfsl_spiral_e2r``) each propose candidates
+(``mission.localize.candidates``); the flight's blocked cross-validated predictive density scores
+each and stacking gives their weights (``mission.localize.stacking``).  The answer is the
+candidates' geometric median (``answer``: chosen by a rule written before scoring); the regions are
+the HPD sets of the candidates' mixture weighted by the evidence, so two surviving candidates far
+apart give two islands.
 """
 
 from __future__ import annotations
@@ -21,17 +23,18 @@ from mission.localize.candidates import Candidate, dedupe, posterior_modes
 
 MEMBER_NETWORKS = ("rfsl_spiral_e2r.onnx", "rfsl_spiral_e2r_ens5.onnx")
 SIGMA_M = 35.0  # each candidate's spread in the mixture regions (chosen of 20, 35, 50 m on the development split)
-# HPD masses of the stacked mixture that covered the truth at the nominal rates on the benchmark's development
-# split (flights 0-59; benchmarks/score_evidence.py score): held out on flights 60-199 they hold 46 % / 81 %, on
-# the six real flights 5 / 6 and 5 / 6 (models/README.md, "The evidence stage")
+# HPD masses of the stacked mixture that covered the truth at the nominal rates on the benchmark's
+# development split (flights 0-59; benchmarks/score_evidence.py score): held out on flights 60-199
+# they hold 46 % / 81 %, on the six real flights 5 / 6 and 5 / 6 (models/README.md, "The evidence
+# stage")
 CALIBRATED_MASS: dict[float, float] = {0.5: 0.680, 0.9: 0.999}
 
 
 def _network_candidates(
     part, origin, tx_height_m: float
 ) -> tuple[list[Candidate], dict[str, Estimate]]:
-    """Each shipped spiral network's point, marked out of its training domain when the track's altitude or
-    attitude is (``training_domain``): weighed, never dropped."""
+    """Each shipped spiral network's point, marked out of its training domain when the track's
+    altitude or attitude is (``training_domain``): weighed, never dropped."""
     from mission.localize.api import run_member
     from mission.localize.training_domain import altitude_note, flight_altitudes, flown_domain
     from mission.shipped import shipped_model
@@ -57,7 +60,8 @@ def member_candidates(
     part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, physics_preset: str | None = None
 ) -> tuple[list[Candidate], dict[str, Estimate]]:
     """Every member's candidates (near-duplicates merged) and the members' estimates by name; the
-    self-calibrating estimate comes first in both (its posterior grid carries the mixture regions)."""
+    self-calibrating estimate comes first in both (its posterior grid carries the mixture
+    regions)."""
     from mission.localize.api import DEFAULT_PHYSICS_PRESET, run_member
 
     _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
@@ -105,10 +109,11 @@ def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_
 def answer(cands: list[Candidate]) -> tuple[float, float]:
     """The stage's point: the geometric median of the candidates (``stacking.geometric_median``).
 
-    Chosen by the rule in ``benchmarks/score_evidence.py`` on the benchmark's development split (flights 0-59),
-    where every scheme that let the flight's held-out RSS pick or weight the point erred more than the
-    default (the evidence favours the candidate fitted on the same physics: see models/README.md, "The evidence
-    stage"), and the unweighted median erred less.  The evidence weighs the regions.
+    Chosen by the rule in ``benchmarks/score_evidence.py`` on the benchmark's development split
+    (flights 0-59), where every scheme that let the flight's held-out RSS pick or weight the point
+    erred more than the default (the evidence favours the candidate fitted on the same physics: see
+    models/README.md, "The evidence stage"), and the unweighted median erred less.  The evidence
+    weighs the regions.
     """
     from mission.localize.stacking import geometric_median
 
@@ -124,8 +129,9 @@ def evidence_stage(
     physics_preset: str | None = None,
     **_,
 ) -> Estimate:
-    """Localize ``part`` (the selected samples of a log) with the evidence stage (module docstring); the
-    estimate's ``candidates`` hold every candidate with its evidence and weight, most weight first."""
+    """Localize ``part`` (the selected samples of a log) with the evidence stage (module docstring);
+    the estimate's ``candidates`` hold every candidate with its evidence and weight, most weight
+    first."""
     from mission.localize.stacking import mixture_posterior, stacking_weights
     from mission.localize.uncertainty import hpd_regions
 

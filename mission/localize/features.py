@@ -3,41 +3,42 @@
 
 Pipeline of ``cluster_features(x, y, rss, cfg)`` on the raw per-sample arrays of one flight:
 
-1. **Grouping** (``grouping``): mean of consecutive non-overlapping groups of ``n_g`` samples, of the dB
-   values and of the positions alike (the paper averages dB, not linear power).  A trailing incomplete
-   group is dropped.
+1. **Grouping** (``grouping``): mean of consecutive non-overlapping groups of ``n_g`` samples, of
+   the dB values and of the positions alike (the paper averages dB, not linear power).  A trailing
+   incomplete group is dropped.
 2. **Gaussian smoothing** (``gaussian_smooth``): discrete convolution with a Gaussian kernel of
    ``sigma`` samples, length ``6 sigma + 1`` (``kernel_sigmas * sigma + 1``), normalised to sum 1.
    At the ends the signal is extended with its edge value (``mode="nearest"``), so a constant stays
    constant and the first/last samples are not pulled towards 0 dB as zero-padding would.
 3. **3D clustering**: k-means (scikit-learn, ``random_state=cfg.seed``, ``algorithm="lloyd"``,
-   ``n_init=cfg.n_init``) on the standardised (z-scored per column) points (x, y, smoothed RSS).  The
-   paper says "KNN"; a clustering needs k-means (SPEC section 4).
-4. Per cluster, the ``n_t`` samples with the highest smoothed RSS (all of them when a cluster has fewer
-   than ``n_t``); their mean smoothed RSS ``p_c`` and mean coordinates ``x_c, y_c``.
+   ``n_init=cfg.n_init``) on the standardised (z-scored per column) points (x, y, smoothed RSS).
+   The paper says "KNN"; a clustering needs k-means (SPEC section 4).
+4. Per cluster, the ``n_t`` samples with the highest smoothed RSS (all of them when a cluster has
+   fewer than ``n_t``); their mean smoothed RSS ``p_c`` and mean coordinates ``x_c, y_c``.
 5. **Offset invariance** (SPEC section 5): with ``offset_invariant=True`` the reference level
    ``max(smoothed RSS)`` of the flight is subtracted from every ``p_c`` (and the clustering sees the
    RSS z-scored), so the features are relative dB and identical for ``rss + c``.
-6. **Cluster order** (``order="rss_desc"``): clusters are sorted by ``p_c`` descending, ties broken by
-   ``x_c`` then ``y_c`` ascending.  The order therefore depends only on the cluster contents, never on
-   k-means' label numbering.
+6. **Cluster order** (``order="rss_desc"``): clusters are sorted by ``p_c`` descending, ties broken
+   by ``x_c`` then ``y_c`` ascending.  The order therefore depends only on the cluster contents,
+   never on k-means' label numbering.
 
-Output: ``[p_1, x_1, y_1, ..., p_Ck, x_Ck, y_Ck]`` (length ``3 C_k``), float64.  Coordinates are local
-ENU metres about the *field origin* of whoever computed them (``mission.geo.afar_field().origin`` for the
-AFAR field); a model's metadata carries the origin it was trained with, and inference converts the log's
-positions into that frame before calling these functions.
+Output: ``[p_1, x_1, y_1, ..., p_Ck, x_Ck, y_Ck]`` (length ``3 C_k``), float64.  Coordinates are
+local ENU metres about the *field origin* of whoever computed them
+(``mission.geo.afar_field().origin`` for the AFAR field); a model's metadata carries the origin it
+was trained with, and inference converts the log's positions into that frame before calling these
+functions.
 
-Speed: k-means per flight is unavoidable.  Measured on a real AFAR flight (about 10 000 grouped points,
-20 clusters, 2 CPU cores): ``KMeans(lloyd, n_init=1)`` about 20-40 ms, ``n_init=3`` about 2.5x that,
-``elkan`` and ``MiniBatchKMeans`` were not faster at this size; hence the default ``n_init=1`` with
-k-means++ seeding (deterministic with the fixed seed).  ``cluster_features_batch`` vectorises grouping
-and smoothing over flights and runs one k-means per flight.  k-means runs with one OpenMP thread
-(``mission.threads``, ``$RFSL_THREADS``): on a busy 2-core machine its default threads spin against each other
-(0.38 s instead of 0.02 s per flight; same labels).
+Speed: k-means per flight is unavoidable.  Measured on a real AFAR flight (about 10 000 grouped
+points, 20 clusters, 2 CPU cores): ``KMeans(lloyd, n_init=1)`` about 20-40 ms, ``n_init=3`` about
+2.5x that, ``elkan`` and ``MiniBatchKMeans`` were not faster at this size; hence the default
+``n_init=1`` with k-means++ seeding (deterministic with the fixed seed).  ``cluster_features_batch``
+vectorises grouping and smoothing over flights and runs one k-means per flight.  k-means runs with
+one OpenMP thread (``mission.threads``, ``$RFSL_THREADS``): on a busy 2-core machine its default
+threads spin against each other (0.38 s instead of 0.02 s per flight; same labels).
 
-``arc_step_m`` > 0 (off by default, the paper has no such step) first resamples a flight to one point per
-``arc_step_m`` metres of path (``resample_by_arc``), so creeping or hovering does not weight a spot by the
-time spent there.
+``arc_step_m`` > 0 (off by default, the paper has no such step) first resamples a flight to one
+point per ``arc_step_m`` metres of path (``resample_by_arc``), so creeping or hovering does not
+weight a spot by the time spent there.
 
 The paper's baseline input ``normalised_rss(rss, cfg)``: grouped RSS, minus its maximum (offset
 removed), divided by ``rss_scale_db``, linearly resampled to ``rss_length`` values.
@@ -54,7 +55,8 @@ from mission.errors import InputError, refuse_unknown_keys
 from mission.threads import thread_limits
 
 FEATURE_VERSION = 1
-# keys added after version 1, with the value that reproduces the features of models/datasets written before
+# keys added after version 1, with the value that reproduces the features of models/datasets written
+# before
 LATER_KEYS = {"arc_step_m": 0.0}
 
 
@@ -108,19 +110,21 @@ class FeatureConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> FeatureConfig:
-        """Build from a dict; unknown keys are refused (InputError naming the key); keys added after a model
-        or dataset was written take their defaults, which reproduce the features it was made with."""
+        """Build from a dict; unknown keys are refused (InputError naming the key); keys added after
+        a model or dataset was written take their defaults, which reproduce the features it was made
+        with."""
         refuse_unknown_keys(d, (f.name for f in fields(cls)), "feature configuration")
         return cls(**d)
 
     @staticmethod
     def normalised(d: dict) -> dict:
-        """``d`` with the later keys (``LATER_KEYS``) filled in where absent: compare configurations through this."""
+        """``d`` with the later keys (``LATER_KEYS``) filled in where absent: compare configurations
+        through this."""
         return {**LATER_KEYS, **d}
 
     def mismatch(self, other: FeatureConfig | dict) -> str | None:
-        """The first key whose value differs from ``other`` (None when identical); a dict ``other`` written
-        before a later key existed counts as having that key's neutral value."""
+        """The first key whose value differs from ``other`` (None when identical); a dict ``other``
+        written before a later key existed counts as having that key's neutral value."""
         o = other.to_dict() if isinstance(other, FeatureConfig) else FeatureConfig.normalised(other)
         mine = self.to_dict()
         for k in sorted(set(mine) | set(o)):
@@ -130,7 +134,8 @@ class FeatureConfig:
 
 
 def gaussian_kernel(sigma: float, kernel_sigmas: int = 6) -> np.ndarray:
-    """Normalised Gaussian kernel of length ``kernel_sigmas * sigma + 1`` (``[1.0]`` for sigma 0)."""
+    """Normalised Gaussian kernel of length ``kernel_sigmas * sigma + 1`` (``[1.0]`` for sigma
+    0)."""
     half = int(round(kernel_sigmas * sigma)) // 2
     if sigma <= 0 or half == 0:
         return np.ones(1)
@@ -140,10 +145,11 @@ def gaussian_kernel(sigma: float, kernel_sigmas: int = 6) -> np.ndarray:
 
 
 def grouping(values: np.ndarray, n_g: int) -> np.ndarray:
-    """Mean of consecutive non-overlapping groups of ``n_g`` along the last axis (remainder dropped).
+    """Mean of consecutive non-overlapping groups of ``n_g`` along the last axis (remainder
+    dropped).
 
-    Works on (N,), (M, N) arrays of dB values, and on (N, 2)/(N, 3) positions via ``axis`` moved first:
-    for positions call ``grouping(pos.T, n_g).T``.
+    Works on (N,), (M, N) arrays of dB values, and on (N, 2)/(N, 3) positions via ``axis`` moved
+    first: for positions call ``grouping(pos.T, n_g).T``.
     """
     v = np.asarray(values, dtype=float)
     n = v.shape[-1] // n_g
@@ -166,13 +172,15 @@ def gaussian_smooth(values: np.ndarray, sigma: float, kernel_sigmas: int = 6) ->
 def resample_by_arc(
     x: np.ndarray, y: np.ndarray, rss: np.ndarray, step_m: float, smooth_samples: float = 15.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One point per ``step_m`` of flown path: the mean x, y and RSS of the samples in each arc-length bin.
+    """One point per ``step_m`` of flown path: the mean x, y and RSS of the samples in each
+    arc-length bin.
 
-    Why: grouping and smoothing count samples, so a vehicle that creeps or hovers (AFAR team 288 moved at
-    about 1 m/s median and hovered at points) puts many more samples on a spot than the simulator's 5 m/s
-    cruise, and k-means weights spots by their sample count.  After resampling, one path metre carries the
-    same weight at any speed; a hover collapses to one averaged point.  Arc length is measured on positions
-    smoothed over ``smooth_samples`` samples, so GPS jitter while hovering does not add path.
+    Why: grouping and smoothing count samples, so a vehicle that creeps or hovers (AFAR team 288
+    moved at about 1 m/s median and hovered at points) puts many more samples on a spot than the
+    simulator's 5 m/s cruise, and k-means weights spots by their sample count.  After resampling,
+    one path metre carries the same weight at any speed; a hover collapses to one averaged point.
+    Arc length is measured on positions smoothed over ``smooth_samples`` samples, so GPS jitter
+    while hovering does not add path.
     """
     if step_m <= 0 or x.size < 2:
         return x, y, rss
@@ -188,8 +196,8 @@ def resample_by_arc(
 def preprocess(
     x: np.ndarray, y: np.ndarray, rss: np.ndarray, cfg: FeatureConfig
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(Arc resampling,) grouping, then smoothing: grouped x, grouped y and smoothed grouped RSS (1D arrays
-    of one flight)."""
+    """(Arc resampling,) grouping, then smoothing: grouped x, grouped y and smoothed grouped RSS (1D
+    arrays of one flight)."""
     x, y, rss = (np.asarray(a, dtype=float).ravel() for a in (x, y, rss))
     if not (x.size == y.size == rss.size):
         raise InputError(f"x, y and rss differ in length ({x.size}, {y.size}, {rss.size})")
@@ -238,7 +246,8 @@ def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
 def summarise_clusters(
     gx: np.ndarray, gy: np.ndarray, gp: np.ndarray, labels: np.ndarray, cfg: FeatureConfig
 ) -> ClusterResult:
-    """Top-n_t means per cluster, offset removal and deterministic ordering (vectorised, no per-sample loop).
+    """Top-n_t means per cluster, offset removal and deterministic ordering (vectorised, no
+    per-sample loop).
 
     ``labels`` may use any numbering (0..C_k-1); the result does not depend on it.
     """
@@ -291,7 +300,8 @@ def cluster_features(
 def cluster_features_batch(
     xy: np.ndarray, rss: np.ndarray, cfg: FeatureConfig | None = None
 ) -> np.ndarray:
-    """Features of M flights: ``xy`` (N, 2) shared by all flights or (M, N, 2); ``rss`` (M, N) -> (M, 3 C_k).
+    """Features of M flights: ``xy`` (N, 2) shared by all flights or (M, N, 2); ``rss`` (M, N) ->
+    (M, 3 C_k).
 
     Grouping and smoothing are vectorised over flights; k-means runs once per flight.
     """
@@ -332,7 +342,8 @@ def cluster_features_batch(
 
 def normalised_rss(rss: np.ndarray, cfg: FeatureConfig | None = None) -> np.ndarray:
     """The paper's baseline input: grouped RSS minus its max, over ``rss_scale_db``, resampled to
-    ``rss_length`` (linear interpolation over the sample index).  (N,) -> (L,) or (M, N) -> (M, L)."""
+    ``rss_length`` (linear interpolation over the sample index).  (N,) -> (L,) or (M, N) -> (M,
+    L)."""
     cfg = cfg or FeatureConfig()
     r = np.asarray(rss, dtype=float)
     if not np.isfinite(r).all():

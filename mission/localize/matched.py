@@ -1,22 +1,26 @@
-"""Track-matched localizer (``localize --method matched``): inference learned on the flight's own track.
+"""Track-matched localizer (``localize --method matched``): inference learned on the flight's own
+track.
 
-After landing, ``n_draws`` transmitters are drawn uniformly over the rover area (the prior: the transmitter can
-be anywhere in it) and simulated along the flown track, in cells, each under its own draw of a physics family
-(``matched_sim``).  A small numpy network (``matched_net.SummaryNet``) learns the transmitter position from the
-centred RSS-per-cell vector (offset-invariant); its output is the summary of an ABC posterior
-(semi-automatic ABC): the ``k`` simulated transmitters whose summary lies nearest the flight's, weighted by an
-Epanechnikov kernel, are posterior draws under the family.  Cross-fitting keeps the reference summaries honest:
-the draws are split into ``folds``, a net is trained on all folds but one, and only the held-out fold's draws
-(never seen by that net) serve as its reference table.
+After landing, ``n_draws`` transmitters are drawn uniformly over the rover area (the prior: the
+transmitter can be anywhere in it) and simulated along the flown track, in cells, each under its own
+draw of a physics family (``matched_sim``).  A small numpy network (``matched_net.SummaryNet``)
+learns the transmitter position from the centred RSS-per-cell vector (offset-invariant); its output
+is the summary of an ABC posterior (semi-automatic ABC): the ``k`` simulated transmitters whose
+summary lies nearest the flight's, weighted by an Epanechnikov kernel, are posterior draws under the
+family.  Cross-fitting keeps the reference summaries honest: the draws are split into ``folds``, a
+net is trained on all folds but one, and only the held-out fold's draws (never seen by that net)
+serve as its reference table.
 
-Outputs: the posterior mean (point estimate), a kernel density of the posterior draws on a ``step_m`` grid
-(``uncertainty.Posterior``), its 50 % and 90 % HPD regions (``uncertainty.hpd_regions``), and a self-check on
-``n_check`` held-out simulated transmitters along the same track (``extras["sim_check"]``: their error and
-region coverage).  With ``calibrate`` the HPD masses are those that cover the held-out draws at the nominal
-rates (split conformal, per flight, under the family; never fitted on real flights).  The held-out draws are
-set aside before any net trains and are localized exactly as the flight is (every fold's net, every fold's
-reference table, the union of their ABC draws): a check localized by one net only had narrower posteriors than
-the flight's two-net union, and its masses made the flight's 50 % regions hold ~77 % of simulated truths.
+Outputs: the posterior mean (point estimate), a kernel density of the posterior draws on a
+``step_m`` grid (``uncertainty.Posterior``), its 50 % and 90 % HPD regions
+(``uncertainty.hpd_regions``), and a self-check on ``n_check`` held-out simulated transmitters along
+the same track (``extras["sim_check"]``: their error and region coverage).  With ``calibrate`` the
+HPD masses are those that cover the held-out draws at the nominal rates (split conformal, per
+flight, under the family; never fitted on real flights).  The held-out draws are set aside before
+any net trains and are localized exactly as the flight is (every fold's net, every fold's reference
+table, the union of their ABC draws): a check localized by one net only had narrower posteriors than
+the flight's two-net union, and its masses made the flight's 50 % regions hold ~77 % of simulated
+truths.
 """
 
 from __future__ import annotations
@@ -38,9 +42,10 @@ from mission.physics.family import PhysicsFamily, load_family
 # The family drawn from when none is given: the shipped one (``load_family``), so a refitted
 # ``mission/data/afar_family.json`` is picked up; a benchmark may point it at another family file.
 DEFAULT_FAMILY: str | PhysicsFamily = "afar"
-# Hyperparameters (constructor defaults) fixed on simulated suite flights (seed 77, afar family) before any real
-# flight was scored: 40 000 draws (the held-out simulated error fell ~9 m from 20 000), 2 folds, 64 whitened
-# principal components, two ReLU layers of 128, 40 epochs of batches of 128, k = 2 % of a fold, 5 m cells and grid.
+# Hyperparameters (constructor defaults) fixed on simulated suite flights (seed 77, afar family)
+# before any real flight was scored: 40 000 draws (the held-out simulated error fell ~9 m from 20
+# 000), 2 folds, 64 whitened principal components, two ReLU layers of 128, 40 epochs of batches of
+# 128, k = 2 % of a fold, 5 m cells and grid.
 
 
 @contextmanager
@@ -88,7 +93,8 @@ def abc_draws(s_ref: np.ndarray, s_obs: np.ndarray, k: int) -> tuple[np.ndarray,
 
 
 def kde_bandwidth(pts: np.ndarray, w: np.ndarray, floor_m: float) -> float:
-    """Isotropic Gaussian kernel width: Scott's rule on the weighted draws (n_eff^(-1/6) x their spread)."""
+    """Isotropic Gaussian kernel width: Scott's rule on the weighted draws (n_eff^(-1/6) x their
+    spread)."""
     w = w / w.sum()
     mu = (w[:, None] * pts).sum(axis=0)
     var = float((w[:, None] * (pts - mu) ** 2).sum(axis=0).mean())
@@ -103,24 +109,27 @@ def kde(at: np.ndarray, pts: np.ndarray, w: np.ndarray, h: float) -> np.ndarray:
 
 
 def hpd_level_of(truth: np.ndarray, pts: np.ndarray, w: np.ndarray, h: float) -> float:
-    """The smallest HPD mass whose set (under the draws' kernel density) holds ``truth``: the weight of the
-    draws denser than the truth's point."""
+    """The smallest HPD mass whose set (under the draws' kernel density) holds ``truth``: the weight
+    of the draws denser than the truth's point."""
     dens = kde(pts, pts, w, h)
     return float(w[dens > kde(truth[None, :], pts, w, h)[0]].sum() / w.sum())
 
 
 def conformal_mass(levels_seen: np.ndarray, level: float) -> float:
-    """The HPD mass that holds the truth in a fraction ``level`` of held-out draws: the split-conformal quantile
-    of their HPD levels (``evidence.conformal_quantile``), kept inside (0.02, 0.999) so a region exists."""
+    """The HPD mass that holds the truth in a fraction ``level`` of held-out draws: the
+    split-conformal quantile of their HPD levels (``evidence.conformal_quantile``), kept inside
+    (0.02, 0.999) so a region exists."""
     return float(np.clip(conformal_quantile(levels_seen, level), 0.02, 0.999))
 
 
 class MatchedLocalizer(_Base):
-    """Track-matched ABC localizer (module docstring); configuration in the constructor, scikit-learn style.
+    """Track-matched ABC localizer (module docstring); configuration in the constructor,
+    scikit-learn style.
 
-    ``area``: an ``Area`` (the prior and the search polygon) or a box; None = the flight's box grown by
-    ``margin_m``.  ``family``: a ``PhysicsFamily``, a name/path for ``load_family``, or None (``DEFAULT_FAMILY``).
-    ``progress``: a ``(description, done, total)`` callback, None for a rich bar on a terminal, False for none.
+    ``area``: an ``Area`` (the prior and the search polygon) or a box; None = the flight's box grown
+    by ``margin_m``.  ``family``: a ``PhysicsFamily``, a name/path for ``load_family``, or None
+    (``DEFAULT_FAMILY``). ``progress``: a ``(description, done, total)`` callback, None for a rich
+    bar on a terminal, False for none.
     """
 
     name = "matched"
@@ -204,7 +213,8 @@ class MatchedLocalizer(_Base):
             )
         from threadpoolctl import threadpool_limits
 
-        # one BLAS thread: the products are small, and threads that wait for a busy core cost 10-30x more
+        # one BLAS thread: the products are small, and threads that wait for a busy core cost 10-30x
+        # more
         with (
             threadpool_limits(1),
             rich_progress() if self.progress is None else _given(self.progress) as tick,
@@ -294,7 +304,8 @@ class MatchedLocalizer(_Base):
         return est
 
     def _abc(self, s_ref: np.ndarray, s_obs: np.ndarray, fold: np.ndarray, k: int):
-        """Posterior draws: each fold's ``k`` nearest reference summaries to that fold's net's summary."""
+        """Posterior draws: each fold's ``k`` nearest reference summaries to that fold's net's
+        summary."""
         idx, w = [], []
         for j in range(self.folds):
             ref = np.flatnonzero(fold == j)
@@ -312,9 +323,10 @@ class MatchedLocalizer(_Base):
         fold: np.ndarray,
         k: int,
     ) -> dict:
-        """Error and HPD levels of the held-out simulated transmitters ``cal`` along this track (never trained
-        on, in no reference table), each localized exactly as the flight is: its summary under every fold's net
-        (``s_cal``, one row per fold), the union of every fold's ABC draws."""
+        """Error and HPD levels of the held-out simulated transmitters ``cal`` along this track
+        (never trained on, in no reference table), each localized exactly as the flight is: its
+        summary under every fold's net (``s_cal``, one row per fold), the union of every fold's ABC
+        draws."""
         n = len(cal)
         if n < 10:
             return {"n": 0, "hpd_levels": np.zeros(0)}

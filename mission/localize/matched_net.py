@@ -1,13 +1,15 @@
 """A small numpy regression network: the learned summary of the track-matched localizer.
 
 Why numpy: the network is trained after landing, inside ``localize``, on the flight's own simulated
-transmitters, and ``localize`` must run on numpy (no torch at inference).  The net regresses the transmitter
+transmitters, and ``localize`` must run on numpy (no torch at inference).  The net regresses the
+transmitter
 position on the centred RSS-per-cell vector: its output approximates the posterior mean E[x | RSS], the
-summary statistic of semi-automatic ABC (Fearnhead and Prangle 2012), from which ``matched`` draws the posterior.
+summary statistic of semi-automatic ABC (Fearnhead and Prangle 2012), from which ``matched`` draws
+the posterior.
 
-Architecture: principal components of the inputs (``n_pca``, whitened) -> ``hidden`` ReLU layers -> 2 outputs,
-mean squared error on standardised targets, Adam with a cosine-decayed step, mini-batches; all float32 and
-reproducible from the caller's generator.
+Architecture: principal components of the inputs (``n_pca``, whitened) -> ``hidden`` ReLU layers ->
+2 outputs, mean squared error on standardised targets, Adam with a cosine-decayed step,
+mini-batches; all float32 and reproducible from the caller's generator.
 """
 
 from __future__ import annotations
@@ -20,8 +22,9 @@ Progress = Callable[[str, int, int], None]
 
 
 class Pca:
-    """Mean and leading principal axes of a data set (fitted once, then ``transform``): each axis scaled to unit
-    variance (``whiten``) or all by the first axis's spread (the weak, noisy axes stay small)."""
+    """Mean and leading principal axes of a data set (fitted once, then ``transform``): each axis
+    scaled to unit variance (``whiten``) or all by the first axis's spread (the weak, noisy axes
+    stay small)."""
 
     def __init__(self, x: np.ndarray, n_components: int, whiten: bool = True) -> None:
         x = np.asarray(x, dtype=np.float64)
@@ -45,7 +48,8 @@ class Pca:
 
 
 class SummaryNet:
-    """MLP regression ``fit(X, Y, rng)`` / ``predict(X)`` (module docstring); Y (N, 2) positions in metres."""
+    """MLP regression ``fit(X, Y, rng)`` / ``predict(X)`` (module docstring); Y (N, 2) positions in
+    metres."""
 
     def __init__(
         self,
@@ -87,7 +91,8 @@ class SummaryNet:
         progress: Progress | None = None,
         label: str = "training",
     ) -> SummaryNet:
-        """Fit on inputs ``x`` (N, M) and targets ``y`` (N, 2); ``progress(label, epoch, epochs)`` per epoch."""
+        """Fit on inputs ``x`` (N, M) and targets ``y`` (N, 2); ``progress(label, epoch, epochs)``
+        per epoch."""
         self.pca = Pca(x, self.n_pca, self.whiten)
         z = self.pca.transform(x)
         y = np.asarray(y, dtype=np.float64)

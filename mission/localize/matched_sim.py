@@ -1,23 +1,24 @@
 """Simulated transmitters along one flown track: the training set of the track-matched localizer.
 
-Why: a network trained on other trajectories and altitudes pays for the difference (the paper: 16-18 m on its
-own spiral, 35 m across trajectories).  Here the track is the flight's own, reduced to ``cell_m`` cells
-(``selfcal.cell_average``: centre of mass, mean heading, sample count per cell and cruise altitude), and many
-transmitters are simulated along it, each under its own draw of a physics family
-(``mission.physics.family``: model spec, correlated shadowing, white noise, offset).
+Why: a network trained on other trajectories and altitudes pays for the difference (the paper: 16-18
+m on its own spiral, 35 m across trajectories).  Here the track is the flight's own, reduced to
+``cell_m`` cells (``selfcal.cell_average``: centre of mass, mean heading, sample count per cell and
+cruise altitude), and many transmitters are simulated along it, each under its own draw of a physics
+family (``mission.physics.family``: model spec, correlated shadowing, white noise, offset).
 
-Per transmitter j with family draw (spec_j, sigma_j, L_j, n_j, c_j), cell m (``family.simulate_rss`` per
-cell)::
+Per transmitter j with family draw (spec_j, sigma_j, L_j, n_j, c_j), cell m (``family.simulate_rss``
+per cell)::
 
     P_jm = model_j(tx_j, cell_m, attitude_m) + c_j + S_jm + e_jm,    S_j ~ N(0, sigma_j^2 rho(|x_m - x_m'|; L_j))
     e_jm ~ N(0, n_j^2 / count_m)                                      # white noise averaged over the cell
 
-with ``rho`` the Gaussian correlation of ``shadowing.shadowing_field`` (1/e at L).  The field is drawn from a
-square-root factor of the cells' correlation (``FieldBasis``), not from ``shadowing_field``'s smoothed grid: one
-factor serves every transmitter whose correlation length rounds to it, where the grid would be made per
-transmitter (20 000 times).  Transmitters share a model
-spec in groups of ``group`` (the model build and its geometry are the costly part); every transmitter has its
-own field, noise and offset.  The learned input is offset-free: ``centred`` subtracts each vector's mean.
+with ``rho`` the Gaussian correlation of ``shadowing.shadowing_field`` (1/e at L).  The field is
+drawn from a square-root factor of the cells' correlation (``FieldBasis``), not from
+``shadowing_field``'s smoothed grid: one factor serves every transmitter whose correlation length
+rounds to it, where the grid would be made per transmitter (20 000 times).  Transmitters share a
+model spec in groups of ``group`` (the model build and its geometry are the costly part); every
+transmitter has its own field, noise and offset.  The learned input is offset-free: ``centred``
+subtracts each vector's mean.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ Progress = Callable[[str, int, int], None]
 
 @dataclass
 class TrackCells:
-    """A flown track in cells: positions (M, 3) m, attitude (M, 3) rad (roll, pitch, yaw), sample counts (M,),
-    measured mean RSS per cell (M,) dBm and the cell size."""
+    """A flown track in cells: positions (M, 3) m, attitude (M, 3) rad (roll, pitch, yaw), sample
+    counts (M,), measured mean RSS per cell (M,) dBm and the cell size."""
 
     enu_m: np.ndarray
     attitude_rad: np.ndarray
@@ -54,7 +55,8 @@ class TrackCells:
 def track_cells(
     f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M
 ) -> TrackCells:
-    """The flight averaged into cells (``selfcal.cell_average``; roll and pitch averaged the same way)."""
+    """The flight averaged into cells (``selfcal.cell_average``; roll and pitch averaged the same
+    way)."""
     cells = cell_average(f, cell_m, altitude_gap_m)
     roll = pitch = np.zeros(len(cells))
     if (
@@ -71,7 +73,8 @@ def track_cells(
 
 
 def centred(rss: np.ndarray) -> np.ndarray:
-    """RSS vectors minus their own mean (last axis): what is left after an unknown receiver offset."""
+    """RSS vectors minus their own mean (last axis): what is left after an unknown receiver
+    offset."""
     r = np.asarray(rss, dtype=np.float64)
     return r - r.mean(axis=-1, keepdims=True)
 
@@ -82,11 +85,13 @@ CORR_RATIO = (
 
 
 class FieldBasis:
-    """Square-root factors of the cells' unit-variance Gaussian shadowing correlation, one per correlation length
-    rounded to the ``CORR_RATIO`` grid (at most 3 % off), made once per length and flight.
+    """Square-root factors of the cells' unit-variance Gaussian shadowing correlation, one per
+    correlation length rounded to the ``CORR_RATIO`` grid (at most 3 % off), made once per length
+    and flight.
 
-    Factor: the eigenvectors times sqrt(eigenvalue), eigenvalues under 1e-7 of the largest dropped (the smooth
-    Gaussian correlation has few that matter), so a field of k transmitters costs one (M, r) x (r, k) product.
+    Factor: the eigenvectors times sqrt(eigenvalue), eigenvalues under 1e-7 of the largest dropped
+    (the smooth Gaussian correlation has few that matter), so a field of k transmitters costs one
+    (M, r) x (r, k) product.
     """
 
     def __init__(self, xy: np.ndarray) -> None:
@@ -111,7 +116,8 @@ def simulate_track(
     group: int = 64,
     progress: Progress | None = None,
 ) -> np.ndarray:
-    """Cell RSS (N, M) float32 of N transmitters ``tx_xy`` (N, 2) along ``track`` (module docstring)."""
+    """Cell RSS (N, M) float32 of N transmitters ``tx_xy`` (N, 2) along ``track`` (module
+    docstring)."""
     tx_xy = np.asarray(tx_xy, dtype=float)
     n, m = len(tx_xy), len(track)
     out = np.empty((n, m), dtype=np.float32)
@@ -141,7 +147,8 @@ def simulate_track(
 def draw_transmitters(
     area, box: tuple[float, float, float, float], n: int, rng: np.random.Generator
 ) -> np.ndarray:
-    """``n`` transmitter positions uniform over the prior: the ``area`` polygon when given, else ``box``."""
+    """``n`` transmitter positions uniform over the prior: the ``area`` polygon when given, else
+    ``box``."""
     if area is not None:
         return area.sample_uniform(n, rng)
     x0, y0, x1, y1 = box

@@ -1,9 +1,10 @@
-"""The localization methods, one entry each: name, factory, kind of uncertainty, where it is calibrated, a line.
+"""The localization methods, one entry each: name, factory, kind of uncertainty, where it is
+calibrated, a line.
 
-Every list of method names (``localize --method``, ``localize_log``, the error circles, ``rfsl evaluate``) reads
-from ``METHODS``.  Importing this module loads no numpy: the CLI builds ``--method`` from it, and a factory
-imports its estimator only when called.  A factory takes the keyword arguments of
-``mission.localize.api.make_localizer`` and ignores those it does not use.
+Every list of method names (``localize --method``, ``localize_log``, the error circles, ``rfsl
+evaluate``) reads from ``METHODS``.  Importing this module loads no numpy: the CLI builds
+``--method`` from it, and a factory imports its estimator only when called.  A factory takes the
+keyword arguments of ``mission.localize.api.make_localizer`` and ignores those it does not use.
 """
 
 from __future__ import annotations
@@ -50,8 +51,9 @@ ADAPTIVE_METHOD = (
 
 @dataclass(frozen=True)
 class Method:
-    """One localization method: ``factory(**kw)`` builds its estimator (``predict(flight) -> Estimate``); None
-    for the meta-estimators ``fusion`` and ``evidence``, which ``localize_log`` composes from others."""
+    """One localization method: ``factory(**kw)`` builds its estimator (``predict(flight) ->
+    Estimate``); None for the meta-estimators ``fusion`` and ``evidence``, which ``localize_log``
+    composes from others."""
 
     name: str
     kind: str  # "network", "classical" (classical.py's estimators), "self-calibrating", "fusion", "stacking"
@@ -60,8 +62,9 @@ class Method:
     bounded: bool  # searches inside the transmitter's area (localize_log passes it the rover area)
     description: str
     factory: Callable[..., object] | None
-    # a meta-estimator's "module:function", (part, origin, area, **kw) -> Estimate, imported when it runs (it runs
-    # other entries, so naming it here by reference keeps the registry below it: no import circle)
+    # a meta-estimator's "module:function", (part, origin, area, **kw) -> Estimate, imported when it
+    # runs (it runs other entries, so naming it here by reference keeps the registry below it: no
+    # import circle)
     compose: str | None = None
     frame: str = (
         LOG_FRAME  # the frame it answers in: LOG_FRAME, or MODEL_FRAME (converted through lat/lon)
@@ -102,7 +105,8 @@ def _grid(
     physics_preset: str | None = None,
     **_,
 ):
-    """``physics_preset`` (a calibrated preset) replaces ``physics_model`` and its ``physics_params``."""
+    """``physics_preset`` (a calibrated preset) replaces ``physics_model`` and its
+    ``physics_params``."""
     from mission.localize.classical import ModelGridSearch
 
     if physics_preset is not None:
@@ -219,7 +223,8 @@ METHOD_NAMES = tuple(METHODS)
 
 
 def method_entry(name: str) -> Method:
-    """The registry entry of ``name``; an unknown name is an ``InputError`` listing the known ones."""
+    """The registry entry of ``name``; an unknown name is an ``InputError`` listing the known
+    ones."""
     try:
         return METHODS[name]
     except (KeyError, TypeError):
@@ -238,7 +243,8 @@ def composer(entry: Method) -> Callable[..., object]:
 
 def names_where(**fields) -> tuple[str, ...]:
     """The names of the methods whose entry has every given field value, in registry order
-    (``names_where(calibration=FROM_METHOD_CIRCLES)`` -> the methods calibrated by method circles)."""
+    (``names_where(calibration=FROM_METHOD_CIRCLES)`` -> the methods calibrated by method
+    circles)."""
     return tuple(
         m.name for m in METHODS.values() if all(getattr(m, k) == v for k, v in fields.items())
     )

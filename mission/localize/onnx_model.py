@@ -1,9 +1,10 @@
-"""Run a trained localizer network (ONNX, onnxruntime) on a flight, with its features computed by features.py.
+"""Run a trained localizer network (ONNX, onnxruntime) on a flight, with its features computed by
+features.py.
 
-What the network expects and where it was trained is its card (``mission.localize.card.ModelCard``: the ONNX
-file's ``metadata_props`` and the JSON card beside it), read once when the network is loaded.  The network's
-single input is float32 ``(batch, F)`` or ``(batch, 1, F)`` (rank read from the graph); its first output is
-``(batch, 2)`` = x, y.
+What the network expects and where it was trained is its card (``mission.localize.card.ModelCard``:
+the ONNX file's ``metadata_props`` and the JSON card beside it), read once when the network is
+loaded.  The network's single input is float32 ``(batch, F)`` or ``(batch, 1, F)`` (rank read from
+the graph); its first output is ``(batch, 2)`` = x, y.
 """
 
 from __future__ import annotations
@@ -26,9 +27,9 @@ from mission.threads import compute_threads
 
 
 def session_options(threads: int):
-    """onnxruntime session options: quiet log, ``threads`` intra- and inter-op threads (0 = onnxruntime's
-    default pool).  One thread by default: a small network runs in well under a millisecond, and an idle
-    pool's spinning threads cost CPU on a busy machine."""
+    """onnxruntime session options: quiet log, ``threads`` intra- and inter-op threads (0 =
+    onnxruntime's default pool).  One thread by default: a small network runs in well under a
+    millisecond, and an idle pool's spinning threads cost CPU on a busy machine."""
     import onnxruntime as ort
 
     opts = ort.SessionOptions()
@@ -45,12 +46,13 @@ def session_options(threads: int):
 class OnnxLocalizer:
     """A localizer network loaded from an ONNX file; ``predict(flight) -> Estimate``.
 
-    ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with anything else
-    is refused (``InputError`` naming the differing key).  ``threads``: onnxruntime's intra/inter-op threads
-    (None: ``mission.threads.compute_threads()``, i.e. ``$RFSL_THREADS``, default 1; 0: onnxruntime's default).
-    An altitude-normalised network (``training_data.altitude_normalisation`` in its metadata,
-    ``mission.localize.altitude_scale``) sees each flight's coordinates rescaled by its height above the
-    transmitter (``tx_height_m`` assumed); ``predict_features`` then needs those heights.
+    ``expect_config`` / ``expect_kind``: what the caller intends to feed; a model trained with
+    anything else is refused (``InputError`` naming the differing key).  ``threads``: onnxruntime's
+    intra/inter-op threads (None: ``mission.threads.compute_threads()``, i.e. ``$RFSL_THREADS``,
+    default 1; 0: onnxruntime's default). An altitude-normalised network
+    (``training_data.altitude_normalisation`` in its metadata, ``mission.localize.altitude_scale``)
+    sees each flight's coordinates rescaled by its height above the transmitter (``tx_height_m``
+    assumed); ``predict_features`` then needs those heights.
     """
 
     name = "onnx"
@@ -141,7 +143,8 @@ class OnnxLocalizer:
         return self.path.name
 
     def features(self, f: FlightSamples) -> np.ndarray:
-        """Feature vector (F,) of a flight whose positions are ENU about the model's field origin."""
+        """Feature vector (F,) of a flight whose positions are ENU about the model's field
+        origin."""
         if self.kind == "clustering":
             return cluster_features(f.enu_m[:, 0], f.enu_m[:, 1], f.rss_dbm, self.cfg)
         return normalised_rss(f.rss_dbm, self.cfg)
@@ -154,8 +157,9 @@ class OnnxLocalizer:
     def predict_features(
         self, feats: np.ndarray, heights_m: np.ndarray | None = None
     ) -> np.ndarray:
-        """(B, F) features -> (B, 2) positions in metres about the model's field origin; ``heights_m`` (B,):
-        each flight's height above the transmitter, needed (and only used) by an altitude-normalised network."""
+        """(B, F) features -> (B, 2) positions in metres about the model's field origin;
+        ``heights_m`` (B,): each flight's height above the transmitter, needed (and only used) by an
+        altitude-normalised network."""
         s = None
         if self.needs_heights:
             if heights_m is None:
@@ -176,7 +180,8 @@ class OnnxLocalizer:
         return out if s is None else out / s[:, None]
 
     def predict(self, flight, origin: Origin | None = None) -> Estimate:
-        """Estimate for a FlightLog (converted to the model's origin) or for arrays already in that frame."""
+        """Estimate for a FlightLog (converted to the model's origin) or for arrays already in that
+        frame."""
         if hasattr(flight, "columns"):
             f = as_flight(flight, self.origin)
         else:

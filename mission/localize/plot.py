@@ -1,5 +1,6 @@
-"""Plot a localization: the flight coloured by smoothed RSS, the 3D clusters and their top-n_t samples,
-the estimate and (when known) the truth.  matplotlib with the Agg backend (no display needed)."""
+"""Plot a localization: the flight coloured by smoothed RSS, the 3D clusters and their top-n_t
+samples, the estimate and (when known) the truth.  matplotlib with the Agg backend (no display
+needed)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,9 @@ from mission.localize.features import FeatureConfig, cluster_details
 
 
 def field_areas(log) -> list:
-    """The areas to draw for a log, in its frame: the AFAR flight and rover areas when the log shares the AFAR
-    origin, else the sidecar's rover area (if any).  Why: a path or estimate means little without the field."""
+    """The areas to draw for a log, in its frame: the AFAR flight and rover areas when the log
+    shares the AFAR origin, else the sidecar's rover area (if any).  Why: a path or estimate means
+    little without the field."""
     from mission.geo import afar_field
     from mission.localize.api import search_area
 
@@ -43,7 +45,8 @@ def draw_areas(ax, areas) -> None:
 
 
 def robust_limits(values, lo_pct: float = 2.0, hi_pct: float = 99.5) -> tuple[float, float]:
-    """Colour-scale limits at robust percentiles: deep nulls and take-off outliers must not wash out a map."""
+    """Colour-scale limits at robust percentiles: deep nulls and take-off outliers must not wash out
+    a map."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
@@ -59,7 +62,8 @@ def power_unit(log) -> str:
 
 
 def draw_regions(ax, regions: list[dict]) -> None:
-    """Outline the estimate's uncertainty regions (``mission.localize.uncertainty`` layout), one style per level."""
+    """Outline the estimate's uncertainty regions (``mission.localize.uncertainty`` layout), one
+    style per level."""
     styles = {0.5: ("-", 1.6), 0.9: ("--", 1.2)}
     for reg in regions:
         ls, lw = styles.get(round(reg["level"], 2), (":", 1.0))
@@ -77,8 +81,8 @@ def draw_regions(ax, regions: list[dict]) -> None:
 
 
 def draw_candidates(ax, cands: list, top: int = 6) -> None:
-    """Mark the evidence stage's candidates (the ``top`` heaviest), the marker's size by weight, labelled
-    with their source; a network outside its training domain is drawn hollow."""
+    """Mark the evidence stage's candidates (the ``top`` heaviest), the marker's size by weight,
+    labelled with their source; a network outside its training domain is drawn hollow."""
     for k, c in enumerate(cands[:top]):
         w = c.weight or 0.0
         ax.plot(
@@ -110,7 +114,8 @@ def plot_localization(
     area=None,
     title: str | None = None,
 ) -> Path:
-    """Draw ``log`` (its cruise part, positions in the log's frame) with ``est``; writes ``out`` (PNG)."""
+    """Draw ``log`` (its cruise part, positions in the log's frame) with ``est``; writes ``out``
+    (PNG)."""
     import matplotlib
 
     matplotlib.use("Agg")

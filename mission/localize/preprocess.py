@@ -1,17 +1,18 @@
 """Keep the cruise part of a flight log: drop ground time, take-off, landing and climbs by altitude.
 
-Rule (any trajectory, one or several cruise altitudes): let ``h`` be the height above the origin's ground
-(ENU z, i.e. ``rel_alt_m``-like).  The *upper part* is the samples above half of the flight's 99th-percentile
-height; its median is the cruise altitude ``h_c``, and samples within ``band(h_c)`` (default
-``max(3 m, 15 % of h_c)``) of it are the first cruise altitude's, when that band holds at least half of the upper
-part and is centred on it (its samples' median within half a band).  Otherwise (a flight split between
-altitudes, whose median falls between them), and for every further
-altitude, the altitude is the height whose band holds the most of the remaining airborne samples (refined to
-their median); a further altitude is kept while its band holds at least ``min_altitude_share`` of the airborne
-samples and lies above ``min_cruise_m``.  Why cruise altitudes and not "everything airborne": on the real AFAR
-flights climbs and descents are ~17 dB off the model (``benchmarks/calibrate_real_afar.py``), while a second
-survey altitude is good data (other teams flew at 20-47 m).  A flight that never leaves the ground (``h_c``
-below ``min_cruise_m``) keeps everything, and says so.
+Rule (any trajectory, one or several cruise altitudes): let ``h`` be the height above the origin's
+ground (ENU z, i.e. ``rel_alt_m``-like).  The *upper part* is the samples above half of the flight's
+99th-percentile height; its median is the cruise altitude ``h_c``, and samples within ``band(h_c)``
+(default ``max(3 m, 15 % of h_c)``) of it are the first cruise altitude's, when that band holds at
+least half of the upper part and is centred on it (its samples' median within half a band).
+Otherwise (a flight split between altitudes, whose median falls between them), and for every further
+altitude, the altitude is the height whose band holds the most of the remaining airborne samples
+(refined to their median); a further altitude is kept while its band holds at least
+``min_altitude_share`` of the airborne samples and lies above ``min_cruise_m``.  Why cruise
+altitudes and not "everything airborne": on the real AFAR flights climbs and descents are ~17 dB off
+the model (``benchmarks/calibrate_real_afar.py``), while a second survey altitude is good data
+(other teams flew at 20-47 m).  A flight that never leaves the ground (``h_c`` below
+``min_cruise_m``) keeps everything, and says so.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ import numpy as np
 
 @dataclass
 class CruiseSelection:
-    """Which samples are cruise (``mask``), at what altitude (the first one) and band, and why; ``altitudes``
-    lists every kept cruise altitude as (altitude m, band m)."""
+    """Which samples are cruise (``mask``), at what altitude (the first one) and band, and why;
+    ``altitudes`` lists every kept cruise altitude as (altitude m, band m)."""
 
     mask: np.ndarray
     cruise_alt_m: float
@@ -43,8 +44,9 @@ def _band(h: np.ndarray | float, band_m: float | None) -> np.ndarray | float:
 
 
 def _densest_altitude(hs: np.ndarray, lo: float, band_m: float | None) -> tuple[float, int]:
-    """(altitude, count): the height in [lo, max] whose band holds the most of the sorted heights ``hs``, refined to
-    the median of the heights in that band (vectorised over a 0.25 m grid of candidate altitudes)."""
+    """(altitude, count): the height in [lo, max] whose band holds the most of the sorted heights
+    ``hs``, refined to the median of the heights in that band (vectorised over a 0.25 m grid of
+    candidate altitudes)."""
     c = np.arange(lo, hs[-1] + 0.25, 0.25)
     b = _band(c, band_m)
     cnt = np.searchsorted(hs, c + b, "right") - np.searchsorted(hs, c - b, "left")
@@ -61,7 +63,8 @@ def cruise_mask(
     min_altitude_share: float = 0.15,
     max_altitudes: int = 4,
 ) -> CruiseSelection:
-    """Select the cruise part (one or more cruise altitudes) from heights above ground (N,) in metres."""
+    """Select the cruise part (one or more cruise altitudes) from heights above ground (N,) in
+    metres."""
     h = np.asarray(height_m, dtype=float)
     n = h.size
     if n == 0:
@@ -80,8 +83,9 @@ def cruise_mask(
     n_air = int(airborne.sum())
     b = float(_band(hc, band_m))
     mask = np.abs(h - hc) <= b
-    # split between altitudes: the median is no cruise altitude (its band holds under half of the upper part, or
-    # it catches one altitude off-centre: the band's own samples sit over half a band away from the median)
+    # split between altitudes: the median is no cruise altitude (its band holds under half of the
+    # upper part, or it catches one altitude off-centre: the band's own samples sit over half a band
+    # away from the median)
     if int(mask.sum()) < 0.5 * int(upper.sum()) or abs(float(np.median(h[mask])) - hc) > 0.5 * b:
         hc, _ = _densest_altitude(np.sort(h[airborne]), min_cruise_m, band_m)
         b = float(_band(hc, band_m))
@@ -109,17 +113,19 @@ def cruise_mask(
 
 
 def select_cruise(log, band_m: float | None = None, min_cruise_m: float = 5.0):
-    """(cruise part of a ``FlightLog``, ``CruiseSelection``); heights are the log's ENU z about its origin."""
+    """(cruise part of a ``FlightLog``, ``CruiseSelection``); heights are the log's ENU z about its
+    origin."""
     sel = cruise_mask(log.enu()[:, 2], band_m, min_cruise_m)
     return log.select(sel.mask), sel
 
 
 def select_mission_legs(log):
-    """(samples flown on mission legs, reason) when the log records the mission phase per row, else None.
+    """(samples flown on mission legs, reason) when the log records the mission phase per row, else
+    None.
 
-    Why: the height band keeps any sample at cruise height, including a return leg flown at cruise height
-    (nose-backwards on ArduPilot, 22-24 deg pitch); the runner's ``phase`` column says which rows were flown
-    on the mission's own legs or on adaptive legs (``mission.flightlog.PHASES``).
+    Why: the height band keeps any sample at cruise height, including a return leg flown at cruise
+    height (nose-backwards on ArduPilot, 22-24 deg pitch); the runner's ``phase`` column says which
+    rows were flown on the mission's own legs or on adaptive legs (``mission.flightlog.PHASES``).
     """
     phase = log.columns.get("phase")
     if phase is None:
@@ -139,7 +145,8 @@ def select_mission_legs(log):
 
 
 def select_samples(log):
-    """The samples a localizer uses, and why: mission legs when the phase is logged, else the cruise altitudes."""
+    """The samples a localizer uses, and why: mission legs when the phase is logged, else the cruise
+    altitudes."""
     legs = select_mission_legs(log)
     if legs is not None:
         return legs

@@ -1,18 +1,20 @@
-"""Self-calibrating model-based localizer: the per-flight nuisance is profiled out, not taken from a preset.
+"""Self-calibrating model-based localizer: the per-flight nuisance is profiled out, not taken from a
+preset.
 
-Why: a physics preset fitted on two teams' flights (one antenna heading, one mounting) did not carry over to
-other teams' flights.  Here every candidate transmitter position is scored under a set of antenna
-*hypotheses* (the measured RM-WB1-DN pattern hanging upside down or upright at every mounting heading in
-``heading_step_deg`` steps, a vertical dipole, an isotropic antenna), each with its own free RSS offset, and
-the best hypothesis is kept per candidate (profile likelihood).  The distance law is free space
-(``-20 log10 d``): on the real AFAR flights a free exponent absorbed the antenna's elevation pattern and
-moved estimates (``models/README.md``).
+Why: a physics preset fitted on two teams' flights (one antenna heading, one mounting) did not carry
+over to other teams' flights.  Here every candidate transmitter position is scored under a set of
+antenna *hypotheses* (the measured RM-WB1-DN pattern hanging upside down or upright at every
+mounting heading in ``heading_step_deg`` steps, a vertical dipole, an isotropic antenna), each with
+its own free RSS offset, and the best hypothesis is kept per candidate (profile likelihood).  The
+distance law is free space (``-20 log10 d``): on the real AFAR flights a free exponent absorbed the
+antenna's elevation pattern and moved estimates (``models/README.md``).
 
-Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal plane, one
-set per cruise altitude (``mission.cells.cell_average``), so that a slow pass or a hover does not count its spot many
-times, and the likelihood is tempered to the number of *independent* cells, ``n_eff = covered area / (pi corr_m^2)``
-(exponential shadowing correlation length ``corr_m``), so thousands of correlated samples do not count as
-independent evidence.  The tempered profile likelihood over the search grid is the posterior from which
+Correlated shadowing: the flight is first averaged into ``cell_m`` square cells in the horizontal
+plane, one set per cruise altitude (``mission.cells.cell_average``), so that a slow pass or a hover
+does not count its spot many times, and the likelihood is tempered to the number of *independent*
+cells, ``n_eff = covered area / (pi corr_m^2)`` (exponential shadowing correlation length
+``corr_m``), so thousands of correlated samples do not count as independent evidence.  The tempered
+profile likelihood over the search grid is the posterior from which
 :mod:`mission.localize.uncertainty` draws the 50 % and 90 % regions.
 
 Model (per cell m, candidate k, hypothesis h)::
@@ -37,12 +39,13 @@ from mission.physics.geometry import heading_frame_angles, link_delta
 from mission.samples import FlightSamples
 
 HYPOTHESIS_KINDS = ("measured-flipped", "measured", "dipole", "isotropic")
-# Shadowing correlation length (temperature), calibrated on the unseen-flight benchmark (`afar` family), and the
-# HPD masses that cover the truth at the nominal rates, recalibrated on the reality-fitted benchmark (its
-# family mission/data/afar_family.json from rfsl gap --family, seeds 2027 (200), 2028 (100), 2026 (100), 400
-# flights; benchmarks/calibrate_regions.py --suite-dirs): the HPD sets of mass 0.339 / 0.870 covered the truth in
-# 50.8 % / 89.8 % of held-out flights (5-fold; leave-one-seed-out 45-57 % / 87-94 %) and on the six real flights
-# 3 / 6 of 6 (the afar-family masses 0.511 / 0.954 covered 61 / 94 % of the fitted benchmark: too wide).
+# Shadowing correlation length (temperature), calibrated on the unseen-flight benchmark (`afar`
+# family), and the HPD masses that cover the truth at the nominal rates, recalibrated on the
+# reality-fitted benchmark (its family mission/data/afar_family.json from rfsl gap --family, seeds
+# 2027 (200), 2028 (100), 2026 (100), 400 flights; benchmarks/calibrate_regions.py --suite-dirs):
+# the HPD sets of mass 0.339 / 0.870 covered the truth in 50.8 % / 89.8 % of held-out flights
+# (5-fold; leave-one-seed-out 45-57 % / 87-94 %) and on the six real flights 3 / 6 of 6 (the
+# afar-family masses 0.511 / 0.954 covered 61 / 94 % of the fitted benchmark: too wide).
 CORR_M = 15.0
 CALIBRATED_MASS = {0.5: 0.339, 0.9: 0.870}
 
@@ -55,7 +58,8 @@ def corr_is_default(corr_m: float) -> bool:
 def antenna_hypotheses(
     kinds: tuple[str, ...] = HYPOTHESIS_KINDS, heading_step_deg: float = 30.0
 ) -> list[tuple[str, Pattern | None, float, bool]]:
-    """The UAV antenna hypotheses as (label, pattern or None for isotropic, mounting heading rad, flipped)."""
+    """The UAV antenna hypotheses as (label, pattern or None for isotropic, mounting heading rad,
+    flipped)."""
     out: list[tuple[str, Pattern | None, float, bool]] = []
     heads = np.arange(0.0, 360.0, float(heading_step_deg))
     for kind in kinds:
@@ -83,10 +87,12 @@ def antenna_hypotheses(
 
 
 def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np.ndarray, ...]:
-    """(K, M) float32 free-space path gain -20 log10 d, platform elevation and body azimuth of the transmitter.
+    """(K, M) float32 free-space path gain -20 log10 d, platform elevation and body azimuth of the
+    transmitter.
 
-    Body azimuth uses the heading only (the receiver antenna hangs below the body; roll and pitch did not
-    help on real flights, ``rfsl gap``), clockwise from the nose; elevation is negative below the UAV.
+    Body azimuth uses the heading only (the receiver antenna hangs below the body; roll and pitch
+    did not help on real flights, ``rfsl gap``), clockwise from the nose; elevation is negative
+    below the UAV.
     """
     tx = np.column_stack([cand_xy, np.full(len(cand_xy), float(tx_height_m))])
     dx, dy, dz = link_delta(tx[:, None, :], cells.enu_m[None, :, :], np.float32)
@@ -99,11 +105,12 @@ def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np
 
 
 class GainLookup:
-    """A pattern resampled once to a 1-degree (elevation x azimuth) table, looked up by nearest index.
+    """A pattern resampled once to a 1-degree (elevation x azimuth) table, looked up by nearest
+    index.
 
-    Why: every candidate x cell x mounting heading needs a gain; with integer indices computed once per call
-    a hypothesis costs one modular shift and one gather instead of a bilinear interpolation (the 3-degree
-    measured table's bilinear values are kept to about 0.5 dB).
+    Why: every candidate x cell x mounting heading needs a gain; with integer indices computed once
+    per call a hypothesis costs one modular shift and one gather instead of a bilinear interpolation
+    (the 3-degree measured table's bilinear values are kept to about 0.5 dB).
     """
 
     def __init__(self, pat: Pattern) -> None:
@@ -118,9 +125,10 @@ class GainLookup:
         self._mounted: dict[tuple[int, bool], np.ndarray] = {}
 
     def mounted(self, heading_deg: int, flipped: bool) -> np.ndarray:
-        """The flat (181 * 360,) table indexed by platform ``(el + 90) * 360 + az`` (az clockwise from the nose)
-        for one mounting: the antenna-frame column of platform azimuth ``a`` is ``a - heading`` (flipped) or
-        ``heading - a`` (upright), mod 360 (``mount_angles``).  Made once per mounting."""
+        """The flat (181 * 360,) table indexed by platform ``(el + 90) * 360 + az`` (az clockwise
+        from the nose) for one mounting: the antenna-frame column of platform azimuth ``a`` is ``a -
+        heading`` (flipped) or ``heading - a`` (upright), mod 360 (``mount_angles``).  Made once per
+        mounting."""
         key = (heading_deg, flipped)
         if key not in self._mounted:
             a = np.arange(360)
@@ -136,8 +144,9 @@ class GainLookup:
 
 
 class GainTables:
-    """The 1-degree gain tables (``GainLookup``) of the patterns one grid has met, each made once: owned by the
-    grid (``SelfCalibratingGrid.gain_tables``), so its two searches per flight and its later flights share them."""
+    """The 1-degree gain tables (``GainLookup``) of the patterns one grid has met, each made once:
+    owned by the grid (``SelfCalibratingGrid.gain_tables``), so its two searches per flight and its
+    later flights share them."""
 
     def __init__(self) -> None:
         self._made: list[
@@ -154,7 +163,8 @@ class GainTables:
 
 
 def flat_index(el: np.ndarray, az: np.ndarray) -> np.ndarray:
-    """Index ``(el + 90) * 360 + az`` (whole degrees) into a ``GainLookup`` table, from angles in rad."""
+    """Index ``(el + 90) * 360 + az`` (whole degrees) into a ``GainLookup`` table, from angles in
+    rad."""
     return (np.rint(np.degrees(el)).astype(np.int32) + 90) * 360 + np.mod(
         np.rint(np.degrees(az)).astype(np.int32), 360
     )
@@ -163,8 +173,9 @@ def flat_index(el: np.ndarray, az: np.ndarray) -> np.ndarray:
 def hypothesis_residuals(
     base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps, tables: GainTables | None = None
 ):
-    """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from ``_geometry``;
-    tabulated patterns are looked up in ``tables`` (a fresh ``GainTables`` when None)."""
+    """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from
+    ``_geometry``; tabulated patterns are looked up in ``tables`` (a fresh ``GainTables`` when
+    None)."""
     tables = GainTables() if tables is None else tables
     idx = None
     for _, pat, head, flipped in hyps:
@@ -181,8 +192,8 @@ def hypothesis_residuals(
 def hypothesis_ssr(
     cand_xy: np.ndarray, cells: Cells, hyps, tx_height_m: float, tables: GainTables | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and candidate
-    (``tables``: the caller's gain tables, see ``hypothesis_residuals``)."""
+    """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and
+    candidate (``tables``: the caller's gain tables, see ``hypothesis_residuals``)."""
     pg, el, az = _geometry(cand_xy, cells, tx_height_m)
     y = cells.rss_dbm.astype(np.float32)[None, :]
     ssr = np.empty((len(hyps), len(cand_xy)))
@@ -197,11 +208,11 @@ def hypothesis_ssr(
 class SelfCalibratingGrid(_Base):
     """Grid search with per-candidate profiled antenna hypothesis and offset, on cell-averaged RSS.
 
-    ``area``: an ``Area`` (candidates inside its polygon) or ``(xmin, ymin, xmax, ymax)``; None = the flight's
-    box grown by ``margin_m``.  ``corr_m`` sets the likelihood's temperature (module docstring) and with it the
-    width of the uncertainty regions; its default was calibrated on the unseen-flight benchmark
-    (``models/README.md``).
-    ``altitude_gap_m``: heights further apart than this are cruise altitudes with cells of their own (inf: one).
+    ``area``: an ``Area`` (candidates inside its polygon) or ``(xmin, ymin, xmax, ymax)``; None =
+    the flight's box grown by ``margin_m``.  ``corr_m`` sets the likelihood's temperature (module
+    docstring) and with it the width of the uncertainty regions; its default was calibrated on the
+    unseen-flight benchmark (``models/README.md``). ``altitude_gap_m``: heights further apart than
+    this are cruise altitudes with cells of their own (inf: one).
     """
 
     name = "selfcal"

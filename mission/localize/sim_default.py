@@ -1,13 +1,15 @@
-"""Which shipped network answers a *simulated* log by default: the one trained on that kind of flight.
+"""Which shipped network answers a *simulated* log by default: the one trained on that kind of
+flight.
 
-Why: ``rfsl_default`` was trained across trajectories and altitudes (20-47 m) and is the safe answer for any
-simulated mission, but on the product's own job, the paper's spiral flown with the default e2r dipole source,
-the spiral specialists are 2-3x better: the five-member spiral ensemble ``rfsl_spiral_e2r_ens5`` errs 5.1 m mean,
-4.3 m median on 200 ``rfsl simulate`` spirals at 30 m against 16.3 / 15.3 m (``benchmarks/sim_default.py``), and
-``rfsl_spiral_alt`` stays at 7-9 m on spirals flown at 20-55 m, where ``rfsl_default`` errs 15-50 m
-(models/README.md).  A network is chosen only when the log's sidecar says it is inside that network's training
-domain (trajectory generator, source physics, and cruise altitude within ``training_domain``'s tolerance); any
-other simulated log keeps ``rfsl_default``.  Real receiver logs never come here (they get the fusion).
+Why: ``rfsl_default`` was trained across trajectories and altitudes (20-47 m) and is the safe answer
+for any simulated mission, but on the product's own job, the paper's spiral flown with the default
+e2r dipole source, the spiral specialists are 2-3x better: the five-member spiral ensemble
+``rfsl_spiral_e2r_ens5`` errs 5.1 m mean, 4.3 m median on 200 ``rfsl simulate`` spirals at 30 m
+against 16.3 / 15.3 m (``benchmarks/sim_default.py``), and ``rfsl_spiral_alt`` stays at 7-9 m on
+spirals flown at 20-55 m, where ``rfsl_default`` errs 15-50 m (models/README.md).  A network is
+chosen only when the log's sidecar says it is inside that network's training domain (trajectory
+generator, source physics, and cruise altitude within ``training_domain``'s tolerance); any other
+simulated log keeps ``rfsl_default``.  Real receiver logs never come here (they get the fusion).
 """
 
 from __future__ import annotations
@@ -29,8 +31,9 @@ DIPOLE_KEYS = (
 
 
 def spiral_source(meta: dict) -> str | None:
-    """Why a simulated log is *not* the spiral networks' kind of flight (None when it is): its sidecar must
-    record the spiral generator (``trajectory.generator``) and an e2r source with dipole patterns."""
+    """Why a simulated log is *not* the spiral networks' kind of flight (None when it is): its
+    sidecar must record the spiral generator (``trajectory.generator``) and an e2r source with
+    dipole patterns."""
     traj = meta.get("trajectory") or {}
     if traj.get("generator") != "spiral":
         gen = traj.get("generator")
@@ -48,8 +51,9 @@ def spiral_source(meta: dict) -> str | None:
 def sim_default_model(
     meta: dict, heights_m: np.ndarray, default: Path | None
 ) -> tuple[Path | None, str]:
-    """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at ``heights_m``:
-    the first spiral network whose training altitudes hold the flight, else ``default`` (``rfsl_default``)."""
+    """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at
+    ``heights_m``: the first spiral network whose training altitudes hold the flight, else
+    ``default`` (``rfsl_default``)."""
     from mission.localize.onnx_model import OnnxLocalizer
     from mission.localize.training_domain import altitude_note, flight_altitudes
     from mission.shipped import shipped_model

@@ -1,19 +1,20 @@
-"""Per-flight evidence over candidates: blocked cross-validated predictive densities and stacking weights.
+"""Per-flight evidence over candidates: blocked cross-validated predictive densities and stacking
+weights.
 
-Why: which candidate a flight supports must come from the flight's own RSS, scored on parts of the track
-the fit did not see, or the candidate that was fitted to the same samples always wins.  The flight is
-averaged into cells (``mission.cells``); the cells are grouped into square blocks of ``block_m`` (longer
-than the shadowing correlation, so it does not leak between blocks: blocked cross-validation, Roberts et
-al. 2017).  With the transmitter fixed at candidate k, the per-flight nuisance is fitted on all blocks but
-one and the held-out block's cells are scored::
+Why: which candidate a flight supports must come from the flight's own RSS, scored on parts of the
+track the fit did not see, or the candidate that was fitted to the same samples always wins.  The
+flight is averaged into cells (``mission.cells``); the cells are grouped into square blocks of
+``block_m`` (longer than the shadowing correlation, so it does not leak between blocks: blocked
+cross-validation, Roberts et al. 2017).  With the transmitter fixed at candidate k, the per-flight
+nuisance is fitted on all blocks but one and the held-out block's cells are scored::
 
     P_m = c + b * PG_km + G_h(el_km, az_km) + e_m,  PG = -20 log10 d        # free space, UAV antenna h
     (c, b) by ridge least squares (b shrunk to 1 with weight lam),  h = argmin training SSR
     lpd_km = log N(P_m - c - b PG_km - G_h; 0, s^2),  s^2 = training SSR / (n - 2)
 
 A block's log density is its cells' sum tempered to the block's independent cells (``tau``, as
-``selfcal``); the stacking weights maximise the held-out blocks' mixture density (Yao, Vehtari, Simpson and
-Gelman 2018: stacking of predictive distributions), found by EM on the simplex.
+``selfcal``); the stacking weights maximise the held-out blocks' mixture density (Yao, Vehtari,
+Simpson and Gelman 2018: stacking of predictive distributions), found by EM on the simplex.
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ SLOPE_WEIGHT = (
 
 @dataclass(frozen=True)
 class BlockedScores:
-    """Held-out log densities: ``cell_lpd`` (K, M) per cell, ``block_lpd`` (K, B) per block (tempered), the
-    block of each cell (M,), and the temperature ``tau``."""
+    """Held-out log densities: ``cell_lpd`` (K, M) per cell, ``block_lpd`` (K, B) per block
+    (tempered), the block of each cell (M,), and the temperature ``tau``."""
 
     cell_lpd: np.ndarray
     block_lpd: np.ndarray
@@ -49,7 +50,8 @@ class BlockedScores:
 
 
 def cell_blocks(cells: Cells, block_m: float) -> np.ndarray:
-    """(M,) block index of each cell: squares of ``block_m`` in the horizontal plane, numbered 0..B-1."""
+    """(M,) block index of each cell: squares of ``block_m`` in the horizontal plane, numbered
+    0..B-1."""
     key = np.floor(cells.enu_m[:, :2] / float(block_m)).astype(np.int64)
     _, inv = np.unique(key, axis=0, return_inverse=True)
     return inv.ravel()
@@ -64,8 +66,8 @@ def blocked_scores(
     block_m: float = BLOCK_M,
     slope_weight: float = SLOPE_WEIGHT,
 ) -> BlockedScores:
-    """Blocked cross-validated predictive log densities of every candidate (module docstring), vectorised
-    over candidates, blocks and cells; one pass per antenna hypothesis."""
+    """Blocked cross-validated predictive log densities of every candidate (module docstring),
+    vectorised over candidates, blocks and cells; one pass per antenna hypothesis."""
     from mission.localize.selfcal import _geometry, hypothesis_residuals
 
     block = cell_blocks(cells, block_m)
@@ -109,8 +111,9 @@ def blocked_scores(
 
 
 def stacking_weights(block_lpd: np.ndarray, iters: int = 500, tol: float = 1e-10) -> np.ndarray:
-    """(K,) weights on the simplex maximising ``sum_b log sum_k w_k exp(block_lpd[k, b])`` (EM: each step
-    cannot lower the objective; uniform start, so candidates with identical scores share equally)."""
+    """(K,) weights on the simplex maximising ``sum_b log sum_k w_k exp(block_lpd[k, b])`` (EM: each
+    step cannot lower the objective; uniform start, so candidates with identical scores share
+    equally)."""
     lp = np.asarray(block_lpd, float)
     k = lp.shape[0]
     w = np.full(k, 1.0 / k)
@@ -127,9 +130,9 @@ def stacking_weights(block_lpd: np.ndarray, iters: int = 500, tol: float = 1e-10
 def geometric_median(
     xy: np.ndarray, weights: np.ndarray | None = None, iters: int = 200, tol_m: float = 1e-6
 ) -> np.ndarray:
-    """The (weighted) geometric median of points (K, 2): the point with the least summed distance to them
-    (Weiszfeld's iteration from the weighted mean).  Why: a consensus that a few far candidates (ghost modes,
-    a network off its domain) cannot drag, unlike the mean."""
+    """The (weighted) geometric median of points (K, 2): the point with the least summed distance to
+    them (Weiszfeld's iteration from the weighted mean).  Why: a consensus that a few far candidates
+    (ghost modes, a network off its domain) cannot drag, unlike the mean."""
     xy = np.asarray(xy, float)
     w = np.ones(len(xy)) if weights is None else np.asarray(weights, float)
     z = (xy * w[:, None]).sum(axis=0) / w.sum()
@@ -143,8 +146,8 @@ def geometric_median(
 
 
 def mixture_posterior(cand_xy: np.ndarray, weights: np.ndarray, grid: np.ndarray, sigma_m: float):
-    """The candidates' mixture as a grid posterior: isotropic Gaussians of ``sigma_m`` about each candidate,
-    weighted by stacking; two surviving candidates far apart give two islands."""
+    """The candidates' mixture as a grid posterior: isotropic Gaussians of ``sigma_m`` about each
+    candidate, weighted by stacking; two surviving candidates far apart give two islands."""
     from mission.localize.uncertainty import grid_posterior
 
     pts = grid.reshape(-1, 2)

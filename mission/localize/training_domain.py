@@ -1,13 +1,14 @@
-"""Is a flight inside a network's training domain?  Its cruise altitude and attitude against the training's, and
-how much of its planned track it flew.
+"""Is a flight inside a network's training domain?  Its cruise altitude and attitude against the
+training's, and how much of its planned track it flew.
 
-Why: a network learns the RSS contrast of the altitude it was trained at.  ``rfsl_spiral_e2r`` (the network
-half of the real-log default, trained at 30 m only) has a 7.4 m mean error on simulated spirals at 30 m, 13.8 /
-14.2 m at 25 / 35 m, 22.9 m at 40 m and 28.8 / 40.7 m at 20 / 47 m (models/README.md, the altitude-robust
-spiral network); teams fly at 20-47 m.  ``localize`` therefore says when a flight is more than
-``ALTITUDE_TOLERANCE_M`` (where the simulated error has doubled) outside the range a network was trained on,
-instead of silently averaging its answer in.  The training's spans are the network's card's
-(``card.TrainingDomain``, measured at training time by ``mission.workshop.domain``).
+Why: a network learns the RSS contrast of the altitude it was trained at.  ``rfsl_spiral_e2r`` (the
+network half of the real-log default, trained at 30 m only) has a 7.4 m mean error on simulated
+spirals at 30 m, 13.8 / 14.2 m at 25 / 35 m, 22.9 m at 40 m and 28.8 / 40.7 m at 20 / 47 m
+(models/README.md, the altitude-robust spiral network); teams fly at 20-47 m.  ``localize``
+therefore says when a flight is more than ``ALTITUDE_TOLERANCE_M`` (where the simulated error has
+doubled) outside the range a network was trained on, instead of silently averaging its answer in.
+The training's spans are the network's card's (``card.TrainingDomain``, measured at training time by
+``mission.workshop.domain``).
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
 
 
 def flight_altitudes(z_m: np.ndarray) -> tuple[float, float]:
-    """The altitude span of the samples a localizer used: 10th and 90th percentile of their heights (m)."""
+    """The altitude span of the samples a localizer used: 10th and 90th percentile of their heights
+    (m)."""
     lo, hi = np.percentile(np.asarray(z_m, dtype=float), [10.0, 90.0])
     return float(lo), float(hi)
 
@@ -39,7 +41,8 @@ def altitude_note(
     flown: tuple[float, float],
     tolerance_m: float = ALTITUDE_TOLERANCE_M,
 ) -> str | None:
-    """A one-sentence note when the flown altitudes leave the trained range by more than ``tolerance_m``."""
+    """A one-sentence note when the flown altitudes leave the trained range by more than
+    ``tolerance_m``."""
     if trained is None:
         return None
     off = max(trained[0] - flown[0], flown[1] - trained[1])
@@ -63,12 +66,14 @@ def altitude_note(
 
 
 def trained_legs(part):
-    """The samples a network was trained on: all but the transit to the first waypoint (``mission_item`` 0).
+    """The samples a network was trained on: all but the transit to the first waypoint
+    (``mission_item`` 0).
 
-    Why: training sets fly the trajectory only (``DatasetConfig.cruise_only``), while a logged mission also holds
-    the transit from the top of the climb to the first waypoint (``mission_item`` 0).  On ``rfsl simulate``
-    spirals at 30 m that leg cost the spiral ensemble 4.3 -> 5.1 m median (benchmarks/sim_default.py).  Logs
-    without the column, or whose mission never reached the first waypoint, are returned unchanged."""
+    Why: training sets fly the trajectory only (``DatasetConfig.cruise_only``), while a logged
+    mission also holds the transit from the top of the climb to the first waypoint (``mission_item``
+    0).  On ``rfsl simulate`` spirals at 30 m that leg cost the spiral ensemble 4.3 -> 5.1 m median
+    (benchmarks/sim_default.py).  Logs without the column, or whose mission never reached the first
+    waypoint, are returned unchanged."""
     item = part.columns.get("mission_item")
     if item is None:
         return part
@@ -77,9 +82,10 @@ def trained_legs(part):
 
 
 def planned_track(meta: dict, origin) -> np.ndarray | None:
-    """The mission's planned trajectory (K, 2) in the log's frame, from the sidecar's record (generator,
-    parameters, altitude) over the AFAR field; None when the sidecar records no generated trajectory or the log
-    is not in the AFAR field's frame (a custom field: its plan cannot be rebuilt from the record)."""
+    """The mission's planned trajectory (K, 2) in the log's frame, from the sidecar's record
+    (generator, parameters, altitude) over the AFAR field; None when the sidecar records no
+    generated trajectory or the log is not in the AFAR field's frame (a custom field: its plan
+    cannot be rebuilt from the record)."""
     from mission.geo import afar_field
     from mission.trajectory.generators import generate
 
@@ -111,8 +117,8 @@ def track_coverage(
     reach_m: float = TRACK_REACH_M,
     step_m: float = TRACK_STEP_M,
 ) -> float:
-    """Share of the planned track (every ``step_m`` along it) that a flown sample passed within ``reach_m`` of:
-    1 for a full flight, about a third for a flight aborted a third of the way."""
+    """Share of the planned track (every ``step_m`` along it) that a flown sample passed within
+    ``reach_m`` of: 1 for a full flight, about a third for a flight aborted a third of the way."""
     from scipy.spatial import cKDTree
 
     w = np.asarray(planned_xy, dtype=float)
@@ -133,7 +139,8 @@ def flight_attitude(part) -> tuple[tuple[float, float], tuple[float, float]]:
 def attitude_note(
     model_name: str, trained, flown, tolerance_deg: float = ATTITUDE_TOLERANCE_DEG
 ) -> str | None:
-    """A one-sentence note when the flown roll or pitch leaves the trained span by more than ``tolerance_deg``."""
+    """A one-sentence note when the flown roll or pitch leaves the trained span by more than
+    ``tolerance_deg``."""
     if trained is None:
         return None
     out = []
@@ -149,9 +156,9 @@ def attitude_note(
 
 
 def flown_domain(part, trained_attitude, model_name: str) -> dict:
-    """What was flown against a network's training: ``track_coverage`` (share of the planned track flown, None
-    without a plan in the sidecar) and ``attitude_note`` (None inside the training's attitudes, ``trained_attitude``
-    from its card, or when unknown)."""
+    """What was flown against a network's training: ``track_coverage`` (share of the planned track
+    flown, None without a plan in the sidecar) and ``attitude_note`` (None inside the training's
+    attitudes, ``trained_attitude`` from its card, or when unknown)."""
     plan = planned_track(part.meta, part.origin)
     cov = None if plan is None or len(part) < 2 else track_coverage(plan, part.enu()[:, :2])
     return {

@@ -1,9 +1,10 @@
-"""Uncertainty regions of a transmitter estimate: highest-posterior-density (HPD) sets on the search grid.
+"""Uncertainty regions of a transmitter estimate: highest-posterior-density (HPD) sets on the search
+grid.
 
-Why HPD sets and not only an ellipse: with a partial flight the posterior is often banana-shaped or split
-(the transmitter may lie on either side of a leg); the HPD set follows that shape.  Each region is also
-summarised as the ellipse of the same mass under a Gaussian fit to the region's posterior (centre,
-semi-axes, orientation), which is what a user compares first.
+Why HPD sets and not only an ellipse: with a partial flight the posterior is often banana-shaped or
+split (the transmitter may lie on either side of a leg); the HPD set follows that shape.  Each
+region is also summarised as the ellipse of the same mass under a Gaussian fit to the region's
+posterior (centre, semi-axes, orientation), which is what a user compares first.
 
 JSON layout (``localize --json``, key ``regions``): a list, one entry per level::
 
@@ -11,7 +12,8 @@ JSON layout (``localize --json``, key ``regions``): a list, one entry per level:
      "hpd_mass": 0.93,           # posterior mass of the set (the level recalibrated on the benchmark)
      "area_m2": 5400.0,          # area of the HPD set
      "density": 1.2e-4,          # posterior density threshold of the set (per m^2)
-     "ellipse": {"x_m": .., "y_m": .., "a_m": .., "b_m": .., "angle_deg": ..},  # a: semi-major, angle from east
+     "ellipse": {"x_m": .., "y_m": .., "a_m": .., "b_m": .., "angle_deg": ..},  # a: semi-major,
+     angle from east
      "polygons": [[[x, y], ...], ...]}   # closed outlines of the set (local ENU metres)
 """
 
@@ -26,7 +28,8 @@ from scipy.stats import chi2
 
 @dataclass
 class Posterior:
-    """A posterior over candidate positions on a regular grid: ``prob`` (ny, nx) sums to 1; ``grid`` (ny, nx, 2)."""
+    """A posterior over candidate positions on a regular grid: ``prob`` (ny, nx) sums to 1; ``grid``
+    (ny, nx, 2)."""
 
     prob: np.ndarray
     grid: np.ndarray
@@ -39,7 +42,8 @@ class Posterior:
         return abs(dx * dy)
 
     def mass_threshold(self, level: float) -> float:
-        """The probability per cell above which the cells hold ``level`` of the mass (HPD threshold)."""
+        """The probability per cell above which the cells hold ``level`` of the mass (HPD
+        threshold)."""
         p = np.sort(self.prob.ravel())[::-1]
         c = np.cumsum(p)
         i = int(np.searchsorted(c, level * c[-1]))
@@ -55,9 +59,9 @@ class Posterior:
         return (i, j) if 0 <= i < g.shape[0] and 0 <= j < g.shape[1] else None
 
     def hpd_level(self, x: float, y: float) -> float:
-        """The smallest HPD mass whose set holds (x, y): the mass of the cells more probable than its cell
-        (1 for a point off the grid).  Over a benchmark its percentiles are the masses that cover the truth at
-        the nominal rates (``benchmarks/calibrate_regions.py``)."""
+        """The smallest HPD mass whose set holds (x, y): the mass of the cells more probable than
+        its cell (1 for a point off the grid).  Over a benchmark its percentiles are the masses that
+        cover the truth at the nominal rates (``benchmarks/calibrate_regions.py``)."""
         c = self._cell(x, y)
         if c is None:
             return 1.0
@@ -65,7 +69,8 @@ class Posterior:
         return float(p[p > p[c]].sum() / p.sum())
 
     def covers(self, x: float, y: float, level: float) -> bool:
-        """True when (x, y) lies in the HPD set of mass ``level`` (a point off the grid is not covered)."""
+        """True when (x, y) lies in the HPD set of mass ``level`` (a point off the grid is not
+        covered)."""
         return self.hpd_level(x, y) < level
 
 
@@ -80,7 +85,8 @@ def grid_posterior(logp: np.ndarray, shape: tuple[int, int]) -> Posterior:
 
 
 def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> dict:
-    """Ellipse of probability ``level`` for a Gaussian with the weighted mean and covariance of ``pts``."""
+    """Ellipse of probability ``level`` for a Gaussian with the weighted mean and covariance of
+    ``pts``."""
     w = w / w.sum()
     mu = (w[:, None] * pts).sum(axis=0)
     d = pts - mu
@@ -104,10 +110,12 @@ def hpd_regions(
     levels: tuple[float, ...] = (0.5, 0.9),
     masses: dict[float, float] | None = None,
 ) -> list[dict]:
-    """The regions of ``post`` at each nominal level (module docstring layout); also attaches ``grid`` to it.
+    """The regions of ``post`` at each nominal level (module docstring layout); also attaches
+    ``grid`` to it.
 
-    ``masses`` maps a nominal level to the HPD mass that covers the truth at that rate on a benchmark (a
-    recalibration of the posterior's credible levels); without it the HPD mass is the nominal level.
+    ``masses`` maps a nominal level to the HPD mass that covers the truth at that rate on a
+    benchmark (a recalibration of the posterior's credible levels); without it the HPD mass is the
+    nominal level.
     """
     import contourpy
 
@@ -146,8 +154,8 @@ def hpd_regions(
 
 
 def describe_region(reg: dict, short: bool = False) -> str:
-    """One line for a region of either kind: an error circle (``error_circles``) or an HPD set (here); ``short``
-    leaves out where the circle was calibrated and where the ellipse lies."""
+    """One line for a region of either kind: an error circle (``error_circles``) or an HPD set
+    (here); ``short`` leaves out where the circle was calibrated and where the ellipse lies."""
     el = reg["ellipse"]
     if reg.get("kind") == "error circle":
         clipped = (
@@ -174,7 +182,8 @@ def outer_region(extras: dict) -> dict | None:
 
 
 def region_covers(est, x: float, y: float, level: float) -> bool | None:
-    """Whether ``est``'s region of nominal ``level`` holds (x, y); None when the estimate has no posterior."""
+    """Whether ``est``'s region of nominal ``level`` holds (x, y); None when the estimate has no
+    posterior."""
     post = getattr(est, "posterior", None)
     if post is None or post.grid is None:
         return None

@@ -1,4 +1,5 @@
-"""Radio physics: propagation models built from named effects, antenna patterns and body-frame geometry.
+"""Radio physics: propagation models built from named effects, antenna patterns and body-frame
+geometry.
 
 >>> from mission.physics import make_model
 >>> model = make_model("e2r", pattern="dipole")

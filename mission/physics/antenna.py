@@ -1,8 +1,9 @@
 """Antenna patterns by name or file, and the shipped measured UAV antenna (RM-WB1-DN, 3300 MHz).
 
 The antenna frame, mounting (:func:`mount_angles`) and the pattern classes live in
-``mission.physics.patterns``; the CSV and AERPAW file formats in ``mission.physics.pattern_files``. Both are
-re-exported here, so ``from mission.physics.antenna import Dipole, load_pattern_csv, rm_wb1_dn`` keeps working.
+``mission.physics.patterns``; the CSV and AERPAW file formats in ``mission.physics.pattern_files``.
+Both are re-exported here, so ``from mission.physics.antenna import Dipole, load_pattern_csv,
+rm_wb1_dn`` keeps working.
 """
 
 from __future__ import annotations

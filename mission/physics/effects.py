@@ -1,9 +1,10 @@
-"""The effects a propagation model is built from (SPEC section 3, paper eqs. 1-9); the catalogue is in
-``mission.physics.propagation``'s docstring.
+"""The effects a propagation model is built from (SPEC section 3, paper eqs. 1-9); the catalogue is
+in ``mission.physics.propagation``'s docstring.
 
-Each effect is a frozen dataclass whose fields are its parameters (so a model can swap or refit one). The
-direct ray, ground ray and antennas are evaluated inside ``PropagationModel`` (``mission.physics.model``);
-any effect with ``rss_term_db(link: Link) -> array`` adds dB to the RSS and plugs in without kernel changes.
+Each effect is a frozen dataclass whose fields are its parameters (so a model can swap or refit
+one). The direct ray, ground ray and antennas are evaluated inside ``PropagationModel``
+(``mission.physics.model``); any effect with ``rss_term_db(link: Link) -> array`` adds dB to the RSS
+and plugs in without kernel changes.
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ class FreeSpace:
 
 @dataclass(frozen=True)
 class GroundReflection:
-    """Flat-ground reflected ray (paper eq. 1) with the Fresnel coefficient Gamma(grazing angle psi).
+    """Flat-ground reflected ray (paper eq. 1) with the Fresnel coefficient Gamma(grazing angle
+    psi).
 
     Ground: relative permittivity ``eps_r``, conductivity ``sigma_s_m`` (complex permittivity
     eps = eps_r - j sigma / (omega eps_0)); ``polarization`` "V" (vertical, default) or "H".
@@ -79,7 +81,8 @@ class GroundReflection:
     def _gamma_fast(
         self, sin_psi: NDArray, cos2_psi: NDArray, fc_hz: float
     ) -> tuple[NDArray, NDArray | None]:
-        """(Re Gamma, Im Gamma or None) from sin psi and cos^2 psi, no trig; real arithmetic if sigma = 0."""
+        """(Re Gamma, Im Gamma or None) from sin psi and cos^2 psi, no trig; real arithmetic if
+        sigma = 0."""
         dt = np.result_type(sin_psi)
         eps = self.eps_complex(fc_hz)
         vertical = self.polarization.upper() == "V"
@@ -119,25 +122,29 @@ class _AntennaEffect:
 
 @dataclass(frozen=True)
 class TxAntenna(_AntennaEffect):
-    """Transmitter pattern; platform = rover, level, forward = north (``heading_rad`` = rover heading)."""
+    """Transmitter pattern; platform = rover, level, forward = north (``heading_rad`` = rover
+    heading)."""
 
     name: ClassVar[str] = "tx_antenna"
 
 
 @dataclass(frozen=True)
 class RxAntenna(_AntennaEffect):
-    """Receiver pattern on the UAV: antenna up = -z_b, x_a = nose turned by ``heading_rad``; el = -dep_b."""
+    """Receiver pattern on the UAV: antenna up = -z_b, x_a = nose turned by ``heading_rad``; el =
+    -dep_b."""
 
     name: ClassVar[str] = "rx_antenna"
 
 
 @dataclass(frozen=True)
 class Attitude:
-    """Take the receiver's gains (and shadowing) in the body frame given by the sample's roll/pitch/yaw.
+    """Take the receiver's gains (and shadowing) in the body frame given by the sample's
+    roll/pitch/yaw.
 
-    ``roll_pitch=False`` keeps only the yaw (heading) and treats the body as level: on the real AFAR flights
-    the logged roll/pitch (a few degrees; their signs checked against the flight dynamics) make the held-out
-    fit of the measured UAV pattern worse while the yaw improves it (``benchmarks/calibrate_real_afar.py``).
+    ``roll_pitch=False`` keeps only the yaw (heading) and treats the body as level: on the real AFAR
+    flights the logged roll/pitch (a few degrees; their signs checked against the flight dynamics)
+    make the held-out fit of the measured UAV pattern worse while the yaw improves it
+    (``benchmarks/calibrate_real_afar.py``).
     """
 
     roll_pitch: bool = True
@@ -150,8 +157,8 @@ class Attitude:
 
 @dataclass(frozen=True)
 class LegShadowing:
-    """Leg shadowing (eqs. 8-9): S = 1 when az_b is within ``half_width_deg`` of a leg and dep_b < threshold;
-    then the RSS loses Upsilon = 10 beta log10(d_los / d0)."""
+    """Leg shadowing (eqs. 8-9): S = 1 when az_b is within ``half_width_deg`` of a leg and dep_b <
+    threshold; then the RSS loses Upsilon = 10 beta log10(d_los / d0)."""
 
     beta: float = DEFAULT_BETA
     legs_deg: tuple[float, ...] = LEG_AZIMUTHS_DEG
@@ -196,10 +203,10 @@ class LegShadowing:
 class PathGainSlope:
     """Extra distance exponent: adds ``-10 n_extra log10(d_los / d_ref_m)`` dB to the RSS.
 
-    Free space falls 20 dB/decade; with this effect the model falls ``10 (2 + n_extra)`` dB/decade. The
-    reference distance only moves a constant (absorbed by the free offset of an uncalibrated receiver).
-    An empirical term (not in the paper): the real AFAR flights fall faster with distance than any of the
-    paper's effects explain (``rfsl gap``; ``benchmarks/calibrate_real_afar.py``).
+    Free space falls 20 dB/decade; with this effect the model falls ``10 (2 + n_extra)`` dB/decade.
+    The reference distance only moves a constant (absorbed by the free offset of an uncalibrated
+    receiver). An empirical term (not in the paper): the real AFAR flights fall faster with distance
+    than any of the paper's effects explain (``rfsl gap``; ``benchmarks/calibrate_real_afar.py``).
     """
 
     n_extra: float = 0.0
@@ -216,10 +223,11 @@ class PathGainSlope:
 
 @dataclass
 class Link:
-    """Per-block fast-path geometry handed to ``rss_term_db`` effects (arrays of one block, model dtype).
+    """Per-block fast-path geometry handed to ``rss_term_db`` effects (arrays of one block, model
+    dtype).
 
-    ``delta`` = p_tx - p_rx (ENU), ``d_los``, ``d_ref``, ``u_b`` = (x, y, z) of the direct LOS in the
-    body frame (FRD; level frame with yaw 0 without the attitude effect).
+    ``delta`` = p_tx - p_rx (ENU), ``d_los``, ``d_ref``, ``u_b`` = (x, y, z) of the direct LOS in
+    the body frame (FRD; level frame with yaw 0 without the attitude effect).
     """
 
     delta: tuple[NDArray, NDArray, NDArray]

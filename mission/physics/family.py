@@ -1,28 +1,31 @@
-"""Physics families: a distribution over propagation models and residual structure, drawn once per flight.
+"""Physics families: a distribution over propagation models and residual structure, drawn once per
+flight.
 
-A family is a JSON record (``rfsl gap --family F.json`` writes one from the diagnosis of real flights; the
-shipped ``mission/data/afar_family.json`` is the AFAR one).  Simulated benchmarks, training sets and the
-track-matched inference draw each simulated flight's physics from it, so that what they see spreads the way
-real flights spread, not around one calibrated point.
+A family is a JSON record (``rfsl gap --family F.json`` writes one from the diagnosis of real
+flights; the shipped ``mission/data/afar_family.json`` is the AFAR one).  Simulated benchmarks,
+training sets and the track-matched inference draw each simulated flight's physics from it, so that
+what they see spreads the way real flights spread, not around one calibrated point.
 
 Schema (``schema`` 1)::
 
     {"schema": 1, "name": "...", "description": "...", "source": {...how it was made...},
      "spec": {...},            # a model spec (mission.physics.presets.build_model); any value may be a
-                               # distribution (below), nested dicts (e.g. "ground") are drawn key by key
+                               # distribution (below), nested dicts (e.g. "ground") are drawn key by
+                               key
      "variants": [             # optional: alternatives merged into the spec, one drawn per flight
         {"p": 0.6, "spec": {"rx_pattern": "measured", "rx_flipped": true}}, ...],
      "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},   # correlated field + white nugget
      "offset_db": D,           # the receiver's uncalibrated offset
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
 
-A distribution ``D`` is a number (fixed) or ``{"dist": "uniform", "lo", "hi"}``, ``{"dist": "loguniform",
-"lo", "hi"}``, ``{"dist": "normal", "mean", "sd", ["lo", "hi"]}`` (clipped), ``{"dist": "choice", "options":
-[...], ["p": [...]]}`` or ``{"dist": "empirical", "values": [...]}`` (one of the values, uniformly: a
-parameter's per-flight fits when too few flights support a parametric shape).
+A distribution ``D`` is a number (fixed) or ``{"dist": "uniform", "lo", "hi"}``, ``{"dist":
+"loguniform", "lo", "hi"}``, ``{"dist": "normal", "mean", "sd", ["lo", "hi"]}`` (clipped),
+``{"dist": "choice", "options": [...], ["p": [...]]}`` or ``{"dist": "empirical", "values": [...]}``
+(one of the values, uniformly: a parameter's per-flight fits when too few flights support a
+parametric shape).
 
-Draw order per flight (reproducible from the caller's generator): spec values in key order (nested dicts
-in their key order), the variant, residual (shadowing_db, shadowing_corr_m, noise_db), offset.
+Draw order per flight (reproducible from the caller's generator): spec values in key order (nested
+dicts in their key order), the variant, residual (shadowing_db, shadowing_corr_m, noise_db), offset.
 """
 
 from __future__ import annotations
@@ -147,7 +150,8 @@ def _check_tree(tree: dict, where: str, source: str | None) -> None:
 
 @dataclass(frozen=True)
 class FamilyDraw:
-    """One flight's physics: the model spec (for ``build_model``), the residual field and the offset."""
+    """One flight's physics: the model spec (for ``build_model``), the residual field and the
+    offset."""
 
     spec: dict
     shadowing_db: float
@@ -172,7 +176,8 @@ class FamilyDraw:
 
 
 def lowest(v: Any) -> float:
-    """The lowest value a distribution (or a number) can draw: what a physical bound is checked against."""
+    """The lowest value a distribution (or a number) can draw: what a physical bound is checked
+    against."""
     if not isinstance(v, dict):
         return float(v)
     if v["dist"] in ("uniform", "loguniform"):
@@ -184,7 +189,8 @@ def lowest(v: Any) -> float:
 
 @dataclass(frozen=True)
 class PhysicsFamily:
-    """A distribution over per-flight physics (module docstring); ``draw(rng)`` gives one flight's."""
+    """A distribution over per-flight physics (module docstring); ``draw(rng)`` gives one
+    flight's."""
 
     name: str
     spec: dict
@@ -343,9 +349,11 @@ def simulate_rss(
     rng: np.random.Generator,
     model=None,
 ) -> np.ndarray:
-    """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing + white noise.
+    """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing + white
+    noise.
 
-    ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive part)."""
+    ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive
+    part)."""
     from mission.physics.shadowing import shadowing_field
 
     m = draw.model() if model is None else model

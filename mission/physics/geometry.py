@@ -1,10 +1,11 @@
 """Frames and line-of-sight angles (SPEC section 1), shared by physics, simulation and the gap tool.
 
-Local frame ENU (x east, y north, z up). Attitude = roll, pitch, yaw of body FRD w.r.t. NED (MAVLink):
-``R_nb = Rz(yaw) Ry(pitch) Rx(roll)`` maps body vectors to NED. A vector ``u`` (NED) seen from the body is
-``u_b = R_nb^T u``; ``az_b = atan2(u_b.y, u_b.x)`` in [0, 2 pi) (0 = nose, positive to the right) and
-``dep_b = asin(u_b.z / |u|)`` (positive below the body plane). The paper's ``R = R_r R_p R_y`` applied to a
-pointing vector (eqs. 3-6) is the same idea; the project uses this physically consistent transform.
+Local frame ENU (x east, y north, z up). Attitude = roll, pitch, yaw of body FRD w.r.t. NED
+(MAVLink): ``R_nb = Rz(yaw) Ry(pitch) Rx(roll)`` maps body vectors to NED. A vector ``u`` (NED) seen
+from the body is ``u_b = R_nb^T u``; ``az_b = atan2(u_b.y, u_b.x)`` in [0, 2 pi) (0 = nose, positive
+to the right) and ``dep_b = asin(u_b.z / |u|)`` (positive below the body plane). The paper's ``R =
+R_r R_p R_y`` applied to a pointing vector (eqs. 3-6) is the same idea; the project uses this
+physically consistent transform.
 """
 
 from __future__ import annotations
@@ -66,8 +67,9 @@ def body_from_enu_matrix(attitude_rad: ArrayLike) -> NDArray[np.float64]:
 def body_from_enu_planes(attitude_rad: ArrayLike, dtype: DTypeLike = np.float64) -> NDArray:
     """``body_from_enu_matrix`` laid out as (3, 3, N), each C[i, j] contiguous over the samples.
 
-    The fast propagation path reads the nine entries as whole arrays; writing them straight into this
-    layout avoids the strided (N, 3, 3) matrix and its transposed copy (the per-sample cost of one flight).
+    The fast propagation path reads the nine entries as whole arrays; writing them straight into
+    this layout avoids the strided (N, 3, 3) matrix and its transposed copy (the per-sample cost of
+    one flight).
     """
     att = np.asarray(attitude_rad, dtype=float)
     cr, sr = np.cos(att[:, 0]), np.sin(att[:, 0])
@@ -97,30 +99,36 @@ def body_vectors(u_ned: ArrayLike, attitude_rad: ArrayLike | None) -> NDArray[np
 
 
 def body_azimuth(ub_x: ArrayLike, ub_y: ArrayLike, signed: bool = False) -> NDArray:
-    """az_b = atan2(u_b.y, u_b.x) in [0, 2 pi): 0 = nose, positive to the right; keeps a float32 input float32.
+    """az_b = atan2(u_b.y, u_b.x) in [0, 2 pi): 0 = nose, positive to the right; keeps a float32
+    input float32.
 
-    ``signed``: atan2's own range (-pi, pi], for periodic uses (a Fourier basis) where the wrap would only round.
+    ``signed``: atan2's own range (-pi, pi], for periodic uses (a Fourier basis) where the wrap
+    would only round.
     """
     az = np.arctan2(ub_y, ub_x)
     return az if signed else np.mod(az, TWO_PI)
 
 
 def sin_depression(ub_z: ArrayLike, r: ArrayLike) -> NDArray:
-    """sin dep_b = u_b.z / |u|, clipped to [-1, 1]; ``r`` = |u| > 0 (the free-form maps' variable)."""
+    """sin dep_b = u_b.z / |u|, clipped to [-1, 1]; ``r`` = |u| > 0 (the free-form maps'
+    variable)."""
     return np.clip(np.asarray(ub_z) / r, -1.0, 1.0)
 
 
 def depression(ub_z: ArrayLike, r: ArrayLike) -> NDArray:
-    """dep_b = asin(u_b.z / |u|) (rad, positive below the body plane); ``r`` = |u| > 0; dtype kept."""
+    """dep_b = asin(u_b.z / |u|) (rad, positive below the body plane); ``r`` = |u| > 0; dtype
+    kept."""
     return np.arcsin(sin_depression(ub_z, r))
 
 
 def body_angles(
     u_ned: ArrayLike, attitude_rad: ArrayLike | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Body azimuth az_b in [0, 2 pi) and depression dep_b (rad) of the NED vector(s) u (UAV -> target).
+    """Body azimuth az_b in [0, 2 pi) and depression dep_b (rad) of the NED vector(s) u (UAV ->
+    target).
 
-    ``attitude_rad`` (..., 3) roll, pitch, yaw broadcasts against u's leading shape; None = level, yaw 0.
+    ``attitude_rad`` (..., 3) roll, pitch, yaw broadcasts against u's leading shape; None = level,
+    yaw 0.
     """
     ub = body_vectors(u_ned, attitude_rad)
     r = np.linalg.norm(ub, axis=-1)
@@ -130,21 +138,24 @@ def body_angles(
 
 
 def bearing(dx_east: ArrayLike, dy_north: ArrayLike, signed: bool = False) -> NDArray:
-    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi); float32 stays float32.
+    """Compass bearing (clockwise from north) of a horizontal ENU vector, in [0, 2 pi); float32
+    stays float32.
 
-    The UAV seen from the transmitter is ``bearing(-dx, -dy)`` of the link delta.  ``signed``: (-pi, pi] as in
-    ``body_azimuth``.
+    The UAV seen from the transmitter is ``bearing(-dx, -dy)`` of the link delta.  ``signed``: (-pi,
+    pi] as in ``body_azimuth``.
     """
     az = np.arctan2(dx_east, dy_north)
     return az if signed else np.mod(az, TWO_PI)
 
 
-# -- the link UAV -> transmitter from its ENU components (dtype-preserving: the fast paths run in float32)
+# -- the link UAV -> transmitter from its ENU components (dtype-preserving: the fast paths run in
+# float32)
 def link_delta(
     tx_enu: ArrayLike, rx_enu: ArrayLike, dtype: DTypeLike | None = None
 ) -> tuple[NDArray, NDArray, NDArray]:
-    """(dx, dy, dz) = p_tx - p_uav (ENU) on the last axis, broadcast; differenced in the inputs' precision, then
-    cast to ``dtype`` (None: kept), so float32 work on large coordinates keeps the difference's precision."""
+    """(dx, dy, dz) = p_tx - p_uav (ENU) on the last axis, broadcast; differenced in the inputs'
+    precision, then cast to ``dtype`` (None: kept), so float32 work on large coordinates keeps the
+    difference's precision."""
     tx, rx = np.asarray(tx_enu), np.asarray(rx_enu)
     out = tuple(tx[..., i] - rx[..., i] for i in range(3))
     return out if dtype is None else tuple(np.asarray(v).astype(dtype) for v in out)
@@ -162,23 +173,27 @@ def slant_distance(dx: ArrayLike, dy: ArrayLike, dz: ArrayLike) -> NDArray:
 
 
 def elevation(dz: ArrayLike, d_2d: ArrayLike) -> NDArray:
-    """Up-positive elevation atan2(dz, d_2D) of the far end of a link seen from the level frame (rad)."""
+    """Up-positive elevation atan2(dz, d_2D) of the far end of a link seen from the level frame
+    (rad)."""
     return np.arctan2(dz, d_2d)
 
 
 def sin_elevation(dz: ArrayLike, d_los: ArrayLike) -> NDArray:
-    """sin el = dz / d_los clipped to [-1, 1]: the up-positive elevation's sine of the far end of a link."""
+    """sin el = dz / d_los clipped to [-1, 1]: the up-positive elevation's sine of the far end of a
+    link."""
     return np.clip(np.asarray(dz) / d_los, -1.0, 1.0)
 
 
 def heading_frame_angles(
     dx: NDArray, dy: NDArray, dz: NDArray, yaw_rad: ArrayLike, d_2d: NDArray | None = None
 ) -> tuple[NDArray, NDArray]:
-    """Elevation (up-positive, = -dep_b) and body azimuth az_b of the link (dx, dy, dz) = p_tx - p_uav (ENU)
-    seen from a body frame turned to heading ``yaw_rad`` but level (roll = pitch = 0), in the inputs' dtype.
+    """Elevation (up-positive, = -dep_b) and body azimuth az_b of the link (dx, dy, dz) = p_tx -
+    p_uav (ENU) seen from a body frame turned to heading ``yaw_rad`` but level (roll = pitch = 0),
+    in the inputs' dtype.
 
-    This is ``body_angles`` at attitude (0, 0, yaw) without the rotation matrix: az_b = bearing - yaw; it is the
-    frame of a receiver antenna hanging below the body whose tilt is not modelled (the self-calibrating grid).
+    This is ``body_angles`` at attitude (0, 0, yaw) without the rotation matrix: az_b = bearing -
+    yaw; it is the frame of a receiver antenna hanging below the body whose tilt is not modelled
+    (the self-calibrating grid).
     """
     el = elevation(dz, np.sqrt(dx * dx + dy * dy) if d_2d is None else d_2d)
     return el, np.mod(np.arctan2(dx, dy) - yaw_rad, TWO_PI)

@@ -1,9 +1,10 @@
-"""``PropagationModel``: a tuple of named effects (``mission.physics.effects``) evaluated as one RSS.
+"""``PropagationModel``: a tuple of named effects (``mission.physics.effects``) evaluated as one
+RSS.
 
 ``rss_dbm`` is the fast path (float32 by default, chunked, algebra instead of trig where possible);
-``explain`` is a float64 reference written with explicit angles, used by the tests to check the fast path.
-Without ``attitude`` the body frame is level with yaw 0 (plain two-ray); with zero attitude the enhanced
-two-ray model equals two-ray (+ shadowing) exactly.
+``explain`` is a float64 reference written with explicit angles, used by the tests to check the fast
+path. Without ``attitude`` the body frame is level with yaw 0 (plain two-ray); with zero attitude
+the enhanced two-ray model equals two-ray (+ shadowing) exactly.
 """
 
 from __future__ import annotations
@@ -35,9 +36,10 @@ CHUNK = 8192  # elements per block: float32 temporaries of 32 KiB stay in L2 and
 
 @dataclass(frozen=True)
 class AttitudePlanes:
-    """The body-from-ENU rotation planes (3, 3, N) of one attitude series under one model's attitude effect, in
-    the model's dtype: made once by ``PropagationModel.attitude_planes`` and handed back to ``rss_dbm`` by a
-    caller that evaluates the same samples many times (the gap fits), instead of a cache inside the model."""
+    """The body-from-ENU rotation planes (3, 3, N) of one attitude series under one model's attitude
+    effect, in the model's dtype: made once by ``PropagationModel.attitude_planes`` and handed back
+    to ``rss_dbm`` by a caller that evaluates the same samples many times (the gap fits), instead of
+    a cache inside the model."""
 
     effect: Any
     dtype: str
@@ -46,7 +48,8 @@ class AttitudePlanes:
 
 @dataclass(frozen=True)
 class PropagationModel:
-    """A propagation model = a tuple of named effects; see ``mission.physics.propagation`` for the effects."""
+    """A propagation model = a tuple of named effects; see ``mission.physics.propagation`` for the
+    effects."""
 
     effects: tuple[Any, ...]
     name: str = "custom"
@@ -89,8 +92,8 @@ class PropagationModel:
         return replace(self, effects=self.effects + (effect,))
 
     def with_params(self, name: str, **params: Any) -> PropagationModel:
-        """The model with effect ``name``'s dataclass fields changed, e.g. ``with_params("leg_shadowing",
-        beta=3.1)``."""
+        """The model with effect ``name``'s dataclass fields changed, e.g.
+        ``with_params("leg_shadowing", beta=3.1)``."""
         return self.with_effect(replace(self.effect(name), **params))
 
     def _get(self, name: str) -> Any:
@@ -98,8 +101,8 @@ class PropagationModel:
 
     # -- fast path
     def attitude_planes(self, attitude_rad: ArrayLike, n: int | None = None) -> AttitudePlanes:
-        """The rotation planes of ``attitude_rad`` ((N, 3) rad, or one attitude for ``n`` samples) under this
-        model's attitude effect, read-only, for ``rss_dbm(..., planes=)``."""
+        """The rotation planes of ``attitude_rad`` ((N, 3) rad, or one attitude for ``n`` samples)
+        under this model's attitude effect, read-only, for ``rss_dbm(..., planes=)``."""
         dt = np.dtype(self.dtype)
         a = np.asarray(attitude_rad, dtype=float)
         att = as_attitude(a, n if n is not None else len(a) if a.ndim == 2 else 1)
@@ -115,14 +118,15 @@ class PropagationModel:
         centre: ArrayLike | None = None,
         planes: AttitudePlanes | None = None,
     ) -> NDArray:
-        """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N, 3) rad.
+        """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N,
+        3) rad.
 
-        tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3) pairs
-        with the samples one to one.  ``centre`` (N, 3), z = 0: each sample's shift instead of the samples'
-        mean, so that several flights evaluated in one call (paired tx) keep their own centre and get the
-        very values of one call per flight (the per-call overhead dominates on small fits).  ``planes``: the
-        attitude's rotation planes from ``attitude_planes`` (this model's, these samples'), used instead of
-        ``attitude_rad``.
+        tx (3,) or (M, 1, 3) gives (N,) or (M, N) (every transmitter x every sample); tx (N, 3)
+        pairs with the samples one to one.  ``centre`` (N, 3), z = 0: each sample's shift instead of
+        the samples' mean, so that several flights evaluated in one call (paired tx) keep their own
+        centre and get the very values of one call per flight (the per-call overhead dominates on
+        small fits).  ``planes``: the attitude's rotation planes from ``attitude_planes`` (this
+        model's, these samples'), used instead of ``attitude_rad``.
         """
         dt = np.dtype(self.dtype)
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
@@ -231,7 +235,8 @@ class PropagationModel:
 
                 amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
             g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
-            # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref + d_los): no cancellation
+            # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref +
+            # d_los): no cancellation
             dphi = (z_t * z_r) * dt(4.0 * TWO_PI / wavelength(fs.fc_hz)) / (d_ref + d_los)
             # |A + Gamma B e^{-j dphi}|^2 = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})   (eq. 1)
             re = g_re * np.cos(dphi)
@@ -259,11 +264,11 @@ class PropagationModel:
     ) -> dict[str, NDArray]:
         """Every intermediate quantity (float64 reference, explicit angles) of the broadcast shape.
 
-        Keys: d_2d, d_los, d_ref, h_t, h_r, grazing_rad, gamma_abs, gamma_phase_rad (arg Gamma), phase_diff_rad
-        (the paper's RF phase difference psi_phase, eq. 1),
-        el_tx_dir_rad, el_tx_ref_rad, az_tx_rad, g_tx_dir_dbi, g_tx_ref_dbi, g_rx_dir_dbi, g_rx_ref_dbi,
-        az_b_rad, dep_b_rad, az_b_ref_rad, dep_b_ref_rad, direct_dbm, reflected_dbm, two_ray_dbm,
-        shadowed, upsilon_db, rss_dbm (and ``<name>_db`` for other additive effects).
+        Keys: d_2d, d_los, d_ref, h_t, h_r, grazing_rad, gamma_abs, gamma_phase_rad (arg Gamma),
+        phase_diff_rad (the paper's RF phase difference psi_phase, eq. 1), el_tx_dir_rad,
+        el_tx_ref_rad, az_tx_rad, g_tx_dir_dbi, g_tx_ref_dbi, g_rx_dir_dbi, g_rx_ref_dbi, az_b_rad,
+        dep_b_rad, az_b_ref_rad, dep_b_ref_rad, direct_dbm, reflected_dbm, two_ray_dbm, shadowed,
+        upsilon_db, rss_dbm (and ``<name>_db`` for other additive effects).
         """
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
         N = rx.shape[0]
@@ -359,7 +364,8 @@ class PropagationModel:
 def _prepare(
     tx_enu: ArrayLike, rx_enu: ArrayLike
 ) -> tuple[NDArray, NDArray, tuple[int, ...], bool]:
-    """tx -> (K, 1, 3) (outer) or (K, N, 3) (paired), rx -> (N, 3), the output shape and the mode."""
+    """tx -> (K, 1, 3) (outer) or (K, N, 3) (paired), rx -> (N, 3), the output shape and the
+    mode."""
     tx = np.asarray(tx_enu, dtype=float)
     rx = np.asarray(rx_enu, dtype=float)
     if rx.ndim != 2 or rx.shape[-1] != 3:

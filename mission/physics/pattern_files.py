@@ -1,13 +1,14 @@
-"""Antenna pattern files: the tabulated CSV format (read and write) and measured AERPAW chamber files.
+"""Antenna pattern files: the tabulated CSV format (read and write) and measured AERPAW chamber
+files.
 
 Tabulated CSV format (:func:`load_pattern_csv`, :func:`save_pattern_csv`)
-------------------------------------------------------------------------
-UTF-8 text. Lines starting with ``#`` are comments (source, licence, normalisation). The first other
-line is the header: a label cell (e.g. ``el\\az``) then the azimuths in degrees, strictly ascending,
-distinct modulo 360 (the grid is periodic in azimuth; e.g. 0, 3, ..., 357). Each further line is an
-elevation in degrees (strictly ascending over the rows, within [-90, 90]) then the gains in dBi, one per
-azimuth. Gains are interpolated bilinearly in dB (periodic in azimuth); elevations outside the table's
-range are clamped to its first/last row. Example::
+------------------------------------------------------------------------ UTF-8 text. Lines starting
+with ``#`` are comments (source, licence, normalisation). The first other line is the header: a
+label cell (e.g. ``el\\az``) then the azimuths in degrees, strictly ascending, distinct modulo 360
+(the grid is periodic in azimuth; e.g. 0, 3, ..., 357). Each further line is an elevation in degrees
+(strictly ascending over the rows, within [-90, 90]) then the gains in dBi, one per azimuth. Gains
+are interpolated bilinearly in dB (periodic in azimuth); elevations outside the table's range are
+clamped to its first/last row. Example::
 
     # my antenna, 3.3 GHz, gain dBi
     el\\az,0,90,180,270
@@ -16,21 +17,21 @@ range are clamped to its first/last row. Example::
     90,-10,-10,-10,-10
 
 Measured AERPAW files (:func:`load_aerpaw_pattern`)
----------------------------------------------------
-AERPAW "3D antenna radiation pattern measurement" (anechoic chamber, 3300 MHz): rows
-``Phi(rad) Theta(rad) ETotal_dB EPhi_dB ETheta_dB EPhi_phase ETheta_phase`` with Phi 0..177 deg and Theta
--180..180 deg in 3 deg steps. Theta is the polar angle from the antenna axis in the cut plane at
-azimuth Phi; negative Theta is the opposite half of that cut (azimuth Phi + 180). Direction
-``(sin T cos P, sin T sin P, cos T)``, so ``el = 90 - |Theta|`` and ``az = Phi`` (Theta >= 0) or
-``Phi + 180`` (Theta < 0). Evidence: all Phi give the same value at Theta = 0 and at Theta = +-180
-(the poles of the cut system); the upside-down RM-WB1-DN file matches the right-side-up one turned
-180 degrees about the chamber x axis (2.3 dB rms, against 5-6 dB for any turn about z), so the
-antenna's axis is the chamber z axis; and the dipole-like SA-1400-5900 has its deep null within about
-20 degrees of Theta = 0. The right-side-up RM-WB1-DN at 3.3 GHz is NOT a donut: its maximum (~+6 dBi)
-is within about 15 degrees of its axis (z_a up, away from the base) and it is weakest below (Theta
-near +-180). ETotal_dB is relative; it is normalised to directivity (dBi) by integrating the radiated
-power over the sphere: ``G = E + 10 log10(4 pi / sum 10^(E/10) cos(el) d_el d_az)`` (trapezoid in
-elevation, rectangle in the periodic azimuth), i.e. a lossless antenna (efficiency 1).
+--------------------------------------------------- AERPAW "3D antenna radiation pattern
+measurement" (anechoic chamber, 3300 MHz): rows ``Phi(rad) Theta(rad) ETotal_dB EPhi_dB ETheta_dB
+EPhi_phase ETheta_phase`` with Phi 0..177 deg and Theta -180..180 deg in 3 deg steps. Theta is the
+polar angle from the antenna axis in the cut plane at azimuth Phi; negative Theta is the opposite
+half of that cut (azimuth Phi + 180). Direction ``(sin T cos P, sin T sin P, cos T)``, so ``el = 90
+- |Theta|`` and ``az = Phi`` (Theta >= 0) or ``Phi + 180`` (Theta < 0). Evidence: all Phi give the
+same value at Theta = 0 and at Theta = +-180 (the poles of the cut system); the upside-down
+RM-WB1-DN file matches the right-side-up one turned 180 degrees about the chamber x axis (2.3 dB
+rms, against 5-6 dB for any turn about z), so the antenna's axis is the chamber z axis; and the
+dipole-like SA-1400-5900 has its deep null within about 20 degrees of Theta = 0. The right-side-up
+RM-WB1-DN at 3.3 GHz is NOT a donut: its maximum (~+6 dBi) is within about 15 degrees of its axis
+(z_a up, away from the base) and it is weakest below (Theta near +-180). ETotal_dB is relative; it
+is normalised to directivity (dBi) by integrating the radiated power over the sphere: ``G = E + 10
+log10(4 pi / sum 10^(E/10) cos(el) d_el d_az)`` (trapezoid in elevation, rectangle in the periodic
+azimuth), i.e. a lossless antenna (efficiency 1).
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ AERPAW_CREDIT = (
 
 
 def load_pattern_csv(path: str | Path, name: str | None = None) -> TabulatedPattern:
-    """Read a tabulated pattern in the module's CSV format; bad input raises InputError (file, row)."""
+    """Read a tabulated pattern in the module's CSV format; bad input raises InputError (file,
+    row)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -136,7 +138,8 @@ def save_pattern_csv(
 
 
 def load_aerpaw_pattern(path: str | Path, name: str | None = None) -> TabulatedPattern:
-    """Read a measured AERPAW pattern file (see module docstring), normalised to directivity (dBi)."""
+    """Read a measured AERPAW pattern file (see module docstring), normalised to directivity
+    (dBi)."""
     path = Path(path)
     try:
         lines = path.read_text(encoding="utf-8", errors="replace").splitlines()

@@ -1,4 +1,5 @@
-"""Antenna gain patterns as objects: isotropic, vertical half-wave dipole, tabulated 3D (measured), mounting.
+"""Antenna gain patterns as objects: isotropic, vertical half-wave dipole, tabulated 3D (measured),
+mounting.
 
 Antenna frame
 -------------
@@ -10,13 +11,13 @@ measurement). Angles are radians in code, degrees in files.
 
 Mounting (:func:`mount_angles`) maps a platform's angles to the antenna frame. Platform angles are
 ``el_p`` (up-positive elevation of the platform's level/body plane) and ``az_p`` clockwise from the
-platform's forward direction (the body azimuth ``az_b`` for the UAV, the compass bearing for the rover).
-``heading_rad`` turns the antenna's ``x_a`` clockwise from forward; ``flipped`` mounts it upside down
-(a 180 degree turn about ``x_a``): upright ``el_a = el_p, az_a = -(az_p - heading)``; flipped
-``el_a = -el_p, az_a = az_p - heading``.
+platform's forward direction (the body azimuth ``az_b`` for the UAV, the compass bearing for the
+rover). ``heading_rad`` turns the antenna's ``x_a`` clockwise from forward; ``flipped`` mounts it
+upside down (a 180 degree turn about ``x_a``): upright ``el_a = el_p, az_a = -(az_p - heading)``;
+flipped ``el_a = -el_p, az_a = az_p - heading``.
 
-Files (CSV, measured AERPAW) are read in ``mission.physics.pattern_files``; patterns by name and the shipped
-measured pattern in ``mission.physics.antenna``.
+Files (CSV, measured AERPAW) are read in ``mission.physics.pattern_files``; patterns by name and the
+shipped measured pattern in ``mission.physics.antenna``.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ TWO_PI = 2.0 * np.pi
 def mount_angles(
     el_p: ArrayLike, az_p: ArrayLike, heading_rad: float = 0.0, flipped: bool = False
 ) -> tuple[NDArray, NDArray]:
-    """Platform angles (el up-positive, az clockwise from forward) -> antenna-frame (el_a, az_a), rad."""
+    """Platform angles (el up-positive, az clockwise from forward) -> antenna-frame (el_a, az_a),
+    rad."""
     el_p = np.asarray(el_p)
     az_p = np.asarray(az_p)
     if flipped:  # 180 deg about x_a: (x, y, z) -> (x, -y, -z)
@@ -46,9 +48,9 @@ def mount_angles(
 class Pattern:
     """Base class: gain of an antenna in its own frame.
 
-    ``gain_dbi(el, az)`` is the reference (angles in rad, float64); ``amplitude(sin_el, cos_el, az)`` is
-    the fast path used by the propagation kernel: sqrt of the linear gain, dtype preserved. ``az`` is only
-    computed by the caller when ``azimuth_symmetric`` is False.
+    ``gain_dbi(el, az)`` is the reference (angles in rad, float64); ``amplitude(sin_el, cos_el,
+    az)`` is the fast path used by the propagation kernel: sqrt of the linear gain, dtype preserved.
+    ``az`` is only computed by the caller when ``azimuth_symmetric`` is False.
     """
 
     name: str = "pattern"
@@ -87,7 +89,8 @@ class Isotropic(Pattern):
 class Dipole(Pattern):
     """Vertical half-wave dipole ("donut"): G = G_0 (cos(pi/2 sin el) / cos el)^2 (SPEC section 3).
 
-    ``g0`` = 1.641 (2.15 dBi at el = 0); the axial limit (el = +-90 deg) is 0, floored at ``floor_dbi``.
+    ``g0`` = 1.641 (2.15 dBi at el = 0); the axial limit (el = +-90 deg) is 0, floored at
+    ``floor_dbi``.
     """
 
     g0: float = DIPOLE_G0
@@ -168,7 +171,8 @@ class TabulatedPattern(Pattern):
         return np.maximum(g, self.floor_dbi)
 
     def amplitude_at(self, el: NDArray, az: NDArray) -> NDArray:
-        """sqrt(G) at antenna-frame angles (rad); uniform grids index directly (no search), in el's dtype."""
+        """sqrt(G) at antenna-frame angles (rad); uniform grids index directly (no search), in el's
+        dtype."""
         if self._uniform is None:
             g = self.gain_dbi(el, az)
             return np.exp(g * (np.log(10.0) / 20.0)).astype(np.result_type(el), copy=False)
@@ -179,8 +183,8 @@ class TabulatedPattern(Pattern):
         return np.exp(g, out=g)
 
     def gain_db_at(self, el: NDArray, az: NDArray) -> NDArray:
-        """Gain (dBi) at antenna-frame angles (rad) in el's dtype: the fast path of ``gain_dbi`` (bilinear on
-        uniform tables without a search; the float64 reference otherwise)."""
+        """Gain (dBi) at antenna-frame angles (rad) in el's dtype: the fast path of ``gain_dbi``
+        (bilinear on uniform tables without a search; the float64 reference otherwise)."""
         if self._uniform is None:
             return self.gain_dbi(el, az).astype(np.result_type(el), copy=False)
         dt = np.result_type(el).type
@@ -199,7 +203,8 @@ class TabulatedPattern(Pattern):
         return g
 
     def total_power_ratio(self) -> float:
-        """(1 / 4 pi) * integral of G over the sphere on the table's own grid (1 for a directivity table)."""
+        """(1 / 4 pi) * integral of G over the sphere on the table's own grid (1 for a directivity
+        table)."""
         return sphere_integral(self.el_deg, self.az_deg, 10.0 ** (self.gain / 10.0)) / (4.0 * np.pi)
 
     def peak_dbi(self) -> float:
@@ -210,7 +215,8 @@ class TabulatedPattern(Pattern):
 class Mounted(Pattern):
     """A pattern mounted on a platform with a heading offset and optionally upside down.
 
-    ``gain_dbi(el_p, az_p)`` takes platform angles (see the module docstring and :func:`mount_angles`).
+    ``gain_dbi(el_p, az_p)`` takes platform angles (see the module docstring and
+    :func:`mount_angles`).
     """
 
     pattern: Pattern = field(default_factory=Isotropic)
@@ -227,8 +233,8 @@ class Mounted(Pattern):
 
 
 def sphere_integral(el_deg: NDArray, az_deg: NDArray, f: NDArray) -> float:
-    """Integral of f(el, az) dOmega over the sphere (dOmega = cos el d_el d_az): trapezoid in el, rectangle
-    in the periodic az (exact for a full uniform az grid)."""
+    """Integral of f(el, az) dOmega over the sphere (dOmega = cos el d_el d_az): trapezoid in el,
+    rectangle in the periodic az (exact for a full uniform az grid)."""
     el = np.radians(el_deg)
     az = np.radians(np.append(az_deg, az_deg[0] + 360.0))
     w_az = np.diff(az)  # each column owns the interval to its successor

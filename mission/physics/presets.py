@@ -1,9 +1,9 @@
 """Physics presets: propagation models calibrated on real flights, shipped as data.
 
-A preset is a JSON file ``mission/data/<name>_calibration.json`` whose ``"model"`` block is a *model spec*
-(below); the rest of the file records how it was obtained (flights fitted on, held-out figures, command,
-date).  ``preset_model("afar")`` builds the model; ``load_preset("afar")`` returns the spec (a dict) and
-``load_calibration("afar")`` the whole record.
+A preset is a JSON file ``mission/data/<name>_calibration.json`` whose ``"model"`` block is a *model
+spec* (below); the rest of the file records how it was obtained (flights fitted on, held-out
+figures, command, date).  ``preset_model("afar")`` builds the model; ``load_preset("afar")`` returns
+the spec (a dict) and ``load_calibration("afar")`` the whole record.
 
 Model spec (every key optional except ``base``)::
 
@@ -17,9 +17,9 @@ Model spec (every key optional except ``base``)::
      "leg_shadowing_beta": null,      # or beta: paper eqs. 8-9 (removed when null)
      "path_gain_slope": 0.0}          # n_extra of PathGainSlope (-10 n_extra log10 d); 0 = none
 
-Why a spec and not ``make_model`` keywords: the calibrated effect list (e.g. free space + measured upside-down
-UAV antenna + attitude + a path-gain slope, no ground ray) is not one of the three named models, and a spec
-says exactly which effects are present.  ``make_model`` is unchanged.
+Why a spec and not ``make_model`` keywords: the calibrated effect list (e.g. free space + measured
+upside-down UAV antenna + attitude + a path-gain slope, no ground ray) is not one of the three named
+models, and a spec says exactly which effects are present.  ``make_model`` is unchanged.
 
 With the grid search: ``ModelGridSearch(preset_model("afar"))`` (or ``localize_log(...,
 physics_model=preset_model("afar"))``).
@@ -61,7 +61,8 @@ SPEC_KEYS = (
 
 
 def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationModel:
-    """A ``PropagationModel`` from a model spec (module docstring); unknown keys raise ValueError."""
+    """A ``PropagationModel`` from a model spec (module docstring); unknown keys raise
+    ValueError."""
     bad = sorted(set(spec) - set(SPEC_KEYS))
     if bad:
         raise ValueError(f"unknown model spec keys {bad} (known: {', '.join(SPEC_KEYS)})")
@@ -111,8 +112,8 @@ def build_model(spec: dict[str, Any], name: str = "calibrated") -> PropagationMo
 
 
 def load_calibration(name: str = "afar") -> dict[str, Any]:
-    """The whole calibration record of preset ``name`` (the JSON file as a dict); a path ending in ``.json`` reads
-    a preset file written by ``rfsl calibrate``."""
+    """The whole calibration record of preset ``name`` (the JSON file as a dict); a path ending in
+    ``.json`` reads a preset file written by ``rfsl calibrate``."""
     base = (
         name.strip().partition(":")[0]
         if not name.strip().lower().endswith(".json")
@@ -149,9 +150,9 @@ def load_calibration(name: str = "afar") -> dict[str, Any]:
 def load_preset(name: str = "afar") -> dict[str, Any]:
     """The model spec of preset ``name`` (a dict for :func:`build_model`).
 
-    ``"afar:FOLD"`` is the spec fitted on one fold of the calibration only (``folds`` in the record, e.g.
-    ``afar:fit328`` = fitted on team 328's flights): train or test with it on the *other* flights so that
-    nothing is scored on the flights its physics was fitted on.
+    ``"afar:FOLD"`` is the spec fitted on one fold of the calibration only (``folds`` in the record,
+    e.g. ``afar:fit328`` = fitted on team 328's flights): train or test with it on the *other*
+    flights so that nothing is scored on the flights its physics was fitted on.
     """
     base, _, fold = name.rpartition(":") if ".json:" in name.lower() else name.partition(":")
     rec = load_calibration(base)
@@ -167,6 +168,7 @@ def load_preset(name: str = "afar") -> dict[str, Any]:
 
 
 def preset_model(name: str = "afar", **overrides: Any) -> PropagationModel:
-    """The calibrated model of preset ``name``; ``overrides`` replace spec entries (e.g. ``attitude=False``)."""
+    """The calibrated model of preset ``name``; ``overrides`` replace spec entries (e.g.
+    ``attitude=False``)."""
     spec = {**load_preset(name), **overrides}
     return build_model(spec, name=f"{name.strip().lower().replace(':', '-')}-calibrated")

@@ -1,8 +1,9 @@
-"""Propagation models as lists of named, separately switchable effects (SPEC section 3, paper eqs. 1-9).
+"""Propagation models as lists of named, separately switchable effects (SPEC section 3, paper eqs.
+1-9).
 
-A :class:`PropagationModel` is a tuple of effects; each effect is a frozen dataclass whose fields are its
-parameters, so a model can be rebuilt with one effect removed (``without``), replaced or added
-(``with_effect``) or refitted (``with_params``). Built-in effects:
+A :class:`PropagationModel` is a tuple of effects; each effect is a frozen dataclass whose fields
+are its parameters, so a model can be rebuilt with one effect removed (``without``), replaced or
+added (``with_effect``) or refitted (``with_params``). Built-in effects:
 
 ``free_space``         direct ray: P_r = P_t + G_t + G_r + 20 log10(lambda / (4 pi d_los)) (Friis)
 ``ground_reflection``  two-ray, eq. 1: coherent sum with the ground-reflected ray, Fresnel Gamma
@@ -11,17 +12,19 @@ parameters, so a model can be rebuilt with one effect removed (``without``), rep
 ``attitude``           receiver angles in the body frame (eqs. 3-6; SPEC section 1 transform)
 ``leg_shadowing``      eqs. 8-9: minus Upsilon = 10 beta log10(d_los / d_0) when S = 1
 ``path_gain_slope``    (optional, not in the named models) -10 n_extra log10(d_los / d_ref_m): a path-gain
-                       exponent 2 + n_extra instead of Friis' 2 (fitted on the real AFAR flights, see
-                       ``mission.physics.presets``)
+                       exponent 2 + n_extra instead of Friis' 2 (fitted on the real AFAR flights,
+                       see ``mission.physics.presets``)
 
-Without ``attitude`` the body frame is level with yaw 0 (plain two-ray); with zero attitude the enhanced
-two-ray model equals two-ray (+ shadowing) exactly. Any other effect that defines
-``rss_term_db(link: Link) -> array`` (dB added to the RSS) is applied as well, so new effects plug in.
+Without ``attitude`` the body frame is level with yaw 0 (plain two-ray); with zero attitude the
+enhanced two-ray model equals two-ray (+ shadowing) exactly. Any other effect that defines
+``rss_term_db(link: Link) -> array`` (dB added to the RSS) is applied as well, so new effects plug
+in.
 
-Where things live: the effects in ``mission.physics.effects``, ``PropagationModel`` (composition, the fast
-``rss_dbm`` and the float64 ``explain`` reference) in ``mission.physics.model``; this module holds the named
-models (``MODEL_NAMES``, aliases, ``make_model``) and re-exports the rest, so
-``from mission.physics.propagation import make_model, PropagationModel, LegShadowing`` keeps working.
+Where things live: the effects in ``mission.physics.effects``, ``PropagationModel`` (composition,
+the fast ``rss_dbm`` and the float64 ``explain`` reference) in ``mission.physics.model``; this
+module holds the named models (``MODEL_NAMES``, aliases, ``make_model``) and re-exports the rest, so
+``from mission.physics.propagation import make_model, PropagationModel, LegShadowing`` keeps
+working.
 """
 
 from __future__ import annotations
@@ -83,8 +86,9 @@ MODEL_ALIASES = {
 
 
 def canonical_model_name(name: str) -> str:
-    """The model name ``make_model`` builds for ``name`` (case, underscores and aliases folded); ValueError
-    for an unknown one.  CLIs use it as their argparse ``type`` so that they accept what ``make_model`` does."""
+    """The model name ``make_model`` builds for ``name`` (case, underscores and aliases folded);
+    ValueError for an unknown one.  CLIs use it as their argparse ``type`` so that they accept what
+    ``make_model`` does."""
     key = str(name).strip().lower().replace("_", "-")
     key = MODEL_ALIASES.get(key, key)
     if key not in MODEL_NAMES:
@@ -110,7 +114,8 @@ def make_model(
     tx_flipped: bool = False,
     dtype: DTypeLike = np.float32,
 ) -> PropagationModel:
-    """Build "free-space", "two-ray" or "e2r" (enhanced two-ray = two-ray + attitude + leg shadowing).
+    """Build "free-space", "two-ray" or "e2r" (enhanced two-ray = two-ray + attitude + leg
+    shadowing).
 
     ``pattern`` ("dipole", "isotropic", "measured" = shipped RM-WB1-DN, a file path or a Pattern) is
     used for both ends unless ``tx_pattern``/``rx_pattern`` are given. Free space keeps the antenna

@@ -1,4 +1,5 @@
-"""Spatially correlated log-normal shadowing: covariance models, field sampling and variogram fitting.
+"""Spatially correlated log-normal shadowing: covariance models, field sampling and variogram
+fitting.
 
 Why one module: the simulator draws shadowing for training data, the gap diagnosis draws it for its
 self-test, krigs it, and measures it on real residuals; all must mean the same thing by "sigma" and
@@ -10,8 +11,8 @@ self-test, krigs it, and measures it on real residuals; all must mean the same t
   fit to measured shadowing, and the kriging prior of ``mission.gap``.
 
 ``fit_variogram`` fits gamma(h) = n^2 + sigma^2 (1 - C(h) / sigma^2) (nugget n = white noise) to the
-empirical semivariogram of residuals, for either family, with block-bootstrap confidence intervals; it is
-what names "correlated shadowing" vs "white noise" on real flights.
+empirical semivariogram of residuals, for either family, with block-bootstrap confidence intervals;
+it is what names "correlated shadowing" vs "white noise" on real flights.
 """
 
 from __future__ import annotations
@@ -46,12 +47,14 @@ def shadowing_field(
     rng: np.random.Generator,
     cells_per_corr: float = 4.0,
 ) -> np.ndarray:
-    """Zero-mean Gaussian-covariance shadowing (dB) at positions ``xy`` (N, 2): one random field per call.
+    """Zero-mean Gaussian-covariance shadowing (dB) at positions ``xy`` (N, 2): one random field per
+    call.
 
-    White noise on a grid (``corr_m / cells_per_corr`` cells, at least 1 m) is smoothed by a Gaussian of
-    ``corr_m / 2``, which gives the correlation ``exp(-d**2 / corr_m**2)`` (1/e at ``corr_m``), scaled to
-    std ``sigma_db`` over the grid and read at ``xy`` by bilinear interpolation.  A UAV passing the same
-    place twice sees the same shadowing, which independent per-sample noise cannot reproduce.
+    White noise on a grid (``corr_m / cells_per_corr`` cells, at least 1 m) is smoothed by a
+    Gaussian of ``corr_m / 2``, which gives the correlation ``exp(-d**2 / corr_m**2)`` (1/e at
+    ``corr_m``), scaled to std ``sigma_db`` over the grid and read at ``xy`` by bilinear
+    interpolation.  A UAV passing the same place twice sees the same shadowing, which independent
+    per-sample noise cannot reproduce.
     """
     from scipy.ndimage import gaussian_filter, map_coordinates
 
@@ -76,9 +79,10 @@ def shadowing_field(
 class RandomField:
     """A stationary Gaussian random field defined everywhere (random Fourier features, ``m`` waves).
 
-    Frequencies are drawn from the covariance's spectrum: a bivariate Cauchy (exponential covariance) or a
-    normal with std sqrt(2) / L (gaussian covariance); ``field_db(xy) = sigma sqrt(2/m) sum cos(w.xy + b)``.
-    Unlike ``shadowing_field`` it can be evaluated at new positions later (held-out data, other flights).
+    Frequencies are drawn from the covariance's spectrum: a bivariate Cauchy (exponential
+    covariance) or a normal with std sqrt(2) / L (gaussian covariance); ``field_db(xy) = sigma
+    sqrt(2/m) sum cos(w.xy + b)``. Unlike ``shadowing_field`` it can be evaluated at new positions
+    later (held-out data, other flights).
     """
 
     sigma_db: float
@@ -115,7 +119,8 @@ class RandomField:
         )
 
     def field_db(self, flight: object, rx_xy: np.ndarray) -> np.ndarray:
-        """``SpatialField`` protocol of ``mission.gap.pipeline`` (memoised by the query positions)."""
+        """``SpatialField`` protocol of ``mission.gap.pipeline`` (memoised by the query
+        positions)."""
         key = (rx_xy.shape, hash(np.ascontiguousarray(rx_xy).tobytes()))
         if key not in self._cache:
             if len(self._cache) > 64:
@@ -126,7 +131,8 @@ class RandomField:
 
 @dataclass
 class Variogram:
-    """A fitted semivariogram gamma(h) = n^2 + s^2 (1 - rho(h / L)), with bootstrap intervals (5-95 %)."""
+    """A fitted semivariogram gamma(h) = n^2 + s^2 (1 - rho(h / L)), with bootstrap intervals (5-95
+    %)."""
 
     kind: str
     sigma_db: float
@@ -166,9 +172,11 @@ class Variogram:
 def empirical_variogram(
     xy: np.ndarray, r: np.ndarray, edges: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Semivariance 0.5 mean (r_i - r_j)^2 of pairs binned by distance: (lag centres, gamma, pair counts).
+    """Semivariance 0.5 mean (r_i - r_j)^2 of pairs binned by distance: (lag centres, gamma, pair
+    counts).
 
-    ``xy`` (N, d) may be positions (m) or times (N, 1) (s); O(N^2) memory: pass at most a few thousand points.
+    ``xy`` (N, d) may be positions (m) or times (N, 1) (s); O(N^2) memory: pass at most a few
+    thousand points.
     """
     xy = np.asarray(xy, dtype=float).reshape(len(r), -1)
     iu = np.triu_indices(len(r), 1)
@@ -186,7 +194,8 @@ def empirical_variogram(
 def _fit_model(
     lags: np.ndarray, gamma: np.ndarray, cnt: np.ndarray, kind: str, lengths: np.ndarray
 ) -> tuple[float, float, float, float]:
-    """(weighted SSE, sigma, L, nugget): grid over L, non-negative linear fit of (n^2, s^2) per L."""
+    """(weighted SSE, sigma, L, nugget): grid over L, non-negative linear fit of (n^2, s^2) per
+    L."""
     from scipy.optimize import nnls
 
     use = cnt >= 10
@@ -215,12 +224,14 @@ def fit_variogram(
     unit: str = "m",
     boot_points: int = 400,
 ) -> Variogram:
-    """Fit ``kind`` (or ``"best"``: the family with the smaller weighted misfit) to residuals ``r`` at ``xy``.
+    """Fit ``kind`` (or ``"best"``: the family with the smaller weighted misfit) to residuals ``r``
+    at ``xy``.
 
     ``xy``: positions (N, 2) in m, or times (N,) in s for the variogram along the path.  Points are
     sub-sampled to ``max_points``; ``groups`` (e.g. flight index) keeps pairs within a group only.
     Confidence intervals: the fit repeated on ``n_boot`` resamplings of whole lag-bins' pairs is too
-    optimistic for 30 Hz tracks, so the points are resampled in contiguous blocks of 1/20 of the data.
+    optimistic for 30 Hz tracks, so the points are resampled in contiguous blocks of 1/20 of the
+    data.
     """
     r = np.asarray(r, dtype=float)
     xy = np.asarray(xy, dtype=float).reshape(len(r), -1)
@@ -257,8 +268,9 @@ def fit_variogram(
     est = (s, L, n)
 
     def ci(j: int) -> tuple[float, float]:
-        """5-95 % of the replicates, shifted so that their median sits on the estimate (the replicates are
-        fits to a thinned copy, whose estimator is noisier but not centred on the full-data estimate)."""
+        """5-95 % of the replicates, shifted so that their median sits on the estimate (the
+        replicates are fits to a thinned copy, whose estimator is noisier but not centred on the
+        full-data estimate)."""
         q05, q50, q95 = np.quantile(B[:, j], [0.05, 0.5, 0.95])
         return max(0.0, float(est[j] + q05 - q50)), float(est[j] + q95 - q50)
 

@@ -1,19 +1,24 @@
-"""One causal attitude model of a multicopter, used by the fast simulator and the simulated MAVLink vehicle.
+"""One causal attitude model of a multicopter, used by the fast simulator and the simulated MAVLink
+vehicle.
 
-Why one model: training data (``simulate``, via ``kinematics.attitude_from_motion``) and flown logs (the
-vehicle in ``sitl/``) must have the same attitude dynamics.  Why causal: the vehicle computes its attitude
-while flying and re-plans on every mode change, so it cannot look ahead; the fast simulator uses the very same
-filters on whole arrays.  A chunk of any length (one sample: a step) continues from an ``AttitudeState``, so
-running a flight in pieces equals running it at once (``tests/test_kinematics.py`` checks this).
+Why one model: training data (``simulate``, via ``kinematics.attitude_from_motion``) and flown logs
+(the vehicle in ``sitl/``) must have the same attitude dynamics.  Why causal: the vehicle computes
+its attitude while flying and re-plans on every mode change, so it cannot look ahead; the fast
+simulator uses the very same filters on whole arrays.  A chunk of any length (one sample: a step)
+continues from an ``AttitudeState``, so running a flight in pieces equals running it at once
+(``tests/test_kinematics.py`` checks this).
 
 The model, per sample of period ``dt``:
-- velocity and acceleration: first-order lags (time constant ``Kinematics.response_s``, exact discretisation
-  ``alpha = 1 - exp(-dt / tau)``) of the position differences and of the smoothed velocity's differences;
-- yaw: the course over ground (held while slower than 0.3 m/s, unwrapped) through a first-order lag of
-  ``yaw_tau_s`` (about 90 deg per 1.5 s at the default 60 deg/s), or ``Kinematics.heading_deg`` when set;
-- roll/pitch: the horizontal acceleration the thrust must supply (smoothed acceleration plus drag against the
-  air-relative velocity, ``drag_pitch_deg_per_mps``) over g, in the body frame, plus turbulence, clipped at
-  the lean-angle limit.  Roll right-wing-down and pitch nose-up positive (MAVLink).
+- velocity and acceleration: first-order lags (time constant ``Kinematics.response_s``, exact
+  discretisation ``alpha = 1 - exp(-dt / tau)``) of the position differences and of the smoothed
+  velocity's differences;
+- yaw: the course over ground (held while slower than 0.3 m/s, unwrapped) through a first-order lag
+  of ``yaw_tau_s`` (about 90 deg per 1.5 s at the default 60 deg/s), or ``Kinematics.heading_deg``
+  when set;
+- roll/pitch: the horizontal acceleration the thrust must supply (smoothed acceleration plus drag
+  against the air-relative velocity, ``drag_pitch_deg_per_mps``) over g, in the body frame, plus
+  turbulence, clipped at the lean-angle limit.  Roll right-wing-down and pitch nose-up positive
+  (MAVLink).
 Wind gusts and turbulence are Ornstein-Uhlenbeck processes (``ou_process``), exact in discrete time.
 """
 
@@ -33,8 +38,9 @@ HOVER_SPEED_MPS = 0.3  # below this the course is held (the nose does not follow
 def tilt_from_acceleration(
     a_n: np.ndarray, a_e: np.ndarray, yaw: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(roll, pitch) in radians, unclipped, that tilt the thrust to give the horizontal acceleration (north, east)
-    (m/s^2) at heading ``yaw``: the one place the multicopter's tilt is derived from its acceleration."""
+    """(roll, pitch) in radians, unclipped, that tilt the thrust to give the horizontal acceleration
+    (north, east) (m/s^2) at heading ``yaw``: the one place the multicopter's tilt is derived from
+    its acceleration."""
     cy, sy = np.cos(yaw), np.sin(yaw)
     pitch = -np.arctan2(a_n * cy + a_e * sy, G)  # nose down to accelerate forward
     roll = np.arctan2(-a_n * sy + a_e * cy, G)  # right wing down to accelerate right
@@ -42,7 +48,8 @@ def tilt_from_acceleration(
 
 
 def lag_alpha(dt: float, tau: float) -> float:
-    """Gain of a first-order lag of time constant ``tau`` sampled every ``dt`` (exact discretisation)."""
+    """Gain of a first-order lag of time constant ``tau`` sampled every ``dt`` (exact
+    discretisation)."""
     return 1.0 - math.exp(-dt / tau) if tau > 0 else 1.0
 
 
@@ -52,14 +59,16 @@ def yaw_tau_s(kin: Kinematics) -> float:
 
 
 def _lag(x: np.ndarray, alpha: float, y0: np.ndarray) -> np.ndarray:
-    """First-order lag ``y[k] = y[k-1] + alpha (x[k] - y[k-1])`` along axis 0, from ``y[-1] = y0``."""
+    """First-order lag ``y[k] = y[k-1] + alpha (x[k] - y[k-1])`` along axis 0, from ``y[-1] =
+    y0``."""
     x = np.asarray(x, dtype=float)
     zi = ((1.0 - alpha) * np.asarray(y0, dtype=float))[None, ...]
     return lfilter([alpha], [1.0, alpha - 1.0], x, axis=0, zi=zi)[0]
 
 
 def ou_process(white: np.ndarray, dt: float, tau: float, sigma: float, x0) -> np.ndarray:
-    """Ornstein-Uhlenbeck samples (exact discretisation) driven by standard normals ``white`` (N, ...)."""
+    """Ornstein-Uhlenbeck samples (exact discretisation) driven by standard normals ``white`` (N,
+    ...)."""
     a = math.exp(-dt / tau)
     x = np.asarray(white, dtype=float) * (sigma * math.sqrt(1.0 - a * a))
     zi = (a * np.asarray(x0, dtype=float))[None, ...]
@@ -68,8 +77,8 @@ def ou_process(white: np.ndarray, dt: float, tau: float, sigma: float, x0) -> np
 
 @dataclass(frozen=True)
 class AttitudeState:
-    """Filter state after the last sample: previous position, smoothed velocity and acceleration (ENU),
-    held course and yaw (unwrapped radians, clockwise from north)."""
+    """Filter state after the last sample: previous position, smoothed velocity and acceleration
+    (ENU), held course and yaw (unwrapped radians, clockwise from north)."""
 
     pos: np.ndarray
     vel: np.ndarray
@@ -94,11 +103,11 @@ def run_attitude(
     wind_en: np.ndarray | None = None,
     turbulence: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, AttitudeState]:
-    """Roll, pitch, yaw (N, 3, radians, yaw in [0, 2 pi)), smoothed velocity (N, 3) and the new state for
-    positions ``pos`` (N, 3, ENU) sampled every ``dt`` after ``state``.
+    """Roll, pitch, yaw (N, 3, radians, yaw in [0, 2 pi)), smoothed velocity (N, 3) and the new
+    state for positions ``pos`` (N, 3, ENU) sampled every ``dt`` after ``state``.
 
-    ``wind_en`` (N, 2) or (2,) is the wind (east, north, m/s); ``turbulence`` (N, 2) adds (pitch, roll)
-    radians before the lean-angle clip.
+    ``wind_en`` (N, 2) or (2,) is the wind (east, north, m/s); ``turbulence`` (N, 2) adds (pitch,
+    roll) radians before the lean-angle clip.
     """
     pos = np.asarray(pos, dtype=float).reshape(-1, 3)
     n = len(pos)

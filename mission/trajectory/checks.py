@@ -1,14 +1,16 @@
-"""Pre-flight checks: geofence, altitude limits and time budget, before anything is uploaded or flown.
+"""Pre-flight checks: geofence, altitude limits and time budget, before anything is uploaded or
+flown.
 
-The flight time is estimated with ``plan_profile`` on ``MissionSpec.flight_path_enu`` (take-off, transit,
-the trajectory, return and landing), the same kinematics the simulator and the simulated vehicle fly, so
-a mission that passes here also fits its budget in simulation.
+The flight time is estimated with ``plan_profile`` on ``MissionSpec.flight_path_enu`` (take-off,
+transit, the trajectory, return and landing), the same kinematics the simulator and the simulated
+vehicle fly, so a mission that passes here also fits its budget in simulation.
 
-Fence rule: every trajectory waypoint and every leg between them must be inside the flight area with at
-least ``fence_margin_m`` to its edge.  The take-off point is wherever the crew launches (AERPAW's launch
-point is 0.4 m inside the AFAR fence), so the climb, the transit legs to/from home and the landing need
-only stay inside the flight area; home itself must keep ``RETURN_OVERSHOOT_M`` (the largest return and landing
-overshoot measured on an autopilot) plus the mission's ``home_margin_m`` from the edge.
+Fence rule: every trajectory waypoint and every leg between them must be inside the flight area with
+at least ``fence_margin_m`` to its edge.  The take-off point is wherever the crew launches (AERPAW's
+launch point is 0.4 m inside the AFAR fence), so the climb, the transit legs to/from home and the
+landing need only stay inside the flight area; home itself must keep ``RETURN_OVERSHOOT_M`` (the
+largest return and landing overshoot measured on an autopilot) plus the mission's ``home_margin_m``
+from the edge.
 """
 
 from __future__ import annotations
@@ -20,8 +22,9 @@ import numpy as np
 from mission.errors import InputError
 from mission.trajectory.kinematics import FlightProfile, plan_profile
 
-# metres a real autopilot's take-off, return and landing drift past home: PX4 v1.16 SITL's take-off and landing
-# rows 0.9 m, ArduCopter 4.7 SITL's return 0.03 m (the AFAR launch point is only 0.44 m inside the fence)
+# metres a real autopilot's take-off, return and landing drift past home: PX4 v1.16 SITL's take-off
+# and landing rows 0.9 m, ArduCopter 4.7 SITL's return 0.03 m (the AFAR launch point is only 0.44 m
+# inside the fence)
 RETURN_OVERSHOOT_M = 1.0
 _TOL = 1e-6  # metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
 
@@ -37,7 +40,8 @@ class Violation:
 
 @dataclass
 class MissionReport:
-    """Result of ``check_mission``: estimated length, time and clearances, and the violations found."""
+    """Result of ``check_mission``: estimated length, time and clearances, and the violations
+    found."""
 
     length_m: float
     duration_s: float
@@ -85,8 +89,9 @@ def _where(d: float, margin: float) -> str:
 
 
 def source_violations(spec, tx=None) -> list[Violation]:
-    """A fixed simulated transmitter (``tx`` or the mission's) must lie in the field (flight or rover area) and
-    not below ground: one at (5000, 5000) m makes a flight whose localization cannot succeed."""
+    """A fixed simulated transmitter (``tx`` or the mission's) must lie in the field (flight or
+    rover area) and not below ground: one at (5000, 5000) m makes a flight whose localization cannot
+    succeed."""
     tx = spec.source.tx if tx is None else tx
     if isinstance(tx, str):
         return []
@@ -223,7 +228,8 @@ def check_mission(spec) -> MissionReport:
 
 
 def assert_flyable(spec) -> MissionReport:
-    """``check_mission``; raise an ``InputError`` (file, key, waypoint, shortfall) on the first violation."""
+    """``check_mission``; raise an ``InputError`` (file, key, waypoint, shortfall) on the first
+    violation."""
     rep = check_mission(spec)
     if rep.violations:
         first = rep.violations[0]

@@ -1,12 +1,13 @@
 """Mission exports: QGroundControl ``.plan`` JSON, QGC WPL 110 text, GeoJSON and KML.
 
-The ``.plan`` and ``.waypoints`` hold exactly the items ``fly-mission`` uploads (``mission.trajectory.items``):
-take-off at home, the cruise speed, the trajectory as waypoints in frame 3 (altitude relative to home), then
-return-to-launch (or a landing at the last waypoint); the ``.plan`` adds the planned home position, the flight
-area as an inclusion geofence and the cruise speed, and QGroundControl opens it directly.  ``.waypoints``
-(QGC WPL 110) starts with the home item 0 as an ArduPilot upload does, in the text format ArduPilot tools and
-pymavlink's ``MAVWPLoader`` read.  GeoJSON (lon, lat order) and KML (AERPAW's geofences are KML) carry the
-trajectory and both areas."""
+The ``.plan`` and ``.waypoints`` hold exactly the items ``fly-mission`` uploads
+(``mission.trajectory.items``): take-off at home, the cruise speed, the trajectory as waypoints in
+frame 3 (altitude relative to home), then return-to-launch (or a landing at the last waypoint); the
+``.plan`` adds the planned home position, the flight area as an inclusion geofence and the cruise
+speed, and QGroundControl opens it directly.  ``.waypoints`` (QGC WPL 110) starts with the home item
+0 as an ArduPilot upload does, in the text format ArduPilot tools and pymavlink's ``MAVWPLoader``
+read.  GeoJSON (lon, lat order) and KML (AERPAW's geofences are KML) carry the trajectory and both
+areas."""
 
 from __future__ import annotations
 
@@ -28,13 +29,15 @@ def _ring_latlon(spec, area) -> list[list[float]]:
 
 
 def _params7(it: RawItem) -> list[float | None]:
-    """MISSION_ITEM's seven params: param1-4 (NaN, "unchanged", as JSON null), then lat, lon (deg), altitude."""
+    """MISSION_ITEM's seven params: param1-4 (NaN, "unchanged", as JSON null), then lat, lon (deg),
+    altitude."""
     p4 = [None if np.isnan(v) else float(v) for v in it.params]
     return p4 + ([it.lat_deg, it.lon_deg, float(it.z)] if it.has_position else [0.0, 0.0, 0.0])
 
 
 def to_plan(spec) -> dict:
-    """QGroundControl ``.plan`` (fileType Plan, version 1) as a dict: the uploaded items (``build_items``)."""
+    """QGroundControl ``.plan`` (fileType Plan, version 1) as a dict: the uploaded items
+    (``build_items``)."""
     items = []
     for i, it in enumerate(build_items(spec)):
         p = _params7(it)
@@ -84,8 +87,9 @@ def to_plan(spec) -> dict:
 
 
 def to_wpl(spec) -> str:
-    """QGC WPL 110 text: the items an ArduPilot upload sends (home first, the only current item); lat/lon as
-    the items' 1e-7 degrees, NaN params written as ``nan`` as pymavlink's ``MAVWPLoader`` does."""
+    """QGC WPL 110 text: the items an ArduPilot upload sends (home first, the only current item);
+    lat/lon as the items' 1e-7 degrees, NaN params written as ``nan`` as pymavlink's ``MAVWPLoader``
+    does."""
     lines = ["QGC WPL 110"]
     for seq, it in enumerate(build_items(spec, home_item=True)):
         p = [float("nan") if v is None else v for v in _params7(it)]

@@ -1,12 +1,12 @@
 """Trajectory generators: waypoint patterns over the mission field, all inside the flight area.
 
 Every generator has the signature ``gen(field, altitude_m, **params) -> (K, 3)`` ENU waypoints at
-``altitude_m`` (take-off, transit and landing are added by ``MissionSpec.flight_path_enu``).  The default
-region is the *overlap* of the flight area and the rover area: the UAV may only fly in the flight area and
-the transmitter is only in the rover area, so (as in the paper, which drops the lower half of the AFAR
-flight area) flying outside the overlap collects little useful RSS.  ``margin_m`` keeps the pattern that
-far inside the region's boundary; spacings are upper bounds (legs are spread evenly so that every point of
-the region is within half a spacing of the path).
+``altitude_m`` (take-off, transit and landing are added by ``MissionSpec.flight_path_enu``).  The
+default region is the *overlap* of the flight area and the rover area: the UAV may only fly in the
+flight area and the transmitter is only in the rover area, so (as in the paper, which drops the
+lower half of the AFAR flight area) flying outside the overlap collects little useful RSS.
+``margin_m`` keeps the pattern that far inside the region's boundary; spacings are upper bounds
+(legs are spread evenly so that every point of the region is within half a spacing of the path).
 
 The patterns exist so that generalisation across trajectories can be measured as in the paper's
 Fig. "Generalization performance across UAV trajectories".
@@ -25,12 +25,13 @@ from mission.geo import Area, Field, clip_polygon, polygon_area_m2
 Generator = Callable[..., np.ndarray]
 
 
-# ---------------------------------------------------------------------------------------------- regions
+# ----------------------------------------------------------------------------------------------
+# regions
 
 
 def overlap_area(field: Field) -> Area:
-    """The overlap of the rover area with the flight area (its largest part where non-convex areas leave
-    several)."""
+    """The overlap of the rover area with the flight area (its largest part where non-convex areas
+    leave several)."""
     parts = clip_polygon(field.rover_area.vertices, field.flight_area.vertices)
     if not parts:
         raise InputError("the rover area and the flight area do not overlap", field="rover_area")
@@ -38,7 +39,8 @@ def overlap_area(field: Field) -> Area:
 
 
 def region_area(field: Field, region: str) -> Area:
-    """The area a pattern covers: ``overlap`` (default), ``flight`` (whole flight area) or ``rover``.
+    """The area a pattern covers: ``overlap`` (default), ``flight`` (whole flight area) or
+    ``rover``.
 
     ``rover`` is clipped to the flight area as well, since the UAV may not leave it.
     """
@@ -77,7 +79,8 @@ def _lines(lo: float, hi: float, spacing_m: float) -> np.ndarray:
 
 
 def _chord(area: Area, margin_m: float, y: float, horizontal: bool = True, step: float = 0.25):
-    """Extent (lo, hi) of the line ``y = const`` (or ``x = const``) inside ``area`` with ``margin_m``."""
+    """Extent (lo, hi) of the line ``y = const`` (or ``x = const``) inside ``area`` with
+    ``margin_m``."""
     x0, y0, x1, y1 = area.bounds
     lo, hi = (x0, x1) if horizontal else (y0, y1)
     s = np.arange(lo, hi + step, step)
@@ -107,11 +110,13 @@ def _at(xy: np.ndarray, altitude_m: float) -> np.ndarray:
     return np.column_stack([xy, np.full(len(xy), float(altitude_m))])
 
 
-# ------------------------------------------------------------------------------------------- patterns
+# -------------------------------------------------------------------------------------------
+# patterns
 
 
 def coverage_radius(spacing_m: float) -> float:
-    """Largest distance from a point of the covered box to a rectangular spiral with this ring spacing.
+    """Largest distance from a point of the covered box to a rectangular spiral with this ring
+    spacing.
 
     Outside an inner ring's corner the nearest path is either the outer ring's legs or that corner:
     max over u of min(u, sqrt(2) (s - u)) = sqrt(2) s / (1 + sqrt(2)).
@@ -127,16 +132,18 @@ def spiral(
     region: str = "overlap",
     start: str = "se",
 ) -> np.ndarray:
-    """The paper's fixed rectangular spiral, inward from the outer ring over the region's bounding box.
+    """The paper's fixed rectangular spiral, inward from the outer ring over the region's bounding
+    box.
 
     Rows (east-west legs) and columns (north-south legs) are spread evenly between the box inset by
-    ``margin_m``, at most ``spacing_m`` apart; the spiral takes the outermost unflown row or column in
-    turn (bottom, left, top, right, ...), so neighbouring parallel legs are at most one spacing apart.
-    Coverage: every point of the box lies within ``spacing_m / 2`` of the path except in small triangles
-    on the outside of each inner ring corner (about 1 % of the area), where the bound is
-    ``coverage_radius(spacing_m) = spacing_m * sqrt(2) / (1 + sqrt(2))`` (0.59 spacing), provided
-    ``margin_m <= coverage_radius / sqrt(2)``.  ``start`` is the outer-ring corner it starts from (``se``,
-    nearest the AFAR launch point, runs clockwise; the other corners are its mirror images).
+    ``margin_m``, at most ``spacing_m`` apart; the spiral takes the outermost unflown row or column
+    in turn (bottom, left, top, right, ...), so neighbouring parallel legs are at most one spacing
+    apart. Coverage: every point of the box lies within ``spacing_m / 2`` of the path except in
+    small triangles on the outside of each inner ring corner (about 1 % of the area), where the
+    bound is ``coverage_radius(spacing_m) = spacing_m * sqrt(2) / (1 + sqrt(2))`` (0.59 spacing),
+    provided ``margin_m <= coverage_radius / sqrt(2)``.  ``start`` is the outer-ring corner it
+    starts from (``se``, nearest the AFAR launch point, runs clockwise; the other corners are its
+    mirror images).
     """
     _check_positive(spacing_m=spacing_m)
     if margin_m < 0:
@@ -145,7 +152,8 @@ def spiral(
     xs, ys = _lines(x0, x1, spacing_m), _lines(y0, y1, spacing_m)
     if start not in ("se", "sw", "ne", "nw"):
         raise InputError(f"unknown start corner '{start}' (se, sw, ne, nw)", field="start")
-    # Build for start = "se" (west along the bottom, north, east along the top, south, ...), then mirror.
+    # Build for start = "se" (west along the bottom, north, east along the top, south, ...), then
+    # mirror.
     flip_x, flip_y = start[1] == "w", start[0] == "n"
     if flip_x:
         xs = (x0 + x1) - xs[::-1]
@@ -186,8 +194,8 @@ def lawnmower(
     region: str = "overlap",
     direction: str = "ew",
 ) -> np.ndarray:
-    """Boustrophedon: parallel legs (``ew`` east-west rows or ``ns`` north-south columns), clipped to the
-    region with ``margin_m`` (any convex region), starting from the south (or east) side."""
+    """Boustrophedon: parallel legs (``ew`` east-west rows or ``ns`` north-south columns), clipped
+    to the region with ``margin_m`` (any convex region), starting from the south (or east) side."""
     _check_positive(spacing_m=spacing_m)
     area = region_area(field, region)
     x0, y0, x1, y1 = _box(area, margin_m)
@@ -212,8 +220,8 @@ def edge_sweep(
     margin_m: float = 5.0,
     region: str = "overlap",
 ) -> np.ndarray:
-    """The bottom edge (east to west) and the left edge (south to north) first, as one AFAR team flew,
-    then north-south columns inward from the left edge to the right edge."""
+    """The bottom edge (east to west) and the left edge (south to north) first, as one AFAR team
+    flew, then north-south columns inward from the left edge to the right edge."""
     _check_positive(spacing_m=spacing_m)
     x0, y0, x1, y1 = _box(region_area(field, region), margin_m)
     pts = [(x1, y0), (x0, y0), (x0, y1)]
@@ -233,9 +241,9 @@ def expanding_square(
     region: str = "overlap",
     center: tuple[float, float] | None = None,
 ) -> np.ndarray:
-    """Search-and-rescue expanding square from ``center`` (default: the region's box centre): legs of
-    1, 1, 2, 2, 3, 3, ... spacings turning clockwise, until a leg would leave the box; that last leg is
-    cut at the box edge."""
+    """Search-and-rescue expanding square from ``center`` (default: the region's box centre): legs
+    of 1, 1, 2, 2, 3, 3, ... spacings turning clockwise, until a leg would leave the box; that last
+    leg is cut at the box edge."""
     _check_positive(spacing_m=spacing_m)
     x0, y0, x1, y1 = _box(region_area(field, region), margin_m)
     c = np.array(center if center is not None else ((x0 + x1) / 2, (y0 + y1) / 2), dtype=float)
@@ -265,9 +273,9 @@ def random_waypoints(
     region: str = "overlap",
     order: str = "nearest",
 ) -> np.ndarray:
-    """``n`` waypoints drawn uniformly in the region with ``margin_m`` (seeded: same seed, same path),
-    visited in draw order (``order: random``) or greedily nearest-first from the south-east corner
-    (``nearest``, shorter).  Legs leaving a non-convex region are redrawn."""
+    """``n`` waypoints drawn uniformly in the region with ``margin_m`` (seeded: same seed, same
+    path), visited in draw order (``order: random``) or greedily nearest-first from the south-east
+    corner (``nearest``, shorter).  Legs leaving a non-convex region are redrawn."""
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
         raise InputError(f"must be a positive integer, got {n!r}", field="n")
     if order not in ("nearest", "random"):
@@ -315,8 +323,8 @@ GENERATORS: dict[str, Generator] = {
 
 
 def trajectory_params(name: str, rng: np.random.Generator, base: dict, random_params: bool) -> dict:
-    """Generator parameters: the mission's own ones (same generator) or a random draw (datasets and the
-    unseen-flight benchmark draw them here)."""
+    """Generator parameters: the mission's own ones (same generator) or a random draw (datasets and
+    the unseen-flight benchmark draw them here)."""
     if not random_params:
         return dict(base)
     p: dict = {

@@ -1,12 +1,14 @@
-"""The one MAVLink item list of a ``MissionSpec``, shared by the upload (``mission.flight``) and the exports.
+"""The one MAVLink item list of a ``MissionSpec``, shared by the upload (``mission.flight``) and the
+exports.
 
 Items: [home (ArduPilot upload, item 0 of a QGC WPL file)], take-off above home, cruise speed
-(``MAV_CMD_DO_CHANGE_SPEED``), the waypoints (2 m acceptance radius, yaw unchanged), then return to launch or a
-landing below the last waypoint.  Altitudes are relative to home (frame ``MAV_FRAME_GLOBAL_RELATIVE_ALT``): a
-waypoint's ENU height minus home's.  Raw items rather than MAVSDK's high-level mission because ArduPilot needs
-a home item 0 and ``MAV_CMD_NAV_TAKEOFF``, which the high-level plugin cannot express (sitl/README.md).
-The MAVLink numbers come from pymavlink's common dialect (imported from the dialect module, not ``mavutil``,
-whose import picks the process's MAVLink version once).
+(``MAV_CMD_DO_CHANGE_SPEED``), the waypoints (2 m acceptance radius, yaw unchanged), then return to
+launch or a landing below the last waypoint.  Altitudes are relative to home (frame
+``MAV_FRAME_GLOBAL_RELATIVE_ALT``): a waypoint's ENU height minus home's.  Raw items rather than
+MAVSDK's high-level mission because ArduPilot needs a home item 0 and ``MAV_CMD_NAV_TAKEOFF``, which
+the high-level plugin cannot express (sitl/README.md). The MAVLink numbers come from pymavlink's
+common dialect (imported from the dialect module, not ``mavutil``, whose import picks the process's
+MAVLink version once).
 """
 
 from __future__ import annotations
@@ -60,8 +62,9 @@ def home_geodetic(spec) -> tuple[float, float, float]:
 def build_items(
     spec, home: tuple[float, float, float] | None = None, home_item: bool = False
 ) -> list[RawItem]:
-    """The raw items of ``spec``; ``home`` (lat, lon, alt AMSL) is the vehicle's (None: the spec's home), and
-    ``home_item`` puts it first as item 0 (ArduPilot's convention, and a QGC WPL file's)."""
+    """The raw items of ``spec``; ``home`` (lat, lon, alt AMSL) is the vehicle's (None: the
+    spec's home), and ``home_item`` puts it first as item 0 (ArduPilot's convention, and a QGC
+    WPL file's)."""
     hlat, hlon, halt = home_geodetic(spec) if home is None else home
     wps = np.asarray(spec.waypoints_enu(), dtype=float)
     lat, lon, _ = spec.field.origin.to_geodetic(wps)

@@ -1,15 +1,16 @@
 """Multicopter kinematics: how a waypoint path is flown in time, and the attitude that results.
 
-One model serves the fast simulator, the mission time-budget check and the simulated MAVLink vehicle, so
-that all three agree on how long a mission takes.  The path is the polyline through the waypoints; along
-it the speed follows a trapezoidal profile per leg (acceleration limit ``accel_mps2``) with a corner speed
-that falls with the turn angle (``v_corner = v_cruise * cos(turn/2) ** corner_exponent``, 0 for a reversal),
-as a PX4/ArduPilot waypoint controller slows for corners.  Attitude follows from the accelerations
-(``attitude_from_motion``, on the causal model of ``mission.trajectory.attitude`` that the simulated vehicle
-shares): a multicopter tilts its thrust vector to accelerate, pitches nose-down against drag in steady
-forward flight, and yaws to the direction of travel (or, with ``heading_deg``, holds one compass heading
-throughout, as the AERPAW AFAR 2023 vehicles did: their logged yaw stays within about 30 deg of 330-360 deg
-for the whole cruise).  Everything is vectorised over time samples.
+One model serves the fast simulator, the mission time-budget check and the simulated MAVLink
+vehicle, so that all three agree on how long a mission takes.  The path is the polyline through the
+waypoints; along it the speed follows a trapezoidal profile per leg (acceleration limit
+``accel_mps2``) with a corner speed that falls with the turn angle (``v_corner = v_cruise *
+cos(turn/2) ** corner_exponent``, 0 for a reversal), as a PX4/ArduPilot waypoint controller slows
+for corners.  Attitude follows from the accelerations (``attitude_from_motion``, on the causal model
+of ``mission.trajectory.attitude`` that the simulated vehicle shares): a multicopter tilts its
+thrust vector to accelerate, pitches nose-down against drag in steady forward flight, and yaws to
+the direction of travel (or, with ``heading_deg``, holds one compass heading throughout, as the
+AERPAW AFAR 2023 vehicles did: their logged yaw stays within about 30 deg of 330-360 deg for the
+whole cruise).  Everything is vectorised over time samples.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ __all__ = [
 
 @dataclass
 class FlightProfile:
-    """A planned flight of a polyline: cumulative arc length per vertex and the speed profile per leg."""
+    """A planned flight of a polyline: cumulative arc length per vertex and the speed profile per
+    leg."""
 
     vertices: np.ndarray  # (K, 3) ENU
     s_vertex: np.ndarray  # (K,) arc length at each vertex
@@ -109,8 +111,8 @@ def plan_profile(
 ) -> FlightProfile:
     """Plan the timed flight of the polyline ``waypoints`` (K, 3) ENU, starting and ending at rest.
 
-    Vertical legs (take-off, landing) use the climb rate as their cruise speed.  ``speeds`` optionally
-    gives a cruise speed per leg (K-1,).
+    Vertical legs (take-off, landing) use the climb rate as their cruise speed.  ``speeds``
+    optionally gives a cruise speed per leg (K-1,).
     """
     kin = kin or Kinematics()
     P = np.asarray(waypoints, dtype=float)
@@ -151,7 +153,8 @@ def plan_profile(
 
 
 def initial_course(pos: np.ndarray, min_move_m: float = 0.5) -> float:
-    """Course (radians, clockwise from north) of the first horizontal move of a path; 0 if it never moves."""
+    """Course (radians, clockwise from north) of the first horizontal move of a path; 0 if it never
+    moves."""
     d = np.asarray(pos, dtype=float)[:, :2] - np.asarray(pos, dtype=float)[0, :2]
     far = np.hypot(d[:, 0], d[:, 1]) > min_move_m
     if not far.any():
@@ -163,13 +166,13 @@ def initial_course(pos: np.ndarray, min_move_m: float = 0.5) -> float:
 def attitude_from_motion(
     t: np.ndarray, pos: np.ndarray, kin: Kinematics | None = None, wind_ne: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a path
-    sampled at (uniform) times ``t``, from rest with the nose along the first course.
+    """Roll, pitch, yaw (N, 3, radians, MAVLink convention) and smoothed ENU velocity (N, 3) for a
+    path sampled at (uniform) times ``t``, from rest with the nose along the first course.
 
-    The model is ``mission.trajectory.attitude.run_attitude``, the one the simulated vehicle flies with:
-    causal first-order lags of velocity and acceleration, yaw following the course (or ``kin.heading_deg``),
-    tilt from the commanded acceleration plus drag against the air-relative velocity.  ``wind_ne`` is the
-    wind (north, east) in m/s, (2,) or (N, 2).
+    The model is ``mission.trajectory.attitude.run_attitude``, the one the simulated vehicle flies
+    with: causal first-order lags of velocity and acceleration, yaw following the course (or
+    ``kin.heading_deg``), tilt from the commanded acceleration plus drag against the air-relative
+    velocity.  ``wind_ne`` is the wind (north, east) in m/s, (2,) or (N, 2).
     """
     kin = kin or Kinematics()
     pos = np.asarray(pos, dtype=float)

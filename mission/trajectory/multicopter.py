@@ -1,6 +1,6 @@
-"""The simulated multicopter's limits and response (``Kinematics``) and gravity: the vocabulary that the path
-planner (``kinematics``) and the attitude model (``attitude``) share, kept below both so neither imports the
-other's module for it."""
+"""The simulated multicopter's limits and response (``Kinematics``) and gravity: the vocabulary that
+the path planner (``kinematics``) and the attitude model (``attitude``) share, kept below both so
+neither imports the other's module for it."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ G = 9.80665  # m/s^2
 
 @dataclass(frozen=True)
 class Kinematics:
-    """Limits and response of the simulated multicopter (defaults: a small AERPAW-class quadcopter)."""
+    """Limits and response of the simulated multicopter (defaults: a small AERPAW-class
+    quadcopter)."""
 
     cruise_speed_mps: float = 5.0
     accel_mps2: float = 1.5  # horizontal acceleration/deceleration limit

@@ -1,9 +1,9 @@
-"""Simulated training/test datasets: many transmitter positions, each flown in the simulator, stored as
-compact feature chunks.
+"""Simulated training/test datasets: many transmitter positions, each flown in the simulator, stored
+as compact feature chunks.
 
-Where things live: the configuration and its randomisation in ``mission.workshop.dataset_config``; drawing and
-flying one flight in ``mission.workshop.flight_draws``; workers, chunk files and reading here (the names of all
-three are importable from this module).
+Where things live: the configuration and its randomisation in ``mission.workshop.dataset_config``;
+drawing and flying one flight in ``mission.workshop.flight_draws``; workers, chunk files and reading
+here (the names of all three are importable from this module).
 
 raw truth, ``params`` (n, len(PARAM_NAMES)), ``n_samples`` (n,) int32 and ``index`` (n,) int64.
 Chunks are written as they complete, so memory stays bounded by ``chunk`` flights.
@@ -36,7 +36,8 @@ from mission.workshop.flight_draws import FlightDraw, FlightSimulator, flight_rn
 
 FORMAT = "rfsl-dataset/1"
 
-# -------------------------------------------------------------------------------------- workers, chunks
+# -------------------------------------------------------------------------------------- workers,
+# chunks
 
 _WORKER: FlightSimulator | None = None
 
@@ -77,7 +78,8 @@ def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
 def iter_rows(
     cfg: DatasetConfig, workers: int = 1, indices: Sequence[int] | None = None
 ) -> Iterator[dict[str, np.ndarray]]:
-    """Rows of flights ``indices`` (default all) in index order, computed by ``workers`` processes."""
+    """Rows of flights ``indices`` (default all) in index order, computed by ``workers``
+    processes."""
     idx = list(range(cfg.n)) if indices is None else list(indices)
     if workers <= 1:
         _init_worker(cfg.to_dict())
@@ -184,11 +186,13 @@ def generate_dataset(
     return manifest
 
 
-# --------------------------------------------------------------------------------------------- reading
+# ---------------------------------------------------------------------------------------------
+# reading
 
 
 def _family_record(cfg: DatasetConfig) -> dict:
-    """A suite dataset drawn from a family file keeps the family itself (its sha256 names it; the file may move)."""
+    """A suite dataset drawn from a family file keeps the family itself (its sha256 names it; the
+    file may move)."""
     if not cfg.suite:
         return {}
     from mission.workshop.suite import family_label, family_sha256, resolve_family
@@ -206,7 +210,8 @@ def _family_record(cfg: DatasetConfig) -> dict:
 
 
 def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
-    """The manifest of a dataset folder (or of the manifest file itself); ``need``: keys the caller reads."""
+    """The manifest of a dataset folder (or of the manifest file itself); ``need``: keys the caller
+    reads."""
     p = Path(path)
     mf = p / "manifest.json" if p.is_dir() else p
     if not mf.is_file():
@@ -285,11 +290,13 @@ def load_dataset(
 
 
 def dataset_config(manifest: dict) -> DatasetConfig:
-    """The ``DatasetConfig`` recorded in a manifest (to regenerate flights, e.g. for classical methods)."""
+    """The ``DatasetConfig`` recorded in a manifest (to regenerate flights, e.g. for classical
+    methods)."""
     return DatasetConfig.from_dict(manifest["config"])
 
 
 def dataset_heights(params: np.ndarray) -> np.ndarray:
-    """Each simulated flight's height above its transmitter (B,), from a dataset's ``params`` array."""
+    """Each simulated flight's height above its transmitter (B,), from a dataset's ``params``
+    array."""
     p = np.asarray(params, dtype=float)
     return p[:, PARAM_NAMES.index("altitude_m")] - p[:, PARAM_NAMES.index("tx_height_m")]

@@ -1,44 +1,49 @@
-"""What defines a simulated dataset: ``DatasetConfig`` (recorded in its manifest; same config + seed = same
-bytes), its ``Randomisation`` and the checks that refuse configurations that would do something else than asked.
+"""What defines a simulated dataset: ``DatasetConfig`` (recorded in its manifest; same config + seed
+= same bytes), its ``Randomisation`` and the checks that refuse configurations that would do
+something else than asked.
 
 Domain randomisation (each switchable; ``Randomisation``):
 
 - ``altitude_m``: cruise altitude uniform in a range (AFAR teams flew 20-47 m; the paper 30 m).
-- ``offset_db``: a constant RSS offset (a real receiver's dB are not calibrated dBm; the features are
-  offset-invariant, so this mainly checks that they are).
-- ``trajectories`` with ``random_params``: generator drawn per flight, spacing / margin / start corner /
-  direction / waypoint count drawn at random (real AFAR teams flew their own paths).
-- ``truncate``: keep only a random contiguous fraction of the cruise (adaptive or interrupted flights,
-  e.g. team 288's, cover only part of the field).
-- ``patterns``: antenna pattern per flight ("dipole", "measured"); with ``random_heading`` the measured
-  pattern's mounting heading on the UAV and the rover is random (their true headings are unknown).
+- ``offset_db``: a constant RSS offset (a real receiver's dB are not calibrated dBm; the features
+  are offset-invariant, so this mainly checks that they are).
+- ``trajectories`` with ``random_params``: generator drawn per flight, spacing / margin / start
+  corner / direction / waypoint count drawn at random (real AFAR teams flew their own paths).
+- ``truncate``: keep only a random contiguous fraction of the cruise (adaptive or interrupted
+  flights, e.g. team 288's, cover only part of the field).
+- ``patterns``: antenna pattern per flight ("dipole", "measured"); with ``random_heading`` the
+  measured pattern's mounting heading on the UAV and the rover is random (their true headings are
+  unknown).
 - ``beta``: leg-shadowing exponent; ``eps_r``: ground relative permittivity.
 - ``tx_height_m``: transmitter height (AFAR rover antenna about 1.5 m; paper 5 m).
 - ``noise_db``: per-flight noise standard deviation.
-- ``fixed_heading``: probability that a flight holds one compass heading (uniform 0-360 deg) instead of
-  yawing along the track; the AFAR 2023 vehicles held a near-constant heading for the whole cruise, which
-  with a directional UAV antenna fixes the antenna's world orientation.
-- ``speed_mps``: cruise speed (AFAR team 288 crept at about 1 m/s median, team 328 flew about 4 m/s).
+- ``fixed_heading``: probability that a flight holds one compass heading (uniform 0-360 deg) instead
+  of yawing along the track; the AFAR 2023 vehicles held a near-constant heading for the whole
+  cruise, which with a directional UAV antenna fixes the antenna's world orientation.
+- ``speed_mps``: cruise speed (AFAR team 288 crept at about 1 m/s median, team 328 flew about 4
+  m/s).
 - ``shadowing_db`` / ``shadowing_corr_m``: a spatially correlated shadowing field per flight
   (``mission.simulate.shadowing_field``); real residuals persist over tens of metres.
-- ``physics_heading_jitter_deg``: with a physics preset, the preset's UAV-antenna heading is jittered by
-  U(-j, j) per flight (its fit is uncertain by several degrees and differs between teams).
+- ``physics_heading_jitter_deg``: with a physics preset, the preset's UAV-antenna heading is
+  jittered by U(-j, j) per flight (its fit is uncertain by several degrees and differs between
+  teams).
 
 Physics: ``model`` names one of ``make_model``'s models, or ``physics`` names a calibrated preset of
-``mission.physics.presets`` (``afar``, or a fold such as ``afar:fit328`` fitted on team 328 only), which
-replaces it.  Pattern / beta / eps_r randomisation apply to ``make_model`` models only.
+``mission.physics.presets`` (``afar``, or a fold such as ``afar:fit328`` fitted on team 328 only),
+which replaces it.  Pattern / beta / eps_r randomisation apply to ``make_model`` models only.
 
 
-Storage (``DIR``): ``manifest.json`` (every setting, the seed, the feature configuration, the field origin,
-the chunk list with sha256 digests) and ``chunk_00000.npz`` ... each holding, for its flights (float32
+Storage (``DIR``): ``manifest.json`` (every setting, the seed, the feature configuration, the field
+origin, the chunk list with sha256 digests) and ``chunk_00000.npz`` ... each holding, for its
+flights (float32
 
 ``suite="unseen"`` replaces all of the above by the unseen-flight benchmark's family
-(``mission.workshop.suite``; ``suite_family`` a built-in name or a physics family .json, ``suite_center`` the
-preset at the afar family's centre): every axis is drawn there, and the seed of the benchmark itself (2026) is
-refused.
+(``mission.workshop.suite``; ``suite_family`` a built-in name or a physics family .json,
+``suite_center`` the preset at the afar family's centre): every axis is drawn there, and the seed of
+the benchmark itself (2026) is refused.
 
-``PARAM_NAMES`` is the column order of a dataset's ``params`` array; each flight's parameters are a dict keyed
-by these names (``mission.workshop.flight_draws``), so the order lives here only.
+``PARAM_NAMES`` is the column order of a dataset's ``params`` array; each flight's parameters are a
+dict keyed by these names (``mission.workshop.flight_draws``), so the order lives here only.
 """
 
 from __future__ import annotations
@@ -97,7 +102,8 @@ class Randomisation:
 
 @dataclass(frozen=True)
 class DatasetConfig:
-    """Everything that defines a dataset (recorded in the manifest; same config + seed = same bytes)."""
+    """Everything that defines a dataset (recorded in the manifest; same config + seed = same
+    bytes)."""
 
     mission: str | None  # mission YAML path (None: the default mission)
     n: int
@@ -137,7 +143,8 @@ class DatasetConfig:
 
 
 def physics_label(config: dict) -> str:
-    """The physics of a dataset configuration dict (a manifest's ``config``): ``preset:NAME`` or the model."""
+    """The physics of a dataset configuration dict (a manifest's ``config``): ``preset:NAME`` or the
+    model."""
     if config.get("suite"):
         return f"suite:{config['suite']}:{config.get('suite_family', 'afar')}"
     return f"preset:{config['physics']}" if config.get("physics") else str(config.get("model"))
@@ -158,7 +165,8 @@ def pattern_names(cfg: DatasetConfig) -> list[str]:
 
 
 def check_config(cfg: DatasetConfig) -> None:
-    """Refuse configurations that would silently do something else than asked (InputError naming the field)."""
+    """Refuse configurations that would silently do something else than asked (InputError naming the
+    field)."""
     r = cfg.randomisation
     if cfg.suite:
         from mission.workshop.suite import BENCHMARK_SEED, SUITES, resolve_family

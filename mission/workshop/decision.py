@@ -1,15 +1,18 @@
-"""The rule that changes the real-log default (models/README.md, "Decisions with error bars", written before
-scoring): a candidate replaces the incumbent only when it wins on the pooled evidence beyond its interval.
+"""The rule that changes the real-log default (models/README.md, "Decisions with error bars",
+written before scoring): a candidate replaces the incumbent only when it wins on the pooled evidence
+beyond its interval.
 
-Evidence per method, paired with the incumbent on the same flights: ``real`` (errors on the real flights held
-out by team, with each flight's team) and ``bench`` (errors on the benchmark drawn from the reality-fitted
-family).  Statistic: the relative paired difference of mean errors, (mean candidate - mean incumbent) / mean
-incumbent, on each source; pooled = the average of the two.  Interval: 90 % percentile bootstrap
-(``mission.evidence``), real flights resampled by team, benchmark flights by flight, independently.
+Evidence per method, paired with the incumbent on the same flights: ``real`` (errors on the real
+flights held out by team, with each flight's team) and ``bench`` (errors on the benchmark drawn from
+the reality-fitted family).  Statistic: the relative paired difference of mean errors, (mean
+candidate - mean incumbent) / mean incumbent, on each source; pooled = the average of the two.
+Interval: 90 % percentile bootstrap (``mission.evidence``), real flights resampled by team,
+benchmark flights by flight, independently.
 
-A candidate wins when its pooled interval lies below zero and neither source's own interval lies above zero;
-among winners the lowest pooled value is chosen; else the incumbent stays.  A winner whose 90 % regions cover
-less than ``MIN_COVERAGE_90`` of the benchmark's truths is reported, not adopted.
+A candidate wins when its pooled interval lies below zero and neither source's own interval lies
+above zero; among winners the lowest pooled value is chosen; else the incumbent stays.  A winner
+whose 90 % regions cover less than ``MIN_COVERAGE_90`` of the benchmark's truths is reported, not
+adopted.
 """
 
 from __future__ import annotations
@@ -38,7 +41,8 @@ def pooled_decision(
     n_boot: int = N_BOOT,
     seed: int = 0,
 ) -> dict:
-    """Apply the rule (module docstring); returns ``{"choice", "changed", "why", "methods": {name: {...}}}``.
+    """Apply the rule (module docstring); returns ``{"choice", "changed", "why", "methods": {name:
+    {...}}}``.
 
     Candidates are the methods present in both ``real`` and ``bench`` other than the incumbent."""
     if incumbent not in real or incumbent not in bench:

@@ -1,9 +1,11 @@
-"""A network's training domain, measured once at training time and written into its card: the cruise altitude
-span and the roll / pitch spans of its training flights (``mission.localize.card.TrainingDomain``).
+"""A network's training domain, measured once at training time and written into its card: the cruise
+altitude span and the roll / pitch spans of its training flights
+(``mission.localize.card.TrainingDomain``).
 
-Why here: the spans come from the training datasets' records (their mission files, randomisation) and, for the
-attitude, from the simulator flying the training mission; the runtime reads the numbers from the card and never
-parses a mission or runs the simulator.  ``rfsl train`` and ``models/write_card_json.py`` call ``write_domain``.
+Why here: the spans come from the training datasets' records (their mission files, randomisation)
+and, for the attitude, from the simulator flying the training mission; the runtime reads the numbers
+from the card and never parses a mission or runs the simulator.  ``rfsl train`` and
+``models/write_card_json.py`` call ``write_domain``.
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ from mission.workshop.suite import ALTITUDE_RANGE_M as SUITE_ALTITUDE_RANGE_M
 
 
 def _mission_file(mission: str) -> Path | None:
-    """A training mission named by path (as the dataset recorded it): as given, or relative to the repository."""
+    """A training mission named by path (as the dataset recorded it): as given, or relative to the
+    repository."""
     from mission.spec import DEFAULT_MISSION
 
     for p in (Path(mission), DEFAULT_MISSION.parents[1] / mission):
@@ -30,7 +33,8 @@ def _mission_file(mission: str) -> Path | None:
 
 
 def _mission_altitude(mission: str) -> float | None:
-    """Cruise altitude (m) of a training mission, or None when the file is not here or not a mission."""
+    """Cruise altitude (m) of a training mission, or None when the file is not here or not a
+    mission."""
     from mission.spec import load_mission
 
     p = _mission_file(mission)
@@ -41,7 +45,8 @@ def _mission_altitude(mission: str) -> float | None:
 
 
 def _dataset_altitudes(d: dict) -> tuple[float, float] | None:
-    """Altitude range (m) of one training dataset's flights from its metadata entry, or None if unknown."""
+    """Altitude range (m) of one training dataset's flights from its metadata entry, or None if
+    unknown."""
     rnd = d.get("randomisation") or {}
     if rnd.get("altitude_m"):
         lo, hi = rnd["altitude_m"]
@@ -55,9 +60,9 @@ def _dataset_altitudes(d: dict) -> tuple[float, float] | None:
 
 
 def training_altitudes(training_data: dict | None) -> tuple[float, float] | None:
-    """Cruise altitude range (m) covered by a network's training flights (the union over its datasets), from its
-    ``training_data`` metadata; None when any dataset's altitude is unknown (no claim is better than a wrong
-    one)."""
+    """Cruise altitude range (m) covered by a network's training flights (the union over its
+    datasets), from its ``training_data`` metadata; None when any dataset's altitude is unknown (no
+    claim is better than a wrong one)."""
     datasets = (training_data or {}).get("datasets") or []
     ranges = [_dataset_altitudes(d) for d in datasets]
     if not ranges or any(r is None for r in ranges):
@@ -66,8 +71,9 @@ def training_altitudes(training_data: dict | None) -> tuple[float, float] | None
 
 
 def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, float]] | None:
-    """(roll, pitch) 1-99 % spans (deg) of the simulator flying a training mission's trajectory with its own
-    kinematics and perturbation (seed 0), as ``rfsl dataset`` flies it; None when the mission is not here."""
+    """(roll, pitch) 1-99 % spans (deg) of the simulator flying a training mission's trajectory with
+    its own kinematics and perturbation (seed 0), as ``rfsl dataset`` flies it; None when the
+    mission is not here."""
     from mission.simulate import fly_path
     from mission.spec import load_mission
 
@@ -90,9 +96,10 @@ def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, f
 def training_attitude(
     training_data: dict | None,
 ) -> tuple[tuple[float, float], tuple[float, float]] | None:
-    """(roll, pitch) spans (deg) of a network's training flights (union over its datasets): known for datasets
-    that flew one mission's trajectory with its kinematics; None when any dataset drew trajectories, speeds or
-    headings at random or has no mission here (no claim is better than a wrong one)."""
+    """(roll, pitch) spans (deg) of a network's training flights (union over its datasets): known
+    for datasets that flew one mission's trajectory with its kinematics; None when any dataset drew
+    trajectories, speeds or headings at random or has no mission here (no claim is better than a
+    wrong one)."""
     spans = []
     for d in (training_data or {}).get("datasets") or []:
         rnd = d.get("randomisation") or {}
@@ -119,8 +126,8 @@ def training_domain(training_data: dict | None) -> TrainingDomain:
 
 
 def write_domain(model_path: str | Path, training_data: dict | None) -> TrainingDomain:
-    """Measure the training domain and write it into the card beside ``model_path`` (created when absent; its
-    other keys kept)."""
+    """Measure the training domain and write it into the card beside ``model_path`` (created when
+    absent; its other keys kept)."""
     dom = training_domain(training_data)
     p = card_path(model_path)
     card = json.loads(p.read_text()) if p.is_file() else {"model": Path(model_path).name}

@@ -1,18 +1,20 @@
-"""The paper's comparison table on one call: localizers x test data, mean / median / 90th-percentile error.
+"""The paper's comparison table on one call: localizers x test data, mean / median / 90th-percentile
+error.
 
-Localizers: ONNX networks (each labelled by the propagation model of its training data and its feature
-kind, read from the model's metadata) and the classical estimators of ``mission.localize.classical``
-(``strongest``, ``centroid``, ``grid`` = model-based maximum-likelihood grid search).
+Localizers: ONNX networks (each labelled by the propagation model of its training data and its
+feature kind, read from the model's metadata) and the classical estimators of
+``mission.localize.classical`` (``strongest``, ``centroid``, ``grid`` = model-based
+maximum-likelihood grid search).
 
 Test data:
 
 - simulated test sets written by ``rfsl dataset`` (one per trajectory, or any): networks run on the
-  stored features in one batch; the classical methods need the per-sample flight, which is *regenerated*
-  from the manifest (flight ``i`` is a deterministic function of the dataset seed and ``i``), on the first
-  ``n_classical`` flights only (the grid search is the slow one);
-- real flights: flight logs with the truth in their sidecar, run through ``localize_log`` exactly as the
-  ``localize`` CLI does (cruise selection, frame conversion).  ``import_afar`` converts the AFAR MAT files
-  with the truth table of ``../shared/data/README.md``.
+  stored features in one batch; the classical methods need the per-sample flight, which is
+  *regenerated* from the manifest (flight ``i`` is a deterministic function of the dataset seed and
+  ``i``), on the first ``n_classical`` flights only (the grid search is the slow one);
+- real flights: flight logs with the truth in their sidecar, run through ``localize_log`` exactly as
+  the ``localize`` CLI does (cruise selection, frame conversion).  ``import_afar`` converts the AFAR
+  MAT files with the truth table of ``../shared/data/README.md``.
 
 Errors are horizontal (2D) distances in metres.
 """
@@ -42,9 +44,9 @@ GRID_PHYSICS = MODEL_NAMES  # the grid accepts every propagation model make_mode
 def parse_method(spec: str) -> tuple[str, dict]:
     """A classical method spec -> (method, grid keyword arguments).
 
-    ``strongest``, ``centroid``, ``grid`` (the grid's default physics: e2r on simulated tests, as before),
-    ``grid:free-space`` / ``grid:two-ray`` / ``grid:e2r`` (that propagation model, default antennas) and
-    ``grid:preset:NAME`` (a calibrated physics preset, e.g. ``grid:preset:afar``).
+    ``strongest``, ``centroid``, ``grid`` (the grid's default physics: e2r on simulated tests, as
+    before), ``grid:free-space`` / ``grid:two-ray`` / ``grid:e2r`` (that propagation model, default
+    antennas) and ``grid:preset:NAME`` (a calibrated physics preset, e.g. ``grid:preset:afar``).
     """
     name, _, physics = spec.partition(":")
     if name not in CLASSICAL or (physics and name != "grid"):
@@ -82,11 +84,13 @@ SUITE_METHODS = (
 
 
 def suite_method(spec: str) -> dict:
-    """A benchmark method spec -> ``localize_log`` keyword arguments (everything a real log would get).
+    """A benchmark method spec -> ``localize_log`` keyword arguments (everything a real log would
+    get).
 
-    ``default`` (``localize``'s own choice for a real log), ``strongest``, ``centroid``, ``grid`` (the real-log
-    grid: ``afar`` preset), ``grid:MODEL`` / ``grid:preset:NAME``, ``onnx:PATH`` (a network), or any other
-    method name of the registry (``mission.localize.methods``), run with its defaults.
+    ``default`` (``localize``'s own choice for a real log), ``strongest``, ``centroid``, ``grid``
+    (the real-log grid: ``afar`` preset), ``grid:MODEL`` / ``grid:preset:NAME``, ``onnx:PATH`` (a
+    network), or any other method name of the registry (``mission.localize.methods``), run with its
+    defaults.
     """
     from mission.localize.methods import METHOD_NAMES
 
@@ -118,8 +122,9 @@ def suite_method(spec: str) -> dict:
 
 
 def grid_physics(kw: dict, grid_params: dict) -> tuple[str | None, dict | None, str | None]:
-    """(physics model, its parameters, physics preset) for a parsed method's ``kw``: a preset replaces the
-    model and its parameters; otherwise the method's model, else ``grid_params``' (default e2r)."""
+    """(physics model, its parameters, physics preset) for a parsed method's ``kw``: a preset
+    replaces the model and its parameters; otherwise the method's model, else ``grid_params``'
+    (default e2r)."""
     if "preset" in kw:
         return None, None, kw["preset"]
     return kw.get("model", grid_params.get("model", "e2r")), grid_params.get("params"), None
@@ -209,7 +214,8 @@ def evaluate_sim(
     grid_params: dict | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[Row]:
-    """Networks on all flights of a simulated test set; classical methods on its first ``n_classical``."""
+    """Networks on all flights of a simulated test set; classical methods on its first
+    ``n_classical``."""
     from mission.localize.onnx_model import OnnxLocalizer
     from mission.workshop.dataset import (
         FlightSimulator,
@@ -281,7 +287,8 @@ def evaluate_sim(
 
 
 def afar_truth(path: str | Path) -> tuple[tuple[float, float] | None, str | None]:
-    """Truth (lat, lon) and a caveat for an AFAR MAT/log file named ``..._exp_<team>_loc_<n>...``."""
+    """Truth (lat, lon) and a caveat for an AFAR MAT/log file named
+    ``..._exp_<team>_loc_<n>...``."""
     mm = re.search(r"exp_(\d+)_loc_(\d+)", Path(path).name)
     if not mm:
         return None, None
@@ -293,7 +300,8 @@ def afar_truth(path: str | Path) -> tuple[tuple[float, float] | None, str | None
 
 
 def import_afar(mat_dir: str | Path, out_dir: str | Path) -> list[Path]:
-    """Import every ``*.mat`` AFAR file in ``mat_dir`` into flight logs (truth from the table) in ``out_dir``."""
+    """Import every ``*.mat`` AFAR file in ``mat_dir`` into flight logs (truth from the table) in
+    ``out_dir``."""
     from mission.importers.afar import import_afar_mat
 
     out = []
@@ -359,4 +367,5 @@ def write_report(rows: Sequence[Row], path: str | Path, extra: dict | None = Non
     return rep
 
 
-# ------------------------------------------------------------------------------ unseen-flight benchmark
+# ------------------------------------------------------------------------------ unseen-flight
+# benchmark

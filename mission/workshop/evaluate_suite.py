@@ -1,10 +1,11 @@
-"""The unseen-flight benchmark's evaluation (``rfsl evaluate --suite``): each method on each suite flight, exactly as
-``localize`` would run it on a real log, the error against the truth kept beside the log, the coverage of the
-estimate's uncertainty regions, and a breakdown of the errors by any drawn axis.
+"""The unseen-flight benchmark's evaluation (``rfsl evaluate --suite``): each method on each suite
+flight, exactly as ``localize`` would run it on a real log, the error against the truth kept beside
+the log, the coverage of the estimate's uncertainty regions, and a breakdown of the errors by any
+drawn axis.
 
 Split from ``mission.workshop.evaluate`` (simulated test sets and real flights), whose ``Row`` and
-``suite_method`` (a benchmark method spec -> ``localize_log`` arguments, also used by ``mission.workshop.predictive``)
-it uses.
+``suite_method`` (a benchmark method spec -> ``localize_log`` arguments, also used by
+``mission.workshop.predictive``) it uses.
 """
 
 from __future__ import annotations
@@ -33,10 +34,11 @@ def region_contains(region: dict, xy) -> bool:
     """Whether point ``xy`` (log ENU m) lies in an uncertainty region of ``est.extras["regions"]``.
 
     Accepted shapes: ``{"polygon": [[x, y], ...]}`` (also ``polygon_xy_m``), or an ellipse
-    ``{"center_m": [x, y], "semi_axes_m": [a, b], "angle_deg": t}`` with the first semi-axis ``t`` degrees
-    counter-clockwise from east (``center``/``center_xy_m``, ``axes_m``/``semi_axes`` and ``angle`` also read),
-    or ``{"center_m": [x, y], "cov_m2": [[..], [..]], "chi2": k}`` = the set ``d^T cov^-1 d <= k``, or the
-    ``ellipse`` of ``mission.localize.uncertainty``'s layout (``x_m, y_m, a_m, b_m, angle_deg``).
+    ``{"center_m": [x, y], "semi_axes_m": [a, b], "angle_deg": t}`` with the first semi-axis ``t``
+    degrees counter-clockwise from east (``center``/``center_xy_m``, ``axes_m``/``semi_axes`` and
+    ``angle`` also read), or ``{"center_m": [x, y], "cov_m2": [[..], [..]], "chi2": k}`` = the set
+    ``d^T cov^-1 d <= k``, or the ``ellipse`` of ``mission.localize.uncertainty``'s layout (``x_m,
+    y_m, a_m, b_m, angle_deg``).
     """
     p = np.asarray(xy, dtype=float)[:2]
     if "ellipse" in region and not any(
@@ -73,7 +75,8 @@ def region_contains(region: dict, xy) -> bool:
 
 
 def _regions(est) -> dict[str, dict]:
-    """Level ("50", "90") -> region of an estimate (dict keyed by level or list of dicts with "level")."""
+    """Level ("50", "90") -> region of an estimate (dict keyed by level or list of dicts with
+    "level")."""
     regs = (est.extras or {}).get("regions")
     if not regs:
         return {}
@@ -86,8 +89,9 @@ def _regions(est) -> dict[str, dict]:
 
 
 def _coverage(est, truth) -> dict[str, bool]:
-    """Level -> whether the truth lies in the estimate's region: on the posterior grid when the estimate has
-    one (``mission.localize.uncertainty.region_covers``), else by the region's drawn shape."""
+    """Level -> whether the truth lies in the estimate's region: on the posterior grid when the
+    estimate has one (``mission.localize.uncertainty.region_covers``), else by the region's drawn
+    shape."""
     from mission.localize.uncertainty import region_covers
 
     out = {}
@@ -158,16 +162,19 @@ def evaluate_suite(
     warn: Callable[[str], None] | None = None,
     stats_out: list | None = None,
 ) -> tuple[list[Row], dict[str, float]]:
-    """Methods on the unseen-flight benchmark (``mission.workshop.suite``): (rows, mean seconds per flight).
+    """Methods on the unseen-flight benchmark (``mission.workshop.suite``): (rows, mean seconds per
+    flight).
 
-    Flights come from ``suite_dir`` (a cache written by ``write_suite``; its first ``n``) or are simulated
-    here from ``seed`` (default ``BENCHMARK_SEED``).  Each method sees only the log (``localize_log``); the
-    error is 2D against the truth kept beside it; when an estimate carries ``extras["regions"]`` the rows
-    count how often the truth lies in the 50 % / 90 % region.  Results do not depend on ``workers``.
+    Flights come from ``suite_dir`` (a cache written by ``write_suite``; its first ``n``) or are
+    simulated here from ``seed`` (default ``BENCHMARK_SEED``).  Each method sees only the log
+    (``localize_log``); the error is 2D against the truth kept beside it; when an estimate carries
+    ``extras["regions"]`` the rows count how often the truth lies in the 50 % / 90 % region.
+    Results do not depend on ``workers``.
 
-    A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is still scored, but
-    its one-line warning goes to ``warn`` first (default: ``warnings.warn``).  ``stats_out`` (a list) receives
-    each flight's posterior-predictive statistics (``mission.workshop.predictive.flight_statistics``), in order.
+    A ``suite_dir`` written by other simulator code than this (``CachedSuite.check_current``) is
+    still scored, but its one-line warning goes to ``warn`` first (default: ``warnings.warn``).
+    ``stats_out`` (a list) receives each flight's posterior-predictive statistics
+    (``mission.workshop.predictive.flight_statistics``), in order.
     """
     from mission.workshop.suite import BENCHMARK_SEED, family_label
     from mission.workshop.suite_cache import read_suite
@@ -234,8 +241,8 @@ def evaluate_suite(
 
 
 def check_cache_family(cs, fam) -> None:
-    """Refuse a cache drawn from another family than the family file given beside it (a built-in name is not
-    checked: the CLIs pass ``afar`` by default)."""
+    """Refuse a cache drawn from another family than the family file given beside it (a built-in
+    name is not checked: the CLIs pass ``afar`` by default)."""
     if isinstance(fam, str):
         return
     from mission.workshop.suite import family_sha256
@@ -257,7 +264,8 @@ def suite_draws(
     family: FamilyArg = "afar",
     center: str = "afar",
 ) -> list[dict]:
-    """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no flying)."""
+    """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no
+    flying)."""
     from mission.workshop.suite import BENCHMARK_SEED, draw_flight
     from mission.workshop.suite_cache import read_suite
 
@@ -283,7 +291,8 @@ def _axis_value(draw: dict, axis: str):
 def breakdown(
     rows: Sequence[Row], draws: Sequence[dict], axis: str, bins: int = 3
 ) -> dict[str, dict[str, float]]:
-    """Mean error per method by the value of one draw axis: {group label: {method: mean m, "n": count}}.
+    """Mean error per method by the value of one draw axis: {group label: {method: mean m, "n":
+    count}}.
 
     Text / bool axes group by value; numeric axes by ``bins`` equal-count bins (label ``lo-hi``)."""
     vals = [_axis_value(d, axis) for d in draws]

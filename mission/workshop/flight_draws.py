@@ -1,12 +1,13 @@
 """Flight ``i`` of a dataset configuration: its random draws and the simulated per-sample arrays.
 
 For flight ``i`` of a dataset with seed ``S`` every random draw comes from
-``np.random.default_rng(np.random.SeedSequence(S, spawn_key=(i,)))`` -- exactly the ``i``-th child of
-``SeedSequence(S).spawn(N)`` -- so a flight's bytes depend only on ``(S, i)`` and the configuration, never
-on the number of workers or on the chunk size.  Draw order per flight: transmitter position, randomised
-parameters (altitude, trajectory and its parameters, pattern, beta, ground permittivity, antenna headings,
-tx height, offset, noise level, truncation), then the simulator's own draws (attitude perturbation, noise).
-``FlightSimulator(cfg).draw(i)`` flies it, ``.features(draw)`` turns it into the stored row.
+``np.random.default_rng(np.random.SeedSequence(S, spawn_key=(i,)))`` -- exactly the ``i``-th child
+of ``SeedSequence(S).spawn(N)`` -- so a flight's bytes depend only on ``(S, i)`` and the
+configuration, never on the number of workers or on the chunk size.  Draw order per flight:
+transmitter position, randomised parameters (altitude, trajectory and its parameters, pattern, beta,
+ground permittivity, antenna headings, tx height, offset, noise level, truncation), then the
+simulator's own draws (attitude perturbation, noise). ``FlightSimulator(cfg).draw(i)`` flies it,
+``.features(draw)`` turns it into the stored row.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ from mission.workshop.dataset_config import (
 
 
 def flight_rng(seed: int, i: int) -> np.random.Generator:
-    """The generator of flight ``i``: the ``i``-th child of ``SeedSequence(seed)`` (as ``spawn`` makes)."""
+    """The generator of flight ``i``: the ``i``-th child of ``SeedSequence(seed)`` (as ``spawn``
+    makes)."""
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
 
 
@@ -52,8 +54,8 @@ def _choice(rng: np.random.Generator, options: Sequence[str], default: str) -> s
 
 @dataclass
 class FlightDraw:
-    """One simulated flight of a dataset: its random draws and the samples the features use (with the
-    transmitter as ``samples.tx_enu_m``)."""
+    """One simulated flight of a dataset: its random draws and the samples the features use (with
+    the transmitter as ``samples.tx_enu_m``)."""
 
     index: int
     params: dict
@@ -158,7 +160,8 @@ class FlightSimulator:
         noise = _uniform(rng, r.noise_db, self.sim.noise_db)
         keep = _uniform(rng, r.truncate, 1.0)
         start = float(rng.uniform(0.0, 1.0 - keep)) if keep < 1.0 else 0.0
-        # draws added after the first release: taken only when switched on, so older configs keep their bytes
+        # draws added after the first release: taken only when switched on, so older configs keep
+        # their bytes
         fixed_h = None
         if r.fixed_heading is not None and r.fixed_heading > 0:
             fixed = bool(rng.uniform() < r.fixed_heading)
@@ -224,7 +227,8 @@ class FlightSimulator:
         return FlightDraw(i, params, traj, pattern or "default", fl)
 
     def _draw_suite(self, i: int) -> FlightDraw:
-        """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as ``localize`` cuts a log."""
+        """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as
+        ``localize`` cuts a log."""
         from mission.localize.preprocess import cruise_mask
         from mission.workshop.suite import unseen_flight
 

@@ -1,19 +1,22 @@
 """Localizer networks (PyTorch; imported only by training, inference runs the exported ONNX).
 
-Both networks are the paper's *RealAdaptRNet* family (Fig. "Proposed RealAdaptRNet architecture"): a 1D
-ResNet (Conv1D stem, residual blocks of kernel-3 / kernel-1 convolutions with batch norm, ReLU and average
-pooling) followed by an MLP head of four fully connected layers down to the 2 outputs (x, y).
+Both networks are the paper's *RealAdaptRNet* family (Fig. "Proposed RealAdaptRNet architecture"): a
+1D ResNet (Conv1D stem, residual blocks of kernel-3 / kernel-1 convolutions with batch norm, ReLU
+and average pooling) followed by an MLP head of four fully connected layers down to the 2 outputs
+(x, y).
 
-- ``RealAdaptRNet`` on the 3D-clustering input (``3 C_k`` = 60 values): about 0.2 M parameters and about
-  1.3 M FLOPs, as in the paper.  The input is read as one channel of length ``3 C_k`` (the paper's layout);
-  with ``triplet_stem=True`` the stem is a stride-3 convolution over each cluster's (p, x, y) triplet, which
-  respects the feature's structure (one position per cluster) -- an option, not the default.
-- ``NormalisedRssNet`` on the normalised-RSS baseline input (``S / N_g`` = 10 000 values): the same blocks
-  with an extra pooling stage; about 6.7 M parameters and about 380 M FLOPs at the defaults (paper: 6.7 M /
-  332 M).
+- ``RealAdaptRNet`` on the 3D-clustering input (``3 C_k`` = 60 values): about 0.2 M parameters and
+  about 1.3 M FLOPs, as in the paper.  The input is read as one channel of length ``3 C_k`` (the
+  paper's layout); with ``triplet_stem=True`` the stem is a stride-3 convolution over each cluster's
+  (p, x, y) triplet, which respects the feature's structure (one position per cluster) -- an option,
+  not the default.
+- ``NormalisedRssNet`` on the normalised-RSS baseline input (``S / N_g`` = 10 000 values): the same
+  blocks with an extra pooling stage; about 6.7 M parameters and about 380 M FLOPs at the defaults
+  (paper: 6.7 M / 332 M).
 
 ``count_parameters`` and ``count_flops`` (forward hooks on Conv1d / Linear / BatchNorm1d / pooling;
-1 multiply-accumulate = 2 FLOPs, biases and ReLU not counted) report the complexity of either network.
+1 multiply-accumulate = 2 FLOPs, biases and ReLU not counted) report the complexity of either
+network.
 """
 
 from __future__ import annotations
@@ -61,12 +64,14 @@ def _mlp(n_in: int, hidden: Sequence[int], n_out: int = 2, dropout: float = 0.0)
 
 
 class _ConvHeadNet(nn.Module):
-    """A 1D convolutional ``features`` stack followed by an MLP ``head`` to (x, y); shared by both networks."""
+    """A 1D convolutional ``features`` stack followed by an MLP ``head`` to (x, y); shared by both
+    networks."""
 
     features: nn.Sequential
 
     def _add_head(self, n_in: int, hidden: Sequence[int], dropout: float) -> None:
-        """Size the MLP head from the flattened output of ``features`` on an input of length ``n_in``."""
+        """Size the MLP head from the flattened output of ``features`` on an input of length
+        ``n_in``."""
         with torch.no_grad():
             n_flat = self.features(torch.zeros(1, 1, n_in)).numel()
         self.head = _mlp(n_flat, hidden, 2, dropout)
@@ -78,10 +83,11 @@ class _ConvHeadNet(nn.Module):
 
 
 class RealAdaptRNet(_ConvHeadNet):
-    """1D ResNet + 4-layer MLP on a 1-channel input of length ``n_in`` (default 60 = 3 C_k); outputs (B, 2).
+    """1D ResNet + 4-layer MLP on a 1-channel input of length ``n_in`` (default 60 = 3 C_k); outputs
+    (B, 2).
 
-    Stem conv(k3, s1, ``width``) - BN - ReLU; blocks (width, s1), (2 width, s2), (2 width, s1); average
-    pooling by ``pool``; MLP ``hidden``.  Input (B, n_in) or (B, 1, n_in).
+    Stem conv(k3, s1, ``width``) - BN - ReLU; blocks (width, s1), (2 width, s2), (2 width, s1);
+    average pooling by ``pool``; MLP ``hidden``.  Input (B, n_in) or (B, 1, n_in).
     """
 
     def __init__(
@@ -114,9 +120,9 @@ class RealAdaptRNet(_ConvHeadNet):
 class NormalisedRssNet(_ConvHeadNet):
     """The normalised-RSS baseline: the same ResNet family on a long input (default 10 000 values).
 
-    Stem conv(k3, ``width``); blocks (width, s1), (width, s1), pool 4, (2 width, s2), (2 width, s1), pool 4;
-    MLP ``hidden``.  The width of the first MLP layer (flattened length x channels) makes up most of the
-    parameters, as in the paper's 6.7 M.
+    Stem conv(k3, ``width``); blocks (width, s1), (width, s1), pool 4, (2 width, s2), (2 width, s1),
+    pool 4; MLP ``hidden``.  The width of the first MLP layer (flattened length x channels) makes up
+    most of the parameters, as in the paper's 6.7 M.
     """
 
     def __init__(
@@ -143,7 +149,8 @@ class NormalisedRssNet(_ConvHeadNet):
 
 
 def build_net(kind: str, n_in: int, **kw) -> nn.Module:
-    """The network for a feature kind: ``clustering`` -> RealAdaptRNet, ``normalised_rss`` -> baseline."""
+    """The network for a feature kind: ``clustering`` -> RealAdaptRNet, ``normalised_rss`` ->
+    baseline."""
     if kind == "clustering":
         return RealAdaptRNet(n_in, **kw)
     if kind == "normalised_rss":
@@ -193,19 +200,21 @@ def count_flops(net: nn.Module, n_in: int) -> int:
 
 
 class CoordinateWrapper(nn.Module):
-    """The exported localizer: raw clustering features in, metres out, the parametrisation inside the graph.
+    """The exported localizer: raw clustering features in, metres out, the parametrisation inside
+    the graph.
 
-    Input: raw features ``(B, F)`` (clustering: ``[p_1, x_1, y_1, ..., p_Ck, x_Ck, y_Ck]``, sorted by RSS
-    descending, so cluster 1 is the strongest).  With ``relative=True`` (clustering only) the reference
-    ``ref = (x_1, y_1)`` is subtracted from every cluster's (x, y); the result is standardised with the
-    buffers ``in_mean`` / ``in_std`` (statistics of the *relative* training features), ``net`` runs, its output
-    is de-standardised with ``out_mean`` / ``out_std`` (statistics of ``truth - ref``) and ``ref`` is added
-    back.  The graph is therefore exactly equivariant to a translation of the field: shifting every input
-    (x, y) by (dx, dy) shifts the output by (dx, dy) (up to float32 rounding).  With ``relative=False``
-    ``ref`` is zero (absolute coordinates, the original parametrisation).
+    Input: raw features ``(B, F)`` (clustering: ``[p_1, x_1, y_1, ..., p_Ck, x_Ck, y_Ck]``, sorted
+    by RSS descending, so cluster 1 is the strongest).  With ``relative=True`` (clustering only) the
+    reference ``ref = (x_1, y_1)`` is subtracted from every cluster's (x, y); the result is
+    standardised with the buffers ``in_mean`` / ``in_std`` (statistics of the *relative* training
+    features), ``net`` runs, its output is de-standardised with ``out_mean`` / ``out_std``
+    (statistics of ``truth - ref``) and ``ref`` is added back.  The graph is therefore exactly
+    equivariant to a translation of the field: shifting every input (x, y) by (dx, dy) shifts the
+    output by (dx, dy) (up to float32 rounding).  With ``relative=False`` ``ref`` is zero (absolute
+    coordinates, the original parametrisation).
 
-    Exported whole, so the ONNX metadata's ``input_normalisation`` is the identity (zeros / ones) and
-    ``OnnxLocalizer`` feeds the raw features.
+    Exported whole, so the ONNX metadata's ``input_normalisation`` is the identity (zeros / ones)
+    and ``OnnxLocalizer`` feeds the raw features.
     """
 
     def __init__(
@@ -230,7 +239,8 @@ class CoordinateWrapper(nn.Module):
         self.register_buffer("out_std", torch.as_tensor(out_std, dtype=torch.float32).reshape(2))
 
     def split(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Raw (B, F) -> (features in the network's frame (B, F), reference (B, 2); zeros when absolute)."""
+        """Raw (B, F) -> (features in the network's frame (B, F), reference (B, 2); zeros when
+        absolute)."""
         if x.dim() == 3:
             x = x.reshape(-1, self.n_in)
         if not self.relative:

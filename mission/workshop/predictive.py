@@ -1,20 +1,23 @@
-"""Posterior-predictive checks of a benchmark against real flights: does the family look like reality?
+"""Posterior-predictive checks of a benchmark against real flights: does the family look like
+reality?
 
-Why: a benchmark that errs twice as much as reality, or whose RSS spreads half as much, cannot arbitrate between
-methods.  Before a physics family is used to decide anything, the same statistics are computed on
-the real flights and on the benchmark flights drawn from it, the same way on both:
+Why: a benchmark that errs twice as much as reality, or whose RSS spreads half as much, cannot
+arbitrate between methods.  Before a physics family is used to decide anything, the same statistics
+are computed on the real flights and on the benchmark flights drawn from it, the same way on both:
 
 - ``rss_spread_db``: the 5-95 % range of the RSS over the samples a localizer uses (cruise);
-- the residual after a log-distance fit at the truth (RSS = a - 10 n log10 d, a and n least squares per
-  flight: offset and slope free, so only the structure is compared): its exponential semivariogram
-  (``mission.physics.shadowing.fit_variogram``): ``resid_sill_db`` = sqrt(sigma^2 + nugget^2), the total
-  residual spread, ``resid_range_m`` = the correlation length L (1/e at L), ``resid_nugget_db``;
+- the residual after a log-distance fit at the truth (RSS = a - 10 n log10 d, a and n least squares
+  per flight: offset and slope free, so only the structure is compared): its exponential
+  semivariogram (``mission.physics.shadowing.fit_variogram``): ``resid_sill_db`` = sqrt(sigma^2 +
+  nugget^2), the total residual spread, ``resid_range_m`` = the correlation length L (1/e at L),
+  ``resid_nugget_db``;
 - each method's error (m) on each flight.
 
-A check (``predictive_check``): the benchmark's 10-90 % band of the per-flight statistic, how many real flights
-fall inside it (about 80 % should), and the predictive p-value of the real *mean*: the share of means of as many
-benchmark flights (drawn with replacement, seeded) that lie below it.  The check **passes** when 0.05 <= p <=
-0.95, i.e. the real mean is not in either 5 % tail of what the family predicts for that many flights.
+A check (``predictive_check``): the benchmark's 10-90 % band of the per-flight statistic, how many
+real flights fall inside it (about 80 % should), and the predictive p-value of the real *mean*: the
+share of means of as many benchmark flights (drawn with replacement, seeded) that lie below it.  The
+check **passes** when 0.05 <= p <= 0.95, i.e. the real mean is not in either 5 % tail of what the
+family predicts for that many flights.
 """
 
 from __future__ import annotations
@@ -33,7 +36,8 @@ P_PASS = (0.05, 0.95)
 def log_distance_residual(
     pos_enu: np.ndarray, rss_dbm: np.ndarray, tx_enu: np.ndarray
 ) -> np.ndarray:
-    """RSS minus its least-squares fit a - 10 n log10(d) at the true transmitter (d 3D, floored at 1 m)."""
+    """RSS minus its least-squares fit a - 10 n log10(d) at the true transmitter (d 3D, floored at 1
+    m)."""
     d = np.maximum(
         slant_distance(*link_delta(np.asarray(tx_enu, float)[None, :], np.asarray(pos_enu, float))),
         1.0,
@@ -69,7 +73,8 @@ def sample_statistics(
 
 
 def flight_statistics(log, truth_xy, tx_height_m: float, seed: int = 0) -> dict[str, float]:
-    """The check statistics of a ``FlightLog`` (the samples ``localize`` uses) with its truth (log ENU m)."""
+    """The check statistics of a ``FlightLog`` (the samples ``localize`` uses) with its truth (log
+    ENU m)."""
     from mission.localize.preprocess import select_samples
 
     part, _ = select_samples(log)
@@ -80,7 +85,8 @@ def flight_statistics(log, truth_xy, tx_height_m: float, seed: int = 0) -> dict[
 def predictive_check(
     real: Sequence[float], sim: Sequence[float], n_boot: int = 4000, seed: int = 0
 ) -> dict:
-    """Real per-flight values against the benchmark's: band, real inside it, predictive p of the real mean."""
+    """Real per-flight values against the benchmark's: band, real inside it, predictive p of the
+    real mean."""
     x = np.asarray(real, float)
     s = np.asarray(sim, float)
     x, s = x[np.isfinite(x)], s[np.isfinite(s)]
@@ -111,7 +117,8 @@ def family_checks(
     sim_errors: Mapping[str, Sequence[float]] | None = None,
     seed: int = 0,
 ) -> dict[str, dict]:
-    """Every check: the RSS and residual statistics, then ``error m: METHOD`` per method present on both."""
+    """Every check: the RSS and residual statistics, then ``error m: METHOD`` per method present on
+    both."""
     out = {
         k: predictive_check([r[k] for r in real_stats], [r[k] for r in sim_stats], seed=seed)
         for k in STATISTICS
@@ -154,8 +161,9 @@ def checks_table(checks: Mapping[str, dict], title: str):
 def score_real(
     logs: Sequence, methods: Sequence[str], seed: int = 0
 ) -> tuple[list[dict], dict[str, list[float]]]:
-    """(check statistics per real log, {method: error m per log}) of real logs with truth in their sidecars;
-    methods as ``rfsl evaluate --suite`` names them (``mission.workshop.evaluate.suite_method``)."""
+    """(check statistics per real log, {method: error m per log}) of real logs with truth in their
+    sidecars; methods as ``rfsl evaluate --suite`` names them
+    (``mission.workshop.evaluate.suite_method``)."""
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
     from mission.localize.api import localize_log

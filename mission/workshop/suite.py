@@ -13,57 +13,63 @@ How to call it (the lead's entry points)::
     rfsl evaluate --suite unseen --n 200 --seed 2026 --methods strongest,centroid,grid,onnx:models/X.onnx
     rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2      # from the cache
     rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default --by tx_outside_flight_area,heading_habit
-    # in Python: rows, secs = mission.workshop.evaluate_suite.evaluate_suite(["default", "grid"], 200, suite_dir=...)
+    # in Python: rows, secs = mission.workshop.evaluate_suite.evaluate_suite(["default", "grid"],
+    200, suite_dir=...)
     #            breakdown(rows, suite_draws(200, suite_dir=...), "physics.rx_antenna")
 
-Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict keyed by
-level "50"/"90" or 0.5/0.9, or a list of dicts with "level"); each region a polygon (``polygon`` [[x, y], ...],
-log ENU m) or an ellipse (``center_m`` + ``semi_axes_m`` + ``angle_deg`` ccw from east, or ``center_m`` +
-``cov_m2`` + ``chi2``): ``mission.workshop.evaluate_suite.region_contains``.
+Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict
+keyed by level "50"/"90" or 0.5/0.9, or a list of dicts with "level"); each region a polygon
+(``polygon`` [[x, y], ...], log ENU m) or an ellipse (``center_m`` + ``semi_axes_m`` + ``angle_deg``
+ccw from east, or ``center_m`` + ``cov_m2`` + ``chi2``):
+``mission.workshop.evaluate_suite.region_contains``.
 
 Every flight is a deterministic function of ``(seed, i, family)``: all draws come from
-``np.random.default_rng(np.random.SeedSequence([seed, SUITE_TAG], spawn_key=(i,)))`` (never the worker
-count).  The benchmark seed is **2026** (``BENCHMARK_SEED``); training data drawn from the same family
-(``rfsl dataset --suite unseen`` without ``--logs``) must use other seeds (``rfsl dataset`` refuses 2026).
+``np.random.default_rng(np.random.SeedSequence([seed, SUITE_TAG], spawn_key=(i,)))`` (never the
+worker count).  The benchmark seed is **2026** (``BENCHMARK_SEED``); training data drawn from the
+same family (``rfsl dataset --suite unseen`` without ``--logs``) must use other seeds (``rfsl
+dataset`` refuses 2026).
 
-What a flight looks like to a method: a ``FlightLog`` in the form of an imported real log (AFAR field origin,
-``alt_m = rel_alt_m``, take-off, transit, cruise, return and landing in the rows; sidecar ``rss_source.kind``
-= ``"suite"``, *not* ``"sim"``, so ``localize``'s real-log default path runs; ``rover_area`` as [lat, lon]
-vertices; **no truth** in the sidecar and nothing in it that names the physics).  ``truth_xy`` (ENU m, log
-frame) and ``draw`` (every parameter, JSON-able) travel beside it for scoring and analysis only.
+What a flight looks like to a method: a ``FlightLog`` in the form of an imported real log (AFAR
+field origin, ``alt_m = rel_alt_m``, take-off, transit, cruise, return and landing in the rows;
+sidecar ``rss_source.kind`` = ``"suite"``, *not* ``"sim"``, so ``localize``'s real-log default path
+runs; ``rover_area`` as [lat, lon] vertices; **no truth** in the sidecar and nothing in it that
+names the physics).  ``truth_xy`` (ENU m, log frame) and ``draw`` (every parameter, JSON-able)
+travel beside it for scoring and analysis only.
 
 Axes and ranges (``draw_flight``; one value per flight, draw order fixed):
 
-- transmitter uniform in the part of the rover area outside the flight area (up to 110 m north of it) in a third
-  of the flights (as in AFAR 2023: ``draw["tx_outside_flight_area"]``), else uniform in the overlap; height
-  U(1, 2) m;
+- transmitter uniform in the part of the rover area outside the flight area (up to 110 m north of
+  it) in a third of the flights (as in AFAR 2023: ``draw["tx_outside_flight_area"]``), else uniform
+  in the overlap; height U(1, 2) m;
 - cruise altitude U(15, 60) m, speed U(2, 10) m/s, sample period U(0.025, 0.045) s;
-- trajectory: every generator of ``mission.trajectory.generators`` with random parameters over the overlap
-  (75 %) or the whole flight area (25 %); a random contiguous 35-100 % of the path, and at most a time budget
-  of U(5, 12) min of path (slow flights cover less);
-- heading habit (equal odds): nose along the track; one fixed heading U(0, 360); slow rotation +-U(2, 10)
-  deg/s; hover-and-turn (stop U(4, 12) s at every waypoint and turn 360 deg);
+- trajectory: every generator of ``mission.trajectory.generators`` with random parameters over the
+  overlap (75 %) or the whole flight area (25 %); a random contiguous 35-100 % of the path, and at
+  most a time budget of U(5, 12) min of path (slow flights cover less);
+- heading habit (equal odds): nose along the track; one fixed heading U(0, 360); slow rotation
+  +-U(2, 10) deg/s; hover-and-turn (stop U(4, 12) s at every waypoint and turn 360 deg);
 - attitude perturbation U(0.5, 4) deg (correlated over 0.3 s);
-- physics (``mission.physics.presets.build_model`` spec), family ``"afar"`` centred on the calibration
-  (``center`` preset, default ``afar``): with probability 0.4 the preset itself with its UAV-antenna heading
-  jittered by U(-30, 30) deg; otherwise UAV antenna measured RM-WB1-DN flipped (0.4) / upright (0.3) / dipole
-  (0.3) at a uniform mounting heading; gains from yaw only or full attitude (even odds); rover antenna
-  isotropic (0.5), dipole (0.25) or measured upright at a random heading (0.25); path-gain slope U(-0.2, 0.8)
-  (preset draws keep the preset's own slope); ground reflection on with probability 0.5 (eps_r log-U(3, 30),
-  sigma U(0, 0.01) S/m).  Family ``"generic"`` never uses a preset (no real flight behind it): the same axes
-  with the antenna choice alone (flipped / upright / dipole, equal odds).  Family ``"afar-heavy"`` is
-  ``"afar"`` with the shadowing measured on real flights (below);
-- spatially correlated shadowing sigma U(4, 10) dB, correlation U(10, 60) m (``shadowing_field``; family
-  ``"afar-heavy"``: U(8, 16) dB over U(30, 120) m, ``SHADOWING``); white
-  receiver noise U(1, 4) dB; RSS-telemetry time offset U(-0.5, 0.5) s (telemetry read that much late/early);
-  unknown RSS offset U(-40, 40) dB.
+- physics (``mission.physics.presets.build_model`` spec), family ``"afar"`` centred on the
+  calibration (``center`` preset, default ``afar``): with probability 0.4 the preset itself with its
+  UAV-antenna heading jittered by U(-30, 30) deg; otherwise UAV antenna measured RM-WB1-DN flipped
+  (0.4) / upright (0.3) / dipole (0.3) at a uniform mounting heading; gains from yaw only or full
+  attitude (even odds); rover antenna isotropic (0.5), dipole (0.25) or measured upright at a random
+  heading (0.25); path-gain slope U(-0.2, 0.8) (preset draws keep the preset's own slope); ground
+  reflection on with probability 0.5 (eps_r log-U(3, 30), sigma U(0, 0.01) S/m).  Family
+  ``"generic"`` never uses a preset (no real flight behind it): the same axes with the antenna
+  choice alone (flipped / upright / dipole, equal odds).  Family ``"afar-heavy"`` is ``"afar"`` with
+  the shadowing measured on real flights (below);
+- spatially correlated shadowing sigma U(4, 10) dB, correlation U(10, 60) m (``shadowing_field``;
+  family ``"afar-heavy"``: U(8, 16) dB over U(30, 120) m, ``SHADOWING``); white receiver noise U(1,
+  4) dB; RSS-telemetry time offset U(-0.5, 0.5) s (telemetry read that much late/early); unknown RSS
+  offset U(-40, 40) dB.
 
-A physics family file instead of a built-in name (``family="F.json"``: schema 1, ``mission.physics.family``; the
-shipped ``mission/data/afar_family.json``, or ``rfsl gap --family`` output): the physics (model spec), the residual
-(correlated shadowing sigma and correlation length, white nugget) and the RSS offset are one ``family.draw(rng)``
-in place of the three built-in draws; every other axis (position, altitude, speed, path, habit, coverage, time
-offset) is drawn as above.  ``draw["family"]`` is then ``json:NAME@SHA8`` and ``draw["family_sha256"]`` the sha256
-of the family's canonical JSON (``family_sha256``), so a cache or a model names the family it drew from.
+A physics family file instead of a built-in name (``family="F.json"``: schema 1,
+``mission.physics.family``; the shipped ``mission/data/afar_family.json``, or ``rfsl gap --family``
+output): the physics (model spec), the residual (correlated shadowing sigma and correlation length,
+white nugget) and the RSS offset are one ``family.draw(rng)`` in place of the three built-in draws;
+every other axis (position, altitude, speed, path, habit, coverage, time offset) is drawn as above.
+``draw["family"]`` is then ``json:NAME@SHA8`` and ``draw["family_sha256"]`` the sha256 of the
+family's canonical JSON (``family_sha256``), so a cache or a model names the family it drew from.
 """
 
 from __future__ import annotations
@@ -85,9 +91,10 @@ from mission.workshop.suite_family import (  # noqa: F401  (re-exported: the sui
 )
 
 SUITES = ("unseen",)
-# Shadowing per family: (sigma range dB, correlation-length range m).  "afar-heavy" takes the residual field
-# measured on the six real AFAR flights (``rfsl gap``: sigma 11-15 dB, correlation ~70 m) as its centre,
-# because on real flights the RSS spread is about twice what the milder ranges produce (models/README.md).
+# Shadowing per family: (sigma range dB, correlation-length range m).  "afar-heavy" takes the
+# residual field measured on the six real AFAR flights (``rfsl gap``: sigma 11-15 dB, correlation
+# ~70 m) as its centre, because on real flights the RSS spread is about twice what the milder ranges
+# produce (models/README.md).
 SHADOWING = {
     "afar": ((4.0, 10.0), (10.0, 60.0)),
     "generic": ((4.0, 10.0), (10.0, 60.0)),
@@ -109,7 +116,8 @@ RSS_SOURCE = {
 
 
 class SuiteFlight(NamedTuple):
-    """One benchmark flight: the log a method sees, the truth (x, y) in the log's ENU frame, and the draw."""
+    """One benchmark flight: the log a method sees, the truth (x, y) in the log's ENU frame, and the
+    draw."""
 
     log: object  # mission.flightlog.FlightLog
     truth_xy: np.ndarray
@@ -171,7 +179,8 @@ def _physics(rng: np.random.Generator, family: str, center: str) -> dict:
 
 
 def _rover_position(fld, outside: bool, rng: np.random.Generator) -> np.ndarray:
-    """A transmitter position uniform in the part of the rover area outside (or inside) the flight area."""
+    """A transmitter position uniform in the part of the rover area outside (or inside) the flight
+    area."""
     while True:
         xy = fld.rover_area.sample_uniform(16, rng)
         ok = fld.flight_area.contains(xy) != outside
@@ -182,7 +191,8 @@ def _rover_position(fld, outside: bool, rng: np.random.Generator) -> np.ndarray:
 def draw_flight(
     seed: int, i: int, family: FamilyArg = "afar", center: str = "afar"
 ) -> tuple[dict, np.random.Generator]:
-    """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the simulation."""
+    """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the
+    simulation."""
     from mission.geo import afar_field
     from mission.trajectory.generators import GENERATORS, trajectory_params
 
@@ -238,7 +248,8 @@ def draw_flight(
 
 
 def cut_polyline(p: np.ndarray, a: float, b: float) -> np.ndarray:
-    """The part of polyline ``p`` (K, 3) between arc-length fractions ``a`` < ``b`` (new end vertices)."""
+    """The part of polyline ``p`` (K, 3) between arc-length fractions ``a`` < ``b`` (new end
+    vertices)."""
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
     sa, sb = a * s[-1], b * s[-1]
     at = [np.array([np.interp(v, s, p[:, k]) for k in range(p.shape[1])]) for v in (sa, sb)]
@@ -261,7 +272,8 @@ def _path(d: dict, fld) -> np.ndarray:
 
 
 def _times(d: dict, profile, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sample times, positions and completed hover turns (hover-and-turn stops at every cruise vertex)."""
+    """Sample times, positions and completed hover turns (hover-and-turn stops at every cruise
+    vertex)."""
     dt = d["dt_s"]
     if d["heading_habit"] != "hover_turn":
         t, pos = profile.sample(dt)
@@ -282,7 +294,8 @@ def _times(d: dict, profile, rng: np.random.Generator) -> tuple[np.ndarray, np.n
 
 
 def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -> np.ndarray:
-    """Roll, pitch, yaw (N, 3) rad of the heading habit (tilt from the accelerations, as the simulator)."""
+    """Roll, pitch, yaw (N, 3) rad of the heading habit (tilt from the accelerations, as the
+    simulator)."""
     from mission.trajectory.attitude import tilt_from_acceleration
     from mission.trajectory.kinematics import G, attitude_from_motion
 
@@ -330,7 +343,8 @@ def simulate_draw(
     rss = np.asarray(model.rss_dbm(tx, pos, att), dtype=float)
     rss += d["rss_offset_db"] + rng.normal(0.0, d["noise_db"], size=rss.shape)
     rss += shadowing_field(pos[:, :2], d["shadowing_db"], d["shadowing_corr_m"], rng)
-    # telemetry read time_offset_s late: the logged pose of sample k is the true pose at t_k + offset
+    # telemetry read time_offset_s late: the logged pose of sample k is the true pose at t_k +
+    # offset
     ts = np.clip(t + d["time_offset_s"], t[0], t[-1])
     lpos = np.stack([np.interp(ts, t, pos[:, k]) for k in range(3)], axis=1)
     latt = np.stack(

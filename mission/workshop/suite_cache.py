@@ -1,18 +1,20 @@
-"""The unseen-flight benchmark's on-disk cache: CSV logs + ``suite.json`` (truths, draws, a fingerprint).
+"""The unseen-flight benchmark's on-disk cache: CSV logs + ``suite.json`` (truths, draws, a
+fingerprint).
 
-Why a cache: scoring many methods on the same 200 flights should not simulate them again each time; why a
-fingerprint: a cache written by older simulator code was once re-used and gave figures 3-8 m off the current
-code's, without a word.
+Why a cache: scoring many methods on the same 200 flights should not simulate them again each time;
+why a fingerprint: a cache written by older simulator code was once re-used and gave figures 3-8 m
+off the current code's, without a word.
 
     write_suite("/tmp/suite_unseen_2026", n=200, seed=2026)          # cached CSV logs + suite.json (truths, draws)
     flights = read_suite("/tmp/suite_unseen_2026")                   # same flights back (lazy: .load(i))
     flights.check_current()                                          # None, or a warning: cache is stale
 
-A stale cache is never read silently: ``suite.json`` keeps a fingerprint of flight 0 as the writing code simulated
-it (``flight_fingerprint``: sha256 of its quantised log columns and truth), and ``CachedSuite.check_current``
-(run by ``evaluate_suite`` and so by ``rfsl evaluate --suite-dir``, ~20 ms) re-simulates flight 0 and returns a
-one-line warning when the fingerprint differs or is missing (a cache from before fingerprints); the figures of
-such a cache are not the current code's (an old one was 3-8 m off), so rewrite it.
+A stale cache is never read silently: ``suite.json`` keeps a fingerprint of flight 0 as the writing
+code simulated it (``flight_fingerprint``: sha256 of its quantised log columns and truth), and
+``CachedSuite.check_current`` (run by ``evaluate_suite`` and so by ``rfsl evaluate --suite-dir``,
+~20 ms) re-simulates flight 0 and returns a one-line warning when the fingerprint differs or is
+missing (a cache from before fingerprints); the figures of such a cache are not the current code's
+(an old one was 3-8 m off), so rewrite it.
 """
 
 from __future__ import annotations
@@ -37,8 +39,9 @@ from mission.workshop.suite import (
 
 FORMAT = "rfsl-suite/1"
 FINGERPRINT_SCHEME = "quantised-columns/1"
-# Quantum per log column of the fingerprint: coarse enough that another machine's last-bit float differences do
-# not flip it, fine enough that any change of what the simulation produces does (1e-7 deg ~ 1 cm).
+# Quantum per log column of the fingerprint: coarse enough that another machine's last-bit float
+# differences do not flip it, fine enough that any change of what the simulation produces does (1e-7
+# deg ~ 1 cm).
 FINGERPRINT_STEPS = {
     "t_s": 1e-3,
     "lat_deg": 1e-7,
@@ -63,7 +66,8 @@ def _quantised(v, step: float) -> bytes:
 
 
 def flight_fingerprint(f: SuiteFlight) -> str:
-    """sha256 of a flight's log columns and truth, quantised (``FINGERPRINT_STEPS``): what the code simulates."""
+    """sha256 of a flight's log columns and truth, quantised (``FINGERPRINT_STEPS``): what the code
+    simulates."""
     h = hashlib.sha256(FINGERPRINT_SCHEME.encode())
     cols = f.log.columns
     for c, step in FINGERPRINT_STEPS.items():
@@ -96,10 +100,11 @@ def write_suite(
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> dict:
-    """Write flights 0..n-1 as CSV logs + sidecars and ``suite.json`` (truths, draws) into ``out_dir``.
+    """Write flights 0..n-1 as CSV logs + sidecars and ``suite.json`` (truths, draws) into
+    ``out_dir``.
 
-    With a family file the manifest keeps the family itself (``family_record``, ``family_sha256``) beside its
-    path, so the cache stays checkable and rewritable when the file moves or changes."""
+    With a family file the manifest keeps the family itself (``family_record``, ``family_sha256``)
+    beside its path, so the cache stays checkable and rewritable when the file moves or changes."""
     if n < 1:
         raise InputError(f"need n >= 1, got {n}", field="n")
     fam = resolve_family(family)
@@ -181,7 +186,8 @@ class CachedSuite:
         )
 
     def family(self) -> FamilyArg:
-        """The family the cache was drawn from: a built-in name, or the ``PhysicsFamily`` its manifest keeps."""
+        """The family the cache was drawn from: a built-in name, or the ``PhysicsFamily`` its
+        manifest keeps."""
         rec = self.manifest.get("family_record")
         if rec is None:
             return self.manifest.get("family", "afar")
@@ -201,7 +207,8 @@ class CachedSuite:
         return f"{cmd} --out {self.path} --overwrite"
 
     def check_current(self) -> str | None:
-        """A one-line warning if this cache is not what this code simulates (flight 0 re-simulated), else None."""
+        """A one-line warning if this cache is not what this code simulates (flight 0 re-simulated),
+        else None."""
         fp = self.manifest.get("fingerprint")
         redo = f"rewrite it with {self.rewrite_command()}"
         if (

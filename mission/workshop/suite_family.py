@@ -1,10 +1,11 @@
-"""Physics family files for the unseen-flight benchmark (``mission.workshop.suite``): resolve, check, name.
+"""Physics family files for the unseen-flight benchmark (``mission.workshop.suite``): resolve,
+check, name.
 
-A benchmark flight's family is a built-in name (``FAMILIES``, re-exported by ``mission.workshop.suite``) or a
-schema-1 family file (``mission.physics.family``; ``rfsl gap --family`` writes one).  Files are parsed once per
-version, refused with one ``InputError`` naming the file when malformed or unphysical (a negative sigma), and
-named by the sha256 of their canonical JSON so caches, datasets and models record exactly which family they
-drew from.
+A benchmark flight's family is a built-in name (``FAMILIES``, re-exported by
+``mission.workshop.suite``) or a schema-1 family file (``mission.physics.family``; ``rfsl gap
+--family`` writes one).  Files are parsed once per version, refused with one ``InputError`` naming
+the file when malformed or unphysical (a negative sigma), and named by the sha256 of their canonical
+JSON so caches, datasets and models record exactly which family they drew from.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ FamilyArg = (
 
 
 def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
-    """A built-in family name as it is, or the ``PhysicsFamily`` of a ``.json`` path (InputError otherwise)."""
+    """A built-in family name as it is, or the ``PhysicsFamily`` of a ``.json`` path (InputError
+    otherwise)."""
     if isinstance(family, PhysicsFamily) or family in FAMILIES:
         return family
     if str(family).lower().endswith(".json"):
@@ -48,8 +50,9 @@ def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
 
 @lru_cache(maxsize=8)
 def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
-    """Parsed once per file version (the key holds mtime and size so an edited file is read again); a value of
-    the wrong type that ``load_family``'s checks let through (e.g. ``"schema": null``) is refused here too."""
+    """Parsed once per file version (the key holds mtime and size so an edited file is read again);
+    a value of the wrong type that ``load_family``'s checks let through (e.g. ``"schema": null``) is
+    refused here too."""
     try:
         fam = load_family(path)
         fam.draw(
@@ -65,7 +68,8 @@ def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
 
 
 def family_sha256(fam: PhysicsFamily) -> str:
-    """sha256 of the family's canonical JSON: what a cache or a model records to name the family it drew from."""
+    """sha256 of the family's canonical JSON: what a cache or a model records to name the family it
+    drew from."""
     return hashlib.sha256(
         json.dumps(fam.to_dict(), sort_keys=True, default=float).encode()
     ).hexdigest()
@@ -77,7 +81,8 @@ def family_label(fam: str | PhysicsFamily) -> str:
 
 
 def antenna_label(spec: dict) -> str:
-    """The UAV antenna of a drawn spec as the built-in families name it (``--by physics.rx_antenna``)."""
+    """The UAV antenna of a drawn spec as the built-in families name it (``--by
+    physics.rx_antenna``)."""
     pat = str(spec.get("rx_pattern", "isotropic"))
     if pat == "measured":
         return "flipped" if spec.get("rx_flipped") else "upright"

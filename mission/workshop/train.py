@@ -1,37 +1,45 @@
-"""Train a localizer network on simulated datasets and export it to ONNX (needs the ``[train]`` extra: torch).
+"""Train a localizer network on simulated datasets and export it to ONNX (needs the ``[train]``
+extra: torch).
 
 Recipe (all seeded: ``torch.manual_seed``, deterministic algorithms, numpy generator for the split):
 
-- Inputs: the dataset's ``clustering`` (3 C_k) or ``normalised_rss`` (L) arrays of one or more datasets
-  that share the feature configuration and the field origin; targets: the true transmitter (x, y).
-- Coordinates (``coords``, clustering only): ``"relative"`` (default) subtracts the strongest cluster's
-  (x_1, y_1) from every cluster's (x, y) and predicts ``truth - (x_1, y_1)`` -- a translation-equivariant
-  parametrisation (with dipoles the RSS peaks on a ring around the transmitter, so the strongest cluster
-  is near, not at, the transmitter, and the offset generalises across positions and trajectories);
-  ``"absolute"`` is the original one.  Both are done inside the exported graph
-  (``nets.CoordinateWrapper``): the ONNX model takes the raw features and returns metres.
-- Standardisation: clustering inputs per *feature type* (one mean/std pooled over all clusters' RSS, one
-  over all x, one over all y, so clusters stay on one scale), computed on the (relative or absolute)
-  training features; normalised-RSS inputs by one scalar pair; outputs per coordinate (of ``truth - ref``).
-  The statistics are buffers of the exported graph; the ONNX metadata's ``input_normalisation`` is the
-  identity (zeros / ones), so ``OnnxLocalizer`` passes the raw features (the contract is unchanged).
-- Altitude normalisation (``altitude_normalised``, clustering only, off by default): every flight's cluster
-  (x, y) and truth are scaled by ``REFERENCE_HEIGHT_M / height above the transmitter`` about the field origin
-  (``mission.localize.altitude_scale``: free space with direction-only gains is scale-invariant); the metadata
-  tells ``OnnxLocalizer`` to scale at inference.  Validation errors stay in metres.
-- Split (``validation_split``): a seeded random ``val_fraction`` of the flights held out for early stopping.
-- Optimiser: AdamW, cosine learning-rate decay over ``epochs``, early stopping after ``patience`` epochs
-  without a better validation mean error; the best weights are kept.
-- Augmentation (clustering only, train split, fresh each batch) against the sim-to-real gap: the relative
-  cluster RSS is scaled by a random factor (real path-loss slopes and antenna gains differ from the
-  model's), jittered per cluster, positions jittered (GPS), and the clusters re-sorted by RSS so the order
-  rule still holds (the reference cluster is the strongest one *after* the augmentation, as at inference).
-  A constant offset needs no augmentation: the features are offset-invariant.
+- Inputs: the dataset's ``clustering`` (3 C_k) or ``normalised_rss`` (L) arrays of one or more
+  datasets that share the feature configuration and the field origin; targets: the true transmitter
+  (x, y).
+- Coordinates (``coords``, clustering only): ``"relative"`` (default) subtracts the strongest
+  cluster's (x_1, y_1) from every cluster's (x, y) and predicts ``truth - (x_1, y_1)`` -- a
+  translation-equivariant parametrisation (with dipoles the RSS peaks on a ring around the
+  transmitter, so the strongest cluster is near, not at, the transmitter, and the offset generalises
+  across positions and trajectories); ``"absolute"`` is the original one.  Both are done inside the
+  exported graph (``nets.CoordinateWrapper``): the ONNX model takes the raw features and returns
+  metres.
+- Standardisation: clustering inputs per *feature type* (one mean/std pooled over all clusters' RSS,
+  one over all x, one over all y, so clusters stay on one scale), computed on the (relative or
+  absolute) training features; normalised-RSS inputs by one scalar pair; outputs per coordinate (of
+  ``truth - ref``). The statistics are buffers of the exported graph; the ONNX metadata's
+  ``input_normalisation`` is the identity (zeros / ones), so ``OnnxLocalizer`` passes the raw
+  features (the contract is unchanged).
+- Altitude normalisation (``altitude_normalised``, clustering only, off by default): every flight's
+  cluster (x, y) and truth are scaled by ``REFERENCE_HEIGHT_M / height above the transmitter`` about
+  the field origin (``mission.localize.altitude_scale``: free space with direction-only gains is
+  scale-invariant); the metadata tells ``OnnxLocalizer`` to scale at inference.  Validation errors
+  stay in metres.
+- Split (``validation_split``): a seeded random ``val_fraction`` of the flights held out for early
+  stopping.
+- Optimiser: AdamW, cosine learning-rate decay over ``epochs``, early stopping after ``patience``
+  epochs without a better validation mean error; the best weights are kept.
+- Augmentation (clustering only, train split, fresh each batch) against the sim-to-real gap: the
+  relative cluster RSS is scaled by a random factor (real path-loss slopes and antenna gains differ
+  from the model's), jittered per cluster, positions jittered (GPS), and the clusters re-sorted by
+  RSS so the order rule still holds (the reference cluster is the strongest one *after* the
+  augmentation, as at inference). A constant offset needs no augmentation: the features are
+  offset-invariant.
 - Export: ``torch.onnx.export`` (opset 17, dynamic batch), metadata_props in the keys that
   ``mission.localize.card.ModelCard`` reads (``feature_kind``, ``feature_config``,
-  ``input_normalisation``, ``field_origin``, ``training_data``), then onnxruntime is run on validation
-  inputs and must match torch to 1e-4; the JSON card beside the model gets the training domain
-  (``mission.workshop.domain.write_domain``: altitude and attitude spans), which the runtime reads.
+  ``input_normalisation``, ``field_origin``, ``training_data``), then onnxruntime is run on
+  validation inputs and must match torch to 1e-4; the JSON card beside the model gets the training
+  domain (``mission.workshop.domain.write_domain``: altitude and attitude spans), which the runtime
+  reads.
 """
 
 from __future__ import annotations
@@ -101,7 +109,8 @@ class TrainResult:
 def load_training_data(
     paths: Sequence[str | Path], kind: str
 ) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of them."""
+    """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of
+    them."""
     from mission.localize.features import FeatureConfig
     from mission.workshop.dataset import load_dataset, physics_label
 
@@ -158,7 +167,8 @@ def normalisation(x: np.ndarray, y: np.ndarray, kind: str) -> dict:
 
 
 def _augment(xb, cfg: TrainConfig, gen):
-    """Clustering-feature augmentation on a raw (B, 3C) batch (torch), then re-sort by RSS descending."""
+    """Clustering-feature augmentation on a raw (B, 3C) batch (torch), then re-sort by RSS
+    descending."""
     import torch
 
     b, f = xb.shape
@@ -174,8 +184,9 @@ def _augment(xb, cfg: TrainConfig, gen):
 
 
 def validation_split(n: int, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Sorted (validation, training) indices: ``val_fraction`` of the first ``max_train`` of a seeded permutation
-    of ``n`` flights; the one place the split is drawn (tests recompute metrics on it)."""
+    """Sorted (validation, training) indices: ``val_fraction`` of the first ``max_train`` of a
+    seeded permutation of ``n`` flights; the one place the split is drawn (tests recompute metrics
+    on it)."""
     perm = np.random.default_rng(cfg.seed).permutation(n)[
         : cfg.max_train
     ]  # max_train None: every flight
@@ -191,7 +202,8 @@ def train(
     cfg: TrainConfig | None = None,
     progress: Callable[[int, int, dict], None] | None = None,
 ) -> TrainResult:
-    """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` + ``.train.json``)."""
+    """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` +
+    ``.train.json``)."""
     import torch
 
     from mission.workshop.nets import CoordinateWrapper, build_net, count_flops, count_parameters
@@ -383,11 +395,12 @@ def export_onnx(
     net, n_in: int, path: str | Path, meta: dict, check_inputs=None, tol: float = 1e-4
 ) -> float:
     """Export ``net`` (eval mode) to ONNX opset 17 with a dynamic batch axis, attach ``meta`` as
-    metadata_props (JSON strings; ``feature_kind`` as plain text), and check onnxruntime against torch.
+    metadata_props (JSON strings; ``feature_kind`` as plain text), and check onnxruntime against
+    torch.
 
-    Returns the largest absolute difference on ``check_inputs`` (the raw inputs the graph takes); raises if
-    > ``tol`` (relative to the output scale: metres for the wrapped localizer, so ``tol`` is scaled by
-    ``max(1, |output|)``).
+    Returns the largest absolute difference on ``check_inputs`` (the raw inputs the graph takes);
+    raises if > ``tol`` (relative to the output scale: metres for the wrapped localizer, so ``tol``
+    is scaled by ``max(1, |output|)``).
     """
     import onnx
     import onnxruntime as ort
