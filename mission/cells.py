@@ -76,6 +76,19 @@ class Cells:
         return n * self.cell_m * self.cell_m
 
 
+def concat_cells(parts: list[Cells]) -> Cells:
+    """Cells of several sample sets side by side (same cell size), in order; their horizontal
+    columns are counted per set."""
+    return Cells(
+        np.concatenate([c.enu_m for c in parts]),
+        np.concatenate([c.rss_dbm for c in parts]),
+        np.concatenate([c.yaw_rad for c in parts]),
+        np.concatenate([c.count for c in parts]),
+        parts[0].cell_m,
+        sum(len(c) if c.n_columns is None else c.n_columns for c in parts),
+    )
+
+
 def cell_average(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITUDE_GAP_M) -> Cells:
     """Average a flight's samples into ``cell_m`` square horizontal cells, one set per cruise
     altitude (vectorised; yaw averaged on the circle).

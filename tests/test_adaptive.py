@@ -231,6 +231,25 @@ def test_preview_shows_adaptive_against_fixed(spec):
     assert "adaptive - fixed (paired)" in rows
 
 
+@pytest.mark.slow
+def test_pair_scores_each_arm_by_what_localize_answers(spec):
+    """Issue 33 item 4: the fixed arm is answered by the spiral network (what ``localize`` shows
+    after a simulated spiral), the adaptive arm by the live method; the live errors sit beside."""
+    from mission.adaptive.compare import pair, summarize_pairs
+    from mission.localize.methods import ADAPTIVE_ANSWER
+
+    s = dataclasses.replace(
+        spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0)
+    )
+    r = pair(s, s.adaptive, "afar", 0, 0, dt_s=0.5)
+    assert r["adaptive"]["rounds"] >= 1
+    assert r["fixed"]["method"] == "onnx" and r["adaptive"]["method"] == ADAPTIVE_ANSWER
+    assert r["fixed"]["error_m"] != pytest.approx(r["fixed"]["live_error_m"])
+    summary = summarize_pairs([r])
+    assert summary["methods"] == {"fixed": ["onnx"], "adaptive": [ADAPTIVE_ANSWER]}
+    assert summary["live"]["n"] == 1 and "answer_vs_live" in summary
+
+
 def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
     from mission.flight.phases import MonotonicPhases
 

@@ -150,13 +150,13 @@ LAWN_SIM = {"rss_source": {"kind": "sim", "model": "e2r"}, "trajectory": {"gener
         # a model given wins over everything
         ({"rss_source": {"kind": "afar-mat"}}, 30.0, "x/my.onnx", "D", "onnx", "my.onnx"),
         (SPIRAL_SIM, 30.0, "x/my.onnx", None, "onnx", "my.onnx"),
-        # an adaptive flight: the method its rounds planned with
+        # an adaptive flight: its answer (the live method or the survey's default, by the rounds)
         (
             {"trajectory": {"adaptive": {"rounds": 2}}, "rss_source": {"kind": "sim"}},
             30.0,
             None,
             "D",
-            "selfcal",
+            "rounds",
             None,
         ),
         # a real receiver (any source kind but sim, or none recorded): the real-log default

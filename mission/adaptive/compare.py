@@ -3,8 +3,10 @@ preview).
 
 Flight ``i`` of seed ``S`` draws its physics from the family, its transmitter and its shadowing map
 from ``SeedSequence(S, spawn_key=(i,))`` (``flight_rng``); its fixed and adaptive versions share
-them and the same attitude/noise seed, so their difference is the path's alone.  Both are scored
-with the live estimator.
+them and the same attitude/noise seed, so their difference is the path's alone.  Each arm is scored
+by what the product shows its user after landing (``product_answer``: the spiral network on a fixed
+simulated spiral, the live method on an adaptive flight; issue 33 item 4), and also by the live
+estimator on both (``live_error_m``, what the rounds were planned with).
 """
 
 from __future__ import annotations
@@ -14,16 +16,39 @@ import dataclasses
 import numpy as np
 
 
+def product_answer(spec, log, adaptive: bool):
+    """The estimate ``localize`` gives by default after a simulated flight of ``spec`` (fixed or
+    adaptive, ``SimLog``): ``api.localize_log`` on the log such a flight writes; None when it
+    refuses the log."""
+    from mission.errors import InputError
+    from mission.localize.api import localize_log
+
+    try:
+        return localize_log(log.flight_log(spec, adaptive))
+    except InputError:
+        return None
+
+
 def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> dict:
-    """Errors, 90 % region coverage and area, durations and rounds of flight ``i``, fixed and
-    adaptive."""
-    from mission.adaptive.simflight import FlightWorld, adaptive_flight, estimator, fixed_flight
+    """Errors (of the product's answer and of the live estimate), the live estimate's 90 % region
+    coverage and area, durations and rounds of flight ``i``, fixed and adaptive.
+
+    ``family``: a physics family (``load_family``) or ``"mission"``, the mission's own source model
+    without shadowing (what ``fly-mission`` simulates against a SITL)."""
+    from mission.adaptive.simflight import (
+        MISSION_PHYSICS,
+        FlightWorld,
+        adaptive_flight,
+        estimator,
+        fixed_flight,
+    )
     from mission.physics.family import load_family
     from mission.workshop.flight_draws import flight_rng
 
     cfg = dataclasses.replace(spec.sim_config(), dt_s=dt_s)
     loc = estimator(spec)
-    w = FlightWorld(spec, load_family(family), flight_rng(seed, i))
+    fam = None if family == MISSION_PHYSICS else load_family(family)
+    w = FlightWorld(spec, fam, flight_rng(seed, i))
     out = {"i": i, "tx": [float(w.tx[0]), float(w.tx[1])]}
     for name, o in (
         ("fixed", fixed_flight(spec, w, cfg, np.random.default_rng([seed, i, 1]), loc)),
@@ -33,8 +58,11 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
         ),
     ):
         err = lambda e: None if e is None else float(np.hypot(e[0] - w.tx[0], e[1] - w.tx[1]))  # noqa: E731
+        shown = None if o.log is None else product_answer(spec, o.log, name == "adaptive")
         out[name] = {
-            "error_m": err(o.final),
+            "error_m": None if shown is None else err((shown.x_m, shown.y_m)),
+            "method": None if shown is None else shown.method,
+            "live_error_m": err(o.final),
             "area_m2": o.final[2] if o.final else None,
             "covered": o.final[3] if o.final else None,
             "fast_error_m": err(o.fast),
@@ -46,7 +74,8 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
 
 def summarize_pairs(rows: list[dict]) -> dict:
     """Mean (90 % bootstrap interval), paired difference adaptive - fixed, p90, coverage, median
-    region area, mean duration and rounds per mission; the fast (3-minute) estimate's mean error."""
+    region area, mean duration and rounds per mission; the fast (3-minute) estimate's mean error;
+    the same means and difference for the live estimator (``live``) and which methods answered."""
     from mission.evidence import compare_methods, mean_interval
 
     ok = [
@@ -75,4 +104,20 @@ def summarize_pairs(rows: list[dict]) -> dict:
     )
     out["fast"] = (mean_interval(fast), float(np.percentile(fast, 90))) if len(fast) else None
     out["ratio"] = float(e["adaptive"].mean() / e["fixed"].mean())
+    live = [
+        r for r in ok if None not in (r["fixed"]["live_error_m"], r["adaptive"]["live_error_m"])
+    ]
+    if live:
+        lv = compare_methods(
+            {k: np.array([r[k]["live_error_m"] for r in live]) for k in ("fixed", "adaptive")},
+            "fixed",
+        )
+        out["live"] = {"n": len(live), **{k: lv[k] for k in ("fixed", "adaptive")}}
+    if "live" in out:  # the adaptive arm's answer against its live estimate on the same flights
+        ad = np.array([r["adaptive"]["error_m"] for r in live])
+        ad_live = np.array([r["adaptive"]["live_error_m"] for r in live])
+        out["answer_vs_live"] = compare_methods({"live": ad_live, "answer": ad}, "live")["answer"]
+    out["methods"] = {
+        k: sorted({str(r[k].get("method")) for r in ok}) for k in ("fixed", "adaptive")
+    }
     return out

@@ -40,7 +40,7 @@ def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[t
     if not s["n"]:
         return [("adaptive vs fixed", "no flight could be localized")]
     f, ad = s["fixed"], s["adaptive"]
-    where = f"{s['n']} simulated flights, {family} family, selfcal"
+    where = f"{s['n']} simulated flights, {family} family, as localize answers"
     out = [
         (f"expected error, fixed ({where})", f"{f['mean'].fmt()} m, p90 {f['p90_m']:.0f} m"),
         (

@@ -16,21 +16,39 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.flightlog import ADAPTIVE, FLOWN_PHASES, LAND, MISSION, RETURN, TAKEOFF
+from mission.physics.family import FamilyDraw
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
 
+MISSION_PHYSICS = "mission"  # the family name that means the mission's own source model
+
+
+def mission_draw(spec) -> FamilyDraw:
+    """The physics ``fly-mission`` simulates for ``spec`` as a family draw: its source model (built
+    by ``spec.propagation_model``), its white noise, no offset and no shadowing."""
+    return FamilyDraw(
+        spec={},
+        shadowing_db=0.0,
+        shadowing_corr_m=1.0,
+        noise_db=spec.source.noise_db,
+        offset_db=0.0,
+    )
+
 
 class FlightWorld:
-    """One flight's physics: a family draw, its transmitter and a shadowing map fixed over the
-    flight area."""
+    """One flight's physics: a family draw (``family`` None: the mission's own source model,
+    ``mission_draw``), its transmitter and a shadowing map fixed over the flight area."""
 
     def __init__(self, spec, family, rng: np.random.Generator, step_m: float = 3.0) -> None:
         from scipy.interpolate import RegularGridInterpolator
 
         from mission.physics.shadowing import shadowing_field
 
-        self.draw = family.draw(rng)
-        self.model = self.draw.model()
+        if family is None:
+            self.draw, self.model = mission_draw(spec), spec.propagation_model()
+        else:
+            self.draw = family.draw(rng)
+            self.model = self.draw.model()
         self.tx = spec.resolve_tx(rng)
         v = spec.field.flight_area.vertices
         xs = np.arange(v[:, 0].min() - 30, v[:, 0].max() + 30 + step_m, step_m)
@@ -72,6 +90,31 @@ class SimLog:
         self.phase.append(np.asarray(phases, dtype=object)[leg])
         self.t_end += prof.duration_s
 
+    def flight_log(self, spec, adaptive: bool):
+        """The whole flight as the ``FlightLog`` ``fly-mission`` would have written for ``spec``
+        (columns in the field's frame, a simulated source, the trajectory record; ``adaptive``:
+        with the adaptive record that routes ``localize`` to the adaptive answer)."""
+        from mission.flightlog import FlightLog, make_meta
+
+        origin = spec.field.origin
+        pos, att = np.concatenate(self.pos), np.rad2deg(np.concatenate(self.att))
+        lat, lon, alt = origin.to_geodetic(pos)
+        cols = {
+            "t_s": np.concatenate(self.t),
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "alt_m": alt,
+            "rel_alt_m": pos[:, 2],
+            "roll_deg": att[:, 0],
+            "pitch_deg": att[:, 1],
+            "yaw_deg": att[:, 2],
+            "rss_dbm": np.concatenate(self.rss),
+            "phase": np.concatenate(self.phase).astype(str).astype(object),
+        }
+        traj = spec.trajectory_meta() | ({"adaptive": True} if adaptive else {})
+        src = {"kind": "sim", "model": spec.source.model, "model_params": spec.source.model_params}
+        return FlightLog(cols, make_meta(origin, src, trajectory=traj))
+
     def samples(self, t_max: float = np.inf) -> FlightSamples | None:
         """Mission and adaptive samples up to ``t_max`` (what the live estimate uses)."""
         t, ph = np.concatenate(self.t), np.concatenate(self.phase).astype(str)
@@ -107,6 +150,7 @@ class Outcome:
     duration_s: float
     rounds: int = 0
     notes: list = field(default_factory=list)
+    log: SimLog | None = None  # the whole flight (``SimLog.flight_log``: what localize reads)
 
 
 def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
@@ -157,7 +201,10 @@ def fixed_flight(
     log = SimLog()
     log.fly(path, names, world, cfg, rng)
     return Outcome(
-        _estimate(loc, log, np.inf, world.tx), _estimate(loc, log, fast_s, world.tx), log.t_end
+        _estimate(loc, log, np.inf, world.tx),
+        _estimate(loc, log, fast_s, world.tx),
+        log.t_end,
+        log=log,
     )
 
 
@@ -187,4 +234,4 @@ def adaptive_flight(
         visited.append(plan.centre)
     log.fly(np.vstack([end, [home[0], home[1], end[2]], home]), [RETURN, LAND], world, cfg, rng)
     fast = _estimate(loc, log, fast_s, world.tx)
-    return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes)
+    return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes, log)

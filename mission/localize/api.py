@@ -33,6 +33,7 @@ from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.localize import Estimate, Selection
 from mission.localize.methods import (
+    ADAPTIVE_ANSWER,
     ADAPTIVE_METHOD,
     DEFAULT_MODEL_NAME,
     FROM_CARD,
@@ -321,11 +322,11 @@ def choose_method(
         return "onnx", model_path, f"model {Path(model_path).name} given"
     if (meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
         return (
-            ADAPTIVE_METHOD,
+            ADAPTIVE_ANSWER,
             None,
             (
-                "adaptive flight: the live method its rounds were planned with (the networks "
-                "know only fixed paths); mission.adaptive.live"
+                f"adaptive flight: the live method ({ADAPTIVE_METHOD}) or the survey's "
+                "fixed-flight default, whichever the rounds' RSS supports (rounds_answer)"
             ),
         )
     if (meta.get("rss_source") or {}).get("kind") != "sim":

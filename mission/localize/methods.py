@@ -44,9 +44,10 @@ TRAINED_LEGS = (
 )
 
 DEFAULT_MODEL_NAME = "rfsl_default.onnx"  # the network ``onnx`` runs without a model path (models/)
-ADAPTIVE_METHOD = (
-    "selfcal"  # an adaptive flight's live and default method: its rounds plan on this posterior
-)
+# an adaptive flight's live method: its rounds plan on this posterior
+ADAPTIVE_METHOD = "selfcal"
+# an adaptive flight's answer: the live method or the survey's fixed-flight default, by the rounds
+ADAPTIVE_ANSWER = "rounds"
 
 
 @dataclass(frozen=True)
@@ -187,6 +188,17 @@ METHODS: dict[str, Method] = {
             True,
             "grid search with the antenna and RSS offset profiled out on the flight itself",
             _selfcal,
+        ),
+        Method(
+            "rounds",
+            "stacking",
+            POSTERIOR,
+            FROM_REGION_MASSES,
+            True,
+            "an adaptive flight's answer: the live method or the survey's fixed-flight default, "
+            "whichever the rounds' held-out RSS supports (regions: the live method's)",
+            None,
+            compose="mission.localize.rounds_answer:rounds_answer",
         ),
         Method(
             "fusion",

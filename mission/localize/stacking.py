@@ -65,12 +65,15 @@ def blocked_scores(
     tau: float,
     block_m: float = BLOCK_M,
     slope_weight: float = SLOPE_WEIGHT,
+    block: np.ndarray | None = None,
 ) -> BlockedScores:
     """Blocked cross-validated predictive log densities of every candidate (module docstring),
-    vectorised over candidates, blocks and cells; one pass per antenna hypothesis."""
+    vectorised over candidates, blocks and cells; one pass per antenna hypothesis.  ``block``: each
+    cell's block 0..B-1 when the caller defines them (e.g. survey and rounds), else squares of
+    ``block_m``."""
     from mission.localize.selfcal import _geometry, hypothesis_residuals
 
-    block = cell_blocks(cells, block_m)
+    block = cell_blocks(cells, block_m) if block is None else np.asarray(block, dtype=np.intp)
     nb = int(block.max()) + 1
     if nb < 2:
         raise ValueError("the flight covers one block: nothing to hold out")

@@ -1,0 +1,114 @@
+"""The answer of an adaptive flight: the candidates its survey proposes, weighed by its rounds.
+
+Why (issue 33 item 1): the live method (``methods.ADAPTIVE_METHOD``) plans the rounds, but on its
+own it lands on ghosts; the network that answers a fixed spiral sees only the survey part of an
+adaptive flight.  Both propose a position, and the rounds (flown after, low, around the estimate)
+are data neither used to propose it: with the transmitter fixed at each candidate, the per-flight
+nuisance (offset, path-gain slope, antenna) is fitted on the survey's cells and the rounds' cells
+are scored (``stacking.blocked_scores`` with the survey and the rounds as its two blocks).  The
+answer is the candidate the rounds support best; the regions are the live method's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.flightlog import ADAPTIVE
+from mission.localize import Estimate
+from mission.localize.candidates import Candidate
+
+SURVEY, ROUNDS = 0, 1  # the two blocks
+
+
+def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
+    """(the survey's rows, the rounds mask) of an adaptive flight's selected samples; None when it
+    flew no round or the log has no phase column."""
+    phase = part.columns.get("phase")
+    if phase is None:
+        return None
+    rounds = np.asarray(phase).astype(str) == ADAPTIVE
+    if rounds.sum() < 2 or (~rounds).sum() < 2:
+        return None
+    return part.select(~rounds), rounds
+
+
+def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
+    """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
+    (``api.choose_method`` on the sidecar without its adaptive record)."""
+    from mission.localize.api import choose_method, default_model_path, run_member
+    from mission.localize.methods import composer, method_entry
+
+    meta = dict(part.meta)
+    meta["trajectory"] = {
+        k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
+    }
+    method, model, _ = choose_method(meta, part.enu()[:, 2], None, default_model_path())
+    entry = method_entry(method)
+    kw = {"model_path": model, "tx_height_m": tx_height_m}
+    if entry.compose is not None:
+        return composer(entry)(part, origin, area, **kw)
+    return run_member(method, part, origin, area=area if entry.bounded else None, **kw)[1]
+
+
+def rounds_scores(part, rounds: np.ndarray, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
+    """(K,) the rounds' held-out log predictive density of each candidate (tempered nats), the
+    nuisance fitted on the survey's cells only."""
+    from mission.cells import cell_average, concat_cells
+    from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
+    from mission.localize.stacking import blocked_scores
+
+    sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
+    parts = [
+        cell_average(part.select(m).samples(), sc.cell_m, sc.altitude_gap_m)
+        for m in (~rounds, rounds)
+    ]
+    cells = concat_cells(parts)
+    block = np.repeat([SURVEY, ROUNDS], [len(c) for c in parts])
+    n_eff = max(cells.area_m2 / (np.pi * sc.corr_m**2), 2.0)
+    scores = blocked_scores(
+        cells,
+        xy,
+        antenna_hypotheses(sc.hypotheses, sc.heading_step_deg),
+        tx_height_m,
+        tau=min(n_eff / len(cells), 1.0),
+        block=block,
+    )
+    return scores.block_lpd[:, ROUNDS]
+
+
+def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
+    """The live method on the whole flight and the fixed flight's default on the survey, the
+    candidate the rounds support best answering (module docstring); the live method's answer alone
+    when no round was flown."""
+    from mission.localize.api import run_member
+    from mission.localize.methods import ADAPTIVE_METHOD
+
+    live = run_member(ADAPTIVE_METHOD, part, origin, area=area, tx_height_m=tx_height_m)[1]
+    split = survey_and_rounds(part)
+    if split is None:
+        live.add_note("no adaptive round among the selected samples: the live method answers")
+        return live
+    survey, rounds = split
+    fixed = fixed_default(survey, origin, area, tx_height_m)
+    cands = [
+        Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
+        Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
+    ]
+    lpd = rounds_scores(part, rounds, np.array([c.xy for c in cands]), tx_height_m)
+    w = np.exp(lpd - lpd.max())
+    cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
+    best = cands[int(np.argmax(lpd))]
+    lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
+    est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
+    est.regions = live.regions  # the live method's: the stage picks a point, it fits no posterior
+    est.posterior = live.posterior
+    est.extras["candidates"] = [c.to_dict() for c in cands]
+    est.candidates = sorted(cands, key=lambda c: -c.weight)
+    est.set_components({ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed})
+    if best is not cands[0]:
+        est.add_note(
+            f"the rounds support {best.source} over the live method by "
+            f"{best.evidence - cands[0].evidence:.1f} nats; the regions are the live method's"
+        )
+    return est

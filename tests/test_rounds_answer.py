@@ -1,0 +1,81 @@
+"""The adaptive flight's answer (``mission.localize.rounds_answer``): candidates from the survey,
+weighed by the rounds' held-out RSS (issue 33 item 1)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mission.adaptive.planner import survey_profile
+from mission.adaptive.simflight import FlightWorld, SimLog
+from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
+from mission.localize.rounds_answer import rounds_answer, rounds_scores, survey_and_rounds
+from mission.spec import load_mission
+
+ADAPTIVE_MISSION = "missions/spiral_adaptive.yaml"
+
+
+def _square(centre: np.ndarray, half: float, z: float) -> np.ndarray:
+    """A closed square (5, 3) of half side ``half`` around ``centre`` at height ``z``."""
+    x, y = centre[:2]
+    xs = np.array([x - half, x + half, x + half, x - half, x - half])
+    ys = np.array([y - half, y - half, y + half, y + half, y - half])
+    return np.column_stack([xs, ys, np.full(5, z)])
+
+
+def _flight(repo_dir, round_at: str, seed: int = 3) -> tuple[SimLog, object, np.ndarray]:
+    """A 200 s survey of the spiral, then one 20 m square at 15 m around the transmitter
+    (``round_at`` "truth") or 80 m east of it ("elsewhere"), the mission's own physics."""
+    spec = load_mission(repo_dir / ADAPTIVE_MISSION)
+    rng = np.random.default_rng(seed)
+    world = FlightWorld(spec, None, rng)
+    cfg = dataclasses.replace(spec.sim_config(), dt_s=0.2)
+    sv = survey_profile(spec, 200.0).vertices
+    home = np.asarray(spec.home_enu, dtype=float)
+    log = SimLog()
+    climb = [home, np.array([home[0], home[1], sv[0][2]])]
+    log.fly(np.vstack([*climb, sv]), [TAKEOFF] + [MISSION] * len(sv), world, cfg, rng)
+    centre = world.tx[:2] + (np.array([80.0, 0.0]) if round_at == "elsewhere" else 0.0)
+    sq = _square(centre, 20.0, 15.0)
+    log.fly(np.vstack([sv[-1], sq]), [ADAPTIVE] * len(sq), world, cfg, rng)
+    return log, spec, np.asarray(world.tx[:2], dtype=float)
+
+
+@pytest.mark.parametrize("round_at", ["truth", "elsewhere"])
+def test_the_rounds_support_the_true_position_over_a_wrong_one(repo_dir, round_at):
+    """Rounds flown over the transmitter confirm it; rounds flown over a wrong candidate refute
+    that one: either way the held-out rounds score the true position higher."""
+    log, spec, tx = _flight(repo_dir, round_at)
+    flight = log.flight_log(spec, adaptive=True)
+    survey, rounds = survey_and_rounds(flight)
+    assert rounds.any() and (~rounds).any() and len(survey) == int((~rounds).sum())
+    lpd = rounds_scores(flight, rounds, np.array([tx, tx + [80.0, 0.0]]), 1.5)
+    assert lpd[0] > lpd[1] + 1.0
+
+
+def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir):
+    """The answer is the candidate with the most held-out evidence, both candidates are listed with
+    weights summing to one, and the regions are the live method's."""
+    log, spec, tx = _flight(repo_dir, "truth")
+    flight = log.flight_log(spec, adaptive=True)
+    est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
+    assert est.method == "rounds" and len(est.candidates) == 2
+    assert sum(c.weight for c in est.candidates) == pytest.approx(1.0)
+    top = est.candidates[0]
+    assert top.evidence == 0.0 and (est.x_m, est.y_m) == (top.x_m, top.y_m)
+    assert {c.source.split(",")[0] for c in est.candidates} == {"selfcal", "onnx"}
+    assert est.regions == est.components["selfcal"].regions
+    assert np.hypot(*(np.array([est.x_m, est.y_m]) - tx)) < 30.0
+
+
+def test_without_rounds_the_live_method_answers(repo_dir):
+    """A flight that flew no round (or a log without phases) gets the live method's answer and a
+    note saying so."""
+    log, spec, _ = _flight(repo_dir, "truth")
+    flight = log.flight_log(spec, adaptive=True)
+    survey = flight.select(np.asarray(flight["phase"]).astype(str) != ADAPTIVE)
+    assert survey_and_rounds(survey) is None
+    est = rounds_answer(survey, spec.field.origin, spec.field.rover_area)
+    assert est.method == "selfcal" and "no adaptive round" in est.extras["note"]
