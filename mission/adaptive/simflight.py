@@ -176,6 +176,23 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
     )
 
 
+def live_entry(spec, log: SimLog, t_max: float) -> dict | None:
+    """The live series entry ``fly-mission`` would plan the next round on at ``t_max``
+    (``live.summary`` of ``localize``'s answer for the adaptive log so far); None without one."""
+    from mission.errors import InputError
+    from mission.flight.live import summary
+    from mission.localize.api import localize_log
+
+    flight = log.flight_log(spec, adaptive=True)
+    keep = np.asarray(flight["t_s"]) <= t_max
+    if keep.sum() < 2:
+        return None
+    try:
+        return summary(localize_log(flight.select(keep)), t_max)
+    except InputError:
+        return None
+
+
 def _climb(spec, first) -> list:
     home = np.asarray(spec.home_enu, dtype=float)
     return [home, np.array([home[0], home[1], first[2]])]
@@ -211,7 +228,8 @@ def fixed_flight(
 def adaptive_flight(
     spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0
 ) -> Outcome:
-    """The survey, rounds planned from the live estimate (``plan_round``), then home."""
+    """The survey, rounds planned from the live series entry (``live_entry``: what ``fly-mission``
+    plans on) by ``plan_round``, then home."""
     from mission.adaptive.planner import choose_target, plan_round, survey_profile
 
     sv = survey_profile(spec, a.survey_s).vertices
@@ -220,11 +238,13 @@ def adaptive_flight(
     log.fly(np.vstack([*_climb(spec, sv[0]), sv]), [TAKEOFF] + [MISSION] * len(sv), world, cfg, rng)
     end, rounds, notes, visited = sv[-1], 0, [], []
     while True:
-        est = _estimate(loc, log, log.t_end - a.lead_s, world.tx)
-        if est is None or (est[2] is not None and est[2] <= a.target_area_m2):
-            notes.append("region small enough" if est is not None else "no estimate")
+        d = live_entry(spec, log, log.t_end - a.lead_s)
+        if d is None or (d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2):
+            notes.append("region small enough" if d is not None else "no estimate")
             break
-        target = choose_target(est[:2], est[4] if a.explore else None, visited, a.radius_m)
+        target = choose_target(
+            (d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m
+        )
         plan = plan_round(spec, a, target, end, log.t_end)
         notes += plan.notes
         if not plan.ok:

@@ -22,13 +22,13 @@ SURVEY, ROUNDS = 0, 1  # the two blocks
 
 
 def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
-    """(the survey's rows, the rounds mask) of an adaptive flight's selected samples; None when it
-    flew no round or the log has no phase column."""
+    """(the survey's rows, the rounds mask) of an adaptive flight's selected samples (the mask may
+    hold no round yet); None when the log has no phase column or too little survey."""
     phase = part.columns.get("phase")
     if phase is None:
         return None
     rounds = np.asarray(phase).astype(str) == ADAPTIVE
-    if rounds.sum() < 2 or (~rounds).sum() < 2:
+    if (~rounds).sum() < 2:
         return None
     return part.select(~rounds), rounds
 
@@ -87,7 +87,7 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     live = run_member(ADAPTIVE_METHOD, part, origin, area=area, tx_height_m=tx_height_m)[1]
     split = survey_and_rounds(part)
     if split is None:
-        live.add_note("no adaptive round among the selected samples: the live method answers")
+        live.add_note("no survey phase among the selected samples: the live method answers")
         return live
     survey, rounds = split
     fixed = fixed_default(survey, origin, area, tx_height_m)
@@ -95,6 +95,11 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
         Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
         Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
     ]
+    if rounds.sum() < 2:  # nothing held out yet: the live method answers; the rounds fly to both
+        live.add_note("no adaptive round among the selected samples: the live method answers")
+        live.candidates = cands
+        live.extras["candidates"] = [c.to_dict() for c in cands]
+        return live
     lpd = rounds_scores(part, rounds, np.array([c.xy for c in cands]), tx_height_m)
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
