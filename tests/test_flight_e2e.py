@@ -310,6 +310,11 @@ def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
         p.kill()
     _, err = p.communicate(timeout=30)
     vehicle = int(re.search(r"simulated vehicle started \(pid (\d+)\)", err).group(1))
+    # the log it left: the sidecar still says flying, and reading it says so in one line
+    log = read_flight_log(_log_of(tmp_path))
+    assert log.meta["status"] == "flying" and len(log) >= 200
+    (said,) = [n for n in log.notes if "ended without closing" in n]
+    assert len(said) <= 80, said
     end = time.monotonic() + 10
     while time.monotonic() < end:
         try:
