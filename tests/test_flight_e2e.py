@@ -386,7 +386,7 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
 
     import yaml
 
-    from mission.flight.budget import LANDED_TO_DISARM_S, VerticalSpeeds, plan_times
+    from mission.flight.budget import VerticalSpeeds, plan_times
     from mission.spec import load_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
@@ -397,9 +397,10 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
     # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from
-    # it, and PX4's touchdown-to-disarm delay (over --connect the runner takes it for PX4)
+    # it; over --connect the runner knows it for the built-in vehicle (its AUTOPILOT_VERSION): no
+    # PX4 pace or touchdown-to-disarm delay
     base = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
-    plan = base + LANDED_TO_DISARM_S["PX4"]
+    plan = base
     d["time_budget_s"] = round(
         base * 1.03
     )  # the built-in vehicle disarms at touchdown: 3 % above its flight
