@@ -9,7 +9,8 @@ region is the self-calibrating posterior's), a Ctrl-C in the mission (returned, 
 the log closed as aborted) and the adaptive mission (survey, rounds, landed inside the budget).
 Speed-up ``SPEEDUP``: PX4's SIH sleeps open-loop, so a speed-up the CPU cannot hold makes its
 MAVLink transfers time out (measured on the 2-core development machine under load: 10x flew the
-spiral every time; 20x timed the mission upload out).
+spiral every time but PX4 lost 2-4 of its 9 texts, aged past its 5 s in its own queue; 20x timed
+the mission upload out); 5x: about 6 minutes for the three.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PX4 = ROOT.parent / "shared" / "sitl" / "px4"
 SPIRAL = ROOT / "missions" / "spiral.yaml"
 ADAPTIVE = ROOT / "missions" / "spiral_adaptive.yaml"
-SPEEDUP = 10
+SPEEDUP = 5
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.px4,  # run by `pytest --px4`, one at a time, after the rest (tests/conftest.py)
@@ -208,7 +209,9 @@ def test_ctrl_c_on_px4_returns_and_lands(px4, tmp_path):
     phase = log.columns["phase"]
     assert "return" in set(phase) and phase[-1] in ("land", "ground"), set(phase)
     assert log["rel_alt_m"][-1] < 1.0
-    assert not any(e["kind"] == "budget" and "over" in e["text"] for e in m["events"])
+    # no overrun: the plan line's "over budget" (PX4's known pace, trimmed in flight) aside
+    assert not any(e["kind"] == "budget" and "over the time" in e["text"] for e in m["events"])
+    assert not m["budget"]["overrun"]
     print(f"PX4 abort: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {_arm_to_disarm(m):.0f} s")
 
 

@@ -31,9 +31,10 @@ from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
 from mission.trajectory.kinematics import plan_profile
 
-MIN_LEAD_WALL_S = (
-    4.0  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
-)
+# wall seconds an estimate, the planning and the upload may take (sped-up vehicles); 4 s was too
+# little for PX4 SITL at 10x on a loaded 2-core machine: the estimate came back after the survey
+# ended and no round was flown
+MIN_LEAD_WALL_S = 8.0
 
 
 @dataclass
