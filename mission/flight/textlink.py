@@ -6,7 +6,7 @@ each call needs Python's GIL.  When that thread falls behind (a busy CPU, the lo
 and 100 callbacks are queued, MAVSDK drops the oldest subscription updates, whichever subscription
 they belong to ("Dropping subscription callbacks (N so far)").  Position and attitude arrive by the
 hundred per wall second at a high speed-up, so an autopilot text queued among them was dropped too:
-PX4 SITL at 10x on a loaded 2-core machine lost 5 of 10 texts.  Here the flight's instance forwards
+PX4 SITL at 10x on a loaded 2-core machine lost 5 of 9 texts.  Here the flight's instance forwards
 every message it receives to a second instance on a local UDP port (``ForwardingOption.ON`` on
 that connection only, so nothing from the second instance reaches the autopilot); the second one
 subscribes to the texts alone, so its queue never holds more than a few, and none is dropped.
