@@ -10,7 +10,7 @@ wall second.  It runs on a thread of its own, not on the event loop, so that a l
 tenths of a second (an upload, an estimate returning) does not close PX4's gate: at 10x that gate
 is 0.25 wall s.  Measured on the 2-core development machine at load 8-12 with this thread and the
 texts on their own MAVSDK instance: PX4 SITL at 10x still lost 0, 2, 2 and 4 texts in 4 flights
-(PX4 itself, starved, is the likelier cause), at 5x none in 3 flights.
+(PX4 itself, starved, is the likelier cause), at 5x none in 4 flights.
 """
 
 from __future__ import annotations
