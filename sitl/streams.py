@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+from mission.flight.context import BUILTIN_PRODUCT
 from sitl.protocol import (
     FAST_STREAMS,
     PX4_AUTO_MISSION,
@@ -75,7 +76,16 @@ class StreamScheduler:
                 | mav.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
             )
             self.mav.autopilot_version_send(
-                caps, (1 << 24) | (15 << 16), 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 1
+                caps,
+                (1 << 24) | (15 << 16),
+                0,
+                0,
+                0,
+                [0] * 8,
+                [0] * 8,
+                [0] * 8,
+                *BUILTIN_PRODUCT,
+                1,
             )
         elif msgid == mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
             self.mav.extended_sys_state_send(mav.MAV_VTOL_STATE_UNDEFINED, self.landed_state)

@@ -156,6 +156,27 @@ def test_plan_round_checks_and_refuses(spec):
     assert not low.ok and "below the lower limit" in low.reason  # check_mission's altitude rule
 
 
+def test_a_round_planned_at_the_measured_pace_still_fits_the_budget(spec):
+    """At PX4's pace (1.03 x + 3 s a leg) a round is timed as the autopilot flies it: its legs at
+    the closed form, and shrunk (or refused) where the kinematic plan would have overrun."""
+    from mission.adaptive.planner import box_pattern
+    from mission.flight.budget import Pace
+
+    a, pace = spec.adaptive, Pace(1.03, 3.0)
+    start = survey_profile(spec, a.survey_s).vertices[-1]
+    kin = plan_round(spec, a, (150.0, 200.0), start, 320.0)
+    paced = plan_round(spec, a, (150.0, 200.0), start, 320.0, pace)
+    wps = box_pattern(np.asarray(paced.centre), paced.radius_m, a.altitude(spec), start)
+    assert paced.fly_s == pytest.approx(pace.scale * kin.fly_s + pace.per_leg_s * len(wps))
+    # the latest start at which the full square fits on the kinematic plan: at the pace it does not
+    t = spec.time_budget_s - a.reserve_s - kin.fly_s - kin.return_s - 1.0
+    assert plan_round(spec, a, (150.0, 200.0), start, t).radius_m == a.radius_m
+    late = plan_round(spec, a, (150.0, 200.0), start, t, pace)
+    assert not late.ok or late.radius_m < a.radius_m
+    if late.ok:
+        assert t + late.fly_s + late.return_s + a.reserve_s <= spec.time_budget_s
+
+
 def test_candidates_and_target():
     from mission.localize.uncertainty import Posterior
 

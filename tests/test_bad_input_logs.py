@@ -201,10 +201,10 @@ ACCEPTED = {
     ),
     "last line cut without newline": (lambda L: "\n".join(L)[:-2], None, "no line end"),
     "no sidecar": (lambda L: L, "delete", "no sidecar flight.json"),
-    "flight did not complete": (
+    "log left open (killed in flight)": (
         lambda L: L,
         lambda m: {**m, "status": "flying"},
-        "did not complete",
+        "ended without closing (sidecar status 'flying'): read as it is",
     ),
     "flight failed": (
         lambda L: L,
@@ -298,6 +298,19 @@ def test_real_log_quirks_are_accepted_with_a_note(tmp_path, base, capsys, case, 
     main, argv = ENTRY[entry]
     rc, _, err = run_cli(main, argv(p, tmp_path), capsys)
     assert_accepted(rc, err, note)
+
+
+@pytest.mark.parametrize("entry", ["localize", "replay"])
+def test_a_log_left_open_says_it_ended_without_closing_in_one_line(tmp_path, base, capsys, entry):
+    """A sidecar still saying ``flying`` (fly-mission killed outright): one warning line within 80
+    columns, and the rows are still localized or summarised."""
+    p = _make(tmp_path, base, None, lambda m: {**m, "status": "flying"})
+    main, argv = ENTRY[entry]
+    rc, out, err = run_cli(main, argv(p, tmp_path), capsys)
+    assert_accepted(rc, err)
+    said = [ln for ln in err.splitlines() if "ended without closing" in ln]
+    assert len(said) == 1 and said[0].startswith("warning: ") and len(said[0]) <= 80, said
+    assert ("estimate" in out) if entry == "localize" else ("flying" in out), out
 
 
 def test_localize_json_carries_the_notes(tmp_path, base, capsys):

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from mission.errors import InputError
 from mission.flight.budget import (
+    PACE_PRIOR,
     TRIM_LOOKAHEAD,
     BudgetWatch,
     Pace,
@@ -45,10 +46,11 @@ def _truth(plan, pace: Pace, last: int) -> tuple[np.ndarray, float]:
     return t, float(t[last] + pace.legs(np.array([plan.ret_s[last]])) + plan.land_s)
 
 
-def _fly(plan, pace: Pace, policy: str, reserve_s: float = 10.0, dt: float = 2.0):
-    """Fly the synthetic vehicle under the watch, re-planning as the policy acts; the watch, the
-    flown arrival times, the true arm-to-disarm time and the decisions taken."""
-    w = BudgetWatch(plan, policy=policy, reserve_s=reserve_s)
+def _fly(plan, pace: Pace, policy: str, reserve_s: float = 10.0, dt: float = 2.0, prior=None):
+    """Fly the synthetic vehicle under the watch (with the autopilot's known pace ``prior``),
+    re-planning as the policy acts; the watch, the flown arrival times, the true arm-to-disarm time
+    and the decisions taken."""
+    w = BudgetWatch(plan, policy=policy, reserve_s=reserve_s, prior=prior)
     decisions = []
     e = 0.0
     while True:
@@ -117,6 +119,29 @@ def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_mu
     first_cut = decisions[0]
     reached_then = int(np.sum(_truth(plan, pace, n - 1)[0] <= first_cut[2]))
     assert first_cut[1] - reached_then < TRIM_LOOKAHEAD
+
+
+def test_the_known_pace_plans_the_flight_and_trims_before_the_fit(plan):
+    """With PX4's known pace the plan figure is the paced one (the closed form: the kinematic legs
+    and return at 1.03 x + 3 s each) and the prediction holds it from the first waypoint; without
+    a prior the watch predicts the kinematic plan until legs are measured."""
+    pace = PACE_PRIOR["PX4"]
+    n = len(plan.t_wp)
+    end = _truth(plan, pace, n - 1)[1]
+    w = BudgetWatch(plan, policy="trim", reserve_s=10.0, prior=pace)
+    assert w.planned_s() == pytest.approx(end, abs=0.01)
+    assert BudgetWatch(plan).planned_s() == pytest.approx(plan.duration_s)
+    arrive, _ = _truth(plan, pace, n - 1)
+    w.update(arrive[1], 2)  # two waypoints: no fit yet, the prior predicts
+    assert w.predicted_s == pytest.approx(end, abs=1.0)
+    assert BudgetWatch(plan, reached_at=list(arrive[:2])).predict(arrive[1]) < end - 15
+    # flown at that pace, trimmed on the prior then the fit: inside the budget with the reserve
+    w, _, used, decisions = _fly(plan, pace, "trim", prior=pace)
+    assert decisions and used <= plan.budget_s - w.reserve_s + 1.0, (used, w.actions)
+    rec = w.record(used)
+    assert rec["planned_s"] == pytest.approx(end, abs=2) and rec["pace_prior"] == [1.03, 3.0]
+    assert rec["kinematic_plan_s"] == pytest.approx(plan.duration_s, abs=0.01)
+    assert all(a["dropped"][0] == rec["dropped_waypoints"][0] for a in rec["actions"][:1])
 
 
 def test_warn_never_acts_and_return_acts_once(plan):

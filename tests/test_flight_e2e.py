@@ -310,6 +310,11 @@ def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
         p.kill()
     _, err = p.communicate(timeout=30)
     vehicle = int(re.search(r"simulated vehicle started \(pid (\d+)\)", err).group(1))
+    # the log it left: the sidecar still says flying, and reading it says so in one line
+    log = read_flight_log(_log_of(tmp_path))
+    assert log.meta["status"] == "flying" and len(log) >= 200
+    (said,) = [n for n in log.notes if "ended without closing" in n]
+    assert len(said) <= 80, said
     end = time.monotonic() + 10
     while time.monotonic() < end:
         try:
@@ -381,7 +386,7 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
 
     import yaml
 
-    from mission.flight.budget import LANDED_TO_DISARM_S, VerticalSpeeds, plan_times
+    from mission.flight.budget import VerticalSpeeds, plan_times
     from mission.spec import load_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
@@ -392,9 +397,10 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     mfile = tmp_path / "short.yaml"
     mfile.write_text(yaml.safe_dump(d))
     # planned with the PX4-like vehicle's climb and landing speeds, as the runner reads them from
-    # it, and PX4's touchdown-to-disarm delay (over --connect the runner takes it for PX4)
+    # it; over --connect the runner knows it for the built-in vehicle (its AUTOPILOT_VERSION): no
+    # PX4 pace or touchdown-to-disarm delay
     base = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
-    plan = base + LANDED_TO_DISARM_S["PX4"]
+    plan = base
     d["time_budget_s"] = round(
         base * 1.03
     )  # the built-in vehicle disarms at touchdown: 3 % above its flight

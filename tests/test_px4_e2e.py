@@ -9,7 +9,8 @@ region is the self-calibrating posterior's), a Ctrl-C in the mission (returned, 
 the log closed as aborted) and the adaptive mission (survey, rounds, landed inside the budget).
 Speed-up ``SPEEDUP``: PX4's SIH sleeps open-loop, so a speed-up the CPU cannot hold makes its
 MAVLink transfers time out (measured on the 2-core development machine under load: 10x flew the
-spiral every time; 20x timed the mission upload out).
+spiral every time but PX4 lost 2-4 of its 9 texts, aged past its 5 s in its own queue; 20x timed
+the mission upload out); 5x: about 6 minutes for the three.
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ import subprocess
 import sys
 import threading
 import time
-import warnings
 from pathlib import Path
 
 import pytest
@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PX4 = ROOT.parent / "shared" / "sitl" / "px4"
 SPIRAL = ROOT / "missions" / "spiral.yaml"
 ADAPTIVE = ROOT / "missions" / "spiral_adaptive.yaml"
-SPEEDUP = 10
+SPEEDUP = 5
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.px4,  # run by `pytest --px4`, one at a time, after the rest (tests/conftest.py)
@@ -179,17 +179,10 @@ def test_spiral_on_px4(px4, tmp_path):
     used = _arm_to_disarm(m)
     assert used <= m["budget"]["budget_s"] == 600, (used, m["budget"])
     assert m["budget"]["used_s"] == pytest.approx(used, abs=0.1)
-    # the STATUSTEXTs: the sidecar keeps what arrived, in PX4's order, none folded away; all of them
-    # unless MAVSDK said it dropped callbacks (a starved CPU: on two cores shared with four other
-    # jobs, load 15, it lost 4 of 9 texts at 10x, and said so)
+    # the STATUSTEXTs: every one PX4 sent, in its order, none folded away, even when MAVSDK dropped
+    # telemetry callbacks (the texts have a MAVSDK instance of their own: flight.textlink)
     kept, sent = _sidecar_texts(m), px4.texts()
-    it = iter(sent)
-    assert all(t in it for t in kept), (sent, kept)  # a subsequence: nothing invented or reordered
-    dropped = any(
-        e["kind"] == "mavsdk" and "Dropping subscription callbacks" in e["text"]
-        for e in m["events"]
-    )
-    assert kept == sent or (dropped and len(kept) >= 0.5 * len(sent)), (sent, kept, dropped)
+    assert kept == sent, (sent, kept, m["mavsdk_dropped_callbacks"])
     assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
     # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's
     # regions do
@@ -197,7 +190,8 @@ def test_spiral_on_px4(px4, tmp_path):
     assert "region: none" not in out
     assert not _too_wide(lines), _too_wide(lines)
     print(
-        f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, budget {m['budget']}"
+        f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, "
+        f"MAVSDK dropped {m['mavsdk_dropped_callbacks']} callbacks, budget {m['budget']}"
     )
 
 
@@ -215,7 +209,9 @@ def test_ctrl_c_on_px4_returns_and_lands(px4, tmp_path):
     phase = log.columns["phase"]
     assert "return" in set(phase) and phase[-1] in ("land", "ground"), set(phase)
     assert log["rel_alt_m"][-1] < 1.0
-    assert not any(e["kind"] == "budget" and "over" in e["text"] for e in m["events"])
+    # no overrun: the plan line's "over budget" (PX4's known pace, trimmed in flight) aside
+    assert not any(e["kind"] == "budget" and "over the time" in e["text"] for e in m["events"])
+    assert not m["budget"]["overrun"]
     print(f"PX4 abort: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {_arm_to_disarm(m):.0f} s")
 
 
@@ -228,16 +224,10 @@ def test_adaptive_mission_on_px4(px4, tmp_path):
     assert m["status"] == "completed"
     used = _arm_to_disarm(m)
     assert used <= 600, (used, m["budget"])
-    # rounds are planned from the live estimate, computed in a worker at a lowered priority: on a
-    # starved CPU (load 15 on two cores) it came too late for any round, and the flight says so in
-    # one line
-    late = "no adaptive round: the survey ended before one was planned" in out
-    assert m["adaptive"]["rounds"] or late, out[-2500:]
-    if late:
-        warnings.warn(
-            "PX4 adaptive flight: no round (live estimate late on a starved CPU)", stacklevel=1
-        )
-    assert any(ln.startswith("estimate: ") for ln in lines) or late
+    # at least one round flown: planned at the survey's measured pace, it fits the budget
+    rounds = m["adaptive"]["rounds"]
+    assert rounds and all(r.get("flown_s") for r in rounds), out[-2500:]
+    assert any(ln.startswith("estimate: ") for ln in lines)
     assert not _too_wide(lines), _too_wide(lines)
     print(
         f"PX4 adaptive: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, "

@@ -110,6 +110,18 @@ def test_mavsdk_messages_once_each_without_colour_codes():
     assert log.new_messages() == []
 
 
+def test_mavsdk_dropped_callbacks_are_counted_though_shown_once():
+    """MAVSDK repeats its drop warning with a running count; the line is shown once, the count kept
+    (the sidecar's ``mavsdk_dropped_callbacks``)."""
+    log = SdkLog(verbose=True)
+    for n in (1, 4185, 12212):
+        log.on_log(
+            f"\x1b[31m[05:06:1{n % 10}|Error] \x1b[0mDropping subscription callbacks ({n} so far): "
+            "a subscriber is not keeping up."
+        )
+    assert len(log.new_messages()) == 1 and log.dropped == 12212
+
+
 def test_plain_status_lines_do_not_wrap(monkeypatch):
     s = FlightStatus(
         mission_name="spiral",

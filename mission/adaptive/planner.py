@@ -146,10 +146,12 @@ class RoundPlan:
         return self.waypoints is not None
 
 
-def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
+def plan_round(spec, a, est_xy, start, t_start_s: float, pace=None) -> RoundPlan:
     """The next round around ``est_xy`` flown from ``start`` (3,), which the vehicle reaches
     ``t_start_s`` after take-off; it must end with the return and ``a.reserve_s`` inside the time
-    budget."""
+    budget.  ``pace`` (``mission.flight.budget.Pace``: the pace measured in flight) turns the
+    kinematic time of the round's legs into the time the autopilot will take (PX4 SITL flew its
+    rounds in 84 and 66 s against 53 and 50 s planned)."""
     alt = a.altitude(spec)
     kin = spec.kinematics()
     notes: list[str] = []
@@ -164,6 +166,8 @@ def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
             fly = plan_profile(
                 np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin
             ).duration_s
+            if pace is not None:
+                fly = pace.scale * fly + pace.per_leg_s * len(wps)
             back = return_s(spec, wps[-1])
             bad = leg_violations(spec, start, wps)
             if bad:

@@ -31,9 +31,10 @@ from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
 from mission.trajectory.kinematics import plan_profile
 
-MIN_LEAD_WALL_S = (
-    4.0  # wall seconds an estimate, the planning and the upload may take (sped-up vehicles)
-)
+# wall seconds an estimate, the planning and the upload may take (sped-up vehicles); 4 s was too
+# little for PX4 SITL at 10x on a loaded 2-core machine: the estimate came back after the survey
+# ended and no round was flown
+MIN_LEAD_WALL_S = 8.0
 
 
 @dataclass
@@ -110,17 +111,25 @@ def _position_enu(ctx: FlightContext) -> np.ndarray:
     return np.array([e[0], e[1], rel])
 
 
-def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int) -> float | None:
+def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int, pace=None) -> float | None:
     """Vehicle seconds until the last of ``wps`` is reached (None before the first waypoint is flown
-    to)."""
+    to), at the measured ``pace`` (``flight.budget.Pace``) when given."""
     idx = ctx.st.progress[0] - offset
     if idx < 0 or not ctx.tel.n_pos:
         return None
     if idx >= len(wps):
         return 0.0
-    return plan_profile(
+    t = plan_profile(
         np.vstack([_position_enu(ctx)[None, :], wps[idx:]]), ctx.spec.kinematics()
     ).duration_s
+    return t if pace is None else pace.scale * t + pace.per_leg_s * (len(wps) - idx)
+
+
+def measured_pace(ctx: FlightContext):
+    """The pace the flight's budget watch measured on the survey (or the autopilot's known one),
+    None without a watch."""
+    watch = getattr(ctx, "budget", None)
+    return watch.pace_model() if hasattr(watch, "pace_model") else None
 
 
 def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
@@ -172,7 +181,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
                 if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
                     _no_round(ctx)
                 return
-            rem = remaining_s(ctx, wps, off) if ctx.st.was_in_air else None
+            rem = remaining_s(ctx, wps, off, measured_pace(ctx)) if ctx.st.was_in_air else None
             ctx.live.planning = rem is not None and rem <= 1.5 * lead
             if rem is not None and rem <= lead:
                 break
@@ -190,13 +199,14 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
                 f"90 % region {d['area_m2']:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing",
             )
             return
-        rem = remaining_s(ctx, wps, off) or 0.0
+        pace = measured_pace(ctx)
+        rem = remaining_s(ctx, wps, off, pace) or 0.0
         t_end = ctx.tel.clock.now() - ctx.status.t_start + rem
         visited = [rd["centre"] for rd in ext.rounds]
         target = choose_target(
             (d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m
         )
-        plan = plan_round(spec, a, target, wps[-1], t_end)
+        plan = plan_round(spec, a, target, wps[-1], t_end, pace)
         for n in plan.notes if plan.ok else ():
             ctx.event("adaptive", f"round {k + 1}: {n}")
         if not plan.ok:
@@ -236,12 +246,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
                 "radius_m": plan.radius_m,
                 "first_item": len(wps) - n_survey,
                 "n_waypoints": len(plan.waypoints),
-                "planned_s": round(
-                    plan_profile(
-                        np.vstack([wps[-1:], plan.waypoints]), spec.kinematics()
-                    ).duration_s,
-                    1,
-                ),
+                "planned_s": round(plan.fly_s, 1),  # at the measured pace
+                "pace": None if pace is None else [round(pace.scale, 3), round(pace.per_leg_s, 2)],
                 "budget_left_after_return_s": round(left, 1),
                 "notes": plan.notes,
             }

@@ -37,9 +37,10 @@ from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
 MIN_FIT_LEGS = 4  # measured legs before the per-leg cost is fitted (fewer: the ratio alone)
-TRIM_LOOKAHEAD = (
-    3  # waypoints before the cut at which the tail is dropped (the upload takes a few seconds)
-)
+# waypoints before the cut at which the tail is dropped: the upload takes a few wall seconds, tens
+# of vehicle seconds at a speed-up, and may be retried (PX4 SITL at 10x on a loaded machine: one
+# TIMEOUT, the cut came a leg late and the spiral landed at 647 s of 600 with 3)
+TRIM_LOOKAHEAD = 5
 # touchdown to disarm (s, vehicle clock): not in the kinematic plan.  Measured: PX4 v1.16 SITL 7.2 s
 # (land detector + COM_DISARM_LAND 2 s), ArduCopter 4.7 SITL 3 s; the built-in vehicle disarms at
 # touchdown.
@@ -57,6 +58,14 @@ class Pace:
         """Seconds to fly legs planned at ``planned`` seconds each."""
         planned = np.asarray(planned, dtype=float)
         return float(self.scale * planned.sum() + self.per_leg_s * planned.size)
+
+
+# The known pace of an autopilot's mission legs (``Pace``), used before ``MIN_FIT_LEGS`` legs are
+# measured: the pre-flight plan and the first trims.  Measured: PX4 v1.16 SITL (SIH, MPC_XY_CRUISE
+# 5.5) flew the spiral's legs at 1.03 x planned + 3 s a leg (it slows to a stop at every waypoint;
+# 634-641 s arm to disarm against a 566 s kinematic plan).  ArduCopter: none (its arm to disarm is
+# within 5 % of the plan with its own speeds: tests/test_ardupilot_e2e.py).
+PACE_PRIOR = {"PX4": Pace(1.03, 3.0)}
 
 
 def fit_pace(planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray) -> Pace:
@@ -196,12 +205,20 @@ class BudgetWatch:
     policy: str = "warn"
     reserve_s: float = 0.0
     last: int = -1  # the last waypoint kept (-1: all); lowered when the tail is dropped
-    dropped: list[int] = field(default_factory=list)  # waypoints dropped (0-based), in order
+    prior: Pace | None = None  # the autopilot's known pace until MIN_FIT_LEGS legs are measured
+    dropped: list[int] = field(default_factory=list)  # waypoints dropped (0-based here), sorted
     actions: list[dict] = field(default_factory=list)  # what the policy did, when (sidecar)
 
     def __post_init__(self) -> None:
         if self.last < 0:
             self.last = len(self.plan.t_wp) - 1
+
+    def planned_s(self) -> float:
+        """The plan's arm-to-disarm seconds at the autopilot's known pace (``prior``; the kinematic
+        plan without one): the one plan figure printed before and after the flight."""
+        if self.prior is None:
+            return float(self.plan.duration_s)
+        return BudgetWatch(self.plan, prior=self.prior).predict(0.0)
 
     def pace(self) -> float:
         k = len(self.reached_at) - 1
@@ -215,14 +232,16 @@ class BudgetWatch:
 
     def pace_model(self) -> Pace:
         """The pace of the legs flown so far: fitted per leg from ``MIN_FIT_LEGS`` measured legs
-        (waypoints reached together count as one segment), else the plain ratio (``pace``)."""
+        (waypoints reached together count as one segment), else the autopilot's known ``prior``,
+        else the plain ratio (``pace``)."""
         r, t = np.asarray(self.reached_at), self.plan.t_wp[: len(self.reached_at)]
+        early = self.prior or Pace(self.pace(), 0.0)
         if len(r) < 2 or t[-1] - t[0] < MIN_PACE_S:
-            return Pace(self.pace(), 0.0)
+            return early
         ends = np.flatnonzero(np.diff(r) > 0) + 1  # a segment ends where a new arrival time starts
         starts = np.concatenate([[0], ends[:-1]])
         if len(ends) < MIN_FIT_LEGS:
-            return Pace(self.pace(), 0.0)
+            return early
         return fit_pace(t[ends] - t[starts], ends - starts, r[ends] - r[starts])
 
     def predict(self, elapsed: float, last: int | None = None) -> float:
@@ -240,7 +259,7 @@ class BudgetWatch:
             return pace.legs(legs) + pace.legs(np.array([p.ret_s[last]])) + tail
 
         if k < 0:
-            pred = max(elapsed, p.t_wp[0] * pace.scale) + rest(0)
+            pred = max(elapsed, pace.legs(p.t_wp[:1])) + rest(0)  # take-off and transit: a leg
         else:
             pred = self.reached_at[k] + rest(k)
             if k + 1 <= last:  # the next waypoint is not reached yet: at least the rest after it
@@ -308,14 +327,15 @@ class BudgetWatch:
             )
             return f"budget: returning to launch now (landing was ~{before:.0f} s of {b:.0f} s)"
         gone = list(range(keep + 1, self.last + 1))
-        self.dropped += gone
+        # the tail, whole, whatever the order of the cuts
+        self.dropped = sorted(self.dropped + gone)
         self.last = keep
         self.predicted_s = self.predict(elapsed)
         self.actions.append(
             {
                 "t_s": round(elapsed, 1),
                 "action": "trim",
-                "dropped": gone,
+                "dropped": [i + 1 for i in gone],  # 1-based, as printed and as dropped_waypoints
                 "predicted_before_s": round(before, 1),
                 "predicted_s": round(self.predicted_s, 1),
             }
@@ -328,13 +348,15 @@ class BudgetWatch:
 
     def record(self, used_s: float | None) -> dict:
         """The sidecar's ``budget``: planned vs used seconds, overrun flag and amount, when it was
-        warned, the policy and what it dropped (1-based waypoint numbers, as printed)."""
+        warned, the policy and what it dropped: waypoint numbers in the sidecar count from 1, as
+        printed (``dropped_waypoints`` and each action's ``dropped``)."""
         b = self.plan.budget_s
         r2 = lambda v: None if v is None or not np.isfinite(v) else round(float(v), 2)  # noqa: E731
         over = used_s is not None and used_s > b
         return {
             "budget_s": b,
-            "planned_s": r2(self.plan.duration_s),
+            "planned_s": r2(self.planned_s()),
+            "kinematic_plan_s": r2(self.plan.duration_s),
             "used_s": r2(used_s),
             "overrun": bool(over),
             "overrun_s": r2(used_s - b) if over else 0.0,
@@ -342,9 +364,15 @@ class BudgetWatch:
             "predicted_at_warning_s": r2(self.predicted_at_warning_s),
             "policy": self.policy,
             "reserve_s": self.reserve_s,
+            "pace_prior": None if self.prior is None else _pace_list(self.prior),
+            "pace_fitted": _pace_list(self.pace_model()) if self.reached_at else None,
             "dropped_waypoints": [i + 1 for i in self.dropped],
             "actions": self.actions,
         }
+
+
+def _pace_list(p: Pace) -> list[float]:
+    return [round(p.scale, 3), round(p.per_leg_s, 2)]
 
 
 def used_seconds(events: list[dict], t_start: float | None, t_now: float) -> float | None:
@@ -462,7 +490,8 @@ def start_budget(
     budget by the round planner: its survey is only watched."""
     spec = ctx.spec
     own = return_speed_mps is not None and abs(return_speed_mps - spec.cruise_speed_mps) > 1e-6
-    known = None if ardupilot is None or not ctx.url else ("ARDUPILOT" if ardupilot else "PX4")
+    builtin = ardupilot is None or not ctx.url or getattr(ctx, "builtin_vehicle", False)
+    known = None if builtin else ("ARDUPILOT" if ardupilot else "PX4")
     adaptive = ctx.extension is not None
     watch = BudgetWatch(
         plan_times(
@@ -470,8 +499,9 @@ def start_budget(
         ),
         policy="warn" if adaptive else spec.budget_policy,
         reserve_s=spec.budget_reserve_s,
+        prior=PACE_PRIOR.get(known),
     )
-    d, b = watch.plan.duration_s, spec.time_budget_s
+    d, b = watch.planned_s(), spec.time_budget_s
     how = [f"return {return_speed_mps:g}"] if own else []
     if (
         vertical is not None
@@ -486,10 +516,12 @@ def start_budget(
             f"up {v.up_mps:g}, down {v.down_mps:g}{slow}"
             + (f", hover {v.hover_s:g} s" if v.hover_s else "")
         )
+    p = watch.prior
+    pace = f", {known} pace {p.scale:g} x + {p.per_leg_s:g} s a leg" if p else ""
     text = (
         ("survey " if adaptive else "")
         + f"plan {d:.0f} s of {b:g} s"
-        + (f" (autopilot m/s: {'; '.join(how)})" if how else "")
+        + (f" (autopilot m/s: {'; '.join(how)}{pace})" if how else f" ({pace[2:]})" if p else "")
     )
     ctx.event("budget", text + (f": {d - b:.0f} s over budget" if d > b else ""), warn=d > b)
     return watch

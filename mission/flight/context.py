@@ -49,6 +49,12 @@ class Autopilot(StrEnum):
         return 3 if self is Autopilot.ARDUPILOT else 2
 
 
+# (vendor id, product id) of the built-in vehicle's AUTOPILOT_VERSION ("RF", "SL"): it speaks PX4's
+# dialect but flies the mission's own kinematics and disarms at touchdown, so over --connect it gets
+# no PX4 pace or disarm delay in the budget plan (mission.flight.budget)
+BUILTIN_PRODUCT = (0x5246, 0x534C)
+
+
 @dataclass
 class VehicleState:
     armed: bool = False
@@ -94,6 +100,7 @@ class FlightContext:
     extension: Extension | None = None
     st: VehicleState = field(default_factory=VehicleState)
     autopilot: Autopilot = Autopilot.PX4
+    builtin_vehicle: bool = False  # the autopilot on the link is sitl.vehicle (BUILTIN_PRODUCT)
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     abort_reason: str = ""
     link_dead: asyncio.Event = field(default_factory=asyncio.Event)

@@ -37,6 +37,7 @@ from mission.errors import InputError
 from mission.flight import estimates, tasks
 from mission.flight.budget import close_budget, start_budget, watch_budget
 from mission.flight.context import (
+    BUILTIN_PRODUCT,
     EXIT_ABORTED,
     EXIT_FAILED,
     EXIT_LINK,
@@ -53,6 +54,7 @@ from mission.flight.phases import MonotonicPhases, final_phase
 from mission.flight.progress import Display, FlightStatus
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.telemetry import Telemetry
+from mission.flight.textlink import text_link
 from mission.flight.vehicle_process import (
     free_udp_port,
     ignore_terminal_signals,
@@ -292,8 +294,27 @@ async def connect(ctx: FlightContext, sdk, url: str):
         raise FlightError(f"no autopilot on {url} within {t:g} s{why}", EXIT_LINK)
     ap = await system.autopilot_type()
     ctx.autopilot = Autopilot.ARDUPILOT if ap == SdkAutopilot.ARDUPILOT else Autopilot.PX4
-    ctx.event("connect", f"autopilot {ap.name} on {url}")
+    ctx.builtin_vehicle = await is_builtin_vehicle(system)
+    ctx.event(
+        "connect", f"autopilot {ap.name}{' (built-in vehicle)' * ctx.builtin_vehicle} on {url}"
+    )
     return system, ap.name
+
+
+async def is_builtin_vehicle(system, tries: int = 10) -> bool:
+    """Whether the autopilot's AUTOPILOT_VERSION names this project's built-in vehicle
+    (``BUILTIN_PRODUCT``); False when it never answers within ``tries`` x 0.2 s."""
+    from mavsdk.asyncio.plugins.info import InfoAsync
+
+    info = InfoAsync(system)
+    for _ in range(tries):
+        try:
+            p = await info.get_product()
+        except Exception:  # InfoError: not received yet
+            await asyncio.sleep(0.2)
+            continue
+        return (p.vendor_id, p.product_id) == BUILTIN_PRODUCT
+    return False
 
 
 async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
@@ -321,8 +342,8 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
                 ParamAsync(system),
                 MavlinkDirectAsync(system),
             )
-            async with asyncio.TaskGroup() as tg:
-                tasks.start_telemetry(ctx, tg, p.telemetry, p.mission_raw, p.direct)
+            async with text_link(sdk) as texts, asyncio.TaskGroup() as tg:
+                tasks.start_telemetry(ctx, tg, p.telemetry, p.mission_raw, p.direct, texts)
                 tasks.spawn(ctx, tg, gcs_heartbeats(ctx, p.direct, ctx.speedup), "heartbeat")
                 live_task = None
                 try:
@@ -614,6 +635,8 @@ async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task 
     for line in ctx.texts.summary():  # the autopilot's repeated texts, folded on screen
         ctx.say(line)
     summary = ctx.tel.summary()
+    sdk = ctx.sdklog  # None: --verbose (MAVSDK prints its own log, nothing counted)
+    summary["mavsdk_dropped_callbacks"] = sdk.dropped if sdk is not None and sdk.installed else None
     if ctx.budget is not None:
         summary["budget"] = close_budget(ctx, ctx.budget)
     w = ctx.rows.writer

@@ -14,6 +14,10 @@ import re
 from collections import deque
 
 _DIGITS = re.compile(r"\d+")
+# MAVSDK v4 calls every subscription's callback from one thread through a queue; past 100 queued
+# it drops the oldest subscription updates (telemetry and autopilot texts alike) and says so at
+# most every 5 s with the running count
+_DROPPED = re.compile(r"Dropping subscription callbacks \((\d+) so far\)")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
@@ -26,6 +30,7 @@ class SdkLog:
         self.queue: deque[str] = deque(maxlen=200)
         self.seen: set[str] = set()
         self.installed = False
+        self.dropped = 0  # subscription callbacks MAVSDK said it dropped (the last count seen)
 
     def __enter__(self) -> SdkLog:
         if self.verbose:
@@ -46,7 +51,10 @@ class SdkLog:
     def on_log(self, message: str) -> None:
         """Queue one MAVSDK warning/error (called on MAVSDK's thread), without terminal colour
         codes."""
-        self.queue.append(_ANSI.sub("", message).strip())
+        text = _ANSI.sub("", message).strip()
+        if m := _DROPPED.search(text):
+            self.dropped = max(self.dropped, int(m.group(1)))
+        self.queue.append(text)
 
     def new_messages(self) -> list[str]:
         """Warning/error texts not shown before (the queue is drained)."""

@@ -65,16 +65,18 @@ def on_signal(ctx: FlightContext, name: str) -> None:
 
 
 def start_telemetry(
-    ctx: FlightContext, tg: asyncio.TaskGroup, telemetry, mission_raw, direct
+    ctx: FlightContext, tg: asyncio.TaskGroup, telemetry, mission_raw, direct, texts=None
 ) -> None:
-    """Subscribe to every stream at once (before arming, so the log starts on the ground)."""
+    """Subscribe to every stream at once (before arming, so the log starts on the ground); the
+    autopilot's texts from ``texts`` (a ``TelemetryAsync`` of their own MAVSDK instance:
+    ``mission.flight.textlink``) when given."""
     for name, coro in (
         ("positions", positions(ctx, direct)),
         ("attitudes", attitudes(ctx, telemetry)),
         ("armed", armed(ctx, telemetry)),
         ("landed state", landed(ctx, telemetry)),
         ("mission progress", progress(ctx, mission_raw)),
-        ("status texts", status_texts(ctx, telemetry)),
+        ("status texts", status_texts(ctx, texts or telemetry)),
         ("watchdog", watchdog(ctx)),
     ):
         spawn(ctx, tg, coro, name)

@@ -383,6 +383,11 @@ def check_types(d: dict, types: dict[str, tuple[type, ...]], source: str) -> Non
             )
 
 
+# A log whose sidecar still says "flying": fly-mission was killed outright (SIGKILL, power) before
+# it closed it (one note line within 80 columns with the WARNING prefix).
+ENDED_OPEN = "the log ended without closing (sidecar status 'flying')"
+
+
 def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> dict:
     """The sidecar's metadata, its origin and truth checked (an InputError names the sidecar and
     key)."""
@@ -450,7 +455,9 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
                     f"transmitter below ground ({tr[k]:g} m)", source=str(sc), field=f"truth.{k}"
                 )
     status = meta.get("status")
-    if status is not None and status != "completed":
+    if status == "flying":  # the writer opens the sidecar so and closes it; killed, it stays
+        notes.append(f"{WARNING}{ENDED_OPEN}: read as it is")
+    elif status is not None and status != "completed":
         notes.append(
             f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the log may end "
             "early or miss part of the pattern"
