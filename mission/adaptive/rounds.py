@@ -35,6 +35,9 @@ from mission.trajectory.kinematics import plan_profile
 # little for PX4 SITL at 10x on a loaded 2-core machine: the estimate came back after the survey
 # ended and no round was flown
 MIN_LEAD_WALL_S = 8.0
+# but never more than this share of the survey (vehicle seconds): at 15x, 8 wall s were 120 vehicle s,
+# more than a 100 s survey, and the round was planned before the survey had an estimate
+MAX_LEAD_SURVEY_SHARE = 0.5
 
 
 @dataclass
@@ -167,12 +170,12 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
         )
     final = final_phase(spec.return_behaviour)
-    lead = max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup)
+    lead = min(max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup), MAX_LEAD_SURVEY_SHARE * a.survey_s)
     if lead > a.lead_s:
         ctx.event(
             "adaptive",
-            f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
-            f"{ctx.speedup:g})",
+            f"rounds planned {lead:.0f} s ahead ({lead / ctx.speedup:.1f} s wall-clock at "
+            f"speed-up {ctx.speedup:g}; at most half the survey)",
         )
     k = 0
     while True:

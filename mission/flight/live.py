@@ -76,23 +76,11 @@ def summary(est, t_s: float) -> dict:
     if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
         from mission.adaptive.planner import posterior_candidates
 
-        cands = posterior_candidates(est.posterior)
-        cands[1:1] = other_candidates(est)
-        d["candidates"] = [[round(v, 1 if i < 2 else 3) for i, v in enumerate(c)] for c in cands]
+        d["candidates"] = [
+            [round(v, 1 if i < 2 else 3) for i, v in enumerate(c)]
+            for c in posterior_candidates(est.posterior)
+        ]
     return d
-
-
-def other_candidates(est) -> list[list[float]]:
-    """[x, y, weight] of the estimate's candidates that are not the live method's own (the survey's
-    fixed-flight default, ``rounds_answer``): the planner flies over them second, after the most
-    probable mode, so the rounds can tell the two apart (issue 33 item 2)."""
-    from mission.localize.methods import ADAPTIVE_METHOD
-
-    return [
-        [c.x_m, c.y_m, 0.0 if c.weight is None else c.weight]
-        for c in est.candidates
-        if not c.source.startswith(ADAPTIVE_METHOD)
-    ]
 
 
 def estimate_file_at(path: str, t_s: float) -> dict | None:

@@ -90,16 +90,14 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
         live.add_note("no survey phase among the selected samples: the live method answers")
         return live
     survey, rounds = split
+    if rounds.sum() < 2:  # nothing held out yet (the survey in flight): the live method answers
+        live.add_note("no adaptive round among the selected samples: the live method answers")
+        return live
     fixed = fixed_default(survey, origin, area, tx_height_m)
     cands = [
         Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
         Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
     ]
-    if rounds.sum() < 2:  # nothing held out yet: the live method answers; the rounds fly to both
-        live.add_note("no adaptive round among the selected samples: the live method answers")
-        live.candidates = cands
-        live.extras["candidates"] = [c.to_dict() for c in cands]
-        return live
     lpd = rounds_scores(part, rounds, np.array([c.xy for c in cands]), tx_height_m)
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
