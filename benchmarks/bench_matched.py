@@ -129,7 +129,8 @@ def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dic
 
 def print_summary(s: dict) -> None:
     print(
-        f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} {'50%':>6s} {'90%':>6s}"
+        f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} "
+        f"{'50%':>6s} {'90%':>6s}"
     )
     for m in s["methods"]:
         f = s["flights"][m]
@@ -201,7 +202,8 @@ def main() -> None:
                 w0, c0 = time.perf_counter(), time.process_time()
                 est = localize_log(log, method="matched")
                 print(
-                    f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU {time.process_time() - c0:.1f} s, "
+                    f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU "
+                    f"{time.process_time() - c0:.1f} s, "
                     f"{est.selection.used} samples, {est.extras['n_cells']} cells, "
                     f"{est.extras['n_draws']} draws; {_load()}"
                 )

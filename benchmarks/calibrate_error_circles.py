@@ -18,12 +18,15 @@ real AFAR flights, and on simulated logs of the product path (``--product-seeds`
 ``benchmarks/sim_default.py``'s sets, ``localize``'s default and each classical method on ``rfsl
 simulate`` logs).
 
+    # and 2028, 2026
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2027 \\
-        --out /tmp/suite_2027                                                          # and 2028, 2026
-    python benchmarks/calibrate_error_circles.py --calib-dirs /tmp/suite_2027 /tmp/suite_2028 --sim-n 0 \\
-        --method-seeds 0:0 --write                                                     # 'real' only
-    python benchmarks/calibrate_error_circles.py --sim-n 0 --method-seeds 0:0 --check-dir /tmp/suite_2026 \\
-        --mat ../shared/data/afar2023/mat --product-seeds 7000:7040                                   # 1 min
+        --out /tmp/suite_2027
+    # 'real' only
+    python benchmarks/calibrate_error_circles.py --calib-dirs /tmp/suite_2027 /tmp/suite_2028 \\
+        --sim-n 0 --method-seeds 0:0 --write
+    # 1 min
+    python benchmarks/calibrate_error_circles.py --sim-n 0 --method-seeds 0:0 \\
+        --check-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat --product-seeds 7000:7040
 """
 
 from __future__ import annotations
@@ -206,7 +209,8 @@ def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
         np.nanmean([r[3] for r in runs]) if any(np.isfinite(r[3]) for r in runs) else float("nan")
     )
     return (
-        f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} %, 90 % region "
+        f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} "
+        "%, 90 % region "
         f"{100 * share:.0f} % of its circle after clipping to the rover area (n={len(e)}; {by})"
     )
 

@@ -2,7 +2,8 @@
 
 Usage::
 
-    nice -n 5 python benchmarks/calibrate_real_afar.py [--out /tmp/calib_real] [--write-preset] [--choose CONFIG]
+    nice -n 5 python benchmarks/calibrate_real_afar.py [--out /tmp/calib_real] [--write-preset] \
+        [--choose CONFIG]
 
 Data: the six flights of ``../shared/data/afar2023/mat`` (truth: ``../shared/data/README.md``),
 cruise part only (``mission.localize.preprocess.cruise_mask``: climb/descent are ~17 dB off).  Team
@@ -358,7 +359,8 @@ def main(argv: list[str] | None = None) -> int:
         loto_specs = summary.get("localization_loto", {}).get("fold_specs", {}).get(choose, {})
         rec = {
             "name": "afar",
-            "description": "Propagation model calibrated on the AFAR 2023 testbed flights (cruise samples, "
+            "description": "Propagation model calibrated on the AFAR 2023 testbed flights "
+            "(cruise samples, "
             "per-flight free offset, soft-L1 loss, f_scale 6 dB)",
             "model": spec,
             "config": choose,

@@ -10,8 +10,10 @@ leave-one-seed-out and 5-fold (seeded) cross-validated coverage.
 
 Usage (the shipped masses: three seeds of the ``afar`` family, 500 flights, 33 s on 2 cores)::
 
-    python benchmarks/calibrate_regions.py --seeds 2026:200 2027:100 2028:200 --json /tmp/regions.json
-    python benchmarks/calibrate_regions.py --suite-dirs /tmp/suite_2027:200 /tmp/suite_2028:200   # family caches
+    python benchmarks/calibrate_regions.py --seeds 2026:200 2027:100 2028:200 \
+        --json /tmp/regions.json
+    # family caches
+    python benchmarks/calibrate_regions.py --suite-dirs /tmp/suite_2027:200 /tmp/suite_2028:200
 """
 
 from __future__ import annotations

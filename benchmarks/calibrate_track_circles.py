@@ -13,8 +13,9 @@ and 1.  Coverage is reported held out: 5-fold over seeds (each fold's circles fi
 folds), per kind of cut.  A power law ``error ~ c ** -a`` (normalised conformal) was tried first and
 under-covered the 2/3 cuts (78 % at 90 %): errors do not scale as one power of the coverage.
 
+    # ~20 min on 2 busy cores
     python benchmarks/calibrate_track_circles.py --model rfsl_spiral_e2r_ens5 --alts 30 \\
-        --seeds 3100:3300 --check-seeds 3400:3460 --rows /tmp/track.npy --write   # ~20 min on 2 busy cores
+        --seeds 3100:3300 --check-seeds 3400:3460 --rows /tmp/track.npy --write
 """
 
 from __future__ import annotations
@@ -145,8 +146,10 @@ def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
     for kind in ("cut 1/3", "cut 2/3", "cut U(0.2, 1)", "full"):
         if (kind, 0.5) in got:
             print(
-                f"  {kind} (n={len(got[kind, 0.5])}): in 50 % / 90 %: {100 * np.mean(got[kind, 0.5]):.1f} / "
-                f"{100 * np.mean(got[kind, 0.9]):.1f} %, median 90 % radius {np.median(got[kind, 'r']):.1f} m",
+                f"  {kind} (n={len(got[kind, 0.5])}): in 50 % / 90 %: "
+                f"{100 * np.mean(got[kind, 0.5]):.1f} / "
+                f"{100 * np.mean(got[kind, 0.9]):.1f} %, median 90 % radius "
+                f"{np.median(got[kind, 'r']):.1f} m",
                 flush=True,
             )
 

@@ -26,8 +26,8 @@ ABC draws) and ``one net`` (the previous check: each held-out draw through one f
 only).  A region of mass m holds the truth when the truth's level is below m, so both coverages come
 from one run.
 
-    nice -n 10 python benchmarks/check_matched_regions.py --suite-dir /tmp/suite_2026 --n 30 --workers 2 \\
-        --json /tmp/matched_regions.json
+    nice -n 10 python benchmarks/check_matched_regions.py --suite-dir /tmp/suite_2026 --n 30 \\
+        --workers 2 --json /tmp/matched_regions.json
 """
 
 from __future__ import annotations
@@ -137,7 +137,8 @@ def main() -> None:
             rows.append(r)
             m = r["masses"]
             print(
-                f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level {r['truth_level']:.3f}, masses "
+                f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level "
+                f"{r['truth_level']:.3f}, masses "
                 f"union {m['union'][0.5]:.2f}/{m['union'][0.9]:.2f}, one net "
                 f"{m['one_net'][0.5]:.2f}/{m['one_net'][0.9]:.2f}, {r['seconds']:.0f} s",
                 flush=True,
@@ -158,7 +159,8 @@ def main() -> None:
     if args.with_default:
         dflt = [r["default_error_m"] for r in rows]
         print(
-            f"default {mean_interval(dflt).fmt()} m; matched - default {paired_difference(err, dflt).fmt()} m"
+            f"default {mean_interval(dflt).fmt()} m; matched - default "
+            f"{paired_difference(err, dflt).fmt()} m"
         )
     if args.json:
         Path(args.json).write_text(json.dumps({"rows": rows, "summary": s}, indent=1))

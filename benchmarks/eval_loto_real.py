@@ -3,8 +3,8 @@ physics saw the flight's team.
 
 Usage::
 
-    python benchmarks/eval_loto_real.py --net-fit328 M/afar_fit328.onnx --net-fit288 M/afar_fit288.onnx \
-        [--data ../shared/data/afar2023/mat] [--json OUT.json]
+    python benchmarks/eval_loto_real.py --net-fit328 M/afar_fit328.onnx \
+        --net-fit288 M/afar_fit288.onnx [--data ../shared/data/afar2023/mat] [--json OUT.json]
     python benchmarks/eval_loto_real.py --nets models/rfsl_family.onnx models/rfsl_spiral_e2r.onnx
 
 Rows (error per flight in metres, then mean/median over six flights and over the five without the

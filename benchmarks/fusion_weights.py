@@ -14,7 +14,8 @@ real AFAR flights, resampled over teams (nothing is fitted on real flights: the 
 the benchmark calibrations, so every real flight is held out), or (b) on the reality-fitted
 benchmark cache (``--suite-dir``), resampled over flights.
 
-    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fit
+    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 \
+        --out /tmp/suite_fit
     python benchmarks/fusion_weights.py --suite-dir /tmp/suite_fit --mat ../shared/data/afar2023/mat
 """
 
@@ -112,7 +113,8 @@ def main() -> None:
         d = paired_difference(w, p, groups)
         print(
             f"{label}, n={len(p)}: plain {mean_interval(p, groups).fmt()} m, weighted "
-            f"{mean_interval(w, groups).fmt()} m, weighted - plain {d.fmt()} m; selfcal weight median "
+            f"{mean_interval(w, groups).fmt()} m, weighted - plain {d.fmt()} m; selfcal weight "
+            "median "
             f"{np.median([rb**2 / (r['ra'] ** 2 + rb**2) for r in rows]):.2f}"
         )
         verdict.append(d.lo > 0)

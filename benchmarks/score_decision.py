@@ -7,9 +7,11 @@ error with paired bootstrap 90 % intervals (real: over flights and over teams; b
 flights), the paired difference to the default, the share of truths in the 50 % / 90 % regions, then
 ``mission.workshop.decision.pooled_decision``.
 
-    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fam
-    python benchmarks/score_decision.py --suite-dir /tmp/suite_fam --n 200 --mat ../shared/data/afar2023/mat \
-        --workers 2 --json /tmp/decision.json --md /tmp/decision.md [--extra matched]
+    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 \
+        --out /tmp/suite_fam
+    python benchmarks/score_decision.py --suite-dir /tmp/suite_fam --n 200 \
+        --mat ../shared/data/afar2023/mat --workers 2 --json /tmp/decision.json \
+        --md /tmp/decision.md [--extra matched]
 """
 
 from __future__ import annotations
@@ -138,7 +140,8 @@ def main() -> None:
     fam = read_suite(args.suite_dir).manifest.get("family")
     checks = family_checks(rstats, bstats, real, bench)
     head = (
-        "| method | real LOTO mean m [90 % flights] [teams] | vs default, real | real in 50 / 90 % | "
+        "| method | real LOTO mean m [90 % flights] [teams] | vs default, real | real in 50 / "
+        "90 % | "
         f"benchmark ({fam}, n = {n_b}) mean m [90 %] | vs default, bench | bench in 50 / 90 % | "
         "pooled rel. diff [90 %] | rule |"
     )

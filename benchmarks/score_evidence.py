@@ -12,12 +12,14 @@ Rule (written 2026-11-27 before any flight was scored with the stage's answer; i
    and the benchmark by flight; adopted when the pooled 90 % interval lies below zero and neither
    source's lies above zero, and its 90 % regions cover >= 80 % of the benchmark's truths).
 3. Adopted: the real-log default becomes the stage.  Not adopted: it ships as ``--method evidence``.
-Also printed: the best candidate of each flight (the headroom) and the share of it the stage recovers.
+Also printed: the best candidate of each flight (the headroom) and the share of it the stage
+recovers.
 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2026 \
         --out /tmp/suite_fam
+    # ~10 min, 2 cores
     python benchmarks/score_evidence.py collect --suite-dir /tmp/suite_fam --first 0 --n 200 \
-        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.jsonl --workers 2     # ~10 min, 2 cores
+        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.jsonl --workers 2
     python benchmarks/score_evidence.py score --json /tmp/evidence_cache.jsonl
 """
 
@@ -220,12 +222,14 @@ def score(args) -> None:
     }
     masses = {q: float(np.quantile(lv["dev"], q)) for q in (0.5, 0.9)}
     print(
-        f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} / {masses[0.9]:.3f}"
+        f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} "
+        f"/ {masses[0.9]:.3f}"
     )
     for src in ("fresh", "real"):
         cov = [f"{100 * np.mean(lv[src] < masses[q]):.0f} %" for q in (0.5, 0.9)]
         print(
-            f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region {cov[1]}"
+            f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region "
+            f"{cov[1]}"
         )
     teams = [r["name"].split()[1][:3] for r in real]
     dec = pooled_decision(

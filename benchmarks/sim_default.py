@@ -7,7 +7,7 @@ fresh seeds, then ``localize``'s default against ``--model rfsl_default.onnx`` o
 stop-20 rule in models/README.md.
 
     python benchmarks/sim_default.py --seeds 7000:7040 --workers 2        # 14 s on 2 cores
-    python benchmarks/sim_default.py --seeds 7100:7130 --variants         # spirals with other parameters, 25 s
+    python benchmarks/sim_default.py --seeds 7100:7130 --variants         # other spirals, 25 s
 """
 
 from __future__ import annotations
@@ -119,8 +119,10 @@ def main() -> None:
             a, b = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
             used = {m: sum(r[2] == m for r in rows) for m in dict.fromkeys(r[2] for r in rows)}
             print(
-                f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / {np.percentile(a, 90):.1f}  "
-                f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / {np.percentile(b, 90):.1f}  models {used}",
+                f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / "
+                f"{np.percentile(a, 90):.1f}  "
+                f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / "
+                f"{np.percentile(b, 90):.1f}  models {used}",
                 flush=True,
             )
 

@@ -96,7 +96,8 @@ def main() -> None:
             print(
                 f"{name:24s}"
                 + "".join(f"{v:11.1f}" for v in e)
-                + f"{e.mean():8.1f}{np.median(e):7.1f}{e[ok].mean():8.1f}{np.median(e[ok]):7.1f}{dt:7.2f}"
+                + f"{e.mean():8.1f}{np.median(e):7.1f}"
+                f"{e[ok].mean():8.1f}{np.median(e[ok]):7.1f}{dt:7.2f}"
             )
 
 

@@ -84,12 +84,14 @@ def main() -> None:
         rows = list(ex.map(one, [(args.suite_dir, i) for i in range(args.n)], chunksize=2))
     out = np.array([r["outside"] for r in rows])
     print(
-        f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside ({out.sum()})"
+        f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside "
+        f"({out.sum()})"
     )
     for k in (*RUNGS, "selfcal"):
         e = np.array([r[k] for r in rows])
         print(
-            f"{k:22s} {e.mean():6.1f} / {np.median(e):5.1f}   {e[~out].mean():6.1f}   {e[out].mean():6.1f}"
+            f"{k:22s} {e.mean():6.1f} / {np.median(e):5.1f}   {e[~out].mean():6.1f}   "
+            f"{e[out].mean():6.1f}"
         )
 
 

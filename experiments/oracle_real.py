@@ -20,7 +20,8 @@ import tempfile
 
 import numpy as np
 
-SUSPECT = 2  # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+# 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+SUSPECT = 2
 STEP_M = 2.0
 
 
@@ -116,7 +117,8 @@ def main() -> None:
     for k in ("h+c", "h+c+n", "selfcal"):
         e = np.array([r[k] for r in rows])
         print(
-            f"{k:8s} mean of {len(e)} {e.mean():5.1f} m, of the five trusted {np.delete(e, SUSPECT).mean():5.1f} m"
+            f"{k:8s} mean of {len(e)} {e.mean():5.1f} m, of the five trusted "
+            f"{np.delete(e, SUSPECT).mean():5.1f} m"
         )
 
 

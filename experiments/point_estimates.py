@@ -8,7 +8,9 @@ six real flights (R): score U/min(U) + R/min(R), the incumbent MAP kept unless a
 more than 0.05.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python experiments/point_estimates.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat   # 2 min
+    # 2 min
+    python experiments/point_estimates.py --suite-dir /tmp/suite_2026 \
+        --mat ../shared/data/afar2023/mat
 """
 
 from __future__ import annotations
@@ -71,9 +73,11 @@ def main() -> None:
     for k in CANDIDATES:
         eu, er = errors(bench, k), errors(real, k)
         print(
-            f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
+            f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / "
+            f"{np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
             f"  score {u[k] / min(u.values()) + r[k] / min(r.values()):.3f}  | selfcal alone U "
-            f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R per flight "
+            f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R "
+            "per flight "
             f"{' '.join(f'{e:.1f}' for e in er)}"
         )
 

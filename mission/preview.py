@@ -304,7 +304,8 @@ def render_preview(
     title = (
         f"{spec.name}: {spec.trajectory.generator} at {spec.altitude_m:g} m, "
         f"{summary.length_m / 1000:.2f} km, {summary.duration_s / 60:.1f} of "
-        f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS samples"
+        f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS "
+        "samples"
     )
     if error_map is not None:
         title += (
@@ -316,7 +317,8 @@ def render_preview(
         f"worst rover-area point {summary.coverage.max_m:.0f} m from the path",
         "per quadrant: "
         + ", ".join(f"{k} {v:.0f}" for k, v in summary.coverage.quadrant_max_m.items()),
-        f"fence clearance >= {summary.min_fence_clearance_m:.1f} m (margin {spec.fence_margin_m:g} m)",
+        f"fence clearance >= {summary.min_fence_clearance_m:.1f} m (margin "
+        f"{spec.fence_margin_m:g} m)",
     ]
     if summary.violations:
         text.append("NOT FLYABLE: " + summary.violations[0])

@@ -50,7 +50,8 @@ def build(out: str, paths: list[str]) -> None:
             bad.append(f"training_data.{METADATA_KEY}")
         if bad or m.graph.input[0].name != inp or m.graph.output[0].name != outn:
             raise SystemExit(
-                f"{p}: its contract differs from {paths[0]} ({', '.join(bad) or 'input/output names'})"
+                f"{p}: its contract differs from {paths[0]} "
+                f"({', '.join(bad) or 'input/output names'})"
             )
     norm = json.loads(meta0["input_normalisation"])
     if not (

@@ -93,7 +93,8 @@ def test_unflyable_settings_refused_before_takeoff(spec, case, x):
 def test_cli_refuses_bad_adaptive_settings_with_one_line(
     tmp_path_factory, repo_dir, capsys, case, x
 ):
-    """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight folder)."""
+    """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight
+    folder)."""
     from mission.cli.fly import main
 
     tmp = tmp_path_factory.mktemp("bad")

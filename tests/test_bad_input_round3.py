@@ -52,7 +52,8 @@ MISSIONS = {
     "conn": "vehicle:\n  connection: garbage\n",
     "conn256": "vehicle:\n  connection: udpin://256.1.1.1:14540\n",
     "deep": "a: " + "[" * 5000 + "]" * 5000 + "\n",
-    "ctrl": 'trajectory:\n  "a\\x1db\\nc": 1\n',  # a key that holds line breaks: still one error line
+    # a key that holds line breaks: still one error line
+    "ctrl": 'trajectory:\n  "a\\x1db\\nc": 1\n',
 }
 
 
@@ -417,7 +418,8 @@ def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys
 
 
 def test_a_reader_that_goes_away_is_no_traceback(files):
-    """``localize LOG --json | head -c 1``: the pipe closed before the estimate is written ends quietly."""
+    """``localize LOG --json | head -c 1``: the pipe closed before the estimate is written ends
+    quietly."""
     import subprocess
     import sys
 

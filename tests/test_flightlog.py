@@ -230,8 +230,8 @@ signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the limit gives EFBIG, as a ful
 resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[2]), int(sys.argv[2])))
 n = 40
 t = np.arange(n) * 0.03
-c = {"t_s": t, "lat_deg": np.full(n, 35.7), "lon_deg": np.full(n, -78.7), "alt_m": np.full(n, 120.0),
-     "rel_alt_m": np.full(n, 30.0), "rss_dbm": -60.0 + t}
+c = {"t_s": t, "lat_deg": np.full(n, 35.7), "lon_deg": np.full(n, -78.7),
+     "alt_m": np.full(n, 120.0), "rel_alt_m": np.full(n, 30.0), "rss_dbm": -60.0 + t}
 w = FlightLogWriter(sys.argv[1], make_meta(Origin(35.727, -78.698, 90.0), {"kind": "sim"}))
 failed = None
 for k in range(200):

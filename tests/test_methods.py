@@ -108,7 +108,8 @@ def test_declared_uncertainty_is_what_localize_gives(log_path, name) -> None:
 
 def test_cli_help_lists_every_method_without_numpy() -> None:
     code = (
-        "import argparse, sys; from mission.cli.localize import add_arguments; p = argparse.ArgumentParser(); "
+        "import argparse, sys; from mission.cli.localize import add_arguments; p = "
+        "argparse.ArgumentParser(); "
         "add_arguments(p); print('numpy' in sys.modules); print(p.format_help())"
     )
     out = subprocess.run(

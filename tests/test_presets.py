@@ -284,7 +284,8 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
 
     from mission.localize.card import ModelCard, TrainingDomain
 
-    class FarNetwork:  # a network answer 300 m east of the truth (what a net off its training domain can do)
+    # a network answer 300 m east of the truth (what a net off its training domain can do)
+    class FarNetwork:
         path = tmp_path / "far.onnx"
         model_name = "far.onnx"
         # no card beside it: no training domain (no altitude or attitude claim), no calibrated

@@ -197,7 +197,8 @@ def test_spiral_on_px4(px4, tmp_path):
     assert "region: none" not in out
     assert not _too_wide(lines), _too_wide(lines)
     print(
-        f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, budget {m['budget']}"
+        f"PX4 spiral: wall {wall:.0f} s at {SPEEDUP}x, arm to disarm {used:.0f} s, budget "
+        f"{m['budget']}"
     )
 
 

@@ -199,8 +199,8 @@ def test_generated_bad_families_raise_input_error_only(tmp_path, key, value):
 
 
 def test_train_family_check_and_record(tmp_path):
-    """rfsl train --family: a dataset drawn from another family is refused naming it; the family is written
-    into the model's training_data metadata and its training report."""
+    """rfsl train --family: a dataset drawn from another family is refused naming it; the family is
+    written into the model's training_data metadata and its training report."""
     import onnx
     from onnx import TensorProto, helper
 
@@ -238,7 +238,8 @@ def test_train_family_check_and_record(tmp_path):
 
 @pytest.mark.slow  # two benchmark flights and two real-like logs: ~4 s
 def test_evaluate_prints_predictive_checks(tmp_path, capsys):
-    """rfsl evaluate --suite-dir ... --real LOGS: the checks table and verdict on stdout, the checks in --out."""
+    """rfsl evaluate --suite-dir ... --real LOGS: the checks table and verdict on stdout, the checks
+    in --out."""
     from _bad_input import assert_accepted, write_log
 
     fam = _write(tmp_path, _family(6.0, noise_db=1.0))

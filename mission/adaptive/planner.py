@@ -177,7 +177,8 @@ def plan_round(spec, a, est_xy, start, t_start_s: float) -> RoundPlan:
                 return RoundPlan(wps, (float(c[0]), float(c[1])), r, fly, back, notes)
             else:
                 notes.append(
-                    f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
+                    f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, "
+                    f"{max(left, 0):.0f} s "
                     "left"
                 )
         r = r * 0.7 if r * 0.7 >= a.min_radius_m or r <= a.min_radius_m else a.min_radius_m

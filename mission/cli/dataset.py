@@ -75,7 +75,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--suite",
         choices=("unseen",),
         help="flights drawn from the benchmark's family (every axis "
-        "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)",
+        "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, "
+        "time offset)",
     )
     s.add_argument(
         "--logs",
@@ -96,13 +97,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--center",
         default="afar",
         metavar="PRESET",
-        help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)",
+        help="with --suite --family afar: the preset at the family's centre (afar, "
+        "afar:fit328, ...)",
     )
     g = p.add_argument_group("domain randomisation (each off unless given)")
     g.add_argument(
         "--randomise",
         action="store_true",
-        help="recommended set: altitude 20,47; offset -30,30; all generators with random parameters; "
+        help="recommended set: altitude 20,47; offset -30,30; all generators with random "
+        "parameters; "
         "truncate 0.5,1; patterns dipole,measured with random heading; beta 0,3; eps-r 2,20; "
         f"tx height {DEFAULT_TX_HEIGHT_M:g},5; noise 1,3 dB",
     )
@@ -131,7 +134,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--fixed-heading",
         type=float,
         metavar="P",
-        help="probability that a flight holds one random compass heading instead of yawing along the "
+        help="probability that a flight holds one random compass heading instead of yawing "
+        "along the "
         "track (AFAR 2023 vehicles held a near-constant heading)",
     )
     g.add_argument("--speed", type=_range, help="cruise speed range LO,HI m/s")

@@ -20,7 +20,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--methods",
         default=",".join(classical),
-        help=f"classical methods, comma list of {', '.join(classical)}, grid:MODEL (free-space, two-ray, e2r) "
+        help=f"classical methods, comma list of {', '.join(classical)}, grid:MODEL "
+        "(free-space, two-ray, e2r) "
         "or grid:preset:NAME ('' for none)",
     )
     p.add_argument(

@@ -30,21 +30,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--method",
         choices=METHOD_NAMES,
         metavar="METHOD",
-        help=f"localizer: {', '.join(METHOD_NAMES)} (default: fusion for a real receiver's log; for a "
+        help=f"localizer: {', '.join(METHOD_NAMES)} (default: fusion for a real receiver's "
+        "log; for a "
         "simulated log the shipped network trained on that kind of flight, else grid)",
     )
     parser.add_argument(
         "--physics",
         default=None,
         metavar="NAME",
-        help="propagation model of the grid search (free-space, two-ray, e2r; default: a simulated log's own "
+        help="propagation model of the grid search (free-space, two-ray, e2r; default: a "
+        "simulated log's own "
         "model, else the afar preset)",
     )
     parser.add_argument(
         "--physics-preset",
         default=None,
         metavar="NAME",
-        help="calibrated physics preset of the grid search (afar; the default for a real log without --physics)",
+        help="calibrated physics preset of the grid search (afar; the default for a real log "
+        "without --physics)",
     )
     parser.add_argument(
         "--tx-height",
@@ -59,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--origin",
         metavar="LAT,LON[,ALT]",
-        help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the sidecar's)",
+        help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the "
+        "sidecar's)",
     )
     parser.add_argument(
         "--no-cruise", action="store_true", help="use all samples (no cruise selection)"

@@ -111,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
         )
     if max(abs(a) for a in att_deg[:2]) > 180 or abs(att_deg[2]) > 720:
         raise InputError(
-            f"roll/pitch within +-180 and yaw within +-720 degrees expected (radians?), got {att_deg}",
+            "roll/pitch within +-180 and yaw within +-720 degrees expected (radians?), got "
+            f"{att_deg}",
             field="--attitude",
         )
     for flag, val, lo, hi in (

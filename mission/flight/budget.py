@@ -322,7 +322,8 @@ class BudgetWatch:
         )
         which = f"{gone[0] + 1}" if len(gone) == 1 else f"{gone[0] + 1}-{gone[-1] + 1}"
         return (
-            f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of {len(self.plan.t_wp)}: "
+            f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of "
+            f"{len(self.plan.t_wp)}: "
             f"landing ~{self.predicted_s:.0f} s, was ~{before:.0f} s"
         )
 

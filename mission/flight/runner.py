@@ -183,13 +183,15 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
     try:
         return asyncio.run(main())
     except KeyboardInterrupt:
-        ignore_terminal_signals()  # interrupted: the process ends with 130, not by a second signal at exit
+        # interrupted: the process ends with 130, not by a second signal at exit
+        ignore_terminal_signals()
         raise
     finally:
         if (
             ctx.source is not None
         ):  # a flight started and its outcome is decided: a late Ctrl-C during the
-            ignore_terminal_signals()  # exit (threads joined) must not end the process by the signal
+            # exit (threads joined) must not end the process by the signal
+            ignore_terminal_signals()
         elif (
             signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
         ):  # refused before anything started
@@ -264,7 +266,8 @@ def make_source(spec, rss_source: str):
         "model_params": s.model_params,
         "seed": s.seed,
         "tx_enu": [float(v) for v in tx],
-        "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: default_rng(seed)",
+        "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: "
+        "default_rng(seed)",
     }
     src = SimSource(
         spec.propagation_model(), tx, rng, s.noise_db, s.sample_period_s, spec.field.origin, info
@@ -668,7 +671,8 @@ def print_result(ctx: FlightContext) -> None:
     model = est.extras.get("model_path")  # which network answered, when one did
     label = est.method + (f" {Path(model).name}" if model else "")
     lines = [
-        f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f})",
+        f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon "
+        f"{est.lon_deg:.7f})",
         f"  method: {label}",
     ]
     outer = outer_region(est.extras)

@@ -152,7 +152,8 @@ def _drop_cut_last_line(
         return text, None
     return (
         "\n".join(lines[:-1]) + "\n",
-        f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger stops mid-write",
+        f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger "
+        "stops mid-write",
     )
 
 
@@ -391,10 +392,12 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
         where = (
             "the origin given"
             if origin_given
-            else "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)"
+            else "its origin at the first sample (give --origin LAT,LON[,ALT] for the "
+            "mission's frame)"
         )
         notes.append(
-            f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth"
+            f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} "
+            "and no truth"
         )
         return {}
     from mission.files import read_text
@@ -452,7 +455,8 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
     status = meta.get("status")
     if status is not None and status != "completed":
         notes.append(
-            f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the log may end "
+            f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the "
+            "log may end "
             "early or miss part of the pattern"
         )
     return meta

@@ -140,7 +140,8 @@ class FlightLogWriter:
         self.error = e
         size, self.rows = self._good
         with contextlib.suppress(OSError, ValueError):
-            self._f.close()  # its buffer cannot be written either; the descriptor is closed regardless
+            # its buffer cannot be written either; the descriptor is closed regardless
+            self._f.close()
         with contextlib.suppress(OSError):
             os.truncate(self.path, size)
 

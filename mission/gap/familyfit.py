@@ -432,7 +432,8 @@ def build_family(
     return {
         "schema": 1,
         "name": name,
-        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted per flight "
+        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted "
+        "per flight "
         "(airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
         "between-team sd; antenna patterns as variants by share of flights), the held-out "
         "residual's gaussian variogram per flight (shadowing sigma and range) and white noise "

@@ -48,10 +48,13 @@ BUFFER_S = (
 )
 MIN_REL = 0.01
 FRAME_RULE = (
-    "on a split, a candidate wins when it reduces the held-out loss by at least 1 % and the other keeps "
+    "on a split, a candidate wins when it reduces the held-out loss by at least 1 % and the "
+    "other keeps "
     "less than half of that; body-fixed when the body-angle candidate wins on unseen ground (80 m "
-    "checkerboard) or across headings (the same ground flown the other way, 15 s around each change "
-    "left out); ground-fixed when the ground map wins across headings and the body candidate does not "
+    "checkerboard) or across headings (the same ground flown the other way, 15 s around each "
+    "change "
+    "left out); ground-fixed when the ground map wins across headings and the body candidate "
+    "does not "
     "win on unseen ground; else undecided"
 )
 
@@ -174,7 +177,8 @@ def frame_test(
         body if verdict == "body-fixed" else ground if verdict == "ground-fixed" else None
     )
     out["text"] = (
-        f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground flown the "
+        f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground "
+        "flown the "
         f"other way) {body} reduces the loss {rb:+.1%}, {ground} {rg:+.1%}; on unseen ground "
         f"({CELL_M:.0f} m checkerboard) {body} {gb:+.1%}, {ground} {gg:+.1%}."
     )

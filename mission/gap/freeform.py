@@ -8,8 +8,8 @@ least-squares solve:
 
 | name | variables (from the LOS geometry the physics model already computes) | basis |
 | --- | --- | --- |
-| ``rx_gain_map`` | UAV body azimuth az_b x sin(body depression) | Fourier(az_b, M=6) x Legendre(sin dep_b, P=3) |
-| ``tx_gain_map`` | compass azimuth of the UAV seen from the rover x sin(elevation) | Fourier(M=4) x Legendre(P=2) |
+| ``rx_gain_map`` | UAV body azimuth az_b x sin(body depression) | Fourier(M=6) x Legendre(P=3) |
+| ``tx_gain_map`` | UAV compass azimuth from rover x sin(elevation) | Fourier(M=4) x Legendre(P=2) |
 | ``excess_loss`` | log10(d_los / 100 m) and UAV height | Legendre(P=3) + Legendre(P=2) |
 
 The constant is left out (the free per-flight offset absorbs it).  Coefficients are shrunk by a

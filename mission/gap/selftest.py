@@ -217,7 +217,8 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
             and _angle_err(f["azimuth_deg"], truth["tilt_az_deg"]) <= 25
         )
         return ok, (
-            f"tilt {f['tilt_deg']:.1f} (truth {truth['tilt_deg']:.1f}) deg towards {f['azimuth_deg']:.0f} "
+            f"tilt {f['tilt_deg']:.1f} (truth {truth['tilt_deg']:.1f}) deg towards "
+            f"{f['azimuth_deg']:.0f} "
             f"(truth {truth['tilt_az_deg']:.0f}) deg"
         )
     if withheld == "ground_reflection":
@@ -230,7 +231,8 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
     if withheld == "leg_shadowing":
         ok = abs(f["beta"] - truth["beta"]) <= 0.15
         return ok, (
-            f"beta {f['beta']:.2f} (truth {truth['beta']:.2f}), half-width {f['half_width_deg']:.1f} "
+            f"beta {f['beta']:.2f} (truth {truth['beta']:.2f}), half-width "
+            f"{f['half_width_deg']:.1f} "
             f"(truth 5), legs rotated {f['legs_rotation_deg']:.1f} (truth 0) deg"
         )
     if withheld == "time_offset":

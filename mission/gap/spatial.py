@@ -147,7 +147,8 @@ def choose_kriging(
     for f, i in zip(flights, idx, strict=True):
         h = (np.floor(f.t_s[i] / period_s).astype(int) % 2) if len(i) else np.zeros(0, int)
         halves.append(h)
-    parts = []  # per half: cells per transmitter (xy distances, mean, count) and the test samples against them
+    # per half: cells per transmitter (xy distances, mean, count) and the test samples against them
+    parts = []
     for a in (0, 1):
         tr = [i[h != a] for i, h in zip(idx, halves, strict=True)]
         rt = [r[h != a] for r, h in zip(resid, halves, strict=True)]

@@ -39,9 +39,11 @@ STRUCTURE_RULE = (
     "correlated shadowing when the semivariance of residual pairs closer than 15 m (same "
     "transmitter), divided by that of all pairs, has a one-sided 95 % block-bootstrap upper bound "
     "below 0.8 (the correlated std is at least half the uncorrelated one) and the correlated std "
-    "sqrt((1 - ratio) var) is at least 1 dB; otherwise correlated within flights when the along-path "
+    "sqrt((1 - ratio) var) is at least 1 dB; otherwise correlated within flights when the "
+    "along-path "
     "variogram's correlated fraction exceeds 0.5 (sigma >= 1 dB): structure along each flight that "
-    "does not repeat over the same ground; otherwise white noise.  The spatial variogram (sigma, L, "
+    "does not repeat over the same ground; otherwise white noise.  The spatial variogram "
+    "(sigma, L, "
     "nugget) is reported but not used: L's lower bound can reach 0 on real data"
 )
 

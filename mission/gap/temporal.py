@@ -10,7 +10,7 @@ per flight, so is its drift):
 | part | columns (per flight) | ridge weight |
 | --- | --- | --- |
 | smooth drift | Legendre P_1..P_4 of the flight's time scaled to [-1, 1] | 1 + p^2 |
-| steps at events | H(t - t_e) per event (``flight_events``: phase changes, sharp turns) | ``STEP_WEIGHT`` |
+| steps at events | H(t - t_e) per ``flight_events`` event (phase change, turn) | ``STEP_WEIGHT`` |
 
 Events: a change of the log's phase column, or a turn (the heading changes by at least ``TURN_DEG``
 within ``TURN_WINDOW_S``), at least ``MIN_EVENT_GAP_S`` apart, at most ``MAX_EVENTS`` per flight.
@@ -243,7 +243,8 @@ def time_power_statement(
         return {
             "detectable_db": math.inf,
             "statement": "A gain drifting over a flight cannot be shown with whole "
-            "flights held out (a per-flight term says nothing about another flight); --split blocks can.",
+            "flights held out (a per-flight term says nothing about another flight); --split "
+            "blocks can.",
         }
     ramps = [
         2.0 * (f.t_s - f.t_s[0]) / max(float(f.t_s[-1] - f.t_s[0]), 1e-9) - 1.0 for f in flights
@@ -287,7 +288,8 @@ def time_power_statement(
     seen = (
         f"a drift smaller than {threshold:.2g} dB over a flight cannot be shown held out"
         if math.isfinite(threshold)
-        else f"a drift of any size up to {DRIFTS_DB[-1]:.0f} dB over a flight cannot be shown held out"
+        else f"a drift of any size up to {DRIFTS_DB[-1]:.0f} dB over a flight cannot be shown "
+        "held out"
     )
     return {
         "detectable_db": threshold,

@@ -188,7 +188,8 @@ def convert_afar_mat(
     near = np.concatenate([[False], np.diff(t) < MIN_DT_S])
     if near.any():
         notes.append(
-            f"dropped {int(near.sum())} rows less than {MIN_DT_S * 1e3:g} ms after the previous one "
+            f"dropped {int(near.sum())} rows less than {MIN_DT_S * 1e3:g} ms after the "
+            "previous one "
             "(receiver read bursts; the log stores 0.1 ms)"
         )
     keep = ~near

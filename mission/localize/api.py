@@ -183,7 +183,8 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
     if _check_altitude(est, net, part) and simulated and est.regions:
         est.add_note(
-            "Its error circles were calibrated on flights inside those altitudes: expect them to be too "
+            "Its error circles were calibrated on flights inside those altitudes: expect them "
+            "to be too "
             "small here."
         )
 
@@ -200,7 +201,8 @@ def _method_regions(
         return
     if not default_config:
         est.add_note(
-            "no uncertainty region: the error circles of this method were calibrated for its default "
+            "no uncertainty region: the error circles of this method were calibrated for its "
+            "default "
             "physics and sample selection only"
         )
         return
@@ -231,7 +233,8 @@ def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> 
     ]
     est.add_note(
         f"The regions are the self-calibrating search's posterior's (its estimate "
-        f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} m from "
+        f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} "
+        "m from "
         "this one)."
     )
 
@@ -297,8 +300,10 @@ def fusion(
         outer = outer_region(est.extras)
         if outer is not None and q >= outer["hpd_mass"]:
             est.add_note(
-                f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the fused "
-                f"point lies outside the {100 * outer['level']:.0f} % region, which is the search's alone"
+                f"the network and the self-calibrating search disagree ({dist:.0f} m apart): "
+                "the fused "
+                f"point lies outside the {100 * outer['level']:.0f} % region, which is the "
+                "search's alone"
             )
     _check_altitude(est, net, part)
     return est
@@ -334,8 +339,10 @@ def choose_method(
             None,
             (
                 "real receiver log: mean of the self-calibrating estimate and the network "
-                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
-                "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
+                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring "
+                "(unseen-flight benchmark and "
+                "held-out real flights, models/README.md); --method selfcal / grid / onnx run "
+                "one method"
             ),
         )
     if default_model is not None:

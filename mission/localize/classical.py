@@ -57,7 +57,8 @@ def as_flight(obj, origin=None) -> FlightSamples:
         )
     else:
         raise InputError(
-            f"cannot localize from a {type(obj).__name__}: expected a FlightLog or (enu, rss, attitude)"
+            f"cannot localize from a {type(obj).__name__}: expected a FlightLog or (enu, rss, "
+            "attitude)"
         )
     enu = np.asarray(fs.enu_m, dtype=float)
     rss = np.asarray(fs.rss_dbm, dtype=float).ravel()
@@ -157,8 +158,8 @@ class ModelGridSearch(_Base):
     """Model-based maximum-likelihood grid search with a free constant offset and a robust loss.
 
     ``model``: a ``mission.physics`` model name (built with ``make_model(model, **model_params)``)
-    or any
-    object with ``rss_dbm(tx (K, 1, 3), rx (N, 3), attitude (N, 3) | None) -> (K, N)`` (outer product).
+    or any object with ``rss_dbm(tx (K, 1, 3), rx (N, 3), attitude (N, 3) | None) -> (K, N)``
+    (outer product).
     ``area``: search region, an ``Area`` or ``(xmin, ymin, xmax, ymax)``; by default the flight's
     bounding box grown by ``margin_m``.  Candidates outside an ``Area`` polygon are not considered.
     """

@@ -22,7 +22,8 @@ from mission.localize import Estimate
 from mission.localize.candidates import Candidate, dedupe, posterior_modes
 
 MEMBER_NETWORKS = ("rfsl_spiral_e2r.onnx", "rfsl_spiral_e2r_ens5.onnx")
-SIGMA_M = 35.0  # each candidate's spread in the mixture regions (chosen of 20, 35, 50 m on the development split)
+# each candidate's spread in the mixture regions (chosen of 20, 35, 50 m on the development split)
+SIGMA_M = 35.0
 # HPD masses of the stacked mixture that covered the truth at the nominal rates on the benchmark's
 # development split (flights 0-59; benchmarks/score_evidence.py score): held out on flights 60-199
 # they hold 46 % / 81 %, on the six real flights 5 / 6 and 5 / 6 (models/README.md, "The evidence

@@ -226,7 +226,8 @@ def _standardise(a: np.ndarray) -> np.ndarray:
     return (a - a.mean(axis=0)) / np.where(s > 0, s, 1.0)
 
 
-_KMEANS_LIMIT: list = []  # the threadpoolctl controller for k-means, made once (making one scans libraries: ms)
+# the threadpoolctl controller for k-means, made once (making one scans libraries: ms)
+_KMEANS_LIMIT: list = []
 
 
 def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:

@@ -297,7 +297,8 @@ class MatchedLocalizer(_Base):
         )
         if p_out >= 0.5:
             est.add_note(
-                f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                "the transmitter probably lies outside the flown area (posterior mass "
+                f"{100 * p_out:.0f} % "
                 "outside it): the estimate is an extrapolation"
             )
         est.posterior = post

@@ -102,7 +102,8 @@ class OnnxLocalizer:
         if isinstance(width, int) and width != self.n_features:
             key = "feature_config.c_k" if self.kind == "clustering" else "feature_config.rss_length"
             raise InputError(
-                f"network input has {width} values but the feature configuration gives {self.n_features}",
+                f"network input has {width} values but the feature configuration gives "
+                f"{self.n_features}",
                 source=src,
                 field=key,
             )
@@ -111,7 +112,8 @@ class OnnxLocalizer:
             self.n_features,
         ):
             raise InputError(
-                f"input normalisation has {self.in_mean.size} values, the features {self.n_features}",
+                f"input normalisation has {self.in_mean.size} values, the features "
+                f"{self.n_features}",
                 source=src,
                 field="input_normalisation",
             )
@@ -164,7 +166,8 @@ class OnnxLocalizer:
         if self.needs_heights:
             if heights_m is None:
                 raise InputError(
-                    "an altitude-normalised network needs each flight's height above the transmitter",
+                    "an altitude-normalised network needs each flight's height above the "
+                    "transmitter",
                     source=str(self.path),
                     field="heights_m",
                 )

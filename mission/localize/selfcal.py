@@ -19,7 +19,7 @@ profile likelihood over the search grid is the posterior from which
 
 Model (per cell m, candidate k, hypothesis h)::
 
-    P_m = c_kh + G_h(el_km, az_km) - 20 log10 d_km + e_m          # free space + UAV antenna, offset c free
+    P_m = c_kh + G_h(el_km, az_km) - 20 log10 d_km + e_m          # free space + UAV antenna, c free
     SSR_kh = sum_m (P_m - G_h - (-20 log10 d_km) - c_kh)^2,       c_kh = the mean (least squares)
     log p(k) = logsumexp_h(-0.5 tau SSR_kh / s^2),  s^2 = min SSR / (M - 1),  tau = n_eff / M
 """
@@ -313,7 +313,8 @@ class SelfCalibratingGrid(_Base):
         est = self._estimate(x, y, "free space + profiled UAV antenna", **extras)
         if p_out >= 0.5:
             est.add_note(
-                f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                "the transmitter probably lies outside the flown area (posterior mass "
+                f"{100 * p_out:.0f} % "
                 "outside it): the estimate is an extrapolation"
             )
         est.posterior = post

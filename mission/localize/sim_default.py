@@ -70,7 +70,8 @@ def sim_default_model(
         trained = OnnxLocalizer(path, threads=1).card.domain.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
             return path, (
-                f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the kind of "
+                f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the "
+                "kind of "
                 f"flight it was trained on (spiral, dipoles, {trained[0]:.0f}-{trained[1]:.0f} m)"
             )
     return default, (

@@ -8,7 +8,7 @@ flight is averaged into cells (``mission.cells``); the cells are grouped into sq
 cross-validation, Roberts et al. 2017).  With the transmitter fixed at candidate k, the per-flight
 nuisance is fitted on all blocks but one and the held-out block's cells are scored::
 
-    P_m = c + b * PG_km + G_h(el_km, az_km) + e_m,  PG = -20 log10 d        # free space, UAV antenna h
+    P_m = c + b * PG_km + G_h(el_km, az_km) + e_m,  PG = -20 log10 d    # free space, UAV antenna h
     (c, b) by ridge least squares (b shrunk to 1 with weight lam),  h = argmin training SSR
     lpd_km = log N(P_m - c - b PG_km - G_h; 0, s^2),  s^2 = training SSR / (n - 2)
 
@@ -26,7 +26,8 @@ from scipy.special import logsumexp
 
 from mission.cells import Cells
 
-BLOCK_M = 50.0  # block side: above the real flights' shadowing correlation (35 m, mission/data/afar_family.json)
+# block side: above the real flights' shadowing correlation (35 m, mission/data/afar_family.json)
+BLOCK_M = 50.0
 SLOPE_WEIGHT = (
     200.0  # ridge weight pulling the path-gain slope to free space (cells' PG spread ~ 10 dB)
 )

@@ -24,7 +24,8 @@ ALTITUDE_TOLERANCE_M = (
 ATTITUDE_TOLERANCE_DEG = (
     5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
 )
-TRACK_REACH_M = 10.0  # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
+# a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
+TRACK_REACH_M = 10.0
 TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
 
 
@@ -59,9 +60,12 @@ def altitude_note(
         else f"{flown[0]:.0f}-{flown[1]:.0f} m"
     )
     return (
-        f"{model_name} was trained on flights at {t}; this one flew at {f}, {off:.0f} m outside that: networks "
-        "lose accuracy off their training altitude (in simulation the shipped spiral network's error doubles 5 m "
-        "off and grows 3-5x 10-17 m off, models/README.md), so its half of the estimate is less reliable"
+        f"{model_name} was trained on flights at {t}; this one flew at {f}, {off:.0f} m "
+        "outside that: networks "
+        "lose accuracy off their training altitude (in simulation the shipped spiral network's "
+        "error doubles 5 m "
+        "off and grows 3-5x 10-17 m off, models/README.md), so its half of the estimate is "
+        "less reliable"
     )
 
 
@@ -150,8 +154,10 @@ def attitude_note(
     if not out:
         return None
     return (
-        f"this flight's attitude is outside {model_name}'s training domain ({'; '.join(out)}, 5-95 % of the "
-        "samples used against the training flights' 1-99 %): the network never saw RSS at these tilts"
+        f"this flight's attitude is outside {model_name}'s training domain ({'; '.join(out)}, "
+        "5-95 % of the "
+        "samples used against the training flights' 1-99 %): the network never saw RSS at "
+        "these tilts"
     )
 
 

@@ -9,12 +9,13 @@ what they see spreads the way real flights spread, not around one calibrated poi
 Schema (``schema`` 1)::
 
     {"schema": 1, "name": "...", "description": "...", "source": {...how it was made...},
-     "spec": {...},            # a model spec (mission.physics.presets.build_model); any value may be a
-                               # distribution (below), nested dicts (e.g. "ground") are drawn key by
-                               key
+     "spec": {...},            # a model spec (mission.physics.presets.build_model); any value may
+                               # be a distribution (below), nested dicts (e.g. "ground") are drawn
+                               # key by key
      "variants": [             # optional: alternatives merged into the spec, one drawn per flight
         {"p": 0.6, "spec": {"rx_pattern": "measured", "rx_flipped": true}}, ...],
-     "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},   # correlated field + white nugget
+     # correlated field + white nugget
+     "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
      "offset_db": D,           # the receiver's uncalibrated offset
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
 

@@ -11,8 +11,10 @@ Model spec (every key optional except ``base``)::
      "tx_pattern": "isotropic",       # isotropic | dipole | measured | a file path
      "tx_flipped": false, "tx_heading_deg": 0.0,
      "rx_pattern": "measured", "rx_flipped": true, "rx_heading_deg": 0.0,
-     "ground": null,                  # or {"eps_r": 15, "sigma_s_m": 0.005}: adds/overrides the reflected ray
-     "attitude": true,                # receiver gains in the body frame (roll, pitch, yaw of the log);
+     "ground": null,                  # or {"eps_r": 15, "sigma_s_m": 0.005}: adds/overrides the
+                                      # reflected ray
+     "attitude": true,                # receiver gains in the body frame (roll, pitch, yaw of the
+                                      # log);
                                       # "yaw": heading only (body level); false: level, nose north
      "leg_shadowing_beta": null,      # or beta: paper eqs. 8-9 (removed when null)
      "path_gain_slope": 0.0}          # n_extra of PathGainSlope (-10 n_extra log10 d); 0 = none

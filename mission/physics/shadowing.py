@@ -5,10 +5,11 @@ Why one module: the simulator draws shadowing for training data, the gap diagnos
 self-test, krigs it, and measures it on real residuals; all must mean the same thing by "sigma" and
 "correlation length".  Two covariance families are named here (``COVARIANCES``):
 
-- ``gaussian``:    C(h) = sigma^2 exp(-h^2 / L^2)  (smooth; 1/e at h = L) -- what ``shadowing_field`` draws
-  (``mission.simulate``, training data; kept so that the same seeds give the same bytes);
-- ``exponential``: C(h) = sigma^2 exp(-h / L)      (Gudmundson's model; rough; 1/e at h = L) -- the usual
-  fit to measured shadowing, and the kriging prior of ``mission.gap``.
+- ``gaussian``:    C(h) = sigma^2 exp(-h^2 / L^2)  (smooth; 1/e at h = L) -- what
+  ``shadowing_field`` draws (``mission.simulate``, training data; kept so that the same seeds give
+  the same bytes);
+- ``exponential``: C(h) = sigma^2 exp(-h / L)      (Gudmundson's model; rough; 1/e at h = L) -- the
+  usual fit to measured shadowing, and the kriging prior of ``mission.gap``.
 
 ``fit_variogram`` fits gamma(h) = n^2 + sigma^2 (1 - C(h) / sigma^2) (nugget n = white noise) to the
 empirical semivariogram of residuals, for either family, with block-bootstrap confidence intervals;

@@ -26,7 +26,8 @@ from mission.trajectory.kinematics import FlightProfile, plan_profile
 # and landing rows 0.9 m, ArduCopter 4.7 SITL's return 0.03 m (the AFAR launch point is only 0.44 m
 # inside the fence)
 RETURN_OVERSHOOT_M = 1.0
-_TOL = 1e-6  # metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
+# metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
+_TOL = 1e-6
 
 
 @dataclass
@@ -85,7 +86,10 @@ def _leg_clearance(
 def _where(d: float, margin: float) -> str:
     if d < 0:
         return f"{-d:.1f} m outside the flight area"
-    return f"only {d:.1f} m inside the flight area, {margin:g} m margin required ({margin - d:.1f} m short)"
+    return (
+        f"only {d:.1f} m inside the flight area, {margin:g} m margin required "
+        f"({margin - d:.1f} m short)"
+    )
 
 
 def source_violations(spec, tx=None) -> list[Violation]:
@@ -163,7 +167,8 @@ def check_mission(spec) -> MissionReport:
                 + (
                     f"{-h_clear:.1f} m outside the flight area"
                     if h_clear < 0
-                    else f"only {h_clear:.1f} m inside the flight area, {need:g} m required (return "
+                    else f"only {h_clear:.1f} m inside the flight area, {need:g} m required "
+                    "(return "
                     f"overshoot {RETURN_OVERSHOOT_M:g} m + home_margin_m {spec.home_margin_m:g})"
                 ),
                 need - h_clear,

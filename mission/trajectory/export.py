@@ -173,7 +173,8 @@ def to_kml(spec) -> str:
 
     hlat, hlon, _ = home_geodetic(spec)
     body = [
-        f"<Placemark><name>{escape(spec.name)} trajectory</name><Style><LineStyle><color>ff0000ff</color>"
+        f"<Placemark><name>{escape(spec.name)} "
+        "trajectory</name><Style><LineStyle><color>ff0000ff</color>"
         f"<width>3</width></LineStyle></Style><LineString><tessellate>1</tessellate>"
         f"<altitudeMode>relativeToGround</altitudeMode><coordinates>{coords(_lonlat_line(spec))}"
         f"</coordinates></LineString></Placemark>",
@@ -183,7 +184,8 @@ def to_kml(spec) -> str:
         f"</Placemark>",
     ]
     return (
-        '<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Document>'
+        '<?xml version="1.0" encoding="UTF-8"?>\n<kml '
+        'xmlns="http://www.opengis.net/kml/2.2"><Document>'
         f"<name>{escape(spec.name)}</name>\n" + "\n".join(body) + "\n</Document></kml>\n"
     )
 

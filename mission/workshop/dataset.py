@@ -171,7 +171,8 @@ def generate_dataset(
         "param_names": list(PARAM_NAMES),
         "trajectory_names": trajectory_names(cfg, spec.trajectory.generator),
         "pattern_names": pattern_names(cfg),
-        "seeding": "flight i uses np.random.SeedSequence(seed, spawn_key=(i,)) (= SeedSequence(seed).spawn(n)[i])",
+        "seeding": "flight i uses np.random.SeedSequence(seed, spawn_key=(i,)) (= "
+        "SeedSequence(seed).spawn(n)[i])",
         "chunks": chunks,
         "n": cfg.n,
         **_family_record(cfg),

@@ -250,7 +250,8 @@ def check_cache_family(cs, fam) -> None:
     have = cs.manifest.get("family_sha256")
     if have != family_sha256(fam):
         raise InputError(
-            f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the family file "
+            f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the "
+            "family file "
             f"given ({fam.name!r}); drop --family or rewrite the cache",
             source=str(cs.path),
             field="--family",
@@ -280,7 +281,8 @@ def _axis_value(draw: dict, axis: str):
     for part in axis.split("."):  # e.g. physics.rx_antenna, trajectory_params.region
         if not isinstance(v, dict) or part not in v:
             raise InputError(
-                f"benchmark draws have no axis {axis!r} (e.g. heading_habit, tx_outside_flight_area, "
+                f"benchmark draws have no axis {axis!r} (e.g. heading_habit, "
+                "tx_outside_flight_area, "
                 "altitude_m, physics.rx_antenna, trajectory)",
                 field="--by",
             )

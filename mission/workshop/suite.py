@@ -3,18 +3,23 @@
 How to call it (the lead's entry points)::
 
     from mission.workshop.suite import unseen_flights, unseen_flight
-    for log, truth_xy, draw in unseen_flights(200, seed=2026):      # list[SuiteFlight] (a NamedTuple)
-        est = localize_log(log, method="grid")                      # log: a FlightLog like an imported one
+    # list[SuiteFlight] (a NamedTuple)
+    for log, truth_xy, draw in unseen_flights(200, seed=2026):
+        est = localize_log(log, method="grid")  # log: a FlightLog like an imported one
         err = float(np.hypot(est.x_m - truth_xy[0], est.y_m - truth_xy[1]))
-    f = unseen_flight(2026, 17)                                      # one flight, same bytes as in the list
+    f = unseen_flight(2026, 17)  # one flight, same bytes as in the list
     # the on-disk cache (write_suite / read_suite / check_current): mission.workshop.suite_cache
 
-    rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_unseen_2026     # the cache
-    rfsl evaluate --suite unseen --n 200 --seed 2026 --methods strongest,centroid,grid,onnx:models/X.onnx
-    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2      # from the cache
-    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default --by tx_outside_flight_area,heading_habit
+    # the cache
+    rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_unseen_2026
+    rfsl evaluate --suite unseen --n 200 --seed 2026 \
+        --methods strongest,centroid,grid,onnx:models/X.onnx
+    # from the cache
+    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2
+    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default \
+        --by tx_outside_flight_area,heading_habit
     # in Python: rows, secs = mission.workshop.evaluate_suite.evaluate_suite(["default", "grid"],
-    200, suite_dir=...)
+    #                                                                        200, suite_dir=...)
     #            breakdown(rows, suite_draws(200, suite_dir=...), "physics.rx_antenna")
 
 Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict

@@ -5,9 +5,10 @@ Why a cache: scoring many methods on the same 200 flights should not simulate th
 why a fingerprint: a cache written by older simulator code was once re-used and gave figures 3-8 m
 off the current code's, without a word.
 
-    write_suite("/tmp/suite_unseen_2026", n=200, seed=2026)          # cached CSV logs + suite.json (truths, draws)
-    flights = read_suite("/tmp/suite_unseen_2026")                   # same flights back (lazy: .load(i))
-    flights.check_current()                                          # None, or a warning: cache is stale
+    # cached CSV logs + suite.json (truths, draws)
+    write_suite("/tmp/suite_unseen_2026", n=200, seed=2026)
+    flights = read_suite("/tmp/suite_unseen_2026")  # same flights back (lazy: .load(i))
+    flights.check_current()  # None, or a warning: cache is stale
 
 A stale cache is never read silently: ``suite.json`` keeps a fingerprint of flight 0 as the writing
 code simulated it (``flight_fingerprint``: sha256 of its quantised log columns and truth), and
@@ -222,7 +223,8 @@ class CachedSuite:
                 else f"fingerprint scheme {fp.get('scheme')!r} unknown to this code"
             )
             return (
-                f"{self.path} may have been written by other simulator code than this one ({why}): its figures "
+                f"{self.path} may have been written by other simulator code than this one "
+                f"({why}): its figures "
                 f"may not be the current code's; {redo}"
             )
         mf = self.manifest
@@ -233,13 +235,15 @@ class CachedSuite:
             )
         except (InputError, KeyError, ValueError) as e:
             return (
-                f"{self.path}: this code cannot re-simulate its flight {i} ({str(e).splitlines()[0]}): its "
+                f"{self.path}: this code cannot re-simulate its flight {i} "
+                f"({str(e).splitlines()[0]}): its "
                 f"figures may not be the current code's; {redo}"
             )
         if now == fp["sha256"]:
             return None
         return (
-            f"{self.path} was written by other simulator code than this one (fingerprint of flight {i} "
+            f"{self.path} was written by other simulator code than this one (fingerprint of "
+            f"flight {i} "
             f"differs): its figures are not the current code's; {redo}"
         )
 

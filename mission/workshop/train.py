@@ -349,7 +349,8 @@ def train(
             "train_config": _jsonable(asdict(cfg)),
             "coords": "relative" if relative else "absolute",
             "parametrisation": (
-                "inside the graph: (x, y) of every cluster minus the strongest cluster's (x_1, y_1), "
+                "inside the graph: (x, y) of every cluster minus the strongest cluster's (x_1, "
+                "y_1), "
                 "standardised; output + (x_1, y_1)"
                 if relative
                 else "inside the graph: absolute (x, y), standardised"
