@@ -18,7 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mission.files import save_figure
 from mission.geo import Area, square_grid
+from mission.localize.classical import ModelGridSearch
+from mission.simulate import fly_path
+from mission.trajectory.checks import check_mission
 
 # estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y What the
 # default expected-error map assumes, said wherever its numbers are shown (table and plot title).
@@ -91,8 +95,6 @@ class Summary:
 
 def summarize(spec) -> Summary:
     """Length, duration, RSS samples, fence clearance and rover-area coverage of a mission."""
-    from mission.trajectory.checks import check_mission
-
     rep = check_mission(spec)
     cov = coverage(spec.field.rover_area, spec.waypoints_enu())
     return Summary(
@@ -118,8 +120,6 @@ def ml_grid_estimator(
     """The default ``Estimator`` (module docstring): ``ModelGridSearch(model).fixed_geometry`` along
     the flown ``positions`` / ``attitude`` with the cell centres of a ``step_m`` grid over ``area``
     as candidates."""
-    from mission.localize.classical import ModelGridSearch
-
     search = ModelGridSearch(model, tx_height_m=tx_height_m, area=area, step_m=step_m)
     fixed = search.fixed_geometry(positions, attitude, area_grid(area, step_m))
 
@@ -164,8 +164,6 @@ def expected_error_map(
     RSS sample is kept, as a localizer would average them anyway; each transmitter gets its own
     noise draw. ``progress(done, total)`` is called after each row of the lattice.
     """
-    from mission.simulate import fly_path
-
     model = model if model is not None else spec.propagation_model()
     cfg = spec.sim_config()
     _, pos, att, _ = fly_path(spec.flight_path_enu(), cfg, rng)
@@ -205,13 +203,13 @@ def render_preview(
 ):
     """Draw the areas, waypoints, simulated flown path, budget and (optionally) the error
     heatmap."""
-    import matplotlib
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Polygon
-
-    from mission.simulate import fly_path
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+    from matplotlib.patches import Polygon  # noqa: PLC0415
 
     summary = summary or summarize(spec)
     rng = rng if rng is not None else np.random.default_rng(spec.source.seed)
@@ -343,7 +341,6 @@ def render_preview(
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right", fontsize=9, framealpha=0.9)
     fig.tight_layout()
-    from mission.files import save_figure
 
     try:
         save_figure(fig, out, "--out", dpi=dpi)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.adaptive.config import parse_adaptive
 from mission.defaults import (
     BUDGET_POLICIES,
     DEFAULT_ALTITUDE_M,
@@ -27,10 +28,13 @@ from mission.defaults import (
 )
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
-from mission.shipped import missions_dir
+from mission.physics import make_model
+from mission.shipped import missions_dir, resolve_shipped
 from mission.simulate import SimConfig
 from mission.spec_reader import SpecReader as _Reader
+from mission.spec_reader import read_yaml
 from mission.trajectory.checks import RETURN_OVERSHOOT_M
+from mission.trajectory.generators import GENERATORS, generate
 from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
@@ -147,7 +151,6 @@ class MissionSpec:
         t = self.trajectory
         if t.waypoints is not None:
             return np.array(t.waypoints, dtype=float)
-        from mission.trajectory.generators import generate
 
         try:
             return generate(t.generator, self.field, self.altitude_m, **t.params)
@@ -204,8 +207,6 @@ class MissionSpec:
     def propagation_model(self):
         """The ``mission.physics`` model named by ``source.model`` (with
         ``source.model_params``)."""
-        from mission.physics import make_model
-
         try:
             return make_model(self.source.model, **self.source.model_params)
         except (ValueError, TypeError, KeyError) as e:
@@ -427,8 +428,6 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
             raise tr.err("params", "explicit waypoints take no generator parameters")
         traj = TrajectorySpec("waypoints", {}, pts)
     else:
-        from mission.trajectory.generators import GENERATORS
-
         gen = tr.str_("generator", d("trajectory").generator, tuple(GENERATORS))
         params = tr.raw("params", {}) or {}
         if not isinstance(params, dict):
@@ -475,7 +474,6 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     kr.used.update(kin)
     kr.done()
     vr.done()
-    from mission.adaptive.config import parse_adaptive
 
     adaptive = parse_adaptive(r.sub("adaptive")) if "adaptive" in r.d else None
     lg = r.sub("logging")
@@ -508,8 +506,6 @@ def load_mission(path: str | Path | None = None) -> MissionSpec:
     """Read and validate a mission YAML file (default: ``missions/spiral.yaml``): a path, or the
     name of a shipped mission (``spiral``, ``missions/spiral.yaml`` from any folder:
     ``mission.shipped``)."""
-    from mission.spec_reader import read_yaml
-
     p = resolve_mission_path(path)
     data = read_yaml(p, "mission file", max_bytes=MAX_MISSION_BYTES)
     if data is None:
@@ -525,8 +521,6 @@ def load_mission(path: str | Path | None = None) -> MissionSpec:
 def resolve_mission_path(path: str | Path | None) -> Path:
     """The mission file ``path`` names: the path itself when it exists, else the shipped mission of
     that name (``mission.shipped.resolve_shipped``); an InputError when neither exists."""
-    from mission.shipped import resolve_shipped
-
     p = resolve_shipped(path, "missions", ".yaml") if path is not None else DEFAULT_MISSION
     if p.exists():
         return p

@@ -13,14 +13,15 @@ import dataclasses
 
 import numpy as np
 
+from mission.adaptive.simflight import FlightWorld, adaptive_flight, estimator, fixed_flight
+from mission.evidence import compare_methods, mean_interval
+from mission.physics.family import load_family
+from mission.workshop.flight_draws import flight_rng
+
 
 def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> dict:
     """Errors, 90 % region coverage and area, durations and rounds of flight ``i``, fixed and
     adaptive."""
-    from mission.adaptive.simflight import FlightWorld, adaptive_flight, estimator, fixed_flight
-    from mission.physics.family import load_family
-    from mission.workshop.flight_draws import flight_rng
-
     cfg = dataclasses.replace(spec.sim_config(), dt_s=dt_s)
     loc = estimator(spec)
     w = FlightWorld(spec, load_family(family), flight_rng(seed, i))
@@ -47,8 +48,6 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
 def summarize_pairs(rows: list[dict]) -> dict:
     """Mean (90 % bootstrap interval), paired difference adaptive - fixed, p90, coverage, median
     region area, mean duration and rounds per mission; the fast (3-minute) estimate's mean error."""
-    from mission.evidence import compare_methods, mean_interval
-
     ok = [
         r
         for r in rows

@@ -23,12 +23,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.adaptive.feasibility import adaptive_violations
+from mission.adaptive.planner import choose_target, plan_round, return_s, survey_spec
 from mission.flight import estimates, live
 from mission.flight.context import FlightContext, FlightError
 from mission.flight.phases import final_phase
 from mission.flight.plan import upload_with_retries
 from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
+from mission.spec import TrajectorySpec
+from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
 MIN_LEAD_WALL_S = (
@@ -48,8 +52,6 @@ class AdaptiveRounds:
     flown_s: float | None = None  # the rounds' flown seconds, once ``record`` measured them
 
     def __post_init__(self) -> None:
-        from mission.adaptive.planner import survey_spec
-
         self.spec = survey_spec(self.full_spec, self.config.survey_s)
         self.update_s = self.config.update_s
 
@@ -61,8 +63,6 @@ class AdaptiveRounds:
     def check(self, ctx: FlightContext) -> None:
         """The adaptive settings again with the autopilot's own return (known now, ``ctx.budget``):
         refused before the upload and take-off, exit 2, when they leave no round."""
-        from mission.adaptive.feasibility import adaptive_violations
-
         extra = autopilot_return_extra_s(ctx, ctx.spec.waypoints_enu()[-1])
         if v := adaptive_violations(self.full_spec, self.config, extra):
             raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
@@ -131,8 +131,6 @@ def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
     speeds and hover (ArduCopter: RTL_LOIT_TIME 5 s, LAND_SPEED 0.5 m/s below 10 m: its return took
     85 s against 55 s planned on the SITL, 615 s of 600 flown); its return from the survey's end
     against ours is the extra."""
-    from mission.adaptive.planner import return_s
-
     plan = getattr(getattr(ctx, "budget", None), "plan", None)
     try:
         theirs = float(plan.duration_s - plan.t_wp[-1])
@@ -144,10 +142,6 @@ def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
 async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) -> None:
     """Plan, check and upload rounds until the region is small, no round fits, or the mission
     ends."""
-    from mission.adaptive.planner import choose_target, plan_round
-    from mission.spec import TrajectorySpec
-    from mission.trajectory.items import build_items
-
     a, spec = ext.config, ext.full_spec
     wps = np.asarray(ctx.spec.waypoints_enu(), dtype=float)
     off, n_survey = ctx.status.waypoint_offset, len(wps)

@@ -13,9 +13,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
 
+from mission.adaptive.planner import choose_target, plan_round, posterior_candidates, survey_profile
 from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.errors import InputError
 from mission.flightlog import ADAPTIVE, FLOWN_PHASES, LAND, MISSION, RETURN, TAKEOFF
+from mission.localize.api import make_localizer
+from mission.localize.methods import ADAPTIVE_METHOD
+from mission.localize.uncertainty import region_covers
+from mission.physics.shadowing import shadowing_field
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
 
@@ -25,10 +32,6 @@ class FlightWorld:
     flight area."""
 
     def __init__(self, spec, family, rng: np.random.Generator, step_m: float = 3.0) -> None:
-        from scipy.interpolate import RegularGridInterpolator
-
-        from mission.physics.shadowing import shadowing_field
-
         self.draw = family.draw(rng)
         self.model = self.draw.model()
         self.tx = spec.resolve_tx(rng)
@@ -89,9 +92,6 @@ class SimLog:
 def estimator(spec):
     """The live estimator with ``localize_log``'s settings for this field
     (``methods.ADAPTIVE_METHOD``)."""
-    from mission.localize.api import make_localizer
-    from mission.localize.methods import ADAPTIVE_METHOD
-
     return make_localizer(
         ADAPTIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M
     )
@@ -110,9 +110,6 @@ class Outcome:
 
 
 def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
-    from mission.errors import InputError
-    from mission.localize.uncertainty import region_covers
-
     f = log.samples(t_max)
     if f is None:
         return None
@@ -120,7 +117,6 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
         e = loc.predict(f)
     except InputError:
         return None
-    from mission.adaptive.planner import posterior_candidates
 
     reg = next((r for r in e.regions if r["level"] == 0.9), None)
     return (
@@ -165,8 +161,6 @@ def adaptive_flight(
     spec, a, world: FlightWorld, cfg: SimConfig, rng, loc, fast_s: float = 180.0
 ) -> Outcome:
     """The survey, rounds planned from the live estimate (``plan_round``), then home."""
-    from mission.adaptive.planner import choose_target, plan_round, survey_profile
-
     sv = survey_profile(spec, a.survey_s).vertices
     home = np.asarray(spec.home_enu, dtype=float)
     log = SimLog()

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.files import check_regular, read_bytes, read_text
 from mission.flightlog.schema import (
     COLUMNS,
     OPTIONAL,
@@ -62,8 +63,6 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     crash (dropped), a missing sidecar, a flight the sidecar says did not complete.  ``origin``
     (e.g. from ``--origin``) replaces the sidecar's.
     """
-    from mission.files import check_regular, read_bytes
-
     path = Path(path)
     src = str(path)
     if path.is_dir():
@@ -400,7 +399,6 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
             "and no truth"
         )
         return {}
-    from mission.files import read_text
 
     try:
         meta = json.loads(read_text(sc, "sidecar", max_bytes=MAX_SIDECAR_BYTES))

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.io as sio
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
@@ -81,8 +82,6 @@ class ImportResult:
 
 
 def _load_mat(path: Path) -> dict[str, np.ndarray]:
-    import scipy.io as sio
-
     src = str(path)
     if path.is_dir():
         raise InputError(

@@ -31,7 +31,16 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
+from mission.flightlog import FlightLog, read_flight_log
+from mission.geo import Area, afar_field
 from mission.localize import Estimate, Selection
+from mission.localize.error_circles import (
+    CIRCLE_METHODS,
+    NO_CIRCLE_APPLIES,
+    attach_circles,
+    card_calibration,
+    method_calibration,
+)
 from mission.localize.methods import (
     ADAPTIVE_METHOD,
     DEFAULT_MODEL_NAME,
@@ -42,6 +51,16 @@ from mission.localize.methods import (
     composer,
     method_entry,
 )
+from mission.localize.preprocess import select_samples
+from mission.localize.sim_default import sim_default_model
+from mission.localize.training_domain import (
+    altitude_note,
+    flight_altitudes,
+    flown_domain,
+    trained_legs,
+)
+from mission.localize.uncertainty import outer_region
+from mission.physics.propagation import MODEL_NAMES
 from mission.shipped import (
     shipped_model,
 )  # re-exported: importers say mission.localize.api.shipped_model
@@ -59,8 +78,6 @@ def default_model_path() -> Path | None:
 def search_area(log):
     """The grid search region for a log (``Area`` in the log's frame, or None for the flight's
     box)."""
-    from mission.geo import Area, afar_field
-
     origin = log.origin
     ra = log.meta.get("rover_area")
     if isinstance(ra, list) and len(ra) >= 3:
@@ -131,7 +148,6 @@ def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
     sidecar says which, with its parameters), else the ``afar`` preset calibrated on real
     receivers."""
     src = log.meta.get("rss_source") or {}
-    from mission.physics.propagation import MODEL_NAMES
 
     if src.get("kind") == "sim" and src.get("model") in MODEL_NAMES:
         return src["model"], dict(src.get("model_params") or {}), None
@@ -157,8 +173,6 @@ def _check_altitude(est: Estimate, net, part) -> bool:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
     ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``);
     True then."""
-    from mission.localize.training_domain import altitude_note, flight_altitudes
-
     trained, flown = net.card.domain.altitude_m, flight_altitudes(part.enu()[:, 2])
     est.extras["network_training_altitude_m"] = None if trained is None else list(trained)
     est.extras["flight_altitude_m"] = list(flown)
@@ -171,9 +185,6 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     """A network's estimate gets its card's calibrated error circles (``error_circles``, clipped to
     the rover ``area`` when known) and the altitude check; on a simulated log outside the training
     altitudes the circles (calibrated inside them) are too small."""
-    from mission.localize.error_circles import attach_circles, card_calibration
-    from mission.localize.training_domain import flown_domain
-
     cal = card_calibration(net.card, "sim" if simulated else "real")  # sized for what was flown
     flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name)
     if (
@@ -195,8 +206,6 @@ def _method_regions(
     """Strongest sample, centroid and grid get error circles calibrated for their default
     configuration (the grid's default physics, the default sample selection), clipped to the rover
     ``area`` when known; any other configuration gets a note instead."""
-    from mission.localize.error_circles import CIRCLE_METHODS, attach_circles, method_calibration
-
     if method not in CIRCLE_METHODS:
         return
     if not default_config:
@@ -221,7 +230,6 @@ def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> 
     _, alt = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     if not alt.regions:
         return
-    from mission.localize.error_circles import NO_CIRCLE_APPLIES
 
     est.regions, est.posterior = alt.regions, alt.posterior
     est.extras["regions_from"] = "selfcal"
@@ -246,8 +254,6 @@ def fusion_model_path() -> Path | None:
 
 def member_samples(part, entry: Method):
     """The samples a method takes (its registry entry's ``samples``)."""
-    from mission.localize.training_domain import trained_legs
-
     return trained_legs(part) if entry.samples == TRAINED_LEGS else part
 
 
@@ -266,8 +272,6 @@ def fusion(
     benchmarks/fusion_weights.py); the uncertainty regions are the self-calibrating posterior's, and
     a note says when the fused point falls outside them (the two components disagree: ~5 % of
     benchmark flights)."""
-    from mission.localize.uncertainty import outer_region
-
     _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     path = model_path or fusion_model_path()
     if path is None:
@@ -346,8 +350,6 @@ def choose_method(
             ),
         )
     if default_model is not None:
-        from mission.localize.sim_default import sim_default_model
-
         path, why = sim_default_model(meta, heights_m, default_model)
         return "onnx", path, why
     return (
@@ -376,8 +378,6 @@ def localize_log(
     """
     if physics_preset is not None and physics_model is not None:
         raise InputError("give a physics model or a physics preset, not both")
-    from mission.flightlog import FlightLog, read_flight_log
-    from mission.localize.preprocess import select_samples
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     physics_given = physics_preset is not None or physics_model is not None or floor_db is not None

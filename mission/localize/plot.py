@@ -8,7 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.files import save_figure
+from mission.geo import afar_field
 from mission.localize import Estimate
+from mission.localize.api import search_area
 from mission.localize.features import FeatureConfig, cluster_details
 
 
@@ -16,9 +19,6 @@ def field_areas(log) -> list:
     """The areas to draw for a log, in its frame: the AFAR flight and rover areas when the log
     shares the AFAR origin, else the sidecar's rover area (if any).  Why: a path or estimate means
     little without the field."""
-    from mission.geo import afar_field
-    from mission.localize.api import search_area
-
     af = afar_field()
     o = log.origin
     off = af.origin.to_enu(o.lat_deg, o.lon_deg, o.alt_m)
@@ -116,10 +116,12 @@ def plot_localization(
 ) -> Path:
     """Draw ``log`` (its cruise part, positions in the log's frame) with ``est``; writes ``out``
     (PNG)."""
-    import matplotlib
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415
 
     cfg = cfg or FeatureConfig()
     enu = log.enu()
@@ -202,7 +204,6 @@ def plot_localization(
     ax.legend(loc="best", fontsize=7, framealpha=0.85)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    from mission.files import save_figure
 
     try:
         out = save_figure(fig, out, "--plot")  # whole or not at all; an OS error is one line

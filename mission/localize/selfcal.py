@@ -27,6 +27,7 @@ Model (per cell m, candidate k, hypothesis h)::
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from mission.cells import ALTITUDE_GAP_M, Cells, cell_average
 from mission.defaults import DEFAULT_TX_HEIGHT_M
@@ -34,6 +35,7 @@ from mission.errors import InputError
 from mission.geo import Area, square_grid
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
+from mission.localize.uncertainty import grid_posterior, hpd_regions
 from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
 from mission.physics.geometry import heading_frame_angles, link_delta
 from mission.samples import FlightSamples
@@ -261,8 +263,6 @@ class SelfCalibratingGrid(_Base):
         return square_grid(box, self.step_m), box, poly
 
     def predict(self, flight, origin=None) -> Estimate:
-        from mission.localize.uncertainty import grid_posterior, hpd_regions
-
         f = as_flight(flight, origin)
         cells = cell_average(f, self.cell_m, self.altitude_gap_m)
         if len(cells) < self.min_cells:
@@ -323,8 +323,6 @@ class SelfCalibratingGrid(_Base):
 
 def flown_area(enu: np.ndarray) -> Area | None:
     """The flown area: the convex hull of the UAV track (None for a degenerate track)."""
-    from scipy.spatial import ConvexHull, QhullError
-
     xy = enu[:, :2]
     try:
         return Area("flown area", xy[ConvexHull(xy).vertices])

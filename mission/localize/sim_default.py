@@ -18,6 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.localize.training_domain import altitude_note, flight_altitudes
+from mission.shipped import shipped_model
+
 SPIRAL_NETWORKS = (
     "rfsl_spiral_e2r_ens5.onnx",
     "rfsl_spiral_alt.onnx",
@@ -54,10 +58,6 @@ def sim_default_model(
     """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at
     ``heights_m``: the first spiral network whose training altitudes hold the flight, else
     ``default`` (``rfsl_default``)."""
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.localize.training_domain import altitude_note, flight_altitudes
-    from mission.shipped import shipped_model
-
     dname = default.name if default is not None else "none"
     why_not = spiral_source(meta)
     if why_not is not None:

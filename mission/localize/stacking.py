@@ -25,6 +25,8 @@ import numpy as np
 from scipy.special import logsumexp
 
 from mission.cells import Cells
+from mission.localize.selfcal import _geometry, hypothesis_residuals
+from mission.localize.uncertainty import grid_posterior
 
 # block side: above the real flights' shadowing correlation (35 m, mission/data/afar_family.json)
 BLOCK_M = 50.0
@@ -69,8 +71,6 @@ def blocked_scores(
 ) -> BlockedScores:
     """Blocked cross-validated predictive log densities of every candidate (module docstring),
     vectorised over candidates, blocks and cells; one pass per antenna hypothesis."""
-    from mission.localize.selfcal import _geometry, hypothesis_residuals
-
     block = cell_blocks(cells, block_m)
     nb = int(block.max()) + 1
     if nb < 2:
@@ -149,8 +149,6 @@ def geometric_median(
 def mixture_posterior(cand_xy: np.ndarray, weights: np.ndarray, grid: np.ndarray, sigma_m: float):
     """The candidates' mixture as a grid posterior: isotropic Gaussians of ``sigma_m`` about each
     candidate, weighted by stacking; two surviving candidates far apart give two islands."""
-    from mission.localize.uncertainty import grid_posterior
-
     pts = grid.reshape(-1, 2)
     d2 = ((pts[None, :, :] - np.asarray(cand_xy, float)[:, None, :]) ** 2).sum(-1)  # (K, G)
     logp = np.log(np.maximum(np.asarray(weights, float), 1e-300))[:, None] - 0.5 * d2 / sigma_m**2

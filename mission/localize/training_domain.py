@@ -14,9 +14,12 @@ The training's spans are the network's card's (``card.TrainingDomain``, measured
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from mission.defaults import DEFAULT_ALTITUDE_M
 from mission.errors import InputError
+from mission.geo import afar_field
+from mission.trajectory.generators import generate
 
 ALTITUDE_TOLERANCE_M = (
     5.0  # 5 m off its training altitude the spiral network's simulated error doubles
@@ -90,9 +93,6 @@ def planned_track(meta: dict, origin) -> np.ndarray | None:
     (generator, parameters, altitude) over the AFAR field; None when the sidecar records no
     generated trajectory or the log is not in the AFAR field's frame (a custom field: its plan
     cannot be rebuilt from the record)."""
-    from mission.geo import afar_field
-    from mission.trajectory.generators import generate
-
     traj = meta.get("trajectory") or {}
     field = afar_field()
     if not traj.get("generator") or not _same_origin(origin, field.origin):
@@ -123,8 +123,6 @@ def track_coverage(
 ) -> float:
     """Share of the planned track (every ``step_m`` along it) that a flown sample passed within
     ``reach_m`` of: 1 for a full flight, about a third for a flight aborted a third of the way."""
-    from scipy.spatial import cKDTree
-
     w = np.asarray(planned_xy, dtype=float)
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(w, axis=0).T))])
     at = np.linspace(0.0, s[-1], max(int(s[-1] / step_m) + 1, 2))

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import contourpy
 import numpy as np
 from scipy.special import logsumexp
 from scipy.stats import chi2
@@ -118,8 +119,6 @@ def hpd_regions(
     benchmark (a recalibration of the posterior's credible levels); without it the HPD mass is the
     nominal level.
     """
-    import contourpy
-
     post.grid = grid
     pts = grid.reshape(-1, 2)
     p = post.prob.ravel()

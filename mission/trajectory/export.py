@@ -17,6 +17,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from mission.files import write_text
 from mission.trajectory.items import RawItem, build_items, home_geodetic
 
 FORMATS = ("plan", "wpl", "geojson", "kml")
@@ -203,6 +204,5 @@ def export_mission(spec, fmt: str, out: str | Path) -> Path:
         text = to_kml(spec)
     else:
         raise ValueError(f"unknown export format {fmt!r}")
-    from mission.files import write_text
 
     return write_text(out, text)  # whole or not at all; an OS error is one line naming the file

@@ -14,14 +14,19 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import multiprocessing as mp
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from mission import __version__
 from mission.errors import InputError
-from mission.files import write_bytes, write_text
+from mission.files import read_text, write_bytes, write_text
+from mission.localize.features import FeatureConfig
+from mission.spec import load_mission
+from mission.threads import limit_worker
 from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one import site for dataset users)
     FEATURE_KINDS,
     PARAM_NAMES,
@@ -33,6 +38,7 @@ from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one i
     trajectory_names,
 )
 from mission.workshop.flight_draws import FlightDraw, FlightSimulator, flight_rng, trajectory_params  # noqa: F401
+from mission.workshop.suite import family_label, family_sha256, resolve_family
 
 FORMAT = "rfsl-dataset/1"
 
@@ -44,7 +50,6 @@ _WORKER: FlightSimulator | None = None
 
 def _init_worker(cfg_dict: dict) -> None:
     global _WORKER
-    from mission.threads import limit_worker
 
     limit_worker()
     _WORKER = FlightSimulator(DatasetConfig.from_dict(cfg_dict))
@@ -86,7 +91,6 @@ def iter_rows(
         for i in idx:
             yield _work(i)
         return
-    import multiprocessing as mp
 
     ctx = (
         mp.get_context("spawn")
@@ -108,10 +112,6 @@ def generate_dataset(
 
     ``progress(done, total)`` is called after each flight.  Returns the manifest.
     """
-    from mission import __version__
-    from mission.localize.features import FeatureConfig
-    from mission.spec import load_mission
-
     if cfg.n < 1 or cfg.chunk < 1:
         raise InputError(f"need n >= 1 and chunk >= 1, got n={cfg.n}, chunk={cfg.chunk}")
     bad = [f for f in cfg.features if f not in FEATURE_KINDS]
@@ -196,7 +196,6 @@ def _family_record(cfg: DatasetConfig) -> dict:
     file may move)."""
     if not cfg.suite:
         return {}
-    from mission.workshop.suite import family_label, family_sha256, resolve_family
 
     fam = resolve_family(cfg.suite_family)
     if isinstance(fam, str):
@@ -217,7 +216,6 @@ def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
     mf = p / "manifest.json" if p.is_dir() else p
     if not mf.is_file():
         raise InputError("not a dataset (no manifest.json)", source=str(p))
-    from mission.files import read_text
 
     try:
         m = json.loads(read_text(mf, "dataset manifest"))

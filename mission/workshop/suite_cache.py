@@ -22,12 +22,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import multiprocessing as mp
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from mission.errors import InputError
+from mission.flightlog import read_flight_log, write_flight_log
+from mission.physics.family import PhysicsFamily
 from mission.workshop.suite import (
     BENCHMARK_SEED,
     FamilyArg,
@@ -80,8 +83,6 @@ def flight_fingerprint(f: SuiteFlight) -> str:
 
 
 def _write_one(args: tuple) -> tuple[dict, str | None]:
-    from mission.flightlog import write_flight_log
-
     out, seed, i, family, center = args
     f = unseen_flight(seed, i, family, center)
     p = Path(out) / f"flight_{i:05d}.csv"
@@ -150,7 +151,6 @@ def _map(fn, jobs: list, workers: int):
     if workers <= 1 or len(jobs) < 2:
         yield from map(fn, jobs)
         return
-    import multiprocessing as mp
 
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     with ctx.Pool(workers) as pool:
@@ -179,8 +179,6 @@ class CachedSuite:
         return len(self.manifest["flights"])
 
     def load(self, i: int) -> SuiteFlight:
-        from mission.flightlog import read_flight_log
-
         r = self.manifest["flights"][i]
         return SuiteFlight(
             read_flight_log(self.path / r["file"]), np.array(r["truth_xy"]), r["draw"]
@@ -192,7 +190,6 @@ class CachedSuite:
         rec = self.manifest.get("family_record")
         if rec is None:
             return self.manifest.get("family", "afar")
-        from mission.physics.family import PhysicsFamily
 
         return PhysicsFamily.from_dict(rec, source=str(self.path / "suite.json"))
 
