@@ -28,11 +28,14 @@ the policy, what was dropped and the measured arm-to-disarm time.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mission.flight.plan import upload_with_retries
+from mission.spec import TrajectorySpec
+from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
@@ -417,11 +420,6 @@ async def act(ctx, watch: BudgetWatch, decision: tuple[str, int], mission_raw, a
     """Carry out ``decision`` (``BudgetWatch.decide``) on the autopilot: the mission re-uploaded
     without its dropped tail (the current item kept: items already flown keep their indices), or
     return to launch.  A failed upload leaves the whole mission (safe, over budget) and says so."""
-    import dataclasses
-
-    from mission.spec import TrajectorySpec
-    from mission.trajectory.items import build_items
-
     what, keep = decision
     s = ctx.status
     if what == "return":

@@ -15,6 +15,8 @@ import asyncio
 import json
 import time
 
+from mavsdk.plugins.mavlink_direct import MavlinkMessage
+
 GCS_SYSID, GCS_COMPID = 245, 190  # MAVSDK's ground-station identity
 _HEARTBEAT = json.dumps(
     {
@@ -42,8 +44,6 @@ def heartbeat_hz(speedup: float) -> float:
 
 async def gcs_heartbeats(ctx, direct, speedup: float) -> None:
     """Task: HEARTBEAT to the vehicle at ``heartbeat_hz(speedup)``; a failure is reported once."""
-    from mavsdk.plugins.mavlink_direct import MavlinkMessage
-
     msg = MavlinkMessage("HEARTBEAT", GCS_SYSID, GCS_COMPID, 0, 0, _HEARTBEAT)
     period, failed = 1.0 / heartbeat_hz(speedup), False
     while True:

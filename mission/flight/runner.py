@@ -32,6 +32,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mavsdk.asyncio import Autopilot as SdkAutopilot
+from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
+from mavsdk.asyncio.plugins.param import ParamAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.action import ActionError
+from mavsdk.plugins.mission_raw import MissionRawError
 
 from mission.errors import InputError
 from mission.flight import estimates, tasks
@@ -48,9 +57,15 @@ from mission.flight.context import (
     race,
     wait_any,
 )
+from mission.flight.estimates import LiveEstimates
 from mission.flight.heartbeat import gcs_heartbeats, settle_texts
+from mission.flight.logrows import RowLogger, new_flight_dir
 from mission.flight.phases import MonotonicPhases, final_phase
+from mission.flight.plan import upload_with_retries
+from mission.flight.preflight import check_options
 from mission.flight.progress import Display, FlightStatus
+from mission.flight.sdklog import SdkLog
+from mission.flight.sources import SimSource, make_receiver, parse_source
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.telemetry import Telemetry
 from mission.flight.vehicle_process import (
@@ -59,6 +74,9 @@ from mission.flight.vehicle_process import (
     spawn_vehicle,
     stop_vehicle,
 )
+from mission.flightlog import PHASE_COLUMNS, FlightLogWriter, make_meta
+from mission.trajectory.checks import assert_flyable
+from mission.trajectory.items import build_items
 
 __all__ = [
     "FlyOptions",
@@ -142,8 +160,6 @@ def _fmt_wall(s: float) -> str:
 
 def new_context(spec, opts: FlyOptions, extension=None) -> FlightContext:
     """The context of one flight of ``spec`` (an ``extension`` flies its own part of it first)."""
-    from mission.flight.estimates import LiveEstimates
-
     speedup = float(opts.speedup or spec.vehicle.speedup or 1.0)
     url = opts.connect or spec.vehicle.connection
     flown = extension.spec if extension is not None else spec
@@ -203,9 +219,6 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
 async def run(ctx: FlightContext) -> int:
     """Check, start the built-in vehicle if no connection is given, fly; signals abort (RTL once
     airborne)."""
-    from mission.flight.preflight import check_options
-    from mission.trajectory.checks import assert_flyable
-
     spec = ctx.spec
     check_options(ctx.opts)  # options: before anything starts
     report = assert_flyable(
@@ -253,8 +266,6 @@ async def run(ctx: FlightContext) -> int:
 def make_source(spec, rss_source: str):
     """The RSS source (a receiver, or the simulated one with its true transmitter) and the truth
     record."""
-    from mission.flight.sources import SimSource, make_receiver, parse_source
-
     kind, arg = parse_source(rss_source)
     if kind != "sim":
         return make_receiver(kind, arg), None
@@ -278,8 +289,6 @@ def make_source(spec, rss_source: str):
 async def connect(ctx: FlightContext, sdk, url: str):
     """The first autopilot on ``url`` within ``--link-timeout`` (FlightError with one line
     otherwise)."""
-    from mavsdk.asyncio import Autopilot as SdkAutopilot
-
     ctx.status.stage = "waiting for autopilot"
     try:
         await sdk.add_any_connection(url)
@@ -302,15 +311,6 @@ async def connect(ctx: FlightContext, sdk, url: str):
 async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
     """Connect, then every coroutine of the flight under one task group; the log closed on every
     path."""
-    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
-    from mavsdk.asyncio.plugins.action import ActionAsync
-    from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
-    from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
-    from mavsdk.asyncio.plugins.param import ParamAsync
-    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
-
-    from mission.flight.sdklog import SdkLog
-
     code, status, error = EXIT_OK, "completed", None
     with SdkLog(ctx.opts.verbose) as ctx.sdklog, Display(ctx.status) as ctx.display:
         async with Mavsdk(
@@ -379,9 +379,6 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
 async def prepare(ctx: FlightContext, p: Plugins):
     """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the
     upload."""
-    from mission.flight.plan import upload_with_retries
-    from mission.trajectory.items import build_items
-
     spec, opts = ctx.spec, ctx.opts
     ctx.status.stage = "waiting for position and home"
     await race(
@@ -439,9 +436,6 @@ def check_home(ctx: FlightContext, home) -> None:
 async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: int) -> None:
     """A new flight folder, the writer with its sidecar (``status: flying``), the first row before
     arming."""
-    from mission.flight.logrows import RowLogger, new_flight_dir
-    from mission.flightlog import PHASE_COLUMNS, FlightLogWriter, make_meta
-
     spec = ctx.spec
     ctx.log_path = new_flight_dir(ctx.opts.out, spec.name) / "flight.csv"
     trajectory = (
@@ -495,8 +489,6 @@ async def fly_mission(ctx: FlightContext, tg: asyncio.TaskGroup, p: Plugins) -> 
 
 
 async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, str]:
-    from mavsdk.plugins.action import ActionError
-
     ctx.status.stage = "arming"
     for attempt in range(10):  # ArduPilot says "armable" before its EKF uses GPS: retry for 20 s
         ctx.abort_before_takeoff()
@@ -529,8 +521,6 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
 async def start_mission(ctx: FlightContext, action, mission_raw) -> None:
     """``start_mission``, retried: a loaded link (PX4 SITL at 10x on two busy cores) timed it out,
     and PX4 disarms an armed vehicle that does not take off within seconds (re-armed then)."""
-    from mavsdk.plugins.mission_raw import MissionRawError
-
     for attempt in range(3):
         ctx.abort_before_takeoff()
         try:
@@ -656,8 +646,9 @@ def print_result(ctx: FlightContext) -> None:
         print("\n".join(ctx.extension.result_lines(ctx)), flush=True)
         return
     try:
-        from mission.localize.api import localize_log
-        from mission.localize.uncertainty import describe_region, outer_region
+        # lazy (noqa) on purpose: a localizer that cannot load must not stop the flight's last lines
+        from mission.localize.api import localize_log  # noqa: PLC0415
+        from mission.localize.uncertainty import describe_region, outer_region  # noqa: PLC0415
     except ImportError as e:
         print(
             f"localizer not available ({e}); run `localize {ctx.log_path}` later", file=sys.stderr

@@ -13,6 +13,8 @@ from __future__ import annotations
 import re
 from collections import deque
 
+from mavsdk import LogLevel, log_subscribe, log_unsubscribe
+
 _DIGITS = re.compile(r"\d+")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
@@ -30,7 +32,6 @@ class SdkLog:
     def __enter__(self) -> SdkLog:
         if self.verbose:
             return self
-        from mavsdk import LogLevel, log_subscribe
 
         warn = LogLevel.WARN
 
@@ -61,7 +62,5 @@ class SdkLog:
 
     def __exit__(self, *exc) -> None:
         if self.installed:
-            from mavsdk import log_unsubscribe
-
             log_unsubscribe()
             self.installed = False

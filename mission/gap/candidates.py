@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.errors import InputError
 from mission.gap.candidate import Candidate, Param
 from mission.gap.describe import describe_params, pattern_name  # noqa: F401  (describe_params: re-exported)
 from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
@@ -67,8 +68,6 @@ PATTERN_NAMES = ("isotropic", "dipole", "measured")
 
 def pattern_by_name(name: str) -> Pattern:
     """isotropic | dipole | measured (shipped RM-WB1-DN); any other name raises ``InputError``."""
-    from mission.errors import InputError
-
     makers = {"isotropic": Isotropic, "dipole": Dipole, "measured": rm_wb1_dn}
     if name not in makers:
         raise InputError(
@@ -419,8 +418,6 @@ CANDIDATE_NAMES = tuple(library())
 
 def select(names: str | Sequence[str] | None) -> list[Candidate]:
     """Candidates by comma-separated names or ``all``; unknown names raise ``InputError``."""
-    from mission.errors import InputError
-
     lib = library()
     if names is None or names == "all":
         return list(lib.values())

@@ -38,6 +38,7 @@ import numpy as np
 
 from mission.gap.candidate import FRAME_BODY as BODY
 from mission.gap.candidate import FRAME_GROUND as GROUND
+from mission.gap.candidates import select
 from mission.gap.fit import FitConfig, Fold, heldout_residuals, rank_candidates
 from mission.gap.pipeline import Pipeline
 from mission.samples import FlightSamples
@@ -140,8 +141,6 @@ def frame_test(
     """Refit ``body`` and ``ground`` (candidate names) on top of ``pipe`` on the ``headings`` and
     ``ground`` splits; the verdict by ``FRAME_RULE``.  Needs the flights' attitudes (the
     headings)."""
-    from mission.gap.candidates import select
-
     cands = select([body, ground])
     out: dict[str, Any] = {"body": body, "ground": ground, "rule": FRAME_RULE, "splits": {}}
     rng = np.random.default_rng(seed)

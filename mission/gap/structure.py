@@ -26,8 +26,10 @@ from typing import Any
 import numpy as np
 
 from mission.gap.align import align
+from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
+from mission.gap.frame import frame_for, resolve
 from mission.gap.pipeline import Pipeline
-from mission.gap.spatial import tx_key
+from mission.gap.spatial import tx_key, usable_candidates
 from mission.physics.shadowing import fit_variogram
 from mission.samples import FlightSamples
 
@@ -263,10 +265,7 @@ def identify(
     and for the named effect its ``footprint`` (fold 0's fit against the base) and fitted
     parameters.
     """
-    from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
-
     rng = np.random.default_rng(cfg.seed)
-    from mission.gap.spatial import usable_candidates
 
     candidates = usable_candidates(candidates, flights, cfg.split)
     folds = make_folds(flights, cfg)
@@ -276,7 +275,6 @@ def identify(
         pipes, flights, folds, candidates, cfg, rng, base_res, progress, "rank"
     )
     struct = residual_structure(flights, base_res, rng)
-    from mission.gap.frame import frame_for, resolve
 
     frame = frame_for(ranking, base, flights, cfg, cfg.seed)
     named = resolve(name_missing(ranking, struct), ranking, frame)

@@ -33,8 +33,10 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
+from mission.gap.fit import compare, decimate
 from mission.gap.freeform import _legendre_all, ridge_cv
 from mission.gap.pipeline import Pipeline, memo
+from mission.robust import offset_residual
 from mission.samples import FlightSamples
 
 DRIFT_ORDER = 4
@@ -236,9 +238,6 @@ def time_power_statement(
     with ``fit.compare`` (``power.injected_test``'s method); ``detectable_db`` = the smallest drift
     on ``DRIFTS_DB`` from which on every larger one is significant (inf: not even the largest; with
     whole flights held out, inf by construction)."""
-    from mission.gap.fit import compare, decimate
-    from mission.robust import offset_residual
-
     if not usable_in(split, flights):
         return {
             "detectable_db": math.inf,

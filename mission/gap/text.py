@@ -9,13 +9,17 @@ table here has columns whose widths add up to less than 80 (``WIDTH``), labels a
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 import numpy as np
+from rich.console import Console
 
 from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
+from mission.gap.fit import RANKING_RULE
 from mission.gap.structure import WITHIN_FLIGHT
+from mission.gap.temporal import NAME
 
 WIDTH = 80
 PLAIN: dict[str, str] = {
@@ -124,8 +128,6 @@ def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left
 def _time_sentence(d: Diagnosis) -> str:
     """Whether an effect is better explained along time than by geometry, or what time could
     show."""
-    from mission.gap.temporal import NAME
-
     first = d.rungs[0].ranking
     t = next((r for r in first if r.name == NAME), None)
     geo = next((r for r in first if r.name != NAME and r.significant), None)
@@ -157,8 +159,6 @@ def _speed(d: Diagnosis) -> float:
 
 
 def wrap(text: str, width: int = WIDTH) -> str:
-    import textwrap
-
     return "\n".join(textwrap.wrap(text, width))
 
 
@@ -367,7 +367,6 @@ def details_text(d: Diagnosis) -> str:
                     + "."
                 )
             )
-    from mission.gap.fit import RANKING_RULE
 
     parts.append(wrap("Ranking rule: " + RANKING_RULE))
     return "\n\n".join(parts) + "\n"
@@ -376,7 +375,5 @@ def details_text(d: Diagnosis) -> str:
 def print_report(d: Diagnosis, console: Any = None) -> None:
     """Print ``report_text`` (plain text: no markup, so what is printed is what the test
     measures)."""
-    from rich.console import Console
-
     c = console or Console()
     c.print(report_text(d), markup=False, highlight=False, soft_wrap=True)

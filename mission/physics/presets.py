@@ -35,6 +35,7 @@ from importlib import resources
 from typing import Any
 
 from mission.errors import InputError
+from mission.files import read_text
 from mission.physics.propagation import (
     Attitude,
     GroundReflection,
@@ -122,8 +123,6 @@ def load_calibration(name: str = "afar") -> dict[str, Any]:
         else name.strip()
     )
     if base.lower().endswith(".json"):  # a preset written by ``rfsl calibrate --out FILE.json``
-        from mission.files import read_text
-
         try:
             rec = json.loads(
                 read_text(base, "physics preset file", "--physics-preset", max_bytes=10_000_000)

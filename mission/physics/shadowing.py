@@ -21,6 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter, map_coordinates
+from scipy.optimize import nnls
 
 COVARIANCES = ("exponential", "gaussian")
 
@@ -57,8 +59,6 @@ def shadowing_field(
     interpolation.  A UAV passing the same place twice sees the same shadowing, which independent
     per-sample noise cannot reproduce.
     """
-    from scipy.ndimage import gaussian_filter, map_coordinates
-
     xy = np.asarray(xy, dtype=float)
     if sigma_db <= 0 or len(xy) == 0:
         return np.zeros(len(xy))
@@ -197,8 +197,6 @@ def _fit_model(
 ) -> tuple[float, float, float, float]:
     """(weighted SSE, sigma, L, nugget): grid over L, non-negative linear fit of (n^2, s^2) per
     L."""
-    from scipy.optimize import nnls
-
     use = cnt >= 10
     if use.sum() < 3:
         return np.inf, 0.0, float(lengths[0]), float(np.sqrt(max(np.mean(gamma), 0.0)))
