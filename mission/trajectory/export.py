@@ -166,7 +166,8 @@ def to_kml(spec) -> str:
     def poly(area, colour: str) -> str:
         ring = [[b, a, 0.0] for a, b in _ring_latlon(spec, area)]
         return (
-            f"<Placemark><name>{escape(area.name)}</name><Style><LineStyle><color>ff{colour}</color>"
+            f"<Placemark><name>{escape(area.name)}</name>"
+            f"<Style><LineStyle><color>ff{colour}</color>"
             f"<width>2</width></LineStyle><PolyStyle><color>40{colour}</color></PolyStyle></Style>"
             f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{coords(ring + [ring[0]])}"
             f"</coordinates></LinearRing></outerBoundaryIs></Polygon></Placemark>"
@@ -181,7 +182,8 @@ def to_kml(spec) -> str:
         f"</coordinates></LineString></Placemark>",
         poly(spec.field.flight_area, "ff7f1f"),  # KML colours are aabbggrr: blue
         poly(spec.field.rover_area, "2ca02c"),  # green
-        f"<Placemark><name>home</name><Point><coordinates>{hlon:.9f},{hlat:.9f},0</coordinates></Point>"
+        f"<Placemark><name>home</name><Point>"
+        f"<coordinates>{hlon:.9f},{hlat:.9f},0</coordinates></Point>"
         f"</Placemark>",
     ]
     return (
