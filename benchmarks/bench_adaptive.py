@@ -33,6 +33,10 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from rich.progress import track
+
+from mission.adaptive.compare import pair, summarize_pairs
+from mission.spec import load_mission
 
 
 def _value(text: str):
@@ -45,16 +49,12 @@ def _value(text: str):
 def one_flight(args: tuple) -> dict:
     """Fixed and adaptive versions of flight ``i`` (run in a worker)."""
     mission, family, seed, i, dt, sets = args
-    from mission.adaptive.compare import pair
-    from mission.spec import load_mission
 
     spec = load_mission(mission)
     return pair(spec, dataclasses.replace(spec.adaptive, **sets), family, seed, i, dt)
 
 
 def table(rows: list[dict]) -> str:
-    from mission.adaptive.compare import summarize_pairs
-
     s = summarize_pairs(rows)
     lines = [
         f"{s['n']} flights (of {s['n_total']}); 90 % bootstrap intervals over flights",
@@ -107,7 +107,6 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     sets = dict((k, _value(v)) for k, v in (s.split("=", 1) for s in a.set))
     jobs = [(a.mission, a.family, a.seed, i, a.dt, sets) for i in range(a.flights)]
-    from rich.progress import track
 
     with ProcessPoolExecutor(a.jobs) as ex:
         rows = list(

@@ -16,12 +16,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
+
 REPO = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=60)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])

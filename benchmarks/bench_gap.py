@@ -42,16 +42,36 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing as mp
 import os
+import resource
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from _gap_synth import BODY_FIXED, EFFECTS, EXPECTED, diagnose_case
+
+from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.gap.align import afar2023_flights
+from mission.gap.candidates import select
+from mission.gap.diagnose import base_pipeline, decimate_flight, diagnose
+from mission.gap.fit import FitConfig, Fold, _pooled, make_folds, rank_candidates
+from mission.gap.loopcheck import loop_check
+from mission.gap.pipeline import LocalizationModel
+from mission.gap.report import print_report, summary, write_report
+from mission.gap.spatial import cell_means, tx_key
+from mission.gap.stats import summarize
+from mission.importers.afar import is_afar2023_suspect
+from mission.localize.classical import ModelGridSearch
+from mission.samples import FlightSamples
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
 AREA = (-80.0, -80.0, 380.0, 420.0)  # grid-search box (m, ENU about the flight-area corner)
 
@@ -73,8 +93,6 @@ def correct(row: dict) -> bool:
     if row["named"] == row["expected"]:
         return True
     if row["effect"] == "legs_far":
-        from _gap_synth import BODY_FIXED
-
         return row["named"] in BODY_FIXED
     if row["effect"] in ("drift", "step"):
         tp = row.get("time_power") or {}
@@ -86,8 +104,6 @@ def correct(row: dict) -> bool:
 
 
 def _one_case(case: tuple[str, int, float, float]) -> dict:
-    from _gap_synth import diagnose_case
-
     e, s, k, dt = case
     np.seterr(all="ignore")
     return diagnose_case(e, s, strength=k, dt=dt)
@@ -100,15 +116,12 @@ def _cases_map(cases: list, dt: float, jobs: int):
     if jobs <= 1:
         yield from map(_one_case, items)
         return
-    import multiprocessing as mp
 
     with mp.get_context("fork").Pool(jobs) as pool:
         yield from pool.imap(_one_case, items)
 
 
 def selftest(args: argparse.Namespace) -> int:
-    from _gap_synth import EFFECTS, EXPECTED
-
     effects = EFFECTS if args.effects == "all" else tuple(args.effects.split(","))
     seeds = [int(s) for s in args.seeds.split(",")]
     strengths = [float(x) for x in args.strengths.split(",")]
@@ -191,8 +204,6 @@ def nadir_power(args: argparse.Namespace) -> int:
     straight passes over the rover) with the passes and the loss's depth varied: wherever the
     statement says the true depth can be shown held out, the diagnosis must name ``near_nadir`` (a
     violation otherwise)."""
-    from _gap_synth import diagnose_case
-
     rows, t0 = [], time.time()
     for p in [int(x) for x in args.passes.split(",")]:
         for k in [float(x) for x in args.strengths.split(",")]:
@@ -243,12 +254,6 @@ def nadir_power(args: argparse.Namespace) -> int:
 def suspect_loc3(flights) -> dict:
     """Where the strongest RSS of each loc-3 flight is, and where a free-space / e2r grid search
     puts the rover."""
-    from mission.defaults import DEFAULT_TX_HEIGHT_M
-    from mission.gap.diagnose import base_pipeline
-    from mission.gap.pipeline import LocalizationModel
-    from mission.localize.classical import ModelGridSearch
-    from mission.samples import FlightSamples
-
     out = {}
     for f in flights:
         if not f.name.endswith("loc3"):
@@ -282,8 +287,6 @@ def colocated_differences(flights, resid, cell_m: float = 20.0) -> dict:
     """Per rover location flown by both teams: residuals averaged in ``cell_m`` cells flown by both,
     their correlation and the std of their difference (what a perfect map of one flight leaves on
     the other)."""
-    from mission.gap.spatial import cell_means, tx_key
-
     by_site: dict = {}
     for f, r in zip(flights, resid, strict=True):
         ok = np.isfinite(r)
@@ -316,9 +319,6 @@ def colocated_differences(flights, resid, cell_m: float = 20.0) -> dict:
 def floor(d, cfg, names: list[str] | None = None) -> dict:
     """What the final rung leaves that no model fitted elsewhere can predict (see the module
     docstring)."""
-    from mission.gap.fit import Fold, _pooled, rank_candidates
-    from mission.gap.stats import summarize
-
     final = d.rungs[-1]
     st = d.structure["final"]
     out: dict = {}
@@ -334,8 +334,6 @@ def floor(d, cfg, names: list[str] | None = None) -> dict:
     out["heldout_final"] = summarize(_pooled(final.residuals)).as_dict()
     # in-sample oracle (leakage, a bound only): the final rung's effects (or ``names``) refitted on
     # all samples and scored on the same samples
-    from mission.gap.candidates import select
-
     added = names or [r.added for r in d.rungs if r.added]
     every = [np.arange(len(f)) for f in d.flights]
     fold = [Fold(every, every)]
@@ -355,10 +353,6 @@ def sequence(d, cfg, names: list[str]) -> list[dict]:
     """The effects ``names`` added in this order whatever their significance (each fitted on the
     training folds on top of the previous ones, like the ladder): how much of the gap each closes,
     held out."""
-    from mission.gap.candidates import select
-    from mission.gap.fit import _pooled, make_folds, rank_candidates
-    from mission.gap.stats import summarize
-
     folds = make_folds(d.flights, cfg)
     rng = np.random.default_rng(cfg.seed)
     pipes, res = d.rungs[0].pipes, d.rungs[0].residuals
@@ -388,15 +382,6 @@ def real(args: argparse.Namespace) -> int:
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
         return 2
-    from rich.console import Console
-
-    from mission.gap.align import afar2023_flights
-    from mission.gap.candidates import select
-    from mission.gap.diagnose import base_pipeline, diagnose
-    from mission.gap.fit import FitConfig
-    from mission.gap.report import print_report, summary, write_report
-    from mission.importers.afar import is_afar2023_suspect
-    from mission.samples import FlightSamples
 
     c = Console(width=180)
     t_load = time.time()
@@ -536,14 +521,6 @@ def family_check(args: argparse.Namespace) -> int:
     (``mission.gap.loopcheck``): ``--repeats`` simulated copies of every track (airborne, 3 Hz; the
     suspect 288-loc3 left out as in the family), re-fitted; per repeat and pooled, the held-out p90
     against the real flights' and the intervals."""
-    from dataclasses import replace
-
-    from mission.gap.align import afar2023_flights
-    from mission.gap.diagnose import decimate_flight
-    from mission.gap.fit import FitConfig
-    from mission.gap.loopcheck import loop_check
-    from mission.importers.afar import is_afar2023_suspect
-
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
         return 2
@@ -585,8 +562,6 @@ def family_check(args: argparse.Namespace) -> int:
 
 def _children_cpu() -> float:
     """CPU seconds of this process's finished children (the forked fit workers)."""
-    import resource
-
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return float(ru.ru_utime + ru.ru_stime)
 

@@ -45,7 +45,15 @@ import numpy as np
 
 import mission.calibrate as _cal
 from mission.calibrate import CONFIGS
+from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.gap.align import afar2023_flights
+from mission.geo import afar_field
 from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
+from mission.localize.classical import ModelGridSearch
+from mission.localize.preprocess import cruise_mask
+from mission.physics.antenna import TabulatedPattern, rm_wb1_dn
+from mission.physics.presets import build_model
+from mission.samples import FlightSamples
 
 REPO = Path(__file__).resolve().parents[1]
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
@@ -70,9 +78,6 @@ ATT_VARIANTS = {
 
 def load_flights(min_height_m: float = 10.0):
     """The six flights (``mission.samples.FlightSamples``), cruise samples only."""
-    from mission.gap.align import afar2023_flights
-    from mission.localize.preprocess import cruise_mask
-
     return [f.select(cruise_mask(f.enu_m[:, 2]).mask) for f in afar2023_flights(MAT, min_height_m)]
 
 
@@ -119,8 +124,6 @@ LOTO = {
 
 def heldout(cfg: dict, flights, split: str, att_variant: str = "logged", **kw) -> dict:
     """Fit on training flights, score on test flights. -> {test flight: stats + fitted spec}."""
-    from mission.physics.presets import build_model
-
     out = {}
     folds = (
         list(LOTO.values())
@@ -149,11 +152,6 @@ def pooled(res: dict, names=GOOD) -> dict:
 
 
 def localize(model, f, att_variant: str = "logged", floor_db: float | None = None) -> float:
-    from mission.defaults import DEFAULT_TX_HEIGHT_M
-    from mission.geo import afar_field
-    from mission.localize.classical import ModelGridSearch
-    from mission.samples import FlightSamples
-
     fn = ATT_VARIANTS[att_variant]
     att = None if fn is None else fn(f.attitude_rad)
     est = ModelGridSearch(
@@ -192,7 +190,6 @@ def main(argv: list[str] | None = None) -> int:
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
         return 2
-    from mission.physics.presets import build_model
 
     t0 = time.time()
     out = Path(args.out)
@@ -226,8 +223,6 @@ def main(argv: list[str] | None = None) -> int:
     if (
         "attitude" in steps
     ):  # handedness of the pattern's azimuth: the measured pattern mirrored (az -> -az)
-        from mission.physics.antenna import TabulatedPattern, rm_wb1_dn
-
         p = rm_wb1_dn()
         az = np.mod(-p.az_deg, 360.0)
         o = np.argsort(az)

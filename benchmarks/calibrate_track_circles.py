@@ -28,11 +28,20 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from rich.progress import track
+
+from mission.evidence import conformal_quantile
+from mission.flightlog import read_flight_log
+from mission.localize.api import localize_log
+from mission.localize.error_circles import flown_radii, model_digest
+from mission.threads import limit_worker
+
+# sim_default's simulate_log, mission_variant
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from sim_default import mission_variant, simulate_log
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(
-    0, str(Path(__file__).resolve().parent)
-)  # sim_default's simulate_log, mission_variant
+
 LEVELS = (0.5, 0.9)
 MIN_FRACTION = 0.2  # calibration cuts are drawn in [0.2, 1]
 STRATA = (
@@ -55,11 +64,6 @@ def _runs(job: tuple[str, str, int, tuple[float, ...]]) -> list[tuple[float, flo
     """(cut fraction, track coverage, error m) of network ``model`` on one simulated log cut at each
     fraction (``fractions`` empty: one full flight and one cut drawn in [MIN_FRACTION, 1] from the
     seed)."""
-    from sim_default import simulate_log
-
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log
-
     model, mission, seed, fractions = job
     with tempfile.TemporaryDirectory() as tmp:
         log = read_flight_log(simulate_log(mission, tmp, seed))
@@ -77,10 +81,6 @@ def collect(
     model: str, missions: list[str], seeds: range, fractions: tuple[float, ...] = ()
 ) -> np.ndarray:
     """(n, 4) rows of seed, cut fraction, track coverage and error over every mission and seed."""
-    from rich.progress import track
-
-    from mission.threads import limit_worker
-
     jobs = [(model, m, s, fractions) for m in missions for s in seeds]
     with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
         res = list(
@@ -97,8 +97,6 @@ def stratum(c: np.ndarray, bounds: list[float]) -> np.ndarray:
 def fit(rows: np.ndarray, source: str) -> dict:
     """The ``track`` record: per coverage stratum (from the lowest coverage seen, 0.5, 0.9) the
     conformal radii of the errors of the flights in it."""
-    from mission.evidence import conformal_quantile
-
     bounds = [round(float(np.min(rows[:, 2])) - 0.005, 2), *STRATA]
     k = stratum(rows[:, 2], bounds)
     return {
@@ -117,8 +115,6 @@ def fit(rows: np.ndarray, source: str) -> dict:
 def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
     """Coverage of the circles fitted without each fold of seeds, on that fold: per cut kind (1/3,
     2/3, random cuts, full flights)."""
-    from mission.localize.error_circles import flown_radii
-
     seeds = np.unique(rows[:, 0])
     parts = np.array_split(np.random.default_rng(0).permutation(seeds), folds)
     got: dict = {}
@@ -155,10 +151,6 @@ def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
 
 
 def main() -> None:
-    from sim_default import mission_variant
-
-    from mission.localize.error_circles import model_digest
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--model", default="rfsl_spiral_e2r_ens5")
     ap.add_argument(

@@ -40,14 +40,19 @@ from pathlib import Path
 
 import numpy as np
 
+import mission.localize.matched as matched
+from mission.evidence import coverage_interval, mean_interval, paired_difference
+from mission.localize.api import localize_log
+from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
+from mission.threads import limit_worker
+from mission.workshop.suite_cache import read_suite
+
 LEVELS = (0.5, 0.9)
 
 
 def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
     """Masses of the previous check: held-out draw c through fold ``c % folds``'s net and table
     only."""
-    from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
-
     lev = np.empty(len(cal))
     for c, q in enumerate(cal):
         j = c % loc.folds
@@ -59,10 +64,6 @@ def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
 
 
 def _flight(job: tuple[str, int, bool]) -> dict:
-    import mission.localize.matched as matched
-    from mission.localize.api import localize_log
-    from mission.workshop.suite_cache import read_suite
-
     suite_dir, i, with_default = job
     seen: dict = {}
 
@@ -98,8 +99,6 @@ def _flight(job: tuple[str, int, bool]) -> dict:
 def summary(rows: list[dict]) -> dict:
     """Per check and level: k of n inside, the share with its 90 % binomial interval, and the rule's
     verdict."""
-    from mission.evidence import coverage_interval
-
     out: dict = {}
     for check in ("union", "one_net"):
         for lv in LEVELS:
@@ -116,8 +115,6 @@ def summary(rows: list[dict]) -> dict:
 
 
 def main() -> None:
-    from mission.threads import limit_worker
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument(
         "--suite-dir", required=True, help="benchmark cache of the shipped family (seed 2026)"
@@ -152,7 +149,6 @@ def main() -> None:
             f"{key:12s} {v['k']:3d}/{v['n']}  {100 * sh['value']:5.1f} % [{100 * sh['lo']:.1f}, "
             f"{100 * sh['hi']:.1f}]  {'passes' if v['passes'] else 'fails'}"
         )
-    from mission.evidence import mean_interval, paired_difference
 
     err = [r["error_m"] for r in rows]
     print(f"matched mean error {mean_interval(err).fmt()} m over {len(rows)} flights")

@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH, is_afar2023_suspect
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat, is_afar2023_suspect
+from mission.localize.api import localize_log
 
 FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the fold whose physics did not see this team
 
@@ -50,9 +51,6 @@ def _row(name: str, errs: list[float], flights: list[str]) -> dict:
 
 
 def main() -> None:
-    from mission.importers.afar import import_afar_mat
-    from mission.localize.api import localize_log
-
     default = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(default))

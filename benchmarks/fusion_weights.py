@@ -28,6 +28,12 @@ from pathlib import Path
 import numpy as np
 from _scoring import flight_with_truth, scoring_parser
 
+from mission.evidence import mean_interval, paired_difference
+from mission.localize.api import fusion_model_path, localize_log
+from mission.localize.error_circles import card_calibration
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
+
 
 def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
     """The radius of the disc with the area of an estimate's ``level`` region, ``sqrt(area / pi)``
@@ -49,8 +55,6 @@ def inverse_square_weight(scale_a: float, scale_b: float) -> float:
 
 def one(job: tuple[str, str, int]) -> dict:
     """Both members' points, their 50 % scales and the truth on one flight (log ENU m)."""
-    from mission.localize.api import fusion_model_path, localize_log
-
     kind, src, i = job
     log, truth = flight_with_truth(kind, src, i)
     est = localize_log(log, method="fusion")
@@ -66,9 +70,6 @@ def one(job: tuple[str, str, int]) -> dict:
 def network_radius() -> float:
     """The fusion network's 50 % error-circle radius for real logs (its card's ``real``
     calibration)."""
-    from mission.localize.api import fusion_model_path
-    from mission.localize.error_circles import card_calibration
-
     rec, why = card_calibration(fusion_model_path(), "real")
     if rec is None:
         raise SystemExit(why)
@@ -87,10 +88,6 @@ def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def main() -> None:
-    from mission.evidence import mean_interval, paired_difference
-    from mission.threads import limit_worker
-    from mission.workshop.evaluate import import_afar
-
     args = scoring_parser(__doc__).parse_args()
     with (
         tempfile.TemporaryDirectory() as tmp,

@@ -25,6 +25,15 @@ from pathlib import Path
 import numpy as np
 from _scoring import scoring_parser
 
+from mission.evidence import compare_methods
+from mission.flightlog import read_flight_log
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.localize.api import localize_log
+from mission.workshop.decision import pooled_decision
+from mission.workshop.evaluate_suite import _coverage, evaluate_suite, suite_method
+from mission.workshop.predictive import family_checks, flight_statistics, verdict
+from mission.workshop.suite_cache import read_suite
+
 INCUMBENT = "fusion (default)"
 NETS = ("rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar")
 NOT_HELD_OUT = {
@@ -51,12 +60,6 @@ def methods(models: Path, extra: list[str]) -> dict[str, str]:
 def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, list[dict]]:
     """(flight names, {label: errors}, {label: {level: [covered]}}, predictive-check statistics per
     flight) on the six real flights, LOTO."""
-    from mission.flightlog import read_flight_log
-    from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
-    from mission.localize.api import localize_log
-    from mission.workshop.evaluate_suite import _coverage, suite_method
-    from mission.workshop.predictive import flight_statistics
-
     files = sorted(Path(mat).glob("results_useful_ori_exp_*_loc_*.mat"))
     if not files:
         raise SystemExit(f"no AFAR MAT files under {mat}")
@@ -95,12 +98,6 @@ def _cov(c: dict, n: int) -> str:
 
 
 def main() -> None:
-    from mission.evidence import compare_methods
-    from mission.workshop.decision import pooled_decision
-    from mission.workshop.evaluate_suite import evaluate_suite
-    from mission.workshop.predictive import family_checks, verdict
-    from mission.workshop.suite_cache import read_suite
-
     ap = scoring_parser(__doc__)
     ap.add_argument("--json", help="write every figure here")
     ap.add_argument("--md", help="write the markdown table here")

@@ -16,11 +16,11 @@ import numpy as np
 from _scoring import scoring_parser
 from score_decision import INCUMBENT, score_real
 
+from mission.evidence import compare_methods
+from mission.workshop.evaluate_suite import evaluate_suite
+
 
 def main() -> None:
-    from mission.evidence import compare_methods
-    from mission.workshop.evaluate_suite import evaluate_suite
-
     ap = scoring_parser(__doc__)
     ap.add_argument(
         "--decision", required=True, help="score_decision.py --json output on the same cache"

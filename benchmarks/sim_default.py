@@ -22,6 +22,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from mission.cli.main import main as rfsl
+from mission.localize.api import default_model_path, localize_log
+from mission.threads import limit_worker
+
 SETS = (
     ("spiral 30 m", "missions/spiral.yaml", None),
     ("spiral 45 m", "missions/spiral.yaml", 45.0),
@@ -42,8 +46,6 @@ VARIANTS = (
 def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
     """``rfsl simulate`` one flight of ``mission`` (seed ``seed``) into a folder of ``out``,
     quietly; its log."""
-    from mission.cli.main import main as rfsl
-
     d = Path(out) / f"s{seed}_{Path(mission).stem}"
     with (
         open(os.devnull, "w") as null,
@@ -80,8 +82,6 @@ def mission_variant(
 
 def one(job: tuple[str, str, int]) -> tuple[float, float, str]:
     """(default's error, rfsl_default's error, default's model) on one simulated log (m)."""
-    from mission.localize.api import default_model_path, localize_log
-
     log = simulate_log(*job)
     a = localize_log(log)
     b = localize_log(log, model_path=default_model_path())
@@ -99,7 +99,6 @@ def main() -> None:
         "--only", help="run only the sets whose label contains this text (e.g. 'spiral 30')"
     )
     args = ap.parse_args()
-    from mission.threads import limit_worker
 
     lo, hi = (int(v) for v in args.seeds.split(":"))
     with (

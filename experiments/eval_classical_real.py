@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH, is_afar2023_suspect
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat, is_afar2023_suspect
+from mission.localize.api import localize_log
 
 TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
 
@@ -55,9 +56,6 @@ VARIANTS = {
 
 
 def main() -> None:
-    from mission.importers.afar import import_afar_mat
-    from mission.localize.api import localize_log
-
     default = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(default))

@@ -26,14 +26,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
+from mission.localize.api import localize_log
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
+
 # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
 SUSPECT = 2
 
 
 def one(job: tuple[str, str, int, tuple[str, ...]]) -> dict:
     """Selfcal point, each network's point and the truth on one flight (log ENU m)."""
-    from mission.localize.api import localize_log
-
     kind, src, i, nets = job
     log, truth = flight_with_truth(kind, src, i)
     sc = localize_log(log, method="selfcal")
@@ -58,8 +60,6 @@ def main() -> None:
     ap = scoring_parser(__doc__)
     ap.add_argument("--nets", nargs="+", required=True, help="ONNX networks (the incumbent first)")
     args = ap.parse_args()
-    from mission.threads import limit_worker
-    from mission.workshop.evaluate import import_afar
 
     nets = tuple(args.nets)
     with (

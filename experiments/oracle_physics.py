@@ -20,6 +20,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from mission.localize import classical
+from mission.localize.api import localize_log, search_area
+from mission.localize.preprocess import select_samples
+from mission.physics.presets import build_model
+from mission.threads import limit_worker
+from mission.workshop.suite_cache import read_suite
+
 # each rung removes its knowledge from the true spec; "known antenna only" removes all four
 RUNGS = (
     "oracle",
@@ -48,12 +55,6 @@ def degraded(spec: dict, rung: str) -> dict:
 
 def one(job: tuple[str, int]) -> dict:
     """Errors (m) of every rung and of the self-calibrating search on one benchmark flight."""
-    from mission.localize import classical
-    from mission.localize.api import localize_log, search_area
-    from mission.localize.preprocess import select_samples
-    from mission.physics.presets import build_model
-    from mission.workshop.suite_cache import read_suite
-
     src, i = job
     fl = read_suite(src).load(i)
     d, truth = fl.draw, np.asarray(fl.truth_xy)
@@ -78,7 +79,6 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
-    from mission.threads import limit_worker
 
     with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         rows = list(ex.map(one, [(args.suite_dir, i) for i in range(args.n)], chunksize=2))

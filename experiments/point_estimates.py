@@ -26,14 +26,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
+from mission.localize.api import localize_log
+from mission.localize.selfcal import CALIBRATED_MASS
+from mission.workshop.evaluate import import_afar
+
 CANDIDATES = ("MAP", "PM", "C50", "C90")
 
 
 def candidates(est) -> dict[str, np.ndarray]:
     """The four points of one fusion estimate: its selfcal MAP and three posterior means (log ENU
     m)."""
-    from mission.localize.selfcal import CALIBRATED_MASS
-
     post = est.posterior
     p, g = post.prob.ravel(), post.grid.reshape(-1, 2)
     out = {"MAP": np.asarray(est.extras["components"]["selfcal"]), "PM": p @ g / p.sum()}
@@ -45,8 +47,6 @@ def candidates(est) -> dict[str, np.ndarray]:
 
 def one(job: tuple[str, str, int]) -> dict:
     """Fusion on one flight -> the candidates, the network's point and the truth."""
-    from mission.localize.api import localize_log
-
     kind, src, i = job
     log, truth = flight_with_truth(kind, src, i)
     est = localize_log(log, method="fusion")
@@ -63,7 +63,6 @@ def errors(rows: list[dict], key: str, fused: bool = True) -> np.ndarray:
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers) as ex:
         real = list(ex.map(one, [("real", str(p), 0) for p in import_afar(args.mat, tmp)]))

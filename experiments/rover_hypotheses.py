@@ -33,7 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
 from mission.localize import selfcal as sc
+from mission.localize.api import localize_log, search_area
+from mission.localize.preprocess import select_samples
 from mission.physics.antenna import rm_wb1_dn
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
 
 ROVER_HEADINGS = (None, *range(0, 360, 30))  # None = isotropic rover antenna
 _UAV_HYPOTHESES = sc.antenna_hypotheses
@@ -97,9 +101,6 @@ def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int
 def one(job: tuple[str, str, int, str]) -> dict:
     """Selfcal (A or B) and the fusion's network on one flight: points, truth, the truth's HPD
     level."""
-    from mission.localize.api import localize_log, search_area
-    from mission.localize.preprocess import select_samples
-
     kind, src, i, cand = job
     log, truth = flight_with_truth(kind, src, i)
     net = localize_log(log, model_path="models/rfsl_spiral_e2r.onnx")
@@ -123,8 +124,6 @@ _ORIG_SSR = sc.hypothesis_ssr
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.threads import limit_worker
-    from mission.workshop.evaluate import import_afar
 
     res: dict[str, dict[str, list]] = {}
     with (

@@ -44,6 +44,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from mission.gap.align import align
+from mission.gap.candidates import library
+from mission.gap.fit import FitConfig, make_folds
+from mission.gap.pipeline import Pipeline
+from mission.gap.power import power_statement
+from mission.gap.spatial import usable_candidates
+from mission.gap.stats import block_length
+from mission.gap.structure import identify
+from mission.gap.temporal import time_power_statement
+from mission.physics import Attitude, make_model
+from mission.robust import offset_residual
+from mission.samples import FlightSamples
+
 C_LIGHT = 299_792_458.0
 FC_HZ = 3.32e9
 PT_DBM = 41.0
@@ -438,12 +451,6 @@ def make_case(
 
 def diagnose_case(effect: str, seed: int, **kw) -> dict:
     """Generate one case and run the diagnosis (``mission.gap.structure.identify``) on it."""
-    from mission.gap.candidates import library
-    from mission.gap.fit import FitConfig
-    from mission.gap.pipeline import Pipeline
-    from mission.physics import Attitude, make_model
-    from mission.samples import FlightSamples
-
     raw, truth = make_case(effect, seed, **kw)
     flights = [
         FlightSamples(
@@ -459,7 +466,6 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     ]
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     cfg = FitConfig(seed=seed, fit_max_samples=1200, workers=1)
-    from mission.gap.structure import identify
 
     out = identify(flights, base, list(library().values()), cfg)
     out.update(
@@ -469,12 +475,6 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
         expected=EXPECTED[effect],
         hit=out["named"] == EXPECTED[effect],
     )
-    from mission.gap.align import align
-    from mission.gap.fit import make_folds
-    from mission.gap.power import power_statement
-    from mission.gap.spatial import usable_candidates
-    from mission.gap.stats import block_length
-    from mission.robust import offset_residual
 
     res = [offset_residual(f.rss_dbm, base.predict(f), False, "l2") for f in flights]
     m = sum(c.applicable(base) for c in usable_candidates(list(library().values()), flights))
@@ -488,7 +488,6 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
         loss_db=truth.get("depth_db", 3.0),
         seed=seed,
     )
-    from mission.gap.temporal import time_power_statement
 
     out["time_power"] = time_power_statement(
         flights, res, make_folds(flights, cfg), cfg, m, cfg.split, seed=seed
