@@ -121,12 +121,33 @@ def source_violations(spec, tx=None) -> list[Violation]:
 
 def check_mission(spec) -> MissionReport:
     """Check a ``MissionSpec``: fence (waypoints and legs), altitude limits and the time budget."""
-    area, margin = spec.field.flight_area, spec.fence_margin_m
     wps = spec.waypoints_enu()
     path = spec.flight_path_enu()
     profile = plan_profile(path, spec.kinematics())
-    v: list[Violation] = []
+    v, min_clear = fence_violations(spec, wps)
+    v += home_violations(spec, wps)
+    v += altitude_violations(spec, wps)
+    v += source_violations(spec)
+    v += budget_violations(spec, profile)
+    n_samples = int(np.floor(profile.duration_s / spec.source.sample_period_s + 1e-9)) + 1
+    return MissionReport(
+        profile.length_m,
+        profile.duration_s,
+        spec.time_budget_s,
+        len(wps),
+        n_samples,
+        min_clear,
+        (float(wps[:, 2].min()), float(wps[:, 2].max())),
+        profile,
+        v,
+    )
 
+
+def fence_violations(spec, wps: np.ndarray) -> tuple[list[Violation], float]:
+    """Waypoints and legs closer to the fence than the margin (a leg only when neither end is
+    already named), and the smallest clearance."""
+    area, margin = spec.field.flight_area, spec.fence_margin_m
+    v: list[Violation] = []
     clear = area.signed_distance(wps[:, :2])
     for i in np.flatnonzero(clear < margin - _TOL):
         v.append(
@@ -151,6 +172,14 @@ def check_mission(spec) -> MissionReport:
                     margin - d,
                 )
             )
+    return v, min_clear
+
+
+def home_violations(spec, wps: np.ndarray) -> list[Violation]:
+    """Home too close to the fence for the return overshoot, and the transits from and back to
+    home leaving the flight area."""
+    area = spec.field.flight_area
+    v: list[Violation] = []
     home = np.asarray(spec.home_enu, dtype=float)
     legs = [(home, wps[0], "transit from home to waypoint 0")]
     if spec.return_behaviour == "rtl":
@@ -185,7 +214,12 @@ def check_mission(spec) -> MissionReport:
                     -d,
                 )
             )
+    return v
 
+
+def altitude_violations(spec, wps: np.ndarray) -> list[Violation]:
+    """Waypoints below or above the altitude limits."""
+    v: list[Violation] = []
     lo, hi = spec.altitude_limits_m
     for i, z in enumerate(wps[:, 2]):
         if z < lo - _TOL:
@@ -206,8 +240,12 @@ def check_mission(spec) -> MissionReport:
                     z - hi,
                 )
             )
+    return v
 
-    v += source_violations(spec)
+
+def budget_violations(spec, profile) -> list[Violation]:
+    """The estimated flight time over the time budget."""
+    v: list[Violation] = []
     if profile.duration_s > spec.time_budget_s:
         over = profile.duration_s - spec.time_budget_s
         v.append(
@@ -218,18 +256,7 @@ def check_mission(spec) -> MissionReport:
                 over,
             )
         )
-    n_samples = int(np.floor(profile.duration_s / spec.source.sample_period_s + 1e-9)) + 1
-    return MissionReport(
-        profile.length_m,
-        profile.duration_s,
-        spec.time_budget_s,
-        len(wps),
-        n_samples,
-        min_clear,
-        (float(wps[:, 2].min()), float(wps[:, 2].max())),
-        profile,
-        v,
-    )
+    return v
 
 
 def assert_flyable(spec) -> MissionReport:
