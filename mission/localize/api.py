@@ -402,50 +402,23 @@ def localize_log(
     ra = search_area(
         log
     )  # the transmitter's area: bounds the searches, clips error circles, checks estimates
-    area = ra if entry.bounded else None
-    origin = log.origin
-    if entry.compose is not None:  # a meta-estimator over other methods
-        est = composer(entry)(
-            part,
-            origin,
-            area,
-            tx_height_m=tx_height_m,
-            model_path=model_path,
-            physics_preset=physics_preset,
-        )
-    else:
-        loc = make_localizer(
-            method,
-            model_path,
-            physics_model or "e2r",
-            physics_params,
-            tx_height_m,
-            area,
-            floor_db,
-            physics_preset=physics_preset,
-        )
-        est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
-        if entry.calibration == FROM_CARD:  # a network: its card's circles
-            _network_regions(est, loc, part, _is_simulated(log), ra)
-            if by_default:
-                _fallback_regions(est, part, origin, ra, tx_height_m)
-        else:
-            _method_regions(
-                est,
-                method,
-                _is_simulated(log),
-                cruise and not (method == "grid" and physics_given),
-                ra,
-            )
-    if (
-        ra is not None
-    ):  # networks are not bounded: say so when an estimate leaves the transmitter's area
-        out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
-        if out_m > OUTSIDE_WARN_M:
-            est.extras["warning"] = (
-                f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
-                "recognise this flight (other path or physics than it was trained on?)"
-            )
+    est = run_method(
+        entry,
+        method,
+        part,
+        log,
+        ra,
+        model_path=model_path,
+        physics_model=physics_model,
+        physics_params=physics_params,
+        physics_preset=physics_preset,
+        tx_height_m=tx_height_m,
+        floor_db=floor_db,
+        by_default=by_default,
+        default_config=cruise and not (method == "grid" and physics_given),
+    )
+    if ra is not None:
+        _outside_warning(est, ra)
     t = _truth_enu(log, truth)
     if t is not None:
         est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))
@@ -454,3 +427,63 @@ def localize_log(
     est.selection = Selection(len(part), n_all, reason)
     est.extras["log"] = str(log.path) if log.path else None
     return est
+
+
+def run_method(
+    entry: Method,
+    method: str,
+    part,
+    log,
+    ra,
+    *,
+    model_path,
+    physics_model,
+    physics_params,
+    physics_preset,
+    tx_height_m: float,
+    floor_db,
+    by_default: bool,
+    default_config: bool,
+) -> Estimate:
+    """The registry entry's estimate on the samples ``part`` in the log's frame, with its
+    uncertainty regions (a composer's own; a network's card circles, selfcal's regions as the
+    default's fallback; a classical method's calibrated circles)."""
+    origin = log.origin
+    area = ra if entry.bounded else None
+    if entry.compose is not None:  # a meta-estimator over other methods
+        return composer(entry)(
+            part,
+            origin,
+            area,
+            tx_height_m=tx_height_m,
+            model_path=model_path,
+            physics_preset=physics_preset,
+        )
+    loc = make_localizer(
+        method,
+        model_path,
+        physics_model or "e2r",
+        physics_params,
+        tx_height_m,
+        area,
+        floor_db,
+        physics_preset=physics_preset,
+    )
+    est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
+    if entry.calibration == FROM_CARD:  # a network: its card's circles
+        _network_regions(est, loc, part, _is_simulated(log), ra)
+        if by_default:
+            _fallback_regions(est, part, origin, ra, tx_height_m)
+    else:
+        _method_regions(est, method, _is_simulated(log), default_config, ra)
+    return est
+
+
+def _outside_warning(est: Estimate, ra) -> None:
+    """Networks are not bounded: say so when an estimate leaves the transmitter's area."""
+    out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
+    if out_m > OUTSIDE_WARN_M:
+        est.extras["warning"] = (
+            f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
+            "recognise this flight (other path or physics than it was trained on?)"
+        )
