@@ -142,35 +142,15 @@ def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
 async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) -> None:
     """Plan, check and upload rounds until the region is small, no round fits, or the mission
     ends."""
-    a, spec = ext.config, ext.full_spec
+    spec = ext.full_spec
     wps = np.asarray(ctx.spec.waypoints_enu(), dtype=float)
     off, n_survey = ctx.status.waypoint_offset, len(wps)
-    extra = autopilot_return_extra_s(ctx, wps[-1])
-    if extra > 0.5:
-        a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
-        ctx.event(
-            "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
-        )
+    a, lead = _round_config(ctx, ext, wps[-1])
     final = final_phase(spec.return_behaviour)
-    lead = max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup)
-    if lead > a.lead_s:
-        ctx.event(
-            "adaptive",
-            f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
-            f"{ctx.speedup:g})",
-        )
     k = 0
     while True:
-        while True:
-            if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
-                if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
-                    _no_round(ctx)
-                return
-            rem = remaining_s(ctx, wps, off) if ctx.st.was_in_air else None
-            ctx.live.planning = rem is not None and rem <= 1.5 * lead
-            if rem is not None and rem <= lead:
-                break
-            await asyncio.sleep(0.05)
+        if not await _until_planning_time(ctx, ext, wps, off, lead):
+            return
         try:
             d = await estimates.estimate(ctx)
         finally:
@@ -220,26 +200,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         ctx.status.predicted_s = (
             spec.time_budget_s - left
         )  # land~ now the round's plan, no longer the survey's
-        ext.rounds.append(
-            {
-                "round": k + 1,
-                "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
-                "estimate": d,
-                "target": target,
-                "centre": plan.centre,
-                "radius_m": plan.radius_m,
-                "first_item": len(wps) - n_survey,
-                "n_waypoints": len(plan.waypoints),
-                "planned_s": round(
-                    plan_profile(
-                        np.vstack([wps[-1:], plan.waypoints]), spec.kinematics()
-                    ).duration_s,
-                    1,
-                ),
-                "budget_left_after_return_s": round(left, 1),
-                "notes": plan.notes,
-            }
-        )
+        ext.rounds.append(_round_record(ctx, spec, k, d, target, plan, wps, n_survey, left))
         ctx.event(
             "adaptive",
             f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
@@ -247,6 +208,65 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             "after the return",
         )
         wps, k = new, k + 1
+
+
+def _round_config(ctx: FlightContext, ext: AdaptiveRounds, last_wp) -> tuple:
+    """The rounds' config with the autopilot's own return added to the reserve, and how far
+    ahead a round is planned (at least ``MIN_LEAD_WALL_S`` of wall-clock time); each change is
+    an event."""
+    a = ext.config
+    extra = autopilot_return_extra_s(ctx, last_wp)
+    if extra > 0.5:
+        a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
+        ctx.event(
+            "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
+        )
+    lead = max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup)
+    if lead > a.lead_s:
+        ctx.event(
+            "adaptive",
+            f"rounds planned {lead:.0f} s ahead ({MIN_LEAD_WALL_S:g} s wall-clock at speed-up "
+            f"{ctx.speedup:g})",
+        )
+    return a, lead
+
+
+async def _until_planning_time(
+    ctx: FlightContext, ext: AdaptiveRounds, wps: np.ndarray, off: int, lead: float
+) -> bool:
+    """Wait until the mission has ``lead`` s left (the live estimator told to hurry from 1.5
+    ``lead``); False when the mission ends, aborts or loses its link first."""
+    while True:
+        if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
+            if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
+                _no_round(ctx)
+            return False
+        rem = remaining_s(ctx, wps, off) if ctx.st.was_in_air else None
+        ctx.live.planning = rem is not None and rem <= 1.5 * lead
+        if rem is not None and rem <= lead:
+            return True
+        await asyncio.sleep(0.05)
+
+
+def _round_record(ctx: FlightContext, spec, k: int, d, target, plan, wps, n_survey, left) -> dict:
+    """Round ``k + 1``'s entry in the sidecar: when and from which estimate it was planned, its
+    square, waypoints, planned time and the budget left after the return."""
+    return {
+        "round": k + 1,
+        "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
+        "estimate": d,
+        "target": target,
+        "centre": plan.centre,
+        "radius_m": plan.radius_m,
+        "first_item": len(wps) - n_survey,
+        "n_waypoints": len(plan.waypoints),
+        "planned_s": round(
+            plan_profile(np.vstack([wps[-1:], plan.waypoints]), spec.kinematics()).duration_s,
+            1,
+        ),
+        "budget_left_after_return_s": round(left, 1),
+        "notes": plan.notes,
+    }
 
 
 def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
