@@ -163,6 +163,38 @@ def convert_afar_mat(
     src = str(path)
     m = _load_mat(path)
     notes: list[str] = []
+    m = _usable_rows(m, notes, src)
+    t = m["timestamp_power"]
+    lat, lon = m["mY"], m["mX"]
+    if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
+        raise InputError("mY/mX are not latitude/longitude in degrees", source=src, field="mY")
+    origin = origin or afar_field().origin
+    problem = latlon_unit_problem(lat, lon, origin)
+    if problem:
+        raise InputError(f"sample {problem[0]}: mY/mX {problem[1]}", source=src, field="mY")
+    if not truth_height_m >= 0:
+        raise InputError(
+            f"transmitter height {truth_height_m:g} m is below ground", field="--truth-height"
+        )
+    z = m["mZ"]
+    cols = {
+        "t_s": t - t[0],
+        "lat_deg": lat,
+        "lon_deg": lon,
+        "alt_m": origin.alt_m + z,
+        "rel_alt_m": z,
+        "roll_deg": m["mRoll"],
+        "pitch_deg": m["mPitch"],
+        "yaw_deg": np.mod(m["mYaw"], 360.0),
+        "rss_dbm": m["mpower"],
+    }
+    meta = _sidecar_meta(path, origin, t[0], truth, truth_height_m, notes)
+    return ImportResult(FlightLog(cols, meta), notes)
+
+
+def _usable_rows(m: dict, notes: list[str], src: str) -> dict:
+    """The rows kept: finite, physically possible, in time order, one per timestamp and at least
+    ``MIN_DT_S`` apart; each drop is a note. Fewer than 2 left: ``InputError``."""
     finite = np.ones(m["timestamp_power"].size, dtype=bool)
     for v in ("timestamp_power", "mX", "mY", "mZ", "mpower"):
         finite &= np.isfinite(m[v])
@@ -193,31 +225,12 @@ def convert_afar_mat(
         )
     keep = ~near
     idx = order[keep]
-    m = {k: a[idx] for k, a in m.items()}
-    t = m["timestamp_power"]
-    lat, lon = m["mY"], m["mX"]
-    if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
-        raise InputError("mY/mX are not latitude/longitude in degrees", source=src, field="mY")
-    origin = origin or afar_field().origin
-    problem = latlon_unit_problem(lat, lon, origin)
-    if problem:
-        raise InputError(f"sample {problem[0]}: mY/mX {problem[1]}", source=src, field="mY")
-    if not truth_height_m >= 0:
-        raise InputError(
-            f"transmitter height {truth_height_m:g} m is below ground", field="--truth-height"
-        )
-    z = m["mZ"]
-    cols = {
-        "t_s": t - t[0],
-        "lat_deg": lat,
-        "lon_deg": lon,
-        "alt_m": origin.alt_m + z,
-        "rel_alt_m": z,
-        "roll_deg": m["mRoll"],
-        "pitch_deg": m["mPitch"],
-        "yaw_deg": np.mod(m["mYaw"], 360.0),
-        "rss_dbm": m["mpower"],
-    }
+    return {k: a[idx] for k, a in m.items()}
+
+
+def _sidecar_meta(path: Path, origin: Origin, t0: float, truth, truth_height_m: float, notes):
+    """The sidecar of an imported flight: origin, the receiver, the truth when given, the source
+    file and its start time, and the import notes."""
     truth_d = None
     if truth is not None:
         truth_d = {
@@ -225,7 +238,7 @@ def convert_afar_mat(
             "lon_deg": float(truth[1]),
             "height_m": float(truth_height_m),
         }
-    start = np.datetime64(int(round(t[0] * 1e6)), "us")
+    start = np.datetime64(int(round(t0 * 1e6)), "us")
     meta = make_meta(
         origin,
         dict(RSS_SOURCE),
@@ -238,7 +251,7 @@ def convert_afar_mat(
         altitude_reference="mZ: height above the first GPS fix (used as alt_m and rel_alt_m)",
         import_notes=notes,
     )
-    return ImportResult(FlightLog(cols, meta), notes)
+    return meta
 
 
 def import_afar_mat(
