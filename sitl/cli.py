@@ -12,8 +12,6 @@ import argparse
 import dataclasses
 import json
 
-from mission.trajectory.kinematics import Kinematics
-
 
 def parse_home(text: str) -> tuple[float, float, float]:
     """``LAT,LON[,ALT]`` -> a tuple (the altitude is the ground AMSL, default 0)."""
@@ -26,6 +24,8 @@ def parse_home(text: str) -> tuple[float, float, float]:
 def parse_kinematics(text: str | None):
     """``--kinematics`` JSON (an object of ``Kinematics`` fields) -> ``Kinematics``; None ->
     defaults."""
+    from mission.trajectory.kinematics import Kinematics
+
     if not text:
         return Kinematics()
     try:
