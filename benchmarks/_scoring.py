@@ -8,6 +8,9 @@ import argparse
 
 import numpy as np
 
+from mission.flightlog import read_flight_log
+from mission.workshop.suite_cache import read_suite
+
 
 def scoring_parser(doc: str | None) -> argparse.ArgumentParser:
     """--suite-dir (the benchmark cache), --n, --mat (the AFAR 2023 .mat folder), --workers."""
@@ -22,9 +25,6 @@ def scoring_parser(doc: str | None) -> argparse.ArgumentParser:
 def flight_with_truth(kind: str, src: str, i: int):
     """(FlightLog, truth xy in its ENU frame) of benchmark flight ``i`` of the cache ``src`` (kind
     "suite") or of the imported real log at ``src`` (kind "real", truth from its sidecar)."""
-    from mission.flightlog import read_flight_log
-    from mission.workshop.suite_cache import read_suite
-
     if kind == "suite":
         fl = read_suite(src).load(i)
         return fl.log, np.asarray(fl.truth_xy)

@@ -1,8 +1,10 @@
 """Adaptive finish vs the fixed spiral at equal flight budget, on the fast simulator under a physics
 family.
 
-    nice -n 10 python benchmarks/bench_adaptive.py --flights 40 --jobs 2      # a few minutes on 2 cores
-    python benchmarks/bench_adaptive.py --flights 4 --set altitude_m=15        # a variant of the adaptive block
+    # a few minutes on 2 cores
+    nice -n 10 python benchmarks/bench_adaptive.py --flights 40 --jobs 2
+    # a variant of the adaptive block
+    python benchmarks/bench_adaptive.py --flights 4 --set altitude_m=15
 
 Each flight i draws its physics from the family (``load_family``; ``afar`` by default, a fitted JSON
 later), its transmitter uniformly in the rover area and one shadowing map
@@ -32,6 +34,10 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from rich.progress import track
+
+from mission.adaptive.compare import pair, summarize_pairs
+from mission.spec import load_mission
 
 
 def _value(text: str):
@@ -44,20 +50,17 @@ def _value(text: str):
 def one_flight(args: tuple) -> dict:
     """Fixed and adaptive versions of flight ``i`` (run in a worker)."""
     mission, family, seed, i, dt, sets = args
-    from mission.adaptive.compare import pair
-    from mission.spec import load_mission
 
     spec = load_mission(mission)
     return pair(spec, dataclasses.replace(spec.adaptive, **sets), family, seed, i, dt)
 
 
 def table(rows: list[dict]) -> str:
-    from mission.adaptive.compare import summarize_pairs
-
     s = summarize_pairs(rows)
     lines = [
         f"{s['n']} flights (of {s['n_total']}); 90 % bootstrap intervals over flights",
-        "| mission | mean error m | adaptive - fixed m | p90 m | 90 % coverage | region m^2 (median) | flight s "
+        "| mission | mean error m | adaptive - fixed m | p90 m | 90 % coverage | region m^2 "
+        "(median) | flight s "
         "| rounds |",
         "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
@@ -65,7 +68,8 @@ def table(rows: list[dict]) -> str:
         r = s[k]
         diff = "-" if k == "fixed" else r["diff"].fmt()
         lines.append(
-            f"| {k} | {r['mean'].fmt()} | {diff} | {r['p90_m']:.1f} | {100 * r['coverage']:.0f} % | "
+            f"| {k} | {r['mean'].fmt()} | {diff} | {r['p90_m']:.1f} | "
+            f"{100 * r['coverage']:.0f} % | "
             f"{r['area_m2']:.0f} | {r['duration_s']:.0f} | {r['rounds']:.1f} |"
         )
     meth = ", ".join(f"{k} by {'/'.join(s['methods'][k])}" for k in ("fixed", "adaptive"))
@@ -86,7 +90,8 @@ def table(rows: list[dict]) -> str:
         )
     halves = s["ratio"] <= 0.5 and s["adaptive"]["diff"].hi < 0
     lines.append(
-        f"adaptive / fixed mean error = {s['ratio']:.2f}: {'halves' if halves else 'does not halve'} the "
+        f"adaptive / fixed mean error = {s['ratio']:.2f}: "
+        f"{'halves' if halves else 'does not halve'} the "
         "fixed spiral's error (rule: ratio <= 0.5 and the paired interval below zero)"
     )
     return "\n".join(lines)
@@ -117,7 +122,6 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     sets = dict((k, _value(v)) for k, v in (s.split("=", 1) for s in a.set))
     jobs = [(a.mission, a.family, a.seed, i, a.dt, sets) for i in range(a.flights)]
-    from rich.progress import track
 
     with ProcessPoolExecutor(a.jobs) as ex:
         rows = list(
@@ -126,7 +130,8 @@ def main(argv=None) -> int:
     if a.json:
         a.json.write_text(json.dumps(rows, indent=1))
     print(
-        f"mission {a.mission}, family {a.family}, seed {a.seed}, adaptive overrides {sets or 'none'}"
+        f"mission {a.mission}, family {a.family}, seed {a.seed}, adaptive overrides "
+        f"{sets or 'none'}"
     )
     print(table(rows))
     return 0

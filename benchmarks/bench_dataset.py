@@ -1,6 +1,7 @@
 """Benchmark: dataset generation speed in flights per second (simulation + features).
 
-python benchmarks/bench_dataset.py [--n 60] [--workers 1 2] [--randomise | --suite] [--features clustering]
+python benchmarks/bench_dataset.py [--n 60] [--workers 1 2] [--randomise | --suite] \
+    [--features clustering]
 
 Prints wall-clock flights/s and CPU milliseconds per flight (this process and its workers): on a
 shared, busy machine the CPU figure is the robust one (flights/s on k idle cores ~= k * 1000 /
@@ -15,12 +16,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
+
 REPO = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=60)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
@@ -78,7 +79,8 @@ def main() -> None:
             c1 = os.times()
         cpu = sum(c1[:4]) - sum(c0[:4])  # user + system of this process and its (joined) workers
         print(
-            f"{args.n} flights ({what}, {'+'.join(feats)}), {w} worker(s): {dt:.1f} s = {args.n / dt:.1f} "
+            f"{args.n} flights ({what}, {'+'.join(feats)}), {w} worker(s): {dt:.1f} s = "
+            f"{args.n / dt:.1f} "
             f"flights/s; CPU {1000 * cpu / args.n:.1f} ms/flight; load average "
             + " ".join(f"{v:.2f}" for v in os.getloadavg())
             + f" on {os.cpu_count()} cores"

@@ -18,8 +18,10 @@ imported into a temporary folder), else / also (``--sim``) a simulated spiral fl
 ``--samples`` samples written as a real receiver's log.  ``--threads N`` sets ``RFSL_THREADS``
 (k-means and onnxruntime threads; default 1, 0 = the libraries' own choice, i.e. no limit).
 
-    python benchmarks/bench_localize.py [--flights all|N] [--sim] [--samples 20000] [--repeat 5] [--threads 1]
-    python benchmarks/bench_localize.py --method evidence --flights 2 --repeat 3   # the evidence stage
+    python benchmarks/bench_localize.py [--flights all|N] [--sim] [--samples 20000] [--repeat 5] \
+        [--threads 1]
+    # the evidence stage
+    python benchmarks/bench_localize.py --method evidence --flights 2 --repeat 3
 """
 
 from __future__ import annotations
@@ -115,7 +117,8 @@ def main() -> None:
     if args.threads is not None:
         os.environ["RFSL_THREADS"] = str(args.threads)
     print(
-        f"python {sys.version.split()[0]}; RFSL_THREADS={os.environ.get('RFSL_THREADS', '(unset: 1)')}; {_load()}"
+        f"python {sys.version.split()[0]}; "
+        f"RFSL_THREADS={os.environ.get('RFSL_THREADS', '(unset: 1)')}; {_load()}"
     )
 
     t0 = _clock()
@@ -158,7 +161,8 @@ def main() -> None:
         )  # warm-up: first k-means, first pattern tables, lazy imports
         t_warm = _since(t0)
         print(
-            f"start-up (once): imports {t_import[0]:.2f} s wall / {t_import[1]:.2f} s CPU; onnxruntime session "
+            f"start-up (once): imports {t_import[0]:.2f} s wall / {t_import[1]:.2f} s CPU; "
+            "onnxruntime session "
             f"{1e3 * t_session[0]:.1f} ms; first localize_log (warm-up) {t_warm[0]:.2f} s wall / "
             f"{t_warm[1]:.2f} s CPU"
         )

@@ -12,12 +12,18 @@ The CPU of each process is read from ``resource.getrusage(RUSAGE_CHILDREN)`` aft
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import resource
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from mission.flight.runner import free_udp_port
+from mission.flightlog import read_flight_log
+from mission.spec import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,13 +36,6 @@ def _cpu() -> float:
 def run_one(mission: Path, speedup: float) -> dict:
     """One flight; returns rows, wall seconds, coverage and CPU per flight-minute (runner incl.
     vehicle)."""
-    import dataclasses
-    import json
-
-    from mission.flight.runner import free_udp_port
-    from mission.flightlog import read_flight_log
-    from mission.spec import load_mission
-
     kin = json.dumps(dataclasses.asdict(load_mission(mission).kinematics()))
 
     out = Path(tempfile.mkdtemp(prefix="bench_fly_"))

@@ -35,6 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
+import mission.localize.matched as matched
+from mission.evidence import compare_methods
+from mission.flightlog import read_flight_log
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.localize.api import localize_log
+from mission.localize.uncertainty import region_covers
+from mission.workshop.suite import unseen_flight
+
 REPO = Path(__file__).resolve().parents[1]
 AFAR_MAT = REPO.parent / "shared" / "data" / "afar2023" / "mat"
 FAMILY = REPO / "mission" / "data" / "afar_family.json"
@@ -51,8 +59,6 @@ def _load() -> str:
 
 def real_logs(folder: Path) -> list[tuple[str, Path]]:
     """The six AFAR flights imported with their truth: (name ``288_loc_1``, log path)."""
-    from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
-
     out = []
     for f in sorted(AFAR_MAT.glob("results_useful_ori_exp_*_loc_*.mat")):
         name = f.stem.replace("results_useful_ori_exp_", "")
@@ -70,9 +76,6 @@ def real_logs(folder: Path) -> list[tuple[str, Path]]:
 def score(log, truth_xy, methods=METHODS) -> dict:
     """Error (m), seconds and region coverage of each method on one log (``truth_xy`` in the log's
     frame)."""
-    from mission.localize.api import localize_log
-    from mission.localize.uncertainty import region_covers
-
     row: dict = {}
     for m in methods:
         t0 = time.perf_counter()
@@ -91,14 +94,10 @@ def score(log, truth_xy, methods=METHODS) -> dict:
 def use_family(family: str) -> None:
     """The matched localizer draws from ``family`` in this process (``localize_log`` builds it with
     the default)."""
-    import mission.localize.matched as matched
-
     matched.DEFAULT_FAMILY = family
 
 
 def _sim_one(args: tuple[int, int, str, tuple[str, ...]]) -> dict:
-    from mission.workshop.suite import unseen_flight
-
     seed, i, family, methods = args
     use_family(family)
     fl = unseen_flight(seed, i, family=family)
@@ -108,8 +107,6 @@ def _sim_one(args: tuple[int, int, str, tuple[str, ...]]) -> dict:
 def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dict:
     """Means with intervals (over flights, and teams when given), paired differences to fusion,
     coverage."""
-    from mission.evidence import compare_methods
-
     errs = {m: [r[m]["error_m"] for r in rows] for m in methods}
     out: dict = {
         "n": len(rows),
@@ -129,7 +126,8 @@ def summarise(rows: list[dict], teams: list[str] | None, methods=METHODS) -> dic
 
 def print_summary(s: dict) -> None:
     print(
-        f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} {'50%':>6s} {'90%':>6s}"
+        f"{'method':8s} {'mean m [90 % flights]':>24s} {'vs fusion':>20s} {'median':>7s} "
+        f"{'50%':>6s} {'90%':>6s}"
     )
     for m in s["methods"]:
         f = s["flights"][m]
@@ -189,26 +187,21 @@ def main() -> None:
     use_family(args.family)
     with tempfile.TemporaryDirectory() as tmp:
         if args.mode == "time":
-            from mission.localize.api import localize_log
-
             logs = real_logs(Path(tmp))[: args.flights] if AFAR_MAT.is_dir() else []
             if not logs:
-                from mission.workshop.suite import unseen_flight
-
                 logs = [("suite 2026:0", unseen_flight(2026, 0, family=args.family).log)]
             print(_load())
             for name, log in logs:
                 w0, c0 = time.perf_counter(), time.process_time()
                 est = localize_log(log, method="matched")
                 print(
-                    f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU {time.process_time() - c0:.1f} s, "
+                    f"{name}: wall {time.perf_counter() - w0:.1f} s, CPU "
+                    f"{time.process_time() - c0:.1f} s, "
                     f"{est.selection.used} samples, {est.extras['n_cells']} cells, "
                     f"{est.extras['n_draws']} draws; {_load()}"
                 )
             return
         if args.mode == "real":
-            from mission.flightlog import read_flight_log
-
             rows, teams = [], []
             for name, path in real_logs(Path(tmp)):
                 log = read_flight_log(path)

@@ -83,7 +83,8 @@ def main() -> None:
             )
     maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(
-        f"{'model':<14} {'case':<7} {'tx x samples':>14} {'M/s wall':>9} {'M/s cpu':>8} {'wall ms':>9} "
+        f"{'model':<14} {'case':<7} {'tx x samples':>14} {'M/s wall':>9} {'M/s cpu':>8} "
+        f"{'wall ms':>9} "
         f"{'peak MiB':>9}"
     )
     for name, case, shape, rate, rate_cpu, ms, mib in rows:

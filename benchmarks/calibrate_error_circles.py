@@ -18,12 +18,15 @@ real AFAR flights, and on simulated logs of the product path (``--product-seeds`
 ``benchmarks/sim_default.py``'s sets, ``localize``'s default and each classical method on ``rfsl
 simulate`` logs).
 
+    # and 2028, 2026
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2027 \\
-        --out /tmp/suite_2027                                                          # and 2028, 2026
-    python benchmarks/calibrate_error_circles.py --calib-dirs /tmp/suite_2027 /tmp/suite_2028 --sim-n 0 \\
-        --method-seeds 0:0 --write                                                     # 'real' only
-    python benchmarks/calibrate_error_circles.py --sim-n 0 --method-seeds 0:0 --check-dir /tmp/suite_2026 \\
-        --mat ../shared/data/afar2023/mat --product-seeds 7000:7040                                   # 1 min
+        --out /tmp/suite_2027
+    # 'real' only
+    python benchmarks/calibrate_error_circles.py --calib-dirs /tmp/suite_2027 /tmp/suite_2028 \\
+        --sim-n 0 --method-seeds 0:0 --write
+    # 1 min
+    python benchmarks/calibrate_error_circles.py --sim-n 0 --method-seeds 0:0 \\
+        --check-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat --product-seeds 7000:7040
 """
 
 from __future__ import annotations
@@ -40,11 +43,21 @@ from pathlib import Path
 import numpy as np
 
 from mission.evidence import conformal_quantile
+from mission.localize.api import localize_log
 from mission.localize.card import model_digest
-from mission.localize.error_circles import CIRCLE_METHODS, LEVELS
+from mission.localize.error_circles import CIRCLE_METHODS, LEVELS, METHOD_CIRCLES, REGIONS_KEY
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.localize.uncertainty import outer_region
+from mission.threads import limit_worker
+from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
+from mission.workshop.evaluate import import_afar
+from mission.workshop.evaluate_suite import _coverage
+from mission.workshop.suite_cache import read_suite
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
+from sim_default import SETS, mission_variant, simulate_log
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
 
 
 def calibration_record(
@@ -97,14 +110,6 @@ def kwargs_of(name: str) -> dict:
 
 def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
     """2D errors (m) of network ``name`` on ``n`` fresh simulated flights of its sim domain."""
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import (
-        DatasetConfig,
-        dataset_heights,
-        generate_dataset,
-        load_dataset,
-    )
-
     rec = json.loads((REPO / "models" / f"{name}.json").read_text())["ci_check"]
     cfg = DatasetConfig.from_dict(rec["dataset_config"])
     change, what = SIM_DOMAINS[name]
@@ -127,9 +132,6 @@ def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
 def _run(est, truth) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where
     clipped)."""
-    from mission.localize.uncertainty import outer_region
-    from mission.workshop.evaluate_suite import _coverage
-
     reg = outer_region(est.extras) or {}
     share = reg["area_m2"] / (np.pi * reg["radius_m"] ** 2) if "radius_m" in reg else float("nan")
     return (
@@ -142,9 +144,6 @@ def _run(est, truth) -> tuple[float, dict, str, float]:
 
 def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by) on flight i of a benchmark cache."""
-    from mission.localize.api import localize_log
-    from mission.workshop.suite_cache import read_suite
-
     kw, suite_dir, i = job
     log, truth, _ = read_suite(suite_dir).load(i)
     return _run(localize_log(log, **kw), truth)
@@ -153,26 +152,18 @@ def _suite_flight(job: tuple[dict, str, int]) -> tuple[float, dict, str, float]:
 def _simulated_flight(job: tuple[dict, str, str, int]) -> tuple[float, dict, str, float]:
     """(error, coverage, answered by) on one ``rfsl simulate`` log of a mission (``kw`` {} = the
     default)."""
-    from sim_default import simulate_log
-
-    from mission.localize.api import localize_log
-
     kw, mission, out, seed = job
     est = localize_log(simulate_log(mission, out, seed), **kw)
     return _run(est, (est.extras["truth_x_m"], est.extras["truth_y_m"]))
 
 
 def _pool(fn, jobs: list) -> list:
-    from mission.threads import limit_worker
-
     with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
         return list(ex.map(fn, jobs, chunksize=4))
 
 
 def suite_runs(name: str, dirs: list[str]) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` over the flights of benchmark caches ``dirs``."""
-    from mission.workshop.suite_cache import read_suite
-
     return _pool(
         _suite_flight, [(kwargs_of(name), d, i) for d in dirs for i in range(len(read_suite(d)))]
     )
@@ -188,9 +179,6 @@ def simulated_runs(
 
 def real_runs(name: str, mat: str) -> list[tuple[float, dict, str, float]]:
     """Per-flight runs of ``name`` on the six real AFAR flights."""
-    from mission.localize.api import localize_log
-    from mission.workshop.evaluate import import_afar
-
     with tempfile.TemporaryDirectory() as tmp:
         ests = [localize_log(p, **kwargs_of(name)) for p in import_afar(mat, tmp)]
     return [_run(e, (e.extras["truth_x_m"], e.extras["truth_y_m"])) for e in ests]
@@ -206,7 +194,8 @@ def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
         np.nanmean([r[3] for r in runs]) if any(np.isfinite(r[3]) for r in runs) else float("nan")
     )
     return (
-        f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} %, 90 % region "
+        f"mean {e.mean():.1f} m, in 50 % / 90 %: {100 * cov['50']:.1f} / {100 * cov['90']:.1f} "
+        "%, 90 % region "
         f"{100 * share:.0f} % of its circle after clipping to the rover area (n={len(e)}; {by})"
     )
 
@@ -214,8 +203,6 @@ def coverage_line(runs: list[tuple[float, dict, str, float]]) -> str:
 def product_check(seeds: str, methods: list[str]) -> None:
     """Coverage on simulated logs of the product path (``sim_default.SETS``): the default and each
     method."""
-    from sim_default import SETS, mission_variant
-
     lo, hi = (int(v) for v in seeds.split(":"))
     with tempfile.TemporaryDirectory() as tmp:
         for label, mission, alt in SETS:
@@ -231,8 +218,6 @@ def product_check(seeds: str, methods: list[str]) -> None:
 def benchmark_label(dirs: list[str]) -> str:
     """'unseen-flight benchmark, FAMILY family (seeds ...)' for the caches ``dirs`` (the family
     their manifests name: a built-in name, or a family file's name and sha256 prefix)."""
-    from mission.workshop.suite_cache import read_suite
-
     fams = sorted({str(read_suite(d).manifest.get("family", "afar")) for d in dirs})
     seeds = ", ".join(str(read_suite(d).manifest.get("seed")) for d in dirs)
     return f"unseen-flight benchmark, {' + '.join(fams)} family (seeds {seeds})"
@@ -241,8 +226,6 @@ def benchmark_label(dirs: list[str]) -> str:
 def store(name: str, regions: dict) -> None:
     """Write a calibration: a network's into its card, a classical method's into
     method_circles.json."""
-    from mission.localize.error_circles import METHOD_CIRCLES, REGIONS_KEY
-
     path = METHOD_CIRCLES if name in CIRCLE_METHODS else REPO / "models" / f"{name}.json"
     d = json.loads(path.read_text()) if path.is_file() else {}
     key = name if name in CIRCLE_METHODS else REGIONS_KEY

@@ -2,7 +2,8 @@
 
 Usage::
 
-    nice -n 5 python benchmarks/calibrate_real_afar.py [--out /tmp/calib_real] [--write-preset] [--choose CONFIG]
+    nice -n 5 python benchmarks/calibrate_real_afar.py [--out /tmp/calib_real] [--write-preset] \
+        [--choose CONFIG]
 
 Data: the six flights of ``../shared/data/afar2023/mat`` (truth: ``../shared/data/README.md``),
 cruise part only (``mission.localize.preprocess.cruise_mask``: climb/descent are ~17 dB off).  Team
@@ -44,7 +45,15 @@ import numpy as np
 
 import mission.calibrate as _cal
 from mission.calibrate import CONFIGS
+from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.gap.align import afar2023_flights
+from mission.geo import afar_field
 from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
+from mission.localize.classical import ModelGridSearch
+from mission.localize.preprocess import cruise_mask
+from mission.physics.antenna import TabulatedPattern, rm_wb1_dn
+from mission.physics.presets import build_model
+from mission.samples import FlightSamples
 
 REPO = Path(__file__).resolve().parents[1]
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
@@ -69,9 +78,6 @@ ATT_VARIANTS = {
 
 def load_flights(min_height_m: float = 10.0):
     """The six flights (``mission.samples.FlightSamples``), cruise samples only."""
-    from mission.gap.align import afar2023_flights
-    from mission.localize.preprocess import cruise_mask
-
     return [f.select(cruise_mask(f.enu_m[:, 2]).mask) for f in afar2023_flights(MAT, min_height_m)]
 
 
@@ -118,8 +124,6 @@ LOTO = {
 
 def heldout(cfg: dict, flights, split: str, att_variant: str = "logged", **kw) -> dict:
     """Fit on training flights, score on test flights. -> {test flight: stats + fitted spec}."""
-    from mission.physics.presets import build_model
-
     out = {}
     folds = (
         list(LOTO.values())
@@ -148,11 +152,6 @@ def pooled(res: dict, names=GOOD) -> dict:
 
 
 def localize(model, f, att_variant: str = "logged", floor_db: float | None = None) -> float:
-    from mission.defaults import DEFAULT_TX_HEIGHT_M
-    from mission.geo import afar_field
-    from mission.localize.classical import ModelGridSearch
-    from mission.samples import FlightSamples
-
     fn = ATT_VARIANTS[att_variant]
     att = None if fn is None else fn(f.attitude_rad)
     est = ModelGridSearch(
@@ -191,7 +190,6 @@ def main(argv: list[str] | None = None) -> int:
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
         return 2
-    from mission.physics.presets import build_model
 
     t0 = time.time()
     out = Path(args.out)
@@ -225,8 +223,6 @@ def main(argv: list[str] | None = None) -> int:
     if (
         "attitude" in steps
     ):  # handedness of the pattern's azimuth: the measured pattern mirrored (az -> -az)
-        from mission.physics.antenna import TabulatedPattern, rm_wb1_dn
-
         p = rm_wb1_dn()
         az = np.mod(-p.az_deg, 360.0)
         o = np.argsort(az)
@@ -358,7 +354,8 @@ def main(argv: list[str] | None = None) -> int:
         loto_specs = summary.get("localization_loto", {}).get("fold_specs", {}).get(choose, {})
         rec = {
             "name": "afar",
-            "description": "Propagation model calibrated on the AFAR 2023 testbed flights (cruise samples, "
+            "description": "Propagation model calibrated on the AFAR 2023 testbed flights "
+            "(cruise samples, "
             "per-flight free offset, soft-L1 loss, f_scale 6 dB)",
             "model": spec,
             "config": choose,

@@ -10,8 +10,10 @@ leave-one-seed-out and 5-fold (seeded) cross-validated coverage.
 
 Usage (the shipped masses: three seeds of the ``afar`` family, 500 flights, 33 s on 2 cores)::
 
-    python benchmarks/calibrate_regions.py --seeds 2026:200 2027:100 2028:200 --json /tmp/regions.json
-    python benchmarks/calibrate_regions.py --suite-dirs /tmp/suite_2027:200 /tmp/suite_2028:200   # family caches
+    python benchmarks/calibrate_regions.py --seeds 2026:200 2027:100 2028:200 \
+        --json /tmp/regions.json
+    # family caches
+    python benchmarks/calibrate_regions.py --suite-dirs /tmp/suite_2027:200 /tmp/suite_2028:200
 """
 
 from __future__ import annotations
@@ -21,6 +23,12 @@ import json
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from rich.progress import track
+
+from mission.localize.api import localize_log
+from mission.threads import limit_worker
+from mission.workshop.suite import unseen_flight
+from mission.workshop.suite_cache import read_suite
 
 LEVELS = (0.5, 0.9)
 
@@ -28,10 +36,6 @@ LEVELS = (0.5, 0.9)
 def truth_level(job: tuple[int | str, int, str]) -> float:
     """The truth's HPD level under the default selfcal posterior on benchmark flight ``i`` of
     ``seed`` (or of the benchmark cache folder ``seed`` names)."""
-    from mission.localize.api import localize_log
-    from mission.workshop.suite import unseen_flight
-    from mission.workshop.suite_cache import read_suite
-
     seed, i, family = job
     log, truth, _ = (
         read_suite(seed).load(i) if isinstance(seed, str) else unseen_flight(seed, i, family)
@@ -52,10 +56,6 @@ def coverage(q: np.ndarray, m: dict[float, float]) -> dict[float, float]:
 
 
 def main() -> None:
-    from rich.progress import track
-
-    from mission.threads import limit_worker
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
         "--seeds", nargs="+", default=["2026:200", "2027:100", "2028:200"], help="SEED:N ..."

@@ -13,8 +13,9 @@ and 1.  Coverage is reported held out: 5-fold over seeds (each fold's circles fi
 folds), per kind of cut.  A power law ``error ~ c ** -a`` (normalised conformal) was tried first and
 under-covered the 2/3 cuts (78 % at 90 %): errors do not scale as one power of the coverage.
 
+    # ~20 min on 2 busy cores
     python benchmarks/calibrate_track_circles.py --model rfsl_spiral_e2r_ens5 --alts 30 \\
-        --seeds 3100:3300 --check-seeds 3400:3460 --rows /tmp/track.npy --write   # ~20 min on 2 busy cores
+        --seeds 3100:3300 --check-seeds 3400:3460 --rows /tmp/track.npy --write
 """
 
 from __future__ import annotations
@@ -27,11 +28,20 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from rich.progress import track
+
+from mission.evidence import conformal_quantile
+from mission.flightlog import read_flight_log
+from mission.localize.api import localize_log
+from mission.localize.error_circles import flown_radii, model_digest
+from mission.threads import limit_worker
+
+# sim_default's simulate_log, mission_variant
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from sim_default import mission_variant, simulate_log
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(
-    0, str(Path(__file__).resolve().parent)
-)  # sim_default's simulate_log, mission_variant
+
 LEVELS = (0.5, 0.9)
 MIN_FRACTION = 0.2  # calibration cuts are drawn in [0.2, 1]
 STRATA = (
@@ -54,11 +64,6 @@ def _runs(job: tuple[str, str, int, tuple[float, ...]]) -> list[tuple[float, flo
     """(cut fraction, track coverage, error m) of network ``model`` on one simulated log cut at each
     fraction (``fractions`` empty: one full flight and one cut drawn in [MIN_FRACTION, 1] from the
     seed)."""
-    from sim_default import simulate_log
-
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log
-
     model, mission, seed, fractions = job
     with tempfile.TemporaryDirectory() as tmp:
         log = read_flight_log(simulate_log(mission, tmp, seed))
@@ -76,10 +81,6 @@ def collect(
     model: str, missions: list[str], seeds: range, fractions: tuple[float, ...] = ()
 ) -> np.ndarray:
     """(n, 4) rows of seed, cut fraction, track coverage and error over every mission and seed."""
-    from rich.progress import track
-
-    from mission.threads import limit_worker
-
     jobs = [(model, m, s, fractions) for m in missions for s in seeds]
     with ProcessPoolExecutor(2, initializer=limit_worker) as ex:
         res = list(
@@ -96,8 +97,6 @@ def stratum(c: np.ndarray, bounds: list[float]) -> np.ndarray:
 def fit(rows: np.ndarray, source: str) -> dict:
     """The ``track`` record: per coverage stratum (from the lowest coverage seen, 0.5, 0.9) the
     conformal radii of the errors of the flights in it."""
-    from mission.evidence import conformal_quantile
-
     bounds = [round(float(np.min(rows[:, 2])) - 0.005, 2), *STRATA]
     k = stratum(rows[:, 2], bounds)
     return {
@@ -116,8 +115,6 @@ def fit(rows: np.ndarray, source: str) -> dict:
 def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
     """Coverage of the circles fitted without each fold of seeds, on that fold: per cut kind (1/3,
     2/3, random cuts, full flights)."""
-    from mission.localize.error_circles import flown_radii
-
     seeds = np.unique(rows[:, 0])
     parts = np.array_split(np.random.default_rng(0).permutation(seeds), folds)
     got: dict = {}
@@ -145,17 +142,15 @@ def cross_validate(rows: np.ndarray, folds: int = 5) -> None:
     for kind in ("cut 1/3", "cut 2/3", "cut U(0.2, 1)", "full"):
         if (kind, 0.5) in got:
             print(
-                f"  {kind} (n={len(got[kind, 0.5])}): in 50 % / 90 %: {100 * np.mean(got[kind, 0.5]):.1f} / "
-                f"{100 * np.mean(got[kind, 0.9]):.1f} %, median 90 % radius {np.median(got[kind, 'r']):.1f} m",
+                f"  {kind} (n={len(got[kind, 0.5])}): in 50 % / 90 %: "
+                f"{100 * np.mean(got[kind, 0.5]):.1f} / "
+                f"{100 * np.mean(got[kind, 0.9]):.1f} %, median 90 % radius "
+                f"{np.median(got[kind, 'r']):.1f} m",
                 flush=True,
             )
 
 
 def main() -> None:
-    from sim_default import mission_variant
-
-    from mission.localize.error_circles import model_digest
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--model", default="rfsl_spiral_e2r_ens5")
     ap.add_argument(

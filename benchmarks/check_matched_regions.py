@@ -26,8 +26,8 @@ ABC draws) and ``one net`` (the previous check: each held-out draw through one f
 only).  A region of mass m holds the truth when the truth's level is below m, so both coverages come
 from one run.
 
-    nice -n 10 python benchmarks/check_matched_regions.py --suite-dir /tmp/suite_2026 --n 30 --workers 2 \\
-        --json /tmp/matched_regions.json
+    nice -n 10 python benchmarks/check_matched_regions.py --suite-dir /tmp/suite_2026 --n 30 \\
+        --workers 2 --json /tmp/matched_regions.json
 """
 
 from __future__ import annotations
@@ -40,14 +40,19 @@ from pathlib import Path
 
 import numpy as np
 
+import mission.localize.matched as matched
+from mission.evidence import coverage_interval, mean_interval, paired_difference
+from mission.localize.api import localize_log
+from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
+from mission.threads import limit_worker
+from mission.workshop.suite_cache import read_suite
+
 LEVELS = (0.5, 0.9)
 
 
 def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
     """Masses of the previous check: held-out draw c through fold ``c % folds``'s net and table
     only."""
-    from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
-
     lev = np.empty(len(cal))
     for c, q in enumerate(cal):
         j = c % loc.folds
@@ -59,10 +64,6 @@ def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
 
 
 def _flight(job: tuple[str, int, bool]) -> dict:
-    import mission.localize.matched as matched
-    from mission.localize.api import localize_log
-    from mission.workshop.suite_cache import read_suite
-
     suite_dir, i, with_default = job
     seen: dict = {}
 
@@ -98,8 +99,6 @@ def _flight(job: tuple[str, int, bool]) -> dict:
 def summary(rows: list[dict]) -> dict:
     """Per check and level: k of n inside, the share with its 90 % binomial interval, and the rule's
     verdict."""
-    from mission.evidence import coverage_interval
-
     out: dict = {}
     for check in ("union", "one_net"):
         for lv in LEVELS:
@@ -116,8 +115,6 @@ def summary(rows: list[dict]) -> dict:
 
 
 def main() -> None:
-    from mission.threads import limit_worker
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument(
         "--suite-dir", required=True, help="benchmark cache of the shipped family (seed 2026)"
@@ -137,7 +134,8 @@ def main() -> None:
             rows.append(r)
             m = r["masses"]
             print(
-                f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level {r['truth_level']:.3f}, masses "
+                f"flight {r['flight']:3d}: {r['error_m']:6.1f} m, truth level "
+                f"{r['truth_level']:.3f}, masses "
                 f"union {m['union'][0.5]:.2f}/{m['union'][0.9]:.2f}, one net "
                 f"{m['one_net'][0.5]:.2f}/{m['one_net'][0.9]:.2f}, {r['seconds']:.0f} s",
                 flush=True,
@@ -151,14 +149,14 @@ def main() -> None:
             f"{key:12s} {v['k']:3d}/{v['n']}  {100 * sh['value']:5.1f} % [{100 * sh['lo']:.1f}, "
             f"{100 * sh['hi']:.1f}]  {'passes' if v['passes'] else 'fails'}"
         )
-    from mission.evidence import mean_interval, paired_difference
 
     err = [r["error_m"] for r in rows]
     print(f"matched mean error {mean_interval(err).fmt()} m over {len(rows)} flights")
     if args.with_default:
         dflt = [r["default_error_m"] for r in rows]
         print(
-            f"default {mean_interval(dflt).fmt()} m; matched - default {paired_difference(err, dflt).fmt()} m"
+            f"default {mean_interval(dflt).fmt()} m; matched - default "
+            f"{paired_difference(err, dflt).fmt()} m"
         )
     if args.json:
         Path(args.json).write_text(json.dumps({"rows": rows, "summary": s}, indent=1))

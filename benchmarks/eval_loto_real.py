@@ -3,8 +3,8 @@ physics saw the flight's team.
 
 Usage::
 
-    python benchmarks/eval_loto_real.py --net-fit328 M/afar_fit328.onnx --net-fit288 M/afar_fit288.onnx \
-        [--data ../shared/data/afar2023/mat] [--json OUT.json]
+    python benchmarks/eval_loto_real.py --net-fit328 M/afar_fit328.onnx \
+        --net-fit288 M/afar_fit288.onnx [--data ../shared/data/afar2023/mat] [--json OUT.json]
     python benchmarks/eval_loto_real.py --nets models/rfsl_family.onnx models/rfsl_spiral_e2r.onnx
 
 Rows (error per flight in metres, then mean/median over six flights and over the five without the
@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH, is_afar2023_suspect
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat, is_afar2023_suspect
+from mission.localize.api import localize_log
 
 FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the fold whose physics did not see this team
 
@@ -50,9 +51,6 @@ def _row(name: str, errs: list[float], flights: list[str]) -> dict:
 
 
 def main() -> None:
-    from mission.importers.afar import import_afar_mat
-    from mission.localize.api import localize_log
-
     default = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(default))

@@ -14,7 +14,8 @@ real AFAR flights, resampled over teams (nothing is fitted on real flights: the 
 the benchmark calibrations, so every real flight is held out), or (b) on the reality-fitted
 benchmark cache (``--suite-dir``), resampled over flights.
 
-    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fit
+    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 \
+        --out /tmp/suite_fit
     python benchmarks/fusion_weights.py --suite-dir /tmp/suite_fit --mat ../shared/data/afar2023/mat
 """
 
@@ -26,6 +27,12 @@ from pathlib import Path
 
 import numpy as np
 from _scoring import flight_with_truth, scoring_parser
+
+from mission.evidence import mean_interval, paired_difference
+from mission.localize.api import fusion_model_path, localize_log
+from mission.localize.error_circles import card_calibration
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
 
 
 def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
@@ -48,8 +55,6 @@ def inverse_square_weight(scale_a: float, scale_b: float) -> float:
 
 def one(job: tuple[str, str, int]) -> dict:
     """Both members' points, their 50 % scales and the truth on one flight (log ENU m)."""
-    from mission.localize.api import fusion_model_path, localize_log
-
     kind, src, i = job
     log, truth = flight_with_truth(kind, src, i)
     est = localize_log(log, method="fusion")
@@ -65,9 +70,6 @@ def one(job: tuple[str, str, int]) -> dict:
 def network_radius() -> float:
     """The fusion network's 50 % error-circle radius for real logs (its card's ``real``
     calibration)."""
-    from mission.localize.api import fusion_model_path
-    from mission.localize.error_circles import card_calibration
-
     rec, why = card_calibration(fusion_model_path(), "real")
     if rec is None:
         raise SystemExit(why)
@@ -86,10 +88,6 @@ def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def main() -> None:
-    from mission.evidence import mean_interval, paired_difference
-    from mission.threads import limit_worker
-    from mission.workshop.evaluate import import_afar
-
     args = scoring_parser(__doc__).parse_args()
     with (
         tempfile.TemporaryDirectory() as tmp,
@@ -112,7 +110,8 @@ def main() -> None:
         d = paired_difference(w, p, groups)
         print(
             f"{label}, n={len(p)}: plain {mean_interval(p, groups).fmt()} m, weighted "
-            f"{mean_interval(w, groups).fmt()} m, weighted - plain {d.fmt()} m; selfcal weight median "
+            f"{mean_interval(w, groups).fmt()} m, weighted - plain {d.fmt()} m; selfcal weight "
+            "median "
             f"{np.median([rb**2 / (r['ra'] ** 2 + rb**2) for r in rows]):.2f}"
         )
         verdict.append(d.lo > 0)

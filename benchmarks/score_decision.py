@@ -7,9 +7,11 @@ error with paired bootstrap 90 % intervals (real: over flights and over teams; b
 flights), the paired difference to the default, the share of truths in the 50 % / 90 % regions, then
 ``mission.workshop.decision.pooled_decision``.
 
-    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --out /tmp/suite_fam
-    python benchmarks/score_decision.py --suite-dir /tmp/suite_fam --n 200 --mat ../shared/data/afar2023/mat \
-        --workers 2 --json /tmp/decision.json --md /tmp/decision.md [--extra matched]
+    rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 \
+        --out /tmp/suite_fam
+    python benchmarks/score_decision.py --suite-dir /tmp/suite_fam --n 200 \
+        --mat ../shared/data/afar2023/mat --workers 2 --json /tmp/decision.json \
+        --md /tmp/decision.md [--extra matched]
 """
 
 from __future__ import annotations
@@ -22,6 +24,15 @@ from pathlib import Path
 
 import numpy as np
 from _scoring import scoring_parser
+
+from mission.evidence import compare_methods
+from mission.flightlog import read_flight_log
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.localize.api import localize_log
+from mission.workshop.decision import pooled_decision
+from mission.workshop.evaluate_suite import _coverage, evaluate_suite, suite_method
+from mission.workshop.predictive import family_checks, flight_statistics, verdict
+from mission.workshop.suite_cache import read_suite
 
 INCUMBENT = "fusion (default)"
 NETS = ("rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar")
@@ -49,12 +60,6 @@ def methods(models: Path, extra: list[str]) -> dict[str, str]:
 def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, list[dict]]:
     """(flight names, {label: errors}, {label: {level: [covered]}}, predictive-check statistics per
     flight) on the six real flights, LOTO."""
-    from mission.flightlog import read_flight_log
-    from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
-    from mission.localize.api import localize_log
-    from mission.workshop.evaluate_suite import _coverage, suite_method
-    from mission.workshop.predictive import flight_statistics
-
     files = sorted(Path(mat).glob("results_useful_ori_exp_*_loc_*.mat"))
     if not files:
         raise SystemExit(f"no AFAR MAT files under {mat}")
@@ -93,12 +98,6 @@ def _cov(c: dict, n: int) -> str:
 
 
 def main() -> None:
-    from mission.evidence import compare_methods
-    from mission.workshop.decision import pooled_decision
-    from mission.workshop.evaluate_suite import evaluate_suite
-    from mission.workshop.predictive import family_checks, verdict
-    from mission.workshop.suite_cache import read_suite
-
     ap = scoring_parser(__doc__)
     ap.add_argument("--json", help="write every figure here")
     ap.add_argument("--md", help="write the markdown table here")
@@ -138,7 +137,8 @@ def main() -> None:
     fam = read_suite(args.suite_dir).manifest.get("family")
     checks = family_checks(rstats, bstats, real, bench)
     head = (
-        "| method | real LOTO mean m [90 % flights] [teams] | vs default, real | real in 50 / 90 % | "
+        "| method | real LOTO mean m [90 % flights] [teams] | vs default, real | real in 50 / "
+        "90 % | "
         f"benchmark ({fam}, n = {n_b}) mean m [90 %] | vs default, bench | bench in 50 / 90 % | "
         "pooled rel. diff [90 %] | rule |"
     )

@@ -12,12 +12,14 @@ Rule (written 2026-11-27 before any flight was scored with the stage's answer; i
    and the benchmark by flight; adopted when the pooled 90 % interval lies below zero and neither
    source's lies above zero, and its 90 % regions cover >= 80 % of the benchmark's truths).
 3. Adopted: the real-log default becomes the stage.  Not adopted: it ships as ``--method evidence``.
-Also printed: the best candidate of each flight (the headroom) and the share of it the stage recovers.
+Also printed: the best candidate of each flight (the headroom) and the share of it the stage
+recovers.
 
     rfsl dataset --suite unseen --logs --family mission/data/afar_family.json --n 200 --seed 2026 \
         --out /tmp/suite_fam
+    # ~10 min, 2 cores
     python benchmarks/score_evidence.py collect --suite-dir /tmp/suite_fam --first 0 --n 200 \
-        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.jsonl --workers 2     # ~10 min, 2 cores
+        --mat ../shared/data/afar2023/mat --json /tmp/evidence_cache.jsonl --workers 2
     python benchmarks/score_evidence.py score --json /tmp/evidence_cache.jsonl
 """
 
@@ -27,9 +29,23 @@ import argparse
 import json
 import tempfile
 from collections.abc import Callable
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
+from rich.progress import track
+from threadpoolctl import threadpool_limits
+
+from mission.evidence import mean_interval, paired_difference
+from mission.flightlog import read_flight_log
+from mission.geo import square_grid
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.localize.api import localize_log, search_area
+from mission.localize.candidates import Candidate
+from mission.localize.evidence_stage import SIGMA_M, member_candidates, score_candidates
+from mission.localize.preprocess import select_samples
+from mission.localize.stacking import geometric_median, mixture_posterior, stacking_weights
+from mission.workshop.decision import pooled_decision
 
 FOLD_FOR_TEAM = {"288": "afar:fit328", "328": "afar:fit288"}
 DEV = range(0, 60)
@@ -38,13 +54,6 @@ DEV = range(0, 60)
 def _one(job: tuple[str, str, str | None, list | None]) -> dict:
     """Candidates, blocked scores and the default's point of one log (``job``: path, name, grid
     preset, truth in the log's frame or None for the sidecar's)."""
-    from threadpoolctl import threadpool_limits
-
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log, search_area
-    from mission.localize.evidence_stage import member_candidates, score_candidates
-    from mission.localize.preprocess import select_samples
-
     path, name, preset, truth = job
     with threadpool_limits(1):
         log = read_flight_log(path)
@@ -64,12 +73,6 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
 
 
 def collect(args) -> None:
-    from multiprocessing import get_context
-
-    from rich.progress import track
-
-    from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
-
     flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
     flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
     jobs = []
@@ -114,8 +117,6 @@ def _pbma(lp: np.ndarray) -> np.ndarray:
 
 def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     """Answer schemes: a flight's cached row -> its point."""
-    from mission.localize.candidates import Candidate
-    from mission.localize.stacking import geometric_median, stacking_weights
 
     def answer(
         cs, w
@@ -158,10 +159,6 @@ def truth_level(r: dict, weights: np.ndarray) -> float:
     """The smallest HPD mass of the candidates' weighted mixture (``stacking.mixture_posterior``,
     the stage's ``SIGMA_M``) whose set holds the truth, on a 5 m grid 100 m around the
     candidates."""
-    from mission.geo import square_grid
-    from mission.localize.evidence_stage import SIGMA_M
-    from mission.localize.stacking import mixture_posterior
-
     xy = np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
     lo, hi = xy.min(axis=0) - 100.0, xy.max(axis=0) + 100.0
     grid = square_grid((lo[0], lo[1], hi[0], hi[1]), 5.0)
@@ -173,9 +170,6 @@ def _err(p, r) -> float:
 
 
 def score(args) -> None:
-    from mission.evidence import mean_interval, paired_difference
-    from mission.workshop.decision import pooled_decision
-
     rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
     bench = [r for r in rows if r["name"].startswith("bench")]
     real = [r for r in rows if r["name"].startswith("real")]
@@ -212,7 +206,6 @@ def score(args) -> None:
         if src == "real":
             for r, a, b, c in zip(rs, *out[src].values(), strict=True):
                 print(f"    {r['name']:16s} default {a:6.1f}  evidence {b:6.1f}  best {c:6.1f}")
-    from mission.localize.stacking import stacking_weights
 
     lv = {
         src: np.array([truth_level(r, stacking_weights(np.asarray(r["block_lpd"]))) for r in rs])
@@ -220,12 +213,14 @@ def score(args) -> None:
     }
     masses = {q: float(np.quantile(lv["dev"], q)) for q in (0.5, 0.9)}
     print(
-        f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} / {masses[0.9]:.3f}"
+        f"mixture HPD masses that cover 50 / 90 % of the development split: {masses[0.5]:.3f} "
+        f"/ {masses[0.9]:.3f}"
     )
     for src in ("fresh", "real"):
         cov = [f"{100 * np.mean(lv[src] < masses[q]):.0f} %" for q in (0.5, 0.9)]
         print(
-            f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region {cov[1]}"
+            f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region "
+            f"{cov[1]}"
         )
     teams = [r["name"].split()[1][:3] for r in real]
     dec = pooled_decision(

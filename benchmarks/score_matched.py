@@ -2,8 +2,8 @@
 cache, paired with the methods of a ``score_decision.py --json`` run on the same flights (it trains
 per flight, ~1 min each on 2 idle cores: too slow for the full 200-flight table on shared cores).
 
-    python benchmarks/score_matched.py --suite-dir /tmp/suite_fam --n 10 --mat ../shared/data/afar2023/mat \
-        --decision /tmp/decision.json --json /tmp/matched.json
+    python benchmarks/score_matched.py --suite-dir /tmp/suite_fam --n 10 \
+        --mat ../shared/data/afar2023/mat --decision /tmp/decision.json --json /tmp/matched.json
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ import numpy as np
 from _scoring import scoring_parser
 from score_decision import INCUMBENT, score_real
 
+from mission.evidence import compare_methods
+from mission.workshop.evaluate_suite import evaluate_suite
+
 
 def main() -> None:
-    from mission.evidence import compare_methods
-    from mission.workshop.evaluate_suite import evaluate_suite
-
     ap = scoring_parser(__doc__)
     ap.add_argument(
         "--decision", required=True, help="score_decision.py --json output on the same cache"
@@ -51,7 +51,8 @@ def main() -> None:
             "diff_teams": ct["matched"]["diff"].to_dict(),
         }
         print(
-            f"real: matched {cf['matched']['mean'].fmt()} m, vs default {cf['matched']['diff'].fmt()} "
+            f"real: matched {cf['matched']['mean'].fmt()} m, vs default "
+            f"{cf['matched']['diff'].fmt()} "
             f"(teams {ct['matched']['diff'].fmt()}); per flight "
             + ", ".join(f"{e:.1f}" for e in real["matched"]),
             flush=True,

@@ -7,7 +7,7 @@ fresh seeds, then ``localize``'s default against ``--model rfsl_default.onnx`` o
 stop-20 rule in models/README.md.
 
     python benchmarks/sim_default.py --seeds 7000:7040 --workers 2        # 14 s on 2 cores
-    python benchmarks/sim_default.py --seeds 7100:7130 --variants         # spirals with other parameters, 25 s
+    python benchmarks/sim_default.py --seeds 7100:7130 --variants         # other spirals, 25 s
 """
 
 from __future__ import annotations
@@ -21,6 +21,10 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from mission.cli.main import main as rfsl
+from mission.localize.api import default_model_path, localize_log
+from mission.threads import limit_worker
 
 SETS = (
     ("spiral 30 m", "missions/spiral.yaml", None),
@@ -42,8 +46,6 @@ VARIANTS = (
 def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
     """``rfsl simulate`` one flight of ``mission`` (seed ``seed``) into a folder of ``out``,
     quietly; its log."""
-    from mission.cli.main import main as rfsl
-
     d = Path(out) / f"s{seed}_{Path(mission).stem}"
     with (
         open(os.devnull, "w") as null,
@@ -80,8 +82,6 @@ def mission_variant(
 
 def one(job: tuple[str, str, int]) -> tuple[float, float, str]:
     """(default's error, rfsl_default's error, default's model) on one simulated log (m)."""
-    from mission.localize.api import default_model_path, localize_log
-
     log = simulate_log(*job)
     a = localize_log(log)
     b = localize_log(log, model_path=default_model_path())
@@ -99,7 +99,6 @@ def main() -> None:
         "--only", help="run only the sets whose label contains this text (e.g. 'spiral 30')"
     )
     args = ap.parse_args()
-    from mission.threads import limit_worker
 
     lo, hi = (int(v) for v in args.seeds.split(":"))
     with (
@@ -119,8 +118,10 @@ def main() -> None:
             a, b = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
             used = {m: sum(r[2] == m for r in rows) for m in dict.fromkeys(r[2] for r in rows)}
             print(
-                f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / {np.percentile(a, 90):.1f}  "
-                f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / {np.percentile(b, 90):.1f}  models {used}",
+                f"{label} (n={len(rows)}): default {a.mean():.1f} / {np.median(a):.1f} / "
+                f"{np.percentile(a, 90):.1f}  "
+                f"rfsl_default {b.mean():.1f} / {np.median(b):.1f} / "
+                f"{np.percentile(b, 90):.1f}  models {used}",
                 flush=True,
             )
 

@@ -94,14 +94,17 @@ def main() -> None:
                     continue
                 err[r].append(float(np.hypot(e.x_m - tx[0], e.y_m - tx[1])))
         print(
-            f"{args.n} two-level flights, scenario {scenario} (seed {args.seed}); selfcal on the kept samples"
+            f"{args.n} two-level flights, scenario {scenario} (seed {args.seed}); selfcal on "
+            "the kept samples"
         )
         for r in rules:
             e = np.asarray(err[r])
             ok = np.isfinite(e)
             print(
-                f"  {r:30s} kept {100 * np.mean(kept[r]):5.1f} % (min {100 * np.min(kept[r]):4.1f} %), localized "
-                f"{ok.sum()}/{e.size}, error mean {np.nanmean(e):5.1f} m, median {np.nanmedian(e):5.1f} m"
+                f"  {r:30s} kept {100 * np.mean(kept[r]):5.1f} % (min "
+                f"{100 * np.min(kept[r]):4.1f} %), localized "
+                f"{ok.sum()}/{e.size}, error mean {np.nanmean(e):5.1f} m, median "
+                f"{np.nanmedian(e):5.1f} m"
             )
 
 

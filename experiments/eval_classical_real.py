@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH, is_afar2023_suspect
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat, is_afar2023_suspect
+from mission.localize.api import localize_log
 
 TRUTH = AFAR2023_TRUTH  # rover truth by location number (data README)
 
@@ -55,9 +56,6 @@ VARIANTS = {
 
 
 def main() -> None:
-    from mission.importers.afar import import_afar_mat
-    from mission.localize.api import localize_log
-
     default = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(default))
@@ -96,7 +94,8 @@ def main() -> None:
             print(
                 f"{name:24s}"
                 + "".join(f"{v:11.1f}" for v in e)
-                + f"{e.mean():8.1f}{np.median(e):7.1f}{e[ok].mean():8.1f}{np.median(e[ok]):7.1f}{dt:7.2f}"
+                + f"{e.mean():8.1f}{np.median(e):7.1f}"
+                f"{e[ok].mean():8.1f}{np.median(e[ok]):7.1f}{dt:7.2f}"
             )
 
 

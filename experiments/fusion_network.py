@@ -3,14 +3,14 @@ component.
 
 Why: the real-log default is mean(selfcal point, network point); a new network replaces
 ``rfsl_spiral_e2r`` only under a rule written before scoring (models/README.md), which scores the
-*fusion* on the unseen-flight benchmark
-(U) and the six real flights (R): score U/min(U) + R/min(R) over the candidates.  The
-    self-calibrating point is
-computed once per flight and shared by all candidates.
+*fusion* on the unseen-flight benchmark (U) and the six real flights (R): score U/min(U) +
+R/min(R) over the candidates.  The self-calibrating point is computed once per flight and shared by
+all candidates.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python experiments/fusion_network.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat \\
-        --nets models/rfsl_spiral_e2r.onnx M/candidate.onnx                                   # ~1 min, 2 cores
+    # ~1 min, 2 cores
+    python experiments/fusion_network.py --suite-dir /tmp/suite_2026 \\
+        --mat ../shared/data/afar2023/mat --nets models/rfsl_spiral_e2r.onnx M/candidate.onnx
 """
 
 from __future__ import annotations
@@ -26,13 +26,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
-SUSPECT = 2  # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+from mission.localize.api import localize_log
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
+
+# 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+SUSPECT = 2
 
 
 def one(job: tuple[str, str, int, tuple[str, ...]]) -> dict:
     """Selfcal point, each network's point and the truth on one flight (log ENU m)."""
-    from mission.localize.api import localize_log
-
     kind, src, i, nets = job
     log, truth = flight_with_truth(kind, src, i)
     sc = localize_log(log, method="selfcal")
@@ -57,8 +60,6 @@ def main() -> None:
     ap = scoring_parser(__doc__)
     ap.add_argument("--nets", nargs="+", required=True, help="ONNX networks (the incumbent first)")
     args = ap.parse_args()
-    from mission.threads import limit_worker
-    from mission.workshop.evaluate import import_afar
 
     nets = tuple(args.nets)
     with (
@@ -81,9 +82,12 @@ def main() -> None:
         score = u[n] / min(u.values()) + r[n] / min(r.values())
         five, five_alone = np.delete(er, SUSPECT).mean(), np.delete(ar, SUSPECT).mean()
         print(
-            f"{Path(n).name}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R "
-            f"{er.mean():.1f} [{five:.1f}]  score {score:.3f}  | alone U {au.mean():.1f} / {np.median(au):.1f}  "
-            f"R {ar.mean():.1f} [{five_alone:.1f}]  | R per flight fused {' '.join(f'{e:.1f}' for e in er)}; "
+            f"{Path(n).name}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / "
+            f"{np.percentile(eu, 90):.1f}  R "
+            f"{er.mean():.1f} [{five:.1f}]  score {score:.3f}  | alone U {au.mean():.1f} / "
+            f"{np.median(au):.1f}  "
+            f"R {ar.mean():.1f} [{five_alone:.1f}]  | R per flight fused "
+            f"{' '.join(f'{e:.1f}' for e in er)}; "
             f"alone {' '.join(f'{e:.1f}' for e in ar)}"
         )
 

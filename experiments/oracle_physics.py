@@ -20,6 +20,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from mission.localize import classical
+from mission.localize.api import localize_log, search_area
+from mission.localize.preprocess import select_samples
+from mission.physics.presets import build_model
+from mission.threads import limit_worker
+from mission.workshop.suite_cache import read_suite
+
 # each rung removes its knowledge from the true spec; "known antenna only" removes all four
 RUNGS = (
     "oracle",
@@ -48,12 +55,6 @@ def degraded(spec: dict, rung: str) -> dict:
 
 def one(job: tuple[str, int]) -> dict:
     """Errors (m) of every rung and of the self-calibrating search on one benchmark flight."""
-    from mission.localize import classical
-    from mission.localize.api import localize_log, search_area
-    from mission.localize.preprocess import select_samples
-    from mission.physics.presets import build_model
-    from mission.workshop.suite_cache import read_suite
-
     src, i = job
     fl = read_suite(src).load(i)
     d, truth = fl.draw, np.asarray(fl.truth_xy)
@@ -78,18 +79,19 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
-    from mission.threads import limit_worker
 
     with ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex:
         rows = list(ex.map(one, [(args.suite_dir, i) for i in range(args.n)], chunksize=2))
     out = np.array([r["outside"] for r in rows])
     print(
-        f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside ({out.sum()})"
+        f"{'':22s} mean / median (all {len(rows)})   inside ({(~out).sum()})   outside "
+        f"({out.sum()})"
     )
     for k in (*RUNGS, "selfcal"):
         e = np.array([r[k] for r in rows])
         print(
-            f"{k:22s} {e.mean():6.1f} / {np.median(e):5.1f}   {e[~out].mean():6.1f}   {e[out].mean():6.1f}"
+            f"{k:22s} {e.mean():6.1f} / {np.median(e):5.1f}   {e[~out].mean():6.1f}   "
+            f"{e[out].mean():6.1f}"
         )
 
 

@@ -20,15 +20,28 @@ import tempfile
 
 import numpy as np
 
-SUSPECT = 2  # 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+from mission.flightlog import read_flight_log
+from mission.localize.api import search_area
+from mission.localize.classical import as_flight
+from mission.localize.preprocess import select_samples
+from mission.localize.selfcal import (
+    SelfCalibratingGrid,
+    _geometry,
+    antenna_hypotheses,
+    cell_average,
+    hypothesis_residuals,
+    hypothesis_ssr,
+)
+from mission.workshop.evaluate import import_afar
+
+# 288 location 3 (suspect label, models/README.md): reported as the mean of the other five too
+SUSPECT = 2
 STEP_M = 2.0
 
 
 def _minus_gain(geom: tuple[np.ndarray, ...], hyp) -> np.ndarray:
     """-G_h (K, M) dB: the hypothesis' gain toward each candidate, as ``hypothesis_residuals``
     subtracts it."""
-    from mission.localize.selfcal import hypothesis_residuals
-
     pg, el, az = geom
     return next(hypothesis_residuals(np.zeros_like(pg), el, az, [hyp]))
 
@@ -58,18 +71,6 @@ def fit_at_truth(
 def one_flight(path) -> dict:
     """Errors (m) of the two oracles and of the profiled search on one imported real log, same 2 m
     grid."""
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import search_area
-    from mission.localize.classical import as_flight
-    from mission.localize.preprocess import select_samples
-    from mission.localize.selfcal import (
-        SelfCalibratingGrid,
-        _geometry,
-        antenna_hypotheses,
-        cell_average,
-        hypothesis_ssr,
-    )
-
     log = read_flight_log(path)
     part, _ = select_samples(log)
     f = as_flight(part)
@@ -104,7 +105,6 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
     args = ap.parse_args()
-    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp:
         rows = [one_flight(p) for p in import_afar(args.mat, tmp)]
@@ -116,7 +116,8 @@ def main() -> None:
     for k in ("h+c", "h+c+n", "selfcal"):
         e = np.array([r[k] for r in rows])
         print(
-            f"{k:8s} mean of {len(e)} {e.mean():5.1f} m, of the five trusted {np.delete(e, SUSPECT).mean():5.1f} m"
+            f"{k:8s} mean of {len(e)} {e.mean():5.1f} m, of the five trusted "
+            f"{np.delete(e, SUSPECT).mean():5.1f} m"
         )
 
 

@@ -8,7 +8,9 @@ six real flights (R): score U/min(U) + R/min(R), the incumbent MAP kept unless a
 more than 0.05.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python experiments/point_estimates.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat   # 2 min
+    # 2 min
+    python experiments/point_estimates.py --suite-dir /tmp/suite_2026 \
+        --mat ../shared/data/afar2023/mat
 """
 
 from __future__ import annotations
@@ -24,14 +26,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
+from mission.localize.api import localize_log
+from mission.localize.selfcal import CALIBRATED_MASS
+from mission.workshop.evaluate import import_afar
+
 CANDIDATES = ("MAP", "PM", "C50", "C90")
 
 
 def candidates(est) -> dict[str, np.ndarray]:
     """The four points of one fusion estimate: its selfcal MAP and three posterior means (log ENU
     m)."""
-    from mission.localize.selfcal import CALIBRATED_MASS
-
     post = est.posterior
     p, g = post.prob.ravel(), post.grid.reshape(-1, 2)
     out = {"MAP": np.asarray(est.extras["components"]["selfcal"]), "PM": p @ g / p.sum()}
@@ -43,8 +47,6 @@ def candidates(est) -> dict[str, np.ndarray]:
 
 def one(job: tuple[str, str, int]) -> dict:
     """Fusion on one flight -> the candidates, the network's point and the truth."""
-    from mission.localize.api import localize_log
-
     kind, src, i = job
     log, truth = flight_with_truth(kind, src, i)
     est = localize_log(log, method="fusion")
@@ -61,7 +63,6 @@ def errors(rows: list[dict], key: str, fused: bool = True) -> np.ndarray:
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.workshop.evaluate import import_afar
 
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers) as ex:
         real = list(ex.map(one, [("real", str(p), 0) for p in import_afar(args.mat, tmp)]))
@@ -71,9 +72,11 @@ def main() -> None:
     for k in CANDIDATES:
         eu, er = errors(bench, k), errors(real, k)
         print(
-            f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
+            f"{k:4s} fusion U {eu.mean():.1f} / {np.median(eu):.1f} / "
+            f"{np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
             f"  score {u[k] / min(u.values()) + r[k] / min(r.values()):.3f}  | selfcal alone U "
-            f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R per flight "
+            f"{errors(bench, k, False).mean():.1f} R {errors(real, k, False).mean():.1f}  | R "
+            "per flight "
             f"{' '.join(f'{e:.1f}' for e in er)}"
         )
 

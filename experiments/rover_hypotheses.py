@@ -9,7 +9,9 @@ point, ``rfsl_spiral_e2r``), on the benchmark (U) and the six real flights (R); 
 models/README.md.
 
     rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_2026
-    python experiments/rover_hypotheses.py --suite-dir /tmp/suite_2026 --mat ../shared/data/afar2023/mat  # ~1 min
+    # ~1 min
+    python experiments/rover_hypotheses.py --suite-dir /tmp/suite_2026 \
+        --mat ../shared/data/afar2023/mat
 
 The product SSR per (UAV hypothesis h, rover hypothesis t, candidate k) comes from sufficient
 statistics with one batched matmul per candidate chunk: SSR = S2_h - 2 X_ht + T2_t - (S1_h - T1_t)^2
@@ -31,7 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _scoring import flight_with_truth, scoring_parser
 
 from mission.localize import selfcal as sc
+from mission.localize.api import localize_log, search_area
+from mission.localize.preprocess import select_samples
 from mission.physics.antenna import rm_wb1_dn
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
 
 ROVER_HEADINGS = (None, *range(0, 360, 30))  # None = isotropic rover antenna
 _UAV_HYPOTHESES = sc.antenna_hypotheses
@@ -95,9 +101,6 @@ def product_ssr(cand_xy: np.ndarray, cells, hyps, tx_height_m: float, chunk: int
 def one(job: tuple[str, str, int, str]) -> dict:
     """Selfcal (A or B) and the fusion's network on one flight: points, truth, the truth's HPD
     level."""
-    from mission.localize.api import localize_log, search_area
-    from mission.localize.preprocess import select_samples
-
     kind, src, i, cand = job
     log, truth = flight_with_truth(kind, src, i)
     net = localize_log(log, model_path="models/rfsl_spiral_e2r.onnx")
@@ -121,8 +124,6 @@ _ORIG_SSR = sc.hypothesis_ssr
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    from mission.threads import limit_worker
-    from mission.workshop.evaluate import import_afar
 
     res: dict[str, dict[str, list]] = {}
     with (
@@ -157,10 +158,13 @@ def main() -> None:
         cov = np.mean([x["q"] < sc.CALIBRATED_MASS[0.9] for x in res[c]["U"]])
         held = sum(x["q"] < sc.CALIBRATED_MASS[0.9] for x in res[c]["R"])
         print(
-            f"{c}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / {np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
-            f"  score {u[c] / min(u.values()) + r[c] / min(r.values()):.3f}  in 90 %: {100 * cov:.1f} % of U, "
+            f"{c}: fusion U {eu.mean():.1f} / {np.median(eu):.1f} / "
+            f"{np.percentile(eu, 90):.1f}  R {er.mean():.1f}"
+            f"  score {u[c] / min(u.values()) + r[c] / min(r.values()):.3f}  in 90 %: "
+            f"{100 * cov:.1f} % of U, "
             f"{held} of {len(er)} real  | selfcal alone U {err(res[c]['U'], False).mean():.1f} R "
-            f"{err(res[c]['R'], False).mean():.1f}  | R per flight {' '.join(f'{e:.1f}' for e in er)}  | CPU s "
+            f"{err(res[c]['R'], False).mean():.1f}  | R per flight "
+            f"{' '.join(f'{e:.1f}' for e in er)}  | CPU s "
             f"per flight {np.mean([x['cpu_s'] for x in res[c]['U']]):.2f}"
         )
 

@@ -343,7 +343,8 @@ def preset_record(
     ch = result["configs"][result["chosen"]]
     return {
         "name": name,
-        "description": f"Propagation model calibrated with `rfsl calibrate` on {len(flights)} flights "
+        "description": f"Propagation model calibrated with `rfsl calibrate` on {len(flights)} "
+        "flights "
         f"(per-flight free offset, {LOSS} loss, f_scale {F_SCALE_DB:g} dB), chosen by the lowest "
         "leave-one-group-out soft-L1",
         "model": result["model"],

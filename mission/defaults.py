@@ -9,7 +9,8 @@ DEFAULT_TX_HEIGHT_M = 1.5
 # Bounds of the options that size the work: past them a run never ends or exhausts memory (issue 37:
 # a speed-up of 1e9 or nan, a billion dataset flights), so every command and mission key refuses
 # them in one line.
-MAX_SPEEDUP = 1000.0  # the built-in vehicle's simulated seconds per wall-clock second (fly-mission, rfsl sitl)
+# the built-in vehicle's simulated seconds per wall-clock second (fly-mission, rfsl sitl)
+MAX_SPEEDUP = 1000.0
 MAX_RATE_HZ = 1000.0  # position/attitude rate a flight may request
 MAX_DURATION_S = 86400.0  # one day: any timeout or duration a command accepts
 MAX_WORKERS = (

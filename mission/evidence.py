@@ -20,6 +20,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import betaincinv  # the beta quantile (scipy.stats costs seconds to import)
 
 LEVEL = 0.90  # the project's interval: a 90 % percentile interval
 N_BOOT = 4000
@@ -149,8 +150,6 @@ def conformal_quantile(scores: Sequence[float], level: float) -> float:
 def coverage_interval(k: int, n: int, level: float = LEVEL) -> Interval:
     """Share ``k / n`` of truths inside a region with its exact (Clopper-Pearson) binomial
     interval."""
-    from scipy.special import betaincinv  # the beta quantile (scipy.stats costs seconds to import)
-
     if n < 1 or not 0 <= k <= n:
         raise ValueError(f"need 0 <= k <= n and n >= 1, got k={k}, n={n}")
     a = (1.0 - level) / 2.0

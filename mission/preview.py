@@ -18,7 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mission.files import save_figure
 from mission.geo import Area, square_grid
+from mission.localize.classical import ModelGridSearch
+from mission.simulate import fly_path
+from mission.trajectory.checks import check_mission
 
 # estimator(positions (N, 3), attitude (N, 3) rad, rss (T, N) dB) -> (T, 2) estimated x, y What the
 # default expected-error map assumes, said wherever its numbers are shown (table and plot title).
@@ -91,8 +95,6 @@ class Summary:
 
 def summarize(spec) -> Summary:
     """Length, duration, RSS samples, fence clearance and rover-area coverage of a mission."""
-    from mission.trajectory.checks import check_mission
-
     rep = check_mission(spec)
     cov = coverage(spec.field.rover_area, spec.waypoints_enu())
     return Summary(
@@ -118,8 +120,6 @@ def ml_grid_estimator(
     """The default ``Estimator`` (module docstring): ``ModelGridSearch(model).fixed_geometry`` along
     the flown ``positions`` / ``attitude`` with the cell centres of a ``step_m`` grid over ``area``
     as candidates."""
-    from mission.localize.classical import ModelGridSearch
-
     search = ModelGridSearch(model, tx_height_m=tx_height_m, area=area, step_m=step_m)
     fixed = search.fixed_geometry(positions, attitude, area_grid(area, step_m))
 
@@ -164,8 +164,6 @@ def expected_error_map(
     RSS sample is kept, as a localizer would average them anyway; each transmitter gets its own
     noise draw. ``progress(done, total)`` is called after each row of the lattice.
     """
-    from mission.simulate import fly_path
-
     model = model if model is not None else spec.propagation_model()
     cfg = spec.sim_config()
     _, pos, att, _ = fly_path(spec.flight_path_enu(), cfg, rng)
@@ -205,21 +203,39 @@ def render_preview(
 ):
     """Draw the areas, waypoints, simulated flown path, budget and (optionally) the error
     heatmap."""
-    import matplotlib
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Polygon
-
-    from mission.simulate import fly_path
+    import matplotlib.pyplot as plt  # noqa: PLC0415
 
     summary = summary or summarize(spec)
     rng = rng if rng is not None else np.random.default_rng(spec.source.seed)
     t, pos, _, _ = fly_path(spec.flight_path_enu(), spec.sim_config(), rng)
     wps = spec.waypoints_enu()
-    fa, ra = spec.field.flight_area, spec.field.rover_area
 
     fig, ax = plt.subplots(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi)
+    draw_areas(ax, spec.field.flight_area, spec.field.rover_area)
+    if error_map is not None:
+        draw_error_map(fig, ax, error_map)
+    draw_flight(fig, ax, spec, t, pos, wps, over_heatmap=error_map is not None)
+    draw_summary(ax, spec, summary, error_map)
+    set_frame(ax, spec, wps)
+    fig.tight_layout()
+
+    try:
+        save_figure(fig, out, "--out", dpi=dpi)
+    finally:
+        plt.close(fig)
+    return out
+
+
+def draw_areas(ax, fa, ra) -> None:
+    """The flight area (UAV) and the rover area (transmitter) as outlined polygons."""
+    # lazy like render_preview's pyplot (noqa): matplotlib loads only when a preview is drawn
+    from matplotlib.patches import Polygon  # noqa: PLC0415
+
     ax.add_patch(
         Polygon(
             fa.vertices,
@@ -243,29 +259,34 @@ def render_preview(
             zorder=2,
         )
     )
-    if error_map is not None:
-        em = error_map
-        dx, dy = (
-            np.diff(em.x[:2]) if len(em.x) > 1 else [1.0],
-            np.diff(em.y[:2]) if len(em.y) > 1 else [1.0],
-        )
-        ext = (em.x[0] - dx[0] / 2, em.x[-1] + dx[0] / 2, em.y[0] - dy[0] / 2, em.y[-1] + dy[0] / 2)
-        im = ax.imshow(
-            em.error_m,
-            origin="lower",
-            extent=ext,
-            cmap="magma_r",
-            alpha=0.85,
-            interpolation="nearest",
-            zorder=1,
-        )
-        cb = fig.colorbar(im, ax=ax, fraction=0.04, pad=0.02)
-        lo, hi = (
-            np.nanpercentile(em.error_m, [0, 98]) if np.isfinite(em.error_m).any() else (0.0, 1.0)
-        )
-        im.set_clim(lo, max(hi, lo + 1e-6))  # one failed cell must not wash out the scale
-        cb.set_label("expected localization error (m), clipped at the 98th percentile")
-    if error_map is None:
+
+
+def draw_error_map(fig, ax, em: ErrorMap) -> None:
+    """The expected-error heatmap with its colour bar (clipped at the 98th percentile)."""
+    dx, dy = (
+        np.diff(em.x[:2]) if len(em.x) > 1 else [1.0],
+        np.diff(em.y[:2]) if len(em.y) > 1 else [1.0],
+    )
+    ext = (em.x[0] - dx[0] / 2, em.x[-1] + dx[0] / 2, em.y[0] - dy[0] / 2, em.y[-1] + dy[0] / 2)
+    im = ax.imshow(
+        em.error_m,
+        origin="lower",
+        extent=ext,
+        cmap="magma_r",
+        alpha=0.85,
+        interpolation="nearest",
+        zorder=1,
+    )
+    cb = fig.colorbar(im, ax=ax, fraction=0.04, pad=0.02)
+    lo, hi = np.nanpercentile(em.error_m, [0, 98]) if np.isfinite(em.error_m).any() else (0.0, 1.0)
+    im.set_clim(lo, max(hi, lo + 1e-6))  # one failed cell must not wash out the scale
+    cb.set_label("expected localization error (m), clipped at the 98th percentile")
+
+
+def draw_flight(fig, ax, spec, t, pos, wps, *, over_heatmap: bool) -> None:
+    """The simulated path (coloured by time, or plain over a heatmap), waypoints, home and the
+    transmitter when fixed."""
+    if not over_heatmap:
         sc = ax.scatter(pos[::5, 0], pos[::5, 1], c=t[::5] / 60.0, s=2, cmap="viridis", zorder=3)
         fig.colorbar(sc, ax=ax, fraction=0.04, pad=0.02).set_label("flight time (min)")
     else:  # one colour scale only: the path in plain cyan over the heatmap
@@ -300,11 +321,17 @@ def render_preview(
             zorder=6,
             label="transmitter",
         )
+
+
+def draw_summary(ax, spec, summary: Summary, error_map: ErrorMap | None) -> None:
+    """The title (length, duration against the budget, samples, expected error) and the coverage
+    box."""
     used = summary.duration_s / summary.time_budget_s
     title = (
         f"{spec.name}: {spec.trajectory.generator} at {spec.altitude_m:g} m, "
         f"{summary.length_m / 1000:.2f} km, {summary.duration_s / 60:.1f} of "
-        f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS samples"
+        f"{summary.time_budget_s / 60:.1f} min ({used:.0%} of budget), {summary.n_samples} RSS "
+        "samples"
     )
     if error_map is not None:
         title += (
@@ -316,7 +343,8 @@ def render_preview(
         f"worst rover-area point {summary.coverage.max_m:.0f} m from the path",
         "per quadrant: "
         + ", ".join(f"{k} {v:.0f}" for k, v in summary.coverage.quadrant_max_m.items()),
-        f"fence clearance >= {summary.min_fence_clearance_m:.1f} m (margin {spec.fence_margin_m:g} m)",
+        f"fence clearance >= {summary.min_fence_clearance_m:.1f} m (margin "
+        f"{spec.fence_margin_m:g} m)",
     ]
     if summary.violations:
         text.append("NOT FLYABLE: " + summary.violations[0])
@@ -330,6 +358,11 @@ def render_preview(
         zorder=7,
         bbox={"boxstyle": "round", "fc": "white", "alpha": 0.85, "ec": "0.7"},
     )
+
+
+def set_frame(ax, spec, wps) -> None:
+    """Limits around the areas, waypoints and home; equal aspect, labels, grid and legend."""
+    fa, ra, home = spec.field.flight_area, spec.field.rover_area, spec.home_enu
     allv = np.vstack([fa.vertices, ra.vertices, wps[:, :2], home[None, :2]])
     lo, hi = allv.min(axis=0), allv.max(axis=0)
     pad = 0.05 * (hi - lo).max()
@@ -340,11 +373,3 @@ def render_preview(
     ax.set_ylabel("north (m)")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right", fontsize=9, framealpha=0.9)
-    fig.tight_layout()
-    from mission.files import save_figure
-
-    try:
-        save_figure(fig, out, "--out", dpi=dpi)
-    finally:
-        plt.close(fig)
-    return out

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.files import save_figure
 from mission.flightlog import FlightLog
+from mission.localize.plot import draw_areas, field_areas, power_unit, robust_limits
 
 
 def summary(log: FlightLog) -> dict[str, float | int | str]:
@@ -46,12 +48,12 @@ def summary(log: FlightLog) -> dict[str, float | int | str]:
 def plot(log: FlightLog, png: Path) -> Path:
     """Path in ENU coloured by RSS (plus the true transmitter when known), saved as PNG (Agg
     backend)."""
-    import matplotlib
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from mission.localize.plot import draw_areas, field_areas, power_unit, robust_limits
+    import matplotlib.pyplot as plt  # noqa: PLC0415
 
     enu = log.enu()
     fig, ax = plt.subplots(figsize=(7, 6))
@@ -75,7 +77,6 @@ def plot(log: FlightLog, png: Path) -> Path:
     ax.legend(loc="best")
     ax.set_title(f"{log.label}: path coloured by RSS")
     fig.tight_layout()
-    from mission.files import save_figure
 
     try:
         png = save_figure(fig, png, "--out", dpi=120)

@@ -6,7 +6,11 @@ of falling back to a weaker method."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
+
+from mission.errors import InputError
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 SHIPPED_FOLDERS = (
@@ -64,8 +68,6 @@ DIGESTS = "sha256.json"  # models/sha256.json: the sha256 of every shipped netwo
 
 def shipped_digests() -> dict[str, str]:
     """{file name: sha256 hex} of the shipped networks (empty when the digest file is missing)."""
-    import json
-
     p = models_dir() / DIGESTS
     try:
         d = json.loads(p.read_text())
@@ -80,8 +82,6 @@ _checked: dict[tuple[str, int, int], str] = {}
 def file_sha256(path: Path) -> str:
     """The sha256 of a file, cached by path, size and modification time (a model is loaded many
     times)."""
-    import hashlib
-
     st = path.stat()
     key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
     if key not in _checked:
@@ -93,8 +93,6 @@ def check_shipped_digest(path: str | Path) -> None:
     """A network under a shipped name (``rfsl_default.onnx``) must be that network: bytes flipped in
     its weights still load and answer, wrongly and silently, so its digest is checked against
     ``models/sha256.json``."""
-    from mission.errors import InputError
-
     p = Path(path)
     want = shipped_digests().get(p.name)
     if want is not None and file_sha256(p) != want:
@@ -109,8 +107,6 @@ def record_shipped_digest(path: str | Path) -> bool:
     """After ``rfsl train --out models/NAME.onnx`` replaced a shipped network: record its new digest
     in the checkout's ``models/sha256.json`` (True), so the check above keeps guarding it; other
     paths: False."""
-    import json
-
     p = Path(path)
     folder = PACKAGE_DIR.parent / "models"
     if p.suffix != ".onnx" or not folder.is_dir() or p.resolve().parent != folder.resolve():

@@ -15,7 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
+from mission.flightlog import LAND, MISSION, RETURN, TAKEOFF
 from mission.geo import Origin
 from mission.physics.shadowing import shadowing_field  # noqa: F401  (its home; re-exported)
 from mission.samples import FlightSamples
@@ -78,8 +80,6 @@ def leg_phases(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A planned path's phases from its geometry; a flown vehicle's come from its events instead
     (``flight.phases.PhaseTracker``), with the same names and item rule.
     """
-    from mission.flightlog import LAND, MISSION, RETURN, TAKEOFF
-
     vertices = np.asarray(vertices, dtype=float)
     d = np.diff(vertices, axis=0)
     vertical = np.linalg.norm(d[:, :2], axis=1) < 1e-6
@@ -127,8 +127,6 @@ def perturbation(n: int, cfg: SimConfig, rng: np.random.Generator) -> np.ndarray
     w = np.deg2rad(cfg.attitude_perturbation_deg)
     p = rng.uniform(-w, w, size=(n, 3))
     if cfg.perturbation_corr_s > 0 and n > 1:
-        from scipy.ndimage import gaussian_filter1d
-
         sigma = cfg.perturbation_corr_s / cfg.dt_s
         p = gaussian_filter1d(p, sigma, axis=0, mode="wrap")
         p *= w / np.maximum(np.max(np.abs(p), axis=0), 1e-12)  # keep the configured range

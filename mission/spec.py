@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.adaptive.config import parse_adaptive
 from mission.defaults import (
     BUDGET_POLICIES,
     DEFAULT_ALTITUDE_M,
@@ -27,10 +28,13 @@ from mission.defaults import (
 )
 from mission.errors import InputError
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
-from mission.shipped import missions_dir
+from mission.physics import make_model
+from mission.shipped import missions_dir, resolve_shipped
 from mission.simulate import SimConfig
 from mission.spec_reader import SpecReader as _Reader
+from mission.spec_reader import read_yaml
 from mission.trajectory.checks import RETURN_OVERSHOOT_M
+from mission.trajectory.generators import GENERATORS, generate
 from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
@@ -147,7 +151,6 @@ class MissionSpec:
         t = self.trajectory
         if t.waypoints is not None:
             return np.array(t.waypoints, dtype=float)
-        from mission.trajectory.generators import generate
 
         try:
             return generate(t.generator, self.field, self.altitude_m, **t.params)
@@ -204,8 +207,6 @@ class MissionSpec:
     def propagation_model(self):
         """The ``mission.physics`` model named by ``source.model`` (with
         ``source.model_params``)."""
-        from mission.physics import make_model
-
         try:
             return make_model(self.source.model, **self.source.model_params)
         except (ValueError, TypeError, KeyError) as e:
@@ -402,81 +403,12 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
             f"expected [min, max] metres with 0 <= min < max <= {MAX_ALTITUDE_M:g}, got {lim!r}",
         )
     home_margin = r.num("home_margin_m", d("home_margin_m"), 0.0, MAX_LOCAL_M)
-    if r.has("home"):
-        home = _point(r.raw("home"), r, "home", fld.origin)
-    elif takeoff is not None:
-        home = fld.origin.to_enu(*takeoff)
-        home[2] = math.nan  # ground level (the origin's ground; earth curvature is not a height)
-        home[:2] = _inside(fld.flight_area, home[:2], RETURN_OVERSHOOT_M + home_margin + 1.0)
-    else:
-        home = d("home_enu")
-    home = np.array([home[0], home[1], 0.0 if math.isnan(home[2]) else home[2]])
+    home = _home(r, fld, takeoff, home_margin)
     ret = r.str_("return_behaviour", d("return_behaviour"), RETURN_BEHAVIOURS)
 
-    tr = r.sub("trajectory")
-    if tr.has("waypoints"):
-        wps = tr.raw("waypoints")
-        if not isinstance(wps, list) or len(wps) < 1:
-            raise tr.err("waypoints", "expected a non-empty list of waypoints")
-        pts = np.array(
-            [_point(w, tr, f"trajectory.waypoints[{i}]", fld.origin) for i, w in enumerate(wps)]
-        )
-        pts[np.isnan(pts[:, 2]), 2] = altitude
-        gen = tr.str_("generator", "waypoints", ("waypoints",))
-        if tr.has("params"):
-            raise tr.err("params", "explicit waypoints take no generator parameters")
-        traj = TrajectorySpec("waypoints", {}, pts)
-    else:
-        from mission.trajectory.generators import GENERATORS
-
-        gen = tr.str_("generator", d("trajectory").generator, tuple(GENERATORS))
-        params = tr.raw("params", {}) or {}
-        if not isinstance(params, dict):
-            raise tr.err("params", f"expected a mapping of generator parameters, got {params!r}")
-        traj = TrajectorySpec(gen, dict(params), None)
-    tr.done()
-
-    sr, ds = r.sub("source"), partial(_default, SourceSpec)
-    tx_raw = sr.raw("tx", ds("tx"))
-    tx_h = sr.num("tx_height_m", ds("tx_height_m"), 0.0, MAX_ALTITUDE_M)
-    if isinstance(tx_raw, str):
-        if tx_raw != "random":
-            raise sr.err("tx", f"expected 'random' or a position, got '{tx_raw}'")
-        tx: tuple[float, float, float] | str = "random"
-    else:
-        p = _point(tx_raw, sr, "source.tx", fld.origin)
-        tx = (float(p[0]), float(p[1]), tx_h if math.isnan(p[2]) else float(p[2]))
-    model_params = sr.raw("model_params", {}) or {}
-    if not isinstance(model_params, dict):
-        raise sr.err("model_params", "expected a mapping")
-    source = SourceSpec(
-        model=sr.str_("model", ds("model")),
-        tx=tx,
-        tx_height_m=tx_h,
-        seed=sr.int_("seed", ds("seed"), 0, 2**63 - 1),
-        noise_db=sr.num("noise_db", ds("noise_db"), 0.0, 100.0),
-        attitude_perturbation_deg=sr.num(
-            "attitude_perturbation_deg", ds("attitude_perturbation_deg"), 0.0, 45.0
-        ),
-        sample_period_s=sr.num("sample_period_s", ds("sample_period_s"), 0.0, 10.0, strict_lo=True),
-        model_params=dict(model_params),
-    )
-    sr.done()
-
-    vr = r.sub("vehicle")
-    conn = vr.str_("connection", _default(VehicleSpec, "connection"))
-    speedup = vr.num("speedup", _default(VehicleSpec, "speedup"), 0.0, MAX_SPEEDUP, strict_lo=True)
-    kr = vr.sub("kinematics")
-    kin = {
-        k: kr.num(k, getattr(Kinematics, k), 0.0, 1e4, strict_lo=True)
-        for k in _KIN_FIELDS
-        if kr.has(k)
-    }
-    kr.used.update(kin)
-    kr.done()
-    vr.done()
-    from mission.adaptive.config import parse_adaptive
-
+    traj = _trajectory(r, fld.origin, altitude)
+    source = _source(r, fld.origin)
+    vehicle = _vehicle(r)
     adaptive = parse_adaptive(r.sub("adaptive")) if "adaptive" in r.d else None
     lg = r.sub("logging")
     on_write_error = lg.str_("on_write_error", d("on_write_error"), WRITE_ERROR_POLICIES)
@@ -498,18 +430,105 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
         return_behaviour=ret,
         trajectory=traj,
         source=source,
-        vehicle=VehicleSpec(connection=conn, speedup=speedup, kinematics=kin),
+        vehicle=vehicle,
         adaptive=adaptive,
         on_write_error=on_write_error,
     )
+
+
+def _home(r: _Reader, fld, takeoff, home_margin: float) -> np.ndarray:
+    """``home`` (a position), else the logged take-off point moved inside the flight area, else
+    the default; its height 0 unless given."""
+    if r.has("home"):
+        home = _point(r.raw("home"), r, "home", fld.origin)
+    elif takeoff is not None:
+        home = fld.origin.to_enu(*takeoff)
+        home[2] = math.nan  # ground level (the origin's ground; earth curvature is not a height)
+        home[:2] = _inside(fld.flight_area, home[:2], RETURN_OVERSHOOT_M + home_margin + 1.0)
+    else:
+        home = _default(MissionSpec, "home_enu")
+    home = np.array([home[0], home[1], 0.0 if math.isnan(home[2]) else home[2]])
+    return home
+
+
+def _trajectory(r: _Reader, origin, altitude: float) -> TrajectorySpec:
+    """The ``trajectory`` section: explicit waypoints (z defaults to ``altitude``) or a generator
+    with its parameters."""
+    tr = r.sub("trajectory")
+    if tr.has("waypoints"):
+        wps = tr.raw("waypoints")
+        if not isinstance(wps, list) or len(wps) < 1:
+            raise tr.err("waypoints", "expected a non-empty list of waypoints")
+        pts = np.array(
+            [_point(w, tr, f"trajectory.waypoints[{i}]", origin) for i, w in enumerate(wps)]
+        )
+        pts[np.isnan(pts[:, 2]), 2] = altitude
+        gen = tr.str_("generator", "waypoints", ("waypoints",))
+        if tr.has("params"):
+            raise tr.err("params", "explicit waypoints take no generator parameters")
+        traj = TrajectorySpec("waypoints", {}, pts)
+    else:
+        gen = tr.str_("generator", _default(MissionSpec, "trajectory").generator, tuple(GENERATORS))
+        params = tr.raw("params", {}) or {}
+        if not isinstance(params, dict):
+            raise tr.err("params", f"expected a mapping of generator parameters, got {params!r}")
+        traj = TrajectorySpec(gen, dict(params), None)
+    tr.done()
+    return traj
+
+
+def _source(r: _Reader, origin) -> SourceSpec:
+    """The ``source`` section: the simulated transmitter, its model and noise."""
+    sr, ds = r.sub("source"), partial(_default, SourceSpec)
+    tx_raw = sr.raw("tx", ds("tx"))
+    tx_h = sr.num("tx_height_m", ds("tx_height_m"), 0.0, MAX_ALTITUDE_M)
+    if isinstance(tx_raw, str):
+        if tx_raw != "random":
+            raise sr.err("tx", f"expected 'random' or a position, got '{tx_raw}'")
+        tx: tuple[float, float, float] | str = "random"
+    else:
+        p = _point(tx_raw, sr, "source.tx", origin)
+        tx = (float(p[0]), float(p[1]), tx_h if math.isnan(p[2]) else float(p[2]))
+    model_params = sr.raw("model_params", {}) or {}
+    if not isinstance(model_params, dict):
+        raise sr.err("model_params", "expected a mapping")
+    source = SourceSpec(
+        model=sr.str_("model", ds("model")),
+        tx=tx,
+        tx_height_m=tx_h,
+        seed=sr.int_("seed", ds("seed"), 0, 2**63 - 1),
+        noise_db=sr.num("noise_db", ds("noise_db"), 0.0, 100.0),
+        attitude_perturbation_deg=sr.num(
+            "attitude_perturbation_deg", ds("attitude_perturbation_deg"), 0.0, 45.0
+        ),
+        sample_period_s=sr.num("sample_period_s", ds("sample_period_s"), 0.0, 10.0, strict_lo=True),
+        model_params=dict(model_params),
+    )
+    sr.done()
+    return source
+
+
+def _vehicle(r: _Reader) -> VehicleSpec:
+    """The ``vehicle`` section: connection, speed-up and kinematics overrides."""
+    vr = r.sub("vehicle")
+    conn = vr.str_("connection", _default(VehicleSpec, "connection"))
+    speedup = vr.num("speedup", _default(VehicleSpec, "speedup"), 0.0, MAX_SPEEDUP, strict_lo=True)
+    kr = vr.sub("kinematics")
+    kin = {
+        k: kr.num(k, getattr(Kinematics, k), 0.0, 1e4, strict_lo=True)
+        for k in _KIN_FIELDS
+        if kr.has(k)
+    }
+    kr.used.update(kin)
+    kr.done()
+    vr.done()
+    return VehicleSpec(connection=conn, speedup=speedup, kinematics=kin)
 
 
 def load_mission(path: str | Path | None = None) -> MissionSpec:
     """Read and validate a mission YAML file (default: ``missions/spiral.yaml``): a path, or the
     name of a shipped mission (``spiral``, ``missions/spiral.yaml`` from any folder:
     ``mission.shipped``)."""
-    from mission.spec_reader import read_yaml
-
     p = resolve_mission_path(path)
     data = read_yaml(p, "mission file", max_bytes=MAX_MISSION_BYTES)
     if data is None:
@@ -525,8 +544,6 @@ def load_mission(path: str | Path | None = None) -> MissionSpec:
 def resolve_mission_path(path: str | Path | None) -> Path:
     """The mission file ``path`` names: the path itself when it exists, else the shipped mission of
     that name (``mission.shipped.resolve_shipped``); an InputError when neither exists."""
-    from mission.shipped import resolve_shipped
-
     p = resolve_shipped(path, "missions", ".yaml") if path is not None else DEFAULT_MISSION
     if p.exists():
         return p

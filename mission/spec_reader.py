@@ -12,7 +12,10 @@ import math
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from mission.errors import InputError
+from mission.files import read_text
 
 
 class SpecReader:
@@ -94,10 +97,6 @@ def read_yaml(path: str | Path, what: str = "mission file", max_bytes: int = 1_0
     """Parse a YAML file with limits: a regular UTF-8 file of at most ``max_bytes``, no aliases (a
     "billion laughs" bomb is refused, not expanded), no duplicated key (the last one silently won),
     bounded nesting; every problem is an InputError naming the file and line."""
-    import yaml
-
-    from mission.files import read_text
-
     text = read_text(path, what, max_bytes=max_bytes)
     src = str(path)
     try:
@@ -113,8 +112,6 @@ def read_yaml(path: str | Path, what: str = "mission file", max_bytes: int = 1_0
 
 @functools.cache
 def _limited_loader():
-    import yaml
-
     class LimitedLoader(yaml.SafeLoader):
         """``yaml.SafeLoader`` that refuses aliases and duplicated keys."""
 

@@ -14,6 +14,8 @@ import contextlib
 import os
 from collections.abc import Iterator
 
+from threadpoolctl import ThreadpoolController
+
 from mission.errors import InputError
 
 THREADS_ENV = "RFSL_THREADS"
@@ -47,8 +49,6 @@ def thread_limits(
         yield
         return
     if controller is None:
-        from threadpoolctl import ThreadpoolController
-
         controller = ThreadpoolController()
     with controller.limit(limits=n, user_api=user_api):
         yield
@@ -60,7 +60,8 @@ def limit_worker() -> None:
     the limit reaches it; ``OMP_NUM_THREADS`` for runtimes loaded later); never restored, the worker
     ends with it."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    import sklearn.cluster  # noqa: F401
-    from threadpoolctl import ThreadpoolController
+    # lazy on purpose (noqa): loaded after OMP_NUM_THREADS is set, so its OpenMP runtime starts
+    # with one thread
+    import sklearn.cluster  # noqa: F401, PLC0415
 
     ThreadpoolController().limit(limits=1)

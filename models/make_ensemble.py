@@ -22,8 +22,12 @@ import json
 from pathlib import Path
 
 import numpy as np
+import onnx
+import onnxruntime as ort
+from onnx import compose, helper
 
 from mission.localize.altitude_scale import METADATA_KEY, reference_height
+from mission.workshop.dataset import load_dataset
 
 CONTRACT = ("feature_kind", "feature_config", "input_normalisation", "field_origin")
 
@@ -36,9 +40,6 @@ def _reference_height(meta: dict) -> float | None:
 
 def build(out: str, paths: list[str]) -> None:
     """Write the mean-of-members graph to ``out`` (module docstring)."""
-    import onnx
-    from onnx import compose, helper
-
     models = [onnx.load(p) for p in paths]
     m0 = models[0]
     inp, outn = m0.graph.input[0].name, m0.graph.output[0].name
@@ -50,7 +51,8 @@ def build(out: str, paths: list[str]) -> None:
             bad.append(f"training_data.{METADATA_KEY}")
         if bad or m.graph.input[0].name != inp or m.graph.output[0].name != outn:
             raise SystemExit(
-                f"{p}: its contract differs from {paths[0]} ({', '.join(bad) or 'input/output names'})"
+                f"{p}: its contract differs from {paths[0]} "
+                f"({', '.join(bad) or 'input/output names'})"
             )
     norm = json.loads(meta0["input_normalisation"])
     if not (
@@ -106,10 +108,6 @@ def build(out: str, paths: list[str]) -> None:
 
 def check(out: str, paths: list[str], dataset: str) -> None:
     """Fail unless ``out`` equals the members' mean on a dataset's clustering features."""
-    import onnxruntime as ort
-
-    from mission.workshop.dataset import load_dataset
-
     x = load_dataset(dataset, ("clustering",))[0]["clustering"].astype(np.float32)
 
     def run(p: str) -> np.ndarray:

@@ -54,7 +54,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--port",
         type=int,
         default=14540,
-        help="ground-station UDP port the vehicle sends to (PX4 SITL: 14540; QGroundControl: 14550)",
+        help="ground-station UDP port the vehicle sends to (PX4 SITL: 14540; QGroundControl: "
+        "14550)",
     )
     p.add_argument("--host", default="127.0.0.1", help="ground-station host (default 127.0.0.1)")
     p.add_argument(
@@ -72,7 +73,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--kinematics",
         default=None,
         help="JSON object of Kinematics fields (cruise_speed_mps, accel_mps2, climb_rate_mps, "
-        "corner_exponent, yaw_rate_dps, ...); fly-mission passes the mission's full kinematics here",
+        "corner_exponent, yaw_rate_dps, ...); fly-mission passes the mission's full kinematics "
+        "here",
     )
     p.add_argument(
         "--cruise-speed",
@@ -84,9 +86,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--profile",
         choices=("default", "px4"),
         default="default",
-        help="default: flies the project's kinematics exactly; px4: like PX4 v1.16 SITL (legs at 93 %% of the "
-        "speed asked, return at its MPC_XY_CRUISE parameter, 4.8 m/s unless set; climb 1.5 m/s, landing "
-        "1.5 m/s then 0.7 m/s below 5 m; STATUSTEXT only while a ground-station heartbeat arrived within 2.5 "
+        help="default: flies the project's kinematics exactly; px4: like PX4 v1.16 SITL (legs "
+        "at 93 %% of the "
+        "speed asked, return at its MPC_XY_CRUISE parameter, 4.8 m/s unless set; climb 1.5 "
+        "m/s, landing "
+        "1.5 m/s then 0.7 m/s below 5 m; STATUSTEXT only while a ground-station heartbeat "
+        "arrived within 2.5 "
         "simulated s)",
     )
     p.add_argument(

@@ -11,15 +11,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import matplotlib.image as mpimg
 import numpy as np
+from matplotlib.figure import Figure
 
 
 @contextmanager
 def capture_figures() -> Iterator[list]:
     """Within the block, every ``Figure.savefig`` call also appends its figure to the yielded
     list."""
-    from matplotlib.figure import Figure
-
     saved: list = []
     original = Figure.savefig
 
@@ -43,8 +43,6 @@ def assert_png_drawn(
     """Decode ``path``; assert its (width, height), at least ``min_colours`` distinct colours and at
     least ``min_ink`` of the pixels differing from the most common (background) colour. Returns the
     RGB array."""
-    import matplotlib.image as mpimg
-
     img = mpimg.imread(str(path))
     assert img.ndim == 3 and img.shape[2] in (3, 4), img.shape
     if size is not None:

@@ -5,23 +5,30 @@ Why: a self-test that generates its flights with the library it diagnoses with c
 the library already contains, with the library's own conventions.  This generator shares nothing
 with ``mission.physics`` (only numpy): trajectories, attitude, the two-ray channel with vertical
 dipoles (SPEC section 3, paper eq. 1), and one withheld effect per case, including effects no
-candidate names:
+candidate names (effect: truth -> the name the diagnosis is expected to give):
 
-| effect | truth | expected name |
-| --- | --- | --- |
-| ``none`` | nothing | nothing |
-| ``legs`` | eqs. 8-9: beta 0.5-0.7, legs 39/150/270 deg, +-5 deg, dep_b < 10 deg; rover near a corner | leg_shadowing |
-| ``ground`` | ground permittivity 10-25, 5 mS/m (the base assumes 2, lossless) | ground_reflection |
-| ``ripple`` | UAV antenna gain + A cos(3 (az_b - phi)), A 2-2.5 dB (4-5 dB peak to peak) | rx_gain_map |
-| ``notch`` | UAV gain - 10 dB exp(-(az_b - phi)^2 / 2 (15 deg)^2), phi a body azimuth the flights see | rx_gain_map |
-| ``tx_azimuth`` | rover antenna gain + 3 dB cos(az_w - phi) over compass azimuth | tx_gain_map |
-| ``shadowing`` | exponential-covariance ground field, sigma 4 dB, L 30-60 m, one per flight | spatial_shadowing |
-| ``timing`` | RSS stamped late by 0.5-1.0 s | time_offset |
-| ``nadir`` | UAV gain - 8 dB exp(-(dep_b - 75 deg)^2 / 2 (8 deg)^2), any azimuth; the usual flights | near_nadir |
-| ``nadir_over`` | the same loss; both flights: stars of ``passes`` (5) straight passes over the rover | near_nadir |
-| ``drift`` | a receiver warming up: gain A (1 - exp(-t / 120 s)), A 3-4 dB, sign per flight | time_drift |
-| ``step`` | a gain step of 2.5-3 dB (sign per flight) at an event in the middle half (*) | time_drift |
-| ``legs_far`` | eqs. 8-9, a quad's four legs, only below 8 deg depression, far from the rover (**) | body-fixed |
+- ``none``: nothing -> nothing
+- ``legs``: eqs. 8-9: beta 0.5-0.7, legs 39/150/270 +-5 deg, dep_b < 10 deg; rover near a corner ->
+  leg_shadowing
+- ``ground``: ground permittivity 10-25, 5 mS/m (the base assumes 2, lossless) -> ground_reflection
+- ``ripple``: UAV antenna gain + A cos(3 (az_b - phi)), A 2-2.5 dB (4-5 dB peak to peak) ->
+  rx_gain_map
+- ``notch``: UAV gain - 10 dB exp(-(az_b - phi)^2 / 2 (15 deg)^2), phi an azimuth flown ->
+  rx_gain_map
+- ``tx_azimuth``: rover antenna gain + 3 dB cos(az_w - phi) over compass azimuth -> tx_gain_map
+- ``shadowing``: exponential-covariance ground field, sigma 4 dB, L 30-60 m, one per flight ->
+  spatial_shadowing
+- ``timing``: RSS stamped late by 0.5-1.0 s -> time_offset
+- ``nadir``: UAV gain - 8 dB exp(-(dep_b - 75 deg)^2 / 2 (8 deg)^2), any azimuth; the usual flights
+  -> near_nadir
+- ``nadir_over``: the same loss; both flights: stars of 5 (``passes``) passes over the rover ->
+  near_nadir
+- ``drift``: a receiver warming up: gain A (1 - exp(-t / 120 s)), A 3-4 dB, sign per flight ->
+  time_drift
+- ``step``: a gain step of 2.5-3 dB (sign per flight) at an event in the middle half (*) ->
+  time_drift
+- ``legs_far``: eqs. 8-9, a quad's 4 legs, below 8 deg depression, far from the rover (**) ->
+  body-fixed
 
 (*) at a turn of the lawnmower; the spiral has no sharp turn there, so its log records the switch as
 a phase change (``mission`` -> ``adaptive``).  (**) legs at 45/135/225/315 deg, 7 deg half width,
@@ -36,6 +43,19 @@ and 1 dB white noise.
 from __future__ import annotations
 
 import numpy as np
+
+from mission.gap.align import align
+from mission.gap.candidates import library
+from mission.gap.fit import FitConfig, make_folds
+from mission.gap.pipeline import Pipeline
+from mission.gap.power import power_statement
+from mission.gap.spatial import usable_candidates
+from mission.gap.stats import block_length
+from mission.gap.structure import identify
+from mission.gap.temporal import time_power_statement
+from mission.physics import Attitude, make_model
+from mission.robust import offset_residual
+from mission.samples import FlightSamples
 
 C_LIGHT = 299_792_458.0
 FC_HZ = 3.32e9
@@ -431,12 +451,6 @@ def make_case(
 
 def diagnose_case(effect: str, seed: int, **kw) -> dict:
     """Generate one case and run the diagnosis (``mission.gap.structure.identify``) on it."""
-    from mission.gap.candidates import library
-    from mission.gap.fit import FitConfig
-    from mission.gap.pipeline import Pipeline
-    from mission.physics import Attitude, make_model
-    from mission.samples import FlightSamples
-
     raw, truth = make_case(effect, seed, **kw)
     flights = [
         FlightSamples(
@@ -452,7 +466,6 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
     ]
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     cfg = FitConfig(seed=seed, fit_max_samples=1200, workers=1)
-    from mission.gap.structure import identify
 
     out = identify(flights, base, list(library().values()), cfg)
     out.update(
@@ -462,12 +475,6 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
         expected=EXPECTED[effect],
         hit=out["named"] == EXPECTED[effect],
     )
-    from mission.gap.align import align
-    from mission.gap.fit import make_folds
-    from mission.gap.power import power_statement
-    from mission.gap.spatial import usable_candidates
-    from mission.gap.stats import block_length
-    from mission.robust import offset_residual
 
     res = [offset_residual(f.rss_dbm, base.predict(f), False, "l2") for f in flights]
     m = sum(c.applicable(base) for c in usable_candidates(list(library().values()), flights))
@@ -481,7 +488,6 @@ def diagnose_case(effect: str, seed: int, **kw) -> dict:
         loss_db=truth.get("depth_db", 3.0),
         seed=seed,
     )
-    from mission.gap.temporal import time_power_statement
 
     out["time_power"] = time_power_statement(
         flights, res, make_folds(flights, cfg), cfg, m, cfg.split, seed=seed

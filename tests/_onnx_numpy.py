@@ -12,6 +12,8 @@ import math
 from pathlib import Path
 
 import numpy as np
+import onnx
+from onnx import helper, numpy_helper
 
 
 def _conv1d(
@@ -57,9 +59,6 @@ def _pad(x: np.ndarray, pads: np.ndarray, value: float = 0.0) -> np.ndarray:
 
 def run_graph(path: str | Path, features: np.ndarray) -> np.ndarray:
     """The graph's first output for ``features`` (B, F), evaluated in float64."""
-    import onnx
-    from onnx import helper, numpy_helper
-
     model = onnx.load(str(path))
     g = model.graph
     env: dict[str, np.ndarray] = {
@@ -132,8 +131,6 @@ def predict(path: str | Path, features: np.ndarray) -> np.ndarray:
     """(B, F) features -> (B, 2) metres: the metadata's normalisation around ``run_graph`` (module
     docstring of ``mission.localize.onnx_model``: network input (f - input_mean) / input_std, output
     o * std + mean)."""
-    import onnx
-
     meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
     norm = json.loads(meta["input_normalisation"])
     x = (np.atleast_2d(features) - np.asarray(norm["input_mean"])) / np.asarray(norm["input_std"])

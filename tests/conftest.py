@@ -80,7 +80,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "--px4",
         action="store_true",
         dest="px4_only",
-        help="run only the PX4 SITL flights, one at a time (each SITL takes a whole core: run beside "
+        help="run only the PX4 SITL flights, one at a time (each SITL takes a whole core: run "
+        "beside "
         "other tests or each other they starve the flights)",
     )
 

@@ -11,7 +11,9 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from rich.console import Console
 
+from mission.adaptive.compare import pair, summarize_pairs
 from mission.adaptive.feasibility import adaptive_violations
 from mission.adaptive.planner import (
     box_pattern,
@@ -21,7 +23,16 @@ from mission.adaptive.planner import (
     posterior_candidates,
     survey_profile,
 )
+from mission.adaptive.preview import adaptive_rows
+from mission.adaptive.simflight import FlightWorld, SimLog, adaptive_flight, estimator
+from mission.cli.fly import main
+from mission.cli.main import main as rfsl_main
 from mission.errors import InputError
+from mission.flight.budget import Pace
+from mission.flight.phases import MonotonicPhases
+from mission.localize.methods import ADAPTIVE_ANSWER
+from mission.localize.uncertainty import Posterior
+from mission.physics.family import load_family
 from mission.spec import load_mission, parse_mission
 
 ADAPTIVE = "missions/spiral_adaptive.yaml"
@@ -93,9 +104,8 @@ def test_unflyable_settings_refused_before_takeoff(spec, case, x):
 def test_cli_refuses_bad_adaptive_settings_with_one_line(
     tmp_path_factory, repo_dir, capsys, case, x
 ):
-    """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight folder)."""
-    from mission.cli.fly import main
-
+    """fly-mission exits 2 with one line naming the file and key, before anything starts (no flight
+    folder)."""
     tmp = tmp_path_factory.mktemp("bad")
     d = _doc(repo_dir)
     if case == "budget":
@@ -159,8 +169,6 @@ def test_plan_round_checks_and_refuses(spec):
 def test_a_round_planned_at_the_measured_pace_still_fits_the_budget(spec):
     """At PX4's pace (1.03 x + 3 s a leg) a round is timed as the autopilot flies it: its legs at
     the closed form, and shrunk (or refused) where the kinematic plan would have overrun."""
-    from mission.adaptive.planner import box_pattern
-    from mission.flight.budget import Pace
 
     a, pace = spec.adaptive, Pace(1.03, 3.0)
     start = survey_profile(spec, a.survey_s).vertices[-1]
@@ -178,8 +186,6 @@ def test_a_round_planned_at_the_measured_pace_still_fits_the_budget(spec):
 
 
 def test_candidates_and_target():
-    from mission.localize.uncertainty import Posterior
-
     xs, ys = np.meshgrid(np.arange(0, 200, 5.0), np.arange(0, 200, 5.0))
     grid = np.stack([xs, ys], -1)
     p = np.exp(-((xs - 50) ** 2 + (ys - 50) ** 2) / 200) + 0.5 * np.exp(
@@ -198,9 +204,6 @@ def test_candidates_and_target():
 def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
     """A short adaptive flight on the fast simulator: survey, rounds inside the fence, return within
     budget."""
-    from mission.adaptive.simflight import FlightWorld, SimLog, adaptive_flight, estimator
-    from mission.physics.family import load_family
-
     s = dataclasses.replace(spec, time_budget_s=260.0)
     a = dataclasses.replace(spec.adaptive, survey_s=100.0, altitude_m=15.0)
     cfg = dataclasses.replace(s.sim_config(), dt_s=0.25)
@@ -227,9 +230,7 @@ def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
 
 
 def test_preview_adaptive_bad_flights_refused(repo_dir, tmp_path, capsys):
-    from mission.cli.main import main
-
-    code = main(
+    code = rfsl_main(
         ["preview", str(repo_dir / ADAPTIVE), "--flights", "0", "--out", str(tmp_path / "p.png")]
     )
     err = capsys.readouterr().err.strip().splitlines()
@@ -238,10 +239,6 @@ def test_preview_adaptive_bad_flights_refused(repo_dir, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_preview_shows_adaptive_against_fixed(spec):
-    from rich.console import Console
-
-    from mission.adaptive.preview import adaptive_rows
-
     s = dataclasses.replace(
         spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0)
     )
@@ -256,8 +253,6 @@ def test_preview_shows_adaptive_against_fixed(spec):
 def test_pair_scores_each_arm_by_what_localize_answers(spec):
     """Issue 33 item 4: the fixed arm is answered by the spiral network (what ``localize`` shows
     after a simulated spiral), the adaptive arm by the live method; the live errors sit beside."""
-    from mission.adaptive.compare import pair, summarize_pairs
-    from mission.localize.methods import ADAPTIVE_ANSWER
 
     s = dataclasses.replace(
         spec, time_budget_s=300.0, adaptive=dataclasses.replace(spec.adaptive, survey_s=120.0)
@@ -272,8 +267,6 @@ def test_pair_scores_each_arm_by_what_localize_answers(spec):
 
 
 def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
-    from mission.flight.phases import MonotonicPhases
-
     p = MonotonicPhases()
     p.configure(2, 9, "return")
     p.on_landed_state(0.0, "IN_AIR")

@@ -3,13 +3,17 @@ and the wiring from a log's heights to the network (training flag, metadata, inf
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 from _localize_helpers import write_synthetic_log
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mission.cli.localize import main
 from mission.errors import InputError
+from mission.flightlog import read_flight_log
 from mission.localize.altitude_scale import (
     MIN_HEIGHT_M,
     REFERENCE_HEIGHT_M,
@@ -17,7 +21,19 @@ from mission.localize.altitude_scale import (
     scale_cluster_xy,
     scale_factor,
 )
+from mission.localize.api import localize_log
+from mission.localize.classical import as_flight
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.localize.preprocess import select_samples
 from mission.physics.propagation import make_model
+from mission.workshop.dataset import (
+    DatasetConfig,
+    Randomisation,
+    dataset_heights,
+    generate_dataset,
+    load_dataset,
+)
+from mission.workshop.train import TrainConfig, train, validation_split
 
 
 @settings(max_examples=25, deadline=None)
@@ -90,8 +106,6 @@ def test_scale_factor_and_cluster_scaling():
 def tiny_altitude_net(tmp_path_factory, repo_dir):
     pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-    from mission.workshop.train import TrainConfig, train
 
     d = tmp_path_factory.mktemp("alt")
     r = Randomisation(altitude_m=(15.0, 60.0), truncate=(0.15, 0.25))
@@ -108,9 +122,6 @@ def tiny_altitude_net(tmp_path_factory, repo_dir):
 
 
 def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_net):
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import dataset_heights, load_dataset
-
     d, res = tiny_altitude_net
     assert res.max_onnx_diff < 1e-4
     loc = OnnxLocalizer(res.onnx_path)
@@ -124,7 +135,6 @@ def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_ne
     # the validation metric is in metres, not scaled units: recompute it on the same seeded split's
     # flights
     err = np.hypot(*(p - a["tx_enu"][:, :2]).T)
-    from mission.workshop.train import TrainConfig, validation_split
 
     val, _ = validation_split(
         len(h), TrainConfig(seed=1)
@@ -136,8 +146,6 @@ def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_ne
 
 
 def test_other_networks_ignore_heights(repo_dir):
-    from mission.localize.onnx_model import OnnxLocalizer
-
     model = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
     if not model.exists():
         pytest.skip("shipped model absent")
@@ -150,8 +158,6 @@ def test_other_networks_ignore_heights(repo_dir):
 
 
 def test_normalised_rss_cannot_be_altitude_normalised(tmp_path, tiny_altitude_net):
-    from mission.workshop.train import TrainConfig, train
-
     d, _ = tiny_altitude_net
     with pytest.raises(InputError, match="clustering") as e:
         train(
@@ -173,8 +179,6 @@ def shipped_alt(repo_dir):
 def test_altitude_normalised_prediction_is_scale_equivariant(shipped_alt):
     """A flight k times larger and k times higher is answered k times further from the field origin,
     exactly."""
-    from mission.localize.onnx_model import OnnxLocalizer
-
     loc = OnnxLocalizer(shipped_alt)
     rng = np.random.default_rng(0)
     c = loc.n_features // 3
@@ -197,12 +201,6 @@ def test_altitude_normalised_prediction_is_scale_equivariant(shipped_alt):
 def test_localize_scales_by_the_logs_median_height_above_the_assumed_transmitter(
     tmp_path, shipped_alt
 ):
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log
-    from mission.localize.classical import as_flight
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.localize.preprocess import select_samples
-
     path = write_synthetic_log(tmp_path / "f.csv", alt=45.0)
     loc = OnnxLocalizer(shipped_alt)
     part, _ = select_samples(read_flight_log(path))
@@ -223,8 +221,6 @@ def test_localize_scales_by_the_logs_median_height_above_the_assumed_transmitter
 
 
 def test_a_flight_too_low_over_the_transmitter_is_a_clear_error(tmp_path, shipped_alt, capsys):
-    from mission.cli.localize import main
-
     path = write_synthetic_log(tmp_path / "f.csv", alt=30.0)
     assert main([str(path), "--model", str(shipped_alt), "--tx-height", "27"]) == 2
     err = capsys.readouterr().err
@@ -235,12 +231,11 @@ def test_an_ensemble_keeps_the_normalisation_and_refuses_mixed_members(
     tmp_path, shipped_alt, repo_dir
 ):
     pytest.importorskip("onnx")
-    import sys
-
-    from mission.localize.onnx_model import OnnxLocalizer
 
     sys.path.insert(0, str(repo_dir / "models"))
-    from make_ensemble import build
+
+    # a script, importable once its folder is on sys.path (the line above)
+    from make_ensemble import build  # noqa: PLC0415
 
     build(str(tmp_path / "e.onnx"), [str(shipped_alt), str(shipped_alt)])
     ens, one = OnnxLocalizer(tmp_path / "e.onnx"), OnnxLocalizer(shipped_alt)

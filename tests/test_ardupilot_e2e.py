@@ -9,6 +9,7 @@ m/s).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import signal
@@ -24,6 +25,10 @@ from _flight_logs import log_of, signal_group_at_rows
 from _sitl_process import SitlProcess, free_instance
 
 from mission.flightlog import PHASES, read_flight_log
+from mission.spec import load_mission
+from mission.trajectory.attitude import AttitudeState, run_attitude
+from mission.trajectory.checks import check_mission
+from mission.trajectory.kinematics import attitude_from_motion, plan_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 SITL = ROOT.parent / "shared" / "sitl" / "ardupilot"
@@ -116,8 +121,6 @@ def _fly_spiral(url: str, out: Path) -> subprocess.CompletedProcess:
 
 
 def test_spiral_on_ardupilot(ardupilot, tmp_path):
-    from mission.spec import load_mission
-
     spec = load_mission(SPIRAL)
     t0 = time.monotonic()
     p = _fly_spiral(ardupilot.url, tmp_path / "flights")
@@ -187,8 +190,6 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
     # the time budget: the plan reserves ArduPilot's own landing (0.5 m/s below 10 m) and hover
     # (RTL_LOIT_TIME), read from it; the flight keeps that plan (measured: 565 s planned, 575 s
     # used, against 539 s kinematic)
-    from mission.trajectory.checks import check_mission
-
     b = m["budget"]
     assert "(autopilot m/s: up 2.5, down 1.5/0.5 below 10 m, hover 5 s)" in p.stderr
     assert (
@@ -208,11 +209,6 @@ def _attitude_agrees_with_ardupilot(log, spec) -> None:
     mission path (already smoothed by the vehicle, so a short response time), it follows ArduPilot's
     roll; (2) on the planned spiral, its hard-corner roll is as large as ArduPilot's (about 18 deg),
     within 5 deg."""
-    import dataclasses
-
-    from mission.trajectory.attitude import AttitudeState, run_attitude
-    from mission.trajectory.kinematics import attitude_from_motion, plan_profile
-
     m = log.columns["phase"] == "mission"
     t, enu, roll_ap = log["t_s"][m], log.enu()[m], log["roll_deg"][m]
     dt = 0.03

@@ -9,9 +9,12 @@ those refused before anything connects (argument parsing and its first checks). 
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -19,7 +22,9 @@ import scipy.io as sio
 from _bad_input import SPIRAL, assert_accepted, assert_refused, run_cli, write_log
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from matplotlib.backend_bases import FigureCanvasBase
 
+import mission.localize.api as api
 from mission.cli.fly import main as fly_main
 from mission.cli.localize import main as localize_main
 from mission.cli.main import main as rfsl_main
@@ -340,7 +345,6 @@ def test_import_of_a_folder_imports_every_mat(files, tmp_path, capsys):
 def test_image_suffix_is_checked_before_the_work(files, tmp_path, capsys, monkeypatch):
     """--plot x.foo must fail before localizing, not after (a traceback after minutes of work
     before)."""
-    import mission.localize.api as api
 
     def boom(*a, **k):
         raise AssertionError("localized before checking --plot")
@@ -365,10 +369,6 @@ coord = st.one_of(
 def test_generated_rss_geometry_never_gives_nan_or_warnings(tx, rx):
     """Any --tx/--rx: a finite dBm value with exit 0, or exit 2 with one line naming --tx or
     --rx."""
-    import contextlib
-    import io
-    import warnings
-
     argv = [
         "rss",
         "--model",
@@ -416,8 +416,6 @@ def test_generated_negative_coordinates_are_accepted(capsys, xyz):
 def test_generated_image_suffixes(files, capsys, suffix, cmd):
     """Any --plot/--out suffix: a matplotlib format is taken, anything else refused naming the
     option."""
-    from matplotlib.backend_bases import FigureCanvasBase
-
     known = suffix in FigureCanvasBase.get_supported_filetypes()
     out = files["dir"] / "gen" / f"x.{suffix}"
     argv = {

@@ -12,6 +12,8 @@ import json
 import os
 import re
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -21,6 +23,17 @@ from _bad_input import SPIRAL, assert_accepted, assert_refused, mat_arrays, run_
 from mission.cli.fly import main as fly_main
 from mission.cli.localize import main as localize_main
 from mission.cli.main import main as rfsl_main
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.shipped import (
+    file_sha256,
+    missions_dir,
+    models_dir,
+    resolve_shipped,
+    shipped_digests,
+    shipped_model,
+)
+from mission.spec import load_mission
+from mission.workshop.dataset import FORMAT, DatasetConfig
 
 MAINS = {"rfsl": rfsl_main, "localize": localize_main, "fly-mission": fly_main}
 
@@ -52,7 +65,8 @@ MISSIONS = {
     "conn": "vehicle:\n  connection: garbage\n",
     "conn256": "vehicle:\n  connection: udpin://256.1.1.1:14540\n",
     "deep": "a: " + "[" * 5000 + "]" * 5000 + "\n",
-    "ctrl": 'trajectory:\n  "a\\x1db\\nc": 1\n',  # a key that holds line breaks: still one error line
+    # a key that holds line breaks: still one error line
+    "ctrl": 'trajectory:\n  "a\\x1db\\nc": 1\n',
 }
 
 
@@ -108,9 +122,6 @@ def files(tmp_path_factory):
         sio.savemat(d / f"{name}.mat", {**good, var: a})
     ds = d / "ds"  # a dataset whose one chunk is damaged
     ds.mkdir()
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.shipped import shipped_model
-    from mission.workshop.dataset import FORMAT, DatasetConfig
 
     net = OnnxLocalizer(
         shipped_model("rfsl_default.onnx")
@@ -355,9 +366,6 @@ def test_shipped_missions_and_models_resolve_from_any_folder(tmp_path, monkeypat
     """After a plain pip install the README's names work outside the clone: ``spiral``,
     ``missions/spiral.yaml`` and ``rfsl_default.onnx`` fall back to the shipped copies; a file of
     that name in the folder wins."""
-    from mission.shipped import missions_dir, models_dir, resolve_shipped
-    from mission.spec import load_mission
-
     monkeypatch.chdir(tmp_path)
     for name in ("spiral", "spiral.yaml", "missions/spiral.yaml"):
         assert load_mission(name).path == missions_dir() / "spiral.yaml"
@@ -383,8 +391,6 @@ def test_an_option_value_with_a_line_break_stays_one_line(capsys, value):
 def test_shipped_digests_match_the_shipped_networks():
     """models/sha256.json holds every shipped network's digest (``rfsl train --out models/X.onnx``
     updates it)."""
-    from mission.shipped import file_sha256, models_dir, shipped_digests
-
     nets = sorted(p.name for p in models_dir().glob("*.onnx"))
     assert sorted(shipped_digests()) == nets
     for name in nets:
@@ -397,8 +403,6 @@ def test_shipped_digests_match_the_shipped_networks():
 def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys, where):
     """Bytes flipped in the weights still load and answer (wrongly); under a shipped name it is
     refused."""
-    from mission.shipped import shipped_model
-
     data = bytearray(shipped_model("rfsl_default.onnx").read_bytes())
     at = len(data) // 2 if where == "middle" else len(data) - 200
     data[at : at + 16] = bytes(b ^ 0xFF for b in data[at : at + 16])
@@ -417,10 +421,8 @@ def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys
 
 
 def test_a_reader_that_goes_away_is_no_traceback(files):
-    """``localize LOG --json | head -c 1``: the pipe closed before the estimate is written ends quietly."""
-    import subprocess
-    import sys
-
+    """``localize LOG --json | head -c 1``: the pipe closed before the estimate is written ends
+    quietly."""
     p = subprocess.Popen(
         [
             sys.executable,

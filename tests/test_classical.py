@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from _localize_helpers import LogDistance, synthetic_flight
 
+from mission.importers.afar import import_afar_mat
+from mission.localize.api import localize_log
 from mission.localize.classical import (
     ModelGridSearch,
     StrongestSample,
@@ -72,9 +74,6 @@ def test_block_average_and_cruise():
 @pytest.mark.real
 @pytest.mark.skipif(not SHARED.is_dir(), reason="../shared real data absent")
 def test_real_flight_smoke(tmp_path):
-    from mission.importers.afar import import_afar_mat
-    from mission.localize.api import localize_log
-
     res = import_afar_mat(
         SHARED / "results_useful_ori_exp_328_loc_2.mat", tmp_path, truth=(35.72911779, -78.69918128)
     )

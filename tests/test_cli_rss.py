@@ -12,6 +12,7 @@ import pytest
 
 from mission.cli.main import main
 from mission.physics.constants import SPEED_OF_LIGHT
+from mission.physics.propagation import MODEL_ALIASES, canonical_model_name
 
 
 def test_free_space_value(capsys):
@@ -110,9 +111,6 @@ def test_subprocess_exit_code():
 def test_model_aliases_that_make_model_accepts_are_accepted(capsys) -> None:
     """One home for model names: the CLI takes every alias make_model takes (e.g. fs, two_ray) and
     folds it."""
-    from mission.cli.main import main
-    from mission.physics.propagation import MODEL_ALIASES, canonical_model_name
-
     for alias, name in MODEL_ALIASES.items():
         assert canonical_model_name(alias.upper()) == name
     assert main(["rss", "--model", "FS", "--tx", "0,0,1.5", "--rx", "30,40,30"]) == 0

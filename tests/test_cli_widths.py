@@ -5,10 +5,19 @@ subcommand, and the output of ``rfsl rss --explain``, ``simulate``, ``replay``, 
 
 from __future__ import annotations
 
-import pytest
+import io
 
+import numpy as np
+import pytest
+from rich.console import Console
+
+from mission.calibrate import DEFAULT_CONFIGS
+from mission.cli.evaluate import _table
+from mission.cli.gap import confusion_table
 from mission.cli.main import SUBCOMMANDS
 from mission.cli.main import main as rfsl
+from mission.gap.selftest import WITHHELD_ALL
+from mission.workshop.evaluate import Row
 
 WIDTH = 80
 
@@ -33,8 +42,6 @@ def test_help_fits(command, capsys):
 
 
 def test_calibrate_help_keeps_configuration_names_whole(capsys):
-    from mission.calibrate import DEFAULT_CONFIGS
-
     with pytest.raises(SystemExit):
         rfsl(["calibrate", "--help"])
     words = capsys.readouterr().out.replace(",", " ").replace(")", " ").split()
@@ -87,10 +94,6 @@ def test_import_fits(shared_dir, capsys):
 
 
 def _render(table) -> str:
-    import io
-
-    from rich.console import Console
-
     c = Console(width=WIDTH, file=io.StringIO(), record=True)
     c.print(table)
     return c.export_text()
@@ -99,11 +102,6 @@ def _render(table) -> str:
 def test_gap_selftest_confusion_keeps_every_effect_name():
     """``rfsl gap --selftest``'s confusion matrix at 80 columns: every effect name whole, nothing
     cut."""
-    import numpy as np
-
-    from mission.cli.gap import confusion_table
-    from mission.gap.selftest import WITHHELD_ALL
-
     names = [*WITHHELD_ALL, "none"]
     text = _render(confusion_table(names, names, np.eye(len(names), dtype=int) * 2))
     assert not too_wide(text) and "…" not in text, text
@@ -114,9 +112,6 @@ def test_gap_selftest_confusion_keeps_every_effect_name():
 def test_evaluate_table_does_not_cut_labels():
     """``rfsl evaluate``'s table at 80 columns: a long method or test name is folded, never cut with
     '…'."""
-    from mission.cli.evaluate import _table
-    from mission.workshop.evaluate import Row
-
     rows = [
         Row(
             "sim_e2r_spiral_n200_s7_with_a_long_name",

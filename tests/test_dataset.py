@@ -5,12 +5,16 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from mission.cli.main import main
+from mission.physics.presets import build_model, load_preset
 from mission.workshop.dataset import (
     DatasetConfig,
+    FlightSimulator,
     Randomisation,
     flight_rng,
     generate_dataset,
@@ -95,8 +99,6 @@ def test_flight_seed_is_the_spawned_child():
 
 
 def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
-    from mission.cli.main import main
-
     mission = str(repo_dir / "missions" / "spiral.yaml")
     rc = main(
         [
@@ -144,10 +146,6 @@ def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
 def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
     """Items added later draw only when switched on: a zero-probability fixed heading, no speed
     range and no shadowing leave every flight's bytes as before."""
-    from dataclasses import replace
-
-    from mission.workshop.dataset import FlightSimulator
-
     base = FlightSimulator(_cfg(repo_dir)).draw(3).samples
     same = (
         FlightSimulator(_cfg(repo_dir, randomisation=replace(FAST, fixed_heading=0.0)))
@@ -159,10 +157,6 @@ def test_new_randomisations_switched_off_keep_the_old_draws(repo_dir):
 
 
 def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
-    from dataclasses import replace
-
-    from mission.workshop.dataset import FlightSimulator
-
     r = replace(
         FAST,
         fixed_heading=1.0,
@@ -184,11 +178,6 @@ def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
 def test_physics_preset_fold_is_the_simulated_model(repo_dir):
     """``physics="afar:fit328"`` flies the fold's fitted model: noise-free RSS equals that model at
     the logged geometry, with the heading jitter added to the preset's UAV-antenna heading."""
-    from dataclasses import replace
-
-    from mission.physics.presets import build_model, load_preset
-    from mission.workshop.dataset import FlightSimulator
-
     r = replace(FAST, noise_db=(0.0, 0.0), offset_db=None, physics_heading_jitter_deg=5.0)
     sim = FlightSimulator(_cfg(repo_dir, randomisation=r, physics="afar:fit328"))
     fd = sim.draw(1)
@@ -227,8 +216,6 @@ def test_inconsistent_configs_are_refused(tmp_path, repo_dir, kw, field):
 
 
 def test_cli_physics_preset_and_its_errors(tmp_path, repo_dir, capsys):
-    from mission.cli.main import main
-
     mission = str(repo_dir / "missions" / "spiral.yaml")
     args = [
         "dataset",

@@ -13,13 +13,20 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+from _localize_helpers import write_synthetic_log
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from mission.cli.localize import main as localize
+from mission.cli.main import main as rfsl
 from mission.errors import InputError
+from mission.geo import Area
+from mission.localize.api import localize_log, search_area
 from mission.localize.error_circles import (
     CIRCLE_METHODS,
     REGIONS_KEY,
@@ -30,7 +37,9 @@ from mission.localize.error_circles import (
     method_calibration,
     model_digest,
 )
+from mission.spec import DEFAULT_MISSION
 from mission.workshop.evaluate_suite import region_contains
+from mission.workshop.suite import unseen_flight
 
 SHIPPED = (
     "rfsl_default",
@@ -67,8 +76,6 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
     to the circle minus the segment beyond that edge (closed form; the 72-gon underestimates the
     circle by < 0.2 %); every clipped vertex lies in the square, and coverage stays the circle's
     (the ellipse is unchanged)."""
-    from mission.geo import Area
-
     sq = Area(
         "rover area",
         np.array([[-2000.0, -2000.0], [frac * r, -2000.0], [frac * r, 2000.0], [-2000.0, 2000.0]]),
@@ -86,8 +93,6 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
 def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
     """Inside the area the circle is untouched; a circle holding a (non-convex, L-shaped) area whole
     clips to that area's own polygon and area; one that misses the area is kept whole."""
-    from mission.geo import Area
-
     ell = Area(
         "L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float)
     )
@@ -102,8 +107,6 @@ def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
 def test_a_circle_across_the_inner_corner_of_a_non_convex_area_has_the_right_area():
     """The L's inner corner at (40, 40): a circle of radius 30 there loses exactly the quarter
     inside the notch (three quarters remain, to the 72-gon's resolution)."""
-    from mission.geo import Area
-
     ell = Area(
         "L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float)
     )
@@ -121,11 +124,9 @@ def net(tmp_path, repo_dir):
 
 def _calibration_record(*args):
     """The record ``benchmarks/calibrate_error_circles.py`` writes into a card."""
-    import sys
-    from pathlib import Path
-
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from calibrate_error_circles import calibration_record
+    # a script, importable once its folder is on sys.path (the line above)
+    from calibrate_error_circles import calibration_record  # noqa: PLC0415
 
     return calibration_record(*args)
 
@@ -197,11 +198,6 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     """On a simulated spiral the default network answers with its 'sim' circles; on a benchmark log
     (a real receiver's kind) ``--model`` answers with its 'real' ones; both centred on the estimate,
     in the log frame."""
-    from mission.cli.main import main as rfsl
-    from mission.localize.api import localize_log
-    from mission.spec import DEFAULT_MISSION
-    from mission.workshop.suite import unseen_flight
-
     assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7101", "--out", str(tmp_path)]) == 0
     est = localize_log(next(tmp_path.glob("*.csv")))
     model = est.extras["model_path"]
@@ -221,8 +217,6 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     )
     # the 'real' 90 % circle (~160 m) overhangs the AFAR rover area: the region is its part inside
     # that area
-    from mission.localize.api import search_area
-
     ra = search_area(log)
     outer = est.extras["regions"][-1]
     ring = np.asarray(outer["polygons"][0])
@@ -249,10 +243,6 @@ _BAD_ENTRY = st.one_of(
 def test_localize_refuses_a_malformed_card_with_one_line_and_exit_2(entry, net, tmp_path, capsys):
     """``localize --model`` with a card whose calibration is malformed: one line naming the card and
     the key, exit 2, never a traceback or a circle of made-up size."""
-    from _localize_helpers import write_synthetic_log
-
-    from mission.cli.localize import main as localize
-
     log = tmp_path / "f.csv"
     if not log.exists():
         write_synthetic_log(log, (150.0, 150.0, 1.5))
@@ -295,10 +285,6 @@ def test_a_malformed_method_calibration_names_file_and_key(tmp_path):
 
 
 def test_classical_methods_get_circles_only_in_their_calibrated_configuration(tmp_path):
-    from mission.cli.main import main as rfsl
-    from mission.localize.api import localize_log
-    from mission.spec import DEFAULT_MISSION
-
     assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7102", "--out", str(tmp_path)]) == 0
     log = next(tmp_path.glob("*.csv"))
     for method in CIRCLE_METHODS:

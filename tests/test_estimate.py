@@ -8,7 +8,8 @@ import json
 import pytest
 from _localize_helpers import write_synthetic_log
 
-from mission.localize import Estimate
+from mission.localize import Estimate, Fit, Selection
+from mission.localize.api import localize_log
 
 TX = (150.0, 120.0, 1.5)
 
@@ -52,8 +53,6 @@ def test_regions_and_components_are_the_json_record() -> None:
 
 def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
     """On a real-receiver-like log the default fusion's typed fields are what --json carries."""
-    from mission.localize.api import localize_log
-
     net = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
     if not net.exists():
         pytest.skip("no shipped network")
@@ -70,8 +69,6 @@ def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
 
 
 def test_selection_follows_the_method_choice_in_the_json_and_fit_reads_the_extras() -> None:
-    from mission.localize import Fit, Selection
-
     est = Estimate(
         1.0,
         2.0,

@@ -6,6 +6,14 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
+from mission.workshop.dataset import (
+    DatasetConfig,
+    FlightSimulator,
+    Randomisation,
+    dataset_config,
+    generate_dataset,
+    read_manifest,
+)
 from mission.workshop.evaluate import (
     afar_truth,
     evaluate_real,
@@ -23,15 +31,6 @@ def test_afar_truth_from_name():
 
 
 def test_evaluate_sim_classical(tmp_path, repo_dir):
-    from mission.workshop.dataset import (
-        DatasetConfig,
-        FlightSimulator,
-        Randomisation,
-        dataset_config,
-        generate_dataset,
-        read_manifest,
-    )
-
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.2, 0.3))
     generate_dataset(
         DatasetConfig(
@@ -73,8 +72,6 @@ def test_grid_physics_rows_on_a_simulated_set(tmp_path, repo_dir):
     """``grid:MODEL`` runs the grid with that physics: on a noise-free free-space test set the
     free-space grid is exact to the grid's resolution and beats the e2r grid, whose physics is wrong
     there."""
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-
     r = Randomisation(
         trajectories=("random_waypoints",),
         random_params=True,

@@ -14,7 +14,9 @@ from pymavlink import mavwp
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mission.cli.main import main
+from mission.flight.plan import to_mavsdk
 from mission.spec import load_mission
+from mission.trajectory.items import build_items, home_geodetic
 from sitl.mission_store import MissionStore
 
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
@@ -144,9 +146,6 @@ def _same(a: float, b: float, tol: float = 0.0) -> bool:
 def test_exported_items_are_the_uploaded_items(tmp_path, name):
     """One builder: the items MAVSDK uploads (as sitl's mission store keeps them) are the ones the
     WPL file and the .plan hold, field by field (lat/lon to the 1e-7 degree of MISSION_ITEM_INT)."""
-    from mission.flight.plan import to_mavsdk
-    from mission.trajectory.items import build_items, home_geodetic
-
     spec = load_mission(MISSIONS / f"{name}.yaml")
     stored = _uploaded_to_sitl(to_mavsdk(build_items(spec, home_geodetic(spec), home_item=True)))
     wpl_p, plan_p = tmp_path / "m.waypoints", tmp_path / "m.plan"

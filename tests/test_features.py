@@ -9,6 +9,7 @@ from _localize_helpers import synthetic_flight
 
 from mission.errors import InputError
 from mission.localize.features import (
+    LATER_KEYS,
     FeatureConfig,
     cluster_details,
     cluster_features,
@@ -18,6 +19,7 @@ from mission.localize.features import (
     grouping,
     normalised_rss,
     preprocess,
+    resample_by_arc,
     summarise_clusters,
 )
 
@@ -133,8 +135,6 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
     """``resample_by_arc``: a hover becomes one averaged point, a path flown at 1 m/s or 5 m/s gives
     the same points, GPS jitter while hovering adds no path, and features with ``arc_step_m`` see
     the same flight at any speed."""
-    from mission.localize.features import resample_by_arc
-
     rng = np.random.default_rng(0)
     dt = 0.03
 
@@ -182,8 +182,6 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
 
 
 def test_configs_written_before_a_later_key_still_match():
-    from mission.localize.features import LATER_KEYS
-
     old = {k: v for k, v in FeatureConfig().to_dict().items() if k not in LATER_KEYS}
     assert FeatureConfig.normalised(old) == FeatureConfig().to_dict()
     assert FeatureConfig.normalised(FeatureConfig(arc_step_m=0.2).to_dict())["arc_step_m"] == 0.2

@@ -7,7 +7,10 @@ signals, exit codes and the embedded vehicle are exercised exactly as a user wou
 from __future__ import annotations
 
 import contextlib
+import json
 import os
+import re
+import resource
 import signal
 import subprocess
 import sys
@@ -16,12 +19,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from _flight_logs import log_of as _log_of
 from _flight_logs import signal_group_at_rows
 from _flight_logs import wait_rows as _wait_rows
+from pymavlink import mavutil
 
+from mission.cli.fly import main
+from mission.flight.budget import VerticalSpeeds, plan_times
 from mission.flight.runner import free_udp_port
+from mission.flight.sources import recompute_sim_rss
 from mission.flightlog import read_flight_log
+from mission.localize.error_circles import card_calibration, flown_radii
+from mission.localize.preprocess import select_samples
+from mission.localize.training_domain import planned_track, track_coverage
+from mission.spec import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 SPIRAL = ROOT / "missions" / "spiral.yaml"
@@ -54,9 +66,6 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     """The whole spiral at speed-up 20: lands, >= 95 % of samples, attitude varies, RSS
     reproducible, phases logged, measured speed-up recorded, the final line gives the localization
     error."""
-    from mission.flight.sources import recompute_sim_rss
-    from mission.spec import load_mission
-
     p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path)])
     out, err = p.communicate(timeout=150)
     assert p.returncode == 0, err[-3000:]
@@ -98,9 +107,6 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     assert "\n  method: onnx rfsl_spiral_e2r_ens5.onnx\n" in last, (
         last
     )  # the spiral network answered its own flight
-    from mission.localize.error_circles import card_calibration, flown_radii
-    from mission.localize.preprocess import select_samples
-    from mission.localize.training_domain import planned_track, track_coverage
 
     part, _ = select_samples(
         log
@@ -123,10 +129,7 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
 
 def test_fence_refused_nothing_uploaded(tmp_path):
     """A mission outside the fence is refused (exit 2) and the vehicle's mission count stays 0."""
-    import yaml
-
     os.environ.setdefault("MAVLINK20", "1")
-    from pymavlink import mavutil
 
     bad = yaml.safe_load(SPIRAL.read_text())
     bad["trajectory"] = {"waypoints": [[10, 10], [2000, 10], [10, 20]]}
@@ -291,8 +294,6 @@ def test_bad_options_refused_before_anything_starts(tmp_path, capsys, args, fiel
         _, err = p.communicate(timeout=60)
         code = p.returncode
     else:
-        from mission.cli.fly import main
-
         code, err = main(argv), capsys.readouterr().err
     assert code == 2, err
     lines = err.strip().splitlines()
@@ -301,8 +302,6 @@ def test_bad_options_refused_before_anything_starts(tmp_path, capsys, args, fiel
 
 
 def test_kill_9_does_not_leave_the_vehicle_running(tmp_path):
-    import re
-
     p = _fly([str(SPIRAL), "--speedup", "20", "--out", str(tmp_path), "--no-localize"])
     try:
         _wait_rows(tmp_path, 200, 60)
@@ -330,8 +329,6 @@ def _fly_px4_like(mfile: Path, speedup: float, out: Path, *extra: str) -> tuple[
     """Fly ``mfile`` with ``--no-localize`` on the built-in vehicle with the PX4-like profile
     (vehicle options ``extra``), started apart at the mission's home on a free UDP port; (exit code,
     stderr)."""
-    from mission.spec import load_mission
-
     spec = load_mission(mfile)
     lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
     port = free_udp_port()
@@ -382,12 +379,6 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     the sidecar (tab stripped, none after "landed and disarmed"), the overrun is warned during the
     flight and recorded, MPC_XY_CRUISE is restored, "armed" comes before "mission started" and the
     duration line shows with --connect."""
-    import json
-
-    import yaml
-
-    from mission.flight.budget import VerticalSpeeds, plan_times
-    from mission.spec import load_mission
 
     d = yaml.safe_load(SPIRAL.read_text())
     d["trajectory"]["params"]["spacing_m"] = (
@@ -463,8 +454,6 @@ def test_ctrl_c_twice_says_the_vehicle_was_left_in_flight(tmp_path):
     status and the sidecar say the vehicle was left in flight (altitude, phase) and name the
     parameters left changed (the PX4-like vehicle's MPC_XY_CRUISE, 4.8 m/s, set to the mission's 5.5
     and not restored under a flying vehicle)."""
-    from mission.spec import load_mission
-
     spec = load_mission(SPIRAL)
     lat, lon, alt = spec.field.origin.to_geodetic(np.asarray(spec.home_enu, dtype=float))
     port = free_udp_port()
@@ -528,8 +517,6 @@ def test_full_disk_in_flight_is_said_returns_and_exits_4(tmp_path):
     """A file-size limit (as a full disk) that the log passes mid-mission: said at once, the vehicle
     returns to launch and lands, the CSV holds whole rows only and the sidecar says how many; exit
     4, no traceback."""
-    import resource
-
     limit = 400 * 1024  # about 4 500 rows: the log passes it on the first legs
 
     def full_disk() -> None:
@@ -565,13 +552,10 @@ def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
     speed-up 20, the spiral with a 560 s budget (about 580 s flown whole): the tail is dropped in
     flight with one line, the vehicle lands inside the budget (arm to disarm, measured), and the
     sidecar names what was dropped."""
-    import yaml
-
     d = yaml.safe_load(SPIRAL.read_text())
     d["time_budget_s"] = 560  # the kinematic plan (538 s) fits; flown 7 % slow it would not
     mfile = tmp_path / "tight.yaml"
     mfile.write_text(yaml.safe_dump(d))
-    from mission.spec import load_mission
 
     spec = load_mission(mfile)
     rc, err = _fly_px4_like(mfile, 20, tmp_path / "f")

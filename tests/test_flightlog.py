@@ -3,19 +3,26 @@ writer."""
 
 from __future__ import annotations
 
+import csv
+import io
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from mission.errors import InputError
 from mission.flightlog import (
+    COLUMNS,
     FlightLogWriter,
+    format_rows,
     make_meta,
     read_flight_log,
     sidecar_path,
     write_flight_log,
 )
+from mission.flightlog.read import _fast_parse, _slow_parse
 from mission.geo import Origin
 
 O = Origin(35.727, -78.698, 90.0)
@@ -145,7 +152,6 @@ def _phase_log_text(n: int = 6) -> list[str]:
     c, _ = _cols(n)
     c["phase"] = np.array(["takeoff", "mission", "mission", "mission", "return", "land"][:n])
     c["mission_item"] = np.array([-1, 0, 1, 2, -1, -1][:n], dtype=float)
-    from mission.flightlog import COLUMNS, format_rows
 
     header = COLUMNS + ("phase", "mission_item")
     return [",".join(header)] + format_rows(c, header).splitlines()
@@ -154,11 +160,6 @@ def _phase_log_text(n: int = 6) -> list[str]:
 def test_phase_log_parsed_in_one_pass_as_the_row_parser_would(tmp_path):
     """The vectorised reader keeps ``phase`` as text and agrees with the row-by-row parser on odd
     fields (an empty phase, a blank padded with spaces in an extra numeric column)."""
-    import csv
-    import io
-
-    from mission.flightlog.read import _fast_parse, _slow_parse
-
     lines = _phase_log_text()
     rows = [ln.split(",") for ln in lines]
     rows[2][-2] = ""  # phase left empty on data row 2
@@ -230,8 +231,8 @@ signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the limit gives EFBIG, as a ful
 resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[2]), int(sys.argv[2])))
 n = 40
 t = np.arange(n) * 0.03
-c = {"t_s": t, "lat_deg": np.full(n, 35.7), "lon_deg": np.full(n, -78.7), "alt_m": np.full(n, 120.0),
-     "rel_alt_m": np.full(n, 30.0), "rss_dbm": -60.0 + t}
+c = {"t_s": t, "lat_deg": np.full(n, 35.7), "lon_deg": np.full(n, -78.7),
+     "alt_m": np.full(n, 120.0), "rel_alt_m": np.full(n, 30.0), "rss_dbm": -60.0 + t}
 w = FlightLogWriter(sys.argv[1], make_meta(Origin(35.727, -78.698, 90.0), {"kind": "sim"}))
 failed = None
 for k in range(200):
@@ -252,9 +253,6 @@ def test_a_failed_write_leaves_whole_rows_and_a_matching_sidecar(tmp_path, limit
     """A file-size limit (as a full disk) mid-log: the writer raises once, the CSV is cut back to
     the rows last flushed whole (no partial line, whatever byte the limit falls on), later rows are
     dropped and the sidecar's ``rows`` is what the file holds."""
-    import subprocess
-    import sys
-
     path = tmp_path / "f.csv"
     r = subprocess.run(
         [sys.executable, "-c", _FULL_DISK, str(path), str(limit)],

@@ -5,6 +5,7 @@ calibration applies."""
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 
@@ -13,7 +14,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mission.localize.error_circles import FULL_TRACK, attach_circles, flown_radii
+from mission.cli.main import main as rfsl
+from mission.errors import InputError
+from mission.flightlog import FlightLog, read_flight_log
+from mission.geo import afar_field
+from mission.localize.api import localize_log
+from mission.localize.error_circles import (
+    FULL_TRACK,
+    attach_circles,
+    flown_radii,
+    method_calibration,
+)
 from mission.localize.training_domain import (
     ATTITUDE_TOLERANCE_DEG,
     TRACK_REACH_M,
@@ -22,6 +33,8 @@ from mission.localize.training_domain import (
     track_coverage,
     trained_legs,
 )
+from mission.localize.uncertainty import region_covers
+from mission.spec import DEFAULT_MISSION, load_mission
 
 SQUARE = np.array([[0.0, 0.0], [200.0, 0.0], [200.0, 200.0], [0.0, 200.0]])
 
@@ -48,9 +61,6 @@ def test_coverage_is_the_share_of_the_track_flown(frac, offset):
 
 
 def test_planned_track_from_the_sidecar_record():
-    from mission.geo import afar_field
-    from mission.spec import load_mission
-
     spec = load_mission()
     meta = {"trajectory": spec.trajectory_meta()}
     w = planned_track(meta, afar_field().origin)
@@ -81,8 +91,6 @@ def test_attitude_note_cases(flown_pitch, says):
 
 
 def test_trained_legs_drop_the_transit_to_the_first_waypoint():
-    from mission.flightlog import FlightLog
-
     item = np.array([-1, 0, 0, 1, 1, 2, -1])
     log = FlightLog({"t_s": np.arange(7.0), "mission_item": item}, {})
     assert list(trained_legs(log)["mission_item"]) == [-1, 1, 1, 2, -1]
@@ -128,10 +136,6 @@ def test_an_attitude_outside_the_training_gives_the_note_and_no_circle():
 @pytest.fixture(scope="module")
 def spiral(tmp_path_factory, repo_dir):
     """One ``rfsl simulate`` log of the default spiral (the product path)."""
-    from mission.cli.main import main as rfsl
-    from mission.flightlog import read_flight_log
-    from mission.spec import DEFAULT_MISSION
-
     if not (repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx").is_file():
         pytest.skip("shipped models absent")
     d = tmp_path_factory.mktemp("spiral")
@@ -145,9 +149,8 @@ def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
     track coverage follows the cut, and its 90 % circle widens as the cut shrinks (or says no
     calibration applies)."""
     sys.path.insert(0, str(repo_dir / "benchmarks"))
-    from calibrate_track_circles import truncate
-
-    from mission.localize.api import localize_log
+    # a script, importable once its folder is on sys.path (the line above)
+    from calibrate_track_circles import truncate  # noqa: PLC0415
 
     r90 = {}
     for f in (1 / 3, 2 / 3, 1.0):
@@ -164,9 +167,6 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training, no
     circle is printed, and the regions fall back to the self-calibrating posterior's (every flight
     ends with a region), whose 90 % region holds the truth here."""
-    from mission.localize.api import localize_log
-    from mission.localize.uncertainty import region_covers
-
     cols = dict(spiral.columns)
     cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -28.0, 0.0)
     steep = type(spiral)(cols, dict(spiral.meta), spiral.path)
@@ -202,11 +202,6 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     ],
 )
 def test_a_stored_track_record_is_read_per_stratum_or_refused_naming_the_key(tmp_path, track, ok):
-    import json
-
-    from mission.errors import InputError
-    from mission.localize.error_circles import method_calibration
-
     p = tmp_path / "circles.json"
     p.write_text(
         json.dumps({"grid": {"sim": {"radii_m": {"0.5": 5.0, "0.9": 12.0}, "track": track}}})

@@ -6,16 +6,31 @@ adaptive block that is not enabled."""
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mavsdk.plugins.mission_raw import MissionRawError, MissionRawResult
 
+from mission.adaptive.rounds import AdaptiveRounds, autopilot_return_extra_s
+from mission.cli.fly import choose_adaptive, main
+from mission.cli.main import main as rfsl
+from mission.flight.budget import start_budget
+from mission.flight.context import EXIT_LINK, FlightError
+from mission.flight.plan import UploadFailed, upload_with_retries
 from mission.flight.progress import PLAIN_WIDTH, FoldedTexts, fit_width
+from mission.flight.runner import FlyOptions, make_source, new_context
+from mission.flight.vehicle_process import free_udp_port
+from mission.flightlog import read_flight_log
+from mission.spec import load_mission, parse_mission
+from mission.trajectory.checks import RETURN_OVERSHOOT_M, check_mission
+from mission.trajectory.items import build_items
 
 ROOT = Path(__file__).resolve().parents[1]
 SPIRAL = ROOT / "missions" / "spiral.yaml"
@@ -62,14 +77,6 @@ def test_repeated_texts_are_shown_once_and_counted(texts):
 
 
 def test_a_failed_upload_is_one_line_with_the_result_name_and_item_count():
-    from mavsdk.plugins.mission_raw import MissionRawError, MissionRawResult
-
-    from mission.flight.context import EXIT_LINK
-    from mission.flight.plan import UploadFailed, upload_with_retries
-    from mission.flight.runner import FlyOptions, new_context
-    from mission.spec import load_mission
-    from mission.trajectory.items import build_items
-
     class Refusing:
         calls = 0
 
@@ -97,9 +104,6 @@ def test_a_failed_upload_is_one_line_with_the_result_name_and_item_count():
 def test_home_must_keep_the_return_overshoot_plus_the_margin_from_the_fence(inside_m, margin):
     """A home ``inside_m`` west of the AFAR flight area's east edge: refused exactly when it is
     closer than the known return overshoot plus ``home_margin_m``, naming the key ``home``."""
-    from mission.spec import parse_mission
-    from mission.trajectory.checks import RETURN_OVERSHOOT_M, check_mission
-
     base = parse_mission({})
     area = base.field.flight_area
     east = 300.65  # the east edge near the AFAR launch point (x = 300.21 m is 0.44 m inside)
@@ -115,9 +119,6 @@ def test_home_must_keep_the_return_overshoot_plus_the_margin_from_the_fence(insi
 
 
 def test_shipped_missions_keep_their_home_inside_the_margin():
-    from mission.spec import load_mission
-    from mission.trajectory.checks import RETURN_OVERSHOOT_M, check_mission
-
     for f in sorted((ROOT / "missions").glob("*.yaml")):
         spec = load_mission(f)
         rep = check_mission(spec)
@@ -130,13 +131,6 @@ def test_shipped_missions_keep_their_home_inside_the_margin():
 def test_fly_mission_seed_puts_the_transmitter_where_simulate_does(tmp_path, seed):
     """``fly-mission --seed N``'s truth (the runner's simulated source) is ``rfsl simulate --seed
     N``'s."""
-    import dataclasses
-
-    from mission.cli.main import main as rfsl
-    from mission.flight.runner import make_source
-    from mission.flightlog import read_flight_log
-    from mission.spec import load_mission
-
     spec = load_mission(SPIRAL)
     spec = dataclasses.replace(spec, source=dataclasses.replace(spec.source, seed=seed))
     _, truth = make_source(spec, "sim")
@@ -146,8 +140,6 @@ def test_fly_mission_seed_puts_the_transmitter_where_simulate_does(tmp_path, see
 
 
 def test_fly_mission_refuses_a_negative_seed_in_one_line(capsys):
-    from mission.cli.fly import main
-
     assert main([str(SPIRAL), "--seed", "-3"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--seed" in err[0] and "-3" in err[0], err
@@ -168,11 +160,6 @@ def test_fly_mission_refuses_a_negative_seed_in_one_line(capsys):
 def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(
     block, flag, flown, said
 ):
-    import yaml
-
-    from mission.cli.fly import choose_adaptive
-    from mission.spec import parse_mission
-
     spec = parse_mission(yaml.safe_load(SPIRAL.read_text() + "\n" + block + "\n"))
     a, note = choose_adaptive(spec, flag)
     assert (a is not None) == flown and (note is not None) == said
@@ -186,8 +173,6 @@ def test_an_adaptive_block_that_is_not_enabled_says_the_fixed_mission_is_flown(
 def test_the_fixed_mission_line_comes_first_in_a_real_run(tmp_path):
     """``adaptive: null``: the one line, before anything starts (then no autopilot answers: its own
     line)."""
-    from mission.flight.vehicle_process import free_udp_port
-
     m = tmp_path / "m.yaml"
     m.write_text(SPIRAL.read_text() + "\nadaptive: null\n")
     p = subprocess.run(
@@ -218,12 +203,6 @@ def test_the_adaptive_budget_is_checked_again_with_the_autopilots_return(return_
     """Once the autopilot's return speed is known (its budget plan), an adaptive mission whose
     rounds no longer fit is refused before the upload with exit 2 naming the field; the mission's
     own return passes."""
-    from mission.adaptive.rounds import AdaptiveRounds, autopilot_return_extra_s
-    from mission.flight.budget import start_budget
-    from mission.flight.context import FlightError
-    from mission.flight.runner import FlyOptions, new_context
-    from mission.spec import load_mission
-
     spec = load_mission(ROOT / "missions" / "spiral_adaptive.yaml")
     ext = AdaptiveRounds(spec, spec.adaptive)
     ctx = new_context(spec, FlyOptions(), ext)

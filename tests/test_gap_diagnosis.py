@@ -6,14 +6,26 @@ confusion table is ``rfsl gap --selftest``) on short, 10 Hz flights to stay with
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from _figures import assert_png_drawn
+from test_jsonsafe import strict_loads
 
-from mission.gap.align import align
+from mission.cli.main import main
+from mission.flightlog import make_meta, write_flight_log
+from mission.gap.align import align, flight_from_log
+from mission.gap.candidates import library
+from mission.gap.diagnose import base_pipeline, model_gap
 from mission.gap.fit import FitConfig, make_folds, offset_residual
-from mission.gap.selftest import WITHHELD_ALL, run_case
+from mission.gap.pipeline import Pipeline
+from mission.gap.selftest import WITHHELD_ALL, run_case, simulate_case
 from mission.gap.stats import autocorrelation, block_length, bootstrap_mean, summarize
+from mission.geo import afar_field
+from mission.importers.afar import convert_afar_mat
+from mission.physics import Attitude, make_model
+from mission.physics.antenna import rm_wb1_dn
 from mission.samples import FlightSamples
 
 
@@ -121,10 +133,6 @@ def test_nothing_withheld_nothing_significant() -> None:
 def _simulated_log(tmp_path, withheld: str | None, seed: int, dt_s: float):
     """One simulated flight (library self-test truth) written as a flight log with its transmitter
     truth."""
-    from mission.flightlog import make_meta, write_flight_log
-    from mission.gap.selftest import simulate_case
-    from mission.geo import afar_field
-
     _, _, flights = simulate_case(withheld, seed, n_flights=1, dt_s=dt_s, max_duration_s=200.0)
     f = flights[0]
     origin = afar_field().origin
@@ -149,10 +157,6 @@ def _simulated_log(tmp_path, withheld: str | None, seed: int, dt_s: float):
 
 def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
     """End to end: write a simulated log, run ``rfsl gap`` with a report, check the files."""
-    import json
-
-    from mission.cli.main import main
-
     p = _simulated_log(tmp_path, "time_offset", 5, 0.2)
     rc = main(
         [
@@ -200,10 +204,6 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
 def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
     """``rfsl gap --json`` prints the same summary as the top of gap.json (free-form candidates,
     shape plot)."""
-    from test_jsonsafe import strict_loads
-
-    from mission.cli.main import main
-
     p = _simulated_log(tmp_path, None, 6, 0.5)
     capsys.readouterr()
     rc = main(
@@ -232,8 +232,6 @@ def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
 
 
 def test_cli_gap_bad_input(tmp_path) -> None:
-    from mission.cli.main import main
-
     assert main(["gap"]) == 2
     assert main(["gap", str(tmp_path / "missing.csv")]) == 2
 
@@ -243,10 +241,6 @@ def test_real_afar_e2r_gap(shared_dir) -> None:
     """Real AFAR flight 328 loc 1 (19 931 airborne samples): the paper's e2r with dipoles has p90
     |error| 24.5 dB, worse than free space with isotropic antennas (21.6 dB) -- the gap tool's first
     finding -- and the gap does not depend on the receiver's unknown offset."""
-    from mission.gap.align import flight_from_log
-    from mission.gap.diagnose import base_pipeline, model_gap
-    from mission.importers.afar import convert_afar_mat
-
     mat = shared_dir / "data" / "afar2023" / "mat" / "results_useful_ori_exp_328_loc_1.mat"
     if not mat.exists():
         pytest.skip("AFAR MAT file absent")
@@ -268,11 +262,6 @@ def test_attitude_candidates_and_mounting_applicability() -> None:
     """rx_mounting needs the body frame (attitude or yaw-only); yaw_attitude/attitude fit the UAV
     antenna heading jointly when the pattern depends on azimuth; attitude also upgrades yaw-only
     attitude."""
-    from mission.gap.candidates import library
-    from mission.gap.pipeline import Pipeline
-    from mission.physics import Attitude, make_model
-    from mission.physics.antenna import rm_wb1_dn
-
     lib = library()
     level = Pipeline(make_model("free-space", rx_pattern=rm_wb1_dn()))
     assert not lib["rx_mounting"].applicable(level)

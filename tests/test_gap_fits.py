@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 from _gap_synth import make_case
 
+from mission.gap.align import align
 from mission.gap.candidates import select
-from mission.gap.fit import FitConfig, Fold, make_folds
+from mission.gap.fit import FitConfig, Fold, make_folds, objective
 from mission.gap.ladder import ladder
-from mission.gap.pipeline import Pipeline
+from mission.gap.nadir import NearNadirLoss
+from mission.gap.pipeline import Pipeline, Receiver, offset_residuals, predict_channels
 from mission.gap.power import (
     DEPTHS_DB,
     FIT_MARGIN,
@@ -97,8 +99,6 @@ def test_near_nadir_found_or_power_statement_says_why(effect: str) -> None:
 
 
 def _dep_sin(f: FlightSamples) -> np.ndarray:
-    from mission.gap.align import align
-
     return np.sin(align(f).dep_b)
 
 
@@ -144,9 +144,6 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
     """The fits evaluate all flights in one model call (each sample with its own transmitter and its
     flight's centre): the values must be exactly those of one call per flight, with a time offset, a
     body-fixed term, flights far apart (float32 centring) and an empty selection."""
-    from mission.gap.nadir import NearNadirLoss
-    from mission.gap.pipeline import predict_channels
-
     flights, _ = _flights("legs", 3, 1.0)
     far = flights[1]
     flights.append(
@@ -172,9 +169,6 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
         assert g.shape == want.shape and np.array_equal(g, want)
     assert any(len(g) for g in got)
     # the offsets and losses taken on all flights at once: the very values of one flight at a time
-    from mission.gap.fit import objective
-    from mission.gap.pipeline import Receiver, offset_residuals
-
     pipe = pipe.replace(receiver=Receiver(-95.0, -40.0))
     for loss in ("l2", "soft_l1", "huber"):
         got = offset_residuals(pipe, flights, idx, loss=loss, f_scale_db=4.0)

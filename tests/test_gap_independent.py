@@ -12,14 +12,29 @@ import pytest
 from _gap_synth import channel_db, diagnose_case, exp_field, make_case
 
 from mission.errors import InputError
+from mission.gap.candidates import pattern_by_name, select
+from mission.gap.freeform import (
+    KINDS,
+    basis_column,
+    basis_orders,
+    design,
+    fit_freeform,
+    link_of,
+    map_variables,
+)
+from mission.gap.pipeline import Pipeline, _dipole_db
+from mission.gap.spatial import SiteMap, fit_site_map, site_variables, usable_candidates
+from mission.gap.structure import RATIO_THRESHOLD, residual_structure
+from mission.physics import Attitude, make_model
+from mission.physics.antenna import Dipole
+from mission.physics.shadowing import fit_variogram
+from mission.robust import offset_residual
 from mission.samples import FlightSamples
 
 
 def test_library_two_ray_agrees_with_the_independent_formulas() -> None:
     """mission.physics two-ray + dipoles + attitude (eps 2) equals the generator's own eq. 1 (away
     from nulls)."""
-    from mission.physics import Attitude, make_model
-
     raw, _ = make_case("none", 4, n_flights=2, duration=120.0)
     model = make_model("two-ray", pattern="dipole", dtype=np.float64).with_effect(Attitude())
     for f in raw:
@@ -56,8 +71,6 @@ def test_withheld_effect_named_first(effect: str) -> None:
 def test_variogram_separates_correlated_shadowing_from_white_noise() -> None:
     """fit_variogram on an exponential field (sigma 4 dB, L 40 m) + 1 dB noise, and on noise
     alone."""
-    from mission.physics.shadowing import fit_variogram
-
     rng = np.random.default_rng(0)
     xy = rng.uniform(0, 400, (1500, 2))
     field = exp_field(rng, 4.0, 40.0)(xy)
@@ -71,10 +84,6 @@ def test_variogram_separates_correlated_shadowing_from_white_noise() -> None:
 def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
     """A pure 3-lobe ripple in body azimuth is drawn back by rx_gain_map (corr > 0.95, amplitude
     within 20 %)."""
-    from mission.gap.freeform import fit_freeform, link_of, map_variables
-    from mission.gap.pipeline import Pipeline
-    from mission.physics import Attitude, make_model
-
     raw, _ = make_case("none", 6, n_flights=1, duration=300.0)
     f0 = raw[0]
     fl = FlightSamples(
@@ -90,8 +99,6 @@ def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
     assert np.std(term) == pytest.approx(np.std(truth), rel=0.2)
     assert len(params["shape"]["gain_db"]) == len(params["shape"]["elevation_deg"])
     # the fast basis (Bonnet recurrence) equals numpy's Legendre series, column by column
-    from mission.gap.freeform import KINDS, basis_column, basis_orders, design
-
     rng = np.random.default_rng(2)
     a, b = rng.uniform(-3.0, 3.0, 40), rng.uniform(-1.0, 1.0, 40)
     for kind in KINDS:
@@ -102,10 +109,6 @@ def test_freeform_body_map_recovers_a_ripple_closed_form() -> None:
 def test_one_home_rules() -> None:
     """Unknown pattern names are refused; the tilt term uses the library dipole (zero tilt: zero
     term)."""
-    from mission.gap.candidates import pattern_by_name
-    from mission.gap.pipeline import _dipole_db
-    from mission.physics.antenna import Dipole
-
     with pytest.raises(InputError):
         pattern_by_name("mesured")
     s = np.linspace(-1.0, 1.0, 41)
@@ -128,11 +131,6 @@ def test_white_or_correlated_decision_on_the_independent_generator(
     """The verdict rests on the near/all-pair semivariance ratio (bootstrap bound), not on the
     fitted L: white noise (1 or 4 dB, or a withheld time offset) gives ratio ~ 1, a 4 dB exponential
     field ratio < 0.8."""
-    from mission.gap.pipeline import Pipeline
-    from mission.gap.structure import RATIO_THRESHOLD, residual_structure
-    from mission.physics import Attitude, make_model
-    from mission.robust import offset_residual
-
     base = Pipeline(make_model("two-ray", pattern="dipole").with_effect(Attitude()))
     for seed in (1, 2):
         raw, _ = make_case(effect, seed, noise_db=noise_db, dt=0.5)
@@ -158,8 +156,6 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     """A loss over compass azimuth around one transmitter, learned from one flight, predicts it on
     another flight at the same transmitter (corr > 0.9) and adds nothing around a transmitter it has
     not seen."""
-    from mission.gap.spatial import SiteMap, fit_site_map, site_variables
-
     raw, _ = make_case("none", 3, n_flights=3, dt=0.5)
     tx = np.array(
         [180.0, 180.0, 1.5]
@@ -191,8 +187,6 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     assert np.corrcoef(pred, truth)[0, 1] > 0.9
     assert np.std(pred - truth) < 0.4 * np.std(truth)
     assert not np.any(sm.field_db(fl[2], fl[2].enu_m[:, :2]))
-    from mission.gap.candidates import select
-    from mission.gap.spatial import usable_candidates
 
     names = [c.name for c in usable_candidates(select("all"), fl[:2])]
     assert "site_map" in names and "site_map" not in [

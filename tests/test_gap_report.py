@@ -7,14 +7,14 @@ import json
 
 import numpy as np
 
+from mission.cli.main import main
+from mission.flightlog import make_meta, write_flight_log
+from mission.gap.selftest import simulate_case
+from mission.geo import afar_field
 from mission.physics.family import load_family
 
 
 def _logs(tmp_path, n: int = 2) -> list[str]:
-    from mission.flightlog import make_meta, write_flight_log
-    from mission.gap.selftest import simulate_case
-    from mission.geo import afar_field
-
     _, _, flights = simulate_case("rx_pattern", 3, n_flights=n, dt_s=0.5, max_duration_s=200.0)
     origin = afar_field().origin
     out = []
@@ -43,8 +43,6 @@ def _logs(tmp_path, n: int = 2) -> list[str]:
 
 
 def test_report_fits_80_columns_and_family_loads(tmp_path, capsys, monkeypatch) -> None:
-    from mission.cli.main import main
-
     monkeypatch.setenv("COLUMNS", "80")
     logs = _logs(tmp_path)
     capsys.readouterr()

@@ -4,15 +4,24 @@ on what is left, and process-level parallelism.  Small seeded cases from the ind
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import pytest
 from _gap_synth import make_case
 
+from mission.gap.candidates import select
+from mission.gap.diagnose import diagnose
 from mission.gap.fit import FitConfig, heldout_residuals, make_folds, rank_candidates
+from mission.gap.frame import frame_test, heading_groups, resolve
 from mission.gap.pipeline import Pipeline
+from mission.gap.report import write_report
+from mission.gap.structure import WITHIN_FLIGHT, structure_verdict
+from mission.gap.temporal import MIN_EVENT_GAP_S, flight_events, time_power_statement
+from mission.gap.text import verdict_sentence
 from mission.physics import Attitude, make_model
+from mission.robust import offset_residual
 from mission.samples import FlightSamples
 
 
@@ -37,8 +46,6 @@ def _base() -> Pipeline:
 
 
 def _rank(flights, names, cfg, pipe=None):
-    from mission.gap.candidates import select
-
     folds = make_folds(flights, cfg)
     pipes = [pipe or _base()] * len(folds)
     base = heldout_residuals(pipes, flights, folds, cfg)
@@ -51,8 +58,6 @@ def _rank(flights, names, cfg, pipe=None):
 
 
 def test_flight_events_find_turns_and_phase_changes():
-    from mission.gap.temporal import MIN_EVENT_GAP_S, flight_events
-
     fl, truth = _flights("step", 2)
     for f in fl:
         ev = flight_events(f)
@@ -76,9 +81,6 @@ def test_time_drift_finds_a_step_and_nothing_in_noise():
 
 
 def test_time_power_statement_blocks_and_flights():
-    from mission.gap.temporal import time_power_statement
-    from mission.robust import offset_residual
-
     fl, _ = _flights("none", 3)
     res = [offset_residual(f.rss_dbm, _base().predict(f), False, "l2") for f in fl]
     cfg = FitConfig(seed=3, fit_max_samples=800)
@@ -90,8 +92,6 @@ def test_time_power_statement_blocks_and_flights():
 
 
 def test_heading_groups_split_a_lawnmower_by_row_direction():
-    from mission.gap.frame import heading_groups
-
     fl, _ = _flights("none", 1)
     g = heading_groups(fl[0])  # lawnmower: east- and westbound rows
     assert 0.35 < g.mean() < 0.65
@@ -105,8 +105,6 @@ def test_heading_groups_split_a_lawnmower_by_row_direction():
     ("effect", "verdict"), [("ripple", "body-fixed"), ("shadowing", "ground-fixed")]
 )
 def test_frame_test_tells_body_from_ground(effect, verdict):
-    from mission.gap.frame import frame_test
-
     fl, _ = _flights(effect, 2)
     out = frame_test(
         _base(), fl, "rx_gain_map", "spatial_shadowing", FitConfig(seed=2, fit_max_samples=800)
@@ -115,8 +113,6 @@ def test_frame_test_tells_body_from_ground(effect, verdict):
 
 
 def test_resolve_gives_way_to_the_frame_winner():
-    from mission.gap.frame import resolve
-
     fr = {
         "body": "leg_shadowing",
         "ground": "spatial_shadowing",
@@ -141,9 +137,6 @@ def test_processes_are_bit_identical_to_one():
 
 
 def test_one_verdict_on_what_is_left():
-    from mission.gap.structure import WITHIN_FLIGHT, structure_verdict
-    from mission.gap.text import verdict_sentence
-
     along = {"correlated_fraction": 0.8, "sigma_db": 9.8, "corr_len": 20.0, "nugget_db": 5.0}
     test = {"correlated": False, "ratio": 0.93, "ratio_ci": [0.8, 1.05], "correlated_std_db": 2.0}
     assert structure_verdict(test, along) == WITHIN_FLIGHT
@@ -164,12 +157,6 @@ def test_one_verdict_on_what_is_left():
 def test_diagnosis_report_with_a_time_rung(tmp_path):
     """The ladder adds ``time_drift`` on a gain step; the report, gap.json and the summary say
     so."""
-    import json
-
-    from mission.gap.candidates import select
-    from mission.gap.diagnose import diagnose
-    from mission.gap.report import write_report
-
     fl, _ = _flights("step", 1)
     d = diagnose(
         fl,

@@ -9,6 +9,8 @@ import pytest
 from mission.errors import InputError
 from mission.geo import afar_field
 from mission.preview import _dist_to_polyline
+from mission.simulate import fly_path
+from mission.spec import load_mission
 from mission.trajectory.generators import (
     GENERATORS,
     coverage_radius,
@@ -56,15 +58,11 @@ def test_spiral_inside_flight_area_and_covers_overlap(field, spacing):
 
 
 def test_default_spiral_fits_ten_minutes(field):
-    from mission.spec import load_mission
-
     spec = load_mission()  # missions/spiral.yaml
     prof = plan_profile(spec.flight_path_enu(), spec.kinematics())
     assert spec.altitude_m == 30.0 and spec.trajectory.generator == "spiral"
     assert 8 * 60 <= prof.duration_s <= 9.5 * 60 < 600
     # the same number from the simulator's own path sampling
-    from mission.simulate import fly_path
-
     t, _, _, _ = fly_path(spec.flight_path_enu(), spec.sim_config(), np.random.default_rng(0))
     assert t[-1] <= 600.0 and len(t) > 15000
 

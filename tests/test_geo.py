@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.geo import AFAR_GEOMETRY, Area, Origin, afar_field
+from mission.geo import AFAR_GEOMETRY, Area, Origin, afar_field, clip_polygon, polygon_area_m2
 
 
 def test_enu_round_trip_to_a_millimetre():
@@ -59,8 +61,6 @@ def test_uniform_sampling_is_inside_and_seeded():
 
 
 def test_afar_field_matches_shared_geometry(shared_dir):
-    import json
-
     g = json.loads((shared_dir / "afar_geometry.json").read_text())
     for key in ("flight_area", "rover_area"):
         for k in ("lat_min", "lat_max", "lon_min", "lon_max"):
@@ -75,8 +75,6 @@ def test_afar_field_matches_shared_geometry(shared_dir):
 def test_clipping_a_non_convex_area_keeps_every_part_and_its_area():
     """An L-shaped subject clipped by a square (closed forms), and a U clipped by a band across its
     arms: two parts, each inside both polygons."""
-    from mission.geo import clip_polygon, polygon_area_m2
-
     ell = np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100.0]])
     parts = clip_polygon(ell, np.array([[20, 20], [80, 20], [80, 80], [20, 80.0]]))
     assert len(parts) == 1 and polygon_area_m2(parts[0]) == pytest.approx(60 * 60 - 40 * 40)

@@ -3,10 +3,22 @@ magnitudes."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from mission.trajectory.kinematics import Kinematics, attitude_from_motion, plan_profile
+from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
+from mission.spec import load_mission
+from mission.trajectory.attitude import AttitudeState, ou_process, run_attitude
+from mission.trajectory.kinematics import (
+    Kinematics,
+    attitude_from_motion,
+    initial_course,
+    plan_profile,
+)
 
 
 def test_single_leg_closed_form_time():
@@ -105,8 +117,6 @@ def test_fixed_heading_holds_the_nose_and_tilts_along_the_motion():
 def test_attitude_model_stepped_equals_vectorised():
     """The vehicle runs the attitude model in chunks of any size (one sample: a step); the result
     must be the whole-array result of the fast simulator, wind and turbulence included."""
-    from mission.trajectory.attitude import AttitudeState, ou_process, run_attitude
-
     kin = Kinematics(cruise_speed_mps=6.0)
     p = plan_profile(
         np.array([[0, 0, 0], [0, 0, 30], [150, 0, 30], [150, 120, 30], [20, 40, 30]]), kin
@@ -167,14 +177,6 @@ AFAR_PITCH_P5_P50_P95 = (-7.5, -2.2, 2.7)
 def _spiral_attitude(heading_deg=None, seed=0):
     """The spiral mission flown by the attitude model with the simulated vehicle's gusts and
     turbulence."""
-    import dataclasses
-    import math
-    from pathlib import Path
-
-    from mission.spec import load_mission
-    from mission.trajectory.attitude import AttitudeState, ou_process, run_attitude
-    from mission.trajectory.kinematics import initial_course
-
     spec = load_mission(Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml")
     kin = dataclasses.replace(spec.kinematics(), heading_deg=heading_deg)
     dt = 0.03
@@ -210,12 +212,9 @@ def test_simulated_cruise_attitude_is_near_real_afar():
 def test_real_afar_cruise_attitude_constants():
     """The real-flight figures above, recomputed from the AFAR MAT files (skips where ../shared is
     absent)."""
-    from pathlib import Path
-
     mat = Path(__file__).resolve().parents[2] / "shared" / "data" / "afar2023" / "mat"
     if not mat.exists():
         pytest.skip("AFAR data not in ../shared/data/afar2023/mat")
-    from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
 
     roll, pitch = [], []
     for team in (288, 328):

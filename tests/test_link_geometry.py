@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from mission.cells import Cells
+from mission.gap.align import align
 from mission.localize.selfcal import _geometry
+from mission.physics import make_model
 from mission.physics.geometry import (
     bearing,
     body_angles,
@@ -24,6 +26,7 @@ from mission.physics.geometry import (
     sin_elevation,
     slant_distance,
 )
+from mission.samples import FlightSamples
 
 # float32 keeps ~7 digits: angles of order 2 pi to about 1e-6 rad; the stated tolerances leave a
 # margin of ~10
@@ -132,10 +135,6 @@ def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_floa
 def test_gap_alignment_is_the_physics_models_own_geometry():
     """The gap's per-sample geometry and the propagation model's float64 explanation agree (one
     home)."""
-    from mission.gap.align import align
-    from mission.physics import make_model
-    from mission.samples import FlightSamples
-
     rng = np.random.default_rng(5)
     n = 300
     enu = np.column_stack([rng.uniform(-200, 200, (n, 2)), rng.uniform(10.0, 60.0, n)])

@@ -17,8 +17,12 @@ import numpy as np
 import pytest
 import yaml
 
+from mission.cli.localize import main
+from mission.cli.main import main as rfsl
 from mission.flight.live import estimate_at, estimate_file_at
+from mission.flight.runner import free_udp_port
 from mission.flightlog import PHASES, make_meta, read_flight_log, write_flight_log
+from mission.localize.methods import ADAPTIVE_METHOD
 from mission.physics import make_model
 from mission.simulate import simulate_flight
 from mission.spec import load_mission
@@ -44,8 +48,6 @@ def sim_log(tmp_path_factory) -> Path:
 
 
 def _cli_json(args: list[str], capsys) -> dict:
-    from mission.cli.localize import main
-
     assert main([*args, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
 
@@ -73,8 +75,6 @@ def test_localize_at_reproduces_the_live_estimate(sim_log, capsys):
 def test_live_estimate_of_an_adaptive_flight_is_the_planners(sim_log, tmp_path, capsys):
     """An adaptive flight's live estimates come from ``ADAPTIVE_METHOD``, with the posterior
     candidates the rounds plan on; ``--at`` gives them back."""
-    from mission.localize.methods import ADAPTIVE_METHOD
-
     log = _with_meta(sim_log, tmp_path / "flight.csv", trajectory={"adaptive": {"survey_s": 300.0}})
     live = estimate_file_at(str(log), 200.0)
     d = _cli_json([str(log), "--at", "200"], capsys)
@@ -102,16 +102,12 @@ def test_localize_at_keeps_an_older_logs_live_method(sim_log, tmp_path, capsys):
 
 
 def test_localize_at_before_the_log_is_refused(sim_log, capsys):
-    from mission.cli.localize import main
-
     assert main([str(sim_log), "--at", "-1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--at" in err[0] and "no rows" in err[0]
 
 
 def test_localize_at_on_a_real_log(shared_dir, tmp_path, capsys):
-    from mission.cli.main import main as rfsl
-
     mat = sorted((shared_dir / "data/afar2023/mat").glob("*.mat"))[0]
     assert rfsl(["import", "afar-mat", str(mat), "--out", str(tmp_path)]) == 0
     capsys.readouterr()
@@ -203,8 +199,6 @@ def test_abort_in_the_adaptive_part_keeps_the_log(tmp_path, how):
     estimates too. The moment is picked on the log's rows (adaptive rows on disk), not on stderr
     text; at speed-up 10 a loaded machine still has the wall-clock time to plan round 1 before the
     survey ends."""
-    from mission.flight.runner import free_udp_port
-
     out = tmp_path / "f"
     args = [
         str(_mission(tmp_path)),

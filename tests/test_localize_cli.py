@@ -9,12 +9,16 @@ import numpy as np
 import pytest
 from _figures import assert_png_drawn, capture_figures, legend_labels
 from _localize_helpers import write_synthetic_log
+from onnx import TensorProto, helper, numpy_helper
 
 from mission.cli.localize import main as localize
 from mission.errors import InputError
 from mission.flightlog import read_flight_log
 from mission.geo import afar_field
+from mission.localize.api import localize_log
 from mission.localize.features import FeatureConfig, cluster_features
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.localize.preprocess import select_cruise
 
 TX = (150.0, 120.0, 1.5)
 
@@ -110,7 +114,6 @@ def make_onnx(
     width=None,
 ):
     onnx = pytest.importorskip("onnx")
-    from onnx import TensorProto, helper, numpy_helper
 
     f = width or w.shape[0]
     g = helper.make_graph(
@@ -143,10 +146,6 @@ def make_onnx(
 
 
 def test_onnx_end_to_end(log_path, tmp_path, capsys):
-    from mission.localize.api import localize_log
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.localize.preprocess import select_cruise
-
     cfg = FeatureConfig()
     f = cfg.n_features
     w = np.zeros((f, 2))
@@ -176,8 +175,6 @@ def test_onnx_end_to_end(log_path, tmp_path, capsys):
 
 
 def test_onnx_refusals(log_path, tmp_path, capsys):
-    from mission.localize.onnx_model import OnnxLocalizer
-
     cfg = FeatureConfig()
     f = cfg.n_features
     norm = {"input_mean": 0.0, "input_std": 1.0, "output_mean": [0, 0], "output_std": [1, 1]}

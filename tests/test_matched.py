@@ -8,13 +8,17 @@ also checks that the two agree enough.
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 import pytest
 from _localize_helpers import lawnmower_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mission.cli.localize import add_arguments
 from mission.errors import InputError
+from mission.localize.api import make_localizer
 from mission.localize.matched import MatchedLocalizer, conformal_mass
 from mission.localize.matched_sim import FieldBasis, centred, track_cells
 from mission.physics.family import PhysicsFamily, simulate_rss
@@ -158,12 +162,6 @@ def test_cells_centring_and_conformal_mass(flight):
 
 
 def test_wired_into_localize():
-    import argparse
-
-    from mission.cli.localize import add_arguments
-    from mission.localize.api import make_localizer
-    from mission.localize.matched import MatchedLocalizer
-
     p = argparse.ArgumentParser()
     add_arguments(p)
     assert p.parse_args(["x.csv", "--method", "matched"]).method == "matched"

@@ -4,16 +4,21 @@ calibration) is what ``localize_log`` gives."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from _localize_helpers import write_synthetic_log
 
+from mission.cli.localize import add_arguments
 from mission.errors import InputError
+from mission.localize.api import choose_method, localize_log, make_localizer
+from mission.localize.error_circles import CIRCLE_METHODS, METHOD_CIRCLES
 from mission.localize.methods import (
     CIRCLE,
     FROM_CARD,
@@ -24,6 +29,7 @@ from mission.localize.methods import (
     method_entry,
     names_where,
 )
+from mission.workshop.evaluate import CLASSICAL, suite_method
 
 REPO = Path(__file__).resolve().parent.parent
 TX = (150.0, 120.0, 1.5)
@@ -35,12 +41,7 @@ def log_path(tmp_path_factory):
 
 
 def test_every_name_list_reads_from_the_registry() -> None:
-    from mission.cli.localize import add_arguments
-    from mission.localize.error_circles import CIRCLE_METHODS, METHOD_CIRCLES
-    from mission.workshop.evaluate import CLASSICAL, suite_method
-
     assert METHOD_NAMES == tuple(METHODS) and len(set(METHOD_NAMES)) == len(METHOD_NAMES) >= 7
-    import argparse
 
     p = argparse.ArgumentParser()
     add_arguments(p)
@@ -70,8 +71,6 @@ def test_entries_are_consistent() -> None:
 
 
 def test_unknown_method_names_every_known_one() -> None:
-    from mission.localize.api import make_localizer
-
     with pytest.raises(InputError) as e:
         method_entry("kriging")
     assert all(n in str(e.value) for n in METHOD_NAMES)
@@ -84,8 +83,6 @@ def test_unknown_method_names_every_known_one() -> None:
 
 @pytest.mark.parametrize("name", [n for n, m in METHODS.items() if m.factory is not None])
 def test_factory_builds_an_estimator(name) -> None:
-    from mission.localize.api import make_localizer
-
     loc = make_localizer(name)
     assert callable(getattr(loc, "predict", None)), name
 
@@ -94,8 +91,6 @@ def test_factory_builds_an_estimator(name) -> None:
 def test_declared_uncertainty_is_what_localize_gives(log_path, name) -> None:
     """A circle method's regions are error circles; a posterior method's are HPD regions of its
     posterior."""
-    from mission.localize.api import localize_log
-
     est = localize_log(log_path, method=name)
     regions = est.to_dict()["regions"]
     assert [r["level"] for r in regions] == [0.5, 0.9]
@@ -108,7 +103,8 @@ def test_declared_uncertainty_is_what_localize_gives(log_path, name) -> None:
 
 def test_cli_help_lists_every_method_without_numpy() -> None:
     code = (
-        "import argparse, sys; from mission.cli.localize import add_arguments; p = argparse.ArgumentParser(); "
+        "import argparse, sys; from mission.cli.localize import add_arguments; p = "
+        "argparse.ArgumentParser(); "
         "add_arguments(p); print('numpy' in sys.modules); print(p.format_help())"
     )
     out = subprocess.run(
@@ -173,10 +169,6 @@ LAWN_SIM = {"rss_source": {"kind": "sim", "model": "e2r"}, "trajectory": {"gener
     ],
 )
 def test_choose_method_table(meta, height, model, default, method, net) -> None:
-    import numpy as np
-
-    from mission.localize.api import choose_method
-
     dflt = Path("models") / "D" if default == "D" else None
     got, path, why = choose_method(meta, np.full(50, height), model, dflt)
     assert got == method and why

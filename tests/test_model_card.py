@@ -13,6 +13,9 @@ from hypothesis import strategies as st
 
 from mission.errors import InputError
 from mission.localize.card import DOMAIN_KEY, TrainingDomain, card_path
+from mission.localize.error_circles import card_calibration
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.workshop.domain import write_domain
 
 finite = st.floats(-1e4, 1e4, allow_nan=False)
 span = st.tuples(finite, finite).map(sorted).map(tuple)
@@ -67,9 +70,6 @@ def net(tmp_path, repo_dir):
 
 
 def test_the_runtime_reads_the_cards_domain_and_circles(net):
-    from mission.localize.error_circles import card_calibration
-    from mission.localize.onnx_model import OnnxLocalizer
-
     card = OnnxLocalizer(net).card
     assert card.domain.altitude_m == (30.0, 30.0)
     assert (
@@ -94,9 +94,6 @@ def test_the_runtime_reads_the_cards_domain_and_circles(net):
 
 
 def test_a_network_without_a_card_makes_no_claim(net):
-    from mission.localize.error_circles import card_calibration
-    from mission.localize.onnx_model import OnnxLocalizer
-
     card_path(net).unlink()
     card = OnnxLocalizer(net).card
     assert card.domain == TrainingDomain() and card.regions is None
@@ -107,9 +104,6 @@ def test_a_network_without_a_card_makes_no_claim(net):
 
 
 def test_write_domain_adds_the_domain_and_keeps_the_rest(net):
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.domain import write_domain
-
     before = json.loads(card_path(net).read_text())
     dom = write_domain(net, {"datasets": [{"randomisation": {"altitude_m": [22.0, 33.0]}}]})
     after = json.loads(card_path(net).read_text())

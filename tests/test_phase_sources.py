@@ -5,11 +5,13 @@ construction) and a flown vehicle's events (``flight.phases.PhaseTracker``); one
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from mission.adaptive.simflight import fixed_path
 from mission.flight.phases import PhaseTracker, final_phase
 from mission.flightlog import GROUND, LAND, MISSION, PHASES, RETURN, TAKEOFF
 from mission.simulate import leg_phases
@@ -29,8 +31,6 @@ def _runs(phase, item) -> list[tuple[str, int]]:
 
 @pytest.mark.parametrize("path", MISSIONS, ids=lambda p: p.stem)
 def test_planned_path_geometry_agrees_with_the_simulators_construction(path):
-    from mission.adaptive.simflight import fixed_path
-
     spec = load_mission(path)
     legs, names = fixed_path(spec)
     assert list(leg_phases(legs)[0]) == names
@@ -46,8 +46,6 @@ def test_flown_events_give_the_planned_paths_phases_and_items(behaviour):
     """A vehicle flying the mission as uploaded (take-off, speed, waypoints, final item) logs,
     through ``PhaseTracker``, the same phase/item sequence the simulator derives from the planned
     path."""
-    import dataclasses
-
     spec = dataclasses.replace(load_mission(), return_behaviour=behaviour)
     n = len(spec.waypoints_enu())
     first_wp, last_item = 2, n + 2  # items: take-off, change speed, n waypoints, RTL or LAND

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 from mission.physics import (
     GroundReflection,
@@ -16,6 +18,7 @@ from mission.physics import (
     make_model,
 )
 from mission.physics.constants import SPEED_OF_LIGHT
+from mission.physics.geometry import body_from_enu_matrix, body_from_enu_planes
 
 FC = 3.32e9
 LAM = SPEED_OF_LIGHT / FC
@@ -56,8 +59,6 @@ def test_two_ray_nulls_at_whole_wavelength_path_difference():
     fs = _iso("free-space")
     for k in (1, 2, 3):
         # solve d_ref - d_los = k lambda for d
-        from scipy.optimize import brentq
-
         def f(d, k=k):
             return math.hypot(d, h_r + h_t) - math.hypot(d, h_r - h_t) - k * LAM
 
@@ -224,8 +225,6 @@ def test_broadcasting_equals_loop():
     loop = [m.rss_dbm(txp[i], rx[i : i + 1], att[i : i + 1])[0] for i in idx]
     assert np.allclose(pr[idx], loop, atol=1e-4)
     # small chunks give the same answer as one block
-    from dataclasses import replace
-
     assert np.allclose(replace(m, chunk=100).rss_dbm(tx[:, None, :], rx, att), out, atol=1e-4)
 
 
@@ -296,8 +295,6 @@ def test_isotropic_pattern_is_zero_dbi():
 
 def test_body_matrix_planes_equal_the_matrix():
     """The fast path's (3, 3, N) layout holds exactly the body-from-ENU matrix of every sample."""
-    from mission.physics.geometry import body_from_enu_matrix, body_from_enu_planes
-
     att = np.random.default_rng(5).uniform(-np.pi, np.pi, (257, 3))
     assert np.allclose(
         body_from_enu_planes(att), body_from_enu_matrix(att).transpose(1, 2, 0), atol=1e-15

@@ -12,10 +12,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _localize_helpers import write_synthetic_log
 
 from mission.errors import InputError
+from mission.flightlog import FlightLog, make_meta, write_flight_log
+from mission.gap.align import flight_from_log
+from mission.gap.fit import offset_residual
+from mission.geo import afar_field
+from mission.importers.afar import convert_afar_mat
+from mission.localize import api
+from mission.localize.api import _default_physics, default_model_path, localize_log, make_localizer
+from mission.localize.card import ModelCard, TrainingDomain
+from mission.localize.preprocess import cruise_mask
 from mission.physics import Attitude, PathGainSlope, make_model
 from mission.physics.presets import build_model, load_calibration, load_preset, preset_model
+from mission.simulate import SimConfig, simulate_flight
+from mission.spec import load_mission
 
 SHARED = Path(__file__).parents[1] / ".." / "shared"
 MAT = SHARED / "data" / "afar2023" / "mat"
@@ -136,8 +148,6 @@ def test_yaw_only_attitude_equals_level_body_with_the_logged_yaw():
 
 
 def test_grid_localizer_with_preset():
-    from mission.localize.api import make_localizer
-
     loc = make_localizer("grid", physics_preset="afar")
     assert loc.model_name == "afar-calibrated"
     with pytest.raises(InputError):
@@ -145,10 +155,6 @@ def test_grid_localizer_with_preset():
 
 
 def test_localize_log_default_physics_is_the_preset(tmp_path):
-    from _localize_helpers import write_synthetic_log
-
-    from mission.localize.api import localize_log
-
     p = write_synthetic_log(tmp_path / "f.csv", n=1500)
     est = localize_log(p, method="grid")
     assert est.model == "afar-calibrated"
@@ -158,10 +164,6 @@ def test_localize_log_default_physics_is_the_preset(tmp_path):
 
 
 def _cruise_flight(team: int, loc: int):
-    from mission.gap.align import flight_from_log
-    from mission.importers.afar import convert_afar_mat
-    from mission.localize.preprocess import cruise_mask
-
     res = convert_afar_mat(MAT / f"results_useful_ori_exp_{team}_loc_{loc}.mat", TRUTH[loc])
     f = flight_from_log(res.log, name=f"{team}-loc{loc}")
     f = f.select(f.enu_m[:, 2] > 10.0)
@@ -173,8 +175,6 @@ def _cruise_flight(team: int, loc: int):
 def test_calibrated_model_beats_free_space_on_held_out_team_288():
     """The fold fitted on team 328 only, scored on team 288 locations 1-2 (never seen by that
     fit)."""
-    from mission.gap.fit import offset_residual
-
     rec = json.loads(
         (Path(__file__).parents[1] / "mission" / "data" / "afar_calibration.json").read_text()
     )
@@ -196,11 +196,6 @@ def test_calibrated_model_beats_free_space_on_held_out_team_288():
 def test_default_grid_physics_follows_the_log_source():
     """A simulated log is searched with its own simulation model; a real receiver's with the afar
     preset."""
-    import numpy as np
-
-    from mission.flightlog import FlightLog
-    from mission.localize.api import _default_physics
-
     cols = {"t_s": np.zeros(1)}
     sim = FlightLog(
         cols, {"rss_source": {"kind": "sim", "model": "two-ray", "model_params": {"eps_r": 5}}}
@@ -215,15 +210,6 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     """Without --method, a real receiver's log gets the fused self-calibrating + network estimate
     (the rule in models/README.md), a simulated one the network (or its own model), and it says
     why."""
-    import numpy as np
-
-    from mission.flightlog import make_meta, write_flight_log
-    from mission.geo import afar_field
-    from mission.localize.api import default_model_path, localize_log
-    from mission.physics import make_model
-    from mission.simulate import SimConfig, simulate_flight
-    from mission.spec import load_mission
-
     spec = load_mission()
     origin = afar_field().origin
     tx = np.array([120.0, 200.0, 1.5])
@@ -262,15 +248,6 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
     """When the network lands far from a sharp self-calibrating posterior, the fused point falls
     outside the 90 % region (which is the search's alone) and the estimate says so instead of
     drawing a region beside it."""
-    import numpy as np
-
-    from mission.flightlog import make_meta, write_flight_log
-    from mission.geo import afar_field
-    from mission.localize import api
-    from mission.physics import make_model
-    from mission.simulate import SimConfig, simulate_flight
-    from mission.spec import load_mission
-
     spec = load_mission()
     origin = afar_field().origin
     tx = np.array([120.0, 200.0, 1.5])
@@ -282,9 +259,8 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
     )
     make = api.make_localizer
 
-    from mission.localize.card import ModelCard, TrainingDomain
-
-    class FarNetwork:  # a network answer 300 m east of the truth (what a net off its training domain can do)
+    # a network answer 300 m east of the truth (what a net off its training domain can do)
+    class FarNetwork:
         path = tmp_path / "far.onnx"
         model_name = "far.onnx"
         # no card beside it: no training domain (no altitude or attitude claim), no calibrated

@@ -11,6 +11,7 @@ from _figures import assert_png_drawn, capture_figures, legend_labels
 
 from mission.cli.main import main
 from mission.preview import area_grid, coverage, expected_error_map, ml_grid_estimator
+from mission.simulate import fly_path
 from mission.spec import load_mission
 
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
@@ -55,7 +56,6 @@ def test_coverage_of_default_spiral():
 def test_estimator_is_offset_invariant_and_finds_the_source():
     spec = load_mission(MISSIONS / "waypoints.yaml")
     model = _model(spec)
-    from mission.simulate import fly_path
 
     _, pos, att, _ = fly_path(spec.flight_path_enu(), spec.sim_config(), np.random.default_rng(0))
     pos, att = pos[::10], att[::10]

@@ -27,6 +27,7 @@ import pytest
 from _sitl_process import SitlProcess, free_instance
 
 from mission.flightlog import read_flight_log
+from mission.spec import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 PX4 = ROOT.parent / "shared" / "sitl" / "px4"
@@ -60,8 +61,6 @@ class _Px4(SitlProcess):
         self.speedup, self.run = speedup, root / "px4"
 
     def start(self) -> str:
-        from mission.spec import load_mission
-
         spec = load_mission(
             SPIRAL
         )  # the vehicle takes off from the missions' home (4 m inside the fence)

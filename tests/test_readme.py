@@ -3,11 +3,13 @@ exist."""
 
 from __future__ import annotations
 
+import importlib
 import re
 
 import pytest
 
 from mission.cli.main import SUBCOMMANDS
+from mission.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -59,10 +61,6 @@ def test_commands_name_real_subcommands_and_files(readme, repo_dir):
 def test_exit_code_table_matches_the_code(readme):
     """The README's exit-code table names every code the commands return: bad input, and each flight
     ``EXIT_*`` constant (a new one needs its column)."""
-    import importlib
-
-    from mission.errors import InputError
-
     mods = []
     for name in ("mission.flight.context", "mission.flight.tasks"):  # where the flight's codes live
         try:

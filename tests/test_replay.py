@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from _figures import assert_png_drawn, capture_figures, legend_labels
 
+from mission.cli.main import main
 from mission.flightlog import make_meta, read_flight_log, write_flight_log
 from mission.geo import Origin
 from mission.replay import plot, summary
@@ -57,8 +58,6 @@ def test_summary_and_plot(tmp_path):
 
 
 def test_cli(tmp_path, capsys):
-    from mission.cli.main import main
-
     p = _log(tmp_path)
     assert main(["replay", str(p), "--out", str(tmp_path / "x.png")]) == 0
     assert "duration_s" in capsys.readouterr().out

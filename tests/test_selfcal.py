@@ -14,9 +14,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mission.cells import altitude_index, cell_average
-from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
+from mission.cells import Cells, altitude_index, cell_average
+from mission.cli.main import main
+from mission.errors import InputError
+from mission.flightlog import FlightLog
+from mission.geo import afar_field
+from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.localize.preprocess import select_samples
+from mission.localize.selfcal import (
+    GainTables,
+    SelfCalibratingGrid,
+    antenna_hypotheses,
+    hypothesis_ssr,
+)
 from mission.localize.uncertainty import Posterior, hpd_regions, region_covers
+from mission.physics.antenna import mount_angles, rm_wb1_dn
+from mission.physics.patterns import TabulatedPattern
+from mission.physics.presets import preset_model
 from mission.samples import FlightSamples
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
@@ -53,8 +67,6 @@ def test_noise_free_free_space_is_found_exactly_with_any_offset() -> None:
 def test_antenna_heading_is_profiled_out() -> None:
     """An upside-down RM-WB1-DN at an unknown heading: the estimator names the right hypothesis and
     finds the transmitter; a fixed wrong antenna (isotropic only) does worse."""
-    from mission.physics.antenna import mount_angles, rm_wb1_dn
-
     rx = lawnmower(h=35.0)
     tx = np.array([60.0, 150.0, 1.5])
     yaw = np.full(len(rx), np.radians(315.0))
@@ -109,8 +121,6 @@ def test_cells_keep_cruise_altitudes_apart() -> None:
 
 
 def test_hypotheses_are_named_and_unknown_refused() -> None:
-    from mission.errors import InputError
-
     h = antenna_hypotheses(heading_step_deg=90.0)
     assert len(h) == 4 + 4 + 2
     with pytest.raises(InputError):
@@ -195,10 +205,6 @@ def test_outside_flown_area_is_said() -> None:
 
 
 def test_mission_phase_selects_legs_and_height_band_otherwise() -> None:
-    from mission.flightlog import FlightLog
-    from mission.geo import afar_field
-    from mission.localize.preprocess import select_samples
-
     n = 100
     o = afar_field().origin
     h = np.r_[np.linspace(0, 30, 20), np.full(60, 30.0), np.full(20, 30.0)]
@@ -234,8 +240,6 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
     mat = SHARED / "data" / "afar2023" / "mat"
     if not mat.is_dir():
         pytest.skip("../shared/data absent")
-    from mission.cli.main import main
-    from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
 
     logs = []
     for team, loc in ((288, 1), (328, 1), (328, 2)):
@@ -282,7 +286,6 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
     by = rec["heldout_gap_by_config"]
     assert by["fs_rxflip_yaw"]["soft_l1"] < by["fs_iso"]["soft_l1"]
     assert rec["config"] == "fs_rxflip_yaw"
-    from mission.physics.presets import preset_model
 
     m = preset_model(str(out))
     assert m.has("rx_antenna")
@@ -295,10 +298,6 @@ def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
     """The grid owns its gain tables (no module cache): a pattern met again reuses its table,
     another pattern object gets its own; with a constant-gain pattern of g dBi the fitted offset is
     the isotropic one minus g."""
-    from mission.cells import Cells
-    from mission.localize.selfcal import GainTables, SelfCalibratingGrid, hypothesis_ssr
-    from mission.physics.patterns import TabulatedPattern
-
     rx = lawnmower(legs=3, step=20.0)
     cells = Cells(
         rx,

@@ -13,13 +13,13 @@ import sys
 import pytest
 from _localize_helpers import write_synthetic_log
 
+from mission.localize.api import FUSION_MODEL_NAME, shipped_model
 from mission.shipped import PACKAGE_DIR, missions_dir, models_dir, shipped_dir
+from mission.spec import DEFAULT_MISSION
 
 
 def test_checkout_folders(repo_dir):
     assert models_dir() == repo_dir / "models" and missions_dir() == repo_dir / "missions"
-    from mission.localize.api import FUSION_MODEL_NAME, shipped_model
-    from mission.spec import DEFAULT_MISSION
 
     assert shipped_model(FUSION_MODEL_NAME) == repo_dir / "models" / FUSION_MODEL_NAME
     assert shipped_model("no_such_model.onnx") is None

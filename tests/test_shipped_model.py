@@ -20,6 +20,7 @@ import pytest
 from _onnx_numpy import predict as numpy_predict
 
 from mission.localize.altitude_scale import REFERENCE_HEIGHT_M, scale_cluster_xy, scale_factor
+from mission.localize.onnx_model import OnnxLocalizer
 from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 
 SHIPPED = (
@@ -54,7 +55,6 @@ def test_shipped_model_reproduces_card(name, regenerated, repo_dir):
     card = repo_dir / "models" / f"{name}.json"
     if not model.exists() or not card.exists():
         pytest.skip(f"no shipped model {name}")
-    from mission.localize.onnx_model import OnnxLocalizer
 
     assert model.stat().st_size < 5 * 2**20
     rec = json.loads(card.read_text())["ci_check"]
@@ -98,7 +98,6 @@ def test_onnxruntime_matches_numpy_forward_pass(name, repo_dir):
     model = repo_dir / "models" / f"{name}.onnx"
     if not model.exists():
         pytest.skip(f"no shipped model {name}")
-    from mission.localize.onnx_model import OnnxLocalizer
 
     loc = OnnxLocalizer(model)
     rng = np.random.default_rng(0)

@@ -10,7 +10,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mission.cli.main import main as rfsl
+from mission.flightlog import read_flight_log
+from mission.localize.api import localize_log
 from mission.localize.sim_default import SPIRAL_NETWORKS, sim_default_model, spiral_source
+from mission.spec import DEFAULT_MISSION, load_mission
 
 SPIRAL_META = {
     "trajectory": {"generator": "spiral", "params": {}, "altitude_m": 30.0},
@@ -87,11 +91,6 @@ def test_simulated_spirals_get_the_spiral_network_and_it_is_better(nets, tmp_pat
     default spiral mission; the default (spiral network) errs less than rfsl_default on the same
     logs (benchmarks/sim_default.py over 200 seeds, rfsl_spiral_e2r_ens5 on the legs from the first
     waypoint: 5.1 against 16.3 m mean)."""
-    from mission.cli.main import main as rfsl
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log
-    from mission.spec import DEFAULT_MISSION, load_mission
-
     errs = []
     for seed in range(7100, 7106):
         assert (

@@ -8,7 +8,7 @@ import pytest
 from mission.cli.main import main
 from mission.flightlog import read_flight_log
 from mission.physics import make_model
-from mission.simulate import SimConfig, simulate_flight
+from mission.simulate import SimConfig, shadowing_field, simulate_flight
 from mission.spec import load_mission
 
 
@@ -157,8 +157,6 @@ def test_cli_writes_a_readable_log_with_truth(tmp_path, repo_dir):
 def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir, capsys):
     """In process (the exit code of ``rfsl`` is what ``main`` returns: test_cli_main runs the
     subprocess)."""
-    from mission.cli.main import main
-
     mission = str(repo_dir / "missions" / "spiral.yaml")
     assert main(["simulate", mission, "--source", "1,x", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
@@ -169,8 +167,6 @@ def test_cli_bad_source_is_one_line_exit_2(tmp_path, repo_dir, capsys):
 def test_shadowing_field_statistics_and_revisits():
     """The shadowing field has the asked std, correlation exp(-d^2/corr^2) (1/e at corr), the same
     value when a place is revisited, a fresh field per draw, and nothing at sigma 0."""
-    from mission.simulate import shadowing_field
-
     rng = np.random.default_rng(3)
     corr = 30.0
     x = np.linspace(0.0, 300.0, 301)

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mission.flight.budget import BudgetWatch, plan_times, used_seconds
+from mission.flight.ardupilot import set_params
+from mission.flight.budget import BudgetWatch, VerticalSpeeds, plan_times, used_seconds
 from mission.flight.heartbeat import heartbeat_hz
 from mission.flight.speeds import speed_params
 from mission.spec import load_mission
@@ -133,8 +134,6 @@ class _Params:
 
 
 def test_speed_params_set_and_restored_on_both_autopilots():
-    from mission.flight.ardupilot import set_params
-
     assert speed_params(False, 5.5) == {"MPC_XY_CRUISE": 5.5}
     assert speed_params(True, 5.5) == {"WP_YAW_BEHAVIOR": 1, "RTL_SPEED": 550}
     for ardupilot, own in (
@@ -156,8 +155,6 @@ def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
     """ArduCopter lands at 1.5 m/s, then 0.5 m/s below 10 m: 20/1.5 + 10/0.5 = 33 s where the
     mission's kinematics plan 30/2.5 = 12 s; PX4 climbs at 1.5 m/s (20 s, not 12).  Waypoint times
     move only by the take-off difference."""
-    from mission.flight.budget import VerticalSpeeds
-
     base = plan_times(spec)
     ap = plan_times(spec, vertical=VerticalSpeeds(2.5, 1.5, 0.5, 10.0))
     np.testing.assert_allclose(ap.t_wp, base.t_wp, atol=1e-6)
@@ -170,8 +167,6 @@ def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):
 def test_hover_before_landing_is_reserved_outside_the_pace(spec):
     """ArduCopter hovers RTL_LOIT_TIME (5 s) over home before landing: planned, and like the landing
     not stretched by a slow cruise."""
-    from mission.flight.budget import VerticalSpeeds
-
     v = VerticalSpeeds(2.5, 1.5, 0.5, 10.0)
     a, b = (
         plan_times(spec, vertical=v),

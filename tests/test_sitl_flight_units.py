@@ -3,16 +3,25 @@ status lines."""
 
 from __future__ import annotations
 
+import errno
 import io
+import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from rich.console import Console
 
 from mission.errors import InputError
-from mission.flight.phases import PhaseTracker
+from mission.flight.context import FlightContext
+from mission.flight.phases import MonotonicPhases, PhaseTracker
 from mission.flight.preflight import check_connect, check_out, check_rss_source
-from mission.flight.progress import Display, FlightStatus, plain_line
+from mission.flight.progress import Display, FlightStatus, plain_line, render
 from mission.flight.sdklog import SdkLog
+from mission.flight.tasks import log_failed
+from mission.flight.telemetry import Telemetry
+from mission.flightlog import FlightLogWriter, make_meta, sidecar_path
+from mission.geo import Origin
 
 
 def test_phase_tracker_follows_landed_state_and_mission_progress():
@@ -138,7 +147,6 @@ def test_plain_status_lines_do_not_wrap(monkeypatch):
     assert line.startswith("[LINK LOST, last mission]")
     d = Display(s, plain_every_s=0.0)
     buf = io.StringIO()
-    from rich.console import Console
 
     d.console = Console(file=buf, width=40, force_terminal=False)
     d.refresh()
@@ -164,10 +172,6 @@ def test_first_status_line_has_no_nan():
 def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
     """A plain message printed under the live panel (``markup=False``) re-renders the panel with
     that option: the panel's cells must not show their markup tags ([red], [green]) then."""
-    from rich.console import Console
-
-    from mission.flight.progress import render
-
     s = FlightStatus(
         mission_name="spiral",
         budget_s=600,
@@ -194,14 +198,6 @@ def test_live_panel_shows_no_raw_markup_when_a_message_interrupts_it():
 def _context(tmp_path, policy: str, in_air: bool = True):
     """A flight's context with a real log writer and no vehicle (what ``tasks.log_failed`` acts
     on)."""
-    from types import SimpleNamespace
-
-    from mission.flight.context import FlightContext
-    from mission.flight.phases import MonotonicPhases
-    from mission.flight.telemetry import Telemetry
-    from mission.flightlog import FlightLogWriter, make_meta
-    from mission.geo import Origin
-
     ctx = FlightContext(
         spec=SimpleNamespace(on_write_error=policy),
         opts=None,
@@ -223,12 +219,6 @@ def _context(tmp_path, policy: str, in_air: bool = True):
 def test_a_failed_log_write_is_said_at_once_and_returns_by_default(
     tmp_path, capsys, policy, returns
 ):
-    import errno
-    import json
-
-    from mission.flight.tasks import log_failed
-    from mission.flightlog import sidecar_path
-
     ctx = _context(tmp_path, policy)
     log_failed(ctx, OSError(errno.ENOSPC, "No space left on device"))
     log_failed(ctx, OSError(errno.ENOSPC, "No space left on device"))  # said once

@@ -10,10 +10,18 @@ it, and the take-off-to-landing time on the vehicle's clock is compared with
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 
 import pytest
 import yaml
+import yaml as _yaml
+
+from mission.spec import load_mission
+from mission.trajectory.checks import check_mission
+from mission.trajectory.items import build_items
+from mission.trajectory.kinematics import Kinematics
+from sitl.vehicle import build_parser, parse_kinematics, run_from_args  # noqa: F401
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
@@ -33,8 +41,6 @@ NON_DEFAULT = {
 
 
 def _mission(tmp_path, kin: dict | None):
-    from mission.spec import load_mission
-
     d = {
         "name": "kin",
         "altitude_m": 20,
@@ -52,8 +58,6 @@ def _mission(tmp_path, kin: dict | None):
 def _fly_vehicle(spec, speedup: float) -> float:
     """Fly ``spec``'s raw mission on a spawned vehicle; returns take-off-to-landed seconds (vehicle
     clock)."""
-    from mission.trajectory.items import build_items
-
     port = free_udp_port()
     o = spec.field.origin
     lat, lon, alt = o.to_geodetic(spec.home_enu)
@@ -123,8 +127,6 @@ def _fly_vehicle(spec, speedup: float) -> float:
 
 @pytest.mark.parametrize("kin", [NON_DEFAULT, None], ids=["non-default", "default"])
 def test_vehicle_flight_time_matches_budget_check(tmp_path, kin):
-    from mission.trajectory.checks import check_mission
-
     spec = _mission(tmp_path, kin)
     planned = check_mission(spec).duration_s
     flown = _fly_vehicle(spec, speedup=100)
@@ -145,11 +147,6 @@ def test_vehicle_flight_time_matches_closed_form(tmp_path, kin):
     """Independent reference: an out-and-back mission from above home stops at every vertex (climb,
     120 m out, reversal, 120 m back, descent), so its flight time is a sum of rest-to-rest legs in
     closed form."""
-    import yaml as _yaml
-
-    from mission.spec import load_mission
-    from mission.trajectory.kinematics import Kinematics
-
     d = {
         "name": "outback",
         "altitude_m": 20,
@@ -174,19 +171,13 @@ def test_vehicle_flight_time_matches_closed_form(tmp_path, kin):
 def test_non_default_kinematics_change_the_flight_time(tmp_path):
     """Guard for the test above: the overrides matter (else it would pass with cruise speed
     alone)."""
-    from mission.trajectory.checks import check_mission
-
     a = check_mission(_mission(tmp_path, NON_DEFAULT)).duration_s
     b = check_mission(_mission(tmp_path, None)).duration_s
     assert abs(a - b) > 0.1 * b
 
 
 def test_kinematics_round_trip_through_the_command_line():
-    from mission.trajectory.kinematics import Kinematics
-    from sitl.vehicle import build_parser, parse_kinematics, run_from_args  # noqa: F401
-
     kin = Kinematics(cruise_speed_mps=7.0, **NON_DEFAULT)
-    import json
 
     assert parse_kinematics(json.dumps(dataclasses.asdict(kin))) == kin
     assert parse_kinematics(None) == Kinematics()

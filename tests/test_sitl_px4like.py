@@ -14,6 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sitl.protocol import Item
+from sitl.vehicle import SimVehicle
+
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
@@ -24,8 +27,6 @@ mav = mavutil.mavlink
 
 
 def _items(vehicle, speed: float | None):
-    from sitl.protocol import Item
-
     o = vehicle.origin
 
     def wp(seq, cmd, e, n, z, params=(0.0, 0.0, 0.0, 0.0)):
@@ -72,8 +73,6 @@ def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land,
     (PX4: 4.8 m/s unless set; the default profile: the kinematics' cruise speed, so its flown time
     matches the plan); take-off at MPC_TKO_SPEED, the final descent at MPC_Z_V_AUTO_DN, then
     MPC_LAND_SPEED below MPC_LAND_ALT2."""
-    from sitl.vehicle import SimVehicle
-
     v = SimVehicle(f"udpout:127.0.0.1:{free_udp_port()}", profile=profile)
     try:
         assert v.param("MPC_XY_CRUISE") == pytest.approx(ret)

@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from mission.flight.sources import FifoSource, SimSource, UdpSource, parse_float32_le, parse_source
+from mission.geo import Origin
 
 
 class _Clock:
@@ -91,8 +92,6 @@ def test_sim_source_grid_and_noise_order():
     class Flat:
         def rss_dbm(self, tx, rx, att):
             return np.full(len(rx), -50.0)
-
-    from mission.geo import Origin
 
     o = Origin(35.0, -78.0, 0.0)
     src = SimSource(Flat(), np.zeros(3), np.random.default_rng(3), 1.0, 0.03, o)

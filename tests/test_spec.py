@@ -10,14 +10,13 @@ import pytest
 
 from mission.errors import InputError
 from mission.spec import load_mission
+from mission.trajectory.checks import assert_flyable
 
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
 
 
 @pytest.mark.parametrize("path", sorted(MISSIONS.glob("*.yaml")), ids=lambda p: p.stem)
 def test_shipped_missions_load_and_are_flyable(path):
-    from mission.trajectory.checks import assert_flyable
-
     spec = load_mission(path)
     rep = assert_flyable(spec)
     assert rep.duration_s <= spec.time_budget_s

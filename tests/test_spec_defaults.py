@@ -162,7 +162,8 @@ _COMMENT = re.compile(r"^#( *)(\w+): +(\S.*?)(?: {2,}(.*))?$")
 
 
 def _documented(path: Path) -> list[tuple[str, str, str, str]]:
-    """(indent, key, value, description) of each schema comment line ``#   key: value   description``."""
+    """(indent, key, value, description) of each schema comment line
+    ``#   key: value   description``."""
     out = []
     for line in path.read_text().splitlines():
         m = _COMMENT.match(line)

@@ -3,15 +3,22 @@ and the self-calibrating grid's pre-rotated gain tables equal the per-sample ind
 
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pytest
+from sklearn.cluster import KMeans
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from mission import threads
+from mission.cli.main import run_guarded
 from mission.errors import InputError
 from mission.localize.features import FeatureConfig, cluster_features
-from mission.threads import compute_threads
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.localize.selfcal import GainLookup
+from mission.physics.antenna import rm_wb1_dn
+from mission.threads import compute_threads, limit_worker
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "rfsl_spiral_e2r.onnx"
 
@@ -37,8 +44,6 @@ def test_thread_count_from_environment(monkeypatch) -> None:
 
 @pytest.mark.skipif(not MODEL.is_file(), reason="shipped model absent")
 def test_onnx_session_thread_options(monkeypatch) -> None:
-    from mission.localize.onnx_model import OnnxLocalizer
-
     monkeypatch.delenv(threads.THREADS_ENV, raising=False)
     opts = OnnxLocalizer(MODEL).session.get_session_options()
     assert (opts.intra_op_num_threads, opts.inter_op_num_threads) == (1, 1)
@@ -54,9 +59,6 @@ def test_onnx_session_thread_options(monkeypatch) -> None:
 
 
 def test_kmeans_runs_under_the_openmp_limit(monkeypatch) -> None:
-    from sklearn.cluster import KMeans
-    from threadpoolctl import threadpool_info
-
     seen: list[list[int]] = []
     orig = KMeans.fit_predict
 
@@ -75,9 +77,6 @@ def test_kmeans_runs_under_the_openmp_limit(monkeypatch) -> None:
 
 
 def test_mounted_gain_tables_equal_the_index_formula() -> None:
-    from mission.localize.selfcal import GainLookup
-    from mission.physics.antenna import rm_wb1_dn
-
     look = GainLookup(rm_wb1_dn())
     rng = np.random.default_rng(1)
     i_el, i_az = rng.integers(0, 181, 5000), rng.integers(0, 360, 5000)
@@ -93,8 +92,6 @@ def test_mounted_gain_tables_equal_the_index_formula() -> None:
 
 
 def _pool_threads() -> list[int]:
-    from threadpoolctl import threadpool_info
-
     return sorted({i["num_threads"] for i in threadpool_info()})
 
 
@@ -102,13 +99,6 @@ def test_commands_and_pool_workers_run_under_the_limit(monkeypatch) -> None:
     """A command body (``run_guarded``) runs with ``$RFSL_THREADS`` threads and the process is
     restored after; a pool worker started with ``limit_worker`` runs its whole life with one (OpenMP
     included)."""
-    from concurrent.futures import ProcessPoolExecutor
-
-    from threadpoolctl import threadpool_limits
-
-    from mission.cli.main import run_guarded
-    from mission.threads import limit_worker
-
     seen: list[list[int]] = []
     with threadpool_limits(limits=2):
         monkeypatch.setenv(threads.THREADS_ENV, "1")

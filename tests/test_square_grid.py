@@ -7,6 +7,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mission.geo import square_grid
+
 
 @settings(max_examples=40, deadline=None)
 @given(
@@ -17,8 +19,6 @@ from hypothesis import strategies as st
     step=st.floats(0.5, 20.0),
 )
 def test_square_grid_covers_the_box_at_its_step(x0, y0, w, h, step):
-    from mission.geo import square_grid
-
     g = square_grid((x0, y0, x0 + w, y0 + h), step)
     ny, nx, two = g.shape
     assert two == 2 and nx == len(np.arange(x0, x0 + w + 1e-9, step)) and ny >= 1
@@ -36,8 +36,6 @@ def test_square_grid_covers_the_box_at_its_step(x0, y0, w, h, step):
 
 
 def test_far_edge_included_when_on_the_grid():
-    from mission.geo import square_grid
-
     g = square_grid((0.0, 0.0, 30.0, 20.0), 10.0)
     assert g.shape == (3, 4, 2) and np.array_equal(g[-1, -1], [30.0, 20.0])
     assert square_grid((0.0, 0.0, 30.0, 20.0), 10.0, centred=True).shape == (2, 3, 2)

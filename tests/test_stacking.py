@@ -9,18 +9,23 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _localize_helpers import write_synthetic_log
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mission.cells import cell_average
+from mission.cli.localize import main
 from mission.geo import square_grid
+from mission.localize.api import localize_log
 from mission.localize.candidates import Candidate, dedupe, posterior_modes
 from mission.localize.stacking import (
     blocked_scores,
     cell_blocks,
+    geometric_median,
     mixture_posterior,
     stacking_weights,
 )
+from mission.localize.uncertainty import hpd_regions
 from mission.samples import FlightSamples
 
 ISO = [("isotropic", None, 0.0, False)]
@@ -129,8 +134,6 @@ def test_one_block_is_refused() -> None:
 
 
 def test_two_surviving_candidates_give_two_islands() -> None:
-    from mission.localize.uncertainty import hpd_regions
-
     grid = square_grid((0.0, 0.0, 300.0, 300.0), 5.0)
     post = mixture_posterior(
         np.array([[60.0, 60.0], [240.0, 240.0]]), np.array([0.5, 0.5]), grid, 15.0
@@ -159,8 +162,6 @@ def test_candidate_json_carries_its_evidence() -> None:
 
 @pytest.fixture(scope="module")
 def synthetic_log(tmp_path_factory):
-    from _localize_helpers import write_synthetic_log
-
     return write_synthetic_log(
         tmp_path_factory.mktemp("ev") / "flight.csv", (150.0, 120.0, 1.5), n=4000
     )
@@ -171,9 +172,6 @@ def test_the_stage_answers_with_weighted_candidates_and_their_mixture(synthetic_
     candidate at the transmitter (selfcal's) leads by tens of nats while the spiral networks, off
     their path, err 40-80 m; the answer is the candidates' geometric median (the rule's choice), the
     weights lie on the simplex, and the mixture's regions hold the heaviest candidate."""
-    from mission.localize.api import localize_log
-    from mission.localize.stacking import geometric_median
-
     est = localize_log(synthetic_log, method="evidence")
     top = est.candidates[0]
     assert est.method == "evidence" and top.source == "selfcal" and top.evidence == 0.0
@@ -194,8 +192,6 @@ def test_the_stage_answers_with_weighted_candidates_and_their_mixture(synthetic_
 
 
 def test_localize_prints_the_top_candidates_in_one_block(synthetic_log, capsys) -> None:
-    from mission.cli.localize import main
-
     assert main([str(synthetic_log), "--method", "evidence"]) == 0
     out = capsys.readouterr().out
     assert "candidates" in out and "nats" in out
@@ -203,8 +199,6 @@ def test_localize_prints_the_top_candidates_in_one_block(synthetic_log, capsys) 
 
 
 def test_geometric_median_closed_forms() -> None:
-    from mission.localize.stacking import geometric_median
-
     line = np.array([[0.0, 0.0], [1.0, 0.0], [10.0, 0.0]])
     assert geometric_median(line) == pytest.approx(
         [1.0, 0.0], abs=1e-4

@@ -21,6 +21,7 @@ from _bad_input import SPIRAL, mat_arrays
 
 from mission import files
 from mission.errors import InputError
+from mission.flightlog import write_flight_log
 
 
 def run_limited(argv: list[str], limit: int, cwd: Path) -> subprocess.CompletedProcess:
@@ -123,7 +124,6 @@ def test_write_flight_log_refuses_an_existing_sidecar(tmp_path):
         "yaw_deg": np.zeros(3),
         "rss_dbm": np.full(3, -50.0),
     }
-    from mission.flightlog import write_flight_log
 
     with pytest.raises(InputError, match="f.json"):
         write_flight_log(tmp_path / "f.csv", cols, {})

@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.workshop.evaluate_suite import evaluate_suite, region_contains, suite_method
+from mission.geo import afar_field
+from mission.localize.api import localize_log
+from mission.workshop.dataset import DatasetConfig, generate_dataset, load_dataset
+from mission.workshop.evaluate import Row
+from mission.workshop.evaluate_suite import breakdown, evaluate_suite, region_contains, suite_method
 from mission.workshop.suite import (
     HABITS,
+    SHADOWING,
     draw_flight,
     simulate_draw,
     unseen_flight,
@@ -41,7 +46,6 @@ def test_log_looks_like_a_real_import_without_truth():
     assert (
         h.min() < 1.0 and abs(np.percentile(h, 90) - draw["altitude_m"]) < 2.0
     )  # take-off + cruise in the log
-    from mission.localize.api import localize_log
 
     est = localize_log(log)  # a real log's default path (not the simulated-log network)
     assert "real receiver" in est.extras["method_choice"]
@@ -91,7 +95,6 @@ def test_time_offset_shifts_telemetry():
     d, rng = draw_flight(5, 1)
     d = {**d, "time_offset_s": 0.4}
     cols, pos, _ = simulate_draw(d, rng)
-    from mission.geo import afar_field
 
     logged = afar_field().origin.to_enu(cols["lat_deg"], cols["lon_deg"], cols["alt_m"])
     t = cols["t_s"]
@@ -139,8 +142,6 @@ def test_methods_and_regions():
 
 
 def test_training_dataset_from_the_family(tmp_path):
-    from mission.workshop.dataset import DatasetConfig, generate_dataset, load_dataset
-
     with pytest.raises(InputError, match="benchmark"):
         generate_dataset(
             DatasetConfig(None, 2, seed=2026, suite="unseen", features=("clustering",)),
@@ -156,9 +157,6 @@ def test_training_dataset_from_the_family(tmp_path):
 
 
 def test_breakdown_by_axis():
-    from mission.workshop.evaluate import Row
-    from mission.workshop.evaluate_suite import breakdown
-
     draws = [
         {"habit": h, "alt": a, "physics": {"ant": p}}
         for h, a, p in (
@@ -183,8 +181,6 @@ def test_breakdown_by_axis():
 def test_heavy_family_changes_only_the_shadowing():
     """``afar-heavy`` draws the same flights as ``afar`` (same generator sequence) with the
     real-measured shadowing: wider and longer-correlated, so its logs spread more in dB."""
-    from mission.workshop.suite import SHADOWING
-
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING["afar-heavy"]
     spreads = {"afar": [], "afar-heavy": []}
     for i in range(12):

@@ -6,12 +6,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+import onnx
 import pytest
-from _bad_input import assert_refused, run_cli
+from _bad_input import assert_accepted, assert_refused, run_cli, write_log
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from onnx import TensorProto, helper
 
 from mission.cli.main import main as rfsl_main
+from mission.cli.train import check_family, record_family
 from mission.errors import InputError
 from mission.localize.preprocess import select_samples
 from mission.workshop.predictive import log_distance_residual
@@ -199,13 +202,8 @@ def test_generated_bad_families_raise_input_error_only(tmp_path, key, value):
 
 
 def test_train_family_check_and_record(tmp_path):
-    """rfsl train --family: a dataset drawn from another family is refused naming it; the family is written
-    into the model's training_data metadata and its training report."""
-    import onnx
-    from onnx import TensorProto, helper
-
-    from mission.cli.train import check_family, record_family
-
+    """rfsl train --family: a dataset drawn from another family is refused naming it; the family is
+    written into the model's training_data metadata and its training report."""
     fam = _write(tmp_path, _family(5.0))
     sha = family_sha256(resolve_family(fam))
     for name, got in (("ok", sha), ("other", "0" * 64)):
@@ -238,9 +236,8 @@ def test_train_family_check_and_record(tmp_path):
 
 @pytest.mark.slow  # two benchmark flights and two real-like logs: ~4 s
 def test_evaluate_prints_predictive_checks(tmp_path, capsys):
-    """rfsl evaluate --suite-dir ... --real LOGS: the checks table and verdict on stdout, the checks in --out."""
-    from _bad_input import assert_accepted, write_log
-
+    """rfsl evaluate --suite-dir ... --real LOGS: the checks table and verdict on stdout, the checks
+    in --out."""
     fam = _write(tmp_path, _family(6.0, noise_db=1.0))
     write_suite(tmp_path / "s", 2, seed=3, family=fam)
     logs = [str(write_log(tmp_path / f"r{k}.csv", seed=k)) for k in range(2)]

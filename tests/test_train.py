@@ -6,14 +6,25 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import onnxruntime as ort
 import pytest
+
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
+from mission.workshop.train import TrainConfig, export_onnx, train
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnx")
 
 
 def test_network_shapes_params_flops():
-    from mission.workshop.nets import NormalisedRssNet, RealAdaptRNet, count_flops, count_parameters
+    # torch at its top (noqa): imported once importorskip let the module run
+    from mission.workshop.nets import (  # noqa: PLC0415
+        NormalisedRssNet,
+        RealAdaptRNet,
+        count_flops,
+        count_parameters,
+    )
 
     net = RealAdaptRNet(60)
     assert net(torch.zeros(5, 60)).shape == (5, 2)
@@ -27,10 +38,6 @@ def test_network_shapes_params_flops():
 
 
 def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-    from mission.workshop.train import TrainConfig, train
-
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.15, 0.25))
     cfg = DatasetConfig(
         str(repo_dir / "missions" / "spiral.yaml"), 16, seed=3, chunk=8, randomisation=r
@@ -68,10 +75,8 @@ def test_tiny_training_exports_matching_onnx(tmp_path, repo_dir):
 
 
 def test_relative_graph_is_translation_equivariant_and_matches_onnxruntime(tmp_path):
-    import onnxruntime as ort
-
-    from mission.workshop.nets import CoordinateWrapper, RealAdaptRNet
-    from mission.workshop.train import export_onnx
+    # torch at its top (noqa): imported once importorskip let the module run
+    from mission.workshop.nets import CoordinateWrapper, RealAdaptRNet  # noqa: PLC0415
 
     torch.manual_seed(0)
     inner = RealAdaptRNet(60)
@@ -121,10 +126,6 @@ def test_relative_graph_is_translation_equivariant_and_matches_onnxruntime(tmp_p
 
 
 def test_tiny_training_relative_metadata_is_identity(tmp_path, repo_dir):
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-    from mission.workshop.train import TrainConfig, train
-
     r = Randomisation(trajectories=("random_waypoints",), random_params=True, truncate=(0.15, 0.25))
     cfg = DatasetConfig(
         str(repo_dir / "missions" / "spiral.yaml"), 12, seed=4, chunk=12, randomisation=r

@@ -8,17 +8,21 @@ figures.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from _localize_helpers import write_synthetic_log
 
+from mission.localize.api import localize_log
+from mission.localize.onnx_model import OnnxLocalizer
 from mission.localize.training_domain import ALTITUDE_TOLERANCE_M, altitude_note, flight_altitudes
+from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 from mission.workshop.domain import training_altitudes, training_domain
+from mission.workshop.suite import ALTITUDE_RANGE_M
 
 
 def test_shipped_networks_training_altitudes(repo_dir):
-    from mission.localize.onnx_model import OnnxLocalizer
-
     spiral, default = (
         repo_dir / "models" / "rfsl_spiral_e2r.onnx",
         repo_dir / "models" / "rfsl_default.onnx",
@@ -39,8 +43,6 @@ def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
     """Each shipped card's training domain (written once by ``mission.workshop.domain``) is what its
     network's training metadata measures today: a card edited by hand, or a training record whose
     mission changed, fails."""
-    from mission.localize.onnx_model import OnnxLocalizer
-
     models = sorted((repo_dir / "models").glob("*.onnx"))
     if not models:
         pytest.skip("shipped models absent")
@@ -59,8 +61,6 @@ def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
 
 
 def test_altitudes_from_each_kind_of_dataset_record():
-    from mission.workshop.suite import ALTITUDE_RANGE_M
-
     def _meta(*datasets: dict) -> dict:
         return {"datasets": list(datasets)}
 
@@ -110,8 +110,6 @@ def test_flight_altitudes_are_robust_percentiles():
 
 @pytest.mark.parametrize("alt, expect_note", [(30.0, False), (47.0, True)])
 def test_localize_notes_a_flight_off_the_networks_altitude(tmp_path, repo_dir, alt, expect_note):
-    from mission.localize.api import localize_log
-
     model = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
     if not model.exists():
         pytest.skip("shipped model absent")
@@ -126,16 +124,6 @@ def test_localize_notes_a_flight_off_the_networks_altitude(tmp_path, repo_dir, a
 def test_premise_spiral_network_loses_accuracy_off_its_altitude(tmp_path, repo_dir):
     """The note's premise, re-measured: 15 m above its training altitude the spiral network errs >2x
     more; the altitude-normalised network trained on 15-60 m does not."""
-    from dataclasses import replace
-
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import (
-        DatasetConfig,
-        dataset_heights,
-        generate_dataset,
-        load_dataset,
-    )
-
     model = repo_dir / "models" / "rfsl_spiral_e2r.onnx"
     if not model.exists():
         pytest.skip("shipped model absent")

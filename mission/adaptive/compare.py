@@ -15,13 +15,24 @@ import dataclasses
 
 import numpy as np
 
+from mission.adaptive.simflight import (
+    MISSION_PHYSICS,
+    FlightWorld,
+    adaptive_flight,
+    estimator,
+    fixed_flight,
+)
+from mission.errors import InputError
+from mission.evidence import compare_methods, mean_interval
+from mission.localize.api import localize_log
+from mission.physics.family import load_family
+from mission.workshop.flight_draws import flight_rng
+
 
 def product_answer(spec, log, adaptive: bool):
     """The estimate ``localize`` gives by default after a simulated flight of ``spec`` (fixed or
     adaptive, ``SimLog``): ``api.localize_log`` on the log such a flight writes; None when it
     refuses the log."""
-    from mission.errors import InputError
-    from mission.localize.api import localize_log
 
     try:
         return localize_log(log.flight_log(spec, adaptive))
@@ -35,15 +46,6 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
 
     ``family``: a physics family (``load_family``) or ``"mission"``, the mission's own source model
     without shadowing (what ``fly-mission`` simulates against a SITL)."""
-    from mission.adaptive.simflight import (
-        MISSION_PHYSICS,
-        FlightWorld,
-        adaptive_flight,
-        estimator,
-        fixed_flight,
-    )
-    from mission.physics.family import load_family
-    from mission.workshop.flight_draws import flight_rng
 
     cfg = dataclasses.replace(spec.sim_config(), dt_s=dt_s)
     loc = estimator(spec)
@@ -76,7 +78,6 @@ def summarize_pairs(rows: list[dict]) -> dict:
     """Mean (90 % bootstrap interval), paired difference adaptive - fixed, p90, coverage, median
     region area, mean duration and rounds per mission; the fast (3-minute) estimate's mean error;
     the same means and difference for the live estimator (``live``) and which methods answered."""
-    from mission.evidence import compare_methods, mean_interval
 
     ok = [
         r

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mission.geo import square_grid
+from mission.spec import TrajectorySpec
+from mission.trajectory.checks import check_mission
 from mission.trajectory.kinematics import FlightProfile, plan_profile
 
 
@@ -38,8 +40,6 @@ def survey_profile(spec, survey_s: float) -> FlightProfile:
 def survey_spec(spec, survey_s: float):
     """``spec`` whose trajectory is the survey part only (explicit waypoints): what is uploaded
     first."""
-    from mission.spec import TrajectorySpec
-
     wps = survey_profile(spec, survey_s).vertices
     return dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, wps))
 
@@ -111,9 +111,6 @@ def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, f
 def leg_violations(spec, start, wps) -> list:
     """Fence and altitude violations of flying ``start`` -> ``wps`` (``check_mission``'s rules; its
     time check, which assumes a flight from home, is replaced by the caller's budget check)."""
-    from mission.spec import TrajectorySpec
-    from mission.trajectory.checks import check_mission
-
     path = np.vstack([np.asarray(start, dtype=float)[None, :], wps])
     rep = check_mission(dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, path)))
     return [v for v in rep.violations if v.key not in ("time_budget_s", "source.tx")]
@@ -181,7 +178,8 @@ def plan_round(spec, a, est_xy, start, t_start_s: float, pace=None) -> RoundPlan
                 return RoundPlan(wps, (float(c[0]), float(c[1])), r, fly, back, notes)
             else:
                 notes.append(
-                    f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, {max(left, 0):.0f} s "
+                    f"a {2 * r:.0f} m square needs {fly + back:.0f} s with the return, "
+                    f"{max(left, 0):.0f} s "
                     "left"
                 )
         r = r * 0.7 if r * 0.7 >= a.min_radius_m or r <= a.min_radius_m else a.min_radius_m

@@ -8,17 +8,17 @@ the time used.
 
 from __future__ import annotations
 
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from mission.adaptive.compare import pair, summarize_pairs
+from mission.adaptive.config import AdaptiveSpec
+from mission.adaptive.feasibility import assert_adaptive
+from mission.errors import InputError
+
 
 def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[tuple[str, str]]:
     """(label, value) rows for the preview table (a progress bar while the flights are
     simulated)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from mission.adaptive.compare import pair, summarize_pairs
-    from mission.adaptive.config import AdaptiveSpec
-    from mission.adaptive.feasibility import assert_adaptive
-    from mission.errors import InputError
-
     if not 1 <= flights <= 1000:
         raise InputError(f"must be 1..1000, got {flights}", field="--flights")
     a = spec.adaptive or AdaptiveSpec()

@@ -23,20 +23,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.adaptive.feasibility import adaptive_violations
+from mission.adaptive.planner import choose_target, plan_round, return_s, survey_spec
 from mission.flight import estimates, live
 from mission.flight.context import FlightContext, FlightError
 from mission.flight.phases import final_phase
 from mission.flight.plan import upload_with_retries
 from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
+from mission.spec import TrajectorySpec
+from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
 # wall seconds an estimate, the planning and the upload may take (sped-up vehicles); 4 s was too
 # little for PX4 SITL at 10x on a loaded 2-core machine: the estimate came back after the survey
 # ended and no round was flown
 MIN_LEAD_WALL_S = 8.0
-# but never more than this share of the survey (vehicle seconds): at 15x, 8 wall s were 120 vehicle s,
-# more than a 100 s survey, and the round was planned before the survey had an estimate
+# but never more than this share of the survey (vehicle seconds): at 15x, 8 wall s were 120
+# vehicle s, more than a 100 s survey, and the round was planned before the survey had an estimate
 MAX_LEAD_SURVEY_SHARE = 0.5
 
 
@@ -52,8 +56,6 @@ class AdaptiveRounds:
     flown_s: float | None = None  # the rounds' flown seconds, once ``record`` measured them
 
     def __post_init__(self) -> None:
-        from mission.adaptive.planner import survey_spec
-
         self.spec = survey_spec(self.full_spec, self.config.survey_s)
         self.update_s = self.config.update_s
 
@@ -65,8 +67,6 @@ class AdaptiveRounds:
     def check(self, ctx: FlightContext) -> None:
         """The adaptive settings again with the autopilot's own return (known now, ``ctx.budget``):
         refused before the upload and take-off, exit 2, when they leave no round."""
-        from mission.adaptive.feasibility import adaptive_violations
-
         extra = autopilot_return_extra_s(ctx, ctx.spec.waypoints_enu()[-1])
         if v := adaptive_violations(self.full_spec, self.config, extra):
             raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
@@ -143,8 +143,6 @@ def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
     speeds and hover (ArduCopter: RTL_LOIT_TIME 5 s, LAND_SPEED 0.5 m/s below 10 m: its return took
     85 s against 55 s planned on the SITL, 615 s of 600 flown); its return from the survey's end
     against ours is the extra."""
-    from mission.adaptive.planner import return_s
-
     plan = getattr(getattr(ctx, "budget", None), "plan", None)
     try:
         theirs = float(plan.duration_s - plan.t_wp[-1])
@@ -156,39 +154,15 @@ def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
 async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) -> None:
     """Plan, check and upload rounds until the region is small, no round fits, or the mission
     ends."""
-    from mission.adaptive.planner import choose_target, plan_round
-    from mission.spec import TrajectorySpec
-    from mission.trajectory.items import build_items
-
-    a, spec = ext.config, ext.full_spec
+    spec = ext.full_spec
     wps = np.asarray(ctx.spec.waypoints_enu(), dtype=float)
     off, n_survey = ctx.status.waypoint_offset, len(wps)
-    extra = autopilot_return_extra_s(ctx, wps[-1])
-    if extra > 0.5:
-        a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
-        ctx.event(
-            "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
-        )
+    a, lead = _round_config(ctx, ext, wps[-1])
     final = final_phase(spec.return_behaviour)
-    lead = min(max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup), MAX_LEAD_SURVEY_SHARE * a.survey_s)
-    if lead > a.lead_s:
-        ctx.event(
-            "adaptive",
-            f"rounds planned {lead:.0f} s ahead ({lead / ctx.speedup:.1f} s wall-clock at "
-            f"speed-up {ctx.speedup:g}; at most half the survey)",
-        )
     k = 0
     while True:
-        while True:
-            if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
-                if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
-                    _no_round(ctx)
-                return
-            rem = remaining_s(ctx, wps, off, measured_pace(ctx)) if ctx.st.was_in_air else None
-            ctx.live.planning = rem is not None and rem <= 1.5 * lead
-            if rem is not None and rem <= lead:
-                break
-            await asyncio.sleep(0.05)
+        if not await _until_planning_time(ctx, ext, wps, off, lead):
+            return
         try:
             d = await estimates.estimate(ctx)
         finally:
@@ -239,22 +213,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         ctx.status.predicted_s = (
             spec.time_budget_s - left
         )  # land~ now the round's plan, no longer the survey's
-        ext.rounds.append(
-            {
-                "round": k + 1,
-                "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
-                "estimate": d,
-                "target": target,
-                "centre": plan.centre,
-                "radius_m": plan.radius_m,
-                "first_item": len(wps) - n_survey,
-                "n_waypoints": len(plan.waypoints),
-                "planned_s": round(plan.fly_s, 1),  # at the measured pace
-                "pace": None if pace is None else [round(pace.scale, 3), round(pace.per_leg_s, 2)],
-                "budget_left_after_return_s": round(left, 1),
-                "notes": plan.notes,
-            }
-        )
+        ext.rounds.append(_round_record(ctx, k, d, target, plan, wps, n_survey, left, pace))
         ctx.event(
             "adaptive",
             f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
@@ -262,6 +221,64 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             "after the return",
         )
         wps, k = new, k + 1
+
+
+def _round_config(ctx: FlightContext, ext: AdaptiveRounds, last_wp) -> tuple:
+    """The rounds' config with the autopilot's own return added to the reserve, and how far
+    ahead a round is planned (at least ``MIN_LEAD_WALL_S`` of wall-clock time, at most
+    ``MAX_LEAD_SURVEY_SHARE`` of the survey); each change is an event."""
+    a = ext.config
+    extra = autopilot_return_extra_s(ctx, last_wp)
+    if extra > 0.5:
+        a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
+        ctx.event(
+            "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
+        )
+    lead = min(max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup), MAX_LEAD_SURVEY_SHARE * a.survey_s)
+    if lead > a.lead_s:
+        ctx.event(
+            "adaptive",
+            f"rounds planned {lead:.0f} s ahead ({lead / ctx.speedup:.1f} s wall-clock at "
+            f"speed-up {ctx.speedup:g}; at most half the survey)",
+        )
+    return a, lead
+
+
+async def _until_planning_time(
+    ctx: FlightContext, ext: AdaptiveRounds, wps: np.ndarray, off: int, lead: float
+) -> bool:
+    """Wait until the mission has ``lead`` s left (the live estimator told to hurry from 1.5
+    ``lead``); False when the mission ends, aborts or loses its link first."""
+    while True:
+        if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
+            if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
+                _no_round(ctx)
+            return False
+        rem = remaining_s(ctx, wps, off, measured_pace(ctx)) if ctx.st.was_in_air else None
+        ctx.live.planning = rem is not None and rem <= 1.5 * lead
+        if rem is not None and rem <= lead:
+            return True
+        await asyncio.sleep(0.05)
+
+
+def _round_record(ctx: FlightContext, k: int, d, target, plan, wps, n_survey, left, pace) -> dict:
+    """Round ``k + 1``'s entry in the sidecar: when and from which estimate it was planned, its
+    square, waypoints, planned time (at the measured ``pace``) and the budget left after the
+    return."""
+    return {
+        "round": k + 1,
+        "t_plan_s": round(ctx.tel.clock.now() - ctx.status.t_start, 1),
+        "estimate": d,
+        "target": target,
+        "centre": plan.centre,
+        "radius_m": plan.radius_m,
+        "first_item": len(wps) - n_survey,
+        "n_waypoints": len(plan.waypoints),
+        "planned_s": round(plan.fly_s, 1),  # at the measured pace
+        "pace": None if pace is None else [round(pace.scale, 3), round(pace.per_leg_s, 2)],
+        "budget_left_after_return_s": round(left, 1),
+        "notes": plan.notes,
+    }
 
 
 def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:

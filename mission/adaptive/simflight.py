@@ -13,10 +13,27 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
 
+from mission.adaptive.planner import choose_target, plan_round, posterior_candidates, survey_profile
 from mission.defaults import DEFAULT_TX_HEIGHT_M
-from mission.flightlog import ADAPTIVE, FLOWN_PHASES, LAND, MISSION, RETURN, TAKEOFF
+from mission.errors import InputError
+from mission.flight.live import summary
+from mission.flightlog import (
+    ADAPTIVE,
+    FLOWN_PHASES,
+    LAND,
+    MISSION,
+    RETURN,
+    TAKEOFF,
+    FlightLog,
+    make_meta,
+)
+from mission.localize.api import localize_log, make_localizer
+from mission.localize.methods import ADAPTIVE_METHOD
+from mission.localize.uncertainty import region_covers
 from mission.physics.family import FamilyDraw
+from mission.physics.shadowing import shadowing_field
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
 
@@ -40,9 +57,6 @@ class FlightWorld:
     ``mission_draw``), its transmitter and a shadowing map fixed over the flight area."""
 
     def __init__(self, spec, family, rng: np.random.Generator, step_m: float = 3.0) -> None:
-        from scipy.interpolate import RegularGridInterpolator
-
-        from mission.physics.shadowing import shadowing_field
 
         if family is None:
             self.draw, self.model = mission_draw(spec), spec.propagation_model()
@@ -94,7 +108,6 @@ class SimLog:
         """The whole flight as the ``FlightLog`` ``fly-mission`` would have written for ``spec``
         (columns in the field's frame, a simulated source, the trajectory record; ``adaptive``:
         with the adaptive record that routes ``localize`` to the adaptive answer)."""
-        from mission.flightlog import FlightLog, make_meta
 
         origin = spec.field.origin
         pos, att = np.concatenate(self.pos), np.rad2deg(np.concatenate(self.att))
@@ -132,9 +145,6 @@ class SimLog:
 def estimator(spec):
     """The live estimator with ``localize_log``'s settings for this field
     (``methods.ADAPTIVE_METHOD``)."""
-    from mission.localize.api import make_localizer
-    from mission.localize.methods import ADAPTIVE_METHOD
-
     return make_localizer(
         ADAPTIVE_METHOD, area=spec.field.rover_area, tx_height_m=DEFAULT_TX_HEIGHT_M
     )
@@ -154,9 +164,6 @@ class Outcome:
 
 
 def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
-    from mission.errors import InputError
-    from mission.localize.uncertainty import region_covers
-
     f = log.samples(t_max)
     if f is None:
         return None
@@ -164,7 +171,6 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
         e = loc.predict(f)
     except InputError:
         return None
-    from mission.adaptive.planner import posterior_candidates
 
     reg = next((r for r in e.regions if r["level"] == 0.9), None)
     return (
@@ -179,9 +185,6 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
 def live_entry(spec, log: SimLog, t_max: float) -> dict | None:
     """The live series entry ``fly-mission`` would plan the next round on at ``t_max``
     (``live.summary`` of ``localize``'s answer for the adaptive log so far); None without one."""
-    from mission.errors import InputError
-    from mission.flight.live import summary
-    from mission.localize.api import localize_log
 
     flight = log.flight_log(spec, adaptive=True)
     keep = np.asarray(flight["t_s"]) <= t_max
@@ -230,7 +233,6 @@ def adaptive_flight(
 ) -> Outcome:
     """The survey, rounds planned from the live series entry (``live_entry``: what ``fly-mission``
     plans on) by ``plan_round``, then home."""
-    from mission.adaptive.planner import choose_target, plan_round, survey_profile
 
     sv = survey_profile(spec, a.survey_s).vertices
     home = np.asarray(spec.home_enu, dtype=float)

@@ -70,12 +70,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="calibrated physics preset instead of --model: afar, or a fold such as afar:fit328 "
         "(fitted on team 328 only; score the result on the other team's flights)",
     )
+    add_suite_arguments(p)
+    add_randomisation_arguments(p)
+
+
+def add_suite_arguments(p: argparse.ArgumentParser) -> None:
+    """The unseen-flight benchmark family's options (--suite, --logs, --family, --center)."""
     s = p.add_argument_group("unseen-flight benchmark family (mission.workshop.suite)")
     s.add_argument(
         "--suite",
         choices=("unseen",),
         help="flights drawn from the benchmark's family (every axis "
-        "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, time offset)",
+        "randomised: altitude, speed, heading habit, trajectory, antenna, physics, shadowing, "
+        "time offset)",
     )
     s.add_argument(
         "--logs",
@@ -96,13 +103,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--center",
         default="afar",
         metavar="PRESET",
-        help="with --suite --family afar: the preset at the family's centre (afar, afar:fit328, ...)",
+        help="with --suite --family afar: the preset at the family's centre (afar, "
+        "afar:fit328, ...)",
     )
+
+
+def add_randomisation_arguments(p: argparse.ArgumentParser) -> None:
+    """The domain-randomisation options, each off unless given (--randomise: the recommended
+    set)."""
     g = p.add_argument_group("domain randomisation (each off unless given)")
     g.add_argument(
         "--randomise",
         action="store_true",
-        help="recommended set: altitude 20,47; offset -30,30; all generators with random parameters; "
+        help="recommended set: altitude 20,47; offset -30,30; all generators with random "
+        "parameters; "
         "truncate 0.5,1; patterns dipole,measured with random heading; beta 0,3; eps-r 2,20; "
         f"tx height {DEFAULT_TX_HEIGHT_M:g},5; noise 1,3 dB",
     )
@@ -131,7 +145,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--fixed-heading",
         type=float,
         metavar="P",
-        help="probability that a flight holds one random compass heading instead of yawing along the "
+        help="probability that a flight holds one random compass heading instead of yawing "
+        "along the "
         "track (AFAR 2023 vehicles held a near-constant heading)",
     )
     g.add_argument("--speed", type=_range, help="cruise speed range LO,HI m/s")
@@ -209,11 +224,61 @@ def run(args: argparse.Namespace) -> int:
         TimeRemainingColumn,
     )
 
-    from mission.errors import InputError
-    from mission.trajectory.generators import GENERATORS
     from mission.workshop.dataset import DatasetConfig, check_config, generate_dataset
 
     console = Console()
+    check_args(args)
+    if args.logs:
+        from mission.workshop.suite import BENCHMARK_SEED
+
+        args.seed = BENCHMARK_SEED if args.seed is None else args.seed
+        return _write_logs(args, console)
+    args.seed = 0 if args.seed is None else args.seed
+    cfg = DatasetConfig(
+        mission=args.mission,
+        n=args.n,
+        model=args.model,
+        seed=args.seed,
+        chunk=args.chunk,
+        features=tuple(f.strip() for f in args.features.split(",") if f.strip()),
+        randomisation=randomisation_from_args(args),
+        physics=args.physics,
+        feature_config={"arc_step_m": args.arc_step} if args.arc_step else {},
+        suite=args.suite,
+        suite_family=args.family,
+        suite_center=args.center,
+    )
+    check_config(cfg)
+    with Progress(
+        TextColumn("[bold]dataset"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("flights"),
+        TimeRemainingColumn(),
+        console=console,
+    ) as prog:
+        task = prog.add_task("flights", total=args.n)
+        m = generate_dataset(
+            cfg,
+            args.out,
+            workers=args.workers,
+            progress=lambda done, total: prog.update(task, completed=done),
+            overwrite=args.overwrite,
+        )
+    g = m["generation"]
+    console.print(
+        f"{m['n']} flights ({cfg.physics_label}, seed {args.seed}) in {g['seconds']:.1f} s "
+        f"= {g['flights_per_s']:.2f} flights/s on {args.workers} worker(s); "
+        f"{len(m['chunks'])} chunk(s) in {args.out}"
+    )
+    return 0
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Refuse bad options before anything is written (``InputError`` naming the option); a
+    family file implies ``--suite unseen``."""
+    from mission.errors import InputError
+    from mission.trajectory.generators import GENERATORS
 
     for t in (args.trajectories or "").split(","):
         if t.strip() and t.strip() not in GENERATORS:
@@ -272,50 +337,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give a mission YAML (or --suite unseen)", field="mission")
     if args.logs and not args.suite:
         raise InputError("--logs writes benchmark flights: needs --suite unseen", field="--logs")
-    if args.logs:
-        from mission.workshop.suite import BENCHMARK_SEED
-
-        args.seed = BENCHMARK_SEED if args.seed is None else args.seed
-        return _write_logs(args, console)
-    args.seed = 0 if args.seed is None else args.seed
-    cfg = DatasetConfig(
-        mission=args.mission,
-        n=args.n,
-        model=args.model,
-        seed=args.seed,
-        chunk=args.chunk,
-        features=tuple(f.strip() for f in args.features.split(",") if f.strip()),
-        randomisation=randomisation_from_args(args),
-        physics=args.physics,
-        feature_config={"arc_step_m": args.arc_step} if args.arc_step else {},
-        suite=args.suite,
-        suite_family=args.family,
-        suite_center=args.center,
-    )
-    check_config(cfg)
-    with Progress(
-        TextColumn("[bold]dataset"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("flights"),
-        TimeRemainingColumn(),
-        console=console,
-    ) as prog:
-        task = prog.add_task("flights", total=args.n)
-        m = generate_dataset(
-            cfg,
-            args.out,
-            workers=args.workers,
-            progress=lambda done, total: prog.update(task, completed=done),
-            overwrite=args.overwrite,
-        )
-    g = m["generation"]
-    console.print(
-        f"{m['n']} flights ({cfg.physics_label}, seed {args.seed}) in {g['seconds']:.1f} s "
-        f"= {g['flights_per_s']:.2f} flights/s on {args.workers} worker(s); "
-        f"{len(m['chunks'])} chunk(s) in {args.out}"
-    )
-    return 0
 
 
 def _write_logs(args: argparse.Namespace, console) -> int:

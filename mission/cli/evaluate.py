@@ -20,7 +20,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--methods",
         default=",".join(classical),
-        help=f"classical methods, comma list of {', '.join(classical)}, grid:MODEL (free-space, two-ray, e2r) "
+        help=f"classical methods, comma list of {', '.join(classical)}, grid:MODEL "
+        "(free-space, two-ray, e2r) "
         "or grid:preset:NAME ('' for none)",
     )
     p.add_argument(
@@ -124,15 +125,7 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.defaults import MAX_WORKERS
     from mission.errors import InputError
-    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
-    from mission.workshop.evaluate import (
-        afar_truth,
-        evaluate_real,
-        evaluate_sim,
-        import_afar,
-        parse_method,
-        write_report,
-    )
+    from mission.workshop.evaluate import evaluate_real, evaluate_sim, write_report
 
     console = Console()
     if not 1 <= args.workers <= MAX_WORKERS:
@@ -140,6 +133,40 @@ def run(args: argparse.Namespace) -> int:
     if args.family.lower().endswith(".json") or args.suite or args.suite_dir:
         return _run_suite(args, console)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    _check_options(args, methods)
+    work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
+    work.mkdir(parents=True, exist_ok=True)
+    tests = _sim_tests(args, work, console)
+    logs, notes = _real_flights(args, work)
+    if not tests and not logs:
+        raise InputError("nothing to evaluate: give --sim-test, --trajectories, --real or --afar")
+
+    def say(msg: str) -> None:
+        console.print(f"[dim]{msg}", highlight=False) if sys.stdout.isatty() else None
+
+    rows = []
+    for t in tests:
+        rows += evaluate_sim(args.models, t, methods, args.n_classical, progress=say)
+    real_rows = evaluate_real(args.models, logs, methods, progress=say) if logs else []
+    _print_results(console, rows, real_rows, logs, notes)
+    if args.out:
+        write_report(
+            rows + real_rows,
+            args.out,
+            {"command": " ".join(sys.argv), "notes": notes, "real_logs": logs, "sim_tests": tests},
+        )
+        console.print(f"report: {args.out}")
+    return 0
+
+
+def _check_options(args: argparse.Namespace, methods: list[str]) -> None:
+    """Refuse an unknown method, a missing model file or an unwritable --out before the (long)
+    evaluation."""
+    from pathlib import Path
+
+    from mission.errors import InputError
+    from mission.workshop.evaluate import parse_method
+
     for m in methods:
         parse_method(m)
     for mp in args.models:
@@ -155,8 +182,13 @@ def run(args: argparse.Namespace) -> int:
                 field="--out",
             )
         out_parent_ok(Path(args.out))
-    work = Path(args.workdir) if args.workdir else Path(tempfile.mkdtemp(prefix="rfsl-eval-"))
-    work.mkdir(parents=True, exist_ok=True)
+
+
+def _sim_tests(args: argparse.Namespace, work, console) -> list[str]:
+    """The simulated test sets: --sim-test folders, and one generated per --trajectories entry
+    (kept in the work folder, made once)."""
+    from mission.workshop.dataset import DatasetConfig, Randomisation, generate_dataset
+
     tests = list(args.sim_test)
     for traj in args.trajectories:
         d = work / f"test_{args.sim_model}_{traj}_n{args.sim_n}_s{args.sim_seed}"
@@ -171,6 +203,16 @@ def run(args: argparse.Namespace) -> int:
             )
             generate_dataset(cfg, d, workers=args.workers, overwrite=True)
         tests.append(str(d))
+    return tests
+
+
+def _real_flights(args: argparse.Namespace, work) -> tuple[list[str], list[str]]:
+    """The real logs (--real, and --afar's MAT files imported into the work folder) and the
+    caveats of their truths."""
+    from pathlib import Path
+
+    from mission.workshop.evaluate import afar_truth, import_afar
+
     logs = list(args.real)
     notes = []
     if args.afar:
@@ -179,16 +221,11 @@ def run(args: argparse.Namespace) -> int:
             _, caveat = afar_truth(p)
             if caveat:
                 notes.append(f"{Path(p).stem}: {caveat}")
-    if not tests and not logs:
-        raise InputError("nothing to evaluate: give --sim-test, --trajectories, --real or --afar")
+    return logs, notes
 
-    def say(msg: str) -> None:
-        console.print(f"[dim]{msg}", highlight=False) if sys.stdout.isatty() else None
 
-    rows = []
-    for t in tests:
-        rows += evaluate_sim(args.models, t, methods, args.n_classical, progress=say)
-    real_rows = evaluate_real(args.models, logs, methods, progress=say) if logs else []
+def _print_results(console, rows, real_rows, logs, notes) -> None:
+    """The simulated and real tables, each real flight's error per method, and the notes."""
     if rows:
         console.print(_table(rows, "simulated test sets (2D error)"))
     if real_rows:
@@ -201,14 +238,6 @@ def run(args: argparse.Namespace) -> int:
             console.print(f"  {r.method}: {per}", highlight=False)
     for n in notes:
         console.print(f"[yellow]note: {n}")
-    if args.out:
-        write_report(
-            rows + real_rows,
-            args.out,
-            {"command": " ".join(sys.argv), "notes": notes, "real_logs": logs, "sim_tests": tests},
-        )
-        console.print(f"report: {args.out}")
-    return 0
 
 
 def _run_suite(args: argparse.Namespace, console) -> int:
@@ -223,7 +252,6 @@ def _run_suite(args: argparse.Namespace, console) -> int:
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
-    from rich.table import Table
 
     from mission.errors import InputError
     from mission.workshop.evaluate import write_report
@@ -265,7 +293,26 @@ def _run_suite(args: argparse.Namespace, console) -> int:
             warn=warn,
             stats_out=stats,
         )
+    console.print(_suite_table(rows, secs))
+    extra: dict = {"command": " ".join(sys.argv), "seconds_per_flight": secs}
+    if stale:
+        extra["warnings"] = stale
+    breakdowns = _breakdowns(args, rows, console)
+    if breakdowns is not None:
+        extra["breakdown"] = breakdowns
+    if real_logs:
+        extra["predictive_checks"] = _predictive(real_logs, methods, rows, stats, console)
+    if args.out:
+        write_report(rows, args.out, extra)
+        console.print(f"report: {args.out}")
+    return 0
+
+
+def _suite_table(rows, secs: dict):
+    """The benchmark's table: per method n, mean / median / p90 error, the share of truths in the
+    50 % and 90 % regions, seconds per flight."""
     from rich.markup import escape
+    from rich.table import Table
 
     t = Table(title=escape(f"{rows[0].test} (2D error; regions: share of truths inside)"))
     for c in ("method", "n", "mean m", "median m", "p90 m", "in 50 %", "in 90 %", "s/flight"):
@@ -280,33 +327,34 @@ def _run_suite(args: argparse.Namespace, console) -> int:
             *cov,
             f"{secs[s['method']]:.2f}",
         )
-    console.print(t)
-    extra: dict = {"command": " ".join(sys.argv), "seconds_per_flight": secs}
-    if stale:
-        extra["warnings"] = stale
-    axes = [a.strip() for a in args.by.split(",") if a.strip()]
-    if axes:
-        from mission.workshop.evaluate_suite import breakdown, suite_draws
+    return t
 
-        draws = suite_draws(len(rows[0].errors), args.seed, args.suite_dir, family=args.family)
-        extra["breakdown"] = {}
-        for axis in axes:
-            bd = breakdown(rows, draws, axis)
-            extra["breakdown"][axis] = bd
-            bt = Table(title=escape(f"mean error (m) by {axis}"))
-            bt.add_column(axis, overflow="fold")
-            bt.add_column("n", justify="right")
-            for r in rows:
-                bt.add_column(escape(r.method), justify="right", overflow="fold")
-            for g, d in bd.items():
-                bt.add_row(escape(g), str(d["n"]), *(f"{d[r.method]:.1f}" for r in rows))
-            console.print(bt)
-    if real_logs:
-        extra["predictive_checks"] = _predictive(real_logs, methods, rows, stats, console)
-    if args.out:
-        write_report(rows, args.out, extra)
-        console.print(f"report: {args.out}")
-    return 0
+
+def _breakdowns(args: argparse.Namespace, rows, console) -> dict | None:
+    """``--by AXES``: mean error per group of each draw axis, printed as a table per axis; None
+    without --by."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    from mission.workshop.evaluate_suite import breakdown, suite_draws
+
+    axes = [a.strip() for a in args.by.split(",") if a.strip()]
+    if not axes:
+        return None
+    draws = suite_draws(len(rows[0].errors), args.seed, args.suite_dir, family=args.family)
+    out: dict = {}
+    for axis in axes:
+        bd = breakdown(rows, draws, axis)
+        out[axis] = bd
+        bt = Table(title=escape(f"mean error (m) by {axis}"))
+        bt.add_column(axis, overflow="fold")
+        bt.add_column("n", justify="right")
+        for r in rows:
+            bt.add_column(escape(r.method), justify="right", overflow="fold")
+        for g, d in bd.items():
+            bt.add_row(escape(g), str(d["n"]), *(f"{d[r.method]:.1f}" for r in rows))
+        console.print(bt)
+    return out
 
 
 def _real_logs(args: argparse.Namespace) -> list[str]:

@@ -54,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--link-timeout",
         type=float,
         default=30.0,
-        help="wall-clock seconds without telemetry before the flight is given up, and to wait for an "
+        help="wall-clock seconds without telemetry before the flight is given up, and to wait "
+        "for an "
         "autopilot to answer at all (default 30)",
     )
     parser.add_argument(
@@ -67,20 +68,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--rate",
         type=float,
         default=None,
-        help="position/attitude rate requested, Hz of vehicle time (>= 30; default 50, lowered towards 30 "
+        help="position/attitude rate requested, Hz of vehicle time (>= 30; default 50, lowered "
+        "towards 30 "
         "at high --speedup so that MAVSDK's callbacks keep up)",
     )
     parser.add_argument(
         "--adaptive",
         action="store_true",
-        help="after the survey part, fly rounds planned from the live estimate (the mission's adaptive: block, "
+        help="after the survey part, fly rounds planned from the live estimate (the mission's "
+        "adaptive: block, "
         "defaults otherwise; docs/adaptive.md)",
     )
     parser.add_argument(
         "--seed",
         type=int,
         default=None,
-        help="seed of the simulated transmitter and RSS noise (default: the mission's source.seed); seed N "
+        help="seed of the simulated transmitter and RSS noise (default: the mission's "
+        "source.seed); seed N "
         "puts the transmitter where `rfsl simulate --seed N` does",
     )
     parser.add_argument(

@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--family",
         metavar="F.json",
-        help="also fit a physics family (schema 1) from the ladder's effects, per flight, and write it",
+        help="also fit a physics family (schema 1) from the ladder's effects, per flight, and "
+        "write it",
     )
     parser.add_argument(
         "--family-name", default="family", help="the family's name in F.json (family)"
@@ -145,7 +146,8 @@ def check_outputs(args) -> None:
         check_out_file(args.family, "--family", args.overwrite)
 
 
-MIN_SAMPLES = 200  # fewer cannot support block splits and the per-effect fits (a 1-row log raised numpy errors)
+# fewer cannot support block splits and the per-effect fits (a 1-row log raised numpy errors)
+MIN_SAMPLES = 200
 
 
 def _parse_latlon(s: str):
@@ -184,7 +186,8 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
         f = flight_from_log(log, tx)
         if len(f.t_s) < MIN_SAMPLES:
             raise InputError(
-                f"only {len(f.t_s)} samples with RSS; the gap diagnosis needs at least {MIN_SAMPLES}",
+                f"only {len(f.t_s)} samples with RSS; the gap diagnosis needs at least "
+                f"{MIN_SAMPLES}",
                 source=str(p),
             )
         flights.append(f)
@@ -225,8 +228,10 @@ def _selftest(args) -> int:
     def progress(r) -> None:
         mark = "[green]PASS" if r.passed else "[red]FAIL"
         c.print(
-            f"{mark}[/] withheld={r.withheld or 'none'} seed={r.seed} first={r.ranked_first or 'none'} "
-            f"significant={r.significant} rms {r.rms_base:.2f} -> {r.rms_after:.2f} dB; {r.param_text} "
+            f"{mark}[/] withheld={r.withheld or 'none'} seed={r.seed} "
+            f"first={r.ranked_first or 'none'} "
+            f"significant={r.significant} rms {r.rms_base:.2f} -> {r.rms_after:.2f} dB; "
+            f"{r.param_text} "
             f"({time.time() - t0:.0f} s)"
         )
 
@@ -325,23 +330,28 @@ def _write_family(d, cfg, args, console) -> None:
 
     out = write_text(Path(args.family), json.dumps(rec, indent=1) + "\n", field="--family")
     console.print(
-        f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; {len(rec['per_flight'])} flights)"
+        f"wrote {out} (effects: {', '.join(rec['effects']) or 'none'}; "
+        f"{len(rec['per_flight'])} flights)"
     )
     lc = rec["checks"].get("loop")
     if lc:
         p = lc["heldout_p90_db"]
         bad = [k for k, v in lc["params"].items() if not v["inside"]]
         console.print(
-            f"loop check ({'passed' if lc['passed'] else 'FAILED'}): simulated flights re-fit inside the "
-            f"intervals{' except ' + ', '.join(bad) if bad else ''}; held-out p90 {p['sim']:.1f} vs real "
-            f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range {lc['range_m']['sim']:.0f} m "
+            f"loop check ({'passed' if lc['passed'] else 'FAILED'}): simulated flights re-fit "
+            "inside the "
+            f"intervals{' except ' + ', '.join(bad) if bad else ''}; held-out p90 "
+            f"{p['sim']:.1f} vs real "
+            f"{p['real']:.1f} dB; sill {lc['sill_db']['sim']:.1f} dB, range "
+            f"{lc['range_m']['sim']:.0f} m "
             f"({'inside' if lc['sill_db']['inside'] and lc['range_m']['inside'] else 'NOT inside'} "
             "the real intervals)"
         )
         cal = rec.get("residual_calibration")
         if cal:
             console.print(
-                f"  (after {max(len(cal.get('steps', [])) - 1, 1)} recalibration step(s): the total "
+                f"  (after {max(len(cal.get('steps', [])) - 1, 1)} recalibration step(s): the "
+                "total "
                 f"residual std scaled x{cal['p90_scale']:.2f}, checked on fresh draws)"
             )
 

@@ -60,7 +60,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=DEFAULT_TX_HEIGHT_M,
         metavar="M",
-        help=f"transmitter antenna height above ground (default {DEFAULT_TX_HEIGHT_M:g} m, AFAR rover)",
+        help=f"transmitter antenna height above ground (default {DEFAULT_TX_HEIGHT_M:g} m, "
+        "AFAR rover)",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing output logs")
 

@@ -30,21 +30,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--method",
         choices=METHOD_NAMES,
         metavar="METHOD",
-        help=f"localizer: {', '.join(METHOD_NAMES)} (default: fusion for a real receiver's log; for a "
+        help=f"localizer: {', '.join(METHOD_NAMES)} (default: fusion for a real receiver's "
+        "log; for a "
         "simulated log the shipped network trained on that kind of flight, else grid)",
     )
     parser.add_argument(
         "--physics",
         default=None,
         metavar="NAME",
-        help="propagation model of the grid search (free-space, two-ray, e2r; default: a simulated log's own "
+        help="propagation model of the grid search (free-space, two-ray, e2r; default: a "
+        "simulated log's own "
         "model, else the afar preset)",
     )
     parser.add_argument(
         "--physics-preset",
         default=None,
         metavar="NAME",
-        help="calibrated physics preset of the grid search (afar; the default for a real log without --physics)",
+        help="calibrated physics preset of the grid search (afar; the default for a real log "
+        "without --physics)",
     )
     parser.add_argument(
         "--tx-height",
@@ -59,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--origin",
         metavar="LAT,LON[,ALT]",
-        help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the sidecar's)",
+        help="mission origin (degrees, m AMSL) for a log without a sidecar (overrides the "
+        "sidecar's)",
     )
     parser.add_argument(
         "--no-cruise", action="store_true", help="use all samples (no cruise selection)"
@@ -77,15 +81,41 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
+    from mission.cli.main import print_notes
+    from mission.flightlog import read_flight_log
+
+    truth, origin = check_options(args)
+    log = read_flight_log(args.log, origin=origin)
+    print_notes(log.notes)
+    method = args.method
+    if args.at is not None:  # what the flight knew at T (mission.flight.live)
+        from mission.flight.live import log_at, recorded_method
+
+        log, method = log_at(log, args.at, str(args.log)), method or recorded_method(log.meta)
+    est = estimate(args, log, method, truth)
+    if args.plot:
+        plot(args, log, est)
+    if args.json:
+        import json
+
+        d = est.to_dict()
+        d["notes"] = list(log.notes)
+        print(json.dumps(d, default=float))
+        return 0
+    from mission.cli.main import console
+
+    console().print(table(args, log, est))
+    return 0
+
+
+def check_options(args: argparse.Namespace):
+    """Refuse a bad option before the log is read (``InputError`` naming it); resolves
+    ``args.model`` to its file. Returns (truth, origin)."""
     import math
-    import warnings
 
     from mission.cli.importer import parse_latlon, parse_origin
-    from mission.cli.main import image_out, print_notes
+    from mission.cli.main import image_out
     from mission.errors import InputError
-    from mission.flightlog import WARNING, read_flight_log
-    from mission.localize.api import localize_log, search_area
 
     truth = parse_latlon(args.truth) if args.truth else None
     origin = parse_origin(args.origin) if args.origin else None
@@ -117,12 +147,17 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(str(e).split(": ", 1)[-1], field="--physics-preset") from None
     if args.plot:
         image_out(args.plot, "--plot")
-    log = read_flight_log(args.log, origin=origin)
-    print_notes(log.notes)
-    if args.at is not None:  # what the flight knew at T (mission.flight.live)
-        from mission.flight.live import log_at, recorded_method
+    return truth, origin
 
-        log, method = log_at(log, args.at, str(args.log)), method or recorded_method(log.meta)
+
+def estimate(args: argparse.Namespace, log, method: str | None, truth):
+    """``localize_log`` on the log with the options; numpy's warnings are shown after it, and a
+    refusal that names nothing names the log."""
+    import warnings
+
+    from mission.errors import InputError
+    from mission.localize.api import localize_log
+
     with warnings.catch_warnings(
         record=True
     ) as caught:  # numpy's warnings on a too-short log: the error says it
@@ -146,28 +181,31 @@ def run(args: argparse.Namespace) -> int:
             ) from None  # "only 5 grouped samples" names the log
     for w in caught:
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    if args.plot:
-        from mission.localize.plot import plot_localization
-        from mission.localize.preprocess import select_samples
+    return est
 
-        part = log if args.no_cruise else select_samples(log)[0]  # the samples the estimate used
-        from mission.localize.features import FeatureConfig
 
-        fc = est.extras.get("feature_config")
-        cfg = FeatureConfig.from_dict(fc) if fc else None
-        plot_localization(part, est, args.plot, cfg=cfg, area=search_area(log))
-        est.extras["plot"] = str(args.plot)
-    if args.json:
-        d = est.to_dict()
-        d["notes"] = list(log.notes)
-        print(json.dumps(d, default=float))
-        return 0
+def plot(args: argparse.Namespace, log, est) -> None:
+    """``--plot``: the samples the estimate used, its clusters and the estimate, drawn to
+    ``args.plot``."""
+    from mission.localize.api import search_area
+    from mission.localize.features import FeatureConfig
+    from mission.localize.plot import plot_localization
+    from mission.localize.preprocess import select_samples
+
+    part = log if args.no_cruise else select_samples(log)[0]  # the samples the estimate used
+    fc = est.extras.get("feature_config")
+    cfg = FeatureConfig.from_dict(fc) if fc else None
+    plot_localization(part, est, args.plot, cfg=cfg, area=search_area(log))
+    est.extras["plot"] = str(args.plot)
+
+
+def table(args: argparse.Namespace, log, est):
+    """The estimate as the text table a user reads (rich ``Table``)."""
     from rich.table import Table
 
-    from mission.cli.main import console
+    from mission.flightlog import WARNING
     from mission.localize.uncertainty import describe_region
 
-    c = console()
     tab = Table(title=f"transmitter estimate: {args.log}", show_header=False)
     tab.add_row("method", f"{est.method}" + (f" ({est.model})" if est.model else ""))
     tab.add_row("why", str(est.extras.get("method_choice", "")))
@@ -216,8 +254,7 @@ def run(args: argparse.Namespace) -> int:
     for n in log.notes:  # also on stderr; repeated here because the table is what a user reads
         kind, _, text = n.partition(": ") if n.startswith(WARNING) else ("note", "", n)
         tab.add_row(f"[bold yellow]{kind}" if kind != "note" else kind, f"[yellow]{text}")
-    c.print(tab)
-    return 0
+    return tab
 
 
 def candidate_line(c) -> str:

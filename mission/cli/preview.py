@@ -53,14 +53,38 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-    from rich.table import Table
 
     from mission.cli.main import console as make_console
     from mission.cli.main import image_out
-    from mission.errors import InputError
-    from mission.preview import ESTIMATOR_NOTE, expected_error_map, render_preview, summarize
+    from mission.preview import render_preview, summarize
     from mission.spec import load_mission
+
+    w, h = check_options(args)
+    image_out(args.out)
+    spec = load_mission(args.mission)
+    seed = spec.source.seed if args.seed is None else args.seed
+    summary = summarize(spec)
+    console = make_console()
+
+    emap = error_map(args, spec, seed, console) if args.accuracy else None
+
+    console.print(summary_table(args, spec, seed, summary, emap, console))
+
+    render_preview(
+        spec,
+        args.out,
+        error_map=emap,
+        summary=summary,
+        rng=np.random.default_rng(seed),
+        size_px=(w, h),
+    )
+    console.print(f"wrote {args.out}")
+    return 0
+
+
+def check_options(args: argparse.Namespace) -> tuple[int, int]:
+    """Refuse a bad --size, --grid or --seed (``InputError`` naming it); the image size."""
+    from mission.errors import InputError
 
     try:
         w, h = (int(v) for v in str(args.size).lower().split("x"))
@@ -74,29 +98,39 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"must be 2..200, got {args.grid}", field="--grid")
     if args.seed is not None and args.seed < 0:
         raise InputError(f"must be >= 0, got {args.seed}", field="--seed")
-    image_out(args.out)
-    spec = load_mission(args.mission)
-    seed = spec.source.seed if args.seed is None else args.seed
-    summary = summarize(spec)
-    console = make_console()
+    return w, h
 
-    emap = None
-    if args.accuracy:
-        with Progress(
-            TextColumn("expected error"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            console=console,
-            transient=True,
-        ) as prog:
-            task = prog.add_task("grid", total=args.grid)
-            emap = expected_error_map(
-                spec,
-                args.grid,
-                np.random.default_rng(seed),
-                progress=lambda done, total: prog.update(task, completed=done),
-            )
+
+def error_map(args: argparse.Namespace, spec, seed: int, console):
+    """--accuracy: the expected-error map over a --grid lattice, with a progress bar."""
+    import numpy as np
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from mission.preview import expected_error_map
+
+    with Progress(
+        TextColumn("expected error"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    ) as prog:
+        task = prog.add_task("grid", total=args.grid)
+        return expected_error_map(
+            spec,
+            args.grid,
+            np.random.default_rng(seed),
+            progress=lambda done, total: prog.update(task, completed=done),
+        )
+
+
+def summary_table(args: argparse.Namespace, spec, seed: int, summary, emap, console):
+    """The mission's figures as a table: path, duration against the budget, samples, fence
+    clearance, coverage, expected error, the adaptive comparison when asked, flyable."""
+    from rich.table import Table
+
+    from mission.preview import ESTIMATOR_NOTE
 
     table = Table(title=f"mission {spec.name} ({spec.trajectory.generator}, {spec.altitude_m:g} m)")
     table.add_column("quantity")
@@ -130,15 +164,4 @@ def run(args: argparse.Namespace) -> int:
     table.add_row(
         "flyable", "yes" if not summary.violations else f"[red]no: {summary.violations[0]}[/red]"
     )
-    console.print(table)
-
-    render_preview(
-        spec,
-        args.out,
-        error_map=emap,
-        summary=summary,
-        rng=np.random.default_rng(seed),
-        size_px=(w, h),
-    )
-    console.print(f"wrote {args.out}")
-    return 0
+    return table

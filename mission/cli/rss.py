@@ -87,52 +87,8 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.physics import make_model
 
-    tx = parse_triple(args.tx, "--tx")
-    rx = parse_triple(args.rx, "--rx")
-    att_deg = (
-        parse_triple(args.attitude, "--attitude") if args.attitude is not None else (0.0, 0.0, 0.0)
-    )
-    for flag, p in (("--tx", tx), ("--rx", rx)):
-        if max(abs(v) for v in p) > MAX_COORD_M:
-            raise InputError(
-                f"coordinates beyond {MAX_COORD_M:g} m from the origin are not a local position, "
-                f"got {p}",
-                field=flag,
-            )
-        if p[2] < 0:
-            raise InputError(
-                f"height {p[2]:g} m is below ground (z is the height above ground)", field=flag
-            )
-    if math.dist(tx, rx) < MIN_DISTANCE_M:
-        raise InputError(
-            f"transmitter and receiver are {math.dist(tx, rx):.3g} m apart; the propagation models "
-            f"need at least {MIN_DISTANCE_M:g} m",
-            field="--rx",
-        )
-    if max(abs(a) for a in att_deg[:2]) > 180 or abs(att_deg[2]) > 720:
-        raise InputError(
-            f"roll/pitch within +-180 and yaw within +-720 degrees expected (radians?), got {att_deg}",
-            field="--attitude",
-        )
-    for flag, val, lo, hi in (
-        ("--fc-hz", args.fc_hz, 1e6, 3e11),
-        ("--eps-r", args.eps_r, 1.0, 1e4),
-    ):
-        if val is not None and not (math.isfinite(val) and lo <= val <= hi):
-            raise InputError(f"must be a number within {lo:g}..{hi:g}, got {val}", field=flag)
-    for flag, val, lim in (
-        ("--pt-dbm", args.pt_dbm, 200.0),
-        ("--beta", args.beta, 100.0),
-        ("--sigma", args.sigma, 1e9),
-    ):
-        if val is not None and not (
-            math.isfinite(val) and abs(val) <= lim and (flag == "--pt-dbm" or val >= 0)
-        ):
-            raise InputError(
-                f"must be a finite number {'within +-' if flag == '--pt-dbm' else '0..'}{lim:g}, "
-                f"got {val}",
-                field=flag,
-            )
+    tx, rx, att_deg = check_geometry(args)
+    check_parameters(args)
     kw = {
         k: v
         for k, v in (
@@ -161,6 +117,64 @@ def run(args: argparse.Namespace) -> int:
         return 0
     _print_table(model, parts, rss)
     return 0
+
+
+def check_geometry(args: argparse.Namespace) -> tuple:
+    """--tx, --rx and --attitude parsed and checked (local positions above ground, far enough
+    apart; degrees, not radians): (tx, rx, attitude in degrees)."""
+    tx = parse_triple(args.tx, "--tx")
+    rx = parse_triple(args.rx, "--rx")
+    att_deg = (
+        parse_triple(args.attitude, "--attitude") if args.attitude is not None else (0.0, 0.0, 0.0)
+    )
+    for flag, p in (("--tx", tx), ("--rx", rx)):
+        if max(abs(v) for v in p) > MAX_COORD_M:
+            raise InputError(
+                f"coordinates beyond {MAX_COORD_M:g} m from the origin are not a local position, "
+                f"got {p}",
+                field=flag,
+            )
+        if p[2] < 0:
+            raise InputError(
+                f"height {p[2]:g} m is below ground (z is the height above ground)", field=flag
+            )
+    if math.dist(tx, rx) < MIN_DISTANCE_M:
+        raise InputError(
+            f"transmitter and receiver are {math.dist(tx, rx):.3g} m apart; the propagation models "
+            f"need at least {MIN_DISTANCE_M:g} m",
+            field="--rx",
+        )
+    if max(abs(a) for a in att_deg[:2]) > 180 or abs(att_deg[2]) > 720:
+        raise InputError(
+            "roll/pitch within +-180 and yaw within +-720 degrees expected (radians?), got "
+            f"{att_deg}",
+            field="--attitude",
+        )
+    return tx, rx, att_deg
+
+
+def check_parameters(args: argparse.Namespace) -> None:
+    """The model parameters given (--fc-hz, --eps-r, --pt-dbm, --beta, --sigma) within their
+    ranges."""
+    for flag, val, lo, hi in (
+        ("--fc-hz", args.fc_hz, 1e6, 3e11),
+        ("--eps-r", args.eps_r, 1.0, 1e4),
+    ):
+        if val is not None and not (math.isfinite(val) and lo <= val <= hi):
+            raise InputError(f"must be a number within {lo:g}..{hi:g}, got {val}", field=flag)
+    for flag, val, lim in (
+        ("--pt-dbm", args.pt_dbm, 200.0),
+        ("--beta", args.beta, 100.0),
+        ("--sigma", args.sigma, 1e9),
+    ):
+        if val is not None and not (
+            math.isfinite(val) and abs(val) <= lim and (flag == "--pt-dbm" or val >= 0)
+        ):
+            raise InputError(
+                f"must be a finite number {'within +-' if flag == '--pt-dbm' else '0..'}{lim:g}, "
+                f"got {val}",
+                field=flag,
+            )
 
 
 def _print_table(model: object, p: dict, rss: float) -> None:

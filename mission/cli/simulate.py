@@ -53,11 +53,10 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.cli.main import console, out_parent_ok
     from mission.errors import InputError
-    from mission.flightlog import make_meta, sidecar_path, write_flight_log
+    from mission.flightlog import sidecar_path, write_flight_log
     from mission.physics import make_model
     from mission.simulate import simulate_flight
     from mission.spec import load_mission
-    from mission.trajectory.checks import source_violations
 
     if args.seed is not None and args.seed < 0:
         raise InputError(f"must be >= 0, got {args.seed}", field="--seed")
@@ -65,21 +64,7 @@ def run(args: argparse.Namespace) -> int:
     spec = load_mission(args.mission)
     seed = spec.source.seed if args.seed is None else args.seed
     rng = np.random.default_rng(seed)
-    if args.source:
-        v = parse_xy(args.source, "--source")
-        tx = np.array([v[0], v[1], v[2] if len(v) == 3 else spec.source.tx_height_m])
-        bad = source_violations(spec, tx)
-        if bad:
-            raise InputError(bad[0].message, field="--source")
-        if not spec.field.rover_area.contains(tx[:2]):
-            console(stderr=True).print(
-                f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area"
-            )
-    else:
-        tx = spec.transmitter(seed)
-        bad = source_violations(spec)
-        if bad:
-            raise InputError(bad[0].message, source=spec.source_name, field=bad[0].key)
+    tx = transmitter(args, spec, seed)
     model_name = args.model or spec.source.model
     out = Path(args.out)
     csv = out / f"{spec.name}_sim_{model_name}_seed{seed}.csv"
@@ -95,6 +80,53 @@ def run(args: argparse.Namespace) -> int:
     model = make_model(model_name, **spec.source.model_params)
     path = spec.waypoints_enu() if args.cruise_only else spec.flight_path_enu()
     flight = simulate_flight(path, tx, model, spec.sim_config(), rng)
+    meta = sidecar_meta(spec, tx, model_name, seed)
+    write_flight_log(csv, flight.log_columns(spec.field.origin), meta)
+    c = console()
+    c.print(
+        f"simulated [bold]{spec.name}[/]: {flight.t_s[-1]:.0f} s, {len(flight.t_s)} RSS samples, "
+        f"{flight.profile.length_m:.0f} m"
+    )
+    c.print(
+        f"transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m, RSS {flight.rss_dbm.min():.1f} .. "
+        f"{flight.rss_dbm.max():.1f} dBm ({model_name}, seed {seed})"
+    )
+    c.print(f"log: {csv}")
+    return 0
+
+
+def transmitter(args: argparse.Namespace, spec, seed: int):
+    """``--source`` (checked against the field; outside the rover area only warned), else the
+    mission's draw for ``seed``."""
+    import numpy as np
+
+    from mission.cli.main import console
+    from mission.errors import InputError
+    from mission.trajectory.checks import source_violations
+
+    if args.source:
+        v = parse_xy(args.source, "--source")
+        tx = np.array([v[0], v[1], v[2] if len(v) == 3 else spec.source.tx_height_m])
+        bad = source_violations(spec, tx)
+        if bad:
+            raise InputError(bad[0].message, field="--source")
+        if not spec.field.rover_area.contains(tx[:2]):
+            console(stderr=True).print(
+                f"[yellow]warning: source {tx[:2].tolist()} is outside the rover area"
+            )
+    else:
+        tx = spec.transmitter(seed)
+        bad = source_violations(spec)
+        if bad:
+            raise InputError(bad[0].message, source=spec.source_name, field=bad[0].key)
+    return tx
+
+
+def sidecar_meta(spec, tx, model_name: str, seed: int) -> dict:
+    """The simulated log's sidecar: the simulator, model, seed and noise, the true transmitter,
+    the mission and its trajectory."""
+    from mission.flightlog import make_meta
+
     lat, lon, _ = spec.field.origin.to_geodetic(tx)
     meta = make_meta(
         spec.field.origin,
@@ -117,15 +149,4 @@ def run(args: argparse.Namespace) -> int:
         mission=str(spec.path) if spec.path else spec.name,
         trajectory=spec.trajectory_meta(),
     )
-    write_flight_log(csv, flight.log_columns(spec.field.origin), meta)
-    c = console()
-    c.print(
-        f"simulated [bold]{spec.name}[/]: {flight.t_s[-1]:.0f} s, {len(flight.t_s)} RSS samples, "
-        f"{flight.profile.length_m:.0f} m"
-    )
-    c.print(
-        f"transmitter at ({tx[0]:.1f}, {tx[1]:.1f}) m, RSS {flight.rss_dbm.min():.1f} .. "
-        f"{flight.rss_dbm.max():.1f} dBm ({model_name}, seed {seed})"
-    )
-    c.print(f"log: {csv}")
-    return 0
+    return meta

@@ -44,7 +44,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--coords",
         default="relative",
         choices=["relative", "absolute"],
-        help="clustering coordinates: relative to the strongest cluster (default; translation-equivariant, "
+        help="clustering coordinates: relative to the strongest cluster (default; "
+        "translation-equivariant, "
         "done inside the exported graph) or absolute",
     )
     p.add_argument(
@@ -56,8 +57,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--altitude-normalised",
         action="store_true",
-        help="clustering: coordinates in units of each flight's height above the transmitter, so one "
-        "network serves every altitude (train on a range of altitudes, e.g. rfsl dataset --altitude 15,60)",
+        help="clustering: coordinates in units of each flight's height above the transmitter, "
+        "so one "
+        "network serves every altitude (train on a range of altitudes, e.g. rfsl dataset "
+        "--altitude 15,60)",
     )
 
 
@@ -124,11 +127,13 @@ def run(args: argparse.Namespace) -> int:
         f"{', altitude-normalised' if cfg.altitude_normalised else ''}): "
         f"{res.n_params / 1e6:.3f} M parameters, "
         f"{res.flops / 1e6:.2f} M FLOPs; "
-        f"best epoch {m['best_epoch']} of {m['epochs_run']}; validation mean {m['val_mean_m']:.2f} m, "
+        f"best epoch {m['best_epoch']} of {m['epochs_run']}; validation mean "
+        f"{m['val_mean_m']:.2f} m, "
         f"median {m['val_median_m']:.2f} m, p90 {m['val_p90_m']:.2f} m ({m['n_val']} flights)"
     )
     console.print(
-        f"trained in {res.seconds:.0f} s on {args.threads} thread(s); onnxruntime vs torch max diff "
+        f"trained in {res.seconds:.0f} s on {args.threads} thread(s); onnxruntime vs torch max "
+        "diff "
         f"{res.max_onnx_diff:.1e}; model: {res.onnx_path}"
     )
     return 0
@@ -151,7 +156,8 @@ def check_family(path: str, datasets: list[str]) -> dict:
         got = (read_manifest(d).get("physics_family") or {}).get("sha256")
         if got != sha:
             raise InputError(
-                f"dataset was not drawn from {path} ({'another family' if got else 'no family file'}; "
+                f"dataset was not drawn from {path} "
+                f"({'another family' if got else 'no family file'}; "
                 f"rfsl dataset --family {path})",
                 source=str(d),
                 field="--family",

@@ -28,11 +28,14 @@ the policy, what was dropped and the measured arm-to-disarm time.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mission.flight.plan import upload_with_retries
+from mission.spec import TrajectorySpec
+from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
@@ -342,7 +345,8 @@ class BudgetWatch:
         )
         which = f"{gone[0] + 1}" if len(gone) == 1 else f"{gone[0] + 1}-{gone[-1] + 1}"
         return (
-            f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of {len(self.plan.t_wp)}: "
+            f"budget: dropped waypoint{'s' if len(gone) > 1 else ''} {which} of "
+            f"{len(self.plan.t_wp)}: "
             f"landing ~{self.predicted_s:.0f} s, was ~{before:.0f} s"
         )
 
@@ -444,11 +448,6 @@ async def act(ctx, watch: BudgetWatch, decision: tuple[str, int], mission_raw, a
     """Carry out ``decision`` (``BudgetWatch.decide``) on the autopilot: the mission re-uploaded
     without its dropped tail (the current item kept: items already flown keep their indices), or
     return to launch.  A failed upload leaves the whole mission (safe, over budget) and says so."""
-    import dataclasses
-
-    from mission.spec import TrajectorySpec
-    from mission.trajectory.items import build_items
-
     what, keep = decision
     s = ctx.status
     if what == "return":

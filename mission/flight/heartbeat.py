@@ -20,6 +20,8 @@ import json
 import threading
 import time
 
+from mavsdk.plugins.mavlink_direct import MavlinkMessage
+
 GCS_SYSID, GCS_COMPID = 245, 190  # MAVSDK's ground-station identity
 _HEARTBEAT = json.dumps(
     {
@@ -48,7 +50,6 @@ def heartbeat_hz(speedup: float) -> float:
 async def gcs_heartbeats(ctx, direct, speedup: float) -> None:
     """Task: HEARTBEAT to the vehicle at ``heartbeat_hz(speedup)`` from a thread (MAVSDK's blocking
     ``send_message`` releases the GIL), until cancelled; a failure is reported once."""
-    from mavsdk.plugins.mavlink_direct import MavlinkMessage
 
     msg = MavlinkMessage("HEARTBEAT", GCS_SYSID, GCS_COMPID, 0, 0, _HEARTBEAT)
     period, stop = 1.0 / heartbeat_hz(speedup), threading.Event()

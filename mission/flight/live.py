@@ -15,10 +15,15 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import threading
+import time
+import warnings
 
 import numpy as np
 
 from mission.errors import InputError
+from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
 
 DEFAULT_LIVE = (
     "default"  # recorded in the sidecar: the live estimates used ``localize``'s own choice
@@ -55,7 +60,8 @@ def log_at(log, t_s: float, source: str | None = None):
 def estimate_at(log, t_s: float | None = None, method: str | None = None):
     """The ``localize_log`` estimate from the rows up to ``t_s`` (None: all rows); ``method`` None:
     its choice."""
-    from mission.localize.api import localize_log
+    # the worker process's imports (noqa): the flight process never loads the localizer
+    from mission.localize.api import localize_log  # noqa: PLC0415
 
     part = log if t_s is None else log_at(log, t_s, str(log.path) if log.path else None)
     return localize_log(part, method=method)
@@ -74,7 +80,8 @@ def summary(est, t_s: float) -> dict:
     if est.error_m is not None:
         d["error_m"] = round(float(est.error_m), 2)
     if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
-        from mission.adaptive.planner import posterior_candidates
+        # the worker process's imports (noqa): the flight process never loads the localizer
+        from mission.adaptive.planner import posterior_candidates  # noqa: PLC0415
 
         d["candidates"] = [
             [round(v, 1 if i < 2 else 3) for i, v in enumerate(c)]
@@ -89,9 +96,8 @@ def estimate_file_at(path: str, t_s: float) -> dict | None:
 
     Runs in a worker process: reads the file as far as it is written (a cut last line is
     dropped)."""
-    import warnings
-
-    from mission.flightlog import read_flight_log
+    # the worker process's imports (noqa): the flight process never loads the localizer
+    from mission.flightlog import read_flight_log  # noqa: PLC0415
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -110,12 +116,6 @@ def lower_priority(parent_pid: int | None = None) -> None:
     the flight's pipes (the kernel's parent-death signal, and a parent-pid poll where that is not
     available); it ignores the terminal's signals (a Ctrl-C reaches the whole process group): the
     flight stops it."""
-    import os
-    import threading
-    import time
-
-    from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
-
     ignore_terminal_signals()
     with contextlib.suppress(OSError):
         os.nice(5)
@@ -133,8 +133,9 @@ def lower_priority(parent_pid: int | None = None) -> None:
 def warm_up() -> None:
     """Import the localizer in a fresh worker process (seconds) before the first estimate is
     needed."""
-    import mission.flightlog  # noqa: F401
-    import mission.localize.api  # noqa: F401
+    # the worker process's imports (noqa): the flight process never loads the localizer
+    import mission.flightlog  # noqa: F401, PLC0415
+    import mission.localize.api  # noqa: F401, PLC0415
 
 
 def describe(d: dict, truth: dict | None = None) -> str:

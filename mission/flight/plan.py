@@ -8,14 +8,14 @@ trim); its last failure is one line (``UploadFailed``).
 
 from __future__ import annotations
 
+from mavsdk.plugins.mission_raw import MissionItem, MissionRawError
+
 from mission.flight.context import EXIT_LINK, FlightError
 from mission.trajectory.items import RawItem
 
 
 def to_mavsdk(items: list[RawItem]):
     """``mavsdk.plugins.mission_raw.MissionItem`` list; item 0 is the only one with current=1."""
-    from mavsdk.plugins.mission_raw import MissionItem
-
     out = []
     for seq, it in enumerate(items):
         out.append(
@@ -50,8 +50,6 @@ async def upload_with_retries(
     """Upload the raw items (``MissionRawAsync.upload_mission``), retrying a failed transfer (a busy
     link at a high speed-up can time one out) with one warning each (event ``kind``); the last
     failure is an ``UploadFailed`` naming MAVSDK's result and the item count."""
-    from mavsdk.plugins.mission_raw import MissionRawError
-
     for attempt in range(tries):
         try:
             await mission_raw.upload_mission(to_mavsdk(items))

@@ -14,6 +14,8 @@ import socket
 from pathlib import Path
 
 from mission.errors import InputError
+from mission.files import check_writable_dir
+from mission.flight.sources import parse_source
 
 # MAVSDK v4 connection schemes (``udp://``/``tcp://`` are its older spellings, still accepted)
 SCHEMES = ("udpin", "udpout", "tcpin", "tcpout", "serial", "serial_flowcontrol", "udp", "tcp")
@@ -89,8 +91,6 @@ def check_connect(url: str | None, field: str = "--connect", source: str | None 
 
 def check_rss_source(text: str) -> None:
     """The RSS source parses, its FIFO/file exists, its UDP port can be bound."""
-    from mission.flight.sources import parse_source
-
     kind, arg = parse_source(text)
     if kind == "aerpaw-fifo":
         p = Path(arg)
@@ -117,8 +117,6 @@ def check_rss_source(text: str) -> None:
 def check_out(out: Path) -> None:
     """``--out`` is a folder (existing or creatable) that can be written, not a file: refused before
     the vehicle starts (it failed only once the mission was uploaded)."""
-    from mission.files import check_writable_dir
-
     for p in (out, *out.parents):
         if p.exists():
             if not p.is_dir():

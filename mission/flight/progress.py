@@ -8,11 +8,13 @@ readable.
 
 from __future__ import annotations
 
+import textwrap
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 from rich.console import Console
+from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
@@ -103,8 +105,6 @@ PLAIN_WIDTH = 80
 def fit_width(text: str, width: int = PLAIN_WIDTH) -> str:
     """``text`` wrapped at ``width`` columns, continuation lines indented two spaces; a single word
     longer than that (a path, a URL) stays whole on its own line."""
-    import textwrap
-
     out = []
     for line in text.splitlines() or [""]:
         out += textwrap.wrap(
@@ -172,8 +172,6 @@ class Display:
 
     def __enter__(self) -> Display:
         if self.console.is_terminal:
-            from rich.live import Live
-
             self.live = Live(
                 render(self.status), console=self.console, refresh_per_second=4, transient=False
             )

@@ -32,6 +32,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mavsdk.asyncio import Autopilot as SdkAutopilot
+from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.info import InfoAsync
+from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
+from mavsdk.asyncio.plugins.param import ParamAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.action import ActionError
+from mavsdk.plugins.mission_raw import MissionRawError
 
 from mission.errors import InputError
 from mission.flight import estimates, tasks
@@ -49,9 +59,15 @@ from mission.flight.context import (
     race,
     wait_any,
 )
+from mission.flight.estimates import LiveEstimates
 from mission.flight.heartbeat import gcs_heartbeats, settle_texts
+from mission.flight.logrows import RowLogger, new_flight_dir
 from mission.flight.phases import MonotonicPhases, final_phase
+from mission.flight.plan import upload_with_retries
+from mission.flight.preflight import check_options
 from mission.flight.progress import Display, FlightStatus
+from mission.flight.sdklog import SdkLog
+from mission.flight.sources import SimSource, make_receiver, parse_source
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.telemetry import Telemetry
 from mission.flight.textlink import text_link
@@ -61,6 +77,9 @@ from mission.flight.vehicle_process import (
     spawn_vehicle,
     stop_vehicle,
 )
+from mission.flightlog import PHASE_COLUMNS, FlightLogWriter, make_meta
+from mission.trajectory.checks import assert_flyable
+from mission.trajectory.items import build_items
 
 __all__ = [
     "FlyOptions",
@@ -144,8 +163,6 @@ def _fmt_wall(s: float) -> str:
 
 def new_context(spec, opts: FlyOptions, extension=None) -> FlightContext:
     """The context of one flight of ``spec`` (an ``extension`` flies its own part of it first)."""
-    from mission.flight.estimates import LiveEstimates
-
     speedup = float(opts.speedup or spec.vehicle.speedup or 1.0)
     url = opts.connect or spec.vehicle.connection
     flown = extension.spec if extension is not None else spec
@@ -185,13 +202,15 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
     try:
         return asyncio.run(main())
     except KeyboardInterrupt:
-        ignore_terminal_signals()  # interrupted: the process ends with 130, not by a second signal at exit
+        # interrupted: the process ends with 130, not by a second signal at exit
+        ignore_terminal_signals()
         raise
     finally:
         if (
             ctx.source is not None
         ):  # a flight started and its outcome is decided: a late Ctrl-C during the
-            ignore_terminal_signals()  # exit (threads joined) must not end the process by the signal
+            # exit (threads joined) must not end the process by the signal
+            ignore_terminal_signals()
         elif (
             signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
         ):  # refused before anything started
@@ -203,9 +222,6 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
 async def run(ctx: FlightContext) -> int:
     """Check, start the built-in vehicle if no connection is given, fly; signals abort (RTL once
     airborne)."""
-    from mission.flight.preflight import check_options
-    from mission.trajectory.checks import assert_flyable
-
     spec = ctx.spec
     check_options(ctx.opts)  # options: before anything starts
     report = assert_flyable(
@@ -253,8 +269,6 @@ async def run(ctx: FlightContext) -> int:
 def make_source(spec, rss_source: str):
     """The RSS source (a receiver, or the simulated one with its true transmitter) and the truth
     record."""
-    from mission.flight.sources import SimSource, make_receiver, parse_source
-
     kind, arg = parse_source(rss_source)
     if kind != "sim":
         return make_receiver(kind, arg), None
@@ -266,7 +280,8 @@ def make_source(spec, rss_source: str):
         "model_params": s.model_params,
         "seed": s.seed,
         "tx_enu": [float(v) for v in tx],
-        "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: default_rng(seed)",
+        "tx_resolution": "tx=spec.transmitter(seed) (rfsl simulate's draw); noise: "
+        "default_rng(seed)",
     }
     src = SimSource(
         spec.propagation_model(), tx, rng, s.noise_db, s.sample_period_s, spec.field.origin, info
@@ -277,8 +292,6 @@ def make_source(spec, rss_source: str):
 async def connect(ctx: FlightContext, sdk, url: str):
     """The first autopilot on ``url`` within ``--link-timeout`` (FlightError with one line
     otherwise)."""
-    from mavsdk.asyncio import Autopilot as SdkAutopilot
-
     ctx.status.stage = "waiting for autopilot"
     try:
         await sdk.add_any_connection(url)
@@ -304,7 +317,6 @@ async def connect(ctx: FlightContext, sdk, url: str):
 async def is_builtin_vehicle(system, tries: int = 10) -> bool:
     """Whether the autopilot's AUTOPILOT_VERSION names this project's built-in vehicle
     (``BUILTIN_PRODUCT``); False when it never answers within ``tries`` x 0.2 s."""
-    from mavsdk.asyncio.plugins.info import InfoAsync
 
     info = InfoAsync(system)
     for _ in range(tries):
@@ -320,15 +332,6 @@ async def is_builtin_vehicle(system, tries: int = 10) -> bool:
 async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
     """Connect, then every coroutine of the flight under one task group; the log closed on every
     path."""
-    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
-    from mavsdk.asyncio.plugins.action import ActionAsync
-    from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
-    from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
-    from mavsdk.asyncio.plugins.param import ParamAsync
-    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
-
-    from mission.flight.sdklog import SdkLog
-
     code, status, error = EXIT_OK, "completed", None
     with SdkLog(ctx.opts.verbose) as ctx.sdklog, Display(ctx.status) as ctx.display:
         async with Mavsdk(
@@ -397,9 +400,6 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
 async def prepare(ctx: FlightContext, p: Plugins):
     """Health and home, the raw items, stream rates, the autopilot's speeds and the budget plan, the
     upload."""
-    from mission.flight.plan import upload_with_retries
-    from mission.trajectory.items import build_items
-
     spec, opts = ctx.spec, ctx.opts
     ctx.status.stage = "waiting for position and home"
     await race(
@@ -457,9 +457,6 @@ def check_home(ctx: FlightContext, home) -> None:
 async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: int) -> None:
     """A new flight folder, the writer with its sidecar (``status: flying``), the first row before
     arming."""
-    from mission.flight.logrows import RowLogger, new_flight_dir
-    from mission.flightlog import PHASE_COLUMNS, FlightLogWriter, make_meta
-
     spec = ctx.spec
     ctx.log_path = new_flight_dir(ctx.opts.out, spec.name) / "flight.csv"
     trajectory = (
@@ -513,8 +510,6 @@ async def fly_mission(ctx: FlightContext, tg: asyncio.TaskGroup, p: Plugins) -> 
 
 
 async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, str]:
-    from mavsdk.plugins.action import ActionError
-
     ctx.status.stage = "arming"
     for attempt in range(10):  # ArduPilot says "armable" before its EKF uses GPS: retry for 20 s
         ctx.abort_before_takeoff()
@@ -547,8 +542,6 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
 async def start_mission(ctx: FlightContext, action, mission_raw) -> None:
     """``start_mission``, retried: a loaded link (PX4 SITL at 10x on two busy cores) timed it out,
     and PX4 disarms an armed vehicle that does not take off within seconds (re-armed then)."""
-    from mavsdk.plugins.mission_raw import MissionRawError
-
     for attempt in range(3):
         ctx.abort_before_takeoff()
         try:
@@ -676,8 +669,9 @@ def print_result(ctx: FlightContext) -> None:
         print("\n".join(ctx.extension.result_lines(ctx)), flush=True)
         return
     try:
-        from mission.localize.api import localize_log
-        from mission.localize.uncertainty import describe_region, outer_region
+        # lazy (noqa) on purpose: a localizer that cannot load must not stop the flight's last lines
+        from mission.localize.api import localize_log  # noqa: PLC0415
+        from mission.localize.uncertainty import describe_region, outer_region  # noqa: PLC0415
     except ImportError as e:
         print(
             f"localizer not available ({e}); run `localize {ctx.log_path}` later", file=sys.stderr
@@ -691,7 +685,8 @@ def print_result(ctx: FlightContext) -> None:
     model = est.extras.get("model_path")  # which network answered, when one did
     label = est.method + (f" {Path(model).name}" if model else "")
     lines = [
-        f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon {est.lon_deg:.7f})",
+        f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon "
+        f"{est.lon_deg:.7f})",
         f"  method: {label}",
     ]
     outer = outer_region(est.extras)

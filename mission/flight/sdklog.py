@@ -13,6 +13,8 @@ from __future__ import annotations
 import re
 from collections import deque
 
+from mavsdk import LogLevel, log_subscribe, log_unsubscribe
+
 _DIGITS = re.compile(r"\d+")
 # MAVSDK v4 calls every subscription's callback from one thread through a queue; past 100 queued
 # it drops the oldest subscription updates (telemetry and autopilot texts alike) and says so at
@@ -35,7 +37,6 @@ class SdkLog:
     def __enter__(self) -> SdkLog:
         if self.verbose:
             return self
-        from mavsdk import LogLevel, log_subscribe
 
         warn = LogLevel.WARN
 
@@ -69,7 +70,5 @@ class SdkLog:
 
     def __exit__(self, *exc) -> None:
         if self.installed:
-            from mavsdk import log_unsubscribe
-
             log_unsubscribe()
             self.installed = False

@@ -122,7 +122,8 @@ class SimSource(RssSource):
             "calibrated": True,
             "noise_db": self.noise_db,
             "sample_period_s": self.period,
-            "noise_order": "one normal(0, noise_db) draw per logged row, in row order, after tx resolution",
+            "noise_order": "one normal(0, noise_db) draw per logged row, in row order, after "
+            "tx resolution",
             **self.info,
         }
 

@@ -20,6 +20,11 @@ from __future__ import annotations
 import contextlib
 from collections.abc import AsyncIterator
 
+from mavsdk.asyncio import ComponentType, Configuration, ForwardingOption, Mavsdk
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+from mission.flight.vehicle_process import free_udp_port
+
 TEXT_LINK_SYSID = 246  # the second instance's system id (the flight's is MAVSDK's 245)
 
 
@@ -28,10 +33,6 @@ async def text_link(sdk, timeout_s: float = 10.0) -> AsyncIterator[object | None
     """A ``TelemetryAsync`` on a second MAVSDK instance fed by ``sdk`` (already connected to the
     autopilot), or None when it saw no autopilot within ``timeout_s`` (the flight then takes the
     texts from its own instance)."""
-    from mavsdk.asyncio import ComponentType, Configuration, ForwardingOption, Mavsdk
-    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
-
-    from mission.flight.vehicle_process import free_udp_port
 
     port = free_udp_port()
     cfg = Configuration.create_with_component_type(ComponentType.GROUND_STATION)

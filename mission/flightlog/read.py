@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.files import check_regular, read_bytes, read_text
 from mission.flightlog.schema import (
     COLUMNS,
     OPTIONAL,
@@ -62,8 +63,6 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
     crash (dropped), a missing sidecar, a flight the sidecar says did not complete.  ``origin``
     (e.g. from ``--origin``) replaces the sidecar's.
     """
-    from mission.files import check_regular, read_bytes
-
     path = Path(path)
     src = str(path)
     if path.is_dir():
@@ -152,7 +151,8 @@ def _drop_cut_last_line(
         return text, None
     return (
         "\n".join(lines[:-1]) + "\n",
-        f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger stops mid-write",
+        f"dropped the last line (row {len(lines)}), cut short ({reason}) as when a logger "
+        "stops mid-write",
     )
 
 
@@ -396,13 +396,14 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
         where = (
             "the origin given"
             if origin_given
-            else "its origin at the first sample (give --origin LAT,LON[,ALT] for the mission's frame)"
+            else "its origin at the first sample (give --origin LAT,LON[,ALT] for the "
+            "mission's frame)"
         )
         notes.append(
-            f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} and no truth"
+            f"{WARNING}no sidecar {sc.name}: read as an uncalibrated receiver log with {where} "
+            "and no truth"
         )
         return {}
-    from mission.files import read_text
 
     try:
         meta = json.loads(read_text(sc, "sidecar", max_bytes=MAX_SIDECAR_BYTES))
@@ -459,7 +460,8 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
         notes.append(f"{WARNING}{ENDED_OPEN}: read as it is")
     elif status is not None and status != "completed":
         notes.append(
-            f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the log may end "
+            f"{WARNING}the sidecar says the flight did not complete (status {status!r}): the "
+            "log may end "
             "early or miss part of the pattern"
         )
     return meta

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.files import write_text, writing
 from mission.flightlog.schema import COLUMNS, sidecar_path
 
 
@@ -140,7 +141,8 @@ class FlightLogWriter:
         self.error = e
         size, self.rows = self._good
         with contextlib.suppress(OSError, ValueError):
-            self._f.close()  # its buffer cannot be written either; the descriptor is closed regardless
+            # its buffer cannot be written either; the descriptor is closed regardless
+            self._f.close()
         with contextlib.suppress(OSError):
             os.truncate(self.path, size)
 
@@ -177,8 +179,6 @@ def write_flight_log(
     Both files are written whole or not at all (``mission.files.writing``): a full disk leaves
     neither a truncated CSV beside a sidecar nor a sidecar alone.  An existing log (CSV or sidecar)
     is refused unless ``overwrite``."""
-    from mission.files import write_text, writing
-
     path = Path(path)
     side = sidecar_path(path)
     if not overwrite:

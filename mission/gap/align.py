@@ -9,9 +9,12 @@ the effects agree on conventions (SPEC section 1, ``mission.physics.geometry``).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
+from mission.errors import InputError
+from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
 from mission.physics.geometry import (
     bearing,
     body_angles,
@@ -118,8 +121,6 @@ def flight_from_log(
     """A ``mission.flightlog.FlightLog``'s samples ready for diagnosis: truth from the sidecar
     unless given, attitude required (NaN read as 0), samples without RSS dropped, named after the
     file's stem."""
-    from mission.errors import InputError
-
     src = str(log.path) if log.path is not None else (name or "log")
     tx = tx_enu if tx_enu is not None else log.truth_enu
     if tx is None:
@@ -145,10 +146,6 @@ def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[FlightSamples]
     """The six AFAR 2023 challenge flights (teams 288, 328; rover locations 1-3) with their rover
     truth, airborne samples only; named ``<team>-loc<n>``.  Used by the real-flight benchmark
     scripts."""
-    from pathlib import Path
-
-    from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
-
     out = []
     for team in (288, 328):
         for loc in (1, 2, 3):

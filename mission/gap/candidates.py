@@ -3,35 +3,33 @@ time.
 
 Why: "which effect is missing?" is answered by adding each candidate to the current model, fitting
 its parameters on training blocks and measuring the held-out gap (``mission.gap.fit``).  Each
-candidate knows
-(a) whether it can be tried on a pipeline, (b) how to build the pipeline for given parameter values,
-(c) its parameter bounds and a coarse start grid (angles are multimodal), and (d) how to *withhold*
-    it from
-    it from
-a truth pipeline (for the self-test).  A candidate whose effect is already in the model *refits* it (e.g.
-the ground permittivity of an e2r base); one that is absent *adds* it.
+candidate knows (a) whether it can be tried on a pipeline, (b) how to build the pipeline for given
+parameter values, (c) its parameter bounds and a coarse start grid (angles are multimodal), and (d)
+how to *withhold* it from a truth pipeline (for the self-test).  A candidate whose effect is already
+in the model *refits* it (e.g. the ground permittivity of an e2r base); one that is absent *adds*
+it.
 
 | name | what | parameters |
 | --- | --- | --- |
-| ``rx_pattern`` | UAV antenna pattern: isotropic, dipole, measured RM-WB1-DN, measured upside down | choice |
-| ``rx_mounting`` | UAV antenna heading from the nose (needs an azimuthal pattern and attitude) | heading_deg |
-| ``tx_pattern`` | rover antenna pattern (isotropic, dipole, measured, measured upside down) | choice |
+| ``rx_pattern`` | UAV antenna: isotropic, dipole, measured RM-WB1-DN, upside down | choice |
+| ``rx_mounting`` | UAV antenna heading from the nose (azimuthal pattern, attitude) | heading_deg |
+| ``tx_pattern`` | rover antenna (isotropic, dipole, measured, measured upside down) | choice |
 | ``tx_mounting`` | rover antenna heading (needs an azimuth-dependent pattern) | heading_deg |
 | ``tx_tilt`` | rover dipole tilted off vertical | tilt_deg, azimuth_deg |
 | ``ground_reflection`` | ground-reflected ray, Fresnel Gamma | eps_r, sigma_s_m, polarization |
-| ``attitude`` | receiver angles in the body frame (roll, pitch, yaw); also on top of yaw-only | heading_deg (*) |
-| ``yaw_attitude`` | receiver angles in a frame turned by the yaw only (body level) | heading_deg (*) |
+| ``attitude`` | receiver angles in the body frame; also on top of yaw-only | heading_deg (*) |
+| ``yaw_attitude`` | receiver angles in a frame turned by the yaw only (level) | heading_deg (*) |
 | ``path_gain_slope`` | extra path-gain exponent, -10 n_extra log10(d / 100 m) | n_extra |
-| ``leg_shadowing`` | paper eqs. 8-9 (three legs, or a quad's four: ``LEG_LAYOUTS``) | beta, half width, rotation |
-| ``near_nadir`` | body-fixed loss over a band of depression angles (``mission.gap.nadir``) | depth, centre, width |
+| ``leg_shadowing`` | paper eqs. 8-9 (3 or 4 legs: ``LEG_LAYOUTS``) | beta, half width, rotation |
+| ``near_nadir`` | body-fixed loss over depression angles (``gap.nadir``) | depth, centre, width |
 | ``time_offset`` | RSS lags telemetry by tau | tau_s |
 | ``receiver`` | soft noise floor and saturation | floor_db, sat_db (model dB scale) |
-| ``rx_gain_map`` | free-form: smooth UAV body-frame gain map (``mission.gap.freeform``) | ridge coefficients |
-| ``tx_gain_map`` | free-form: smooth rover gain map over compass azimuth x elevation | ridge coefficients |
-| ``excess_loss`` | free-form: smooth excess loss over distance and UAV height | ridge coefficients |
-| ``time_drift`` | free-form: a gain drifting / stepping over each flight's time (``temporal``) | ridge coefs |
-| ``spatial_shadowing`` | smoother: kriged residuals over the field (``mission.gap.spatial``) | sigma_db, corr_len_m |
-| ``site_map`` | smoother: per transmitter position, compass azimuth x log distance map (``spatial``) | ridge coefs |
+| ``rx_gain_map`` | free-form: smooth UAV body-frame gain map (``gap.freeform``) | ridge coefs |
+| ``tx_gain_map`` | free-form: smooth rover gain map, compass azimuth x elevation | ridge coefs |
+| ``excess_loss`` | free-form: smooth excess loss over distance and UAV height | ridge coefs |
+| ``time_drift`` | free-form: a gain drifting / stepping in a flight (``temporal``) | ridge coefs |
+| ``spatial_shadowing`` | smoother: kriged residuals (``gap.spatial``) | sigma_db, corr_len_m |
+| ``site_map`` | smoother: per rover position, azimuth x log distance (``spatial``) | ridge coefs |
 
 (*) the UAV antenna heading is fitted jointly with the (yaw) attitude when the UAV pattern depends
 on azimuth: without yaw a heading is a fixed compass direction, with yaw and a wrong heading the
@@ -46,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from mission.errors import InputError
 from mission.gap.candidate import Candidate, Param
 from mission.gap.describe import describe_params, pattern_name  # noqa: F401  (describe_params: re-exported)
 from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
@@ -69,8 +68,6 @@ PATTERN_NAMES = ("isotropic", "dipole", "measured")
 
 def pattern_by_name(name: str) -> Pattern:
     """isotropic | dipole | measured (shipped RM-WB1-DN); any other name raises ``InputError``."""
-    from mission.errors import InputError
-
     makers = {"isotropic": Isotropic, "dipole": Dipole, "measured": rm_wb1_dn}
     if name not in makers:
         raise InputError(
@@ -421,8 +418,6 @@ CANDIDATE_NAMES = tuple(library())
 
 def select(names: str | Sequence[str] | None) -> list[Candidate]:
     """Candidates by comma-separated names or ``all``; unknown names raise ``InputError``."""
-    from mission.errors import InputError
-
     lib = library()
     if names is None or names == "all":
         return list(lib.values())

@@ -15,6 +15,7 @@ from itertools import pairwise
 from typing import Any
 
 import numpy as np
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from mission.gap.align import SEGMENTS, Alignment, align
 from mission.gap.candidate import Candidate
@@ -22,7 +23,12 @@ from mission.gap.describe import describe_params
 from mission.gap.fit import FitConfig, _pooled, make_folds, offset_residual
 from mission.gap.ladder import Rung, ladder
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
+from mission.gap.power import power_statement
+from mission.gap.spatial import usable_candidates
 from mission.gap.stats import BinnedResidual, binned_residual, block_length, ecdf, summarize
+from mission.gap.structure import footprint, residual_structure
+from mission.gap.temporal import time_power_statement
+from mission.localize.classical import ModelGridSearch
 from mission.physics import make_model
 from mission.physics.propagation import MODEL_NAMES
 from mission.samples import FlightSamples
@@ -186,8 +192,6 @@ def localization_cost(
     With ``split="flights"`` flight k is localized with the rung fitted without it (fold k):
     held-out localization; otherwise with the first fold's fit.
     """
-    from mission.localize.classical import ModelGridSearch
-
     out = []
     for rung in rungs:
         row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
@@ -232,8 +236,6 @@ def decimate_flight(f: FlightSamples, rate_hz: float) -> FlightSamples:
 
 def _rich_progress() -> tuple[Any, Any]:
     """A rich progress bar and the ``(description, done, total)`` callback that drives it."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
     bar = Progress(
         TextColumn("{task.description:<40}"),
         BarColumn(),
@@ -268,9 +270,6 @@ def diagnose(
     over seconds, so 3 Hz loses little and makes every fit and bootstrap ~10x cheaper on 30 Hz
     logs). ``progress``: True for a rich progress bar, or a ``(description, done, total)`` callback.
     """
-    from mission.gap.spatial import usable_candidates
-    from mission.gap.structure import footprint, residual_structure
-
     flights = [decimate_flight(f, cfg.rate_hz) for f in flights]
     rng = np.random.default_rng(cfg.seed)
     als = [align(f) for f in flights]
@@ -316,7 +315,6 @@ def diagnose(
         "final": residual_structure(flights, rungs[-1].residuals, rng),
     }
     fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
-    from mission.gap.power import power_statement
 
     m = max(1, len(rungs[0].ranking))
     nadir = power_statement(
@@ -329,7 +327,6 @@ def diagnose(
         seed=cfg.seed,
     )
     nadir["found"] = any(r.added == "near_nadir" for r in rungs)
-    from mission.gap.temporal import time_power_statement
 
     tpow = time_power_statement(
         flights, rungs[-1].residuals, make_folds(flights, cfg), cfg, m, cfg.split, seed=cfg.seed

@@ -15,6 +15,7 @@ white noise and the held-out p90; the offsets give ``offset_db``.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Sequence
@@ -24,8 +25,19 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidates import describe_params, select
-from mission.gap.fit import FitConfig, Fold, fit_candidate, make_folds, residuals
+from mission.gap.fit import (
+    FitConfig,
+    Fold,
+    _map,
+    decimate,
+    fit_candidate,
+    make_folds,
+    minimize_from_grid,
+    objective,
+    residuals,
+)
 from mission.gap.pipeline import Pipeline
+from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
 from mission.robust import robust_offset
@@ -176,8 +188,6 @@ def _fit_antenna(
     cfg: FitConfig,
     rng: np.random.Generator,
 ) -> Pipeline:
-    from mission.gap.fit import decimate, objective
-
     pat = select([names[0]])[0]
     mount = select([f"{names[0].split('_')[0]}_mounting"])[0]
     ii = [decimate(idx, cfg.fit_max_samples)]
@@ -195,10 +205,6 @@ def _fit_antenna(
 def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfig) -> Pipeline:
     """Joint multi-start Nelder-Mead over the spec's continuous parameters (headings on a grid, the
     others from the sequential fit), the three best starts polished."""
-    import itertools
-
-    from mission.gap.fit import decimate, minimize_from_grid, objective
-
     spec = spec_of(pipe)
     if "ground" in spec:  # the ground's parameters stay as the sequential fit left them
         return pipe
@@ -432,7 +438,8 @@ def build_family(
     return {
         "schema": 1,
         "name": name,
-        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted per flight "
+        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted "
+        "per flight "
         "(airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
         "between-team sd; antenna patterns as variants by share of flights), the held-out "
         "residual's gaussian variogram per flight (shadowing sigma and range) and white noise "
@@ -473,9 +480,6 @@ def fit_family(
     **kw: Any,
 ) -> tuple[dict[str, Any], list[FlightFit]]:
     """Fit ``effects`` on every flight and build the family record (``build_family``)."""
-    from mission.gap.fit import _map
-    from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
-
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
     fits = _map(

@@ -27,11 +27,14 @@ Why these choices:
 from __future__ import annotations
 
 import itertools
+import multiprocessing as mp
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from mission.gap.candidate import (
     TIER_FREEFORM,
@@ -389,8 +392,6 @@ def _forked_call(i: int) -> Any:
 
 
 def _limit_blas() -> None:
-    from threadpoolctl import threadpool_limits
-
     threadpool_limits(limits=1, user_api="blas")
 
 
@@ -411,7 +412,6 @@ def _map(
     multi-threaded OpenBLAS on a busy machine spins for its cores (a 350 x 350 Cholesky took 70 ms
     with 2 BLAS threads against 2 ms with one at load 10 on 2 cores).  ``threadpoolctl`` comes with
     scikit-learn."""
-    from threadpoolctl import threadpool_limits
 
     def tick(it: Any) -> list[Any]:
         out = []
@@ -423,8 +423,6 @@ def _map(
 
     with threadpool_limits(limits=1, user_api="blas"):
         if processes > 1 and len(items) > 1:
-            import multiprocessing as mp
-
             _FORKED.append((fn, items))
             try:
                 with mp.get_context("fork").Pool(
@@ -435,7 +433,6 @@ def _map(
                 _FORKED.pop()
         if workers <= 1 or len(items) <= 1:
             return tick(fn(x) for x in items)
-        from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=workers) as ex:
             return tick(ex.map(fn, items))

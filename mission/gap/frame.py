@@ -38,6 +38,7 @@ import numpy as np
 
 from mission.gap.candidate import FRAME_BODY as BODY
 from mission.gap.candidate import FRAME_GROUND as GROUND
+from mission.gap.candidates import select
 from mission.gap.fit import FitConfig, Fold, heldout_residuals, rank_candidates
 from mission.gap.pipeline import Pipeline
 from mission.samples import FlightSamples
@@ -48,10 +49,13 @@ BUFFER_S = (
 )
 MIN_REL = 0.01
 FRAME_RULE = (
-    "on a split, a candidate wins when it reduces the held-out loss by at least 1 % and the other keeps "
+    "on a split, a candidate wins when it reduces the held-out loss by at least 1 % and the "
+    "other keeps "
     "less than half of that; body-fixed when the body-angle candidate wins on unseen ground (80 m "
-    "checkerboard) or across headings (the same ground flown the other way, 15 s around each change "
-    "left out); ground-fixed when the ground map wins across headings and the body candidate does not "
+    "checkerboard) or across headings (the same ground flown the other way, 15 s around each "
+    "change "
+    "left out); ground-fixed when the ground map wins across headings and the body candidate "
+    "does not "
     "win on unseen ground; else undecided"
 )
 
@@ -137,8 +141,6 @@ def frame_test(
     """Refit ``body`` and ``ground`` (candidate names) on top of ``pipe`` on the ``headings`` and
     ``ground`` splits; the verdict by ``FRAME_RULE``.  Needs the flights' attitudes (the
     headings)."""
-    from mission.gap.candidates import select
-
     cands = select([body, ground])
     out: dict[str, Any] = {"body": body, "ground": ground, "rule": FRAME_RULE, "splits": {}}
     rng = np.random.default_rng(seed)
@@ -174,7 +176,8 @@ def frame_test(
         body if verdict == "body-fixed" else ground if verdict == "ground-fixed" else None
     )
     out["text"] = (
-        f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground flown the "
+        f"Ground-fixed or body-fixed: {verdict}. Held out across headings (the same ground "
+        "flown the "
         f"other way) {body} reduces the loss {rb:+.1%}, {ground} {rg:+.1%}; on unseen ground "
         f"({CELL_M:.0f} m checkerboard) {body} {gb:+.1%}, {ground} {gg:+.1%}."
     )

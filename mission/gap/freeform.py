@@ -8,8 +8,8 @@ least-squares solve:
 
 | name | variables (from the LOS geometry the physics model already computes) | basis |
 | --- | --- | --- |
-| ``rx_gain_map`` | UAV body azimuth az_b x sin(body depression) | Fourier(az_b, M=6) x Legendre(sin dep_b, P=3) |
-| ``tx_gain_map`` | compass azimuth of the UAV seen from the rover x sin(elevation) | Fourier(M=4) x Legendre(P=2) |
+| ``rx_gain_map`` | UAV body azimuth az_b x sin(body depression) | Fourier(M=6) x Legendre(P=3) |
+| ``tx_gain_map`` | UAV compass azimuth from rover x sin(elevation) | Fourier(M=4) x Legendre(P=2) |
 | ``excess_loss`` | log10(d_los / 100 m) and UAV height | Legendre(P=3) + Legendre(P=2) |
 
 The constant is left out (the free per-flight offset absorbs it).  Coefficients are shrunk by a
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,7 @@ from numpy.polynomial import legendre
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
 from mission.gap.pipeline import Pipeline, memo, offset_residuals
+from mission.physics import Attitude
 from mission.physics.geometry import (
     bearing,
     body_azimuth,
@@ -199,8 +201,6 @@ class FreeFormTerm:
 def link_of(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray) -> Any:
     """The model's per-sample LOS geometry (``Link`` fields) for the samples ``idx`` (time offset
     applied)."""
-    from types import SimpleNamespace
-
     rx, att = pipe.geometry(flight, idx)
     tx = np.asarray(flight.tx_enu_m, dtype=float)
     dx, dy, dz = link_delta(tx, rx)
@@ -419,8 +419,6 @@ def freeform_candidate(kind: str, named: Mapping[str, Candidate] | None = None) 
         if kind == "rx_gain_map" and not p.model.has("attitude"):
             # a body-frame map needs the body frame: the logged attitude joins the model with the
             # map
-            from mission.physics import Attitude
-
             p = p.replace(model=p.model.with_effect(Attitude()))
             resid = offset_residuals(
                 p,

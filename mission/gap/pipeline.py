@@ -192,7 +192,8 @@ class LocalizationModel:
         return p
 
 
-_JOINT: dict = {}  # joint geometry of (time offset, flights, sample selections), see _joint_geometry
+# joint geometry of (time offset, flights, sample selections), see _joint_geometry
+_JOINT: dict = {}
 _JOINT_MAX_SAMPLES = (
     20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
 )

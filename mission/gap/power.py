@@ -171,13 +171,15 @@ def power_statement(
     need = int(math.ceil(need_eff * L_mean))
     pl = f"{passes} pass{'es' if passes != 1 else ''}"
     seen = (
-        f"a loss there (peaking mid-band, {SHAPE_WIDTH_DEG:.0f} deg wide) smaller than {detectable:.1f} dB "
+        f"a loss there (peaking mid-band, {SHAPE_WIDTH_DEG:.0f} deg wide) smaller than "
+        f"{detectable:.1f} dB "
         "cannot be shown held out"
         if math.isfinite(detectable)
         else f"a loss there of any size up to {DEPTHS_DB[-1]:.0f} dB cannot be shown held out"
     )
     text = (
-        f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} samples in {pl} "
+        f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} "
+        f"samples in {pl} "
         f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need at least {need} samples "
         f"({need_eff:.0f} independent) spread over several passes."
     )

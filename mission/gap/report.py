@@ -13,11 +13,13 @@ from typing import Any
 import numpy as np
 
 from mission import jsonsafe
+from mission.files import save_figure, write_text
 from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
-from mission.gap.fit import _pooled
+from mission.gap.fit import RANKING_RULE, _pooled
 from mission.gap.stats import ecdf
-from mission.gap.text import details_text, print_report  # noqa: F401  (the terminal report's home; re-exported)
+from mission.gap.structure import name_missing
+from mission.gap.text import details_text, print_report, summary_paragraph  # noqa: F401  (the terminal report's home; re-exported)
 
 PAPER_P90_DB = (
     22.0  # "over 90 % of the errors contained within 22 dB" (enhanced two-ray, paper Fig. Abserror)
@@ -139,10 +141,6 @@ def summary(d: Diagnosis) -> dict[str, Any]:
     diagnosis names as missing first; ``structure``: residual variograms and verdict of the base and
     final rungs; ``rule``: the ranking rule.
     """
-    from mission.gap.fit import RANKING_RULE
-    from mission.gap.structure import name_missing
-    from mission.gap.text import summary_paragraph
-
     ladder = []
     for row in rung_table(d):
         s = row["pooled"]
@@ -249,12 +247,12 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
 def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the
     paths."""
-    import matplotlib
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from mission.files import save_figure, write_text
+    import matplotlib.pyplot as plt  # noqa: PLC0415
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -29,13 +29,24 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.gap.candidate import TIER_FREEFORM
 from mission.gap.candidates import library
-from mission.gap.fit import FitConfig, make_folds, rank_candidates
+from mission.gap.fit import (
+    FitConfig,
+    decimate,
+    heldout_residuals,
+    make_folds,
+    rank_candidates,
+    residuals,
+)
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt
+from mission.gap.spatial import KrigedShadowing, _group_cells
 from mission.gap.stats import summarize
+from mission.geo import afar_field
 from mission.physics import Attitude, PathGainSlope, make_model
 from mission.physics.antenna import rm_wb1_dn
 from mission.physics.shadowing import RandomField
 from mission.samples import FlightSamples
+from mission.simulate import SimConfig, fly_path
+from mission.trajectory.generators import generate
 
 NOISE_DB = 1.0
 WITHHELD_ALL = (
@@ -121,10 +132,6 @@ def simulate_flights(
     """Fly ``n_flights`` trajectories (different patterns, altitudes and transmitters) and return
     flights whose RSS is the truth pipeline's *channel* prediction (receiver and noise added by the
     caller)."""
-    from mission.geo import afar_field
-    from mission.simulate import SimConfig, fly_path
-    from mission.trajectory.generators import generate
-
     fld = afar_field()
     flights, chans = [], []
     x0, y0, x1, y1 = fld.rover_area.bounds
@@ -217,7 +224,8 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
             and _angle_err(f["azimuth_deg"], truth["tilt_az_deg"]) <= 25
         )
         return ok, (
-            f"tilt {f['tilt_deg']:.1f} (truth {truth['tilt_deg']:.1f}) deg towards {f['azimuth_deg']:.0f} "
+            f"tilt {f['tilt_deg']:.1f} (truth {truth['tilt_deg']:.1f}) deg towards "
+            f"{f['azimuth_deg']:.0f} "
             f"(truth {truth['tilt_az_deg']:.0f}) deg"
         )
     if withheld == "ground_reflection":
@@ -230,7 +238,8 @@ def param_check(withheld: str, fitted: dict[str, Any], truth: dict[str, Any]) ->
     if withheld == "leg_shadowing":
         ok = abs(f["beta"] - truth["beta"]) <= 0.15
         return ok, (
-            f"beta {f['beta']:.2f} (truth {truth['beta']:.2f}), half-width {f['half_width_deg']:.1f} "
+            f"beta {f['beta']:.2f} (truth {truth['beta']:.2f}), half-width "
+            f"{f['half_width_deg']:.1f} "
             f"(truth 5), legs rotated {f['legs_rotation_deg']:.1f} (truth 0) deg"
         )
     if withheld == "time_offset":
@@ -327,9 +336,6 @@ def oracle_spatial_rms(
 ) -> float:
     """Held-out RMS of kriging with the true field's covariance (the best a spatial candidate can
     do)."""
-    from mission.gap.fit import decimate, heldout_residuals, residuals
-    from mission.gap.spatial import KrigedShadowing, _group_cells
-
     folds = make_folds(flights, cfg)
     pipes = []
     for fold in folds:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve
 
 from mission.cells import bin_index, bin_means, cell_keys
 from mission.gap.candidate import TIER_SMOOTHER, Candidate
@@ -33,6 +34,7 @@ from mission.gap.freeform import (
     ridge_penalty,
 )
 from mission.gap.pipeline import Pipeline, memo
+from mission.gap.temporal import NAME, usable_in
 from mission.physics.geometry import bearing, horizontal_distance
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
@@ -139,15 +141,14 @@ def choose_kriging(
     half are computed once for the whole grid, the correlations once per length, and each system is
     solved by Cholesky (it is a covariance).
     """
-    from scipy.linalg import cho_factor, cho_solve
-
     r_all = np.concatenate(list(resid)) if resid else np.zeros(0)
     var = float(np.var(r_all)) if r_all.size else 0.0
     halves = []
     for f, i in zip(flights, idx, strict=True):
         h = (np.floor(f.t_s[i] / period_s).astype(int) % 2) if len(i) else np.zeros(0, int)
         halves.append(h)
-    parts = []  # per half: cells per transmitter (xy distances, mean, count) and the test samples against them
+    # per half: cells per transmitter (xy distances, mean, count) and the test samples against them
+    parts = []
     for a in (0, 1):
         tr = [i[h != a] for i, h in zip(idx, halves, strict=True)]
         rt = [r[h != a] for r, h in zip(resid, halves, strict=True)]
@@ -347,8 +348,6 @@ def usable_candidates(
     """``candidates`` without ``site_map`` when no two flights share a transmitter position, and
     without the per-flight ``time_drift`` when whole flights are held out or a flight has no times
     (``temporal.usable_in``)."""
-    from mission.gap.temporal import NAME, usable_in
-
     return [
         c
         for c in candidates

@@ -26,8 +26,10 @@ from typing import Any
 import numpy as np
 
 from mission.gap.align import align
+from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
+from mission.gap.frame import frame_for, resolve
 from mission.gap.pipeline import Pipeline
-from mission.gap.spatial import tx_key
+from mission.gap.spatial import tx_key, usable_candidates
 from mission.physics.shadowing import fit_variogram
 from mission.samples import FlightSamples
 
@@ -39,9 +41,11 @@ STRUCTURE_RULE = (
     "correlated shadowing when the semivariance of residual pairs closer than 15 m (same "
     "transmitter), divided by that of all pairs, has a one-sided 95 % block-bootstrap upper bound "
     "below 0.8 (the correlated std is at least half the uncorrelated one) and the correlated std "
-    "sqrt((1 - ratio) var) is at least 1 dB; otherwise correlated within flights when the along-path "
+    "sqrt((1 - ratio) var) is at least 1 dB; otherwise correlated within flights when the "
+    "along-path "
     "variogram's correlated fraction exceeds 0.5 (sigma >= 1 dB): structure along each flight that "
-    "does not repeat over the same ground; otherwise white noise.  The spatial variogram (sigma, L, "
+    "does not repeat over the same ground; otherwise white noise.  The spatial variogram "
+    "(sigma, L, "
     "nugget) is reported but not used: L's lower bound can reach 0 on real data"
 )
 
@@ -261,10 +265,7 @@ def identify(
     and for the named effect its ``footprint`` (fold 0's fit against the base) and fitted
     parameters.
     """
-    from mission.gap.fit import RANKING_RULE, heldout_residuals, make_folds, rank_candidates
-
     rng = np.random.default_rng(cfg.seed)
-    from mission.gap.spatial import usable_candidates
 
     candidates = usable_candidates(candidates, flights, cfg.split)
     folds = make_folds(flights, cfg)
@@ -274,7 +275,6 @@ def identify(
         pipes, flights, folds, candidates, cfg, rng, base_res, progress, "rank"
     )
     struct = residual_structure(flights, base_res, rng)
-    from mission.gap.frame import frame_for, resolve
 
     frame = frame_for(ranking, base, flights, cfg, cfg.seed)
     named = resolve(name_missing(ranking, struct), ranking, frame)

@@ -10,7 +10,7 @@ per flight, so is its drift):
 | part | columns (per flight) | ridge weight |
 | --- | --- | --- |
 | smooth drift | Legendre P_1..P_4 of the flight's time scaled to [-1, 1] | 1 + p^2 |
-| steps at events | H(t - t_e) per event (``flight_events``: phase changes, sharp turns) | ``STEP_WEIGHT`` |
+| steps at events | H(t - t_e) per ``flight_events`` event (phase change, turn) | ``STEP_WEIGHT`` |
 
 Events: a change of the log's phase column, or a turn (the heading changes by at least ``TURN_DEG``
 within ``TURN_WINDOW_S``), at least ``MIN_EVENT_GAP_S`` apart, at most ``MAX_EVENTS`` per flight.
@@ -33,8 +33,10 @@ from typing import Any
 import numpy as np
 
 from mission.gap.candidate import TIER_FREEFORM, Candidate
+from mission.gap.fit import compare, decimate
 from mission.gap.freeform import _legendre_all, ridge_cv
 from mission.gap.pipeline import Pipeline, memo
+from mission.robust import offset_residual
 from mission.samples import FlightSamples
 
 DRIFT_ORDER = 4
@@ -236,14 +238,12 @@ def time_power_statement(
     with ``fit.compare`` (``power.injected_test``'s method); ``detectable_db`` = the smallest drift
     on ``DRIFTS_DB`` from which on every larger one is significant (inf: not even the largest; with
     whole flights held out, inf by construction)."""
-    from mission.gap.fit import compare, decimate
-    from mission.robust import offset_residual
-
     if not usable_in(split, flights):
         return {
             "detectable_db": math.inf,
             "statement": "A gain drifting over a flight cannot be shown with whole "
-            "flights held out (a per-flight term says nothing about another flight); --split blocks can.",
+            "flights held out (a per-flight term says nothing about another flight); --split "
+            "blocks can.",
         }
     ramps = [
         2.0 * (f.t_s - f.t_s[0]) / max(float(f.t_s[-1] - f.t_s[0]), 1e-9) - 1.0 for f in flights
@@ -287,7 +287,8 @@ def time_power_statement(
     seen = (
         f"a drift smaller than {threshold:.2g} dB over a flight cannot be shown held out"
         if math.isfinite(threshold)
-        else f"a drift of any size up to {DRIFTS_DB[-1]:.0f} dB over a flight cannot be shown held out"
+        else f"a drift of any size up to {DRIFTS_DB[-1]:.0f} dB over a flight cannot be shown "
+        "held out"
     )
     return {
         "detectable_db": threshold,

@@ -9,13 +9,17 @@ table here has columns whose widths add up to less than 80 (``WIDTH``), labels a
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 import numpy as np
+from rich.console import Console
 
 from mission.gap.align import SEGMENTS
 from mission.gap.diagnose import Diagnosis, rung_table
+from mission.gap.fit import RANKING_RULE
 from mission.gap.structure import WITHIN_FLIGHT
+from mission.gap.temporal import NAME
 
 WIDTH = 80
 PLAIN: dict[str, str] = {
@@ -94,19 +98,28 @@ def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left
     )
     if v == "correlated shadowing":
         return (
-            f"{lead} ({std:.1f} dB) is shadowing fixed to the ground: near samples over the same ground are "
-            f"alike ({ratio} < 0.8), {te.get('correlated_std_db', float('nan')):.1f} dB of it correlated over "
-            f"about {sp.get('corr_len', float('nan')):.0f} m, that no model here predicts on unflown ground, "
+            f"{lead} ({std:.1f} dB) is shadowing fixed to the ground: near samples over the "
+            "same ground are "
+            f"alike ({ratio} < 0.8), {te.get('correlated_std_db', float('nan')):.1f} dB of it "
+            "correlated over "
+            f"about {sp.get('corr_len', float('nan')):.0f} m, that no model here predicts on "
+            "unflown ground, "
             f"plus {sp.get('nugget_db', float('nan')):.1f} dB of white noise."
         )
     if v == WITHIN_FLIGHT:
         return (
-            f"{lead} ({std:.1f} dB) is correlated along each flight ({al['sigma_db']:.1f} dB over about "
-            f"{al['corr_len']:.0f} s, {al['corr_len'] * speed:.0f} m at {speed:.1f} m/s; white noise "
-            f"{al['nugget_db']:.1f} dB) but is not shown to repeat over the same ground ({ratio}, not below "
-            "0.8): it follows the flight rather than the ground (its own path's shadowing seen once, a gain "
-            "changing over the flight, or a per-flight state such as the rover's heading or transmit power). "
-            "A ground map will not predict it on new flights; per-flight terms (time_drift, chunks held out) "
+            f"{lead} ({std:.1f} dB) is correlated along each flight ({al['sigma_db']:.1f} dB "
+            "over about "
+            f"{al['corr_len']:.0f} s, {al['corr_len'] * speed:.0f} m at {speed:.1f} m/s; white "
+            "noise "
+            f"{al['nugget_db']:.1f} dB) but is not shown to repeat over the same ground "
+            f"({ratio}, not below "
+            "0.8): it follows the flight rather than the ground (its own path's shadowing seen "
+            "once, a gain "
+            "changing over the flight, or a per-flight state such as the rover's heading or "
+            "transmit power). "
+            "A ground map will not predict it on new flights; per-flight terms (time_drift, "
+            "chunks held out) "
             "or the same ground flown twice in a flight can tell which."
         )
     return f"{lead} looks like white noise of {std:.1f} dB ({ratio})."
@@ -115,8 +128,6 @@ def verdict_sentence(st: dict[str, Any], speed: float, lead: str = "What is left
 def _time_sentence(d: Diagnosis) -> str:
     """Whether an effect is better explained along time than by geometry, or what time could
     show."""
-    from mission.gap.temporal import NAME
-
     first = d.rungs[0].ranking
     t = next((r for r in first if r.name == NAME), None)
     geo = next((r for r in first if r.name != NAME and r.significant), None)
@@ -127,7 +138,8 @@ def _time_sentence(d: Diagnosis) -> str:
             else ""
         )
         return (
-            f" The first effect is better explained along the flight's time than by geometry: a gain drifting "
+            " The first effect is better explained along the flight's time than by geometry: "
+            "a gain drifting "
             f"or stepping over each flight reduces the held-out loss {t.rel_reduction:.0%}{other}."
         )
     if any(r.added == NAME for r in d.rungs):
@@ -147,8 +159,6 @@ def _speed(d: Diagnosis) -> float:
 
 
 def wrap(text: str, width: int = WIDTH) -> str:
-    import textwrap
-
     return "\n".join(textwrap.wrap(text, width))
 
 
@@ -257,9 +267,11 @@ def structure_text(d: Diagnosis) -> str:
         out.append(
             wrap(
                 f"What is left ({k} rung): {st['verdict']}; near/all-pair semivariance "
-                f"{te.get('ratio', float('nan')):.2f}, correlated std {te.get('correlated_std_db', 0):.1f} "
+                f"{te.get('ratio', float('nan')):.2f}, correlated std "
+                f"{te.get('correlated_std_db', 0):.1f} "
                 f"dB; over space sigma {sp['sigma_db']:.1f} dB, L {sp['corr_len']:.0f} m "
-                f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget {sp['nugget_db']:.1f} dB; "
+                f"[{sp['corr_len_ci'][0]:.0f}, {sp['corr_len_ci'][1]:.0f}], nugget "
+                f"{sp['nugget_db']:.1f} dB; "
                 f"along the path sigma {al.get('sigma_db', float('nan')):.1f} dB over "
                 f"{al.get('corr_len', float('nan')):.0f} s, correlated fraction "
                 f"{al.get('correlated_fraction', float('nan')):.2f}."
@@ -355,7 +367,6 @@ def details_text(d: Diagnosis) -> str:
                     + "."
                 )
             )
-    from mission.gap.fit import RANKING_RULE
 
     parts.append(wrap("Ranking rule: " + RANKING_RULE))
     return "\n\n".join(parts) + "\n"
@@ -364,7 +375,5 @@ def details_text(d: Diagnosis) -> str:
 def print_report(d: Diagnosis, console: Any = None) -> None:
     """Print ``report_text`` (plain text: no markup, so what is printed is what the test
     measures)."""
-    from rich.console import Console
-
     c = console or Console()
     c.print(report_text(d), markup=False, highlight=False, soft_wrap=True)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.io as sio
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
@@ -81,8 +82,6 @@ class ImportResult:
 
 
 def _load_mat(path: Path) -> dict[str, np.ndarray]:
-    import scipy.io as sio
-
     src = str(path)
     if path.is_dir():
         raise InputError(
@@ -164,36 +163,7 @@ def convert_afar_mat(
     src = str(path)
     m = _load_mat(path)
     notes: list[str] = []
-    finite = np.ones(m["timestamp_power"].size, dtype=bool)
-    for v in ("timestamp_power", "mX", "mY", "mZ", "mpower"):
-        finite &= np.isfinite(m[v])
-    if not finite.all():
-        notes.append(f"dropped {int((~finite).sum())} rows with NaN/inf time, position or power")
-        m = {k: a[finite] for k, a in m.items()}
-    m = _drop_impossible(m, notes)
-    if m["timestamp_power"].size < 2:
-        raise InputError(
-            "fewer than 2 usable samples" + (f" ({notes[-1]})" if notes else ""), source=src
-        )
-    t = m["timestamp_power"]
-    if np.any(np.diff(t) < 0):
-        notes.append(f"sorted {int((np.diff(t) < 0).sum())} out-of-order timestamps")
-    order = np.argsort(t, kind="stable")
-    t = t[order]
-    keep = np.concatenate([[True], np.diff(t) > 0])
-    if not keep.all():
-        notes.append(f"dropped {int((~keep).sum())} rows with duplicate timestamps")
-    t = t[keep]
-    order = order[keep]
-    near = np.concatenate([[False], np.diff(t) < MIN_DT_S])
-    if near.any():
-        notes.append(
-            f"dropped {int(near.sum())} rows less than {MIN_DT_S * 1e3:g} ms after the previous one "
-            "(receiver read bursts; the log stores 0.1 ms)"
-        )
-    keep = ~near
-    idx = order[keep]
-    m = {k: a[idx] for k, a in m.items()}
+    m = _usable_rows(m, notes, src)
     t = m["timestamp_power"]
     lat, lon = m["mY"], m["mX"]
     if np.any(np.abs(lat) > 90) or np.any(np.abs(lon) > 180):
@@ -218,6 +188,49 @@ def convert_afar_mat(
         "yaw_deg": np.mod(m["mYaw"], 360.0),
         "rss_dbm": m["mpower"],
     }
+    meta = _sidecar_meta(path, origin, t[0], truth, truth_height_m, notes)
+    return ImportResult(FlightLog(cols, meta), notes)
+
+
+def _usable_rows(m: dict, notes: list[str], src: str) -> dict:
+    """The rows kept: finite, physically possible, in time order, one per timestamp and at least
+    ``MIN_DT_S`` apart; each drop is a note. Fewer than 2 left: ``InputError``."""
+    finite = np.ones(m["timestamp_power"].size, dtype=bool)
+    for v in ("timestamp_power", "mX", "mY", "mZ", "mpower"):
+        finite &= np.isfinite(m[v])
+    if not finite.all():
+        notes.append(f"dropped {int((~finite).sum())} rows with NaN/inf time, position or power")
+        m = {k: a[finite] for k, a in m.items()}
+    m = _drop_impossible(m, notes)
+    if m["timestamp_power"].size < 2:
+        raise InputError(
+            "fewer than 2 usable samples" + (f" ({notes[-1]})" if notes else ""), source=src
+        )
+    t = m["timestamp_power"]
+    if np.any(np.diff(t) < 0):
+        notes.append(f"sorted {int((np.diff(t) < 0).sum())} out-of-order timestamps")
+    order = np.argsort(t, kind="stable")
+    t = t[order]
+    keep = np.concatenate([[True], np.diff(t) > 0])
+    if not keep.all():
+        notes.append(f"dropped {int((~keep).sum())} rows with duplicate timestamps")
+    t = t[keep]
+    order = order[keep]
+    near = np.concatenate([[False], np.diff(t) < MIN_DT_S])
+    if near.any():
+        notes.append(
+            f"dropped {int(near.sum())} rows less than {MIN_DT_S * 1e3:g} ms after the "
+            "previous one "
+            "(receiver read bursts; the log stores 0.1 ms)"
+        )
+    keep = ~near
+    idx = order[keep]
+    return {k: a[idx] for k, a in m.items()}
+
+
+def _sidecar_meta(path: Path, origin: Origin, t0: float, truth, truth_height_m: float, notes):
+    """The sidecar of an imported flight: origin, the receiver, the truth when given, the source
+    file and its start time, and the import notes."""
     truth_d = None
     if truth is not None:
         truth_d = {
@@ -225,7 +238,7 @@ def convert_afar_mat(
             "lon_deg": float(truth[1]),
             "height_m": float(truth_height_m),
         }
-    start = np.datetime64(int(round(t[0] * 1e6)), "us")
+    start = np.datetime64(int(round(t0 * 1e6)), "us")
     meta = make_meta(
         origin,
         dict(RSS_SOURCE),
@@ -238,7 +251,7 @@ def convert_afar_mat(
         altitude_reference="mZ: height above the first GPS fix (used as alt_m and rel_alt_m)",
         import_notes=notes,
     )
-    return ImportResult(FlightLog(cols, meta), notes)
+    return meta
 
 
 def import_afar_mat(

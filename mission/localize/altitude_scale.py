@@ -38,7 +38,8 @@ def metadata_entry() -> dict:
     """What ``rfsl train --altitude-normalised`` records under ``training_data[METADATA_KEY]``."""
     return {
         "reference_height_m": REFERENCE_HEIGHT_M,
-        "scaled": "cluster x, y and the output about the field origin by reference_height_m / (median height "
+        "scaled": "cluster x, y and the output about the field origin by reference_height_m / "
+        "(median height "
         "of the samples used - transmitter height)",
     }
 

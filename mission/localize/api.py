@@ -31,7 +31,16 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
+from mission.flightlog import FlightLog, read_flight_log
+from mission.geo import Area, afar_field
 from mission.localize import Estimate, Selection
+from mission.localize.error_circles import (
+    CIRCLE_METHODS,
+    NO_CIRCLE_APPLIES,
+    attach_circles,
+    card_calibration,
+    method_calibration,
+)
 from mission.localize.methods import (
     ADAPTIVE_ANSWER,
     ADAPTIVE_METHOD,
@@ -43,6 +52,16 @@ from mission.localize.methods import (
     composer,
     method_entry,
 )
+from mission.localize.preprocess import select_samples
+from mission.localize.sim_default import sim_default_model
+from mission.localize.training_domain import (
+    altitude_note,
+    flight_altitudes,
+    flown_domain,
+    trained_legs,
+)
+from mission.localize.uncertainty import outer_region
+from mission.physics.propagation import MODEL_NAMES
 from mission.shipped import (
     shipped_model,
 )  # re-exported: importers say mission.localize.api.shipped_model
@@ -60,8 +79,6 @@ def default_model_path() -> Path | None:
 def search_area(log):
     """The grid search region for a log (``Area`` in the log's frame, or None for the flight's
     box)."""
-    from mission.geo import Area, afar_field
-
     origin = log.origin
     ra = log.meta.get("rover_area")
     if isinstance(ra, list) and len(ra) >= 3:
@@ -132,7 +149,6 @@ def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
     sidecar says which, with its parameters), else the ``afar`` preset calibrated on real
     receivers."""
     src = log.meta.get("rss_source") or {}
-    from mission.physics.propagation import MODEL_NAMES
 
     if src.get("kind") == "sim" and src.get("model") in MODEL_NAMES:
         return src["model"], dict(src.get("model_params") or {}), None
@@ -158,8 +174,6 @@ def _check_altitude(est: Estimate, net, part) -> bool:
     """Record the network's training altitudes and the flight's (``network_training_altitude_m``,
     ``flight_altitude_m``) and add a note when the flight is outside them (``training_domain``);
     True then."""
-    from mission.localize.training_domain import altitude_note, flight_altitudes
-
     trained, flown = net.card.domain.altitude_m, flight_altitudes(part.enu()[:, 2])
     est.extras["network_training_altitude_m"] = None if trained is None else list(trained)
     est.extras["flight_altitude_m"] = list(flown)
@@ -172,9 +186,6 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     """A network's estimate gets its card's calibrated error circles (``error_circles``, clipped to
     the rover ``area`` when known) and the altitude check; on a simulated log outside the training
     altitudes the circles (calibrated inside them) are too small."""
-    from mission.localize.error_circles import attach_circles, card_calibration
-    from mission.localize.training_domain import flown_domain
-
     cal = card_calibration(net.card, "sim" if simulated else "real")  # sized for what was flown
     flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name)
     if (
@@ -184,7 +195,8 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
     if _check_altitude(est, net, part) and simulated and est.regions:
         est.add_note(
-            "Its error circles were calibrated on flights inside those altitudes: expect them to be too "
+            "Its error circles were calibrated on flights inside those altitudes: expect them "
+            "to be too "
             "small here."
         )
 
@@ -195,13 +207,12 @@ def _method_regions(
     """Strongest sample, centroid and grid get error circles calibrated for their default
     configuration (the grid's default physics, the default sample selection), clipped to the rover
     ``area`` when known; any other configuration gets a note instead."""
-    from mission.localize.error_circles import CIRCLE_METHODS, attach_circles, method_calibration
-
     if method not in CIRCLE_METHODS:
         return
     if not default_config:
         est.add_note(
-            "no uncertainty region: the error circles of this method were calibrated for its default "
+            "no uncertainty region: the error circles of this method were calibrated for its "
+            "default "
             "physics and sample selection only"
         )
         return
@@ -220,7 +231,6 @@ def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> 
     _, alt = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     if not alt.regions:
         return
-    from mission.localize.error_circles import NO_CIRCLE_APPLIES
 
     est.regions, est.posterior = alt.regions, alt.posterior
     est.extras["regions_from"] = "selfcal"
@@ -232,7 +242,8 @@ def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> 
     ]
     est.add_note(
         f"The regions are the self-calibrating search's posterior's (its estimate "
-        f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} m from "
+        f"{alt.x_m:.0f}, {alt.y_m:.0f} m, {np.hypot(alt.x_m - est.x_m, alt.y_m - est.y_m):.0f} "
+        "m from "
         "this one)."
     )
 
@@ -244,8 +255,6 @@ def fusion_model_path() -> Path | None:
 
 def member_samples(part, entry: Method):
     """The samples a method takes (its registry entry's ``samples``)."""
-    from mission.localize.training_domain import trained_legs
-
     return trained_legs(part) if entry.samples == TRAINED_LEGS else part
 
 
@@ -264,8 +273,6 @@ def fusion(
     benchmarks/fusion_weights.py); the uncertainty regions are the self-calibrating posterior's, and
     a note says when the fused point falls outside them (the two components disagree: ~5 % of
     benchmark flights)."""
-    from mission.localize.uncertainty import outer_region
-
     _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     path = model_path or fusion_model_path()
     if path is None:
@@ -298,8 +305,10 @@ def fusion(
         outer = outer_region(est.extras)
         if outer is not None and q >= outer["hpd_mass"]:
             est.add_note(
-                f"the network and the self-calibrating search disagree ({dist:.0f} m apart): the fused "
-                f"point lies outside the {100 * outer['level']:.0f} % region, which is the search's alone"
+                f"the network and the self-calibrating search disagree ({dist:.0f} m apart): "
+                "the fused "
+                f"point lies outside the {100 * outer['level']:.0f} % region, which is the "
+                "search's alone"
             )
     _check_altitude(est, net, part)
     return est
@@ -335,13 +344,13 @@ def choose_method(
             None,
             (
                 "real receiver log: mean of the self-calibrating estimate and the network "
-                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring (unseen-flight benchmark and "
-                "held-out real flights, models/README.md); --method selfcal / grid / onnx run one method"
+                f"{FUSION_MODEL_NAME}, chosen by the rule written before scoring "
+                "(unseen-flight benchmark and "
+                "held-out real flights, models/README.md); --method selfcal / grid / onnx run "
+                "one method"
             ),
         )
     if default_model is not None:
-        from mission.localize.sim_default import sim_default_model
-
         path, why = sim_default_model(meta, heights_m, default_model)
         return "onnx", path, why
     return (
@@ -370,8 +379,6 @@ def localize_log(
     """
     if physics_preset is not None and physics_model is not None:
         raise InputError("give a physics model or a physics preset, not both")
-    from mission.flightlog import FlightLog, read_flight_log
-    from mission.localize.preprocess import select_samples
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     physics_given = physics_preset is not None or physics_model is not None or floor_db is not None
@@ -396,50 +403,23 @@ def localize_log(
     ra = search_area(
         log
     )  # the transmitter's area: bounds the searches, clips error circles, checks estimates
-    area = ra if entry.bounded else None
-    origin = log.origin
-    if entry.compose is not None:  # a meta-estimator over other methods
-        est = composer(entry)(
-            part,
-            origin,
-            area,
-            tx_height_m=tx_height_m,
-            model_path=model_path,
-            physics_preset=physics_preset,
-        )
-    else:
-        loc = make_localizer(
-            method,
-            model_path,
-            physics_model or "e2r",
-            physics_params,
-            tx_height_m,
-            area,
-            floor_db,
-            physics_preset=physics_preset,
-        )
-        est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
-        if entry.calibration == FROM_CARD:  # a network: its card's circles
-            _network_regions(est, loc, part, _is_simulated(log), ra)
-            if by_default:
-                _fallback_regions(est, part, origin, ra, tx_height_m)
-        else:
-            _method_regions(
-                est,
-                method,
-                _is_simulated(log),
-                cruise and not (method == "grid" and physics_given),
-                ra,
-            )
-    if (
-        ra is not None
-    ):  # networks are not bounded: say so when an estimate leaves the transmitter's area
-        out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
-        if out_m > OUTSIDE_WARN_M:
-            est.extras["warning"] = (
-                f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
-                "recognise this flight (other path or physics than it was trained on?)"
-            )
+    est = run_method(
+        entry,
+        method,
+        part,
+        log,
+        ra,
+        model_path=model_path,
+        physics_model=physics_model,
+        physics_params=physics_params,
+        physics_preset=physics_preset,
+        tx_height_m=tx_height_m,
+        floor_db=floor_db,
+        by_default=by_default,
+        default_config=cruise and not (method == "grid" and physics_given),
+    )
+    if ra is not None:
+        _outside_warning(est, ra)
     t = _truth_enu(log, truth)
     if t is not None:
         est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))
@@ -448,3 +428,63 @@ def localize_log(
     est.selection = Selection(len(part), n_all, reason)
     est.extras["log"] = str(log.path) if log.path else None
     return est
+
+
+def run_method(
+    entry: Method,
+    method: str,
+    part,
+    log,
+    ra,
+    *,
+    model_path,
+    physics_model,
+    physics_params,
+    physics_preset,
+    tx_height_m: float,
+    floor_db,
+    by_default: bool,
+    default_config: bool,
+) -> Estimate:
+    """The registry entry's estimate on the samples ``part`` in the log's frame, with its
+    uncertainty regions (a composer's own; a network's card circles, selfcal's regions as the
+    default's fallback; a classical method's calibrated circles)."""
+    origin = log.origin
+    area = ra if entry.bounded else None
+    if entry.compose is not None:  # a meta-estimator over other methods
+        return composer(entry)(
+            part,
+            origin,
+            area,
+            tx_height_m=tx_height_m,
+            model_path=model_path,
+            physics_preset=physics_preset,
+        )
+    loc = make_localizer(
+        method,
+        model_path,
+        physics_model or "e2r",
+        physics_params,
+        tx_height_m,
+        area,
+        floor_db,
+        physics_preset=physics_preset,
+    )
+    est = _in_log_frame(loc, loc.predict(member_samples(part, entry)), origin, entry.frame)
+    if entry.calibration == FROM_CARD:  # a network: its card's circles
+        _network_regions(est, loc, part, _is_simulated(log), ra)
+        if by_default:
+            _fallback_regions(est, part, origin, ra, tx_height_m)
+    else:
+        _method_regions(est, method, _is_simulated(log), default_config, ra)
+    return est
+
+
+def _outside_warning(est: Estimate, ra) -> None:
+    """Networks are not bounded: say so when an estimate leaves the transmitter's area."""
+    out_m = -float(ra.signed_distance(np.array([[est.x_m, est.y_m]]))[0])
+    if out_m > OUTSIDE_WARN_M:
+        est.extras["warning"] = (
+            f"estimate lies {out_m:.0f} m outside the {ra.name}: the method did not "
+            "recognise this flight (other path or physics than it was trained on?)"
+        )

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 
 
 @dataclass(frozen=True)
@@ -67,8 +68,6 @@ def posterior_modes(
     mode (its basin), and a mode's mass is its basin's.  Modes lighter than ``min_mass`` are dropped
     (their mass is not redistributed: the masses kept may sum to less than 1).
     """
-    from scipy.ndimage import maximum_filter
-
     p = np.asarray(prob, float)
     step = float(np.hypot(*(grid[0, 1] - grid[0, 0]))) if p.shape[1] > 1 else 1.0
     size = max(3, int(round(sep_m / max(step, 1e-9))) | 1)

@@ -164,7 +164,8 @@ def _feature_config(fc, expect_config: FeatureConfig | dict | None, src: str) ->
                 )
             if k not in want or want[k] != fc[k]:
                 raise InputError(
-                    f"model's feature_config {k}={fc[k]!r} does not match the expected {want.get(k)!r}",
+                    f"model's feature_config {k}={fc[k]!r} does not match the expected "
+                    f"{want.get(k)!r}",
                     source=src,
                     field=f"feature_config.{k}",
                 )

@@ -32,9 +32,10 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog
-from mission.geo import square_grid
+from mission.geo import Area, square_grid
 from mission.localize import Estimate
-from mission.localize.features import FeatureConfig, preprocess
+from mission.localize.features import FeatureConfig, gaussian_smooth, preprocess
+from mission.physics import make_model
 from mission.robust import robust_cost
 from mission.samples import FlightSamples
 
@@ -57,7 +58,8 @@ def as_flight(obj, origin=None) -> FlightSamples:
         )
     else:
         raise InputError(
-            f"cannot localize from a {type(obj).__name__}: expected a FlightLog or (enu, rss, attitude)"
+            f"cannot localize from a {type(obj).__name__}: expected a FlightLog or (enu, rss, "
+            "attitude)"
         )
     enu = np.asarray(fs.enu_m, dtype=float)
     rss = np.asarray(fs.rss_dbm, dtype=float).ravel()
@@ -125,8 +127,6 @@ def search_bounds(area, enu: np.ndarray, margin_m: float):
     """(xmin, ymin, xmax, ymax) and the polygon (or None) of a grid search: an ``Area`` (its box and
     polygon), a ``(xmin, ymin, xmax, ymax)`` box, or None for the flight's box grown by
     ``margin_m``."""
-    from mission.geo import Area
-
     if isinstance(area, Area):
         return area.bounds, area
     if area is not None:
@@ -157,8 +157,8 @@ class ModelGridSearch(_Base):
     """Model-based maximum-likelihood grid search with a free constant offset and a robust loss.
 
     ``model``: a ``mission.physics`` model name (built with ``make_model(model, **model_params)``)
-    or any
-    object with ``rss_dbm(tx (K, 1, 3), rx (N, 3), attitude (N, 3) | None) -> (K, N)`` (outer product).
+    or any object with ``rss_dbm(tx (K, 1, 3), rx (N, 3), attitude (N, 3) | None) -> (K, N)``
+    (outer product).
     ``area``: search region, an ``Area`` or ``(xmin, ymin, xmax, ymax)``; by default the flight's
     bounding box grown by ``margin_m``.  Candidates outside an ``Area`` polygon are not considered.
     """
@@ -210,8 +210,6 @@ class ModelGridSearch(_Base):
     def _get_model(self):
         if self._model_obj is None:
             if isinstance(self.model, str):
-                from mission.physics import make_model
-
                 try:
                     self._model_obj = make_model(self.model, **self.model_params)
                 except (ValueError, TypeError) as e:
@@ -279,8 +277,6 @@ class ModelGridSearch(_Base):
     def _reduce(self, flight, origin=None) -> FlightSamples:
         f = as_flight(flight, origin)
         if self.smooth_samples > 0:
-            from mission.localize.features import gaussian_smooth
-
             f = replace(f, rss_dbm=gaussian_smooth(f.rss_dbm, self.smooth_samples))
         return block_average(f, self.max_points)
 

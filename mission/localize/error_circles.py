@@ -109,7 +109,8 @@ def _checked(rec, p: Path, key: str) -> dict:
             )
         ):
             raise InputError(
-                "track needs ascending coverage bounds in (0, 1] and, for each of the record's levels, "
+                "track needs ascending coverage bounds in (0, 1] and, for each of the record's "
+                "levels, "
                 "one positive radius per bound",
                 source=str(p),
                 field=f"{key}.track",
@@ -129,14 +130,16 @@ def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] |
         hi = tr["bounds"][k + 1] if k + 1 < len(tr["bounds"]) else 1.0
         return (
             {lv: r[k] for lv, r in tr["radii_m"].items()},
-            f"; for flights that flew {100 * tr['bounds'][k]:.0f}-{100 * hi:.0f} % of their planned track "
+            f"; for flights that flew {100 * tr['bounds'][k]:.0f}-{100 * hi:.0f} % of their "
+            "planned track "
             f"(this one {100 * coverage:.0f} %)",
         )
     if coverage >= FULL_TRACK:
         return rec["radii_m"], ""
     lo = f"{100 * tr['bounds'][0]:.0f}" if tr is not None else f"{100 * FULL_TRACK:.0f}"
     return None, (
-        f"no calibration applies: this flight flew {100 * coverage:.0f} % of its planned track, its "
+        f"no calibration applies: this flight flew {100 * coverage:.0f} % of its planned "
+        "track, its "
         f"circles were calibrated on flights that flew {lo}-100 %"
     )
 
@@ -167,7 +170,8 @@ def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
     if rec.get("model_sha256") != (digest or model_digest(path)):
         return (
             None,
-            f"the '{domain}' calibration in {p.name} was measured on another version of the model file",
+            f"the '{domain}' calibration in {p.name} was measured on another version of the "
+            "model file",
         )
     return rec, None
 

@@ -17,12 +17,25 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.cells import cell_average
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.localize import Estimate
+from mission.localize.api import DEFAULT_PHYSICS_PRESET, run_member
 from mission.localize.candidates import Candidate, dedupe, posterior_modes
+from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
+from mission.localize.stacking import (
+    blocked_scores,
+    geometric_median,
+    mixture_posterior,
+    stacking_weights,
+)
+from mission.localize.training_domain import altitude_note, flight_altitudes, flown_domain
+from mission.localize.uncertainty import hpd_regions
+from mission.shipped import shipped_model
 
 MEMBER_NETWORKS = ("rfsl_spiral_e2r.onnx", "rfsl_spiral_e2r_ens5.onnx")
-SIGMA_M = 35.0  # each candidate's spread in the mixture regions (chosen of 20, 35, 50 m on the development split)
+# each candidate's spread in the mixture regions (chosen of 20, 35, 50 m on the development split)
+SIGMA_M = 35.0
 # HPD masses of the stacked mixture that covered the truth at the nominal rates on the benchmark's
 # development split (flights 0-59; benchmarks/score_evidence.py score): held out on flights 60-199
 # they hold 46 % / 81 %, on the six real flights 5 / 6 and 5 / 6 (models/README.md, "The evidence
@@ -35,10 +48,6 @@ def _network_candidates(
 ) -> tuple[list[Candidate], dict[str, Estimate]]:
     """Each shipped spiral network's point, marked out of its training domain when the track's
     altitude or attitude is (``training_domain``): weighed, never dropped."""
-    from mission.localize.api import run_member
-    from mission.localize.training_domain import altitude_note, flight_altitudes, flown_domain
-    from mission.shipped import shipped_model
-
     cands, ests = [], {}
     for name in MEMBER_NETWORKS:
         path = shipped_model(name)
@@ -62,8 +71,6 @@ def member_candidates(
     """Every member's candidates (near-duplicates merged) and the members' estimates by name; the
     self-calibrating estimate comes first in both (its posterior grid carries the mixture
     regions)."""
-    from mission.localize.api import DEFAULT_PHYSICS_PRESET, run_member
-
     _, a = run_member("selfcal", part, origin, tx_height_m=tx_height_m, area=area)
     cands = [Candidate(a.x_m, a.y_m, "selfcal")]
     if a.posterior is not None:
@@ -88,10 +95,6 @@ def member_candidates(
 def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_TX_HEIGHT_M):
     """The flight's blocked held-out scores of the candidates (``stacking.BlockedScores``), on the
     self-calibrating search's cells, antenna hypotheses and temperature."""
-    from mission.cells import cell_average
-    from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
-    from mission.localize.stacking import blocked_scores
-
     sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
     samples = part.samples() if hasattr(part, "samples") else part
     cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
@@ -115,8 +118,6 @@ def answer(cands: list[Candidate]) -> tuple[float, float]:
     models/README.md, "The evidence stage"), and the unweighted median erred less.  The evidence
     weighs the regions.
     """
-    from mission.localize.stacking import geometric_median
-
     x, y = geometric_median(np.array([c.xy for c in cands]))
     return float(x), float(y)
 
@@ -132,9 +133,6 @@ def evidence_stage(
     """Localize ``part`` (the selected samples of a log) with the evidence stage (module docstring);
     the estimate's ``candidates`` hold every candidate with its evidence and weight, most weight
     first."""
-    from mission.localize.stacking import mixture_posterior, stacking_weights
-    from mission.localize.uncertainty import hpd_regions
-
     cands, members = member_candidates(part, origin, area, tx_height_m, physics_preset)
     scores = score_candidates(part, cands, tx_height_m)
     w = stacking_weights(scores.block_lpd)

@@ -49,6 +49,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
+from scipy.ndimage import convolve1d, gaussian_filter1d
+from threadpoolctl import ThreadpoolController
 
 from mission.cells import bin_index, bin_means
 from mission.errors import InputError, refuse_unknown_keys
@@ -160,8 +162,6 @@ def grouping(values: np.ndarray, n_g: int) -> np.ndarray:
 
 def gaussian_smooth(values: np.ndarray, sigma: float, kernel_sigmas: int = 6) -> np.ndarray:
     """Convolve along the last axis with the normalised Gaussian kernel (edges: nearest value)."""
-    from scipy.ndimage import convolve1d
-
     v = np.asarray(values, dtype=float)
     k = gaussian_kernel(sigma, kernel_sigmas)
     if k.size == 1:
@@ -184,7 +184,6 @@ def resample_by_arc(
     """
     if step_m <= 0 or x.size < 2:
         return x, y, rss
-    from scipy.ndimage import gaussian_filter1d
 
     sx = gaussian_filter1d(x, smooth_samples, mode="nearest")
     sy = gaussian_filter1d(y, smooth_samples, mode="nearest")
@@ -226,18 +225,17 @@ def _standardise(a: np.ndarray) -> np.ndarray:
     return (a - a.mean(axis=0)) / np.where(s > 0, s, 1.0)
 
 
-_KMEANS_LIMIT: list = []  # the threadpoolctl controller for k-means, made once (making one scans libraries: ms)
+# the threadpoolctl controller for k-means, made once (making one scans libraries: ms)
+_KMEANS_LIMIT: list = []
 
 
 def _kmeans_labels(pts: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
-    from sklearn.cluster import (
-        KMeans,
-    )  # loads its OpenMP runtime before the controller looks for it
+    # lazy on purpose (noqa): scikit-learn takes 1-2 s to import (scipy.stats), paid only by the
+    # clustering features; it loads its OpenMP runtime before the controller looks for it
+    from sklearn.cluster import KMeans  # noqa: PLC0415
 
     km = KMeans(n_clusters=cfg.c_k, n_init=cfg.n_init, random_state=cfg.seed, algorithm="lloyd")
     if not _KMEANS_LIMIT:
-        from threadpoolctl import ThreadpoolController
-
         _KMEANS_LIMIT.append(ThreadpoolController())
     with thread_limits(controller=_KMEANS_LIMIT[0], user_api="openmp"):
         return km.fit_predict(pts)

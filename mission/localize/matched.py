@@ -28,7 +28,10 @@ from __future__ import annotations
 from contextlib import contextmanager
 
 import numpy as np
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from threadpoolctl import threadpool_limits
 
+from mission.cli.main import console
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.evidence import conformal_quantile
@@ -37,6 +40,8 @@ from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
 from mission.localize.matched_net import SummaryNet
 from mission.localize.matched_sim import centred, draw_transmitters, simulate_track, track_cells
+from mission.localize.selfcal import _p_outside_flown
+from mission.localize.uncertainty import Posterior, hpd_regions
 from mission.physics.family import PhysicsFamily, load_family
 
 # The family drawn from when none is given: the shipped one (``load_family``), so a refitted
@@ -52,10 +57,6 @@ DEFAULT_FAMILY: str | PhysicsFamily = "afar"
 def rich_progress(enabled: bool | None = None):
     """A transient rich bar on stderr (shown only on a terminal unless ``enabled``) and its
     ``(description, done, total)`` callback."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from mission.cli.main import console
-
     con = console(stderr=True)
     show = con.is_terminal if enabled is None else enabled
     with Progress(
@@ -211,7 +212,6 @@ class MatchedLocalizer(_Base):
                 f"only {len(track)} distinct {self.cell_m:g} m cells flown: too few to localize "
                 f"(need {self.min_cells})"
             )
-        from threadpoolctl import threadpool_limits
 
         # one BLAS thread: the products are small, and threads that wait for a busy core cost 10-30x
         # more
@@ -222,9 +222,6 @@ class MatchedLocalizer(_Base):
             return self._predict(f, track, tick)
 
     def _predict(self, f, track, tick) -> Estimate:
-        from mission.localize.selfcal import _p_outside_flown
-        from mission.localize.uncertainty import Posterior, hpd_regions
-
         fam = self._family()
         rng = np.random.default_rng(self.seed)
         box, poly = search_bounds(self.area, f.enu_m, self.margin_m)
@@ -297,7 +294,8 @@ class MatchedLocalizer(_Base):
         )
         if p_out >= 0.5:
             est.add_note(
-                f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                "the transmitter probably lies outside the flown area (posterior mass "
+                f"{100 * p_out:.0f} % "
                 "outside it): the estimate is an extrapolation"
             )
         est.posterior = post

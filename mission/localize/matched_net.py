@@ -2,10 +2,9 @@
 
 Why numpy: the network is trained after landing, inside ``localize``, on the flight's own simulated
 transmitters, and ``localize`` must run on numpy (no torch at inference).  The net regresses the
-transmitter
-position on the centred RSS-per-cell vector: its output approximates the posterior mean E[x | RSS], the
-summary statistic of semi-automatic ABC (Fearnhead and Prangle 2012), from which ``matched`` draws
-the posterior.
+transmitter position on the centred RSS-per-cell vector: its output approximates the posterior mean
+E[x | RSS], the summary statistic of semi-automatic ABC (Fearnhead and Prangle 2012), from which
+``matched`` draws the posterior.
 
 Architecture: principal components of the inputs (``n_pca``, whitened) -> ``hidden`` ReLU layers ->
 2 outputs, mean squared error on standardised targets, Adam with a cosine-decayed step,

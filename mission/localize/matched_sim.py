@@ -9,8 +9,9 @@ family (``mission.physics.family``: model spec, correlated shadowing, white nois
 Per transmitter j with family draw (spec_j, sigma_j, L_j, n_j, c_j), cell m (``family.simulate_rss``
 per cell)::
 
-    P_jm = model_j(tx_j, cell_m, attitude_m) + c_j + S_jm + e_jm,    S_j ~ N(0, sigma_j^2 rho(|x_m - x_m'|; L_j))
-    e_jm ~ N(0, n_j^2 / count_m)                                      # white noise averaged over the cell
+    P_jm = model_j(tx_j, cell_m, attitude_m) + c_j + S_jm + e_jm,
+    S_j ~ N(0, sigma_j^2 rho(|x_m - x_m'|; L_j))
+    e_jm ~ N(0, n_j^2 / count_m)              # white noise averaged over the cell
 
 with ``rho`` the Gaussian correlation of ``shadowing.shadowing_field`` (1/e at L).  The field is
 drawn from a square-root factor of the cells' correlation (``FieldBasis``), not from

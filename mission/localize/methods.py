@@ -57,7 +57,8 @@ class Method:
     composes from others."""
 
     name: str
-    kind: str  # "network", "classical" (classical.py's estimators), "self-calibrating", "fusion", "stacking"
+    # "network", "classical" (classical.py's estimators), "self-calibrating", "fusion", "stacking"
+    kind: str
     uncertainty: str  # POSTERIOR or CIRCLE
     calibration: str  # FROM_REGION_MASSES, FROM_DRAWS, FROM_CARD or FROM_METHOD_CIRCLES
     bounded: bool  # searches inside the transmitter's area (localize_log passes it the rover area)
@@ -148,7 +149,8 @@ METHODS: dict[str, Method] = {
             CIRCLE,
             FROM_CARD,
             False,
-            "an ONNX network on the 3D-clustering features (--model, else models/rfsl_default.onnx)",
+            "an ONNX network on the 3D-clustering features (--model, else "
+            "models/rfsl_default.onnx)",
             _onnx,
             frame=MODEL_FRAME,
             samples=TRAINED_LEGS,
@@ -206,7 +208,8 @@ METHODS: dict[str, Method] = {
             POSTERIOR,
             FROM_REGION_MASSES,
             True,
-            "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log default)",
+            "mean of selfcal and the network rfsl_spiral_e2r; selfcal's regions (the real-log "
+            "default)",
             None,
             compose="mission.localize.api:fusion",
         ),
@@ -216,7 +219,8 @@ METHODS: dict[str, Method] = {
             POSTERIOR,
             FROM_REGION_MASSES,
             True,
-            "candidates of every method weighed by the flight's held-out RSS (stacking); mixture regions",
+            "candidates of every method weighed by the flight's held-out RSS (stacking); "
+            "mixture regions",
             None,
             compose="mission.localize.evidence_stage:evidence_stage",
         ),
@@ -226,7 +230,8 @@ METHODS: dict[str, Method] = {
             POSTERIOR,
             FROM_DRAWS,
             True,
-            "track-matched ABC: transmitters simulated along the flown track under the physics family",
+            "track-matched ABC: transmitters simulated along the flown track under the physics "
+            "family",
             _matched,
         ),
     )

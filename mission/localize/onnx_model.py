@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import onnxruntime as ort
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
@@ -30,8 +31,6 @@ def session_options(threads: int):
     """onnxruntime session options: quiet log, ``threads`` intra- and inter-op threads (0 =
     onnxruntime's default pool).  One thread by default: a small network runs in well under a
     millisecond, and an idle pool's spinning threads cost CPU on a busy machine."""
-    import onnxruntime as ort
-
     opts = ort.SessionOptions()
     opts.log_severity_level = 3
     if threads > 0:
@@ -65,8 +64,6 @@ class OnnxLocalizer:
         threads: int | None = None,
         tx_height_m: float = DEFAULT_TX_HEIGHT_M,
     ) -> None:
-        import onnxruntime as ort
-
         self.tx_height_m = float(tx_height_m)
         self.threads = compute_threads() if threads is None else int(threads)
         self.path = Path(path)
@@ -102,7 +99,8 @@ class OnnxLocalizer:
         if isinstance(width, int) and width != self.n_features:
             key = "feature_config.c_k" if self.kind == "clustering" else "feature_config.rss_length"
             raise InputError(
-                f"network input has {width} values but the feature configuration gives {self.n_features}",
+                f"network input has {width} values but the feature configuration gives "
+                f"{self.n_features}",
                 source=src,
                 field=key,
             )
@@ -111,7 +109,8 @@ class OnnxLocalizer:
             self.n_features,
         ):
             raise InputError(
-                f"input normalisation has {self.in_mean.size} values, the features {self.n_features}",
+                f"input normalisation has {self.in_mean.size} values, the features "
+                f"{self.n_features}",
                 source=src,
                 field="input_normalisation",
             )
@@ -164,7 +163,8 @@ class OnnxLocalizer:
         if self.needs_heights:
             if heights_m is None:
                 raise InputError(
-                    "an altitude-normalised network needs each flight's height above the transmitter",
+                    "an altitude-normalised network needs each flight's height above the "
+                    "transmitter",
                     source=str(self.path),
                     field="heights_m",
                 )

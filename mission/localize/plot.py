@@ -8,7 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.files import save_figure
+from mission.geo import afar_field
 from mission.localize import Estimate
+from mission.localize.api import search_area
 from mission.localize.features import FeatureConfig, cluster_details
 
 
@@ -16,9 +19,6 @@ def field_areas(log) -> list:
     """The areas to draw for a log, in its frame: the AFAR flight and rover areas when the log
     shares the AFAR origin, else the sidecar's rover area (if any).  Why: a path or estimate means
     little without the field."""
-    from mission.geo import afar_field
-    from mission.localize.api import search_area
-
     af = afar_field()
     o = log.origin
     off = af.origin.to_enu(o.lat_deg, o.lon_deg, o.alt_m)
@@ -116,10 +116,12 @@ def plot_localization(
 ) -> Path:
     """Draw ``log`` (its cruise part, positions in the log's frame) with ``est``; writes ``out``
     (PNG)."""
-    import matplotlib
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415
 
     cfg = cfg or FeatureConfig()
     enu = log.enu()
@@ -129,11 +131,27 @@ def plot_localization(
     if area is not None and not any(a.name == area.name for a in areas):
         areas.append(area)
     draw_areas(ax, areas)
+    draw_clusters(fig, ax, cr, cfg, plt.get_cmap("tab20"))
+    draw_estimate(ax, est)
+    label_axes(ax, log.label, est, title)
+    ax.legend(loc="best", fontsize=7, framealpha=0.85)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+
+    try:
+        out = save_figure(fig, out, "--plot")  # whole or not at all; an OS error is one line
+    finally:
+        plt.close(fig)
+    return out
+
+
+def draw_clusters(fig, ax, cr, cfg: FeatureConfig, cmap) -> None:
+    """The smoothed RSS (relative to its maximum) with its colour bar, each cluster's top samples
+    and the cluster means the network reads."""
     rel = cr.p - cr.p.max()
     vmin, vmax = robust_limits(rel)
     sc = ax.scatter(cr.x, cr.y, c=rel, s=3, cmap="viridis", vmin=vmin, vmax=vmax, zorder=1)
     fig.colorbar(sc, ax=ax, label="smoothed RSS relative to max (dB), 2-99.5 % range", shrink=0.8)
-    cmap = plt.get_cmap("tab20")
     t = cr.top
     ax.scatter(
         cr.x[t],
@@ -163,6 +181,10 @@ def plot_localization(
         ax.annotate(
             f"{i + 1}: {p:.1f} dB", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7
         )
+
+
+def draw_estimate(ax, est: Estimate) -> None:
+    """The estimate, its regions and candidates, and the truth with the error line when known."""
     ax.plot(
         est.x_m,
         est.y_m,
@@ -189,23 +211,16 @@ def plot_localization(
             xytext=(8, -14),
             textcoords="offset points",
         )
+
+
+def label_axes(ax, name: str, est: Estimate, title: str | None) -> None:
+    """Equal aspect, axis labels and the title (the estimate and its error, or ``title``)."""
     ax.set_aspect("equal")
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
-    name = log.label
     ax.set_title(
         title
         or f"{name}: estimate {est.x_m:.1f}, {est.y_m:.1f} m"
         + (f", error {est.error_m:.1f} m" if est.error_m is not None else ""),
         fontsize=10,
     )
-    ax.legend(loc="best", fontsize=7, framealpha=0.85)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    from mission.files import save_figure
-
-    try:
-        out = save_figure(fig, out, "--plot")  # whole or not at all; an OS error is one line
-    finally:
-        plt.close(fig)
-    return out

@@ -21,6 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mission.errors import InputError
+from mission.flightlog import FLOWN_PHASES, PHASES
+
 
 @dataclass
 class CruiseSelection:
@@ -130,7 +133,6 @@ def select_mission_legs(log):
     phase = log.columns.get("phase")
     if phase is None:
         return None
-    from mission.flightlog import FLOWN_PHASES, PHASES
 
     ph = np.asarray(phase).astype(str)
     if not np.isin(ph, PHASES).all():
@@ -154,8 +156,6 @@ def select_samples(log):
     if (
         len(part) == 0
     ):  # e.g. ``localize --at 0``: the vehicle was still on the ground (an IndexError before)
-        from mission.errors import InputError
-
         raise InputError(
             f"no samples to localize from ({sel.reason}); the flight had not reached its legs",
             source=str(log.path) if log.path else None,

@@ -13,10 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from mission.cells import cell_average, concat_cells
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
+from mission.localize.api import choose_method, default_model_path, run_member
 from mission.localize.candidates import Candidate
+from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
+from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
+from mission.localize.stacking import blocked_scores
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
 
@@ -36,8 +41,6 @@ def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
 def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
     """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
     (``api.choose_method`` on the sidecar without its adaptive record)."""
-    from mission.localize.api import choose_method, default_model_path, run_member
-    from mission.localize.methods import composer, method_entry
 
     meta = dict(part.meta)
     meta["trajectory"] = {
@@ -54,9 +57,6 @@ def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
 def rounds_scores(part, rounds: np.ndarray, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
     """(K,) the rounds' held-out log predictive density of each candidate (tempered nats), the
     nuisance fitted on the survey's cells only."""
-    from mission.cells import cell_average, concat_cells
-    from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
-    from mission.localize.stacking import blocked_scores
 
     sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
     parts = [
@@ -81,8 +81,6 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     """The live method on the whole flight and the fixed flight's default on the survey, the
     candidate the rounds support best answering (module docstring); the live method's answer alone
     when no round was flown."""
-    from mission.localize.api import run_member
-    from mission.localize.methods import ADAPTIVE_METHOD
 
     live = run_member(ADAPTIVE_METHOD, part, origin, area=area, tx_height_m=tx_height_m)[1]
     split = survey_and_rounds(part)

@@ -19,7 +19,7 @@ profile likelihood over the search grid is the posterior from which
 
 Model (per cell m, candidate k, hypothesis h)::
 
-    P_m = c_kh + G_h(el_km, az_km) - 20 log10 d_km + e_m          # free space + UAV antenna, offset c free
+    P_m = c_kh + G_h(el_km, az_km) - 20 log10 d_km + e_m          # free space + UAV antenna, c free
     SSR_kh = sum_m (P_m - G_h - (-20 log10 d_km) - c_kh)^2,       c_kh = the mean (least squares)
     log p(k) = logsumexp_h(-0.5 tau SSR_kh / s^2),  s^2 = min SSR / (M - 1),  tau = n_eff / M
 """
@@ -27,6 +27,7 @@ Model (per cell m, candidate k, hypothesis h)::
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from mission.cells import ALTITUDE_GAP_M, Cells, cell_average
 from mission.defaults import DEFAULT_TX_HEIGHT_M
@@ -34,6 +35,7 @@ from mission.errors import InputError
 from mission.geo import Area, square_grid
 from mission.localize import Estimate
 from mission.localize.classical import _Base, as_flight, search_bounds
+from mission.localize.uncertainty import grid_posterior, hpd_regions
 from mission.physics.antenna import Dipole, Pattern, rm_wb1_dn
 from mission.physics.geometry import heading_frame_angles, link_delta
 from mission.samples import FlightSamples
@@ -261,8 +263,6 @@ class SelfCalibratingGrid(_Base):
         return square_grid(box, self.step_m), box, poly
 
     def predict(self, flight, origin=None) -> Estimate:
-        from mission.localize.uncertainty import grid_posterior, hpd_regions
-
         f = as_flight(flight, origin)
         cells = cell_average(f, self.cell_m, self.altitude_gap_m)
         if len(cells) < self.min_cells:
@@ -313,7 +313,8 @@ class SelfCalibratingGrid(_Base):
         est = self._estimate(x, y, "free space + profiled UAV antenna", **extras)
         if p_out >= 0.5:
             est.add_note(
-                f"the transmitter probably lies outside the flown area (posterior mass {100 * p_out:.0f} % "
+                "the transmitter probably lies outside the flown area (posterior mass "
+                f"{100 * p_out:.0f} % "
                 "outside it): the estimate is an extrapolation"
             )
         est.posterior = post
@@ -322,8 +323,6 @@ class SelfCalibratingGrid(_Base):
 
 def flown_area(enu: np.ndarray) -> Area | None:
     """The flown area: the convex hull of the UAV track (None for a degenerate track)."""
-    from scipy.spatial import ConvexHull, QhullError
-
     xy = enu[:, :2]
     try:
         return Area("flown area", xy[ConvexHull(xy).vertices])

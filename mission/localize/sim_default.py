@@ -18,6 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.localize.training_domain import altitude_note, flight_altitudes
+from mission.shipped import shipped_model
+
 SPIRAL_NETWORKS = (
     "rfsl_spiral_e2r_ens5.onnx",
     "rfsl_spiral_alt.onnx",
@@ -54,10 +58,6 @@ def sim_default_model(
     """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at
     ``heights_m``: the first spiral network whose training altitudes hold the flight, else
     ``default`` (``rfsl_default``)."""
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.localize.training_domain import altitude_note, flight_altitudes
-    from mission.shipped import shipped_model
-
     dname = default.name if default is not None else "none"
     why_not = spiral_source(meta)
     if why_not is not None:
@@ -70,7 +70,8 @@ def sim_default_model(
         trained = OnnxLocalizer(path, threads=1).card.domain.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
             return path, (
-                f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the kind of "
+                f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the "
+                "kind of "
                 f"flight it was trained on (spiral, dipoles, {trained[0]:.0f}-{trained[1]:.0f} m)"
             )
     return default, (

@@ -8,7 +8,7 @@ flight is averaged into cells (``mission.cells``); the cells are grouped into sq
 cross-validation, Roberts et al. 2017).  With the transmitter fixed at candidate k, the per-flight
 nuisance is fitted on all blocks but one and the held-out block's cells are scored::
 
-    P_m = c + b * PG_km + G_h(el_km, az_km) + e_m,  PG = -20 log10 d        # free space, UAV antenna h
+    P_m = c + b * PG_km + G_h(el_km, az_km) + e_m,  PG = -20 log10 d    # free space, UAV antenna h
     (c, b) by ridge least squares (b shrunk to 1 with weight lam),  h = argmin training SSR
     lpd_km = log N(P_m - c - b PG_km - G_h; 0, s^2),  s^2 = training SSR / (n - 2)
 
@@ -25,8 +25,11 @@ import numpy as np
 from scipy.special import logsumexp
 
 from mission.cells import Cells
+from mission.localize.selfcal import _geometry, hypothesis_residuals
+from mission.localize.uncertainty import grid_posterior
 
-BLOCK_M = 50.0  # block side: above the real flights' shadowing correlation (35 m, mission/data/afar_family.json)
+# block side: above the real flights' shadowing correlation (35 m, mission/data/afar_family.json)
+BLOCK_M = 50.0
 SLOPE_WEIGHT = (
     200.0  # ridge weight pulling the path-gain slope to free space (cells' PG spread ~ 10 dB)
 )
@@ -71,7 +74,6 @@ def blocked_scores(
     vectorised over candidates, blocks and cells; one pass per antenna hypothesis.  ``block``: each
     cell's block 0..B-1 when the caller defines them (e.g. survey and rounds), else squares of
     ``block_m``."""
-    from mission.localize.selfcal import _geometry, hypothesis_residuals
 
     block = cell_blocks(cells, block_m) if block is None else np.asarray(block, dtype=np.intp)
     nb = int(block.max()) + 1
@@ -151,8 +153,6 @@ def geometric_median(
 def mixture_posterior(cand_xy: np.ndarray, weights: np.ndarray, grid: np.ndarray, sigma_m: float):
     """The candidates' mixture as a grid posterior: isotropic Gaussians of ``sigma_m`` about each
     candidate, weighted by stacking; two surviving candidates far apart give two islands."""
-    from mission.localize.uncertainty import grid_posterior
-
     pts = grid.reshape(-1, 2)
     d2 = ((pts[None, :, :] - np.asarray(cand_xy, float)[:, None, :]) ** 2).sum(-1)  # (K, G)
     logp = np.log(np.maximum(np.asarray(weights, float), 1e-300))[:, None] - 0.5 * d2 / sigma_m**2

@@ -14,9 +14,12 @@ The training's spans are the network's card's (``card.TrainingDomain``, measured
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from mission.defaults import DEFAULT_ALTITUDE_M
 from mission.errors import InputError
+from mission.geo import afar_field
+from mission.trajectory.generators import generate
 
 ALTITUDE_TOLERANCE_M = (
     5.0  # 5 m off its training altitude the spiral network's simulated error doubles
@@ -24,7 +27,8 @@ ALTITUDE_TOLERANCE_M = (
 ATTITUDE_TOLERANCE_DEG = (
     5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
 )
-TRACK_REACH_M = 10.0  # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
+# a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
+TRACK_REACH_M = 10.0
 TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
 
 
@@ -59,9 +63,12 @@ def altitude_note(
         else f"{flown[0]:.0f}-{flown[1]:.0f} m"
     )
     return (
-        f"{model_name} was trained on flights at {t}; this one flew at {f}, {off:.0f} m outside that: networks "
-        "lose accuracy off their training altitude (in simulation the shipped spiral network's error doubles 5 m "
-        "off and grows 3-5x 10-17 m off, models/README.md), so its half of the estimate is less reliable"
+        f"{model_name} was trained on flights at {t}; this one flew at {f}, {off:.0f} m "
+        "outside that: networks "
+        "lose accuracy off their training altitude (in simulation the shipped spiral network's "
+        "error doubles 5 m "
+        "off and grows 3-5x 10-17 m off, models/README.md), so its half of the estimate is "
+        "less reliable"
     )
 
 
@@ -86,9 +93,6 @@ def planned_track(meta: dict, origin) -> np.ndarray | None:
     (generator, parameters, altitude) over the AFAR field; None when the sidecar records no
     generated trajectory or the log is not in the AFAR field's frame (a custom field: its plan
     cannot be rebuilt from the record)."""
-    from mission.geo import afar_field
-    from mission.trajectory.generators import generate
-
     traj = meta.get("trajectory") or {}
     field = afar_field()
     if not traj.get("generator") or not _same_origin(origin, field.origin):
@@ -119,8 +123,6 @@ def track_coverage(
 ) -> float:
     """Share of the planned track (every ``step_m`` along it) that a flown sample passed within
     ``reach_m`` of: 1 for a full flight, about a third for a flight aborted a third of the way."""
-    from scipy.spatial import cKDTree
-
     w = np.asarray(planned_xy, dtype=float)
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(w, axis=0).T))])
     at = np.linspace(0.0, s[-1], max(int(s[-1] / step_m) + 1, 2))
@@ -150,8 +152,10 @@ def attitude_note(
     if not out:
         return None
     return (
-        f"this flight's attitude is outside {model_name}'s training domain ({'; '.join(out)}, 5-95 % of the "
-        "samples used against the training flights' 1-99 %): the network never saw RSS at these tilts"
+        f"this flight's attitude is outside {model_name}'s training domain ({'; '.join(out)}, "
+        "5-95 % of the "
+        "samples used against the training flights' 1-99 %): the network never saw RSS at "
+        "these tilts"
     )
 
 

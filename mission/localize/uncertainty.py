@@ -9,11 +9,12 @@ posterior (centre, semi-axes, orientation), which is what a user compares first.
 JSON layout (``localize --json``, key ``regions``): a list, one entry per level::
 
     {"level": 0.9,               # nominal probability that the transmitter lies inside
-     "hpd_mass": 0.93,           # posterior mass of the set (the level recalibrated on the benchmark)
+     "hpd_mass": 0.93,           # posterior mass of the set (the level recalibrated on the
+                                 # benchmark)
      "area_m2": 5400.0,          # area of the HPD set
      "density": 1.2e-4,          # posterior density threshold of the set (per m^2)
-     "ellipse": {"x_m": .., "y_m": .., "a_m": .., "b_m": .., "angle_deg": ..},  # a: semi-major,
-     angle from east
+     "ellipse": {"x_m": .., "y_m": .., "a_m": .., "b_m": .., "angle_deg": ..},
+                                 # a: semi-major, angle from east
      "polygons": [[[x, y], ...], ...]}   # closed outlines of the set (local ENU metres)
 """
 
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import contourpy
 import numpy as np
 from scipy.special import logsumexp
 from scipy.stats import chi2
@@ -117,8 +119,6 @@ def hpd_regions(
     benchmark (a recalibration of the posterior's credible levels); without it the HPD mass is the
     nominal level.
     """
-    import contourpy
-
     post.grid = grid
     pts = grid.reshape(-1, 2)
     p = post.prob.ravel()

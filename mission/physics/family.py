@@ -9,12 +9,13 @@ what they see spreads the way real flights spread, not around one calibrated poi
 Schema (``schema`` 1)::
 
     {"schema": 1, "name": "...", "description": "...", "source": {...how it was made...},
-     "spec": {...},            # a model spec (mission.physics.presets.build_model); any value may be a
-                               # distribution (below), nested dicts (e.g. "ground") are drawn key by
-                               key
+     "spec": {...},            # a model spec (mission.physics.presets.build_model); any value may
+                               # be a distribution (below), nested dicts (e.g. "ground") are drawn
+                               # key by key
      "variants": [             # optional: alternatives merged into the spec, one drawn per flight
         {"p": 0.6, "spec": {"rx_pattern": "measured", "rx_flipped": true}}, ...],
-     "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},   # correlated field + white nugget
+     # correlated field + white nugget
+     "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
      "offset_db": D,           # the receiver's uncalibrated offset
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
 
@@ -40,6 +41,9 @@ from typing import Any
 import numpy as np
 
 from mission.errors import InputError
+from mission.files import read_text
+from mission.physics.presets import build_model
+from mission.physics.shadowing import shadowing_field
 
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
@@ -161,8 +165,6 @@ class FamilyDraw:
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
-        from mission.physics.presets import build_model
-
         return build_model(self.spec, name=name)
 
     def to_dict(self) -> dict:
@@ -328,7 +330,6 @@ def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
             f"unknown physics family {s!r} (a shipped name: {', '.join(SHIPPED)}, or a .json file)",
             field="family",
         )
-    from mission.files import read_text
 
     if not p.exists():
         raise InputError("cannot read physics family: no such file", source=s)
@@ -354,8 +355,6 @@ def simulate_rss(
 
     ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive
     part)."""
-    from mission.physics.shadowing import shadowing_field
-
     m = draw.model() if model is None else model
     rx = np.asarray(rx_enu, dtype=float)
     rss = np.asarray(m.rss_dbm(np.asarray(tx_enu, dtype=float), rx, attitude_rad), dtype=float)

@@ -31,7 +31,8 @@ from mission.physics.geometry import (
     link_delta,
 )
 
-CHUNK = 8192  # elements per block: float32 temporaries of 32 KiB stay in L2 and below glibc's mmap threshold
+# elements per block: float32 temporaries of 32 KiB stay in L2 and below glibc's mmap threshold
+CHUNK = 8192
 
 
 @dataclass(frozen=True)
@@ -238,7 +239,8 @@ class PropagationModel:
             # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref +
             # d_los): no cancellation
             dphi = (z_t * z_r) * dt(4.0 * TWO_PI / wavelength(fs.fc_hz)) / (d_ref + d_los)
-            # |A + Gamma B e^{-j dphi}|^2 = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})   (eq. 1)
+            # (eq. 1) |A + Gamma B e^{-j dphi}|^2
+            #         = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})
             re = g_re * np.cos(dphi)
             if g_im is not None:
                 re += g_im * np.sin(dphi)

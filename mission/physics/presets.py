@@ -11,8 +11,10 @@ Model spec (every key optional except ``base``)::
      "tx_pattern": "isotropic",       # isotropic | dipole | measured | a file path
      "tx_flipped": false, "tx_heading_deg": 0.0,
      "rx_pattern": "measured", "rx_flipped": true, "rx_heading_deg": 0.0,
-     "ground": null,                  # or {"eps_r": 15, "sigma_s_m": 0.005}: adds/overrides the reflected ray
-     "attitude": true,                # receiver gains in the body frame (roll, pitch, yaw of the log);
+     "ground": null,                  # or {"eps_r": 15, "sigma_s_m": 0.005}: adds/overrides the
+                                      # reflected ray
+     "attitude": true,                # receiver gains in the body frame (roll, pitch, yaw of the
+                                      # log);
                                       # "yaw": heading only (body level); false: level, nose north
      "leg_shadowing_beta": null,      # or beta: paper eqs. 8-9 (removed when null)
      "path_gain_slope": 0.0}          # n_extra of PathGainSlope (-10 n_extra log10 d); 0 = none
@@ -33,6 +35,7 @@ from importlib import resources
 from typing import Any
 
 from mission.errors import InputError
+from mission.files import read_text
 from mission.physics.propagation import (
     Attitude,
     GroundReflection,
@@ -120,8 +123,6 @@ def load_calibration(name: str = "afar") -> dict[str, Any]:
         else name.strip()
     )
     if base.lower().endswith(".json"):  # a preset written by ``rfsl calibrate --out FILE.json``
-        from mission.files import read_text
-
         try:
             rec = json.loads(
                 read_text(base, "physics preset file", "--physics-preset", max_bytes=10_000_000)

@@ -11,9 +11,9 @@ added (``with_effect``) or refitted (``with_params``). Built-in effects:
 ``rx_antenna``         receiver pattern (UAV body frame, antenna along the body z axis, up = -z_b)
 ``attitude``           receiver angles in the body frame (eqs. 3-6; SPEC section 1 transform)
 ``leg_shadowing``      eqs. 8-9: minus Upsilon = 10 beta log10(d_los / d_0) when S = 1
-``path_gain_slope``    (optional, not in the named models) -10 n_extra log10(d_los / d_ref_m): a path-gain
-                       exponent 2 + n_extra instead of Friis' 2 (fitted on the real AFAR flights,
-                       see ``mission.physics.presets``)
+``path_gain_slope``    (optional, not in the named models) -10 n_extra log10(d_los / d_ref_m): a
+                       path-gain exponent 2 + n_extra instead of Friis' 2 (fitted on the real AFAR
+                       flights, see ``mission.physics.presets``)
 
 Without ``attitude`` the body frame is level with yaw 0 (plain two-ray); with zero attitude the
 enhanced two-ray model equals two-ray (+ shadowing) exactly. Any other effect that defines

@@ -5,10 +5,11 @@ Why one module: the simulator draws shadowing for training data, the gap diagnos
 self-test, krigs it, and measures it on real residuals; all must mean the same thing by "sigma" and
 "correlation length".  Two covariance families are named here (``COVARIANCES``):
 
-- ``gaussian``:    C(h) = sigma^2 exp(-h^2 / L^2)  (smooth; 1/e at h = L) -- what ``shadowing_field`` draws
-  (``mission.simulate``, training data; kept so that the same seeds give the same bytes);
-- ``exponential``: C(h) = sigma^2 exp(-h / L)      (Gudmundson's model; rough; 1/e at h = L) -- the usual
-  fit to measured shadowing, and the kriging prior of ``mission.gap``.
+- ``gaussian``:    C(h) = sigma^2 exp(-h^2 / L^2)  (smooth; 1/e at h = L) -- what
+  ``shadowing_field`` draws (``mission.simulate``, training data; kept so that the same seeds give
+  the same bytes);
+- ``exponential``: C(h) = sigma^2 exp(-h / L)      (Gudmundson's model; rough; 1/e at h = L) -- the
+  usual fit to measured shadowing, and the kriging prior of ``mission.gap``.
 
 ``fit_variogram`` fits gamma(h) = n^2 + sigma^2 (1 - C(h) / sigma^2) (nugget n = white noise) to the
 empirical semivariogram of residuals, for either family, with block-bootstrap confidence intervals;
@@ -20,6 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter, map_coordinates
+from scipy.optimize import nnls
 
 COVARIANCES = ("exponential", "gaussian")
 
@@ -56,8 +59,6 @@ def shadowing_field(
     interpolation.  A UAV passing the same place twice sees the same shadowing, which independent
     per-sample noise cannot reproduce.
     """
-    from scipy.ndimage import gaussian_filter, map_coordinates
-
     xy = np.asarray(xy, dtype=float)
     if sigma_db <= 0 or len(xy) == 0:
         return np.zeros(len(xy))
@@ -196,8 +197,6 @@ def _fit_model(
 ) -> tuple[float, float, float, float]:
     """(weighted SSE, sigma, L, nugget): grid over L, non-negative linear fit of (n^2, s^2) per
     L."""
-    from scipy.optimize import nnls
-
     use = cnt >= 10
     if use.sum() < 3:
         return np.inf, 0.0, float(lengths[0]), float(np.sqrt(max(np.mean(gamma), 0.0)))

@@ -26,7 +26,8 @@ from mission.trajectory.kinematics import FlightProfile, plan_profile
 # and landing rows 0.9 m, ArduCopter 4.7 SITL's return 0.03 m (the AFAR launch point is only 0.44 m
 # inside the fence)
 RETURN_OVERSHOOT_M = 1.0
-_TOL = 1e-6  # metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
+# metres: rounding in the geodetic round trip must not fail a waypoint placed on the margin
+_TOL = 1e-6
 
 
 @dataclass
@@ -85,7 +86,10 @@ def _leg_clearance(
 def _where(d: float, margin: float) -> str:
     if d < 0:
         return f"{-d:.1f} m outside the flight area"
-    return f"only {d:.1f} m inside the flight area, {margin:g} m margin required ({margin - d:.1f} m short)"
+    return (
+        f"only {d:.1f} m inside the flight area, {margin:g} m margin required "
+        f"({margin - d:.1f} m short)"
+    )
 
 
 def source_violations(spec, tx=None) -> list[Violation]:
@@ -117,12 +121,33 @@ def source_violations(spec, tx=None) -> list[Violation]:
 
 def check_mission(spec) -> MissionReport:
     """Check a ``MissionSpec``: fence (waypoints and legs), altitude limits and the time budget."""
-    area, margin = spec.field.flight_area, spec.fence_margin_m
     wps = spec.waypoints_enu()
     path = spec.flight_path_enu()
     profile = plan_profile(path, spec.kinematics())
-    v: list[Violation] = []
+    v, min_clear = fence_violations(spec, wps)
+    v += home_violations(spec, wps)
+    v += altitude_violations(spec, wps)
+    v += source_violations(spec)
+    v += budget_violations(spec, profile)
+    n_samples = int(np.floor(profile.duration_s / spec.source.sample_period_s + 1e-9)) + 1
+    return MissionReport(
+        profile.length_m,
+        profile.duration_s,
+        spec.time_budget_s,
+        len(wps),
+        n_samples,
+        min_clear,
+        (float(wps[:, 2].min()), float(wps[:, 2].max())),
+        profile,
+        v,
+    )
 
+
+def fence_violations(spec, wps: np.ndarray) -> tuple[list[Violation], float]:
+    """Waypoints and legs closer to the fence than the margin (a leg only when neither end is
+    already named), and the smallest clearance."""
+    area, margin = spec.field.flight_area, spec.fence_margin_m
+    v: list[Violation] = []
     clear = area.signed_distance(wps[:, :2])
     for i in np.flatnonzero(clear < margin - _TOL):
         v.append(
@@ -147,6 +172,14 @@ def check_mission(spec) -> MissionReport:
                     margin - d,
                 )
             )
+    return v, min_clear
+
+
+def home_violations(spec, wps: np.ndarray) -> list[Violation]:
+    """Home too close to the fence for the return overshoot, and the transits from and back to
+    home leaving the flight area."""
+    area = spec.field.flight_area
+    v: list[Violation] = []
     home = np.asarray(spec.home_enu, dtype=float)
     legs = [(home, wps[0], "transit from home to waypoint 0")]
     if spec.return_behaviour == "rtl":
@@ -163,7 +196,8 @@ def check_mission(spec) -> MissionReport:
                 + (
                     f"{-h_clear:.1f} m outside the flight area"
                     if h_clear < 0
-                    else f"only {h_clear:.1f} m inside the flight area, {need:g} m required (return "
+                    else f"only {h_clear:.1f} m inside the flight area, {need:g} m required "
+                    "(return "
                     f"overshoot {RETURN_OVERSHOOT_M:g} m + home_margin_m {spec.home_margin_m:g})"
                 ),
                 need - h_clear,
@@ -180,7 +214,12 @@ def check_mission(spec) -> MissionReport:
                     -d,
                 )
             )
+    return v
 
+
+def altitude_violations(spec, wps: np.ndarray) -> list[Violation]:
+    """Waypoints below or above the altitude limits."""
+    v: list[Violation] = []
     lo, hi = spec.altitude_limits_m
     for i, z in enumerate(wps[:, 2]):
         if z < lo - _TOL:
@@ -201,8 +240,12 @@ def check_mission(spec) -> MissionReport:
                     z - hi,
                 )
             )
+    return v
 
-    v += source_violations(spec)
+
+def budget_violations(spec, profile) -> list[Violation]:
+    """The estimated flight time over the time budget."""
+    v: list[Violation] = []
     if profile.duration_s > spec.time_budget_s:
         over = profile.duration_s - spec.time_budget_s
         v.append(
@@ -213,18 +256,7 @@ def check_mission(spec) -> MissionReport:
                 over,
             )
         )
-    n_samples = int(np.floor(profile.duration_s / spec.source.sample_period_s + 1e-9)) + 1
-    return MissionReport(
-        profile.length_m,
-        profile.duration_s,
-        spec.time_budget_s,
-        len(wps),
-        n_samples,
-        min_clear,
-        (float(wps[:, 2].min()), float(wps[:, 2].max())),
-        profile,
-        v,
-    )
+    return v
 
 
 def assert_flyable(spec) -> MissionReport:

@@ -17,6 +17,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from mission.files import write_text
 from mission.trajectory.items import RawItem, build_items, home_geodetic
 
 FORMATS = ("plan", "wpl", "geojson", "kml")
@@ -165,7 +166,8 @@ def to_kml(spec) -> str:
     def poly(area, colour: str) -> str:
         ring = [[b, a, 0.0] for a, b in _ring_latlon(spec, area)]
         return (
-            f"<Placemark><name>{escape(area.name)}</name><Style><LineStyle><color>ff{colour}</color>"
+            f"<Placemark><name>{escape(area.name)}</name>"
+            f"<Style><LineStyle><color>ff{colour}</color>"
             f"<width>2</width></LineStyle><PolyStyle><color>40{colour}</color></PolyStyle></Style>"
             f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{coords(ring + [ring[0]])}"
             f"</coordinates></LinearRing></outerBoundaryIs></Polygon></Placemark>"
@@ -173,17 +175,20 @@ def to_kml(spec) -> str:
 
     hlat, hlon, _ = home_geodetic(spec)
     body = [
-        f"<Placemark><name>{escape(spec.name)} trajectory</name><Style><LineStyle><color>ff0000ff</color>"
+        f"<Placemark><name>{escape(spec.name)} "
+        "trajectory</name><Style><LineStyle><color>ff0000ff</color>"
         f"<width>3</width></LineStyle></Style><LineString><tessellate>1</tessellate>"
         f"<altitudeMode>relativeToGround</altitudeMode><coordinates>{coords(_lonlat_line(spec))}"
         f"</coordinates></LineString></Placemark>",
         poly(spec.field.flight_area, "ff7f1f"),  # KML colours are aabbggrr: blue
         poly(spec.field.rover_area, "2ca02c"),  # green
-        f"<Placemark><name>home</name><Point><coordinates>{hlon:.9f},{hlat:.9f},0</coordinates></Point>"
+        f"<Placemark><name>home</name><Point>"
+        f"<coordinates>{hlon:.9f},{hlat:.9f},0</coordinates></Point>"
         f"</Placemark>",
     ]
     return (
-        '<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Document>'
+        '<?xml version="1.0" encoding="UTF-8"?>\n<kml '
+        'xmlns="http://www.opengis.net/kml/2.2"><Document>'
         f"<name>{escape(spec.name)}</name>\n" + "\n".join(body) + "\n</Document></kml>\n"
     )
 
@@ -201,6 +206,5 @@ def export_mission(spec, fmt: str, out: str | Path) -> Path:
         text = to_kml(spec)
     else:
         raise ValueError(f"unknown export format {fmt!r}")
-    from mission.files import write_text
 
     return write_text(out, text)  # whole or not at all; an OS error is one line naming the file

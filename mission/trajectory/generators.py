@@ -14,6 +14,7 @@ Fig. "Generalization performance across UAV trajectories".
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable
 
@@ -354,7 +355,6 @@ def generate(name: str, field: Field, altitude_m: float, **params) -> np.ndarray
             f"unknown generator '{name}' (expected one of {', '.join(GENERATORS)})",
             field="generator",
         )
-    import inspect
 
     allowed = set(inspect.signature(gen).parameters) - {"field", "altitude_m"}
     for k in params:

@@ -14,14 +14,19 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import multiprocessing as mp
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from mission import __version__
 from mission.errors import InputError
-from mission.files import write_bytes, write_text
+from mission.files import read_text, write_bytes, write_text
+from mission.localize.features import FeatureConfig
+from mission.spec import load_mission
+from mission.threads import limit_worker
 from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one import site for dataset users)
     FEATURE_KINDS,
     PARAM_NAMES,
@@ -33,6 +38,7 @@ from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one i
     trajectory_names,
 )
 from mission.workshop.flight_draws import FlightDraw, FlightSimulator, flight_rng, trajectory_params  # noqa: F401
+from mission.workshop.suite import family_label, family_sha256, resolve_family
 
 FORMAT = "rfsl-dataset/1"
 
@@ -44,7 +50,6 @@ _WORKER: FlightSimulator | None = None
 
 def _init_worker(cfg_dict: dict) -> None:
     global _WORKER
-    from mission.threads import limit_worker
 
     limit_worker()
     _WORKER = FlightSimulator(DatasetConfig.from_dict(cfg_dict))
@@ -86,7 +91,6 @@ def iter_rows(
         for i in idx:
             yield _work(i)
         return
-    import multiprocessing as mp
 
     ctx = (
         mp.get_context("spawn")
@@ -108,10 +112,43 @@ def generate_dataset(
 
     ``progress(done, total)`` is called after each flight.  Returns the manifest.
     """
-    from mission import __version__
-    from mission.localize.features import FeatureConfig
-    from mission.spec import load_mission
+    out = _prepare(cfg, out_dir, overwrite)
+    spec = load_mission(cfg.mission)
+    fcfg = FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
+    t0 = time.perf_counter()
+    chunks = _write_chunks(cfg, out, workers, progress)
+    elapsed = time.perf_counter() - t0
+    manifest = {
+        "format": FORMAT,
+        "software_version": __version__,
+        "config": cfg.to_dict(),
+        "mission_name": spec.name,
+        "mission_generator": spec.trajectory.generator,
+        "mission_altitude_m": spec.altitude_m,
+        "field_origin": spec.field.origin.to_dict(),
+        "feature_config": fcfg.to_dict(),
+        "param_names": list(PARAM_NAMES),
+        "trajectory_names": trajectory_names(cfg, spec.trajectory.generator),
+        "pattern_names": pattern_names(cfg),
+        "seeding": "flight i uses np.random.SeedSequence(seed, spawn_key=(i,)) (= "
+        "SeedSequence(seed).spawn(n)[i])",
+        "chunks": chunks,
+        "n": cfg.n,
+        **_family_record(cfg),
+        "generation": {
+            "workers": workers,
+            "seconds": round(elapsed, 2),
+            "flights_per_s": round(cfg.n / elapsed, 3) if elapsed > 0 else None,
+        },
+    }
+    # the timing block differs between runs; everything else is deterministic
+    write_text(out / "manifest.json", json.dumps(manifest, indent=2, default=float))
+    return manifest
 
+
+def _prepare(cfg: DatasetConfig, out_dir: str | Path, overwrite: bool) -> Path:
+    """Refuse a bad config or an existing dataset (unless ``overwrite``); the output folder, made
+    and emptied of old chunks."""
     if cfg.n < 1 or cfg.chunk < 1:
         raise InputError(f"need n >= 1 and chunk >= 1, got n={cfg.n}, chunk={cfg.chunk}")
     bad = [f for f in cfg.features if f not in FEATURE_KINDS]
@@ -127,9 +164,14 @@ def generate_dataset(
     out.mkdir(parents=True, exist_ok=True)
     for old in out.glob("chunk_*.npz"):
         old.unlink()
-    spec = load_mission(cfg.mission)
-    fcfg = FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
-    t0 = time.perf_counter()
+    return out
+
+
+def _write_chunks(
+    cfg: DatasetConfig, out: Path, workers: int, progress: Callable[[int, int], None] | None
+) -> list[dict]:
+    """Simulate the flights (``iter_rows``) and write them ``cfg.chunk`` at a time; each chunk's
+    manifest entry (file, count, first index, sha256)."""
     chunks: list[dict] = []
     buf: list[dict[str, np.ndarray]] = []
     done = 0
@@ -158,32 +200,7 @@ def generate_dataset(
             flush()
     if buf:
         flush()
-    elapsed = time.perf_counter() - t0
-    manifest = {
-        "format": FORMAT,
-        "software_version": __version__,
-        "config": cfg.to_dict(),
-        "mission_name": spec.name,
-        "mission_generator": spec.trajectory.generator,
-        "mission_altitude_m": spec.altitude_m,
-        "field_origin": spec.field.origin.to_dict(),
-        "feature_config": fcfg.to_dict(),
-        "param_names": list(PARAM_NAMES),
-        "trajectory_names": trajectory_names(cfg, spec.trajectory.generator),
-        "pattern_names": pattern_names(cfg),
-        "seeding": "flight i uses np.random.SeedSequence(seed, spawn_key=(i,)) (= SeedSequence(seed).spawn(n)[i])",
-        "chunks": chunks,
-        "n": cfg.n,
-        **_family_record(cfg),
-        "generation": {
-            "workers": workers,
-            "seconds": round(elapsed, 2),
-            "flights_per_s": round(cfg.n / elapsed, 3) if elapsed > 0 else None,
-        },
-    }
-    # the timing block differs between runs; everything else is deterministic
-    write_text(out / "manifest.json", json.dumps(manifest, indent=2, default=float))
-    return manifest
+    return chunks
 
 
 # ---------------------------------------------------------------------------------------------
@@ -195,7 +212,6 @@ def _family_record(cfg: DatasetConfig) -> dict:
     file may move)."""
     if not cfg.suite:
         return {}
-    from mission.workshop.suite import family_label, family_sha256, resolve_family
 
     fam = resolve_family(cfg.suite_family)
     if isinstance(fam, str):
@@ -216,7 +232,6 @@ def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
     mf = p / "manifest.json" if p.is_dir() else p
     if not mf.is_file():
         raise InputError("not a dataset (no manifest.json)", source=str(p))
-    from mission.files import read_text
 
     try:
         m = json.loads(read_text(mf, "dataset manifest"))

@@ -51,6 +51,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 
 from mission.errors import InputError, refuse_unknown_keys
+from mission.physics.presets import load_preset
+from mission.trajectory.generators import GENERATORS
+from mission.workshop.suite import BENCHMARK_SEED, SUITES, resolve_family
 
 PARAM_NAMES = (
     "altitude_m",
@@ -153,8 +156,6 @@ def physics_label(config: dict) -> str:
 def trajectory_names(cfg: DatasetConfig, mission_generator: str) -> list[str]:
     """Index -> trajectory name of the ``params[:, trajectory]`` column."""
     if cfg.suite:
-        from mission.trajectory.generators import GENERATORS
-
         return list(GENERATORS)
     return list(cfg.randomisation.trajectories) or [mission_generator]
 
@@ -169,8 +170,6 @@ def check_config(cfg: DatasetConfig) -> None:
     field)."""
     r = cfg.randomisation
     if cfg.suite:
-        from mission.workshop.suite import BENCHMARK_SEED, SUITES, resolve_family
-
         if cfg.suite not in SUITES:
             raise InputError(
                 f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite"
@@ -186,8 +185,6 @@ def check_config(cfg: DatasetConfig) -> None:
                 field="suite",
             )
     if cfg.physics:
-        from mission.physics.presets import load_preset
-
         try:
             load_preset(cfg.physics)
         except KeyError as e:

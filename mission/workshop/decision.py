@@ -72,7 +72,8 @@ def pooled_decision(
             "choice": incumbent,
             "changed": False,
             "methods": out,
-            "why": "no candidate wins on the pooled evidence beyond its interval: the incumbent stays",
+            "why": "no candidate wins on the pooled evidence beyond its interval: the "
+            "incumbent stays",
         }
     best = min(winners, key=lambda m: out[m]["pooled"].value)
     return {

@@ -18,14 +18,14 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.localize.card import DOMAIN_KEY, TrainingDomain, card_path
+from mission.simulate import fly_path
+from mission.spec import DEFAULT_MISSION, load_mission
 from mission.workshop.suite import ALTITUDE_RANGE_M as SUITE_ALTITUDE_RANGE_M
 
 
 def _mission_file(mission: str) -> Path | None:
     """A training mission named by path (as the dataset recorded it): as given, or relative to the
     repository."""
-    from mission.spec import DEFAULT_MISSION
-
     for p in (Path(mission), DEFAULT_MISSION.parents[1] / mission):
         if p.is_file():
             return p
@@ -35,8 +35,6 @@ def _mission_file(mission: str) -> Path | None:
 def _mission_altitude(mission: str) -> float | None:
     """Cruise altitude (m) of a training mission, or None when the file is not here or not a
     mission."""
-    from mission.spec import load_mission
-
     p = _mission_file(mission)
     try:
         return None if p is None else float(load_mission(p).altitude_m)
@@ -74,9 +72,6 @@ def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, f
     """(roll, pitch) 1-99 % spans (deg) of the simulator flying a training mission's trajectory with
     its own kinematics and perturbation (seed 0), as ``rfsl dataset`` flies it; None when the
     mission is not here."""
-    from mission.simulate import fly_path
-    from mission.spec import load_mission
-
     p = _mission_file(mission)
     if p is None:
         return None

@@ -31,9 +31,28 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
-from mission.importers.afar import AFAR2023_SUSPECT, AFAR2023_SUSPECT_NOTE, AFAR2023_TRUTH
-from mission.localize.methods import names_where
+from mission.files import write_text
+from mission.flightlog import read_flight_log
+from mission.importers.afar import (
+    AFAR2023_SUSPECT,
+    AFAR2023_SUSPECT_NOTE,
+    AFAR2023_TRUTH,
+    import_afar_mat,
+)
+from mission.localize.api import localize_log, make_localizer
+from mission.localize.methods import METHOD_NAMES, names_where
+from mission.localize.onnx_model import OnnxLocalizer
+from mission.physics.presets import load_preset
 from mission.physics.propagation import MODEL_NAMES
+from mission.spec import MissionSpec
+from mission.workshop.dataset import (
+    FlightSimulator,
+    dataset_config,
+    dataset_heights,
+    load_dataset,
+    physics_label,
+    read_manifest,
+)
 
 CLASSICAL = names_where(
     kind="classical"
@@ -58,8 +77,6 @@ def parse_method(spec: str) -> tuple[str, dict]:
     if not physics:
         return name, {}
     if physics.startswith("preset:"):
-        from mission.physics.presets import load_preset
-
         load_preset(
             physics.removeprefix("preset:")
         )  # unknown preset: InputError now, not mid-evaluation
@@ -92,8 +109,6 @@ def suite_method(spec: str) -> dict:
     network), or any other method name of the registry (``mission.localize.methods``), run with its
     defaults.
     """
-    from mission.localize.methods import METHOD_NAMES
-
     spec = spec.strip()
     if spec == "default":
         return {}
@@ -174,8 +189,6 @@ class Row:
 
 def model_label(path: str | Path) -> tuple[str, str, str]:
     """(label, training propagation model, feature kind) of an ONNX model from its metadata."""
-    from mission.localize.onnx_model import OnnxLocalizer
-
     loc = OnnxLocalizer(path)
     td = loc.meta.get("training_data") or {}
     models = sorted(
@@ -191,9 +204,6 @@ def _errors(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def test_label(manifest: dict) -> str:
     """'sim:<model>:<trajectory>@<altitude>' of a test dataset."""
-    from mission.spec import MissionSpec
-    from mission.workshop.dataset import physics_label
-
     cfg = manifest["config"]
     r = cfg.get("randomisation", {})
     traj = "+".join(r.get("trajectories") or [manifest.get("mission_generator", "?")])
@@ -216,15 +226,6 @@ def evaluate_sim(
 ) -> list[Row]:
     """Networks on all flights of a simulated test set; classical methods on its first
     ``n_classical``."""
-    from mission.localize.onnx_model import OnnxLocalizer
-    from mission.workshop.dataset import (
-        FlightSimulator,
-        dataset_config,
-        dataset_heights,
-        load_dataset,
-        read_manifest,
-    )
-
     m = read_manifest(dataset, need=("chunks", "config", "feature_config", "field_origin"))
     label = test_label(m)
     rows: list[Row] = []
@@ -255,8 +256,6 @@ def evaluate_sim(
         if progress:
             progress(f"{label}: {name} done")
     if classical and n_classical > 0:
-        from mission.localize.api import make_localizer
-
         cfg = dataset_config(m)
         sim = FlightSimulator(cfg)
         n = min(n_classical, cfg.n)
@@ -302,8 +301,6 @@ def afar_truth(path: str | Path) -> tuple[tuple[float, float] | None, str | None
 def import_afar(mat_dir: str | Path, out_dir: str | Path) -> list[Path]:
     """Import every ``*.mat`` AFAR file in ``mat_dir`` into flight logs (truth from the table) in
     ``out_dir``."""
-    from mission.importers.afar import import_afar_mat
-
     out = []
     for f in sorted(Path(mat_dir).glob("*.mat")):
         truth, _ = afar_truth(f)
@@ -322,9 +319,6 @@ def evaluate_real(
     progress: Callable[[str], None] | None = None,
 ) -> list[Row]:
     """Every localizer on every real log (truth from the sidecar), through ``localize_log``."""
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log
-
     gp = grid_params or {}
     methods: list[tuple[str, str | None, str | None, str | None, str | Path | None]] = []
     for mp in models:
@@ -361,7 +355,6 @@ def write_report(rows: Sequence[Row], path: str | Path, extra: dict | None = Non
     rep = {"rows": [r.summary() for r in rows]}
     if extra:
         rep.update(extra)
-    from mission.files import write_text
 
     write_text(path, json.dumps(rep, indent=1), "--out")
     return rep

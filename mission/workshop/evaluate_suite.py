@@ -11,14 +11,31 @@ Split from ``mission.workshop.evaluate`` (simulated test sets and real flights),
 from __future__ import annotations
 
 import math
+import multiprocessing as mp
+import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.path import Path as MPath
 
 from mission.errors import InputError
+from mission.localize.api import localize_log
+from mission.localize.uncertainty import region_covers
+from mission.threads import limit_worker
 from mission.workshop.evaluate import Row, suite_method
-from mission.workshop.suite import FamilyArg, resolve_family
+from mission.workshop.predictive import flight_statistics
+from mission.workshop.suite import (
+    BENCHMARK_SEED,
+    FamilyArg,
+    draw_flight,
+    family_label,
+    family_sha256,
+    resolve_family,
+    unseen_flight,
+)
+from mission.workshop.suite_cache import read_suite
 
 
 def _level(key, region: dict) -> str | None:
@@ -54,8 +71,6 @@ def region_contains(region: dict, xy) -> bool:
         }
     poly = region.get("polygon", region.get("polygon_xy_m"))
     if poly is not None:
-        from matplotlib.path import Path as MPath
-
         return bool(MPath(np.asarray(poly, dtype=float)).contains_point(p))
     c = np.asarray(
         next(region[k] for k in ("center_m", "center_xy_m", "center") if k in region), dtype=float
@@ -92,8 +107,6 @@ def _coverage(est, truth) -> dict[str, bool]:
     """Level -> whether the truth lies in the estimate's region: on the posterior grid when the
     estimate has one (``mission.localize.uncertainty.region_covers``), else by the region's drawn
     shape."""
-    from mission.localize.uncertainty import region_covers
-
     out = {}
     for lvl, r in _regions(est).items():
         c = (
@@ -112,34 +125,22 @@ def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False
     if (
         one_thread
     ):  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
-        from mission.threads import limit_worker
-
         limit_worker()
     _SUITE.clear()
     _SUITE.update(methods=methods, source=source)
     if "dir" in source:
-        from mission.workshop.suite_cache import read_suite
-
         _SUITE["cached"] = read_suite(source["dir"])
 
 
 def _suite_flight(i: int) -> dict:
     """Every method on flight ``i``: {label: [error m, {level: covered}, seconds]}."""
-    import time
-
-    from mission.localize.api import localize_log
-
     src = _SUITE["source"]
     if "cached" in _SUITE:
         log, truth, draw = _SUITE["cached"].load(i)
     else:
-        from mission.workshop.suite import unseen_flight
-
         log, truth, draw = unseen_flight(src["seed"], i, src["family"], src["center"])
     out: dict = {}
     if src.get("stats"):  # the posterior-predictive check statistics (mission.workshop.predictive)
-        from mission.workshop.predictive import flight_statistics
-
         out["__stats__"] = flight_statistics(log, truth, draw["tx_height_m"], seed=i)
     for label, kw in _SUITE["methods"].items():
         t0 = time.perf_counter()
@@ -176,9 +177,6 @@ def evaluate_suite(
     ``stats_out`` (a list) receives each flight's posterior-predictive statistics
     (``mission.workshop.predictive.flight_statistics``), in order.
     """
-    from mission.workshop.suite import BENCHMARK_SEED, family_label
-    from mission.workshop.suite_cache import read_suite
-
     fam = resolve_family(family)
     labels = {m: suite_method(m) for m in methods}
     if not labels:
@@ -187,8 +185,6 @@ def evaluate_suite(
         cs = read_suite(suite_dir)
         if (stale := cs.check_current()) is not None:
             if warn is None:
-                import warnings
-
                 warnings.warn(stale, UserWarning, stacklevel=2)
             else:
                 warn(stale)
@@ -216,8 +212,6 @@ def evaluate_suite(
         results = map(_suite_flight, range(n))
         pool = None
     else:
-        import multiprocessing as mp
-
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         pool = ctx.Pool(workers, initializer=_suite_init, initargs=(labels, source, True))
         results = pool.imap(_suite_flight, range(n), chunksize=1)
@@ -245,12 +239,12 @@ def check_cache_family(cs, fam) -> None:
     name is not checked: the CLIs pass ``afar`` by default)."""
     if isinstance(fam, str):
         return
-    from mission.workshop.suite import family_sha256
 
     have = cs.manifest.get("family_sha256")
     if have != family_sha256(fam):
         raise InputError(
-            f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the family file "
+            f"the cache was drawn from family {cs.manifest.get('family')!r}, not from the "
+            "family file "
             f"given ({fam.name!r}); drop --family or rewrite the cache",
             source=str(cs.path),
             field="--family",
@@ -266,9 +260,6 @@ def suite_draws(
 ) -> list[dict]:
     """The draws (every parameter) of benchmark flights 0..n-1, from a cache or redrawn (cheap: no
     flying)."""
-    from mission.workshop.suite import BENCHMARK_SEED, draw_flight
-    from mission.workshop.suite_cache import read_suite
-
     if suite_dir is not None:
         return [f["draw"] for f in read_suite(suite_dir).manifest["flights"][:n]]
     s = BENCHMARK_SEED if seed is None else seed
@@ -280,7 +271,8 @@ def _axis_value(draw: dict, axis: str):
     for part in axis.split("."):  # e.g. physics.rx_antenna, trajectory_params.region
         if not isinstance(v, dict) or part not in v:
             raise InputError(
-                f"benchmark draws have no axis {axis!r} (e.g. heading_habit, tx_outside_flight_area, "
+                f"benchmark draws have no axis {axis!r} (e.g. heading_habit, "
+                "tx_outside_flight_area, "
                 "altitude_m, physics.rx_antenna, trajectory)",
                 field="--by",
             )

@@ -19,8 +19,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mission.localize.features import FeatureConfig, cluster_features, normalised_rss
+from mission.localize.preprocess import cruise_mask
+from mission.physics import make_model
+from mission.physics.presets import build_model, load_preset
 from mission.samples import FlightSamples
+from mission.simulate import simulate_flight
+from mission.spec import load_mission
 from mission.trajectory.generators import (
+    generate,
     trajectory_params,
 )  # re-exported (mission.workshop.dataset)
 from mission.workshop.dataset_config import (
@@ -29,6 +36,7 @@ from mission.workshop.dataset_config import (
     pattern_names,
     trajectory_names,
 )
+from mission.workshop.suite import unseen_flight
 
 
 def flight_rng(seed: int, i: int) -> np.random.Generator:
@@ -68,9 +76,6 @@ class FlightSimulator:
     """Simulates flight ``i`` of a dataset configuration (built once per worker process)."""
 
     def __init__(self, cfg: DatasetConfig) -> None:
-        from mission.localize.features import FeatureConfig
-        from mission.spec import load_mission
-
         self.cfg = cfg
         self.spec = load_mission(cfg.mission)
         self.fcfg = (
@@ -80,8 +85,6 @@ class FlightSimulator:
         self._models: dict = {}
         self._preset_spec: dict | None = None
         if cfg.physics:
-            from mission.physics.presets import load_preset
-
             self._preset_spec = {**load_preset(cfg.physics), **cfg.model_params}
 
     def _model(
@@ -93,8 +96,6 @@ class FlightSimulator:
         tx_h: float,
         jitter: float = 0.0,
     ):
-        from mission.physics import make_model
-
         if self.cfg.physics:
             return self._preset_model(jitter)
         kw = dict(self.spec.source.model_params)
@@ -118,8 +119,6 @@ class FlightSimulator:
         return m
 
     def _preset_model(self, jitter: float):
-        from mission.physics.presets import build_model
-
         key = f"preset:{jitter:.6f}"
         m = self._models.get(key)
         if m is None:
@@ -135,9 +134,6 @@ class FlightSimulator:
 
     def draw(self, i: int) -> FlightDraw:
         """Draw and fly flight ``i`` (deterministic in ``(cfg, i)``)."""
-        from mission.simulate import simulate_flight
-        from mission.trajectory.generators import generate
-
         cfg, r, spec = self.cfg, self.cfg.randomisation, self.spec
         if cfg.suite:
             return self._draw_suite(i)
@@ -229,9 +225,6 @@ class FlightSimulator:
     def _draw_suite(self, i: int) -> FlightDraw:
         """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as
         ``localize`` cuts a log."""
-        from mission.localize.preprocess import cruise_mask
-        from mission.workshop.suite import unseen_flight
-
         f = unseen_flight(self.cfg.seed, i, self.cfg.suite_family, self.cfg.suite_center)
         d = f.draw
         keep = cruise_mask(f.log["rel_alt_m"]).mask
@@ -261,8 +254,6 @@ class FlightSimulator:
 
     def features(self, fd: FlightDraw) -> dict[str, np.ndarray]:
         """The stored row of one flight (features, truth, parameters)."""
-        from mission.localize.features import cluster_features, normalised_rss
-
         traj_names = self._traj_names()
         pat_names = self._pattern_names()
         row: dict[str, np.ndarray] = {}

@@ -25,8 +25,16 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from rich.markup import escape
+from rich.table import Table
 
+from mission.errors import InputError
+from mission.flightlog import read_flight_log
+from mission.localize.api import localize_log
+from mission.localize.preprocess import select_samples
 from mission.physics.geometry import link_delta, slant_distance
+from mission.physics.shadowing import fit_variogram
+from mission.workshop.evaluate import suite_method
 
 STATISTICS = ("rss_spread_db", "resid_sill_db", "resid_range_m", "resid_nugget_db")
 BAND = (0.10, 0.90)
@@ -56,8 +64,6 @@ def sample_statistics(
     max_points: int = 800,
 ) -> dict[str, float]:
     """The check statistics (module docstring) of one flight's used samples."""
-    from mission.physics.shadowing import fit_variogram
-
     rss = np.asarray(rss_dbm, float)
     ok = np.isfinite(rss)
     pos, rss = np.asarray(pos_enu, float)[ok], rss[ok]
@@ -75,8 +81,6 @@ def sample_statistics(
 def flight_statistics(log, truth_xy, tx_height_m: float, seed: int = 0) -> dict[str, float]:
     """The check statistics of a ``FlightLog`` (the samples ``localize`` uses) with its truth (log
     ENU m)."""
-    from mission.localize.preprocess import select_samples
-
     part, _ = select_samples(log)
     tx = np.array([float(truth_xy[0]), float(truth_xy[1]), float(tx_height_m)])
     return sample_statistics(part.enu(), part["rss_dbm"], tx, np.random.default_rng(seed))
@@ -139,9 +143,6 @@ def verdict(checks: Mapping[str, dict]) -> str:
 
 def checks_table(checks: Mapping[str, dict], title: str):
     """A rich table that reads at 80 columns."""
-    from rich.markup import escape
-    from rich.table import Table
-
     t = Table(title=escape(title))
     for c in ("statistic", "real mean", "bench 10-90 %", "in", "p", "ok"):
         t.add_column(c, justify="left" if c == "statistic" else "right", overflow="fold")
@@ -164,11 +165,6 @@ def score_real(
     """(check statistics per real log, {method: error m per log}) of real logs with truth in their
     sidecars; methods as ``rfsl evaluate --suite`` names them
     (``mission.workshop.evaluate.suite_method``)."""
-    from mission.errors import InputError
-    from mission.flightlog import read_flight_log
-    from mission.localize.api import localize_log
-    from mission.workshop.evaluate import suite_method
-
     kws = {m: suite_method(m) for m in methods}
     stats: list[dict] = []
     errors: dict[str, list[float]] = {m: [] for m in methods}

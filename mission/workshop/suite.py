@@ -3,18 +3,23 @@
 How to call it (the lead's entry points)::
 
     from mission.workshop.suite import unseen_flights, unseen_flight
-    for log, truth_xy, draw in unseen_flights(200, seed=2026):      # list[SuiteFlight] (a NamedTuple)
-        est = localize_log(log, method="grid")                      # log: a FlightLog like an imported one
+    # list[SuiteFlight] (a NamedTuple)
+    for log, truth_xy, draw in unseen_flights(200, seed=2026):
+        est = localize_log(log, method="grid")  # log: a FlightLog like an imported one
         err = float(np.hypot(est.x_m - truth_xy[0], est.y_m - truth_xy[1]))
-    f = unseen_flight(2026, 17)                                      # one flight, same bytes as in the list
+    f = unseen_flight(2026, 17)  # one flight, same bytes as in the list
     # the on-disk cache (write_suite / read_suite / check_current): mission.workshop.suite_cache
 
-    rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_unseen_2026     # the cache
-    rfsl evaluate --suite unseen --n 200 --seed 2026 --methods strongest,centroid,grid,onnx:models/X.onnx
-    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2      # from the cache
-    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default --by tx_outside_flight_area,heading_habit
+    # the cache
+    rfsl dataset --suite unseen --logs --n 200 --seed 2026 --out /tmp/suite_unseen_2026
+    rfsl evaluate --suite unseen --n 200 --seed 2026 \
+        --methods strongest,centroid,grid,onnx:models/X.onnx
+    # from the cache
+    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default,grid --workers 2
+    rfsl evaluate --suite-dir /tmp/suite_unseen_2026 --methods default \
+        --by tx_outside_flight_area,heading_habit
     # in Python: rows, secs = mission.workshop.evaluate_suite.evaluate_suite(["default", "grid"],
-    200, suite_dir=...)
+    #                                                                        200, suite_dir=...)
     #            breakdown(rows, suite_draws(200, suite_dir=...), "physics.rx_antenna")
 
 Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict
@@ -81,6 +86,14 @@ from typing import NamedTuple
 import numpy as np
 
 from mission.errors import InputError
+from mission.flightlog import FlightLog, make_meta
+from mission.geo import afar_field
+from mission.physics.presets import build_model, load_preset
+from mission.physics.shadowing import shadowing_field
+from mission.simulate import SimConfig, perturbation
+from mission.trajectory.attitude import tilt_from_acceleration
+from mission.trajectory.generators import GENERATORS, generate, trajectory_params
+from mission.trajectory.kinematics import G, Kinematics, attitude_from_motion, plan_profile
 from mission.workshop.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
     FAMILIES,
     FamilyArg,
@@ -141,8 +154,6 @@ def _pick(rng: np.random.Generator, options: tuple, p: tuple[float, ...] | None 
 
 def _physics(rng: np.random.Generator, family: str, center: str) -> dict:
     """A model spec for ``build_model`` (see the module docstring for the family)."""
-    from mission.physics.presets import load_preset
-
     centred = family in ("afar", "afar-heavy")
     use_preset = centred and rng.uniform() < 0.4
     heading = _u(rng, 0.0, 360.0)
@@ -193,9 +204,6 @@ def draw_flight(
 ) -> tuple[dict, np.random.Generator]:
     """Every parameter of flight ``i`` (JSON-able dict) and the generator, positioned for the
     simulation."""
-    from mission.geo import afar_field
-    from mission.trajectory.generators import GENERATORS, trajectory_params
-
     fam = resolve_family(family)
     rng = suite_rng(seed, i)
     fld = afar_field()
@@ -258,8 +266,6 @@ def cut_polyline(p: np.ndarray, a: float, b: float) -> np.ndarray:
 
 def _path(d: dict, fld) -> np.ndarray:
     """Home (ground) -> climb -> the kept part of the pattern -> back over home -> land."""
-    from mission.trajectory.generators import generate
-
     wps = generate(d["trajectory"], fld, d["altitude_m"], **d["trajectory_params"])
     length = float(np.sum(np.linalg.norm(np.diff(wps, axis=0), axis=1)))
     keep = min(d["keep_fraction"], d["speed_mps"] * d["budget_s"] / max(length, 1e-9))
@@ -296,9 +302,6 @@ def _times(d: dict, profile, rng: np.random.Generator) -> tuple[np.ndarray, np.n
 def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -> np.ndarray:
     """Roll, pitch, yaw (N, 3) rad of the heading habit (tilt from the accelerations, as the
     simulator)."""
-    from mission.trajectory.attitude import tilt_from_acceleration
-    from mission.trajectory.kinematics import G, attitude_from_motion
-
     habit = d["heading_habit"]
     if habit == "fixed":
         return attitude_from_motion(t, pos, replace(kin, heading_deg=d["fixed_heading_deg"]))[0]
@@ -320,12 +323,6 @@ def simulate_draw(
     d: dict, rng: np.random.Generator
 ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
     """(log columns, true ENU positions (N, 3), cruise mask) of a drawn flight."""
-    from mission.geo import afar_field
-    from mission.physics.presets import build_model
-    from mission.physics.shadowing import shadowing_field
-    from mission.simulate import SimConfig, perturbation
-    from mission.trajectory.kinematics import Kinematics, plan_profile
-
     fld = afar_field()
     kin = Kinematics(cruise_speed_mps=d["speed_mps"])
     path = _path(d, fld)
@@ -369,8 +366,6 @@ def simulate_draw(
 
 def rover_area_latlon() -> list[list[float]]:
     """The AFAR rover area as [lat, lon] vertices (the sidecar's ``rover_area``)."""
-    from mission.geo import afar_field
-
     fld = afar_field()
     v = fld.rover_area.vertices
     lat, lon, _ = fld.origin.to_geodetic(np.column_stack([v, np.zeros(len(v))]))
@@ -378,9 +373,6 @@ def rover_area_latlon() -> list[list[float]]:
 
 
 def _meta(d: dict) -> dict:
-    from mission.flightlog import make_meta
-    from mission.geo import afar_field
-
     return make_meta(
         afar_field().origin,
         dict(RSS_SOURCE),
@@ -394,8 +386,6 @@ def unseen_flight(
     seed: int, i: int, family: FamilyArg = "afar", center: str = "afar"
 ) -> SuiteFlight:
     """Flight ``i`` of the benchmark with seed ``seed`` (module docstring)."""
-    from mission.flightlog import FlightLog
-
     d, rng = draw_flight(seed, i, family, center)
     cols, _, _ = simulate_draw(d, rng)
     d["n_samples"] = len(cols["t_s"])

@@ -5,9 +5,10 @@ Why a cache: scoring many methods on the same 200 flights should not simulate th
 why a fingerprint: a cache written by older simulator code was once re-used and gave figures 3-8 m
 off the current code's, without a word.
 
-    write_suite("/tmp/suite_unseen_2026", n=200, seed=2026)          # cached CSV logs + suite.json (truths, draws)
-    flights = read_suite("/tmp/suite_unseen_2026")                   # same flights back (lazy: .load(i))
-    flights.check_current()                                          # None, or a warning: cache is stale
+    # cached CSV logs + suite.json (truths, draws)
+    write_suite("/tmp/suite_unseen_2026", n=200, seed=2026)
+    flights = read_suite("/tmp/suite_unseen_2026")  # same flights back (lazy: .load(i))
+    flights.check_current()  # None, or a warning: cache is stale
 
 A stale cache is never read silently: ``suite.json`` keeps a fingerprint of flight 0 as the writing
 code simulated it (``flight_fingerprint``: sha256 of its quantised log columns and truth), and
@@ -21,12 +22,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import multiprocessing as mp
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from mission.errors import InputError
+from mission.flightlog import read_flight_log, write_flight_log
+from mission.physics.family import PhysicsFamily
 from mission.workshop.suite import (
     BENCHMARK_SEED,
     FamilyArg,
@@ -79,8 +83,6 @@ def flight_fingerprint(f: SuiteFlight) -> str:
 
 
 def _write_one(args: tuple) -> tuple[dict, str | None]:
-    from mission.flightlog import write_flight_log
-
     out, seed, i, family, center = args
     f = unseen_flight(seed, i, family, center)
     p = Path(out) / f"flight_{i:05d}.csv"
@@ -149,7 +151,6 @@ def _map(fn, jobs: list, workers: int):
     if workers <= 1 or len(jobs) < 2:
         yield from map(fn, jobs)
         return
-    import multiprocessing as mp
 
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     with ctx.Pool(workers) as pool:
@@ -178,8 +179,6 @@ class CachedSuite:
         return len(self.manifest["flights"])
 
     def load(self, i: int) -> SuiteFlight:
-        from mission.flightlog import read_flight_log
-
         r = self.manifest["flights"][i]
         return SuiteFlight(
             read_flight_log(self.path / r["file"]), np.array(r["truth_xy"]), r["draw"]
@@ -191,7 +190,6 @@ class CachedSuite:
         rec = self.manifest.get("family_record")
         if rec is None:
             return self.manifest.get("family", "afar")
-        from mission.physics.family import PhysicsFamily
 
         return PhysicsFamily.from_dict(rec, source=str(self.path / "suite.json"))
 
@@ -222,7 +220,8 @@ class CachedSuite:
                 else f"fingerprint scheme {fp.get('scheme')!r} unknown to this code"
             )
             return (
-                f"{self.path} may have been written by other simulator code than this one ({why}): its figures "
+                f"{self.path} may have been written by other simulator code than this one "
+                f"({why}): its figures "
                 f"may not be the current code's; {redo}"
             )
         mf = self.manifest
@@ -233,13 +232,15 @@ class CachedSuite:
             )
         except (InputError, KeyError, ValueError) as e:
             return (
-                f"{self.path}: this code cannot re-simulate its flight {i} ({str(e).splitlines()[0]}): its "
+                f"{self.path}: this code cannot re-simulate its flight {i} "
+                f"({str(e).splitlines()[0]}): its "
                 f"figures may not be the current code's; {redo}"
             )
         if now == fp["sha256"]:
             return None
         return (
-            f"{self.path} was written by other simulator code than this one (fingerprint of flight {i} "
+            f"{self.path} was written by other simulator code than this one (fingerprint of "
+            f"flight {i} "
             f"differs): its figures are not the current code's; {redo}"
         )
 

@@ -53,6 +53,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+import onnxruntime as ort
 
 from mission.errors import InputError
 from mission.localize.altitude_scale import (
@@ -61,6 +62,8 @@ from mission.localize.altitude_scale import (
     scale_cluster_xy,
     scale_factor,
 )
+from mission.localize.features import FeatureConfig
+from mission.workshop.dataset import dataset_heights, load_dataset, physics_label
 from mission.workshop.domain import write_domain
 
 
@@ -111,9 +114,6 @@ def load_training_data(
 ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Features (N, F) float32 and targets (N, 2) of one or more datasets, plus a description of
     them."""
-    from mission.localize.features import FeatureConfig
-    from mission.workshop.dataset import load_dataset, physics_label
-
     xs, ys, descr = [], [], []
     fcfg = origin = None
     for p in paths:
@@ -169,7 +169,9 @@ def normalisation(x: np.ndarray, y: np.ndarray, kind: str) -> dict:
 def _augment(xb, cfg: TrainConfig, gen):
     """Clustering-feature augmentation on a raw (B, 3C) batch (torch), then re-sort by RSS
     descending."""
-    import torch
+    # torch (and onnx) stay lazy (noqa): the optional [train] extra, absent from a runtime
+    # install
+    import torch  # noqa: PLC0415
 
     b, f = xb.shape
     v = xb.reshape(b, f // 3, 3).clone()
@@ -204,9 +206,16 @@ def train(
 ) -> TrainResult:
     """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` +
     ``.train.json``)."""
-    import torch
+    # torch and mission.workshop.nets (torch at its top) stay lazy (noqa): the optional [train]
+    # extra, absent from a runtime install
+    import torch  # noqa: PLC0415
 
-    from mission.workshop.nets import CoordinateWrapper, build_net, count_flops, count_parameters
+    from mission.workshop.nets import (  # noqa: PLC0415
+        CoordinateWrapper,
+        build_net,
+        count_flops,
+        count_parameters,
+    )
 
     cfg = cfg or TrainConfig()
     if cfg.features not in ("clustering", "normalised_rss"):
@@ -227,8 +236,6 @@ def train(
     x, y, data_descr = load_training_data(paths, cfg.features)
     scale = np.ones(len(x))
     if cfg.altitude_normalised:
-        from mission.workshop.dataset import dataset_heights, load_dataset
-
         scale = scale_factor(
             np.concatenate(
                 [dataset_heights(load_dataset(p, ("params",))[0]["params"]) for p in paths]
@@ -349,7 +356,8 @@ def train(
             "train_config": _jsonable(asdict(cfg)),
             "coords": "relative" if relative else "absolute",
             "parametrisation": (
-                "inside the graph: (x, y) of every cluster minus the strongest cluster's (x_1, y_1), "
+                "inside the graph: (x, y) of every cluster minus the strongest cluster's (x_1, "
+                "y_1), "
                 "standardised; output + (x_1, y_1)"
                 if relative
                 else "inside the graph: absolute (x, y), standardised"
@@ -402,9 +410,10 @@ def export_onnx(
     raises if > ``tol`` (relative to the output scale: metres for the wrapped localizer, so ``tol``
     is scaled by ``max(1, |output|)``).
     """
-    import onnx
-    import onnxruntime as ort
-    import torch
+    # torch (and onnx) stay lazy (noqa): the optional [train] extra, absent from a runtime
+    # install
+    import onnx  # noqa: PLC0415
+    import torch  # noqa: PLC0415
 
     path = Path(path)
     net.eval()
