@@ -5,6 +5,7 @@ Usage::
     python benchmarks/bench_gap.py selftest [--seeds 1,2,3] [--effects all] [--out bench_gap_selftest.json]
     python benchmarks/bench_gap.py nadir-power [--passes 1,2,3,5] [--strengths 0.1,0.25,0.5,1] [--seeds 1,2,3]
     python benchmarks/bench_gap.py family-check [--family F.json] [--repeats 4]
+    python benchmarks/bench_gap.py speed [--processes 2] [--jobs diagnosis,family] [--repeats 4]
     python benchmarks/bench_gap.py real [--split flights|blocks] [--all] [--sequence a,b] [--floor] [--loc3]
                                         [--per-flight] [--localize] [--candidates all] [--out
                                         gap_real_bench]
@@ -378,6 +379,111 @@ def sequence(d, cfg, names: list[str]) -> list[dict]:
     return rows
 
 
+def padded(flights: list, n: int) -> list:
+    """The flights padded to ``n`` with copies of them (the 13-flight set of the timings: only six
+    real flights exist; a copy's twin sits in the training folds, so only the time means anything)."""
+    from mission.samples import FlightSamples
+
+    out = list(flights)
+    while len(out) < n:
+        f = flights[len(out) % len(flights)]
+        out.append(
+            FlightSamples(
+                name=f"{f.name}-copy{len(out)}",
+                t_s=f.t_s,
+                enu_m=f.enu_m,
+                attitude_rad=f.attitude_rad,
+                rss_dbm=f.rss_dbm,
+                tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]),
+                meta=dict(f.meta),
+            )
+        )
+    return out
+
+
+class Clock:
+    """Wall and CPU seconds of a job (this process and its finished worker processes) and the load
+    average around it: the machine is shared, so every timing carries its load."""
+
+    def __init__(self) -> None:
+        self.load0 = os.getloadavg()[0]
+        self.t0, self.cpu0, self.ch0 = time.time(), time.process_time(), _children_cpu()
+
+    def stop(self) -> dict:
+        return {
+            "wall_s": round(time.time() - self.t0, 2),
+            "cpu_s": round(time.process_time() - self.cpu0, 2),
+            "workers_cpu_s": round(_children_cpu() - self.ch0, 2),
+            "load_avg_1min": [round(self.load0, 2), round(os.getloadavg()[0], 2)],
+        }
+
+
+def speed(args: argparse.Namespace) -> int:
+    """Issue 34's speed targets: the diagnosis of the 13-flight set (the six real flights padded
+    with copies; ``real --split flights --all --replicate 13``; target 15 s on two cores) and the
+    family fit with its loop check (the shipped family's ladder on the six real flights, 3 Hz,
+    ``--repeats`` copies per check; target 30 s).  Prints and stores wall and CPU seconds with the
+    load average, and a SHA-256 of each result, so that runs with other ``--processes`` can be
+    checked to give the same bytes."""
+    if not MAT.is_dir():
+        print(f"no AFAR data at {MAT}", file=sys.stderr)
+        return 2
+    import hashlib
+    from types import SimpleNamespace
+
+    from mission import jsonsafe
+    from mission.gap.align import afar2023_flights
+    from mission.gap.candidates import select
+    from mission.gap.diagnose import base_pipeline, decimate_flight, diagnose
+    from mission.gap.familyrun import family_from_diagnosis
+    from mission.gap.fit import FitConfig
+    from mission.gap.report import summary
+
+    def digest(obj: object) -> str:
+        return hashlib.sha256(jsonsafe.dumps(obj, indent=1).encode()).hexdigest()[:16]
+
+    six = afar2023_flights(MAT)
+    cfg = FitConfig(split="flights", loss="soft_l1", seed=0, rate_hz=3.0, processes=args.processes)
+    out: dict = {"processes": args.processes, "cpus": os.cpu_count()}
+    jobs = args.jobs.split(",")
+    if "diagnosis" in jobs:
+        flights = padded(six, 13)
+        clock = Clock()
+        d = diagnose(
+            flights,
+            base_pipeline("free-space", "isotropic"),
+            select("all"),
+            cfg,
+            base_label="free-space(iso)",
+            localize=False,
+        )
+        out["diagnosis"] = {
+            **clock.stop(),
+            "flights": len(flights),
+            "ladder": [r.added for r in d.rungs],
+            "sha256": digest(summary(d)),
+        }
+        print(f"diagnosis of 13 flights: {out['diagnosis']}", flush=True)
+    if "family" in jobs:
+        shipped = json.loads((REPO / "mission" / "data" / "afar_family.json").read_text())
+        d = SimpleNamespace(
+            flights=[decimate_flight(f, cfg.rate_hz) for f in six],
+            rungs=[SimpleNamespace(added=a) for a in [None, *shipped["ladder"]]],
+        )
+        clock = Clock()
+        rec = family_from_diagnosis(d, cfg, name="afar", repeats=args.repeats)
+        out["family"] = {
+            **clock.stop(),
+            "flights": len(six),
+            "repeats": args.repeats,
+            "loop_passed": rec["checks"]["loop"]["passed"],
+            "sha256": digest(rec),
+        }
+        print(f"family fit and loop check: {out['family']}", flush=True)
+    Path(args.out).write_text(json.dumps(out, indent=1))
+    return 0
+
+
 def real(args: argparse.Namespace) -> int:
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
@@ -390,29 +496,12 @@ def real(args: argparse.Namespace) -> int:
     from mission.gap.fit import FitConfig
     from mission.gap.report import print_report, summary, write_report
     from mission.importers.afar import is_afar2023_suspect
-    from mission.samples import FlightSamples
 
     c = Console(width=180)
     t_load = time.time()
     every = afar2023_flights(MAT)
     flights = [f for f in every if args.all or not is_afar2023_suspect(f.name)]
-    if args.replicate > len(
-        flights
-    ):  # timing at the size of the 13-flight set: copies of the real flights
-        base_fl = list(flights)
-        while len(flights) < args.replicate:
-            f = base_fl[len(flights) % len(base_fl)]
-            flights.append(
-                FlightSamples(
-                    name=f"{f.name}-copy{len(flights)}",
-                    t_s=f.t_s,
-                    enu_m=f.enu_m,
-                    attitude_rad=f.attitude_rad,
-                    rss_dbm=f.rss_dbm,
-                    tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]),
-                    meta=dict(f.meta),
-                )
-            )
+    flights = padded(flights, args.replicate)
     n = sum(len(f) for f in flights)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -646,6 +735,11 @@ def main(argv: list[str] | None = None) -> int:
         help="training samples per flight used by the optimiser",
     )
     b.add_argument("--out", default="gap_real_bench")
+    sp = sub.add_parser("speed")
+    sp.add_argument("--processes", type=int, default=2, help="processes for the fits (2)")
+    sp.add_argument("--jobs", default="diagnosis,family", help="diagnosis, family or both")
+    sp.add_argument("--repeats", type=int, default=4, help="copies of the tracks per loop check")
+    sp.add_argument("--out", default="bench_gap_speed.json")
     c = sub.add_parser("family-check")
     c.add_argument("--family", default=str(REPO / "mission" / "data" / "afar_family.json"))
     c.add_argument("--repeats", type=int, default=4)
@@ -657,6 +751,8 @@ def main(argv: list[str] | None = None) -> int:
         return family_check(args)
     if args.cmd == "nadir-power":
         return nadir_power(args)
+    if args.cmd == "speed":
+        return speed(args)
     return selftest(args) if args.cmd == "selftest" else real(args)
 
 

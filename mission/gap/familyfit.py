@@ -25,7 +25,7 @@ import numpy as np
 
 from mission.gap.candidates import describe_params, select
 from mission.gap.fit import FitConfig, Fold, fit_candidate, make_folds, residuals
-from mission.gap.pipeline import Pipeline
+from mission.gap.pipeline import Pipeline, Selection
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
 from mission.robust import robust_offset
@@ -180,7 +180,7 @@ def _fit_antenna(
 
     pat = select([names[0]])[0]
     mount = select([f"{names[0].split('_')[0]}_mounting"])[0]
-    ii = [decimate(idx, cfg.fit_max_samples)]
+    ii = Selection([flight], [decimate(idx, cfg.fit_max_samples)])
     best, best_loss = pipe, objective(pipe, [flight], ii, cfg)
     for choice in pat.choices(pipe) or ({},):
         p = pat.build(pipe, {}, choice)
@@ -205,7 +205,7 @@ def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfi
     keys = [j for j in _JOINT if j[0] in spec]
     if not keys:
         return pipe
-    ii = [decimate(idx, cfg.fit_max_samples)]
+    ii = Selection([flight], [decimate(idx, cfg.fit_max_samples)])
 
     def make(x: np.ndarray) -> Pipeline:
         sp = dict(spec)

@@ -40,7 +40,7 @@ from mission.gap.candidate import (
     Candidate,
 )
 from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
-from mission.gap.pipeline import Pipeline, joint_offset_residuals, offset_residuals
+from mission.gap.pipeline import Pipeline, Selection, joint_offset_residuals, offset_residuals
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
 from mission.samples import FlightSamples
@@ -76,7 +76,8 @@ class FitConfig:
 
 @dataclass
 class Fold:
-    """Training and test sample indices, one array per flight (may be empty)."""
+    """Training and test sample indices, one array per flight (may be empty); ``make_folds`` makes
+    them ``Selection``s, which keep their joint geometry for the many candidates scored on them."""
 
     train: list[np.ndarray]
     test: list[np.ndarray]
@@ -99,7 +100,7 @@ def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
                 np.arange(len(f)) if j % k_folds == k else np.zeros(0, int)
                 for j, f in enumerate(flights)
             ]
-            folds.append(Fold(tr, te))
+            folds.append(Fold(Selection(flights, tr), Selection(flights, te)))
         return folds
     chunk_of = [
         np.minimum((np.arange(len(f)) * cfg.n_chunks) // max(len(f), 1), cfg.n_chunks - 1)
@@ -109,7 +110,7 @@ def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
     for parity in (0, 1):
         te = [np.nonzero(c % 2 == parity)[0] for c in chunk_of]
         tr = [np.nonzero(c % 2 != parity)[0] for c in chunk_of]
-        folds.append(Fold(tr, te))
+        folds.append(Fold(Selection(flights, tr), Selection(flights, te)))
     return folds
 
 
@@ -192,9 +193,11 @@ def fit_candidate(
     """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded
     Nelder-Mead."""
     n_used = max(1, sum(len(i) > 0 for i in idx))
-    idx = [
-        decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx
-    ]
+    # the fit's own selections: they keep the joint geometry and rotation planes between its calls
+    idx = Selection(
+        flights,
+        [decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx],
+    )
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
         new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)
@@ -209,7 +212,7 @@ def fit_candidate(
     names = [p.name for p in params]
     # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over
     # seconds)
-    idx_c = [i[::4] for i in idx]
+    idx_c = Selection(flights, [i[::4] for i in idx])
     cache_c = None if cache is None else [c[::4] for c in cache]
     best: CandidateFit | None = None
     for choice in cand.choices(pipe):

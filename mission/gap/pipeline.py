@@ -29,6 +29,7 @@ import numpy as np
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
 from mission.physics.geometry import sin_elevation, slant_distance
+from mission.physics.model import AttitudePlanes
 from mission.robust import LOSSES, huber_weights, median_1d, offset_residual
 from mission.samples import FlightSamples
 
@@ -192,26 +193,95 @@ class LocalizationModel:
         return p
 
 
-_JOINT: dict = {}  # joint geometry of (time offset, flights, sample selections), see _joint_geometry
-_JOINT_MAX_SAMPLES = (
-    20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
-)
+class Selection(tuple):
+    """One index array per flight of ``flights`` (a tuple of them, usable wherever the fits take
+    ``idx``) that owns what stays the same while a fit evaluates those samples again and again: the
+    joint geometry per time offset, the attitude's rotation planes per attitude effect, the fitted
+    fields at the samples.
+
+    Why: a fit calls the objective thousands of times on the same selection; the owner is the fit
+    (or the fold) that made the selection, and everything cached goes with it, so no cache outlives
+    its flights or is keyed by an object's identity.  A plain sequence of arrays is evaluated afresh
+    on every call, with the very same values.
+    """
+
+    flights: tuple[FlightSamples, ...]
+
+    def __new__(cls, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> Selection:
+        self = super().__new__(cls, (np.asarray(i) for i in idx))
+        if len(self) != len(flights):
+            raise ValueError(f"{len(self)} index arrays for {len(flights)} flights")
+        self.flights = tuple(flights)
+        self._joint: dict[float, tuple | None] = {}
+        self._planes: dict[tuple, AttitudePlanes] = {}
+        self._fields: list[tuple[object, bool, np.ndarray]] = []
+        return self
+
+    def __reduce__(self) -> tuple:
+        return (Selection, (self.flights, tuple(self)))
+
+    def of(self, flights: Sequence[FlightSamples]) -> bool:
+        """Whether this selection was made for exactly these flights (the same objects)."""
+        return len(flights) == len(self.flights) and all(
+            a is b for a, b in zip(flights, self.flights, strict=True)
+        )
+
+    def joint(self, pipe: Pipeline) -> tuple | None:
+        """``joint_geometry`` of these samples under ``pipe``'s time offset, kept."""
+        key = pipe.time_offset_s
+        if key not in self._joint:
+            if len(self._joint) >= _KEEP:
+                self._joint.clear()  # a time-offset fit tries many offsets: keep the last few
+            self._joint[key] = joint_geometry(pipe, self.flights, self)
+        return self._joint[key]
+
+    def planes(self, model: PropagationModel, time_offset_s: float, att: np.ndarray) -> Any:
+        """The rotation planes of the joint attitude ``att`` (from ``joint``) under ``model``'s
+        attitude effect, kept; None for a model without one (or an unhashable effect)."""
+        if not model.has("attitude"):
+            return None
+        effect = model.effect("attitude")
+        key = (time_offset_s, effect, np.dtype(model.dtype).str)
+        try:
+            hit = self._planes.get(key)
+        except TypeError:  # an effect with array fields: made afresh
+            return None
+        if hit is None:
+            if len(self._planes) >= _KEEP:
+                self._planes.clear()
+            hit = self._planes[key] = model.attitude_planes(att)
+        return hit
+
+    def field(self, term: SpatialField | TemporalField, live: list[int], time: bool) -> np.ndarray:
+        """A fitted (immutable) field or temporal term at the samples of the ``live`` flights,
+        concatenated (read-only), kept for the last few terms."""
+        for t, tm, v in self._fields:
+            if t is term and tm == time:
+                return v
+        out = _field(term, self.flights, self, live, time)
+        out.flags.writeable = False
+        self._fields = [(term, time, out), *self._fields[: _KEEP - 1]]
+        return out
 
 
-def _joint_geometry(
+_KEEP = 8  # entries a selection keeps per kind (time offsets, attitude effects, fields)
+
+
+def _owned(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> Selection | None:
+    """``idx`` when it is a ``Selection`` of these flights (its caches apply), else None."""
+    return idx if isinstance(idx, Selection) and idx.of(flights) else None
+
+
+def joint_geometry(
     pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
 ) -> tuple | None:
     """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all
-    flights, one row per sample; None where one call per flight is needed.  A fit evaluates the same
-    selections thousands of times, so the result is cached by the identity of the flights and index
-    arrays (the entry holds them, so no id is reused while it lives) and the time offset."""
-    key = (pipe.time_offset_s, *map(id, flights), *map(id, idx))
-    hit = _JOINT.get(key)
-    if hit is not None and all(a is b for a, b in zip(hit[0], (*flights, *idx), strict=True)):
-        return hit[1]
+    flights, one row per sample (read-only); None where one call per flight is needed (no samples,
+    a flight without attitude or transmitter).  Kept by a
+    ``Selection`` passed as ``idx`` (``Selection.joint``)."""
     live = [k for k, i in enumerate(idx) if len(i)]
     geo = {k: pipe.geometry(flights[k], idx[k]) for k in live}
-    if len(live) < 2 or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
+    if not live or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
         return None
     rx = [np.asarray(geo[k][0], dtype=float) for k in live]
     n = [len(r) for r in rx]
@@ -231,12 +301,26 @@ def _joint_geometry(
         meas,
     )
     for a in out[2:]:
-        a.flags.writeable = False  # shared between calls and threads
-    if ends[-1] <= _JOINT_MAX_SAMPLES:
-        if len(_JOINT) > 16:
-            _JOINT.clear()
-        _JOINT[key] = ((*flights, *idx), out)
+        a.flags.writeable = False  # shared between calls
     return out
+
+
+def _joint(
+    pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+) -> tuple[tuple | None, Selection | None]:
+    """The joint geometry (kept by a ``Selection`` passed as ``idx``) and that selection."""
+    sel = _owned(flights, idx)
+    return (sel.joint(pipe) if sel is not None else joint_geometry(pipe, flights, idx)), sel
+
+
+def _joint_rss(pipe: Pipeline, joint: tuple, sel: Selection | None) -> np.ndarray:
+    """The model's channel RSS at the joint samples (the selection's rotation planes if any)."""
+    tx, rx, att, centre = joint[2:6]
+    planes = None if sel is None else sel.planes(pipe.model, pipe.time_offset_s, att)
+    return np.asarray(
+        pipe.model.rss_dbm(tx, rx, att, centre=centre, planes=planes),
+        dtype=float,
+    )
 
 
 def predict_channels(
@@ -246,14 +330,14 @@ def predict_channels(
     paired with its flight's transmitter and shifted by its flight's centre, so the values equal one
     call per flight bit for bit (the physics is elementwise), without the per-call overhead that
     dominates the small fits."""
-    joint = _joint_geometry(pipe, flights, idx)
+    joint, sel = _joint(pipe, flights, idx)
     if joint is None:
         return [
             pipe.predict_channel(f, i) if len(i) else np.zeros(0)
             for f, i in zip(flights, idx, strict=True)
         ]
-    live, ends, tx, rx, att, centre, _ = joint
-    p = np.asarray(pipe.model.rss_dbm(tx, rx, att, centre=centre), dtype=float)
+    live, ends = joint[0], joint[1]
+    p = _joint_rss(pipe, joint, sel)
     out = [np.zeros(0) for _ in idx]
     for k, part in zip(live, np.split(p, ends[:-1]), strict=True):
         out[k] = part
@@ -293,36 +377,23 @@ def offset_residuals(
     return out
 
 
-def _joint_field(
-    spatial: SpatialField | TemporalField,
+def _field(
+    term: SpatialField | TemporalField,
     flights: Sequence[FlightSamples],
     idx: Sequence[np.ndarray],
     live: list[int],
-    time: bool = False,
+    time: bool,
 ) -> np.ndarray:
-    """The spatial field (``time``: the temporal term) at the selected samples of the ``live``
-    flights, concatenated; cached like ``_joint_geometry`` by the identity of the (fitted,
-    immutable) field, the flights and the index arrays."""
-    key = ("field", id(spatial), *map(id, flights), *map(id, idx))
-    hit = _JOINT.get(key)
-    if hit is not None and all(
-        a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)
-    ):
-        return hit[1]
-    out = np.concatenate(
+    """A field (``time``: a temporal term) at the selected samples of the ``live`` flights,
+    concatenated."""
+    return np.concatenate(
         [
-            spatial.field_db(
+            term.field_db(
                 flights[k], flights[k].t_s[idx[k]] if time else flights[k].enu_m[idx[k]][:, :2]
             )
             for k in live
         ]
     )
-    if len(out) <= _JOINT_MAX_SAMPLES:
-        out.flags.writeable = False
-        if len(_JOINT) > 16:
-            _JOINT.clear()
-        _JOINT[key] = ((spatial, *flights, *idx), out)
-    return out
 
 
 def joint_offset_residuals(
@@ -340,19 +411,22 @@ def joint_offset_residuals(
     pairwise sums). None where that path does not apply (a slope, a single flight)."""
     if slope or loss not in LOSSES:
         return None
-    joint = _joint_geometry(pipe, flights, idx)
+    joint, sel = _joint(pipe, flights, idx)
     if joint is None:
         return None
     live, ends = joint[0], joint[1]
     starts = ends - [len(idx[k]) for k in live]
     if cache is None:
-        p = np.asarray(pipe.model.rss_dbm(*joint[2:5], centre=joint[5]), dtype=float)
+        p = _joint_rss(pipe, joint, sel)
     else:
         p = np.concatenate([np.asarray(cache[k], dtype=float) for k in live])
-    if pipe.spatial is not None:
-        p = p + _joint_field(pipe.spatial, flights, idx, live)
-    if pipe.temporal is not None:
-        p = p + _joint_field(pipe.temporal, flights, idx, live, time=True)
+    for term, time in ((pipe.spatial, False), (pipe.temporal, True)):
+        if term is not None:
+            p = p + (
+                sel.field(term, live, time)
+                if sel is not None
+                else _field(term, flights, idx, live, time)
+            )
     if pipe.receiver is not None:
         p = pipe.receiver.apply(p)
     r = joint[6] - p
