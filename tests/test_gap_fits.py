@@ -194,7 +194,7 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
 
 
 def test_a_selection_keeps_its_geometry_and_gives_the_same_values() -> None:
-    """A ``Selection`` (the fits' own samples) keeps the joint geometry, the rotation planes and the
+    """A ``Selection`` (the fits' own samples) keeps the joint geometry, the prepared links and the
     fitted fields between calls, and gives bit for bit what a plain list of index arrays gives; a
     selection of other flights is not used for these."""
     from mission.gap.pipeline import Receiver, Selection, offset_residuals, predict_channels
@@ -202,7 +202,10 @@ def test_a_selection_keeps_its_geometry_and_gives_the_same_values() -> None:
 
     flights, _ = _flights("legs", 3, 1.0)
     rng = np.random.default_rng(5)
-    idx = [np.sort(rng.choice(len(f), size=min(len(f), 600), replace=False)) for f in flights]
+    idx = [  # odd and even counts: the medians' middle pairs
+        np.sort(rng.choice(len(f), size=min(len(f), 599 + k), replace=False))
+        for k, f in enumerate(flights)
+    ]
     sel = Selection(flights, idx)
     key = tx_key(flights[0].tx_enu_m)
     xy = flights[0].enu_m[idx[0][::20], :2]
@@ -219,7 +222,7 @@ def test_a_selection_keeps_its_geometry_and_gives_the_same_values() -> None:
         want = predict_channels(pipe, flights, idx)
         assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
     assert sel.joint(BASE) is sel.joint(BASE) and len(sel._joint) == 2  # offsets 0 and 0.3
-    assert len(sel._planes) == 2 and len(sel._fields) == 1
+    assert len(sel._links) == 2 and len(sel._fields) == 1
     other = Selection(flights[::-1], idx[::-1])
     assert not other.of(flights) and other.of(flights[::-1])
     with pytest.raises(ValueError, match="index arrays"):
@@ -234,4 +237,4 @@ def test_a_selection_keeps_its_geometry_and_gives_the_same_values() -> None:
         )
         got = offset_residuals(pipe, flights[:1], one, loss=loss, f_scale_db=4.0)[0]
         assert np.array_equal(got, want)
-    assert one.joint(pipe) is not None and len(one._planes) == 1
+    assert one.joint(pipe) is not None and len(one._links) == 1
