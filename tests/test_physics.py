@@ -327,9 +327,9 @@ def test_planes_made_once_give_the_same_rss_and_belong_to_their_model() -> None:
 
 def test_prepared_links_give_the_same_rss_and_keep_geometry_and_terms() -> None:
     """``prepare_links`` (a fit's samples made ready once) gives ``rss_dbm``'s very values over
-    several blocks, for models that differ in their effects' parameters (legs, slope, ground), with
-    the geometry and the additive terms kept per block; links of another attitude effect are
-    refused."""
+    several blocks, for models that differ in their effects' parameters (legs, slope, the UAV
+    antenna's heading, ground), with the geometry, the antenna amplitudes and the additive terms
+    kept per block; links of another attitude effect are refused."""
     from dataclasses import replace
 
     from mission.physics import PathGainSlope
@@ -347,9 +347,10 @@ def test_prepared_links_give_the_same_rss_and_keep_geometry_and_terms() -> None:
     m = replace(make_model("e2r", pattern="measured"), chunk=1000)  # three blocks
     links = m.prepare_links(tx, rx, att, centre=centre)
     assert len(links.spans) == 3
-    for beta in (2.0, 3.5, 2.0):
+    for beta, heading in ((2.0, 0.0), (3.5, 0.0), (2.0, 0.6), (2.0, 0.0)):
         for slope in (0.0, 0.7):
             mm = m.with_params("leg_shadowing", beta=beta).with_effect(PathGainSlope(slope))
+            mm = mm.with_params("rx_antenna", heading_rad=heading)
             want = mm.rss_dbm(tx, rx, att, centre=centre)
             np.testing.assert_array_equal(mm.rss_dbm(tx, rx, links=links), want)
             ground = mm.without("ground_reflection")

@@ -199,11 +199,13 @@ def fit_candidate(
     """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded
     Nelder-Mead."""
     n_used = max(1, sum(len(i) > 0 for i in idx))
-    # the fit's own selections: they keep the joint geometry and rotation planes between its calls
-    idx = Selection(
-        flights,
-        [decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx],
-    )
+    # the fit's own selections keep the joint geometry and the prepared links between its calls; a
+    # fold's selection keeps them for every candidate fitted on it
+    n_max = min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))
+    if isinstance(idx, Selection) and idx.of(flights):
+        idx = idx.child(("decimate", n_max), lambda i: decimate(i, n_max))
+    else:
+        idx = Selection(flights, [decimate(i, n_max) for i in idx])
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
         new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)
@@ -218,7 +220,7 @@ def fit_candidate(
     names = [p.name for p in params]
     # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over
     # seconds)
-    idx_c = Selection(flights, [i[::4] for i in idx])
+    idx_c = idx.child("coarse", lambda i: i[::4])
     cache_c = None if cache is None else [c[::4] for c in cache]
     best: CandidateFit | None = None
     for choice in cand.choices(pipe):

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import operator
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Protocol
 
@@ -217,7 +217,17 @@ class Selection(tuple):
         self._joint: dict[float, JointGeometry | None] = {}
         self._links: dict[tuple, PreparedLinks] = {}
         self._fields: list[tuple[object, bool, np.ndarray]] = []
+        self._children: dict[Hashable, Selection] = {}
         return self
+
+    def child(self, key: Hashable, pick: Callable[[np.ndarray], np.ndarray]) -> Selection:
+        """The selection ``pick(i)`` of every index array, kept under ``key`` (the fits' decimated
+        and thinned training samples of a fold: every candidate fitted on the fold shares them,
+        with their geometry, links and the terms of the fold's rung)."""
+        hit = self._children.get(key)
+        if hit is None:
+            hit = self._children[key] = Selection(self.flights, [pick(i) for i in self])
+        return hit
 
     def __reduce__(self) -> tuple:
         return (Selection, (self.flights, tuple(self)))

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -47,7 +48,7 @@ class AttitudePlanes:
     planes: NDArray
 
 
-TERMS_KEPT = 8  # additive terms a PreparedLinks keeps per block (least recently used dropped)
+TERMS_KEPT = 16  # additive terms a PreparedLinks keeps per block (least recently used dropped)
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,18 +69,18 @@ class PreparedLinks:
     rx: tuple[NDArray, ...]  # per block (nb, 3)
     planes: tuple[NDArray | None, ...]  # per block (3, 3, nb) or None
     geometry: list[tuple | None] = field(default_factory=list)  # per block, once computed
-    terms: list[OrderedDict] = field(default_factory=list)  # per block: (effect, ground) -> term
+    terms: list[OrderedDict] = field(default_factory=list)  # per block: (effect, what) -> array
 
-    def term(self, b: int, effect: Any, ground: bool, link: Link) -> NDArray:
-        """``effect.rss_term_db(link)`` on block ``b``, kept (an unhashable effect: made afresh)."""
+    def kept(self, b: int, key: Any, compute: Callable[[], Any]) -> Any:
+        """``compute()`` on block ``b`` (an effect's term or antenna amplitude: a function of the
+        effect in ``key`` and the block's geometry only), kept; an unhashable key: made afresh."""
         kept = self.terms[b]
-        key = (effect, ground)
         try:
             hit = kept.get(key)
         except TypeError:
-            return effect.rss_term_db(link)
+            return compute()
         if hit is None:
-            hit = effect.rss_term_db(link)
+            hit = compute()
             if isinstance(hit, np.ndarray):
                 hit.flags.writeable = False
             kept[key] = hit
@@ -314,6 +315,10 @@ class PropagationModel:
                     v.flags.writeable = False
                 links.geometry[b] = geo
         z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b = geo
+
+        def kept(key: Any, compute: Callable[[], Any]) -> Any:  # an amplitude, kept by the links
+            return compute() if links is None else links.kept(b, key, compute)
+
         amp_dir = inv_los  # sqrt(G_t G_r) / d_los
         az_tx_cache: list[NDArray] = []
 
@@ -327,11 +332,19 @@ class PropagationModel:
         if (
             ta is not None
         ):  # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
-            amp_dir = amp_dir * ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
+            amp_dir = amp_dir * kept(
+                (ta, "direct"), lambda: ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
+            )
         if ra is not None:  # arrival: el = -dep_b = -u_b.z / |u|
-            s_r = -u_b[2] * inv_los
-            c_r = d * inv_los if C is None else np.sqrt(np.maximum(dt(1.0) - s_r * s_r, dt(0.0)))
-            amp_dir = amp_dir * ra._amplitude(s_r, c_r, lambda: body_azimuth(u_b[0], u_b[1]))
+
+            def rx_direct() -> NDArray:
+                s_r = -u_b[2] * inv_los
+                c_r = (
+                    d * inv_los if C is None else np.sqrt(np.maximum(dt(1.0) - s_r * s_r, dt(0.0)))
+                )
+                return ra._amplitude(s_r, c_r, lambda: body_azimuth(u_b[0], u_b[1]))
+
+            amp_dir = amp_dir * kept((ra, "direct"), rx_direct)
         d_ref = d_los
         if gr is None:
             F2 = amp_dir * amp_dir
@@ -342,7 +355,9 @@ class PropagationModel:
             sin_psi = h_s * inv_ref  # grazing angle psi
             amp_ref = inv_ref
             if ta is not None:  # departs downwards towards the specular point
-                amp_ref = amp_ref * ta._amplitude(-sin_psi, d * inv_ref, az_tx)
+                amp_ref = amp_ref * kept(
+                    (ta, "reflected"), lambda: ta._amplitude(-sin_psi, d * inv_ref, az_tx)
+                )
             if ra is not None:  # arrives from the image source at (x_t, y_t, -h_t)
                 if C is None:
                     s_r2, c_r2 = -sin_psi, d * inv_ref
@@ -358,7 +373,7 @@ class PropagationModel:
                     def az2() -> NDArray:
                         return body_azimuth(ub2[0], ub2[1])
 
-                amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
+                amp_ref = amp_ref * kept((ra, "reflected"), lambda: ra._amplitude(s_r2, c_r2, az2))
             g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
             # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref +
             # d_los): no cancellation
@@ -380,9 +395,7 @@ class PropagationModel:
         if extra:
             link = Link((dx, dy, dz), z_t, z_r, d_los, d_ref, u_b)
             for e in extra:
-                rss += (
-                    e.rss_term_db(link) if links is None else links.term(b, e, gr is not None, link)
-                )
+                rss += kept((e, "term", gr is not None), lambda e=e: e.rss_term_db(link))
         return rss
 
     # -- reference / explanation
