@@ -107,11 +107,12 @@ class PropagationModel:
             raise ValueError(f"duplicate effect names in {names}")
         if "free_space" not in names:
             raise ValueError("a model needs the 'free_space' effect (transmit power, carrier)")
+        object.__setattr__(self, "_names", tuple(names))  # the effects are frozen: made once
 
     # -- composition
     @property
     def names(self) -> tuple[str, ...]:
-        return tuple(e.name for e in self.effects)
+        return self._names
 
     def effect(self, name: str) -> Any:
         """The effect called ``name``; KeyError if absent."""
