@@ -170,13 +170,7 @@ class PropagationModel:
         N = rx.shape[0]
         if not paired and N > 1:
             raise ValueError("prepared links pair each sample with its own transmitter, tx (N, 3)")
-        if centre is not None:
-            c = np.asarray(centre, dtype=float).reshape(N, 3)
-        else:
-            c = np.zeros(3)
-            c[:2] = rx[:, :2].mean(axis=0) if N else 0.0
-        rxc = (rx - c).astype(dt)
-        txc = tx - c
+        rxc, txc = _centred(tx, rx, centre, dt)
         att = self.effect("attitude") if self.has("attitude") and attitude_rad is not None else None
         C = None
         if att is not None:
@@ -242,15 +236,9 @@ class PropagationModel:
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
         N = rx.shape[0]
         # shift x, y to the samples' centre so float32 keeps millimetres
-        if centre is not None:
-            if not paired and N > 1:
-                raise ValueError("centre needs tx paired with the samples, shape (N, 3)")
-            c = np.asarray(centre, dtype=float).reshape(N, 3)
-        else:
-            c = np.zeros(3)
-            c[:2] = rx[:, :2].mean(axis=0) if N else 0.0
-        rxc = (rx - c).astype(dt)
-        txc = tx - c
+        if centre is not None and not paired and N > 1:
+            raise ValueError("centre needs tx paired with the samples, shape (N, 3)")
+        rxc, txc = _centred(tx, rx, centre, dt)
         C = None
         if self.has("attitude") and planes is not None:
             if (
@@ -500,6 +488,19 @@ class PropagationModel:
             rss_dbm=rss,
         )
         return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+
+
+def _centred(
+    tx: NDArray, rx: NDArray, centre: ArrayLike | None, dt: np.dtype
+) -> tuple[NDArray, NDArray]:
+    """rx in ``dt`` and tx (float64) shifted by ``centre`` (N, 3), else by the samples' mean x, y:
+    float32 keeps millimetres."""
+    if centre is not None:
+        c = np.asarray(centre, dtype=float).reshape(rx.shape[0], 3)
+    else:
+        c = np.zeros(3)
+        c[:2] = rx[:, :2].mean(axis=0) if rx.shape[0] else 0.0
+    return (rx - c).astype(dt), tx - c
 
 
 def _prepare(
