@@ -7,6 +7,7 @@ Usage::
     python benchmarks/bench_gap.py nadir-power [--passes 1,2,3,5] [--strengths 0.1,0.25,0.5,1] \
         [--seeds 1,2,3]
     python benchmarks/bench_gap.py family-check [--family F.json] [--repeats 4]
+    python benchmarks/bench_gap.py speed [--processes 2] [--jobs diagnosis,family] [--repeats 4]
     python benchmarks/bench_gap.py real [--split flights|blocks] [--all] [--sequence a,b] \
         [--floor] [--loc3] [--per-flight] [--localize] [--candidates all] [--out gap_real_bench]
 
@@ -41,6 +42,7 @@ and ``OUT/bench.json``.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import multiprocessing as mp
 import os
@@ -49,18 +51,18 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
+from _gap_synth import BODY_FIXED, EFFECTS, EXPECTED, diagnose_case
 from rich.console import Console
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from _gap_synth import BODY_FIXED, EFFECTS, EXPECTED, diagnose_case
-
+from mission import jsonsafe
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.gap.align import afar2023_flights
 from mission.gap.candidates import select
 from mission.gap.diagnose import base_pipeline, decimate_flight, diagnose
+from mission.gap.familyrun import family_from_diagnosis
 from mission.gap.fit import FitConfig, Fold, _pooled, make_folds, rank_candidates
 from mission.gap.loopcheck import loop_check
 from mission.gap.pipeline import LocalizationModel
@@ -72,6 +74,8 @@ from mission.localize.classical import ModelGridSearch
 from mission.samples import FlightSamples
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests"))
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
 AREA = (-80.0, -80.0, 380.0, 420.0)  # grid-search box (m, ENU about the flight-area corner)
 
@@ -104,6 +108,7 @@ def correct(row: dict) -> bool:
 
 
 def _one_case(case: tuple[str, int, float, float]) -> dict:
+
     e, s, k, dt = case
     np.seterr(all="ignore")
     return diagnose_case(e, s, strength=k, dt=dt)
@@ -122,6 +127,7 @@ def _cases_map(cases: list, dt: float, jobs: int):
 
 
 def selftest(args: argparse.Namespace) -> int:
+
     effects = EFFECTS if args.effects == "all" else tuple(args.effects.split(","))
     seeds = [int(s) for s in args.seeds.split(",")]
     strengths = [float(x) for x in args.strengths.split(",")]
@@ -185,8 +191,8 @@ def selftest(args: argparse.Namespace) -> int:
         )
     n_hit, n_ok = sum(r["hit"] for r in rows), sum(r["correct"] for r in rows)
     print(
-        f"\nnamed first: {n_hit}/{len(rows)} = {n_hit / len(rows):.0%}; correct (named first, "
-        "or a near-nadir "
+        f"\nnamed first: {n_hit}/{len(rows)} = {n_hit / len(rows):.0%}; correct (named first, or a "
+        "near-nadir "
         f"loss the power statement says cannot be shown): {n_ok}/{len(rows)} = "
         f"{n_ok / len(rows):.0%}; "
         f"{time.time() - t0:.0f} s"
@@ -204,6 +210,7 @@ def nadir_power(args: argparse.Namespace) -> int:
     straight passes over the rover) with the passes and the loss's depth varied: wherever the
     statement says the true depth can be shown held out, the diagnosis must name ``near_nadir`` (a
     violation otherwise)."""
+
     rows, t0 = [], time.time()
     for p in [int(x) for x in args.passes.split(",")]:
         for k in [float(x) for x in args.strengths.split(",")]:
@@ -254,6 +261,7 @@ def nadir_power(args: argparse.Namespace) -> int:
 def suspect_loc3(flights) -> dict:
     """Where the strongest RSS of each loc-3 flight is, and where a free-space / e2r grid search
     puts the rover."""
+
     out = {}
     for f in flights:
         if not f.name.endswith("loc3"):
@@ -287,6 +295,7 @@ def colocated_differences(flights, resid, cell_m: float = 20.0) -> dict:
     """Per rover location flown by both teams: residuals averaged in ``cell_m`` cells flown by both,
     their correlation and the std of their difference (what a perfect map of one flight leaves on
     the other)."""
+
     by_site: dict = {}
     for f, r in zip(flights, resid, strict=True):
         ok = np.isfinite(r)
@@ -319,6 +328,7 @@ def colocated_differences(flights, resid, cell_m: float = 20.0) -> dict:
 def floor(d, cfg, names: list[str] | None = None) -> dict:
     """What the final rung leaves that no model fitted elsewhere can predict (see the module
     docstring)."""
+
     final = d.rungs[-1]
     st = d.structure["final"]
     out: dict = {}
@@ -334,6 +344,7 @@ def floor(d, cfg, names: list[str] | None = None) -> dict:
     out["heldout_final"] = summarize(_pooled(final.residuals)).as_dict()
     # in-sample oracle (leakage, a bound only): the final rung's effects (or ``names``) refitted on
     # all samples and scored on the same samples
+
     added = names or [r.added for r in d.rungs if r.added]
     every = [np.arange(len(f)) for f in d.flights]
     fold = [Fold(every, every)]
@@ -353,6 +364,7 @@ def sequence(d, cfg, names: list[str]) -> list[dict]:
     """The effects ``names`` added in this order whatever their significance (each fitted on the
     training folds on top of the previous ones, like the ladder): how much of the gap each closes,
     held out."""
+
     folds = make_folds(d.flights, cfg)
     rng = np.random.default_rng(cfg.seed)
     pipes, res = d.rungs[0].pipes, d.rungs[0].residuals
@@ -378,6 +390,101 @@ def sequence(d, cfg, names: list[str]) -> list[dict]:
     return rows
 
 
+def padded(flights: list, n: int) -> list:
+    """The flights padded to ``n`` with copies of them (the 13-flight set of the timings: only six
+    real flights exist; a copy's twin sits in the training folds, so only the time means
+    anything)."""
+
+    out = list(flights)
+    while len(out) < n:
+        f = flights[len(out) % len(flights)]
+        out.append(
+            FlightSamples(
+                name=f"{f.name}-copy{len(out)}",
+                t_s=f.t_s,
+                enu_m=f.enu_m,
+                attitude_rad=f.attitude_rad,
+                rss_dbm=f.rss_dbm,
+                tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]),
+                meta=dict(f.meta),
+            )
+        )
+    return out
+
+
+class Clock:
+    """Wall and CPU seconds of a job (this process and its finished worker processes) and the load
+    average around it: the machine is shared, so every timing carries its load."""
+
+    def __init__(self) -> None:
+        self.load0 = os.getloadavg()[0]
+        self.t0, self.cpu0, self.ch0 = time.time(), time.process_time(), _children_cpu()
+
+    def stop(self) -> dict:
+        return {
+            "wall_s": round(time.time() - self.t0, 2),
+            "cpu_s": round(time.process_time() - self.cpu0, 2),
+            "workers_cpu_s": round(_children_cpu() - self.ch0, 2),
+            "load_avg_1min": [round(self.load0, 2), round(os.getloadavg()[0], 2)],
+        }
+
+
+def speed(args: argparse.Namespace) -> int:
+    """Issue 34's speed targets: the diagnosis of the 13-flight set (the six real flights padded
+    with copies; ``real --split flights --all --replicate 13``; target 15 s on two cores) and the
+    family fit with its loop check (the shipped family's ladder on the six real flights, 3 Hz,
+    ``--repeats`` copies per check; target 30 s).  Prints and stores wall and CPU seconds with the
+    load average, and a SHA-256 of each result, so that runs with other ``--processes`` can be
+    checked to give the same bytes."""
+    if not MAT.is_dir():
+        print(f"no AFAR data at {MAT}", file=sys.stderr)
+        return 2
+
+    def digest(obj: object) -> str:
+        return hashlib.sha256(jsonsafe.dumps(obj, indent=1).encode()).hexdigest()[:16]
+
+    six = afar2023_flights(MAT)
+    cfg = FitConfig(split="flights", loss="soft_l1", seed=0, rate_hz=3.0, processes=args.processes)
+    out: dict = {"processes": args.processes, "cpus": os.cpu_count()}
+    jobs = args.jobs.split(",")
+    if "diagnosis" in jobs:
+        flights = padded(six, 13)
+        clock = Clock()
+        d = diagnose(
+            flights,
+            base_pipeline("free-space", "isotropic"),
+            select("all"),
+            cfg,
+            base_label="free-space(iso)",
+            localize=False,
+        )
+        out["diagnosis"] = {
+            **clock.stop(),
+            "flights": len(flights),
+            "ladder": [r.added for r in d.rungs],
+            "sha256": digest(summary(d)),
+        }
+        print(f"diagnosis of 13 flights: {out['diagnosis']}", flush=True)
+    if "family" in jobs:
+        shipped = json.loads((REPO / "mission" / "data" / "afar_family.json").read_text())
+        d = SimpleNamespace(
+            flights=[decimate_flight(f, cfg.rate_hz) for f in six],
+            rungs=[SimpleNamespace(added=a) for a in [None, *shipped["ladder"]]],
+        )
+        clock = Clock()
+        rec = family_from_diagnosis(d, cfg, name="afar", repeats=args.repeats)
+        out["family"] = {
+            **clock.stop(),
+            "flights": len(six),
+            "repeats": args.repeats,
+            "loop_passed": rec["checks"]["loop"]["passed"],
+            "sha256": digest(rec),
+        }
+        print(f"family fit and loop check: {out['family']}", flush=True)
+    Path(args.out).write_text(json.dumps(out, indent=1))
+    return 0
+
+
 def real(args: argparse.Namespace) -> int:
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
@@ -387,23 +494,7 @@ def real(args: argparse.Namespace) -> int:
     t_load = time.time()
     every = afar2023_flights(MAT)
     flights = [f for f in every if args.all or not is_afar2023_suspect(f.name)]
-    if args.replicate > len(
-        flights
-    ):  # timing at the size of the 13-flight set: copies of the real flights
-        base_fl = list(flights)
-        while len(flights) < args.replicate:
-            f = base_fl[len(flights) % len(base_fl)]
-            flights.append(
-                FlightSamples(
-                    name=f"{f.name}-copy{len(flights)}",
-                    t_s=f.t_s,
-                    enu_m=f.enu_m,
-                    attitude_rad=f.attitude_rad,
-                    rss_dbm=f.rss_dbm,
-                    tx_enu_m=f.tx_enu_m + np.array([0.0, 0.0, 0.0]),
-                    meta=dict(f.meta),
-                )
-            )
+    flights = padded(flights, args.replicate)
     n = sum(len(f) for f in flights)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -521,6 +612,7 @@ def family_check(args: argparse.Namespace) -> int:
     (``mission.gap.loopcheck``): ``--repeats`` simulated copies of every track (airborne, 3 Hz; the
     suspect 288-loc3 left out as in the family), re-fitted; per repeat and pooled, the held-out p90
     against the real flights' and the intervals."""
+
     if not MAT.is_dir():
         print(f"no AFAR data at {MAT}", file=sys.stderr)
         return 2
@@ -562,6 +654,7 @@ def family_check(args: argparse.Namespace) -> int:
 
 def _children_cpu() -> float:
     """CPU seconds of this process's finished children (the forked fit workers)."""
+
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return float(ru.ru_utime + ru.ru_stime)
 
@@ -632,6 +725,11 @@ def main(argv: list[str] | None = None) -> int:
         help="training samples per flight used by the optimiser",
     )
     b.add_argument("--out", default="gap_real_bench")
+    sp = sub.add_parser("speed")
+    sp.add_argument("--processes", type=int, default=2, help="processes for the fits (2)")
+    sp.add_argument("--jobs", default="diagnosis,family", help="diagnosis, family or both")
+    sp.add_argument("--repeats", type=int, default=4, help="copies of the tracks per loop check")
+    sp.add_argument("--out", default="bench_gap_speed.json")
     c = sub.add_parser("family-check")
     c.add_argument("--family", default=str(REPO / "mission" / "data" / "afar_family.json"))
     c.add_argument("--repeats", type=int, default=4)
@@ -643,6 +741,8 @@ def main(argv: list[str] | None = None) -> int:
         return family_check(args)
     if args.cmd == "nadir-power":
         return nadir_power(args)
+    if args.cmd == "speed":
+        return speed(args)
     return selftest(args) if args.cmd == "selftest" else real(args)
 
 

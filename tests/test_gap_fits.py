@@ -15,7 +15,7 @@ from mission.gap.candidates import select
 from mission.gap.fit import FitConfig, Fold, make_folds, objective
 from mission.gap.ladder import ladder
 from mission.gap.nadir import NearNadirLoss
-from mission.gap.pipeline import Pipeline, Receiver, offset_residuals, predict_channels
+from mission.gap.pipeline import Pipeline, Receiver, Selection, offset_residuals, predict_channels
 from mission.gap.power import (
     DEPTHS_DB,
     FIT_MARGIN,
@@ -24,6 +24,7 @@ from mission.gap.power import (
     injected_test,
     power_statement,
 )
+from mission.gap.spatial import KrigedShadowing, tx_key
 from mission.gap.stats import block_length
 from mission.gap.structure import identify
 from mission.physics import Attitude, make_model
@@ -185,3 +186,48 @@ def test_predict_channels_equals_one_call_per_flight_bit_for_bit() -> None:
             objective(pipe, flights, idx, cfg)
             == sum(per_sample_loss(w, loss, 4.0).sum() for w in want) / n
         )
+
+
+def test_a_selection_keeps_its_geometry_and_gives_the_same_values() -> None:
+    """A ``Selection`` (the fits' own samples) keeps the joint geometry, the prepared links and the
+    fitted fields between calls, and gives bit for bit what a plain list of index arrays gives; a
+    selection of other flights is not used for these."""
+
+    flights, _ = _flights("legs", 3, 1.0)
+    rng = np.random.default_rng(5)
+    idx = [  # odd and even counts: the medians' middle pairs
+        np.sort(rng.choice(len(f), size=min(len(f), 599 + k), replace=False))
+        for k, f in enumerate(flights)
+    ]
+    sel = Selection(flights, idx)
+    key = tx_key(flights[0].tx_enu_m)
+    xy = flights[0].enu_m[idx[0][::20], :2]
+    field = KrigedShadowing(
+        4.0, 30.0, 1.0, {key: (xy, rng.normal(0, 3, len(xy)), np.ones(len(xy)))}
+    )
+    for pipe in (BASE, BASE.replace(time_offset_s=0.3), BASE.replace(spatial=field)):
+        for loss in ("l2", "soft_l1"):
+            want = offset_residuals(pipe, flights, idx, loss=loss)
+            for _ in range(2):
+                got = offset_residuals(pipe, flights, sel, loss=loss)
+                assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+        got = predict_channels(pipe, flights, sel)
+        want = predict_channels(pipe, flights, idx)
+        assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+    assert sel.joint(BASE) is sel.joint(BASE) and len(sel._joint) == 2  # offsets 0 and 0.3
+    assert len(sel._links) == 2 and len(sel._fields) == 1
+    other = Selection(flights[::-1], idx[::-1])
+    assert not other.of(flights) and other.of(flights[::-1])
+    with pytest.raises(ValueError, match="index arrays"):
+        Selection(flights, idx[:1])
+    # one flight (the family's per-flight fits) takes the same joint path: the same values as the
+    # per-flight call
+    one = Selection(flights[:1], idx[:1])
+    pipe = BASE.replace(receiver=Receiver(-95.0, -40.0), time_offset_s=0.2)
+    for loss in ("l2", "soft_l1", "huber"):
+        want = offset_residual(
+            flights[0].rss_dbm[idx[0]], pipe.predict(flights[0], idx[0]), False, loss, 4.0
+        )
+        got = offset_residuals(pipe, flights[:1], one, loss=loss, f_scale_db=4.0)[0]
+        assert np.array_equal(got, want)
+    assert one.joint(pipe) is not None and len(one._links) == 1

@@ -13,12 +13,14 @@ from mission.physics import (
     GroundReflection,
     Isotropic,
     LegShadowing,
+    PathGainSlope,
     body_angles,
     enu_to_ned,
     make_model,
 )
 from mission.physics.constants import SPEED_OF_LIGHT
 from mission.physics.geometry import body_from_enu_matrix, body_from_enu_planes
+from mission.physics.model import TERMS_KEPT
 
 FC = 3.32e9
 LAM = SPEED_OF_LIGHT / FC
@@ -320,3 +322,38 @@ def test_planes_made_once_give_the_same_rss_and_belong_to_their_model() -> None:
         yaw_only.rss_dbm(tx, rx, planes=planes)
     with pytest.raises(ValueError, match="another model"):
         m.rss_dbm(tx, rx[:10], planes=planes)
+
+
+def test_prepared_links_give_the_same_rss_and_keep_geometry_and_terms() -> None:
+    """``prepare_links`` (a fit's samples made ready once) gives ``rss_dbm``'s very values over
+    several blocks, for models that differ in their effects' parameters (legs, slope, the UAV
+    antenna's heading, ground), with the geometry, the antenna amplitudes and the additive terms
+    kept per block; links of another attitude effect are refused."""
+
+    rng = np.random.default_rng(7)
+    n = 2500
+    rx = np.column_stack([rng.uniform(0, 300, n), rng.uniform(0, 300, n), rng.uniform(5, 50, n)])
+    att = np.radians(rng.uniform(-20, 20, (n, 3)))
+    tx = np.column_stack(
+        [np.full(n, 120.0), np.full(n, 80.0), np.where(np.arange(n) < 900, 1.5, 3.0)]
+    )
+    centre = np.zeros((n, 3))
+    centre[:900, :2], centre[900:, :2] = rx[:900, :2].mean(0), rx[900:, :2].mean(0)
+    m = replace(make_model("e2r", pattern="measured"), chunk=1000)  # three blocks
+    links = m.prepare_links(tx, rx, att, centre=centre)
+    assert len(links.spans) == 3
+    for beta, heading in ((2.0, 0.0), (3.5, 0.0), (2.0, 0.6), (2.0, 0.0)):
+        for slope in (0.0, 0.7):
+            mm = m.with_params("leg_shadowing", beta=beta).with_effect(PathGainSlope(slope))
+            mm = mm.with_params("rx_antenna", heading_rad=heading)
+            want = mm.rss_dbm(tx, rx, att, centre=centre)
+            np.testing.assert_array_equal(mm.rss_dbm(tx, rx, links=links), want)
+            ground = mm.without("ground_reflection")
+            np.testing.assert_array_equal(
+                ground.rss_dbm(tx, rx, links=links), ground.rss_dbm(tx, rx, att, centre=centre)
+            )
+    assert all(g is not None for g in links.geometry)
+    assert all(len(t) <= TERMS_KEPT for t in links.terms) and len(links.terms[0]) >= 2
+    assert not links.geometry[0][6].flags.writeable  # d_los
+    with pytest.raises(ValueError, match="another model"):
+        m.with_params("attitude", roll_pitch=False).rss_dbm(tx, rx, links=links)

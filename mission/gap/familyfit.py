@@ -36,7 +36,7 @@ from mission.gap.fit import (
     objective,
     residuals,
 )
-from mission.gap.pipeline import Pipeline
+from mission.gap.pipeline import Pipeline, Selection
 from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
@@ -188,9 +188,10 @@ def _fit_antenna(
     cfg: FitConfig,
     rng: np.random.Generator,
 ) -> Pipeline:
+
     pat = select([names[0]])[0]
     mount = select([f"{names[0].split('_')[0]}_mounting"])[0]
-    ii = [decimate(idx, cfg.fit_max_samples)]
+    ii = Selection([flight], [decimate(idx, cfg.fit_max_samples)])
     best, best_loss = pipe, objective(pipe, [flight], ii, cfg)
     for choice in pat.choices(pipe) or ({},):
         p = pat.build(pipe, {}, choice)
@@ -205,13 +206,14 @@ def _fit_antenna(
 def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfig) -> Pipeline:
     """Joint multi-start Nelder-Mead over the spec's continuous parameters (headings on a grid, the
     others from the sequential fit), the three best starts polished."""
+
     spec = spec_of(pipe)
     if "ground" in spec:  # the ground's parameters stay as the sequential fit left them
         return pipe
     keys = [j for j in _JOINT if j[0] in spec]
     if not keys:
         return pipe
-    ii = [decimate(idx, cfg.fit_max_samples)]
+    ii = Selection([flight], [decimate(idx, cfg.fit_max_samples)])
 
     def make(x: np.ndarray) -> Pipeline:
         sp = dict(spec)
@@ -438,9 +440,8 @@ def build_family(
     return {
         "schema": 1,
         "name": name,
-        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted "
-        "per flight "
-        "(airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
+        "description": "physics family fitted by rfsl gap --family: each ladder effect fitted per "
+        "flight (airborne samples, > 10 m) as a model spec (normal over flights, sd at least the "
         "between-team sd; antenna patterns as variants by share of flights), the held-out "
         "residual's gaussian variogram per flight (shadowing sigma and range) and white noise "
         "(neighbour differences), the offsets; flights with 'excluded' enter no distribution",
@@ -480,6 +481,7 @@ def fit_family(
     **kw: Any,
 ) -> tuple[dict[str, Any], list[FlightFit]]:
     """Fit ``effects`` on every flight and build the family record (``build_family``)."""
+
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
     fits = _map(

@@ -43,7 +43,7 @@ from mission.gap.candidate import (
     Candidate,
 )
 from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
-from mission.gap.pipeline import Pipeline, joint_offset_residuals, offset_residuals
+from mission.gap.pipeline import Pipeline, Selection, joint_offset_residuals, offset_residuals
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)
 from mission.samples import FlightSamples
@@ -79,7 +79,8 @@ class FitConfig:
 
 @dataclass
 class Fold:
-    """Training and test sample indices, one array per flight (may be empty)."""
+    """Training and test sample indices, one array per flight (may be empty); ``make_folds`` makes
+    them ``Selection``s, which keep their joint geometry for the many candidates scored on them."""
 
     train: list[np.ndarray]
     test: list[np.ndarray]
@@ -102,7 +103,7 @@ def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
                 np.arange(len(f)) if j % k_folds == k else np.zeros(0, int)
                 for j, f in enumerate(flights)
             ]
-            folds.append(Fold(tr, te))
+            folds.append(Fold(Selection(flights, tr), Selection(flights, te)))
         return folds
     chunk_of = [
         np.minimum((np.arange(len(f)) * cfg.n_chunks) // max(len(f), 1), cfg.n_chunks - 1)
@@ -112,7 +113,7 @@ def make_folds(flights: Sequence[FlightSamples], cfg: FitConfig) -> list[Fold]:
     for parity in (0, 1):
         te = [np.nonzero(c % 2 == parity)[0] for c in chunk_of]
         tr = [np.nonzero(c % 2 != parity)[0] for c in chunk_of]
-        folds.append(Fold(tr, te))
+        folds.append(Fold(Selection(flights, tr), Selection(flights, te)))
     return folds
 
 
@@ -175,6 +176,12 @@ def _bounds(
     return [(prm.lo, prm.hi) if prm.period is None else (-np.inf, np.inf) for prm in params]
 
 
+def _clipped(x: Sequence[float], bounds: Sequence[tuple[float, float]]) -> list[float]:
+    """Each value clipped to its bounds, as ``float(np.clip(v, lo, hi))`` gives it (NaN stays NaN)
+    without numpy's per-scalar overhead: the objective is called ~10^5 times a diagnosis."""
+    return [float(min(max(v, lo), hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
+
+
 @dataclass
 class CandidateFit:
     """A candidate fitted on one training set."""
@@ -195,9 +202,13 @@ def fit_candidate(
     """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded
     Nelder-Mead."""
     n_used = max(1, sum(len(i) > 0 for i in idx))
-    idx = [
-        decimate(i, min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))) for i in idx
-    ]
+    # the fit's own selections keep the joint geometry and the prepared links between its calls; a
+    # fold's selection keeps them for every candidate fitted on it
+    n_max = min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))
+    if isinstance(idx, Selection) and idx.of(flights):
+        idx = idx.child(("decimate", n_max), lambda i: decimate(i, n_max))
+    else:
+        idx = Selection(flights, [decimate(i, n_max) for i in idx])
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
         new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)
@@ -212,7 +223,7 @@ def fit_candidate(
     names = [p.name for p in params]
     # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over
     # seconds)
-    idx_c = [i[::4] for i in idx]
+    idx_c = idx.child("coarse", lambda i: i[::4])
     cache_c = None if cache is None else [c[::4] for c in cache]
     best: CandidateFit | None = None
     for choice in cand.choices(pipe):
@@ -225,7 +236,7 @@ def fit_candidate(
         bounds = _bounds(cand, cache, params)
 
         def f_obj(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
-            xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
+            xx = _clipped(x, bounds)
             return objective(
                 cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
                 flights,
@@ -242,7 +253,7 @@ def fit_candidate(
         def f_coarse(
             x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds
         ) -> float:
-            xx = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
+            xx = _clipped(x, bounds)
             return objective(
                 cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
                 flights,
@@ -263,7 +274,7 @@ def fit_candidate(
             n_starts=3 if multi else 1,
             coarse=f_coarse if multi else None,
         )
-        x = [float(np.clip(v, lo, hi)) for v, (lo, hi) in zip(xb, bounds, strict=True)]
+        x = _clipped(xb, bounds)
         for j, prm in enumerate(params):
             if prm.period:
                 x[j] = x[j] % prm.period

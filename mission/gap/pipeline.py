@@ -20,7 +20,8 @@ switchable, parameterised component.  Effects that change how the radio channel 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+import operator
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Protocol
 
@@ -29,6 +30,7 @@ import numpy as np
 from mission.physics import PropagationModel
 from mission.physics.antenna import Dipole
 from mission.physics.geometry import sin_elevation, slant_distance
+from mission.physics.model import PreparedLinks
 from mission.robust import LOSSES, huber_weights, median_1d, offset_residual
 from mission.samples import FlightSamples
 
@@ -192,52 +194,186 @@ class LocalizationModel:
         return p
 
 
-# joint geometry of (time offset, flights, sample selections), see _joint_geometry
-_JOINT: dict = {}
-_JOINT_MAX_SAMPLES = (
-    20_000  # cache only the fits' small selections (the held-out sets are evaluated rarely)
-)
+class Selection(tuple):
+    """One index array per flight of ``flights`` (a tuple of them, usable wherever the fits take
+    ``idx``) that owns what stays the same while a fit evaluates those samples again and again: the
+    joint geometry per time offset, the links made ready for the model per attitude effect
+    (rotation planes, block geometry, the terms of effects already evaluated), the fitted fields at
+    the samples.
+
+    Why: a fit calls the objective thousands of times on the same selection; the owner is the fit
+    (or the fold) that made the selection, and everything cached goes with it, so no cache outlives
+    its flights or is keyed by an object's identity.  A plain sequence of arrays is evaluated afresh
+    on every call, with the very same values.
+    """
+
+    flights: tuple[FlightSamples, ...]
+
+    def __new__(cls, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> Selection:
+        self = super().__new__(cls, (np.asarray(i) for i in idx))
+        if len(self) != len(flights):
+            raise ValueError(f"{len(self)} index arrays for {len(flights)} flights")
+        self.flights = tuple(flights)
+        self._joint: dict[float, JointGeometry | None] = {}
+        self._links: dict[tuple, PreparedLinks] = {}
+        self._fields: list[tuple[object, bool, np.ndarray]] = []
+        self._children: dict[Hashable, Selection] = {}
+        return self
+
+    def child(self, key: Hashable, pick: Callable[[np.ndarray], np.ndarray]) -> Selection:
+        """The selection ``pick(i)`` of every index array, kept under ``key`` (the fits' decimated
+        and thinned training samples of a fold: every candidate fitted on the fold shares them,
+        with their geometry, links and the terms of the fold's rung)."""
+        hit = self._children.get(key)
+        if hit is None:
+            hit = self._children[key] = Selection(self.flights, [pick(i) for i in self])
+        return hit
+
+    def __reduce__(self) -> tuple:
+        return (Selection, (self.flights, tuple(self)))
+
+    def of(self, flights: Sequence[FlightSamples]) -> bool:
+        """Whether this selection was made for exactly these flights (the same objects)."""
+        return len(flights) == len(self.flights) and all(map(operator.is_, flights, self.flights))
+
+    def joint(self, pipe: Pipeline) -> JointGeometry | None:
+        """``joint_geometry`` of these samples under ``pipe``'s time offset, kept."""
+        key = pipe.time_offset_s
+        if key not in self._joint:
+            if len(self._joint) >= _KEEP:
+                self._joint.clear()  # a time-offset fit tries many offsets: keep the last few
+            self._joint[key] = joint_geometry(pipe, self.flights, self)
+        return self._joint[key]
+
+    def links(
+        self, model: PropagationModel, time_offset_s: float, joint: JointGeometry
+    ) -> PreparedLinks | None:
+        """The joint samples (``joint``, from ``self.joint``) made ready for ``model``
+        (``PropagationModel.prepare_links``: centred inputs, rotation planes, then each block's
+        geometry and the terms of the effects evaluated on it), kept per time offset, attitude
+        effect and dtype; None for an attitude effect that cannot be a key."""
+        effect = model.effect("attitude") if model.has("attitude") else None
+        key = (time_offset_s, effect, np.dtype(model.dtype).str)
+        try:
+            hit = self._links.get(key)
+        except TypeError:
+            return None
+        if hit is None:
+            if len(self._links) >= _KEEP:
+                self._links.clear()
+            hit = self._links[key] = model.prepare_links(
+                joint.tx, joint.rx, joint.att, centre=joint.centre
+            )
+        return hit
+
+    def field(self, term: SpatialField | TemporalField, live: list[int], time: bool) -> np.ndarray:
+        """A fitted (immutable) field or temporal term at the samples of the ``live`` flights,
+        concatenated (read-only), kept for the last few terms."""
+        for t, tm, v in self._fields:
+            if t is term and tm == time:
+                return v
+        out = _field(term, self.flights, self, live, time)
+        out.flags.writeable = False
+        self._fields = [(term, time, out), *self._fields[: _KEEP - 1]]
+        return out
 
 
-def _joint_geometry(
+_KEEP = 8  # entries a selection keeps per kind (time offsets, attitude effects, fields)
+
+
+def _owned(flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]) -> Selection | None:
+    """``idx`` when it is a ``Selection`` of these flights (its caches apply), else None."""
+    return idx if isinstance(idx, Selection) and idx.of(flights) else None
+
+
+@dataclass(frozen=True, eq=False)
+class JointGeometry:
+    """The selected samples of several flights as one set of rows (read-only arrays): what every
+    evaluation of a fit shares, and the per-flight bookkeeping of the offsets taken on them."""
+
+    live: list[int]  # flights with samples, in order
+    ends: np.ndarray  # row after each live flight's last
+    bounds: list[tuple[int, int, int]]  # (flight, start, end) per live flight
+    tx: np.ndarray  # (N, 3) each row's transmitter
+    rx: np.ndarray  # (N, 3) UAV positions (time offset applied)
+    att: np.ndarray  # (N, 3) attitudes
+    centre: np.ndarray  # (N, 3) each row's flight centre (z = 0): float32 centring per flight
+    meas: np.ndarray  # (N,) measured RSS
+    row_flight: np.ndarray  # (N,) position of each row's flight in ``live``
+    pad: np.ndarray  # (N,) flat index of each row in a (live flights, width) array
+    width: int  # the longest live flight's rows
+    mid: tuple[np.ndarray, np.ndarray]  # per live flight: the middle pair's columns when sorted
+
+    def medians(self, r: np.ndarray) -> np.ndarray:
+        """``median_1d`` of every live flight's rows of ``r``, bit for bit (the same middle pair,
+        from one sort of the flights side by side, padded with +inf; flight by flight if NaN)."""
+        if np.isnan(r).any():
+            return np.array([median_1d(r[a:b])[0] for _, a, b in self.bounds])
+        m = np.full((len(self.live), self.width), np.inf)
+        m.ravel()[self.pad] = r
+        m.sort(axis=1)
+        rows = np.arange(len(self.live))
+        return (m[rows, self.mid[0]] + m[rows, self.mid[1]]) / 2.0
+
+
+def joint_geometry(
     pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
-) -> tuple | None:
-    """(live flights, ends, tx, rx, attitude, centre, measured RSS) of the selected samples of all
-    flights, one row per sample; None where one call per flight is needed.  A fit evaluates the same
-    selections thousands of times, so the result is cached by the identity of the flights and index
-    arrays (the entry holds them, so no id is reused while it lives) and the time offset."""
-    key = (pipe.time_offset_s, *map(id, flights), *map(id, idx))
-    hit = _JOINT.get(key)
-    if hit is not None and all(a is b for a, b in zip(hit[0], (*flights, *idx), strict=True)):
-        return hit[1]
+) -> JointGeometry | None:
+    """The selected samples of all flights as one ``JointGeometry``; None where one call per flight
+    is needed (no samples, a flight without attitude or transmitter).  Kept by a ``Selection``
+    passed as ``idx`` (``Selection.joint``)."""
     live = [k for k, i in enumerate(idx) if len(i)]
     geo = {k: pipe.geometry(flights[k], idx[k]) for k in live}
-    if len(live) < 2 or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
+    if not live or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
         return None
     rx = [np.asarray(geo[k][0], dtype=float) for k in live]
-    n = [len(r) for r in rx]
+    n = np.array([len(r) for r in rx])
     ends = np.cumsum(n)
+    starts = ends - n
     tx, centre = np.empty((int(ends[-1]), 3)), np.zeros((int(ends[-1]), 3))
     for k, r, e, m in zip(live, rx, ends, n, strict=True):
         tx[e - m : e] = flights[k].tx_enu_m
         centre[e - m : e, :2] = r[:, :2].mean(axis=0)
     meas = np.concatenate([np.asarray(flights[k].rss_dbm[idx[k]], dtype=float) for k in live])
-    out = (
+    row_flight = np.repeat(np.arange(len(live)), n)
+    pad = row_flight * int(n.max()) + (np.arange(int(ends[-1])) - np.repeat(starts, n))
+    h = n // 2
+    out = JointGeometry(
         live,
         ends,
+        [(k, int(a), int(b)) for k, a, b in zip(live, starts, ends, strict=True)],
         tx,
         np.concatenate(rx),
         np.concatenate([geo[k][1] for k in live]),
         centre,
         meas,
+        row_flight,
+        pad,
+        int(n.max()),
+        (np.where(n % 2 == 1, h, h - 1), h),
     )
-    for a in out[2:]:
-        a.flags.writeable = False  # shared between calls and threads
-    if ends[-1] <= _JOINT_MAX_SAMPLES:
-        if len(_JOINT) > 16:
-            _JOINT.clear()
-        _JOINT[key] = ((*flights, *idx), out)
+    for a in (tx, out.rx, out.att, centre, meas, row_flight, pad):
+        a.flags.writeable = False  # shared between calls
     return out
+
+
+def _joint(
+    pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+) -> tuple[JointGeometry | None, Selection | None]:
+    """The joint geometry (kept by a ``Selection`` passed as ``idx``) and that selection."""
+    sel = _owned(flights, idx)
+    return (sel.joint(pipe) if sel is not None else joint_geometry(pipe, flights, idx)), sel
+
+
+def _joint_rss(pipe: Pipeline, joint: JointGeometry, sel: Selection | None) -> np.ndarray:
+    """The model's channel RSS at the joint samples (through the selection's prepared links if
+    any: the same values)."""
+    links = None if sel is None else sel.links(pipe.model, pipe.time_offset_s, joint)
+    if links is not None:
+        return np.asarray(pipe.model.rss_dbm(joint.tx, joint.rx, links=links), dtype=float)
+    return np.asarray(
+        pipe.model.rss_dbm(joint.tx, joint.rx, joint.att, centre=joint.centre), dtype=float
+    )
 
 
 def predict_channels(
@@ -247,16 +383,15 @@ def predict_channels(
     paired with its flight's transmitter and shifted by its flight's centre, so the values equal one
     call per flight bit for bit (the physics is elementwise), without the per-call overhead that
     dominates the small fits."""
-    joint = _joint_geometry(pipe, flights, idx)
+    joint, sel = _joint(pipe, flights, idx)
     if joint is None:
         return [
             pipe.predict_channel(f, i) if len(i) else np.zeros(0)
             for f, i in zip(flights, idx, strict=True)
         ]
-    live, ends, tx, rx, att, centre, _ = joint
-    p = np.asarray(pipe.model.rss_dbm(tx, rx, att, centre=centre), dtype=float)
+    p = _joint_rss(pipe, joint, sel)
     out = [np.zeros(0) for _ in idx]
-    for k, part in zip(live, np.split(p, ends[:-1]), strict=True):
+    for k, part in zip(joint.live, np.split(p, joint.ends[:-1]), strict=True):
         out[k] = part
     return out
 
@@ -294,36 +429,23 @@ def offset_residuals(
     return out
 
 
-def _joint_field(
-    spatial: SpatialField | TemporalField,
+def _field(
+    term: SpatialField | TemporalField,
     flights: Sequence[FlightSamples],
     idx: Sequence[np.ndarray],
     live: list[int],
-    time: bool = False,
+    time: bool,
 ) -> np.ndarray:
-    """The spatial field (``time``: the temporal term) at the selected samples of the ``live``
-    flights, concatenated; cached like ``_joint_geometry`` by the identity of the (fitted,
-    immutable) field, the flights and the index arrays."""
-    key = ("field", id(spatial), *map(id, flights), *map(id, idx))
-    hit = _JOINT.get(key)
-    if hit is not None and all(
-        a is b for a, b in zip(hit[0], (spatial, *flights, *idx), strict=True)
-    ):
-        return hit[1]
-    out = np.concatenate(
+    """A field (``time``: a temporal term) at the selected samples of the ``live`` flights,
+    concatenated."""
+    return np.concatenate(
         [
-            spatial.field_db(
+            term.field_db(
                 flights[k], flights[k].t_s[idx[k]] if time else flights[k].enu_m[idx[k]][:, :2]
             )
             for k in live
         ]
     )
-    if len(out) <= _JOINT_MAX_SAMPLES:
-        out.flags.writeable = False
-        if len(_JOINT) > 16:
-            _JOINT.clear()
-        _JOINT[key] = ((spatial, *flights, *idx), out)
-    return out
 
 
 def joint_offset_residuals(
@@ -341,38 +463,33 @@ def joint_offset_residuals(
     pairwise sums). None where that path does not apply (a slope, a single flight)."""
     if slope or loss not in LOSSES:
         return None
-    joint = _joint_geometry(pipe, flights, idx)
+    joint, sel = _joint(pipe, flights, idx)
     if joint is None:
         return None
-    live, ends = joint[0], joint[1]
-    starts = ends - [len(idx[k]) for k in live]
+    live, bounds = joint.live, joint.bounds
     if cache is None:
-        p = np.asarray(pipe.model.rss_dbm(*joint[2:5], centre=joint[5]), dtype=float)
+        p = _joint_rss(pipe, joint, sel)
     else:
         p = np.concatenate([np.asarray(cache[k], dtype=float) for k in live])
-    if pipe.spatial is not None:
-        p = p + _joint_field(pipe.spatial, flights, idx, live)
-    if pipe.temporal is not None:
-        p = p + _joint_field(pipe.temporal, flights, idx, live, time=True)
+    for term, time in ((pipe.spatial, False), (pipe.temporal, True)):
+        if term is not None:
+            p = p + (
+                sel.field(term, live, time)
+                if sel is not None
+                else _field(term, flights, idx, live, time)
+            )
     if pipe.receiver is not None:
         p = pipe.receiver.apply(p)
-    r = joint[6] - p
-    bounds = [(k, int(a), int(b)) for k, a, b in zip(live, starts, ends, strict=True)]
+    r = joint.meas - p
     if loss == "l2":
         off = np.array([np.add.reduce(r[a:b]) / (b - a) for _, a, b in bounds])
     else:
-        med = np.array([median_1d(r[a:b])[0] for _, a, b in bounds])
-        n = np.diff(np.r_[0, ends])
-        z = r - np.repeat(med, n)
+        med = joint.medians(r)
+        z = r - med[joint.row_flight]
         w = huber_weights(z, f_scale_db)
         wz = w * z
-        off = np.array(
-            [
-                m + np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b])
-                for m, (_, a, b) in zip(med, bounds, strict=True)
-            ]
-        )
-    return r - np.repeat(off, np.diff(np.r_[0, ends])), bounds
+        off = med + np.array([np.add.reduce(wz[a:b]) / np.add.reduce(w[a:b]) for _, a, b in bounds])
+    return r - off[joint.row_flight], bounds
 
 
 def memo(

@@ -10,7 +10,9 @@ the enhanced two-ray model equals two-ray (+ shadowing) exactly.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -47,6 +49,49 @@ class AttitudePlanes:
     planes: NDArray
 
 
+TERMS_KEPT = 16  # additive terms a PreparedLinks keeps per block (least recently used dropped)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedLinks:
+    """N links, each sample with its own transmitter, made ready once for the many ``rss_dbm`` calls
+    of a fit (models that differ in their effects' parameters but share the attitude effect and the
+    dtype): the centred inputs in the model's dtype and the rotation planes, block by block; each
+    block's geometry and the additive terms (``rss_term_db``) of the effects evaluated on it are
+    kept as first computed (read-only; the ``TERMS_KEPT`` most recent terms per block).  Made by
+    ``PropagationModel.prepare_links`` and owned by the caller (the gap fits' ``Selection``), not
+    cached inside the model; the RSS is that of ``rss_dbm`` on the same inputs, bit for bit."""
+
+    attitude: Any  # the attitude effect the planes were made under (None: level body frame)
+    dtype: str
+    n: int
+    spans: tuple[tuple[int, int], ...]  # (first, end) sample of each block
+    tx: tuple[NDArray, ...]  # per block (1, nb, 3), centred, model dtype
+    rx: tuple[NDArray, ...]  # per block (nb, 3)
+    planes: tuple[NDArray | None, ...]  # per block (3, 3, nb) or None
+    geometry: list[tuple | None] = field(default_factory=list)  # per block, once computed
+    terms: list[OrderedDict] = field(default_factory=list)  # per block: (effect, what) -> array
+
+    def kept(self, b: int, key: Any, compute: Callable[[], Any]) -> Any:
+        """``compute()`` on block ``b`` (an effect's term or antenna amplitude: a function of the
+        effect in ``key`` and the block's geometry only), kept; an unhashable key: made afresh."""
+        kept = self.terms[b]
+        try:
+            hit = kept.get(key)
+        except TypeError:
+            return compute()
+        if hit is None:
+            hit = compute()
+            if isinstance(hit, np.ndarray):
+                hit.flags.writeable = False
+            kept[key] = hit
+            if len(kept) > TERMS_KEPT:
+                kept.popitem(last=False)
+        else:
+            kept.move_to_end(key)
+        return hit
+
+
 @dataclass(frozen=True)
 class PropagationModel:
     """A propagation model = a tuple of named effects; see ``mission.physics.propagation`` for the
@@ -63,11 +108,12 @@ class PropagationModel:
             raise ValueError(f"duplicate effect names in {names}")
         if "free_space" not in names:
             raise ValueError("a model needs the 'free_space' effect (transmit power, carrier)")
+        object.__setattr__(self, "_names", tuple(names))  # the effects are frozen: made once
 
     # -- composition
     @property
     def names(self) -> tuple[str, ...]:
-        return tuple(e.name for e in self.effects)
+        return self._names
 
     def effect(self, name: str) -> Any:
         """The effect called ``name``; KeyError if absent."""
@@ -111,6 +157,51 @@ class PropagationModel:
         C.flags.writeable = False
         return AttitudePlanes(self.effect("attitude"), dt.str, C)
 
+    def prepare_links(
+        self,
+        tx_enu: ArrayLike,
+        rx_enu: ArrayLike,
+        attitude_rad: ArrayLike | None = None,
+        centre: ArrayLike | None = None,
+    ) -> PreparedLinks:
+        """``PreparedLinks`` of tx (N, 3) paired with rx (N, 3) (attitude, ``centre`` as for
+        ``rss_dbm``) under this model's attitude effect and dtype, for ``rss_dbm(links=)``."""
+        dt = np.dtype(self.dtype)
+        tx, rx, _, paired = _prepare(tx_enu, rx_enu)
+        N = rx.shape[0]
+        if not paired and N > 1:
+            raise ValueError("prepared links pair each sample with its own transmitter, tx (N, 3)")
+        rxc, txc = _centred(tx, rx, centre, dt)
+        att = self.effect("attitude") if self.has("attitude") and attitude_rad is not None else None
+        C = None
+        if att is not None:
+            C = body_from_enu_planes(att.apply(as_attitude(attitude_rad, N)), dt)
+        nb = min(N, self.chunk) if N else 1
+        spans = tuple((n0, min(N, n0 + nb)) for n0 in range(0, N, nb))
+        arrays = [
+            (
+                txc[:, n0:n1].astype(dt),
+                rxc[n0:n1],
+                None if C is None else C[:, :, n0:n1],
+            )
+            for n0, n1 in spans
+        ]
+        for a in arrays:
+            for v in a:
+                if v is not None:
+                    v.flags.writeable = False
+        return PreparedLinks(
+            att,
+            dt.str,
+            N,
+            spans,
+            tuple(a[0] for a in arrays),
+            tuple(a[1] for a in arrays),
+            tuple(a[2] for a in arrays),
+            [None] * len(spans),
+            [OrderedDict() for _ in spans],
+        )
+
     def rss_dbm(
         self,
         tx_enu: ArrayLike,
@@ -118,6 +209,7 @@ class PropagationModel:
         attitude_rad: ArrayLike | None = None,
         centre: ArrayLike | None = None,
         planes: AttitudePlanes | None = None,
+        links: PreparedLinks | None = None,
     ) -> NDArray:
         """RSS (dBm): tx (..., 3) broadcast against rx (N, 3) -> (...broadcast..., N); attitude (N,
         3) rad.
@@ -127,20 +219,27 @@ class PropagationModel:
         the samples' mean, so that several flights evaluated in one call (paired tx) keep their own
         centre and get the very values of one call per flight (the per-call overhead dominates on
         small fits).  ``planes``: the attitude's rotation planes from ``attitude_planes`` (this
-        model's, these samples'), used instead of ``attitude_rad``.
+        model's, these samples'), used instead of ``attitude_rad``.  ``links``: the samples made
+        ready by ``prepare_links`` (this model's attitude effect and dtype), used instead of every
+        other argument.
         """
         dt = np.dtype(self.dtype)
+        if links is not None:
+            att = self.effect("attitude") if self.has("attitude") else None
+            if links.dtype != dt.str or (links.attitude is not None and links.attitude != att):
+                raise ValueError("links were prepared for another model's attitude effect or dtype")
+            if att is not None and links.attitude is None:
+                raise ValueError("links were prepared without the attitude this model needs")
+            out = np.empty((1, links.n), dtype=dt)
+            for b, (n0, n1) in enumerate(links.spans):
+                out[:, n0:n1] = self._block(links.tx[b], links.rx[b], links.planes[b], links, b)
+            return out.reshape(links.n)
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
         N = rx.shape[0]
         # shift x, y to the samples' centre so float32 keeps millimetres
-        c = np.zeros(3)
-        c[:2] = rx[:, :2].mean(axis=0) if N else 0.0
-        if centre is not None:
-            if not paired and N > 1:
-                raise ValueError("centre needs tx paired with the samples, shape (N, 3)")
-            c = np.asarray(centre, dtype=float).reshape(N, 3)
-        rxc = (rx - c).astype(dt)
-        txc = tx - c
+        if centre is not None and not paired and N > 1:
+            raise ValueError("centre needs tx paired with the samples, shape (N, 3)")
+        rxc, txc = _centred(tx, rx, centre, dt)
         C = None
         if self.has("attitude") and planes is not None:
             if (
@@ -170,26 +269,46 @@ class PropagationModel:
                 out[k0:k1, n0:n1] = self._block(tb.astype(dt), rxc[n0:n1], Cb)
         return out.reshape(out_shape)
 
-    def _block(self, tx: NDArray, rx: NDArray, C: NDArray | None) -> NDArray:
-        """RSS of one block: tx (mb, 1 or nb, 3), rx (nb, 3), C (3, 3, nb) or None -> (mb, nb)."""
+    def _block(
+        self,
+        tx: NDArray,
+        rx: NDArray,
+        C: NDArray | None,
+        links: PreparedLinks | None = None,
+        b: int = 0,
+    ) -> NDArray:
+        """RSS of one block: tx (mb, 1 or nb, 3), rx (nb, 3), C (3, 3, nb) or None -> (mb, nb);
+        ``links``: its block ``b`` keeps the geometry and the additive terms."""
         dt = tx.dtype.type
         fs: FreeSpace = self.effect("free_space")
         gr: GroundReflection | None = self._get("ground_reflection")
         ta: TxAntenna | None = self._get("tx_antenna")
         ra: RxAntenna | None = self._get("rx_antenna")
-        z_t = tx[..., 2]
-        z_r = rx[:, 2]
-        dx, dy, dz = link_delta(tx, rx)  # delta = p_tx - p_rx (ENU)
-        d2 = dx * dx
-        d2 += dy * dy  # d_2D^2
-        d_los = np.sqrt(d2 + dz * dz)  # d_los = sqrt(d^2 + (h_r - h_t)^2)
-        np.maximum(d_los, dt(1e-3), out=d_los)  # coincident points: 1 mm, not a division by zero
-        inv_los = dt(1.0) / d_los
-        d = np.sqrt(d2)
-        if C is None:  # level body frame, yaw 0: u_b = (n, e, d)
-            u_b = (dy, dx, -dz)
-        else:  # u_b = C delta, C per sample (computed once, not per transmitter)
-            u_b = tuple(C[i, 0] * dx + C[i, 1] * dy + C[i, 2] * dz for i in range(3))
+        geo = None if links is None else links.geometry[b]
+        if geo is None:
+            z_t = tx[..., 2]
+            z_r = rx[:, 2]
+            dx, dy, dz = link_delta(tx, rx)  # delta = p_tx - p_rx (ENU)
+            d2 = dx * dx
+            d2 += dy * dy  # d_2D^2
+            d_los = np.sqrt(d2 + dz * dz)  # d_los = sqrt(d^2 + (h_r - h_t)^2)
+            np.maximum(d_los, dt(1e-3), out=d_los)  # coincident points: 1 mm, not a division by 0
+            inv_los = dt(1.0) / d_los
+            d = np.sqrt(d2)
+            if C is None:  # level body frame, yaw 0: u_b = (n, e, d)
+                u_b = (dy, dx, -dz)
+            else:  # u_b = C delta, C per sample (computed once, not per transmitter)
+                u_b = tuple(C[i, 0] * dx + C[i, 1] * dy + C[i, 2] * dz for i in range(3))
+            geo = (z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b)
+            if links is not None:
+                for v in (dx, dy, dz, d2, d_los, inv_los, d, *u_b):
+                    v.flags.writeable = False
+                links.geometry[b] = geo
+        z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b = geo
+
+        def kept(key: Any, compute: Callable[[], Any]) -> Any:  # an amplitude, kept by the links
+            return compute() if links is None else links.kept(b, key, compute)
+
         amp_dir = inv_los  # sqrt(G_t G_r) / d_los
         az_tx_cache: list[NDArray] = []
 
@@ -203,11 +322,19 @@ class PropagationModel:
         if (
             ta is not None
         ):  # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
-            amp_dir = amp_dir * ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
+            amp_dir = amp_dir * kept(
+                (ta, "direct"), lambda: ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
+            )
         if ra is not None:  # arrival: el = -dep_b = -u_b.z / |u|
-            s_r = -u_b[2] * inv_los
-            c_r = d * inv_los if C is None else np.sqrt(np.maximum(dt(1.0) - s_r * s_r, dt(0.0)))
-            amp_dir = amp_dir * ra._amplitude(s_r, c_r, lambda: body_azimuth(u_b[0], u_b[1]))
+
+            def rx_direct() -> NDArray:
+                s_r = -u_b[2] * inv_los
+                c_r = (
+                    d * inv_los if C is None else np.sqrt(np.maximum(dt(1.0) - s_r * s_r, dt(0.0)))
+                )
+                return ra._amplitude(s_r, c_r, lambda: body_azimuth(u_b[0], u_b[1]))
+
+            amp_dir = amp_dir * kept((ra, "direct"), rx_direct)
         d_ref = d_los
         if gr is None:
             F2 = amp_dir * amp_dir
@@ -218,7 +345,9 @@ class PropagationModel:
             sin_psi = h_s * inv_ref  # grazing angle psi
             amp_ref = inv_ref
             if ta is not None:  # departs downwards towards the specular point
-                amp_ref = amp_ref * ta._amplitude(-sin_psi, d * inv_ref, az_tx)
+                amp_ref = amp_ref * kept(
+                    (ta, "reflected"), lambda: ta._amplitude(-sin_psi, d * inv_ref, az_tx)
+                )
             if ra is not None:  # arrives from the image source at (x_t, y_t, -h_t)
                 if C is None:
                     s_r2, c_r2 = -sin_psi, d * inv_ref
@@ -234,7 +363,7 @@ class PropagationModel:
                     def az2() -> NDArray:
                         return body_azimuth(ub2[0], ub2[1])
 
-                amp_ref = amp_ref * ra._amplitude(s_r2, c_r2, az2)
+                amp_ref = amp_ref * kept((ra, "reflected"), lambda: ra._amplitude(s_r2, c_r2, az2))
             g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
             # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref +
             # d_los): no cancellation
@@ -257,7 +386,7 @@ class PropagationModel:
         if extra:
             link = Link((dx, dy, dz), z_t, z_r, d_los, d_ref, u_b)
             for e in extra:
-                rss += e.rss_term_db(link)
+                rss += kept((e, "term", gr is not None), lambda e=e: e.rss_term_db(link))
         return rss
 
     # -- reference / explanation
@@ -361,6 +490,19 @@ class PropagationModel:
             rss_dbm=rss,
         )
         return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+
+
+def _centred(
+    tx: NDArray, rx: NDArray, centre: ArrayLike | None, dt: np.dtype
+) -> tuple[NDArray, NDArray]:
+    """rx in ``dt`` and tx (float64) shifted by ``centre`` (N, 3), else by the samples' mean x, y:
+    float32 keeps millimetres."""
+    if centre is not None:
+        c = np.asarray(centre, dtype=float).reshape(rx.shape[0], 3)
+    else:
+        c = np.zeros(3)
+        c[:2] = rx[:, :2].mean(axis=0) if rx.shape[0] else 0.0
+    return (rx - c).astype(dt), tx - c
 
 
 def _prepare(

@@ -180,10 +180,10 @@ def empirical_variogram(
     thousand points.
     """
     xy = np.asarray(xy, dtype=float).reshape(len(r), -1)
-    iu = np.triu_indices(len(r), 1)
-    d = xy[:, None, :] - xy[None, :, :]
-    h = np.sqrt((d * d).sum(-1))[iu]
-    g = 0.5 * (r[:, None] - r[None, :])[iu] ** 2
+    i, j = np.triu_indices(len(r), 1)  # the pairs only, in the order of the full matrix's triangle
+    d = xy[i] - xy[j]
+    h = np.sqrt((d * d).sum(-1))
+    g = 0.5 * (r[i] - r[j]) ** 2
     nb = len(edges) - 1
     b = np.digitize(h, edges) - 1
     ok = (b >= 0) & (b < nb) & (h > 0)  # resampled duplicates are not pairs
