@@ -156,9 +156,8 @@ def main() -> None:
             logs.append((f"sim {args.samples}", simulated_log(d, args.samples)))
 
         t0 = _clock()
-        localize_log(
-            logs[0][1], method=args.method
-        )  # warm-up: first k-means, first pattern tables, lazy imports
+        # warm-up: first k-means, first pattern tables, lazy imports
+        localize_log(logs[0][1], method=args.method)
         t_warm = _since(t0)
         print(
             f"start-up (once): imports {t_import[0]:.2f} s wall / {t_import[1]:.2f} s CPU; "

@@ -41,12 +41,13 @@ def run_one(mission: Path, speedup: float) -> dict:
     out = Path(tempfile.mkdtemp(prefix="bench_fly_"))
     port = free_udp_port()
     c0 = _cpu()
+    # the mission's kinematics, as fly-mission's embedded vehicle gets them
     veh = subprocess.Popen(
         [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup)]
         + [
             "--kinematics",
             kin,
-        ],  # the mission's kinematics, as fly-mission's embedded vehicle gets them
+        ],
         cwd=ROOT,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

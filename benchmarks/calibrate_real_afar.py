@@ -220,9 +220,8 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
             dump()
-    if (
-        "attitude" in steps
-    ):  # handedness of the pattern's azimuth: the measured pattern mirrored (az -> -az)
+    # handedness of the pattern's azimuth: the measured pattern mirrored (az -> -az)
+    if "attitude" in steps:
         p = rm_wb1_dn()
         az = np.mod(-p.az_deg, 360.0)
         o = np.argsort(az)

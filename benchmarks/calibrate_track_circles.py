@@ -44,10 +44,11 @@ REPO = Path(__file__).resolve().parent.parent
 
 LEVELS = (0.5, 0.9)
 MIN_FRACTION = 0.2  # calibration cuts are drawn in [0.2, 1]
+# coverage strata above the lowest calibrated coverage: < 0.5, 0.5-0.9, full (>= 0.9)
 STRATA = (
     0.5,
     0.9,
-)  # coverage strata above the lowest calibrated coverage: < 0.5, 0.5-0.9, full (>= 0.9)
+)
 CHECK_FRACTIONS = (1 / 3, 2 / 3, 1.0)
 
 

@@ -36,9 +36,8 @@ from mission.workshop.suite_cache import read_suite
 
 INCUMBENT = "fusion (default)"
 NETS = ("rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar")
-NOT_HELD_OUT = {
-    "net rfsl_afar"
-}  # its physics was fitted on all real flights: shown, not a candidate
+# its physics was fitted on all real flights: shown, not a candidate
+NOT_HELD_OUT = {"net rfsl_afar"}
 FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the grid preset fitted on the other team
 
 

@@ -118,9 +118,8 @@ def _pbma(lp: np.ndarray) -> np.ndarray:
 def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     """Answer schemes: a flight's cached row -> its point."""
 
-    def answer(
-        cs, w
-    ):  # the first cut's answer: the weighted mean of the candidates within 25 m of the heaviest
+    # the first cut's answer: the weighted mean of the candidates within 25 m of the heaviest
+    def answer(cs, w):
         pts = np.array([c.xy for c in cs])
         near = np.hypot(*(pts - pts[int(np.argmax(w))]).T) <= 25.0
         return (pts[near] * np.asarray(w)[near, None]).sum(axis=0) / np.asarray(w)[near].sum()

@@ -47,10 +47,11 @@ def simulate_log(mission: str, out: str | Path, seed: int) -> Path:
     """``rfsl simulate`` one flight of ``mission`` (seed ``seed``) into a folder of ``out``,
     quietly; its log."""
     d = Path(out) / f"s{seed}_{Path(mission).stem}"
+    # rfsl simulate's three lines per log
     with (
         open(os.devnull, "w") as null,
         contextlib.redirect_stdout(null),
-    ):  # rfsl simulate's three lines per log
+    ):
         code = rfsl(["simulate", str(mission), "--seed", str(seed), "--out", str(d)])
     if code != 0:
         raise RuntimeError(f"rfsl simulate failed for {mission} seed {seed}")

@@ -63,9 +63,8 @@ def one(job: tuple[str, int]) -> dict:
     out = {"outside": bool(d["tx_outside_flight_area"])}
     for rung in RUNGS:
         model = build_model(degraded(d["physics"]["spec"], rung), name=rung)
-        tx_h = (
-            1.5 if rung == "known antenna only" else d["tx_height_m"]
-        )  # the search's assumed height
+        # the search's assumed height
+        tx_h = 1.5 if rung == "known antenna only" else d["tx_height_m"]
         e = classical.ModelGridSearch(model, tx_height_m=tx_h, area=area).predict(part)
         out[rung] = float(np.hypot(e.x_m - truth[0], e.y_m - truth[1]))
     e = localize_log(fl.log, method="selfcal")

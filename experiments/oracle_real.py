@@ -74,9 +74,8 @@ def one_flight(path) -> dict:
     log = read_flight_log(path)
     part, _ = select_samples(log)
     f = as_flight(part)
-    sc = SelfCalibratingGrid(
-        area=search_area(log), step_m=STEP_M
-    )  # the search's own cells, area and tx height
+    # the search's own cells, area and tx height
+    sc = SelfCalibratingGrid(area=search_area(log), step_m=STEP_M)
     cells = cell_average(f, sc.cell_m, sc.altitude_gap_m)
     hyps = antenna_hypotheses(sc.hypotheses, sc.heading_step_deg)
     truth = np.asarray(log.truth_enu[:2])

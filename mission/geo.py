@@ -70,9 +70,8 @@ class Area:
         object.__setattr__(self, "vertices", v)
         poly = shapely.Polygon(v)
         shapely.prepare(poly)
-        object.__setattr__(
-            self, "_polygon", poly
-        )  # derived from the vertices once, in construction
+        # derived from the vertices once, in construction
+        object.__setattr__(self, "_polygon", poly)
 
     @classmethod
     def from_geodetic(cls, name: str, lat_lon: np.ndarray, origin: Origin) -> Area:

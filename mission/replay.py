@@ -59,9 +59,8 @@ def plot(log: FlightLog, png: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 6))
     draw_areas(ax, field_areas(log))
     ax.plot(enu[:, 0], enu[:, 1], color="0.8", lw=0.6, zorder=1)
-    lo, hi = robust_limits(
-        log["rss_dbm"]
-    )  # take-off outliers and deep nulls must not wash out the scale
+    # take-off outliers and deep nulls must not wash out the scale
+    lo, hi = robust_limits(log["rss_dbm"])
     sc = ax.scatter(
         enu[:, 0], enu[:, 1], c=log["rss_dbm"], s=3, cmap="viridis", vmin=lo, vmax=hi, zorder=2
     )

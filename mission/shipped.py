@@ -13,10 +13,11 @@ from pathlib import Path
 from mission.errors import InputError
 
 PACKAGE_DIR = Path(__file__).resolve().parent
+# repository folders copied into the installed package's data/
 SHIPPED_FOLDERS = (
     "models",
     "missions",
-)  # repository folders copied into the installed package's data/
+)
 
 
 def shipped_dir(kind: str, package_dir: Path = PACKAGE_DIR) -> Path:

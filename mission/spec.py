@@ -39,10 +39,11 @@ from mission.trajectory.kinematics import Kinematics
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")
+# logging.on_write_error: what a failed log write does
 WRITE_ERROR_POLICIES = (
     "return",
     "continue",
-)  # logging.on_write_error: what a failed log write does
+)
 MAX_LOCAL_M = (
     1e6  # |ENU coordinate| of a position in a mission file (a waypoint at 1e300 overflowed)
 )
@@ -90,9 +91,8 @@ class VehicleSpec:
 
     connection: str | None = None
     speedup: float = 1.0
-    kinematics: dict = field(
-        default_factory=dict
-    )  # overrides of Kinematics fields (accel_mps2, ...)
+    # overrides of Kinematics fields (accel_mps2, ...)
+    kinematics: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -49,12 +49,10 @@ def main(argv: list[str]) -> int:
         "training": loc.meta.get("training_data"),
         "evaluations": [json.loads(Path(r).read_text()) for r in argv[3:]],
     }
-    card[DOMAIN_KEY] = training_domain(
-        loc.meta.get("training_data")
-    ).to_dict()  # what the runtime checks
-    if (
-        Path(out).is_file()
-    ):  # the error circles' calibration (error_circles) stays; it names the model's digest
+    # what the runtime checks
+    card[DOMAIN_KEY] = training_domain(loc.meta.get("training_data")).to_dict()
+    # the error circles' calibration (error_circles) stays; it names the model's digest
+    if Path(out).is_file():
         old = json.loads(Path(out).read_text())
         if REGIONS_KEY in old:
             card[REGIONS_KEY] = old[REGIONS_KEY]

@@ -58,9 +58,8 @@ class Dynamics:
                     self.say("Takeoff detected" + self.tab)
                 if pl.land_at_end:
                     i = int(np.searchsorted(pl.profile.t_vertex, tau, side="right")) - 1
-                    top = pl.profile.vertices[-1 - pl.land_legs][
-                        2
-                    ]  # where the final descent starts
+                    # where the final descent starts
+                    top = pl.profile.vertices[-1 - pl.land_legs][2]
                     if i >= pl.n_legs - pl.land_legs and self.pos[2] < top - 0.1:
                         self.landed_state = mav.MAV_LANDED_STATE_LANDING
             if done:

@@ -32,9 +32,8 @@ class Plan:
 
     profile: FlightProfile
     t0: float
-    reach: list[tuple[float, int]] = field(
-        default_factory=list
-    )  # (time since t0, item seq), ascending
+    # (time since t0, item seq), ascending
+    reach: list[tuple[float, int]] = field(default_factory=list)
     land_at_end: bool = False
     from_ground: bool = False
     n_legs: int = 0
@@ -84,9 +83,8 @@ class ModeMachine:
             and 0 < low < P[-2, 2] - P[-1, 2]
             and np.allclose(P[-2, :2], P[-1, :2])
         ):
-            P = np.vstack(
-                [P[:-1], P[-1] + [0.0, 0.0, low], P[-1:]]
-            )  # the final descent slows below ``low``
+            # the final descent slows below ``low``
+            P = np.vstack([P[:-1], P[-1] + [0.0, 0.0, low], P[-1:]])
             seq_at_vertex = [(v + (v == len(P) - 2), s) for v, s in seq_at_vertex]
             land_legs = 2
         if len(P) < 2:  # nothing to fly: hover here, every item reached at once
@@ -99,9 +97,8 @@ class ModeMachine:
                 speeds = [self.param("MPC_XY_CRUISE")] * len(L)
             speeds = list(speeds) + [speeds[-1]] * (len(L) - len(speeds))  # the vertex added above
             vert = np.abs(legs[:, 2]) / np.maximum(L, 1e-9) > 0.7
-            horiz = (
-                np.asarray(speeds, dtype=float) * self.profile.speed_factor
-            )  # a profile that flies slower
+            # a profile that flies slower
+            horiz = np.asarray(speeds, dtype=float) * self.profile.speed_factor
             vs = np.where(
                 legs[:, 2] > 0, self.param("MPC_TKO_SPEED"), self.param("MPC_Z_V_AUTO_DN")
             )
@@ -167,9 +164,8 @@ class ModeMachine:
             elif it.command == mav.MAV_CMD_DO_CHANGE_SPEED and it.params[1] > 0:
                 speed = float(it.params[1])
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-                speed = self.param(
-                    "MPC_XY_CRUISE"
-                )  # the return is flown at the autopilot's own speed
+                # the return is flown at the autopilot's own speed
+                speed = self.param("MPC_XY_CRUISE")
                 z = max(pts[-1][2], 5.0)
                 self._append(pts, np.array([pts[-1][0], pts[-1][1], z]))
                 self._append(pts, np.array([0.0, 0.0, z]))

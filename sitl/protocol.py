@@ -27,20 +27,22 @@ PX4_AUTO_READY, PX4_AUTO_TAKEOFF, PX4_AUTO_LOITER, PX4_AUTO_MISSION, PX4_AUTO_RT
     6,
 )
 
+# AFAR field (Lake Wheeler), ground altitude 0 (relative use)
 DEFAULT_HOME = (
     35.72744,
     -78.69607,
     0.0,
-)  # AFAR field (Lake Wheeler), ground altitude 0 (relative use)
+)
 PHYSICS_DT = 0.01  # s of simulated time per physics step (100 Hz) up to speed-up 10
 MAX_PHYSICS_DT = (
     0.05  # coarsest step at high speed-up (the attitude response is 0.8 s, turbulence 0.6 s)
 )
+# gust and turbulence correlation times; turbulence sd
 WIND_TAU_S, TURB_TAU_S, TURB_DEG = (
     6.0,
     0.6,
     0.8,
-)  # gust and turbulence correlation times; turbulence sd
+)
 # streams sent exactly at their requested rate in vehicle time; the others (status: GPS_RAW_INT,
 # EXTENDED_SYS_STATE, ...) repeat the same content and are sent at most STATUS_WALL_HZ times per
 # wall-clock second at high speed-up (the landed state is also sent at once whenever it changes)
@@ -88,9 +90,8 @@ PROFILES = {
     "px4": Profile("px4", 0.93, 4.8, True, True, (1.5, 1.5, 0.7, 5.0)),
 }
 VERTICAL_PARAMS = ("MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")
-OTHER_PARAMS = {
-    "RTL_LAND_DELAY": 0.0
-}  # PX4 v1.16: no hover over home before landing (it is not flown here)
+# PX4 v1.16: no hover over home before landing (it is not flown here)
+OTHER_PARAMS = {"RTL_LAND_DELAY": 0.0}
 
 
 @dataclass

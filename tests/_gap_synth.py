@@ -63,12 +63,13 @@ PT_DBM = 41.0
 LAMBDA_M = C_LIGHT / FC_HZ
 EPS0 = 8.8541878128e-12
 LEGS_DEG = (39.0, 150.0, 270.0)
+# ``legs_far``: a quad's four legs, a layout the library does not name
 QUAD_LEGS_DEG = (
     45.0,
     135.0,
     225.0,
     315.0,
-)  # ``legs_far``: a quad's four legs, a layout the library does not name
+)
 TX_HEIGHT_M = (
     1.5  # the rover antenna (this generator shares nothing with mission.*, not even its defaults)
 )
@@ -148,14 +149,12 @@ def trajectory(
             xs = (0.0, 360.0) if j % 2 == 0 else (360.0, 0.0)
             pts += [(xs[0], y), (xs[1], y)]
         points = np.array(pts)
-    elif (
-        kind == "star"
-    ):  # straight 300 m passes crossing at ``centre``, headings spread over 180 deg
+    # straight 300 m passes crossing at ``centre``, headings spread over 180 deg
+    elif kind == "star":
         c = np.asarray(centre, dtype=float)[:2]
         th0 = float(rng.uniform(0.0, np.pi))
-        lead = float(
-            rng.uniform(0.0, 150.0)
-        )  # a lead-in leg, so that the passes fall in random chunks
+        # a lead-in leg, so that the passes fall in random chunks
+        lead = float(rng.uniform(0.0, 150.0))
         pts = []
         for j in range(passes):
             u = np.array([np.sin(th0 + j * np.pi / passes), np.cos(th0 + j * np.pi / passes)])
@@ -175,9 +174,8 @@ def trajectory(
     e = rng.normal(0.0, np.deg2rad(3.0) * np.sqrt(1 - phi * phi), size=(n, 2))
     for i in range(1, n):
         rp[i] = phi * rp[i - 1] + e[i]
-    att = np.column_stack(
-        [rp[:, 0], rp[:, 1] - np.deg2rad(4.0), course]
-    )  # cruising: nose 4 deg down
+    # cruising: nose 4 deg down
+    att = np.column_stack([rp[:, 0], rp[:, 1] - np.deg2rad(4.0), course])
     t = np.arange(n) * dt
     pos = np.column_stack([xy, np.full(n, h) + rng.normal(0.0, 0.3, n)])
     return {"t": t, "pos": pos, "att": att}
@@ -331,12 +329,10 @@ def make_case(
             tr = trajectory("star", rng, dt, duration, centre=tx, passes=passes)
         else:
             tr = trajectory(("lawnmower", "spiral")[k % 2], rng, dt, duration)
-            lo, hi = (
-                (20.0, 90.0) if effect == "legs" else (60.0, 300.0)
-            )  # legs: rover near a corner (long range)
-            if (
-                effect == "legs_far"
-            ):  # mid-way along an edge: the legs act only over the far half of the field
+            # legs: rover near a corner (long range)
+            lo, hi = (20.0, 90.0) if effect == "legs" else (60.0, 300.0)
+            # mid-way along an edge: the legs act only over the far half of the field
+            if effect == "legs_far":
                 lo, hi = 100.0, 260.0
             if effect == "nadir":  # under a lawnmower row, so that the flights pass over the rover
                 lo, hi = 120.0, 240.0
@@ -357,9 +353,8 @@ def make_case(
             truth["phase_deg"] = np.rad2deg(phi)
             kw = {"rx_extra_db": lambda az, dep, phi=phi: truth["amp_db"] * np.cos(3 * (az - phi))}
         elif effect == "notch":
-            if (
-                "azimuth_deg" not in truth
-            ):  # centred where the flights see the rover (else nothing could see it)
+            # centred where the flights see the rover (else nothing could see it)
+            if "azimuth_deg" not in truth:
                 bx, by, _ = body_los(tx, pos, att)
                 az_seen = np.arctan2(by, bx) % (2 * np.pi)
                 phi = float(az_seen[rng.integers(0, len(az_seen))])
@@ -376,10 +371,11 @@ def make_case(
         elif effect == "tx_azimuth":
             truth.update(amp_db=3.0 * k_s, azimuth_deg=float(np.rad2deg(phi)))
             kw = {"tx_extra_db": lambda az, phi=phi: 3.0 * k_s * np.cos(az - phi)}
+        # airframe, payload below the antenna: steep depression, any az
         elif effect in (
             "nadir",
             "nadir_over",
-        ):  # airframe, payload below the antenna: steep depression, any az
+        ):
             truth.update(depth_db=8.0 * k_s, centre_deg=75.0, width_deg=8.0)
             kw = {
                 "rx_extra_db": lambda az, dep: (
@@ -418,9 +414,8 @@ def make_case(
             amp = k_s * float(rng.uniform(3.0, 4.0)) * float(rng.choice([-1.0, 1.0]))
             truth.setdefault("amp_db", []).append(amp)
             p = p + amp * (1.0 - np.exp(-t / 120.0))
-        elif (
-            effect == "step"
-        ):  # a gain step at an event the log shows: a turn, or a logged phase change
+        # a gain step at an event the log shows: a turn, or a logged phase change
+        elif effect == "step":
             n = len(t)
             turns = (
                 np.nonzero(np.abs(np.angle(np.exp(1j * np.diff(att[:, 2])))) > np.deg2rad(90.0))[0]
@@ -432,17 +427,15 @@ def make_case(
                 if len(mid) and k % 2 == 0
                 else int(rng.integers(n // 4, 3 * n // 4))
             )
-            if not (
-                len(mid) and k % 2 == 0
-            ):  # no sharp turn there (the spiral): the log records the switch
+            # no sharp turn there (the spiral): the log records the switch
+            if not (len(mid) and k % 2 == 0):
                 phase = np.where(np.arange(n) < i_step, "mission", "adaptive")
             amp = k_s * float(rng.uniform(2.5, 3.0)) * float(rng.choice([-1.0, 1.0]))
             truth.setdefault("amp_db", []).append(amp)
             truth.setdefault("step_s", []).append(float(t[i_step]))
             p = p + amp * (np.arange(n) >= i_step)
-        if (
-            effect == "shadowing"
-        ):  # fixed over the ground; a fresh field per flight (another rover position)
+        # fixed over the ground; a fresh field per flight (another rover position)
+        if effect == "shadowing":
             p = p + exp_field(rng, truth["sigma_db"], truth["corr_len_m"])(pos[:, :2])
         rss = p + float(rng.uniform(-60.0, 20.0)) + rng.normal(0.0, noise_db, len(p))
         flights.append({"t": t, "pos": pos, "att": att, "rss": rss, "tx": tx, "phase": phase})

@@ -23,9 +23,8 @@ def _conv1d(
     xp = np.pad(x, ((0, 0), (0, 0), (pads[0], pads[1])))
     k = w.shape[2]
     n_out = (xp.shape[2] - k) // stride + 1
-    cols = np.stack(
-        [xp[:, :, i * stride : i * stride + k] for i in range(n_out)], axis=2
-    )  # (B, C, L, K)
+    # (B, C, L, K)
+    cols = np.stack([xp[:, :, i * stride : i * stride + k] for i in range(n_out)], axis=2)
     y = np.einsum("bclk,mck->bml", cols, w)
     return y if b is None else y + b[None, :, None]
 

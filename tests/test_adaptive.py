@@ -271,9 +271,8 @@ def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
     p.configure(2, 9, "return")
     p.on_landed_state(0.0, "IN_AIR")
     p.on_progress(1.0, 4)
-    p.configure(
-        2, 15, "return", first_adaptive=9
-    )  # the mission extended by a round from raw item 9
+    # the mission extended by a round from raw item 9
+    p.configure(2, 15, "return", first_adaptive=9)
     p.on_progress(2.0, 0)  # the upload resets the reported item: not a take-off again
     p.on_progress(3.0, 9)
     p.on_progress(4.0, 11)

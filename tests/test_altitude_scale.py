@@ -97,9 +97,8 @@ def test_scale_factor_and_cluster_scaling():
     np.testing.assert_array_equal(g[0, [1, 2, 4, 5]], 2.0 * f[0, [1, 2, 4, 5]])
     np.testing.assert_array_equal(g[1, [1, 2, 4, 5]], 0.5 * f[1, [1, 2, 4, 5]])
     assert f[0, 1] == 1.0  # a copy
-    assert (
-        flight_height(np.array([0.0, 31.0, 31.5, 32.0, 100.0]), 1.5) == 30.0
-    )  # median: ramps do not move it
+    # median: ramps do not move it
+    assert flight_height(np.array([0.0, 31.0, 31.5, 32.0, 100.0]), 1.5) == 30.0
 
 
 @pytest.fixture(scope="module")
@@ -136,13 +135,11 @@ def test_training_flag_writes_the_metadata_that_inference_obeys(tiny_altitude_ne
     # flights
     err = np.hypot(*(p - a["tx_enu"][:, :2]).T)
 
-    val, _ = validation_split(
-        len(h), TrainConfig(seed=1)
-    )  # the fixture's seed: the split training drew
+    # the fixture's seed: the split training drew
+    val, _ = validation_split(len(h), TrainConfig(seed=1))
     assert res.metrics["val_mean_m"] == pytest.approx(err[val].mean(), rel=1e-3)
-    assert not np.allclose(
-        scale_factor(h[val]), 1.0, atol=0.05
-    )  # a metric in scaled units would differ
+    # a metric in scaled units would differ
+    assert not np.allclose(scale_factor(h[val]), 1.0, atol=0.05)
 
 
 def test_other_networks_ignore_heights(repo_dir):
@@ -209,14 +206,12 @@ def test_localize_scales_by_the_logs_median_height_above_the_assumed_transmitter
     for tx_h in (1.5, 4.0):
         est = got[tx_h] = localize_log(path, model_path=shipped_alt, tx_height_m=tx_h)
         want = loc.predict_features(loc.features(f)[None], [np.median(f.enu_m[:, 2]) - tx_h])[0]
-        np.testing.assert_allclose(
-            [est.x_m, est.y_m], want, atol=0.05
-        )  # the log and the model share the origin
+        # the log and the model share the origin
+        np.testing.assert_allclose([est.x_m, est.y_m], want, atol=0.05)
         assert est.extras["height_above_tx_m"] == pytest.approx(np.median(f.enu_m[:, 2]) - tx_h)
         assert np.median(f.enu_m[:, 2]) == pytest.approx(45.0, abs=0.5)
-    assert (
-        abs(got[1.5].x_m - got[4.0].x_m) + abs(got[1.5].y_m - got[4.0].y_m) > 0.1
-    )  # the height matters
+    # the height matters
+    assert abs(got[1.5].x_m - got[4.0].x_m) + abs(got[1.5].y_m - got[4.0].y_m) > 0.1
     assert "note" not in got[1.5].extras  # 45 m is inside its 15-60 m training range
 
 

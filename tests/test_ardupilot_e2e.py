@@ -157,9 +157,8 @@ def test_spiral_on_ardupilot(ardupilot, tmp_path):
             "telemetry_rate_hz"
         ]
     t = log["t_s"]
-    assert len(log) >= 0.95 * (
-        (t[-1] - t[0]) / spec.source.sample_period_s + 1
-    )  # no gaps in the RSS rows
+    # no gaps in the RSS rows
+    assert len(log) >= 0.95 * ((t[-1] - t[0]) / spec.source.sample_period_s + 1)
     # the phase column: every row has a phase, in flight order, mission items over all waypoints
     phase, item = log.columns["phase"], log.columns["mission_item"]
     assert set(phase) <= set(PHASES)

@@ -98,9 +98,8 @@ def files(tmp_path_factory):
         (d / f"{name}.yaml").write_text(text)
     (d / "nonutf.yaml").write_bytes(b"name: caf\xe9\n")
     (d / "binary.yaml").write_bytes(bytes(range(256)) * 8)
-    with open(
-        d / "big.yaml", "wb"
-    ) as f:  # 30 MB, sparse: refused by its size before a byte is read
+    # 30 MB, sparse: refused by its size before a byte is read
+    with open(d / "big.yaml", "wb") as f:
         f.truncate(30_000_000)
     (d / "rand.json").write_bytes(np.random.default_rng(0).bytes(3000))
     (d / "plain.txt").write_text("x\n")
@@ -123,9 +122,8 @@ def files(tmp_path_factory):
     ds = d / "ds"  # a dataset whose one chunk is damaged
     ds.mkdir()
 
-    net = OnnxLocalizer(
-        shipped_model("rfsl_default.onnx")
-    )  # the manifest matches the network evaluate runs
+    # the manifest matches the network evaluate runs
+    net = OnnxLocalizer(shipped_model("rfsl_default.onnx"))
     (ds / "manifest.json").write_text(
         json.dumps(
             {
@@ -411,9 +409,8 @@ def test_a_shipped_network_with_flipped_bytes_is_refused(files, tmp_path, capsys
         localize_main, [files["log"], "--model", tmp_path / "rfsl_default.onnx"], capsys
     )
     assert_refused(rc, err, "rfsl_default.onnx", "differs from the shipped")
-    (tmp_path / "mine.onnx").write_bytes(
-        shipped_model("rfsl_default.onnx").read_bytes()
-    )  # a copy renamed: fine
+    # a copy renamed: fine
+    (tmp_path / "mine.onnx").write_bytes(shipped_model("rfsl_default.onnx").read_bytes())
     rc, _, err = run_cli(
         localize_main, [files["log"], "--model", tmp_path / "mine.onnx", "--json"], capsys
     )

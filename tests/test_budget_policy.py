@@ -111,9 +111,10 @@ def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_mu
     # not more than needed: keeping one more waypoint would not have fitted (the vehicle lands
     # within the reserve) unless the cut could not come later (the vehicle was already flying to
     # it); the cut is decided a few waypoints ahead on the pace fitted so far, so it may be
-    # conservative by a few seconds (hypothesis found 1.6 s at scale 1.25, 5.9 s per leg)
+    # conservative by a few seconds (hypothesis found 1.6 s at scale 1.25, 5.9 s per leg with a
+    # three-waypoint lookahead, 3.4 s with today's five)
     if w.last + 1 < n:
-        assert _truth(plan, pace, w.last + 1)[1] > limit - 3.0
+        assert _truth(plan, pace, w.last + 1)[1] > limit - 5.0
     assert all(d[0] == "trim" for d in decisions) and len(decisions) <= 3
     # each cut is taken near it, when the pace is known best
     first_cut = decisions[0]

@@ -24,9 +24,8 @@ def test_bin_means_are_the_per_key_means(seed, n, cell):
     mx, mv = bin_means(inv, cnt, xy[:, 0], v)
     distinct = np.unique(keys, axis=0)
     assert cnt.sum() == n and len(cnt) == len(distinct) and np.all(cnt > 0)
-    for b, k in enumerate(
-        distinct
-    ):  # bins in sorted key order, each the mean of exactly its samples
+    # bins in sorted key order, each the mean of exactly its samples
+    for b, k in enumerate(distinct):
         mine = np.all(keys == k, axis=1)
         assert np.array_equal(inv == b, mine)
         assert np.isclose(mx[b], xy[mine, 0].mean()) and np.isclose(mv[b], v[mine].mean())

@@ -122,9 +122,8 @@ def test_cli_dataset_and_bad_input(tmp_path, repo_dir, capsys):
         ]
     )
     assert rc == 0 and (tmp_path / "ds" / "manifest.json").exists()
-    assert (
-        main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "ds")]) == 2
-    )  # exists already
+    # exists already
+    assert main(["dataset", mission, "--n", "2", "--out", str(tmp_path / "ds")]) == 2
     assert (
         main(
             [

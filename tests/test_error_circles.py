@@ -84,9 +84,8 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
     assert reg["clipped_to"] == "rover area" and reg["radius_m"] == r
     assert reg["area_m2"] == pytest.approx(_segment_area(r, frac * r), rel=3e-3)
     ring = np.asarray(reg["polygons"][0])
-    assert (
-        np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()
-    )  # rounded to 0.1 m
+    # rounded to 0.1 m
+    assert np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()
     assert region_contains(reg, (0.99 * r * math.cos(2.0), 0.99 * r * math.sin(2.0)))
 
 
@@ -155,9 +154,8 @@ def test_card_contract(net):
     assert "regions" not in extras
     assert attach_circles(extras, 5.0, 6.0, card_calibration(net, "sim")) is None
     assert [r["radius_m"] for r in extras["regions"]] == [11.0, 19.0]
-    net.write_bytes(
-        net.read_bytes() + b"\0"
-    )  # another model file: the calibration no longer applies
+    # another model file: the calibration no longer applies
+    net.write_bytes(net.read_bytes() + b"\0")
     rec, why = card_calibration(net, "sim")
     assert rec is None and "another version of the model file" in why
 
@@ -201,9 +199,8 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     assert rfsl(["simulate", str(DEFAULT_MISSION), "--seed", "7101", "--out", str(tmp_path)]) == 0
     est = localize_log(next(tmp_path.glob("*.csv")))
     model = est.extras["model_path"]
-    want, _ = flown_radii(
-        card_calibration(model, "sim")[0], est.extras["track_coverage"]
-    )  # sized for the flight
+    # sized for the flight
+    want, _ = flown_radii(card_calibration(model, "sim")[0], est.extras["track_coverage"])
     assert est.extras["track_coverage"] > 0.95
     assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items())
     assert all(
@@ -293,9 +290,8 @@ def test_classical_methods_get_circles_only_in_their_calibrated_configuration(tm
         assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(
             want.items()
         ), method
-    est = localize_log(
-        log, method="grid", physics_model="free-space"
-    )  # not the calibrated configuration
+    # not the calibrated configuration
+    est = localize_log(log, method="grid", physics_model="free-space")
     assert (
         "regions" not in est.extras and "calibrated for its default physics" in est.extras["note"]
     )

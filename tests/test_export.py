@@ -77,9 +77,8 @@ def test_geojson(tmp_path):
 
 def test_kml(tmp_path):
     out = tmp_path / "m.kml"
-    assert (
-        main(["export", str(MISSIONS / "edge_sweep.yaml"), "--out", str(out)]) == 0
-    )  # format from suffix
+    # format from suffix
+    assert main(["export", str(MISSIONS / "edge_sweep.yaml"), "--out", str(out)]) == 0
     root = ET.parse(out).getroot()
     ns = {"k": "http://www.opengis.net/kml/2.2"}
     marks = root.findall(".//k:Placemark", ns)

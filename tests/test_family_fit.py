@@ -37,9 +37,8 @@ def _tracks(n: int, seed: int = 3) -> list[FlightSamples]:
     rng = np.random.default_rng(seed)
     out = []
     for k in range(n):
-        tr = trajectory(
-            "lawnmower", rng, 1.0, 700.0
-        )  # a spiral around the rover cannot tell the heading
+        # a spiral around the rover cannot tell the heading
+        tr = trajectory("lawnmower", rng, 1.0, 700.0)
         tx = np.array([rng.uniform(80, 280), rng.uniform(80, 280), 1.5])
         out.append(
             FlightSamples(
@@ -82,9 +81,8 @@ def test_family_fit_recovers_and_loop_closes(tmp_path) -> None:
         assert (
             abs((ft.spec["rx_heading_deg"] - dr["spec"]["rx_heading_deg"] + 180) % 360 - 180) < 15
         )
-    s = rec[
-        "spread"
-    ]  # the slope per flight scatters with the 5 dB shadowing (+-0.7); its mean does not
+    # the slope per flight scatters with the 5 dB shadowing (+-0.7); its mean does not
+    s = rec["spread"]
     assert (
         abs(s["path_gain_slope"]["mean"] - np.mean([d["spec"]["path_gain_slope"] for d in draws]))
         < 0.4

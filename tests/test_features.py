@@ -40,9 +40,8 @@ def test_grouping_and_smoothing():
     c = np.full(500, -42.0)
     np.testing.assert_allclose(gaussian_smooth(c, 20.0), c)  # a constant stays constant
     lin = np.linspace(0, 10, 500)
-    np.testing.assert_allclose(
-        gaussian_smooth(lin, 5.0)[50:-50], lin[50:-50], atol=1e-9
-    )  # linear kept inside
+    # linear kept inside
+    np.testing.assert_allclose(gaussian_smooth(lin, 5.0)[50:-50], lin[50:-50], atol=1e-9)
 
 
 def test_shape_offset_invariance_and_determinism():
@@ -176,9 +175,8 @@ def test_arc_resampling_collapses_hovers_and_ignores_speed():
     plain = FeatureConfig(c_k=6, n_t=10)
     pa = cluster_features(path_x, path_y, rss, plain).reshape(-1, 3)
     pb = cluster_features(path_x[slow_idx], path_y[slow_idx], rss[slow_idx], plain).reshape(-1, 3)
-    assert (
-        np.abs(pa[:, 1:] - pb[:, 1:]).max() > 10.0
-    )  # without resampling the crept leg takes more clusters
+    # without resampling the crept leg takes more clusters
+    assert np.abs(pa[:, 1:] - pb[:, 1:]).max() > 10.0
 
 
 def test_configs_written_before_a_later_key_still_match():

@@ -79,9 +79,8 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     assert log.meta["rows"] == len(log)
     t = log["t_s"]
     spec = load_mission(SPIRAL)
-    assert (
-        log.meta["trajectory"] == spec.trajectory_meta()
-    )  # what picks the spiral network (sim_default)
+    # what picks the spiral network (sim_default)
+    assert log.meta["trajectory"] == spec.trajectory_meta()
     expected = (t[-1] - t[0]) / spec.source.sample_period_s + 1
     assert len(log) >= 0.95 * expected
     assert t[-1] - t[0] > 0.8 * log.meta["planned_duration_s"]  # the whole spiral was flown
@@ -104,13 +103,11 @@ def test_spiral_end_to_end(tmp_path, repo_dir):
     last = "estimate:" + out.rsplit("\nestimate:", 1)[-1]
     assert last.startswith("estimate: x=") and "\n  error: " in last, out
     assert max(len(ln) for ln in last.splitlines()) <= 80, last
-    assert "\n  method: onnx rfsl_spiral_e2r_ens5.onnx\n" in last, (
-        last
-    )  # the spiral network answered its own flight
+    # the spiral network answered its own flight
+    assert "\n  method: onnx rfsl_spiral_e2r_ens5.onnx\n" in last, last
 
-    part, _ = select_samples(
-        log
-    )  # the whole spiral flown: the full-flight stratum of its calibrated circles
+    # the whole spiral flown: the full-flight stratum of its calibrated circles
+    part, _ = select_samples(log)
     cov = track_coverage(planned_track(log.meta, log.origin), part.enu()[:, :2])
     r90 = flown_radii(
         card_calibration(repo_dir / "models" / "rfsl_spiral_e2r_ens5.onnx", "sim")[0], cov
@@ -174,9 +171,8 @@ def test_ctrl_c_returns_to_launch(tmp_path):
     assert any(e["kind"] == "rtl" for e in log.meta["events"])
     assert any(e["kind"] == "landed" for e in log.meta["events"])
     assert log["rel_alt_m"][-1] < 0.5
-    assert "mission" in set(log.columns["phase"]) and "return" in set(
-        log.columns["phase"]
-    )  # stopped mid-mission
+    # stopped mid-mission
+    assert "mission" in set(log.columns["phase"]) and "return" in set(log.columns["phase"])
     enu = log.enu()
     assert np.hypot(*enu[-1, :2] - enu[0, :2]) < 2.0  # landed back at home
 
@@ -259,9 +255,8 @@ def test_connecting_to_nothing_times_out_with_one_line(tmp_path, scheme):
 
 def test_sigterm_before_takeoff_does_not_return_to_launch(tmp_path):
     p = _fly([str(SPIRAL), "--connect", _no_autopilot_url("udpin"), "--out", str(tmp_path)])
-    assert p.stderr.readline().startswith(
-        "estimated flight"
-    )  # checked, handlers on, waiting for an autopilot
+    # checked, handlers on, waiting for an autopilot
+    assert p.stderr.readline().startswith("estimated flight")
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=30)
     assert p.returncode == 130, err
@@ -392,33 +387,29 @@ def test_px4_like_vehicle_at_10x_keeps_every_text_and_warns_the_budget(tmp_path)
     # PX4 pace or touchdown-to-disarm delay
     base = plan_times(load_mission(mfile), vertical=VerticalSpeeds(1.5, 1.5, 0.7, 5.0)).duration_s
     plan = base
-    d["time_budget_s"] = round(
-        base * 1.03
-    )  # the built-in vehicle disarms at touchdown: 3 % above its flight
+    # the built-in vehicle disarms at touchdown: 3 % above its flight
+    d["time_budget_s"] = round(base * 1.03)
     mfile.write_text(yaml.safe_dump(d))
     texts = tmp_path / "texts.jsonl"
     rc, err = _fly_px4_like(mfile, 10, tmp_path / "f", "--statustext-log", str(texts))
     assert rc == 0, err[-3000:]
-    assert (
-        "of wall-clock time at speed-up 10" in err and "add --speedup" not in err
-    )  # duration line, --connect
+    # duration line, --connect
+    assert "of wall-clock time at speed-up 10" in err and "add --speedup" not in err
     log = read_flight_log(_log_of(tmp_path / "f"))
     ev = log.meta["events"]
     kinds = [e["kind"] for e in ev]
     sent = [json.loads(line) for line in texts.read_text().splitlines()]
     assert len(sent) >= 6 and all(r["sent"] for r in sent)  # the vehicle dropped none
     got = [e["text"] for e in ev if e["kind"] == "statustext"]
-    assert got == [
-        "autopilot: " + r["text"].rstrip() for r in sent
-    ]  # every text, in order, tab stripped
+    # every text, in order, tab stripped
+    assert got == ["autopilot: " + r["text"].rstrip() for r in sent]
     assert max(i for i, k in enumerate(kinds) if k == "statustext") < kinds.index("landed")
     assert kinds.index("armed") < kinds.index("start")
     b = log.meta["budget"]
     assert b["planned_s"] == pytest.approx(plan, abs=1) and b["overrun"] and b["overrun_s"] > 0
     assert b["used_s"] == pytest.approx(b["budget_s"] + b["overrun_s"])
-    assert (
-        b["warned_at_s"] is not None and b["warned_at_s"] < 0.6 * b["used_s"]
-    )  # warned early, not at the end
+    # warned early, not at the end
+    assert b["warned_at_s"] is not None and b["warned_at_s"] < 0.6 * b["used_s"]
     assert "WARNING: budget will not hold" in err and f"{b['overrun_s']:.0f} s over" in err
     assert any(e["kind"] == "params" and e["text"] == "restored MPC_XY_CRUISE=4.8" for e in ev)
 
@@ -564,9 +555,8 @@ def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
     b = log.meta["budget"]
     n = len(spec.waypoints_enu())
     assert b["policy"] == "trim" and b["dropped_waypoints"] and b["dropped_waypoints"][-1] == n, b
-    assert b["dropped_waypoints"] == list(
-        range(b["dropped_waypoints"][0], n + 1)
-    )  # the tail, whole
+    # the tail, whole
+    assert b["dropped_waypoints"] == list(range(b["dropped_waypoints"][0], n + 1))
     assert b["arm_to_disarm_s"] is not None and b["arm_to_disarm_s"] <= 560, b
     assert not b["overrun"]
     dropped_lines = [ln for ln in err.splitlines() if "budget: dropped waypoint" in ln]
@@ -574,6 +564,5 @@ def test_trim_lands_inside_a_tight_budget_on_the_px4_like_vehicle(tmp_path):
         len(ln) <= 80 for ln in err.splitlines() if len(ln.split()) > 1
     ), err
     items = log.columns["mission_item"][log.columns["phase"] == "mission"]
-    assert (
-        items.max() == b["dropped_waypoints"][0] - 2
-    )  # waypoints after the last kept one were not flown
+    # waypoints after the last kept one were not flown
+    assert items.max() == b["dropped_waypoints"][0] - 2

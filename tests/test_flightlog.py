@@ -216,9 +216,8 @@ def test_samples_view_of_a_log(tmp_path):
     assert (
         len(m) == 3 and m.t_s.shape == (3,) and m.enu_m.shape == (3, 3) and m.tx_enu_m is s.tx_enu_m
     )
-    assert (
-        log.samples(Origin(35.7, -78.7, 90.0)).tx_enu_m is None
-    )  # the sidecar's truth is in its own frame
+    # the sidecar's truth is in its own frame
+    assert log.samples(Origin(35.7, -78.7, 90.0)).tx_enu_m is None
 
 
 _FULL_DISK = """

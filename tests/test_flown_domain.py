@@ -55,9 +55,8 @@ def test_coverage_is_the_share_of_the_track_flown(frac, offset):
     flown = _along(SQUARE, 0.0, frac) + np.array([0.0, offset * TRACK_REACH_M])
     c = track_coverage(SQUARE, flown)
     assert abs(c - frac) <= (TRACK_REACH_M + 5.0) / 600.0 + 0.02
-    assert (
-        track_coverage(SQUARE, flown + np.array([0.0, 3 * TRACK_REACH_M])) < 0.35
-    )  # only the track's far legs
+    # only the track's far legs
+    assert track_coverage(SQUARE, flown + np.array([0.0, 3 * TRACK_REACH_M])) < 0.35
 
 
 def test_planned_track_from_the_sidecar_record():
@@ -84,9 +83,8 @@ def test_attitude_note_cases(flown_pitch, says):
     trained = ((-4.9, 17.4), (-12.9, 10.1))
     note = attitude_note("net", trained, ((0.0, 10.0), flown_pitch))
     assert note is None if says is None else (says in note and "roll" not in note)
-    assert (
-        attitude_note("net", None, ((0.0, 10.0), flown_pitch)) is None
-    )  # unknown training attitude: no claim
+    # unknown training attitude: no claim
+    assert attitude_note("net", None, ((0.0, 10.0), flown_pitch)) is None
     assert ATTITUDE_TOLERANCE_DEG == 5.0  # the cases above are written for it
 
 

@@ -82,9 +82,8 @@ def test_a_failed_upload_is_one_line_with_the_result_name_and_item_count():
 
         async def upload_mission(self, items):
             Refusing.calls += 1
-            raise MissionRawError(
-                MissionRawResult.TIMEOUT, "upload_mission()", *([object()] * 25)
-            )  # reprs
+            # reprs
+            raise MissionRawError(MissionRawResult.TIMEOUT, "upload_mission()", *([object()] * 25))
 
     spec = load_mission(SPIRAL)
     items = build_items(spec, (35.72737, -78.69622, 0.0), True)

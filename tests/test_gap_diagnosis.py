@@ -195,9 +195,8 @@ def test_cli_gap_on_a_simulated_log(tmp_path) -> None:
     # it is small
     assert doc["structure"]["base"]["verdict"] in ("white noise", "correlated within flights")
     for png in ("cdf.png", "breakdown.png", "field_map.png", "polar_body_azimuth.png"):
-        assert_png_drawn(
-            tmp_path / "rep" / png
-        )  # decoded: an image with curves/colours, not an empty canvas
+        # decoded: an image with curves/colours, not an empty canvas
+        assert_png_drawn(tmp_path / "rep" / png)
     assert main(["gap", str(p), "--candidates", "nope"]) == 2
 
 
@@ -221,9 +220,8 @@ def test_cli_gap_json_prints_the_summary(tmp_path, capsys) -> None:
         ]
     )
     assert rc == 0
-    out = strict_loads(
-        capsys.readouterr().out
-    )  # strict JSON: no NaN / Infinity (detectable_db can be inf)
+    # strict JSON: no NaN / Infinity (detectable_db can be inf)
+    out = strict_loads(capsys.readouterr().out)
     doc = strict_loads((tmp_path / "rep" / "gap.json").read_text())
     assert out["ladder"] == doc["ladder"] and out["rankings"] == doc["rankings"]
     assert {r["tier"] for rs in out["rankings"].values() for r in rs} == {"free-form"}

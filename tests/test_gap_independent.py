@@ -55,9 +55,8 @@ def test_withheld_effect_named_first(effect: str) -> None:
         return
     fp = r["footprint"]
     assert fp["size_db"] > 1.0
-    if (
-        effect == "ripple"
-    ):  # A cos(3 az): the map's size where it acts is about the amplitude A (2-2.5 dB)
+    # A cos(3 az): the map's size where it acts is about the amplitude A (2-2.5 dB)
+    if effect == "ripple":
         assert 1.2 < fp["size_db"] < 4.0
         # its trough lies in a minimum of cos(3 (az - phi)): phi + 60 deg + k 120 deg
         off = (r["params"]["where"]["trough_body_azimuth_deg"] - r["truth"]["phase_deg"]) % 120.0
@@ -157,9 +156,8 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     another flight at the same transmitter (corr > 0.9) and adds nothing around a transmitter it has
     not seen."""
     raw, _ = make_case("none", 3, n_flights=3, dt=0.5)
-    tx = np.array(
-        [180.0, 180.0, 1.5]
-    )  # mid-field: the spiral (flight 1) sees it from every azimuth
+    # mid-field: the spiral (flight 1) sees it from every azimuth
+    tx = np.array([180.0, 180.0, 1.5])
     fl = [
         FlightSamples(
             f["pos"],
@@ -180,10 +178,11 @@ def test_site_map_carries_a_transmitters_surroundings_to_another_flight() -> Non
     r1 = site(fl[1]) + rng.normal(0.0, 2.0, len(fl[1]))
     sm, params = fit_site_map([fl[1]], [np.arange(len(fl[1]))], [r1 - r1.mean()], loss="soft_l1")
     assert isinstance(sm, SiteMap) and params["sites"] == 1 and params["size_db"] > 8.0
+    # the lawnmower: learned from the spiral
     pred, truth = (
         sm.field_db(fl[0], fl[0].enu_m[:, :2]),
         site(fl[0]),
-    )  # the lawnmower: learned from the spiral
+    )
     assert np.corrcoef(pred, truth)[0, 1] > 0.9
     assert np.std(pred - truth) < 0.4 * np.std(truth)
     assert not np.any(sm.field_db(fl[2], fl[2].enu_m[:, :2]))

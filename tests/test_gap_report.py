@@ -47,6 +47,7 @@ def test_report_fits_80_columns_and_family_loads(tmp_path, capsys, monkeypatch) 
     logs = _logs(tmp_path)
     capsys.readouterr()
     fam = tmp_path / "fam" / "f.json"
+    # the loop check: test_family_fit.py
     rc = main(
         [
             "gap",
@@ -69,22 +70,19 @@ def test_report_fits_80_columns_and_family_loads(tmp_path, capsys, monkeypatch) 
             "--family-repeats",
             "0",
         ]
-    )  # the loop check: test_family_fit.py
+    )
     assert rc == 0
     out = capsys.readouterr().out
-    lines = [
-        x for x in out.splitlines() if not x.startswith("wrote ")
-    ]  # a path is as long as it is
+    # a path is as long as it is
+    lines = [x for x in out.splitlines() if not x.startswith("wrote ")]
     assert max(len(x) for x in lines) <= 80, max(lines, key=len)
-    assert lines[0].startswith(
-        "Held-out p90 |error| of e2r(isotropic)"
-    )  # the plain summary comes first
+    # the plain summary comes first
+    assert lines[0].startswith("Held-out p90 |error| of e2r(isotropic)")
     assert "The model misses the UAV antenna's pattern" in " ".join(lines[:6])
     assert "288_loc_1" in out and "results_useful" not in out  # short labels
     ladder = [x for x in out.split("\n\n") if x.startswith("The ladder")][0].splitlines()
-    assert len(ladder) == 3 + 2 and ladder[-1].startswith(
-        "+ rx_pattern"
-    )  # title, head, rule, one per rung
+    # title, head, rule, one per rung
+    assert len(ladder) == 3 + 2 and ladder[-1].startswith("+ rx_pattern")
     details = (tmp_path / "rep" / "details.txt").read_text().splitlines()
     assert max(len(x) for x in details) <= 80 and len(details) > len(lines)
     doc = json.loads((tmp_path / "rep" / "gap.json").read_text())

@@ -76,9 +76,8 @@ def test_attitude_follows_motion():
     early = np.searchsorted(t, 1.0)
     assert deg[early, 1] < deg[mid, 1]  # accelerating forward: more nose-down
     corner = np.searchsorted(t, p.t_vertex[1])
-    assert (
-        deg[corner - 20 : corner + 20, 0].min() < -3.0
-    )  # left turn (east -> north): left wing down
+    # left turn (east -> north): left wing down
+    assert deg[corner - 20 : corner + 20, 0].min() < -3.0
     end = np.searchsorted(t, p.t_vertex[2] - 3)
     assert deg[end, 2] == pytest.approx(0.0, abs=1.0) or deg[end, 2] == pytest.approx(
         360.0, abs=1.0
@@ -100,18 +99,16 @@ def test_fixed_heading_holds_the_nose_and_tilts_along_the_motion():
     assert np.all(att_f[:, 2] == 0.0)
     mid = np.searchsorted(t, p.t_vertex[1] / 2)
     deg = np.rad2deg(att_f[mid])
-    assert deg[0] == pytest.approx(
-        3.0, abs=0.5
-    )  # flying east, nose north: right wing down against drag
+    # flying east, nose north: right wing down against drag
+    assert deg[0] == pytest.approx(3.0, abs=0.5)
     assert abs(deg[1]) < 0.5  # no pitch: no motion along the nose
     tilt_f = np.hypot(att_f[:, 0], att_f[:, 1])
     tilt_c = np.hypot(att_c[:, 0], att_c[:, 1])
     assert np.allclose(tilt_f[mid], tilt_c[mid], atol=np.deg2rad(0.05))
     east = Kinematics(cruise_speed_mps=5.0, heading_deg=90.0)
     att_e, _ = attitude_from_motion(t, pos, east)
-    assert np.rad2deg(att_e[mid, 1]) == pytest.approx(
-        np.rad2deg(att_c[mid, 1]), abs=0.05
-    )  # nose east = course
+    # nose east = course
+    assert np.rad2deg(att_e[mid, 1]) == pytest.approx(np.rad2deg(att_c[mid, 1]), abs=0.05)
 
 
 def test_attitude_model_stepped_equals_vectorised():
@@ -162,9 +159,8 @@ def test_attitude_is_causal():
     first_diff = int(np.argmax(np.any(np.abs(a - b) > 1e-9, axis=1)))
     assert first_diff > 100
     np.testing.assert_array_equal(att1[:first_diff], att2[:first_diff])
-    assert np.abs(att1[first_diff + 50 :, 0] - att2[first_diff + 50 :, 0]).max() > np.deg2rad(
-        3
-    )  # opposite turns
+    # opposite turns
+    assert np.abs(att1[first_diff + 50 :, 0] - att2[first_diff + 50 :, 0]).max() > np.deg2rad(3)
 
 
 # Real AFAR 2023 cruise attitude (six flights, samples above 80 % of the 95th-percentile height),
@@ -182,9 +178,8 @@ def _spiral_attitude(heading_deg=None, seed=0):
     dt = 0.03
     t, pos = plan_profile(spec.flight_path_enu(), kin).sample(dt)
     g = np.random.default_rng(seed).standard_normal((len(t), 4))
-    wind = ou_process(
-        g[:, :2], dt, 6.0, 1.5, np.zeros(2)
-    )  # sitl.protocol: WIND_TAU_S, --gust default
+    # sitl.protocol: WIND_TAU_S, --gust default
+    wind = ou_process(g[:, :2], dt, 6.0, 1.5, np.zeros(2))
     turb = ou_process(g[:, 2:], dt, 0.6, math.radians(0.8), np.zeros(2))  # TURB_TAU_S, TURB_DEG
     att, _, _ = run_attitude(
         pos, dt, kin, AttitudeState.at_rest(pos[0], initial_course(pos)), wind, turb
@@ -203,9 +198,8 @@ def test_simulated_cruise_attitude_is_near_real_afar():
     fixed = _spiral_attitude(heading_deg=345.0)
     roll = np.percentile(fixed[:, 0], [5, 95])
     assert np.all(np.abs(roll - AFAR_ROLL_P5_P95) < 1.5), roll
-    assert (
-        np.abs(course[:, :2]).max() < 25.0
-    )  # hard corners stay below ArduPilot's 30 deg lean limit
+    # hard corners stay below ArduPilot's 30 deg lean limit
+    assert np.abs(course[:, :2]).max() < 25.0
 
 
 @pytest.mark.real

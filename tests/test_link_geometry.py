@@ -43,9 +43,8 @@ def _random_geometry(seed: int, k: int = 40, m: int = 300):
     """K candidate transmitters and M cells over a 400 m field (ENU offset like a real origin),
     random attitude."""
     rng = np.random.default_rng(seed)
-    off = rng.uniform(
-        -2000.0, 2000.0, 2
-    )  # large coordinates: float32 must difference after the float64 one
+    # large coordinates: float32 must difference after the float64 one
+    off = rng.uniform(-2000.0, 2000.0, 2)
     cand = off + rng.uniform(0.0, 400.0, (k, 2))
     enu = np.column_stack([off + rng.uniform(0.0, 400.0, (m, 2)), rng.uniform(5.0, 60.0, m)])
     att = np.column_stack(
@@ -107,9 +106,8 @@ def test_depression_sines_and_signed_azimuths_are_the_closed_forms_and_keep_floa
     az_ref, dep_ref = body_angles(u, att)
     assert np.array_equal(depression(ub[:, 2], r), dep_ref)  # body_angles' dep_b is this function
     assert np.allclose(sin_depression(ub[:, 2], r), np.sin(dep_ref), atol=1e-12)
-    assert np.array_equal(
-        sin_depression(np.array([2.0, -2.0]), 1.0), [1.0, -1.0]
-    )  # clipped, not NaN
+    # clipped, not NaN
+    assert np.array_equal(sin_depression(np.array([2.0, -2.0]), 1.0), [1.0, -1.0])
     # sin el = dz / d_los: the sine of the level-frame elevation atan2(dz, d_2D)
     dx, dy, dz = u[:, 1], u[:, 0], -u[:, 2]
     assert np.allclose(

@@ -179,9 +179,8 @@ def test_adaptive_flight_end_to_end(tmp_path, capsys):
     area = load_mission(ROOT / "missions/spiral_adaptive.yaml").field.flight_area
     assert area.signed_distance(enu[ad, :2]).min() > 0  # inside the fence
     assert abs(np.median(log["rel_alt_m"][ad][-50:]) - 20.0) < 2.0
-    v = np.gradient(
-        enu[:, :2], log["t_s"], axis=0
-    )  # nose first: heading along the course on adaptive legs
+    # nose first: heading along the course on adaptive legs
+    v = np.gradient(enu[:, :2], log["t_s"], axis=0)
     moving = ad & (np.hypot(*v.T) > 3.0)
     off = (log["yaw_deg"] - np.degrees(np.arctan2(v[:, 0], v[:, 1])) + 180.0) % 360.0 - 180.0
     assert moving.sum() > 100 and np.median(np.abs(off[moving])) < 10.0

@@ -156,9 +156,8 @@ def test_cells_centring_and_conformal_mass(flight):
     assert tr.attitude_rad.shape == (len(tr), 3) and tr.count.sum() == len(flight.rss_dbm)
     assert np.allclose(centred(tr.rss_dbm + 5.0), centred(tr.rss_dbm))
     lev = np.linspace(0.0, 1.0, 101)[:-1]  # uniform HPD levels: a calibrated posterior
-    assert conformal_mass(lev, 0.9) == pytest.approx(
-        0.9
-    )  # the ceil(101 x 0.9) = 91st smallest, not the 92nd
+    # the ceil(101 x 0.9) = 91st smallest, not the 92nd
+    assert conformal_mass(lev, 0.9) == pytest.approx(0.9)
 
 
 def test_wired_into_localize():
@@ -167,9 +166,8 @@ def test_wired_into_localize():
     assert p.parse_args(["x.csv", "--method", "matched"]).method == "matched"
     loc = make_localizer("matched", area=BOX, tx_height_m=2.0)
     assert isinstance(loc, MatchedLocalizer) and loc.area == BOX and loc.tx_height_m == 2.0
-    assert (
-        loc.n_draws >= 20000 and loc.family is None
-    )  # the shipped family, read through load_family
+    # the shipped family, read through load_family
+    assert loc.n_draws >= 20000 and loc.family is None
 
 
 def test_self_check_localizes_held_out_draws_with_every_fold():

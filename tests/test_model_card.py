@@ -72,9 +72,8 @@ def net(tmp_path, repo_dir):
 def test_the_runtime_reads_the_cards_domain_and_circles(net):
     card = OnnxLocalizer(net).card
     assert card.domain.altitude_m == (30.0, 30.0)
-    assert (
-        card.domain.attitude_deg[1][0] < 0 < card.domain.attitude_deg[1][1]
-    )  # pitch down and up on the spiral
+    # pitch down and up on the spiral
+    assert card.domain.attitude_deg[1][0] < 0 < card.domain.attitude_deg[1][1]
     assert (
         card_calibration(card, "sim") == card_calibration(net, "sim")
         and card_calibration(card, "sim")[0]
@@ -82,10 +81,11 @@ def test_the_runtime_reads_the_cards_domain_and_circles(net):
     doc = json.loads(card_path(net).read_text())
     doc[DOMAIN_KEY]["altitude_m"] = [25.0, 35.0]
     card_path(net).write_text(json.dumps(doc))
+    # read from the card, not re-derived
     assert OnnxLocalizer(net).card.domain.altitude_m == (
         25.0,
         35.0,
-    )  # read from the card, not re-derived
+    )
     doc[DOMAIN_KEY]["pitch_deg"] = [3.0]
     card_path(net).write_text(json.dumps(doc))
     with pytest.raises(InputError) as e:

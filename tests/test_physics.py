@@ -110,9 +110,8 @@ def test_reflected_ray_geometry_and_image_source():
     e = m.explain([0, 0, h_t], [[d, 0, h_r]], np.zeros((1, 3)))
     assert e["d_ref"][0] == pytest.approx(math.hypot(d, h_r + h_t))
     assert e["el_tx_ref_rad"][0] == pytest.approx(-math.atan2(h_r + h_t, d))  # departs downwards
-    assert e["dep_b_ref_rad"][0] == pytest.approx(
-        math.atan2(h_r + h_t, d)
-    )  # arrives from the image
+    # arrives from the image
+    assert e["dep_b_ref_rad"][0] == pytest.approx(math.atan2(h_r + h_t, d))
     assert e["dep_b_rad"][0] == pytest.approx(math.atan2(h_r - h_t, d))
     g = m.effect("rx_antenna").pattern.gain_dbi(-math.atan2(h_r + h_t, d), 0.0)
     assert e["g_rx_ref_dbi"][0] == pytest.approx(float(g))

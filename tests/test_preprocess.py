@@ -51,9 +51,8 @@ def test_even_split_between_two_altitudes_keeps_both():
 
 
 def test_minor_altitude_kept_short_hover_dropped():
-    h, lab = profile(
-        [(40.0, 1400), (20.0, 600), (10.0, 60)]
-    )  # 30 % at 20 m kept; a 3 % hover at 10 m not
+    # 30 % at 20 m kept; a 3 % hover at 10 m not
+    h, lab = profile([(40.0, 1400), (20.0, 600), (10.0, 60)])
     sel = cruise_mask(h)
     assert sel.mask[lab == 0].all() and sel.mask[lab == 1].all() and not sel.mask[lab == 2].any()
     assert len(sel.altitudes) == 2 and sel.cruise_alt_m == pytest.approx(40.0, abs=0.2)
@@ -79,9 +78,8 @@ def test_altitudes_property(alts, shares, seed):
     """Any 1-3 distinct survey altitudes in 15-60 m holding >= 20 % each: every cruise sample is
     kept, no ground sample is, and no ramp sample well outside every altitude's band is."""
     alts = sorted(set(round(a) for a in alts))
-    alts = [
-        a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2
-    ]  # bands do not touch
+    # bands do not touch
+    alts = [a for i, a in enumerate(alts) if i == 0 or a - alts[i - 1] > 0.3 * a + 2]
     n = shares[: len(alts)]
     assume(min(n) >= 0.2 * sum(n))
     h, lab = profile(list(zip(map(float, alts), n, strict=True)), seed=seed)

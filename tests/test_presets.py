@@ -70,9 +70,8 @@ def test_preset_folds_by_name():
     rec = load_calibration("afar")
     for name, fold in rec["folds"].items():
         assert load_preset(f"afar:{name}") == fold["model"]
-        assert fold["fitted_on"] and not set(fold["fitted_on"]) & set(
-            fold["tested_on"]
-        )  # held out means held out
+        # held out means held out
+        assert fold["fitted_on"] and not set(fold["fitted_on"]) & set(fold["tested_on"])
         assert preset_model(f"afar:{name}").name == f"afar-{name}-calibrated"
     assert load_preset("afar:fit328") != load_preset("afar:fit288")
     with pytest.raises(InputError, match="no fold"):
@@ -229,9 +228,8 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     mean = np.mean(list(comp.values()), axis=0)
     assert (est.x_m, est.y_m) == pytest.approx(tuple(mean))
     assert [r["level"] for r in est.extras["regions"]] == [0.5, 0.9]
-    q = est.extras[
-        "fused_point_hpd_level"
-    ]  # the fused point's place in its own regions, and the note on it
+    # the fused point's place in its own regions, and the note on it
+    q = est.extras["fused_point_hpd_level"]
     assert q == pytest.approx(est.posterior.hpd_level(est.x_m, est.y_m)) and 0.0 <= q <= 1.0
     assert ("outside the 90 % region" in est.extras.get("note", "")) == (
         q >= est.extras["regions"][1]["hpd_mass"]

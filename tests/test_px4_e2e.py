@@ -61,9 +61,8 @@ class _Px4(SitlProcess):
         self.speedup, self.run = speedup, root / "px4"
 
     def start(self) -> str:
-        spec = load_mission(
-            SPIRAL
-        )  # the vehicle takes off from the missions' home (4 m inside the fence)
+        # the vehicle takes off from the missions' home (4 m inside the fence)
+        spec = load_mission(SPIRAL)
         lat, lon, _ = spec.field.origin.to_geodetic(spec.home_enu)
         inst = _free_instance()
         self.launch(

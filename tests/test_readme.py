@@ -33,9 +33,8 @@ def test_short_and_without_history(readme):
 
 def test_test_command_is_what_ci_runs(readme, repo_dir):
     (cmd,) = [ln for ln in _code_lines(readme) if "pytest" in ln]
-    venv, rest = (
-        part.strip() for part in cmd.split("&&", 1)
-    )  # CI makes its fresh venv on lines of its own
+    # CI makes its fresh venv on lines of its own
+    venv, rest = (part.strip() for part in cmd.split("&&", 1))
     ci = (repo_dir / ".ci" / "run").read_text().splitlines()
     assert venv == "python3 -m venv .venv" and venv in ci and rest in ci and "--all" in rest
 

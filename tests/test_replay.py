@@ -39,9 +39,8 @@ def test_summary_and_plot(tmp_path):
     assert abs(s["path_length_m"] - 49.5) < 0.1 and s["rss_max_db"] == -50.1
     with capture_figures() as figs:
         png = plot(log, tmp_path / "f.png")
-    assert_png_drawn(
-        png, size=(840, 720)
-    )  # 7 x 6 in at 120 dpi, coloured path on a white background
+    # 7 x 6 in at 120 dpi, coloured path on a white background
+    assert_png_drawn(png, size=(840, 720))
     (fig,) = figs
     ax, cbar = fig.axes  # the map and its RSS colour bar
     assert "RSS" in cbar.get_ylabel()
@@ -51,10 +50,11 @@ def test_summary_and_plot(tmp_path):
     )
     assert legend_labels(ax) == ["strongest RSS", "true transmitter"]
     star = [ln for ln in ax.lines if ln.get_label() == "strongest RSS"][0]
+    # RSS rises with t
     assert (star.get_xdata()[0], star.get_ydata()[0]) == (
         log.enu()[-1, 0],
         log.enu()[-1, 1],
-    )  # RSS rises with t
+    )
 
 
 def test_cli(tmp_path, capsys):

@@ -223,9 +223,8 @@ def test_mission_phase_selects_legs_and_height_band_otherwise() -> None:
     }
     meta = {"origin": o.to_dict()}
     part, why = select_samples(FlightLog(dict(cols), meta))
-    assert (
-        len(part) >= 80 and "cruise" in why
-    )  # no phase column: the height band keeps the return at 30 m
+    # no phase column: the height band keeps the return at 30 m
+    assert len(part) >= 80 and "cruise" in why
     phase = np.array(["takeoff"] * 20 + ["mission"] * 60 + ["return"] * 20, dtype=object)
     part, why = select_samples(
         FlightLog({**cols, "phase": phase, "mission_item": np.zeros(n)}, meta)
@@ -274,9 +273,8 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
         for ln in (printed.out + printed.err).splitlines()
         if len(ln) > 80 and str(tmp_path) not in ln
     ]
-    assert not wide, (
-        wide
-    )  # reads at 80 columns (but for the output path, which is the test's long folder)
+    # reads at 80 columns (but for the output path, which is the test's long folder)
+    assert not wide, wide
     rec = json.loads(out.read_text())
     assert set(rec["groups"].values()) == {"288", "328"}
     assert set(rec["folds"]) == {"without-288", "without-328"}
@@ -289,9 +287,8 @@ def test_rfsl_calibrate_on_real_flights_records_folds_and_heldout(
 
     m = preset_model(str(out))
     assert m.has("rx_antenna")
-    assert (
-        main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--out", str(out)]) == 2
-    )  # refuses to overwrite
+    # refuses to overwrite
+    assert main(["calibrate", *logs, "--groups", r"exp_(\d+)_", "--out", str(out)]) == 2
 
 
 def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
@@ -318,7 +315,6 @@ def test_gain_tables_are_the_grids_own_made_once_per_pattern() -> None:
             _, off = hypothesis_ssr(cand, cells, [("const", pat, 0.0, True)], 1.5, tables)
             np.testing.assert_allclose(off[0], off_iso[0] - g, atol=1e-3)
     made = [tables(p) for p in pats]
-    assert (
-        len({id(t) for t in made}) == 3 and [tables(p) for p in pats] == made
-    )  # one table per pattern, kept
+    # one table per pattern, kept
+    assert len({id(t) for t in made}) == 3 and [tables(p) for p in pats] == made
     assert GainTables()(pats[0]) is not made[0]  # another grid: its own

@@ -31,9 +31,8 @@ def test_checkout_folders(repo_dir):
 
 def test_installed_copy_wins(tmp_path):
     pkg = tmp_path / "site" / "mission"
-    assert (
-        shipped_dir("models", pkg) == tmp_path / "site" / "models"
-    )  # no copy: the folder beside the package
+    # no copy: the folder beside the package
+    assert shipped_dir("models", pkg) == tmp_path / "site" / "models"
     (pkg / "data" / "models").mkdir(parents=True)
     assert shipped_dir("models", pkg) == pkg / "data" / "models"
     assert shipped_dir("missions", pkg) == tmp_path / "site" / "missions"

@@ -110,11 +110,9 @@ def test_onnxruntime_matches_numpy_forward_pass(name, repo_dir):
         ],
         axis=2,
     ).reshape(32, -1)
-    pred = loc.predict_features(
-        feats, np.full(32, REFERENCE_HEIGHT_M)
-    )  # at the reference height: unscaled
+    # at the reference height: unscaled
+    pred = loc.predict_features(feats, np.full(32, REFERENCE_HEIGHT_M))
     ref = numpy_predict(model, feats)
-    assert (
-        np.ptp(ref, axis=0).min() > 1.0
-    )  # the inputs move the answer: not a constant-output comparison
+    # the inputs move the answer: not a constant-output comparison
+    assert np.ptp(ref, axis=0).min() > 1.0
     assert np.max(np.abs(pred - ref)) < 1e-2

@@ -80,9 +80,8 @@ def test_other_flights_keep_the_default_and_say_why(nets):
     assert path == nets[2] and "trajectory lawnmower" in why
     path, why = sim_default_model(_meta(params={"pattern": "measured"}), z, nets[2])
     assert path == nets[2] and "antenna pattern measured" in why
-    path, why = sim_default_model(
-        {"rss_source": {"kind": "sim", "model": "e2r"}}, z, nets[2]
-    )  # an old sidecar
+    # an old sidecar
+    path, why = sim_default_model({"rss_source": {"kind": "sim", "model": "e2r"}}, z, nets[2])
     assert path == nets[2] and "no trajectory" in why
 
 

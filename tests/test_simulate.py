@@ -79,9 +79,10 @@ def test_noise_free_rss_equals_closed_form(spiral, name):
     d = np.hypot(f.enu_m[:, 0] - tx[0], f.enu_m[:, 1] - tx[1])
     d_los, d_ref = np.hypot(d, h_r - h_t), np.hypot(d, h_r + h_t)
 
+    # G_0 (cos(pi/2 sin el) / cos el)^2, floor -40 dBi
     def dipole(
         sin_el: np.ndarray,
-    ) -> np.ndarray:  # G_0 (cos(pi/2 sin el) / cos el)^2, floor -40 dBi
+    ) -> np.ndarray:
         return np.maximum(1.641 * (np.cos(0.5 * np.pi * sin_el) ** 2 / (1.0 - sin_el**2)), 1e-4)
 
     # both ends see the same |elevation|, so sqrt(G_t G_r) = G(el)
@@ -202,6 +203,5 @@ def test_shadowing_off_keeps_the_bytes_of_the_plain_simulator(spiral):
     )
     assert a.rss_dbm.tobytes() == b.rss_dbm.tobytes()
     d = c.rss_dbm - a.rss_dbm
-    assert (
-        3.0 < d.std() < 9.0 and np.abs(np.diff(d)).max() < 1.0
-    )  # smooth along the path, not white noise
+    # smooth along the path, not white noise
+    assert 3.0 < d.std() < 9.0 and np.abs(np.diff(d)).max() < 1.0

@@ -30,12 +30,10 @@ def test_plan_times_is_the_preflight_plan(spec):
     assert p.duration_s == pytest.approx(check_mission(spec).duration_s, abs=1e-6)
     assert len(p.t_wp) == len(spec.waypoints_enu()) and np.all(np.diff(p.t_wp) > 0)
     assert 0 < p.t_wp[0] < p.t_wp[-1] < p.duration_s
-    slow = plan_times(
-        spec, return_speed_mps=4.8
-    )  # PX4's own return speed: only the return is longer
-    np.testing.assert_allclose(
-        slow.t_wp, p.t_wp, atol=0.1
-    )  # the last corner slows for the slower leg
+    # PX4's own return speed: only the return is longer
+    slow = plan_times(spec, return_speed_mps=4.8)
+    # the last corner slows for the slower leg
+    np.testing.assert_allclose(slow.t_wp, p.t_wp, atol=0.1)
     back = float(np.hypot(*(spec.waypoints_enu()[-1, :2] - np.asarray(spec.home_enu)[:2])))
     assert slow.duration_s - p.duration_s == pytest.approx(back / 4.8 - back / 5.5, rel=0.15)
 
@@ -146,9 +144,8 @@ def test_speed_params_set_and_restored_on_both_autopilots():
         asyncio.run(set_params(p, old))
         assert p.values == own
     p = _Params({"MPC_XY_CRUISE": 5.5})
-    assert (
-        asyncio.run(set_params(p, {"MPC_XY_CRUISE": 5.5})) == {} and p.sets == []
-    )  # already so: untouched
+    # already so: untouched
+    assert asyncio.run(set_params(p, {"MPC_XY_CRUISE": 5.5})) == {} and p.sets == []
 
 
 def test_plan_with_the_autopilots_take_off_and_landing_speeds(spec):

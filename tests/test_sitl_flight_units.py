@@ -26,9 +26,8 @@ from mission.geo import Origin
 
 def test_phase_tracker_follows_landed_state_and_mission_progress():
     ph = PhaseTracker()
-    ph.configure(
-        first_wp=3, last_item=21, final="return"
-    )  # ArduPilot: home, take-off, speed, waypoints, RTL
+    # ArduPilot: home, take-off, speed, waypoints, RTL
+    ph.configure(first_wp=3, last_item=21, final="return")
     ph.on_landed_state(1.0, "TAKING_OFF")
     ph.on_progress(2.0, 1)
     ph.on_landed_state(3.0, "IN_AIR")
@@ -228,9 +227,8 @@ def test_a_failed_log_write_is_said_at_once_and_returns_by_default(
     assert ctx.abort.is_set() == returns and (ctx.abort_reason == "log write failed") == returns
     assert ctx.status.log_error == "No space left on device"
     assert "LOG FAILED" in plain_line(ctx.status)
-    rec = json.loads(sidecar_path(tmp_path / "f.csv").read_text())[
-        "log_error"
-    ]  # in the sidecar at once
+    # in the sidecar at once
+    rec = json.loads(sidecar_path(tmp_path / "f.csv").read_text())["log_error"]
     assert rec == {
         "error": "No space left on device",
         "rows_kept": 0,

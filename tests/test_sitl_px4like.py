@@ -80,9 +80,8 @@ def test_profile_speeds_mission_and_return(profile, factor, ret, up, down, land,
         v.armed = True
         assert v.start_mission()
         horiz, vert, dz = _speeds(v.plan)
-        assert horiz == pytest.approx(
-            [5.5 * factor] * 2 + [ret * factor]
-        )  # home->wp1, wp1->wp2, the return
+        # home->wp1, wp1->wp2, the return
+        assert horiz == pytest.approx([5.5 * factor] * 2 + [ret * factor])
         expect = [(30.0, up)] + ([(-25.0, down), (-5.0, land)] if low else [(-30.0, down)])
         np.testing.assert_allclose(np.column_stack([dz, vert]), expect, atol=1e-6)
         assert v.plan.land_legs == (2 if low else 1)
@@ -144,25 +143,22 @@ def test_params_and_statustext_gate_over_mavlink(tmp_path):
             return out
 
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
-        assert (
-            texts(1.0) == []
-        )  # no GCS heartbeat: 10 simulated s pass, the text is dropped after 5
+        # no GCS heartbeat: 10 simulated s pass, the text is dropped after 5
+        assert texts(1.0) == []
         gcs.mav.heartbeat_send(
             mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE
         )
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
-        assert texts(0.15) == [
-            "Disarmed by external command"
-        ]  # within 2.5 simulated s of the heartbeat
+        # within 2.5 simulated s of the heartbeat
+        assert texts(0.15) == ["Disarmed by external command"]
         time.sleep(0.35)  # 3.5 simulated s: the gate is closed again
         gcs.mav.command_long_send(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
         assert texts(0.2) == []
         gcs.mav.heartbeat_send(
             mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE
         )
-        assert texts(0.2) == [
-            "Armed by external command"
-        ]  # queued < 5 s: sent once a heartbeat came
+        # queued < 5 s: sent once a heartbeat came
+        assert texts(0.2) == ["Armed by external command"]
         rec = [json.loads(line) for line in log.read_text().splitlines()]
         assert [(r["text"], r["sent"]) for r in rec] == [
             ("Armed by external command", False),

@@ -124,9 +124,8 @@ def test_an_omitted_key_gets_the_dataclass_default(omit):
             for h in head:
                 d = d.setdefault(h, {})
             d[last] = value
-    data.setdefault(
-        "adaptive", {}
-    )  # the block present (possibly empty): its keys' defaults are read too
+    # the block present (possibly empty): its keys' defaults are read too
+    data.setdefault("adaptive", {})
     spec = parse_mission(data, "defaults.yaml")
     default = _built_in_defaults()
     for key in GIVEN:

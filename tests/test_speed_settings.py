@@ -50,9 +50,8 @@ def test_onnx_session_thread_options(monkeypatch) -> None:
     assert opts.get_session_config_entry("session.intra_op.allow_spinning") == "0"
     monkeypatch.setenv(threads.THREADS_ENV, "2")
     assert OnnxLocalizer(MODEL).session.get_session_options().intra_op_num_threads == 2
-    assert (
-        OnnxLocalizer(MODEL, threads=0).session.get_session_options().intra_op_num_threads == 0
-    )  # ort default
+    # ort default
+    assert OnnxLocalizer(MODEL, threads=0).session.get_session_options().intra_op_num_threads == 0
     one, dflt = OnnxLocalizer(MODEL, threads=1), OnnxLocalizer(MODEL, threads=0)
     f = np.random.default_rng(0).normal(size=(4, one.n_features))
     np.testing.assert_array_equal(one.predict_features(f), dflt.predict_features(f))
@@ -105,8 +104,7 @@ def test_commands_and_pool_workers_run_under_the_limit(monkeypatch) -> None:
         assert run_guarded(lambda: seen.append(_pool_threads())) == 0
         assert seen == [[1]] and _pool_threads() == [2]
         monkeypatch.setenv(threads.THREADS_ENV, "x")
-        assert (
-            run_guarded(lambda: seen.append(_pool_threads())) == 2 and len(seen) == 1
-        )  # bad value: one line
+        # bad value: one line
+        assert run_guarded(lambda: seen.append(_pool_threads())) == 2 and len(seen) == 1
     with ProcessPoolExecutor(1, initializer=limit_worker) as ex:
         assert ex.submit(_pool_threads).result() == [1]

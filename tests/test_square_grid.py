@@ -26,9 +26,8 @@ def test_square_grid_covers_the_box_at_its_step(x0, y0, w, h, step):
     assert np.allclose(np.diff(g[..., 0], axis=1), step) and np.allclose(
         np.diff(g[..., 1], axis=0), step
     )
-    assert (
-        g[..., 0].max() <= x0 + w + 1e-9 and x0 + w - g[..., 0].max() < step
-    )  # reaches the far edge
+    # reaches the far edge
+    assert g[..., 0].max() <= x0 + w + 1e-9 and x0 + w - g[..., 0].max() < step
     c = square_grid((x0, y0, x0 + w, y0 + h), step, centred=True)
     if c.size:
         assert np.array_equal(c[0, 0], [x0 + step / 2, y0 + step / 2])

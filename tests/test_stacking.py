@@ -200,9 +200,8 @@ def test_localize_prints_the_top_candidates_in_one_block(synthetic_log, capsys) 
 
 def test_geometric_median_closed_forms() -> None:
     line = np.array([[0.0, 0.0], [1.0, 0.0], [10.0, 0.0]])
-    assert geometric_median(line) == pytest.approx(
-        [1.0, 0.0], abs=1e-4
-    )  # collinear: the middle point
+    # collinear: the middle point
+    assert geometric_median(line) == pytest.approx([1.0, 0.0], abs=1e-4)
     square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
     assert geometric_median(square) == pytest.approx([1.0, 1.0], abs=1e-6)  # symmetry: the centre
     # a far ghost moves the mean by 200 m / 5 but the median by almost nothing

@@ -43,9 +43,8 @@ def test_log_looks_like_a_real_import_without_truth():
     json.dumps(draw)  # the draw is JSON-able (it goes into suite.json)
     assert np.allclose(truth, draw["tx_xy"])
     h = log.enu()[:, 2]
-    assert (
-        h.min() < 1.0 and abs(np.percentile(h, 90) - draw["altitude_m"]) < 2.0
-    )  # take-off + cruise in the log
+    # take-off + cruise in the log
+    assert h.min() < 1.0 and abs(np.percentile(h, 90) - draw["altitude_m"]) < 2.0
 
     est = localize_log(log)  # a real log's default path (not the simulated-log network)
     assert "real receiver" in est.extras["method_choice"]
@@ -129,11 +128,12 @@ def test_methods_and_regions():
     for bad in ("gird", "onnx:/no/such.onnx"):
         with pytest.raises(InputError):
             suite_method(bad)
+    # long axis north
     ell = {
         "center_m": [10.0, 0.0],
         "semi_axes_m": [20.0, 5.0],
         "angle_deg": 90.0,
-    }  # long axis north
+    }
     assert region_contains(ell, (10.0, 18.0)) and not region_contains(ell, (28.0, 0.0))
     assert region_contains({"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]}, (5, 5))
     assert not region_contains(

@@ -83,9 +83,8 @@ def test_family_draws_are_reproducible_and_seeded():
             fam.spec.get("rx_pattern")
         }
         assert d["physics"]["spec"].get("rx_pattern") in pats
-    built_in, _ = draw_flight(
-        7, 3, "afar"
-    )  # the other axes are drawn as before, before the physics
+    # the other axes are drawn as before, before the physics
+    built_in, _ = draw_flight(7, 3, "afar")
     assert (
         built_in["tx_xy"] == a["tx_xy"] and built_in["trajectory_params"] == a["trajectory_params"]
     )

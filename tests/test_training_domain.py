@@ -29,14 +29,16 @@ def test_shipped_networks_training_altitudes(repo_dir):
     )
     if not spiral.exists() or not default.exists():
         pytest.skip("shipped models absent")
+    # missions/spiral.yaml's altitude
     assert OnnxLocalizer(spiral).card.domain.altitude_m == (
         30.0,
         30.0,
-    )  # missions/spiral.yaml's altitude
+    )
+    # randomised 20-47 m + spiral 30 m
     assert OnnxLocalizer(default).card.domain.altitude_m == (
         20.0,
         47.0,
-    )  # randomised 20-47 m + spiral 30 m
+    )
 
 
 def test_shipped_cards_hold_what_their_training_data_measures(repo_dir):
@@ -101,9 +103,8 @@ def test_altitude_note_cases(trained, flown, says):
 
 
 def test_flight_altitudes_are_robust_percentiles():
-    z = np.concatenate(
-        [np.full(900, 30.0), np.linspace(0, 30, 50), np.full(50, 80.0)]
-    )  # ramps and a spike
+    # ramps and a spike
+    z = np.concatenate([np.full(900, 30.0), np.linspace(0, 30, 50), np.full(50, 80.0)])
     lo, hi = flight_altitudes(z)
     assert lo == pytest.approx(30.0) and hi == pytest.approx(30.0)
 

@@ -201,18 +201,16 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         cur = ctx.st.progress[0]
         ctx.phases.configure(off, len(items) - 1, final, first_adaptive=off + n_survey)
         await upload_with_retries(ctx, mission_raw, items, kind="adaptive")
-        if (
-            ctx.mission_done.is_set() or ctx.abort.is_set()
-        ):  # the old RTL became active during the upload
+        # the old RTL became active during the upload
+        if ctx.mission_done.is_set() or ctx.abort.is_set():
             await action.return_to_launch()
             ctx.event("adaptive", f"round {k + 1} uploaded too late: return to launch commanded")
             return
         await mission_raw.set_current_mission_item(max(cur, ctx.phases.raw_item))
         ctx.status.n_waypoints = len(new)
         left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
-        ctx.status.predicted_s = (
-            spec.time_budget_s - left
-        )  # land~ now the round's plan, no longer the survey's
+        # land~ now the round's plan, no longer the survey's
+        ctx.status.predicted_s = spec.time_budget_s - left
         ext.rounds.append(_round_record(ctx, k, d, target, plan, wps, n_survey, left, pace))
         ctx.event(
             "adaptive",
@@ -298,9 +296,8 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
     for j, rd in enumerate(ext.rounds):
         s = starts[j]
         e = starts[j + 1] if j + 1 < len(starts) else t_ret
-        if (
-            s is not None and e is None
-        ):  # the log ended in the round (link lost): flown until the last telemetry
+        # the log ended in the round (link lost): flown until the last telemetry
+        if s is not None and e is None:
             e = float(ctx.tel.covered_until) if np.isfinite(ctx.tel.covered_until) else None
         if s is None or e is None:
             continue
@@ -319,7 +316,8 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
         "adaptive",
         f"adaptive: {len(ext.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned",
     )
+    # time used: the sidecar's budget
     return {
         "budget_s": ext.full_spec.time_budget_s,
         "rounds": ext.rounds,
-    }  # time used: the sidecar's budget
+    }

@@ -297,6 +297,7 @@ def check_args(args: argparse.Namespace) -> None:
         )
     if not 1 <= args.chunk <= MAX_FLIGHTS:
         raise InputError(f"must be 1..{MAX_FLIGHTS:,}, got {args.chunk}", field="--chunk")
+    # physical ranges that cannot be negative (numpy raised "scale < 0")
     for flag in (
         "altitude",
         "tx_height",
@@ -307,7 +308,7 @@ def check_args(args: argparse.Namespace) -> None:
         "beta",
         "eps_r",
         "truncate",
-    ):  # physical ranges that cannot be negative (numpy raised "scale < 0")
+    ):
         r = getattr(args, flag, None)
         if r is not None and r[0] < 0:
             raise InputError(

@@ -100,9 +100,8 @@ def _table(rows, title: str):
 
     t = Table(title=title)
     for c in ("test", "method", "train data", "features", "n", "mean m", "median m", "p90 m"):
-        t.add_column(
-            c, justify="right" if c.endswith("m") or c == "n" else "left", overflow="fold"
-        )  # never cut
+        # never cut
+        t.add_column(c, justify="right" if c.endswith("m") or c == "n" else "left", overflow="fold")
     for r in rows:
         s = r.summary()
         t.add_row(
@@ -272,9 +271,10 @@ def _run_suite(args: argparse.Namespace, console) -> int:
     )
     stale: list[str] = []
 
+    # a cache written by other simulator code: one stderr line, before the table
     def warn(
         text: str,
-    ) -> None:  # a cache written by other simulator code: one stderr line, before the table
+    ) -> None:
         stale.append(text)
         print(f"warning: {text}", file=sys.stderr)
 

@@ -167,9 +167,8 @@ def _run(args: argparse.Namespace) -> int:
         raise FlightError("fly-mission needs a Unix-like OS (signal handling)")
     try:
         return fly(spec, opts, extension)
-    except (
-        FlightError
-    ) as e:  # bad input (2) and a dead link (3) stay one line; an abort is wrapped at 80 columns
+    # bad input (2) and a dead link (3) stay one line; an abort is wrapped at 80 columns
+    except FlightError as e:
         from mission.flight.progress import fit_width
 
         print(f"error: {e}" if e.code in (2, 3) else fit_width(f"error: {e}"), file=sys.stderr)

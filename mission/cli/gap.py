@@ -104,10 +104,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+# a --report folder holding one of these is a previous report
 REPORT_FILES = (
     "gap.json",
     "selftest.json",
-)  # a --report folder holding one of these is a previous report
+)
 
 
 def check_outputs(args) -> None:

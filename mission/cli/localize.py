@@ -158,9 +158,8 @@ def estimate(args: argparse.Namespace, log, method: str | None, truth):
     from mission.errors import InputError
     from mission.localize.api import localize_log
 
-    with warnings.catch_warnings(
-        record=True
-    ) as caught:  # numpy's warnings on a too-short log: the error says it
+    # numpy's warnings on a too-short log: the error says it
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             est = localize_log(
@@ -176,9 +175,8 @@ def estimate(args: argparse.Namespace, log, method: str | None, truth):
         except InputError as e:
             if e.source or e.field:
                 raise
-            raise InputError(
-                str(e), source=str(args.log)
-            ) from None  # "only 5 grouped samples" names the log
+            # "only 5 grouped samples" names the log
+            raise InputError(str(e), source=str(args.log)) from None
     for w in caught:
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     return est
@@ -236,9 +234,8 @@ def table(args: argparse.Namespace, log, est):
         )
     if "p_outside_flown_area" in est.extras:
         tab.add_row("outside flown area", f"probability {est.extras['p_outside_flown_area']:.2f}")
-    if est.extras.get("sim_check", {}).get(
-        "n"
-    ):  # matched: how it did on simulated transmitters of this track
+    # matched: how it did on simulated transmitters of this track
+    if est.extras.get("sim_check", {}).get("n"):
         sc = est.extras["sim_check"]
         tab.add_row(
             "simulated check",

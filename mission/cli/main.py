@@ -118,9 +118,8 @@ def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> a
     args = parser.parse_args(
         join_negative_values(parser, sys.argv[1:] if argv is None else list(argv))
     )
-    for p in _parsers(
-        parser, args
-    ):  # argparse turns '--speedup=--' into [] past its own type check
+    # argparse turns '--speedup=--' into [] past its own type check
+    for p in _parsers(parser, args):
         for a in p._actions:
             if (
                 a.option_strings
@@ -254,14 +253,12 @@ def run_guarded(fn: Callable[[], int | None]) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except (
-        BrokenPipeError
-    ):  # the reader went away (``localize LOG --json | head``): no traceback for that
+    # the reader went away (``localize LOG --json | head``): no traceback for that
+    except BrokenPipeError:
         import os
 
-        os.dup2(
-            os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno()
-        )  # Python's exit flush must not fail too
+        # Python's exit flush must not fail too
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141  # 128 + SIGPIPE, as a shell reports it
 
 

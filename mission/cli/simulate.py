@@ -68,10 +68,11 @@ def run(args: argparse.Namespace) -> int:
     model_name = args.model or spec.source.model
     out = Path(args.out)
     csv = out / f"{spec.name}_sim_{model_name}_seed{seed}.csv"
+    # before the work: neither half of an earlier log is replaced
     for p in (
         csv,
         sidecar_path(csv),
-    ):  # before the work: neither half of an earlier log is replaced
+    ):
         if p.exists():
             raise InputError(
                 "a flight log of this name exists already; choose another --out or --seed",

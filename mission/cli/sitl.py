@@ -51,9 +51,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(str(e), field="--home") from None
         from mission.cli.importer import parse_origin
 
-        parse_origin(
-            args.home, "--home"
-        )  # the ranges: |lat| <= 90, |lon| <= 180, a plausible altitude
+        # the ranges: |lat| <= 90, |lon| <= 180, a plausible altitude
+        parse_origin(args.home, "--home")
     if args.kinematics:
         from sitl.cli import parse_kinematics
 

@@ -65,9 +65,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    family = (
-        check_family(args.family, args.datasets) if args.family else None
-    )  # before the (slow) torch import
+    # before the (slow) torch import
+    family = check_family(args.family, args.datasets) if args.family else None
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -179,9 +178,8 @@ def record_family(onnx_path, family: dict) -> None:
     td["physics_family"] = family
     props["training_data"].value = json.dumps(td)
     onnx.save(m, str(onnx_path))
-    side = Path(
-        str(onnx_path) + ".train.json"
-    )  # the training report beside the model says the same
+    # the training report beside the model says the same
+    side = Path(str(onnx_path) + ".train.json")
     if side.is_file():
         rep = json.loads(side.read_text())
         rep.setdefault("training_data", {})["physics_family"] = family

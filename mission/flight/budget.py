@@ -148,40 +148,35 @@ def plan_times(
     kin = spec.kinematics()
     n = len(spec.waypoints_enu())
     drop = path[-2, 2] - path[-1, 2]  # the final descent (both return behaviours end with one)
-    if (
-        vertical is not None and 0 < vertical.low_alt_m < drop
-    ):  # it slows down below low_alt_m: a vertex there
+    # it slows down below low_alt_m: a vertex there
+    if vertical is not None and 0 < vertical.low_alt_m < drop:
         path = np.vstack([path[:-1], path[-1] + [0.0, 0.0, vertical.low_alt_m], path[-1:]])
     d = np.diff(path, axis=0)
     L = np.linalg.norm(d, axis=1)
-    vert = (
-        np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7
-    )  # plan_profile's rule for take-off and landing legs
+    # plan_profile's rule for take-off and landing legs
+    vert = np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7
     vs = np.full(len(L), kin.climb_rate_mps)
     if vertical is not None:
         vs = np.where(d[:, 2] > 0, vertical.up_mps, vertical.down_mps)
         vs[-1] = vertical.land_mps  # the last leg ends on the ground below low_alt_m
     speeds = np.where(vert, vs, kin.cruise_speed_mps)
-    if (
-        return_speed_mps and spec.return_behaviour == "rtl"
-    ):  # legs after the last waypoint (n + 1 on)
+    # legs after the last waypoint (n + 1 on)
+    if return_speed_mps and spec.return_behaviour == "rtl":
         speeds[n + 1 :] = np.where(vert[n + 1 :], speeds[n + 1 :], return_speed_mps)
     keep = L > 1e-6
     prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
     s_path = np.concatenate([[0.0], np.cumsum(L)])
     t = np.interp(s_path, prof.s_vertex, prof.t_vertex)
-    j = (
-        len(L) - 1
-    )  # the final descent: the last leg, or the last two when it slows down near the ground
+    # the final descent: the last leg, or the last two when it slows down near the ground
+    j = len(L) - 1
     while j > 0 and vert[j - 1] and d[j - 1, 2] < 0:
         j -= 1
     hover = vertical.hover_s if vertical is not None and spec.return_behaviour == "rtl" else 0.0
     t_wp, land = t[2 : 2 + n], float(t[-1] - t[j]) + hover + disarm_s
     duration = prof.duration_s + hover + disarm_s
     ret = np.full(n, duration - land - t_wp[-1])
-    if (
-        spec.return_behaviour == "rtl"
-    ):  # from waypoint j straight back over home, at the return speed
+    # from waypoint j straight back over home, at the return speed
+    if spec.return_behaviour == "rtl":
         w, home = spec.waypoints_enu(), np.asarray(spec.home_enu, dtype=float)
         v = return_speed_mps or kin.cruise_speed_mps
         for i in range(n - 1):
@@ -229,9 +224,8 @@ class BudgetWatch:
             return 1.0
         planned = self.plan.t_wp[k] - self.plan.t_wp[0]
         flown = self.reached_at[k] - self.reached_at[0]
-        return (
-            flown / planned if planned >= MIN_PACE_S and flown > 0 else 1.0
-        )  # several at once: no pace
+        # several at once: no pace
+        return flown / planned if planned >= MIN_PACE_S and flown > 0 else 1.0
 
     def pace_model(self) -> Pace:
         """The pace of the legs flown so far: fitted per leg from ``MIN_FIT_LEGS`` measured legs
@@ -253,9 +247,8 @@ class BudgetWatch:
         p, k = self.plan, min(len(self.reached_at), self.last + 1) - 1
         last = self.last if last is None else last
         pace = self.pace_model()
-        tail = (
-            p.land_s
-        )  # the landing, hover and disarm at the plan's own time (vertical: not slowed)
+        # the landing, hover and disarm at the plan's own time (vertical: not slowed)
+        tail = p.land_s
 
         def rest(i: int) -> float:  # from waypoint i (reached) to the end
             legs = np.diff(p.t_wp[i : last + 1])
@@ -502,9 +495,8 @@ def start_budget(
     )
     d, b = watch.planned_s(), spec.time_budget_s
     how = [f"return {return_speed_mps:g}"] if own else []
-    if (
-        vertical is not None
-    ):  # one line at 80 columns: "plan 565 s of 600 s (autopilot m/s: up 2.5, ...)"
+    # one line at 80 columns: "plan 565 s of 600 s (autopilot m/s: up 2.5, ...)"
+    if vertical is not None:
         v = vertical
         slow = (
             f"/{v.land_mps:g} below {v.low_alt_m:g} m"
@@ -528,16 +520,14 @@ def start_budget(
 
 def close_budget(ctx, watch: BudgetWatch) -> dict:
     """The sidecar record, and one line: used vs budget (a warning when over)."""
-    now = (
-        ctx.tel.clock.now() if ctx.landed_disarmed.is_set() else float("nan")
-    )  # no disarm seen: no
+    # no disarm seen: no
+    now = ctx.tel.clock.now() if ctx.landed_disarmed.is_set() else float("nan")
     used = used_seconds(ctx.st.events, ctx.status.t_start, now)  # extrapolated time (a lost link)
     rec = watch.record(used)
     rec["arm_to_disarm_s"] = arm_to_disarm_s(ctx.st.events)
     if used is not None:
-        rounds = getattr(
-            ctx.extension, "flown_s", None
-        )  # an adaptive flight: survey and rounds apart
+        # an adaptive flight: survey and rounds apart
+        rounds = getattr(ctx.extension, "flown_s", None)
         plan = (
             f"plan {rec['planned_s']:.0f} s"
             if rounds is None

@@ -75,9 +75,8 @@ class Extension(Protocol):
     update_s: float  # live-estimate period (vehicle s)
 
     def trajectory_meta(self) -> dict: ...
-    def check(
-        self, ctx: FlightContext
-    ) -> None: ...  # FlightError (exit 2) refuses before the upload
+    # FlightError (exit 2) refuses before the upload
+    def check(self, ctx: FlightContext) -> None: ...
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None: ...
     def record(self, ctx: FlightContext) -> tuple[str, dict]: ...
     def result_lines(self, ctx: FlightContext) -> list[str]: ...
@@ -106,9 +105,8 @@ class FlightContext:
     link_dead: asyncio.Event = field(default_factory=asyncio.Event)
     landed_disarmed: asyncio.Event = field(default_factory=asyncio.Event)
     mission_done: asyncio.Event = field(default_factory=asyncio.Event)
-    armed_seen: asyncio.Event = field(
-        default_factory=asyncio.Event
-    )  # PX4 SITL: "armed" before "started"
+    # PX4 SITL: "armed" before "started"
+    armed_seen: asyncio.Event = field(default_factory=asyncio.Event)
     last_text_wall: float = -float("inf")  # monotonic time of the last autopilot text
     link_lost: bool = False
     left_flying: bool = False  # a second signal: the flight stopped waiting for the landing
@@ -119,21 +117,18 @@ class FlightContext:
     rows: Any = None  # RowLogger once the log is open (its ``writer``: the FlightLogWriter)
     log_path: Any = None
     home: Any = None  # the vehicle's home (MAVSDK Position) once known
-    restore_params: dict[str, int | float] = field(
-        default_factory=dict
-    )  # put back after the flight
+    # put back after the flight
+    restore_params: dict[str, int | float] = field(default_factory=dict)
     budget: Any = None  # BudgetWatch once the plan is known
     live: Any = None  # LiveEstimates
     rate_requested: float = 0.0
     heartbeats_sent: int = 0
     vehicle_proc: Any = None
     source_warned: bool = False
-    tasks: list[asyncio.Task] = field(
-        default_factory=list
-    )  # background coroutines, cancelled at the close
-    texts: FoldedTexts = field(
-        default_factory=FoldedTexts
-    )  # autopilot texts on screen: repeats counted
+    # background coroutines, cancelled at the close
+    tasks: list[asyncio.Task] = field(default_factory=list)
+    # autopilot texts on screen: repeats counted
+    texts: FoldedTexts = field(default_factory=FoldedTexts)
 
     def __post_init__(self) -> None:
         if self.full_spec is None:
@@ -146,9 +141,8 @@ class FlightContext:
     def event(self, kind: str, text: str, warn: bool = False, show: bool = True) -> None:
         """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80
         columns."""
-        t = (
-            self.tel.clock.now() if not self.link_lost else float("nan")
-        )  # no extrapolated time stamps
+        # no extrapolated time stamps
+        t = self.tel.clock.now() if not self.link_lost else float("nan")
         e = {
             "t_vehicle_s": None if not np.isfinite(t) else round(t, 3),
             "kind": kind,
@@ -171,10 +165,11 @@ class FlightContext:
                 self.display.message(line, style)
             else:
                 print(fit_width(line), file=sys.stderr, flush=True)
+        # a lost terminal (SIGHUP): the event is in the sidecar, flying goes on
         except (
             OSError,
             ValueError,
-        ):  # a lost terminal (SIGHUP): the event is in the sidecar, flying goes on
+        ):
             pass
 
     def vehicle_state(self) -> str:

@@ -44,9 +44,8 @@ class LiveEstimates:
         connecting. It starts with the terminal's signals ignored (inherited), so a Ctrl-C during
         its start-up is no ``KeyboardInterrupt`` traceback either; so does multiprocessing's
         resource tracker (which ignores SIGINT and SIGTERM itself, not SIGHUP)."""
-        with (
-            terminal_signals_ignored()
-        ):  # the worker (this first submit) and multiprocessing's resource tracker
+        # the worker (this first submit) and multiprocessing's resource tracker
+        with terminal_signals_ignored():
             self.pool = concurrent.futures.ProcessPoolExecutor(
                 1,
                 mp_context=multiprocessing.get_context("spawn"),
@@ -59,9 +58,8 @@ class LiveEstimates:
         """Stop the worker now: an estimate still running must not hold up the exit (where a Ctrl-C
         would end the process by the signal instead of exit 130)."""
         if self.pool is not None:
-            procs = list(
-                getattr(self.pool, "_processes", None) or {}
-            )  # the executor's own record (private)
+            # the executor's own record (private)
+            procs = list(getattr(self.pool, "_processes", None) or {})
             procs = [self.pool._processes[k] for k in procs]
             self.pool.shutdown(wait=False, cancel_futures=True)
             for proc in procs:
@@ -104,9 +102,8 @@ def _record(ctx: FlightContext, d: dict, what: str = "") -> None:
     lv = ctx.live
     lv.estimates.append(d)
     ctx.status.estimate = live.describe(d, ctx.truth)
-    with contextlib.suppress(
-        OSError
-    ):  # the series survives an abort or a crash of the ground station
+    # the series survives an abort or a crash of the ground station
+    with contextlib.suppress(OSError):
         ctx.rows.writer.update_meta(estimates=lv.estimates)
     if what:
         ctx.event("estimate", f"{what} estimate, t={d['t_s']:.0f} s: {live.describe(d, ctx.truth)}")

@@ -23,6 +23,7 @@ import time
 from mavsdk.plugins.mavlink_direct import MavlinkMessage
 
 GCS_SYSID, GCS_COMPID = 245, 190  # MAVSDK's ground-station identity
+# MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, MAV_STATE_ACTIVE
 _HEARTBEAT = json.dumps(
     {
         "type": 6,
@@ -32,7 +33,7 @@ _HEARTBEAT = json.dumps(
         "system_status": 4,
         "mavlink_version": 3,
     }
-)  # MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, MAV_STATE_ACTIVE
+)
 
 
 PER_VEHICLE_S = (

@@ -38,9 +38,8 @@ class PhaseTracker:
         self.landed_state = "ON_GROUND"
         self.raw_item = -1
         self.returning = False
-        self.first_adaptive = (
-            1 << 30
-        )  # raw index of the first adaptive waypoint (missions extended in flight)
+        # raw index of the first adaptive waypoint (missions extended in flight)
+        self.first_adaptive = 1 << 30
 
     def configure(
         self, first_wp: int, last_item: int, final: str, first_adaptive: int | None = None

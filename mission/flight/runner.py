@@ -90,10 +90,11 @@ __all__ = [
     "wall_clock_notice",
 ]
 
+# position/attitude rate requested (vehicle time); the issue's floor
 RATE_HZ, MIN_RATE_HZ = (
     50.0,
     30.0,
-)  # position/attitude rate requested (vehicle time); the issue's floor
+)
 WALL_CALLBACKS_PER_STREAM = (
     600.0  # at most this many per wall-clock second per stream (sped-up vehicles)
 )
@@ -103,11 +104,12 @@ FIRST_ROW_TIMEOUT_S = 20.0  # wall seconds to wait for the first log row before 
 # writer, display) makes it wait up to 5 ms per message and MAVSDK's bounded callback queue
 # overflows ("Dropping subscription callbacks").  A 0.5 ms interval bounds that wait.
 GIL_SWITCH_INTERVAL_S = 0.0005
+# SIGHUP: a lost terminal (SSH), as SIGTERM
 SIGNALS = (
     signal.SIGINT,
     signal.SIGTERM,
     signal.SIGHUP,
-)  # SIGHUP: a lost terminal (SSH), as SIGTERM
+)
 
 
 def auto_rate_hz(speedup: float) -> float:
@@ -206,14 +208,12 @@ def fly(spec, opts: FlyOptions, extension=None) -> int:
         ignore_terminal_signals()
         raise
     finally:
-        if (
-            ctx.source is not None
-        ):  # a flight started and its outcome is decided: a late Ctrl-C during the
+        # a flight started and its outcome is decided: a late Ctrl-C during the
+        if ctx.source is not None:
             # exit (threads joined) must not end the process by the signal
             ignore_terminal_signals()
-        elif (
-            signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
-        ):  # refused before anything started
+        # refused before anything started
+        elif signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             for sig, handler in old.items():
                 signal.signal(sig, handler)
 
@@ -224,9 +224,8 @@ async def run(ctx: FlightContext) -> int:
     airborne)."""
     spec = ctx.spec
     check_options(ctx.opts)  # options: before anything starts
-    report = assert_flyable(
-        spec
-    )  # fence and budget: refuse before connecting or uploading anything
+    # fence and budget: refuse before connecting or uploading anything
+    report = assert_flyable(spec)
     ctx.source, ctx.truth = make_source(spec, ctx.opts.rss_source)
     loop = asyncio.get_running_loop()
     for sig in SIGNALS:
@@ -370,9 +369,8 @@ async def fly_sdk(ctx: FlightContext, url: str, report) -> int:
                     else:
                         ctx.event("error", str(e), warn=True)
                         await safe_return(ctx, p.action)
-                except (
-                    Exception
-                ) as e:  # a bug must not leave the vehicle without a plan, nor lose the log
+                # a bug must not leave the vehicle without a plan, nor lose the log
+                except Exception as e:
                     code, status = EXIT_FAILED, f"failed: {type(e).__name__}: {e}"
                     ctx.event("error", status, warn=True)
                     await safe_return(ctx, p.action)
@@ -488,9 +486,8 @@ async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: 
     await ctx.source.start(ctx.tel.clock.now)
     ctx.status.stage = "waiting for the first log row"
     end = asyncio.get_running_loop().time() + FIRST_ROW_TIMEOUT_S
-    while (
-        not writer.rows and asyncio.get_running_loop().time() < end
-    ):  # log on the ground before arming
+    # log on the ground before arming
+    while not writer.rows and asyncio.get_running_loop().time() < end:
         ctx.abort_before_takeoff()
         ctx.rows.write()
         await asyncio.sleep(0.05)
@@ -616,9 +613,8 @@ async def close(ctx: FlightContext, status: str, param, live_task: asyncio.Task 
         t.cancel()
     await asyncio.gather(*ctx.tasks, return_exceptions=True)
     await restore_speeds(ctx, param)
-    if (
-        ctx.restore_params and ctx.link_dead.is_set()
-    ):  # not restored (the vehicle may still fly on them)
+    # not restored (the vehicle may still fly on them)
+    if ctx.restore_params and ctx.link_dead.is_set():
         left = ", ".join(f"{k} (was {v:g})" for k, v in ctx.restore_params.items())
         ctx.event("params", f"autopilot parameters left changed: {left}", warn=True)
         status += f"; parameters left changed: {', '.join(ctx.restore_params)}"

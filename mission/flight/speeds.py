@@ -108,9 +108,8 @@ async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
                     "RTL_LAND_DELAY",
                 )
             ]
-            v = VerticalSpeeds(
-                up, dn, land, low, max(delay, 0.0)
-            )  # -1: hovers until told: not planned
+            # -1: hovers until told: not planned
+            v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0))
     except Exception as e:
         ctx.event(
             "budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used"

@@ -185,9 +185,8 @@ def log_failed(ctx: FlightContext, error: OSError) -> None:
         else "stopping"
     )
     ctx.event("log", f"log write failed ({why}): {w.rows} rows kept; {then}", warn=True)
-    with contextlib.suppress(
-        OSError
-    ):  # a full disk may refuse the sidecar too: the line above still said it
+    # a full disk may refuse the sidecar too: the line above still said it
+    with contextlib.suppress(OSError):
         w.update_meta(
             log_error={
                 "error": why,
@@ -214,9 +213,8 @@ async def watchdog(ctx: FlightContext) -> None:
         if ctx.st.was_armed and (s.t_start is None or not np.isfinite(s.t_start)):
             s.t_start = s.t_now if ctx.tel.n_pos else None
         if ctx.display is not None:
-            with contextlib.suppress(
-                OSError, ValueError
-            ):  # a lost terminal must not stop the watchdog
+            # a lost terminal must not stop the watchdog
+            with contextlib.suppress(OSError, ValueError):
                 ctx.display.refresh()
 
 

@@ -73,9 +73,8 @@ def read_flight_log(path: str | Path, origin: Origin | None = None) -> FlightLog
         )
     check_regular(path, "flight log")  # a FIFO or /dev/zero would block or never end
     try:
-        text = read_bytes(path, "flight log").decode(
-            "utf-8-sig"
-        )  # a spreadsheet's BOM is not part of "t_s"
+        # a spreadsheet's BOM is not part of "t_s"
+        text = read_bytes(path, "flight log").decode("utf-8-sig")
     except UnicodeDecodeError:
         raise InputError("not a text CSV file", source=src) from None
     notes: list[str] = []
@@ -181,9 +180,8 @@ def _fast_parse(text: str, header: list[str]) -> dict[str, np.ndarray] | None:
     columns: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
         values = table[:, j] if table is not None else _as_float(num[:, j])
-        if (
-            values is None and name not in COLUMNS
-        ):  # blank fields padded with spaces still read as NaN
+        # blank fields padded with spaces still read as NaN
+        if values is None and name not in COLUMNS:
             values = _as_float(
                 np.where(np.char.strip(raw[:, j].astype(str)) == "", "nan", raw[:, j])
             )
@@ -224,9 +222,8 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
         except InputError:
             if name in COLUMNS:
                 raise
-            columns[name] = np.array(
-                cols_text[j], dtype=object
-            )  # extra non-numeric column: keep as text
+            # extra non-numeric column: keep as text
+            columns[name] = np.array(cols_text[j], dtype=object)
     return columns, len(rows)
 
 

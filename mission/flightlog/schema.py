@@ -106,15 +106,13 @@ class FlightLog:
         tx = self.meta.get("truth")
         if not tx:
             return None
-        if (
-            "x_m" in tx
-        ):  # exact local coordinates take precedence over lat/lon (no curvature round trip)
+        # exact local coordinates take precedence over lat/lon (no curvature round trip)
+        if "x_m" in tx:
             return np.array([tx["x_m"], tx["y_m"], tx.get("z_m", 0.0)], dtype=float)
         o = self.origin
         enu = o.to_enu(tx["lat_deg"], tx["lon_deg"], o.alt_m + float(tx.get("height_m", 0.0)))
-        enu[2] = float(
-            tx.get("height_m", 0.0)
-        )  # height above ground, not above the origin's tangent plane
+        # height above ground, not above the origin's tangent plane
+        enu[2] = float(tx.get("height_m", 0.0))
         return enu
 
     def select(self, mask: np.ndarray) -> FlightLog:

@@ -400,9 +400,8 @@ def library() -> dict[str, Candidate]:
         _time_offset_candidate(),
         _receiver_candidate(),
     ]
-    refs = {
-        c.name: c for c in named
-    }  # what a free-form map is compared with (``freeform.resemblance``)
+    # what a free-form map is compared with (``freeform.resemblance``)
+    refs = {c.name: c for c in named}
     cands = [
         *named,
         *(freeform_candidate(k, refs) for k in FREEFORM_NAMES),

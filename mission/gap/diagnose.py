@@ -76,21 +76,16 @@ class Diagnosis:
     localization: list[dict[str, Any]]
     block_lens: list[int]
     config: dict[str, Any]
-    structure: dict[str, Any] = field(
-        default_factory=dict
-    )  # residual structure: "base" and "final" rungs
-    footprints: dict[str, Any] = field(
-        default_factory=dict
-    )  # per added rung: size (dB) and where it acts
-    near_nadir: dict[str, Any] = field(
-        default_factory=dict
-    )  # what the data can show below the UAV (nadir.py)
-    time_power: dict[str, Any] = field(
-        default_factory=dict
-    )  # what the data can show along time (temporal.py)
-    frames: dict[str, Any] = field(
-        default_factory=dict
-    )  # rung label -> ground- or body-fixed test (frame.py)
+    # residual structure: "base" and "final" rungs
+    structure: dict[str, Any] = field(default_factory=dict)
+    # per added rung: size (dB) and where it acts
+    footprints: dict[str, Any] = field(default_factory=dict)
+    # what the data can show below the UAV (nadir.py)
+    near_nadir: dict[str, Any] = field(default_factory=dict)
+    # what the data can show along time (temporal.py)
+    time_power: dict[str, Any] = field(default_factory=dict)
+    # rung label -> ground- or body-fixed test (frame.py)
+    frames: dict[str, Any] = field(default_factory=dict)
 
 
 def model_gap(
@@ -196,9 +191,8 @@ def localization_cost(
     for rung in rungs:
         row: dict[str, Any] = {"rung": rung.label, "errors_m": {}}
         for k, f in enumerate(flights):
-            pipe = (
-                rung.pipes[k % len(rung.pipes)] if split == "flights" else rung.pipes[0]
-            )  # make_folds' deal
+            # make_folds' deal
+            pipe = rung.pipes[k % len(rung.pipes)] if split == "flights" else rung.pipes[0]
             rx, att = (
                 (f.enu_m, f.attitude_rad)
                 if pipe.time_offset_s == 0

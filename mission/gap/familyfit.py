@@ -142,6 +142,7 @@ def base_family_pipeline() -> Pipeline:
 
 # continuous spec parameters polished jointly: (key, start grid, simplex step, lo, hi); headings are
 # periodic
+# offsets from the sequential fit
 _JOINT = (
     (
         "rx_heading_deg",
@@ -149,7 +150,7 @@ _JOINT = (
         15.0,
         -np.inf,
         np.inf,
-    ),  # offsets from the sequential fit
+    ),
     ("tx_heading_deg", (0.0, 120.0, 240.0), 20.0, -np.inf, np.inf),
     ("path_gain_slope", (), 0.3, -1.5, 5.0),
     ("leg_shadowing_beta", (), 0.3, 0.0, 8.0),

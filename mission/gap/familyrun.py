@@ -36,9 +36,8 @@ def family_from_diagnosis(
     if check:
         used = [f for f, ft in zip(d.flights, fits, strict=True) if not ft.excluded]
         lc = loop_check(rec, used, cfg, seed=cfg.seed + 1, repeats=repeats)
-        if not lc["heldout_p90_db"][
-            "within_1db"
-        ]:  # recalibrate (secant on the total-std scale), fresh draws
+        # recalibrate (secant on the total-std scale), fresh draws
+        if not lc["heldout_p90_db"]["within_1db"]:
             rec["checks"]["loop_before_calibration"] = {
                 k: v for k, v in lc.items() if k not in ("draws", "refit")
             }

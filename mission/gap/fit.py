@@ -263,9 +263,8 @@ def fit_candidate(
             )
 
         grid = np.array(_start_grid(cand, cache, params), dtype=float)
-        multi = (
-            len(params) >= 2 and len(grid) > 8
-        )  # several starts where the loss is multimodal in several dims
+        # several starts where the loss is multimodal in several dims
+        multi = len(params) >= 2 and len(grid) > 8
         xb, loss = minimize_from_grid(
             f_obj,
             grid,
@@ -392,9 +391,8 @@ def rank_key(r: CandidateResult) -> tuple[bool, float]:
     return (not r.significant, -r.loss_reduction / TIER_MARGIN.get(r.tier, 1.0))
 
 
-_FORKED: list[
-    Any
-] = []  # (fn, items) of the running process map: the forked workers read it, nothing is pickled
+# (fn, items) of the running process map: the forked workers read it, nothing is pickled
+_FORKED: list[Any] = []
 
 
 def _forked_call(i: int) -> Any:

@@ -66,9 +66,8 @@ def map_variables(kind: str, link: Any) -> tuple[np.ndarray, np.ndarray]:
     if kind == "rx_gain_map":  # az_b, sin dep_b
         ubx, uby, ubz = link.u_b
         return body_azimuth(ubx, uby, signed=True), sin_depression(ubz, d)
-    if (
-        kind == "tx_gain_map"
-    ):  # compass bearing and sin elevation of the UAV seen from the transmitter
+    # compass bearing and sin elevation of the UAV seen from the transmitter
+    if kind == "tx_gain_map":
         return bearing(-dx, -dy, signed=True), sin_elevation(-dz, d)
     if kind == "excess_loss":
         return np.clip(np.log10(d / 100.0), -1.0, 1.0), np.clip((link.z_r - 35.0) / 25.0, -1.0, 1.0)
@@ -400,9 +399,8 @@ def freeform_candidate(kind: str, named: Mapping[str, Candidate] | None = None) 
         "excess_loss": "smooth excess loss over distance and UAV height",
     }[kind]
 
-    def build(
-        p: Pipeline, th: dict[str, float], ch: dict[str, Any]
-    ) -> Pipeline:  # only via direct_fit
+    # only via direct_fit
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
         return p
 
     def withhold(p: Pipeline) -> Pipeline:

@@ -39,9 +39,8 @@ class Rung:
     pipes: list[Pipeline]
     residuals: list[np.ndarray]
     params: dict[str, Any] = field(default_factory=dict)
-    ranking: list[CandidateResult] = field(
-        default_factory=list
-    )  # candidates tried on top of this rung
+    # candidates tried on top of this rung
+    ranking: list[CandidateResult] = field(default_factory=list)
     frame: dict[str, Any] | None = (
         None  # ground- or body-fixed test of this rung's ranking (``frame.frame_for``)
     )

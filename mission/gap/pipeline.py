@@ -83,9 +83,8 @@ class TxTilt:
         t, a = math.radians(self.tilt_deg), math.radians(self.azimuth_deg)
         ax, ay, az = math.sin(t) * math.sin(a), math.sin(t) * math.cos(a), math.cos(t)
         sin_new = np.clip(ux * ax + uy * ay + uz * az, -1.0, 1.0)
-        term = _dipole_db(sin_new) - _dipole_db(
-            sin_elevation(-dz, d)
-        )  # upright: the UAV's elevation
+        # upright: the UAV's elevation
+        term = _dipole_db(sin_new) - _dipole_db(sin_elevation(-dz, d))
         return term.astype(np.asarray(link.d_los).dtype, copy=False)
 
 

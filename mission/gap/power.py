@@ -29,10 +29,11 @@ import numpy as np
 from mission.gap.fit import FitConfig, Fold, compare, decimate
 from mission.gap.nadir import BAND_DEG, Z_ALPHA, Z_POWER
 
+# the loss the statement is about: gaussian in body depression
 SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG = (
     75.0,
     8.0,
-)  # the loss the statement is about: gaussian in body depression
+)
 # the ranking's fit (Nelder-Mead from grid starts ranked on a thinned copy) is noisier than the
 # closed form here: the statement's depth is the injected test's threshold times this margin.
 # Calibrated on the generator (``bench_gap.py nadir-power``): without it 1 of 24 cases was said
@@ -58,9 +59,8 @@ def fit_band(dep_deg: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
     dep, r = dep_deg[ok], r[ok]
     if dep.size < 3:
         return 0.0, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG
-    G = band_shape(
-        dep[None, None, :], _CENTRES[:, None, None], _WIDTHS[None, :, None]
-    )  # (nc, nw, n)
+    # (nc, nw, n)
+    G = band_shape(dep[None, None, :], _CENTRES[:, None, None], _WIDTHS[None, :, None])
     gg = np.einsum("cwn,cwn->cw", G, G)
     depth = np.clip(-np.einsum("cwn,n->cw", G, r) / np.maximum(gg, 1e-12), -5.0, 25.0)
     sse = np.einsum(

@@ -119,11 +119,12 @@ def figures(d: Diagnosis) -> dict[str, Any]:
 
 
 SCHEMA_VERSION = 2
+# shapes go to figures["freeform_shapes"], not into the summary
 _BIG = (
     "shape",
     "resemblances",
     "time_shapes",
-)  # shapes go to figures["freeform_shapes"], not into the summary
+)
 
 
 def _small(p: dict[str, Any]) -> dict[str, Any]:
@@ -225,9 +226,8 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
         for x in r.ranking:
             if x.tier == "free-form" and (r is d.rungs[0] or x.name in {q.added for q in d.rungs}):
                 p = x.fold_params[0]
-                if not p.get(
-                    "shape"
-                ):  # time_drift: its per-flight curves are in its params (``time_shapes``)
+                # time_drift: its per-flight curves are in its params (``time_shapes``)
+                if not p.get("shape"):
                     continue
                 out.setdefault(
                     x.name,

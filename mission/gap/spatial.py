@@ -59,9 +59,8 @@ class KrigedShadowing:
     sigma_db: float
     corr_len_m: float
     nugget_db: float
-    points: dict[
-        tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]
-    ]  # key -> (xy, mean, count)
+    # key -> (xy, mean, count)
+    points: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
     def field_db(self, flight: FlightSamples, rx_xy: np.ndarray) -> np.ndarray:
         key = tx_key(flight.tx_enu_m)
@@ -73,9 +72,8 @@ class KrigedShadowing:
     def _predict(self, key: tuple[float, float], rx_xy: np.ndarray) -> np.ndarray:
         xy, r, cnt = self.points[key]
         s2, n2 = self.sigma_db**2, self.nugget_db**2
-        alphas: dict = self.__dict__.setdefault(
-            "_alpha", {}
-        )  # one solve per transmitter, not per query
+        # one solve per transmitter, not per query
+        alphas: dict = self.__dict__.setdefault("_alpha", {})
         if key not in alphas:
             K = s2 * correlation(pdist(xy, xy), self.corr_len_m, COVARIANCE)
             K += np.diag(n2 / np.minimum(cnt, 20.0) + 1e-6 * s2)
@@ -117,9 +115,8 @@ def _group_cells(
     for k, v in groups.items():
         xy, r = np.concatenate([a for a, _ in v]), np.concatenate([b for _, b in v])
         pts = cell_means(xy, r, cell_m)
-        if (
-            len(pts[1]) > MAX_CELLS
-        ):  # coarser cells: the kriging solve is cubic in the number of cells
+        # coarser cells: the kriging solve is cubic in the number of cells
+        if len(pts[1]) > MAX_CELLS:
             pts = cell_means(xy, r, cell_m * float(np.sqrt(len(pts[1]) / MAX_CELLS)) * 1.05)
         out[k] = pts
     return out
@@ -292,9 +289,8 @@ def _smoother(
     pipeline's spatial slot (fitted directly on the training residuals, no parameter search);
     withholding it empties the slot."""
 
-    def build(
-        p: Pipeline, th: dict[str, float], ch: dict[str, Any]
-    ) -> Pipeline:  # only via direct_fit
+    # only via direct_fit
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
         return p
 
     def withhold(p: Pipeline) -> Pipeline:

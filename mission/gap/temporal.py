@@ -181,9 +181,8 @@ def fit_time_term(
 def time_candidate() -> Candidate:
     """``time_drift`` (module docstring): fills the pipeline's ``temporal`` slot; free-form tier."""
 
-    def build(
-        p: Pipeline, th: dict[str, float], ch: dict[str, Any]
-    ) -> Pipeline:  # only via direct_fit
+    # only via direct_fit
+    def build(p: Pipeline, th: dict[str, float], ch: dict[str, Any]) -> Pipeline:
         return p
 
     def withhold(p: Pipeline) -> Pipeline:

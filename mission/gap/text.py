@@ -70,9 +70,8 @@ def summary_paragraph(d: Diagnosis) -> str:
         )
     else:
         s = base + "No candidate effect closes a significant part of the gap. "
-    for fr in (
-        d.frames.values()
-    ):  # a decided test changes what is added: say so (all of them in details.txt)
+    # a decided test changes what is added: say so (all of them in details.txt)
+    for fr in d.frames.values():
         if fr["winner"] is not None:
             s += " " + fr["text"]
     s += _time_sentence(d)

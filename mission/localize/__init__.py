@@ -72,14 +72,12 @@ class Estimate:
     lon_deg: float | None = None
     error_m: float | None = None
     extras: dict = field(default_factory=dict)
-    posterior: object | None = field(
-        default=None, repr=False
-    )  # uncertainty.Posterior, when the method has one
+    # uncertainty.Posterior, when the method has one
+    posterior: object | None = field(default=None, repr=False)
     notes: list[str] = field(default_factory=list, repr=False)
     components: dict[str, Estimate] = field(default_factory=dict, repr=False)
-    candidates: list = field(
-        default_factory=list, repr=False
-    )  # candidates.Candidate, most weight first
+    # candidates.Candidate, most weight first
+    candidates: list = field(default_factory=list, repr=False)
     selection: Selection | None = field(default=None, repr=False)
 
     @property
@@ -125,10 +123,8 @@ class Estimate:
         if self.error_m is not None:
             d["error_m"] = self.error_m
         sel = self.selection.to_dict() if self.selection is not None else {}
-        for (
-            k,
-            v,
-        ) in self.extras.items():  # the selection's keys follow method_choice, as they always did
+        # the selection's keys follow method_choice, as they always did
+        for k, v in self.extras.items():
             if k not in d:
                 d[k] = v
                 if k == "method_choice":

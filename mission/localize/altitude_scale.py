@@ -25,9 +25,8 @@ from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 
 REFERENCE_ALTITUDE_M = 30.0  # the mission altitude the networks were first trained at
-REFERENCE_HEIGHT_M = (
-    REFERENCE_ALTITUDE_M - DEFAULT_TX_HEIGHT_M
-)  # 28.5 m: over the default transmitter height
+# 28.5 m: over the default transmitter height
+REFERENCE_HEIGHT_M = REFERENCE_ALTITUDE_M - DEFAULT_TX_HEIGHT_M
 MIN_HEIGHT_M = (
     5.0  # below this height above the transmitter a flight is not a cruise: no scale is claimed
 )

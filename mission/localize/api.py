@@ -62,9 +62,11 @@ from mission.localize.training_domain import (
 )
 from mission.localize.uncertainty import outer_region
 from mission.physics.propagation import MODEL_NAMES
+
+# re-exported: importers say mission.localize.api.shipped_model
 from mission.shipped import (
     shipped_model,
-)  # re-exported: importers say mission.localize.api.shipped_model
+)
 
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
@@ -139,9 +141,8 @@ def make_localizer(
 
 def _is_simulated(log) -> bool:
     """True when the sidecar says the RSS came from a simulator (not a real receiver)."""
-    return (log.meta.get("rss_source") or {}).get(
-        "kind"
-    ) == "sim"  # the same test as choose_method's
+    # the same test as choose_method's
+    return (log.meta.get("rss_source") or {}).get("kind") == "sim"
 
 
 def _default_physics(log) -> tuple[str | None, dict | None, str | None]:
@@ -188,9 +189,8 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     altitudes the circles (calibrated inside them) are too small."""
     cal = card_calibration(net.card, "sim" if simulated else "real")  # sized for what was flown
     flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name)
-    if (
-        not simulated
-    ):  # 'real' circles come from benchmark flights of every attitude: a note, not a veto
+    # 'real' circles come from benchmark flights of every attitude: a note, not a veto
+    if not simulated:
         est.add_note(flown.pop("attitude_note"))
     est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
     if _check_altitude(est, net, part) and simulated and est.regions:
@@ -296,12 +296,10 @@ def fusion(
     )
     est.set_components({"selfcal": a, Path(path).name: b})
     est.extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
-    if (
-        a.posterior is not None and a.posterior.grid is not None
-    ):  # is the fused point inside its own regions?
-        est.extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(
-            float(x), float(y)
-        )  # log frame, as the grid
+    # is the fused point inside its own regions?
+    if a.posterior is not None and a.posterior.grid is not None:
+        # log frame, as the grid
+        est.extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))
         outer = outer_region(est.extras)
         if outer is not None and q >= outer["hpd_mass"]:
             est.add_note(
@@ -382,9 +380,8 @@ def localize_log(
 
     log = log_or_path if isinstance(log_or_path, FlightLog) else read_flight_log(log_or_path)
     physics_given = physics_preset is not None or physics_model is not None or floor_db is not None
-    by_default = (
-        method is None and model_path is None
-    )  # a default network: selfcal's regions if its circles fail
+    # a default network: selfcal's regions if its circles fail
+    by_default = method is None and model_path is None
     if physics_preset is None and physics_model is None:
         physics_model, physics_params, physics_preset = _default_physics(log)
     physics_label = f"physics preset {physics_preset}" if physics_preset else str(physics_model)
@@ -400,9 +397,8 @@ def localize_log(
     else:
         choice = f"method {method} requested"
     entry = method_entry(method)  # an unknown name: InputError listing the known ones
-    ra = search_area(
-        log
-    )  # the transmitter's area: bounds the searches, clips error circles, checks estimates
+    # the transmitter's area: bounds the searches, clips error circles, checks estimates
+    ra = search_area(log)
     est = run_method(
         entry,
         method,

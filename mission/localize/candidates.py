@@ -75,9 +75,8 @@ def posterior_modes(
     iy, ix = np.nonzero(peak)
     if iy.size == 0:
         return []
-    order = np.argsort(p[iy, ix])[::-1][
-        : 4 * max_modes
-    ]  # a plateau can make many ties: the highest few
+    # a plateau can make many ties: the highest few
+    order = np.argsort(p[iy, ix])[::-1][: 4 * max_modes]
     pk = grid[iy[order], ix[order]]  # (P, 2)
     pts = grid.reshape(-1, 2)
     basin = np.argmin(((pts[:, None, :] - pk[None, :, :]) ** 2).sum(-1), axis=1)

@@ -146,9 +146,8 @@ def _feature_config(fc, expect_config: FeatureConfig | dict | None, src: str) ->
     feed."""
     if not isinstance(fc, dict):
         raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
-    fc = FeatureConfig.normalised(
-        fc
-    )  # a model older than a later key was made with its neutral value
+    # a model older than a later key was made with its neutral value
+    fc = FeatureConfig.normalised(fc)
     if expect_config is not None:
         want = (
             expect_config.to_dict()

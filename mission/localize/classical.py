@@ -348,7 +348,6 @@ class FixedGeometrySearch:
         """RSS records (T, N) (or one (N,)) -> best candidates (T, 2)."""
         r = np.atleast_2d(np.asarray(rss, dtype=float))
         rc = r - r.mean(axis=1, keepdims=True)
-        sse = (
-            self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T
-        )  # + |rc|^2, the same for every candidate
+        # + |rc|^2, the same for every candidate
+        sse = self.pred_sq[:, None] - 2.0 * self.pred_c @ rc.T
         return self.cand[np.argmin(sse, axis=0)]

@@ -85,9 +85,8 @@ def member_candidates(
     cands.append(Candidate(g.x_m, g.y_m, f"grid {preset}"))
     nets, net_ests = _network_candidates(part, origin, tx_height_m)
     cands += nets
-    if (
-        nets and nets[0].source == Path(MEMBER_NETWORKS[0]).stem
-    ):  # today's default, a candidate like the rest
+    # today's default, a candidate like the rest
+    if nets and nets[0].source == Path(MEMBER_NETWORKS[0]).stem:
         cands.append(Candidate(0.5 * (a.x_m + nets[0].x_m), 0.5 * (a.y_m + nets[0].y_m), "fusion"))
     return dedupe(cands), {"selfcal": a, f"grid {preset}": g, **net_ests}
 

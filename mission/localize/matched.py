@@ -231,9 +231,8 @@ class MatchedLocalizer(_Base):
         )
         x_obs = centred(track.rss_dbm).astype(np.float32)
         n_cal = min(self.n_check, self.n_draws // 10) if self.n_check >= 10 else 0
-        cal = np.sort(
-            rng.choice(self.n_draws, n_cal, replace=False)
-        )  # held out of every net and table
+        # held out of every net and table
+        cal = np.sort(rng.choice(self.n_draws, n_cal, replace=False))
         fold = np.full(self.n_draws, -1)
         ref = np.ones(self.n_draws, dtype=bool)
         ref[cal] = False

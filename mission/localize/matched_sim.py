@@ -60,9 +60,8 @@ def track_cells(
     way)."""
     cells = cell_average(f, cell_m, altitude_gap_m)
     roll = pitch = np.zeros(len(cells))
-    if (
-        f.attitude_rad is not None
-    ):  # same cells, same order: average the angles as if they were the RSS
+    # same cells, same order: average the angles as if they were the RSS
+    if f.attitude_rad is not None:
         roll = cell_average(
             replace(f, rss_dbm=f.attitude_rad[:, 0]), cell_m, altitude_gap_m
         ).rss_dbm

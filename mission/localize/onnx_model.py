@@ -70,9 +70,8 @@ class OnnxLocalizer:
         src = str(self.path)
         if not self.path.exists():
             raise InputError("no such model file", source=src)
-        check_shipped_digest(
-            self.path
-        )  # a shipped name with flipped bytes loads and answers wrongly
+        # a shipped name with flipped bytes loads and answers wrongly
+        check_shipped_digest(self.path)
         try:
             opts = session_options(self.threads)
             self.session = ort.InferenceSession(
@@ -187,9 +186,8 @@ class OnnxLocalizer:
         else:
             f = as_flight(flight)
         h = None
-        if (
-            self.needs_heights
-        ):  # the log's own frame: heights above its ground origin, as the note reports them
+        # the log's own frame: heights above its ground origin, as the note reports them
+        if self.needs_heights:
             h = [
                 flight_height(
                     (flight.enu() if hasattr(flight, "columns") else f.enu_m)[:, 2],

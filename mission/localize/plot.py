@@ -175,9 +175,8 @@ def draw_clusters(fig, ax, cr, cfg: FeatureConfig, cmap) -> None:
         zorder=3,
         label=f"cluster means (C_k={cfg.c_k})",
     )
-    for i, (p, x, y) in enumerate(
-        v3[:5]
-    ):  # cluster means are relative to the strongest: dB, not dBm
+    # cluster means are relative to the strongest: dB, not dBm
+    for i, (p, x, y) in enumerate(v3[:5]):
         ax.annotate(
             f"{i + 1}: {p:.1f} dB", (x, y), xytext=(4, 4), textcoords="offset points", fontsize=7
         )

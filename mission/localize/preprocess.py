@@ -137,9 +137,8 @@ def select_mission_legs(log):
     ph = np.asarray(phase).astype(str)
     if not np.isin(ph, PHASES).all():
         return None
-    mask = np.isin(
-        ph, FLOWN_PHASES
-    )  # the mission's own legs and those planned in flight (adaptive)
+    # the mission's own legs and those planned in flight (adaptive)
+    mask = np.isin(ph, FLOWN_PHASES)
     if mask.sum() < 2:
         return None
     n = len(ph)
@@ -153,9 +152,8 @@ def select_samples(log):
     if legs is not None:
         return legs
     part, sel = select_cruise(log)
-    if (
-        len(part) == 0
-    ):  # e.g. ``localize --at 0``: the vehicle was still on the ground (an IndexError before)
+    # e.g. ``localize --at 0``: the vehicle was still on the ground (an IndexError before)
+    if len(part) == 0:
         raise InputError(
             f"no samples to localize from ({sel.reason}); the flight had not reached its legs",
             source=str(log.path) if log.path else None,

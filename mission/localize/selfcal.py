@@ -151,9 +151,8 @@ class GainTables:
     later flights share them."""
 
     def __init__(self) -> None:
-        self._made: list[
-            tuple[Pattern, GainLookup]
-        ] = []  # a pattern is found by identity (patterns hold arrays)
+        # a pattern is found by identity (patterns hold arrays)
+        self._made: list[tuple[Pattern, GainLookup]] = []
 
     def __call__(self, pat: Pattern) -> GainLookup:
         for p, table in self._made:

@@ -22,16 +22,18 @@ from mission.localize.onnx_model import OnnxLocalizer
 from mission.localize.training_domain import altitude_note, flight_altitudes
 from mission.shipped import shipped_model
 
+# the most specialised first
 SPIRAL_NETWORKS = (
     "rfsl_spiral_e2r_ens5.onnx",
     "rfsl_spiral_alt.onnx",
-)  # the most specialised first
+)
 SPIRAL_SOURCE_MODEL = "e2r"
+# model_params keys that would change the dipole default
 DIPOLE_KEYS = (
     "pattern",
     "tx_pattern",
     "rx_pattern",
-)  # model_params keys that would change the dipole default
+)
 
 
 def spiral_source(meta: dict) -> str | None:

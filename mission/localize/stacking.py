@@ -86,9 +86,10 @@ def blocked_scores(
     y = cells.rss_dbm.astype(np.float64)
     n = len(block) - onehot.sum(axis=0)  # training cells per fold (B,)
 
+    # (K, M) -> sums over the training cells of each fold (K, B)
     def train(
         v: np.ndarray,
-    ) -> np.ndarray:  # (K, M) -> sums over the training cells of each fold (K, B)
+    ) -> np.ndarray:
         s = v @ onehot
         return s.sum(axis=1, keepdims=True) - s
 

@@ -312,16 +312,14 @@ class PropagationModel:
         amp_dir = inv_los  # sqrt(G_t G_r) / d_los
         az_tx_cache: list[NDArray] = []
 
-        def az_tx() -> (
-            NDArray
-        ):  # compass bearing TX -> UAV, shared by both rays, computed at most once
+        # compass bearing TX -> UAV, shared by both rays, computed at most once
+        def az_tx() -> NDArray:
             if not az_tx_cache:
                 az_tx_cache.append(bearing(-dx, -dy))
             return az_tx_cache[0]
 
-        if (
-            ta is not None
-        ):  # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
+        # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
+        if ta is not None:
             amp_dir = amp_dir * kept(
                 (ta, "direct"), lambda: ta._amplitude(-dz * inv_los, d * inv_los, az_tx)
             )

@@ -177,9 +177,8 @@ class TabulatedPattern(Pattern):
             g = self.gain_dbi(el, az)
             return np.exp(g * (np.log(10.0) / 20.0)).astype(np.result_type(el), copy=False)
         g = self.gain_db_at(el, az)
-        g *= np.result_type(el).type(
-            np.log(10.0) / 20.0
-        )  # table is dB; floor applied at build time
+        # table is dB; floor applied at build time
+        g *= np.result_type(el).type(np.log(10.0) / 20.0)
         return np.exp(g, out=g)
 
     def gain_db_at(self, el: NDArray, az: NDArray) -> NDArray:

@@ -252,9 +252,8 @@ def fit_variogram(
     k, (_, s, L, n), (lags, gm, cnt) = fit(xy, r)
     boots = []
     nblk = 20
-    if (
-        len(r) > boot_points
-    ):  # the intervals come from a thinned copy (every k-th point keeps the blocks)
+    # the intervals come from a thinned copy (every k-th point keeps the blocks)
+    if len(r) > boot_points:
         thin = np.arange(0, len(r), int(np.ceil(len(r) / boot_points)))
         xy, r = xy[thin], r[thin]
     blocks = np.array_split(np.arange(len(r)), nblk)

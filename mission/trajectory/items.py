@@ -88,13 +88,14 @@ def build_items(
             (0.0, 0.0, 0.0, nan),
         )
     )
+    # ground speed, no throttle
     items.append(
         RawItem(
             mavlink.MAV_CMD_DO_CHANGE_SPEED,
             MAV_FRAME_MISSION,
             params=(1.0, float(spec.cruise_speed_mps), -1.0, 0.0),
         )
-    )  # ground speed, no throttle
+    )
     for i in range(len(wps)):
         items.append(
             RawItem(

@@ -293,9 +293,8 @@ def load_dataset(
                     parts[k].append(z[k])
         except InputError:
             raise
-        except (
-            Exception
-        ) as e:  # zipfile, zlib, numpy and OS errors all mean a damaged or missing chunk
+        # zipfile, zlib, numpy and OS errors all mean a damaged or missing chunk
+        except Exception as e:
             raise InputError(
                 f"damaged or unreadable dataset chunk ({type(e).__name__}: "
                 f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})",

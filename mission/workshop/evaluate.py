@@ -54,9 +54,8 @@ from mission.workshop.dataset import (
     read_manifest,
 )
 
-CLASSICAL = names_where(
-    kind="classical"
-)  # strongest, centroid, grid: run on simulated test sets as well
+# strongest, centroid, grid: run on simulated test sets as well
+CLASSICAL = names_where(kind="classical")
 GRID_PHYSICS = MODEL_NAMES  # the grid accepts every propagation model make_model builds
 
 
@@ -77,9 +76,8 @@ def parse_method(spec: str) -> tuple[str, dict]:
     if not physics:
         return name, {}
     if physics.startswith("preset:"):
-        load_preset(
-            physics.removeprefix("preset:")
-        )  # unknown preset: InputError now, not mid-evaluation
+        # unknown preset: InputError now, not mid-evaluation
+        load_preset(physics.removeprefix("preset:"))
         return name, {"preset": physics.removeprefix("preset:")}
     if physics not in GRID_PHYSICS:
         raise InputError(
@@ -159,9 +157,8 @@ class Row:
     features: str | None
     errors: list[float]
     names: list[str] = field(default_factory=list)
-    covered: dict[str, list[bool]] = field(
-        default_factory=dict
-    )  # region level ("50", "90") -> truth inside
+    # region level ("50", "90") -> truth inside
+    covered: dict[str, list[bool]] = field(default_factory=dict)
 
     def summary(self) -> dict:
         e = np.asarray(self.errors, dtype=float)

@@ -61,9 +61,8 @@ def region_contains(region: dict, xy) -> bool:
     if "ellipse" in region and not any(
         k in region for k in ("polygon", "polygon_xy_m", "center_m")
     ):
-        el = region[
-            "ellipse"
-        ]  # the mission.localize.uncertainty layout (error circles of error_circles too)
+        # the mission.localize.uncertainty layout (error circles of error_circles too)
+        el = region["ellipse"]
         region = {
             "center_m": [el["x_m"], el["y_m"]],
             "semi_axes_m": [el["a_m"], el["b_m"]],
@@ -122,9 +121,8 @@ _SUITE: dict = {}
 
 
 def _suite_init(methods: dict[str, dict], source: dict, one_thread: bool = False) -> None:
-    if (
-        one_thread
-    ):  # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
+    # worker processes: one BLAS/OpenMP thread each (k-means threads spin on a busy machine)
+    if one_thread:
         limit_worker()
     _SUITE.clear()
     _SUITE.update(methods=methods, source=source)

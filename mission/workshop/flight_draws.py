@@ -26,10 +26,12 @@ from mission.physics.presets import build_model, load_preset
 from mission.samples import FlightSamples
 from mission.simulate import simulate_flight
 from mission.spec import load_mission
+
+# re-exported (mission.workshop.dataset)
 from mission.trajectory.generators import (
     generate,
     trajectory_params,
-)  # re-exported (mission.workshop.dataset)
+)
 from mission.workshop.dataset_config import (
     PARAM_NAMES,
     DatasetConfig,
@@ -267,9 +269,8 @@ class FlightSimulator:
             "trajectory": traj_names.index(fd.trajectory),
             "pattern": pat_names.index(fd.pattern),
         }
-        row["params"] = np.array(
-            [p[k] for k in PARAM_NAMES], dtype=float
-        )  # column order = PARAM_NAMES
+        # column order = PARAM_NAMES
+        row["params"] = np.array([p[k] for k in PARAM_NAMES], dtype=float)
         row["tx_enu"] = s.tx_enu_m
         row["n_samples"] = np.array(len(s))
         row["index"] = np.array(fd.index)

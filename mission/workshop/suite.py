@@ -115,10 +115,11 @@ SHADOWING = {
 }
 SUITE_TAG = 10  # mixed into every suite seed: keeps suite seeds apart from rfsl-dataset seeds
 BENCHMARK_SEED = 2026
+# cruise altitude drawn per flight (a network trained on "suite:" data spans it)
 ALTITUDE_RANGE_M = (
     15.0,
     60.0,
-)  # cruise altitude drawn per flight (a network trained on "suite:" data spans it)
+)
 P_OUTSIDE = 1 / 3  # AFAR 2023: the rover stood north of the flight area in a third of the flights
 HABITS = ("along_track", "fixed", "slow_rotation", "hover_turn")
 RSS_SOURCE = {
@@ -231,9 +232,8 @@ def draw_flight(
     d["fixed_heading_deg"] = _u(rng, 0.0, 360.0)
     d["rotation_dps"] = _u(rng, 2.0, 10.0) * (1 if rng.uniform() < 0.5 else -1)
     d["attitude_perturbation_deg"] = _u(rng, 0.5, 4.0)
-    if not isinstance(
-        fam, str
-    ):  # a physics family file: physics, residual and offset are the family's draw
+    # a physics family file: physics, residual and offset are the family's draw
+    if not isinstance(fam, str):
         fd = fam.draw(rng)
         d["family_sha256"] = family_sha256(fam)
         d["physics"] = {"spec": fd.spec, "from_preset": None, "rx_antenna": antenna_label(fd.spec)}
@@ -309,9 +309,8 @@ def _attitude(d: dict, t: np.ndarray, pos: np.ndarray, turns: np.ndarray, kin) -
         att = attitude_from_motion(t, pos, kin)[0]
         att[:, 2] = np.mod(att[:, 2] + 2 * np.pi * turns, 2 * np.pi)
         return att
-    att = attitude_from_motion(t, pos, replace(kin, heading_deg=0.0))[
-        0
-    ]  # nose north: tilt = accel (n, e)
+    # nose north: tilt = accel (n, e)
+    att = attitude_from_motion(t, pos, replace(kin, heading_deg=0.0))[0]
     a_n, a_e = -np.tan(att[:, 1]) * G, np.tan(att[:, 0]) * G
     yaw = np.deg2rad(d["fixed_heading_deg"] + d["rotation_dps"] * t)
     lim = np.deg2rad(kin.max_tilt_deg)

@@ -20,14 +20,14 @@ import numpy as np
 from mission.errors import InputError
 from mission.physics.family import PhysicsFamily, load_family
 
+# the built-in families (drawn in mission.workshop.suite)
 FAMILIES = (
     "afar",
     "generic",
     "afar-heavy",
-)  # the built-in families (drawn in mission.workshop.suite)
-FamilyArg = (
-    str | PhysicsFamily
-)  # a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
+)
+# a built-in name (FAMILIES), a schema-1 family JSON path, or a loaded family
+FamilyArg = str | PhysicsFamily
 
 
 def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
@@ -55,9 +55,8 @@ def _load_json_family(path: str, _mtime_ns: int, _size: int) -> PhysicsFamily:
     refused here too."""
     try:
         fam = load_family(path)
-        fam.draw(
-            np.random.default_rng(0)
-        )  # a trial draw: a residual or offset that is not a number fails here
+        # a trial draw: a residual or offset that is not a number fails here
+        fam.draw(np.random.default_rng(0))
         return fam
     except InputError:
         raise

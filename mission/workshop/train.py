@@ -189,9 +189,8 @@ def validation_split(n: int, cfg: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
     """Sorted (validation, training) indices: ``val_fraction`` of the first ``max_train`` of a
     seeded permutation of ``n`` flights; the one place the split is drawn (tests recompute metrics
     on it)."""
-    perm = np.random.default_rng(cfg.seed).permutation(n)[
-        : cfg.max_train
-    ]  # max_train None: every flight
+    # max_train None: every flight
+    perm = np.random.default_rng(cfg.seed).permutation(n)[: cfg.max_train]
     n_val = max(1, int(round(cfg.val_fraction * len(perm))))
     if len(perm) - n_val < 2:
         raise InputError(f"too few flights ({len(perm)}) to train and validate")
@@ -267,9 +266,8 @@ def train(
         n_in,
     )
     n_params = count_parameters(net)
-    flops = (
-        count_flops(inner, n_in) + (2 * n_in + 6) * 2
-    )  # + the wrapper's shift / scale (negligible)
+    # + the wrapper's shift / scale (negligible)
+    flops = count_flops(inner, n_in) + (2 * n_in + 6) * 2
     out_std = net.out_std
     out_mean = net.out_mean
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -374,9 +372,8 @@ def train(
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     diff = export_onnx(net, n_in, out, meta, x_val[:256])
-    write_domain(
-        out, meta["training_data"]
-    )  # the card the runtime reads: the training's altitude, attitude
+    # the card the runtime reads: the training's altitude, attitude
+    write_domain(out, meta["training_data"])
     res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
     Path(str(out) + ".train.json").write_text(
         json.dumps(
@@ -418,9 +415,8 @@ def export_onnx(
     path = Path(path)
     net.eval()
     dummy = torch.zeros(1, n_in)
-    with (
-        warnings.catch_warnings()
-    ):  # the TorchScript exporter is deprecated but needs no onnxscript
+    # the TorchScript exporter is deprecated but needs no onnxscript
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         warnings.filterwarnings("ignore", message="Constant folding", category=UserWarning)
         torch.onnx.export(
