@@ -74,7 +74,6 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
 
 def collect(args) -> None:
     flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
-    flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
     jobs = []
     out = Path(args.json)
     done = (
