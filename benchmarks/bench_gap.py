@@ -53,6 +53,9 @@ from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
 import numpy as np
 from _gap_synth import BODY_FIXED, EFFECTS, EXPECTED, diagnose_case
 from rich.console import Console
@@ -74,8 +77,6 @@ from mission.localize.classical import ModelGridSearch
 from mission.samples import FlightSamples
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
 MAT = REPO / ".." / "shared" / "data" / "afar2023" / "mat"
 AREA = (-80.0, -80.0, 380.0, 420.0)  # grid-search box (m, ENU about the flight-area corner)
 
