@@ -485,12 +485,16 @@ def fit_family(
 
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
-    fits = _map(
+    # the longest flights first (a job's seed is its flight's index, so the order changes no bit):
+    # the last flights handed out are the short ones, and the processes finish together
+    order = sorted(range(len(jobs)), key=lambda k: -len(flights[k].rss_dbm))
+    done = _map(
         lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]),
-        jobs,
+        [jobs[k] for k in order],
         cfg.workers,
         cfg.processes,
     )
+    fits = [done[order.index(k)] for k in range(len(jobs))]
     for f in fits:
         if is_afar2023_suspect(f.name):
             f.excluded = AFAR2023_SUSPECT_NOTE
