@@ -91,7 +91,8 @@ class AdaptiveRounds:
         if not final:
             return ["no final estimate (too few samples)"]
         return [
-            f"estimate: {live.describe(final, ctx.truth)} [{ADAPTIVE_METHOD}, in flight]",
+            f"estimate: {live.describe(final, ctx.truth)} "
+            f"[{final.get('method', ADAPTIVE_METHOD)}, in flight]",
             f"(t={final['t_s']:g} s: `localize LOG --at {final['t_s']:g}` gives it back)",
         ]
 
@@ -167,6 +168,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             d = await estimates.estimate(ctx)
         finally:
             ctx.live.planning = False
+        if d is not None:  # the round's estimate is an entry of the series like any other
+            estimates.record(ctx, d)
         if d is None:
             ctx.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
             return
@@ -245,15 +248,16 @@ def _round_config(ctx: FlightContext, ext: AdaptiveRounds, last_wp) -> tuple:
 async def _until_planning_time(
     ctx: FlightContext, ext: AdaptiveRounds, wps: np.ndarray, off: int, lead: float
 ) -> bool:
-    """Wait until the mission has ``lead`` s left (the live estimator told to hurry from 1.5
-    ``lead``); False when the mission ends, aborts or loses its link first."""
+    """Wait until the mission has ``lead`` s left (from 1.1 ``lead`` the periodic series starts no
+    new estimate, so the worker is free; before, the series keeps its period); False when the
+    mission ends, aborts or loses its link first."""
     while True:
         if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
             if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
                 _no_round(ctx)
             return False
         rem = remaining_s(ctx, wps, off, measured_pace(ctx)) if ctx.st.was_in_air else None
-        ctx.live.planning = rem is not None and rem <= 1.5 * lead
+        ctx.live.planning = rem is not None and rem <= 1.1 * lead
         if rem is not None and rem <= lead:
             return True
         await asyncio.sleep(0.05)

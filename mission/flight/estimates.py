@@ -98,7 +98,9 @@ async def estimate(ctx: FlightContext, t_log: float | None = None) -> dict | Non
         return await asyncio.wrap_future(fut)
 
 
-def _record(ctx: FlightContext, d: dict, what: str = "") -> None:
+def record(ctx: FlightContext, d: dict, what: str = "") -> None:
+    """Append ``d`` to the flight's series (the status line, the sidecar; an event when ``what``
+    names it)."""
     lv = ctx.live
     lv.estimates.append(d)
     ctx.status.estimate = live.describe(d, ctx.truth)
@@ -112,9 +114,11 @@ def _record(ctx: FlightContext, d: dict, what: str = "") -> None:
 async def live_estimates(ctx: FlightContext) -> None:
     """Task: the periodic series, the fast estimate at 3 minutes, the final one once the mission
     ends."""
-    lv, last = ctx.live, -np.inf
+    lv = ctx.live
     while True:
         await asyncio.sleep(0.2)
+        # the period runs from the last entry of the series, whoever made it (a round's planning)
+        last = lv.estimates[-1]["t_s"] if lv.estimates else -np.inf
         t0 = ctx.status.t_start
         if ctx.rows.t_ref is None or t0 is None or not np.isfinite(t0) or not ctx.st.was_in_air:
             continue
@@ -124,13 +128,12 @@ async def live_estimates(ctx: FlightContext) -> None:
             lv.fast = await estimate(ctx, t_arm + live.FAST_ESTIMATE_S) or {}
             if lv.fast:
                 ctx.rows.writer.meta["fast_estimate"] = lv.fast
-                _record(ctx, lv.fast, "fast (3 min)")
+                record(ctx, lv.fast, "fast (3 min)")
         due = ctx.tel.clock.now() - ctx.rows.t_ref - last >= lv.update_s
         if lv.final is None and ctx.phases.current in FLOWN_PHASES and due and not lv.planning:
             d = await estimate(ctx)
             if d is not None:
-                last = d["t_s"]
-                _record(ctx, d)
+                record(ctx, d)
         if ctx.mission_done.is_set() or ctx.abort.is_set():
             await final_estimate(ctx)  # once; the loop goes on for a fast estimate still due
 
@@ -151,7 +154,7 @@ async def final_estimate(ctx: FlightContext) -> None:
     lv.final = await estimate(ctx, min(t_end, log_time(ctx))) or {}
     if lv.final:
         ctx.rows.writer.meta["final_estimate"] = lv.final
-        _record(ctx, lv.final, "final")
+        record(ctx, lv.final, "final")
 
 
 async def close_estimates(ctx: FlightContext) -> None:

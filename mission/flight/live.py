@@ -76,6 +76,7 @@ def summary(est, t_s: float) -> dict:
         "x_m": round(est.x_m, 2),
         "y_m": round(est.y_m, 2),
         "area_m2": None if reg is None else round(float(reg["area_m2"]), 1),
+        "method": est.method,
     }
     if est.error_m is not None:
         d["error_m"] = round(float(est.error_m), 2)
