@@ -51,7 +51,7 @@ def test_the_rounds_support_the_true_position_over_a_wrong_one(repo_dir, round_a
     flight = log.flight_log(spec, adaptive=True)
     survey, rounds = survey_and_rounds(flight)
     assert rounds.any() and (~rounds).any() and len(survey) == int((~rounds).sum())
-    lpd = rounds_scores(flight, rounds, np.array([tx, tx + [80.0, 0.0]]), 1.5)
+    lpd = rounds_scores(survey, flight.select(rounds), np.array([tx, tx + [80.0, 0.0]]), 1.5)
     assert lpd[0] > lpd[1] + 1.0
 
 

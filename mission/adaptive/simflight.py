@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from mission.adaptive.planner import choose_target, plan_round, posterior_candidates, survey_profile
+from mission.adaptive.planner import choose_target, plan_round, survey_profile
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flight.live import summary
@@ -178,7 +178,6 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
         e.y_m,
         None if reg is None else reg["area_m2"],
         region_covers(e, tx[0], tx[1], 0.9),
-        posterior_candidates(e.posterior),
     )
 
 

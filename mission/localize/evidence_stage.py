@@ -91,21 +91,29 @@ def member_candidates(
     return dedupe(cands), {"selfcal": a, f"grid {preset}": g, **net_ests}
 
 
-def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_TX_HEIGHT_M):
-    """The flight's blocked held-out scores of the candidates (``stacking.BlockedScores``), on the
-    self-calibrating search's cells, antenna hypotheses and temperature."""
+def selfcal_scores(cells, xy: np.ndarray, tx_height_m: float, block=None):
+    """Blocked held-out scores (``stacking.blocked_scores``) of the points ``xy`` on ``cells``,
+    under the self-calibrating search's antenna hypotheses and temperature (its independent cells
+    per cell); ``block``: the caller's blocks, else squares."""
     sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
-    samples = part.samples() if hasattr(part, "samples") else part
-    cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
     n_eff = max(cells.area_m2 / (np.pi * sc.corr_m**2), 2.0)
-    xy = np.array([[c.x_m, c.y_m] for c in cands])
     return blocked_scores(
         cells,
         xy,
         antenna_hypotheses(sc.hypotheses, sc.heading_step_deg),
         tx_height_m,
         tau=min(n_eff / len(cells), 1.0),
+        block=block,
     )
+
+
+def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_TX_HEIGHT_M):
+    """The flight's blocked held-out scores of the candidates (``stacking.BlockedScores``), on the
+    self-calibrating search's cells (``selfcal_scores``)."""
+    sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
+    samples = part.samples() if hasattr(part, "samples") else part
+    cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
+    return selfcal_scores(cells, np.array([[c.x_m, c.y_m] for c in cands]), tx_height_m)
 
 
 def answer(cands: list[Candidate]) -> tuple[float, float]:

@@ -19,9 +19,9 @@ from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
 from mission.localize.api import choose_method, default_model_path, run_member
 from mission.localize.candidates import Candidate
+from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
-from mission.localize.selfcal import SelfCalibratingGrid, antenna_hypotheses
-from mission.localize.stacking import blocked_scores
+from mission.localize.selfcal import SelfCalibratingGrid
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
 
@@ -54,27 +54,13 @@ def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
     return run_member(method, part, origin, area=area if entry.bounded else None, **kw)[1]
 
 
-def rounds_scores(part, rounds: np.ndarray, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
-    """(K,) the rounds' held-out log predictive density of each candidate (tempered nats), the
-    nuisance fitted on the survey's cells only."""
-
+def rounds_scores(survey, rounds, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
+    """(K,) the held-out log predictive density (tempered nats) of each candidate at the rounds'
+    rows ``rounds``, the nuisance fitted on the survey's rows ``survey`` only."""
     sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
-    parts = [
-        cell_average(part.select(m).samples(), sc.cell_m, sc.altitude_gap_m)
-        for m in (~rounds, rounds)
-    ]
-    cells = concat_cells(parts)
+    parts = [cell_average(p.samples(), sc.cell_m, sc.altitude_gap_m) for p in (survey, rounds)]
     block = np.repeat([SURVEY, ROUNDS], [len(c) for c in parts])
-    n_eff = max(cells.area_m2 / (np.pi * sc.corr_m**2), 2.0)
-    scores = blocked_scores(
-        cells,
-        xy,
-        antenna_hypotheses(sc.hypotheses, sc.heading_step_deg),
-        tx_height_m,
-        tau=min(n_eff / len(cells), 1.0),
-        block=block,
-    )
-    return scores.block_lpd[:, ROUNDS]
+    return selfcal_scores(concat_cells(parts), xy, tx_height_m, block).block_lpd[:, ROUNDS]
 
 
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
@@ -96,7 +82,7 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
         Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
         Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
     ]
-    lpd = rounds_scores(part, rounds, np.array([c.xy for c in cands]), tx_height_m)
+    lpd = rounds_scores(survey, part.select(rounds), np.array([c.xy for c in cands]), tx_height_m)
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
