@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from onnx import TensorProto, helper
 from mission.cli.main import main as rfsl_main
 from mission.cli.train import check_family, record_family
 from mission.errors import InputError
+from mission.flightlog.schema import RSS_RANGE_DB
 from mission.localize.preprocess import select_samples
 from mission.workshop.predictive import log_distance_residual
 from mission.workshop.suite import draw_flight, family_sha256, resolve_family, unseen_flight
@@ -267,3 +269,15 @@ def test_evaluate_prints_predictive_checks(tmp_path, capsys):
     assert len(rep["benchmark_statistics"]) == 2 and rep["verdict"].startswith("the family")
     # white 1 dB noise around log distance: the real logs' residual sill is about 1 dB
     assert all(0.5 < s["resid_sill_db"] < 1.6 for s in rep["real_statistics"])
+
+
+def test_the_shipped_familys_flights_read_as_plausible_logs():
+    """The log schema's RSS range holds what the shipped family simulates: a simulated reading stays
+    below the flight's receiver offset (flight 4 of the seed-2026 benchmark: +101.6 dB at an offset
+    of +102.8, which a bound of 100 refused), and the offset 4.5 standard deviations from its mean
+    (about 1 flight in 150 000 beyond) is inside the range."""
+    fam = resources.files("mission").joinpath("data", "afar_family.json").read_text()
+    off = json.loads(fam)["offset_db"]
+    assert off["dist"] == "normal"
+    lo, hi = off["mean"] - 4.5 * off["sd"], off["mean"] + 4.5 * off["sd"]
+    assert RSS_RANGE_DB[0] < lo - 60.0 and hi < RSS_RANGE_DB[1]

@@ -31,8 +31,10 @@ COLUMNS = (
 )
 # The RSS a log may hold, dB(m): a real receiver's "dBm" is uncalibrated (the AFAR sounder reads up
 # to +33), so "above 0 dBm" is no bound; a value outside this range is a unit or logging error, not
-# a reading (+300 passed).
-RSS_RANGE_DB = (-250.0, 100.0)
+# a reading (+300 passed). The top leaves room for the fitted family's receiver offsets (normal,
+# mean 69 dB, sd 16: its benchmark flight 4 of seed 2026 reads +101.6 near the transmitter, and a
+# bound of 100 refused the project's own benchmark).
+RSS_RANGE_DB = (-250.0, 150.0)
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
 # Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of
