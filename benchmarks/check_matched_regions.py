@@ -43,7 +43,7 @@ import numpy as np
 import mission.localize.matched as matched
 from mission.evidence import coverage_interval, mean_interval, paired_difference
 from mission.localize.api import localize_log
-from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_bandwidth
+from mission.localize.matched import abc_draws, conformal_mass, hpd_level_of, kde_of
 from mission.threads import limit_worker
 from mission.workshop.suite_cache import read_suite
 
@@ -59,7 +59,7 @@ def _one_net_masses(loc, tx, s_ref, s_cal, cal, fold, k) -> dict:
         ref = np.flatnonzero(fold == j)
         i, w = abc_draws(s_ref[ref], s_cal[j, c], k)
         pts = tx[ref[i]]
-        lev[c] = hpd_level_of(tx[q], pts, w, kde_bandwidth(pts, w, loc.step_m))
+        lev[c] = hpd_level_of(tx[q], kde_of(pts, w, loc.step_m), pts, w)
     return {lv: conformal_mass(lev, lv) for lv in LEVELS}
 
 

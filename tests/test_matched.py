@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 from mission.cli.localize import add_arguments
 from mission.errors import InputError
 from mission.localize.api import make_localizer
-from mission.localize.matched import MatchedLocalizer, conformal_mass
+from mission.localize.matched import MatchedLocalizer, conformal_mass, hpd_level_of, kde_of
+from mission.localize.matched_net import Pca
 from mission.localize.matched_sim import FieldBasis, centred, track_cells
 from mission.physics.family import PhysicsFamily, simulate_rss
 from mission.physics.shadowing import correlation, pdist
@@ -184,3 +185,34 @@ def test_self_check_localizes_held_out_draws_with_every_fold():
     check = _loc(step_m=2.0)._self_check(tx, s_ref, s_cal, cal, fold, k=20)
     assert check["n"] == 200 and 12.0 < check["median_error_m"] < 18.0
     assert 0.0 <= check["hpd_levels"].min() and check["hpd_levels"].max() <= 1.0
+
+
+def test_kernel_density_follows_the_draws_and_keeps_its_floor():
+    """``kde_of`` (scipy's weighted ``gaussian_kde``): draws spread 40 m along x and 4 m along y
+    give a kernel elongated along x, its narrow axis lifted to the floor; the HPD level of a point
+    grows with its distance from the draws' centre, 0 at the densest draw and 1 far outside."""
+    rng = np.random.default_rng(3)
+    pts = rng.standard_normal((400, 2)) * [40.0, 4.0]
+    w = rng.uniform(0.5, 1.0, 400)
+    k = kde_of(pts, w, floor_m=5.0)
+    sd = np.sqrt(np.linalg.eigvalsh(k.covariance))
+    assert sd[1] > 3 * sd[0] and sd[0] == pytest.approx(5.0, rel=1e-6)
+    assert np.sqrt(np.linalg.eigvalsh(kde_of(pts, w, floor_m=0.1).covariance))[0] < 5.0
+    levels = [hpd_level_of(np.array([r, 0.0]), k, pts, w) for r in (0.0, 30.0, 60.0, 300.0)]
+    assert levels[0] < 0.05 and levels[-1] == 1.0 and np.all(np.diff(levels) > 0)
+    # across the narrow axis the density falls far faster than along the long one
+    assert hpd_level_of(np.array([0.0, 20.0]), k, pts, w) > levels[2]
+
+
+def test_principal_axes_match_the_closed_form():
+    """``Pca`` (scikit-learn's ``PCA``) projects onto the data's leading eigenvectors: whitened,
+    each projected axis has unit variance; unwhitened, the axes keep their variance ratios, the
+    first at unit spread."""
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal((500, 6)) @ np.diag([9.0, 5.0, 2.0, 1.0, 0.5, 0.1])
+    z = Pca(x, 3, whiten=True).transform(x)
+    assert z.dtype == np.float32 and z.shape == (500, 3)
+    np.testing.assert_allclose(z.var(axis=0, ddof=1), 1.0, rtol=1e-4)
+    vals = np.linalg.eigvalsh(np.cov(x.T))[::-1][:3]
+    u = Pca(x, 3, whiten=False).transform(x)
+    np.testing.assert_allclose(u.var(axis=0, ddof=1), vals / vals[0], rtol=1e-4)

@@ -29,6 +29,7 @@ from contextlib import contextmanager
 
 import numpy as np
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from scipy.stats import gaussian_kde
 from threadpoolctl import threadpool_limits
 
 from mission.cli.main import console
@@ -93,27 +94,23 @@ def abc_draws(s_ref: np.ndarray, s_obs: np.ndarray, k: int) -> tuple[np.ndarray,
     return idx[:-1], np.maximum(w, 1e-6)
 
 
-def kde_bandwidth(pts: np.ndarray, w: np.ndarray, floor_m: float) -> float:
-    """Isotropic Gaussian kernel width: Scott's rule on the weighted draws (n_eff^(-1/6) x their
-    spread)."""
-    w = w / w.sum()
-    mu = (w[:, None] * pts).sum(axis=0)
-    var = float((w[:, None] * (pts - mu) ** 2).sum(axis=0).mean())
-    n_eff = 1.0 / float((w * w).sum())
-    return max(n_eff ** (-1.0 / 6.0) * np.sqrt(var), floor_m)
+def kde_of(pts: np.ndarray, w: np.ndarray, floor_m: float) -> gaussian_kde:
+    """The draws' weighted Gaussian kernel density (scipy's ``gaussian_kde``: Scott's factor on the
+    weighted draws' covariance, so the kernel follows an elongated posterior), widened where needed
+    so its narrowest axis is at least ``floor_m`` (the grid step: a narrower kernel would fall
+    between the grid's points)."""
+    k = gaussian_kde(pts.T, weights=w)
+    narrowest = float(np.sqrt(np.linalg.eigvalsh(k.covariance)[0]))
+    if narrowest < floor_m:
+        k.set_bandwidth(k.factor * floor_m / max(narrowest, 1e-9))
+    return k
 
 
-def kde(at: np.ndarray, pts: np.ndarray, w: np.ndarray, h: float) -> np.ndarray:
-    """Weighted Gaussian kernel density (unnormalised) of draws ``pts`` at points ``at`` (G, 2)."""
-    d2 = ((at[:, None, :] - pts[None, :, :]) ** 2).sum(axis=-1)
-    return np.exp(-0.5 * d2 / (h * h)) @ w
-
-
-def hpd_level_of(truth: np.ndarray, pts: np.ndarray, w: np.ndarray, h: float) -> float:
-    """The smallest HPD mass whose set (under the draws' kernel density) holds ``truth``: the weight
-    of the draws denser than the truth's point."""
-    dens = kde(pts, pts, w, h)
-    return float(w[dens > kde(truth[None, :], pts, w, h)[0]].sum() / w.sum())
+def hpd_level_of(truth: np.ndarray, density: gaussian_kde, pts: np.ndarray, w: np.ndarray) -> float:
+    """The smallest HPD mass whose set (under the draws' kernel ``density``) holds ``truth``: the
+    weight of the draws denser than the truth's point."""
+    dens = density(pts.T)
+    return float(w[dens > density(truth[:, None])[0]].sum() / w.sum())
 
 
 def conformal_mass(levels_seen: np.ndarray, level: float) -> float:
@@ -252,7 +249,7 @@ class MatchedLocalizer(_Base):
         k = max(int(self.k_frac * self.n_draws / self.folds), 10)
         idx, w = self._abc(s_ref, s_obs, fold, k)
         pts = tx[idx]
-        h = kde_bandwidth(pts, w, self.step_m)
+        density = kde_of(pts, w, self.step_m)
         check = self._self_check(tx, s_ref, s_cal, cal, fold, k)
         masses = (
             {lev: conformal_mass(check["hpd_levels"], lev) for lev in self.levels}
@@ -261,7 +258,7 @@ class MatchedLocalizer(_Base):
         )
         grid = square_grid(box, self.step_m)
         flat = grid.reshape(-1, 2)
-        dens = kde(flat, pts, w, h)
+        dens = density(flat.T)
         if poly is not None:
             dens = dens * poly.contains(flat)
         if not dens.sum() > 0:
@@ -277,7 +274,7 @@ class MatchedLocalizer(_Base):
             cell_m=self.cell_m,
             tx_height_m=self.tx_height_m,
             abc_draws=int(len(idx)),
-            kde_bandwidth_m=float(h),
+            kde_axes_m=[float(v) for v in np.sqrt(np.linalg.eigvalsh(density.covariance))],
             summary_xy_m=[float(v) for v in s_obs.mean(axis=0)],
             search_box=[float(v) for v in box],
             sim_check={k_: v for k_, v in check.items() if k_ != "hpd_levels"},
@@ -333,7 +330,7 @@ class MatchedLocalizer(_Base):
             pts = tx[i]
             est = (w[:, None] * pts).sum(axis=0) / w.sum()
             errs[c] = float(np.hypot(*(est - tx[q])))
-            lev[c] = hpd_level_of(tx[q], pts, w, kde_bandwidth(pts, w, self.step_m))
+            lev[c] = hpd_level_of(tx[q], kde_of(pts, w, self.step_m), pts, w)
         held = fold >= 0
         out = {
             "n": n,

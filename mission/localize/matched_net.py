@@ -6,9 +6,12 @@ transmitter position on the centred RSS-per-cell vector: its output approximates
 E[x | RSS], the summary statistic of semi-automatic ABC (Fearnhead and Prangle 2012), from which
 ``matched`` draws the posterior.
 
-Architecture: principal components of the inputs (``n_pca``, whitened) -> ``hidden`` ReLU layers ->
-2 outputs, mean squared error on standardised targets, Adam with a cosine-decayed step,
-mini-batches; all float32 and reproducible from the caller's generator.
+Architecture: principal components of the inputs (``n_pca``, whitened; scikit-learn's ``PCA``) ->
+``hidden`` ReLU layers -> 2 outputs, mean squared error on standardised targets, Adam with a
+cosine-decayed step, mini-batches; all float32 and reproducible from the caller's generator.
+The network itself stays numpy rather than scikit-learn's ``MLPRegressor``: that one has no decaying
+step for Adam, trains in float64 (about twice the time of this float32 loop) and draws its
+initialisation and batches from its own seed instead of the caller's generator.
 """
 
 from __future__ import annotations
@@ -16,34 +19,33 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from sklearn.decomposition import PCA
 
 Progress = Callable[[str, int, int], None]
 
 
 class Pca:
-    """Mean and leading principal axes of a data set (fitted once, then ``transform``): each axis
-    scaled to unit variance (``whiten``) or all by the first axis's spread (the weak, noisy axes
-    stay small)."""
+    """Mean and leading principal axes of a data set (scikit-learn's ``PCA``, fitted once, then
+    ``transform``): each axis scaled to unit variance (``whiten``) or all by the first axis's spread
+    (the weak, noisy axes stay small). The whitening is done here rather than by
+    ``PCA(whiten=True)`` so that an axis of (near) zero variance is floored at 1e-9 of the first
+    instead of dividing by zero."""
 
     def __init__(self, x: np.ndarray, n_components: int, whiten: bool = True) -> None:
         x = np.asarray(x, dtype=np.float64)
-        self.mean = x.mean(axis=0)
-        xc = x - self.mean
-        vals, vecs = np.linalg.eigh(xc.T @ xc / max(len(x) - 1, 1))
-        k = int(min(n_components, x.shape[1]))
-        top = np.argsort(vals)[::-1][:k]
-        self.variance = np.maximum(vals[top], 0.0)
+        k = int(min(n_components, x.shape[1], len(x)))
+        self.pca = PCA(n_components=k, svd_solver="full").fit(x)
+        self.variance = np.maximum(self.pca.explained_variance_, 0.0)
         top_var = max(float(self.variance.max()), 1e-12)
-        scale = (
+        self.scale = (
             np.sqrt(np.maximum(self.variance, 1e-9 * top_var))
             if whiten
             else np.full(k, np.sqrt(top_var))
         )
-        self.basis = (vecs[:, top] / scale).astype(np.float32)
-        self.mean = self.mean.astype(np.float32)
 
     def transform(self, x: np.ndarray) -> np.ndarray:
-        return (np.asarray(x, dtype=np.float32) - self.mean) @ self.basis
+        z = self.pca.transform(np.asarray(x, dtype=np.float64)) / self.scale
+        return z.astype(np.float32)
 
 
 class SummaryNet:
