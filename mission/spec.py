@@ -27,15 +27,21 @@ from mission.defaults import (
     MAX_SPEEDUP,
 )
 from mission.errors import InputError
+from mission.fields import Fields, read_yaml
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.physics import make_model
 from mission.shipped import missions_dir, resolve_shipped
 from mission.simulate import SimConfig
-from mission.spec_reader import SpecReader as _Reader
-from mission.spec_reader import read_yaml
 from mission.trajectory.checks import RETURN_OVERSHOOT_M
 from mission.trajectory.generators import GENERATORS, generate
 from mission.trajectory.kinematics import Kinematics
+
+
+class _Reader(Fields):
+    """A mission file's mappings: an unknown key points at the annotated schema."""
+
+    hint = "see the schema at the top of missions/spiral.yaml"
+
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")

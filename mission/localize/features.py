@@ -53,7 +53,8 @@ from scipy.ndimage import convolve1d, gaussian_filter1d
 from threadpoolctl import ThreadpoolController
 
 from mission.cells import bin_index, bin_means
-from mission.errors import InputError, refuse_unknown_keys
+from mission.errors import InputError
+from mission.fields import Fields
 from mission.threads import thread_limits
 
 FEATURE_VERSION = 1
@@ -115,7 +116,7 @@ class FeatureConfig:
         """Build from a dict; unknown keys are refused (InputError naming the key); keys added after
         a model or dataset was written take their defaults, which reproduce the features it was made
         with."""
-        refuse_unknown_keys(d, (f.name for f in fields(cls)), "feature configuration")
+        Fields(d, None, "feature_config").done(f.name for f in fields(cls))
         return cls(**d)
 
     @staticmethod
