@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from mission.errors import InputError, one_line
 from mission.fields import REQUIRED, Fields, check_types
+from mission.localize.altitude_scale import METADATA_KEY, reference_height
 from mission.physics.family import check_dist
 from mission.workshop.dataset_config import DatasetConfig, Randomisation, check_config
 
@@ -156,3 +157,17 @@ def test_dataset_config_names_the_randomisation_field(fixed, speed):
         check_config(cfg)
     assert e.value.field == next(k for k, b in bad.items() if b)
     assert len(str(e.value).splitlines()) == 1
+
+
+@settings(max_examples=200, deadline=None)
+@given(v=VALUES)
+def test_a_cards_reference_height_is_a_positive_number_or_refused(v):
+    """The model card's altitude-normalisation entry (``altitude_scale.reference_height``)."""
+    td = {METADATA_KEY: {"reference_height_m": v}}
+    if _is_num(v) and v > 0:
+        assert reference_height(td, SRC) == float(v)
+        return
+    with pytest.raises(InputError) as e:
+        reference_height(td, SRC)
+    _refused(e.value, f"training_data.{METADATA_KEY}.reference_height_m")
+    assert reference_height({}, SRC) is None and reference_height(None, SRC) is None

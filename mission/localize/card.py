@@ -233,7 +233,7 @@ class ModelCard:
             fo.num("lon_deg", lo=-180, hi=180),
             fo.num("alt_m", 0.0),
         )
-        ref = reference_height(meta.get("training_data"))
+        ref = reference_height(meta.get("training_data"), src)
         if ref is not None and kind != "clustering":
             raise InputError(
                 "altitude normalisation needs clustering features",

@@ -86,19 +86,14 @@ class FeatureConfig:
     version: int = FEATURE_VERSION
 
     def __post_init__(self) -> None:
-        if (
-            self.n_g < 1
-            or self.c_k < 1
-            or self.n_t < 1
-            or self.sigma < 0
-            or self.n_init < 1
-            or self.arc_step_m < 0
-        ):
-            raise InputError(f"invalid feature configuration {self.to_dict()}")
-        if self.order != "rss_desc":
-            raise InputError(
-                f"unknown cluster order rule {self.order!r} (expected 'rss_desc')", field="order"
-            )
+        """Refuse a configuration the features cannot be computed with (``mission.fields``: one
+        line naming ``feature_config.<key>``)."""
+        f = Fields(self.to_dict(), None, "feature_config")
+        for k in ("n_g", "c_k", "n_t", "n_init"):
+            f.int_(k, lo=1)
+        f.num("sigma", lo=0.0)
+        f.num("arc_step_m", lo=0.0)
+        f.str_("order", choices=("rss_desc",))  # the cluster order rule
 
     @property
     def kernel_length(self) -> int:
