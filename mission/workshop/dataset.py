@@ -150,14 +150,6 @@ def generate_dataset(
 def _prepare(cfg: DatasetConfig, out_dir: str | Path, overwrite: bool) -> Path:
     """Refuse a bad config or an existing dataset (unless ``overwrite``); the output folder, made
     and emptied of old chunks."""
-    if cfg.n < 1 or cfg.chunk < 1:
-        raise InputError(f"need n >= 1 and chunk >= 1, got n={cfg.n}, chunk={cfg.chunk}")
-    bad = [f for f in cfg.features if f not in FEATURE_KINDS]
-    if bad:
-        raise InputError(
-            f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})",
-            field="features",
-        )
     check_config(cfg)
     out = Path(out_dir)
     if (out / "manifest.json").exists() and not overwrite:

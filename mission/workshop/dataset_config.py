@@ -170,6 +170,13 @@ def check_config(cfg: DatasetConfig) -> None:
     field)."""
     r = cfg.randomisation
     c, rf = Fields(cfg.to_dict()), Fields(asdict(r))
+    c.int_("n", lo=1)
+    c.int_("chunk", lo=1)
+    bad = [f for f in cfg.features if f not in FEATURE_KINDS]
+    if bad:
+        raise c.err(
+            "features", f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})"
+        )
     if cfg.suite:
         c.str_("suite", None, SUITES)
         resolve_family(cfg.suite_family)  # a built-in name or a readable, valid family file
