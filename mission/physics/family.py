@@ -90,7 +90,7 @@ def check_dist(v: Any, where: str, source: str | None = None) -> None:
                 not isinstance(p, list)
                 or len(p) != len(vals)
                 or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in p)
-                or abs(sum(p) - 1.0) > 1e-6
+                or not abs(sum(p) - 1.0) <= 1e-6  # NaN weights too
             )
         ):
             raise d.err("p", "must have one weight per option and sum to 1")
