@@ -42,7 +42,7 @@ def _is_num(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(v=VALUES, lo=st.none() | st.floats(-10, 10), hi=st.none() | st.floats(-10, 10))
 def test_num_takes_finite_numbers_in_range_and_names_the_field_otherwise(v, lo, hi):
     f = Fields({"a": {"b": v}}, SRC).sub("a")
@@ -55,7 +55,7 @@ def test_num_takes_finite_numbers_in_range_and_names_the_field_otherwise(v, lo, 
         _refused(e.value, "a.b")
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(v=VALUES)
 def test_each_accessor_returns_its_type_or_refuses(v):
     f = Fields({"k": v}, SRC, "top")
@@ -78,7 +78,7 @@ def test_each_accessor_returns_its_type_or_refuses(v):
             _refused(e.value, "top.k")
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(v=VALUES)
 def test_optional_and_required_keys(v):
     f = Fields({}, SRC)
@@ -105,7 +105,7 @@ def test_done_refuses_the_first_unread_key(keys):
     _refused(e.value, f"blk.{keys[1]}")
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(v=VALUES)
 def test_typed_checks_the_json_type(v):
     d = {"rss_source": {"seed": v}}
@@ -126,7 +126,7 @@ DISTS = st.fixed_dictionaries(
 )
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(v=DISTS | VALUES)
 def test_a_generated_distribution_is_accepted_or_refused_naming_its_field(v):
     """Any value where a family holds a distribution: accepted, or one InputError naming a field
@@ -139,7 +139,7 @@ def test_a_generated_distribution_is_accepted_or_refused_naming_its_field(v):
         ), str(e)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     fixed=st.none() | st.floats(-1, 2),
     speed=st.none() | st.tuples(st.floats(-2, 5), st.floats(-2, 5)),
@@ -159,7 +159,7 @@ def test_dataset_config_names_the_randomisation_field(fixed, speed):
     assert len(str(e.value).splitlines()) == 1
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(v=VALUES)
 def test_a_cards_reference_height_is_a_positive_number_or_refused(v):
     """The model card's altitude-normalisation entry (``altitude_scale.reference_height``)."""
