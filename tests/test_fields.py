@@ -5,6 +5,7 @@ configuration) refuse generated bad values the same way and never raise anything
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
@@ -16,6 +17,8 @@ from mission.fields import REQUIRED, Fields, check_types
 from mission.localize.altitude_scale import METADATA_KEY, reference_height
 from mission.physics.family import check_dist
 from mission.workshop.dataset_config import DatasetConfig, Randomisation, check_config
+from mission.workshop.suite_cache import FORMAT as SUITE_FORMAT
+from mission.workshop.suite_cache import CachedSuite
 
 SRC = "cfg.yaml"
 # any JSON-ish value a user's file can hold
@@ -171,3 +174,24 @@ def test_a_cards_reference_height_is_a_positive_number_or_refused(v):
         reference_height(td, SRC)
     _refused(e.value, f"training_data.{METADATA_KEY}.reference_height_m")
     assert reference_height({}, SRC) is None and reference_height(None, SRC) is None
+
+
+@settings(max_examples=100, deadline=None)
+@given(key=st.sampled_from(["format", "flights", "file", "truth_xy", "draw"]), v=VALUES)
+def test_a_suite_manifest_is_read_or_refused_naming_the_field(tmp_path_factory, key, v):
+    """``suite.json`` with one value replaced: read, or one InputError naming the file (a text
+    ``truth_xy`` or a missing ``flights`` was a traceback)."""
+    flight = {"file": "f.csv", "truth_xy": [1.0, 2.0], "draw": {}}
+    m = {"format": SUITE_FORMAT, "flights": [flight]}
+    if key in ("format", "flights"):
+        m[key] = v
+    else:
+        flight[key] = v
+    d = tmp_path_factory.mktemp("suite")
+    (d / "suite.json").write_text(json.dumps(m))
+    try:
+        cs = CachedSuite(d)
+    except InputError as e:
+        assert len(str(e).splitlines()) == 1 and e.source == str(d / "suite.json"), str(e)
+    else:
+        assert cs.manifest == m and len(cs) == len(m["flights"])
