@@ -35,7 +35,7 @@ TYPE_NAMES = {
 }
 
 
-def _is_number(v: Any) -> bool:
+def is_number(v: Any) -> bool:
     """A finite int or float that is not a bool."""
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
@@ -106,7 +106,7 @@ class Fields:
         if self._optional(name, default):
             return None
         v = self.raw(name, default)
-        if not _is_number(v):
+        if not is_number(v):
             raise self.err(name, f"expected a number, got {v!r}")
         if lo is not None and (v <= lo if strict_lo else v < lo):
             raise self.err(name, f"must be {'>' if strict_lo else '>='} {lo}, got {v}")
@@ -163,7 +163,7 @@ class Fields:
         if self._optional(name, default):
             return None
         v = self.raw(name, default)
-        if not (isinstance(v, list | tuple) and len(v) == 2 and all(_is_number(x) for x in v)):
+        if not (isinstance(v, list | tuple) and len(v) == 2 and all(is_number(x) for x in v)):
             raise self.err(name, f"expected [low, high], got {v!r}")
         if ordered and v[0] > v[1]:
             raise self.err(name, f"needs low <= high, got {list(v)!r}")

@@ -27,7 +27,7 @@ from mission.defaults import (
     MAX_SPEEDUP,
 )
 from mission.errors import InputError
-from mission.fields import Fields, read_yaml
+from mission.fields import Fields, is_number, read_yaml
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.physics import make_model
 from mission.shipped import missions_dir, resolve_shipped
@@ -248,13 +248,7 @@ def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
         pr.done()
         e = origin.to_enu(lat, lon)
         return np.array([e[0], e[1], h])
-    if (
-        isinstance(v, list | tuple)
-        and len(v) in (2, 3)
-        and all(
-            isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v
-        )
-    ):
+    if isinstance(v, list | tuple) and len(v) in (2, 3) and all(is_number(c) for c in v):
         if any(abs(c) > MAX_LOCAL_M for c in v):
             raise InputError(
                 f"{v!r} is more than {MAX_LOCAL_M:g} m from the origin (ENU metres)",
@@ -401,7 +395,7 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     if not (
         isinstance(lim, list)
         and len(lim) == 2
-        and all(isinstance(x, int | float) and not isinstance(x, bool) for x in lim)
+        and all(is_number(x) for x in lim)
         and 0 <= lim[0] < lim[1] <= MAX_ALTITUDE_M
     ):
         raise r.err(

@@ -41,7 +41,7 @@ def _refused(e: InputError, field: str) -> None:
     assert e.exit_code == 2 and e.field == field
 
 
-def _is_num(v) -> bool:
+def _is_num(v) -> bool:  # written out here: the test does not take the layer's word for it
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from mission.errors import InputError
-from mission.fields import REQUIRED, Fields
+from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
 from mission.physics.presets import build_model
 from mission.physics.shadowing import shadowing_field
@@ -89,7 +89,7 @@ def check_dist(v: Any, where: str, source: str | None = None) -> None:
             and (
                 not isinstance(p, list)
                 or len(p) != len(vals)
-                or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in p)
+                or not all(is_number(x) for x in p)
                 or not abs(sum(p) - 1.0) <= 1e-6  # NaN weights too
             )
         ):
