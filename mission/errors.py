@@ -44,12 +44,3 @@ def one_line(text: str) -> str:
         if any(c in _LINE_BREAKS for c in text)
         else text
     )
-
-
-def refuse_unknown_keys(d: dict, allowed, what: str) -> None:
-    """Raise an ``InputError`` naming the first key of ``d`` that is not in ``allowed`` (a typo must
-    not be silently ignored when a configuration is read back from a file or a model's metadata)."""
-    allowed = set(allowed)
-    unknown = [k for k in d if k not in allowed]
-    if unknown:
-        raise InputError(f"unknown {what} key(s) {', '.join(unknown)}", field=unknown[0])

@@ -27,15 +27,21 @@ from mission.defaults import (
     MAX_SPEEDUP,
 )
 from mission.errors import InputError
+from mission.fields import Fields, is_number, read_yaml
 from mission.geo import AFAR_GEOMETRY, Area, Field, Origin, afar_field
 from mission.physics import make_model
 from mission.shipped import missions_dir, resolve_shipped
 from mission.simulate import SimConfig
-from mission.spec_reader import SpecReader as _Reader
-from mission.spec_reader import read_yaml
 from mission.trajectory.checks import RETURN_OVERSHOOT_M
 from mission.trajectory.generators import GENERATORS, generate
 from mission.trajectory.kinematics import Kinematics
+
+
+class _Reader(Fields):
+    """A mission file's mappings: an unknown key points at the annotated schema."""
+
+    hint = "see the schema at the top of missions/spiral.yaml"
+
 
 DEFAULT_MISSION = missions_dir() / "spiral.yaml"  # the checkout's missions/ or the installed copy
 RETURN_BEHAVIOURS = ("rtl", "land")
@@ -242,13 +248,7 @@ def _point(v: Any, r: _Reader, key: str, origin: Origin) -> np.ndarray:
         pr.done()
         e = origin.to_enu(lat, lon)
         return np.array([e[0], e[1], h])
-    if (
-        isinstance(v, list | tuple)
-        and len(v) in (2, 3)
-        and all(
-            isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v
-        )
-    ):
+    if isinstance(v, list | tuple) and len(v) in (2, 3) and all(is_number(c) for c in v):
         if any(abs(c) > MAX_LOCAL_M for c in v):
             raise InputError(
                 f"{v!r} is more than {MAX_LOCAL_M:g} m from the origin (ENU metres)",
@@ -395,7 +395,7 @@ def parse_mission(data: Any, path: str | Path | None = None) -> MissionSpec:
     if not (
         isinstance(lim, list)
         and len(lim) == 2
-        and all(isinstance(x, int | float) and not isinstance(x, bool) for x in lim)
+        and all(is_number(x) for x in lim)
         and 0 <= lim[0] < lim[1] <= MAX_ALTITUDE_M
     ):
         raise r.err(

@@ -203,7 +203,7 @@ REFUSED = [
     ("rfsl import gpx {mats}/a.mat --out {tmp}", ["kind", "invalid choice"]),
     ("rfsl import afar-mat {mats}/a.mat", ["--out", "required"]),
     # rfsl dataset
-    ("rfsl dataset {mission} --n 0 --out {tmp}/ds", ["n=0"]),
+    ("rfsl dataset {mission} --n 0 --out {tmp}/ds", ["field 'n'", "must be >= 1, got 0"]),
     ("rfsl dataset {mission} --n 5 --out {plain}", ["--out", "not a folder"]),
     ("rfsl dataset {mission} --n 5 --out {tmp}/ds --noise -1,2", ["--noise", "negative"]),
     ("rfsl dataset {mission} --n 5 --out {tmp}/ds --tx-height -3,2", ["--tx-height", "negative"]),

@@ -3,11 +3,14 @@
 broken; the runtime (what ``localize`` and ``fly-mission`` run) never imports the workshop
 (``mission.workshop``); and the localizer (``mission.localize`` and every module it reaches) imports
 neither the simulator (``mission.simulate``) nor the mission parser (``mission.spec``): a network's
-training facts are read from its card."""
+training facts are read from its card; nor does it reach up into the command layer
+(``mission.cli``): what both print through lives below them (``mission.console``)."""
 
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 # circles known when this test was written, each to be broken by moving the shared piece down
@@ -29,7 +32,7 @@ WORKSHOP = "mission.workshop"
 # what the localizer never reaches: it reads a network's training domain from the card written at
 # training time (``localize --at`` also reaches the adaptive planner, part of the flight, which
 # builds mission specs)
-LOCALIZE_FORBIDDEN = ("mission.simulate", "mission.spec", WORKSHOP)
+LOCALIZE_FORBIDDEN = ("mission.simulate", "mission.spec", WORKSHOP, "mission.cli")
 
 
 def import_graph(root: Path) -> dict[str, set[str]]:
@@ -184,8 +187,11 @@ def test_the_localizer_imports_neither_simulator_nor_mission_parser(repo_dir) ->
         "mission.spec"
     }
     graph["mission.geo"] = graph["mission.geo"] | {"mission.simulate"}
+    # and the command layer, the way matched.py once took its console from mission.cli.main
+    graph["mission.localize.matched"] = graph["mission.localize.matched"] | {"mission.cli.main"}
     assert localizer_imports(graph) == {
         "mission.geo": ["mission.simulate"],
+        "mission.localize.matched": ["mission.cli.main"],
         "mission.localize.training_domain": ["mission.spec"],
     }
 
@@ -213,3 +219,20 @@ def test_architecture_map_names_every_module_in_its_room(repo_dir) -> None:
         assert not [f for f in other if f"`{f}`" in row], (
             f"mission/{room}/ row names the other room's modules"
         )
+
+
+# libraries only some localize routes use: imported where those routes need them, so that
+# ``localize --method grid`` starts without them (it started 0.7-0.9 s slower when api.py reached
+# them at load)
+OTHER_ROUTES_ONLY = ("scipy.stats", "onnxruntime", "contourpy", "scipy.spatial")
+
+
+def test_the_localize_entry_loads_no_other_routes_library(repo_dir) -> None:
+    code = (
+        "import sys, mission.cli.localize, mission.localize.api, mission.localize.classical; "
+        f"print(sorted(m for m in {OTHER_ROUTES_ONLY!r} if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=repo_dir, capture_output=True, text=True, check=True
+    )
+    assert out.stdout.strip() == "[]", f"loaded at import: {out.stdout.strip()}"

@@ -82,7 +82,7 @@ BAD = [
     (
         "trajectory: {generator: spiral, params: {spacing_m: -5}}\n",
         "trajectory.params.spacing_m",
-        "positive",
+        "must be > 0",
     ),
     (
         "trajectory: {generator: spiral, params: {spacing: 5}}\n",

@@ -38,15 +38,11 @@ class AdaptiveSpec:
 
 
 def parse_adaptive(r) -> AdaptiveSpec:
-    """The ``adaptive:`` mapping (a ``SpecReader``) -> ``AdaptiveSpec``; errors name
+    """The ``adaptive:`` mapping (a ``mission.fields.Fields``) -> ``AdaptiveSpec``; errors name
     ``adaptive.<key>``."""
     d = AdaptiveSpec()  # every default is the dataclass's
-    en = r.raw("enabled", d.enabled)
-    if not isinstance(en, bool):
-        raise r.err("enabled", f"expected true or false, got {en!r}")
-    ex = r.raw("explore", d.explore)
-    if not isinstance(ex, bool):
-        raise r.err("explore", f"expected true or false, got {ex!r}")
+    en = r.bool_("enabled", d.enabled)
+    ex = r.bool_("explore", d.explore)
     alt = (
         r.num("altitude_m", math.nan, 0.0, strict_lo=True) if r.has("altitude_m") else d.altitude_m
     )

@@ -70,17 +70,49 @@ def _groups(paths, regex: str | None) -> tuple[list[str], str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Check the arguments, read the flights, fit with held-out figures, write the preset and print
+    the comparison."""
     import json
     import shlex
     import sys
+
+    from rich.progress import Progress
+
+    from mission.calibrate import calibrate, preset_record
+    from mission.cli.main import console
+    from mission.files import write_text
+
+    out, configs, paths, groups, how = _checked(args)
+    flights = _flights(paths)
+    con = console(stderr=True)
+    con.print(f"{len(flights)} flights, {len(set(groups))} groups ({how})")
+    con.print(f"configurations: {', '.join(configs)}")
+    with Progress(console=con, transient=True) as prog:
+        task = prog.add_task("calibrating", total=len(configs))
+        res = calibrate(
+            flights,
+            groups,
+            configs,
+            max_samples=args.max_samples,
+            progress=lambda n: prog.update(task, description=f"held-out fits of {n}", advance=1),
+        )
+    cmd = "rfsl calibrate " + " ".join(shlex.quote(a) for a in sys.argv[2:])
+    rec = preset_record(
+        args.name or out.stem, res, flights, groups, cmd, data=", ".join(str(p) for p in paths)
+    )
+    write_text(out, json.dumps(rec, indent=1, default=float) + "\n", "--out")
+    _print_result(res, out)
+    return 0
+
+
+def _checked(args: argparse.Namespace):
+    """(out path, configurations, log paths, their groups, how they were grouped), or an
+    InputError naming the argument."""
     from pathlib import Path
 
-    from mission.calibrate import DEFAULT_CONFIGS, calibrate, config, preset_record
-    from mission.cli.main import console, out_parent_ok
+    from mission.calibrate import DEFAULT_CONFIGS, config
+    from mission.cli.main import out_parent_ok
     from mission.errors import InputError
-    from mission.flightlog import read_flight_log
-    from mission.gap.align import flight_from_log
-    from mission.localize.preprocess import select_samples
 
     out = Path(args.out)
     if out.suffix.lower() != ".json":
@@ -105,33 +137,28 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(
             "held-out calibration needs flights of at least two groups", field="--groups"
         )
+    return out, configs, paths, groups, how
+
+
+def _flights(paths) -> list:
+    """The logs' fitted samples as the gap's flights (each log read and validated)."""
+    from mission.flightlog import read_flight_log
+    from mission.gap.align import flight_from_log
+    from mission.localize.preprocess import select_samples
+
     flights = []
     for p in paths:
         log = read_flight_log(p)
         part, _ = select_samples(log)
         flights.append(flight_from_log(part, name=p.stem))
-    con = console(stderr=True)
-    con.print(f"{len(flights)} flights, {len(set(groups))} groups ({how})")
-    con.print(f"configurations: {', '.join(configs)}")
-    from rich.progress import Progress
+    return flights
 
-    with Progress(console=con, transient=True) as prog:
-        task = prog.add_task("calibrating", total=len(configs))
-        res = calibrate(
-            flights,
-            groups,
-            configs,
-            max_samples=args.max_samples,
-            progress=lambda n: prog.update(task, description=f"held-out fits of {n}", advance=1),
-        )
-    cmd = "rfsl calibrate " + " ".join(shlex.quote(a) for a in sys.argv[2:])
-    rec = preset_record(
-        args.name or out.stem, res, flights, groups, cmd, data=", ".join(str(p) for p in paths)
-    )
-    from mission.files import write_text
 
-    write_text(out, json.dumps(rec, indent=1, default=float) + "\n", "--out")
+def _print_result(res: dict, out) -> None:
+    """The held-out table of every configuration and the chosen one's parameters (80 columns)."""
     from rich.table import Table
+
+    from mission.cli.main import console
 
     tab = Table(title="held-out fit (leave one group out): |measured - model - offset|")
     for col in ("configuration", "median dB", "p90 dB", "rms dB", "soft-L1"):
@@ -152,4 +179,3 @@ def run(args: argparse.Namespace) -> int:
     )
     console().print(f"wrote {out}: {res['chosen']}")
     console().print(textwrap.fill(params, 80, initial_indent="  ", subsequent_indent="  "))
-    return 0

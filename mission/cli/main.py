@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from mission import __version__
+from mission.console import console  # noqa: F401  (re-exported: the commands import it here)
 from mission.errors import InputError, one_line
 
 # name -> (module, one-line purpose). The order is the order of `rfsl --help`.
@@ -151,14 +152,6 @@ def model_name_arg(value: str) -> str:
         return canonical_model_name(value)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
-
-
-def console(stderr: bool = False):
-    """A rich Console that does not fold long lines mid-word when the output is a file or a pipe."""
-    from rich.console import Console
-
-    stream = sys.stderr if stderr else sys.stdout
-    return Console(stderr=stderr, soft_wrap=not stream.isatty())
 
 
 def print_notes(notes: Sequence[str]) -> None:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.fields import Fields, check_types
 from mission.files import check_regular, read_bytes, read_text
 from mission.flightlog.schema import (
     COLUMNS,
@@ -347,39 +348,6 @@ SIDECAR_TYPES: dict[str, tuple[type, ...]] = {
 }
 
 
-def check_types(d: dict, types: dict[str, tuple[type, ...]], source: str) -> None:
-    """Every key of ``types`` present (not null) in ``d`` has one of its types; else an InputError
-    naming the dotted key.  A number must be finite; bool is not a number."""
-    for key, ok in types.items():
-        head, _, tail = key.rpartition(".")
-        parent = d
-        for part in head.split(".") if head else ():
-            parent = parent.get(part) if isinstance(parent, dict) else None
-        if not isinstance(parent, dict) or parent.get(tail) is None:
-            continue
-        v = parent[tail]
-        good = isinstance(v, ok) and not (isinstance(v, bool) and bool not in ok)
-        if good and isinstance(v, float) and not np.isfinite(v):
-            good = False
-        if not good:
-            names = " or ".join(
-                {
-                    dict: "an object",
-                    list: "a list",
-                    str: "a string",
-                    int: "an integer",
-                    float: "a number",
-                    bool: "true/false",
-                }[t]
-                for t in ok
-            )
-            raise InputError(
-                f"expected {names}, got {type(v).__name__} {str(v)[:40]!r}",
-                source=source,
-                field=key,
-            )
-
-
 # A log whose sidecar still says "flying": fly-mission was killed outright (SIGKILL, power) before
 # it closed it (one note line within 80 columns with the WARNING prefix).
 ENDED_OPEN = "the log ended without closing (sidecar status 'flying')"
@@ -415,43 +383,26 @@ def _read_sidecar(path: Path, notes: list[str], origin_given: bool = False) -> d
             f"sidecar must be a JSON object, got {type(meta).__name__}", source=str(sc)
         )
     check_types(meta, SIDECAR_TYPES, str(sc))
-
-    def num(d: dict, key: str, where: str, lim: float | None = None, required: bool = True) -> None:
-        v = d.get(key)
-        if v is None and not required:
-            return
-        ok = isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
-        if not ok or (lim is not None and abs(v) > lim):
-            what = f"a number within +-{lim:g}" if lim is not None else "a finite number"
-            raise InputError(f"expected {what}, got {v!r}", source=str(sc), field=f"{where}.{key}")
-
-    o = meta.get("origin")
-    if o is not None:
-        if not isinstance(o, dict):
-            raise InputError("expected {lat_deg, lon_deg, alt_m}", source=str(sc), field="origin")
-        num(o, "lat_deg", "origin", 90.0)
-        num(o, "lon_deg", "origin", 180.0)
-        num(o, "alt_m", "origin", _ABS_LIMITS["alt_m"], required=False)
-    tr = meta.get("truth")
-    if tr:
-        if not isinstance(tr, dict):
-            raise InputError(
-                "expected {lat_deg, lon_deg, height_m} or {x_m, y_m, z_m}",
-                source=str(sc),
-                field="truth",
-            )
-        if "x_m" in tr:
-            for k in ("x_m", "y_m", "z_m"):
-                num(tr, k, "truth", 1e6, required=k != "z_m")
+    if meta.get("origin") is not None:
+        o = Fields(meta["origin"], str(sc), "origin", shape="{lat_deg, lon_deg, alt_m}")
+        o.num("lat_deg", lo=-90.0, hi=90.0)
+        o.num("lon_deg", lo=-180.0, hi=180.0)
+        o.num("alt_m", None, -_ABS_LIMITS["alt_m"], _ABS_LIMITS["alt_m"])
+    if meta.get("truth"):
+        t = Fields(
+            meta["truth"], str(sc), "truth", shape="{lat_deg, lon_deg, height_m} or {x_m, y_m, z_m}"
+        )
+        if "x_m" in t.d:
+            for k in ("x_m", "y_m"):
+                t.num(k, lo=-1e6, hi=1e6)
+            t.num("z_m", None, -1e6, 1e6)
         else:
-            num(tr, "lat_deg", "truth", 90.0)
-            num(tr, "lon_deg", "truth", 180.0)
+            t.num("lat_deg", lo=-90.0, hi=90.0)
+            t.num("lon_deg", lo=-180.0, hi=180.0)
         for k in ("z_m", "height_m"):
-            num(tr, k, "truth", 1e4, required=False)
-            if tr.get(k) is not None and tr[k] < 0:
-                raise InputError(
-                    f"transmitter below ground ({tr[k]:g} m)", source=str(sc), field=f"truth.{k}"
-                )
+            h = t.num(k, None, -1e4, 1e4)
+            if h is not None and h < 0:
+                raise t.err(k, f"transmitter below ground ({h:g} m)")
     status = meta.get("status")
     if status == "flying":  # the writer opens the sidecar so and closes it; killed, it stays
         notes.append(f"{WARNING}{ENDED_OPEN}: read as it is")

@@ -23,6 +23,7 @@ import numpy as np
 
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
+from mission.fields import Fields
 
 REFERENCE_ALTITUDE_M = 30.0  # the mission altitude the networks were first trained at
 # 28.5 m: over the default transmitter height
@@ -43,11 +44,14 @@ def metadata_entry() -> dict:
     }
 
 
-def reference_height(training_data: dict | None) -> float | None:
+def reference_height(training_data: dict | None, src: str | None = None) -> float | None:
     """The reference height (m) of an altitude-normalised network from its ``training_data``
-    metadata; None for a network whose coordinates are metres."""
-    entry = (training_data or {}).get(METADATA_KEY)
-    return None if entry is None else float(entry["reference_height_m"])
+    metadata; None for a network whose coordinates are metres.  A malformed entry is an InputError
+    naming the model ``src`` and the field."""
+    td = Fields(training_data, src, "training_data")
+    if not td.has(METADATA_KEY):
+        return None
+    return td.sub(METADATA_KEY).num("reference_height_m", lo=0.0, strict_lo=True)
 
 
 def scale_factor(height_m, reference_m: float = REFERENCE_HEIGHT_M) -> np.ndarray:

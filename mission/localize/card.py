@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.fields import REQUIRED, Fields
 from mission.geo import Origin
 from mission.localize.altitude_scale import METADATA_KEY, reference_height
 from mission.localize.features import FEATURE_VERSION, FeatureConfig
@@ -62,19 +63,14 @@ class Normalisation:
 
     @classmethod
     def from_dict(cls, norm, src: str) -> Normalisation:
-        try:
-            return cls(
-                *(
-                    np.asarray(norm[k], dtype=np.float64)
-                    for k in ("input_mean", "input_std", "output_mean", "output_std")
-                )
-            )
-        except (KeyError, TypeError) as e:
-            raise InputError(
-                f"input_normalisation needs input_mean/input_std/output_mean/output_std ({e})",
-                source=src,
-                field="input_normalisation",
-            ) from None
+        f = Fields(norm, src, "input_normalisation")
+        arrays = []
+        for k in ("input_mean", "input_std", "output_mean", "output_std"):
+            try:
+                arrays.append(np.asarray(f.raw(k, REQUIRED), dtype=np.float64))
+            except (TypeError, ValueError):
+                raise f.err(k, "expected a number or a list of numbers") from None
+        return cls(*arrays)
 
 
 @dataclass(frozen=True)
@@ -97,24 +93,10 @@ class TrainingDomain:
     def from_dict(cls, d, src: str) -> TrainingDomain:
         """The card's record; ``InputError`` naming the card and key when a span is not two
         ascending numbers."""
-        if not isinstance(d, dict):
-            raise InputError("needs a JSON object", source=src, field=DOMAIN_KEY)
-        spans = {}
-        for key in ("altitude_m", "roll_deg", "pitch_deg"):
-            v = d.get(key)
-            try:
-                spans[key] = None if v is None else (float(v[0]), float(v[1]))
-                ok = v is None or (len(v) == 2 and spans[key][0] <= spans[key][1])
-            except (TypeError, ValueError, IndexError, KeyError):
-                ok = False
-            if not ok:
-                raise InputError(
-                    "needs [low, high] or null", source=src, field=f"{DOMAIN_KEY}.{key}"
-                )
+        f = Fields(d, src, DOMAIN_KEY)
+        spans = {key: f.span(key, None) for key in ("altitude_m", "roll_deg", "pitch_deg")}
         if (spans["roll_deg"] is None) != (spans["pitch_deg"] is None):
-            raise InputError(
-                "roll_deg and pitch_deg are both given or both null", source=src, field=DOMAIN_KEY
-            )
+            raise f.err("pitch_deg", "roll_deg and pitch_deg are both given or both null")
         att = None if spans["roll_deg"] is None else (spans["roll_deg"], spans["pitch_deg"])
         return cls(spans["altitude_m"], att)
 
@@ -122,9 +104,10 @@ class TrainingDomain:
 def _metadata(props: dict, src: str) -> dict:
     """The ONNX metadata with the contract's keys decoded from JSON (``feature_kind`` may be plain
     text)."""
+    f = Fields(props, src)
     for key in REQUIRED_KEYS:
         if key not in props:
-            raise InputError("model metadata lacks this key", source=src, field=key)
+            raise f.err(key, "model metadata lacks this key")
     meta: dict = {}
     for key, val in props.items():
         if key in REQUIRED_KEYS or key == "training_data":
@@ -132,9 +115,7 @@ def _metadata(props: dict, src: str) -> dict:
                 meta[key] = json.loads(val)
             except json.JSONDecodeError:
                 if key != "feature_kind":
-                    raise InputError(
-                        "model metadata is not valid JSON", source=src, field=key
-                    ) from None
+                    raise f.err(key, "model metadata is not valid JSON") from None
                 meta[key] = val
         else:
             meta[key] = val
@@ -144,10 +125,8 @@ def _metadata(props: dict, src: str) -> dict:
 def _feature_config(fc, expect_config: FeatureConfig | dict | None, src: str) -> FeatureConfig:
     """The model's feature configuration, compared key by key with what the caller intends to
     feed."""
-    if not isinstance(fc, dict):
-        raise InputError("feature_config must be a JSON object", source=src, field="feature_config")
     # a model older than a later key was made with its neutral value
-    fc = FeatureConfig.normalised(fc)
+    fc = FeatureConfig.normalised(Fields(fc, src, "feature_config").d)
     if expect_config is not None:
         want = (
             expect_config.to_dict()
@@ -239,13 +218,7 @@ class ModelCard:
         path = Path(path)
         src = str(path)
         meta = _metadata(props, src)
-        kind = meta["feature_kind"]
-        if kind not in FEATURE_KINDS:
-            raise InputError(
-                f"unknown feature kind {kind!r} (expected {', '.join(FEATURE_KINDS)})",
-                source=src,
-                field="feature_kind",
-            )
+        kind = Fields(meta, src).str_("feature_kind", choices=FEATURE_KINDS)
         if expect_kind is not None and expect_kind != kind:
             raise InputError(
                 f"model was trained on {kind!r} features, caller asks for {expect_kind!r}",
@@ -254,13 +227,13 @@ class ModelCard:
             )
         cfg = _feature_config(meta["feature_config"], expect_config, src)
         norm = Normalisation.from_dict(meta["input_normalisation"], src)
-        try:
-            origin = Origin.from_dict(meta["field_origin"])
-        except (KeyError, TypeError, ValueError):
-            raise InputError(
-                "field_origin needs lat_deg, lon_deg", source=src, field="field_origin"
-            ) from None
-        ref = reference_height(meta.get("training_data"))
+        fo = Fields(meta["field_origin"], src, "field_origin")
+        origin = Origin(
+            fo.num("lat_deg", lo=-90, hi=90),
+            fo.num("lon_deg", lo=-180, hi=180),
+            fo.num("alt_m", 0.0),
+        )
+        ref = reference_height(meta.get("training_data"), src)
         if ref is not None and kind != "clustering":
             raise InputError(
                 "altitude normalisation needs clustering features",

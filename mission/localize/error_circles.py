@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.fields import REQUIRED, Fields
 from mission.geo import Area, clip_polygon, polygon_area_m2
 from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
@@ -74,49 +75,37 @@ def _read_entries(p: Path, what: str) -> dict:
 
 def _checked(rec, p: Path, key: str) -> dict:
     """A stored record with its radii as {level: metres}; ``InputError`` naming file and key when
-    malformed."""
+    malformed (``mission.fields``)."""
+    f = Fields(rec, str(p), key)
     try:
-        radii = {float(k): float(v) for k, v in rec["radii_m"].items()}
-    except (KeyError, TypeError, ValueError, AttributeError):
-        raise InputError("needs radii_m: {level: metres}", source=str(p), field=key) from None
+        radii = {float(k): float(v) for k, v in f.sub("radii_m", REQUIRED).d.items()}
+    except (TypeError, ValueError):
+        raise f.err("radii_m", "needs {level: metres}") from None
     if not radii or not all(0.0 < k < 1.0 and 0.0 < v < math.inf for k, v in radii.items()):
-        raise InputError(
-            "radii_m needs levels in (0, 1) and positive finite radii",
-            source=str(p),
-            field=f"{key}.radii_m",
+        raise f.err("radii_m", "needs levels in (0, 1) and positive finite radii")
+    if not f.has("track"):
+        return dict(rec, radii_m=radii)
+    t = f.sub("track")
+    try:
+        b = [float(x) for x in t.raw("bounds", REQUIRED)]
+        t_radii = {float(k): [float(r) for r in v] for k, v in t.sub("radii_m", REQUIRED).d.items()}
+    except (TypeError, ValueError):
+        raise f.err("track", "track needs bounds and radii_m") from None
+    if (
+        set(t_radii) != set(radii)
+        or not b
+        or not 0.0 < b[0] <= 1.0
+        or b != sorted(b)
+        or not all(
+            len(v) == len(b) and all(0.0 < r < math.inf for r in v) for v in t_radii.values()
         )
-    tr = rec.get("track")
-    if tr is not None:
-        try:
-            tr = dict(
-                tr,
-                bounds=[float(b) for b in tr["bounds"]],
-                radii_m={float(k): [float(r) for r in v] for k, v in tr["radii_m"].items()},
-            )
-        except (KeyError, TypeError, ValueError, AttributeError):
-            raise InputError(
-                "track needs bounds and radii_m", source=str(p), field=f"{key}.track"
-            ) from None
-        b = tr["bounds"]
-        if (
-            set(tr["radii_m"]) != set(radii)
-            or not b
-            or not 0.0 < b[0] <= 1.0
-            or b != sorted(b)
-            or not all(
-                len(v) == len(b) and all(0.0 < r < math.inf for r in v)
-                for v in tr["radii_m"].values()
-            )
-        ):
-            raise InputError(
-                "track needs ascending coverage bounds in (0, 1] and, for each of the record's "
-                "levels, "
-                "one positive radius per bound",
-                source=str(p),
-                field=f"{key}.track",
-            )
-        rec = dict(rec, track=tr)
-    return dict(rec, radii_m=radii)
+    ):
+        raise f.err(
+            "track",
+            "track needs ascending coverage bounds in (0, 1] and, for each of the record's "
+            "levels, one positive radius per bound",
+        )
+    return dict(rec, track=dict(t.d, bounds=b, radii_m=t_radii), radii_m=radii)
 
 
 def flown_radii(rec: dict, coverage: float | None) -> tuple[dict[float, float] | None, str]:

@@ -53,7 +53,8 @@ from scipy.ndimage import convolve1d, gaussian_filter1d
 from threadpoolctl import ThreadpoolController
 
 from mission.cells import bin_index, bin_means
-from mission.errors import InputError, refuse_unknown_keys
+from mission.errors import InputError
+from mission.fields import Fields
 from mission.threads import thread_limits
 
 FEATURE_VERSION = 1
@@ -85,19 +86,14 @@ class FeatureConfig:
     version: int = FEATURE_VERSION
 
     def __post_init__(self) -> None:
-        if (
-            self.n_g < 1
-            or self.c_k < 1
-            or self.n_t < 1
-            or self.sigma < 0
-            or self.n_init < 1
-            or self.arc_step_m < 0
-        ):
-            raise InputError(f"invalid feature configuration {self.to_dict()}")
-        if self.order != "rss_desc":
-            raise InputError(
-                f"unknown cluster order rule {self.order!r} (expected 'rss_desc')", field="order"
-            )
+        """Refuse a configuration the features cannot be computed with (``mission.fields``: one
+        line naming ``feature_config.<key>``)."""
+        f = Fields(self.to_dict(), None, "feature_config")
+        for k in ("n_g", "c_k", "n_t", "n_init"):
+            f.int_(k, lo=1)
+        f.num("sigma", lo=0.0)
+        f.num("arc_step_m", lo=0.0)
+        f.str_("order", choices=("rss_desc",))  # the cluster order rule
 
     @property
     def kernel_length(self) -> int:
@@ -115,7 +111,7 @@ class FeatureConfig:
         """Build from a dict; unknown keys are refused (InputError naming the key); keys added after
         a model or dataset was written take their defaults, which reproduce the features it was made
         with."""
-        refuse_unknown_keys(d, (f.name for f in fields(cls)), "feature configuration")
+        Fields(d, None, "feature_config").done(f.name for f in fields(cls))
         return cls(**d)
 
     @staticmethod

@@ -32,7 +32,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from scipy.stats import gaussian_kde
 from threadpoolctl import threadpool_limits
 
-from mission.cli.main import console
+from mission.console import console
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.evidence import conformal_quantile

@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.localize.onnx_model import OnnxLocalizer
 from mission.localize.training_domain import altitude_note, flight_altitudes
 from mission.shipped import shipped_model
 
@@ -64,6 +63,10 @@ def sim_default_model(
     why_not = spiral_source(meta)
     if why_not is not None:
         return default, f"default model {dname} ({why_not}: not a spiral network's flight)"
+    # onnxruntime stays lazy (noqa): a simulated spiral's route only; localize --method grid and
+    # the classical routes start without it
+    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
+
     flown = flight_altitudes(heights_m)
     for name in SPIRAL_NETWORKS:
         path = shipped_model(name)

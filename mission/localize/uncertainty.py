@@ -22,10 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import contourpy
 import numpy as np
 from scipy.special import logsumexp
-from scipy.stats import chi2
 
 
 @dataclass
@@ -94,6 +92,9 @@ def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> dict:
     d = pts - mu
     cov = (w[:, None, None] * d[:, :, None] * d[:, None, :]).sum(axis=0)
     vals, vecs = np.linalg.eigh(cov)
+    # scipy.stats stays lazy (noqa): 0.5-0.8 s to import, and only the routes with regions get here
+    from scipy.stats import chi2  # noqa: PLC0415
+
     k = float(np.sqrt(chi2.ppf(level, 2)))
     a, b = k * np.sqrt(np.maximum(vals[::-1], 0.0))
     ang = float(np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1])))
@@ -119,6 +120,10 @@ def hpd_regions(
     benchmark (a recalibration of the posterior's credible levels); without it the HPD mass is the
     nominal level.
     """
+    # contourpy stays lazy (noqa): only the routes with regions draw them (localize --method grid
+    # starts without it)
+    import contourpy  # noqa: PLC0415
+
     post.grid = grid
     pts = grid.reshape(-1, 2)
     p = post.prob.ravel()

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from mission.errors import InputError
+from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
 from mission.physics.presets import build_model
 from mission.physics.shadowing import shadowing_field
@@ -56,60 +57,43 @@ def _is_dist(v: Any) -> bool:
 
 
 def check_dist(v: Any, where: str, source: str | None = None) -> None:
-    """Refuse a malformed distribution (one line naming the field)."""
+    """Refuse a malformed distribution (one line naming the field, ``mission.fields``)."""
     if isinstance(v, bool) or v is None or isinstance(v, str):
         return
+    f, name = Fields.holding(v, source, where)
     if isinstance(v, int | float):
-        if not math.isfinite(float(v)):
-            raise InputError(f"{where} is not finite", source=source, field=where)
+        f.num(name)
         return
     if not _is_dist(v):
-        raise InputError(
-            f"{where} is neither a number nor a distribution", source=source, field=where
-        )
-    kind = v["dist"]
-    need = {
-        "uniform": ("lo", "hi"),
-        "loguniform": ("lo", "hi"),
-        "normal": ("mean", "sd"),
-        "choice": ("options",),
-        "empirical": ("values",),
-    }.get(kind)
-    if need is None:
-        raise InputError(
-            f"{where}: unknown distribution {kind!r} (expected {', '.join(DISTS)})",
-            source=source,
-            field=where,
-        )
-    missing = [k for k in need if k not in v]
-    if missing:
-        raise InputError(
-            f"{where}: {kind} distribution needs {', '.join(missing)}", source=source, field=where
-        )
+        raise f.err(name, "neither a number nor a distribution")
+    d = f.sub(name)
+    kind = d.str_("dist", choices=DISTS)
     if kind in ("uniform", "loguniform"):
-        lo, hi = float(v["lo"]), float(v["hi"])
-        if (
-            not (math.isfinite(lo) and math.isfinite(hi))
-            or hi < lo
-            or (kind == "loguniform" and lo <= 0)
-        ):
-            raise InputError(f"{where}: bad range [{lo}, {hi}]", source=source, field=where)
-    if kind == "normal" and not float(v["sd"]) >= 0:
-        raise InputError(f"{where}: sd must be >= 0", source=source, field=where)
-    if kind in ("choice", "empirical"):
-        vals = v["options"] if kind == "choice" else v["values"]
+        lo = d.num("lo")
+        d.num("hi", lo=lo)  # a range: hi >= lo
+        if kind == "loguniform" and lo <= 0:
+            raise d.err("lo", f"a loguniform range needs lo > 0, got {lo}")
+    elif kind == "normal":
+        d.num("mean")
+        d.num("sd", lo=0.0)
+        d.num("lo", None)  # optional clipping bounds
+        d.num("hi", None)
+    else:
+        vals = d.raw("options" if kind == "choice" else "values", REQUIRED)
         if not isinstance(vals, list) or not vals:
-            raise InputError(f"{where}: needs a non-empty list", source=source, field=where)
+            raise d.err("options" if kind == "choice" else "values", "needs a non-empty list")
+        p = d.raw("p")
         if (
             kind == "choice"
-            and "p" in v
-            and (len(v["p"]) != len(vals) or abs(sum(v["p"]) - 1.0) > 1e-6)
-        ):
-            raise InputError(
-                f"{where}: p must have one weight per option and sum to 1",
-                source=source,
-                field=where,
+            and p is not None
+            and (
+                not isinstance(p, list)
+                or len(p) != len(vals)
+                or not all(is_number(x) for x in p)
+                or not abs(sum(p) - 1.0) <= 1e-6  # NaN weights too
             )
+        ):
+            raise d.err("p", "must have one weight per option and sum to 1")
 
 
 def draw_value(v: Any, rng: np.random.Generator) -> Any:

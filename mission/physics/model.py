@@ -278,46 +278,33 @@ class PropagationModel:
         b: int = 0,
     ) -> NDArray:
         """RSS of one block: tx (mb, 1 or nb, 3), rx (nb, 3), C (3, 3, nb) or None -> (mb, nb);
-        ``links``: its block ``b`` keeps the geometry and the additive terms."""
-        dt = tx.dtype.type
-        fs: FreeSpace = self.effect("free_space")
-        gr: GroundReflection | None = self._get("ground_reflection")
-        ta: TxAntenna | None = self._get("tx_antenna")
-        ra: RxAntenna | None = self._get("rx_antenna")
-        geo = None if links is None else links.geometry[b]
+        ``links``: its block ``b`` keeps the geometry and the additive terms.  Four phases: the
+        link geometry, the direct ray's antenna amplitude, the two-ray power with the ground, the
+        power in dBm with the additive terms."""
+        geo = links.geometry[b] if links is not None else None
         if geo is None:
-            z_t = tx[..., 2]
-            z_r = rx[:, 2]
-            dx, dy, dz = link_delta(tx, rx)  # delta = p_tx - p_rx (ENU)
-            d2 = dx * dx
-            d2 += dy * dy  # d_2D^2
-            d_los = np.sqrt(d2 + dz * dz)  # d_los = sqrt(d^2 + (h_r - h_t)^2)
-            np.maximum(d_los, dt(1e-3), out=d_los)  # coincident points: 1 mm, not a division by 0
-            inv_los = dt(1.0) / d_los
-            d = np.sqrt(d2)
-            if C is None:  # level body frame, yaw 0: u_b = (n, e, d)
-                u_b = (dy, dx, -dz)
-            else:  # u_b = C delta, C per sample (computed once, not per transmitter)
-                u_b = tuple(C[i, 0] * dx + C[i, 1] * dy + C[i, 2] * dz for i in range(3))
-            geo = (z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b)
+            geo = _link_geometry(tx, rx, C)
             if links is not None:
-                for v in (dx, dy, dz, d2, d_los, inv_los, d, *u_b):
+                for v in geo[2:9] + tuple(geo[9]):
                     v.flags.writeable = False
                 links.geometry[b] = geo
-        z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b = geo
 
         def kept(key: Any, compute: Callable[[], Any]) -> Any:  # an amplitude, kept by the links
             return compute() if links is None else links.kept(b, key, compute)
 
-        amp_dir = inv_los  # sqrt(G_t G_r) / d_los
-        az_tx_cache: list[NDArray] = []
-
         # compass bearing TX -> UAV, shared by both rays, computed at most once
-        def az_tx() -> NDArray:
-            if not az_tx_cache:
-                az_tx_cache.append(bearing(-dx, -dy))
-            return az_tx_cache[0]
+        az_tx = _once(lambda: bearing(-geo[2], -geo[3]))
+        dt = tx.dtype.type
+        amp_dir = self._direct_amplitude(geo, C, kept, az_tx, dt)
+        F2, d_ref = self._two_ray_power(geo, C, amp_dir, kept, az_tx, dt)
+        return self._power_dbm(F2, geo, d_ref, kept, dt)
 
+    def _direct_amplitude(self, geo: tuple, C: NDArray | None, kept, az_tx, dt) -> NDArray:
+        """sqrt(G_t G_r) / d_los of the direct ray (the antennas' amplitudes, kept by the links)."""
+        z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b = geo
+        ta: TxAntenna | None = self._get("tx_antenna")
+        ra: RxAntenna | None = self._get("rx_antenna")
+        amp_dir = inv_los  # sqrt(G_t G_r) / d_los
         # departure towards the UAV: sin el = (h_r - h_t) / d_los, cos el = d / d_los
         if ta is not None:
             amp_dir = amp_dir * kept(
@@ -333,50 +320,67 @@ class PropagationModel:
                 return ra._amplitude(s_r, c_r, lambda: body_azimuth(u_b[0], u_b[1]))
 
             amp_dir = amp_dir * kept((ra, "direct"), rx_direct)
-        d_ref = d_los
+        return amp_dir
+
+    def _two_ray_power(
+        self, geo: tuple, C: NDArray | None, amp_dir: NDArray, kept, az_tx, dt
+    ) -> tuple[NDArray, NDArray]:
+        """(F^2, d_ref): the power factor of the direct ray and, with a ground, its reflection
+        (eq. 1), and the reflected path length (d_los without a ground)."""
+        z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b = geo
+        gr: GroundReflection | None = self._get("ground_reflection")
         if gr is None:
-            F2 = amp_dir * amp_dir
-        else:
-            h_s = z_t + z_r
-            d_ref = np.sqrt(d2 + h_s * h_s)  # d_ref = sqrt(d^2 + (h_r + h_t)^2)
-            inv_ref = dt(1.0) / d_ref
-            sin_psi = h_s * inv_ref  # grazing angle psi
-            amp_ref = inv_ref
-            if ta is not None:  # departs downwards towards the specular point
-                amp_ref = amp_ref * kept(
-                    (ta, "reflected"), lambda: ta._amplitude(-sin_psi, d * inv_ref, az_tx)
-                )
-            if ra is not None:  # arrives from the image source at (x_t, y_t, -h_t)
-                if C is None:
-                    s_r2, c_r2 = -sin_psi, d * inv_ref
+            return amp_dir * amp_dir, d_los
+        fs: FreeSpace = self.effect("free_space")
+        ta: TxAntenna | None = self._get("tx_antenna")
+        ra: RxAntenna | None = self._get("rx_antenna")
+        h_s = z_t + z_r
+        d_ref = np.sqrt(d2 + h_s * h_s)  # d_ref = sqrt(d^2 + (h_r + h_t)^2)
+        inv_ref = dt(1.0) / d_ref
+        sin_psi = h_s * inv_ref  # grazing angle psi
+        amp_ref = inv_ref
+        if ta is not None:  # departs downwards towards the specular point
+            amp_ref = amp_ref * kept(
+                (ta, "reflected"), lambda: ta._amplitude(-sin_psi, d * inv_ref, az_tx)
+            )
+        if ra is not None:  # arrives from the image source at (x_t, y_t, -h_t)
+            if C is None:
+                s_r2, c_r2 = -sin_psi, d * inv_ref
 
-                    def az2() -> NDArray:
-                        return bearing(dx, dy)
-                else:
-                    two_zt = z_t + z_t
-                    ub2 = tuple(u_b[i] - C[i, 2] * two_zt for i in range(3))
-                    s_r2 = -ub2[2] * inv_ref
-                    c_r2 = np.sqrt(np.maximum(dt(1.0) - s_r2 * s_r2, dt(0.0)))
-
-                    def az2() -> NDArray:
-                        return body_azimuth(ub2[0], ub2[1])
-
-                amp_ref = amp_ref * kept((ra, "reflected"), lambda: ra._amplitude(s_r2, c_r2, az2))
-            g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
-            # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref +
-            # d_los): no cancellation
-            dphi = (z_t * z_r) * dt(4.0 * TWO_PI / wavelength(fs.fc_hz)) / (d_ref + d_los)
-            # (eq. 1) |A + Gamma B e^{-j dphi}|^2
-            #         = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})
-            re = g_re * np.cos(dphi)
-            if g_im is not None:
-                re += g_im * np.sin(dphi)
-                g2 = g_re * g_re + g_im * g_im
+                def az2() -> NDArray:
+                    return bearing(dx, dy)
             else:
-                g2 = g_re * g_re
-            AB = amp_dir * amp_ref
-            F2 = amp_dir * amp_dir + g2 * amp_ref * amp_ref + dt(2.0) * AB * re
-            np.maximum(F2, dt(1e-30), out=F2)
+                two_zt = z_t + z_t
+                ub2 = tuple(u_b[i] - C[i, 2] * two_zt for i in range(3))
+                s_r2 = -ub2[2] * inv_ref
+                c_r2 = np.sqrt(np.maximum(dt(1.0) - s_r2 * s_r2, dt(0.0)))
+
+                def az2() -> NDArray:
+                    return body_azimuth(ub2[0], ub2[1])
+
+            amp_ref = amp_ref * kept((ra, "reflected"), lambda: ra._amplitude(s_r2, c_r2, az2))
+        g_re, g_im = gr._gamma_fast(sin_psi, d2 * inv_ref * inv_ref, fs.fc_hz)
+        # RF phase difference psi_phase (eq. 1) = k (d_ref - d_los) = k 4 h_t h_r / (d_ref +
+        # d_los): no cancellation
+        dphi = (z_t * z_r) * dt(4.0 * TWO_PI / wavelength(fs.fc_hz)) / (d_ref + d_los)
+        # (eq. 1) |A + Gamma B e^{-j dphi}|^2
+        #         = A^2 + |Gamma|^2 B^2 + 2 A B Re(Gamma e^{-j dphi})
+        re = g_re * np.cos(dphi)
+        if g_im is not None:
+            re += g_im * np.sin(dphi)
+            g2 = g_re * g_re + g_im * g_im
+        else:
+            g2 = g_re * g_re
+        AB = amp_dir * amp_ref
+        F2 = amp_dir * amp_dir + g2 * amp_ref * amp_ref + dt(2.0) * AB * re
+        np.maximum(F2, dt(1e-30), out=F2)
+        return F2, d_ref
+
+    def _power_dbm(self, F2: NDArray, geo: tuple, d_ref: NDArray, kept, dt) -> NDArray:
+        """10 log10(F^2) + P_t + the Friis constant, plus the effects' additive terms."""
+        z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b = geo
+        fs: FreeSpace = self.effect("free_space")
+        grounded = self._get("ground_reflection") is not None
         rss = np.log(F2)  # float32 log is ~5x faster than log10
         rss *= dt(10.0 / math.log(10.0))
         rss += dt(fs.pt_dbm + friis_constant_db(fs.fc_hz))  # P_t + 20 log10(lambda / 4 pi)
@@ -384,7 +388,7 @@ class PropagationModel:
         if extra:
             link = Link((dx, dy, dz), z_t, z_r, d_los, d_ref, u_b)
             for e in extra:
-                rss += kept((e, "term", gr is not None), lambda e=e: e.rss_term_db(link))
+                rss += kept((e, "term", grounded), lambda e=e: e.rss_term_db(link))
         return rss
 
     # -- reference / explanation
@@ -397,97 +401,84 @@ class PropagationModel:
         phase_diff_rad (the paper's RF phase difference psi_phase, eq. 1), el_tx_dir_rad,
         el_tx_ref_rad, az_tx_rad, g_tx_dir_dbi, g_tx_ref_dbi, g_rx_dir_dbi, g_rx_ref_dbi, az_b_rad,
         dep_b_rad, az_b_ref_rad, dep_b_ref_rad, direct_dbm, reflected_dbm, two_ray_dbm, shadowed,
-        upsilon_db, rss_dbm (and ``<name>_db`` for other additive effects).
+        upsilon_db, rss_dbm (and ``<name>_db`` for other additive effects).  Phases: the geometry
+        and angles, the antenna gains, the two rays (eq. 1), the additive terms.
         """
         tx, rx, out_shape, paired = _prepare(tx_enu, rx_enu)
         N = rx.shape[0]
         T = tx if paired else np.broadcast_to(tx, (tx.shape[0], N, 3))
-        fs: FreeSpace = self.effect("free_space")
-        gr = self._get("ground_reflection")
-        ta, ra = self._get("tx_antenna"), self._get("rx_antenna")
-        ls = self._get("leg_shadowing")
         att = as_attitude(attitude_rad if self.has("attitude") else None, N)
         if self.has("attitude"):
             att = self.effect("attitude").apply(att)
-        lam = wavelength(fs.fc_hz)
         u = T - rx  # p_tx - p_uav, ENU
-        h_t, h_r = T[..., 2], np.broadcast_to(rx[:, 2], u.shape[:-1])
-        d_2d = horizontal_distance(u[..., 0], u[..., 1])
-        d_los = np.sqrt(d_2d**2 + (h_r - h_t) ** 2)
-        d_ref = np.sqrt(d_2d**2 + (h_r + h_t) ** 2)
-        psi = elevation(h_r + h_t, d_2d)  # grazing angle: the image source's depression
-        az_tx = bearing(-u[..., 0], -u[..., 1])
-        el_tx_dir = elevation(h_r - h_t, d_2d)
-        el_tx_ref = -psi
-        az_b, dep_b = body_angles(enu_to_ned(u), att)
-        u_img = u.copy()
-        u_img[..., 2] = -(h_t + h_r)  # towards the image source (x_t, y_t, -h_t)
-        az_b2, dep_b2 = body_angles(enu_to_ned(u_img), att)
-        zero = np.zeros_like(d_los)
-        g_td = ta.gain_dbi(el_tx_dir, az_tx) if ta else zero
-        g_tr = ta.gain_dbi(el_tx_ref, az_tx) if ta else zero
-        g_rd = ra.gain_dbi(-dep_b, az_b) if ra else zero
-        g_rr = ra.gain_dbi(-dep_b2, az_b2) if ra else zero
+        q = _explain_geometry(T, u, rx, att)
+        q.update(self._explain_gains(q))
+        q.update(self._explain_rays(q))
+        terms = self._explain_terms(q, u, att, N)
+        q["rss_dbm"] = q["two_ray_dbm"] - q["upsilon_db"]
+        for term in terms.values():
+            q["rss_dbm"] = q["rss_dbm"] + term
+        q.update(terms)
+        head = ["direct_dbm", "reflected_dbm", *terms]  # the keys' order as it always was
+        res = {key: q[key] for key in head + [k for k in _EXPLAIN_KEYS if k not in head]}
+        return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+
+    def _explain_gains(self, q: dict) -> dict[str, NDArray]:
+        """The antennas' gains (dBi) on the direct and reflected rays (0 without the antenna)."""
+        ta, ra = self._get("tx_antenna"), self._get("rx_antenna")
+        zero = np.zeros_like(q["d_los"])
+        return {
+            "g_tx_dir_dbi": ta.gain_dbi(q["el_tx_dir_rad"], q["az_tx_rad"]) if ta else zero,
+            "g_tx_ref_dbi": ta.gain_dbi(q["el_tx_ref_rad"], q["az_tx_rad"]) if ta else zero,
+            "g_rx_dir_dbi": ra.gain_dbi(-q["dep_b_rad"], q["az_b_rad"]) if ra else zero,
+            "g_rx_ref_dbi": ra.gain_dbi(-q["dep_b_ref_rad"], q["az_b_ref_rad"]) if ra else zero,
+        }
+
+    def _explain_rays(self, q: dict) -> dict[str, NDArray]:
+        """The direct and reflected fields (eq. 1) as powers, their sum, and Gamma."""
+        fs: FreeSpace = self.effect("free_space")
+        gr = self._get("ground_reflection")
+        lam = wavelength(fs.fc_hz)
+        d_los, d_ref, psi = q["d_los"], q["d_ref"], q["grazing_rad"]
         k = TWO_PI / lam
-        E = 10 ** ((g_td + g_rd) / 20) / d_los * np.exp(-1j * k * d_los)  # eq. 1, direct term
-        res: dict[str, NDArray] = {}
-        dphi = k * (d_ref - d_los)
+        g_dir = (q["g_tx_dir_dbi"] + q["g_rx_dir_dbi"]) / 20
+        E = 10**g_dir / d_los * np.exp(-1j * k * d_los)  # eq. 1, direct term
         if gr is not None:
             Gam = gr.gamma(psi, fs.fc_hz)
-            E_ref = Gam * 10 ** ((g_tr + g_rr) / 20) / d_ref * np.exp(-1j * k * d_ref)
+            g_ref = (q["g_tx_ref_dbi"] + q["g_rx_ref_dbi"]) / 20
+            E_ref = Gam * 10**g_ref / d_ref * np.exp(-1j * k * d_ref)
         else:
             Gam = np.zeros_like(psi, dtype=complex)
             E_ref = np.zeros_like(E)
         const = fs.pt_dbm + 20 * np.log10(lam / (4 * np.pi))
+        out = {"phase_diff_rad": k * (d_ref - d_los)}
         with np.errstate(divide="ignore"):
-            res["direct_dbm"] = const + 20 * np.log10(np.abs(E))
-            res["reflected_dbm"] = const + 20 * np.log10(np.abs(E_ref))
-        two_ray = const + 20 * np.log10(np.maximum(np.abs(E + E_ref), 1e-15))
-        rss = two_ray.copy()
-        S = ls.shadowed(az_b, dep_b) if ls else np.zeros(d_los.shape, bool)
-        ups = np.where(S, ls.upsilon_db(d_los), 0.0) if ls else zero
-        rss -= ups
+            out["direct_dbm"] = const + 20 * np.log10(np.abs(E))
+            out["reflected_dbm"] = const + 20 * np.log10(np.abs(E_ref))
+        out["two_ray_dbm"] = const + 20 * np.log10(np.maximum(np.abs(E + E_ref), 1e-15))
+        out.update(gamma_abs=np.abs(Gam), gamma_phase_rad=np.angle(Gam))
+        return out
+
+    def _explain_terms(self, q: dict, u: NDArray, att: NDArray, N: int) -> dict[str, NDArray]:
+        """Leg shadowing (``shadowed``, ``upsilon_db`` into ``q``) and the other additive effects'
+        terms, ``{"<name>_db": dB}`` in the effects' order."""
+        ls = self._get("leg_shadowing")
+        d_los = q["d_los"]
+        q["shadowed"] = (
+            ls.shadowed(q["az_b_rad"], q["dep_b_rad"]) if ls else np.zeros(d_los.shape, bool)
+        )
+        q["upsilon_db"] = (
+            np.where(q["shadowed"], ls.upsilon_db(d_los), 0.0) if ls else np.zeros_like(d_los)
+        )
         others = [
             e for e in self.effects if hasattr(e, "rss_term_db") and e.name != "leg_shadowing"
         ]
-        if others:
-            C = (
-                body_from_enu_matrix(att)
-                if self.has("attitude")
-                else body_from_enu_matrix(np.zeros((N, 3)))
-            )
-            ub = tuple(np.einsum("nj,...nj->...n", C[:, i, :], u) for i in range(3))
-            link = Link((u[..., 0], u[..., 1], u[..., 2]), h_t, h_r, d_los, d_ref, ub)
-            for e in others:
-                res[f"{e.name}_db"] = np.asarray(e.rss_term_db(link), dtype=float)
-                rss = rss + res[f"{e.name}_db"]
-        res.update(
-            d_2d=d_2d,
-            d_los=d_los,
-            d_ref=d_ref,
-            h_t=h_t,
-            h_r=h_r,
-            grazing_rad=psi,
-            gamma_abs=np.abs(Gam),
-            gamma_phase_rad=np.angle(Gam),
-            phase_diff_rad=dphi,
-            el_tx_dir_rad=el_tx_dir,
-            el_tx_ref_rad=el_tx_ref,
-            az_tx_rad=az_tx,
-            g_tx_dir_dbi=g_td,
-            g_tx_ref_dbi=g_tr,
-            g_rx_dir_dbi=g_rd,
-            g_rx_ref_dbi=g_rr,
-            az_b_rad=az_b,
-            dep_b_rad=dep_b,
-            az_b_ref_rad=az_b2,
-            dep_b_ref_rad=dep_b2,
-            two_ray_dbm=two_ray,
-            shadowed=S,
-            upsilon_db=ups,
-            rss_dbm=rss,
-        )
-        return {key: np.asarray(v).reshape(out_shape) for key, v in res.items()}
+        if not others:
+            return {}
+        C = body_from_enu_matrix(att if self.has("attitude") else np.zeros((N, 3)))
+        ub = tuple(np.einsum("nj,...nj->...n", C[:, i, :], u) for i in range(3))
+        link = Link((u[..., 0], u[..., 1], u[..., 2]), q["h_t"], q["h_r"], d_los, q["d_ref"], ub)
+        return {f"{e.name}_db": np.asarray(e.rss_term_db(link), dtype=float) for e in others}
 
 
 def _centred(
@@ -521,3 +512,92 @@ def _prepare(
         return tx.reshape(-1, 1, 3), rx, out_shape, False
     txb = np.broadcast_to(tx, out_shape + (3,)).reshape(-1, N, 3)
     return txb, rx, out_shape, True
+
+
+def _once(compute: Callable[[], Any]) -> Callable[[], Any]:
+    """``compute`` run at most once: the returned function gives its first result."""
+    box: list = []
+
+    def get() -> Any:
+        if not box:
+            box.append(compute())
+        return box[0]
+
+    return get
+
+
+def _link_geometry(tx: NDArray, rx: NDArray, C: NDArray | None) -> tuple:
+    """A block's link geometry in the inputs' dtype: (z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d,
+    u_b), ``u_b`` the TX direction in the body frame (level, yaw 0 when ``C`` is None)."""
+    dt = tx.dtype.type
+    z_t = tx[..., 2]
+    z_r = rx[:, 2]
+    dx, dy, dz = link_delta(tx, rx)  # delta = p_tx - p_rx (ENU)
+    d2 = dx * dx
+    d2 += dy * dy  # d_2D^2
+    d_los = np.sqrt(d2 + dz * dz)  # d_los = sqrt(d^2 + (h_r - h_t)^2)
+    np.maximum(d_los, dt(1e-3), out=d_los)  # coincident points: 1 mm, not a division by 0
+    inv_los = dt(1.0) / d_los
+    d = np.sqrt(d2)
+    if C is None:  # level body frame, yaw 0: u_b = (n, e, d)
+        u_b = (dy, dx, -dz)
+    else:  # u_b = C delta, C per sample (computed once, not per transmitter)
+        u_b = tuple(C[i, 0] * dx + C[i, 1] * dy + C[i, 2] * dz for i in range(3))
+    return (z_t, z_r, dx, dy, dz, d2, d_los, inv_los, d, u_b)
+
+
+# The keys of ``PropagationModel.explain`` after the rays' and the additive effects' own
+_EXPLAIN_KEYS = (
+    "d_2d",
+    "d_los",
+    "d_ref",
+    "h_t",
+    "h_r",
+    "grazing_rad",
+    "gamma_abs",
+    "gamma_phase_rad",
+    "phase_diff_rad",
+    "el_tx_dir_rad",
+    "el_tx_ref_rad",
+    "az_tx_rad",
+    "g_tx_dir_dbi",
+    "g_tx_ref_dbi",
+    "g_rx_dir_dbi",
+    "g_rx_ref_dbi",
+    "az_b_rad",
+    "dep_b_rad",
+    "az_b_ref_rad",
+    "dep_b_ref_rad",
+    "two_ray_dbm",
+    "shadowed",
+    "upsilon_db",
+    "rss_dbm",
+)
+
+
+def _explain_geometry(T: NDArray, u: NDArray, rx: NDArray, att: NDArray) -> dict[str, NDArray]:
+    """``explain``'s geometry (float64): distances, heights, the grazing angle and the angles of
+    both rays at the transmitter and in the UAV's body frame (``T``: the transmitters broadcast to
+    the samples, ``u``: p_tx - p_uav, ENU)."""
+    h_t, h_r = T[..., 2], np.broadcast_to(rx[:, 2], u.shape[:-1])
+    d_2d = horizontal_distance(u[..., 0], u[..., 1])
+    psi = elevation(h_r + h_t, d_2d)  # grazing angle: the image source's depression
+    az_b, dep_b = body_angles(enu_to_ned(u), att)
+    u_img = u.copy()
+    u_img[..., 2] = -(h_t + h_r)  # towards the image source (x_t, y_t, -h_t)
+    az_b2, dep_b2 = body_angles(enu_to_ned(u_img), att)
+    return {
+        "d_2d": d_2d,
+        "d_los": np.sqrt(d_2d**2 + (h_r - h_t) ** 2),
+        "d_ref": np.sqrt(d_2d**2 + (h_r + h_t) ** 2),
+        "h_t": h_t,
+        "h_r": h_r,
+        "grazing_rad": psi,
+        "el_tx_dir_rad": elevation(h_r - h_t, d_2d),
+        "el_tx_ref_rad": -psi,
+        "az_tx_rad": bearing(-u[..., 0], -u[..., 1]),
+        "az_b_rad": az_b,
+        "dep_b_rad": dep_b,
+        "az_b_ref_rad": az_b2,
+        "dep_b_ref_rad": dep_b2,
+    }

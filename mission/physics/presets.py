@@ -35,6 +35,7 @@ from importlib import resources
 from typing import Any
 
 from mission.errors import InputError
+from mission.fields import REQUIRED, Fields
 from mission.files import read_text
 from mission.physics.propagation import (
     Attitude,
@@ -133,8 +134,7 @@ def load_calibration(name: str = "afar") -> dict[str, Any]:
             raise InputError(
                 f"cannot read physics preset file: {str(e)[:120]}", source=base
             ) from None
-        if not isinstance(rec, dict) or not isinstance(rec.get("model"), dict):
-            raise InputError("not a physics preset (no 'model' block)", source=base)
+        Fields(rec, base, shape="a physics preset (a JSON object)").sub("model", REQUIRED)
         return rec
     key = base.lower()
     if key not in PRESETS:

@@ -21,6 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 from mission.errors import InputError
+from mission.fields import Fields
 from mission.geo import Area, Field, clip_polygon, polygon_area_m2
 
 Generator = Callable[..., np.ndarray]
@@ -97,11 +98,9 @@ def _chord(area: Area, margin_m: float, y: float, horizontal: bool = True, step:
 
 
 def _check_positive(**kw: float) -> None:
-    for k, v in kw.items():
-        if not (
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-        ):
-            raise InputError(f"must be a positive number, got {v!r}", field=k)
+    f = Fields(kw)
+    for k in kw:
+        f.num(k, lo=0.0, strict_lo=True)
 
 
 def _at(xy: np.ndarray, altitude_m: float) -> np.ndarray:
@@ -277,8 +276,7 @@ def random_waypoints(
     """``n`` waypoints drawn uniformly in the region with ``margin_m`` (seeded: same seed, same
     path), visited in draw order (``order: random``) or greedily nearest-first from the south-east
     corner (``nearest``, shorter).  Legs leaving a non-convex region are redrawn."""
-    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        raise InputError(f"must be a positive integer, got {n!r}", field="n")
+    Fields({"n": n}).int_("n", lo=1)
     if order not in ("nearest", "random"):
         raise InputError(f"unknown order '{order}' (nearest or random)", field="order")
     area = region_area(field, region)

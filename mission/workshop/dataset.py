@@ -23,6 +23,7 @@ import numpy as np
 
 from mission import __version__
 from mission.errors import InputError
+from mission.fields import REQUIRED, Fields
 from mission.files import read_text, write_bytes, write_text
 from mission.localize.features import FeatureConfig
 from mission.spec import load_mission
@@ -149,14 +150,6 @@ def generate_dataset(
 def _prepare(cfg: DatasetConfig, out_dir: str | Path, overwrite: bool) -> Path:
     """Refuse a bad config or an existing dataset (unless ``overwrite``); the output folder, made
     and emptied of old chunks."""
-    if cfg.n < 1 or cfg.chunk < 1:
-        raise InputError(f"need n >= 1 and chunk >= 1, got n={cfg.n}, chunk={cfg.chunk}")
-    bad = [f for f in cfg.features if f not in FEATURE_KINDS]
-    if bad:
-        raise InputError(
-            f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})",
-            field="features",
-        )
     check_config(cfg)
     out = Path(out_dir)
     if (out / "manifest.json").exists() and not overwrite:
@@ -241,15 +234,12 @@ def read_manifest(path: str | Path, need: Sequence[str] = ()) -> dict:
         raise InputError(
             f"manifest is not valid JSON ({str(e).splitlines()[0][:80]})", source=str(mf)
         ) from None
-    if not isinstance(m, dict):
+    if m is None:
         raise InputError("not a dataset manifest (a JSON object)", source=str(mf))
+    f = Fields(m, str(mf), shape="a dataset manifest (a JSON object)")
     for k in need:  # what the caller reads: a list of chunks, objects otherwise (a KeyError before)
-        if not isinstance(m.get(k), list if k == "chunks" else dict):
-            raise InputError(
-                f"not a dataset manifest: no {'list' if k == 'chunks' else 'object'} {k!r}",
-                source=str(mf),
-                field=k,
-            )
+        f.raw(k, REQUIRED)
+        f.typed(k, (list,) if k == "chunks" else (dict,))
     if m.get("format") != FORMAT:
         raise InputError(
             f"unknown dataset format {m.get('format')!r} (expected {FORMAT})", source=str(mf)

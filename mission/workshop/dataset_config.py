@@ -50,7 +50,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
-from mission.errors import InputError, refuse_unknown_keys
+from mission.fields import Fields
 from mission.physics.presets import load_preset
 from mission.trajectory.generators import GENERATORS
 from mission.workshop.suite import BENCHMARK_SEED, SUITES, resolve_family
@@ -98,7 +98,7 @@ class Randomisation:
 
     @classmethod
     def from_dict(cls, d: dict) -> Randomisation:
-        refuse_unknown_keys(d, (f.name for f in fields(cls)), "randomisation")
+        Fields(d, None, "randomisation").done(f.name for f in fields(cls))
         conv = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()}
         return cls(**conv)
 
@@ -169,45 +169,39 @@ def check_config(cfg: DatasetConfig) -> None:
     """Refuse configurations that would silently do something else than asked (InputError naming the
     field)."""
     r = cfg.randomisation
+    c, rf = Fields(cfg.to_dict()), Fields(asdict(r))
+    c.int_("n", lo=1)
+    c.int_("chunk", lo=1)
+    bad = [f for f in cfg.features if f not in FEATURE_KINDS]
+    if bad:
+        raise c.err(
+            "features", f"unknown feature kind {bad[0]!r} (expected {', '.join(FEATURE_KINDS)})"
+        )
     if cfg.suite:
-        if cfg.suite not in SUITES:
-            raise InputError(
-                f"unknown suite {cfg.suite!r} (expected {', '.join(SUITES)})", field="suite"
-            )
+        c.str_("suite", None, SUITES)
         resolve_family(cfg.suite_family)  # a built-in name or a readable, valid family file
         if cfg.seed == BENCHMARK_SEED:
-            raise InputError(
-                f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds", field="seed"
+            raise c.err(
+                "seed", f"seed {BENCHMARK_SEED} is the benchmark's own: train on other seeds"
             )
         if cfg.physics or r != Randomisation():
-            raise InputError(
-                "--suite draws every axis itself: no --physics or randomisation flags",
-                field="suite",
+            raise c.err(
+                "suite", "--suite draws every axis itself: no --physics or randomisation flags"
             )
     if cfg.physics:
         try:
             load_preset(cfg.physics)
         except KeyError as e:
-            raise InputError(
-                f"physics preset {cfg.physics!r} is incomplete ({e})", field="physics"
-            ) from None
+            raise c.err("physics", f"physics preset {cfg.physics!r} is incomplete ({e})") from None
         for name in ("patterns", "beta", "eps_r"):
             if getattr(r, name):
-                raise InputError(
+                raise rf.err(
+                    name,
                     f"{name} randomisation applies to make_model models, not to the physics "
                     f"preset {cfg.physics!r}",
-                    field=name,
                 )
     elif r.physics_heading_jitter_deg:
-        raise InputError(
-            "physics_heading_jitter_deg needs a physics preset", field="physics_heading_jitter_deg"
-        )
-    if r.fixed_heading is not None and not 0.0 <= r.fixed_heading <= 1.0:
-        raise InputError(
-            f"fixed_heading is a probability in [0, 1], got {r.fixed_heading}",
-            field="fixed_heading",
-        )
+        raise rf.err("physics_heading_jitter_deg", "needs a physics preset")
+    rf.num("fixed_heading", None, 0.0, 1.0)  # a probability
     for name in ("speed_mps", "shadowing_corr_m"):
-        v = getattr(r, name)
-        if v is not None and min(v) <= 0:
-            raise InputError(f"{name} must be > 0, got {v}", field=name)
+        rf.span(name, None, 0.0, strict_lo=True, ordered=False)

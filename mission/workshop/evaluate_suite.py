@@ -14,7 +14,8 @@ import math
 import multiprocessing as mp
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -179,41 +180,13 @@ def evaluate_suite(
     labels = {m: suite_method(m) for m in methods}
     if not labels:
         raise InputError("no methods to evaluate", field="--methods")
-    if suite_dir is not None:
-        cs = read_suite(suite_dir)
-        if (stale := cs.check_current()) is not None:
-            if warn is None:
-                warnings.warn(stale, UserWarning, stacklevel=2)
-            else:
-                warn(stale)
-        n = min(n, len(cs)) if n else len(cs)
-        mf = cs.manifest
-        check_cache_family(cs, fam)
-        source: dict = {"dir": str(suite_dir), "stats": stats_out is not None}
-        test = f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]"
-    else:
-        seed = BENCHMARK_SEED if seed is None else seed
-        source = {
-            "seed": int(seed),
-            "family": fam,
-            "center": center,
-            "stats": stats_out is not None,
-        }
-        test = f"suite:unseen[seed={seed},family={family_label(fam)},n={n}]"
+    source, test, n = _suite_source(fam, n, seed, suite_dir, center, warn, stats_out is not None)
     rows = {
         m: Row(test, m, None, "onnx" if kw.get("method") == "onnx" else "classical", [], [])
         for m, kw in labels.items()
     }
     secs = {m: 0.0 for m in labels}
-    if workers <= 1:
-        _suite_init(labels, source)
-        results = map(_suite_flight, range(n))
-        pool = None
-    else:
-        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-        pool = ctx.Pool(workers, initializer=_suite_init, initargs=(labels, source, True))
-        results = pool.imap(_suite_flight, range(n), chunksize=1)
-    try:
+    with _flight_results(labels, source, n, workers) as results:
         for i, res in enumerate(results):
             if (st := res.pop("__stats__", None)) is not None and stats_out is not None:
                 stats_out.append(st)
@@ -225,11 +198,52 @@ def evaluate_suite(
                 secs[m] += dt
             if progress:
                 progress(i + 1, n)
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
     return list(rows.values()), {m: s / max(n, 1) for m, s in secs.items()}
+
+
+def _suite_source(
+    fam,
+    n: int,
+    seed: int | None,
+    suite_dir: str | Path | None,
+    center: str,
+    warn: Callable[[str], None] | None,
+    stats: bool,
+) -> tuple[dict, str, int]:
+    """(where the workers get their flights, the test's label, the number of flights): the cache
+    ``suite_dir`` (checked against ``fam``, a stale cache warned about) or the family and seed."""
+    if suite_dir is not None:
+        cs = read_suite(suite_dir)
+        if (stale := cs.check_current()) is not None:
+            if warn is None:
+                warnings.warn(stale, UserWarning, stacklevel=3)  # evaluate_suite's caller
+            else:
+                warn(stale)
+        n = min(n, len(cs)) if n else len(cs)
+        mf = cs.manifest
+        check_cache_family(cs, fam)
+        source: dict = {"dir": str(suite_dir), "stats": stats}
+        return source, f"suite:unseen[seed={mf['seed']},family={mf['family']},n={n}]", n
+    seed = BENCHMARK_SEED if seed is None else seed
+    source = {"seed": int(seed), "family": fam, "center": center, "stats": stats}
+    return source, f"suite:unseen[seed={seed},family={family_label(fam)},n={n}]", n
+
+
+@contextmanager
+def _flight_results(labels: dict, source: dict, n: int, workers: int) -> Iterator:
+    """Each flight's results in flight order: in this process, or from a pool of ``workers``
+    processes closed on the way out."""
+    if workers <= 1:
+        _suite_init(labels, source)
+        yield map(_suite_flight, range(n))
+        return
+    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    pool = ctx.Pool(workers, initializer=_suite_init, initargs=(labels, source, True))
+    try:
+        yield pool.imap(_suite_flight, range(n), chunksize=1)
+    finally:
+        pool.close()
+        pool.join()
 
 
 def check_cache_family(cs, fam) -> None:

@@ -62,6 +62,32 @@ def _choice(rng: np.random.Generator, options: Sequence[str], default: str) -> s
     return str(options[int(rng.integers(len(options)))]) if len(options) > 1 else str(options[0])
 
 
+@dataclass(frozen=True)
+class _Draws:
+    """A dataset flight's random draws (``FlightSimulator._draws``; None: the item is off)."""
+
+    xy: np.ndarray  # transmitter east, north
+    alt: float
+    traj: str
+    same: bool  # the mission's own trajectory generator
+    tparams: dict
+    pattern: str
+    beta: float | None
+    eps_r: float | None
+    rx_h: float
+    tx_h: float
+    tx_height: float
+    offset: float
+    noise: float
+    keep: float
+    start: float
+    fixed_h: float | None
+    speed: float | None
+    shadow: float
+    corr: float
+    jitter: float
+
+
 @dataclass
 class FlightDraw:
     """One simulated flight of a dataset: its random draws and the samples the features use (with
@@ -135,11 +161,26 @@ class FlightSimulator:
         return float((self._preset_spec or {}).get("rx_heading_deg", 0.0))
 
     def draw(self, i: int) -> FlightDraw:
-        """Draw and fly flight ``i`` (deterministic in ``(cfg, i)``)."""
-        cfg, r, spec = self.cfg, self.cfg.randomisation, self.spec
-        if cfg.suite:
+        """Draw and fly flight ``i`` (deterministic in ``(cfg, i)``): its random draws in their
+        fixed order, the path, the simulator settings, the flight (cut to its kept fraction)."""
+        if self.cfg.suite:
             return self._draw_suite(i)
-        rng = flight_rng(cfg.seed, i)
+        rng = flight_rng(self.cfg.seed, i)
+        d = self._draws(rng)
+        tx = np.array([d.xy[0], d.xy[1], d.tx_height])
+        model = self._model(d.pattern, d.beta, d.eps_r, d.rx_h, d.tx_h, d.jitter)
+        sim = self._sim_config(d)
+        fl: FlightSamples = simulate_flight(self._waypoints(d), tx, model, sim, rng)
+        if d.keep < 1.0:
+            n = len(fl)
+            a = int(d.start * n)
+            b = max(a + int(d.keep * n), a + 1)
+            fl = fl.select(slice(a, b))
+        return FlightDraw(i, self._params(d, sim), d.traj, d.pattern or "default", fl)
+
+    def _draws(self, rng: np.random.Generator) -> _Draws:
+        """Flight's random draws, in the order that makes a dataset's bytes (module docstring)."""
+        r, spec = self.cfg.randomisation, self.spec
         xy = spec.field.rover_area.sample_uniform(1, rng)[0]
         alt = _uniform(rng, r.altitude_m, spec.altitude_m)
         traj = _choice(rng, r.trajectories, spec.trajectory.generator)
@@ -175,54 +216,79 @@ class FlightSimulator:
         jitter = 0.0
         if r.physics_heading_jitter_deg:
             jitter = float(rng.uniform(-r.physics_heading_jitter_deg, r.physics_heading_jitter_deg))
+        return _Draws(
+            xy,
+            alt,
+            traj,
+            same,
+            tparams,
+            pattern,
+            beta,
+            eps_r,
+            rx_h,
+            tx_h,
+            tx_height,
+            offset,
+            noise,
+            keep,
+            start,
+            fixed_h,
+            speed,
+            shadow,
+            corr,
+            jitter,
+        )
 
-        if traj == "waypoints" or (
-            spec.trajectory.waypoints is not None and same and not r.random_params
+    def _waypoints(self, d: _Draws) -> np.ndarray:
+        """The flight's path: the mission's own waypoints at the drawn altitude, or generated."""
+        spec = self.spec
+        if d.traj == "waypoints" or (
+            spec.trajectory.waypoints is not None
+            and d.same
+            and not self.cfg.randomisation.random_params
         ):
             wps = np.array(spec.waypoints_enu(), dtype=float)
-            wps[:, 2] = alt
-        else:
-            wps = generate(traj, spec.field, alt, **tparams)
-        tx = np.array([xy[0], xy[1], tx_height])
-        model = self._model(pattern, beta, eps_r, rx_h, tx_h, jitter)
+            wps[:, 2] = d.alt
+            return wps
+        return generate(d.traj, spec.field, d.alt, **d.tparams)
+
+    def _sim_config(self, d: _Draws):
+        """The simulator settings of the flight: drawn noise, offset, shadowing, heading, speed."""
         kin = self.sim.kinematics
-        if fixed_h is not None or speed is not None:
+        if d.fixed_h is not None or d.speed is not None:
             kin = replace(
                 kin,
-                heading_deg=fixed_h if fixed_h is not None else kin.heading_deg,
-                cruise_speed_mps=speed if speed is not None else kin.cruise_speed_mps,
+                heading_deg=d.fixed_h if d.fixed_h is not None else kin.heading_deg,
+                cruise_speed_mps=d.speed if d.speed is not None else kin.cruise_speed_mps,
             )
-        sim = replace(
+        return replace(
             self.sim,
-            noise_db=noise,
-            rss_offset_db=offset,
+            noise_db=d.noise,
+            rss_offset_db=d.offset,
             kinematics=kin,
-            shadowing_db=shadow,
-            shadowing_corr_m=corr,
+            shadowing_db=d.shadow,
+            shadowing_corr_m=d.corr,
         )
-        fl: FlightSamples = simulate_flight(wps, tx, model, sim, rng)
-        if keep < 1.0:
-            n = len(fl)
-            a = int(start * n)
-            b = max(a + int(keep * n), a + 1)
-            fl = fl.select(slice(a, b))
-        params = {
-            "altitude_m": alt,
-            "offset_db": offset,
-            "beta": np.nan if beta is None else beta,
-            "eps_r": np.nan if eps_r is None else eps_r,
-            "tx_height_m": tx_height,
-            "noise_db": noise,
-            "rx_heading_deg": self._preset_heading() + jitter if cfg.physics else rx_h,
-            "tx_heading_deg": tx_h,
-            "keep_fraction": keep,
-            "fixed_heading_deg": np.nan if fixed_h is None else fixed_h,
-            "speed_mps": kin.cruise_speed_mps,
-            "shadowing_db": shadow,
-            "shadowing_corr_m": corr if shadow > 0 else np.nan,
-            "trajectory_params": tparams,
+
+    def _params(self, d: _Draws, sim) -> dict:
+        """The flight's row of ``params`` (``PARAM_NAMES``) as a dict, with its trajectory's
+        parameters."""
+        return {
+            "altitude_m": d.alt,
+            "offset_db": d.offset,
+            "beta": np.nan if d.beta is None else d.beta,
+            "eps_r": np.nan if d.eps_r is None else d.eps_r,
+            "tx_height_m": d.tx_height,
+            "noise_db": d.noise,
+            "rx_heading_deg": self._preset_heading() + d.jitter if self.cfg.physics else d.rx_h,
+            "tx_heading_deg": d.tx_h,
+            "keep_fraction": d.keep,
+            "fixed_heading_deg": np.nan if d.fixed_h is None else d.fixed_h,
+            "speed_mps": sim.kinematics.cruise_speed_mps,
+            "shadowing_db": d.shadow,
+            "shadowing_corr_m": d.corr if d.shadow > 0 else np.nan,
+            "trajectory_params": d.tparams,
         }
-        return FlightDraw(i, params, traj, pattern or "default", fl)
 
     def _draw_suite(self, i: int) -> FlightDraw:
         """Flight ``i`` of the benchmark family (seed ``cfg.seed``), cut to the cruise as

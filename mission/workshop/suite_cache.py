@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.fields import REQUIRED, Fields
+from mission.files import read_text
 from mission.flightlog import read_flight_log, write_flight_log
 from mission.physics.family import PhysicsFamily
 from mission.workshop.suite import (
@@ -169,11 +171,7 @@ class CachedSuite:
                 "--logs)",
                 source=str(self.path),
             )
-        self.manifest = json.loads(mf.read_text())
-        if self.manifest.get("format") != FORMAT:
-            raise InputError(
-                f"unknown suite format {self.manifest.get('format')!r}", source=str(mf)
-            )
+        self.manifest = _manifest(mf)
 
     def __len__(self) -> int:
         return len(self.manifest["flights"])
@@ -243,6 +241,29 @@ class CachedSuite:
             f"flight {i} "
             f"differs): its figures are not the current code's; {redo}"
         )
+
+
+def _manifest(mf: Path) -> dict:
+    """``suite.json`` read and checked where the readers index it (``mission.fields``): its
+    format, and each flight's ``file``, ``truth_xy`` and ``draw``; one line naming the file and
+    field otherwise."""
+    src = str(mf)
+    try:
+        m = json.loads(read_text(mf, "suite manifest", max_bytes=100_000_000))
+    except (ValueError, RecursionError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(f"not valid JSON ({str(e).splitlines()[0][:80]})", source=src) from None
+    f = Fields(m if m is not None else [], src, shape="a suite manifest (a JSON object)")
+    if f.raw("format") != FORMAT:
+        raise InputError(f"unknown suite format {m.get('format')!r}", source=src)
+    f.typed("flights", (list,))
+    for i, r in enumerate(f.raw("flights", REQUIRED)):
+        fl = Fields(r, src, f"flights[{i}]", shape="{file, truth_xy, draw}")
+        fl.str_("file")
+        fl.span("truth_xy", ordered=False)  # the transmitter's (x, y), metres
+        fl.sub("draw", REQUIRED)
+    return m
 
 
 def read_suite(path: str | Path) -> CachedSuite:

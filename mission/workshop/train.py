@@ -204,34 +204,85 @@ def train(
     progress: Callable[[int, int, dict], None] | None = None,
 ) -> TrainResult:
     """Train on the datasets ``paths`` and write the ONNX model to ``out`` (plus ``out`` +
-    ``.train.json``)."""
-    # torch and mission.workshop.nets (torch at its top) stay lazy (noqa): the optional [train]
-    # extra, absent from a runtime install
+    ``.train.json``).  Phases: the settings checked, the arrays loaded (and altitude-normalised),
+    the network built around their normalisation, the epochs, the model card and its files."""
+    # torch stays lazy (noqa): the optional [train] extra, absent from a runtime install
     import torch  # noqa: PLC0415
 
-    from mission.workshop.nets import (  # noqa: PLC0415
-        CoordinateWrapper,
-        build_net,
-        count_flops,
-        count_parameters,
-    )
-
     cfg = cfg or TrainConfig()
+    relative = _checked_coords(cfg)
+    t_start = time.perf_counter()
+    torch.manual_seed(cfg.seed)
+    torch.use_deterministic_algorithms(True)
+    torch.set_num_threads(max(1, cfg.threads))
+    x, y, scale, data_descr = _training_arrays(paths, cfg)
+    val_idx, tr_idx = validation_split(len(x), cfg)
+    n_in = x.shape[1]
+    xt, yt = torch.from_numpy(x), torch.from_numpy(y)
+    x_tr, y_tr = xt[tr_idx], yt[tr_idx]
+    val = (
+        xt[val_idx],
+        yt[val_idx],
+        torch.from_numpy(scale[val_idx].astype(np.float32)),  # validation errors back in metres
+    )
+    net, norm, n_params, flops = _build(cfg, x_tr, y_tr, n_in, relative)
+    history, best_epoch = _fit(net, cfg, x_tr, y_tr, val, progress, t_start)
+    err = _val_errors(net, *val)
+    metrics = {
+        "val_mean_m": float(err.mean()),
+        "val_median_m": float(np.median(err)),
+        "val_p90_m": float(np.percentile(err, 90)),
+        "best_epoch": best_epoch,
+        "epochs_run": len(history),
+        "n_train": int(len(tr_idx)),
+        "n_val": int(len(val_idx)),
+    }
+    seconds = time.perf_counter() - t_start
+    meta = _model_meta(cfg, data_descr, n_in, relative, norm, metrics, n_params, flops, seconds)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    diff = export_onnx(net, n_in, out, meta, val[0][:256])
+    # the card the runtime reads: the training's altitude, attitude
+    write_domain(out, meta["training_data"])
+    res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
+    Path(str(out) + ".train.json").write_text(
+        json.dumps(
+            {
+                "metrics": metrics,
+                "history": history,
+                "seconds": round(seconds, 1),
+                "n_params": n_params,
+                "flops": flops,
+                "max_onnx_diff": diff,
+                "training_data": meta["training_data"],
+            },
+            indent=1,
+        )
+    )
+    return res
+
+
+def _checked_coords(cfg: TrainConfig) -> bool:
+    """Refuse settings that name no feature kind or coordinates; whether the coordinates are
+    relative to the strongest cluster."""
     if cfg.features not in ("clustering", "normalised_rss"):
         raise InputError(f"unknown feature kind {cfg.features!r}", field="--features")
     if cfg.coords not in ("relative", "absolute"):
         raise InputError(
             f"unknown coordinates {cfg.coords!r} (relative or absolute)", field="--coords"
         )
-    relative = cfg.coords == "relative" and cfg.features == "clustering"
     if cfg.altitude_normalised and cfg.features != "clustering":
         raise InputError(
             "altitude normalisation needs clustering features", field="--altitude-normalised"
         )
-    t_start = time.perf_counter()
-    torch.manual_seed(cfg.seed)
-    torch.use_deterministic_algorithms(True)
-    torch.set_num_threads(max(1, cfg.threads))
+    return cfg.coords == "relative" and cfg.features == "clustering"
+
+
+def _training_arrays(
+    paths: Sequence[str | Path], cfg: TrainConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """(features, targets, per-flight scale, description) of the datasets; with
+    ``altitude_normalised`` the positions in units of each flight's height (scale 1 otherwise)."""
     x, y, data_descr = load_training_data(paths, cfg.features)
     scale = np.ones(len(x))
     if cfg.altitude_normalised:
@@ -244,12 +295,23 @@ def train(
             scale_cluster_xy(x, scale).astype(np.float32),
             (y * scale[:, None]).astype(np.float32),
         )
-    val_idx, tr_idx = validation_split(len(x), cfg)
-    n_in = x.shape[1]
-    xt, yt = torch.from_numpy(x), torch.from_numpy(y)
-    x_tr, y_tr = xt[tr_idx], yt[tr_idx]
-    x_val, y_val = xt[val_idx], yt[val_idx]
-    s_val = torch.from_numpy(scale[val_idx].astype(np.float32))  # validation errors back in metres
+    return x, y, scale, data_descr
+
+
+def _build(cfg: TrainConfig, x_tr, y_tr, n_in: int, relative: bool):
+    """(network in its coordinate wrapper, the normalisation it holds, parameters, FLOPs): the
+    normalisation is measured on the training flights as the wrapper presents them."""
+    # torch and mission.workshop.nets (torch at its top) stay lazy (noqa): the optional [train]
+    # extra, absent from a runtime install
+    import torch  # noqa: PLC0415
+
+    from mission.workshop.nets import (  # noqa: PLC0415
+        CoordinateWrapper,
+        build_net,
+        count_flops,
+        count_parameters,
+    )
+
     inner = build_net(cfg.features, n_in, **cfg.net)
     one = torch.ones(1)
     probe = CoordinateWrapper(inner, 0 * one, one, torch.zeros(2), torch.ones(2), relative, n_in)
@@ -265,9 +327,29 @@ def train(
         relative,
         n_in,
     )
-    n_params = count_parameters(net)
     # + the wrapper's shift / scale (negligible)
     flops = count_flops(inner, n_in) + (2 * n_in + 6) * 2
+    return net, norm, count_parameters(net), flops
+
+
+def _val_errors(net, x_val, y_val, s_val) -> np.ndarray:
+    """Validation errors (m, back in metres for altitude-normalised flights), the net left in
+    training mode."""
+    import torch  # noqa: PLC0415  (the optional [train] extra)
+
+    net.eval()
+    with torch.no_grad():
+        pred = torch.cat([net(x_val[i : i + 1024]) for i in range(0, len(x_val), 1024)])
+    net.train()
+    return (torch.linalg.norm(pred - y_val, dim=1) / s_val).numpy()
+
+
+def _fit(net, cfg: TrainConfig, x_tr, y_tr, val: tuple, progress, t_start: float):
+    """The epochs (AdamW, cosine schedule, smooth L1 on standardised outputs, early stop on the
+    validation mean, the time budget); the best epoch's weights are loaded into ``net``.  Returns
+    (history, best epoch)."""
+    import torch  # noqa: PLC0415  (the optional [train] extra)
+
     out_std = net.out_std
     out_mean = net.out_mean
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -281,14 +363,6 @@ def train(
     history: list[dict] = []
     bs = cfg.batch_size
     augment = cfg.augment and cfg.features == "clustering"
-
-    def val_errors() -> np.ndarray:
-        net.eval()
-        with torch.no_grad():
-            pred = torch.cat([net(x_val[i : i + 1024]) for i in range(0, len(x_val), 1024)])
-        net.train()
-        return (torch.linalg.norm(pred - y_val, dim=1) / s_val).numpy()
-
     for epoch in range(cfg.epochs):
         net.train()
         order = torch.randperm(len(x_tr), generator=gen)
@@ -308,7 +382,7 @@ def train(
             tot += float(loss.detach())
             nb += 1
         sched.step()
-        err = val_errors()
+        err = _val_errors(net, *val)
         rec = {
             "epoch": epoch + 1,
             "train_loss": tot / max(nb, 1),
@@ -328,18 +402,24 @@ def train(
             break  # time budget spent (a shared machine); the best epoch so far is exported
     assert best_state is not None
     net.load_state_dict(best_state)
-    err = val_errors()
-    metrics = {
-        "val_mean_m": float(err.mean()),
-        "val_median_m": float(np.median(err)),
-        "val_p90_m": float(np.percentile(err, 90)),
-        "best_epoch": best[1],
-        "epochs_run": len(history),
-        "n_train": int(len(tr_idx)),
-        "n_val": int(len(val_idx)),
-    }
-    seconds = time.perf_counter() - t_start
-    meta = {
+    return history, best[1]
+
+
+def _model_meta(
+    cfg: TrainConfig,
+    data_descr: dict,
+    n_in: int,
+    relative: bool,
+    norm: dict,
+    metrics: dict,
+    n_params: int,
+    flops: int,
+    seconds: float,
+) -> dict:
+    """The ONNX metadata (the contract with ``mission.localize.card``) and the training record."""
+    import torch  # noqa: PLC0415  (the optional [train] extra)
+
+    return {
         "feature_kind": cfg.features,
         "feature_config": data_descr["feature_config"],
         "input_normalisation": {  # identity: the graph standardises internally (CoordinateWrapper)
@@ -369,27 +449,6 @@ def train(
             "torch": torch.__version__,
         },
     }
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    diff = export_onnx(net, n_in, out, meta, x_val[:256])
-    # the card the runtime reads: the training's altitude, attitude
-    write_domain(out, meta["training_data"])
-    res = TrainResult(out, metrics, history, seconds, n_params, flops, diff, meta)
-    Path(str(out) + ".train.json").write_text(
-        json.dumps(
-            {
-                "metrics": metrics,
-                "history": history,
-                "seconds": round(seconds, 1),
-                "n_params": n_params,
-                "flops": flops,
-                "max_onnx_diff": diff,
-                "training_data": meta["training_data"],
-            },
-            indent=1,
-        )
-    )
-    return res
 
 
 def _jsonable(d):
