@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from mission.errors import InputError
@@ -29,6 +29,7 @@ from mission.spec import load_mission, parse_mission
 
 SPIRAL = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"
 PX4_VERTICAL = VerticalSpeeds(1.5, 1.5, 0.7, 5.0)
+CAUTION_S = 5.0  # how conservative a trim may be, seconds (the property below)
 
 
 @pytest.fixture(scope="module")
@@ -95,6 +96,7 @@ def test_return_from_every_waypoint_and_the_plan_ends_where_the_full_mission_doe
 
 
 @given(st.floats(1.0, 1.25), st.floats(0.0, 6.0))
+@example(1.046875, 0.0)  # lands 0.6 s inside the limit untouched; the trim's caution cuts one waypoint
 @settings(max_examples=8, deadline=None)
 def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_must(
     plan, scale, per_leg
@@ -103,8 +105,14 @@ def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_mu
     w, _, used, decisions = _fly(plan, pace, "trim")
     untouched = _truth(plan, pace, n - 1)[1]
     limit = plan.budget_s - w.reserve_s
-    if untouched <= limit:
+    # the cut is decided a few waypoints ahead on the pace fitted so far, so it may be conservative
+    # by a few seconds (below): a mission that would land within CAUTION_S of the limit may lose
+    # its last waypoint (hypothesis found 589.4 s against 590 s, predicted 592.2 s, at scale 1.047)
+    if untouched <= limit - CAUTION_S:
         assert not w.dropped and not decisions and used == pytest.approx(untouched)
+        return
+    if not w.dropped:
+        assert untouched <= limit and used == pytest.approx(untouched)
         return
     assert used <= limit + 1.0, (used, w.actions)
     assert w.dropped == list(range(w.last + 1, n))  # the tail, in order
@@ -114,7 +122,7 @@ def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_mu
     # conservative by a few seconds (hypothesis found 1.6 s at scale 1.25, 5.9 s per leg with a
     # three-waypoint lookahead, 3.4 s with today's five)
     if w.last + 1 < n:
-        assert _truth(plan, pace, w.last + 1)[1] > limit - 5.0
+        assert _truth(plan, pace, w.last + 1)[1] > limit - CAUTION_S
     assert all(d[0] == "trim" for d in decisions) and len(decisions) <= 3
     # each cut is taken near it, when the pace is known best
     first_cut = decisions[0]
