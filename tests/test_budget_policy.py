@@ -96,7 +96,8 @@ def test_return_from_every_waypoint_and_the_plan_ends_where_the_full_mission_doe
 
 
 @given(st.floats(1.0, 1.25), st.floats(0.0, 6.0))
-@example(1.046875, 0.0)  # lands 0.6 s inside the limit untouched; the trim's caution cuts one waypoint
+# lands 0.6 s inside the limit untouched; the trim's caution cuts one waypoint
+@example(1.046875, 0.0)
 @settings(max_examples=8, deadline=None)
 def test_trim_lands_inside_the_budget_with_its_reserve_and_drops_only_what_it_must(
     plan, scale, per_leg
