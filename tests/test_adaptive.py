@@ -21,7 +21,9 @@ from mission.adaptive.planner import (
     fit_centre,
     plan_round,
     posterior_candidates,
+    rival_of,
     survey_profile,
+    verdict,
 )
 from mission.adaptive.preview import adaptive_rows
 from mission.adaptive.simflight import FlightWorld, SimLog, adaptive_flight, estimator
@@ -280,3 +282,41 @@ def test_phases_label_adaptive_items_and_ignore_a_reupload_reset():
     phase, item = p.at(np.array([1.5, 2.5, 3.5, 4.5, 5.5]))
     assert phase.tolist() == ["mission", "mission", "adaptive", "adaptive", "return"]
     assert item.tolist() == [2, 2, 0, 2, -1]
+
+
+@pytest.mark.parametrize(
+    "cands, est, rival",
+    [
+        # the most probable candidate away from the target, with the mass near it
+        ([[50, 50, 0.6], [150, 120, 0.3], [140, 130, 0.1]], (50, 50), [150, 120, 0.4]),
+        # the target is the first candidate's neighbour: the next one
+        ([[55, 45, 0.6], [150, 120, 0.3]], (50, 50), [150, 120, 0.3]),
+        # no competing candidate: the estimate, when it is away from the target
+        ([[50, 50, 1.0]], (100, 100), [100, 100, 0.0]),
+        # nothing competes at all
+        ([[50, 50, 1.0]], (52, 49), None),
+        (None, (52, 49), None),
+    ],
+)
+def test_rival_of_a_round_over_a_target(cands, est, rival):
+    """The hypothesis a round over (50, 50) is flown to tell apart from (visit radius 20 m)."""
+    got = rival_of((50.0, 50.0), est, cands, 20.0)
+    assert got == (None if rival is None else pytest.approx(rival))
+
+
+@pytest.mark.parametrize(
+    "after, gone",
+    [
+        ([[150, 120, 0.5], [52, 48, 0.01]], "target"),  # the target kept 0.01 of its 0.05
+        ([[50, 50, 0.08], [148, 119, 0.005]], "rival"),
+        ([[50, 50, 0.04], [150, 120, 0.03]], None),  # both stand
+        ([[300, 300, 0.9]], None),  # both fell: the round ruled out neither of its own two
+        ([[150, 120, 0.02], [140, 130, 0.02]], "target"),  # the rival's mass is summed over 20 m
+    ],
+)
+def test_verdict_of_a_round(after, gone):
+    """Which of a round's hypotheses, target (50, 50) holding 0.05 of the posterior and rival
+    (150, 120) holding 0.03 when it was planned, the estimate after it ruled out: the one left with
+    under a quarter of its mass while the other kept more."""
+    hyp = {"target": [50.0, 50.0, 0.05], "rival": [150.0, 120.0, 0.03]}
+    assert verdict(hyp, after, 20.0) == gone

@@ -168,6 +168,13 @@ def test_adaptive_flight_end_to_end(tmp_path, capsys):
         and "fast (3 min) estimate" in err
     )
     assert m["budget"]["used_s"] <= 250 and not m["budget"]["overrun"]
+    # each round names the hypotheses it was flown to tell apart; a judged one, what it ruled out
+    for rd in m["adaptive"]["rounds"]:
+        hyp = rd["hypotheses"]
+        assert np.allclose(hyp["target"][:2], rd["target"])
+        if "judged_at_t_s" in rd:
+            assert rd["ruled_out"] in (None, "target", "rival") and hyp["rival"] is not None
+            assert f"round {rd['round']} ruled out" in err
     final = m["final_estimate"]
     assert f"--at {final['t_s']:g}" in out
     at = _cli_json([str(path), "--at", str(final["t_s"])], capsys)

@@ -23,6 +23,10 @@ from mission.spec import TrajectorySpec
 from mission.trajectory.checks import check_mission
 from mission.trajectory.kinematics import FlightProfile, plan_profile
 
+# A hypothesis whose neighbourhood keeps less than this share of the posterior mass it held when
+# the round was planned is ruled out by the round (``verdict``)
+RULED_OUT_DROP = 0.25
+
 
 def survey_profile(spec, survey_s: float) -> FlightProfile:
     """The trajectory's waypoints flown from the first one for ``survey_s`` seconds (cut inside a
@@ -106,6 +110,40 @@ def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, f
         if all(np.hypot(x - vx, y - vy) > visit_m for vx, vy in visited):
             return float(x), float(y)
     return float(est_xy[0]), float(est_xy[1])
+
+
+def rival_of(target, est_xy, candidates, visit_m: float) -> list[float] | None:
+    """The hypothesis a round flown over ``target`` is meant to tell it apart from: the most
+    probable candidate farther than ``visit_m`` from the target, else the estimate when it is that
+    far, as [x, y, the candidates' mass within ``visit_m`` of it]; None when nothing competes."""
+    tx, ty = target
+    far = [(x, y) for x, y, _ in candidates or [] if np.hypot(x - tx, y - ty) > visit_m]
+    if not far and np.hypot(est_xy[0] - tx, est_xy[1] - ty) > visit_m:
+        far = [tuple(est_xy)]
+    if not far:
+        return None
+    x, y = far[0]
+    return [float(x), float(y), mass_near((x, y), candidates, visit_m)]
+
+
+def mass_near(xy, candidates, visit_m: float) -> float:
+    """The posterior mass the candidates [x, y, mass] hold within ``visit_m`` of ``xy``."""
+    return float(
+        sum(m for x, y, m in candidates or [] if np.hypot(x - xy[0], y - xy[1]) <= visit_m)
+    )
+
+
+def verdict(hypotheses: dict, candidates_after, visit_m: float, drop: float = RULED_OUT_DROP):
+    """Which of a round's two hypotheses (``{"target": [x, y, mass], "rival": [x, y, mass]}``, each
+    mass the posterior's within ``visit_m`` when the round was planned) the estimate after it ruled
+    out: the one whose mass there fell below ``drop`` of what it held while the other's did not
+    ("target", "rival"), else None (both stand, or both fell)."""
+    fell = [
+        k
+        for k, h in hypotheses.items()
+        if h is not None and mass_near(h[:2], candidates_after, visit_m) < drop * max(h[2], 1e-9)
+    ]
+    return fell[0] if len(fell) == 1 and len(hypotheses) == 2 else None
 
 
 def leg_violations(spec, start, wps) -> list:

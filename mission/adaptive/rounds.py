@@ -24,7 +24,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mission.adaptive.feasibility import adaptive_violations
-from mission.adaptive.planner import choose_target, plan_round, return_s, survey_spec
+from mission.adaptive.planner import (
+    choose_target,
+    mass_near,
+    plan_round,
+    return_s,
+    rival_of,
+    survey_spec,
+    verdict,
+)
 from mission.flight import estimates, live
 from mission.flight.context import FlightContext, FlightError
 from mission.flight.phases import final_phase
@@ -183,9 +191,13 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         rem = remaining_s(ctx, wps, off, pace) or 0.0
         t_end = ctx.tel.clock.now() - ctx.status.t_start + rem
         visited = [rd["centre"] for rd in ext.rounds]
-        target = choose_target(
-            (d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m
-        )
+        cands = d.get("candidates") if a.explore else None
+        target = choose_target((d["x_m"], d["y_m"]), cands, visited, a.radius_m)
+        # the two hypotheses the round is flown to tell apart (issue 33 item 2's bookkeeping)
+        hyp = {
+            "target": [*target, mass_near(target, d.get("candidates"), a.radius_m)],
+            "rival": rival_of(target, (d["x_m"], d["y_m"]), d.get("candidates"), a.radius_m),
+        }
         plan = plan_round(spec, a, target, wps[-1], t_end, pace)
         for n in plan.notes if plan.ok else ():
             ctx.event("adaptive", f"round {k + 1}: {n}")
@@ -215,11 +227,19 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         # land~ now the round's plan, no longer the survey's
         ctx.status.predicted_s = spec.time_budget_s - left
         ext.rounds.append(_round_record(ctx, k, d, target, plan, wps, n_survey, left, pace))
+        ext.rounds[-1]["hypotheses"] = hyp
+        rival = hyp["rival"]
+        tells = (
+            f", to tell ({target[0]:.0f}, {target[1]:.0f}) m from ({rival[0]:.0f}, "
+            f"{rival[1]:.0f}) m"
+            if rival is not None
+            else ""
+        )
         ctx.event(
             "adaptive",
             f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
-            f"{plan.centre[1]:.0f}) m, {ext.rounds[-1]['planned_s']:.0f} s; {left:.0f} s spare "
-            "after the return",
+            f"{plan.centre[1]:.0f}) m{tells}, {ext.rounds[-1]['planned_s']:.0f} s; {left:.0f} s "
+            "spare after the return",
         )
         wps, k = new, k + 1
 
@@ -283,6 +303,26 @@ def _round_record(ctx: FlightContext, k: int, d, target, plan, wps, n_survey, le
     }
 
 
+def _judge(ctx: FlightContext, rd: dict, t_end: float, visit_m: float) -> None:
+    """Which of round ``rd``'s hypotheses the first estimate taken after it (vehicle time
+    ``t_end``) ruled out (``planner.verdict``): in its sidecar record and one event line."""
+    hyp = rd.get("hypotheses")
+    if not hyp or hyp.get("rival") is None or ctx.rows.t_ref is None:
+        return
+    t_log = t_end - ctx.rows.t_ref - 0.5
+    after = next((d for d in ctx.live.estimates if d["t_s"] >= t_log and "candidates" in d), None)
+    if after is None:
+        return
+    gone = verdict(hyp, after["candidates"], visit_m)
+    rd["ruled_out"], rd["judged_at_t_s"] = gone, after["t_s"]
+    said = (
+        "ruled out neither hypothesis"
+        if gone is None
+        else f"ruled out ({hyp[gone][0]:.0f}, {hyp[gone][1]:.0f}) m, its {gone}"
+    )
+    ctx.event("adaptive", f"round {rd['round']} {said} (estimate at t={after['t_s']:.0f} s)")
+
+
 def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
     """Each round's flown against planned time; warns on overruns (the flight's budget:
     ``flight.budget``)."""
@@ -306,6 +346,7 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
         if s is None or e is None:
             continue
         rd["flown_s"] = round(e - s, 1)
+        _judge(ctx, rd, e, ext.config.radius_m)
         if rd["flown_s"] > 1.2 * rd["planned_s"] + 5.0:
             ctx.event(
                 "budget",
