@@ -31,6 +31,7 @@ from mission.gap.fit import (
     _map,
     decimate,
     fit_candidate,
+    longest_first,
     make_folds,
     minimize_from_grid,
     objective,
@@ -487,14 +488,13 @@ def fit_family(
     jobs = list(enumerate(zip(flights, labels, strict=True)))
     # the longest flights first (a job's seed is its flight's index, so the order changes no bit):
     # the last flights handed out are the short ones, and the processes finish together
-    order = sorted(range(len(jobs)), key=lambda k: -len(flights[k].rss_dbm))
-    done = _map(
+    fits = _map(
         lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]),
-        [jobs[k] for k in order],
+        jobs,
         cfg.workers,
         cfg.processes,
+        order=longest_first([float(len(f.rss_dbm)) for f in flights]),
     )
-    fits = [done[order.index(k)] for k in range(len(jobs))]
     for f in fits:
         if is_afar2023_suspect(f.name):
             f.excluded = AFAR2023_SUSPECT_NOTE
