@@ -79,6 +79,12 @@ def _output_arguments(parser: argparse.ArgumentParser) -> None:
         help="simulated copies of every track in the family's loop check (4; 0 = no check)",
     )
     parser.add_argument(
+        "--family-structure",
+        action="store_true",
+        help="draw per-flight structure (a smooth gain drift over the flight) beside the "
+        "shadowing, which keeps only what is left",
+    )
+    parser.add_argument(
         "--json",
         action="store_true",
         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables",
@@ -351,6 +357,7 @@ def _write_family(d, cfg, args, console) -> None:
         source=src,
         check=args.family_repeats > 0,
         repeats=max(args.family_repeats, 1),
+        structure=args.family_structure,
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text
