@@ -112,6 +112,7 @@ def test_structured_family_recovers_the_drift_and_takes_it_out_of_the_shadowing(
     assert 3.0 < np.mean(drift) < 5.5 and max(drift) > 3.0, drift
     assert rec["nuisance"]["time_drift_db"]["mean"] == pytest.approx(np.mean(drift), abs=1e-3)
     assert "nuisance" not in plain
+    assert rec["offset_db"]["dist"] == "empirical" and plain["offset_db"]["dist"] == "normal"
     assert rec["spread"]["shadowing_db"]["mean"] < plain["spread"]["shadowing_db"]["mean"] - 0.5
     fam = PhysicsFamily.from_dict(rec)
     assert fam.draw(np.random.default_rng(0)).time_drift_db > 0

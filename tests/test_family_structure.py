@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mission.errors import InputError
-from mission.gap.familyfit import time_drift_std
+from mission.gap.familyfit import offset_distribution, time_drift_std
 from mission.gap.familyloss import family_loss, interval_miss, ppc_miss
 from mission.physics.family import (
     DRIFT_ORDER,
@@ -151,3 +151,13 @@ def test_family_loss_weighs_both_groups() -> None:
     # a missing group: the other carries the whole weight
     assert family_loss(None, _ppc([0.0, 0.5]))["loss"] == pytest.approx(0.5)
     assert family_loss(_loop(22.0, 1.0), None)["loss"] == pytest.approx(0.25)
+
+
+def test_offset_is_drawn_from_the_real_flights_with_structure() -> None:
+    off = {"mean": 68.8, "sd": 16.5, "per_flight": [77.0, 59.9, 56.9, 56.3, 94.1]}
+    emp = offset_distribution(off, per_flight=True)
+    assert emp == {"dist": "empirical", "values": [77.0, 59.9, 56.9, 56.3, 94.1]}
+    fam = PhysicsFamily.from_dict({**load_family("afar").to_dict(), "offset_db": emp})
+    drawn = {fam.draw(np.random.default_rng(s)).offset_db for s in range(60)}
+    assert drawn == set(emp["values"])  # never beyond the real flights' offsets
+    assert offset_distribution(off)["dist"] == "normal"
