@@ -3,14 +3,18 @@ of a family record, and the one loss that weighs the loop check and the predicti
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import mission.gap.familyrun as fr
 from mission.errors import InputError
 from mission.gap.familyfit import offset_distribution, time_drift_std
 from mission.gap.familyloss import family_loss, interval_miss, ppc_miss
+from mission.gap.fit import FitConfig
 from mission.physics.family import (
     DRIFT_ORDER,
     FamilyDraw,
@@ -161,3 +165,30 @@ def test_offset_is_drawn_from_the_real_flights_with_structure() -> None:
     drawn = {fam.draw(np.random.default_rng(s)).offset_db for s in range(60)}
     assert drawn == set(emp["values"])  # never beyond the real flights' offsets
     assert offset_distribution(off)["dist"] == "normal"
+
+
+def test_recalibration_never_steps_against_the_p90(monkeypatch) -> None:
+    """Two noisy checks whose p90 falls as the shadowing grows: the next scale is the ratio step
+    (more shadowing), not the secant's leap (it had reached -17.3 on the real flights)."""
+    sims = iter([20.0, 19.99, 21.4])
+
+    def fake_loop(rec, used, cfg, seed=0, repeats=1):
+        p = next(sims)
+        return {
+            "heldout_p90_db": {"real": 21.5, "sim": p, "within_1db": abs(p - 21.5) <= 1.0},
+            "passed": False,
+        }
+
+    def fake_fit(flights, effects, cfg, **kw):
+        rec = {"residual": {"shadowing_db": 10.0, "noise_db": 3.0}, "checks": {}}
+        return rec, []
+
+    monkeypatch.setattr(fr, "loop_check", fake_loop)
+    monkeypatch.setattr(fr, "fit_family", fake_fit)
+    d = SimpleNamespace(flights=[], rungs=[SimpleNamespace(added=None)])
+    rec = fr.family_from_diagnosis(d, FitConfig(), repeats=1)
+    steps = rec["residual_calibration"]["steps"]
+    k1 = 21.5 / 20.0
+    assert steps[1][0] == pytest.approx(k1)
+    assert steps[2][0] == pytest.approx(k1 * 21.5 / 19.99)  # up, by the ratio
+    assert 0 < steps[2][0] <= k1 * fr.SECANT_LIMIT

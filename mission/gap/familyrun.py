@@ -62,9 +62,11 @@ def family_from_diagnosis(
                     break
                 (k0, p0), (k1, p1) = pts[-2], pts[-1]
                 real = lc["heldout_p90_db"]["real"]
-                k = k1 + (real - p1) * (k1 - k0) / (p1 - p0) if p1 != p0 else k1 * real / p1
-                # a secant through two noisy checks can leap (p90 scatters ~1.5 dB per copy):
-                # at most x1.5 from the last scale
+                # more shadowing never narrows the p90: a secant through two noisy checks that
+                # slopes the other way (p90 scatters ~1.5 dB per copy) gives way to the ratio step,
+                # and no step moves the scale more than x1.5
+                rising = (p1 - p0) * (k1 - k0) > 0
+                k = k1 + (real - p1) * (k1 - k0) / (p1 - p0) if rising else k1 * real / p1
                 k = float(min(max(k, k1 / SECANT_LIMIT), k1 * SECANT_LIMIT))
                 rec["residual"]["shadowing_db"] = base_sh
                 calibrate_residual(rec, {"heldout_p90_db": {"real": k, "sim": 1.0}})
