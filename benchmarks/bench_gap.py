@@ -7,7 +7,8 @@ Usage::
     python benchmarks/bench_gap.py nadir-power [--passes 1,2,3,5] [--strengths 0.1,0.25,0.5,1] \
         [--seeds 1,2,3]
     python benchmarks/bench_gap.py family-check [--family F.json] [--repeats 4]
-    python benchmarks/bench_gap.py speed [--processes 2] [--jobs diagnosis,family] [--repeats 4]
+    python benchmarks/bench_gap.py speed [--processes 2] [--jobs diagnosis,family] [--repeats 4] \
+        [--family-structure] [--family-out F.json]
     python benchmarks/bench_gap.py real [--split flights|blocks] [--all] [--sequence a,b] \
         [--floor] [--loc3] [--per-flight] [--localize] [--candidates all] [--out gap_real_bench]
 
@@ -473,7 +474,11 @@ def speed(args: argparse.Namespace) -> int:
             rungs=[SimpleNamespace(added=a) for a in [None, *shipped["ladder"]]],
         )
         clock = Clock()
-        rec = family_from_diagnosis(d, cfg, name="afar", repeats=args.repeats)
+        rec = family_from_diagnosis(
+            d, cfg, name="afar", repeats=args.repeats, structure=args.family_structure
+        )
+        if args.family_out:
+            Path(args.family_out).write_text(json.dumps(rec, indent=1) + "\n")
         out["family"] = {
             **clock.stop(),
             "flights": len(six),
@@ -731,6 +736,13 @@ def main(argv: list[str] | None = None) -> int:
     sp.add_argument("--jobs", default="diagnosis,family", help="diagnosis, family or both")
     sp.add_argument("--repeats", type=int, default=4, help="copies of the tracks per loop check")
     sp.add_argument("--out", default="bench_gap_speed.json")
+    sp.add_argument(
+        "--family-structure",
+        action="store_true",
+        help="the family job with per-flight structure (a drift drawn per flight beside the "
+        "shadowing; the digest is then another)",
+    )
+    sp.add_argument("--family-out", help="also write the family job's record here (JSON)")
     c = sub.add_parser("family-check")
     c.add_argument("--family", default=str(REPO / "mission" / "data" / "afar_family.json"))
     c.add_argument("--repeats", type=int, default=4)

@@ -14,7 +14,8 @@ import argparse
 from dataclasses import replace
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def _input_arguments(parser: argparse.ArgumentParser) -> None:
+    """The flights and their transmitters."""
     parser.add_argument("logs", nargs="*", help="flight logs (CSV with JSON sidecar)")
     parser.add_argument(
         "--truth",
@@ -26,6 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--truth-height", type=float, default=1.5, help="transmitter antenna height m (1.5)"
     )
+
+
+def _model_arguments(parser: argparse.ArgumentParser) -> None:
+    """The base model, the candidates and how they are fitted and scored."""
     parser.add_argument(
         "--base", default="e2r", help="base model: free-space, two-ray or e2r (default e2r)"
     )
@@ -53,6 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-localize", action="store_true", help="skip the localization cost per rung"
     )
+
+
+def _output_arguments(parser: argparse.ArgumentParser) -> None:
+    """What is written: the report folder, the physics family, JSON instead of tables."""
     parser.add_argument("--report", metavar="DIR", help="write PNG plots and gap.json here")
     parser.add_argument(
         "--family",
@@ -70,10 +79,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="simulated copies of every track in the family's loop check (4; 0 = no check)",
     )
     parser.add_argument(
+        "--family-structure",
+        action="store_true",
+        help="draw per-flight structure (a smooth gain drift over the flight) beside the "
+        "shadowing, which keeps only what is left",
+    )
+    parser.add_argument(
         "--json",
         action="store_true",
         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables",
     )
+
+
+def _run_arguments(parser: argparse.ArgumentParser) -> None:
+    """How the diagnosis runs: sample rate, threads, processes, seed."""
     parser.add_argument(
         "--rate-hz",
         type=float,
@@ -88,6 +107,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="processes for the candidate fits (1; results bit-identical to one process)",
     )
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
+
+
+def _selftest_arguments(parser: argparse.ArgumentParser) -> None:
+    """The self-test on simulated flights."""
     parser.add_argument(
         "--selftest",
         action="store_true",
@@ -97,6 +120,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--withheld", default="all", help="self-test cases: effect names, none, or all"
     )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``rfsl gap`` options, in the order ``--help`` lists them."""
+    _input_arguments(parser)
+    _model_arguments(parser)
+    _output_arguments(parser)
+    _run_arguments(parser)
+    _selftest_arguments(parser)
     parser.add_argument(
         "--overwrite",
         action="store_true",
@@ -325,6 +357,7 @@ def _write_family(d, cfg, args, console) -> None:
         source=src,
         check=args.family_repeats > 0,
         repeats=max(args.family_repeats, 1),
+        structure=args.family_structure,
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text

@@ -245,6 +245,78 @@ def _rich_progress() -> tuple[Any, Any]:
     return bar, tick
 
 
+def _laddered(
+    base: Pipeline,
+    flights: Sequence[FlightSamples],
+    candidates: Sequence[Candidate],
+    cfg: FitConfig,
+    max_rungs: int,
+    label: str,
+    progress: bool | Any,
+) -> list[Rung]:
+    """The greedy ladder on the usable candidates, with a rich progress bar if ``progress`` is
+    True (stopped whatever happens) or the caller's callback."""
+    bar = None
+    if progress is True:
+        bar, progress = _rich_progress()
+        bar.start()
+    try:
+        return ladder(
+            base,
+            flights,
+            usable_candidates(candidates, flights, cfg.split),
+            cfg,
+            max_rungs=max_rungs,
+            label=label,
+            progress=progress or None,
+        )
+    finally:
+        if bar is not None:
+            bar.stop()
+
+
+def _config(cfg: FitConfig, base: Pipeline, candidates: Sequence[Candidate]) -> dict[str, Any]:
+    """The settings a diagnosis ran with (``Diagnosis.config``)."""
+    return {
+        "split": cfg.split,
+        "n_chunks": cfg.n_chunks,
+        "slope": cfg.slope,
+        "loss": cfg.loss,
+        "alpha": cfg.alpha,
+        "min_rel": cfg.min_rel,
+        "seed": cfg.seed,
+        "rate_hz": cfg.rate_hz,
+        "base": describe_params(base),
+        "candidates": [c.name for c in candidates],
+    }
+
+
+def _statements(
+    flights: Sequence[FlightSamples],
+    als: Sequence[Alignment],
+    rungs: Sequence[Rung],
+    Ls: Sequence[int],
+    cfg: FitConfig,
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """What the flights can show: the near-nadir power statement (and whether the ladder named it)
+    and the power statement along time, both on the final rung's residuals."""
+    m = max(1, len(rungs[0].ranking))
+    nadir = power_statement(
+        [np.rad2deg(a.dep_b) for a in als],
+        rungs[-1].residuals,
+        Ls,
+        make_folds(flights, cfg),
+        cfg,
+        m,
+        seed=cfg.seed,
+    )
+    nadir["found"] = any(r.added == "near_nadir" for r in rungs)
+    tpow = time_power_statement(
+        flights, rungs[-1].residuals, make_folds(flights, cfg), cfg, m, cfg.split, seed=cfg.seed
+    )
+    return nadir, tpow
+
+
 def diagnose(
     flights: Sequence[FlightSamples],
     base: Pipeline,
@@ -274,57 +346,14 @@ def diagnose(
     Ls = [block_length(r) for r in bg.residuals]
     breakdown = residual_breakdown(als, bg.residuals, Ls, rng)
     fmap = field_map(als, bg.residuals, Ls, rng)
-    bar = None
-    if progress is True:
-        bar, progress = _rich_progress()
-        bar.start()
-    try:
-        rungs = ladder(
-            base,
-            flights,
-            usable_candidates(candidates, flights, cfg.split),
-            cfg,
-            max_rungs=max_rungs,
-            label=base_label,
-            progress=progress or None,
-        )
-    finally:
-        if bar is not None:
-            bar.stop()
+    rungs = _laddered(base, flights, candidates, cfg, max_rungs, base_label, progress)
     loc = localization_cost(rungs, flights, area, split=cfg.split) if localize else []
-    conf = {
-        "split": cfg.split,
-        "n_chunks": cfg.n_chunks,
-        "slope": cfg.slope,
-        "loss": cfg.loss,
-        "alpha": cfg.alpha,
-        "min_rel": cfg.min_rel,
-        "seed": cfg.seed,
-        "rate_hz": cfg.rate_hz,
-        "base": describe_params(base),
-        "candidates": [c.name for c in candidates],
-    }
     struct = {
         "base": residual_structure(flights, rungs[0].residuals, rng),
         "final": residual_structure(flights, rungs[-1].residuals, rng),
     }
     fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
-
-    m = max(1, len(rungs[0].ranking))
-    nadir = power_statement(
-        [np.rad2deg(a.dep_b) for a in als],
-        rungs[-1].residuals,
-        Ls,
-        make_folds(flights, cfg),
-        cfg,
-        m,
-        seed=cfg.seed,
-    )
-    nadir["found"] = any(r.added == "near_nadir" for r in rungs)
-
-    tpow = time_power_statement(
-        flights, rungs[-1].residuals, make_folds(flights, cfg), cfg, m, cfg.split, seed=cfg.seed
-    )
+    nadir, tpow = _statements(flights, als, rungs, Ls, cfg)
     frames = {r.label: r.frame for r in rungs if r.frame is not None}
     return Diagnosis(
         flights,
@@ -336,7 +365,7 @@ def diagnose(
         rungs,
         loc,
         Ls,
-        conf,
+        _config(cfg, base, candidates),
         struct,
         fps,
         nadir,

@@ -31,12 +31,14 @@ from mission.gap.fit import (
     _map,
     decimate,
     fit_candidate,
+    longest_first,
     make_folds,
     minimize_from_grid,
     objective,
     residuals,
 )
 from mission.gap.pipeline import Pipeline, Selection
+from mission.gap.temporal import time_columns
 from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
@@ -88,6 +90,7 @@ BOUNDS = {
     "shadowing_corr_m": (5.0, 400.0),
     "noise_db": (0.0, 20.0),
     "offset_db": (-200.0, 200.0),
+    "time_drift_db": (0.0, 30.0),
 }
 PATTERN_KEYS = ("rx_pattern", "rx_flipped", "tx_pattern", "tx_flipped")
 FIT_SAMPLES = (
@@ -265,15 +268,32 @@ class FlightFit:
         return d | ({"excluded": self.excluded} if self.excluded else {})
 
 
+def time_drift_std(flight: FlightSamples, r: np.ndarray) -> float:
+    """The std of the smooth drift over the flight's time in the residual ``r``: a least-squares
+    fit of the gap's smooth time basis (``temporal.time_columns``: Legendre P_1..P_4 of the time
+    scaled to [-1, 1], no steps) to the finite samples about their mean; 0 with fewer than 20."""
+    ok = np.isfinite(r)
+    if ok.sum() < 20 or flight.t_s is None:
+        return 0.0
+    t = np.asarray(flight.t_s, dtype=float)
+    X, _ = time_columns(t[ok], float(t[0]), float(t[-1]), np.zeros(0))
+    y = r[ok] - np.mean(r[ok])
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    return float(np.std(X @ coef))
+
+
 def fit_flight(
     flight: FlightSamples,
     effects: Sequence[str],
     cfg: FitConfig,
     seed: int = 0,
     label: str | None = None,
+    structure: bool = False,
 ) -> FlightFit:
     """Fit the family effects on one flight; residual structure from two folds of alternate
-    chunks."""
+    chunks.  ``structure``: also the per-flight nuisance (``time_drift_db``, ``time_drift_std`` of
+    the held-out residual), taken out of the shadowing (only what is left is drawn as
+    shadowing)."""
     rng = np.random.default_rng(seed)
     cfg = FitConfig(**{**cfg.__dict__, "fit_max_samples": min(cfg.fit_max_samples, FIT_SAMPLES)})
     flight = (
@@ -296,7 +316,12 @@ def fit_flight(
     # scales; the family's shadowing std is set so that the gaussian p90 1.645 sqrt(s^2 + n^2)
     # equals the held-out p90
     vg["variogram_sigma_db"] = vg["shadowing_db"]
-    vg["shadowing_db"] = float(math.sqrt(max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2, 0.0)))
+    drift = time_drift_std(flight, held) if structure else 0.0
+    if structure:
+        vg["time_drift_db"] = drift
+    vg["shadowing_db"] = float(
+        math.sqrt(max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2 - drift**2, 0.0))
+    )
     vg["sill_db"] = float(math.hypot(vg["variogram_sigma_db"], vg["noise_db"]))
     return FlightFit(
         label or flight.name, team_of(label or flight.name), spec_of(pipe), off, held, vg, p90
@@ -372,6 +397,16 @@ def _normal(s: dict[str, Any], key: str) -> Any:
     return d
 
 
+def offset_distribution(off: dict[str, Any], per_flight: bool = False) -> Any:
+    """The family's offset: normal over flights, or with per-flight structure one of the real
+    flights' offsets (``empirical``): a normal over five offsets (56-94 dB, sd 16.5) drew 111 dB,
+    a receiver reading no real flight comes near (the logs top out at 33 dB, the reader refuses
+    over 100)."""
+    if per_flight and len(off["per_flight"]) > 1:
+        return {"dist": "empirical", "values": [round(float(v), 4) for v in off["per_flight"]]}
+    return _normal(off, "offset_db")
+
+
 def _circular(vals: Sequence[float]) -> tuple[Any, dict[str, Any]]:
     a = np.deg2rad(np.asarray(vals, dtype=float))
     c, s = np.cos(a).mean(), np.sin(a).mean()
@@ -431,6 +466,10 @@ def build_family(
     for k in ("shadowing_db", "shadowing_corr_m", "noise_db"):
         s = _spread([f.variogram[k] for f in fits], teams)
         residual[k], spreads[k] = _normal(s, k), s
+    nuisance = {}
+    if all("time_drift_db" in f.variogram for f in fits):
+        s = _spread([f.variogram["time_drift_db"] for f in fits], teams)
+        nuisance["time_drift_db"], spreads["time_drift_db"] = _normal(s, "time_drift_db"), s
     off = _spread([f.offset_db for f in fits], teams)
     spreads["offset_db"] = off
     p90 = _spread([f.heldout_p90_db for f in fits], teams)
@@ -450,7 +489,8 @@ def build_family(
         "spec": spec,
         "variants": variants,
         "residual": residual,
-        "offset_db": _normal(off, "offset_db"),
+        "offset_db": offset_distribution(off, per_flight=bool(nuisance)),
+        **({"nuisance": nuisance} if nuisance else {}),
         "effects": list(effects),
         "not_in_family": list(not_in_family),
         "spread": spreads,
@@ -479,22 +519,23 @@ def fit_family(
     cfg: FitConfig,
     labels: Sequence[str] | None = None,
     seed: int = 0,
+    structure: bool = False,
     **kw: Any,
 ) -> tuple[dict[str, Any], list[FlightFit]]:
-    """Fit ``effects`` on every flight and build the family record (``build_family``)."""
+    """Fit ``effects`` on every flight and build the family record (``build_family``);
+    ``structure``: with the per-flight nuisance (``fit_flight``)."""
 
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
     # the longest flights first (a job's seed is its flight's index, so the order changes no bit):
     # the last flights handed out are the short ones, and the processes finish together
-    order = sorted(range(len(jobs)), key=lambda k: -len(flights[k].rss_dbm))
-    done = _map(
-        lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1]),
-        [jobs[k] for k in order],
+    fits = _map(
+        lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1], structure),
+        jobs,
         cfg.workers,
         cfg.processes,
+        order=longest_first([float(len(f.rss_dbm)) for f in flights]),
     )
-    fits = [done[order.index(k)] for k in range(len(jobs))]
     for f in fits:
         if is_afar2023_suspect(f.name):
             f.excluded = AFAR2023_SUSPECT_NOTE

@@ -15,6 +15,8 @@ from mission.gap.familyfit import effects_of_ladder, fit_family
 from mission.gap.fit import FitConfig
 from mission.gap.loopcheck import P90_TOL_DB, calibrate_residual, loop_check
 
+SECANT_LIMIT = 1.5  # the recalibration's secant step changes the shadowing scale by at most this
+
 
 def family_from_diagnosis(
     d: Any,
@@ -23,14 +25,23 @@ def family_from_diagnosis(
     source: dict[str, Any] | None = None,
     check: bool = True,
     repeats: int = 4,
+    structure: bool = False,
 ) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per
     flight; with ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on,
     in ``checks.loop`` (``repeats`` simulated copies of every track: one copy of five flights
-    scatters by +-1.5 dB in p90)."""
+    scatters by +-1.5 dB in p90); ``structure``: per-flight nuisance drawn beside the shadowing
+    (``familyfit.fit_flight``)."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
     rec, fits = fit_family(
-        d.flights, effects, cfg, seed=cfg.seed, name=name, source=source, not_in_family=left
+        d.flights,
+        effects,
+        cfg,
+        seed=cfg.seed,
+        name=name,
+        source=source,
+        not_in_family=left,
+        structure=structure,
     )
     rec["ladder"] = [r.added for r in d.rungs if r.added]
     if check:
@@ -51,7 +62,12 @@ def family_from_diagnosis(
                     break
                 (k0, p0), (k1, p1) = pts[-2], pts[-1]
                 real = lc["heldout_p90_db"]["real"]
-                k = k1 + (real - p1) * (k1 - k0) / (p1 - p0) if p1 != p0 else k1 * real / p1
+                # more shadowing never narrows the p90: a secant through two noisy checks that
+                # slopes the other way (p90 scatters ~1.5 dB per copy) gives way to the ratio step,
+                # and no step moves the scale more than x1.5
+                rising = (p1 - p0) * (k1 - k0) > 0
+                k = k1 + (real - p1) * (k1 - k0) / (p1 - p0) if rising else k1 * real / p1
+                k = float(min(max(k, k1 / SECANT_LIMIT), k1 * SECANT_LIMIT))
                 rec["residual"]["shadowing_db"] = base_sh
                 calibrate_residual(rec, {"heldout_p90_db": {"real": k, "sim": 1.0}})
             rec["residual_calibration"].update(

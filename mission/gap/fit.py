@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import multiprocessing as mp
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -182,6 +183,42 @@ def _clipped(x: Sequence[float], bounds: Sequence[tuple[float, float]]) -> list[
     return [float(min(max(v, lo), hi)) for v, (lo, hi) in zip(x, bounds, strict=True)]
 
 
+def fit_selection(
+    flights: Sequence[FlightSamples], idx: Sequence[np.ndarray], cfg: FitConfig
+) -> Selection:
+    """The training samples a fit uses: ``idx`` evenly decimated to ``cfg.fit_max_samples`` per
+    flight and ``cfg.fit_max_total`` in all.  A fold's selection keeps it as a child, with the
+    joint geometry and the prepared links, for every candidate fitted on the fold."""
+    n_used = max(1, sum(len(i) > 0 for i in idx))
+    n_max = min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))
+    if isinstance(idx, Selection) and idx.of(flights):
+        return idx.child(("decimate", n_max), lambda i: decimate(i, n_max))
+    return Selection(flights, [decimate(i, n_max) for i in idx])
+
+
+def coarse_selection(idx: Selection) -> Selection:
+    """The thinned copy of a fit's samples that ranks dense start grids (every 4th sample: the
+    residual is correlated over seconds)."""
+    return idx.child("coarse", lambda i: i[::4])
+
+
+def warm_selections(
+    pipes: Sequence[Pipeline],
+    flights: Sequence[FlightSamples],
+    folds: Sequence[Fold],
+    cfg: FitConfig,
+) -> None:
+    """Evaluate every fold's rung once on the samples its fits and scores use, so that the
+    selections hold the joint geometry, the prepared links and the rung's own terms before the
+    fits are forked: each process inherits them instead of making them again (same values)."""
+    for pipe, fold in zip(pipes, folds, strict=True):
+        if not isinstance(fold.train, Selection) or not fold.train.of(flights):
+            continue
+        sel = fit_selection(flights, fold.train, cfg)
+        for s in (sel, coarse_selection(sel), fold.test):
+            objective(pipe, flights, s, cfg)
+
+
 @dataclass
 class CandidateFit:
     """A candidate fitted on one training set."""
@@ -189,6 +226,65 @@ class CandidateFit:
     pipeline: Pipeline
     params: dict[str, Any]
     train_loss: float
+
+
+def _steps(params: Sequence[Any], bounds: Sequence[tuple[float, float]]) -> list[float]:
+    """The first simplex edge per parameter: half the finest spacing of its start grid, else an
+    eighth of its bounds (10 where unbounded)."""
+    steps = [(b - a) / 8.0 if np.isfinite(b - a) else 10.0 for a, b in bounds]
+    for j, prm in enumerate(params):
+        if len(prm.grid) > 1:
+            steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
+    return steps
+
+
+def _fit_choice(
+    cand: Candidate,
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    sels: tuple[Selection, Selection],
+    caches: tuple[list[np.ndarray] | None, list[np.ndarray] | None],
+    cfg: FitConfig,
+    params: Sequence[Any],
+    choice: dict[str, Any],
+) -> CandidateFit:
+    """``cand``'s continuous parameters for one categorical ``choice``: the start grid ranked (on
+    the thinned samples ``sels[1]`` where the loss is multimodal in several dimensions), then
+    Nelder-Mead on the fit's samples ``sels[0]`` (``caches``: their channel predictions, if
+    any)."""
+    names = [p.name for p in params]
+    bounds = _bounds(cand, caches[0], params)
+
+    def make(sel: Selection, cache: list[np.ndarray] | None) -> Callable[[np.ndarray], float]:
+        def f(x: np.ndarray) -> float:
+            xx = _clipped(x, bounds)
+            return objective(
+                cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
+                flights,
+                sel,
+                cfg,
+                cache,
+            )
+
+        return f
+
+    grid = np.array(_start_grid(cand, caches[0], params), dtype=float)
+    # several starts where the loss is multimodal in several dims
+    multi = len(params) >= 2 and len(grid) > 8
+    xb, loss = minimize_from_grid(
+        make(sels[0], caches[0]),
+        grid,
+        _steps(params, bounds),
+        cfg.max_evals,
+        n_starts=3 if multi else 1,
+        coarse=make(sels[1], caches[1]) if multi else None,
+    )
+    x = _clipped(xb, bounds)
+    for j, prm in enumerate(params):
+        if prm.period:
+            x[j] = x[j] % prm.period
+    th = dict(zip(names, x, strict=True))
+    return CandidateFit(cand.build(pipe, th, choice), {**th, **choice}, loss)
 
 
 def fit_candidate(
@@ -199,16 +295,10 @@ def fit_candidate(
     cfg: FitConfig,
     rng: np.random.Generator,
 ) -> CandidateFit:
-    """Fit ``cand`` added to ``pipe`` on the samples ``idx``: coarse grid, then bounded
-    Nelder-Mead."""
-    n_used = max(1, sum(len(i) > 0 for i in idx))
-    # the fit's own selections keep the joint geometry and the prepared links between its calls; a
-    # fold's selection keeps them for every candidate fitted on it
-    n_max = min(cfg.fit_max_samples, max(200, cfg.fit_max_total // n_used))
-    if isinstance(idx, Selection) and idx.of(flights):
-        idx = idx.child(("decimate", n_max), lambda i: decimate(i, n_max))
-    else:
-        idx = Selection(flights, [decimate(i, n_max) for i in idx])
+    """Fit ``cand`` added to ``pipe`` on the samples ``idx``: its own direct fit, or per
+    categorical choice a coarse grid then bounded Nelder-Mead (``_fit_choice``); the choice with
+    the lowest training loss wins."""
+    idx = fit_selection(flights, idx, cfg)
     if cand.direct_fit is not None:
         res = residuals(pipe, flights, idx, cfg)
         new, params = cand.direct_fit(pipe, list(flights), idx, res, rng, cfg)
@@ -220,67 +310,17 @@ def fit_candidate(
             for f, i in zip(flights, idx, strict=True)
         ]
     params = cand.params_for(pipe)
-    names = [p.name for p in params]
-    # a thinned copy ranks dense start grids (every 4th sample: the residual is correlated over
-    # seconds)
-    idx_c = idx.child("coarse", lambda i: i[::4])
-    cache_c = None if cache is None else [c[::4] for c in cache]
+    sels = (idx, coarse_selection(idx))
+    caches = (cache, None if cache is None else [c[::4] for c in cache])
     best: CandidateFit | None = None
     for choice in cand.choices(pipe):
-        if not names:
+        if not params:
             new = cand.build(pipe, {}, choice)
-            loss = objective(new, flights, idx, cfg, cache)
-            if best is None or loss < best.train_loss:
-                best = CandidateFit(new, dict(choice), loss)
-            continue
-        bounds = _bounds(cand, cache, params)
-
-        def f_obj(x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds) -> float:
-            xx = _clipped(x, bounds)
-            return objective(
-                cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
-                flights,
-                idx,
-                cfg,
-                cache,
-            )
-
-        steps = [(b - a) / 8.0 if np.isfinite(b - a) else 10.0 for a, b in bounds]
-        for j, prm in enumerate(params):
-            if len(prm.grid) > 1:
-                steps[j] = float(np.min(np.diff(np.sort(prm.grid)))) / 2.0
-
-        def f_coarse(
-            x: np.ndarray, choice: dict[str, Any] = choice, bounds: list = bounds
-        ) -> float:
-            xx = _clipped(x, bounds)
-            return objective(
-                cand.build(pipe, dict(zip(names, xx, strict=True)), choice),
-                flights,
-                idx_c,
-                cfg,
-                cache_c,
-            )
-
-        grid = np.array(_start_grid(cand, cache, params), dtype=float)
-        # several starts where the loss is multimodal in several dims
-        multi = len(params) >= 2 and len(grid) > 8
-        xb, loss = minimize_from_grid(
-            f_obj,
-            grid,
-            steps,
-            cfg.max_evals,
-            n_starts=3 if multi else 1,
-            coarse=f_coarse if multi else None,
-        )
-        x = _clipped(xb, bounds)
-        for j, prm in enumerate(params):
-            if prm.period:
-                x[j] = x[j] % prm.period
-        th = dict(zip(names, x, strict=True))
-        new = cand.build(pipe, th, choice)
-        if best is None or loss < best.train_loss:
-            best = CandidateFit(new, {**th, **choice}, loss)
+            fit = CandidateFit(new, dict(choice), objective(new, flights, idx, cfg, cache))
+        else:
+            fit = _fit_choice(cand, pipe, flights, sels, caches, cfg, params, choice)
+        if best is None or fit.train_loss < best.train_loss:
+            best = fit
     assert best is not None
     return best
 
@@ -410,11 +450,14 @@ def _map(
     workers: int,
     processes: int = 1,
     done: Callable[[int], None] | None = None,
+    order: Sequence[int] | None = None,
 ) -> list[Any]:
     """``fn`` over ``items``, in ``processes`` forked processes (the closures are inherited by the
     fork, only the results travel back, pickled), else in ``workers`` threads (numpy releases the
-    GIL in the heavy parts); in order, so the results are those of one call after another, bit for
-    bit.  ``done(k)``: called in this process as the k-th result arrives (progress).
+    GIL in the heavy parts); the results in the items' order, so they are those of one call after
+    another, bit for bit.  ``order``: the order the processes are handed the items in (the longest
+    first, so that they finish together; the results do not depend on it).  ``done(k)``: called in
+    this process as the k-th result arrives (progress).
 
     BLAS runs single-threaded meanwhile: the fits' matrices are small (kriging systems of a few
     hundred cells, Gram matrices of ~100 columns), the parallelism is over the fits, and a
@@ -433,13 +476,18 @@ def _map(
     with threadpool_limits(limits=1, user_api="blas"):
         if processes > 1 and len(items) > 1:
             _FORKED.append((fn, items))
+            seq = list(range(len(items))) if order is None else list(order)
             try:
                 with mp.get_context("fork").Pool(
                     min(processes, len(items)), initializer=_limit_blas
                 ) as pool:
-                    return tick(pool.imap(_forked_call, range(len(items))))
+                    got = tick(pool.imap(_forked_call, seq))
             finally:
                 _FORKED.pop()
+            out: list[Any] = [None] * len(items)
+            for k, r in zip(seq, got, strict=True):
+                out[k] = r
+            return out
         if workers <= 1 or len(items) <= 1:
             return tick(fn(x) for x in items)
 
@@ -447,7 +495,50 @@ def _map(
             return tick(ex.map(fn, items))
 
 
+def longest_first(costs: Sequence[float]) -> list[int]:
+    """Indices by decreasing cost (ties in index order): the order to hand tasks to processes in, so
+    that the last ones handed out are short and the processes finish together."""
+    return sorted(range(len(costs)), key=lambda k: (-costs[k], k))
+
+
 Progress = Callable[[str, int, int], None]  # (description, done, total)
+
+
+def _scored(
+    cand: Candidate,
+    part: Sequence[tuple[CandidateFit, list[np.ndarray], float]],
+    flights: Sequence[FlightSamples],
+    folds: Sequence[Fold],
+    base_res: list[np.ndarray],
+    cfg: FitConfig,
+    m: int,
+    rng: np.random.Generator,
+) -> CandidateResult:
+    """One candidate's fold fits (``part``: fit, test residuals, seconds) scored against the base
+    rung's held-out residuals (``compare``, Bonferroni over ``m`` candidates)."""
+    fits = [ft for ft, _, _ in part]
+    res = [np.full(len(f), np.nan) for f in flights]
+    for (_, rs, _), fold in zip(part, folds, strict=True):
+        for q, (i, r) in enumerate(zip(fold.test, rs, strict=True)):
+            res[q][i] = r
+    mean, rel, lo, sig, L = compare(base_res, res, cfg, m, rng)
+    b, s = summarize(_pooled(base_res)), summarize(_pooled(res))
+    return CandidateResult(
+        cand.name,
+        [ft.params for ft in fits],
+        [ft.pipeline for ft in fits],
+        res,
+        mean,
+        rel,
+        lo,
+        sig,
+        b.rms,
+        s.rms,
+        b.p90_abs,
+        s.p90_abs,
+        L,
+        cand.tier,
+    )
 
 
 def rank_candidates(
@@ -460,61 +551,53 @@ def rank_candidates(
     base_res: list[np.ndarray] | None = None,
     progress: Progress | None = None,
     label: str = "",
+    costs: dict[str, float] | None = None,
 ) -> list[CandidateResult]:
     """Fit every applicable candidate on each fold's training data, score on its test data, rank
     (``rank_key``).
 
     The (candidate, fold) fits run in ``cfg.processes`` processes or ``cfg.workers`` threads; each
     gets its own generator spawned from ``rng`` in a fixed order, so results do not depend on the
-    scheduling.
+    scheduling.  ``costs``: seconds a fit of each candidate took, kept by the caller across
+    rankings (the ladder's rungs): the processes are handed the costliest fits first (a candidate
+    not timed yet counts as costlier than any), and the times of this ranking are stored back.
     """
     base_res = base_res if base_res is not None else heldout_residuals(pipes, flights, folds, cfg)
-    bsum = summarize(_pooled(base_res))
     tried = [c for c in candidates if c.applicable(pipes[0])]
     tasks = [(c, k) for c in tried for k in range(len(folds))]
     seeds = rng.integers(0, 2**63 - 1, size=len(tasks))
 
-    def run(task_seed: tuple[tuple[Candidate, int], int]) -> tuple[CandidateFit, list[np.ndarray]]:
+    def run(
+        task_seed: tuple[tuple[Candidate, int], int],
+    ) -> tuple[CandidateFit, list[np.ndarray], float]:
         (cand, k), seed = task_seed
+        t0 = time.process_time()
         ft = fit_candidate(
             cand, pipes[k], flights, folds[k].train, cfg, np.random.default_rng(seed)
         )
         res = residuals(ft.pipeline, flights, folds[k].test, cfg)
-        return ft, res
+        return ft, res, time.process_time() - t0
+
+    order = None
+    if cfg.processes > 1:
+        warm_selections(pipes, flights, folds, cfg)
+        known = costs or {}
+        order = longest_first([known.get(c.name, np.inf) for c, _ in tasks])
 
     def done(n: int) -> None:
         if progress is not None:
-            progress(f"{label}: {tasks[n - 1][0].name}", n, len(tasks))
+            k = n - 1 if order is None else order[n - 1]
+            progress(f"{label}: {tasks[k][0].name}", n, len(tasks))
 
-    results = _map(run, list(zip(tasks, seeds, strict=True)), cfg.workers, cfg.processes, done)
+    results = _map(
+        run, list(zip(tasks, seeds, strict=True)), cfg.workers, cfg.processes, done, order
+    )
     out = []
     nf = len(folds)
     for j, cand in enumerate(tried):
         part = results[j * nf : (j + 1) * nf]
-        fits = [ft for ft, _ in part]
-        res = [np.full(len(f), np.nan) for f in flights]
-        for (_, rs), fold in zip(part, folds, strict=True):
-            for q, (i, r) in enumerate(zip(fold.test, rs, strict=True)):
-                res[q][i] = r
-        mean, rel, lo, sig, L = compare(base_res, res, cfg, len(tried), rng)
-        s = summarize(_pooled(res))
-        out.append(
-            CandidateResult(
-                cand.name,
-                [ft.params for ft in fits],
-                [ft.pipeline for ft in fits],
-                res,
-                mean,
-                rel,
-                lo,
-                sig,
-                bsum.rms,
-                s.rms,
-                bsum.p90_abs,
-                s.p90_abs,
-                L,
-                cand.tier,
-            )
-        )
+        if costs is not None:
+            costs[cand.name] = float(np.mean([t for _, _, t in part]))
+        out.append(_scored(cand, part, flights, folds, base_res, cfg, len(tried), rng))
     out.sort(key=rank_key)
     return out

@@ -66,6 +66,7 @@ def ladder(
     rung = Rung(label, None, pipes, heldout_residuals(pipes, flights, folds, cfg))
     rungs = [rung]
     pool = list(candidates)
+    costs: dict[str, float] = {}  # seconds per fit, from the last ranking: the costliest go first
     while pool and len(rungs) <= max_rungs:
         ranking = rank_candidates(
             rung.pipes,
@@ -77,6 +78,7 @@ def ladder(
             rung.residuals,
             progress,
             f"rung {len(rungs)}",
+            costs,
         )
         rung.ranking = ranking
         sig = [r for r in ranking if r.significant]

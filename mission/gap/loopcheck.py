@@ -63,7 +63,9 @@ def loop_check(
         s, d = simulate_along(fam, flights, rng)
         sims += s
         draws += d
-    rec2, fits2 = fit_family(sims, record.get("effects", []), cfg, seed=seed)
+    rec2, fits2 = fit_family(
+        sims, record.get("effects", []), cfg, seed=seed, structure="nuisance" in record
+    )
     iv = record["checks"]["intervals"]
     params = {}
     for k, s in rec2["spread"].items():

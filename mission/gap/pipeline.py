@@ -109,15 +109,18 @@ class Pipeline:
         return replace(self, **kw)
 
     def geometry(
-        self, flight: FlightSamples, idx: np.ndarray | None = None
+        self,
+        flight: FlightSamples,
+        idx: np.ndarray | None = None,
+        yaw: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """UAV positions and attitudes for the samples ``idx`` at their RSS times shifted by the
-        time offset."""
+        time offset (``yaw``: the flight's unwrapped yaw, ``unwrapped_yaw``, if already made)."""
         t = flight.t_s if idx is None else flight.t_s[idx]
         if self.time_offset_s == 0.0:
             sl = slice(None) if idx is None else idx
             return flight.enu_m[sl], flight.attitude_rad[sl]
-        return shifted_geometry(flight, t - self.time_offset_s)
+        return shifted_geometry(flight, t - self.time_offset_s, yaw)
 
     def predict_channel(self, flight: FlightSamples, idx: np.ndarray | None = None) -> np.ndarray:
         """Model RSS (dB) before the spatial field and the receiver."""
@@ -155,13 +158,21 @@ class Pipeline:
         return tuple(names)
 
 
-def shifted_geometry(flight: FlightSamples, t_query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def unwrapped_yaw(flight: FlightSamples) -> np.ndarray:
+    """The flight's yaw series unwrapped (continuous), as ``shifted_geometry`` interpolates it."""
+    return np.unwrap(flight.attitude_rad[:, 2])
+
+
+def shifted_geometry(
+    flight: FlightSamples, t_query: np.ndarray, yaw: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Telemetry (positions, attitudes) linearly interpolated at ``t_query`` (yaw unwrapped; clamped
-    ends)."""
+    ends). ``yaw``: ``unwrapped_yaw(flight)`` when the caller keeps it (a time-offset fit shifts the
+    same flights hundreds of times)."""
     t = flight.t_s
     rx = np.stack([np.interp(t_query, t, flight.enu_m[:, k]) for k in range(3)], axis=-1)
     att = flight.attitude_rad
-    yaw = np.unwrap(att[:, 2])
+    yaw = unwrapped_yaw(flight) if yaw is None else yaw
     a = np.stack(
         [
             np.interp(t_query, t, att[:, 0]),
@@ -217,7 +228,15 @@ class Selection(tuple):
         self._links: dict[tuple, PreparedLinks] = {}
         self._fields: list[tuple[object, bool, np.ndarray]] = []
         self._children: dict[Hashable, Selection] = {}
+        self._yaw: dict[int, np.ndarray] = {}
         return self
+
+    def yaw(self, k: int) -> np.ndarray:
+        """``unwrapped_yaw`` of flight ``k``, kept (shared by every time offset tried)."""
+        hit = self._yaw.get(k)
+        if hit is None:
+            hit = self._yaw[k] = unwrapped_yaw(self.flights[k])
+        return hit
 
     def child(self, key: Hashable, pick: Callable[[np.ndarray], np.ndarray]) -> Selection:
         """The selection ``pick(i)`` of every index array, kept under ``key`` (the fits' decimated
@@ -241,7 +260,7 @@ class Selection(tuple):
         if key not in self._joint:
             if len(self._joint) >= _KEEP:
                 self._joint.clear()  # a time-offset fit tries many offsets: keep the last few
-            self._joint[key] = joint_geometry(pipe, self.flights, self)
+            self._joint[key] = joint_geometry(pipe, self.flights, self, self.yaw)
         return self._joint[key]
 
     def links(
@@ -316,13 +335,23 @@ class JointGeometry:
 
 
 def joint_geometry(
-    pipe: Pipeline, flights: Sequence[FlightSamples], idx: Sequence[np.ndarray]
+    pipe: Pipeline,
+    flights: Sequence[FlightSamples],
+    idx: Sequence[np.ndarray],
+    yaw: Callable[[int], np.ndarray] | None = None,
 ) -> JointGeometry | None:
     """The selected samples of all flights as one ``JointGeometry``; None where one call per flight
     is needed (no samples, a flight without attitude or transmitter).  Kept by a ``Selection``
-    passed as ``idx`` (``Selection.joint``)."""
+    passed as ``idx`` (``Selection.joint``); ``yaw(k)``: flight k's unwrapped yaw, kept by it."""
     live = [k for k, i in enumerate(idx) if len(i)]
-    geo = {k: pipe.geometry(flights[k], idx[k]) for k in live}
+    geo = {
+        k: pipe.geometry(
+            flights[k],
+            idx[k],
+            None if yaw is None or pipe.time_offset_s == 0.0 else yaw(k),
+        )
+        for k in live
+    }
     if not live or any(geo[k][1] is None or flights[k].tx_enu_m is None for k in live):
         return None
     rx = [np.asarray(geo[k][0], dtype=float) for k in live]

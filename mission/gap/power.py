@@ -118,6 +118,68 @@ def injected_test(
     return sig, lo
 
 
+def _band_counts(
+    dep_deg: Sequence[np.ndarray],
+    resid: Sequence[np.ndarray],
+    block_lens: Sequence[int],
+    band: tuple[float, float],
+) -> tuple[int, float, int, float]:
+    """The flights' samples in ``band`` (all, independent: per block of the residual's length), the
+    passes through it, and the residual's std about each flight's median."""
+    n, n_eff, passes, ss = 0, 0.0, 0, []
+    for dep, r, L in zip(dep_deg, resid, block_lens, strict=True):
+        ok = np.isfinite(r)
+        p, inb = _passes(dep, ok, band, max(int(L), 10))
+        passes += p
+        n += int(inb.sum())
+        n_eff += float(inb.sum()) / max(int(L), 1)
+        if ok.any():
+            ss.append(r[ok] - np.median(r[ok]))
+    s = float(np.std(np.concatenate(ss))) if ss else float("nan")
+    return n, n_eff, passes, s
+
+
+def _cleaned(dep_deg: Sequence[np.ndarray], resid: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """The residuals with a band loss the flights already show fitted out first (depth only, at
+    the statement's shape: one parameter, so that little of the band's noise goes with it)."""
+    allr = np.concatenate([np.asarray(r, float) for r in resid])
+    alld = np.concatenate(dep_deg)
+    g = band_shape(alld, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
+    ok = np.isfinite(allr)
+    d0 = float(-np.sum(allr[ok] * g[ok]) / max(float(np.sum(g[ok] ** 2)), 1e-12))
+    return [
+        np.asarray(r, float) + d0 * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
+        for d, r in zip(dep_deg, resid, strict=True)
+    ]
+
+
+def _statement_text(
+    band: tuple[float, float],
+    n: int,
+    n_eff: float,
+    passes: int,
+    detectable: float,
+    loss_db: float,
+    need: int,
+    need_eff: float,
+) -> str:
+    """The power statement in words."""
+    pl = f"{passes} pass{'es' if passes != 1 else ''}"
+    seen = (
+        f"a loss there (peaking mid-band, {SHAPE_WIDTH_DEG:.0f} deg wide) smaller than "
+        f"{detectable:.1f} dB "
+        "cannot be shown held out"
+        if math.isfinite(detectable)
+        else f"a loss there of any size up to {DEPTHS_DB[-1]:.0f} dB cannot be shown held out"
+    )
+    return (
+        f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} "
+        f"samples in {pl} "
+        f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need at least {need} samples "
+        f"({need_eff:.0f} independent) spread over several passes."
+    )
+
+
 def power_statement(
     dep_deg: Sequence[np.ndarray],
     resid: Sequence[np.ndarray],
@@ -137,26 +199,8 @@ def power_statement(
     count (n_eff = ((z_a + z_p) s / D)^2 blocks of the residual's length), a lower bound: the
     held-out test also needs them spread over several passes in both folds."""
     dep_deg = [np.asarray(d, dtype=float) for d in dep_deg]
-    n, n_eff, passes, ss = 0, 0.0, 0, []
-    for dep, r, L in zip(dep_deg, resid, block_lens, strict=True):
-        ok = np.isfinite(r)
-        p, inb = _passes(dep, ok, band, max(int(L), 10))
-        passes += p
-        n += int(inb.sum())
-        n_eff += float(inb.sum()) / max(int(L), 1)
-        if ok.any():
-            ss.append(r[ok] - np.median(r[ok]))
-    allr = np.concatenate([np.asarray(r, float) for r in resid])
-    alld = np.concatenate(dep_deg)
-    # a band loss the flights already show is fitted out first (depth only, at the statement's
-    # shape: one parameter, so that little of the band's noise goes with it)
-    g = band_shape(alld, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
-    ok = np.isfinite(allr)
-    d0 = float(-np.sum(allr[ok] * g[ok]) / max(float(np.sum(g[ok] ** 2)), 1e-12))
-    clean = [
-        np.asarray(r, float) + d0 * band_shape(d, SHAPE_CENTRE_DEG, SHAPE_WIDTH_DEG)
-        for d, r in zip(dep_deg, resid, strict=True)
-    ]
+    n, n_eff, passes, s = _band_counts(dep_deg, resid, block_lens, band)
+    clean = _cleaned(dep_deg, resid)
     threshold, lo_at = math.inf, float("nan")
     if n > 0:  # from the deepest loss down: every depth from ``threshold`` up is significant
         for D in DEPTHS_DB[::-1]:
@@ -165,24 +209,9 @@ def power_statement(
                 break
             threshold, lo_at = D, lo
     detectable = FIT_MARGIN * threshold
-    s = float(np.std(np.concatenate(ss))) if ss else float("nan")
     need_eff = ((Z_ALPHA + Z_POWER) * s / loss_db) ** 2
     L_mean = n / n_eff if n_eff > 0 else float(np.mean(block_lens)) if len(block_lens) else 1.0
     need = int(math.ceil(need_eff * L_mean))
-    pl = f"{passes} pass{'es' if passes != 1 else ''}"
-    seen = (
-        f"a loss there (peaking mid-band, {SHAPE_WIDTH_DEG:.0f} deg wide) smaller than "
-        f"{detectable:.1f} dB "
-        "cannot be shown held out"
-        if math.isfinite(detectable)
-        else f"a loss there of any size up to {DEPTHS_DB[-1]:.0f} dB cannot be shown held out"
-    )
-    text = (
-        f"Below the UAV ({band[0]:.0f}-{band[1]:.0f} deg depression) the flights have {n} "
-        f"samples in {pl} "
-        f"({n_eff:.0f} independent): {seen}; {loss_db:.0f} dB would need at least {need} samples "
-        f"({need_eff:.0f} independent) spread over several passes."
-    )
     return {
         "band_deg": list(band),
         "samples": n,
@@ -200,5 +229,5 @@ def power_statement(
         "bonferroni_m": m,
         "shape": {"centre_deg": SHAPE_CENTRE_DEG, "width_deg": SHAPE_WIDTH_DEG},
         "method": "injected held-out test",
-        "statement": text,
+        "statement": _statement_text(band, n, n_eff, passes, detectable, loss_db, need, need_eff),
     }

@@ -131,17 +131,9 @@ def _small(p: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in p.items() if k not in _BIG}
 
 
-def summary(d: Diagnosis) -> dict[str, Any]:
-    """The stable machine-readable result (top of ``gap.json``; ``rfsl gap --json`` prints it).
-
-    ``ladder``: one entry per rung: ``rung`` (label), ``added`` (effect or null), ``params``
-    (fitted, fold mean), ``heldout`` (median/p90/rms |error| dB, n), ``footprint`` (size_db where it
-    acts, where). ``rankings``: rung label -> candidates tried on top of it, in rank order:
-    ``name``, ``tier``, ``loss_reduction_db2``, ``rel_reduction``, ``ci_lo_db2`` (one-sided lower
-    bound), ``significant``, ``rms_after_db``, ``p90_after_db``, ``params``.  ``named``: what the
-    diagnosis names as missing first; ``structure``: residual variograms and verdict of the base and
-    final rungs; ``rule``: the ranking rule.
-    """
+def _ladder_summary(d: Diagnosis) -> list[dict[str, Any]]:
+    """``summary``'s ``ladder``: per rung, what was added, its parameters, the held-out figures and
+    the footprint."""
     ladder = []
     for row in rung_table(d):
         s = row["pooled"]
@@ -159,7 +151,12 @@ def summary(d: Diagnosis) -> dict[str, Any]:
                 "footprint": d.footprints.get(row["rung"]),
             }
         )
-    rankings = {
+    return ladder
+
+
+def _rankings_summary(d: Diagnosis) -> dict[str, list[dict[str, Any]]]:
+    """``summary``'s ``rankings``: per rung, the candidates tried on top of it in rank order."""
+    return {
         r.label: [
             {
                 "name": x.name,
@@ -177,39 +174,55 @@ def summary(d: Diagnosis) -> dict[str, Any]:
         for r in d.rungs
         if r.ranking
     }
+
+
+_STRUCTURE_KEYS = ("verdict", "rule", "residual_std_db", "test")
+_VARIOGRAM_KEYS = (
+    "sigma_db",
+    "sigma_ci_db",
+    "corr_len",
+    "corr_len_ci",
+    "unit",
+    "nugget_db",
+    "nugget_ci_db",
+    "correlated_fraction",
+)
+
+
+def _structure_summary(d: Diagnosis) -> dict[str, Any]:
+    """``summary``'s ``structure``: the verdict and the variograms (along the path, over space) of
+    the base and final rungs' residuals."""
+    return {
+        k: {kk: vv for kk, vv in v.items() if kk in _STRUCTURE_KEYS}
+        | {
+            kk: {q: v[kk][q] for q in _VARIOGRAM_KEYS}
+            for kk in ("along_path", "spatial")
+            if kk in v
+        }
+        for k, v in d.structure.items()
+    }
+
+
+def summary(d: Diagnosis) -> dict[str, Any]:
+    """The stable machine-readable result (top of ``gap.json``; ``rfsl gap --json`` prints it).
+
+    ``ladder``: one entry per rung: ``rung`` (label), ``added`` (effect or null), ``params``
+    (fitted, fold mean), ``heldout`` (median/p90/rms |error| dB, n), ``footprint`` (size_db where it
+    acts, where). ``rankings``: rung label -> candidates tried on top of it, in rank order:
+    ``name``, ``tier``, ``loss_reduction_db2``, ``rel_reduction``, ``ci_lo_db2`` (one-sided lower
+    bound), ``significant``, ``rms_after_db``, ``p90_after_db``, ``params``.  ``named``: what the
+    diagnosis names as missing first; ``structure``: residual variograms and verdict of the base and
+    final rungs; ``rule``: the ranking rule.
+    """
     first = d.rungs[0].ranking
     return {
         "schema": SCHEMA_VERSION,
         "named": name_missing(first, d.structure.get("base")),
         "text": summary_paragraph(d),
         "rule": RANKING_RULE,
-        "ladder": ladder,
-        "rankings": rankings,
-        "structure": {
-            k: {
-                kk: vv
-                for kk, vv in v.items()
-                if kk in ("verdict", "rule", "residual_std_db", "test")
-            }
-            | {
-                kk: {
-                    q: v[kk][q]
-                    for q in (
-                        "sigma_db",
-                        "sigma_ci_db",
-                        "corr_len",
-                        "corr_len_ci",
-                        "unit",
-                        "nugget_db",
-                        "nugget_ci_db",
-                        "correlated_fraction",
-                    )
-                }
-                for kk in ("along_path", "spatial")
-                if kk in v
-            }
-            for k, v in d.structure.items()
-        },
+        "ladder": _ladder_summary(d),
+        "rankings": _rankings_summary(d),
+        "structure": _structure_summary(d),
         "near_nadir": d.near_nadir,
         "time_power": d.time_power,
         "frames": d.frames,
@@ -244,21 +257,8 @@ def freeform_shapes(d: Diagnosis) -> dict[str, Any]:
     return out
 
 
-def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
-    """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the
-    paths."""
-    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
-    # without a plot do not pay its import
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    figs = figures(d)
-    paths = []
-
+def _plot_cdfs(plt: Any, figs: dict[str, Any], path: Path) -> None:
+    """The reference models' and the ladder rungs' |error| CDFs side by side."""
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     for name, g in figs["cdf_models"].items():
         ax[0].plot(
@@ -280,10 +280,12 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax[1].set(xlabel="|error| (dB), held-out", ylabel="CDF", title="Ladder rungs (held-out)")
     ax[1].legend(fontsize=7)
     fig.tight_layout()
-    paths.append(out / "cdf.png")
-    save_figure(fig, paths[-1], dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
+
+def _plot_breakdown(plt: Any, d: Diagnosis, path: Path) -> None:
+    """The base residual's mean per bin of every variable, flagged bins in red."""
     n = len(d.breakdown)
     fig, axs = plt.subplots(2, (n + 1) // 2, figsize=(4 * ((n + 1) // 2), 7))
     for ax, b in zip(np.ravel(axs), d.breakdown, strict=False):
@@ -301,10 +303,12 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         ax.set(title=b.variable, ylabel="mean residual dB")
     fig.suptitle(f"Residual of '{d.base_label}' (measured - model), 95 % block-bootstrap CI")
     fig.tight_layout()
-    paths.append(out / "breakdown.png")
-    save_figure(fig, paths[-1], dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
 
+
+def _plot_field_map(plt: Any, d: Diagnosis, path: Path) -> None:
+    """The base residual over the field, significant cells marked, tracks and transmitters."""
     fm = d.field_map
     fig, ax = plt.subplots(figsize=(7, 6))
     ext = [
@@ -334,10 +338,12 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     )
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
-    paths.append(out / "field_map.png")
-    save_figure(fig, paths[-1], dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
 
+
+def _plot_polar(plt: Any, figs: dict[str, Any], path: Path) -> None:
+    """The mean residual over body azimuth, per rung."""
     fig = plt.figure(figsize=(6, 6))
     ax = fig.add_subplot(projection="polar")
     ax.set_theta_zero_location("N")
@@ -352,65 +358,94 @@ def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     ax.set_title("Mean residual (dB) over body azimuth (0 = nose, clockwise)")
     ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.1, -0.15))
     fig.tight_layout()
-    paths.append(out / "polar_body_azimuth.png")
-    save_figure(fig, paths[-1], dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
 
-    if d.localization:
-        fig, ax = plt.subplots(figsize=(8, 4))
-        labels = [r["rung"].split(" + ")[-1] for r in d.localization]
-        for f in d.flights:
-            ax.plot(
-                range(len(labels)),
-                [r["errors_m"][f.name] for r in d.localization],
-                "o-",
-                label=f.name,
-                ms=4,
-            )
-        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right")
-        ax.set(
-            ylabel="grid-search error m",
-            title="Localization cost per rung (model-based grid search)",
-        )
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        paths.append(out / "localization.png")
-        save_figure(fig, paths[-1], dpi=100)
-        plt.close(fig)
 
-    shapes = figs["freeform_shapes"]
-    if shapes:
-        fig, axs = plt.subplots(1, len(shapes), figsize=(5.5 * len(shapes), 4.2), squeeze=False)
-        for ax, (name, sh) in zip(axs[0], shapes.items(), strict=True):
-            g = sh["shape"]
-            if "gain_db" in g:
-                im = ax.pcolormesh(
-                    g["azimuth_deg"],
-                    g["elevation_deg"],
-                    np.array(g["gain_db"]),
-                    cmap="RdBu_r",
-                    shading="auto",
-                )
-                fig.colorbar(im, ax=ax, label="dB")
-                ax.set(
-                    xlabel="body azimuth deg" if name == "rx_gain_map" else "compass azimuth deg",
-                    ylabel="body depression deg" if name == "rx_gain_map" else "elevation deg",
-                )
-            else:
-                ax.plot(g["distance_m"], g["loss_vs_distance_db"], label="vs distance (m)")
-                ax2 = ax.twiny()
-                ax2.plot(g["height_m"], g["loss_vs_height_db"], "C1", label="vs height (m)")
-                ax.set(xscale="log", xlabel="distance m", ylabel="dB")
-                ax2.set_xlabel("UAV height m (orange)")
-            ax.set_title(
-                f"{name}: {sh['size_db']:.1f} dB, like {sh['resembles']} "
-                f"({sh['resemblance_corr']:.2f})",
-                fontsize=9,
+def _plot_localization(plt: Any, d: Diagnosis, path: Path) -> None:
+    """The grid search's error per flight on every rung."""
+    fig, ax = plt.subplots(figsize=(8, 4))
+    labels = [r["rung"].split(" + ")[-1] for r in d.localization]
+    for f in d.flights:
+        ax.plot(
+            range(len(labels)),
+            [r["errors_m"][f.name] for r in d.localization],
+            "o-",
+            label=f.name,
+            ms=4,
+        )
+    ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right")
+    ax.set(
+        ylabel="grid-search error m",
+        title="Localization cost per rung (model-based grid search)",
+    )
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=100)
+    plt.close(fig)
+
+
+def _plot_freeform(plt: Any, shapes: dict[str, Any], path: Path) -> None:
+    """Every free-form shape: a gain map over two angles, or a loss over distance and height."""
+    fig, axs = plt.subplots(1, len(shapes), figsize=(5.5 * len(shapes), 4.2), squeeze=False)
+    for ax, (name, sh) in zip(axs[0], shapes.items(), strict=True):
+        g = sh["shape"]
+        if "gain_db" in g:
+            im = ax.pcolormesh(
+                g["azimuth_deg"],
+                g["elevation_deg"],
+                np.array(g["gain_db"]),
+                cmap="RdBu_r",
+                shading="auto",
             )
-        fig.tight_layout()
-        paths.append(out / "freeform.png")
-        save_figure(fig, paths[-1], dpi=100)
-        plt.close(fig)
+            fig.colorbar(im, ax=ax, label="dB")
+            ax.set(
+                xlabel="body azimuth deg" if name == "rx_gain_map" else "compass azimuth deg",
+                ylabel="body depression deg" if name == "rx_gain_map" else "elevation deg",
+            )
+        else:
+            ax.plot(g["distance_m"], g["loss_vs_distance_db"], label="vs distance (m)")
+            ax2 = ax.twiny()
+            ax2.plot(g["height_m"], g["loss_vs_height_db"], "C1", label="vs height (m)")
+            ax.set(xscale="log", xlabel="distance m", ylabel="dB")
+            ax2.set_xlabel("UAV height m (orange)")
+        ax.set_title(
+            f"{name}: {sh['size_db']:.1f} dB, like {sh['resembles']} "
+            f"({sh['resemblance_corr']:.2f})",
+            fontsize=9,
+        )
+    fig.tight_layout()
+    save_figure(fig, path, dpi=100)
+    plt.close(fig)
+
+
+def write_report(d: Diagnosis, out_dir: str | Path) -> list[Path]:
+    """PNGs (CDFs, ladder CDFs, breakdown, residual map, polar) and ``gap.json``; returns the
+    paths."""
+    # matplotlib stays lazy (noqa): the Agg backend is chosen before pyplot loads, and runs
+    # without a plot do not pay its import
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figs = figures(d)
+    plots = [
+        ("cdf.png", lambda p: _plot_cdfs(plt, figs, p)),
+        ("breakdown.png", lambda p: _plot_breakdown(plt, d, p)),
+        ("field_map.png", lambda p: _plot_field_map(plt, d, p)),
+        ("polar_body_azimuth.png", lambda p: _plot_polar(plt, figs, p)),
+    ]
+    if d.localization:
+        plots.append(("localization.png", lambda p: _plot_localization(plt, d, p)))
+    if figs["freeform_shapes"]:
+        plots.append(("freeform.png", lambda p: _plot_freeform(plt, figs["freeform_shapes"], p)))
+    paths = []
+    for name, plot in plots:
+        paths.append(out / name)
+        plot(paths[-1])
 
     paths.append(out / "details.txt")
     write_text(paths[-1], details_text(d))

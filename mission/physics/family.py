@@ -17,6 +17,7 @@ Schema (``schema`` 1)::
      # correlated field + white nugget
      "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
      "offset_db": D,           # the receiver's uncalibrated offset
+     "nuisance": {"time_drift_db": D},  # optional: per-flight structure beside the spec (below)
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
 
 A distribution ``D`` is a number (fixed) or ``{"dist": "uniform", "lo", "hi"}``, ``{"dist":
@@ -26,7 +27,16 @@ A distribution ``D`` is a number (fixed) or ``{"dist": "uniform", "lo", "hi"}``,
 parametric shape).
 
 Draw order per flight (reproducible from the caller's generator): spec values in key order (nested
-dicts in their key order), the variant, residual (shadowing_db, shadowing_corr_m, noise_db), offset.
+dicts in their key order), the variant, residual (shadowing_db, shadowing_corr_m, noise_db), offset,
+then the nuisance values in key order (only a family that has them draws them: an older family's
+draws are unchanged).
+
+Per-flight nuisance (``nuisance``): structure that repeats within a flight but is not in the model
+spec, drawn once per flight so that only what is left is drawn as shadowing.  ``time_drift_db``:
+the std (over the flight's samples) of a smooth gain drift along the flight, a random combination of
+Legendre P_1..P_4 over the samples' order scaled to [-1, 1] (coefficient sd 1 / (1 + p^2), the
+smooth part of the gap's ``time_drift`` basis) rescaled to that std; ``simulate_rss`` adds it after
+the shadowing.
 """
 
 from __future__ import annotations
@@ -49,6 +59,8 @@ from mission.physics.shadowing import shadowing_field
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
 RESIDUAL_KEYS = ("shadowing_db", "shadowing_corr_m", "noise_db")
+NUISANCE_KEYS = ("time_drift_db",)
+DRIFT_ORDER = 4  # Legendre orders of the drawn time drift (the gap's ``temporal.DRIFT_ORDER``)
 SHIPPED = {"afar": "afar_family.json"}
 
 
@@ -146,6 +158,7 @@ class FamilyDraw:
     shadowing_corr_m: float
     noise_db: float
     offset_db: float
+    time_drift_db: float = 0.0  # std of the flight's smooth gain drift (``nuisance``)
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
@@ -158,7 +171,7 @@ class FamilyDraw:
             "shadowing_corr_m": self.shadowing_corr_m,
             "noise_db": self.noise_db,
             "offset_db": self.offset_db,
-        }
+        } | ({"time_drift_db": self.time_drift_db} if self.time_drift_db else {})
 
 
 def lowest(v: Any) -> float:
@@ -166,10 +179,10 @@ def lowest(v: Any) -> float:
     against."""
     if not isinstance(v, dict):
         return float(v)
-    if v["dist"] in ("uniform", "loguniform"):
-        return float(v["lo"])
-    if v["dist"] == "normal":
-        return float(v.get("lo", -np.inf))
+    if v["dist"] in ("uniform", "loguniform"):  # drawn between lo and hi, whichever is lower
+        return min(float(v["lo"]), float(v["hi"]))
+    if v["dist"] == "normal":  # clipped to [lo, hi]: hi when hi < lo
+        return min(float(v.get("lo", -np.inf)), float(v.get("hi", np.inf)))
     return min(float(x) for x in v["options" if v["dist"] == "choice" else "values"])
 
 
@@ -184,6 +197,7 @@ class PhysicsFamily:
     offset_db: Any = 0.0
     variants: tuple = ()
     record: dict = field(default_factory=dict, compare=False, repr=False)
+    nuisance: dict = field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, d: dict, source: str | None = None) -> PhysicsFamily:
@@ -227,6 +241,7 @@ class PhysicsFamily:
                     field=f"residual.{k}",
                 )
         check_dist(d.get("offset_db", 0.0), "offset_db", source)
+        nuis = _checked_nuisance(d.get("nuisance", {}), source)
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
@@ -251,6 +266,7 @@ class PhysicsFamily:
             d.get("offset_db", 0.0),
             tuple(variants),
             dict(d),
+            nuis,
         )
         fam._check_builds(source)
         return fam
@@ -275,12 +291,15 @@ class PhysicsFamily:
             v = self.variants[int(rng.choice(len(p), p=p / p.sum()))]
             spec.update(_draw_tree(v["spec"], rng))
         res = _draw_tree(self.residual, rng)
+        offset = float(draw_value(self.offset_db, rng))
+        nuis = _draw_tree(self.nuisance, rng) if self.nuisance else {}
         return FamilyDraw(
             spec,
             float(res.get("shadowing_db", 0.0)),
             float(res.get("shadowing_corr_m", 30.0)),
             float(res.get("noise_db", 0.0)),
-            float(draw_value(self.offset_db, rng)),
+            offset,
+            float(nuis.get("time_drift_db", 0.0)),
         )
 
     def to_dict(self) -> dict:
@@ -294,7 +313,46 @@ class PhysicsFamily:
         )
         if self.variants:
             d["variants"] = list(self.variants)
+        if self.nuisance:
+            d["nuisance"] = self.nuisance
         return d
+
+
+def _checked_nuisance(nuis: Any, source: str | None) -> dict:
+    """The family's ``nuisance`` object: known keys, each a number or distribution never drawn
+    below 0 (one-line ``InputError`` naming the field otherwise)."""
+    if not isinstance(nuis, dict) or set(nuis) - set(NUISANCE_KEYS):
+        raise InputError(
+            f"nuisance keys must be among {', '.join(NUISANCE_KEYS)}",
+            source=source,
+            field="nuisance",
+        )
+    _check_tree(nuis, "nuisance", source)
+    for k, v in nuis.items():
+        try:
+            low = lowest(v)
+        except (TypeError, ValueError, KeyError):
+            raise InputError(
+                f"nuisance.{k} must be a number or a distribution",
+                source=source,
+                field=f"nuisance.{k}",
+            ) from None
+        if not low >= 0:
+            raise InputError(f"nuisance.{k} can be drawn < 0", source=source, field=f"nuisance.{k}")
+    return dict(nuis)
+
+
+def time_drift(n: int, std_db: float, rng: np.random.Generator) -> np.ndarray:
+    """A smooth gain drift over ``n`` samples in flight order, std ``std_db`` over them: a random
+    combination of Legendre P_1..P_DRIFT_ORDER of the order scaled to [-1, 1], coefficient sd
+    1 / (1 + p^2) (module docstring); zeros when ``std_db`` is 0 or fewer than 3 samples."""
+    if std_db <= 0 or n < 3:
+        return np.zeros(n)
+    u = np.linspace(-1.0, 1.0, n)
+    c = rng.normal(0.0, 1.0, DRIFT_ORDER) / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
+    g = np.polynomial.legendre.legval(u, np.concatenate([[0.0], c]))
+    sd = float(np.std(g))
+    return g * (std_db / sd) if sd > 0 else np.zeros(n)
 
 
 def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
@@ -345,4 +403,6 @@ def simulate_rss(
     rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
     if draw.shadowing_db > 0:
         rss = rss + shadowing_field(rx[:, :2], draw.shadowing_db, draw.shadowing_corr_m, rng)
+    if draw.time_drift_db > 0:  # after the shadowing: a draw without drift is unchanged
+        rss = rss + time_drift(len(rss), draw.time_drift_db, rng)
     return rss

@@ -88,6 +88,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta
 from mission.geo import afar_field
+from mission.physics.family import time_drift
 from mission.physics.presets import build_model, load_preset
 from mission.physics.shadowing import shadowing_field
 from mission.simulate import SimConfig, perturbation
@@ -244,6 +245,8 @@ def draw_flight(
         )
         d["time_offset_s"] = _u(rng, -0.5, 0.5)
         d["rss_offset_db"] = fd.offset_db
+        if fd.time_drift_db:  # a family with per-flight structure (``physics.family`` nuisance)
+            d["time_drift_db"] = fd.time_drift_db
         return d, rng
     d["physics"] = _physics(rng, family, center)
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING[family]
@@ -339,6 +342,8 @@ def simulate_draw(
     rss = np.asarray(model.rss_dbm(tx, pos, att), dtype=float)
     rss += d["rss_offset_db"] + rng.normal(0.0, d["noise_db"], size=rss.shape)
     rss += shadowing_field(pos[:, :2], d["shadowing_db"], d["shadowing_corr_m"], rng)
+    if d.get("time_drift_db"):  # drawn last: a flight without it is unchanged
+        rss += time_drift(len(rss), d["time_drift_db"], rng)
     # telemetry read time_offset_s late: the logged pose of sample k is the true pose at t_k +
     # offset
     ts = np.clip(t + d["time_offset_s"], t[0], t[-1])

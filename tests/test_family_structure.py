@@ -1,0 +1,194 @@
+"""A family with per-flight structure: the drawn time drift, its fit on a flight, the nuisance field
+of a family record, and the one loss that weighs the loop check and the predictive checks."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import mission.gap.familyrun as fr
+from mission.errors import InputError
+from mission.gap.familyfit import offset_distribution, time_drift_std
+from mission.gap.familyloss import family_loss, interval_miss, ppc_miss
+from mission.gap.fit import FitConfig
+from mission.physics.family import (
+    DRIFT_ORDER,
+    FamilyDraw,
+    PhysicsFamily,
+    load_family,
+    simulate_rss,
+    time_drift,
+)
+from mission.samples import FlightSamples
+
+
+def _with_nuisance(nuis: object) -> dict:
+    d = load_family("afar").to_dict()
+    d["nuisance"] = nuis
+    return d
+
+
+@pytest.mark.parametrize("std", [0.5, 3.0, 9.0])
+def test_time_drift_has_its_std_and_is_smooth(std: float) -> None:
+    g = time_drift(900, std, np.random.default_rng(4))
+    assert np.std(g) == pytest.approx(std, rel=1e-9)
+    # a combination of P_1..P_4 of the sample order: a degree-4 fit leaves nothing
+    u = np.linspace(-1.0, 1.0, 900)
+    fit = np.polynomial.legendre.legval(u, np.polynomial.legendre.legfit(u, g, DRIFT_ORDER))
+    assert np.max(np.abs(fit - g)) < 1e-9 * std
+    # reproducible from the generator; another seed, another drift
+    assert np.array_equal(g, time_drift(900, std, np.random.default_rng(4)))
+    assert not np.allclose(g, time_drift(900, std, np.random.default_rng(5)))
+
+
+def test_time_drift_zero_cases() -> None:
+    assert not time_drift(100, 0.0, np.random.default_rng(0)).any()
+    assert not time_drift(2, 5.0, np.random.default_rng(0)).any()
+
+
+def test_a_family_without_nuisance_draws_as_before() -> None:
+    """The nuisance is drawn last: the rest of a draw, and the simulated RSS without drift, are
+    those of the family without it."""
+    old = load_family("afar")
+    new = PhysicsFamily.from_dict(_with_nuisance({"time_drift_db": 2.0}))
+    for seed in range(5):
+        a, b = old.draw(np.random.default_rng(seed)), new.draw(np.random.default_rng(seed))
+        assert a.to_dict() == {k: v for k, v in b.to_dict().items() if k != "time_drift_db"}
+        assert a.time_drift_db == 0.0 and b.time_drift_db == 2.0
+    rx = np.column_stack([np.linspace(0, 200, 300), np.zeros(300), np.full(300, 30.0)])
+    att = np.zeros((300, 3))
+    tx = np.array([50.0, 60.0, 1.5])
+    d0 = FamilyDraw({"base": "free-space"}, 3.0, 30.0, 1.0, 0.0)
+    d1 = FamilyDraw({"base": "free-space"}, 3.0, 30.0, 1.0, 0.0, 4.0)
+    r0 = simulate_rss(d0, tx, rx, att, np.random.default_rng(7))
+    r1 = simulate_rss(d1, tx, rx, att, np.random.default_rng(7))
+    # the same shadowing and noise, plus a drift of 4 dB std drawn after them
+    assert np.std(r1 - r0) == pytest.approx(4.0, rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    key=st.sampled_from(["time_drift_db", "drift", "shadowing_db"]),
+    value=st.one_of(
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.text(max_size=3),
+        st.none(),
+        st.fixed_dictionaries(
+            {
+                "dist": st.sampled_from(["normal", "uniform", "bogus"]),
+                "mean": st.floats(-5, 5),
+                "sd": st.floats(0, 3),
+                "lo": st.floats(-5, 5),
+                "hi": st.floats(-5, 5),
+            }
+        ),
+    ),
+)
+def test_generated_bad_nuisance_is_refused_naming_the_field(key: str, value: object) -> None:
+    """Any nuisance either loads and draws a drift >= 0, or raises InputError naming the field."""
+    try:
+        fam = PhysicsFamily.from_dict(_with_nuisance({key: value}), source="gen.json")
+    except InputError as e:
+        assert "nuisance" in str(e) and "gen.json" in str(e)
+    else:
+        assert fam.draw(np.random.default_rng(0)).time_drift_db >= 0
+
+
+def test_time_drift_std_finds_a_drift_over_time() -> None:
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 600.0, 0.5)
+    u = 2.0 * t / t[-1] - 1.0
+    drift = 3.0 * (1.5 * u * u - 0.5) / np.std(1.5 * u * u - 0.5)  # P_2, 3 dB std
+    flight = FlightSamples(
+        enu_m=np.zeros((len(t), 3)), rss_dbm=np.zeros(len(t)), t_s=t, name="synthetic"
+    )
+    r = drift + rng.normal(0.0, 2.0, len(t))
+    r[::7] = np.nan  # held-out residuals have gaps
+    assert time_drift_std(flight, r) == pytest.approx(3.0, abs=0.25)
+    # white noise alone: little drift (4 columns on 1200 samples)
+    assert time_drift_std(flight, rng.normal(0.0, 2.0, len(t))) < 0.3
+
+
+@pytest.mark.parametrize(
+    ("p", "miss"),
+    [(0.5, 0.0), (0.05, 0.0), (0.95, 0.0), (0.0, 1.0), (1.0, 1.0), (0.025, 0.5), (0.99, 0.8)],
+)
+def test_ppc_miss_table(p: float, miss: float) -> None:
+    assert ppc_miss(p) == pytest.approx(miss)
+
+
+@pytest.mark.parametrize(
+    ("v", "iv", "miss"),
+    [(5.0, (0.0, 10.0), 0.0), (-2.0, (0.0, 10.0), 0.2), (13.0, (0.0, 10.0), 0.3)],
+)
+def test_interval_miss_table(v: float, iv: tuple[float, float], miss: float) -> None:
+    assert interval_miss(v, iv) == pytest.approx(miss)
+
+
+def _loop(p90_sim: float, slope_mean: float) -> dict:
+    return {
+        "heldout_p90_db": {"real": 20.0, "sim": p90_sim},
+        "params": {"path_gain_slope": {"refit_mean": slope_mean, "interval": [0.0, 2.0]}},
+        "sill_db": {"sim": 10.0, "interval": [8.0, 12.0]},
+        "range_m": {"sim": 30.0, "interval": [5.0, 75.0]},
+        "passed": abs(p90_sim - 20.0) <= 1.0 and 0.0 <= slope_mean <= 2.0,
+    }
+
+
+def _ppc(ps: list[float]) -> dict:
+    return {f"c{k}": {"p": p, "passes": 0.05 <= p <= 0.95} for k, p in enumerate(ps)}
+
+
+def test_family_loss_weighs_both_groups() -> None:
+    ok = family_loss(_loop(20.5, 1.0), _ppc([0.5] * 13))
+    assert ok["loss"] == 0.0 and ok["ppc_failed"] == 0 and ok["loop_passed"] is True
+    # one predictive check at p = 0 of 13: half the weight over 13 checks
+    one = family_loss(_loop(20.5, 1.0), _ppc([0.0] + [0.5] * 12))
+    assert one["loss"] == pytest.approx(0.5 / 13) and one["ppc_failed"] == 1
+    # the p90 2 dB off (1 dB beyond the tolerance) among the 4 loop rules
+    off = family_loss(_loop(22.0, 1.0), _ppc([0.5] * 13))
+    assert off["loss"] == pytest.approx(0.5 * 1.0 / 4) and off["loop_passed"] is False
+    # a missing group: the other carries the whole weight
+    assert family_loss(None, _ppc([0.0, 0.5]))["loss"] == pytest.approx(0.5)
+    assert family_loss(_loop(22.0, 1.0), None)["loss"] == pytest.approx(0.25)
+
+
+def test_offset_is_drawn_from_the_real_flights_with_structure() -> None:
+    off = {"mean": 68.8, "sd": 16.5, "per_flight": [77.0, 59.9, 56.9, 56.3, 94.1]}
+    emp = offset_distribution(off, per_flight=True)
+    assert emp == {"dist": "empirical", "values": [77.0, 59.9, 56.9, 56.3, 94.1]}
+    fam = PhysicsFamily.from_dict({**load_family("afar").to_dict(), "offset_db": emp})
+    drawn = {fam.draw(np.random.default_rng(s)).offset_db for s in range(60)}
+    assert drawn == set(emp["values"])  # never beyond the real flights' offsets
+    assert offset_distribution(off)["dist"] == "normal"
+
+
+def test_recalibration_never_steps_against_the_p90(monkeypatch) -> None:
+    """Two noisy checks whose p90 falls as the shadowing grows: the next scale is the ratio step
+    (more shadowing), not the secant's leap (it had reached -17.3 on the real flights)."""
+    sims = iter([20.0, 19.99, 21.4])
+
+    def fake_loop(rec, used, cfg, seed=0, repeats=1):
+        p = next(sims)
+        return {
+            "heldout_p90_db": {"real": 21.5, "sim": p, "within_1db": abs(p - 21.5) <= 1.0},
+            "passed": False,
+        }
+
+    def fake_fit(flights, effects, cfg, **kw):
+        rec = {"residual": {"shadowing_db": 10.0, "noise_db": 3.0}, "checks": {}}
+        return rec, []
+
+    monkeypatch.setattr(fr, "loop_check", fake_loop)
+    monkeypatch.setattr(fr, "fit_family", fake_fit)
+    d = SimpleNamespace(flights=[], rungs=[SimpleNamespace(added=None)])
+    rec = fr.family_from_diagnosis(d, FitConfig(), repeats=1)
+    steps = rec["residual_calibration"]["steps"]
+    k1 = 21.5 / 20.0
+    assert steps[1][0] == pytest.approx(k1)
+    assert steps[2][0] == pytest.approx(k1 * 21.5 / 19.99)  # up, by the ratio
+    assert 0 < steps[2][0] <= k1 * fr.SECANT_LIMIT
