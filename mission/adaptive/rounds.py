@@ -193,11 +193,6 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         visited = [rd["centre"] for rd in ext.rounds]
         cands = d.get("candidates") if a.explore else None
         target = choose_target((d["x_m"], d["y_m"]), cands, visited, a.radius_m)
-        # the two hypotheses the round is flown to tell apart (issue 33 item 2's bookkeeping)
-        hyp = {
-            "target": [*target, mass_near(target, d.get("candidates"), a.radius_m)],
-            "rival": rival_of(target, (d["x_m"], d["y_m"]), d.get("candidates"), a.radius_m),
-        }
         plan = plan_round(spec, a, target, wps[-1], t_end, pace)
         for n in plan.notes if plan.ok else ():
             ctx.event("adaptive", f"round {k + 1}: {n}")
@@ -227,21 +222,30 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         # land~ now the round's plan, no longer the survey's
         ctx.status.predicted_s = spec.time_budget_s - left
         ext.rounds.append(_round_record(ctx, k, d, target, plan, wps, n_survey, left, pace))
-        ext.rounds[-1]["hypotheses"] = hyp
-        rival = hyp["rival"]
-        tells = (
-            f", to tell ({target[0]:.0f}, {target[1]:.0f}) m from ({rival[0]:.0f}, "
-            f"{rival[1]:.0f}) m"
-            if rival is not None
-            else ""
-        )
-        ctx.event(
-            "adaptive",
-            f"round {k + 1}: {2 * plan.radius_m:.0f} m square at ({plan.centre[0]:.0f}, "
-            f"{plan.centre[1]:.0f}) m{tells}, {ext.rounds[-1]['planned_s']:.0f} s; {left:.0f} s "
-            "spare after the return",
-        )
+        _announce(ctx, ext.rounds[-1], d, a.radius_m)
         wps, k = new, k + 1
+
+
+def _announce(ctx: FlightContext, rd: dict, d: dict, visit_m: float) -> None:
+    """Round ``rd``'s line, with the two hypotheses it is flown to tell apart (its target and the
+    live estimate ``d``'s most probable rival, ``planner.rival_of``), kept in its record."""
+    target, plan_c = rd["target"], rd["centre"]
+    rd["hypotheses"] = hyp = {
+        "target": [*target, mass_near(target, d.get("candidates"), visit_m)],
+        "rival": rival_of(target, (d["x_m"], d["y_m"]), d.get("candidates"), visit_m),
+    }
+    rival = hyp["rival"]
+    tells = (
+        f", to tell ({target[0]:.0f}, {target[1]:.0f}) m from ({rival[0]:.0f}, {rival[1]:.0f}) m"
+        if rival is not None
+        else ""
+    )
+    ctx.event(
+        "adaptive",
+        f"round {rd['round']}: {2 * rd['radius_m']:.0f} m square at ({plan_c[0]:.0f}, "
+        f"{plan_c[1]:.0f}) m{tells}, {rd['planned_s']:.0f} s; "
+        f"{rd['budget_left_after_return_s']:.0f} s spare after the return",
+    )
 
 
 def _round_config(ctx: FlightContext, ext: AdaptiveRounds, last_wp) -> tuple:

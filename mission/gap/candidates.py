@@ -412,9 +412,6 @@ def library() -> dict[str, Candidate]:
     return {c.name: c for c in cands}
 
 
-CANDIDATE_NAMES = tuple(library())
-
-
 def select(names: str | Sequence[str] | None) -> list[Candidate]:
     """Candidates by comma-separated names or ``all``; unknown names raise ``InputError``."""
     lib = library()

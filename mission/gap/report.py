@@ -26,28 +26,6 @@ PAPER_P90_DB = (
 )
 
 
-def _fmt(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:.3g}" if abs(v) < 1000 else f"{v:.0f}"
-    if isinstance(v, list | tuple):
-        return "(" + ", ".join(_fmt(x) for x in v) + ")"
-    return str(v)
-
-
-def params_text(p: dict[str, Any]) -> str:
-    """Fitted parameters in a compact human form (log-parameters converted back)."""
-    q = {k: v for k, v in p.items() if k not in ("shape", "resemblances", "lambda", "time_shapes")}
-    if isinstance(q.get("where"), dict):
-        q["where"] = " ".join(
-            f"{k.split('_')[0]}{k.split('_')[1][:3]}={v:.0f}" for k, v in q["where"].items()
-        )
-    if "log10_eps_r" in q:
-        q["eps_r"] = 10 ** q.pop("log10_eps_r")
-    if "log10_sigma" in q:
-        q["sigma_s_m"] = 10 ** q.pop("log10_sigma")
-    return ", ".join(f"{k}={_fmt(v)}" for k, v in q.items())
-
-
 # --------------------------------------------------------------------------------------------
 # figures
 
