@@ -70,9 +70,10 @@ from mission.gap.familyrun import family_from_diagnosis
 from mission.gap.fit import FitConfig, Fold, _pooled, make_folds, rank_candidates
 from mission.gap.loopcheck import loop_check
 from mission.gap.pipeline import LocalizationModel
-from mission.gap.report import print_report, summary, write_report
+from mission.gap.report import summary, write_report
 from mission.gap.spatial import cell_means, tx_key
 from mission.gap.stats import summarize
+from mission.gap.text import print_report
 from mission.importers.afar import is_afar2023_suspect
 from mission.localize.classical import ModelGridSearch
 from mission.samples import FlightSamples

@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from mission.errors import InputError
-from mission.gap.fit import minimize_from_grid
+from mission.gap.optim import minimize_from_grid
 from mission.physics.presets import build_model
 from mission.robust import offset_residual, per_sample_loss
 from mission.samples import FlightSamples

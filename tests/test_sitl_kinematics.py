@@ -26,7 +26,12 @@ from sitl.vehicle import build_parser, parse_kinematics, run_from_args  # noqa: 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 
-from mission.flight.runner import auto_rate_hz, free_udp_port, spawn_vehicle, wall_clock_notice  # noqa: E402
+from mission.flight.runner import (  # noqa: E402
+    auto_rate_hz,
+    free_udp_port,
+    spawn_vehicle,
+    wall_clock_notice,
+)
 from mission.flight.vehicle_process import stop_vehicle  # noqa: E402
 
 mav = mavutil.mavlink

@@ -59,7 +59,10 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
             adaptive_flight(spec, adaptive, w, cfg, np.random.default_rng([seed, i, 1]), loc),
         ),
     ):
-        err = lambda e: None if e is None else float(np.hypot(e[0] - w.tx[0], e[1] - w.tx[1]))  # noqa: E731
+
+        def err(e):
+            return None if e is None else float(np.hypot(e[0] - w.tx[0], e[1] - w.tx[1]))
+
         shown = None if o.log is None else product_answer(spec, o.log, name == "adaptive")
         out[name] = {
             "error_m": None if shown is None else err((shown.x_m, shown.y_m)),

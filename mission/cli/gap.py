@@ -404,7 +404,8 @@ def run(args) -> int:
     from mission.gap.candidates import select
     from mission.gap.diagnose import base_pipeline, diagnose
     from mission.gap.fit import FitConfig
-    from mission.gap.report import print_report, write_report
+    from mission.gap.report import write_report
+    from mission.gap.text import print_report
 
     try:
         base = base_pipeline(args.base, args.pattern)

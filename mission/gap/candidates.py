@@ -46,7 +46,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.gap.candidate import Candidate, Param
-from mission.gap.describe import describe_params, pattern_name  # noqa: F401  (describe_params: re-exported)
+from mission.gap.describe import pattern_name
 from mission.gap.freeform import FREEFORM_NAMES, freeform_candidate
 from mission.gap.nadir import near_nadir_candidate
 from mission.gap.pipeline import Pipeline, Receiver, TxTilt

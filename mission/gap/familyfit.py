@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.candidates import describe_params, select
+from mission.gap.candidates import select
+from mission.gap.describe import describe_params
 from mission.gap.fit import (
     FitConfig,
     Fold,

@@ -43,7 +43,7 @@ from mission.gap.candidate import (
     TIER_SMOOTHER,
     Candidate,
 )
-from mission.gap.optim import minimize_from_grid  # noqa: F401  (its home; re-exported for calibrate)
+from mission.gap.optim import minimize_from_grid
 from mission.gap.pipeline import Pipeline, Selection, joint_offset_residuals, offset_residuals
 from mission.gap.stats import block_length, bootstrap_mean, summarize
 from mission.robust import offset_residual, per_sample_loss  # noqa: F401  (their home; re-exported)

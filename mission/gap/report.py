@@ -19,7 +19,7 @@ from mission.gap.diagnose import Diagnosis, rung_table
 from mission.gap.fit import RANKING_RULE, _pooled
 from mission.gap.stats import ecdf
 from mission.gap.structure import name_missing
-from mission.gap.text import details_text, print_report, summary_paragraph  # noqa: F401  (the terminal report's home; re-exported)
+from mission.gap.text import details_text, summary_paragraph
 
 PAPER_P90_DB = (
     22.0  # "over 90 % of the errors contained within 22 dB" (enhanced two-ray, paper Fig. Abserror)

@@ -161,7 +161,8 @@ def simulate_flights(
             tx_enu_m=tx,
         )
         flights.append(f)
-        chans.append(pipe.predict_channel(f) + pipe.spatial.field_db(f, pos[:, :2]))  # type: ignore[union-attr]
+        field = pipe.spatial.field_db(f, pos[:, :2])  # type: ignore[union-attr]
+        chans.append(pipe.predict_channel(f) + field)
     return flights, chans
 
 

@@ -28,7 +28,9 @@ from mission.files import read_text, write_bytes, write_text
 from mission.localize.features import FeatureConfig
 from mission.spec import load_mission
 from mission.threads import limit_worker
-from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one import site for dataset users)
+
+# re-exported: one import site for dataset users
+from mission.workshop.dataset_config import (  # noqa: F401
     FEATURE_KINDS,
     PARAM_NAMES,
     DatasetConfig,
@@ -38,7 +40,12 @@ from mission.workshop.dataset_config import (  # noqa: F401  (re-exported: one i
     physics_label,
     trajectory_names,
 )
-from mission.workshop.flight_draws import FlightDraw, FlightSimulator, flight_rng, trajectory_params  # noqa: F401
+from mission.workshop.flight_draws import (  # noqa: F401
+    FlightDraw,
+    FlightSimulator,
+    flight_rng,
+    trajectory_params,
+)
 from mission.workshop.suite import family_label, family_sha256, resolve_family
 
 FORMAT = "rfsl-dataset/1"

@@ -111,7 +111,8 @@ def training_attitude(
         spans.append(span)
     if not spans:
         return None
-    return tuple((min(s[k][0] for s in spans), max(s[k][1] for s in spans)) for k in (0, 1))  # type: ignore
+    lo_hi = ((min(s[k][0] for s in spans), max(s[k][1] for s in spans)) for k in (0, 1))
+    return tuple(lo_hi)  # type: ignore
 
 
 def training_domain(training_data: dict | None) -> TrainingDomain:

@@ -95,7 +95,9 @@ from mission.simulate import SimConfig, perturbation
 from mission.trajectory.attitude import tilt_from_acceleration
 from mission.trajectory.generators import GENERATORS, generate, trajectory_params
 from mission.trajectory.kinematics import G, Kinematics, attitude_from_motion, plan_profile
-from mission.workshop.suite_family import (  # noqa: F401  (re-exported: the suite's family entry points)
+
+# re-exported: the suite's family entry points
+from mission.workshop.suite_family import (  # noqa: F401
     FAMILIES,
     FamilyArg,
     antenna_label,
