@@ -3,6 +3,7 @@ a piped or redirected output is never folded mid-word.
 
 Why a module of its own: the runtime (``mission.localize.matched``'s progress bar) and the command
 layer (``mission.cli``) both print through it, and the runtime must not import the command layer.
+``progress_bar`` is the transient bar they share.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rich.console import Console
+    from rich.progress import Progress
 
 
 def console(stderr: bool = False) -> Console:
@@ -21,3 +23,26 @@ def console(stderr: bool = False) -> Console:
 
     stream = sys.stderr if stderr else sys.stdout
     return Console(stderr=stderr, soft_wrap=not stream.isatty())
+
+
+def progress_bar(label: str, con: Console, disable: bool = False) -> Progress:
+    """The project's transient progress bar on ``con``: ``label`` (a rich format string: may name
+    ``{task.description}``), the bar, done/total and the time elapsed."""
+    # rich stays lazy (noqa), as above
+    from rich.progress import (  # noqa: PLC0415
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    return Progress(
+        TextColumn(label),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=con,
+        transient=True,
+        disable=disable,
+    )

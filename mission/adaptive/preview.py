@@ -8,11 +8,10 @@ the time used.
 
 from __future__ import annotations
 
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
 from mission.adaptive.compare import pair, summarize_pairs
 from mission.adaptive.config import AdaptiveSpec
 from mission.adaptive.feasibility import assert_adaptive
+from mission.console import progress_bar
 from mission.errors import InputError
 
 
@@ -24,14 +23,7 @@ def adaptive_rows(spec, flights: int, seed: int, family: str, console) -> list[t
     a = spec.adaptive or AdaptiveSpec()
     assert_adaptive(spec, a)
     rows = []
-    with Progress(
-        TextColumn("adaptive vs fixed"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    ) as prog:
+    with progress_bar("adaptive vs fixed", console) as prog:
         task = prog.add_task("flights", total=flights)
         for i in range(flights):
             rows.append(pair(spec, a, family, seed, i))

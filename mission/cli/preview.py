@@ -104,18 +104,11 @@ def check_options(args: argparse.Namespace) -> tuple[int, int]:
 def error_map(args: argparse.Namespace, spec, seed: int, console):
     """--accuracy: the expected-error map over a --grid lattice, with a progress bar."""
     import numpy as np
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from mission.console import progress_bar
     from mission.preview import expected_error_map
 
-    with Progress(
-        TextColumn("expected error"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    ) as prog:
+    with progress_bar("expected error", console) as prog:
         task = prog.add_task("grid", total=args.grid)
         return expected_error_map(
             spec,

@@ -28,11 +28,10 @@ from __future__ import annotations
 from contextlib import contextmanager
 
 import numpy as np
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from scipy.stats import gaussian_kde
 from threadpoolctl import threadpool_limits
 
-from mission.console import console
+from mission.console import console, progress_bar
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.evidence import conformal_quantile
@@ -60,15 +59,7 @@ def rich_progress(enabled: bool | None = None):
     ``(description, done, total)`` callback."""
     con = console(stderr=True)
     show = con.is_terminal if enabled is None else enabled
-    with Progress(
-        TextColumn("{task.description:<24}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=con,
-        transient=True,
-        disable=not show,
-    ) as bar:
+    with progress_bar("{task.description:<24}", con, disable=not show) as bar:
         task = bar.add_task("matched", total=1)
 
         def tick(desc: str, done: int, total: int) -> None:

@@ -225,21 +225,8 @@ class PhysicsFamily:
                 field="residual",
             )
         _check_tree(res, "residual", source)
-        for k, v in res.items():  # a negative sigma, noise or correlation length is no physics
-            try:
-                low = lowest(v)
-            except (TypeError, ValueError, KeyError):
-                raise InputError(
-                    f"residual.{k} must be a number or a distribution",
-                    source=source,
-                    field=f"residual.{k}",
-                ) from None
-            if not low >= 0 or (k == "shadowing_corr_m" and low <= 0):
-                raise InputError(
-                    f"residual.{k} can be drawn {'<=' if k == 'shadowing_corr_m' else '<'} 0",
-                    source=source,
-                    field=f"residual.{k}",
-                )
+        # a negative sigma, noise or correlation length is no physics
+        _check_never_negative(res, "residual", source, positive=("shadowing_corr_m",))
         check_dist(d.get("offset_db", 0.0), "offset_db", source)
         nuis = _checked_nuisance(d.get("nuisance", {}), source)
         variants = d.get("variants", [])
@@ -328,18 +315,30 @@ def _checked_nuisance(nuis: Any, source: str | None) -> dict:
             field="nuisance",
         )
     _check_tree(nuis, "nuisance", source)
-    for k, v in nuis.items():
+    _check_never_negative(nuis, "nuisance", source)
+    return dict(nuis)
+
+
+def _check_never_negative(
+    values: dict, where: str, source: str | None, positive: tuple[str, ...] = ()
+) -> None:
+    """Each value of ``values`` (the family's ``where`` object) is a number or a distribution that
+    is never drawn below 0 (never at or below 0 for the keys in ``positive``); a one-line
+    ``InputError`` naming the field otherwise."""
+    for k, v in values.items():
+        field = f"{where}.{k}"
         try:
             low = lowest(v)
         except (TypeError, ValueError, KeyError):
             raise InputError(
-                f"nuisance.{k} must be a number or a distribution",
-                source=source,
-                field=f"nuisance.{k}",
+                f"{field} must be a number or a distribution", source=source, field=field
             ) from None
-        if not low >= 0:
-            raise InputError(f"nuisance.{k} can be drawn < 0", source=source, field=f"nuisance.{k}")
-    return dict(nuis)
+        if not low >= 0 or (k in positive and low <= 0):
+            raise InputError(
+                f"{field} can be drawn {'<=' if k in positive else '<'} 0",
+                source=source,
+                field=field,
+            )
 
 
 def time_drift(n: int, std_db: float, rng: np.random.Generator) -> np.ndarray:
