@@ -18,10 +18,13 @@ from mission.adaptive.feasibility import adaptive_violations
 from mission.adaptive.planner import (
     box_pattern,
     choose_target,
+    disagreement,
     fit_centre,
     plan_round,
     posterior_candidates,
     rival_of,
+    round_target,
+    separating_target,
     survey_profile,
     verdict,
 )
@@ -34,8 +37,10 @@ from mission.flight.budget import Pace
 from mission.flight.phases import MonotonicPhases
 from mission.localize.methods import ADAPTIVE_ANSWER
 from mission.localize.uncertainty import Posterior
+from mission.physics import make_model
 from mission.physics.family import load_family
 from mission.spec import load_mission, parse_mission
+from mission.trajectory.kinematics import plan_profile
 
 ADAPTIVE = "missions/spiral_adaptive.yaml"
 
@@ -203,11 +208,54 @@ def test_candidates_and_target():
     assert choose_target((50, 50), None, [(52.0, 49.0)], 20.0) == (50.0, 50.0)
 
 
-def test_simulated_adaptive_flight_holds_fence_and_budget(spec):
+def test_disagreement_closed_forms(spec):
+    """Free space with isotropic antennas: the score is m_a m_b var(20 log10(d_b / d_a)) along the
+    pattern; zero on the two hypotheses' perpendicular bisector (every sample equidistant) and for
+    one hypothesis twice; symmetric in the hypotheses' order."""
+    fs = make_model("free-space", pattern="isotropic", dtype=np.float64)
+    h = np.array([[0.0, 0.0], [100.0, 0.0]])
+    pts = np.column_stack([np.full(9, 50.0), np.linspace(-80, 80, 9), np.full(9, 30.0)])
+    assert disagreement(fs, h, [0.6, 0.4], pts, 2.0) == pytest.approx(0.0, abs=1e-9)
+    pts = np.column_stack([np.linspace(-60, 160, 23), np.full(23, 15.0), np.full(23, 30.0)])
+    d = [np.sqrt((pts[:, 0] - x) ** 2 + pts[:, 1] ** 2 + 28.0**2) for x in (0.0, 100.0)]
+    want = 0.6 * 0.4 * np.var(20 * np.log10(d[1] / d[0]))
+    assert disagreement(fs, h, [0.6, 0.4], pts, 2.0) == pytest.approx(want, rel=1e-9)
+    assert disagreement(fs, h[::-1], [0.4, 0.6], pts, 2.0) == pytest.approx(want, rel=1e-9)
+    assert disagreement(fs, h[[0, 0]], [0.5, 0.5], pts, 2.0) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_separating_target_rules(spec):
+    """The estimate once a hypothesis has won; an option flown before is not flown again; the
+    chosen square tells the hypotheses apart at least as well as one over the estimate."""
+    a, start = spec.adaptive, np.array([0.0, 0.0, spec.altitude_m])
+    est = (120.0, 110.0)
+    assert separating_target(spec, a, est, [[100, 100, 0.9], [250, 200, 0.1]], [], start) == est
+    assert separating_target(spec, a, est, [[100, 100, 1.0]], [], start) == est
+    c = [[100.0, 100.0, 0.5], [250.0, 200.0, 0.3], [60.0, 230.0, 0.2]]
+    t = separating_target(spec, a, est, c, [], start)
+    model, kin = spec.propagation_model(), spec.kinematics()
+    hyps, mass = np.array(c)[:, :2], np.array(c)[:, 2]
+
+    def score(xy):
+        wps = box_pattern(fit_centre(spec, xy, a.radius_m), a.radius_m, a.altitude(spec), start)
+        pts = plan_profile(wps, kin).sample(1.0)[1]
+        return disagreement(model, hyps, mass, pts, spec.source.tx_height_m)
+
+    assert score(t) >= score(est) and score(t) >= score(c[0][:2])
+    t2 = separating_target(spec, a, est, c, [t], start)
+    assert np.hypot(t2[0] - t[0], t2[1] - t[1]) > a.radius_m
+    d = {"x_m": est[0], "y_m": est[1], "candidates": c}
+    sep = dataclasses.replace(a, separate=True)
+    assert round_target(spec, sep, d, [], start) == t
+    assert round_target(spec, a, d, [], start) == choose_target(est, c, [], a.radius_m)
+
+
+@pytest.mark.parametrize("separate", [False, True])
+def test_simulated_adaptive_flight_holds_fence_and_budget(spec, separate):
     """A short adaptive flight on the fast simulator: survey, rounds inside the fence, return within
-    budget."""
+    budget, with either way of choosing a round."""
     s = dataclasses.replace(spec, time_budget_s=260.0)
-    a = dataclasses.replace(spec.adaptive, survey_s=100.0, altitude_m=15.0)
+    a = dataclasses.replace(spec.adaptive, survey_s=100.0, altitude_m=15.0, separate=separate)
     cfg = dataclasses.replace(s.sim_config(), dt_s=0.25)
     w = FlightWorld(s, load_family("afar"), np.random.default_rng(3))
     logs = []

@@ -51,6 +51,7 @@ GIVEN = {
     "adaptive.update_s": 3.0,
     "adaptive.reserve_s": 10.0,
     "adaptive.explore": False,
+    "adaptive.separate": True,
 }
 
 
@@ -100,6 +101,7 @@ def _built_in_defaults() -> dict:
                 "update_s",
                 "reserve_s",
                 "explore",
+                "separate",
             )
         }
     )

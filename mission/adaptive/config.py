@@ -32,6 +32,9 @@ class AdaptiveSpec:
     update_s: float = 5.0  # live estimate period (vehicle seconds)
     reserve_s: float = 15.0  # kept free in the budget beyond the return and landing
     explore: bool = True  # fly over the posterior's competing peaks in turn (planner.choose_target)
+    # choose each round where the top hypotheses predict the most different RSS
+    # (planner.separating_target); overrides ``explore``
+    separate: bool = False
 
     def altitude(self, spec) -> float:
         return float(spec.altitude_m if self.altitude_m is None else self.altitude_m)
@@ -43,6 +46,7 @@ def parse_adaptive(r) -> AdaptiveSpec:
     d = AdaptiveSpec()  # every default is the dataclass's
     en = r.bool_("enabled", d.enabled)
     ex = r.bool_("explore", d.explore)
+    sep = r.bool_("separate", d.separate)
     alt = (
         r.num("altitude_m", math.nan, 0.0, strict_lo=True) if r.has("altitude_m") else d.altitude_m
     )
@@ -61,6 +65,7 @@ def parse_adaptive(r) -> AdaptiveSpec:
         update_s=r.num("update_s", d.update_s, 0.5),
         reserve_s=r.num("reserve_s", d.reserve_s, 0.0),
         explore=ex,
+        separate=sep,
     )
     r.done()
     return out

@@ -112,6 +112,61 @@ def choose_target(est_xy, candidates, visited, visit_m: float) -> tuple[float, f
     return float(est_xy[0]), float(est_xy[1])
 
 
+# A hypothesis holding this share of the peaks' mass has won: the round refines around the estimate
+REFINE_MASS = 0.8
+
+
+def disagreement(model, hyps_xy, mass, pts, tx_height_m: float) -> float:
+    """How well RSS sampled at ``pts`` (Q, 3) tells the hypotheses ``hyps_xy`` (H, 2) apart: the
+    sum over pairs of mass_i mass_j var_q(P_i(q) - P_j(q)), each P_i the RSS ``model`` predicts with
+    the transmitter at hypothesis i.  The variance profiles out the per-flight offset: two
+    hypotheses that differ by a constant along the pattern cannot be told apart there."""
+    h = np.asarray(hyps_xy, dtype=float)
+    m = np.asarray(mass, dtype=float)
+    tx = np.column_stack([h, np.full(len(h), tx_height_m)])[:, None, :]
+    p = np.asarray(model.rss_dbm(tx, np.asarray(pts, dtype=float)), dtype=float)  # (H, Q)
+    var = (p[:, None, :] - p[None, :, :]).var(axis=-1)  # (H, H)
+    return float(np.triu(m[:, None] * m[None, :] * var, 1).sum())
+
+
+def separating_target(spec, a, est_xy, candidates, visited, start) -> tuple[float, float]:
+    """Where the next round tells the live hypotheses (``candidates`` [x, y, mass], most probable
+    first) apart best (``disagreement`` along the round's square flown there), among the
+    hypotheses, the estimate and the midpoints of the top three; the estimate once one hypothesis
+    holds ``REFINE_MASS`` of their mass (refine around the winner) or when no option is left.
+    Options within ``a.radius_m`` of an earlier round's centre (``visited``) are skipped."""
+    est = (float(est_xy[0]), float(est_xy[1]))
+    cands = np.asarray(candidates or [], dtype=float).reshape(-1, 3)
+    if len(cands) < 2 or cands[0, 2] >= REFINE_MASS * cands[:, 2].sum():
+        return est
+    hyps, mass = cands[:, :2], cands[:, 2] / max(cands[:, 2].sum(), 1e-12)
+    top = hyps[:3]
+    mids = [(top[i] + top[j]) / 2 for i in range(len(top)) for j in range(i + 1, len(top))]
+    options = [*hyps, np.array(est), *mids]
+    model, kin, alt = spec.propagation_model(), spec.kinematics(), a.altitude(spec)
+    best, best_score = est, -1.0
+    for o in options:
+        if any(np.hypot(o[0] - vx, o[1] - vy) <= a.radius_m for vx, vy in visited):
+            continue
+        c = fit_centre(spec, o, a.radius_m)
+        if c is None:
+            continue
+        _, pts = plan_profile(box_pattern(c, a.radius_m, alt, start), kin).sample(1.0)
+        score = disagreement(model, hyps, mass, pts, spec.source.tx_height_m)
+        if score > best_score:
+            best, best_score = (float(o[0]), float(o[1])), score
+    return best
+
+
+def round_target(spec, a, d: dict, visited, start) -> tuple[float, float]:
+    """The next round's target from the live entry ``d``: the separating choice
+    (``a.separate``), the peak order (``a.explore``: ``choose_target``), or the estimate."""
+    est, cands = (d["x_m"], d["y_m"]), d.get("candidates")
+    if a.separate:
+        return separating_target(spec, a, est, cands, visited, start)
+    return choose_target(est, cands if a.explore else None, visited, a.radius_m)
+
+
 def rival_of(target, est_xy, candidates, visit_m: float) -> list[float] | None:
     """The hypothesis a round flown over ``target`` is meant to tell it apart from: the most
     probable candidate farther than ``visit_m`` from the target, else the estimate when it is that

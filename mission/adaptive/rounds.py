@@ -25,11 +25,11 @@ import numpy as np
 
 from mission.adaptive.feasibility import adaptive_violations
 from mission.adaptive.planner import (
-    choose_target,
     mass_near,
     plan_round,
     return_s,
     rival_of,
+    round_target,
     survey_spec,
     verdict,
 )
@@ -191,8 +191,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         rem = remaining_s(ctx, wps, off, pace) or 0.0
         t_end = ctx.tel.clock.now() - ctx.status.t_start + rem
         visited = [rd["centre"] for rd in ext.rounds]
-        cands = d.get("candidates") if a.explore else None
-        target = choose_target((d["x_m"], d["y_m"]), cands, visited, a.radius_m)
+        target = round_target(spec, a, d, visited, wps[-1])
         plan = plan_round(spec, a, target, wps[-1], t_end, pace)
         for n in plan.notes if plan.ok else ():
             ctx.event("adaptive", f"round {k + 1}: {n}")

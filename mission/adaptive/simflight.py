@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from mission.adaptive.planner import choose_target, plan_round, survey_profile
+from mission.adaptive.planner import plan_round, round_target, survey_profile
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flight.live import summary
@@ -243,9 +243,7 @@ def adaptive_flight(
         if d is None or (d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2):
             notes.append("region small enough" if d is not None else "no estimate")
             break
-        target = choose_target(
-            (d["x_m"], d["y_m"]), d.get("candidates") if a.explore else None, visited, a.radius_m
-        )
+        target = round_target(spec, a, d, visited, end)
         plan = plan_round(spec, a, target, end, log.t_end)
         notes += plan.notes
         if not plan.ok:
