@@ -20,6 +20,7 @@ from mission.adaptive.planner import (
     choose_target,
     disagreement,
     fit_centre,
+    flyable,
     plan_round,
     posterior_candidates,
     rival_of,
@@ -248,6 +249,24 @@ def test_separating_target_rules(spec):
     sep = dataclasses.replace(a, separate=True)
     assert round_target(spec, sep, d, [], start) == t
     assert round_target(spec, a, d, [], start) == choose_target(est, c, [], a.radius_m)
+
+
+@pytest.mark.parametrize("separate", [False, True])
+def test_a_square_moved_inside_the_fence_is_not_flown_twice(spec, separate):
+    """A peak outside the flight area whose square, moved inside the fence, is a flown round's
+    counts as visited (flown at 20x: rounds 2 and 3 flew one square); the next peak is taken."""
+    a = dataclasses.replace(spec.adaptive, separate=separate)
+    start = np.array([0.0, 0.0, spec.altitude_m])
+    outside, inside = [-60.0, 350.0, 0.5], [150.0, 150.0, 0.3]
+    flown = [tuple(fit_centre(spec, outside[:2], a.radius_m))]
+    assert np.hypot(outside[0] - flown[0][0], outside[1] - flown[0][1]) > a.radius_m
+    assert flyable(spec, a, [outside, inside], flown) == [inside]
+    assert flyable(spec, a, [outside, inside], []) == [outside, inside]
+    d = {"x_m": 250.0, "y_m": 60.0, "candidates": [outside, inside, [250.0, 60.0, 0.2]]}
+    t = round_target(spec, a, d, flown, start)
+    assert np.hypot(*(fit_centre(spec, t, a.radius_m) - np.array(flown[0]))) > a.radius_m
+    if not separate:
+        assert t == (150.0, 150.0)
 
 
 @pytest.mark.parametrize("separate", [False, True])

@@ -134,7 +134,8 @@ def separating_target(spec, a, est_xy, candidates, visited, start) -> tuple[floa
     first) apart best (``disagreement`` along the round's square flown there), among the
     hypotheses, the estimate and the midpoints of the top three; the estimate once one hypothesis
     holds ``REFINE_MASS`` of their mass (refine around the winner) or when no option is left.
-    Options within ``a.radius_m`` of an earlier round's centre (``visited``) are skipped."""
+    An option whose square, moved inside the fence, repeats a flown round's (``visited``) or fits
+    nowhere is skipped."""
     est = (float(est_xy[0]), float(est_xy[1]))
     cands = np.asarray(candidates or [], dtype=float).reshape(-1, 3)
     if len(cands) < 2 or cands[0, 2] >= REFINE_MASS * cands[:, 2].sum():
@@ -146,10 +147,8 @@ def separating_target(spec, a, est_xy, candidates, visited, start) -> tuple[floa
     model, kin, alt = spec.propagation_model(), spec.kinematics(), a.altitude(spec)
     best, best_score = est, -1.0
     for o in options:
-        if any(np.hypot(o[0] - vx, o[1] - vy) <= a.radius_m for vx, vy in visited):
-            continue
         c = fit_centre(spec, o, a.radius_m)
-        if c is None:
+        if c is None or _flown(c, visited, a.radius_m):
             continue
         _, pts = plan_profile(box_pattern(c, a.radius_m, alt, start), kin).sample(1.0)
         score = disagreement(model, hyps, mass, pts, spec.source.tx_height_m)
@@ -158,13 +157,32 @@ def separating_target(spec, a, est_xy, candidates, visited, start) -> tuple[floa
     return best
 
 
+def _flown(centre, visited, r: float) -> bool:
+    """Whether a square centred at ``centre`` repeats a flown round's (a centre within ``r``)."""
+    return any(np.hypot(centre[0] - vx, centre[1] - vy) <= r for vx, vy in visited)
+
+
+def flyable(spec, a, candidates, visited) -> list:
+    """The candidates [x, y, mass] worth a round: their square (half side ``a.radius_m``), moved
+    inside the fence (``fit_centre``), fits and does not repeat a flown round's square.  Why: a peak
+    outside the flight area moved inside the fence can land on a square already flown."""
+    out = []
+    for x, y, m in candidates or []:
+        c = fit_centre(spec, (x, y), a.radius_m)
+        if c is not None and not _flown(c, visited, a.radius_m):
+            out.append([x, y, m])
+    return out
+
+
 def round_target(spec, a, d: dict, visited, start) -> tuple[float, float]:
     """The next round's target from the live entry ``d``: the separating choice
-    (``a.separate``), the peak order (``a.explore``: ``choose_target``), or the estimate."""
+    (``a.separate``), the peak order over the ``flyable`` peaks (``a.explore``:
+    ``choose_target``), or the estimate."""
     est, cands = (d["x_m"], d["y_m"]), d.get("candidates")
     if a.separate:
         return separating_target(spec, a, est, cands, visited, start)
-    return choose_target(est, cands if a.explore else None, visited, a.radius_m)
+    flyable_cands = flyable(spec, a, cands, visited) if a.explore else None
+    return choose_target(est, flyable_cands, visited, a.radius_m)
 
 
 def rival_of(target, est_xy, candidates, visit_m: float) -> list[float] | None:
