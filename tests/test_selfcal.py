@@ -137,10 +137,10 @@ def test_hpd_regions_of_a_gaussian_match_the_closed_form() -> None:
     post = Posterior(p / p.sum(), None)  # type: ignore[arg-type]
     regs = hpd_regions(post, np.stack([gx, gy], axis=-1), (0.5, 0.9))
     for r in regs:
-        closed = -2.0 * np.pi * s * s * np.log(1.0 - r["level"])
-        assert r["area_m2"] == pytest.approx(closed, rel=0.05)
-        assert r["ellipse"]["a_m"] == pytest.approx(r["ellipse"]["b_m"], rel=0.05)
-        assert r["polygons"], "a closed outline is drawn"
+        closed = -2.0 * np.pi * s * s * np.log(1.0 - r.level)
+        assert r.area_m2 == pytest.approx(closed, rel=0.05)
+        assert r.ellipse.a_m == pytest.approx(r.ellipse.b_m, rel=0.05)
+        assert r.polygons, "a closed outline is drawn"
     assert post.covers(0.0, 0.0, 0.5) and not post.covers(60.0, 0.0, 0.9)
 
 

@@ -202,7 +202,6 @@ def table(args: argparse.Namespace, log, est):
     from rich.table import Table
 
     from mission.flightlog import WARNING
-    from mission.localize.uncertainty import describe_region
 
     tab = Table(title=f"transmitter estimate: {args.log}", show_header=False)
     tab.add_row("method", f"{est.method}" + (f" ({est.model})" if est.model else ""))
@@ -220,7 +219,7 @@ def table(args: argparse.Namespace, log, est):
     if est.fit is not None:
         tab.add_row("fit", est.fit.line())
     for reg in est.regions:
-        tab.add_row(f"{100 * reg['level']:.0f} % region", describe_region(reg))
+        tab.add_row(f"{100 * reg.level:.0f} % region", reg.describe())
     if est.candidates:
         tab.add_row(
             "candidates",

@@ -70,12 +70,12 @@ def estimate_at(log, t_s: float | None = None, method: str | None = None):
 def summary(est, t_s: float) -> dict:
     """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when
     known)."""
-    reg = next((r for r in est.regions if r["level"] == LEVEL), None)
+    reg = est.region(LEVEL)
     d = {
         "t_s": round(float(t_s), 3),
         "x_m": round(est.x_m, 2),
         "y_m": round(est.y_m, 2),
-        "area_m2": None if reg is None else round(float(reg["area_m2"]), 1),
+        "area_m2": None if reg is None else round(float(reg.area_m2), 1),
         "method": est.method,
     }
     if est.error_m is not None:

@@ -667,7 +667,6 @@ def print_result(ctx: FlightContext) -> None:
     try:
         # lazy (noqa) on purpose: a localizer that cannot load must not stop the flight's last lines
         from mission.localize.api import localize_log  # noqa: PLC0415
-        from mission.localize.uncertainty import describe_region, outer_region  # noqa: PLC0415
     except ImportError as e:
         print(
             f"localizer not available ({e}); run `localize {ctx.log_path}` later", file=sys.stderr
@@ -685,9 +684,9 @@ def print_result(ctx: FlightContext) -> None:
         f"{est.lon_deg:.7f})",
         f"  method: {label}",
     ]
-    outer = outer_region(est.extras)
+    outer = est.outer_region
     lines.append(
-        f"  {100 * outer['level']:.0f} % region: {describe_region(outer, short=True)}"
+        f"  {100 * outer.level:.0f} % region: {outer.describe(short=True)}"
         if outer is not None
         else "  region: none: no calibration applies to this flight (localize --json: notes)"
     )
