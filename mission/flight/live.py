@@ -137,13 +137,3 @@ def warm_up() -> None:
     # the worker process's imports (noqa): the flight process never loads the localizer
     import mission.flightlog  # noqa: F401, PLC0415
     import mission.localize.api  # noqa: F401, PLC0415
-
-
-def describe(d: dict, truth: dict | None = None) -> str:
-    """Short text of a series entry: position, 90 % region and error when known."""
-    text = f"({d['x_m']:.0f}, {d['y_m']:.0f}) m"
-    if d.get("area_m2") is not None:
-        text += f", 90 % in {d['area_m2']:.0f} m^2"
-    if truth is not None:
-        text += f", error {math.hypot(d['x_m'] - truth['x_m'], d['y_m'] - truth['y_m']):.1f} m"
-    return text

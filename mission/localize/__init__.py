@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from mission.localize.region import Region
+from mission.localize.region import Region, widest
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,7 @@ class Estimate:
     @property
     def outer_region(self) -> Region | None:
         """The widest region (highest level), None when the estimate has none."""
-        return max(self._regions, key=lambda r: r.level, default=None)
+        return widest(self._regions)
 
     def add_note(self, note: str | None) -> None:
         """Append a sentence to ``notes`` (nothing for an empty one)."""

@@ -11,6 +11,7 @@ same order), and reads an old ``--json`` output back with a one-line error on a 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -146,6 +147,11 @@ class Region:
             f"{self.area_m2:.0f} m^2; ellipse centre {el.x_m:.1f}, {el.y_m:.1f} m, semi-axes "
             f"{el.a_m:.0f} x {el.b_m:.0f} m at {el.angle_deg:.0f} deg from east"
         )
+
+
+def widest(regions: Iterable[Region]) -> Region | None:
+    """The region of the highest level (None for none)."""
+    return max(regions, key=lambda r: r.level, default=None)
 
 
 def _polygons(f: Fields) -> tuple[Polygon, ...]:
