@@ -183,7 +183,7 @@ def test_regions_cover_truth_on_noisy_flights_and_stay_informative() -> None:
         )
         cov50 += region_covers(est, tx[0], tx[1], 0.5)
         cov90 += region_covers(est, tx[0], tx[1], 0.9)
-        a50, a90 = (r["area_m2"] for r in est.extras["regions"])
+        a50, a90 = (r.area_m2 for r in est.regions)
         assert a90 < 0.25 * 300.0**2 and a50 < 0.5 * a90, (a50, a90)
     assert cov90 >= 10 and cov50 >= 7, (cov50, cov90)
 
