@@ -24,12 +24,13 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
+from mission.localize.render import SERIES_LEVEL
 
 DEFAULT_LIVE = (
     "default"  # recorded in the sidecar: the live estimates used ``localize``'s own choice
 )
 FAST_ESTIMATE_S = 180.0  # the AFAR rules' fast estimate: 3 minutes after take-off
-LEVEL = 0.9
+LEVEL = SERIES_LEVEL  # the level of an entry's region area (one home: the renderer's)
 
 
 def recorded_method(meta: dict) -> str | None:

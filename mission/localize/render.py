@@ -19,7 +19,7 @@ from pathlib import Path
 from mission.localize.region import Region, widest
 
 NO_REGION = "none: no calibration applies to this flight (localize --json: notes)"
-SERIES_LEVEL = 0.9  # the level of a live series entry's area (``mission.flight.live.LEVEL``)
+SERIES_LEVEL = 0.9  # the level of a live series entry's region area (``mission.flight.live``)
 
 
 @dataclass(frozen=True)
