@@ -47,7 +47,6 @@ from mission.localize.api import localize_log
 from mission.localize.card import model_digest
 from mission.localize.error_circles import CIRCLE_METHODS, LEVELS, METHOD_CIRCLES, REGIONS_KEY
 from mission.localize.onnx_model import OnnxLocalizer
-from mission.localize.uncertainty import outer_region
 from mission.threads import limit_worker
 from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 from mission.workshop.evaluate import import_afar
@@ -132,8 +131,12 @@ def sim_errors(name: str, n: int, seed: int) -> tuple[np.ndarray, str]:
 def _run(est, truth) -> tuple[float, dict, str, float]:
     """(error m, {level: covered}, answered by, the 90 % region's area over its circle's: < 1 where
     clipped)."""
-    reg = outer_region(est.extras) or {}
-    share = reg["area_m2"] / (np.pi * reg["radius_m"] ** 2) if "radius_m" in reg else float("nan")
+    reg = est.outer_region
+    share = (
+        reg.area_m2 / (np.pi * reg.radius_m**2)
+        if reg is not None and reg.radius_m is not None
+        else float("nan")
+    )
     return (
         float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
         _coverage(est, truth),

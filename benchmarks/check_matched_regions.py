@@ -80,7 +80,7 @@ def _flight(job: tuple[str, int, bool]) -> dict:
         est = localize_log(log, method="matched")
     finally:
         matched.MatchedLocalizer = real_class
-    union = {r["level"]: r["hpd_mass"] for r in est.extras["regions"]}
+    union = {r.level: r.mass for r in est.regions}
     extra = {}
     if with_default:  # the product default on the same flight, for a paired difference
         d = localize_log(log)

@@ -35,14 +35,14 @@ from mission.threads import limit_worker
 from mission.workshop.evaluate import import_afar
 
 
-def region_scale_m(regions: list[dict], level: float = 0.5) -> float | None:
+def region_scale_m(est, level: float = 0.5) -> float | None:
     """The radius of the disc with the area of an estimate's ``level`` region, ``sqrt(area / pi)``
     (for an error circle its radius), or None when it has no such region: the member's own
     uncertainty in metres."""
-    reg = next((r for r in regions if r["level"] == level), None)
+    reg = est.region(level)
     if reg is None:
         return None
-    return float(reg["radius_m"]) if "radius_m" in reg else float(np.sqrt(reg["area_m2"] / np.pi))
+    return float(reg.radius_m) if reg.is_circle else float(np.sqrt(reg.area_m2 / np.pi))
 
 
 def inverse_square_weight(scale_a: float, scale_b: float) -> float:
@@ -63,7 +63,7 @@ def one(job: tuple[str, str, int]) -> dict:
         "truth": np.asarray(truth, dtype=float),
         "a": np.asarray(comp["selfcal"]),
         "b": np.asarray(comp[Path(fusion_model_path()).name]),
-        "ra": region_scale_m(est.extras["regions"]),
+        "ra": region_scale_m(est),
     }
 
 

@@ -26,6 +26,7 @@ from mission.cli.localize import main as localize
 from mission.cli.main import main as rfsl
 from mission.errors import InputError
 from mission.geo import Area
+from mission.localize import Estimate
 from mission.localize.api import localize_log, search_area
 from mission.localize.error_circles import (
     CIRCLE_METHODS,
@@ -52,15 +53,13 @@ SHIPPED = (
 
 def test_circles_have_their_radius_and_contain_what_they_should():
     regs = circle_regions(100.0, -20.0, {0.9: 30.0, 0.5: 12.0}, "test")
-    assert [r["level"] for r in regs] == [0.5, 0.9]
+    assert [r.level for r in regs] == [0.5, 0.9]
     for reg in regs:
-        ring = np.asarray(reg["polygons"][0])
-        assert np.allclose(
-            np.hypot(ring[:, 0] - 100.0, ring[:, 1] + 20.0), reg["radius_m"], atol=0.1
-        )
-        assert reg["area_m2"] == pytest.approx(np.pi * reg["radius_m"] ** 2)
-        assert region_contains(reg, (100.0 + 0.99 * reg["radius_m"], -20.0))
-        assert not region_contains(reg, (100.0, -20.0 + 1.01 * reg["radius_m"]))
+        ring = np.asarray(reg.polygons[0])
+        assert np.allclose(np.hypot(ring[:, 0] - 100.0, ring[:, 1] + 20.0), reg.radius_m, atol=0.1)
+        assert reg.area_m2 == pytest.approx(np.pi * reg.radius_m**2)
+        assert reg.ellipse.contains(100.0 + 0.99 * reg.radius_m, -20.0)
+        assert not reg.ellipse.contains(100.0, -20.0 + 1.01 * reg.radius_m)
 
 
 def _segment_area(r: float, d: float) -> float:
@@ -81,12 +80,12 @@ def test_a_circle_across_an_area_edge_keeps_the_closed_form_segment(r, frac):
         np.array([[-2000.0, -2000.0], [frac * r, -2000.0], [frac * r, 2000.0], [-2000.0, 2000.0]]),
     )
     reg = circle_regions(0.0, 0.0, {0.9: r}, "test", sq)[0]
-    assert reg["clipped_to"] == "rover area" and reg["radius_m"] == r
-    assert reg["area_m2"] == pytest.approx(_segment_area(r, frac * r), rel=3e-3)
-    ring = np.asarray(reg["polygons"][0])
+    assert reg.clipped_to == "rover area" and reg.radius_m == r
+    assert reg.area_m2 == pytest.approx(_segment_area(r, frac * r), rel=3e-3)
+    ring = np.asarray(reg.polygons[0])
     # rounded to 0.1 m
     assert np.allclose(ring[0], ring[-1]) and (ring[:, 0] <= frac * r + 0.05 + 1e-9).all()
-    assert region_contains(reg, (0.99 * r * math.cos(2.0), 0.99 * r * math.sin(2.0)))
+    assert reg.ellipse.contains(0.99 * r * math.cos(2.0), 0.99 * r * math.sin(2.0))
 
 
 def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
@@ -96,11 +95,11 @@ def test_clipping_is_a_no_op_inside_the_area_and_the_whole_area_around_it():
         "L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float)
     )
     inside = circle_regions(20.0, 20.0, {0.5: 10.0}, "test", ell)[0]
-    assert "clipped_to" not in inside and inside["area_m2"] == pytest.approx(np.pi * 100.0)
+    assert inside.clipped_to is None and inside.area_m2 == pytest.approx(np.pi * 100.0)
     whole = circle_regions(30.0, 30.0, {0.9: 500.0}, "test", ell)[0]
-    assert whole["clipped_to"] == "L" and whole["area_m2"] == pytest.approx(100 * 40 + 40 * 60)
+    assert whole.clipped_to == "L" and whole.area_m2 == pytest.approx(100 * 40 + 40 * 60)
     missed = circle_regions(500.0, 500.0, {0.9: 20.0}, "test", ell)[0]
-    assert "clipped_to" not in missed and missed["area_m2"] == pytest.approx(np.pi * 400.0)
+    assert missed.clipped_to is None and missed.area_m2 == pytest.approx(np.pi * 400.0)
 
 
 def test_a_circle_across_the_inner_corner_of_a_non_convex_area_has_the_right_area():
@@ -110,7 +109,7 @@ def test_a_circle_across_the_inner_corner_of_a_non_convex_area_has_the_right_are
         "L", np.array([[0, 0], [100, 0], [100, 40], [40, 40], [40, 100], [0, 100]], dtype=float)
     )
     reg = circle_regions(40.0, 40.0, {0.9: 30.0}, "test", ell)[0]
-    assert reg["area_m2"] == pytest.approx(0.75 * np.pi * 900.0, rel=3e-3)
+    assert reg.area_m2 == pytest.approx(0.75 * np.pi * 900.0, rel=3e-3)
 
 
 @pytest.fixture()
@@ -147,13 +146,12 @@ def test_card_contract(net):
         card_calibration(net, "real")[0] is None
         and "no 'real' calibration" in card_calibration(net, "real")[1]
     )
-    extras: dict = {}
-    assert "no uncertainty region" in attach_circles(
-        extras, 0.0, 0.0, card_calibration(net, "real")
-    )
-    assert "regions" not in extras
-    assert attach_circles(extras, 5.0, 6.0, card_calibration(net, "sim")) is None
-    assert [r["radius_m"] for r in extras["regions"]] == [11.0, 19.0]
+    est = Estimate(5.0, 6.0, "onnx")
+    assert "no uncertainty region" in attach_circles(est, card_calibration(net, "real"))
+    assert "regions" not in est.extras
+    assert attach_circles(est, card_calibration(net, "sim")) is None
+    assert [r.radius_m for r in est.regions] == [11.0, 19.0]
+    assert est.regions[0].ellipse.x_m == 5.0 and est.regions[0].ellipse.y_m == 6.0
     # another model file: the calibration no longer applies
     net.write_bytes(net.read_bytes() + b"\0")
     rec, why = card_calibration(net, "sim")
@@ -202,24 +200,23 @@ def test_localize_gives_a_network_its_circles_on_simulated_and_benchmark_logs(tm
     # sized for the flight
     want, _ = flown_radii(card_calibration(model, "sim")[0], est.extras["track_coverage"])
     assert est.extras["track_coverage"] > 0.95
-    assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(want.items())
-    assert all(
-        r["ellipse"]["x_m"] == est.x_m and r["ellipse"]["y_m"] == est.y_m
-        for r in est.extras["regions"]
-    )
+    assert [(r.level, r.radius_m) for r in est.regions] == sorted(want.items())
+    assert all(r.ellipse.x_m == est.x_m and r.ellipse.y_m == est.y_m for r in est.regions)
     log, truth, _ = unseen_flight(2027, 3)
     est = localize_log(log, model_path=model)
-    assert [r["radius_m"] for r in est.extras["regions"]] == sorted(
+    assert [r.radius_m for r in est.regions] == sorted(
         card_calibration(model, "real")[0]["radii_m"].values()
     )
     # the 'real' 90 % circle (~160 m) overhangs the AFAR rover area: the region is its part inside
     # that area
     ra = search_area(log)
-    outer = est.extras["regions"][-1]
-    ring = np.asarray(outer["polygons"][0])
-    assert outer["clipped_to"] == ra.name and outer["area_m2"] < np.pi * outer["radius_m"] ** 2
+    outer = est.outer_region
+    ring = np.asarray(outer.polygons[0])
+    assert outer.clipped_to == ra.name and outer.area_m2 < np.pi * outer.radius_m**2
     assert (ra.contains(ring) | (ra.edge_distance(ring) < 0.1)).all()
-    assert region_contains(outer, (est.x_m, est.y_m))
+    assert outer.ellipse.contains(est.x_m, est.y_m)
+    # what the benchmark reads from a composer's own layout says the same of the JSON form
+    assert region_contains(est.extras["regions"][-1], (est.x_m, est.y_m))
 
 
 _BAD_ENTRY = st.one_of(
@@ -287,9 +284,7 @@ def test_classical_methods_get_circles_only_in_their_calibrated_configuration(tm
     for method in CIRCLE_METHODS:
         est = localize_log(log, method=method)
         want = method_calibration(method, "sim")[0]["radii_m"]
-        assert [(r["level"], r["radius_m"]) for r in est.extras["regions"]] == sorted(
-            want.items()
-        ), method
+        assert [(r.level, r.radius_m) for r in est.regions] == sorted(want.items()), method
     # not the calibrated configuration
     est = localize_log(log, method="grid", physics_model="free-space")
     assert (

@@ -10,6 +10,7 @@ from _localize_helpers import write_synthetic_log
 
 from mission.localize import Estimate, Fit, Selection
 from mission.localize.api import localize_log
+from mission.localize.error_circles import circle_regions
 
 TX = (150.0, 120.0, 1.5)
 
@@ -37,18 +38,26 @@ def test_notes_render_as_one_sentence_group_where_first_added() -> None:
 
 def test_regions_and_components_are_the_json_record() -> None:
     est = Estimate(1.0, 2.0, "fusion")
-    assert est.regions == [] and est.components == {}
-    reg = [{"level": 0.5, "hpd_mass": 0.4}, {"level": 0.9, "hpd_mass": 0.87}]
-    est.regions = reg
+    assert est.regions == () and est.components == {}
+    reg = circle_regions(1.0, 2.0, {0.5: 10.0, 0.9: 25.0}, "test")
+    est.regions = list(reg)
     a, b = Estimate(0.0, 1.0, "selfcal"), Estimate(2.0, 3.0, "onnx")
     est.set_components({"selfcal": a, "net.onnx": b})
-    assert est.regions is reg and est.components["net.onnx"] is b
+    assert est.regions == reg and est.components["net.onnx"] is b
+    assert est.region(0.9) is reg[1] and est.outer_region is reg[1] and est.region(0.7) is None
     d = est.to_dict()
-    assert d["regions"] == reg and d["components"] == {
+    assert d["regions"] == [r.to_dict() for r in reg] and d["components"] == {
         "selfcal": [0.0, 1.0],
         "net.onnx": [2.0, 3.0],
     }
     json.dumps(d)  # member estimates never leak into the JSON
+    # typed regions handed over in extras (a method's constructor) become the field, in place
+    made = Estimate(0.0, 0.0, "grid", extras={"a": 1, "regions": reg, "b": 2})
+    assert made.regions == reg and list(made.to_dict())[-3:] == ["a", "regions", "b"]
+    # a composer's own layout stays as it is: printed, not typed
+    own = {"50": {"center_m": [0, 0], "semi_axes_m": [5, 5]}}
+    theirs = Estimate(0.0, 0.0, "mine", extras={"regions": own})
+    assert theirs.regions == () and theirs.to_dict()["regions"] is own
 
 
 def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
@@ -64,7 +73,9 @@ def test_fusion_fields_match_its_json(tmp_path, repo_dir) -> None:
     assert (est.x_m, est.y_m) == pytest.approx(
         tuple(sum((m.x_m, m.y_m)[i] for m in est.components.values()) / 2 for i in range(2))
     )
-    assert d["regions"] == est.regions and [r["level"] for r in est.regions] == [0.5, 0.9]
+    assert d["regions"] == [r.to_dict() for r in est.regions]
+    assert [r.level for r in est.regions] == [0.5, 0.9]
+    assert est.regions == est.components["selfcal"].regions
     assert d.get("note") == (" ".join(est.notes) or None)
 
 

@@ -18,6 +18,7 @@ from mission.cli.main import main as rfsl
 from mission.errors import InputError
 from mission.flightlog import FlightLog, read_flight_log
 from mission.geo import afar_field
+from mission.localize import Estimate
 from mission.localize.api import localize_log
 from mission.localize.error_circles import (
     FULL_TRACK,
@@ -124,11 +125,12 @@ def test_flown_radii_are_their_stratums_then_stop(c):
 
 
 def test_an_attitude_outside_the_training_gives_the_note_and_no_circle():
-    ex: dict = {}
+    est = Estimate(0.0, 0.0, "onnx")
     note = attach_circles(
-        ex, 0.0, 0.0, (REC, None), flown={"track_coverage": 1.0, "attitude_note": "pitch out"}
+        est, (REC, None), flown={"track_coverage": 1.0, "attitude_note": "pitch out"}
     )
-    assert "regions" not in ex and "pitch out" in note and "no calibration applies" in note
+    assert "regions" not in est.extras and not est.regions
+    assert "pitch out" in note and "no calibration applies" in note
 
 
 @pytest.fixture(scope="module")
@@ -154,7 +156,7 @@ def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
     for f in (1 / 3, 2 / 3, 1.0):
         est = localize_log(truncate(spiral, f))
         assert est.extras["track_coverage"] == pytest.approx(f, abs=0.08)
-        regs = {r["level"]: r["radius_m"] for r in est.extras.get("regions", [])}
+        regs = {r.level: r.radius_m for r in est.regions}
         r90[f] = regs.get(0.9, math.inf)
         assert 0.9 in regs or "no calibration applies" in est.extras["note"]
     assert r90[1 / 3] > r90[2 / 3] > r90[1.0]
@@ -169,10 +171,8 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -28.0, 0.0)
     steep = type(spiral)(cols, dict(spiral.meta), spiral.path)
     est = localize_log(steep)
-    assert est.extras["regions_from"] == "selfcal" and all(
-        r.get("kind") != "error circle" for r in est.regions
-    )
-    assert [r["level"] for r in est.regions] == [0.5, 0.9]
+    assert est.extras["regions_from"] == "selfcal" and all(not r.is_circle for r in est.regions)
+    assert [r.level for r in est.regions] == [0.5, 0.9]
     note = est.extras["note"]
     assert (
         "attitude is outside" in note
@@ -182,7 +182,7 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     assert "self-calibrating search's posterior" in note
     assert region_covers(est, *steep.truth_enu[:2], 0.9)
     plain = localize_log(spiral)
-    assert "regions_from" not in plain.extras and plain.regions[0]["kind"] == "error circle"
+    assert "regions_from" not in plain.extras and plain.regions[0].is_circle
 
 
 @pytest.mark.parametrize(

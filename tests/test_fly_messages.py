@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from _localize_helpers import write_synthetic_log
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mavsdk.plugins.mission_raw import MissionRawError, MissionRawResult
@@ -25,9 +26,12 @@ from mission.flight.budget import start_budget
 from mission.flight.context import EXIT_LINK, FlightError
 from mission.flight.plan import UploadFailed, upload_with_retries
 from mission.flight.progress import PLAIN_WIDTH, FoldedTexts, fit_width
-from mission.flight.runner import FlyOptions, make_source, new_context
+from mission.flight.runner import FlyOptions, make_source, new_context, print_result
 from mission.flight.vehicle_process import free_udp_port
 from mission.flightlog import read_flight_log
+from mission.localize.api import localize_log
+from mission.localize.methods import ADAPTIVE_METHOD
+from mission.localize.render import Shown
 from mission.spec import load_mission, parse_mission
 from mission.trajectory.checks import RETURN_OVERSHOOT_M, check_mission
 from mission.trajectory.items import build_items
@@ -215,3 +219,30 @@ def test_the_adaptive_budget_is_checked_again_with_the_autopilots_return(return_
         ext.check(ctx)
     assert ei.value.code == 2 and "spiral_adaptive.yaml, field '" in str(ei.value)
     assert len(str(ei.value).splitlines()) == 1
+
+
+def test_both_kinds_of_flight_end_with_the_renderers_lines(tmp_path, capsys):
+    """A fixed flight's last lines are ``localize``'s answer on its log, an adaptive flight's the
+    in-flight final entry; both through ``render.Shown`` (same shape, each within 80 columns)."""
+    spec = load_mission(ROOT / "missions" / "spiral_adaptive.yaml")
+    ext = AdaptiveRounds(spec, spec.adaptive)
+    ctx = new_context(spec, FlyOptions(), ext)
+    ctx.truth = {"x_m": 10.0, "y_m": 20.0}
+    assert ext.result_lines(ctx) == ["no final estimate (too few samples)"]
+    ctx.live.final = {"t_s": 412.0, "x_m": 13.0, "y_m": 24.0, "area_m2": 1500.0}
+    adaptive = ext.result_lines(ctx)
+    assert adaptive == Shown.of_entry(ctx.live.final, ctx.truth, ADAPTIVE_METHOD).lines()
+    assert adaptive[1:] == [
+        f"  method: {ADAPTIVE_METHOD}, in flight at t=412 s",
+        "  (`localize LOG --at 412` gives it back)",
+        "  90 % region: 1500 m^2",
+        "  error: 5.0 m (true transmitter at 10.0, 20.0 m)",
+    ]
+    fixed = new_context(spec, FlyOptions(), None)
+    fixed.log_path = write_synthetic_log(tmp_path / "f.csv", (150.0, 120.0, 1.5), n=3000)
+    fixed.truth = {"x_m": 150.0, "y_m": 120.0}
+    print_result(fixed)
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out == Shown.of(localize_log(fixed.log_path), fixed.truth).lines()
+    assert out[0].startswith("estimate: x=") and out[-1].startswith("  error: ")
+    assert max(len(ln) for ln in out + adaptive) <= 80

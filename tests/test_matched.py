@@ -93,12 +93,12 @@ def test_recovers_the_transmitter(estimate):
 
 def test_regions_are_nested_and_hold_the_estimate(estimate):
     post = estimate.posterior
-    r50, r90 = sorted(estimate.extras["regions"], key=lambda r: r["level"])
-    assert r50["hpd_mass"] < r90["hpd_mass"] and r50["area_m2"] < r90["area_m2"]
-    in50 = post.prob >= post.mass_threshold(r50["hpd_mass"])
-    in90 = post.prob >= post.mass_threshold(r90["hpd_mass"])
+    r50, r90 = estimate.region(0.5), estimate.region(0.9)
+    assert r50.mass < r90.mass and r50.area_m2 < r90.area_m2
+    in50 = post.prob >= post.mass_threshold(r50.mass)
+    in90 = post.prob >= post.mass_threshold(r90.mass)
     assert in50.any() and not (in50 & ~in90).any()
-    assert post.covers(estimate.x_m, estimate.y_m, r90["hpd_mass"])
+    assert post.covers(estimate.x_m, estimate.y_m, r90.mass)
     assert abs(post.prob.sum() - 1.0) < 1e-9
 
 

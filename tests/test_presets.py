@@ -227,13 +227,11 @@ def test_default_method_on_a_real_receiver_log_is_the_calibrated_grid(tmp_path):
     assert set(comp) == {"selfcal", "rfsl_spiral_e2r.onnx"}
     mean = np.mean(list(comp.values()), axis=0)
     assert (est.x_m, est.y_m) == pytest.approx(tuple(mean))
-    assert [r["level"] for r in est.extras["regions"]] == [0.5, 0.9]
+    assert [r.level for r in est.regions] == [0.5, 0.9]
     # the fused point's place in its own regions, and the note on it
     q = est.extras["fused_point_hpd_level"]
     assert q == pytest.approx(est.posterior.hpd_level(est.x_m, est.y_m)) and 0.0 <= q <= 1.0
-    assert ("outside the 90 % region" in est.extras.get("note", "")) == (
-        q >= est.extras["regions"][1]["hpd_mass"]
-    )
+    assert ("outside the 90 % region" in est.extras.get("note", "")) == (q >= est.regions[1].mass)
     sim = write_flight_log(
         tmp_path / "sim.csv", cols, make_meta(origin, {"kind": "sim", "model": "free-space"})
     )
@@ -278,5 +276,5 @@ def test_fusion_says_when_its_point_leaves_its_regions(tmp_path, monkeypatch) ->
     monkeypatch.setattr(api, "fusion_model_path", lambda: FarNetwork.path)
     est = api.localize_log(real)
     assert est.extras["component_distance_m"] > 250.0
-    assert est.extras["fused_point_hpd_level"] >= est.extras["regions"][1]["hpd_mass"]
+    assert est.extras["fused_point_hpd_level"] >= est.regions[1].mass
     assert "outside the 90 % region" in est.extras["note"]

@@ -137,10 +137,10 @@ def test_hpd_regions_of_a_gaussian_match_the_closed_form() -> None:
     post = Posterior(p / p.sum(), None)  # type: ignore[arg-type]
     regs = hpd_regions(post, np.stack([gx, gy], axis=-1), (0.5, 0.9))
     for r in regs:
-        closed = -2.0 * np.pi * s * s * np.log(1.0 - r["level"])
-        assert r["area_m2"] == pytest.approx(closed, rel=0.05)
-        assert r["ellipse"]["a_m"] == pytest.approx(r["ellipse"]["b_m"], rel=0.05)
-        assert r["polygons"], "a closed outline is drawn"
+        closed = -2.0 * np.pi * s * s * np.log(1.0 - r.level)
+        assert r.area_m2 == pytest.approx(closed, rel=0.05)
+        assert r.ellipse.a_m == pytest.approx(r.ellipse.b_m, rel=0.05)
+        assert r.polygons, "a closed outline is drawn"
     assert post.covers(0.0, 0.0, 0.5) and not post.covers(60.0, 0.0, 0.9)
 
 
@@ -183,7 +183,7 @@ def test_regions_cover_truth_on_noisy_flights_and_stay_informative() -> None:
         )
         cov50 += region_covers(est, tx[0], tx[1], 0.5)
         cov90 += region_covers(est, tx[0], tx[1], 0.9)
-        a50, a90 = (r["area_m2"] for r in est.extras["regions"])
+        a50, a90 = (r.area_m2 for r in est.regions)
         assert a90 < 0.25 * 300.0**2 and a50 < 0.5 * a90, (a50, a90)
     assert cov90 >= 10 and cov50 >= 7, (cov50, cov90)
 

@@ -139,7 +139,7 @@ def test_two_surviving_candidates_give_two_islands() -> None:
         np.array([[60.0, 60.0], [240.0, 240.0]]), np.array([0.5, 0.5]), grid, 15.0
     )
     reg = hpd_regions(post, grid, (0.5,))[0]
-    assert len(reg["polygons"]) == 2
+    assert len(reg.polygons) == 2
     assert (
         post.covers(60.0, 60.0, 0.5)
         and post.covers(240.0, 240.0, 0.5)

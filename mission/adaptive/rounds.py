@@ -33,12 +33,13 @@ from mission.adaptive.planner import (
     survey_spec,
     verdict,
 )
-from mission.flight import estimates, live
+from mission.flight import estimates
 from mission.flight.context import FlightContext, FlightError
 from mission.flight.phases import final_phase
 from mission.flight.plan import upload_with_retries
 from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
+from mission.localize.render import Shown
 from mission.spec import TrajectorySpec
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
@@ -98,11 +99,7 @@ class AdaptiveRounds:
         final = ctx.live.final
         if not final:
             return ["no final estimate (too few samples)"]
-        return [
-            f"estimate: {live.describe(final, ctx.truth)} "
-            f"[{final.get('method', ADAPTIVE_METHOD)}, in flight]",
-            f"(t={final['t_s']:g} s: `localize LOG --at {final['t_s']:g}` gives it back)",
-        ]
+        return Shown.of_entry(final, ctx.truth, ADAPTIVE_METHOD).lines()
 
 
 def _no_round(ctx: FlightContext) -> None:

@@ -172,11 +172,11 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
     except InputError:
         return None
 
-    reg = next((r for r in e.regions if r["level"] == 0.9), None)
+    reg = e.region(0.9)
     return (
         e.x_m,
         e.y_m,
-        None if reg is None else reg["area_m2"],
+        None if reg is None else reg.area_m2,
         region_covers(e, tx[0], tx[1], 0.9),
     )
 

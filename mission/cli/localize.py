@@ -202,25 +202,20 @@ def table(args: argparse.Namespace, log, est):
     from rich.table import Table
 
     from mission.flightlog import WARNING
-    from mission.localize.uncertainty import describe_region
+    from mission.localize.render import Shown
 
     tab = Table(title=f"transmitter estimate: {args.log}", show_header=False)
     tab.add_row("method", f"{est.method}" + (f" ({est.model})" if est.model else ""))
     tab.add_row("why", str(est.extras.get("method_choice", "")))
-    tab.add_row("local x, y", f"{est.x_m:.1f} m east, {est.y_m:.1f} m north (log origin)")
-    tab.add_row("lat, lon", f"{est.lat_deg:.7f}, {est.lon_deg:.7f}")
-    if est.error_m is not None:
-        tab.add_row(
-            "error",
-            f"[bold]{est.error_m:.1f} m[/] (truth {est.extras['truth_x_m']:.1f}, "
-            f"{est.extras['truth_y_m']:.1f} m)",
-        )
+    shown = Shown.of(est)
+    for row in shown.rows():
+        tab.add_row(*row)
     if est.selection is not None:
         tab.add_row("samples", est.selection.line())
     if est.fit is not None:
         tab.add_row("fit", est.fit.line())
-    for reg in est.regions:
-        tab.add_row(f"{100 * reg['level']:.0f} % region", describe_region(reg))
+    for row in shown.region_rows():
+        tab.add_row(*row)
     if est.candidates:
         tab.add_row(
             "candidates",

@@ -24,6 +24,7 @@ from mission.flight import live
 from mission.flight.context import FlightContext
 from mission.flight.vehicle_process import terminal_signals_ignored
 from mission.flightlog import FLOWN_PHASES
+from mission.localize.render import Shown
 
 
 @dataclass
@@ -103,12 +104,13 @@ def record(ctx: FlightContext, d: dict, what: str = "") -> None:
     names it)."""
     lv = ctx.live
     lv.estimates.append(d)
-    ctx.status.estimate = live.describe(d, ctx.truth)
+    text = Shown.of_entry(d, ctx.truth).line()
+    ctx.status.estimate = text
     # the series survives an abort or a crash of the ground station
     with contextlib.suppress(OSError):
         ctx.rows.writer.update_meta(estimates=lv.estimates)
     if what:
-        ctx.event("estimate", f"{what} estimate, t={d['t_s']:.0f} s: {live.describe(d, ctx.truth)}")
+        ctx.event("estimate", f"{what} estimate, t={d['t_s']:.0f} s: {text}")
 
 
 async def live_estimates(ctx: FlightContext) -> None:

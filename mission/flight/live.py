@@ -24,12 +24,13 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
+from mission.localize.render import SERIES_LEVEL
 
 DEFAULT_LIVE = (
     "default"  # recorded in the sidecar: the live estimates used ``localize``'s own choice
 )
 FAST_ESTIMATE_S = 180.0  # the AFAR rules' fast estimate: 3 minutes after take-off
-LEVEL = 0.9
+LEVEL = SERIES_LEVEL  # the level of an entry's region area (one home: the renderer's)
 
 
 def recorded_method(meta: dict) -> str | None:
@@ -70,12 +71,12 @@ def estimate_at(log, t_s: float | None = None, method: str | None = None):
 def summary(est, t_s: float) -> dict:
     """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when
     known)."""
-    reg = next((r for r in est.regions if r["level"] == LEVEL), None)
+    reg = est.region(LEVEL)
     d = {
         "t_s": round(float(t_s), 3),
         "x_m": round(est.x_m, 2),
         "y_m": round(est.y_m, 2),
-        "area_m2": None if reg is None else round(float(reg["area_m2"]), 1),
+        "area_m2": None if reg is None else round(float(reg.area_m2), 1),
         "method": est.method,
     }
     if est.error_m is not None:
@@ -137,13 +138,3 @@ def warm_up() -> None:
     # the worker process's imports (noqa): the flight process never loads the localizer
     import mission.flightlog  # noqa: F401, PLC0415
     import mission.localize.api  # noqa: F401, PLC0415
-
-
-def describe(d: dict, truth: dict | None = None) -> str:
-    """Short text of a series entry: position, 90 % region and error when known."""
-    text = f"({d['x_m']:.0f}, {d['y_m']:.0f}) m"
-    if d.get("area_m2") is not None:
-        text += f", 90 % in {d['area_m2']:.0f} m^2"
-    if truth is not None:
-        text += f", error {math.hypot(d['x_m'] - truth['x_m'], d['y_m'] - truth['y_m']):.1f} m"
-    return text

@@ -42,7 +42,7 @@ class FlightStatus:
     stage: str = "connecting"  # the runner's set-up step before arming, then the mission phase
     link_lost: bool = False
     log_error: str = ""  # a failed log write ("disk full"), shown until the end
-    estimate: str = ""  # the live estimate (mission.flight.live.describe), empty until there is one
+    estimate: str = ""  # the live estimate (render.Shown.line), empty until there is one
     warnings: list[str] = field(default_factory=list)
 
     @property

@@ -667,7 +667,7 @@ def print_result(ctx: FlightContext) -> None:
     try:
         # lazy (noqa) on purpose: a localizer that cannot load must not stop the flight's last lines
         from mission.localize.api import localize_log  # noqa: PLC0415
-        from mission.localize.uncertainty import describe_region, outer_region  # noqa: PLC0415
+        from mission.localize.render import Shown  # noqa: PLC0415
     except ImportError as e:
         print(
             f"localizer not available ({e}); run `localize {ctx.log_path}` later", file=sys.stderr
@@ -678,23 +678,5 @@ def print_result(ctx: FlightContext) -> None:
     except InputError as e:
         print(f"localizer refused the log: {e}", file=sys.stderr)
         return
-    model = est.extras.get("model_path")  # which network answered, when one did
-    label = est.method + (f" {Path(model).name}" if model else "")
-    lines = [
-        f"estimate: x={est.x_m:.1f} m, y={est.y_m:.1f} m (lat {est.lat_deg:.7f}, lon "
-        f"{est.lon_deg:.7f})",
-        f"  method: {label}",
-    ]
-    outer = outer_region(est.extras)
-    lines.append(
-        f"  {100 * outer['level']:.0f} % region: {describe_region(outer, short=True)}"
-        if outer is not None
-        else "  region: none: no calibration applies to this flight (localize --json: notes)"
-    )
-    if ctx.truth is not None:
-        err = float(np.hypot(est.x_m - ctx.truth["x_m"], est.y_m - ctx.truth["y_m"]))
-        lines.append(
-            f"  error: {err:.1f} m (true transmitter at {ctx.truth['x_m']:.1f}, "
-            f"{ctx.truth['y_m']:.1f} m)"
-        )
+    lines = Shown.of(est, ctx.truth).lines()
     print("\n".join(lines), flush=True)  # the last lines of the run, each within 80 columns

@@ -7,7 +7,10 @@ registered in ``mission.localize.methods``.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+
+from mission.localize.region import Region, widest
 
 
 @dataclass(frozen=True)
@@ -58,10 +61,13 @@ class Estimate:
     """A transmitter position estimate in the local ENU frame of the log (x east, y north, metres).
 
     ``extras`` is the ordered record that ``to_dict`` / ``--json`` print after the position.  What
-    consumers read has a typed home: ``regions`` (the 50 / 90 % regions), ``notes`` (the sentences
-    ``localize`` prints under "note"), ``components`` (a fusion's member estimates).  Setting one
-    writes its JSON form into ``extras`` at that moment (``"regions"``, ``"note"`` joined by spaces,
-    ``"components"`` as name -> [x, y]), so the output keeps the key order it always had.
+    consumers read has a typed home: ``regions`` (the 50 / 90 % regions, ``Region``), ``notes``
+    (the sentences ``localize`` prints under "note"), ``components`` (a fusion's member estimates).
+    Setting one writes its JSON form into ``extras`` at that moment (``"regions"`` as
+    ``Region.to_dict``, ``"note"`` joined by spaces, ``"components"`` as name -> [x, y]), so the
+    output keeps the key order it always had.  ``Region`` objects passed in ``extras["regions"]``
+    at construction become ``regions``; any other value there is a composer's own layout, printed
+    as it is (the benchmark reads it: ``mission.workshop.evaluate_suite``).
     """
 
     x_m: float
@@ -79,6 +85,7 @@ class Estimate:
     # candidates.Candidate, most weight first
     candidates: list = field(default_factory=list, repr=False)
     selection: Selection | None = field(default=None, repr=False)
+    _regions: tuple[Region, ...] = field(default=(), init=False, repr=False)
 
     @property
     def fit(self) -> Fit | None:
@@ -88,17 +95,29 @@ class Estimate:
     def __post_init__(self) -> None:
         if self.notes:
             self.extras["note"] = " ".join(self.notes)
+        given = self.extras.get("regions")
+        if isinstance(given, list | tuple) and all(isinstance(r, Region) for r in given):
+            self.regions = given
 
     @property
-    def regions(self) -> list[dict]:
-        """The uncertainty regions, lowest level first: HPD regions of a posterior (``hpd_mass``,
-        ``polygons``, ``ellipse``) or error circles (``kind`` "error circle", ``radius_m``); empty
-        when none applies."""
-        return self.extras.get("regions", [])
+    def regions(self) -> tuple[Region, ...]:
+        """The uncertainty regions, lowest level first: HPD sets of a posterior or error circles
+        (``Region``); empty when none applies."""
+        return self._regions
 
     @regions.setter
-    def regions(self, value: list[dict]) -> None:
-        self.extras["regions"] = value
+    def regions(self, value: Iterable[Region]) -> None:
+        self._regions = tuple(value)
+        self.extras["regions"] = [r.to_dict() for r in self._regions]
+
+    def region(self, level: float) -> Region | None:
+        """The region of nominal ``level`` (None when the estimate has none)."""
+        return next((r for r in self._regions if r.level == level), None)
+
+    @property
+    def outer_region(self) -> Region | None:
+        """The widest region (highest level), None when the estimate has none."""
+        return widest(self._regions)
 
     def add_note(self, note: str | None) -> None:
         """Append a sentence to ``notes`` (nothing for an empty one)."""

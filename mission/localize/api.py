@@ -60,7 +60,6 @@ from mission.localize.training_domain import (
     flown_domain,
     trained_legs,
 )
-from mission.localize.uncertainty import outer_region
 from mission.physics.propagation import MODEL_NAMES
 
 # re-exported: importers say mission.localize.api.shipped_model
@@ -192,7 +191,7 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     # 'real' circles come from benchmark flights of every attitude: a note, not a veto
     if not simulated:
         est.add_note(flown.pop("attitude_note"))
-    est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area, flown))
+    est.add_note(attach_circles(est, cal, area, flown))
     if _check_altitude(est, net, part) and simulated and est.regions:
         est.add_note(
             "Its error circles were calibrated on flights inside those altitudes: expect them "
@@ -217,7 +216,7 @@ def _method_regions(
         )
         return
     cal = method_calibration(method, "sim" if simulated else "real")
-    est.add_note(attach_circles(est.extras, est.x_m, est.y_m, cal, area))
+    est.add_note(attach_circles(est, cal, area))
 
 
 def _fallback_regions(est: Estimate, part, origin, area, tx_height_m: float) -> None:
@@ -294,18 +293,20 @@ def fusion(
         posterior=a.posterior,
         notes=list(a.notes),
     )
+    if "regions" in a.extras:
+        est.regions = a.regions  # typed; the JSON form keeps its place in the copied extras
     est.set_components({"selfcal": a, Path(path).name: b})
     est.extras["component_distance_m"] = dist = float(np.hypot(a.x_m - b.x_m, a.y_m - b.y_m))
     # is the fused point inside its own regions?
     if a.posterior is not None and a.posterior.grid is not None:
         # log frame, as the grid
         est.extras["fused_point_hpd_level"] = q = a.posterior.hpd_level(float(x), float(y))
-        outer = outer_region(est.extras)
-        if outer is not None and q >= outer["hpd_mass"]:
+        outer = est.outer_region
+        if outer is not None and q >= outer.mass:
             est.add_note(
                 f"the network and the self-calibrating search disagree ({dist:.0f} m apart): "
                 "the fused "
-                f"point lies outside the {100 * outer['level']:.0f} % region, which is the "
+                f"point lies outside the {100 * outer.level:.0f} % region, which is the "
                 "search's alone"
             )
     _check_altitude(est, net, part)

@@ -19,8 +19,9 @@ One calibration per kind of log:
 Networks keep theirs in their card (``models/<name>.json``, key ``regions``, with the model file's
 sha256); the classical methods in their default configuration in
 ``mission/data/method_circles.json`` (``benchmarks/calibrate_error_circles.py`` writes both).
-Regions use the layout of :mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``,
-``ellipse``, ``polygons``) plus ``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
+Regions are ``mission.localize.region.Region`` of kind ``CIRCLE``: in JSON the layout of
+:mod:`mission.localize.uncertainty` (``level``, ``hpd_mass``, ``area_m2``, ``ellipse``,
+``polygons``) plus ``kind = "error circle"``, ``radius_m`` and ``calibrated_on``.
 
 What was flown: a flight that flew only part of its planned track (an aborted mission) errs more
 than the full flights a record was calibrated on.  A record may carry ``track``: Mondrian
@@ -47,8 +48,10 @@ import numpy as np
 from mission.errors import InputError
 from mission.fields import REQUIRED, Fields
 from mission.geo import Area, clip_polygon, polygon_area_m2
+from mission.localize import Estimate
 from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
+from mission.localize.region import CIRCLE, Ellipse, Region
 
 METHOD_CIRCLES = Path(__file__).resolve().parent.parent / "data" / "method_circles.json"
 # the methods whose circles mission/data/method_circles.json holds (calibrated in their default
@@ -178,58 +181,51 @@ def method_calibration(
 
 def circle_regions(
     x: float, y: float, radii: dict[float, float], calibrated_on: str, area: Area | None = None
-) -> list[dict]:
-    """Error circles around (x, y) for each level -> radius, in the uncertainty-region layout;
+) -> tuple[Region, ...]:
+    """Error circles around (x, y) for each level -> radius (``Region`` of kind ``CIRCLE``);
     clipped to ``area`` where it is given and overlaps the circle (a circle that misses it is kept
     whole)."""
     t = np.linspace(0.0, 2.0 * np.pi, N_VERTICES + 1)
     out = []
     for lv, r in sorted(radii.items()):
         ring = np.stack([x + r * np.cos(t), y + r * np.sin(t)], axis=1)
-        reg = {
-            "level": float(lv),
-            "hpd_mass": float(lv),
-            "kind": "error circle",
-            "radius_m": float(r),
-            "area_m2": float(np.pi * r * r),
-            "ellipse": {
-                "x_m": float(x),
-                "y_m": float(y),
-                "a_m": float(r),
-                "b_m": float(r),
-                "angle_deg": 0.0,
-            },
-            "polygons": [np.round(ring, 1).tolist()],
-            "calibrated_on": calibrated_on,
-        }
+        area_m2, clipped_to, polys = float(np.pi * r * r), None, [ring]
         if area is not None and not area.contains(ring[:-1]).all():
             parts = clip_polygon(area.vertices, ring[:-1])  # a non-convex area may leave several
             if parts:
-                reg.update(
-                    area_m2=sum(polygon_area_m2(p) for p in parts),
-                    clipped_to=area.name,
-                    polygons=[np.round(np.vstack([p, p[:1]]), 1).tolist() for p in parts],
-                )
-        out.append(reg)
-    return out
+                area_m2 = float(sum(polygon_area_m2(p) for p in parts))
+                clipped_to = area.name
+                polys = [np.vstack([p, p[:1]]) for p in parts]
+        out.append(
+            Region(
+                level=float(lv),
+                mass=float(lv),
+                area_m2=area_m2,
+                ellipse=Ellipse(float(x), float(y), float(r), float(r), 0.0),
+                polygons=tuple(tuple(map(tuple, np.round(p, 1).tolist())) for p in polys),
+                kind=CIRCLE,
+                radius_m=float(r),
+                calibrated_on=calibrated_on,
+                clipped_to=clipped_to,
+            )
+        )
+    return tuple(out)
 
 
 def attach_circles(
-    extras: dict,
-    x: float,
-    y: float,
+    est: Estimate,
     calibration: tuple[dict | None, str | None],
     area: Area | None = None,
     flown: dict | None = None,
 ) -> str | None:
-    """Put the error circles of ``calibration`` (a ``card_calibration`` / ``method_calibration``
-    answer) around (x, y), clipped to ``area``, into ``extras["regions"]``, sized for what was
+    """Give ``est`` the error circles of ``calibration`` (a ``card_calibration`` /
+    ``method_calibration`` answer) around its point, clipped to ``area``, sized for what was
     ``flown`` (``training_domain.flown_domain``); returns the note to show when there is no
     calibration."""
     flown = flown or {}
     cov = flown.get("track_coverage")
     if cov is not None:
-        extras["track_coverage"] = round(float(cov), 3)
+        est.extras["track_coverage"] = round(float(cov), 3)
     if flown.get("attitude_note"):
         return f"{flown['attitude_note']}. {NO_CIRCLE_APPLIES}"
     rec, why = calibration
@@ -243,5 +239,5 @@ def attach_circles(
         if how and "track" in rec
         else rec.get("calibrated_on", "")
     )
-    extras["regions"] = circle_regions(x, y, radii, str(src) + how, area)
+    est.regions = circle_regions(est.x_m, est.y_m, radii, str(src) + how, area)
     return None

@@ -4,6 +4,7 @@ needed)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ from mission.geo import afar_field
 from mission.localize import Estimate
 from mission.localize.api import search_area
 from mission.localize.features import FeatureConfig, cluster_details
+from mission.localize.region import Region
 
 
 def field_areas(log) -> list:
@@ -61,13 +63,12 @@ def power_unit(log) -> str:
     return "dBm" if isinstance(src, dict) and src.get("kind") == "sim" else "dB"
 
 
-def draw_regions(ax, regions: list[dict]) -> None:
-    """Outline the estimate's uncertainty regions (``mission.localize.uncertainty`` layout), one
-    style per level."""
+def draw_regions(ax, regions: Sequence[Region]) -> None:
+    """Outline the estimate's uncertainty regions (``Region``), one style per level."""
     styles = {0.5: ("-", 1.6), 0.9: ("--", 1.2)}
     for reg in regions:
-        ls, lw = styles.get(round(reg["level"], 2), (":", 1.0))
-        for k, poly in enumerate(reg["polygons"]):
+        ls, lw = styles.get(round(reg.level, 2), (":", 1.0))
+        for k, poly in enumerate(reg.polygons):
             a = np.asarray(poly)
             ax.plot(
                 a[:, 0],
@@ -76,7 +77,7 @@ def draw_regions(ax, regions: list[dict]) -> None:
                 ls=ls,
                 lw=lw,
                 zorder=4,
-                label=f"{100 * reg['level']:.0f} % region" if k == 0 else None,
+                label=f"{100 * reg.level:.0f} % region" if k == 0 else None,
             )
 
 

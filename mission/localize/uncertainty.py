@@ -6,7 +6,8 @@ split (the transmitter may lie on either side of a leg); the HPD set follows tha
 region is also summarised as the ellipse of the same mass under a Gaussian fit to the region's
 posterior (centre, semi-axes, orientation), which is what a user compares first.
 
-JSON layout (``localize --json``, key ``regions``): a list, one entry per level::
+Each region is a ``mission.localize.region.Region``; its JSON layout (``localize --json``, key
+``regions``, ``Region.to_dict``): a list, one entry per level::
 
     {"level": 0.9,               # nominal probability that the transmitter lies inside
      "hpd_mass": 0.93,           # posterior mass of the set (the level recalibrated on the
@@ -24,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import logsumexp
+
+from mission.localize.region import Ellipse, Polygon, Region
 
 
 @dataclass
@@ -84,7 +87,7 @@ def grid_posterior(logp: np.ndarray, shape: tuple[int, int]) -> Posterior:
     return Posterior(p.reshape(shape), None)  # type: ignore[arg-type]
 
 
-def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> dict:
+def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> Ellipse:
     """Ellipse of probability ``level`` for a Gaussian with the weighted mean and covariance of
     ``pts``."""
     w = w / w.sum()
@@ -98,13 +101,7 @@ def _ellipse(pts: np.ndarray, w: np.ndarray, level: float) -> dict:
     k = float(np.sqrt(chi2.ppf(level, 2)))
     a, b = k * np.sqrt(np.maximum(vals[::-1], 0.0))
     ang = float(np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1])))
-    return {
-        "x_m": float(mu[0]),
-        "y_m": float(mu[1]),
-        "a_m": float(a),
-        "b_m": float(b),
-        "angle_deg": ang,
-    }
+    return Ellipse(float(mu[0]), float(mu[1]), float(a), float(b), ang)
 
 
 def hpd_regions(
@@ -112,9 +109,9 @@ def hpd_regions(
     grid: np.ndarray,
     levels: tuple[float, ...] = (0.5, 0.9),
     masses: dict[float, float] | None = None,
-) -> list[dict]:
-    """The regions of ``post`` at each nominal level (module docstring layout); also attaches
-    ``grid`` to it.
+) -> tuple[Region, ...]:
+    """The HPD regions of ``post`` at each nominal level (``Region``; JSON: the module docstring
+    layout); also attaches ``grid`` to it.
 
     ``masses`` maps a nominal level to the HPD mass that covers the truth at that rate on a
     benchmark (a recalibration of the posterior's credible levels); without it the HPD mass is the
@@ -137,53 +134,25 @@ def hpd_regions(
         mass = float((masses or {}).get(lev, lev))
         thr = post.mass_threshold(mass)
         inside = p >= thr
-        polys: list[list[list[float]]] = []
+        polys: list[Polygon] = []
         if gen is not None and inside.sum() >= 1:
             for line in gen.lines(thr * (1 - 1e-9)):
                 arr = np.asarray(line)
                 if arr.ndim == 2 and len(arr) >= 3:
-                    polys.append(np.round(arr, 1).tolist())
+                    polys.append(tuple(map(tuple, np.round(arr, 1).tolist())))
         out.append(
-            {
-                "level": float(lev),
-                "hpd_mass": mass,
-                "area_m2": float(inside.sum() * post.cell_area_m2),
-                "density": float(thr / post.cell_area_m2),
-                "ellipse": _ellipse(pts[inside], p[inside], mass)
+            Region(
+                level=float(lev),
+                mass=mass,
+                area_m2=float(inside.sum() * post.cell_area_m2),
+                density=float(thr / post.cell_area_m2),
+                ellipse=_ellipse(pts[inside], p[inside], mass)
                 if inside.sum() > 2
                 else _ellipse(pts, p, mass),
-                "polygons": polys,
-            }
+                polygons=tuple(polys),
+            )
         )
-    return out
-
-
-def describe_region(reg: dict, short: bool = False) -> str:
-    """One line for a region of either kind: an error circle (``error_circles``) or an HPD set
-    (here); ``short`` leaves out where the circle was calibrated and where the ellipse lies."""
-    el = reg["ellipse"]
-    if reg.get("kind") == "error circle":
-        clipped = (
-            f"; clipped to the {reg['clipped_to']}: {reg['area_m2']:.0f} m^2"
-            if "clipped_to" in reg
-            else ""
-        )
-        return f"within {reg['radius_m']:.0f} m of the estimate" + (
-            ""
-            if short
-            else f" (error circle; calibrated on {reg.get('calibrated_on') or 'the card'}{clipped})"
-        )
-    if short:
-        return f"{reg['area_m2']:.0f} m^2 (ellipse {el['a_m']:.0f} x {el['b_m']:.0f} m)"
-    return (
-        f"{reg['area_m2']:.0f} m^2; ellipse centre {el['x_m']:.1f}, {el['y_m']:.1f} m, semi-axes "
-        f"{el['a_m']:.0f} x {el['b_m']:.0f} m at {el['angle_deg']:.0f} deg from east"
-    )
-
-
-def outer_region(extras: dict) -> dict | None:
-    """The estimate's widest region (highest level), None when it has none."""
-    return max(extras.get("regions", []), key=lambda r: r["level"], default=None)
+    return tuple(out)
 
 
 def region_covers(est, x: float, y: float, level: float) -> bool | None:
@@ -192,5 +161,5 @@ def region_covers(est, x: float, y: float, level: float) -> bool | None:
     post = getattr(est, "posterior", None)
     if post is None or post.grid is None:
         return None
-    mass = next((r["hpd_mass"] for r in est.regions if r["level"] == level), level)
-    return post.covers(x, y, mass)
+    reg = est.region(level)
+    return post.covers(x, y, level if reg is None else reg.mass)

@@ -10,7 +10,6 @@ Split from ``mission.workshop.evaluate`` (simulated test sets and real flights),
 
 from __future__ import annotations
 
-import math
 import multiprocessing as mp
 import time
 import warnings
@@ -23,6 +22,7 @@ from matplotlib.path import Path as MPath
 
 from mission.errors import InputError
 from mission.localize.api import localize_log
+from mission.localize.region import ELLIPSE_KEYS, Ellipse, Region
 from mission.localize.uncertainty import region_covers
 from mission.threads import limit_worker
 from mission.workshop.evaluate import Row, suite_method
@@ -39,8 +39,8 @@ from mission.workshop.suite import (
 from mission.workshop.suite_cache import read_suite
 
 
-def _level(key, region: dict) -> str | None:
-    lv = region.get("level", key)
+def _level(lv) -> str | None:
+    """A level (0.9, 90 or "90") as the row's key ("90"); None when it is not a number."""
     try:
         v = float(lv)
     except (TypeError, ValueError):
@@ -49,7 +49,8 @@ def _level(key, region: dict) -> str | None:
 
 
 def region_contains(region: dict, xy) -> bool:
-    """Whether point ``xy`` (log ENU m) lies in an uncertainty region of ``est.extras["regions"]``.
+    """Whether point ``xy`` (log ENU m) lies in a region of a composer's own layout (an estimate's
+    ``extras["regions"]`` that is not typed ``Region``).
 
     Accepted shapes: ``{"polygon": [[x, y], ...]}`` (also ``polygon_xy_m``), or an ellipse
     ``{"center_m": [x, y], "semi_axes_m": [a, b], "angle_deg": t}`` with the first semi-axis ``t``
@@ -64,41 +65,37 @@ def region_contains(region: dict, xy) -> bool:
     ):
         # the mission.localize.uncertainty layout (error circles of error_circles too)
         el = region["ellipse"]
-        region = {
-            "center_m": [el["x_m"], el["y_m"]],
-            "semi_axes_m": [el["a_m"], el["b_m"]],
-            "angle_deg": el["angle_deg"],
-        }
+        return Ellipse(*(float(el[k]) for k in ELLIPSE_KEYS)).contains(p[0], p[1])
     poly = region.get("polygon", region.get("polygon_xy_m"))
     if poly is not None:
         return bool(MPath(np.asarray(poly, dtype=float)).contains_point(p))
     c = np.asarray(
         next(region[k] for k in ("center_m", "center_xy_m", "center") if k in region), dtype=float
     )
-    d = p - c[:2]
     if "cov_m2" in region or "cov" in region:
+        d = p - c[:2]
         cov = np.asarray(region.get("cov_m2", region.get("cov")), dtype=float)
         return bool(d @ np.linalg.solve(cov, d) <= float(region.get("chi2", 1.0)))
     a, b = (
         float(v)
         for v in next(region[k] for k in ("semi_axes_m", "axes_m", "semi_axes") if k in region)
     )
-    t = math.radians(float(region.get("angle_deg", region.get("angle", 0.0))))
-    u = d[0] * math.cos(t) + d[1] * math.sin(t)
-    v = -d[0] * math.sin(t) + d[1] * math.cos(t)
-    return bool((u / max(a, 1e-9)) ** 2 + (v / max(b, 1e-9)) ** 2 <= 1.0)
+    t = float(region.get("angle_deg", region.get("angle", 0.0)))
+    return Ellipse(float(c[0]), float(c[1]), a, b, t).contains(p[0], p[1])
 
 
-def _regions(est) -> dict[str, dict]:
-    """Level ("50", "90") -> region of an estimate (dict keyed by level or list of dicts with
-    "level")."""
+def _regions(est) -> dict[str, Region | dict]:
+    """Level ("50", "90") -> region of an estimate: its typed ``regions``, else a composer's own
+    layout in ``extras["regions"]`` (dict keyed by level or list of dicts with "level")."""
+    if est.regions:
+        return {lvl: r for r in est.regions if (lvl := _level(r.level)) is not None}
     regs = (est.extras or {}).get("regions")
     if not regs:
         return {}
     items = regs.items() if isinstance(regs, dict) else ((None, r) for r in regs)
     out = {}
     for k, r in items:
-        if isinstance(r, dict) and (lvl := _level(k, r)) is not None:
+        if isinstance(r, dict) and (lvl := _level(r.get("level", k))) is not None:
             out[lvl] = r
     return out
 
@@ -106,14 +103,15 @@ def _regions(est) -> dict[str, dict]:
 def _coverage(est, truth) -> dict[str, bool]:
     """Level -> whether the truth lies in the estimate's region: on the posterior grid when the
     estimate has one (``mission.localize.uncertainty.region_covers``), else by the region's drawn
-    shape."""
+    shape (a typed region's ellipse: an error circle's circle)."""
+    x, y = float(truth[0]), float(truth[1])
     out = {}
     for lvl, r in _regions(est).items():
-        c = (
-            region_covers(est, float(truth[0]), float(truth[1]), float(r["level"]))
-            if "level" in r
-            else None
-        )
+        if isinstance(r, Region):
+            c = region_covers(est, x, y, r.level)
+            out[lvl] = r.ellipse.contains(x, y) if c is None else c
+            continue
+        c = region_covers(est, x, y, float(r["level"])) if "level" in r else None
         out[lvl] = region_contains(r, truth) if c is None else c
     return out
 

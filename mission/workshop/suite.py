@@ -22,8 +22,10 @@ How to call it (the lead's entry points)::
     #                                                                        200, suite_dir=...)
     #            breakdown(rows, suite_draws(200, suite_dir=...), "physics.rx_antenna")
 
-Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.extras["regions"]`` (a dict
-keyed by level "50"/"90" or 0.5/0.9, or a list of dicts with "level"); each region a polygon
+Uncertainty regions: ``evaluate_suite`` counts the truth inside ``est.regions`` (typed
+``mission.localize.region.Region``: on the posterior when there is one, else the region's ellipse),
+or a composer's own layout in ``est.extras["regions"]`` (a dict keyed by level "50"/"90" or
+0.5/0.9, or a list of dicts with "level"); each region a polygon
 (``polygon`` [[x, y], ...], log ENU m) or an ellipse (``center_m`` + ``semi_axes_m`` + ``angle_deg``
 ccw from east, or ``center_m`` + ``cov_m2`` + ``chi2``):
 ``mission.workshop.evaluate_suite.region_contains``.
