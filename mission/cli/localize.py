@@ -219,7 +219,7 @@ def table(args: argparse.Namespace, log, est):
     if est.candidates:
         tab.add_row(
             "candidates",
-            "\n".join(candidate_line(c) for c in est.candidates[:3])
+            "\n".join(c.line() for c in est.candidates[:3])
             + (f"\n(+{len(est.candidates) - 3} more in --json)" if len(est.candidates) > 3 else ""),
         )
     elif est.components:
@@ -247,12 +247,6 @@ def table(args: argparse.Namespace, log, est):
         kind, _, text = n.partition(": ") if n.startswith(WARNING) else ("note", "", n)
         tab.add_row(f"[bold yellow]{kind}" if kind != "note" else kind, f"[yellow]{text}")
     return tab
-
-
-def candidate_line(c) -> str:
-    """One candidate of the evidence stage in a line: weight, source, point, evidence."""
-    dom = "" if c.in_domain else ", outside training"
-    return f"{c.weight:.2f} {c.source}: {c.x_m:.0f}, {c.y_m:.0f} m ({c.evidence:+.1f} nats{dom})"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

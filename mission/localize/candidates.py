@@ -43,6 +43,14 @@ class Candidate:
         """The same candidate with its evidence and weight."""
         return replace(self, evidence=float(evidence), weight=float(weight))
 
+    def line(self) -> str:
+        """The candidate in one line of ``localize``'s table: weight, source, point, evidence."""
+        dom = "" if self.in_domain else ", outside training"
+        return (
+            f"{self.weight:.2f} {self.source}: {self.x_m:.0f}, {self.y_m:.0f} m "
+            f"({self.evidence:+.1f} nats{dom})"
+        )
+
     def to_dict(self) -> dict:
         d = {"source": self.source, "x_m": round(self.x_m, 2), "y_m": round(self.y_m, 2)}
         if self.mass is not None:
