@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import time
@@ -30,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mission.evidence import mean_interval, paired_difference
 from mission.flightlog import read_flight_log
 from mission.spec import load_mission
+from sitl.shared import SharedSitl
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,45 +46,20 @@ AUTOPILOTS = {
 }
 
 
-def start_sitl(autopilot: str, speedup: float, instance: int, run: Path) -> int:
-    """Start one SITL in ``run`` from the missions' home and wait until it accepts a ground station;
-    returns its PID."""
+def start_sitl(autopilot: str, speedup: float, instance: int, run: Path) -> SharedSitl:
+    """Start one SITL in ``run`` from the missions' home and wait until it accepts a ground
+    station."""
     spec = load_mission(MISSIONS["fixed"])
     lat, lon, _ = spec.field.origin.to_geodetic(spec.home_enu)
     home = f"{lat:.7f},{lon:.7f},0" + (",0" if autopilot == "ardupilot" else "")
-    run.mkdir(parents=True, exist_ok=True)
-    out = subprocess.run(
-        [str(SHARED / autopilot / "start.sh"), str(speedup), str(instance), home],
-        env=dict(os.environ, RUN=str(run)),
-        capture_output=True,
-        text=True,
-        timeout=30,
-        check=True,
+    sitl = SharedSitl(run, "px4.log" if autopilot == "px4" else "sitl.log")
+    sitl.launch(
+        SHARED / autopilot / "start.sh",
+        [str(speedup), str(instance), home],
+        AUTOPILOTS[autopilot][1],
+        f"{autopilot} SITL",
     )
-    pid = int(out.stdout.split()[-1])
-    ready = AUTOPILOTS[autopilot][1]
-    log = run / ("px4.log" if autopilot == "px4" else "sitl.log")
-    end = time.monotonic() + 60
-    while ready and ready not in (log.read_text(errors="replace") if log.exists() else ""):
-        if time.monotonic() > end:
-            raise RuntimeError(f"{autopilot} SITL did not start: see {log}")
-        time.sleep(0.2)
-    return pid
-
-
-def stop(pid: int) -> None:
-    """Stop a SITL and wait (bounded) until it is gone."""
-    try:
-        os.kill(pid, 15)
-    except ProcessLookupError:
-        return
-    for _ in range(50):
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return
-        time.sleep(0.1)
-    os.kill(pid, 9)
+    return sitl
 
 
 def fly_one(
@@ -95,7 +70,7 @@ def fly_one(
     default, _, url = AUTOPILOTS[autopilot]
     speedup = speedup or default
     folder = out / f"{autopilot}_{arm}_{seed}"
-    pid = start_sitl(autopilot, speedup, instance, folder / "sitl")
+    sitl = start_sitl(autopilot, speedup, instance, folder / "sitl")
     t0 = time.monotonic()
     try:
         fly = subprocess.run(
@@ -115,7 +90,7 @@ def fly_one(
             timeout=900,
         )
     finally:
-        stop(pid)
+        sitl.stop()
     wall = time.monotonic() - t0
     (folder / "fly.out").write_text(fly.stdout + fly.stderr)
     logs = sorted((folder / "flights").glob("*/flight.csv"))
