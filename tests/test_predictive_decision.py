@@ -8,7 +8,13 @@ import pytest
 
 from mission.physics.shadowing import shadowing_field
 from mission.workshop.decision import pooled_decision
-from mission.workshop.predictive import family_checks, predictive_check, sample_statistics, verdict
+from mission.workshop.predictive import (
+    design_check,
+    family_checks,
+    predictive_check,
+    sample_statistics,
+    verdict,
+)
 
 
 def test_predictive_check_band_inside_and_p():
@@ -34,6 +40,30 @@ def _track(n: int = 1500) -> np.ndarray:
     x = 200.0 * np.abs(((t * 8) % 2) - 1.0)
     y = 200.0 * t
     return np.column_stack([x, y, np.full(n, 30.0)])
+
+
+def test_design_check_judges_each_flight_against_its_own_copies():
+    """Flights of very different difficulty (design): each real value at its own copies' median
+    passes with p near 0.5 and every flight inside its own band, although most lie outside the
+    pooled band; a real mean above every copy's fails with p 1; NaN copies are dropped; a flight
+    without copies is refused."""
+    rng = np.random.default_rng(0)
+    scale = np.array([5.0, 10.0, 20.0, 40.0, 80.0, 160.0])
+    sims = [s * (1 + 0.1 * rng.standard_normal(200)) for s in scale]
+    c = design_check(scale, sims)
+    assert c["inside"] == 6 and c["passes"] and 0.3 < c["p"] < 0.7
+    lo, hi = c["band"]
+    assert np.sum((scale >= lo) & (scale <= hi)) < 6  # the pooled band would call some outside
+    pooled = predictive_check(scale, np.concatenate(sims))
+    assert pooled["inside"] < 6
+    far = design_check(scale * 2, sims)
+    assert far["p"] == 1.0 and not far["passes"] and far["inside"] == 0
+    with_nan = [np.append(x, np.nan) for x in sims]
+    assert design_check(scale, with_nan)["p"] == pytest.approx(c["p"])
+    with pytest.raises(ValueError):
+        design_check(scale, sims[:5])
+    with pytest.raises(ValueError):
+        design_check(scale, [*sims[:5], np.array([])])
 
 
 def test_sample_statistics_recover_known_spread_and_residual():
