@@ -99,16 +99,22 @@ def predictive_check(
     lo, hi = np.quantile(s, BAND)
     rng = np.random.default_rng(seed)
     means = s[rng.integers(0, s.size, size=(n_boot, x.size))].mean(axis=1)
+    return _check_record(x, s, means, int(np.sum((x >= lo) & (x <= hi))))
+
+
+def _check_record(x: np.ndarray, pooled: np.ndarray, means: np.ndarray, inside: int) -> dict:
+    """A check's fields from the real values ``x``, the simulated ones ``pooled``, the simulated
+    means of as many flights ``means`` and the count of real flights inside their band."""
     p = float(np.mean(means < x.mean()) + 0.5 * np.mean(means == x.mean()))
     return {
         "real_mean": float(x.mean()),
         "real_median": float(np.median(x)),
-        "sim_mean": float(s.mean()),
-        "sim_median": float(np.median(s)),
-        "band": [float(lo), float(hi)],
-        "inside": int(np.sum((x >= lo) & (x <= hi))),
+        "sim_mean": float(pooled.mean()),
+        "sim_median": float(np.median(pooled)),
+        "band": [float(v) for v in np.quantile(pooled, BAND)],
+        "inside": inside,
         "n_real": int(x.size),
-        "n_sim": int(s.size),
+        "n_sim": int(pooled.size),
         "p": p,
         "passes": bool(P_PASS[0] <= p <= P_PASS[1]),
     }
@@ -132,20 +138,8 @@ def design_check(
     rng = np.random.default_rng(seed)
     means = np.mean([r[rng.integers(0, r.size, size=n_boot)] for r in rows], axis=0)
     bands = np.array([np.quantile(r, BAND) for r in rows])
-    pooled = np.concatenate(rows)
-    p = float(np.mean(means < x.mean()) + 0.5 * np.mean(means == x.mean()))
-    return {
-        "real_mean": float(x.mean()),
-        "real_median": float(np.median(x)),
-        "sim_mean": float(pooled.mean()),
-        "sim_median": float(np.median(pooled)),
-        "band": [float(v) for v in np.quantile(pooled, BAND)],
-        "inside": int(np.sum((x >= bands[:, 0]) & (x <= bands[:, 1]))),
-        "n_real": int(x.size),
-        "n_sim": int(pooled.size),
-        "p": p,
-        "passes": bool(P_PASS[0] <= p <= P_PASS[1]),
-    }
+    inside = int(np.sum((x >= bands[:, 0]) & (x <= bands[:, 1])))
+    return _check_record(x, np.concatenate(rows), means, inside)
 
 
 def family_checks(
