@@ -217,18 +217,13 @@ class PhysicsFamily:
                 "physics family needs a 'spec' object with a 'base'", source=source, field="spec"
             )
         _check_tree(spec, "spec", source)
-        res = d.get("residual", {})
-        if not isinstance(res, dict) or set(res) - set(RESIDUAL_KEYS):
-            raise InputError(
-                f"residual keys must be among {', '.join(RESIDUAL_KEYS)}",
-                source=source,
-                field="residual",
-            )
-        _check_tree(res, "residual", source)
         # a negative sigma, noise or correlation length is no physics
-        _check_never_negative(res, "residual", source, positive=("shadowing_corr_m",))
+        res = d.get("residual", {})
+        _check_section(res, "residual", RESIDUAL_KEYS, source, positive=("shadowing_corr_m",))
         check_dist(d.get("offset_db", 0.0), "offset_db", source)
-        nuis = _checked_nuisance(d.get("nuisance", {}), source)
+        nuis = d.get("nuisance", {})
+        _check_section(nuis, "nuisance", NUISANCE_KEYS, source)
+        nuis = dict(nuis)
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
@@ -305,18 +300,16 @@ class PhysicsFamily:
         return d
 
 
-def _checked_nuisance(nuis: Any, source: str | None) -> dict:
-    """The family's ``nuisance`` object: known keys, each a number or distribution never drawn
-    below 0 (one-line ``InputError`` naming the field otherwise)."""
-    if not isinstance(nuis, dict) or set(nuis) - set(NUISANCE_KEYS):
-        raise InputError(
-            f"nuisance keys must be among {', '.join(NUISANCE_KEYS)}",
-            source=source,
-            field="nuisance",
-        )
-    _check_tree(nuis, "nuisance", source)
-    _check_never_negative(nuis, "nuisance", source)
-    return dict(nuis)
+def _check_section(
+    obj: Any, name: str, keys: tuple[str, ...], source: str | None, positive: tuple[str, ...] = ()
+) -> None:
+    """A family's ``residual`` or ``nuisance`` object: known ``keys``, each a number or
+    distribution never drawn below 0 (above 0 for ``positive``); a one-line ``InputError`` naming
+    the field otherwise."""
+    if not isinstance(obj, dict) or set(obj) - set(keys):
+        raise InputError(f"{name} keys must be among {', '.join(keys)}", source=source, field=name)
+    _check_tree(obj, name, source)
+    _check_never_negative(obj, name, source, positive=positive)
 
 
 def _check_never_negative(
