@@ -37,13 +37,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np
 from rich.console import Console
 from rich.progress import track
-from score_decision import FOLD_FOR_TEAM, methods
+from score_decision import methods, real_kwargs
 
 from mission.flightlog import FlightLog, read_flight_log
 from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
 from mission.localize.api import localize_log
 from mission.physics.family import load_family, simulate_rss
-from mission.workshop.evaluate_suite import suite_method
 from mission.workshop.predictive import STATISTICS, design_check, flight_statistics, verdict
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -67,10 +66,7 @@ def score(log: FlightLog, team: str, specs: dict[str, str]) -> tuple[dict, dict[
     stats = flight_statistics(log, truth[:2], float(truth[2]))
     errs = {}
     for label, spec in specs.items():
-        kw = suite_method(spec)
-        if spec == "grid":
-            kw = {"method": "grid", "physics_preset": f"afar:{FOLD_FOR_TEAM[team]}"}
-        est = localize_log(log, **kw)
+        est = localize_log(log, **real_kwargs(spec, team))
         errs[label] = float(np.hypot(est.x_m - truth[0], est.y_m - truth[1]))
     return stats, errs
 

@@ -56,6 +56,14 @@ def methods(models: Path, extra: list[str]) -> dict[str, str]:
     return out
 
 
+def real_kwargs(spec: str, team: str) -> dict:
+    """``localize_log`` arguments of method ``spec`` on a real flight of ``team``: the benchmark's
+    (``suite_method``), but the grid's physics fitted on the other team (LOTO)."""
+    if spec == "grid":
+        return {"method": "grid", "physics_preset": f"afar:{FOLD_FOR_TEAM[team]}"}
+    return suite_method(spec)
+
+
 def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, list[dict]]:
     """(flight names, {label: errors}, {label: {level: [covered]}}, predictive-check statistics per
     flight) on the six real flights, LOTO."""
@@ -72,10 +80,7 @@ def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, 
             rl = read_flight_log(log)
             stats.append(flight_statistics(rl, rl.truth_enu[:2], float(rl.truth_enu[2])))
             for label, spec in specs.items():
-                kw = suite_method(spec)
-                if spec == "grid":
-                    kw = {"method": "grid", "physics_preset": f"afar:{FOLD_FOR_TEAM[team]}"}
-                est = localize_log(log, **kw)
+                est = localize_log(log, **real_kwargs(spec, team))
                 truth = np.array([est.extras["truth_x_m"], est.extras["truth_y_m"]])
                 errs[label].append(float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])))
                 for lvl, c in _coverage(est, truth).items():
