@@ -48,6 +48,14 @@ def survey_spec(spec, survey_s: float):
     return dataclasses.replace(spec, trajectory=TrajectorySpec("waypoints", {}, wps))
 
 
+def flown_ahead(spec):
+    """The part of ``spec`` known before take-off: an adaptive mission's survey (its rounds are
+    planned in flight around the live estimate and cannot be drawn ahead), else the whole mission.
+    Why: a network that answers an adaptive flight's survey is trained on surveys."""
+    a = spec.adaptive
+    return survey_spec(spec, a.survey_s) if a is not None and a.enabled else spec
+
+
 def box_pattern(centre, r: float, alt: float, start=None) -> np.ndarray:
     """(6, 3) waypoints: the four corners of a square of half side ``r`` about ``centre``, closed,
     then the centre; starting at the corner nearest ``start`` (saves a crossing)."""

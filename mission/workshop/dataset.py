@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from mission import __version__
+from mission.adaptive.planner import flown_ahead
 from mission.errors import InputError
 from mission.fields import REQUIRED, Fields
 from mission.files import read_text, write_bytes, write_text
@@ -121,7 +122,7 @@ def generate_dataset(
     ``progress(done, total)`` is called after each flight.  Returns the manifest.
     """
     out = _prepare(cfg, out_dir, overwrite)
-    spec = load_mission(cfg.mission)
+    spec = flown_ahead(load_mission(cfg.mission))
     fcfg = FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
     t0 = time.perf_counter()
     chunks = _write_chunks(cfg, out, workers, progress)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.adaptive.planner import flown_ahead
 from mission.errors import InputError
 from mission.localize.card import DOMAIN_KEY, TrainingDomain, card_path
 from mission.simulate import fly_path
@@ -76,7 +77,7 @@ def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, f
     if p is None:
         return None
     try:
-        spec = load_mission(p)
+        spec = flown_ahead(load_mission(p))
     except InputError:
         return None
     # percentiles of a 0.2 s sampling: 10x cheaper, same spans

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mission.adaptive.planner import flown_ahead
 from mission.localize.features import FeatureConfig, cluster_features, normalised_rss
 from mission.localize.preprocess import cruise_mask
 from mission.physics import make_model
@@ -105,7 +106,7 @@ class FlightSimulator:
 
     def __init__(self, cfg: DatasetConfig) -> None:
         self.cfg = cfg
-        self.spec = load_mission(cfg.mission)
+        self.spec = flown_ahead(load_mission(cfg.mission))
         self.fcfg = (
             FeatureConfig.from_dict(cfg.feature_config) if cfg.feature_config else FeatureConfig()
         )
