@@ -8,11 +8,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mission.adaptive.planner import survey_profile
+import mission.localize.rounds_answer as ra
+from mission.adaptive.planner import flown_ahead, survey_profile, survey_spec
 from mission.adaptive.simflight import FlightWorld, SimLog
 from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
 from mission.localize.rounds_answer import rounds_answer, rounds_scores, survey_and_rounds
 from mission.spec import load_mission
+from mission.trajectory.kinematics import plan_profile
+from mission.workshop.dataset_config import DatasetConfig
+from mission.workshop.flight_draws import FlightSimulator
 
 ADAPTIVE_MISSION = "missions/spiral_adaptive.yaml"
 
@@ -82,3 +86,55 @@ def test_without_rounds_the_live_method_answers(repo_dir):
     no_phase = flight.select(np.ones(len(flight), bool))
     del no_phase.columns["phase"]
     assert survey_and_rounds(no_phase) is None
+
+
+def test_a_dataset_of_an_adaptive_mission_flies_its_survey(repo_dir):
+    """``rfsl dataset`` of an adaptive mission simulates the survey only (the rounds are planned in
+    flight): the simulator's path is the survey's, ``survey_s`` long; a fixed mission is whole."""
+    spec = load_mission(repo_dir / ADAPTIVE_MISSION)
+    sim = FlightSimulator(DatasetConfig(mission=str(repo_dir / ADAPTIVE_MISSION), n=1))
+    wps = sim.spec.waypoints_enu()
+    assert np.array_equal(wps, survey_spec(spec, spec.adaptive.survey_s).waypoints_enu())
+    t = plan_profile(wps, sim.spec.kinematics()).duration_s
+    whole = plan_profile(spec.waypoints_enu(), spec.kinematics()).duration_s
+    assert abs(t - spec.adaptive.survey_s) < 5.0 < whole - t
+    fixed = load_mission(repo_dir / "missions" / "spiral.yaml")
+    assert flown_ahead(fixed) is fixed
+    off = dataclasses.replace(spec, adaptive=dataclasses.replace(spec.adaptive, enabled=False))
+    assert flown_ahead(off) is off
+
+
+@pytest.mark.parametrize(
+    ("survey_s", "model", "want"),
+    [
+        (300.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),
+        (310.0, "rfsl_spiral_alt.onnx", "survey"),  # within 5 %
+        (200.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # another survey: another path
+        (None, "rfsl_spiral_e2r_ens5.onnx", "given"),  # no adaptive record
+        (300.0, "rfsl_default.onnx", "given"),  # not a spiral: the survey network never saw it
+        (300.0, None, "given"),
+    ],
+)
+def test_the_survey_network_answers_only_the_survey_it_was_trained_on(
+    monkeypatch, tmp_path, survey_s, model, want
+):
+    """``survey_network`` swaps a spiral network for the survey network only when the flight's
+    survey is the length the survey network was trained on."""
+    net = tmp_path / ra.SURVEY_NETWORK
+    net.write_bytes(b"")
+    monkeypatch.setattr(
+        ra, "shipped_model", lambda name: net if name == ra.SURVEY_NETWORK else None
+    )
+    monkeypatch.setattr(ra, "trained_survey_s", lambda path: 300.0)
+    meta = {"trajectory": {"generator": "spiral"}}
+    if survey_s is not None:
+        meta["trajectory"]["adaptive"] = {"survey_s": survey_s}
+    given = None if model is None else tmp_path / model
+    got = ra.survey_network(meta, given)
+    assert got == (net if want == "survey" else given)
+
+
+def test_trained_survey_s_reads_the_training_mission(repo_dir, tmp_path):
+    """The survey length comes from the training datasets' mission: a spiral network's training
+    missions are fixed flights, so it has none."""
+    assert ra.trained_survey_s(repo_dir / "models" / "rfsl_spiral_e2r.onnx") is None

@@ -11,10 +11,13 @@ answer is the candidate the rounds support best; the regions are the live method
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from mission.cells import cell_average, concat_cells
 from mission.defaults import DEFAULT_TX_HEIGHT_M
+from mission.errors import InputError
 from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
 from mission.localize.api import choose_method, default_model_path, run_member
@@ -22,8 +25,16 @@ from mission.localize.candidates import Candidate
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
+from mission.localize.sim_default import SPIRAL_NETWORKS
+from mission.shipped import resolve_shipped, shipped_model
+from mission.spec import load_mission
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
+# the network trained on the surveys of an adaptive spiral (rfsl dataset of the adaptive mission:
+# planner.flown_ahead); it answers a survey of the length it was trained on, where a spiral network
+# would see only part of the path it learned
+SURVEY_NETWORK = "rfsl_survey_e2r.onnx"
+SURVEY_S_TOLERANCE = 0.05  # relative: a survey this much shorter or longer is another kind of path
 
 
 def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
@@ -38,15 +49,51 @@ def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
     return part.select(~rounds), rounds
 
 
+def trained_survey_s(model_path) -> float | None:
+    """The survey length (s) a network was trained on: its training datasets' adaptive mission's
+    ``survey_s`` when every dataset flew one and the same (None otherwise, or unreadable)."""
+    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415  (onnxruntime, lazy)
+
+    datasets = (OnnxLocalizer(model_path, threads=1).card.meta.get("training_data") or {}).get(
+        "datasets"
+    ) or []
+    seen = set()
+    for d in datasets:
+        try:
+            a = load_mission(resolve_shipped(d.get("mission") or "", "missions", ".yaml")).adaptive
+        except InputError:  # a missing or foreign mission file: no claim
+            return None
+        if a is None or not a.enabled:
+            return None
+        seen.add(float(a.survey_s))
+    return seen.pop() if len(seen) == 1 else None
+
+
+def survey_network(meta: dict, model) -> object:
+    """``SURVEY_NETWORK`` in place of ``model`` when ``model`` is a spiral network (the survey is
+    that kind of flight) and the adaptive record's ``survey_s`` is the one the survey network was
+    trained on; else ``model``."""
+    path = shipped_model(SURVEY_NETWORK)
+    if path is None or model is None or Path(model).name not in SPIRAL_NETWORKS:
+        return model
+    flown = ((meta.get("trajectory") or {}).get("adaptive") or {}).get("survey_s")
+    trained = trained_survey_s(path)
+    if flown is None or trained is None:
+        return model
+    return path if abs(float(flown) - trained) <= SURVEY_S_TOLERANCE * trained else model
+
+
 def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
     """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
-    (``api.choose_method`` on the sidecar without its adaptive record)."""
+    (``api.choose_method`` on the sidecar without its adaptive record), with the survey network in
+    place of a spiral network when it was trained on this survey (``survey_network``)."""
 
     meta = dict(part.meta)
     meta["trajectory"] = {
         k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
     }
     method, model, _ = choose_method(meta, part.enu()[:, 2], None, default_model_path())
+    model = survey_network(part.meta, model)
     entry = method_entry(method)
     kw = {"model_path": model, "tx_height_m": tx_height_m}
     if entry.compose is not None:
