@@ -52,9 +52,11 @@ def test_the_rounds_support_the_true_position_over_a_wrong_one(repo_dir, round_a
     """Rounds flown over the transmitter confirm it; rounds flown over a wrong candidate refute
     that one: either way the held-out rounds score the true position higher."""
     log, spec, tx = _flight(repo_dir, round_at)
-    flight = log.flight_log(spec, adaptive=True)
+    flight = log.flight_log(spec, spec.adaptive)
     survey, rounds = survey_and_rounds(flight)
     assert rounds.any() and (~rounds).any() and len(survey) == int((~rounds).sum())
+    # the settings flown, recorded as fly-mission records them (RoundsRunner.trajectory_meta)
+    assert flight.meta["trajectory"]["adaptive"] == dataclasses.asdict(spec.adaptive)
     lpd = rounds_scores(survey, flight.select(rounds), np.array([tx, tx + [80.0, 0.0]]), 1.5)
     assert lpd[0] > lpd[1] + 1.0
 
@@ -63,7 +65,7 @@ def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir):
     """The answer is the candidate with the most held-out evidence, both candidates are listed with
     weights summing to one, and the regions are the live method's."""
     log, spec, tx = _flight(repo_dir, "truth")
-    flight = log.flight_log(spec, adaptive=True)
+    flight = log.flight_log(spec, spec.adaptive)
     est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
     assert est.method == "rounds" and len(est.candidates) == 2
     assert sum(c.weight for c in est.candidates) == pytest.approx(1.0)
@@ -78,7 +80,7 @@ def test_without_rounds_the_live_method_answers(repo_dir):
     """Before any round (the survey so far) the live method answers, with a note (in flight it
     costs no more than the live method); so does a log without phases."""
     log, spec, _ = _flight(repo_dir, "truth")
-    flight = log.flight_log(spec, adaptive=True)
+    flight = log.flight_log(spec, spec.adaptive)
     survey = flight.select(np.asarray(flight["phase"]).astype(str) != ADAPTIVE)
     assert not survey_and_rounds(survey)[1].any()
     est = rounds_answer(survey, spec.field.origin, spec.field.rover_area)
@@ -105,36 +107,45 @@ def test_a_dataset_of_an_adaptive_mission_flies_its_survey(repo_dir):
 
 
 @pytest.mark.parametrize(
-    ("survey_s", "model", "want"),
+    ("survey_s", "height", "model", "want"),
     [
-        (300.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),
-        (310.0, "rfsl_spiral_alt.onnx", "survey"),  # within 5 %
-        (200.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # another survey: another path
-        (None, "rfsl_spiral_e2r_ens5.onnx", "given"),  # no adaptive record
-        (300.0, "rfsl_default.onnx", "given"),  # not a spiral: the survey network never saw it
-        (300.0, None, "given"),
+        (300.0, 30.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),
+        (310.0, 31.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),  # within 5 % and the tolerance
+        (300.0, 45.0, "rfsl_spiral_alt.onnx", "given"),  # another altitude: the survey net's?
+        (200.0, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # another survey: another path
+        (None, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # no adaptive record
+        (True, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # a record without settings
+        (300.0, 30.0, "rfsl_default.onnx", "given"),  # not a spiral: never seen by it
+        (300.0, 30.0, None, "given"),
     ],
 )
 def test_the_survey_network_answers_only_the_survey_it_was_trained_on(
-    monkeypatch, tmp_path, survey_s, model, want
+    monkeypatch, tmp_path, survey_s, height, model, want
 ):
     """``survey_network`` swaps a spiral network for the survey network only when the flight's
-    survey is the length the survey network was trained on."""
+    survey is the length and the altitude the survey network was trained on."""
     net = tmp_path / ra.SURVEY_NETWORK
     net.write_bytes(b"")
     monkeypatch.setattr(
         ra, "shipped_model", lambda name: net if name == ra.SURVEY_NETWORK else None
     )
-    monkeypatch.setattr(ra, "trained_survey_s", lambda path: 300.0)
+    monkeypatch.setattr(ra, "survey_domain", lambda path: (300.0, (30.0, 30.0)))
     meta = {"trajectory": {"generator": "spiral"}}
     if survey_s is not None:
-        meta["trajectory"]["adaptive"] = {"survey_s": survey_s}
+        meta["trajectory"]["adaptive"] = (
+            survey_s if isinstance(survey_s, bool) else {"survey_s": survey_s}
+        )
     given = None if model is None else tmp_path / model
-    got = ra.survey_network(meta, given)
+    got = ra.survey_network(meta, np.full(100, height), given)
     assert got == (net if want == "survey" else given)
 
 
-def test_trained_survey_s_reads_the_training_mission(repo_dir, tmp_path):
+def test_survey_domain_reads_the_training_mission(repo_dir):
     """The survey length comes from the training datasets' mission: a spiral network's training
-    missions are fixed flights, so it has none."""
-    assert ra.trained_survey_s(repo_dir / "models" / "rfsl_spiral_e2r.onnx") is None
+    missions are fixed flights, so it has none; the survey network's is the adaptive mission's."""
+    assert ra.survey_domain(repo_dir / "models" / "rfsl_spiral_e2r.onnx") is None
+    net = repo_dir / "models" / ra.SURVEY_NETWORK
+    if not net.exists():
+        pytest.skip("no shipped survey network")
+    spec = load_mission(repo_dir / ADAPTIVE_MISSION)
+    assert ra.survey_domain(net) == (spec.adaptive.survey_s, (spec.altitude_m, spec.altitude_m))

@@ -29,10 +29,10 @@ from mission.physics.family import load_family
 from mission.workshop.flight_draws import flight_rng
 
 
-def product_answer(spec, log, adaptive: bool):
-    """The estimate ``localize`` gives by default after a simulated flight of ``spec`` (fixed or
-    adaptive, ``SimLog``): ``api.localize_log`` on the log such a flight writes; None when it
-    refuses the log."""
+def product_answer(spec, log, adaptive=None):
+    """The estimate ``localize`` gives by default after a simulated flight of ``spec`` (fixed, or
+    adaptive with settings ``adaptive``; ``SimLog``): ``api.localize_log`` on the log such a
+    flight writes; None when it refuses the log."""
 
     try:
         return localize_log(log.flight_log(spec, adaptive))
@@ -63,7 +63,8 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
         def err(e):
             return None if e is None else float(np.hypot(e[0] - w.tx[0], e[1] - w.tx[1]))
 
-        shown = None if o.log is None else product_answer(spec, o.log, name == "adaptive")
+        flown = adaptive if name == "adaptive" else None
+        shown = None if o.log is None else product_answer(spec, o.log, flown)
         out[name] = {
             "error_m": None if shown is None else err((shown.x_m, shown.y_m)),
             "method": None if shown is None else shown.method,

@@ -10,6 +10,7 @@ fixed and adaptive versions, so they are paired.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -104,10 +105,11 @@ class SimLog:
         self.phase.append(np.asarray(phases, dtype=object)[leg])
         self.t_end += prof.duration_s
 
-    def flight_log(self, spec, adaptive: bool):
+    def flight_log(self, spec, adaptive=None):
         """The whole flight as the ``FlightLog`` ``fly-mission`` would have written for ``spec``
-        (columns in the field's frame, a simulated source, the trajectory record; ``adaptive``:
-        with the adaptive record that routes ``localize`` to the adaptive answer)."""
+        (columns in the field's frame, a simulated source, the trajectory record; ``adaptive``: the
+        adaptive settings flown, recorded as ``fly-mission`` records them, which routes
+        ``localize`` to the adaptive answer)."""
 
         origin = spec.field.origin
         pos, att = np.concatenate(self.pos), np.rad2deg(np.concatenate(self.att))
@@ -124,7 +126,9 @@ class SimLog:
             "rss_dbm": np.concatenate(self.rss),
             "phase": np.concatenate(self.phase).astype(str).astype(object),
         }
-        traj = spec.trajectory_meta() | ({"adaptive": True} if adaptive else {})
+        traj = spec.trajectory_meta()
+        if adaptive is not None:
+            traj["adaptive"] = dataclasses.asdict(adaptive)
         src = {"kind": "sim", "model": spec.source.model, "model_params": spec.source.model_params}
         return FlightLog(cols, make_meta(origin, src, trajectory=traj))
 
@@ -181,11 +185,12 @@ def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
     )
 
 
-def live_entry(spec, log: SimLog, t_max: float) -> dict | None:
+def live_entry(spec, a, log: SimLog, t_max: float) -> dict | None:
     """The live series entry ``fly-mission`` would plan the next round on at ``t_max``
-    (``live.summary`` of ``localize``'s answer for the adaptive log so far); None without one."""
+    (``live.summary`` of ``localize``'s answer for the adaptive log so far, flown with settings
+    ``a``); None without one."""
 
-    flight = log.flight_log(spec, adaptive=True)
+    flight = log.flight_log(spec, a)
     keep = np.asarray(flight["t_s"]) <= t_max
     if keep.sum() < 2:
         return None
@@ -239,7 +244,7 @@ def adaptive_flight(
     log.fly(np.vstack([*_climb(spec, sv[0]), sv]), [TAKEOFF] + [MISSION] * len(sv), world, cfg, rng)
     end, rounds, notes, visited = sv[-1], 0, [], []
     while True:
-        d = live_entry(spec, log, log.t_end - a.lead_s)
+        d = live_entry(spec, a, log, log.t_end - a.lead_s)
         if d is None or (d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2):
             notes.append("region small enough" if d is not None else "no estimate")
             break

@@ -26,6 +26,7 @@ from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.sim_default import SPIRAL_NETWORKS
+from mission.localize.training_domain import altitude_note, flight_altitudes
 from mission.shipped import resolve_shipped, shipped_model
 from mission.spec import load_mission
 
@@ -49,14 +50,14 @@ def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
     return part.select(~rounds), rounds
 
 
-def trained_survey_s(model_path) -> float | None:
-    """The survey length (s) a network was trained on: its training datasets' adaptive mission's
-    ``survey_s`` when every dataset flew one and the same (None otherwise, or unreadable)."""
+def survey_domain(model_path) -> tuple[float, tuple[float, float]] | None:
+    """(survey length s, cruise altitude span m) a network was trained on: its training datasets'
+    adaptive mission's ``survey_s`` when every dataset flew one and the same, and its card's
+    altitude span; None when either is unknown (no claim is better than a wrong one)."""
     from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415  (onnxruntime, lazy)
 
-    datasets = (OnnxLocalizer(model_path, threads=1).card.meta.get("training_data") or {}).get(
-        "datasets"
-    ) or []
+    card = OnnxLocalizer(model_path, threads=1).card
+    datasets = (card.meta.get("training_data") or {}).get("datasets") or []
     seen = set()
     for d in datasets:
         try:
@@ -66,21 +67,27 @@ def trained_survey_s(model_path) -> float | None:
         if a is None or not a.enabled:
             return None
         seen.add(float(a.survey_s))
-    return seen.pop() if len(seen) == 1 else None
+    if len(seen) != 1 or card.domain.altitude_m is None:
+        return None
+    return seen.pop(), card.domain.altitude_m
 
 
-def survey_network(meta: dict, model) -> object:
+def survey_network(meta: dict, heights_m: np.ndarray, model) -> object:
     """``SURVEY_NETWORK`` in place of ``model`` when ``model`` is a spiral network (the survey is
-    that kind of flight) and the adaptive record's ``survey_s`` is the one the survey network was
-    trained on; else ``model``."""
+    that kind of flight), the adaptive record's ``survey_s`` is the one the survey network was
+    trained on and the survey flew at its altitudes (``heights_m``); else ``model``."""
     path = shipped_model(SURVEY_NETWORK)
     if path is None or model is None or Path(model).name not in SPIRAL_NETWORKS:
         return model
-    flown = ((meta.get("trajectory") or {}).get("adaptive") or {}).get("survey_s")
-    trained = trained_survey_s(path)
+    record = (meta.get("trajectory") or {}).get("adaptive")
+    flown = record.get("survey_s") if isinstance(record, dict) else None
+    trained = survey_domain(path)
     if flown is None or trained is None:
         return model
-    return path if abs(float(flown) - trained) <= SURVEY_S_TOLERANCE * trained else model
+    survey_s, altitude_m = trained
+    same_path = abs(float(flown) - survey_s) <= SURVEY_S_TOLERANCE * survey_s
+    at_height = altitude_note(SURVEY_NETWORK, altitude_m, flight_altitudes(heights_m)) is None
+    return path if same_path and at_height else model
 
 
 def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
@@ -93,7 +100,7 @@ def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
         k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
     }
     method, model, _ = choose_method(meta, part.enu()[:, 2], None, default_model_path())
-    model = survey_network(part.meta, model)
+    model = survey_network(part.meta, part.enu()[:, 2], model)
     entry = method_entry(method)
     kw = {"model_path": model, "tx_height_m": tx_height_m}
     if entry.compose is not None:
