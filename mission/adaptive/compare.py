@@ -68,6 +68,10 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
         out[name] = {
             "error_m": None if shown is None else err((shown.x_m, shown.y_m)),
             "method": None if shown is None else shown.method,
+            # what each member the answer weighed would have erred (the rounds' candidates)
+            "member_errors_m": {}
+            if shown is None
+            else {k: err((c.x_m, c.y_m)) for k, c in shown.components.items()},
             "live_error_m": err(o.final),
             "area_m2": o.final[2] if o.final else None,
             "covered": o.final[3] if o.final else None,
