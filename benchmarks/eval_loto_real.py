@@ -31,10 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat, is_afar2023_suspect
+from mission.importers.afar import (
+    AFAR2023_FOLD_WITHOUT,
+    AFAR2023_TRUTH,
+    import_afar_mat,
+    is_afar2023_suspect,
+)
 from mission.localize.api import localize_log
-
-FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the fold whose physics did not see this team
 
 
 def _row(name: str, errs: list[float], flights: list[str]) -> dict:
@@ -85,7 +88,7 @@ def main() -> None:
             name = f.stem.replace("results_useful_ori_exp_", "")
             team, loc = name.split("_")[0], int(name.rsplit("_", 1)[1])
             log = import_afar_mat(f, tmp, truth=AFAR2023_TRUTH[loc]).out_path
-            fold = FOLD_FOR_TEAM[team]
+            fold = AFAR2023_FOLD_WITHOUT[team]
             g = localize_log(log, method="grid", physics_preset=f"afar:{fold}")
             tx, ty = g.extras["truth_x_m"], g.extras["truth_y_m"]
             cols["grid LOTO"].append(g.error_m)

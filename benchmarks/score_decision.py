@@ -27,7 +27,7 @@ from _scoring import scoring_parser
 
 from mission.evidence import compare_methods
 from mission.flightlog import read_flight_log
-from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.importers.afar import AFAR2023_FOLD_WITHOUT, AFAR2023_TRUTH, import_afar_mat
 from mission.localize.api import localize_log
 from mission.workshop.decision import pooled_decision
 from mission.workshop.evaluate_suite import _coverage, evaluate_suite, suite_method
@@ -38,7 +38,6 @@ INCUMBENT = "fusion (default)"
 NETS = ("rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar")
 # its physics was fitted on all real flights: shown, not a candidate
 NOT_HELD_OUT = {"net rfsl_afar"}
-FOLD_FOR_TEAM = {"288": "fit328", "328": "fit288"}  # the grid preset fitted on the other team
 
 
 def methods(models: Path, extra: list[str]) -> dict[str, str]:
@@ -60,7 +59,7 @@ def real_kwargs(spec: str, team: str) -> dict:
     """``localize_log`` arguments of method ``spec`` on a real flight of ``team``: the benchmark's
     (``suite_method``), but the grid's physics fitted on the other team (LOTO)."""
     if spec == "grid":
-        return {"method": "grid", "physics_preset": f"afar:{FOLD_FOR_TEAM[team]}"}
+        return {"method": "grid", "physics_preset": f"afar:{AFAR2023_FOLD_WITHOUT[team]}"}
     return suite_method(spec)
 
 

@@ -39,7 +39,7 @@ from threadpoolctl import threadpool_limits
 from mission.evidence import mean_interval, paired_difference
 from mission.flightlog import read_flight_log
 from mission.geo import square_grid
-from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
+from mission.importers.afar import AFAR2023_FOLD_WITHOUT, AFAR2023_TRUTH, import_afar_mat
 from mission.localize.api import localize_log, search_area
 from mission.localize.candidates import Candidate
 from mission.localize.evidence_stage import SIGMA_M, member_candidates, score_candidates
@@ -47,7 +47,6 @@ from mission.localize.preprocess import select_samples
 from mission.localize.stacking import geometric_median, mixture_posterior, stacking_weights
 from mission.workshop.decision import pooled_decision
 
-FOLD_FOR_TEAM = {"288": "afar:fit328", "328": "afar:fit288"}
 DEV = range(0, 60)
 
 
@@ -89,7 +88,7 @@ def collect(args) -> None:
             log = import_afar_mat(
                 f, tmp, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])]
             ).out_path
-            jobs.append((str(log), f"real {name}", FOLD_FOR_TEAM[name[:3]], None))
+            jobs.append((str(log), f"real {name}", f"afar:{AFAR2023_FOLD_WITHOUT[name[:3]]}", None))
         jobs += [
             (
                 str(Path(args.suite_dir) / flights[i]["file"]),

@@ -54,6 +54,10 @@ AFAR2023_SUSPECT_NOTE = (
     "team 288 location 3 is suspect: strongest RSS about 147 m from the labelled point"
 )
 
+# Leave-one-team-out: the ``afar`` preset fold fitted without each team (``afar:fit328`` saw only
+# team 328's flights), the physics a held-out score of that team's flights may use
+AFAR2023_FOLD_WITHOUT: dict[str, str] = {"288": "fit328", "328": "fit288"}
+
 
 def afar2023_id(name: str | Path) -> tuple[int, int] | None:
     """(team, location) of an AFAR 2023 flight from any of its names: a MAT/log file
