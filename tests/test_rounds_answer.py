@@ -8,13 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-import mission.localize.rounds_answer as ra
 from mission.adaptive.planner import flown_ahead, survey_profile, survey_spec
 from mission.adaptive.simflight import FlightWorld, SimLog
 from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
-from mission.localize import Estimate
 from mission.localize.rounds_answer import rounds_answer, rounds_scores, survey_and_rounds
-from mission.localize.uncertainty import Posterior
 from mission.spec import load_mission
 from mission.trajectory.kinematics import plan_profile
 from mission.workshop.dataset_config import DatasetConfig
@@ -106,80 +103,3 @@ def test_a_dataset_of_an_adaptive_mission_flies_its_survey(repo_dir):
     assert flown_ahead(fixed) is fixed
     off = dataclasses.replace(spec, adaptive=dataclasses.replace(spec.adaptive, enabled=False))
     assert flown_ahead(off) is off
-
-
-@pytest.mark.parametrize(
-    ("survey_s", "height", "model", "want"),
-    [
-        (300.0, 30.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),
-        (310.0, 31.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),  # within 5 % and the tolerance
-        (300.0, 45.0, "rfsl_spiral_alt.onnx", "given"),  # another altitude: the survey net's?
-        (200.0, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # another survey: another path
-        (None, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # no adaptive record
-        (True, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # a record without settings
-        (300.0, 30.0, "rfsl_default.onnx", "given"),  # not a spiral: never seen by it
-        (300.0, 30.0, None, "given"),
-    ],
-)
-def test_the_survey_network_answers_only_the_survey_it_was_trained_on(
-    monkeypatch, tmp_path, survey_s, height, model, want
-):
-    """``survey_network`` swaps a spiral network for the survey network only when the flight's
-    survey is the length and the altitude the survey network was trained on."""
-    net = tmp_path / ra.SURVEY_NETWORK
-    net.write_bytes(b"")
-    monkeypatch.setattr(
-        ra, "shipped_model", lambda name: net if name == ra.SURVEY_NETWORK else None
-    )
-    monkeypatch.setattr(ra, "survey_domain", lambda path: (300.0, (30.0, 30.0)))
-    meta = {"trajectory": {"generator": "spiral"}}
-    if survey_s is not None:
-        meta["trajectory"]["adaptive"] = (
-            survey_s if isinstance(survey_s, bool) else {"survey_s": survey_s}
-        )
-    given = None if model is None else tmp_path / model
-    got = ra.survey_network(meta, np.full(100, height), given)
-    assert got == (net if want == "survey" else given)
-
-
-def test_survey_domain_reads_the_training_mission(repo_dir):
-    """The survey length comes from the training datasets' mission: a spiral network's training
-    missions are fixed flights, so it has none; the survey network's is the adaptive mission's."""
-    assert ra.survey_domain(repo_dir / "models" / "rfsl_spiral_e2r.onnx") is None
-    net = repo_dir / "models" / ra.SURVEY_NETWORK
-    if not net.exists():
-        pytest.skip("no shipped survey network")
-    spec = load_mission(repo_dir / ADAPTIVE_MISSION)
-    assert ra.survey_domain(net) == (spec.adaptive.survey_s, (spec.altitude_m, spec.altitude_m))
-
-
-def _two_peaks() -> Estimate:
-    """A search's estimate with a posterior of two separate peaks: (0, 0) holding 70 %, (100, 0)
-    holding 30 %; its point slightly off the first peak, as a refined point is."""
-    xs, ys = np.meshgrid(np.arange(-60.0, 161.0, 5.0), np.arange(-60.0, 61.0, 5.0))
-    grid = np.stack([xs, ys], axis=-1)
-
-    def bump(x0):
-        b = np.exp(-((xs - x0) ** 2 + ys**2) / (2 * 8.0**2))
-        return b / b.sum()
-
-    p = 0.7 * bump(0.0) + 0.3 * bump(100.0)
-    return Estimate(1.2, -0.8, "selfcal", posterior=Posterior(p / p.sum(), grid))
-
-
-@pytest.mark.parametrize(
-    ("xy", "want"),
-    [
-        ((90.0, 12.0), (100.0, 0.0)),  # the lighter peak is the most probable point in reach
-        ((10.0, 20.0), (1.2, -0.8)),  # the search's own point is in reach
-        ((60.0, 0.0), (90.0, 0.0)),  # only the lighter peak's flank in reach: its highest cell
-        ((500.0, 0.0), (500.0, 0.0)),  # nothing in reach: the point itself
-    ],
-)
-def test_refined_takes_the_search_most_probable_point_in_reach(xy, want):
-    """``refined``: the whole-flight search's most probable point within ``REFINE_M`` of a
-    network's answer (its own point first), else the answer unchanged; so is an estimate without
-    a posterior."""
-    assert ra.REFINE_M == 30.0  # the cases are laid out for it
-    assert ra.refined(_two_peaks(), xy) == pytest.approx(want)
-    assert ra.refined(Estimate(300.0, 0.0, "selfcal"), (0.0, 0.0)) == (0.0, 0.0)

@@ -2,26 +2,19 @@
 
 Why (issue 33 item 1): the live method (``methods.ADAPTIVE_METHOD``) plans the rounds, but on its
 own it lands on ghosts; the network that answers a fixed spiral sees only the survey part of an
-adaptive flight.  Each method proposes a position from the survey alone, and the rounds (flown
-after, low, around the estimate) are data neither used: with the transmitter fixed at each
-method's survey answer, the per-flight nuisance (offset, path-gain slope, antenna) is fitted on
-the survey's cells and the rounds' cells are scored (``stacking.blocked_scores`` with the survey
-and the rounds as its two blocks).  The method the rounds support answers: the live method on the
-whole flight, rounds included; the network's answer refined by the whole-flight search within
-``REFINE_M`` (``refined``).  Scoring the live method's whole-flight point instead (fitted on the
-rounds it is scored on) let it win on 39 of 40 simulated flights whatever its error
-(docs/adaptive.md).  The regions are the live method's.
+adaptive flight.  Both propose a position, and the rounds (flown after, low, around the estimate)
+are data neither used to propose it: with the transmitter fixed at each candidate, the per-flight
+nuisance (offset, path-gain slope, antenna) is fitted on the survey's cells and the rounds' cells
+are scored (``stacking.blocked_scores`` with the survey and the rounds as its two blocks).  The
+answer is the candidate the rounds support best; the regions are the live method's.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 
 from mission.cells import cell_average, concat_cells
 from mission.defaults import DEFAULT_TX_HEIGHT_M
-from mission.errors import InputError
 from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
 from mission.localize.api import choose_method, default_model_path, run_member
@@ -29,20 +22,8 @@ from mission.localize.candidates import Candidate
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
-from mission.localize.sim_default import SPIRAL_NETWORKS
-from mission.localize.training_domain import altitude_note, flight_altitudes
-from mission.shipped import resolve_shipped, shipped_model
-from mission.spec import load_mission
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
-# the network trained on the surveys of an adaptive spiral (rfsl dataset of the adaptive mission:
-# planner.flown_ahead); it answers a survey of the length it was trained on, where a spiral network
-# would see only part of the path it learned
-SURVEY_NETWORK = "rfsl_survey_e2r.onnx"
-SURVEY_S_TOLERANCE = 0.05  # relative: a survey this much shorter or longer is another kind of path
-# the rounds' choice of the network is refined by the whole-flight search within this distance of it
-# (about three times the survey network's median error on simulated surveys; docs/adaptive.md)
-REFINE_M = 30.0
 
 
 def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
@@ -57,57 +38,15 @@ def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
     return part.select(~rounds), rounds
 
 
-def survey_domain(model_path) -> tuple[float, tuple[float, float]] | None:
-    """(survey length s, cruise altitude span m) a network was trained on: its training datasets'
-    adaptive mission's ``survey_s`` when every dataset flew one and the same, and its card's
-    altitude span; None when either is unknown (no claim is better than a wrong one)."""
-    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415  (onnxruntime, lazy)
-
-    card = OnnxLocalizer(model_path, threads=1).card
-    datasets = (card.meta.get("training_data") or {}).get("datasets") or []
-    seen = set()
-    for d in datasets:
-        try:
-            a = load_mission(resolve_shipped(d.get("mission") or "", "missions", ".yaml")).adaptive
-        except InputError:  # a missing or foreign mission file: no claim
-            return None
-        if a is None or not a.enabled:
-            return None
-        seen.add(float(a.survey_s))
-    if len(seen) != 1 or card.domain.altitude_m is None:
-        return None
-    return seen.pop(), card.domain.altitude_m
-
-
-def survey_network(meta: dict, heights_m: np.ndarray, model) -> object:
-    """``SURVEY_NETWORK`` in place of ``model`` when ``model`` is a spiral network (the survey is
-    that kind of flight), the adaptive record's ``survey_s`` is the one the survey network was
-    trained on and the survey flew at its altitudes (``heights_m``); else ``model``."""
-    path = shipped_model(SURVEY_NETWORK)
-    if path is None or model is None or Path(model).name not in SPIRAL_NETWORKS:
-        return model
-    record = (meta.get("trajectory") or {}).get("adaptive")
-    flown = record.get("survey_s") if isinstance(record, dict) else None
-    trained = survey_domain(path)
-    if flown is None or trained is None:
-        return model
-    survey_s, altitude_m = trained
-    same_path = abs(float(flown) - survey_s) <= SURVEY_S_TOLERANCE * survey_s
-    at_height = altitude_note(SURVEY_NETWORK, altitude_m, flight_altitudes(heights_m)) is None
-    return path if same_path and at_height else model
-
-
 def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
     """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
-    (``api.choose_method`` on the sidecar without its adaptive record), with the survey network in
-    place of a spiral network when it was trained on this survey (``survey_network``)."""
+    (``api.choose_method`` on the sidecar without its adaptive record)."""
 
     meta = dict(part.meta)
     meta["trajectory"] = {
         k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
     }
     method, model, _ = choose_method(meta, part.enu()[:, 2], None, default_model_path())
-    model = survey_network(part.meta, part.enu()[:, 2], model)
     entry = method_entry(method)
     kw = {"model_path": model, "tx_height_m": tx_height_m}
     if entry.compose is not None:
@@ -124,26 +63,10 @@ def rounds_scores(survey, rounds, xy: np.ndarray, tx_height_m: float) -> np.ndar
     return selfcal_scores(concat_cells(parts), xy, tx_height_m, block).block_lpd[:, ROUNDS]
 
 
-def refined(live: Estimate, xy: tuple[float, float], radius_m: float = REFINE_M):
-    """The whole-flight search's most probable point within ``radius_m`` of ``xy``: its own point
-    when that lies there, else its posterior's highest cell there; ``xy`` itself without a
-    posterior or a cell in reach."""
-    if np.hypot(live.x_m - xy[0], live.y_m - xy[1]) <= radius_m:
-        return live.x_m, live.y_m
-    if live.posterior is None:
-        return xy
-    g = live.posterior.grid.reshape(-1, 2)
-    near = np.hypot(g[:, 0] - xy[0], g[:, 1] - xy[1]) <= radius_m
-    if not near.any():
-        return xy
-    k = np.flatnonzero(near)[int(np.argmax(live.posterior.prob.ravel()[near]))]
-    return float(g[k, 0]), float(g[k, 1])
-
-
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
-    """The method the rounds support, both fitted on the survey alone: the live method on the
-    whole flight, or the fixed flight's default on the survey refined by the whole-flight search
-    (module docstring); the live method's answer alone when no round was flown."""
+    """The live method on the whole flight and the fixed flight's default on the survey, the
+    candidate the rounds support best answering (module docstring); the live method's answer alone
+    when no round was flown."""
 
     live = run_member(ADAPTIVE_METHOD, part, origin, area=area, tx_height_m=tx_height_m)[1]
     split = survey_and_rounds(part)
@@ -155,16 +78,11 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
         live.add_note("no adaptive round among the selected samples: the live method answers")
         return live
     fixed = fixed_default(survey, origin, area, tx_height_m)
-    live_survey = run_member(ADAPTIVE_METHOD, survey, origin, area=area, tx_height_m=tx_height_m)[1]
-    # each method scored as fitted on the survey alone
-    held_out = np.array([[live_survey.x_m, live_survey.y_m], [fixed.x_m, fixed.y_m]])
-    lpd = rounds_scores(survey, part.select(rounds), held_out, tx_height_m)
     cands = [
         Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
-        Candidate(*refined(live, (fixed.x_m, fixed.y_m)), f"{fixed.method}, survey, refined")
-        if fixed.method == "onnx"
-        else Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
+        Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
     ]
+    lpd = rounds_scores(survey, part.select(rounds), np.array([c.xy for c in cands]), tx_height_m)
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
@@ -174,13 +92,7 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     est.posterior = live.posterior
     est.extras["candidates"] = [c.to_dict() for c in cands]
     est.candidates = sorted(cands, key=lambda c: -c.weight)
-    est.set_components(
-        {
-            ADAPTIVE_METHOD: live,
-            f"{ADAPTIVE_METHOD} (survey)": live_survey,
-            f"{fixed.method} (survey)": fixed,
-        }
-    )
+    est.set_components({ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed})
     if best is not cands[0]:
         est.add_note(
             f"the rounds support {best.source} over the live method by "
