@@ -330,6 +330,10 @@ def test_pair_scores_each_arm_by_what_localize_answers(spec):
     assert r["adaptive"]["rounds"] >= 1
     assert r["fixed"]["method"] == "onnx" and r["adaptive"]["method"] == ADAPTIVE_ANSWER
     assert r["fixed"]["error_m"] != pytest.approx(r["fixed"]["live_error_m"])
+    # the adaptive answer is one of the members it weighed, each member's error recorded
+    members = r["adaptive"]["member_errors_m"]
+    assert {"selfcal", "onnx (survey)"} <= set(members) and r["fixed"]["member_errors_m"] == {}
+    assert min(abs(e - r["adaptive"]["error_m"]) for e in members.values()) < 1e-9
     summary = summarize_pairs([r])
     assert summary["methods"] == {"fixed": ["onnx"], "adaptive": [ADAPTIVE_ANSWER]}
     assert summary["live"]["n"] == 1 and "answer_vs_live" in summary
