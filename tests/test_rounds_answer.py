@@ -8,10 +8,13 @@ import dataclasses
 import numpy as np
 import pytest
 
+import mission.localize.rounds_answer as ra
 from mission.adaptive.planner import flown_ahead, survey_profile, survey_spec
 from mission.adaptive.simflight import FlightWorld, SimLog
 from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
+from mission.localize import Estimate
 from mission.localize.rounds_answer import rounds_answer, rounds_scores, survey_and_rounds
+from mission.localize.uncertainty import Posterior
 from mission.spec import load_mission
 from mission.trajectory.kinematics import plan_profile
 from mission.workshop.dataset_config import DatasetConfig
@@ -60,9 +63,11 @@ def test_the_rounds_support_the_true_position_over_a_wrong_one(repo_dir, round_a
     assert lpd[0] > lpd[1] + 1.0
 
 
-def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir):
-    """The answer is the candidate with the most held-out evidence, both candidates are listed with
-    weights summing to one, and the regions are the live method's."""
+def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir, monkeypatch):
+    """Where the network's physics does not hold, the answer is the candidate with the most
+    held-out evidence, both candidates are listed with weights summing to one, and the regions are
+    the live method's."""
+    monkeypatch.setattr(ra, "PHYSICS_SPREAD_DB", -np.inf)
     log, spec, tx = _flight(repo_dir, "truth")
     flight = log.flight_log(spec, spec.adaptive)
     est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
@@ -103,3 +108,113 @@ def test_a_dataset_of_an_adaptive_mission_flies_its_survey(repo_dir):
     assert flown_ahead(fixed) is fixed
     off = dataclasses.replace(spec, adaptive=dataclasses.replace(spec.adaptive, enabled=False))
     assert flown_ahead(off) is off
+
+
+@pytest.mark.parametrize(
+    ("survey_s", "height", "model", "want"),
+    [
+        (300.0, 30.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),
+        (310.0, 31.0, "rfsl_spiral_e2r_ens5.onnx", "survey"),  # within 5 % and the tolerance
+        (300.0, 45.0, "rfsl_spiral_alt.onnx", "given"),  # another altitude: the survey net's?
+        (200.0, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # another survey: another path
+        (None, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # no adaptive record
+        (True, 30.0, "rfsl_spiral_e2r_ens5.onnx", "given"),  # a record without settings
+        (300.0, 30.0, "rfsl_default.onnx", "given"),  # not a spiral: never seen by it
+        (300.0, 30.0, None, "given"),
+    ],
+)
+def test_the_survey_network_answers_only_the_survey_it_was_trained_on(
+    monkeypatch, tmp_path, survey_s, height, model, want
+):
+    """``survey_network`` swaps a spiral network for the survey network only when the flight's
+    survey is the length and the altitude the survey network was trained on."""
+    net = tmp_path / ra.SURVEY_NETWORK
+    net.write_bytes(b"")
+    monkeypatch.setattr(
+        ra, "shipped_model", lambda name: net if name == ra.SURVEY_NETWORK else None
+    )
+    monkeypatch.setattr(ra, "survey_domain", lambda path: (300.0, (30.0, 30.0)))
+    meta = {"trajectory": {"generator": "spiral"}}
+    if survey_s is not None:
+        meta["trajectory"]["adaptive"] = (
+            survey_s if isinstance(survey_s, bool) else {"survey_s": survey_s}
+        )
+    given = None if model is None else tmp_path / model
+    got = ra.survey_network(meta, np.full(100, height), given)
+    assert got == (net if want == "survey" else given)
+
+
+def test_survey_domain_reads_the_training_mission(repo_dir):
+    """The survey length comes from the training datasets' mission: a spiral network's training
+    missions are fixed flights, so it has none; the survey network's is the adaptive mission's."""
+    assert ra.survey_domain(repo_dir / "models" / "rfsl_spiral_e2r.onnx") is None
+    net = repo_dir / "models" / ra.SURVEY_NETWORK
+    if not net.exists():
+        pytest.skip("no shipped survey network")
+    spec = load_mission(repo_dir / ADAPTIVE_MISSION)
+    assert ra.survey_domain(net) == (spec.adaptive.survey_s, (spec.altitude_m, spec.altitude_m))
+
+
+def _two_peaks() -> Estimate:
+    """A search's estimate with a posterior of two separate peaks: (0, 0) holding 70 %, (100, 0)
+    holding 30 %; its point slightly off the first peak, as a refined point is."""
+    xs, ys = np.meshgrid(np.arange(-60.0, 161.0, 5.0), np.arange(-60.0, 61.0, 5.0))
+    grid = np.stack([xs, ys], axis=-1)
+
+    def bump(x0):
+        b = np.exp(-((xs - x0) ** 2 + ys**2) / (2 * 8.0**2))
+        return b / b.sum()
+
+    p = 0.7 * bump(0.0) + 0.3 * bump(100.0)
+    return Estimate(1.2, -0.8, "selfcal", posterior=Posterior(p / p.sum(), grid))
+
+
+@pytest.mark.parametrize(
+    ("xy", "want"),
+    [
+        ((90.0, 12.0), (100.0, 0.0)),  # the lighter peak is the nearest peak in reach
+        ((10.0, 20.0), (1.2, -0.8)),  # the search's own point is the nearest peak
+        ((60.0, 0.0), (60.0, 0.0)),  # only the lighter peak's flank in reach: never a flank
+        ((500.0, 0.0), (500.0, 0.0)),  # nothing in reach: the point itself
+    ],
+)
+def test_refined_takes_the_search_peak_nearest_in_reach(xy, want):
+    """``refined``: the whole-flight search's peak (its own point or a local maximum of its
+    posterior) nearest a network's answer within ``REFINE_M``, else the answer unchanged; an
+    estimate without a posterior offers its own point only."""
+    assert ra.REFINE_M == 30.0  # the cases are laid out for it
+    assert ra.refined(_two_peaks(), xy) == pytest.approx(want)
+    assert ra.refined(Estimate(300.0, 0.0, "selfcal"), (0.0, 0.0)) == (0.0, 0.0)
+    assert ra.refined(Estimate(20.0, 0.0, "selfcal"), (0.0, 0.0)) == (20.0, 0.0)
+
+
+def test_physics_spread_is_the_noise_where_the_physics_holds(repo_dir):
+    """``physics_spread_db``: under the networks' own physics (the mission's e2r source, 1 dB
+    noise) the survey departs from the prediction at the transmitter by about the noise; 80 m off
+    by far more; a constant offset of the receiver changes nothing."""
+    log, spec, tx = _flight(repo_dir, "truth")
+    flight = log.flight_log(spec, spec.adaptive)
+    survey, _ = survey_and_rounds(flight)
+    at_truth = ra.physics_spread_db(survey, tx, spec.source.tx_height_m)
+    assert 0.6 < at_truth < 1.6  # the simulator's 1 dB noise, robustly
+    assert ra.physics_spread_db(survey, tx + [80.0, 0.0], spec.source.tx_height_m) > 2 * at_truth
+    shifted = survey.select(np.ones(len(survey), bool))
+    shifted.columns["rss_dbm"] = np.asarray(shifted["rss_dbm"]) + 17.0
+    assert ra.physics_spread_db(shifted, tx, spec.source.tx_height_m) == pytest.approx(at_truth)
+
+
+@pytest.mark.parametrize("holds", [True, False])
+def test_the_network_answers_where_its_physics_holds(repo_dir, monkeypatch, holds):
+    """Under the gate the network's survey answer is the answer, said in a note; above it the
+    rounds choose as before."""
+    log, spec, _ = _flight(repo_dir, "truth")
+    flight = log.flight_log(spec, spec.adaptive)
+    monkeypatch.setattr(ra, "PHYSICS_SPREAD_DB", np.inf if holds else -np.inf)
+    est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
+    net = est.components["onnx (survey)"]
+    assert est.extras["physics_spread_db"] > 0.0
+    if holds:
+        assert (est.x_m, est.y_m) == (net.x_m, net.y_m) and "network answers" in est.extras["note"]
+        assert est.candidates[0].source == "onnx, survey, in its physics"
+    else:
+        assert all(c.weight is not None for c in est.candidates) and len(est.candidates) == 2
