@@ -12,9 +12,7 @@ import mission.localize.rounds_answer as ra
 from mission.adaptive.planner import flown_ahead, survey_profile, survey_spec
 from mission.adaptive.simflight import FlightWorld, SimLog
 from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
-from mission.localize import Estimate
 from mission.localize.rounds_answer import rounds_answer, rounds_scores, survey_and_rounds
-from mission.localize.uncertainty import Posterior
 from mission.spec import load_mission
 from mission.trajectory.kinematics import plan_profile
 from mission.workshop.dataset_config import DatasetConfig
@@ -153,39 +151,6 @@ def test_survey_domain_reads_the_training_mission(repo_dir):
         pytest.skip("no shipped survey network")
     spec = load_mission(repo_dir / ADAPTIVE_MISSION)
     assert ra.survey_domain(net) == (spec.adaptive.survey_s, (spec.altitude_m, spec.altitude_m))
-
-
-def _two_peaks() -> Estimate:
-    """A search's estimate with a posterior of two separate peaks: (0, 0) holding 70 %, (100, 0)
-    holding 30 %; its point slightly off the first peak, as a refined point is."""
-    xs, ys = np.meshgrid(np.arange(-60.0, 161.0, 5.0), np.arange(-60.0, 61.0, 5.0))
-    grid = np.stack([xs, ys], axis=-1)
-
-    def bump(x0):
-        b = np.exp(-((xs - x0) ** 2 + ys**2) / (2 * 8.0**2))
-        return b / b.sum()
-
-    p = 0.7 * bump(0.0) + 0.3 * bump(100.0)
-    return Estimate(1.2, -0.8, "selfcal", posterior=Posterior(p / p.sum(), grid))
-
-
-@pytest.mark.parametrize(
-    ("xy", "want"),
-    [
-        ((90.0, 12.0), (100.0, 0.0)),  # the lighter peak is the nearest peak in reach
-        ((10.0, 20.0), (1.2, -0.8)),  # the search's own point is the nearest peak
-        ((60.0, 0.0), (60.0, 0.0)),  # only the lighter peak's flank in reach: never a flank
-        ((500.0, 0.0), (500.0, 0.0)),  # nothing in reach: the point itself
-    ],
-)
-def test_refined_takes_the_search_peak_nearest_in_reach(xy, want):
-    """``refined``: the whole-flight search's peak (its own point or a local maximum of its
-    posterior) nearest a network's answer within ``REFINE_M``, else the answer unchanged; an
-    estimate without a posterior offers its own point only."""
-    assert ra.REFINE_M == 30.0  # the cases are laid out for it
-    assert ra.refined(_two_peaks(), xy) == pytest.approx(want)
-    assert ra.refined(Estimate(300.0, 0.0, "selfcal"), (0.0, 0.0)) == (0.0, 0.0)
-    assert ra.refined(Estimate(20.0, 0.0, "selfcal"), (0.0, 0.0)) == (20.0, 0.0)
 
 
 def test_physics_spread_is_the_noise_where_the_physics_holds(repo_dir):

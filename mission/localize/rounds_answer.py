@@ -24,7 +24,7 @@ from mission.errors import InputError
 from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
 from mission.localize.api import choose_method, default_model_path, run_member
-from mission.localize.candidates import Candidate, posterior_modes
+from mission.localize.candidates import Candidate
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
@@ -40,17 +40,10 @@ SURVEY, ROUNDS = 0, 1  # the two blocks
 # would see only part of the path it learned
 SURVEY_NETWORK = "rfsl_survey_e2r.onnx"
 SURVEY_S_TOLERANCE = 0.05  # relative: a survey this much shorter or longer is another kind of path
-# a network's answer is refined by the whole-flight search within this distance of it (about three
-# times the survey network's median error on simulated surveys; docs/adaptive.md)
-REFINE_M = 30.0
 # the gate: the survey's RSS departs from the networks' training physics at their answer by at most
 # this robust spread (dB): the 95th percentile on 40 surveys flown under the mission's own physics
 # (calibration seed 5000: bench_adaptive.py --json, physics_spread_db; docs/adaptive.md)
 PHYSICS_SPREAD_DB = 5.21
-REFINE_IN_PHYSICS = (
-    False  # the network's answer as it is (False) or refined (True), chosen on seed 2030
-)
-PEAK_SEP_M = 15.0  # local maxima of the search's posterior this far apart count as separate peaks
 
 
 def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
@@ -105,17 +98,22 @@ def survey_network(meta: dict, heights_m: np.ndarray, model) -> object:
     return path if same_path and at_height else model
 
 
-def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
-    """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
-    (``api.choose_method`` on the sidecar without its adaptive record), with the survey network in
-    place of a spiral network when it was trained on this survey (``survey_network``)."""
-
+def fixed_choice(part) -> tuple[str, object]:
+    """(method, model path) ``localize`` would take for the survey part as if it were a fixed
+    flight of this kind (``api.choose_method`` on the sidecar without its adaptive record)."""
     meta = dict(part.meta)
     meta["trajectory"] = {
         k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
     }
     method, model, _ = choose_method(meta, part.enu()[:, 2], None, default_model_path())
-    model = survey_network(part.meta, part.enu()[:, 2], model)
+    return method, model
+
+
+def fixed_default(part, origin, area, tx_height_m: float, method=None, model=None) -> Estimate:
+    """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
+    (``fixed_choice``), or with the given ``method`` and ``model``."""
+    if method is None:
+        method, model = fixed_choice(part)
     entry = method_entry(method)
     kw = {"model_path": model, "tx_height_m": tx_height_m}
     if entry.compose is not None:
@@ -130,23 +128,6 @@ def rounds_scores(survey, rounds, xy: np.ndarray, tx_height_m: float) -> np.ndar
     parts = [cell_average(p.samples(), sc.cell_m, sc.altitude_gap_m) for p in (survey, rounds)]
     block = np.repeat([SURVEY, ROUNDS], [len(c) for c in parts])
     return selfcal_scores(concat_cells(parts), xy, tx_height_m, block).block_lpd[:, ROUNDS]
-
-
-def refined(live: Estimate, xy: tuple[float, float], radius_m: float = REFINE_M):
-    """The whole-flight search's peak nearest ``xy``, within ``radius_m``: its own point or a local
-    maximum of its posterior (``posterior_modes``, no mass floor, ``PEAK_SEP_M`` apart); ``xy``
-    itself when none is in reach.  Why peaks: the highest cell within reach of a good answer is on
-    a ghost's flank when the ghost lies just beyond it."""
-    peaks = [(live.x_m, live.y_m)]
-    if live.posterior is not None:
-        modes = posterior_modes(
-            live.posterior.prob, live.posterior.grid, min_mass=0.0, sep_m=PEAK_SEP_M, max_modes=64
-        )
-        # a maximum within PEAK_SEP_M of the search's point is that point's own peak
-        peaks += [(x, y) for x, y, _ in modes if np.hypot(x - live.x_m, y - live.y_m) > PEAK_SEP_M]
-    d = [float(np.hypot(x - xy[0], y - xy[1])) for x, y in peaks]
-    k = int(np.argmin(d))
-    return peaks[k] if d[k] <= radius_m else (float(xy[0]), float(xy[1]))
 
 
 def physics_spread_db(survey, xy, tx_height_m: float) -> float:
@@ -175,7 +156,8 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     if rounds.sum() < 2:  # nothing held out yet (the survey in flight): the live method answers
         live.add_note("no adaptive round among the selected samples: the live method answers")
         return live
-    fixed = fixed_default(survey, origin, area, tx_height_m)
+    method, model = fixed_choice(survey)
+    fixed = fixed_default(survey, origin, area, tx_height_m, method, model)
     cands = [
         Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
         Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
@@ -186,13 +168,15 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     best = cands[int(np.argmax(lpd))]
     members = {ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed}
     spread = None
-    if fixed.method == "onnx":
-        spread = physics_spread_db(survey, (fixed.x_m, fixed.y_m), tx_height_m)
-        rx, ry = refined(live, (fixed.x_m, fixed.y_m))
-        members[f"{fixed.method} (survey, refined)"] = Estimate(rx, ry, fixed.method)
+    if method == "onnx":  # a network answers the survey: the one trained on it where shipped
+        net = fixed
+        swapped = survey_network(part.meta, survey.enu()[:, 2], model)
+        if swapped != model:
+            net = fixed_default(survey, origin, area, tx_height_m, method, swapped)
+            members[f"{Path(swapped).stem} (survey)"] = net
+        spread = physics_spread_db(survey, (net.x_m, net.y_m), tx_height_m)
         if spread <= PHYSICS_SPREAD_DB:
-            xy = (rx, ry) if REFINE_IN_PHYSICS else (fixed.x_m, fixed.y_m)
-            best = Candidate(*xy, f"{fixed.method}, survey, in its physics")
+            best = Candidate(net.x_m, net.y_m, f"{net.method}, survey, in its physics")
             cands.append(best)
     lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
     est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
