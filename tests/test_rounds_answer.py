@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import mission.localize.rounds_answer as ra
 from mission.adaptive.planner import flown_ahead, survey_profile, survey_spec
 from mission.adaptive.simflight import FlightWorld, SimLog
 from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
@@ -60,9 +61,11 @@ def test_the_rounds_support_the_true_position_over_a_wrong_one(repo_dir, round_a
     assert lpd[0] > lpd[1] + 1.0
 
 
-def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir):
-    """The answer is the candidate with the most held-out evidence, both candidates are listed with
-    weights summing to one, and the regions are the live method's."""
+def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir, monkeypatch):
+    """Where the networks' physics does not judge, the answer is the candidate with the most
+    held-out evidence, both candidates are listed with weights summing to one, and the regions are
+    the live method's."""
+    monkeypatch.setattr(ra, "PHYSICS_RMS_DB", -np.inf)
     log, spec, tx = _flight(repo_dir, "truth")
     flight = log.flight_log(spec, spec.adaptive)
     est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
@@ -103,3 +106,37 @@ def test_a_dataset_of_an_adaptive_mission_flies_its_survey(repo_dir):
     assert flown_ahead(fixed) is fixed
     off = dataclasses.replace(spec, adaptive=dataclasses.replace(spec.adaptive, enabled=False))
     assert flown_ahead(off) is off
+
+
+def test_physics_rms_is_the_noise_at_the_transmitter(repo_dir):
+    """``physics_rms_db``: under the networks' own physics (the mission's e2r source, 1 dB noise)
+    the flight departs from the prediction at the transmitter by about the noise, 30 m off by more,
+    80 m off by far more; a constant receiver offset changes nothing."""
+    log, spec, tx = _flight(repo_dir, "truth")
+    flight = log.flight_log(spec, spec.adaptive)
+    xy = np.array([tx, tx + [30.0, 0.0], tx + [80.0, 0.0]])
+    rms = ra.physics_rms_db(flight, xy, spec.source.tx_height_m)
+    assert 0.7 < rms[0] < 1.5 and rms[0] < rms[1] < rms[2] and rms[2] > 3 * rms[0]
+    shifted = flight.select(np.ones(len(flight), bool))
+    shifted.columns["rss_dbm"] = np.asarray(shifted["rss_dbm"]) - 23.0
+    assert ra.physics_rms_db(shifted, xy, spec.source.tx_height_m) == pytest.approx(rms)
+
+
+@pytest.mark.parametrize("holds", [True, False])
+def test_the_networks_physics_judges_where_it_holds(repo_dir, monkeypatch, holds):
+    """Under the threshold the candidate the networks' physics explains best answers, said in a
+    note; above it the rounds choose as before."""
+    log, spec, _ = _flight(repo_dir, "elsewhere")
+    flight = log.flight_log(spec, spec.adaptive)
+    monkeypatch.setattr(ra, "PHYSICS_RMS_DB", np.inf if holds else -np.inf)
+    est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
+    rms = est.extras["physics_rms_db"]
+    listed = est.extras["candidates"]
+    assert len(rms) == len(listed) == 2
+    if holds:
+        k = int(np.argmin(rms))
+        assert (round(est.x_m, 2), round(est.y_m, 2)) == (listed[k]["x_m"], listed[k]["y_m"])
+        assert "networks' physics explains" in est.extras["note"]
+    else:
+        top = max(listed, key=lambda c: c["weight"])
+        assert (round(est.x_m, 2), round(est.y_m, 2)) == (top["x_m"], top["y_m"])

@@ -72,6 +72,8 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
             "member_errors_m": {}
             if shown is None
             else {k: err((c.x_m, c.y_m)) for k, c in shown.components.items()},
+            # the networks' physics residual at each candidate (rounds_answer's judge)
+            "physics_rms_db": None if shown is None else shown.extras.get("physics_rms_db"),
             "live_error_m": err(o.final),
             "area_m2": o.final[2] if o.final else None,
             "covered": o.final[3] if o.final else None,

@@ -22,8 +22,14 @@ from mission.localize.candidates import Candidate
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
+from mission.localize.sim_default import SPIRAL_SOURCE_MODEL
+from mission.physics import make_model
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
+# the networks' physics judges between the candidates when the better of them leaves at most this
+# root mean square residual (dB): the 95th percentile on 40 flights under the mission's own physics
+# (calibration seed 5001, bench_adaptive.py --json, physics_rms_db; docs/adaptive.md)
+PHYSICS_RMS_DB = 9.89
 
 
 def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
@@ -63,6 +69,18 @@ def rounds_scores(survey, rounds, xy: np.ndarray, tx_height_m: float) -> np.ndar
     return selfcal_scores(concat_cells(parts), xy, tx_height_m, block).block_lpd[:, ROUNDS]
 
 
+def physics_rms_db(part, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
+    """(K,) root mean square (dB) of the flight's RSS minus the spiral networks' training physics
+    (e2r, dipoles, the log's attitude) with the transmitter at each of ``xy`` (K, 2), its mean
+    removed: every sample counts, so the few near an answer, which tell a near answer from a far
+    one, weigh as much as the many far away (a robust spread ignores them; docs/adaptive.md)."""
+    s = part.samples()
+    tx = np.column_stack([xy, np.full(len(xy), tx_height_m)])[:, None, :]
+    pred = make_model(SPIRAL_SOURCE_MODEL).rss_dbm(tx, s.enu_m, s.attitude_rad)  # (K, N)
+    r = np.asarray(s.rss_dbm, dtype=float)[None, :] - np.asarray(pred, dtype=float)
+    return np.sqrt(np.mean((r - r.mean(axis=1, keepdims=True)) ** 2, axis=1))
+
+
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
     """The live method on the whole flight and the fixed flight's default on the survey, the
     candidate the rounds support best answering (module docstring); the live method's answer alone
@@ -86,6 +104,11 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
+    rms = None
+    if fixed.method == "onnx":  # the network's own physics judges, where it holds
+        rms = physics_rms_db(part, np.array([c.xy for c in cands]), tx_height_m)
+        if rms.min() <= PHYSICS_RMS_DB:
+            best = cands[int(np.argmin(rms))]
     lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
     est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
     est.regions = live.regions  # the live method's: the stage picks a point, it fits no posterior
@@ -93,7 +116,14 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     est.extras["candidates"] = [c.to_dict() for c in cands]
     est.candidates = sorted(cands, key=lambda c: -c.weight)
     est.set_components({ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed})
-    if best is not cands[0]:
+    if rms is not None:
+        est.extras["physics_rms_db"] = [round(float(v), 2) for v in rms]
+    if rms is not None and rms.min() <= PHYSICS_RMS_DB:
+        est.add_note(
+            f"the networks' physics explains the flight to {rms.min():.1f} dB with the transmitter "
+            f"at {best.source} (at most {PHYSICS_RMS_DB:.1f} dB); the regions are the live method's"
+        )
+    elif best is not cands[0]:
         est.add_note(
             f"the rounds support {best.source} over the live method by "
             f"{best.evidence - cands[0].evidence:.1f} nats; the regions are the live method's"
