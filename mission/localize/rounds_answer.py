@@ -6,7 +6,10 @@ adaptive flight.  Both propose a position, and the rounds (flown after, low, aro
 are data neither used to propose it: with the transmitter fixed at each candidate, the per-flight
 nuisance (offset, path-gain slope, antenna) is fitted on the survey's cells and the rounds' cells
 are scored (``stacking.blocked_scores`` with the survey and the rounds as its two blocks).  The
-answer is the candidate the rounds support best; the regions are the live method's.
+answer is the candidate the rounds support best, unless the network's own physics (e2r, dipoles)
+explains the whole flight well with the transmitter at one of them (``physics_rms_db``): then that
+one, since the rounds' score favours the search, fitted on the very rounds it is scored on
+(docs/adaptive.md).  The regions are the live method's.
 """
 
 from __future__ import annotations
