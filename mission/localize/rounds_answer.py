@@ -27,6 +27,7 @@ from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.sim_default import SPIRAL_SOURCE_MODEL
 from mission.physics import make_model
+from mission.robust import offset_residual
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
 # the networks' physics judges between the candidates when the better of them leaves at most this
@@ -80,8 +81,7 @@ def physics_rms_db(part, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
     s = part.samples()
     tx = np.column_stack([xy, np.full(len(xy), tx_height_m)])[:, None, :]
     pred = make_model(SPIRAL_SOURCE_MODEL).rss_dbm(tx, s.enu_m, s.attitude_rad)  # (K, N)
-    r = np.asarray(s.rss_dbm, dtype=float)[None, :] - np.asarray(pred, dtype=float)
-    return np.sqrt(np.mean((r - r.mean(axis=1, keepdims=True)) ** 2, axis=1))
+    return np.array([np.sqrt(np.mean(offset_residual(s.rss_dbm, p) ** 2)) for p in pred])
 
 
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
@@ -107,10 +107,11 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
-    rms = None
+    rms, judged = None, False
     if fixed.method == "onnx":  # the network's own physics judges, where it holds
         rms = physics_rms_db(part, np.array([c.xy for c in cands]), tx_height_m)
-        if rms.min() <= PHYSICS_RMS_DB:
+        judged = bool(rms.min() <= PHYSICS_RMS_DB)
+        if judged:
             best = cands[int(np.argmin(rms))]
     lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
     est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
@@ -121,7 +122,7 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     est.set_components({ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed})
     if rms is not None:
         est.extras["physics_rms_db"] = [round(float(v), 2) for v in rms]
-    if rms is not None and rms.min() <= PHYSICS_RMS_DB:
+    if judged:
         est.add_note(
             f"the networks' physics explains the flight to {rms.min():.1f} dB with the transmitter "
             f"at {best.source} (at most {PHYSICS_RMS_DB:.1f} dB); the regions are the live method's"
