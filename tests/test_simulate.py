@@ -8,6 +8,7 @@ import pytest
 from mission.cli.main import main
 from mission.flightlog import read_flight_log
 from mission.physics import make_model
+from mission.physics.shadowing import pdist
 from mission.simulate import SimConfig, shadowing_field, simulate_flight
 from mission.spec import load_mission
 
@@ -205,3 +206,17 @@ def test_shadowing_off_keeps_the_bytes_of_the_plain_simulator(spiral):
     d = c.rss_dbm - a.rss_dbm
     # smooth along the path, not white noise
     assert 3.0 < d.std() < 9.0 and np.abs(np.diff(d)).max() < 1.0
+
+
+def test_pdist_is_the_euclidean_distance_bit_for_bit() -> None:
+    """``pdist`` (the kriged fields' distances, column by column) gives each pair's Euclidean
+    distance, exactly what the (N, M, D) broadcast gives, is symmetric and zero on the diagonal."""
+    rng = np.random.default_rng(3)
+    for dims in (2, 3):
+        a, b = rng.normal(0.0, 300.0, (57, dims)), rng.normal(0.0, 300.0, (31, dims))
+        d = a[:, None, :] - b[None, :, :]
+        assert np.array_equal(pdist(a, b), np.sqrt((d * d).sum(-1)))
+        np.testing.assert_allclose(pdist(a, b)[4, 7], np.linalg.norm(a[4] - b[7]), rtol=1e-15)
+        aa = pdist(a, a)
+        assert np.array_equal(aa, aa.T) and np.all(np.diag(aa) == 0.0)
+    assert pdist(np.zeros((0, 2)), np.ones((3, 2))).shape == (0, 3)

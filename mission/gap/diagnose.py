@@ -9,7 +9,7 @@ sequence (alignment -> gap of the reference models -> residual breakdown with bl
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import Any
@@ -20,7 +20,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from mission.gap.align import SEGMENTS, Alignment, align
 from mission.gap.candidate import Candidate
 from mission.gap.describe import describe_params
-from mission.gap.fit import FitConfig, _pooled, make_folds, offset_residual
+from mission.gap.fit import FitConfig, _map, _pooled, make_folds, offset_residual
 from mission.gap.ladder import Rung, ladder
 from mission.gap.pipeline import LocalizationModel, Pipeline, shifted_geometry
 from mission.gap.power import power_statement
@@ -317,6 +317,33 @@ def _statements(
     return nadir, tpow
 
 
+def _after_ladder(
+    flights: Sequence[FlightSamples],
+    als: Sequence[Alignment],
+    rungs: Sequence[Rung],
+    Ls: Sequence[int],
+    cfg: FitConfig,
+) -> list[Any]:
+    """What is taken on the finished ladder, as four independent jobs in ``cfg.processes``
+    processes: the residual structure of the first and of the last rung (each with its own
+    generator from ``cfg.seed``, so the values do not depend on the processes), the footprints of
+    the rungs, and the power statements.  Run one after another they kept both cores waiting on
+    one for two seconds."""
+    jobs: list[Callable[[], Any]] = [
+        lambda: residual_structure(
+            flights, rungs[0].residuals, np.random.default_rng([cfg.seed, 1])
+        ),
+        lambda: residual_structure(
+            flights, rungs[-1].residuals, np.random.default_rng([cfg.seed, 2])
+        ),
+        lambda: {
+            r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)
+        },
+        lambda: _statements(flights, als, rungs, Ls, cfg),
+    ]
+    return _map(lambda job: job(), jobs, 1, cfg.processes)
+
+
 def diagnose(
     flights: Sequence[FlightSamples],
     base: Pipeline,
@@ -348,12 +375,8 @@ def diagnose(
     fmap = field_map(als, bg.residuals, Ls, rng)
     rungs = _laddered(base, flights, candidates, cfg, max_rungs, base_label, progress)
     loc = localization_cost(rungs, flights, area, split=cfg.split) if localize else []
-    struct = {
-        "base": residual_structure(flights, rungs[0].residuals, rng),
-        "final": residual_structure(flights, rungs[-1].residuals, rng),
-    }
-    fps = {r.label: footprint(prev.pipes[0], r.pipes[0], flights) for prev, r in pairwise(rungs)}
-    nadir, tpow = _statements(flights, als, rungs, Ls, cfg)
+    struct_base, struct_final, fps, (nadir, tpow) = _after_ladder(flights, als, rungs, Ls, cfg)
+    struct = {"base": struct_base, "final": struct_final}
     frames = {r.label: r.frame for r in rungs if r.frame is not None}
     return Diagnosis(
         flights,

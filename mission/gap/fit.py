@@ -144,12 +144,11 @@ def objective(
     cfg: FitConfig,
     cache: list[np.ndarray] | None = None,
 ) -> float:
-    """Mean per-sample loss over the given samples of all flights (summed flight by flight)."""
+    """Mean per-sample loss over the given samples of all flights."""
     joint = joint_offset_residuals(pipe, flights, idx, cfg.slope, cfg.loss, cfg.f_scale_db, cache)
     if joint is not None:
-        r, bounds = joint
-        loss = per_sample_loss(r, cfg.loss, cfg.f_scale_db)
-        return float(sum(np.add.reduce(loss[a:b]) for _, a, b in bounds) / max(len(r), 1))
+        r = joint[0]
+        return float(np.add.reduce(per_sample_loss(r, cfg.loss, cfg.f_scale_db)) / max(len(r), 1))
     rs = residuals(pipe, flights, idx, cfg, cache)
     n = sum(len(r) for r in rs)
     return float(sum(per_sample_loss(r, cfg.loss, cfg.f_scale_db).sum() for r in rs) / max(n, 1))
@@ -451,13 +450,15 @@ def _map(
     processes: int = 1,
     done: Callable[[int], None] | None = None,
     order: Sequence[int] | None = None,
+    arrived: Callable[[int, Any], None] | None = None,
 ) -> list[Any]:
     """``fn`` over ``items``, in ``processes`` forked processes (the closures are inherited by the
     fork, only the results travel back, pickled), else in ``workers`` threads (numpy releases the
     GIL in the heavy parts); the results in the items' order, so they are those of one call after
     another, bit for bit.  ``order``: the order the processes are handed the items in (the longest
     first, so that they finish together; the results do not depend on it).  ``done(k)``: called in
-    this process as the k-th result arrives (progress).
+    this process as the k-th result arrives (progress); ``arrived(i, result)``: called in this
+    process with item i's result as it arrives (work on it while the processes go on).
 
     BLAS runs single-threaded meanwhile: the fits' matrices are small (kriging systems of a few
     hundred cells, Gram matrices of ~100 columns), the parallelism is over the fits, and a
@@ -465,10 +466,12 @@ def _map(
     with 2 BLAS threads against 2 ms with one at load 10 on 2 cores).  ``threadpoolctl`` comes with
     scikit-learn."""
 
-    def tick(it: Any) -> list[Any]:
-        out = []
-        for k, r in enumerate(it):
-            out.append(r)
+    def tick(it: Any, seq: Sequence[int]) -> list[Any]:
+        out: list[Any] = [None] * len(items)
+        for k, (i, r) in enumerate(zip(seq, it, strict=True)):
+            out[i] = r
+            if arrived is not None:
+                arrived(i, r)
             if done is not None:
                 done(k + 1)
         return out
@@ -481,18 +484,14 @@ def _map(
                 with mp.get_context("fork").Pool(
                     min(processes, len(items)), initializer=_limit_blas
                 ) as pool:
-                    got = tick(pool.imap(_forked_call, seq))
+                    return tick(pool.imap(_forked_call, seq), seq)
             finally:
                 _FORKED.pop()
-            out: list[Any] = [None] * len(items)
-            for k, r in zip(seq, got, strict=True):
-                out[k] = r
-            return out
         if workers <= 1 or len(items) <= 1:
-            return tick(fn(x) for x in items)
+            return tick((fn(x) for x in items), range(len(items)))
 
         with ThreadPoolExecutor(max_workers=workers) as ex:
-            return tick(ex.map(fn, items))
+            return tick(ex.map(fn, items), range(len(items)))
 
 
 def longest_first(costs: Sequence[float]) -> list[int]:
@@ -558,14 +557,19 @@ def rank_candidates(
 
     The (candidate, fold) fits run in ``cfg.processes`` processes or ``cfg.workers`` threads; each
     gets its own generator spawned from ``rng`` in a fixed order, so results do not depend on the
-    scheduling.  ``costs``: seconds a fit of each candidate took, kept by the caller across
-    rankings (the ladder's rungs): the processes are handed the costliest fits first (a candidate
-    not timed yet counts as costlier than any), and the times of this ranking are stored back.
+    scheduling.  Each candidate's bootstrap has its own generator too, drawn before any fit: a
+    candidate is scored as soon as its folds are in (while the processes fit the rest), and one
+    fit's change (a block length) no longer moves every later candidate's bound.  ``costs``:
+    seconds a fit of each candidate took, kept by the caller across rankings (the ladder's rungs):
+    the processes are handed the costliest fits first (a candidate not timed yet counts as costlier
+    than any), and the times of this ranking are stored back.
     """
     base_res = base_res if base_res is not None else heldout_residuals(pipes, flights, folds, cfg)
     tried = [c for c in candidates if c.applicable(pipes[0])]
     tasks = [(c, k) for c in tried for k in range(len(folds))]
     seeds = rng.integers(0, 2**63 - 1, size=len(tasks))
+    boot_seeds = rng.integers(0, 2**63 - 1, size=len(tried))
+    nf = len(folds)
 
     def run(
         task_seed: tuple[tuple[Candidate, int], int],
@@ -589,15 +593,37 @@ def rank_candidates(
             k = n - 1 if order is None else order[n - 1]
             progress(f"{label}: {tasks[k][0].name}", n, len(tasks))
 
+    got: dict[int, Any] = {}
+    scored: dict[int, CandidateResult] = {}
+
+    def arrived(i: int, r: Any) -> None:
+        got[i] = r
+        j = i // nf
+        if all(j * nf + k in got for k in range(nf)):
+            part = [got[j * nf + k] for k in range(nf)]
+            scored[j] = _scored(
+                tried[j],
+                part,
+                flights,
+                folds,
+                base_res,
+                cfg,
+                len(tried),
+                np.random.default_rng(boot_seeds[j]),
+            )
+
     results = _map(
-        run, list(zip(tasks, seeds, strict=True)), cfg.workers, cfg.processes, done, order
+        run,
+        list(zip(tasks, seeds, strict=True)),
+        cfg.workers,
+        cfg.processes,
+        done,
+        order,
+        arrived,
     )
-    out = []
-    nf = len(folds)
-    for j, cand in enumerate(tried):
-        part = results[j * nf : (j + 1) * nf]
-        if costs is not None:
-            costs[cand.name] = float(np.mean([t for _, _, t in part]))
-        out.append(_scored(cand, part, flights, folds, base_res, cfg, len(tried), rng))
+    if costs is not None:
+        for j, cand in enumerate(tried):
+            costs[cand.name] = float(np.mean([t for _, _, t in results[j * nf : (j + 1) * nf]]))
+    out = [scored[j] for j in range(len(tried))]
     out.sort(key=rank_key)
     return out

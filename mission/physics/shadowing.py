@@ -38,9 +38,18 @@ def correlation(h: np.ndarray, corr_len_m: float, kind: str = "exponential") -> 
 
 
 def pdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Euclidean distances between the rows of ``a`` (N, 2) and ``b`` (M, 2) -> (N, M)."""
-    d = a[:, None, :] - b[None, :, :]
-    return np.sqrt((d * d).sum(-1))
+    """Euclidean distances between the rows of ``a`` (N, D) and ``b`` (M, D) -> (N, M).
+
+    Column by column, in place: no (N, M, D) temporary (the kriged fields call it on thousands of
+    samples against hundreds of cells); the squares add in the same order as a sum over the last
+    axis, so the values are the same bit for bit."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    d2 = np.zeros((len(a), len(b)))
+    for j in range(a.shape[1]):
+        dj = np.subtract.outer(a[:, j], b[:, j])
+        dj *= dj
+        d2 += dj
+    return np.sqrt(d2, out=d2)
 
 
 def shadowing_field(
