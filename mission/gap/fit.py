@@ -65,6 +65,11 @@ class FitConfig:
     loss: str = "l2"  # l2 | soft_l1
     f_scale_db: float = 6.0  # soft_l1 scale
     max_evals: int = 60  # Nelder-Mead evaluations per start
+    # Nelder-Mead stops once its simplex spans at most polish_xatol in every parameter (the
+    # candidates' units: deg, dB, s, exponents) and its losses polish_fatol dB^2: finer than any
+    # held-out figure can tell (the diagnosis reports 0.1 dB), and 8 % fewer calls than 1e-3 / 1e-6
+    polish_xatol: float = 1e-2
+    polish_fatol: float = 1e-4
     alpha: float = 0.05
     min_rel: float = (
         0.01  # minimum relative held-out loss reduction to call a candidate significant
@@ -276,6 +281,8 @@ def _fit_choice(
         _steps(params, bounds),
         cfg.max_evals,
         n_starts=3 if multi else 1,
+        xatol=cfg.polish_xatol,
+        fatol=cfg.polish_fatol,
         coarse=make(sels[1], caches[1]) if multi else None,
     )
     x = _clipped(xb, bounds)
