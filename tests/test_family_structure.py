@@ -192,3 +192,35 @@ def test_recalibration_never_steps_against_the_p90(monkeypatch) -> None:
     assert steps[1][0] == pytest.approx(k1)
     assert steps[2][0] == pytest.approx(k1 * 21.5 / 19.99)  # up, by the ratio
     assert 0 < steps[2][0] <= k1 * fr.SECANT_LIMIT
+
+
+@pytest.mark.parametrize(
+    ("second", "ratio"),
+    [(20.004, True), (21.5, False)],  # a rise of 0.004 dB is noise; one of 1.5 dB is a slope
+)
+def test_recalibration_takes_a_secant_only_from_a_rise_the_check_can_tell(
+    monkeypatch, second: float, ratio: bool
+) -> None:
+    """Two checks whose p90 differ by less than the loop check's tolerance give no slope: a nearly
+    flat secant leapt to the x1.5 limit (held-out p90 33.4 dB against the real 22.0 on the real
+    flights), so the ratio step is taken; a rise the check can tell keeps the secant."""
+    sims = iter([20.0, second, 21.4])
+
+    def fake_loop(rec, used, cfg, seed=0, repeats=1):
+        p = next(sims)
+        return {
+            "heldout_p90_db": {"real": 24.0, "sim": p, "within_1db": abs(p - 24.0) <= 1.0},
+            "passed": False,
+        }
+
+    def fake_fit(flights, effects, cfg, **kw):
+        return {"residual": {"shadowing_db": 10.0, "noise_db": 3.0}, "checks": {}}, []
+
+    monkeypatch.setattr(fr, "loop_check", fake_loop)
+    monkeypatch.setattr(fr, "fit_family", fake_fit)
+    d = SimpleNamespace(flights=[], rungs=[SimpleNamespace(added=None)])
+    steps = fr.family_from_diagnosis(d, FitConfig(), repeats=1)["residual_calibration"]["steps"]
+    k0, k1 = 1.0, 24.0 / 20.0
+    want = k1 * 24.0 / second if ratio else k1 + (24.0 - second) * (k1 - k0) / (second - 20.0)
+    assert steps[2][0] == pytest.approx(want)
+    assert steps[2][0] < k1 * fr.SECANT_LIMIT

@@ -235,7 +235,13 @@ def polish(pipe: Pipeline, flight: FlightSamples, idx: np.ndarray, cfg: FitConfi
         )
     )
     x, _ = minimize_from_grid(
-        f, np.array(grid, dtype=float), [j[2] for j in keys], cfg.max_evals, n_starts=2
+        f,
+        np.array(grid, dtype=float),
+        [j[2] for j in keys],
+        cfg.max_evals,
+        n_starts=2,
+        xatol=cfg.polish_xatol,
+        fatol=cfg.polish_fatol,
     )
     new = make(x)
     return new if f(x) <= objective(pipe, [flight], ii, cfg) else pipe

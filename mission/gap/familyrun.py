@@ -63,9 +63,10 @@ def family_from_diagnosis(
                 (k0, p0), (k1, p1) = pts[-2], pts[-1]
                 real = lc["heldout_p90_db"]["real"]
                 # more shadowing never narrows the p90: a secant through two noisy checks that
-                # slopes the other way (p90 scatters ~1.5 dB per copy) gives way to the ratio step,
-                # and no step moves the scale more than x1.5
-                rising = (p1 - p0) * (k1 - k0) > 0
+                # slopes the other way (p90 scatters ~1.5 dB per copy), or rises by less than the
+                # check's own tolerance (noise, not a slope: a nearly flat secant steps to the
+                # limit), gives way to the ratio step, and no step moves the scale more than x1.5
+                rising = (p1 - p0) * (k1 - k0) > 0 and abs(p1 - p0) >= P90_TOL_DB
                 k = k1 + (real - p1) * (k1 - k0) / (p1 - p0) if rising else k1 * real / p1
                 k = float(min(max(k, k1 / SECANT_LIMIT), k1 * SECANT_LIMIT))
                 rec["residual"]["shadowing_db"] = base_sh
