@@ -476,7 +476,11 @@ def speed(args: argparse.Namespace) -> int:
         )
         clock = Clock()
         rec = family_from_diagnosis(
-            d, cfg, name="afar", repeats=args.repeats, structure=args.family_structure
+            d,
+            cfg,
+            name="afar",
+            repeats=args.repeats,
+            structure=("time", "radial") if args.family_radial else args.family_structure,
         )
         if args.family_out:
             Path(args.family_out).write_text(json.dumps(rec, indent=1) + "\n")
@@ -742,6 +746,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="the family job with per-flight structure (a drift drawn per flight beside the "
         "shadowing; the digest is then another)",
+    )
+    sp.add_argument(
+        "--family-radial",
+        action="store_true",
+        help="per-flight structure with a profile over the distance to the rover beside the drift "
+        "(mission/gap/README.md, 'Structure about the transmitter')",
     )
     sp.add_argument("--family-out", help="also write the family job's record here (JSON)")
     c = sub.add_parser("family-check")

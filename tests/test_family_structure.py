@@ -12,7 +12,12 @@ from hypothesis import strategies as st
 
 import mission.gap.familyrun as fr
 from mission.errors import InputError
-from mission.gap.familyfit import offset_distribution, time_drift_std
+from mission.gap.familyfit import (
+    nuisance_stds,
+    offset_distribution,
+    structure_kinds,
+    time_drift_std,
+)
 from mission.gap.familyloss import family_loss, interval_miss, ppc_miss
 from mission.gap.fit import FitConfig
 from mission.physics.family import (
@@ -20,6 +25,8 @@ from mission.physics.family import (
     FamilyDraw,
     PhysicsFamily,
     load_family,
+    log_distance_unit,
+    radial_profile,
     simulate_rss,
     time_drift,
 )
@@ -72,7 +79,7 @@ def test_a_family_without_nuisance_draws_as_before() -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(
-    key=st.sampled_from(["time_drift_db", "drift", "shadowing_db"]),
+    key=st.sampled_from(["time_drift_db", "radial_db", "drift", "shadowing_db"]),
     value=st.one_of(
         st.floats(allow_nan=True, allow_infinity=True),
         st.text(max_size=3),
@@ -95,7 +102,8 @@ def test_generated_bad_nuisance_is_refused_naming_the_field(key: str, value: obj
     except InputError as e:
         assert "nuisance" in str(e) and "gen.json" in str(e)
     else:
-        assert fam.draw(np.random.default_rng(0)).time_drift_db >= 0
+        draw = fam.draw(np.random.default_rng(0))
+        assert draw.time_drift_db >= 0 and draw.radial_db >= 0
 
 
 def test_time_drift_std_finds_a_drift_over_time() -> None:
@@ -224,3 +232,83 @@ def test_recalibration_takes_a_secant_only_from_a_rise_the_check_can_tell(
     want = k1 * 24.0 / second if ratio else k1 + (24.0 - second) * (k1 - k0) / (second - 20.0)
     assert steps[2][0] == pytest.approx(want)
     assert steps[2][0] < k1 * fr.SECANT_LIMIT
+
+
+def _ring_track(n: int = 1200) -> tuple[np.ndarray, np.ndarray]:
+    """A track that goes out from near the rover to 400 m and back in six times, turning as it
+    goes: every distance flown twelve times, at different times and headings."""
+    k = np.linspace(0.0, 1.0, n)
+    r = 15.0 + 385.0 * (0.5 - 0.5 * np.cos(12.0 * np.pi * k))
+    a = 40.0 * np.pi * k
+    rx = np.column_stack([r * np.cos(a), r * np.sin(a), np.full(n, 30.0)])
+    return np.array([0.0, 0.0, 1.5]), rx
+
+
+@pytest.mark.parametrize("std", [0.7, 4.0])
+def test_radial_profile_has_its_std_and_depends_on_the_distance_only(std: float) -> None:
+    """The profile is a function of the distance to the transmitter alone (the same at the same
+    distance, whatever the heading or time), smooth in log distance, of the drawn std."""
+    tx, rx = _ring_track()
+    g = radial_profile(tx, rx, std, np.random.default_rng(3))
+    assert np.std(g) == pytest.approx(std, rel=1e-9)
+    # symmetric about the transmitter: the track's mirror image (out and back) gives the same values
+    mirror = rx * np.array([-1.0, 1.0, 1.0])
+    assert np.allclose(radial_profile(tx, mirror, std, np.random.default_rng(3)), g)
+    u = log_distance_unit(np.hypot(rx[:, 0], rx[:, 1]))
+    fit = np.polynomial.legendre.legval(u, np.polynomial.legendre.legfit(u, g, DRIFT_ORDER))
+    assert np.max(np.abs(fit - g)) < 1e-9 * std
+    assert not np.allclose(g, radial_profile(tx, rx, std, np.random.default_rng(4)))
+    assert not radial_profile(tx, rx, 0.0, np.random.default_rng(3)).any()
+    # all at one distance: nothing to vary over
+    circle = np.column_stack(
+        [100 * np.cos(np.arange(50)), 100 * np.sin(np.arange(50)), 30 * np.ones(50)]
+    )
+    assert not radial_profile(tx, circle, 3.0, np.random.default_rng(3)).any()
+
+
+def test_log_distance_unit_spans_10_to_500_m() -> None:
+    assert log_distance_unit(np.array([1.0, 10.0, 70.7, 500.0, 9e3])) == pytest.approx(
+        [-1.0, np.log10(10 / 70.7) / 0.85, 0.0, 1.0, 1.0], abs=0.01
+    )
+
+
+def test_a_radial_draw_is_added_after_the_drift() -> None:
+    """A draw with a radial std adds exactly ``radial_profile`` after the shadowing, noise and
+    drift of the same draw without it."""
+    tx, rx = _ring_track(400)
+    att = np.zeros((400, 3))
+    d0 = FamilyDraw({"base": "free-space"}, 3.0, 30.0, 1.0, 0.0, 2.0)
+    d1 = FamilyDraw({"base": "free-space"}, 3.0, 30.0, 1.0, 0.0, 2.0, 5.0)
+    r0 = simulate_rss(d0, tx, rx, att, np.random.default_rng(7))
+    rng = np.random.default_rng(7)
+    r1 = simulate_rss(d1, tx, rx, att, rng)
+    assert np.std(r1 - r0) == pytest.approx(5.0, rel=1e-9)
+    assert d1.to_dict()["radial_db"] == 5.0 and "radial_db" not in d0.to_dict()
+
+
+def test_nuisance_stds_tell_distance_from_time() -> None:
+    """On a track that flies every distance twice, a residual that follows the distance is given
+    to the radial part, one that follows the time to the time part; fitted together, neither takes
+    the other's; the time part alone is ``time_drift_std``."""
+    tx, rx = _ring_track()
+    t = np.arange(len(rx)) * 0.5
+    flight = FlightSamples(
+        enu_m=rx, rss_dbm=np.zeros(len(rx)), t_s=t, tx_enu_m=tx, name="synthetic"
+    )
+    rng = np.random.default_rng(5)
+    radial = radial_profile(tx, rx, 4.0, np.random.default_rng(1))
+    drift = time_drift(len(t), 3.0, np.random.default_rng(2))
+    both = nuisance_stds(flight, radial + rng.normal(0, 2.0, len(t)), ("time", "radial"))
+    assert both["radial_db"] == pytest.approx(4.0, abs=0.4) and both["time_drift_db"] < 0.8
+    both = nuisance_stds(flight, drift + rng.normal(0, 2.0, len(t)), ("time", "radial"))
+    assert both["time_drift_db"] == pytest.approx(3.0, abs=0.4) and both["radial_db"] < 0.8
+    r = drift + radial
+    assert nuisance_stds(flight, r, ("time",))["time_drift_db"] == time_drift_std(flight, r)
+    assert nuisance_stds(flight, r, ()) == {}
+
+
+def test_structure_kinds() -> None:
+    assert structure_kinds(True) == ("time",) and structure_kinds(False) == ()
+    assert structure_kinds(("time", "radial")) == ("time", "radial")
+    with pytest.raises(ValueError, match="nuisance kind"):
+        structure_kinds(("ground",))

@@ -69,6 +69,7 @@ def test_report_fits_80_columns_and_family_loads(tmp_path, capsys, monkeypatch) 
             "t",
             "--family-repeats",
             "0",
+            "--family-radial",
         ]
     )
     assert rc == 0
@@ -96,3 +97,7 @@ def test_report_fits_80_columns_and_family_loads(tmp_path, capsys, monkeypatch) 
     )
     assert [p["flight"] for p in rec["per_flight"]] == ["288_loc_1", "328_loc_2"]
     assert {p["team"] for p in rec["per_flight"]} == {"288", "328"}
+    # --family-radial: both kinds of per-flight structure, drawn by the loaded family
+    assert set(rec["nuisance"]) == {"time_drift_db", "radial_db"}
+    assert all("radial_db" in p["residual"] for p in rec["per_flight"])
+    assert f.draw(np.random.default_rng(0)).radial_db >= 0.0

@@ -85,6 +85,12 @@ def _output_arguments(parser: argparse.ArgumentParser) -> None:
         "shadowing, which keeps only what is left",
     )
     parser.add_argument(
+        "--family-radial",
+        action="store_true",
+        help="per-flight structure with a smooth profile over the distance to the rover beside "
+        "the drift (structure about the transmitter; implies --family-structure)",
+    )
+    parser.add_argument(
         "--json",
         action="store_true",
         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables",
@@ -357,7 +363,7 @@ def _write_family(d, cfg, args, console) -> None:
         source=src,
         check=args.family_repeats > 0,
         repeats=max(args.family_repeats, 1),
-        structure=args.family_structure,
+        structure=("time", "radial") if args.family_radial else args.family_structure,
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text

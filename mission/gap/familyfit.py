@@ -41,6 +41,7 @@ from mission.gap.fit import (
 from mission.gap.pipeline import Pipeline, Selection
 from mission.gap.temporal import time_columns
 from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
+from mission.physics.family import DRIFT_ORDER, log_distance_unit
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
 from mission.robust import robust_offset
@@ -92,6 +93,7 @@ BOUNDS = {
     "noise_db": (0.0, 20.0),
     "offset_db": (-200.0, 200.0),
     "time_drift_db": (0.0, 30.0),
+    "radial_db": (0.0, 30.0),
 }
 PATTERN_KEYS = ("rx_pattern", "rx_flipped", "tx_pattern", "tx_flipped")
 FIT_SAMPLES = (
@@ -275,18 +277,64 @@ class FlightFit:
         return d | ({"excluded": self.excluded} if self.excluded else {})
 
 
-def time_drift_std(flight: FlightSamples, r: np.ndarray) -> float:
-    """The std of the smooth drift over the flight's time in the residual ``r``: a least-squares
-    fit of the gap's smooth time basis (``temporal.time_columns``: Legendre P_1..P_4 of the time
-    scaled to [-1, 1], no steps) to the finite samples about their mean; 0 with fewer than 20."""
+# the per-flight nuisance a family can draw: kind -> its key in ``nuisance`` (``physics.family``)
+NUISANCE_KINDS = {"time": "time_drift_db", "radial": "radial_db"}
+
+
+def structure_kinds(structure: bool | Sequence[str]) -> tuple[str, ...]:
+    """The nuisance kinds of a ``structure`` argument: True is the time drift alone (the first
+    structured family), False none, else the kinds named (``NUISANCE_KINDS``)."""
+    if structure is True:
+        return ("time",)
+    if not structure:
+        return ()
+    bad = [k for k in structure if k not in NUISANCE_KINDS]
+    if bad:
+        raise ValueError(f"unknown nuisance kind(s) {bad} (expected {', '.join(NUISANCE_KINDS)})")
+    return tuple(structure)
+
+
+def nuisance_stds(
+    flight: FlightSamples, r: np.ndarray, kinds: Sequence[str] = ("time",)
+) -> dict[str, float]:
+    """Per nuisance kind, the std of its part of the residual ``r``: one least-squares fit of the
+    kinds' smooth bases together to the finite samples about their mean (``time``: the gap's
+    smooth time basis, ``temporal.time_columns``, Legendre P_1..P_4 of the time scaled to [-1, 1],
+    no steps; ``radial``: Legendre P_1..P_4 of ``physics.family.log_distance_unit``, the distance
+    to the rover; each column about its mean, as the residual is), so that what both explain is
+    not counted twice; 0 each with fewer than 20 samples."""
     ok = np.isfinite(r)
-    if ok.sum() < 20 or flight.t_s is None:
-        return 0.0
-    t = np.asarray(flight.t_s, dtype=float)
-    X, _ = time_columns(t[ok], float(t[0]), float(t[-1]), np.zeros(0))
+    out = {NUISANCE_KINDS[k]: 0.0 for k in kinds}
+    if ok.sum() < 20 or not kinds:
+        return out
+    blocks = []
+    for k in kinds:
+        if k == "time":
+            if flight.t_s is None:
+                return out
+            t = np.asarray(flight.t_s, dtype=float)
+            blocks.append(time_columns(t[ok], float(t[0]), float(t[-1]), np.zeros(0))[0])
+        else:
+            if flight.tx_enu_m is None:
+                return out
+            d = flight.enu_m[ok, :2] - np.asarray(flight.tx_enu_m, dtype=float)[None, :2]
+            u = log_distance_unit(np.hypot(d[:, 0], d[:, 1]))
+            blocks.append(np.polynomial.legendre.legvander(u, DRIFT_ORDER)[:, 1:])
+    blocks = [b - b.mean(axis=0) for b in blocks]  # about their means, as y: no intercept lost
+    X = np.column_stack(blocks)
     y = r[ok] - np.mean(r[ok])
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-    return float(np.std(X @ coef))
+    j = 0
+    for k, b in zip(kinds, blocks, strict=True):
+        out[NUISANCE_KINDS[k]] = float(np.std(b @ coef[j : j + b.shape[1]]))
+        j += b.shape[1]
+    return out
+
+
+def time_drift_std(flight: FlightSamples, r: np.ndarray) -> float:
+    """The std of the smooth drift over the flight's time in the residual ``r``
+    (``nuisance_stds`` of the time basis alone)."""
+    return nuisance_stds(flight, r, ("time",))["time_drift_db"]
 
 
 def fit_flight(
@@ -295,12 +343,12 @@ def fit_flight(
     cfg: FitConfig,
     seed: int = 0,
     label: str | None = None,
-    structure: bool = False,
+    structure: bool | Sequence[str] = False,
 ) -> FlightFit:
     """Fit the family effects on one flight; residual structure from two folds of alternate
-    chunks.  ``structure``: also the per-flight nuisance (``time_drift_db``, ``time_drift_std`` of
-    the held-out residual), taken out of the shadowing (only what is left is drawn as
-    shadowing)."""
+    chunks.  ``structure``: also the per-flight nuisance (``structure_kinds``: True is the time
+    drift, ``time_drift_db``; ``("time", "radial")`` adds ``radial_db``; ``nuisance_stds`` of the
+    held-out residual), taken out of the shadowing (only what is left is drawn as shadowing)."""
     rng = np.random.default_rng(seed)
     cfg = FitConfig(**{**cfg.__dict__, "fit_max_samples": min(cfg.fit_max_samples, FIT_SAMPLES)})
     flight = (
@@ -323,11 +371,12 @@ def fit_flight(
     # scales; the family's shadowing std is set so that the gaussian p90 1.645 sqrt(s^2 + n^2)
     # equals the held-out p90
     vg["variogram_sigma_db"] = vg["shadowing_db"]
-    drift = time_drift_std(flight, held) if structure else 0.0
-    if structure:
-        vg["time_drift_db"] = drift
+    nuis = nuisance_stds(flight, held, structure_kinds(structure))
+    vg.update(nuis)
     vg["shadowing_db"] = float(
-        math.sqrt(max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2 - drift**2, 0.0))
+        math.sqrt(
+            max((p90 / 1.645) ** 2 - vg["noise_db"] ** 2 - sum(v * v for v in nuis.values()), 0.0)
+        )
     )
     vg["sill_db"] = float(math.hypot(vg["variogram_sigma_db"], vg["noise_db"]))
     return FlightFit(
@@ -474,9 +523,10 @@ def build_family(
         s = _spread([f.variogram[k] for f in fits], teams)
         residual[k], spreads[k] = _normal(s, k), s
     nuisance = {}
-    if all("time_drift_db" in f.variogram for f in fits):
-        s = _spread([f.variogram["time_drift_db"] for f in fits], teams)
-        nuisance["time_drift_db"], spreads["time_drift_db"] = _normal(s, "time_drift_db"), s
+    for key in NUISANCE_KINDS.values():
+        if all(key in f.variogram for f in fits):
+            s = _spread([f.variogram[key] for f in fits], teams)
+            nuisance[key], spreads[key] = _normal(s, key), s
     off = _spread([f.offset_db for f in fits], teams)
     spreads["offset_db"] = off
     p90 = _spread([f.heldout_p90_db for f in fits], teams)
@@ -526,7 +576,7 @@ def fit_family(
     cfg: FitConfig,
     labels: Sequence[str] | None = None,
     seed: int = 0,
-    structure: bool = False,
+    structure: bool | Sequence[str] = False,
     **kw: Any,
 ) -> tuple[dict[str, Any], list[FlightFit]]:
     """Fit ``effects`` on every flight and build the family record (``build_family``);

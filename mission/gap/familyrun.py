@@ -9,6 +9,7 @@ check.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from mission.gap.familyfit import effects_of_ladder, fit_family
@@ -25,7 +26,7 @@ def family_from_diagnosis(
     source: dict[str, Any] | None = None,
     check: bool = True,
     repeats: int = 4,
-    structure: bool = False,
+    structure: bool | Sequence[str] = False,
 ) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per
     flight; with ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on,

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from mission.gap.familyfit import PATTERN_KEYS, fit_family
+from mission.gap.familyfit import NUISANCE_KINDS, PATTERN_KEYS, fit_family
 from mission.gap.fit import FitConfig
 from mission.physics.family import PhysicsFamily, simulate_rss
 from mission.samples import FlightSamples
@@ -63,9 +63,8 @@ def loop_check(
         s, d = simulate_along(fam, flights, rng)
         sims += s
         draws += d
-    rec2, fits2 = fit_family(
-        sims, record.get("effects", []), cfg, seed=seed, structure="nuisance" in record
-    )
+    kinds = tuple(k for k, key in NUISANCE_KINDS.items() if key in record.get("nuisance", {}))
+    rec2, fits2 = fit_family(sims, record.get("effects", []), cfg, seed=seed, structure=kinds)
     iv = record["checks"]["intervals"]
     params = {}
     for k, s in rec2["spread"].items():

@@ -35,6 +35,7 @@ from mission.gap.freeform import (
 )
 from mission.gap.pipeline import Pipeline, memo
 from mission.gap.temporal import NAME, usable_in
+from mission.physics.family import log_distance_unit
 from mission.physics.geometry import bearing, horizontal_distance
 from mission.physics.shadowing import correlation, pdist
 from mission.samples import FlightSamples
@@ -203,8 +204,7 @@ def site_variables(tx: np.ndarray, rx_xy: np.ndarray) -> tuple[np.ndarray, np.nd
     10-500 m)."""
     d = rx_xy - np.asarray(tx, dtype=float)[None, :2]
     az = bearing(d[:, 0], d[:, 1], signed=True)
-    ld = np.log10(np.maximum(horizontal_distance(d[:, 0], d[:, 1]), 5.0) / 70.7) / 0.85
-    return az, np.clip(ld, -1.0, 1.0)
+    return az, log_distance_unit(horizontal_distance(d[:, 0], d[:, 1]))
 
 
 def site_design(az: np.ndarray, ld: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

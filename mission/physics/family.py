@@ -36,7 +36,9 @@ spec, drawn once per flight so that only what is left is drawn as shadowing.  ``
 the std (over the flight's samples) of a smooth gain drift along the flight, a random combination of
 Legendre P_1..P_4 over the samples' order scaled to [-1, 1] (coefficient sd 1 / (1 + p^2), the
 smooth part of the gap's ``time_drift`` basis) rescaled to that std; ``simulate_rss`` adds it after
-the shadowing.
+the shadowing.  ``radial_db``: the std of a smooth profile over the log distance to the
+transmitter (``radial_profile``: Legendre P_1..P_4 of ``log_distance_unit``, the same coefficient
+sd), added after the drift: structure about the transmitter, which leaves the RSS peak where it is.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ from mission.physics.shadowing import shadowing_field
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
 RESIDUAL_KEYS = ("shadowing_db", "shadowing_corr_m", "noise_db")
-NUISANCE_KEYS = ("time_drift_db",)
+NUISANCE_KEYS = ("time_drift_db", "radial_db")
 DRIFT_ORDER = 4  # Legendre orders of the drawn time drift (the gap's ``temporal.DRIFT_ORDER``)
 SHIPPED = {"afar": "afar_family.json"}
 
@@ -159,6 +161,7 @@ class FamilyDraw:
     noise_db: float
     offset_db: float
     time_drift_db: float = 0.0  # std of the flight's smooth gain drift (``nuisance``)
+    radial_db: float = 0.0  # std of the flight's profile over the distance to the rover
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
@@ -171,7 +174,11 @@ class FamilyDraw:
             "shadowing_corr_m": self.shadowing_corr_m,
             "noise_db": self.noise_db,
             "offset_db": self.offset_db,
-        } | ({"time_drift_db": self.time_drift_db} if self.time_drift_db else {})
+        } | {
+            k: v
+            for k, v in (("time_drift_db", self.time_drift_db), ("radial_db", self.radial_db))
+            if v
+        }
 
 
 def lowest(v: Any) -> float:
@@ -282,6 +289,7 @@ class PhysicsFamily:
             float(res.get("noise_db", 0.0)),
             offset,
             float(nuis.get("time_drift_db", 0.0)),
+            float(nuis.get("radial_db", 0.0)),
         )
 
     def to_dict(self) -> dict:
@@ -347,6 +355,30 @@ def time_drift(n: int, std_db: float, rng: np.random.Generator) -> np.ndarray:
     return g * (std_db / sd) if sd > 0 else np.zeros(n)
 
 
+def log_distance_unit(d_m: np.ndarray) -> np.ndarray:
+    """Horizontal distance to the transmitter as a coordinate on [-1, 1]: log10 over 10-500 m
+    (clipped), the scale of the radial profiles and of the gap's site maps."""
+    return np.clip(np.log10(np.maximum(np.asarray(d_m, dtype=float), 5.0) / 70.7) / 0.85, -1.0, 1.0)
+
+
+def radial_profile(
+    tx_enu: np.ndarray, rx_enu: np.ndarray, std_db: float, rng: np.random.Generator
+) -> np.ndarray:
+    """A smooth profile over the samples' distance to the transmitter, std ``std_db`` over them: a
+    random combination of Legendre P_1..P_DRIFT_ORDER of ``log_distance_unit``, coefficient sd
+    1 / (1 + p^2), as ``time_drift`` draws over time; zeros when ``std_db`` is 0, with fewer than 3
+    samples or all at one distance."""
+    rx = np.asarray(rx_enu, dtype=float)
+    if std_db <= 0 or len(rx) < 3:
+        return np.zeros(len(rx))
+    d = rx[:, :2] - np.asarray(tx_enu, dtype=float)[None, :2]
+    u = log_distance_unit(np.hypot(d[:, 0], d[:, 1]))
+    c = rng.normal(0.0, 1.0, DRIFT_ORDER) / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
+    g = np.polynomial.legendre.legval(u, np.concatenate([[0.0], c]))
+    sd = float(np.std(g))
+    return g * (std_db / sd) if sd > 1e-12 else np.zeros(len(rx))
+
+
 def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
     """A shipped family by name (``afar``) or a family JSON file (``rfsl gap --family`` output)."""
     s = str(name_or_path)
@@ -397,4 +429,6 @@ def simulate_rss(
         rss = rss + shadowing_field(rx[:, :2], draw.shadowing_db, draw.shadowing_corr_m, rng)
     if draw.time_drift_db > 0:  # after the shadowing: a draw without drift is unchanged
         rss = rss + time_drift(len(rss), draw.time_drift_db, rng)
+    if draw.radial_db > 0:  # after the drift: a draw without it is unchanged
+        rss = rss + radial_profile(tx_enu, rx, draw.radial_db, rng)
     return rss
