@@ -175,27 +175,31 @@ def test_offset_is_drawn_from_the_real_flights_with_structure() -> None:
     assert offset_distribution(off)["dist"] == "normal"
 
 
-def test_recalibration_never_steps_against_the_p90(monkeypatch) -> None:
-    """Two noisy checks whose p90 falls as the shadowing grows: the next scale is the ratio step
-    (more shadowing), not the secant's leap (it had reached -17.3 on the real flights)."""
-    sims = iter([20.0, 19.99, 21.4])
+def _recalibration_steps(monkeypatch, sims: list[float], real: float) -> list:
+    """The recalibration's (scale, simulated p90) steps when the loop checks read ``sims`` in turn
+    against the real held-out p90 ``real`` (the family fit and the loop check stubbed)."""
+    it = iter(sims)
 
     def fake_loop(rec, used, cfg, seed=0, repeats=1):
-        p = next(sims)
+        p = next(it)
         return {
-            "heldout_p90_db": {"real": 21.5, "sim": p, "within_1db": abs(p - 21.5) <= 1.0},
+            "heldout_p90_db": {"real": real, "sim": p, "within_1db": abs(p - real) <= 1.0},
             "passed": False,
         }
 
     def fake_fit(flights, effects, cfg, **kw):
-        rec = {"residual": {"shadowing_db": 10.0, "noise_db": 3.0}, "checks": {}}
-        return rec, []
+        return {"residual": {"shadowing_db": 10.0, "noise_db": 3.0}, "checks": {}}, []
 
     monkeypatch.setattr(fr, "loop_check", fake_loop)
     monkeypatch.setattr(fr, "fit_family", fake_fit)
     d = SimpleNamespace(flights=[], rungs=[SimpleNamespace(added=None)])
-    rec = fr.family_from_diagnosis(d, FitConfig(), repeats=1)
-    steps = rec["residual_calibration"]["steps"]
+    return fr.family_from_diagnosis(d, FitConfig(), repeats=1)["residual_calibration"]["steps"]
+
+
+def test_recalibration_never_steps_against_the_p90(monkeypatch) -> None:
+    """Two noisy checks whose p90 falls as the shadowing grows: the next scale is the ratio step
+    (more shadowing), not the secant's leap (it had reached -17.3 on the real flights)."""
+    steps = _recalibration_steps(monkeypatch, [20.0, 19.99, 21.4], 21.5)
     k1 = 21.5 / 20.0
     assert steps[1][0] == pytest.approx(k1)
     assert steps[2][0] == pytest.approx(k1 * 21.5 / 19.99)  # up, by the ratio
@@ -212,22 +216,7 @@ def test_recalibration_takes_a_secant_only_from_a_rise_the_check_can_tell(
     """Two checks whose p90 differ by less than the loop check's tolerance give no slope: a nearly
     flat secant leapt to the x1.5 limit (held-out p90 33.4 dB against the real 22.0 on the real
     flights), so the ratio step is taken; a rise the check can tell keeps the secant."""
-    sims = iter([20.0, second, 21.4])
-
-    def fake_loop(rec, used, cfg, seed=0, repeats=1):
-        p = next(sims)
-        return {
-            "heldout_p90_db": {"real": 24.0, "sim": p, "within_1db": abs(p - 24.0) <= 1.0},
-            "passed": False,
-        }
-
-    def fake_fit(flights, effects, cfg, **kw):
-        return {"residual": {"shadowing_db": 10.0, "noise_db": 3.0}, "checks": {}}, []
-
-    monkeypatch.setattr(fr, "loop_check", fake_loop)
-    monkeypatch.setattr(fr, "fit_family", fake_fit)
-    d = SimpleNamespace(flights=[], rungs=[SimpleNamespace(added=None)])
-    steps = fr.family_from_diagnosis(d, FitConfig(), repeats=1)["residual_calibration"]["steps"]
+    steps = _recalibration_steps(monkeypatch, [20.0, second, 21.4], 24.0)
     k0, k1 = 1.0, 24.0 / 20.0
     want = k1 * 24.0 / second if ratio else k1 + (24.0 - second) * (k1 - k0) / (second - 20.0)
     assert steps[2][0] == pytest.approx(want)

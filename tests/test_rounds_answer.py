@@ -132,11 +132,44 @@ def test_the_networks_physics_judges_where_it_holds(repo_dir, monkeypatch, holds
     est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
     rms = est.extras["physics_rms_db"]
     listed = est.extras["candidates"]
-    assert len(rms) == len(listed) == 2
+    # today's two candidates and the shipped survey network, judged together
+    assert len(rms) == len(listed) == 3 and len(est.candidates) == 2
     if holds:
         k = int(np.argmin(rms))
         assert (round(est.x_m, 2), round(est.y_m, 2)) == (listed[k]["x_m"], listed[k]["y_m"])
         assert "networks' physics explains" in est.extras["note"]
     else:
-        top = max(listed, key=lambda c: c["weight"])
+        top = max(listed[:2], key=lambda c: c["weight"])
         assert (round(est.x_m, 2), round(est.y_m, 2)) == (top["x_m"], top["y_m"])
+
+
+@pytest.mark.parametrize("judged", [True, False])
+def test_the_survey_network_answers_through_the_judge_only(repo_dir, monkeypatch, judged):
+    """The survey network (``SURVEY_NETWORK``, shipped) is a third candidate for the networks'
+    physics: placed at the true transmitter, the judge takes it, with a note naming it; with the
+    judge off it never answers (the rounds weigh today's two candidates only), and it is listed
+    with its residual either way."""
+    assert ra.shipped_model(ra.SURVEY_NETWORK) is not None
+    log, spec, tx = _flight(repo_dir, "elsewhere")
+    flight = log.flight_log(spec, spec.adaptive)
+    real = ra.survey_network
+
+    def at_truth(survey, origin, tx_height_m):
+        est = real(survey, origin, tx_height_m)
+        assert est is not None and est.method == "onnx"
+        return dataclasses.replace(est, x_m=float(tx[0]), y_m=float(tx[1]))
+
+    monkeypatch.setattr(ra, "survey_network", at_truth)
+    monkeypatch.setattr(ra, "PHYSICS_RMS_DB", ra.PHYSICS_RMS_DB if judged else -np.inf)
+    est = rounds_answer(flight, spec.field.origin, spec.field.rover_area)
+    listed, rms = est.extras["candidates"], est.extras["physics_rms_db"]
+    assert listed[2]["source"] == "onnx survey network, survey" and len(rms) == 3
+    assert "onnx survey network (survey)" in est.components
+    assert rms[2] == min(rms) and rms[2] < 2.0  # the mission's 1 dB noise at the transmitter
+    at = (round(est.x_m, 2), round(est.y_m, 2))
+    if judged:
+        assert at == (listed[2]["x_m"], listed[2]["y_m"]) and est.model == listed[2]["source"]
+        assert "at onnx survey network, survey" in est.extras["note"]
+    else:
+        assert at in {(c["x_m"], c["y_m"]) for c in listed[:2]}
+        assert est.model != listed[2]["source"]

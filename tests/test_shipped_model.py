@@ -29,6 +29,7 @@ SHIPPED = (
     "rfsl_afar",
     "rfsl_spiral_e2r_ens5",
     "rfsl_spiral_alt",
+    "rfsl_survey_e2r",
 )
 
 

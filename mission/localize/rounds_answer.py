@@ -9,7 +9,8 @@ are scored (``stacking.blocked_scores`` with the survey and the rounds as its tw
 answer is the candidate the rounds support best, unless the network's own physics (e2r, dipoles)
 explains the whole flight well with the transmitter at one of them (``physics_rms_db``): then that
 one, since the rounds' score favours the search, fitted on the very rounds it is scored on
-(docs/adaptive.md).  The regions are the live method's.
+(docs/adaptive.md).  The judge also weighs a third candidate, the network trained on the survey
+(``SURVEY_NETWORK``), which the rounds never score.  The regions are the live method's.
 """
 
 from __future__ import annotations
@@ -28,12 +29,16 @@ from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.sim_default import SPIRAL_SOURCE_MODEL
 from mission.physics import make_model
 from mission.robust import offset_residual
+from mission.shipped import shipped_model
 
 SURVEY, ROUNDS = 0, 1  # the two blocks
 # the networks' physics judges between the candidates when the better of them leaves at most this
 # root mean square residual (dB): the 95th percentile on 40 flights under the mission's own physics
 # (calibration seed 5001, bench_adaptive.py --json, physics_rms_db; docs/adaptive.md)
 PHYSICS_RMS_DB = 9.89
+# trained on the survey of missions/spiral_adaptive.yaml (docs/adaptive.md): a third candidate for
+# the judge only, never for the rounds' score
+SURVEY_NETWORK = "rfsl_survey_e2r.onnx"
 
 
 def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
@@ -84,6 +89,15 @@ def physics_rms_db(part, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
     return np.array([np.sqrt(np.mean(offset_residual(s.rss_dbm, p) ** 2)) for p in pred])
 
 
+def survey_network(survey, origin, tx_height_m: float) -> Estimate | None:
+    """The survey network's answer on the survey's rows (``SURVEY_NETWORK``), None where it is not
+    shipped."""
+    path = shipped_model(SURVEY_NETWORK)
+    if path is None:
+        return None
+    return run_member("onnx", survey, origin, model_path=path, tx_height_m=tx_height_m)[1]
+
+
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
     """The live method on the whole flight and the fixed flight's default on the survey, the
     candidate the rounds support best answering (module docstring); the live method's answer alone
@@ -107,19 +121,25 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
-    rms, judged = None, False
+    rms, judged, weighed, net = None, False, list(cands), None
     if fixed.method == "onnx":  # the network's own physics judges, where it holds
-        rms = physics_rms_db(part, np.array([c.xy for c in cands]), tx_height_m)
+        net = survey_network(survey, origin, tx_height_m)
+        if net is not None:  # a third candidate for the judge alone
+            weighed.append(Candidate(net.x_m, net.y_m, "onnx survey network, survey"))
+        rms = physics_rms_db(part, np.array([c.xy for c in weighed]), tx_height_m)
         judged = bool(rms.min() <= PHYSICS_RMS_DB)
         if judged:
-            best = cands[int(np.argmin(rms))]
+            best = weighed[int(np.argmin(rms))]
     lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
     est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
     est.regions = live.regions  # the live method's: the stage picks a point, it fits no posterior
     est.posterior = live.posterior
-    est.extras["candidates"] = [c.to_dict() for c in cands]
+    est.extras["candidates"] = [c.to_dict() for c in weighed]
     est.candidates = sorted(cands, key=lambda c: -c.weight)
-    est.set_components({ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed})
+    est.set_components(
+        {ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed}
+        | ({"onnx survey network (survey)": net} if net is not None else {})
+    )
     if rms is not None:
         est.extras["physics_rms_db"] = [round(float(v), 2) for v in rms]
     if judged:
