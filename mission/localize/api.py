@@ -333,8 +333,10 @@ def choose_method(
             ADAPTIVE_ANSWER,
             None,
             (
-                f"adaptive flight: the live method ({ADAPTIVE_METHOD}) or the survey's "
-                "fixed-flight default, whichever the rounds' RSS supports (rounds_answer)"
+                f"adaptive flight: the live method ({ADAPTIVE_METHOD}), the survey's "
+                "fixed-flight default or the survey network, whichever the networks' physics "
+                "explains best where it explains the flight, else whichever of the first two the "
+                "rounds' RSS supports (rounds_answer)"
             ),
         )
     if (meta.get("rss_source") or {}).get("kind") != "sim":

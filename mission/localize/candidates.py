@@ -44,11 +44,12 @@ class Candidate:
         return replace(self, evidence=float(evidence), weight=float(weight))
 
     def line(self) -> str:
-        """The candidate in one line of ``localize``'s table: weight, source, point, evidence."""
+        """The candidate in one line of ``localize``'s table: weight, source, point, evidence (a
+        candidate no held-out RSS scored, such as the adaptive answer's survey network, says so)."""
         dom = "" if self.in_domain else ", outside training"
+        ev = "not scored" if self.evidence is None else f"{self.evidence:+.1f} nats"
         return (
-            f"{self.weight:.2f} {self.source}: {self.x_m:.0f}, {self.y_m:.0f} m "
-            f"({self.evidence:+.1f} nats{dom})"
+            f"{self.weight or 0.0:.2f} {self.source}: {self.x_m:.0f}, {self.y_m:.0f} m ({ev}{dom})"
         )
 
     def to_dict(self) -> dict:

@@ -135,7 +135,8 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     est.regions = live.regions  # the live method's: the stage picks a point, it fits no posterior
     est.posterior = live.posterior
     est.extras["candidates"] = [c.to_dict() for c in weighed]
-    est.candidates = sorted(cands, key=lambda c: -c.weight)
+    # most weight first, then the survey network (judged, never weighed by the rounds)
+    est.candidates = sorted(cands, key=lambda c: -c.weight) + weighed[len(cands) :]
     est.set_components(
         {ADAPTIVE_METHOD: live, f"{fixed.method} (survey)": fixed}
         | ({"onnx survey network (survey)": net} if net is not None else {})
