@@ -17,7 +17,7 @@ Schema (``schema`` 1)::
      # correlated field + white nugget
      "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
      "offset_db": D,           # the receiver's uncalibrated offset
-     "nuisance": {"time_drift_db": D},  # optional: per-flight structure beside the spec (below)
+     "nuisance": {"time_drift_db": D, "radial_db": D},  # optional: per-flight structure (below)
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
 
 A distribution ``D`` is a number (fixed) or ``{"dist": "uniform", "lo", "hi"}``, ``{"dist":
