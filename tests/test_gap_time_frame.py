@@ -16,7 +16,7 @@ from mission.gap.diagnose import diagnose
 from mission.gap.fit import FitConfig, heldout_residuals, make_folds, rank_candidates
 from mission.gap.frame import frame_test, heading_groups, resolve
 from mission.gap.pipeline import Pipeline
-from mission.gap.report import write_report
+from mission.gap.report import summary, write_report
 from mission.gap.structure import WITHIN_FLIGHT, structure_verdict
 from mission.gap.temporal import MIN_EVENT_GAP_S, flight_events, time_power_statement
 from mission.gap.text import verdict_sentence
@@ -134,6 +134,24 @@ def test_processes_are_bit_identical_to_one():
         assert one[k].loss_reduction == two[k].loss_reduction and one[k].ci_lo == two[k].ci_lo
         for a, b in zip(one[k].residuals, two[k].residuals, strict=True):
             assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_a_whole_diagnosis_in_processes_is_bit_identical_to_one():
+    """The whole diagnosis, with candidates scored as their folds arrive and the statistics after
+    the ladder run as jobs in the processes, writes the very ``gap.json`` of one process."""
+    fl, _ = _flights("step", 2)
+    docs = []
+    for processes in (1, 2):
+        d = diagnose(
+            fl,
+            _base(),
+            select(["time_drift", "path_gain_slope", "rx_gain_map"]),
+            FitConfig(seed=2, fit_max_samples=600, processes=processes),
+            reference=("two-ray",),
+            localize=False,
+        )
+        docs.append(json.dumps(summary(d), sort_keys=True, default=str))
+    assert docs[0] == docs[1] and '"structure"' in docs[0]
 
 
 def test_one_verdict_on_what_is_left():
