@@ -41,7 +41,7 @@ from mission.gap.fit import (
 from mission.gap.pipeline import Pipeline, Selection
 from mission.gap.temporal import time_columns
 from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
-from mission.physics.family import DRIFT_ORDER, log_distance_unit
+from mission.physics.family import DRIFT_ORDER, radial_coordinate
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
 from mission.robust import robust_offset
@@ -317,8 +317,7 @@ def nuisance_stds(
         else:
             if flight.tx_enu_m is None:
                 return out
-            d = flight.enu_m[ok, :2] - np.asarray(flight.tx_enu_m, dtype=float)[None, :2]
-            u = log_distance_unit(np.hypot(d[:, 0], d[:, 1]))
+            u = radial_coordinate(flight.tx_enu_m, flight.enu_m[ok])
             blocks.append(np.polynomial.legendre.legvander(u, DRIFT_ORDER)[:, 1:])
     blocks = [b - b.mean(axis=0) for b in blocks]  # about their means, as y: no intercept lost
     X = np.column_stack(blocks)

@@ -55,6 +55,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
+from mission.physics.geometry import horizontal_distance
 from mission.physics.presets import build_model
 from mission.physics.shadowing import shadowing_field
 
@@ -348,11 +349,24 @@ def time_drift(n: int, std_db: float, rng: np.random.Generator) -> np.ndarray:
     1 / (1 + p^2) (module docstring); zeros when ``std_db`` is 0 or fewer than 3 samples."""
     if std_db <= 0 or n < 3:
         return np.zeros(n)
-    u = np.linspace(-1.0, 1.0, n)
+    return _smooth_draw(np.linspace(-1.0, 1.0, n), std_db, rng)
+
+
+def _smooth_draw(u: np.ndarray, std_db: float, rng: np.random.Generator) -> np.ndarray:
+    """A random combination of Legendre P_1..P_DRIFT_ORDER of ``u`` (on [-1, 1]), coefficient sd
+    1 / (1 + p^2), rescaled to std ``std_db`` over the samples; zeros where it does not vary (all
+    ``u`` equal): the draw of both the time drift and the radial profile."""
     c = rng.normal(0.0, 1.0, DRIFT_ORDER) / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
     g = np.polynomial.legendre.legval(u, np.concatenate([[0.0], c]))
     sd = float(np.std(g))
-    return g * (std_db / sd) if sd > 0 else np.zeros(n)
+    return g * (std_db / sd) if sd > 1e-12 else np.zeros(len(u))
+
+
+def radial_coordinate(tx_enu: np.ndarray, rx_enu: np.ndarray) -> np.ndarray:
+    """``log_distance_unit`` of each sample's horizontal distance to the transmitter: the
+    coordinate the radial profile is drawn over and the gap's family fits it on."""
+    d = np.asarray(rx_enu, dtype=float)[:, :2] - np.asarray(tx_enu, dtype=float)[None, :2]
+    return log_distance_unit(horizontal_distance(d[:, 0], d[:, 1]))
 
 
 def log_distance_unit(d_m: np.ndarray) -> np.ndarray:
@@ -368,15 +382,10 @@ def radial_profile(
     random combination of Legendre P_1..P_DRIFT_ORDER of ``log_distance_unit``, coefficient sd
     1 / (1 + p^2), as ``time_drift`` draws over time; zeros when ``std_db`` is 0, with fewer than 3
     samples or all at one distance."""
-    rx = np.asarray(rx_enu, dtype=float)
-    if std_db <= 0 or len(rx) < 3:
-        return np.zeros(len(rx))
-    d = rx[:, :2] - np.asarray(tx_enu, dtype=float)[None, :2]
-    u = log_distance_unit(np.hypot(d[:, 0], d[:, 1]))
-    c = rng.normal(0.0, 1.0, DRIFT_ORDER) / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
-    g = np.polynomial.legendre.legval(u, np.concatenate([[0.0], c]))
-    sd = float(np.std(g))
-    return g * (std_db / sd) if sd > 1e-12 else np.zeros(len(rx))
+    n = len(rx_enu)
+    if std_db <= 0 or n < 3:
+        return np.zeros(n)
+    return _smooth_draw(radial_coordinate(tx_enu, rx_enu), std_db, rng)
 
 
 def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
