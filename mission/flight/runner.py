@@ -67,6 +67,7 @@ from mission.flight.plan import upload_with_retries
 from mission.flight.preflight import check_options
 from mission.flight.progress import Display, FlightStatus
 from mission.flight.sdklog import SdkLog
+from mission.flight.signals import LoopSignals
 from mission.flight.sources import SimSource, make_receiver, parse_source
 from mission.flight.speeds import apply_speeds, restore_speeds, vertical_speeds
 from mission.flight.telemetry import Telemetry
@@ -227,9 +228,9 @@ async def run(ctx: FlightContext) -> int:
     # fence and budget: refuse before connecting or uploading anything
     report = assert_flyable(spec)
     ctx.source, ctx.truth = make_source(spec, ctx.opts.rss_source)
-    loop = asyncio.get_running_loop()
-    for sig in SIGNALS:
-        loop.add_signal_handler(sig, tasks.on_signal, ctx, sig.name)
+    signals = LoopSignals(
+        asyncio.get_running_loop(), SIGNALS, functools.partial(tasks.on_signal, ctx)
+    ).install()
     try:
         url = ctx.url
         if not url:
@@ -257,8 +258,7 @@ async def run(ctx: FlightContext) -> int:
         finally:
             sys.setswitchinterval(switch)
     finally:
-        for sig in SIGNALS:
-            loop.remove_signal_handler(sig)
+        signals.remove()  # back to fly()'s: a later signal is a Ctrl-C (exit 130)
         stop_vehicle(ctx.vehicle_proc)
     if ctx.opts.localize:  # after the flight: a Ctrl-C now is a plain interrupt (exit 130)
         print_result(ctx)
