@@ -166,7 +166,7 @@ class ModeMachine:
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
                 # the return is flown at the autopilot's own speed
                 speed = self.param("MPC_XY_CRUISE")
-                z = max(pts[-1][2], 5.0)
+                z = max(pts[-1][2], self.param("RTL_RETURN_ALT"), 5.0)
                 self._append(pts, np.array([pts[-1][0], pts[-1][1], z]))
                 self._append(pts, np.array([0.0, 0.0, z]))
                 self._append(pts, np.zeros(3))
@@ -199,7 +199,7 @@ class ModeMachine:
             self.plan = None
             return True
         pts = [self.pos.copy()]
-        z = max(self.pos[2], 5.0)
+        z = max(self.pos[2], self.param("RTL_RETURN_ALT"), 5.0)
         self.say(f"RTL: start return at {z:.0f} m")
         self._append(pts, np.array([self.pos[0], self.pos[1], z]))
         self._append(pts, np.array([0.0, 0.0, z]))

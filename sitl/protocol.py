@@ -83,11 +83,14 @@ class Profile:
     # at the last one (PX4: MPC_TKO_SPEED, MPC_Z_V_AUTO_DN, MPC_LAND_SPEED, MPC_LAND_ALT2); None:
     # the kinematics' climb rate throughout
     vertical: tuple[float, float, float, float] | None = None
+    # height above home a return climbs to first when lower (PX4: RTL_RETURN_ALT, 30 m on a v1.16
+    # multicopter); 0: the return is flown at the altitude it starts from
+    rtl_return_alt_m: float = 0.0
 
 
 PROFILES = {
     "default": Profile("default"),
-    "px4": Profile("px4", 0.93, 4.8, True, True, (1.5, 1.5, 0.7, 5.0)),
+    "px4": Profile("px4", 0.93, 4.8, True, True, (1.5, 1.5, 0.7, 5.0), 30.0),
 }
 VERTICAL_PARAMS = ("MPC_TKO_SPEED", "MPC_Z_V_AUTO_DN", "MPC_LAND_SPEED", "MPC_LAND_ALT2")
 # PX4 v1.16: no hover over home before landing (it is not flown here)

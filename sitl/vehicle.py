@@ -97,6 +97,7 @@ class SimVehicle(
             "MPC_XY_CRUISE": float(cruise),
             **dict(zip(VERTICAL_PARAMS, map(float, vertical), strict=True)),
             **OTHER_PARAMS,
+            "RTL_RETURN_ALT": float(self.profile.rtl_return_alt_m),
         }
         self.cruise: float | None = None  # set by MAV_CMD_DO_CHANGE_SPEED; None: MPC_XY_CRUISE
         self.verbose = verbose

@@ -34,13 +34,13 @@ from mission.adaptive.simflight import FlightWorld, SimLog, adaptive_flight, est
 from mission.cli.fly import main
 from mission.cli.main import main as rfsl_main
 from mission.errors import InputError
-from mission.flight.budget import Pace
 from mission.flight.phases import MonotonicPhases
 from mission.localize.methods import ADAPTIVE_ANSWER
 from mission.localize.uncertainty import Posterior
 from mission.physics import make_model
 from mission.physics.family import load_family
 from mission.spec import load_mission, parse_mission
+from mission.trajectory.autopilot import Pace
 from mission.trajectory.kinematics import plan_profile
 
 ADAPTIVE = "missions/spiral_adaptive.yaml"

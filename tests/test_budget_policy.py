@@ -20,12 +20,11 @@ from mission.flight.budget import (
     PACE_PRIOR,
     TRIM_LOOKAHEAD,
     BudgetWatch,
-    Pace,
-    VerticalSpeeds,
     fit_pace,
     plan_times,
 )
 from mission.spec import load_mission, parse_mission
+from mission.trajectory.autopilot import Pace, VerticalSpeeds
 
 SPIRAL = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"
 PX4_VERTICAL = VerticalSpeeds(1.5, 1.5, 0.7, 5.0)

@@ -26,7 +26,7 @@ from _flight_logs import wait_rows as _wait_rows
 from pymavlink import mavutil
 
 from mission.cli.fly import main
-from mission.flight.budget import VerticalSpeeds, plan_times
+from mission.flight.budget import plan_times
 from mission.flight.runner import free_udp_port
 from mission.flight.sources import recompute_sim_rss
 from mission.flightlog import read_flight_log
@@ -34,6 +34,7 @@ from mission.localize.error_circles import card_calibration, flown_radii
 from mission.localize.preprocess import select_samples
 from mission.localize.training_domain import planned_track, track_coverage
 from mission.spec import load_mission
+from mission.trajectory.autopilot import VerticalSpeeds
 
 ROOT = Path(__file__).resolve().parents[1]
 SPIRAL = ROOT / "missions" / "spiral.yaml"

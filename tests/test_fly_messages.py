@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from mavsdk.plugins.mission_raw import MissionRawError, MissionRawResult
 
-from mission.adaptive.rounds import AdaptiveRounds, autopilot_return_extra_s
+from mission.adaptive.rounds import AdaptiveRounds, autopilot_returns
 from mission.cli.fly import choose_adaptive, main
 from mission.cli.main import main as rfsl
 from mission.flight.budget import start_budget
@@ -33,6 +33,7 @@ from mission.localize.api import localize_log
 from mission.localize.methods import ADAPTIVE_METHOD
 from mission.localize.render import Shown
 from mission.spec import load_mission, parse_mission
+from mission.trajectory.autopilot import ReturnModel
 from mission.trajectory.checks import RETURN_OVERSHOOT_M, check_mission
 from mission.trajectory.items import build_items
 
@@ -210,7 +211,8 @@ def test_the_adaptive_budget_is_checked_again_with_the_autopilots_return(return_
     ext = AdaptiveRounds(spec, spec.adaptive)
     ctx = new_context(spec, FlyOptions(), ext)
     ctx.budget = start_budget(ctx, return_mps, None)
-    extra = autopilot_return_extra_s(ctx, ctx.spec.waypoints_enu()[-1])
+    end = ctx.spec.waypoints_enu()[-1]
+    extra = autopilot_returns(ctx).seconds(end) - ReturnModel.of(ctx.spec).seconds(end)
     assert (extra > 100) == refused, extra
     if not refused:
         ext.check(ctx)

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from mission.flight.ardupilot import set_params
-from mission.flight.budget import BudgetWatch, VerticalSpeeds, plan_times, used_seconds
+from mission.flight.budget import BudgetWatch, plan_times, used_seconds
 from mission.flight.heartbeat import heartbeat_hz
 from mission.flight.speeds import speed_params
 from mission.spec import load_mission
+from mission.trajectory.autopilot import VerticalSpeeds
 from mission.trajectory.checks import check_mission
 
 SPIRAL = Path(__file__).resolve().parents[1] / "missions" / "spiral.yaml"

@@ -6,7 +6,9 @@ and closed, then through its centre (RSS gradients are steepest near the transmi
 and a pass over the estimate constrain it from every side).  Every round is checked before it is
 sent: the fence and altitude limits with ``trajectory.checks.check_mission`` (the same rule as the
 mission's own waypoints), the time with ``plan_profile`` from where the current leg ends through the
-round and back home to landing, plus a reserve, against what is left of the budget.  A round that
+round, then the autopilot's own return and landing from the round's end
+(``trajectory.autopilot.ReturnModel``: its climb to its return altitude, its landing speeds, its
+disarm), plus a reserve, against what is left of the budget.  A round that
 does not fit is moved inside the fence (its centre towards the flight area's interior) or shrunk
 (down to ``min_radius_m``) and says so; otherwise it is refused.
 """
@@ -20,6 +22,7 @@ import numpy as np
 
 from mission.geo import square_grid
 from mission.spec import TrajectorySpec
+from mission.trajectory.autopilot import ReturnModel
 from mission.trajectory.checks import check_mission
 from mission.trajectory.kinematics import FlightProfile, plan_profile
 
@@ -235,15 +238,6 @@ def leg_violations(spec, start, wps) -> list:
     return [v for v in rep.violations if v.key not in ("time_budget_s", "source.tx")]
 
 
-def return_s(spec, frm) -> float:
-    """Seconds from ``frm`` (3,) back over home at that altitude and down to landing."""
-    home = np.asarray(spec.home_enu, dtype=float)
-    frm = np.asarray(frm, dtype=float)
-    return plan_profile(
-        np.vstack([frm, [home[0], home[1], frm[2]], home]), spec.kinematics()
-    ).duration_s
-
-
 @dataclass
 class RoundPlan:
     """A planned round (``waypoints`` None: refused, ``reason`` says why) with its timing and what
@@ -253,7 +247,7 @@ class RoundPlan:
     centre: tuple[float, float] | None = None
     radius_m: float = 0.0
     fly_s: float = 0.0  # from the start point through the round
-    return_s: float = 0.0  # from its last waypoint home and down
+    return_s: float = 0.0  # from its last waypoint home, down and disarmed
     notes: list[str] = field(default_factory=list)
     reason: str = ""
 
@@ -262,14 +256,18 @@ class RoundPlan:
         return self.waypoints is not None
 
 
-def plan_round(spec, a, est_xy, start, t_start_s: float, pace=None) -> RoundPlan:
+def plan_round(
+    spec, a, est_xy, start, t_start_s: float, pace=None, returns: ReturnModel | None = None
+) -> RoundPlan:
     """The next round around ``est_xy`` flown from ``start`` (3,), which the vehicle reaches
     ``t_start_s`` after take-off; it must end with the return and ``a.reserve_s`` inside the time
-    budget.  ``pace`` (``mission.flight.budget.Pace``: the pace measured in flight) turns the
+    budget.  ``pace`` (``trajectory.autopilot.Pace``: the pace measured in flight) turns the
     kinematic time of the round's legs into the time the autopilot will take (PX4 SITL flew its
-    rounds in 84 and 66 s against 53 and 50 s planned)."""
+    rounds in 84 and 66 s against 53 and 50 s planned); ``returns`` is the autopilot's return
+    from the round's end (default: the mission's kinematics, no climb), flown at that pace."""
     alt = a.altitude(spec)
     kin = spec.kinematics()
+    returns = returns or ReturnModel.of(spec)
     notes: list[str] = []
     left = spec.time_budget_s - t_start_s - a.reserve_s
     r = float(a.radius_m)
@@ -284,7 +282,7 @@ def plan_round(spec, a, est_xy, start, t_start_s: float, pace=None) -> RoundPlan
             ).duration_s
             if pace is not None:
                 fly = pace.scale * fly + pace.per_leg_s * len(wps)
-            back = return_s(spec, wps[-1])
+            back = returns.seconds(wps[-1], pace)
             bad = leg_violations(spec, start, wps)
             if bad:
                 notes.append(f"refused a {2 * r:.0f} m square: {bad[0].message}")

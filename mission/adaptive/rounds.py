@@ -27,7 +27,6 @@ from mission.adaptive.feasibility import adaptive_violations
 from mission.adaptive.planner import (
     mass_near,
     plan_round,
-    return_s,
     rival_of,
     round_target,
     survey_spec,
@@ -41,6 +40,7 @@ from mission.flightlog import ADAPTIVE, LAND, RETURN
 from mission.localize.methods import ADAPTIVE_METHOD
 from mission.localize.render import Shown
 from mission.spec import TrajectorySpec
+from mission.trajectory.autopilot import ReturnModel
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
@@ -76,8 +76,7 @@ class AdaptiveRounds:
     def check(self, ctx: FlightContext) -> None:
         """The adaptive settings again with the autopilot's own return (known now, ``ctx.budget``):
         refused before the upload and take-off, exit 2, when they leave no round."""
-        extra = autopilot_return_extra_s(ctx, ctx.spec.waypoints_enu()[-1])
-        if v := adaptive_violations(self.full_spec, self.config, extra):
+        if v := adaptive_violations(self.full_spec, self.config, autopilot_returns(ctx)):
             raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
 
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None:
@@ -135,26 +134,26 @@ def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int, pace=None) -> 
 
 
 def measured_pace(ctx: FlightContext):
-    """The pace the flight's budget watch measured on the survey (or the autopilot's known one),
-    None without a watch."""
+    """The pace the flight's budget watch measured on the survey, each term at least the
+    autopilot's known one (``Pace.at_least``: a round's legs are short, where a cost per leg the
+    survey's long legs could not show counts most); None without a watch."""
     watch = getattr(ctx, "budget", None)
-    return watch.pace_model() if hasattr(watch, "pace_model") else None
+    if not hasattr(watch, "pace_model"):
+        return None
+    return watch.pace_model().at_least(getattr(watch, "prior", None))
 
 
-def autopilot_return_extra_s(ctx: FlightContext, frm) -> float:
-    """How much longer the autopilot's return and landing from ``frm`` take than the kinematic
-    plan's.
+def autopilot_returns(ctx: FlightContext) -> ReturnModel:
+    """The autopilot's own return and landing from anywhere, as the runner's budget plan knows
+    them once connected (``flight.budget.plan_times``: its return speed, its return altitude,
+    its climb and landing speeds, hover and disarm delay); the mission's kinematics before that.
 
-    The runner's budget plan (``flight.budget``) knows the autopilot's own return speed, descent
-    speeds and hover (ArduCopter: RTL_LOIT_TIME 5 s, LAND_SPEED 0.5 m/s below 10 m: its return took
-    85 s against 55 s planned on the SITL, 615 s of 600 flown); its return from the survey's end
-    against ours is the extra."""
+    Why: ArduCopter SITL's return took 85 s against 55 s planned (615 s of 600 flown); PX4 SITL
+    climbed from a 15 m round to its 30 m return altitude and landed at its own speeds, 108 s where
+    the rounds had planned about 60 (613 s of 600)."""
     plan = getattr(getattr(ctx, "budget", None), "plan", None)
-    try:
-        theirs = float(plan.duration_s - plan.t_wp[-1])
-    except (AttributeError, IndexError, TypeError):
-        return 0.0
-    return max(0.0, theirs - return_s(ctx.spec, frm))
+    returns = getattr(plan, "returns", None)
+    return returns if isinstance(returns, ReturnModel) else ReturnModel.of(ctx.spec)
 
 
 async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) -> None:
@@ -163,7 +162,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
     spec = ext.full_spec
     wps = np.asarray(ctx.spec.waypoints_enu(), dtype=float)
     off, n_survey = ctx.status.waypoint_offset, len(wps)
-    a, lead = _round_config(ctx, ext, wps[-1])
+    a, lead = _round_config(ctx, ext)
+    returns = autopilot_returns(ctx)
     final = final_phase(spec.return_behaviour)
     k = 0
     while True:
@@ -189,7 +189,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         t_end = ctx.tel.clock.now() - ctx.status.t_start + rem
         visited = [rd["centre"] for rd in ext.rounds]
         target = round_target(spec, a, d, visited, wps[-1])
-        plan = plan_round(spec, a, target, wps[-1], t_end, pace)
+        plan = plan_round(spec, a, target, wps[-1], t_end, pace, returns)
         for n in plan.notes if plan.ok else ():
             ctx.event("adaptive", f"round {k + 1}: {n}")
         if not plan.ok:
@@ -244,16 +244,17 @@ def _announce(ctx: FlightContext, rd: dict, d: dict, visit_m: float) -> None:
     )
 
 
-def _round_config(ctx: FlightContext, ext: AdaptiveRounds, last_wp) -> tuple:
-    """The rounds' config with the autopilot's own return added to the reserve, and how far
-    ahead a round is planned (at least ``MIN_LEAD_WALL_S`` of wall-clock time, at most
-    ``MAX_LEAD_SURVEY_SHARE`` of the survey); each change is an event."""
+def _round_config(ctx: FlightContext, ext: AdaptiveRounds) -> tuple:
+    """The rounds' config and how far ahead a round is planned (at least ``MIN_LEAD_WALL_S`` of
+    wall-clock time, at most ``MAX_LEAD_SURVEY_SHARE`` of the survey); a change is an event, as is
+    a return the autopilot flies longer than the mission's kinematics (the rounds plan with it)."""
     a = ext.config
-    extra = autopilot_return_extra_s(ctx, last_wp)
+    frm = np.append(ctx.spec.waypoints_enu()[-1][:2], a.altitude(ext.full_spec))
+    extra = autopilot_returns(ctx).seconds(frm) - ReturnModel.of(ctx.spec).seconds(frm)
     if extra > 0.5:
-        a = dataclasses.replace(a, reserve_s=a.reserve_s + extra)
         ctx.event(
-            "adaptive", f"{extra:.0f} s more reserved: the autopilot's own return and landing"
+            "adaptive",
+            f"rounds planned with the autopilot's own return and landing ({extra:.0f} s longer)",
         )
     lead = min(max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup), MAX_LEAD_SURVEY_SHARE * a.survey_s)
     if lead > a.lead_s:

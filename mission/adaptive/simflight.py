@@ -37,6 +37,7 @@ from mission.physics.family import FamilyDraw
 from mission.physics.shadowing import shadowing_field
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
+from mission.trajectory.autopilot import ReturnModel
 
 MISSION_PHYSICS = "mission"  # the family name that means the mission's own source model
 
@@ -239,7 +240,6 @@ def adaptive_flight(
     plans on) by ``plan_round``, then home."""
 
     sv = survey_profile(spec, a.survey_s).vertices
-    home = np.asarray(spec.home_enu, dtype=float)
     log = SimLog()
     log.fly(np.vstack([*_climb(spec, sv[0]), sv]), [TAKEOFF] + [MISSION] * len(sv), world, cfg, rng)
     end, rounds, notes, visited = sv[-1], 0, [], []
@@ -256,6 +256,7 @@ def adaptive_flight(
         log.fly(np.vstack([end, plan.waypoints]), [ADAPTIVE] * len(plan.waypoints), world, cfg, rng)
         end, rounds = plan.waypoints[-1], rounds + 1
         visited.append(plan.centre)
-    log.fly(np.vstack([end, [home[0], home[1], end[2]], home]), [RETURN, LAND], world, cfg, rng)
+    back, _, j = ReturnModel.of(spec).legs(end)  # the return the rounds were planned with
+    log.fly(back, [RETURN if k < j else LAND for k in range(len(back) - 1)], world, cfg, rng)
     fast = _estimate(loc, log, fast_s, world.tx)
     return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes, log)

@@ -35,6 +35,7 @@ import numpy as np
 
 from mission.flight.plan import upload_with_retries
 from mission.spec import TrajectorySpec
+from mission.trajectory.autopilot import Pace, ReturnModel, VerticalSpeeds
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
@@ -48,19 +49,6 @@ TRIM_LOOKAHEAD = 5
 # (land detector + COM_DISARM_LAND 2 s), ArduCopter 4.7 SITL 3 s; the built-in vehicle disarms at
 # touchdown.
 LANDED_TO_DISARM_S = {"PX4": 7.2, "ARDUPILOT": 3.0}
-
-
-@dataclass(frozen=True)
-class Pace:
-    """Flown leg time = ``scale`` x planned + ``per_leg_s`` (the stop and restart at a waypoint)."""
-
-    scale: float = 1.0
-    per_leg_s: float = 0.0
-
-    def legs(self, planned: np.ndarray) -> float:
-        """Seconds to fly legs planned at ``planned`` seconds each."""
-        planned = np.asarray(planned, dtype=float)
-        return float(self.scale * planned.sum() + self.per_leg_s * planned.size)
 
 
 # The known pace of an autopilot's mission legs (``Pace``), used before ``MIN_FIT_LEGS`` legs are
@@ -101,6 +89,7 @@ class BudgetPlan:
         None  # seconds from waypoint j back over home (the return if the mission ends at j)
     )
     disarm_s: float = 0.0  # touchdown to disarm (the autopilot's), inside duration_s and land_s
+    returns: ReturnModel | None = None  # the return from anywhere (an adaptive round's end)
 
     def __post_init__(self) -> None:
         if self.ret_s is None:  # only the full mission's return is known
@@ -112,27 +101,6 @@ class BudgetPlan:
         return float(self.t_wp[last] + self.ret_s[last] + self.land_s)
 
 
-@dataclass(frozen=True)
-class VerticalSpeeds:
-    """The autopilot's own climb and descent speeds (m/s): take-off at ``up_mps``; the final descent
-    at ``down_mps`` down to ``low_alt_m`` above ground, then at ``land_mps`` (ArduCopter: 0.5 m/s
-    below 10 m, which made its landing 36 s where the mission's kinematics plan 12 s)."""
-
-    up_mps: float
-    down_mps: float
-    land_mps: float
-    low_alt_m: float
-    hover_s: float = (
-        0.0  # hover over home before the descent of a return (ArduPilot RTL_LOIT_TIME: 5 s)
-    )
-
-    def valid(self) -> bool:
-        return (
-            min(self.up_mps, self.down_mps, self.land_mps) > 0
-            and self.low_alt_m >= 0 <= self.hover_s
-        )
-
-
 def plan_times(
     spec,
     return_speed_mps: float | None = None,
@@ -141,52 +109,40 @@ def plan_times(
 ) -> BudgetPlan:
     """The mission's plan (``spec.flight_path_enu`` with its kinematics, as the pre-flight check),
     with the return leg at ``return_speed_mps`` when the autopilot will not fly it at the mission's
-    speed, the take-off and landing at the autopilot's ``vertical`` speeds when known, and
-    ``disarm_s`` from touchdown to disarm; ``ret_s`` holds the return from every waypoint (what a
-    dropped tail leaves)."""
-    path = spec.flight_path_enu()
+    speed, the take-off, return altitude and landing at the autopilot's ``vertical`` settings when
+    known, and ``disarm_s`` from touchdown to disarm; ``ret_s`` holds the return from every waypoint
+    (what a dropped tail leaves), ``returns`` the return from anywhere (``ReturnModel``)."""
     kin = spec.kinematics()
-    n = len(spec.waypoints_enu())
-    drop = path[-2, 2] - path[-1, 2]  # the final descent (both return behaviours end with one)
-    # it slows down below low_alt_m: a vertex there
-    if vertical is not None and 0 < vertical.low_alt_m < drop:
-        path = np.vstack([path[:-1], path[-1] + [0.0, 0.0, vertical.low_alt_m], path[-1:]])
-    d = np.diff(path, axis=0)
+    w = spec.waypoints_enu()
+    n = len(w)
+    rtl = spec.return_behaviour == "rtl"
+    returns = ReturnModel.of(
+        spec, speed_mps=return_speed_mps if rtl else None, vertical=vertical, disarm_s=disarm_s
+    )
+    out = spec.flight_path_enu()[: n + 2]  # home, the climb and the waypoints
+    tail, tail_speeds, j_tail = returns.legs(w[-1])
+    d = np.diff(out, axis=0)
     L = np.linalg.norm(d, axis=1)
-    # plan_profile's rule for take-off and landing legs
+    # plan_profile's rule for take-off legs
     vert = np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7
     vs = np.full(len(L), kin.climb_rate_mps)
     if vertical is not None:
         vs = np.where(d[:, 2] > 0, vertical.up_mps, vertical.down_mps)
-        vs[-1] = vertical.land_mps  # the last leg ends on the ground below low_alt_m
-    speeds = np.where(vert, vs, kin.cruise_speed_mps)
-    # legs after the last waypoint (n + 1 on)
-    if return_speed_mps and spec.return_behaviour == "rtl":
-        speeds[n + 1 :] = np.where(vert[n + 1 :], speeds[n + 1 :], return_speed_mps)
-    keep = L > 1e-6
+    speeds = np.concatenate([np.where(vert, vs, kin.cruise_speed_mps), tail_speeds])
+    path = np.vstack([out, tail[1:]])
+    keep = np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-6
     prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
-    s_path = np.concatenate([[0.0], np.cumsum(L)])
+    s_path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
     t = np.interp(s_path, prof.s_vertex, prof.t_vertex)
-    # the final descent: the last leg, or the last two when it slows down near the ground
-    j = len(L) - 1
-    while j > 0 and vert[j - 1] and d[j - 1, 2] < 0:
-        j -= 1
-    hover = vertical.hover_s if vertical is not None and spec.return_behaviour == "rtl" else 0.0
-    t_wp, land = t[2 : 2 + n], float(t[-1] - t[j]) + hover + disarm_s
-    duration = prof.duration_s + hover + disarm_s
+    # the final descent starts j_tail legs after the last waypoint
+    t_wp, land = t[2 : 2 + n], float(t[-1] - t[n + 1 + j_tail]) + returns.after_s
+    duration = prof.duration_s + returns.after_s
     ret = np.full(n, duration - land - t_wp[-1])
-    # from waypoint j straight back over home, at the return speed
-    if spec.return_behaviour == "rtl":
-        w, home = spec.waypoints_enu(), np.asarray(spec.home_enu, dtype=float)
-        v = return_speed_mps or kin.cruise_speed_mps
+    # from waypoint i straight back over home (after the climb to the return altitude)
+    if rtl:
         for i in range(n - 1):
-            back = np.array([w[i], [home[0], home[1], w[i, 2]]])
-            ret[i] = (
-                plan_profile(back, kin, speeds=np.array([v])).duration_s
-                if np.ptp(back[:, :2], 0).any()
-                else 0.0
-            )
-    return BudgetPlan(float(spec.time_budget_s), t_wp, duration, land, ret, disarm_s)
+            ret[i] = returns.split(w[i])[0]
+    return BudgetPlan(float(spec.time_budget_s), t_wp, duration, land, ret, disarm_s, returns)
 
 
 @dataclass

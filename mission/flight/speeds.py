@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 
 from mission.flight.ardupilot import return_params, set_params
-from mission.flight.budget import VerticalSpeeds
+from mission.trajectory.autopilot import VerticalSpeeds
 
 PX4_CRUISE = "MPC_XY_CRUISE"
 
@@ -77,12 +77,14 @@ async def _get(param, name: str) -> float:
 
 
 async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
-    """The autopilot's take-off and landing speeds, read (not changed: landing speeds are the
-    operator's safety settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0:
+    """The autopilot's take-off and landing speeds and return altitude, read (not changed: they are
+    the operator's safety settings): ArduPilot ``WPNAV_SPEED_UP``, ``LAND_SPEED_HIGH`` (0:
     ``WPNAV_SPEED_DN``), ``LAND_SPEED`` below ``LAND_ALT_LOW`` (cm/s, cm), the hover
-    ``RTL_LOIT_TIME`` (ms); PX4 ``MPC_TKO_SPEED``, ``MPC_Z_V_AUTO_DN``, ``MPC_LAND_SPEED`` below
-    ``MPC_LAND_ALT2`` (m/s, m), the hover ``RTL_LAND_DELAY`` (s). None (and one line) when they
-    cannot be read: the plan keeps the mission's."""
+    ``RTL_LOIT_TIME`` (ms), the return altitude ``RTL_ALT`` (cm); PX4 ``MPC_TKO_SPEED``,
+    ``MPC_Z_V_AUTO_DN``, ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2`` (m/s, m), the hover
+    ``RTL_LAND_DELAY`` (s), the return altitude ``RTL_RETURN_ALT`` (m; its cone near home, which
+    lowers the climb there, is not modelled: the plan then errs long). None (and one line) when
+    they cannot be read: the plan keeps the mission's."""
     try:
         if ardupilot:
             up, high, dn, land, low = [
@@ -96,9 +98,10 @@ async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
                 )
             ]
             hover = await _get(param, "RTL_LOIT_TIME") / 1000.0
-            v = VerticalSpeeds(up, high if high > 0 else dn, land, low, hover)
+            ret = await _get(param, "RTL_ALT") / 100.0
+            v = VerticalSpeeds(up, high if high > 0 else dn, land, low, hover, ret)
         else:
-            up, dn, land, low, delay = [
+            up, dn, land, low, delay, ret = [
                 await _get(param, n)
                 for n in (
                     "MPC_TKO_SPEED",
@@ -106,10 +109,11 @@ async def vertical_speeds(ctx, param, ardupilot: bool) -> VerticalSpeeds | None:
                     "MPC_LAND_SPEED",
                     "MPC_LAND_ALT2",
                     "RTL_LAND_DELAY",
+                    "RTL_RETURN_ALT",
                 )
             ]
             # -1: hovers until told: not planned
-            v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0))
+            v = VerticalSpeeds(up, dn, land, low, max(delay, 0.0), ret)
     except Exception as e:
         ctx.event(
             "budget", f"climb and landing speeds not read ({e or type(e).__name__}): mission's used"
