@@ -210,3 +210,20 @@ def test_geometric_median_closed_forms() -> None:
     # one point holding more than half the weight is the weighted median (Weiszfeld's majority
     # theorem)
     assert geometric_median(line, np.array([0.1, 0.1, 0.8])) == pytest.approx([10.0, 0.0], abs=1e-3)
+
+
+@settings(max_examples=25, deadline=None)
+@given(b=st.floats(0.01, 0.99))
+def test_a_mixtures_background_holds_its_share_of_the_mass(b):
+    """The background holds ``b`` of the mass, spread evenly (the cells far from every candidate
+    carry b / cells each); none gives the old mixture; all of it a flat posterior."""
+    grid = square_grid((0.0, 0.0, 1000.0, 1000.0), 5.0)
+    xy, w = np.array([[400.0, 500.0], [600.0, 450.0]]), np.array([0.7, 0.3])
+    post = mixture_posterior(xy, w, grid, 35.0, background=b)
+    far = post.prob[0, 0]  # 500 m from both: the Gaussians add nothing there
+    assert far * post.prob.size == pytest.approx(b, rel=1e-3)
+    assert post.prob.sum() == pytest.approx(1.0)
+    plain = mixture_posterior(xy, w, grid, 35.0)
+    assert np.array_equal(plain.prob, mixture_posterior(xy, w, grid, 35.0, 0.0).prob)
+    flat = mixture_posterior(xy, w, grid, 35.0, background=1.0 - 1e-12)
+    assert np.ptp(flat.prob) < 1e-9
