@@ -66,6 +66,7 @@ from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.gap.align import afar2023_flights
 from mission.gap.candidates import select
 from mission.gap.diagnose import base_pipeline, decimate_flight, diagnose
+from mission.gap.familyfit import structure_of
 from mission.gap.familyrun import family_from_diagnosis
 from mission.gap.fit import FitConfig, Fold, _pooled, make_folds, rank_candidates
 from mission.gap.loopcheck import loop_check
@@ -480,7 +481,7 @@ def speed(args: argparse.Namespace) -> int:
             cfg,
             name="afar",
             repeats=args.repeats,
-            structure=("time", "radial") if args.family_radial else args.family_structure,
+            structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
         )
         if args.family_out:
             Path(args.family_out).write_text(json.dumps(rec, indent=1) + "\n")
@@ -752,6 +753,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="per-flight structure with a profile over the distance to the rover beside the drift "
         "(mission/gap/README.md, 'Structure about the transmitter')",
+    )
+    sp.add_argument(
+        "--family-azimuth",
+        action="store_true",
+        help="per-flight structure with a ripple over the rover's body azimuth beside the drift "
+        "(mission/gap/README.md, 'A pattern fixed to the body')",
     )
     sp.add_argument("--family-out", help="also write the family job's record here (JSON)")
     c = sub.add_parser("family-check")

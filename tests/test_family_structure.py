@@ -16,6 +16,7 @@ from mission.gap.familyfit import (
     nuisance_stds,
     offset_distribution,
     structure_kinds,
+    structure_of,
     time_drift_std,
 )
 from mission.gap.familyloss import family_loss, interval_miss, ppc_miss
@@ -24,6 +25,8 @@ from mission.physics.family import (
     DRIFT_ORDER,
     FamilyDraw,
     PhysicsFamily,
+    azimuth_coordinate,
+    azimuth_ripple,
     load_family,
     log_distance_unit,
     radial_profile,
@@ -301,3 +304,59 @@ def test_structure_kinds() -> None:
     assert structure_kinds(("time", "radial")) == ("time", "radial")
     with pytest.raises(ValueError, match="nuisance kind"):
         structure_kinds(("ground",))
+
+
+def test_the_body_azimuth_of_the_rover_has_its_closed_form() -> None:
+    """Level flight, nose north (yaw 0): a rover due north is at body azimuth 0, due east at 90
+    deg (right), due west at 270; yawing the nose east by 90 deg turns the north rover to 270."""
+    tx = np.array([0.0, 0.0, 0.0])
+    rx = np.array([[0.0, -100.0, 30.0], [-100.0, 0.0, 30.0], [100.0, 0.0, 30.0]])
+    level = np.zeros((3, 3))
+    az = np.degrees(azimuth_coordinate(tx, rx, level))
+    np.testing.assert_allclose(az, [0.0, 90.0, 270.0], atol=1e-9)
+    east = np.tile([0.0, 0.0, np.pi / 2], (3, 1))
+    np.testing.assert_allclose(np.degrees(azimuth_coordinate(tx, rx, east))[0], 270.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("std", [0.7, 4.0])
+def test_azimuth_ripple_has_its_std_and_follows_the_body_azimuth_only(std: float) -> None:
+    """The ripple is a function of the rover's body azimuth alone (equal wherever that azimuth is
+    equal, whatever the distance), of the drawn std; zero std or one azimuth draws nothing."""
+    tx, rx = _ring_track()
+    att = np.zeros((len(rx), 3))
+    att[:, 2] = np.linspace(0.0, 6 * np.pi, len(rx))
+    g = azimuth_ripple(tx, rx, att, std, np.random.default_rng(3))
+    assert np.std(g) == pytest.approx(std)
+    az = azimuth_coordinate(tx, rx, att)
+    order = np.argsort(az)
+    assert np.max(np.abs(np.diff(g[order]))) < 0.1 * std * 40  # smooth in the azimuth
+    assert not azimuth_ripple(tx, rx, att, 0.0, np.random.default_rng(3)).any()
+    same = np.tile(rx[:1], (50, 1))
+    assert not azimuth_ripple(tx, same, att[:50] * 0, 2.0, np.random.default_rng(3)).any()
+
+
+def test_nuisance_stds_tell_the_body_azimuth_from_time_and_distance() -> None:
+    """A ripple over the body azimuth is given to the azimuth part, not to the drift or the
+    radial profile, on a track that turns its nose as it goes."""
+    tx, rx = _ring_track()
+    t = np.arange(len(rx)) * 0.5
+    att = np.zeros((len(rx), 3))
+    att[:, 2] = np.linspace(0.0, 14 * np.pi, len(rx))
+    flight = FlightSamples(
+        enu_m=rx, rss_dbm=np.zeros(len(rx)), t_s=t, tx_enu_m=tx, attitude_rad=att, name="s"
+    )
+    rng = np.random.default_rng(5)
+    ripple = azimuth_ripple(tx, rx, att, 3.0, np.random.default_rng(4))
+    kinds = ("time", "radial", "azimuth")
+    got = nuisance_stds(flight, ripple + rng.normal(0, 2.0, len(t)), kinds)
+    assert got["azimuth_db"] == pytest.approx(3.0, abs=0.4)
+    assert got["time_drift_db"] < 0.8 and got["radial_db"] < 0.8
+    no_att = FlightSamples(enu_m=rx, rss_dbm=np.zeros(len(rx)), t_s=t, tx_enu_m=tx, name="s")
+    assert nuisance_stds(no_att, ripple, kinds)["azimuth_db"] == 0.0
+
+
+def test_structure_of_the_command_line_flags() -> None:
+    assert structure_of(False) is False and structure_of(True) is True
+    assert structure_of(False, radial=True) == ("time", "radial")
+    assert structure_of(False, azimuth=True) == ("time", "azimuth")
+    assert structure_kinds(structure_of(False, True, True)) == ("time", "radial", "azimuth")

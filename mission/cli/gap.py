@@ -91,6 +91,12 @@ def _output_arguments(parser: argparse.ArgumentParser) -> None:
         "the drift (structure about the transmitter; implies --family-structure)",
     )
     parser.add_argument(
+        "--family-azimuth",
+        action="store_true",
+        help="per-flight structure with a ripple over the rover's body azimuth beside the drift "
+        "(an antenna pattern fixed to the body; implies --family-structure)",
+    )
+    parser.add_argument(
         "--json",
         action="store_true",
         help="print the summary of gap.json (ladder, rankings, named, structure) instead of tables",
@@ -341,6 +347,7 @@ def _write_family(d, cfg, args, console) -> None:
     from datetime import UTC, datetime
     from pathlib import Path
 
+    from mission.gap.familyfit import structure_of
     from mission.gap.familyrun import family_from_diagnosis
     from mission.physics.family import PhysicsFamily
 
@@ -363,7 +370,7 @@ def _write_family(d, cfg, args, console) -> None:
         source=src,
         check=args.family_repeats > 0,
         repeats=max(args.family_repeats, 1),
-        structure=("time", "radial") if args.family_radial else args.family_structure,
+        structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text

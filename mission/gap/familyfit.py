@@ -41,7 +41,12 @@ from mission.gap.fit import (
 from mission.gap.pipeline import Pipeline, Selection
 from mission.gap.temporal import time_columns
 from mission.importers.afar import AFAR2023_SUSPECT_NOTE, is_afar2023_suspect
-from mission.physics.family import DRIFT_ORDER, radial_coordinate
+from mission.physics.family import (
+    DRIFT_ORDER,
+    azimuth_basis,
+    azimuth_coordinate,
+    radial_coordinate,
+)
 from mission.physics.presets import build_model
 from mission.physics.shadowing import fit_variogram
 from mission.robust import robust_offset
@@ -94,6 +99,7 @@ BOUNDS = {
     "offset_db": (-200.0, 200.0),
     "time_drift_db": (0.0, 30.0),
     "radial_db": (0.0, 30.0),
+    "azimuth_db": (0.0, 30.0),
 }
 PATTERN_KEYS = ("rx_pattern", "rx_flipped", "tx_pattern", "tx_flipped")
 FIT_SAMPLES = (
@@ -278,7 +284,7 @@ class FlightFit:
 
 
 # the per-flight nuisance a family can draw: kind -> its key in ``nuisance`` (``physics.family``)
-NUISANCE_KINDS = {"time": "time_drift_db", "radial": "radial_db"}
+NUISANCE_KINDS = {"time": "time_drift_db", "radial": "radial_db", "azimuth": "azimuth_db"}
 
 
 def structure_kinds(structure: bool | Sequence[str]) -> tuple[str, ...]:
@@ -294,6 +300,13 @@ def structure_kinds(structure: bool | Sequence[str]) -> tuple[str, ...]:
     return tuple(structure)
 
 
+def structure_of(structure: bool, radial: bool = False, azimuth: bool = False):
+    """The ``structure`` argument of the command-line flags: ``--family-radial`` and
+    ``--family-azimuth`` each add their kind beside the time drift (and imply the structure)."""
+    extra = (("radial",) if radial else ()) + (("azimuth",) if azimuth else ())
+    return ("time", *extra) if extra else structure
+
+
 def nuisance_stds(
     flight: FlightSamples, r: np.ndarray, kinds: Sequence[str] = ("time",)
 ) -> dict[str, float]:
@@ -301,8 +314,9 @@ def nuisance_stds(
     kinds' smooth bases together to the finite samples about their mean (``time``: the gap's
     smooth time basis, ``temporal.time_columns``, Legendre P_1..P_4 of the time scaled to [-1, 1],
     no steps; ``radial``: Legendre P_1..P_4 of ``physics.family.log_distance_unit``, the distance
-    to the rover; each column about its mean, as the residual is), so that what both explain is
-    not counted twice; 0 each with fewer than 20 samples."""
+    to the rover; ``azimuth``: cos and sin of k az_b, k = 1..4, of the rover's body azimuth,
+    ``physics.family.azimuth_basis``; each column about its mean, as the residual is), so that
+    what several explain is not counted twice; 0 each with fewer than 20 samples."""
     ok = np.isfinite(r)
     out = {NUISANCE_KINDS[k]: 0.0 for k in kinds}
     if ok.sum() < 20 or not kinds:
@@ -314,11 +328,16 @@ def nuisance_stds(
                 return out
             t = np.asarray(flight.t_s, dtype=float)
             blocks.append(time_columns(t[ok], float(t[0]), float(t[-1]), np.zeros(0))[0])
-        else:
+        elif k == "radial":
             if flight.tx_enu_m is None:
                 return out
             u = radial_coordinate(flight.tx_enu_m, flight.enu_m[ok])
             blocks.append(np.polynomial.legendre.legvander(u, DRIFT_ORDER)[:, 1:])
+        else:
+            if flight.tx_enu_m is None or flight.attitude_rad is None:
+                return out
+            az = azimuth_coordinate(flight.tx_enu_m, flight.enu_m[ok], flight.attitude_rad[ok])
+            blocks.append(azimuth_basis(az))
     blocks = [b - b.mean(axis=0) for b in blocks]  # about their means, as y: no intercept lost
     X = np.column_stack(blocks)
     y = r[ok] - np.mean(r[ok])

@@ -39,6 +39,9 @@ smooth part of the gap's ``time_drift`` basis) rescaled to that std; ``simulate_
 the shadowing.  ``radial_db``: the std of a smooth profile over the log distance to the
 transmitter (``radial_profile``: Legendre P_1..P_4 of ``log_distance_unit``, the same coefficient
 sd), added after the drift: structure about the transmitter, which leaves the RSS peak where it is.
+``azimuth_db``: the std of a ripple over the body azimuth of the transmitter seen from the UAV
+(``azimuth_ripple``: cos and sin of k az_b for k = 1..DRIFT_ORDER, coefficient sd 1 / (1 + k^2)),
+added after the radial profile: an antenna pattern the model does not have, fixed to the body.
 """
 
 from __future__ import annotations
@@ -55,14 +58,14 @@ import numpy as np
 from mission.errors import InputError
 from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
-from mission.physics.geometry import horizontal_distance
+from mission.physics.geometry import body_angles, horizontal_distance, link_delta
 from mission.physics.presets import build_model
 from mission.physics.shadowing import shadowing_field
 
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
 RESIDUAL_KEYS = ("shadowing_db", "shadowing_corr_m", "noise_db")
-NUISANCE_KEYS = ("time_drift_db", "radial_db")
+NUISANCE_KEYS = ("time_drift_db", "radial_db", "azimuth_db")
 DRIFT_ORDER = 4  # Legendre orders of the drawn time drift (the gap's ``temporal.DRIFT_ORDER``)
 SHIPPED = {"afar": "afar_family.json"}
 
@@ -163,6 +166,7 @@ class FamilyDraw:
     offset_db: float
     time_drift_db: float = 0.0  # std of the flight's smooth gain drift (``nuisance``)
     radial_db: float = 0.0  # std of the flight's profile over the distance to the rover
+    azimuth_db: float = 0.0  # std of the flight's ripple over the body azimuth of the rover
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
@@ -177,7 +181,11 @@ class FamilyDraw:
             "offset_db": self.offset_db,
         } | {
             k: v
-            for k, v in (("time_drift_db", self.time_drift_db), ("radial_db", self.radial_db))
+            for k, v in (
+                ("time_drift_db", self.time_drift_db),
+                ("radial_db", self.radial_db),
+                ("azimuth_db", self.azimuth_db),
+            )
             if v
         }
 
@@ -291,6 +299,7 @@ class PhysicsFamily:
             offset,
             float(nuis.get("time_drift_db", 0.0)),
             float(nuis.get("radial_db", 0.0)),
+            float(nuis.get("azimuth_db", 0.0)),
         )
 
     def to_dict(self) -> dict:
@@ -388,6 +397,42 @@ def radial_profile(
     return _smooth_draw(radial_coordinate(tx_enu, rx_enu), std_db, rng)
 
 
+def azimuth_coordinate(
+    tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray | None
+) -> np.ndarray:
+    """The body azimuth (rad, signed) of the transmitter seen from each sample's UAV: the
+    coordinate the azimuth ripple is drawn over and the gap's family fits it on."""
+    dx, dy, dz = link_delta(tx_enu, np.asarray(rx_enu, dtype=float))
+    az, _ = body_angles(np.stack([dy, dx, -dz], axis=-1), attitude_rad)
+    return az
+
+
+def azimuth_basis(az: np.ndarray) -> np.ndarray:
+    """(N, 2 DRIFT_ORDER) columns cos k az, sin k az for k = 1..DRIFT_ORDER."""
+    k = np.arange(1, DRIFT_ORDER + 1)
+    return np.column_stack([np.cos(az[:, None] * k), np.sin(az[:, None] * k)])
+
+
+def azimuth_ripple(
+    tx_enu: np.ndarray,
+    rx_enu: np.ndarray,
+    attitude_rad: np.ndarray | None,
+    std_db: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """A ripple over the body azimuth of the transmitter, std ``std_db`` over the samples: a random
+    combination of ``azimuth_basis`` (coefficient sd 1 / (1 + k^2) for cos and sin of k az_b);
+    zeros when ``std_db`` is 0, with fewer than 3 samples or one azimuth throughout."""
+    n = len(rx_enu)
+    if std_db <= 0 or n < 3:
+        return np.zeros(n)
+    sd_k = 1.0 / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
+    c = rng.normal(0.0, 1.0, 2 * DRIFT_ORDER) * np.concatenate([sd_k, sd_k])
+    g = azimuth_basis(azimuth_coordinate(tx_enu, rx_enu, attitude_rad)) @ c
+    sd = float(np.std(g))
+    return g * (std_db / sd) if sd > 1e-12 else np.zeros(n)
+
+
 def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
     """A shipped family by name (``afar``) or a family JSON file (``rfsl gap --family`` output)."""
     s = str(name_or_path)
@@ -436,8 +481,28 @@ def simulate_rss(
     rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
     if draw.shadowing_db > 0:
         rss = rss + shadowing_field(rx[:, :2], draw.shadowing_db, draw.shadowing_corr_m, rng)
-    if draw.time_drift_db > 0:  # after the shadowing: a draw without drift is unchanged
-        rss = rss + time_drift(len(rss), draw.time_drift_db, rng)
-    if draw.radial_db > 0:  # after the drift: a draw without it is unchanged
-        rss = rss + radial_profile(tx_enu, rx, draw.radial_db, rng)
-    return rss
+    return rss + nuisance_rss(
+        tx_enu, rx, attitude_rad, draw.time_drift_db, draw.radial_db, draw.azimuth_db, rng
+    )
+
+
+def nuisance_rss(
+    tx_enu: np.ndarray,
+    rx_enu: np.ndarray,
+    attitude_rad: np.ndarray,
+    time_drift_db: float,
+    radial_db: float,
+    azimuth_db: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The per-flight nuisance (dB) of a flight's samples, each part drawn only when its std is
+    positive, in the order drift, radial profile, azimuth ripple: a draw without one is
+    unchanged (the family's draws and the benchmark's flights share this one order)."""
+    out = np.zeros(len(rx_enu))
+    if time_drift_db > 0:  # after the shadowing: a draw without drift is unchanged
+        out += time_drift(len(out), time_drift_db, rng)
+    if radial_db > 0:  # after the drift
+        out += radial_profile(tx_enu, rx_enu, radial_db, rng)
+    if azimuth_db > 0:  # after the radial profile
+        out += azimuth_ripple(tx_enu, rx_enu, attitude_rad, azimuth_db, rng)
+    return out

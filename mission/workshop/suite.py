@@ -90,7 +90,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta
 from mission.geo import afar_field
-from mission.physics.family import radial_profile, time_drift
+from mission.physics.family import nuisance_rss
 from mission.physics.presets import build_model, load_preset
 from mission.physics.shadowing import shadowing_field
 from mission.simulate import SimConfig, perturbation
@@ -253,6 +253,8 @@ def draw_flight(
             d["time_drift_db"] = fd.time_drift_db
         if fd.radial_db:
             d["radial_db"] = fd.radial_db
+        if fd.azimuth_db:
+            d["azimuth_db"] = fd.azimuth_db
         return d, rng
     d["physics"] = _physics(rng, family, center)
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING[family]
@@ -348,10 +350,16 @@ def simulate_draw(
     rss = np.asarray(model.rss_dbm(tx, pos, att), dtype=float)
     rss += d["rss_offset_db"] + rng.normal(0.0, d["noise_db"], size=rss.shape)
     rss += shadowing_field(pos[:, :2], d["shadowing_db"], d["shadowing_corr_m"], rng)
-    if d.get("time_drift_db"):  # drawn last: a flight without it is unchanged
-        rss += time_drift(len(rss), d["time_drift_db"], rng)
-    if d.get("radial_db"):  # after the drift, as ``physics.family.simulate_rss``
-        rss += radial_profile(tx, pos, d["radial_db"], rng)
+    # drawn last, as ``physics.family.simulate_rss``: a flight without it is unchanged
+    rss += nuisance_rss(
+        tx,
+        pos,
+        att,
+        d.get("time_drift_db", 0.0),
+        d.get("radial_db", 0.0),
+        d.get("azimuth_db", 0.0),
+        rng,
+    )
     # telemetry read time_offset_s late: the logged pose of sample k is the true pose at t_k +
     # offset
     ts = np.clip(t + d["time_offset_s"], t[0], t[-1])
