@@ -80,6 +80,7 @@ def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> d
             "fast_error_m": err(o.fast),
             "duration_s": o.duration_s,
             "rounds": o.rounds,
+            "planned": o.planned,  # each round's [target, centre flown]
         }
     return out
 

@@ -166,6 +166,8 @@ class Outcome:
     rounds: int = 0
     notes: list = field(default_factory=list)
     log: SimLog | None = None  # the whole flight (``SimLog.flight_log``: what localize reads)
+    # each round's target and the centre it was flown at (moved inside the fence when needed)
+    planned: list = field(default_factory=list)
 
 
 def _estimate(loc, log: SimLog, t_max: float, tx) -> tuple | None:
@@ -242,7 +244,7 @@ def adaptive_flight(
     sv = survey_profile(spec, a.survey_s).vertices
     log = SimLog()
     log.fly(np.vstack([*_climb(spec, sv[0]), sv]), [TAKEOFF] + [MISSION] * len(sv), world, cfg, rng)
-    end, rounds, notes, visited = sv[-1], 0, [], []
+    end, rounds, notes, visited, planned = sv[-1], 0, [], [], []
     while True:
         d = live_entry(spec, a, log, log.t_end - a.lead_s)
         if d is None or (d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2):
@@ -256,7 +258,9 @@ def adaptive_flight(
         log.fly(np.vstack([end, plan.waypoints]), [ADAPTIVE] * len(plan.waypoints), world, cfg, rng)
         end, rounds = plan.waypoints[-1], rounds + 1
         visited.append(plan.centre)
+        planned.append([[float(v) for v in target], list(plan.centre)])
     back, _, j = ReturnModel.of(spec).legs(end)  # the return the rounds were planned with
     log.fly(back, [RETURN if k < j else LAND for k in range(len(back) - 1)], world, cfg, rng)
     fast = _estimate(loc, log, fast_s, world.tx)
-    return Outcome(_estimate(loc, log, np.inf, world.tx), fast, log.t_end, rounds, notes, log)
+    final = _estimate(loc, log, np.inf, world.tx)
+    return Outcome(final, fast, log.t_end, rounds, notes, log, planned)
