@@ -1,0 +1,60 @@
+"""The fallback to the fixed spiral, as a counterfactual on ``bench_adaptive.py --json`` rows: a
+flight whose first round was flown more than ``--radius`` metres from its target (moved inside the
+fence) takes the fixed arm's error, every other flight keeps the adaptive answer's.
+
+    python benchmarks/bench_adaptive.py --flights 40 --jobs 2 --seed 2038 --family mission --json M
+    python benchmarks/adaptive_fallback.py M [A ...]
+
+The rule and the figures: docs/adaptive.md, "Finish the spiral when no round can reach the
+estimate".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from mission.evidence import mean_interval, paired_difference
+
+
+def falls_back(row: dict, radius_m: float) -> bool:
+    """Whether the flight's first round flew its square more than ``radius_m`` from its target."""
+    planned = row["adaptive"].get("planned") or []
+    if not planned:
+        return False
+    target, centre = (np.asarray(v, dtype=float) for v in planned[0])
+    return float(np.hypot(*(target - centre))) > radius_m
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("json", nargs="+", help="bench_adaptive.py --json outputs")
+    p.add_argument("--radius", type=float, default=20.0, help="the rounds' half side (m)")
+    args = p.parse_args()
+    for path in args.json:
+        rows = [
+            r
+            for r in json.loads(Path(path).read_text())
+            if r["fixed"]["error_m"] is not None and r["adaptive"]["error_m"] is not None
+        ]
+        fx = np.array([r["fixed"]["error_m"] for r in rows])
+        ad = np.array([r["adaptive"]["error_m"] for r in rows])
+        back = np.array([falls_back(r, args.radius) for r in rows])
+        fb = np.where(back, fx, ad)
+        print(f"{path}: {len(rows)} flights, {back.sum()} fall back")
+        for name, v in (("fixed", fx), ("adaptive", ad), ("with the fallback", fb)):
+            print(f"  {name:18s} {mean_interval(v, seed=1).fmt()} m")
+        print(f"  fallback - adaptive {paired_difference(fb, ad, seed=1).fmt()} m")
+        print(f"  fallback - fixed    {paired_difference(fb, fx, seed=1).fmt()} m")
+        if back.any():
+            print(
+                f"  on the flights that fall back: fixed {fx[back].mean():.1f} m, adaptive "
+                f"{ad[back].mean():.1f} m"
+            )
+
+
+if __name__ == "__main__":
+    main()
