@@ -4,6 +4,7 @@ flight."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 
 import numpy as np
@@ -296,6 +297,10 @@ def test_simulated_adaptive_flight_holds_fence_and_budget(spec, separate):
     assert s.field.flight_area.signed_distance(pts[:, :2]).min() >= s.fence_margin_m - 1e-9
     assert np.all(pts[:, 2] == 15.0)
     assert logs[-1][1] == ["return", "land"]
+    # each round's target and the centre it was flown at (the square's centre and fifth waypoint)
+    assert len(out.planned) == out.rounds
+    for (target, centre), p in zip(out.planned, rounds, strict=True):
+        assert len(target) == 2 and np.allclose(p[-1, :2], centre)
 
 
 def test_preview_adaptive_bad_flights_refused(repo_dir, tmp_path, capsys):
@@ -391,3 +396,29 @@ def test_verdict_of_a_round(after, gone):
     under a quarter of its mass while the other kept more."""
     hyp = {"target": [50.0, 50.0, 0.05], "rival": [150.0, 120.0, 0.03]}
     assert verdict(hyp, after, 20.0) == gone
+
+
+def test_the_fallback_counterfactual_reads_the_first_rounds_move(
+    repo_dir, tmp_path, capsys, monkeypatch
+):
+    """``benchmarks/adaptive_fallback.py``: a flight whose first round flew more than the radius
+    from its target takes the fixed arm's error; the others keep the adaptive answer's."""
+    monkeypatch.syspath_prepend(str(repo_dir / "benchmarks"))
+    # a script, importable once its folder is on sys.path (the line above)
+    import adaptive_fallback as fb  # noqa: PLC0415
+
+    def row(fixed, adaptive, planned):
+        return {"fixed": {"error_m": fixed}, "adaptive": {"error_m": adaptive, "planned": planned}}
+
+    far = row(5.0, 40.0, [[[100.0, 320.0], [100.0, 240.0]], [[0.0, 0.0], [0.0, 0.0]]])
+    near = row(30.0, 10.0, [[[100.0, 200.0], [105.0, 200.0]]])
+    none = row(8.0, 9.0, [])
+    assert fb.falls_back(far, 20.0) and not fb.falls_back(near, 20.0)
+    assert not fb.falls_back(none, 20.0) and fb.falls_back(near, 4.0)
+    path = tmp_path / "rows.json"
+    path.write_text(json.dumps([far, near, none]))
+    monkeypatch.setattr("sys.argv", ["adaptive_fallback.py", str(path)])
+    fb.main()
+    out = capsys.readouterr().out
+    assert "3 flights, 1 fall back" in out
+    assert "with the fallback  8.0" in out  # (5 + 10 + 9) / 3
