@@ -243,6 +243,42 @@ def _err(p, r) -> float:
     return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
 
 
+def print_errors(src: str, errors: dict[str, list[float]], rs: list[dict]) -> None:
+    """One line per answer of ``src``'s flights ``rs``: mean error with its 90 % interval (the real
+    flights also by team) and the paired difference against ``errors["default"]``."""
+    groups = [r["name"].split()[1][:3] for r in rs] if src == "real" else None
+    for k, v in errors.items():
+        mi = mean_interval(v, seed=2)
+        vs = (
+            ""
+            if k == "default"
+            else f", vs default {paired_difference(v, errors['default'], seed=2).fmt()}"
+        )
+        by_team = f" [teams {mean_interval(v, groups, seed=2).fmt()}]" if groups else ""
+        print(f"{src:5s} {k:20s} mean {mi.fmt()} m{by_team}{vs} (n={len(v)})")
+
+
+def print_decision(out: dict, real: list[dict], name: str) -> None:
+    """The issue-24 rule (``pooled_decision``) for answer ``name`` against the default on ``out``'s
+    real (by team) and benchmark errors, and the headroom it recovers."""
+    dec = pooled_decision(
+        {k: out["real"][k] for k in ("default", name)},
+        [r["name"].split()[1][:3] for r in real],
+        {k: out["bench"][k] for k in ("default", name)},
+        "default",
+        seed=3,
+    )
+    m = dec["methods"][name]
+    print(
+        f"relative paired difference: real {m['real'].fmt(3)}, benchmark {m['bench'].fmt(3)}, "
+        f"pooled {m['pooled'].fmt(3)}"
+    )
+    print(f"decision: {dec['why']}")
+    for src in ("real", "bench"):
+        d, e, b = (np.asarray(out[src][k]) for k in ("default", name, "best candidate"))
+        print(f"{src}: headroom {np.mean(d - b):.1f} m, recovered {np.mean(d - e):.1f} m")
+
+
 def score(args) -> None:
     rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
     bench = [r for r in rows if r["name"].startswith("bench")]
@@ -267,16 +303,7 @@ def score(args) -> None:
             "evidence": [_err(f(r), r) for r in rs],
             "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
         }
-        groups = [r["name"].split()[1][:3] for r in rs] if src == "real" else None
-        for k, v in out[src].items():
-            mi = mean_interval(v, seed=2)
-            vs = (
-                ""
-                if k == "default"
-                else f", vs default {paired_difference(v, out[src]['default'], seed=2).fmt()}"
-            )
-            by_team = f" [teams {mean_interval(v, groups, seed=2).fmt()}]" if groups else ""
-            print(f"{src:5s} {k:16s} mean {mi.fmt()} m{by_team}{vs} (n={len(v)})")
+        print_errors(src, out[src], rs)
         if src == "real":
             for r, a, b, c in zip(rs, *out[src].values(), strict=True):
                 print(f"    {r['name']:16s} default {a:6.1f}  evidence {b:6.1f}  best {c:6.1f}")
@@ -296,23 +323,7 @@ def score(args) -> None:
             f"  coverage on {src} ({len(lv[src])} flights): 50 % region {cov[0]}, 90 % region "
             f"{cov[1]}"
         )
-    teams = [r["name"].split()[1][:3] for r in real]
-    dec = pooled_decision(
-        {k: out["real"][k] for k in ("default", "evidence")},
-        teams,
-        {k: out["bench"][k] for k in ("default", "evidence")},
-        "default",
-        seed=3,
-    )
-    m = dec["methods"]["evidence"]
-    print(
-        f"relative paired difference: real {m['real'].fmt(3)}, benchmark {m['bench'].fmt(3)}, "
-        f"pooled {m['pooled'].fmt(3)}"
-    )
-    print(f"decision: {dec['why']}")
-    for src in ("real", "bench"):
-        d, e, b = (np.asarray(out[src][k]) for k in ("default", "evidence", "best candidate"))
-        print(f"{src}: headroom {np.mean(d - b):.1f} m, recovered {np.mean(d - e):.1f} m")
+    print_decision(out, real, "evidence")
 
 
 def main() -> None:

@@ -36,14 +36,13 @@ import json
 from pathlib import Path
 
 import numpy as np
+from score_evidence import print_decision, print_errors  # this folder: run as a script
 from sklearn.linear_model import Ridge
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from mission.evidence import mean_interval, paired_difference
 from mission.localize.stacking import geometric_median
 from mission.spec import load_mission
-from mission.workshop.decision import pooled_decision
 
 ROOT = Path(__file__).resolve().parents[1]
 KINDS = ("selfcal", "selfcal mode", "grid", "rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5", "fusion")
@@ -138,16 +137,7 @@ def main() -> None:
             ],
             "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
         }
-        groups = [r["name"].split()[1][:3] for r in rs] if src == "real" else None
-        for k, v in out[src].items():
-            mi = mean_interval(v, seed=2)
-            vs = (
-                ""
-                if k == "default"
-                else f", vs default {paired_difference(v, out[src]['default'], seed=2).fmt()}"
-            )
-            by_team = f" [teams {mean_interval(v, groups, seed=2).fmt()}]" if groups else ""
-            print(f"{src:5s} {k:20s} mean {mi.fmt()} m{by_team}{vs} (n={len(v)})")
+        print_errors(src, out[src], rs)
         best = np.mean(
             [np.isclose(out[src]["meta"][i], out[src]["best candidate"][i]) for i in range(len(rs))]
         )
@@ -158,23 +148,7 @@ def main() -> None:
                     f"    {r['name']:16s} default {a:6.1f}  meta {_err(pt, r):6.1f} "
                     f"({r['cands'][k]['source']})"
                 )
-    teams = [r["name"].split()[1][:3] for r in real]
-    dec = pooled_decision(
-        {k: out["real"][k] for k in ("default", "meta")},
-        teams,
-        {k: out["bench"][k] for k in ("default", "meta")},
-        "default",
-        seed=3,
-    )
-    m = dec["methods"]["meta"]
-    print(
-        f"relative paired difference: real {m['real'].fmt(3)}, benchmark {m['bench'].fmt(3)}, "
-        f"pooled {m['pooled'].fmt(3)}"
-    )
-    print(f"decision: {dec['why']}")
-    for src in ("real", "bench"):
-        d, e, b = (np.asarray(out[src][k]) for k in ("default", "meta", "best candidate"))
-        print(f"{src}: headroom {np.mean(d - b):.1f} m, recovered {np.mean(d - e):.1f} m")
+    print_decision(out, real, "meta")
 
 
 if __name__ == "__main__":
