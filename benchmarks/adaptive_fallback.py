@@ -6,7 +6,9 @@ fence) takes the fixed arm's error, every other flight keeps the adaptive answer
     python benchmarks/adaptive_fallback.py M [A ...]
 
 The rule and the figures: docs/adaptive.md, "Finish the spiral when no round can reach the
-estimate".
+estimate".  With ``--decide`` and two outputs (the mission's physics first, the ``afar`` family
+second) the confirmatory rule is applied: ``mission.workshop.decision.pooled_decision`` with today's
+adaptive answer as the incumbent, each setting half of the pooled relative difference.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.evidence import mean_interval, paired_difference
+from mission.workshop.decision import pooled_decision
 
 
 def falls_back(row: dict, radius_m: float) -> bool:
@@ -33,7 +36,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("json", nargs="+", help="bench_adaptive.py --json outputs")
     p.add_argument("--radius", type=float, default=20.0, help="the rounds' half side (m)")
+    p.add_argument("--decide", action="store_true", help="apply the rule to MISSION AFAR")
     args = p.parse_args()
+    errors = []
     for path in args.json:
         rows = [
             r
@@ -44,6 +49,7 @@ def main() -> None:
         ad = np.array([r["adaptive"]["error_m"] for r in rows])
         back = np.array([falls_back(r, args.radius) for r in rows])
         fb = np.where(back, fx, ad)
+        errors.append({"adaptive": ad, "fallback": fb})
         print(f"{path}: {len(rows)} flights, {back.sum()} fall back")
         for name, v in (("fixed", fx), ("adaptive", ad), ("with the fallback", fb)):
             print(f"  {name:18s} {mean_interval(v, seed=1).fmt()} m")
@@ -54,6 +60,16 @@ def main() -> None:
                 f"  on the flights that fall back: fixed {fx[back].mean():.1f} m, adaptive "
                 f"{ad[back].mean():.1f} m"
             )
+    if args.decide:
+        if len(errors) != 2:
+            p.error("--decide needs two outputs: the mission's physics, then the afar family")
+        dec = pooled_decision(errors[0], None, errors[1], "adaptive", seed=3)
+        m = dec["methods"]["fallback"]
+        print(
+            f"relative paired difference, fallback - adaptive: mission {m['real'].fmt(3)}, afar "
+            f"{m['bench'].fmt(3)}, pooled {m['pooled'].fmt(3)}"
+        )
+        print(f"decision: {'build the fallback' if dec['changed'] else 'do not build it'}")
 
 
 if __name__ == "__main__":
