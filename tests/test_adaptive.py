@@ -422,3 +422,14 @@ def test_the_fallback_counterfactual_reads_the_first_rounds_move(
     out = capsys.readouterr().out
     assert "3 flights, 1 fall back" in out
     assert "with the fallback  8.0" in out  # (5 + 10 + 9) / 3
+    # the rule: one setting is not two
+    monkeypatch.setattr("sys.argv", ["adaptive_fallback.py", "--decide", str(path)])
+    with pytest.raises(SystemExit) as ei:
+        fb.main()
+    assert ei.value.code == 2 and "two outputs" in capsys.readouterr().err
+    # on two settings where falling back lowers the error everywhere: built
+    gain = [row(5.0, 40.0 + k, [[[100.0, 320.0], [100.0, 240.0]]]) for k in range(8)]
+    path.write_text(json.dumps(gain + [near, none]))
+    monkeypatch.setattr("sys.argv", ["adaptive_fallback.py", "--decide", str(path), str(path)])
+    fb.main()
+    assert capsys.readouterr().out.strip().endswith("decision: build the fallback")
