@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -179,15 +180,11 @@ class FamilyDraw:
             "shadowing_corr_m": self.shadowing_corr_m,
             "noise_db": self.noise_db,
             "offset_db": self.offset_db,
-        } | {
-            k: v
-            for k, v in (
-                ("time_drift_db", self.time_drift_db),
-                ("radial_db", self.radial_db),
-                ("azimuth_db", self.azimuth_db),
-            )
-            if v
-        }
+        } | {k: v for k, v in self.nuisance().items() if v}
+
+    def nuisance(self) -> dict[str, float]:
+        """The per-flight nuisance stds by ``NUISANCE_KEYS`` (``nuisance_rss`` draws them)."""
+        return {k: getattr(self, k) for k in NUISANCE_KEYS}
 
 
 def lowest(v: Any) -> float:
@@ -297,9 +294,7 @@ class PhysicsFamily:
             float(res.get("shadowing_corr_m", 30.0)),
             float(res.get("noise_db", 0.0)),
             offset,
-            float(nuis.get("time_drift_db", 0.0)),
-            float(nuis.get("radial_db", 0.0)),
-            float(nuis.get("azimuth_db", 0.0)),
+            *(float(nuis.get(k, 0.0)) for k in NUISANCE_KEYS),
         )
 
     def to_dict(self) -> dict:
@@ -365,10 +360,18 @@ def _smooth_draw(u: np.ndarray, std_db: float, rng: np.random.Generator) -> np.n
     """A random combination of Legendre P_1..P_DRIFT_ORDER of ``u`` (on [-1, 1]), coefficient sd
     1 / (1 + p^2), rescaled to std ``std_db`` over the samples; zeros where it does not vary (all
     ``u`` equal): the draw of both the time drift and the radial profile."""
-    c = rng.normal(0.0, 1.0, DRIFT_ORDER) / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
-    g = np.polynomial.legendre.legval(u, np.concatenate([[0.0], c]))
+    c = rng.normal(0.0, 1.0, DRIFT_ORDER) / _ORDER_DIV
+    return _rescaled(np.polynomial.legendre.legval(u, np.concatenate([[0.0], c])), std_db)
+
+
+# every smooth draw's coefficient of order k = 1..DRIFT_ORDER is a standard normal / (1 + k^2)
+_ORDER_DIV = 1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2
+
+
+def _rescaled(g: np.ndarray, std_db: float) -> np.ndarray:
+    """``g`` scaled to std ``std_db`` over its samples; zeros where it does not vary."""
     sd = float(np.std(g))
-    return g * (std_db / sd) if sd > 1e-12 else np.zeros(len(u))
+    return g * (std_db / sd) if sd > 1e-12 else np.zeros(len(g))
 
 
 def radial_coordinate(tx_enu: np.ndarray, rx_enu: np.ndarray) -> np.ndarray:
@@ -400,7 +403,7 @@ def radial_profile(
 def azimuth_coordinate(
     tx_enu: np.ndarray, rx_enu: np.ndarray, attitude_rad: np.ndarray | None
 ) -> np.ndarray:
-    """The body azimuth (rad, signed) of the transmitter seen from each sample's UAV: the
+    """The body azimuth (rad, in [0, 2 pi)) of the transmitter seen from each sample's UAV: the
     coordinate the azimuth ripple is drawn over and the gap's family fits it on."""
     dx, dy, dz = link_delta(tx_enu, np.asarray(rx_enu, dtype=float))
     az, _ = body_angles(np.stack([dy, dx, -dz], axis=-1), attitude_rad)
@@ -426,11 +429,8 @@ def azimuth_ripple(
     n = len(rx_enu)
     if std_db <= 0 or n < 3:
         return np.zeros(n)
-    sd_k = 1.0 / (1.0 + np.arange(1, DRIFT_ORDER + 1) ** 2)
-    c = rng.normal(0.0, 1.0, 2 * DRIFT_ORDER) * np.concatenate([sd_k, sd_k])
-    g = azimuth_basis(azimuth_coordinate(tx_enu, rx_enu, attitude_rad)) @ c
-    sd = float(np.std(g))
-    return g * (std_db / sd) if sd > 1e-12 else np.zeros(n)
+    c = rng.normal(0.0, 1.0, 2 * DRIFT_ORDER) * np.tile(1.0 / _ORDER_DIV, 2)
+    return _rescaled(azimuth_basis(azimuth_coordinate(tx_enu, rx_enu, attitude_rad)) @ c, std_db)
 
 
 def load_family(name_or_path: str | Path = "afar") -> PhysicsFamily:
@@ -481,23 +481,21 @@ def simulate_rss(
     rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
     if draw.shadowing_db > 0:
         rss = rss + shadowing_field(rx[:, :2], draw.shadowing_db, draw.shadowing_corr_m, rng)
-    return rss + nuisance_rss(
-        tx_enu, rx, attitude_rad, draw.time_drift_db, draw.radial_db, draw.azimuth_db, rng
-    )
+    return rss + nuisance_rss(tx_enu, rx, attitude_rad, draw.nuisance(), rng)
 
 
 def nuisance_rss(
     tx_enu: np.ndarray,
     rx_enu: np.ndarray,
     attitude_rad: np.ndarray,
-    time_drift_db: float,
-    radial_db: float,
-    azimuth_db: float,
+    stds: Mapping[str, float],
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """The per-flight nuisance (dB) of a flight's samples, each part drawn only when its std is
-    positive, in the order drift, radial profile, azimuth ripple: a draw without one is
-    unchanged (the family's draws and the benchmark's flights share this one order)."""
+    """The per-flight nuisance (dB) of a flight's samples from ``stds`` (by ``NUISANCE_KEYS``, a
+    missing key 0), each part drawn only when its std is positive, in the order drift, radial
+    profile, azimuth ripple: a draw without one is unchanged (the family's draws and the
+    benchmark's flights share this one order)."""
+    time_drift_db, radial_db, azimuth_db = (float(stds.get(k, 0.0)) for k in NUISANCE_KEYS)
     out = np.zeros(len(rx_enu))
     if time_drift_db > 0:  # after the shadowing: a draw without drift is unchanged
         out += time_drift(len(out), time_drift_db, rng)

@@ -249,12 +249,8 @@ def draw_flight(
         )
         d["time_offset_s"] = _u(rng, -0.5, 0.5)
         d["rss_offset_db"] = fd.offset_db
-        if fd.time_drift_db:  # a family with per-flight structure (``physics.family`` nuisance)
-            d["time_drift_db"] = fd.time_drift_db
-        if fd.radial_db:
-            d["radial_db"] = fd.radial_db
-        if fd.azimuth_db:
-            d["azimuth_db"] = fd.azimuth_db
+        # a family with per-flight structure (``physics.family`` nuisance)
+        d.update({k: v for k, v in fd.nuisance().items() if v})
         return d, rng
     d["physics"] = _physics(rng, family, center)
     (s_lo, s_hi), (l_lo, l_hi) = SHADOWING[family]
@@ -351,15 +347,7 @@ def simulate_draw(
     rss += d["rss_offset_db"] + rng.normal(0.0, d["noise_db"], size=rss.shape)
     rss += shadowing_field(pos[:, :2], d["shadowing_db"], d["shadowing_corr_m"], rng)
     # drawn last, as ``physics.family.simulate_rss``: a flight without it is unchanged
-    rss += nuisance_rss(
-        tx,
-        pos,
-        att,
-        d.get("time_drift_db", 0.0),
-        d.get("radial_db", 0.0),
-        d.get("azimuth_db", 0.0),
-        rng,
-    )
+    rss += nuisance_rss(tx, pos, att, d, rng)
     # telemetry read time_offset_s late: the logged pose of sample k is the true pose at t_k +
     # offset
     ts = np.clip(t + d["time_offset_s"], t[0], t[-1])
