@@ -281,7 +281,7 @@ def plan_round(
                 np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin
             ).duration_s
             if pace is not None:
-                fly = pace.scale * fly + pace.per_leg_s * len(wps)
+                fly = pace.flown(fly, len(wps))
             back = returns.seconds(wps[-1], pace)
             bad = leg_violations(spec, start, wps)
             if bad:

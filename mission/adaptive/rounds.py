@@ -130,7 +130,7 @@ def remaining_s(ctx: FlightContext, wps: np.ndarray, offset: int, pace=None) -> 
     t = plan_profile(
         np.vstack([_position_enu(ctx)[None, :], wps[idx:]]), ctx.spec.kinematics()
     ).duration_s
-    return t if pace is None else pace.scale * t + pace.per_leg_s * (len(wps) - idx)
+    return t if pace is None else pace.flown(t, len(wps) - idx)
 
 
 def measured_pace(ctx: FlightContext):
@@ -162,8 +162,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
     spec = ext.full_spec
     wps = np.asarray(ctx.spec.waypoints_enu(), dtype=float)
     off, n_survey = ctx.status.waypoint_offset, len(wps)
-    a, lead = _round_config(ctx, ext)
     returns = autopilot_returns(ctx)
+    a, lead = _round_config(ctx, ext, returns)
     final = final_phase(spec.return_behaviour)
     k = 0
     while True:
@@ -244,13 +244,14 @@ def _announce(ctx: FlightContext, rd: dict, d: dict, visit_m: float) -> None:
     )
 
 
-def _round_config(ctx: FlightContext, ext: AdaptiveRounds) -> tuple:
+def _round_config(ctx: FlightContext, ext: AdaptiveRounds, returns: ReturnModel) -> tuple:
     """The rounds' config and how far ahead a round is planned (at least ``MIN_LEAD_WALL_S`` of
     wall-clock time, at most ``MAX_LEAD_SURVEY_SHARE`` of the survey); a change is an event, as is
-    a return the autopilot flies longer than the mission's kinematics (the rounds plan with it)."""
+    an autopilot's return (``returns``) longer than the mission's kinematics (the rounds plan with
+    it)."""
     a = ext.config
     frm = np.append(ctx.spec.waypoints_enu()[-1][:2], a.altitude(ext.full_spec))
-    extra = autopilot_returns(ctx).seconds(frm) - ReturnModel.of(ctx.spec).seconds(frm)
+    extra = returns.seconds(frm) - ReturnModel.of(ctx.spec).seconds(frm)
     if extra > 0.5:
         ctx.event(
             "adaptive",

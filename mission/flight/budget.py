@@ -35,7 +35,7 @@ import numpy as np
 
 from mission.flight.plan import upload_with_retries
 from mission.spec import TrajectorySpec
-from mission.trajectory.autopilot import Pace, ReturnModel, VerticalSpeeds
+from mission.trajectory.autopilot import Pace, ReturnModel, VerticalSpeeds, leg_speeds
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
@@ -121,18 +121,14 @@ def plan_times(
     )
     out = spec.flight_path_enu()[: n + 2]  # home, the climb and the waypoints
     tail, tail_speeds, j_tail = returns.legs(w[-1])
-    d = np.diff(out, axis=0)
-    L = np.linalg.norm(d, axis=1)
-    # plan_profile's rule for take-off legs
-    vert = np.abs(d[:, 2]) / np.maximum(L, 1e-9) > 0.7
-    vs = np.full(len(L), kin.climb_rate_mps)
-    if vertical is not None:
-        vs = np.where(d[:, 2] > 0, vertical.up_mps, vertical.down_mps)
-    speeds = np.concatenate([np.where(vert, vs, kin.cruise_speed_mps), tail_speeds])
+    speeds = np.concatenate(
+        [leg_speeds(np.diff(out, axis=0), kin, vertical, kin.cruise_speed_mps)[0], tail_speeds]
+    )
     path = np.vstack([out, tail[1:]])
-    keep = np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-6
+    L = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    keep = L > 1e-6
     prof = plan_profile(path[np.concatenate([[True], keep])], kin, speeds=speeds[keep])
-    s_path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    s_path = np.concatenate([[0.0], np.cumsum(L)])
     t = np.interp(s_path, prof.s_vertex, prof.t_vertex)
     # the final descent starts j_tail legs after the last waypoint
     t_wp, land = t[2 : 2 + n], float(t[-1] - t[n + 1 + j_tail]) + returns.after_s

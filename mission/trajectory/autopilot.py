@@ -25,7 +25,11 @@ class Pace:
     def legs(self, planned: np.ndarray) -> float:
         """Seconds to fly legs planned at ``planned`` seconds each."""
         planned = np.asarray(planned, dtype=float)
-        return float(self.scale * planned.sum() + self.per_leg_s * planned.size)
+        return self.flown(planned.sum(), planned.size)
+
+    def flown(self, planned_s: float, n_legs: int) -> float:
+        """Seconds to fly ``n_legs`` legs planned at ``planned_s`` seconds in all."""
+        return float(self.scale * planned_s + self.per_leg_s * n_legs)
 
     def at_least(self, other: Pace | None) -> Pace:
         """Each term the larger of this pace's and ``other``'s: what a plan of short legs takes
@@ -60,6 +64,19 @@ class VerticalSpeeds:
             and self.low_alt_m >= 0 <= self.hover_s
             and self.return_alt_m >= 0
         )
+
+
+def leg_speeds(
+    d: np.ndarray, kin: Kinematics, vertical: VerticalSpeeds | None, horizontal_mps: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The cruise speed of each leg ``d`` (K, 3), and which legs are vertical (``plan_profile``'s
+    rule): a vertical leg at the autopilot's climb or descent speed (the mission's climb rate when
+    they are not known), the others at ``horizontal_mps``."""
+    vert = np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=1), 1e-9) > 0.7
+    vs = np.full(len(d), kin.climb_rate_mps)
+    if vertical is not None:
+        vs = np.where(d[:, 2] > 0, vertical.up_mps, vertical.down_mps)
+    return np.where(vert, vs, horizontal_mps), vert
 
 
 @dataclass(frozen=True)
@@ -103,13 +120,9 @@ class ReturnModel:
         d = np.diff(pts, axis=0)
         keep = np.linalg.norm(d, axis=1) > 1e-6
         pts, d = pts[np.concatenate([[True], keep])], d[keep]
-        vert = np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=1), 1e-9) > 0.7
-        vs = np.full(len(d), self.kin.climb_rate_mps)
-        if v is not None:
-            vs = np.where(d[:, 2] > 0, v.up_mps, v.down_mps)
-            if len(vs):
-                vs[-1] = v.land_mps  # the last leg ends on the ground below low_alt_m
-        speeds = np.where(vert, vs, self.speed_mps or self.kin.cruise_speed_mps)
+        speeds, vert = leg_speeds(d, self.kin, v, self.speed_mps or self.kin.cruise_speed_mps)
+        if v is not None and len(d) and vert[-1]:
+            speeds[-1] = v.land_mps  # the last leg ends on the ground below low_alt_m
         j = len(d)
         while j > 0 and vert[j - 1] and d[j - 1, 2] < 0:
             j -= 1
@@ -135,4 +148,4 @@ class ReturnModel:
         """Seconds from ``frm`` (at rest) to disarmed; the flying back at ``pace`` when given, the
         descent and what follows at the autopilot's own speeds (as ``BudgetWatch.predict``)."""
         back, land = self.split(frm)
-        return (back if pace is None else pace.legs(np.array([back]))) + land
+        return (back if pace is None else pace.flown(back, 1)) + land
