@@ -178,6 +178,15 @@ def truth_level(r: dict, weights: np.ndarray) -> float:
     return mixture_posterior(xy, weights, grid, SIGMA_M).hpd_level(*r["truth"])
 
 
+def read_cache(path: str) -> tuple[list[dict], list[dict]]:
+    """The candidate cache's rows (``collect``): the real flights', then the benchmark's."""
+    rows = [json.loads(line) for line in Path(path).read_text().splitlines()]
+    return (
+        [r for r in rows if r["name"].startswith("real")],
+        [r for r in rows if r["name"].startswith("bench")],
+    )
+
+
 BACKGROUNDS = (0.0, 0.02, 0.05, 0.1, 0.2)
 
 
@@ -200,9 +209,7 @@ def _area_m2(post, mass: float, cell_m2: float) -> float:
 
 def regions(args) -> None:
     """The rule for a background in the mixture's regions (module docstring, ``regions``)."""
-    rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
-    bench = [r for r in rows if r["name"].startswith("bench")]
-    real = [r for r in rows if r["name"].startswith("real")]
+    real, bench = read_cache(args.json)
     dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
     fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
     grid = square_grid(afar_field().rover_area.bounds, 5.0)
@@ -280,9 +287,7 @@ def print_decision(out: dict, real: list[dict], name: str) -> None:
 
 
 def score(args) -> None:
-    rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
-    bench = [r for r in rows if r["name"].startswith("bench")]
-    real = [r for r in rows if r["name"].startswith("real")]
+    real, bench = read_cache(args.json)
     dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
     fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
     sch = schemes()

@@ -32,11 +32,10 @@ often the chosen candidate is the best one, and the headroom recovered.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
-from score_evidence import print_decision, print_errors  # this folder: run as a script
+from score_evidence import print_decision, print_errors, read_cache  # this folder: run as a script
 from sklearn.linear_model import Ridge
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
@@ -109,9 +108,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--json", required=True, help="the evidence stage's candidate cache")
     args = p.parse_args()
-    rows = [json.loads(line) for line in Path(args.json).read_text().splitlines()]
-    bench = [r for r in rows if r["name"].startswith("bench")]
-    real = [r for r in rows if r["name"].startswith("real")]
+    real, bench = read_cache(args.json)
     area = load_mission(ROOT / "missions" / "spiral.yaml").field.flight_area
     idx = np.array([int(r["name"].split()[1]) for r in bench])
     ans: dict[str, list] = {"bench": [None] * len(bench), "real": []}
