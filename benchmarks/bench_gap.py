@@ -755,6 +755,14 @@ def main(argv: list[str] | None = None) -> int:
         "(mission/gap/README.md, 'Structure about the transmitter')",
     )
     sp.add_argument(
+        "--family-path-shadowing",
+        action="store_true",
+        help=(
+            "the family's shadowing drawn along the path, not fixed to the ground "
+            "(mission/gap/README.md, 'Shadowing along the path')"
+        ),
+    )
+    sp.add_argument(
         "--family-azimuth",
         action="store_true",
         help="per-flight structure with a ripple over the rover's body azimuth beside the drift "

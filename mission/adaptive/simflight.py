@@ -65,6 +65,12 @@ class FlightWorld:
         else:
             self.draw = family.draw(rng)
             self.model = self.draw.model()
+        if self.draw.shadowing_over != "ground":  # its map is fixed over the area before flying
+            raise InputError(
+                "the fast simulator draws shadowing fixed to the ground; this family draws it "
+                f"along the path ({family.name})",
+                field="shadowing_over",
+            )
         self.tx = spec.resolve_tx(rng)
         v = spec.field.flight_area.vertices
         xs = np.arange(v[:, 0].min() - 30, v[:, 0].max() + 30 + step_m, step_m)

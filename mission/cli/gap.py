@@ -91,6 +91,15 @@ def _output_arguments(parser: argparse.ArgumentParser) -> None:
         "the drift (structure about the transmitter; implies --family-structure)",
     )
     parser.add_argument(
+        "--family-path-shadowing",
+        action="store_true",
+        help=(
+            "draw the shadowing along each flight's path (correlated along the track, independent "
+            "on a later pass over the same ground: what the diagnosis calls 'correlated within "
+            "flights') instead of fixed to the ground"
+        ),
+    )
+    parser.add_argument(
         "--family-azimuth",
         action="store_true",
         help="per-flight structure with a ripple over the rover's body azimuth beside the drift "
@@ -371,6 +380,7 @@ def _write_family(d, cfg, args, console) -> None:
         check=args.family_repeats > 0,
         repeats=max(args.family_repeats, 1),
         structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
+        shadowing_over="path" if args.family_path_shadowing else "ground",
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text

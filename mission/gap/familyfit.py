@@ -499,10 +499,12 @@ def build_family(
     name: str = "family",
     source: dict[str, Any] | None = None,
     not_in_family: Sequence[str] = (),
+    shadowing_over: str = "ground",
 ) -> dict[str, Any]:
     """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads
     and intervals. Flights marked ``excluded`` are listed in ``per_flight`` but enter no
-    distribution."""
+    distribution. ``shadowing_over``: what the drawn shadowing is fixed to (``"path"``: along the
+    track, as the diagnosis's "correlated within flights" says of the real residual)."""
     every = list(fits)
     fits = [f for f in fits if not f.excluded] or every
     teams = [f.team for f in fits]
@@ -566,6 +568,7 @@ def build_family(
         "residual": residual,
         "offset_db": offset_distribution(off, per_flight=bool(nuisance)),
         **({"nuisance": nuisance} if nuisance else {}),
+        **({"shadowing_over": shadowing_over} if shadowing_over != "ground" else {}),
         "effects": list(effects),
         "not_in_family": list(not_in_family),
         "spread": spreads,

@@ -16,6 +16,7 @@ Schema (``schema`` 1)::
         {"p": 0.6, "spec": {"rx_pattern": "measured", "rx_flipped": true}}, ...],
      # correlated field + white nugget
      "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
+     "shadowing_over": "ground",  # optional: or "path" (below)
      "offset_db": D,           # the receiver's uncalibrated offset
      "nuisance": {"time_drift_db": D, "radial_db": D},  # optional: per-flight structure (below)
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
@@ -42,6 +43,12 @@ sd), added after the drift: structure about the transmitter, which leaves the RS
 ``azimuth_db``: the std of a ripple over the body azimuth of the transmitter seen from the UAV
 (``azimuth_ripple``: cos and sin of k az_b for k = 1..DRIFT_ORDER, coefficient sd 1 / (1 + k^2)),
 added after the radial profile: an antenna pattern the model does not have, fixed to the body.
+
+What the shadowing is fixed to (``shadowing_over``, ``physics.shadowing.SHADOWING_OVER``): the
+ground (the default; every older family), or the flight's own path (``path_shadowing``: correlated
+along the track with the same sigma and correlation length, independent on a later pass over the
+same ground), which is what the gap diagnosis finds on the real flights ("correlated within
+flights").  It takes no random numbers of its own: a family's draws are the same either way.
 """
 
 from __future__ import annotations
@@ -61,7 +68,7 @@ from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
 from mission.physics.geometry import body_angles, horizontal_distance, link_delta
 from mission.physics.presets import build_model
-from mission.physics.shadowing import shadowing_field
+from mission.physics.shadowing import SHADOWING_OVER, draw_shadowing
 
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
@@ -168,19 +175,25 @@ class FamilyDraw:
     time_drift_db: float = 0.0  # std of the flight's smooth gain drift (``nuisance``)
     radial_db: float = 0.0  # std of the flight's profile over the distance to the rover
     azimuth_db: float = 0.0  # std of the flight's ripple over the body azimuth of the rover
+    shadowing_over: str = "ground"  # what the shadowing is fixed to (``SHADOWING_OVER``)
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
         return build_model(self.spec, name=name)
 
     def to_dict(self) -> dict:
-        return {
-            "spec": self.spec,
-            "shadowing_db": self.shadowing_db,
-            "shadowing_corr_m": self.shadowing_corr_m,
-            "noise_db": self.noise_db,
-            "offset_db": self.offset_db,
-        } | {k: v for k, v in self.nuisance().items() if v}
+        over = {"shadowing_over": self.shadowing_over} if self.shadowing_over != "ground" else {}
+        return (
+            {
+                "spec": self.spec,
+                "shadowing_db": self.shadowing_db,
+                "shadowing_corr_m": self.shadowing_corr_m,
+                "noise_db": self.noise_db,
+                "offset_db": self.offset_db,
+            }
+            | over
+            | {k: v for k, v in self.nuisance().items() if v}
+        )
 
     def nuisance(self) -> dict[str, float]:
         """The per-flight nuisance stds by ``NUISANCE_KEYS`` (``nuisance_rss`` draws them)."""
@@ -211,6 +224,7 @@ class PhysicsFamily:
     variants: tuple = ()
     record: dict = field(default_factory=dict, compare=False, repr=False)
     nuisance: dict = field(default_factory=dict)
+    shadowing_over: str = "ground"
 
     @classmethod
     def from_dict(cls, d: dict, source: str | None = None) -> PhysicsFamily:
@@ -237,6 +251,13 @@ class PhysicsFamily:
         nuis = d.get("nuisance", {})
         _check_section(nuis, "nuisance", NUISANCE_KEYS, source)
         nuis = dict(nuis)
+        over = d.get("shadowing_over", "ground")
+        if over not in SHADOWING_OVER:
+            raise InputError(
+                f"shadowing_over {over!r} must be one of {', '.join(SHADOWING_OVER)}",
+                source=source,
+                field="shadowing_over",
+            )
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
@@ -262,6 +283,7 @@ class PhysicsFamily:
             tuple(variants),
             dict(d),
             nuis,
+            over,
         )
         fam._check_builds(source)
         return fam
@@ -295,6 +317,7 @@ class PhysicsFamily:
             float(res.get("noise_db", 0.0)),
             offset,
             *(float(nuis.get(k, 0.0)) for k in NUISANCE_KEYS),
+            shadowing_over=self.shadowing_over,
         )
 
     def to_dict(self) -> dict:
@@ -310,6 +333,8 @@ class PhysicsFamily:
             d["variants"] = list(self.variants)
         if self.nuisance:
             d["nuisance"] = self.nuisance
+        if self.shadowing_over != "ground":
+            d["shadowing_over"] = self.shadowing_over
         return d
 
 
@@ -470,8 +495,8 @@ def simulate_rss(
     rng: np.random.Generator,
     model=None,
 ) -> np.ndarray:
-    """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing + white
-    noise.
+    """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing (over the
+    ground or along the path, ``draw.shadowing_over``) + white noise + the per-flight nuisance.
 
     ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive
     part)."""
@@ -480,7 +505,9 @@ def simulate_rss(
     rss = np.asarray(m.rss_dbm(np.asarray(tx_enu, dtype=float), rx, attitude_rad), dtype=float)
     rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
     if draw.shadowing_db > 0:
-        rss = rss + shadowing_field(rx[:, :2], draw.shadowing_db, draw.shadowing_corr_m, rng)
+        rss = rss + draw_shadowing(
+            rx, draw.shadowing_db, draw.shadowing_corr_m, draw.shadowing_over, rng
+        )
     return rss + nuisance_rss(tx_enu, rx, attitude_rad, draw.nuisance(), rng)
 
 

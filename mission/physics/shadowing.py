@@ -21,10 +21,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import gaussian_filter, map_coordinates
+from scipy.ndimage import gaussian_filter, gaussian_filter1d, map_coordinates
 from scipy.optimize import nnls
 
 COVARIANCES = ("exponential", "gaussian")
+# what a drawn shadowing is fixed to: the ground (``shadowing_field``: the same place, the same dB,
+# whenever it is flown) or the flight's own path (``path_shadowing``: correlated along the track,
+# independent on a later pass over the same ground)
+SHADOWING_OVER = ("ground", "path")
 
 
 def correlation(h: np.ndarray, corr_len_m: float, kind: str = "exponential") -> np.ndarray:
@@ -83,6 +87,55 @@ def shadowing_field(
     g *= sigma_db / max(float(g.std()), 1e-12)
     coords = ((xy - lo) / res).T
     return map_coordinates(g, coords, order=1, mode="nearest")
+
+
+def path_length(pos: np.ndarray) -> np.ndarray:
+    """Cumulative horizontal distance (m) along the samples ``pos`` (N, >= 2) in flight order."""
+    xy = np.asarray(pos, dtype=float)[:, :2]
+    if len(xy) == 0:
+        return np.zeros(0)
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+
+
+def path_shadowing(
+    pos: np.ndarray,
+    sigma_db: float,
+    corr_m: float,
+    rng: np.random.Generator,
+    cells_per_corr: float = 4.0,
+) -> np.ndarray:
+    """Zero-mean Gaussian-covariance shadowing (dB) along the flight's path: ``shadowing_field``'s
+    draw in one dimension, over the cumulative horizontal distance flown (``path_length``), so the
+    correlation is ``exp(-s**2 / corr_m**2)`` for samples ``s`` metres apart along the track.
+
+    Why: the gap diagnosis finds the real flights' residual correlated within a flight but not
+    repeating over the same ground (``mission.gap.structure``: its own path's shadowing seen once,
+    a gain changing over the flight); a field fixed to the ground makes a spiral's later rings see
+    the same error again, which such a residual does not."""
+    pos = np.asarray(pos, dtype=float)
+    if sigma_db <= 0 or len(pos) == 0:
+        return np.zeros(len(pos))
+    if corr_m <= 0:
+        raise ValueError(f"shadowing correlation distance must be > 0, got {corr_m}")
+    s = path_length(pos)
+    res = max(corr_m / cells_per_corr, 1.0)
+    pad = int(np.ceil(3.0 * corr_m / res))
+    n = int(np.ceil(s[-1] / res)) + 1 + 2 * pad
+    g = gaussian_filter1d(rng.standard_normal(n), 0.5 * corr_m / res, mode="wrap")
+    g *= sigma_db / max(float(g.std()), 1e-12)
+    return np.interp(s / res + pad, np.arange(n), g)
+
+
+def draw_shadowing(
+    pos: np.ndarray, sigma_db: float, corr_m: float, over: str, rng: np.random.Generator
+) -> np.ndarray:
+    """One flight's shadowing (dB) at its samples ``pos`` (N, >= 2, flight order), fixed to the
+    ground or to the path (``SHADOWING_OVER``)."""
+    if over == "path":
+        return path_shadowing(pos, sigma_db, corr_m, rng)
+    if over != "ground":
+        raise ValueError(f"shadowing over {over!r}: must be one of {', '.join(SHADOWING_OVER)}")
+    return shadowing_field(np.asarray(pos, dtype=float)[:, :2], sigma_db, corr_m, rng)
 
 
 @dataclass(frozen=True, eq=False)
