@@ -482,6 +482,8 @@ def speed(args: argparse.Namespace) -> int:
             name="afar",
             repeats=args.repeats,
             structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
+            shadowing_over="path" if args.family_path_shadowing else "ground",
+            marginal=args.family_marginal,
         )
         if args.family_out:
             Path(args.family_out).write_text(json.dumps(rec, indent=1) + "\n")
@@ -760,6 +762,14 @@ def main(argv: list[str] | None = None) -> int:
         help=(
             "the family's shadowing drawn along the path, not fixed to the ground "
             "(mission/gap/README.md, 'Shadowing along the path')"
+        ),
+    )
+    sp.add_argument(
+        "--family-marginal",
+        action="store_true",
+        help=(
+            "draw the shadowing with the shape of the real flights' held-out residual (skewed "
+            "to fades) instead of a Gaussian one"
         ),
     )
     sp.add_argument(

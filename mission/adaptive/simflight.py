@@ -34,7 +34,7 @@ from mission.localize.api import localize_log, make_localizer
 from mission.localize.methods import ADAPTIVE_METHOD
 from mission.localize.uncertainty import region_covers
 from mission.physics.family import FamilyDraw
-from mission.physics.shadowing import shadowing_field
+from mission.physics.shadowing import draw_shadowing
 from mission.samples import FlightSamples
 from mission.simulate import SimConfig, fly_path
 from mission.trajectory.autopilot import ReturnModel
@@ -76,9 +76,14 @@ class FlightWorld:
         xs = np.arange(v[:, 0].min() - 30, v[:, 0].max() + 30 + step_m, step_m)
         ys = np.arange(v[:, 1].min() - 30, v[:, 1].max() + 30 + step_m, step_m)
         g = np.stack(np.meshgrid(xs, ys, indexing="ij"), -1).reshape(-1, 2)
-        sh = shadowing_field(g, self.draw.shadowing_db, self.draw.shadowing_corr_m, rng).reshape(
-            len(xs), len(ys)
-        )
+        sh = draw_shadowing(
+            g,
+            self.draw.shadowing_db,
+            self.draw.shadowing_corr_m,
+            "ground",
+            rng,
+            self.draw.shadowing_marginal,
+        ).reshape(len(xs), len(ys))
         self._shadow = RegularGridInterpolator((xs, ys), sh, bounds_error=False, fill_value=0.0)
 
     def rss(self, pos: np.ndarray, att: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -100,6 +100,14 @@ def _output_arguments(parser: argparse.ArgumentParser) -> None:
         ),
     )
     parser.add_argument(
+        "--family-marginal",
+        action="store_true",
+        help=(
+            "draw the shadowing with the shape of the real flights' held-out residual (skewed "
+            "to fades) instead of a Gaussian one"
+        ),
+    )
+    parser.add_argument(
         "--family-azimuth",
         action="store_true",
         help="per-flight structure with a ripple over the rover's body azimuth beside the drift "
@@ -381,6 +389,7 @@ def _write_family(d, cfg, args, console) -> None:
         repeats=max(args.family_repeats, 1),
         structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
         shadowing_over="path" if args.family_path_shadowing else "ground",
+        marginal=args.family_marginal,
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text

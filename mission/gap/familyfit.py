@@ -48,7 +48,7 @@ from mission.physics.family import (
     radial_coordinate,
 )
 from mission.physics.presets import build_model
-from mission.physics.shadowing import fit_variogram
+from mission.physics.shadowing import fit_variogram, standardized_marginal
 from mission.robust import robust_offset
 from mission.samples import FlightSamples
 
@@ -500,11 +500,14 @@ def build_family(
     source: dict[str, Any] | None = None,
     not_in_family: Sequence[str] = (),
     shadowing_over: str = "ground",
+    marginal: bool = False,
 ) -> dict[str, Any]:
     """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads
     and intervals. Flights marked ``excluded`` are listed in ``per_flight`` but enter no
     distribution. ``shadowing_over``: what the drawn shadowing is fixed to (``"path"``: along the
-    track, as the diagnosis's "correlated within flights" says of the real residual)."""
+    track, as the diagnosis's "correlated within flights" says of the real residual);
+    ``marginal``: the shadowing takes the shape of the flights' held-out residuals
+    (``heldout_marginal``), not a Gaussian one."""
     every = list(fits)
     fits = [f for f in fits if not f.excluded] or every
     teams = [f.team for f in fits]
@@ -569,12 +572,27 @@ def build_family(
         "offset_db": offset_distribution(off, per_flight=bool(nuisance)),
         **({"nuisance": nuisance} if nuisance else {}),
         **({"shadowing_over": shadowing_over} if shadowing_over != "ground" else {}),
+        **({"shadowing_marginal": heldout_marginal(fits)} if marginal else {}),
         "effects": list(effects),
         "not_in_family": list(not_in_family),
         "spread": spreads,
         "checks": {"heldout_p90_db": p90, "sill_db": sill, "intervals": intervals(spreads)},
         "per_flight": [f.as_dict() for f in every],
     }
+
+
+def heldout_marginal(fits: Sequence[FlightFit]) -> dict[str, list[float]]:
+    """The standardized shape of the flights' held-out residuals (each flight's about its mean,
+    over its std, then pooled; ``physics.shadowing.standardized_marginal``): the family's
+    ``shadowing_marginal``.  The whole residual's shape stands for the shadowing's, the largest
+    part of it (the white noise and the drift, Gaussian and smooth, dilute a skew a little)."""
+    z = []
+    for f in fits:
+        r = f.heldout[np.isfinite(f.heldout)]
+        if r.size > 1 and r.std() > 0:
+            z.append((r - r.mean()) / r.std())
+    p, q = standardized_marginal(np.concatenate(z))
+    return {"p": list(p), "q": list(q)}
 
 
 def intervals(spreads: dict[str, Any]) -> dict[str, list[float]]:

@@ -28,13 +28,14 @@ def family_from_diagnosis(
     repeats: int = 4,
     structure: bool | Sequence[str] = False,
     shadowing_over: str = "ground",
+    marginal: bool = False,
 ) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per
     flight; with ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on,
     in ``checks.loop`` (``repeats`` simulated copies of every track: one copy of five flights
     scatters by +-1.5 dB in p90); ``structure``: per-flight nuisance drawn beside the shadowing
     (``familyfit.fit_flight``); ``shadowing_over``: the drawn shadowing fixed to the ground or
-    to the path (``familyfit.build_family``)."""
+    to the path, and ``marginal``: of the held-out residuals' shape (``familyfit.build_family``)."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
     rec, fits = fit_family(
         d.flights,
@@ -46,6 +47,7 @@ def family_from_diagnosis(
         not_in_family=left,
         structure=structure,
         shadowing_over=shadowing_over,
+        marginal=marginal,
     )
     rec["ladder"] = [r.added for r in d.rungs if r.added]
     if check:

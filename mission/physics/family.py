@@ -17,6 +17,7 @@ Schema (``schema`` 1)::
      # correlated field + white nugget
      "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
      "shadowing_over": "ground",  # optional: or "path" (below)
+     "shadowing_marginal": {"p": [...], "q": [...]},  # optional: the shadowing's shape (below)
      "offset_db": D,           # the receiver's uncalibrated offset
      "nuisance": {"time_drift_db": D, "radial_db": D},  # optional: per-flight structure (below)
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
@@ -49,6 +50,12 @@ ground (the default; every older family), or the flight's own path (``path_shado
 along the track with the same sigma and correlation length, independent on a later pass over the
 same ground), which is what the gap diagnosis finds on the real flights ("correlated within
 flights").  It takes no random numbers of its own: a family's draws are the same either way.
+
+The shadowing's shape (``shadowing_marginal``, optional): a standardized marginal (probabilities
+``p``, increasing in (0, 1), and quantiles ``q``, non-decreasing, mean 0 and std 1) to which the
+Gaussian draw is mapped sample by sample (``physics.shadowing.quantile_mapped``, a Gaussian
+copula: the correlation's ranks are kept).  The real flights' residual is skewed to fades; without
+the key the shadowing is Gaussian, as in every older family.  It takes no random numbers either.
 """
 
 from __future__ import annotations
@@ -68,12 +75,15 @@ from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
 from mission.physics.geometry import body_angles, horizontal_distance, link_delta
 from mission.physics.presets import build_model
-from mission.physics.shadowing import SHADOWING_OVER, draw_shadowing
+from mission.physics.shadowing import SHADOWING_OVER, Marginal, draw_shadowing
 
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
 RESIDUAL_KEYS = ("shadowing_db", "shadowing_corr_m", "noise_db")
 NUISANCE_KEYS = ("time_drift_db", "radial_db", "azimuth_db")
+# how a family's shadowing is drawn beyond sigma and range, each key only where it is not the
+# default (a ground field of Gaussian shape)
+SHADOWING_KEYS = ("shadowing_over", "shadowing_marginal")
 DRIFT_ORDER = 4  # Legendre orders of the drawn time drift (the gap's ``temporal.DRIFT_ORDER``)
 SHIPPED = {"afar": "afar_family.json"}
 
@@ -176,13 +186,19 @@ class FamilyDraw:
     radial_db: float = 0.0  # std of the flight's profile over the distance to the rover
     azimuth_db: float = 0.0  # std of the flight's ripple over the body azimuth of the rover
     shadowing_over: str = "ground"  # what the shadowing is fixed to (``SHADOWING_OVER``)
+    shadowing_marginal: Marginal | None = None  # its standardized shape; None: Gaussian
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
         return build_model(self.spec, name=name)
 
     def to_dict(self) -> dict:
-        over = {"shadowing_over": self.shadowing_over} if self.shadowing_over != "ground" else {}
+        over: dict[str, Any] = {}
+        if self.shadowing_over != "ground":
+            over["shadowing_over"] = self.shadowing_over
+        if self.shadowing_marginal is not None:
+            p, q = self.shadowing_marginal
+            over["shadowing_marginal"] = {"p": list(p), "q": list(q)}
         return (
             {
                 "spec": self.spec,
@@ -225,6 +241,7 @@ class PhysicsFamily:
     record: dict = field(default_factory=dict, compare=False, repr=False)
     nuisance: dict = field(default_factory=dict)
     shadowing_over: str = "ground"
+    shadowing_marginal: Marginal | None = None
 
     @classmethod
     def from_dict(cls, d: dict, source: str | None = None) -> PhysicsFamily:
@@ -258,6 +275,7 @@ class PhysicsFamily:
                 source=source,
                 field="shadowing_over",
             )
+        marginal = check_marginal(d.get("shadowing_marginal"), source)
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
@@ -284,6 +302,7 @@ class PhysicsFamily:
             dict(d),
             nuis,
             over,
+            marginal,
         )
         fam._check_builds(source)
         return fam
@@ -318,6 +337,7 @@ class PhysicsFamily:
             offset,
             *(float(nuis.get(k, 0.0)) for k in NUISANCE_KEYS),
             shadowing_over=self.shadowing_over,
+            shadowing_marginal=self.shadowing_marginal,
         )
 
     def to_dict(self) -> dict:
@@ -335,7 +355,45 @@ class PhysicsFamily:
             d["nuisance"] = self.nuisance
         if self.shadowing_over != "ground":
             d["shadowing_over"] = self.shadowing_over
+        if self.shadowing_marginal is not None:
+            d["shadowing_marginal"] = {
+                "p": list(self.shadowing_marginal[0]),
+                "q": list(self.shadowing_marginal[1]),
+            }
         return d
+
+
+def check_marginal(m: Any, source: str | None = None) -> Marginal | None:
+    """A family's ``shadowing_marginal`` as (p, q) tuples, None when absent; a one-line
+    ``InputError`` naming the field unless ``p`` and ``q`` are lists of at least 3 finite numbers
+    of one length, ``p`` increasing inside (0, 1) and ``q`` non-decreasing."""
+    if m is None:
+        return None
+    field = "shadowing_marginal"
+    try:
+        p = np.asarray(m["p"], dtype=float)
+        q = np.asarray(m["q"], dtype=float)
+    except (TypeError, KeyError, ValueError, IndexError):
+        raise InputError(
+            f"{field} must be an object with lists 'p' and 'q' of numbers",
+            source=source,
+            field=field,
+        ) from None
+    if not isinstance(m, dict) or p.ndim != 1 or p.shape != q.shape or len(p) < 3:
+        raise InputError(
+            f"{field}: 'p' and 'q' must be lists of one length, at least 3",
+            source=source,
+            field=field,
+        )
+    if not (np.isfinite(p).all() and np.isfinite(q).all()):
+        raise InputError(f"{field}: every p and q must be finite", source=source, field=field)
+    if not (p[0] > 0 and p[-1] < 1 and (np.diff(p) > 0).all() and (np.diff(q) >= 0).all()):
+        raise InputError(
+            f"{field}: 'p' must increase inside (0, 1) and 'q' must not decrease",
+            source=source,
+            field=field,
+        )
+    return tuple(p.tolist()), tuple(q.tolist())
 
 
 def _check_section(
@@ -506,7 +564,12 @@ def simulate_rss(
     rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
     if draw.shadowing_db > 0:
         rss = rss + draw_shadowing(
-            rx, draw.shadowing_db, draw.shadowing_corr_m, draw.shadowing_over, rng
+            rx,
+            draw.shadowing_db,
+            draw.shadowing_corr_m,
+            draw.shadowing_over,
+            rng,
+            draw.shadowing_marginal,
         )
     return rss + nuisance_rss(tx_enu, rx, attitude_rad, draw.nuisance(), rng)
 

@@ -73,7 +73,8 @@ Axes and ranges (``draw_flight``; one value per flight, draw order fixed):
 A physics family file instead of a built-in name (``family="F.json"``: schema 1,
 ``mission.physics.family``; the shipped ``mission/data/afar_family.json``, or ``rfsl gap --family``
 output): the physics (model spec), the residual (correlated shadowing sigma and correlation length,
-white nugget, and whether the shadowing is fixed to the ground or to the path, ``shadowing_over``)
+white nugget, whether the shadowing is fixed to the ground or to the path, ``shadowing_over``, and
+its shape, ``shadowing_marginal``)
 and the RSS offset are one ``family.draw(rng)`` in place of the three built-in draws;
 every other axis (position, altitude, speed, path, habit, coverage, time offset) is drawn as above.
 ``draw["family"]`` is then ``json:NAME@SHA8`` and ``draw["family_sha256"]`` the sha256 of the
@@ -91,7 +92,7 @@ import numpy as np
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta
 from mission.geo import afar_field
-from mission.physics.family import nuisance_rss
+from mission.physics.family import SHADOWING_KEYS, nuisance_rss
 from mission.physics.presets import build_model, load_preset
 from mission.physics.shadowing import draw_shadowing
 from mission.simulate import SimConfig, perturbation
@@ -250,8 +251,9 @@ def draw_flight(
         )
         d["time_offset_s"] = _u(rng, -0.5, 0.5)
         d["rss_offset_db"] = fd.offset_db
-        if fd.shadowing_over != "ground":  # a ground field (every older cache) adds no key
-            d["shadowing_over"] = fd.shadowing_over
+        # a ground field with a Gaussian shape (every older cache) adds no key
+        drawn = fd.to_dict()
+        d.update({k: drawn[k] for k in SHADOWING_KEYS if k in drawn})
         # a family with per-flight structure (``physics.family`` nuisance)
         d.update({k: v for k, v in fd.nuisance().items() if v})
         return d, rng
@@ -348,8 +350,14 @@ def simulate_draw(
     tx = np.array([*d["tx_xy"], d["tx_height_m"]])
     rss = np.asarray(model.rss_dbm(tx, pos, att), dtype=float)
     rss += d["rss_offset_db"] + rng.normal(0.0, d["noise_db"], size=rss.shape)
+    m = d.get("shadowing_marginal")
     rss += draw_shadowing(
-        pos, d["shadowing_db"], d["shadowing_corr_m"], d.get("shadowing_over", "ground"), rng
+        pos,
+        d["shadowing_db"],
+        d["shadowing_corr_m"],
+        d.get("shadowing_over", "ground"),
+        rng,
+        None if m is None else (tuple(m["p"]), tuple(m["q"])),
     )
     # drawn last, as ``physics.family.simulate_rss``: a flight without it is unchanged
     rss += nuisance_rss(tx, pos, att, d, rng)

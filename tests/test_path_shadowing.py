@@ -1,0 +1,160 @@
+"""Shadowing drawn along the flight's path (``physics.shadowing.path_shadowing``) and families
+that say ``shadowing_over: "path"``: the closed-form correlation along the track, independence on
+a second pass over the same ground (where a ground field repeats), and the family plumbing."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mission.adaptive.simflight import FlightWorld
+from mission.errors import InputError
+from mission.physics.family import FamilyDraw, PhysicsFamily, load_family, simulate_rss
+from mission.physics.shadowing import (
+    draw_shadowing,
+    path_length,
+    path_shadowing,
+    shadowing_field,
+)
+from mission.spec import load_mission
+from mission.workshop.suite import draw_flight
+
+
+def _line(n: int, step_m: float) -> np.ndarray:
+    return np.column_stack([np.arange(n) * step_m, np.zeros(n), np.full(n, 30.0)])
+
+
+def _circle_twice(n: int = 2000, radius_m: float = 100.0) -> np.ndarray:
+    """A circle flown twice: sample k and k + n / 2 are at the same place, 628 m of path apart."""
+    a = np.linspace(0.0, 4 * np.pi, n, endpoint=False)
+    return np.column_stack([radius_m * np.cos(a), radius_m * np.sin(a), np.full(n, 30.0)])
+
+
+def test_path_length_is_the_distance_flown() -> None:
+    pos = np.array([[0.0, 0.0, 30.0], [3.0, 4.0, 31.0], [3.0, 4.0, 40.0], [0.0, 0.0, 30.0]])
+    # horizontal only: a climb adds nothing
+    assert path_length(pos).tolist() == [0.0, 5.0, 5.0, 10.0]
+    assert path_length(np.zeros((0, 3))).size == 0
+
+
+@pytest.mark.parametrize("corr_m", [10.0, 30.0])
+def test_path_shadowing_has_the_gaussian_correlation_along_the_track(corr_m: float) -> None:
+    """Over many draws, samples s metres apart along the track correlate by exp(-s^2 / L^2), and
+    the std is sigma (the closed form of the Gaussian covariance the ground field also draws)."""
+    pos = _line(400, 1.0)
+    rng = np.random.default_rng(3)
+    x = np.stack([path_shadowing(pos, 6.0, corr_m, rng) for _ in range(1500)])
+    assert x.std() == pytest.approx(6.0, rel=0.05)
+    i = 150
+    for lag in (0.5 * corr_m, corr_m, 2.0 * corr_m):
+        r = np.corrcoef(x[:, i], x[:, i + int(lag)])[0, 1]
+        assert r == pytest.approx(np.exp(-((lag / corr_m) ** 2)), abs=0.06)
+
+
+def test_a_second_pass_over_the_same_ground_is_independent_along_the_path() -> None:
+    """The ground field repeats on the second lap; the path field does not (628 m >> L)."""
+    pos = _circle_twice()
+    n = len(pos) // 2
+    rng = np.random.default_rng(5)
+    ground = [shadowing_field(pos[:, :2], 8.0, 30.0, rng) for _ in range(40)]
+    path = [path_shadowing(pos, 8.0, 30.0, rng) for _ in range(40)]
+    lap = [np.corrcoef(g[:n], g[n:])[0, 1] for g in ground]
+    assert np.mean(lap) > 0.95
+    lap = [np.corrcoef(p[:n], p[n:])[0, 1] for p in path]
+    assert abs(np.mean(lap)) < 0.1
+    # within a lap the path field is correlated over its length as the ground field is
+    step = float(np.hypot(*(pos[1, :2] - pos[0, :2])))
+    k = int(round(15.0 / step))
+    near = np.mean([np.corrcoef(p[:-k], p[k:])[0, 1] for p in path])
+    assert near == pytest.approx(np.exp(-0.25), abs=0.1)
+
+
+def test_draw_shadowing_dispatches_and_refuses_an_unknown_frame() -> None:
+    pos = _circle_twice(300)
+    g = draw_shadowing(pos, 5.0, 20.0, "ground", np.random.default_rng(1))
+    assert np.array_equal(g, shadowing_field(pos[:, :2], 5.0, 20.0, np.random.default_rng(1)))
+    p = draw_shadowing(pos, 5.0, 20.0, "path", np.random.default_rng(1))
+    assert np.array_equal(p, path_shadowing(pos, 5.0, 20.0, np.random.default_rng(1)))
+    with pytest.raises(ValueError, match="sky"):
+        draw_shadowing(pos, 5.0, 20.0, "sky", np.random.default_rng(1))
+    rng = np.random.default_rng(2)
+    assert not path_shadowing(pos, 0.0, 20.0, rng).any()
+    assert rng.standard_normal() == np.random.default_rng(2).standard_normal()  # none taken
+    with pytest.raises(ValueError, match="> 0"):
+        path_shadowing(pos, 5.0, 0.0, rng)
+
+
+def _path_family() -> dict:
+    d = load_family("afar").to_dict()
+    d["shadowing_over"] = "path"
+    return d
+
+
+def test_a_path_family_draws_as_the_ground_family_but_for_where_the_shadowing_lives() -> None:
+    ground = load_family("afar")
+    path = PhysicsFamily.from_dict(_path_family())
+    assert path.to_dict()["shadowing_over"] == "path" and "shadowing_over" not in ground.to_dict()
+    for seed in range(4):
+        a, b = ground.draw(np.random.default_rng(seed)), path.draw(np.random.default_rng(seed))
+        assert b.shadowing_over == "path" and a.shadowing_over == "ground"
+        assert a.to_dict() == {k: v for k, v in b.to_dict().items() if k != "shadowing_over"}
+    # simulated RSS: the same model, offset and noise; only the shadowing term differs
+    pos, att, tx = _circle_twice(400), np.zeros((400, 3)), np.array([10.0, 20.0, 1.5])
+    d_g = FamilyDraw({"base": "free-space"}, 6.0, 30.0, 0.0, 0.0)
+    d_p = FamilyDraw({"base": "free-space"}, 6.0, 30.0, 0.0, 0.0, shadowing_over="path")
+    diff_g = simulate_rss(d_g, tx, pos, att, np.random.default_rng(9)) - simulate_rss(
+        FamilyDraw({"base": "free-space"}, 0.0, 30.0, 0.0, 0.0),
+        tx,
+        pos,
+        att,
+        np.random.default_rng(0),
+    )
+    diff_p = simulate_rss(d_p, tx, pos, att, np.random.default_rng(9)) - simulate_rss(
+        FamilyDraw({"base": "free-space"}, 0.0, 30.0, 0.0, 0.0),
+        tx,
+        pos,
+        att,
+        np.random.default_rng(0),
+    )
+    assert np.allclose(diff_g, shadowing_field(pos[:, :2], 6.0, 30.0, _after_noise(9, 400)))
+    assert np.allclose(diff_p, path_shadowing(pos, 6.0, 30.0, _after_noise(9, 400)))
+
+
+def _after_noise(seed: int, n: int) -> np.random.Generator:
+    """The generator ``simulate_rss`` hands the shadowing: after its white noise of ``n`` draws."""
+    rng = np.random.default_rng(seed)
+    rng.normal(0.0, 0.0, size=n)
+    return rng
+
+
+@settings(max_examples=40, deadline=None)
+@given(value=st.one_of(st.text(max_size=6), st.integers(), st.none(), st.booleans()))
+def test_generated_bad_shadowing_frames_are_refused_naming_the_field(value: object) -> None:
+    d = _path_family()
+    d["shadowing_over"] = value
+    if value in ("ground", "path"):
+        assert PhysicsFamily.from_dict(d).shadowing_over == value
+        return
+    with pytest.raises(InputError) as e:
+        PhysicsFamily.from_dict(d, source="gen.json")
+    assert "shadowing_over" in str(e.value) and "gen.json" in str(e.value)
+
+
+def test_the_benchmark_cache_draws_a_path_family_along_the_path(tmp_path) -> None:
+    f = tmp_path / "path.json"
+    f.write_text(json.dumps(_path_family()))
+    d, _ = draw_flight(2026, 3, str(f))
+    assert d["shadowing_over"] == "path"
+    d0, _ = draw_flight(2026, 3, "afar")
+    assert "shadowing_over" not in d0
+
+
+def test_the_fast_simulator_refuses_a_path_family() -> None:
+    spec = load_mission("missions/spiral.yaml")
+    fam = PhysicsFamily.from_dict(_path_family())
+    with pytest.raises(InputError, match="along the path"):
+        FlightWorld(spec, fam, np.random.default_rng(0))
