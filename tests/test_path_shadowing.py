@@ -5,20 +5,25 @@ a second pass over the same ground (where a ground field repeats), and the famil
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.stats import norm
 
 from mission.adaptive.simflight import FlightWorld
 from mission.errors import InputError
+from mission.gap.familyfit import heldout_marginal
 from mission.physics.family import FamilyDraw, PhysicsFamily, load_family, simulate_rss
 from mission.physics.shadowing import (
     draw_shadowing,
     path_length,
     path_shadowing,
+    quantile_mapped,
     shadowing_field,
+    standardized_marginal,
 )
 from mission.spec import load_mission
 from mission.workshop.suite import draw_flight
@@ -158,3 +163,128 @@ def test_the_fast_simulator_refuses_a_path_family() -> None:
     fam = PhysicsFamily.from_dict(_path_family())
     with pytest.raises(InputError, match="along the path"):
         FlightWorld(spec, fam, np.random.default_rng(0))
+
+
+# --- the shadowing's shape (``shadowing_marginal``) ---------------------------------------------
+
+
+def _gaussian_marginal(levels: int = 41):
+    p = np.linspace(0.005, 0.995, levels)
+    return tuple(p.tolist()), tuple(norm.ppf(p).tolist())
+
+
+def test_a_gaussian_marginal_maps_a_gaussian_draw_to_itself() -> None:
+    x = np.random.default_rng(0).normal(0.0, 7.0, 5000)
+    y = quantile_mapped(x, 7.0, _gaussian_marginal(201))
+    inner = np.abs(x) < 7.0 * norm.ppf(0.99)  # held beyond the last level
+    assert np.allclose(y[inner], x[inner], atol=0.05)  # linear between levels
+
+
+def test_quantile_mapping_keeps_the_ranks_and_takes_the_marginal() -> None:
+    """A Gaussian draw mapped to a skewed marginal: the same order of samples, and the quantiles
+    of the marginal times sigma."""
+    rng = np.random.default_rng(1)
+    fades = np.concatenate([rng.normal(0, 1, 20000), -rng.exponential(3.0, 4000)])
+    p, q = standardized_marginal(fades)
+    assert np.mean(q) == pytest.approx(0.0, abs=0.05) and q[0] < -2 * q[-1] < 0
+    x = rng.normal(0.0, 5.0, 20000)
+    y = quantile_mapped(x, 5.0, (p, q))
+    assert np.all(np.diff(y[np.argsort(x)]) >= 0)  # the order of the samples is kept
+    for level in (0.05, 0.25, 0.5, 0.75, 0.95):
+        assert np.quantile(y, level) == pytest.approx(
+            5.0 * np.interp(level, p, q), rel=0.05, abs=0.1
+        )
+
+
+def test_standardized_marginal_has_mean_0_and_std_1() -> None:
+    r = np.random.default_rng(2).gamma(2.0, 3.0, 50000) + 40.0
+    p, q = standardized_marginal(np.append(r, np.nan))
+    assert len(p) == len(q) == 41 and p[0] == 0.005 and p[-1] == 0.995
+    z = (r - r.mean()) / r.std()
+    assert q[20] == pytest.approx(np.median(z), abs=1e-3)
+    assert np.all(np.diff(q) >= 0)
+
+
+def test_a_family_with_a_marginal_draws_the_same_and_maps_its_shadowing() -> None:
+    d = _path_family()
+    d["shadowing_marginal"] = {"p": [0.01, 0.5, 0.99], "q": [-3.0, 0.1, 1.0]}
+    fam = PhysicsFamily.from_dict(d)
+    a = fam.draw(np.random.default_rng(4))
+    b = PhysicsFamily.from_dict(_path_family()).draw(np.random.default_rng(4))
+    assert a.shadowing_marginal == ((0.01, 0.5, 0.99), (-3.0, 0.1, 1.0))
+    assert {k: v for k, v in a.to_dict().items() if k != "shadowing_marginal"} == b.to_dict()
+    assert PhysicsFamily.from_dict(fam.to_dict()).shadowing_marginal == a.shadowing_marginal
+    pos, att, tx = _circle_twice(400), np.zeros((400, 3)), np.array([10.0, 20.0, 1.5])
+    flat = FamilyDraw({"base": "free-space"}, 0.0, 30.0, 0.0, 0.0)
+    base = simulate_rss(flat, tx, pos, att, np.random.default_rng(0))
+    m = a.shadowing_marginal
+    drawn = FamilyDraw({"base": "free-space"}, 6.0, 30.0, 0.0, 0.0, shadowing_marginal=m)
+    got = simulate_rss(drawn, tx, pos, att, np.random.default_rng(9)) - base
+    want = quantile_mapped(shadowing_field(pos[:, :2], 6.0, 30.0, _after_noise(9, 400)), 6.0, m)
+    assert np.allclose(got, want)
+    assert got.max() <= 6.0 * 1.0 + 1e-9 and got.min() >= -18.0 - 1e-9
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    value=st.one_of(
+        st.none(),
+        st.text(max_size=4),
+        st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=4),
+        st.fixed_dictionaries(
+            {
+                "p": st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=5),
+                "q": st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=5),
+            }
+        ),
+    )
+)
+def test_generated_bad_marginals_are_refused_naming_the_field(value: object) -> None:
+    """A marginal either loads as an increasing p in (0, 1) with a non-decreasing q, or raises
+    ``InputError`` naming ``shadowing_marginal`` and the file."""
+    d = _path_family()
+    d["shadowing_marginal"] = value
+    try:
+        fam = PhysicsFamily.from_dict(d, source="gen.json")
+    except InputError as e:
+        assert "shadowing_marginal" in str(e) and "gen.json" in str(e)
+        return
+    if value is None:
+        assert fam.shadowing_marginal is None
+        return
+    p, q = (np.asarray(x) for x in fam.shadowing_marginal)
+    assert len(p) >= 3 and 0 < p[0] and p[-1] < 1 and (np.diff(p) > 0).all()
+    assert (np.diff(q) >= 0).all() and np.isfinite(q).all()
+
+
+def test_the_fitted_marginal_pools_the_flights_standardized(tmp_path) -> None:
+    rng = np.random.default_rng(3)
+    fits = [
+        SimpleNamespace(heldout=np.append(-rng.exponential(s, 3000) + 9.0, np.nan), excluded="")
+        for s in (2.0, 8.0)
+    ]
+    m = heldout_marginal(fits)
+    # both flights are one shape (an exponential's mirror image) at two scales
+    p, q = standardized_marginal(-rng.exponential(1.0, 200000))
+    assert np.allclose(m["q"], q, atol=0.08) and m["p"] == list(p)
+
+
+def test_the_benchmark_cache_and_the_fast_simulator_take_the_marginal(tmp_path) -> None:
+    d = load_family("afar").to_dict()
+    d["shadowing_marginal"] = {"p": [0.01, 0.5, 0.99], "q": [-3.0, 0.1, 1.0]}
+    f = tmp_path / "fades.json"
+    f.write_text(json.dumps(d))
+    flight, _ = draw_flight(2026, 3, str(f))
+    assert flight["shadowing_marginal"] == d["shadowing_marginal"]
+    assert "shadowing_over" not in flight
+    world = FlightWorld(load_mission("missions/spiral.yaml"), PhysicsFamily.from_dict(d), _rng())
+    plain = FlightWorld(load_mission("missions/spiral.yaml"), load_family("afar"), _rng())
+    sigma = world.draw.shadowing_db
+    grid = plain._shadow.values
+    assert np.allclose(
+        world._shadow.values, quantile_mapped(grid, sigma, world.draw.shadowing_marginal)
+    )
+
+
+def _rng() -> np.random.Generator:
+    return np.random.default_rng(11)
