@@ -93,15 +93,22 @@ def real_flights(mat: str, tmp: str) -> list[tuple[str, str, str]]:
     return out
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def design_parser(description: str, k: int, json_help: str) -> argparse.ArgumentParser:
+    """The arguments of a script that draws a family's copies of the six real flights."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
     ap.add_argument("--family", default="afar", help="a shipped family name or a family JSON")
-    ap.add_argument("--k", type=int, default=20, help="copies per real flight")
+    ap.add_argument("--k", type=int, default=k, help="copies (family draws) per real flight")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--json", help="write the checks and every copy's figures here")
-    a = ap.parse_args()
+    ap.add_argument("--json", help=json_help)
+    return ap
+
+
+def main() -> None:
+    a = design_parser(
+        __doc__.splitlines()[0], 20, "write the checks and every copy's figures here"
+    ).parse_args()
     specs = methods(MODELS, [])
     con = Console(width=80)
     with tempfile.TemporaryDirectory() as tmp:

@@ -111,20 +111,10 @@ def test_a_path_family_draws_as_the_ground_family_but_for_where_the_shadowing_li
     pos, att, tx = _circle_twice(400), np.zeros((400, 3)), np.array([10.0, 20.0, 1.5])
     d_g = FamilyDraw({"base": "free-space"}, 6.0, 30.0, 0.0, 0.0)
     d_p = FamilyDraw({"base": "free-space"}, 6.0, 30.0, 0.0, 0.0, shadowing_over="path")
-    diff_g = simulate_rss(d_g, tx, pos, att, np.random.default_rng(9)) - simulate_rss(
-        FamilyDraw({"base": "free-space"}, 0.0, 30.0, 0.0, 0.0),
-        tx,
-        pos,
-        att,
-        np.random.default_rng(0),
-    )
-    diff_p = simulate_rss(d_p, tx, pos, att, np.random.default_rng(9)) - simulate_rss(
-        FamilyDraw({"base": "free-space"}, 0.0, 30.0, 0.0, 0.0),
-        tx,
-        pos,
-        att,
-        np.random.default_rng(0),
-    )
+    flat = FamilyDraw({"base": "free-space"}, 0.0, 30.0, 0.0, 0.0)
+    base = simulate_rss(flat, tx, pos, att, np.random.default_rng(0))
+    diff_g = simulate_rss(d_g, tx, pos, att, np.random.default_rng(9)) - base
+    diff_p = simulate_rss(d_p, tx, pos, att, np.random.default_rng(9)) - base
     assert np.allclose(diff_g, shadowing_field(pos[:, :2], 6.0, 30.0, _after_noise(9, 400)))
     assert np.allclose(diff_p, path_shadowing(pos, 6.0, 30.0, _after_noise(9, 400)))
 
