@@ -97,22 +97,30 @@ def one_flight(job: tuple) -> tuple[int, dict[str, list[dict]]]:
     fam = load_family(family)
     rng = np.random.default_rng([seed, i])
     for _ in range(k):
-        d = fam.draw(rng)
-        m = np.asarray(d.model().rss_dbm(tx, enu, att), dtype=float) + d.offset_db
-        noise = rng.normal(0.0, d.noise_db, size=m.shape)
+        for arm, rss in family_parts(fam.draw(rng), tx, enu, att, rng).items():
+            arms.setdefault(arm, []).append(_errors(log, rss, team, specs))
+    return i, arms
+
+
+def family_parts(
+    d: FamilyDraw, tx: np.ndarray, enu: np.ndarray, att: np.ndarray, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    """One draw's RSS part by part, with the random numbers ``simulate_rss`` takes in its order
+    (white noise, shadowing, nuisance), so that ``family: all`` is exactly its copy."""
+    m = np.asarray(d.model().rss_dbm(tx, enu, att), dtype=float) + d.offset_db
+    noise = rng.normal(0.0, d.noise_db, size=m.shape)
+    sh = np.zeros_like(m)
+    if d.shadowing_db > 0:
         sh = draw_shadowing(
             enu, d.shadowing_db, d.shadowing_corr_m, d.shadowing_over, rng, d.shadowing_marginal
         )
-        nu = nuisance_rss(tx, enu, att, d.nuisance(), rng)
-        parts = {
-            "family: model + noise": m + noise,
-            "family: + drift": m + noise + nu,
-            "family: + shadowing": m + noise + sh,
-            "family: all": m + noise + sh + nu,
-        }
-        for arm, rss in parts.items():
-            arms.setdefault(arm, []).append(_errors(log, rss, team, specs))
-    return i, arms
+    nu = nuisance_rss(tx, enu, att, d.nuisance(), rng)
+    return {
+        "family: model + noise": m + noise,
+        "family: + drift": m + noise + nu,
+        "family: + shadowing": m + noise + sh,
+        "family: all": m + noise + sh + nu,
+    }
 
 
 def bootstrap_mean(per_flight: np.ndarray, rng: np.random.Generator, n: int = 4000) -> list:

@@ -278,3 +278,27 @@ def test_the_benchmark_cache_and_the_fast_simulator_take_the_marginal(tmp_path) 
 
 def _rng() -> np.random.Generator:
     return np.random.default_rng(11)
+
+
+def test_copy_parts_adds_up_to_the_family_copy(repo_dir, monkeypatch) -> None:
+    """``benchmarks/copy_parts.py``: the parts of a draw, with every part in, are ``simulate_rss``'s
+    copy bit for bit (path, fades and a drift included), and each part is what it says."""
+    monkeypatch.syspath_prepend(str(repo_dir / "benchmarks"))
+    # a script, importable once its folder is on sys.path (the line above)
+    import copy_parts  # noqa: PLC0415
+
+    d = _path_family()
+    d["shadowing_marginal"] = {"p": [0.01, 0.5, 0.99], "q": [-3.0, 0.1, 1.0]}
+    d["nuisance"] = {"time_drift_db": 3.0}
+    draw = PhysicsFamily.from_dict(d).draw(np.random.default_rng(1))
+    pos, tx = _circle_twice(500), np.array([10.0, 20.0, 1.5])
+    att = np.zeros((500, 3))
+    parts = copy_parts.family_parts(draw, tx, pos, att, np.random.default_rng(5))
+    assert np.array_equal(
+        parts["family: all"], simulate_rss(draw, tx, pos, att, np.random.default_rng(5))
+    )
+    drift = parts["family: + drift"] - parts["family: model + noise"]
+    shadow = parts["family: + shadowing"] - parts["family: model + noise"]
+    assert np.std(drift) == pytest.approx(3.0, rel=1e-6)
+    assert np.allclose(parts["family: all"] - parts["family: model + noise"], drift + shadow)
+    assert np.max(shadow) <= draw.shadowing_db * 1.0 + 1e-9  # the fades' top quantile
