@@ -585,7 +585,8 @@ def heldout_marginal(fits: Sequence[FlightFit]) -> dict[str, list[float]]:
     """The standardized shape of the flights' held-out residuals (each flight's about its mean,
     over its std, then pooled; ``physics.shadowing.standardized_marginal``): the family's
     ``shadowing_marginal``.  The whole residual's shape stands for the shadowing's, the largest
-    part of it (the white noise and the drift, Gaussian and smooth, dilute a skew a little)."""
+    part of it; the white noise and the drift are drawn Gaussian and smooth beside it, so a
+    simulated flight's whole residual is a little less skewed than the real one."""
     z = []
     for f in fits:
         r = f.heldout[np.isfinite(f.heldout)]
