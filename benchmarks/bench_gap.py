@@ -484,6 +484,7 @@ def speed(args: argparse.Namespace) -> int:
             structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
             shadowing_over="path" if args.family_path_shadowing else "ground",
             marginal=args.family_marginal,
+            covariance="exponential" if args.family_exponential else "gaussian",
         )
         if args.family_out:
             Path(args.family_out).write_text(json.dumps(rec, indent=1) + "\n")
@@ -770,6 +771,14 @@ def main(argv: list[str] | None = None) -> int:
         help=(
             "draw the shadowing with the shape of the real flights' held-out residual (skewed "
             "to fades) instead of a Gaussian one"
+        ),
+    )
+    sp.add_argument(
+        "--family-exponential",
+        action="store_true",
+        help=(
+            "fit and draw the shadowing with an exponential covariance (rough, Gudmundson's) "
+            "instead of a Gaussian one (smooth)"
         ),
     )
     sp.add_argument(

@@ -83,6 +83,7 @@ class FlightWorld:
             "ground",
             rng,
             self.draw.shadowing_marginal,
+            self.draw.shadowing_covariance,
         ).reshape(len(xs), len(ys))
         self._shadow = RegularGridInterpolator((xs, ys), sh, bounds_error=False, fill_value=0.0)
 

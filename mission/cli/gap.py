@@ -108,6 +108,14 @@ def _output_arguments(parser: argparse.ArgumentParser) -> None:
         ),
     )
     parser.add_argument(
+        "--family-exponential",
+        action="store_true",
+        help=(
+            "fit and draw the shadowing with an exponential covariance (rough, Gudmundson's) "
+            "instead of a Gaussian one (smooth)"
+        ),
+    )
+    parser.add_argument(
         "--family-azimuth",
         action="store_true",
         help="per-flight structure with a ripple over the rover's body azimuth beside the drift "
@@ -390,6 +398,7 @@ def _write_family(d, cfg, args, console) -> None:
         structure=structure_of(args.family_structure, args.family_radial, args.family_azimuth),
         shadowing_over="path" if args.family_path_shadowing else "ground",
         marginal=args.family_marginal,
+        covariance="exponential" if args.family_exponential else "gaussian",
     )
     PhysicsFamily.from_dict(rec, source=args.family)  # refuse to write a family that would not load
     from mission.files import write_text

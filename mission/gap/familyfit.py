@@ -362,11 +362,13 @@ def fit_flight(
     seed: int = 0,
     label: str | None = None,
     structure: bool | Sequence[str] = False,
+    covariance: str = "gaussian",
 ) -> FlightFit:
     """Fit the family effects on one flight; residual structure from two folds of alternate
     chunks.  ``structure``: also the per-flight nuisance (``structure_kinds``: True is the time
     drift, ``time_drift_db``; ``("time", "radial")`` adds ``radial_db``; ``nuisance_stds`` of the
-    held-out residual), taken out of the shadowing (only what is left is drawn as shadowing)."""
+    held-out residual), taken out of the shadowing (only what is left is drawn as shadowing).
+    ``covariance``: the variogram fitted to the held-out residual (the family draws that one)."""
     rng = np.random.default_rng(seed)
     cfg = FitConfig(**{**cfg.__dict__, "fit_max_samples": min(cfg.fit_max_samples, FIT_SAMPLES)})
     flight = (
@@ -383,7 +385,7 @@ def fit_flight(
     for fold in make_folds([flight], bcfg):
         p = fit_effects(base, flight, fold.train[0], effects, cfg, rng)
         held[fold.test[0]] = residuals(p, [flight], fold.test, cfg)[0]
-    vg = residual_variogram(flight, held, rng)
+    vg = residual_variogram(flight, held, rng, covariance)
     p90 = float(np.quantile(np.abs(held[np.isfinite(held)]), 0.9))
     # the variogram's sill (lags up to 200 m, gaussian) misses the heavy tail and the largest
     # scales; the family's shadowing std is set so that the gaussian p90 1.645 sqrt(s^2 + n^2)
@@ -403,18 +405,19 @@ def fit_flight(
 
 
 def residual_variogram(
-    flight: FlightSamples, r: np.ndarray, rng: np.random.Generator
+    flight: FlightSamples, r: np.ndarray, rng: np.random.Generator, covariance: str = "gaussian"
 ) -> dict[str, float]:
-    """Gaussian-covariance variogram over space (the covariance ``simulate_rss`` draws): sigma and
-    range; the white noise from consecutive samples (half the mean squared difference of neighbours
-    < 10 m apart), not from the variogram's nugget, which a fit to 5 m lag bins puts too low (and a
-    re-fit of flights simulated with it lower still)."""
+    """Variogram over space of the ``covariance`` the family draws (``simulate_rss``; Gaussian
+    unless the family says otherwise): sigma and range; the white noise from consecutive samples
+    (half the mean squared difference of neighbours < 10 m apart), not from the variogram's
+    nugget, which a fit to 5 m lag bins puts too low (and a re-fit of flights simulated with it
+    lower still)."""
     ok = np.isfinite(r)
     vg = fit_variogram(
         flight.enu_m[ok, :2],
         r[ok] - np.mean(r[ok]),
         rng,
-        kind="gaussian",
+        kind=covariance,
         max_lag=200.0,
         n_bins=40,
         max_points=1500,
@@ -501,13 +504,15 @@ def build_family(
     not_in_family: Sequence[str] = (),
     shadowing_over: str = "ground",
     marginal: bool = False,
+    covariance: str = "gaussian",
 ) -> dict[str, Any]:
     """The schema-1 family record (``mission.physics.family``) of per-flight fits, with spreads
     and intervals. Flights marked ``excluded`` are listed in ``per_flight`` but enter no
     distribution. ``shadowing_over``: what the drawn shadowing is fixed to (``"path"``: along the
     track, as the diagnosis's "correlated within flights" says of the real residual);
     ``marginal``: the shadowing takes the shape of the flights' held-out residuals
-    (``heldout_marginal``), not a Gaussian one."""
+    (``heldout_marginal``), not a Gaussian one; ``covariance``: the one the fits' variograms were
+    fitted with (``fit_flight``), recorded for the draws."""
     every = list(fits)
     fits = [f for f in fits if not f.excluded] or every
     teams = [f.team for f in fits]
@@ -573,6 +578,7 @@ def build_family(
         **({"nuisance": nuisance} if nuisance else {}),
         **({"shadowing_over": shadowing_over} if shadowing_over != "ground" else {}),
         **({"shadowing_marginal": heldout_marginal(fits)} if marginal else {}),
+        **({"shadowing_covariance": covariance} if covariance != "gaussian" else {}),
         "effects": list(effects),
         "not_in_family": list(not_in_family),
         "spread": spreads,
@@ -617,17 +623,19 @@ def fit_family(
     labels: Sequence[str] | None = None,
     seed: int = 0,
     structure: bool | Sequence[str] = False,
+    covariance: str = "gaussian",
     **kw: Any,
 ) -> tuple[dict[str, Any], list[FlightFit]]:
     """Fit ``effects`` on every flight and build the family record (``build_family``);
-    ``structure``: with the per-flight nuisance (``fit_flight``)."""
+    ``structure``: with the per-flight nuisance; ``covariance``: the shadowing's
+    (``fit_flight``)."""
 
     labels = list(labels) if labels is not None else [f.name for f in flights]
     jobs = list(enumerate(zip(flights, labels, strict=True)))
     # the longest flights first (a job's seed is its flight's index, so the order changes no bit):
     # the last flights handed out are the short ones, and the processes finish together
     fits = _map(
-        lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1], structure),
+        lambda j: fit_flight(j[1][0], effects, cfg, seed + j[0], j[1][1], structure, covariance),
         jobs,
         cfg.workers,
         cfg.processes,
@@ -636,7 +644,7 @@ def fit_family(
     for f in fits:
         if is_afar2023_suspect(f.name):
             f.excluded = AFAR2023_SUSPECT_NOTE
-    return build_family(fits, effects, **kw), fits
+    return build_family(fits, effects, covariance=covariance, **kw), fits
 
 
 __all__ = [

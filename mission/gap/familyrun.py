@@ -29,13 +29,15 @@ def family_from_diagnosis(
     structure: bool | Sequence[str] = False,
     shadowing_over: str = "ground",
     marginal: bool = False,
+    covariance: str = "gaussian",
 ) -> dict[str, Any]:
     """The family of a ``Diagnosis``: its ladder's effects (``effects_of_ladder``) fitted per
     flight; with ``check``, the loop-closing check (``loopcheck``) on the flights it was fitted on,
     in ``checks.loop`` (``repeats`` simulated copies of every track: one copy of five flights
     scatters by +-1.5 dB in p90); ``structure``: per-flight nuisance drawn beside the shadowing
     (``familyfit.fit_flight``); ``shadowing_over``: the drawn shadowing fixed to the ground or
-    to the path, and ``marginal``: of the held-out residuals' shape (``familyfit.build_family``)."""
+    to the path, ``marginal``: of the held-out residuals' shape (``familyfit.build_family``), and
+    ``covariance``: the shadowing's covariance, fitted and drawn (``familyfit.fit_flight``)."""
     effects, left = effects_of_ladder([r.added for r in d.rungs])
     rec, fits = fit_family(
         d.flights,
@@ -48,6 +50,7 @@ def family_from_diagnosis(
         structure=structure,
         shadowing_over=shadowing_over,
         marginal=marginal,
+        covariance=covariance,
     )
     rec["ladder"] = [r.added for r in d.rungs if r.added]
     if check:

@@ -64,7 +64,10 @@ def loop_check(
         sims += s
         draws += d
     kinds = tuple(k for k, key in NUISANCE_KINDS.items() if key in record.get("nuisance", {}))
-    rec2, fits2 = fit_family(sims, record.get("effects", []), cfg, seed=seed, structure=kinds)
+    cov = record.get("shadowing_covariance", "gaussian")  # re-fitted as the family was fitted
+    rec2, fits2 = fit_family(
+        sims, record.get("effects", []), cfg, seed=seed, structure=kinds, covariance=cov
+    )
     iv = record["checks"]["intervals"]
     params = {}
     for k, s in rec2["spread"].items():

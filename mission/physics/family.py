@@ -18,6 +18,7 @@ Schema (``schema`` 1)::
      "residual": {"shadowing_db": D, "shadowing_corr_m": D, "noise_db": D},
      "shadowing_over": "ground",  # optional: or "path" (below)
      "shadowing_marginal": {"p": [...], "q": [...]},  # optional: the shadowing's shape (below)
+     "shadowing_covariance": "gaussian",  # optional: or "exponential" (below)
      "offset_db": D,           # the receiver's uncalibrated offset
      "nuisance": {"time_drift_db": D, "radial_db": D},  # optional: per-flight structure (below)
      "per_flight": [...]}      # optional: the fitted values per real flight (information only)
@@ -56,6 +57,10 @@ The shadowing's shape (``shadowing_marginal``, optional): a standardized margina
 Gaussian draw is mapped sample by sample (``physics.shadowing.quantile_mapped``, a Gaussian
 copula: the correlation's ranks are kept).  The real flights' residual is skewed to fades; without
 the key the shadowing is Gaussian, as in every older family.  It takes no random numbers either.
+
+The shadowing's covariance (``shadowing_covariance``, optional): ``gaussian`` (exp(-h^2/L^2),
+smooth; every older family) or ``exponential`` (exp(-h/L), rough: Gudmundson's model), whose
+``residual`` sigma and range are then an exponential variogram's (``--family-exponential``).
 """
 
 from __future__ import annotations
@@ -75,7 +80,7 @@ from mission.fields import REQUIRED, Fields, is_number
 from mission.files import read_text
 from mission.physics.geometry import body_angles, horizontal_distance, link_delta
 from mission.physics.presets import build_model
-from mission.physics.shadowing import SHADOWING_OVER, Marginal, draw_shadowing
+from mission.physics.shadowing import COVARIANCES, SHADOWING_OVER, Marginal, draw_shadowing
 
 SCHEMA = 1
 DISTS = ("uniform", "loguniform", "normal", "choice", "empirical")
@@ -83,7 +88,7 @@ RESIDUAL_KEYS = ("shadowing_db", "shadowing_corr_m", "noise_db")
 NUISANCE_KEYS = ("time_drift_db", "radial_db", "azimuth_db")
 # how a family's shadowing is drawn beyond sigma and range, each key only where it is not the
 # default (a ground field of Gaussian shape)
-SHADOWING_KEYS = ("shadowing_over", "shadowing_marginal")
+SHADOWING_KEYS = ("shadowing_over", "shadowing_marginal", "shadowing_covariance")
 DRIFT_ORDER = 4  # Legendre orders of the drawn time drift (the gap's ``temporal.DRIFT_ORDER``)
 SHIPPED = {"afar": "afar_family.json"}
 
@@ -187,6 +192,7 @@ class FamilyDraw:
     azimuth_db: float = 0.0  # std of the flight's ripple over the body azimuth of the rover
     shadowing_over: str = "ground"  # what the shadowing is fixed to (``SHADOWING_OVER``)
     shadowing_marginal: Marginal | None = None  # its standardized shape; None: Gaussian
+    shadowing_covariance: str = "gaussian"  # its covariance (``COVARIANCES``)
 
     def model(self, name: str = "family"):
         """The propagation model of this draw."""
@@ -199,6 +205,8 @@ class FamilyDraw:
         if self.shadowing_marginal is not None:
             p, q = self.shadowing_marginal
             over["shadowing_marginal"] = {"p": list(p), "q": list(q)}
+        if self.shadowing_covariance != "gaussian":
+            over["shadowing_covariance"] = self.shadowing_covariance
         return (
             {
                 "spec": self.spec,
@@ -242,6 +250,7 @@ class PhysicsFamily:
     nuisance: dict = field(default_factory=dict)
     shadowing_over: str = "ground"
     shadowing_marginal: Marginal | None = None
+    shadowing_covariance: str = "gaussian"
 
     @classmethod
     def from_dict(cls, d: dict, source: str | None = None) -> PhysicsFamily:
@@ -276,6 +285,13 @@ class PhysicsFamily:
                 field="shadowing_over",
             )
         marginal = check_marginal(d.get("shadowing_marginal"), source)
+        cov = d.get("shadowing_covariance", "gaussian")
+        if cov not in COVARIANCES:
+            raise InputError(
+                f"shadowing_covariance {cov!r} must be one of {', '.join(COVARIANCES)}",
+                source=source,
+                field="shadowing_covariance",
+            )
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
@@ -303,6 +319,7 @@ class PhysicsFamily:
             nuis,
             over,
             marginal,
+            cov,
         )
         fam._check_builds(source)
         return fam
@@ -338,6 +355,7 @@ class PhysicsFamily:
             *(float(nuis.get(k, 0.0)) for k in NUISANCE_KEYS),
             shadowing_over=self.shadowing_over,
             shadowing_marginal=self.shadowing_marginal,
+            shadowing_covariance=self.shadowing_covariance,
         )
 
     def to_dict(self) -> dict:
@@ -360,6 +378,8 @@ class PhysicsFamily:
                 "p": list(self.shadowing_marginal[0]),
                 "q": list(self.shadowing_marginal[1]),
             }
+        if self.shadowing_covariance != "gaussian":
+            d["shadowing_covariance"] = self.shadowing_covariance
         return d
 
 
@@ -570,6 +590,7 @@ def simulate_rss(
             draw.shadowing_over,
             rng,
             draw.shadowing_marginal,
+            draw.shadowing_covariance,
         )
     return rss + nuisance_rss(tx_enu, rx, attitude_rad, draw.nuisance(), rng)
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter, gaussian_filter1d, map_coordinates
 from scipy.optimize import nnls
+from scipy.signal import lfilter
 from scipy.special import ndtr
 
 COVARIANCES = ("exponential", "gaussian")
@@ -30,6 +31,9 @@ COVARIANCES = ("exponential", "gaussian")
 # whenever it is flown) or the flight's own path (``path_shadowing``: correlated along the track,
 # independent on a later pass over the same ground)
 SHADOWING_OVER = ("ground", "path")
+# random Fourier waves of an exponential-covariance field drawn over the ground
+# (``draw_shadowing``): enough that the sum looks Gaussian and its covariance is near exp(-h/L)
+EXPONENTIAL_WAVES = 1000
 
 
 def correlation(h: np.ndarray, corr_len_m: float, kind: str = "exponential") -> np.ndarray:
@@ -104,10 +108,12 @@ def path_shadowing(
     corr_m: float,
     rng: np.random.Generator,
     cells_per_corr: float = 4.0,
+    covariance: str = "gaussian",
 ) -> np.ndarray:
     """Zero-mean Gaussian-covariance shadowing (dB) along the flight's path: ``shadowing_field``'s
     draw in one dimension, over the cumulative horizontal distance flown (``path_length``), so the
-    correlation is ``exp(-s**2 / corr_m**2)`` for samples ``s`` metres apart along the track.
+    correlation is ``exp(-s**2 / corr_m**2)`` for samples ``s`` metres apart along the track
+    (``covariance="exponential"``: ``exp(-s / corr_m)``, a first-order autoregression on the grid).
 
     Why: the gap diagnosis finds the real flights' residual correlated within a flight but not
     repeating over the same ground (``mission.gap.structure``: its own path's shadowing seen once,
@@ -122,7 +128,13 @@ def path_shadowing(
     res = max(corr_m / cells_per_corr, 1.0)
     pad = int(np.ceil(3.0 * corr_m / res))
     n = int(np.ceil(s[-1] / res)) + 1 + 2 * pad
-    g = gaussian_filter1d(rng.standard_normal(n), 0.5 * corr_m / res, mode="wrap")
+    if covariance == "exponential":
+        rho = np.exp(-res / corr_m)
+        e = rng.standard_normal(n)
+        e[1:] *= np.sqrt(1.0 - rho * rho)
+        g = lfilter([1.0], [1.0, -rho], e)  # x_k = rho x_(k-1) + sqrt(1 - rho^2) e_k, x_0 = e_0
+    else:
+        g = gaussian_filter1d(rng.standard_normal(n), 0.5 * corr_m / res, mode="wrap")
     g *= sigma_db / max(float(g.std()), 1e-12)
     return np.interp(s / res + pad, np.arange(n), g)
 
@@ -134,14 +146,22 @@ def draw_shadowing(
     over: str,
     rng: np.random.Generator,
     marginal: Marginal | None = None,
+    covariance: str = "gaussian",
 ) -> np.ndarray:
     """One flight's shadowing (dB) at its samples ``pos`` (N, >= 2, flight order), fixed to the
-    ground or to the path (``SHADOWING_OVER``); with ``marginal``, mapped to that shape
-    (``quantile_mapped``)."""
+    ground or to the path (``SHADOWING_OVER``), of the ``covariance`` named (``COVARIANCES``; the
+    exponential one on the ground is ``RandomField``'s, ``EXPONENTIAL_WAVES`` waves); with
+    ``marginal``, mapped to that shape (``quantile_mapped``)."""
+    if covariance not in COVARIANCES:
+        raise ValueError(f"unknown covariance {covariance!r} (expected {', '.join(COVARIANCES)})")
+    xy = np.asarray(pos, dtype=float)[:, :2]
     if over == "path":
-        x = path_shadowing(pos, sigma_db, corr_m, rng)
+        x = path_shadowing(pos, sigma_db, corr_m, rng, covariance=covariance)
+    elif over == "ground" and covariance == "exponential":
+        field = RandomField.draw(sigma_db, corr_m, rng, m=EXPONENTIAL_WAVES, kind="exponential")
+        x = field.at(xy) if len(xy) else np.zeros(0)
     elif over == "ground":
-        x = shadowing_field(np.asarray(pos, dtype=float)[:, :2], sigma_db, corr_m, rng)
+        x = shadowing_field(xy, sigma_db, corr_m, rng)
     else:
         raise ValueError(f"shadowing over {over!r}: must be one of {', '.join(SHADOWING_OVER)}")
     return x if marginal is None or sigma_db <= 0 else quantile_mapped(x, sigma_db, marginal)

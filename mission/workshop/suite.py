@@ -73,8 +73,8 @@ Axes and ranges (``draw_flight``; one value per flight, draw order fixed):
 A physics family file instead of a built-in name (``family="F.json"``: schema 1,
 ``mission.physics.family``; the shipped ``mission/data/afar_family.json``, or ``rfsl gap --family``
 output): the physics (model spec), the residual (correlated shadowing sigma and correlation length,
-white nugget, whether the shadowing is fixed to the ground or to the path, ``shadowing_over``, and
-its shape, ``shadowing_marginal``)
+white nugget, whether the shadowing is fixed to the ground or to the path, ``shadowing_over``, its
+shape, ``shadowing_marginal``, and its covariance, ``shadowing_covariance``)
 and the RSS offset are one ``family.draw(rng)`` in place of the three built-in draws;
 every other axis (position, altitude, speed, path, habit, coverage, time offset) is drawn as above.
 ``draw["family"]`` is then ``json:NAME@SHA8`` and ``draw["family_sha256"]`` the sha256 of the
@@ -358,6 +358,7 @@ def simulate_draw(
         d.get("shadowing_over", "ground"),
         rng,
         None if m is None else (tuple(m["p"]), tuple(m["q"])),
+        d.get("shadowing_covariance", "gaussian"),
     )
     # drawn last, as ``physics.family.simulate_rss``: a flight without it is unchanged
     rss += nuisance_rss(tx, pos, att, d, rng)
