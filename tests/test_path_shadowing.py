@@ -15,7 +15,9 @@ from scipy.stats import norm
 
 from mission.adaptive.simflight import FlightWorld
 from mission.errors import InputError
+from mission.gap import familyfit, loopcheck
 from mission.gap.familyfit import heldout_marginal
+from mission.gap.fit import FitConfig
 from mission.physics.family import FamilyDraw, PhysicsFamily, load_family, simulate_rss
 from mission.physics.shadowing import (
     draw_shadowing,
@@ -25,6 +27,7 @@ from mission.physics.shadowing import (
     shadowing_field,
     standardized_marginal,
 )
+from mission.samples import FlightSamples
 from mission.spec import load_mission
 from mission.workshop.suite import draw_flight
 
@@ -302,3 +305,86 @@ def test_copy_parts_adds_up_to_the_family_copy(repo_dir, monkeypatch) -> None:
     assert np.std(drift) == pytest.approx(3.0, rel=1e-6)
     assert np.allclose(parts["family: all"] - parts["family: model + noise"], drift + shadow)
     assert np.max(shadow) <= draw.shadowing_db * 1.0 + 1e-9  # the fades' top quantile
+
+
+# --- the shadowing's covariance (``shadowing_covariance``) ---------------------------------------
+
+
+def test_an_exponential_field_has_its_closed_form_correlation_on_the_ground() -> None:
+    """Over many draws, points h apart correlate by exp(-h / L) (rough), where the Gaussian field
+    gives exp(-h^2 / L^2) (smooth): at h = L / 4 the two differ by 0.16."""
+    L = 40.0
+    pts = np.array([[0.0, 0.0, 30.0], [L / 4, 0.0, 30.0], [L, 0.0, 30.0], [3 * L, 0.0, 30.0]])
+    rng = np.random.default_rng(12)
+    x = np.stack(
+        [draw_shadowing(pts, 5.0, L, "ground", rng, covariance="exponential") for _ in range(3000)]
+    )
+    assert x.std() == pytest.approx(5.0, rel=0.06)
+    for j, h in ((1, L / 4), (2, L), (3, 3 * L)):
+        assert np.corrcoef(x[:, 0], x[:, j])[0, 1] == pytest.approx(np.exp(-h / L), abs=0.06)
+
+
+def test_an_exponential_path_is_a_first_order_autoregression_along_the_track() -> None:
+    pos = _line(400, 1.0)
+    rng = np.random.default_rng(13)
+    x = np.stack(
+        [path_shadowing(pos, 4.0, 20.0, rng, covariance="exponential") for _ in range(1500)]
+    )
+    for lag in (5, 20, 40):
+        r = np.corrcoef(x[:, 100], x[:, 100 + lag])[0, 1]
+        assert r == pytest.approx(np.exp(-lag / 20.0), abs=0.07)
+
+
+def test_a_family_with_an_exponential_covariance_draws_the_same_and_refuses_others() -> None:
+    d = load_family("afar").to_dict()
+    d["shadowing_covariance"] = "exponential"
+    fam = PhysicsFamily.from_dict(d)
+    a, b = fam.draw(np.random.default_rng(3)), load_family("afar").draw(np.random.default_rng(3))
+    assert a.shadowing_covariance == "exponential" and b.shadowing_covariance == "gaussian"
+    assert {k: v for k, v in a.to_dict().items() if k != "shadowing_covariance"} == b.to_dict()
+    assert PhysicsFamily.from_dict(fam.to_dict()).shadowing_covariance == "exponential"
+    flight, _ = draw_flight(2026, 1, fam)
+    assert flight["shadowing_covariance"] == "exponential"
+    for bad in ("matern", 1, None, ["exponential"]):
+        d["shadowing_covariance"] = bad
+        with pytest.raises(InputError) as e:
+            PhysicsFamily.from_dict(d, source="bad.json")
+        assert "shadowing_covariance" in str(e.value) and "bad.json" in str(e.value)
+    with pytest.raises(ValueError, match="covariance"):
+        draw_shadowing(
+            _line(10, 1.0), 1.0, 5.0, "ground", rng=np.random.default_rng(0), covariance="matern"
+        )
+
+
+def test_the_family_fit_and_its_loop_check_use_the_family_s_covariance(monkeypatch) -> None:
+    """The variogram of every per-flight fit, the family's and the loop check's re-fit alike, is of
+    the covariance the family records (else the loop check compares two kinds of range)."""
+    seen = []
+    real = familyfit.fit_variogram
+
+    def spy(*args, **kw):
+        seen.append(kw["kind"])
+        return real(*args, **kw)
+
+    monkeypatch.setattr(familyfit, "fit_variogram", spy)
+    rng = np.random.default_rng(0)
+    n = 400
+    t = np.arange(n) * 0.5
+    enu = np.column_stack([60 * np.cos(t / 20), 60 * np.sin(t / 20), np.full(n, 30.0)])
+    flight = FlightSamples(
+        enu, rng.normal(-60, 4, n), np.zeros((n, 3)), t, tx_enu_m=np.array([0.0, 0.0, 1.5])
+    )
+    vg = familyfit.residual_variogram(flight, rng.normal(0, 3, n), rng, "exponential")
+    assert seen == ["exponential"] and vg["shadowing_corr_m"] > 0
+
+    asked = []
+
+    def stop(*args, **kw):
+        asked.append(kw.get("covariance"))
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(loopcheck, "fit_family", stop)
+    record = load_family("afar").to_dict() | {"shadowing_covariance": "exponential"}
+    with pytest.raises(RuntimeError, match="stop here"):
+        loopcheck.loop_check(record, [flight], FitConfig(), seed=0, repeats=1)
+    assert asked == ["exponential"]
