@@ -30,6 +30,7 @@ from mission.physics.shadowing import (
 from mission.samples import FlightSamples
 from mission.spec import load_mission
 from mission.workshop.suite import draw_flight
+from mission.workshop.suite_family import resolve_family
 
 
 def _line(n: int, step_m: float) -> np.ndarray:
@@ -388,3 +389,20 @@ def test_the_family_fit_and_its_loop_check_use_the_family_s_covariance(monkeypat
     with pytest.raises(RuntimeError, match="stop here"):
         loopcheck.loop_check(record, [flight], FitConfig(), seed=0, repeats=1)
     assert asked == ["exponential"]
+
+
+def test_the_shipped_fades_family_is_the_rough_fades_fit() -> None:
+    """``afar-fades`` (issue 34's family, mission/gap/README.md "Rough fades on the ground"): on
+    the ground, exponential, with the fades' shape (a long lower tail), its loop check passed; the
+    benchmark cache and ``load_family`` both know it by name, and ``afar`` is unchanged."""
+    fam = load_family("afar-fades")
+    assert fam.shadowing_over == "ground" and fam.shadowing_covariance == "exponential"
+    p, q = fam.shadowing_marginal
+    assert q[0] < -3.0 < -1.5 * q[-1] and abs(np.mean(q)) < 0.1
+    assert fam.record["checks"]["loop"]["passed"] is True
+    assert fam.nuisance["time_drift_db"]["mean"] > 0
+    assert isinstance(resolve_family("afar-fades"), PhysicsFamily)
+    flight, _ = draw_flight(2026, 0, "afar-fades")
+    assert flight["shadowing_covariance"] == "exponential" and "shadowing_marginal" in flight
+    shipped = load_family("afar")
+    assert shipped.shadowing_covariance == "gaussian" and shipped.shadowing_marginal is None

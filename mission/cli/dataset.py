@@ -95,7 +95,8 @@ def add_suite_arguments(p: argparse.ArgumentParser) -> None:
         default="afar",
         metavar="FAMILY",
         help="with --suite: physics family: a built-in one (mission.workshop.suite.FAMILIES: afar, "
-        "generic, afar-heavy) or a physics family file F.json (rfsl gap --family; "
+        "generic, afar-heavy), the shipped afar-fades (issue 34's family: fades, rough "
+        "shadowing) or a physics family file F.json (rfsl gap --family; "
         "mission/data/afar_family.json), which draws each flight's physics, shadowing, noise and "
         "offset; a .json implies --suite unseen",
     )

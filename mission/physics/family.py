@@ -90,7 +90,9 @@ NUISANCE_KEYS = ("time_drift_db", "radial_db", "azimuth_db")
 # default (a ground field of Gaussian shape)
 SHADOWING_KEYS = ("shadowing_over", "shadowing_marginal", "shadowing_covariance")
 DRIFT_ORDER = 4  # Legendre orders of the drawn time drift (the gap's ``temporal.DRIFT_ORDER``)
-SHIPPED = {"afar": "afar_family.json"}
+# ``afar-fades``: issue 34's family (fades of the real shape, exponential covariance; passes 9 of
+# the benchmark's 13 predictive checks against the shipped ``afar``'s 8, mission/gap/README.md)
+SHIPPED = {"afar": "afar_family.json", "afar-fades": "afar_fades_family.json"}
 
 
 def _is_dist(v: Any) -> bool:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.physics.family import PhysicsFamily, load_family
+from mission.physics.family import SHIPPED, PhysicsFamily, load_family
 
 # the built-in families (drawn in mission.workshop.suite)
 FAMILIES = (
@@ -31,10 +31,13 @@ FamilyArg = str | PhysicsFamily
 
 
 def resolve_family(family: FamilyArg) -> str | PhysicsFamily:
-    """A built-in family name as it is, or the ``PhysicsFamily`` of a ``.json`` path (InputError
-    otherwise)."""
+    """A built-in family name as it is, the ``PhysicsFamily`` of a shipped family's name that is
+    not a built-in one (``physics.family.SHIPPED``: ``afar-fades``), or of a ``.json`` path
+    (InputError otherwise)."""
     if isinstance(family, PhysicsFamily) or family in FAMILIES:
         return family
+    if family in SHIPPED:
+        return load_family(str(family))
     if str(family).lower().endswith(".json"):
         p = Path(family)
         st = p.stat() if p.is_file() else None
