@@ -159,7 +159,9 @@ def draw_shadowing(
         x = path_shadowing(pos, sigma_db, corr_m, rng, covariance=covariance)
     elif over == "ground" and covariance == "exponential":
         field = RandomField.draw(sigma_db, corr_m, rng, m=EXPONENTIAL_WAVES, kind="exponential")
-        x = field.at(xy) if len(xy) else np.zeros(0)
+        # in blocks of rows: an (N, waves) phase matrix of a 20 000-sample flight is 160 MB
+        blocks = [field.at(xy[i : i + 4096]) for i in range(0, len(xy), 4096)]
+        x = np.concatenate(blocks) if blocks else np.zeros(0)
     elif over == "ground":
         x = shadowing_field(xy, sigma_db, corr_m, rng)
     else:
