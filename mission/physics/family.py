@@ -201,14 +201,9 @@ class FamilyDraw:
         return build_model(self.spec, name=name)
 
     def to_dict(self) -> dict:
-        over: dict[str, Any] = {}
-        if self.shadowing_over != "ground":
-            over["shadowing_over"] = self.shadowing_over
-        if self.shadowing_marginal is not None:
-            p, q = self.shadowing_marginal
-            over["shadowing_marginal"] = {"p": list(p), "q": list(q)}
-        if self.shadowing_covariance != "gaussian":
-            over["shadowing_covariance"] = self.shadowing_covariance
+        over = shadowing_record(
+            self.shadowing_over, self.shadowing_marginal, self.shadowing_covariance
+        )
         return (
             {
                 "spec": self.spec,
@@ -279,21 +274,9 @@ class PhysicsFamily:
         nuis = d.get("nuisance", {})
         _check_section(nuis, "nuisance", NUISANCE_KEYS, source)
         nuis = dict(nuis)
-        over = d.get("shadowing_over", "ground")
-        if over not in SHADOWING_OVER:
-            raise InputError(
-                f"shadowing_over {over!r} must be one of {', '.join(SHADOWING_OVER)}",
-                source=source,
-                field="shadowing_over",
-            )
+        over = _one_of(d, "shadowing_over", SHADOWING_OVER, "ground", source)
         marginal = check_marginal(d.get("shadowing_marginal"), source)
-        cov = d.get("shadowing_covariance", "gaussian")
-        if cov not in COVARIANCES:
-            raise InputError(
-                f"shadowing_covariance {cov!r} must be one of {', '.join(COVARIANCES)}",
-                source=source,
-                field="shadowing_covariance",
-            )
+        cov = _one_of(d, "shadowing_covariance", COVARIANCES, "gaussian", source)
         variants = d.get("variants", [])
         if not isinstance(variants, list):
             raise InputError("variants must be a list", source=source, field="variants")
@@ -373,16 +356,36 @@ class PhysicsFamily:
             d["variants"] = list(self.variants)
         if self.nuisance:
             d["nuisance"] = self.nuisance
-        if self.shadowing_over != "ground":
-            d["shadowing_over"] = self.shadowing_over
-        if self.shadowing_marginal is not None:
-            d["shadowing_marginal"] = {
-                "p": list(self.shadowing_marginal[0]),
-                "q": list(self.shadowing_marginal[1]),
-            }
-        if self.shadowing_covariance != "gaussian":
-            d["shadowing_covariance"] = self.shadowing_covariance
+        d.update(
+            shadowing_record(
+                self.shadowing_over, self.shadowing_marginal, self.shadowing_covariance
+            )
+        )
         return d
+
+
+def shadowing_record(over: str, marginal: Marginal | None, covariance: str) -> dict[str, Any]:
+    """The ``SHADOWING_KEYS`` of a family or a draw, each only where it is not the default (a
+    ground field of Gaussian shape and covariance), so that an older record is unchanged."""
+    out: dict[str, Any] = {}
+    if over != "ground":
+        out["shadowing_over"] = over
+    if marginal is not None:
+        out["shadowing_marginal"] = {"p": list(marginal[0]), "q": list(marginal[1])}
+    if covariance != "gaussian":
+        out["shadowing_covariance"] = covariance
+    return out
+
+
+def _one_of(d: dict, key: str, options: tuple[str, ...], default: str, source: str | None) -> str:
+    """``d[key]`` (``default`` when absent) if it is one of ``options``; a one-line
+    ``InputError`` naming the field otherwise."""
+    value = d.get(key, default)
+    if value not in options:
+        raise InputError(
+            f"{key} {value!r} must be one of {', '.join(options)}", source=source, field=key
+        )
+    return value
 
 
 def check_marginal(m: Any, source: str | None = None) -> Marginal | None:
