@@ -43,8 +43,7 @@ from mission.gap.diagnose import decimate_flight
 from mission.gap.familyfit import effects_of_ladder, fit_family
 from mission.gap.fit import FitConfig
 from mission.localize.api import localize_log
-from mission.physics.family import FamilyDraw, load_family, nuisance_rss
-from mission.physics.shadowing import draw_shadowing
+from mission.physics.family import FamilyDraw, load_family, simulate_parts
 
 LABELS = ("fusion (default)", "selfcal", "net rfsl_spiral_e2r")
 SHIFTS = (0.25, 0.5, 0.75)
@@ -105,16 +104,10 @@ def one_flight(job: tuple) -> tuple[int, dict[str, list[dict]]]:
 def family_parts(
     d: FamilyDraw, tx: np.ndarray, enu: np.ndarray, att: np.ndarray, rng: np.random.Generator
 ) -> dict[str, np.ndarray]:
-    """One draw's RSS part by part, with the random numbers ``simulate_rss`` takes in its order
-    (white noise, shadowing, nuisance), so that ``family: all`` is exactly its copy."""
-    m = np.asarray(d.model().rss_dbm(tx, enu, att), dtype=float) + d.offset_db
-    noise = rng.normal(0.0, d.noise_db, size=m.shape)
-    sh = np.zeros_like(m)
-    if d.shadowing_db > 0:
-        sh = draw_shadowing(
-            enu, d.shadowing_db, d.shadowing_corr_m, d.shadowing_over, rng, d.shadowing_marginal
-        )
-    nu = nuisance_rss(tx, enu, att, d.nuisance(), rng)
+    """One draw's RSS part by part (``physics.family.simulate_parts``: the random numbers of
+    ``simulate_rss`` in its order), so that ``family: all`` is exactly its copy."""
+    p = simulate_parts(d, tx, enu, att, rng)
+    m, noise, sh, nu = p["model"], p["noise"], p["shadowing"], p["nuisance"]
     return {
         "family: model + noise": m + noise,
         "family: + drift": m + noise + nu,

@@ -579,16 +579,34 @@ def simulate_rss(
     model=None,
 ) -> np.ndarray:
     """RSS (dBm) of one flight under a family draw: model + offset + correlated shadowing (over the
-    ground or along the path, ``draw.shadowing_over``) + white noise + the per-flight nuisance.
+    ground or along the path, ``draw.shadowing_over``) + white noise + the per-flight nuisance
+    (``simulate_parts``, summed).
 
     ``model`` may be passed when the caller already built ``draw.model()`` (it is the expensive
     part)."""
+    p = simulate_parts(draw, tx_enu, rx_enu, attitude_rad, rng, model)
+    return p["model"] + p["noise"] + p["shadowing"] + p["nuisance"]
+
+
+def simulate_parts(
+    draw: FamilyDraw,
+    tx_enu: np.ndarray,
+    rx_enu: np.ndarray,
+    attitude_rad: np.ndarray,
+    rng: np.random.Generator,
+    model=None,
+) -> dict[str, np.ndarray]:
+    """The parts ``simulate_rss`` sums (dB per sample): ``model`` (with the offset), white
+    ``noise``, ``shadowing`` and the per-flight ``nuisance``, drawn in that order from ``rng`` (the
+    one home of the draw order; ``benchmarks/copy_parts.py`` adds them one at a time)."""
     m = draw.model() if model is None else model
     rx = np.asarray(rx_enu, dtype=float)
-    rss = np.asarray(m.rss_dbm(np.asarray(tx_enu, dtype=float), rx, attitude_rad), dtype=float)
-    rss = rss + draw.offset_db + rng.normal(0.0, draw.noise_db, size=rss.shape)
+    base = np.asarray(m.rss_dbm(np.asarray(tx_enu, dtype=float), rx, attitude_rad), dtype=float)
+    base = base + draw.offset_db
+    noise = rng.normal(0.0, draw.noise_db, size=base.shape)
+    shadowing = np.zeros_like(base)
     if draw.shadowing_db > 0:
-        rss = rss + draw_shadowing(
+        shadowing = draw_shadowing(
             rx,
             draw.shadowing_db,
             draw.shadowing_corr_m,
@@ -597,7 +615,8 @@ def simulate_rss(
             draw.shadowing_marginal,
             draw.shadowing_covariance,
         )
-    return rss + nuisance_rss(tx_enu, rx, attitude_rad, draw.nuisance(), rng)
+    nuisance = nuisance_rss(tx_enu, rx, attitude_rad, draw.nuisance(), rng)
+    return {"model": base, "noise": noise, "shadowing": shadowing, "nuisance": nuisance}
 
 
 def nuisance_rss(
