@@ -115,7 +115,18 @@ def fly_one(
         "flight_s": (meta.get("budget") or {}).get("used_s"),
         "rounds": len(ad.get("rounds") or []),
         "live_final_error_m": (meta.get("final_estimate") or {}).get("error_m"),
+        # issue 33 item 3: how old each round's data was when it began, and the series' gaps
+        "data_lead_s": [rd.get("data_lead_s") for rd in ad.get("rounds") or []],
+        "series_max_gap_s": series_max_gap(meta),
     }
+
+
+def series_max_gap(meta: dict) -> float | None:
+    """The longest gap (log s) of the live series between its first entry and the final one."""
+    ts = [d["t_s"] for d in meta.get("estimates") or []]
+    final = (meta.get("final_estimate") or {}).get("t_s")
+    ts = [t for t in ts if final is None or t <= final]
+    return round(max(b - a for a, b in zip(ts, ts[1:], strict=False)), 1) if len(ts) > 1 else None
 
 
 def summarize(rows: list[dict], autopilot: str) -> list[str]:
@@ -156,8 +167,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--speedup",
         type=float,
-        help="speed-up of every SITL (default: ArduCopter 20, PX4 10); the rounds are planned at "
-        "least 8 wall-clock seconds ahead, so a higher speed-up plans them on older data",
+        help="speed-up of every SITL (default: ArduCopter 20, PX4 10); the rounds are planned "
+        "lead_s vehicle seconds ahead at any speed-up, and a higher one makes the vehicle wait "
+        "longer at a part's end for the next round",
     )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)

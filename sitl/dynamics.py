@@ -41,14 +41,7 @@ class Dynamics:
             tau = self.sim_t - pl.t0
             while pl.reach and pl.reach[0][0] <= tau:
                 _, seq = pl.reach.pop(0)
-                self.mav.mission_item_reached_send(seq)
-                if (
-                    seq + 1 < len(self.items)
-                    and self.items[seq + 1].command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH
-                ):
-                    self.say(f"RTL: start return at {max(self.pos[2], 5.0):.0f} m")
-                self.current_seq = seq + 1 if seq + 1 < len(self.items) else seq
-                self.send_mission_current()
+                self._item_reached(seq)
             done = tau >= pl.profile.duration_s
             if self.flying:
                 if self.landed_state == mav.MAV_LANDED_STATE_TAKEOFF and (
@@ -72,6 +65,13 @@ class Dynamics:
                 self.plan = None
                 if self.flying:
                     self.pos = pl.profile.vertices[-1].copy()
+                    if pl.hold is not None:  # at a waypoint with a hold time: wait there
+                        self.resume = (self.sim_t + pl.hold[1], pl.hold[0])
+        if self.resume is not None and self.sim_t >= self.resume[0]:
+            seq, self.resume = self.resume[1], None
+            if self.armed and self.flying and self.sub_mode == PX4_AUTO_MISSION:
+                self._item_reached(seq)
+                self.start_mission()
         if self.disarm_at is not None and self.sim_t >= self.disarm_at:
             self.disarm_at = None
             if self.armed and not self.flying:
@@ -82,6 +82,17 @@ class Dynamics:
                 self.log("auto-disarmed")
                 self.say("Disarmed by landing")
                 self.send_heartbeat()
+
+    def _item_reached(self, seq: int) -> None:
+        """Mission item ``seq`` reached: the message, the next item current (a return announced)."""
+        self.mav.mission_item_reached_send(seq)
+        if (
+            seq + 1 < len(self.items)
+            and self.items[seq + 1].command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH
+        ):
+            self.say(f"RTL: start return at {max(self.pos[2], 5.0):.0f} m")
+        self.current_seq = seq + 1 if seq + 1 < len(self.items) else seq
+        self.send_mission_current()
 
     @property
     def tab(self) -> str:
@@ -102,6 +113,8 @@ class Dynamics:
         """The simulated time at which ``_events`` must next run (item reached, plan end, landing,
         disarm)."""
         t = self.disarm_at if self.disarm_at is not None else math.inf
+        if self.resume is not None:
+            t = min(t, self.resume[0])
         pl = self.plan
         if pl is None:
             return t

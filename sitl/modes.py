@@ -38,6 +38,8 @@ class Plan:
     from_ground: bool = False
     n_legs: int = 0
     land_legs: int = 1  # legs of the final descent (2 when it slows down near the ground)
+    # (item seq, seconds): the plan ends at a waypoint with a hold time (param1), waits, goes on
+    hold: tuple[int, float] | None = None
 
 
 class ModeMachine:
@@ -75,6 +77,7 @@ class ModeMachine:
         """Plan and start flying the polyline ``pts`` from the current position (already
         ``pts[0]``)."""
         P = np.asarray(pts, dtype=float)
+        self.resume = None  # a new plan ends any hold in progress
         land_legs = 1
         low = self.param("MPC_LAND_ALT2")
         if (
@@ -142,6 +145,7 @@ class ModeMachine:
         speeds: list[float] = []
         speed = self.cruise if self.cruise is not None else self.param("MPC_XY_CRUISE")
         land = False
+        hold = None
         for it in self.items[self.current_seq :]:
             n0 = len(pts)
             if it.command == mav.MAV_CMD_NAV_TAKEOFF:
@@ -161,6 +165,12 @@ class ModeMachine:
                     marks.append((len(pts) - 1, it.seq))  # ArduPilot-style home item: not flown
                     continue
                 self._append(pts, self._item_enu(it, pts[-1]))
+                if it.command == mav.MAV_CMD_NAV_WAYPOINT and it.params[0] > 0:
+                    # a hold time: fly there, wait, then the rest (reached after the wait, as
+                    # PX4 and ArduCopter report it)
+                    speeds.extend([speed] * (len(pts) - n0))
+                    hold = (it.seq, float(it.params[0]))
+                    break
             elif it.command == mav.MAV_CMD_DO_CHANGE_SPEED and it.params[1] > 0:
                 speed = float(it.params[1])
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
@@ -181,6 +191,7 @@ class ModeMachine:
             if land:
                 break
         self._start_plan(pts, marks, land, speeds)
+        self.plan.hold = hold
         self.say("Executing Mission")
         return True
 

@@ -113,6 +113,8 @@ class SimVehicle(
         self.current_seq = 0
         self.landed_state = mav.MAV_LANDED_STATE_ON_GROUND
         self.disarm_at: float | None = None
+        # (sim s, item seq): a waypoint's hold time ends then and the mission goes on
+        self.resume: tuple[float, int] | None = None
         self.takeoff_alt = 2.5
         # attitude (mission.trajectory.attitude) and its drivers
         self.att_state = AttitudeState.at_rest(self.pos, 0.0)

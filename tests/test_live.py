@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
+from mission.adaptive.planner import survey_spec
 from mission.cli.localize import main
 from mission.cli.main import main as rfsl
 from mission.flight.live import estimate_at, estimate_file_at
@@ -175,6 +176,7 @@ def test_adaptive_flight_end_to_end(tmp_path, capsys):
         if "judged_at_t_s" in rd:
             assert rd["ruled_out"] in (None, "target", "rival") and hyp["rival"] is not None
             assert f"round {rd['round']} ruled out" in err
+    _fresh_rounds(log, m)
     final = m["final_estimate"]
     assert f"--at {final['t_s']:g}" in out
     at = _cli_json([str(path), "--at", str(final["t_s"])], capsys)
@@ -191,6 +193,33 @@ def test_adaptive_flight_end_to_end(tmp_path, capsys):
     moving = ad & (np.hypot(*v.T) > 3.0)
     off = (log["yaw_deg"] - np.degrees(np.arctan2(v[:, 0], v[:, 1])) + 180.0) % 360.0 - 180.0
     assert moving.sum() > 100 and np.median(np.abs(off[moving])) < 10.0
+
+
+def _fresh_rounds(log, m: dict) -> None:
+    """Issue 33 item 3: each round was planned on data taken at most its lead (vehicle s, here at
+    15x) before the vehicle reached the end of the part before it, plus the pace's error; it
+    began within that part's wait (its hold) of reaching it; the series kept going meanwhile (no gap
+    longer than two periods plus two estimates' vehicle time)."""
+    ad, enu, t = m["adaptive"], log.enu(), np.asarray(log["t_s"])
+    full = load_mission(ROOT / "missions/spiral_adaptive.yaml")
+    ends = [survey_spec(full, 100.0).waypoints_enu()[-1]]
+    holds = [ad["survey_hold_s"]]
+    for rd in ad["rounds"]:
+        ends.append(np.array([*rd["centre"], 20.0]))  # a round ends over its centre
+        holds.append(rd["hold_s"])
+    for j, rd in enumerate(ad["rounds"]):
+        if "data_lead_s" not in rd:
+            continue
+        start = rd["estimate"]["t_s"] + rd["data_lead_s"]  # log time the round began
+        near = np.flatnonzero((np.linalg.norm(enu - ends[j], axis=1) < 3.0) & (t <= start))
+        assert len(near), f"round {rd['round']}: never at the end of the part before it"
+        t_reach = t[near[0]]
+        assert t_reach - rd["estimate"]["t_s"] <= rd["lead_s"] + 8.0, rd
+        assert start - t_reach <= holds[j] + 3.0, rd
+    ts = np.array([d["t_s"] for d in m["estimates"]])
+    flown = ts[(ts > ts[0]) & (ts < m["final_estimate"]["t_s"])]
+    gap = np.diff(flown).max()
+    assert gap <= 2 * m["live_estimate"]["update_s"] + 2 * 15.0 * ad["estimate_wall_s"][1] + 2.0
 
 
 def _adaptive_rows(out: Path) -> int:

@@ -256,6 +256,21 @@ class RoundPlan:
         return self.waypoints is not None
 
 
+def round_fly_s(spec, wps: np.ndarray, start, pace=None) -> float:
+    """Seconds to fly a round's waypoints ``wps`` from ``start``: the mission's kinematics, at the
+    measured ``pace`` when given."""
+    path = np.vstack([np.asarray(start, dtype=float)[None, :], wps])
+    fly = plan_profile(path, spec.kinematics()).duration_s
+    return fly if pace is None else pace.flown(fly, len(wps))
+
+
+def smallest_round_s(spec, a, start, pace=None) -> float:
+    """Seconds the smallest round (``a.min_radius_m``) over ``start`` takes from there: the least
+    any next round needs."""
+    xy = np.asarray(start, dtype=float)[:2]
+    return round_fly_s(spec, box_pattern(xy, a.min_radius_m, a.altitude(spec), start), start, pace)
+
+
 def plan_round(
     spec, a, est_xy, start, t_start_s: float, pace=None, returns: ReturnModel | None = None
 ) -> RoundPlan:
@@ -266,7 +281,6 @@ def plan_round(
     rounds in 84 and 66 s against 53 and 50 s planned); ``returns`` is the autopilot's return
     from the round's end (default: the mission's kinematics, no climb), flown at that pace."""
     alt = a.altitude(spec)
-    kin = spec.kinematics()
     returns = returns or ReturnModel.of(spec)
     notes: list[str] = []
     left = spec.time_budget_s - t_start_s - a.reserve_s
@@ -277,11 +291,7 @@ def plan_round(
             notes.append(f"a {2 * r:.0f} m square fits nowhere inside the fence")
         else:
             wps = box_pattern(c, r, alt, start)
-            fly = plan_profile(
-                np.vstack([np.asarray(start, dtype=float)[None, :], wps]), kin
-            ).duration_s
-            if pace is not None:
-                fly = pace.flown(fly, len(wps))
+            fly = round_fly_s(spec, wps, start, pace)
             back = returns.seconds(wps[-1], pace)
             bad = leg_violations(spec, start, wps)
             if bad:

@@ -4,21 +4,24 @@ budget it used.
 Why an extension, not a runner: the order of a flight (check, connect, upload, arm, fly, return,
 land, close) and its safety paths stay in ``mission.flight.runner``; this adds one coroutine
 (``adapt``) run beside the mission, which reads and updates the flight's ``FlightContext``.  Each
-round: wait until the current segment (the survey, then the last round) has ``lead_s`` vehicle
-seconds left, take the live estimate of the rows logged so far, stop if its 90 % region is below
-target, else plan the next square (``planner.plan_round``: fence, altitude limits, budget with
-return and reserve; clipped, shrunk or refused, each logged as an event) and re-upload the mission
-extended by it, the final RTL moved behind it.  Items already flown keep their indices, so the
-current item stays valid (``set_current_mission_item`` re-asserts it: PX4 and the built-in vehicle
-reset it on upload); a round that comes too late means the vehicle is already returning, which is
-safe.  MAVSDK v4 API: ``MissionRawAsync.upload_mission`` and ``set_current_mission_item`` (PX4 and
-ArduPilot alike, no guided mode needed).
+round: wait until the current part (the survey, then the last round) has its lead left
+(``round_timing``: ``lead_s`` vehicle seconds at every speed-up), take the live estimate of the
+rows logged so far, stop if its 90 % region is below target, else plan the next square
+(``planner.plan_round``: fence, altitude limits, budget with return and reserve; clipped, shrunk or
+refused, each logged as an event) and re-upload the mission extended by it, the final RTL moved
+behind it.  The part's last waypoint holds the vehicle (a hold time) while a late plan is made; the
+upload ends the wait.  Items already flown keep their indices, so the current item stays valid
+(``set_current_mission_item`` re-asserts it: PX4 and the built-in vehicle reset it on upload); a
+round that comes too late means the vehicle is already returning, which is safe.  MAVSDK v4 API:
+``MissionRawAsync.upload_mission`` and ``set_current_mission_item`` (PX4 and ArduPilot alike, no
+guided mode needed).
 """
 
 from __future__ import annotations
 
 import asyncio
 import dataclasses
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,6 +32,7 @@ from mission.adaptive.planner import (
     plan_round,
     rival_of,
     round_target,
+    smallest_round_s,
     survey_spec,
     verdict,
 )
@@ -44,13 +48,58 @@ from mission.trajectory.autopilot import ReturnModel
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
-# wall seconds an estimate, the planning and the upload may take (sped-up vehicles); 4 s was too
-# little for PX4 SITL at 10x on a loaded 2-core machine: the estimate came back after the survey
-# ended and no round was flown
-MIN_LEAD_WALL_S = 8.0
-# but never more than this share of the survey (vehicle seconds): at 15x, 8 wall s were 120
-# vehicle s, more than a 100 s survey, and the round was planned before the survey had an estimate
-MAX_LEAD_SURVEY_SHARE = 0.5
+# A round is planned when its part (the survey, then the last round) has ``lead_s`` vehicle
+# seconds left, at every speed-up, from an estimate started then: its data is at most ``lead_s``
+# old when the round starts.  Where the estimate, the planning and the upload take longer than that
+# (a sped-up vehicle, a loaded machine), the vehicle waits at the part's last waypoint (a hold time
+# on it, param1) and the upload ends the wait; only what the budget cannot spare for that wait
+# makes the lead longer (``round_timing``).  Before stop 46 the lead itself grew with the speed-up
+# (8 wall s: 150 vehicle s at 20x, rounds planned before the survey's last 150 s were flown).
+MAX_LEAD_SURVEY_SHARE = 0.5  # a lead never longer than half the survey (a short test survey)
+# wall seconds one estimate is taken to last before one is measured (measured: 0.25-1.4 s on a
+# quiet 2-core machine, the rounds' answer the slower; 1-7 s beside PX4 SITL; 2-12 s at load 10)
+LATENCY_PRIOR_WALL_S = 2.0
+# estimates a plan may wait for: the one in progress when the part's lead begins, its own, and one
+# more for the spread of their times (PX4 SITL at 10x: a median of 1 s, the longest 5.6 s)
+WAIT_ESTIMATES = 3.0
+HELD_M = 5.0  # within this of a part's last waypoint, at its index: the vehicle is waiting there
+
+
+@dataclass(frozen=True)
+class RoundTiming:
+    """When the next round is planned (``lead_s`` vehicle seconds before its part ends) and how
+    long the vehicle may wait at the part's end for it (``hold_s``)."""
+
+    lead_s: float
+    hold_s: float
+
+
+def round_timing(
+    latency_wall_s: float | None,
+    upload_wall_s: float,
+    speedup: float,
+    lead_s: float,
+    spare_s: float,
+    max_lead_s: float,
+) -> RoundTiming:
+    """The next round's timing: a plan takes ``WAIT_ESTIMATES`` estimates of ``latency_wall_s``
+    (None: the prior) and an upload of ``upload_wall_s``, at ``speedup``; the part's ``lead_s``
+    covers that first, the wait at its end the rest, at most ``spare_s`` (the budget left after
+    the part, its return, the reserve and the smallest round: ``hold_spare``; a round after a
+    longer wait could not fit anyway), and only what the wait cannot cover lengthens the lead, to
+    at most ``max_lead_s``."""
+    lat = LATENCY_PRIOR_WALL_S if latency_wall_s is None else float(latency_wall_s)
+    need = (WAIT_ESTIMATES * lat + upload_wall_s) * speedup
+    hold = float(np.clip(need - lead_s, 0.0, max(spare_s, 0.0)))
+    lead = float(min(max(lead_s, need - hold), max(max_lead_s, lead_s)))
+    return RoundTiming(lead, hold)
+
+
+def hold_spare(spec, a, end, left_s: float, pace=None) -> float:
+    """Seconds a wait at ``end`` (a part's last waypoint) may take: ``left_s`` (the budget after
+    the part and its return) less the reserve and the smallest round from there
+    (``planner.smallest_round_s``), the least any next round needs."""
+    return left_s - a.reserve_s - smallest_round_s(spec, a, end, pace)
 
 
 @dataclass
@@ -63,6 +112,11 @@ class AdaptiveRounds:
     config: object
     rounds: list[dict] = field(default_factory=list)
     flown_s: float | None = None  # the rounds' flown seconds, once ``record`` measured them
+    survey_hold_s: float = 0.0  # the survey's wait at its last waypoint (``hold_s``)
+    timing: RoundTiming | None = None  # the next round's lead and the wait before it
+    # wall seconds a round's upload may take: the longest measured, at least this prior (ArduCopter
+    # SITL at 20x: 1 wall s, 20 vehicle s, which a round planned while waiting must allow for)
+    upload_wall_s: float = 1.5
 
     def __post_init__(self) -> None:
         self.spec = survey_spec(self.full_spec, self.config.survey_s)
@@ -78,6 +132,24 @@ class AdaptiveRounds:
         refused before the upload and take-off, exit 2, when they leave no round."""
         if v := adaptive_violations(self.full_spec, self.config, autopilot_returns(ctx)):
             raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
+
+    def hold_s(self, ctx: FlightContext) -> float:
+        """The survey's wait at its last waypoint for round 1 (``round_timing`` with the prior
+        latency), within what the budget leaves after the survey's plan; round 1's lead with it."""
+        left = self.full_spec.time_budget_s
+        planned = getattr(ctx.budget, "planned_s", None)
+        if callable(planned):
+            left -= planned()
+        end = np.asarray(self.spec.waypoints_enu(), dtype=float)[-1]
+        spare = hold_spare(self.full_spec, self.config, end, left)
+        self.timing = round_timing(
+            None, self.upload_wall_s, ctx.speedup, lead_for(self.config), spare, self._max_lead()
+        )
+        self.survey_hold_s = self.timing.hold_s
+        return self.survey_hold_s
+
+    def _max_lead(self) -> float:
+        return MAX_LEAD_SURVEY_SHARE * float(self.config.survey_s)
 
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None:
         try:
@@ -163,29 +235,29 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
     wps = np.asarray(ctx.spec.waypoints_enu(), dtype=float)
     off, n_survey = ctx.status.waypoint_offset, len(wps)
     returns = autopilot_returns(ctx)
-    a, lead = _round_config(ctx, ext, returns)
+    a, timing = _round_config(ctx, ext, returns)
     final = final_phase(spec.return_behaviour)
-    k = 0
+    hold, k, max_lead = timing.hold_s, 0, ext._max_lead()
     while True:
-        if not await _until_planning_time(ctx, ext, wps, off, lead):
+        lead = await _until_planning_time(ctx, ext, wps, off, hold, max_lead)
+        if lead is None:
             return
-        try:
-            d = await estimates.estimate(ctx)
-        finally:
-            ctx.live.planning = False
+        # the estimate started now (after one in progress): data at most the lead old
+        d = await estimates.estimate(ctx)
         if d is not None:  # the round's estimate is an entry of the series like any other
             estimates.record(ctx, d)
         if d is None:
             ctx.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
-            return
+            return await _end_hold(ctx, mission_raw, wps, off, hold)
         if d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2:
             ctx.event(
                 "adaptive",
                 f"90 % region {d['area_m2']:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing",
             )
-            return
+            return await _end_hold(ctx, mission_raw, wps, off, hold)
         pace = measured_pace(ctx)
-        rem = remaining_s(ctx, wps, off, pace) or 0.0
+        # the round cannot start before its upload ends (the vehicle may be waiting already)
+        rem = max(remaining_s(ctx, wps, off, pace) or 0.0, ext.upload_wall_s * ctx.speedup)
         t_end = ctx.tel.clock.now() - ctx.status.t_start + rem
         visited = [rd["centre"] for rd in ext.rounds]
         target = round_target(spec, a, d, visited, wps[-1])
@@ -194,32 +266,69 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             ctx.event("adaptive", f"round {k + 1}: {n}")
         if not plan.ok:
             ctx.event("adaptive", f"round {k + 1} refused: {plan.reason}")
-            return
+            return await _end_hold(ctx, mission_raw, wps, off, hold)
+        left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
+        spare = hold_spare(spec, a, plan.waypoints[-1], left, pace)
+        nxt = round_timing(
+            ctx.live.latency_s(), ext.upload_wall_s, ctx.speedup, lead_for(a), spare, plan.fly_s
+        )
         new = np.vstack([wps, plan.waypoints])
         items = build_items(
             dataclasses.replace(ctx.spec, trajectory=TrajectorySpec("waypoints", {}, new)),
             (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
             ctx.ardupilot,
+            nxt.hold_s,
         )
         if ctx.mission_done.is_set() or ctx.abort.is_set():
             ctx.event("adaptive", f"round {k + 1} planned too late: already returning")
             return
         cur = ctx.st.progress[0]
         ctx.phases.configure(off, len(items) - 1, final, first_adaptive=off + n_survey)
+        t_up = time.monotonic()
         await upload_with_retries(ctx, mission_raw, items, kind="adaptive")
+        ext.upload_wall_s = max(ext.upload_wall_s, time.monotonic() - t_up)
         # the old RTL became active during the upload
         if ctx.mission_done.is_set() or ctx.abort.is_set():
             await action.return_to_launch()
             ctx.event("adaptive", f"round {k + 1} uploaded too late: return to launch commanded")
             return
-        await mission_raw.set_current_mission_item(max(cur, ctx.phases.raw_item))
+        # waiting at the part's end: on to the round (the uploaded part's end no longer holds)
+        held = waiting_at_end(ctx, wps, off)
+        await mission_raw.set_current_mission_item(
+            off + len(wps) if held else max(cur, ctx.phases.raw_item)
+        )
         ctx.status.n_waypoints = len(new)
-        left = spec.time_budget_s - t_end - plan.fly_s - plan.return_s
         # land~ now the round's plan, no longer the survey's
         ctx.status.predicted_s = spec.time_budget_s - left
         ext.rounds.append(_round_record(ctx, k, d, target, plan, wps, n_survey, left, pace))
+        ext.rounds[-1].update(
+            lead_s=round(lead, 1),
+            hold_s=round(nxt.hold_s, 1),
+            upload_while_waiting=held,
+        )
         _announce(ctx, ext.rounds[-1], d, a.radius_m)
-        wps, k = new, k + 1
+        wps, k, hold, max_lead = new, k + 1, nxt.hold_s, plan.fly_s
+
+
+def waiting_at_end(ctx: FlightContext, wps: np.ndarray, off: int) -> bool:
+    """Whether the vehicle is at the last of ``wps`` with it the current item: waiting out its
+    hold time for the next round."""
+    if ctx.st.progress[0] - off != len(wps) - 1 or not ctx.tel.n_pos:
+        return False
+    return bool(np.linalg.norm(_position_enu(ctx) - wps[-1]) <= HELD_M)
+
+
+async def _end_hold(ctx: FlightContext, mission_raw, wps: np.ndarray, off: int, hold: float):
+    """No more rounds: where the uploaded part ends with a wait (``hold`` s), the vehicle returns
+    on reaching its last waypoint instead of waiting (the item after it is the return)."""
+    if hold <= 0:
+        return
+    while not (ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set()):
+        if waiting_at_end(ctx, wps, off):
+            await mission_raw.set_current_mission_item(off + len(wps))
+            ctx.event("adaptive", f"no round follows: returning without the {hold:.0f} s wait")
+            return
+        await asyncio.sleep(0.05)
 
 
 def _announce(ctx: FlightContext, rd: dict, d: dict, visit_m: float) -> None:
@@ -244,11 +353,18 @@ def _announce(ctx: FlightContext, rd: dict, d: dict, visit_m: float) -> None:
     )
 
 
+def lead_for(config) -> float:
+    """Vehicle seconds before a part's end at which the next round is planned: the settings'
+    ``lead_s`` at every speed-up, at most ``MAX_LEAD_SURVEY_SHARE`` of the survey."""
+    return min(float(config.lead_s), MAX_LEAD_SURVEY_SHARE * float(config.survey_s))
+
+
 def _round_config(ctx: FlightContext, ext: AdaptiveRounds, returns: ReturnModel) -> tuple:
-    """The rounds' config and how far ahead a round is planned (at least ``MIN_LEAD_WALL_S`` of
-    wall-clock time, at most ``MAX_LEAD_SURVEY_SHARE`` of the survey); a change is an event, as is
-    an autopilot's return (``returns``) longer than the mission's kinematics (the rounds plan with
-    it)."""
+    """The rounds' config and round 1's timing (``AdaptiveRounds.hold_s``, set before the
+    upload; ``lead_for`` without a wait when it was not); an event when the survey waits at its
+    end for round 1 or the lead is longer than the settings' (a sped-up vehicle), and when an
+    autopilot's return (``returns``) is longer than the mission's kinematics (the rounds plan
+    with it)."""
     a = ext.config
     frm = np.append(ctx.spec.waypoints_enu()[-1][:2], a.altitude(ext.full_spec))
     extra = returns.seconds(frm) - ReturnModel.of(ctx.spec).seconds(frm)
@@ -257,31 +373,35 @@ def _round_config(ctx: FlightContext, ext: AdaptiveRounds, returns: ReturnModel)
             "adaptive",
             f"rounds planned with the autopilot's own return and landing ({extra:.0f} s longer)",
         )
-    lead = min(max(a.lead_s, MIN_LEAD_WALL_S * ctx.speedup), MAX_LEAD_SURVEY_SHARE * a.survey_s)
-    if lead > a.lead_s:
+    timing = ext.timing or RoundTiming(lead_for(a), 0.0)
+    if timing.hold_s > 0 or timing.lead_s > lead_for(a):
         ctx.event(
             "adaptive",
-            f"rounds planned {lead:.0f} s ahead ({lead / ctx.speedup:.1f} s wall-clock at "
-            f"speed-up {ctx.speedup:g}; at most half the survey)",
+            f"round 1 planned {timing.lead_s:.0f} s before the survey ends; the survey waits up "
+            f"to {timing.hold_s:.0f} s at its end for it (speed-up {ctx.speedup:g})",
         )
-    return a, lead
+    return a, timing
 
 
 async def _until_planning_time(
-    ctx: FlightContext, ext: AdaptiveRounds, wps: np.ndarray, off: int, lead: float
-) -> bool:
-    """Wait until the mission has ``lead`` s left (from 1.1 ``lead`` the periodic series starts no
-    new estimate, so the worker is free; before, the series keeps its period); False when the
-    mission ends, aborts or loses its link first."""
+    ctx: FlightContext, ext: AdaptiveRounds, wps: np.ndarray, off: int, hold: float, max_lead: float
+) -> float | None:
+    """Wait until the part has its lead left (``round_timing`` with the estimates' time measured
+    so far and the ``hold`` already uploaded at its end: a machine measured slow plans earlier,
+    up to ``max_lead``) and return that lead; the periodic series goes on meanwhile.  None when
+    the mission ends, aborts or loses its link first."""
+    a = ext.config
     while True:
         if ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set():
             if not ext.rounds and not ctx.abort.is_set() and not ctx.link_dead.is_set():
                 _no_round(ctx)
-            return False
+            return None
         rem = remaining_s(ctx, wps, off, measured_pace(ctx)) if ctx.st.was_in_air else None
-        ctx.live.planning = rem is not None and rem <= 1.1 * lead
+        lead = round_timing(
+            ctx.live.latency_s(), ext.upload_wall_s, ctx.speedup, lead_for(a), hold, max_lead
+        ).lead_s
         if rem is not None and rem <= lead:
-            return True
+            return lead
         await asyncio.sleep(0.05)
 
 
@@ -345,11 +465,14 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
         # the log ended in the round (link lost): flown until the last telemetry
         if s is not None and e is None:
             e = float(ctx.tel.covered_until) if np.isfinite(ctx.tel.covered_until) else None
+        if s is not None and ctx.rows is not None and ctx.rows.t_ref is not None:
+            # how old the round's data was when it began (vehicle s): the lead, and any wait
+            rd["data_lead_s"] = round(s - ctx.rows.t_ref - rd["estimate"]["t_s"], 1)
         if s is None or e is None:
             continue
-        rd["flown_s"] = round(e - s, 1)
+        rd["flown_s"] = round(e - s, 1)  # its wait at the end for the next round included
         _judge(ctx, rd, e, ext.config.radius_m)
-        if rd["flown_s"] > 1.2 * rd["planned_s"] + 5.0:
+        if rd["flown_s"] > 1.2 * rd["planned_s"] + 5.0 + rd.get("hold_s", 0.0):  # its wait too
             ctx.event(
                 "budget",
                 f"adaptive round {rd['round']} overran: {rd['flown_s']:.0f} s flown against "
@@ -364,7 +487,13 @@ def budget_report(ctx: FlightContext, ext: AdaptiveRounds) -> dict:
         f"adaptive: {len(ext.rounds)} round(s), {flown:.0f} s flown, {planned:.0f} s planned",
     )
     # time used: the sidecar's budget
+    wall = ctx.live.wall_s if ctx.live is not None else []
+    walls = [round(float(np.median(wall)), 2), round(max(wall), 2)] if wall else None
     return {
         "budget_s": ext.full_spec.time_budget_s,
+        "lead_s": lead_for(ext.config),
+        "survey_hold_s": round(ext.survey_hold_s, 1),
+        # wall seconds the live estimates took (median, longest): what the waits are sized by
+        "estimate_wall_s": walls,
         "rounds": ext.rounds,
     }

@@ -16,6 +16,7 @@ import concurrent.futures
 import contextlib
 import multiprocessing
 import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,16 +30,20 @@ from mission.localize.render import Shown
 
 @dataclass
 class LiveEstimates:
-    """The worker process and the series of one flight; ``planning``: an extension needs the worker
-    soon (no periodic estimate meanwhile)."""
+    """The worker process and the series of one flight; ``wall_s``: the wall-clock seconds each
+    estimate took (an adaptive flight sizes its waits by them)."""
 
     update_s: float = 5.0
     estimates: list[dict] = field(default_factory=list)
     fast: dict | None = None
     final: dict | None = None
-    planning: bool = False
+    wall_s: list[float] = field(default_factory=list)
     pool: concurrent.futures.ProcessPoolExecutor | None = None
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+
+    def latency_s(self, last: int = 10) -> float | None:
+        """The longest wall-clock time of the last ``last`` estimates (None before the first)."""
+        return max(self.wall_s[-last:]) if self.wall_s else None
 
     def start_worker(self) -> None:
         """spawn: a fresh interpreter (no MAVSDK threads forked), started and warmed up before
@@ -95,8 +100,11 @@ async def estimate(ctx: FlightContext, t_log: float | None = None) -> dict | Non
     process."""
     async with ctx.live.lock:
         t = log_time(ctx) if t_log is None else t_log
+        t0 = time.monotonic()
         fut = ctx.live.pool.submit(live.estimate_file_at, str(ctx.log_path), float(t))
-        return await asyncio.wrap_future(fut)
+        d = await asyncio.wrap_future(fut)
+        ctx.live.wall_s.append(time.monotonic() - t0)
+        return d
 
 
 def record(ctx: FlightContext, d: dict, what: str = "") -> None:
@@ -132,7 +140,7 @@ async def live_estimates(ctx: FlightContext) -> None:
                 ctx.rows.writer.meta["fast_estimate"] = lv.fast
                 record(ctx, lv.fast, "fast (3 min)")
         due = ctx.tel.clock.now() - ctx.rows.t_ref - last >= lv.update_s
-        if lv.final is None and ctx.phases.current in FLOWN_PHASES and due and not lv.planning:
+        if lv.final is None and ctx.phases.current in FLOWN_PHASES and due:
             d = await estimate(ctx)
             if d is not None:
                 record(ctx, d)

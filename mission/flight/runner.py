@@ -408,16 +408,8 @@ async def prepare(ctx: FlightContext, p: Plugins):
     )
     ctx.home = await p.telemetry.home()
     check_home(ctx, ctx.home)
-    items = build_items(
-        spec,
-        (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
-        ctx.ardupilot,
-    )
     n_wp = len(spec.waypoints_enu())
     ctx.status.n_waypoints, ctx.status.waypoint_offset = n_wp, ctx.autopilot.waypoint_offset
-    ctx.phases.configure(
-        ctx.status.waypoint_offset, len(items) - 1, final_phase(spec.return_behaviour)
-    )
     ctx.rate_requested = opts.rate_hz or auto_rate_hz(ctx.speedup)
     for name in ("set_rate_position", "set_rate_attitude_euler"):
         try:
@@ -432,6 +424,15 @@ async def prepare(ctx: FlightContext, p: Plugins):
     )
     if ctx.extension is not None:  # its own checks, now that the autopilot's plan is known (exit 2)
         ctx.extension.check(ctx)
+    items = build_items(
+        spec,
+        (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
+        ctx.ardupilot,
+        ctx.extension.hold_s(ctx) if ctx.extension is not None else 0.0,
+    )
+    ctx.phases.configure(
+        ctx.status.waypoint_offset, len(items) - 1, final_phase(spec.return_behaviour)
+    )
     ctx.status.stage = "uploading"
     await upload_with_retries(ctx, p.mission_raw, items)
     ctx.event("upload", f"mission uploaded: {len(items)} raw items ({n_wp} waypoints)")

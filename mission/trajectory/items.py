@@ -60,11 +60,16 @@ def home_geodetic(spec) -> tuple[float, float, float]:
 
 
 def build_items(
-    spec, home: tuple[float, float, float] | None = None, home_item: bool = False
+    spec,
+    home: tuple[float, float, float] | None = None,
+    home_item: bool = False,
+    hold_s: float = 0.0,
 ) -> list[RawItem]:
     """The raw items of ``spec``; ``home`` (lat, lon, alt AMSL) is the vehicle's (None: the
     spec's home), and ``home_item`` puts it first as item 0 (ArduPilot's convention, and a QGC
-    WPL file's)."""
+    WPL file's).  ``hold_s``: the vehicle waits that long at the last waypoint before the return
+    (param1, PX4's hold time and ArduCopter's delay): an adaptive flight's time to upload the next
+    round, which skips the rest of the wait (``mission.adaptive.rounds``)."""
     hlat, hlon, halt = home_geodetic(spec) if home is None else home
     wps = np.asarray(spec.waypoints_enu(), dtype=float)
     lat, lon, _ = spec.field.origin.to_geodetic(wps)
@@ -97,6 +102,7 @@ def build_items(
         )
     )
     for i in range(len(wps)):
+        hold = float(hold_s) if i == len(wps) - 1 else 0.0
         items.append(
             RawItem(
                 mavlink.MAV_CMD_NAV_WAYPOINT,
@@ -104,7 +110,7 @@ def build_items(
                 _e7(lat[i]),
                 _e7(lon[i]),
                 float(rel[i]),
-                (0.0, ACCEPTANCE_RADIUS_M, 0.0, nan),
+                (hold, ACCEPTANCE_RADIUS_M, 0.0, nan),
             )
         )
     if spec.return_behaviour == "land":
