@@ -325,8 +325,8 @@ async def _end_hold(ctx: FlightContext, mission_raw, wps: np.ndarray, off: int, 
         return
     while not (ctx.mission_done.is_set() or ctx.abort.is_set() or ctx.link_dead.is_set()):
         if waiting_at_end(ctx, wps, off):
-            await mission_raw.set_current_mission_item(off + len(wps))
             ctx.event("adaptive", f"no round follows: returning without the {hold:.0f} s wait")
+            await mission_raw.set_current_mission_item(off + len(wps))
             return
         await asyncio.sleep(0.05)
 
