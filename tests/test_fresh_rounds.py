@@ -5,6 +5,7 @@ upload."""
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 import os
 
@@ -13,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mission.adaptive import rounds
 from mission.adaptive.planner import smallest_round_s, survey_spec
 from mission.adaptive.rounds import (
     LATENCY_PRIOR_WALL_S,
@@ -235,3 +237,64 @@ def test_an_upload_ends_the_wait_at_once():
         assert np.linalg.norm(v.pos[:2] - (50.0, 50.0)) > 1.0 or v.pos[2] > 20.5  # on its way
     finally:
         v.conn.close()
+
+
+# --------------------------------------------------------------------------- the wait, said
+
+
+class _Ctx:
+    """What ``_estimate_saying_the_wait`` reads of a flight: its events."""
+
+    def __init__(self):
+        self.events: list[str] = []
+
+    def event(self, kind: str, text: str, warn: bool = False) -> None:
+        self.events.append(text)
+
+
+def _slow_estimate(seconds: float, started: list):
+    async def estimate(ctx):
+        started.append(1)
+        await asyncio.sleep(seconds)
+        return {"x_m": 1.0}
+
+    return estimate
+
+
+@pytest.mark.parametrize("waiting, hold, said", [(True, 40.0, 1), (False, 40.0, 0), (True, 0.0, 0)])
+def test_a_wait_for_the_plan_is_said_once(monkeypatch, waiting, hold, said):
+    """While the round's estimate runs, a vehicle waiting at its part's end (with a hold) gets one
+    line naming the part, the round and the longest wait; the estimate comes back unchanged."""
+    started: list = []
+    monkeypatch.setattr(rounds.estimates, "estimate", _slow_estimate(0.3, started))
+    monkeypatch.setattr(rounds, "waiting_at_end", lambda ctx, wps, off: waiting)
+    ctx = _Ctx()
+    d = asyncio.run(rounds._estimate_saying_the_wait(ctx, np.zeros((3, 3)), 2, hold, 1))
+    assert d == {"x_m": 1.0} and started == [1]
+    lines = [e for e in ctx.events if e.startswith("waiting at")]
+    assert len(lines) == said
+    if said:
+        assert lines[0] == "waiting at the end of round 1 for round 2 (at most 40 s)"
+
+
+def test_the_estimate_is_cancelled_with_the_flight(monkeypatch):
+    """A flight that ends (its coroutine cancelled) while the round's estimate runs leaves no
+    estimate task behind."""
+    started: list = []
+    monkeypatch.setattr(rounds.estimates, "estimate", _slow_estimate(30.0, started))
+    monkeypatch.setattr(rounds, "waiting_at_end", lambda ctx, wps, off: False)
+
+    async def main():
+        t = asyncio.ensure_future(
+            rounds._estimate_saying_the_wait(_Ctx(), np.zeros((3, 3)), 2, 0, 0)
+        )
+        await asyncio.sleep(0.2)
+        t.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await t
+        await asyncio.sleep(0)
+        others = [x for x in asyncio.all_tasks() if x is not asyncio.current_task()]
+        assert all(x.done() for x in others)
+
+    asyncio.run(main())
+    assert started == [1]

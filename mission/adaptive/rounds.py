@@ -243,7 +243,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         if lead is None:
             return
         # the estimate started now (after one in progress): data at most the lead old
-        d = await estimates.estimate(ctx)
+        d = await _estimate_saying_the_wait(ctx, wps, off, hold, k)
         if d is not None:  # the round's estimate is an entry of the series like any other
             estimates.record(ctx, d)
         if d is None:
@@ -308,6 +308,28 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         )
         _announce(ctx, ext.rounds[-1], d, a.radius_m)
         wps, k, hold, max_lead = new, k + 1, nxt.hold_s, plan.fly_s
+
+
+async def _estimate_saying_the_wait(
+    ctx: FlightContext, wps: np.ndarray, off: int, hold: float, k: int
+) -> dict | None:
+    """The round's live estimate (``estimates.estimate``); one line when the vehicle begins to
+    wait for it at its part's end (``hold`` s at most), so a hovering vehicle is explained."""
+    task = asyncio.ensure_future(estimates.estimate(ctx))
+    try:
+        said = hold <= 0
+        while not task.done():
+            if not said and waiting_at_end(ctx, wps, off):
+                part = "the survey" if k == 0 else f"round {k}"
+                ctx.event(
+                    "adaptive",
+                    f"waiting at the end of {part} for round {k + 1} (at most {hold:.0f} s)",
+                )
+                said = True
+            await asyncio.wait({task}, timeout=0.05)
+        return task.result()
+    finally:
+        task.cancel()  # cancelled with the flight: no orphan (a no-op once done)
 
 
 def waiting_at_end(ctx: FlightContext, wps: np.ndarray, off: int) -> bool:
