@@ -167,10 +167,8 @@ class ModeMachine:
                 self._append(pts, self._item_enu(it, pts[-1]))
                 if it.command == mav.MAV_CMD_NAV_WAYPOINT and it.params[0] > 0:
                     # a hold time: fly there, wait, then the rest (reached after the wait, as
-                    # PX4 and ArduCopter report it)
-                    speeds.extend([speed] * (len(pts) - n0))
+                    # PX4 and ArduCopter report it: no mark here)
                     hold = (it.seq, float(it.params[0]))
-                    break
             elif it.command == mav.MAV_CMD_DO_CHANGE_SPEED and it.params[1] > 0:
                 speed = float(it.params[1])
             elif it.command == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
@@ -187,6 +185,8 @@ class ModeMachine:
                 self._append(pts, np.array([p[0], p[1], 0.0]))
                 land = True
             speeds.extend([speed] * (len(pts) - n0))
+            if hold is not None:
+                break
             marks.append((len(pts) - 1, it.seq))
             if land:
                 break

@@ -112,8 +112,7 @@ class AdaptiveRounds:
     config: object
     rounds: list[dict] = field(default_factory=list)
     flown_s: float | None = None  # the rounds' flown seconds, once ``record`` measured them
-    survey_hold_s: float = 0.0  # the survey's wait at its last waypoint (``hold_s``)
-    timing: RoundTiming | None = None  # the next round's lead and the wait before it
+    timing: RoundTiming | None = None  # round 1's lead and the survey's wait (``hold_s``)
     # wall seconds a round's upload may take: the longest measured, at least this prior (ArduCopter
     # SITL at 20x: 1 wall s, 20 vehicle s, which a round planned while waiting must allow for)
     upload_wall_s: float = 1.5
@@ -145,8 +144,12 @@ class AdaptiveRounds:
         self.timing = round_timing(
             None, self.upload_wall_s, ctx.speedup, lead_for(self.config), spare, self._max_lead()
         )
-        self.survey_hold_s = self.timing.hold_s
         return self.survey_hold_s
+
+    @property
+    def survey_hold_s(self) -> float:
+        """The survey's wait at its last waypoint (0 before ``hold_s`` sized it)."""
+        return 0.0 if self.timing is None else self.timing.hold_s
 
     def _max_lead(self) -> float:
         return MAX_LEAD_SURVEY_SHARE * float(self.config.survey_s)
