@@ -11,14 +11,27 @@ one; ``benchmarks/bench_localize.py``); a pool's workers already fill the cores.
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
 from collections.abc import Iterator
+from multiprocessing.context import BaseContext
 
 from threadpoolctl import ThreadpoolController
 
 from mission.errors import InputError
 
 THREADS_ENV = "RFSL_THREADS"
+
+
+def pool_context() -> BaseContext:
+    """The start method of the package's process pools: ``spawn``, whatever the platform's default.
+
+    Why: a forked child inherits the locks of the parent's threads (OpenMP's k-means pool,
+    onnxruntime's) but not the threads, and can wait on them forever: a test worker's dataset pool,
+    forked after another test had fixed the default start method to ``fork``, hung 28 minutes.
+    A spawned worker costs its imports once (about a second) and shares nothing it did not ask for.
+    """
+    return multiprocessing.get_context("spawn")
 
 
 def compute_threads() -> int:

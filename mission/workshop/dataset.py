@@ -14,7 +14,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -28,7 +27,7 @@ from mission.fields import REQUIRED, Fields
 from mission.files import read_text, write_bytes, write_text
 from mission.localize.features import FeatureConfig
 from mission.spec import load_mission
-from mission.threads import limit_worker
+from mission.threads import limit_worker, pool_context
 
 # re-exported: one import site for dataset users
 from mission.workshop.dataset_config import (  # noqa: F401
@@ -101,12 +100,7 @@ def iter_rows(
             yield _work(i)
         return
 
-    ctx = (
-        mp.get_context("spawn")
-        if mp.get_start_method(allow_none=True) != "fork"
-        else mp.get_context("fork")
-    )
-    with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg.to_dict(),)) as pool:
+    with pool_context().Pool(workers, initializer=_init_worker, initargs=(cfg.to_dict(),)) as pool:
         yield from pool.imap(_work, idx, chunksize=4)
 
 

@@ -10,7 +10,6 @@ Split from ``mission.workshop.evaluate`` (simulated test sets and real flights),
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -24,7 +23,7 @@ from mission.errors import InputError
 from mission.localize.api import localize_log
 from mission.localize.region import ELLIPSE_KEYS, Ellipse, Region
 from mission.localize.uncertainty import region_covers
-from mission.threads import limit_worker
+from mission.threads import limit_worker, pool_context
 from mission.workshop.evaluate import Row, suite_method
 from mission.workshop.predictive import flight_statistics
 from mission.workshop.suite import (
@@ -235,7 +234,7 @@ def _flight_results(labels: dict, source: dict, n: int, workers: int) -> Iterato
         _suite_init(labels, source)
         yield map(_suite_flight, range(n))
         return
-    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    ctx = pool_context()
     pool = ctx.Pool(workers, initializer=_suite_init, initargs=(labels, source, True))
     try:
         yield pool.imap(_suite_flight, range(n), chunksize=1)

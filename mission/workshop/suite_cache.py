@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing as mp
 from collections.abc import Callable
 from pathlib import Path
 
@@ -33,6 +32,7 @@ from mission.fields import REQUIRED, Fields
 from mission.files import read_text
 from mission.flightlog import read_flight_log, write_flight_log
 from mission.physics.family import PhysicsFamily
+from mission.threads import pool_context
 from mission.workshop.suite import (
     BENCHMARK_SEED,
     FamilyArg,
@@ -154,7 +154,7 @@ def _map(fn, jobs: list, workers: int):
         yield from map(fn, jobs)
         return
 
-    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    ctx = pool_context()
     with ctx.Pool(workers) as pool:
         yield from pool.imap(fn, jobs, chunksize=1)
 
