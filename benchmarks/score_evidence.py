@@ -78,7 +78,12 @@ from mission.geo import afar_field, square_grid
 from mission.importers.afar import AFAR2023_FOLD_WITHOUT, AFAR2023_TRUTH, import_afar_mat
 from mission.localize.api import localize_log, search_area
 from mission.localize.candidates import Candidate
-from mission.localize.evidence_stage import SIGMA_M, member_candidates, score_candidates
+from mission.localize.evidence_stage import (
+    SIGMA_M,
+    background_share,
+    member_candidates,
+    score_candidates,
+)
 from mission.localize.preprocess import select_samples
 from mission.localize.stacking import geometric_median, mixture_posterior, stacking_weights
 from mission.workshop.decision import pooled_decision
@@ -149,6 +154,11 @@ def _pbma(lp: np.ndarray) -> np.ndarray:
     return w / w.sum()
 
 
+def _xy(r: dict) -> np.ndarray:
+    """A cached row's candidate points (K, 2)."""
+    return np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
+
+
 def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     """Answer schemes: a flight's cached row -> its point."""
 
@@ -161,8 +171,7 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     def cands(r):
         return [Candidate(c["x_m"], c["y_m"], c["source"]) for c in r["cands"]]
 
-    def xy(r):
-        return np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
+    xy = _xy
 
     def fusion_or(r, nats):
         e = np.asarray(r["block_lpd"]).sum(axis=1)
@@ -192,7 +201,7 @@ def truth_level(r: dict, weights: np.ndarray) -> float:
     """The smallest HPD mass of the candidates' weighted mixture (``stacking.mixture_posterior``,
     the stage's ``SIGMA_M``) whose set holds the truth, on a 5 m grid 100 m around the
     candidates."""
-    xy = np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
+    xy = _xy(r)
     lo, hi = xy.min(axis=0) - 100.0, xy.max(axis=0) + 100.0
     grid = square_grid((lo[0], lo[1], hi[0], hi[1]), 5.0)
     return mixture_posterior(xy, weights, grid, SIGMA_M).hpd_level(*r["truth"])
@@ -217,7 +226,7 @@ def _region_levels(
     flight's row -> its share) on ``grid``, and the posteriors (for the regions' areas)."""
     levels, posts = [], []
     for r in rs:
-        xy = np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
+        xy = _xy(r)
         w = stacking_weights(np.asarray(r["block_lpd"]))
         share = b(r) if callable(b) else b
         post = mixture_posterior(xy, w, grid, SIGMA_M, background=share)
@@ -275,20 +284,12 @@ CV_FOLDS = 5
 BANDS = {0.5: (0.40, 0.60), 0.9: (0.88, 0.95)}  # issue 32's targets for the regions' coverage
 
 
-def candidate_spread_m(r: dict) -> float:
-    """Median distance of a flight's candidates to their geometric median (m)."""
-    xy = np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])
-    return float(np.median(np.hypot(*(xy - geometric_median(xy)).T)))
-
-
 def _cv_variants() -> dict[str, float | Callable[[dict], float]]:
     out: dict[str, float | Callable[[dict], float]] = {
         f"background {b:g}": b for b in CV_BACKGROUNDS
     }
     for c in CV_SPREAD_GAINS:
-        out[f"background {c:g} x spread / 100 m"] = lambda r, c=c: min(
-            0.8, c * candidate_spread_m(r) / 100.0
-        )
+        out[f"background {c:g} x spread / 100 m"] = lambda r, c=c: background_share(_xy(r), c)
     return out
 
 

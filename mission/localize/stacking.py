@@ -151,6 +151,13 @@ def geometric_median(
     return z
 
 
+def spread_m(xy: np.ndarray) -> float:
+    """How far points (K, 2) disagree: the median distance to their geometric median (m).  A
+    flight whose candidates disagree is the flight where all of them may be wrong."""
+    xy = np.asarray(xy, float)
+    return float(np.median(np.hypot(*(xy - geometric_median(xy)).T)))
+
+
 def mixture_posterior(
     cand_xy: np.ndarray,
     weights: np.ndarray,
