@@ -289,7 +289,8 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         ctx.phases.configure(off, len(items) - 1, final, first_adaptive=off + n_survey)
         t_up = time.monotonic()
         await upload_with_retries(ctx, mission_raw, items, kind="adaptive")
-        ext.upload_wall_s = max(ext.upload_wall_s, time.monotonic() - t_up)
+        upload_s = time.monotonic() - t_up
+        ext.upload_wall_s = max(ext.upload_wall_s, upload_s)
         # the old RTL became active during the upload
         if ctx.mission_done.is_set() or ctx.abort.is_set():
             await action.return_to_launch()
@@ -308,6 +309,7 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
             lead_s=round(lead, 1),
             hold_s=round(nxt.hold_s, 1),
             upload_while_waiting=held,
+            upload_wall_s=round(upload_s, 2),
         )
         _announce(ctx, ext.rounds[-1], d, a.radius_m)
         wps, k, hold, max_lead = new, k + 1, nxt.hold_s, plan.fly_s
