@@ -14,7 +14,6 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import contextlib
-import multiprocessing
 import os
 import time
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ from mission.flight.context import FlightContext
 from mission.flight.vehicle_process import terminal_signals_ignored
 from mission.flightlog import FLOWN_PHASES
 from mission.localize.render import Shown
+from mission.threads import pool_context
 
 
 @dataclass
@@ -54,7 +54,7 @@ class LiveEstimates:
         with terminal_signals_ignored():
             self.pool = concurrent.futures.ProcessPoolExecutor(
                 1,
-                mp_context=multiprocessing.get_context("spawn"),
+                mp_context=pool_context(),
                 initializer=live.lower_priority,
                 initargs=(os.getpid(),),
             )
