@@ -42,7 +42,9 @@ def regenerated(tmp_path_factory):
         key = hashlib.sha256(json.dumps(cfg.to_dict(), sort_keys=True).encode()).hexdigest()[:16]
         if key not in cache:
             d = tmp_path_factory.mktemp(f"ci_{key}") / "ds"
-            generate_dataset(cfg, d, workers=2)
+            # one process: beside the suite's own workers a pool of two costs 48 CPU s where one
+            # costs 30 (spawned workers import everything again); same bytes either way
+            generate_dataset(cfg, d, workers=1)
             cache[key] = d
         return cache[key]
 
