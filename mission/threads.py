@@ -28,7 +28,7 @@ def pool_context() -> BaseContext:
 
     Why: a forked child inherits the locks of the parent's threads (OpenMP's k-means pool,
     onnxruntime's) but not the threads, and can wait on them forever: a test worker's dataset pool,
-    forked after another test had fixed the default start method to ``fork``, hung 28 minutes.
+    forked after another test had fixed the default start method to ``fork``, hung until killed.
     A spawned worker costs its imports once (about a second) and shares nothing it did not ask for.
     """
     return multiprocessing.get_context("spawn")

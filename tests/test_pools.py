@@ -3,7 +3,7 @@
 Why it matters: a forked child inherits the locks of the parent's OpenMP and onnxruntime threads
 without the threads, and can wait on them forever. The default start method gets fixed to ``fork``
 by anything that merely uses it (``ProcessPoolExecutor()`` with no context does), after which the
-dataset's pool used to fork; a test worker's pool so forked hung for 28 minutes.
+dataset's pool used to fork; a test worker's pool so forked hung until it was killed (313 s).
 """
 
 from __future__ import annotations
