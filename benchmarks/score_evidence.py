@@ -171,15 +171,13 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
     def cands(r):
         return [Candidate(c["x_m"], c["y_m"], c["source"]) for c in r["cands"]]
 
-    xy = _xy
-
     def fusion_or(r, nats):
         e = np.asarray(r["block_lpd"]).sum(axis=1)
         src = [c["source"] for c in r["cands"]]
         if "fusion" not in src:
             return np.array(r["default"])
         k = int(np.argmax(e))
-        return xy(r)[k] if e[k] - e[src.index("fusion")] > nats else np.array(r["default"])
+        return _xy(r)[k] if e[k] - e[src.index("fusion")] > nats else np.array(r["default"])
 
     return {
         "stacking, top cluster": lambda r: answer(
@@ -187,13 +185,13 @@ def schemes() -> dict[str, Callable[[dict], np.ndarray]]:
         ),
         "pseudo-BMA, top cluster": lambda r: answer(cands(r), _pbma(np.asarray(r["block_lpd"]))),
         "pseudo-BMA, geometric median": lambda r: geometric_median(
-            xy(r), _pbma(np.asarray(r["block_lpd"]))
+            _xy(r), _pbma(np.asarray(r["block_lpd"]))
         ),
         "stacking, geometric median": lambda r: geometric_median(
-            xy(r), stacking_weights(np.asarray(r["block_lpd"]))
+            _xy(r), stacking_weights(np.asarray(r["block_lpd"]))
         ),
         "fusion unless 3 nats": lambda r: fusion_or(r, 3.0),
-        "uniform geometric median": lambda r: geometric_median(xy(r)),
+        "uniform geometric median": lambda r: geometric_median(_xy(r)),
     }
 
 
@@ -217,6 +215,7 @@ def read_cache(path: str) -> tuple[list[dict], list[dict]]:
 
 
 BACKGROUNDS = (0.0, 0.02, 0.05, 0.1, 0.2)
+BANDS = {0.5: (0.40, 0.60), 0.9: (0.88, 0.95)}  # issue 32's targets for the regions' coverage
 
 
 def _region_levels(
@@ -239,6 +238,14 @@ def _area_m2(post, mass: float, cell_m2: float) -> float:
     return float((post.prob >= post.mass_threshold(mass)).sum() * cell_m2)
 
 
+def _masses(levels: np.ndarray) -> dict[float, float]:
+    return {q: float(min(np.quantile(levels, q), 0.999)) for q in BANDS}
+
+
+def _in_bands(cov: dict[float, float]) -> bool:
+    return all(lo <= cov[q] <= hi for q, (lo, hi) in BANDS.items())
+
+
 def regions(args) -> None:
     """The rule for a background in the mixture's regions (module docstring, ``regions``)."""
     real, bench = read_cache(args.json)
@@ -249,7 +256,7 @@ def regions(args) -> None:
     table = {}
     for b in BACKGROUNDS:
         lv, posts = _region_levels(dev, grid, b)
-        m = {q: float(min(np.quantile(lv, q), 0.999)) for q in (0.5, 0.9)}
+        m = _masses(lv)
         area = float(np.mean([_area_m2(p, m[0.9], cell) for p in posts]))
         table[b] = (m, area)
         print(
@@ -273,7 +280,7 @@ def regions(args) -> None:
             f"region {100 * cov[src][0.9]:.0f} % (in {(lv < m[0.5]).sum()} / "
             f"{(lv < m[0.9]).sum()}); mean 90 % region {area:,.0f} m^2"
         )
-    held = 0.88 <= cov["fresh"][0.9] <= 0.95 and 0.40 <= cov["fresh"][0.5] <= 0.60
+    held = _in_bands(cov["fresh"])
     verdict = "adopted" if held else "not adopted"
     print(f"decision: {verdict} (held-out coverage in the bands: {held})")
 
@@ -281,7 +288,6 @@ def regions(args) -> None:
 CV_BACKGROUNDS = (0.05, 0.1, 0.2, 0.3, 0.5)
 CV_SPREAD_GAINS = (0.1, 0.2, 0.4, 0.8)
 CV_FOLDS = 5
-BANDS = {0.5: (0.40, 0.60), 0.9: (0.88, 0.95)}  # issue 32's targets for the regions' coverage
 
 
 def _cv_variants() -> dict[str, float | Callable[[dict], float]]:
@@ -291,10 +297,6 @@ def _cv_variants() -> dict[str, float | Callable[[dict], float]]:
     for c in CV_SPREAD_GAINS:
         out[f"background {c:g} x spread / 100 m"] = lambda r, c=c: background_share(_xy(r), c)
     return out
-
-
-def _masses(levels: np.ndarray) -> dict[float, float]:
-    return {q: float(min(np.quantile(levels, q), 0.999)) for q in BANDS}
 
 
 def regions_cv(args) -> None:
@@ -314,7 +316,7 @@ def regions_cv(args) -> None:
                     inside[q][i] = lv[i] < m[q]
                 area[i] = _area_m2(posts[i], m[0.9], 25.0)
         cov = {q: float(inside[q].mean()) for q in BANDS}
-        ok = all(lo <= cov[q] <= hi for q, (lo, hi) in BANDS.items())
+        ok = _in_bands(cov)
         results[name] = (cov, float(area.mean()), ok)
         print(
             f"{name:34s} cross-fitted 50 / 90 %: {100 * cov[0.5]:4.1f} / {100 * cov[0.9]:4.1f} %, "
