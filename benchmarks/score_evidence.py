@@ -57,6 +57,29 @@ resting on six exceedances):
    count is reported beside (issue target 2-4 of 6).
 
     python benchmarks/score_evidence.py regions-cv --json /tmp/evidence_cache.jsonl
+
+Regions for the real-log default (``default-regions``; rule written 2026-11-28 14:55 UTC, before
+any figure below was computed; issue 32's "Done when": the default on real logs is the stage). The
+stage's point lost to the fusion (``score``), so the candidate default is the stage answering with
+the fusion's point: the same point, with the stage's candidates, evidence, weights and mixture
+regions in place of the self-calibrating posterior's regions that the fusion shows today. The
+decision is about the regions alone:
+1. On each of the 200 benchmark flights, the truth's HPD level under (a) today's default regions
+   (the self-calibrating posterior; the truth inside when its level is below the region's mass)
+   and (b) the stage's mixture regions (the shipped background ``evidence_stage.background_share``,
+   the masses cross-fitted over 5 folds as in ``regions-cv``, so never calibrated on the flight
+   scored; (a)'s masses were fitted on 500 flights that include these 200, which favours (a)).
+2. Two strata the user can see without the truth: the distance between the fusion's two members
+   (selfcal and ``rfsl_spiral_e2r``) at most, or above, its median over the 200 flights (on other
+   teams' real flights the fusion's 90 % region missed where its members disagreed).
+3. A region set's score: the worst |coverage - nominal| over the two strata and the two levels.
+4. Adopted (the real-log default becomes the stage answering with the fusion's point) if (b)'s
+   score is lower than (a)'s by at least 5 points, (b)'s mean 90 % region on the benchmark is at
+   most 1.25 x (a)'s, and (b)'s 90 % region holds 6 of the six real flights. Reported beside:
+   the overall coverage, the share of flights whose fusion point lies inside its own 90 % region,
+   the real flights' 50 % counts.
+
+    python benchmarks/score_evidence.py default-regions --json /tmp/evidence_cache.jsonl
 """
 
 from __future__ import annotations
@@ -102,10 +125,21 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
         scores = score_candidates(part, cands)
         default = localize_log(log)
     t = log.truth_enu if truth is None else truth
+    post, regs = default.posterior, {r.level: r for r in default.regions}
     return {
         "name": name,
         "truth": [float(t[0]), float(t[1])],
         "default": [default.x_m, default.y_m],
+        "default_method": default.method,
+        # today's default regions (the self-calibrating posterior's HPD sets): the truth's and
+        # the point's level, each region's mass and the 90 % region's area; the members' distance
+        "default_levels": {
+            "truth": post.hpd_level(float(t[0]), float(t[1])),
+            "point": post.hpd_level(default.x_m, default.y_m),
+        },
+        "default_masses": {str(q): r.mass for q, r in regs.items()},
+        "default_area90_m2": regs[0.9].area_m2,
+        "members_m": default.extras.get("component_distance_m"),
         "cands": [c.to_dict() for c in cands],
         "block_lpd": scores.block_lpd.tolist(),
         "tau": scores.tau,
@@ -340,6 +374,82 @@ def regions_cv(args) -> None:
     print(f"decision: {'adopted' if adopted else 'not adopted'} (real 90 % holds {n[0.9]} of 6)")
 
 
+def _today_inside(r: dict, what: str) -> dict[float, bool]:
+    """Whether ``what`` (the truth or the point) lies inside row ``r``'s default regions today."""
+    return {q: r["default_levels"][what] < r["default_masses"][str(q)] for q in BANDS}
+
+
+def _worst(inside: dict[float, np.ndarray], strata: list[np.ndarray]) -> float:
+    """The worst |coverage - nominal| over ``strata`` (boolean masks) and the levels."""
+    return max(abs(float(inside[q][s].mean()) - q) for q in BANDS for s in strata)
+
+
+def default_regions(args) -> None:
+    """The rule for the real-log default's regions (module docstring, ``default-regions``)."""
+    real, bench = read_cache(args.json)
+    grid = square_grid(afar_field().rover_area.bounds, 5.0)
+    fold = np.array([int(r["name"].split()[1]) % CV_FOLDS for r in bench])
+    share = lambda r: background_share(_xy(r))  # noqa: E731  (the shipped background)
+    lv, posts = _region_levels(bench, grid, share)
+    point_lv = np.array([p.hpd_level(*r["default"]) for p, r in zip(posts, bench, strict=True)])
+    sets: dict[str, dict] = {}
+    today = [(_today_inside(r, "truth"), _today_inside(r, "point")) for r in bench]
+    sets["today (selfcal posterior)"] = {
+        "inside": {q: np.array([t[q] for t, _ in today]) for q in BANDS},
+        "point": np.array([p[0.9] for _, p in today]),
+        "area": np.array([r["default_area90_m2"] for r in bench]),
+    }
+    inside = {q: np.zeros(len(bench), bool) for q in BANDS}
+    point, area = np.zeros(len(bench), bool), np.zeros(len(bench))
+    for k in range(CV_FOLDS):
+        m = _masses(lv[fold != k])
+        for i in np.flatnonzero(fold == k):
+            for q in BANDS:
+                inside[q][i] = lv[i] < m[q]
+            point[i] = point_lv[i] < m[0.9]
+            area[i] = _area_m2(posts[i], m[0.9], 25.0)
+    sets["stage mixture"] = {"inside": inside, "point": point, "area": area}
+    d = np.array([r["members_m"] for r in bench], dtype=float)
+    med = float(np.median(d))
+    strata = [d <= med, d > med]
+    print(
+        f"{len(bench)} benchmark flights; methods {sorted({r['default_method'] for r in bench})}; "
+        f"members' distance median {med:.1f} m (strata {strata[0].sum()} / {strata[1].sum()})"
+    )
+    score = {}
+    for name, v in sets.items():
+        score[name] = _worst(v["inside"], strata)
+        cells = " ".join(
+            f"{100 * v['inside'][q][s].mean():5.1f}"
+            for s in [np.ones(len(bench), bool), *strata]
+            for q in BANDS
+        )
+        print(
+            f"{name:27s} 50/90 % all, agree, disagree: {cells}; worst {100 * score[name]:.1f} "
+            f"points; point in its 90 %: {100 * v['point'].mean():.1f} %; mean 90 % region "
+            f"{v['area'].mean():,.0f} m^2"
+        )
+    m = _masses(lv)
+    rl, _ = _region_levels(real, grid, share)
+    n_b = {q: int((rl < m[q]).sum()) for q in BANDS}
+    n_a = {q: sum(_today_inside(r, "truth")[q] for r in real) for q in BANDS}
+    print(
+        f"real flights inside 50 / 90 %: today {n_a[0.5]} / {n_a[0.9]}, stage mixture "
+        f"{n_b[0.5]} / {n_b[0.9]} of {len(real)}"
+    )
+    a, b = sets["today (selfcal posterior)"], sets["stage mixture"]
+    ratio = float(b["area"].mean() / a["area"].mean())
+    ok = (
+        score["stage mixture"] <= score["today (selfcal posterior)"] - 0.05,
+        ratio <= 1.25,
+        n_b[0.9] == len(real) == 6,
+    )
+    print(
+        f"decision: {'adopted' if all(ok) else 'not adopted'} (score lower by 5 points: {ok[0]}; "
+        f"area ratio {ratio:.2f} <= 1.25: {ok[1]}; real 90 % 6 of 6: {ok[2]})"
+    )
+
+
 def _err(p, r) -> float:
     return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
 
@@ -441,8 +551,12 @@ def main() -> None:
     g.add_argument("--json", required=True)
     v = sub.add_parser("regions-cv")
     v.add_argument("--json", required=True)
+    d = sub.add_parser("default-regions")
+    d.add_argument("--json", required=True)
     a = p.parse_args()
-    {"collect": collect, "score": score, "regions": regions, "regions-cv": regions_cv}[a.cmd](a)
+    cmds = {"collect": collect, "score": score, "regions": regions, "regions-cv": regions_cv}
+    cmds["default-regions"] = default_regions
+    cmds[a.cmd](a)
 
 
 if __name__ == "__main__":
