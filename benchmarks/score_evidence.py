@@ -80,6 +80,23 @@ decision is about the regions alone:
    the real flights' 50 % counts.
 
     python benchmarks/score_evidence.py default-regions --json /tmp/evidence_cache.jsonl
+
+More members in the default's point (``members``; rule written 2026-11-28 14:45 UTC, before any
+member combination below was computed on any flight; the cache's rows carry each member's own point
+(collect, from this commit on)). The fusion averages two members; its errors on the six real flights
+cancel partly (selfcal 44.1, ``rfsl_spiral_e2r`` 39.5, their mean 34.2 m), and the grid (44.7 m,
+LOTO) errs on other flights than either. One vote per method, no posterior modes:
+1. Schemes: the mean of (A) selfcal, the grid and ``rfsl_spiral_e2r``; (B) those three and
+   ``rfsl_spiral_e2r_ens5``; the geometric median of (C) the three of A; (D) the four of B. The
+   grid is the ``afar`` preset's (on a real flight the preset fitted without its team).
+2. The scheme with the lowest mean error on the development split (benchmark flights 0-59) is
+   chosen; it is scored further only if that mean is below the default's on the same flights.
+3. Scored once against today's default (the fusion) on benchmark flights 60-199 and the six real
+   flights held out by team, with the issue-24 rule (``pooled_decision``, as ``score``): adopted
+   as the default's point (the fusion gains the chosen members) when the pooled 90 % interval lies
+   below zero and neither source's lies above zero. Not adopted: reported, nothing changes.
+
+    python benchmarks/score_evidence.py members --json /tmp/evidence_cache.jsonl
 """
 
 from __future__ import annotations
@@ -121,7 +138,9 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
     with threadpool_limits(1):
         log = read_flight_log(path)
         part, _ = select_samples(log)
-        cands, _ = member_candidates(part, log.origin, search_area(log), physics_preset=preset)
+        cands, members = member_candidates(
+            part, log.origin, search_area(log), physics_preset=preset
+        )
         scores = score_candidates(part, cands)
         default = localize_log(log)
     t = log.truth_enu if truth is None else truth
@@ -140,6 +159,10 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
         "default_masses": {str(q): r.mass for q, r in regs.items()},
         "default_area90_m2": regs[0.9].area_m2,
         "members_m": default.extras.get("component_distance_m"),
+        # each member's own point (the grid under its preset's label): ``members``'s schemes
+        "member_points": {
+            ("grid" if k.startswith("grid") else k): [e.x_m, e.y_m] for k, e in members.items()
+        },
         "cands": [c.to_dict() for c in cands],
         "block_lpd": scores.block_lpd.tolist(),
         "tau": scores.tau,
@@ -450,6 +473,58 @@ def default_regions(args) -> None:
     )
 
 
+MEMBER_SCHEMES = {
+    "A: mean of selfcal, grid, e2r": ("mean", ("selfcal", "grid", "rfsl_spiral_e2r")),
+    "B: mean of A and ens5": (
+        "mean",
+        ("selfcal", "grid", "rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5"),
+    ),
+    "C: median of A's three": ("median", ("selfcal", "grid", "rfsl_spiral_e2r")),
+    "D: median of B's four": (
+        "median",
+        ("selfcal", "grid", "rfsl_spiral_e2r", "rfsl_spiral_e2r_ens5"),
+    ),
+}
+
+
+def member_point(r: dict, how: str, names: tuple[str, ...]) -> np.ndarray:
+    """The mean or geometric median of row ``r``'s ``names`` members' own points."""
+    pts = np.array([r["member_points"][n] for n in names], dtype=float)
+    return pts.mean(axis=0) if how == "mean" else geometric_median(pts)
+
+
+def members(args) -> None:
+    """The rule for more members in the default's point (module docstring, ``members``)."""
+    real, bench = read_cache(args.json)
+    dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
+    fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
+    d0 = [_err(r["default"], r) for r in dev]
+    print(f"development split: {len(dev)} benchmark flights; default {np.mean(d0):.1f} m")
+    dev_err = {}
+    for name, (how, names) in MEMBER_SCHEMES.items():
+        dev_err[name] = [_err(member_point(r, how, names), r) for r in dev]
+        d = paired_difference(dev_err[name], d0, seed=1)
+        print(f"  {name:32s} {np.mean(dev_err[name]):6.1f} m  vs default {d.fmt()}")
+    best = min(MEMBER_SCHEMES, key=lambda n: np.mean(dev_err[n]))
+    print(f"chosen on the development split: {best}")
+    if np.mean(dev_err[best]) >= np.mean(d0):
+        print("decision: not scored further (it does not err less than the default on the split)")
+        return
+    how, names = MEMBER_SCHEMES[best]
+    out = {}
+    for src, rs in (("real", real), ("bench", fresh)):
+        out[src] = {
+            "default": [_err(r["default"], r) for r in rs],
+            "members": [_err(member_point(r, how, names), r) for r in rs],
+            "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
+        }
+        print_errors(src, out[src], rs)
+        if src == "real":
+            for r, a, b, c in zip(rs, *out[src].values(), strict=True):
+                print(f"    {r['name']:16s} default {a:6.1f}  members {b:6.1f}  best {c:6.1f}")
+    print_decision(out, real, "members")
+
+
 def _err(p, r) -> float:
     return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
 
@@ -553,9 +628,12 @@ def main() -> None:
     v.add_argument("--json", required=True)
     d = sub.add_parser("default-regions")
     d.add_argument("--json", required=True)
+    m = sub.add_parser("members")
+    m.add_argument("--json", required=True)
     a = p.parse_args()
     cmds = {"collect": collect, "score": score, "regions": regions, "regions-cv": regions_cv}
     cmds["default-regions"] = default_regions
+    cmds["members"] = members
     cmds[a.cmd](a)
 
 
