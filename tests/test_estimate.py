@@ -36,6 +36,18 @@ def test_notes_render_as_one_sentence_group_where_first_added() -> None:
     )
 
 
+@pytest.mark.parametrize("ending", ["", " ", ")", "%"])
+def test_notes_read_apart_as_sentences(ending: str) -> None:
+    """A note that ends without a full stop still ends its sentence before the next one (a real
+    flight printed "... an extrapolation rfsl_spiral_e2r.onnx was trained ...")."""
+    est = Estimate(1.0, 2.0, "fusion", notes=[f"outside the area{ending}"])
+    est.add_note(f"trained at 30 m{ending}")
+    assert est.notes == [f"outside the area{ending.strip()}.", f"trained at 30 m{ending.strip()}."]
+    assert est.to_dict()["note"] == " ".join(est.notes)
+    kept = Estimate(0.0, 0.0, "grid", notes=["asked?", "done!", "ends."])
+    assert kept.notes == ["asked?", "done!", "ends."]
+
+
 def test_regions_and_components_are_the_json_record() -> None:
     est = Estimate(1.0, 2.0, "fusion")
     assert est.regions == () and est.components == {}

@@ -13,6 +13,13 @@ from dataclasses import dataclass, field
 from mission.localize.region import Region, widest
 
 
+def sentence(note: str) -> str:
+    """``note`` ending as a sentence (a full stop added where it ends without one), so that notes
+    joined one after another read apart ("... an extrapolation. rfsl_spiral_e2r.onnx was ...")."""
+    note = note.strip()
+    return note if note.endswith((".", "!", "?")) else note + "."
+
+
 @dataclass(frozen=True)
 class Selection:
     """Which samples an estimate used: ``used`` of ``total``, and why
@@ -93,6 +100,7 @@ class Estimate:
         return Fit.from_extras(self.extras)
 
     def __post_init__(self) -> None:
+        self.notes = [sentence(n) for n in self.notes if n]
         if self.notes:
             self.extras["note"] = " ".join(self.notes)
         given = self.extras.get("regions")
@@ -122,7 +130,7 @@ class Estimate:
     def add_note(self, note: str | None) -> None:
         """Append a sentence to ``notes`` (nothing for an empty one)."""
         if note:
-            self.notes.append(note)
+            self.notes.append(sentence(note))
             self.extras["note"] = " ".join(self.notes)
 
     def set_components(self, members: dict[str, Estimate]) -> None:
