@@ -493,39 +493,75 @@ def member_point(r: dict, how: str, names: tuple[str, ...]) -> np.ndarray:
     return pts.mean(axis=0) if how == "mean" else geometric_median(pts)
 
 
-def members(args) -> None:
-    """The rule for more members in the default's point (module docstring, ``members``)."""
-    real, bench = read_cache(args.json)
+def split_dev(bench: list[dict]) -> tuple[list[dict], list[dict]]:
+    """The benchmark's rows split into the development flights (``DEV``) and the fresh ones."""
     dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
-    fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
-    d0 = [_err(r["default"], r) for r in dev]
+    return dev, [r for r in bench if int(r["name"].split()[1]) not in DEV]
+
+
+def choose_on_dev(dev: list[dict], schemes: dict[str, Callable[[dict], np.ndarray]]) -> str | None:
+    """The scheme (a row -> its point) with the lowest mean error on the development rows ``dev``,
+    each printed against the default; None when even it does not err less than the default."""
+    d0 = [err_m(r["default"], r) for r in dev]
     print(f"development split: {len(dev)} benchmark flights; default {np.mean(d0):.1f} m")
     dev_err = {}
-    for name, (how, names) in MEMBER_SCHEMES.items():
-        dev_err[name] = [_err(member_point(r, how, names), r) for r in dev]
+    for name, f in schemes.items():
+        dev_err[name] = [err_m(f(r), r) for r in dev]
         d = paired_difference(dev_err[name], d0, seed=1)
         print(f"  {name:32s} {np.mean(dev_err[name]):6.1f} m  vs default {d.fmt()}")
-    best = min(MEMBER_SCHEMES, key=lambda n: np.mean(dev_err[n]))
+    best = min(schemes, key=lambda n: np.mean(dev_err[n]))
     print(f"chosen on the development split: {best}")
     if np.mean(dev_err[best]) >= np.mean(d0):
         print("decision: not scored further (it does not err less than the default on the split)")
-        return
-    how, names = MEMBER_SCHEMES[best]
+        return None
+    return best
+
+
+def score_held_out(
+    real: list[dict],
+    fresh: list[dict],
+    label: str,
+    point: Callable[[dict], np.ndarray],
+    best: Callable[[dict], float],
+) -> None:
+    """``point`` (a row -> its point) against the default on the real and the fresh rows, each
+    real flight on a line, and the issue-24 rule's decision; ``best``: a row's best candidate
+    error (the headroom)."""
     out = {}
     for src, rs in (("real", real), ("bench", fresh)):
         out[src] = {
-            "default": [_err(r["default"], r) for r in rs],
-            "members": [_err(member_point(r, how, names), r) for r in rs],
-            "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
+            "default": [err_m(r["default"], r) for r in rs],
+            label: [err_m(point(r), r) for r in rs],
+            "best candidate": [best(r) for r in rs],
         }
         print_errors(src, out[src], rs)
         if src == "real":
             for r, a, b, c in zip(rs, *out[src].values(), strict=True):
-                print(f"    {r['name']:16s} default {a:6.1f}  members {b:6.1f}  best {c:6.1f}")
-    print_decision(out, real, "members")
+                print(f"    {r['name']:16s} default {a:6.1f}  {label} {b:6.1f}  best {c:6.1f}")
+    print_decision(out, real, label)
 
 
-def _err(p, r) -> float:
+def members(args) -> None:
+    """The rule for more members in the default's point (module docstring, ``members``)."""
+    real, bench = read_cache(args.json)
+    dev, fresh = split_dev(bench)
+    schemes = {
+        name: (lambda r, how=how, names=names: member_point(r, how, names))
+        for name, (how, names) in MEMBER_SCHEMES.items()
+    }
+    best = choose_on_dev(dev, schemes)
+    if best is not None:
+        score_held_out(
+            real,
+            fresh,
+            "members",
+            schemes[best],
+            lambda r: min(err_m([c["x_m"], c["y_m"]], r) for c in r["cands"]),
+        )
+
+
+def err_m(p, r) -> float:
+    """The 2D distance (m) of point ``p`` from row ``r``'s truth."""
     return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
 
 
@@ -570,12 +606,12 @@ def score(args) -> None:
     dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
     fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
     sch = schemes()
-    d0 = np.mean([_err(r["default"], r) for r in dev])
+    d0 = np.mean([err_m(r["default"], r) for r in dev])
     print(f"development split: {len(dev)} benchmark flights; default {d0:.1f} m")
     dev_err = {}
     for name, f in sch.items():
-        dev_err[name] = [_err(f(r), r) for r in dev]
-        d = paired_difference(dev_err[name], [_err(r["default"], r) for r in dev], seed=1)
+        dev_err[name] = [err_m(f(r), r) for r in dev]
+        d = paired_difference(dev_err[name], [err_m(r["default"], r) for r in dev], seed=1)
         print(f"  {name:30s} {np.mean(dev_err[name]):6.1f} m  vs default {d.fmt()}")
     best = min(sch, key=lambda n: np.mean(dev_err[n]))
     print(f"chosen on the development split: {best}")
@@ -583,9 +619,9 @@ def score(args) -> None:
     out = {"real": {}, "bench": {}}
     for src, rs in (("real", real), ("bench", fresh)):
         out[src] = {
-            "default": [_err(r["default"], r) for r in rs],
-            "evidence": [_err(f(r), r) for r in rs],
-            "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
+            "default": [err_m(r["default"], r) for r in rs],
+            "evidence": [err_m(f(r), r) for r in rs],
+            "best candidate": [min(err_m([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
         }
         print_errors(src, out[src], rs)
         if src == "real":

@@ -42,7 +42,13 @@ from pathlib import Path
 import numpy as np
 from rich.progress import track
 from scipy.stats import spearmanr
-from score_evidence import print_decision, print_errors, read_cache  # this folder: run as a script
+from score_evidence import (  # this folder: run as a script
+    choose_on_dev,
+    err_m,
+    read_cache,
+    score_held_out,
+    split_dev,
+)
 from threadpoolctl import threadpool_limits
 
 from mission.flightlog import read_flight_log
@@ -53,7 +59,6 @@ from mission.shipped import shipped_model
 
 K = 10
 V0_M2 = 25.0
-DEV = range(0, 60)
 MEMBERS = ("selfcal", "grid", "rfsl_spiral_e2r")
 FUSION_MEMBERS = ("selfcal", "rfsl_spiral_e2r")
 
@@ -146,46 +151,29 @@ SCHEMES = {
 }
 
 
-def _err(p, r) -> float:
-    return float(np.hypot(*(np.asarray(p) - np.asarray(r["truth"]))))
-
-
 def score(args) -> None:
     real, bench = read_cache(args.json)
-    dev = [r for r in bench if int(r["name"].split()[1]) in DEV]
-    fresh = [r for r in bench if int(r["name"].split()[1]) not in DEV]
+    dev, fresh = split_dev(bench)
     for m in MEMBERS:
         sd = [np.sqrt(r["members"][m]["var_m2"]) for r in bench]
-        er = [_err(r["members"][m]["point"], r) for r in bench]
+        er = [err_m(r["members"][m]["point"], r) for r in bench]
         rho = spearmanr(sd, er).statistic
         print(
             f"{m:16s} benchmark: mean error {np.mean(er):5.1f} m, median jackknife sd "
             f"{np.median(sd):5.1f} m, Spearman(sd, error) {rho:+.2f}"
         )
-    d0 = [_err(r["default"], r) for r in dev]
-    print(f"development split: {len(dev)} benchmark flights; default {np.mean(d0):.1f} m")
-    dev_err = {}
-    for name, f in SCHEMES.items():
-        dev_err[name] = [_err(f(r), r) for r in dev]
-        print(f"  {name:32s} {np.mean(dev_err[name]):6.1f} m")
-    best = min(SCHEMES, key=lambda n: np.mean(dev_err[n]))
-    print(f"chosen on the development split: {best}")
-    if np.mean(dev_err[best]) >= np.mean(d0):
-        print("decision: not scored further (it does not err less than the default on the split)")
-        return
-    out = {}
-    for src, rs in (("real", real), ("bench", fresh)):
-        out[src] = {
-            "default": [_err(r["default"], r) for r in rs],
-            "jackknife": [_err(SCHEMES[best](r), r) for r in rs],
-            "best candidate": [min(_err(r["members"][m]["point"], r) for m in MEMBERS) for r in rs],
-        }
-        print_errors(src, out[src], rs)
-        if src == "real":
-            for r, a, b, _ in zip(rs, *out[src].values(), strict=True):
-                sds = " ".join(f"{np.sqrt(r['members'][m]['var_m2']):5.1f}" for m in MEMBERS)
-                print(f"    {r['name']:14s} default {a:6.1f}  jackknife {b:6.1f}  sd {sds}")
-    print_decision(out, real, "jackknife")
+    for r in real:
+        sds = "  ".join(f"{m} {np.sqrt(r['members'][m]['var_m2']):5.1f}" for m in MEMBERS)
+        print(f"  {r['name']:16s} jackknife sd (m): {sds}")
+    best = choose_on_dev(dev, SCHEMES)
+    if best is not None:
+        score_held_out(
+            real,
+            fresh,
+            "jackknife",
+            SCHEMES[best],
+            lambda r: min(err_m(r["members"][m]["point"], r) for m in MEMBERS),
+        )
 
 
 def main() -> None:

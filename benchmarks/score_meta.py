@@ -35,7 +35,12 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from score_evidence import print_decision, print_errors, read_cache  # this folder: run as a script
+from score_evidence import (  # this folder: run as a script
+    err_m,
+    print_decision,
+    print_errors,
+    read_cache,
+)
 from sklearn.linear_model import Ridge
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
@@ -80,12 +85,8 @@ def features(r: dict, area) -> np.ndarray:
     return np.column_stack([one_hot, dom, mass, ev, d_med, d_def, near, outside, spread])
 
 
-def _err(p, r) -> float:
-    return float(np.hypot(*(np.asarray(p, float) - np.asarray(r["truth"], float))))
-
-
 def _targets(r: dict) -> np.ndarray:
-    return np.log1p([_err([c["x_m"], c["y_m"]], r) for c in r["cands"]])
+    return np.log1p([err_m([c["x_m"], c["y_m"]], r) for c in r["cands"]])
 
 
 def _model():
@@ -126,13 +127,13 @@ def main() -> None:
     out = {}
     for src, rs in (("real", real), ("bench", bench)):
         out[src] = {
-            "default": [_err(r["default"], r) for r in rs],
-            "meta": [_err(a[0], r) for a, r in zip(ans[src], rs, strict=True)],
+            "default": [err_m(r["default"], r) for r in rs],
+            "meta": [err_m(a[0], r) for a, r in zip(ans[src], rs, strict=True)],
             "median of candidates": [
-                _err(geometric_median(np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])), r)
+                err_m(geometric_median(np.array([[c["x_m"], c["y_m"]] for c in r["cands"]])), r)
                 for r in rs
             ],
-            "best candidate": [min(_err([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
+            "best candidate": [min(err_m([c["x_m"], c["y_m"]], r) for c in r["cands"]) for r in rs],
         }
         print_errors(src, out[src], rs)
         best = np.mean(
@@ -142,7 +143,7 @@ def main() -> None:
         if src == "real":
             for r, a, (pt, k) in zip(rs, out[src]["default"], ans[src], strict=True):
                 print(
-                    f"    {r['name']:16s} default {a:6.1f}  meta {_err(pt, r):6.1f} "
+                    f"    {r['name']:16s} default {a:6.1f}  meta {err_m(pt, r):6.1f} "
                     f"({r['cands'][k]['source']})"
                 )
     print_decision(out, real, "meta")
