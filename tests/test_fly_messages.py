@@ -233,7 +233,12 @@ def test_both_kinds_of_flight_end_with_the_renderers_lines(tmp_path, capsys):
     assert ext.result_lines(ctx) == ["no final estimate (too few samples)"]
     ctx.live.final = {"t_s": 412.0, "x_m": 13.0, "y_m": 24.0, "area_m2": 1500.0}
     adaptive = ext.result_lines(ctx)
-    assert adaptive == Shown.of_entry(ctx.live.final, ctx.truth, ADAPTIVE_METHOD).lines()
+    assert adaptive == (
+        Shown.of_entry(ctx.live.final, ctx.truth, ADAPTIVE_METHOD, spec.field.origin).lines()
+    )
+    # where a field team walks to: the WGS84 point, as a fixed flight's first line gives it
+    lat, lon, _ = spec.field.origin.to_geodetic([13.0, 24.0, 0.0])
+    assert adaptive[0] == f"estimate: x=13.0 m, y=24.0 m (lat {lat:.7f}, lon {lon:.7f})"
     assert adaptive[1:] == [
         f"  method: {ADAPTIVE_METHOD}, in flight at t=412 s",
         "  (`localize LOG --at 412` gives it back)",

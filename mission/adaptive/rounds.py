@@ -173,7 +173,7 @@ class AdaptiveRounds:
         final = ctx.live.final
         if not final:
             return ["no final estimate (too few samples)"]
-        return Shown.of_entry(final, ctx.truth, ADAPTIVE_METHOD).lines()
+        return Shown.of_entry(final, ctx.truth, ADAPTIVE_METHOD, ctx.spec.field.origin).lines()
 
 
 def _no_round(ctx: FlightContext) -> None:

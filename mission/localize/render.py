@@ -72,12 +72,21 @@ class Shown:
         )
 
     @classmethod
-    def of_entry(cls, d: dict, truth: dict | None = None, method: str = "") -> Shown:
-        """From a live series entry (``t_s``, ``x_m``, ``y_m``, ``area_m2``, ``method``)."""
+    def of_entry(cls, d: dict, truth: dict | None = None, method: str = "", origin=None) -> Shown:
+        """From a live series entry (``t_s``, ``x_m``, ``y_m``, ``area_m2``, ``method``);
+        ``origin`` (the log frame's ``geo.Origin``): its WGS84 point too, which a field team
+        walks to."""
+        x, y = float(d["x_m"]), float(d["y_m"])
+        lat = lon = None
+        if origin is not None:
+            la, lo, _ = origin.to_geodetic([x, y, 0.0])
+            lat, lon = float(la), float(lo)
         return cls(
-            float(d["x_m"]),
-            float(d["y_m"]),
+            x,
+            y,
             str(d.get("method") or method),
+            lat,
+            lon,
             area_m2=d.get("area_m2"),
             truth=None if truth is None else (float(truth["x_m"]), float(truth["y_m"])),
             t_s=d.get("t_s"),
