@@ -89,7 +89,7 @@ def test_antenna_heading_is_profiled_out() -> None:
 
 
 def _dipole_dbi(el: np.ndarray) -> np.ndarray:
-    """A vertical half-wave dipole's gain (dBi), written out: 1.641 (cos(pi/2 sin el) / cos el)^2."""
+    """A vertical half-wave dipole's gain (dBi) written out: 1.641 (cos(pi/2 sin el) / cos el)^2."""
     return 10 * np.log10(1.641 * (np.cos(0.5 * np.pi * np.sin(el)) / np.cos(el)) ** 2)
 
 
