@@ -23,6 +23,18 @@ B. The real-log default (the fusion) on the six shared real flights and the 200 
 Reported beside: ``selfcal`` alone on both, its regions' coverage on the benchmark (the masses were
 calibrated without the hypothesis), and adaptive - fixed under both settings.
 
+Result (seed 2041): adopted (models/README.md, "A hypothesis for the ground antenna").
+
+Second rule, the UAV's dipole tilted with the body (written 2026-11-28 15:25 UTC, before any
+flight was localized with it). On ArduCopter SITL the pair did not find seed 1's transmitter:
+ArduCopter cruises at a median -14 deg of pitch, the mission's physics tilts the UAV's dipole with
+the body, and the search's UAV antenna follows the heading only. Change: each cell carries the mean
+direction of the body's vertical axis over its samples (``cells.Cells.axis_enu``), and the UAV-side
+dipole of the ``dipole`` and ``dipole-pair`` hypotheses takes the link's elevation above the plane
+normal to it (the transmitter's dipole stays upright; the measured patterns keep the heading
+alone). Adopted on the same conditions A and B as above, with today's code the pair untilted (the
+commit before the change) and the adaptive flights of seed 2042 (never flown), 40 per setting.
+
     # from a snapshot of today's code (TODAY) and from the change (NEW), each:
     python benchmarks/score_tx_antenna.py collect --suite-dir /tmp/suite_fam \
         --mat ../shared/data/afar2023/mat --json OUT.json
@@ -31,6 +43,7 @@ calibrated without the hypothesis), and adaptive - fixed under both settings.
     # then
     python benchmarks/score_tx_antenna.py score --today T.json --new N.json \
         --adaptive-today TM TA --adaptive-new NM NA
+    # (the second rule: --seed 2042)
 """
 
 from __future__ import annotations
