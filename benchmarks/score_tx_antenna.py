@@ -34,6 +34,7 @@ dipole of the ``dipole`` and ``dipole-pair`` hypotheses takes the link's elevati
 normal to it (the transmitter's dipole stays upright; the measured patterns keep the heading
 alone). Adopted on the same conditions A and B as above, with today's code the pair untilted (the
 commit before the change) and the adaptive flights of seed 2042 (never flown), 40 per setting.
+Result: not adopted (mission +0.5 [-0.4, +2.0] m); the change was reverted (models/README.md).
 
     # from a snapshot of today's code (TODAY) and from the change (NEW), each:
     python benchmarks/score_tx_antenna.py collect --suite-dir /tmp/suite_fam \
