@@ -17,11 +17,18 @@ from hypothesis import strategies as st
 
 from mission.errors import InputError
 from mission.flight.budget import (
+    OVERDUE,
+    OVERDUE_MIN_S,
+    OVERDUE_SHARE,
     PACE_PRIOR,
+    STALL_FACTOR,
+    STALL_MARGIN_S,
+    TAKEOFF_STALLED,
     TRIM_LOOKAHEAD,
     BudgetWatch,
     fit_pace,
     plan_times,
+    stalled,
 )
 from mission.spec import load_mission, parse_mission
 from mission.trajectory.autopilot import Pace, VerticalSpeeds
@@ -191,3 +198,18 @@ def test_bad_policy_keys_are_refused_naming_the_key(key, value, msg):
     with pytest.raises(InputError, match=msg):
         parse_mission({key: value}, "m.yaml")
     assert parse_mission({"budget_policy": "warn", "budget_reserve_s": 0}).budget_policy == "warn"
+
+
+def test_a_stalled_flight_is_named_at_its_deadlines(plan) -> None:
+    """``stalled``: no waypoint three times the plan's first plus a minute after arming is a
+    take-off stalled; past the budget by a quarter (at least a minute) is overdue; before either,
+    nothing."""
+    first, b = float(plan.t_wp[0]), plan.budget_s
+    stall = STALL_FACTOR * first + STALL_MARGIN_S
+    assert stalled(plan, stall - 0.1, 0) is None
+    assert stalled(plan, stall + 0.1, 0).startswith(f"{TAKEOFF_STALLED}: no waypoint reached")
+    assert stalled(plan, stall + 0.1, 1) is None  # the first waypoint was reached: flying on
+    late = b + max(OVERDUE_MIN_S, OVERDUE_SHARE * b)
+    assert stalled(plan, late - 0.1, 5) is None
+    why = f"{OVERDUE}: {late + 0.1:.0f} s after arming, budget {b:.0f} s"
+    assert stalled(plan, late + 0.1, 5) == why

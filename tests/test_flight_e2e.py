@@ -221,6 +221,58 @@ def test_vehicle_killed_link_loss(tmp_path):
     assert m["last_telemetry_vehicle_s"] - m["t0_vehicle_s"] >= log["t_s"][-1] - 1.0
 
 
+def test_a_flight_stuck_in_its_take_off_is_brought_home(tmp_path):
+    """A vehicle that barely climbs (0.01 m/s: the take-off never ends; PX4 SITL once sat at 0 m in
+    a failsafe after "Takeoff detected" and the run logged "takeoff" until it was killed): past its
+    budget by a quarter with no return begun, the flight's own watch commands the return, keeps the
+    log and exits 3 with one line."""
+    port = free_udp_port()
+    veh = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sitl.vehicle",
+            "--port",
+            str(port),
+            "--speedup",
+            "40",
+            "--kinematics",
+            json.dumps({"climb_rate_mps": 0.01}),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        p = _fly(
+            [
+                str(SPIRAL),
+                "--connect",
+                f"udpin://127.0.0.1:{port}",
+                "--speedup",
+                "40",
+                "--out",
+                str(tmp_path),
+                "--no-localize",
+                "--land-timeout",
+                "5",
+            ]
+        )
+        _, err = p.communicate(timeout=120)
+    finally:
+        veh.kill()
+        p.kill()
+    assert p.returncode == 3, err[-3000:]
+    assert "overdue: " in err and "budget 600 s: returning to launch" in err
+    assert err.strip().splitlines()[-1].startswith("error: aborted (overdue)")
+    m = read_flight_log(_log_of(tmp_path)).meta
+    assert m["status"].startswith("aborted (overdue)")
+    ev = next(e for e in m["events"] if e["kind"] == "abort")
+    armed = next(e for e in m["events"] if e["kind"] == "armed")
+    assert 750 < ev["t_vehicle_s"] - armed["t_vehicle_s"] < 770  # budget + a quarter, polled
+    assert any(e["kind"] == "rtl" for e in m["events"])  # the return was commanded
+
+
 def _no_autopilot_url(scheme: str) -> str:
     return f"{scheme}://127.0.0.1:{free_udp_port()}"
 

@@ -208,7 +208,7 @@ def _fresh_rounds(log, m: dict) -> None:
         ends.append(np.array([*rd["centre"], 20.0]))  # a round ends over its centre
         holds.append(rd["hold_s"])
     for j, rd in enumerate(ad["rounds"]):
-        assert 0.0 < rd["upload_wall_s"] < 30.0, rd  # what sized the next part's wait
+        assert 0.0 <= rd["upload_wall_s"] < 30.0, rd  # sized the next wait (0.00: under 5 ms)
         if "data_lead_s" not in rd:
             continue
         start = rd["estimate"]["t_s"] + rd["data_lead_s"]  # log time the round began

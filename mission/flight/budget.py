@@ -353,6 +353,31 @@ def arm_to_disarm_s(events: list[dict]) -> float | None:
     return round(float(off[-1] - arm), 2) if arm is not None and off and off[-1] > arm else None
 
 
+# A flight that stalls is brought home whatever the budget policy: no waypoint reached by this many
+# times the plan's time to the first one plus a margin (a take-off that does not climb: PX4 SITL's
+# SIH once lost its baro and compass after "Takeoff detected", sat at 0 m in a failsafe and the run
+# logged 1 900 s of "takeoff" until it was killed), or the budget overrun by a quarter, at least a
+# minute, with no return begun (vehicle seconds since arming)
+STALL_FACTOR, STALL_MARGIN_S = 3.0, 60.0
+OVERDUE_SHARE, OVERDUE_MIN_S = 0.25, 60.0
+TAKEOFF_STALLED, OVERDUE = "take-off stalled", "overdue"  # abort reasons: a failure, exit 3
+
+
+def stalled(plan: BudgetPlan, elapsed: float, reached: int) -> str | None:
+    """Why the flight must be brought home now (one line), or None: no waypoint reached long after
+    the plan's first, or far past the budget with no return begun."""
+    first = float(plan.t_wp[0]) if len(plan.t_wp) else 0.0
+    if reached == 0 and elapsed > STALL_FACTOR * first + STALL_MARGIN_S:
+        return (
+            f"{TAKEOFF_STALLED}: no waypoint reached {elapsed:.0f} s after arming (plan: the "
+            f"first at {first:.0f} s)"
+        )
+    late = max(OVERDUE_MIN_S, OVERDUE_SHARE * plan.budget_s)
+    if elapsed > plan.budget_s + late:
+        return f"{OVERDUE}: {elapsed:.0f} s after arming, budget {plan.budget_s:.0f} s"
+    return None
+
+
 def _reached(phase: str, item: int, n: int) -> int | None:
     """Waypoints reached when the phase tracker says ``phase``/``item`` (None: no mission progress
     yet)."""
@@ -380,6 +405,12 @@ async def watch_budget(ctx, watch: BudgetWatch, mission_raw=None, action=None) -
                 reached = r
                 texts.append(watch.update(max(t - s.t_start, 0.0), reached))
         texts.append(watch.update(s.elapsed, reached))
+        home = bool(ph.phase) and ph.phase[-1] in ("return", "land")  # the mission's own RTL
+        if not home and (why := stalled(watch.plan, s.elapsed, reached)):
+            ctx.abort_reason = why.split(":", 1)[0]
+            ctx.event("abort", f"{why}: returning to launch", warn=True)
+            ctx.abort.set()
+            return
         if not getattr(ctx.extension, "rounds", None):  # adaptive rounds: land~ is their plan
             s.predicted_s = watch.predicted_s
         for text in filter(None, texts):

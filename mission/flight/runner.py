@@ -45,7 +45,13 @@ from mavsdk.plugins.mission_raw import MissionRawError
 
 from mission.errors import InputError
 from mission.flight import estimates, tasks
-from mission.flight.budget import close_budget, start_budget, watch_budget
+from mission.flight.budget import (
+    OVERDUE,
+    TAKEOFF_STALLED,
+    close_budget,
+    start_budget,
+    watch_budget,
+)
 from mission.flight.context import (
     BUILTIN_PRODUCT,
     EXIT_ABORTED,
@@ -528,13 +534,19 @@ async def _arm_and_fly(ctx: FlightContext, action, mission_raw) -> tuple[int, st
     if ev is ctx.abort and not ctx.st.was_in_air:
         with contextlib.suppress(Exception):
             await asyncio.wait_for(action.disarm(), 5.0)
-        return EXIT_ABORTED, f"aborted ({ctx.abort_reason}) before take-off: disarmed"
+        return _abort_code(ctx), f"aborted ({ctx.abort_reason}) before take-off: disarmed"
     await return_and_land(ctx, action, commanded=ev is ctx.abort)
     if ctx.abort.is_set():
-        return EXIT_ABORTED, f"aborted ({ctx.abort_reason}), {_return_outcome(ctx)}"
+        return _abort_code(ctx), f"aborted ({ctx.abort_reason}), {_return_outcome(ctx)}"
     if ctx.link_dead.is_set():
         return EXIT_LINK, "link lost"
     return EXIT_OK, "completed" if ctx.landed_disarmed.is_set() else "landing not confirmed"
+
+
+def _abort_code(ctx: FlightContext) -> int:
+    """A flight brought home by its own watch (``budget.stalled``) failed: 3; a signal
+    interrupted it: 130."""
+    return EXIT_LINK if ctx.abort_reason in (TAKEOFF_STALLED, OVERDUE) else EXIT_ABORTED
 
 
 async def start_mission(ctx: FlightContext, action, mission_raw) -> None:
