@@ -54,9 +54,10 @@ def _fly(args: list[str], **kw) -> subprocess.Popen:
     )
 
 
-def _vehicle(port: int, speedup: float) -> subprocess.Popen:
+def _vehicle(port: int, speedup: float, *extra: str) -> subprocess.Popen:
+    cmd = ["-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup), *extra]
     return subprocess.Popen(
-        [sys.executable, "-m", "sitl.vehicle", "--port", str(port), "--speedup", str(speedup)],
+        [sys.executable, *cmd],
         cwd=ROOT,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -178,25 +179,19 @@ def test_ctrl_c_returns_to_launch(tmp_path):
     assert np.hypot(*enu[-1, :2] - enu[0, :2]) < 2.0  # landed back at home
 
 
+def _fly_to(port: int, speedup: float, out: Path, *extra: str) -> subprocess.Popen:
+    """``fly-mission`` of the spiral against the vehicle on ``port`` (no localization after)."""
+    url = f"udpin://127.0.0.1:{port}"
+    args = ["--speedup", f"{speedup:g}", "--out", str(out), "--no-localize", *extra]
+    return _fly([str(SPIRAL), "--connect", url, *args])
+
+
 def test_vehicle_killed_link_loss(tmp_path):
     """The vehicle process dies mid-flight: link loss reported, log closed and readable."""
     port = free_udp_port()
     veh = _vehicle(port, 20)
     try:
-        p = _fly(
-            [
-                str(SPIRAL),
-                "--connect",
-                f"udpin://127.0.0.1:{port}",
-                "--speedup",
-                "20",
-                "--out",
-                str(tmp_path),
-                "--no-localize",
-                "--link-timeout",
-                "5",
-            ]
-        )
+        p = _fly_to(port, 20, tmp_path, "--link-timeout", "5")
         _wait_rows(tmp_path, 2000, 60)
         veh.kill()
         _, err = p.communicate(timeout=60)
@@ -227,37 +222,9 @@ def test_a_flight_stuck_in_its_take_off_is_brought_home(tmp_path):
     budget by a quarter with no return begun, the flight's own watch commands the return, keeps the
     log and exits 3 with one line."""
     port = free_udp_port()
-    veh = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "sitl.vehicle",
-            "--port",
-            str(port),
-            "--speedup",
-            "40",
-            "--kinematics",
-            json.dumps({"climb_rate_mps": 0.01}),
-        ],
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    veh = _vehicle(port, 40, "--kinematics", json.dumps({"climb_rate_mps": 0.01}))
     try:
-        p = _fly(
-            [
-                str(SPIRAL),
-                "--connect",
-                f"udpin://127.0.0.1:{port}",
-                "--speedup",
-                "40",
-                "--out",
-                str(tmp_path),
-                "--no-localize",
-                "--land-timeout",
-                "5",
-            ]
-        )
+        p = _fly_to(port, 40, tmp_path, "--land-timeout", "5")
         _, err = p.communicate(timeout=120)
     finally:
         veh.kill()
