@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -49,3 +51,23 @@ def test_dataset_pool_spawns_and_gives_the_one_process_rows(fork_forbidden, repo
 
 def test_suite_cache_pool_spawns(fork_forbidden):
     assert list(_map(abs, [-3, -1, -2], 2)) == [3, 1, 2]
+
+
+def test_the_gap_fits_forked_pool_ends_under_a_parent_signal_handler(tmp_path):
+    """``gap.fit._map`` forks (its closures cannot be pickled). A parent with a Python SIGTERM
+    handler (a test's, a CLI's) gave it to the workers, the pool's terminate could not end a
+    worker waiting on the task-queue lock, and a CI run hung in its join. In a child process with
+    such a handler, the map must return its results within the timeout."""
+    code = (
+        "import signal\n"
+        "signal.signal(signal.SIGTERM, lambda *a: None)\n"
+        "from mission.gap.fit import _map\n"
+        "for _ in range(5):\n"
+        "    out = _map(lambda x: x * x, list(range(6)), workers=1, processes=2)\n"
+        "print(out)\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip() == "[0, 1, 4, 9, 16, 25]"

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import multiprocessing as mp
+import signal
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -446,7 +447,12 @@ def _forked_call(i: int) -> Any:
     return fn(items[i])
 
 
-def _limit_blas() -> None:
+def _init_worker() -> None:
+    """A forked worker: BLAS single-threaded, and SIGTERM back to its default.  Why the signal: a
+    worker inherits the parent's Python handler (a test's, a CLI's), and a handler does not end a
+    worker waiting on the pool's task-queue lock, so the pool's terminate never ended it and its
+    join waited forever (a CI run hung in ``test_gap_time_frame``, 2026-11-28)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     threadpool_limits(limits=1, user_api="blas")
 
 
@@ -489,9 +495,12 @@ def _map(
             seq = list(range(len(items))) if order is None else list(order)
             try:
                 with mp.get_context("fork").Pool(
-                    min(processes, len(items)), initializer=_limit_blas
+                    min(processes, len(items)), initializer=_init_worker
                 ) as pool:
-                    return tick(pool.imap(_forked_call, seq), seq)
+                    out = tick(pool.imap(_forked_call, seq), seq)
+                    pool.close()  # the workers end on the queue's sentinel: no terminate needed
+                    pool.join()
+                    return out
             finally:
                 _FORKED.pop()
         if workers <= 1 or len(items) <= 1:
