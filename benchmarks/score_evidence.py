@@ -646,16 +646,25 @@ def score(args) -> None:
     print_decision(out, real, "evidence")
 
 
+def collect_parser(
+    sub, mat_required: bool = True, json_help: str = "JSON lines, appended (a rerun resumes)"
+) -> argparse.ArgumentParser:
+    """A scorer's ``collect`` subcommand: the suite's folder and size, the real flights' MAT
+    folder, the output and the worker processes (``score_jackknife``, ``score_tx_antenna``)."""
+    c = sub.add_parser("collect")
+    c.add_argument("--suite-dir", required=True)
+    c.add_argument("--n", type=int, default=200)
+    c.add_argument("--mat", required=mat_required, default=None)
+    c.add_argument("--json", required=True, help=json_help)
+    c.add_argument("--workers", type=int, default=2)
+    return c
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
-    c = sub.add_parser("collect")
-    c.add_argument("--suite-dir", required=True)
+    c = collect_parser(sub, mat_required=False)
     c.add_argument("--first", type=int, default=0)
-    c.add_argument("--n", type=int, default=200)
-    c.add_argument("--mat", default=None)
-    c.add_argument("--json", required=True, help="JSON lines, appended (a rerun resumes)")
-    c.add_argument("--workers", type=int, default=2)
     s = sub.add_parser("score")
     s.add_argument("--json", required=True)
     g = sub.add_parser("regions")

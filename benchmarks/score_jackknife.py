@@ -44,6 +44,7 @@ from rich.progress import track
 from scipy.stats import spearmanr
 from score_evidence import (  # this folder: run as a script
     choose_on_dev,
+    collect_parser,
     err_m,
     read_cache,
     score_held_out,
@@ -179,12 +180,7 @@ def score(args) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
-    c = sub.add_parser("collect")
-    c.add_argument("--suite-dir", required=True)
-    c.add_argument("--n", type=int, default=200)
-    c.add_argument("--mat", required=True)
-    c.add_argument("--json", required=True, help="JSON lines, appended (a rerun resumes)")
-    c.add_argument("--workers", type=int, default=2)
+    collect_parser(sub)
     s = sub.add_parser("score")
     s.add_argument("--json", required=True)
     a = p.parse_args()

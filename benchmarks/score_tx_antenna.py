@@ -61,6 +61,8 @@ from rich.progress import track
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the snapshot's package, not main's
+from score_evidence import collect_parser  # this folder; after the snapshot's package
+
 from mission.evidence import mean_interval, paired_difference
 from mission.flightlog import read_flight_log
 from mission.importers.afar import AFAR2023_TRUTH, import_afar_mat
@@ -180,12 +182,7 @@ def score(args) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
-    c = sub.add_parser("collect")
-    c.add_argument("--suite-dir", required=True)
-    c.add_argument("--n", type=int, default=200)
-    c.add_argument("--mat", required=True)
-    c.add_argument("--json", required=True)
-    c.add_argument("--workers", type=int, default=2)
+    collect_parser(sub, json_help="one JSON list, written whole")
     s = sub.add_parser("score")
     s.add_argument("--today", required=True)
     s.add_argument("--new", required=True)

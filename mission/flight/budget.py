@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mission.flight.plan import upload_with_retries
+from mission.flightlog import LAND, RETURN
 from mission.spec import TrajectorySpec
 from mission.trajectory.autopilot import Pace, ReturnModel, VerticalSpeeds, leg_speeds
 from mission.trajectory.items import build_items
@@ -405,7 +406,7 @@ async def watch_budget(ctx, watch: BudgetWatch, mission_raw=None, action=None) -
                 reached = r
                 texts.append(watch.update(max(t - s.t_start, 0.0), reached))
         texts.append(watch.update(s.elapsed, reached))
-        home = bool(ph.phase) and ph.phase[-1] in ("return", "land")  # the mission's own RTL
+        home = ph.current in (RETURN, LAND)  # the mission's own return: not stalled
         if not home and (why := stalled(watch.plan, s.elapsed, reached)):
             ctx.abort_reason = why.split(":", 1)[0]
             ctx.event("abort", f"{why}: returning to launch", warn=True)
