@@ -36,6 +36,33 @@ alone). Adopted on the same conditions A and B as above, with today's code the p
 commit before the change) and the adaptive flights of seed 2042 (never flown), 40 per setting.
 Result: not adopted (mission +0.5 [-0.4, +2.0] m); the change was reverted (models/README.md).
 
+Third rule, the same tilt judged on SITL flights (written 2026-11-28 17:35 UTC, before any flight
+was localized or flown with the tilt this stop). Why: the fast simulator's vehicle flies nearly
+level, so the second rule could not show what the tilt is for; ArduCopter SITL cruises at a median
+-14 deg of pitch and PX4 SITL at about -28 deg, and on PX4 seed 1 the upright pair cost 41 m
+(docs/adaptive.md). Change: as the second rule's. Flights, 20 pairs:
+(i) the ten adaptive SITL flights of stop 48 (ArduCopter 20x and PX4 10x, seeds 0-4, flown with
+    the upright pair), each answered after landing with today's code and with the change
+    (``sitl-answer``: the log's default answer, as ``localize`` gives it);
+(ii) seeds 5-9 on both autopilots (never flown), ``spiral_adaptive.yaml`` flown once with today's
+    code and once with the change (each plans its own rounds), plus one fixed flight per seed
+    (``bench_sitl_seeds.py`` from each snapshot; the fixed answer does not use the search).
+Adopted if all hold:
+A. over the 20 pairs, the mean of (change - today) in the adaptive answer's error is below zero;
+B. on neither autopilot is that mean (10 pairs) above +2 m;
+C. the first rule's B (the real-log default on the six real flights and the 200 benchmark
+   flights: neither relative interval above zero).
+The second rule's fast-simulator figure (+0.5 [-0.4, +2.0] m on seed 2042) stands as the fast
+simulator's and is not re-run. Reported beside: the pairs per autopilot with 90 % intervals, and
+adaptive - fixed on seeds 5-9 for both codes.
+
+    # from each snapshot (TODAY, NEW):
+    python benchmarks/score_tx_antenna.py sitl-answer --flights S48/sitl2/flights.jsonl \
+        S48/px4/flights.jsonl --json POSTHOC.json
+    python benchmarks/bench_sitl_seeds.py --seeds 5 6 7 8 9 --out FRESH  # NEW: adaptive only
+    python benchmarks/score_tx_antenna.py sitl-score --posthoc T.json N.json \
+        --fresh TODAY_FRESH/flights.jsonl NEW_FRESH/flights.jsonl --today T --new N
+
     # from a snapshot of today's code (TODAY) and from the change (NEW), each:
     python benchmarks/score_tx_antenna.py collect --suite-dir /tmp/suite_fam \
         --mat ../shared/data/afar2023/mat --json OUT.json
