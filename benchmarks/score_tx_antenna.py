@@ -36,7 +36,7 @@ alone). Adopted on the same conditions A and B as above, with today's code the p
 commit before the change) and the adaptive flights of seed 2042 (never flown), 40 per setting.
 Result: not adopted (mission +0.5 [-0.4, +2.0] m); the change was reverted (models/README.md).
 
-Third rule, the same tilt judged on SITL flights (written 2026-11-28 17:35 UTC, before any flight
+Third rule, the same tilt judged on SITL flights (written 2026-11-28 17:18 UTC, before any flight
 was localized or flown with the tilt this stop). Why: the fast simulator's vehicle flies nearly
 level, so the second rule could not show what the tilt is for; ArduCopter SITL cruises at a median
 -14 deg of pitch and PX4 SITL at about -28 deg, and on PX4 seed 1 the upright pair cost 41 m
@@ -170,6 +170,15 @@ def score(args) -> None:
             f"{'< 0' if bound == 0.0 else '<= +1'}); change - fixed {vs_fixed.fmt()} m "
             f"(n={keep.sum()})"
         )
+    ok += _real_default(today, new)
+    print(f"decision: {'adopted' if all(ok) else 'not adopted'} (conditions {ok})")
+
+
+def _real_default(today: list[dict], new: list[dict]) -> list[bool]:
+    """The first rule's B: the fusion's paired relative intervals (change - today) on the six real
+    flights and the benchmark, neither above zero; selfcal and its regions reported beside."""
+    assert [r["name"] for r in today] == [r["name"] for r in new], "flights must pair"
+    ok = []
     real = [i for i, r in enumerate(today) if r["name"].startswith("real")]
     bench = [i for i, r in enumerate(today) if r["name"].startswith("bench")]
     print("B. the real-log default (fusion), and selfcal beside")
@@ -203,6 +212,72 @@ def score(args) -> None:
             f"  selfcal regions ({name}): benchmark coverage 50 / 90 % {100 * cov[0.5]:.1f} / "
             f"{100 * cov[0.9]:.1f} %; flights whose best hypothesis is the dipole pair: {picked}"
         )
+    return ok
+
+
+def sitl_answer(args) -> None:
+    """Each adaptive SITL flight's answer after landing with this code (the log's default
+    answer, as ``localize`` gives it), for the third rule's after-landing pairs."""
+    rows = []
+    for store in args.flights:
+        for line in Path(store).read_text().splitlines():
+            r = json.loads(line)
+            if r["arm"] != "adaptive" or not r.get("log"):
+                continue
+            log = read_flight_log(r["log"])
+            est = localize_log(log)
+            rows.append(
+                {k: r[k] for k in ("autopilot", "seed", "log")}
+                | {"error_m": est.error_m, "method": est.method}
+                | {"antenna": est.extras.get("antenna")}
+            )
+            print(f"{r['autopilot']:9s} seed {r['seed']}: {est.error_m:6.1f} m ({est.method})")
+    Path(args.json).write_text(json.dumps(rows))
+
+
+def _fresh(path: str) -> dict[tuple[str, str, int], float]:
+    """(autopilot, arm, seed) -> the error of what ``localize`` answered, from a
+    ``bench_sitl_seeds`` store."""
+    rows = [json.loads(x) for x in Path(path).read_text().splitlines()]
+    return {(r["autopilot"], r["arm"], r["seed"]): r["error_m"] for r in rows}
+
+
+def sitl_score(args) -> None:
+    """The third rule: the tilt against today's code on 20 SITL pairs (after-landing answers of
+    stop 48's flights, and fresh seeds flown with each code), then the real-log default."""
+    t_post, n_post = (json.loads(Path(p).read_text()) for p in args.posthoc)
+    assert [r["log"] for r in t_post] == [r["log"] for r in n_post], "flights must pair"
+    t_fresh, n_fresh = _fresh(args.fresh[0]), _fresh(args.fresh[1])
+    pairs = [
+        (r["autopilot"], "stop 48", r["seed"], r["error_m"], q["error_m"])
+        for r, q in zip(t_post, n_post, strict=True)
+    ]
+    fresh_seeds = sorted(k for k in n_fresh if k[1] == "adaptive" and k in t_fresh)
+    pairs += [(a, "fresh", s, t_fresh[a, arm, s], n_fresh[a, arm, s]) for a, arm, s in fresh_seeds]
+    print("A/B. the adaptive answer's error, today -> change (m)")
+    for a, src, seed, t, n in pairs:
+        print(f"  {a:9s} {src:7s} seed {seed}: {t:6.1f} -> {n:6.1f}  ({n - t:+6.1f})")
+    t_all = np.array([p[3] for p in pairs])
+    n_all = np.array([p[4] for p in pairs])
+    d_all = paired_difference(n_all, t_all, seed=7)
+    ok = [d_all.value < 0.0]
+    print(f"  all {len(pairs)} pairs: change - today {d_all.fmt()} m (need mean < 0)")
+    for a in sorted({p[0] for p in pairs}):
+        idx = [i for i, p in enumerate(pairs) if p[0] == a]
+        d = paired_difference(n_all[idx], t_all[idx], seed=8)
+        ok.append(d.value <= 2.0)
+        print(f"  {a:9s} ({len(idx)} pairs): {d.fmt()} m (need mean <= +2)")
+        for name, fr in (("today", t_fresh), ("change", n_fresh)):
+            seeds = [s for aa, arm, s in fresh_seeds if aa == a and (a, "fixed", s) in fr]
+            if seeds:
+                ad = [fr[a, "adaptive", s] for s in seeds]
+                fx = [fr[a, "fixed", s] for s in seeds]
+                print(
+                    f"    fresh seeds, {name}: adaptive - fixed "
+                    f"{paired_difference(ad, fx, seed=9).fmt()} m ({len(seeds)} seeds)"
+                )
+    today, new = (json.loads(Path(p).read_text()) for p in (args.today, args.new))
+    ok += _real_default(today, new)
     print(f"decision: {'adopted' if all(ok) else 'not adopted'} (conditions {ok})")
 
 
@@ -215,8 +290,18 @@ def main() -> None:
     s.add_argument("--new", required=True)
     s.add_argument("--adaptive-today", nargs=2, required=True, metavar=("MISSION", "AFAR"))
     s.add_argument("--adaptive-new", nargs=2, required=True, metavar=("MISSION", "AFAR"))
+    s = sub.add_parser("sitl-answer")
+    s.add_argument("--flights", nargs="+", required=True, help="bench_sitl_seeds stores")
+    s.add_argument("--json", required=True)
+    s = sub.add_parser("sitl-score")
+    s.add_argument("--posthoc", nargs=2, required=True, metavar=("TODAY", "NEW"))
+    s.add_argument("--fresh", nargs=2, required=True, metavar=("TODAY", "NEW"))
+    s.add_argument("--today", required=True)
+    s.add_argument("--new", required=True)
     a = p.parse_args()
-    {"collect": collect, "score": score}[a.cmd](a)
+    {"collect": collect, "score": score, "sitl-answer": sitl_answer, "sitl-score": sitl_score}[
+        a.cmd
+    ](a)
 
 
 if __name__ == "__main__":
