@@ -55,6 +55,9 @@ C. the first rule's B (the real-log default on the six real flights and the 200 
 The second rule's fast-simulator figure (+0.5 [-0.4, +2.0] m on seed 2042) stands as the fast
 simulator's and is not re-run. Reported beside: the pairs per autopilot with 90 % intervals, and
 adaptive - fixed on seeds 5-9 for both codes.
+Result: not adopted (condition A: +0.2 [-4.1, +5.7] m over the 20 pairs; ArduCopter -1.2 [-1.8,
+-0.5] m, PX4 +1.6 [-7.1, +12.4] m; the real default and the benchmark did not move). The change
+(c9bdfaf) was reverted; models/README.md gives what the pairs show.
 
     # from each snapshot (TODAY, NEW):
     python benchmarks/score_tx_antenna.py sitl-answer --flights S48/sitl2/flights.jsonl \
