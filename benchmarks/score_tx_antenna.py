@@ -59,6 +59,25 @@ Result: not adopted (condition A: +0.2 [-4.1, +5.7] m over the 20 pairs; ArduCop
 -0.5] m, PX4 +1.6 [-7.1, +12.4] m; the real default and the benchmark did not move). The change
 (c9bdfaf) was reverted; models/README.md gives what the pairs show.
 
+Fourth rule, the same tilt with the flight held fixed (written 2026-11-28 17:54 UTC, after the third
+rule's verdict and its after-the-fact diagnostic, before any flight named here was flown). Why: the
+third rule's one deciding pair differed by how PX4 flew the seed twice, not by the answer; pairs
+must hold the flight (or the simulated world) fixed. Change: c9bdfaf's tilt, unchanged.
+(i) The fast simulator with a vehicle that tilts as the SITLs' do: ``bench_adaptive.py --family
+    mission --seed 2043 --flights 40`` (never flown) with ``--vehicle
+    drag_pitch_deg_per_mps=2.8`` (-14 deg at 5 m/s, ArduCopter's median) and with ``=5.6`` (-28
+    deg, PX4's), today's code and the change each flying every flight in the same world (each
+    plans its own rounds).
+(ii) ArduCopter 20x and PX4 10x SITL, seeds 10-14 (never flown), both missions flown once with
+    today's code; each adaptive flight answered after landing by both codes (``sitl-answer``).
+Adopted if all hold:
+A. over the 80 simulated pairs of (i), the mean of (change - today) in the adaptive answer's error
+   is below zero, and neither tilt's 90 % interval lies above zero;
+B. over the 10 SITL flights of (ii), that mean is at most zero;
+C. the real-log default: the third rule's measurement stands (the code is the same: no change on
+   the six real flights or the 200 benchmark flights).
+Reported beside: adaptive - fixed under each tilt for both codes, and on the SITL seeds.
+
     # from each snapshot (TODAY, NEW):
     python benchmarks/score_tx_antenna.py sitl-answer --flights S48/sitl2/flights.jsonl \
         S48/px4/flights.jsonl --json POSTHOC.json
