@@ -26,6 +26,7 @@ from mission.errors import InputError
 from mission.evidence import compare_methods, mean_interval
 from mission.localize.api import localize_log
 from mission.physics.family import load_family
+from mission.simulate import SimConfig
 from mission.workshop.flight_draws import flight_rng
 
 
@@ -40,14 +41,33 @@ def product_answer(spec, log, adaptive=None):
         return None
 
 
-def pair(spec, adaptive, family: str, seed: int, i: int, dt_s: float = 0.1) -> dict:
+def sim_config(spec, dt_s: float, vehicle: dict | None = None) -> SimConfig:
+    """The mission's simulator settings at sample period ``dt_s``, with ``vehicle``'s fields of
+    the simulated vehicle's ``Kinematics`` overridden (None or empty: the mission's own)."""
+    cfg = dataclasses.replace(spec.sim_config(), dt_s=dt_s)
+    if vehicle:
+        cfg = dataclasses.replace(cfg, kinematics=dataclasses.replace(cfg.kinematics, **vehicle))
+    return cfg
+
+
+def pair(
+    spec,
+    adaptive,
+    family: str,
+    seed: int,
+    i: int,
+    dt_s: float = 0.1,
+    vehicle: dict | None = None,
+) -> dict:
     """Errors (of the product's answer and of the live estimate), the live estimate's 90 % region
     coverage and area, durations and rounds of flight ``i``, fixed and adaptive.
 
     ``family``: a physics family (``load_family``) or ``"mission"``, the mission's own source model
-    without shadowing (what ``fly-mission`` simulates against a SITL)."""
+    without shadowing (what ``fly-mission`` simulates against a SITL).  ``vehicle``: fields of the
+    simulated vehicle's ``Kinematics`` to override (e.g. a steeper cruise pitch, as real autopilots
+    fly), for both missions; the planner keeps the mission's own."""
 
-    cfg = dataclasses.replace(spec.sim_config(), dt_s=dt_s)
+    cfg = sim_config(spec, dt_s, vehicle)
     loc = estimator(spec)
     fam = None if family == MISSION_PHYSICS else load_family(family)
     w = FlightWorld(spec, fam, flight_rng(seed, i))
