@@ -78,6 +78,14 @@ C. the real-log default: the third rule's measurement stands (the code is the sa
    the six real flights or the 200 benchmark flights).
 Reported beside: adaptive - fixed under each tilt for both codes, and on the SITL seeds.
 
+    # from each snapshot (TODAY, NEW), K = 2.8 and 5.6:
+    python benchmarks/bench_adaptive.py --family mission --seed 2043 --flights 40 --jobs 2 \
+        --vehicle drag_pitch_deg_per_mps=K --json B_K.json
+    python benchmarks/bench_sitl_seeds.py --seeds 10 11 12 13 14 --out R4   # TODAY only
+    python benchmarks/score_tx_antenna.py sitl-answer --flights R4/flights.jsonl --json S.json
+    python benchmarks/score_tx_antenna.py tilted-score --labels pitch-15 pitch-28 \
+        --today T_2.8.json T_5.6.json --new N_2.8.json N_5.6.json --sitl T_S.json N_S.json
+
     # from each snapshot (TODAY, NEW):
     python benchmarks/score_tx_antenna.py sitl-answer --flights S48/sitl2/flights.jsonl \
         S48/px4/flights.jsonl --json POSTHOC.json
@@ -303,6 +311,49 @@ def sitl_score(args) -> None:
     print(f"decision: {'adopted' if all(ok) else 'not adopted'} (conditions {ok})")
 
 
+def tilted_score(args) -> None:
+    """The fourth rule: the tilt against today's code with the flight held fixed, on the fast
+    simulator's tilting vehicle (both codes in the same worlds) and on SITL flights answered by
+    both codes."""
+    ok = []
+    t_all, n_all = [], []
+    print("A. fast simulator, tilting vehicle: the adaptive answer, change - today (m)")
+    for label, t_path, n_path in zip(args.labels, args.today, args.new, strict=True):
+        t, n = _adaptive(t_path), _adaptive(n_path)
+        keep = ~(np.isnan(t) | np.isnan(n))
+        d = paired_difference(n[keep], t[keep], seed=4)
+        ok.append(d.lo <= 0.0)
+        t_all.append(t[keep])
+        n_all.append(n[keep])
+        fixed = [
+            np.array([r["fixed"]["error_m"] for r in json.loads(Path(p).read_text())], float)[keep]
+            for p in (t_path, n_path)
+        ]
+        print(
+            f"  {label}: today {mean_interval(t[keep], seed=4).fmt()} m, change "
+            f"{mean_interval(n[keep], seed=4).fmt()} m, paired {d.fmt()} m (n={keep.sum()})"
+        )
+        print(
+            f"    adaptive - fixed: today {paired_difference(t[keep], fixed[0], seed=5).fmt()} m,"
+            f" change {paired_difference(n[keep], fixed[1], seed=5).fmt()} m"
+        )
+    d = paired_difference(np.concatenate(n_all), np.concatenate(t_all), seed=7)
+    ok.insert(0, d.value < 0.0)
+    print(f"  pooled ({sum(len(x) for x in t_all)}): {d.fmt()} m (need mean < 0)")
+    t_s, n_s = (json.loads(Path(p).read_text()) for p in args.sitl)
+    assert [r["log"] for r in t_s] == [r["log"] for r in n_s], "flights must pair"
+    e_t = np.array([r["error_m"] for r in t_s])
+    e_n = np.array([r["error_m"] for r in n_s])
+    ok.append(float(np.mean(e_n - e_t)) <= 0.0)
+    print(
+        f"B. SITL flights answered by both codes ({len(e_t)}): change - today "
+        f"{paired_difference(e_n, e_t, seed=8).fmt()} m, {int(np.sum(e_n != e_t))} answers moved"
+        " (need mean <= 0)"
+    )
+    print("C. the real-log default: the third rule's measurement (the same code)")
+    print(f"decision: {'adopted' if all(ok) else 'not adopted'} (conditions {ok})")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -320,10 +371,15 @@ def main() -> None:
     s.add_argument("--fresh", nargs=2, required=True, metavar=("TODAY", "NEW"))
     s.add_argument("--today", required=True)
     s.add_argument("--new", required=True)
+    s = sub.add_parser("tilted-score")
+    s.add_argument("--labels", nargs="+", required=True, help="one per vehicle setting")
+    s.add_argument("--today", nargs="+", required=True, help="bench_adaptive --json, per label")
+    s.add_argument("--new", nargs="+", required=True, help="the same flights with the change")
+    s.add_argument("--sitl", nargs=2, required=True, metavar=("TODAY", "NEW"))
     a = p.parse_args()
-    {"collect": collect, "score": score, "sitl-answer": sitl_answer, "sitl-score": sitl_score}[
-        a.cmd
-    ](a)
+    commands = {"collect": collect, "score": score, "sitl-answer": sitl_answer}
+    commands |= {"sitl-score": sitl_score, "tilted-score": tilted_score}
+    commands[a.cmd](a)
 
 
 if __name__ == "__main__":
