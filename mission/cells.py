@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mission.physics.geometry import body_from_enu_planes
 from mission.samples import FlightSamples
 
 # Heights further apart than this are separate cruise altitudes when cells are averaged
@@ -55,7 +56,9 @@ def altitude_index(z: np.ndarray, gap_m: float = ALTITUDE_GAP_M) -> np.ndarray:
 @dataclass
 class Cells:
     """A flight averaged into horizontal cells: centres of mass (M, 3) m, mean RSS (M,) dBm, mean
-    yaw (M,) rad, sample counts (M,), the cell size (m)."""
+    yaw (M,) rad, sample counts (M,), the cell size (m) and, where the flight has an attitude,
+    the mean direction of the body's up axis (M, 3) ENU unit vectors (``axis_enu``): a tilted
+    body tilts an antenna fixed to it (the self-calibrating search's dipoles)."""
 
     enu_m: np.ndarray
     rss_dbm: np.ndarray
@@ -65,6 +68,7 @@ class Cells:
     n_columns: int | None = (
         None  # distinct horizontal cells (one flown at two altitudes counts once); None: len
     )
+    axis_enu: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.rss_dbm.size)
@@ -86,6 +90,9 @@ def concat_cells(parts: list[Cells]) -> Cells:
         np.concatenate([c.count for c in parts]),
         parts[0].cell_m,
         sum(len(c) if c.n_columns is None else c.n_columns for c in parts),
+        None
+        if any(c.axis_enu is None for c in parts)
+        else np.concatenate([c.axis_enu for c in parts]),
     )
 
 
@@ -93,8 +100,8 @@ def cell_average(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITU
     """Average a flight's samples into ``cell_m`` square horizontal cells, one set per cruise
     altitude (vectorised; yaw averaged on the circle).
 
-    Without attitude the yaw is taken as 0 (nose north); ``altitude_gap_m`` = inf merges the
-    altitudes.
+    Without attitude the yaw is taken as 0 (nose north) and the body's axis is unknown (None);
+    ``altitude_gap_m`` = inf merges the altitudes.
     """
     xy = cell_keys(f.enu_m[:, :2], cell_m)
     inv, cnt = bin_index(np.column_stack([xy, altitude_index(f.enu_m[:, 2], altitude_gap_m)]))
@@ -102,4 +109,12 @@ def cell_average(f: FlightSamples, cell_m: float, altitude_gap_m: float = ALTITU
     yaw_s = np.zeros(f.rss_dbm.size) if f.attitude_rad is None else f.attitude_rad[:, 2]
     m = cnt.size
     yaw = np.arctan2(np.bincount(inv, np.sin(yaw_s), m), np.bincount(inv, np.cos(yaw_s), m))
-    return Cells(np.stack(pos, axis=1), rss, yaw, cnt, float(cell_m), len(np.unique(xy, axis=0)))
+    axis = None
+    if f.attitude_rad is not None:
+        # the body's up axis in ENU: minus the FRD z row of u_b = C u_enu, averaged, renormalised
+        up = -body_from_enu_planes(f.attitude_rad)[2]
+        axis = np.stack(bin_means(inv, cnt, *up), axis=1)
+        axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    return Cells(
+        np.stack(pos, axis=1), rss, yaw, cnt, float(cell_m), len(np.unique(xy, axis=0)), axis
+    )

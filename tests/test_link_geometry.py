@@ -15,6 +15,7 @@ from mission.physics.geometry import (
     bearing,
     body_angles,
     body_azimuth,
+    body_from_enu_matrix,
     body_vectors,
     depression,
     elevation,
@@ -57,7 +58,8 @@ def _random_geometry(seed: int, k: int = 40, m: int = 300):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_selfcal_float32_geometry_matches_float64_body_angles(seed):
     cand, cells, att, h = _random_geometry(seed)
-    pg, el, az = _geometry(cand, cells, h)
+    pg, el, az, el_uav = _geometry(cand, cells, h)
+    assert el_uav is el  # cells without a body axis are level
     assert pg.dtype == el.dtype == az.dtype == np.float32
     tx = np.column_stack([cand, np.full(len(cand), h)])
     u = tx[:, None, :] - cells.enu_m[None, :, :]  # (K, M, 3) ENU, float64
@@ -75,6 +77,20 @@ def test_selfcal_float32_geometry_matches_float64_body_angles(seed):
     tilt = np.abs(att[:, 0]) + np.abs(att[:, 1])
     assert np.all(np.abs(dep_full - dep_ref) <= tilt[None, :] + 1e-9)
     assert np.max(np.abs(dep_full - dep_ref)) > 0.05  # and the tilts drawn do matter
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_tilted_dipoles_elevation_is_minus_the_full_attitudes_depression(seed):
+    """With each cell's body axis from the full attitude, the dipoles' UAV-side elevation is the
+    float64 reference's -dep_b at that attitude (roll and pitch included), not the level one."""
+    cand, cells, att, h = _random_geometry(seed)
+    c = body_from_enu_matrix(att)  # u_b = C u_enu; the body's up axis is -C[2, :]
+    cells.axis_enu = -c[:, 2, :]
+    _, el, _, el_uav = _geometry(cand, cells, h)
+    u = np.column_stack([cand, np.full(len(cand), h)])[:, None, :] - cells.enu_m[None, :, :]
+    _, dep_full = body_angles(enu_to_ned(u), att[None, :, :])
+    assert np.max(np.abs(el_uav.astype(float) + dep_full)) < ANGLE_TOL_RAD
+    assert np.max(np.abs(el_uav - el)) > 0.05  # the tilts drawn do move it
 
 
 def test_link_helpers_are_the_closed_forms_and_keep_float32():

@@ -125,6 +125,67 @@ def test_dipoles_at_both_ends_are_named_and_found() -> None:
     assert one.extras["residual_rms_db"] > 5 * max(est.extras["residual_rms_db"], 0.05)
 
 
+def _up_axis(pitch: float, yaw: float) -> np.ndarray:
+    """The body's up axis (ENU) of a multirotor at ``pitch`` (negative: nose down) heading ``yaw``,
+    roll 0, by hand: the nose goes down, so the up axis leans forward by -pitch."""
+    return np.array([-np.sin(pitch) * np.sin(yaw), -np.sin(pitch) * np.cos(yaw), np.cos(pitch)])
+
+
+def test_cells_carry_the_bodys_mean_up_axis() -> None:
+    """Level gives straight up; nose down 10 and 20 deg heading north in one cell gives the up axis
+    leaning 15 deg north; heading east it leans east; no attitude, no axis."""
+    rx = np.array([[1.0, 1.0, 30.0], [2.0, 2.0, 30.0], [12.0, 1.0, 30.0], [22.0, 1.0, 30.0]])
+    att = np.radians([[0, -10, 0], [0, -20, 0], [0, -20, 90], [0, 0, 45]])
+    c = cell_average(FlightSamples(enu_m=rx, rss_dbm=np.full(4, -50.0), attitude_rad=att), 5.0)
+    order = np.argsort(c.enu_m[:, 0])
+    axis = c.axis_enu[order]
+    assert np.allclose(axis[0], _up_axis(np.radians(-15.0), 0.0), atol=1e-9)
+    assert np.allclose(axis[1], _up_axis(np.radians(-20.0), np.pi / 2), atol=1e-9)
+    assert np.allclose(axis[2], [0.0, 0.0, 1.0], atol=1e-12)
+    assert cell_average(FlightSamples(enu_m=rx, rss_dbm=np.full(4, -50.0)), 5.0).axis_enu is None
+
+
+def test_a_level_body_scores_as_no_attitude() -> None:
+    """Zero roll and pitch is the upright dipoles' case: the same residuals as a flight logged
+    without attitude (the limit the tilt must keep)."""
+    rx = lawnmower(h=30.0, legs=5)
+    tx = np.array([80.0, 60.0, 1.5])
+    rss = free_space_rss(tx, rx) + np.random.default_rng(2).normal(0, 2.0, len(rx))
+    hyps = antenna_hypotheses(("dipole", "dipole-pair", "isotropic"))
+    cand = np.array([[80.0, 60.0], [150.0, 20.0], [10.0, 190.0]])
+    level = cell_average(FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=np.zeros_like(rx)), 5.0)
+    none = cell_average(FlightSamples(enu_m=rx, rss_dbm=rss), 5.0)
+    a, _ = hypothesis_ssr(cand, level, hyps, 1.5)
+    b, _ = hypothesis_ssr(cand, none, hyps, 1.5)
+    assert np.allclose(a, b, rtol=1e-5)
+
+
+def test_a_nose_down_pair_is_found_with_the_body_tilt() -> None:
+    """RSS written by hand with the UAV's dipole tilted with a body cruising 25 deg nose down
+    (PX4 SITL's cruise; heading along each leg) and the transmitter's upright: the search names
+    the pair and fits it to the noise-free floor; the same flight logged level (its tilt unknown)
+    leaves a residual many times larger."""
+    rx = lawnmower(h=30.0)
+    yaw = np.where(np.gradient(rx[:, 0]) > 0, np.pi / 2, -np.pi / 2)  # east or west along a leg
+    pitch = np.radians(-25.0)
+    tx = np.array([110.0, 95.0, 1.5])
+    u = tx[None, :] - rx
+    d = np.linalg.norm(u, axis=1)
+    axis = np.stack([_up_axis(pitch, y) for y in yaw])
+    el_tx = np.arcsin(-u[:, 2] / d)  # the UAV seen from the transmitter, same magnitude
+    el_uav = np.arcsin(np.einsum("ij,ij->i", u, axis) / d)
+    rss = free_space_rss(tx, rx) + _dipole_dbi(el_tx) + _dipole_dbi(el_uav)
+    att = np.column_stack([np.zeros(len(rx)), np.full(len(rx), pitch), yaw])
+    grid = SelfCalibratingGrid(area=(-50, -50, 250, 250))
+    est = grid.predict(FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att))
+    assert est.extras["antenna"] == "vertical dipoles, UAV and transmitter"
+    assert np.hypot(est.x_m - tx[0], est.y_m - tx[1]) < 1.5
+    assert est.extras["residual_rms_db"] < 0.2
+    att[:, 1] = 0.0
+    level = grid.predict(FlightSamples(enu_m=rx, rss_dbm=rss, attitude_rad=att))
+    assert level.extras["residual_rms_db"] > 5 * max(est.extras["residual_rms_db"], 0.05)
+
+
 def test_cells_average_repeated_passes_and_circular_yaw() -> None:
     rx = np.array([[1.0, 1.0, 30.0], [2.0, 2.0, 30.0], [12.0, 1.0, 30.0]])
     att = np.radians([[0, 0, 359.0], [0, 0, 1.0], [0, 0, 90.0]])

@@ -108,25 +108,47 @@ class DipolePair(Dipole):
     name: str = "dipole pair"
 
     def gain_dbi(self, el, az=None):
-        return 2.0 * super().gain_dbi(el, az)
+        return self.link_gain_dbi(el, el)
+
+    def link_gain_dbi(self, el_tx, el_uav):
+        """The link's gain with each dipole's own elevation of the link: the transmitter's seen
+        from the level frame, the UAV's from its tilted body (``uav_elevation``)."""
+        return Dipole.gain_dbi(self, el_tx) + Dipole.gain_dbi(self, el_uav)
 
 
 def _geometry(cand_xy: np.ndarray, cells: Cells, tx_height_m: float) -> tuple[np.ndarray, ...]:
     """(K, M) float32 free-space path gain -20 log10 d, platform elevation and body azimuth of the
-    transmitter.
+    transmitter, and its elevation above the tilted body's plane (``uav_elevation``).
 
     Body azimuth uses the heading only (the receiver antenna hangs below the body; roll and pitch
-    did not help on real flights, ``rfsl gap``), clockwise from the nose; elevation is negative
-    below the UAV.
+    did not help the measured pattern on real flights, ``rfsl gap``), clockwise from the nose;
+    elevation is negative below the UAV.
     """
     tx = np.column_stack([cand_xy, np.full(len(cand_xy), float(tx_height_m))])
     dx, dy, dz = link_delta(tx[:, None, :], cells.enu_m[None, :, :], np.float32)
     dh2 = dx * dx + dy * dy
-    pg = np.float32(-10.0) * np.log10(dh2 + dz * dz)  # -20 log10 d_los
+    d2 = dh2 + dz * dz
+    pg = np.float32(-10.0) * np.log10(d2)  # -20 log10 d_los
     el, az = heading_frame_angles(
         dx, dy, dz, cells.yaw_rad[None, :].astype(np.float32), np.sqrt(dh2)
     )
-    return pg, el, az
+    return pg, el, az, uav_elevation(dx, dy, dz, d2, cells, el)
+
+
+def uav_elevation(dx, dy, dz, d2, cells: Cells, el: np.ndarray) -> np.ndarray:
+    """Elevation of the link (dx, dy, dz) = p_tx - p_uav above the plane normal to each cell's mean
+    body up axis: ``asin(u . a / |u|)``, what a dipole fixed upright to the body sees.
+
+    Why: multirotors cruise nose down (ArduCopter SITL a median -14 deg of pitch, PX4 SITL about
+    -28 deg) and the mission's physics tilts the UAV's dipole with the body, so an upright dipole
+    puts its null where a tilted one does not.  Cells without an axis (no attitude) are level:
+    ``el`` itself.
+    """
+    if cells.axis_enu is None:
+        return el
+    a = cells.axis_enu.astype(np.float32)
+    s = (dx * a[:, 0] + dy * a[:, 1] + dz * a[:, 2]) / np.sqrt(d2)
+    return np.arcsin(np.clip(s, np.float32(-1.0), np.float32(1.0)))
 
 
 class GainLookup:
@@ -195,18 +217,27 @@ def flat_index(el: np.ndarray, az: np.ndarray) -> np.ndarray:
 
 
 def hypothesis_residuals(
-    base: np.ndarray, el: np.ndarray, az: np.ndarray, hyps, tables: GainTables | None = None
+    base: np.ndarray,
+    el: np.ndarray,
+    az: np.ndarray,
+    hyps,
+    tables: GainTables | None = None,
+    el_uav: np.ndarray | None = None,
 ):
     """Yield ``base - G_h`` (K, M) for each UAV-antenna hypothesis h, the platform angles from
     ``_geometry``; tabulated patterns are looked up in ``tables`` (a fresh ``GainTables`` when
-    None)."""
+    None).  The dipoles' UAV side takes ``el_uav``, the elevation above the tilted body's plane
+    (None: ``el``, a level body); the measured patterns keep the heading frame."""
     tables = GainTables() if tables is None else tables
+    el_uav = el if el_uav is None else el_uav
     idx = None
     for _, pat, head, flipped in hyps:
         if pat is None:
             yield base
+        elif isinstance(pat, DipolePair):  # the transmitter's dipole upright, the UAV's tilted
+            yield base - pat.link_gain_dbi(el, el_uav).astype(np.float32)
         elif isinstance(pat, Dipole):  # azimuth-symmetric, one hypothesis: the reference formula
-            yield base - pat.gain_dbi(el, az).astype(np.float32)
+            yield base - pat.gain_dbi(el_uav).astype(np.float32)
         else:
             if idx is None:
                 idx = flat_index(el, az)
@@ -218,11 +249,11 @@ def hypothesis_ssr(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares residual sum SSR (H, K) and fitted offset c (H, K) for every hypothesis and
     candidate (``tables``: the caller's gain tables, see ``hypothesis_residuals``)."""
-    pg, el, az = _geometry(cand_xy, cells, tx_height_m)
+    pg, el, az, el_uav = _geometry(cand_xy, cells, tx_height_m)
     y = cells.rss_dbm.astype(np.float32)[None, :]
     ssr = np.empty((len(hyps), len(cand_xy)))
     off = np.empty((len(hyps), len(cand_xy)))
-    for i, r in enumerate(hypothesis_residuals(y - pg, el, az, hyps, tables)):
+    for i, r in enumerate(hypothesis_residuals(y - pg, el, az, hyps, tables, el_uav)):
         c = r.mean(axis=1)
         off[i] = c
         ssr[i] = np.einsum("km,km->k", r, r) - r.shape[1] * c.astype(np.float64) ** 2

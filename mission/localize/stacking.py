@@ -81,7 +81,7 @@ def blocked_scores(
         raise ValueError("the flight covers one block: nothing to hold out")
     onehot = np.zeros((len(block), nb))
     onehot[np.arange(len(block)), block] = 1.0
-    pg, el, az = _geometry(np.asarray(cand_xy, float), cells, tx_height_m)
+    pg, el, az, el_uav = _geometry(np.asarray(cand_xy, float), cells, tx_height_m)
     pg = pg.astype(np.float64)
     y = cells.rss_dbm.astype(np.float64)
     n = len(block) - onehot.sum(axis=0)  # training cells per fold (B,)
@@ -95,7 +95,9 @@ def blocked_scores(
 
     sp, spp = train(pg), train(pg * pg)
     best_lpd = best_ssr = None
-    for g in hypothesis_residuals(np.broadcast_to(y, pg.shape), el, az, hyps):  # y - G_h
+    for g in hypothesis_residuals(
+        np.broadcast_to(y, pg.shape), el, az, hyps, el_uav=el_uav
+    ):  # y - G_h
         r = np.asarray(g, np.float64)
         sr, srr, srp = train(r), train(r * r), train(r * pg)
         a22 = spp + slope_weight
