@@ -6,7 +6,9 @@ over to other teams' flights.  Here every candidate transmitter position is scor
 antenna *hypotheses* (the measured RM-WB1-DN pattern hanging upside down or upright at every
 mounting heading in ``heading_step_deg`` steps, a vertical dipole, vertical dipoles at both ends,
 an isotropic antenna), each with
-its own free RSS offset, and the best hypothesis is kept per candidate (profile likelihood).  The
+its own free RSS offset, and the best hypothesis is kept per candidate (profile likelihood).  A UAV
+dipole is fixed to the body and tilts with it (each cell's mean body axis); the measured pattern
+follows the heading alone.  The
 distance law is free space (``-20 log10 d``): on the real AFAR flights a free exponent absorbed the
 antenna's elevation pattern and moved estimates (``models/README.md``).
 
