@@ -169,10 +169,11 @@ def _err(rows: list[dict], key: str) -> np.ndarray:
     return np.array([np.hypot(*(np.asarray(r[key]) - np.asarray(r["truth"]))) for r in rows])
 
 
-def _adaptive(path: str) -> np.ndarray:
+def _arm_errors(path: str, arm: str = "adaptive") -> np.ndarray:
+    """One arm's answer errors per flight of a ``bench_adaptive --json`` file (nan: no answer)."""
     return np.array(
         [
-            np.nan if r["adaptive"]["error_m"] is None else r["adaptive"]["error_m"]
+            np.nan if r[arm]["error_m"] is None else r[arm]["error_m"]
             for r in json.loads(Path(path).read_text())
         ]
     )
@@ -186,13 +187,11 @@ def score(args) -> None:
     for setting, t_path, n_path, bound in zip(
         ("mission", "afar"), args.adaptive_today, args.adaptive_new, (0.0, 1.0), strict=True
     ):
-        t, n = _adaptive(t_path), _adaptive(n_path)
+        t, n = _arm_errors(t_path), _arm_errors(n_path)
         keep = ~(np.isnan(t) | np.isnan(n))
         d = paired_difference(n[keep], t[keep], seed=4)
         ok += [d.value < 0.0 if setting == "mission" else d.value <= bound, d.lo <= 0.0]
-        fixed = np.array(
-            [r["fixed"]["error_m"] for r in json.loads(Path(n_path).read_text())], float
-        )
+        fixed = _arm_errors(n_path, "fixed")
         vs_fixed = paired_difference(n[keep], fixed[keep], seed=5)
         print(
             f"  {setting:8s} today {mean_interval(t[keep], seed=4).fmt()} m, change "
@@ -319,16 +318,13 @@ def tilted_score(args) -> None:
     t_all, n_all = [], []
     print("A. fast simulator, tilting vehicle: the adaptive answer, change - today (m)")
     for label, t_path, n_path in zip(args.labels, args.today, args.new, strict=True):
-        t, n = _adaptive(t_path), _adaptive(n_path)
+        t, n = _arm_errors(t_path), _arm_errors(n_path)
         keep = ~(np.isnan(t) | np.isnan(n))
         d = paired_difference(n[keep], t[keep], seed=4)
         ok.append(d.lo <= 0.0)
         t_all.append(t[keep])
         n_all.append(n[keep])
-        fixed = [
-            np.array([r["fixed"]["error_m"] for r in json.loads(Path(p).read_text())], float)[keep]
-            for p in (t_path, n_path)
-        ]
+        fixed = [_arm_errors(p, "fixed")[keep] for p in (t_path, n_path)]
         print(
             f"  {label}: today {mean_interval(t[keep], seed=4).fmt()} m, change "
             f"{mean_interval(n[keep], seed=4).fmt()} m, paired {d.fmt()} m (n={keep.sum()})"
