@@ -50,7 +50,7 @@ from mission.localize.onnx_model import OnnxLocalizer
 from mission.threads import limit_worker
 from mission.workshop.dataset import DatasetConfig, dataset_heights, generate_dataset, load_dataset
 from mission.workshop.evaluate import import_afar
-from mission.workshop.evaluate_suite import _coverage
+from mission.workshop.evaluate_suite import region_coverage
 from mission.workshop.suite_cache import read_suite
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sim_default's sets
@@ -139,7 +139,7 @@ def _run(est, truth) -> tuple[float, dict, str, float]:
     )
     return (
         float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])),
-        _coverage(est, truth),
+        region_coverage(est, truth),
         Path(est.extras.get("model_path", est.method)).name,
         float(share),
     )

@@ -30,7 +30,7 @@ from mission.flightlog import read_flight_log
 from mission.importers.afar import AFAR2023_FOLD_WITHOUT, AFAR2023_TRUTH, import_afar_mat
 from mission.localize.api import localize_log
 from mission.workshop.decision import pooled_decision
-from mission.workshop.evaluate_suite import _coverage, evaluate_suite, suite_method
+from mission.workshop.evaluate_suite import evaluate_suite, region_coverage, suite_method
 from mission.workshop.predictive import family_checks, flight_statistics, verdict
 from mission.workshop.suite_cache import read_suite
 
@@ -82,7 +82,7 @@ def score_real(mat: str, specs: dict[str, str]) -> tuple[list[str], dict, dict, 
                 est = localize_log(log, **real_kwargs(spec, team))
                 truth = np.array([est.extras["truth_x_m"], est.extras["truth_y_m"]])
                 errs[label].append(float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])))
-                for lvl, c in _coverage(est, truth).items():
+                for lvl, c in region_coverage(est, truth).items():
                     cov[label].setdefault(lvl, []).append(bool(c))
     return names, errs, cov, stats
 

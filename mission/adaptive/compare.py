@@ -27,6 +27,7 @@ from mission.evidence import compare_methods, mean_interval
 from mission.localize.api import localize_log
 from mission.physics.family import load_family
 from mission.simulate import SimConfig
+from mission.workshop.evaluate_suite import region_coverage
 from mission.workshop.flight_draws import flight_rng
 
 
@@ -39,6 +40,26 @@ def product_answer(spec, log, adaptive=None):
         return localize_log(log.flight_log(spec, adaptive))
     except InputError:
         return None
+
+
+def shown_regions(shown, tx) -> dict:
+    """What the regions ``localize`` prints after the flight say about the truth ``tx``: whether
+    each level's region holds it, the 90 % region's area, the truth's HPD level in the answer's
+    posterior (None without one: the smallest mass whose set holds it, so masses can be
+    recalibrated offline) and whether the shown point lies in its own 90 % region."""
+
+    if shown is None:
+        return {"covered": {}, "area_m2": None, "level": None, "point_inside": None}
+    post = shown.posterior
+    reg = shown.region(0.9)
+    return {
+        "covered": {k: bool(v) for k, v in region_coverage(shown, tx).items()},
+        "area_m2": None if reg is None else reg.area_m2,
+        "level": None
+        if post is None or post.grid is None
+        else post.hpd_level(float(tx[0]), float(tx[1])),
+        "point_inside": region_coverage(shown, (shown.x_m, shown.y_m)).get("90"),
+    }
 
 
 def sim_config(spec, dt_s: float, vehicle: dict | None = None) -> SimConfig:
@@ -60,7 +81,8 @@ def pair(
     vehicle: dict | None = None,
 ) -> dict:
     """Errors (of the product's answer and of the live estimate), the live estimate's 90 % region
-    coverage and area, durations and rounds of flight ``i``, fixed and adaptive.
+    coverage and area, the product's regions (``shown_regions``), durations and rounds of flight
+    ``i``, fixed and adaptive.
 
     ``family``: a physics family (``load_family``) or ``"mission"``, the mission's own source model
     without shadowing (what ``fly-mission`` simulates against a SITL).  ``vehicle``: fields of the
@@ -101,6 +123,7 @@ def pair(
             "duration_s": o.duration_s,
             "rounds": o.rounds,
             "planned": o.planned,  # each round's [target, centre flown]
+            "shown_regions": shown_regions(shown, w.tx),
         }
     return out
 

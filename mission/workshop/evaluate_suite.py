@@ -99,7 +99,7 @@ def _regions(est) -> dict[str, Region | dict]:
     return out
 
 
-def _coverage(est, truth) -> dict[str, bool]:
+def region_coverage(est, truth) -> dict[str, bool]:
     """Level -> whether the truth lies in the estimate's region: on the posterior grid when the
     estimate has one (``mission.localize.uncertainty.region_covers``), else by the region's drawn
     shape (a typed region's ellipse: an error circle's circle)."""
@@ -142,7 +142,7 @@ def _suite_flight(i: int) -> dict:
         t0 = time.perf_counter()
         est = localize_log(log, **kw)
         dt = time.perf_counter() - t0
-        cov = _coverage(est, truth)
+        cov = region_coverage(est, truth)
         out[label] = [float(np.hypot(est.x_m - truth[0], est.y_m - truth[1])), cov, dt]
     return out
 

@@ -1,0 +1,236 @@
+"""The regions an adaptive flight prints, recalibrated on adaptive flights, by a rule written before
+scoring (issue 33, and the house rule that every estimate carries an honest uncertainty).
+
+Why: an adaptive flight's answer (``--method rounds``) prints the live method's regions, whose HPD
+masses (``selfcal.CALIBRATED_MASS``, 0.339 / 0.870) were calibrated on fixed paths of the
+benchmark. The rounds fly low over one or two spots; their dense cells make the tempered posterior
+narrower than on a fixed path. Under the family fitted to the real flights, that 90 % region held
+the truth on 26 to 30 of 40 simulated adaptive flights at every seed measured (seeds 2027, 2028,
+2044: docs/adaptive.md), and under the mission's own physics on 39 or 40 of 40.
+
+Each ``bench_adaptive.py --json`` row records, for the answer ``localize`` prints after landing, the
+truth's HPD level in its posterior (``compare.shown_regions``: the smallest mass whose set holds the
+truth). The set of mass M holds the truth exactly when the level is below M, so masses are
+calibrated offline, as ``calibrate_regions.py`` does for fixed flights; the flights themselves do
+not depend on them (the rounds are planned on the live estimate, whose masses do not change).
+
+Rule (written 2026-11-28 19:40 UTC, before any adaptive flight's level was looked at):
+- Calibration flights (development; variants may be looked at there): ``bench_adaptive.py
+  --flights 40 --jobs 2 --seed S --family F --json D/cal_F_S.json`` for S = 2045, 2046 and F =
+  ``afar`` (the family fitted to the real flights) and ``mission`` (what ``fly-mission`` simulates
+  against a SITL): 80 flights per setting.
+- Variants, each a pair of masses (50 %, 90 %) for an adaptive flight's answer:
+  A. one pair, calibrated on the ``afar`` flights (the reality-fitted family, as every other mass
+     of the project);
+  B. two pairs, by what the flight's own data say: flights the networks' physics explains
+     (``rounds_answer.PHYSICS_RMS_DB``: the judge fired) and flights it does not, each pair
+     calibrated on that stratum's flights of both settings pooled.
+  Each is scored on the calibration flights by 5-fold cross-fitting (fold = flight index mod 5,
+  per file), by its worst |coverage - nominal| over the two settings and the two levels; the
+  smaller wins (ties: A, the simpler).
+- Held out (scored once): seeds 2047 and 2048, both settings, 80 flights per setting, flown with the
+  chosen masses in place (the flights are the same as with today's; today's coverage is read from
+  the same levels).
+- Adopted if all hold on the held-out flights:
+  1. under ``afar``, the 90 % Clopper-Pearson interval of the 90 % region's coverage holds 0.90 and
+     that of the 50 % region's holds 0.50;
+  2. under ``mission``, the 90 % region's interval reaches 0.90 (it does not under-cover);
+  3. the chosen masses' worst |coverage - nominal| over the settings and levels is below today's.
+  Otherwise today's regions stay and the figures are reported.
+Reported beside: the median 90 % area of each setting with today's and the chosen masses (today's
+from the live estimate's ``area_m2``, the same posterior and masses), and how often the printed
+point lies inside its own 90 % region.
+
+Usage::
+
+    python benchmarks/score_adaptive_regions.py calibrate D/cal_afar_2045.json ... \
+        D/cal_mission_2046.json
+    python benchmarks/score_adaptive_regions.py score --variant A|B --fitted-on D/cal_*.json \
+        D/test_afar_2047.json ...
+
+A file's setting is read from its name (``afar`` or ``mission`` before the seed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from calibrate_regions import LEVELS, masses  # noqa: E402
+
+from mission.evidence import coverage_interval  # noqa: E402
+from mission.localize.rounds_answer import PHYSICS_RMS_DB  # noqa: E402
+from mission.localize.selfcal import CALIBRATED_MASS  # noqa: E402
+
+SETTINGS = ("afar", "mission")
+FOLDS = 5
+
+
+def _setting(path: Path) -> str:
+    """The physics setting a bench_adaptive JSON was flown under, from its file name."""
+    hit = [s for s in SETTINGS if s in path.stem]
+    if len(hit) != 1:
+        raise SystemExit(f"{path}: name must hold exactly one of {SETTINGS}")
+    return hit[0]
+
+
+def load(paths: list[Path]) -> list[dict]:
+    """One record per adaptive flight: setting, fold, the truth's level, whether the judge fired,
+    the printed 90 % area and whether the point lies in its own 90 % region."""
+    out = []
+    for p in paths:
+        setting = _setting(p)
+        for r in json.loads(p.read_text()):
+            a = r["adaptive"]
+            shown = a.get("shown_regions") or {}
+            if shown.get("level") is None:
+                continue
+            rms = a.get("physics_rms_db")
+            out.append(
+                {
+                    "setting": setting,
+                    "fold": int(r["i"]) % FOLDS,
+                    "level": float(shown["level"]),
+                    "judged": bool(rms) and min(rms) <= PHYSICS_RMS_DB,
+                    "area_m2": shown.get("area_m2"),
+                    "live_area_m2": a.get("area_m2"),
+                    "point_inside": shown.get("point_inside"),
+                }
+            )
+    return out
+
+
+def fit(rows: list[dict], variant: str) -> dict[bool | None, dict[float, float]]:
+    """The variant's masses from ``rows``: A one pair (key None) from the ``afar`` flights; B one
+    pair per judge verdict (keys True, False) from both settings."""
+    q = np.array([r["level"] for r in rows])
+    if variant == "A":
+        return {None: masses(q[[r["setting"] == "afar" for r in rows]])}
+    judged = np.array([r["judged"] for r in rows])
+    return {k: masses(q[judged == k]) for k in (True, False) if (judged == k).any()}
+
+
+def mass_for(m: dict, r: dict) -> dict[float, float]:
+    """The masses a flight's regions take under fitted masses ``m`` (B: by its judge verdict; a
+    stratum without calibration flights falls back to the pooled one)."""
+    if None in m:
+        return m[None]
+    return m.get(r["judged"]) or next(iter(m.values()))
+
+
+def covered(rows: list[dict], m_of) -> dict[str, dict[float, tuple[int, int]]]:
+    """Setting -> level -> (flights inside, flights) with each flight's masses ``m_of(r)``."""
+    out = {}
+    for s in SETTINGS:
+        rs = [r for r in rows if r["setting"] == s]
+        out[s] = {lev: (sum(r["level"] < m_of(r)[lev] for r in rs), len(rs)) for lev in LEVELS}
+    return out
+
+
+def worst(cov: dict) -> float:
+    """The largest |coverage - nominal| (points) over settings and levels."""
+    return max(
+        abs(100 * k / n - 100 * lev) for per in cov.values() for lev, (k, n) in per.items() if n
+    )
+
+
+def cross_fitted(rows: list[dict], variant: str) -> dict:
+    """Coverage of ``variant`` with each fold's flights given masses fitted on the other folds."""
+    out = {s: {lev: [0, 0] for lev in LEVELS} for s in SETTINGS}
+    for f in range(FOLDS):
+        train = [r for r in rows if r["fold"] != f]
+        test = [r for r in rows if r["fold"] == f]
+        m = fit(train, variant)
+        for s, per in covered(test, lambda r, m=m: mass_for(m, r)).items():
+            for lev, (k, n) in per.items():
+                out[s][lev][0] += k
+                out[s][lev][1] += n
+    return {s: {lev: tuple(v) for lev, v in per.items()} for s, per in out.items()}
+
+
+def _line(name: str, cov: dict) -> str:
+    cells = []
+    for s in SETTINGS:
+        for lev in LEVELS:
+            k, n = cov[s][lev]
+            ci = coverage_interval(k, n) if n else None
+            cells.append(
+                f"{s} {int(100 * lev)} %: {k}/{n}"
+                + (f" [{100 * ci.lo:.0f}, {100 * ci.hi:.0f}]" if ci else "")
+            )
+    return f"{name}: " + "; ".join(cells) + f"; worst {worst(cov):.1f} points"
+
+
+def calibrate(paths: list[Path]) -> str:
+    """The rule's choice on the calibration flights; prints each variant's cross-fitted coverage
+    and the masses fitted on all of them."""
+    rows = load(paths)
+    print(f"{len(rows)} adaptive flights; judged {sum(r['judged'] for r in rows)}")
+    print(_line("today", covered(rows, lambda r: CALIBRATED_MASS)))
+    scores = {}
+    for v in ("A", "B"):
+        cov = cross_fitted(rows, v)
+        scores[v] = worst(cov)
+        print(_line(f"{v} (cross-fitted)", cov))
+        print(f"  {v} masses on all: {fit(rows, v)}")
+    choice = min(("A", "B"), key=lambda v: (scores[v], v))
+    print(f"chosen: {choice}")
+    return choice
+
+
+def _median(vals) -> float:
+    v = [x for x in vals if x is not None]
+    return float(np.median(v)) if v else float("nan")
+
+
+def score(paths: list[Path], variant: str, m: dict) -> bool:
+    """The rule's verdict on held-out flights flown with the chosen masses ``m`` in place."""
+    rows = load(paths)
+    today = covered(rows, lambda r: CALIBRATED_MASS)
+    new = covered(rows, lambda r: mass_for(m, r))
+    print(_line("today", today))
+    print(_line(f"{variant}", new))
+    for s in SETTINGS:
+        rs = [r for r in rows if r["setting"] == s]
+        inside = [r["point_inside"] for r in rs if r["point_inside"] is not None]
+        print(
+            f"{s}: median 90 % area today {_median(r['live_area_m2'] for r in rs):.0f} m^2, "
+            f"{variant} {_median(r['area_m2'] for r in rs):.0f} m^2; point inside its 90 % region "
+            f"{sum(inside)}/{len(inside)}"
+        )
+    ci = {(s, lev): coverage_interval(*new[s][lev]) for s in SETTINGS for lev in LEVELS}
+    c1 = ci[("afar", 0.9)].lo <= 0.9 <= ci[("afar", 0.9)].hi and (
+        ci[("afar", 0.5)].lo <= 0.5 <= ci[("afar", 0.5)].hi
+    )
+    c2 = ci[("mission", 0.9)].hi >= 0.9
+    c3 = worst(new) < worst(today)
+    ok = c1 and c2 and c3
+    print(f"conditions: 1 {c1}, 2 {c2}, 3 {c3} -> {'adopted' if ok else 'not adopted'}")
+    return ok
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    c = sub.add_parser("calibrate")
+    c.add_argument("files", nargs="+", type=Path)
+    s = sub.add_parser("score")
+    s.add_argument("--variant", choices=("A", "B"), required=True)
+    s.add_argument("--fitted-on", nargs="+", type=Path, required=True, help="the calibration files")
+    s.add_argument("files", nargs="+", type=Path)
+    a = p.parse_args(argv)
+    if a.cmd == "calibrate":
+        calibrate(a.files)
+    else:
+        score(a.files, a.variant, fit(load(a.fitted_on), a.variant))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
