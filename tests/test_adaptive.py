@@ -37,6 +37,7 @@ from mission.cli.main import main as rfsl_main
 from mission.errors import InputError
 from mission.flight.phases import MonotonicPhases
 from mission.localize.methods import ADAPTIVE_ANSWER
+from mission.localize.rounds_answer import REGION_MASS
 from mission.localize.uncertainty import Posterior
 from mission.physics import make_model
 from mission.physics.family import load_family
@@ -357,6 +358,13 @@ def test_pair_scores_each_arm_by_what_localize_answers(spec):
     members = r["adaptive"]["member_errors_m"]
     assert {"selfcal", "onnx (survey)"} <= set(members) and r["fixed"]["member_errors_m"] == {}
     assert min(abs(e - r["adaptive"]["error_m"]) for e in members.values()) < 1e-9
+    # what the printed regions say about the truth: the network's circle has no posterior; the
+    # adaptive answer's regions hold the truth exactly where its HPD level is below their mass
+    fixed, adaptive = r["fixed"]["shown_regions"], r["adaptive"]["shown_regions"]
+    assert fixed["level"] is None and set(fixed["covered"]) == {"50", "90"}
+    level, masses = adaptive["level"], REGION_MASS[False]  # the judge does not fire under afar
+    assert 0.0 <= level <= 1.0 and adaptive["area_m2"] > 0.0
+    assert adaptive["covered"] == {"50": level < masses[0.5], "90": level < masses[0.9]}
     summary = summarize_pairs([r])
     assert summary["methods"] == {"fixed": ["onnx"], "adaptive": [ADAPTIVE_ANSWER]}
     assert summary["live"]["n"] == 1 and "answer_vs_live" in summary

@@ -11,6 +11,7 @@ import pytest
 import mission.localize.rounds_answer as ra
 from mission.adaptive.planner import flown_ahead, survey_profile, survey_spec
 from mission.adaptive.simflight import FlightWorld, SimLog
+from mission.flight import live
 from mission.flightlog import ADAPTIVE, MISSION, TAKEOFF
 from mission.localize.rounds_answer import rounds_answer, rounds_scores, survey_and_rounds
 from mission.spec import load_mission
@@ -78,8 +79,39 @@ def test_rounds_answer_weighs_the_live_method_and_the_survey_default(repo_dir, m
     top = est.candidates[0]
     assert top.evidence == 0.0 and (est.x_m, est.y_m) == (top.x_m, top.y_m)
     assert {c.source.split(",")[0] for c in scored} == {"selfcal", "onnx"}
-    assert est.regions == est.components["selfcal"].regions
+    _regions_are_the_live_posterior_at_adaptive_masses(est, judged=False)
     assert np.hypot(*(np.array([est.x_m, est.y_m]) - tx)) < 30.0
+
+
+def test_the_series_keeps_the_live_methods_area_for_the_planner(repo_dir, monkeypatch):
+    """A series entry of an adaptive flight's answer carries the printed 90 % area and the live
+    method's own (``live_area_m2``), on which the planner stops, as the benchmark's simulator
+    does; an entry of any other method has no second area."""
+    monkeypatch.setattr(ra, "PHYSICS_RMS_DB", np.inf)  # judged: masses far from the live ones
+    log, spec, _ = _flight(repo_dir, "truth")
+    est = rounds_answer(
+        log.flight_log(spec, spec.adaptive), spec.field.origin, spec.field.rover_area
+    )
+    d = live.summary(est, 100.0)
+    own = est.components["selfcal"].region(0.9).area_m2
+    assert d["area_m2"] == round(est.region(0.9).area_m2, 1) != d["live_area_m2"]
+    assert d["live_area_m2"] == round(own, 1)
+    assert "live_area_m2" not in live.summary(est.components["selfcal"], 100.0)
+
+
+def _regions_are_the_live_posterior_at_adaptive_masses(est, judged: bool) -> None:
+    """The answer's regions: the live method's posterior, cut at the masses calibrated on adaptive
+    flights for the judge's verdict; a larger mass never gives a smaller set."""
+    live = est.components["selfcal"]
+    assert est.posterior is live.posterior
+    assert [r.level for r in est.regions] == [r.level for r in live.regions] == [0.5, 0.9]
+    for r, lr in zip(est.regions, live.regions, strict=True):
+        assert r.mass == ra.REGION_MASS[judged][r.level]
+        if r.mass >= lr.mass:
+            assert r.area_m2 >= lr.area_m2
+        else:
+            assert r.area_m2 <= lr.area_m2
+    assert est.regions[0].area_m2 <= est.regions[1].area_m2
 
 
 def test_without_rounds_the_live_method_answers(repo_dir):
@@ -138,6 +170,7 @@ def test_the_networks_physics_judges_where_it_holds(repo_dir, monkeypatch, holds
     listed = est.extras["candidates"]
     # today's two candidates and the shipped survey network, judged together
     assert len(rms) == len(listed) == len(est.candidates) == 3
+    _regions_are_the_live_posterior_at_adaptive_masses(est, judged=holds)
     if holds:
         k = int(np.argmin(rms))
         assert (round(est.x_m, 2), round(est.y_m, 2)) == (listed[k]["x_m"], listed[k]["y_m"])

@@ -252,10 +252,11 @@ async def adapt(ctx: FlightContext, ext: AdaptiveRounds, action, mission_raw) ->
         if d is None:
             ctx.event("adaptive", "no live estimate yet (too few cells): no adaptive round")
             return await _end_hold(ctx, mission_raw, wps, off, hold)
-        if d["area_m2"] is not None and d["area_m2"] <= a.target_area_m2:
+        area = d.get("live_area_m2", d["area_m2"])  # the live method's region (live.summary)
+        if area is not None and area <= a.target_area_m2:
             ctx.event(
                 "adaptive",
-                f"90 % region {d['area_m2']:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing",
+                f"90 % region {area:.0f} m^2 <= {a.target_area_m2:g} m^2: finishing",
             )
             return await _end_hold(ctx, mission_raw, wps, off, hold)
         pace = measured_pace(ctx)

@@ -24,6 +24,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
+from mission.localize.methods import ADAPTIVE_ANSWER, ADAPTIVE_METHOD
 from mission.localize.render import SERIES_LEVEL
 
 DEFAULT_LIVE = (
@@ -70,7 +71,7 @@ def estimate_at(log, t_s: float | None = None, method: str | None = None):
 
 def summary(est, t_s: float) -> dict:
     """One entry of the sidecar's ``estimates`` series: t, x, y, 90 % region area (and error when
-    known)."""
+    known; on an adaptive flight's answer, the live method's own 90 % area, ``live_area_m2``)."""
     reg = est.region(LEVEL)
     d = {
         "t_s": round(float(t_s), 3),
@@ -81,6 +82,12 @@ def summary(est, t_s: float) -> dict:
     }
     if est.error_m is not None:
         d["error_m"] = round(float(est.error_m), 2)
+    if est.method == ADAPTIVE_ANSWER and (own := est.components.get(ADAPTIVE_METHOD)) is not None:
+        # an adaptive flight's answer prints its regions at masses calibrated on adaptive flights;
+        # the planner stops on the live method's own region, as the benchmark's simulator does
+        # (adaptive.simflight), so the rounds flown do not depend on how the answer is printed
+        reg = own.region(LEVEL)
+        d["live_area_m2"] = None if reg is None else round(float(reg.area_m2), 1)
     if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
         # the worker process's imports (noqa): the flight process never loads the localizer
         from mission.adaptive.planner import posterior_candidates  # noqa: PLC0415

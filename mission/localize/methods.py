@@ -198,7 +198,8 @@ METHODS: dict[str, Method] = {
             FROM_REGION_MASSES,
             True,
             "an adaptive flight's answer: the live method or the survey's fixed-flight default, "
-            "whichever the rounds' held-out RSS supports (regions: the live method's)",
+            "whichever the rounds' held-out RSS supports (regions: the live method's posterior at "
+            "masses calibrated on adaptive flights)",
             None,
             compose="mission.localize.rounds_answer:rounds_answer",
         ),
