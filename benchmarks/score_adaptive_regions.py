@@ -215,6 +215,51 @@ def score(paths: list[Path], variant: str, m: dict) -> bool:
     return ok
 
 
+def sitl(stores: list[Path]) -> None:
+    """Reported after the verdict (decides nothing): the printed regions of every adaptive flight
+    flown against a real autopilot in SITL (``bench_sitl_seeds.py`` stores, each log answered
+    by this code), with the chosen masses and with today's (the live method's own regions)."""
+    from mission.flightlog import read_flight_log  # noqa: PLC0415
+    from mission.localize.api import localize_log  # noqa: PLC0415
+    from mission.localize.methods import ADAPTIVE_METHOD  # noqa: PLC0415
+    from mission.workshop.evaluate_suite import region_coverage  # noqa: PLC0415
+
+    seen, counts = set(), {}
+    for store in stores:
+        for line in store.read_text().splitlines():
+            r = json.loads(line)
+            if r["arm"] != "adaptive" or not r.get("log") or r["log"] in seen:
+                continue
+            if not Path(r["log"]).exists():
+                continue
+            seen.add(r["log"])
+            log = read_flight_log(r["log"])
+            est = localize_log(log)
+            truth = log.truth_enu
+            if est.method != "rounds" or truth is None:
+                continue
+            rms = est.extras.get("physics_rms_db")
+            judged = bool(rms) and min(rms) <= PHYSICS_RMS_DB
+            live = est.components[ADAPTIVE_METHOD]
+            for name, e in (("chosen", est), ("today", live)):
+                c = counts.setdefault((r["autopilot"], name), {"50": 0, "90": 0, "n": 0, "a": []})
+                cov = region_coverage(e, truth[:2])
+                c["50"] += cov["50"]
+                c["90"] += cov["90"]
+                c["n"] += 1
+                c["a"].append(e.region(0.9).area_m2)
+            print(
+                f"{r['autopilot']:9s} seed {r['seed']:2d}: error {est.error_m:5.1f} m, judged "
+                f"{judged}, 90 % held: chosen {region_coverage(est, truth[:2])['90']}, today "
+                f"{region_coverage(live, truth[:2])['90']}"
+            )
+    for (ap, name), c in sorted(counts.items()):
+        print(
+            f"{ap:9s} {name:6s}: 50 % {c['50']}/{c['n']}, 90 % {c['90']}/{c['n']}, median 90 % "
+            f"area {np.median(c['a']):.0f} m^2"
+        )
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -224,9 +269,13 @@ def main(argv=None) -> int:
     s.add_argument("--variant", choices=("A", "B"), required=True)
     s.add_argument("--fitted-on", nargs="+", type=Path, required=True, help="the calibration files")
     s.add_argument("files", nargs="+", type=Path)
+    t = sub.add_parser("sitl")
+    t.add_argument("stores", nargs="+", type=Path, help="bench_sitl_seeds.py flights.jsonl files")
     a = p.parse_args(argv)
     if a.cmd == "calibrate":
         calibrate(a.files)
+    elif a.cmd == "sitl":
+        sitl(a.stores)
     else:
         score(a.files, a.variant, fit(load(a.fitted_on), a.variant))
     return 0
