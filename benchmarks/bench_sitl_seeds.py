@@ -171,6 +171,9 @@ def main(argv: list[str] | None = None) -> None:
         "lead_s vehicle seconds ahead at any speed-up, and a higher one makes the vehicle wait "
         "longer at a part's end for the next round",
     )
+    ap.add_argument(
+        "--arms", nargs="+", default=list(MISSIONS), choices=list(MISSIONS), help="missions to fly"
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     store = args.out / "flights.jsonl"
@@ -178,7 +181,7 @@ def main(argv: list[str] | None = None) -> None:
     done = {(r["autopilot"], r["arm"], r["seed"]) for r in rows}
     for autopilot in args.autopilot:
         for seed in args.seeds:
-            for arm in MISSIONS:
+            for arm in args.arms:
                 if (autopilot, arm, seed) in done:
                     continue
                 row = fly_one(autopilot, arm, seed, args.out, args.instance, args.speedup)

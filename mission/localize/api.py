@@ -55,6 +55,8 @@ from mission.localize.methods import (
 from mission.localize.preprocess import select_samples
 from mission.localize.sim_default import sim_default_model
 from mission.localize.training_domain import (
+    ATTITUDE_TOLERANCE_DEG,
+    CIRCLE_ATTITUDE_TOLERANCE_DEG,
     altitude_note,
     flight_altitudes,
     flown_domain,
@@ -187,7 +189,9 @@ def _network_regions(est: Estimate, net, part, simulated: bool, area) -> None:
     the rover ``area`` when known) and the altitude check; on a simulated log outside the training
     altitudes the circles (calibrated inside them) are too small."""
     cal = card_calibration(net.card, "sim" if simulated else "real")  # sized for what was flown
-    flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name)
+    # 'sim' circles hold for the training's attitudes only (no tolerance)
+    tol = CIRCLE_ATTITUDE_TOLERANCE_DEG if simulated else ATTITUDE_TOLERANCE_DEG
+    flown = flown_domain(part, net.card.domain.attitude_deg, net.model_name, tol)
     # 'real' circles come from benchmark flights of every attitude: a note, not a veto
     if not simulated:
         est.add_note(flown.pop("attitude_note"))

@@ -26,6 +26,11 @@ ALTITUDE_TOLERANCE_M = (
 ATTITUDE_TOLERANCE_DEG = (
     5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
 )
+# on a simulated log a network's error circles apply only inside its training attitudes, with no
+# tolerance: they were calibrated on simulated flights of the training's kind, and ArduCopter SITL,
+# 2 deg beyond the span, erred past its 90 % circle on 10 of 18 flights
+# (benchmarks/score_sim_circles.py; models/README.md)
+CIRCLE_ATTITUDE_TOLERANCE_DEG = 0.0
 # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
 TRACK_REACH_M = 10.0
 TRACK_STEP_M = 5.0  # the planned track is checked every 5 m of its length
@@ -161,13 +166,18 @@ def attitude_note(
     )
 
 
-def flown_domain(part, trained_attitude, model_name: str) -> dict:
+def flown_domain(
+    part, trained_attitude, model_name: str, tolerance_deg: float = ATTITUDE_TOLERANCE_DEG
+) -> dict:
     """What was flown against a network's training: ``track_coverage`` (share of the planned track
     flown, None without a plan in the sidecar) and ``attitude_note`` (None inside the training's
-    attitudes, ``trained_attitude`` from its card, or when unknown)."""
+    attitudes widened by ``tolerance_deg``, ``trained_attitude`` from its card, or when
+    unknown)."""
     plan = planned_track(part.meta, part.origin)
     cov = None if plan is None or len(part) < 2 else track_coverage(plan, part.enu()[:, :2])
     return {
         "track_coverage": cov,
-        "attitude_note": attitude_note(model_name, trained_attitude, flight_attitude(part)),
+        "attitude_note": attitude_note(
+            model_name, trained_attitude, flight_attitude(part), tolerance_deg
+        ),
     }
