@@ -28,6 +28,14 @@ above and the PX4 ones are the finding, not the test):
      logs.
 Reported beside: the 33 fixed SITL flights on disk (both autopilots), with each tolerance.
 
+Result (2026-11-28): adopted (models/README.md, "Circles inside the training attitudes").
+1. Product-path spirals 7000-7099: 100 of 100 keep their circles (today 100).
+2. ArduCopter SITL seeds 15-24 (every flight exit 0; the network erred 6.6-46.2 m): today's
+   circles held 0 / 10 at 50 % and 1 / 10 at 90 % (worst 80 points); with the change the
+   posterior's regions hold 6 / 10 and 10 / 10 (worst 10 points).
+Beside: the 18 ArduCopter flights on disk 6 / 18, 8 / 18 -> 8 / 18, 18 / 18; the 15 PX4 flights
+unchanged (6 / 15, 15 / 15: their pitch was already outside by more than 5 deg).
+
     python benchmarks/score_sim_circles.py product --seeds 7000:7100
     python benchmarks/score_sim_circles.py sitl D/flights.jsonl [...]
 """
@@ -90,7 +98,7 @@ def product(first: int, last: int, workers: int) -> bool:
 
 
 def _worst(cov: dict[str, list[bool]]) -> float:
-    return max(abs(100 * sum(v) / len(v) - float(k)) for k, v in cov.items())
+    return max(abs(100 * sum(cov[k]) / len(cov[k]) - float(k)) for k in LEVELS)
 
 
 def sitl(stores: list[Path]) -> bool:
@@ -131,7 +139,7 @@ def sitl(stores: list[Path]) -> bool:
         )
     for ap in sorted({a for a, _ in by}):
         better = _worst(by[ap, "change"]) < _worst(by[ap, "today"])
-        print(f"condition 2 ({ap}): {better}")
+        print(f"{ap}: worst deviation smaller with the change: {better}")
         ok = ok and better
     return ok
 

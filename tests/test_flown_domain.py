@@ -28,6 +28,7 @@ from mission.localize.error_circles import (
 )
 from mission.localize.training_domain import (
     ATTITUDE_TOLERANCE_DEG,
+    CIRCLE_ATTITUDE_TOLERANCE_DEG,
     TRACK_REACH_M,
     attitude_note,
     planned_track,
@@ -183,6 +184,37 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     assert region_covers(est, *steep.truth_enu[:2], 0.9)
     plain = localize_log(spiral)
     assert "regions_from" not in plain.extras and plain.regions[0].is_circle
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tolerance", [None, ATTITUDE_TOLERANCE_DEG])
+def test_circles_on_a_simulated_log_hold_only_inside_the_training_attitudes(
+    spiral, repo_dir, monkeypatch, tolerance
+):
+    """ArduCopter SITL's -14 deg cruise, 2 deg past the spiral networks' training span: on a
+    simulated log the circles (calibrated on flights inside it) no longer apply and the regions
+    are the self-calibrating posterior's, with the note; the old 5 deg tolerance kept them."""
+    import mission.localize.api as api  # noqa: PLC0415
+
+    if tolerance is not None:
+        monkeypatch.setattr(api, "CIRCLE_ATTITUDE_TOLERANCE_DEG", tolerance)
+    lo = json.loads((repo_dir / "models" / "rfsl_spiral_e2r_ens5.json").read_text())[
+        "training_domain"
+    ]["pitch_deg"][0]
+    cols = dict(spiral.columns)
+    mission = np.asarray(spiral["phase"]).astype(str) == "mission"
+    cols["pitch_deg"] = np.where(mission, lo - 2.0, 0.0)
+    tilted = type(spiral)(cols, dict(spiral.meta), spiral.path)
+    assert CIRCLE_ATTITUDE_TOLERANCE_DEG == 0.0
+    est = localize_log(tilted)
+    if tolerance is None:
+        assert est.extras["regions_from"] == "selfcal"
+        assert (
+            all(not r.is_circle for r in est.regions)
+            and "attitude is outside" in (est.extras["note"])
+        )
+    else:
+        assert "regions_from" not in est.extras and all(r.is_circle for r in est.regions)
 
 
 @pytest.mark.parametrize(

@@ -27,9 +27,9 @@ ATTITUDE_TOLERANCE_DEG = (
     5.0  # flown roll / pitch (5-95 %) may leave the training's 1-99 % span by this much
 )
 # on a simulated log a network's error circles apply only inside its training attitudes, with no
-# tolerance: they were calibrated on simulated flights of the training's kind, and ArduCopter SITL,
-# 2 deg beyond the span, erred past its 90 % circle on 10 of 18 flights
-# (benchmarks/score_sim_circles.py; models/README.md)
+# tolerance: they were calibrated on simulated flights of the training's kind, and on ArduCopter
+# SITL (2 deg past the span) the 90 % circle held 1 of 10 fresh flights; the posterior's regions
+# that replace them held 10 of 10 (benchmarks/score_sim_circles.py; models/README.md)
 CIRCLE_ATTITUDE_TOLERANCE_DEG = 0.0
 # a planned point counts as flown when a used sample passed this close (spiral rings: 22 m)
 TRACK_REACH_M = 10.0
