@@ -121,6 +121,20 @@ def fly_one(
     }
 
 
+def stored_flights(stores: list[Path], arm: str):
+    """(row, log) of each flight of ``arm`` in bench stores (``OUT/flights.jsonl`` files) whose log
+    is still on disk, each log once: for scorers that answer stored flights again."""
+    seen = set()
+    for store in stores:
+        for line in Path(store).read_text().splitlines():
+            r = json.loads(line)
+            if r["arm"] != arm or not r.get("log") or r["log"] in seen:
+                continue
+            if Path(r["log"]).exists():
+                seen.add(r["log"])
+                yield r, read_flight_log(r["log"])
+
+
 def series_max_gap(meta: dict) -> float | None:
     """The longest gap (log s) of the live series between its first entry and the final one."""
     ts = [d["t_s"] for d in meta.get("estimates") or []]

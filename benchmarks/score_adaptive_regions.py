@@ -219,40 +219,33 @@ def sitl(stores: list[Path]) -> None:
     """Reported after the verdict (decides nothing): the printed regions of every adaptive flight
     flown against a real autopilot in SITL (``bench_sitl_seeds.py`` stores, each log answered
     by this code), with the chosen masses and with today's (the live method's own regions)."""
-    from mission.flightlog import read_flight_log  # noqa: PLC0415
+    from bench_sitl_seeds import stored_flights  # noqa: PLC0415
+
     from mission.localize.api import localize_log  # noqa: PLC0415
     from mission.localize.methods import ADAPTIVE_METHOD  # noqa: PLC0415
     from mission.workshop.evaluate_suite import region_coverage  # noqa: PLC0415
 
-    seen, counts = set(), {}
-    for store in stores:
-        for line in store.read_text().splitlines():
-            r = json.loads(line)
-            if r["arm"] != "adaptive" or not r.get("log") or r["log"] in seen:
-                continue
-            if not Path(r["log"]).exists():
-                continue
-            seen.add(r["log"])
-            log = read_flight_log(r["log"])
-            est = localize_log(log)
-            truth = log.truth_enu
-            if est.method != "rounds" or truth is None:
-                continue
-            rms = est.extras.get("physics_rms_db")
-            judged = bool(rms) and min(rms) <= PHYSICS_RMS_DB
-            live = est.components[ADAPTIVE_METHOD]
-            for name, e in (("chosen", est), ("today", live)):
-                c = counts.setdefault((r["autopilot"], name), {"50": 0, "90": 0, "n": 0, "a": []})
-                cov = region_coverage(e, truth[:2])
-                c["50"] += cov["50"]
-                c["90"] += cov["90"]
-                c["n"] += 1
-                c["a"].append(e.region(0.9).area_m2)
-            print(
-                f"{r['autopilot']:9s} seed {r['seed']:2d}: error {est.error_m:5.1f} m, judged "
-                f"{judged}, 90 % held: chosen {region_coverage(est, truth[:2])['90']}, today "
-                f"{region_coverage(live, truth[:2])['90']}"
-            )
+    counts = {}
+    for r, log in stored_flights(stores, "adaptive"):
+        est = localize_log(log)
+        truth = log.truth_enu
+        if est.method != "rounds" or truth is None:
+            continue
+        rms = est.extras.get("physics_rms_db")
+        judged = bool(rms) and min(rms) <= PHYSICS_RMS_DB
+        live = est.components[ADAPTIVE_METHOD]
+        for name, e in (("chosen", est), ("today", live)):
+            c = counts.setdefault((r["autopilot"], name), {"50": 0, "90": 0, "n": 0, "a": []})
+            cov = region_coverage(e, truth[:2])
+            c["50"] += cov["50"]
+            c["90"] += cov["90"]
+            c["n"] += 1
+            c["a"].append(e.region(0.9).area_m2)
+        print(
+            f"{r['autopilot']:9s} seed {r['seed']:2d}: error {est.error_m:5.1f} m, judged "
+            f"{judged}, 90 % held: chosen {region_coverage(est, truth[:2])['90']}, today "
+            f"{region_coverage(live, truth[:2])['90']}"
+        )
     for (ap, name), c in sorted(counts.items()):
         print(
             f"{ap:9s} {name:6s}: 50 % {c['50']}/{c['n']}, 90 % {c['90']}/{c['n']}, median 90 % "

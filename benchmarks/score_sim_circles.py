@@ -43,7 +43,6 @@ unchanged (6 / 15, 15 / 15: their pitch was already outside by more than 5 deg).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
@@ -52,6 +51,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_sitl_seeds import stored_flights  # noqa: E402
 from sim_default import simulate_log  # noqa: E402
 
 import mission.localize.api as api  # noqa: E402
@@ -104,32 +104,24 @@ def _worst(cov: dict[str, list[bool]]) -> float:
 def sitl(stores: list[Path]) -> bool:
     """Condition 2 on the fixed flights of the stores: coverage of the printed regions with each
     tolerance."""
-    seen, by = set(), {}
-    for store in stores:
-        for line in store.read_text().splitlines():
-            r = json.loads(line)
-            if r["arm"] != "fixed" or not r.get("log") or r["log"] in seen:
-                continue
-            if not Path(r["log"]).exists():
-                continue
-            seen.add(r["log"])
-            log = read_flight_log(r["log"])
-            cells = []
-            for name, t in TOLERANCES.items():
-                est, circles, cov = answered(log, t)
-                d = by.setdefault((r["autopilot"], name), {k: [] for k in LEVELS} | {"n_c": 0})
-                for k in LEVELS:
-                    d[k].append(bool(cov[k]))
-                d["n_c"] += circles
-                reg = est.region(0.9)
-                cells.append(
-                    f"{name} {'circle' if circles else 'posterior'} "
-                    f"{int(cov['50'])}{int(cov['90'])} {reg.area_m2:.0f} m^2"
-                )
-            print(
-                f"{r['autopilot']:9s} seed {r['seed']:2d} error {est.error_m:5.1f} m: "
-                + "; ".join(cells)
+    by = {}
+    for r, log in stored_flights(stores, "fixed"):
+        cells = []
+        for name, t in TOLERANCES.items():
+            est, circles, cov = answered(log, t)
+            d = by.setdefault((r["autopilot"], name), {k: [] for k in LEVELS} | {"n_c": 0})
+            for k in LEVELS:
+                d[k].append(bool(cov[k]))
+            d["n_c"] += circles
+            reg = est.region(0.9)
+            cells.append(
+                f"{name} {'circle' if circles else 'posterior'} "
+                f"{int(cov['50'])}{int(cov['90'])} {reg.area_m2:.0f} m^2"
             )
+        print(
+            f"{r['autopilot']:9s} seed {r['seed']:2d} error {est.error_m:5.1f} m: "
+            + "; ".join(cells)
+        )
     ok = True
     for (ap, name), d in sorted(by.items()):
         n = len(d["50"])
