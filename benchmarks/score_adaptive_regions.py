@@ -51,10 +51,17 @@ they do not as often.
   physics, -15 and -28 deg; ``score_judge_threshold.py``), 240 flights.
 - Held out (scored once): seed 2049, 40 flights each under ``mission`` with the level vehicle, at
   -15 deg and at -28 deg, and under the ``afar`` family (160 flights; the tilted flights count as
-  ``mission``).
+  ``mission``): ``bench_adaptive.py --flights 40 --jobs 2 --seed 2049 --family mission [--vehicle
+  drag_pitch_deg_per_mps=2.8 | 5.6] --json D/c/test_mission_{level,t15,t28}_2049.json`` and
+  ``--family afar --json D/c/test_afar_2049.json``.
 - Adopted if its worst |coverage - nominal| there is below that of the shipped masses (B, with the
   judge's new verdicts) and its ``afar`` 90 % interval holds 0.90. Reported beside: the 91 SITL
   flights.
+Result: adopted. C's masses: judged 0.1189 / 0.7378, not judged 0.5024 / 0.9893
+(``rounds_answer.REGION_MASS``, rounded up). Held out (seed 2049, 121 of 160 judged): shipped
+``afar`` 20 / 40, 34 / 40, ``mission`` 47 / 120, 105 / 120 (worst 10.8 points); C ``afar`` 18 /
+40, 33 / 40 [70, 91] %, ``mission`` 68 / 120, 117 / 120 (worst 7.5 points). SITL, 91 flights:
+ArduCopter 22 / 51, 49 / 51 -> 33 / 51, 51 / 51; PX4 7 / 40, 33 / 40 -> 16 / 40, 39 / 40.
 
 Usage::
 
@@ -95,12 +102,14 @@ def _setting(path: Path) -> str:
     return hit[0]
 
 
-def load(paths: list[Path]) -> list[dict]:
-    """One record per adaptive flight: setting, fold, the truth's level, whether the judge fired,
-    the printed 90 % area and whether the point lies in its own 90 % region."""
+def load(paths: list[Path], setting: str | None = None) -> list[dict]:
+    """One record per adaptive flight: setting (``setting``, else from the file name), fold, the
+    truth's level, whether the judge fired, the printed 90 % area and whether the point lies in its
+    own 90 % region."""
     out = []
+    given = setting
     for p in paths:
-        setting = _setting(p)
+        setting = given or _setting(p)
         for r in json.loads(p.read_text()):
             a = r["adaptive"]
             shown = a.get("shown_regions") or {}
@@ -268,6 +277,57 @@ def sitl(stores: list[Path]) -> None:
         )
 
 
+def score_tilted(
+    held: list[Path], cal: list[Path], tilted: list[Path], stores: list[Path] | None = None
+) -> bool:
+    """The second rule: variant C (B's fit with the nose-down calibration flights) against the
+    shipped masses on the held-out flights of seed 2049."""
+    from mission.localize.rounds_answer import REGION_MASS  # noqa: PLC0415
+
+    m_c = fit(load(cal) + load(tilted, "mission"), "B")
+    shipped = {k: REGION_MASS[k] for k in (True, False)}
+    rows = load(held)
+    print(f"{len(rows)} held-out flights; judged {sum(r['judged'] for r in rows)}; C masses {m_c}")
+    today = covered(rows, lambda r: mass_for(shipped, r))
+    new = covered(rows, lambda r: mass_for(m_c, r))
+    print(_line("shipped", today))
+    print(_line("C", new))
+    ci = coverage_interval(*new["afar"][0.9])
+    ok = worst(new) < worst(today) and ci.lo <= 0.9 <= ci.hi
+    print(f"-> {'adopted' if ok else 'not adopted'}")
+    if stores:
+        _sitl_levels(stores, {"shipped": shipped, "C": m_c})
+    return ok
+
+
+def _sitl_levels(stores: list[Path], masses_by_name: dict) -> None:
+    """Coverage on the stored adaptive SITL flights under each set of masses, from the truth's
+    level in each answer's posterior (reported beside the second rule)."""
+    from bench_sitl_seeds import stored_flights  # noqa: PLC0415
+
+    from mission.localize.api import localize_log  # noqa: PLC0415
+
+    rows = []
+    for r, log in stored_flights(stores, "adaptive"):
+        est = localize_log(log)
+        if est.method != "rounds" or log.truth_enu is None:
+            continue
+        rms = est.extras.get("physics_rms_db")
+        t = log.truth_enu
+        rows.append(
+            {
+                "autopilot": r["autopilot"],
+                "judged": bool(rms) and min(rms) <= PHYSICS_RMS_DB,
+                "level": est.posterior.hpd_level(float(t[0]), float(t[1])),
+            }
+        )
+    for ap in sorted({r["autopilot"] for r in rows}):
+        rs = [r for r in rows if r["autopilot"] == ap]
+        for name, m in masses_by_name.items():
+            k = {lev: sum(r["level"] < mass_for(m, r)[lev] for r in rs) for lev in LEVELS}
+            print(f"SITL {ap:9s} {name:7s}: 50 % {k[0.5]}/{len(rs)}, 90 % {k[0.9]}/{len(rs)}")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -277,11 +337,18 @@ def main(argv=None) -> int:
     s.add_argument("--variant", choices=("A", "B"), required=True)
     s.add_argument("--fitted-on", nargs="+", type=Path, required=True, help="the calibration files")
     s.add_argument("files", nargs="+", type=Path)
+    c2 = sub.add_parser("tilted", help="the second rule")
+    c2.add_argument("files", nargs="+", type=Path, help="held-out rows (seed 2049)")
+    c2.add_argument("--cal", nargs="+", type=Path, required=True)
+    c2.add_argument("--tilted", nargs="+", type=Path, required=True)
+    c2.add_argument("--sitl", nargs="*", type=Path, default=[], help="SITL stores, reported beside")
     t = sub.add_parser("sitl")
     t.add_argument("stores", nargs="+", type=Path, help="bench_sitl_seeds.py flights.jsonl files")
     a = p.parse_args(argv)
     if a.cmd == "calibrate":
         calibrate(a.files)
+    elif a.cmd == "tilted":
+        score_tilted(a.files, a.cal, a.tilted, a.sitl)
     elif a.cmd == "sitl":
         sitl(a.stores)
     else:
