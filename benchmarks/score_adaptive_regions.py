@@ -92,6 +92,11 @@ from mission.localize.selfcal import CALIBRATED_MASS  # noqa: E402
 
 SETTINGS = ("afar", "mission")
 FOLDS = 5
+# the judge's threshold each rule was scored with (the product's moved between them:
+# score_judge_threshold.py), and the masses the first rule adopted, so that both rules reproduce
+FIRST_RULE_JUDGE_DB = 9.89
+SECOND_RULE_JUDGE_DB = 12.06
+B_MASS = {True: {0.5: 0.0386, 0.9: 0.4059}, False: {0.5: 0.5503, 0.9: 0.9986}}
 
 
 def _setting(path: Path) -> str:
@@ -102,10 +107,12 @@ def _setting(path: Path) -> str:
     return hit[0]
 
 
-def load(paths: list[Path], setting: str | None = None) -> list[dict]:
+def load(
+    paths: list[Path], setting: str | None = None, judge_db: float = FIRST_RULE_JUDGE_DB
+) -> list[dict]:
     """One record per adaptive flight: setting (``setting``, else from the file name), fold, the
-    truth's level, whether the judge fired, the printed 90 % area and whether the point lies in its
-    own 90 % region."""
+    truth's level, whether the judge fired at threshold ``judge_db``, the printed 90 % area and
+    whether the point lies in its own 90 % region."""
     out = []
     given = setting
     for p in paths:
@@ -121,7 +128,7 @@ def load(paths: list[Path], setting: str | None = None) -> list[dict]:
                     "setting": setting,
                     "fold": int(r["i"]) % FOLDS,
                     "level": float(shown["level"]),
-                    "judged": bool(rms) and min(rms) <= PHYSICS_RMS_DB,
+                    "judged": bool(rms) and min(rms) <= judge_db,
                     "area_m2": shown.get("area_m2"),
                     "live_area_m2": a.get("area_m2"),
                     "point_inside": shown.get("point_inside"),
@@ -213,9 +220,10 @@ def _median(vals) -> float:
     return float(np.median(v)) if v else float("nan")
 
 
-def score(paths: list[Path], variant: str, m: dict) -> bool:
-    """The rule's verdict on held-out flights flown with the chosen masses ``m`` in place."""
-    rows = load(paths)
+def score(paths: list[Path], variant: str, m: dict, judge_db: float = FIRST_RULE_JUDGE_DB) -> bool:
+    """The rule's verdict on held-out flights flown with the chosen masses ``m`` in place, the
+    judge at ``judge_db``."""
+    rows = load(paths, judge_db=judge_db)
     today = covered(rows, lambda r: CALIBRATED_MASS)
     new = covered(rows, lambda r: mass_for(m, r))
     print(_line("today", today))
@@ -282,11 +290,10 @@ def score_tilted(
 ) -> bool:
     """The second rule: variant C (B's fit with the nose-down calibration flights) against the
     shipped masses on the held-out flights of seed 2049."""
-    from mission.localize.rounds_answer import REGION_MASS  # noqa: PLC0415
-
-    m_c = fit(load(cal) + load(tilted, "mission"), "B")
-    shipped = {k: REGION_MASS[k] for k in (True, False)}
-    rows = load(held)
+    db = SECOND_RULE_JUDGE_DB
+    m_c = fit(load(cal, judge_db=db) + load(tilted, "mission", db), "B")
+    shipped = B_MASS
+    rows = load(held, judge_db=db)
     print(f"{len(rows)} held-out flights; judged {sum(r['judged'] for r in rows)}; C masses {m_c}")
     today = covered(rows, lambda r: mass_for(shipped, r))
     new = covered(rows, lambda r: mass_for(m_c, r))

@@ -58,8 +58,6 @@ from mission.evidence import paired_difference  # noqa: E402
 
 TODAY = 9.89  # T, the threshold the rule replaced (rounds_answer.PHYSICS_RMS_DB before it)
 NEW = "T'"
-# the regions' masses shipped when this rule was scored (score_adaptive_regions.py, first rule)
-SHIPPED_MASS = {True: {0.5: 0.0386, 0.9: 0.4059}, False: {0.5: 0.5503, 0.9: 0.9986}}
 
 
 def calibrate(paths: list[Path]) -> float:
@@ -82,7 +80,7 @@ def sitl_answers(stores: list[Path], thresholds: dict[str, float]) -> list[dict]
 
     from mission.localize.api import localize_log  # noqa: PLC0415
 
-    rows = []
+    rows, product = [], ra.PHYSICS_RMS_DB
     for r, log in stored_flights(stores, "adaptive"):
         row = {"autopilot": r["autopilot"], "seed": r["seed"]}
         for name, t in thresholds.items():
@@ -91,7 +89,7 @@ def sitl_answers(stores: list[Path], thresholds: dict[str, float]) -> list[dict]
             row[name] = est.error_m
             rms = est.extras.get("physics_rms_db")
             row[f"{name}_judged"] = bool(rms) and min(rms) <= t
-        ra.PHYSICS_RMS_DB = TODAY
+        ra.PHYSICS_RMS_DB = product
         rows.append(row)
     return rows
 
@@ -141,8 +139,8 @@ def score(args) -> bool:
     # condition 3: the shipped masses, the strata of T'
     import score_adaptive_regions as sar  # noqa: PLC0415
 
-    sar.PHYSICS_RMS_DB = t_new
-    c3 = sar.score(args.regions, "B", SHIPPED_MASS)
+    # the masses shipped when this rule was scored (the first rule's)
+    c3 = sar.score(args.regions, "B", sar.B_MASS, judge_db=t_new)
     print(f"condition 3: {c3}")
     ok = ok and c3
     print(f"-> {'adopted' if ok else 'not adopted'}")
