@@ -160,6 +160,13 @@ def add_randomisation_arguments(p: argparse.ArgumentParser) -> None:
         "--shadowing-corr", type=_range, help="its correlation distance range LO,HI m (default 30)"
     )
     g.add_argument(
+        "--drag-pitch",
+        type=_range,
+        metavar="LO,HI",
+        help="steady nose-down pitch per m/s of airspeed, range LO,HI deg per m/s (default 0.6: "
+        "-3 deg at 5.5 m/s, as AFAR flew; ArduCopter SITL cruises near 2.8, PX4 SITL near 5.6)",
+    )
+    g.add_argument(
         "--physics-heading-jitter",
         type=float,
         metavar="DEG",
@@ -200,6 +207,7 @@ def randomisation_from_args(args: argparse.Namespace):
         ("shadowing_corr", "shadowing_corr_m"),
         ("fixed_heading", "fixed_heading"),
         ("physics_heading_jitter", "physics_heading_jitter_deg"),
+        ("drag_pitch", "drag_pitch_deg_per_mps"),
     ):
         v = getattr(args, flag)
         if v is not None:

@@ -59,6 +59,7 @@ from mission.localize.training_domain import (
     CIRCLE_ATTITUDE_TOLERANCE_DEG,
     altitude_note,
     flight_altitudes,
+    flight_attitude,
     flown_domain,
     trained_legs,
 )
@@ -326,10 +327,11 @@ def choose_method(
     model_path: str | Path | None = None,
     default_model: Path | None = None,
     physics_label: str = "the log's physics",
+    attitude_deg: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> tuple[str, str | Path | None, str]:
     """(method, model path, why) when none is asked for: a pure function of the sidecar, the
-    selected samples' heights, the model given and the shipped default network
-    (``tests/test_methods.py`` holds its table)."""
+    selected samples' heights and roll / pitch spans (``flight_attitude``), the model given and the
+    shipped default network (``tests/test_methods.py`` holds its table)."""
     if model_path is not None:
         return "onnx", model_path, f"model {Path(model_path).name} given"
     if (meta.get("trajectory") or {}).get("adaptive"):  # flown by fly-mission --adaptive
@@ -356,7 +358,7 @@ def choose_method(
             ),
         )
     if default_model is not None:
-        path, why = sim_default_model(meta, heights_m, default_model)
+        path, why = sim_default_model(meta, heights_m, default_model, attitude_deg)
         return "onnx", path, why
     return (
         "grid",
@@ -399,7 +401,12 @@ def localize_log(
         part, reason = log, "cruise selection off: all samples used"
     if method is None:
         method, model_path, choice = choose_method(
-            log.meta, part.enu()[:, 2], model_path, default_model_path(), physics_label
+            log.meta,
+            part.enu()[:, 2],
+            model_path,
+            default_model_path(),
+            physics_label,
+            flight_attitude(part),
         )
     else:
         choice = f"method {method} requested"

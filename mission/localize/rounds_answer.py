@@ -30,6 +30,7 @@ from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.sim_default import SPIRAL_SOURCE_MODEL
+from mission.localize.training_domain import flight_attitude
 from mission.localize.uncertainty import hpd_regions
 from mission.physics import make_model
 from mission.robust import offset_residual
@@ -72,7 +73,9 @@ def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
     meta["trajectory"] = {
         k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
     }
-    method, model, _ = choose_method(meta, part.enu()[:, 2], None, default_model_path())
+    method, model, _ = choose_method(
+        meta, part.enu()[:, 2], None, default_model_path(), attitude_deg=flight_attitude(part)
+    )
     entry = method_entry(method)
     kw = {"model_path": model, "tx_height_m": tx_height_m}
     if entry.compose is not None:

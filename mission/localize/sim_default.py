@@ -18,7 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mission.localize.training_domain import altitude_note, flight_altitudes
+from mission.localize.training_domain import (
+    CIRCLE_ATTITUDE_TOLERANCE_DEG,
+    altitude_note,
+    attitude_note,
+    flight_altitudes,
+)
 from mission.shipped import shipped_model
 
 # the most specialised first
@@ -26,6 +31,10 @@ SPIRAL_NETWORKS = (
     "rfsl_spiral_e2r_ens5.onnx",
     "rfsl_spiral_alt.onnx",
 )
+# trained on spirals flown nose down (0.6-6 deg of pitch per m/s: -3 to -35 deg at 5.5 m/s): answers
+# a spiral whose attitude leaves the chosen level network's training attitudes (ArduCopter SITL
+# cruises at about -14 deg, PX4 SITL at -28; benchmarks/score_tilt_network.py)
+TILT_NETWORK = "rfsl_spiral_tilt.onnx"
 SPIRAL_SOURCE_MODEL = "e2r"
 # model_params keys that would change the dipole default
 DIPOLE_KEYS = (
@@ -54,11 +63,16 @@ def spiral_source(meta: dict) -> str | None:
 
 
 def sim_default_model(
-    meta: dict, heights_m: np.ndarray, default: Path | None
+    meta: dict,
+    heights_m: np.ndarray,
+    default: Path | None,
+    attitude_deg: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> tuple[Path | None, str]:
     """(network path, why) for a simulated log with sidecar ``meta`` whose used samples fly at
-    ``heights_m``: the first spiral network whose training altitudes hold the flight, else
-    ``default`` (``rfsl_default``)."""
+    ``heights_m`` with roll and pitch spans ``attitude_deg`` (``flight_attitude``): the first
+    spiral network whose training altitudes hold the flight (the tilt network instead when the
+    flown attitude leaves that one's training attitudes and lies inside its own), else ``default``
+    (``rfsl_default``)."""
     dname = default.name if default is not None else "none"
     why_not = spiral_source(meta)
     if why_not is not None:
@@ -72,8 +86,12 @@ def sim_default_model(
         path = shipped_model(name)
         if path is None:
             continue
-        trained = OnnxLocalizer(path, threads=1).card.domain.altitude_m
+        dom = OnnxLocalizer(path, threads=1).card.domain
+        trained = dom.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
+            tilted = _tilt_network(name, dom.attitude_deg, flown, attitude_deg)
+            if tilted is not None:
+                return tilted
             return path, (
                 f"model {name}: a simulated e2r spiral at {np.median(heights_m):.0f} m, the "
                 "kind of "
@@ -82,4 +100,35 @@ def sim_default_model(
     return default, (
         f"default model {dname} (spiral at {np.median(heights_m):.0f} m: outside the spiral "
         "networks' altitudes)"
+    )
+
+
+def _tilt_network(
+    name: str, trained_attitude, flown_altitude, attitude_deg
+) -> tuple[Path, str] | None:
+    """(path, why) of the tilt network when the flown attitude leaves network ``name``'s training
+    attitudes (no tolerance, as for its circles) and the tilt network's training holds the flight's
+    altitude and attitude; None otherwise (``name`` answers)."""
+    if attitude_deg is None or trained_attitude is None:
+        return None
+    if attitude_note(name, trained_attitude, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG) is None:
+        return None
+    path = shipped_model(TILT_NETWORK)
+    if path is None:
+        return None
+    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
+
+    dom = OnnxLocalizer(path, threads=1).card.domain
+    if dom.altitude_m is None or altitude_note(TILT_NETWORK, dom.altitude_m, flown_altitude):
+        return None
+    if dom.attitude_deg is None or attitude_note(
+        TILT_NETWORK, dom.attitude_deg, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG
+    ):
+        return None
+    pitch = attitude_deg[1]
+    lo = dom.attitude_deg[1][0]
+    return path, (
+        f"model {TILT_NETWORK}: a simulated e2r spiral flown at {pitch[0]:.0f} to {pitch[1]:.0f} "
+        f"deg of pitch, outside {name}'s training attitudes and inside this network's "
+        f"(spirals flown nose down to {lo:.0f} deg)"
     )

@@ -27,6 +27,10 @@ Domain randomisation (each switchable; ``Randomisation``):
 - ``physics_heading_jitter_deg``: with a physics preset, the preset's UAV-antenna heading is
   jittered by U(-j, j) per flight (its fit is uncertain by several degrees and differs between
   teams).
+- ``drag_pitch_deg_per_mps``: the vehicle's steady nose-down pitch per m/s of airspeed
+  (``Kinematics.drag_pitch_deg_per_mps``; the default 0.6 cruises at about -3 deg as AFAR's
+  vehicles did, ArduCopter SITL cruises at about -14 deg (2.8), PX4 SITL at about -28 deg (5.6)): a
+  network trained on level cruise never saw the dipole tilted that far.
 
 Physics: ``model`` names one of ``make_model``'s models, or ``physics`` names a calibrated preset of
 ``mission.physics.presets`` (``afar``, or a fold such as ``afar:fit328`` fitted on team 328 only),
@@ -71,6 +75,7 @@ PARAM_NAMES = (
     "speed_mps",
     "shadowing_db",
     "shadowing_corr_m",
+    "drag_pitch_deg_per_mps",
 )
 FEATURE_KINDS = ("clustering", "normalised_rss")
 
@@ -95,6 +100,7 @@ class Randomisation:
     shadowing_db: tuple[float, float] | None = None
     shadowing_corr_m: tuple[float, float] | None = None
     physics_heading_jitter_deg: float | None = None
+    drag_pitch_deg_per_mps: tuple[float, float] | None = None
 
     @classmethod
     def from_dict(cls, d: dict) -> Randomisation:
@@ -205,3 +211,6 @@ def check_config(cfg: DatasetConfig) -> None:
     rf.num("fixed_heading", None, 0.0, 1.0)  # a probability
     for name in ("speed_mps", "shadowing_corr_m"):
         rf.span(name, None, 0.0, strict_lo=True, ordered=False)
+    drag = rf.span("drag_pitch_deg_per_mps", None, 0.0, ordered=False)
+    if drag is not None and max(drag) >= 45.0:
+        raise rf.err("drag_pitch_deg_per_mps", f"must be below 45 deg per m/s, got {list(drag)!r}")

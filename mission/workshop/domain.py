@@ -69,10 +69,12 @@ def training_altitudes(training_data: dict | None) -> tuple[float, float] | None
     return min(r[0] for r in ranges), max(r[1] for r in ranges)
 
 
-def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, float]] | None:
+def _mission_attitude(
+    mission: str, drag_pitch_deg_per_mps: float | None = None
+) -> tuple[tuple[float, float], tuple[float, float]] | None:
     """(roll, pitch) 1-99 % spans (deg) of the simulator flying a training mission's trajectory with
-    its own kinematics and perturbation (seed 0), as ``rfsl dataset`` flies it; None when the
-    mission is not here."""
+    its own kinematics (``drag_pitch_deg_per_mps`` replacing its nose-down pitch when given) and
+    perturbation (seed 0), as ``rfsl dataset`` flies it; None when the mission is not here."""
     p = _mission_file(mission)
     if p is None:
         return None
@@ -82,6 +84,9 @@ def _mission_attitude(mission: str) -> tuple[tuple[float, float], tuple[float, f
         return None
     # percentiles of a 0.2 s sampling: 10x cheaper, same spans
     cfg = replace(spec.sim_config(), dt_s=0.2)
+    if drag_pitch_deg_per_mps is not None:
+        kin = replace(cfg.kinematics, drag_pitch_deg_per_mps=drag_pitch_deg_per_mps)
+        cfg = replace(cfg, kinematics=kin)
     _, _, att, _ = fly_path(spec.waypoints_enu(), cfg, np.random.default_rng(0))
     deg = np.rad2deg(att[:, :2])
     r, q = (np.percentile(deg[:, k], [1.0, 99.0]) for k in (0, 1))
@@ -106,10 +111,14 @@ def training_attitude(
             or rnd.get("random_heading")
         ):
             return None
-        span = _mission_attitude(str(d["mission"]))
-        if span is None:
-            return None
-        spans.append(span)
+        # a drawn nose-down pitch: the mission flown at both ends of its range (the span is
+        # monotone in it)
+        drags = rnd.get("drag_pitch_deg_per_mps") or [None]
+        for drag in drags:
+            span = _mission_attitude(str(d["mission"]), drag)
+            if span is None:
+                return None
+            spans.append(span)
     if not spans:
         return None
     lo_hi = ((min(s[k][0] for s in spans), max(s[k][1] for s in spans)) for k in (0, 1))

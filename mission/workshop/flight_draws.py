@@ -27,12 +27,11 @@ from mission.physics.presets import build_model, load_preset
 from mission.samples import FlightSamples
 from mission.simulate import simulate_flight
 from mission.spec import load_mission
-
-# re-exported (mission.workshop.dataset)
 from mission.trajectory.generators import (
     generate,
-    trajectory_params,
+    trajectory_params,  # re-exported (mission.workshop.dataset)
 )
+from mission.trajectory.multicopter import Kinematics
 from mission.workshop.dataset_config import (
     PARAM_NAMES,
     DatasetConfig,
@@ -87,6 +86,7 @@ class _Draws:
     shadow: float
     corr: float
     jitter: float
+    drag: float | None
 
 
 @dataclass
@@ -217,6 +217,9 @@ class FlightSimulator:
         jitter = 0.0
         if r.physics_heading_jitter_deg:
             jitter = float(rng.uniform(-r.physics_heading_jitter_deg, r.physics_heading_jitter_deg))
+        drag = None
+        if r.drag_pitch_deg_per_mps is not None:
+            drag = _uniform(rng, r.drag_pitch_deg_per_mps, 0.0)
         return _Draws(
             xy,
             alt,
@@ -238,6 +241,7 @@ class FlightSimulator:
             shadow,
             corr,
             jitter,
+            drag,
         )
 
     def _waypoints(self, d: _Draws) -> np.ndarray:
@@ -256,11 +260,14 @@ class FlightSimulator:
     def _sim_config(self, d: _Draws):
         """The simulator settings of the flight: drawn noise, offset, shadowing, heading, speed."""
         kin = self.sim.kinematics
-        if d.fixed_h is not None or d.speed is not None:
+        if d.fixed_h is not None or d.speed is not None or d.drag is not None:
             kin = replace(
                 kin,
                 heading_deg=d.fixed_h if d.fixed_h is not None else kin.heading_deg,
                 cruise_speed_mps=d.speed if d.speed is not None else kin.cruise_speed_mps,
+                drag_pitch_deg_per_mps=(
+                    d.drag if d.drag is not None else kin.drag_pitch_deg_per_mps
+                ),
             )
         return replace(
             self.sim,
@@ -288,6 +295,7 @@ class FlightSimulator:
             "speed_mps": sim.kinematics.cruise_speed_mps,
             "shadowing_db": d.shadow,
             "shadowing_corr_m": d.corr if d.shadow > 0 else np.nan,
+            "drag_pitch_deg_per_mps": sim.kinematics.drag_pitch_deg_per_mps,
             "trajectory_params": d.tparams,
         }
 
@@ -315,6 +323,8 @@ class FlightSimulator:
             "speed_mps": d["speed_mps"],
             "shadowing_db": d["shadowing_db"],
             "shadowing_corr_m": d["shadowing_corr_m"],
+            # the benchmark family flies the default vehicle (suite.heading_attitude)
+            "drag_pitch_deg_per_mps": Kinematics().drag_pitch_deg_per_mps,
             "trajectory_params": d["trajectory_params"],
         }
         tx = np.array([*d["tx_xy"], d["tx_height_m"]])
