@@ -82,7 +82,13 @@ def calibration_record(
     return rec
 
 
-MODELS = ("rfsl_spiral_e2r", "rfsl_spiral_alt", "rfsl_default", "rfsl_afar", "rfsl_spiral_e2r_ens5")
+MODELS = (
+    "rfsl_spiral_e2r",
+    "rfsl_spiral_alt",
+    "rfsl_default",
+    "rfsl_afar",
+    "rfsl_spiral_e2r_ens5",
+)  # rfsl_spiral_tilt: calibrated (--models rfsl_spiral_tilt --sim-seed 3200), refused by its rule
 GENERATOR_MISSIONS = ("spiral", "lawnmower", "edge_sweep", "expanding_square", "random_waypoints")
 OTHER_GENERATORS = GENERATOR_MISSIONS[1:]
 # network -> (how its sim domain differs from its card's CI check set, description)
@@ -90,6 +96,10 @@ SIM_DOMAINS = {
     "rfsl_spiral_e2r": ({}, "simulated spirals at 30 m, e2r, dipoles"),
     "rfsl_spiral_e2r_ens5": ({}, "simulated spirals at 30 m, e2r, dipoles"),
     "rfsl_spiral_alt": ({}, "simulated spirals at 15-60 m, e2r, dipoles"),
+    "rfsl_spiral_tilt": (
+        {},
+        "simulated spirals at 30 m, e2r, dipoles, flown nose down (0.6-6 deg of pitch per m/s)",
+    ),
     "rfsl_default": (
         {"altitude_m": (20.0, 47.0), "trajectories": OTHER_GENERATORS, "random_params": True},
         "simulated lawnmower / edge sweep / expanding square / random waypoints at 20-47 m, e2r",

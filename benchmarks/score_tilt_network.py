@@ -48,6 +48,21 @@ with it):
   against the ensemble; the adaptive SITL logs on disk, answered by the change and by today's code
   (their fixed-flight candidate is routed the same way); issue 33's three seeds.
 
+Result (2026-11-28): adopted (models/README.md, "rfsl_spiral_tilt.onnx"); its circles refused.
+- Trained in 212 s on 2 threads (126 epochs); validation over the range 5.7 m mean.
+- S, 48 fixed SITL logs (25 transmitters), every one routed: today 23.8 m, change 8.5 m, paired
+  -15.3 [-19.7, -10.6] m (1 holds). ArduCopter 28 logs: 17.4 -> 8.1 m, -9.3 [-13.9, -4.8]; PX4 20
+  logs: 32.8 -> 9.1 m, -23.7 [-30.6, -16.9] (2 holds on both).
+- F: at 2.8 deg per m/s 14.6 -> 5.1 m, -9.5 [-10.1, -9.0]; at 5.6, 21.9 -> 5.2 m, -16.7 [-17.4,
+  -15.9] (3 holds).
+- P: 0 of 100 level spirals routed (4 holds).
+- Circles (4.2 / 9.7 m): on the 48 routed logs the printed regions held 16/48 at 50 % and 39/48 at
+  90 %: refused (50 % below 35 %); the card carries no ``sim`` circles, the regions stay the
+  posterior's.
+- Beside: the level test set, tilt 9.9 m against the ensemble's 4.8 m (paired +5.0 [4.6, 5.5]):
+  the tilt network is no level network, which is why it answers only tilted flights. The 91
+  adaptive SITL logs: 21.7 -> 13.3 m, paired -8.4 [-12.2, -4.8] (their fixed-flight candidate).
+
     rfsl dataset missions/spiral.yaml --n 16000 --features clustering --seed 61 \\
         --drag-pitch 0.6,6 --out DS/tilt_train
     # and seed 65 at 5.6,5.6 -> DS/test_t56; seed 63 without --drag-pitch -> DS/test_level

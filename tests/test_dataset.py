@@ -21,6 +21,7 @@ from mission.workshop.dataset import (
     load_dataset,
     read_manifest,
 )
+from mission.workshop.domain import training_attitude
 
 # short flights (a random fifth of a random-waypoint cruise) keep the tests fast
 FAST = Randomisation(
@@ -174,6 +175,50 @@ def test_fixed_heading_speed_and_shadowing_reach_the_flight(repo_dir):
     assert step.max() <= 3.0 + 1e-6
 
 
+def test_drag_pitch_tilts_the_cruise_and_is_recorded(repo_dir):
+    """``drag_pitch_deg_per_mps`` reaches the vehicle: the steady cruise pitch follows
+    atan(tan(k) v) nose down (about -28 deg for 5.6 deg per m/s at 5.5 m/s, as PX4 SITL flies), the
+    flight records its draw, and switched off the flight keeps its old bytes."""
+    spiral = Randomisation()  # the mission's own spiral at 5.5 m/s
+    base = FlightSimulator(_cfg(repo_dir, randomisation=spiral)).draw(1)
+    tilted = FlightSimulator(
+        _cfg(repo_dir, randomisation=replace(spiral, drag_pitch_deg_per_mps=(5.6, 5.6)))
+    ).draw(1)
+    assert tilted.params["drag_pitch_deg_per_mps"] == 5.6
+    assert base.params["drag_pitch_deg_per_mps"] == 0.6  # the vehicle's default, recorded
+    want = -np.degrees(np.arctan(np.tan(np.radians(5.6)) * 5.5))
+    for fd, k in ((tilted, want), (base, -np.degrees(np.arctan(np.tan(np.radians(0.6)) * 5.5)))):
+        pitch = np.median(np.rad2deg(fd.samples.attitude_rad[:, 1]))
+        assert abs(pitch - k) < 2.0, (pitch, k)
+    same = FlightSimulator(
+        _cfg(repo_dir, randomisation=replace(spiral, drag_pitch_deg_per_mps=None))
+    ).draw(1)
+    assert base.samples.rss_dbm.tobytes() == same.samples.rss_dbm.tobytes()
+    drawn = [
+        FlightSimulator(
+            _cfg(repo_dir, randomisation=replace(FAST, drag_pitch_deg_per_mps=(1.0, 4.0)))
+        )
+        .draw(i)
+        .params["drag_pitch_deg_per_mps"]
+        for i in range(4)
+    ]
+    assert all(1.0 <= d <= 4.0 for d in drawn) and len(set(drawn)) == 4
+
+
+def test_training_domain_of_a_drawn_pitch_spans_both_ends():
+    """A network trained on spirals with the nose-down pitch drawn in a range claims the attitudes
+    of both ends (the mission flown at each), so a PX4-like -28 deg cruise lies inside it."""
+    level = {"mission": "missions/spiral.yaml", "randomisation": {}}
+    tilt = {
+        "mission": "missions/spiral.yaml",
+        "randomisation": {"drag_pitch_deg_per_mps": [0.6, 6]},
+    }
+    (_, p_level) = training_attitude({"datasets": [level]})
+    (_, p_tilt) = training_attitude({"datasets": [tilt]})
+    assert p_level[0] > -20.0 and p_tilt[0] < -30.0
+    assert p_tilt[1] == pytest.approx(p_level[1], abs=0.5)  # the level end is the default vehicle
+
+
 def test_physics_preset_fold_is_the_simulated_model(repo_dir):
     """``physics="afar:fit328"`` flies the fold's fitted model: noise-free RSS equals that model at
     the logged geometry, with the heading jitter added to the preset's UAV-antenna heading."""
@@ -205,6 +250,14 @@ def test_physics_preset_fold_is_the_simulated_model(repo_dir):
         ),
         ({"randomisation": Randomisation(fixed_heading=1.5)}, "fixed_heading"),
         ({"randomisation": Randomisation(speed_mps=(0.0, 3.0))}, "speed_mps"),
+        (
+            {"randomisation": Randomisation(drag_pitch_deg_per_mps=(-1.0, 3.0))},
+            "drag_pitch_deg_per_mps",
+        ),
+        (
+            {"randomisation": Randomisation(drag_pitch_deg_per_mps=(1.0, 50.0))},
+            "drag_pitch_deg_per_mps",
+        ),
     ],
 )
 def test_inconsistent_configs_are_refused(tmp_path, repo_dir, kw, field):

@@ -165,11 +165,12 @@ def test_partial_flights_get_wider_circles_or_the_note(spiral, repo_dir):
 
 @pytest.mark.slow
 def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
-    """PX4's -28 deg cruise pitch: the note says the attitude is outside the network's training, no
-    circle is printed, and the regions fall back to the self-calibrating posterior's (every flight
-    ends with a region), whose 90 % region holds the truth here."""
+    """A -50 deg cruise pitch, past every spiral network's training (PX4's -28 deg is the tilt
+    network's, ``test_sim_default``): the note says the attitude is outside the network's
+    training, no circle is printed, and the regions fall back to the self-calibrating posterior's
+    (every flight ends with a region), whose 90 % region holds the truth here."""
     cols = dict(spiral.columns)
-    cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -28.0, 0.0)
+    cols["pitch_deg"] = np.where(np.asarray(spiral["phase"]).astype(str) == "mission", -50.0, 0.0)
     steep = type(spiral)(cols, dict(spiral.meta), spiral.path)
     est = localize_log(steep)
     assert est.extras["regions_from"] == "selfcal" and all(not r.is_circle for r in est.regions)
@@ -177,7 +178,7 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
     note = est.extras["note"]
     assert (
         "attitude is outside" in note
-        and "pitch -28 to -28 deg" in note
+        and "pitch -50 to -50 deg" in note
         and "No uncertainty region" not in note
     )
     assert "self-calibrating search's posterior" in note
@@ -191,10 +192,14 @@ def test_a_steep_cruise_pitch_is_outside_the_training_domain(spiral):
 def test_circles_on_a_simulated_log_hold_only_inside_the_training_attitudes(
     spiral, repo_dir, monkeypatch, tolerance
 ):
-    """ArduCopter SITL's -14 deg cruise, 2 deg past the spiral networks' training span: on a
-    simulated log the circles (calibrated on flights inside it) no longer apply and the regions
-    are the self-calibrating posterior's, with the note; the old 5 deg tolerance kept them."""
+    """ArduCopter SITL's -14 deg cruise, 2 deg past the level spiral networks' training span
+    (without the tilt network, which answers such a flight when shipped): on a simulated log the
+    circles (calibrated on flights inside it) no longer apply and the regions are the
+    self-calibrating posterior's, with the note; the old 5 deg tolerance kept them."""
     import mission.localize.api as api  # noqa: PLC0415
+    import mission.localize.sim_default as sim_default  # noqa: PLC0415
+
+    monkeypatch.setattr(sim_default, "TILT_NETWORK", "absent.onnx")
 
     if tolerance is not None:
         monkeypatch.setattr(api, "CIRCLE_ATTITUDE_TOLERANCE_DEG", tolerance)

@@ -176,3 +176,18 @@ def test_choose_method_table(meta, height, model, default, method, net) -> None:
         assert path is None
     else:
         assert Path(path).name == net if net != "D" else path == dflt
+
+
+@pytest.mark.parametrize(
+    ("pitch", "net"),
+    [((-3.0, 2.0), "rfsl_spiral_e2r_ens5.onnx"), ((-30.0, -25.0), "rfsl_spiral_tilt.onnx")],
+)
+def test_choose_method_hands_the_flown_attitude_to_the_simulated_default(pitch, net) -> None:
+    """A simulated spiral flown nose down (PX4 SITL's -28 deg) gets the tilt network, a level one
+    the ensemble: the choice reads the flight's attitude, not only its sidecar and heights."""
+    if not (Path("models") / "rfsl_spiral_tilt.onnx").is_file():
+        pytest.skip("no tilt network")
+    got, path, why = choose_method(
+        SPIRAL_SIM, np.full(50, 30.0), None, Path("models") / "D", attitude_deg=((-2.0, 3.0), pitch)
+    )
+    assert got == "onnx" and Path(path).name == net, why

@@ -30,6 +30,7 @@ SHIPPED = (
     "rfsl_spiral_e2r_ens5",
     "rfsl_spiral_alt",
     "rfsl_survey_e2r",
+    "rfsl_spiral_tilt",
 )
 
 
