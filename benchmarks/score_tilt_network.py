@@ -111,14 +111,15 @@ ABSENT = "no_such_network.onnx"
 
 
 @contextmanager
-def today():
-    """``localize`` as it answers without the tilt network (the shipped code otherwise)."""
-    name = sim_default.TILT_NETWORK
-    sim_default.TILT_NETWORK = ABSENT
+def without(module, attr: str):
+    """``localize`` as it answers without the network named by ``module.attr`` (the shipped code
+    otherwise)."""
+    name = getattr(module, attr)
+    setattr(module, attr, ABSENT)
     try:
         yield
     finally:
-        sim_default.TILT_NETWORK = name
+        setattr(module, attr, name)
 
 
 def _errors(net: str, d: Path) -> np.ndarray:
@@ -169,12 +170,17 @@ def product(first: int, last: int, workers: int) -> bool:
     return ok
 
 
-def _answer(log) -> dict:
+def answer(log) -> dict:
+    """What ``localize`` answers for ``log``: error, model (the answer's and its components'),
+    whether its regions hold the truth and are circles."""
     est = localize_log(log)
     cov = region_coverage(est, log.truth_enu[:2])
     return {
         "error_m": float(est.error_m),
         "model": Path(est.model).name if est.model else None,
+        "component_models": sorted(
+            Path(c.model).name for c in (est.components or {}).values() if c.model
+        ),
         "method": est.method,
         "cov50": bool(cov.get("50")),
         "cov90": bool(cov.get("90")),
@@ -185,9 +191,9 @@ def _answer(log) -> dict:
 def _sitl_one(job: tuple[dict, str]) -> dict:
     r, path = job
     log = read_flight_log(path)
-    with today():
-        before = _answer(log)
-    after = _answer(log)
+    with without(sim_default, "TILT_NETWORK"):
+        before = answer(log)
+    after = answer(log)
     return {
         "autopilot": r["autopilot"],
         "seed": r["seed"],
@@ -198,21 +204,27 @@ def _sitl_one(job: tuple[dict, str]) -> dict:
     }
 
 
-def _paired(rows: list[dict]):
+def paired(rows: list[dict]):
+    """Change - today over stored-flight rows, with its cluster bootstrap interval by
+    transmitter."""
     a = [r["change"]["error_m"] for r in rows]
     b = [r["today"]["error_m"] for r in rows]
     groups = [str(r["seed"]) for r in rows]  # one transmitter per seed, on either autopilot
     return paired_difference(a, b, groups)
 
 
-def _summary(rows: list[dict], what: str) -> None:
+def summary(rows: list[dict], what: str, routed_to: str = TILT) -> None:
+    """One line: logs, transmitters, how many ``routed_to`` answered (or helped answer), the two
+    means and the paired difference."""
     n = len(rows)
     t = np.mean([r["today"]["error_m"] for r in rows])
     c = np.mean([r["change"]["error_m"] for r in rows])
-    routed = sum(r["change"]["model"] == TILT for r in rows)
+    routed = sum(
+        routed_to in (r["change"]["model"], *r["change"]["component_models"]) for r in rows
+    )
     print(
         f"{what}: {n} logs ({len({r['seed'] for r in rows})} transmitters), "
-        f"routed {routed}; today {t:.1f} m, change {c:.1f} m, paired {_paired(rows).fmt()} m"
+        f"routed {routed}; today {t:.1f} m, change {c:.1f} m, paired {paired(rows).fmt()} m"
     )
 
 
@@ -228,13 +240,13 @@ def sitl(stores: list[Path], workers: int, out: Path | None) -> bool:
     if out is not None:
         out.write_text(json.dumps(rows, indent=1) + "\n")
     fixed = [r for r in rows if r["arm"] == "fixed"]
-    _summary(fixed, "fixed, both autopilots")
-    ok = _paired(fixed).hi < 0
+    summary(fixed, "fixed, both autopilots")
+    ok = paired(fixed).hi < 0
     print(f"condition 1: {ok}")
     for ap in sorted({r["autopilot"] for r in fixed}):
         sub = [r for r in fixed if r["autopilot"] == ap]
-        _summary(sub, f"fixed, {ap}")
-        ok2 = _paired(sub).lo < 0
+        summary(sub, f"fixed, {ap}")
+        ok2 = paired(sub).lo < 0
         print(f"condition 2, {ap}: {ok2}")
         ok = ok and ok2
     routed = [r["change"] for r in fixed if r["change"]["model"] == TILT]
@@ -247,9 +259,9 @@ def sitl(stores: list[Path], workers: int, out: Path | None) -> bool:
         print(f"circles' condition: {c90 >= 0.8 * n and 0.35 * n <= c50 <= 0.65 * n}")
     adaptive = [r for r in rows if r["arm"] == "adaptive"]
     if adaptive:
-        _summary(adaptive, "beside, adaptive, both autopilots")
+        summary(adaptive, "beside, adaptive, both autopilots")
         for ap in sorted({r["autopilot"] for r in adaptive}):
-            _summary([r for r in adaptive if r["autopilot"] == ap], f"beside, adaptive, {ap}")
+            summary([r for r in adaptive if r["autopilot"] == ap], f"beside, adaptive, {ap}")
     return ok
 
 

@@ -29,8 +29,8 @@ from mission.localize.candidates import Candidate
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
-from mission.localize.sim_default import SPIRAL_SOURCE_MODEL
-from mission.localize.training_domain import flight_attitude
+from mission.localize.sim_default import SPIRAL_SOURCE_MODEL, tilt_alternative
+from mission.localize.training_domain import flight_altitudes, flight_attitude
 from mission.localize.uncertainty import hpd_regions
 from mission.physics import make_model
 from mission.robust import offset_residual
@@ -45,6 +45,10 @@ PHYSICS_RMS_DB = 12.06
 # trained on the survey of missions/spiral_adaptive.yaml (docs/adaptive.md): a third candidate for
 # the judge only, never for the rounds' score
 SURVEY_NETWORK = "rfsl_survey_e2r.onnx"
+# the same survey, flown nose down (0.6-6 deg of pitch per m/s): the third candidate where the
+# survey's attitude leaves SURVEY_NETWORK's training span (ArduCopter and PX4 SITL;
+# benchmarks/score_survey_tilt.py)
+SURVEY_TILT_NETWORK = "rfsl_survey_tilt.onnx"
 # HPD masses of an adaptive flight's regions, by the judge's verdict (True: the networks' physics
 # explains the flight): calibrated on 240 simulated adaptive flights, seeds 2045-2046 under the
 # ``afar`` family and the mission's physics and seed 5002 flown nose down (-15 and -28 deg), the
@@ -104,11 +108,21 @@ def physics_rms_db(part, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
 
 
 def survey_network(survey, origin, tx_height_m: float) -> Estimate | None:
-    """The survey network's answer on the survey's rows (``SURVEY_NETWORK``), None where it is not
-    shipped."""
+    """The survey network's answer on the survey's rows (``SURVEY_NETWORK``, or
+    ``SURVEY_TILT_NETWORK`` where the survey was flown outside its training attitudes and inside
+    the tilt network's), None where it is not shipped."""
     path = shipped_model(SURVEY_NETWORK)
     if path is None:
         return None
+    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
+
+    dom = OnnxLocalizer(path, threads=1).card.domain
+    flown = flight_altitudes(survey.enu()[:, 2])
+    tilted = tilt_alternative(
+        SURVEY_NETWORK, dom.attitude_deg, flown, flight_attitude(survey), SURVEY_TILT_NETWORK
+    )
+    if tilted is not None:
+        path = tilted[0]
     return run_member("onnx", survey, origin, model_path=path, tx_height_m=tx_height_m)[1]
 
 

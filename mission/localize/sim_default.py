@@ -89,7 +89,7 @@ def sim_default_model(
         dom = OnnxLocalizer(path, threads=1).card.domain
         trained = dom.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
-            tilted = _tilt_network(name, dom.attitude_deg, flown, attitude_deg)
+            tilted = tilt_alternative(name, dom.attitude_deg, flown, attitude_deg, TILT_NETWORK)
             if tilted is not None:
                 return tilted
             return path, (
@@ -103,32 +103,32 @@ def sim_default_model(
     )
 
 
-def _tilt_network(
-    name: str, trained_attitude, flown_altitude, attitude_deg
+def tilt_alternative(
+    name: str, trained_attitude, flown_altitude, attitude_deg, tilt_name: str
 ) -> tuple[Path, str] | None:
-    """(path, why) of the tilt network when the flown attitude leaves network ``name``'s training
-    attitudes (no tolerance, as for its circles) and the tilt network's training holds the flight's
-    altitude and attitude; None otherwise (``name`` answers)."""
+    """(path, why) of the network ``tilt_name`` (trained on nose-down cruise) when the flown
+    attitude ``attitude_deg`` leaves network ``name``'s training attitudes (no tolerance, as for its
+    circles) and ``tilt_name``'s training holds the flight's altitude and attitude; None otherwise
+    (``name`` answers)."""
     if attitude_deg is None or trained_attitude is None:
         return None
     if attitude_note(name, trained_attitude, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG) is None:
         return None
-    path = shipped_model(TILT_NETWORK)
+    path = shipped_model(tilt_name)
     if path is None:
         return None
     from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
 
     dom = OnnxLocalizer(path, threads=1).card.domain
-    if dom.altitude_m is None or altitude_note(TILT_NETWORK, dom.altitude_m, flown_altitude):
+    if dom.altitude_m is None or altitude_note(tilt_name, dom.altitude_m, flown_altitude):
         return None
     if dom.attitude_deg is None or attitude_note(
-        TILT_NETWORK, dom.attitude_deg, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG
+        tilt_name, dom.attitude_deg, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG
     ):
         return None
     pitch = attitude_deg[1]
     lo = dom.attitude_deg[1][0]
     return path, (
-        f"model {TILT_NETWORK}: a simulated e2r spiral flown at {pitch[0]:.0f} to {pitch[1]:.0f} "
-        f"deg of pitch, outside {name}'s training attitudes and inside this network's "
-        f"(spirals flown nose down to {lo:.0f} deg)"
+        f"model {tilt_name}: flown at {pitch[0]:.0f} to {pitch[1]:.0f} deg of pitch, outside "
+        f"{name}'s training attitudes and inside this network's (flown nose down to {lo:.0f} deg)"
     )
