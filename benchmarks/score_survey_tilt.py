@@ -68,6 +68,17 @@ the flight, so the flights are paired by world (seed), not held fixed.
   4. C as measured above (level flights never move).
 - Beside: issue 33 on the fresh seeds (adaptive - fixed, both arms flown with the change).
 
+Result of the second rule (2026-11-28 23:33 UTC): NOT ADOPTED (condition 3 fails). The network is
+not shipped; ``rounds_answer`` keeps the routing for it, so this file reproduces both rules once it
+is trained into ``models/``.
+- A2, 15 fresh SITL flights (every one exit 0): 7.2 -> 5.7 m, paired -1.5 [-3.5, 0.1] m (1 holds);
+  ArduCopter 10: 6.0 -> 4.1 m, -1.9 [-4.9, 0.4]; PX4 5: 9.5 -> 8.9 m, -0.6 [-1.8, 0.0] (2 holds).
+- B2, seed 5004: at 2.8 deg per m/s, 11.1 -> 12.2 m, +1.1 [-1.2, 4.0]; at 5.6, 12.6 -> 14.0 m,
+  +1.4 [-0.9, 4.1] (38/40 and 40/40 flights identical). Condition 3 fails on both.
+- Both rules together: on the SITL logs it helps (-7.0 m on 91 logs, -1.5 m on 15 fresh ones); on
+  the fast simulator flown nose down it moves the adaptive answer by -1.9 / -3.1 m on seed 5003
+  and +1.1 / +1.4 m on seed 5004, i.e. by noise.
+
     python benchmarks/score_survey_tilt.py sitl STORE2/flights.jsonl --json A2.json
     python benchmarks/score_survey_tilt.py bench --paired-by-world B2_28_with.json \\
         B2_28_without.json B2_56_with.json B2_56_without.json

@@ -4,6 +4,7 @@ weighed by the rounds' held-out RSS (issue 33 item 1)."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,13 +31,19 @@ def _square(centre: np.ndarray, half: float, z: float) -> np.ndarray:
     return np.column_stack([xs, ys, np.full(5, z)])
 
 
-def _flight(repo_dir, round_at: str, seed: int = 3) -> tuple[SimLog, object, np.ndarray]:
+def _flight(
+    repo_dir, round_at: str, seed: int = 3, drag: float | None = None
+) -> tuple[SimLog, object, np.ndarray]:
     """A 200 s survey of the spiral, then one 20 m square at 15 m around the transmitter
-    (``round_at`` "truth") or 80 m east of it ("elsewhere"), the mission's own physics."""
+    (``round_at`` "truth") or 80 m east of it ("elsewhere"), the mission's own physics; ``drag``:
+    the vehicle's nose-down pitch per m/s (5.6: PX4 SITL's -28 deg cruise)."""
     spec = load_mission(repo_dir / ADAPTIVE_MISSION)
     rng = np.random.default_rng(seed)
     world = FlightWorld(spec, None, rng)
     cfg = dataclasses.replace(spec.sim_config(), dt_s=0.2)
+    if drag is not None:
+        kin = dataclasses.replace(cfg.kinematics, drag_pitch_deg_per_mps=drag)
+        cfg = dataclasses.replace(cfg, kinematics=kin)
     sv = survey_profile(spec, 200.0).vertices
     home = np.asarray(spec.home_enu, dtype=float)
     log = SimLog()
@@ -210,3 +217,23 @@ def test_the_survey_network_answers_through_the_judge_only(repo_dir, monkeypatch
     else:
         assert at in {(c["x_m"], c["y_m"]) for c in listed[:2]}
         assert est.model != listed[2]["source"]
+
+
+@pytest.mark.parametrize("drag", [None, 5.6])
+def test_a_survey_flown_nose_down_routes_to_a_tilt_survey_network(repo_dir, monkeypatch, drag):
+    """Where a survey network trained nose down is installed (``SURVEY_TILT_NETWORK``; refused by
+    both of its rules, not shipped: benchmarks/score_survey_tilt.py), a survey cruising at -28 deg
+    (outside ``rfsl_survey_e2r``'s span) gets it and a level survey keeps ``rfsl_survey_e2r``. The
+    shipped spiral tilt network stands in for it (its card spans -35 to 10 deg)."""
+    assert ra.shipped_model(ra.SURVEY_TILT_NETWORK) is None  # refused: not shipped
+    stand_in = "rfsl_spiral_tilt.onnx"
+    if ra.shipped_model(stand_in) is None:
+        pytest.skip("no spiral tilt network")
+    log, spec, _ = _flight(repo_dir, "truth", drag=drag)
+    survey, _ = survey_and_rounds(log.flight_log(spec, spec.adaptive))
+    pitch = np.median(np.asarray(survey["pitch_deg"], dtype=float))
+    assert (pitch < -20.0) == (drag is not None)
+    assert Path(ra.survey_network(survey, spec.field.origin, 1.5).model).name == ra.SURVEY_NETWORK
+    monkeypatch.setattr(ra, "SURVEY_TILT_NETWORK", stand_in)
+    est = ra.survey_network(survey, spec.field.origin, 1.5)
+    assert Path(est.model).name == (ra.SURVEY_NETWORK if drag is None else stand_in)
