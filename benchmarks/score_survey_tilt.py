@@ -52,7 +52,7 @@ the errors.
 - Beside: issue 33 on the SITL logs, adaptive - fixed: ArduCopter -3.5 [-5.1, -2.1] m (4.4 against
   7.9 m), PX4 -0.6 [-4.3, 3.9] m (8.4 against 9.1 m). The regions held 46/91 and 90/91 both ways.
 
-Second rule (written 2026-11-28 23:00 UTC, before any of its flights was flown or answered), on
+Second rule (written 2026-11-28 22:59 UTC, before any of its flights was flown or answered), on
 fresh evidence with the premise corrected: the change is the network in the judge during and after
 the flight, so the flights are paired by world (seed), not held fixed.
 - A2: fresh SITL flights flown with the change (``bench_sitl_seeds.py --arms adaptive fixed``):
