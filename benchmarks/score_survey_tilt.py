@@ -100,7 +100,6 @@ import argparse
 import json
 import sys
 from collections import defaultdict
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -108,14 +107,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_sitl_seeds import stored_flights  # noqa: E402
-from score_tilt_network import answer, paired, summary, without  # noqa: E402
+from score_tilt_network import answer, answer_stored, paired, summary, without  # noqa: E402
 
 import mission.localize.rounds_answer as rounds_answer  # noqa: E402
 from mission.evidence import paired_difference  # noqa: E402
 from mission.flightlog import read_flight_log  # noqa: E402
 from mission.shipped import shipped_model  # noqa: E402
-from mission.threads import limit_worker  # noqa: E402
 
 TILT = rounds_answer.SURVEY_TILT_NETWORK
 
@@ -156,15 +153,7 @@ def _issue33(rows: list[dict]) -> None:
 
 def sitl(stores: list[Path], workers: int, out: Path | None) -> bool:
     """Conditions 1-2 on the adaptive logs; issue 33's comparison and the regions beside."""
-    jobs = [
-        (r, str(log.path))
-        for arm in ("adaptive", "fixed")
-        for r, log in stored_flights(stores, arm)
-    ]
-    with ProcessPoolExecutor(workers, initializer=limit_worker) as ex:
-        rows = list(ex.map(_sitl_one, jobs))
-    if out is not None:
-        out.write_text(json.dumps(rows, indent=1) + "\n")
+    rows = answer_stored(stores, ("adaptive", "fixed"), _sitl_one, workers, out)
     ad = [r for r in rows if r["arm"] == "adaptive"]
     summary(ad, "adaptive, both autopilots", TILT)
     d = paired(ad)

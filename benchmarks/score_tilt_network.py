@@ -228,17 +228,22 @@ def summary(rows: list[dict], what: str, routed_to: str = TILT) -> None:
     )
 
 
-def sitl(stores: list[Path], workers: int, out: Path | None) -> bool:
-    """Conditions 1-2 on the fixed logs, the circles' condition, and the adaptive logs beside."""
-    jobs = [
-        (r, str(log.path))
-        for arm in ("fixed", "adaptive")
-        for r, log in stored_flights(stores, arm)
-    ]
+def answer_stored(
+    stores: list[Path], arms: tuple[str, ...], one, workers: int, out: Path | None
+) -> list[dict]:
+    """Every stored flight of ``arms`` answered by ``one`` (a module-level function of (bench row,
+    log path)) in ``workers`` processes; the rows also written to ``out`` as JSON when given."""
+    jobs = [(r, str(log.path)) for arm in arms for r, log in stored_flights(stores, arm)]
     with ProcessPoolExecutor(workers, initializer=limit_worker) as ex:
-        rows = list(ex.map(_sitl_one, jobs))
+        rows = list(ex.map(one, jobs))
     if out is not None:
         out.write_text(json.dumps(rows, indent=1) + "\n")
+    return rows
+
+
+def sitl(stores: list[Path], workers: int, out: Path | None) -> bool:
+    """Conditions 1-2 on the fixed logs, the circles' condition, and the adaptive logs beside."""
+    rows = answer_stored(stores, ("fixed", "adaptive"), _sitl_one, workers, out)
     fixed = [r for r in rows if r["arm"] == "fixed"]
     summary(fixed, "fixed, both autopilots")
     ok = paired(fixed).hi < 0
