@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mission.errors import InputError
-from mission.localize.card import DOMAIN_KEY, TrainingDomain, card_path
+from mission.localize.card import DOMAIN_KEY, TrainingDomain, card_path, training_domain_of
 from mission.localize.error_circles import card_calibration
 from mission.localize.onnx_model import OnnxLocalizer
 from mission.workshop.domain import write_domain
@@ -91,6 +91,22 @@ def test_the_runtime_reads_the_cards_domain_and_circles(net):
     with pytest.raises(InputError) as e:
         OnnxLocalizer(net)
     assert (e.value.source, e.value.field) == (str(card_path(net)), f"{DOMAIN_KEY}.pitch_deg")
+
+
+def test_the_routers_read_the_same_domain_without_a_session(net):
+    """``training_domain_of`` (what the routers read) is the runtime card's domain, from the JSON
+    card alone: the same spans, the same refusal of a malformed one, no claim without a card."""
+    assert training_domain_of(net) == OnnxLocalizer(net).card.domain != TrainingDomain()
+    doc = json.loads(card_path(net).read_text())
+    doc[DOMAIN_KEY]["altitude_m"] = [25.0, 35.0]
+    card_path(net).write_text(json.dumps(doc))
+    assert training_domain_of(net).altitude_m == (25.0, 35.0)
+    doc[DOMAIN_KEY]["pitch_deg"] = [3.0]
+    card_path(net).write_text(json.dumps(doc))
+    with pytest.raises(InputError, match="pitch_deg"):
+        training_domain_of(net)
+    card_path(net).unlink()
+    assert training_domain_of(net) == TrainingDomain()
 
 
 def test_a_network_without_a_card_makes_no_claim(net):

@@ -176,6 +176,20 @@ def _json_card(path: Path) -> dict | None:
     return card
 
 
+def _card_domain(card: dict | None, path: Path) -> TrainingDomain:
+    """The training domain recorded in a JSON card (an empty one, no claim, without it)."""
+    if card is not None and card.get(DOMAIN_KEY) is not None:
+        return TrainingDomain.from_dict(card[DOMAIN_KEY], str(card_path(path)))
+    return TrainingDomain()
+
+
+def training_domain_of(model_path: str | Path) -> TrainingDomain:
+    """The training domain of the network at ``model_path``, from its JSON card alone: what a
+    router reads to choose a network, without opening an onnxruntime session for it."""
+    path = Path(model_path)
+    return _card_domain(_json_card(path), path)
+
+
 @dataclass(frozen=True)
 class ModelCard:
     """Everything the runtime reads about a network, validated once (``ModelCard.read``).
@@ -241,8 +255,6 @@ class ModelCard:
                 field=f"training_data.{METADATA_KEY}",
             )
         card = _json_card(path)
-        domain = TrainingDomain()
-        if card is not None and card.get(DOMAIN_KEY) is not None:
-            domain = TrainingDomain.from_dict(card[DOMAIN_KEY], str(card_path(path)))
+        domain = _card_domain(card, path)
         regions = None if card is None else card.get(REGIONS_KEY) or {}
         return cls(path, kind, cfg, norm, origin, ref, domain, regions, model_digest(path), meta)

@@ -26,6 +26,7 @@ from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
 from mission.localize.api import choose_method, default_model_path, run_member
 from mission.localize.candidates import Candidate
+from mission.localize.card import training_domain_of
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.selfcal import SelfCalibratingGrid
@@ -115,12 +116,10 @@ def survey_network(survey, origin, tx_height_m: float) -> Estimate | None:
     path = shipped_model(SURVEY_NETWORK)
     if path is None:
         return None
-    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
-
-    dom = OnnxLocalizer(path, threads=1).card.domain
+    trained = training_domain_of(path).attitude_deg
     flown = flight_altitudes(survey.enu()[:, 2])
     tilted = tilt_alternative(
-        SURVEY_NETWORK, dom.attitude_deg, flown, flight_attitude(survey), SURVEY_TILT_NETWORK
+        SURVEY_NETWORK, trained, flown, flight_attitude(survey), SURVEY_TILT_NETWORK
     )
     if tilted is not None:
         path = tilted[0]

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mission.localize.card import training_domain_of
 from mission.localize.training_domain import (
     CIRCLE_ATTITUDE_TOLERANCE_DEG,
     altitude_note,
@@ -77,16 +78,12 @@ def sim_default_model(
     why_not = spiral_source(meta)
     if why_not is not None:
         return default, f"default model {dname} ({why_not}: not a spiral network's flight)"
-    # onnxruntime stays lazy (noqa): a simulated spiral's route only; localize --method grid and
-    # the classical routes start without it
-    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
-
     flown = flight_altitudes(heights_m)
     for name in SPIRAL_NETWORKS:
         path = shipped_model(name)
         if path is None:
             continue
-        dom = OnnxLocalizer(path, threads=1).card.domain
+        dom = training_domain_of(path)
         trained = dom.altitude_m
         if trained is not None and altitude_note(name, trained, flown) is None:
             tilted = tilt_alternative(name, dom.attitude_deg, flown, attitude_deg, TILT_NETWORK)
@@ -117,9 +114,7 @@ def tilt_alternative(
     path = shipped_model(tilt_name)
     if path is None:
         return None
-    from mission.localize.onnx_model import OnnxLocalizer  # noqa: PLC0415
-
-    dom = OnnxLocalizer(path, threads=1).card.domain
+    dom = training_domain_of(path)
     if dom.altitude_m is None or altitude_note(tilt_name, dom.altitude_m, flown_altitude):
         return None
     if dom.attitude_deg is None or attitude_note(
