@@ -40,6 +40,18 @@ class Series:
     def first_t(self) -> float:
         return self.t[0] if self.t else np.inf
 
+    def window(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times (N,) and rows (N, width) of the samples with ``t0 < t <= t1`` still in the ring."""
+        k = 0
+        for tk in reversed(self.t):
+            if tk <= t0:
+                break
+            k += 1
+        t = np.fromiter(itertools.islice(self.t, len(self.t) - k, None), float, k)
+        v = np.asarray(list(itertools.islice(self.v, len(self.v) - k, None)), dtype=float)
+        keep = t <= t1
+        return t[keep], v.reshape(k, self.width)[keep]
+
     def interp(self, tq: np.ndarray, angle_cols: tuple[int, ...] = ()) -> np.ndarray:
         """Values at times ``tq`` (linear, held at the ends); ``angle_cols`` (radians) are unwrapped
         first."""
