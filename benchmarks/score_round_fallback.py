@@ -103,8 +103,8 @@ def main(argv: list[str] | None = None) -> None:
     d_today, d_fixed = paired_difference(b, a), paired_difference(b, f)
     print(f"  fallback - adaptive today {d_today.fmt()} m")
     print(f"  fallback - fixed          {d_fixed.fmt()} m")
-    ok2 = d_today.mean <= 0.0
-    ok3 = abs(d_fixed.mean) <= SAME_FLIGHT_M
+    ok2 = d_today.value <= 0.0
+    ok3 = abs(d_fixed.value) <= SAME_FLIGHT_M
     print(f"  1 flights {ok1}; 2 no worse than today {ok2}; 3 the fixed flight {ok3}")
     print("  4: tests/test_round_fallback.py and an ArduCopter SITL adaptive flight")
     print("ADOPT (if 4 holds)" if ok1 and ok2 and ok3 else "REFUSE")
