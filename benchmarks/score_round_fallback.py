@@ -35,6 +35,25 @@ flown):
 - Otherwise the fallback is reported and not shipped.
 
     python benchmarks/score_round_fallback.py TODAY/flights.jsonl FALLBACK/flights.jsonl
+
+Result (2026-11-29): refused by condition 2; the change is not shipped (reverted after 5b80b58,
+where it can be flown: ``git worktree add W 5b80b58`` and run the bench from ``W``).
+
+- Flown: ``bench_sitl_seeds.py --autopilot px4 --seeds 25 ... 34 --instance 5`` from a worktree
+  at 98e9ecf (fixed and adaptive, 20 flights), then ``--arms adaptive`` from 5b80b58 (10 flights);
+  every flight exit 0, about 70 s each.
+- Per seed, fixed / adaptive today / fallback m: 25: 2.1 / 3.3 / 5.4; 26: 10.3 / 0.2 / 10.6; 27:
+  5.1 / 8.0 / 3.7; 28: 7.5 / 0.4 / 5.0; 29: 5.1 / 3.9 / 33.9; 30: 6.2 / 3.5 / 1.2; 31: 7.5 / 5.3 /
+  6.9; 32: 15.3 / 10.4 / 5.9; 33: 6.1 / 4.4 / 1.2; 34: 13.9 / 2.3 / 7.3.
+- Means: fixed 7.9 [5.9, 10.0], adaptive today 4.2 [2.7, 5.8], fallback 8.1 [4.3, 13.5] m.
+  1 holds (10 of 10 flew the whole spiral, trimmed to the budget as the fixed one is, 581-587 s);
+  2 fails: fallback - adaptive today +3.9 [-0.6, +9.5] m; 3 holds: fallback - fixed +0.2 [-4.2,
+  +6.4] m (seed 29 flew the same spiral twice, 5.1 and 33.9 m: the SITL does not repeat a flight).
+- On these fresh seeds the adaptive mission gains on PX4: adaptive - fixed -3.7 [-6.1, -1.5] m, no
+  worse on 8 of 10, with one round on 8 seeds and two on 2. Pooled with seeds 0-24 (stop 51's
+  answers): 35 seeds, fixed 8.5 [7.1, 10.1], adaptive 11.9 [8.3, 16.0], adaptive - fixed +3.4
+  [-0.5, +7.9] m, no worse on 18. The loss on seeds 0-24 came from a few flights whose survey
+  candidates were all off (25, 74, 83 m); one round is not a loss by itself.
 """
 
 from __future__ import annotations

@@ -271,27 +271,6 @@ def smallest_round_s(spec, a, start, pace=None) -> float:
     return round_fly_s(spec, box_pattern(xy, a.min_radius_m, a.altitude(spec), start), start, pace)
 
 
-# fewer full rounds than this after the survey: the whole trajectory is flown instead (rule
-# b010b7e, benchmarks/score_round_fallback.py: PX4 SITL's budget holds one, and there the adaptive
-# mission lost +6.3 [+0.9, +12.1] m to the fixed spiral over 25 seeds)
-MIN_ROUNDS = 2
-
-
-def full_rounds(spec, a, start, t_start_s: float, pace=None, returns=None, most=MIN_ROUNDS) -> int:
-    """How many full rounds (``a.radius_m``, none shrunk) fit one after another from ``start``,
-    reached ``t_start_s`` after take-off, each planned as in flight (``plan_round``: the fence, the
-    ``pace``, the ``returns`` and the reserve) over the rover area's centre; counted up to
-    ``most``."""
-    target = np.asarray(spec.field.rover_area.vertices, dtype=float).mean(axis=0)
-    n, start, t = 0, np.asarray(start, dtype=float), float(t_start_s)
-    while n < most:
-        plan = plan_round(spec, a, target, start, t, pace, returns)
-        if not plan.ok or plan.radius_m < a.radius_m:
-            break
-        n, start, t = n + 1, plan.waypoints[-1], t + plan.fly_s
-    return n
-
-
 def plan_round(
     spec, a, est_xy, start, t_start_s: float, pace=None, returns: ReturnModel | None = None
 ) -> RoundPlan:

@@ -28,8 +28,6 @@ import numpy as np
 
 from mission.adaptive.feasibility import adaptive_violations
 from mission.adaptive.planner import (
-    MIN_ROUNDS,
-    full_rounds,
     mass_near,
     plan_round,
     rival_of,
@@ -47,7 +45,6 @@ from mission.localize.methods import ADAPTIVE_METHOD
 from mission.localize.render import Shown
 from mission.spec import TrajectorySpec
 from mission.trajectory.autopilot import ReturnModel
-from mission.trajectory.checks import check_mission
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
@@ -134,28 +131,6 @@ class AdaptiveRounds:
         refused before the upload and take-off, exit 2, when they leave no round."""
         if v := adaptive_violations(self.full_spec, self.config, autopilot_returns(ctx)):
             raise FlightError(f"{self.full_spec.source_name}, field '{v[0][0]}': {v[0][1]}", 2)
-
-    def rounds_fit(self, ctx: FlightContext) -> int:
-        """Full rounds that fit after the survey (``planner.full_rounds``, up to ``MIN_ROUNDS``)
-        with the autopilot's known pace and return, read once connected (``ctx.budget``): from
-        the survey's last waypoint at the time its plan reaches it at that pace."""
-        t_wp = np.asarray(ctx.budget.plan.t_wp, dtype=float)
-        pace = measured_pace(ctx)  # before any leg is flown: the autopilot's known pace
-        t_end = t_wp[0] + pace.legs(np.diff(t_wp))
-        end = np.asarray(self.spec.waypoints_enu(), dtype=float)[-1]
-        return full_rounds(self.full_spec, self.config, end, t_end, pace, autopilot_returns(ctx))
-
-    def whole_instead(self, ctx: FlightContext) -> dict | None:
-        """Why the whole trajectory is flown instead (the sidecar's ``adaptive_fallback``): fewer
-        than ``MIN_ROUNDS`` full rounds fit after the survey (``rounds_fit``) and the whole
-        trajectory passes the fixed mission's own pre-flight check; None otherwise."""
-        n = self.rounds_fit(ctx)
-        if n >= MIN_ROUNDS or check_mission(self.full_spec).violations:
-            return None
-        s = self.config.survey_s
-        fit = "1 full round fits" if n == 1 else f"{n} full rounds fit"
-        why = f"{fit} after the {s:g} s survey ({MIN_ROUNDS} needed)"
-        return {"full_rounds_fit": n, "needed": MIN_ROUNDS, "survey_s": s, "why": why}
 
     def hold_s(self, ctx: FlightContext) -> float:
         """The survey's wait at its last waypoint for round 1 (``round_timing`` with the prior

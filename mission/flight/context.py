@@ -77,8 +77,6 @@ class Extension(Protocol):
     def trajectory_meta(self) -> dict: ...
     # FlightError (exit 2) refuses before the upload
     def check(self, ctx: FlightContext) -> None: ...
-    # not None: the whole mission is flown instead (why, for the line and the sidecar)
-    def whole_instead(self, ctx: FlightContext) -> dict | None: ...
     # seconds the uploaded part waits at its last waypoint for the extension's next part
     def hold_s(self, ctx: FlightContext) -> float: ...
     async def fly(self, ctx: FlightContext, action, mission_raw) -> None: ...
@@ -124,8 +122,6 @@ class FlightContext:
     # put back after the flight
     restore_params: dict[str, int | float] = field(default_factory=dict)
     budget: Any = None  # BudgetWatch once the plan is known
-    # an adaptive mission flown whole because too few rounds fit (``runner.fly_whole_instead``)
-    adaptive_fallback: dict | None = None
     live: Any = None  # LiveEstimates
     rate_requested: float = 0.0
     heartbeats_sent: int = 0

@@ -85,7 +85,7 @@ from mission.flight.vehicle_process import (
     stop_vehicle,
 )
 from mission.flightlog import PHASE_COLUMNS, FlightLogWriter, make_meta
-from mission.trajectory.checks import assert_flyable, check_mission
+from mission.trajectory.checks import assert_flyable
 from mission.trajectory.items import build_items
 
 __all__ = [
@@ -425,15 +425,11 @@ async def prepare(ctx: FlightContext, p: Plugins):
     with contextlib.suppress(Exception):
         await p.telemetry.set_rate_landed_state(5.0)
     v_ret = await apply_speeds(ctx, p.param, ctx.ardupilot)  # restored after the flight
-    vertical = await vertical_speeds(ctx, p.param, ctx.ardupilot)
-    ctx.budget = start_budget(ctx, v_ret, vertical, ctx.ardupilot)
+    ctx.budget = start_budget(
+        ctx, v_ret, await vertical_speeds(ctx, p.param, ctx.ardupilot), ctx.ardupilot
+    )
     if ctx.extension is not None:  # its own checks, now that the autopilot's plan is known (exit 2)
         ctx.extension.check(ctx)
-        if (why := ctx.extension.whole_instead(ctx)) is not None:
-            fly_whole_instead(ctx, why)
-            ctx.budget = start_budget(ctx, v_ret, vertical, ctx.ardupilot)
-            spec, n_wp = ctx.spec, len(ctx.spec.waypoints_enu())
-            ctx.status.n_waypoints = n_wp
     items = build_items(
         spec,
         (ctx.home.latitude_deg, ctx.home.longitude_deg, ctx.home.absolute_altitude_m),
@@ -448,17 +444,6 @@ async def prepare(ctx: FlightContext, p: Plugins):
     ctx.event("upload", f"mission uploaded: {len(items)} raw items ({n_wp} waypoints)")
     ctx.abort_before_takeoff()
     return items
-
-
-def fly_whole_instead(ctx: FlightContext, why: dict) -> None:
-    """The mission's whole trajectory is flown, as without its extension, when the extension says
-    ``why`` (an adaptive mission whose budget holds too few rounds: rule b010b7e, PX4 SITL holds
-    one and there the rounds lost to the fixed spiral); one line, and ``adaptive_fallback`` in the
-    sidecar.  Its log is answered as a fixed flight (no ``adaptive`` in its trajectory)."""
-    ctx.adaptive_fallback = why
-    ctx.extension, ctx.spec = None, ctx.full_spec
-    ctx.status.mission_name, ctx.status.budget_s = ctx.spec.name, ctx.spec.time_budget_s
-    ctx.event("adaptive", f"{why['why']}: flying the whole {ctx.spec.trajectory.generator}")
 
 
 def check_home(ctx: FlightContext, home) -> None:
@@ -496,14 +481,9 @@ async def open_log(ctx: FlightContext, url: str, ap_name: str, report, n_items: 
         speedup_requested=ctx.speedup,
         telemetry_rate_requested_hz=ctx.rate_requested,
         status="flying",
-        # the whole trajectory's, when the extension's part was not flown (``fly_whole_instead``)
-        planned_duration_s=float(
-            report.duration_s if ctx.adaptive_fallback is None else check_mission(spec).duration_s
-        ),
+        planned_duration_s=float(report.duration_s),
     )
     meta["live_estimate"] = estimates.log_meta(ctx)
-    if ctx.adaptive_fallback is not None:
-        meta["adaptive_fallback"] = ctx.adaptive_fallback
     writer = FlightLogWriter(
         ctx.log_path, meta, extra_columns=PHASE_COLUMNS + ctx.source.extra_columns
     )
