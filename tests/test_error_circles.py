@@ -158,6 +158,20 @@ def test_card_contract(net):
     assert rec is None and "another version of the model file" in why
 
 
+def test_circles_refused_by_a_rule_are_said_so_not_offered_for_calibration(net, repo_dir):
+    """A card whose circles were calibrated and refused by a rule (``{"refused": why}``) gives no
+    circles and says why, instead of pointing at the calibration script; the shipped tilt
+    network's card is one (rule 36bdb24)."""
+    net.with_suffix(".json").write_text(json.dumps({REGIONS_KEY: {"sim": {"refused": "why"}}}))
+    assert card_calibration(net, "sim") == (None, "net.onnx's 'sim' circles were refused: why")
+    net.with_suffix(".json").write_text(json.dumps({REGIONS_KEY: {"sim": {"refused": 3}}}))
+    with pytest.raises(InputError) as e:
+        card_calibration(net, "sim")
+    assert "net.json" in str(e.value) and "regions.sim.refused" in str(e.value)
+    rec, why = card_calibration(repo_dir / "models" / "rfsl_spiral_tilt.onnx", "sim")
+    assert rec is None and "rule 36bdb24" in why and "calibrate_error_circles" not in why
+
+
 @pytest.mark.parametrize(
     "entry",
     [

@@ -37,6 +37,9 @@ REQUIRED_KEYS = ("feature_kind", "feature_config", "input_normalisation", "field
 FEATURE_KINDS = ("clustering", "normalised_rss")
 DOMAIN_KEY = "training_domain"
 REGIONS_KEY = "regions"
+# a ``regions`` record holding only this key: circles that were calibrated and refused by a rule
+# (the text says by which and why), so that no note invites calibrating them again
+REFUSED_KEY = "refused"
 
 Span = tuple[float, float]
 

@@ -49,7 +49,7 @@ from mission.errors import InputError
 from mission.fields import REQUIRED, Fields
 from mission.geo import Area, clip_polygon, polygon_area_m2
 from mission.localize import Estimate
-from mission.localize.card import REGIONS_KEY, ModelCard, card_path, model_digest
+from mission.localize.card import REFUSED_KEY, REGIONS_KEY, ModelCard, card_path, model_digest
 from mission.localize.methods import FROM_METHOD_CIRCLES, names_where
 from mission.localize.region import CIRCLE, Ellipse, Region
 
@@ -158,6 +158,9 @@ def card_calibration(model, domain: str) -> tuple[dict | None, str | None]:
     rec = entries.get(domain)
     if rec is None:
         return None, f"{Path(path).name} has no '{domain}' calibration in its card ({where})"
+    if isinstance(rec, dict) and set(rec) == {REFUSED_KEY}:  # calibrated, then refused by a rule
+        why = Fields(rec, str(p), f"{REGIONS_KEY}.{domain}").str_(REFUSED_KEY)
+        return None, f"{Path(path).name}'s '{domain}' circles were refused: {why}"
     rec = _checked(rec, p, f"{REGIONS_KEY}.{domain}")
     if rec.get("model_sha256") != (digest or model_digest(path)):
         return (
