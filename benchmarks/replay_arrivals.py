@@ -35,11 +35,10 @@ ARDUCOPTER = VerticalSpeeds(2.5, 1.5, 0.5, 10.0, 5.0, 15.0)
 SHARE_DELAYED = 0.3
 
 
-def replay(path: Path, rng, mean_delay_s: float, by_track: bool) -> tuple[float, bool]:
-    """(the largest predicted landing, whether the policy trimmed) over one flown spiral."""
-    spec = load_mission(ROOT / "missions" / "spiral.yaml")
+def replay(spec, log, rng, mean_delay_s: float, by_track: bool) -> tuple[float, bool]:
+    """(the largest predicted landing, whether the policy trimmed) over one flown spiral ``log``
+    of mission ``spec``."""
     wps, origin = spec.waypoints_enu(), spec.field.origin
-    log = read_flight_log(path)
     m = log.meta
     armed = next(e for e in m["events"] if e["kind"] == "armed")["t_vehicle_s"]
     tv = log["t_s"] + m["t0_vehicle_s"]
@@ -76,13 +75,16 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("logs", nargs="+", type=Path, help="flight.csv of ArduCopter SITL spirals")
     ap.add_argument("--delays", nargs="+", type=float, default=[0.0, 2.0, 5.0, 10.0])
     args = ap.parse_args(argv)
-    logs = [p for p in args.logs if read_flight_log(p).meta.get("autopilot") == "ARDUPILOT"]
+    spec = load_mission(ROOT / "missions" / "spiral.yaml")
+    logs = [
+        log for p in args.logs if (log := read_flight_log(p)).meta.get("autopilot") == "ARDUPILOT"
+    ]
     print(f"{len(logs)} ArduCopter SITL spirals; 30 % of arrivals read late")
     print("  mean delay s  timed by  predicted landing median / max s  trimmed")
     for mean in args.delays:
         for by_track in (False, True):
             rng = np.random.default_rng(0)
-            res = [replay(p, rng, mean, by_track) for p in logs]
+            res = [replay(spec, log, rng, mean, by_track) for log in logs]
             worst = np.array([r[0] for r in res])
             n_trim = sum(r[1] for r in res)
             who = "track" if by_track else "message"

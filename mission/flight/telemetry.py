@@ -47,10 +47,15 @@ class Series:
             if tk <= t0:
                 break
             k += 1
+        t, v = self._tail(k)
+        keep = t <= t1
+        return t[keep], v[keep]
+
+    def _tail(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The last ``k`` samples as arrays: times (k,) and rows (k, width)."""
         t = np.fromiter(itertools.islice(self.t, len(self.t) - k, None), float, k)
         v = np.asarray(list(itertools.islice(self.v, len(self.v) - k, None)), dtype=float)
-        keep = t <= t1
-        return t[keep], v.reshape(k, self.width)[keep]
+        return t, v.reshape(k, self.width)
 
     def interp(self, tq: np.ndarray, angle_cols: tuple[int, ...] = ()) -> np.ndarray:
         """Values at times ``tq`` (linear, held at the ends); ``angle_cols`` (radians) are unwrapped
@@ -62,11 +67,7 @@ class Series:
             k += 1
             if tk < t0:
                 break
-        k = min(k + 1, len(self.t))
-        t = np.fromiter(itertools.islice(self.t, len(self.t) - k, None), float, k)
-        v = np.asarray(list(itertools.islice(self.v, len(self.v) - k, None)), dtype=float).reshape(
-            k, self.width
-        )
+        t, v = self._tail(min(k + 1, len(self.t)))
         out = np.empty((len(tq), self.width))
         for j in range(self.width):
             col = np.unwrap(v[:, j]) if j in angle_cols else v[:, j]
