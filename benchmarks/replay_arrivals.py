@@ -35,10 +35,10 @@ ARDUCOPTER = VerticalSpeeds(2.5, 1.5, 0.5, 10.0, 5.0, 15.0)
 SHARE_DELAYED = 0.3
 
 
-def replay(spec, log, rng, mean_delay_s: float, by_track: bool) -> tuple[float, bool]:
-    """(the largest predicted landing, whether the policy trimmed) over one flown spiral ``log``
-    of mission ``spec``."""
-    wps, origin = spec.waypoints_enu(), spec.field.origin
+def track_and_messages(log) -> tuple[Telemetry, float, np.ndarray]:
+    """A flown spiral's position track as the runner's telemetry ring, its arming time and the
+    vehicle time at which each waypoint's progress message was logged (the last: the return's
+    start), all on the vehicle's clock."""
     m = log.meta
     armed = next(e for e in m["events"] if e["kind"] == "armed")["t_vehicle_s"]
     tv = log["t_s"] + m["t0_vehicle_s"]
@@ -47,9 +47,18 @@ def replay(spec, log, rng, mean_delay_s: float, by_track: bool) -> tuple[float, 
     for t, *row in zip(tv, *cols, strict=True):
         tel.pos.add(float(t), tuple(row))
     phase, item = log.columns["phase"], log.columns["mission_item"]
-    n = len(wps)
+    n = int(item[phase == "mission"].max()) + 1
     sent = [tv[np.argmax((phase == "mission") & (item >= k))] for k in range(1, n)]
     sent.append(tv[np.argmax(phase == "return")])
+    return tel, armed, np.asarray(sent)
+
+
+def replay(spec, log, rng, mean_delay_s: float, by_track: bool) -> tuple[float, bool]:
+    """(the largest predicted landing, whether the policy trimmed) over one flown spiral ``log``
+    of mission ``spec``."""
+    wps, origin = spec.waypoints_enu(), spec.field.origin
+    tel, armed, sent = track_and_messages(log)
+    n = len(sent)
     late = rng.exponential(mean_delay_s, n) * (rng.random(n) < SHARE_DELAYED)
     read = np.maximum.accumulate(np.asarray(sent) + late)
     w = BudgetWatch(

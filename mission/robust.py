@@ -12,7 +12,9 @@ need the same two things, written once here:
   leading axes);
 - ``rho`` / ``per_sample_loss``: ``f^2 rho(r / f)`` with ``rho(z) = z^2`` (l2),
   ``2 (sqrt(1 + z^2) - 1)`` (soft_l1, the ``scipy.optimize.least_squares`` definition) or
-  ``z^2 if |z| <= 1 else 2 |z| - 1`` (huber); all three are ~ r^2 for |r| << f.
+  ``z^2 if |z| <= 1 else 2 |z| - 1`` (huber); all three are ~ r^2 for |r| << f;
+- ``huber_lstsq``: a linear fit under the Huber loss (IRLS with the same weights), for the few
+  rows of which one may be far off (the budget's pace per leg: one slow leg is not a pace).
 """
 
 from __future__ import annotations
@@ -65,6 +67,22 @@ def huber_weights(z: np.ndarray, f_scale: float) -> np.ndarray:
     """IRLS weights of the Huber step about the median: min(1, f / |z|) (``robust_offset``, and the
     gap's offsets of several flights at once)."""
     return np.minimum(1.0, f_scale / np.maximum(np.abs(z), 1e-12))
+
+
+def huber_lstsq(A: np.ndarray, y: np.ndarray, f_scale: float, iters: int = 100) -> np.ndarray:
+    """Coefficients ``x`` minimising the Huber loss of ``y - A x`` (scale ``f_scale``), by IRLS
+    from the least-squares fit.  Why: residuals past ``f_scale`` count linearly, so one row far
+    off no longer drags the fit; with ``f_scale`` at the data's noise it is a least-absolute-
+    deviations fit (the median's regression), exact data stay exact."""
+    A, y = np.asarray(A, dtype=float), np.asarray(y, dtype=float)
+    x = np.linalg.lstsq(A, y, rcond=None)[0]
+    for _ in range(iters):
+        w = np.sqrt(huber_weights(y - A @ x, f_scale))
+        x_new = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)[0]
+        if np.allclose(x_new, x, rtol=0.0, atol=1e-9):
+            return x_new
+        x = x_new
+    return x
 
 
 def median_1d(r: np.ndarray) -> np.ndarray:

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from mission.errors import InputError
 from mission.flight.budget import (
+    MIN_FIT_LEGS,
     OVERDUE,
     OVERDUE_MIN_S,
     OVERDUE_SHARE,
@@ -86,6 +87,40 @@ def test_fit_pace_recovers_scale_and_cost_per_leg(scale, per_leg, seed):
     # a faster-than-planned vehicle with a negative 'cost' is the plain ratio, never a negative leg
     q = fit_pace(planned, n, np.maximum(1.0 * planned - 2.0 * n, 0.1))
     assert q.per_leg_s == 0.0 and 0.5 <= q.scale <= 3.0
+
+
+@given(st.integers(MIN_FIT_LEGS, 16), st.floats(0.0, 1.0), st.floats(1.0, 5.0), st.integers(0, 3))
+@example(5, 0.25, 2.55, 0)  # stop 52's: waypoint 3 reached 2.55 s late, 6 waypoints reached
+@settings(max_examples=80, deadline=None)
+def test_one_slow_leg_is_not_a_cost_on_every_leg_to_come(plan, k, where, slow_s, seed):
+    """A vehicle that flies the plan but loses ``slow_s`` on one leg (a gust) lands ``slow_s``
+    late and no more: once the pace is fitted the watch predicts that within 6 s.  A least-squares
+    fit from four legs took stop 52's example for a cost on every leg (0.94 x + 2.9 s a leg) and
+    predicted 18 s too much; up to 48 s on the spiral's plan."""
+    rng = np.random.default_rng(seed)
+    t = plan.t_wp + rng.normal(0.0, 0.05, len(plan.t_wp))  # the track's timing noise
+    j = 1 + int(where * (k - 1))  # the slow leg ends at waypoint j (0-based), one of those reached
+    t[j:] += slow_s
+    w = BudgetWatch(plan)
+    for r in range(1, k + 2):
+        w.update(float(t[r - 1]), r)
+    truth = plan.duration_s + slow_s
+    assert w.predicted_s - truth < 6.0, (w.pace_model(), w.predicted_s, truth)
+    assert w.predicted_s - truth > -3.0
+
+
+def test_the_pace_fit_shrugs_off_a_slow_leg_and_keeps_a_real_cost_per_leg():
+    """PX4's stop at every waypoint (3 s a leg, on every leg) stays fitted with timing noise; one
+    leg 5 s slow among ten is not a cost per leg."""
+    rng = np.random.default_rng(3)
+    planned = rng.uniform(5.0, 45.0, 10)
+    one = np.ones(10)
+    px4 = fit_pace(planned, one, 1.03 * planned + 3.0 + rng.normal(0, 0.3, 10))
+    assert px4.per_leg_s == pytest.approx(3.0, abs=0.6) and px4.scale == pytest.approx(1.03, 0.03)
+    gust = planned.copy()
+    gust[np.argmin(planned)] += 5.0  # the shortest leg: least squares reads it as a cost per leg
+    p = fit_pace(planned, one, gust)
+    assert p.per_leg_s < 0.1 and p.scale == pytest.approx(1.0, abs=0.01), p
 
 
 def test_return_from_every_waypoint_and_the_plan_ends_where_the_full_mission_does(plan):

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from mission.errors import InputError
-from mission.robust import offset_residual, per_sample_loss, rho, robust_cost, robust_offset
+from mission.robust import (
+    huber_lstsq,
+    offset_residual,
+    per_sample_loss,
+    rho,
+    robust_cost,
+    robust_offset,
+)
 
 
 def test_losses_closed_forms_and_small_residual_limit() -> None:
@@ -45,3 +52,17 @@ def test_robust_cost_vectorised_over_candidates() -> None:
     assert np.allclose(np.diff(off), 1.0) and np.allclose(cost, cost[0])
     off1, cost1 = robust_cost(base, "soft_l1", 6.0)
     assert off1 == pytest.approx(off[0]) and cost1 == pytest.approx(cost[0])
+
+
+def test_huber_lstsq_is_exact_on_exact_data_ignores_one_far_row_and_is_lstsq_at_a_large_scale():
+    rng = np.random.default_rng(0)
+    A = np.column_stack([rng.uniform(1, 50, 12), np.ones(12)])
+    x = np.array([1.2, 3.0])
+    y = A @ x
+    np.testing.assert_allclose(huber_lstsq(A, y, 0.1), x, atol=1e-8)
+    y_far = y.copy()
+    y_far[4] += 20.0
+    np.testing.assert_allclose(huber_lstsq(A, y_far, 0.1), x, atol=0.01)  # to about the scale
+    l2 = np.linalg.lstsq(A, y_far, rcond=None)[0]
+    assert np.abs(l2 - x).max() > 0.5  # what the far row does to least squares
+    np.testing.assert_allclose(huber_lstsq(A, y_far, 1e6), l2, atol=1e-9)

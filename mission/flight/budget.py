@@ -35,13 +35,23 @@ import numpy as np
 
 from mission.flight.plan import upload_with_retries
 from mission.flightlog import LAND, RETURN
+from mission.robust import huber_lstsq
 from mission.spec import TrajectorySpec
 from mission.trajectory.autopilot import Pace, ReturnModel, VerticalSpeeds, leg_speeds
 from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
-MIN_FIT_LEGS = 4  # measured legs before the per-leg cost is fitted (fewer: the ratio alone)
+# measured legs before the per-leg cost is fitted (fewer: the prior or the ratio alone).  Why six: a
+# fit of two terms on four or five legs cannot tell one slow leg (a gust) from a cost per leg; on
+# the spiral's plan, one leg 1-5 s slow over-predicted the legs to come by up to 77 s with four
+# legs measured and 5.5 s with six (least squares: 49 and 29 s; tests/test_budget_policy.py)
+MIN_FIT_LEGS = 6
+# the scale of the pace fit's Huber loss (s): about the legs' timing noise, so that the fit is
+# nearly a least-absolute-deviations one and one slow leg counts linearly, not squared.  Measured
+# about each flight's own fit: ArduCopter 4.7 SITL |residual| median 0.05 s, 90 % 0.16 s (38
+# spirals), PX4 v1.16 SITL 0.34 / 1.09 s (35; benchmarks/replay_pace.py)
+PACE_FIT_SCALE_S = 0.1
 # waypoints before the cut at which the tail is dropped: the upload takes a few wall seconds, tens
 # of vehicle seconds at a speed-up, and may be retried (PX4 SITL at 10x on a loaded machine: one
 # TIMEOUT, the cut came a leg late and the spiral landed at 647 s of 600 with 3)
@@ -65,16 +75,20 @@ PACE_PRIOR = {"PX4": Pace(1.03, 3.0)}
 
 
 def fit_pace(planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray) -> Pace:
-    """Least-squares ``Pace`` from measured segments (each ``n_legs`` legs planned at ``planned`` s
-    in total, flown in ``flown`` s); the ratio alone when the cost per leg would come out negative
-    or the fit is degenerate (legs of one length), scale kept within 0.5..3."""
+    """``Pace`` from measured segments (each ``n_legs`` legs planned at ``planned`` s in total,
+    flown in ``flown`` s), robust to one slow leg (Huber loss at ``PACE_FIT_SCALE_S``: a gust's
+    2.55 s on one leg is not a cost on every leg to come); the scale alone (as robustly) when the
+    cost per leg would come out negative, the plain ratio when the fit is degenerate (legs of one
+    length) or the scale is outside 0.5..3."""
     planned, n_legs, flown = (np.asarray(a, dtype=float) for a in (planned, n_legs, flown))
     ratio = Pace(float(np.clip(flown.sum() / max(planned.sum(), 1e-9), 0.5, 3.0)), 0.0)
     A = np.column_stack([planned, n_legs])
     if len(flown) < 2 or np.linalg.matrix_rank(A) < 2:
         return ratio
-    (a, b), *_ = np.linalg.lstsq(A, flown, rcond=None)
-    if b < 0 or not 0.5 <= a <= 3.0:
+    a, b = huber_lstsq(A, flown, PACE_FIT_SCALE_S)
+    if b < 0:  # faster than planned, or a slow long leg: the scale alone, as robustly
+        a, b = huber_lstsq(A[:, :1], flown, PACE_FIT_SCALE_S)[0], 0.0
+    if not 0.5 <= a <= 3.0:
         return ratio
     return Pace(float(a), float(b))
 
