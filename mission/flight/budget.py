@@ -447,9 +447,7 @@ async def watch_budget(ctx, watch: BudgetWatch, mission_raw=None, action=None) -
         texts.append(watch.update(s.elapsed, reached))
         home = ph.current in (RETURN, LAND)  # the mission's own return: not stalled
         if not home and (why := stalled(watch.plan, s.elapsed, reached)):
-            ctx.abort_reason = why.split(":", 1)[0]
-            ctx.event("abort", f"{why}: returning to launch", warn=True)
-            ctx.abort.set()
+            ctx.abort_for(why.split(":", 1)[0], f"{why}: returning to launch", warn=True)
             return
         if not getattr(ctx.extension, "rounds", None):  # adaptive rounds: land~ is their plan
             s.predicted_s = watch.predicted_s

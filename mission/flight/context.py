@@ -140,6 +140,15 @@ class FlightContext:
     def ardupilot(self) -> bool:
         return self.autopilot is Autopilot.ARDUPILOT
 
+    def abort_for(self, reason: str, text: str = "", warn: bool = False) -> None:
+        """Abort the flight (return to launch once airborne) for ``reason``, which the closing
+        status and exit code name; ``text``, when given, is said as the ``abort`` event.  One home
+        for a signal, a failed log write and the flight's own watch (stall, overdue)."""
+        self.abort_reason = reason
+        if text:
+            self.event("abort", text, warn=warn)
+        self.abort.set()
+
     def event(self, kind: str, text: str, warn: bool = False, show: bool = True) -> None:
         """Record an event for the sidecar and show it (``show``) as one line, wrapped at 80
         columns."""

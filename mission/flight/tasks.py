@@ -54,14 +54,12 @@ def on_signal(ctx: FlightContext, name: str) -> None:
             ctx.event("signal", f"{name} again: stop waiting for the landing")
         ctx.link_dead.set()
         return
-    ctx.abort_reason = name
     if ctx.st.was_in_air:
-        ctx.event("abort", f"{name} received: returning to launch")
+        ctx.abort_for(name, f"{name} received: returning to launch")
     elif ctx.st.armed:
-        ctx.event("abort", f"{name} received before take-off: disarming")
+        ctx.abort_for(name, f"{name} received before take-off: disarming")
     else:
-        ctx.event("abort", f"{name} received before take-off: stopping, nothing flown")
-    ctx.abort.set()
+        ctx.abort_for(name, f"{name} received before take-off: stopping, nothing flown")
 
 
 def start_telemetry(
@@ -196,8 +194,7 @@ def log_failed(ctx: FlightContext, error: OSError) -> None:
             }
         )
     if not keep_flying and not ctx.abort.is_set():
-        ctx.abort_reason = "log write failed"
-        ctx.abort.set()
+        ctx.abort_for("log write failed")
 
 
 async def watchdog(ctx: FlightContext) -> None:
