@@ -46,15 +46,18 @@ AUTOPILOTS = {
 }
 
 
-def start_sitl(autopilot: str, speedup: float, instance: int, run: Path) -> SharedSitl:
-    """Start one SITL in ``run`` from the missions' home and wait until it accepts a ground
-    station."""
+def start_sitl(
+    autopilot: str, speedup: float, instance: int, run: Path, script: Path | None = None
+) -> SharedSitl:
+    """Start one SITL in ``run`` from the missions' home (by ``script``, default
+    ``../shared/sitl/<autopilot>/start.sh``, which takes the same arguments) and wait until it
+    accepts a ground station."""
     spec = load_mission(MISSIONS["fixed"])
     lat, lon, _ = spec.field.origin.to_geodetic(spec.home_enu)
     home = f"{lat:.7f},{lon:.7f},0" + (",0" if autopilot == "ardupilot" else "")
     sitl = SharedSitl(run, "px4.log" if autopilot == "px4" else "sitl.log")
     sitl.launch(
-        SHARED / autopilot / "start.sh",
+        script or SHARED / autopilot / "start.sh",
         [str(speedup), str(instance), home],
         AUTOPILOTS[autopilot][1],
         f"{autopilot} SITL",
@@ -63,14 +66,21 @@ def start_sitl(autopilot: str, speedup: float, instance: int, run: Path) -> Shar
 
 
 def fly_one(
-    autopilot: str, arm: str, seed: int, out: Path, instance: int, speedup: float | None = None
+    autopilot: str,
+    arm: str,
+    seed: int,
+    out: Path,
+    instance: int,
+    speedup: float | None = None,
+    script: Path | None = None,
 ) -> dict:
     """One flight of ``arm``'s mission with ``--seed seed`` against a fresh SITL (at ``speedup``,
-    default the autopilot's in ``AUTOPILOTS``), scored by ``localize --json``."""
+    default the autopilot's in ``AUTOPILOTS``; started by ``script``, default the shared
+    start.sh), scored by ``localize --json``."""
     default, _, url = AUTOPILOTS[autopilot]
     speedup = speedup or default
     folder = out / f"{autopilot}_{arm}_{seed}"
-    sitl = start_sitl(autopilot, speedup, instance, folder / "sitl")
+    sitl = start_sitl(autopilot, speedup, instance, folder / "sitl", script)
     t0 = time.monotonic()
     try:
         fly = subprocess.run(

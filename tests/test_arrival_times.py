@@ -128,14 +128,14 @@ def _watched(spec, event_delays: np.ndarray, timed_by_track: bool) -> BudgetWatc
 
 def test_the_budget_watch_reads_arrivals_off_the_track_not_the_late_messages(spec):
     """ArduCopter SITL seed 28's one late message (waypoint 3, 2.55 s) and a loaded machine's
-    (up to 10 s each, five draws): the arrivals are the track's and the prediction stays the plan.
-    The messages' times would predict up to 70 s more on these draws (one late message alone no
-    longer: the robust pace fit shrugs it off, tests/test_budget_policy.py)."""
+    (up to 10 s each on ten waypoints, five draws): the arrivals are the track's and the prediction
+    stays the plan.  The messages' times would predict up to 33 s more on these draws (one late
+    message alone no longer: the robust pace fit shrugs it off, tests/test_budget_policy.py)."""
     rng = np.random.default_rng(28)
     more = []
-    for delays in [np.array([0, 0, 2.55, 0, 0, 0])] + [rng.uniform(0, 10, 7) for _ in range(5)]:
+    for delays in [np.array([0, 0, 2.55, 0, 0, 0])] + [rng.uniform(0, 10, 10) for _ in range(5)]:
         track = _watched(spec, delays, True)
         np.testing.assert_allclose(track.reached_at, track.plan.t_wp[: len(delays)], atol=DT + 1e-9)
         assert track.predicted_s == pytest.approx(track.plan.duration_s, abs=1.0)
         more.append(_watched(spec, delays, False).predicted_s - track.predicted_s)
-    assert abs(more[0]) < 1.0 and max(more) > 40.0, more
+    assert abs(more[0]) < 1.0 and max(more) > 25.0, more

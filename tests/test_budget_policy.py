@@ -8,6 +8,7 @@ against the closed form."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -107,6 +108,44 @@ def test_one_slow_leg_is_not_a_cost_on_every_leg_to_come(plan, k, where, slow_s,
     truth = plan.duration_s + slow_s
     assert w.predicted_s - truth < 6.0, (w.pace_model(), w.predicted_s, truth)
     assert w.predicted_s - truth > -3.0
+
+
+@given(st.floats(0.0, 0.3), st.floats(0.0, 2 * np.pi), st.integers(MIN_FIT_LEGS + 1, 18))
+@settings(max_examples=40, deadline=None)
+def test_a_wind_is_fitted_as_a_headwind_and_the_landing_predicted(strength, towards, k):
+    """A vehicle in wind: legs planned at P in direction u take P (1 + h . u) (upwind slow,
+    downwind fast), the return too.  Once the pace is fitted the watch predicts the landing
+    within 1 s and recovers h (``k`` waypoints reached: ``k - 1`` legs measured); without the
+    legs' directions a robust fit reads the slow upwind legs as outliers (next test)."""
+    spec = load_mission(SPIRAL)
+    plan = plan_times(spec)
+    h = strength * np.array([np.cos(towards), np.sin(towards)])
+    legs = np.diff(plan.t_wp) * (1.0 + plan.u_wp[1:] @ h)
+    t = plan.t_wp[0] + np.concatenate([[0.0], np.cumsum(legs)])
+    truth = t[-1] + plan.ret_s[-1] * (1.0 + plan.u_ret[-1] @ h) + plan.land_s
+    w = BudgetWatch(plan)
+    for r in range(1, k + 1):
+        w.update(float(t[r - 1]), r)
+    assert w.predicted_s == pytest.approx(truth, abs=1.0), (w.pace_model(), h)
+    np.testing.assert_allclose(w.pace_model().headwind, h, atol=0.01)
+
+
+def test_without_the_legs_directions_a_wind_misses_the_landing():
+    """The premise of the headwind: the same windy vehicle with the directions withheld misses the
+    landing by more than 5 s, early or late with the wind's direction (ArduCopter SITL in an 8 m/s
+    wind: up to 22 s early, benchmarks/replay_pace.py)."""
+    spec = load_mission(SPIRAL)
+    plan = plan_times(spec)
+    blind = dataclasses.replace(plan, u_wp=np.zeros_like(plan.u_wp))
+    for h in (np.array([-0.25, -0.1]), np.array([0.25, 0.1])):
+        legs = np.diff(plan.t_wp) * (1.0 + plan.u_wp[1:] @ h)
+        t = plan.t_wp[0] + np.concatenate([[0.0], np.cumsum(legs)])
+        truth = t[-1] + plan.ret_s[-1] * (1.0 + plan.u_ret[-1] @ h) + plan.land_s
+        w, wb = BudgetWatch(plan), BudgetWatch(blind)
+        for r in range(1, 11):
+            w.update(float(t[r - 1]), r)
+            wb.update(float(t[r - 1]), r)
+        assert abs(w.predicted_s - truth) < 1.0 and abs(wb.predicted_s - truth) > 5.0, h
 
 
 def test_the_pace_fit_shrugs_off_a_slow_leg_and_keeps_a_real_cost_per_leg():

@@ -145,7 +145,7 @@ def test_the_rounds_pace_keeps_the_autopilots_cost_per_leg():
     fitted = watch.pace_model()
     assert fitted.scale == pytest.approx(1.11, abs=0.01) and fitted.per_leg_s < 0.5
     pace = measured_pace(SimpleNamespace(budget=watch))
-    assert pace == Pace(fitted.scale, 3.0)
+    assert pace == Pace(fitted.scale, 3.0, fitted.headwind)
     assert pace.legs(np.full(6, 40 / 6)) == pytest.approx(fitted.scale * 40 + 18)
     assert Pace(1.2, 0.0).at_least(None) == Pace(1.2, 0.0)
     assert measured_pace(SimpleNamespace()) is None

@@ -15,8 +15,10 @@ never less than the time already used. When it passes the budget the runner warn
 overrun.
 
 A budget that holds: the pace is fitted per leg once ``MIN_FIT_LEGS`` legs are measured (``Pace``:
-flown = scale x planned + a fixed cost per leg; PX4 v1.16 SITL slows to a stop at every waypoint, 3
-s a leg, so it fell further behind as the spiral's legs shortened), the return is predicted from
+flown = planned x (scale + headwind . leg direction) + a fixed cost per leg; PX4 v1.16 SITL slows
+to a stop at every waypoint, 3 s a leg, so it fell further behind as the spiral's legs shortened; in
+wind the upwind legs are the slow ones), under a robust loss (one slow leg is not a pace), the
+return is predicted from
 wherever the mission would end (``BudgetPlan.ret_s``), and touchdown to disarm is the autopilot's
 known delay (``LANDED_TO_DISARM_S``). When the prediction passes the budget less its reserve the
 mission's ``budget_policy`` acts (``decide``): ``trim`` (default) drops the tail waypoints that no
@@ -42,11 +44,13 @@ from mission.trajectory.items import build_items
 from mission.trajectory.kinematics import plan_profile
 
 MIN_PACE_S = 30.0  # planned seconds of mission legs before the measured pace is trusted
-# measured legs before the per-leg cost is fitted (fewer: the prior or the ratio alone).  Why six: a
-# fit of two terms on four or five legs cannot tell one slow leg (a gust) from a cost per leg; on
-# the spiral's plan, one leg 1-5 s slow over-predicted the legs to come by up to 77 s with four
-# legs measured and 5.5 s with six (least squares: 49 and 29 s; tests/test_budget_policy.py)
-MIN_FIT_LEGS = 6
+# measured legs before the per-leg cost and the headwind are fitted (fewer: the prior or the ratio
+# alone).  Why eight: two legs in each of the spiral's four directions for four terms; fewer cannot
+# tell one slow leg (a gust) from a cost per leg or a wind.  On the spiral's plan one leg 1-5 s slow
+# over-predicted the legs to come by up to 77 s with a robust fit from four legs (least squares:
+# 49 s); replayed on stored SITL spirals, from eight with the headwind the worst over-prediction
+# was 1.2 s in an 8 m/s wind and -1.7 s after a 2.55 s slow leg (benchmarks/replay_pace.py)
+MIN_FIT_LEGS = 8
 # the scale of the pace fit's Huber loss (s): about the legs' timing noise, so that the fit is
 # nearly a least-absolute-deviations one and one slow leg counts linearly, not squared.  Measured
 # about each flight's own fit: ArduCopter 4.7 SITL |residual| median 0.05 s, 90 % 0.16 s (38
@@ -74,23 +78,31 @@ ARRIVAL_RADIUS_M = 10.0
 PACE_PRIOR = {"PX4": Pace(1.03, 3.0)}
 
 
-def fit_pace(planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray) -> Pace:
+def fit_pace(
+    planned: np.ndarray, n_legs: np.ndarray, flown: np.ndarray, dirs: np.ndarray | None = None
+) -> Pace:
     """``Pace`` from measured segments (each ``n_legs`` legs planned at ``planned`` s in total,
-    flown in ``flown`` s), robust to one slow leg (Huber loss at ``PACE_FIT_SCALE_S``: a gust's
-    2.55 s on one leg is not a cost on every leg to come); the scale alone (as robustly) when the
-    cost per leg would come out negative, the plain ratio when the fit is degenerate (legs of one
-    length) or the scale is outside 0.5..3."""
+    flown in ``flown`` s; ``dirs``: each segment's planned seconds times its legs' unit directions,
+    summed, n x 2, for the headwind), robust to one slow leg (Huber loss at ``PACE_FIT_SCALE_S``: a
+    gust's 2.55 s on one leg is not a cost on every leg to come, while a wind slows every upwind
+    leg and is fitted as such); no cost per leg when it would come out negative, no headwind when
+    it would reverse a leg (|headwind| >= scale / 2), the plain ratio when the fit is degenerate
+    (legs of one length) or the scale is outside 0.5..3."""
     planned, n_legs, flown = (np.asarray(a, dtype=float) for a in (planned, n_legs, flown))
     ratio = Pace(float(np.clip(flown.sum() / max(planned.sum(), 1e-9), 0.5, 3.0)), 0.0)
-    A = np.column_stack([planned, n_legs])
-    if len(flown) < 2 or np.linalg.matrix_rank(A) < 2:
-        return ratio
-    a, b = huber_lstsq(A, flown, PACE_FIT_SCALE_S)
-    if b < 0:  # faster than planned, or a slow long leg: the scale alone, as robustly
-        a, b = huber_lstsq(A[:, :1], flown, PACE_FIT_SCALE_S)[0], 0.0
+    cols = [planned, n_legs] + ([] if dirs is None else list(np.asarray(dirs, dtype=float).T))
+    A = np.column_stack(cols)
+    if len(flown) < A.shape[1] or np.linalg.matrix_rank(A) < A.shape[1]:
+        return ratio if dirs is None else fit_pace(planned, n_legs, flown)
+    x = huber_lstsq(A, flown, PACE_FIT_SCALE_S)
+    if x[1] < 0:  # faster than planned, or a slow long leg: no cost per leg, as robustly
+        x = np.insert(huber_lstsq(np.delete(A, 1, axis=1), flown, PACE_FIT_SCALE_S), 1, 0.0)
+    a, b, wind = float(x[0]), float(x[1]), x[2:]
+    if len(wind) and np.hypot(*wind) >= a / 2:
+        return fit_pace(planned, n_legs, flown)
     if not 0.5 <= a <= 3.0:
         return ratio
-    return Pace(float(a), float(b))
+    return Pace(a, b, (float(wind[0]), float(wind[1])) if len(wind) else (0.0, 0.0))
 
 
 @dataclass
@@ -109,10 +121,18 @@ class BudgetPlan:
     )
     disarm_s: float = 0.0  # touchdown to disarm (the autopilot's), inside duration_s and land_s
     returns: ReturnModel | None = None  # the return from anywhere (an adaptive round's end)
+    # unit direction (east, north) of the leg into each waypoint (row 0: the transit, zero) and of
+    # the return from each waypoint (zero where not straight home): the headwind's legs
+    u_wp: np.ndarray | None = None
+    u_ret: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.ret_s is None:  # only the full mission's return is known
             self.ret_s = np.full(len(self.t_wp), self.duration_s - self.land_s - self.t_wp[-1])
+        if self.u_wp is None:
+            self.u_wp = np.zeros((len(self.t_wp), 2))
+        if self.u_ret is None:
+            self.u_ret = np.zeros((len(self.t_wp), 2))
 
     def end_s(self, last: int) -> float:
         """Planned arm-to-disarm seconds when the mission ends at waypoint ``last`` (its tail
@@ -157,7 +177,18 @@ def plan_times(
     if rtl:
         for i in range(n - 1):
             ret[i] = returns.split(w[i])[0]
-    return BudgetPlan(float(spec.time_budget_s), t_wp, duration, land, ret, disarm_s, returns)
+    home = np.asarray(spec.home_enu, dtype=float)[:2]
+    u_wp = np.vstack([np.zeros((1, 2)), _unit(np.diff(w[:, :2], axis=0))])
+    u_ret = _unit(home - w[:, :2]) if rtl else np.zeros((n, 2))
+    return BudgetPlan(
+        float(spec.time_budget_s), t_wp, duration, land, ret, disarm_s, returns, u_wp, u_ret
+    )
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` scaled to unit length (zero rows stay zero)."""
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v, dtype=float), where=n > 1e-9)
 
 
 @dataclass
@@ -210,7 +241,11 @@ class BudgetWatch:
         starts = np.concatenate([[0], ends[:-1]])
         if len(ends) < MIN_FIT_LEGS:
             return early
-        return fit_pace(t[ends] - t[starts], ends - starts, r[ends] - r[starts])
+        # each segment's planned seconds along east and north (the headwind's regressors)
+        along = np.cumsum(np.diff(t)[:, None] * self.plan.u_wp[1 : len(t)], axis=0)
+        along = np.vstack([np.zeros((1, 2)), along])
+        dirs = along[ends] - along[starts]
+        return fit_pace(t[ends] - t[starts], ends - starts, r[ends] - r[starts], dirs)
 
     def predict(self, elapsed: float, last: int | None = None) -> float:
         """Predicted arm-to-disarm seconds given what was measured up to ``elapsed``, the mission
@@ -223,7 +258,8 @@ class BudgetWatch:
 
         def rest(i: int) -> float:  # from waypoint i (reached) to the end
             legs = np.diff(p.t_wp[i : last + 1])
-            return pace.legs(legs) + pace.legs(np.array([p.ret_s[last]])) + tail
+            back = pace.legs(np.array([p.ret_s[last]]), p.u_ret[last : last + 1])
+            return pace.legs(legs, p.u_wp[i + 1 : last + 1]) + back + tail
 
         if k < 0:
             pred = max(elapsed, pace.legs(p.t_wp[:1])) + rest(0)  # take-off and transit: a leg
@@ -334,6 +370,10 @@ class BudgetWatch:
             "reserve_s": self.reserve_s,
             "pace_prior": None if self.prior is None else _pace_list(self.prior),
             "pace_fitted": _pace_list(self.pace_model()) if self.reached_at else None,
+            # extra seconds per planned second flown east / north: where the wind comes from
+            "pace_headwind": [round(h, 3) for h in self.pace_model().headwind]
+            if self.reached_at
+            else None,
             "dropped_waypoints": [i + 1 for i in self.dropped],
             "actions": self.actions,
         }

@@ -17,28 +17,43 @@ from mission.trajectory.kinematics import Kinematics, plan_profile
 
 @dataclass(frozen=True)
 class Pace:
-    """Flown leg time = ``scale`` x planned + ``per_leg_s`` (the stop and restart at a waypoint)."""
+    """Flown leg time = planned x (``scale`` + ``headwind`` . u) + ``per_leg_s`` (the stop and
+    restart at a waypoint), u the leg's unit direction (east, north).  Why the headwind: in wind a
+    multicopter holds its ground speed downwind and loses it upwind, so the legs' pace depends on
+    their direction (ArduCopter SITL in an 8 m/s wind: upwind legs up to 10 s slow, the others on
+    plan); ``headwind`` points where the wind comes from, in extra seconds per planned second.  A
+    closed loop (a round's square, a whole ring) sums it to about zero, so legs without a direction
+    are planned at ``scale`` alone."""
 
     scale: float = 1.0
     per_leg_s: float = 0.0
+    headwind: tuple[float, float] = (0.0, 0.0)
 
-    def legs(self, planned: np.ndarray) -> float:
-        """Seconds to fly legs planned at ``planned`` seconds each."""
+    def legs(self, planned: np.ndarray, dirs: np.ndarray | None = None) -> float:
+        """Seconds to fly legs planned at ``planned`` seconds each, in unit directions ``dirs``
+        (n x 2, east and north) when known."""
         planned = np.asarray(planned, dtype=float)
-        return self.flown(planned.sum(), planned.size)
+        extra = 0.0
+        if dirs is not None and planned.size:
+            extra = float(planned @ (np.asarray(dirs, dtype=float) @ np.asarray(self.headwind)))
+        return self.flown(planned.sum(), planned.size) + extra
 
     def flown(self, planned_s: float, n_legs: int) -> float:
-        """Seconds to fly ``n_legs`` legs planned at ``planned_s`` seconds in all."""
+        """Seconds to fly ``n_legs`` legs planned at ``planned_s`` seconds in all (directions
+        unknown: the headwind left out)."""
         return float(self.scale * planned_s + self.per_leg_s * n_legs)
 
     def at_least(self, other: Pace | None) -> Pace:
         """Each term the larger of this pace's and ``other``'s: what a plan of short legs takes
         when this pace was fitted on long ones, which cannot tell a cost per leg from a slower
         cruise (PX4 SITL's survey fit gave 1.11 x + 0.05 s a leg; its 28 m round then took 54 s
-        where that pace planned 40, and its known 1.03 x + 3 s a leg plans 55)."""
+        where that pace planned 40, and its known 1.03 x + 3 s a leg plans 55); the headwind is
+        this pace's."""
         if other is None:
             return self
-        return Pace(max(self.scale, other.scale), max(self.per_leg_s, other.per_leg_s))
+        return Pace(
+            max(self.scale, other.scale), max(self.per_leg_s, other.per_leg_s), self.headwind
+        )
 
 
 @dataclass(frozen=True)
