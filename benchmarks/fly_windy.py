@@ -1,5 +1,5 @@
-"""The fixed spiral on ArduCopter SITL in wind, for the budget watch's pace fit (replay the logs
-with ``replay_pace.py``).
+"""The fixed spiral (or the adaptive mission, ``--arm``) on ArduCopter SITL in wind, for the
+budget watch's pace fit (replay the logs with ``replay_pace.py``).
 
     python benchmarks/fly_windy.py --wind 8 250 3 --seeds 40 41 42 43 --out /tmp/windy
     python benchmarks/replay_pace.py /tmp/windy/ardupilot_fixed_*/flights/*/flight.csv
@@ -45,6 +45,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seeds", nargs="+", type=int, required=True)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--instance", type=int, default=5)
+    ap.add_argument("--arm", choices=("fixed", "adaptive"), default="fixed", help="the mission")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     spd, frm, turb = args.wind
@@ -54,7 +55,7 @@ def main(argv: list[str] | None = None) -> None:
     script.write_text(START.format(here=SHARED / "ardupilot", wind=wind.resolve()))
     script.chmod(0o755)
     for seed in args.seeds:
-        row = fly_one("ardupilot", "fixed", seed, args.out, args.instance, script=script)
+        row = fly_one("ardupilot", args.arm, seed, args.out, args.instance, script=script)
         row["wind"] = [spd, frm, turb]
         with open(args.out / "flights.jsonl", "a") as f:
             f.write(json.dumps(row) + "\n")
