@@ -62,14 +62,21 @@ class LiveEstimates:
 
     def stop_worker(self) -> None:
         """Stop the worker now: an estimate still running must not hold up the exit (where a Ctrl-C
-        would end the process by the signal instead of exit 130)."""
+        would end the process by the signal instead of exit 130).  Then wait (at most 5 s) for
+        the executor's manager thread, which closes its wake-up pipe once it sees the worker gone:
+        Python 3.11's exit hook writes to that pipe unlocked, and an exit during the close printed
+        "Exception ignored ... OSError: [Errno 9] Bad file descriptor" after a one-line error (a
+        CI run of "connecting to nothing")."""
         if self.pool is not None:
             # the executor's own record (private)
             procs = list(getattr(self.pool, "_processes", None) or {})
             procs = [self.pool._processes[k] for k in procs]
+            manager = getattr(self.pool, "_executor_manager_thread", None)
             self.pool.shutdown(wait=False, cancel_futures=True)
             for proc in procs:
                 proc.kill()
+            if manager is not None:
+                manager.join(timeout=5.0)
 
 
 def log_meta(ctx: FlightContext) -> dict:
