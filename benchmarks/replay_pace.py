@@ -124,15 +124,16 @@ def main(argv: list[str] | None = None) -> None:
             if not headwind:  # no leg directions: the headwind's columns vanish from the fit
                 zero = np.zeros_like(plan.u_wp)
                 plan = dataclasses.replace(plan, u_wp=zero, u_ret=zero)
+            # where each flight, as flown, would have been cut by this fit
+            kept = [replay(plan, prior, t_arr, used)[2] for t_arr, used in rows]
             for d in args.slow:
                 over, under, more, n = -np.inf, np.inf, 0, 0
-                for t_arr, used in rows:
-                    kept = replay(plan, prior, t_arr, used)[2]
+                for (t_arr, used), cut in zip(rows, kept, strict=True):
                     for j in range(1, len(t_arr) if d > 0 else 2):
                         shifted = t_arr + d * (np.arange(len(t_arr)) >= j)
                         o, u, last = replay(plan, prior, shifted, used + d)
                         # a cut the slowed flight did not need (it would land inside the reserve)
-                        needless = last < kept and used + d <= plan.budget_s - 10.0
+                        needless = last < cut and used + d <= plan.budget_s - 10.0
                         over, under = max(over, o), min(under, u)
                         more, n = more + needless, n + 1
                 print(f"  {label:23}  {d:6.2f}  {over:9.1f} / {under:6.1f}  {more:5d} of {n}")

@@ -15,16 +15,15 @@ never less than the time already used. When it passes the budget the runner warn
 overrun.
 
 A budget that holds: the pace is fitted per leg once ``MIN_FIT_LEGS`` legs are measured (``Pace``:
-flown = planned x (scale + headwind . leg direction) + a fixed cost per leg; PX4 v1.16 SITL slows
-to a stop at every waypoint, 3 s a leg, so it fell further behind as the spiral's legs shortened; in
+flown = planned x (scale + headwind . leg direction) + a fixed cost per leg; PX4 v1.16 SITL slows to
+a stop at every waypoint, 3 s a leg, so it fell further behind as the spiral's legs shortened; in
 wind the upwind legs are the slow ones), under a robust loss (one slow leg is not a pace), the
-return is predicted from
-wherever the mission would end (``BudgetPlan.ret_s``), and touchdown to disarm is the autopilot's
-known delay (``LANDED_TO_DISARM_S``). When the prediction passes the budget less its reserve the
-mission's ``budget_policy`` acts (``decide``): ``trim`` (default) drops the tail waypoints that no
-longer fit, as late as is safe (``TRIM_LOOKAHEAD`` waypoints before the cut, when the pace is best
-known), ``return`` returns to launch at once, ``warn`` only warns.  The sidecar's ``budget`` records
-the policy, what was dropped and the measured arm-to-disarm time.
+return is predicted from wherever the mission would end (``BudgetPlan.ret_s``), and touchdown to
+disarm is the autopilot's known delay (``LANDED_TO_DISARM_S``). When the prediction passes the
+budget less its reserve the mission's ``budget_policy`` acts (``decide``): ``trim`` (default) drops
+the tail waypoints that no longer fit, as late as is safe (``TRIM_LOOKAHEAD`` waypoints before the
+cut, when the pace is best known), ``return`` returns to launch at once, ``warn`` only warns. The
+sidecar's ``budget`` records the policy, what was dropped and the measured arm-to-disarm time.
 """
 
 from __future__ import annotations
@@ -357,6 +356,7 @@ class BudgetWatch:
         b = self.plan.budget_s
         r2 = lambda v: None if v is None or not np.isfinite(v) else round(float(v), 2)  # noqa: E731
         over = used_s is not None and used_s > b
+        fitted = self.pace_model() if self.reached_at else None
         return {
             "budget_s": b,
             "planned_s": r2(self.planned_s()),
@@ -369,11 +369,9 @@ class BudgetWatch:
             "policy": self.policy,
             "reserve_s": self.reserve_s,
             "pace_prior": None if self.prior is None else _pace_list(self.prior),
-            "pace_fitted": _pace_list(self.pace_model()) if self.reached_at else None,
+            "pace_fitted": None if fitted is None else _pace_list(fitted),
             # extra seconds per planned second flown east / north: where the wind comes from
-            "pace_headwind": [round(h, 3) for h in self.pace_model().headwind]
-            if self.reached_at
-            else None,
+            "pace_headwind": None if fitted is None else [round(h, 3) for h in fitted.headwind],
             "dropped_waypoints": [i + 1 for i in self.dropped],
             "actions": self.actions,
         }
