@@ -3,10 +3,11 @@
 
 Skips cleanly where ``../shared/sitl/px4`` is absent.  Three flights, each against its own PX4
 instance (UDP 14540 + instance): the spiral end to end (exit 0, landed inside its 600 s budget arm
-to disarm on the vehicle's clock, every STATUSTEXT PX4 wrote to its console kept in the sidecar, a
-region printed: SIH's -28 deg cruise pitch is outside the networks' training attitudes, so the
-region is the self-calibrating posterior's), a Ctrl-C in the mission (returned, landed, exit 130,
-the log closed as aborted) and the adaptive mission (survey, rounds, landed inside the budget).
+to disarm on the vehicle's clock, every STATUSTEXT PX4 wrote to its console up to the disarm kept
+in the sidecar, a region printed: SIH's -28 deg cruise pitch is outside the networks' training
+attitudes, so the region is the self-calibrating posterior's), a Ctrl-C in the mission (returned,
+landed, exit 130, the log closed as aborted) and the adaptive mission (survey, rounds, landed
+inside the budget).
 Speed-up ``SPEEDUP``: PX4's SIH sleeps open-loop, so a speed-up the CPU cannot hold makes its
 MAVLink transfers time out (measured on the 2-core development machine under load: 10x flew the
 spiral every time but PX4 lost 2-4 of its 9 texts, aged past its 5 s in its own queue; 20x timed
@@ -180,7 +181,10 @@ def test_spiral_on_px4(px4, tmp_path):
     # the STATUSTEXTs: every one PX4 sent, in its order, none folded away, even when MAVSDK dropped
     # telemetry callbacks (the texts have a MAVSDK instance of their own: flight.textlink)
     kept, sent = _sidecar_texts(m), px4.texts()
-    assert kept == sent, (sent, kept, m["mavsdk_dropped_callbacks"])
+    assert kept == sent[: len(kept)], (sent, kept, m["mavsdk_dropped_callbacks"])
+    # once disarmed PX4 reruns its preflight checks and may warn ("Preflight: GPS Vertical Pos
+    # Drift too high", CI at a88065b) after the log closed; everything to the disarm is kept
+    assert len(kept) >= sent.index("Disarmed by landing") + 1, (sent, kept)
     assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
     # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's
     # regions do
