@@ -114,6 +114,10 @@ def pair(
             "member_errors_m": {}
             if shown is None
             else {k: err((c.x_m, c.y_m)) for k, c in shown.components.items()},
+            # and where each stood (the survey's fixed-flight default: a fallback's trigger)
+            "member_xy": {}
+            if shown is None
+            else {k: [float(c.x_m), float(c.y_m)] for k, c in shown.components.items()},
             # the networks' physics residual at each candidate (rounds_answer's judge)
             "physics_rms_db": None if shown is None else shown.extras.get("physics_rms_db"),
             "live_error_m": err(o.final),
