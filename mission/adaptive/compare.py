@@ -25,6 +25,7 @@ from mission.adaptive.simflight import (
 from mission.errors import InputError
 from mission.evidence import compare_methods, mean_interval
 from mission.localize.api import localize_log
+from mission.localize.rounds_answer import survey_attitude
 from mission.physics.family import load_family
 from mission.simulate import SimConfig
 from mission.workshop.evaluate_suite import region_coverage
@@ -107,6 +108,11 @@ def pair(
 
         flown = adaptive if name == "adaptive" else None
         shown = None if o.log is None else product_answer(spec, o.log, flown)
+        survey_att = (
+            survey_attitude(o.log.flight_log(spec, adaptive))
+            if name == "adaptive" and o.log is not None
+            else None
+        )
         out[name] = {
             "error_m": None if shown is None else err((shown.x_m, shown.y_m)),
             "method": None if shown is None else shown.method,
@@ -128,6 +134,8 @@ def pair(
             "rounds": o.rounds,
             "planned": o.planned,  # each round's [target, centre flown]
             "shown_regions": shown_regions(shown, w.tx),
+            # the survey's roll and pitch spans (an adaptive flight's; rounds_answer)
+            "survey_attitude_deg": survey_att,
         }
     return out
 

@@ -29,9 +29,15 @@ from mission.localize.candidates import Candidate
 from mission.localize.card import training_domain_of
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
+from mission.localize.preprocess import select_samples
 from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.sim_default import SPIRAL_SOURCE_MODEL, tilt_alternative
-from mission.localize.training_domain import flight_altitudes, flight_attitude
+from mission.localize.training_domain import (
+    CIRCLE_ATTITUDE_TOLERANCE_DEG,
+    attitude_note,
+    flight_altitudes,
+    flight_attitude,
+)
 from mission.localize.uncertainty import hpd_regions
 from mission.physics import make_model
 from mission.robust import offset_residual
@@ -69,6 +75,27 @@ def survey_and_rounds(part) -> tuple[object, np.ndarray] | None:
     if (~rounds).sum() < 2:
         return None
     return part.select(~rounds), rounds
+
+
+def survey_attitude(log) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The roll and pitch spans (``flight_attitude``) of an adaptive log's survey: its selected
+    samples before the rounds (None: no survey among them)."""
+    split = survey_and_rounds(select_samples(log)[0])
+    return None if split is None else flight_attitude(split[0])
+
+
+def survey_out_of_domain(attitude_deg) -> bool:
+    """Whether a survey flown at ``attitude_deg`` (``survey_attitude``) leaves the survey
+    network's training attitudes (the test that hands it to the tilt network, no tolerance): its
+    candidates are then answered by networks that never saw RSS at that tilt."""
+    path = shipped_model(SURVEY_NETWORK)
+    trained = None if path is None else training_domain_of(path).attitude_deg
+    if attitude_deg is None or trained is None:
+        return False
+    return (
+        attitude_note(SURVEY_NETWORK, trained, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG)
+        is not None
+    )
 
 
 def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
