@@ -119,8 +119,10 @@ def main(argv=None) -> int:
     p.add_argument(
         "--dt",
         type=float,
-        default=0.1,
-        help="RSS sample period s (0.1: cells average alike, 3x faster)",
+        default=None,
+        help="RSS sample period s (default: the mission's own, 0.03 s, what fly-mission logs; "
+        "0.1, the default before 2026-11-29, is 3x faster but handicaps the networks, trained at "
+        "the mission's period: docs/adaptive.md)",
     )
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument(
@@ -151,9 +153,10 @@ def main(argv=None) -> int:
         )
     if a.json:
         a.json.write_text(json.dumps(rows, indent=1))
+    period = "the mission's" if a.dt is None else f"{a.dt:g} s"
     print(
         f"mission {a.mission}, family {a.family}, seed {a.seed}, adaptive overrides "
-        f"{sets or 'none'}, vehicle {vehicle or 'as the mission'}"
+        f"{sets or 'none'}, vehicle {vehicle or 'as the mission'}, sample period {period}"
     )
     print(table(rows))
     return 0

@@ -54,6 +54,12 @@ candidates come from networks that never saw RSS at that tilt.
    (A level survey, -3 deg on the fast simulator, stays inside the training attitudes: there
    the fallback does not fire and rule 1's level runs stand as measured.)
 3. Both: build it.  Otherwise report it and do not build it.
+
+Results (docs/adaptive.md): rule 2 refused by both parts (SITL pooled -0.4 % [-27, +45];
+nose-down fast simulator pooled +15 % [+6, +26]).  Both rules' fast-simulator flights were sampled
+every 0.1 s, ``bench_adaptive.py``'s default then, which handicaps the fixed spiral's network;
+re-scored at the mission's 0.033 s the verdicts stand (rule 1 level +22 % [+6, +42]; rule 2 nose
+down +1.8 [-0.9, +5.3] m), and on the SITL flights the two triggers fire on the same flights.
 """
 
 from __future__ import annotations

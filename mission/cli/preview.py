@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--flights",
         type=int,
         default=6,
-        help="simulated flights for the adaptive comparison (default 6, about 5 s each)",
+        help="simulated flights for the adaptive comparison (default 6, about 7 s each)",
     )
     parser.add_argument(
         "--family", default="afar", help="physics family of those flights (default afar)"
