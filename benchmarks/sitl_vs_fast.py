@@ -33,7 +33,7 @@ DRAG = {"ardupilot": 2.8, "px4": 5.6}  # deg of pitch per m/s: the autopilots' c
 def fly(job: tuple) -> tuple:
     """(autopilot, seed, fixed error, adaptive error) of one fast-simulator pair flown with the
     SITL pair's transmitter ``tx``."""
-    autopilot, seed, tx, rep = job
+    autopilot, seed, tx, rep, dt = job
     from mission.adaptive import compare  # noqa: PLC0415
     from mission.spec import load_mission  # noqa: PLC0415
 
@@ -45,7 +45,7 @@ def fly(job: tuple) -> tuple:
     compare.FlightWorld = World
     spec = load_mission(ROOT / "missions" / "spiral_adaptive.yaml")
     vehicle = {"drag_pitch_deg_per_mps": DRAG[autopilot]}
-    r = compare.pair(spec, spec.adaptive, "mission", 9100 + rep, seed, dt_s=0.1, vehicle=vehicle)
+    r = compare.pair(spec, spec.adaptive, "mission", 9100 + rep, seed, dt_s=dt, vehicle=vehicle)
     return autopilot, seed, r["fixed"]["error_m"], r["adaptive"]["error_m"]
 
 
@@ -54,6 +54,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("stores", nargs="+", type=Path, help="bench_sitl_seeds.py flights.jsonl")
     p.add_argument("--reps", type=int, default=3, help="fast-simulator flights per pair")
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--dt", type=float, help="RSS sample period s (default: the mission's)")
     args = p.parse_args(argv)
     sitl: dict[tuple, dict] = {}
     jobs = []
@@ -68,7 +69,7 @@ def main(argv: list[str] | None = None) -> None:
             side = Path(arms["fixed"]["log"]).with_suffix(".json")
             t = json.loads(side.read_text())["truth"]
             tx = [t["x_m"], t["y_m"], t.get("z_m", 1.5)]
-            jobs += [(autopilot, seed, tx, rep) for rep in range(args.reps)]
+            jobs += [(autopilot, seed, tx, rep, args.dt) for rep in range(args.reps)]
     fast: dict[tuple, list] = {}
     with ProcessPoolExecutor(args.jobs) as ex:
         for autopilot, seed, f, a in ex.map(fly, jobs):
