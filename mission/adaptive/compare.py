@@ -32,13 +32,12 @@ from mission.workshop.evaluate_suite import region_coverage
 from mission.workshop.flight_draws import flight_rng
 
 
-def product_answer(spec, log, adaptive=None):
-    """The estimate ``localize`` gives by default after a simulated flight of ``spec`` (fixed, or
-    adaptive with settings ``adaptive``; ``SimLog``): ``api.localize_log`` on the log such a
-    flight writes; None when it refuses the log."""
+def product_answer(flight_log):
+    """The estimate ``localize`` gives by default after a simulated flight: ``api.localize_log``
+    on the log it writes (``SimLog.flight_log``); None when it refuses the log."""
 
     try:
-        return localize_log(log.flight_log(spec, adaptive))
+        return localize_log(flight_log)
     except InputError:
         return None
 
@@ -113,12 +112,9 @@ def pair(
             return None if e is None else float(np.hypot(e[0] - w.tx[0], e[1] - w.tx[1]))
 
         flown = adaptive if name == "adaptive" else None
-        shown = None if o.log is None else product_answer(spec, o.log, flown)
-        survey_att = (
-            survey_attitude(o.log.flight_log(spec, adaptive))
-            if name == "adaptive" and o.log is not None
-            else None
-        )
+        flog = None if o.log is None else o.log.flight_log(spec, flown)
+        shown = None if flog is None else product_answer(flog)
+        survey_att = survey_attitude(flog) if name == "adaptive" and flog is not None else None
         out[name] = {
             "error_m": None if shown is None else err((shown.x_m, shown.y_m)),
             "method": None if shown is None else shown.method,

@@ -31,13 +31,12 @@ from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.preprocess import select_samples
 from mission.localize.selfcal import SelfCalibratingGrid
-from mission.localize.sim_default import SPIRAL_SOURCE_MODEL, tilt_alternative
-from mission.localize.training_domain import (
-    CIRCLE_ATTITUDE_TOLERANCE_DEG,
-    attitude_note,
-    flight_altitudes,
-    flight_attitude,
+from mission.localize.sim_default import (
+    SPIRAL_SOURCE_MODEL,
+    outside_training_attitudes,
+    tilt_alternative,
 )
+from mission.localize.training_domain import flight_altitudes, flight_attitude
 from mission.localize.uncertainty import hpd_regions
 from mission.physics import make_model
 from mission.robust import offset_residual
@@ -86,15 +85,11 @@ def survey_attitude(log) -> tuple[tuple[float, float], tuple[float, float]] | No
 
 def survey_out_of_domain(attitude_deg) -> bool:
     """Whether a survey flown at ``attitude_deg`` (``survey_attitude``) leaves the survey
-    network's training attitudes (the test that hands it to the tilt network, no tolerance): its
-    candidates are then answered by networks that never saw RSS at that tilt."""
+    network's training attitudes (``sim_default.outside_training_attitudes``): its candidates are
+    then answered by networks that never saw RSS at that tilt."""
     path = shipped_model(SURVEY_NETWORK)
-    trained = None if path is None else training_domain_of(path).attitude_deg
-    if attitude_deg is None or trained is None:
-        return False
-    return (
-        attitude_note(SURVEY_NETWORK, trained, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG)
-        is not None
+    return path is not None and outside_training_attitudes(
+        SURVEY_NETWORK, training_domain_of(path).attitude_deg, attitude_deg
     )
 
 

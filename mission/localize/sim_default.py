@@ -100,6 +100,18 @@ def sim_default_model(
     )
 
 
+def outside_training_attitudes(name: str, trained_attitude, attitude_deg) -> bool:
+    """Whether the flown attitude ``attitude_deg`` leaves network ``name``'s training attitudes
+    (no tolerance, as for its circles; False where either is unknown): the test that hands a
+    flight to the tilt network."""
+    if attitude_deg is None or trained_attitude is None:
+        return False
+    return (
+        attitude_note(name, trained_attitude, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG)
+        is not None
+    )
+
+
 def tilt_alternative(
     name: str, trained_attitude, flown_altitude, attitude_deg, tilt_name: str
 ) -> tuple[Path, str] | None:
@@ -107,9 +119,7 @@ def tilt_alternative(
     attitude ``attitude_deg`` leaves network ``name``'s training attitudes (no tolerance, as for its
     circles) and ``tilt_name``'s training holds the flight's altitude and attitude; None otherwise
     (``name`` answers)."""
-    if attitude_deg is None or trained_attitude is None:
-        return None
-    if attitude_note(name, trained_attitude, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG) is None:
+    if not outside_training_attitudes(name, trained_attitude, attitude_deg):
         return None
     path = shipped_model(tilt_name)
     if path is None:
@@ -117,8 +127,8 @@ def tilt_alternative(
     dom = training_domain_of(path)
     if dom.altitude_m is None or altitude_note(tilt_name, dom.altitude_m, flown_altitude):
         return None
-    if dom.attitude_deg is None or attitude_note(
-        tilt_name, dom.attitude_deg, attitude_deg, CIRCLE_ATTITUDE_TOLERANCE_DEG
+    if dom.attitude_deg is None or outside_training_attitudes(
+        tilt_name, dom.attitude_deg, attitude_deg
     ):
         return None
     pitch = attitude_deg[1]
