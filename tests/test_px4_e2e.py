@@ -181,10 +181,11 @@ def test_spiral_on_px4(px4, tmp_path):
     # the STATUSTEXTs: every one PX4 sent, in its order, none folded away, even when MAVSDK dropped
     # telemetry callbacks (the texts have a MAVSDK instance of their own: flight.textlink)
     kept, sent = _sidecar_texts(m), px4.texts()
-    assert kept == sent[: len(kept)], (sent, kept, m["mavsdk_dropped_callbacks"])
-    # once disarmed PX4 reruns its preflight checks and may warn ("Preflight: GPS Vertical Pos
-    # Drift too high", CI at a88065b) after the log closed; everything to the disarm is kept
-    assert len(kept) >= sent.index("Disarmed by landing") + 1, (sent, kept)
+    # up to the disarm: after it PX4 reruns its preflight checks and may warn ("Preflight: GPS
+    # Vertical Pos Drift too high", CI at a88065b and e6a3668), a text the sidecar kept from MAVLink
+    # while PX4's console shows it otherwise; everything to the disarm is kept, in order
+    k = sent.index("Disarmed by landing") + 1
+    assert kept[:k] == sent[:k], (sent, kept, m["mavsdk_dropped_callbacks"])
     assert {"takeoff", "mission", "return"} <= set(log.columns["phase"])
     # a region printed: the default network's circles do not apply at SIH's pitch; the posterior's
     # regions do
