@@ -169,8 +169,13 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
     }
 
 
-def collect(args) -> None:
+def collect_rows(args, one: Callable[[tuple], dict], description: str) -> None:
+    """Append ``one(job)`` for every flight not yet in ``args.json`` (a rerun resumes where the last
+    one stopped): the six real flights (``args.mat``, each with the grid preset fitted without its
+    team), then benchmark flights ``args.first`` .. ``+ args.n`` of ``args.suite_dir``. A job is
+    (log path, name, grid preset or None, truth in the log's frame or None for the sidecar's)."""
     flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
+    first = getattr(args, "first", 0)
     jobs = []
     out = Path(args.json)
     done = (
@@ -194,15 +199,18 @@ def collect(args) -> None:
                 None,
                 flights[i]["truth_xy"],
             )
-            for i in range(args.first, args.first + args.n)
+            for i in range(first, min(first + args.n, len(flights)))
         ]
-        jobs = [j for j in jobs if j[1] not in done]  # a rerun resumes where the last one stopped
+        jobs = [j for j in jobs if j[1] not in done]
         with get_context("spawn").Pool(args.workers) as pool, out.open("a") as fh:
-            for row in track(pool.imap(_one, jobs), total=len(jobs), description="candidates"):
+            for row in track(pool.imap(one, jobs), total=len(jobs), description=description):
                 fh.write(json.dumps(row) + "\n")
                 fh.flush()
-    rows = out.read_text().splitlines()
-    print(f"{len(rows)} flights -> {args.json}")
+    print(f"{len(out.read_text().splitlines())} flights -> {args.json}")
+
+
+def collect(args) -> None:
+    collect_rows(args, _one, "candidates")
 
 
 def _pbma(lp: np.ndarray) -> np.ndarray:

@@ -34,17 +34,13 @@ benchmark flights (does the jackknife see the error at all?).
 from __future__ import annotations
 
 import argparse
-import json
-import tempfile
-from multiprocessing import get_context
-from pathlib import Path
 
 import numpy as np
-from rich.progress import track
 from scipy.stats import spearmanr
 from score_evidence import (  # this folder: run as a script
     choose_on_dev,
     collect_parser,
+    collect_rows,
     err_m,
     read_cache,
     score_held_out,
@@ -53,7 +49,6 @@ from score_evidence import (  # this folder: run as a script
 from threadpoolctl import threadpool_limits
 
 from mission.flightlog import read_flight_log
-from mission.importers.afar import AFAR2023_FOLD_WITHOUT, AFAR2023_TRUTH, import_afar_mat
 from mission.localize.api import DEFAULT_PHYSICS_PRESET, localize_log, run_member, search_area
 from mission.localize.preprocess import select_samples
 from mission.shipped import shipped_model
@@ -108,30 +103,7 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
 
 
 def collect(args) -> None:
-    flights = json.loads((Path(args.suite_dir) / "suite.json").read_text())["flights"]
-    out = Path(args.json)
-    done = (
-        {json.loads(line)["name"] for line in out.read_text().splitlines()}
-        if out.is_file()
-        else set()
-    )
-    jobs = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for f in sorted(Path(args.mat).glob("results_useful_ori_exp_*_loc_*.mat")):
-            name = f.stem.replace("results_useful_ori_exp_", "")
-            log = import_afar_mat(f, tmp, truth=AFAR2023_TRUTH[int(name.rsplit("_", 1)[1])])
-            fold = f"afar:{AFAR2023_FOLD_WITHOUT[name[:3]]}"
-            jobs.append((str(log.out_path), f"real {name}", fold, None))
-        jobs += [
-            (str(Path(args.suite_dir) / fl["file"]), f"bench {i}", None, fl["truth_xy"])
-            for i, fl in enumerate(flights[: args.n])
-        ]
-        jobs = [j for j in jobs if j[1] not in done]
-        with get_context("spawn").Pool(args.workers) as pool, out.open("a") as fh:
-            for row in track(pool.imap(_one, jobs), total=len(jobs), description="jackknife"):
-                fh.write(json.dumps(row) + "\n")
-                fh.flush()
-    print(f"{len(out.read_text().splitlines())} flights -> {out}")
+    collect_rows(args, _one, "jackknife")
 
 
 def _weighted(r: dict, names: tuple[str, ...]) -> np.ndarray:
