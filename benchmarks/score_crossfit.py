@@ -68,17 +68,17 @@ from score_evidence import (  # this folder: run as a script
     score_held_out,
     split_dev,
 )
+from score_jackknife import _member
 from threadpoolctl import threadpool_limits
 
 from mission.cells import cell_average
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.flightlog import read_flight_log
-from mission.localize.api import DEFAULT_PHYSICS_PRESET, localize_log, run_member, search_area
+from mission.localize.api import DEFAULT_PHYSICS_PRESET, localize_log
 from mission.localize.evidence_stage import selfcal_scores
 from mission.localize.preprocess import select_samples
 from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.stacking import stacking_weights
-from mission.shipped import shipped_model
 
 K = 5
 SQUARE_M = 50.0
@@ -95,15 +95,7 @@ def fold_of(xy: np.ndarray) -> np.ndarray:
 
 def _points(part, log, preset: str) -> dict[str, tuple[float, float]]:
     """Every member's point on ``part`` (the log's frame)."""
-    area = search_area(log)
-    out = {}
-    _, e = run_member("selfcal", part, log.origin, area=area)
-    out["selfcal"] = (e.x_m, e.y_m)
-    _, e = run_member("grid", part, log.origin, area=area, physics_preset=preset)
-    out["grid"] = (e.x_m, e.y_m)
-    for n in NETWORKS:
-        _, e = run_member("onnx", part, log.origin, model_path=shipped_model(f"{n}.onnx"))
-        out[n] = (e.x_m, e.y_m)
+    out = {m: _member(m, part, log, preset) for m in ("selfcal", "grid", *NETWORKS)}
     out["fusion"] = tuple(0.5 * (np.array(out["selfcal"]) + out[NETWORKS[0]]))
     return {k: (float(v[0]), float(v[1])) for k, v in out.items()}
 
