@@ -101,6 +101,22 @@ e29028bc...), not retrained.
 - Beside: issue 33 on the A3 seeds (adaptive - fixed, both answered by ``localize`` with the
   change).
 
+Result of the third rule (2026-11-29 08:37 UTC): ADOPTED; ``models/rfsl_survey_tilt.onnx`` ships.
+- A3, 44 adaptive SITL logs (39 transmitters; routed to the network on 39): 9.3 -> 5.7 m, paired
+  -3.5 [-5.9, -1.5] m (1 holds); ArduCopter 19: 10.5 -> 6.6 m, -4.0 [-7.5, -1.1]; PX4 25: 8.3 ->
+  5.1 m, -3.2 [-6.9, -0.8] (2 holds).
+- B3, seed 5005 at the mission's period, 40/40 flights identical with and without: at 2.8 deg per
+  m/s 10.2 -> 8.3 m, -1.8 [-3.7, -0.1]; at 5.6, 12.0 -> 8.9 m, -3.1 [-5.4, -1.0] (3 holds). The
+  same kind of flights sampled every 0.1 s had moved by +1.1 / +1.4 m (seed 5004).
+- C3, level: 0 of 40 answers moved (4 holds).
+- Beside, issue 33 with the change (each seed's logs averaged): ArduCopter 17 transmitters, fixed
+  11.2 m, adaptive 6.2 m, -5.1 [-12.2, +0.3] m (6 worse); PX4 25, fixed 9.0 m, adaptive 5.1 m, -3.9
+  [-7.0, -0.9] m (6 worse). The regions held 18/44 and 43/44 with and without it.
+- Reproduce: the network from ``/tmp/s51`` (the first rule's training, now in ``models/``), then
+  ``score_survey_tilt.py sitl`` on the seven stores named in A3 and ``bench`` (``--paired-by-world``
+  for B3, ``--level`` for C3) on the six ``bench_adaptive.py`` runs, each run from a checkout with
+  and one without ``models/rfsl_survey_tilt.onnx``.
+
     python benchmarks/score_survey_tilt.py sitl STORE2/flights.jsonl --json A2.json
     python benchmarks/score_survey_tilt.py bench --paired-by-world B2_28_with.json \\
         B2_28_without.json B2_56_with.json B2_56_without.json

@@ -31,6 +31,7 @@ SHIPPED = (
     "rfsl_spiral_alt",
     "rfsl_survey_e2r",
     "rfsl_spiral_tilt",
+    "rfsl_survey_tilt",
 )
 
 

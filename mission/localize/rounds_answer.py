@@ -52,9 +52,10 @@ PHYSICS_RMS_DB = 12.06
 # the judge only, never for the rounds' score
 SURVEY_NETWORK = "rfsl_survey_e2r.onnx"
 # the same survey flown nose down (0.6-6 deg of pitch per m/s), the third candidate where the
-# survey's attitude leaves SURVEY_NETWORK's training span, if installed: NOT shipped, refused by
-# both of its rules (better on the adaptive SITL logs, -7.0 [-10.4, -3.7] m, worse on fresh
-# fast-simulator flights, +1.1 and +1.4 m; benchmarks/score_survey_tilt.py trains it)
+# survey's attitude leaves SURVEY_NETWORK's training span: adopted by the third rule of
+# benchmarks/score_survey_tilt.py (44 fresh adaptive SITL logs -3.5 [-5.9, -1.5] m; the fast
+# simulator nose down at the mission's sample period -1.8 and -3.1 m, level unmoved); its first
+# two rules had refused it on fast-simulator flights sampled every 0.1 s
 SURVEY_TILT_NETWORK = "rfsl_survey_tilt.onnx"
 # HPD masses of an adaptive flight's regions, by the judge's verdict (True: the networks' physics
 # explains the flight): calibrated on 240 simulated adaptive flights, seeds 2045-2046 under the
