@@ -112,6 +112,7 @@ Result of the third rule (2026-11-29 08:37 UTC): ADOPTED; ``models/rfsl_survey_t
 - Beside, issue 33 with the change (each seed's logs averaged): ArduCopter 17 transmitters, fixed
   11.2 m, adaptive 6.2 m, -5.1 [-12.2, +0.3] m (6 worse); PX4 25, fixed 9.0 m, adaptive 5.1 m, -3.9
   [-7.0, -0.9] m (6 worse). The regions held 18/44 and 43/44 with and without it.
+- Beside: the ``afar`` family at 2.8 deg per m/s, seed 5005: 0 of 40 answers moved.
 - Reproduce: the network from ``/tmp/s51`` (the first rule's training, now in ``models/``), then
   ``score_survey_tilt.py sitl`` on the seven stores named in A3 and ``bench`` (``--paired-by-world``
   for B3, ``--level`` for C3) on the six ``bench_adaptive.py`` runs, each run from a checkout with
