@@ -220,11 +220,12 @@ def test_the_survey_network_answers_through_the_judge_only(repo_dir, monkeypatch
 
 
 @pytest.mark.parametrize("drag", [None, 5.6])
-def test_a_survey_flown_nose_down_routes_to_the_tilt_survey_network(repo_dir, drag):
+def test_a_survey_flown_nose_down_routes_to_the_tilt_survey_network(repo_dir, monkeypatch, drag):
     """A survey cruising at -28 deg (outside ``rfsl_survey_e2r``'s span) gets the survey network
     trained nose down (``SURVEY_TILT_NETWORK``, benchmarks/score_survey_tilt.py's third rule), a
-    level survey keeps ``rfsl_survey_e2r``. (Its accuracy is the rule's business: this 200 s
-    survey sampled every 0.2 s is far from what either network was trained on.)"""
+    level survey keeps ``rfsl_survey_e2r``, and without the tilt network's file every survey keeps
+    it. (Its accuracy is the rule's business: this 200 s survey sampled every 0.2 s is far from
+    what either network was trained on.)"""
     if ra.shipped_model(ra.SURVEY_TILT_NETWORK) is None:
         pytest.skip("no survey tilt network")
     log, spec, _ = _flight(repo_dir, "truth", drag=drag)
@@ -234,3 +235,5 @@ def test_a_survey_flown_nose_down_routes_to_the_tilt_survey_network(repo_dir, dr
     est = ra.survey_network(survey, spec.field.origin, 1.5)
     want = ra.SURVEY_NETWORK if drag is None else ra.SURVEY_TILT_NETWORK
     assert Path(est.model).name == want
+    monkeypatch.setattr(ra, "SURVEY_TILT_NETWORK", "absent_survey_tilt.onnx")
+    assert Path(ra.survey_network(survey, spec.field.origin, 1.5).model).name == ra.SURVEY_NETWORK
