@@ -23,7 +23,10 @@ import json
 import subprocess
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mission.evidence import mean_interval, paired_difference
@@ -131,18 +134,39 @@ def fly_one(
     }
 
 
-def stored_flights(stores: list[Path], arm: str):
-    """(row, log) of each flight of ``arm`` in bench stores (``OUT/flights.jsonl`` files) whose log
-    is still on disk, each log once: for scorers that answer stored flights again."""
+def stored_rows(stores: list[Path]):
+    """Each flight's row in bench stores (``OUT/flights.jsonl`` files) whose log is still on disk,
+    each log once: for scorers that answer stored flights again."""
     seen = set()
     for store in stores:
         for line in Path(store).read_text().splitlines():
             r = json.loads(line)
-            if r["arm"] != arm or not r.get("log") or r["log"] in seen:
+            if not r.get("log") or r["log"] in seen:
                 continue
             if Path(r["log"]).exists():
                 seen.add(r["log"])
-                yield r, read_flight_log(r["log"])
+                yield r
+
+
+def stored_flights(stores: list[Path], arm: str):
+    """(row, log) of each stored flight of ``arm`` (``stored_rows``)."""
+    for r in stored_rows(stores):
+        if r["arm"] == arm:
+            yield r, read_flight_log(r["log"])
+
+
+def seed_means(rows: list[dict], error) -> tuple[list, list[float], list[float]]:
+    """(seeds flown on both arms, the fixed arm's mean error per seed, the adaptive arm's) over
+    ``rows`` (stored flights of one autopilot; ``error(row)`` its error, None skipped): a seed
+    flown more than once counts as the mean of its flights."""
+    by: dict = defaultdict(lambda: defaultdict(list))
+    for r in rows:
+        e = error(r)
+        if e is not None:
+            by[r["seed"]][r["arm"]].append(e)
+    seeds = sorted(s for s in by if by[s]["fixed"] and by[s]["adaptive"])
+    fixed = [float(np.mean(by[s]["fixed"])) for s in seeds]
+    return seeds, fixed, [float(np.mean(by[s]["adaptive"])) for s in seeds]
 
 
 def series_max_gap(meta: dict) -> float | None:

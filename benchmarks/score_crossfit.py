@@ -71,13 +71,11 @@ from score_evidence import (  # this folder: run as a script
 from score_jackknife import _member
 from threadpoolctl import threadpool_limits
 
-from mission.cells import cell_average
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.flightlog import read_flight_log
 from mission.localize.api import DEFAULT_PHYSICS_PRESET, localize_log
-from mission.localize.evidence_stage import selfcal_scores
+from mission.localize.evidence_stage import selfcal_cells, selfcal_scores
 from mission.localize.preprocess import select_samples
-from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.stacking import stacking_weights
 
 K = 5
@@ -110,9 +108,7 @@ def _one(job: tuple[str, str, str | None, list | None]) -> dict:
         full = _points(part, log, preset)
         fold = fold_of(part.enu()[:, :2])
         folds = [_points(part.select(fold != k), log, preset) for k in range(K)]
-        sc = SelfCalibratingGrid(tx_height_m=DEFAULT_TX_HEIGHT_M)
-        samples = part.samples() if hasattr(part, "samples") else part
-        cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
+        cells = selfcal_cells(part, DEFAULT_TX_HEIGHT_M)
         cell_fold = fold_of(cells.enu_m[:, :2])
         # the folds a flight covers, renumbered 0..B-1 (blocked_scores' blocks)
         present, block = np.unique(cell_fold, return_inverse=True)
@@ -186,17 +182,15 @@ def score(args) -> None:
     real, bench = read_cache(args.json)
     dev, fresh = split_dev(bench)
     for v in ("A", "B"):
+        totals = np.array([fold_scores(r, v).sum(axis=1) for r in bench])  # (flights, members)
         chosen = {m: 0 for m in MEMBERS}
-        for r in bench:
-            chosen[MEMBERS[int(np.argmax(fold_scores(r, v).sum(axis=1)))]] += 1
+        for i in np.argmax(totals, axis=1):
+            chosen[MEMBERS[int(i)]] += 1
         print(f"variant {v}: best member on the benchmark's {len(bench)} flights: {chosen}")
+        deficits = totals.max(axis=1, keepdims=True) - totals
         for m_i, m in enumerate(MEMBERS):
-            deficit = [
-                fold_scores(r, v).sum(axis=1).max() - fold_scores(r, v).sum(axis=1)[m_i]
-                for r in bench
-            ]
             er = [err_m(r["full"][m], r) for r in bench]
-            rho = spearmanr(deficit, er).statistic
+            rho = spearmanr(deficits[:, m_i], er).statistic
             print(f"  {m:22s} mean error {np.mean(er):5.1f} m, Spearman(deficit, error) {rho:+.2f}")
         for r in real:
             tot = fold_scores(r, v).sum(axis=1)

@@ -138,7 +138,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -146,6 +145,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_sitl_seeds import seed_means  # noqa: E402
 from score_tilt_network import answer, answer_stored, paired, summary, without  # noqa: E402
 
 import mission.localize.rounds_answer as rounds_answer  # noqa: E402
@@ -175,13 +175,8 @@ def _issue33(rows: list[dict]) -> None:
     """Beside: adaptive - fixed per transmitter (each arm's logs of a seed averaged), as
     ``localize`` answers both with the change."""
     for ap in sorted({r["autopilot"] for r in rows}):
-        by: dict = defaultdict(lambda: defaultdict(list))
-        for r in rows:
-            if r["autopilot"] == ap:
-                by[r["seed"]][r["arm"]].append(r["change"]["error_m"])
-        seeds = sorted(s for s in by if by[s]["fixed"] and by[s]["adaptive"])
-        f = [float(np.mean(by[s]["fixed"])) for s in seeds]
-        a = [float(np.mean(by[s]["adaptive"])) for s in seeds]
+        mine = [r for r in rows if r["autopilot"] == ap]
+        seeds, f, a = seed_means(mine, lambda r: r["change"]["error_m"])
         d = paired_difference(a, f)
         worse = sum(x > y for x, y in zip(a, f, strict=True))
         print(

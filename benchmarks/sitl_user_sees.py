@@ -19,10 +19,10 @@ from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_sitl_seeds import seed_means, stored_rows  # noqa: E402
 
 from mission.evidence import mean_interval, paired_difference  # noqa: E402
 from mission.threads import limit_worker  # noqa: E402
@@ -30,15 +30,11 @@ from mission.threads import limit_worker  # noqa: E402
 
 def pairs(stores: list[Path]) -> list[dict]:
     """The stored flights (``rc`` 0, log on disk, each log once) of seeds flown on both arms."""
-    rows, seen = [], set()
-    for store in stores:
-        for line in store.read_text().splitlines():
-            r = json.loads(line)
-            log = r.get("log")
-            if r.get("rc") != 0 or not log or log in seen or not Path(log).exists():
-                continue
-            seen.add(log)
-            rows.append({k: r[k] for k in ("autopilot", "seed", "arm", "log")})
+    rows = [
+        {k: r[k] for k in ("autopilot", "seed", "arm", "log")}
+        for r in stored_rows(stores)
+        if r.get("rc") == 0
+    ]
     arms = defaultdict(set)
     for r in rows:
         arms[(r["autopilot"], r["seed"])].add(r["arm"])
@@ -57,13 +53,8 @@ def table(rows: list[dict]) -> list[str]:
     which the adaptive answer is no worse."""
     out = []
     for ap in sorted({r["autopilot"] for r in rows}):
-        by: dict = defaultdict(lambda: defaultdict(list))
-        for r in rows:
-            if r["autopilot"] == ap and r["error_m"] is not None:
-                by[r["seed"]][r["arm"]].append(r["error_m"])
-        seeds = sorted(s for s in by if by[s]["fixed"] and by[s]["adaptive"])
-        f = [float(np.mean(by[s]["fixed"])) for s in seeds]
-        a = [float(np.mean(by[s]["adaptive"])) for s in seeds]
+        mine = [r for r in rows if r["autopilot"] == ap]
+        seeds, f, a = seed_means(mine, lambda r: r["error_m"])
         ok = sum(x <= y for x, y in zip(a, f, strict=True))
         out.append(
             f"{ap}: {len(seeds)} seeds; fixed {mean_interval(f).fmt()} m, adaptive "

@@ -118,12 +118,18 @@ def selfcal_scores(cells, xy: np.ndarray, tx_height_m: float, block=None):
     )
 
 
-def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_TX_HEIGHT_M):
-    """The flight's blocked held-out scores of the candidates (``stacking.BlockedScores``), on the
-    self-calibrating search's cells (``selfcal_scores``)."""
+def selfcal_cells(part, tx_height_m: float = DEFAULT_TX_HEIGHT_M):
+    """``part``'s rows (a log's selection or its samples) averaged into the self-calibrating
+    search's cells: what the held-out scores are computed on."""
     sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
     samples = part.samples() if hasattr(part, "samples") else part
-    cells = cell_average(samples, sc.cell_m, sc.altitude_gap_m)
+    return cell_average(samples, sc.cell_m, sc.altitude_gap_m)
+
+
+def score_candidates(part, cands: list[Candidate], tx_height_m: float = DEFAULT_TX_HEIGHT_M):
+    """The flight's blocked held-out scores of the candidates (``stacking.BlockedScores``), on the
+    self-calibrating search's cells (``selfcal_cells``, ``selfcal_scores``)."""
+    cells = selfcal_cells(part, tx_height_m)
     return selfcal_scores(cells, np.array([[c.x_m, c.y_m] for c in cands]), tx_height_m)
 
 

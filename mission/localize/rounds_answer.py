@@ -20,17 +20,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from mission.cells import cell_average, concat_cells
+from mission.cells import concat_cells
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.flightlog import ADAPTIVE
 from mission.localize import Estimate
 from mission.localize.api import choose_method, default_model_path, run_member
 from mission.localize.candidates import Candidate
 from mission.localize.card import training_domain_of
-from mission.localize.evidence_stage import selfcal_scores
+from mission.localize.evidence_stage import selfcal_cells, selfcal_scores
 from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
 from mission.localize.preprocess import select_samples
-from mission.localize.selfcal import SelfCalibratingGrid
 from mission.localize.sim_default import (
     SPIRAL_SOURCE_MODEL,
     outside_training_attitudes,
@@ -115,8 +114,7 @@ def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
 def rounds_scores(survey, rounds, xy: np.ndarray, tx_height_m: float) -> np.ndarray:
     """(K,) the held-out log predictive density (tempered nats) of each candidate at the rounds'
     rows ``rounds``, the nuisance fitted on the survey's rows ``survey`` only."""
-    sc = SelfCalibratingGrid(tx_height_m=tx_height_m)
-    parts = [cell_average(p.samples(), sc.cell_m, sc.altitude_gap_m) for p in (survey, rounds)]
+    parts = [selfcal_cells(p, tx_height_m) for p in (survey, rounds)]
     block = np.repeat([SURVEY, ROUNDS], [len(c) for c in parts])
     return selfcal_scores(concat_cells(parts), xy, tx_height_m, block).block_lpd[:, ROUNDS]
 
