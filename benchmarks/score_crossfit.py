@@ -186,19 +186,23 @@ def score(args) -> None:
         chosen = {m: 0 for m in MEMBERS}
         for i in np.argmax(totals, axis=1):
             chosen[MEMBERS[int(i)]] += 1
-        print(f"variant {v}: best member on the benchmark's {len(bench)} flights: {chosen}")
+        print(f"variant {v}: the best-scored member on the benchmark's {len(bench)} flights:")
+        print("  " + ", ".join(f"{m} {n}" for m, n in chosen.items()))
         deficits = totals.max(axis=1, keepdims=True) - totals
         for m_i, m in enumerate(MEMBERS):
             er = [err_m(r["full"][m], r) for r in bench]
             rho = spearmanr(deficits[:, m_i], er).statistic
             print(f"  {m:22s} mean error {np.mean(er):5.1f} m, Spearman(deficit, error) {rho:+.2f}")
+        print("  real flights, each member's error m / score (nats behind the best):")
         for r in real:
             tot = fold_scores(r, v).sum(axis=1)
-            line = "  ".join(
-                f"{m[:10]} {err_m(r['full'][m], r):5.1f}/{t - tot.max():+5.1f}"
+            cells = [
+                f"{m.replace('rfsl_spiral_', '')[:8]} {err_m(r['full'][m], r):5.1f}/"
+                f"{t - tot.max():+4.1f}"
                 for m, t in zip(MEMBERS, tot, strict=True)
-            )
-            print(f"    {r['name']:14s} error m / score: {line}")
+            ]
+            print(f"    {r['name'][5:]:10s} {'  '.join(cells[:3])}")
+            print(f"    {'':10s} {'  '.join(cells[3:])}")
     best = choose_on_dev(dev, SCHEMES)
     if best is not None:
         score_held_out(

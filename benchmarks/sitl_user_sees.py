@@ -49,18 +49,19 @@ def _answer(row: dict) -> dict:
 
 
 def table(rows: list[dict]) -> list[str]:
-    """One line per autopilot: seeds, each arm's mean, the paired difference and the seeds on
-    which the adaptive answer is no worse."""
+    """Two lines of at most 80 columns per autopilot: seeds, each arm's mean, the paired
+    difference and the seeds on which the adaptive answer is no worse."""
     out = []
     for ap in sorted({r["autopilot"] for r in rows}):
         mine = [r for r in rows if r["autopilot"] == ap]
         seeds, f, a = seed_means(mine, lambda r: r["error_m"])
         ok = sum(x <= y for x, y in zip(a, f, strict=True))
-        out.append(
+        out += [
             f"{ap}: {len(seeds)} seeds; fixed {mean_interval(f).fmt()} m, adaptive "
-            f"{mean_interval(a).fmt()} m; adaptive - fixed {paired_difference(a, f).fmt()} m; "
-            f"no worse on {ok} of {len(seeds)}"
-        )
+            f"{mean_interval(a).fmt()} m;",
+            f"  adaptive - fixed {paired_difference(a, f).fmt()} m; no worse on {ok} of "
+            f"{len(seeds)}",
+        ]
     return out
 
 
