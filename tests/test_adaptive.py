@@ -37,7 +37,7 @@ from mission.cli.fly import main
 from mission.cli.main import main as rfsl_main
 from mission.errors import InputError
 from mission.flight.phases import MonotonicPhases
-from mission.localize.methods import ADAPTIVE_ANSWER
+from mission.localize.methods import ADAPTIVE_ANSWER, JUDGED_PICK
 from mission.localize.rounds_answer import REGION_MASS
 from mission.localize.uncertainty import Posterior
 from mission.physics import make_model
@@ -477,3 +477,21 @@ def test_the_fallback_counterfactual_reads_the_first_rounds_move(
     monkeypatch.setattr("sys.argv", ["adaptive_fallback.py", "--decide", str(path), str(path)])
     fb.main()
     assert capsys.readouterr().out.strip().endswith("decision: build the fallback")
+
+
+def test_the_first_round_goes_over_the_judges_pick(spec):
+    """With ``answer_first`` the round goes over the judge's pick (``JUDGED_PICK`` of the live
+    entry) until a round's square covers it, then as before; without a pick, or with the flag
+    off, as before."""
+    a = dataclasses.replace(spec.adaptive, answer_first=True)
+    start = np.array([0.0, 0.0, spec.altitude_m])
+    peaks = [[150.0, 120.0, 0.6], [60.0, 200.0, 0.3]]
+    d = {"x_m": 150.0, "y_m": 120.0, "candidates": peaks, JUDGED_PICK: [90.0, 60.0]}
+    assert round_target(spec, a, d, [], start) == (90.0, 60.0)
+    flown = [tuple(fit_centre(spec, (90.0, 60.0), a.radius_m))]
+    before = choose_target((150.0, 120.0), peaks, flown, a.radius_m)
+    assert round_target(spec, a, d, flown, start) == before == (150.0, 120.0)
+    off = dataclasses.replace(a, answer_first=False)
+    assert round_target(spec, off, d, [], start) == (150.0, 120.0)
+    no_pick = {k: v for k, v in d.items() if k != JUDGED_PICK}
+    assert round_target(spec, a, no_pick, [], start) == (150.0, 120.0)

@@ -121,15 +121,26 @@ def _regions_are_the_live_posterior_at_adaptive_masses(est, judged: bool) -> Non
     assert est.regions[0].area_m2 <= est.regions[1].area_m2
 
 
-def test_without_rounds_the_live_method_answers(repo_dir):
-    """Before any round (the survey so far) the live method answers, with a note (in flight it
-    costs no more than the live method); so does a log without phases."""
-    log, spec, _ = _flight(repo_dir, "truth")
+@pytest.mark.parametrize("judged", [True, False])
+def test_without_rounds_the_live_method_answers(repo_dir, monkeypatch, judged):
+    """Before any round (the survey so far) the live method answers, with a note; where the
+    networks' physics explains the survey it also names the candidate it explains best
+    (``JUDGED_PICK``, where the planner may fly first), in the series entry too. A log without
+    phases has no survey."""
+    monkeypatch.setattr(ra, "PHYSICS_RMS_DB", ra.PHYSICS_RMS_DB if judged else -np.inf)
+    log, spec, tx = _flight(repo_dir, "truth")
     flight = log.flight_log(spec, spec.adaptive)
     survey = flight.select(np.asarray(flight["phase"]).astype(str) != ADAPTIVE)
     assert not survey_and_rounds(survey)[1].any()
     est = rounds_answer(survey, spec.field.origin, spec.field.rover_area)
     assert est.method == "selfcal" and "no adaptive round" in est.extras["note"]
+    pick = est.extras.get(ra.JUDGED_PICK)
+    d = live.summary(est, 100.0)
+    if judged:  # the mission's own physics: a network's candidate, near the transmitter
+        assert pick is not None and np.hypot(*(np.array(pick) - tx)) < 20.0
+        assert d[ra.JUDGED_PICK] == [round(v, 1) for v in pick]
+    else:
+        assert pick is None and ra.JUDGED_PICK not in d
     no_phase = flight.select(np.ones(len(flight), bool))
     del no_phase.columns["phase"]
     assert survey_and_rounds(no_phase) is None
@@ -182,7 +193,9 @@ def test_the_networks_physics_judges_where_it_holds(repo_dir, monkeypatch, holds
         k = int(np.argmin(rms))
         assert (round(est.x_m, 2), round(est.y_m, 2)) == (listed[k]["x_m"], listed[k]["y_m"])
         assert "networks' physics explains" in est.extras["note"]
+        assert est.extras[ra.JUDGED_PICK] == [est.x_m, est.y_m]
     else:
+        assert ra.JUDGED_PICK not in est.extras
         top = max(listed[:2], key=lambda c: c["weight"])
         assert (round(est.x_m, 2), round(est.y_m, 2)) == (top["x_m"], top["y_m"])
 

@@ -35,6 +35,9 @@ class AdaptiveSpec:
     # choose each round where the top hypotheses predict the most different RSS
     # (planner.separating_target); overrides ``explore``
     separate: bool = False
+    # fly first over the candidate the networks' physics explains best (the adaptive answer's
+    # judge, ``rounds_answer.JUDGED_PICK``) until its square is flown; overrides both above
+    answer_first: bool = True
 
     def altitude(self, spec) -> float:
         return float(spec.altitude_m if self.altitude_m is None else self.altitude_m)
@@ -47,6 +50,7 @@ def parse_adaptive(r) -> AdaptiveSpec:
     en = r.bool_("enabled", d.enabled)
     ex = r.bool_("explore", d.explore)
     sep = r.bool_("separate", d.separate)
+    first = r.bool_("answer_first", d.answer_first)
     alt = (
         r.num("altitude_m", math.nan, 0.0, strict_lo=True) if r.has("altitude_m") else d.altitude_m
     )
@@ -66,6 +70,7 @@ def parse_adaptive(r) -> AdaptiveSpec:
         reserve_s=r.num("reserve_s", d.reserve_s, 0.0),
         explore=ex,
         separate=sep,
+        answer_first=first,
     )
     r.done()
     return out

@@ -24,7 +24,7 @@ import numpy as np
 
 from mission.errors import InputError
 from mission.flight.vehicle_process import die_with_parent, ignore_terminal_signals
-from mission.localize.methods import ADAPTIVE_ANSWER, ADAPTIVE_METHOD
+from mission.localize.methods import ADAPTIVE_ANSWER, ADAPTIVE_METHOD, JUDGED_PICK
 from mission.localize.render import SERIES_LEVEL
 
 DEFAULT_LIVE = (
@@ -88,6 +88,8 @@ def summary(est, t_s: float) -> dict:
         # (adaptive.simflight), so the rounds flown do not depend on how the answer is printed
         reg = own.region(LEVEL)
         d["live_area_m2"] = None if reg is None else round(float(reg.area_m2), 1)
+    if (pick := est.extras.get(JUDGED_PICK)) is not None:  # where the planner goes first
+        d[JUDGED_PICK] = [round(float(v), 1) for v in pick]
     if getattr(est, "posterior", None) is not None and est.posterior.grid is not None:
         # the worker process's imports (noqa): the flight process never loads the localizer
         from mission.adaptive.planner import posterior_candidates  # noqa: PLC0415

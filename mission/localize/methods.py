@@ -48,6 +48,10 @@ DEFAULT_MODEL_NAME = "rfsl_default.onnx"  # the network ``onnx`` runs without a 
 ADAPTIVE_METHOD = "selfcal"
 # an adaptive flight's answer: the live method or the survey's fixed-flight default, by the rounds
 ADAPTIVE_ANSWER = "rounds"
+# the extras key (and live series key) of the candidate the networks' physics explains best where
+# it explains the flight (``rounds_answer``'s judge), also on the survey before any round: the
+# planner may fly the first round over it (``planner.round_target``)
+JUDGED_PICK = "judged_pick"
 
 
 @dataclass(frozen=True)

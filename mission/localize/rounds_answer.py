@@ -28,7 +28,7 @@ from mission.localize.api import choose_method, default_model_path, run_member
 from mission.localize.candidates import Candidate
 from mission.localize.card import training_domain_of
 from mission.localize.evidence_stage import selfcal_cells, selfcal_scores
-from mission.localize.methods import ADAPTIVE_METHOD, composer, method_entry
+from mission.localize.methods import ADAPTIVE_METHOD, JUDGED_PICK, composer, method_entry
 from mission.localize.preprocess import select_samples
 from mission.localize.sim_default import (
     SPIRAL_SOURCE_MODEL,
@@ -147,6 +147,19 @@ def survey_network(survey, origin, tx_height_m: float) -> Estimate | None:
     return run_member("onnx", survey, origin, model_path=path, tx_height_m=tx_height_m)[1]
 
 
+def judge(part, survey, origin, fixed: Estimate, cands: list, tx_height_m: float):
+    """(the judge's candidates: ``cands`` and the survey network's, that network's estimate or
+    None, each candidate's ``physics_rms_db`` on ``part``); no rms (None) unless the survey's
+    fixed default is a network, whose physics judges."""
+    if fixed.method != "onnx":
+        return list(cands), None, None
+    net = survey_network(survey, origin, tx_height_m)
+    weighed = list(cands)
+    if net is not None:  # a third candidate for the judge alone
+        weighed.append(Candidate(net.x_m, net.y_m, "onnx survey network, survey"))
+    return weighed, net, physics_rms_db(part, np.array([c.xy for c in weighed]), tx_height_m)
+
+
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
     """The live method on the whole flight and the fixed flight's default on the survey, the
     candidate the rounds support best answering (module docstring); the live method's answer alone
@@ -158,27 +171,25 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
         live.add_note("no survey phase among the selected samples: the live method answers")
         return live
     survey, rounds = split
-    if rounds.sum() < 2:  # nothing held out yet (the survey in flight): the live method answers
-        live.add_note("no adaptive round among the selected samples: the live method answers")
-        return live
     fixed = fixed_default(survey, origin, area, tx_height_m)
     cands = [
         Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
         Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
     ]
+    if rounds.sum() < 2:  # nothing held out yet (the survey in flight): the live method answers
+        live.add_note("no adaptive round among the selected samples: the live method answers")
+        weighed, _, rms = judge(part, survey, origin, fixed, cands, tx_height_m)
+        if rms is not None and rms.min() <= PHYSICS_RMS_DB:  # where the first round goes
+            live.extras[JUDGED_PICK] = weighed[int(np.argmin(rms))].xy.tolist()
+        return live
     lpd = rounds_scores(survey, part.select(rounds), np.array([c.xy for c in cands]), tx_height_m)
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
-    rms, judged, weighed, net = None, False, list(cands), None
-    if fixed.method == "onnx":  # the network's own physics judges, where it holds
-        net = survey_network(survey, origin, tx_height_m)
-        if net is not None:  # a third candidate for the judge alone
-            weighed.append(Candidate(net.x_m, net.y_m, "onnx survey network, survey"))
-        rms = physics_rms_db(part, np.array([c.xy for c in weighed]), tx_height_m)
-        judged = bool(rms.min() <= PHYSICS_RMS_DB)
-        if judged:
-            best = weighed[int(np.argmin(rms))]
+    weighed, net, rms = judge(part, survey, origin, fixed, cands, tx_height_m)
+    judged = rms is not None and bool(rms.min() <= PHYSICS_RMS_DB)
+    if judged:
+        best = weighed[int(np.argmin(rms))]
     lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
     est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
     # the live method's posterior (the stage picks a point, it fits no posterior), cut at the masses
@@ -189,6 +200,8 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
     )
     est.posterior = post
     est.extras["candidates"] = [c.to_dict() for c in weighed]
+    if judged:
+        est.extras[JUDGED_PICK] = best.xy.tolist()
     # most weight first, then the survey network (judged, never weighed by the rounds)
     est.candidates = sorted(cands, key=lambda c: -c.weight) + weighed[len(cands) :]
     est.set_components(
