@@ -37,6 +37,19 @@ Rule (written 2026-11-29 10:25 UTC; no flight has been flown or simulated with t
 - Reported beside, deciding nothing: issue 33 on the fresh ArduCopter seeds (the fixed spiral
   flown there too) and on its three seeds 0-2 flown with the change, both arms.
 
+Result (2026-11-29 11:10 UTC): ADOPTED, all four conditions hold (docs/adaptive.md, "The first
+round over the judge's pick").
+- A: ArduCopter 8 seeds 6.2 -> 5.1 m, -1.1 [-3.4, 1.3]; PX4 5 seeds 9.3 -> 3.0 m, -6.3 [-19.4,
+  0.9]; pooled 13 seeds -3.1 [-7.9, 0.5] m (1 holds). Round 1 went within 15 m of the transmitter
+  on 12 of 13 flights of the change, 0 of 13 of today's.
+- B: (i) 5.3 -> 5.0 m, -0.3 [-0.6, 0.0] (15 of 40 moved); (ii) 6.7 -> 5.6 m, -1.1 [-2.7, -0.1]
+  (10 moved); pooled -0.7 [-1.5, -0.1] (2 holds); (iii) 57.2 -> 56.7 m, -0.5 [-1.5, 0.0] (1 moved;
+  3 holds).
+- Every SITL flight of the change exited 0 inside its budget (4 holds).
+- Beside: against the fixed spiral on the same seeds, ArduCopter -3.0 [-6.2, 2.1] m, PX4 -3.1
+  [-5.9, 0.5] m; the issue's three ArduCopter seeds 0-2, fixed / adaptive 63.9 / 0.9, 5.8 / 5.4,
+  11.0 / 10.6 m.
+
     python benchmarks/score_answer_first.py sitl TODAY/flights.jsonl CHANGE/flights.jsonl
     python benchmarks/score_answer_first.py bench TODAY_i.json CHANGE_i.json TODAY_ii.json \\
         CHANGE_ii.json TODAY_iii.json CHANGE_iii.json

@@ -52,6 +52,7 @@ GIVEN = {
     "adaptive.reserve_s": 10.0,
     "adaptive.explore": False,
     "adaptive.separate": True,
+    "adaptive.answer_first": False,
 }
 
 
@@ -102,6 +103,7 @@ def _built_in_defaults() -> dict:
                 "reserve_s",
                 "explore",
                 "separate",
+                "answer_first",
             )
         }
     )
