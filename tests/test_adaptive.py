@@ -84,6 +84,20 @@ def test_bad_numbers_refused_naming_the_key(repo_dir, key, value):
 
 
 @settings(
+    max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    key=st.sampled_from(["enabled", "explore", "separate", "answer_first"]),
+    value=st.one_of(st.integers(), st.floats(allow_nan=True), st.text(max_size=5)),
+)
+def test_bad_switches_refused_naming_the_key(repo_dir, key, value):
+    """A switch (``answer_first`` among them) that is not true or false is refused, naming it."""
+    with pytest.raises(InputError) as e:
+        parse_mission(_doc(repo_dir, **{key: value}), "m.yaml")
+    assert e.value.field == f"adaptive.{key}"
+
+
+@settings(
     max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(case=st.sampled_from(["budget", "fence", "altitude"]), x=st.floats(0.0, 1.0))
