@@ -7,6 +7,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -30,16 +31,36 @@ def wait_rows(out: Path, rows: int, timeout: float) -> Path:
     raise AssertionError(f"no log with {rows} rows under {out}")
 
 
+def _drain(stream, into: list[str]) -> threading.Thread:
+    """Read ``stream`` to its end into ``into`` in a thread: a pipe nobody reads fills and blocks
+    the flight that writes it."""
+    t = threading.Thread(target=lambda: into.extend(stream), daemon=True)
+    t.start()
+    return t
+
+
 def signal_group_at_rows(
     p: subprocess.Popen, out: Path, rows: int, sig: int, wait_s: float, exit_s: float
 ) -> str:
     """Send ``sig`` to the whole process group of ``p`` (as a terminal does) once its log under
     ``out`` holds ``rows`` rows, and give its stderr once it exits; the group is killed if anything
-    of it is left."""
+    of it is left. Its output is read all along; a flight that never reaches ``rows`` fails with
+    the end of its stderr, so the failure says why."""
+    err: list[str] = []
+    readers = [_drain(p.stdout, []), _drain(p.stderr, err)]
     try:
-        wait_rows(out, rows, wait_s)
+        try:
+            wait_rows(out, rows, wait_s)
+        except AssertionError as e:
+            raise AssertionError(
+                f"{e}; fly-mission {'exited ' + str(p.poll()) if p.poll() is not None else 'runs'}"
+                f", its stderr ends:\n{''.join(err)[-2000:]}"
+            ) from None
         os.killpg(p.pid, sig)
-        return p.communicate(timeout=exit_s)[1]
+        p.wait(timeout=exit_s)
+        for t in readers:
+            t.join(timeout=10)
+        return "".join(err)
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(p.pid, signal.SIGKILL)
