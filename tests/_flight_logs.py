@@ -52,10 +52,10 @@ def signal_group_at_rows(
         try:
             wait_rows(out, rows, wait_s)
         except AssertionError as e:
-            raise AssertionError(
-                f"{e}; fly-mission {'exited ' + str(p.poll()) if p.poll() is not None else 'runs'}"
-                f", its stderr ends:\n{''.join(err)[-2000:]}"
-            ) from None
+            rc = p.poll()
+            state = "runs" if rc is None else f"exited {rc}"
+            tail = "".join(err)[-2000:]
+            raise AssertionError(f"{e}; fly-mission {state}, its stderr ends:\n{tail}") from None
         os.killpg(p.pid, sig)
         p.wait(timeout=exit_s)
         for t in readers:

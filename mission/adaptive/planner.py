@@ -191,8 +191,8 @@ def round_target(spec, a, d: dict, visited, start) -> tuple[float, float]:
     the candidate the networks' physics explains best) while its square is unflown
     (``a.answer_first``); else the separating choice (``a.separate``), the peak order over the
     ``flyable`` peaks (``a.explore``: ``choose_target``), or the estimate.  Why the pick first:
-    on 146 stored SITL surveys it lay within 15 m of the transmitter on 132, the live
-    posterior's top peak on 19 (docs/adaptive.md)."""
+    on 146 stored SITL surveys it lay within 15 m of the transmitter on 132, round 1's target by
+    the peak order on 19 (docs/adaptive.md)."""
     est, cands = (d["x_m"], d["y_m"]), d.get("candidates")
     pick = d.get(JUDGED_PICK)
     if a.answer_first and pick is not None and flyable(spec, a, [[*pick, 1.0]], visited):

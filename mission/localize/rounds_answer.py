@@ -93,10 +93,9 @@ def survey_out_of_domain(attitude_deg) -> bool:
     )
 
 
-def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
-    """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
-    (``api.choose_method`` on the sidecar without its adaptive record)."""
-
+def fixed_choice(part) -> tuple[str, object]:
+    """(method, model) ``localize`` chooses for the survey part as if it were a fixed flight of
+    this kind (``api.choose_method`` on the sidecar without its adaptive record)."""
     meta = dict(part.meta)
     meta["trajectory"] = {
         k: v for k, v in (meta.get("trajectory") or {}).items() if k != "adaptive"
@@ -104,6 +103,13 @@ def fixed_default(part, origin, area, tx_height_m: float) -> Estimate:
     method, model, _ = choose_method(
         meta, part.enu()[:, 2], None, default_model_path(), attitude_deg=flight_attitude(part)
     )
+    return method, model
+
+
+def fixed_default(part, origin, area, tx_height_m: float, choice=None) -> Estimate:
+    """What ``localize`` answers for the survey part as if it were a fixed flight of this kind
+    (``fixed_choice``, or ``choice`` where already made)."""
+    method, model = choice or fixed_choice(part)
     entry = method_entry(method)
     kw = {"model_path": model, "tx_height_m": tx_height_m}
     if entry.compose is not None:
@@ -149,15 +155,27 @@ def survey_network(survey, origin, tx_height_m: float) -> Estimate | None:
 
 def judge(part, survey, origin, fixed: Estimate, cands: list, tx_height_m: float):
     """(the judge's candidates: ``cands`` and the survey network's, that network's estimate or
-    None, each candidate's ``physics_rms_db`` on ``part``); no rms (None) unless the survey's
-    fixed default is a network, whose physics judges."""
+    None, each candidate's ``physics_rms_db`` on ``part``, the index of the one the judge picks or
+    None); no rms (None) unless the survey's fixed default is a network, whose physics judges, and
+    a pick only where the best residual is at most ``PHYSICS_RMS_DB``."""
     if fixed.method != "onnx":
-        return list(cands), None, None
+        return list(cands), None, None, None
     net = survey_network(survey, origin, tx_height_m)
     weighed = list(cands)
     if net is not None:  # a third candidate for the judge alone
         weighed.append(Candidate(net.x_m, net.y_m, "onnx survey network, survey"))
-    return weighed, net, physics_rms_db(part, np.array([c.xy for c in weighed]), tx_height_m)
+    rms = physics_rms_db(part, np.array([c.xy for c in weighed]), tx_height_m)
+    pick = int(np.argmin(rms)) if rms.min() <= PHYSICS_RMS_DB else None
+    return weighed, net, rms, pick
+
+
+def survey_candidates(live: Estimate, fixed: Estimate) -> list[Candidate]:
+    """The two candidates the rounds weigh: the live method on the whole flight and the survey's
+    fixed-flight default."""
+    return [
+        Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
+        Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
+    ]
 
 
 def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, **_) -> Estimate:
@@ -171,25 +189,26 @@ def rounds_answer(part, origin, area, tx_height_m: float = DEFAULT_TX_HEIGHT_M, 
         live.add_note("no survey phase among the selected samples: the live method answers")
         return live
     survey, rounds = split
-    fixed = fixed_default(survey, origin, area, tx_height_m)
-    cands = [
-        Candidate(live.x_m, live.y_m, f"{ADAPTIVE_METHOD}, whole flight"),
-        Candidate(fixed.x_m, fixed.y_m, f"{fixed.method}, survey"),
-    ]
     if rounds.sum() < 2:  # nothing held out yet (the survey in flight): the live method answers
         live.add_note("no adaptive round among the selected samples: the live method answers")
-        weighed, _, rms = judge(part, survey, origin, fixed, cands, tx_height_m)
-        if rms is not None and rms.min() <= PHYSICS_RMS_DB:  # where the first round goes
-            live.extras[JUDGED_PICK] = weighed[int(np.argmin(rms))].xy.tolist()
+        choice = fixed_choice(survey)
+        if choice[0] == "onnx":  # a network answers the survey: its physics names the first target
+            fixed = fixed_default(survey, origin, area, tx_height_m, choice)
+            cands = survey_candidates(live, fixed)
+            weighed, _, _, pick = judge(part, survey, origin, fixed, cands, tx_height_m)
+            if pick is not None:  # where the first round goes (planner.round_target)
+                live.extras[JUDGED_PICK] = weighed[pick].xy.tolist()
         return live
+    fixed = fixed_default(survey, origin, area, tx_height_m)
+    cands = survey_candidates(live, fixed)
     lpd = rounds_scores(survey, part.select(rounds), np.array([c.xy for c in cands]), tx_height_m)
     w = np.exp(lpd - lpd.max())
     cands = [c.scored(e, wk) for c, e, wk in zip(cands, lpd - lpd.max(), w / w.sum(), strict=True)]
     best = cands[int(np.argmax(lpd))]
-    weighed, net, rms = judge(part, survey, origin, fixed, cands, tx_height_m)
-    judged = rms is not None and bool(rms.min() <= PHYSICS_RMS_DB)
+    weighed, net, rms, pick = judge(part, survey, origin, fixed, cands, tx_height_m)
+    judged = pick is not None
     if judged:
-        best = weighed[int(np.argmin(rms))]
+        best = weighed[pick]
     lat, lon, _ = origin.to_geodetic(np.array([best.x_m, best.y_m, 0.0]))
     est = Estimate(best.x_m, best.y_m, "rounds", best.source, float(lat), float(lon))
     # the live method's posterior (the stage picks a point, it fits no posterior), cut at the masses
