@@ -42,8 +42,8 @@ STEP_M = 2.0
 def _minus_gain(geom: tuple[np.ndarray, ...], hyp) -> np.ndarray:
     """-G_h (K, M) dB: the hypothesis' gain toward each candidate, as ``hypothesis_residuals``
     subtracts it."""
-    pg, el, az = geom
-    return next(hypothesis_residuals(np.zeros_like(pg), el, az, [hyp]))
+    pg, el, az, el_uav = geom
+    return next(hypothesis_residuals(np.zeros_like(pg), el, az, [hyp], el_uav=el_uav))
 
 
 def fit_at_truth(
@@ -68,6 +68,32 @@ def fit_at_truth(
     return best[1], best[2]
 
 
+def search_setup(log, f) -> tuple:
+    """(the search, its antenna hypotheses, its 2 m grid inside the rover area, the label) for the
+    flight samples ``f`` of ``log``."""
+    sc = SelfCalibratingGrid(area=search_area(log), step_m=STEP_M)
+    hyps = antenna_hypotheses(sc.hypotheses, sc.heading_step_deg)
+    grid, _, poly = sc._candidates(f)
+    grid = grid.reshape(-1, 2)
+    if poly is not None:
+        grid = grid[poly.contains(grid)]
+    return sc, hyps, grid, np.asarray(log.truth_enu[:2])
+
+
+def oracle_error(cells, grid, truth, hyps, tx_height_m: float, free_n: bool) -> tuple[float, str]:
+    """(error m, the fit in words) of the oracle: the nuisance fitted on ``cells`` at the truth
+    (``fit_at_truth``), then the position searched on ``grid``."""
+    y = cells.rss_dbm.astype(float)
+    geom_t, geom = (
+        _geometry(truth[None, :], cells, tx_height_m),
+        _geometry(grid, cells, tx_height_m),
+    )
+    h, (c, k) = fit_at_truth(y, geom_t, hyps, free_n)
+    pred = c + k * geom[0] / 20.0 - _minus_gain(geom, hyps[h])
+    j = int(np.argmin(((y[None, :] - pred) ** 2).sum(axis=1)))
+    return float(np.hypot(*(grid[j] - truth))), f"{hyps[h][0]}, n {k / 10:.1f}"
+
+
 def one_flight(path) -> dict:
     """Errors (m) of the two oracles and of the profiled search on one imported real log, same 2 m
     grid."""
@@ -75,26 +101,13 @@ def one_flight(path) -> dict:
     part, _ = select_samples(log)
     f = as_flight(part)
     # the search's own cells, area and tx height
-    sc = SelfCalibratingGrid(area=search_area(log), step_m=STEP_M)
+    sc, hyps, grid, truth = search_setup(log, f)
     cells = cell_average(f, sc.cell_m, sc.altitude_gap_m)
-    hyps = antenna_hypotheses(sc.hypotheses, sc.heading_step_deg)
-    truth = np.asarray(log.truth_enu[:2])
-    grid, _, poly = sc._candidates(f)
-    grid = grid.reshape(-1, 2)
-    if poly is not None:
-        grid = grid[poly.contains(grid)]
-    y = cells.rss_dbm.astype(float)
-    geom_t, geom = (
-        _geometry(truth[None, :], cells, sc.tx_height_m),
-        _geometry(grid, cells, sc.tx_height_m),
-    )
     out = {"flight": path.stem}
     for rung, free_n in (("h+c", False), ("h+c+n", True)):
-        h, (c, k) = fit_at_truth(y, geom_t, hyps, free_n)
-        pred = c + k * geom[0] / 20.0 - _minus_gain(geom, hyps[h])
-        j = int(np.argmin(((y[None, :] - pred) ** 2).sum(axis=1)))
-        out[rung] = float(np.hypot(*(grid[j] - truth)))
-        out[rung + " fit"] = f"{hyps[h][0]}, n {k / 10:.1f}"
+        out[rung], out[rung + " fit"] = oracle_error(
+            cells, grid, truth, hyps, sc.tx_height_m, free_n
+        )
     ssr, _ = hypothesis_ssr(grid, cells, hyps, sc.tx_height_m)
     out["selfcal"] = float(np.hypot(*(grid[int(np.argmin(ssr.min(axis=0)))] - truth)))
     return out

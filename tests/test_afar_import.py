@@ -12,8 +12,14 @@ import scipy.io as sio
 from mission.cli.main import main as rfsl
 from mission.errors import InputError
 from mission.flightlog import read_flight_log
+from mission.gap.align import afar2023_flights
 from mission.geo import afar_field
-from mission.importers.afar import convert_afar_mat, import_afar_mat
+from mission.importers.afar import (
+    QUALITY_COLUMN,
+    SOUNDER_LOCK_DB,
+    convert_afar_mat,
+    import_afar_mat,
+)
 
 SHARED = Path(__file__).parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
 
@@ -60,6 +66,25 @@ def test_fixture_roundtrip(tmp_path):
     np.testing.assert_allclose(log["alt_m"], log["rel_alt_m"])
     np.testing.assert_allclose(log["rel_alt_m"][-1], 30.0)
     assert np.all(log["yaw_deg"] < 360.0)
+
+
+def test_quality_carried_when_present(tmp_path):
+    """``mquality`` becomes the column ``rss_quality_db`` row for row with the power (through
+    sorting and dropped duplicates); a file without it imports without the column; one of another
+    length is refused naming the variable."""
+    mat = make_mat(tmp_path / "q.mat", shuffle=True, dup=True)
+    d = sio.loadmat(mat)
+    d["mquality"] = 50.0 + d["mpower"] / 2.0  # a known function of the power, to follow the rows
+    sio.savemat(mat, {k: v for k, v in d.items() if not k.startswith("__")})
+    res = import_afar_mat(mat, tmp_path / "out", truth=(35.728, -78.697))
+    log = read_flight_log(res.out_path)
+    np.testing.assert_allclose(log[QUALITY_COLUMN], 50.0 + log["rss_dbm"] / 2.0, atol=0.01)
+    plain = convert_afar_mat(make_mat(tmp_path / "p.mat", drop="mquality"))
+    assert QUALITY_COLUMN not in plain.log.columns and len(plain.log) == 200
+    d["mquality"] = d["mquality"][:-1]
+    sio.savemat(mat, {k: v for k, v in d.items() if not k.startswith("__")})
+    with pytest.raises(InputError, match="mquality"):
+        convert_afar_mat(mat)
 
 
 def test_no_truth_guessed_from_name(tmp_path):
@@ -111,3 +136,23 @@ def test_real_files(tmp_path):
         assert 20.0 < np.median(log["rel_alt_m"]) < 40.0
         enu = log.enu()
         assert np.all(np.abs(enu[:, :2]) < 1000.0)
+        # sounder quality: about 72 dB when locked, < 50 dB (lock lost) on 1-60 % of a flight
+        q = log[QUALITY_COLUMN]
+        assert np.isfinite(q).all() and 65.0 < np.median(q[q >= SOUNDER_LOCK_DB]) < 75.0
+        assert 0.01 < np.mean(q < SOUNDER_LOCK_DB) < 0.6
+
+
+@pytest.mark.real
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared real data absent")
+def test_afar_flights_without_the_samples_read_out_of_lock():
+    """``afar2023_flights(lock_db=)`` withholds exactly the airborne samples under the quality;
+    without it the flights are as before (every airborne sample)."""
+    every = afar2023_flights(SHARED)
+    locked = afar2023_flights(SHARED, lock_db=SOUNDER_LOCK_DB)
+    for f, g in zip(every, locked, strict=True):
+        log = convert_afar_mat(
+            SHARED / f"results_useful_ori_exp_{f.name.replace('-loc', '_loc_')}.mat"
+        ).log
+        air = log.enu()[:, 2] > 10.0
+        assert len(f) == air.sum()
+        assert len(g) == (air & (log[QUALITY_COLUMN] >= SOUNDER_LOCK_DB)).sum() < len(f)

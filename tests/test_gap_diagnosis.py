@@ -14,8 +14,8 @@ from _figures import assert_png_drawn
 from test_jsonsafe import strict_loads
 
 from mission.cli.main import main
-from mission.flightlog import make_meta, write_flight_log
-from mission.gap.align import align, flight_from_log
+from mission.flightlog import FlightLog, make_meta, read_flight_log, write_flight_log
+from mission.gap.align import align, flight_from_log, locked_rows
 from mission.gap.candidates import library
 from mission.gap.diagnose import base_pipeline, model_gap
 from mission.gap.fit import FitConfig, make_folds, offset_residual
@@ -23,7 +23,7 @@ from mission.gap.pipeline import Pipeline
 from mission.gap.selftest import WITHHELD_ALL, run_case, simulate_case
 from mission.gap.stats import autocorrelation, block_length, bootstrap_mean, summarize
 from mission.geo import afar_field
-from mission.importers.afar import convert_afar_mat
+from mission.importers.afar import QUALITY_COLUMN, convert_afar_mat
 from mission.physics import Attitude, make_model
 from mission.physics.antenna import rm_wb1_dn
 from mission.samples import FlightSamples
@@ -274,3 +274,51 @@ def test_attitude_candidates_and_mounting_applicability() -> None:
     assert lib["yaw_attitude"].params_for(iso) == ()
     slope = lib["path_gain_slope"].build(iso, {"n_extra": 1.0}, {})
     assert slope.model.has("path_gain_slope") and not lib["path_gain_slope"].applicable(slope)
+
+
+def _with_quality(path, lost: np.ndarray) -> None:
+    """Rewrite the log at ``path`` with a receiver quality column: the rows in ``lost`` read 40 dB
+    quality and 30 dB under their RSS (a sounder out of lock), the others 70 dB."""
+    log = read_flight_log(path)
+    cols = dict(log.columns)
+    cols["rss_dbm"] = np.where(lost, cols["rss_dbm"] - 30.0, cols["rss_dbm"])
+    cols[QUALITY_COLUMN] = np.where(lost, 40.0, 70.0)
+    write_flight_log(path, cols, log.meta, overwrite=True)
+
+
+def test_gap_lock_withholds_the_samples_read_out_of_lock(tmp_path, capsys) -> None:
+    """``rfsl gap --lock 50`` keeps only the rows whose quality says the receiver was locked: it
+    says how many it withheld, and the held-out gap of the base model shrinks once the rows read
+    30 dB low are gone; without ``--lock`` a note points at them; a log without the column is a
+    one-line error (exit 2)."""
+    p = _simulated_log(tmp_path, None, 5, 0.2)
+    n = len(read_flight_log(p))
+    lost = np.random.default_rng(3).random(n) < 0.25
+    _with_quality(p, lost)
+    args = ["gap", str(p), "--base", "e2r", "--candidates", "time_offset", "--max-rungs", "1"]
+    p90 = {}
+    for tag, extra in (("all", []), ("locked", ["--lock", "50"])):
+        assert main([*args, *extra, "--report", str(tmp_path / tag)]) == 0
+        doc = json.loads((tmp_path / tag / "gap.json").read_text())
+        p90[tag] = doc["ladder"][0]["heldout"]["p90_abs_db"]
+        err = capsys.readouterr().err
+        if tag == "all":
+            assert f"{100 * lost.mean():.0f} % of samples read with the lock lost" in err, err
+            assert "--lock 50 withholds them" in err
+        else:
+            assert f"--lock 50 withholds {int(lost.sum())} of {n} samples" in err, err
+    assert p90["locked"] < p90["all"] - 5.0, p90
+    q = tmp_path / "plain.csv"
+    log = read_flight_log(p)
+    cols = {k: v for k, v in log.columns.items() if k != QUALITY_COLUMN}
+    write_flight_log(q, cols, log.meta)
+    assert main(["gap", str(q), "--lock", "50"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "plain.csv" in err[0] and QUALITY_COLUMN in err[0], err
+
+
+def test_locked_rows_counts_a_missing_quality_as_lost() -> None:
+    """``align.locked_rows``: a NaN quality is not a locked sample; the threshold is inclusive."""
+    cols = {"t_s": np.arange(4.0), QUALITY_COLUMN: np.array([50.0, 49.9, np.nan, 72.0])}
+    kept, n = locked_rows(FlightLog(cols, {}), 50.0)
+    assert n == 2 and list(kept["t_s"]) == [0.0, 3.0]

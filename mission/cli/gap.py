@@ -1,11 +1,12 @@
 """Diagnose the sim-to-real gap of a propagation model on flights with known transmitter positions.
 
 ``rfsl gap LOG.csv [LOG2.csv ...] [--truth LAT,LON ...] [--base e2r] [--candidates all|a,b]
-[--report DIR]`` fits the free constants (RSS offset, optionally a slope), shows the gap of
-free-space / two-ray / e2r, where the base model departs (block-bootstrap flags), ranks candidate
-effects on held-out blocks, climbs the greedy ladder and reports the localization cost of every
-rung.  ``rfsl gap --selftest`` simulates flights with one effect withheld and checks that the
-diagnosis finds it (confusion table).
+[--lock DB] [--report DIR]`` fits the free constants (RSS offset, optionally a slope), shows the
+gap of free-space / two-ray / e2r, where the base model departs (block-bootstrap flags), ranks
+candidate effects on held-out blocks, climbs the greedy ladder and reports the localization cost
+of every rung.  ``--lock DB`` withholds the samples read with the receiver's lock lost.  ``rfsl
+gap --selftest`` simulates flights with one effect withheld and checks that the diagnosis finds it
+(confusion table).
 """
 
 from __future__ import annotations
@@ -26,6 +27,14 @@ def _input_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--truth-height", type=float, default=1.5, help="transmitter antenna height m (1.5)"
+    )
+    parser.add_argument(
+        "--lock",
+        type=float,
+        default=None,
+        metavar="DB",
+        help="withhold the samples whose receiver quality (column rss_quality_db, from the AFAR "
+        "import) is under DB: read with the lock lost (50 for the AFAR sounder)",
     )
 
 
@@ -232,22 +241,27 @@ def _parse_latlon(s: str):
     return lat, lon
 
 
-def load_flights(paths: list[str], truths: list[str] | None, height: float):
+def load_flights(
+    paths: list[str], truths: list[str] | None, height: float, lock_db: float | None = None
+):
     """Flight logs -> ``FlightSamples`` objects with their transmitter truth in each log's ENU
-    frame."""
+    frame; ``lock_db``: only the samples the receiver read locked (``align.locked_rows``)."""
     from mission.cli.main import print_notes
     from mission.errors import InputError
     from mission.flightlog import read_flight_log
-    from mission.gap.align import flight_from_log
+    from mission.gap.align import flight_from_log, locked_rows
 
     if truths and len(truths) not in (1, len(paths)):
         raise InputError(
             f"give --truth once or once per log ({len(paths)}), got {len(truths)}", field="truth"
         )
-    flights = []
+    flights, quality = [], []
     for k, p in enumerate(paths):
         log = read_flight_log(p)
         print_notes(log.notes)
+        quality.append(_quality(log))
+        if lock_db is not None:
+            log = locked_rows(log, lock_db)[0]
         tx = None
         if truths:
             lat, lon = _parse_latlon(truths[0 if len(truths) == 1 else k])
@@ -263,10 +277,49 @@ def load_flights(paths: list[str], truths: list[str] | None, height: float):
         flights.append(f)
     from mission.gap.labels import short_labels
 
-    return [
-        replace(f, name=lab)
-        for f, lab in zip(flights, short_labels([f.name for f in flights]), strict=True)
+    labels = short_labels([f.name for f in flights])
+    print_notes(_lock_notes(labels, quality, lock_db))
+    return [replace(f, name=lab) for f, lab in zip(flights, labels, strict=True)]
+
+
+def _quality(log):
+    """The log's receiver quality per row (``rss_quality_db``), or None when it has none."""
+    import numpy as np
+
+    from mission.importers.afar import QUALITY_COLUMN
+
+    return np.asarray(log[QUALITY_COLUMN], dtype=float) if QUALITY_COLUMN in log.columns else None
+
+
+def _lock_notes(labels: list[str], quality: list, lock_db: float | None) -> list[str]:
+    """Short lines on the samples read with the receiver's lock lost: how many ``--lock``
+    withholds from each flight, or, without it, each flight where a tenth or more were and a hint
+    (NaN quality counts as lost)."""
+    from mission.importers.afar import SOUNDER_LOCK_DB
+
+    if lock_db is not None:
+        return [
+            f"{lab}: --lock {lock_db:g} withholds {int((~(q >= lock_db)).sum())} of "
+            f"{q.size} samples"
+            for lab, q in zip(labels, quality, strict=True)
+            if q is not None
+        ]
+    lost = [
+        (lab, float((~(q >= SOUNDER_LOCK_DB)).mean()))
+        for lab, q in zip(labels, quality, strict=True)
+        if q is not None and q.size
     ]
+    out = [
+        f"{lab}: {100 * u:.0f} % of samples read with the lock lost (quality < "
+        f"{SOUNDER_LOCK_DB:g} dB)"
+        for lab, u in lost
+        if u >= 0.1
+    ]
+    if out:
+        out.append(
+            f"those read 23-37 dB low on AFAR flights; --lock {SOUNDER_LOCK_DB:g} withholds them"
+        )
+    return out
 
 
 def _selftest(args) -> int:
@@ -452,7 +505,7 @@ def run(args) -> int:
         base = base_pipeline(args.base, args.pattern)
     except (ValueError, KeyError) as e:
         raise InputError(str(e), field="base") from None
-    flights = load_flights(args.logs, args.truth, args.truth_height)
+    flights = load_flights(args.logs, args.truth, args.truth_height, args.lock)
     cands = select(args.candidates)
     cfg = FitConfig(
         split=args.split,

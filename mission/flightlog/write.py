@@ -35,6 +35,7 @@ DIGITS = {
     "yaw_deg": 3,
     "rss_dbm": 4,
     "mission_item": 0,
+    "rss_quality_db": 2,
 }
 DEFAULT_DIGITS = 6
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
+from mission.importers.afar import AFAR2023_TRUTH, QUALITY_COLUMN, convert_afar_mat
 from mission.physics.geometry import (
     bearing,
     body_angles,
@@ -142,16 +142,36 @@ def flight_from_log(
     return f.select(np.isfinite(f.rss_dbm))
 
 
-def afar2023_flights(mat_dir, min_height_m: float = 10.0) -> list[FlightSamples]:
+def locked_rows(log, lock_db: float):
+    """(the rows of ``log`` whose receiver quality ``rss_quality_db`` is at least ``lock_db``, how
+    many were withheld): what a diagnosis keeps when told which samples were read with the
+    receiver's lock lost (a missing quality, NaN, counts as not locked).  A log without the column
+    is an ``InputError``: nothing says which of its samples to trust."""
+    if QUALITY_COLUMN not in log.columns:
+        raise InputError(
+            f"has no {QUALITY_COLUMN} column: nothing says which samples were read locked",
+            source=str(log.path) if log.path is not None else None,
+            field="--lock",
+        )
+    keep = np.asarray(log[QUALITY_COLUMN], dtype=float) >= lock_db
+    return log.select(keep), int((~keep).sum())
+
+
+def afar2023_flights(
+    mat_dir, min_height_m: float = 10.0, lock_db: float | None = None
+) -> list[FlightSamples]:
     """The six AFAR 2023 challenge flights (teams 288, 328; rover locations 1-3) with their rover
     truth, airborne samples only; named ``<team>-loc<n>``.  Used by the real-flight benchmark
-    scripts."""
+    scripts.  ``lock_db``: keep only the samples whose sounder quality (``mquality``, the import's
+    ``rss_quality_db``) is at least this, i.e. withhold those read while the sounder had lost lock
+    (``experiments/receiver_lock.py``)."""
     out = []
     for team in (288, 328):
         for loc in (1, 2, 3):
             res = convert_afar_mat(
                 Path(mat_dir) / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc]
             )
-            f = flight_from_log(res.log, name=f"{team}-loc{loc}")
+            log = res.log if lock_db is None else locked_rows(res.log, lock_db)[0]
+            f = flight_from_log(log, name=f"{team}-loc{loc}")
             out.append(f.select(f.enu_m[:, 2] > min_height_m))
     return out

@@ -3,7 +3,8 @@
 Variables read (``../shared/data/README.md``): ``timestamp_power`` (s, node wall clock), ``mX``
 longitude, ``mY`` latitude, ``mZ`` height above the *first GPS fix* (m),
 ``mRoll``/``mPitch``/``mYaw`` (deg, yaw clockwise from north) and ``mpower`` (channel-sounder dB,
-NOT calibrated dBm).
+NOT calibrated dBm); ``mquality`` (correlation peak over noise, dB), when the file has it, becomes
+the extra column ``rss_quality_db``.
 
 Choices:
 
@@ -36,6 +37,14 @@ from mission.flightlog.schema import RSS_RANGE_DB
 from mission.geo import Origin, afar_field, latlon_unit_problem
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
+# Read when present: the sounder's correlation peak over noise, dB (``../shared/data/README.md``).
+# Below about 50 dB the sounder has lost lock and ``mpower`` reads 23-37 dB under the signal
+# (``experiments/receiver_lock.py``): the column lets a diagnosis tell those samples apart.
+OPTIONAL_VARS = ("mquality",)
+QUALITY_COLUMN = "rss_quality_db"
+# The quality under which the AFAR sounder has lost lock: on the six flights ``mquality`` follows
+# ``mpower`` from about -20 to 0 dB and sits on a 40-47 dB plateau below it, whatever the power.
+SOUNDER_LOCK_DB = 50.0
 MIN_DT_S = (
     1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
 )
@@ -106,7 +115,7 @@ def _load_mat(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"missing MAT variable(s) {', '.join(missing)}", source=src)
     out: dict[str, np.ndarray] = {}
     n = None
-    for v in REQUIRED_VARS:
+    for v in REQUIRED_VARS + tuple(o for o in OPTIONAL_VARS if o in m):
         try:
             a = np.asarray(m[v], dtype=float).ravel()
         except (TypeError, ValueError):
@@ -192,6 +201,8 @@ def convert_afar_mat(
         "yaw_deg": np.mod(m["mYaw"], 360.0),
         "rss_dbm": m["mpower"],
     }
+    if "mquality" in m:
+        cols[QUALITY_COLUMN] = m["mquality"]
     meta = _sidecar_meta(path, origin, t[0], truth, truth_height_m, notes)
     return ImportResult(FlightLog(cols, meta), notes)
 
