@@ -26,11 +26,11 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import scipy.io as sio
 
 from experiments.oracle_real import SUSPECT, oracle_error, search_setup
 from mission.cells import cell_average
 from mission.flightlog import read_flight_log
+from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB
 from mission.importers.afar import AFAR2023_FOLD_WITHOUT, import_afar_mat
 from mission.localize.api import make_localizer, search_area
 from mission.localize.candidates import Candidate
@@ -48,27 +48,16 @@ LEVEL_BANDS_DB = (-40.0, -10.0, -5.0, 0.0, 5.0, 10.0, 50.0)  # model level + off
 
 
 def quality_log(mat: Path, tmp: Path):
-    """The flight's log and its ``mquality`` aligned row for row: the same import with the
-    quality in place of the power (the importer's row filter reads times and positions)."""
+    """The flight imported with its label (the import keeps ``mquality`` as ``QUALITY_COLUMN``)."""
     truth, _ = afar_truth(mat)
-    log = read_flight_log(import_afar_mat(mat, tmp / "p", truth=truth, overwrite=True).out_path)
-    d = {k: v for k, v in sio.loadmat(mat).items() if not k.startswith("__")}
-    d["mpower"] = d["mquality"]
-    (tmp / "q").mkdir(exist_ok=True)
-    sio.savemat(tmp / "q" / mat.name, d)
-    logq = read_flight_log(
-        import_afar_mat(tmp / "q" / mat.name, tmp / "q", truth=truth, overwrite=True).out_path
-    )
-    assert np.array_equal(log["t_s"], logq["t_s"])
-    log.columns["quality_db"] = np.asarray(logq["rss_dbm"], dtype=float)
-    return log
+    return read_flight_log(import_afar_mat(mat, tmp, truth=truth, overwrite=True).out_path)
 
 
 def residual_split(log, part, lock_db: float) -> dict:
     """Residual at the label under the team-held-out ``afar`` fold, locked against unlocked
     samples, and the unlocked share by the model's predicted level."""
     f = as_flight(part)
-    q = np.asarray(part["quality_db"])
+    q = np.asarray(part[QUALITY_COLUMN])
     name = log.meta["source"]["file"].replace("results_useful_ori_exp_", "")[:3]
     grid = make_localizer("grid", physics_preset=f"afar:{AFAR2023_FOLD_WITHOUT[name]}")
     t = np.asarray(log.truth_enu[:2])[None, :]
@@ -95,7 +84,7 @@ def searches(log, part, lock_db: float) -> dict:
     """Errors (m) of the oracle (antenna and offset fitted at the label) and of the profiled
     search, on all cruise samples and on the locked ones, same 2 m grid as ``oracle_real.py``."""
     f_all = as_flight(part)
-    q = np.asarray(part["quality_db"])
+    q = np.asarray(part[QUALITY_COLUMN])
     sc, hyps, grid, truth = search_setup(log, f_all)
     out = {}
     for tag, keep in (("all", np.ones(len(q), bool)), ("locked", q >= lock_db)):
@@ -146,7 +135,7 @@ def truth_evidence(log, part, lock_db: float) -> dict:
     t = np.asarray(log.truth_enu[:2])
     cands = [*cands, Candidate(float(t[0]), float(t[1]), "label")]
     out = {}
-    locked = np.asarray(part["quality_db"]) >= lock_db
+    locked = np.asarray(part[QUALITY_COLUMN]) >= lock_db
     for tag, p in (("all", part), ("locked", part.select(locked))):
         out[tag] = float(-score_candidates(p, cands).evidence[-1])
     return out
@@ -165,7 +154,9 @@ def _subset(f, keep: np.ndarray):
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
-    ap.add_argument("--lock", type=float, default=50.0, help="quality (dB) read as locked")
+    ap.add_argument(
+        "--lock", type=float, default=SOUNDER_LOCK_DB, help="quality (dB) read as locked"
+    )
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

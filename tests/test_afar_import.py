@@ -11,15 +11,14 @@ import scipy.io as sio
 
 from mission.cli.main import main as rfsl
 from mission.errors import InputError
-from mission.flightlog import read_flight_log
+from mission.flightlog import FlightLog, read_flight_log
+from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB
 from mission.gap.align import afar2023_flights
 from mission.geo import afar_field
-from mission.importers.afar import (
-    QUALITY_COLUMN,
-    SOUNDER_LOCK_DB,
-    convert_afar_mat,
-    import_afar_mat,
-)
+from mission.importers.afar import convert_afar_mat, import_afar_mat
+from mission.localize import Estimate
+from mission.localize.api import _lock_note, localize_log
+from mission.localize.preprocess import select_samples
 
 SHARED = Path(__file__).parents[1] / ".." / "shared" / "data" / "afar2023" / "mat"
 
@@ -156,3 +155,43 @@ def test_afar_flights_without_the_samples_read_out_of_lock():
         air = log.enu()[:, 2] > 10.0
         assert len(f) == air.sum()
         assert len(g) == (air & (log[QUALITY_COLUMN] >= SOUNDER_LOCK_DB)).sum() < len(f)
+
+
+def test_lock_note_only_from_a_tenth_of_the_samples():
+    """``api._lock_note``: the share is reported whenever the log carries the quality; the note
+    only from ``LOCK_NOTE_SHARE`` of the samples read out of lock (NaN counts as out of lock)."""
+    for q, share, noted in (
+        ([72.0] * 19 + [40.0], 0.05, False),
+        ([72.0] * 8 + [40.0, np.nan], 0.2, True),
+    ):
+        est = Estimate(0.0, 0.0, "selfcal", "m", 0.0, 0.0)
+        part = FlightLog({"t_s": np.arange(len(q), dtype=float), QUALITY_COLUMN: np.array(q)})
+        _lock_note(est, part)
+        assert est.extras["out_of_lock_share"] == pytest.approx(share)
+        assert (f"{100 * share:.0f} % of the samples used" in " ".join(est.notes)) == noted
+    est = Estimate(0.0, 0.0, "selfcal", "m", 0.0, 0.0)
+    _lock_note(est, FlightLog({"t_s": np.arange(3.0)}))
+    assert "out_of_lock_share" not in est.extras and not est.notes
+
+
+@pytest.mark.real
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared real data absent")
+def test_localize_reports_the_share_read_out_of_lock_and_answers_the_same(tmp_path):
+    """On 328 loc 3 (a third read out of lock) the default's answer is the same with or without
+    the quality column; with it, ``out_of_lock_share`` is the used samples' share and a note says
+    so."""
+    mat = SHARED / "results_useful_ori_exp_328_loc_3.mat"
+    log = read_flight_log(
+        import_afar_mat(mat, tmp_path, truth=(35.72985129, -78.69711002)).out_path
+    )
+    with_q = localize_log(log)
+    bare = FlightLog(
+        {k: v for k, v in log.columns.items() if k != QUALITY_COLUMN}, log.meta, log.path
+    )
+    without = localize_log(bare)
+    assert (with_q.x_m, with_q.y_m) == (without.x_m, without.y_m)
+    assert "out_of_lock_share" not in without.extras
+    part, _ = select_samples(log)
+    share = float(np.mean(part[QUALITY_COLUMN] < SOUNDER_LOCK_DB))
+    assert with_q.extras["out_of_lock_share"] == pytest.approx(share) and 0.25 < share < 0.45
+    assert "read with the receiver out of lock" in " ".join(with_q.notes)

@@ -15,6 +15,7 @@ from test_jsonsafe import strict_loads
 
 from mission.cli.main import main
 from mission.flightlog import FlightLog, make_meta, read_flight_log, write_flight_log
+from mission.flightlog.schema import QUALITY_COLUMN
 from mission.gap.align import align, flight_from_log, locked_rows
 from mission.gap.candidates import library
 from mission.gap.diagnose import base_pipeline, model_gap
@@ -23,7 +24,7 @@ from mission.gap.pipeline import Pipeline
 from mission.gap.selftest import WITHHELD_ALL, run_case, simulate_case
 from mission.gap.stats import autocorrelation, block_length, bootstrap_mean, summarize
 from mission.geo import afar_field
-from mission.importers.afar import QUALITY_COLUMN, convert_afar_mat
+from mission.importers.afar import convert_afar_mat
 from mission.physics import Attitude, make_model
 from mission.physics.antenna import rm_wb1_dn
 from mission.samples import FlightSamples

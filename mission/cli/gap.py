@@ -286,7 +286,7 @@ def _quality(log):
     """The log's receiver quality per row (``rss_quality_db``), or None when it has none."""
     import numpy as np
 
-    from mission.importers.afar import QUALITY_COLUMN
+    from mission.flightlog.schema import QUALITY_COLUMN
 
     return np.asarray(log[QUALITY_COLUMN], dtype=float) if QUALITY_COLUMN in log.columns else None
 
@@ -295,17 +295,17 @@ def _lock_notes(labels: list[str], quality: list, lock_db: float | None) -> list
     """Short lines on the samples read with the receiver's lock lost: how many ``--lock``
     withholds from each flight, or, without it, each flight where a tenth or more were and a hint
     (NaN quality counts as lost)."""
-    from mission.importers.afar import SOUNDER_LOCK_DB
+    from mission.flightlog.schema import SOUNDER_LOCK_DB, out_of_lock
 
     if lock_db is not None:
         return [
-            f"{lab}: --lock {lock_db:g} withholds {int((~(q >= lock_db)).sum())} of "
+            f"{lab}: --lock {lock_db:g} withholds {int(out_of_lock(q, lock_db).sum())} of "
             f"{q.size} samples"
             for lab, q in zip(labels, quality, strict=True)
             if q is not None
         ]
     lost = [
-        (lab, float((~(q >= SOUNDER_LOCK_DB)).mean()))
+        (lab, float(out_of_lock(q).mean()))
         for lab, q in zip(labels, quality, strict=True)
         if q is not None and q.size
     ]

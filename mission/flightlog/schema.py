@@ -35,6 +35,13 @@ COLUMNS = (
 # mean 69 dB, sd 16: its benchmark flight 4 of seed 2026 reads +101.6 near the transmitter, and a
 # bound of 100 refused the project's own benchmark).
 RSS_RANGE_DB = (-250.0, 150.0)
+# The receiver's own quality per row, dB, where it reports one (the AFAR sounder's correlation peak
+# over noise, ``mquality``; written by ``rfsl import afar-mat``).  Under SOUNDER_LOCK_DB the sounder
+# has lost lock: on the six AFAR flights ``mquality`` follows the power from about -20 to 0 dB and
+# sits on a 40-47 dB plateau below it whatever the power, and those rows read 23-37 dB under the
+# model at the transmitter (``experiments/receiver_lock.py``).
+QUALITY_COLUMN = "rss_quality_db"
+SOUNDER_LOCK_DB = 50.0
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
 # Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of
@@ -160,3 +167,8 @@ def make_meta(origin: Origin, rss_source: dict, truth: dict | None = None, **ext
         meta["truth"] = truth
     meta.update(extra)
     return meta
+
+
+def out_of_lock(quality: np.ndarray, lock_db: float = SOUNDER_LOCK_DB) -> np.ndarray:
+    """Which rows the receiver read out of lock: quality under ``lock_db``, or unknown (NaN)."""
+    return ~(np.asarray(quality, dtype=float) >= lock_db)

@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
-from mission.importers.afar import AFAR2023_TRUTH, QUALITY_COLUMN, convert_afar_mat
+from mission.flightlog.schema import QUALITY_COLUMN, out_of_lock
+from mission.importers.afar import AFAR2023_TRUTH, convert_afar_mat
 from mission.physics.geometry import (
     bearing,
     body_angles,
@@ -153,8 +154,8 @@ def locked_rows(log, lock_db: float):
             source=str(log.path) if log.path is not None else None,
             field="--lock",
         )
-    keep = np.asarray(log[QUALITY_COLUMN], dtype=float) >= lock_db
-    return log.select(keep), int((~keep).sum())
+    lost = out_of_lock(log[QUALITY_COLUMN], lock_db)
+    return log.select(~lost), int(lost.sum())
 
 
 def afar2023_flights(

@@ -33,18 +33,16 @@ import scipy.io as sio
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog, make_meta, write_flight_log
-from mission.flightlog.schema import RSS_RANGE_DB
+from mission.flightlog.schema import QUALITY_COLUMN, RSS_RANGE_DB
 from mission.geo import Origin, afar_field, latlon_unit_problem
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
 # Read when present: the sounder's correlation peak over noise, dB (``../shared/data/README.md``).
 # Below about 50 dB the sounder has lost lock and ``mpower`` reads 23-37 dB under the signal
 # (``experiments/receiver_lock.py``): the column lets a diagnosis tell those samples apart.
-OPTIONAL_VARS = ("mquality",)
-QUALITY_COLUMN = "rss_quality_db"
-# The quality under which the AFAR sounder has lost lock: on the six flights ``mquality`` follows
-# ``mpower`` from about -20 to 0 dB and sits on a 40-47 dB plateau below it, whatever the power.
-SOUNDER_LOCK_DB = 50.0
+OPTIONAL_VARS = ("mquality",)  # -> the column QUALITY_COLUMN
+
+
 MIN_DT_S = (
     1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
 )

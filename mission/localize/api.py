@@ -32,6 +32,7 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog, read_flight_log
+from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB, out_of_lock
 from mission.geo import Area, afar_field
 from mission.localize import Estimate, Selection
 from mission.localize.error_circles import (
@@ -73,6 +74,7 @@ from mission.shipped import (
 FUSION_MODEL_NAME = "rfsl_spiral_e2r.onnx"
 DEFAULT_PHYSICS_PRESET = "afar"
 OUTSIDE_WARN_M = 25.0  # an estimate this far outside the rover area gets a warning
+LOCK_NOTE_SHARE = 0.1  # a log with this share of its samples read out of lock gets a note
 
 
 def default_model_path() -> Path | None:
@@ -430,6 +432,7 @@ def localize_log(
     )
     if ra is not None:
         _outside_warning(est, ra)
+    _lock_note(est, part)
     t = _truth_enu(log, truth)
     if t is not None:
         est.error_m = float(np.hypot(est.x_m - t[0], est.y_m - t[1]))
@@ -488,6 +491,23 @@ def run_method(
     else:
         _method_regions(est, method, _is_simulated(log), default_config, ra)
     return est
+
+
+def _lock_note(est: Estimate, part) -> None:
+    """A log whose receiver reports its quality (``QUALITY_COLUMN``): the share of the samples used
+    that it read out of lock, and a note when that is a tenth or more.  They are kept: read as they
+    are they still mark where the transmitter is not, and withholding or clamping them made no
+    method better on the AFAR flights (models/README.md, issue 32)."""
+    if QUALITY_COLUMN not in part.columns or not len(part):
+        return
+    share = float(out_of_lock(part[QUALITY_COLUMN]).mean())
+    est.extras["out_of_lock_share"] = share
+    if share >= LOCK_NOTE_SHARE:
+        est.add_note(
+            f"{100 * share:.0f} % of the samples used were read with the receiver out of lock "
+            f"(quality under {SOUNDER_LOCK_DB:g} dB; on the AFAR flights such samples read "
+            "23-37 dB low); they are kept: they still mark where the transmitter is not"
+        )
 
 
 def _outside_warning(est: Estimate, ra) -> None:
