@@ -12,8 +12,21 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
-from mission.flight.sources import FifoSource, SimSource, UdpSource, parse_float32_le, parse_source
+from mission.errors import InputError
+from mission.flight import sources
+from mission.flight.preflight import check_rss_source
+from mission.flight.sources import (
+    FifoSource,
+    SimSource,
+    UdpSource,
+    fifo_paths,
+    make_receiver,
+    parse_float32_le,
+    parse_source,
+)
+from mission.flightlog.schema import QUALITY_COLUMN
 from mission.geo import Origin
 
 
@@ -107,3 +120,87 @@ def test_parse_source():
     assert parse_source("sim") == ("sim", None)
     assert parse_source("aerpaw-fifo:/root/Power") == ("aerpaw-fifo", "/root/Power")
     assert parse_source("udp:0.0.0.0:5005") == ("udp", "0.0.0.0:5005")
+
+
+PAIRED_WRITER = """
+import struct, sys, time
+power = [-61.25, -60.5, -59.75, -58.0]
+quality = [71.5, 70.25, 44.0, 72.0]
+with open(sys.argv[1], "wb", buffering=0) as p, open(sys.argv[2], "wb", buffering=0) as q:
+    for i, (a, b) in enumerate(zip(power, quality)):
+        p.write(struct.pack("<f", a))
+        if i == 2:  # the second quality value comes late, after the third power value
+            q.write(struct.pack("<f", quality[1]))
+        if i != 1:
+            q.write(struct.pack("<f", b))
+        time.sleep(0.05)
+"""
+
+
+def test_fifo_pairs_each_power_with_its_quality_from_two_pipes(tmp_path):
+    """``aerpaw-fifo:POWER,QUALITY``: the n-th quality value is logged beside the n-th power value
+    as ``rss_quality_db``, whichever pipe delivers first."""
+    power, quality = tmp_path / "Power", tmp_path / "Quality"
+    os.mkfifo(power)
+    os.mkfifo(quality)
+
+    async def main():
+        src = make_receiver(*parse_source(f"aerpaw-fifo:{power},{quality}"))
+        await src.start(_Clock())
+        w = subprocess.Popen([sys.executable, "-c", PAIRED_WRITER, str(power), str(quality)])
+        for _ in range(100):
+            await asyncio.sleep(0.05)
+            if src.count >= 4:
+                break
+        w.wait(10)
+        t, v, extra = src.drain(np.inf)
+        await src.stop()
+        return src, t, v, extra
+
+    src, t, v, extra = asyncio.run(main())
+    assert list(v) == [-61.25, -60.5, -59.75, -58.0]
+    assert list(extra[QUALITY_COLUMN]) == [71.5, 70.25, 44.0, 72.0]
+    assert np.all(np.diff(t) > 0) and src.quality_missing == 0
+    assert src.meta()["quality_path"] == str(quality)
+
+
+def test_fifo_power_never_waits_on_a_silent_quality_pipe(tmp_path, monkeypatch):
+    """A power value whose quality has not come within ``PAIR_WAIT_S`` is logged without it (NaN,
+    counted), its quality is dropped when it comes, and the next pair keeps its index; the log's
+    last drain keeps every power value still waiting."""
+    (tmp_path / "P").write_bytes(b"")
+    (tmp_path / "Q").write_bytes(b"")
+    src = FifoSource(tmp_path / "P", tmp_path / "Q")
+    src.clock = lambda: 10.0
+    wall = [0.0]
+    monkeypatch.setattr(sources.time, "monotonic", lambda: wall[0])
+    src._on_power(-50.0)
+    src._on_power(-51.0)
+    src._on_quality(70.0)
+    wall[0] = 0.5  # the second power waited half a second: kept waiting
+    t, v, extra = src.drain(20.0)
+    assert list(v) == [-50.0] and list(extra[QUALITY_COLUMN]) == [70.0]
+    wall[0] = 0.5 + sources.PAIR_WAIT_S + 0.1
+    t, v, extra = src.drain(20.0)
+    assert list(v) == [-51.0] and np.isnan(extra[QUALITY_COLUMN]).all()
+    assert src.quality_missing == 1
+    src._on_quality(69.0)  # the late quality of -51: dropped
+    src._on_power(-52.0)
+    src._on_quality(68.0)
+    src._on_power(-53.0)  # no quality yet: the last drain logs it anyway
+    t, v, extra = src.drain(np.inf)
+    assert list(v) == [-52.0, -53.0]
+    assert extra[QUALITY_COLUMN][0] == 68.0 and np.isnan(extra[QUALITY_COLUMN][1])
+
+
+def test_fifo_paths_and_preflight(tmp_path):
+    """``PATH[,QUALITY_PATH]``: both pipes checked before the flight, a half-given pair refused."""
+    assert fifo_paths("/root/Power") == ("/root/Power", None)
+    assert fifo_paths("/root/Power,/root/Quality") == ("/root/Power", "/root/Quality")
+    for bad in ("/root/Power,", ",/root/Quality"):
+        with pytest.raises(InputError, match="PATH,QUALITY_PATH"):
+            fifo_paths(bad)
+    (tmp_path / "Power").write_bytes(b"")
+    with pytest.raises(InputError, match="Quality"):
+        check_rss_source(f"aerpaw-fifo:{tmp_path / 'Power'},{tmp_path / 'Quality'}")
+    check_rss_source(f"aerpaw-fifo:{tmp_path / 'Power'}")

@@ -48,7 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rss-source",
         default="sim",
-        help="sim | aerpaw-fifo:PATH (float32 LE dB, e.g. /root/Power) | udp:[HOST:]PORT",
+        help="sim | aerpaw-fifo:PATH[,QUALITY_PATH] (float32 LE dB, e.g. /root/Power; the "
+        "sounder's quality pipe too: logged as rss_quality_db) | udp:[HOST:]PORT",
     )
     parser.add_argument(
         "--link-timeout",

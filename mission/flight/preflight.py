@@ -15,7 +15,7 @@ from pathlib import Path
 
 from mission.errors import InputError
 from mission.files import check_writable_dir
-from mission.flight.sources import parse_source
+from mission.flight.sources import fifo_paths, parse_source
 
 # MAVSDK v4 connection schemes (``udp://``/``tcp://`` are its older spellings, still accepted)
 SCHEMES = ("udpin", "udpout", "tcpin", "tcpout", "serial", "serial_flowcontrol", "udp", "tcp")
@@ -93,13 +93,16 @@ def check_rss_source(text: str) -> None:
     """The RSS source parses, its FIFO/file exists, its UDP port can be bound."""
     kind, arg = parse_source(text)
     if kind == "aerpaw-fifo":
-        p = Path(arg)
-        if not p.exists():
-            raise InputError("no such file or named pipe", source=str(p), field="--rss-source")
-        if p.is_dir():
-            raise InputError(
-                "is a folder, not a named pipe or file", source=str(p), field="--rss-source"
-            )
+        for path in fifo_paths(arg):
+            if path is None:
+                continue
+            p = Path(path)
+            if not p.exists():
+                raise InputError("no such file or named pipe", source=str(p), field="--rss-source")
+            if p.is_dir():
+                raise InputError(
+                    "is a folder, not a named pipe or file", source=str(p), field="--rss-source"
+                )
     elif kind == "udp":
         host, _, port = arg.rpartition(":")
         if not port.isdigit() or not 0 <= int(port) < 65536:

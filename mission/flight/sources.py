@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from mission.errors import InputError
+from mission.flightlog.schema import QUALITY_COLUMN
 
 
 class RssSource:
@@ -138,14 +139,19 @@ class _QueueSource(RssSource):
         self._lock = threading.Lock()
         self.clock: Callable[[], float] = lambda: float("nan")
 
-    def push(self, value: float, src_t: float = float("nan")) -> None:
-        t = self.clock()
+    def push(self, value: float, extra: float = float("nan")) -> None:
+        """A value arriving now, stamped with the vehicle clock; ``extra``: its extra column's
+        value (``extra_columns``, at most one)."""
+        self._enqueue(self.clock(), value, extra)
+
+    def _enqueue(self, t: float, value: float, extra: float = float("nan")) -> None:
+        """Queue a value stamped ``t`` (kept increasing: a repeat moves 0.1 ms on)."""
         if not np.isfinite(t) or not np.isfinite(value):
             return
         with self._lock:
             if self._q and t <= self._q[-1][0]:
                 t = self._q[-1][0] + 1e-4
-            self._q.append((t, value, src_t))
+            self._q.append((t, value, extra))
         self.last_sample_wall = time.monotonic()
         self.count += 1
 
@@ -166,38 +172,99 @@ def parse_float32_le(buf: bytes) -> np.ndarray:
     return np.frombuffer(buf, dtype="<f4").astype(float)
 
 
+PAIR_WAIT_S = 1.0  # a power value whose quality has not come within this is logged without it
+
+
 class FifoSource(_QueueSource):
     """AERPAW's channel sounder output: little-endian float32 dB values in a named pipe (or a
     growing file).
 
     A named pipe is read from its start (the writer may open it later; a closed writer is waited for
     again); a regular file is followed from its current end, like ``tail -f``.
+
+    ``quality_path``: the sounder's quality pipe (correlation peak over noise, dB; one value per
+    correlation window, as the power), logged as ``QUALITY_COLUMN`` so that a diagnosis can tell the
+    samples read out of lock (``rfsl gap --lock``).  The n-th quality value goes with the n-th power
+    value; a power value whose quality has not come within ``PAIR_WAIT_S`` is logged without it
+    (NaN, counted in ``quality_missing``) and that quality value is dropped when it comes, so the
+    pairs after it keep their order and no power value waits on a silent quality pipe.
     """
 
     kind = "aerpaw-fifo"
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, quality_path: str | Path | None = None) -> None:
         super().__init__()
         self.path = Path(path)
-        if not self.path.exists():
-            raise InputError(
-                "no such file or named pipe", source=str(self.path), field="--rss-source"
-            )
+        self.quality_path = None if quality_path is None else Path(quality_path)
+        for p in (self.path, self.quality_path):
+            if p is not None and not p.exists():
+                raise InputError("no such file or named pipe", source=str(p), field="--rss-source")
+        self.extra_columns = () if self.quality_path is None else (QUALITY_COLUMN,)
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
+        self._pair_lock = threading.Lock()
+        self._power: deque[tuple[int, float, float, float]] = deque()  # index, t, dB, wall
+        self._quality: deque[tuple[int, float]] = deque()  # index, dB
+        self._n_power = self._n_quality = 0
+        self.quality_missing = 0
 
     async def start(self, clock):
         await super().start(clock)
         self.clock = clock
-        self._thread = threading.Thread(target=self._reader, name="rss-fifo", daemon=True)
-        self._thread.start()
+        readers = [(self.path, self.push if self.quality_path is None else self._on_power)]
+        if self.quality_path is not None:
+            readers.append((self.quality_path, self._on_quality))
+        for k, (path, on_value) in enumerate(readers):
+            th = threading.Thread(
+                target=self._reader, args=(path, on_value), name=f"rss-fifo-{k}", daemon=True
+            )
+            th.start()
+            self._threads.append(th)
 
-    def _reader(self) -> None:
-        is_fifo = stat.S_ISFIFO(os.stat(self.path).st_mode)
+    def _on_power(self, value: float) -> None:
+        with self._pair_lock:
+            self._power.append((self._n_power, self.clock(), value, time.monotonic()))
+            self._n_power += 1
+        self._pair()
+
+    def _on_quality(self, value: float) -> None:
+        with self._pair_lock:
+            self._quality.append((self._n_quality, value))
+            self._n_quality += 1
+        self._pair()
+
+    def _pair(self, flush_before_wall: float = -np.inf) -> None:
+        """Queue every power value whose quality has come (dropping the quality values of powers
+        already logged without one), then, without their quality, the powers that arrived before
+        ``flush_before_wall``."""
+        with self._pair_lock:
+            while self._power:
+                i, t, v, wall = self._power[0]
+                while self._quality and self._quality[0][0] < i:
+                    self._quality.popleft()
+                if self._quality and self._quality[0][0] == i:
+                    self._enqueue(t, v, self._quality.popleft()[1])
+                elif wall < flush_before_wall:
+                    self._enqueue(t, v)
+                    self.quality_missing += 1
+                else:
+                    break
+                self._power.popleft()
+
+    def drain(self, t_until: float):
+        """As ``_QueueSource.drain``, after pairing; the last drain (``t_until`` infinite: the
+        log's end) logs every power value still waiting for its quality."""
+        if self.quality_path is not None:
+            wait = np.inf if not np.isfinite(t_until) else time.monotonic() - PAIR_WAIT_S
+            self._pair(flush_before_wall=wait)
+        return super().drain(t_until)
+
+    def _reader(self, path: Path, on_value: Callable[[float], None]) -> None:
+        is_fifo = stat.S_ISFIFO(os.stat(path).st_mode)
         rest = b""
         while not self._stop.is_set():
             try:
-                fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK)
+                fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
             except OSError:
                 time.sleep(0.2)
                 continue
@@ -216,7 +283,7 @@ class FifoSource(_QueueSource):
                         n = len(buf) // 4 * 4
                         rest = buf[n:]
                         for v in parse_float32_le(buf[:n]):
-                            self.push(float(v))
+                            on_value(float(v))
                         continue
                     if chunk == b"" and is_fifo and had_writer:
                         break  # writer closed: reopen and wait for the next one
@@ -228,12 +295,15 @@ class FifoSource(_QueueSource):
         self._stop.set()
 
     def meta(self) -> dict:
-        return {
+        out = {
             "kind": self.kind,
             "path": str(self.path),
             "calibrated": False,
             "note": "uncalibrated dB from the channel sounder (float32 little-endian)",
         }
+        if self.quality_path is not None:
+            out["quality_path"] = str(self.quality_path)
+        return out
 
 
 class UdpSource(_QueueSource):
@@ -290,11 +360,12 @@ class UdpSource(_QueueSource):
 
 
 def parse_source(text: str) -> tuple[str, str | None]:
-    """``sim`` | ``aerpaw-fifo:PATH`` | ``udp:[HOST:]PORT`` -> (kind, argument)."""
+    """``sim`` | ``aerpaw-fifo:PATH[,QUALITY_PATH]`` | ``udp:[HOST:]PORT`` -> (kind, argument)."""
     kind, _, arg = text.partition(":")
     if kind not in ("sim", "aerpaw-fifo", "udp"):
         raise InputError(
-            f"unknown RSS source {text!r}; use sim, aerpaw-fifo:PATH or udp:[HOST:]PORT",
+            f"unknown RSS source {text!r}; use sim, aerpaw-fifo:PATH[,QUALITY_PATH] or "
+            "udp:[HOST:]PORT",
             field="--rss-source",
         )
     if kind != "sim" and not arg:
@@ -302,10 +373,20 @@ def parse_source(text: str) -> tuple[str, str | None]:
     return kind, arg or None
 
 
+def fifo_paths(arg: str) -> tuple[str, str | None]:
+    """``PATH[,QUALITY_PATH]`` -> (power pipe, quality pipe or None)."""
+    power, _, quality = arg.partition(",")
+    if not power or (_ and not quality):
+        raise InputError(
+            f"aerpaw-fifo:{arg}: expected PATH or PATH,QUALITY_PATH", field="--rss-source"
+        )
+    return power, quality or None
+
+
 def make_receiver(kind: str, arg: str) -> RssSource:
     """Build a receiver source (``aerpaw-fifo`` or ``udp``) from its argument."""
     if kind == "aerpaw-fifo":
-        return FifoSource(arg)
+        return FifoSource(*fifo_paths(arg))
     host, _, port = arg.rpartition(":")
     try:
         return UdpSource(host or "0.0.0.0", int(port))
