@@ -49,24 +49,29 @@ with open(sys.argv[1], "wb", buffering=0) as f:
 """
 
 
+def _read_from_writer(src: FifoSource, writer: str, paths: list, n: int):
+    """(times, values, extra columns) that ``src`` read while another process ran ``writer`` on
+    ``paths``, once it had ``n`` values (or 5 s passed)."""
+
+    async def main():
+        await src.start(_Clock())
+        w = subprocess.Popen([sys.executable, "-c", writer, *map(str, paths)])
+        for _ in range(100):
+            await asyncio.sleep(0.05)
+            if src.count >= n:
+                break
+        w.wait(10)
+        out = src.drain(np.inf)
+        await src.stop()
+        return out
+
+    return asyncio.run(main())
+
+
 def test_fifo_named_pipe_from_another_process(tmp_path):
     fifo = tmp_path / "Power"
     os.mkfifo(fifo)
-
-    async def main():
-        src = FifoSource(fifo)
-        await src.start(_Clock())
-        w = subprocess.Popen([sys.executable, "-c", WRITER, str(fifo)])
-        for _ in range(100):
-            await asyncio.sleep(0.05)
-            if src.count >= 6:
-                break
-        w.wait(10)
-        t, v, _ = src.drain(np.inf)
-        await src.stop()
-        return t, v
-
-    t, v = asyncio.run(main())
+    t, v, _ = _read_from_writer(FifoSource(fifo), WRITER, [fifo], 6)
     assert list(v) == [-61.25, -60.5, -59.75, -58.0, -57.125, -56.5]
     assert np.all(np.diff(t) > 0) and t[0] >= 100.0
 
@@ -144,20 +149,8 @@ def test_fifo_pairs_each_power_with_its_quality_from_two_pipes(tmp_path):
     os.mkfifo(power)
     os.mkfifo(quality)
 
-    async def main():
-        src = make_receiver(*parse_source(f"aerpaw-fifo:{power},{quality}"))
-        await src.start(_Clock())
-        w = subprocess.Popen([sys.executable, "-c", PAIRED_WRITER, str(power), str(quality)])
-        for _ in range(100):
-            await asyncio.sleep(0.05)
-            if src.count >= 4:
-                break
-        w.wait(10)
-        t, v, extra = src.drain(np.inf)
-        await src.stop()
-        return src, t, v, extra
-
-    src, t, v, extra = asyncio.run(main())
+    src = make_receiver(*parse_source(f"aerpaw-fifo:{power},{quality}"))
+    t, v, extra = _read_from_writer(src, PAIRED_WRITER, [power, quality], 4)
     assert list(v) == [-61.25, -60.5, -59.75, -58.0]
     assert list(extra[QUALITY_COLUMN]) == [71.5, 70.25, 44.0, 72.0]
     assert np.all(np.diff(t) > 0) and src.quality_missing == 0
