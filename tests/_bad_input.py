@@ -100,4 +100,5 @@ def mat_arrays(n: int = 300) -> dict[str, np.ndarray]:
         "mPitch": np.zeros(n),
         "mYaw": np.zeros(n),
         "mpower": np.full(n, -50.0),
+        "mquality": np.full(n, 70.0),
     }

@@ -69,8 +69,9 @@ def test_fixture_roundtrip(tmp_path):
 
 def test_quality_carried_when_present(tmp_path):
     """``mquality`` becomes the column ``rss_quality_db`` row for row with the power (through
-    sorting and dropped duplicates); a file without it imports without the column; one of another
-    length is refused naming the variable."""
+    sorting and dropped duplicates); a file without it imports without the column; a value no
+    sounder gives reads as unknown (the sample kept); a variable of another length is refused
+    naming it."""
     mat = make_mat(tmp_path / "q.mat", shuffle=True, dup=True)
     d = sio.loadmat(mat)
     d["mquality"] = 50.0 + d["mpower"] / 2.0  # a known function of the power, to follow the rows
@@ -80,6 +81,11 @@ def test_quality_carried_when_present(tmp_path):
     np.testing.assert_allclose(log[QUALITY_COLUMN], 50.0 + log["rss_dbm"] / 2.0, atol=0.01)
     plain = convert_afar_mat(make_mat(tmp_path / "p.mat", drop="mquality"))
     assert QUALITY_COLUMN not in plain.log.columns and len(plain.log) == 200
+    d["mquality"][[0, 5], 0] = [np.inf, 1e300]  # no sounder reads these: unknown, with a note
+    sio.savemat(mat, {k: v for k, v in d.items() if not k.startswith("__")})
+    res = convert_afar_mat(mat)
+    assert np.isnan(res.log[QUALITY_COLUMN]).sum() == 2 and len(res.log) == 198
+    assert any("2 quality value(s)" in n for n in res.notes)
     d["mquality"] = d["mquality"][:-1]
     sio.savemat(mat, {k: v for k, v in d.items() if not k.startswith("__")})
     with pytest.raises(InputError, match="mquality"):

@@ -23,6 +23,7 @@ from mission.flightlog import (
     write_flight_log,
 )
 from mission.flightlog.read import _fast_parse, _slow_parse
+from mission.flightlog.schema import QUALITY_COLUMN
 from mission.geo import Origin
 
 O = Origin(35.727, -78.698, 90.0)
@@ -266,3 +267,18 @@ def test_a_failed_write_leaves_whole_rows_and_a_matching_sidecar(tmp_path, limit
     assert len(log) == int(rows) == log.meta["rows"] and log.meta["status"] == "flying on"
     assert path.stat().st_size <= limit and path.read_text().endswith("\n")
     assert np.all(np.diff(log["t_s"]) > 0)
+
+
+def test_the_receivers_quality_column_holds_numbers_or_nothing(tmp_path):
+    """``rss_quality_db`` (``NUMERIC_COLUMNS``): an empty value reads as NaN (out of lock); a text
+    is a broken row, named, as in a format column, while another extra column may hold text."""
+    c, _ = _cols(6)
+    q = np.array([72.0, np.nan, 45.0, 70.0, 71.0, 72.0])
+    p = write_flight_log(tmp_path / "q.csv", {**c, QUALITY_COLUMN: q}, make_meta(O, {"kind": "x"}))
+    log = read_flight_log(p)
+    assert np.isnan(log[QUALITY_COLUMN][1]) and log[QUALITY_COLUMN][2] == 45.0
+    lines = p.read_text().splitlines()
+    lines[4] = lines[4].rsplit(",", 1)[0] + ",locked"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=rf"row 5, field '{QUALITY_COLUMN}': not a number"):
+        read_flight_log(p)

@@ -287,7 +287,7 @@ def test_generated_mission_encodings(tmp_path_factory, text):
     assert_promise(rc, err, text[:80])
 
 
-MAT_VARS = ["timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower"]
+MAT_VARS = ["timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower", "mquality"]
 EXTREME = st.sampled_from([np.nan, np.inf, -np.inf, 1e300, -1e300, -1e18, 1e18, 0.0, 400.0, -400.0])
 
 

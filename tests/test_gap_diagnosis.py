@@ -316,6 +316,9 @@ def test_gap_lock_withholds_the_samples_read_out_of_lock(tmp_path, capsys) -> No
     assert main(["gap", str(q), "--lock", "50"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "plain.csv" in err[0] and QUALITY_COLUMN in err[0], err
+    assert main(["gap", str(p), "--lock", "nan"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--lock" in err[0], err
 
 
 def test_locked_rows_counts_a_missing_quality_as_lost() -> None:

@@ -491,6 +491,10 @@ def run(args) -> int:
         return _selftest(args)
     if not args.logs:
         raise InputError("give at least one flight log (or --selftest)", field="logs")
+    if args.lock is not None:
+        from mission.cli.main import check_number
+
+        check_number(args.lock, "--lock")
     check_outputs(args)
     import numpy as np
     from rich.console import Console

@@ -17,7 +17,7 @@ from mission.errors import InputError
 from mission.fields import Fields, check_types
 from mission.files import check_regular, read_bytes, read_text
 from mission.flightlog.schema import (
-    COLUMNS,
+    NUMERIC_COLUMNS,
     OPTIONAL,
     REQUIRED,
     RSS_RANGE_DB,
@@ -138,7 +138,7 @@ def _drop_cut_last_line(
         reason = f"{len(fields)} of {len(header)} fields"
     else:
         for name, v in zip(header, fields, strict=True):
-            if name not in COLUMNS or (not v.strip() and name not in REQUIRED):
+            if name not in NUMERIC_COLUMNS or (not v.strip() and name not in REQUIRED):
                 continue
             try:
                 ok = np.isfinite(float(v))
@@ -182,12 +182,12 @@ def _fast_parse(text: str, header: list[str]) -> dict[str, np.ndarray] | None:
     for j, name in enumerate(header):
         values = table[:, j] if table is not None else _as_float(num[:, j])
         # blank fields padded with spaces still read as NaN
-        if values is None and name not in COLUMNS:
+        if values is None and name not in NUMERIC_COLUMNS:
             values = _as_float(
                 np.where(np.char.strip(raw[:, j].astype(str)) == "", "nan", raw[:, j])
             )
         if values is None:
-            if name in COLUMNS:
+            if name in NUMERIC_COLUMNS:
                 return None
             columns[name] = raw[:, j]  # extra non-numeric column (``phase``): kept as text
         elif np.isinf(values).any():
@@ -221,7 +221,7 @@ def _slow_parse(reader, header: list[str], src: str) -> tuple[dict[str, np.ndarr
         try:
             columns[name] = _parse_column(list(cols_text[j]), name, src, allow_empty)
         except InputError:
-            if name in COLUMNS:
+            if name in NUMERIC_COLUMNS:
                 raise
             # extra non-numeric column: keep as text
             columns[name] = np.array(cols_text[j], dtype=object)

@@ -42,6 +42,9 @@ RSS_RANGE_DB = (-250.0, 150.0)
 # model at the transmitter (``experiments/receiver_lock.py``).
 QUALITY_COLUMN = "rss_quality_db"
 SOUNDER_LOCK_DB = 50.0
+# Columns that hold numbers or nothing: a text in one is a broken row (other extra columns, such as
+# ``phase``, may hold text)
+NUMERIC_COLUMNS = COLUMNS + (QUALITY_COLUMN,)
 REQUIRED = ("t_s", "lat_deg", "lon_deg", "alt_m", "rel_alt_m", "rss_dbm")
 OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg")
 # Mission phase per row (extra columns written by flown and simulated logs): ``phase`` is one of

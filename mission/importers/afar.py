@@ -163,6 +163,23 @@ def _drop_impossible(m: dict[str, np.ndarray], notes: list[str]) -> dict[str, np
     return {k: a[~bad_all] for k, a in m.items()} if bad_all.any() else m
 
 
+QUALITY_RANGE_DB = (-100.0, 300.0)  # a correlation peak over noise outside this is no reading
+
+
+def _quality(q: np.ndarray, notes: list[str]) -> np.ndarray:
+    """``mquality`` as the log's quality column: a value no sounder gives (infinite, or outside
+    ``QUALITY_RANGE_DB``) becomes unknown (NaN, read as out of lock), with a note; the sample's
+    power and position are kept."""
+    lo, hi = QUALITY_RANGE_DB
+    bad = np.isinf(q) | (q < lo) | (q > hi)
+    if not bad.any():
+        return q
+    notes.append(
+        f"{int(bad.sum())} quality value(s) outside {lo:g}..{hi:g} dB (mquality) read as unknown"
+    )
+    return np.where(bad, np.nan, q)
+
+
 def convert_afar_mat(
     path: str | Path,
     truth: tuple[float, float] | None = None,
@@ -200,7 +217,7 @@ def convert_afar_mat(
         "rss_dbm": m["mpower"],
     }
     if "mquality" in m:
-        cols[QUALITY_COLUMN] = m["mquality"]
+        cols[QUALITY_COLUMN] = _quality(m["mquality"], notes)
     meta = _sidecar_meta(path, origin, t[0], truth, truth_height_m, notes)
     return ImportResult(FlightLog(cols, meta), notes)
 
