@@ -261,7 +261,7 @@ def load_flights(
         print_notes(log.notes)
         quality.append(_quality(log))
         if lock_db is not None:
-            log = locked_rows(log, lock_db)[0]
+            log = locked_rows(log, lock_db)
         tx = None
         if truths:
             lat, lon = _parse_latlon(truths[0 if len(truths) == 1 else k])

@@ -201,7 +201,6 @@ class FifoSource(_QueueSource):
                 raise InputError("no such file or named pipe", source=str(p), field="--rss-source")
         self.extra_columns = () if self.quality_path is None else (QUALITY_COLUMN,)
         self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
         self._pair_lock = threading.Lock()
         self._power: deque[tuple[int, float, float, float]] = deque()  # index, t, dB, wall
         self._quality: deque[tuple[int, float]] = deque()  # index, dB
@@ -215,11 +214,9 @@ class FifoSource(_QueueSource):
         if self.quality_path is not None:
             readers.append((self.quality_path, self._on_quality))
         for k, (path, on_value) in enumerate(readers):
-            th = threading.Thread(
+            threading.Thread(
                 target=self._reader, args=(path, on_value), name=f"rss-fifo-{k}", daemon=True
-            )
-            th.start()
-            self._threads.append(th)
+            ).start()
 
     def _on_power(self, value: float) -> None:
         with self._pair_lock:

@@ -144,18 +144,17 @@ def flight_from_log(
 
 
 def locked_rows(log, lock_db: float):
-    """(the rows of ``log`` whose receiver quality ``rss_quality_db`` is at least ``lock_db``, how
-    many were withheld): what a diagnosis keeps when told which samples were read with the
-    receiver's lock lost (a missing quality, NaN, counts as not locked).  A log without the column
-    is an ``InputError``: nothing says which of its samples to trust."""
+    """The rows of ``log`` whose receiver quality ``rss_quality_db`` is at least ``lock_db``: what a
+    diagnosis keeps when told which samples were read with the receiver's lock lost (a missing
+    quality, NaN, counts as not locked).  A log without the column is an ``InputError``: nothing
+    says which of its samples to trust."""
     if QUALITY_COLUMN not in log.columns:
         raise InputError(
             f"has no {QUALITY_COLUMN} column: nothing says which samples were read locked",
             source=str(log.path) if log.path is not None else None,
             field="--lock",
         )
-    lost = out_of_lock(log[QUALITY_COLUMN], lock_db)
-    return log.select(~lost), int(lost.sum())
+    return log.select(~out_of_lock(log[QUALITY_COLUMN], lock_db))
 
 
 def afar2023_flights(
@@ -172,7 +171,7 @@ def afar2023_flights(
             res = convert_afar_mat(
                 Path(mat_dir) / f"results_useful_ori_exp_{team}_loc_{loc}.mat", AFAR2023_TRUTH[loc]
             )
-            log = res.log if lock_db is None else locked_rows(res.log, lock_db)[0]
+            log = res.log if lock_db is None else locked_rows(res.log, lock_db)
             f = flight_from_log(log, name=f"{team}-loc{loc}")
             out.append(f.select(f.enu_m[:, 2] > min_height_m))
     return out

@@ -37,12 +37,9 @@ from mission.flightlog.schema import QUALITY_COLUMN, RSS_RANGE_DB
 from mission.geo import Origin, afar_field, latlon_unit_problem
 
 REQUIRED_VARS = ("timestamp_power", "mX", "mY", "mZ", "mRoll", "mPitch", "mYaw", "mpower")
-# Read when present: the sounder's correlation peak over noise, dB (``../shared/data/README.md``).
-# Below about 50 dB the sounder has lost lock and ``mpower`` reads 23-37 dB under the signal
-# (``experiments/receiver_lock.py``): the column lets a diagnosis tell those samples apart.
-OPTIONAL_VARS = ("mquality",)  # -> the column QUALITY_COLUMN
-
-
+# Read when present: the sounder's correlation peak over noise, dB (``../shared/data/README.md``),
+# written as the column ``QUALITY_COLUMN`` (what it says: ``mission.flightlog.schema``)
+OPTIONAL_VARS = ("mquality",)
 MIN_DT_S = (
     1e-3  # samples closer than this to the previous one count as duplicates (log resolution 0.1 ms)
 )
