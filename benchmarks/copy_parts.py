@@ -10,6 +10,11 @@ attitudes and transmitters (mission/gap/README.md, "Fades, not peaks"):
 - ``model + real resid. shifted``: that model plus the flight's own residual (real minus
   model) moved along the flight by a quarter, a half and three quarters of its samples: the real
   residual's size and its structure along the track, no longer where it was;
+- ``model + real resid. locked``: that model plus the flight's residual in place on the samples the
+  sounder read locked, the out-of-lock ones at the model (plus the locked samples' median
+  residual); and ``model + out-of-lock resid.``: the model everywhere, the real residual in place on
+  the out-of-lock samples only: which part of the real residual's place helps (stop 58: the lock
+  losses follow the fades, ``experiments/lock_mechanism.py``);
 - per draw of ``--family`` (``--k`` per flight): its model with the white noise, then with the
   per-flight nuisance (the drift) added, then with the shadowing added, then everything: what
   ``simulate_rss`` draws, part by part (the same random numbers in each arm).
@@ -38,6 +43,7 @@ from rich.progress import track
 from score_decision import methods, real_kwargs
 
 from mission.flightlog import FlightLog, read_flight_log
+from mission.flightlog.schema import QUALITY_COLUMN, out_of_lock
 from mission.gap.align import afar2023_flights
 from mission.gap.diagnose import decimate_flight
 from mission.gap.familyfit import effects_of_ladder, fit_family
@@ -93,6 +99,14 @@ def one_flight(job: tuple) -> tuple[int, dict[str, list[dict]]]:
         moved = np.full_like(real, np.nan)
         moved[ok] = model[ok] + np.roll(r - np.median(r), int(s * len(ok)))
         arms["model + real resid. shifted"].append(_errors(log, moved, team, specs))
+    unlocked = out_of_lock(log[QUALITY_COLUMN])[ok]
+    base = np.median(r[~unlocked])
+    locked_only = np.full_like(real, np.nan)
+    locked_only[ok] = model[ok] + np.where(unlocked, base, r)
+    arms["model + real resid. locked"] = [_errors(log, locked_only, team, specs)]
+    fades_only = np.full_like(real, np.nan)
+    fades_only[ok] = model[ok] + np.where(unlocked, r, base)
+    arms["model + out-of-lock resid."] = [_errors(log, fades_only, team, specs)]
     fam = load_family(family)
     rng = np.random.default_rng([seed, i])
     for _ in range(k):

@@ -21,6 +21,8 @@ should be made on.
 
     python benchmarks/ppc_same_design.py --mat ../shared/data/afar2023/mat --family afar --k 20 \
         --workers 2 --json /tmp/ppc_afar.json
+
+``--lock-losses`` draws the AFAR sounder's lock losses into every copy (stop 58; ``replicate``).
 """
 
 from __future__ import annotations
@@ -48,15 +50,29 @@ from mission.workshop.predictive import STATISTICS, design_check, flight_statist
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
-def replicate(log: FlightLog, family, rng: np.random.Generator) -> FlightLog:
+# the AFAR sounder's lock (experiments/lock_mechanism.py, the six flights' cruise samples): each
+# flight's floor (mpower dB, the families' scale) and what it reads out of lock, relative to it
+LOCK_FLOOR_DB = (-21.6, 5.1)  # mean, sd over the six flights
+OUT_OF_LOCK_READ_DB = (-4.8, 6.5)  # pooled mean, sd of reading - floor
+
+
+def replicate(
+    log: FlightLog, family, rng: np.random.Generator, lock_losses: bool = False
+) -> FlightLog:
     """``log`` with its RSS simulated again under one draw of ``family`` (same rows, track,
-    attitude, transmitter; rows without RSS stay without)."""
+    attitude, transmitter; rows without RSS stay without).  ``lock_losses``: after the draw, a
+    floor from ``LOCK_FLOOR_DB``; a sample under it reads the floor plus ``OUT_OF_LOCK_READ_DB``
+    (the sounder out of lock: no hysteresis, so sample by sample)."""
     draw = family.draw(rng)
     att = log.attitude_rad
     enu = log.enu()
     att = np.zeros_like(enu) if att is None else np.nan_to_num(att)
     rss = simulate_rss(draw, log.truth_enu, enu, att, rng)
     rss[~np.isfinite(log["rss_dbm"])] = np.nan
+    if lock_losses:
+        floor = rng.normal(*LOCK_FLOOR_DB)
+        lost = np.isfinite(rss) & (rss < floor)
+        rss[lost] = floor + rng.normal(*OUT_OF_LOCK_READ_DB, size=int(lost.sum()))
     return FlightLog({**log.columns, "rss_dbm": rss}, dict(log.meta), log.path, [])
 
 
@@ -72,9 +88,9 @@ def score(log: FlightLog, team: str, specs: dict[str, str]) -> tuple[dict, dict[
 
 
 def _copy(job: tuple) -> tuple[int, int, dict, dict]:
-    path, team, family, seed, i, k, specs = job
+    path, team, family, seed, i, k, specs, lock_losses = job
     log = read_flight_log(path)
-    rep = replicate(log, load_family(family), np.random.default_rng([seed, i, k]))
+    rep = replicate(log, load_family(family), np.random.default_rng([seed, i, k]), lock_losses)
     stats, errs = score(rep, team, specs)
     return i, k, stats, errs
 
@@ -106,16 +122,22 @@ def design_parser(description: str, k: int, json_help: str) -> argparse.Argument
 
 
 def main() -> None:
-    a = design_parser(
+    ap = design_parser(
         __doc__.splitlines()[0], 20, "write the checks and every copy's figures here"
-    ).parse_args()
+    )
+    ap.add_argument(
+        "--lock-losses",
+        action="store_true",
+        help="draw the AFAR sounder's lock losses into each copy (``replicate``)",
+    )
+    a = ap.parse_args()
     specs = methods(MODELS, [])
     con = Console(width=80)
     with tempfile.TemporaryDirectory() as tmp:
         flights = real_flights(a.mat, tmp)
         real = [score(read_flight_log(p), team, specs) for _, team, p in flights]
         jobs = [
-            (p, team, a.family, a.seed, i, k, specs)
+            (p, team, a.family, a.seed, i, k, specs, a.lock_losses)
             for i, (_, team, p) in enumerate(flights)
             for k in range(a.k)
         ]
@@ -134,7 +156,8 @@ def main() -> None:
         checks[f"error m: {label}"] = design_check(
             [r[1][label] for r in real], [[c[1][label] for c in row] for row in sims]
         )
-    con.print(f"family {a.family}, {a.k} copies per flight, seed {a.seed}")
+    lock = ", lock losses drawn" if a.lock_losses else ""
+    con.print(f"family {a.family}, {a.k} copies per flight, seed {a.seed}{lock}")
     for name, c in checks.items():
         con.print(
             f"{name[:34]:34} real {c['real_mean']:6.1f} copies {c['sim_mean']:6.1f} "

@@ -11,7 +11,8 @@ which no importer reads.  This script asks, per flight, with the transmitter at 
 2. what the search's own model class reaches on the locked samples (the oracle of
    ``oracle_real.py``: antenna hypothesis and offset fitted at the truth, then the position
    searched), and the profiled search (selfcal's model) on all samples, on the locked ones, and
-   with each unlocked cell read as an upper bound (``censored_search``);
+   with each unlocked cell read as an upper bound (``censored_search``: under the locked cells'
+   10th percentile, or under the flight's lock floor of ``lock_mechanism.py``);
 3. whether the flight's held-out evidence, which issue 32's stage weighs candidates by, ranks the
    label itself above the members' candidates, with and without the unlocked samples;
 4. the members and the default with the out-of-lock samples withheld (under 50 or 55 dB) or their
@@ -35,7 +36,7 @@ from experiments.oracle_real import SUSPECT, oracle_error, search_setup
 from mission.cells import cell_average
 from mission.evidence import paired_difference
 from mission.flightlog import read_flight_log
-from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB, out_of_lock
+from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB, lock_floor_db, out_of_lock
 from mission.importers.afar import AFAR2023_FOLD_WITHOUT, import_afar_mat
 from mission.localize.api import localize_log, make_localizer, search_area
 from mission.localize.candidates import Candidate
@@ -58,29 +59,35 @@ def quality_log(mat: Path, tmp: Path):
     return read_flight_log(import_afar_mat(mat, tmp, truth=truth, overwrite=True).out_path)
 
 
-def residual_split(log, part, lock_db: float) -> dict:
-    """Residual at the label under the team-held-out ``afar`` fold, locked against unlocked
-    samples, and the unlocked share by the model's predicted level."""
+def label_residual(log, part, lock_db: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(residual, model level, locked) per sample of ``part`` with the transmitter at the label,
+    under the ``afar`` fold fitted without the flight's team; the offset is the locked samples'
+    median residual, so the residual is about that and the level is in the sounder's dB."""
     f = as_flight(part)
-    q = np.asarray(part[QUALITY_COLUMN])
     name = log.meta["source"]["file"].replace("results_useful_ori_exp_", "")[:3]
     grid = make_localizer("grid", physics_preset=f"afar:{AFAR2023_FOLD_WITHOUT[name]}")
     t = np.asarray(log.truth_enu[:2])[None, :]
     pred = grid.candidate_rss(t, f.enu_m, f.attitude_rad)[0]
     r = f.rss_dbm - pred
-    locked = q >= lock_db
+    locked = np.asarray(part[QUALITY_COLUMN]) >= lock_db
     off = float(np.median(r[locked]))
-    level = pred + off  # the model's level in the sounder's dB
+    return r - off, pred + off, locked
+
+
+def residual_split(log, part, lock_db: float) -> dict:
+    """Residual at the label under the team-held-out ``afar`` fold, locked against unlocked
+    samples, and the unlocked share by the model's predicted level."""
+    r, level, locked = label_residual(log, part, lock_db)
     bands = []
     for lo, hi in zip(LEVEL_BANDS_DB[:-1], LEVEL_BANDS_DB[1:], strict=True):
         m = (level >= lo) & (level < hi)
         if m.sum() >= 50:
             bands.append((lo, hi, int(m.sum()), float(np.mean(~locked[m]))))
     return {
-        "n": len(q),
+        "n": len(r),
         "unlocked": float(np.mean(~locked)),
-        "locked_rms": float(np.sqrt(np.mean((r[locked] - off) ** 2))),
-        "unlocked_med": float(np.median(r[~locked] - off)) if (~locked).any() else float("nan"),
+        "locked_rms": float(np.sqrt(np.mean(r[locked] ** 2))),
+        "unlocked_med": float(np.median(r[~locked])) if (~locked).any() else float("nan"),
         "bands": bands,
     }
 
@@ -98,17 +105,22 @@ def searches(log, part, lock_db: float) -> dict:
         ssr, _ = hypothesis_ssr(grid, cells, hyps, sc.tx_height_m)
         out[f"search {tag}"] = float(np.hypot(*(grid[int(np.argmin(ssr.min(axis=0)))] - truth)))
     out["search censored"] = censored_search(f_all, q >= lock_db, sc, hyps, grid, truth)
+    floor = lock_floor_db(part["rss_dbm"], q, lock_db)
+    out["censored at floor"] = censored_search(f_all, q >= lock_db, sc, hyps, grid, truth, floor)
     return out
 
 
-def censored_search(f_all, locked: np.ndarray, sc, hyps, grid, truth) -> float:
+def censored_search(
+    f_all, locked: np.ndarray, sc, hyps, grid, truth, t_db: float | None = None
+) -> float:
     """The profiled search on the locked cells, each unlocked cell read as a bound: the signal
-    there was below ``T``, the 10th percentile of the locked cells' RSS (no truth used); a
-    candidate pays ``max(0, model - T)^2`` per unlocked cell, the model's offset fitted on the
-    locked cells."""
+    there was below ``T`` (``t_db``: the flight's lock floor, ``schema.lock_floor_db``; None: the
+    10th percentile of the locked cells' RSS; no truth used either way); a candidate pays
+    ``max(0, model - T)^2`` per unlocked cell, the model's offset fitted on the locked cells."""
     cl = cell_average(_subset(f_all, locked), sc.cell_m, sc.altitude_gap_m)
     cu = cell_average(_subset(f_all, ~locked), sc.cell_m, sc.altitude_gap_m)
-    t_db = float(np.percentile(cl.rss_dbm, 10))
+    if t_db is None:
+        t_db = float(np.percentile(cl.rss_dbm, 10))
     pg, el, az, elu = _geometry(grid, cl, sc.tx_height_m)
     pgu, elx, azu, eluu = _geometry(grid, cu, sc.tx_height_m)
     y = cl.rss_dbm.astype(np.float32)[None, :]
@@ -242,6 +254,10 @@ def main() -> None:
             f" (5: {np.delete(e, SUSPECT).mean():4.1f})"
         )
     print("  flights: " + ", ".join(r[0] for r in rows))
+    base = [r[2]["search all"] for r in rows]
+    for k in ("search locked", "search censored", "censored at floor"):
+        d = paired_difference([r[2][k] for r in rows], base)
+        print(f"  {k} - search all: {d.fmt()} m (90 %, over the six flights)")
     print("the label's held-out evidence behind the best candidate, nats (0: it leads):")
     for tag in ("all", "locked"):
         print(f"  {tag:16s} " + " ".join(f"{r[3][tag]:5.1f}" for r in rows))

@@ -171,10 +171,22 @@ def test_lock_note_only_from_a_tenth_of_the_samples():
         ([72.0] * 8 + [40.0, np.nan], 0.2, True),
     ):
         est = Estimate(0.0, 0.0, "selfcal", "m", 0.0, 0.0)
-        part = FlightLog({"t_s": np.arange(len(q), dtype=float), QUALITY_COLUMN: np.array(q)})
+        n = len(q)
+        part = FlightLog(
+            {
+                "t_s": np.arange(n, dtype=float),
+                "rss_dbm": np.linspace(0.0, -30.0, n),
+                QUALITY_COLUMN: np.array(q),
+            }
+        )
         _lock_note(est, part)
         assert est.extras["out_of_lock_share"] == pytest.approx(share)
         assert (f"{100 * share:.0f} % of the samples used" in " ".join(est.notes)) == noted
+        # the floor: the power of the locked row next to the one change, the last locked row
+        k = next(i for i, v in enumerate(q) if not v >= SOUNDER_LOCK_DB) - 1
+        floor = -30.0 * k / (n - 1)
+        assert est.extras["lock_floor_db"] == pytest.approx(floor)
+        assert (f"below about {floor:.0f} dB" in " ".join(est.notes)) == noted
     est = Estimate(0.0, 0.0, "selfcal", "m", 0.0, 0.0)
     _lock_note(est, FlightLog({"t_s": np.arange(3.0)}))
     assert "out_of_lock_share" not in est.extras and not est.notes
@@ -201,3 +213,5 @@ def test_localize_reports_the_share_read_out_of_lock_and_answers_the_same(tmp_pa
     share = float(np.mean(part[QUALITY_COLUMN] < SOUNDER_LOCK_DB))
     assert with_q.extras["out_of_lock_share"] == pytest.approx(share) and 0.25 < share < 0.45
     assert "read with the receiver out of lock" in " ".join(with_q.notes)
+    # the level where this flight's sounder loses lock (experiments/lock_mechanism.py: -25.7 dB)
+    assert -30.0 < with_q.extras["lock_floor_db"] < -23.0

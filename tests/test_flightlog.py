@@ -23,7 +23,7 @@ from mission.flightlog import (
     write_flight_log,
 )
 from mission.flightlog.read import _fast_parse, _slow_parse
-from mission.flightlog.schema import QUALITY_COLUMN
+from mission.flightlog.schema import QUALITY_COLUMN, lock_floor_db
 from mission.geo import Origin
 
 O = Origin(35.727, -78.698, 90.0)
@@ -282,3 +282,22 @@ def test_the_receivers_quality_column_holds_numbers_or_nothing(tmp_path):
     p.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=rf"row 5, field '{QUALITY_COLUMN}': not a number"):
         read_flight_log(p)
+
+
+def test_lock_floor_is_where_lock_comes_and_goes():
+    """``lock_floor_db``: a receiver that holds lock exactly while the power is above -20 dB, the
+    power sweeping down and up through it with noise, gives -20 dB within the sweep's step; the
+    locked row next to each change is used (a loss and a regain at the same level: no hysteresis
+    in the data, none in the figure); no change of state gives None."""
+    rng = np.random.default_rng(3)
+    p = np.r_[np.linspace(0, -40, 400), np.linspace(-40, 0, 400)] + rng.normal(0, 1.0, 800)
+    q = np.where(p >= -20.0, p + 72.0, 44.0)
+    f = lock_floor_db(p, q)
+    assert f is not None and -20.0 <= f < -18.5
+    # NaN quality counts as out of lock; NaN power at an edge is skipped
+    q2 = q.copy()
+    q2[:5] = np.nan
+    assert lock_floor_db(p, q2) == pytest.approx(f, abs=1.0)
+    assert lock_floor_db(p, np.full(800, 72.0)) is None
+    assert lock_floor_db(p, np.full(800, 40.0)) is None
+    assert lock_floor_db(np.array([]), np.array([])) is None

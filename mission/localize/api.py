@@ -32,7 +32,7 @@ import numpy as np
 from mission.defaults import DEFAULT_TX_HEIGHT_M
 from mission.errors import InputError
 from mission.flightlog import FlightLog, read_flight_log
-from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB, out_of_lock
+from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB, lock_floor_db, out_of_lock
 from mission.geo import Area, afar_field
 from mission.localize import Estimate, Selection
 from mission.localize.error_circles import (
@@ -495,7 +495,8 @@ def run_method(
 
 def _lock_note(est: Estimate, part) -> None:
     """A log whose receiver reports its quality (``QUALITY_COLUMN``): the share of the samples used
-    that it read out of lock, and a note when that is a tenth or more.  They are kept: read as they
+    that it read out of lock and the level where it loses lock (``lock_floor_db``), and a note when
+    that share is a tenth or more.  They are kept: read as they
     are they still mark where the transmitter is not; without them or clamped no member did better
     on the AFAR flights, and the default's change flipped sign with the cut (models/README.md,
     issue 32)."""
@@ -503,11 +504,14 @@ def _lock_note(est: Estimate, part) -> None:
         return
     share = float(out_of_lock(part[QUALITY_COLUMN]).mean())
     est.extras["out_of_lock_share"] = share
+    floor = lock_floor_db(part["rss_dbm"], part[QUALITY_COLUMN])
+    est.extras["lock_floor_db"] = floor
     if share >= LOCK_NOTE_SHARE:
+        below = "" if floor is None else f" below about {floor:.0f} dB"
         est.add_note(
-            f"{100 * share:.0f} % of the samples used were read with the receiver out of lock "
-            f"(quality under {SOUNDER_LOCK_DB:g} dB; on the AFAR flights such samples read "
-            "23-37 dB low); they are kept: they still mark where the transmitter is not"
+            f"{100 * share:.0f} % of the samples used were read with the receiver out of lock"
+            f"{below} (quality under {SOUNDER_LOCK_DB:g} dB; on the AFAR flights such samples "
+            "read 23-37 dB low); they are kept: they still mark where the transmitter is not"
         )
 
 
