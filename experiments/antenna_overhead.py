@@ -1,0 +1,120 @@
+"""What the real antennas do overhead: the RSS by elevation, and selfcal with a dipole alone.
+
+Why: the spiral networks, trained on vertical dipoles, localize the AFAR flights about as well as
+they localize copies of them drawn with dipoles and no random field, and fail on copies drawn with
+the measured RM-WB1-DN pattern (mission/gap/README.md, "Predictive checks with the design held").
+The measured pattern, as the family mounts it (UAV upside down, rover upright), is strongest
+straight up and down; a pair of dipoles has its nulls there.  This script asks the real flights:
+1. the RSS (locked samples, transmitter at the label) against a free-space distance law (20 dB per
+   decade, its offset set on the 15-30 deg band), by the elevation at which the rover sees the UAV,
+   per flight, beside what the family's measured pair and a dipole pair add at those elevations
+   (relative to 15-30 deg; the measured pattern averaged over azimuth);
+2. selfcal with a single vertical-dipole hypothesis against today's hypotheses (in-sample residual
+   rms picks among them), per flight, with the paired 90 % interval over the four flights whose
+   transmitter lies inside the flown area.
+Exploration: it decides nothing (six flights, two teams).
+
+    python experiments/antenna_overhead.py --logs 'real/*.csv'      # imported AFAR flights, ~1 min
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+
+import numpy as np
+
+from mission.evidence import paired_difference
+from mission.flightlog import read_flight_log
+from mission.flightlog.schema import QUALITY_COLUMN, out_of_lock
+from mission.localize.api import _in_log_frame, search_area
+from mission.localize.methods import method_entry
+from mission.localize.preprocess import select_samples
+from mission.localize.selfcal import SelfCalibratingGrid
+from mission.physics.antenna import Dipole, rm_wb1_dn
+
+EL_BANDS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+REF_BAND = 1  # 15-30 deg: the offset is set here
+INSIDE = ("288_loc_1", "288_loc_2", "328_loc_1", "328_loc_2")  # transmitter inside the flown area
+
+
+def elevation_profile(log, tx_height_m: float = 1.5) -> list[tuple[float, int]]:
+    """(mean residual dB, samples) per ``EL_BANDS_DEG`` band of the locked samples against
+    ``20 log10 d`` with its offset set on ``REF_BAND`` (NaN under 30 samples)."""
+    part, _ = select_samples(log)
+    enu, t = part.enu(), np.asarray(log.truth_enu)
+    p = np.asarray(part["rss_dbm"], dtype=float)
+    keep = ~out_of_lock(part[QUALITY_COLUMN]) & np.isfinite(p)
+    dh = np.hypot(*(enu[:, :2] - t[:2]).T)
+    dz = enu[:, 2] - tx_height_m
+    el = np.degrees(np.arctan2(dz, dh))
+    r = p + 20.0 * np.log10(np.hypot(dh, dz))
+    band = np.digitize(el, EL_BANDS_DEG[1:-1])
+    r = r - np.mean(r[keep & (band == REF_BAND)])
+    out = []
+    for b in range(len(EL_BANDS_DEG) - 1):
+        k = keep & (band == b)
+        out.append((float(np.mean(r[k])) if k.sum() >= 30 else float("nan"), int(k.sum())))
+    return out
+
+
+def expected_profiles() -> tuple[np.ndarray, np.ndarray]:
+    """What the family's measured pair (rover upright, UAV upside down, azimuth-averaged) and a
+    dipole pair add at each band's middle elevation, relative to ``REF_BAND``'s (dB)."""
+    mid = np.radians(np.convolve(EL_BANDS_DEG, [0.5, 0.5], "valid"))
+    az = np.radians(np.arange(0.0, 360.0, 10.0))
+    pat = rm_wb1_dn()
+    # the rover sees the UAV at +el; the UAV, upside down, sees the rover at -el in its body, i.e.
+    # at +el of the flipped pattern: both ends read the upright pattern at +el
+    meas = np.array([2.0 * np.mean(pat.gain_dbi(np.full(len(az), e), az)) for e in mid])
+    dip = np.array([2.0 * float(Dipole().gain_dbi(e, 0.0)) for e in mid])
+    return meas - meas[REF_BAND], dip - dip[REF_BAND]
+
+
+def selfcal_errors(log) -> dict[str, tuple[float, float, str]]:
+    """{today | dipole: (error m, residual rms dB, antenna)} of selfcal on the flight."""
+    part, _ = select_samples(log)
+    t = log.truth_enu
+    out = {}
+    for tag, kw in (("today", {}), ("dipole", {"hypotheses": ("dipole",)})):
+        loc = SelfCalibratingGrid(area=search_area(log), **kw)
+        e = _in_log_frame(loc, loc.predict(part), log.origin, method_entry("selfcal").frame)
+        err = float(np.hypot(e.x_m - t[0], e.y_m - t[1]))
+        out[tag] = (err, e.fit.residual_rms_db, e.fit.antenna)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
+    ap.add_argument("--logs", required=True, help="glob of imported AFAR logs (with truth)")
+    args = ap.parse_args()
+    paths = sorted(glob.glob(args.logs))
+    if not paths:
+        raise SystemExit(f"no logs match {args.logs}")
+    logs = [read_flight_log(p) for p in paths]
+    names = [p.rsplit("/", 1)[-1].replace("results_useful_ori_exp_", "")[:9] for p in paths]
+    edges = zip(EL_BANDS_DEG[:-1], EL_BANDS_DEG[1:], strict=True)
+    bands = " ".join(f"{a:.0f}-{b:.0f}" for a, b in edges)
+    print(f"RSS + 20 log10 d, locked samples, offset at 15-30 deg, by elevation: {bands} deg")
+    for name, log in zip(names, logs, strict=True):
+        cells = " ".join(f"{m:+6.1f}({n:5d})" for m, n in elevation_profile(log))
+        print(f"  {name} {cells}")
+    meas, dip = expected_profiles()
+    print("  measured pair " + " ".join(f"{x:+6.1f}       " for x in meas))
+    print("  dipole pair   " + " ".join(f"{x:+6.1f}       " for x in dip))
+    print("selfcal: error m, residual rms dB; today's antenna")
+    errs = {}
+    for name, log in zip(names, logs, strict=True):
+        s = selfcal_errors(log)
+        errs[name] = s
+        (a, ra, ant), (b, rb, _) = s["today"], s["dipole"]
+        print(f"  {name} today {a:6.1f} ({ra:5.2f}) dipole {b:6.1f} ({rb:5.2f})  {ant}")
+    inside = [n for n in names if n in INSIDE]
+    d = paired_difference(
+        [errs[n]["dipole"][0] for n in inside], [errs[n]["today"][0] for n in inside]
+    )
+    print(f"  dipole - today, transmitter inside the flown area ({len(inside)}): {d.fmt()} m")
+
+
+if __name__ == "__main__":
+    main()
