@@ -7,7 +7,8 @@ The measured pattern, as the family mounts it (UAV upside down, rover upright), 
 straight up and down; a pair of dipoles has its nulls there.  This script asks the real flights:
 1. the RSS (locked samples, transmitter at the label) against a free-space distance law (20 dB per
    decade, its offset set on the 15-30 deg band), by the elevation at which the rover sees the UAV,
-   per flight, beside what the family's measured pair and a dipole pair add at those elevations
+   per flight (``mission.gap.overhead.elevation_profile``), beside what the family's measured pair
+   and a dipole pair add at those elevations
    (relative to 15-30 deg; the measured pattern averaged over azimuth);
 2. selfcal with a single vertical-dipole hypothesis against today's hypotheses (in-sample residual
    rms picks among them), per flight, with the paired 90 % interval over the four flights whose
@@ -26,36 +27,14 @@ import numpy as np
 
 from mission.evidence import paired_difference
 from mission.flightlog import read_flight_log
-from mission.flightlog.schema import QUALITY_COLUMN, out_of_lock
+from mission.gap.overhead import EL_BANDS_DEG, REF_BAND, elevation_profile
 from mission.localize.api import _in_log_frame, search_area
 from mission.localize.methods import method_entry
 from mission.localize.preprocess import select_samples
 from mission.localize.selfcal import SelfCalibratingGrid
 from mission.physics.antenna import Dipole, rm_wb1_dn
 
-EL_BANDS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
-REF_BAND = 1  # 15-30 deg: the offset is set here
 INSIDE = ("288_loc_1", "288_loc_2", "328_loc_1", "328_loc_2")  # transmitter inside the flown area
-
-
-def elevation_profile(log, tx_height_m: float = 1.5) -> list[tuple[float, int]]:
-    """(mean residual dB, samples) per ``EL_BANDS_DEG`` band of the locked samples against
-    ``20 log10 d`` with its offset set on ``REF_BAND`` (NaN under 30 samples)."""
-    part, _ = select_samples(log)
-    enu, t = part.enu(), np.asarray(log.truth_enu)
-    p = np.asarray(part["rss_dbm"], dtype=float)
-    keep = ~out_of_lock(part[QUALITY_COLUMN]) & np.isfinite(p)
-    dh = np.hypot(*(enu[:, :2] - t[:2]).T)
-    dz = enu[:, 2] - tx_height_m
-    el = np.degrees(np.arctan2(dz, dh))
-    r = p + 20.0 * np.log10(np.hypot(dh, dz))
-    band = np.digitize(el, EL_BANDS_DEG[1:-1])
-    r = r - np.mean(r[keep & (band == REF_BAND)])
-    out = []
-    for b in range(len(EL_BANDS_DEG) - 1):
-        k = keep & (band == b)
-        out.append((float(np.mean(r[k])) if k.sum() >= 30 else float("nan"), int(k.sum())))
-    return out
 
 
 def expected_profiles() -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +76,8 @@ def main() -> None:
     bands = " ".join(f"{a:.0f}-{b:.0f}" for a, b in edges)
     print(f"RSS + 20 log10 d, locked samples, offset at 15-30 deg, by elevation: {bands} deg")
     for name, log in zip(names, logs, strict=True):
-        cells = " ".join(f"{m:+6.1f}({n:5d})" for m, n in elevation_profile(log))
+        means, counts = elevation_profile(log)
+        cells = " ".join(f"{m:+6.1f}({n:5d})" for m, n in zip(means, counts, strict=True))
         print(f"  {name} {cells}")
     meas, dip = expected_profiles()
     print("  measured pair " + " ".join(f"{x:+6.1f}       " for x in meas))
