@@ -5,10 +5,17 @@ its truth."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import tempfile
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
 from mission.flightlog import read_flight_log
+from mission.threads import limit_worker
+from mission.workshop.evaluate import import_afar
 from mission.workshop.suite_cache import read_suite
 
 
@@ -30,3 +37,14 @@ def flight_with_truth(kind: str, src: str, i: int):
         return fl.log, np.asarray(fl.truth_xy)
     log = read_flight_log(src)
     return log, np.asarray(log.truth_enu[:2])
+
+
+@contextlib.contextmanager
+def real_logs_and_pool(args) -> Iterator[tuple[list[Path], ProcessPoolExecutor]]:
+    """(the six AFAR flights of ``args.mat`` imported into a temporary folder, sorted; a pool of
+    ``args.workers`` worker processes, each limited to one thread), both gone on exit."""
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex,
+    ):
+        yield sorted(import_afar(args.mat, tmp)), ex

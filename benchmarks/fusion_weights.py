@@ -21,18 +21,15 @@ benchmark cache (``--suite-dir``), resampled over flights.
 
 from __future__ import annotations
 
-import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from _scoring import flight_with_truth, scoring_parser
+from _scoring import flight_with_truth, real_logs_and_pool, scoring_parser
 
 from mission.evidence import mean_interval, paired_difference
+from mission.gap.familyfit import team_of
 from mission.localize.api import fusion_model_path, localize_log
 from mission.localize.error_circles import card_calibration
-from mission.threads import limit_worker
-from mission.workshop.evaluate import import_afar
 
 
 def region_scale_m(est, level: float = 0.5) -> float | None:
@@ -89,16 +86,12 @@ def errors(rows: list[dict], rb: float) -> tuple[np.ndarray, np.ndarray]:
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    with (
-        tempfile.TemporaryDirectory() as tmp,
-        ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex,
-    ):
-        real = sorted(import_afar(args.mat, tmp))
+    with real_logs_and_pool(args) as (real, ex):
         rows_r = list(ex.map(one, [("real", str(p), 0) for p in real]))
         rows_b = list(
             ex.map(one, [("suite", args.suite_dir, i) for i in range(args.n)], chunksize=4)
         )
-    teams = [Path(p).stem.split("_exp_")[-1].split("_")[0] for p in real]
+    teams = [team_of(Path(p).stem) for p in real]
     rb = network_radius()
     print(f"network 50 % radius (card, real): {rb:.1f} m")
     verdict = []

@@ -30,24 +30,21 @@ Rule (written 2026-11-29 15:50 UTC and committed before any flight was scored wi
 from __future__ import annotations
 
 import contextlib
-import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from _scoring import flight_with_truth, scoring_parser
+from _scoring import flight_with_truth, real_logs_and_pool, scoring_parser
 
 import mission.localize.selfcal as selfcal
 from mission.evidence import mean_interval, paired_difference
 from mission.flightlog import read_flight_log
+from mission.gap.familyfit import team_of
 from mission.gap.overhead import EL_BANDS_DEG, elevation_profile
 from mission.localize.api import _in_log_frame, localize_log, search_area
 from mission.localize.methods import method_entry
 from mission.localize.preprocess import select_samples
-from mission.threads import limit_worker
 from mission.workshop.decision import pooled_decision
-from mission.workshop.evaluate import import_afar
 
 CANDIDATE = "fusion, selfcal with the empirical pair"
 INCUMBENT = "fusion"
@@ -122,13 +119,9 @@ def errors(rows: list[dict], key: str) -> np.ndarray:
 
 def main() -> None:
     args = scoring_parser(__doc__).parse_args()
-    with (
-        tempfile.TemporaryDirectory() as tmp,
-        ProcessPoolExecutor(args.workers, initializer=limit_worker) as ex,
-    ):
-        real = sorted(import_afar(args.mat, tmp))
+    with real_logs_and_pool(args) as (real, ex):
         logs = [read_flight_log(p) for p in real]
-        teams = [Path(p).stem.split("_exp_")[-1].split("_")[0] for p in real]
+        teams = [team_of(Path(p).stem) for p in real]
         pairs = [
             empirical_pair([lg for lg, t in zip(logs, teams, strict=True) if t != team])
             for team in teams

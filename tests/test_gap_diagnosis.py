@@ -20,10 +20,11 @@ from mission.gap.align import align, flight_from_log, locked_rows
 from mission.gap.candidates import library
 from mission.gap.diagnose import base_pipeline, model_gap
 from mission.gap.fit import FitConfig, make_folds, offset_residual
+from mission.gap.overhead import EL_BANDS_DEG, MIN_SAMPLES, elevation_profile
 from mission.gap.pipeline import Pipeline
 from mission.gap.selftest import WITHHELD_ALL, run_case, simulate_case
 from mission.gap.stats import autocorrelation, block_length, bootstrap_mean, summarize
-from mission.geo import afar_field
+from mission.geo import Origin, afar_field
 from mission.importers.afar import convert_afar_mat
 from mission.physics import Attitude, make_model
 from mission.physics.antenna import rm_wb1_dn
@@ -326,3 +327,43 @@ def test_locked_rows_counts_a_missing_quality_as_lost() -> None:
     cols = {"t_s": np.arange(4.0), QUALITY_COLUMN: np.array([50.0, 49.9, np.nan, 72.0])}
     kept = locked_rows(FlightLog(cols, {}), 50.0)
     assert list(kept["t_s"]) == [0.0, 3.0]
+
+
+def test_elevation_profile_reads_a_known_link_gain():
+    """``gap.overhead.elevation_profile`` on a flight simulated in free space with a link gain of
+    -12 dB above 75 deg of elevation and +6 dB between 30 and 45 deg (nothing elsewhere): those
+    bands read -12 and +6 dB against the 15-30 deg band's 0, the others 0; samples read out of lock
+    are left out (here, made 40 dB low), a band with too few samples reads NaN."""
+    rng = np.random.default_rng(0)
+    n = 20000
+    x, y = rng.uniform(-300, 300, n), rng.uniform(-300, 300, n)
+    x[:2000], y[:2000] = rng.uniform(-8, 8, 2000), rng.uniform(-8, 8, 2000)  # passes overhead
+    z = np.full(n, 30.0)
+    d_h = np.hypot(x, y)
+    el = np.degrees(np.arctan2(z - 1.5, d_h))
+    gain = np.where(el >= 75, -12.0, 0.0) + np.where((el >= 30) & (el < 45), 6.0, 0.0)
+    rss = -20.0 * np.log10(np.hypot(d_h, z - 1.5)) + gain
+    lost = rng.uniform(size=n) < 0.2
+    origin = Origin(35.7, -78.7, 0.0)
+    lat, lon, alt = origin.to_geodetic(np.column_stack([x, y, z]))
+    log = FlightLog(
+        {
+            "t_s": np.arange(n, dtype=float),
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "alt_m": alt,
+            "rel_alt_m": z,
+            "rss_dbm": np.where(lost, rss - 40.0, rss),
+            QUALITY_COLUMN: np.where(lost, 44.0, 72.0),
+        },
+        {"origin": origin.to_dict(), "truth": {"x_m": 0.0, "y_m": 0.0, "z_m": 1.5}},
+    )
+    means, counts = elevation_profile(log)
+    assert len(means) == len(EL_BANDS_DEG) - 1
+    expect = [0.0, 0.0, 6.0, 0.0, 0.0, -12.0]
+    for b, (m, c, e) in enumerate(zip(means, counts, expect, strict=True)):
+        if c >= MIN_SAMPLES:
+            assert m == pytest.approx(e, abs=0.5), (b, m)
+    assert counts[-1] >= MIN_SAMPLES  # the overhead band is there to be read
+    far, _ = elevation_profile(log.select(d_h > 20.0))  # no pass overhead: that band unread
+    assert np.isnan(far[-1]) and far[2] == pytest.approx(6.0, abs=0.5)
