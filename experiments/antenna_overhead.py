@@ -12,10 +12,14 @@ straight up and down; a pair of dipoles has its nulls there.  This script asks t
    (relative to 15-30 deg; the measured pattern averaged over azimuth);
 2. selfcal with a single vertical-dipole hypothesis against today's hypotheses (in-sample residual
    rms picks among them), per flight, with the paired 90 % interval over the four flights whose
-   transmitter lies inside the flown area.
+   transmitter lies inside the flown area;
+3. selfcal's antenna chosen by held-out time blocks instead (``cv_rmse``: each hypothesis kind
+   fitted on four of five contiguous chunks of the flight, the fifth's RSS predicted with the fitted
+   position, antenna and offset), the kind with the lowest held-out rms then fitted on the whole
+   flight, against today's, paired 90 % over the six flights.
 Exploration: it decides nothing (six flights, two teams).
 
-    python experiments/antenna_overhead.py --logs 'real/*.csv'      # imported AFAR flights, ~1 min
+    python experiments/antenna_overhead.py --logs 'real/*.csv'      # imported AFAR flights, 30 s
 """
 
 from __future__ import annotations
@@ -25,13 +29,22 @@ import glob
 
 import numpy as np
 
+from experiments.receiver_lock import _subset as subset
+from mission.cells import cell_average
 from mission.evidence import paired_difference
 from mission.flightlog import read_flight_log
 from mission.gap.overhead import EL_BANDS_DEG, REF_BAND, elevation_profile
 from mission.localize.api import _in_log_frame, search_area
+from mission.localize.classical import as_flight
 from mission.localize.methods import method_entry
 from mission.localize.preprocess import select_samples
-from mission.localize.selfcal import SelfCalibratingGrid
+from mission.localize.selfcal import (
+    HYPOTHESIS_KINDS,
+    SelfCalibratingGrid,
+    _geometry,
+    antenna_hypotheses,
+    hypothesis_residuals,
+)
 from mission.physics.antenna import Dipole, rm_wb1_dn
 
 INSIDE = ("288_loc_1", "288_loc_2", "328_loc_1", "328_loc_2")  # transmitter inside the flown area
@@ -63,6 +76,38 @@ def selfcal_errors(log) -> dict[str, tuple[float, float, str]]:
     return out
 
 
+def cv_rmse(log, kind: str, folds: int = 5) -> float:
+    """Held-out rms (dB) of selfcal restricted to one hypothesis ``kind``: fitted on all but one of
+    ``folds`` contiguous chunks of the selected samples, the left-out chunk's cells predicted at the
+    fitted position with the fitted antenna and offset."""
+    part, _ = select_samples(log)
+    f = as_flight(part)
+    chunk = np.arange(len(f.rss_dbm)) * folds // len(f.rss_dbm)
+    sse, m = 0.0, 0
+    for j in range(folds):
+        loc = SelfCalibratingGrid(area=search_area(log), hypotheses=(kind,))
+        est = loc.predict(subset(f, chunk != j))
+        hyps = [h for h in antenna_hypotheses((kind,)) if h[0] == est.fit.antenna]
+        cells = cell_average(subset(f, chunk == j), loc.cell_m, loc.altitude_gap_m)
+        pg, el, az, el_uav = _geometry(np.array([[est.x_m, est.y_m]]), cells, loc.tx_height_m)
+        y = cells.rss_dbm.astype(np.float32)[None, :]
+        r = next(hypothesis_residuals(y - pg, el, az, hyps, None, el_uav))[0]
+        sse += float(np.sum((r - est.fit.offset_db) ** 2))
+        m += len(r)
+    return float(np.sqrt(sse / m))
+
+
+def held_out_choice(log) -> tuple[str, dict[str, float], float]:
+    """(the kind with the lowest ``cv_rmse``, every kind's, selfcal's error with it alone)."""
+    scores = {k: cv_rmse(log, k) for k in HYPOTHESIS_KINDS}
+    best = min(scores, key=scores.__getitem__)
+    loc = SelfCalibratingGrid(area=search_area(log), hypotheses=(best,))
+    part, _ = select_samples(log)
+    e = _in_log_frame(loc, loc.predict(part), log.origin, method_entry("selfcal").frame)
+    t = log.truth_enu
+    return best, scores, float(np.hypot(e.x_m - t[0], e.y_m - t[1]))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--logs", required=True, help="glob of imported AFAR logs (with truth)")
@@ -73,27 +118,39 @@ def main() -> None:
     logs = [read_flight_log(p) for p in paths]
     names = [p.rsplit("/", 1)[-1].replace("results_useful_ori_exp_", "")[:9] for p in paths]
     edges = zip(EL_BANDS_DEG[:-1], EL_BANDS_DEG[1:], strict=True)
-    bands = " ".join(f"{a:.0f}-{b:.0f}" for a, b in edges)
-    print(f"RSS + 20 log10 d, locked samples, offset at 15-30 deg, by elevation: {bands} deg")
+    bands = "".join(f"{f'{a:.0f}-{b:.0f}':>8s}" for a, b in edges)
+    print("RSS + 20 log10 d (dB), locked samples, 0 at 15-30 deg; samples under each")
+    print(f"{'elevation deg':15s}{bands}")
     for name, log in zip(names, logs, strict=True):
         means, counts = elevation_profile(log)
-        cells = " ".join(f"{m:+6.1f}({n:5d})" for m, n in zip(means, counts, strict=True))
-        print(f"  {name} {cells}")
+        print(f"  {name:13s}" + "".join(f"{m:+8.1f}" for m in means))
+        print(f"  {'':13s}" + "".join(f"{n:8d}" for n in counts))
     meas, dip = expected_profiles()
-    print("  measured pair " + " ".join(f"{x:+6.1f}       " for x in meas))
-    print("  dipole pair   " + " ".join(f"{x:+6.1f}       " for x in dip))
-    print("selfcal: error m, residual rms dB; today's antenna")
+    print(f"  {'measured pair':13s}" + "".join(f"{x:+8.1f}" for x in meas))
+    print(f"  {'dipole pair':13s}" + "".join(f"{x:+8.1f}" for x in dip))
+    print("selfcal: error m (residual rms dB), today and with a single dipole")
     errs = {}
     for name, log in zip(names, logs, strict=True):
         s = selfcal_errors(log)
         errs[name] = s
         (a, ra, ant), (b, rb, _) = s["today"], s["dipole"]
-        print(f"  {name} today {a:6.1f} ({ra:5.2f}) dipole {b:6.1f} ({rb:5.2f})  {ant}")
+        print(f"  {name} today {a:6.1f} ({ra:5.2f}) dipole {b:6.1f} ({rb:5.2f})")
+        print(f"    today's antenna: {ant}")
     inside = [n for n in names if n in INSIDE]
     d = paired_difference(
         [errs[n]["dipole"][0] for n in inside], [errs[n]["today"][0] for n in inside]
     )
     print(f"  dipole - today, transmitter inside the flown area ({len(inside)}): {d.fmt()} m")
+    print("selfcal's antenna kind chosen by held-out time blocks; held-out rms dB of")
+    print("  " + " / ".join(HYPOTHESIS_KINDS))
+    chosen = []
+    for name, log in zip(names, logs, strict=True):
+        best, scores, err = held_out_choice(log)
+        chosen.append(err)
+        rms = "/".join(f"{v:.1f}" for v in scores.values())
+        print(f"  {name} {best:16s} {err:5.1f} m (today {errs[name]['today'][0]:5.1f}); {rms}")
+    d = paired_difference(chosen, [errs[n]["today"][0] for n in names])
+    print(f"  held-out choice - today, six flights: {d.fmt()} m")
 
 
 if __name__ == "__main__":

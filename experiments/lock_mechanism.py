@@ -81,20 +81,21 @@ def main() -> None:
     ap.add_argument("--mat", required=True, help="folder of the AFAR 2023 .mat files")
     args = ap.parse_args()
     print(f"quality >= {SOUNDER_LOCK_DB:g} dB read as locked; cruise samples, row order")
-    print("flight     unlocked changes  lose  regain regain-lose [90 %]   runs p50/p90  floor  out")
+    print("flight    unlock change   lose regain  regain-lose [90 %]  runs   floor   out")
     with tempfile.TemporaryDirectory() as tmp:
         for mat in sorted(Path(args.mat).glob("*.mat")):
             r = flight_row(quality_log(mat, Path(tmp)))
             h = r["hysteresis"]
             print(
-                f"{mat.stem.replace('results_useful_ori_exp_', ''):10s} "
-                f"{100 * r['unlocked']:5.1f} % {r['changes']:6d} {r['lose_db']:6.1f} "
-                f"{r['regain_db']:6.1f}  {h.value:+5.1f} [{h.lo:+5.1f}, {h.hi:+5.1f}]  "
-                f"{r['run_median']:4.0f} /{r['run_p90']:3.0f}  {r['floor_db']:6.1f} "
+                f"{mat.stem.replace('results_useful_ori_exp_', ''):9s} "
+                f"{100 * r['unlocked']:5.1f}% {r['changes']:6d} {r['lose_db']:6.1f} "
+                f"{r['regain_db']:6.1f} {h.value:+5.1f} [{h.lo:+5.1f},{h.hi:+5.1f}] "
+                f"{r['run_median']:2.0f}/{r['run_p90']:<3.0f}{r['floor_db']:6.1f} "
                 f"{r['unlocked_vs_floor']:+5.1f}"
             )
     print("lose/regain: median power (dB) of the locked row next to a loss / a regain;")
-    print("out: median power read out of lock minus the floor (dB)")
+    print("runs: out-of-lock run length, rows, p50/p90; out: median power read out of")
+    print("lock minus the floor (dB)")
 
 
 if __name__ == "__main__":
