@@ -94,19 +94,20 @@ def one_flight(job: tuple) -> tuple[int, dict[str, list[dict]]]:
     arms["fitted model"] = [_errors(log, model, team, specs)]
     ok = np.flatnonzero(np.isfinite(real))
     r = real[ok] - model[ok]
-    arms["model + real resid. shifted"] = []
-    for s in SHIFTS:
-        moved = np.full_like(real, np.nan)
-        moved[ok] = model[ok] + np.roll(r - np.median(r), int(s * len(ok)))
-        arms["model + real resid. shifted"].append(_errors(log, moved, team, specs))
+
+    def model_plus(resid: np.ndarray) -> dict:
+        """The errors with the RSS the fitted model plus ``resid`` on the rows that logged one."""
+        rss = np.full_like(real, np.nan)
+        rss[ok] = model[ok] + resid
+        return _errors(log, rss, team, specs)
+
+    arms["model + real resid. shifted"] = [
+        model_plus(np.roll(r - np.median(r), int(s * len(ok)))) for s in SHIFTS
+    ]
     unlocked = out_of_lock(log[QUALITY_COLUMN])[ok]
     base = np.median(r[~unlocked])
-    locked_only = np.full_like(real, np.nan)
-    locked_only[ok] = model[ok] + np.where(unlocked, base, r)
-    arms["model + real resid. locked"] = [_errors(log, locked_only, team, specs)]
-    fades_only = np.full_like(real, np.nan)
-    fades_only[ok] = model[ok] + np.where(unlocked, r, base)
-    arms["model + out-of-lock resid."] = [_errors(log, fades_only, team, specs)]
+    arms["model + real resid. locked"] = [model_plus(np.where(unlocked, base, r))]
+    arms["model + out-of-lock resid."] = [model_plus(np.where(unlocked, r, base))]
     fam = load_family(family)
     rng = np.random.default_rng([seed, i])
     for _ in range(k):

@@ -26,14 +26,14 @@ import numpy as np
 
 from experiments.receiver_lock import quality_log
 from mission.evidence import LEVEL, Interval
-from mission.flightlog.schema import QUALITY_COLUMN, SOUNDER_LOCK_DB, lock_floor_db, out_of_lock
+from mission.flightlog.schema import (
+    QUALITY_COLUMN,
+    SOUNDER_LOCK_DB,
+    lock_edges,
+    lock_floor_db,
+    out_of_lock,
+)
 from mission.localize.preprocess import select_samples
-
-
-def changes(locked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(rows before each loss of lock, rows after each regain): the locked row of each change."""
-    c = np.flatnonzero(locked[1:] != locked[:-1])
-    return c[locked[c]], c[~locked[c]] + 1
 
 
 def run_lengths(locked: np.ndarray) -> np.ndarray:
@@ -59,7 +59,7 @@ def flight_row(log) -> dict:
     part, _ = select_samples(log)
     p = np.asarray(part["rss_dbm"], dtype=float)
     locked = ~out_of_lock(part[QUALITY_COLUMN])
-    lose, regain = changes(locked)
+    lose, regain = lock_edges(part[QUALITY_COLUMN])
     runs = run_lengths(locked)
     floor = lock_floor_db(p, part[QUALITY_COLUMN])
     return {

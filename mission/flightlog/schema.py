@@ -177,21 +177,24 @@ def out_of_lock(quality: np.ndarray, lock_db: float = SOUNDER_LOCK_DB) -> np.nda
     return ~(np.asarray(quality, dtype=float) >= lock_db)
 
 
+def lock_edges(
+    quality: np.ndarray, lock_db: float = SOUNDER_LOCK_DB
+) -> tuple[np.ndarray, np.ndarray]:
+    """(the row before each loss of lock, the row after each regain), in row order: the locked
+    reading next to each change of lock state (``out_of_lock``)."""
+    locked = ~out_of_lock(quality, lock_db)
+    change = np.flatnonzero(locked[1:] != locked[:-1])
+    return change[locked[change]], change[~locked[change]] + 1
+
+
 def lock_floor_db(
     power_db: np.ndarray, quality: np.ndarray, lock_db: float = SOUNDER_LOCK_DB
 ) -> float | None:
     """The level (in the log's power units) at which the receiver loses and regains lock: the
-    median power of the locked reading next to each change of lock state, in row order.  On the AFAR
-    flights lock is lost and regained at the same level (no hysteresis; out-of-lock runs of 1-3
+    median power of the locked reading next to each change of lock state (``lock_edges``).  On the
+    AFAR flights lock is lost and regained at the same level (no hysteresis; out-of-lock runs of 1-3
     rows), -15 to -27 dB of ``mpower`` depending on the flight (``experiments/lock_mechanism.py``):
     what the receiver could hear, for a field team.  None without a change of state."""
-    p = np.asarray(power_db, dtype=float)
-    locked = ~out_of_lock(quality, lock_db)
-    change = np.flatnonzero(locked[1:] != locked[:-1])
-    if not len(change):
-        return None
-    # the locked row of each pair: the row before a loss, the row after a regain
-    edge = np.where(locked[change], change, change + 1)
-    at = p[edge]
+    at = np.asarray(power_db, dtype=float)[np.concatenate(lock_edges(quality, lock_db))]
     at = at[np.isfinite(at)]
     return float(np.median(at)) if len(at) else None

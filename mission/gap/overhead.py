@@ -14,6 +14,7 @@ import numpy as np
 
 from mission.flightlog.schema import QUALITY_COLUMN, out_of_lock
 from mission.localize.preprocess import select_samples
+from mission.physics.geometry import elevation, horizontal_distance, slant_distance
 
 EL_BANDS_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
 REF_BAND = 1  # 15-30 deg: the band whose mean is set to 0
@@ -31,10 +32,10 @@ def elevation_profile(log, tx_height_m: float = 1.5) -> tuple[np.ndarray, np.nda
     keep = np.isfinite(p)
     if QUALITY_COLUMN in part.columns:
         keep &= ~out_of_lock(part[QUALITY_COLUMN])
-    dh = np.hypot(*(enu[:, :2] - t[:2]).T)
-    dz = enu[:, 2] - tx_height_m
-    el = np.degrees(np.arctan2(dz, dh))
-    r = p + 20.0 * np.log10(np.maximum(np.hypot(dh, dz), 1e-3))
+    dx, dy, dz = (enu[:, k] - c for k, c in enumerate((t[0], t[1], tx_height_m)))
+    dh = horizontal_distance(dx, dy)
+    el = np.degrees(elevation(dz, dh))
+    r = p + 20.0 * np.log10(np.maximum(slant_distance(dx, dy, dz), 1e-3))
     band = np.digitize(el, EL_BANDS_DEG[1:-1])
     n = np.array([int((keep & (band == b)).sum()) for b in range(len(EL_BANDS_DEG) - 1)])
     means = np.array(

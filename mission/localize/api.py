@@ -496,10 +496,9 @@ def run_method(
 def _lock_note(est: Estimate, part) -> None:
     """A log whose receiver reports its quality (``QUALITY_COLUMN``): the share of the samples used
     that it read out of lock and the level where it loses lock (``lock_floor_db``), and a note when
-    that share is a tenth or more.  They are kept: read as they
-    are they still mark where the transmitter is not; without them or clamped no member did better
-    on the AFAR flights, and the default's change flipped sign with the cut (models/README.md,
-    issue 32)."""
+    that share is a tenth or more.  They are kept: read as they are they still mark where the
+    transmitter is not; without them or clamped no member did better on the AFAR flights, and the
+    default's change flipped sign with the cut (models/README.md, issue 32)."""
     if QUALITY_COLUMN not in part.columns or not len(part):
         return
     share = float(out_of_lock(part[QUALITY_COLUMN]).mean())
